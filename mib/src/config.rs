@@ -1,0 +1,48 @@
+//! System-wide timing constants and capacities. Every bounded queue, buffer and period
+//! of the OBSW, simulator, firmware and ground tool is sized from here.
+
+/// Period of the on-board control loop (sensor sampling, controllers, monitoring).
+pub const CONTROL_PERIOD_MS: u32 = 10;
+/// Moving-average window applied to every raw sensor channel (paper: 50 samples).
+pub const MOVING_AVERAGE_WINDOW: usize = 50;
+/// Period of board B's heartbeat to board A.
+pub const B_HEARTBEAT_PERIOD_MS: u32 = 50;
+/// Serial baud rate of the A–B link.
+pub const AB_LINK_BAUD: u32 = 115_200;
+
+/// Length of a CDS short time stamp (days u16, ms of day u32) used in all TM.
+pub const TIMESTAMP_LEN: usize = 7;
+/// Largest space packet the OBSW accepts or emits (primary header included).
+pub const MAX_PACKET_LEN: usize = 1024;
+/// Largest application data field of a TC.
+pub const MAX_TC_APP_DATA: usize = 512;
+/// Destination/source ID the OBSW uses for the ground.
+pub const GROUND_ID: u16 = 0;
+
+/// Default UDP/TCP port of robot 1's OBSW; robot N listens on `DEFAULT_PORT + N - 1`
+/// when the ground tool starts several OBSWs.
+pub const DEFAULT_PORT: u16 = 7301;
+
+/// Outgoing TM queue depth of the OBSW (packets). When full, the oldest packet moves to
+/// the on-board store instead of being dropped.
+pub const TM_QUEUE_DEPTH: usize = 64;
+/// On-board TM store (PUS 15) capacity in packets; when full the oldest packet is
+/// overwritten and `TM_STORE_DROPPED` counts it.
+pub const TM_STORE_CAPACITY: usize = 4096;
+/// PUS 11 schedule capacity (activities).
+pub const SCHEDULE_CAPACITY: usize = 32;
+/// Number of recent TC request IDs remembered for duplicate suppression.
+pub const DUPLICATE_WINDOW: usize = 64;
+/// Depth of the pending action queue behind the running action.
+pub const ACTION_QUEUE_DEPTH: usize = 1;
+/// Longest reconfiguration (primitives).
+pub const MAX_RECONFIG_PRIMITIVES: usize = 3;
+
+/// Ground: time to wait for TM[1,1] before resending a TC (paper: 0.7 s).
+pub const GROUND_ACK_TIMEOUT_MS: u32 = 700;
+/// Ground: connection-test period (paper: 1.2 s polling).
+pub const GROUND_PING_PERIOD_MS: u32 = 1200;
+/// Ground: link quality is the success rate over this many exchanges (paper: 100).
+pub const LINK_QUALITY_WINDOW: usize = 100;
+/// Ground: resends of one TC before the step fails.
+pub const GROUND_MAX_RESENDS: u32 = 5;

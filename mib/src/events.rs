@@ -1,0 +1,124 @@
+//! Events (PUS 5). An event report TM[5,s] has subservice `s` = severity (1 info, 2 low,
+//! 3 medium, 4 high); its source data is the event ID (u16) followed by the event's
+//! parameters, packed with their wire types.
+
+use crate::types::PType;
+
+/// PUS 5 severity; the value is the TM[5,x] subservice.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Severity {
+    Info = 1,
+    Low = 2,
+    Medium = 3,
+    High = 4,
+}
+
+impl Severity {
+    pub const fn subservice(self) -> u8 {
+        self as u8
+    }
+    pub const fn from_subservice(s: u8) -> Option<Severity> {
+        match s {
+            1 => Some(Severity::Info),
+            2 => Some(Severity::Low),
+            3 => Some(Severity::Medium),
+            4 => Some(Severity::High),
+            _ => None,
+        }
+    }
+    pub const fn name(self) -> &'static str {
+        match self {
+            Severity::Info => "info",
+            Severity::Low => "low",
+            Severity::Medium => "medium",
+            Severity::High => "high",
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct EventParam {
+    pub name: &'static str,
+    pub ptype: PType,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct EventDef {
+    pub id: u16,
+    pub name: &'static str,
+    pub severity: Severity,
+    pub params: &'static [EventParam],
+    /// True for the faults of paper Table 8 (FDIR detections).
+    pub fault: bool,
+    pub desc: &'static str,
+}
+
+const fn p(name: &'static str, ptype: PType) -> EventParam {
+    EventParam { name, ptype }
+}
+
+macro_rules! events {
+    ($( $name:ident = $id:literal, $sev:ident, $fault:literal, [$($pn:literal : $pt:ident),*], $desc:literal; )*) => {
+        /// Event IDs by mnemonic.
+        pub mod eid { $( #[doc = $desc] pub const $name: u16 = $id; )* }
+        pub const EVENTS: &[EventDef] = &[ $( EventDef {
+            id: $id, name: stringify!($name), severity: Severity::$sev, fault: $fault,
+            params: &[$( p($pn, PType::$pt) ),*], desc: $desc,
+        }, )* ];
+    };
+}
+
+events! {
+    // --- faults (paper Table 8) ---
+    BOLT_FAILURE = 0x0101, High, true, ["side": U8, "pair": U8, "attempts": U8], "Bolting failure: a fastener pair did not lock in the allowed attempts";
+    UNBOLT_FAILURE = 0x0102, High, true, ["side": U8, "pair": U8, "attempts": U8], "Unbolting failure: a fastener pair did not release";
+    INITIAL_STATE_MISMATCH = 0x0103, Medium, true, ["believed": U8, "computed": U8], "Reconfiguration refused: ground's initial state differs from the computed state";
+    LOW_BATTERY = 0x0104, High, true, ["param_id": U16, "value": U16, "limit": U16], "V_batA or V_batB below the limit for longer than the persistence";
+    ASSEMBLY_SYSTEM_FAULT = 0x0105, High, true, ["reason": U16], "Assembly system operation fault commanded by the ground";
+    ARM_NOT_CONTRACTED = 0x0106, High, true, ["side": U8], "Arm contracted switch not pushed after a contract command";
+    IDLE_OVERCURRENT = 0x0107, High, true, ["param_id": U16, "value": U16, "limit": U16], "Current above the idle limit at the start or end of a reconfiguration";
+    OPERATIONAL_OVERCURRENT = 0x0108, High, true, ["param_id": U16, "value": U16, "limit": U16], "Current above the module's absolute limit";
+    HIP_MISMATCH = 0x0109, High, true, ["angle_cdeg": I16, "expected_cdeg": I16], "Hip encoder far from the contracted angle when entering operational";
+    COMM_LOSS_HEARTBEAT = 0x010A, High, true, ["param_id": U16, "value": U16, "limit": U16], "Board B heartbeat missing for longer than the timeout";
+    COMM_LOSS_NO_ACK = 0x010B, High, true, ["command": U8, "retries": U8], "Board B never acknowledged a repeated command";
+    // --- information ---
+    MODE_CHANGED = 0x0201, Info, false, ["node": U32, "from": U32, "to": U32, "cause": U16], "Mode of a mode-tree node changed (cause: 0 command, else the fault event ID)";
+    STATE_REACHED = 0x0202, Info, false, ["state": U8], "Robot reached a configuration state";
+    BOLT_PAIR_DONE = 0x0203, Info, false, ["side": U8, "pair": U8, "attempts": U8], "Fastener pair locked";
+    UNBOLT_PAIR_DONE = 0x0204, Info, false, ["side": U8, "pair": U8, "attempts": U8], "Fastener pair released";
+    PRIMITIVE_DONE = 0x0205, Info, false, ["primitive": U8, "state": U8], "Motion primitive completed";
+    TC_REJECTED = 0x0206, Low, false, ["service": U8, "subservice": U8, "code": U16], "A telecommand was refused (see the PUS 1 report)";
+    BOOT = 0x0207, Info, false, ["reset_cause": U8], "On-board software started";
+    FAULT_CLEARED = 0x0208, Info, false, ["event_id": U16], "The cause of a fault is no longer present";
+    STORE_OVERFLOW = 0x0209, Medium, false, ["dropped": U32], "On-board TM store full: oldest packets overwritten";
+    MODE_CHANGE_FAILED = 0x020A, Medium, false, ["node": U32, "mode": U32, "reason": U16], "A mode transition could not complete";
+    BOLT_ATTEMPT_FAILED = 0x020B, Low, false, ["side": U8, "pair": U8, "attempt": U8], "One bolting attempt failed; retrying";
+}
+
+pub fn by_id(id: u16) -> Option<&'static EventDef> {
+    EVENTS.iter().find(|e| e.id == id)
+}
+
+pub fn by_name(name: &str) -> Option<&'static EventDef> {
+    EVENTS.iter().find(|e| e.name.eq_ignore_ascii_case(name))
+}
+
+impl EventDef {
+    /// Length of the event's source data (ID included).
+    pub fn data_len(&self) -> usize {
+        2 + self.params.iter().map(|p| p.ptype.size()).sum::<usize>()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    #[test]
+    fn event_ids_unique() {
+        for (i, e) in EVENTS.iter().enumerate() {
+            assert!(EVENTS[i + 1..]
+                .iter()
+                .all(|o| o.id != e.id && o.name != e.name));
+        }
+    }
+}

@@ -1,0 +1,166 @@
+//! Housekeeping structures (PUS 3). A TM[3,25] report's source data is the structure ID
+//! (u16, big-endian) followed by each parameter of the structure, in order, packed with
+//! its wire type (see [`crate::codec`]).
+
+use crate::params::pid;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HkDef {
+    pub sid: u16,
+    pub name: &'static str,
+    pub params: &'static [u16],
+    /// Collection interval at boot; changed by TC[3,31].
+    pub default_interval_ms: u32,
+    /// Periodic generation enabled at boot (no request needed).
+    pub default_enabled: bool,
+    pub desc: &'static str,
+}
+
+/// Structure IDs.
+pub mod sid {
+    pub const ROBOT_STATUS: u16 = 1;
+    pub const B_LINK: u16 = 2;
+    pub const FDIR: u16 = 3;
+    pub const OBSW: u16 = 4;
+}
+
+/// Shortest and longest collection interval accepted by TC[3,31].
+pub const MIN_INTERVAL_MS: u32 = 10;
+pub const MAX_INTERVAL_MS: u32 = 3_600_000;
+
+use pid::*;
+pub const HK_STRUCTS: &[HkDef] = &[
+    HkDef {
+        sid: sid::ROBOT_STATUS,
+        name: "ROBOT_STATUS",
+        params: &[
+            MODE,
+            CONFIG_STATE,
+            TARGET_STATE,
+            CMD_COMPLETE,
+            ACTIVE_PRIMITIVE,
+            BOLT_SIDE,
+            BOLT_PAIR,
+            BOLT_ATTEMPT,
+            FAULT_FLAGS,
+            ARM_A_TARGET,
+            ARM_A_PWM,
+            ARM_B_TARGET,
+            ARM_B_PWM,
+            GRIP_A_TARGET,
+            GRIP_A_PWM,
+            GRIP_B_TARGET,
+            GRIP_B_PWM,
+            HIP_TARGET,
+            HIP_ANGLE,
+            V_BAT_A,
+            V_BAT_B,
+            I_BAT,
+            V_REG,
+            I_LOC_A,
+            I_LOC_B,
+            I_GRIP_A,
+            I_GRIP_B,
+            I_BO_A,
+            I_BO_B,
+            ARM_SW_A,
+            ARM_SW_B,
+            GRAV_A_X,
+            GRAV_A_Y,
+            GRAV_A_Z,
+            GRAV_B_X,
+            GRAV_B_Y,
+            GRAV_B_Z,
+            BOLTER_B_STATE,
+        ],
+        default_interval_ms: 1000,
+        default_enabled: true,
+        desc: "Robot status: the paper's heartbeat content, sent without request",
+    },
+    HkDef {
+        sid: sid::B_LINK,
+        name: "B_LINK",
+        params: &[
+            B_LINK_OK,
+            B_HB_AGE_MS,
+            B_HB_RX,
+            B_FRAME_ERRORS,
+            B_RETRIES,
+            B_ACK_MISSED,
+        ],
+        default_interval_ms: 5000,
+        default_enabled: true,
+        desc: "Board A-B serial link status",
+    },
+    HkDef {
+        sid: sid::FDIR,
+        name: "FDIR",
+        params: &[
+            FAULT_FLAGS,
+            FAULT_LATCHED,
+            FAULT_COUNT,
+            MON_ENABLED,
+            LAST_FAULT_EVENT,
+            PENDING_MODE,
+            MODE,
+        ],
+        default_interval_ms: 5000,
+        default_enabled: true,
+        desc: "Fault detection, isolation and recovery state",
+    },
+    HkDef {
+        sid: sid::OBSW,
+        name: "OBSW",
+        params: &[
+            TC_ACCEPTED,
+            TC_REJECTED,
+            TC_DUPLICATE,
+            TM_SENT,
+            TM_STORED,
+            TM_STORE_DROPPED,
+            SCHED_COUNT,
+            SCHED_ENABLED,
+            UPTIME_S,
+        ],
+        default_interval_ms: 10000,
+        default_enabled: true,
+        desc: "On-board software counters",
+    },
+];
+
+/// Looks a structure up by SID.
+pub fn by_sid(sid: u16) -> Option<&'static HkDef> {
+    HK_STRUCTS.iter().find(|h| h.sid == sid)
+}
+
+impl HkDef {
+    /// Length of the source data of this structure's TM[3,25] (SID included).
+    pub fn data_len(&self) -> usize {
+        2 + self
+            .params
+            .iter()
+            .map(|id| crate::params::by_id(*id).map_or(0, |p| p.ptype.size()))
+            .sum::<usize>()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    #[test]
+    fn every_hk_parameter_exists_and_sids_are_unique() {
+        for (i, h) in HK_STRUCTS.iter().enumerate() {
+            for p in h.params {
+                assert!(
+                    crate::params::by_id(*p).is_some(),
+                    "SID {} param {}",
+                    h.sid,
+                    p
+                );
+            }
+            assert!(HK_STRUCTS[i + 1..].iter().all(|o| o.sid != h.sid));
+            assert!(h.data_len() <= crate::config::MAX_PACKET_LEN - 32);
+            assert!(h.default_interval_ms >= MIN_INTERVAL_MS);
+        }
+    }
+}

@@ -1,0 +1,28 @@
+//! MMIC-I mission information base (MIB).
+//!
+//! Every number the system shares — APIDs, services, function IDs, arguments and
+//! their ranges, housekeeping structures and parameters with calibrations and limits,
+//! events, failure codes, modes, configuration states, motion primitives, the
+//! reconfiguration map, on-board monitors, event-action links and tunable parameters —
+//! is defined here, once. The OBSW, the simulator, the firmware and the ground tool
+//! read it; the exporters (feature `std`) turn it into SCOS-2000 tables, XTCE, JSON
+//! and the ICD.
+#![cfg_attr(not(any(test, feature = "std")), no_std)]
+#![deny(unsafe_code)]
+
+pub mod apid;
+pub mod codec;
+pub mod config;
+pub mod events;
+pub mod failure;
+pub mod fdir;
+pub mod hk;
+pub mod modes;
+pub mod params;
+pub mod robot;
+pub mod tc;
+pub mod tunables;
+pub mod types;
+
+pub use failure::FailureCode;
+pub use types::{Calib, Limits, PType};

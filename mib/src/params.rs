@@ -1,0 +1,174 @@
+//! Telemetry parameters (housekeeping), with type, unit, calibration and limits.
+//!
+//! Parameter IDs are stable: they name the parameter in HK reports, PUS 12 monitors,
+//! events and the ground archive.
+
+use crate::types::{Calib, Limits, PType};
+
+/// One telemetry parameter.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ParamDef {
+    pub id: u16,
+    /// Mnemonic, unique, upper case (also the SCOS-2000 parameter name stem).
+    pub name: &'static str,
+    pub ptype: PType,
+    /// Engineering unit after calibration ("" for none).
+    pub unit: &'static str,
+    pub calib: Calib,
+    pub limits: Option<Limits>,
+    pub desc: &'static str,
+}
+
+/// ADC (ADS7828, 12 bit) count → volts through the board's voltage divider.
+pub const CAL_VOLT: Calib = Calib::new(15.0 / 4095.0, 0.0);
+/// ADC count → amperes (1 mA per count after the shunt amplifier).
+pub const CAL_AMP: Calib = Calib::new(0.001, 0.0);
+/// Hundredths of a degree → degrees.
+pub const CAL_CDEG: Calib = Calib::new(0.01, 0.0);
+/// Milli-g → g.
+pub const CAL_MG: Calib = Calib::new(0.001, 0.0);
+const ID: Calib = Calib::IDENTITY;
+
+/// Battery empty (paper: below 10 V the LiPo pack is empty).
+pub const V_BAT_EMPTY: f64 = 10.0;
+/// Battery full (2S LiPo).
+pub const V_BAT_FULL: f64 = 12.6;
+/// Regulated servo supply.
+pub const V_REG_NOMINAL: f64 = 7.4;
+/// Absolute operational current limit of the locomotion modules (arms + hip) per side.
+pub const I_LOC_MAX: f64 = 3.0;
+/// Absolute operational current limit of a gripper per side.
+pub const I_GRIP_MAX: f64 = 1.5;
+/// Absolute operational current limit of a bolter per side.
+pub const I_BO_MAX: f64 = 2.5;
+/// Largest locomotion current drawn while idle (idle overcurrent check).
+pub const I_LOC_IDLE_MAX: f64 = 0.4;
+/// Hip encoder tolerance around the contracted angle when entering operational.
+pub const HIP_CONTRACTED_TOL_DEG: f64 = 5.0;
+/// Board B heartbeat age that counts as internal communication loss.
+pub const B_HEARTBEAT_TIMEOUT_MS: f64 = 500.0;
+
+const fn lim(soft_lo: f64, soft_hi: f64, hard_lo: f64, hard_hi: f64) -> Option<Limits> {
+    Some(Limits {
+        soft_lo,
+        soft_hi,
+        hard_lo,
+        hard_hi,
+    })
+}
+const V_BAT_LIM: Option<Limits> = lim(10.5, V_BAT_FULL, V_BAT_EMPTY, 13.0);
+const V_REG_LIM: Option<Limits> = lim(7.0, 7.8, 6.5, 8.2);
+const I_LOC_LIM: Option<Limits> = lim(0.0, 2.5, -0.1, I_LOC_MAX);
+const I_GRIP_LIM: Option<Limits> = lim(0.0, 1.2, -0.1, I_GRIP_MAX);
+const I_BO_LIM: Option<Limits> = lim(0.0, 2.0, -0.1, I_BO_MAX);
+const I_BAT_LIM: Option<Limits> = lim(0.0, 5.0, -0.1, 7.0);
+
+macro_rules! params {
+    ($( $name:ident = $id:literal, $t:ident, $unit:literal, $cal:expr, $lim:expr, $desc:literal; )*) => {
+        /// Parameter IDs by mnemonic.
+        pub mod pid {
+            $( #[doc = $desc] pub const $name: u16 = $id; )*
+        }
+        /// Every telemetry parameter, in ID order.
+        pub const PARAMS: &[ParamDef] = &[ $( ParamDef {
+            id: $id, name: stringify!($name), ptype: PType::$t, unit: $unit,
+            calib: $cal, limits: $lim, desc: $desc,
+        }, )* ];
+    };
+}
+
+params! {
+    // --- robot status (paper heartbeat, Table 3) ---
+    MODE = 1, U8, "", ID, None, "Robot mode: 0 standby, 1 operational, 2 safed";
+    CONFIG_STATE = 2, U8, "", ID, None, "Configuration state computed from IMUs, hip encoder and arm PWM (255 = unknown)";
+    TARGET_STATE = 3, U8, "", ID, None, "Last commanded target state (255 = none)";
+    CMD_COMPLETE = 4, Bool, "", ID, None, "Last robot command complete";
+    ACTIVE_PRIMITIVE = 5, U8, "", ID, None, "Motion primitive being executed (0 = none)";
+    BOLT_SIDE = 6, U8, "", ID, None, "Side whose face is being (un)bolted: 0 A, 1 B";
+    BOLT_PAIR = 7, U8, "", ID, None, "Active bolter pair 1..4 (0 = none)";
+    BOLT_ATTEMPT = 8, U8, "", ID, None, "Attempt number on the active pair (1..3)";
+    FAULT_FLAGS = 9, U32, "", ID, None, "Active fault bits (bit n = fault n of the FDIR table)";
+    ARM_A_TARGET = 10, U16, "us", ID, None, "Arm A target PWM pulse width";
+    ARM_A_PWM = 11, U16, "us", ID, None, "Arm A last interpolated PWM pulse width";
+    ARM_B_TARGET = 12, U16, "us", ID, None, "Arm B target PWM pulse width";
+    ARM_B_PWM = 13, U16, "us", ID, None, "Arm B last interpolated PWM pulse width";
+    GRIP_A_TARGET = 14, U16, "us", ID, None, "Gripper A target PWM pulse width";
+    GRIP_A_PWM = 15, U16, "us", ID, None, "Gripper A last interpolated PWM pulse width";
+    GRIP_B_TARGET = 16, U16, "us", ID, None, "Gripper B target PWM pulse width";
+    GRIP_B_PWM = 17, U16, "us", ID, None, "Gripper B last interpolated PWM pulse width";
+    HIP_TARGET = 18, I16, "deg", CAL_CDEG, None, "Hip target angle";
+    HIP_ANGLE = 19, I16, "deg", CAL_CDEG, None, "Hip angle from the magnetic absolute encoder";
+    V_BAT_A = 20, U16, "V", CAL_VOLT, V_BAT_LIM, "Battery voltage seen by board A (moving average)";
+    V_BAT_B = 21, U16, "V", CAL_VOLT, V_BAT_LIM, "Battery voltage seen by board B (moving average)";
+    I_BAT = 22, U16, "A", CAL_AMP, I_BAT_LIM, "Battery current draw";
+    V_REG = 23, U16, "V", CAL_VOLT, V_REG_LIM, "Regulated servo voltage (0 when the regulator is off)";
+    I_LOC_A = 24, U16, "A", CAL_AMP, I_LOC_LIM, "Locomotion current side A (arm A + hip)";
+    I_LOC_B = 25, U16, "A", CAL_AMP, I_LOC_LIM, "Locomotion current side B (arm B)";
+    I_GRIP_A = 26, U16, "A", CAL_AMP, I_GRIP_LIM, "Gripper A current";
+    I_GRIP_B = 27, U16, "A", CAL_AMP, I_GRIP_LIM, "Gripper B current";
+    I_BO_A = 28, U16, "A", CAL_AMP, I_BO_LIM, "Bolter A current";
+    I_BO_B = 29, U16, "A", CAL_AMP, I_BO_LIM, "Bolter B current";
+    ARM_SW_A = 30, Bool, "", ID, None, "Arm A contracted switch pushed";
+    ARM_SW_B = 31, Bool, "", ID, None, "Arm B contracted switch pushed";
+    GRAV_A_X = 32, I16, "g", CAL_MG, None, "Gravity vector in board A frame, x";
+    GRAV_A_Y = 33, I16, "g", CAL_MG, None, "Gravity vector in board A frame, y";
+    GRAV_A_Z = 34, I16, "g", CAL_MG, None, "Gravity vector in board A frame, z";
+    GRAV_B_X = 35, I16, "g", CAL_MG, None, "Gravity vector in board B frame, x";
+    GRAV_B_Y = 36, I16, "g", CAL_MG, None, "Gravity vector in board B frame, y";
+    GRAV_B_Z = 37, I16, "g", CAL_MG, None, "Gravity vector in board B frame, z";
+    BOLTER_B_STATE = 38, U8, "", ID, None, "Board B bolter state machine state (sync flags)";
+    // --- board B link ---
+    B_LINK_OK = 50, Bool, "", ID, None, "Board B heartbeat current and commands acknowledged";
+    B_HB_AGE_MS = 51, U16, "ms", ID, lim(0.0, 200.0, 0.0, B_HEARTBEAT_TIMEOUT_MS), "Age of the last board B heartbeat";
+    B_HB_RX = 52, U32, "", ID, None, "Board B heartbeats received";
+    B_FRAME_ERRORS = 53, U32, "", ID, None, "A-B frames dropped for bad checksum or framing";
+    B_RETRIES = 54, U32, "", ID, None, "Commands to board B resent for lack of acknowledgement";
+    B_ACK_MISSED = 55, U32, "", ID, None, "Commands to board B never acknowledged";
+    // --- FDIR ---
+    FAULT_LATCHED = 60, U32, "", ID, None, "Latched fault bits (cleared by a successful recovery)";
+    FAULT_COUNT = 61, U32, "", ID, None, "Faults detected since boot";
+    MON_ENABLED = 62, U32, "", ID, None, "Enabled PUS 12 monitors (bit n = monitor n)";
+    LAST_FAULT_EVENT = 63, U16, "", ID, None, "Event ID of the last fault (0 = none)";
+    PENDING_MODE = 64, U8, "", ID, None, "Mode to enter when the running motion completes (255 = none)";
+    // --- OBSW ---
+    TC_ACCEPTED = 70, U32, "", ID, None, "Telecommands accepted";
+    TC_REJECTED = 71, U32, "", ID, None, "Telecommands rejected";
+    TC_DUPLICATE = 72, U32, "", ID, None, "Duplicate telecommands acknowledged but not executed";
+    TM_SENT = 73, U32, "", ID, None, "Telemetry packets sent";
+    TM_STORED = 74, U16, "", ID, None, "Packets held in the on-board store";
+    TM_STORE_DROPPED = 75, U32, "", ID, None, "Stored packets overwritten because the store was full";
+    SCHED_COUNT = 76, U16, "", ID, None, "Activities in the time-based schedule";
+    SCHED_ENABLED = 77, Bool, "", ID, None, "Time-based schedule enabled";
+    UPTIME_S = 78, U32, "s", ID, None, "Seconds since boot";
+}
+
+/// Looks a parameter up by ID.
+pub fn by_id(id: u16) -> Option<&'static ParamDef> {
+    PARAMS.iter().find(|p| p.id == id)
+}
+
+/// Looks a parameter up by mnemonic (case-insensitive).
+pub fn by_name(name: &str) -> Option<&'static ParamDef> {
+    PARAMS.iter().find(|p| p.name.eq_ignore_ascii_case(name))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    #[test]
+    fn ids_and_names_are_unique() {
+        for (i, a) in PARAMS.iter().enumerate() {
+            for b in &PARAMS[i + 1..] {
+                assert_ne!(a.id, b.id, "{} / {}", a.name, b.name);
+                assert_ne!(a.name, b.name);
+            }
+        }
+    }
+    #[test]
+    fn battery_calibration_maps_empty_to_about_ten_volts() {
+        let p = by_id(pid::V_BAT_A).unwrap();
+        let raw = p.calib.raw(V_BAT_EMPTY);
+        assert!((p.calib.eng(raw) - V_BAT_EMPTY).abs() < 0.005);
+        assert!(raw > 0 && raw < 4096);
+    }
+}

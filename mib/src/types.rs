@@ -1,0 +1,130 @@
+//! Parameter types, calibrations and limits.
+
+/// On-the-wire type of a parameter or argument. All multi-byte values are big-endian.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum PType {
+    Bool,
+    U8,
+    U16,
+    U32,
+    I16,
+    I32,
+}
+
+impl PType {
+    /// Size in bytes on the wire.
+    pub const fn size(self) -> usize {
+        match self {
+            PType::Bool | PType::U8 => 1,
+            PType::U16 | PType::I16 => 2,
+            PType::U32 | PType::I32 => 4,
+        }
+    }
+    /// Size in bits on the wire.
+    pub const fn bits(self) -> usize {
+        self.size() * 8
+    }
+    pub const fn signed(self) -> bool {
+        matches!(self, PType::I16 | PType::I32)
+    }
+    /// Name used in the ICD and JSON export.
+    pub const fn name(self) -> &'static str {
+        match self {
+            PType::Bool => "bool",
+            PType::U8 => "u8",
+            PType::U16 => "u16",
+            PType::U32 => "u32",
+            PType::I16 => "i16",
+            PType::I32 => "i32",
+        }
+    }
+    /// Smallest raw value the type holds.
+    pub const fn min(self) -> i64 {
+        match self {
+            PType::Bool | PType::U8 | PType::U16 | PType::U32 => 0,
+            PType::I16 => i16::MIN as i64,
+            PType::I32 => i32::MIN as i64,
+        }
+    }
+    /// Largest raw value the type holds.
+    pub const fn max(self) -> i64 {
+        match self {
+            PType::Bool => 1,
+            PType::U8 => u8::MAX as i64,
+            PType::U16 => u16::MAX as i64,
+            PType::U32 => u32::MAX as i64,
+            PType::I16 => i16::MAX as i64,
+            PType::I32 => i32::MAX as i64,
+        }
+    }
+    /// Writes `raw` (saturated to the type's range) into `buf[..size]`.
+    /// Returns `None` if `buf` is too short.
+    pub fn encode(self, raw: i64, buf: &mut [u8]) -> Option<usize> {
+        let n = self.size();
+        let out = buf.get_mut(..n)?;
+        let v = raw.clamp(self.min(), self.max());
+        match self {
+            PType::Bool | PType::U8 => out[0] = v as u8,
+            PType::U16 => out.copy_from_slice(&(v as u16).to_be_bytes()),
+            PType::I16 => out.copy_from_slice(&(v as i16).to_be_bytes()),
+            PType::U32 => out.copy_from_slice(&(v as u32).to_be_bytes()),
+            PType::I32 => out.copy_from_slice(&(v as i32).to_be_bytes()),
+        }
+        Some(n)
+    }
+    /// Reads a raw value from `buf[..size]`; `None` if `buf` is too short.
+    pub fn decode(self, buf: &[u8]) -> Option<i64> {
+        let b = buf.get(..self.size())?;
+        Some(match self {
+            PType::Bool | PType::U8 => b[0] as i64,
+            PType::U16 => u16::from_be_bytes([b[0], b[1]]) as i64,
+            PType::I16 => i16::from_be_bytes([b[0], b[1]]) as i64,
+            PType::U32 => u32::from_be_bytes([b[0], b[1], b[2], b[3]]) as i64,
+            PType::I32 => i32::from_be_bytes([b[0], b[1], b[2], b[3]]) as i64,
+        })
+    }
+}
+
+/// Linear raw → engineering calibration: `eng = raw * scale + offset`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Calib {
+    pub scale: f64,
+    pub offset: f64,
+}
+
+impl Calib {
+    /// No calibration (engineering value equals raw value).
+    pub const IDENTITY: Calib = Calib {
+        scale: 1.0,
+        offset: 0.0,
+    };
+    pub const fn new(scale: f64, offset: f64) -> Self {
+        Calib { scale, offset }
+    }
+    pub const fn is_identity(&self) -> bool {
+        self.scale == 1.0 && self.offset == 0.0
+    }
+    pub fn eng(&self, raw: i64) -> f64 {
+        raw as f64 * self.scale + self.offset
+    }
+    /// Raw value nearest to an engineering value (usable in `const` tables).
+    pub const fn raw(&self, eng: f64) -> i64 {
+        let r = (eng - self.offset) / self.scale;
+        if r >= 0.0 {
+            (r + 0.5) as i64
+        } else {
+            (r - 0.5) as i64
+        }
+    }
+}
+
+/// Out-of-limit bands in engineering units (ground display; SCOS `ocf`/`ocp`).
+/// Soft limits warn, hard limits alarm. The on-board monitors (PUS 12) use the
+/// hard limits of the same parameter, converted to raw.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Limits {
+    pub soft_lo: f64,
+    pub soft_hi: f64,
+    pub hard_lo: f64,
+    pub hard_hi: f64,
+}

@@ -1,0 +1,3 @@
+//! MMIC-I on-board software core.
+#![cfg_attr(not(test), no_std)]
+#![deny(unsafe_code)]

@@ -1,0 +1,1 @@
+//! MMIC-I simulator.
