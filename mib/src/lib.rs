@@ -14,6 +14,8 @@ pub mod apid;
 pub mod codec;
 pub mod config;
 pub mod events;
+#[cfg(feature = "std")]
+pub mod export;
 pub mod failure;
 pub mod fdir;
 pub mod hk;

@@ -1,0 +1,1 @@
+//! Exporters of the MIB to the formats ground systems read (std only).
