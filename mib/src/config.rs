@@ -38,6 +38,17 @@ pub const ACTION_QUEUE_DEPTH: usize = 1;
 /// Longest reconfiguration (primitives).
 pub const MAX_RECONFIG_PRIMITIVES: usize = 3;
 
+/// Event throttling: at most `EVENT_THROTTLE_MAX` reports of one event ID per
+/// `EVENT_THROTTLE_WINDOW_MS`; the rest are counted and dropped.
+pub const EVENT_THROTTLE_WINDOW_MS: u32 = 1000;
+pub const EVENT_THROTTLE_MAX: u8 = 20;
+/// Default time report rate exponent (TM[9,2] every 2^n s).
+pub const TIME_REPORT_DEFAULT_EXP: u8 = 6;
+/// A mode transition not confirmed by every node within this time fails.
+pub const MODE_TRANSITION_TIMEOUT_MS: u32 = 3000;
+/// Largest embedded TC accepted by TC[11,4].
+pub const MAX_SCHEDULED_TC_LEN: usize = 64;
+
 /// Ground: time to wait for TM[1,1] before resending a TC (paper: 0.7 s).
 pub const GROUND_ACK_TIMEOUT_MS: u32 = 700;
 /// Ground: connection-test period (paper: 1.2 s polling).

@@ -66,6 +66,8 @@ failure_codes! {
     UNKNOWN_ACTION_LINK = 30, "event_id u16", "No event-action definition for this event";
     STORE_DISABLED = 31, "", "On-board storage is disabled";
     TIMEOUT = 32, "elapsed_ms u32", "Action did not complete in its time limit";
+    ABORTED_BY_COMMAND = 33, "function u16", "Action aborted by a STOP command or a commanded mode change";
+    RESOURCE_EXHAUSTED = 34, "what u8", "A bounded on-board queue was full; the TC was not executed";
 }
 
 #[cfg(test)]

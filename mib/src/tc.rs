@@ -259,7 +259,7 @@ pub const TCS: &[TcDef] = &[
         &[a("from", PType::U8, "", 0, LAST_STATE, "ground's belief of the current state"), a("to", PType::U8, "", 0, LAST_STATE, "target state")],
         ModeSet::OPERATIONAL,
         true,
-        &[F::NOT_ALLOWED_IN_MODE, F::BUSY, F::INITIAL_STATE_MISMATCH, F::UNREACHABLE_STATE, F::ABORTED_BY_FAULT, F::BOARD_B_NO_ACK, F::TIMEOUT],
+        &[F::NOT_ALLOWED_IN_MODE, F::BUSY, F::INITIAL_STATE_MISMATCH, F::UNREACHABLE_STATE, F::ABORTED_BY_FAULT, F::ABORTED_BY_COMMAND, F::BOARD_B_NO_ACK, F::TIMEOUT],
         "Move from one configuration state to another with 1-3 motion primitives (progress per primitive)",
     ),
     func(function::BOLT_FACE, "BOLT_FACE", &[SIDE, PAIRS], ModeSet::OPERATIONAL, true, BOLT_FAIL, "Bolt the selected pairs of the face under a side (progress per pair)"),
