@@ -1,0 +1,329 @@
+//! TC acceptance: every uplinked byte string goes through [`accept`], which either
+//! yields a checked [`Tc`] view or a [`Rejection`] naming the MIB failure code and its
+//! data. Nothing here can panic on input.
+
+use mib::codec::{self, ArgError, MAX_ARGS};
+use mib::tc::{self, service, TcDef};
+use mib::FailureCode;
+use satrs::spacepackets::crc::CRC_CCITT_FALSE;
+
+const PRIMARY_LEN: usize = 6;
+const SEC_LEN: usize = 5;
+const CRC_LEN: usize = 2;
+/// Shortest PUS-C TC: primary header, secondary header, CRC.
+pub const MIN_TC_LEN: usize = PRIMARY_LEN + SEC_LEN + CRC_LEN;
+
+/// PUS request ID: packet ID (u16) and packet sequence control (u16) of the TC.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct RequestId {
+    pub packet_id: u16,
+    pub psc: u16,
+}
+
+impl RequestId {
+    pub fn raw(&self) -> u32 {
+        ((self.packet_id as u32) << 16) | self.psc as u32
+    }
+    pub fn apid(&self) -> u16 {
+        self.packet_id & 0x7FF
+    }
+    pub fn seq_count(&self) -> u16 {
+        self.psc & 0x3FFF
+    }
+    pub fn to_bytes(&self) -> [u8; 4] {
+        let r = self.raw().to_be_bytes();
+        [r[0], r[1], r[2], r[3]]
+    }
+}
+
+/// PUS-C acknowledgement flags of a TC.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Ack(pub u8);
+
+impl Ack {
+    pub const ALL: Ack = Ack(0xF);
+    pub fn acceptance(self) -> bool {
+        self.0 & 0b1000 != 0
+    }
+    pub fn start(self) -> bool {
+        self.0 & 0b0100 != 0
+    }
+    pub fn progress(self) -> bool {
+        self.0 & 0b0010 != 0
+    }
+    pub fn completion(self) -> bool {
+        self.0 & 0b0001 != 0
+    }
+}
+
+/// A TC that passed every acceptance check.
+#[derive(Clone, Copy, Debug)]
+pub struct Tc<'a> {
+    pub req: RequestId,
+    pub ack: Ack,
+    pub service: u8,
+    pub subservice: u8,
+    pub source_id: u16,
+    pub def: &'static TcDef,
+    /// Range-checked fixed arguments (PUS 8: after the function ID).
+    pub args: [i64; MAX_ARGS],
+    /// Variable data after the fixed arguments (TC[11,4] activities).
+    pub rest: &'a [u8],
+    /// The whole packet.
+    pub raw: &'a [u8],
+}
+
+/// Why a TC was refused, with the failure data laid out as the MIB says.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Rejection {
+    /// `None` when the packet is too short to carry a request ID.
+    pub req: Option<RequestId>,
+    pub service: u8,
+    pub subservice: u8,
+    pub code: FailureCode,
+    pub data: [u8; 8],
+    pub data_len: u8,
+}
+
+impl Rejection {
+    fn new(req: Option<RequestId>, code: FailureCode, data: &[u8]) -> Self {
+        let mut d = [0u8; 8];
+        let n = data.len().min(8);
+        d[..n].copy_from_slice(&data[..n]);
+        Rejection {
+            req,
+            service: 0,
+            subservice: 0,
+            code,
+            data: d,
+            data_len: n as u8,
+        }
+    }
+    fn with_type(mut self, service: u8, subservice: u8) -> Self {
+        self.service = service;
+        self.subservice = subservice;
+        self
+    }
+    pub fn data(&self) -> &[u8] {
+        &self.data[..self.data_len as usize]
+    }
+}
+
+fn u16s(a: u16, b: u16) -> [u8; 4] {
+    let (x, y) = (a.to_be_bytes(), b.to_be_bytes());
+    [x[0], x[1], y[0], y[1]]
+}
+
+/// Runs every acceptance check on `raw` for the robot with APID `apid`.
+pub fn accept(raw: &[u8], apid: u16) -> Result<Tc<'_>, Rejection> {
+    if raw.len() < 4 {
+        return Err(Rejection::new(
+            None,
+            FailureCode::MALFORMED_PACKET,
+            &u16s(raw.len() as u16, MIN_TC_LEN as u16),
+        ));
+    }
+    let req = RequestId {
+        packet_id: u16::from_be_bytes([raw[0], raw[1]]),
+        psc: u16::from_be_bytes([raw[2], raw[3]]),
+    };
+    let r = Some(req);
+    if raw.len() < PRIMARY_LEN {
+        return Err(Rejection::new(
+            r,
+            FailureCode::MALFORMED_PACKET,
+            &u16s(raw.len() as u16, MIN_TC_LEN as u16),
+        ));
+    }
+    let version = raw[0] >> 5;
+    let is_tc = raw[0] & 0x10 != 0;
+    let sec_hdr = raw[0] & 0x08 != 0;
+    if version != 0 || !is_tc || !sec_hdr {
+        return Err(Rejection::new(
+            r,
+            FailureCode::NOT_A_PUS_TC,
+            &[version, is_tc as u8, sec_hdr as u8],
+        ));
+    }
+    let total = PRIMARY_LEN + u16::from_be_bytes([raw[4], raw[5]]) as usize + 1;
+    if total != raw.len() || total < MIN_TC_LEN || total > mib::config::MAX_PACKET_LEN {
+        let expected = if total < MIN_TC_LEN {
+            MIN_TC_LEN
+        } else {
+            total
+        };
+        return Err(Rejection::new(
+            r,
+            FailureCode::MALFORMED_PACKET,
+            &u16s(
+                raw.len().min(u16::MAX as usize) as u16,
+                expected.min(u16::MAX as usize) as u16,
+            ),
+        ));
+    }
+    let crc_rx = u16::from_be_bytes([raw[total - 2], raw[total - 1]]);
+    let crc_calc = CRC_CCITT_FALSE.checksum(&raw[..total - 2]);
+    if crc_rx != crc_calc {
+        return Err(Rejection::new(
+            r,
+            FailureCode::CRC_MISMATCH,
+            &u16s(crc_rx, crc_calc),
+        ));
+    }
+    let pus_version = raw[PRIMARY_LEN] >> 4;
+    if pus_version != 2 {
+        return Err(Rejection::new(
+            r,
+            FailureCode::NOT_A_PUS_TC,
+            &[version, is_tc as u8, sec_hdr as u8],
+        ));
+    }
+    let ack = Ack(raw[PRIMARY_LEN] & 0x0F);
+    let svc = raw[PRIMARY_LEN + 1];
+    let sub = raw[PRIMARY_LEN + 2];
+    let source_id = u16::from_be_bytes([raw[PRIMARY_LEN + 3], raw[PRIMARY_LEN + 4]]);
+    if req.apid() != apid {
+        return Err(
+            Rejection::new(r, FailureCode::WRONG_APID, &req.apid().to_be_bytes())
+                .with_type(svc, sub),
+        );
+    }
+    if !tc::service_known(svc) {
+        return Err(Rejection::new(r, FailureCode::UNKNOWN_SERVICE, &[svc]).with_type(svc, sub));
+    }
+    if !tc::subservice_known(svc, sub) {
+        return Err(
+            Rejection::new(r, FailureCode::UNKNOWN_SUBSERVICE, &[svc, sub]).with_type(svc, sub),
+        );
+    }
+    let app = &raw[PRIMARY_LEN + SEC_LEN..total - CRC_LEN];
+    let (def, arg_bytes) = if svc == service::FUNCTION {
+        if app.len() < 2 {
+            return Err(
+                Rejection::new(r, FailureCode::BAD_ARG_LENGTH, &u16s(app.len() as u16, 2))
+                    .with_type(svc, sub),
+            );
+        }
+        let f = u16::from_be_bytes([app[0], app[1]]);
+        match tc::lookup(svc, sub, Some(f)) {
+            Some(d) => (d, &app[2..]),
+            None => {
+                return Err(
+                    Rejection::new(r, FailureCode::UNKNOWN_FUNCTION, &f.to_be_bytes())
+                        .with_type(svc, sub),
+                )
+            }
+        }
+    } else {
+        match tc::lookup(svc, sub, None) {
+            Some(d) => (d, app),
+            None => {
+                return Err(
+                    Rejection::new(r, FailureCode::UNKNOWN_SUBSERVICE, &[svc, sub])
+                        .with_type(svc, sub),
+                )
+            }
+        }
+    };
+    let (args, rest) = codec::decode_args(def, arg_bytes).map_err(|e: ArgError| {
+        let mut d = [0u8; 5];
+        let n = e.failure_data(&mut d);
+        Rejection::new(r, e.failure_code(), &d[..n]).with_type(svc, sub)
+    })?;
+    Ok(Tc {
+        req,
+        ack,
+        service: svc,
+        subservice: sub,
+        source_id,
+        def,
+        args,
+        rest,
+        raw: &raw[..total],
+    })
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use arbitrary_int::{u11, u14};
+    use satrs::spacepackets::ecss::tc::AckFlags;
+    use satrs::spacepackets::ecss::tc::{PusTcCreator, PusTcSecondaryHeader};
+    use satrs::spacepackets::ecss::{CreatorConfig, MessageTypeId};
+    use satrs::spacepackets::SpHeader;
+
+    pub fn tc_bytes(apid: u16, seq: u16, svc: u8, sub: u8, app: &[u8]) -> std::vec::Vec<u8> {
+        let sp = SpHeader::new_for_unseg_tc(u11::new(apid), u14::new(seq), 0);
+        let sec = PusTcSecondaryHeader::new(MessageTypeId::new(svc, sub), AckFlags::ALL, 0);
+        let tc = PusTcCreator::new(sp, sec, app, CreatorConfig::default());
+        let mut buf = [0u8; 1024];
+        let n = tc.write_to_bytes(&mut buf).unwrap();
+        buf[..n].to_vec()
+    }
+
+    fn code(raw: &[u8]) -> FailureCode {
+        accept(raw, 0x101).unwrap_err().code
+    }
+
+    #[test]
+    fn a_valid_ping_is_accepted() {
+        let raw = tc_bytes(0x101, 7, 17, 1, &[]);
+        let t = accept(&raw, 0x101).unwrap();
+        assert_eq!((t.service, t.subservice, t.req.seq_count()), (17, 1, 7));
+        assert!(t.ack.acceptance() && t.ack.completion());
+    }
+
+    #[test]
+    fn every_acceptance_failure_code_is_reachable_from_bytes() {
+        let ping = tc_bytes(0x101, 1, 17, 1, &[]);
+        assert_eq!(code(&ping[..3]), FailureCode::MALFORMED_PACKET);
+        assert!(accept(&ping[..3], 0x101).unwrap_err().req.is_none());
+        assert_eq!(code(&ping[..ping.len() - 1]), FailureCode::MALFORMED_PACKET);
+        let mut bad_crc = ping.clone();
+        *bad_crc.last_mut().unwrap() ^= 0xFF;
+        assert_eq!(code(&bad_crc), FailureCode::CRC_MISMATCH);
+        let mut tm = ping.clone();
+        tm[0] &= !0x10;
+        assert_eq!(code(&tm), FailureCode::NOT_A_PUS_TC);
+        assert_eq!(
+            code(&tc_bytes(0x102, 1, 17, 1, &[])),
+            FailureCode::WRONG_APID
+        );
+        assert_eq!(
+            code(&tc_bytes(0x101, 1, 99, 1, &[])),
+            FailureCode::UNKNOWN_SERVICE
+        );
+        assert_eq!(
+            code(&tc_bytes(0x101, 1, 17, 9, &[])),
+            FailureCode::UNKNOWN_SUBSERVICE
+        );
+        assert_eq!(
+            code(&tc_bytes(0x101, 1, 8, 1, &[0, 99])),
+            FailureCode::UNKNOWN_FUNCTION
+        );
+        assert_eq!(
+            code(&tc_bytes(0x101, 1, 8, 1, &[0, 1, 0])),
+            FailureCode::BAD_ARG_LENGTH
+        );
+        let r = accept(&tc_bytes(0x101, 1, 8, 1, &[0, 1, 0, 15]), 0x101).unwrap_err();
+        assert_eq!(
+            (r.code, r.data()),
+            (FailureCode::ARG_OUT_OF_RANGE, &[1u8, 0, 0, 0, 15][..])
+        );
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn random_bytes_never_panic(data in proptest::collection::vec(proptest::num::u8::ANY, 0..300)) {
+            let _ = accept(&data, 0x101);
+        }
+        #[test]
+        fn bit_flips_in_a_valid_tc_are_rejected_or_still_valid(pos in 0usize..15, bit in 0u8..8) {
+            let mut raw = tc_bytes(0x101, 3, 8, 1, &[0, 1, 0, 1]);
+            let p = pos % raw.len();
+            raw[p] ^= 1 << bit;
+            // CRC-16 detects every single-bit error.
+            proptest::prop_assert!(accept(&raw, 0x101).is_err());
+        }
+    }
+}

@@ -1,0 +1,216 @@
+//! Telemetry output: the sink the host or firmware provides, the on-board store
+//! (PUS 15) and the writer that stamps every packet with the per-APID sequence count,
+//! the per-service message counter and the CDS time.
+
+use arbitrary_int::{u11, u14};
+use satrs::spacepackets::ecss::tm::{PusTmCreator, PusTmSecondaryHeader};
+use satrs::spacepackets::ecss::{CreatorConfig, MessageTypeId};
+use satrs::spacepackets::SpHeader;
+
+use crate::time::OnboardTime;
+use mib::config::MAX_PACKET_LEN;
+
+/// Where finished TM packets go (sockets on the host, the UART on the firmware).
+pub trait TmSink {
+    fn send_tm(&mut self, packet: &[u8]);
+}
+
+/// A sink that collects packets (tests, recorders).
+#[cfg(test)]
+impl TmSink for std::vec::Vec<std::vec::Vec<u8>> {
+    fn send_tm(&mut self, packet: &[u8]) {
+        self.push(packet.to_vec());
+    }
+}
+
+/// The on-board TM store (PUS 15): keeps packets while nobody downlinks them.
+pub trait TmStore {
+    /// Stores a packet; returns true if an older packet had to be overwritten.
+    fn push(&mut self, packet: &[u8]) -> bool;
+    /// Removes the oldest packet into `buf`; returns its length.
+    fn pop(&mut self, buf: &mut [u8]) -> Option<usize>;
+    fn len(&self) -> usize;
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    fn clear(&mut self);
+}
+
+/// Byte ring buffer store with `N` bytes of capacity (no heap). Each packet is kept as
+/// a 2-byte length followed by its bytes; when full, the oldest packets are dropped.
+pub struct RingStore<const N: usize> {
+    buf: heapless::Deque<u8, N>,
+    count: usize,
+}
+
+impl<const N: usize> Default for RingStore<N> {
+    fn default() -> Self {
+        RingStore {
+            buf: heapless::Deque::new(),
+            count: 0,
+        }
+    }
+}
+
+impl<const N: usize> RingStore<N> {
+    fn drop_oldest(&mut self) {
+        let (Some(hi), Some(lo)) = (self.buf.pop_front(), self.buf.pop_front()) else {
+            return;
+        };
+        for _ in 0..u16::from_be_bytes([hi, lo]) {
+            self.buf.pop_front();
+        }
+        self.count -= 1;
+    }
+}
+
+impl<const N: usize> TmStore for RingStore<N> {
+    fn push(&mut self, packet: &[u8]) -> bool {
+        let need = packet.len() + 2;
+        if need > N || packet.len() > u16::MAX as usize {
+            return true;
+        }
+        let mut overwrote = false;
+        while N - self.buf.len() < need {
+            self.drop_oldest();
+            overwrote = true;
+        }
+        for b in (packet.len() as u16).to_be_bytes().iter().chain(packet) {
+            // Space was made above, so this cannot fail.
+            let _ = self.buf.push_back(*b);
+        }
+        self.count += 1;
+        overwrote
+    }
+    fn pop(&mut self, out: &mut [u8]) -> Option<usize> {
+        let hi = *self.buf.front()?;
+        let lo = *self.buf.iter().nth(1)?;
+        let len = u16::from_be_bytes([hi, lo]) as usize;
+        if out.len() < len {
+            return None;
+        }
+        self.buf.pop_front();
+        self.buf.pop_front();
+        for slot in out.iter_mut().take(len) {
+            *slot = self.buf.pop_front().unwrap_or(0);
+        }
+        self.count -= 1;
+        Some(len)
+    }
+    fn len(&self) -> usize {
+        self.count
+    }
+    fn clear(&mut self) {
+        self.buf.clear();
+        self.count = 0;
+    }
+}
+
+/// Stamps and serialises TM. One instance per APID keeps the sequence count continuous.
+pub struct TmWriter {
+    apid: u16,
+    seq: u16,
+    msg_counters: [u16; 256],
+    pub time: OnboardTime,
+    pub sent: u32,
+}
+
+impl TmWriter {
+    pub fn new(apid: u16, time: OnboardTime) -> Self {
+        TmWriter {
+            apid,
+            seq: 0,
+            msg_counters: [0; 256],
+            time,
+            sent: 0,
+        }
+    }
+    pub fn apid(&self) -> u16 {
+        self.apid
+    }
+    /// Next sequence count (14 bit, wraps) and advances it.
+    pub fn next_seq(&mut self) -> u16 {
+        let s = self.seq;
+        self.seq = (self.seq + 1) & 0x3FFF;
+        s
+    }
+    /// Next message-type counter of a service (PUS-C), advancing it.
+    pub fn next_msg_count(&mut self, service: u8) -> u16 {
+        let c = &mut self.msg_counters[service as usize];
+        let v = *c;
+        *c = c.wrapping_add(1);
+        v
+    }
+    pub fn apid_u11(&self) -> u11 {
+        u11::new(self.apid & 0x7FF)
+    }
+    pub fn seq_u14(seq: u16) -> u14 {
+        u14::new(seq & 0x3FFF)
+    }
+
+    /// Builds a TM packet into `out` and returns its length.
+    pub fn build(
+        &mut self,
+        now_ms: u64,
+        service: u8,
+        subservice: u8,
+        data: &[u8],
+        out: &mut [u8; MAX_PACKET_LEN],
+    ) -> Option<usize> {
+        let stamp = self.time.cds(now_ms);
+        let seq = self.next_seq();
+        let msg = self.next_msg_count(service);
+        let sp = SpHeader::new_for_unseg_tm(self.apid_u11(), Self::seq_u14(seq), 0);
+        let sec = PusTmSecondaryHeader::new(
+            MessageTypeId::new(service, subservice),
+            msg,
+            mib::config::GROUND_ID,
+            &stamp,
+        );
+        let tm = PusTmCreator::new(sp, sec, data, CreatorConfig::default());
+        tm.write_to_bytes(out).ok()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use satrs::spacepackets::ecss::tm::PusTmReader;
+    use satrs::spacepackets::CcsdsPacket;
+
+    #[test]
+    fn tm_sequence_count_is_continuous_and_packets_parse() {
+        let mut w = TmWriter::new(0x101, OnboardTime::new(1_790_000_000_000));
+        let mut buf = [0u8; MAX_PACKET_LEN];
+        for i in 0..5u16 {
+            let n = w.build(10, 17, 2, &[], &mut buf).unwrap();
+            let tm = PusTmReader::new(&buf[..n], 7).unwrap();
+            assert_eq!(tm.seq_count().value(), i);
+            assert_eq!(tm.apid().value(), 0x101);
+            assert_eq!((tm.service_type_id(), tm.message_subtype_id()), (17, 2));
+        }
+    }
+
+    #[test]
+    fn ring_store_keeps_order_and_overwrites_oldest_when_full() {
+        let mut s: RingStore<64> = RingStore::default();
+        assert!(!s.push(&[1; 20]));
+        assert!(!s.push(&[2; 20]));
+        assert!(!s.push(&[3; 18]));
+        assert_eq!(s.len(), 3);
+        // 22 + 22 + 20 = 64: full; the next push drops the oldest.
+        assert!(s.push(&[4; 10]));
+        assert_eq!(s.len(), 3);
+        let mut out = [0u8; 64];
+        assert_eq!(s.pop(&mut out), Some(20));
+        assert_eq!(out[0], 2);
+        assert_eq!(s.pop(&mut out), Some(18));
+        assert_eq!(s.pop(&mut out), Some(10));
+        assert_eq!(out[0], 4);
+        assert_eq!(s.pop(&mut out), None);
+        assert!(
+            s.push(&[9; 100]),
+            "a packet larger than the store is refused"
+        );
+    }
+}
