@@ -270,7 +270,7 @@ pub const MONITORS: &[MonitorDef] = &[
     MonitorDef {
         id: 11,
         name: "HIP_CONTRACTED",
-        param: pid::HIP_ANGLE,
+        param: pid::HIP_DEVIATION,
         low: raw(CAL_CDEG, -params::HIP_CONTRACTED_TOL_DEG),
         high: raw(CAL_CDEG, params::HIP_CONTRACTED_TOL_DEG),
         persistence: 1,

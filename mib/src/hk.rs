@@ -103,6 +103,7 @@ pub const HK_STRUCTS: &[HkDef] = &[
             LAST_FAULT_EVENT,
             PENDING_MODE,
             MODE,
+            HIP_DEVIATION,
         ],
         default_interval_ms: 5000,
         default_enabled: true,

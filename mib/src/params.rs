@@ -129,6 +129,7 @@ params! {
     FAULT_COUNT = 61, U32, "", ID, None, "Faults detected since boot";
     MON_ENABLED = 62, U32, "", ID, None, "Enabled PUS 12 monitors (bit n = monitor n)";
     LAST_FAULT_EVENT = 63, U16, "", ID, None, "Event ID of the last fault (0 = none)";
+    HIP_DEVIATION = 65, I16, "deg", CAL_CDEG, lim(-3.0, 3.0, -HIP_CONTRACTED_TOL_DEG, HIP_CONTRACTED_TOL_DEG), "Hip encoder minus the hip angle implied by the IMU-derived state (0 deg when the state is unknown)";
     PENDING_MODE = 64, U8, "", ID, None, "Mode to enter when the running motion completes (255 = none)";
     // --- OBSW ---
     TC_ACCEPTED = 70, U32, "", ID, None, "Telecommands accepted";
