@@ -33,6 +33,9 @@ pub const TM_STORE_CAPACITY: usize = 4096;
 pub const SCHEDULE_CAPACITY: usize = 32;
 /// Number of recent TC request IDs remembered for duplicate suppression.
 pub const DUPLICATE_WINDOW: usize = 64;
+/// A TC seen longer ago than this is executed again even with the same request ID and
+/// CRC (a ground restarted its sequence counts).
+pub const DUPLICATE_MAX_AGE_MS: u32 = 60_000;
 /// Depth of the pending action queue behind the running action.
 pub const ACTION_QUEUE_DEPTH: usize = 1;
 /// Longest reconfiguration (primitives).
