@@ -22,6 +22,13 @@ pub const GROUND_ID: u16 = 0;
 /// Default UDP/TCP port of robot 1's OBSW; robot N listens on `DEFAULT_PORT + N - 1`
 /// when the ground tool starts several OBSWs.
 pub const DEFAULT_PORT: u16 = 7301;
+/// Simulator control port of robot N is `SIM_CTL_BASE_PORT + N` (host simulator only).
+pub const SIM_CTL_BASE_PORT: u16 = 7400;
+
+/// TC/TM port of robot `n` (UDP and TCP).
+pub const fn robot_port(n: u8) -> u16 {
+    DEFAULT_PORT - 1 + n as u16
+}
 
 /// Outgoing TM queue depth of the OBSW (packets). When full, the oldest packet moves to
 /// the on-board store instead of being dropped.
