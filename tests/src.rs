@@ -1,1 +1,269 @@
-//! End-to-end tests live in `tests/tests/`.
+//! Harness for the end-to-end tests in `tests/tests/`: starts the real `obsw` binary on
+//! free loopback ports and talks PUS to it over UDP or TCP.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::{SocketAddr, TcpStream, UdpSocket};
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use arbitrary_int::{u11, u14};
+use satrs::spacepackets::ecss::tc::{AckFlags, PusTcCreator, PusTcSecondaryHeader};
+use satrs::spacepackets::ecss::tm::PusTmReader;
+use satrs::spacepackets::ecss::{CreatorConfig, MessageTypeId};
+use satrs::spacepackets::{CcsdsPacket, SpHeader};
+
+/// Path of a workspace binary next to the test executable (target/<profile>/NAME).
+pub fn bin(name: &str) -> PathBuf {
+    if let Ok(p) = std::env::var(format!("{}_BIN", name.to_uppercase())) {
+        return PathBuf::from(p);
+    }
+    let exe = std::env::current_exe().expect("test executable path");
+    // target/<profile>/deps/test-xxxx -> target/<profile>/NAME
+    exe.parent().and_then(|d| d.parent()).map(|d| d.join(name)).expect("target directory")
+}
+
+/// A running `obsw` process; killed on drop.
+pub struct Obsw {
+    child: Child,
+    pub udp: SocketAddr,
+    pub tcp: SocketAddr,
+    pub sim_ctl: SocketAddr,
+    pub apid: u16,
+}
+
+impl Obsw {
+    /// Starts `obsw` for robot 1 on free ports with extra arguments.
+    pub fn start(extra: &[&str]) -> Obsw {
+        Self::start_robot(1, extra)
+    }
+
+    pub fn start_robot(robot: u8, extra: &[&str]) -> Obsw {
+        let path = bin("obsw");
+        let mut child = Command::new(&path)
+            .args(["--robot", &robot.to_string(), "--udp", "127.0.0.1:0", "--tcp", "127.0.0.1:0", "--sim-ctl", "127.0.0.1:0"])
+            .args(extra)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap_or_else(|e| panic!("cannot start {}: {e}", path.display()));
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().expect("stdout")).read_line(&mut line).expect("READY line");
+        let field = |k: &str| -> String {
+            line.split_whitespace().find_map(|w| w.strip_prefix(&format!("{k}="))).unwrap_or_else(|| panic!("no {k} in {line:?}")).to_string()
+        };
+        let apid = u16::from_str_radix(field("apid").trim_start_matches("0x"), 16).expect("apid");
+        Obsw { udp: field("udp").parse().unwrap(), tcp: field("tcp").parse().unwrap(), sim_ctl: field("sim_ctl").parse().unwrap(), apid, child }
+    }
+
+    /// Sends a simulator-control line and returns the reply.
+    pub fn sim(&self, line: &str) -> String {
+        let s = UdpSocket::bind("127.0.0.1:0").unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(2))).unwrap();
+        s.send_to(line.as_bytes(), self.sim_ctl).unwrap();
+        let mut buf = [0u8; 512];
+        let n = s.recv(&mut buf).expect("sim-ctl reply");
+        String::from_utf8_lossy(&buf[..n]).to_string()
+    }
+}
+
+impl Drop for Obsw {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// A decoded TM packet.
+#[derive(Clone, Debug)]
+pub struct Tm {
+    pub service: u8,
+    pub subservice: u8,
+    pub seq: u16,
+    pub apid: u16,
+    pub data: Vec<u8>,
+    pub raw: Vec<u8>,
+    pub at: Instant,
+}
+
+impl Tm {
+    pub fn parse(raw: &[u8]) -> Option<Tm> {
+        let tm = PusTmReader::new(raw, mib::config::TIMESTAMP_LEN).ok()?;
+        Some(Tm {
+            service: tm.service_type_id(),
+            subservice: tm.message_subtype_id(),
+            seq: tm.seq_count().value(),
+            apid: tm.apid().value(),
+            data: tm.source_data().to_vec(),
+            raw: raw.to_vec(),
+            at: Instant::now(),
+        })
+    }
+    /// Request ID (packet ID, PSC) of a TM[1,x].
+    pub fn request(&self) -> Option<(u16, u16)> {
+        (self.service == 1 && self.data.len() >= 4).then(|| (u16::from_be_bytes([self.data[0], self.data[1]]), u16::from_be_bytes([self.data[2], self.data[3]])))
+    }
+    /// Failure code of a TM[1,2/4/6/8].
+    pub fn failure_code(&self) -> Option<u16> {
+        let off = if self.subservice == 6 { 5 } else { 4 };
+        (self.service == 1 && self.subservice % 2 == 0 && self.data.len() >= off + 2).then(|| u16::from_be_bytes([self.data[off], self.data[off + 1]]))
+    }
+    /// Step of a TM[1,5/6].
+    pub fn step(&self) -> Option<u8> {
+        (self.service == 1 && (self.subservice == 5 || self.subservice == 6)).then(|| self.data[4])
+    }
+    /// Event ID of a TM[5,x].
+    pub fn event_id(&self) -> Option<u16> {
+        (self.service == 5 && self.subservice <= 4 && self.data.len() >= 2).then(|| u16::from_be_bytes([self.data[0], self.data[1]]))
+    }
+    /// Structure ID of a TM[3,25].
+    pub fn sid(&self) -> Option<u16> {
+        (self.service == 3 && self.subservice == 25 && self.data.len() >= 2).then(|| u16::from_be_bytes([self.data[0], self.data[1]]))
+    }
+    /// A raw HK parameter value.
+    pub fn hk(&self, param: u16) -> Option<i64> {
+        mib::codec::decode_hk(&self.data).ok()?.get(param)
+    }
+}
+
+/// Builds a PUS-C TC with all acknowledgement flags.
+pub fn tc(apid: u16, seq: u16, service: u8, subservice: u8, app: &[u8]) -> Vec<u8> {
+    let sp = SpHeader::new_for_unseg_tc(u11::new(apid), u14::new(seq), 0);
+    let sec = PusTcSecondaryHeader::new(MessageTypeId::new(service, subservice), AckFlags::ALL, 0);
+    let mut buf = vec![0u8; 2048];
+    let n = PusTcCreator::new(sp, sec, app, CreatorConfig::default()).write_to_bytes(&mut buf).expect("tc");
+    buf.truncate(n);
+    buf
+}
+
+/// Builds a TC by MIB name with range-checked arguments.
+pub fn tc_named(apid: u16, seq: u16, name: &str, args: &[i64]) -> Vec<u8> {
+    let def = mib::tc::by_name(name).unwrap_or_else(|| panic!("no TC {name}"));
+    let mut app = vec![0u8; 64];
+    let n = mib::codec::encode_args(def, args, &mut app).expect("args");
+    tc(apid, seq, def.service, def.subservice, &app[..n])
+}
+
+/// The request ID fields of a TC as they appear in TM[1,x].
+pub fn request_of(tc: &[u8]) -> (u16, u16) {
+    (u16::from_be_bytes([tc[0], tc[1]]), u16::from_be_bytes([tc[2], tc[3]]))
+}
+
+/// A ground link over UDP or TCP.
+pub enum Link {
+    Udp(UdpSocket, SocketAddr),
+    Tcp(TcpStream, Vec<u8>),
+}
+
+pub struct Client {
+    pub link: Link,
+    pub apid: u16,
+    seq: u16,
+    /// Every TM received so far, in order.
+    pub log: Vec<Tm>,
+}
+
+impl Client {
+    pub fn udp(o: &Obsw) -> Client {
+        let s = UdpSocket::bind("127.0.0.1:0").unwrap();
+        Client { link: Link::Udp(s, o.udp), apid: o.apid, seq: 0, log: Vec::new() }
+    }
+    pub fn tcp(o: &Obsw) -> Client {
+        let s = TcpStream::connect(o.tcp).unwrap();
+        s.set_nodelay(true).unwrap();
+        Client { link: Link::Tcp(s, Vec::new()), apid: o.apid, seq: 0, log: Vec::new() }
+    }
+    pub fn next_seq(&mut self) -> u16 {
+        self.seq = (self.seq + 1) & 0x3FFF;
+        self.seq
+    }
+    pub fn send_raw(&mut self, raw: &[u8]) {
+        match &mut self.link {
+            Link::Udp(s, to) => {
+                s.send_to(raw, *to).unwrap();
+            }
+            Link::Tcp(s, _) => {
+                let mut f = vec![0u8; cobs::max_encoding_length(raw.len()) + 1];
+                let n = cobs::encode(raw, &mut f);
+                f[n] = 0;
+                s.write_all(&f[..=n]).unwrap();
+            }
+        }
+    }
+    /// Sends a TC by MIB name; returns the raw TC.
+    pub fn send(&mut self, name: &str, args: &[i64]) -> Vec<u8> {
+        let seq = self.next_seq();
+        let raw = tc_named(self.apid, seq, name, args);
+        self.send_raw(&raw);
+        raw
+    }
+    /// Receives TM for up to `timeout`, appending to the log; returns what arrived.
+    pub fn recv_for(&mut self, timeout: Duration) -> Vec<Tm> {
+        let deadline = Instant::now() + timeout;
+        let mut got = Vec::new();
+        while let Some(t) = self.recv_one(deadline) {
+            got.push(t);
+        }
+        got
+    }
+    fn recv_one(&mut self, deadline: Instant) -> Option<Tm> {
+        let mut buf = vec![0u8; 4096];
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return None;
+            }
+            match &mut self.link {
+                Link::Udp(s, _) => {
+                    s.set_read_timeout(Some(left.max(Duration::from_millis(1)))).unwrap();
+                    if let Ok(n) = s.recv(&mut buf) {
+                        if let Some(t) = Tm::parse(&buf[..n]) {
+                            self.log.push(t.clone());
+                            return Some(t);
+                        }
+                    }
+                }
+                Link::Tcp(s, pending) => {
+                    if let Some(pos) = pending.iter().position(|b| *b == 0) {
+                        let frame: Vec<u8> = pending.drain(..=pos).collect();
+                        let mut out = vec![0u8; frame.len()];
+                        if let Ok(r) = cobs::decode(&frame[..frame.len() - 1], &mut out) {
+                            if let Some(t) = Tm::parse(&out[..r.frame_size()]) {
+                                self.log.push(t.clone());
+                                return Some(t);
+                            }
+                        }
+                        continue;
+                    }
+                    s.set_read_timeout(Some(left.max(Duration::from_millis(1)))).unwrap();
+                    if let Ok(n) = s.read(&mut buf) {
+                        if n == 0 {
+                            return None;
+                        }
+                        pending.extend_from_slice(&buf[..n]);
+                    }
+                }
+            }
+        }
+    }
+    /// Waits until a TM matching `pred` arrives (or the timeout passes).
+    pub fn wait_for(&mut self, timeout: Duration, mut pred: impl FnMut(&Tm) -> bool) -> Option<Tm> {
+        let deadline = Instant::now() + timeout;
+        while let Some(t) = self.recv_one(deadline) {
+            if pred(&t) {
+                return Some(t);
+            }
+        }
+        None
+    }
+    /// Waits for the completion (TM[1,7] or a failure) of a TC.
+    pub fn wait_done(&mut self, tc: &[u8], timeout: Duration) -> Option<Tm> {
+        let r = request_of(tc);
+        self.wait_for(timeout, |t| t.request() == Some(r) && matches!(t.subservice, 2 | 4 | 6 | 7 | 8))
+    }
+    /// Verification reports of a TC seen so far.
+    pub fn verifications(&self, tc: &[u8]) -> Vec<u8> {
+        let r = request_of(tc);
+        self.log.iter().filter(|t| t.request() == Some(r)).map(|t| t.subservice).collect()
+    }
+}
