@@ -1,0 +1,20 @@
+//! Hardware-independent part of the MMIC-I ESP32-C3 firmware.
+//!
+//! Everything here is plain `no_std` Rust without `unsafe`, so it runs unchanged on the
+//! boards, on the host and in the QEMU test binary:
+//! - [`config`]: every firmware buffer, queue depth and period, derived from
+//!   `mib::config` (the single place where firmware capacities are set);
+//! - [`framing`]: COBS framing of space packets and A–B frames on a byte stream;
+//! - [`periph`]: the small traits the boards' peripherals sit behind, and the drivers
+//!   for the ADS7828 ADC, the MPU-6000 IMU, the AS5600 hip encoder, the LEDC servo
+//!   outputs and the bolter multiplexer, written against `embedded-hal` 1.0;
+//! - [`panic_record`]: the layout of the panic reason kept in RTC fast RAM across a reset;
+//! - [`average`]: the 50-sample moving average every raw channel passes through.
+#![cfg_attr(not(test), no_std)]
+#![deny(unsafe_code)]
+
+pub mod average;
+pub mod config;
+pub mod framing;
+pub mod panic_record;
+pub mod periph;

@@ -1,0 +1,166 @@
+//! A minimal test runner for bare metal: each test returns `Result<(), Failure>`; the
+//! `check!` macros return early with the file, line and a message instead of panicking,
+//! so one failing test does not stop the others. A panic still ends the run (no
+//! unwinding on this target) and is reported as a failure of the running test.
+
+use core::fmt::Write;
+use core::sync::atomic::{AtomicUsize, Ordering};
+
+pub struct Failure {
+    pub file: &'static str,
+    pub line: u32,
+    pub msg: heapless::String<192>,
+}
+
+impl Failure {
+    pub fn new(file: &'static str, line: u32, args: core::fmt::Arguments<'_>) -> Self {
+        let mut msg = heapless::String::new();
+        // A message longer than the buffer is cut; the location identifies the check.
+        let _ = msg.write_fmt(args);
+        Failure { file, line, msg }
+    }
+}
+
+pub type TestResult = Result<(), Failure>;
+
+pub struct Test {
+    pub name: &'static str,
+    pub run: fn() -> TestResult,
+}
+
+/// `check!(cond)` or `check!(cond, "format", args..)`.
+#[macro_export]
+macro_rules! check {
+    ($cond:expr) => {
+        if !$cond {
+            return Err($crate::harness::Failure::new(
+                file!(),
+                line!(),
+                format_args!("check failed: {}", stringify!($cond)),
+            ));
+        }
+    };
+    ($cond:expr, $($arg:tt)+) => {
+        if !$cond {
+            return Err($crate::harness::Failure::new(file!(), line!(), format_args!($($arg)+)));
+        }
+    };
+}
+
+/// `check_eq!(left, right)`: both sides must be `PartialEq + Debug`.
+#[macro_export]
+macro_rules! check_eq {
+    ($left:expr, $right:expr $(,)?) => {
+        match (&$left, &$right) {
+            (l, r) => {
+                if !(*l == *r) {
+                    return Err($crate::harness::Failure::new(
+                        file!(),
+                        line!(),
+                        format_args!(
+                            "{} == {}: left {:?}, right {:?}",
+                            stringify!($left),
+                            stringify!($right),
+                            l,
+                            r
+                        ),
+                    ));
+                }
+            }
+        }
+    };
+    ($left:expr, $right:expr, $($arg:tt)+) => {
+        match (&$left, &$right) {
+            (l, r) => {
+                if !(*l == *r) {
+                    let mut m: heapless::String<96> = heapless::String::new();
+                    let _ = core::fmt::Write::write_fmt(&mut m, format_args!($($arg)+));
+                    return Err($crate::harness::Failure::new(
+                        file!(),
+                        line!(),
+                        format_args!("{}: left {:?}, right {:?}", m, l, r),
+                    ));
+                }
+            }
+        }
+    };
+}
+
+/// `Ok(v)` of a `Result`/`Some(v)` of an `Option`, or a failure naming the expression.
+#[macro_export]
+macro_rules! ok {
+    ($e:expr) => {
+        match $crate::harness::IntoCheck::into_check($e) {
+            Some(v) => v,
+            None => {
+                return Err($crate::harness::Failure::new(
+                    file!(),
+                    line!(),
+                    format_args!("{} gave no value", stringify!($e)),
+                ))
+            }
+        }
+    };
+}
+
+pub trait IntoCheck<T> {
+    fn into_check(self) -> Option<T>;
+}
+impl<T> IntoCheck<T> for Option<T> {
+    fn into_check(self) -> Option<T> {
+        self
+    }
+}
+impl<T, E> IntoCheck<T> for Result<T, E> {
+    fn into_check(self) -> Option<T> {
+        self.ok()
+    }
+}
+
+static CURRENT: AtomicUsize = AtomicUsize::new(usize::MAX);
+static PASSED: AtomicUsize = AtomicUsize::new(0);
+static FAILED: AtomicUsize = AtomicUsize::new(0);
+
+/// Runs every test, prints one line per test and the summary; returns the exit code.
+pub fn run(groups: &[&[Test]]) -> i32 {
+    let total: usize = groups.iter().map(|g| g.len()).sum();
+    semihosting::println!("running {} tests on riscv32imc (qemu virt)", total);
+    let mut index = 0;
+    for group in groups {
+        for t in group.iter() {
+            CURRENT.store(index, Ordering::Relaxed);
+            match (t.run)() {
+                Ok(()) => {
+                    PASSED.store(PASSED.load(Ordering::Relaxed) + 1, Ordering::Relaxed);
+                    semihosting::println!("test {} ... ok", t.name);
+                }
+                Err(f) => {
+                    FAILED.store(FAILED.load(Ordering::Relaxed) + 1, Ordering::Relaxed);
+                    semihosting::println!("test {} ... FAILED", t.name);
+                    semihosting::println!("    {}:{}: {}", f.file, f.line, f.msg.as_str());
+                }
+            }
+            index += 1;
+        }
+    }
+    CURRENT.store(usize::MAX, Ordering::Relaxed);
+    let passed = PASSED.load(Ordering::Relaxed);
+    let failed = FAILED.load(Ordering::Relaxed);
+    semihosting::println!();
+    semihosting::println!("{} passed, {} failed", passed, failed);
+    if failed == 0 && passed == total {
+        0
+    } else {
+        1
+    }
+}
+
+/// Called by the panic handler: the running test failed and the run ends here.
+pub fn report_panic(info: &core::panic::PanicInfo<'_>) {
+    let passed = PASSED.load(Ordering::Relaxed);
+    let failed = FAILED.load(Ordering::Relaxed) + 1;
+    let cur = CURRENT.load(Ordering::Relaxed);
+    semihosting::println!("test #{} ... PANICKED: {}", cur + 1, info);
+    semihosting::println!();
+    semihosting::println!("{} passed, {} failed", passed, failed);
+}

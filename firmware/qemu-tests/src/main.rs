@@ -1,0 +1,36 @@
+//! On-target tests of the MMIC-I no_std core, for QEMU `virt` (RV32IMC).
+//!
+//! Run: `cargo run` in this directory (the runner is qemu-system-riscv32 with
+//! semihosting). Prints one line per test and `N passed, N failed`; the exit code is 0
+//! only when every test passed.
+#![no_std]
+#![no_main]
+#![deny(warnings)]
+
+mod harness;
+mod mock;
+mod t_codec;
+mod t_framing;
+mod t_packets;
+mod t_periph;
+mod t_reconfig;
+mod t_support;
+
+#[riscv_rt::entry]
+fn main() -> ! {
+    let code = harness::run(&[
+        t_codec::TESTS,
+        t_packets::TESTS,
+        t_framing::TESTS,
+        t_periph::TESTS,
+        t_support::TESTS,
+        t_reconfig::TESTS,
+    ]);
+    semihosting::process::exit(code)
+}
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo<'_>) -> ! {
+    harness::report_panic(info);
+    semihosting::process::exit(101)
+}

@@ -1,0 +1,124 @@
+//! Test doubles for `embedded-hal` 1.0 peripherals.
+
+use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
+use embedded_hal::i2c::{ErrorKind, ErrorType, I2c, Operation};
+use embedded_hal::pwm::{ErrorType as PwmErrorType, SetDutyCycle};
+
+/// An I2C bus with one device: a 256-byte register file with auto-increment, or, for
+/// command-byte devices (ADS7828), a fixed reply per command byte.
+pub struct MockI2c {
+    pub addr: u8,
+    pub regs: [u8; 256],
+    /// (command byte, 2-byte reply) for command devices.
+    pub replies: heapless::Vec<(u8, [u8; 2]), 16>,
+    pub writes: heapless::Vec<heapless::Vec<u8, 8>, 16>,
+    pub fail: bool,
+    pointer: u8,
+}
+
+impl MockI2c {
+    pub fn new(addr: u8) -> Self {
+        Self {
+            addr,
+            regs: [0; 256],
+            replies: heapless::Vec::new(),
+            writes: heapless::Vec::new(),
+            fail: false,
+            pointer: 0,
+        }
+    }
+}
+
+impl ErrorType for MockI2c {
+    type Error = ErrorKind;
+}
+
+impl I2c for MockI2c {
+    fn transaction(&mut self, address: u8, ops: &mut [Operation<'_>]) -> Result<(), ErrorKind> {
+        if self.fail || address != self.addr {
+            return Err(ErrorKind::NoAcknowledge(
+                embedded_hal::i2c::NoAcknowledgeSource::Address,
+            ));
+        }
+        for op in ops {
+            match op {
+                Operation::Write(data) => {
+                    let mut v = heapless::Vec::new();
+                    let _ = v.extend_from_slice(&data[..data.len().min(8)]);
+                    let _ = self.writes.push(v);
+                    if let Some((&first, rest)) = data.split_first() {
+                        self.pointer = first;
+                        // Register writes: the bytes after the pointer are stored.
+                        for (i, b) in rest.iter().enumerate() {
+                            self.regs[first.wrapping_add(i as u8) as usize] = *b;
+                        }
+                    }
+                }
+                Operation::Read(buf) => {
+                    if let Some((_, reply)) = self.replies.iter().find(|(c, _)| *c == self.pointer)
+                    {
+                        for (i, b) in buf.iter_mut().enumerate() {
+                            *b = reply.get(i).copied().unwrap_or(0);
+                        }
+                    } else {
+                        for (i, b) in buf.iter_mut().enumerate() {
+                            *b = self.regs[self.pointer.wrapping_add(i as u8) as usize];
+                        }
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+#[derive(Default)]
+pub struct MockPin {
+    pub high: bool,
+    pub changes: u32,
+}
+
+impl PinErrorType for MockPin {
+    type Error = core::convert::Infallible;
+}
+
+impl OutputPin for MockPin {
+    fn set_low(&mut self) -> Result<(), Self::Error> {
+        self.high = false;
+        self.changes += 1;
+        Ok(())
+    }
+    fn set_high(&mut self) -> Result<(), Self::Error> {
+        self.high = true;
+        self.changes += 1;
+        Ok(())
+    }
+}
+
+impl embedded_hal::digital::InputPin for MockPin {
+    fn is_high(&mut self) -> Result<bool, Self::Error> {
+        Ok(self.high)
+    }
+    fn is_low(&mut self) -> Result<bool, Self::Error> {
+        Ok(!self.high)
+    }
+}
+
+pub struct MockPwm {
+    pub max: u16,
+    pub duty: u16,
+}
+
+impl PwmErrorType for MockPwm {
+    type Error = core::convert::Infallible;
+}
+
+impl SetDutyCycle for MockPwm {
+    fn max_duty_cycle(&self) -> u16 {
+        self.max
+    }
+    fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Self::Error> {
+        self.duty = duty;
+        Ok(())
+    }
+}

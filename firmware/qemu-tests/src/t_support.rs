@@ -1,0 +1,85 @@
+//! Moving average and the panic record kept across resets.
+
+use crate::harness::{Test, TestResult};
+use crate::{check, check_eq, ok};
+use fw_core::average::MovingAverage;
+use fw_core::panic_record::{self, RawRecord, WORDS};
+
+pub const TESTS: &[Test] = &[
+    Test { name: "moving_average_window_of_50", run: average },
+    Test { name: "panic_record_round_trip_and_count", run: record },
+    Test { name: "panic_record_ignores_garbage_and_corruption", run: garbage },
+    Test { name: "panic_record_truncates_at_char_boundary", run: truncation },
+];
+
+fn average() -> TestResult {
+    let mut a: MovingAverage<{ mib::config::MOVING_AVERAGE_WINDOW }> = MovingAverage::new();
+    check_eq!(a.value(), 0);
+    // 25 samples of 100: the average of what arrived so far.
+    for _ in 0..25 {
+        a.push(100);
+    }
+    check_eq!(a.value(), 100);
+    // 50 more of 400: the window holds only 400s now.
+    let mut history = [0u16; 75];
+    for h in history.iter_mut().take(25) {
+        *h = 100;
+    }
+    for i in 25..75 {
+        history[i] = 400;
+        let v = a.push(400);
+        // Independent: mean of the last min(50, i+1) samples, rounded.
+        let lo = (i + 1).saturating_sub(50);
+        let sum: u32 = history[lo..=i].iter().map(|&x| x as u32).sum();
+        let n = (i + 1 - lo) as u32;
+        check_eq!(v as u32, (sum + n / 2) / n, "sample {}", i);
+    }
+    check_eq!(a.value(), 400);
+    check_eq!(a.len(), 50);
+    Ok(())
+}
+
+fn record() -> TestResult {
+    let mut rec: RawRecord = [0; WORDS];
+    // Fresh RAM: nothing to report.
+    check!(panic_record::take(&mut rec).is_none());
+    panic_record::store(&mut rec, Some(("board-a/src/main.rs", 42)), format_args!("index {} out of range", 7));
+    let r = ok!(panic_record::take(&mut rec));
+    check_eq!(r.count, 1);
+    check_eq!(r.message.as_str(), "board-a/src/main.rs:42: index 7 out of range");
+    // Taken once: not reported again.
+    check!(panic_record::take(&mut rec).is_none());
+    panic_record::store(&mut rec, None, "second");
+    let r = ok!(panic_record::take(&mut rec));
+    check_eq!((r.count, r.message.as_str()), (2, "second"));
+    Ok(())
+}
+
+fn garbage() -> TestResult {
+    let mut rec: RawRecord = [0xA5A5_A5A5; WORDS];
+    check!(panic_record::take(&mut rec).is_none());
+    panic_record::store(&mut rec, None, "after power-on");
+    // Power-on garbage does not count as an earlier panic.
+    let r = ok!(panic_record::take(&mut rec));
+    check_eq!(r.count, 1);
+    panic_record::store(&mut rec, None, "bit flip");
+    rec[WORDS - 30] ^= 1 << 9;
+    check!(panic_record::take(&mut rec).is_none(), "corrupted record accepted");
+    Ok(())
+}
+
+fn truncation() -> TestResult {
+    let mut rec: RawRecord = [0; WORDS];
+    // 119 ASCII bytes then a 3-byte character: it does not fit and is left out whole.
+    let mut long: heapless::String<200> = heapless::String::new();
+    for _ in 0..119 {
+        let _ = long.push('x');
+    }
+    let _ = long.push('€');
+    let _ = long.push_str("tail");
+    panic_record::store(&mut rec, None, long.as_str());
+    let r = ok!(panic_record::take(&mut rec));
+    check_eq!(r.message.len(), 119);
+    check!(r.message.chars().all(|c| c == 'x'));
+    Ok(())
+}

@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# Firmware CI: toolchain setup, release build of both ESP32-C3 images with warnings
+# denied, size report against the budget (256 KiB flash, 128 KiB static RAM per image),
+# and the on-target tests under QEMU. Fails on the first failing step.
+set -euo pipefail
+
+ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+FW="$ROOT/firmware"
+TARGET=riscv32imc-unknown-none-elf
+start=$(date +%s)
+step() { echo; echo "=== firmware: $* ($(( $(date +%s) - start )) s)"; }
+
+step "setup"
+bash "$ROOT/scripts/firmware-setup.sh"
+
+# The firmware workspace builds in its own firmware/target (git-ignored) unless the
+# caller chose a target directory.
+export CARGO_TARGET_DIR="${FIRMWARE_TARGET_DIR:-$FW/target}"
+export RUSTFLAGS="-D warnings"
+export CARGO_TERM_COLOR=never
+
+step "build board images (release)"
+(cd "$FW" && cargo build --release -p board-a -p board-b)
+
+step "size report"
+"$FW/tools/size-report.sh" \
+  "$CARGO_TARGET_DIR/$TARGET/release/board-a" \
+  "$CARGO_TARGET_DIR/$TARGET/release/board-b"
+
+step "on-target tests (qemu-system-riscv32 -machine virt)"
+export CARGO_TARGET_DIR="${FIRMWARE_TARGET_DIR:-$FW/target}/qemu-tests"
+(cd "$FW/qemu-tests" && timeout 600 cargo run)
+
+step "done"
