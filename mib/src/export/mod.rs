@@ -1,1 +1,138 @@
 //! Exporters of the MIB to the formats ground systems read (std only).
+//!
+//! - [`scos_tables`]: SCOS-2000 MIB ASCII tables (tab-separated `.dat` files);
+//! - [`xtce_document`]: XTCE 1.2 XML (telemetry containers and telecommands);
+//! - [`json_document`]: the whole MIB as JSON;
+//! - [`icd_markdown`]: the interface control document (`docs/ICD.md`).
+//!
+//! The APID-dependent exports (SCOS-2000, XTCE) are generated for the default robot
+//! ([`crate::apid::DEFAULT_ROBOT`], APID 0x101); the `*_for` variants take another robot
+//! number. Everything is derived from the MIB tables; the only layout knowledge kept
+//! here is the byte layout of the CCSDS and PUS-C headers ([`layout`]), which is checked
+//! against the sat-rs encoder by the integration tests.
+
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+mod icd;
+mod json;
+pub mod layout;
+mod scos;
+mod xtce;
+
+pub use icd::icd_markdown;
+pub use json::json_document;
+pub use scos::{scos_columns, scos_tables, scos_tables_for, ScosNames};
+pub use xtce::{xtce_document, xtce_document_for};
+
+/// Export format of `ground mib export --format`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Format {
+    /// SCOS-2000 MIB ASCII tables, one `.dat` file per table.
+    Scos,
+    /// One XTCE 1.2 XML file.
+    Xtce,
+    /// One JSON file with the whole MIB.
+    Json,
+}
+
+impl Format {
+    pub const ALL: [Format; 3] = [Format::Scos, Format::Xtce, Format::Json];
+    pub const fn name(self) -> &'static str {
+        match self {
+            Format::Scos => "scos",
+            Format::Xtce => "xtce",
+            Format::Json => "json",
+        }
+    }
+}
+
+impl core::fmt::Display for Format {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Error of [`Format::from_str`].
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct UnknownFormat(pub String);
+
+impl core::fmt::Display for UnknownFormat {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "unknown export format '{}' (expected scos, xtce or json)", self.0)
+    }
+}
+
+impl std::error::Error for UnknownFormat {}
+
+impl FromStr for Format {
+    type Err = UnknownFormat;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "scos" | "scos2000" | "scos-2000" => Ok(Format::Scos),
+            "xtce" | "xml" => Ok(Format::Xtce),
+            "json" => Ok(Format::Json),
+            _ => Err(UnknownFormat(s.to_string())),
+        }
+    }
+}
+
+/// File name of the XTCE export.
+pub const XTCE_FILE: &str = "mmic-i.xtce.xml";
+/// File name of the JSON export.
+pub const JSON_FILE: &str = "mmic-i.mib.json";
+
+/// Writes the export `format` into `dir` (created if missing) and returns the paths
+/// written, in order.
+pub fn write_all(format: Format, dir: &Path) -> std::io::Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir)?;
+    let files: Vec<(String, String)> = match format {
+        Format::Scos => scos_tables().into_iter().map(|(n, c)| (n.to_string(), c)).collect(),
+        Format::Xtce => vec![(XTCE_FILE.to_string(), xtce_document())],
+        Format::Json => vec![(JSON_FILE.to_string(), json_document())],
+    };
+    let mut out = Vec::with_capacity(files.len());
+    for (name, content) in files {
+        let path = dir.join(name);
+        std::fs::write(&path, content)?;
+        out.push(path);
+    }
+    Ok(out)
+}
+
+/// Engineering value of a calibration coefficient as text, without trailing noise
+/// (shortest representation that round-trips).
+pub(crate) fn num(v: f64) -> String {
+    if v == v.trunc() && v.abs() < 1e15 {
+        format!("{}", v as i64)
+    } else {
+        format!("{v}")
+    }
+}
+
+/// Truncates to at most `n` characters (SCOS-2000 column widths).
+pub(crate) fn trunc(s: &str, n: usize) -> String {
+    s.chars().take(n).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    #[test]
+    fn format_parses_case_insensitively_and_rejects_others() {
+        assert_eq!("SCOS".parse::<Format>(), Ok(Format::Scos));
+        assert_eq!("xtce".parse::<Format>(), Ok(Format::Xtce));
+        assert_eq!(" json ".parse::<Format>(), Ok(Format::Json));
+        assert!("yaml".parse::<Format>().is_err());
+        for f in Format::ALL {
+            assert_eq!(f.name().parse::<Format>(), Ok(f));
+        }
+    }
+    #[test]
+    fn numbers_print_without_noise() {
+        assert_eq!(num(1.0), "1");
+        assert_eq!(num(0.01), "0.01");
+        assert_eq!(num(-3.0), "-3");
+        assert_eq!(trunc("abcdef", 3), "abc");
+    }
+}

@@ -1,0 +1,686 @@
+//! XTCE 1.2 (namespace `http://www.omg.org/spec/XTCE/20180204`) description of the
+//! robot's TM and TC.
+//!
+//! Container tree: `CCSDSPacket` (primary header, abstract) → `PUS_TM` (PUS-C TM
+//! secondary header with the CDS short time stamp, restricted to TM of the robot's
+//! APID) → `HK_REPORT` (TM[3,25], the SID) → `HK_<structure>` (restricted on the SID,
+//! the structure's parameters, the PEC); → `EVENT_<severity>` (TM[5,1..4], the event
+//! ID) → `EVT_<event>` (restricted on the event ID); and one container per other TM
+//! type, whose source data is one binary parameter sized from the packet length.
+//! Telecommands are MetaCommands deriving from the abstract `PUS_TC`.
+
+use super::layout::{self, Field};
+use super::num;
+use crate::events::{EventDef, Severity, EVENTS};
+use crate::hk::HK_STRUCTS;
+use crate::params::{ParamDef, PARAMS};
+use crate::tc::{self, TcDef, TCS, TMS};
+use crate::types::PType;
+use crate::{apid, config};
+
+/// XTCE 1.2 namespace.
+pub const XTCE_NS: &str = "http://www.omg.org/spec/XTCE/20180204";
+
+/// Name of the XTCE parameter of event parameter `p` of `e`.
+pub fn event_param_name(e: &EventDef, p: &str) -> String {
+    format!("{}_{}", e.name, p)
+}
+
+fn esc(s: &str) -> String {
+    let mut o = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '&' => o.push_str("&amp;"),
+            '<' => o.push_str("&lt;"),
+            '>' => o.push_str("&gt;"),
+            '"' => o.push_str("&quot;"),
+            '\'' => o.push_str("&apos;"),
+            _ => o.push(c),
+        }
+    }
+    o
+}
+
+struct Xml {
+    s: String,
+    depth: usize,
+}
+
+impl Xml {
+    fn line(&mut self, l: &str) {
+        for _ in 0..self.depth {
+            self.s.push_str("  ");
+        }
+        self.s.push_str(l);
+        self.s.push('\n');
+    }
+    fn open(&mut self, l: &str) {
+        self.line(l);
+        self.depth += 1;
+    }
+    fn close(&mut self, l: &str) {
+        self.depth = self.depth.saturating_sub(1);
+        self.line(l);
+    }
+}
+
+fn int_encoding(t: PType) -> String {
+    format!(
+        "<xtce:IntegerDataEncoding sizeInBits=\"{}\" encoding=\"{}\"",
+        t.bits(),
+        if t.signed() { "twosComplement" } else { "unsigned" }
+    )
+}
+
+fn unit_set(x: &mut Xml, unit: &str) {
+    if unit.is_empty() {
+        x.line("<xtce:UnitSet/>");
+    } else {
+        x.open("<xtce:UnitSet>");
+        x.line(&format!("<xtce:Unit>{}</xtce:Unit>", esc(unit)));
+        x.close("</xtce:UnitSet>");
+    }
+}
+
+/// Parameter type of a plain integer (or boolean) field.
+fn raw_type(x: &mut Xml, name: &str, t: PType, unit: &str, desc: &str) {
+    if t == PType::Bool {
+        x.open(&format!(
+            "<xtce:BooleanParameterType name=\"{}\" shortDescription=\"{}\" zeroStringValue=\"False\" oneStringValue=\"True\">",
+            esc(name),
+            esc(desc)
+        ));
+        unit_set(x, unit);
+        x.line(&format!("{}/>", int_encoding(t)));
+        x.close("</xtce:BooleanParameterType>");
+    } else {
+        x.open(&format!(
+            "<xtce:IntegerParameterType name=\"{}\" shortDescription=\"{}\" signed=\"{}\" sizeInBits=\"{}\">",
+            esc(name),
+            esc(desc),
+            t.signed(),
+            if t.bits() > 32 { 64 } else { 32.max(t.bits()) }
+        ));
+        unit_set(x, unit);
+        x.line(&format!("{}/>", int_encoding(t)));
+        x.close("</xtce:IntegerParameterType>");
+    }
+}
+
+/// Parameter type of a field with `bits` bits (headers).
+fn header_type(x: &mut Xml, f: &Field) {
+    x.open(&format!(
+        "<xtce:IntegerParameterType name=\"{}_Type\" shortDescription=\"{}\" signed=\"false\" sizeInBits=\"32\">",
+        f.name,
+        esc(f.desc)
+    ));
+    x.line("<xtce:UnitSet/>");
+    x.line(&format!(
+        "<xtce:IntegerDataEncoding sizeInBits=\"{}\" encoding=\"unsigned\"/>",
+        f.bits
+    ));
+    x.close("</xtce:IntegerParameterType>");
+}
+
+fn param_type(x: &mut Xml, p: &ParamDef) {
+    let tname = format!("{}_Type", p.name);
+    if p.calib.is_identity() && p.limits.is_none() {
+        raw_type(x, &tname, p.ptype, p.unit, p.desc);
+        return;
+    }
+    if p.calib.is_identity() {
+        // Integer with limits.
+        x.open(&format!(
+            "<xtce:IntegerParameterType name=\"{}\" shortDescription=\"{}\" signed=\"{}\" sizeInBits=\"32\">",
+            esc(&tname),
+            esc(p.desc),
+            p.ptype.signed()
+        ));
+    } else {
+        x.open(&format!(
+            "<xtce:FloatParameterType name=\"{}\" shortDescription=\"{}\" sizeInBits=\"64\">",
+            esc(&tname),
+            esc(p.desc)
+        ));
+    }
+    unit_set(x, p.unit);
+    if p.calib.is_identity() {
+        x.line(&format!("{}/>", int_encoding(p.ptype)));
+    } else {
+        x.open(&format!("{}>", int_encoding(p.ptype)));
+        x.open("<xtce:DefaultCalibrator>");
+        x.open("<xtce:PolynomialCalibrator>");
+        x.line(&format!(
+            "<xtce:Term coefficient=\"{}\" exponent=\"0\"/>",
+            num(p.calib.offset)
+        ));
+        x.line(&format!(
+            "<xtce:Term coefficient=\"{}\" exponent=\"1\"/>",
+            num(p.calib.scale)
+        ));
+        x.close("</xtce:PolynomialCalibrator>");
+        x.close("</xtce:DefaultCalibrator>");
+        x.close("</xtce:IntegerDataEncoding>");
+    }
+    if let Some(l) = p.limits {
+        x.open("<xtce:DefaultAlarm>");
+        x.open("<xtce:StaticAlarmRanges>");
+        x.line(&format!(
+            "<xtce:WarningRange minInclusive=\"{}\" maxInclusive=\"{}\"/>",
+            num(l.soft_lo),
+            num(l.soft_hi)
+        ));
+        x.line(&format!(
+            "<xtce:CriticalRange minInclusive=\"{}\" maxInclusive=\"{}\"/>",
+            num(l.hard_lo),
+            num(l.hard_hi)
+        ));
+        x.close("</xtce:StaticAlarmRanges>");
+        x.close("</xtce:DefaultAlarm>");
+    }
+    if p.calib.is_identity() {
+        x.close("</xtce:IntegerParameterType>");
+    } else {
+        x.close("</xtce:FloatParameterType>");
+    }
+}
+
+fn parameter(x: &mut Xml, name: &str, type_ref: &str, desc: &str, aliases: &[(&str, String)]) {
+    if aliases.is_empty() {
+        x.line(&format!(
+            "<xtce:Parameter name=\"{}\" parameterTypeRef=\"{}\" shortDescription=\"{}\"/>",
+            esc(name),
+            esc(type_ref),
+            esc(desc)
+        ));
+        return;
+    }
+    x.open(&format!(
+        "<xtce:Parameter name=\"{}\" parameterTypeRef=\"{}\" shortDescription=\"{}\">",
+        esc(name),
+        esc(type_ref),
+        esc(desc)
+    ));
+    x.open("<xtce:AliasSet>");
+    for (ns, a) in aliases {
+        x.line(&format!("<xtce:Alias nameSpace=\"{}\" alias=\"{}\"/>", esc(ns), esc(a)));
+    }
+    x.close("</xtce:AliasSet>");
+    x.close("</xtce:Parameter>");
+}
+
+fn entries(x: &mut Xml, names: &[String]) {
+    x.open("<xtce:EntryList>");
+    for n in names {
+        x.line(&format!("<xtce:ParameterRefEntry parameterRef=\"{}\"/>", esc(n)));
+    }
+    x.close("</xtce:EntryList>");
+}
+
+fn container(
+    x: &mut Xml,
+    name: &str,
+    desc: &str,
+    abstract_: bool,
+    entries_: &[String],
+    base: Option<(&str, &[(&str, String)])>,
+) {
+    x.open(&format!(
+        "<xtce:SequenceContainer name=\"{}\" shortDescription=\"{}\"{}>",
+        esc(name),
+        esc(desc),
+        if abstract_ { " abstract=\"true\"" } else { "" }
+    ));
+    entries(x, entries_);
+    if let Some((b, crit)) = base {
+        x.open(&format!("<xtce:BaseContainer containerRef=\"{}\">", esc(b)));
+        x.open("<xtce:RestrictionCriteria>");
+        x.open("<xtce:ComparisonList>");
+        for (p, v) in crit {
+            x.line(&format!(
+                "<xtce:Comparison parameterRef=\"{}\" value=\"{}\" useCalibratedValue=\"false\"/>",
+                esc(p),
+                esc(v)
+            ));
+        }
+        x.close("</xtce:ComparisonList>");
+        x.close("</xtce:RestrictionCriteria>");
+        x.close("</xtce:BaseContainer>");
+    }
+    x.close("</xtce:SequenceContainer>");
+}
+
+fn names(fields: &[Field]) -> Vec<String> {
+    fields.iter().map(|f| f.name.to_string()).collect()
+}
+
+fn severity_container(s: Severity) -> String {
+    format!("EVENT_{}", s.name().to_ascii_uppercase())
+}
+
+/// XTCE document for the default robot (APID 0x101).
+pub fn xtce_document() -> String {
+    xtce_document_for(apid::DEFAULT_ROBOT)
+}
+
+/// XTCE document for robot `robot` (1..=254; out-of-range numbers use the default robot).
+pub fn xtce_document_for(robot: u8) -> String {
+    let (robot, apid) = match apid::robot_apid(robot) {
+        Some(a) => (robot, a),
+        None => (
+            apid::DEFAULT_ROBOT,
+            apid::robot_apid(apid::DEFAULT_ROBOT).unwrap_or(apid::APID_BASE + 1),
+        ),
+    };
+    let mut x = Xml {
+        s: String::new(),
+        depth: 0,
+    };
+    x.line("<?xml version=\"1.0\" encoding=\"UTF-8\"?>");
+    x.open(&format!(
+        "<xtce:SpaceSystem xmlns:xtce=\"{XTCE_NS}\" xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\" xsi:schemaLocation=\"{XTCE_NS} https://www.omg.org/spec/XTCE/20180204/SpaceSystem.xsd\" name=\"MMIC_I_ROBOT_{robot}\" shortDescription=\"MMIC-I robot {robot}, APID 0x{apid:03X}\">"
+    ));
+    x.line(&format!(
+        "<xtce:LongDescription>Generated from the MMIC-I MIB (crate mib {}). CCSDS space packets with PUS-C secondary headers; all fields big-endian; every packet ends with a CRC-16/CCITT-FALSE packet error control (PEC).</xtce:LongDescription>",
+        env!("CARGO_PKG_VERSION")
+    ));
+    x.line(&format!(
+        "<xtce:Header version=\"{}\" validationStatus=\"Working\"/>",
+        env!("CARGO_PKG_VERSION")
+    ));
+
+    // ---------------- telemetry ----------------
+    x.open("<xtce:TelemetryMetaData>");
+    x.open("<xtce:ParameterTypeSet>");
+    for f in layout::PRIMARY_HEADER
+        .iter()
+        .chain(layout::TM_SEC_HEADER)
+        .chain([&layout::PEC])
+    {
+        header_type(&mut x, f);
+    }
+    header_type(
+        &mut x,
+        &Field {
+            name: "HK_SID",
+            bits: 16,
+            fixed: None,
+            desc: "housekeeping structure ID",
+        },
+    );
+    header_type(
+        &mut x,
+        &Field {
+            name: "EVENT_ID",
+            bits: 16,
+            fixed: None,
+            desc: "event ID",
+        },
+    );
+    x.open("<xtce:BinaryParameterType name=\"TM_SOURCE_DATA_Type\" shortDescription=\"source data of a TM whose layout is given in the ICD\">");
+    x.line("<xtce:UnitSet/>");
+    x.open("<xtce:BinaryDataEncoding>");
+    x.open("<xtce:SizeInBits>");
+    x.open("<xtce:DynamicValue>");
+    x.line("<xtce:ParameterInstanceRef parameterRef=\"PKT_LEN\" useCalibratedValue=\"false\"/>");
+    // bits = 8 * (PKT_LEN + 1) - 8 * (secondary header + PEC)
+    let fixed_after_primary = layout::len(layout::TM_SEC_HEADER) + layout::len(&[layout::PEC]);
+    x.line(&format!(
+        "<xtce:LinearAdjustment slope=\"8\" intercept=\"{}\"/>",
+        8 - 8 * fixed_after_primary as i64
+    ));
+    x.close("</xtce:DynamicValue>");
+    x.close("</xtce:SizeInBits>");
+    x.close("</xtce:BinaryDataEncoding>");
+    x.close("</xtce:BinaryParameterType>");
+    for p in PARAMS {
+        param_type(&mut x, p);
+    }
+    for e in EVENTS {
+        for ep in e.params {
+            let n = event_param_name(e, ep.name);
+            raw_type(
+                &mut x,
+                &format!("{n}_Type"),
+                ep.ptype,
+                "",
+                &format!("{} of event {}", ep.name, e.name),
+            );
+        }
+    }
+    x.close("</xtce:ParameterTypeSet>");
+
+    x.open("<xtce:ParameterSet>");
+    for f in layout::PRIMARY_HEADER
+        .iter()
+        .chain(layout::TM_SEC_HEADER)
+        .chain([&layout::PEC])
+    {
+        parameter(&mut x, f.name, &format!("{}_Type", f.name), f.desc, &[]);
+    }
+    parameter(&mut x, "HK_SID", "HK_SID_Type", "housekeeping structure ID", &[]);
+    parameter(&mut x, "EVENT_ID", "EVENT_ID_Type", "event ID", &[]);
+    parameter(
+        &mut x,
+        "TM_SOURCE_DATA",
+        "TM_SOURCE_DATA_Type",
+        "source data (layout in the ICD)",
+        &[],
+    );
+    for p in PARAMS {
+        parameter(
+            &mut x,
+            p.name,
+            &format!("{}_Type", p.name),
+            p.desc,
+            &[
+                ("MMIC-I/PID", p.id.to_string()),
+                ("SCOS-2000", super::ScosNames::tm_param(p.id)),
+            ],
+        );
+    }
+    for e in EVENTS {
+        for (i, ep) in e.params.iter().enumerate() {
+            let n = event_param_name(e, ep.name);
+            parameter(
+                &mut x,
+                &n,
+                &format!("{n}_Type"),
+                &format!("parameter {} of event {}", ep.name, e.name),
+                &[("SCOS-2000", super::ScosNames::event_param(e.id, i))],
+            );
+        }
+    }
+    x.close("</xtce:ParameterSet>");
+
+    x.open("<xtce:ContainerSet>");
+    container(
+        &mut x,
+        "CCSDSPacket",
+        "CCSDS space packet primary header",
+        true,
+        &names(layout::PRIMARY_HEADER),
+        None,
+    );
+    container(
+        &mut x,
+        "PUS_TM",
+        "PUS-C telemetry of this robot: TM secondary header with CDS short time",
+        true,
+        &names(layout::TM_SEC_HEADER),
+        Some((
+            "CCSDSPacket",
+            &[
+                ("PKT_TYPE", "0".to_string()),
+                ("SEC_HDR_FLG", "1".to_string()),
+                ("PKT_APID", apid.to_string()),
+            ],
+        )),
+    );
+    let pec = [layout::PEC.name.to_string()];
+    container(
+        &mut x,
+        "HK_REPORT",
+        "TM[3,25] housekeeping parameter report",
+        true,
+        &["HK_SID".to_string()],
+        Some((
+            "PUS_TM",
+            &[
+                ("TM_SERVICE", tc::service::HOUSEKEEPING.to_string()),
+                ("TM_SUBSERVICE", "25".to_string()),
+            ],
+        )),
+    );
+    for h in HK_STRUCTS {
+        let mut e: Vec<String> = h
+            .params
+            .iter()
+            .filter_map(|id| crate::params::by_id(*id))
+            .map(|p| p.name.to_string())
+            .collect();
+        e.extend(pec.iter().cloned());
+        container(
+            &mut x,
+            &format!("HK_{}", h.name),
+            &format!("SID {}: {}", h.sid, h.desc),
+            false,
+            &e,
+            Some(("HK_REPORT", &[("HK_SID", h.sid.to_string())])),
+        );
+    }
+    let sevs = [Severity::Info, Severity::Low, Severity::Medium, Severity::High];
+    for s in sevs {
+        container(
+            &mut x,
+            &severity_container(s),
+            &format!("TM[5,{}] {} severity event report", s.subservice(), s.name()),
+            true,
+            &["EVENT_ID".to_string()],
+            Some((
+                "PUS_TM",
+                &[
+                    ("TM_SERVICE", tc::service::EVENT.to_string()),
+                    ("TM_SUBSERVICE", s.subservice().to_string()),
+                ],
+            )),
+        );
+    }
+    for e in EVENTS {
+        let mut en: Vec<String> = e.params.iter().map(|p| event_param_name(e, p.name)).collect();
+        en.extend(pec.iter().cloned());
+        container(
+            &mut x,
+            &format!("EVT_{}", e.name),
+            &format!("event 0x{:04X}: {}", e.id, e.desc),
+            false,
+            &en,
+            Some((&severity_container(e.severity), &[("EVENT_ID", e.id.to_string())])),
+        );
+    }
+    for t in TMS
+        .iter()
+        .filter(|t| !super::scos::is_identified_by_pi1(t.service, t.subservice))
+    {
+        container(
+            &mut x,
+            &format!("TM_{}", t.name),
+            &format!(
+                "TM[{},{}] {}; source data: {}",
+                t.service, t.subservice, t.desc, t.layout
+            ),
+            false,
+            &["TM_SOURCE_DATA".to_string(), layout::PEC.name.to_string()],
+            Some((
+                "PUS_TM",
+                &[
+                    ("TM_SERVICE", t.service.to_string()),
+                    ("TM_SUBSERVICE", t.subservice.to_string()),
+                ],
+            )),
+        );
+    }
+    x.close("</xtce:ContainerSet>");
+    x.close("</xtce:TelemetryMetaData>");
+
+    // ---------------- telecommands ----------------
+    x.open("<xtce:CommandMetaData>");
+    x.open("<xtce:ArgumentTypeSet>");
+    let tc_header_args: Vec<&Field> = layout::PRIMARY_HEADER
+        .iter()
+        .chain(layout::TC_SEC_HEADER)
+        .filter(|f| f.fixed.is_none() && f.name != "PKT_TYPE" && f.name != "TC_SOURCE_ID")
+        .collect();
+    for f in &tc_header_args {
+        x.open(&format!(
+            "<xtce:IntegerArgumentType name=\"TC_{}_Type\" shortDescription=\"{}\" signed=\"false\" sizeInBits=\"32\">",
+            f.name,
+            esc(f.desc)
+        ));
+        x.line("<xtce:UnitSet/>");
+        x.line(&format!(
+            "<xtce:IntegerDataEncoding sizeInBits=\"{}\" encoding=\"unsigned\"/>",
+            f.bits
+        ));
+        x.close("</xtce:IntegerArgumentType>");
+    }
+    for t in TCS {
+        for a in t.args {
+            x.open(&format!(
+                "<xtce:IntegerArgumentType name=\"{}_{}_Type\" shortDescription=\"{}\" signed=\"{}\" sizeInBits=\"{}\">",
+                t.name,
+                a.name,
+                esc(a.desc),
+                a.ptype.signed(),
+                if a.ptype.bits() >= 32 { 64 } else { 32 }
+            ));
+            unit_set(&mut x, a.unit);
+            x.line(&format!("{}/>", int_encoding(a.ptype)));
+            x.open("<xtce:ValidRangeSet>");
+            x.line(&format!(
+                "<xtce:ValidRange minInclusive=\"{}\" maxInclusive=\"{}\"/>",
+                a.min, a.max
+            ));
+            x.close("</xtce:ValidRangeSet>");
+            x.close("</xtce:IntegerArgumentType>");
+        }
+    }
+    x.close("</xtce:ArgumentTypeSet>");
+
+    x.open("<xtce:MetaCommandSet>");
+    // Abstract PUS-C TC with the headers.
+    x.open("<xtce:MetaCommand name=\"PUS_TC\" abstract=\"true\" shortDescription=\"PUS-C telecommand: CCSDS primary header and TC secondary header; a CRC-16/CCITT-FALSE PEC follows the application data\">");
+    x.open("<xtce:ArgumentList>");
+    for f in &tc_header_args {
+        x.line(&format!(
+            "<xtce:Argument name=\"{}\" argumentTypeRef=\"TC_{}_Type\"{}/>",
+            f.name,
+            f.name,
+            if f.name == "TC_ACK_FLAGS" || f.name == "SRC_SEQ_CTR" || f.name == "PKT_LEN" {
+                " initialValue=\"0\""
+            } else {
+                ""
+            }
+        ));
+    }
+    x.close("</xtce:ArgumentList>");
+    x.open("<xtce:CommandContainer name=\"PUS_TC\">");
+    x.open("<xtce:EntryList>");
+    for f in layout::PRIMARY_HEADER.iter().chain(layout::TC_SEC_HEADER) {
+        let fixed = match f.name {
+            "PKT_TYPE" => Some(1),
+            "TC_SOURCE_ID" => Some(config::GROUND_ID as u32),
+            _ => f.fixed,
+        };
+        match fixed {
+            Some(v) => x.line(&format!(
+                "<xtce:FixedValueEntry name=\"{}\" binaryValue=\"{}\" sizeInBits=\"{}\"/>",
+                f.name,
+                hex_value(v as u64, f.bits),
+                f.bits
+            )),
+            None => x.line(&format!("<xtce:ArgumentRefEntry argumentRef=\"{}\"/>", f.name)),
+        }
+    }
+    x.close("</xtce:EntryList>");
+    x.close("</xtce:CommandContainer>");
+    x.close("</xtce:MetaCommand>");
+
+    for t in TCS {
+        meta_command(&mut x, t, apid);
+    }
+    x.close("</xtce:MetaCommandSet>");
+    x.close("</xtce:CommandMetaData>");
+    x.close("</xtce:SpaceSystem>");
+    x.s
+}
+
+/// Hex string of `v` on `bits` bits (whole octets, as `binaryValue` wants).
+fn hex_value(v: u64, bits: u32) -> String {
+    let octets = bits.div_ceil(8).max(1) as usize;
+    format!("{:0width$X}", v, width = octets * 2)
+}
+
+fn meta_command(x: &mut Xml, t: &TcDef, apid: u16) {
+    let mut desc = format!(
+        "TC[{},{}]{}: {}; accepted in {}",
+        t.service,
+        t.subservice,
+        if t.service == tc::service::FUNCTION {
+            format!(" function {}", t.function)
+        } else {
+            String::new()
+        },
+        t.desc,
+        t.modes.names()
+    );
+    if t.variable {
+        desc.push_str("; variable application data follows the fixed arguments");
+    }
+    x.open(&format!(
+        "<xtce:MetaCommand name=\"{}\" shortDescription=\"{}\">",
+        t.name,
+        esc(&desc)
+    ));
+    x.open("<xtce:BaseMetaCommand metaCommandRef=\"PUS_TC\">");
+    x.open("<xtce:ArgumentAssignmentList>");
+    for (n, v) in [
+        ("PKT_APID", apid.to_string()),
+        ("TC_SERVICE", t.service.to_string()),
+        ("TC_SUBSERVICE", t.subservice.to_string()),
+    ] {
+        x.line(&format!(
+            "<xtce:ArgumentAssignment argumentName=\"{n}\" argumentValue=\"{v}\"/>"
+        ));
+    }
+    x.close("</xtce:ArgumentAssignmentList>");
+    x.close("</xtce:BaseMetaCommand>");
+    if !t.args.is_empty() {
+        x.open("<xtce:ArgumentList>");
+        for a in t.args {
+            x.line(&format!(
+                "<xtce:Argument name=\"{}\" argumentTypeRef=\"{}_{}_Type\" shortDescription=\"{}\"/>",
+                a.name,
+                t.name,
+                a.name,
+                esc(a.desc)
+            ));
+        }
+        x.close("</xtce:ArgumentList>");
+    }
+    x.open(&format!("<xtce:CommandContainer name=\"{}_CC\">", t.name));
+    x.open("<xtce:EntryList>");
+    if t.service == tc::service::FUNCTION {
+        x.line(&format!(
+            "<xtce:FixedValueEntry name=\"FUNCTION_ID\" binaryValue=\"{}\" sizeInBits=\"16\"/>",
+            hex_value(t.function as u64, 16)
+        ));
+    }
+    for a in t.args {
+        x.line(&format!("<xtce:ArgumentRefEntry argumentRef=\"{}\"/>", a.name));
+    }
+    x.close("</xtce:EntryList>");
+    x.line("<xtce:BaseContainer containerRef=\"PUS_TC\"/>");
+    x.close("</xtce:CommandContainer>");
+    x.close("</xtce:MetaCommand>");
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    #[test]
+    fn document_mentions_every_hk_parameter_and_tc() {
+        let d = xtce_document();
+        for p in PARAMS {
+            assert!(d.contains(&format!("name=\"{}\"", p.name)), "{}", p.name);
+        }
+        for t in TCS {
+            assert!(d.contains(&format!("<xtce:MetaCommand name=\"{}\"", t.name)));
+        }
+        assert!(d.contains("value=\"257\""));
+        assert!(xtce_document_for(2).contains("value=\"258\""));
+        assert_eq!(hex_value(8, 16), "0008");
+        assert_eq!(hex_value(1, 1), "01");
+        assert_eq!(esc("a<b&\"c\""), "a&lt;b&amp;&quot;c&quot;");
+    }
+}

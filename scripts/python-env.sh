@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Creates (or completes) the Python virtual environment `.venv` at the repository root with
+# the independent XTCE decoder used by the MIB cross-check (mib/tests/xtce_crosscheck.rs).
+# Idempotent: a second run only verifies the pinned version.
+set -euo pipefail
+
+SPP_VERSION="6.2.0"   # space-packet-parser, verified with the XTCE cross-check
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+VENV="$ROOT/.venv"
+PY="${PYTHON:-python3}"
+
+if ! command -v "$PY" >/dev/null 2>&1; then
+    echo "python-env.sh: $PY not found; install Python 3.10+ (with venv)" >&2
+    exit 1
+fi
+
+if [ ! -x "$VENV/bin/python" ]; then
+    "$PY" -m venv "$VENV"
+fi
+
+have="$("$VENV/bin/python" -c 'import importlib.metadata as m; print(m.version("space_packet_parser"))' 2>/dev/null || true)"
+if [ "$have" != "$SPP_VERSION" ]; then
+    "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check "space-packet-parser==$SPP_VERSION"
+fi
+
+"$VENV/bin/python" -c 'import space_packet_parser, importlib.metadata as m; print("space-packet-parser", m.version("space_packet_parser"), "in", __import__("sys").prefix)'
