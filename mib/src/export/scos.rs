@@ -10,6 +10,11 @@
 
 use super::layout::{self, Field};
 use super::{num, trunc};
+
+/// ASCII text cut to a column width.
+fn fit(s: &str, n: usize) -> String {
+    trunc(&sanitize(s), n)
+}
 use crate::events::{Severity, EVENTS};
 use crate::hk::HK_STRUCTS;
 use crate::params::PARAMS;
@@ -317,11 +322,23 @@ impl Table {
     }
 }
 
-/// Tabs and line breaks would break the table format.
+/// SCOS-2000 tables are ASCII; tabs and line breaks would break the table format.
 fn sanitize(s: &str) -> String {
-    s.chars()
-        .map(|c| if c == '\t' || c == '\n' || c == '\r' { ' ' } else { c })
-        .collect()
+    let mut o = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '\t' | '\n' | '\r' => o.push(' '),
+            '\u{2013}' | '\u{2014}' | '\u{2212}' => o.push('-'),
+            '\u{00B0}' => o.push_str("deg"),
+            '\u{00B5}' => o.push('u'),
+            '\u{00D7}' => o.push('x'),
+            '\u{2026}' => o.push_str("..."),
+            '\u{2192}' => o.push_str("->"),
+            c if c.is_ascii() && !c.is_control() => o.push(c),
+            _ => o.push('?'),
+        }
+    }
+    o
 }
 
 /// One TM packet definition (one `pid` row).
@@ -411,7 +428,7 @@ fn tm_packets() -> Vec<TmPacket> {
                 Severity::Low | Severity::Medium => "W",
                 Severity::High => "A",
             },
-            evid: trunc(e.name, 17),
+            evid: fit(e.name, 17),
             params,
         });
     }
@@ -480,7 +497,7 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
             &p.pi1.to_string(),
             "0",
             &spid,
-            &trunc(&p.descr, 64),
+            &fit(&p.descr, 64),
             "",
             "-1",
             &dfh,
@@ -493,7 +510,7 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
         ]);
         tpcf.row([
             &spid,
-            &trunc(&p.name, 12),
+            &fit(&p.name, 12),
             &p.data_len
                 .map(|n| layout::tm_packet_len(n).to_string())
                 .unwrap_or_default(),
@@ -537,9 +554,9 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
         let (ptc, pfc) = ptc_pfc(t);
         pcf.row([
             name,
-            &trunc(descr, 24),
+            &fit(descr, 24),
             obpid,
-            &trunc(unit, 4),
+            &fit(unit, 4),
             &ptc.to_string(),
             &pfc.to_string(),
             "",
@@ -559,7 +576,7 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
             "",
             "0",
             "B",
-            &trunc(descr2, 256),
+            &fit(descr2, 256),
         ]);
     };
     pcf_row(
@@ -617,11 +634,11 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
     for (name, c, t, unit) in &cals {
         caf.row([
             name,
-            &trunc(&format!("eng = raw * {} + {}", num(c.scale), num(c.offset)), 32),
+            &fit(&format!("eng = raw * {} + {}", num(c.scale), num(c.offset)), 32),
             "R",
             fmt_letter(*t),
             "D",
-            &trunc(unit, 4),
+            &fit(unit, 4),
             "2",
             "P",
         ]);
@@ -668,11 +685,11 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
             _ => ("F", "", format!("{:X}", f.fixed.unwrap_or(0))),
         };
         if !pname.is_empty() {
-            pcpc.row([pname, &trunc(f.desc, 24), "U"]);
+            pcpc.row([pname, &fit(f.desc, 24), "U"]);
         }
         pcdf.row([
             ScosNames::TC_HEADER,
-            &trunc(f.name, 24),
+            &fit(f.name, 24),
             ty,
             &f.bits.to_string(),
             &bit.to_string(),
@@ -736,7 +753,7 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
             cdf.row([
                 &cname,
                 "E",
-                &trunc(a.name, 24),
+                &fit(a.name, 24),
                 &a.ptype.bits().to_string(),
                 &bit.to_string(),
                 "0",
@@ -747,12 +764,12 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
             ]);
             cpc.row([
                 &pname,
-                &trunc(a.name, 24),
+                &fit(a.name, 24),
                 &ptc.to_string(),
                 &pfc.to_string(),
                 fmt_letter(a.ptype),
                 "D",
-                &trunc(a.unit, 4),
+                &fit(a.unit, 4),
                 "N",
                 &rname,
                 "",
@@ -761,17 +778,17 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
                 &a.min.to_string(),
                 "Y",
                 "0",
-                &trunc(&format!("{}: {}", t.name, a.desc), 256),
+                &fit(&format!("{}: {}", t.name, a.desc), 256),
                 "B",
             ]);
             prf.row([
                 &rname,
-                &trunc(&format!("{} {}", t.name, a.name), 24),
+                &fit(&format!("{} {}", t.name, a.name), 24),
                 "R",
                 fmt_letter(a.ptype),
                 "D",
                 "1",
-                &trunc(a.unit, 4),
+                &fit(a.unit, 4),
             ]);
             prv.row([&rname, &a.min.to_string(), &a.max.to_string()]);
             bit += a.ptype.bits();
@@ -783,8 +800,8 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
         }
         ccf.row([
             &cname,
-            &trunc(t.name, 24),
-            &trunc(&descr2, 64),
+            &fit(t.name, 24),
+            &fit(&descr2, 64),
             "",
             "N",
             ScosNames::TC_HEADER,
