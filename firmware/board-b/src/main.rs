@@ -1,29 +1,153 @@
+//! Board B (ESP32-C3): the subordinate. It executes board A's module commands for side
+//! B (arm, gripper, bolter), acknowledges each, and sends A a heartbeat every
+//! `mib::config::B_HEARTBEAT_PERIOD_MS` — all of it `mmic_domain::board_b::BoardB`.
+//! This file only wires the hardware and runs three embassy tasks:
+//!
+//! | task      | runs                                   | talks through            |
+//! |-----------|----------------------------------------|--------------------------|
+//! | `control` | every 10 ms: sensors → BoardB → outputs | `AB_RX` in, `AB_TX` out  |
+//! | `ab_rx`   | UART1 receiver                         | → `AB_RX` (byte queue)   |
+//! | `ab_tx`   | UART1 transmitter                      | `AB_TX` → UART1          |
+//!
+//! Pins: see docs/firmware.md.
 #![no_std]
 #![no_main]
 #![deny(warnings)]
 
 use embassy_executor::Spawner;
-use embassy_time::{Duration, Timer};
+use embassy_time::{Duration, Ticker};
+use esp_hal::gpio::{Input, InputConfig, Level, Output, OutputConfig, Pull};
+use esp_hal::i2c::master::{Config as I2cConfig, I2c};
+use esp_hal::ledc::channel::Number as Ch;
+use esp_hal::ledc::Ledc;
+use esp_hal::time::Rate;
 use esp_hal::timer::timg::TimerGroup;
+use esp_hal::uart::{Config as UartConfig, Uart, UartRx, UartTx};
+use esp_hal::Async;
+use fw_core::config::{self as cfg, i2c_addr};
+use fw_core::link::{self, ByteQueue, Counters};
+use fw_core::periph::ads7828::PowerMode;
+use fw_core::periph::{ActiveLowSwitch, Ads7828, BolterMux, BolterServos, Mpu6000, SideOutputs};
+use fw_core::sampling::{sample_b, SensorErrors};
+use fw_esp::bus::{self, SensorDevice};
+use fw_esp::servos::{Servo, ServoBank};
+use mmic_domain::board_b::{BoardB, BoardBOut};
+use mmic_domain::SensorsB;
 
 esp_bootloader_esp_idf::esp_app_desc!();
 
-#[panic_handler]
-fn panic(_info: &core::panic::PanicInfo) -> ! {
-    loop {}
+/// Bytes from board A, waiting for the control task.
+static AB_RX: ByteQueue<{ cfg::AB_RX_BYTES }> = ByteQueue::new();
+/// Bytes for board A, waiting for the UART.
+static AB_TX: ByteQueue<{ cfg::AB_TX_BYTES }> = ByteQueue::new();
+static AB_RX_STATS: Counters = Counters::new();
+static AB_TX_STATS: Counters = Counters::new();
+
+type Side = SideOutputs<Servo, Servo, Servo, Servo, BolterMux<Output<'static>, Output<'static>>>;
+
+struct Hardware {
+    adc: Ads7828<SensorDevice>,
+    imu: Option<Mpu6000<SensorDevice>>,
+    arm_switch: ActiveLowSwitch<Input<'static>>,
+    side: Side,
 }
 
 #[embassy_executor::task]
-async fn heartbeat() {
+async fn ab_rx(rx: UartRx<'static, Async>) {
+    link::reader_to_queue(rx, &AB_RX, &AB_RX_STATS).await
+}
+
+#[embassy_executor::task]
+async fn ab_tx(tx: UartTx<'static, Async>) {
+    link::queue_to_writer(&AB_TX, tx, &AB_TX_STATS).await
+}
+
+/// No IMU (absent or failing its identity check): gravity reads as an error every
+/// cycle, so board A sees the last good value age out in the heartbeat.
+struct NoImu;
+impl fw_core::periph::GravitySensor for NoImu {
+    fn gravity_mg(&mut self) -> Result<[i16; 3], fw_core::periph::HwError> {
+        Err(fw_core::periph::HwError::Bus)
+    }
+}
+
+#[embassy_executor::task]
+async fn control(mut hw: Hardware) {
+    let mut board = BoardB::new();
+    let mut out = BoardBOut::default();
+    let mut sensors = SensorsB::default();
+    let mut errors = SensorErrors::default();
+    let mut rx = [0u8; cfg::AB_RX_BYTES];
+    let mut ticker = Ticker::every(Duration::from_millis(cfg::CONTROL_PERIOD_MS as u64));
+    hw.side.release_all();
     loop {
-        Timer::after(Duration::from_millis(50)).await;
+        ticker.next().await;
+        match hw.imu.as_mut() {
+            Some(imu) => sample_b(&mut hw.adc, imu, &mut hw.arm_switch, &mut sensors, &mut errors),
+            None => sample_b(&mut hw.adc, &mut NoImu, &mut hw.arm_switch, &mut sensors, &mut errors),
+        }
+        let n = link::drain(&AB_RX, &mut rx);
+        board.tick(fw_esp::clock::now_ms(), &sensors, &rx[..n], &mut out);
+        // An output that fails keeps its previous state; board A sees the module's
+        // PWM and current in the heartbeat and its FDIR acts on them.
+        let _ = hw.side.apply(&out.side, out.mux);
+        link::push_bytes(&AB_TX, &out.tx, &AB_TX_STATS);
     }
 }
 
 #[esp_hal::main]
 async fn main(spawner: Spawner) {
-    let peripherals = esp_hal::init(esp_hal::Config::default());
-    let timg0 = TimerGroup::new(peripherals.TIMG0);
-    esp_rtos::start(timg0.timer0, peripherals.FROM_CPU_INTR0);
-    spawner.spawn(heartbeat().unwrap());
+    let p = esp_hal::init(esp_hal::Config::default());
+    let timg0 = TimerGroup::new(p.TIMG0);
+    esp_rtos::start(timg0.timer0, p.FROM_CPU_INTR0);
+
+    // A↔B link on UART1: TX GPIO21, RX GPIO20 (crossed to board A).
+    let uart = Uart::new(p.UART1, UartConfig::default().with_baudrate(cfg::AB_LINK_BAUD))
+        .expect("UART1 config")
+        .with_tx(p.GPIO21)
+        .with_rx(p.GPIO20)
+        .into_async();
+    let (uart_rx, uart_tx) = uart.split();
+
+    // Sensor bus: I2C0, SDA GPIO4, SCL GPIO5, 400 kHz.
+    let i2c = I2c::new(
+        p.I2C0,
+        I2cConfig::default().with_frequency(Rate::from_khz(cfg::I2C_FREQ_KHZ)),
+    )
+    .expect("I2C0 config")
+    .with_sda(p.GPIO4)
+    .with_scl(p.GPIO5);
+    let bus = bus::share(i2c);
+    let adc = Ads7828::new(bus::device(bus), i2c_addr::ADS7828, PowerMode::RefOnAdcOn);
+    let imu = Mpu6000::init(bus::device(bus), i2c_addr::MPU6000).ok();
+
+    // Servos on LEDC: arm GPIO0, gripper GPIO1, bolter translate GPIO6, rotate GPIO7.
+    let bank = ServoBank::new(Ledc::new(p.LEDC)).expect("LEDC timer");
+    let side = SideOutputs {
+        arm: bank.servo(Ch::Channel0, p.GPIO0).expect("arm servo"),
+        grip: bank.servo(Ch::Channel1, p.GPIO1).expect("gripper servo"),
+        bolter: BolterServos {
+            translate: bank.servo(Ch::Channel2, p.GPIO6).expect("bolter translate"),
+            rotate: bank.servo(Ch::Channel3, p.GPIO7).expect("bolter rotate"),
+        },
+        // Bolter multiplexer A0 GPIO8, A1 GPIO2 (strapping pins, pulled up on the board).
+        mux: BolterMux::new(
+            Output::new(p.GPIO8, Level::High, OutputConfig::default()),
+            Output::new(p.GPIO2, Level::High, OutputConfig::default()),
+        ),
+    };
+    // Arm-contracted switch to ground on GPIO10, internal pull-up.
+    let arm_switch = ActiveLowSwitch(Input::new(p.GPIO10, InputConfig::default().with_pull(Pull::Up)));
+
+    spawner.spawn(ab_rx(uart_rx).expect("ab_rx task"));
+    spawner.spawn(ab_tx(uart_tx).expect("ab_tx task"));
+    spawner.spawn(
+        control(Hardware {
+            adc,
+            imu,
+            arm_switch,
+            side,
+        })
+        .expect("control task"),
+    );
 }

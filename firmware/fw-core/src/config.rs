@@ -9,8 +9,6 @@ pub const CONTROL_PERIOD_MS: u32 = mc::CONTROL_PERIOD_MS;
 pub const B_HEARTBEAT_PERIOD_MS: u32 = mc::B_HEARTBEAT_PERIOD_MS;
 /// Baud rate of the A–B UART.
 pub const AB_LINK_BAUD: u32 = mc::AB_LINK_BAUD;
-/// Baud rate of the ground link UART (USB-serial bridge of the dev board).
-pub const GROUND_BAUD: u32 = 115_200;
 
 /// Largest space packet on the ground link.
 pub const MAX_PACKET_LEN: usize = mc::MAX_PACKET_LEN;
@@ -29,22 +27,18 @@ pub const GROUND_RX_BUF: usize = MAX_PACKET_LEN;
 /// TCs decoded by the ground link and waiting for the OBSW task. When full, the ground
 /// link drops the TC and counts it: an unacknowledged TC is resent by the ground.
 pub const TC_QUEUE_DEPTH: usize = 4;
-/// TM packets waiting for the ground link transmitter. When full, the producer keeps the
-/// packet in the OBSW's own TM queue/store (nothing is dropped by the channel itself).
-pub const TM_QUEUE_DEPTH: usize = 8;
-/// Largest TM packet the firmware sends (HK ROBOT_STATUS is the largest, ~100 bytes;
-/// memory dumps and definition reports are capped at this size).
-pub const TM_PACKET_MAX: usize = 256;
+/// Downlink byte queue (COBS frames of TM packets) between the OBSW task and the ground
+/// link transmitter: four of the largest packets. When a frame does not fit, the OBSW
+/// keeps the packet in its own TM queue / on-board store and retries next cycle.
+pub const TM_DOWNLINK_BYTES: usize = 4 * GROUND_FRAME_MAX;
 
-/// Largest A–B link frame payload (heartbeat and module commands are far smaller).
-pub const AB_PAYLOAD_MAX: usize = 64;
-/// Longest encoded A–B frame on the wire.
-pub const AB_FRAME_MAX: usize = cobs_frame_len(AB_PAYLOAD_MAX);
-/// A–B frames received and waiting for the consumer (board A: control task; board B:
-/// command executor). When full the oldest is kept and the new frame is counted lost.
-pub const AB_RX_DEPTH: usize = 4;
-/// A–B frames waiting for the UART transmitter.
-pub const AB_TX_DEPTH: usize = 4;
+/// A–B link: bytes received and waiting for the control task. 115 200 Bd carries ~115
+/// bytes per 10 ms control period; the queue holds four periods. Overflowing bytes are
+/// dropped and counted; the A–B protocol's CRC and resend recover.
+pub const AB_RX_BYTES: usize = 512;
+/// A–B link: bytes waiting for the UART transmitter (four periods' worth of the
+/// domain's per-tick transmit capacity).
+pub const AB_TX_BYTES: usize = 512;
 
 /// UART receive chunk read per wake-up (bytes).
 pub const UART_READ_CHUNK: usize = 64;
@@ -91,4 +85,18 @@ pub mod i2c_addr {
 pub const I2C_FREQ_KHZ: u32 = 400;
 
 const _: () = assert!(GROUND_FRAME_MAX == 1024 + 4 + 1 + 2);
-const _: () = assert!(TM_PACKET_MAX <= MAX_PACKET_LEN);
+
+/// Bolter drive pulse widths (continuous-rotation servos, 1500 µs = stop). Hardware
+/// wiring values of the bolter mechanism, not telemetry: candidates for
+/// `mib::robot::servo` if the ground ever needs them.
+pub mod bolter_servo {
+    pub const STOP_US: u16 = 1500;
+    /// Translation toward the fastener (pushes against the stop when there).
+    pub const TRANSLATE_PUSH_US: u16 = 1800;
+    /// Translation back toward home.
+    pub const TRANSLATE_BACK_US: u16 = 1200;
+    /// Head rotation in the locking direction.
+    pub const ROTATE_LOCK_US: u16 = 1800;
+    /// Head rotation in the releasing direction.
+    pub const ROTATE_UNLOCK_US: u16 = 1200;
+}

@@ -8,13 +8,16 @@
 //! - [`periph`]: the small traits the boards' peripherals sit behind, and the drivers
 //!   for the ADS7828 ADC, the MPU-6000 IMU, the AS5600 hip encoder, the LEDC servo
 //!   outputs and the bolter multiplexer, written against `embedded-hal` 1.0;
-//! - [`panic_record`]: the layout of the panic reason kept in RTC fast RAM across a reset;
-//! - [`average`]: the 50-sample moving average every raw channel passes through.
+//! - [`panic_record`]: the layout of the panic reason kept in RTC fast RAM across a reset.
+//!
+//! The robot logic itself (filters, controllers, bolter, A–B protocol, PUS services)
+//! is `mmic-domain` and `obsw-core`, shared with the host.
 #![cfg_attr(not(test), no_std)]
 #![deny(unsafe_code)]
 
-pub mod average;
 pub mod config;
 pub mod framing;
+pub mod link;
 pub mod panic_record;
 pub mod periph;
+pub mod sampling;

@@ -164,3 +164,11 @@ pub fn report_panic(info: &core::panic::PanicInfo<'_>) {
     semihosting::println!();
     semihosting::println!("{} passed, {} failed", passed, failed);
 }
+
+/// `tests![a, b, c]`: a table of test functions named after themselves.
+#[macro_export]
+macro_rules! tests {
+    ($($f:ident),* $(,)?) => {
+        &[$($crate::harness::Test { name: stringify!($f), run: $f }),*]
+    };
+}

@@ -55,8 +55,7 @@ impl I2c for MockI2c {
                     }
                 }
                 Operation::Read(buf) => {
-                    if let Some((_, reply)) = self.replies.iter().find(|(c, _)| *c == self.pointer)
-                    {
+                    if let Some((_, reply)) = self.replies.iter().find(|(c, _)| *c == self.pointer) {
                         for (i, b) in buf.iter_mut().enumerate() {
                             *b = reply.get(i).copied().unwrap_or(0);
                         }

@@ -2,6 +2,7 @@
 //! written out by hand from the ICD, and round trips.
 
 use crate::harness::{Test, TestResult};
+use crate::tests;
 use crate::{check, check_eq, ok};
 use mib::codec::{self, ArgError, CodecError};
 use mib::events::eid;
@@ -9,17 +10,17 @@ use mib::hk::{self, sid};
 use mib::params::pid;
 use mib::tc::{self, function};
 
-pub const TESTS: &[Test] = &[
-    Test { name: "codec_b_link_hk_matches_hand_layout", run: b_link_layout },
-    Test { name: "codec_every_hk_structure_round_trips", run: hk_round_trip },
-    Test { name: "codec_hk_decode_rejects_bad_input", run: hk_rejects },
-    Test { name: "codec_low_battery_event_layout", run: event_layout },
-    Test { name: "codec_reconfigure_args_layout_and_ranges", run: args },
-    Test { name: "mib_low_battery_monitor_is_10v_for_half_a_second", run: low_battery_monitor },
-    Test { name: "mib_fault_table_recovery_modes", run: fault_modes },
+pub const TESTS: &[Test] = tests![
+    codec_b_link_hk_matches_hand_layout,
+    codec_every_hk_structure_round_trips,
+    codec_hk_decode_rejects_bad_input,
+    codec_low_battery_event_layout,
+    codec_reconfigure_args_layout_and_ranges,
+    mib_low_battery_monitor_is_10v_for_half_a_second,
+    mib_fault_table_recovery_modes,
 ];
 
-fn b_link_layout() -> TestResult {
+fn codec_b_link_hk_matches_hand_layout() -> TestResult {
     let def = ok!(hk::by_sid(sid::B_LINK));
     let mut buf = [0u8; 64];
     let n = ok!(codec::encode_hk(
@@ -61,7 +62,7 @@ fn pattern(id: u16, bits: usize, signed: bool) -> i64 {
     }
 }
 
-fn hk_round_trip() -> TestResult {
+fn codec_every_hk_structure_round_trips() -> TestResult {
     for def in hk::HK_STRUCTS {
         let mut buf = [0u8; 256];
         let n = ok!(codec::encode_hk(
@@ -94,8 +95,11 @@ fn hk_round_trip() -> TestResult {
     Ok(())
 }
 
-fn hk_rejects() -> TestResult {
-    check_eq!(codec::decode_hk(&[0x00, 0x63]).err(), Some(CodecError::UnknownSid(0x63)));
+fn codec_hk_decode_rejects_bad_input() -> TestResult {
+    check_eq!(
+        codec::decode_hk(&[0x00, 0x63]).err(),
+        Some(CodecError::UnknownSid(0x63))
+    );
     check!(codec::decode_hk(&[0x00]).is_err());
     let def = ok!(hk::by_sid(sid::ROBOT_STATUS));
     let mut buf = [0u8; 256];
@@ -108,7 +112,7 @@ fn hk_rejects() -> TestResult {
     Ok(())
 }
 
-fn event_layout() -> TestResult {
+fn codec_low_battery_event_layout() -> TestResult {
     let def = ok!(mib::events::by_id(eid::LOW_BATTERY));
     let mut buf = [0u8; 16];
     let n = ok!(codec::encode_event(def, &[20, 2700, 2730], &mut buf));
@@ -119,7 +123,7 @@ fn event_layout() -> TestResult {
     Ok(())
 }
 
-fn args() -> TestResult {
+fn codec_reconfigure_args_layout_and_ranges() -> TestResult {
     let def = ok!(tc::lookup(8, 1, Some(function::RECONFIGURE)));
     let mut buf = [0u8; 8];
     let n = ok!(codec::encode_args(def, &[3, 14], &mut buf));
@@ -137,7 +141,7 @@ fn args() -> TestResult {
     Ok(())
 }
 
-fn low_battery_monitor() -> TestResult {
+fn mib_low_battery_monitor_is_10v_for_half_a_second() -> TestResult {
     let m = ok!(mib::fdir::MONITORS.iter().find(|m| m.event == eid::LOW_BATTERY));
     // 10 V through the 15 V / 4095-count divider: 10 * 4095 / 15 = 2730 counts.
     check_eq!(m.low, 2730);
@@ -145,7 +149,7 @@ fn low_battery_monitor() -> TestResult {
     Ok(())
 }
 
-fn fault_modes() -> TestResult {
+fn mib_fault_table_recovery_modes() -> TestResult {
     use mib::fdir::{action_for, Timing};
     use mib::modes::robot_mode::{SAFED, STANDBY};
     let expect = [

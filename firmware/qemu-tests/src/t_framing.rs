@@ -1,19 +1,20 @@
 //! COBS framing of the ground and A–B links (fw-core::framing).
 
 use crate::harness::{Test, TestResult};
+use crate::tests;
 use crate::{check, check_eq, ok};
 use fw_core::framing::{encode_frame, Deframer, FrameError};
 
-pub const TESTS: &[Test] = &[
-    Test { name: "cobs_encodes_reference_vectors", run: vectors },
-    Test { name: "cobs_254_byte_block_gets_no_extra_zero", run: long_block },
-    Test { name: "deframer_splits_a_stream_and_resyncs", run: stream },
-    Test { name: "deframer_drops_frames_longer_than_its_buffer", run: too_long },
-    Test { name: "encode_refuses_short_output_buffer", run: short_out },
+pub const TESTS: &[Test] = tests![
+    cobs_encodes_reference_vectors,
+    cobs_254_byte_block_gets_no_extra_zero,
+    deframer_splits_a_stream_and_resyncs,
+    deframer_drops_frames_longer_than_its_buffer,
+    encode_refuses_short_output_buffer,
 ];
 
 /// Known COBS encodings (Cheshire & Baker; delimiters added by `encode_frame`).
-fn vectors() -> TestResult {
+fn cobs_encodes_reference_vectors() -> TestResult {
     let cases: [(&[u8], &[u8]); 5] = [
         (&[0x00], &[0x01, 0x01]),
         (&[0x00, 0x00], &[0x01, 0x01, 0x01]),
@@ -43,7 +44,7 @@ fn vectors() -> TestResult {
     Ok(())
 }
 
-fn long_block() -> TestResult {
+fn cobs_254_byte_block_gets_no_extra_zero() -> TestResult {
     let mut payload = [0u8; 254];
     for (i, b) in payload.iter_mut().enumerate() {
         *b = i as u8 + 1; // 0x01..=0xFE
@@ -67,7 +68,7 @@ fn long_block() -> TestResult {
     Ok(())
 }
 
-fn stream() -> TestResult {
+fn deframer_splits_a_stream_and_resyncs() -> TestResult {
     let frames: [&[u8]; 3] = [&[1, 2, 0, 3], &[0, 0, 0], &[0x7E; 40]];
     let mut wire = [0u8; 256];
     let mut n = 0;
@@ -110,7 +111,7 @@ fn stream() -> TestResult {
     Ok(())
 }
 
-fn too_long() -> TestResult {
+fn deframer_drops_frames_longer_than_its_buffer() -> TestResult {
     let mut out = [0u8; 64];
     let n = ok!(encode_frame(&[0xAB; 20], &mut out));
     let m = ok!(encode_frame(&[1, 2], &mut out[n..]));
@@ -125,7 +126,7 @@ fn too_long() -> TestResult {
     Ok(())
 }
 
-fn short_out() -> TestResult {
+fn encode_refuses_short_output_buffer() -> TestResult {
     let mut out = [0u8; 5];
     check!(encode_frame(&[1, 2, 3], &mut out).is_none());
     check_eq!(fw_core::config::cobs_frame_len(1024), 1031);

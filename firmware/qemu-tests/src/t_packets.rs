@@ -2,23 +2,22 @@
 //! bytes written out by hand and a CRC computed by a reference bit-by-bit routine.
 
 use crate::harness::{Test, TestResult};
+use crate::tests;
 use crate::{check, check_eq, ok};
 use arbitrary_int::{u11, u14};
 use satrs::spacepackets::ecss::tc::{
     AckFlags, GenericPusTcSecondaryHeader, PusTcCreator, PusTcReader, PusTcSecondaryHeader,
 };
-use satrs::spacepackets::ecss::tm::{
-    GenericPusTmSecondaryHeader, PusTmCreator, PusTmReader, PusTmSecondaryHeader,
-};
+use satrs::spacepackets::ecss::tm::{GenericPusTmSecondaryHeader, PusTmCreator, PusTmReader, PusTmSecondaryHeader};
 use satrs::spacepackets::ecss::{CreatorConfig, MessageTypeId, PusPacket};
 use satrs::spacepackets::{CcsdsPacket, SpHeader};
 
-pub const TESTS: &[Test] = &[
-    Test { name: "crc16_ccitt_false_reference_check_value", run: crc_reference },
-    Test { name: "pus_tc_ping_bytes_match_hand_layout", run: tc_ping_bytes },
-    Test { name: "pus_tc_reconfigure_round_trip_and_crc_error", run: tc_round_trip },
-    Test { name: "pus_tm_pong_bytes_match_hand_layout", run: tm_bytes },
-    Test { name: "pus_reader_rejects_truncated_packets", run: truncated },
+pub const TESTS: &[Test] = tests![
+    crc16_ccitt_false_reference_check_value,
+    pus_tc_ping_bytes_match_hand_layout,
+    pus_tc_reconfigure_round_trip_and_crc_error,
+    pus_tm_pong_bytes_match_hand_layout,
+    pus_reader_rejects_truncated_packets,
 ];
 
 /// CRC-16/CCITT-FALSE, one bit at a time (poly 0x1021, init 0xFFFF, no reflection).
@@ -37,13 +36,10 @@ fn crc16_reference(data: &[u8]) -> u16 {
     crc
 }
 
-fn crc_reference() -> TestResult {
+fn crc16_ccitt_false_reference_check_value() -> TestResult {
     // The catalogued check value of CRC-16/CCITT-FALSE.
     check_eq!(crc16_reference(b"123456789"), 0x29B1);
-    check_eq!(
-        satrs::spacepackets::crc::CRC_CCITT_FALSE.checksum(b"123456789"),
-        0x29B1
-    );
+    check_eq!(satrs::spacepackets::crc::CRC_CCITT_FALSE.checksum(b"123456789"), 0x29B1);
     Ok(())
 }
 
@@ -57,7 +53,7 @@ fn tc(buf: &mut [u8], seq: u16, svc: u8, sub: u8, app: &[u8]) -> Option<usize> {
         .ok()
 }
 
-fn tc_ping_bytes() -> TestResult {
+fn pus_tc_ping_bytes_match_hand_layout() -> TestResult {
     check_eq!(mib::apid::robot_apid(1), Some(APID));
     let mut buf = [0u8; 32];
     let n = ok!(tc(&mut buf, 5, 17, 1, &[]));
@@ -78,7 +74,7 @@ fn tc_ping_bytes() -> TestResult {
     Ok(())
 }
 
-fn tc_round_trip() -> TestResult {
+fn pus_tc_reconfigure_round_trip_and_crc_error() -> TestResult {
     let def = ok!(mib::tc::lookup(8, 1, Some(mib::tc::function::RECONFIGURE)));
     let mut app = [0u8; 8];
     let na = ok!(mib::codec::encode_args(def, &[0, 1], &mut app));
@@ -105,7 +101,7 @@ fn tc_round_trip() -> TestResult {
     Ok(())
 }
 
-fn tm_bytes() -> TestResult {
+fn pus_tm_pong_bytes_match_hand_layout() -> TestResult {
     let stamp = [0x00, 0x02, 0x00, 0x00, 0x01, 0x2C, 0x00]; // CDS short: day 2, 76 800 ms
     check_eq!(stamp.len(), mib::config::TIMESTAMP_LEN);
     let sp = SpHeader::new_for_unseg_tm(u11::new(APID), u14::new(7), 0);
@@ -128,7 +124,7 @@ fn tm_bytes() -> TestResult {
     Ok(())
 }
 
-fn truncated() -> TestResult {
+fn pus_reader_rejects_truncated_packets() -> TestResult {
     let mut buf = [0u8; 32];
     let n = ok!(tc(&mut buf, 1, 17, 1, &[]));
     for len in 0..n {

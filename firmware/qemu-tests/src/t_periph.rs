@@ -3,26 +3,27 @@
 
 use crate::harness::{Test, TestResult};
 use crate::mock::{MockI2c, MockPin, MockPwm};
+use crate::tests;
 use crate::{check, check_eq, ok};
 use fw_core::periph::ads7828::{self, PowerMode};
 use fw_core::periph::{
-    as5600, mpu6000, ActiveLowSwitch, Ads7828, AnalogInput, AngleSensor, As5600, BolterMux,
-    GravitySensor, HwError, Mpu6000, PairSelect, PwmServo, ServoOutput, Switch,
+    as5600, mpu6000, ActiveLowSwitch, Ads7828, AnalogInput, AngleSensor, As5600, BolterMux, GravitySensor, HwError,
+    Mpu6000, PairSelect, PwmServo, ServoOutput, Switch,
 };
 
-pub const TESTS: &[Test] = &[
-    Test { name: "ads7828_command_bytes_follow_datasheet_table", run: ads_cmd },
-    Test { name: "ads7828_reads_12_bit_result", run: ads_read },
-    Test { name: "mpu6000_init_sequence_and_gravity_in_mg", run: mpu },
-    Test { name: "mpu6000_wrong_identity_is_an_error", run: mpu_wrong },
-    Test { name: "as5600_angle_wraps_around_zero", run: enc },
-    Test { name: "as5600_missing_magnet_is_an_error", run: enc_no_magnet },
-    Test { name: "servo_pulse_to_ledc_duty", run: servo },
-    Test { name: "bolter_mux_selects_pairs_1_to_4", run: mux },
-    Test { name: "arm_switch_is_active_low", run: switch },
+pub const TESTS: &[Test] = tests![
+    ads7828_command_bytes_follow_datasheet_table,
+    ads7828_reads_12_bit_result,
+    mpu6000_init_sequence_and_gravity_in_mg,
+    mpu6000_wrong_identity_is_an_error,
+    as5600_angle_wraps_around_zero,
+    as5600_missing_magnet_is_an_error,
+    servo_pulse_to_ledc_duty,
+    bolter_mux_selects_pairs_1_to_4,
+    arm_switch_is_active_low,
 ];
 
-fn ads_cmd() -> TestResult {
+fn ads7828_command_bytes_follow_datasheet_table() -> TestResult {
     // ADS7828 datasheet, single-ended channel selection (SD=1, C2 C1 C0), PD = 11.
     let table: [(u8, u8); 8] = [
         (0, 0b1000_1100),
@@ -35,14 +36,19 @@ fn ads_cmd() -> TestResult {
         (7, 0b1111_1100),
     ];
     for (ch, byte) in table {
-        check_eq!(ads7828::command_byte(ch, PowerMode::RefOnAdcOn), Some(byte), "ch {}", ch);
+        check_eq!(
+            ads7828::command_byte(ch, PowerMode::RefOnAdcOn),
+            Some(byte),
+            "ch {}",
+            ch
+        );
     }
     check_eq!(ads7828::command_byte(3, PowerMode::RefOffAdcOn), Some(0b1101_0100));
     check_eq!(ads7828::command_byte(8, PowerMode::RefOnAdcOn), None);
     Ok(())
 }
 
-fn ads_read() -> TestResult {
+fn ads7828_reads_12_bit_result() -> TestResult {
     let mut bus = MockI2c::new(0x48);
     // V_BAT channel 0 answers 0x0AAA (2730 counts = 10.0 V); garbage in the top nibble
     // must be masked off.
@@ -60,7 +66,7 @@ fn ads_read() -> TestResult {
     Ok(())
 }
 
-fn mpu() -> TestResult {
+fn mpu6000_init_sequence_and_gravity_in_mg() -> TestResult {
     check_eq!(mpu6000::raw_to_mg(16384), 1000);
     check_eq!(mpu6000::raw_to_mg(-16384), -1000);
     check_eq!(mpu6000::raw_to_mg(8192), 500);
@@ -72,7 +78,13 @@ fn mpu() -> TestResult {
     bus.regs[0x3B..0x41].copy_from_slice(&[0x00, 0x00, 0xC0, 0x00, 0x20, 0x00]);
     let mut imu = match Mpu6000::init(bus, 0x68) {
         Ok(i) => i,
-        Err((e, _)) => return Err(crate::harness::Failure::new(file!(), line!(), format_args!("init: {}", e))),
+        Err((e, _)) => {
+            return Err(crate::harness::Failure::new(
+                file!(),
+                line!(),
+                format_args!("init: {}", e),
+            ))
+        }
     };
     check_eq!(imu.gravity_mg(), Ok([0, -1000, 500]));
     let bus = imu.release();
@@ -82,19 +94,29 @@ fn mpu() -> TestResult {
     Ok(())
 }
 
-fn mpu_wrong() -> TestResult {
+fn mpu6000_wrong_identity_is_an_error() -> TestResult {
     let mut bus = MockI2c::new(0x68);
     bus.regs[0x75] = 0x70;
     match Mpu6000::init(bus, 0x68) {
-        Ok(_) => Err(crate::harness::Failure::new(file!(), line!(), format_args!("accepted id 0x70"))),
+        Ok(_) => Err(crate::harness::Failure::new(
+            file!(),
+            line!(),
+            format_args!("accepted id 0x70"),
+        )),
         Err((e, _)) => {
-            check_eq!(e, HwError::WrongDevice { expected: 0x68, got: 0x70 });
+            check_eq!(
+                e,
+                HwError::WrongDevice {
+                    expected: 0x68,
+                    got: 0x70
+                }
+            );
             Ok(())
         }
     }
 }
 
-fn enc() -> TestResult {
+fn as5600_angle_wraps_around_zero() -> TestResult {
     check_eq!(as5600::counts_to_cdeg(1024, 0), 9000);
     check_eq!(as5600::counts_to_cdeg(3072, 0), -9000);
     check_eq!(as5600::counts_to_cdeg(2048, 0), -18000);
@@ -110,7 +132,7 @@ fn enc() -> TestResult {
     Ok(())
 }
 
-fn enc_no_magnet() -> TestResult {
+fn as5600_missing_magnet_is_an_error() -> TestResult {
     let mut bus = MockI2c::new(0x36);
     bus.regs[0x0B] = 0x00;
     let mut e = As5600::new(bus, 0x36, 0);
@@ -118,7 +140,7 @@ fn enc_no_magnet() -> TestResult {
     Ok(())
 }
 
-fn servo() -> TestResult {
+fn servo_pulse_to_ledc_duty() -> TestResult {
     // 14-bit LEDC duty, 20 ms frame: 1500 us -> 1500 / 20000 * 16383 = 1228.7
     check_eq!(fw_core::periph::servo::duty_for_pulse(1500, 16383), 1229);
     check_eq!(fw_core::periph::servo::duty_for_pulse(1000, 16383), 819);
@@ -133,21 +155,22 @@ fn servo() -> TestResult {
     Ok(())
 }
 
-fn mux() -> TestResult {
+fn bolter_mux_selects_pairs_1_to_4() -> TestResult {
     let mut m = BolterMux::new(MockPin::default(), MockPin::default());
+    // Pair n is select code n-1 on (A0, A1), as the domain computes it.
     let expect = [(1, false, false), (2, true, false), (3, false, true), (4, true, true)];
     for (pair, a0, a1) in expect {
-        ok!(m.select_pair(pair));
-        check_eq!(m.selected(), pair);
-        check_eq!(fw_core::periph::mux::mux_levels(pair), Some((a0, a1)));
+        let bits = mmic_domain::types::mux_bits(pair);
+        ok!(m.select(bits));
+        check_eq!(m.code(), Some(pair - 1));
+        check_eq!(fw_core::periph::mux::mux_levels(bits), Some((a0, a1)));
     }
-    check_eq!(m.select_pair(0), Err(HwError::OutOfRange));
-    check_eq!(m.select_pair(5), Err(HwError::OutOfRange));
-    check_eq!(m.selected(), 4);
+    check_eq!(m.select(4), Err(HwError::OutOfRange));
+    check_eq!(m.code(), Some(3));
     Ok(())
 }
 
-fn switch() -> TestResult {
+fn arm_switch_is_active_low() -> TestResult {
     let mut s = ActiveLowSwitch(MockPin { high: true, changes: 0 });
     check_eq!(s.is_pushed(), Ok(false));
     s.0.high = false;

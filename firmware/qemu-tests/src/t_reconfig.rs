@@ -2,12 +2,13 @@
 //! independent routine here, and the primitives' geometric effect re-derived.
 
 use crate::harness::{Test, TestResult};
+use crate::tests;
 use crate::{check, check_eq};
 use mib::robot::{self, Face, StateKind, NUM_STATES, RECONFIG_MAP, STATES};
 
-pub const TESTS: &[Test] = &[
-    Test { name: "map_primitives_match_geometry", run: geometry },
-    Test { name: "map_matched_states_reach_each_other_in_1_to_3", run: matched_reachability },
+pub const TESTS: &[Test] = tests![
+    map_primitives_match_geometry,
+    map_matched_states_reach_each_other_in_1_to_3,
 ];
 
 /// Shortest number of primitives from `a` to `b` over the map (BFS), `None` if unreachable.
@@ -32,7 +33,7 @@ pub fn bfs_len(a: usize, b: usize) -> Option<usize> {
     (dist[b] != usize::MAX).then_some(dist[b])
 }
 
-fn geometry() -> TestResult {
+fn map_primitives_match_geometry() -> TestResult {
     // Primitive 1 (fwd extend) from matched Xneg: A jumps to the opposite face Xpos.
     check_eq!(RECONFIG_MAP[0][4], 1);
     let mut edges = 0;
@@ -45,7 +46,13 @@ fn geometry() -> TestResult {
             edges += 1;
             let prim = match robot::primitive(p) {
                 Some(p) => p,
-                None => return Err(crate::harness::Failure::new(file!(), line!(), format_args!("bad primitive {}", p))),
+                None => {
+                    return Err(crate::harness::Failure::new(
+                        file!(),
+                        line!(),
+                        format_args!("bad primitive {}", p),
+                    ))
+                }
             };
             // Exactly one side moves; the other keeps its face.
             let (moved_from, moved_to, anchor_before, anchor_after) = match prim.moving {
@@ -72,7 +79,7 @@ fn geometry() -> TestResult {
     Ok(())
 }
 
-fn matched_reachability() -> TestResult {
+fn map_matched_states_reach_each_other_in_1_to_3() -> TestResult {
     let matched: heapless::Vec<usize, 4> = (0..NUM_STATES)
         .filter(|&i| STATES[i].kind() == StateKind::Matched)
         .collect();

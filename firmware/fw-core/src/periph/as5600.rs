@@ -37,7 +37,11 @@ pub struct As5600<I> {
 impl<I: I2c> As5600<I> {
     /// `zero` is the raw count at the contracted hip angle (calibrated at integration).
     pub fn new(i2c: I, addr: u8, zero: u16) -> Self {
-        Self { i2c, addr, zero: zero & 0x0FFF }
+        Self {
+            i2c,
+            addr,
+            zero: zero & 0x0FFF,
+        }
     }
 
     /// Raw 12-bit angle; fails when no magnet is detected.

@@ -8,12 +8,14 @@ pub mod as5600;
 pub mod mpu6000;
 pub mod mux;
 pub mod servo;
+pub mod side;
 
 pub use ads7828::Ads7828;
 pub use as5600::As5600;
 pub use mpu6000::Mpu6000;
 pub use mux::BolterMux;
 pub use servo::PwmServo;
+pub use side::{BolterServos, SideOutputs};
 
 /// A peripheral access that failed (bus error, device absent, bad value). The control
 /// loop turns it into a stale reading, never a panic.
@@ -73,8 +75,22 @@ pub trait AngleSensor {
 
 /// Fastener pair selection of the bolter (multiplexer A0/A1).
 pub trait PairSelect {
-    /// Routes the bolter drive to pair 1..=4.
-    fn select_pair(&mut self, pair: u8) -> Result<(), HwError>;
+    /// Drives the select code (0..=3: pair 1..4; A0 = bit 0, A1 = bit 1).
+    fn select(&mut self, bits: u8) -> Result<(), HwError>;
+}
+
+/// A digital output (servo regulator enable).
+pub trait Enable {
+    fn set_enabled(&mut self, on: bool) -> Result<(), HwError>;
+}
+
+/// An enable line driven low to switch on (P-MOSFET high-side switch with pull-up).
+pub struct ActiveLowEnable<P>(pub P);
+
+impl<P: embedded_hal::digital::OutputPin> Enable for ActiveLowEnable<P> {
+    fn set_enabled(&mut self, on: bool) -> Result<(), HwError> {
+        self.0.set_state((!on).into()).map_err(|_| HwError::Driver)
+    }
 }
 
 /// A digital input (arm-contracted switch).

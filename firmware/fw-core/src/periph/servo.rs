@@ -36,17 +36,13 @@ impl<P: SetDutyCycle> PwmServo<P> {
 impl<P: SetDutyCycle> ServoOutput for PwmServo<P> {
     fn set_pulse_us(&mut self, us: u16) -> Result<(), HwError> {
         let duty = duty_for_pulse(us, self.pwm.max_duty_cycle());
-        self.pwm
-            .set_duty_cycle(duty)
-            .map_err(|_| HwError::Driver)?;
+        self.pwm.set_duty_cycle(duty).map_err(|_| HwError::Driver)?;
         self.last_us = us.clamp(PWM_MIN_US, PWM_MAX_US);
         Ok(())
     }
 
     fn release(&mut self) -> Result<(), HwError> {
-        self.pwm
-            .set_duty_cycle_fully_off()
-            .map_err(|_| HwError::Driver)?;
+        self.pwm.set_duty_cycle_fully_off().map_err(|_| HwError::Driver)?;
         self.last_us = 0;
         Ok(())
     }

@@ -1,0 +1,193 @@
+//! The byte-stream links of the boards, between the UART/USB drivers and the control
+//! task, over bounded embassy-sync queues:
+//!
+//! - ground uplink: transport bytes → [`Deframer`] → one TC per [`TcChannel`] slot;
+//! - ground downlink: TM packets → COBS frames → [`ByteQueue`] → transport;
+//! - A–B link: transport bytes ↔ [`ByteQueue`]s (the domain's A–B protocol frames
+//!   and checks them itself).
+//!
+//! Every queue is bounded (sizes in [`crate::config`]) and says what happens when it is
+//! full: the ground uplink drops the TC (the ground resends an unacknowledged TC), the
+//! downlink refuses a whole frame (the caller keeps the packet), the A–B queues drop
+//! bytes, which the A–B protocol detects (bad frame) and recovers (resend).
+
+use crate::config;
+use crate::framing::{encode_frame, Deframer};
+use core::cell::Cell;
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::blocking_mutex::Mutex;
+use embassy_sync::channel::Channel;
+use embassy_sync::pipe::Pipe;
+
+/// One uplinked TC (a whole space packet).
+pub type TcPacket = heapless::Vec<u8, { config::GROUND_RX_BUF }>;
+/// Decoded TCs waiting for the OBSW.
+pub type TcChannel = Channel<CriticalSectionRawMutex, TcPacket, { config::TC_QUEUE_DEPTH }>;
+/// A bounded byte queue between a driver task and the control task.
+pub type ByteQueue<const N: usize> = Pipe<CriticalSectionRawMutex, N>;
+
+/// Counters of one link direction, shared between tasks.
+pub struct Counters {
+    inner: Mutex<CriticalSectionRawMutex, Cell<LinkStats>>,
+}
+
+/// Snapshot of a link's counters.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LinkStats {
+    /// Frames (or byte chunks) delivered.
+    pub delivered: u32,
+    /// Frames dropped for bad framing or length.
+    pub frame_errors: u32,
+    /// Frames or bytes dropped because the next queue was full.
+    pub overflow: u32,
+    /// Transport read/write errors.
+    pub io_errors: u32,
+}
+
+impl Default for Counters {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Counters {
+    pub const fn new() -> Self {
+        Self {
+            inner: Mutex::new(Cell::new(LinkStats {
+                delivered: 0,
+                frame_errors: 0,
+                overflow: 0,
+                io_errors: 0,
+            })),
+        }
+    }
+    pub fn get(&self) -> LinkStats {
+        self.inner.lock(|c| c.get())
+    }
+    fn update(&self, f: impl FnOnce(&mut LinkStats)) {
+        self.inner.lock(|c| {
+            let mut s = c.get();
+            f(&mut s);
+            c.set(s);
+        })
+    }
+}
+
+/// Feeds received ground-link bytes through the deframer; each complete TC goes to
+/// `tcs` (dropped and counted when the queue is full).
+pub fn uplink_bytes<const N: usize>(deframer: &mut Deframer<N>, bytes: &[u8], tcs: &TcChannel, counters: &Counters) {
+    for &b in bytes {
+        match deframer.push(b) {
+            None => {}
+            Some(Ok(packet)) => {
+                let mut tc = TcPacket::new();
+                // `packet` is at most N <= GROUND_RX_BUF bytes.
+                if tc.extend_from_slice(packet).is_err() {
+                    counters.update(|s| s.frame_errors = s.frame_errors.wrapping_add(1));
+                } else if tcs.try_send(tc).is_err() {
+                    counters.update(|s| s.overflow = s.overflow.wrapping_add(1));
+                } else {
+                    counters.update(|s| s.delivered = s.delivered.wrapping_add(1));
+                }
+            }
+            Some(Err(_)) => counters.update(|s| s.frame_errors = s.frame_errors.wrapping_add(1)),
+        }
+    }
+}
+
+/// Frames `packet` and queues the whole frame for the downlink, or nothing: returns
+/// `false` (and counts) when the queue lacks room, so the stream never carries half a
+/// frame and the caller can keep the packet for later.
+pub fn downlink_packet<const N: usize>(queue: &ByteQueue<N>, packet: &[u8], counters: &Counters) -> bool {
+    let mut frame = [0u8; config::GROUND_FRAME_MAX];
+    let Some(n) = encode_frame(packet, &mut frame) else {
+        counters.update(|s| s.frame_errors = s.frame_errors.wrapping_add(1));
+        return false;
+    };
+    if queue.free_capacity() < n {
+        counters.update(|s| s.overflow = s.overflow.wrapping_add(1));
+        return false;
+    }
+    // Single producer: the room checked above is still there.
+    let written = queue.try_write(&frame[..n]).unwrap_or(0);
+    if written == n {
+        counters.update(|s| s.delivered = s.delivered.wrapping_add(1));
+        true
+    } else {
+        counters.update(|s| s.overflow = s.overflow.wrapping_add(1));
+        false
+    }
+}
+
+/// Queues bytes for a transmitter; bytes that do not fit are dropped and counted.
+pub fn push_bytes<const N: usize>(queue: &ByteQueue<N>, bytes: &[u8], counters: &Counters) {
+    let mut rest = bytes;
+    while !rest.is_empty() {
+        match queue.try_write(rest) {
+            Ok(n) => rest = &rest[n..],
+            Err(_) => break,
+        }
+    }
+    if rest.is_empty() {
+        if !bytes.is_empty() {
+            counters.update(|s| s.delivered = s.delivered.wrapping_add(1));
+        }
+    } else {
+        let lost = rest.len() as u32;
+        counters.update(|s| s.overflow = s.overflow.wrapping_add(lost));
+    }
+}
+
+/// Takes everything queued (up to `buf.len()` bytes) without waiting.
+pub fn drain<const N: usize>(queue: &ByteQueue<N>, buf: &mut [u8]) -> usize {
+    let mut n = 0;
+    while n < buf.len() {
+        match queue.try_read(&mut buf[n..]) {
+            Ok(k) if k > 0 => n += k,
+            _ => break,
+        }
+    }
+    n
+}
+
+/// Driver task body: everything the transport receives goes into `queue`.
+pub async fn reader_to_queue<R: embedded_io_async::Read, const N: usize>(
+    mut rx: R,
+    queue: &ByteQueue<N>,
+    counters: &Counters,
+) -> ! {
+    let mut buf = [0u8; config::UART_READ_CHUNK];
+    loop {
+        match rx.read(&mut buf).await {
+            Ok(n) => push_bytes(queue, &buf[..n], counters),
+            Err(_) => counters.update(|s| s.io_errors = s.io_errors.wrapping_add(1)),
+        }
+    }
+}
+
+/// Driver task body: the ground uplink, transport bytes to TCs.
+pub async fn uplink_task<R: embedded_io_async::Read>(mut rx: R, tcs: &TcChannel, counters: &Counters) -> ! {
+    let mut deframer: Deframer<{ config::GROUND_RX_BUF }> = Deframer::new();
+    let mut buf = [0u8; config::UART_READ_CHUNK];
+    loop {
+        match rx.read(&mut buf).await {
+            Ok(n) => uplink_bytes(&mut deframer, &buf[..n], tcs, counters),
+            Err(_) => counters.update(|s| s.io_errors = s.io_errors.wrapping_add(1)),
+        }
+    }
+}
+
+/// Driver task body: whatever is queued goes out on the transport, in order.
+pub async fn queue_to_writer<W: embedded_io_async::Write, const N: usize>(
+    queue: &ByteQueue<N>,
+    mut tx: W,
+    counters: &Counters,
+) -> ! {
+    let mut buf = [0u8; config::UART_READ_CHUNK];
+    loop {
+        let n = queue.read(&mut buf).await;
+        if tx.write_all(&buf[..n]).await.is_err() {
+            counters.update(|s| s.io_errors = s.io_errors.wrapping_add(1));
+        }
+    }
+}
