@@ -352,3 +352,101 @@ fn space_packet_parser_decodes_our_packets_like_our_decoder() {
         elapsed.as_secs_f64()
     );
 }
+
+/// Reads the fields of `fields` (MSB first) starting at octet `start` of `pkt`.
+fn read_fields(pkt: &[u8], start: usize, fields: &[export::layout::Field]) -> Vec<(&'static str, u64)> {
+    export::layout::offsets(fields)
+        .map(|(off, f)| {
+            let mut v = 0u64;
+            for b in 0..f.bits {
+                let bit = start * 8 + (off + b) as usize;
+                let set = pkt[bit / 8] >> (7 - bit % 8) & 1;
+                v = v << 1 | set as u64;
+            }
+            (f.name, v)
+        })
+        .collect()
+}
+
+#[test]
+fn header_layout_tables_match_the_sat_rs_encoders() {
+    use export::layout::{self, PRIMARY_HEADER, TC_SEC_HEADER, TM_SEC_HEADER};
+    use satrs::spacepackets::ecss::tc::{AckFlags, PusTcCreator, PusTcSecondaryHeader};
+    let apid = mib::apid::robot_apid(ROBOT).unwrap();
+
+    // TC[8,1] RECONFIGURE built by sat-rs with acceptance and completion acknowledged.
+    let def = mib::tc::lookup(8, 1, Some(mib::tc::function::RECONFIGURE)).unwrap();
+    let mut app = [0u8; 16];
+    let n = codec::encode_args(def, &[3, 1], &mut app).unwrap();
+    let ack = AckFlags::builder()
+        .with_acceptance(true)
+        .with_start(false)
+        .with_progress(false)
+        .with_completion(true)
+        .build();
+    let sec = PusTcSecondaryHeader::new(MessageTypeId::new(8, 1), ack, mib::config::GROUND_ID);
+    let sp = SpHeader::new_for_unseg_tc(u11::new(apid), u14::new(77), 0);
+    let tc = PusTcCreator::new(sp, sec, &app[..n], CreatorConfig::default())
+        .to_vec()
+        .unwrap();
+    let off = layout::tc_app_data_offset();
+    assert_eq!(tc.len(), off + n + 2);
+    assert_eq!(&tc[off..off + n], &app[..n]);
+    let mut got = read_fields(&tc, 0, PRIMARY_HEADER);
+    got.extend(read_fields(&tc, layout::len(PRIMARY_HEADER), TC_SEC_HEADER));
+    let want: Vec<(&str, u64)> = vec![
+        ("VERSION", 0),
+        ("PKT_TYPE", 1),
+        ("SEC_HDR_FLG", 1),
+        ("PKT_APID", apid as u64),
+        ("SEQ_FLGS", 3),
+        ("SRC_SEQ_CTR", 77),
+        ("PKT_LEN", (tc.len() - 7) as u64),
+        ("TC_PUS_VERSION", 2),
+        ("TC_ACK_FLAGS", 0b1001),
+        ("TC_SERVICE", 8),
+        ("TC_SUBSERVICE", 1),
+        ("TC_SOURCE_ID", mib::config::GROUND_ID as u64),
+    ];
+    assert_eq!(got, want);
+    for (name, v) in &got {
+        let f = PRIMARY_HEADER
+            .iter()
+            .chain(TC_SEC_HEADER)
+            .find(|f| f.name == *name)
+            .unwrap();
+        if let Some(fixed) = f.fixed {
+            assert_eq!(*v, fixed as u64, "{name}");
+        }
+    }
+
+    // TM[3,25] built by sat-rs: header fields where the table says, source data after it.
+    let h = &HK_STRUCTS[0];
+    let mut data = [0u8; 256];
+    let n = codec::encode_hk(h, |id| id as i64, &mut data).unwrap();
+    let hdr = Header {
+        service: 3,
+        subservice: 25,
+        seq: 9,
+        counter: 0xBEEF,
+        days: 0x1234,
+        ms: 0x0102_0304,
+    };
+    let tm = build(&hdr, &data[..n]);
+    assert_eq!(tm.len(), layout::tm_packet_len(n));
+    assert_eq!(&tm[layout::tm_source_data_offset()..tm.len() - 2], &data[..n]);
+    let got = read_fields(&tm, layout::len(PRIMARY_HEADER), TM_SEC_HEADER);
+    let want: Vec<(&str, u64)> = vec![
+        ("TM_PUS_VERSION", 2),
+        ("TM_TIME_REF", 0),
+        ("TM_SERVICE", 3),
+        ("TM_SUBSERVICE", 25),
+        ("TM_MSG_COUNTER", 0xBEEF),
+        ("TM_DEST_ID", mib::config::GROUND_ID as u64),
+        ("TM_TIME_PFIELD", layout::CDS_SHORT_PFIELD as u64),
+        ("TM_TIME_DAYS", 0x1234),
+        ("TM_TIME_MS", 0x0102_0304),
+    ];
+    assert_eq!(got, want);
+    assert_eq!(layout::tm_time_len(), mib::config::TIMESTAMP_LEN);
+}

@@ -79,7 +79,7 @@ pub const TC_SEC_HEADER: &[Field] = &[
         "TC_ACK_FLAGS",
         4,
         None,
-        "acknowledgement flags: bit 0 acceptance, 1 start, 2 progress, 3 completion",
+        "acknowledgement flags: 0b1000 acceptance, 0b0100 start, 0b0010 progress, 0b0001 completion",
     ),
     f("TC_SERVICE", 8, None, "service type ID"),
     f("TC_SUBSERVICE", 8, None, "message subtype ID"),
