@@ -244,7 +244,7 @@ pub fn icd_markdown() -> String {
                 "—".into()
             },
             t.name,
-            t.name.to_ascii_lowercase().replace('_', "-"),
+            t.name.to_ascii_lowercase(),
             t.modes.names(),
             if t.long_running { "yes" } else { "no" },
             t.fixed_len(),
@@ -626,12 +626,12 @@ pub fn icd_markdown() -> String {
     }
     let _ = writeln!(o, "\n```mermaid\ngraph LR");
     for s in &STATES {
-        let _ = writeln!(o, "  {}[\"{}: {}\"]", s.label, s.label, s.name);
+        let _ = writeln!(o, "  S{}[\"{}: {}\"]", s.id, s.label, s.name);
     }
     for (i, row) in RECONFIG_MAP.iter().enumerate() {
         for (j, &p) in row.iter().enumerate() {
             if p != 0 {
-                let _ = writeln!(o, "  {} -->|{}| {}", STATES[i].label, p, STATES[j].label);
+                let _ = writeln!(o, "  S{} -->|{}| S{}", STATES[i].id, p, STATES[j].id);
             }
         }
     }
