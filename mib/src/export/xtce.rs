@@ -99,7 +99,7 @@ fn raw_type(x: &mut Xml, name: &str, t: PType, unit: &str, desc: &str) {
             esc(name),
             esc(desc),
             t.signed(),
-            if t.bits() > 32 { 64 } else { 32.max(t.bits()) }
+            32.max(t.bits())
         ));
         unit_set(x, unit);
         x.line(&format!("{}/>", int_encoding(t)));
@@ -532,7 +532,7 @@ pub fn xtce_document_for(robot: u8) -> String {
                 a.name,
                 esc(a.desc),
                 a.ptype.signed(),
-                if a.ptype.bits() >= 32 { 64 } else { 32 }
+                32.max(a.ptype.bits())
             ));
             unit_set(&mut x, a.unit);
             x.line(&format!("{}/>", int_encoding(a.ptype)));
