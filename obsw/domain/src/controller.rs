@@ -1,0 +1,1328 @@
+//! Board A's robot logic: module modes, actions (reconfiguration, bolting, single-module
+//! moves), the state estimate, the link to board B, and the MIB parameters the domain
+//! owns. The OBSW core drives it every `mib::config::CONTROL_PERIOD_MS` with `tick`.
+
+use crate::ablink::{LinkManager, ModuleCmd};
+use crate::bolter::{BoltOp, Bolter, BolterConfig, BolterEvent};
+use crate::consts::{LINK_TX_CAP, STATE_SETTLE_TIMEOUT_MS};
+use crate::control::{HipController, HipGains, Interpolator};
+use crate::estimate::{state_from_imus, state_from_sensors};
+use crate::filter::{to_i16, to_u16, Ma};
+use crate::search::{shortest_path, shortest_states, Plan, StatePath};
+use crate::tunables::{TunableError, Tunables};
+use crate::types::{ActuatorsA, BolterDrive, SensorsA, SideActuators};
+use heapless::Vec;
+use mib::config::CONTROL_PERIOD_MS;
+use mib::events::eid;
+use mib::modes::module_mode::{HOLD, OFF, ON};
+use mib::params::{pid, B_HEARTBEAT_TIMEOUT_MS};
+use mib::robot::{primitive, servo, Motion, Side, StateKind, NUM_STATES, STATES, STATE_UNKNOWN};
+use mib::tunables::tid;
+use mib::FailureCode;
+
+/// Modes of the modules (`mib::modes::module_mode`: OFF, ON, HOLD).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ModuleModes {
+    pub arm_a: u32,
+    pub grip_a: u32,
+    pub bolter_a: u32,
+    pub arm_b: u32,
+    pub grip_b: u32,
+    pub bolter_b: u32,
+    pub hip: u32,
+}
+
+impl ModuleModes {
+    /// Every module in the same mode.
+    pub const fn all(m: u32) -> Self {
+        ModuleModes {
+            arm_a: m,
+            grip_a: m,
+            bolter_a: m,
+            arm_b: m,
+            grip_b: m,
+            bolter_b: m,
+            hip: m,
+        }
+    }
+    fn any_powered(&self) -> bool {
+        [
+            self.arm_a,
+            self.grip_a,
+            self.bolter_a,
+            self.arm_b,
+            self.grip_b,
+            self.bolter_b,
+            self.hip,
+        ]
+        .iter()
+        .any(|&m| m != OFF)
+    }
+    fn arm(&self, s: Side) -> u32 {
+        match s {
+            Side::A => self.arm_a,
+            Side::B => self.arm_b,
+        }
+    }
+    fn grip(&self, s: Side) -> u32 {
+        match s {
+            Side::A => self.grip_a,
+            Side::B => self.grip_b,
+        }
+    }
+}
+
+/// A robot action (PUS 8 functions).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Action {
+    Reconfigure {
+        from: u8,
+        to: u8,
+    },
+    /// Bolt the selected pairs (bit 0 = pair 1) of the face under `side`.
+    BoltFace {
+        side: Side,
+        pairs: u8,
+    },
+    UnboltFace {
+        side: Side,
+        pairs: u8,
+    },
+    /// Grippers closed, hip at 0, arms contracted.
+    Home,
+    MoveArm {
+        side: Side,
+        pwm: u16,
+    },
+    MoveGripper {
+        side: Side,
+        pwm: u16,
+    },
+    RotateHip {
+        cdeg: i16,
+    },
+    BoltPair {
+        side: Side,
+        pair: u8,
+    },
+    UnboltPair {
+        side: Side,
+        pair: u8,
+    },
+}
+
+/// Why an action was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StartError {
+    Busy,
+    InitialStateMismatch {
+        believed: u8,
+        computed: u8,
+    },
+    Unreachable {
+        from: u8,
+        to: u8,
+    },
+    /// A module the action needs is not in a mode that allows it.
+    NotPowered,
+    /// An argument outside its range (pair 0 or > 4, empty pair mask).
+    InvalidArgument,
+}
+
+impl StartError {
+    /// The PUS 1 failure code and data (layout as in `mib::failure`), for refusals the
+    /// domain can describe. `NotPowered` maps to `NOT_ALLOWED_IN_MODE` with mode 255:
+    /// the core knows the robot mode and should fill it in.
+    pub fn failure(&self) -> (FailureCode, [u8; 8], u8) {
+        let mut d = [0u8; 8];
+        match *self {
+            StartError::Busy => (FailureCode::BUSY, d, 2),
+            StartError::InitialStateMismatch { believed, computed } => {
+                d[0] = believed;
+                d[1] = computed;
+                (FailureCode::INITIAL_STATE_MISMATCH, d, 2)
+            }
+            StartError::Unreachable { from, to } => {
+                d[0] = from;
+                d[1] = to;
+                (FailureCode::UNREACHABLE_STATE, d, 2)
+            }
+            StartError::NotPowered => {
+                d[0] = 255;
+                (FailureCode::NOT_ALLOWED_IN_MODE, d, 1)
+            }
+            StartError::InvalidArgument => (FailureCode::ARG_OUT_OF_RANGE, d, 5),
+        }
+    }
+}
+
+/// Progress of the running action (PUS 1 progress / completion / failure).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ActionReport {
+    /// Progress step `n` (1-based: primitive or fastener pair) done.
+    Step {
+        n: u8,
+    },
+    Completed,
+    /// Failure code and data laid out as `mib::failure` says (`len` bytes used).
+    Failed {
+        code: FailureCode,
+        data: [u8; 8],
+        len: u8,
+    },
+}
+
+/// Domain events for the core to turn into PUS 5 events (and FDIR).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum DomainEvent {
+    PrimitiveDone {
+        primitive: u8,
+        state: u8,
+    },
+    StateReached {
+        state: u8,
+    },
+    BoltPairDone {
+        side: Side,
+        pair: u8,
+        attempts: u8,
+    },
+    BoltAttemptFailed {
+        side: Side,
+        pair: u8,
+        attempt: u8,
+    },
+    BoltFailure {
+        side: Side,
+        pair: u8,
+        attempts: u8,
+    },
+    UnboltPairDone {
+        side: Side,
+        pair: u8,
+        attempts: u8,
+    },
+    UnboltFailure {
+        side: Side,
+        pair: u8,
+        attempts: u8,
+    },
+    ArmNotContracted {
+        side: Side,
+    },
+    CommLossNoAck {
+        command: u8,
+        retries: u8,
+    },
+    /// After a primitive the computed state is not the expected one (the action fails
+    /// with `INITIAL_STATE_MISMATCH`, data expected/computed).
+    StateMismatch {
+        expected: u8,
+        computed: u8,
+    },
+}
+
+/// Outputs of one control period.
+#[derive(Clone, Debug, Default)]
+pub struct TickOut {
+    pub actuators: ActuatorsA,
+    /// Bytes for the serial line to board B.
+    pub link_tx: Vec<u8, LINK_TX_CAP>,
+    pub events: Vec<DomainEvent, 8>,
+    pub reports: Vec<ActionReport, 8>,
+}
+
+impl TickOut {
+    pub fn new() -> Self {
+        Self::default()
+    }
+    pub fn clear(&mut self) {
+        self.link_tx.clear();
+        self.events.clear();
+        self.reports.clear();
+    }
+}
+
+/// One module move of an action.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Seg {
+    /// Gripper(s) to a PWM (`None` = both).
+    Grip {
+        side: Option<Side>,
+        pwm: u16,
+    },
+    /// Arm(s) to a PWM (`None` = both).
+    Arm {
+        side: Option<Side>,
+        pwm: u16,
+    },
+    Hip {
+        cdeg: i16,
+    },
+    /// Wait for the arm-contracted switch(es).
+    ArmSwitch {
+        side: Option<Side>,
+    },
+    /// Wait for the computed state.
+    Settle {
+        expect: u8,
+    },
+    Bolt {
+        side: Side,
+        pair: u8,
+        op: BoltOp,
+    },
+}
+
+const MAX_SEGS: usize = 8;
+
+#[derive(Clone, Debug)]
+struct Run {
+    action: Action,
+    steps: u8,
+    done_steps: u8,
+    segs: Vec<Seg, MAX_SEGS>,
+    seg: usize,
+    seg_started: bool,
+    seg_t0: u64,
+    step_t0: u64,
+    plan: Plan,
+    path: StatePath,
+}
+
+enum SegResult {
+    Running,
+    Done,
+    Fail { code: FailureCode, data: [u8; 8], len: u8 },
+}
+
+fn fail_event(event_id: u16) -> SegResult {
+    let mut data = [0u8; 8];
+    data[..2].copy_from_slice(&event_id.to_be_bytes());
+    SegResult::Fail {
+        code: FailureCode::ABORTED_BY_FAULT,
+        data,
+        len: 2,
+    }
+}
+
+fn fail3(code: FailureCode, a: u8, b: u8, c: u8) -> SegResult {
+    SegResult::Fail {
+        code,
+        data: [a, b, c, 0, 0, 0, 0, 0],
+        len: 3,
+    }
+}
+
+/// Filtered board A channels.
+#[derive(Clone, Debug, Default)]
+struct FiltersA {
+    v_bat: Ma,
+    i_bat: Ma,
+    v_reg: Ma,
+    i_loc: Ma,
+    i_grip: Ma,
+    i_bo: Ma,
+    grav: [Ma; 3],
+    hip: Ma,
+}
+
+/// Board A's robot logic.
+#[derive(Clone, Debug)]
+pub struct Controller {
+    modes: ModuleModes,
+    b_modes_sent: Option<(u8, u8, u8)>,
+    tun: Tunables,
+    arm_a: Interpolator,
+    grip_a: Interpolator,
+    hip: HipController,
+    hip_cmd: i16,
+    bolter: Bolter,
+    b_bolter_sent: (BolterDrive, u8),
+    link: LinkManager,
+    f: FiltersA,
+    raw: SensorsA,
+    last_tick: Option<u64>,
+    now: u64,
+    computed: Option<u8>,
+    run: Option<Run>,
+    target_state: u8,
+    cmd_complete: bool,
+    active_primitive: u8,
+    bolt_side: u8,
+    bolt_pair: u8,
+    bolt_attempt: u8,
+    /// Events raised outside `tick` (by `start`), flushed at the next tick.
+    pending_reports: Vec<ActionReport, 4>,
+}
+
+impl Default for Controller {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Controller {
+    /// Board A at boot: modules unpowered; arm and gripper interpolators at the home
+    /// position (contracted, closed), which is where the robot is left between actions.
+    pub fn new() -> Self {
+        let tun = Tunables::default();
+        Controller {
+            modes: ModuleModes::all(OFF),
+            b_modes_sent: None,
+            arm_a: Interpolator::servo(servo::ARM_CONTRACTED_US),
+            grip_a: Interpolator::servo(servo::GRIP_CLOSED_US),
+            hip: HipController::new(servo::HIP_HOME_CDEG, HipGains::from_tunables(&tun)),
+            hip_cmd: 0,
+            bolter: Bolter::new(),
+            b_bolter_sent: (BolterDrive::Off, 0),
+            link: LinkManager::new(),
+            f: FiltersA::default(),
+            raw: SensorsA::default(),
+            last_tick: None,
+            now: 0,
+            computed: None,
+            run: None,
+            target_state: STATE_UNKNOWN,
+            cmd_complete: true,
+            active_primitive: 0,
+            bolt_side: 0,
+            bolt_pair: 0,
+            bolt_attempt: 0,
+            pending_reports: Vec::new(),
+            tun,
+        }
+    }
+
+    /// A controller whose arm A and gripper A are known to be at the given pulse widths
+    /// (e.g. the robot booted in a stretch or turn state).
+    pub fn with_positions(arm_us: u16, grip_us: u16) -> Self {
+        let mut c = Self::new();
+        c.arm_a.reset_to(arm_us);
+        c.grip_a.reset_to(grip_us);
+        c
+    }
+
+    // ---------------------------------------------------------------- modes, tunables
+
+    pub fn modes(&self) -> ModuleModes {
+        self.modes
+    }
+
+    /// Applies module modes. OFF: unpowered, back-drivable. HOLD: powered, holding the
+    /// current position; only single-module moves (`MoveArm`, `RotateHip`) are accepted.
+    /// ON: normal. B's modes are forwarded to board B. If a module the running action
+    /// needs leaves ON, the action is aborted without a report (the core, which changed
+    /// the mode, reports the TC's failure).
+    pub fn set_module_modes(&mut self, m: ModuleModes) {
+        let old = self.modes;
+        self.modes = m;
+        if m.arm_a != ON && old.arm_a == ON {
+            self.arm_a.hold();
+        }
+        if m.grip_a != ON && old.grip_a == ON {
+            self.grip_a.hold();
+        }
+        if m.hip != old.hip {
+            if m.hip == OFF {
+                self.hip.reset();
+            } else if old.hip == OFF || m.hip == HOLD {
+                self.hip.reset();
+                self.hip.set_target(self.hip_angle());
+            }
+        }
+        if m.bolter_a != ON || m.bolter_b != ON {
+            self.bolter.abort();
+        }
+        if let Some(run) = &self.run {
+            if !self.action_allowed(&run.action) {
+                self.end_run_hold();
+            }
+        }
+        self.sync_b_modes();
+    }
+
+    fn sync_b_modes(&mut self) {
+        let b = (
+            self.modes.arm_b as u8,
+            self.modes.grip_b as u8,
+            self.modes.bolter_b as u8,
+        );
+        if self.b_modes_sent != Some(b) {
+            self.link.send(ModuleCmd::Power {
+                arm: b.0,
+                grip: b.1,
+                bolter: b.2,
+            });
+            self.b_modes_sent = Some(b);
+        }
+    }
+
+    /// Sets a PUS 20 tunable; hip gains take effect at once, bolter thresholds at the
+    /// next pair.
+    pub fn set_tunable(&mut self, id: u16, value: i32) -> Result<(), TunableError> {
+        self.tun.set(id, value)?;
+        self.hip.set_gains(HipGains::from_tunables(&self.tun));
+        Ok(())
+    }
+    pub fn tunable(&self, id: u16) -> Option<i32> {
+        self.tun.try_get(id)
+    }
+
+    // ---------------------------------------------------------------- actions
+
+    pub fn busy(&self) -> bool {
+        self.run.is_some()
+    }
+
+    /// The running action, if any.
+    pub fn current_action(&self) -> Option<Action> {
+        self.run.as_ref().map(|r| r.action)
+    }
+
+    /// The configuration state computed from the (moving-averaged) sensors.
+    pub fn computed_state(&self) -> Option<u8> {
+        self.computed
+    }
+
+    fn action_allowed(&self, a: &Action) -> bool {
+        let m = &self.modes;
+        let on = |x: u32| x == ON;
+        let moving = |x: u32| x == ON || x == HOLD;
+        match *a {
+            Action::Reconfigure { .. } | Action::Home => {
+                on(m.arm_a) && on(m.arm_b) && on(m.grip_a) && on(m.grip_b) && on(m.hip)
+            }
+            Action::BoltFace { .. }
+            | Action::UnboltFace { .. }
+            | Action::BoltPair { .. }
+            | Action::UnboltPair { .. } => on(m.bolter_a) && on(m.bolter_b),
+            Action::MoveArm { side, .. } => moving(m.arm(side)),
+            Action::MoveGripper { side, .. } => on(m.grip(side)),
+            Action::RotateHip { .. } => moving(m.hip),
+        }
+    }
+
+    /// Starts an action. Returns the number of progress steps it will report.
+    pub fn start(&mut self, action: Action, now_ms: u64) -> Result<u8, StartError> {
+        if self.run.is_some() {
+            return Err(StartError::Busy);
+        }
+        let ns = NUM_STATES as u8;
+        match action {
+            Action::Reconfigure { from, to } if from >= ns || to >= ns => {
+                return Err(StartError::Unreachable { from, to })
+            }
+            Action::BoltFace { pairs, .. } | Action::UnboltFace { pairs, .. } if pairs & 0x0F == 0 || pairs > 0x0F => {
+                return Err(StartError::InvalidArgument)
+            }
+            Action::BoltPair { pair, .. } | Action::UnboltPair { pair, .. }
+                if !(1..=mib::robot::bolter::PAIRS_PER_FACE).contains(&pair) =>
+            {
+                return Err(StartError::InvalidArgument)
+            }
+            _ => {}
+        }
+        if !self.action_allowed(&action) {
+            return Err(StartError::NotPowered);
+        }
+        let mut run = Run {
+            action,
+            steps: 1,
+            done_steps: 0,
+            segs: Vec::new(),
+            seg: 0,
+            seg_started: false,
+            seg_t0: now_ms,
+            step_t0: now_ms,
+            plan: Plan::new(),
+            path: StatePath::new(),
+        };
+        match action {
+            Action::Reconfigure { from, to } => {
+                let computed = self.computed;
+                if computed != Some(from) {
+                    return Err(StartError::InitialStateMismatch {
+                        believed: from,
+                        computed: computed.unwrap_or(STATE_UNKNOWN),
+                    });
+                }
+                let plan = shortest_path(from, to).ok_or(StartError::Unreachable { from, to })?;
+                run.path = shortest_states(from, to).ok_or(StartError::Unreachable { from, to })?;
+                run.steps = plan.len() as u8;
+                run.plan = plan;
+                self.target_state = to;
+            }
+            Action::BoltFace { pairs, .. } | Action::UnboltFace { pairs, .. } => {
+                run.steps = pairs.count_ones() as u8;
+            }
+            _ => {}
+        }
+        let steps = run.steps;
+        self.run = Some(run);
+        self.cmd_complete = false;
+        self.build_step();
+        Ok(steps)
+    }
+
+    /// Stops the running action: every module holds where it is, bolters stop. No report.
+    pub fn abort(&mut self) {
+        self.end_run_hold();
+    }
+
+    fn end_run_hold(&mut self) {
+        self.run = None;
+        self.active_primitive = 0;
+        self.cmd_complete = true;
+        self.arm_a.hold();
+        self.grip_a.hold();
+        let a = self.hip_angle();
+        self.hip.set_target(a);
+        self.bolter.abort();
+        self.bolt_pair = 0;
+        self.link.clear_queue();
+        self.link.send(ModuleCmd::Stop);
+        self.b_bolter_sent = (BolterDrive::Off, 0);
+    }
+
+    /// Segments of the current step of the run.
+    fn build_step(&mut self) {
+        let Some(run) = self.run.as_mut() else { return };
+        run.segs.clear();
+        run.seg = 0;
+        run.seg_started = false;
+        let k = run.done_steps as usize;
+        let mut push = |s: Seg| {
+            let _ = run.segs.push(s);
+        };
+        match run.action {
+            Action::Reconfigure { .. } => {
+                if k < run.plan.len() {
+                    let (from, to, prim) = (run.path[k], run.path[k + 1], run.plan[k]);
+                    for s in primitive_segments(from, to, prim) {
+                        push(s);
+                    }
+                }
+            }
+            Action::BoltFace { side, pairs } | Action::UnboltFace { side, pairs } => {
+                let op = if matches!(run.action, Action::BoltFace { .. }) {
+                    BoltOp::Bolt
+                } else {
+                    BoltOp::Unbolt
+                };
+                // k-th set bit
+                let mut seen = 0;
+                for p in 1..=4u8 {
+                    if pairs & (1 << (p - 1)) != 0 {
+                        if seen == k {
+                            push(Seg::Bolt { side, pair: p, op });
+                            break;
+                        }
+                        seen += 1;
+                    }
+                }
+            }
+            Action::BoltPair { side, pair } => push(Seg::Bolt {
+                side,
+                pair,
+                op: BoltOp::Bolt,
+            }),
+            Action::UnboltPair { side, pair } => push(Seg::Bolt {
+                side,
+                pair,
+                op: BoltOp::Unbolt,
+            }),
+            Action::Home => {
+                push(Seg::Grip {
+                    side: None,
+                    pwm: servo::GRIP_CLOSED_US,
+                });
+                push(Seg::Hip {
+                    cdeg: servo::HIP_HOME_CDEG,
+                });
+                push(Seg::Arm {
+                    side: None,
+                    pwm: servo::ARM_CONTRACTED_US,
+                });
+                push(Seg::ArmSwitch { side: None });
+            }
+            Action::MoveArm { side, pwm } => {
+                push(Seg::Arm { side: Some(side), pwm });
+                if pwm <= servo::ARM_CONTRACTED_US {
+                    push(Seg::ArmSwitch { side: Some(side) });
+                }
+            }
+            Action::MoveGripper { side, pwm } => push(Seg::Grip { side: Some(side), pwm }),
+            Action::RotateHip { cdeg } => push(Seg::Hip { cdeg }),
+        }
+        if let Action::Reconfigure { .. } = run.action {
+            self.active_primitive = run.plan.get(k).copied().unwrap_or(0);
+        }
+    }
+
+    // ---------------------------------------------------------------- tick
+
+    fn hip_angle(&self) -> i16 {
+        if self.f.hip.is_empty() {
+            self.raw.hip_cdeg
+        } else {
+            to_i16(self.f.hip.value())
+        }
+    }
+
+    /// One control period.
+    pub fn tick(&mut self, now_ms: u64, sensors: &SensorsA, link_rx: &[u8], out: &mut TickOut) {
+        out.clear();
+        let dt = match self.last_tick {
+            Some(t) => now_ms.saturating_sub(t).min(1000) as u32,
+            None => CONTROL_PERIOD_MS,
+        };
+        self.last_tick = Some(now_ms);
+        self.now = now_ms;
+        self.raw = *sensors;
+        let f = &mut self.f;
+        f.v_bat.push(sensors.v_bat as i32);
+        f.i_bat.push(sensors.i_bat as i32);
+        f.v_reg.push(sensors.v_reg as i32);
+        f.i_loc.push(sensors.i_loc as i32);
+        f.i_grip.push(sensors.i_grip as i32);
+        f.i_bo.push(sensors.i_bo as i32);
+        for (m, &g) in f.grav.iter_mut().zip(sensors.grav.iter()) {
+            m.push(g as i32);
+        }
+        f.hip.push(sensors.hip_cdeg as i32);
+
+        for r in self.pending_reports.iter() {
+            let _ = out.reports.push(*r);
+        }
+        self.pending_reports.clear();
+
+        // board B
+        self.link.receive(now_ms, link_rx);
+        self.computed = self.estimate();
+
+        // action
+        let mut gave_up_evt = None;
+        self.step_run(now_ms, out);
+
+        // bolter drive to B when it changes
+        if self.bolter.busy() {
+            let want = (self.bolter.drive(), self.bolter.pair());
+            if want != self.b_bolter_sent {
+                self.link.send(ModuleCmd::Bolter {
+                    drive: want.0,
+                    pair: want.1,
+                });
+                self.b_bolter_sent = want;
+            }
+        } else if self.b_bolter_sent.0 != BolterDrive::Off {
+            self.link.send(ModuleCmd::Bolter {
+                drive: BolterDrive::Off,
+                pair: 0,
+            });
+            self.b_bolter_sent = (BolterDrive::Off, 0);
+        }
+
+        // link transmit
+        let ack_to = self.tun.get_u32(tid::B_ACK_TIMEOUT_MS);
+        let retries = self.tun.get(tid::B_MAX_RETRIES).clamp(0, 255) as u8;
+        if let Some(g) = self.link.transmit(now_ms, ack_to, retries, &mut out.link_tx) {
+            gave_up_evt = Some(g);
+        }
+        if let Some(g) = gave_up_evt {
+            let _ = out.events.push(DomainEvent::CommLossNoAck {
+                command: g.command,
+                retries: g.retries,
+            });
+            if self.run.is_some() {
+                let mut data = [0u8; 8];
+                data[0] = g.command;
+                data[1] = g.retries;
+                self.finish_fail(FailureCode::BOARD_B_NO_ACK, data, 2, out);
+            }
+        }
+
+        // actuators
+        let arm = if self.modes.arm_a != OFF {
+            Some(self.arm_a.tick(dt))
+        } else {
+            None
+        };
+        let grip = if self.modes.grip_a != OFF {
+            Some(self.grip_a.tick(dt))
+        } else {
+            None
+        };
+        let hip = if self.modes.hip != OFF {
+            self.hip_cmd = self.hip.tick(sensors.hip_cdeg, dt);
+            Some(self.hip_cmd)
+        } else {
+            self.hip_cmd = 0;
+            None
+        };
+        let bolter = if self.modes.bolter_a == ON {
+            self.bolter.drive()
+        } else {
+            BolterDrive::Off
+        };
+        out.actuators = ActuatorsA {
+            regulator_on: self.modes.any_powered(),
+            side: SideActuators {
+                arm_pwm: arm,
+                grip_pwm: grip,
+                bolter,
+            },
+            hip_speed: hip,
+            mux: self.bolter.mux(),
+        };
+    }
+
+    fn estimate(&self) -> Option<u8> {
+        let hb = self.link.heartbeat()?;
+        state_from_sensors(
+            self.grav_a(),
+            hb.grav,
+            self.hip_angle(),
+            self.arm_a.current(),
+            hb.arm_pwm,
+        )
+    }
+
+    fn grav_a(&self) -> [i16; 3] {
+        [
+            to_i16(self.f.grav[0].value()),
+            to_i16(self.f.grav[1].value()),
+            to_i16(self.f.grav[2].value()),
+        ]
+    }
+
+    fn finish_fail(&mut self, code: FailureCode, data: [u8; 8], len: u8, out: &mut TickOut) {
+        let _ = out.reports.push(ActionReport::Failed { code, data, len });
+        self.end_run_hold();
+    }
+
+    fn step_run(&mut self, now: u64, out: &mut TickOut) {
+        // bounded: at most one segment completes per tick, plus the step bookkeeping
+        let Some(run) = self.run.as_ref() else { return };
+        if run.steps == 0 {
+            // reconfiguration to the current state
+            if let Action::Reconfigure { to, .. } = run.action {
+                let _ = out.events.push(DomainEvent::StateReached { state: to });
+            }
+            let _ = out.reports.push(ActionReport::Completed);
+            self.run = None;
+            self.cmd_complete = true;
+            return;
+        }
+        let seg = run.segs.get(run.seg).copied();
+        let Some(seg) = seg else {
+            // empty step (cannot happen for valid actions): count it done
+            self.step_done(now, out);
+            return;
+        };
+        let motion_step = !matches!(seg, Seg::Bolt { .. });
+        let step_elapsed = now.saturating_sub(run.step_t0);
+        if motion_step && step_elapsed > self.tun.get_u32(tid::PRIMITIVE_TIMEOUT_MS) as u64 {
+            let mut data = [0u8; 8];
+            data[..4].copy_from_slice(&(step_elapsed.min(u32::MAX as u64) as u32).to_be_bytes());
+            self.finish_fail(FailureCode::TIMEOUT, data, 4, out);
+            return;
+        }
+        if !run.seg_started {
+            self.seg_begin(seg, now);
+            if let Some(r) = self.run.as_mut() {
+                r.seg_started = true;
+                r.seg_t0 = now;
+            }
+        }
+        match self.seg_poll(seg, now, out) {
+            SegResult::Running => {}
+            SegResult::Fail { code, data, len } => self.finish_fail(code, data, len, out),
+            SegResult::Done => {
+                let Some(r) = self.run.as_mut() else { return };
+                r.seg += 1;
+                r.seg_started = false;
+                if r.seg >= r.segs.len() {
+                    self.step_done(now, out);
+                }
+            }
+        }
+    }
+
+    fn step_done(&mut self, now: u64, out: &mut TickOut) {
+        let Some(r) = self.run.as_mut() else { return };
+        let k = r.done_steps as usize;
+        r.done_steps += 1;
+        r.step_t0 = now;
+        if let Action::Reconfigure { .. } = r.action {
+            if let (Some(&p), Some(&s)) = (r.plan.get(k), r.path.get(k + 1)) {
+                let _ = out.events.push(DomainEvent::PrimitiveDone { primitive: p, state: s });
+            }
+        }
+        let n = r.done_steps;
+        let _ = out.reports.push(ActionReport::Step { n });
+        if r.done_steps >= r.steps {
+            if let Action::Reconfigure { to, .. } = r.action {
+                let _ = out.events.push(DomainEvent::StateReached { state: to });
+            }
+            let _ = out.reports.push(ActionReport::Completed);
+            self.run = None;
+            self.cmd_complete = true;
+            self.active_primitive = 0;
+        } else {
+            self.build_step();
+        }
+    }
+
+    fn seg_begin(&mut self, seg: Seg, now: u64) {
+        match seg {
+            Seg::Grip { side, pwm } => {
+                if side != Some(Side::B) {
+                    self.grip_a.set_target(pwm);
+                }
+                if side != Some(Side::A) {
+                    self.link.send(ModuleCmd::GripTarget(pwm));
+                }
+            }
+            Seg::Arm { side, pwm } => {
+                if side != Some(Side::B) {
+                    self.arm_a.set_target(pwm);
+                }
+                if side != Some(Side::A) {
+                    self.link.send(ModuleCmd::ArmTarget(pwm));
+                }
+            }
+            Seg::Hip { cdeg } => self.hip.set_target(cdeg),
+            Seg::ArmSwitch { .. } | Seg::Settle { .. } => {}
+            Seg::Bolt { side, pair, op } => {
+                self.bolter.start(op, pair, now, BolterConfig::from_tunables(&self.tun));
+                self.bolt_side = side as u8;
+                self.bolt_pair = pair;
+                self.bolt_attempt = 1;
+            }
+        }
+    }
+
+    fn b_at(&self, f: impl Fn(&crate::ablink::Heartbeat) -> bool) -> bool {
+        self.link.heartbeat().is_some_and(f)
+    }
+
+    fn seg_poll(&mut self, seg: Seg, now: u64, out: &mut TickOut) -> SegResult {
+        let el = now.saturating_sub(self.run.as_ref().map(|r| r.seg_t0).unwrap_or(now));
+        match seg {
+            Seg::Grip { side, pwm } => {
+                let a = side == Some(Side::B) || self.grip_a.done();
+                let b = side == Some(Side::A)
+                    || (self.link.idle() && self.b_at(|h| h.grip_target == pwm && h.grip_pwm == pwm));
+                if a && b {
+                    SegResult::Done
+                } else {
+                    SegResult::Running
+                }
+            }
+            Seg::Arm { side, pwm } => {
+                let a = side == Some(Side::B) || self.arm_a.done();
+                let b = side == Some(Side::A)
+                    || (self.link.idle() && self.b_at(|h| h.arm_target == pwm && h.arm_pwm == pwm));
+                if a && b {
+                    SegResult::Done
+                } else {
+                    SegResult::Running
+                }
+            }
+            Seg::Hip { .. } => {
+                if self.hip.done() {
+                    SegResult::Done
+                } else {
+                    SegResult::Running
+                }
+            }
+            Seg::ArmSwitch { side } => {
+                let a = side == Some(Side::B) || self.raw.arm_switch;
+                let b = side == Some(Side::A) || self.b_at(|h| h.arm_switch());
+                if a && b {
+                    return SegResult::Done;
+                }
+                if el > self.tun.get_u32(tid::ARM_SWITCH_WAIT_MS) as u64 {
+                    let bad = if !a { Side::A } else { Side::B };
+                    let _ = out.events.push(DomainEvent::ArmNotContracted { side: bad });
+                    return fail_event(eid::ARM_NOT_CONTRACTED);
+                }
+                SegResult::Running
+            }
+            Seg::Settle { expect } => {
+                if self.computed == Some(expect) {
+                    return SegResult::Done;
+                }
+                if el > STATE_SETTLE_TIMEOUT_MS as u64 {
+                    let computed = self.computed.unwrap_or(STATE_UNKNOWN);
+                    let _ = out.events.push(DomainEvent::StateMismatch {
+                        expected: expect,
+                        computed,
+                    });
+                    let mut data = [0u8; 8];
+                    data[0] = expect;
+                    data[1] = computed;
+                    return SegResult::Fail {
+                        code: FailureCode::INITIAL_STATE_MISMATCH,
+                        data,
+                        len: 2,
+                    };
+                }
+                SegResult::Running
+            }
+            Seg::Bolt { side, pair, op } => {
+                let i_a = to_u16(self.f.i_bo.value());
+                let i_b = self.link.heartbeat().map(|h| h.i_bo);
+                let ev = self.bolter.tick(now, i_a, i_b);
+                self.bolt_attempt = self.bolter.attempt();
+                match ev {
+                    None => SegResult::Running,
+                    Some(BolterEvent::AttemptFailed { attempt, .. }) => {
+                        let _ = out.events.push(DomainEvent::BoltAttemptFailed { side, pair, attempt });
+                        SegResult::Running
+                    }
+                    Some(BolterEvent::Succeeded { attempts }) => {
+                        let e = match op {
+                            BoltOp::Bolt => DomainEvent::BoltPairDone { side, pair, attempts },
+                            BoltOp::Unbolt => DomainEvent::UnboltPairDone { side, pair, attempts },
+                        };
+                        let _ = out.events.push(e);
+                        self.bolt_pair = 0;
+                        SegResult::Done
+                    }
+                    Some(BolterEvent::Failed { attempts }) => {
+                        let (e, code) = match op {
+                            BoltOp::Bolt => (
+                                DomainEvent::BoltFailure { side, pair, attempts },
+                                FailureCode::BOLT_FAILED,
+                            ),
+                            BoltOp::Unbolt => (
+                                DomainEvent::UnboltFailure { side, pair, attempts },
+                                FailureCode::UNBOLT_FAILED,
+                            ),
+                        };
+                        let _ = out.events.push(e);
+                        fail3(code, side as u8, pair, attempts)
+                    }
+                }
+            }
+        }
+    }
+
+    // ---------------------------------------------------------------- parameters
+
+    /// Raw value of a MIB parameter the domain owns (`None` for the others).
+    pub fn param(&self, id: u16) -> Option<i64> {
+        let hb = self.link.heartbeat();
+        let hbv = |f: fn(&crate::ablink::Heartbeat) -> i64| hb.map(f).unwrap_or(0);
+        let b = |v: bool| v as i64;
+        let ga = self.grav_a();
+        Some(match id {
+            pid::CONFIG_STATE => self.computed.unwrap_or(STATE_UNKNOWN) as i64,
+            pid::TARGET_STATE => self.target_state as i64,
+            pid::CMD_COMPLETE => b(self.cmd_complete),
+            pid::ACTIVE_PRIMITIVE => self.active_primitive as i64,
+            pid::BOLT_SIDE => self.bolt_side as i64,
+            pid::BOLT_PAIR => {
+                if self.bolter.busy() {
+                    self.bolt_pair as i64
+                } else {
+                    0
+                }
+            }
+            pid::BOLT_ATTEMPT => {
+                if self.bolter.busy() {
+                    self.bolt_attempt as i64
+                } else {
+                    0
+                }
+            }
+            pid::ARM_A_TARGET => self.arm_a.target() as i64,
+            pid::ARM_A_PWM => self.arm_a.current() as i64,
+            pid::ARM_B_TARGET => hbv(|h| h.arm_target as i64),
+            pid::ARM_B_PWM => hbv(|h| h.arm_pwm as i64),
+            pid::GRIP_A_TARGET => self.grip_a.target() as i64,
+            pid::GRIP_A_PWM => self.grip_a.current() as i64,
+            pid::GRIP_B_TARGET => hbv(|h| h.grip_target as i64),
+            pid::GRIP_B_PWM => hbv(|h| h.grip_pwm as i64),
+            pid::HIP_TARGET => self.hip.target() as i64,
+            pid::HIP_ANGLE => self.hip_angle() as i64,
+            pid::HIP_DEVIATION => match self.link.heartbeat().and_then(|h| state_from_imus(ga, h.grav)) {
+                Some(s) => {
+                    let d = self.hip_angle() as i64 - STATES[s as usize].hip_cdeg() as i64;
+                    d.clamp(i16::MIN as i64, i16::MAX as i64)
+                }
+                None => 0,
+            },
+            pid::V_BAT_A => self.f.v_bat.value() as i64,
+            pid::V_BAT_B => hbv(|h| h.v_bat as i64),
+            pid::I_BAT => self.f.i_bat.value() as i64,
+            pid::V_REG => self.f.v_reg.value() as i64,
+            pid::I_LOC_A => self.f.i_loc.value() as i64,
+            pid::I_LOC_B => hbv(|h| h.i_loc as i64),
+            pid::I_GRIP_A => self.f.i_grip.value() as i64,
+            pid::I_GRIP_B => hbv(|h| h.i_grip as i64),
+            pid::I_BO_A => self.f.i_bo.value() as i64,
+            pid::I_BO_B => hbv(|h| h.i_bo as i64),
+            pid::ARM_SW_A => b(self.raw.arm_switch),
+            pid::ARM_SW_B => hbv(|h| h.arm_switch() as i64),
+            pid::GRAV_A_X => ga[0] as i64,
+            pid::GRAV_A_Y => ga[1] as i64,
+            pid::GRAV_A_Z => ga[2] as i64,
+            pid::GRAV_B_X => hbv(|h| h.grav[0] as i64),
+            pid::GRAV_B_Y => hbv(|h| h.grav[1] as i64),
+            pid::GRAV_B_Z => hbv(|h| h.grav[2] as i64),
+            pid::BOLTER_B_STATE => hbv(|h| h.bolter_state() as i64),
+            pid::B_LINK_OK => b(self.link.link_ok(self.now, B_HEARTBEAT_TIMEOUT_MS as u64)),
+            pid::B_HB_AGE_MS => self.link.hb_age_ms(self.now).min(u16::MAX as u64) as i64,
+            pid::B_HB_RX => self.link.counters().hb_rx as i64,
+            pid::B_FRAME_ERRORS => self.link.counters().frame_errors as i64,
+            pid::B_RETRIES => self.link.counters().retries as i64,
+            pid::B_ACK_MISSED => self.link.counters().ack_missed as i64,
+            _ => return None,
+        })
+    }
+
+    /// Counters of the A–B link.
+    pub fn link_counters(&self) -> crate::ablink::LinkCounters {
+        *self.link.counters()
+    }
+    /// The hip speed command of the last tick (cdeg/s).
+    pub fn hip_command(&self) -> i16 {
+        self.hip_cmd
+    }
+}
+
+/// Every parameter ID [`Controller::param`] answers.
+pub const DOMAIN_PARAMS: &[u16] = &[
+    pid::CONFIG_STATE,
+    pid::TARGET_STATE,
+    pid::CMD_COMPLETE,
+    pid::ACTIVE_PRIMITIVE,
+    pid::BOLT_SIDE,
+    pid::BOLT_PAIR,
+    pid::BOLT_ATTEMPT,
+    pid::ARM_A_TARGET,
+    pid::ARM_A_PWM,
+    pid::ARM_B_TARGET,
+    pid::ARM_B_PWM,
+    pid::GRIP_A_TARGET,
+    pid::GRIP_A_PWM,
+    pid::GRIP_B_TARGET,
+    pid::GRIP_B_PWM,
+    pid::HIP_TARGET,
+    pid::HIP_ANGLE,
+    pid::HIP_DEVIATION,
+    pid::V_BAT_A,
+    pid::V_BAT_B,
+    pid::I_BAT,
+    pid::V_REG,
+    pid::I_LOC_A,
+    pid::I_LOC_B,
+    pid::I_GRIP_A,
+    pid::I_GRIP_B,
+    pid::I_BO_A,
+    pid::I_BO_B,
+    pid::ARM_SW_A,
+    pid::ARM_SW_B,
+    pid::GRAV_A_X,
+    pid::GRAV_A_Y,
+    pid::GRAV_A_Z,
+    pid::GRAV_B_X,
+    pid::GRAV_B_Y,
+    pid::GRAV_B_Z,
+    pid::BOLTER_B_STATE,
+    pid::B_LINK_OK,
+    pid::B_HB_AGE_MS,
+    pid::B_HB_RX,
+    pid::B_FRAME_ERRORS,
+    pid::B_RETRIES,
+    pid::B_ACK_MISSED,
+];
+
+/// Module moves of primitive `prim` from state `from` to `to`: release the moving
+/// side's gripper; move the arms to the target state's length and the hip to its angle
+/// (arms first when entering a turn, hip first when leaving one); wait for the arm
+/// switches after contracting; grip; wait until the sensors confirm the new state.
+fn primitive_segments(from: u8, to: u8, prim: u8) -> Vec<Seg, MAX_SEGS> {
+    let mut v = Vec::new();
+    let (Some(p), Some(f), Some(t)) = (primitive(prim), STATES.get(from as usize), STATES.get(to as usize)) else {
+        return v;
+    };
+    let mover = Some(p.moving);
+    let mut push = |s: Seg| {
+        let _ = v.push(s);
+    };
+    push(Seg::Grip {
+        side: mover,
+        pwm: servo::GRIP_OPEN_US,
+    });
+    let arms = Seg::Arm {
+        side: None,
+        pwm: t.arm_pwm(),
+    };
+    let hip = Seg::Hip { cdeg: t.hip_cdeg() };
+    let rotates = matches!(p.motion, Motion::Rotate(_));
+    if rotates && t.kind() == StateKind::Turn {
+        push(arms);
+        push(hip);
+    } else if rotates {
+        push(hip);
+        push(arms);
+    } else {
+        push(arms);
+    }
+    if f.kind() != StateKind::Matched && t.kind() == StateKind::Matched {
+        push(Seg::ArmSwitch { side: None });
+    }
+    push(Seg::Grip {
+        side: mover,
+        pwm: servo::GRIP_CLOSED_US,
+    });
+    push(Seg::Settle { expect: to });
+    v
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn primitives_are_release_move_grip_and_confirm() {
+        // matched Xneg -> "Xpos Xneg": A releases, arms extend, A grips
+        let s = primitive_segments(0, 4, 1);
+        assert_eq!(
+            s.as_slice(),
+            &[
+                Seg::Grip {
+                    side: Some(Side::A),
+                    pwm: servo::GRIP_OPEN_US
+                },
+                Seg::Arm {
+                    side: None,
+                    pwm: servo::ARM_EXTENDED_US
+                },
+                Seg::Grip {
+                    side: Some(Side::A),
+                    pwm: servo::GRIP_CLOSED_US
+                },
+                Seg::Settle { expect: 4 },
+            ]
+        );
+        // stretch -> matched contracts and checks the switches
+        let s = primitive_segments(4, 1, 2);
+        assert!(s.contains(&Seg::ArmSwitch { side: None }));
+        assert_eq!(
+            s[0],
+            Seg::Grip {
+                side: Some(Side::B),
+                pwm: servo::GRIP_OPEN_US
+            }
+        );
+        // into a turn: arms first, then hip; out of a turn: hip first
+        let into = primitive_segments(0, 11, 5);
+        let pos_arm = into.iter().position(|s| matches!(s, Seg::Arm { .. })).unwrap();
+        let pos_hip = into.iter().position(|s| matches!(s, Seg::Hip { .. })).unwrap();
+        assert!(pos_arm < pos_hip);
+        let out = primitive_segments(11, 0, 6);
+        let pos_arm = out.iter().position(|s| matches!(s, Seg::Arm { .. })).unwrap();
+        let pos_hip = out.iter().position(|s| matches!(s, Seg::Hip { .. })).unwrap();
+        assert!(pos_hip < pos_arm);
+        // every primitive of the map fits
+        for f in 0..NUM_STATES as u8 {
+            for t in 0..NUM_STATES as u8 {
+                let p = mib::robot::RECONFIG_MAP[f as usize][t as usize];
+                if p != 0 {
+                    let s = primitive_segments(f, t, p);
+                    assert!(s.len() >= 4 && s.len() <= MAX_SEGS);
+                    assert_eq!(*s.last().unwrap(), Seg::Settle { expect: t });
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn controller_refuses_when_busy_unpowered_mismatched_or_unreachable() {
+        let mut c = Controller::new();
+        assert_eq!(c.start(Action::Home, 0), Err(StartError::NotPowered));
+        c.set_module_modes(ModuleModes::all(ON));
+        // no heartbeat yet: the state is unknown
+        assert_eq!(
+            c.start(Action::Reconfigure { from: 0, to: 1 }, 0),
+            Err(StartError::InitialStateMismatch {
+                believed: 0,
+                computed: 255
+            })
+        );
+        assert_eq!(
+            c.start(Action::Reconfigure { from: 0, to: 99 }, 0),
+            Err(StartError::Unreachable { from: 0, to: 99 })
+        );
+        assert_eq!(
+            c.start(
+                Action::BoltFace {
+                    side: Side::A,
+                    pairs: 0
+                },
+                0
+            ),
+            Err(StartError::InvalidArgument)
+        );
+        assert_eq!(
+            c.start(Action::BoltPair { side: Side::A, pair: 5 }, 0),
+            Err(StartError::InvalidArgument)
+        );
+        assert_eq!(c.start(Action::Home, 0), Ok(1));
+        assert!(c.busy());
+        assert_eq!(c.start(Action::Home, 0), Err(StartError::Busy));
+        c.abort();
+        assert!(!c.busy());
+        // safed-like HOLD: arm and hip moves allowed, gripper and reconfiguration not
+        c.set_module_modes(ModuleModes::all(HOLD));
+        assert_eq!(
+            c.start(
+                Action::MoveGripper {
+                    side: Side::A,
+                    pwm: 1500
+                },
+                0
+            ),
+            Err(StartError::NotPowered)
+        );
+        assert_eq!(
+            c.start(
+                Action::MoveArm {
+                    side: Side::A,
+                    pwm: 1500
+                },
+                0
+            ),
+            Ok(1)
+        );
+    }
+
+    #[test]
+    fn controller_answers_every_domain_parameter() {
+        let c = Controller::new();
+        for &p in DOMAIN_PARAMS {
+            assert!(c.param(p).is_some(), "param {p}");
+            assert!(mib::params::by_id(p).is_some());
+        }
+        assert_eq!(c.param(pid::MODE), None);
+        assert_eq!(c.param(pid::CONFIG_STATE), Some(255));
+    }
+
+    #[test]
+    fn start_errors_map_to_mib_failure_codes() {
+        let (c, d, l) = StartError::InitialStateMismatch {
+            believed: 3,
+            computed: 255,
+        }
+        .failure();
+        assert_eq!(c, FailureCode::INITIAL_STATE_MISMATCH);
+        assert_eq!(&d[..l as usize], &[3, 255]);
+        assert_eq!(StartError::Busy.failure().0, FailureCode::BUSY);
+    }
+}
