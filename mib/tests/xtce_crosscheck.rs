@@ -7,6 +7,10 @@
 //! space-packet-parser (installed in `.venv` by `scripts/python-env.sh`); every decoded
 //! parameter — raw and calibrated — must equal what our own decoder (`mib::codec`) reads
 //! from the same bytes, and every header field must equal what was encoded.
+//!
+//! Two more checks tie the descriptions to the real encoders: the header layout tables
+//! against sat-rs TC and TM packets, and every XTCE MetaCommand (encoded by a small
+//! walker over the XML) against `PusTcCreator` + `mib::codec::encode_args`.
 #![cfg(feature = "std")]
 
 use arbitrary_int::{u11, u14};
@@ -449,4 +453,147 @@ fn header_layout_tables_match_the_sat_rs_encoders() {
     ];
     assert_eq!(got, want);
     assert_eq!(layout::tm_time_len(), mib::config::TIMESTAMP_LEN);
+}
+
+/// Bit writer for the XTCE command encoder below.
+struct Bits {
+    out: Vec<u8>,
+    n: usize,
+}
+impl Bits {
+    fn push(&mut self, v: u64, bits: u32) {
+        for b in (0..bits).rev() {
+            if self.n % 8 == 0 {
+                self.out.push(0);
+            }
+            if v >> b & 1 == 1 {
+                let last = self.out.len() - 1;
+                self.out[last] |= 0x80 >> (self.n % 8);
+            }
+            self.n += 1;
+        }
+    }
+}
+
+/// Encodes TC `name` the way its XTCE MetaCommand describes it (entries of the base
+/// `PUS_TC` container, then the command's own), without the PEC.
+fn encode_from_xtce(doc: &roxmltree::Document, name: &str, args: &[i64], seq: u16, ack: u8) -> Vec<u8> {
+    let by_name = |tag: &str, n: &str| {
+        doc.descendants()
+            .find(|x| x.tag_name().name() == tag && x.attribute("name") == Some(n))
+            .unwrap_or_else(|| panic!("{tag} {n}"))
+    };
+    let mc = by_name("MetaCommand", name);
+    let base = by_name("MetaCommand", "PUS_TC");
+    let mut values: std::collections::BTreeMap<String, i64> = mc
+        .descendants()
+        .filter(|x| x.tag_name().name() == "ArgumentAssignment")
+        .map(|x| {
+            (
+                x.attribute("argumentName").unwrap().to_string(),
+                x.attribute("argumentValue").unwrap().parse().unwrap(),
+            )
+        })
+        .collect();
+    values.insert("SRC_SEQ_CTR".into(), seq as i64);
+    values.insert("TC_ACK_FLAGS".into(), ack as i64);
+    let own: Vec<roxmltree::Node> = mc.descendants().filter(|x| x.tag_name().name() == "Argument").collect();
+    assert_eq!(own.len(), args.len());
+    for (a, v) in own.iter().zip(args) {
+        values.insert(a.attribute("name").unwrap().to_string(), *v);
+    }
+    let arg_bits = |cmd: roxmltree::Node, arg: &str| -> u32 {
+        let a = cmd
+            .descendants()
+            .find(|x| x.tag_name().name() == "Argument" && x.attribute("name") == Some(arg))
+            .unwrap_or_else(|| panic!("argument {arg}"));
+        let ty = by_name("IntegerArgumentType", a.attribute("argumentTypeRef").unwrap());
+        let enc = ty
+            .descendants()
+            .find(|x| x.tag_name().name() == "IntegerDataEncoding")
+            .unwrap();
+        enc.attribute("sizeInBits").unwrap().parse().unwrap()
+    };
+    let mut entries: Vec<(roxmltree::Node, roxmltree::Node)> = Vec::new();
+    for (cmd, container) in [(base, "PUS_TC"), (mc, "")] {
+        let c = cmd
+            .descendants()
+            .find(|x| x.tag_name().name() == "CommandContainer")
+            .unwrap();
+        if !container.is_empty() {
+            assert_eq!(c.attribute("name"), Some(container));
+        }
+        let list = c.children().find(|x| x.tag_name().name() == "EntryList").unwrap();
+        entries.extend(list.children().filter(|x| x.is_element()).map(|e| (cmd, e)));
+    }
+    // Two passes: the first finds the length for PKT_LEN.
+    let mut total_bits = 0;
+    for pass in 0..2 {
+        let mut w = Bits { out: Vec::new(), n: 0 };
+        for (cmd, e) in &entries {
+            match e.tag_name().name() {
+                "FixedValueEntry" => {
+                    let bits: u32 = e.attribute("sizeInBits").unwrap().parse().unwrap();
+                    let v = u64::from_str_radix(e.attribute("binaryValue").unwrap(), 16).unwrap();
+                    w.push(v, bits);
+                }
+                "ArgumentRefEntry" => {
+                    let arg = e.attribute("argumentRef").unwrap();
+                    let bits = arg_bits(*cmd, arg);
+                    let v = if arg == "PKT_LEN" {
+                        total_bits as i64 / 8 + 2 - 7
+                    } else {
+                        values[arg]
+                    };
+                    w.push(v as u64 & ((1u64 << bits) - 1), bits);
+                }
+                other => panic!("unexpected entry {other}"),
+            }
+        }
+        total_bits = w.n;
+        if pass == 1 {
+            assert_eq!(w.n % 8, 0);
+            return w.out;
+        }
+    }
+    unreachable!()
+}
+
+#[test]
+fn xtce_meta_commands_encode_like_the_sat_rs_tc_encoder() {
+    use satrs::spacepackets::ecss::tc::{AckFlags, PusTcCreator, PusTcSecondaryHeader};
+    let text = export::xtce_document();
+    let doc = roxmltree::Document::parse(&text).unwrap();
+    let apid = mib::apid::robot_apid(ROBOT).unwrap();
+    let mut rng = Rng(42);
+    let mut checked = 0;
+    for (i, tc) in mib::tc::TCS.iter().enumerate() {
+        for case in 0..3 {
+            let args: Vec<i64> = tc
+                .args
+                .iter()
+                .map(|a| match case {
+                    0 => a.min,
+                    1 => a.max,
+                    _ => a.min + (rng.next() % ((a.max - a.min) as u64 + 1)) as i64,
+                })
+                .collect();
+            let mut app = [0u8; 64];
+            let n = codec::encode_args(tc, &args, &mut app).unwrap();
+            let seq = (i * 3 + case) as u16;
+            let sec = PusTcSecondaryHeader::new(
+                MessageTypeId::new(tc.service, tc.subservice),
+                AckFlags::ALL,
+                mib::config::GROUND_ID,
+            );
+            let sp = SpHeader::new_for_unseg_tc(u11::new(apid), u14::new(seq), 0);
+            let want = PusTcCreator::new(sp, sec, &app[..n], CreatorConfig::default())
+                .to_vec()
+                .unwrap();
+            let got = encode_from_xtce(&doc, tc.name, &args, seq, 0b1111);
+            assert_eq!(got, want[..want.len() - 2], "{} case {case}", tc.name);
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, mib::tc::TCS.len() * 3);
 }
