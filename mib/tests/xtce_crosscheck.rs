@@ -463,7 +463,7 @@ struct Bits {
 impl Bits {
     fn push(&mut self, v: u64, bits: u32) {
         for b in (0..bits).rev() {
-            if self.n % 8 == 0 {
+            if self.n & 7 == 0 {
                 self.out.push(0);
             }
             if v >> b & 1 == 1 {
