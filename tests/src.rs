@@ -20,7 +20,10 @@ pub fn bin(name: &str) -> PathBuf {
     }
     let exe = std::env::current_exe().expect("test executable path");
     // target/<profile>/deps/test-xxxx -> target/<profile>/NAME
-    exe.parent().and_then(|d| d.parent()).map(|d| d.join(name)).expect("target directory")
+    exe.parent()
+        .and_then(|d| d.parent())
+        .map(|d| d.join(name))
+        .expect("target directory")
 }
 
 /// A running `obsw` process; killed on drop.
@@ -41,19 +44,39 @@ impl Obsw {
     pub fn start_robot(robot: u8, extra: &[&str]) -> Obsw {
         let path = bin("obsw");
         let mut child = Command::new(&path)
-            .args(["--robot", &robot.to_string(), "--udp", "127.0.0.1:0", "--tcp", "127.0.0.1:0", "--sim-ctl", "127.0.0.1:0"])
+            .args([
+                "--robot",
+                &robot.to_string(),
+                "--udp",
+                "127.0.0.1:0",
+                "--tcp",
+                "127.0.0.1:0",
+                "--sim-ctl",
+                "127.0.0.1:0",
+            ])
             .args(extra)
             .stdout(Stdio::piped())
             .stderr(Stdio::null())
             .spawn()
             .unwrap_or_else(|e| panic!("cannot start {}: {e}", path.display()));
         let mut line = String::new();
-        BufReader::new(child.stdout.take().expect("stdout")).read_line(&mut line).expect("READY line");
+        BufReader::new(child.stdout.take().expect("stdout"))
+            .read_line(&mut line)
+            .expect("READY line");
         let field = |k: &str| -> String {
-            line.split_whitespace().find_map(|w| w.strip_prefix(&format!("{k}="))).unwrap_or_else(|| panic!("no {k} in {line:?}")).to_string()
+            line.split_whitespace()
+                .find_map(|w| w.strip_prefix(&format!("{k}=")))
+                .unwrap_or_else(|| panic!("no {k} in {line:?}"))
+                .to_string()
         };
         let apid = u16::from_str_radix(field("apid").trim_start_matches("0x"), 16).expect("apid");
-        Obsw { udp: field("udp").parse().unwrap(), tcp: field("tcp").parse().unwrap(), sim_ctl: field("sim_ctl").parse().unwrap(), apid, child }
+        Obsw {
+            udp: field("udp").parse().unwrap(),
+            tcp: field("tcp").parse().unwrap(),
+            sim_ctl: field("sim_ctl").parse().unwrap(),
+            apid,
+            child,
+        }
     }
 
     /// Sends a simulator-control line and returns the reply.
@@ -101,12 +124,18 @@ impl Tm {
     }
     /// Request ID (packet ID, PSC) of a TM[1,x].
     pub fn request(&self) -> Option<(u16, u16)> {
-        (self.service == 1 && self.data.len() >= 4).then(|| (u16::from_be_bytes([self.data[0], self.data[1]]), u16::from_be_bytes([self.data[2], self.data[3]])))
+        (self.service == 1 && self.data.len() >= 4).then(|| {
+            (
+                u16::from_be_bytes([self.data[0], self.data[1]]),
+                u16::from_be_bytes([self.data[2], self.data[3]]),
+            )
+        })
     }
     /// Failure code of a TM[1,2/4/6/8].
     pub fn failure_code(&self) -> Option<u16> {
         let off = if self.subservice == 6 { 5 } else { 4 };
-        (self.service == 1 && self.subservice % 2 == 0 && self.data.len() >= off + 2).then(|| u16::from_be_bytes([self.data[off], self.data[off + 1]]))
+        (self.service == 1 && self.subservice % 2 == 0 && self.data.len() >= off + 2)
+            .then(|| u16::from_be_bytes([self.data[off], self.data[off + 1]]))
     }
     /// Step of a TM[1,5/6].
     pub fn step(&self) -> Option<u8> {
@@ -114,11 +143,13 @@ impl Tm {
     }
     /// Event ID of a TM[5,x].
     pub fn event_id(&self) -> Option<u16> {
-        (self.service == 5 && self.subservice <= 4 && self.data.len() >= 2).then(|| u16::from_be_bytes([self.data[0], self.data[1]]))
+        (self.service == 5 && self.subservice <= 4 && self.data.len() >= 2)
+            .then(|| u16::from_be_bytes([self.data[0], self.data[1]]))
     }
     /// Structure ID of a TM[3,25].
     pub fn sid(&self) -> Option<u16> {
-        (self.service == 3 && self.subservice == 25 && self.data.len() >= 2).then(|| u16::from_be_bytes([self.data[0], self.data[1]]))
+        (self.service == 3 && self.subservice == 25 && self.data.len() >= 2)
+            .then(|| u16::from_be_bytes([self.data[0], self.data[1]]))
     }
     /// A raw HK parameter value.
     pub fn hk(&self, param: u16) -> Option<i64> {
@@ -131,7 +162,9 @@ pub fn tc(apid: u16, seq: u16, service: u8, subservice: u8, app: &[u8]) -> Vec<u
     let sp = SpHeader::new_for_unseg_tc(u11::new(apid), u14::new(seq), 0);
     let sec = PusTcSecondaryHeader::new(MessageTypeId::new(service, subservice), AckFlags::ALL, 0);
     let mut buf = vec![0u8; 2048];
-    let n = PusTcCreator::new(sp, sec, app, CreatorConfig::default()).write_to_bytes(&mut buf).expect("tc");
+    let n = PusTcCreator::new(sp, sec, app, CreatorConfig::default())
+        .write_to_bytes(&mut buf)
+        .expect("tc");
     buf.truncate(n);
     buf
 }
@@ -166,12 +199,22 @@ pub struct Client {
 impl Client {
     pub fn udp(o: &Obsw) -> Client {
         let s = UdpSocket::bind("127.0.0.1:0").unwrap();
-        Client { link: Link::Udp(s, o.udp), apid: o.apid, seq: 0, log: Vec::new() }
+        Client {
+            link: Link::Udp(s, o.udp),
+            apid: o.apid,
+            seq: 0,
+            log: Vec::new(),
+        }
     }
     pub fn tcp(o: &Obsw) -> Client {
         let s = TcpStream::connect(o.tcp).unwrap();
         s.set_nodelay(true).unwrap();
-        Client { link: Link::Tcp(s, Vec::new()), apid: o.apid, seq: 0, log: Vec::new() }
+        Client {
+            link: Link::Tcp(s, Vec::new()),
+            apid: o.apid,
+            seq: 0,
+            log: Vec::new(),
+        }
     }
     pub fn next_seq(&mut self) -> u16 {
         self.seq = (self.seq + 1) & 0x3FFF;
@@ -259,11 +302,17 @@ impl Client {
     /// Waits for the completion (TM[1,7] or a failure) of a TC.
     pub fn wait_done(&mut self, tc: &[u8], timeout: Duration) -> Option<Tm> {
         let r = request_of(tc);
-        self.wait_for(timeout, |t| t.request() == Some(r) && matches!(t.subservice, 2 | 4 | 6 | 7 | 8))
+        self.wait_for(timeout, |t| {
+            t.request() == Some(r) && matches!(t.subservice, 2 | 4 | 6 | 7 | 8)
+        })
     }
     /// Verification reports of a TC seen so far.
     pub fn verifications(&self, tc: &[u8]) -> Vec<u8> {
         let r = request_of(tc);
-        self.log.iter().filter(|t| t.request() == Some(r)).map(|t| t.subservice).collect()
+        self.log
+            .iter()
+            .filter(|t| t.request() == Some(r))
+            .map(|t| t.subservice)
+            .collect()
     }
 }

@@ -147,11 +147,7 @@ pub fn accept(raw: &[u8], apid: u16) -> Result<Tc<'_>, Rejection> {
     }
     let total = PRIMARY_LEN + u16::from_be_bytes([raw[4], raw[5]]) as usize + 1;
     if total != raw.len() || total < MIN_TC_LEN || total > mib::config::MAX_PACKET_LEN {
-        let expected = if total < MIN_TC_LEN {
-            MIN_TC_LEN
-        } else {
-            total
-        };
+        let expected = if total < MIN_TC_LEN { MIN_TC_LEN } else { total };
         return Err(Rejection::new(
             r,
             FailureCode::MALFORMED_PACKET,
@@ -164,11 +160,7 @@ pub fn accept(raw: &[u8], apid: u16) -> Result<Tc<'_>, Rejection> {
     let crc_rx = u16::from_be_bytes([raw[total - 2], raw[total - 1]]);
     let crc_calc = CRC_CCITT_FALSE.checksum(&raw[..total - 2]);
     if crc_rx != crc_calc {
-        return Err(Rejection::new(
-            r,
-            FailureCode::CRC_MISMATCH,
-            &u16s(crc_rx, crc_calc),
-        ));
+        return Err(Rejection::new(r, FailureCode::CRC_MISMATCH, &u16s(crc_rx, crc_calc)));
     }
     let pus_version = raw[PRIMARY_LEN] >> 4;
     if pus_version != 2 {
@@ -183,46 +175,28 @@ pub fn accept(raw: &[u8], apid: u16) -> Result<Tc<'_>, Rejection> {
     let sub = raw[PRIMARY_LEN + 2];
     let source_id = u16::from_be_bytes([raw[PRIMARY_LEN + 3], raw[PRIMARY_LEN + 4]]);
     if req.apid() != apid {
-        return Err(
-            Rejection::new(r, FailureCode::WRONG_APID, &req.apid().to_be_bytes())
-                .with_type(svc, sub),
-        );
+        return Err(Rejection::new(r, FailureCode::WRONG_APID, &req.apid().to_be_bytes()).with_type(svc, sub));
     }
     if !tc::service_known(svc) {
         return Err(Rejection::new(r, FailureCode::UNKNOWN_SERVICE, &[svc]).with_type(svc, sub));
     }
     if !tc::subservice_known(svc, sub) {
-        return Err(
-            Rejection::new(r, FailureCode::UNKNOWN_SUBSERVICE, &[svc, sub]).with_type(svc, sub),
-        );
+        return Err(Rejection::new(r, FailureCode::UNKNOWN_SUBSERVICE, &[svc, sub]).with_type(svc, sub));
     }
     let app = &raw[PRIMARY_LEN + SEC_LEN..total - CRC_LEN];
     let (def, arg_bytes) = if svc == service::FUNCTION {
         if app.len() < 2 {
-            return Err(
-                Rejection::new(r, FailureCode::BAD_ARG_LENGTH, &u16s(app.len() as u16, 2))
-                    .with_type(svc, sub),
-            );
+            return Err(Rejection::new(r, FailureCode::BAD_ARG_LENGTH, &u16s(app.len() as u16, 2)).with_type(svc, sub));
         }
         let f = u16::from_be_bytes([app[0], app[1]]);
         match tc::lookup(svc, sub, Some(f)) {
             Some(d) => (d, &app[2..]),
-            None => {
-                return Err(
-                    Rejection::new(r, FailureCode::UNKNOWN_FUNCTION, &f.to_be_bytes())
-                        .with_type(svc, sub),
-                )
-            }
+            None => return Err(Rejection::new(r, FailureCode::UNKNOWN_FUNCTION, &f.to_be_bytes()).with_type(svc, sub)),
         }
     } else {
         match tc::lookup(svc, sub, None) {
             Some(d) => (d, app),
-            None => {
-                return Err(
-                    Rejection::new(r, FailureCode::UNKNOWN_SUBSERVICE, &[svc, sub])
-                        .with_type(svc, sub),
-                )
-            }
+            None => return Err(Rejection::new(r, FailureCode::UNKNOWN_SUBSERVICE, &[svc, sub]).with_type(svc, sub)),
         }
     };
     let (args, rest) = codec::decode_args(def, arg_bytes).map_err(|e: ArgError| {
@@ -285,26 +259,11 @@ pub(crate) mod tests {
         let mut tm = ping.clone();
         tm[0] &= !0x10;
         assert_eq!(code(&tm), FailureCode::NOT_A_PUS_TC);
-        assert_eq!(
-            code(&tc_bytes(0x102, 1, 17, 1, &[])),
-            FailureCode::WRONG_APID
-        );
-        assert_eq!(
-            code(&tc_bytes(0x101, 1, 99, 1, &[])),
-            FailureCode::UNKNOWN_SERVICE
-        );
-        assert_eq!(
-            code(&tc_bytes(0x101, 1, 17, 9, &[])),
-            FailureCode::UNKNOWN_SUBSERVICE
-        );
-        assert_eq!(
-            code(&tc_bytes(0x101, 1, 8, 1, &[0, 99])),
-            FailureCode::UNKNOWN_FUNCTION
-        );
-        assert_eq!(
-            code(&tc_bytes(0x101, 1, 8, 1, &[0, 1, 0])),
-            FailureCode::BAD_ARG_LENGTH
-        );
+        assert_eq!(code(&tc_bytes(0x102, 1, 17, 1, &[])), FailureCode::WRONG_APID);
+        assert_eq!(code(&tc_bytes(0x101, 1, 99, 1, &[])), FailureCode::UNKNOWN_SERVICE);
+        assert_eq!(code(&tc_bytes(0x101, 1, 17, 9, &[])), FailureCode::UNKNOWN_SUBSERVICE);
+        assert_eq!(code(&tc_bytes(0x101, 1, 8, 1, &[0, 99])), FailureCode::UNKNOWN_FUNCTION);
+        assert_eq!(code(&tc_bytes(0x101, 1, 8, 1, &[0, 1, 0])), FailureCode::BAD_ARG_LENGTH);
         let r = accept(&tc_bytes(0x101, 1, 8, 1, &[0, 1, 0, 15]), 0x101).unwrap_err();
         assert_eq!(
             (r.code, r.data()),

@@ -5,5 +5,8 @@
 #![deny(unsafe_code)]
 
 pub mod accept;
+pub mod fdir;
+pub mod modes;
+pub mod obsw;
 pub mod time;
 pub mod tm;

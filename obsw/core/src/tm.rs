@@ -208,9 +208,6 @@ mod tests {
         assert_eq!(s.pop(&mut out), Some(10));
         assert_eq!(out[0], 4);
         assert_eq!(s.pop(&mut out), None);
-        assert!(
-            s.push(&[9; 100]),
-            "a packet larger than the store is refused"
-        );
+        assert!(s.push(&[9; 100]), "a packet larger than the store is refused");
     }
 }

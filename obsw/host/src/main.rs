@@ -1,1 +1,307 @@
-fn main() {}
+//! `obsw`: the MMIC-I on-board software on a host, against the MMIC-I simulator.
+//!
+//! It runs the same `obsw-core` and `mmic-domain` code as the firmware. TCs arrive on
+//! UDP and TCP (COBS-framed); TM goes back to every TCP client and to the last UDP
+//! sender. Simulated time runs `--speed` times faster than the wall clock.
+
+mod net;
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::mpsc;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use anyhow::{bail, Context, Result};
+use clap::Parser;
+use serde::Deserialize;
+
+use mib::config;
+use mmic_sim::{Sim, SimCommand, SimConfig};
+use obsw_core::obsw::{Config, Obsw};
+use obsw_core::tm::TmStore;
+
+use net::{Input, Origin};
+
+/// Command-line options. Every option can also be given in the `--config` TOML file
+/// (same names, with underscores); the command line wins.
+#[derive(Parser, Debug)]
+#[command(
+    name = "obsw",
+    version,
+    about = "MMIC-I on-board software (host build) with its simulator",
+    long_about = "MMIC-I on-board software (host build) running against the MMIC-I simulator.\n\nTCs: CCSDS space packets with a PUS-C secondary header and CRC, as UDP datagrams or over TCP framed with COBS (0x00 after every frame). TM: to every connected TCP client and to the last UDP sender. The robot boots in STANDBY.\n\nOn start, one line `READY robot=N apid=0x... udp=ADDR tcp=ADDR sim_ctl=ADDR` is printed on stdout.\n\nSimulator control (fault injection; not the flight TC path): UDP text lines to --sim-ctl: `stuck-arm a|b`, `obstacle a|b`, `battery-sag VOLTS`, `dead-hip-encoder`, `cut-cable`, `misplaced-voxel`, `fastener-jam`, `clear [FAULT]`, `link-loss P`, `link-corrupt P`, `status`. Each gets one reply line starting with `ok` or `error`."
+)]
+struct Args {
+    /// Robot number 1..=254; the APID is 0x100 + N and the default ports follow from it.
+    #[arg(long)]
+    robot: Option<u8>,
+    /// UDP address for TCs [default: 127.0.0.1:(7300 + robot)].
+    #[arg(long)]
+    udp: Option<SocketAddr>,
+    /// TCP address for TCs (COBS framing) [default: same as --udp].
+    #[arg(long)]
+    tcp: Option<SocketAddr>,
+    /// UDP address of the simulator control channel [default: 127.0.0.1:(7400 + robot)].
+    #[arg(long)]
+    sim_ctl: Option<SocketAddr>,
+    /// Simulated seconds per wall-clock second [default: 1].
+    #[arg(long)]
+    speed: Option<f64>,
+    /// Seed of the simulator's random numbers (bolt outcomes, link errors) [default: 1].
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Configuration state the simulated robot starts in: name ("Xneg"), letter ("a") or ID [default: Xneg].
+    #[arg(long)]
+    initial_state: Option<String>,
+    /// Probability that a byte on the simulated A-B serial link is lost [default: 0].
+    #[arg(long)]
+    link_loss: Option<f64>,
+    /// Probability that a byte on the simulated A-B serial link is corrupted [default: 0].
+    #[arg(long)]
+    link_corrupt: Option<f64>,
+    /// Stop after this many simulated seconds (default: run until killed).
+    #[arg(long)]
+    duration: Option<f64>,
+    /// TOML file with any of the options above.
+    #[arg(long)]
+    config: Option<PathBuf>,
+}
+
+#[derive(Deserialize, Default, Debug)]
+#[serde(deny_unknown_fields)]
+struct FileConfig {
+    robot: Option<u8>,
+    udp: Option<SocketAddr>,
+    tcp: Option<SocketAddr>,
+    sim_ctl: Option<SocketAddr>,
+    speed: Option<f64>,
+    seed: Option<u64>,
+    initial_state: Option<String>,
+    link_loss: Option<f64>,
+    link_corrupt: Option<f64>,
+    duration: Option<f64>,
+}
+
+struct Settings {
+    robot: u8,
+    udp: SocketAddr,
+    tcp: SocketAddr,
+    sim_ctl: SocketAddr,
+    speed: f64,
+    seed: u64,
+    initial_state: u8,
+    link_loss: f64,
+    link_corrupt: f64,
+    duration: Option<f64>,
+}
+
+fn settings(a: Args) -> Result<Settings> {
+    let f: FileConfig = match &a.config {
+        Some(p) => {
+            let text =
+                std::fs::read_to_string(p).with_context(|| format!("cannot read config file {}", p.display()))?;
+            toml::from_str(&text).map_err(|e| anyhow::anyhow!("{}: {}", p.display(), e))?
+        }
+        None => FileConfig::default(),
+    };
+    let robot = a.robot.or(f.robot).unwrap_or(mib::apid::DEFAULT_ROBOT);
+    if mib::apid::robot_apid(robot).is_none() {
+        bail!(
+            "--robot {robot}: robot numbers are {}..={}",
+            mib::apid::ROBOT_MIN,
+            mib::apid::ROBOT_MAX
+        );
+    }
+    let local = |port: u16| SocketAddr::from(([127, 0, 0, 1], port));
+    let udp = a.udp.or(f.udp).unwrap_or(local(config::robot_port(robot)));
+    let tcp = a.tcp.or(f.tcp).unwrap_or(udp);
+    let sim_ctl = a
+        .sim_ctl
+        .or(f.sim_ctl)
+        .unwrap_or(local(config::SIM_CTL_BASE_PORT + robot as u16));
+    let speed = a.speed.or(f.speed).unwrap_or(1.0);
+    if !(speed.is_finite() && speed > 0.0 && speed <= 100_000.0) {
+        bail!("--speed {speed}: must be a number in (0, 100000]");
+    }
+    let state_text = a.initial_state.or(f.initial_state).unwrap_or_else(|| "Xneg".into());
+    let initial_state = match state_text.parse::<u8>() {
+        Ok(id) if (id as usize) < mib::robot::NUM_STATES => id,
+        Ok(id) => bail!("--initial-state {id}: state IDs are 0..={}", mib::robot::NUM_STATES - 1),
+        Err(_) => mib::robot::state_by_name(&state_text)
+            .map(|s| s.id)
+            .with_context(|| format!("--initial-state {state_text:?}: not a state name, letter or ID"))?,
+    };
+    let prob = |name: &str, v: Option<f64>| -> Result<f64> {
+        let v = v.unwrap_or(0.0);
+        if !(0.0..=1.0).contains(&v) {
+            bail!("--{name} {v}: must be a probability in [0, 1]");
+        }
+        Ok(v)
+    };
+    let link_loss = prob("link-loss", a.link_loss.or(f.link_loss))?;
+    let link_corrupt = prob("link-corrupt", a.link_corrupt.or(f.link_corrupt))?;
+    let duration = a.duration.or(f.duration);
+    if let Some(d) = duration {
+        if !(d.is_finite() && d > 0.0) {
+            bail!("--duration {d}: must be a positive number of seconds");
+        }
+    }
+    Ok(Settings {
+        robot,
+        udp,
+        tcp,
+        sim_ctl,
+        speed,
+        seed: a.seed.or(f.seed).unwrap_or(1),
+        initial_state,
+        link_loss,
+        link_corrupt,
+        duration,
+    })
+}
+
+/// TM store of the host build: `TM_STORE_CAPACITY` packets.
+#[derive(Default)]
+struct HostStore(std::collections::VecDeque<Vec<u8>>);
+
+impl TmStore for HostStore {
+    fn push(&mut self, packet: &[u8]) -> bool {
+        let full = self.0.len() >= config::TM_STORE_CAPACITY;
+        if full {
+            self.0.pop_front();
+        }
+        self.0.push_back(packet.to_vec());
+        full
+    }
+    fn pop(&mut self, buf: &mut [u8]) -> Option<usize> {
+        let p = self.0.front()?;
+        if p.len() > buf.len() {
+            return None;
+        }
+        buf[..p.len()].copy_from_slice(p);
+        self.0.pop_front().map(|p| p.len())
+    }
+    fn len(&self) -> usize {
+        self.0.len()
+    }
+    fn clear(&mut self) {
+        self.0.clear();
+    }
+}
+
+fn main() {
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn")).init();
+    if let Err(e) = run(Args::parse()) {
+        eprintln!("obsw: error: {e:#}");
+        std::process::exit(2);
+    }
+}
+
+fn run(args: Args) -> Result<()> {
+    let s = settings(args)?;
+    let (tx, rx) = mpsc::channel();
+    let (mut down, udp, tcp) = net::start(s.udp, s.tcp, tx.clone())?;
+    let (ctl, ctl_addr) = net::start_sim_ctl(s.sim_ctl, tx)?;
+    let epoch = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map(|d| d.as_millis() as u64)
+        .unwrap_or(0);
+    let mut obsw = Obsw::new(
+        Config {
+            robot: s.robot,
+            epoch_unix_ms: epoch,
+        },
+        HostStore::default(),
+    );
+    let mut sim = Sim::new(SimConfig {
+        seed: s.seed,
+        initial_state: s.initial_state,
+        link_loss: s.link_loss,
+        link_corrupt: s.link_corrupt,
+        ..SimConfig::default()
+    });
+    println!(
+        "READY robot={} apid=0x{:03X} udp={udp} tcp={tcp} sim_ctl={ctl_addr} speed={}",
+        s.robot,
+        obsw.apid(),
+        s.speed
+    );
+    eprintln!(
+        "obsw: robot {} (APID 0x{:03X}) TC/TM on udp={udp} tcp={tcp}, simulator control on {ctl_addr}, speed x{}",
+        s.robot,
+        obsw.apid(),
+        s.speed
+    );
+
+    let period = config::CONTROL_PERIOD_MS as u64;
+    let start = Instant::now();
+    let wall_of = |sim_ms: u64| start + Duration::from_secs_f64(sim_ms as f64 / 1000.0 / s.speed);
+    let end_ms = s.duration.map(|d| (d * 1000.0) as u64);
+    let mut sim_ms: u64 = 0;
+    let mut link_rx: Vec<u8> = Vec::new();
+    let mut bad_frames: u64 = 0;
+    obsw.boot(0, 0, &mut down);
+    loop {
+        let due = wall_of(sim_ms + period);
+        let wait = due.saturating_duration_since(Instant::now());
+        let input = if wait.is_zero() {
+            rx.try_recv().ok()
+        } else {
+            rx.recv_timeout(wait).ok()
+        };
+        if let Some(input) = input {
+            // TCs carry the time of arrival, between the last tick and the next.
+            let elapsed = (start.elapsed().as_secs_f64() * 1000.0 * s.speed) as u64;
+            let now = elapsed.clamp(sim_ms, sim_ms + period - 1);
+            match input {
+                Input::Tc(bytes, origin) => {
+                    if let Origin::Udp(peer) = origin {
+                        down.set_udp_peer(peer);
+                    }
+                    obsw.handle_tc(now, &bytes, &mut down);
+                }
+                Input::BadFrame => {
+                    bad_frames += 1;
+                    log::warn!("dropped a malformed COBS frame on TCP ({bad_frames} so far)");
+                    // A frame that cannot be decoded has no request ID: report it as
+                    // a malformed packet through the normal acceptance path.
+                    obsw.handle_tc(now, &[], &mut down);
+                }
+                Input::SimCtl(line, from) => {
+                    let reply = sim_control(&mut sim, &line);
+                    let _ = ctl.send_to(reply.as_bytes(), from);
+                }
+            }
+            continue;
+        }
+        if Instant::now() < due {
+            continue;
+        }
+        sim_ms += period;
+        let sensors = sim.sensors_a();
+        let out = obsw.tick(sim_ms, &sensors, &link_rx, &mut down);
+        link_rx.clear();
+        sim.step(period as u32, &out.actuators, &out.link_tx, &mut link_rx);
+        if end_ms.is_some_and(|e| sim_ms >= e) {
+            return Ok(());
+        }
+    }
+}
+
+/// One simulator-control line → one reply line.
+fn sim_control(sim: &mut Sim, line: &str) -> String {
+    match line.trim() {
+        "clear" => {
+            sim.clear_all();
+            "ok cleared all faults".into()
+        }
+        "status" => format!("ok {:?}", sim.truth()),
+        other => match other.parse::<SimCommand>() {
+            Ok(c) => {
+                sim.apply(c);
+                format!("ok {c:?}")
+            }
+            Err(e) => format!("error {e}"),
+        },
+    }
+}

@@ -1,0 +1,134 @@
+//! Link benchmark of the real `obsw` binary (run: `cargo bench -p e2e-tests --bench link`).
+//!
+//! 1. PUS 17 round trip over UDP loopback (TC[17,1] out, TM[17,2] back), median and
+//!    p99, side by side with a bare UDP echo measured in the same run.
+//! 2. Sustained TC rate: pings sent as fast as the OBSW verifies them (windowed), as TCs
+//!    per second fully verified (TM[1,7] received).
+//! 3. HK period jitter at 10 Hz: arrival spacing of TM[3,25] SID 1 against 100 ms.
+//!
+//! Figures are printed as `name: value`; the build must be `--release` for the OBSW
+//! (`cargo build --release -p obsw`), which is what `OBSW_BIN` or target/release finds.
+
+use std::net::UdpSocket;
+use std::thread;
+use std::time::{Duration, Instant};
+
+use e2e_tests::{tc, Client, Obsw, Tm};
+
+fn pct(sorted: &[f64], p: f64) -> f64 {
+    sorted[((sorted.len() as f64 - 1.0) * p).round() as usize]
+}
+
+fn stats(name: &str, mut v: Vec<f64>) -> f64 {
+    v.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    let med = pct(&v, 0.5);
+    println!(
+        "{name}: median {:.1} us, p99 {:.1} us, n {}",
+        med,
+        pct(&v, 0.99),
+        v.len()
+    );
+    med
+}
+
+fn main() {
+    let n: usize = std::env::var("BENCH_N")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(5000);
+    // Bare UDP echo baseline.
+    let echo = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let echo_addr = echo.local_addr().unwrap();
+    thread::spawn(move || {
+        let mut b = [0u8; 2048];
+        while let Ok((k, from)) = echo.recv_from(&mut b) {
+            let _ = echo.send_to(&b[..k], from);
+        }
+    });
+    let cli = UdpSocket::bind("127.0.0.1:0").unwrap();
+    cli.set_read_timeout(Some(Duration::from_secs(2))).unwrap();
+    let ping_bytes = tc(0x101, 1, 17, 1, &[]);
+    let mut b = [0u8; 2048];
+    let mut echo_rtt = Vec::with_capacity(n);
+    for _ in 0..n {
+        let t = Instant::now();
+        cli.send_to(&ping_bytes, echo_addr).unwrap();
+        cli.recv(&mut b).unwrap();
+        echo_rtt.push(t.elapsed().as_secs_f64() * 1e6);
+    }
+
+    let o = Obsw::start(&[]);
+    let mut c = Client::udp(&o);
+    // Only the ping report counts; turn other reports off with the ack flags: the
+    // benchmark TC asks for no verification reports at all.
+    let mut pus_rtt = Vec::with_capacity(n);
+    let sock = match &c.link {
+        e2e_tests::Link::Udp(s, _) => s.try_clone().unwrap(),
+        _ => unreachable!(),
+    };
+    sock.set_read_timeout(Some(Duration::from_secs(2))).unwrap();
+    for i in 0..n {
+        let mut raw = tc(o.apid, (i & 0x3FFF) as u16, 17, 1, &[]);
+        raw[6] &= 0xF0; // no acknowledgements: TM[17,2] is the only reply
+        let crc = satrs::spacepackets::crc::CRC_CCITT_FALSE.checksum(&raw[..raw.len() - 2]);
+        let l = raw.len();
+        raw[l - 2..].copy_from_slice(&crc.to_be_bytes());
+        let t = Instant::now();
+        sock.send_to(&raw, o.udp).unwrap();
+        loop {
+            let k = sock.recv(&mut b).expect("ping reply");
+            if Tm::parse(&b[..k]).is_some_and(|t| t.service == 17) {
+                break;
+            }
+        }
+        pus_rtt.push(t.elapsed().as_secs_f64() * 1e6);
+    }
+    let e = stats("udp_echo_rtt", echo_rtt);
+    let p = stats("pus17_rtt", pus_rtt);
+    println!("pus17_vs_echo_ratio: {:.2}", p / e);
+
+    // Sustained verified TC rate, 64 TCs in flight.
+    let total = n * 4;
+    let window = 64usize;
+    let start = Instant::now();
+    let (mut sent, mut done) = (0usize, 0usize);
+    while done < total {
+        while sent < total && sent - done < window {
+            let raw = tc(o.apid, (sent & 0x3FFF) as u16, 17, 1, &[]);
+            sock.send_to(&raw, o.udp).unwrap();
+            sent += 1;
+        }
+        let k = match sock.recv(&mut b) {
+            Ok(k) => k,
+            Err(_) => break,
+        };
+        if Tm::parse(&b[..k]).is_some_and(|t| t.service == 1 && t.subservice == 7) {
+            done += 1;
+        }
+    }
+    let secs = start.elapsed().as_secs_f64();
+    println!(
+        "verified_tc_per_s_over_udp: {:.0} ({} of {} completed)",
+        done as f64 / secs,
+        done,
+        total
+    );
+    drop(c.log.drain(..));
+
+    // HK jitter at 10 Hz.
+    let o2 = Obsw::start(&[]);
+    let mut h = Client::udp(&o2);
+    let raw = h.send("HK_SET_INTERVAL", &[1, 100]);
+    h.wait_done(&raw, Duration::from_secs(2)).expect("interval");
+    let secs: u64 = std::env::var("BENCH_HK_SECS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(20);
+    let got = h.recv_for(Duration::from_secs(secs));
+    let times: Vec<Instant> = got.iter().filter(|t| t.sid() == Some(1)).map(|t| t.at).collect();
+    let jitter: Vec<f64> = times
+        .windows(2)
+        .map(|w| ((w[1] - w[0]).as_secs_f64() * 1e3 - 100.0).abs() * 1e3)
+        .collect();
+    stats("hk_10hz_period_jitter", jitter);
+}
