@@ -1,8 +1,14 @@
-//! Controller + simulator integration: reconfigurations reach the right true state and
-//! every injected fault produces its domain symptom.
+//! Controller + simulator integration: reconfigurations reach the right true state,
+//! bolting outcomes come out of the state machine reading simulated currents, the A–B
+//! link survives loss and corruption, and every injected fault of Table 8 produces its
+//! domain symptom.
 
-use mmic_domain::controller::{Action, ActionReport};
-use mmic_sim::{Harness, SimConfig};
+use mib::events::eid;
+use mib::params::{pid, CAL_AMP, CAL_VOLT, I_LOC_MAX, V_BAT_EMPTY};
+use mib::robot::{Face, Side};
+use mib::FailureCode;
+use mmic_domain::controller::{Action, ActionReport, DomainEvent, StartError};
+use mmic_sim::{Fault, Harness, SimConfig};
 
 fn harness(initial: u8, seed: u64) -> Harness {
     let mut h = Harness::new(SimConfig {
@@ -14,6 +20,10 @@ fn harness(initial: u8, seed: u64) -> Harness {
     h
 }
 
+fn param(h: &Harness, p: u16) -> i64 {
+    h.ctrl.param(p).expect("domain parameter")
+}
+
 #[test]
 fn reconfiguration_xneg_to_xpos_reaches_the_true_state() {
     let mut h = harness(0, 1);
@@ -23,4 +33,266 @@ fn reconfiguration_xneg_to_xpos_reaches_the_true_state() {
     assert_eq!(h.sim.truth().state, Some(1));
     assert_eq!(h.ctrl.computed_state(), Some(1));
     assert!(!h.sim.truth().fallen);
+    let steps: Vec<_> = h
+        .reports
+        .iter()
+        .filter_map(|(_, r)| match r {
+            ActionReport::Step { n } => Some(*n),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(steps, [1, 2]);
+    assert!(h
+        .events
+        .iter()
+        .any(|(_, e)| *e == DomainEvent::StateReached { state: 1 }));
+    assert_eq!(param(&h, pid::CONFIG_STATE), 1);
+    assert_eq!(param(&h, pid::TARGET_STATE), 1);
+    assert_eq!(param(&h, pid::CMD_COMPLETE), 1);
+}
+
+#[test]
+fn reconfiguration_xneg_to_yneg_turns_the_hip_and_reaches_the_true_state() {
+    let mut h = harness(0, 2);
+    let plan = mmic_domain::search::shortest_states(0, 2).unwrap();
+    let r = h.run_action(Action::Reconfigure { from: 0, to: 2 }, 180_000).unwrap();
+    assert_eq!(r, Some(ActionReport::Completed), "events {:?}", h.events);
+    assert_eq!(h.sim.truth().state, Some(2));
+    assert_eq!(h.sim.truth().faces, [Some(Face::Yneg), Some(Face::Yneg)]);
+    // every intermediate state of the plan was confirmed from the sensors
+    let reached: Vec<u8> = h
+        .events
+        .iter()
+        .filter_map(|(_, e)| match e {
+            DomainEvent::PrimitiveDone { state, .. } => Some(*state),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(reached, plan[1..]);
+    // the hip went through a turn and came back home
+    assert!(h.sim.truth().hip_cdeg.abs() < 100.0);
+    assert_eq!(h.ctrl.computed_state(), Some(2));
+}
+
+#[test]
+fn reconfiguration_round_trip_over_every_matched_state() {
+    let mut h = harness(0, 3);
+    for (from, to) in [(0u8, 2u8), (2, 1), (1, 0)] {
+        let r = h.run_action(Action::Reconfigure { from, to }, 180_000).unwrap();
+        assert_eq!(r, Some(ActionReport::Completed), "{from}->{to}");
+        assert_eq!(h.sim.truth().state, Some(to));
+    }
+    // batteries discharge with use
+    assert!(h.sim.truth().v_bat < 12.6);
+}
+
+#[test]
+fn reconfiguration_survives_a_lossy_corrupting_link() {
+    let mut h = Harness::new(SimConfig {
+        seed: 4,
+        link_loss: 0.01,
+        link_corrupt: 0.01,
+        ..SimConfig::default()
+    });
+    h.power_on();
+    let r = h.run_action(Action::Reconfigure { from: 0, to: 1 }, 120_000).unwrap();
+    assert_eq!(r, Some(ActionReport::Completed), "events {:?}", h.events);
+    assert_eq!(h.sim.truth().state, Some(1));
+    assert!(param(&h, pid::B_FRAME_ERRORS) > 0, "corruption was detected");
+    assert!(param(&h, pid::B_HB_RX) > 100);
+    assert_eq!(param(&h, pid::B_LINK_OK), 1);
+}
+
+#[test]
+fn bolting_a_face_reports_attempts_that_match_the_simulated_fasteners() {
+    let mut h = harness(0, 5);
+    let r = h
+        .run_action(
+            Action::BoltFace {
+                side: Side::A,
+                pairs: 0x0F,
+            },
+            300_000,
+        )
+        .unwrap();
+    let done: Vec<(u8, u8)> = h
+        .events
+        .iter()
+        .filter_map(|(_, e)| match e {
+            DomainEvent::BoltPairDone { pair, attempts, .. } => Some((*pair, *attempts)),
+            _ => None,
+        })
+        .collect();
+    match r {
+        Some(ActionReport::Completed) => assert_eq!(done.len(), 4),
+        Some(ActionReport::Failed { code, .. }) => assert_eq!(code, FailureCode::BOLT_FAILED),
+        other => panic!("bolting never finished: {other:?}"),
+    }
+    for (pair, attempts) in done {
+        let f = h.sim.fastener(Face::Xneg, pair).expect("fastener touched");
+        assert!(f.locked, "pair {pair} reported locked");
+        assert_eq!(f.lock_attempts, attempts, "pair {pair}");
+    }
+    // and unbolting releases them again
+    let r = h
+        .run_action(
+            Action::UnboltFace {
+                side: Side::A,
+                pairs: 0x01,
+            },
+            120_000,
+        )
+        .unwrap();
+    if r == Some(ActionReport::Completed) {
+        assert!(!h.sim.fastener(Face::Xneg, 1).unwrap().locked);
+    }
+}
+
+#[test]
+fn fault_stuck_arm_gives_arm_not_contracted() {
+    let mut h = harness(0, 6);
+    let r = h.run_action(Action::Reconfigure { from: 0, to: 3 }, 60_000).unwrap();
+    assert_eq!(r, Some(ActionReport::Completed));
+    h.sim.inject(Fault::StuckArm(Side::A));
+    let mark = h.events.len();
+    let r = h.run_action(Action::Reconfigure { from: 3, to: 1 }, 60_000).unwrap();
+    let Some(ActionReport::Failed { code, data, len }) = r else {
+        panic!("expected a failure, got {r:?}")
+    };
+    assert_eq!(code, FailureCode::ABORTED_BY_FAULT);
+    assert_eq!(&data[..len as usize], &eid::ARM_NOT_CONTRACTED.to_be_bytes());
+    assert!(h
+        .events_since(mark)
+        .any(|e| *e == DomainEvent::ArmNotContracted { side: Side::A }));
+    assert!(!h.ctrl.busy());
+}
+
+#[test]
+fn fault_cut_cable_ages_the_heartbeat_and_gives_comm_loss_no_ack() {
+    let mut h = harness(0, 7);
+    assert!(param(&h, pid::B_HB_AGE_MS) <= 100);
+    h.sim.inject(Fault::CutCable);
+    h.advance(1000);
+    assert!(param(&h, pid::B_HB_AGE_MS) >= 900);
+    assert_eq!(param(&h, pid::B_LINK_OK), 0);
+    let mark = h.events.len();
+    let r = h
+        .run_action(
+            Action::MoveGripper {
+                side: Side::B,
+                pwm: 1500,
+            },
+            10_000,
+        )
+        .unwrap();
+    let Some(ActionReport::Failed { code, data, .. }) = r else {
+        panic!("expected a failure, got {r:?}")
+    };
+    assert_eq!(code, FailureCode::BOARD_B_NO_ACK);
+    assert_eq!(data[0], 2, "gripper command");
+    assert!(h
+        .events_since(mark)
+        .any(|e| matches!(e, DomainEvent::CommLossNoAck { command: 2, retries: 3 })));
+    assert!(param(&h, pid::B_ACK_MISSED) >= 1);
+    assert!(param(&h, pid::B_RETRIES) >= 3);
+    // the cable is mended: heartbeats come back
+    h.sim.clear_all();
+    h.advance(500);
+    assert!(param(&h, pid::B_HB_AGE_MS) <= 100);
+}
+
+#[test]
+fn fault_battery_sag_drops_v_bat_below_ten_volts() {
+    let mut h = harness(0, 8);
+    let empty = CAL_VOLT.raw(V_BAT_EMPTY);
+    assert!(param(&h, pid::V_BAT_A) > empty);
+    h.sim.inject(Fault::BatterySag { volts: 9.5 });
+    h.advance(1000);
+    assert!(param(&h, pid::V_BAT_A) < empty);
+    assert!(param(&h, pid::V_BAT_B) < empty);
+    let v = CAL_VOLT.eng(param(&h, pid::V_BAT_A));
+    assert!((v - 9.5).abs() < 0.1, "{v}");
+}
+
+#[test]
+fn fault_obstacle_gives_locomotion_overcurrent() {
+    let mut h = harness(0, 9);
+    let limit = CAL_AMP.raw(I_LOC_MAX);
+    h.sim.inject(Fault::Obstacle(Side::A));
+    h.ctrl
+        .start(Action::Reconfigure { from: 0, to: 1 }, h.now_ms())
+        .unwrap();
+    let over = h.run_until(10_000, |h| param(h, pid::I_LOC_A) > limit);
+    assert!(over, "I_LOC_A never exceeded {limit}");
+    // side B's arm is free: no overcurrent there
+    assert!(param(&h, pid::I_LOC_B) < limit);
+}
+
+#[test]
+fn fault_misplaced_voxel_refuses_reconfiguration_with_initial_state_mismatch() {
+    let mut h = harness(0, 10);
+    h.sim.inject(Fault::MisplacedVoxel);
+    h.advance(1000);
+    assert_eq!(h.ctrl.computed_state(), None);
+    assert_eq!(
+        h.ctrl.start(Action::Reconfigure { from: 0, to: 1 }, h.now_ms()),
+        Err(StartError::InitialStateMismatch {
+            believed: 0,
+            computed: 255
+        })
+    );
+    h.sim.clear_all();
+    h.advance(1000);
+    assert_eq!(h.ctrl.computed_state(), Some(0));
+}
+
+#[test]
+fn fault_dead_hip_encoder_reads_far_from_zero() {
+    let mut h = harness(0, 11);
+    assert!(param(&h, pid::HIP_ANGLE).abs() < 100);
+    assert!(param(&h, pid::HIP_DEVIATION).abs() < 100);
+    h.sim.inject(Fault::DeadHipEncoder);
+    h.advance(1000);
+    assert!(param(&h, pid::HIP_ANGLE).abs() > 5000);
+    assert!(param(&h, pid::HIP_DEVIATION).abs() > 500);
+    assert_eq!(h.ctrl.computed_state(), None);
+}
+
+#[test]
+fn fault_fastener_jam_fails_every_attempt() {
+    let mut h = harness(0, 12);
+    h.sim.inject(Fault::FastenerJam);
+    let mark = h.events.len();
+    let r = h
+        .run_action(Action::BoltPair { side: Side::A, pair: 2 }, 120_000)
+        .unwrap();
+    let Some(ActionReport::Failed { code, data, len }) = r else {
+        panic!("expected a failure, got {r:?}")
+    };
+    assert_eq!(code, FailureCode::BOLT_FAILED);
+    assert_eq!(&data[..len as usize], &[0, 2, 3]);
+    let attempts_failed = h
+        .events_since(mark)
+        .filter(|e| matches!(e, DomainEvent::BoltAttemptFailed { pair: 2, .. }))
+        .count();
+    assert_eq!(attempts_failed, 3);
+    assert!(h.events_since(mark).any(|e| *e
+        == DomainEvent::BoltFailure {
+            side: Side::A,
+            pair: 2,
+            attempts: 3
+        }));
+    assert!(!h.sim.fastener(Face::Xneg, 2).unwrap().locked);
+}
+
+#[test]
+fn hip_rotation_reaches_target_in_the_simulator() {
+    // turn state "Yneg Xneg": hip at -90 deg; rotate the hip while... the robot is
+    // gripped by both sides, so use a released side: reconfigure into a turn
+    let mut h = harness(0, 13);
+    let r = h.run_action(Action::Reconfigure { from: 0, to: 11 }, 60_000).unwrap();
+    assert_eq!(r, Some(ActionReport::Completed), "{:?}", h.events);
+    let hip = h.sim.truth().hip_cdeg;
+    assert!((hip + 9000.0).abs() <= 60.0, "hip at {hip}");
+    assert_eq!(h.sim.truth().state, Some(11));
 }
