@@ -302,9 +302,12 @@ impl Client {
     /// Waits for the completion (TM[1,7] or a failure) of a TC.
     pub fn wait_done(&mut self, tc: &[u8], timeout: Duration) -> Option<Tm> {
         let r = request_of(tc);
-        self.wait_for(timeout, |t| {
-            t.request() == Some(r) && matches!(t.subservice, 2 | 4 | 6 | 7 | 8)
-        })
+        let done = |t: &Tm| t.request() == Some(r) && matches!(t.subservice, 2 | 4 | 6 | 7 | 8);
+        // A report that already arrived while waiting for something else counts.
+        if let Some(t) = self.log.iter().find(|t| done(t)) {
+            return Some(t.clone());
+        }
+        self.wait_for(timeout, done)
     }
     /// Verification reports of a TC seen so far.
     pub fn verifications(&self, tc: &[u8]) -> Vec<u8> {

@@ -126,15 +126,16 @@ fn every_acceptance_failure_code_is_reachable_from_a_real_packet() {
     // TC[11,4] with a release time in the past (CDS day 0) and with a bad inner TC.
     let inner = tc(apid, 17, 17, 1, &[]);
     let mut past = vec![1u8];
-    past.extend_from_slice(&[0, 0, 1, 0, 0, 0, 0]);
+    past.extend_from_slice(&[0x40, 0, 1, 0, 0, 0, 0]); // CDS: P-field, day 1
     past.extend_from_slice(&inner);
     check(&mut c, tc(apid, 18, 11, 4, &past), F::RELEASE_TIME_PASSED);
     let mut bad_inner = vec![1u8];
-    bad_inner.extend_from_slice(&[0xFF, 0xFF, 0, 0, 0, 0, 0]);
+    bad_inner.extend_from_slice(&[0x40, 0xFF, 0xFF, 0, 0, 0, 0]); // CDS: day 65535
     bad_inner.extend_from_slice(&tc(apid + 1, 19, 17, 1, &[]));
     check(&mut c, tc(apid, 20, 11, 4, &bad_inner), F::SCHEDULED_TC_INVALID);
-    // Still alive and answering.
-    let ping = c.send("PING", &[]);
+    // Still alive and answering (a sequence count not used above).
+    let ping = tc(apid, 100, 17, 1, &[]);
+    c.send_raw(&ping);
     assert_eq!(c.wait_done(&ping, T).unwrap().subservice, 7);
 }
 
@@ -274,7 +275,16 @@ fn a_second_action_while_one_runs_is_busy() {
     assert_eq!(u16::from_be_bytes([t.data[6], t.data[7]]), function::RECONFIGURE);
     let stop = c.send("STOP", &[]);
     assert_eq!(c.wait_done(&stop, T).unwrap().subservice, 7);
-    let t = c.wait_done(&first, T).unwrap();
+    let t = c.wait_done(&first, T).unwrap_or_else(|| {
+        panic!(
+            "no completion of the reconfiguration: {:?}",
+            c.log
+                .iter()
+                .filter(|t| t.service == 1)
+                .map(|t| (t.subservice, t.request()))
+                .collect::<Vec<_>>()
+        )
+    });
     assert_eq!(code(&t), F::ABORTED_BY_COMMAND.code());
 }
 
@@ -325,6 +335,10 @@ fn garbage_never_stalls_the_obsw() {
             })
             .collect();
         c.send_raw(&junk);
+        if i % 50 == 0 {
+            // Read the refusals as they come, as a ground would.
+            c.recv_for(Duration::from_millis(20));
+        }
     }
     let mut t = Client::tcp(&o);
     if let e2e_tests::Link::Tcp(s, _) = &mut t.link {
