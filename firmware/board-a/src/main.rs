@@ -1,29 +1,245 @@
+//! Board A (ESP32-C3): the on-board software. `obsw_core::Obsw` (PUS services, mode
+//! tree, FDIR, and through `mmic_domain` the motion generation, bolter state machine
+//! and hip controller) runs on the control task; the rest moves bytes.
+//!
+//! | task        | runs                                              | talks through                    |
+//! |-------------|---------------------------------------------------|----------------------------------|
+//! | `control`   | every 10 ms: TCs, sensors → `Obsw::tick` → outputs | `TCS`, `AB_RX` in; `AB_TX`, `TM` out |
+//! | `uplink`    | ground link receiver: COBS frames → TCs           | → `TCS` (channel of packets)     |
+//! | `downlink`  | ground link transmitter: HK, events, reports      | `TM` (framed bytes) → USB        |
+//! | `ab_rx`     | UART1 receiver from board B                       | → `AB_RX` (byte queue)           |
+//! | `ab_tx`     | UART1 transmitter to board B                      | `AB_TX` → UART1                  |
+//!
+//! The paper's rx/tx queues between the ESP32's two cores become these bounded
+//! embassy-sync queues between tasks of one executor on the single-core ESP32-C3.
+//! Pins and wiring: docs/firmware.md.
 #![no_std]
 #![no_main]
 #![deny(warnings)]
 
 use embassy_executor::Spawner;
-use embassy_time::{Duration, Timer};
+use embassy_time::{Duration, Ticker};
+use esp_hal::gpio::{Input, InputConfig, Level, Output, OutputConfig, Pull};
+use esp_hal::i2c::master::{Config as I2cConfig, I2c};
+use esp_hal::ledc::channel::Number as Ch;
+use esp_hal::ledc::Ledc;
+use esp_hal::time::Rate;
 use esp_hal::timer::timg::TimerGroup;
+use esp_hal::uart::{Config as UartConfig, Uart, UartRx, UartTx};
+use esp_hal::usb::usb_serial_jtag::{UsbSerialJtag, UsbSerialJtagRx, UsbSerialJtagTx};
+use esp_hal::Async;
+use fw_core::config::{self as cfg, i2c_addr};
+use fw_core::link::{self, ByteQueue, Counters, DownlinkSink, TcChannel};
+use fw_core::periph::ads7828::PowerMode;
+use fw_core::periph::servo::hip_pulse;
+use fw_core::periph::{
+    ActiveLowEnable, ActiveLowSwitch, Ads7828, As5600, BolterMux, BolterServos, Enable, GravitySensor, HwError,
+    Mpu6000, ServoOutput, SideOutputs,
+};
+use fw_core::sampling::{sample_a, SensorErrors};
+use fw_esp::bus::{self, SensorDevice};
+use fw_esp::servos::{Servo, ServoBank};
+use mmic_domain::SensorsA;
+use obsw_core::obsw::{Config, Obsw};
+use obsw_core::tm::RingStore;
+use static_cell::StaticCell;
 
 esp_bootloader_esp_idf::esp_app_desc!();
 
-#[panic_handler]
-fn panic(_info: &core::panic::PanicInfo) -> ! {
-    loop {}
+/// Uplinked TCs, decoded, waiting for the OBSW.
+static TCS: TcChannel = TcChannel::new();
+/// Downlink: COBS frames of TM packets waiting for the ground link transmitter.
+static TM: ByteQueue<{ cfg::TM_DOWNLINK_BYTES }> = ByteQueue::new();
+/// Bytes from board B / for board B.
+static AB_RX: ByteQueue<{ cfg::AB_RX_BYTES }> = ByteQueue::new();
+static AB_TX: ByteQueue<{ cfg::AB_TX_BYTES }> = ByteQueue::new();
+
+static UPLINK_STATS: Counters = Counters::new();
+static DOWNLINK_STATS: Counters = Counters::new();
+static AB_RX_STATS: Counters = Counters::new();
+static AB_TX_STATS: Counters = Counters::new();
+
+type Store = RingStore<{ cfg::TM_STORE_BYTES }>;
+/// The OBSW lives in a static (it holds the TM store and the schedule: tens of KiB),
+/// owned by the control task.
+static OBSW: StaticCell<Obsw<Store>> = StaticCell::new();
+
+type Side = SideOutputs<Servo, Servo, Servo, Servo, BolterMux<Output<'static>, Output<'static>>>;
+
+struct Hardware {
+    adc: Ads7828<SensorDevice>,
+    imu: Option<Mpu6000<SensorDevice>>,
+    hip_encoder: As5600<SensorDevice>,
+    arm_switch: ActiveLowSwitch<Input<'static>>,
+    side: Side,
+    hip: Servo,
+    regulator: ActiveLowEnable<Output<'static>>,
+}
+
+/// IMU absent or failing its identity check at boot: gravity reads fail every cycle and
+/// the state estimate reports "unknown" (the OBSW then refuses reconfigurations).
+struct NoImu;
+impl GravitySensor for NoImu {
+    fn gravity_mg(&mut self) -> Result<[i16; 3], HwError> {
+        Err(HwError::Bus)
+    }
 }
 
 #[embassy_executor::task]
-async fn obsw() {
+async fn uplink(rx: UsbSerialJtagRx<'static, Async>) {
+    link::uplink_task(rx, &TCS, &UPLINK_STATS).await
+}
+
+#[embassy_executor::task]
+async fn downlink(tx: UsbSerialJtagTx<'static, Async>) {
+    link::queue_to_writer(&TM, tx, &DOWNLINK_STATS).await
+}
+
+#[embassy_executor::task]
+async fn ab_rx(rx: UartRx<'static, Async>) {
+    link::reader_to_queue(rx, &AB_RX, &AB_RX_STATS).await
+}
+
+#[embassy_executor::task]
+async fn ab_tx(tx: UartTx<'static, Async>) {
+    link::queue_to_writer(&AB_TX, tx, &AB_TX_STATS).await
+}
+
+#[embassy_executor::task]
+async fn control(mut hw: Hardware, obsw: &'static mut Obsw<Store>, reset_cause: u8) {
+    let mut sink = DownlinkSink {
+        queue: &TM,
+        counters: &DOWNLINK_STATS,
+    };
+    let mut sensors = SensorsA::default();
+    let mut errors = SensorErrors::default();
+    let mut rx = [0u8; cfg::AB_RX_BYTES];
+    hw.side.release_all();
+    let _ = hw.hip.release();
+    let _ = hw.regulator.set_enabled(false);
+    obsw.boot(fw_esp::clock::now_ms(), reset_cause, &mut sink);
+
+    let mut ticker = Ticker::every(Duration::from_millis(cfg::CONTROL_PERIOD_MS as u64));
     loop {
-        Timer::after(Duration::from_millis(50)).await;
+        ticker.next().await;
+        let now = fw_esp::clock::now_ms();
+        // Telecommands first, so that a TC and the tick that starts it share `now`.
+        while let Ok(tc) = TCS.try_receive() {
+            obsw.handle_tc(now, &tc, &mut sink);
+        }
+        match hw.imu.as_mut() {
+            Some(imu) => sample_a(
+                &mut hw.adc,
+                imu,
+                &mut hw.hip_encoder,
+                &mut hw.arm_switch,
+                &mut sensors,
+                &mut errors,
+            ),
+            None => sample_a(
+                &mut hw.adc,
+                &mut NoImu,
+                &mut hw.hip_encoder,
+                &mut hw.arm_switch,
+                &mut sensors,
+                &mut errors,
+            ),
+        }
+        let n = link::drain(&AB_RX, &mut rx);
+        let out = obsw.tick(now, &sensors, &rx[..n], &mut sink);
+        // Outputs: a failing output keeps its last state; the OBSW sees the effect in
+        // the currents and positions and its FDIR acts on them.
+        let act = &out.actuators;
+        let _ = hw.regulator.set_enabled(act.regulator_on);
+        let _ = hw.side.apply(&act.side, act.mux);
+        let _ = match act.hip_speed {
+            Some(speed) => hw.hip.set_pulse_us(hip_pulse(speed)),
+            None => hw.hip.release(),
+        };
+        link::push_bytes(&AB_TX, &out.link_tx, &AB_TX_STATS);
     }
 }
 
 #[esp_hal::main]
 async fn main(spawner: Spawner) {
-    let peripherals = esp_hal::init(esp_hal::Config::default());
-    let timg0 = TimerGroup::new(peripherals.TIMG0);
-    esp_rtos::start(timg0.timer0, peripherals.FROM_CPU_INTR0);
-    spawner.spawn(obsw().unwrap());
+    let p = esp_hal::init(esp_hal::Config::default());
+    let timg0 = TimerGroup::new(p.TIMG0);
+    esp_rtos::start(timg0.timer0, p.FROM_CPU_INTR0);
+    let reset_cause = fw_esp::panic::reset_cause();
+
+    // Regulator enable first, so the servo rail stays off: GPIO9, active low.
+    let regulator = ActiveLowEnable(Output::new(p.GPIO9, Level::High, OutputConfig::default()));
+
+    // Ground link: the chip's USB-Serial-JTAG (GPIO18/19), COBS-framed space packets.
+    let (usb_rx, usb_tx) = UsbSerialJtag::new(p.USB_DEVICE).into_async().split();
+
+    // A↔B link on UART1: TX GPIO21, RX GPIO20 (crossed to board B).
+    let uart = Uart::new(p.UART1, UartConfig::default().with_baudrate(cfg::AB_LINK_BAUD))
+        .expect("UART1 config")
+        .with_tx(p.GPIO21)
+        .with_rx(p.GPIO20)
+        .into_async();
+    let (uart_rx, uart_tx) = uart.split();
+
+    // Sensor bus: I2C0, SDA GPIO4, SCL GPIO5, 400 kHz.
+    let i2c = I2c::new(
+        p.I2C0,
+        I2cConfig::default().with_frequency(Rate::from_khz(cfg::I2C_FREQ_KHZ)),
+    )
+    .expect("I2C0 config")
+    .with_sda(p.GPIO4)
+    .with_scl(p.GPIO5);
+    let bus = bus::share(i2c);
+    let adc = Ads7828::new(bus::device(bus), i2c_addr::ADS7828, PowerMode::RefOnAdcOn);
+    let imu = Mpu6000::init(bus::device(bus), i2c_addr::MPU6000).ok();
+    let hip_encoder = As5600::new(bus::device(bus), i2c_addr::AS5600, cfg::HIP_ENCODER_ZERO);
+
+    // Servos on LEDC: arm GPIO0, gripper GPIO1, hip GPIO3, bolter translate GPIO6,
+    // bolter rotate GPIO7.
+    let bank = ServoBank::new(Ledc::new(p.LEDC)).expect("LEDC timer");
+    let side = SideOutputs {
+        arm: bank.servo(Ch::Channel0, p.GPIO0).expect("arm servo"),
+        grip: bank.servo(Ch::Channel1, p.GPIO1).expect("gripper servo"),
+        bolter: BolterServos {
+            translate: bank.servo(Ch::Channel3, p.GPIO6).expect("bolter translate"),
+            rotate: bank.servo(Ch::Channel4, p.GPIO7).expect("bolter rotate"),
+        },
+        // Bolter multiplexer A0 GPIO8, A1 GPIO2 (strapping pins, pulled up on the board).
+        mux: BolterMux::new(
+            Output::new(p.GPIO8, Level::High, OutputConfig::default()),
+            Output::new(p.GPIO2, Level::High, OutputConfig::default()),
+        ),
+    };
+    let hip = bank.servo(Ch::Channel2, p.GPIO3).expect("hip servo");
+    // Arm-contracted switch to ground on GPIO10, internal pull-up.
+    let arm_switch = ActiveLowSwitch(Input::new(p.GPIO10, InputConfig::default().with_pull(Pull::Up)));
+
+    let obsw = OBSW.init(Obsw::new(
+        Config {
+            robot: cfg::ROBOT,
+            epoch_unix_ms: 0,
+        },
+        Store::default(),
+    ));
+
+    spawner.spawn(uplink(usb_rx).expect("uplink task"));
+    spawner.spawn(downlink(usb_tx).expect("downlink task"));
+    spawner.spawn(ab_rx(uart_rx).expect("ab_rx task"));
+    spawner.spawn(ab_tx(uart_tx).expect("ab_tx task"));
+    spawner.spawn(
+        control(
+            Hardware {
+                adc,
+                imu,
+                hip_encoder,
+                arm_switch,
+                side,
+                hip,
+                regulator,
+            },
+            obsw,
+            reset_cause,
+        )
+        .expect("control task"),
+    );
 }

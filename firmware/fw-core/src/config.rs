@@ -100,3 +100,59 @@ pub mod bolter_servo {
     /// Head rotation in the releasing direction.
     pub const ROTATE_UNLOCK_US: u16 = 1200;
 }
+
+/// Robot number of this image (1..=254, APID 0x100 + N), from the build environment
+/// variable `MMIC_ROBOT` (default `mib::apid::DEFAULT_ROBOT`).
+pub const ROBOT: u8 = match option_env!("MMIC_ROBOT") {
+    Some(s) => parse_robot(s),
+    None => mib::apid::DEFAULT_ROBOT,
+};
+
+const fn parse_robot(s: &str) -> u8 {
+    let b = s.as_bytes();
+    let mut i = 0;
+    let mut v: u32 = 0;
+    assert!(!b.is_empty(), "MMIC_ROBOT is empty");
+    while i < b.len() {
+        assert!(b[i] >= b'0' && b[i] <= b'9', "MMIC_ROBOT must be a decimal number");
+        v = v * 10 + (b[i] - b'0') as u32;
+        assert!(v <= 254, "MMIC_ROBOT must be 1..=254");
+        i += 1;
+    }
+    assert!(v >= 1, "MMIC_ROBOT must be 1..=254");
+    v as u8
+}
+
+/// Bytes of the on-board TM store (PUS 15) on board A: packets are kept length-prefixed
+/// in a ring; the oldest is overwritten when full (counted in TM_STORE_DROPPED). The
+/// host OBSW keeps `mib::config::TM_STORE_CAPACITY` packets; the board keeps what fits
+/// in this many bytes (≈ 700 HK ROBOT_STATUS reports).
+pub const TM_STORE_BYTES: usize = 48 * 1024;
+
+/// Hip continuous servo: pulse width at standstill and the span that corresponds to
+/// the controller's largest speed command (`mmic_domain::consts::HIP_MAX_CMD_CDEG_S`).
+pub mod hip_servo {
+    pub const STOP_US: u16 = 1500;
+    pub const SPAN_US: u16 = 500;
+}
+
+/// AS5600 raw count read with the hip at its contracted (home) angle; set per robot at
+/// integration (build variable `MMIC_HIP_ZERO`, 0..=4095; default 0).
+pub const HIP_ENCODER_ZERO: u16 = match option_env!("MMIC_HIP_ZERO") {
+    Some(s) => parse_u12(s),
+    None => 0,
+};
+
+const fn parse_u12(s: &str) -> u16 {
+    let b = s.as_bytes();
+    let mut i = 0;
+    let mut v: u32 = 0;
+    assert!(!b.is_empty(), "MMIC_HIP_ZERO is empty");
+    while i < b.len() {
+        assert!(b[i] >= b'0' && b[i] <= b'9', "MMIC_HIP_ZERO must be a decimal number");
+        v = v * 10 + (b[i] - b'0') as u32;
+        assert!(v <= 4095, "MMIC_HIP_ZERO must be 0..=4095");
+        i += 1;
+    }
+    v as u16
+}

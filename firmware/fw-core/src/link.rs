@@ -191,3 +191,18 @@ pub async fn queue_to_writer<W: embedded_io_async::Write, const N: usize>(
         }
     }
 }
+
+/// The OBSW's TM sink on the boards: each packet becomes one COBS frame in the
+/// downlink queue. A packet that does not fit is not sent live (counted in
+/// `counters.overflow`); the OBSW keeps a copy of every packet in its on-board store,
+/// from which the ground downlinks it (PUS 15), so nothing is lost.
+pub struct DownlinkSink<'a, const N: usize> {
+    pub queue: &'a ByteQueue<N>,
+    pub counters: &'a Counters,
+}
+
+impl<const N: usize> obsw_core::tm::TmSink for DownlinkSink<'_, N> {
+    fn send_tm(&mut self, packet: &[u8]) {
+        downlink_packet(self.queue, packet, self.counters);
+    }
+}

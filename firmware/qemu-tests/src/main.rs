@@ -10,7 +10,9 @@
 mod harness;
 mod mock;
 mod t_codec;
+mod t_domain;
 mod t_framing;
+mod t_link;
 mod t_packets;
 mod t_periph;
 mod t_reconfig;
@@ -23,8 +25,10 @@ fn main() -> ! {
         t_packets::TESTS,
         t_framing::TESTS,
         t_periph::TESTS,
+        t_link::TESTS,
         t_support::TESTS,
         t_reconfig::TESTS,
+        t_domain::TESTS,
     ]);
     semihosting::process::exit(code)
 }

@@ -47,3 +47,26 @@ impl<P: SetDutyCycle> ServoOutput for PwmServo<P> {
         Ok(())
     }
 }
+
+/// Pulse width for a hip speed command (cdeg/s, positive = counter-clockwise): linear
+/// from standstill to ±`SPAN_US` at ±`HIP_MAX_CMD_CDEG_S`, saturated beyond.
+pub const fn hip_pulse(speed_cdeg_s: i16) -> u16 {
+    use crate::config::hip_servo::{SPAN_US, STOP_US};
+    let max = mmic_domain::consts::HIP_MAX_CMD_CDEG_S as i32;
+    let s = speed_cdeg_s as i32;
+    let s = if s > max {
+        max
+    } else if s < -max {
+        -max
+    } else {
+        s
+    };
+    let num = s * SPAN_US as i32;
+    // round to nearest
+    let off = if num >= 0 {
+        (num + max / 2) / max
+    } else {
+        (num - max / 2) / max
+    };
+    (STOP_US as i32 + off) as u16
+}
