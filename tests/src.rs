@@ -134,7 +134,7 @@ impl Tm {
     /// Failure code of a TM[1,2/4/6/8].
     pub fn failure_code(&self) -> Option<u16> {
         let off = if self.subservice == 6 { 5 } else { 4 };
-        (self.service == 1 && self.subservice % 2 == 0 && self.data.len() >= off + 2)
+        (self.service == 1 && self.subservice.is_multiple_of(2) && self.data.len() >= off + 2)
             .then(|| u16::from_be_bytes([self.data[off], self.data[off + 1]]))
     }
     /// Step of a TM[1,5/6].

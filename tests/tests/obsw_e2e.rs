@@ -74,10 +74,7 @@ fn hk_arrives_at_the_configured_rate_without_request() {
     let mode = hk[0].hk(pid::MODE).unwrap();
     assert_eq!(mode, robot_mode::STANDBY as i64, "boots in standby");
     let v = hk[0].hk(pid::V_BAT_A).unwrap();
-    assert!(
-        v > mib::params::CAL_VOLT.raw(10.0) as i64,
-        "battery voltage reported: {v}"
-    );
+    assert!(v > mib::params::CAL_VOLT.raw(10.0), "battery voltage reported: {v}");
 }
 
 #[test]
@@ -85,11 +82,11 @@ fn every_acceptance_failure_code_is_reachable_from_a_real_packet() {
     let o = Obsw::start(&[]);
     let mut c = Client::udp(&o);
     let apid = c.apid;
-    let mut check = |c: &mut Client, raw: Vec<u8>, want: F| {
+    let check = |c: &mut Client, raw: Vec<u8>, want: F| {
         c.send_raw(&raw);
         let r = request_of(&raw);
         let t = c
-            .wait_for(T, |t| t.request() == Some(r) && t.subservice % 2 == 0)
+            .wait_for(T, |t| t.request() == Some(r) && t.subservice.is_multiple_of(2))
             .unwrap_or_else(|| panic!("no failure report for {want:?}"));
         assert_eq!(code(&t), want.code(), "{want:?}");
         assert!(

@@ -146,7 +146,7 @@ pub fn accept(raw: &[u8], apid: u16) -> Result<Tc<'_>, Rejection> {
         ));
     }
     let total = PRIMARY_LEN + u16::from_be_bytes([raw[4], raw[5]]) as usize + 1;
-    if total != raw.len() || total < MIN_TC_LEN || total > mib::config::MAX_PACKET_LEN {
+    if total != raw.len() || !(MIN_TC_LEN..=mib::config::MAX_PACKET_LEN).contains(&total) {
         let expected = if total < MIN_TC_LEN { MIN_TC_LEN } else { total };
         return Err(Rejection::new(
             r,

@@ -299,7 +299,15 @@ impl<S: TmStore> Obsw<S> {
 
     /// Reports a failure at `stage`, raises the TC_REJECTED event and records the
     /// outcome for duplicate handling.
-    fn refuse(&mut self, now: u64, stage: Stage, req: RequestId, svc: u8, sub: u8, f: &Fail, sink: &mut impl TmSink) {
+    fn refuse(
+        &mut self,
+        now: u64,
+        stage: Stage,
+        req: RequestId,
+        (svc, sub): (u8, u8),
+        f: &Fail,
+        sink: &mut impl TmSink,
+    ) {
         self.verify(now, stage, req, Some((f.0, &f.1)), sink);
         self.set_outcome(req, Outcome::Failed(f.0.code()));
         self.event(
@@ -409,7 +417,7 @@ impl<S: TmStore> Obsw<S> {
         if let Err(f) = self.validate(&tc) {
             self.counters.tc_rejected = self.counters.tc_rejected.wrapping_add(1);
             self.remember(tc.req, crc, now);
-            return self.refuse(now, Stage::Acceptance, tc.req, tc.service, tc.subservice, &f, sink);
+            return self.refuse(now, Stage::Acceptance, tc.req, (tc.service, tc.subservice), &f, sink);
         }
         self.counters.tc_accepted = self.counters.tc_accepted.wrapping_add(1);
         self.remember(tc.req, crc, now);
@@ -431,7 +439,7 @@ impl<S: TmStore> Obsw<S> {
                     self.verify(now, Stage::Start, tc.req, None, sink);
                 }
             }
-            Err(f) => self.refuse(now, Stage::Start, tc.req, tc.service, tc.subservice, &f, sink),
+            Err(f) => self.refuse(now, Stage::Start, tc.req, (tc.service, tc.subservice), &f, sink),
         }
     }
 
@@ -857,7 +865,7 @@ impl<S: TmStore> Obsw<S> {
             Err(StartError::InitialStateMismatch { believed, computed }) => {
                 // Report the refusal first, then let FDIR act on the fault.
                 let fl = fail(FailureCode::INITIAL_STATE_MISMATCH, &[believed, computed]);
-                self.refuse(now, Stage::Start, tc.req, tc.service, tc.subservice, &fl, sink);
+                self.refuse(now, Stage::Start, tc.req, (tc.service, tc.subservice), &fl, sink);
                 self.fault(
                     now,
                     eid::INITIAL_STATE_MISMATCH,
