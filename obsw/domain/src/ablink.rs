@@ -573,9 +573,17 @@ impl LinkManager {
     pub fn counters(&self) -> &LinkCounters {
         &self.counters
     }
-    /// Drops every queued command (the one in flight is still resent until acked).
-    pub fn clear_queue(&mut self) {
-        self.queue.clear();
+    /// Drops every queued motion command, keeping `Power` commands (the one in flight
+    /// is still resent until acked).
+    pub fn clear_motion(&mut self) {
+        let n = self.queue.len();
+        for _ in 0..n {
+            if let Some(c) = self.queue.pop_front() {
+                if matches!(c, ModuleCmd::Power { .. }) {
+                    let _ = self.queue.push_back(c);
+                }
+            }
+        }
     }
 }
 

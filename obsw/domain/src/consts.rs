@@ -42,3 +42,6 @@ pub const LINK_MAX_FRAME: usize = 64;
 /// Capacity of the bytes one tick may hand to the serial line (115200 Bd carries
 /// ~115 bytes per 10 ms control period).
 pub const LINK_TX_CAP: usize = 128;
+/// Shortest interval between re-sends of B's module modes when its heartbeat shows
+/// other modes than A wants.
+pub const B_MODES_RESEND_MS: u32 = 200;

@@ -353,8 +353,8 @@ pub struct Controller {
     bolt_side: u8,
     bolt_pair: u8,
     bolt_attempt: u8,
-    /// Events raised outside `tick` (by `start`), flushed at the next tick.
-    pending_reports: Vec<ActionReport, 4>,
+    /// Last time B's modes were re-sent because its heartbeat disagreed.
+    b_modes_resent_ms: u64,
 }
 
 impl Default for Controller {
@@ -390,7 +390,7 @@ impl Controller {
             bolt_side: 0,
             bolt_pair: 0,
             bolt_attempt: 0,
-            pending_reports: Vec::new(),
+            b_modes_resent_ms: 0,
             tun,
         }
     }
@@ -441,6 +441,26 @@ impl Controller {
             }
         }
         self.sync_b_modes();
+    }
+
+    fn b_modes_packed(&self) -> u8 {
+        (self.modes.arm_b as u8 & 3) | ((self.modes.grip_b as u8 & 3) << 2) | ((self.modes.bolter_b as u8 & 3) << 4)
+    }
+
+    /// Board B reports other module modes than A wants (a lost `Power` command, or B
+    /// restarted): send them again, at most every `B_MODES_RESEND_MS`, when the link is
+    /// idle.
+    fn heal_b_modes(&mut self, now: u64) {
+        let want = self.b_modes_packed();
+        let Some(hb) = self.link.heartbeat() else { return };
+        if hb.modes != want
+            && self.link.idle()
+            && now.saturating_sub(self.b_modes_resent_ms) >= crate::consts::B_MODES_RESEND_MS as u64
+        {
+            self.b_modes_resent_ms = now;
+            self.b_modes_sent = None;
+            self.sync_b_modes();
+        }
     }
 
     fn sync_b_modes(&mut self) {
@@ -581,7 +601,7 @@ impl Controller {
         self.hip.set_target(a);
         self.bolter.abort();
         self.bolt_pair = 0;
-        self.link.clear_queue();
+        self.link.clear_motion();
         self.link.send(ModuleCmd::Stop);
         self.b_bolter_sent = (BolterDrive::Off, 0);
     }
@@ -693,14 +713,10 @@ impl Controller {
         }
         f.hip.push(sensors.hip_cdeg as i32);
 
-        for r in self.pending_reports.iter() {
-            let _ = out.reports.push(*r);
-        }
-        self.pending_reports.clear();
-
         // board B
         self.link.receive(now_ms, link_rx);
         self.computed = self.estimate();
+        self.heal_b_modes(now_ms);
 
         // action
         let mut gave_up_evt = None;
@@ -1324,5 +1340,196 @@ mod tests {
         assert_eq!(c, FailureCode::INITIAL_STATE_MISMATCH);
         assert_eq!(&d[..l as usize], &[3, 255]);
         assert_eq!(StartError::Busy.failure().0, FailureCode::BUSY);
+    }
+
+    /// Controller and a real board B on a perfect serial line, with fixed sensors of a
+    /// robot at rest in matched Xneg.
+    struct Loop {
+        c: Controller,
+        b: crate::board_b::BoardB,
+        t: u64,
+        out: TickOut,
+        bout: crate::board_b::BoardBOut,
+        b_to_a: std::vec::Vec<u8>,
+        sa: SensorsA,
+        sb: crate::types::SensorsB,
+    }
+
+    impl Loop {
+        fn new() -> Self {
+            let g = crate::imu::gravity_in_board_frame(mib::robot::Face::Xneg);
+            Loop {
+                c: Controller::new(),
+                b: crate::board_b::BoardB::new(),
+                t: 0,
+                out: TickOut::new(),
+                bout: Default::default(),
+                b_to_a: std::vec::Vec::new(),
+                sa: SensorsA {
+                    v_bat: 3400,
+                    grav: g,
+                    arm_switch: true,
+                    ..Default::default()
+                },
+                sb: crate::types::SensorsB {
+                    v_bat: 3400,
+                    grav: g,
+                    arm_switch: true,
+                    ..Default::default()
+                },
+            }
+        }
+        fn step(&mut self) {
+            self.c.tick(self.t, &self.sa, &self.b_to_a, &mut self.out);
+            self.b.tick(self.t + 3, &self.sb, &self.out.link_tx, &mut self.bout);
+            self.b_to_a = self.bout.tx.to_vec();
+            self.t += 10;
+        }
+        fn run(&mut self, ms: u64) {
+            for _ in 0..ms / 10 {
+                self.step();
+            }
+        }
+    }
+
+    #[test]
+    fn module_modes_off_unpowers_everything_and_on_powers() {
+        let mut l = Loop::new();
+        l.run(100);
+        assert!(!l.out.actuators.regulator_on);
+        assert_eq!(l.out.actuators.side.arm_pwm, None);
+        assert_eq!(l.out.actuators.hip_speed, None);
+        l.c.set_module_modes(ModuleModes::all(ON));
+        l.run(600);
+        let a = l.out.actuators;
+        assert!(a.regulator_on);
+        assert_eq!(a.side.arm_pwm, Some(servo::ARM_CONTRACTED_US));
+        assert_eq!(a.side.grip_pwm, Some(servo::GRIP_CLOSED_US));
+        assert!(a.hip_speed.is_some());
+        // B got its modes over the link and reports them
+        assert_eq!(l.c.link.heartbeat().unwrap().modes, 0b01_01_01);
+        assert_eq!(l.bout.side.arm_pwm, Some(servo::ARM_CONTRACTED_US));
+        assert_eq!(l.c.computed_state(), Some(0));
+        l.c.set_module_modes(ModuleModes::all(OFF));
+        l.run(200);
+        assert!(!l.out.actuators.regulator_on);
+        assert_eq!(l.bout.side.arm_pwm, None);
+    }
+
+    #[test]
+    fn hold_mode_aborts_running_motion_and_keeps_position() {
+        let mut l = Loop::new();
+        l.c.set_module_modes(ModuleModes::all(ON));
+        l.run(600);
+        l.c.start(
+            Action::MoveGripper {
+                side: Side::A,
+                pwm: servo::GRIP_OPEN_US,
+            },
+            l.t,
+        )
+        .unwrap();
+        l.run(500);
+        let mid = l.out.actuators.side.grip_pwm.unwrap();
+        assert!(mid > servo::GRIP_CLOSED_US && mid < servo::GRIP_OPEN_US);
+        l.c.set_module_modes(ModuleModes::all(HOLD));
+        assert!(!l.c.busy(), "gripper action needs ON");
+        l.run(500);
+        assert_eq!(l.out.actuators.side.grip_pwm, Some(mid), "held where it was");
+        assert_eq!(l.c.link.heartbeat().unwrap().modes, 0b10_10_10);
+    }
+
+    #[test]
+    fn abort_holds_arm_a_and_board_b_where_they_are() {
+        let mut l = Loop::new();
+        l.c.set_module_modes(ModuleModes::all(ON));
+        l.run(600);
+        l.c.start(
+            Action::MoveArm {
+                side: Side::B,
+                pwm: 2000,
+            },
+            l.t,
+        )
+        .unwrap();
+        l.run(400);
+        l.c.abort();
+        assert!(!l.c.busy());
+        l.run(200);
+        let held = l.bout.side.arm_pwm.unwrap();
+        assert!(held > 1000 && held < 2000, "{held}");
+        l.run(500);
+        assert_eq!(l.bout.side.arm_pwm, Some(held));
+        assert!(l.out.reports.is_empty());
+    }
+
+    #[test]
+    fn move_arm_completes_when_board_b_reports_the_target() {
+        let mut l = Loop::new();
+        l.c.set_module_modes(ModuleModes::all(ON));
+        l.run(600);
+        assert_eq!(
+            l.c.start(
+                Action::MoveArm {
+                    side: Side::B,
+                    pwm: 1500
+                },
+                l.t
+            ),
+            Ok(1)
+        );
+        let mut reports = std::vec::Vec::new();
+        for _ in 0..300 {
+            l.step();
+            reports.extend(l.out.reports.iter().copied());
+        }
+        assert_eq!(reports, [ActionReport::Step { n: 1 }, ActionReport::Completed]);
+        assert_eq!(l.c.param(pid::ARM_B_PWM), Some(1500));
+        assert_eq!(l.c.param(pid::ARM_B_TARGET), Some(1500));
+    }
+
+    #[test]
+    fn board_b_modes_are_resent_after_b_restarts() {
+        let mut l = Loop::new();
+        l.c.set_module_modes(ModuleModes::all(ON));
+        l.run(600);
+        l.b = crate::board_b::BoardB::new(); // B reboots: modules OFF
+        l.run(1000);
+        assert_eq!(l.c.link.heartbeat().unwrap().modes, 0b01_01_01);
+        assert_eq!(l.bout.side.arm_pwm, Some(servo::ARM_CONTRACTED_US));
+    }
+
+    #[test]
+    fn tunables_reach_the_controller_and_bad_values_are_refused() {
+        let mut c = Controller::new();
+        assert_eq!(c.tunable(tid::BOLT_PUSH_THRESHOLD_MA), Some(1200));
+        c.set_tunable(tid::BOLT_PUSH_THRESHOLD_MA, 1000).unwrap();
+        assert_eq!(c.tunable(tid::BOLT_PUSH_THRESHOLD_MA), Some(1000));
+        assert!(c.set_tunable(tid::BOLT_PUSH_THRESHOLD_MA, 99_999).is_err());
+        assert!(c.set_tunable(0xFFFF, 1).is_err());
+        c.set_tunable(tid::HIP_KP_POS, 0).unwrap();
+        assert_eq!(c.hip.clone().tick(-200, 10), 0, "no gain, no position output");
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn controller_never_panics_on_garbage_link_bytes(
+            chunks in proptest::collection::vec(proptest::collection::vec(proptest::prelude::any::<u8>(), 0..80), 1..20)
+        ) {
+            let mut c = Controller::new();
+            c.set_module_modes(ModuleModes::all(ON));
+            let mut out = TickOut::new();
+            let mut t = 0;
+            for ch in &chunks {
+                c.tick(t, &SensorsA::default(), ch, &mut out);
+                t += 10;
+            }
+            let mut b = crate::board_b::BoardB::new();
+            let mut bout = crate::board_b::BoardBOut::default();
+            for ch in &chunks {
+                b.tick(t, &crate::types::SensorsB::default(), ch, &mut bout);
+                t += 10;
+            }
+        }
     }
 }
