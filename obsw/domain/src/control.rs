@@ -109,7 +109,8 @@ pub enum HipMode {
 }
 
 /// The hip's PI controller (paper §5): a velocity PI at 10 °/s while the error exceeds
-/// 3°, a position PI within 3°. The velocity is estimated from the encoder by a
+/// 3°, a position PI within 3° whose integrator is frozen inside the done band
+/// (`servo::HIP_DONE_CDEG`). The velocity is estimated from the encoder by a
 /// difference over `HIP_VEL_SPAN` samples, smoothed. Output: continuous-servo speed
 /// command in cdeg/s, clamped to ±`HIP_MAX_CMD_CDEG_S`.
 #[derive(Clone, Debug)]
@@ -225,7 +226,11 @@ impl HipController {
             }
             HipMode::Position => {
                 let e = err as i64;
-                self.integ += e * dt; // cdeg·ms
+                // integrate only outside the done band: a hip held against the
+                // structure (both grippers closed) must not wind up to a stall current
+                if err.abs() > servo::HIP_DONE_CDEG as i32 {
+                    self.integ += e * dt; // cdeg·ms
+                }
                 let lim = max * 1_000_000 / (self.gains.ki_pos.max(1) as i64);
                 self.integ = self.integ.clamp(-lim, lim);
                 self.gains.kp_pos as i64 * e / 1000 + self.gains.ki_pos as i64 * self.integ / 1_000_000
@@ -331,5 +336,17 @@ mod tests {
         // negative targets work as well
         let end = run_hip(-9000, 15000, |_, _, _| {});
         assert!((end + 9000.0).abs() <= 50.0, "{end}");
+    }
+
+    #[test]
+    fn hip_held_against_the_structure_does_not_wind_up() {
+        // blocked hip 40 cdeg off target (inside the done band) for 10 minutes
+        let mut c = HipController::new(0, HipGains::from_tunables(&Tunables::default()));
+        let mut cmd = 0;
+        for _ in 0..60_000 {
+            cmd = c.tick(40, 10);
+        }
+        assert!(c.done());
+        assert!(cmd.abs() <= 100, "command grew to {cmd}");
     }
 }

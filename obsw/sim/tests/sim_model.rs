@@ -1,0 +1,131 @@
+//! The simulator's physical model: geometry truth, determinism, idle currents.
+
+use mib::params::{pid, CAL_AMP, I_LOC_IDLE_MAX};
+use mib::robot::{servo, Face};
+use mmic_domain::ablink::{Message, ModuleCmd};
+use mmic_domain::controller::{Action, ActionReport};
+use mmic_domain::{ActuatorsA, BolterDrive, SideActuators};
+use mmic_sim::{Harness, Sim, SimConfig};
+
+fn run(sim: &mut Sim, act: &ActuatorsA, ms: u32, to_b: &[u8]) {
+    let mut rx = Vec::new();
+    sim.step(10, act, to_b, &mut rx);
+    for _ in 0..ms / 10 {
+        sim.step(10, act, &[], &mut rx);
+    }
+}
+
+fn frame(seq: u8, cmd: ModuleCmd) -> Vec<u8> {
+    let mut v: heapless::Vec<u8, 64> = heapless::Vec::new();
+    Message::Command { seq, cmd }.encode(&mut v).unwrap();
+    v.to_vec()
+}
+
+#[test]
+fn geometry_truth_wrong_motion_gives_no_state_and_releasing_both_sides_falls() {
+    let mut sim = Sim::new(SimConfig {
+        noise: false,
+        ..SimConfig::default()
+    });
+    let mut act = ActuatorsA {
+        regulator_on: true,
+        side: SideActuators {
+            arm_pwm: Some(servo::ARM_CONTRACTED_US),
+            grip_pwm: Some(servo::GRIP_CLOSED_US),
+            bolter: BolterDrive::Off,
+        },
+        hip_speed: Some(0),
+        mux: 0,
+    };
+    run(&mut sim, &act, 100, &[]);
+    assert_eq!(sim.truth().state, Some(0));
+    // both sides gripped: the arm cannot move
+    act.side.arm_pwm = Some(servo::ARM_EXTENDED_US);
+    run(&mut sim, &act, 1000, &[]);
+    assert_eq!(sim.truth().arm_us[0], servo::ARM_CONTRACTED_US as f64);
+    assert!(sim.truth().i_loc_ma[0] > 1000.0, "stalled arm draws current");
+    // release A, extend only arm A (B's arm stays contracted): not a configuration
+    act.side.grip_pwm = Some(servo::GRIP_OPEN_US);
+    run(&mut sim, &act, 2500, &[]);
+    assert_eq!(sim.truth().faces[0], None);
+    assert_eq!(sim.truth().arm_us[0], servo::ARM_EXTENDED_US as f64);
+    act.side.grip_pwm = Some(servo::GRIP_CLOSED_US);
+    run(&mut sim, &act, 2000, &[]);
+    assert_eq!(sim.truth().faces[0], None, "closed on nothing");
+    assert_eq!(sim.truth().state, None);
+    assert!(!sim.truth().fallen);
+    // the right motion back: open, contract, close -> matched Xneg again
+    act.side.grip_pwm = Some(servo::GRIP_OPEN_US);
+    run(&mut sim, &act, 2000, &[]);
+    act.side.arm_pwm = Some(servo::ARM_CONTRACTED_US);
+    run(&mut sim, &act, 2500, &[]);
+    act.side.grip_pwm = Some(servo::GRIP_CLOSED_US);
+    run(&mut sim, &act, 2000, &[]);
+    assert_eq!(sim.truth().faces, [Some(Face::Xneg), Some(Face::Xneg)]);
+    assert_eq!(sim.truth().state, Some(0));
+    // A open and B open (through board B): the robot falls
+    act.side.grip_pwm = Some(servo::GRIP_OPEN_US);
+    run(
+        &mut sim,
+        &act,
+        100,
+        &frame(
+            1,
+            ModuleCmd::Power {
+                arm: 1,
+                grip: 1,
+                bolter: 0,
+            },
+        ),
+    );
+    run(
+        &mut sim,
+        &act,
+        2500,
+        &frame(2, ModuleCmd::GripTarget(servo::GRIP_OPEN_US)),
+    );
+    assert!(sim.truth().fallen);
+    assert_eq!(sim.truth().state, None);
+}
+
+#[test]
+fn simulation_is_deterministic_for_a_seed() {
+    let go = |seed: u64| {
+        let mut h = Harness::new(SimConfig {
+            seed,
+            link_loss: 0.01,
+            ..SimConfig::default()
+        });
+        h.power_on();
+        let r = h.run_action(Action::Reconfigure { from: 0, to: 1 }, 120_000).unwrap();
+        (r, h.sim.truth(), h.events.clone(), h.sim.sensors_a())
+    };
+    let a = go(42);
+    let b = go(42);
+    assert_eq!(a.0, Some(ActionReport::Completed));
+    assert_eq!(a.1, b.1);
+    assert_eq!(a.2, b.2);
+    assert_eq!(a.3, b.3);
+    let c = go(43);
+    assert_ne!(a.3, c.3, "another seed gives other sensor noise");
+}
+
+#[test]
+fn idle_locomotion_current_stays_below_the_idle_limit_at_rest() {
+    let mut h = Harness::new(SimConfig {
+        seed: 9,
+        ..SimConfig::default()
+    });
+    h.power_on();
+    let limit = CAL_AMP.raw(I_LOC_IDLE_MAX);
+    for (from, to) in [(0u8, 11u8), (11, 2)] {
+        let r = h.run_action(Action::Reconfigure { from, to }, 120_000).unwrap();
+        assert_eq!(r, Some(ActionReport::Completed));
+        // rest two minutes gripped: no servo may wind up to a stall current
+        h.advance(120_000);
+        for p in [pid::I_LOC_A, pid::I_LOC_B] {
+            let v = h.ctrl.param(p).unwrap();
+            assert!(v < limit, "state {to}: param {p} = {v} >= {limit}");
+        }
+    }
+}
