@@ -13,6 +13,7 @@ mod t_codec;
 mod t_domain;
 mod t_framing;
 mod t_link;
+mod t_obsw;
 mod t_packets;
 mod t_periph;
 mod t_reconfig;
@@ -29,6 +30,7 @@ fn main() -> ! {
         t_support::TESTS,
         t_reconfig::TESTS,
         t_domain::TESTS,
+        t_obsw::TESTS,
     ]);
     semihosting::process::exit(code)
 }
