@@ -45,6 +45,22 @@ impl ModuleModes {
             hip: m,
         }
     }
+    /// The module modes implied by a root (robot) mode, `mib::modes::child_mode`.
+    pub const fn for_root(root_mode: u32) -> Self {
+        use mib::modes::{child_mode, NodeKind};
+        let arm = child_mode(root_mode, NodeKind::Arm);
+        let grip = child_mode(root_mode, NodeKind::Gripper);
+        let bolter = child_mode(root_mode, NodeKind::Bolter);
+        ModuleModes {
+            arm_a: arm,
+            grip_a: grip,
+            bolter_a: bolter,
+            arm_b: arm,
+            grip_b: grip,
+            bolter_b: bolter,
+            hip: child_mode(root_mode, NodeKind::Hip),
+        }
+    }
     fn any_powered(&self) -> bool {
         [
             self.arm_a,
@@ -109,6 +125,24 @@ pub enum Action {
         side: Side,
         pair: u8,
     },
+}
+
+impl Action {
+    /// The PUS 8 function ID (`mib::tc::function`) that starts this action.
+    pub const fn function_id(&self) -> u16 {
+        use mib::tc::function as f;
+        match self {
+            Action::Reconfigure { .. } => f::RECONFIGURE,
+            Action::BoltFace { .. } => f::BOLT_FACE,
+            Action::UnboltFace { .. } => f::UNBOLT_FACE,
+            Action::Home => f::HOME,
+            Action::MoveArm { .. } => f::MOVE_ARM,
+            Action::MoveGripper { .. } => f::MOVE_GRIPPER,
+            Action::RotateHip { .. } => f::ROTATE_HIP,
+            Action::BoltPair { .. } => f::BOLT_PAIR,
+            Action::UnboltPair { .. } => f::UNBOLT_PAIR,
+        }
+    }
 }
 
 /// Why an action was refused.
@@ -1328,6 +1362,20 @@ mod tests {
         }
         assert_eq!(c.param(pid::MODE), None);
         assert_eq!(c.param(pid::CONFIG_STATE), Some(255));
+    }
+
+    #[test]
+    fn module_modes_follow_the_root_mode_and_actions_name_their_function() {
+        use mib::modes::robot_mode;
+        let safed = ModuleModes::for_root(robot_mode::SAFED);
+        assert_eq!((safed.arm_a, safed.hip, safed.bolter_b), (HOLD, HOLD, OFF));
+        assert_eq!(ModuleModes::for_root(robot_mode::OPERATIONAL), ModuleModes::all(ON));
+        assert_eq!(ModuleModes::for_root(robot_mode::STANDBY), ModuleModes::all(OFF));
+        assert_eq!(Action::Home.function_id(), mib::tc::function::HOME);
+        assert_eq!(
+            Action::UnboltPair { side: Side::B, pair: 1 }.function_id(),
+            mib::tc::function::UNBOLT_PAIR
+        );
     }
 
     #[test]

@@ -296,3 +296,23 @@ fn hip_rotation_reaches_target_in_the_simulator() {
     assert!((hip + 9000.0).abs() <= 60.0, "hip at {hip}");
     assert_eq!(h.sim.truth().state, Some(11));
 }
+
+#[test]
+fn reconfiguration_to_every_state_and_back_reaches_the_true_state() {
+    let mut h = harness(0, 14);
+    let mut visited = 0;
+    for to in 1..mib::robot::NUM_STATES as u8 {
+        if mmic_domain::search::distance(0, to).is_none() {
+            continue;
+        }
+        for (from, to) in [(0, to), (to, 0)] {
+            let r = h.run_action(Action::Reconfigure { from, to }, 180_000).unwrap();
+            assert_eq!(r, Some(ActionReport::Completed), "{from}->{to}: {:?}", h.events.last());
+            assert_eq!(h.sim.truth().state, Some(to), "{from}->{to}");
+            assert_eq!(h.ctrl.computed_state(), Some(to));
+        }
+        visited += 1;
+    }
+    assert_eq!(visited, 14, "every state reachable from matched Xneg");
+    assert!(!h.sim.truth().fallen);
+}
