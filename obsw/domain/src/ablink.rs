@@ -43,6 +43,9 @@ pub enum ModuleCmd {
     Power { arm: u8, grip: u8, bolter: u8 },
     /// Hold every module where it is, bolter off.
     Stop,
+    /// At boot, while B's modules are unpowered: the arm and gripper are known (from
+    /// A's state estimate) to be at these pulse widths; B starts interpolating there.
+    Assume { arm: u16, grip: u16 },
 }
 
 impl ModuleCmd {
@@ -53,6 +56,7 @@ impl ModuleCmd {
             ModuleCmd::Bolter { .. } => 3,
             ModuleCmd::Power { .. } => 4,
             ModuleCmd::Stop => 5,
+            ModuleCmd::Assume { .. } => 6,
         }
     }
     /// Commands that order the queue: never coalesced across.
@@ -78,6 +82,11 @@ impl ModuleCmd {
                 4
             }
             ModuleCmd::Stop => 1,
+            ModuleCmd::Assume { arm, grip } => {
+                out[1..3].copy_from_slice(&arm.to_be_bytes());
+                out[3..5].copy_from_slice(&grip.to_be_bytes());
+                5
+            }
         }
     }
     fn parse(b: &[u8]) -> Result<ModuleCmd, FrameError> {
@@ -121,6 +130,13 @@ impl ModuleCmd {
             5 => {
                 need(0)?;
                 Ok(ModuleCmd::Stop)
+            }
+            6 => {
+                need(4)?;
+                Ok(ModuleCmd::Assume {
+                    arm: u16::from_be_bytes([args[0], args[1]]),
+                    grip: u16::from_be_bytes([args[2], args[3]]),
+                })
             }
             other => Err(FrameError::UnknownCommand(other)),
         }

@@ -143,6 +143,14 @@ impl BoardB {
                 self.grip.hold();
                 self.bolter_drive = BolterDrive::Off;
             }
+            ModuleCmd::Assume { arm, grip } => {
+                if self.arm_mode == OFF {
+                    self.arm.reset_to(arm);
+                }
+                if self.grip_mode == OFF {
+                    self.grip.reset_to(grip);
+                }
+            }
         }
     }
 

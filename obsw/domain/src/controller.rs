@@ -389,6 +389,10 @@ pub struct Controller {
     bolt_attempt: u8,
     /// Last time B's modes were re-sent because its heartbeat disagreed.
     b_modes_resent_ms: u64,
+    /// Arm/gripper positions known (set by `with_positions`, or once a module is
+    /// powered); until then they are recovered from the IMU-derived state.
+    positions_known: bool,
+    b_assume_sent_ms: Option<u64>,
 }
 
 impl Default for Controller {
@@ -399,7 +403,8 @@ impl Default for Controller {
 
 impl Controller {
     /// Board A at boot: modules unpowered; arm and gripper interpolators at the home
-    /// position (contracted, closed), which is where the robot is left between actions.
+    /// position (contracted, closed) until the IMU-derived state tells where the arms
+    /// are (see `recover_positions`; stops once an arm or gripper is powered).
     pub fn new() -> Self {
         let tun = Tunables::default();
         Controller {
@@ -425,6 +430,8 @@ impl Controller {
             bolt_pair: 0,
             bolt_attempt: 0,
             b_modes_resent_ms: 0,
+            positions_known: false,
+            b_assume_sent_ms: None,
             tun,
         }
     }
@@ -435,6 +442,7 @@ impl Controller {
         let mut c = Self::new();
         c.arm_a.reset_to(arm_us);
         c.grip_a.reset_to(grip_us);
+        c.positions_known = true;
         c
     }
 
@@ -451,6 +459,9 @@ impl Controller {
     /// the mode, reports the TC's failure).
     pub fn set_module_modes(&mut self, m: ModuleModes) {
         let old = self.modes;
+        if [m.arm_a, m.grip_a, m.arm_b, m.grip_b].iter().any(|&x| x != OFF) {
+            self.positions_known = true;
+        }
         self.modes = m;
         if m.arm_a != ON && old.arm_a == ON {
             self.arm_a.hold();
@@ -475,6 +486,44 @@ impl Controller {
             }
         }
         self.sync_b_modes();
+    }
+
+    /// Boot with unpowered arms: there is no arm position sensor, but with both sides
+    /// gripped the geometry fixes the arm length. If the IMUs imply a state, the hip
+    /// agrees with it and the arm switches agree with its kind, the arms are at the
+    /// state's PWM: start the interpolators (A's, and B's through `Assume`) there.
+    fn recover_positions(&mut self, now: u64) {
+        if !self.f.grav[0].is_full() {
+            return;
+        }
+        let Some(hb) = self.link.heartbeat().copied() else {
+            return;
+        };
+        let Some(s) = state_from_imus(self.grav_a(), hb.grav) else {
+            return;
+        };
+        let def = &STATES[s as usize];
+        if (self.hip_angle() as i32 - def.hip_cdeg() as i32).abs() > crate::consts::EST_HIP_TOL_CDEG as i32 {
+            return;
+        }
+        let contracted = def.kind() == StateKind::Matched;
+        if self.raw.arm_switch != contracted || hb.arm_switch() != contracted {
+            return;
+        }
+        let pwm = def.arm_pwm();
+        self.arm_a.reset_to(pwm);
+        self.grip_a.reset_to(servo::GRIP_CLOSED_US);
+        let b_ok = hb.arm_pwm == pwm && hb.grip_pwm == servo::GRIP_CLOSED_US;
+        let due = self
+            .b_assume_sent_ms
+            .is_none_or(|t| now.saturating_sub(t) >= crate::consts::B_MODES_RESEND_MS as u64);
+        if !b_ok && due && self.link.idle() {
+            self.link.send(ModuleCmd::Assume {
+                arm: pwm,
+                grip: servo::GRIP_CLOSED_US,
+            });
+            self.b_assume_sent_ms = Some(now);
+        }
     }
 
     fn b_modes_packed(&self) -> u8 {
@@ -749,6 +798,9 @@ impl Controller {
 
         // board B
         self.link.receive(now_ms, link_rx);
+        if !self.positions_known {
+            self.recover_positions(now_ms);
+        }
         self.computed = self.estimate();
         self.heal_b_modes(now_ms);
 

@@ -5,7 +5,6 @@
 use crate::{Sim, SimConfig};
 use mib::config::CONTROL_PERIOD_MS;
 use mib::modes::module_mode::ON;
-use mib::robot::{servo, STATES};
 use mmic_domain::controller::{Action, ActionReport, Controller, DomainEvent, ModuleModes, StartError, TickOut};
 
 /// Controller + simulator on a mock clock.
@@ -23,11 +22,11 @@ pub struct Harness {
 
 impl Harness {
     /// A robot at rest in `cfg.initial_state`, every module unpowered; the controller
-    /// knows its arm and gripper positions.
+    /// boots as on the robot (`Controller::new`): it learns the arm positions from the
+    /// sensors while the modules are off.
     pub fn new(cfg: SimConfig) -> Self {
-        let s = STATES.get(cfg.initial_state as usize).copied().unwrap_or(STATES[0]);
         Harness {
-            ctrl: Controller::with_positions(s.arm_pwm(), servo::GRIP_CLOSED_US),
+            ctrl: Controller::new(),
             sim: Sim::new(cfg),
             now_ms: 0,
             out: TickOut::new(),
@@ -37,9 +36,10 @@ impl Harness {
         }
     }
 
-    /// Powers every module (ON) and runs one second so that the moving averages fill
-    /// and board B reports.
+    /// Boots (one second with every module off: filters fill, board B reports, arm
+    /// positions are recovered), then powers every module (ON) for one second.
     pub fn power_on(&mut self) {
+        self.advance(1000);
         self.ctrl.set_module_modes(ModuleModes::all(ON));
         self.advance(1000);
     }

@@ -129,3 +129,29 @@ fn idle_locomotion_current_stays_below_the_idle_limit_at_rest() {
         }
     }
 }
+
+#[test]
+fn boot_in_a_stretch_or_turn_state_recovers_arm_positions_from_the_imus() {
+    for initial in [3u8, 11, 6] {
+        let mut h = Harness::new(SimConfig {
+            seed: 20 + initial as u64,
+            initial_state: initial,
+            ..SimConfig::default()
+        });
+        let pwm = mib::robot::STATES[initial as usize].arm_pwm() as i64;
+        h.advance(1000);
+        assert_eq!(h.ctrl.computed_state(), Some(initial), "state {initial}");
+        assert_eq!(h.ctrl.param(pid::ARM_A_PWM), Some(pwm));
+        assert_eq!(h.ctrl.param(pid::ARM_B_PWM), Some(pwm));
+        h.ctrl
+            .set_module_modes(mmic_domain::controller::ModuleModes::all(mib::modes::module_mode::ON));
+        h.advance(1000);
+        // powering on does not move the arms: the robot stays where it is
+        assert_eq!(h.sim.truth().state, Some(initial));
+        let r = h
+            .run_action(Action::Reconfigure { from: initial, to: 0 }, 120_000)
+            .unwrap();
+        assert_eq!(r, Some(ActionReport::Completed), "{initial}->0");
+        assert_eq!(h.sim.truth().state, Some(0));
+    }
+}
