@@ -143,6 +143,11 @@ impl Monitoring {
     }
 }
 
+/// True for monitors evaluated every control cycle.
+pub const fn is_continuous(p: Phase) -> bool {
+    matches!(p, Phase::Always | Phase::AlwaysEvenUnpowered | Phase::Link)
+}
+
 /// The state of every fault of Table 8.
 #[derive(Default)]
 pub struct Faults {

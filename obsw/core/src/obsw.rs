@@ -1225,9 +1225,12 @@ impl<S: TmStore> Obsw<S> {
                 } else {
                     [t.param as i64, t.value, t.limit as i64]
                 };
-                self.fault_inner(now, t.event, &args, true, sink);
+                let continuous = mib::fdir::monitor_by_id(t.monitor).is_some_and(|m| fdir::is_continuous(m.phase));
+                self.fault_inner(now, t.event, &args, continuous, sink);
                 raised = Some(t.event);
-            } else if self.faults.monitored & mib::fdir::fault_by_event(t.event).map_or(0, |f| 1 << f.bit) == 0 {
+            } else if mib::fdir::monitor_by_id(t.monitor).is_some_and(|m| fdir::is_continuous(m.phase))
+                && self.faults.monitored & mib::fdir::fault_by_event(t.event).map_or(0, |f| 1 << f.bit) == 0
+            {
                 self.event(now, eid::FAULT_CLEARED, &[t.event as i64], sink);
             }
         }
