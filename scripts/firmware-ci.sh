@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Firmware CI: toolchain setup, release build of both ESP32-C3 images with warnings
+# Firmware CI: toolchain setup, rustfmt and clippy (warnings denied), release build of both ESP32-C3 images with warnings
 # denied, size report against the budget (256 KiB flash, 128 KiB static RAM per image),
 # and the on-target tests under QEMU. Fails on the first failing step.
 set -euo pipefail
@@ -18,6 +18,12 @@ bash "$ROOT/scripts/firmware-setup.sh"
 export CARGO_TARGET_DIR="${FIRMWARE_TARGET_DIR:-$FW/target}"
 export RUSTFLAGS="-D warnings"
 export CARGO_TERM_COLOR=never
+
+step "format and lints (firmware workspace and on-target tests)"
+(cd "$FW" && cargo fmt --check)
+(cd "$FW/qemu-tests" && cargo fmt --check)
+(cd "$FW" && cargo clippy --release -p board-a -p board-b -p fw-core -p fw-esp -- -D warnings)
+(cd "$FW/qemu-tests" && CARGO_TARGET_DIR="$CARGO_TARGET_DIR/qemu-tests" cargo clippy -- -D warnings)
 
 step "build board images (release)"
 (cd "$FW" && cargo build --release -p board-a -p board-b)

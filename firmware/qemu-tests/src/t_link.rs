@@ -103,7 +103,7 @@ struct FlakyImu(u32);
 impl GravitySensor for FlakyImu {
     fn gravity_mg(&mut self) -> Result<[i16; 3], HwError> {
         self.0 += 1;
-        if self.0 % 2 == 0 {
+        if self.0.is_multiple_of(2) {
             Err(HwError::Bus)
         } else {
             Ok([self.0 as i16, -1000, 0])

@@ -90,7 +90,7 @@ fn mpu6000_init_sequence_and_gravity_in_mg() -> TestResult {
     let bus = imu.release();
     check_eq!(bus.regs[0x6B], 0x01);
     check_eq!(bus.regs[0x1C], 0x00);
-    check!(bus.writes.iter().any(|w| &w[..] == [0x6B, 0x01]));
+    check!(bus.writes.iter().any(|w| w[..] == [0x6B, 0x01]));
     Ok(())
 }
 
