@@ -28,7 +28,13 @@ fn set_mode(c: &mut Client, mode: u32) -> Tm {
 
 fn operational(c: &mut Client) {
     let t = set_mode(c, robot_mode::OPERATIONAL);
-    assert_eq!(t.subservice, 7, "operational refused: {:?}", t.failure_code());
+    assert_eq!(
+        t.subservice,
+        7,
+        "operational refused: {:?} data {:02x?}",
+        t.failure_code(),
+        &t.data[6..]
+    );
 }
 
 /// Current value of a parameter from a one-shot HK report.
@@ -177,7 +183,8 @@ fn bolting_failure_goes_to_standby() {
             .iter()
             .filter(|t| t.event_id() == Some(eid::BOLT_ATTEMPT_FAILED))
             .count(),
-        2
+        3,
+        "one event per failed attempt"
     );
     assert_eq!(cause(&wait_mode(&mut c, robot_mode::STANDBY)), eid::BOLT_FAILURE);
     assert_eq!(hk(&mut c, 3, pid::FAULT_LATCHED) & 1, 1, "bolting-failure bit latched");

@@ -133,11 +133,14 @@ impl Monitoring {
         }
     }
 
-    /// Fault bits whose monitors are currently violated.
+    /// Fault bits whose continuously evaluated monitors are violated right now. Monitors
+    /// evaluated only at an instant (start/end of a reconfiguration, entering
+    /// operational) raise one-shot faults instead: nothing would re-evaluate them to
+    /// clear the fault.
     pub fn violated_fault_bits(&self) -> u32 {
         self.mons
             .iter()
-            .filter(|m| m.enabled && m.state != check::OK)
+            .filter(|m| m.enabled && m.state != check::OK && is_continuous(m.def.phase))
             .filter_map(|m| fdir::fault_by_event(m.def.event))
             .fold(0, |acc, f| acc | 1 << f.bit)
     }

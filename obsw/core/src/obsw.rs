@@ -1029,8 +1029,13 @@ impl<S: TmStore> Obsw<S> {
             .and_then(|p| p.limits)
             .map_or(0, |l| params::CAL_VOLT.raw(l.hard_lo));
         let powered = self.ctrl.param(pid::V_REG).unwrap_or(0) >= v_reg_min;
-        let side_b = n.parent == Some(node::SIDE_B);
-        powered && (!side_b || self.ctrl.param(pid::B_LINK_OK).unwrap_or(0) == 1)
+        if n.parent != Some(node::SIDE_B) {
+            return powered;
+        }
+        // Board B keeps driving its servos at their last set point when A's commands
+        // stop, so side B holds position even with the A-B link down (what safed after
+        // a communication loss needs); anything else needs B's acknowledgement.
+        mode == module_mode::HOLD || self.ctrl.param(pid::B_LINK_OK).unwrap_or(0) == 1
     }
 
     fn progress_transition(&mut self, now: u64, sink: &mut impl TmSink) {
@@ -1253,11 +1258,7 @@ impl<S: TmStore> Obsw<S> {
         for e in out.events.clone().iter() {
             self.on_domain_event(now, e, sink);
         }
-        self.run_monitors(
-            now,
-            |p| matches!(p, Phase::Always | Phase::AlwaysEvenUnpowered | Phase::Link),
-            sink,
-        );
+        self.run_monitors(now, fdir::is_continuous, sink);
         self.progress_transition(now, sink);
         for i in 0..N_HK {
             let h = self.hk[i];
