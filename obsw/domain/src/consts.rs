@@ -7,6 +7,9 @@
 pub const EST_HIP_TOL_CDEG: i16 = 1000;
 /// Estimator: largest arm PWM error (µs) still consistent with a state.
 pub const EST_ARM_TOL_US: u16 = 100;
+/// Estimator: a side counts as gripped only if its gripper PWM is within this of
+/// `servo::GRIP_CLOSED_US` (µs).
+pub const EST_GRIP_TOL_US: u16 = 50;
 /// Estimator: smallest dot product (milli-g) between a measured gravity vector and a
 /// face's expected gravity for the face to be recognised (≈ 37°).
 pub const EST_FACE_MIN_DOT_MG: i32 = 800;

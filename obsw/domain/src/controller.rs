@@ -6,7 +6,7 @@ use crate::ablink::{LinkManager, ModuleCmd};
 use crate::bolter::{BoltOp, Bolter, BolterConfig, BolterEvent};
 use crate::consts::{LINK_TX_CAP, STATE_SETTLE_TIMEOUT_MS};
 use crate::control::{HipController, HipGains, Interpolator};
-use crate::estimate::{state_from_imus, state_from_sensors};
+use crate::estimate::{grippers_closed, state_from_imus, state_from_sensors};
 use crate::filter::{to_i16, to_u16, Ma};
 use crate::search::{shortest_path, shortest_states, Plan, StatePath};
 use crate::tunables::{TunableError, Tunables};
@@ -882,6 +882,9 @@ impl Controller {
 
     fn estimate(&self) -> Option<u8> {
         let hb = self.link.heartbeat()?;
+        if !grippers_closed(self.grip_a.current(), hb.grip_pwm) {
+            return None;
+        }
         state_from_sensors(
             self.grav_a(),
             hb.grav,

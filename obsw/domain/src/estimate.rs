@@ -20,6 +20,14 @@ pub enum EstimateError {
     Arm { state: u8, side: Side, pwm: u16 },
 }
 
+/// Both grippers closed (PWM within `EST_GRIP_TOL_US` of `servo::GRIP_CLOSED_US`): a
+/// configuration state needs both sides gripped.
+pub fn grippers_closed(grip_a_pwm: u16, grip_b_pwm: u16) -> bool {
+    let closed = mib::robot::servo::GRIP_CLOSED_US;
+    grip_a_pwm.abs_diff(closed) <= crate::consts::EST_GRIP_TOL_US
+        && grip_b_pwm.abs_diff(closed) <= crate::consts::EST_GRIP_TOL_US
+}
+
 /// The state implied by the IMUs alone (no cross-check), if any.
 pub fn state_from_imus(grav_a: [i16; 3], grav_b: [i16; 3]) -> Option<u8> {
     state_of(face_from_gravity(grav_a)?, face_from_gravity(grav_b)?)

@@ -100,11 +100,14 @@ impl BolterPhys {
     pub fn at_contact(&self) -> bool {
         self.pos >= CONTACT_POS - 1e-9
     }
-    /// Integrates `dt` seconds. `pair`: the selected fastener pair under this bolter.
+    /// Integrates `dt` seconds. `on_face`: the side is gripped to a face, so its bolter
+    /// reaches a fastener (otherwise it strokes into free space up to its travel limit,
+    /// where the servo stops without load). `pair`: the selected fastener pair under it.
     pub fn step<R: Rng>(
         &mut self,
         dt: f64,
         drive: BolterDrive,
+        on_face: bool,
         pair: Option<&mut FastenerPair>,
         jam: bool,
         rng: &mut R,
@@ -129,7 +132,20 @@ impl BolterPhys {
                     self.current_ma = IDLE_MA;
                 }
             }
+            BolterDrive::Descend | BolterDrive::RotateLock | BolterDrive::RotateUnlock if !on_face => {
+                self.push_s = 0.0;
+                if self.pos < 1.0 {
+                    self.pos = (self.pos + BOLTER_SPEED * dt).min(1.0);
+                    self.current_ma = MOVE_MA;
+                } else {
+                    self.current_ma = IDLE_MA;
+                }
+            }
             BolterDrive::Descend | BolterDrive::RotateLock | BolterDrive::RotateUnlock => {
+                if self.pos > CONTACT_POS {
+                    // was stroking in free space: back onto the fastener level
+                    self.pos = CONTACT_POS;
+                }
                 if !self.at_contact() {
                     self.pos = (self.pos + BOLTER_SPEED * dt).min(CONTACT_POS);
                     self.push_s = 0.0;

@@ -276,7 +276,11 @@ impl Sim {
     pub fn replace_fasteners(&mut self) {
         self.fasteners.clear();
     }
-    /// A fastener pair's truth (bolted face = side A's gripped face).
+    /// The face whose fasteners the bolters work on: side A's gripped face, else B's.
+    pub fn fastener_face(&self) -> Option<Face> {
+        self.sides[0].gripped.or(self.sides[1].gripped)
+    }
+    /// A fastener pair's truth (on [`Sim::fastener_face`]).
     pub fn fastener(&self, face: Face, pair: u8) -> Option<FastenerPair> {
         self.fasteners.get(&(face, pair)).copied()
     }
@@ -457,7 +461,8 @@ impl Sim {
                 }
                 _ => None,
             };
-            s.bolter.step(dt, drive, pair, jam, &mut self.rng);
+            let on_face = s.gripped.is_some();
+            s.bolter.step(dt, drive, on_face, pair, jam, &mut self.rng);
             servo_ma += s.i_loc_ma + s.i_grip_ma + s.bolter.current_ma;
         }
         // attempts end when both bolters are home
