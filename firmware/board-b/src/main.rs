@@ -8,6 +8,7 @@
 //! | `control` | every 10 ms: sensors → BoardB → outputs | `AB_RX` in, `AB_TX` out  |
 //! | `ab_rx`   | UART1 receiver                         | → `AB_RX` (byte queue)   |
 //! | `ab_tx`   | UART1 transmitter                      | `AB_TX` → UART1          |
+//! | `console` | once at boot: reset cause and the panic recorded before the reset, as text on the USB-Serial-JTAG port | — |
 //!
 //! Pins: see docs/firmware.md.
 #![no_std]
@@ -23,9 +24,11 @@ use esp_hal::ledc::Ledc;
 use esp_hal::time::Rate;
 use esp_hal::timer::timg::TimerGroup;
 use esp_hal::uart::{Config as UartConfig, Uart, UartRx, UartTx};
+use esp_hal::usb::usb_serial_jtag::{UsbSerialJtag, UsbSerialJtagTx};
 use esp_hal::Async;
 use fw_core::config::{self as cfg, i2c_addr};
 use fw_core::link::{self, ByteQueue, Counters};
+use fw_core::panic_record::PanicReport;
 use fw_core::periph::ads7828::PowerMode;
 use fw_core::periph::{ActiveLowSwitch, Ads7828, BolterMux, BolterServos, Mpu6000, SideOutputs};
 use fw_core::sampling::{sample_b, SensorErrors};
@@ -71,6 +74,23 @@ impl fw_core::periph::GravitySensor for NoImu {
     }
 }
 
+/// Boot report on the debug console. Asynchronous: with no USB host attached the write
+/// simply waits, and nothing else is held up.
+#[embassy_executor::task]
+async fn console(mut usb: UsbSerialJtagTx<'static, Async>, reset_cause: u8, panic: Option<PanicReport>) {
+    use core::fmt::Write as _;
+    use embedded_io_async::Write as _;
+    let mut line: heapless::String<{ cfg::PANIC_MSG_LEN + 64 }> = heapless::String::new();
+    let _ = write!(line, "board-b: boot, reset cause {reset_cause}\r\n");
+    let _ = usb.write_all(line.as_bytes()).await;
+    if let Some(p) = panic {
+        line.clear();
+        let _ = write!(line, "board-b: panic #{} before reset: {}\r\n", p.count, p.message);
+        let _ = usb.write_all(line.as_bytes()).await;
+    }
+    let _ = usb.flush().await;
+}
+
 #[embassy_executor::task]
 async fn control(mut hw: Hardware) {
     let mut board = BoardB::new();
@@ -100,6 +120,9 @@ async fn main(spawner: Spawner) {
     let p = esp_hal::init(esp_hal::Config::default());
     let timg0 = TimerGroup::new(p.TIMG0);
     esp_rtos::start(timg0.timer0, p.FROM_CPU_INTR0);
+    let reset_cause = fw_esp::panic::reset_cause();
+    let panic = fw_esp::panic::take_report();
+    let (_, usb_tx) = UsbSerialJtag::new(p.USB_DEVICE).into_async().split();
 
     // A↔B link on UART1: TX GPIO21, RX GPIO20 (crossed to board A).
     let uart = Uart::new(p.UART1, UartConfig::default().with_baudrate(cfg::AB_LINK_BAUD))
@@ -139,6 +162,7 @@ async fn main(spawner: Spawner) {
     // Arm-contracted switch to ground on GPIO10, internal pull-up.
     let arm_switch = ActiveLowSwitch(Input::new(p.GPIO10, InputConfig::default().with_pull(Pull::Up)));
 
+    spawner.spawn(console(usb_tx, reset_cause, panic).expect("console task"));
     spawner.spawn(ab_rx(uart_rx).expect("ab_rx task"));
     spawner.spawn(ab_tx(uart_tx).expect("ab_tx task"));
     spawner.spawn(

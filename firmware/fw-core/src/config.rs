@@ -126,7 +126,7 @@ const fn parse_robot(s: &str) -> u8 {
 /// Bytes of the on-board TM store (PUS 15) on board A: packets are kept length-prefixed
 /// in a ring; the oldest is overwritten when full (counted in TM_STORE_DROPPED). The
 /// host OBSW keeps `mib::config::TM_STORE_CAPACITY` packets; the board keeps what fits
-/// in this many bytes (≈ 700 HK ROBOT_STATUS reports).
+/// in this many bytes (≈ 520 HK ROBOT_STATUS reports of 91 bytes).
 pub const TM_STORE_BYTES: usize = 48 * 1024;
 
 /// Hip continuous servo: pulse width at standstill and the span that corresponds to
