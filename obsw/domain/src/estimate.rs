@@ -118,4 +118,11 @@ mod tests {
             Err(EstimateError::NoFace(Side::A))
         );
     }
+
+    #[test]
+    fn a_state_needs_both_grippers_closed() {
+        assert!(grippers_closed(1100, 1140));
+        assert!(!grippers_closed(1100, 1300));
+        assert!(!grippers_closed(1900, 1100));
+    }
 }
