@@ -309,6 +309,33 @@ impl Client {
         }
         self.wait_for(timeout, done)
     }
+    /// A readable digest of everything received except HK, for assertion messages.
+    pub fn summary(&self) -> String {
+        let mut out = String::new();
+        for t in self.log.iter().filter(|t| t.service != 3) {
+            let what = match (t.service, t.event_id(), t.request()) {
+                (5, Some(id), _) => {
+                    let name = mib::events::by_id(id).map_or("?", |e| e.name);
+                    format!("EV {name} {:02x?}", &t.data[2..])
+                }
+                (1, _, Some(r)) => format!(
+                    "TM[1,{}] seq {} code {:?}",
+                    t.subservice,
+                    r.1 & 0x3FFF,
+                    t.failure_code()
+                ),
+                _ => format!(
+                    "TM[{},{}] {:02x?}",
+                    t.service,
+                    t.subservice,
+                    &t.data[..t.data.len().min(16)]
+                ),
+            };
+            out.push_str(&what);
+            out.push('\n');
+        }
+        out
+    }
     /// Verification reports of a TC seen so far.
     pub fn verifications(&self, tc: &[u8]) -> Vec<u8> {
         let r = request_of(tc);

@@ -34,7 +34,7 @@ tunables! {
     HIP_KP_POS = 9, "1e-3", 1500, 0, 10000, "Hip position PI proportional gain";
     HIP_KI_POS = 10, "1e-3", 300, 0, 10000, "Hip position PI integral gain";
     PRIMITIVE_TIMEOUT_MS = 11, "ms", 30000, 1000, 120000, "Longest motion primitive before it fails";
-    ARM_SWITCH_WAIT_MS = 12, "ms", 500, 50, 5000, "Time after a contract command for the arm switch to close";
+    ARM_SWITCH_WAIT_MS = 12, "ms", 2500, 50, 10000, "Time after the contract command reaches the servo for the arm switch to close: a full stroke at servo speed (2 s) plus margin, since an arm that was held back (stuck, blocked) lags the open-loop command by up to a stroke";
 }
 
 pub fn by_id(id: u16) -> Option<&'static TunableDef> {

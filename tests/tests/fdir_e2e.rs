@@ -31,9 +31,11 @@ fn operational(c: &mut Client) {
     assert_eq!(
         t.subservice,
         7,
-        "operational refused: {:?} data {:02x?}",
+        "operational refused: {:?} data {:02x?}
+{}",
         t.failure_code(),
-        &t.data[6..]
+        &t.data[6..],
+        c.summary()
     );
 }
 
@@ -216,25 +218,36 @@ fn initial_state_mismatch_is_refused_and_goes_to_standby() {
 fn arm_not_contracted_goes_to_safed_and_holds_arms_and_hip() {
     let (o, mut c) = start();
     operational(&mut c);
-    let ext = c.send("MOVE_ARM", &[0, 1500]);
-    assert_eq!(c.wait_done(&ext, LONG).unwrap().subservice, 7);
-    assert!(o.sim("stuck-arm a").starts_with("ok"));
-    let contract = c.send("MOVE_ARM", &[0, 1000]);
-    let t = c.wait_done(&contract, LONG).unwrap();
-    assert_eq!(t.subservice, 8, "the contract command fails");
-    assert_eq!(wait_event(&mut c, eid::ARM_NOT_CONTRACTED).data[2], 0, "side A");
+    // Xneg -> Xpos: side A extends to Xpos, then arm B must contract onto it.
+    let raw = c.send("RECONFIGURE", &[0, 1]);
+    wait_event(&mut c, eid::PRIMITIVE_DONE);
+    assert!(o.sim("stuck-arm b").starts_with("ok"));
+    let t = c.wait_done(&raw, LONG).unwrap();
+    assert_eq!(t.subservice, 8, "the reconfiguration fails: {:?}", t.failure_code());
+    assert_eq!(wait_event(&mut c, eid::ARM_NOT_CONTRACTED).data[2], 1, "side B");
     assert_eq!(cause(&wait_mode(&mut c, robot_mode::SAFED)), eid::ARM_NOT_CONTRACTED);
-    c.send("MODE_READ", &[node::ARM_A as i64]);
+    c.send("MODE_READ", &[node::ARM_B as i64]);
     let arm = c
         .wait_for(T, |t| {
-            t.service == 200 && t.subservice == 6 && t.data[..4] == node::ARM_A.to_be_bytes()
+            t.service == 200 && t.subservice == 6 && t.data[..4] == node::ARM_B.to_be_bytes()
         })
         .unwrap();
     assert_eq!(
         u32::from_be_bytes(arm.data[4..8].try_into().unwrap()),
         mib::modes::module_mode::HOLD
     );
-    recover(&o, &mut c, "clear stuck-arm");
+    // Paper: in safed the operator may still move arms; contract B, then recover.
+    assert!(o.sim("clear stuck-arm").starts_with("ok"));
+    let m = c.send("MOVE_ARM", &[1, 1000]);
+    let t = c.wait_done(&m, LONG).unwrap();
+    assert_eq!(
+        t.subservice,
+        7,
+        "arm command accepted in safed:
+{}",
+        c.summary()
+    );
+    operational(&mut c);
 }
 
 #[test]
@@ -261,7 +274,23 @@ fn operational_overcurrent_mid_motion_aborts_to_safed() {
         cause(&wait_mode(&mut c, robot_mode::SAFED)),
         eid::OPERATIONAL_OVERCURRENT
     );
-    recover(&o, &mut c, "clear obstacle");
+    // The motion stopped with side B's gripper open and its arm half extended: the
+    // operator contracts both arms in safed (arm commands are allowed there) so the
+    // robot is contracted and gripped, as the paper asks before operational.
+    assert!(o.sim("clear obstacle").starts_with("ok"));
+    let m = c.send("MOVE_ARM", &[1, 1000]);
+    let t = c.wait_done(&m, LONG).unwrap();
+    assert_eq!(t.subservice, 7, "{}", c.summary());
+    let m = c.send("MOVE_ARM", &[0, 1000]);
+    let t = c.wait_done(&m, LONG).unwrap();
+    assert_eq!(
+        t.subservice,
+        7,
+        "arm command accepted in safed:
+{}",
+        c.summary()
+    );
+    operational(&mut c);
 }
 
 #[test]
