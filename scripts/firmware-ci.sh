@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Firmware CI: toolchain setup, rustfmt and clippy (warnings denied), release build of both ESP32-C3 images with warnings
-# denied, size report against the budget (256 KiB flash, 128 KiB static RAM per image),
-# and the on-target tests under QEMU. Fails on the first failing step.
+# Firmware CI: toolchain setup, rustfmt and clippy (warnings denied), release build of
+# both ESP32-C3 images with warnings denied, size report against the budget (256 KiB
+# flash, 128 KiB static RAM per image), and the on-target tests under QEMU.
+# Fails on the first failing step.
 set -euo pipefail
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)

@@ -22,6 +22,7 @@ pub const TESTS: &[Test] = tests![
     obsw_recorded_tc_stream_gives_the_expected_tm_sequence,
     obsw_low_battery_persists_half_a_second_then_recovers,
     obsw_mode_set_operational_powers_both_sides_and_homes,
+    obsw_board_b_silence_is_comm_loss_and_safes_the_robot,
 ];
 
 /// COBS-framed TCs for robot 1 (APID 0x101) as the ground sends them on the serial
@@ -463,5 +464,113 @@ fn obsw_mode_set_operational_powers_both_sides_and_homes() -> TestResult {
     check_eq!(robot.b_out.side.arm_pwm, Some(servo::ARM_CONTRACTED_US));
     check_eq!(robot.b_out.side.grip_pwm, Some(servo::GRIP_CLOSED_US));
     check_eq!(robot.a.param(pid::B_LINK_OK), 1);
+    Ok(())
+}
+
+/// The healthy robot of the mode test: contracted on the floor face, batteries full.
+fn healthy() -> (SensorsA, SensorsB) {
+    (
+        SensorsA {
+            v_bat: 3200,
+            v_reg: 2020,
+            grav: [0, -1000, 0],
+            hip_cdeg: 0,
+            arm_switch: true,
+            ..Default::default()
+        },
+        SensorsB {
+            v_bat: 3200,
+            grav: [0, -1000, 0],
+            arm_switch: true,
+            ..Default::default()
+        },
+    )
+}
+
+fn obsw_board_b_silence_is_comm_loss_and_safes_the_robot() -> TestResult {
+    use mib::modes::{node, robot_mode};
+    let mut robot = Robot::new();
+    let mut log = ModeLog::default();
+    let (sa, sb) = healthy();
+    let mut t = 0;
+    for _ in 0..20 {
+        t += 10;
+        robot.step(t, &sa, &sb, &mut log);
+    }
+    let mut app = [0u8; 10];
+    app[..4].copy_from_slice(&node::ROBOT.to_be_bytes());
+    app[4..8].copy_from_slice(&robot_mode::OPERATIONAL.to_be_bytes());
+    let mut tc = [0u8; 32];
+    let n = ok!(build_tc(9, 200, 1, &app, &mut tc));
+    robot.a.handle_tc(t, &tc[..n], &mut log);
+    for _ in 0..1500 {
+        t += 10;
+        log.now = t;
+        robot.step(t, &sa, &sb, &mut log);
+    }
+    check_eq!(robot.a.mode(), robot_mode::OPERATIONAL);
+    check!(
+        log.faults.is_empty(),
+        "fault events before the cut: {:?}",
+        &log.faults[..]
+    );
+    // Board B goes silent: A keeps running, B's bytes no longer arrive.
+    let t_cut = t;
+    let mut act = ActuatorsA::default();
+    for _ in 0..200 {
+        t += 10;
+        log.now = t;
+        act = robot.a.tick(t, &sa, &[], &mut log).actuators;
+    }
+    // The missing heartbeat is detected first; the module commands A then sends to the
+    // silent B go unacknowledged as well (COMM_LOSS_NO_ACK), nothing else.
+    check_eq!(log.faults.first().copied(), Some(eid::COMM_LOSS_HEARTBEAT));
+    check!(
+        log.faults
+            .iter()
+            .all(|&f| f == eid::COMM_LOSS_HEARTBEAT || f == eid::COMM_LOSS_NO_ACK),
+        "faults: {:?}",
+        &log.faults[..]
+    );
+    check_eq!(log.faults.iter().filter(|&&f| f == eid::COMM_LOSS_HEARTBEAT).count(), 1);
+    // The heartbeat is 500 ms old at the latest 50 ms (one heartbeat period) plus one
+    // control period after the last one arrived.
+    let timeout = ok!(mib::params::by_id(pid::B_HB_AGE_MS))
+        .limits
+        .map(|l| l.hard_hi as u64);
+    let timeout = ok!(timeout);
+    // The transition by FDIR: MODE_CHANGED events caused by the fault (cause = its event
+    // ID), all at one time.
+    let by_fault: heapless::Vec<(u64, i64, i64, i64, i64), 16> = log
+        .changes
+        .iter()
+        .filter(|c| c.4 == eid::COMM_LOSS_HEARTBEAT as i64)
+        .copied()
+        .collect();
+    check!(!by_fault.is_empty(), "no MODE_CHANGED caused by the comm loss");
+    let t_safe = by_fault[0].0;
+    check!(by_fault.iter().all(|c| c.0 == t_safe));
+    check!(
+        t_safe > t_cut + timeout - 60 && t_safe <= t_cut + timeout + 20,
+        "safed at +{} ms after the cut, timeout {} ms",
+        t_safe - t_cut,
+        timeout
+    );
+    // Safed (Table 7): the arms hold, the bolters are off.
+    for c in by_fault.iter() {
+        let kind = ok!(mib::modes::node_by_id(c.1 as u32)).kind;
+        check_eq!(
+            c.3 as u32,
+            mib::modes::child_mode(robot_mode::SAFED, kind),
+            "node {}",
+            c.1
+        );
+    }
+    check_eq!(robot.a.mode(), robot_mode::SAFED);
+    // Safed (Table 7): modules powered and holding, bolter off.
+    check!(act.regulator_on, "regulator off in safed");
+    check_eq!(act.side.bolter, mmic_domain::BolterDrive::Off);
+    check!(act.side.arm_pwm.is_some(), "arm A unpowered in safed");
+    check_eq!(robot.a.param(pid::B_LINK_OK), 0);
     Ok(())
 }
