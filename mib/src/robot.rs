@@ -483,10 +483,10 @@ mod tests {
     }
     #[test]
     fn map_has_no_self_loops_and_primitives_are_reversible() {
-        for i in 0..NUM_STATES {
-            assert_eq!(RECONFIG_MAP[i][i], 0);
-            for j in 0..NUM_STATES {
-                if RECONFIG_MAP[i][j] != 0 {
+        for (i, row) in RECONFIG_MAP.iter().enumerate() {
+            assert_eq!(row[i], 0);
+            for (j, p) in row.iter().enumerate() {
+                if *p != 0 {
                     assert_ne!(RECONFIG_MAP[j][i], 0, "{i}->{j} has no way back");
                 }
             }
