@@ -23,6 +23,7 @@ pub const TESTS: &[Test] = tests![
     obsw_low_battery_persists_half_a_second_then_recovers,
     obsw_mode_set_operational_powers_both_sides_and_homes,
     obsw_board_b_silence_is_comm_loss_and_safes_the_robot,
+    obsw_tick_and_tc_fit_the_10_ms_control_period,
 ];
 
 /// COBS-framed TCs for robot 1 (APID 0x101) as the ground sends them on the serial
@@ -572,5 +573,80 @@ fn obsw_board_b_silence_is_comm_loss_and_safes_the_robot() -> TestResult {
     check_eq!(act.side.bolter, mmic_domain::BolterDrive::Off);
     check!(act.side.arm_pwm.is_some(), "arm A unpowered in safed");
     check_eq!(robot.a.param(pid::B_LINK_OK), 0);
+    Ok(())
+}
+
+/// Instructions retired (minstret; exact under QEMU with `-icount`).
+fn instret() -> u64 {
+    riscv::register::minstret::read64()
+}
+
+/// Execution cost of the OBSW's entry points on RV32IMC, in instructions, over a
+/// standby → operational transition with homing, HK every second and a burst of TCs.
+/// At the ESP32-C3's 160 MHz, even at 2 cycles per instruction (flash cache misses),
+/// one control period of 10 ms holds 800 000 instructions; the worst tick must fit in
+/// half of that, leaving the other half to the drivers and the link tasks.
+fn obsw_tick_and_tc_fit_the_10_ms_control_period() -> TestResult {
+    use mib::modes::{node, robot_mode};
+    const BUDGET: u64 = 160_000_000 / 2 / 1000 * mib::config::CONTROL_PERIOD_MS as u64 / 2;
+    let mut robot = Robot::new();
+    let mut log = ModeLog::default();
+    let (sa, sb) = healthy();
+    let (mut t, mut worst_tick, mut worst_tc) = (0u64, 0u64, 0u64);
+    let mut ticks = 0u32;
+    let step = |robot: &mut Robot, t: u64, log: &mut ModeLog| {
+        let start = instret();
+        let out = robot.a.tick(t, &sa, &robot.b_to_a, log);
+        let cost = instret() - start;
+        robot.b.tick(t, &sb, &out.link_tx, &mut robot.b_out);
+        robot.b_to_a.clear();
+        let _ = robot.b_to_a.extend_from_slice(&robot.b_out.tx);
+        cost
+    };
+    for _ in 0..50 {
+        t += 10;
+        worst_tick = worst_tick.max(step(&mut robot, t, &mut log));
+        ticks += 1;
+    }
+    let mut app = [0u8; 10];
+    app[..4].copy_from_slice(&node::ROBOT.to_be_bytes());
+    app[4..8].copy_from_slice(&robot_mode::OPERATIONAL.to_be_bytes());
+    let mut tc = [0u8; 32];
+    let n = ok!(build_tc(11, 200, 1, &app, &mut tc));
+    let start = instret();
+    robot.a.handle_tc(t, &tc[..n], &mut log);
+    worst_tc = worst_tc.max(instret() - start);
+    for i in 0..1000u16 {
+        t += 10;
+        worst_tick = worst_tick.max(step(&mut robot, t, &mut log));
+        ticks += 1;
+        if i % 100 == 50 {
+            // HK one-shot of the largest structure, a ping and a mode read.
+            for (k, (svc, sub, app)) in [
+                (3u8, 27u8, &[0u8, 1][..]),
+                (17, 1, &[][..]),
+                (200, 3, &[0, 0, 0, 1][..]),
+            ]
+            .into_iter()
+            .enumerate()
+            {
+                let n = ok!(build_tc(100 + i + k as u16, svc, sub, app, &mut tc));
+                let start = instret();
+                robot.a.handle_tc(t, &tc[..n], &mut log);
+                worst_tc = worst_tc.max(instret() - start);
+            }
+        }
+    }
+    check_eq!(robot.a.mode(), robot_mode::OPERATIONAL);
+    semihosting::println!(
+        "    worst Obsw::tick {} instructions, worst Obsw::handle_tc {} ({} ticks, budget {})",
+        worst_tick,
+        worst_tc,
+        ticks,
+        BUDGET
+    );
+    check!(worst_tick > 1000, "instruction counter not running ({})", worst_tick);
+    check!(worst_tick < BUDGET, "tick takes {} instructions", worst_tick);
+    check!(worst_tc < BUDGET, "handle_tc takes {} instructions", worst_tc);
     Ok(())
 }
