@@ -23,8 +23,9 @@ use esp_hal::gpio::{Input, InputConfig, Level, Output, OutputConfig, Pull};
 use esp_hal::i2c::master::{Config as I2cConfig, I2c};
 use esp_hal::ledc::channel::Number as Ch;
 use esp_hal::ledc::Ledc;
+use esp_hal::peripherals::TIMG1;
 use esp_hal::time::Rate;
-use esp_hal::timer::timg::TimerGroup;
+use esp_hal::timer::timg::{MwdtStage, TimerGroup, Wdt};
 use esp_hal::uart::{Config as UartConfig, Uart, UartRx, UartTx};
 use esp_hal::usb::usb_serial_jtag::{UsbSerialJtag, UsbSerialJtagRx, UsbSerialJtagTx};
 use esp_hal::Async;
@@ -67,6 +68,7 @@ static OBSW: StaticCell<Obsw<Store>> = StaticCell::new();
 type Side = SideOutputs<Servo, Servo, Servo, Servo, BolterMux<Output<'static>, Output<'static>>>;
 
 struct Hardware {
+    watchdog: Wdt<TIMG1<'static>>,
     adc: Ads7828<SensorDevice>,
     imu: Option<Mpu6000<SensorDevice>>,
     hip_encoder: As5600<SensorDevice>,
@@ -122,6 +124,7 @@ async fn control(mut hw: Hardware, obsw: &'static mut Obsw<Store>, reset_cause: 
     let mut ticker = Ticker::every(Duration::from_millis(cfg::CONTROL_PERIOD_MS as u64));
     loop {
         ticker.next().await;
+        hw.watchdog.feed();
         let now = fw_esp::clock::now_ms();
         // Telecommands first, so that a TC and the tick that starts it share `now`.
         while let Ok(tc) = TCS.try_receive() {
@@ -165,6 +168,13 @@ async fn main(spawner: Spawner) {
     let p = esp_hal::init(esp_hal::Config::default());
     let timg0 = TimerGroup::new(p.TIMG0);
     esp_rtos::start(timg0.timer0, p.FROM_CPU_INTR0);
+    // Task watchdog: the control task feeds it every period.
+    let mut watchdog = TimerGroup::new(p.TIMG1).wdt;
+    watchdog.set_timeout(
+        MwdtStage::Stage0,
+        esp_hal::time::Duration::from_millis(cfg::WATCHDOG_TIMEOUT_MS),
+    );
+    watchdog.enable();
     let reset_cause = fw_esp::panic::reset_cause();
 
     // Regulator enable first, so the servo rail stays off: GPIO9, active low.
@@ -229,6 +239,7 @@ async fn main(spawner: Spawner) {
     spawner.spawn(
         control(
             Hardware {
+                watchdog,
                 adc,
                 imu,
                 hip_encoder,

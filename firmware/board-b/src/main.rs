@@ -21,8 +21,9 @@ use esp_hal::gpio::{Input, InputConfig, Level, Output, OutputConfig, Pull};
 use esp_hal::i2c::master::{Config as I2cConfig, I2c};
 use esp_hal::ledc::channel::Number as Ch;
 use esp_hal::ledc::Ledc;
+use esp_hal::peripherals::TIMG1;
 use esp_hal::time::Rate;
-use esp_hal::timer::timg::TimerGroup;
+use esp_hal::timer::timg::{MwdtStage, TimerGroup, Wdt};
 use esp_hal::uart::{Config as UartConfig, Uart, UartRx, UartTx};
 use esp_hal::usb::usb_serial_jtag::{UsbSerialJtag, UsbSerialJtagTx};
 use esp_hal::Async;
@@ -49,6 +50,7 @@ static AB_TX_STATS: Counters = Counters::new();
 type Side = SideOutputs<Servo, Servo, Servo, Servo, BolterMux<Output<'static>, Output<'static>>>;
 
 struct Hardware {
+    watchdog: Wdt<TIMG1<'static>>,
     adc: Ads7828<SensorDevice>,
     imu: Option<Mpu6000<SensorDevice>>,
     arm_switch: ActiveLowSwitch<Input<'static>>,
@@ -102,6 +104,7 @@ async fn control(mut hw: Hardware) {
     hw.side.release_all();
     loop {
         ticker.next().await;
+        hw.watchdog.feed();
         match hw.imu.as_mut() {
             Some(imu) => sample_b(&mut hw.adc, imu, &mut hw.arm_switch, &mut sensors, &mut errors),
             None => sample_b(&mut hw.adc, &mut NoImu, &mut hw.arm_switch, &mut sensors, &mut errors),
@@ -120,6 +123,13 @@ async fn main(spawner: Spawner) {
     let p = esp_hal::init(esp_hal::Config::default());
     let timg0 = TimerGroup::new(p.TIMG0);
     esp_rtos::start(timg0.timer0, p.FROM_CPU_INTR0);
+    // Task watchdog: the control task feeds it every period.
+    let mut watchdog = TimerGroup::new(p.TIMG1).wdt;
+    watchdog.set_timeout(
+        MwdtStage::Stage0,
+        esp_hal::time::Duration::from_millis(cfg::WATCHDOG_TIMEOUT_MS),
+    );
+    watchdog.enable();
     let reset_cause = fw_esp::panic::reset_cause();
     let panic = fw_esp::panic::take_report();
     let (_, usb_tx) = UsbSerialJtag::new(p.USB_DEVICE).into_async().split();
@@ -167,6 +177,7 @@ async fn main(spawner: Spawner) {
     spawner.spawn(ab_tx(uart_tx).expect("ab_tx task"));
     spawner.spawn(
         control(Hardware {
+            watchdog,
             adc,
             imu,
             arm_switch,

@@ -156,3 +156,9 @@ const fn parse_u12(s: &str) -> u16 {
     }
     v as u16
 }
+
+/// Task watchdog (TIMG1 MWDT, system reset): fed by the control task every period; a
+/// control loop stalled for this long resets the chip (reset cause 8, `CoreMwdt1`,
+/// reported in the next BOOT event).
+pub const WATCHDOG_TIMEOUT_MS: u64 = 500;
+const _: () = assert!(WATCHDOG_TIMEOUT_MS >= 10 * CONTROL_PERIOD_MS as u64);
