@@ -125,10 +125,12 @@ impl BoardB {
             }
             ModuleCmd::Power { arm, grip, bolter } => {
                 let (arm, grip, bolter) = (arm as u32, grip as u32, bolter as u32);
-                if arm == HOLD || arm == OFF {
+                // hold only on entering HOLD/OFF: a repeated Power must not cancel a
+                // move commanded since (single-module moves are allowed in HOLD)
+                if arm != self.arm_mode && (arm == HOLD || arm == OFF) {
                     self.arm.hold();
                 }
-                if grip == HOLD || grip == OFF {
+                if grip != self.grip_mode && (grip == HOLD || grip == OFF) {
                     self.grip.hold();
                 }
                 if bolter != ON {
@@ -360,6 +362,77 @@ mod tests {
         let hb = last.unwrap();
         assert_ne!(hb.flags & flag::OC_LOC, 0);
         assert_eq!(hb.flags & flag::OC_BO, 0);
+    }
+
+    #[test]
+    fn board_b_repeated_power_command_does_not_cancel_a_move() {
+        let mut b = BoardB::new();
+        let mut out = BoardBOut::default();
+        let s = SensorsB::default();
+        b.tick(
+            0,
+            &s,
+            &cmd(
+                1,
+                ModuleCmd::Power {
+                    arm: 2,
+                    grip: 2,
+                    bolter: 0,
+                },
+            ),
+            &mut out,
+        );
+        b.tick(10, &s, &cmd(2, ModuleCmd::ArmTarget(1500)), &mut out);
+        b.tick(
+            20,
+            &s,
+            &cmd(
+                3,
+                ModuleCmd::Power {
+                    arm: 2,
+                    grip: 2,
+                    bolter: 0,
+                },
+            ),
+            &mut out,
+        );
+        for t in (30..2000).step_by(10) {
+            b.tick(t, &s, &[], &mut out);
+        }
+        assert_eq!(out.side.arm_pwm, Some(1500), "HOLD accepts an explicit move");
+        // entering HOLD from ON does stop a move
+        b.tick(
+            2000,
+            &s,
+            &cmd(
+                4,
+                ModuleCmd::Power {
+                    arm: 1,
+                    grip: 1,
+                    bolter: 0,
+                },
+            ),
+            &mut out,
+        );
+        b.tick(2010, &s, &cmd(5, ModuleCmd::ArmTarget(1000)), &mut out);
+        b.tick(
+            2020,
+            &s,
+            &cmd(
+                6,
+                ModuleCmd::Power {
+                    arm: 2,
+                    grip: 2,
+                    bolter: 0,
+                },
+            ),
+            &mut out,
+        );
+        for t in (2030..3000).step_by(10) {
+            b.tick(t, &s, &[], &mut out);
+        }
+        let held = out.side.arm_pwm.unwrap();
+        assert!(held > 1480 && held < 1500, "{held}");
     }
 
     #[test]

@@ -387,8 +387,8 @@ pub struct Controller {
     bolt_side: u8,
     bolt_pair: u8,
     bolt_attempt: u8,
-    /// Last time B's modes were re-sent because its heartbeat disagreed.
-    b_modes_resent_ms: u64,
+    /// Since when B's heartbeats report other modes than A wants (link idle).
+    b_modes_mismatch_since: Option<u64>,
     /// Arm/gripper positions known (set by `with_positions`, or once a module is
     /// powered); until then they are recovered from the IMU-derived state.
     positions_known: bool,
@@ -429,7 +429,7 @@ impl Controller {
             bolt_side: 0,
             bolt_pair: 0,
             bolt_attempt: 0,
-            b_modes_resent_ms: 0,
+            b_modes_mismatch_since: None,
             positions_known: false,
             b_assume_sent_ms: None,
             tun,
@@ -536,11 +536,15 @@ impl Controller {
     fn heal_b_modes(&mut self, now: u64) {
         let want = self.b_modes_packed();
         let Some(hb) = self.link.heartbeat() else { return };
-        if hb.modes != want
-            && self.link.idle()
-            && now.saturating_sub(self.b_modes_resent_ms) >= crate::consts::B_MODES_RESEND_MS as u64
-        {
-            self.b_modes_resent_ms = now;
+        if hb.modes == want || !self.link.idle() {
+            // agreement, or a command (maybe the Power itself) still on its way
+            self.b_modes_mismatch_since = None;
+            return;
+        }
+        let since = *self.b_modes_mismatch_since.get_or_insert(now);
+        if now.saturating_sub(since) >= crate::consts::B_MODES_RESEND_MS as u64 {
+            // heartbeats have disagreed for a while with nothing in flight
+            self.b_modes_mismatch_since = None;
             self.b_modes_sent = None;
             self.sync_b_modes();
         }
