@@ -155,3 +155,26 @@ fn boot_in_a_stretch_or_turn_state_recovers_arm_positions_from_the_imus() {
         assert_eq!(h.sim.truth().state, Some(0));
     }
 }
+
+#[test]
+fn abort_during_a_hip_rotation_holds_the_hip_where_it_is() {
+    let mut h = Harness::new(SimConfig {
+        seed: 30,
+        ..SimConfig::default()
+    });
+    h.power_on();
+    h.ctrl
+        .start(Action::Reconfigure { from: 0, to: 11 }, h.now_ms())
+        .unwrap();
+    assert!(h.run_until(60_000, |h| h.sim.truth().hip_cdeg < -4500.0));
+    let at_abort = h.sim.truth().hip_cdeg;
+    h.ctrl.abort();
+    h.advance(3000);
+    let held = h.sim.truth().hip_cdeg;
+    assert!(
+        (held - at_abort).abs() < 200.0,
+        "aborted at {at_abort:.0}, held at {held:.0} cdeg"
+    );
+    assert!(!h.ctrl.busy());
+    assert!(!h.sim.truth().fallen, "the anchored side still grips");
+}
