@@ -4,7 +4,7 @@
 //!
 //! | task        | runs                                              | talks through                    |
 //! |-------------|---------------------------------------------------|----------------------------------|
-//! | `control`   | every 10 ms: TCs, sensors → `Obsw::tick` → outputs | `TCS`, `AB_RX` in; `AB_TX`, `TM` out |
+//! | `control`   | every 10 ms `fw_core::cycle::CycleA::run`: TCs, sensors → `Obsw::tick` → outputs | `TCS`, `AB_RX` in; `AB_TX`, `TM` out |
 //! | `uplink`    | ground link receiver: COBS frames → TCs           | → `TCS` (channel of packets)     |
 //! | `downlink`  | ground link transmitter: HK, events, reports      | `TM` (framed bytes) → USB        |
 //! | `ab_rx`     | UART1 receiver from board B                       | → `AB_RX` (byte queue)           |
@@ -30,17 +30,14 @@ use esp_hal::uart::{Config as UartConfig, Uart, UartRx, UartTx};
 use esp_hal::usb::usb_serial_jtag::{UsbSerialJtag, UsbSerialJtagRx, UsbSerialJtagTx};
 use esp_hal::Async;
 use fw_core::config::{self as cfg, i2c_addr};
+use fw_core::cycle::{CycleA, LinksA, PeripheralsA};
 use fw_core::link::{self, ByteQueue, Counters, DownlinkSink, TcChannel};
 use fw_core::periph::ads7828::PowerMode;
-use fw_core::periph::servo::hip_pulse;
 use fw_core::periph::{
-    ActiveLowEnable, ActiveLowSwitch, Ads7828, As5600, BolterMux, BolterServos, Enable, GravitySensor, HwError,
-    Mpu6000, ServoOutput, SideOutputs,
+    ActiveLowEnable, ActiveLowSwitch, Ads7828, As5600, BolterMux, BolterServos, Mpu6000, SideOutputs,
 };
-use fw_core::sampling::{sample_a, SensorErrors};
 use fw_esp::bus::{self, SensorDevice};
 use fw_esp::servos::{Servo, ServoBank};
-use mmic_domain::SensorsA;
 use obsw_core::obsw::{Config, Obsw};
 use obsw_core::tm::RingStore;
 use static_cell::StaticCell;
@@ -65,27 +62,19 @@ type Store = RingStore<{ cfg::TM_STORE_BYTES }>;
 /// owned by the control task.
 static OBSW: StaticCell<Obsw<Store>> = StaticCell::new();
 
-type Side = SideOutputs<Servo, Servo, Servo, Servo, BolterMux<Output<'static>, Output<'static>>>;
-
-struct Hardware {
-    watchdog: Wdt<TIMG1<'static>>,
-    adc: Ads7828<SensorDevice>,
-    imu: Option<Mpu6000<SensorDevice>>,
-    hip_encoder: As5600<SensorDevice>,
-    arm_switch: ActiveLowSwitch<Input<'static>>,
-    side: Side,
-    hip: Servo,
-    regulator: ActiveLowEnable<Output<'static>>,
-}
-
-/// IMU absent or failing its identity check at boot: gravity reads fail every cycle and
-/// the state estimate reports "unknown" (the OBSW then refuses reconfigurations).
-struct NoImu;
-impl GravitySensor for NoImu {
-    fn gravity_mg(&mut self) -> Result<[i16; 3], HwError> {
-        Err(HwError::Bus)
-    }
-}
+type Io = PeripheralsA<
+    Ads7828<SensorDevice>,
+    Option<Mpu6000<SensorDevice>>,
+    As5600<SensorDevice>,
+    ActiveLowSwitch<Input<'static>>,
+    Servo,
+    Servo,
+    Servo,
+    Servo,
+    BolterMux<Output<'static>, Output<'static>>,
+    Servo,
+    ActiveLowEnable<Output<'static>>,
+>;
 
 #[embassy_executor::task]
 async fn uplink(rx: UsbSerialJtagRx<'static, Async>) {
@@ -108,58 +97,27 @@ async fn ab_tx(tx: UartTx<'static, Async>) {
 }
 
 #[embassy_executor::task]
-async fn control(mut hw: Hardware, obsw: &'static mut Obsw<Store>, reset_cause: u8) {
+async fn control(mut io: Io, mut watchdog: Wdt<TIMG1<'static>>, obsw: &'static mut Obsw<Store>, reset_cause: u8) {
+    let links = LinksA {
+        tcs: &TCS,
+        tm: &TM,
+        tm_stats: &DOWNLINK_STATS,
+        ab_rx: &AB_RX,
+        ab_tx: &AB_TX,
+        ab_tx_stats: &AB_TX_STATS,
+    };
+    let mut cycle = CycleA::new();
+    io.release_all();
     let mut sink = DownlinkSink {
         queue: &TM,
         counters: &DOWNLINK_STATS,
     };
-    let mut sensors = SensorsA::default();
-    let mut errors = SensorErrors::default();
-    let mut rx = [0u8; cfg::AB_RX_BYTES];
-    hw.side.release_all();
-    let _ = hw.hip.release();
-    let _ = hw.regulator.set_enabled(false);
     obsw.boot(fw_esp::clock::now_ms(), reset_cause, &mut sink);
-
     let mut ticker = Ticker::every(Duration::from_millis(cfg::CONTROL_PERIOD_MS as u64));
     loop {
         ticker.next().await;
-        hw.watchdog.feed();
-        let now = fw_esp::clock::now_ms();
-        // Telecommands first, so that a TC and the tick that starts it share `now`.
-        while let Ok(tc) = TCS.try_receive() {
-            obsw.handle_tc(now, &tc, &mut sink);
-        }
-        match hw.imu.as_mut() {
-            Some(imu) => sample_a(
-                &mut hw.adc,
-                imu,
-                &mut hw.hip_encoder,
-                &mut hw.arm_switch,
-                &mut sensors,
-                &mut errors,
-            ),
-            None => sample_a(
-                &mut hw.adc,
-                &mut NoImu,
-                &mut hw.hip_encoder,
-                &mut hw.arm_switch,
-                &mut sensors,
-                &mut errors,
-            ),
-        }
-        let n = link::drain(&AB_RX, &mut rx);
-        let out = obsw.tick(now, &sensors, &rx[..n], &mut sink);
-        // Outputs: a failing output keeps its last state; the OBSW sees the effect in
-        // the currents and positions and its FDIR acts on them.
-        let act = &out.actuators;
-        let _ = hw.regulator.set_enabled(act.regulator_on);
-        let _ = hw.side.apply(&act.side, act.mux);
-        let _ = match act.hip_speed {
-            Some(speed) => hw.hip.set_pulse_us(hip_pulse(speed)),
-            None => hw.hip.release(),
-        };
-        link::push_bytes(&AB_TX, &out.link_tx, &AB_TX_STATS);
+        watchdog.feed();
+        cycle.run(fw_esp::clock::now_ms(), obsw, &mut io, &links);
     }
 }
 
@@ -236,21 +194,14 @@ async fn main(spawner: Spawner) {
     spawner.spawn(downlink(usb_tx).expect("downlink task"));
     spawner.spawn(ab_rx(uart_rx).expect("ab_rx task"));
     spawner.spawn(ab_tx(uart_tx).expect("ab_tx task"));
-    spawner.spawn(
-        control(
-            Hardware {
-                watchdog,
-                adc,
-                imu,
-                hip_encoder,
-                arm_switch,
-                side,
-                hip,
-                regulator,
-            },
-            obsw,
-            reset_cause,
-        )
-        .expect("control task"),
-    );
+    let io = Io {
+        adc,
+        imu,
+        hip_encoder,
+        arm_switch,
+        side,
+        hip,
+        regulator,
+    };
+    spawner.spawn(control(io, watchdog, obsw, reset_cause).expect("control task"));
 }

@@ -5,7 +5,7 @@
 //!
 //! | task      | runs                                   | talks through            |
 //! |-----------|----------------------------------------|--------------------------|
-//! | `control` | every 10 ms: sensors → BoardB → outputs | `AB_RX` in, `AB_TX` out  |
+//! | `control` | every 10 ms `fw_core::cycle::CycleB::run`: sensors → BoardB → outputs | `AB_RX` in, `AB_TX` out  |
 //! | `ab_rx`   | UART1 receiver                         | → `AB_RX` (byte queue)   |
 //! | `ab_tx`   | UART1 transmitter                      | `AB_TX` → UART1          |
 //! | `console` | once at boot: reset cause and the panic recorded before the reset, as text on the USB-Serial-JTAG port | — |
@@ -28,15 +28,13 @@ use esp_hal::uart::{Config as UartConfig, Uart, UartRx, UartTx};
 use esp_hal::usb::usb_serial_jtag::{UsbSerialJtag, UsbSerialJtagTx};
 use esp_hal::Async;
 use fw_core::config::{self as cfg, i2c_addr};
+use fw_core::cycle::{CycleB, LinksB, PeripheralsB};
 use fw_core::link::{self, ByteQueue, Counters};
 use fw_core::panic_record::PanicReport;
 use fw_core::periph::ads7828::PowerMode;
 use fw_core::periph::{ActiveLowSwitch, Ads7828, BolterMux, BolterServos, Mpu6000, SideOutputs};
-use fw_core::sampling::{sample_b, SensorErrors};
 use fw_esp::bus::{self, SensorDevice};
 use fw_esp::servos::{Servo, ServoBank};
-use mmic_domain::board_b::{BoardB, BoardBOut};
-use mmic_domain::SensorsB;
 
 esp_bootloader_esp_idf::esp_app_desc!();
 
@@ -47,15 +45,16 @@ static AB_TX: ByteQueue<{ cfg::AB_TX_BYTES }> = ByteQueue::new();
 static AB_RX_STATS: Counters = Counters::new();
 static AB_TX_STATS: Counters = Counters::new();
 
-type Side = SideOutputs<Servo, Servo, Servo, Servo, BolterMux<Output<'static>, Output<'static>>>;
-
-struct Hardware {
-    watchdog: Wdt<TIMG1<'static>>,
-    adc: Ads7828<SensorDevice>,
-    imu: Option<Mpu6000<SensorDevice>>,
-    arm_switch: ActiveLowSwitch<Input<'static>>,
-    side: Side,
-}
+type Io = PeripheralsB<
+    Ads7828<SensorDevice>,
+    Option<Mpu6000<SensorDevice>>,
+    ActiveLowSwitch<Input<'static>>,
+    Servo,
+    Servo,
+    Servo,
+    Servo,
+    BolterMux<Output<'static>, Output<'static>>,
+>;
 
 #[embassy_executor::task]
 async fn ab_rx(rx: UartRx<'static, Async>) {
@@ -65,15 +64,6 @@ async fn ab_rx(rx: UartRx<'static, Async>) {
 #[embassy_executor::task]
 async fn ab_tx(tx: UartTx<'static, Async>) {
     link::queue_to_writer(&AB_TX, tx, &AB_TX_STATS).await
-}
-
-/// No IMU (absent or failing its identity check): gravity reads as an error every
-/// cycle, so board A sees the last good value age out in the heartbeat.
-struct NoImu;
-impl fw_core::periph::GravitySensor for NoImu {
-    fn gravity_mg(&mut self) -> Result<[i16; 3], fw_core::periph::HwError> {
-        Err(fw_core::periph::HwError::Bus)
-    }
 }
 
 /// Boot report on the debug console. Asynchronous: with no USB host attached the write
@@ -94,27 +84,19 @@ async fn console(mut usb: UsbSerialJtagTx<'static, Async>, reset_cause: u8, pani
 }
 
 #[embassy_executor::task]
-async fn control(mut hw: Hardware) {
-    let mut board = BoardB::new();
-    let mut out = BoardBOut::default();
-    let mut sensors = SensorsB::default();
-    let mut errors = SensorErrors::default();
-    let mut rx = [0u8; cfg::AB_RX_BYTES];
+async fn control(mut io: Io, mut watchdog: Wdt<TIMG1<'static>>) {
+    let links = LinksB {
+        ab_rx: &AB_RX,
+        ab_tx: &AB_TX,
+        ab_tx_stats: &AB_TX_STATS,
+    };
+    let mut cycle = CycleB::new();
+    io.side.release_all();
     let mut ticker = Ticker::every(Duration::from_millis(cfg::CONTROL_PERIOD_MS as u64));
-    hw.side.release_all();
     loop {
         ticker.next().await;
-        hw.watchdog.feed();
-        match hw.imu.as_mut() {
-            Some(imu) => sample_b(&mut hw.adc, imu, &mut hw.arm_switch, &mut sensors, &mut errors),
-            None => sample_b(&mut hw.adc, &mut NoImu, &mut hw.arm_switch, &mut sensors, &mut errors),
-        }
-        let n = link::drain(&AB_RX, &mut rx);
-        board.tick(fw_esp::clock::now_ms(), &sensors, &rx[..n], &mut out);
-        // An output that fails keeps its previous state; board A sees the module's
-        // PWM and current in the heartbeat and its FDIR acts on them.
-        let _ = hw.side.apply(&out.side, out.mux);
-        link::push_bytes(&AB_TX, &out.tx, &AB_TX_STATS);
+        watchdog.feed();
+        cycle.run(fw_esp::clock::now_ms(), &mut io, &links);
     }
 }
 
@@ -175,14 +157,11 @@ async fn main(spawner: Spawner) {
     spawner.spawn(console(usb_tx, reset_cause, panic).expect("console task"));
     spawner.spawn(ab_rx(uart_rx).expect("ab_rx task"));
     spawner.spawn(ab_tx(uart_tx).expect("ab_tx task"));
-    spawner.spawn(
-        control(Hardware {
-            watchdog,
-            adc,
-            imu,
-            arm_switch,
-            side,
-        })
-        .expect("control task"),
-    );
+    let io = Io {
+        adc,
+        imu,
+        arm_switch,
+        side,
+    };
+    spawner.spawn(control(io, watchdog).expect("control task"));
 }

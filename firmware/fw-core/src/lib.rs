@@ -16,6 +16,7 @@
 #![deny(unsafe_code)]
 
 pub mod config;
+pub mod cycle;
 pub mod framing;
 pub mod link;
 pub mod panic_record;

@@ -12,6 +12,7 @@
 mod harness;
 mod mock;
 mod t_codec;
+mod t_cycle;
 mod t_domain;
 mod t_framing;
 mod t_link;
@@ -33,6 +34,7 @@ fn main() -> ! {
         t_reconfig::TESTS,
         t_domain::TESTS,
         t_obsw::TESTS,
+        t_cycle::TESTS,
     ]);
     semihosting::process::exit(code)
 }

@@ -45,6 +45,11 @@ fn crc16_ccitt_false_reference_check_value() -> TestResult {
 
 const APID: u16 = 0x101;
 
+/// A TC for robot 1 built with the sat-rs encoder, as the ground tool builds it.
+pub fn build(seq: u16, svc: u8, sub: u8, app: &[u8], buf: &mut [u8]) -> Option<usize> {
+    tc(buf, seq, svc, sub, app)
+}
+
 fn tc(buf: &mut [u8], seq: u16, svc: u8, sub: u8, app: &[u8]) -> Option<usize> {
     let sp = SpHeader::new_for_unseg_tc(u11::new(APID), u14::new(seq), 0);
     let sec = PusTcSecondaryHeader::new(MessageTypeId::new(svc, sub), AckFlags::ALL, 0);

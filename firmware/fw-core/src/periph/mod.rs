@@ -67,6 +67,17 @@ pub trait GravitySensor {
     fn gravity_mg(&mut self) -> Result<[i16; 3], HwError>;
 }
 
+/// A sensor that may be absent (not found at boot): every read fails, so the last good
+/// value (or the default) stays and the failure is counted.
+impl<T: GravitySensor> GravitySensor for Option<T> {
+    fn gravity_mg(&mut self) -> Result<[i16; 3], HwError> {
+        match self {
+            Some(s) => s.gravity_mg(),
+            None => Err(HwError::Bus),
+        }
+    }
+}
+
 /// Absolute angle sensor of the hip.
 pub trait AngleSensor {
     /// Angle in hundredths of a degree, in −18000..18000.

@@ -1,0 +1,236 @@
+//! One control period of each board, generic over the peripheral traits: the exact code
+//! the board images run every 10 ms, and what the on-target tests run against mock
+//! peripherals.
+
+use crate::config;
+use crate::link::{self, ByteQueue, Counters, DownlinkSink, TcChannel};
+use crate::periph::{
+    AnalogInput, AngleSensor, Enable, GravitySensor, HwError, PairSelect, ServoOutput, SideOutputs, Switch,
+};
+use crate::sampling::{sample_a, sample_b, SensorErrors};
+use mmic_domain::board_b::{BoardB, BoardBOut};
+use mmic_domain::{ActuatorsA, SensorsA, SensorsB};
+use obsw_core::obsw::Obsw;
+use obsw_core::tm::TmStore;
+
+/// Board A's peripherals.
+pub struct PeripheralsA<Adc, Imu, Enc, Sw, A, G, T, R, M, H, E> {
+    pub adc: Adc,
+    pub imu: Imu,
+    pub hip_encoder: Enc,
+    pub arm_switch: Sw,
+    pub side: SideOutputs<A, G, T, R, M>,
+    pub hip: H,
+    pub regulator: E,
+}
+
+/// Board B's peripherals.
+pub struct PeripheralsB<Adc, Imu, Sw, A, G, T, R, M> {
+    pub adc: Adc,
+    pub imu: Imu,
+    pub arm_switch: Sw,
+    pub side: SideOutputs<A, G, T, R, M>,
+}
+
+impl<Adc, Imu, Enc, Sw, A, G, T, R, M, H, E> PeripheralsA<Adc, Imu, Enc, Sw, A, G, T, R, M, H, E>
+where
+    Adc: AnalogInput,
+    Imu: GravitySensor,
+    Enc: AngleSensor,
+    Sw: Switch,
+    A: ServoOutput,
+    G: ServoOutput,
+    T: ServoOutput,
+    R: ServoOutput,
+    M: PairSelect,
+    H: ServoOutput,
+    E: Enable,
+{
+    /// Everything unpowered, regulator off (boot).
+    pub fn release_all(&mut self) {
+        self.side.release_all();
+        let _ = self.hip.release();
+        let _ = self.regulator.set_enabled(false);
+    }
+
+    /// Drives every output; all are attempted, the first error is returned.
+    pub fn apply(&mut self, act: &ActuatorsA) -> Result<(), HwError> {
+        let reg = self.regulator.set_enabled(act.regulator_on);
+        let side = self.side.apply(&act.side, act.mux);
+        let hip = match act.hip_speed {
+            Some(speed) => self.hip.set_pulse_us(crate::periph::servo::hip_pulse(speed)),
+            None => self.hip.release(),
+        };
+        reg.and(side).and(hip)
+    }
+}
+
+/// The queues board A's control task talks through.
+pub struct LinksA<'a, const TM: usize, const RX: usize, const TX: usize> {
+    pub tcs: &'a TcChannel,
+    pub tm: &'a ByteQueue<TM>,
+    pub tm_stats: &'a Counters,
+    pub ab_rx: &'a ByteQueue<RX>,
+    pub ab_tx: &'a ByteQueue<TX>,
+    pub ab_tx_stats: &'a Counters,
+}
+
+/// State of board A's control loop between periods.
+pub struct CycleA {
+    pub sensors: SensorsA,
+    pub errors: SensorErrors,
+    /// Outputs that failed to apply since boot.
+    pub output_errors: u32,
+    rx: [u8; config::AB_RX_BYTES],
+}
+
+impl Default for CycleA {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl CycleA {
+    pub const fn new() -> Self {
+        Self {
+            sensors: SensorsA {
+                v_bat: 0,
+                i_bat: 0,
+                v_reg: 0,
+                i_loc: 0,
+                i_grip: 0,
+                i_bo: 0,
+                grav: [0; 3],
+                hip_cdeg: 0,
+                arm_switch: false,
+            },
+            errors: SensorErrors {
+                adc: 0,
+                imu: 0,
+                encoder: 0,
+                switch: 0,
+                last: None,
+            },
+            output_errors: 0,
+            rx: [0; config::AB_RX_BYTES],
+        }
+    }
+
+    /// One period: queued TCs, sensors, `Obsw::tick`, outputs, bytes for board B.
+    /// Returns the actuator commands applied.
+    #[allow(clippy::too_many_arguments)]
+    pub fn run<S, Adc, Imu, Enc, Sw, A, G, T, R, M, H, E, const TM: usize, const RX: usize, const TX: usize>(
+        &mut self,
+        now: u64,
+        obsw: &mut Obsw<S>,
+        io: &mut PeripheralsA<Adc, Imu, Enc, Sw, A, G, T, R, M, H, E>,
+        links: &LinksA<'_, TM, RX, TX>,
+    ) -> ActuatorsA
+    where
+        S: TmStore,
+        Adc: AnalogInput,
+        Imu: GravitySensor,
+        Enc: AngleSensor,
+        Sw: Switch,
+        A: ServoOutput,
+        G: ServoOutput,
+        T: ServoOutput,
+        R: ServoOutput,
+        M: PairSelect,
+        H: ServoOutput,
+        E: Enable,
+    {
+        let mut sink = DownlinkSink {
+            queue: links.tm,
+            counters: links.tm_stats,
+        };
+        // Telecommands first, so that a TC and the tick that starts it share `now`.
+        while let Ok(tc) = links.tcs.try_receive() {
+            obsw.handle_tc(now, &tc, &mut sink);
+        }
+        sample_a(
+            &mut io.adc,
+            &mut io.imu,
+            &mut io.hip_encoder,
+            &mut io.arm_switch,
+            &mut self.sensors,
+            &mut self.errors,
+        );
+        let n = link::drain(links.ab_rx, &mut self.rx);
+        let out = obsw.tick(now, &self.sensors, &self.rx[..n], &mut sink);
+        // A failing output keeps its last state; the OBSW sees the effect in currents and
+        // positions and its FDIR acts on them.
+        if io.apply(&out.actuators).is_err() {
+            self.output_errors = self.output_errors.wrapping_add(1);
+        }
+        link::push_bytes(links.ab_tx, &out.link_tx, links.ab_tx_stats);
+        out.actuators
+    }
+}
+
+/// The queues board B's control task talks through.
+pub struct LinksB<'a, const RX: usize, const TX: usize> {
+    pub ab_rx: &'a ByteQueue<RX>,
+    pub ab_tx: &'a ByteQueue<TX>,
+    pub ab_tx_stats: &'a Counters,
+}
+
+/// State of board B's control loop between periods.
+pub struct CycleB {
+    pub board: BoardB,
+    pub out: BoardBOut,
+    pub sensors: SensorsB,
+    pub errors: SensorErrors,
+    pub output_errors: u32,
+    rx: [u8; config::AB_RX_BYTES],
+}
+
+impl Default for CycleB {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl CycleB {
+    pub fn new() -> Self {
+        Self {
+            board: BoardB::new(),
+            out: BoardBOut::default(),
+            sensors: SensorsB::default(),
+            errors: SensorErrors::default(),
+            output_errors: 0,
+            rx: [0; config::AB_RX_BYTES],
+        }
+    }
+
+    /// One period: sensors, `BoardB::tick` (commands, acks, heartbeat), outputs.
+    pub fn run<Adc, Imu, Sw, A, G, T, R, M, const RX: usize, const TX: usize>(
+        &mut self,
+        now: u64,
+        io: &mut PeripheralsB<Adc, Imu, Sw, A, G, T, R, M>,
+        links: &LinksB<'_, RX, TX>,
+    ) where
+        Adc: AnalogInput,
+        Imu: GravitySensor,
+        Sw: Switch,
+        A: ServoOutput,
+        G: ServoOutput,
+        T: ServoOutput,
+        R: ServoOutput,
+        M: PairSelect,
+    {
+        sample_b(
+            &mut io.adc,
+            &mut io.imu,
+            &mut io.arm_switch,
+            &mut self.sensors,
+            &mut self.errors,
+        );
+        let n = link::drain(links.ab_rx, &mut self.rx);
+        self.board.tick(now, &self.sensors, &self.rx[..n], &mut self.out);
+        if io.side.apply(&self.out.side, self.out.mux).is_err() {
+            self.output_errors = self.output_errors.wrapping_add(1);
+        }
+        link::push_bytes(links.ab_tx, &self.out.tx, links.ab_tx_stats);
+    }
+}
