@@ -316,3 +316,44 @@ fn reconfiguration_to_every_state_and_back_reaches_the_true_state() {
     assert_eq!(visited, 14, "every state reachable from matched Xneg");
     assert!(!h.sim.truth().fallen);
 }
+
+#[test]
+fn fault_fastener_jam_gives_unbolting_failure() {
+    let mut h = harness(0, 15);
+    let r = h
+        .run_action(Action::BoltPair { side: Side::B, pair: 3 }, 120_000)
+        .unwrap();
+    assert_eq!(r, Some(ActionReport::Completed), "precondition: pair 3 bolted");
+    assert!(h.sim.fastener(Face::Xneg, 3).unwrap().locked);
+    h.sim.inject(Fault::FastenerJam);
+    let mark = h.events.len();
+    let r = h
+        .run_action(
+            Action::UnboltFace {
+                side: Side::B,
+                pairs: 0b0100,
+            },
+            120_000,
+        )
+        .unwrap();
+    let Some(ActionReport::Failed { code, data, len }) = r else {
+        panic!("expected a failure, got {r:?}")
+    };
+    assert_eq!(code, FailureCode::UNBOLT_FAILED);
+    assert_eq!(&data[..len as usize], &[1, 3, 3]);
+    assert!(h.events_since(mark).any(|e| *e
+        == DomainEvent::UnboltFailure {
+            side: Side::B,
+            pair: 3,
+            attempts: 3
+        }));
+    assert!(h.sim.fastener(Face::Xneg, 3).unwrap().locked, "still locked");
+    // cleared: the pair comes loose
+    h.sim.clear_all();
+    let r = h
+        .run_action(Action::UnboltPair { side: Side::B, pair: 3 }, 120_000)
+        .unwrap();
+    if r == Some(ActionReport::Completed) {
+        assert!(!h.sim.fastener(Face::Xneg, 3).unwrap().locked);
+    }
+}
