@@ -899,13 +899,16 @@ impl Controller {
         if !grippers_closed(self.grip_a.current(), hb.grip_pwm) {
             return None;
         }
-        state_from_sensors(
+        let s = state_from_sensors(
             self.grav_a(),
             hb.grav,
             self.hip_angle(),
             self.arm_a.current(),
             hb.arm_pwm,
-        )
+        )?;
+        // the arm switches are pushed exactly in the matched (contracted) states
+        let contracted = STATES[s as usize].kind() == StateKind::Matched;
+        (self.raw.arm_switch == contracted && hb.arm_switch() == contracted).then_some(s)
     }
 
     fn grav_a(&self) -> [i16; 3] {

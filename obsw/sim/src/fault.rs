@@ -326,3 +326,25 @@ mod tests {
         assert_eq!(err.0, 4);
     }
 }
+
+#[cfg(test)]
+mod fuzz {
+    use super::*;
+    use proptest::prelude::*;
+    proptest! {
+        #[test]
+        fn control_lines_never_panic(line in ".{0,60}") {
+            let _ = line.parse::<SimCommand>();
+            let _ = line.parse::<Fault>();
+        }
+        #[test]
+        fn control_words_never_panic(words in proptest::collection::vec(
+            prop_oneof![Just("stuck-arm"), Just("obstacle"), Just("battery-sag"), Just("clear"),
+                Just("a"), Just("b"), Just("9.5"), Just("-1"), Just("NaN"), Just("inf"), Just("cut-cable")], 0..4)) {
+            let line = words.join(" ");
+            if let Ok(SimCommand::Inject(f)) = line.parse::<SimCommand>() {
+                prop_assert_eq!(f.to_string().parse::<Fault>(), Ok(f));
+            }
+        }
+    }
+}

@@ -8,6 +8,8 @@
 //! seed; time advances only through [`Sim::step`] (see [`harness::Harness`] for a mock
 //! clock driving the controller and the simulator together).
 
+#![deny(unsafe_code)]
+
 pub mod fastener;
 pub mod fault;
 pub mod harness;
@@ -22,7 +24,7 @@ use mib::robot::{servo, state_of, Face, Side, STATES};
 use mmic_domain::board_b::{BoardB, BoardBOut};
 use mmic_domain::imu::gravity_in_board_frame;
 use mmic_domain::{ActuatorsA, BolterDrive, SensorsA, SensorsB, SideActuators};
-use rand::SeedableRng;
+use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serial::SerialLine;
 use std::collections::HashMap;
@@ -40,6 +42,9 @@ pub struct SimConfig {
     /// Board B's control period and phase (ms): B runs on its own schedule.
     pub b_period_ms: u32,
     pub b_phase_ms: u32,
+    /// Random extra delay (0..=jitter ms) of each board B period (its own clock and
+    /// scheduling are not A's).
+    pub b_jitter_ms: u32,
     /// Battery capacity (mAh): two 1000 mAh packs in parallel.
     pub battery_mah: f64,
     /// Sensor noise on (ADC counts, IMU, encoder).
@@ -55,6 +60,7 @@ impl Default for SimConfig {
             link_corrupt: 0.0,
             b_period_ms: 10,
             b_phase_ms: 3,
+            b_jitter_ms: 0,
             battery_mah: 2000.0,
             noise: true,
         }
@@ -582,7 +588,12 @@ impl Sim {
             t = tb;
             self.t_ms = t;
             self.run_board_b(t);
-            self.b_next_ms += period;
+            let jitter = if self.cfg.b_jitter_ms > 0 {
+                self.rng.gen_range(0..=self.cfg.b_jitter_ms as u64)
+            } else {
+                0
+            };
+            self.b_next_ms += period + jitter;
         }
         self.integrate(t1 - t);
         self.t_ms = t1;

@@ -357,3 +357,19 @@ fn fault_fastener_jam_gives_unbolting_failure() {
         assert!(!h.sim.fastener(Face::Xneg, 3).unwrap().locked);
     }
 }
+
+#[test]
+fn board_b_on_a_jittery_schedule_still_runs_reconfigurations() {
+    let mut h = Harness::new(SimConfig {
+        seed: 16,
+        b_period_ms: 7,
+        b_phase_ms: 1,
+        b_jitter_ms: 6,
+        ..SimConfig::default()
+    });
+    h.power_on();
+    let r = h.run_action(Action::Reconfigure { from: 0, to: 2 }, 180_000).unwrap();
+    assert_eq!(r, Some(ActionReport::Completed), "{:?}", h.events);
+    assert_eq!(h.sim.truth().state, Some(2));
+    assert!(param(&h, pid::B_HB_AGE_MS) <= 100);
+}
