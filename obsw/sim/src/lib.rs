@@ -148,6 +148,44 @@ pub struct Truth {
     pub faults: Vec<Fault>,
 }
 
+impl std::fmt::Display for Truth {
+    /// One line for the simulator control channel's `status` reply.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let face = |x: Option<Face>| x.map_or("-", |f| f.name());
+        let state = self
+            .state
+            .and_then(|s| STATES.get(s as usize))
+            .map_or("none".to_string(), |s| format!("{} ({})", s.id, s.name));
+        write!(
+            f,
+            "t={}ms state={} faces=A:{},B:{} fallen={} v_bat={:.2}V i_bat={:.0}mA hip={:.1}deg arms={:.0}/{:.0}us grips={:.0}/{:.0}us i_loc={:.0}/{:.0}mA i_bo={:.0}/{:.0}mA faults=[",
+            self.time_ms,
+            state,
+            face(self.faces[0]),
+            face(self.faces[1]),
+            self.fallen,
+            self.v_bat,
+            self.i_bat_ma,
+            self.hip_cdeg / 100.0,
+            self.arm_us[0],
+            self.arm_us[1],
+            self.grip_us[0],
+            self.grip_us[1],
+            self.i_loc_ma[0],
+            self.i_loc_ma[1],
+            self.i_bo_ma[0],
+            self.i_bo_ma[1],
+        )?;
+        for (i, x) in self.faults.iter().enumerate() {
+            if i > 0 {
+                f.write_str(", ")?;
+            }
+            write!(f, "{x}")?;
+        }
+        f.write_str("]")
+    }
+}
+
 /// The simulator.
 #[derive(Clone, Debug)]
 pub struct Sim {

@@ -178,3 +178,22 @@ fn abort_during_a_hip_rotation_holds_the_hip_where_it_is() {
     assert!(!h.ctrl.busy());
     assert!(!h.sim.truth().fallen, "the anchored side still grips");
 }
+
+#[test]
+fn truth_status_line_names_state_faces_and_faults() {
+    let mut sim = Sim::new(SimConfig::default());
+    sim.inject(mmic_sim::Fault::StuckArm(mib::robot::Side::B));
+    let line = sim.truth().to_string();
+    assert!(line.contains("state=0 (Xneg)"), "{line}");
+    assert!(line.contains("faces=A:Xneg,B:Xneg"), "{line}");
+    assert!(line.contains("faults=[stuck-arm b]"), "{line}");
+    assert!(!line.contains('\n'));
+}
+
+#[test]
+fn controller_and_board_b_fit_a_microcontroller() {
+    let c = std::mem::size_of::<mmic_domain::controller::Controller>();
+    let b = std::mem::size_of::<mmic_domain::board_b::BoardB>();
+    eprintln!("Controller {c} bytes, BoardB {b} bytes");
+    assert!(c < 8 * 1024 && b < 4 * 1024, "Controller {c} B, BoardB {b} B");
+}
