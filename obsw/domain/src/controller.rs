@@ -741,10 +741,9 @@ impl Controller {
                 op: BoltOp::Unbolt,
             }),
             Action::Home => {
-                push(Seg::Grip {
-                    side: None,
-                    pwm: servo::GRIP_CLOSED_US,
-                });
+                // Contract first, grip last: a side left open by an aborted primitive
+                // is brought onto the face before its gripper closes (closing first
+                // would grip nothing). A gripper is never opened here.
                 push(Seg::Hip {
                     cdeg: servo::HIP_HOME_CDEG,
                 });
@@ -753,6 +752,10 @@ impl Controller {
                     pwm: servo::ARM_CONTRACTED_US,
                 });
                 push(Seg::ArmSwitch { side: None });
+                push(Seg::Grip {
+                    side: None,
+                    pwm: servo::GRIP_CLOSED_US,
+                });
             }
             Action::MoveArm { side, pwm } => {
                 push(Seg::Arm { side: Some(side), pwm });

@@ -373,3 +373,23 @@ fn board_b_on_a_jittery_schedule_still_runs_reconfigurations() {
     assert_eq!(h.sim.truth().state, Some(2));
     assert!(param(&h, pid::B_HB_AGE_MS) <= 100);
 }
+
+#[test]
+fn home_after_an_aborted_primitive_contracts_then_grips() {
+    let mut h = harness(0, 17);
+    h.ctrl
+        .start(Action::Reconfigure { from: 0, to: 1 }, h.now_ms())
+        .unwrap();
+    // first primitive: side B released, arms extending
+    assert!(h.run_until(30_000, |h| h.sim.truth().faces[1].is_none()
+        && h.sim.truth().arm_us[1] > 1300.0));
+    h.ctrl.abort();
+    h.advance(500);
+    assert_eq!(h.sim.truth().state, None);
+    assert_eq!(h.ctrl.computed_state(), None, "a released side is no state");
+    let r = h.run_action(Action::Home, 60_000).unwrap();
+    assert_eq!(r, Some(ActionReport::Completed), "{:?}", h.events);
+    assert_eq!(h.sim.truth().state, Some(0), "{}", h.sim.truth());
+    h.advance(1000);
+    assert_eq!(h.ctrl.computed_state(), Some(0));
+}

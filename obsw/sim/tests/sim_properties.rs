@@ -13,6 +13,7 @@ enum Op {
     Inject(Fault),
     ClearAll,
     AbortAfter(u32),
+    Home,
 }
 
 fn op() -> impl Strategy<Value = Op> {
@@ -32,6 +33,7 @@ fn op() -> impl Strategy<Value = Op> {
         2 => fault.prop_map(Op::Inject),
         1 => Just(Op::ClearAll),
         1 => (10u32..5000).prop_map(Op::AbortAfter),
+        1 => Just(Op::Home),
     ]
 }
 
@@ -70,6 +72,15 @@ proptest! {
                         if let DomainEvent::BoltPairDone { pair, .. } = e {
                             prop_assert!(h.sim.fastener(face, *pair).is_some_and(|f| f.locked));
                         }
+                    }
+                }
+                Op::Home => {
+                    if let Ok(Some(ActionReport::Completed)) = h.run_action(Action::Home, 120_000) {
+                        let t = h.sim.truth();
+                        prop_assert!(
+                            matches!(t.state, Some(0..=2)),
+                            "home completed but the robot is not contracted and gripped: {}", t
+                        );
                     }
                 }
                 Op::Inject(f) => h.sim.inject(f),
