@@ -10,7 +10,7 @@
 //! |---|---|---|
 //! | `0x01` Command | A→B | `code u8` + arguments ([`ModuleCmd`]) |
 //! | `0x81` Ack | B→A | empty (`seq` = the command's sequence number) |
-//! | `0x82` Heartbeat | B→A | [`Heartbeat`], 28 bytes (`seq` counts heartbeats) |
+//! | `0x82` Heartbeat | B→A | [`Heartbeat`], 28 bytes (`seq` counts heartbeats); its `last_seq` also acknowledges |
 //!
 //! Untrusted bytes go through [`FrameDecoder`], which never panics: a bad COBS code,
 //! CRC, kind, length or value is an error value, and a frame longer than the buffer is
@@ -175,8 +175,11 @@ pub struct Heartbeat {
     pub bolter_pair: u8,
     /// Module modes: arm | grip << 2 | bolter << 4.
     pub modes: u8,
-    /// Sequence number of the last command executed.
+    /// Sequence number of the last command executed (0: none yet). Doubles as an
+    /// acknowledgement (paper Table 4) when an `Ack` frame was lost.
     pub last_seq: u8,
+    /// Frames board B dropped (bad CRC, framing), low 8 bits of its counter.
+    pub rx_errors: u8,
 }
 
 impl Heartbeat {
@@ -210,7 +213,7 @@ impl Heartbeat {
         o[24] = self.bolter_pair;
         o[25] = self.modes;
         o[26] = self.last_seq;
-        o[27] = 0; // spare
+        o[27] = self.rx_errors;
         Self::LEN
     }
     fn parse(b: &[u8]) -> Result<Heartbeat, FrameError> {
@@ -236,6 +239,7 @@ impl Heartbeat {
             bolter_pair: b[24],
             modes: b[25],
             last_seq: b[26],
+            rx_errors: b[27],
         })
     }
 }
@@ -509,6 +513,16 @@ impl LinkManager {
                 // a late ack of a command already given up or resent: ignored
                 Some(Ok(Message::Ack { .. })) => {}
                 Some(Ok(Message::Heartbeat { hb, .. })) => {
+                    if let Some(prev) = &self.hb {
+                        // frames B dropped since its last heartbeat
+                        self.counters.frame_errors += hb.rx_errors.wrapping_sub(prev.rx_errors) as u32;
+                    }
+                    if self.in_flight.is_some_and(|f| f.seq == hb.last_seq) {
+                        // B executed the command: its Ack frame was lost
+                        self.in_flight = None;
+                        self.counters.acks += 1;
+                        self.failed = false;
+                    }
                     self.hb = Some(hb);
                     self.last_hb_ms = Some(now_ms);
                     self.counters.hb_rx += 1;
@@ -624,6 +638,7 @@ mod tests {
             bolter_pair: 2,
             modes: 0b01_01_01,
             last_seq: 9,
+            rx_errors: 4,
         }
     }
 
@@ -802,6 +817,29 @@ mod tests {
         }
         assert!(lm.queue.len() <= LINK_QUEUE_DEPTH);
         assert_eq!(lm.counters().queue_dropped, 0);
+    }
+
+    #[test]
+    fn ab_link_heartbeat_acknowledges_when_the_ack_frame_is_lost_and_reports_b_rx_errors() {
+        let mut lm = LinkManager::new();
+        lm.send(ModuleCmd::ArmTarget(1300));
+        let mut tx: Vec<u8, 128> = Vec::new();
+        lm.transmit(0, 60, 3, &mut tx);
+        assert!(!lm.idle());
+        let mut wire: Vec<u8, 64> = Vec::new();
+        let mut h = hb();
+        h.last_seq = 1; // the command's sequence number
+        h.rx_errors = 250;
+        Message::Heartbeat { seq: 0, hb: h }.encode(&mut wire).unwrap();
+        lm.receive(20, &wire);
+        assert!(lm.idle(), "acknowledged by the heartbeat");
+        assert_eq!(lm.counters().acks, 1);
+        // B's error counter wraps: 250 -> 3 is 9 more errors
+        let mut wire: Vec<u8, 64> = Vec::new();
+        h.rx_errors = 3;
+        Message::Heartbeat { seq: 1, hb: h }.encode(&mut wire).unwrap();
+        lm.receive(70, &wire);
+        assert_eq!(lm.counters().frame_errors, 9);
     }
 
     #[test]

@@ -193,6 +193,7 @@ impl BoardB {
             bolter_pair: self.bolter_pair,
             modes: (self.arm_mode as u8 & 3) | ((self.grip_mode as u8 & 3) << 2) | ((self.bolter_mode as u8 & 3) << 4),
             last_seq: self.last_seq.unwrap_or(0),
+            rx_errors: self.counters.frame_errors as u8,
         }
     }
 
