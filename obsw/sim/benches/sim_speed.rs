@@ -47,6 +47,19 @@ fn workload(h: &mut Harness, step: &mut u32) {
 }
 
 fn bench(c: &mut Criterion) {
+    // the workload really runs actions: check once before measuring
+    let mut h = Harness::new(SimConfig::default());
+    h.power_on();
+    let mut step = 0;
+    workload(&mut h, &mut step);
+    let completed = h
+        .reports
+        .iter()
+        .filter(|(_, r)| *r == mmic_domain::controller::ActionReport::Completed)
+        .count();
+    assert!(completed >= 3, "only {completed} actions completed in 60 s");
+    eprintln!("workload: {completed} actions completed in 60 simulated seconds");
+
     let mut g = c.benchmark_group("sim");
     g.throughput(Throughput::Elements(SIM_MS));
     g.sample_size(20);
