@@ -454,9 +454,9 @@ impl Controller {
 
     /// Applies module modes. OFF: unpowered, back-drivable. HOLD: powered, holding the
     /// current position; only single-module moves (`MoveArm`, `RotateHip`) are accepted.
-    /// ON: normal. B's modes are forwarded to board B. If a module the running action
-    /// needs leaves ON, the action is aborted without a report (the core, which changed
-    /// the mode, reports the TC's failure).
+    /// ON: normal. B's modes are forwarded to board B. Any change of modes while an
+    /// action runs aborts it without a report, like `abort` (the core, which changed the
+    /// mode, reports the TC's failure); setting the same modes again changes nothing.
     pub fn set_module_modes(&mut self, m: ModuleModes) {
         let old = self.modes;
         if [m.arm_a, m.grip_a, m.arm_b, m.grip_b].iter().any(|&x| x != OFF) {
@@ -480,10 +480,10 @@ impl Controller {
         if m.bolter_a != ON || m.bolter_b != ON {
             self.bolter.abort();
         }
-        if let Some(run) = &self.run {
-            if !self.action_allowed(&run.action) {
-                self.end_run_hold();
-            }
+        if self.run.is_some() && m != old {
+            // a mode change ends the running action: HOLD/OFF reset the targets it
+            // moves to, and ON after HOLD is a new start
+            self.end_run_hold();
         }
         self.sync_b_modes();
     }
@@ -1560,6 +1560,21 @@ mod tests {
         l.run(500);
         assert_eq!(l.out.actuators.side.grip_pwm, Some(mid), "held where it was");
         assert_eq!(l.c.link.heartbeat().unwrap().modes, 0b10_10_10);
+    }
+
+    #[test]
+    fn entering_hold_during_a_hip_rotation_ends_it_and_same_modes_do_not() {
+        let mut l = Loop::new();
+        l.c.set_module_modes(ModuleModes::all(ON));
+        l.run(600);
+        l.c.start(Action::RotateHip { cdeg: 4000 }, l.t).unwrap();
+        l.run(100);
+        l.c.set_module_modes(ModuleModes::all(ON));
+        assert!(l.c.busy(), "same modes again: still running");
+        l.c.set_module_modes(ModuleModes::all(HOLD));
+        assert!(!l.c.busy());
+        l.run(100);
+        assert!(l.out.reports.is_empty());
     }
 
     #[test]
