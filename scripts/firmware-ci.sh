@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Firmware CI: toolchain setup, rustfmt and clippy (warnings denied), release build of
 # both ESP32-C3 images with warnings denied, size report against the budget (256 KiB
-# flash, 128 KiB static RAM per image), and the on-target tests under QEMU.
+# flash, 128 KiB static RAM per image), the host tests of the firmware's control period
+# against the simulator, and the on-target tests under QEMU.
 # Fails on the first failing step.
 set -euo pipefail
 
@@ -33,6 +34,9 @@ step "size report"
 "$FW/tools/size-report.sh" \
   "$CARGO_TARGET_DIR/$TARGET/release/board-a" \
   "$CARGO_TARGET_DIR/$TARGET/release/board-b"
+
+step "host tests: board A's control period against the simulator"
+(cd "$FW" && cargo test -p fw-core --target x86_64-unknown-linux-gnu)
 
 step "on-target tests (qemu-system-riscv32 -machine virt)"
 export CARGO_TARGET_DIR="${FIRMWARE_TARGET_DIR:-$FW/target}/qemu-tests"

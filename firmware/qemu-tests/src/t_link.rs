@@ -20,6 +20,7 @@ use mmic_domain::{BolterDrive, SensorsA, SideActuators};
 pub const TESTS: &[Test] = tests![
     uplink_delivers_each_tc_and_counts_drops,
     downlink_queues_whole_frames_or_nothing,
+    downlink_frame_wrapping_around_the_ring_stays_whole,
     byte_queue_overflow_is_counted,
     sampling_keeps_last_value_of_a_failed_channel,
     side_outputs_follow_domain_commands,
@@ -81,6 +82,39 @@ fn downlink_queues_whole_frames_or_nothing() -> TestResult {
         }
     }
     check_eq!(frames, 2);
+    Ok(())
+}
+
+/// Regression: a ring buffer hands out contiguous space only; a frame that wraps around
+/// its end must still go in whole (found by the firmware-on-simulator test).
+fn downlink_frame_wrapping_around_the_ring_stays_whole() -> TestResult {
+    let q: ByteQueue<64> = ByteQueue::new();
+    let stats = Counters::new();
+    let small = [0x11u8; 9]; // 12-byte frames
+    for _ in 0..4 {
+        check!(link::downlink_packet(&q, &small, &stats));
+    }
+    // The transmitter takes 40 bytes: 8 left at offsets 40..48, 16 free up to the end.
+    let mut out = [0u8; 96];
+    let mut taken = 0;
+    while taken < 40 {
+        taken += ok!(q.try_read(&mut out[taken..40]));
+    }
+    let big = [0x22u8; 21]; // 24-byte frame: wraps around the end of the ring
+    check!(link::downlink_packet(&q, &big, &stats));
+    check_eq!(q.len(), 8 + 24);
+    let n = link::drain(&q, &mut out[40..]);
+    check_eq!(n, 32);
+    let mut d: Deframer<64> = Deframer::new();
+    let mut frames: heapless::Vec<heapless::Vec<u8, 32>, 8> = heapless::Vec::new();
+    for &b in &out[..40 + n] {
+        if let Some(r) = d.push(b) {
+            let _ = frames.push(ok!(heapless::Vec::from_slice(ok!(r))));
+        }
+    }
+    check_eq!(frames.len(), 5);
+    check_eq!(&frames[4][..], &big[..]);
+    check_eq!(stats.get().overflow, 0);
     Ok(())
 }
 
