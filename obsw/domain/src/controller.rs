@@ -536,8 +536,10 @@ impl Controller {
     fn heal_b_modes(&mut self, now: u64) {
         let want = self.b_modes_packed();
         let Some(hb) = self.link.heartbeat() else { return };
-        if hb.modes == want || !self.link.idle() {
-            // agreement, or a command (maybe the Power itself) still on its way
+        let fresh = self.link.hb_age_ms(now) <= 2 * mib::config::B_HEARTBEAT_PERIOD_MS as u64;
+        if hb.modes == want || !self.link.idle() || !fresh {
+            // agreement, a command (maybe the Power itself) still on its way, or B
+            // silent (a cut cable): nothing to repair over the link now
             self.b_modes_mismatch_since = None;
             return;
         }

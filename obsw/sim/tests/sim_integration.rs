@@ -393,3 +393,23 @@ fn home_after_an_aborted_primitive_contracts_then_grips() {
     h.advance(1000);
     assert_eq!(h.ctrl.computed_state(), Some(0));
 }
+
+#[test]
+fn cut_cable_does_not_flood_board_b_with_retries() {
+    let mut h = harness(0, 18);
+    h.sim.inject(Fault::CutCable);
+    h.advance(200);
+    // the core would now enter safed: B's modes change while B cannot hear
+    h.ctrl.set_module_modes(mmic_domain::controller::ModuleModes::for_root(
+        mib::modes::robot_mode::SAFED,
+    ));
+    h.advance(20_000);
+    let missed = param(&h, pid::B_ACK_MISSED);
+    assert!(missed <= 2, "{missed} commands given up in 20 s with B silent");
+    // cable mended: B's modes are repaired from its heartbeat
+    h.sim.clear_all();
+    h.advance(2_000);
+    assert_eq!(param(&h, pid::B_LINK_OK), 1);
+    assert_eq!(h.sim.side(Side::B).arm_cmd, Some(1000), "arm B powered (HOLD)");
+    assert_eq!(h.sim.side(Side::B).bolter_cmd, mmic_domain::BolterDrive::Off);
+}
