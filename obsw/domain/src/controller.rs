@@ -513,7 +513,8 @@ impl Controller {
         let pwm = def.arm_pwm();
         self.arm_a.reset_to(pwm);
         self.grip_a.reset_to(servo::GRIP_CLOSED_US);
-        let b_ok = hb.arm_pwm == pwm && hb.grip_pwm == servo::GRIP_CLOSED_US;
+        let fresh = self.link.hb_age_ms(now) <= 2 * mib::config::B_HEARTBEAT_PERIOD_MS as u64;
+        let b_ok = !fresh || (hb.arm_pwm == pwm && hb.grip_pwm == servo::GRIP_CLOSED_US);
         let due = self
             .b_assume_sent_ms
             .is_none_or(|t| now.saturating_sub(t) >= crate::consts::B_MODES_RESEND_MS as u64);
