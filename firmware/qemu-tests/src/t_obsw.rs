@@ -24,6 +24,7 @@ pub const TESTS: &[Test] = tests![
     obsw_mode_set_operational_powers_both_sides_and_homes,
     obsw_board_b_silence_is_comm_loss_and_safes_the_robot,
     obsw_tick_and_tc_fit_the_10_ms_control_period,
+    obsw_store_returns_every_packet_the_full_downlink_dropped,
 ];
 
 /// COBS-framed TCs for robot 1 (APID 0x101) as the ground sends them on the serial
@@ -648,5 +649,82 @@ fn obsw_tick_and_tc_fit_the_10_ms_control_period() -> TestResult {
     check!(worst_tick > 1000, "instruction counter not running ({})", worst_tick);
     check!(worst_tick < BUDGET, "tick takes {} instructions", worst_tick);
     check!(worst_tc < BUDGET, "handle_tc takes {} instructions", worst_tc);
+    Ok(())
+}
+
+/// Sequence count (14 bits) of a TM packet.
+fn seq_of(packet: &[u8]) -> u16 {
+    u16::from_be_bytes([packet[2], packet[3]]) & 0x3FFF
+}
+
+/// Link down: the downlink queue is full and live TM is not sent, but every packet is
+/// in the on-board store, and TC[15,9] brings them all back in order.
+fn obsw_store_returns_every_packet_the_full_downlink_dropped() -> TestResult {
+    static SMALL: ByteQueue<128> = ByteQueue::new();
+    static BIG: ByteQueue<16384> = ByteQueue::new();
+    static S1: Counters = Counters::new();
+    static S2: Counters = Counters::new();
+    let mut obsw = Obsw::new(
+        Config {
+            robot: ROBOT,
+            epoch_unix_ms: 0,
+        },
+        RingStore::<{ config::TM_STORE_BYTES }>::default(),
+    );
+    let mut live = DownlinkSink {
+        queue: &SMALL,
+        counters: &S1,
+    };
+    obsw.boot(0, 1, &mut live);
+    let mut tc = [0u8; 32];
+    for i in 0..10u16 {
+        let n = ok!(crate::t_packets::build(i, 17, 1, &[], &mut tc));
+        obsw.handle_tc(10 + i as u64, &tc[..n], &mut live);
+    }
+    // BOOT + 10 x (1,1 17,2 1,3 1,7) = 41 packets; the link took only the first few.
+    let (sent, dropped) = (S1.get().delivered, S1.get().overflow);
+    check_eq!(sent + dropped, 41);
+    check!(dropped > 30, "only {} dropped", dropped);
+    check_eq!(obsw.param(pid::TM_STORED), 41);
+
+    // Link back: downlink the store.
+    let mut sink = DownlinkSink {
+        queue: &BIG,
+        counters: &S2,
+    };
+    let n = ok!(crate::t_packets::build(10, 15, 9, &[], &mut tc));
+    obsw.handle_tc(100, &tc[..n], &mut sink);
+    let mut bytes = [0u8; 16384];
+    let n = link::drain(&BIG, &mut bytes);
+    let mut d: Deframer<{ config::MAX_PACKET_LEN }> = Deframer::new();
+    let mut seqs: heapless::Vec<u16, 64> = heapless::Vec::new();
+    let mut kinds: heapless::Vec<(u8, u8), 64> = heapless::Vec::new();
+    let mut done = None;
+    for &b in &bytes[..n] {
+        if let Some(r) = d.push(b) {
+            let p = ok!(r);
+            let tm = ok!(parse_tm(p));
+            if (tm.svc, tm.sub) == (15, 19) {
+                done = Some(u32::from_be_bytes([tm.data[0], tm.data[1], tm.data[2], tm.data[3]]));
+            } else if done.is_none() {
+                let _ = seqs.push(seq_of(p));
+            }
+            let _ = kinds.push((tm.svc, tm.sub));
+        }
+    }
+    // First the TC[15,9]'s acceptance, sent live; then the store, oldest first: the 41
+    // packets and that acceptance again (the store keeps a copy of everything), with
+    // consecutive sequence counts; then the end report counting the 42.
+    check_eq!(done, Some(42));
+    check_eq!(seqs.len(), 43);
+    check_eq!(kinds[0], (1, 1));
+    let stored = &seqs[1..];
+    for (i, s) in stored.iter().enumerate() {
+        check_eq!(*s, stored[0] + i as u16, "stored packet {}", i);
+    }
+    check_eq!(stored[41], seqs[0]);
+    check_eq!(kinds[1], (5, 1));
+    check_eq!(&kinds[43..], &[(15, 19), (1, 3), (1, 7)][..]);
+    check_eq!(S2.get().overflow, 0);
     Ok(())
 }
