@@ -99,6 +99,8 @@ pub mod model {
     /// Quiescent draw of the two boards, regulator efficiency, battery resistance.
     pub const BOARDS_MA: f64 = 150.0;
     pub const REG_EFFICIENCY: f64 = 0.9;
+    /// Regulator dropout: V_reg follows V_bat minus this once V_bat is too low.
+    pub const REG_DROPOUT_V: f64 = 0.5;
     pub const BATTERY_OHM: f64 = 0.1;
     /// The dead hip encoder's stuck reading (cdeg).
     pub const DEAD_ENCODER_CDEG: i16 = 16383;
@@ -385,7 +387,8 @@ impl Sim {
             v_bat: self.volts_raw(1, self.battery_v()),
             i_bat: self.adc(2, self.i_bat_ma),
             v_reg: if self.regulator_on {
-                self.volts_raw(3, V_REG_NOMINAL)
+                // the linear regulator drops out below its input headroom
+                self.volts_raw(3, V_REG_NOMINAL.min(self.battery_v() - REG_DROPOUT_V).max(0.0))
             } else {
                 self.adc(3, 0.0)
             },

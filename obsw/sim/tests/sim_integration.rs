@@ -212,6 +212,11 @@ fn fault_battery_sag_drops_v_bat_below_ten_volts() {
     assert!(param(&h, pid::V_BAT_B) < empty);
     let v = CAL_VOLT.eng(param(&h, pid::V_BAT_A));
     assert!((v - 9.5).abs() < 0.1, "{v}");
+    // the 7.4 V regulator still regulates at 9.5 V, not at 6 V
+    assert!((CAL_VOLT.eng(param(&h, pid::V_REG)) - 7.4).abs() < 0.1);
+    h.sim.inject(Fault::BatterySag { volts: 6.0 });
+    h.advance(1000);
+    assert!((CAL_VOLT.eng(param(&h, pid::V_REG)) - 5.5).abs() < 0.1);
 }
 
 #[test]
