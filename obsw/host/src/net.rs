@@ -11,6 +11,9 @@ use std::thread;
 
 use mib::config::MAX_PACKET_LEN;
 
+/// Longest a TM write to one TCP client may block.
+const TCP_WRITE_TIMEOUT_MS: u64 = 100;
+
 /// Something for the main loop.
 pub enum Input {
     /// A TC (raw space packet) and where it came from.
@@ -106,6 +109,9 @@ pub fn start(
     thread::Builder::new().name("tcp-accept".into()).spawn(move || {
         for stream in tcp.incoming().flatten() {
             let _ = stream.set_nodelay(true);
+            // A client that stops reading must not stall the OBSW: a write that cannot
+            // complete in this time drops the client (its TM stays in the on-board store).
+            let _ = stream.set_write_timeout(Some(std::time::Duration::from_millis(TCP_WRITE_TIMEOUT_MS)));
             let Ok(reader) = stream.try_clone() else { continue };
             if let Ok(mut c) = clients.lock() {
                 c.push(stream);
