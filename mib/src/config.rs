@@ -22,6 +22,9 @@ pub const GROUND_ID: u16 = 0;
 /// Default UDP/TCP port of robot 1's OBSW; robot N listens on `DEFAULT_PORT + N - 1`
 /// when the ground tool starts several OBSWs.
 pub const DEFAULT_PORT: u16 = 7301;
+/// Longest a TM write to one TCP client may block before the client is dropped (its
+/// TM stays in the on-board store).
+pub const TCP_WRITE_TIMEOUT_MS: u32 = 100;
 /// Simulator control port of robot N is `SIM_CTL_BASE_PORT + N` (host simulator only).
 pub const SIM_CTL_BASE_PORT: u16 = 7400;
 

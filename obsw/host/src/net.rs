@@ -11,9 +11,6 @@ use std::thread;
 
 use mib::config::MAX_PACKET_LEN;
 
-/// Longest a TM write to one TCP client may block.
-const TCP_WRITE_TIMEOUT_MS: u64 = 100;
-
 /// Something for the main loop.
 pub enum Input {
     /// A TC (raw space packet) and where it came from.
@@ -111,7 +108,7 @@ pub fn start(
             let _ = stream.set_nodelay(true);
             // A client that stops reading must not stall the OBSW: a write that cannot
             // complete in this time drops the client (its TM stays in the on-board store).
-            let _ = stream.set_write_timeout(Some(std::time::Duration::from_millis(TCP_WRITE_TIMEOUT_MS)));
+            let _ = stream.set_write_timeout(Some(std::time::Duration::from_millis(mib::config::TCP_WRITE_TIMEOUT_MS as u64)));
             let Ok(reader) = stream.try_clone() else { continue };
             if let Ok(mut c) = clients.lock() {
                 c.push(stream);
