@@ -46,7 +46,7 @@ failure_codes! {
     NOT_ALLOWED_IN_MODE = 10, "mode u8", "Command not accepted in the current mode (paper Table 7)";
     BUSY = 11, "running_function u16", "Another robot action is running";
     INITIAL_STATE_MISMATCH = 12, "believed u8, computed u8", "Ground's initial state differs from the state computed from sensors";
-    UNREACHABLE_STATE = 13, "from u8, to u8", "No primitive sequence of at most 3 steps connects the states";
+    UNREACHABLE_STATE = 13, "from u8, to u8", "No primitive sequence of at most 3 steps connects the states (cannot happen with the current map, where every pair is within 3; kept for map changes)";
     BOLT_FAILED = 14, "side u8, pair u8, attempts u8", "A fastener pair did not lock within the allowed attempts";
     UNBOLT_FAILED = 15, "side u8, pair u8, attempts u8", "A fastener pair did not release within the allowed attempts";
     ABORTED_BY_FAULT = 16, "event_id u16", "Action aborted because FDIR detected a fault";
@@ -67,7 +67,6 @@ failure_codes! {
     STORE_DISABLED = 31, "", "On-board storage is disabled";
     TIMEOUT = 32, "elapsed_ms u32", "Action did not complete in its time limit";
     ABORTED_BY_COMMAND = 33, "function u16", "Action aborted by a STOP command or a commanded mode change";
-    RESOURCE_EXHAUSTED = 34, "what u8", "A bounded on-board queue was full; the TC was not executed";
 }
 
 #[cfg(test)]
