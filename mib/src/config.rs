@@ -52,7 +52,8 @@ pub const ACTION_QUEUE_DEPTH: usize = 1;
 pub const MAX_RECONFIG_PRIMITIVES: usize = 3;
 
 /// Event throttling: at most `EVENT_THROTTLE_MAX` reports of one event ID per
-/// `EVENT_THROTTLE_WINDOW_MS`; the rest are counted and dropped.
+/// `EVENT_THROTTLE_WINDOW_MS`; the rest are counted and dropped. `MODE_CHANGED` is
+/// exempt: at most one per mode-tree node and transition, and every one matters.
 pub const EVENT_THROTTLE_WINDOW_MS: u32 = 1000;
 pub const EVENT_THROTTLE_MAX: u8 = 20;
 /// Default time report rate exponent (TM[9,2] every 2^n s).

@@ -8,7 +8,7 @@ use mib::fdir::{Phase, FAULTS};
 use mib::hk::{self, HK_STRUCTS};
 use mib::modes::{module_mode, node, robot_mode, submode, NodeKind};
 use mib::params::{self, pid};
-use mib::robot::{self, Side, STATE_UNKNOWN};
+use mib::robot::{Side, STATE_UNKNOWN};
 use mib::tc::{function, service};
 use mib::FailureCode;
 
@@ -326,14 +326,17 @@ impl<S: TmStore> Obsw<S> {
         if self.ev_disabled & (1 << i) != 0 {
             return;
         }
+        // Mode changes are bounded by the transitions themselves (one per node) and the
+        // ground must see every one; everything else is throttled per event ID.
         let t = &mut self.throttle[i];
+        let throttled = id != eid::MODE_CHANGED;
         if now.saturating_sub(t.window_start) >= config::EVENT_THROTTLE_WINDOW_MS as u64 {
             *t = Throttle {
                 window_start: now,
                 count: 0,
             };
         }
-        if t.count >= config::EVENT_THROTTLE_MAX {
+        if throttled && t.count >= config::EVENT_THROTTLE_MAX {
             self.counters.events_throttled = self.counters.events_throttled.wrapping_add(1);
             return;
         }
@@ -353,9 +356,14 @@ impl<S: TmStore> Obsw<S> {
         }
     }
 
-    /// Raw value of any MIB telemetry parameter.
+    /// Raw value of any MIB telemetry parameter (0 when it has no valid value).
     pub fn param(&self, id: u16) -> i64 {
-        match id {
+        self.param_opt(id).unwrap_or(0)
+    }
+
+    /// Raw value of any MIB telemetry parameter; `None` when it has no valid value.
+    pub fn param_opt(&self, id: u16) -> Option<i64> {
+        Some(match id {
             pid::MODE => self.modes.root() as i64,
             pid::FAULT_FLAGS => self.faults.active() as i64,
             pid::FAULT_LATCHED => self.faults.latched as i64,
@@ -363,7 +371,6 @@ impl<S: TmStore> Obsw<S> {
             pid::MON_ENABLED => self.monitoring.enabled_mask() as i64,
             pid::LAST_FAULT_EVENT => self.faults.last_event as i64,
             pid::PENDING_MODE => self.faults.pending_mode.map_or(255, |m| m as i64),
-            pid::HIP_DEVIATION => self.hip_deviation(),
             pid::TC_ACCEPTED => self.counters.tc_accepted as i64,
             pid::TC_REJECTED => self.counters.tc_rejected as i64,
             pid::TC_DUPLICATE => self.counters.tc_duplicate as i64,
@@ -373,19 +380,8 @@ impl<S: TmStore> Obsw<S> {
             pid::SCHED_COUNT => self.sched.len() as i64,
             pid::SCHED_ENABLED => self.sched_enabled as i64,
             pid::UPTIME_S => (self.last_now / 1000) as i64,
-            _ => self.ctrl.param(id).unwrap_or(0),
-        }
-    }
-
-    /// Hip encoder minus the angle the IMU-derived state implies.
-    fn hip_deviation(&self) -> i64 {
-        let angle = self.ctrl.param(pid::HIP_ANGLE).unwrap_or(0);
-        let expected = self
-            .ctrl
-            .computed_state()
-            .and_then(|s| robot::STATES.get(s as usize))
-            .map_or(robot::servo::HIP_HOME_CDEG, |s| s.hip_cdeg());
-        angle - expected as i64
+            _ => return self.ctrl.param(id),
+        })
     }
 
     // ------------------------------------------------------------------ TC path
@@ -1182,6 +1178,12 @@ impl<S: TmStore> Obsw<S> {
 
     fn fault_inner(&mut self, now: u64, event: u16, args: &[i64], monitored: bool, sink: &mut impl TmSink) {
         self.event(now, event, args, sink);
+        let bit = mib::fdir::fault_by_event(event).map_or(0, |f| 1u32 << f.bit);
+        if !monitored && self.faults.oneshot & bit != 0 {
+            // Already active and being dealt with (e.g. every command left unacknowledged
+            // by a silent board B): reported, not counted or acted on again.
+            return;
+        }
         match self.faults.raise(event, monitored) {
             Response::None => {}
             Response::Now(m) => self.set_mode(now, m, event, sink),
@@ -1206,13 +1208,17 @@ impl<S: TmStore> Obsw<S> {
         let mut tr: heapless::Vec<fdir::Transition, N_MONITORS> = heapless::Vec::new();
         {
             let this = &*self;
-            let mut vals = [0i64; N_MONITORS];
+            // A parameter without a valid value (board B never heard) is not checked.
+            let mut vals = [None; N_MONITORS];
             for (v, m) in vals.iter_mut().zip(this.monitoring.mons.iter()) {
-                *v = this.param(m.def.param);
+                *v = this.param_opt(m.def.param);
             }
             let ids: [u16; N_MONITORS] = core::array::from_fn(|i| this.monitoring.mons[i].def.param);
-            self.monitoring
-                .check(phases, |p| ids.iter().position(|x| *x == p).map(|i| vals[i]), &mut tr);
+            self.monitoring.check(
+                phases,
+                |p| ids.iter().position(|x| *x == p).and_then(|i| vals[i]),
+                &mut tr,
+            );
         }
         self.faults.monitored = self.monitoring.violated_fault_bits();
         let mut raised = None;

@@ -362,6 +362,23 @@ struct FiltersA {
     hip: Ma,
 }
 
+/// Parameters whose value comes from board B's heartbeat.
+const B_SOURCED: &[u16] = &[
+    pid::ARM_B_TARGET,
+    pid::ARM_B_PWM,
+    pid::GRIP_B_TARGET,
+    pid::GRIP_B_PWM,
+    pid::V_BAT_B,
+    pid::I_LOC_B,
+    pid::I_GRIP_B,
+    pid::I_BO_B,
+    pid::ARM_SW_B,
+    pid::GRAV_B_X,
+    pid::GRAV_B_Y,
+    pid::GRAV_B_Z,
+    pid::BOLTER_B_STATE,
+];
+
 /// Board A's robot logic.
 #[derive(Clone, Debug)]
 pub struct Controller {
@@ -1144,6 +1161,11 @@ impl Controller {
     /// Raw value of a MIB parameter the domain owns (`None` for the others).
     pub fn param(&self, id: u16) -> Option<i64> {
         let hb = self.link.heartbeat();
+        // Side B's readings only exist once board B has been heard: until then they
+        // have no value (rather than a misleading 0 that would trip a monitor).
+        if hb.is_none() && B_SOURCED.contains(&id) {
+            return None;
+        }
         let hbv = |f: fn(&crate::ablink::Heartbeat) -> i64| hb.map(f).unwrap_or(0);
         let b = |v: bool| v as i64;
         let ga = self.grav_a();
@@ -1435,7 +1457,8 @@ mod tests {
     fn controller_answers_every_domain_parameter() {
         let c = Controller::new();
         for &p in DOMAIN_PARAMS {
-            assert!(c.param(p).is_some(), "param {p}");
+            // Before board B's first heartbeat its readings have no value.
+            assert_eq!(c.param(p).is_some(), !B_SOURCED.contains(&p), "param {p}");
             assert!(mib::params::by_id(p).is_some());
         }
         assert_eq!(c.param(pid::MODE), None);
