@@ -58,11 +58,7 @@ fn need(buf: &[u8], n: usize) -> Result<(), CodecError> {
 }
 
 /// Writes the source data of TM[3,25] for `def`, reading each raw value from `value`.
-pub fn encode_hk(
-    def: &HkDef,
-    mut value: impl FnMut(u16) -> i64,
-    buf: &mut [u8],
-) -> Result<usize, CodecError> {
+pub fn encode_hk(def: &HkDef, mut value: impl FnMut(u16) -> i64, buf: &mut [u8]) -> Result<usize, CodecError> {
     let len = def.data_len();
     need(buf, len)?;
     buf[..2].copy_from_slice(&def.sid.to_be_bytes());
@@ -127,13 +123,10 @@ pub fn encode_event(def: &EventDef, args: &[i64], buf: &mut [u8]) -> Result<usiz
     let mut off = 2;
     for (i, p) in def.params.iter().enumerate() {
         let v = args.get(i).copied().unwrap_or(0);
-        off += p
-            .ptype
-            .encode(v, &mut buf[off..])
-            .ok_or(CodecError::BufferTooShort {
-                need: len,
-                have: buf.len(),
-            })?;
+        off += p.ptype.encode(v, &mut buf[off..]).ok_or(CodecError::BufferTooShort {
+            need: len,
+            have: buf.len(),
+        })?;
     }
     Ok(off)
 }
@@ -199,9 +192,7 @@ impl ArgError {
             }
             ArgError::OutOfRange { index, value } => {
                 buf[0] = index;
-                buf[1..5].copy_from_slice(
-                    &(value.clamp(i32::MIN as i64, i32::MAX as i64) as i32).to_be_bytes(),
-                );
+                buf[1..5].copy_from_slice(&(value.clamp(i32::MIN as i64, i32::MAX as i64) as i32).to_be_bytes());
                 5
             }
         }
@@ -244,18 +235,11 @@ pub fn encode_args(def: &TcDef, args: &[i64], buf: &mut [u8]) -> Result<usize, A
 /// Decodes and range-checks a TC's fixed arguments from its application data (for
 /// PUS 8 the function ID must already be stripped: pass the bytes after it).
 /// Returns the argument values and the remaining (variable) data.
-pub fn decode_args<'a>(
-    def: &TcDef,
-    data: &'a [u8],
-) -> Result<([i64; MAX_ARGS], &'a [u8]), ArgError> {
+pub fn decode_args<'a>(def: &TcDef, data: &'a [u8]) -> Result<([i64; MAX_ARGS], &'a [u8]), ArgError> {
     let fixed: usize = def.args.iter().map(|a| a.ptype.size()).sum();
     let exact = !def.variable;
     if data.len() < fixed || (exact && data.len() != fixed) {
-        let off = if def.service == service::FUNCTION {
-            2
-        } else {
-            0
-        };
+        let off = if def.service == service::FUNCTION { 2 } else { 0 };
         return Err(ArgError::Length {
             got: data.len() + off,
             expected: fixed + off,
@@ -309,10 +293,7 @@ mod tests {
             decode_hk(&buf[..n - 1]),
             Err(CodecError::LengthMismatch { .. })
         ));
-        assert_eq!(
-            decode_hk(&[0, 99, 1]).unwrap_err(),
-            CodecError::UnknownSid(99)
-        );
+        assert_eq!(decode_hk(&[0, 99, 1]).unwrap_err(), CodecError::UnknownSid(99));
         assert!(decode_hk(&[0]).is_err());
         // a short output buffer is an error, not a panic
         assert!(encode_hk(def, |_| 1, &mut buf[..10]).is_err());
@@ -341,24 +322,12 @@ mod tests {
         assert_eq!((v[0], v[1], rest.len()), (0, 1, 0));
         assert_eq!(
             encode_args(def, &[0, 15], &mut buf),
-            Err(ArgError::OutOfRange {
-                index: 1,
-                value: 15
-            })
+            Err(ArgError::OutOfRange { index: 1, value: 15 })
         );
         assert_eq!(
             decode_args(def, &[0, 15]),
-            Err(ArgError::OutOfRange {
-                index: 1,
-                value: 15
-            })
+            Err(ArgError::OutOfRange { index: 1, value: 15 })
         );
-        assert_eq!(
-            decode_args(def, &[0]),
-            Err(ArgError::Length {
-                got: 3,
-                expected: 4
-            })
-        );
+        assert_eq!(decode_args(def, &[0]), Err(ArgError::Length { got: 3, expected: 4 }));
     }
 }

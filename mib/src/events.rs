@@ -116,9 +116,7 @@ mod tests {
     #[test]
     fn event_ids_unique() {
         for (i, e) in EVENTS.iter().enumerate() {
-            assert!(EVENTS[i + 1..]
-                .iter()
-                .all(|o| o.id != e.id && o.name != e.name));
+            assert!(EVENTS[i + 1..].iter().all(|o| o.id != e.id && o.name != e.name));
         }
     }
 }

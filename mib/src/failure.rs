@@ -76,9 +76,7 @@ mod tests {
     fn codes_round_trip_and_unknown_is_a_value() {
         for (i, c) in FailureCode::ALL.iter().enumerate() {
             assert_eq!(FailureCode::from_code(c.code()), *c);
-            assert!(FailureCode::ALL[i + 1..]
-                .iter()
-                .all(|o| o.code() != c.code()));
+            assert!(FailureCode::ALL[i + 1..].iter().all(|o| o.code() != c.code()));
         }
         assert_eq!(FailureCode::from_code(999), FailureCode::Unknown(999));
         assert_eq!(FailureCode::Unknown(999).code(), 999);

@@ -332,9 +332,7 @@ mod tests {
             assert!(fault_by_event(e.id).is_some(), "{}", e.name);
         }
         for (i, f) in FAULTS.iter().enumerate() {
-            assert!(FAULTS[i + 1..]
-                .iter()
-                .all(|o| o.bit != f.bit && o.event != f.event));
+            assert!(FAULTS[i + 1..].iter().all(|o| o.bit != f.bit && o.event != f.event));
             assert!(f.bit < 32);
         }
     }

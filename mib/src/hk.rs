@@ -80,14 +80,7 @@ pub const HK_STRUCTS: &[HkDef] = &[
     HkDef {
         sid: sid::B_LINK,
         name: "B_LINK",
-        params: &[
-            B_LINK_OK,
-            B_HB_AGE_MS,
-            B_HB_RX,
-            B_FRAME_ERRORS,
-            B_RETRIES,
-            B_ACK_MISSED,
-        ],
+        params: &[B_LINK_OK, B_HB_AGE_MS, B_HB_RX, B_FRAME_ERRORS, B_RETRIES, B_ACK_MISSED],
         default_interval_ms: 5000,
         default_enabled: true,
         desc: "Board A-B serial link status",
@@ -152,12 +145,7 @@ mod tests {
     fn every_hk_parameter_exists_and_sids_are_unique() {
         for (i, h) in HK_STRUCTS.iter().enumerate() {
             for p in h.params {
-                assert!(
-                    crate::params::by_id(*p).is_some(),
-                    "SID {} param {}",
-                    h.sid,
-                    p
-                );
+                assert!(crate::params::by_id(*p).is_some(), "SID {} param {}", h.sid, p);
             }
             assert!(HK_STRUCTS[i + 1..].iter().all(|o| o.sid != h.sid));
             assert!(h.data_len() <= crate::config::MAX_PACKET_LEN - 32);

@@ -156,10 +156,7 @@ pub const fn child_mode(root_mode: u32, kind: NodeKind) -> u32 {
 /// Root modes that can be commanded by TC[200,1] at the robot node. Non-root nodes are
 /// driven by the root; commanding them directly is refused with `INVALID_MODE`.
 pub const fn is_commandable_root_mode(mode: u32) -> bool {
-    matches!(
-        mode,
-        robot_mode::STANDBY | robot_mode::OPERATIONAL | robot_mode::SAFED
-    )
+    matches!(mode, robot_mode::STANDBY | robot_mode::OPERATIONAL | robot_mode::SAFED)
 }
 
 /// Submode of the robot node: 0 = idle, 1 = executing an action.
@@ -183,18 +180,9 @@ mod tests {
     }
     #[test]
     fn safed_keeps_hip_and_arms_powered_and_standby_powers_nothing() {
-        assert_eq!(
-            child_mode(robot_mode::SAFED, NodeKind::Hip),
-            module_mode::HOLD
-        );
-        assert_eq!(
-            child_mode(robot_mode::SAFED, NodeKind::Arm),
-            module_mode::HOLD
-        );
-        assert_eq!(
-            child_mode(robot_mode::SAFED, NodeKind::Bolter),
-            module_mode::OFF
-        );
+        assert_eq!(child_mode(robot_mode::SAFED, NodeKind::Hip), module_mode::HOLD);
+        assert_eq!(child_mode(robot_mode::SAFED, NodeKind::Arm), module_mode::HOLD);
+        assert_eq!(child_mode(robot_mode::SAFED, NodeKind::Bolter), module_mode::OFF);
         for n in NODES.iter().filter(|n| n.kind != NodeKind::Root) {
             assert_eq!(child_mode(robot_mode::STANDBY, n.kind), module_mode::OFF);
             assert_eq!(child_mode(robot_mode::OPERATIONAL, n.kind), module_mode::ON);

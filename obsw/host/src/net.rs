@@ -108,7 +108,9 @@ pub fn start(
             let _ = stream.set_nodelay(true);
             // A client that stops reading must not stall the OBSW: a write that cannot
             // complete in this time drops the client (its TM stays in the on-board store).
-            let _ = stream.set_write_timeout(Some(std::time::Duration::from_millis(mib::config::TCP_WRITE_TIMEOUT_MS as u64)));
+            let _ = stream.set_write_timeout(Some(std::time::Duration::from_millis(
+                mib::config::TCP_WRITE_TIMEOUT_MS as u64,
+            )));
             let Ok(reader) = stream.try_clone() else { continue };
             if let Ok(mut c) = clients.lock() {
                 c.push(stream);
