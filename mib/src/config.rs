@@ -7,6 +7,17 @@ pub const CONTROL_PERIOD_MS: u32 = 10;
 pub const MOVING_AVERAGE_WINDOW: usize = 50;
 /// Period of board B's heartbeat to board A.
 pub const B_HEARTBEAT_PERIOD_MS: u32 = 50;
+/// A–B link: commands waiting behind the one in flight (coalesced per kind, so the
+/// queue never overflows: there are fewer command kinds than slots).
+pub const AB_LINK_QUEUE_DEPTH: usize = 8;
+/// A–B link: largest decoded frame payload (bytes).
+pub const AB_LINK_MAX_FRAME: usize = 64;
+/// A–B link: bytes one control period may hand to the serial line (115200 Bd carries
+/// ~115 bytes per 10 ms).
+pub const AB_LINK_TX_CAP: usize = 128;
+/// A–B link: shortest interval between re-sends of B's module modes when its heartbeat
+/// shows other modes than A wants.
+pub const B_MODES_RESEND_MS: u32 = 200;
 /// Serial baud rate of the A–B link.
 pub const AB_LINK_BAUD: u32 = 115_200;
 

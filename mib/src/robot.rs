@@ -453,8 +453,48 @@ pub mod servo {
     pub const HIP_DONE_CDEG: i16 = 50;
 }
 
+/// State estimator tolerances (configuration state from IMUs, hip encoder, arm and
+/// gripper PWM).
+pub mod estimator {
+    /// Largest hip error (cdeg) still consistent with a state (10°).
+    pub const HIP_TOL_CDEG: i16 = 1000;
+    /// Largest arm PWM error (µs) still consistent with a state.
+    pub const ARM_TOL_US: u16 = 100;
+    /// A side counts as gripped only if its gripper PWM is within this of
+    /// `servo::GRIP_CLOSED_US` (µs).
+    pub const GRIP_TOL_US: u16 = 50;
+    /// Smallest dot product (milli-g) between a measured gravity vector and a face's
+    /// expected gravity for the face to be recognised (≈ 37°).
+    pub const FACE_MIN_DOT_MG: i32 = 800;
+    /// Accepted magnitude band (milli-g) of a gravity vector.
+    pub const G_MIN_MG: i32 = 700;
+    pub const G_MAX_MG: i32 = 1300;
+    /// After a primitive, how long the filtered sensors may take to confirm the new state.
+    pub const STATE_SETTLE_TIMEOUT_MS: u32 = 2000;
+}
+
+/// Hip controller design values.
+pub mod hip {
+    /// Hip "done": error within `servo::HIP_DONE_CDEG` for this many consecutive ticks.
+    pub const DONE_TICKS: u8 = 20;
+    /// Largest hip speed command (cdeg/s) the controller outputs.
+    pub const MAX_CMD_CDEG_S: i16 = 3000;
+    /// Samples spanned by the hip velocity estimate (100 ms at the control period).
+    pub const VEL_SPAN: usize = 10;
+}
+
 /// Bolter constants.
 pub mod bolter {
+    /// Multiplexer settling time after selecting a pair.
+    pub const SELECT_MS: u32 = 50;
+    /// Retract time after the first push.
+    pub const RETRACT_MS: u32 = 400;
+    /// Reverse rotation time after locking.
+    pub const REVERSE_MS: u32 = 500;
+    /// Travel time back to the home position.
+    pub const RETURN_MS: u32 = 1200;
+    /// Unbolting: shortest reverse rotation before release is judged by current.
+    pub const UNLOCK_MIN_MS: u32 = 300;
     /// Fastener pairs per face.
     pub const PAIRS_PER_FACE: u8 = 4;
     /// Ground-demo statistics (paper): of 2524 engaged pairs, bolted at the 1st, 2nd and
