@@ -93,6 +93,7 @@ events! {
     STORE_OVERFLOW = 0x0209, Medium, false, ["dropped": U32], "On-board TM store full: oldest packets overwritten";
     MODE_CHANGE_FAILED = 0x020A, Medium, false, ["node": U32, "mode": U32, "reason": U16], "A mode transition could not complete";
     BOLT_ATTEMPT_FAILED = 0x020B, Low, false, ["side": U8, "pair": U8, "attempt": U8], "One bolting attempt failed; retrying";
+    PREVIOUS_PANIC = 0x020C, High, false, ["reset_cause": U8, "line": U32, "file_crc": U32], "The previous run ended in a panic (location recorded before the reset; file_crc = CRC-32 of the source path)";
 }
 
 pub fn by_id(id: u16) -> Option<&'static EventDef> {

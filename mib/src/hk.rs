@@ -22,6 +22,7 @@ pub mod sid {
     pub const B_LINK: u16 = 2;
     pub const FDIR: u16 = 3;
     pub const OBSW: u16 = 4;
+    pub const PLATFORM_IO: u16 = 5;
 }
 
 /// Shortest and longest collection interval accepted by TC[3,31].
@@ -119,6 +120,20 @@ pub const HK_STRUCTS: &[HkDef] = &[
         default_interval_ms: 10000,
         default_enabled: true,
         desc: "On-board software counters",
+    },
+    HkDef {
+        sid: sid::PLATFORM_IO,
+        name: "PLATFORM_IO",
+        params: &[
+            IO_TC_DROPPED,
+            IO_TM_DROPPED,
+            IO_SENSOR_ERRORS,
+            IO_OUTPUT_ERRORS,
+            IO_AB_BYTES_DROPPED,
+        ],
+        default_interval_ms: 10000,
+        default_enabled: true,
+        desc: "Counters of the platform's I/O (board A firmware or host binary)",
     },
 ];
 

@@ -141,6 +141,12 @@ params! {
     SCHED_COUNT = 76, U16, "", ID, None, "Activities in the time-based schedule";
     SCHED_ENABLED = 77, Bool, "", ID, None, "Time-based schedule enabled";
     UPTIME_S = 78, U32, "s", ID, None, "Seconds since boot";
+    // --- platform I/O (board A firmware or host binary) ---
+    IO_TC_DROPPED = 80, U32, "", ID, None, "Uplink frames dropped before the OBSW saw them (queue full, framing error)";
+    IO_TM_DROPPED = 81, U32, "", ID, None, "Live TM packets the ground link could not send (kept in the store)";
+    IO_SENSOR_ERRORS = 82, U32, "", ID, None, "Sensor reads that failed (I2C errors on the ADC, IMU or hip encoder)";
+    IO_OUTPUT_ERRORS = 83, U32, "", ID, None, "Actuator writes that failed (PWM, GPIO)";
+    IO_AB_BYTES_DROPPED = 84, U32, "", ID, None, "A-B serial bytes dropped by board A's receive or transmit queue";
 }
 
 /// Looks a parameter up by ID.

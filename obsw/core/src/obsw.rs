@@ -113,6 +113,17 @@ struct Scheduled {
     tc: heapless::Vec<u8, { config::MAX_SCHEDULED_TC_LEN }>,
 }
 
+/// Counters of the platform's I/O, kept by the host binary or the firmware and
+/// reported in housekeeping structure PLATFORM_IO.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct IoCounters {
+    pub tc_dropped: u32,
+    pub tm_dropped: u32,
+    pub sensor_errors: u32,
+    pub output_errors: u32,
+    pub ab_bytes_dropped: u32,
+}
+
 /// Counters reported in the OBSW housekeeping structure.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Counters {
@@ -161,6 +172,8 @@ pub struct Obsw<S: TmStore> {
     mode_cmd: Option<ModeCmd>,
     running: Option<Running>,
     pub counters: Counters,
+    /// Platform I/O counters; the host or firmware updates them.
+    pub io: IoCounters,
     last_now: u64,
     out: TickOut,
 }
@@ -200,6 +213,7 @@ impl<S: TmStore> Obsw<S> {
             mode_cmd: None,
             running: None,
             counters: Counters::default(),
+            io: IoCounters::default(),
             last_now: 0,
             out: TickOut::new(),
         };
@@ -211,9 +225,26 @@ impl<S: TmStore> Obsw<S> {
         self.apid
     }
 
-    /// Announces the boot (event BOOT).
+    /// Announces the boot (event BOOT, `mib::config::reset_cause`).
     pub fn boot(&mut self, now: u64, reset_cause: u8, sink: &mut impl TmSink) {
         self.event(now, eid::BOOT, &[reset_cause as i64], sink);
+    }
+
+    /// Reports a panic recorded by the previous run (event PREVIOUS_PANIC).
+    pub fn report_previous_panic(
+        &mut self,
+        now: u64,
+        reset_cause: u8,
+        line: u32,
+        file_crc: u32,
+        sink: &mut impl TmSink,
+    ) {
+        self.event(
+            now,
+            eid::PREVIOUS_PANIC,
+            &[reset_cause as i64, line as i64, file_crc as i64],
+            sink,
+        );
     }
 
     /// Actual mode of the robot node.
@@ -380,6 +411,11 @@ impl<S: TmStore> Obsw<S> {
             pid::SCHED_COUNT => self.sched.len() as i64,
             pid::SCHED_ENABLED => self.sched_enabled as i64,
             pid::UPTIME_S => (self.last_now / 1000) as i64,
+            pid::IO_TC_DROPPED => self.io.tc_dropped as i64,
+            pid::IO_TM_DROPPED => self.io.tm_dropped as i64,
+            pid::IO_SENSOR_ERRORS => self.io.sensor_errors as i64,
+            pid::IO_OUTPUT_ERRORS => self.io.output_errors as i64,
+            pid::IO_AB_BYTES_DROPPED => self.io.ab_bytes_dropped as i64,
             _ => return self.ctrl.param(id),
         })
     }

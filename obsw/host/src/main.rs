@@ -239,8 +239,8 @@ fn run(args: Args) -> Result<()> {
     let end_ms = s.duration.map(|d| (d * 1000.0) as u64);
     let mut sim_ms: u64 = 0;
     let mut link_rx: Vec<u8> = Vec::new();
-    let mut bad_frames: u64 = 0;
-    obsw.boot(0, 0, &mut down);
+    let mut bad_frames: u32 = 0;
+    obsw.boot(0, config::reset_cause::POWER_ON, &mut down);
     loop {
         let due = wall_of(sim_ms + period);
         let wait = due.saturating_duration_since(Instant::now());
@@ -262,6 +262,7 @@ fn run(args: Args) -> Result<()> {
                 }
                 Input::BadFrame => {
                     bad_frames += 1;
+                    obsw.io.tc_dropped = bad_frames;
                     log::warn!("dropped a malformed COBS frame on TCP ({bad_frames} so far)");
                     // A frame that cannot be decoded has no request ID: report it as
                     // a malformed packet through the normal acceptance path.
@@ -278,6 +279,7 @@ fn run(args: Args) -> Result<()> {
             continue;
         }
         sim_ms += period;
+        obsw.io.tm_dropped = down.tm_dropped;
         let sensors = sim.sensors_a();
         let out = obsw.tick(sim_ms, &sensors, &link_rx, &mut down);
         link_rx.clear();

@@ -34,6 +34,8 @@ pub struct Downlink {
     udp_peer: Arc<Mutex<Option<SocketAddr>>>,
     tcp_clients: Arc<Mutex<Vec<TcpStream>>>,
     frame: Vec<u8>,
+    /// Live TM packets that could not be sent (UDP send errors, dropped TCP clients).
+    pub tm_dropped: u32,
 }
 
 impl Downlink {
@@ -50,7 +52,9 @@ impl obsw_core::tm::TmSink for Downlink {
             if let Some(peer) = *p {
                 // A full socket buffer or an unreachable peer must not stop the OBSW;
                 // the on-board store keeps the packet for a later downlink.
-                let _ = self.udp.send_to(packet, peer);
+                if self.udp.send_to(packet, peer).is_err() {
+                    self.tm_dropped = self.tm_dropped.wrapping_add(1);
+                }
             }
         }
         let Ok(mut clients) = self.tcp_clients.lock() else {
@@ -63,7 +67,9 @@ impl obsw_core::tm::TmSink for Downlink {
         let n = cobs::encode(packet, &mut self.frame);
         self.frame[n] = 0;
         let frame = &self.frame[..=n];
+        let before = clients.len();
         clients.retain_mut(|c| c.write_all(frame).is_ok());
+        self.tm_dropped = self.tm_dropped.wrapping_add((before - clients.len()) as u32);
     }
 }
 
@@ -82,6 +88,7 @@ pub fn start(
         udp_peer: Arc::new(Mutex::new(None)),
         tcp_clients: Arc::new(Mutex::new(Vec::new())),
         frame: Vec::new(),
+        tm_dropped: 0,
     };
 
     let utx = tx.clone();
