@@ -1,0 +1,231 @@
+//! `ground demo`: starts one `obsw` per robot of the demo plan (with its simulator, at
+//! a high `--speed`), runs the plan with the live display, prints the summary and the
+//! archive path, and stops the OBSWs.
+
+use std::io::BufRead;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::Duration;
+
+use anyhow::{anyhow, Context, Result};
+use clap::Args;
+use ground::link::Transport;
+use ground::ops::{self, RunOptions};
+use ground::plan;
+
+/// The shipped demo plan (`plans/demo.toml`).
+pub const DEMO_PLAN: &str = include_str!("../../plans/demo.toml");
+
+#[derive(Args, Debug)]
+pub struct DemoArgs {
+    /// The obsw binary [default: next to this executable, then $OBSW_BIN, then PATH].
+    #[arg(long)]
+    obsw: Option<PathBuf>,
+    /// Simulated seconds per wall-clock second.
+    #[arg(long, default_value_t = 20.0)]
+    speed: f64,
+    /// Seed of the simulators (robot N uses seed + N).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Run another plan instead of the shipped demo.
+    #[arg(long)]
+    plan: Option<PathBuf>,
+    /// Use TCP instead of UDP.
+    #[arg(long)]
+    tcp: bool,
+    /// Plain log lines instead of the live display.
+    #[arg(long)]
+    plain: bool,
+}
+
+/// Running OBSW processes, stopped on drop.
+pub struct Obsws(pub Vec<(u8, Child)>);
+
+impl Drop for Obsws {
+    fn drop(&mut self) {
+        for (_, c) in &mut self.0 {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+/// Finds the obsw binary: `--obsw`, then next to the running executable, then
+/// `$OBSW_BIN`, then `obsw` on the PATH.
+pub fn find_obsw(given: Option<&Path>) -> Result<PathBuf> {
+    if let Some(p) = given {
+        return Ok(p.to_path_buf());
+    }
+    let exe_name = format!("obsw{}", std::env::consts::EXE_SUFFIX);
+    if let Ok(me) = std::env::current_exe() {
+        if let Some(dir) = me.parent() {
+            for d in [Some(dir), dir.parent()] {
+                if let Some(d) = d {
+                    let p = d.join(&exe_name);
+                    if p.is_file() {
+                        return Ok(p);
+                    }
+                }
+            }
+        }
+    }
+    if let Some(p) = std::env::var_os("OBSW_BIN") {
+        return Ok(PathBuf::from(p));
+    }
+    if let Some(paths) = std::env::var_os("PATH") {
+        for d in std::env::split_paths(&paths) {
+            let p = d.join(&exe_name);
+            if p.is_file() {
+                return Ok(p);
+            }
+        }
+    }
+    Err(crate::coded(
+        crate::exit::ERROR,
+        "cannot find the obsw binary: build it (`cargo build --release`) or give --obsw PATH",
+    ))
+}
+
+/// A free local port for both UDP and TCP.
+fn free_port() -> Result<u16> {
+    for _ in 0..50 {
+        let t = std::net::TcpListener::bind(("127.0.0.1", 0))?;
+        let port = t.local_addr()?.port();
+        if std::net::UdpSocket::bind(("127.0.0.1", port)).is_ok() {
+            return Ok(port);
+        }
+    }
+    Err(anyhow!("no free local port"))
+}
+
+/// Starts one obsw for `robot` and waits for its READY line. Returns the TC address.
+pub fn start_obsw(
+    bin: &Path,
+    robot: u8,
+    speed: f64,
+    seed: u64,
+    initial_state: Option<u8>,
+    log: &Path,
+) -> Result<(Child, SocketAddr)> {
+    let port = free_port()?;
+    let ctl = free_port()?;
+    let addr: SocketAddr = ([127, 0, 0, 1], port).into();
+    let mut cmd = Command::new(bin);
+    cmd.arg("--robot")
+        .arg(robot.to_string())
+        .arg("--udp")
+        .arg(addr.to_string())
+        .arg("--tcp")
+        .arg(addr.to_string())
+        .arg("--sim-ctl")
+        .arg(format!("127.0.0.1:{ctl}"))
+        .arg("--speed")
+        .arg(speed.to_string())
+        .arg("--seed")
+        .arg(seed.to_string());
+    if let Some(s) = initial_state {
+        cmd.arg("--initial-state").arg(s.to_string());
+    }
+    let errlog = std::fs::File::create(log).with_context(|| format!("creating {}", log.display()))?;
+    let mut child = cmd
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::from(errlog))
+        .spawn()
+        .with_context(|| format!("starting {}", bin.display()))?;
+    let stdout = child.stdout.take().ok_or_else(|| anyhow!("no stdout"))?;
+    let (tx, rx) = crossbeam_channel::bounded(1);
+    std::thread::spawn(move || {
+        let mut sent = false;
+        for line in std::io::BufReader::new(stdout).lines() {
+            let Ok(line) = line else { break };
+            if !sent && line.starts_with("READY") {
+                let _ = tx.send(line);
+                sent = true;
+            }
+        }
+    });
+    match rx.recv_timeout(Duration::from_secs(10)) {
+        Ok(_) => Ok((child, addr)),
+        Err(_) => {
+            let _ = child.kill();
+            let _ = child.wait();
+            let err = std::fs::read_to_string(log).unwrap_or_default();
+            Err(anyhow!(
+                "obsw for robot {robot} did not start: {}",
+                err.lines().last().unwrap_or("no output")
+            ))
+        }
+    }
+}
+
+pub fn demo(a: &DemoArgs, archive_path: Option<&Path>) -> Result<u8> {
+    let (name, src) = match &a.plan {
+        Some(p) => (
+            p.display().to_string(),
+            std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?,
+        ),
+        None => ("plans/demo.toml".to_string(), DEMO_PLAN.to_string()),
+    };
+    let pl = plan::parse(&src).map_err(|errs| {
+        let d = plan::diagnostics(&name, &src, &errs);
+        let lines: Vec<String> = d.iter().map(|x| x.to_string()).collect();
+        crate::coded(crate::exit::INVALID, lines.join("\n"))
+    })?;
+    let bin = find_obsw(a.obsw.as_deref())?;
+    let logdir = std::env::temp_dir().join(format!("ground-demo-{}", std::process::id()));
+    std::fs::create_dir_all(&logdir)?;
+    eprintln!(
+        "demo: plan \"{}\" ({} steps, robots {}); starting {} OBSW(s) from {} at speed x{}",
+        pl.name,
+        pl.steps.len(),
+        pl.robots
+            .iter()
+            .map(|r| r.number.to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
+        pl.robots.len(),
+        bin.display(),
+        a.speed
+    );
+    let mut procs = Obsws(Vec::new());
+    let mut links = Vec::new();
+    for r in &pl.robots {
+        let log = logdir.join(format!("obsw-{}.log", r.number));
+        let (child, addr) = start_obsw(&bin, r.number, a.speed, a.seed + r.number as u64, r.initial_state, &log)?;
+        eprintln!("demo: robot {} OBSW at {addr} (log {})", r.number, log.display());
+        procs.0.push((r.number, child));
+        links.push((r.number, addr));
+    }
+    let transport = if a.tcp { Transport::Tcp } else { Transport::Udp };
+    let (mut session, arch) = crate::open_session(&links, transport, archive_path)?;
+    let opts = RunOptions {
+        display: !a.plain && std::io::IsTerminal::is_terminal(&std::io::stderr()),
+        ..RunOptions::default()
+    };
+    let summary = ops::run_plan(&pl, &mut session, &opts);
+    drop(session);
+    drop(procs);
+    let stats = match arch {
+        Some(a) => Some(a.close().context("closing the archive")?),
+        None => None,
+    };
+    crate::out(summary.text().trim_end())?;
+    match (archive_path, stats) {
+        (Some(p), Some(st)) => crate::out(&format!(
+            "archive: {} ({} TC, {} TM, {} events, {} verification reports)",
+            std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf()).display(),
+            st.tc,
+            st.tm,
+            st.events,
+            st.verification
+        ))?,
+        _ => crate::out("archive: disabled (--no-archive)")?,
+    }
+    Ok(if summary.success() {
+        crate::exit::OK
+    } else {
+        crate::exit::FAILED
+    })
+}

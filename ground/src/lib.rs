@@ -1,0 +1,8 @@
+//! MMIC-I ground tool library: PUS packets, plans, links, the archive and live
+//! operations. The `ground` binary is a thin CLI over these modules.
+
+pub mod archive;
+pub mod link;
+pub mod ops;
+pub mod plan;
+pub mod pus;
