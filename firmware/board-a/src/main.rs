@@ -97,12 +97,14 @@ async fn ab_tx(tx: UartTx<'static, Async>) {
 }
 
 #[embassy_executor::task]
-async fn control(mut io: Io, mut watchdog: Wdt<TIMG1<'static>>, obsw: &'static mut Obsw<Store>, reset_cause: u8) {
+async fn control(mut io: Io, mut watchdog: Wdt<TIMG1<'static>>, obsw: &'static mut Obsw<Store>, raw_reset: Option<u8>) {
     let links = LinksA {
         tcs: &TCS,
+        tc_stats: &UPLINK_STATS,
         tm: &TM,
         tm_stats: &DOWNLINK_STATS,
         ab_rx: &AB_RX,
+        ab_rx_stats: &AB_RX_STATS,
         ab_tx: &AB_TX,
         ab_tx_stats: &AB_TX_STATS,
     };
@@ -112,7 +114,10 @@ async fn control(mut io: Io, mut watchdog: Wdt<TIMG1<'static>>, obsw: &'static m
         queue: &TM,
         counters: &DOWNLINK_STATS,
     };
-    obsw.boot(fw_esp::clock::now_ms(), reset_cause, &mut sink);
+    // BOOT with the named reset cause; the previous run's panic (if the RTC-RAM record
+    // holds one) as PREVIOUS_PANIC, after which the record is marked reported.
+    let now = fw_esp::clock::now_ms();
+    fw_esp::panic::with_record(|rec| fw_core::boot::announce(now, raw_reset, rec, obsw, &mut sink));
     let mut ticker = Ticker::every(Duration::from_millis(cfg::CONTROL_PERIOD_MS as u64));
     loop {
         ticker.next().await;
@@ -133,7 +138,7 @@ async fn main(spawner: Spawner) {
         esp_hal::time::Duration::from_millis(cfg::WATCHDOG_TIMEOUT_MS),
     );
     watchdog.enable();
-    let reset_cause = fw_esp::panic::reset_cause();
+    let raw_reset = fw_esp::panic::reset_reason();
 
     // Regulator enable first, so the servo rail stays off: GPIO9, active low.
     let regulator = ActiveLowEnable(Output::new(p.GPIO9, Level::High, OutputConfig::default()));
@@ -203,5 +208,5 @@ async fn main(spawner: Spawner) {
         hip,
         regulator,
     };
-    spawner.spawn(control(io, watchdog, obsw, reset_cause).expect("control task"));
+    spawner.spawn(control(io, watchdog, obsw, raw_reset).expect("control task"));
 }

@@ -69,11 +69,18 @@ async fn ab_tx(tx: UartTx<'static, Async>) {
 /// Boot report on the debug console. Asynchronous: with no USB host attached the write
 /// simply waits, and nothing else is held up.
 #[embassy_executor::task]
-async fn console(mut usb: UsbSerialJtagTx<'static, Async>, reset_cause: u8, panic: Option<PanicReport>) {
+async fn console(
+    mut usb: UsbSerialJtagTx<'static, Async>,
+    reset_cause: u8,
+    raw_reset: Option<u8>,
+    panic: Option<PanicReport>,
+) {
     use core::fmt::Write as _;
     use embedded_io_async::Write as _;
     let mut line: heapless::String<{ cfg::PANIC_MSG_LEN + 64 }> = heapless::String::new();
-    let _ = write!(line, "board-b: boot, reset cause {reset_cause}\r\n");
+    let name = fw_core::boot::reset_cause_name(reset_cause);
+    let raw = raw_reset.unwrap_or(0);
+    let _ = write!(line, "board-b: boot, reset cause {name} ({reset_cause}, raw {raw})\r\n");
     let _ = usb.write_all(line.as_bytes()).await;
     if let Some(p) = panic {
         line.clear();
@@ -112,8 +119,9 @@ async fn main(spawner: Spawner) {
         esp_hal::time::Duration::from_millis(cfg::WATCHDOG_TIMEOUT_MS),
     );
     watchdog.enable();
-    let reset_cause = fw_esp::panic::reset_cause();
+    let raw_reset = fw_esp::panic::reset_reason();
     let panic = fw_esp::panic::take_report();
+    let reset_cause = fw_core::boot::reset_cause(raw_reset, panic.is_some());
     let (_, usb_tx) = UsbSerialJtag::new(p.USB_DEVICE).into_async().split();
 
     // A↔B link on UART1: TX GPIO21, RX GPIO20 (crossed to board A).
@@ -154,7 +162,7 @@ async fn main(spawner: Spawner) {
     // Arm-contracted switch to ground on GPIO10, internal pull-up.
     let arm_switch = ActiveLowSwitch(Input::new(p.GPIO10, InputConfig::default().with_pull(Pull::Up)));
 
-    spawner.spawn(console(usb_tx, reset_cause, panic).expect("console task"));
+    spawner.spawn(console(usb_tx, reset_cause, raw_reset, panic).expect("console task"));
     spawner.spawn(ab_rx(uart_rx).expect("ab_rx task"));
     spawner.spawn(ab_tx(uart_tx).expect("ab_tx task"));
     let io = Io {

@@ -10,7 +10,7 @@ use crate::periph::{
 use crate::sampling::{sample_a, sample_b, SensorErrors};
 use mmic_domain::board_b::{BoardB, BoardBOut};
 use mmic_domain::{ActuatorsA, SensorsA, SensorsB};
-use obsw_core::obsw::Obsw;
+use obsw_core::obsw::{IoCounters, Obsw};
 use obsw_core::tm::TmStore;
 
 /// Board A's peripherals.
@@ -66,13 +66,37 @@ where
 }
 
 /// The queues board A's control task talks through.
+/// Each queue comes with the counters its producer keeps; the control task reports them
+/// in housekeeping structure PLATFORM_IO.
 pub struct LinksA<'a, const TM: usize, const RX: usize, const TX: usize> {
+    /// Uplinked TCs, and the uplink's counters (frames dropped: queue full, framing).
     pub tcs: &'a TcChannel,
+    pub tc_stats: &'a Counters,
+    /// Downlink frames, and their counters (TM not sent live: queue full).
     pub tm: &'a ByteQueue<TM>,
     pub tm_stats: &'a Counters,
+    /// Bytes from board B, and the receiver's counters (bytes dropped: queue full).
     pub ab_rx: &'a ByteQueue<RX>,
+    pub ab_rx_stats: &'a Counters,
+    /// Bytes for board B, and their counters (bytes dropped: queue full).
     pub ab_tx: &'a ByteQueue<TX>,
     pub ab_tx_stats: &'a Counters,
+}
+
+impl<const TM: usize, const RX: usize, const TX: usize> LinksA<'_, TM, RX, TX> {
+    /// The link part of the platform I/O counters (sensor and output errors are the
+    /// control loop's own).
+    fn io_counters(&self) -> IoCounters {
+        let (up, down) = (self.tc_stats.get(), self.tm_stats.get());
+        let (rx, tx) = (self.ab_rx_stats.get(), self.ab_tx_stats.get());
+        IoCounters {
+            tc_dropped: up.overflow.wrapping_add(up.frame_errors),
+            tm_dropped: down.overflow.wrapping_add(down.frame_errors),
+            sensor_errors: 0,
+            output_errors: 0,
+            ab_bytes_dropped: rx.overflow.wrapping_add(tx.overflow),
+        }
+    }
 }
 
 /// State of board A's control loop between periods.
@@ -116,6 +140,19 @@ impl CycleA {
         }
     }
 
+    /// Platform I/O counters (housekeeping PLATFORM_IO): TCs dropped by the uplink, live
+    /// TM not sent, failed sensor reads and output writes, A–B bytes dropped.
+    pub fn io_counters<const TM: usize, const RX: usize, const TX: usize>(
+        &self,
+        links: &LinksA<'_, TM, RX, TX>,
+    ) -> IoCounters {
+        IoCounters {
+            sensor_errors: self.errors.total(),
+            output_errors: self.output_errors,
+            ..links.io_counters()
+        }
+    }
+
     /// One period: queued TCs, sensors, `Obsw::tick`, outputs, bytes for board B.
     /// Returns the actuator commands applied.
     #[allow(clippy::too_many_arguments)]
@@ -144,6 +181,10 @@ impl CycleA {
             queue: links.tm,
             counters: links.tm_stats,
         };
+        // The platform's I/O counters as of the start of this period, for housekeeping
+        // PLATFORM_IO (a one-shot TC[3,27] below included; what fails during this
+        // period is reported from the next one).
+        obsw.io = self.io_counters(links);
         // Telecommands first, so that a TC and the tick that starts it share `now`.
         while let Ok(tc) = links.tcs.try_receive() {
             obsw.handle_tc(now, &tc, &mut sink);

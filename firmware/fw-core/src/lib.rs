@@ -8,13 +8,17 @@
 //! - [`periph`]: the small traits the boards' peripherals sit behind, and the drivers
 //!   for the ADS7828 ADC, the MPU-6000 IMU, the AS5600 hip encoder, the LEDC servo
 //!   outputs and the bolter multiplexer, written against `embedded-hal` 1.0;
-//! - [`panic_record`]: the layout of the panic reason kept in RTC fast RAM across a reset.
+//! - [`panic_record`]: the layout of the panic reason kept in RTC fast RAM across a reset;
+//! - [`boot`]: board A's boot report (named reset cause, the previous run's panic);
+//! - [`cycle`]: one control period of each board, generic over the peripheral traits;
+//! - [`link`], [`sampling`]: the bounded queues between tasks, sensor sampling.
 //!
 //! The robot logic itself (filters, controllers, bolter, A–B protocol, PUS services)
 //! is `mmic-domain` and `obsw-core`, shared with the host.
 #![cfg_attr(not(test), no_std)]
 #![deny(unsafe_code)]
 
+pub mod boot;
 pub mod config;
 pub mod cycle;
 pub mod framing;

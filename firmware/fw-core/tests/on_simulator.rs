@@ -196,9 +196,11 @@ impl Rig {
     fn new(initial_state: u8) -> Rig {
         let links = LinksA {
             tcs: Box::leak(Box::new(TcChannel::new())),
+            tc_stats: Box::leak(Box::new(Counters::new())),
             tm: Box::leak(Box::new(ByteQueue::new())),
             tm_stats: Box::leak(Box::new(Counters::new())),
             ab_rx: Box::leak(Box::new(ByteQueue::new())),
+            ab_rx_stats: Box::leak(Box::new(Counters::new())),
             ab_tx: Box::leak(Box::new(ByteQueue::new())),
             ab_tx_stats: Box::leak(Box::new(Counters::new())),
         };
@@ -231,9 +233,9 @@ impl Rig {
     }
 
     fn send(&mut self, frame: &[u8]) {
-        let stats = Counters::new();
-        link::uplink_bytes(&mut self.uplink, frame, self.links.tcs, &stats);
-        assert_eq!(stats.get().delivered, 1);
+        let before = self.links.tc_stats.get().delivered;
+        link::uplink_bytes(&mut self.uplink, frame, self.links.tcs, self.links.tc_stats);
+        assert_eq!(self.links.tc_stats.get().delivered, before + 1);
     }
 
     /// One 10 ms period: firmware cycle, then the simulator with what the outputs show.
@@ -349,10 +351,12 @@ fn firmware_cycle_reconfigures_the_simulated_robot_xneg_to_xpos() {
         .collect();
     assert_eq!(events.iter().filter(|&&e| e == eid::PRIMITIVE_DONE).count(), 2);
     assert!(events.contains(&eid::STATE_REACHED));
-    // No queue ever overflowed and no peripheral failed.
+    // No queue ever overflowed and no peripheral failed: every platform I/O counter the
+    // OBSW reports (housekeeping PLATFORM_IO) is zero.
     assert_eq!(rig.links.tm_stats.get().overflow, 0);
     assert_eq!(rig.links.ab_tx_stats.get().overflow, 0);
     assert_eq!((rig.cycle.errors.total(), rig.cycle.output_errors), (0, 0));
+    assert_eq!(rig.obsw.io, obsw_core::obsw::IoCounters::default());
 }
 
 #[test]

@@ -1,6 +1,8 @@
 //! Panic handler: records the reason in RTC fast RAM, then resets the chip (which
 //! unpowers every servo: LEDC stops, and the regulator enable line returns to its
-//! pull-up, i.e. off). The next boot reads the record with [`take_report`].
+//! pull-up, i.e. off). The next boot reads the record: board A through
+//! [`with_record`] and `fw_core::boot::announce` (event PREVIOUS_PANIC), board B with
+//! [`take_report`] (text on its console).
 
 use core::ptr::addr_of_mut;
 use fw_core::panic_record::{self, PanicReport, RawRecord, WORDS};
@@ -11,7 +13,8 @@ use fw_core::panic_record::{self, PanicReport, RawRecord, WORDS};
 #[esp_hal::ram(unstable(rtc_fast, persistent))]
 static mut PANIC_RECORD: RawRecord = [0; WORDS];
 
-fn with_record<R>(f: impl FnOnce(&mut RawRecord) -> R) -> R {
+/// Runs `f` on the panic record (inside a critical section).
+pub fn with_record<R>(f: impl FnOnce(&mut RawRecord) -> R) -> R {
     critical_section::with(|_| {
         // SAFETY: the record is only touched here, inside a critical section, on the
         // single core of the ESP32-C3: no other reference to it can exist.
@@ -26,9 +29,10 @@ pub fn take_report() -> Option<PanicReport> {
 }
 
 /// Raw reset reason of this boot (`esp_hal::rtc_cntl::SocResetReason`, e.g. 1 power-on,
-/// 3 software reset after a panic, 7/11 watchdog); 0 when unknown.
-pub fn reset_cause() -> u8 {
-    esp_hal::system::reset_reason().map_or(0, |r| r as u8)
+/// 3 software reset after a panic, 8 the control-loop watchdog; the values are
+/// `fw_core::boot::soc_reset`); `None` when the chip gives none.
+pub fn reset_reason() -> Option<u8> {
+    esp_hal::system::reset_reason().map(|r| r as u8)
 }
 
 #[panic_handler]

@@ -11,6 +11,7 @@
 
 mod harness;
 mod mock;
+mod t_boot;
 mod t_codec;
 mod t_cycle;
 mod t_domain;
@@ -31,6 +32,7 @@ fn main() -> ! {
         t_periph::TESTS,
         t_link::TESTS,
         t_support::TESTS,
+        t_boot::TESTS,
         t_reconfig::TESTS,
         t_domain::TESTS,
         t_obsw::TESTS,

@@ -11,6 +11,7 @@ pub const TESTS: &[Test] = tests![
     panic_record_round_trip_and_count,
     panic_record_ignores_garbage_and_corruption,
     panic_record_truncates_at_char_boundary,
+    panic_record_file_crc_is_crc32_iso_hdlc,
 ];
 
 fn moving_average_window_of_50() -> TestResult {
@@ -51,11 +52,44 @@ fn panic_record_round_trip_and_count() -> TestResult {
     let r = ok!(panic_record::take(&mut rec));
     check_eq!(r.count, 1);
     check_eq!(r.message.as_str(), "board-a/src/main.rs:42: index 7 out of range");
+    // The location also as numbers: the line, and the CRC-32 of the path (computed
+    // here bit by bit, independently of the `crc` crate).
+    check_eq!(r.line, 42);
+    check_eq!(r.file_crc, crc32_bitwise(b"board-a/src/main.rs"));
     // Taken once: not reported again.
     check!(panic_record::take(&mut rec).is_none());
     panic_record::store(&mut rec, None, "second");
     let r = ok!(panic_record::take(&mut rec));
     check_eq!((r.count, r.message.as_str()), (2, "second"));
+    // No location: line and file CRC 0.
+    check_eq!((r.line, r.file_crc), (0, 0));
+    Ok(())
+}
+
+/// CRC-32/ISO-HDLC, one bit at a time (reflected polynomial 0xEDB88320, initial value
+/// and final XOR 0xFFFFFFFF).
+pub fn crc32_bitwise(data: &[u8]) -> u32 {
+    let mut crc = 0xFFFF_FFFFu32;
+    for &b in data {
+        crc ^= b as u32;
+        for _ in 0..8 {
+            crc = if crc & 1 != 0 {
+                (crc >> 1) ^ 0xEDB8_8320
+            } else {
+                crc >> 1
+            };
+        }
+    }
+    !crc
+}
+
+fn panic_record_file_crc_is_crc32_iso_hdlc() -> TestResult {
+    // The catalogue check value of CRC-32/ISO-HDLC.
+    check_eq!(crc32_bitwise(b"123456789"), 0xCBF4_3926);
+    check_eq!(panic_record::file_crc("123456789"), 0xCBF4_3926);
+    for path in ["fw-core/src/cycle.rs", "/work/main/obsw/core/src/obsw.rs", ""] {
+        check_eq!(panic_record::file_crc(path), crc32_bitwise(path.as_bytes()), "{}", path);
+    }
     Ok(())
 }
 

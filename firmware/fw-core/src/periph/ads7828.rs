@@ -42,6 +42,11 @@ impl<I: I2c> Ads7828<I> {
     pub fn release(self) -> I {
         self.i2c
     }
+
+    /// The bus the converter sits on (bus recovery; test doubles).
+    pub fn bus_mut(&mut self) -> &mut I {
+        &mut self.i2c
+    }
 }
 
 impl<I: I2c> AnalogInput for Ads7828<I> {
