@@ -23,6 +23,7 @@ pub const TESTS: &[Test] = tests![
     obsw_low_battery_persists_half_a_second_then_recovers,
     obsw_mode_set_operational_powers_both_sides_and_homes,
     obsw_board_b_silence_is_comm_loss_and_safes_the_robot,
+    obsw_standby_with_board_b_never_heard_raises_no_low_battery,
     obsw_tick_and_tc_fit_the_10_ms_control_period,
     obsw_store_returns_every_packet_the_full_downlink_dropped,
 ];
@@ -362,8 +363,8 @@ fn build_tc(seq: u16, svc: u8, sub: u8, app: &[u8], out: &mut [u8]) -> Option<us
 #[derive(Default)]
 struct ModeLog {
     now: u64,
-    /// (time, node, from, to, cause) of MODE_CHANGED.
-    changes: heapless::Vec<(u64, i64, i64, i64, i64), 16>,
+    /// (time, node, from, to, cause) of MODE_CHANGED: room for every node twice.
+    changes: heapless::Vec<(u64, i64, i64, i64, i64), 32>,
     /// (time, subservice) of TM[1,x].
     verif: heapless::Vec<(u64, u8), 16>,
     faults: heapless::Vec<u16, 8>,
@@ -543,6 +544,7 @@ fn obsw_board_b_silence_is_comm_loss_and_safes_the_robot() -> TestResult {
     let timeout = ok!(timeout);
     // The transition by FDIR: MODE_CHANGED events caused by the fault (cause = its event
     // ID), all at one time.
+    check!(log.changes.len() < 32, "MODE_CHANGED log full");
     let by_fault: heapless::Vec<(u64, i64, i64, i64, i64), 16> = log
         .changes
         .iter()
@@ -552,6 +554,20 @@ fn obsw_board_b_silence_is_comm_loss_and_safes_the_robot() -> TestResult {
     check!(!by_fault.is_empty(), "no MODE_CHANGED caused by the comm loss");
     let t_safe = by_fault[0].0;
     check!(by_fault.iter().all(|c| c.0 == t_safe));
+    // The robot node itself: exactly one MODE_CHANGED, operational -> safed, caused by
+    // the heartbeat loss (no longer lost to event throttling among the module nodes'
+    // reports), and one report per node at most.
+    let root: heapless::Vec<(u64, i64, i64, i64, i64), 4> =
+        by_fault.iter().filter(|c| c.1 == node::ROBOT as i64).copied().collect();
+    check_eq!(root.len(), 1);
+    check_eq!(
+        (root[0].2, root[0].3),
+        (robot_mode::OPERATIONAL as i64, robot_mode::SAFED as i64)
+    );
+    for (i, c) in by_fault.iter().enumerate() {
+        check!(by_fault[..i].iter().all(|d| d.1 != c.1), "node {} reported twice", c.1);
+    }
+    check!(by_fault.len() > 1, "no module node followed the robot node");
     check!(
         t_safe > t_cut + timeout - 60 && t_safe <= t_cut + timeout + 20,
         "safed at +{} ms after the cut, timeout {} ms",
@@ -574,6 +590,113 @@ fn obsw_board_b_silence_is_comm_loss_and_safes_the_robot() -> TestResult {
     check_eq!(act.side.bolter, mmic_domain::BolterDrive::Off);
     check!(act.side.arm_pwm.is_some(), "arm A unpowered in safed");
     check_eq!(robot.a.param(pid::B_LINK_OK), 0);
+    Ok(())
+}
+
+/// Every event and monitoring transition, with the time it was reported.
+#[derive(Default)]
+struct AllEvents {
+    now: u64,
+    /// (time, event ID, first parameter)
+    events: heapless::Vec<(u64, u16, i64), 32>,
+    /// (time, monitor ID, new state) of TM[12,12].
+    mon: heapless::Vec<(u64, u16, u8), 16>,
+}
+
+impl TmSink for AllEvents {
+    fn send_tm(&mut self, packet: &[u8]) {
+        let Some(tm) = parse_tm(packet) else { return };
+        match (tm.svc, tm.sub) {
+            (12, 12) if tm.data.len() == 13 => {
+                let id = u16::from_be_bytes([tm.data[0], tm.data[1]]);
+                let _ = self.mon.push((self.now, id, tm.data[12]));
+            }
+            (5, _) => {
+                if let Ok(ev) = mib::codec::decode_event(&tm.data) {
+                    let first = ev.params().next().map_or(0, |(_, v)| v);
+                    let _ = self.events.push((self.now, ev.def.id, first));
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+/// Board B not connected (never heard): its readings have no value, so its battery
+/// monitor neither trips nor reports, however long the robot waits; what B's absence
+/// does raise is a comm loss (its boot module command unacknowledged, no heartbeat).
+/// Once B is heard with an empty battery, the same monitor trips after its 0.5 s
+/// persistence.
+fn obsw_standby_with_board_b_never_heard_raises_no_low_battery() -> TestResult {
+    let mon_b = ok!(mib::fdir::MONITORS.iter().find(|m| m.param == pid::V_BAT_B)).id;
+    let mut robot = Robot::new();
+    let mut log = AllEvents::default();
+    let (sa, mut sb) = healthy();
+    let mut t = 0;
+    // 3 s from boot in standby, board A alone (six times the low-battery persistence).
+    for _ in 0..300 {
+        t += 10;
+        log.now = t;
+        let _ = robot.a.tick(t, &sa, &[], &mut log);
+    }
+    check_eq!(robot.a.param_opt(pid::V_BAT_B), None);
+    check!(
+        log.events.iter().all(|e| e.1 != eid::LOW_BATTERY),
+        "LOW_BATTERY without board B: {:?}",
+        &log.events[..]
+    );
+    check!(
+        log.mon.iter().all(|m| m.1 != mon_b),
+        "V_BAT_B monitor reported: {:?}",
+        &log.mon[..]
+    );
+    let bit = 1i64 << ok!(mib::fdir::fault_by_event(eid::LOW_BATTERY)).bit;
+    check_eq!(robot.a.param(pid::FAULT_FLAGS) & bit, 0);
+    // The faults B's absence raises: comm loss, and nothing else.
+    let faults: heapless::Vec<u16, 32> = log
+        .events
+        .iter()
+        .map(|e| e.1)
+        .filter(|&id| mib::events::by_id(id).is_some_and(|d| d.fault))
+        .collect();
+    check!(
+        faults.contains(&eid::COMM_LOSS_HEARTBEAT),
+        "no COMM_LOSS_HEARTBEAT: {:?}",
+        &faults[..]
+    );
+    check!(
+        faults
+            .iter()
+            .all(|&f| f == eid::COMM_LOSS_HEARTBEAT || f == eid::COMM_LOSS_NO_ACK),
+        "faults: {:?}",
+        &faults[..]
+    );
+
+    // Board B connects with an empty battery (7.3 V): now its reading counts.
+    sb.v_bat = 2000;
+    let t_link = t;
+    let mon_before = log.mon.len();
+    for _ in 0..150 {
+        t += 10;
+        log.now = t;
+        robot.step(t, &sa, &sb, &mut log);
+    }
+    check_eq!(robot.a.param_opt(pid::V_BAT_B), Some(2000));
+    let low: heapless::Vec<(u64, u16, i64), 4> =
+        log.events.iter().filter(|e| e.1 == eid::LOW_BATTERY).copied().collect();
+    check_eq!(low.len(), 1);
+    // Parameter V_BAT_B, after 50 samples below the limit.
+    check_eq!(low[0].2, pid::V_BAT_B as i64);
+    check!(
+        low[0].0 >= t_link + 500,
+        "tripped {} ms after B was heard",
+        low[0].0 - t_link
+    );
+    let b_mon: heapless::Vec<(u64, u16, u8), 8> =
+        log.mon[mon_before..].iter().filter(|m| m.1 == mon_b).copied().collect();
+    check_eq!(b_mon.len(), 1);
+    check_eq!((b_mon[0].0, b_mon[0].2), (low[0].0, obsw_core::fdir::check::BELOW_LOW));
+    check!(log.events.len() < 32 && log.mon.len() < 16, "event log full");
     Ok(())
 }
 
