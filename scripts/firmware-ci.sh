@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Firmware CI: toolchain setup, rustfmt and clippy (warnings denied), release build of
 # both ESP32-C3 images with warnings denied, size report against the budget (256 KiB
-# flash, 128 KiB static RAM per image), the host tests of the firmware's control period
-# against the simulator, and the on-target tests under QEMU.
+# flash, 128 KiB static RAM per image), the panic-file lookup on board A's image, the
+# host tests of the firmware's control period against the simulator, and the
+# on-target tests under QEMU.
 # Fails on the first failing step.
 set -euo pipefail
 
@@ -34,6 +35,11 @@ step "size report"
 "$FW/tools/size-report.sh" \
   "$CARGO_TARGET_DIR/$TARGET/release/board-a" \
   "$CARGO_TARGET_DIR/$TARGET/release/board-b"
+
+step "panic file lookup (PREVIOUS_PANIC file_crc -> path, in board A's image)"
+# 0x231DC4FE = CRC-32/ISO-HDLC of "board-a/src/main.rs", a panic location in the image.
+bash "$ROOT/scripts/firmware-panic-file.sh" 0x231DC4FE "$CARGO_TARGET_DIR/$TARGET/release/board-a" \
+  | grep -qx "0x231DC4FE  board-a/src/main.rs"
 
 step "host tests: board A's control period against the simulator"
 (cd "$FW" && cargo test -p fw-core --target x86_64-unknown-linux-gnu)
