@@ -96,6 +96,19 @@ async fn ab_tx(tx: UartTx<'static, Async>) {
     link::queue_to_writer(&AB_TX, tx, &AB_TX_STATS).await
 }
 
+/// The boot report, on a copy of the panic record so that interrupts stay enabled while
+/// the events are encoded (a plain function: the copy lives on the stack, not in the
+/// control task's future).
+fn announce_boot(
+    raw_reset: Option<u8>,
+    obsw: &mut Obsw<Store>,
+    sink: &mut DownlinkSink<'_, { cfg::TM_DOWNLINK_BYTES }>,
+) {
+    let mut record = fw_esp::panic::with_record(|rec| *rec);
+    fw_core::boot::announce(fw_esp::clock::now_ms(), raw_reset, &mut record, obsw, sink);
+    fw_esp::panic::with_record(|rec| *rec = record);
+}
+
 #[embassy_executor::task]
 async fn control(mut io: Io, mut watchdog: Wdt<TIMG1<'static>>, obsw: &'static mut Obsw<Store>, raw_reset: Option<u8>) {
     let links = LinksA {
@@ -116,8 +129,7 @@ async fn control(mut io: Io, mut watchdog: Wdt<TIMG1<'static>>, obsw: &'static m
     };
     // BOOT with the named reset cause; the previous run's panic (if the RTC-RAM record
     // holds one) as PREVIOUS_PANIC, after which the record is marked reported.
-    let now = fw_esp::clock::now_ms();
-    fw_esp::panic::with_record(|rec| fw_core::boot::announce(now, raw_reset, rec, obsw, &mut sink));
+    announce_boot(raw_reset, obsw, &mut sink);
     let mut ticker = Ticker::every(Duration::from_millis(cfg::CONTROL_PERIOD_MS as u64));
     loop {
         ticker.next().await;
