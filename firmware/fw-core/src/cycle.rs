@@ -66,6 +66,7 @@ where
 }
 
 /// The queues board A's control task talks through.
+///
 /// Each queue comes with the counters its producer keeps; the control task reports them
 /// in housekeeping structure PLATFORM_IO.
 pub struct LinksA<'a, const TM: usize, const RX: usize, const TX: usize> {
