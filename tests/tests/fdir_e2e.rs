@@ -404,3 +404,22 @@ fn a_disabled_monitor_does_not_detect_and_definitions_are_reportable() {
     assert!(c.log.iter().all(|t| t.event_id() != Some(eid::LOW_BATTERY)));
     assert_eq!(robot_mode_reported(&mut c), robot_mode::OPERATIONAL);
 }
+
+#[test]
+fn a_safing_fault_in_standby_is_reported_but_does_not_power_the_servos() {
+    let (o, mut c) = start();
+    assert!(o.sim("cut-cable").starts_with("ok"));
+    wait_event(&mut c, eid::COMM_LOSS_HEARTBEAT);
+    c.recv_for(Duration::from_millis(300));
+    assert_eq!(robot_mode_reported(&mut c), robot_mode::STANDBY);
+    assert_ne!(
+        hk(&mut c, 3, pid::FAULT_FLAGS),
+        0,
+        "fault active while the cable is cut"
+    );
+    let t = set_mode(&mut c, robot_mode::OPERATIONAL);
+    assert_eq!(t.failure_code(), Some(F::FAULT_NOT_CLEARED.code()));
+    assert!(o.sim("clear cut-cable").starts_with("ok"));
+    wait_monitor(&mut c, 12, 0);
+    operational(&mut c);
+}

@@ -1222,6 +1222,11 @@ impl<S: TmStore> Obsw<S> {
         }
         match self.faults.raise(event, monitored) {
             Response::None => {}
+            // Standby already has every module unpowered and the robot resting on its
+            // grippers: a fault never powers the servos up just to hold (safed).
+            Response::Now(m) if m == robot_mode::SAFED && self.modes.root_target() == robot_mode::STANDBY => {
+                self.clear_oneshot(now, event, sink);
+            }
             Response::Now(m) => self.set_mode(now, m, event, sink),
             Response::AfterMotion(m) => {
                 if self.running.is_some() {
