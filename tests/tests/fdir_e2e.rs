@@ -408,6 +408,8 @@ fn a_disabled_monitor_does_not_detect_and_definitions_are_reportable() {
 #[test]
 fn a_safing_fault_in_standby_is_reported_but_does_not_power_the_servos() {
     let (o, mut c) = start();
+    let ping = c.send("PING", &[]); // tells the OBSW where the ground is
+    c.wait_done(&ping, T).unwrap();
     assert!(o.sim("cut-cable").starts_with("ok"));
     wait_event(&mut c, eid::COMM_LOSS_HEARTBEAT);
     c.recv_for(Duration::from_millis(300));
