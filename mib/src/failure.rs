@@ -50,7 +50,7 @@ failure_codes! {
     BOLT_FAILED = 14, "side u8, pair u8, attempts u8", "A fastener pair did not lock within the allowed attempts";
     UNBOLT_FAILED = 15, "side u8, pair u8, attempts u8", "A fastener pair did not release within the allowed attempts";
     ABORTED_BY_FAULT = 16, "event_id u16", "Action aborted because FDIR detected a fault";
-    MODE_CHANGE_FAILED = 17, "node u32, mode u32, reason u16", "A mode transition could not complete";
+    MODE_CHANGE_FAILED = 17, "node u32, mode u32, reason u16 (failure code), event u16 (fault event or 0)", "A mode transition could not complete";
     FAULT_NOT_CLEARED = 18, "event_id u16", "Recovery to operational refused while the fault is still present";
     UNKNOWN_SID = 19, "sid u16", "Housekeeping structure ID not defined";
     UNKNOWN_EVENT = 20, "event_id u16", "Event ID not defined";

@@ -943,8 +943,13 @@ impl<S: TmStore> Obsw<S> {
                     }
                 }
                 Some(f) => {
-                    let reason = f.0.code();
-                    self.transition_failed(now, reason, sink);
+                    // A homing aborted by a fault carries the fault's event ID.
+                    let event = if f.0 == FailureCode::ABORTED_BY_FAULT && f.1.len() >= 2 {
+                        u16::from_be_bytes([f.1[0], f.1[1]])
+                    } else {
+                        0
+                    };
+                    self.transition_failed(now, f.0, event, sink);
                 }
             }
         }
@@ -964,18 +969,7 @@ impl<S: TmStore> Obsw<S> {
             }
         }
         if let Some(prev) = self.mode_cmd.take() {
-            let mut d = [0u8; 10];
-            d[..4].copy_from_slice(&node::ROBOT.to_be_bytes());
-            d[4..8].copy_from_slice(&prev.target.to_be_bytes());
-            d[8..].copy_from_slice(&FailureCode::ABORTED_BY_COMMAND.code().to_be_bytes());
-            self.verify(
-                now,
-                Stage::Completion,
-                prev.req,
-                Some((FailureCode::MODE_CHANGE_FAILED, &d)),
-                sink,
-            );
-            self.set_outcome(prev.req, Outcome::Failed(FailureCode::MODE_CHANGE_FAILED.code()));
+            self.fail_mode_cmd(now, prev, FailureCode::ABORTED_BY_COMMAND, 0, sink);
         }
         if target == self.modes.root() && self.transition.is_none() {
             self.mode_reply(now, node::ROBOT, sink);
@@ -1011,18 +1005,7 @@ impl<S: TmStore> Obsw<S> {
             // FDIR takes over: a pending mode command loses.
             if let Some(c) = self.mode_cmd.take() {
                 if c.target != target {
-                    let mut d = [0u8; 10];
-                    d[..4].copy_from_slice(&node::ROBOT.to_be_bytes());
-                    d[4..8].copy_from_slice(&c.target.to_be_bytes());
-                    d[8..].copy_from_slice(&cause.to_be_bytes());
-                    self.verify(
-                        now,
-                        Stage::Completion,
-                        c.req,
-                        Some((FailureCode::MODE_CHANGE_FAILED, &d)),
-                        sink,
-                    );
-                    self.set_outcome(c.req, Outcome::Failed(FailureCode::MODE_CHANGE_FAILED.code()));
+                    self.fail_mode_cmd(now, c, FailureCode::ABORTED_BY_FAULT, cause, sink);
                 } else {
                     self.mode_cmd = Some(c);
                 }
@@ -1119,7 +1102,7 @@ impl<S: TmStore> Obsw<S> {
                             t.entering = Entering::Homing;
                         }
                     }
-                    Err(_) => return self.transition_failed(now, FailureCode::BUSY.code(), sink),
+                    Err(_) => return self.transition_failed(now, FailureCode::BUSY, 0, sink),
                 }
                 return;
             }
@@ -1149,7 +1132,7 @@ impl<S: TmStore> Obsw<S> {
         }
         let entering_homing = t.entering == Entering::Homing;
         if !entering_homing && now.saturating_sub(t.started) > config::MODE_TRANSITION_TIMEOUT_MS as u64 {
-            self.transition_failed(now, FailureCode::TIMEOUT.code(), sink);
+            self.transition_failed(now, FailureCode::TIMEOUT, 0, sink);
         }
     }
 
@@ -1163,13 +1146,31 @@ impl<S: TmStore> Obsw<S> {
     }
 
     /// A transition that cannot complete: report it and fall back to standby.
-    fn transition_failed(&mut self, now: u64, reason: u16, sink: &mut impl TmSink) {
+    /// Completes a mode command with MODE_CHANGE_FAILED: node, target mode, the reason
+    /// (a failure code) and the fault event behind it (0 if none).
+    fn fail_mode_cmd(&mut self, now: u64, c: ModeCmd, reason: FailureCode, event: u16, sink: &mut impl TmSink) {
+        let mut d = [0u8; 12];
+        d[..4].copy_from_slice(&node::ROBOT.to_be_bytes());
+        d[4..8].copy_from_slice(&c.target.to_be_bytes());
+        d[8..10].copy_from_slice(&reason.code().to_be_bytes());
+        d[10..].copy_from_slice(&event.to_be_bytes());
+        self.verify(
+            now,
+            Stage::Completion,
+            c.req,
+            Some((FailureCode::MODE_CHANGE_FAILED, &d)),
+            sink,
+        );
+        self.set_outcome(c.req, Outcome::Failed(FailureCode::MODE_CHANGE_FAILED.code()));
+    }
+
+    fn transition_failed(&mut self, now: u64, reason: FailureCode, event: u16, sink: &mut impl TmSink) {
         let Some(t) = self.transition.take() else { return };
         let mut d = [0u8; 12];
         d[..4].copy_from_slice(&node::ROBOT.to_be_bytes());
         d[4..8].copy_from_slice(&t.target.to_be_bytes());
         d[8..10].copy_from_slice(&0u16.to_be_bytes());
-        d[10..12].copy_from_slice(&reason.to_be_bytes());
+        d[10..12].copy_from_slice(&reason.code().to_be_bytes());
         self.emit(
             now,
             service::MODE,
@@ -1180,22 +1181,11 @@ impl<S: TmStore> Obsw<S> {
         self.event(
             now,
             eid::MODE_CHANGE_FAILED,
-            &[node::ROBOT as i64, t.target as i64, reason as i64],
+            &[node::ROBOT as i64, t.target as i64, reason.code() as i64],
             sink,
         );
         if let Some(c) = self.mode_cmd.take() {
-            let mut fd = [0u8; 10];
-            fd[..4].copy_from_slice(&node::ROBOT.to_be_bytes());
-            fd[4..8].copy_from_slice(&t.target.to_be_bytes());
-            fd[8..].copy_from_slice(&reason.to_be_bytes());
-            self.verify(
-                now,
-                Stage::Completion,
-                c.req,
-                Some((FailureCode::MODE_CHANGE_FAILED, &fd)),
-                sink,
-            );
-            self.set_outcome(c.req, Outcome::Failed(FailureCode::MODE_CHANGE_FAILED.code()));
+            self.fail_mode_cmd(now, c, reason, event, sink);
         }
         if t.target != robot_mode::STANDBY {
             self.set_mode(now, robot_mode::STANDBY, t.cause, sink);
