@@ -156,7 +156,8 @@ impl Archive {
     pub fn sender(&self) -> ArchiveSender {
         self.sender.clone()
     }
-    /// Commits everything queued and stops the writer.
+    /// Commits everything queued and stops the writer. Every [`ArchiveSender`] clone
+    /// must be dropped first (the writer runs until the last sender is gone).
     pub fn close(self) -> Result<ArchiveStats, ArchiveError> {
         drop(self.sender);
         self.handle.join().map_err(|_| ArchiveError::WriterGone)?
@@ -570,6 +571,7 @@ mod tests {
             decoded: decode_tm(&[1, 2, 3]),
         });
         s.sync().unwrap();
+        drop(s);
         let st = a.close().unwrap();
         assert_eq!(st.tm, n_hk + 3);
         assert_eq!(st.tm_corrupt, 1);
