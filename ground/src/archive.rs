@@ -461,13 +461,16 @@ pub fn query(conn: &Connection, kind: Kind, f: &Filter) -> Result<Rows, ArchiveE
     Ok(Rows { columns, rows })
 }
 
+/// A robot number and its `(t_ms, engineering value)` points.
+pub type RobotSeries = (u8, Vec<(i64, f64)>);
+
 /// One HK parameter's series per robot: `(robot, [(t_ms, eng)])`.
-pub fn hk_series(conn: &Connection, param: &str, f: &Filter) -> Result<Vec<(u8, Vec<(i64, f64)>)>, ArchiveError> {
+pub fn hk_series(conn: &Connection, param: &str, f: &Filter) -> Result<Vec<RobotSeries>, ArchiveError> {
     let mut ff = f.clone();
     ff.params = vec![param.to_string()];
     ff.limit = None;
     let rows = query(conn, Kind::Hk, &ff)?;
-    let mut out: Vec<(u8, Vec<(i64, f64)>)> = Vec::new();
+    let mut out: Vec<RobotSeries> = Vec::new();
     for r in rows.rows {
         let robot = r[2].as_i64().unwrap_or(0) as u8;
         let t = r[1].as_i64().unwrap_or(0);

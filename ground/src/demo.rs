@@ -60,12 +60,10 @@ pub fn find_obsw(given: Option<&Path>) -> Result<PathBuf> {
     let exe_name = format!("obsw{}", std::env::consts::EXE_SUFFIX);
     if let Ok(me) = std::env::current_exe() {
         if let Some(dir) = me.parent() {
-            for d in [Some(dir), dir.parent()] {
-                if let Some(d) = d {
-                    let p = d.join(&exe_name);
-                    if p.is_file() {
-                        return Ok(p);
-                    }
+            for d in [Some(dir), dir.parent()].into_iter().flatten() {
+                let p = d.join(&exe_name);
+                if p.is_file() {
+                    return Ok(p);
                 }
             }
         }

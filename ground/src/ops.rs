@@ -797,15 +797,18 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions) -> RunSum
                         }
                     }
                 }
-                Update::Resent { robot, tag, tc, send } => {
-                    if let Some(i) = tag {
-                        sends.insert(i, send);
-                        disp.log(format!(
-                            "  resend   {} robot {robot}: {tc} not accepted within {} ms (send {send})",
-                            plan.steps[i].id,
-                            session.ack_timeout.as_millis()
-                        ));
-                    }
+                Update::Resent {
+                    robot,
+                    tag: Some(i),
+                    tc,
+                    send,
+                } if i < n => {
+                    sends.insert(i, send);
+                    disp.log(format!(
+                        "  resend   {} robot {robot}: {tc} not accepted within {} ms (send {send})",
+                        plan.steps[i].id,
+                        session.ack_timeout.as_millis()
+                    ));
                 }
                 Update::GaveUp {
                     robot,
@@ -868,13 +871,11 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions) -> RunSum
                 let s = &plan.steps[i];
                 let limit = s.timeout_s.map_or(opts.step_timeout, Duration::from_secs_f64);
                 match (&s.action, tc) {
-                    (Action::Wait { seconds }, None) => {
-                        if since.elapsed().as_secs_f64() >= *seconds {
-                            let secs = since.elapsed().as_secs_f64();
-                            disp.log(format!("  done     {} (waited {secs:.1} s)", s.id));
-                            state[i] = StepState::Done { secs };
-                            disp.total.inc(1);
-                        }
+                    (Action::Wait { seconds }, None) if since.elapsed().as_secs_f64() >= *seconds => {
+                        let secs = since.elapsed().as_secs_f64();
+                        disp.log(format!("  done     {} (waited {secs:.1} s)", s.id));
+                        state[i] = StepState::Done { secs };
+                        disp.total.inc(1);
                     }
                     (_, Some(tc)) if since.elapsed() > limit => {
                         let tc = tc.clone();

@@ -611,7 +611,7 @@ fn parse_step(cx: &mut Cx, t: &Tbl<'_>, span: Range<usize>) -> RawStep {
         }
         "home" => Some(Action::Home),
         "wait" => need(cx, "seconds").and_then(|v| match float_of(v.get_ref()) {
-            Some(s) if s >= 0.0 && s <= 86_400.0 => Some(Action::Wait { seconds: s }),
+            Some(s) if (0.0..=86_400.0).contains(&s) => Some(Action::Wait { seconds: s }),
             _ => {
                 cx.err(v.span(), "`seconds` must be a number of seconds in 0..=86400");
                 None
@@ -634,7 +634,7 @@ fn parse_step(cx: &mut Cx, t: &Tbl<'_>, span: Range<usize>) -> RawStep {
             let lo = robot::servo::HIP_MIN_CDEG as f64 / 100.0;
             let hi = robot::servo::HIP_MAX_CDEG as f64 / 100.0;
             match float_of(v.get_ref()) {
-                Some(a) if a >= lo && a <= hi => Some(Action::RotateHip {
+                Some(a) if (lo..=hi).contains(&a) => Some(Action::RotateHip {
                     angle_cdeg: (a * 100.0).round() as i16,
                 }),
                 _ => {

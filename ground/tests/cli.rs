@@ -1,0 +1,149 @@
+//! Command-line behaviour that needs no OBSW: help, plan check/encode, decode, exit codes.
+
+use std::path::PathBuf;
+use std::process::{Command, Output, Stdio};
+
+const GROUND: &str = env!("CARGO_BIN_EXE_ground");
+const DEMO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../plans/demo.toml");
+
+fn ground(args: &[&str]) -> Output {
+    Command::new(GROUND).args(args).output().expect("running ground")
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+fn tmpdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("ground-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn every_verb_has_help() {
+    for verb in [
+        vec!["plan", "check"],
+        vec!["plan", "encode"],
+        vec!["decode"],
+        vec!["run"],
+        vec!["ping"],
+        vec!["send"],
+        vec!["mode"],
+        vec!["watch"],
+        vec!["sim"],
+        vec!["archive", "query"],
+        vec!["archive", "export"],
+        vec!["archive", "plot"],
+        vec!["mib", "export"],
+        vec!["demo"],
+    ] {
+        let mut args = verb.clone();
+        args.push("--help");
+        let o = ground(&args);
+        assert_eq!(o.status.code(), Some(0), "{verb:?}: {}", text(&o));
+        assert!(String::from_utf8_lossy(&o.stdout).contains("Usage:"), "{verb:?}");
+    }
+    assert_eq!(ground(&["frobnicate"]).status.code(), Some(2));
+}
+
+#[test]
+fn shipped_plans_check_and_a_bad_plan_lists_every_error() {
+    let o = ground(&["plan", "check", DEMO]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    let dir = tmpdir("bad");
+    let bad = dir.join("bad.toml");
+    std::fs::write(
+        &bad,
+        "[[robot]]\nnumber = 1\n[[step]]\nid = \"a\"\nrobot = 9\naction = \"bolt\"\nside = \"Q\"\npairs = \"all\"\n",
+    )
+    .unwrap();
+    let o = ground(&["plan", "check", bad.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(3));
+    let t = text(&o);
+    assert!(t.contains("bad.toml:5:9: error: robot 9 is not declared"), "{t}");
+    assert!(t.contains("bad.toml:7:8: error: `side`"), "{t}");
+    assert!(t.contains("2 error(s)"), "{t}");
+}
+
+#[test]
+fn encoded_plan_decodes_back_and_corruption_is_counted() {
+    let dir = tmpdir("enc");
+    let o = ground(&["plan", "encode", DEMO, "--out", dir.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    let f = dir.join("apid_0x102.bin");
+    let o = ground(&["decode", f.to_str().unwrap(), "--json"]);
+    assert_eq!(o.status.code(), Some(0));
+    let names: Vec<String> = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(|l| {
+            serde_json::from_str::<serde_json::Value>(l).unwrap()["name"]
+                .as_str()
+                .unwrap()
+                .to_string()
+        })
+        .collect();
+    assert_eq!(
+        names,
+        ["MODE_SET", "UNBOLT_FACE", "RECONFIGURE", "BOLT_FACE", "MODE_SET"]
+    );
+    let listing = std::fs::read_to_string(dir.join("listing.txt")).unwrap();
+    assert!(listing.contains("r2-walk | 2 | 0x102 | 2 | TC[8,1] RECONFIGURE | from=1 to=0 | r1-bolt,r2-unbolt"));
+
+    let mut bytes = std::fs::read(&f).unwrap();
+    bytes[30] ^= 0xFF;
+    bytes.extend_from_slice(&[0xDE, 0xAD]);
+    let g = dir.join("corrupt.bin");
+    std::fs::write(&g, &bytes).unwrap();
+    let o = ground(&["decode", g.to_str().unwrap(), "--strict"]);
+    assert_eq!(o.status.code(), Some(3));
+    let t = text(&o);
+    assert!(
+        t.contains("4 packets (4 TC, 0 TM)") && t.contains("2 corrupt stretches"),
+        "{t}"
+    );
+}
+
+#[test]
+fn closed_pipe_is_a_quiet_exit() {
+    let dir = tmpdir("pipe");
+    let f = dir.join("many.bin");
+    let tc = ground::pus::build_tc(1, 0, mib::tc::by_name("PING").unwrap(), &[]).unwrap();
+    std::fs::write(&f, tc.bytes.repeat(200_000)).unwrap();
+    let mut child = Command::new(GROUND)
+        .args(["decode", f.to_str().unwrap()])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    {
+        use std::io::Read;
+        let mut first = [0u8; 64];
+        child.stdout.as_mut().unwrap().read_exact(&mut first).unwrap();
+    }
+    drop(child.stdout.take());
+    let o = child.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(0));
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("panicked"));
+}
+
+#[test]
+fn mib_export_writes_files() {
+    let dir = tmpdir("mib");
+    for f in ["json", "xtce", "scos"] {
+        let o = ground(&["mib", "export", "--format", f, "--out", dir.join(f).to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+        assert!(std::fs::read_dir(dir.join(f)).unwrap().count() >= 1);
+    }
+    assert_eq!(
+        ground(&["mib", "export", "--format", "yaml", "--out", "x"])
+            .status
+            .code(),
+        Some(3)
+    );
+}

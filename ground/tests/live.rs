@@ -1,0 +1,375 @@
+//! End-to-end tests of the `ground` binary against the real `obsw` binary over loopback
+//! sockets. The obsw binary is taken from `$OBSW_BIN`, or from the target directory of
+//! this test (`cargo build -p obsw` puts it there); if it is missing it is built into
+//! `<target>/ground-obsw` (a separate target directory, so the running `cargo test`
+//! does not block on its own build lock).
+
+use std::io::BufRead;
+use std::net::{SocketAddr, UdpSocket};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, OnceLock};
+use std::time::{Duration, Instant};
+
+const GROUND: &str = env!("CARGO_BIN_EXE_ground");
+
+fn target_dir() -> PathBuf {
+    // <target>/<profile>/deps/live-<hash>
+    let exe = std::env::current_exe().unwrap();
+    exe.parent()
+        .and_then(Path::parent)
+        .and_then(Path::parent)
+        .unwrap()
+        .to_path_buf()
+}
+
+fn obsw_bin() -> PathBuf {
+    static BIN: OnceLock<PathBuf> = OnceLock::new();
+    BIN.get_or_init(|| {
+        if let Some(p) = std::env::var_os("OBSW_BIN") {
+            return PathBuf::from(p);
+        }
+        let exe = std::env::current_exe().unwrap();
+        let profile_dir = exe.parent().and_then(Path::parent).unwrap();
+        let next = profile_dir.join("obsw");
+        if next.is_file() {
+            return next;
+        }
+        let own = target_dir().join("ground-obsw");
+        let built = own.join("debug").join("obsw");
+        let st = Command::new(env!("CARGO"))
+            .args(["build", "-q", "-p", "obsw", "--bin", "obsw"])
+            .env("CARGO_TARGET_DIR", &own)
+            .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+            .status()
+            .expect("running cargo to build obsw");
+        assert!(st.success(), "building obsw failed");
+        built
+    })
+    .clone()
+}
+
+fn free_port() -> u16 {
+    loop {
+        let t = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let p = t.local_addr().unwrap().port();
+        if UdpSocket::bind(("127.0.0.1", p)).is_ok() {
+            return p;
+        }
+    }
+}
+
+struct Obsw {
+    child: Child,
+    addr: SocketAddr,
+    ctl: SocketAddr,
+}
+
+impl Drop for Obsw {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn start_obsw(robot: u8, speed: f64, initial: &str) -> Obsw {
+    let port = free_port();
+    let ctl_port = free_port();
+    let addr: SocketAddr = ([127, 0, 0, 1], port).into();
+    let ctl: SocketAddr = ([127, 0, 0, 1], ctl_port).into();
+    let mut child = Command::new(obsw_bin())
+        .args([
+            "--robot",
+            &robot.to_string(),
+            "--udp",
+            &addr.to_string(),
+            "--tcp",
+            &addr.to_string(),
+        ])
+        .args([
+            "--sim-ctl",
+            &ctl.to_string(),
+            "--speed",
+            &speed.to_string(),
+            "--seed",
+            "7",
+        ])
+        .args(["--initial-state", initial])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("starting obsw");
+    let out = child.stdout.take().unwrap();
+    let mut lines = std::io::BufReader::new(out).lines();
+    let ready = lines.next().and_then(Result::ok).unwrap_or_default();
+    assert!(ready.starts_with("READY"), "obsw did not start: {ready:?}");
+    std::thread::spawn(move || for _ in lines {});
+    Obsw { child, addr, ctl }
+}
+
+fn tmpdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("ground-live-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn ground(dir: &Path, args: &[&str]) -> Output {
+    Command::new(GROUND)
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .expect("running ground")
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+#[test]
+fn ping_mode_and_send_against_the_real_obsw() {
+    let o = start_obsw(1, 50.0, "Xneg");
+    let dir = tmpdir("pms");
+    let r = format!("1={}", o.addr);
+    let out = ground(&dir, &["ping", "--robot", &r, "-c", "2"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    assert!(text(&out).contains("reply in"), "{}", text(&out));
+
+    // Robot functions are refused in STANDBY: exit 4 and the reason in words.
+    let out = ground(&dir, &["send", "--robot", &r, "RECONFIGURE", "from=Xneg", "to=Xpos"]);
+    assert_eq!(out.status.code(), Some(4), "{}", text(&out));
+    assert!(text(&out).contains("NOT_ALLOWED_IN_MODE"), "{}", text(&out));
+
+    let out = ground(&dir, &["mode", "--robot", &r, "operational"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+
+    let out = ground(&dir, &["send", "--robot", &r, "RECONFIGURE", "from=Xneg", "to=Xpos"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    let t = text(&out);
+    assert!(t.contains("progress ok step 1") && t.contains("completion ok"), "{t}");
+
+    // The ground's belief of the state is wrong now: refused with INITIAL_STATE_MISMATCH.
+    let out = ground(&dir, &["send", "--robot", &r, "RECONFIGURE", "from=Xneg", "to=Xpos"]);
+    assert_eq!(out.status.code(), Some(4), "{}", text(&out));
+    assert!(text(&out).contains("INITIAL_STATE_MISMATCH"), "{}", text(&out));
+
+    // Arguments are checked against the MIB before anything is sent.
+    let out = ground(&dir, &["send", "--robot", &r, "BOLT_FACE", "side=A", "pairs=16"]);
+    assert_eq!(out.status.code(), Some(3), "{}", text(&out));
+
+    // Everything went into the archive; sequence counts continue across invocations.
+    let out = ground(&dir, &["archive", "query", "--type", "tc", "--json"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    let seqs: Vec<i64> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| {
+            serde_json::from_str::<serde_json::Value>(l).unwrap()["seq"]
+                .as_i64()
+                .unwrap()
+        })
+        .collect();
+    assert!(seqs.len() >= 5);
+    let mut sorted = seqs.clone();
+    sorted.dedup();
+    assert_eq!(sorted.len(), seqs.len(), "sequence counts reused: {seqs:?}");
+    let out = ground(&dir, &["archive", "query", "--type", "verification"]);
+    assert!(text(&out).contains("INITIAL_STATE_MISMATCH"));
+    let out = ground(
+        &dir,
+        &["archive", "query", "--type", "hk", "--param", "V_BAT_A", "--limit", "3"],
+    );
+    assert!(text(&out).contains("V_BAT_A"), "{}", text(&out));
+    let svg = dir.join("vbat.svg");
+    let out = ground(
+        &dir,
+        &["archive", "plot", "V_BAT_A", "I_BAT", "--out", svg.to_str().unwrap()],
+    );
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    assert!(std::fs::read_to_string(&svg).unwrap().contains("<svg"));
+}
+
+#[test]
+fn demo_plan_runs_on_two_robots_over_tcp() {
+    let a = start_obsw(1, 50.0, "Xneg");
+    let b = start_obsw(2, 50.0, "Xpos");
+    let dir = tmpdir("run");
+    let plan = concat!(env!("CARGO_MANIFEST_DIR"), "/../plans/demo.toml");
+    let out = ground(
+        &dir,
+        &[
+            "run",
+            plan,
+            "--tcp",
+            "--plain",
+            "--robot",
+            &format!("1={}", a.addr),
+            "--robot",
+            &format!("2={}", b.addr),
+        ],
+    );
+    let t = text(&out);
+    assert_eq!(out.status.code(), Some(0), "{t}");
+    assert!(t.contains("9 of 9 steps done"), "{t}");
+    // r2-walk waits for r1-bolt (cross-robot dependency): it is sent after r1-bolt is done.
+    let done_r1 = t.find("done     r1-bolt").unwrap();
+    let send_r2 = t.find("send     r2-walk").unwrap();
+    assert!(send_r2 > done_r1, "{t}");
+    assert!(t.contains("bolts per attempt: 1st"), "{t}");
+}
+
+#[test]
+fn a_fault_stops_the_dependent_steps_and_says_why() {
+    let a = start_obsw(1, 50.0, "Xneg");
+    let dir = tmpdir("fault");
+    let plan = dir.join("p.toml");
+    std::fs::write(
+        &plan,
+        r#"name = "jam"
+[[robot]]
+number = 1
+initial_state = "Xneg"
+[[step]]
+id = "op"
+robot = 1
+action = "mode"
+mode = "operational"
+[[step]]
+id = "bolt"
+robot = 1
+action = "bolt"
+side = "A"
+pairs = "all"
+[[step]]
+id = "walk"
+robot = 1
+action = "reconfigure"
+to = "Xpos"
+"#,
+    )
+    .unwrap();
+    let out = ground(&dir, &["sim", "--addr", &a.ctl.to_string(), "fastener-jam"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    let out = ground(
+        &dir,
+        &[
+            "run",
+            plan.to_str().unwrap(),
+            "--plain",
+            "--robot",
+            &format!("1={}", a.addr),
+        ],
+    );
+    let t = text(&out);
+    assert_eq!(out.status.code(), Some(4), "{t}");
+    assert!(t.contains("FAILED") && t.contains("bolt"), "{t}");
+    assert!(t.contains("blocked") && t.contains("walk"), "{t}");
+    assert!(t.contains("BOLT_FAILURE") || t.contains("BOLT_FAILED"), "{t}");
+}
+
+/// A UDP relay between the ground and an OBSW that drops the first `drop_first`
+/// datagrams from the ground.
+fn lossy_relay(obsw: SocketAddr, drop_first: usize, stop: Arc<AtomicBool>) -> SocketAddr {
+    let front = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let back = UdpSocket::bind("127.0.0.1:0").unwrap();
+    back.connect(obsw).unwrap();
+    front.set_read_timeout(Some(Duration::from_millis(20))).unwrap();
+    back.set_read_timeout(Some(Duration::from_millis(20))).unwrap();
+    let addr = front.local_addr().unwrap();
+    std::thread::spawn(move || {
+        let mut peer = None;
+        let mut dropped = 0;
+        let mut buf = [0u8; 4096];
+        while !stop.load(Ordering::Relaxed) {
+            if let Ok((n, from)) = front.recv_from(&mut buf) {
+                peer = Some(from);
+                if dropped < drop_first {
+                    dropped += 1;
+                } else {
+                    let _ = back.send(&buf[..n]);
+                }
+            }
+            if let (Ok(n), Some(p)) = (back.recv(&mut buf), peer) {
+                let _ = front.send_to(&buf[..n], p);
+            }
+        }
+    });
+    addr
+}
+
+#[test]
+fn a_lost_tc_is_resent_with_the_same_sequence_count() {
+    let a = start_obsw(1, 50.0, "Xneg");
+    let stop = Arc::new(AtomicBool::new(false));
+    let relay = lossy_relay(a.addr, 1, stop.clone());
+    let dir = tmpdir("resend");
+    let t0 = Instant::now();
+    let out = ground(&dir, &["send", "--robot", &format!("1={relay}"), "PING"]);
+    stop.store(true, Ordering::Relaxed);
+    let t = text(&out);
+    assert_eq!(out.status.code(), Some(0), "{t}");
+    assert!(t.contains("resent (send 2)"), "{t}");
+    assert!(t0.elapsed() >= Duration::from_millis(mib::config::GROUND_ACK_TIMEOUT_MS as u64));
+    let out = ground(&dir, &["archive", "query", "--type", "tc", "--json"]);
+    let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(rows.len(), 2, "{rows:?}");
+    assert_eq!(rows[0]["seq"], rows[1]["seq"]);
+    assert_eq!(rows[1]["attempt"], 2);
+}
+
+#[test]
+fn an_unreachable_obsw_fails_after_the_resends() {
+    let dir = tmpdir("dead");
+    let port = free_port();
+    let t0 = Instant::now();
+    let out = ground(
+        &dir,
+        &[
+            "send",
+            "--no-archive",
+            "--robot",
+            &format!("1=127.0.0.1:{port}"),
+            "PING",
+        ],
+    );
+    let t = text(&out);
+    assert_eq!(out.status.code(), Some(5), "{t}");
+    assert!(
+        t.contains(&format!("after {} sends", mib::config::GROUND_MAX_RESENDS + 1)),
+        "{t}"
+    );
+    let expect =
+        Duration::from_millis(mib::config::GROUND_ACK_TIMEOUT_MS as u64 * (mib::config::GROUND_MAX_RESENDS as u64 + 1));
+    assert!(t0.elapsed() >= expect && t0.elapsed() < expect + Duration::from_secs(5));
+}
+
+#[test]
+fn watch_shows_housekeeping_without_a_request() {
+    let a = start_obsw(1, 20.0, "Xneg");
+    let dir = tmpdir("watch");
+    let out = ground(
+        &dir,
+        &[
+            "watch",
+            "--no-archive",
+            "--robot",
+            &format!("1={}", a.addr),
+            "--duration",
+            "2",
+            "--json",
+        ],
+    );
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    let hk = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter(|l| l.contains("\"sid\":1"))
+        .count();
+    assert!(hk >= 2, "{}", text(&out));
+}
