@@ -1,0 +1,38 @@
+//! Writes a file of N TM[3,25] ROBOT_STATUS packets (robot 1, varying values) for the
+//! decode benchmark, and prints the Python `struct` format of the HK source data so
+//! that the Python side decodes the same structure.
+//!
+//! `cargo run --release -p ground --example gen_hk -- N FILE`
+
+use std::io::Write;
+
+fn main() -> anyhow::Result<()> {
+    let mut a = std::env::args().skip(1);
+    let n: usize = a.next().unwrap_or_else(|| "1000000".into()).parse()?;
+    let path = a.next().unwrap_or_else(|| "hk.bin".into());
+    let def = mib::hk::by_sid(mib::hk::sid::ROBOT_STATUS).ok_or_else(|| anyhow::anyhow!("no ROBOT_STATUS"))?;
+    let apid = mib::apid::robot_apid(1).ok_or_else(|| anyhow::anyhow!("no APID"))?;
+    let mut out = std::io::BufWriter::new(std::fs::File::create(&path)?);
+    let mut src = [0u8; 512];
+    let t0 = ground::pus::CdsShort::from_unix_ms(1_767_225_600_000);
+    for i in 0..n {
+        let len = mib::codec::encode_hk(def, |id| (id as i64 * 131 + i as i64 * 7) % 4000, &mut src)?;
+        let t = ground::pus::CdsShort::from_unix_ms(t0.unix_ms() + i as i64 * 100).to_bytes();
+        let p = ground::pus::build_tm(apid, (i & 0x3FFF) as u16, 3, 25, i as u16, &t, &src[..len]);
+        out.write_all(&p)?;
+    }
+    out.flush()?;
+    let mut fmt = String::from(">H");
+    for id in def.params {
+        let p = mib::params::by_id(*id).ok_or_else(|| anyhow::anyhow!("param {id}"))?;
+        fmt.push(match p.ptype {
+            mib::PType::Bool | mib::PType::U8 => 'B',
+            mib::PType::U16 => 'H',
+            mib::PType::I16 => 'h',
+            mib::PType::U32 => 'I',
+            mib::PType::I32 => 'i',
+        });
+    }
+    println!("{fmt}");
+    Ok(())
+}
