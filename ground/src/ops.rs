@@ -27,6 +27,8 @@ pub struct RobotStatus {
     pub addr: SocketAddr,
     pub mode: Option<u32>,
     pub state: Option<u8>,
+    /// Last commanded target state (HK `TARGET_STATE`), shown while moving.
+    pub target: Option<u8>,
     pub battery_v: Option<f64>,
     pub tm_count: u64,
     pub corrupt: u64,
@@ -42,6 +44,7 @@ impl RobotStatus {
             addr,
             mode: None,
             state: None,
+            target: None,
             battery_v: None,
             tm_count: 0,
             corrupt: 0,
@@ -68,7 +71,11 @@ impl RobotStatus {
             .map_or_else(|| "?".into(), |m| pus::mode_name(mib::modes::node::ROBOT, m))
     }
     pub fn state_name(&self) -> String {
-        self.state.map_or_else(|| "?".into(), state_name)
+        match (self.state, self.target) {
+            (Some(s), _) => state_name(s),
+            (None, Some(t)) => format!("moving to {}", state_name(t)),
+            (None, None) => "?".into(),
+        }
     }
     /// One-line status.
     pub fn line(&self) -> String {
@@ -406,6 +413,10 @@ impl Session {
                         s.mode = hk.raw(pid::MODE).map(|m| m as u32);
                         s.state = hk
                             .raw(pid::CONFIG_STATE)
+                            .filter(|&v| v != mib::robot::STATE_UNKNOWN as i64)
+                            .map(|v| v as u8);
+                        s.target = hk
+                            .raw(pid::TARGET_STATE)
                             .filter(|&v| v != mib::robot::STATE_UNKNOWN as i64)
                             .map(|v| v as u8);
                         s.battery_v = hk.eng(pid::V_BAT_A);
