@@ -909,6 +909,16 @@ fn watch(a: &WatchArgs, archive_path: Option<&Path>) -> Result<u8> {
                         format!("CORRUPT {error}"),
                         serde_json::json!({"corrupt": error.to_string()}),
                     ),
+                    Update::Foreign {
+                        robot,
+                        apid,
+                        service,
+                        subservice,
+                    } => (
+                        *robot,
+                        format!("FOREIGN TM[{service},{subservice}] of APID 0x{apid:03X}"),
+                        serde_json::json!({"foreign_apid": apid, "service": service, "subservice": subservice}),
+                    ),
                     _ => continue,
                 };
                 n += 1;

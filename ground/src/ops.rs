@@ -32,6 +32,8 @@ pub struct RobotStatus {
     pub battery_v: Option<f64>,
     pub tm_count: u64,
     pub corrupt: u64,
+    /// TM on this robot's link with another robot's APID (archived, not used).
+    pub foreign: u64,
     /// Outcome of the last exchanges (TC sent → acceptance within the timeout).
     pub quality: VecDeque<bool>,
     pub last_tm: Option<Instant>,
@@ -48,6 +50,7 @@ impl RobotStatus {
             battery_v: None,
             tm_count: 0,
             corrupt: 0,
+            foreign: 0,
             quality: VecDeque::with_capacity(LINK_QUALITY_WINDOW),
             last_tm: None,
         }
@@ -143,6 +146,13 @@ pub enum Update {
     Corrupt {
         robot: u8,
         error: DecodeError,
+    },
+    /// A TM whose APID is not the link's robot's (archived, otherwise ignored).
+    Foreign {
+        robot: u8,
+        apid: u16,
+        service: u8,
+        subservice: u8,
     },
 }
 
@@ -371,6 +381,16 @@ impl Session {
         if let Some(s) = st {
             s.tm_count += 1;
             s.last_tm = Some(Instant::now());
+            if tm.robot != Some(robot) && tm.apid != mib::apid::IDLE_APID {
+                s.foreign += 1;
+                out.push(Update::Foreign {
+                    robot,
+                    apid: tm.apid,
+                    service: tm.service,
+                    subservice: tm.subservice,
+                });
+                return;
+            }
         }
         match tm.body {
             TmBody::Verification(v) => {
@@ -872,6 +892,16 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions) -> RunSum
                 Update::Corrupt { robot, error } => {
                     disp.log(format!("  corrupt  TM from robot {robot}: {error}"));
                 }
+                Update::Foreign {
+                    robot,
+                    apid,
+                    service,
+                    subservice,
+                } => {
+                    disp.log(format!(
+                        "  skipped  TM[{service},{subservice}] of APID 0x{apid:03X} on robot {robot}'s link"
+                    ));
+                }
                 _ => {}
             }
         }
@@ -993,5 +1023,88 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions) -> RunSum
         faults,
         links,
         seconds: start.elapsed().as_secs_f64(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pus::{build_tm, CdsShort};
+    use std::net::UdpSocket;
+
+    /// A minimal fake OBSW speaking real PUS: answers each TC with TM[1,1] and TM[1,7],
+    /// after first sending a TM of another robot's APID; ignores the first `drop` TCs.
+    fn fake_obsw(drop: usize) -> (SocketAddr, std::thread::JoinHandle<Vec<(u16, u16)>>) {
+        let s = UdpSocket::bind("127.0.0.1:0").unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(3))).unwrap();
+        let addr = s.local_addr().unwrap();
+        let h = std::thread::spawn(move || {
+            let mut seen = Vec::new();
+            let mut buf = [0u8; 2048];
+            let t = CdsShort::now().to_bytes();
+            while let Ok((n, from)) = s.recv_from(&mut buf) {
+                let Ok(tc) = pus::decode_tc(&buf[..n]) else { continue };
+                seen.push((tc.apid, tc.seq));
+                if seen.len() <= drop {
+                    continue;
+                }
+                let rid = [buf[0], buf[1], buf[2], buf[3]];
+                let other = build_tm(0x1FE, 0, 17, 2, 0, &t, &[]);
+                let acc = build_tm(tc.apid, 1, 1, 1, 0, &t, &rid);
+                let done = build_tm(tc.apid, 2, 1, 7, 0, &t, &rid);
+                for p in [other, acc, done] {
+                    s.send_to(&p, from).unwrap();
+                }
+                if seen.len() > drop {
+                    break;
+                }
+            }
+            seen
+        });
+        (addr, h)
+    }
+
+    #[test]
+    fn session_resends_with_the_same_count_and_skips_foreign_apids() {
+        let (addr, fake) = fake_obsw(1);
+        let mut s = Session::connect(&[(1, addr)], Transport::Udp, None, |_| Some(100)).unwrap();
+        s.ack_timeout = Duration::from_millis(150);
+        let tc = s
+            .send(1, mib::tc::by_name("PING").unwrap(), &[], Some(7), None)
+            .unwrap();
+        assert_eq!(tc.seq, 100);
+        let mut stages = Vec::new();
+        let mut resent = 0;
+        let mut foreign = 0;
+        let t0 = Instant::now();
+        while t0.elapsed() < Duration::from_secs(3) && !stages.contains(&Stage::Completion) {
+            for u in s.poll(Duration::from_millis(50)) {
+                match u {
+                    Update::Verification { tag: Some(7), v, .. } => stages.push(v.stage),
+                    Update::Resent { send, .. } => resent = send,
+                    Update::Foreign { apid, .. } => foreign += (apid == 0x1FE) as u32,
+                    _ => {}
+                }
+            }
+        }
+        assert_eq!(stages, vec![Stage::Acceptance, Stage::Completion]);
+        assert_eq!((resent, foreign), (2, 1));
+        assert!(!s.busy(1));
+        let st = &s.robots[&1];
+        // one exchange timed out, the resend was accepted
+        assert_eq!(st.link_quality(), Some(0.5));
+        assert_eq!(st.foreign, 1);
+        assert_eq!(fake.join().unwrap(), vec![(0x101, 100), (0x101, 100)]);
+    }
+
+    #[test]
+    fn link_quality_is_over_the_last_window_of_exchanges() {
+        let mut r = RobotStatus::new(1, "127.0.0.1:1".parse().unwrap());
+        assert_eq!(r.link_quality(), None);
+        for i in 0..(LINK_QUALITY_WINDOW + 50) {
+            r.exchange(i >= 50 + LINK_QUALITY_WINDOW / 2);
+        }
+        assert_eq!(r.quality.len(), LINK_QUALITY_WINDOW);
+        assert_eq!(r.link_quality(), Some(0.5));
     }
 }
