@@ -214,7 +214,7 @@ fn demo_plan_runs_on_two_robots_over_tcp() {
     );
     let t = text(&out);
     assert_eq!(out.status.code(), Some(0), "{t}");
-    assert!(t.contains("9 of 9 steps done"), "{t}");
+    assert!(t.contains("10 of 10 steps done"), "{t}");
     // r2-walk waits for r1-bolt (cross-robot dependency): it is sent after r1-bolt is done.
     let done_r1 = t.find("done     r1-bolt").unwrap();
     let send_r2 = t.find("send     r2-walk").unwrap();
