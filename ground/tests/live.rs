@@ -191,6 +191,36 @@ fn ping_mode_and_send_against_the_real_obsw() {
     );
     assert_eq!(out.status.code(), Some(0), "{}", text(&out));
     assert!(std::fs::read_to_string(&svg).unwrap().contains("<svg"));
+    let png = dir.join("vbat.png");
+    let out = ground(
+        &dir,
+        &[
+            "archive",
+            "plot",
+            "V_BAT_A",
+            "--robot",
+            "1",
+            "--out",
+            png.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    assert_eq!(&std::fs::read(&png).unwrap()[..4], b"\x89PNG");
+    let out = ground(
+        &dir,
+        &[
+            "archive",
+            "plot",
+            "V_BAT_A",
+            "--robot",
+            "9",
+            "--out",
+            png.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(out.status.code(), Some(3), "{}", text(&out));
+    let out = ground(&dir, &["archive", "export", "--csv", "--type", "event"]);
+    assert!(String::from_utf8_lossy(&out.stdout).starts_with("id,t_ms,robot,event_id,name"));
 }
 
 #[test]
