@@ -651,12 +651,11 @@ impl<S: TmStore> Obsw<S> {
             (service::EVENT, _) => {
                 let mut buf = [0u8; 2 + 2 * N_EVENTS];
                 let mut n = 2;
-                for (i, e) in EVENTS
+                let disabled = EVENTS
                     .iter()
                     .enumerate()
-                    .filter(|(i, _)| self.ev_disabled & (1 << i) != 0)
-                {
-                    let _ = i;
+                    .filter(|(i, _)| self.ev_disabled & (1 << i) != 0);
+                for (_, e) in disabled {
                     buf[n..n + 2].copy_from_slice(&e.id.to_be_bytes());
                     n += 2;
                 }
