@@ -21,7 +21,6 @@ use crate::pus::{self, BuiltTc, DecodeError, Tm, TmBody};
 pub const BATCH_MAX: usize = 4096;
 
 const SCHEMA: &str = "
-CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT);
 CREATE TABLE IF NOT EXISTS tc (
     id INTEGER PRIMARY KEY, t_ms INTEGER NOT NULL, robot INTEGER, apid INTEGER, seq INTEGER,
     service INTEGER, subservice INTEGER, name TEXT, args TEXT, step TEXT, attempt INTEGER,
