@@ -185,7 +185,18 @@ impl Action {
             Action::RotateHip { angle_cdeg } => format!("rotate hip to {:.2} deg", *angle_cdeg as f64 / 100.0),
             Action::BoltPair { side, pair } => format!("bolt pair {pair} side {}", side_name(*side)),
             Action::UnboltPair { side, pair } => format!("unbolt pair {pair} side {}", side_name(*side)),
-            Action::Command { tc, args } => format!("{tc} {args:?}"),
+            Action::Command { tc, args } => match mib::tc::by_name(tc) {
+                Some(def) => {
+                    let a: Vec<String> = def
+                        .args
+                        .iter()
+                        .zip(args)
+                        .map(|(d, v)| format!("{}={v}", d.name))
+                        .collect();
+                    format!("{} {}", def.name, a.join(" "))
+                }
+                None => format!("{tc} {args:?}"),
+            },
         }
     }
 }

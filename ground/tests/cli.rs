@@ -54,7 +54,15 @@ fn every_verb_has_help() {
 
 #[test]
 fn shipped_plans_check_and_a_bad_plan_lists_every_error() {
-    let o = ground(&["plan", "check", DEMO]);
+    let plans: Vec<String> = std::fs::read_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/../plans"))
+        .unwrap()
+        .map(|e| e.unwrap().path().display().to_string())
+        .filter(|p| p.ends_with(".toml"))
+        .collect();
+    assert!(plans.len() >= 2 && plans.iter().any(|p| p.ends_with("demo.toml")));
+    let mut args = vec!["plan", "check"];
+    args.extend(plans.iter().map(String::as_str));
+    let o = ground(&args);
     assert_eq!(o.status.code(), Some(0), "{}", text(&o));
     let dir = tmpdir("bad");
     let bad = dir.join("bad.toml");
