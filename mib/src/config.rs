@@ -33,6 +33,9 @@ pub const GROUND_ID: u16 = 0;
 /// Default UDP/TCP port of robot 1's OBSW; robot N listens on `DEFAULT_PORT + N - 1`
 /// when the ground tool starts several OBSWs.
 pub const DEFAULT_PORT: u16 = 7301;
+/// Host binary: most inputs (TCs, simulator-control lines) handled back to back before
+/// a due control period runs.
+pub const HOST_INPUT_BATCH: usize = 64;
 /// Longest a TM write to one TCP client may block before the client is dropped (its
 /// TM stays in the on-board store).
 pub const TCP_WRITE_TIMEOUT_MS: u32 = 100;

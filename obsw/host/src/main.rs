@@ -237,45 +237,28 @@ fn run(args: Args) -> Result<()> {
     let start = Instant::now();
     let wall_of = |sim_ms: u64| start + Duration::from_secs_f64(sim_ms as f64 / 1000.0 / s.speed);
     let end_ms = s.duration.map(|d| (d * 1000.0) as u64);
+    // TCs carry the time of arrival, between the last period and the next.
+    let arrival =
+        |sim_ms: u64| ((start.elapsed().as_secs_f64() * 1000.0 * s.speed) as u64).clamp(sim_ms, sim_ms + period - 1);
     let mut sim_ms: u64 = 0;
     let mut link_rx: Vec<u8> = Vec::new();
     let mut bad_frames: u32 = 0;
     obsw.boot(0, config::reset_cause::POWER_ON, &mut down);
     loop {
+        // Inputs already waiting first, but a bounded batch, so that a flood of TCs
+        // cannot hold back the control period (and a late period cannot starve TCs).
+        for _ in 0..config::HOST_INPUT_BATCH {
+            let Ok(input) = rx.try_recv() else { break };
+            let now = arrival(sim_ms);
+            handle_input(input, now, &mut obsw, &mut sim, &mut down, &ctl, &mut bad_frames);
+        }
         let due = wall_of(sim_ms + period);
         let wait = due.saturating_duration_since(Instant::now());
-        let input = if wait.is_zero() {
-            rx.try_recv().ok()
-        } else {
-            rx.recv_timeout(wait).ok()
-        };
-        if let Some(input) = input {
-            // TCs carry the time of arrival, between the last tick and the next.
-            let elapsed = (start.elapsed().as_secs_f64() * 1000.0 * s.speed) as u64;
-            let now = elapsed.clamp(sim_ms, sim_ms + period - 1);
-            match input {
-                Input::Tc(bytes, origin) => {
-                    if let Origin::Udp(peer) = origin {
-                        down.set_udp_peer(peer);
-                    }
-                    obsw.handle_tc(now, &bytes, &mut down);
-                }
-                Input::BadFrame => {
-                    bad_frames += 1;
-                    obsw.io.tc_dropped = bad_frames;
-                    log::warn!("dropped a malformed COBS frame on TCP ({bad_frames} so far)");
-                    // A frame that cannot be decoded has no request ID: report it as
-                    // a malformed packet through the normal acceptance path.
-                    obsw.handle_tc(now, &[], &mut down);
-                }
-                Input::SimCtl(line, from) => {
-                    let reply = sim_control(&mut sim, &line);
-                    let _ = ctl.send_to(reply.as_bytes(), from);
-                }
+        if !wait.is_zero() {
+            if let Ok(input) = rx.recv_timeout(wait) {
+                let now = arrival(sim_ms);
+                handle_input(input, now, &mut obsw, &mut sim, &mut down, &ctl, &mut bad_frames);
             }
-            continue;
-        }
-        if Instant::now() < due {
             continue;
         }
         sim_ms += period;
@@ -286,6 +269,38 @@ fn run(args: Args) -> Result<()> {
         sim.step(period as u32, &out.actuators, &out.link_tx, &mut link_rx);
         if end_ms.is_some_and(|e| sim_ms >= e) {
             return Ok(());
+        }
+    }
+}
+
+/// Handles one input of the main loop at on-board time `now`.
+fn handle_input(
+    input: Input,
+    now: u64,
+    obsw: &mut Obsw<HostStore>,
+    sim: &mut Sim,
+    down: &mut net::Downlink,
+    ctl: &std::net::UdpSocket,
+    bad_frames: &mut u32,
+) {
+    match input {
+        Input::Tc(bytes, origin) => {
+            if let Origin::Udp(peer) = origin {
+                down.set_udp_peer(peer);
+            }
+            obsw.handle_tc(now, &bytes, down);
+        }
+        Input::BadFrame => {
+            *bad_frames += 1;
+            obsw.io.tc_dropped = *bad_frames;
+            log::warn!("dropped a malformed COBS frame on TCP ({bad_frames} so far)");
+            // A frame that cannot be decoded has no request ID: report it as a
+            // malformed packet through the normal acceptance path.
+            obsw.handle_tc(now, &[], down);
+        }
+        Input::SimCtl(line, from) => {
+            let reply = sim_control(sim, &line);
+            let _ = ctl.send_to(reply.as_bytes(), from);
         }
     }
 }
