@@ -36,9 +36,10 @@ pub const DEFAULT_PORT: u16 = 7301;
 /// Host binary: most inputs (TCs, simulator-control lines) handled back to back before
 /// a due control period runs.
 pub const HOST_INPUT_BATCH: usize = 64;
-/// Longest a TM write to one TCP client may block before the client is dropped (its
-/// TM stays in the on-board store).
-pub const TCP_WRITE_TIMEOUT_MS: u32 = 100;
+/// Longest a TM write may wait for the ground link (a TCP client that stops reading is
+/// then dropped; a UDP packet that still cannot go is counted in `IO_TM_DROPPED`). The
+/// packet stays in the on-board store either way.
+pub const TM_WRITE_TIMEOUT_MS: u32 = 100;
 /// Simulator control port of robot N is `SIM_CTL_BASE_PORT + N` (host simulator only).
 pub const SIM_CTL_BASE_PORT: u16 = 7400;
 

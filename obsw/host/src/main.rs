@@ -8,7 +8,6 @@ mod net;
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
-use std::sync::mpsc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{bail, Context, Result};
@@ -199,9 +198,8 @@ fn main() {
 
 fn run(args: Args) -> Result<()> {
     let s = settings(args)?;
-    let (tx, rx) = mpsc::channel();
-    let (mut down, udp, tcp) = net::start(s.udp, s.tcp, tx.clone())?;
-    let (ctl, ctl_addr) = net::start_sim_ctl(s.sim_ctl, tx)?;
+    let (mut inputs, mut down, bound) = net::start(s.udp, s.tcp, s.sim_ctl)?;
+    let (udp, tcp, ctl_addr) = (bound.udp, bound.tcp, bound.sim_ctl);
     let epoch = SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map(|d| d.as_millis() as u64)
@@ -247,17 +245,25 @@ fn run(args: Args) -> Result<()> {
     loop {
         // Inputs already waiting first, but a bounded batch, so that a flood of TCs
         // cannot hold back the control period (and a late period cannot starve TCs).
-        for _ in 0..config::HOST_INPUT_BATCH {
-            let Ok(input) = rx.try_recv() else { break };
-            let now = arrival(sim_ms);
-            handle_input(input, now, &mut obsw, &mut sim, &mut down, &ctl, &mut bad_frames);
+        let mut handled = 0;
+        while handled < config::HOST_INPUT_BATCH {
+            let Some(input) = inputs.next() else { break };
+            handle_input(
+                input,
+                arrival(sim_ms),
+                &mut obsw,
+                &mut sim,
+                &mut down,
+                &inputs,
+                &mut bad_frames,
+            );
+            handled += 1;
         }
         let due = wall_of(sim_ms + period);
         let wait = due.saturating_duration_since(Instant::now());
         if !wait.is_zero() {
-            if let Ok(input) = rx.recv_timeout(wait) {
-                let now = arrival(sim_ms);
-                handle_input(input, now, &mut obsw, &mut sim, &mut down, &ctl, &mut bad_frames);
+            if handled < config::HOST_INPUT_BATCH {
+                inputs.wait(wait);
             }
             continue;
         }
@@ -280,7 +286,7 @@ fn handle_input(
     obsw: &mut Obsw<HostStore>,
     sim: &mut Sim,
     down: &mut net::Downlink,
-    ctl: &std::net::UdpSocket,
+    inputs: &net::Inputs,
     bad_frames: &mut u32,
 ) {
     match input {
@@ -298,10 +304,7 @@ fn handle_input(
             // malformed packet through the normal acceptance path.
             obsw.handle_tc(now, &[], down);
         }
-        Input::SimCtl(line, from) => {
-            let reply = sim_control(sim, &line);
-            let _ = ctl.send_to(reply.as_bytes(), from);
-        }
+        Input::SimCtl(line, from) => inputs.reply_sim_ctl(from, &sim_control(sim, &line)),
     }
 }
 
