@@ -79,8 +79,8 @@ pub mod reset_cause {
 }
 
 /// Event throttling: at most `EVENT_THROTTLE_MAX` reports of one event ID per
-/// `EVENT_THROTTLE_WINDOW_MS`; the rest are counted and dropped. `MODE_CHANGED` is
-/// exempt: at most one per mode-tree node and transition, and every one matters.
+/// `EVENT_THROTTLE_WINDOW_MS`; the rest are counted (`EVENTS_THROTTLED`) and dropped.
+/// `events::UNTHROTTLED` lists the exempt events.
 pub const EVENT_THROTTLE_WINDOW_MS: u32 = 1000;
 pub const EVENT_THROTTLE_MAX: u8 = 20;
 /// Default time report rate exponent (TM[9,2] every 2^n s).

@@ -96,6 +96,10 @@ events! {
     PREVIOUS_PANIC = 0x020C, High, false, ["reset_cause": U8, "line": U32, "file_crc": U32], "The previous run ended in a panic (location recorded before the reset; file_crc = CRC-32 of the source path)";
 }
 
+/// Events exempt from throttling (`config::EVENT_THROTTLE_MAX`): `MODE_CHANGED` is
+/// bounded by the transitions themselves (one per mode-tree node) and every one matters.
+pub const UNTHROTTLED: &[u16] = &[eid::MODE_CHANGED];
+
 pub fn by_id(id: u16) -> Option<&'static EventDef> {
     EVENTS.iter().find(|e| e.id == id)
 }

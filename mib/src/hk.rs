@@ -115,6 +115,7 @@ pub const HK_STRUCTS: &[HkDef] = &[
             TM_STORE_DROPPED,
             SCHED_COUNT,
             SCHED_ENABLED,
+            EVENTS_THROTTLED,
             UPTIME_S,
         ],
         default_interval_ms: 10000,

@@ -141,6 +141,7 @@ params! {
     SCHED_COUNT = 76, U16, "", ID, None, "Activities in the time-based schedule";
     SCHED_ENABLED = 77, Bool, "", ID, None, "Time-based schedule enabled";
     UPTIME_S = 78, U32, "s", ID, None, "Seconds since boot";
+    EVENTS_THROTTLED = 79, U32, "", ID, None, "Event reports dropped by throttling";
     // --- platform I/O (board A firmware or host binary) ---
     IO_TC_DROPPED = 80, U32, "", ID, None, "Uplink frames dropped before the OBSW saw them (queue full, framing error)";
     IO_TM_DROPPED = 81, U32, "", ID, None, "Live TM packets the ground link could not send (kept in the store)";

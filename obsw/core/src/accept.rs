@@ -7,7 +7,8 @@ use mib::tc::{self, service, TcDef};
 use mib::FailureCode;
 use satrs::spacepackets::crc::CRC_CCITT_FALSE;
 
-const PRIMARY_LEN: usize = 6;
+/// CCSDS primary header length.
+pub const PRIMARY_LEN: usize = 6;
 const SEC_LEN: usize = 5;
 const CRC_LEN: usize = 2;
 /// Shortest PUS-C TC: primary header, secondary header, CRC.

@@ -19,7 +19,7 @@ use satrs::pus::verification::{
 };
 use satrs::spacepackets::ecss::{EcssEnumU16, EcssEnumU8};
 
-use crate::accept::{accept, Ack, Rejection, RequestId, Tc};
+use crate::accept::{accept, Ack, Rejection, RequestId, Tc, PRIMARY_LEN};
 use crate::fdir::{self, Faults, Monitoring, Response, N_MONITORS};
 use crate::modes::{Change, ModeTree, N_NODES};
 use crate::time::OnboardTime;
@@ -357,10 +357,8 @@ impl<S: TmStore> Obsw<S> {
         if self.ev_disabled & (1 << i) != 0 {
             return;
         }
-        // Mode changes are bounded by the transitions themselves (one per node) and the
-        // ground must see every one; everything else is throttled per event ID.
         let t = &mut self.throttle[i];
-        let throttled = id != eid::MODE_CHANGED;
+        let throttled = !events::UNTHROTTLED.contains(&id);
         if now.saturating_sub(t.window_start) >= config::EVENT_THROTTLE_WINDOW_MS as u64 {
             *t = Throttle {
                 window_start: now,
@@ -411,6 +409,7 @@ impl<S: TmStore> Obsw<S> {
             pid::SCHED_COUNT => self.sched.len() as i64,
             pid::SCHED_ENABLED => self.sched_enabled as i64,
             pid::UPTIME_S => (self.last_now / 1000) as i64,
+            pid::EVENTS_THROTTLED => self.counters.events_throttled as i64,
             pid::IO_TC_DROPPED => self.io.tc_dropped as i64,
             pid::IO_TM_DROPPED => self.io.tm_dropped as i64,
             pid::IO_SENSOR_ERRORS => self.io.sensor_errors as i64,
@@ -1403,11 +1402,11 @@ impl<S: TmStore> Obsw<S> {
 /// from its own primary header.
 fn split_activity(data: &[u8]) -> Option<(&[u8], &[u8], &[u8])> {
     let t = config::TIMESTAMP_LEN;
-    if data.len() < t + 6 {
+    if data.len() < t + PRIMARY_LEN {
         return None;
     }
     let (release, rest) = data.split_at(t);
-    let len = 6 + u16::from_be_bytes([rest[4], rest[5]]) as usize + 1;
+    let len = PRIMARY_LEN + u16::from_be_bytes([rest[4], rest[5]]) as usize + 1;
     if rest.len() < len {
         return None;
     }

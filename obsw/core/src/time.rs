@@ -3,9 +3,10 @@
 //! clock or from time correlation, and turns `now_ms` into CDS short time stamps.
 
 use satrs::spacepackets::time::cds::{CdsBase, CdsTime};
+use satrs::spacepackets::time::DAYS_CCSDS_TO_UNIX;
 
 /// Days from the CCSDS epoch (1958-01-01) to the Unix epoch.
-const CCSDS_TO_UNIX_DAYS: u64 = 4383;
+const CCSDS_TO_UNIX_DAYS: u64 = DAYS_CCSDS_TO_UNIX.unsigned_abs() as u64;
 const MS_PER_DAY: u64 = 86_400_000;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
