@@ -182,7 +182,9 @@ impl Action {
             Action::Wait { seconds } => format!("wait {seconds} s"),
             Action::MoveArm { side, pwm } => format!("move arm {} to {pwm} us", side_name(*side)),
             Action::MoveGripper { side, pwm } => format!("move gripper {} to {pwm} us", side_name(*side)),
-            Action::RotateHip { angle_cdeg } => format!("rotate hip to {:.2} deg", *angle_cdeg as f64 / 100.0),
+            Action::RotateHip { angle_cdeg } => {
+                format!("rotate hip to {:.2} deg", mib::params::CAL_CDEG.eng(*angle_cdeg as i64))
+            }
             Action::BoltPair { side, pair } => format!("bolt pair {pair} side {}", side_name(*side)),
             Action::UnboltPair { side, pair } => format!("unbolt pair {pair} side {}", side_name(*side)),
             Action::Command { tc, args } => match mib::tc::by_name(tc) {
@@ -642,11 +644,12 @@ fn parse_step(cx: &mut Cx, t: &Tbl<'_>, span: Range<usize>) -> RawStep {
             }
         }
         "rotate-hip" => need(cx, "angle").and_then(|v| {
-            let lo = robot::servo::HIP_MIN_CDEG as f64 / 100.0;
-            let hi = robot::servo::HIP_MAX_CDEG as f64 / 100.0;
+            let cal = mib::params::CAL_CDEG;
+            let lo = cal.eng(robot::servo::HIP_MIN_CDEG as i64);
+            let hi = cal.eng(robot::servo::HIP_MAX_CDEG as i64);
             match float_of(v.get_ref()) {
                 Some(a) if (lo..=hi).contains(&a) => Some(Action::RotateHip {
-                    angle_cdeg: (a * 100.0).round() as i16,
+                    angle_cdeg: cal.raw(a) as i16,
                 }),
                 _ => {
                     cx.err(v.span(), format!("`angle` must be degrees in {lo}..={hi}"));

@@ -31,12 +31,19 @@ fn operational(c: &mut Client) {
     assert_eq!(
         t.subservice,
         7,
-        "operational refused: {:?} data {:02x?}
-{}",
+        "operational refused: {:?} data {:02x?}\n{}",
         t.failure_code(),
         &t.data[6..],
         c.summary()
     );
+}
+
+/// Paper: in safed only hip and arm commands are accepted; the operator contracts an
+/// arm (side 0 = A, 1 = B) before commanding operational again.
+fn contract_in_safed(c: &mut Client, side: i64) {
+    let m = c.send("MOVE_ARM", &[side, mib::robot::servo::ARM_CONTRACTED_US as i64]);
+    let t = c.wait_done(&m, LONG).unwrap();
+    assert_eq!(t.subservice, 7, "arm command accepted in safed:\n{}", c.summary());
 }
 
 /// Current value of a parameter from a one-shot HK report.
@@ -238,15 +245,7 @@ fn arm_not_contracted_goes_to_safed_and_holds_arms_and_hip() {
     );
     // Paper: in safed the operator may still move arms; contract B, then recover.
     assert!(o.sim("clear stuck-arm").starts_with("ok"));
-    let m = c.send("MOVE_ARM", &[1, 1000]);
-    let t = c.wait_done(&m, LONG).unwrap();
-    assert_eq!(
-        t.subservice,
-        7,
-        "arm command accepted in safed:
-{}",
-        c.summary()
-    );
+    contract_in_safed(&mut c, 1);
     operational(&mut c);
 }
 
@@ -278,18 +277,8 @@ fn operational_overcurrent_mid_motion_aborts_to_safed() {
     // operator contracts both arms in safed (arm commands are allowed there) so the
     // robot is contracted and gripped, as the paper asks before operational.
     assert!(o.sim("clear obstacle").starts_with("ok"));
-    let m = c.send("MOVE_ARM", &[1, 1000]);
-    let t = c.wait_done(&m, LONG).unwrap();
-    assert_eq!(t.subservice, 7, "{}", c.summary());
-    let m = c.send("MOVE_ARM", &[0, 1000]);
-    let t = c.wait_done(&m, LONG).unwrap();
-    assert_eq!(
-        t.subservice,
-        7,
-        "arm command accepted in safed:
-{}",
-        c.summary()
-    );
+    contract_in_safed(&mut c, 1);
+    contract_in_safed(&mut c, 0);
     operational(&mut c);
 }
 
