@@ -1,6 +1,8 @@
 //! Harness for the end-to-end tests in `tests/tests/`: starts the real `obsw` binary on
 //! free loopback ports and talks PUS to it over UDP or TCP.
 
+pub mod relay;
+
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpStream, UdpSocket};
 use std::path::PathBuf;
