@@ -242,6 +242,13 @@ impl Client {
         self.send_raw(&raw);
         raw
     }
+    /// Subscribes to the downlink (UDP: TM goes only to grounds whose TC was accepted)
+    /// with a ping, and waits for its completion.
+    pub fn subscribe(&mut self) {
+        let raw = self.send("PING", &[]);
+        self.wait_done(&raw, Duration::from_secs(5))
+            .expect("ping answered: subscribed to the downlink");
+    }
     /// Receives TM for up to `timeout`, appending to the log; returns what arrived.
     pub fn recv_for(&mut self, timeout: Duration) -> Vec<Tm> {
         let deadline = Instant::now() + timeout;
