@@ -355,7 +355,7 @@ impl Failure {
             code,
             name: fc.name(),
             description: fc.description(),
-            fields: decode_layout(fc.data_layout(), data),
+            fields: decode_fields(fc.data(), data),
             data: data.to_vec(),
         }
     }
@@ -395,40 +395,27 @@ pub fn hex(v: &[u8]) -> String {
     s
 }
 
-fn ptype_of(name: &str) -> Option<mib::PType> {
-    use mib::PType::*;
-    Some(match name {
-        "u8" => U8,
-        "u16" => U16,
-        "u32" => U32,
-        "i16" => I16,
-        "i32" => I32,
-        "bool" => Bool,
-        _ => return None,
-    })
-}
-
-/// Decodes `data` with a MIB layout string such as `"side u8, pair u8, attempts u8"`.
-/// Returns the fields that fit; unknown types stop the decoding.
-pub fn decode_layout(layout: &str, data: &[u8]) -> Vec<Field> {
-    let mut out = Vec::new();
-    let mut off = 0;
-    for part in layout.split(',') {
-        let mut it = part.split_whitespace();
-        let (Some(name), Some(ty)) = (it.next(), it.next()) else {
-            break;
-        };
-        let Some(pt) = ptype_of(ty) else { break };
-        let Some(v) = data.get(off..).and_then(|d| pt.decode(d)) else {
-            break;
-        };
+/// Decodes `data` with a MIB field list; returns the fields that fit.
+pub fn decode_fields(fields: &[mib::layout::Field], data: &[u8]) -> Vec<Field> {
+    let mut r = mib_wire::Reader::new(data);
+    let mut out = Vec::with_capacity(fields.len());
+    for f in fields {
+        let Ok(u) = r.uint(f.bits, f.name) else { break };
         out.push(Field {
-            name: name.to_string(),
-            value: v,
+            name: f.name.to_string(),
+            value: raw_value(f.ptype, u),
         });
-        off += pt.size();
     }
     out
+}
+
+/// Raw value of an unsigned wire word read for a field of type `t`.
+pub fn raw_value(t: mib::PType, u: u32) -> i64 {
+    match t {
+        mib::PType::I16 => u as u16 as i16 as i64,
+        mib::PType::I32 => u as i32 as i64,
+        _ => u as i64,
+    }
 }
 
 /// A PUS 1 verification report.
