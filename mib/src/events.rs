@@ -94,6 +94,7 @@ events! {
     MODE_CHANGE_FAILED = 0x020A, Medium, false, ["node": U32, "mode": U32, "reason": U16], "A mode transition could not complete";
     BOLT_ATTEMPT_FAILED = 0x020B, Low, false, ["side": U8, "pair": U8, "attempt": U8], "One bolting attempt failed; retrying";
     PREVIOUS_PANIC = 0x020C, High, false, ["reset_cause": U8, "line": U32, "file_crc": U32], "The previous run ended in a panic (location recorded before the reset; file_crc = CRC-32 of the source path)";
+    EVENT_QUEUE_OVERFLOW = 0x020D, Low, false, ["dropped": U16], "Event reports dropped because the event queue was full (total in HK EVENTS_DROPPED; raised throttled, dropped = count since the last report)";
 }
 
 /// Events exempt from throttling (`config::EVENT_THROTTLE_MAX`): `MODE_CHANGED` is

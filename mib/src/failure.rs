@@ -67,6 +67,9 @@ failure_codes! {
     STORE_DISABLED = 31, "", "On-board storage is disabled";
     TIMEOUT = 32, "elapsed_ms u32", "Action did not complete in its time limit";
     ABORTED_BY_COMMAND = 33, "function u16", "Action aborted by a STOP command or a commanded mode change";
+    BOTH_SIDES_GRIPPED = 34, "grip_a_pwm u16, grip_b_pwm u16", "Start refused: the primitive needs a hip rotation but both grippers hold (the robot is clamped to the lattice on both sides, the hip cannot turn); data: the two gripper PWM pulse widths (us) that show both closed";
+    FRAME_TOO_LONG = 35, "frame_len u32, max_len u32", "Acceptance refused: a TCP or serial frame is longer than the largest packet (config::MAX_PACKET_LEN); data: the frame length and the limit";
+    NESTED_SCHEDULE = 36, "activity u8", "Acceptance refused: an activity of TC[11,4] embeds another TC[11,4] (schedules do not nest); data: the activity's index (0-based)";
 }
 
 #[cfg(test)]

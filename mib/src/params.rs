@@ -130,6 +130,7 @@ params! {
     MON_ENABLED = 62, U32, "", ID, None, "Enabled PUS 12 monitors (bit n = monitor n)";
     LAST_FAULT_EVENT = 63, U16, "", ID, None, "Event ID of the last fault (0 = none)";
     HIP_DEVIATION = 65, I16, "deg", CAL_CDEG, lim(-3.0, 3.0, -HIP_CONTRACTED_TOL_DEG, HIP_CONTRACTED_TOL_DEG), "Hip encoder minus the hip angle implied by the IMU-derived state (0 deg when the state is unknown)";
+    EVENTS_DROPPED = 66, U16, "", ID, None, "PUS 5 event reports dropped because the event queue was full (saturates at 65535)";
     PENDING_MODE = 64, U8, "", ID, None, "Mode to enter when the running motion completes (255 = none)";
     // --- OBSW ---
     TC_ACCEPTED = 70, U32, "", ID, None, "Telecommands accepted";

@@ -517,10 +517,66 @@ pub const TCS: &[TcDef] = &[
     tc(
         15,
         9,
-        "STORE_DOWNLINK",
-        &[],
+        "STORE_DOWNLINK_TIME",
+        &[
+            a(
+                "start_days",
+                PType::U16,
+                "day",
+                0,
+                65535,
+                "start of the time span: CDS day (since 1958-01-01)",
+            ),
+            a(
+                "start_ms",
+                PType::U32,
+                "ms",
+                0,
+                4_294_967_295,
+                "start of the time span: ms of the day",
+            ),
+            a(
+                "end_days",
+                PType::U16,
+                "day",
+                0,
+                65535,
+                "end of the time span (inclusive): CDS day",
+            ),
+            a(
+                "end_ms",
+                PType::U32,
+                "ms",
+                0,
+                4_294_967_295,
+                "end of the time span (inclusive): ms of the day",
+            ),
+        ],
         &[F::STORE_DISABLED],
-        "Downlink every stored packet (oldest first), then TM[15,19]",
+        "ECSS TC[15,9] by time range: downlink (oldest first) every stored packet whose on-board \
+         time stamp (CDS short, as in every TM secondary header) lies in [start, end], then TM[15,19]. \
+         The whole store is the full span 0/0 .. 65535/4294967295",
+    ),
+    tc(
+        15,
+        128,
+        "STORE_DOWNLINK_SEQ",
+        &[
+            a("apid", PType::U16, "", 0, 2047, "APID of the packets to downlink"),
+            a("first_seq", PType::U16, "", 0, 16383, "first packet sequence count"),
+            a(
+                "last_seq",
+                PType::U16,
+                "",
+                0,
+                16383,
+                "last packet sequence count (inclusive)",
+            ),
+        ],
+        &[F::STORE_DISABLED],
+        "Mission-specific: downlink the stored packets of one APID whose sequence count lies in \
+         [first_seq, last_seq], counted modulo 2^14 (first_seq > last_seq wraps through 16383 -> 0), \
+         oldest first, then TM[15,19]",
     ),
     tc(15, 11, "STORE_DELETE", &[], &[], "Delete the store content"),
     // --- 17 test ---
@@ -773,8 +829,8 @@ pub const TMS: &[TmDef] = &[
         service: 15,
         subservice: 19,
         name: "STORE_DOWNLINK_DONE",
-        layout: "packets u32",
-        desc: "End of a store downlink",
+        layout: "packets u32, oldest_days u16, oldest_ms u32, oldest_seq u16, overwritten u32",
+        desc: "End of a store downlink: packets sent; the on-board time and sequence count of the oldest packet still in the store (of the request's APID for TC[15,128], of any APID for TC[15,9]; 0 when the store is empty); packets overwritten since boot. What the ground still misses that is older than the oldest stored packet is unrecoverable",
     },
     TmDef {
         service: 17,
