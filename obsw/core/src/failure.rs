@@ -178,6 +178,23 @@ impl Failure {
         Self::new(FailureCode::ABORTED_BY_COMMAND, &[F::U16(function)])
     }
 
+    pub fn both_sides_gripped(grip_a_pwm: u16, grip_b_pwm: u16) -> Self {
+        Self::new(
+            FailureCode::BOTH_SIDES_GRIPPED,
+            &[F::U16(grip_a_pwm), F::U16(grip_b_pwm)],
+        )
+    }
+    pub fn frame_too_long(frame_len: usize, max_len: usize) -> Self {
+        let sat = |v: usize| v.min(u32::MAX as usize) as u32;
+        Self::new(
+            FailureCode::FRAME_TOO_LONG,
+            &[F::U32(sat(frame_len)), F::U32(sat(max_len))],
+        )
+    }
+    pub fn nested_schedule(activity: u8) -> Self {
+        Self::new(FailureCode::NESTED_SCHEDULE, &[F::U8(activity)])
+    }
+
     /// The failure of an action the domain refused to start. `running` is the function
     /// of the running action (for BUSY), `mode` the robot's mode (for NOT_POWERED).
     pub fn from_start(e: StartError, running: u16, mode: u32) -> Self {
@@ -187,9 +204,7 @@ impl Failure {
             StartError::Unreachable { from, to } => Self::unreachable_state(from, to),
             StartError::NotPowered => Self::not_allowed_in_mode(mode),
             StartError::InvalidArgument { index, value } => Self::arg_out_of_range(index, value),
-            // Until the MIB has BOTH_SIDES_GRIPPED: the hip angle argument (index 0)
-            // cannot be reached with both sides gripped.
-            StartError::BothSidesGripped { target_cdeg, .. } => Self::arg_out_of_range(0, target_cdeg as i32),
+            StartError::BothSidesGripped { grip_a_pwm, grip_b_pwm } => Self::both_sides_gripped(grip_a_pwm, grip_b_pwm),
         }
     }
 
@@ -267,6 +282,9 @@ pub(crate) mod tests {
             Failure::store_disabled(),
             Failure::timeout(1),
             Failure::aborted_by_command(1),
+            Failure::both_sides_gripped(1100, 1100),
+            Failure::frame_too_long(2000, 1024),
+            Failure::nested_schedule(0),
         ];
         for f in all {
             assert_eq!(f.data().len(), layout_len(f.code().data_layout()), "{:?}", f.code());

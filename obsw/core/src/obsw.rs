@@ -50,8 +50,12 @@ pub struct Counters {
     pub tc_accepted: u32,
     pub tc_rejected: u32,
     pub tc_duplicate: u32,
-    /// Domain events and reports lost to a full per-tick queue.
+    /// Domain events and reports lost to a full per-tick queue (HK EVENTS_DROPPED).
     pub events_dropped: u32,
+    /// Lost since the last EVENT_QUEUE_OVERFLOW event.
+    overflow_unreported: u32,
+    /// Earliest time of the next EVENT_QUEUE_OVERFLOW event.
+    overflow_next: u64,
 }
 
 /// What became of a request (kept for duplicate TCs).
@@ -224,6 +228,7 @@ impl<S: TmStore> Obsw<S> {
             pid::SCHED_ENABLED => self.sched.enabled as i64,
             pid::UPTIME_S => (self.last_now / 1000) as i64,
             pid::EVENTS_THROTTLED => self.dl.events.throttled as i64,
+            pid::EVENTS_DROPPED => self.counters.events_dropped.min(u16::MAX as u32) as i64,
             pid::IO_TC_DROPPED => self.io.tc_dropped as i64,
             pid::IO_TM_DROPPED => self.io.tm_dropped as i64,
             pid::IO_SENSOR_ERRORS => self.io.sensor_errors as i64,
@@ -272,6 +277,32 @@ impl<S: TmStore> Obsw<S> {
         self.counters.tc_accepted = self.counters.tc_accepted.wrapping_add(1);
         let token = self.dl.accept(now, token, sink);
         self.execute(now, &tc, request, token, sink);
+    }
+
+    /// Refuses a frame longer than any packet (`config::MAX_PACKET_LEN`) that the
+    /// platform could not take in whole (TCP or serial framing). `head` is what it kept
+    /// of the frame's start: with the 4 bytes of a request ID the refusal is reported
+    /// in a TM[1,2] FRAME_TOO_LONG; the TC_REJECTED event and the counter always.
+    pub fn reject_frame(&mut self, now: u64, frame_len: usize, head: &[u8], sink: &mut impl TmSink) {
+        self.last_now = self.last_now.max(now);
+        self.counters.tc_rejected = self.counters.tc_rejected.wrapping_add(1);
+        let f = Failure::frame_too_long(frame_len, config::MAX_PACKET_LEN);
+        let ty = match head {
+            [h0, h1, h2, h3, rest @ ..] => {
+                let req = RequestId {
+                    packet_id: u16::from_be_bytes([*h0, *h1]),
+                    psc: u16::from_be_bytes([*h2, *h3]),
+                };
+                self.dl.fail(now, req, Stage::Acceptance, &f, sink);
+                // Service and subservice, if the secondary header was kept.
+                match rest {
+                    [_, _, _, svc, sub, ..] => (*svc, *sub),
+                    _ => (0, 0),
+                }
+            }
+            _ => (0, 0),
+        };
+        self.tc_rejected_event(now, ty, &f, sink);
     }
 
     /// Runs an accepted request and reports its start and (for immediate requests)
@@ -376,6 +407,19 @@ impl<S: TmStore> Obsw<S> {
         });
     }
 
+    /// Counts events and reports a full queue dropped, and raises EVENT_QUEUE_OVERFLOW
+    /// (with the count since the last one) at most once per throttle window.
+    fn count_dropped(&mut self, now: u64, dropped: u32, sink: &mut impl TmSink) {
+        let c = &mut self.counters;
+        c.events_dropped = c.events_dropped.saturating_add(dropped);
+        c.overflow_unreported = c.overflow_unreported.saturating_add(dropped);
+        if c.overflow_unreported > 0 && now >= c.overflow_next {
+            let n = core::mem::take(&mut c.overflow_unreported);
+            c.overflow_next = now + config::EVENT_THROTTLE_WINDOW_MS as u64;
+            self.event(now, eid::EVENT_QUEUE_OVERFLOW, &[n.min(u16::MAX as u32) as i64], sink);
+        }
+    }
+
     pub(crate) fn set_outcome(&mut self, req: RequestId, outcome: Outcome) {
         if let Some(s) = self.seen.iter_mut().rev().find(|s| s.req == req) {
             s.outcome = outcome;
@@ -392,9 +436,7 @@ impl<S: TmStore> Obsw<S> {
         let mut out = core::mem::take(&mut self.out);
         out.clear();
         self.ctrl.tick(now, sensors, link_rx, &mut out);
-        if out.dropped > 0 {
-            self.counters.events_dropped = self.counters.events_dropped.wrapping_add(out.dropped);
-        }
+        self.count_dropped(now, out.dropped, sink);
         for r in out.reports.iter() {
             self.on_report(now, r, sink);
         }
@@ -495,6 +537,46 @@ pub(crate) mod tests {
             assert_eq!(failure(&f[0]), (mib::FailureCode::UNKNOWN_SID.code(), vec![0x7F, 0x7F]));
             assert!(of(pkts, 1, 1).is_empty());
         }
+    }
+
+    #[test]
+    fn an_oversize_frame_is_refused_with_frame_too_long_for_its_request() {
+        let mut o = obsw();
+        let ping = tc_bytes(APID, 9, 17, 1, &[]);
+        let mut sink: Vec<Vec<u8>> = Vec::new();
+        o.reject_frame(5, 5000, &ping, &mut sink);
+        let f = of(&sink, 1, 2);
+        assert_eq!(&kind(&f[0]).2[..4], &ping[..4], "request ID of the frame");
+        let mut data = 5000u32.to_be_bytes().to_vec();
+        data.extend_from_slice(&(config::MAX_PACKET_LEN as u32).to_be_bytes());
+        assert_eq!(failure(&f[0]), (mib::FailureCode::FRAME_TOO_LONG.code(), data));
+        assert_eq!(o.counters.tc_rejected, 1);
+        // Without a request ID: the event only.
+        sink.clear();
+        o.reject_frame(6, 5000, &[], &mut sink);
+        assert!(of(&sink, 1, 2).is_empty());
+        assert_eq!(
+            of(&sink, 5, 1).len() + of(&sink, 5, 2).len() + of(&sink, 5, 3).len() + of(&sink, 5, 4).len(),
+            1
+        );
+    }
+
+    #[test]
+    fn a_full_event_queue_is_counted_and_reported_once_per_window() {
+        let mut o = obsw();
+        let mut sink: Vec<Vec<u8>> = Vec::new();
+        o.count_dropped(100, 3, &mut sink);
+        o.count_dropped(200, 2, &mut sink);
+        let ev = |s: &Vec<Vec<u8>>| {
+            s.iter()
+                .filter(|p| p[7] == 5 && p[20..22] == eid::EVENT_QUEUE_OVERFLOW.to_be_bytes())
+                .map(|p| u16::from_be_bytes([p[22], p[23]]))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(ev(&sink), [3], "one event in the window, with the count so far");
+        o.count_dropped(100 + config::EVENT_THROTTLE_WINDOW_MS as u64, 0, &mut sink);
+        assert_eq!(ev(&sink), [3, 2], "the rest once the window passed");
+        assert_eq!(o.param(pid::EVENTS_DROPPED), 5);
     }
 
     #[test]

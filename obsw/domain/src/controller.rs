@@ -167,10 +167,10 @@ pub enum StartError {
     },
     /// The action would turn the hip while both grippers hold a face: the two faces are
     /// fixed to the lattice, so the hip cannot move (it would stall against the
-    /// structure). Open one gripper first.
+    /// structure). Open one gripper first. Data: the gripper PWMs that show both closed.
     BothSidesGripped {
-        hip_cdeg: i16,
-        target_cdeg: i16,
+        grip_a_pwm: u16,
+        grip_b_pwm: u16,
     },
 }
 
@@ -279,7 +279,7 @@ pub struct TickOut {
 }
 
 /// Capacity of one tick's event and report queues.
-pub const TICK_QUEUE: usize = 8;
+pub const TICK_QUEUE: usize = mib::config::EVENT_QUEUE_DEPTH;
 
 impl TickOut {
     pub fn new() -> Self {
@@ -657,12 +657,13 @@ impl Controller {
         }
     }
 
-    /// True when both grippers are known to hold (A from its own servo, B from its last
-    /// heartbeat). Without a heartbeat B's gripper is unknown: not known to hold.
-    fn both_gripped(&self) -> bool {
-        self.link
-            .heartbeat()
-            .is_some_and(|hb| grippers_closed(self.grip_a.current(), hb.grip_pwm))
+    /// The two gripper PWMs when both grippers are known to hold (A from its own servo,
+    /// B from its last heartbeat). Without a heartbeat B's gripper is unknown: not known
+    /// to hold.
+    fn both_gripped(&self) -> Option<(u16, u16)> {
+        let hb = self.link.heartbeat()?;
+        let a = self.grip_a.current();
+        grippers_closed(a, hb.grip_pwm).then_some((a, hb.grip_pwm))
     }
 
     /// Starts an action. Returns the number of progress steps it will report.
@@ -694,10 +695,9 @@ impl Controller {
         if !self.action_allowed(&action) {
             return Err(StartError::NotPowered);
         }
-        if let Some(target_cdeg) = self.hip_turn_of(&action) {
-            let hip_cdeg = self.hip_angle();
-            if self.both_gripped() && (target_cdeg as i32 - hip_cdeg as i32).abs() > EST_HIP_TOL_CDEG as i32 {
-                return Err(StartError::BothSidesGripped { hip_cdeg, target_cdeg });
+        if let (Some(target), Some((grip_a_pwm, grip_b_pwm))) = (self.hip_turn_of(&action), self.both_gripped()) {
+            if (target as i32 - self.hip_angle() as i32).abs() > EST_HIP_TOL_CDEG as i32 {
+                return Err(StartError::BothSidesGripped { grip_a_pwm, grip_b_pwm });
             }
         }
         let mut run = Run {
@@ -1647,10 +1647,7 @@ mod tests {
         l.c.set_module_modes(ModuleModes::all(ON));
         l.run(600);
         let r = l.c.start(Action::RotateHip { cdeg: 4000 }, l.t);
-        assert!(
-            matches!(r, Err(StartError::BothSidesGripped { target_cdeg: 4000, .. })),
-            "{r:?}"
-        );
+        assert!(matches!(r, Err(StartError::BothSidesGripped { .. })), "{r:?}");
         assert!(!l.c.busy(), "nothing started");
         // Turning to where the hip already is moves nothing: allowed.
         let here = l.c.hip_angle();

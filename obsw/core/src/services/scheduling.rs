@@ -2,6 +2,7 @@
 //! board when their time comes, through the same path as uplinked TCs.
 
 use mib::config;
+use mib::tc::service;
 use mib::FailureCode;
 
 use crate::accept::{accept, Tc, PRIMARY_LEN};
@@ -48,7 +49,7 @@ fn check_activities(count: u8, mut rest: &[u8], ctx: &Ctx) -> Result<(), Failure
     if count as usize > ctx.sched_free {
         return Err(Failure::schedule_full(config::SCHEDULE_CAPACITY));
     }
-    for _ in 0..count {
+    for i in 0..count {
         let Some((release, inner, tail)) = split_activity(rest) else {
             return Err(Failure::scheduled_tc_invalid(FailureCode::MALFORMED_PACKET));
         };
@@ -61,8 +62,14 @@ fn check_activities(count: u8, mut rest: &[u8], ctx: &Ctx) -> Result<(), Failure
         if inner.len() > config::MAX_SCHEDULED_TC_LEN {
             return Err(Failure::scheduled_tc_invalid(FailureCode::MALFORMED_PACKET));
         }
-        if let Err(r) = accept(inner, ctx.apid) {
-            return Err(Failure::scheduled_tc_invalid(r.code()));
+        match accept(inner, ctx.apid) {
+            Err(r) => return Err(Failure::scheduled_tc_invalid(r.code())),
+            // Schedules do not nest: a released TC[11,4] would insert activities that
+            // were never checked against the schedule as it is then.
+            Ok(t) if t.service == service::SCHEDULING && t.subservice == 4 => {
+                return Err(Failure::nested_schedule(i));
+            }
+            Ok(_) => {}
         }
         rest = tail;
     }
@@ -198,6 +205,24 @@ mod tests {
         assert!(sink.is_empty());
         o.release_schedule(500, &mut sink);
         assert_eq!(of(&sink, 17, 2).len(), 1);
+    }
+
+    #[test]
+    fn a_schedule_inside_a_schedule_is_refused_with_the_activity_index() {
+        let mut o = obsw();
+        let inner_ping = tc_bytes(APID, 70, 17, 1, &[]);
+        let nested = tc_bytes(APID, 71, 11, 4, &insert(&o, 900, &inner_ping));
+        let mut app = vec![2u8];
+        for inner in [&inner_ping, &nested] {
+            app.extend_from_slice(&o.dl.tmw.time.cds(500));
+            app.extend_from_slice(inner);
+        }
+        let pkts = send(&mut o, 10, 1, 11, 4, &app);
+        assert_eq!(
+            failure(&of(&pkts, 1, 2)[0]),
+            (FailureCode::NESTED_SCHEDULE.code(), vec![1])
+        );
+        assert_eq!(o.sched.len(), 0, "nothing inserted");
     }
 
     #[test]
