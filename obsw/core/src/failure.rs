@@ -58,6 +58,10 @@ impl Failure {
     pub fn data(&self) -> &[u8] {
         &self.data[..self.len as usize]
     }
+    /// The fault event of an ABORTED_BY_FAULT failure.
+    pub fn fault_event(&self) -> Option<u16> {
+        (self.code == FailureCode::ABORTED_BY_FAULT).then(|| u16::from_be_bytes([self.data[0], self.data[1]]))
+    }
 
     pub fn crc_mismatch(received: u16, computed: u16) -> Self {
         Self::new(FailureCode::CRC_MISMATCH, &[F::U16(received), F::U16(computed)])

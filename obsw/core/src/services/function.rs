@@ -164,10 +164,7 @@ impl<S: TmStore> Obsw<S> {
                 None => t.entering = crate::services::mode::Entering::Ready,
                 Some(f) => {
                     // A homing aborted by a fault carries the fault's event ID.
-                    let event = match f.data() {
-                        [hi, lo] if f.code() == mib::FailureCode::ABORTED_BY_FAULT => u16::from_be_bytes([*hi, *lo]),
-                        _ => 0,
-                    };
+                    let event = f.fault_event().unwrap_or(0);
                     self.transition_failed(now, f.code(), event, sink);
                 }
             }
