@@ -320,15 +320,15 @@ fn handle_input(
             // malformed packet through the normal acceptance path.
             obsw.handle_tc(now, &[], down);
         }
-        Input::OversizeFrame(len) => {
+        Input::OversizeFrame(len, head) => {
             *bad_frames += 1;
             obsw.io.tc_dropped = *bad_frames;
             log::warn!(
-                "dropped a TCP frame of {len} bytes (longest packet {}; {bad_frames} bad frames so far)",
+                "refused a TCP frame of {len} bytes (longest packet {}; {bad_frames} bad frames so far)",
                 config::MAX_PACKET_LEN
             );
-            // No request ID either: TM[1,2] through the acceptance path.
-            obsw.handle_tc(now, &[], down);
+            // TM[1,2] FRAME_TOO_LONG (with the request ID if the frame's head gives it).
+            obsw.reject_frame(now, len, &head, down);
         }
         Input::BadSimCtl(len, from) => inputs.reply_sim_ctl(
             from,

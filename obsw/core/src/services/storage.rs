@@ -134,12 +134,15 @@ impl<S: TmStore> Obsw<S> {
             }
         });
         let (seq, t) = oldest.unwrap_or((0, Cds { days: 0, ms: 0 }));
-        let mut d = [0u8; 16];
+        // Layout of the MIB's STORE_DOWNLINK_DONE: the time is a whole CDS_TIME (with
+        // its P-field), as every other time field.
+        let mut d = [0u8; 17];
         d[..4].copy_from_slice(&sent.to_be_bytes());
-        d[4..6].copy_from_slice(&t.days.to_be_bytes());
-        d[6..10].copy_from_slice(&t.ms.to_be_bytes());
-        d[10..12].copy_from_slice(&seq.to_be_bytes());
-        d[12..16].copy_from_slice(&self.dl.store_dropped.to_be_bytes());
+        d[4] = 0x40;
+        d[5..7].copy_from_slice(&t.days.to_be_bytes());
+        d[7..11].copy_from_slice(&t.ms.to_be_bytes());
+        d[11..13].copy_from_slice(&seq.to_be_bytes());
+        d[13..17].copy_from_slice(&self.dl.store_dropped.to_be_bytes());
         self.emit(now, service::STORAGE, 19, &d, sink);
         Ok(())
     }
@@ -184,9 +187,9 @@ mod tests {
         );
         let end = kind(&of(&pkts, 15, 19)[0]).2.to_vec();
         assert_eq!(u32::from_be_bytes(end[..4].try_into().unwrap()), 4);
-        assert_eq!(u16::from_be_bytes([end[10], end[11]]), 0, "oldest stored is seq 0");
+        assert_eq!(u16::from_be_bytes([end[11], end[12]]), 0, "oldest stored is seq 0");
         assert_eq!(
-            u32::from_be_bytes(end[12..16].try_into().unwrap()),
+            u32::from_be_bytes(end[13..17].try_into().unwrap()),
             0,
             "nothing overwritten"
         );
@@ -227,8 +230,8 @@ mod tests {
         let pkts = by_seq(&mut o, 500, 300, 0, 3);
         assert!(replayed(&pkts, 800).is_empty(), "the first packets are gone");
         let end = kind(&of(&pkts, 15, 19)[0]).2.to_vec();
-        let oldest = u16::from_be_bytes([end[10], end[11]]);
-        let overwritten = u32::from_be_bytes(end[12..16].try_into().unwrap());
+        let oldest = u16::from_be_bytes([end[11], end[12]]);
+        let overwritten = u32::from_be_bytes(end[13..17].try_into().unwrap());
         assert!(
             oldest > 3 && overwritten as u16 == oldest,
             "oldest {oldest}, overwritten {overwritten}"
