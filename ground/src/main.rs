@@ -416,7 +416,7 @@ fn main() -> ExitCode {
                 return ExitCode::from(exit::OK);
             }
             let code = e.downcast_ref::<Coded>().map_or(exit::ERROR, |c| c.0);
-            eprintln!("ground: error: {e:#}");
+            err_line!("ground: error: {e:#}");
             ExitCode::from(code)
         }
     }
@@ -427,6 +427,16 @@ fn is_broken_pipe(e: &anyhow::Error) -> bool {
         c.downcast_ref::<std::io::Error>()
             .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
     })
+}
+
+/// Writes a line to standard error, ignoring a closed stderr (no panic, unlike
+/// `eprintln!`).
+#[macro_export]
+macro_rules! err_line {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr().lock(), $($t)*);
+    }};
 }
 
 /// Writes a line to standard output; a closed pipe surfaces as an error that `main`
@@ -466,7 +476,19 @@ fn load_plan(path: &Path) -> Result<plan::Plan> {
 fn plan_check(plans: &[PathBuf], json: bool) -> Result<u8> {
     let mut bad = 0;
     for p in plans {
-        let src = std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
+        let bytes = std::fs::read(p).with_context(|| format!("cannot read {}", p.display()))?;
+        let src = match String::from_utf8(bytes) {
+            Ok(s) => s,
+            Err(e) => {
+                bad += 1;
+                err_line!(
+                    "{}: error: not a plan: not UTF-8 text (invalid byte at offset {})",
+                    p.display(),
+                    e.utf8_error().valid_up_to()
+                );
+                continue;
+            }
+        };
         match plan::parse(&src) {
             Ok(pl) => {
                 if json {
@@ -489,9 +511,9 @@ fn plan_check(plans: &[PathBuf], json: bool) -> Result<u8> {
                     out(&serde_json::to_string_pretty(&d)?)?;
                 } else {
                     for x in &d {
-                        eprintln!("{x}");
+                        err_line!("{x}");
                     }
-                    eprintln!("{}: {} error(s)", p.display(), d.len());
+                    err_line!("{}: {} error(s)", p.display(), d.len());
                 }
             }
         }
@@ -557,7 +579,7 @@ fn decode(a: &DecodeArgs) -> Result<u8> {
     drop(o);
     let secs = t0.elapsed().as_secs_f64();
     let n = tc + tm;
-    eprintln!(
+    err_line!(
         "{n} packets ({tc} TC, {tm} TM), {bad_body} with a body not matching the MIB, {stretches} corrupt stretches ({corrupt_bytes} bytes); {:.0} packets/s",
         if secs > 0.0 { n as f64 / secs } else { 0.0 }
     );
@@ -754,8 +776,15 @@ fn tc_args(def: &'static mib::tc::TcDef, args: &[String]) -> Result<Vec<i64>> {
                 .iter()
                 .position(|m| m.eq_ignore_ascii_case(v))
                 .ok_or_else(|| coded(exit::INVALID, format!("unknown mode \"{v}\"")))? as i64
-        } else if d.name == "side" && (v.eq_ignore_ascii_case("a") || v.eq_ignore_ascii_case("b")) {
-            (v.eq_ignore_ascii_case("b")) as i64
+        } else if d.name == "side" {
+            if v.eq_ignore_ascii_case("a") || v.eq_ignore_ascii_case("b") {
+                (v.eq_ignore_ascii_case("b")) as i64
+            } else {
+                return Err(coded(
+                    exit::INVALID,
+                    format!("{}: side = \"{v}\": the sides are A (0) and B (1)", def.name),
+                ));
+            }
         } else if let Some(e) = mib::events::by_name(v).filter(|_| d.name == "event_id") {
             e.id as i64
         } else {
@@ -1075,7 +1104,7 @@ fn archive_cmd(a: ArchiveCmd, path: &Path) -> Result<u8> {
                         .collect();
                     out(&cells.join(" | "))?;
                 }
-                eprintln!("{} row(s)", rows.rows.len());
+                err_line!("{} row(s)", rows.rows.len());
             }
         }
         ArchiveCmd::Export {
@@ -1089,7 +1118,7 @@ fn archive_cmd(a: ArchiveCmd, path: &Path) -> Result<u8> {
             match file {
                 Some(f) => {
                     std::fs::write(&f, csv).with_context(|| format!("writing {}", f.display()))?;
-                    eprintln!("{} row(s) written to {}", rows.rows.len(), f.display());
+                    err_line!("{} row(s) written to {}", rows.rows.len(), f.display());
                 }
                 None => {
                     let mut o = std::io::stdout().lock();

@@ -1155,7 +1155,9 @@ impl Display {
         if self.visible {
             let _ = self.mp.println(line);
         } else {
-            eprintln!("{line}");
+            // A closed stderr must not stop a run.
+            use std::io::Write as _;
+            let _ = writeln!(std::io::stderr().lock(), "{line}");
         }
     }
 }

@@ -64,21 +64,36 @@ pub fn line_col(src: &str, offset: usize) -> (usize, usize) {
     (line, col)
 }
 
-/// Places errors in `file`, sorted by position.
+/// Places errors in `file`, sorted by position. One pass over the source for all errors
+/// (linear in the source and the number of errors).
 pub fn diagnostics(file: &str, src: &str, errors: &[PlanError]) -> Vec<Diagnostic> {
     let mut errs: Vec<&PlanError> = errors.iter().collect();
     errs.sort_by_key(|e| e.span.start);
-    errs.iter()
-        .map(|e| {
-            let (line, column) = line_col(src, e.span.start);
-            Diagnostic {
-                file: file.to_string(),
-                line,
-                column,
-                message: e.message.clone(),
+    let mut out = Vec::with_capacity(errs.len());
+    let (mut line, mut col) = (1usize, 1usize);
+    let mut chars = src.char_indices().peekable();
+    for e in errs {
+        let offset = e.span.start.min(src.len());
+        while let Some(&(i, c)) = chars.peek() {
+            if i >= offset {
+                break;
             }
-        })
-        .collect()
+            if c == '\n' {
+                line += 1;
+                col = 1;
+            } else {
+                col += 1;
+            }
+            chars.next();
+        }
+        out.push(Diagnostic {
+            file: file.to_string(),
+            line,
+            column: col,
+            message: e.message.clone(),
+        });
+    }
+    out
 }
 
 /// A robot taking part in the plan.
@@ -1007,7 +1022,18 @@ fn find_cycles(deps: &[Vec<usize>]) -> Vec<Vec<usize>> {
 
 /// Reads and parses a plan file; errors come back as diagnostics.
 pub fn load(path: &std::path::Path) -> Result<Plan, LoadError> {
-    let src = std::fs::read_to_string(path).map_err(|e| LoadError::Io(path.display().to_string(), e))?;
+    let bytes = std::fs::read(path).map_err(|e| LoadError::Io(path.display().to_string(), e))?;
+    let src = String::from_utf8(bytes).map_err(|e| {
+        LoadError::Invalid(vec![Diagnostic {
+            file: path.display().to_string(),
+            line: 1,
+            column: 1,
+            message: format!(
+                "not a plan: not UTF-8 text (invalid byte at offset {})",
+                e.utf8_error().valid_up_to()
+            ),
+        }])
+    })?;
     parse(&src).map_err(|errs| LoadError::Invalid(diagnostics(&path.display().to_string(), &src, &errs)))
 }
 

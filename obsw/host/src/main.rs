@@ -303,14 +303,20 @@ fn handle_input(
 ) {
     match input {
         Input::Tc(bytes, origin) => {
+            let mut refused_from = None;
             if let Origin::Udp(peer) = origin {
                 // Only a TC that passes acceptance subscribes its sender (or renews the
-                // lease); a rejected one is reported to the current subscribers.
+                // lease); a refused one is reported to the current subscribers and to
+                // its sender, which does not become a subscriber.
                 if obsw_core::accept::accept(&bytes, obsw.apid()).is_ok() {
                     down.subscribe(peer, Instant::now());
+                } else {
+                    refused_from = Some(peer);
                 }
             }
+            down.reply_to(refused_from);
             obsw.handle_tc(now, &bytes, down);
+            down.reply_to(None);
         }
         Input::BadFrame => {
             *bad_frames += 1;

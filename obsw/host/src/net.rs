@@ -112,6 +112,10 @@ pub struct Downlink {
     lease: Duration,
     /// `--tm-log`: every TM packet handed to the downlink, one hex line each.
     tm_log: Option<std::fs::File>,
+    /// The sender of a refused datagram while its refusal is reported: it gets that
+    /// report too (so a ground talking to the wrong robot learns why), without
+    /// subscribing.
+    reply_to: Option<SocketAddr>,
 }
 
 impl Downlink {
@@ -141,6 +145,11 @@ impl Downlink {
     /// test can judge from what the obsw really sent.
     pub fn log_tm_to(&mut self, file: std::fs::File) {
         self.tm_log = Some(file);
+    }
+
+    /// While `peer`'s refused datagram is reported, its reports go to `peer` as well.
+    pub fn reply_to(&mut self, peer: Option<SocketAddr>) {
+        self.reply_to = peer;
     }
 
     /// Current UDP subscribers (lease not over at `now`).
@@ -205,6 +214,11 @@ impl obsw_core::tm::TmSink for Downlink {
         }
         let now = Instant::now();
         self.subscribers.retain(|s| s.until > now);
+        if let Some(p) = self.reply_to.filter(|p| !self.subscribers.iter().any(|s| s.addr == *p)) {
+            if !send_udp(&self.udp, packet, p) {
+                self.counters.tm_dropped = self.counters.tm_dropped.wrapping_add(1);
+            }
+        }
         for s in &self.subscribers {
             // A full socket buffer or an unreachable peer must not stop the OBSW; the
             // on-board store keeps the packet for a later downlink.
@@ -327,6 +341,7 @@ fn start_with_lease(
         counters: LinkCounters::default(),
         lease,
         tm_log: None,
+        reply_to: None,
     };
     let inputs = Inputs {
         poll,
