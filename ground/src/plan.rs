@@ -11,7 +11,7 @@ use std::fmt;
 use std::ops::Range;
 
 use mib::modes::robot_mode;
-use mib::robot::{self, NUM_STATES, RECONFIG_MAP};
+use mib::robot::{self, NUM_STATES};
 use mib::tc::{function, TcDef};
 use serde::Serialize;
 use toml::de::{DeTable, DeValue};
@@ -288,43 +288,11 @@ impl Plan {
 }
 
 /// Shortest primitive sequence from `from` to `to` (at most
-/// `mib::config::MAX_RECONFIG_PRIMITIVES`), by breadth-first search over the MIB's
+/// `mib::config::MAX_RECONFIG_PRIMITIVES`), by the same breadth-first search over the MIB's
 /// reconfiguration map. `Some(vec![])` if the states are equal.
 pub fn reconfig_path(from: u8, to: u8) -> Option<Vec<u8>> {
-    let (f, t) = (from as usize, to as usize);
-    if f >= NUM_STATES || t >= NUM_STATES {
-        return None;
-    }
-    let mut prev: [Option<(usize, u8)>; NUM_STATES] = [None; NUM_STATES];
-    let mut depth = [usize::MAX; NUM_STATES];
-    depth[f] = 0;
-    let mut q = VecDeque::from([f]);
-    while let Some(s) = q.pop_front() {
-        if s == t {
-            break;
-        }
-        if depth[s] >= mib::config::MAX_RECONFIG_PRIMITIVES {
-            continue;
-        }
-        for (n, &p) in RECONFIG_MAP[s].iter().enumerate() {
-            if p != 0 && depth[n] == usize::MAX {
-                depth[n] = depth[s] + 1;
-                prev[n] = Some((s, p));
-                q.push_back(n);
-            }
-        }
-    }
-    if depth[t] == usize::MAX {
-        return None;
-    }
-    let mut path = Vec::new();
-    let mut c = t;
-    while let Some((p, prim)) = prev[c] {
-        path.push(prim);
-        c = p;
-    }
-    path.reverse();
-    Some(path)
+    // One search for ground and board: the domain crate's (the OBSW runs the same code).
+    mmic_domain::search::shortest_path(from, to).map(|p| p.to_vec())
 }
 
 // ---------------------------------------------------------------------------
