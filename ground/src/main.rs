@@ -961,16 +961,26 @@ fn watch(a: &WatchArgs, archive_path: Option<&Path>) -> Result<u8> {
         links.push((mib::apid::DEFAULT_ROBOT, default_addr(mib::apid::DEFAULT_ROBOT)));
     }
     let (mut s, arch) = open_session(&links, a.links.transport(), archive_path)?;
-    // The OBSW sends TM to the last UDP sender: announce ourselves with a ping.
+    // The OBSW sends TM to the grounds whose TC it accepted: subscribe with a ping, and
+    // renew the lease well before it ends.
     if let Some(ping) = mib::tc::by_name("PING") {
         for &(r, _) in &links {
             s.send(r, ping, &[], None, Some("watch".into()))?;
         }
     }
+    let renew = Duration::from_millis(mib::config::SUBSCRIPTION_LEASE_MS as u64 / 3);
+    let mut renewed = Instant::now();
     let t0 = Instant::now();
     let mut n = 0u64;
     let result = (|| -> Result<()> {
         loop {
+            if renewed.elapsed() >= renew {
+                renewed = Instant::now();
+                for &(r, _) in &links {
+                    // A lost renewal is made good by the next one, a third of a lease later.
+                    let _ = s.send_heartbeat(r);
+                }
+            }
             if a.duration.is_some_and(|d| t0.elapsed().as_secs_f64() >= d) || a.count.is_some_and(|c| n >= c) {
                 return Ok(());
             }

@@ -323,7 +323,7 @@ fn a_tcp_flood_keeps_the_obsw_bounded_and_answering() {
         "no answer after the flood"
     );
     eprintln!(
-        "TCP flood: {sent} bytes in 3 s, threads {threads0} -> {threads1}, RSS {rss0} -> {rss1} kB, ping after {:.0} ms",
+        "TCP flood: {sent} bytes in 3 s, threads {threads0} -> {threads1}, RSS {rss0} -> {rss1} kB, ping after {:.1} ms",
         t0.elapsed().as_secs_f64() * 1000.0
     );
 }
