@@ -82,6 +82,8 @@ fn every_acceptance_failure_code_is_reachable_from_a_real_packet() {
     let o = Obsw::start(&[]);
     let mut c = Client::udp(&o);
     let apid = c.apid;
+    // Refused TCs do not subscribe: their reports go to the grounds already subscribed.
+    c.subscribe();
     let check = |c: &mut Client, raw: Vec<u8>, want: F| {
         c.send_raw(&raw);
         let r = request_of(&raw);
@@ -94,7 +96,7 @@ fn every_acceptance_failure_code_is_reachable_from_a_real_packet() {
             "event for {want:?}"
         );
     };
-    let ping = tc(apid, 1, 17, 1, &[]);
+    let ping = tc(apid, 101, 17, 1, &[]);
     let mut bad_crc = ping.clone();
     *bad_crc.last_mut().unwrap() ^= 1;
     check(&mut c, bad_crc, F::CRC_MISMATCH);
