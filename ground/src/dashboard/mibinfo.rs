@@ -158,7 +158,7 @@ pub fn page_mib() -> Value {
         .collect();
     let events: Vec<Value> = mib::events::EVENTS
         .iter()
-        .map(|e| json!({"name": e.name, "severity": e.severity.name(), "fault": e.fault, "desc": e.desc}))
+        .map(|e| json!({"id": e.id, "name": e.name, "severity": e.severity.name(), "fault": e.fault, "desc": e.desc}))
         .collect();
     let states: Vec<Value> = mib::robot::STATES
         .iter()

@@ -326,6 +326,20 @@ function robotAlarms(n) {
     a.state === 'active' ? el('button', { class: 'ack', onclick: () => ackAlarm(a.id) }, 'Acknowledge') : el('span', { class: 'hint' }, 'acknowledged')));
 }
 
+// Names, not numbers, for HK parameters whose values the MIB names.
+const MODES = ['STANDBY', 'OPERATIONAL', 'SAFED'];
+function hkText(name, v) {
+  if (v === null || v === undefined || !S.mib) return fmtVal(v);
+  switch (name) {
+    case 'MODE': return MODES[v] ?? String(v);
+    case 'PENDING_MODE': return v === 255 ? 'none' : MODES[v] ?? String(v);
+    case 'CONFIG_STATE': case 'TARGET_STATE': { const s = S.mib.states.find((x) => x.id === v); return s ? s.name : v === 255 ? (name === 'CONFIG_STATE' ? 'unknown' : 'none') : String(v); }
+    case 'BOLT_SIDE': return v === 0 ? 'A' : v === 1 ? 'B' : String(v);
+    case 'LAST_FAULT_EVENT': { const e = S.mib.events.find((x) => x.id === v); return e ? e.name : v === 0 ? 'none' : String(v); }
+    default: return fmtVal(v);
+  }
+}
+
 // --- telemetry table
 let hkRows = { robot: null, rows: new Map() };
 function renderHk() {
@@ -357,7 +371,7 @@ function renderHk() {
   for (const [name, { row, v }] of hkRows.rows) {
     const h = r.hk[name];
     if (!h) continue;
-    v.textContent = fmtVal(h.value);
+    v.textContent = hkText(name, h.value);
     row.className = 'lim-' + h.limit;
   }
 }

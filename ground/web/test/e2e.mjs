@@ -159,6 +159,9 @@ try {
     assert(await page.$('#hk-table tr.lim-hard, #hk-table tr.lim-soft'), 'some value out of limits is coloured');
     await page.click('#hk-table tr[data-param="V_BAT_A"] a');
     await page.waitForSelector('#plot .u-over');
+    await page.click('[data-range="60"]');
+    const mode = await page.$eval('#hk-table tr[data-param="MODE"] td.num', (e) => e.textContent);
+    assert(/STANDBY|OPERATIONAL|SAFED/.test(mode), 'MODE by name: ' + mode);
     await page.waitForFunction(() => /columns/.test(document.querySelector('#plot-info').textContent));
     await shot('dashboard-telemetry.png');
   });
