@@ -10,7 +10,7 @@
 //! (default: next to this example's target folder, then `$OBSW_BIN`), `--speed X`
 //! (simulator speed, default 1), `--http ADDR` (default 127.0.0.1:0), `--token T`,
 //! `--plans DIR` (default `plans/`), `--synthetic N --hz F` (no obsw: N robots with
-//! generated HK at F Hz, for the benchmark). Prints one JSON line
+//! generated HK at F Hz and a day of archived V_BAT_A for robot 1, for the benchmark). Prints one JSON line
 //! `{"url": …, "robots": [{"robot": N, "tc": ADDR, "sim_ctl": ADDR}, …]}` when ready,
 //! then serves until stdin closes or it is killed.
 
@@ -167,6 +167,42 @@ fn synthetic(hub: Hub, robots: u8, hz: f64) {
     }
 }
 
+/// Archive stand-in for the synthetic feed: one day of V_BAT_A of robot 1 at 10 Hz
+/// (864 000 samples ending at start-up, with one outlier and one NaN), decimated with
+/// the reference `dashboard::decimate` — so the benchmark's day plot measures the
+/// server, the transfer and the drawing, not an archive query.
+struct DayArchive {
+    samples: Vec<(i64, f64)>,
+}
+
+impl DayArchive {
+    fn new() -> DayArchive {
+        let end = chrono::Utc::now().timestamp_millis();
+        let n = 864_000i64;
+        let mut samples: Vec<(i64, f64)> = (0..n)
+            .map(|i| {
+                let t = end - (n - i) * 100;
+                (
+                    t,
+                    11.5 + (i as f64 / 36_000.0).sin() * 0.8 + ((i * 7919) % 100) as f64 / 1000.0,
+                )
+            })
+            .collect();
+        samples[400_000].1 = 1000.0;
+        samples[500_000].1 = f64::NAN;
+        DayArchive { samples }
+    }
+}
+
+impl dashboard::Series for DayArchive {
+    fn decimate(&self, robot: u8, param: &str, t0: i64, t1: i64, columns: usize) -> Vec<(i64, f64, f64)> {
+        if robot != 1 || param != "V_BAT_A" {
+            return Vec::new();
+        }
+        dashboard::decimate(&self.samples, t0, t1, columns).0
+    }
+}
+
 /// Commander for the synthetic feed: records TCs, never sends them anywhere.
 struct Refuse;
 impl dashboard::Commander for Refuse {
@@ -218,7 +254,11 @@ fn main() -> Result<()> {
             Arc::new(LinkFeed::start(hub.clone(), &links, Some(o.plans.clone()))?)
         }
     };
-    let running = dashboard::spawn(o.http, o.token.clone(), hub, commander, Arc::new(NoArchive))?;
+    let series: Arc<dyn dashboard::Series> = match o.synthetic {
+        Some(_) => Arc::new(DayArchive::new()),
+        None => Arc::new(NoArchive),
+    };
+    let running = dashboard::spawn(o.http, o.token.clone(), hub, commander, series)?;
     let mut url = format!("http://{}/", running.local_addr());
     if let Some(t) = &o.token {
         url.push_str(&format!("?token={t}"));

@@ -40,7 +40,7 @@ const S = {
   dirty: { robots: new Set(), hk: new Set(), events: true, alarms: true, commands: true, plans: true, fleetAll: true },
 };
 // Update-latency samples (ms from HK time to drawn), read by the benchmark.
-const metrics = { latency: [], frames: 0, messages: 0 };
+const metrics = { latency: [], frames: 0, messages: 0, plots: [] };
 window.dashMetrics = metrics;
 window.dashState = S;
 
@@ -390,6 +390,7 @@ function plotParam(robot, param) {
 async function fetchPlot() {
   const st = plotState;
   if (!st.param) return;
+  const started = performance.now();
   if (st.live) {
     st.t1 = Date.now() + S.clockOffset;
     st.t0 = st.t1 - st.span * 1000;
@@ -407,6 +408,8 @@ async function fetchPlot() {
   const xs = d.points.map((p) => p[0] / 1000), lo = d.points.map((p) => p[1]), hi = d.points.map((p) => p[2]);
   const data = [xs, lo, hi];
   $('#plot-info').textContent = `${d.points.length} columns (min/max) for ${d.columns} px` + (d.skipped_non_finite ? `, ${d.skipped_non_finite} non-finite samples skipped` : '');
+  // Fetch + draw time, read by the benchmark (after the draw below).
+  requestAnimationFrame(() => metrics.plots.push({ ms: performance.now() - started, span_s: (st.t1 - st.t0) / 1000, points: d.points.length }));
   if (plot && plot.__key === st.robot + st.param) {
     plot.__fetching = true;
     plot.setData(data, false);

@@ -101,6 +101,20 @@ async function phase(view) {
 const results = { robots: Number(robots), hz: Number(hz), seconds: secs, phases: [] };
 results.phases.push(await phase('plans')); // baseline: same page and stream, HK not drawn
 results.phases.push(await phase('fleet'));
+// A day of 10 Hz data (864 000 samples) drawn: click "1 day" five times.
+await page.click('#tabs button[data-view="hk"]');
+await page.selectOption('#plot-robot', '1');
+await page.selectOption('#plot-param', 'V_BAT_A');
+await page.waitForSelector('#plot .u-over');
+const dayTimes = [];
+for (let i = 0; i < 5; i++) {
+  const before = await page.evaluate(() => window.dashMetrics.plots.length);
+  await page.click('[data-range="86400"]');
+  await page.waitForFunction((b) => window.dashMetrics.plots.length > b && window.dashMetrics.plots.at(-1).span_s > 80000, before);
+  dayTimes.push(await page.evaluate(() => window.dashMetrics.plots.at(-1)));
+  await page.waitForTimeout(500);
+}
+results.day_plot_ms = { median: median(dayTimes.map((p) => p.ms)), max: Math.max(...dayTimes.map((p) => p.ms)), columns: dayTimes[0].points };
 console.log(JSON.stringify(results, null, 1));
 await ctx.close();
 rmSync(profile, { recursive: true, force: true });
