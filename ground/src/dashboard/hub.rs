@@ -396,7 +396,7 @@ impl Hub {
         self.publish(&mut st, msg);
     }
 
-    /// Live samples of a parameter in `[t0_ms, t1_ms)`, after `after_ms` (exclusive).
+    /// Live samples of a parameter in `[t0_ms, t1_ms)`, in time order.
     pub fn live_samples(&self, robot: u8, param: &str, t0_ms: i64, t1_ms: i64) -> Vec<(i64, f64)> {
         let st = self.lock();
         match st.live.get(&(robot, param.to_string())) {

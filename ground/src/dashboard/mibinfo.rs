@@ -152,6 +152,7 @@ pub fn page_mib() -> Value {
                 .find(|h| h.params.contains(&p.id))
                 .map(|h| h.name);
             json!({"id": p.id, "name": p.name, "unit": p.unit, "desc": p.desc, "hk": hk,
+                "scale": p.calib.scale, "offset": p.calib.offset,
                 "limits": p.limits.map(|l| json!({"soft_lo": l.soft_lo, "soft_hi": l.soft_hi,
                     "hard_lo": l.hard_lo, "hard_hi": l.hard_hi}))})
         })
@@ -172,7 +173,12 @@ pub fn page_mib() -> Value {
         .iter()
         .map(|f| json!({"name": f.name(), "normal": [f.inward_normal().0, f.inward_normal().1]}))
         .collect();
-    json!({"tcs": tcs, "params": params, "events": events, "states": states, "nodes": nodes, "faces": faces})
+    let failures: Vec<Value> = mib::FailureCode::ALL
+        .iter()
+        .map(|f| json!({"code": f.code(), "name": f.name(), "desc": f.description()}))
+        .collect();
+    json!({"tcs": tcs, "params": params, "events": events, "states": states, "nodes": nodes, "faces": faces,
+        "failures": failures})
 }
 
 #[cfg(test)]

@@ -486,10 +486,19 @@ function renderEvents() {
     out.push(el('tr', { class: 'sev-' + e.severity },
       el('td', {}, fmtTime(e.t_ms)), el('td', {}, String(e.robot)), el('td', {}, e.name),
       el('td', {}, el('span', { class: 'pill sev-' + e.severity }, e.severity)),
-      el('td', {}, e.params.map(([k, v]) => `${k}=${paramText(e.name, k, v)}`).join(' ')),
+      el('td', {}, eventParams(e)),
       el('td', { class: 'hint' }, e.description)));
   }
   $('#events tbody').replaceChildren(...out);
+}
+// Event parameters by name; raw `value`/`limit` of a named parameter in engineering units.
+function eventParams(e) {
+  const pidEntry = e.params.find(([k]) => k === 'param_id');
+  const p = pidEntry && S.mib ? S.mib.params.find((x) => x.id === pidEntry[1]) : null;
+  return e.params.map(([k, v]) => {
+    if (p && (k === 'value' || k === 'limit')) return `${k}=${fmtVal(v * p.scale + p.offset)} ${p.unit}`;
+    return `${k}=${paramText(e.name, k, v)}`;
+  }).join(' ');
 }
 // Names, not numbers, for TC arguments with a MIB enumeration.
 function argText(tc, arg, v) {
@@ -505,6 +514,9 @@ function paramText(event, key, v) {
   if (key === 'node') { const n = S.mib.nodes.find((x) => x.id === v); return n ? n.name : String(v); }
   if (key === 'param_id') { const p = S.mib.params.find((x) => x.id === v); return p ? p.name : String(v); }
   if (key === 'side') return v === 0 ? 'A' : v === 1 ? 'B' : String(v);
+  if (key === 'cause') { const e = S.mib.events.find((x) => x.id === v); return v === 0 ? 'command' : e ? e.name : String(v); }
+  if (key === 'event_id') { const e = S.mib.events.find((x) => x.id === v); return e ? e.name : String(v); }
+  if (key === 'code') { const f = S.mib.failures.find((x) => x.code === v); return f ? f.name : String(v); }
   if ((event === 'MODE_CHANGED' && (key === 'from' || key === 'to')) || key === 'mode') return ['STANDBY', 'OPERATIONAL', 'SAFED'][v] ?? String(v);
   return String(v);
 }
