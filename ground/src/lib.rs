@@ -2,6 +2,7 @@
 //! operations. The `ground` binary is a thin CLI over these modules.
 
 pub mod archive;
+pub mod dashboard;
 pub mod link;
 pub mod ops;
 pub mod plan;
