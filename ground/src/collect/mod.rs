@@ -190,6 +190,7 @@ pub fn collect_cli(archive: &Path, a: CollectArgs) -> Result<u8> {
 /// Runs the collector until SIGINT or SIGTERM.
 pub fn run(archive: &Path, cfg: Config, table: bool, ring: LogRing) -> Result<u8> {
     let stop = Arc::new(AtomicBool::new(false));
+    ignore_file_size_signal();
     {
         let stop = stop.clone();
         ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
@@ -276,6 +277,18 @@ pub fn run(archive: &Path, cfg: Config, table: bool, ring: LogRing) -> Result<u8
         draw(&statuses, &ring, started);
     }
     Ok(0)
+}
+
+/// A file-size limit (RLIMIT_FSIZE, e.g. a quota set with `prlimit`) must surface as a
+/// write error the sink handles (alarm, keep in memory, retry), not kill the collector
+/// with SIGXFSZ.
+#[allow(unsafe_code)]
+fn ignore_file_size_signal() {
+    use nix::sys::signal::{signal, SigHandler, Signal};
+    // SAFETY: installs the "ignore" disposition, no handler code runs.
+    if let Err(e) = unsafe { signal(Signal::SIGXFSZ, SigHandler::SigIgn) } {
+        tracing::warn!("cannot ignore SIGXFSZ: {e}");
+    }
 }
 
 // ---------------------------------------------------------------------------

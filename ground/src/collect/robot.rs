@@ -114,7 +114,8 @@ impl Worker {
         let mut trackers = BTreeMap::new();
         let now = now_ms();
         for (a, positions) in history {
-            let mut t = ApidTracker::default();
+            let mut positions = positions.into_iter();
+            let mut t = ApidTracker::resume(positions.next());
             for p in positions {
                 t.on_packet(p, false, now);
             }

@@ -129,6 +129,16 @@ impl ApidTracker {
     /// Classifies a packet. `boot` is true for the obsw's BOOT event.
     pub fn on_packet(&mut self, p: Pos, boot: bool, now_ms: i64) -> Verdict {
         let Some(last) = self.last else {
+            // Nothing archived before: what this boot of the obsw sent before the first
+            // packet heard is asked of the store too (what it no longer holds is
+            // reported overwritten).
+            if !boot && p.seq > 0 {
+                let before = Pos {
+                    seq: (SEQ_MOD - 1) as u16,
+                    obt_ms: i64::MIN,
+                };
+                self.add_holes(before, p, now_ms);
+            }
             self.last = Some(p);
             self.new += 1;
             return if boot {
@@ -363,6 +373,14 @@ mod tests {
         assert_eq!(t.on_packet(p(12, 1200), false, 500), Verdict::Duplicate);
         assert_eq!(t.due(1300, 200, 1000, 3, 8), vec![(11, 11), (13, 14)]);
         assert_eq!(t.filled, 1);
+    }
+
+    #[test]
+    fn first_packet_without_history_asks_for_the_earlier_packets_of_the_boot() {
+        let mut t = ApidTracker::default();
+        assert_eq!(t.on_packet(p(5, 500), false, 0), Verdict::New);
+        assert_eq!(t.due(10, 0, 0, 3, 8), vec![(0, 4)]);
+        assert_eq!(t.on_packet(p(0, 100), true, 20), Verdict::Filled);
     }
 
     #[test]
