@@ -265,3 +265,71 @@ fn kill_9_and_restart_lose_and_duplicate_nothing_alarms_and_sigterm() {
     let t = text(&out);
     assert!(t.contains(&addr.to_string()) && t.contains("never"), "{t}");
 }
+
+#[test]
+fn full_disk_raises_an_alarm_and_the_collector_goes_on_losing_nothing() {
+    let (_o, addr, _ctl) = start_obsw(1);
+    let dir = tmpdir("full");
+    // Log lines through a pipe: a file would hit the same size limit.
+    let mut child = Command::new(GROUND)
+        .current_dir(&dir)
+        .args([
+            "--archive",
+            "a.db",
+            "collect",
+            "--plain",
+            "--robot",
+            &format!("1={addr}"),
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("starting ground collect");
+    let err = child.stderr.take().unwrap();
+    let log = std::sync::Arc::new(std::sync::Mutex::new(String::new()));
+    let sink = log.clone();
+    std::thread::spawn(move || {
+        for l in std::io::BufReader::new(err).lines().map_while(Result::ok) {
+            sink.lock().unwrap().push_str(&(l + "\n"));
+        }
+    });
+    let mut c = Proc(child);
+    std::thread::sleep(Duration::from_secs(4));
+    // The "disk" is full: no file of the collector may grow past 4 KiB.
+    let pid = c.0.id().to_string();
+    let st = Command::new("prlimit")
+        .args(["--pid", &pid, "--fsize=4096:unlimited"])
+        .status()
+        .expect("prlimit (util-linux)");
+    assert!(st.success());
+    std::thread::sleep(Duration::from_secs(6));
+    assert!(c.0.try_wait().unwrap().is_none(), "still running on a full disk");
+    let st = Command::new("prlimit")
+        .args(["--pid", &pid, "--fsize=unlimited:unlimited"])
+        .status()
+        .unwrap();
+    assert!(st.success());
+    std::thread::sleep(Duration::from_secs(6));
+    signal(&c, "-TERM");
+    assert_eq!(wait_exit(&mut c, Duration::from_secs(5)), Some(0));
+    let log = log.lock().unwrap().clone();
+    assert!(log.contains("archive: cannot write"), "{log}");
+    assert!(log.contains("writable again"), "{log}");
+
+    let conn = rusqlite::Connection::open(dir.join("a.db")).unwrap();
+    let ok: String = conn.query_row("PRAGMA integrity_check", [], |r| r.get(0)).unwrap();
+    assert_eq!(ok, "ok");
+    let seqs = archived_seqs(&dir);
+    let (first, last) = (*seqs.keys().next().unwrap(), *seqs.keys().last().unwrap());
+    let missing: Vec<i64> = (first..=last).filter(|s| !seqs.contains_key(s)).collect();
+    let twice: Vec<_> = seqs.iter().filter(|(_, n)| **n > 1).collect();
+    assert!(
+        missing.is_empty() && twice.is_empty(),
+        "missing {missing:?} twice {twice:?}\n{log}"
+    );
+    assert!(last - first > 30, "{seqs:?}");
+    let out = ground(&dir, &["--archive", "a.db", "alarms", "list", "--all", "--json"]);
+    let t = text(&out);
+    assert!(t.contains("\"source\":\"ARCHIVE_WRITE\""), "{t}");
+    assert!(t.contains("\"state\":\"cleared\""), "{t}");
+}

@@ -184,6 +184,8 @@ struct Sink {
     deferred: Vec<SinkMsg>,
     failing_since: Option<i64>,
     last_reopen_ms: i64,
+    /// Latest health per robot, written together once a second.
+    health: std::collections::BTreeMap<u8, Health>,
     stats: SinkStats,
 }
 
@@ -199,6 +201,7 @@ pub fn run_sink(cfg: SinkCfg, rx: Receiver<SinkMsg>) -> SinkStats {
         deferred: Vec::new(),
         failing_since: None,
         last_reopen_ms: 0,
+        health: Default::default(),
         stats: SinkStats::default(),
     };
     s.reopen(archive::now_ms());
@@ -216,6 +219,7 @@ pub fn run_sink(cfg: SinkCfg, rx: Receiver<SinkMsg>) -> SinkStats {
         if now - last_sync >= SYNC_MS {
             last_sync = now;
             s.confirm(now);
+            s.write_health(now);
         }
         if s.failing_since.is_some() && now - s.last_reopen_ms >= REOPEN_MS {
             s.reopen(now);
@@ -260,10 +264,14 @@ impl Sink {
             }
             SinkMsg::Flush(tx) => {
                 self.confirm(now);
+                self.write_health(now);
                 let _ = tx.send(());
             }
+            SinkMsg::Health(h) => {
+                self.health.insert(h.robot, h);
+            }
             other => {
-                if self.write_own(&other, now).is_err() {
+                if self.write_own(&other).is_err() {
                     self.deferred.push(other);
                 }
             }
@@ -393,14 +401,14 @@ impl Sink {
         }
         let items = std::mem::take(&mut self.deferred);
         for (i, m) in items.iter().enumerate() {
-            if self.write_own(m, now).is_err() {
+            if self.write_own(m).is_err() {
                 self.deferred.extend(items.into_iter().skip(i));
                 return;
             }
         }
     }
 
-    fn write_own(&mut self, m: &SinkMsg, now: i64) -> Result<()> {
+    fn write_own(&mut self, m: &SinkMsg) -> Result<()> {
         let Some(c) = self.conn.as_mut() else {
             anyhow::bail!("archive not open")
         };
@@ -438,11 +446,26 @@ impl Sink {
                     ],
                 )?;
             }
-            SinkMsg::Health(h) => {
-                c.execute(
+            SinkMsg::Tm { .. } | SinkMsg::Flush(_) | SinkMsg::Health(_) => {}
+        }
+        Ok(())
+    }
+
+    /// Writes the robots' health in one transaction (kept for later if it fails).
+    fn write_health(&mut self, now: i64) {
+        if self.health.is_empty() {
+            return;
+        }
+        let Some(c) = self.conn.as_mut() else { return };
+        let r = (|| -> rusqlite::Result<()> {
+            let tx = c.transaction()?;
+            {
+                let mut st = tx.prepare_cached(
                     "INSERT OR REPLACE INTO collect_robot (robot, addr, link, last_heard_ms, last_hk_ms, packets, filled, lost, duplicates, corrupt, reboots, updated_ms)
                      VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12)",
-                    params![
+                )?;
+                for h in self.health.values() {
+                    st.execute(params![
                         h.robot,
                         h.addr,
                         h.link,
@@ -455,12 +478,15 @@ impl Sink {
                         h.corrupt as i64,
                         h.reboots as i64,
                         now
-                    ],
-                )?;
+                    ])?;
+                }
             }
-            SinkMsg::Tm { .. } | SinkMsg::Flush(_) => {}
+            tx.commit()
+        })();
+        match r {
+            Ok(()) => self.health.clear(),
+            Err(e) => tracing::debug!("health: {e}"),
         }
-        Ok(())
     }
 
     fn tick_shelves(&mut self, now: i64) {
