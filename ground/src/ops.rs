@@ -1064,6 +1064,7 @@ mod tests {
         (addr, h)
     }
 
+    // verifies: GND-01
     #[test]
     fn session_resends_with_the_same_count_and_skips_foreign_apids() {
         let (addr, fake) = fake_obsw(1);
@@ -1097,6 +1098,7 @@ mod tests {
         assert_eq!(fake.join().unwrap(), vec![(0x101, 100), (0x101, 100)]);
     }
 
+    // verifies: MMIC-VAL-02
     #[test]
     fn link_quality_is_over_the_last_window_of_exchanges() {
         let mut r = RobotStatus::new(1, "127.0.0.1:1".parse().unwrap());

@@ -110,6 +110,7 @@ fn recover(o: &Obsw, c: &mut Client, clear: &str) {
     assert_eq!(robot_mode_reported(c), robot_mode::OPERATIONAL);
 }
 
+// verifies: MMIC-FLT-04
 #[test]
 fn low_battery_mid_motion_lets_the_motion_complete_then_standby() {
     let (o, mut c) = start();
@@ -153,6 +154,7 @@ fn low_battery_mid_motion_lets_the_motion_complete_then_standby() {
     recover(&o, &mut c, "clear battery-sag");
 }
 
+// verifies: MMIC-FLT-05
 #[test]
 fn assembly_system_fault_mid_motion_lets_the_motion_complete_then_standby() {
     let (_o, mut c) = start();
@@ -176,6 +178,7 @@ fn assembly_system_fault_mid_motion_lets_the_motion_complete_then_standby() {
     operational(&mut c);
 }
 
+// verifies: MMIC-FLT-01
 #[test]
 fn bolting_failure_goes_to_standby() {
     let o = Obsw::start(&["--speed", "50"]);
@@ -200,6 +203,7 @@ fn bolting_failure_goes_to_standby() {
     recover(&o, &mut c, "clear");
 }
 
+// verifies: MMIC-CMD-07, MMIC-FLT-03
 #[test]
 fn initial_state_mismatch_is_refused_and_goes_to_standby() {
     let (o, mut c) = start();
@@ -221,6 +225,7 @@ fn initial_state_mismatch_is_refused_and_goes_to_standby() {
     recover(&o, &mut c, "clear misplaced-voxel");
 }
 
+// verifies: MMIC-FLT-06
 #[test]
 fn arm_not_contracted_goes_to_safed_and_holds_arms_and_hip() {
     let (o, mut c) = start();
@@ -249,6 +254,7 @@ fn arm_not_contracted_goes_to_safed_and_holds_arms_and_hip() {
     operational(&mut c);
 }
 
+// verifies: MMIC-FLT-08
 #[test]
 fn operational_overcurrent_mid_motion_aborts_to_safed() {
     let (o, mut c) = start();
@@ -282,6 +288,7 @@ fn operational_overcurrent_mid_motion_aborts_to_safed() {
     operational(&mut c);
 }
 
+// verifies: MMIC-FLT-07
 #[test]
 fn idle_overcurrent_at_reconfiguration_start_goes_to_safed() {
     let (_o, mut c) = start();
@@ -300,6 +307,7 @@ fn idle_overcurrent_at_reconfiguration_start_goes_to_safed() {
     operational(&mut c);
 }
 
+// verifies: MMIC-FLT-09
 #[test]
 fn hip_mismatch_when_entering_operational_goes_to_safed() {
     let (o, mut c) = start();
@@ -313,6 +321,7 @@ fn hip_mismatch_when_entering_operational_goes_to_safed() {
     recover(&o, &mut c, "clear dead-hip-encoder");
 }
 
+// verifies: MMIC-FLT-10
 #[test]
 fn heartbeat_loss_while_idle_goes_to_safed_and_blocks_recovery_until_the_link_is_back() {
     let (o, mut c) = start();
@@ -333,6 +342,7 @@ fn heartbeat_loss_while_idle_goes_to_safed_and_blocks_recovery_until_the_link_is
     operational(&mut c);
 }
 
+// verifies: MMIC-FLT-11
 #[test]
 fn communication_loss_mid_motion_aborts_to_safed() {
     let (o, mut c) = start();
@@ -349,6 +359,7 @@ fn communication_loss_mid_motion_aborts_to_safed() {
     recover(&o, &mut c, "clear");
 }
 
+// verifies: PUS-19-01
 #[test]
 fn a_disabled_event_action_link_reports_but_does_not_change_mode() {
     let (o, mut c) = start();
@@ -373,6 +384,7 @@ fn a_disabled_event_action_link_reports_but_does_not_change_mode() {
     );
 }
 
+// verifies: PUS-12-02
 #[test]
 fn a_disabled_monitor_does_not_detect_and_definitions_are_reportable() {
     let (o, mut c) = start();
@@ -394,6 +406,7 @@ fn a_disabled_monitor_does_not_detect_and_definitions_are_reportable() {
     assert_eq!(robot_mode_reported(&mut c), robot_mode::OPERATIONAL);
 }
 
+// verifies: MMIC-MODE-05
 #[test]
 fn a_safing_fault_in_standby_is_reported_but_does_not_power_the_servos() {
     let (o, mut c) = start();

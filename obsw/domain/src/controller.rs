@@ -1339,6 +1339,7 @@ fn primitive_segments(from: u8, to: u8, prim: u8) -> Vec<Seg, MAX_SEGS> {
 mod tests {
     use super::*;
 
+    // verifies: MMIC-MOT-03
     #[test]
     fn primitives_are_release_move_grip_and_confirm() {
         // matched Xneg -> "Xpos Xneg": A releases, arms extend, A grips
@@ -1393,6 +1394,7 @@ mod tests {
         }
     }
 
+    // verifies: MMIC-CMD-08
     #[test]
     fn controller_refuses_when_busy_unpowered_mismatched_or_unreachable() {
         let mut c = Controller::new();
@@ -1453,6 +1455,7 @@ mod tests {
         );
     }
 
+    // verifies: PUS-20-01
     #[test]
     fn controller_answers_every_domain_parameter() {
         let c = Controller::new();
@@ -1465,6 +1468,7 @@ mod tests {
         assert_eq!(c.param(pid::CONFIG_STATE), Some(255));
     }
 
+    // verifies: MMIC-MODE-03, PUS-8-01
     #[test]
     fn module_modes_follow_the_root_mode_and_actions_name_their_function() {
         use mib::modes::robot_mode;
@@ -1479,6 +1483,7 @@ mod tests {
         );
     }
 
+    // verifies: MMIC-CMD-08
     #[test]
     fn start_errors_map_to_mib_failure_codes() {
         let (c, d, l) = StartError::InitialStateMismatch {
@@ -1541,6 +1546,7 @@ mod tests {
         }
     }
 
+    // verifies: MMIC-MODE-01
     #[test]
     fn module_modes_off_unpowers_everything_and_on_powers() {
         let mut l = Loop::new();
@@ -1565,6 +1571,7 @@ mod tests {
         assert_eq!(l.bout.side.arm_pwm, None);
     }
 
+    // verifies: MMIC-CTL-06
     #[test]
     fn hold_mode_aborts_running_motion_and_keeps_position() {
         let mut l = Loop::new();
@@ -1588,6 +1595,7 @@ mod tests {
         assert_eq!(l.c.link.heartbeat().unwrap().modes, 0b10_10_10);
     }
 
+    // verifies: MMIC-CTL-06
     #[test]
     fn entering_hold_during_a_hip_rotation_ends_it_and_same_modes_do_not() {
         let mut l = Loop::new();
@@ -1603,6 +1611,7 @@ mod tests {
         assert!(l.out.reports.is_empty());
     }
 
+    // verifies: MMIC-CTL-06
     #[test]
     fn abort_holds_arm_a_and_board_b_where_they_are() {
         let mut l = Loop::new();
@@ -1627,6 +1636,7 @@ mod tests {
         assert!(l.out.reports.is_empty());
     }
 
+    // verifies: MMIC-CMD-04
     #[test]
     fn move_arm_completes_when_board_b_reports_the_target() {
         let mut l = Loop::new();
@@ -1652,6 +1662,7 @@ mod tests {
         assert_eq!(l.c.param(pid::ARM_B_TARGET), Some(1500));
     }
 
+    // verifies: MMIC-AB-07
     #[test]
     fn board_b_modes_are_resent_after_b_restarts() {
         let mut l = Loop::new();
@@ -1663,6 +1674,7 @@ mod tests {
         assert_eq!(l.bout.side.arm_pwm, Some(servo::ARM_CONTRACTED_US));
     }
 
+    // verifies: PUS-20-01
     #[test]
     fn tunables_reach_the_controller_and_bad_values_are_refused() {
         let mut c = Controller::new();
@@ -1676,6 +1688,7 @@ mod tests {
     }
 
     proptest::proptest! {
+        // verifies: DD-ROBUST-01
         #[test]
         fn controller_never_panics_on_garbage_link_bytes(
             chunks in proptest::collection::vec(proptest::collection::vec(proptest::prelude::any::<u8>(), 0..80), 1..20)
