@@ -503,7 +503,7 @@ pub fn fdir_table(reqs: &[Requirement], rows: &[ReqRow]) -> Vec<FdirRow> {
                 timing(f.timing)
             ),
             recovery: format!(
-                "{} until the ground commands a mode (TC[200,1]); fault bit {} stays in FAULT_LATCHED for the operator",
+                "stays {} until the ground commands OPERATIONAL (TC[200,1]), refused with FAULT_NOT_CLEARED while a monitored cause persists; bit {} of FAULT_LATCHED cleared by the successful recovery",
                 mode_name(f.mode),
                 f.bit
             ),
@@ -538,7 +538,7 @@ pub fn fdir_table(reqs: &[Requirement], rows: &[ReqRow]) -> Vec<FdirRow> {
             reaction: fault
                 .map(|f| format!("→ {} {}", mode_name(f.mode), timing(f.timing)))
                 .unwrap_or_else(|| "event only".into()),
-            recovery: "monitor re-arms when the value is back in limits; mode change needs a ground TC".into(),
+            recovery: "persistence count resets when the value is back in limits; leaving the fault mode needs a ground TC[200,1]".into(),
             requirements: ids,
             tests,
         });

@@ -330,6 +330,15 @@ const NOT_A_FN: u8 = 0;
 
     // verifies: REV-TRACE-01
     #[test]
+    fn tags_inside_string_literals_are_not_tags() {
+        let src = "const S: &str = \"\n// verifies: X-1\n\";\nfn not_tagged() {}\n/*\n// verifies: Y-2\n*/\nfn nor_this() {}\n";
+        let (tags, orphans) = scan(Path::new("f.rs"), src);
+        assert!(tags.is_empty(), "{tags:?}");
+        assert!(orphans.is_empty(), "{orphans:?}");
+    }
+
+    // verifies: REV-TRACE-01
+    #[test]
     fn tag_lines_parse_with_commas_or_spaces() {
         assert_eq!(
             parse_tag_line("    // verifies: PUS-17-01, MMIC-CMD-03"),
