@@ -276,8 +276,19 @@ pub fn firmware(root: &Path, out: &Path) -> FirmwareInfo {
     fw.ok = st.success();
     let text = std::fs::read_to_string(&log).unwrap_or_default();
     let mut in_size = false;
+    let mut in_qemu = false;
     for l in text.lines() {
         let t = l.trim();
+        if t.starts_with("running ") && t.contains("riscv32imc") {
+            in_qemu = true;
+        }
+        if in_qemu {
+            if let Some(rest) = t.strip_prefix("test ") {
+                if let Some((name, verdict)) = rest.rsplit_once(" ... ") {
+                    fw.qemu_tests.push((name.to_string(), verdict == "ok"));
+                }
+            }
+        }
         if t.starts_with("image ") && t.contains("static RAM") {
             in_size = true;
         }

@@ -401,6 +401,14 @@ pub fn html(p: &Package) -> String {
             esc(&fw.qemu_summary),
             esc(&fw.size_lines.join("\n"))
         );
+        if !fw.qemu_tests.is_empty() {
+            let _ = write!(h, "<details><summary>{} on-target tests (QEMU riscv32imc)</summary><table><tr><th>test</th><th>outcome</th></tr>", fw.qemu_tests.len());
+            for (n, ok) in &fw.qemu_tests {
+                let o = if *ok { Outcome::Passed } else { Outcome::Failed };
+                let _ = write!(h, "<tr><td class=mono>{}</td><td>{}</td></tr>", esc(n), outcome_cell(o));
+            }
+            h.push_str("</table></details>");
+        }
     }
     if !fw.note.is_empty() {
         let _ = write!(h, "<p class=warn>{}</p>", esc(&fw.note));
