@@ -361,3 +361,97 @@ fn boot_reports_the_cause_and_a_previous_panic_and_the_state_is_computed() {
     let xneg = mib::robot::state_by_name("Xneg").map(|s| s.id).expect("MIB state");
     assert_eq!(r.o.computed_state(), xneg, "the simulator starts matched on Xneg");
 }
+
+/// Sends a TC by MIB name; returns its PUS 1 report subtypes.
+fn verdicts(r: &mut Rig, name: &str, args: &[i64]) -> Vec<u8> {
+    let def = mib::tc::by_name(name).expect("MIB TC");
+    let mut app = vec![0u8; 64];
+    let n = mib::codec::encode_args(def, args, &mut app).expect("arguments in range");
+    let raw = r.raw_tc(def.service, def.subservice, &app[..n]);
+    r.send_raw(&raw)
+}
+
+// verifies: PUS-5-02, PUS-19-01, PUS-20-01, PUS-12-02
+#[test]
+fn service_requests_with_real_identifiers_complete() {
+    let mut r = Rig::new();
+    r.run(500);
+    let t = &mib::tunables::TUNABLES[0];
+    let mon = i64::from(mib::fdir::MONITORS[0].id);
+    let ev = i64::from(eid::BOLT_ATTEMPT_FAILED);
+    let fault = i64::from(eid::BOLT_FAILURE);
+    let requests: [(&str, Vec<i64>); 10] = [
+        ("EVENT_DISABLE", vec![ev]),
+        ("EVENT_REPORT_DISABLED", vec![]),
+        ("EVENT_ENABLE", vec![ev]),
+        ("EA_DISABLE", vec![fault]),
+        ("EA_ENABLE", vec![fault]),
+        ("EA_REPORT", vec![]),
+        ("PARAM_REPORT", vec![i64::from(t.id)]),
+        ("PARAM_SET", vec![i64::from(t.id), i64::from(t.default)]),
+        ("MON_DISABLE", vec![mon]),
+        ("MON_ENABLE", vec![mon]),
+    ];
+    for (name, args) in requests {
+        let v = verdicts(&mut r, name, &args);
+        assert!(v.contains(&1) && v.contains(&7), "{name} {args:?}: {v:?}");
+        r.run(50);
+    }
+}
+
+// verifies: MMIC-CMD-02, MMIC-CMD-04
+#[test]
+fn bolt_face_and_gripper_moves_run_to_completion_when_idle() {
+    let mut r = Rig::new();
+    r.run(1_000);
+    r.mode(robot_mode::OPERATIONAL);
+    let bolt = verdicts(&mut r, "BOLT_FACE", &[0, 1]);
+    assert!(bolt.contains(&1), "{bolt:?}");
+    r.run(90_000);
+    let g = mib::tc::by_name("MOVE_GRIPPER").expect("MIB TC");
+    let args: Vec<i64> = g.args.iter().map(|a| a.min + (a.max - a.min) / 2).collect();
+    let grip = verdicts(&mut r, "MOVE_GRIPPER", &args);
+    assert!(grip.contains(&1), "{grip:?}");
+    r.run(20_000);
+    assert_eq!(r.o.mode(), robot_mode::OPERATIONAL, "no fault on the way");
+}
+
+// verifies: MMIC-FLT-10, MMIC-FLT-06
+#[test]
+fn entering_operational_without_board_b_or_with_a_stuck_arm_fails_safe() {
+    let mut r = Rig::new();
+    r.run(1_000);
+    r.sim.inject(Fault::CutCable);
+    r.run(1_000);
+    let v = verdicts(
+        &mut r,
+        "MODE_SET",
+        &[node::ROBOT as i64, robot_mode::OPERATIONAL as i64, 0],
+    );
+    r.run(20_000);
+    assert!(v.contains(&1) || v.contains(&2), "{v:?}");
+    assert_ne!(r.o.mode(), robot_mode::OPERATIONAL, "never operational without board B");
+
+    let mut r = Rig::new();
+    r.run(1_000);
+    r.mode(robot_mode::OPERATIONAL);
+    // Xneg -> Xpos: side A extends to Xpos, then arm B must contract onto it; it sticks
+    // after the first primitive.
+    let mark = r.events.len();
+    assert_eq!(r.by_name("RECONFIGURE", &[0, 1]), 1);
+    for _ in 0..600 {
+        if r.events_since(mark).contains(&eid::PRIMITIVE_DONE) {
+            break;
+        }
+        r.run(100);
+    }
+    assert!(r.events_since(mark).contains(&eid::PRIMITIVE_DONE));
+    r.sim.inject(Fault::StuckArm(mib::robot::Side::B));
+    r.run(60_000);
+    let ev = r.events_since(mark);
+    assert!(
+        ev.contains(&eid::ARM_NOT_CONTRACTED) || ev.contains(&eid::OPERATIONAL_OVERCURRENT),
+        "{ev:?}"
+    );
+    assert_ne!(r.o.mode(), robot_mode::OPERATIONAL);
+}

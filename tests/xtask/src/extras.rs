@@ -737,7 +737,7 @@ pub fn unsafe_check(root: &Path, pkgs: &[Package]) -> Check {
             .unwrap_or("no crate root");
         total += n;
         details.push(format!(
-            "{name}: {n} unsafe{} [{guard}]{}",
+            "{name}: {n} `unsafe` keyword{} [{guard}]{}",
             if n == 1 { "" } else { "s" },
             if places.is_empty() {
                 String::new()

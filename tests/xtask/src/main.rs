@@ -10,6 +10,8 @@
 //! the policy of docs/requirements.toml); 1 otherwise; 2 on a usage or tool error.
 //! The full review also fails when a requirement is not verified.
 
+#![forbid(unsafe_code)]
+
 mod extras;
 mod report;
 mod tags;
