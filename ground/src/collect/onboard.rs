@@ -64,42 +64,26 @@ pub struct StoreDone {
     pub overwritten: Option<i64>,
 }
 
-/// Reads a TM[15,19] from its raw bytes with the MIB's layout (`None` for other TM).
-pub fn store_done(tm: &Tm, raw: &[u8]) -> Option<StoreDone> {
-    if (tm.service, tm.subservice) != (15, 19) {
+/// Reads a TM[15,19] (`None` for other TM).
+pub fn store_done(tm: &Tm, _raw: &[u8]) -> Option<StoreDone> {
+    let TmBody::StoreDownlinkDone {
+        packets,
+        oldest_time,
+        oldest_seq,
+        overwritten,
+    } = &tm.body
+    else {
         return None;
-    }
-    let layout = mib::tc::TMS
-        .iter()
-        .find(|t| t.service == 15 && t.subservice == 19)?
-        .layout;
-    let start = pus::PRIMARY_HEADER_LEN + pus::TM_SEC_HEADER_LEN + mib::config::TIMESTAMP_LEN;
-    let data = raw.get(start..raw.len().checked_sub(pus::CRC_LEN)?)?;
-    let f = pus::decode_layout(layout, data);
-    let get = |n: &str| f.iter().find(|x| x.name == n).map(|x| x.value);
-    let oldest = match (get("oldest_seq"), get("oldest_days"), get("oldest_ms"), get("packets")) {
-        (Some(seq), Some(days), Some(ms), Some(p)) if p > 0 || days > 0 || ms > 0 => Some(Pos {
-            seq: (seq & 0x3FFF) as u16,
-            obt_ms: cds_unix_ms(days, ms),
-        }),
-        _ => None,
     };
+    let oldest = (*packets > 0 || oldest_time.days > 0 || oldest_time.ms_of_day > 0).then_some(Pos {
+        seq: oldest_seq & 0x3FFF,
+        obt_ms: oldest_time.unix_ms(),
+    });
     Some(StoreDone {
-        packets: get("packets"),
+        packets: Some(i64::from(*packets)),
         oldest,
-        overwritten: get("overwritten"),
+        overwritten: Some(i64::from(*overwritten)),
     })
-}
-
-fn cds_unix_ms(days: i64, ms: i64) -> i64 {
-    let bytes = {
-        let mut b = [0u8; mib::config::TIMESTAMP_LEN];
-        b[0] = pus::CDS_PFIELD;
-        b[1..3].copy_from_slice(&(days as u16).to_be_bytes());
-        b[3..7].copy_from_slice(&(ms as u32).to_be_bytes());
-        b
-    };
-    pus::CdsShort::parse(&bytes).map_or(0, |t| t.unix_ms())
 }
 
 #[cfg(test)]
@@ -119,32 +103,22 @@ mod tests {
     #[test]
     fn store_end_report_is_read_with_the_mib_layout() {
         let ts = pus::CdsShort::from_unix_ms(1_000_000).to_bytes();
-        let layout = mib::tc::TMS
-            .iter()
-            .find(|t| t.service == 15 && t.subservice == 19)
-            .unwrap()
-            .layout;
-        // packets u32 first in every version of the layout.
+        // packets u32, oldest time (CDS short), oldest seq u16, overwritten u32.
         let mut data = vec![0, 0, 0, 7];
-        if layout.contains("oldest_seq") {
-            data.extend_from_slice(&ts[1..3]);
-            data.extend_from_slice(&ts[3..7]);
-            data.extend_from_slice(&42u16.to_be_bytes());
-            data.extend_from_slice(&3u32.to_be_bytes());
-        }
+        data.extend_from_slice(&ts);
+        data.extend_from_slice(&42u16.to_be_bytes());
+        data.extend_from_slice(&3u32.to_be_bytes());
         let raw = pus::build_tm(0x101, 9, 15, 19, 0, &ts, &data);
         let tm = pus::decode_tm(&raw).unwrap();
         let d = store_done(&tm, &raw).unwrap();
         assert_eq!(d.packets, Some(7));
-        if layout.contains("oldest_seq") {
-            assert_eq!(
-                d.oldest,
-                Some(Pos {
-                    seq: 42,
-                    obt_ms: 1_000_000
-                })
-            );
-            assert_eq!(d.overwritten, Some(3));
-        }
+        assert_eq!(
+            d.oldest,
+            Some(Pos {
+                seq: 42,
+                obt_ms: 1_000_000
+            })
+        );
+        assert_eq!(d.overwritten, Some(3));
     }
 }
