@@ -456,20 +456,19 @@ fn event_name(e: u16) -> String {
         .unwrap_or_else(|| format!("0x{e:04X}"))
 }
 
-fn detection(event: &str) -> &'static str {
-    match event {
-        "BOLT_FAILURE" => "bolter state machine: pair not locked after 3 attempts (I_bo current)",
-        "UNBOLT_FAILURE" => "bolter state machine: pair not released after 3 attempts",
-        "INITIAL_STATE_MISMATCH" => "RECONFIGURE's initial state differs from the state computed from IMU and PWM",
-        "LOW_BATTERY" => "PUS 12 monitors V_BAT_A_LOW / V_BAT_B_LOW (< 10 V)",
-        "ASSEMBLY_SYSTEM_FAULT" => "external: TC[8,1] ASSEMBLY_FAULT from the assembly system",
-        "ARM_NOT_CONTRACTED" => "arm-contracted switch not pushed after a contract command",
-        "IDLE_OVERCURRENT" => "PUS 12 monitors I_LOC_*_IDLE at start and end of a reconfiguration",
-        "OPERATIONAL_OVERCURRENT" => "PUS 12 monitors I_*_OPER (absolute per-module limit), always",
-        "HIP_MISMATCH" => "PUS 12 monitor HIP_CONTRACTED when entering operational",
-        "COMM_LOSS_HEARTBEAT" => "PUS 12 monitor B_HEARTBEAT: board B heartbeat age",
-        "COMM_LOSS_NO_ACK" => "A–B link: command resent without acknowledgement",
-        _ => "see the MIB",
+/// What detects a fault: the MIB's description of its event, and the PUS 12 monitors
+/// that raise it.
+fn detection(event: u16) -> String {
+    let desc = mib::events::by_id(event).map(|d| d.desc).unwrap_or("");
+    let mons: Vec<String> = mib::fdir::MONITORS
+        .iter()
+        .filter(|m| m.event == event)
+        .map(|m| format!("{} ({})", m.name, m.phase.name()))
+        .collect();
+    if mons.is_empty() {
+        format!("{desc} (detected by the domain or a ground command)")
+    } else {
+        format!("{desc}; PUS 12 monitors {}", mons.join(", "))
     }
 }
 
@@ -501,7 +500,7 @@ pub fn fdir_table(reqs: &[Requirement], rows: &[ReqRow]) -> Vec<FdirRow> {
         out.push(FdirRow {
             kind: format!("Table 8 fault (bit {})", f.bit),
             name: ev.clone(),
-            detection: detection(&ev).into(),
+            detection: detection(f.event),
             persistence: if mons.is_empty() {
                 "—".into()
             } else {
@@ -930,6 +929,46 @@ mod tests {
         let b = budget("x", None, Some(1.0), "B", "s");
         assert_eq!(b.margin_pct, None);
         assert_eq!(b.verdict, "not measured");
+    }
+
+    // verifies: REV-FDIR-01
+    #[test]
+    fn fdir_table_has_a_row_per_fault_and_monitor_with_the_tests_of_its_requirements() {
+        let req = Requirement {
+            id: "X-1".into(),
+            text: String::new(),
+            source: String::new(),
+            method: "test".into(),
+            criticality: "high".into(),
+            fdir: vec!["LOW_BATTERY".into(), "MON:V_BAT_A_LOW".into()],
+        };
+        let row = ReqRow {
+            id: "X-1".into(),
+            text: String::new(),
+            source: String::new(),
+            method: "test".into(),
+            criticality: "high".into(),
+            tests: vec![ReqTest {
+                package: "p".into(),
+                name: "t".into(),
+                outcome: Outcome::Passed,
+            }],
+            status: "verified".into(),
+        };
+        let t = fdir_table(&[req], &[row]);
+        assert_eq!(t.len(), mib::fdir::FAULTS.len() + mib::fdir::MONITORS.len());
+        let lb = t.iter().find(|r| r.name == "LOW_BATTERY").expect("fault row");
+        assert_eq!(lb.requirements, vec!["X-1".to_string()]);
+        assert_eq!(lb.tests.len(), 1);
+        assert!(lb.reaction.contains("STANDBY") && lb.reaction.contains("after the running motion"));
+        assert!(lb.detection.contains("V_BAT_A_LOW"));
+        let m = t.iter().find(|r| r.name == "V_BAT_A_LOW").expect("monitor row");
+        assert!(m.persistence.contains("500 ms"), "{}", m.persistence);
+        assert_eq!(m.tests.len(), 1);
+        assert!(t
+            .iter()
+            .filter(|r| r.name != "LOW_BATTERY" && r.name != "V_BAT_A_LOW")
+            .all(|r| r.tests.is_empty()));
     }
 
     // verifies: REV-BUDGET-01
