@@ -236,8 +236,7 @@ impl Writer {
                 if let Some(n) = name {
                     self.out.extend_from_slice(n.as_bytes());
                 } else if calibrated {
-                    let e = f.calib.eng(raw);
-                    let _ = write!(self.out, "{e:.3}");
+                    self.float(f.calib.eng(raw), decimals(f.calib.scale));
                     self.out.extend_from_slice(f.unit.as_bytes());
                 } else {
                     self.int(raw);
@@ -358,11 +357,18 @@ impl Writer {
     fn body(&mut self, items: &[Item], prefix: &[Field], data: &[u8]) -> Result<(), BodyError> {
         self.ctx.clear();
         let mut r = Reader::new(data);
-        self.open(b'{');
+        // Text: the body's fields follow the packet name on the same line.
+        let json = self.fmt == Format::Json;
+        if json {
+            self.open(b'{');
+        }
+        self.comma = false;
         self.fields(prefix, &mut r)?;
         self.items(items, &mut r)?;
         r.finish().map_err(|e| BodyError(e.to_string()))?;
-        self.close(b'}');
+        if json {
+            self.close(b'}');
+        }
         Ok(())
     }
 
@@ -401,6 +407,31 @@ impl Writer {
         self.out.push(b'Z');
     }
 
+    /// `{offset:8} TM  apid=0x{apid:03X} seq={seq:5} [{service},{subservice}]`, without fmt.
+    fn text_head(&mut self, offset: usize, kind: &[u8], apid: u16, seq: u16, service: u8, subservice: u8) {
+        let pad = |out: &mut Vec<u8>, s: &str, w: usize| {
+            for _ in s.len()..w {
+                out.push(b' ');
+            }
+            out.extend_from_slice(s.as_bytes());
+        };
+        pad(&mut self.out, self.itoa.format(offset as u64), 8);
+        self.out.push(b' ');
+        self.out.extend_from_slice(kind);
+        self.out.extend_from_slice(b"  apid=0x");
+        let h = b"0123456789ABCDEF";
+        for sh in [8, 4, 0] {
+            self.out.push(h[(apid >> sh & 15) as usize]);
+        }
+        self.out.extend_from_slice(b" seq=");
+        pad(&mut self.out, self.itoa.format(seq), 5);
+        self.out.extend_from_slice(b" [");
+        self.int(service as i64);
+        self.out.push(b',');
+        self.int(subservice as i64);
+        self.out.push(b']');
+    }
+
     /// Writes one TM packet (one line).
     pub fn tm(&mut self, offset: usize, p: &TmPacket<'_>) -> Result<(), BodyError> {
         let def = tm_def(p.service, p.subservice);
@@ -435,11 +466,15 @@ impl Writer {
                 self.out.extend_from_slice(b",\"body\":");
             }
             Format::Text => {
-                let _ = write!(
-                    self.out,
-                    "{offset:8} TM  apid=0x{:03X} seq={:5} [{},{}] ",
-                    p.primary.apid, p.primary.seq_count, p.service, p.subservice
+                self.text_head(
+                    offset,
+                    b"TM",
+                    p.primary.apid,
+                    p.primary.seq_count,
+                    p.service,
+                    p.subservice,
                 );
+                self.out.push(b' ');
                 self.time(&p.time);
                 self.out.push(b' ');
                 self.out.extend_from_slice(name.as_bytes());
@@ -491,11 +526,16 @@ impl Writer {
                 self.out.extend_from_slice(b",\"body\":");
             }
             Format::Text => {
-                let _ = write!(
-                    self.out,
-                    "{offset:8} TC  apid=0x{:03X} seq={:5} [{},{}] {name}",
-                    p.primary.apid, p.primary.seq_count, p.service, p.subservice
+                self.text_head(
+                    offset,
+                    b"TC",
+                    p.primary.apid,
+                    p.primary.seq_count,
+                    p.service,
+                    p.subservice,
                 );
+                self.out.push(b' ');
+                self.out.extend_from_slice(name.as_bytes());
             }
         }
         let res = match def {
