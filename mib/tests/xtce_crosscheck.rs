@@ -234,33 +234,6 @@ fn packets() -> Vec<(Vec<u8>, Expected)> {
             ));
         }
     }
-    // Other TM: source data as one binary parameter.
-    for (svc, sub, data) in [
-        (17u8, 2u8, vec![]),
-        (1, 1, vec![0x19, 0x01, 0xC0, 0x2A]),
-        (20, 2, vec![0x00, 0x07, 0xFF, 0xFF, 0xFF, 0xFE]),
-    ] {
-        assert!(mib::tc::tm_by_type(svc, sub).is_some());
-        let hdr = Header {
-            service: svc,
-            subservice: sub,
-            seq,
-            counter: 1,
-            days: 1,
-            ms: 2,
-        };
-        seq += 1;
-        let pkt = build(&hdr, &data);
-        let hex: String = data.iter().map(|b| format!("{b:02x}")).collect();
-        out.push((
-            pkt.clone(),
-            Expected {
-                header: header_expect(&hdr, &pkt),
-                params: vec![("TM_SOURCE_DATA".to_string(), 0, Eng::Hex(hex))],
-                what: format!("TM[{svc},{sub}]"),
-            },
-        ));
-    }
     out
 }
 
