@@ -631,26 +631,6 @@ fn meta_command(x: &mut Xml, t: &TcDef, apid: u16) {
     x.close("</xtce:MetaCommand>");
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    #[test]
-    fn document_mentions_every_hk_parameter_and_tc() {
-        let d = xtce_document();
-        for p in PARAMS {
-            assert!(d.contains(&format!("name=\"{}\"", p.name)), "{}", p.name);
-        }
-        for t in TCS {
-            assert!(d.contains(&format!("<xtce:MetaCommand name=\"{}\"", t.name)));
-        }
-        assert!(d.contains("value=\"257\""));
-        assert!(xtce_document_for(2).contains("value=\"258\""));
-        assert_eq!(hex_value(8, 16), "0008");
-        assert_eq!(hex_value(1, 1), "01");
-        assert_eq!(esc("a<b&\"c\""), "a&lt;b&amp;&quot;c&quot;");
-    }
-}
-
 /// XTCE of the TM kinds that are not told apart by PI1 (all but HK and events), generated
 /// from their field lists (`crate::layout`): every field a parameter named
 /// `<TM>_<path>`; a failure report an abstract container with one child per failure code
@@ -869,5 +849,25 @@ impl BodyXtce {
                 unreachable!("TM {} has a body the XTCE export does not describe", t.name)
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    #[test]
+    fn document_mentions_every_hk_parameter_and_tc() {
+        let d = xtce_document();
+        for p in PARAMS {
+            assert!(d.contains(&format!("name=\"{}\"", p.name)), "{}", p.name);
+        }
+        for t in TCS {
+            assert!(d.contains(&format!("<xtce:MetaCommand name=\"{}\"", t.name)));
+        }
+        assert!(d.contains("value=\"257\""));
+        assert!(xtce_document_for(2).contains("value=\"258\""));
+        assert_eq!(hex_value(8, 16), "0008");
+        assert_eq!(hex_value(1, 1), "01");
+        assert_eq!(esc("a<b&\"c\""), "a&lt;b&amp;&quot;c&quot;");
     }
 }
