@@ -580,7 +580,7 @@ fn xtce_meta_commands_encode_like_the_sat_rs_tc_encoder() {
 fn encode_body(items: &[mib::layout::Item], pick: &dyn Fn(&str) -> i64, b: &mut Bits) {
     use mib::layout::{Item, Tail};
     let mut seen: Vec<(&str, i64)> = Vec::new();
-    let mut put = |f: &mib::layout::Field, b: &mut Bits, seen: &mut Vec<(&'static str, i64)>| {
+    let put = |f: &mib::layout::Field, b: &mut Bits, seen: &mut Vec<(&'static str, i64)>| {
         let v = pick(f.name);
         b.push(v as u64 & ((1u64 << f.bits) - 1), f.bits as u32);
         seen.push((f.name, v));
