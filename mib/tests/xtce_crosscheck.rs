@@ -662,6 +662,9 @@ fn flatten(tm: &str, body: &Value, out: &mut Vec<(String, Value)>) {
     }
 }
 
+/// Chooses a field's raw value by the field's name.
+type Pick = Box<dyn Fn(&str) -> i64>;
+
 #[test]
 fn space_packet_parser_decodes_every_report_kind_like_ground_decode_json() {
     let root = repo_root();
@@ -715,7 +718,7 @@ fn space_packet_parser_decodes_every_report_kind_like_ground_decode_json() {
             _ => 1,
         })
     };
-    let mut kinds: Vec<(u8, u8, Box<dyn Fn(&str) -> i64>)> = Vec::new();
+    let mut kinds: Vec<(u8, u8, Pick)> = Vec::new();
     for sub in [1u8, 3, 5, 7] {
         kinds.push((1, sub, Box::new(common)));
     }
