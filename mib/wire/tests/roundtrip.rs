@@ -302,3 +302,36 @@ fn hk_report_from_values_is_the_structure_the_mib_lists() {
     assert_eq!(back.hk.get(mib::params::pid::FAULT_COUNT), Some(61 * 3));
     assert_eq!(back.hk.get(mib::params::pid::EVENTS_DROPPED), Some(66 * 3));
 }
+
+#[test]
+fn views_read_and_write_the_fixed_fields_in_place() {
+    let bytes = [0x19, 0x01, 0xC0, 0x05, 0x00, 0x09, 0x01, 0xFF, 0xFF, 0xFF, 0xFD];
+    let v = mib_wire::tm::AcceptanceFailureView::new_checked(&bytes[..]).unwrap();
+    assert_eq!(v.request_id().unwrap().seq_count, 5);
+    assert_eq!(v.failure_code(), mib::FailureCode::ARG_OUT_OF_RANGE.code());
+    assert_eq!(v.rest(), &bytes[6..]);
+    assert!(mib_wire::tm::AcceptanceFailureView::new_checked(&bytes[..7]).is_err());
+
+    let mut buf = [0u8; 10];
+    let mut m = mib_wire::tm::ModeReplyView::new_unchecked(&mut buf[..]);
+    m.set_node(mib::modes::node::HIP);
+    m.set_mode(1);
+    m.set_submode(0);
+    let r = mib_wire::tm::ModeReply::parse(&buf).unwrap();
+    assert_eq!((r.node, r.mode, r.submode), (mib::modes::node::HIP, 1, 0));
+    // A view over too few bytes reads zeros, never panics.
+    let short = mib_wire::tm::ModeReplyView::new_unchecked(&buf[..3]);
+    assert_eq!(short.mode(), 0);
+}
+
+proptest! {
+    #[test]
+    fn view_getters_agree_with_the_repr_of_a_tc(seed in proptest::collection::vec(any::<u8>(), 64..256)) {
+        let mut s = Src { b: &seed, i: 0 };
+        let def = mib::tc::by_name("MON_MODIFY").unwrap();
+        let bytes = tc_body(def, &mut s);
+        let r = mib_wire::tc::MonModify::parse(&bytes).unwrap();
+        let v = mib_wire::tc::MonModifyView::new_checked(&bytes[..]).unwrap();
+        prop_assert_eq!((v.monitor_id(), v.low(), v.high(), v.persistence()), (r.monitor_id, r.low, r.high, r.persistence));
+    }
+}
