@@ -334,6 +334,14 @@ pub fn icd_markdown() -> String {
         "\nHousekeeping reports are told apart by their SID and event reports by their event ID: the first\nu16 of the source data (octet {} of the packet, the SCOS-2000 PI1).\n",
         layout::tm_source_data_offset()
     );
+    let _ = writeln!(
+        o,
+        "Source data field by field (the MIB's field lists, `mib::layout`; the wire crate `mib-wire`, the\nXTCE export and `ground decode` use the same lists). Offsets in octets from the start of the source\ndata (`.b` = first bit of a bit field); \"—\" after a variable part.\n"
+    );
+    for t in TMS {
+        let _ = writeln!(o, "### TM[{},{}] {}\n", t.service, t.subservice, t.name);
+        body_table(&mut o, t.body);
+    }
 
     // 5 ---------------------------------------------------------------
     let _ = writeln!(o, "## 5. Housekeeping structures\n");
@@ -888,4 +896,103 @@ mod tests {
         }
         assert_eq!(shortest_path(0, 4), Some(vec![1]));
     }
+}
+
+/// Markdown table of a body's fields (offset, name, type, unit, value names, description).
+fn body_table(o: &mut String, items: &[crate::layout::Item]) {
+    use crate::layout::{type_name, Field, Item, Names, Tail};
+    if items.is_empty() {
+        let _ = writeln!(o, "No source data.\n");
+        return;
+    }
+    let _ = writeln!(o, "| offset | field | type | unit | values | description |");
+    let _ = writeln!(o, "|---|---|---|---|---|---|");
+    fn names(n: Names) -> String {
+        match n {
+            Names::None => String::new(),
+            Names::List(l) => l.iter().map(|(v, n)| format!("{v} {n}")).collect::<Vec<_>>().join(", "),
+            Names::FailureCode => "failure codes (§8)".into(),
+            Names::Event => "events (§7)".into(),
+            Names::Param => "parameters (§6)".into(),
+            Names::Tunable => "tunable parameters (§14)".into(),
+            Names::Sid => "HK structures (§5)".into(),
+            Names::Node => "mode-tree nodes (§9)".into(),
+            Names::Mode => "modes of the node (§9)".into(),
+            Names::State => "configuration states (§10), 255 UNKNOWN".into(),
+            Names::Primitive => "motion primitives (§11), 0 NONE".into(),
+            Names::Function => "PUS 8 functions (§3)".into(),
+            Names::Monitor => "monitors (§13)".into(),
+        }
+    }
+    fn rows(o: &mut String, prefix: &str, items: &[Item], bit: &mut Option<usize>) {
+        let row = |o: &mut String, name: String, f: &Field, bit: &mut Option<usize>| {
+            let off = match *bit {
+                Some(b) if b % 8 == 0 => format!("{}", b / 8),
+                Some(b) => format!("{}.{}", b / 8, b % 8),
+                None => "—".into(),
+            };
+            let _ = writeln!(
+                o,
+                "| {off} | `{name}` | {} | {} | {} | {} |",
+                type_name(f),
+                f.unit,
+                c(&names(f.names)),
+                c(f.desc)
+            );
+            if let Some(b) = bit.as_mut() {
+                *b += f.bits as usize;
+            }
+        };
+        for it in items {
+            match it {
+                Item::Field(f) => row(o, format!("{prefix}{}", f.name), f, bit),
+                Item::Sub { name, sub } => {
+                    for f in sub.fields {
+                        row(o, format!("{prefix}{name}.{}", f.name), f, bit);
+                    }
+                }
+                Item::Group {
+                    name,
+                    count,
+                    max,
+                    items,
+                } => {
+                    let _ = writeln!(
+                        o,
+                        "| {} | `{prefix}{name}[]` | group | | | `{count}` entries (at most {max}) of (offsets within an entry): |",
+                        bit.map_or("—".into(), |b| (b / 8).to_string())
+                    );
+                    *bit = None;
+                    rows(o, &format!("{prefix}{name}[]."), items, &mut Some(0));
+                }
+                Item::Packet { name, max_len } => {
+                    let _ = writeln!(
+                        o,
+                        "| — | `{prefix}{name}` | packet | | | embedded space packet, at most {max_len} octets |"
+                    );
+                    *bit = None;
+                }
+                Item::Tail(t) => {
+                    let what = match t {
+                        Tail::FailureData => "failure data of the failure code (§8)",
+                        Tail::EventParams => "parameters of the event (§7)",
+                        Tail::HkParams => "parameters of the structure (§5)",
+                    };
+                    let _ = writeln!(
+                        o,
+                        "| {} | `{prefix}{}` | per `{}` | | | {what} |",
+                        bit.map_or("—".into(), |b| (b / 8).to_string()),
+                        match t {
+                            Tail::FailureData => "failure_data",
+                            Tail::EventParams | Tail::HkParams => "params",
+                        },
+                        t.discriminant()
+                    );
+                    *bit = None;
+                }
+            }
+        }
+    }
+    rows(o, "", items, &mut Some(0));
+    let _ = writeln!(o);
 }
