@@ -881,23 +881,6 @@ pub fn icd_markdown() -> String {
     o
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    #[test]
-    fn every_matched_state_reaches_every_other_within_the_limit() {
-        for a in STATES.iter().filter(|s| s.kind() == StateKind::Matched) {
-            for b in STATES.iter().filter(|s| s.kind() == StateKind::Matched) {
-                if a.id != b.id {
-                    let p = shortest_path(a.id, b.id).unwrap();
-                    assert!(!p.is_empty() && p.len() <= config::MAX_RECONFIG_PRIMITIVES);
-                }
-            }
-        }
-        assert_eq!(shortest_path(0, 4), Some(vec![1]));
-    }
-}
-
 /// Markdown table of a body's fields (offset, name, type, unit, value names, description).
 fn body_table(o: &mut String, items: &[crate::layout::Item]) {
     use crate::layout::{type_name, Field, Item, Names, Tail};
@@ -995,4 +978,21 @@ fn body_table(o: &mut String, items: &[crate::layout::Item]) {
     }
     rows(o, "", items, &mut Some(0));
     let _ = writeln!(o);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    #[test]
+    fn every_matched_state_reaches_every_other_within_the_limit() {
+        for a in STATES.iter().filter(|s| s.kind() == StateKind::Matched) {
+            for b in STATES.iter().filter(|s| s.kind() == StateKind::Matched) {
+                if a.id != b.id {
+                    let p = shortest_path(a.id, b.id).unwrap();
+                    assert!(!p.is_empty() && p.len() <= config::MAX_RECONFIG_PRIMITIVES);
+                }
+            }
+        }
+        assert_eq!(shortest_path(0, 4), Some(vec![1]));
+    }
 }
