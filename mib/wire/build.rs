@@ -588,6 +588,23 @@ fn main() {
         &cases,
     );
 
+    // The severity of each event is its TM[5,x] subservice.
+    let o = &mut g.out;
+    let _ = writeln!(
+        o,
+        "impl Event {{\n    /// Subservice of the event's TM[5,x] (its severity); `None` for an unknown event.\n    pub fn subservice(&self) -> Option<u8> {{ match self {{"
+    );
+    for e in mib::events::EVENTS {
+        let pat = if e.params.is_empty() { "" } else { " { .. }" };
+        let _ = writeln!(
+            o,
+            "        Event::{}{pat} => Some({}),",
+            camel(e.name),
+            e.severity.subservice()
+        );
+    }
+    let _ = writeln!(o, "        Event::Unknown {{ .. }} => None,\n    }} }}\n}}\n");
+
     // Housekeeping structures.
     let _ = writeln!(
         g.out,

@@ -292,6 +292,16 @@ fn acceptance_failure_bytes_split_the_request_id_into_its_fields() {
 }
 
 #[test]
+fn every_event_knows_the_subservice_of_its_severity() {
+    for e in mib::events::EVENTS {
+        let data = vec![0u8; e.data_len() - 2];
+        let ev = mib_wire::Event::read(e.id, &mut mib_wire::Reader::new(&data)).unwrap();
+        assert_eq!(ev.id(), e.id);
+        assert_eq!(ev.subservice(), Some(e.severity.subservice()), "{}", e.name);
+    }
+}
+
+#[test]
 fn hk_report_from_values_is_the_structure_the_mib_lists() {
     let h = mib_wire::Hk::from_values(mib::hk::sid::FDIR, |p| p as i64 * 3).unwrap();
     let rep = mib_wire::tm::HkReport { hk: h };
