@@ -345,3 +345,19 @@ proptest! {
         prop_assert_eq!((v.monitor_id(), v.low(), v.high(), v.persistence()), (r.monitor_id, r.low, r.high, r.persistence));
     }
 }
+
+#[test]
+fn header_lengths_agree_with_the_exporters_header_tables() {
+    use mib::export::layout as x;
+    use mib_wire::header::*;
+    assert_eq!(x::len(x::PRIMARY_HEADER), PRIMARY_HEADER_LEN);
+    assert_eq!(x::len(x::TC_SEC_HEADER), TC_SEC_HEADER_LEN);
+    assert_eq!(
+        x::tm_source_data_offset(),
+        PRIMARY_HEADER_LEN + TM_SEC_HEADER_LEN + mib::config::TIMESTAMP_LEN
+    );
+    assert_eq!(x::tc_app_data_offset(), PRIMARY_HEADER_LEN + TC_SEC_HEADER_LEN);
+    assert_eq!(x::tm_packet_len(0), MIN_TM_LEN);
+    assert_eq!(x::CDS_SHORT_PFIELD, CDS_PFIELD as u32);
+    assert_eq!(x::PUS_C_VERSION, PUS_C as u32);
+}
