@@ -45,6 +45,10 @@ for line in sys.stdin:
     n += 1
 print(f"JSON check: {n} lines, all valid, every packet decoded")'
 
+# space-packet-parser must decode every packet too (no "bad" ones).
+"$PY" "$ROOT/ground/bench/py_decode.py" spp "$XTCE" "$WORK/hk-py.bin" | grep -q "(0 bad" \
+    || { echo "space-packet-parser does not decode every packet of the file" >&2; exit 1; }
+
 text=(); json=(); spp=(); sp=()
 for _ in $(seq "$RUNS"); do
     text+=("$($PIN "$BIN/ground" decode "$WORK/hk.bin" 2>&1 >/dev/null | tail -1 | rate_of)")

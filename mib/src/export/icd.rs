@@ -895,7 +895,7 @@ fn body_table(o: &mut String, items: &[crate::layout::Item]) {
             Names::None => String::new(),
             Names::List(l) => l.iter().map(|(v, n)| format!("{v} {n}")).collect::<Vec<_>>().join(", "),
             Names::FailureCode => "failure codes (§8)".into(),
-            Names::Event => "events (§7)".into(),
+            Names::Event => "events (§7), 0 NONE".into(),
             Names::Param => "parameters (§6)".into(),
             Names::Tunable => "tunable parameters (§14)".into(),
             Names::Sid => "HK structures (§5)".into(),

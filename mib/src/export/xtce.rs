@@ -5,7 +5,8 @@
 //! secondary header with the CDS short time stamp, restricted to TM of the robot's
 //! APID) → `HK_REPORT` (TM[3,25], the SID) → `HK_<structure>` (restricted on the SID,
 //! the structure's parameters, the PEC); → `EVENT_<severity>` (TM[5,1..4], the event
-//! ID) → `EVT_<event>` (restricted on the event ID); and one container per other TM
+//! ID) → `EVT_<event>` (restricted on the event ID); parameters whose values the MIB names
+//! are enumerated (HK, event parameters, report fields); and one container per other TM
 //! type with its fields from the MIB's field list (`crate::layout`): failure reports with
 //! one child container per failure code, list reports with one per entry count.
 //! Telecommands are MetaCommands deriving from the abstract `PUS_TC`.
@@ -123,8 +124,37 @@ fn header_type(x: &mut Xml, f: &Field) {
     x.close("</xtce:IntegerParameterType>");
 }
 
+/// Enumerated parameter type of a field whose values the MIB names.
+fn enumerated_type(x: &mut Xml, tname: &str, f: &crate::layout::Field) {
+    x.open(&format!(
+        "<xtce:EnumeratedParameterType name=\"{}\" shortDescription=\"{}\">",
+        esc(tname),
+        esc(f.desc)
+    ));
+    unit_set(x, f.unit);
+    x.line(&format!(
+        "<xtce:IntegerDataEncoding sizeInBits=\"{}\" encoding=\"{}\"/>",
+        f.bits,
+        if f.ptype.signed() { "twosComplement" } else { "unsigned" }
+    ));
+    x.open("<xtce:EnumerationList>");
+    let mut seen = std::collections::BTreeMap::new();
+    f.names.for_each(|v, n| {
+        seen.entry(v).or_insert(n);
+    });
+    for (v, n) in seen {
+        x.line(&format!("<xtce:Enumeration value=\"{v}\" label=\"{}\"/>", esc(n)));
+    }
+    x.close("</xtce:EnumerationList>");
+    x.close("</xtce:EnumeratedParameterType>");
+}
+
 fn param_type(x: &mut Xml, p: &ParamDef) {
     let tname = format!("{}_Type", p.name);
+    if !p.names().is_none() {
+        enumerated_type(x, &tname, &p.field());
+        return;
+    }
     if p.calib.is_identity() && p.limits.is_none() {
         raw_type(x, &tname, p.ptype, p.unit, p.desc);
         return;
@@ -332,13 +362,17 @@ pub fn xtce_document_for(robot: u8) -> String {
     for e in EVENTS {
         for ep in e.params {
             let n = event_param_name(e, ep.name);
-            raw_type(
-                &mut x,
-                &format!("{n}_Type"),
-                ep.ptype,
-                "",
-                &format!("{} of event {}", ep.name, e.name),
-            );
+            if ep.names.is_none() {
+                raw_type(
+                    &mut x,
+                    &format!("{n}_Type"),
+                    ep.ptype,
+                    "",
+                    &format!("{} of event {}", ep.name, e.name),
+                );
+            } else {
+                enumerated_type(&mut x, &format!("{n}_Type"), ep);
+            }
         }
     }
     x.close("</xtce:ParameterTypeSet>");
@@ -682,23 +716,7 @@ impl BodyXtce {
             if f.ptype.signed() { "twosComplement" } else { "unsigned" }
         );
         if !f.names.is_none() {
-            x.open(&format!(
-                "<xtce:EnumeratedParameterType name=\"{}\" shortDescription=\"{}\">",
-                esc(&tname),
-                esc(f.desc)
-            ));
-            unit_set(x, f.unit);
-            x.line(&enc);
-            x.open("<xtce:EnumerationList>");
-            let mut seen = std::collections::BTreeMap::new();
-            f.names.for_each(|v, n| {
-                seen.entry(v).or_insert(n);
-            });
-            for (v, n) in seen {
-                x.line(&format!("<xtce:Enumeration value=\"{v}\" label=\"{}\"/>", esc(n)));
-            }
-            x.close("</xtce:EnumerationList>");
-            x.close("</xtce:EnumeratedParameterType>");
+            enumerated_type(x, &tname, f);
         } else {
             x.open(&format!(
                 "<xtce:IntegerParameterType name=\"{}\" shortDescription=\"{}\" signed=\"{}\" sizeInBits=\"32\">",
