@@ -158,6 +158,17 @@ impl<S: TmStore> Downlink<S> {
         }
     }
 
+    /// Stamps and sends a service report built by the wire crate (`mib_wire::tm`): the
+    /// body is laid out by the MIB's field list, never by hand.
+    pub fn emit_tm(&mut self, now: u64, tm: &mib_wire::Tm, sink: &mut impl TmSink) {
+        let mut body = [0u8; config::MAX_PACKET_LEN];
+        let (svc, sub) = tm.kind();
+        // Every report of the core fits a packet (MAX_PACKET_LEN bounds its body).
+        if let Ok(n) = tm.emit(&mut body) {
+            self.emit(now, svc, sub, &body[..n], sink);
+        }
+    }
+
     /// Sends a finished packet and keeps a copy in the store.
     pub fn send_raw(&mut self, pkt: &[u8], sink: &mut impl TmSink) {
         sink.send_tm(pkt);
@@ -257,9 +268,10 @@ impl<S: TmStore> Downlink<S> {
     /// TM[1,6]: progress step `n` failed; the request ends (always reported).
     pub fn fail_step(&mut self, now: u64, t: Started, n: u8, f: &Failure, sink: &mut impl TmSink) {
         let code = EcssEnumU16::new(f.code().code());
+        let data = f.data();
         let step = EcssEnumU8::new(n);
         self.report(now, sink, |v, s, seq, msg, st| {
-            v.step_failure(s, t.tok, seq, msg, FailParamsWithStep::new(st, &step, &code, f.data()))
+            v.step_failure(s, t.tok, seq, msg, FailParamsWithStep::new(st, &step, &code, &data))
         });
     }
 
@@ -303,8 +315,9 @@ impl<S: TmStore> Downlink<S> {
     ) {
         let rid = rid.into();
         let code = EcssEnumU16::new(f.code().code());
+        let data = f.data();
         self.report(now, sink, |v, s, seq, msg, st| {
-            let p = FailParams::new(st, &code, f.data());
+            let p = FailParams::new(st, &code, &data);
             match stage {
                 Stage::Acceptance => v.acceptance_failure(s, &rid, seq, msg, p),
                 Stage::Start => v.start_failure(s, &rid, seq, msg, p),

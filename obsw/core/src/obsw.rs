@@ -59,14 +59,14 @@ pub struct Counters {
 }
 
 /// What became of a request (kept for duplicate TCs).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub(crate) enum Outcome {
     Pending,
     Done,
     Failed(Stage, Failure),
 }
 
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 struct Seen {
     req: RequestId,
     crc: u16,
@@ -194,8 +194,8 @@ impl<S: TmStore> Obsw<S> {
 
     // ------------------------------------------------------------------ output
 
-    pub(crate) fn emit(&mut self, now: u64, svc: u8, sub: u8, data: &[u8], sink: &mut impl TmSink) {
-        self.dl.emit(now, svc, sub, data, sink);
+    pub(crate) fn emit_tm(&mut self, now: u64, tm: mib_wire::Tm, sink: &mut impl TmSink) {
+        self.dl.emit_tm(now, &tm, sink);
     }
 
     /// Emits an event report unless the event is disabled or throttled.
@@ -358,8 +358,8 @@ impl<S: TmStore> Obsw<S> {
 
     /// Records a failed request and raises TC_REJECTED.
     fn refused(&mut self, now: u64, tc: &Tc, stage: Stage, f: Failure, sink: &mut impl TmSink) {
-        self.set_outcome(tc.req, Outcome::Failed(stage, f));
         self.tc_rejected_event(now, (tc.service, tc.subservice), &f, sink);
+        self.set_outcome(tc.req, Outcome::Failed(stage, f));
     }
 
     pub(crate) fn tc_rejected_event(&mut self, now: u64, (svc, sub): (u8, u8), f: &Failure, sink: &mut impl TmSink) {
@@ -391,7 +391,7 @@ impl<S: TmStore> Obsw<S> {
         self.seen
             .iter()
             .find(|s| s.req == req && s.crc == crc && now.saturating_sub(s.at) <= config::DUPLICATE_MAX_AGE_MS as u64)
-            .map(|s| s.outcome)
+            .map(|s| s.outcome.clone())
     }
 
     fn remember(&mut self, req: RequestId, crc: u16, now: u64) {

@@ -2,7 +2,7 @@
 //! enable/disable, one-shot and collection interval.
 
 use mib::hk::HK_STRUCTS;
-use mib::tc::service;
+use mib_wire::{tm, Tm};
 
 use crate::accept::Tc;
 use crate::failure::Failure;
@@ -101,10 +101,9 @@ impl<S: TmStore> Obsw<S> {
     }
 
     fn hk_report(&mut self, now: u64, index: usize, sink: &mut impl TmSink) {
-        let def = &HK_STRUCTS[index];
-        let mut buf = [0u8; mib::config::MAX_PACKET_LEN];
-        if let Ok(n) = mib::codec::encode_hk(def, |p| self.param(p), &mut buf) {
-            self.emit(now, service::HOUSEKEEPING, 25, &buf[..n], sink);
+        // The index names a structure of the MIB, which the wire crate generates.
+        if let Some(hk) = mib_wire::Hk::from_values(HK_STRUCTS[index].sid, |p| self.param(p)) {
+            self.emit_tm(now, Tm::HkReport(tm::HkReport { hk }), sink);
         }
     }
 

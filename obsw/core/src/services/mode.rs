@@ -8,8 +8,9 @@ use mib::events::eid;
 use mib::fdir::Phase;
 use mib::modes::{module_mode, node, robot_mode, NodeKind};
 use mib::params::{self, pid};
-use mib::tc::{function, service};
+use mib::tc::function;
 use mib::FailureCode;
+use mib_wire::{tm, Tm};
 
 use mmic_domain::controller::{Action, ModuleModes};
 
@@ -142,17 +143,12 @@ impl<S: TmStore> Obsw<S> {
         let Some(ms) = self.modes.mode_and_submode(n) else {
             return;
         };
-        let mut d = [0u8; 10];
-        d[..4].copy_from_slice(&n.to_be_bytes());
-        d[4..8].copy_from_slice(&ms.mode().to_be_bytes());
-        d[8..].copy_from_slice(&ms.submode().to_be_bytes());
-        self.emit(
-            now,
-            service::MODE,
-            satrs::pus::mode::Subservice::TmModeReply as u8,
-            &d,
-            sink,
-        );
+        let r = tm::ModeReply {
+            node: n,
+            mode: ms.mode(),
+            submode: ms.submode(),
+        };
+        self.emit_tm(now, Tm::ModeReply(r), sink);
     }
 
     /// Starts a transition of the robot node (by command, cause 0, or by FDIR, cause =
@@ -328,18 +324,13 @@ impl<S: TmStore> Obsw<S> {
     /// A transition that cannot complete: report it and fall back to standby.
     pub(crate) fn transition_failed(&mut self, now: u64, reason: FailureCode, event: u16, sink: &mut impl TmSink) {
         let Some(t) = self.transition.take() else { return };
-        let mut d = [0u8; 12];
-        d[..4].copy_from_slice(&node::ROBOT.to_be_bytes());
-        d[4..8].copy_from_slice(&t.target.to_be_bytes());
-        d[8..10].copy_from_slice(&0u16.to_be_bytes());
-        d[10..12].copy_from_slice(&reason.code().to_be_bytes());
-        self.emit(
-            now,
-            service::MODE,
-            satrs::pus::mode::Subservice::TmCantReachMode as u8,
-            &d,
-            sink,
-        );
+        let r = tm::ModeCantReach {
+            node: node::ROBOT,
+            mode: t.target,
+            submode: 0,
+            reason: reason.code(),
+        };
+        self.emit_tm(now, Tm::ModeCantReach(r), sink);
         self.event(
             now,
             eid::MODE_CHANGE_FAILED,

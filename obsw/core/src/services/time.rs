@@ -2,7 +2,7 @@
 //! request.
 
 use mib::config;
-use mib::tc::service;
+use mib_wire::{tm, Tm};
 
 use crate::accept::Tc;
 use crate::failure::Failure;
@@ -75,10 +75,11 @@ impl<S: TmStore> Obsw<S> {
     }
 
     fn time_report(&mut self, now: u64, sink: &mut impl TmSink) {
-        let mut d = [0u8; 1 + config::TIMESTAMP_LEN];
-        d[0] = self.time_reports.exp;
-        d[1..].copy_from_slice(&self.dl.tmw.time.cds(now));
-        self.emit(now, service::TIME, 2, &d, sink);
+        let r = tm::TimeReport {
+            rate_exp: self.time_reports.exp,
+            time: self.dl.tmw.time.cds_time(now),
+        };
+        self.emit_tm(now, Tm::TimeReport(r), sink);
     }
 }
 
