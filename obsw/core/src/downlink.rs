@@ -29,6 +29,40 @@ use crate::tm::{TmSink, TmStore, TmWriter};
 const N_EVENTS: usize = EVENTS.len();
 const _: () = assert!(N_EVENTS <= 64, "event enable mask is a u64");
 
+/// A service report of the wire crate. Implemented per report kind the core sends, so
+/// that only those kinds' emit code is linked (flash on the firmware).
+pub trait Report {
+    const SERVICE: u8;
+    const SUBSERVICE: u8;
+    fn emit(&self, buf: &mut [u8]) -> Result<usize, mib_wire::Error>;
+}
+
+macro_rules! reports {
+    ($($t:ident),* $(,)?) => {$(
+        impl Report for mib_wire::tm::$t {
+            const SERVICE: u8 = mib_wire::tm::$t::SERVICE;
+            const SUBSERVICE: u8 = mib_wire::tm::$t::SUBSERVICE;
+            fn emit(&self, buf: &mut [u8]) -> Result<usize, mib_wire::Error> {
+                mib_wire::tm::$t::emit(self, buf)
+            }
+        }
+    )*};
+}
+
+reports!(
+    PingReply,
+    HkReport,
+    DisabledEvents,
+    TimeReport,
+    MonDefinitions,
+    MonTransition,
+    StoreDownlinkDone,
+    EaDefinitions,
+    ParamValue,
+    ModeReply,
+    ModeCantReach,
+);
+
 /// A request's verification token with the acknowledgement flags the TC asked for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Token<State> {
@@ -160,12 +194,11 @@ impl<S: TmStore> Downlink<S> {
 
     /// Stamps and sends a service report built by the wire crate (`mib_wire::tm`): the
     /// body is laid out by the MIB's field list, never by hand.
-    pub fn emit_tm(&mut self, now: u64, tm: &mib_wire::Tm, sink: &mut impl TmSink) {
+    pub fn emit_tm<R: Report>(&mut self, now: u64, r: &R, sink: &mut impl TmSink) {
         let mut body = [0u8; config::MAX_PACKET_LEN];
-        let (svc, sub) = tm.kind();
         // Every report of the core fits a packet (MAX_PACKET_LEN bounds its body).
-        if let Ok(n) = tm.emit(&mut body) {
-            self.emit(now, svc, sub, &body[..n], sink);
+        if let Ok(n) = r.emit(&mut body) {
+            self.emit(now, R::SERVICE, R::SUBSERVICE, &body[..n], sink);
         }
     }
 

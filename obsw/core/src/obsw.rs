@@ -194,8 +194,8 @@ impl<S: TmStore> Obsw<S> {
 
     // ------------------------------------------------------------------ output
 
-    pub(crate) fn emit_tm(&mut self, now: u64, tm: mib_wire::Tm, sink: &mut impl TmSink) {
-        self.dl.emit_tm(now, &tm, sink);
+    pub(crate) fn emit_tm(&mut self, now: u64, report: impl crate::downlink::Report, sink: &mut impl TmSink) {
+        self.dl.emit_tm(now, &report, sink);
     }
 
     /// Emits an event report unless the event is disabled or throttled.

@@ -2,7 +2,7 @@
 //! (TM[5,8]). Emission, enable mask and throttling live in `crate::downlink::Events`.
 
 use mib::events::EVENTS;
-use mib_wire::{tm, Tm};
+use mib_wire::tm;
 
 use crate::accept::Tc;
 use crate::downlink::EventIndex;
@@ -52,7 +52,7 @@ impl<S: TmStore> Obsw<S> {
                         break;
                     }
                 }
-                self.emit_tm(now, Tm::DisabledEvents(r), sink);
+                self.emit_tm(now, r, sink);
             }
         }
     }

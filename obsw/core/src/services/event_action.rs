@@ -5,7 +5,7 @@
 use mib::events::eid;
 use mib::fdir::FAULTS;
 use mib::modes::robot_mode;
-use mib_wire::{tm, Tm};
+use mib_wire::tm;
 
 use crate::accept::Tc;
 use crate::failure::Failure;
@@ -71,7 +71,7 @@ impl<S: TmStore> Obsw<S> {
                 break;
             }
         }
-        self.emit_tm(now, Tm::EaDefinitions(r), sink);
+        self.emit_tm(now, r, sink);
     }
 
     /// Raises a fault event and applies its event-action link.

@@ -2,7 +2,7 @@
 //! enable/disable, one-shot and collection interval.
 
 use mib::hk::HK_STRUCTS;
-use mib_wire::{tm, Tm};
+use mib_wire::tm;
 
 use crate::accept::Tc;
 use crate::failure::Failure;
@@ -103,7 +103,7 @@ impl<S: TmStore> Obsw<S> {
     fn hk_report(&mut self, now: u64, index: usize, sink: &mut impl TmSink) {
         // The index names a structure of the MIB, which the wire crate generates.
         if let Some(hk) = mib_wire::Hk::from_values(HK_STRUCTS[index].sid, |p| self.param(p)) {
-            self.emit_tm(now, Tm::HkReport(tm::HkReport { hk }), sink);
+            self.emit_tm(now, tm::HkReport { hk }, sink);
         }
     }
 

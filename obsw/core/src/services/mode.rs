@@ -10,7 +10,7 @@ use mib::modes::{module_mode, node, robot_mode, NodeKind};
 use mib::params::{self, pid};
 use mib::tc::function;
 use mib::FailureCode;
-use mib_wire::{tm, Tm};
+use mib_wire::tm;
 
 use mmic_domain::controller::{Action, ModuleModes};
 
@@ -148,7 +148,7 @@ impl<S: TmStore> Obsw<S> {
             mode: ms.mode(),
             submode: ms.submode(),
         };
-        self.emit_tm(now, Tm::ModeReply(r), sink);
+        self.emit_tm(now, r, sink);
     }
 
     /// Starts a transition of the robot node (by command, cause 0, or by FDIR, cause =
@@ -330,7 +330,7 @@ impl<S: TmStore> Obsw<S> {
             submode: 0,
             reason: reason.code(),
         };
-        self.emit_tm(now, Tm::ModeCantReach(r), sink);
+        self.emit_tm(now, r, sink);
         self.event(
             now,
             eid::MODE_CHANGE_FAILED,

@@ -6,7 +6,7 @@
 use mib::events::eid;
 use mib::fdir::{Phase, MONITORS};
 use mib::params::pid;
-use mib_wire::{tm, Tm};
+use mib_wire::tm;
 
 use crate::accept::Tc;
 use crate::failure::Failure;
@@ -120,7 +120,7 @@ impl<S: TmStore> Obsw<S> {
                 break;
             }
         }
-        self.emit_tm(now, Tm::MonDefinitions(r), sink);
+        self.emit_tm(now, r, sink);
     }
 
     /// Runs the idle-phase monitors once; returns the fault event if one fired.
@@ -161,7 +161,7 @@ impl<S: TmStore> Obsw<S> {
                 limit: t.limit,
                 state: t.state,
             };
-            self.emit_tm(now, Tm::MonTransition(r), sink);
+            self.emit_tm(now, r, sink);
             let continuous = mib::fdir::monitor_by_id(t.monitor).is_some_and(|m| fdir::is_continuous(m.phase));
             if t.state != fdir::check::OK {
                 let args: [i64; 3] = if t.event == eid::HIP_MISMATCH {

@@ -2,7 +2,7 @@
 //! (`mib::tunables`), range-checked at acceptance.
 
 use mib::tunables::TunableDef;
-use mib_wire::{tm, Tm};
+use mib_wire::tm;
 
 use crate::accept::Tc;
 use crate::failure::Failure;
@@ -50,10 +50,10 @@ impl<S: TmStore> Obsw<S> {
         let v = self.ctrl.tunable(t.id).ok_or(Failure::unknown_parameter(t.id))?;
         self.emit_tm(
             now,
-            Tm::ParamValue(tm::ParamValue {
+            tm::ParamValue {
                 param_id: t.id,
                 value: v,
-            }),
+            },
             sink,
         );
         Ok(())

@@ -6,7 +6,7 @@
 //! with what was sent and what is gone (the oldest packet still stored, the count of
 //! overwritten packets): anything older than that oldest packet is unrecoverable.
 
-use mib_wire::{tm, Tm};
+use mib_wire::tm;
 
 use crate::accept::Tc;
 use crate::failure::Failure;
@@ -148,7 +148,7 @@ impl<S: TmStore> Obsw<S> {
             oldest_seq,
             overwritten: self.dl.store_dropped,
         };
-        self.emit_tm(now, Tm::StoreDownlinkDone(r), sink);
+        self.emit_tm(now, r, sink);
         Ok(())
     }
 }

@@ -1,6 +1,6 @@
 //! PUS 17 test: the connection test (replaces the paper's heartbeat polling).
 
-use mib_wire::{tm, Tm};
+use mib_wire::tm;
 
 use crate::accept::Tc;
 use crate::failure::Failure;
@@ -26,7 +26,7 @@ impl Request {
 impl<S: TmStore> Obsw<S> {
     pub(crate) fn test_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) {
         match r {
-            Request::Ping => self.emit_tm(now, Tm::PingReply(tm::PingReply {}), sink),
+            Request::Ping => self.emit_tm(now, tm::PingReply {}, sink),
         }
     }
 }

@@ -2,7 +2,7 @@
 //! request.
 
 use mib::config;
-use mib_wire::{tm, Tm};
+use mib_wire::tm;
 
 use crate::accept::Tc;
 use crate::failure::Failure;
@@ -79,7 +79,7 @@ impl<S: TmStore> Obsw<S> {
             rate_exp: self.time_reports.exp,
             time: self.dl.tmw.time.cds_time(now),
         };
-        self.emit_tm(now, Tm::TimeReport(r), sink);
+        self.emit_tm(now, r, sink);
     }
 }
 
