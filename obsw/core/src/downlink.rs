@@ -9,6 +9,31 @@
 //! Each failure consumes the token of its stage, so no report can be written for a
 //! stage the request is not in, and none twice. The tokens are sat-rs's
 //! `VerificationToken<TcStateAccepted/Started>`; only this module advances them.
+//!
+//! A request cannot be completed twice (the started token is moved):
+//!
+//! ```compile_fail,E0382
+//! use obsw_core::downlink::{Downlink, Started};
+//! use obsw_core::tm::{RingStore, TmSink};
+//! struct S;
+//! impl TmSink for S { fn send_tm(&mut self, _: &[u8]) {} }
+//! fn twice(dl: &mut Downlink<RingStore<64>>, t: Started) {
+//!     dl.complete(0, t, &mut S);
+//!     dl.complete(0, t, &mut S);
+//! }
+//! ```
+//!
+//! nor completed before it was started (an accepted token is not a started one):
+//!
+//! ```compile_fail,E0308
+//! use obsw_core::downlink::{Accepted, Downlink};
+//! use obsw_core::tm::{RingStore, TmSink};
+//! struct S;
+//! impl TmSink for S { fn send_tm(&mut self, _: &[u8]) {} }
+//! fn skip_start(dl: &mut Downlink<RingStore<64>>, t: Accepted) {
+//!     dl.complete(0, t, &mut S);
+//! }
+//! ```
 
 use mib::config;
 use mib::events::{self, EVENTS};
@@ -64,7 +89,9 @@ reports!(
 );
 
 /// A request's verification token with the acknowledgement flags the TC asked for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// Not `Copy` or `Clone`: each stage consumes the token of the stage before, so a
+/// request is completed (or failed) once.
+#[derive(Debug, PartialEq, Eq)]
 pub struct Token<State> {
     tok: VerificationToken<State>,
     pub ack: Ack,

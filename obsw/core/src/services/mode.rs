@@ -64,7 +64,7 @@ impl Request {
 }
 
 /// A mode command waiting for its transition.
-#[derive(Clone, Copy, Debug)]
+#[derive(Debug)]
 pub struct ModeCmd<T> {
     pub token: T,
     pub target: u32,
