@@ -254,11 +254,17 @@ impl<S: TmStore> Obsw<S> {
                 return;
             }
         };
+        // A connection test changes nothing: a retry is answered again rather than
+        // taking one of the window's entries from TCs that must not run twice (the
+        // ground's heartbeat pings would otherwise fill most of it).
+        let once = !(tc.service == mib::tc::service::TEST && tc.subservice == 1);
         let crc = tc.crc();
-        if let Some(prev) = self.find_seen(tc.req, crc, now) {
-            return self.repeat(now, &tc, prev, sink);
+        if once {
+            if let Some(prev) = self.find_seen(tc.req, crc, now) {
+                return self.repeat(now, &tc, prev, sink);
+            }
+            self.remember(tc.req, crc, now);
         }
-        self.remember(tc.req, crc, now);
         let token = New::new(tc.req, tc.ack);
         let ctx = Ctx {
             apid: self.apid,
@@ -518,11 +524,28 @@ pub(crate) mod tests {
     #[test]
     fn a_retry_is_answered_again_but_not_executed_again() {
         let mut o = obsw();
-        send(&mut o, 10, 1, 17, 1, &[]);
-        let again = send(&mut o, 20, 1, 17, 1, &[]);
-        assert_eq!(of(&again, 17, 2).len(), 0, "not executed twice");
+        let sid = mib::hk::HK_STRUCTS[0].sid.to_be_bytes();
+        assert_eq!(of(&send(&mut o, 10, 1, 3, 27, &sid), 3, 25).len(), 1);
+        let again = send(&mut o, 20, 1, 3, 27, &sid);
+        assert_eq!(of(&again, 3, 25).len(), 0, "not executed twice");
         assert_eq!((of(&again, 1, 1).len(), of(&again, 1, 7).len()), (1, 1));
         assert_eq!(o.counters.tc_duplicate, 1);
+    }
+
+    #[test]
+    fn pings_take_no_entry_of_the_duplicate_window() {
+        let mut o = obsw();
+        // HK_ONE_SHOT once, then more pings than the window holds.
+        let sid = mib::hk::HK_STRUCTS[0].sid.to_be_bytes();
+        send(&mut o, 1, 1, 3, 27, &sid);
+        for i in 0..(config::DUPLICATE_WINDOW as u16 + 10) {
+            send(&mut o, 2, 100 + i, 17, 1, &[]);
+        }
+        let again = send(&mut o, 3, 1, 3, 27, &sid);
+        assert!(of(&again, 3, 25).is_empty(), "still recognised as a retry");
+        assert_eq!(o.counters.tc_duplicate, 1);
+        // A retried ping is answered again.
+        assert_eq!(of(&send(&mut o, 4, 100, 17, 1, &[]), 17, 2).len(), 1);
     }
 
     #[test]
