@@ -63,6 +63,7 @@ mod tests {
     use crate::obsw::tests::{kind, obsw, of, send};
     use mib::events::eid;
 
+    // verifies: PUS-5-02
     #[test]
     fn a_disabled_event_is_listed_and_no_longer_reported() {
         let mut o = obsw();

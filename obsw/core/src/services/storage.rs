@@ -179,6 +179,7 @@ mod tests {
         pkts.iter().filter(|p| seq(p) < live_from).cloned().collect()
     }
 
+    // verifies: PUS-15-01
     #[test]
     fn a_sequence_range_replays_exactly_those_packets_unchanged() {
         let mut o = obsw();
@@ -206,6 +207,7 @@ mod tests {
         assert_eq!(replayed(&by_seq(&mut o, 200, 10, 4, 7), 20), all[4..8].to_vec());
     }
 
+    // verifies: PUS-15-01
     #[test]
     fn a_time_span_replays_the_packets_stamped_inside_it() {
         let mut o = obsw();
@@ -229,6 +231,7 @@ mod tests {
         assert_eq!(replayed(&pkts, 12), mid);
     }
 
+    // verifies: PUS-15-01, PUS-15-02
     #[test]
     fn the_end_report_says_what_was_overwritten_and_a_disabled_store_refuses() {
         let mut o = obsw();
