@@ -215,6 +215,7 @@ impl Failure {
 mod tests {
     use super::*;
 
+    // verifies: PUS-1-02
     #[test]
     fn every_constructor_carries_the_data_the_mib_lists_for_its_code() {
         let all = [
@@ -265,6 +266,7 @@ mod tests {
         }
     }
 
+    // verifies: PUS-1-02
     #[test]
     fn invalid_argument_and_not_powered_carry_real_values() {
         let f = Failure::from_start(StartError::InvalidArgument { index: 1, value: 5 }, 0, 2);

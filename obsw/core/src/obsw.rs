@@ -514,6 +514,7 @@ pub(crate) mod tests {
         (u16::from_be_bytes([d[4], d[5]]), d[6..].to_vec())
     }
 
+    // verifies: PUS-17-01, PUS-1-01
     #[test]
     fn a_ping_gets_acceptance_start_completion_and_a_reply() {
         let mut o = obsw();
@@ -549,6 +550,7 @@ pub(crate) mod tests {
         }
     }
 
+    // verifies: PUS-1-02, DD-ROBUST-01
     #[test]
     fn an_oversize_frame_is_refused_with_frame_too_long_for_its_request() {
         let mut o = obsw();
@@ -571,6 +573,7 @@ pub(crate) mod tests {
         );
     }
 
+    // verifies: DD-ROBUST-01
     #[test]
     fn a_full_event_queue_is_counted_and_reported_once_per_window() {
         let mut o = obsw();
@@ -589,6 +592,7 @@ pub(crate) mod tests {
         assert_eq!(o.param(pid::EVENTS_DROPPED), 5);
     }
 
+    // verifies: PUS-1-02, MMIC-MODE-01
     #[test]
     fn a_command_not_allowed_in_the_mode_reports_the_real_mode() {
         let mut o = obsw();

@@ -128,6 +128,7 @@ mod tests {
     use mib::fdir::FAULTS;
     use mib::FailureCode;
 
+    // verifies: PUS-19-01
     #[test]
     fn a_link_can_be_disabled_and_is_reported_so_and_an_unknown_link_is_refused() {
         let mut o = obsw();

@@ -251,6 +251,7 @@ mod tests {
     use mib::tc::function;
     use mib::FailureCode;
 
+    // verifies: MMIC-MODE-01, PUS-1-02
     #[test]
     fn an_action_in_standby_is_refused_at_start_with_the_mode() {
         let mut o = obsw();

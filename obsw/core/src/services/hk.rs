@@ -132,6 +132,7 @@ mod tests {
     use crate::obsw::tests::{failure, obsw, of, send};
     use mib::FailureCode;
 
+    // verifies: PUS-3-02
     #[test]
     fn one_shot_reports_the_structure_and_an_unknown_sid_is_refused_with_it() {
         let mut o = obsw();
@@ -147,6 +148,7 @@ mod tests {
         );
     }
 
+    // verifies: PUS-3-02, PUS-3-03
     #[test]
     fn disable_stops_and_interval_paces_periodic_reports() {
         let mut o = obsw();

@@ -362,6 +362,7 @@ mod tests {
         app
     }
 
+    // verifies: PUS-200-01
     #[test]
     fn a_child_node_is_not_commandable_and_an_unknown_node_is_refused() {
         let mut o = obsw();
@@ -379,6 +380,7 @@ mod tests {
         );
     }
 
+    // verifies: PUS-200-01
     #[test]
     fn commanding_the_current_mode_completes_at_once_with_a_mode_report() {
         let mut o = obsw();
@@ -388,6 +390,7 @@ mod tests {
         assert_eq!(of(&pkts, 1, 7).len(), 1);
     }
 
+    // verifies: PUS-200-01, PUS-1-02
     #[test]
     fn safed_without_power_times_out_and_the_command_fails_with_the_reason() {
         let mut o = obsw();

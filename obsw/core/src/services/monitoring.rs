@@ -187,6 +187,7 @@ mod tests {
     use mib::fdir::MONITORS;
     use mib::FailureCode;
 
+    // verifies: PUS-12-02
     #[test]
     fn modify_changes_the_reported_limits_and_inverted_limits_are_refused() {
         let mut o = obsw();

@@ -66,6 +66,7 @@ mod tests {
     use mib::tunables::TUNABLES;
     use mib::FailureCode;
 
+    // verifies: PUS-20-01
     #[test]
     fn set_reports_the_new_value_and_out_of_range_is_refused_with_id_and_value() {
         let mut o = obsw();

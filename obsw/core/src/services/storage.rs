@@ -255,6 +255,7 @@ mod tests {
         );
     }
 
+    // verifies: PUS-15-01
     #[test]
     fn a_sequence_range_wraps_through_16383() {
         let r = Range::Seq {

@@ -35,6 +35,7 @@ impl<S: TmStore> Obsw<S> {
 mod tests {
     use crate::obsw::tests::{obsw, of, send};
 
+    // verifies: PUS-17-01
     #[test]
     fn a_ping_is_answered_in_every_mode() {
         let mut o = obsw();

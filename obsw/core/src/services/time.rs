@@ -87,6 +87,7 @@ impl<S: TmStore> Obsw<S> {
 mod tests {
     use crate::obsw::tests::{kind, obsw, of, send};
 
+    // verifies: PUS-9-01
     #[test]
     fn the_rate_sets_the_period_and_the_report_carries_exponent_and_time() {
         let mut o = obsw();
