@@ -83,6 +83,11 @@ pub mod reset_cause {
 /// `events::UNTHROTTLED` lists the exempt events.
 pub const EVENT_THROTTLE_WINDOW_MS: u32 = 1000;
 pub const EVENT_THROTTLE_MAX: u8 = 20;
+/// Capacity of the queue of event reports raised in one control period. An event that
+/// finds it full is dropped and counted in HK `EVENTS_DROPPED`; the core then raises
+/// `EVENT_QUEUE_OVERFLOW` (with the count since its last report) at most once per
+/// `EVENT_THROTTLE_WINDOW_MS`.
+pub const EVENT_QUEUE_DEPTH: usize = 8;
 /// Default time report rate exponent (TM[9,2] every 2^n s).
 pub const TIME_REPORT_DEFAULT_EXP: u8 = 6;
 /// A mode transition not confirmed by every node within this time fails.

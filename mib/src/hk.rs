@@ -98,6 +98,7 @@ pub const HK_STRUCTS: &[HkDef] = &[
             PENDING_MODE,
             MODE,
             HIP_DEVIATION,
+            EVENTS_DROPPED,
         ],
         default_interval_ms: 5000,
         default_enabled: true,

@@ -157,7 +157,7 @@ fn stored_tm_is_downlinked_on_request_with_nothing_lost() {
     // was sent while it was not listening, oldest first, then TM[15,19].
     std::thread::sleep(Duration::from_millis(500));
     let mut c = Client::udp(&o);
-    let raw = c.send("STORE_DOWNLINK", &[]);
+    let raw = c.send("STORE_DOWNLINK_TIME", &[0, 0, 65535, 4_294_967_295]);
     let end = c
         .wait_for(T, |t| t.service == 15 && t.subservice == 19)
         .expect("end of downlink");

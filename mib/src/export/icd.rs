@@ -325,7 +325,7 @@ pub fn icd_markdown() -> String {
             t.service,
             t.subservice,
             t.name,
-            c(t.layout),
+            c(&crate::layout::summary(t.body)),
             c(t.desc)
         );
     }
@@ -443,10 +443,10 @@ pub fn icd_markdown() -> String {
             "| {} | `{}` | {} | {} |",
             f.code(),
             f.name(),
-            if f.data_layout().is_empty() {
-                "—"
+            if f.data().is_empty() {
+                "—".to_string()
             } else {
-                f.data_layout()
+                crate::layout::fields_summary(f.data())
             },
             c(f.description())
         );

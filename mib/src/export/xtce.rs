@@ -487,7 +487,10 @@ pub fn xtce_document_for(robot: u8) -> String {
             &format!("TM_{}", t.name),
             &format!(
                 "TM[{},{}] {}; source data: {}",
-                t.service, t.subservice, t.desc, t.layout
+                t.service,
+                t.subservice,
+                t.desc,
+                crate::layout::summary(t.body)
             ),
             false,
             &["TM_SOURCE_DATA".to_string(), layout::PEC.name.to_string()],

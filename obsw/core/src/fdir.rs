@@ -107,6 +107,7 @@ impl Monitoring {
                 m.count = 0;
                 if m.state != check::OK {
                     m.state = check::OK;
+                    // At most one transition per monitor: `out` holds N_MONITORS.
                     let _ = out.push(Transition {
                         monitor: m.def.id,
                         param: m.def.param,
@@ -121,6 +122,7 @@ impl Monitoring {
             m.count = m.count.saturating_add(1);
             if m.count >= m.def.persistence.max(1) && m.state != now {
                 m.state = now;
+                // At most one transition per monitor: `out` holds N_MONITORS.
                 let _ = out.push(Transition {
                     monitor: m.def.id,
                     param: m.def.param,

@@ -124,7 +124,7 @@ impl ModeTree {
             let ready = match n.kind {
                 NodeKind::Root => children_done && root_ready,
                 NodeKind::Assembly => children_done,
-                _ => confirmed(n, nm.commanded),
+                NodeKind::Arm | NodeKind::Gripper | NodeKind::Bolter | NodeKind::Hip => confirmed(n, nm.commanded),
             };
             if ready {
                 self.nodes[i].actual = nm.commanded;

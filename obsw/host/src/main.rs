@@ -186,6 +186,9 @@ impl TmStore for HostStore {
     fn clear(&mut self) {
         self.0.clear();
     }
+    fn visit(&self, f: &mut dyn FnMut(&[u8])) {
+        self.0.iter().for_each(|p| f(p));
+    }
 }
 
 fn main() {

@@ -6,8 +6,7 @@
 use mib::events::eid;
 use mib::params::{pid, CAL_AMP, CAL_VOLT, I_LOC_MAX, V_BAT_EMPTY};
 use mib::robot::{Face, Side};
-use mib::FailureCode;
-use mmic_domain::controller::{Action, ActionReport, DomainEvent, StartError};
+use mmic_domain::controller::{Action, ActionFailure, ActionReport, DomainEvent, StartError};
 use mmic_sim::{Fault, Harness, SimConfig};
 
 fn harness(initial: u8, seed: u64) -> Harness {
@@ -125,7 +124,7 @@ fn bolting_a_face_reports_attempts_that_match_the_simulated_fasteners() {
         .collect();
     match r {
         Some(ActionReport::Completed) => assert_eq!(done.len(), 4),
-        Some(ActionReport::Failed { code, .. }) => assert_eq!(code, FailureCode::BOLT_FAILED),
+        Some(ActionReport::Failed(f)) => assert!(matches!(f, ActionFailure::BoltFailed { .. }), "{f:?}"),
         other => panic!("bolting never finished: {other:?}"),
     }
     for (pair, attempts) in done {
@@ -156,11 +155,12 @@ fn fault_stuck_arm_gives_arm_not_contracted() {
     h.sim.inject(Fault::StuckArm(Side::A));
     let mark = h.events.len();
     let r = h.run_action(Action::Reconfigure { from: 3, to: 1 }, 60_000).unwrap();
-    let Some(ActionReport::Failed { code, data, len }) = r else {
-        panic!("expected a failure, got {r:?}")
-    };
-    assert_eq!(code, FailureCode::ABORTED_BY_FAULT);
-    assert_eq!(&data[..len as usize], &eid::ARM_NOT_CONTRACTED.to_be_bytes());
+    assert_eq!(
+        r,
+        Some(ActionReport::Failed(ActionFailure::AbortedByFault {
+            event: eid::ARM_NOT_CONTRACTED
+        }))
+    );
     assert!(h
         .events_since(mark)
         .any(|e| *e == DomainEvent::ArmNotContracted { side: Side::A }));
@@ -185,11 +185,10 @@ fn fault_cut_cable_ages_the_heartbeat_and_gives_comm_loss_no_ack() {
             10_000,
         )
         .unwrap();
-    let Some(ActionReport::Failed { code, data, .. }) = r else {
+    let Some(ActionReport::Failed(ActionFailure::BoardBNoAck { command, .. })) = r else {
         panic!("expected a failure, got {r:?}")
     };
-    assert_eq!(code, FailureCode::BOARD_B_NO_ACK);
-    assert_eq!(data[0], 2, "gripper command");
+    assert_eq!(command, 2, "gripper command");
     assert!(h
         .events_since(mark)
         .any(|e| matches!(e, DomainEvent::CommLossNoAck { command: 2, retries: 3 })));
@@ -271,11 +270,14 @@ fn fault_fastener_jam_fails_every_attempt() {
     let r = h
         .run_action(Action::BoltPair { side: Side::A, pair: 2 }, 120_000)
         .unwrap();
-    let Some(ActionReport::Failed { code, data, len }) = r else {
-        panic!("expected a failure, got {r:?}")
-    };
-    assert_eq!(code, FailureCode::BOLT_FAILED);
-    assert_eq!(&data[..len as usize], &[0, 2, 3]);
+    assert_eq!(
+        r,
+        Some(ActionReport::Failed(ActionFailure::BoltFailed {
+            side: Side::A,
+            pair: 2,
+            attempts: 3
+        }))
+    );
     let attempts_failed = h
         .events_since(mark)
         .filter(|e| matches!(e, DomainEvent::BoltAttemptFailed { pair: 2, .. }))
@@ -341,11 +343,14 @@ fn fault_fastener_jam_gives_unbolting_failure() {
             120_000,
         )
         .unwrap();
-    let Some(ActionReport::Failed { code, data, len }) = r else {
-        panic!("expected a failure, got {r:?}")
-    };
-    assert_eq!(code, FailureCode::UNBOLT_FAILED);
-    assert_eq!(&data[..len as usize], &[1, 3, 3]);
+    assert_eq!(
+        r,
+        Some(ActionReport::Failed(ActionFailure::UnboltFailed {
+            side: Side::B,
+            pair: 3,
+            attempts: 3
+        }))
+    );
     assert!(h.events_since(mark).any(|e| *e
         == DomainEvent::UnboltFailure {
             side: Side::B,
