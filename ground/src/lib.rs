@@ -3,6 +3,7 @@
 
 pub mod alarms;
 pub mod archive;
+pub mod dashboard;
 pub mod collect;
 pub mod link;
 pub mod ops;

@@ -184,7 +184,7 @@ struct RunArgs {
     /// Longest a step may take (seconds) unless the step sets `timeout`.
     #[arg(long, default_value_t = 120.0)]
     step_timeout: f64,
-    /// No connection tests while robots are idle.
+    /// No heartbeat connection tests (and so no link-loss watch).
     #[arg(long)]
     no_ping: bool,
     /// Plain log lines instead of the live display.
@@ -193,6 +193,10 @@ struct RunArgs {
     /// Print the summary as JSON.
     #[arg(long)]
     json: bool,
+    /// Continue an interrupted run: steps whose TC the archive shows completed are not
+    /// sent again.
+    #[arg(long)]
+    resume: bool,
 }
 
 #[derive(Args, Debug)]
@@ -609,10 +613,16 @@ fn run_plan(a: &RunArgs, archive_path: Option<&Path>) -> Result<u8> {
     let (mut session, arch) = open_session(&links, a.links.transport(), archive_path)?;
     let opts = RunOptions {
         step_timeout: Duration::from_secs_f64(a.step_timeout),
-        ping_period: (!a.no_ping).then(|| Duration::from_millis(mib::config::GROUND_PING_PERIOD_MS as u64)),
+        ping_period: (!a.no_ping).then(|| Duration::from_millis(mib::config::GROUND_HEARTBEAT_MS as u64)),
         display: !a.plain && std::io::IsTerminal::is_terminal(&std::io::stderr()),
     };
-    let summary = ops::run_plan(&pl, &mut session, &opts);
+    let done = if a.resume {
+        let p = archive_path.ok_or_else(|| coded(exit::INVALID, "--resume needs the archive (drop --no-archive)"))?;
+        completed_steps(p, &pl)?
+    } else {
+        Vec::new()
+    };
+    let summary = ops::run_plan(&pl, &mut session, &opts, &done);
     drop(session);
     close_archive(arch)?;
     if a.json {
@@ -623,7 +633,49 @@ fn run_plan(a: &RunArgs, archive_path: Option<&Path>) -> Result<u8> {
             out(&format!("archive: {}", p.display()))?;
         }
     }
-    Ok(if summary.success() { exit::OK } else { exit::FAILED })
+    Ok(if !summary.link_lost.is_empty() {
+        exit::NO_ANSWER
+    } else if summary.success() {
+        exit::OK
+    } else {
+        exit::FAILED
+    })
+}
+
+/// Steps of `pl` whose TC the archive shows completed (TM[1,7] for its request ID after
+/// it was sent), for `run --resume`.
+fn completed_steps(path: &Path, pl: &plan::Plan) -> Result<Vec<usize>> {
+    if !path.exists() {
+        return Err(coded(
+            exit::INVALID,
+            format!("--resume: archive {} does not exist", path.display()),
+        ));
+    }
+    let c = rusqlite::Connection::open_with_flags(path, rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY)
+        .with_context(|| format!("--resume: opening archive {}", path.display()))?;
+    let mut q = c
+        .prepare(
+            "SELECT 1 FROM tc JOIN verification v ON v.req_apid = tc.apid AND v.req_seq = tc.seq
+             WHERE tc.step = ?1 AND tc.robot = ?2 AND tc.name = ?3 AND v.stage = 'completion'
+               AND v.success = 1 AND v.t_ms >= tc.t_ms LIMIT 1",
+        )
+        .context("--resume: reading the archive")?;
+    let mut done = Vec::new();
+    for (i, s) in pl.steps.iter().enumerate() {
+        let Some((def, _)) = s.action.tc() else { continue };
+        if q.exists(rusqlite::params![s.id, s.robot, def.name])
+            .context("--resume: reading the archive")?
+        {
+            done.push(i);
+        }
+    }
+    // A wait step between completed steps is done too.
+    for (i, s) in pl.steps.iter().enumerate() {
+        if s.action.tc().is_none() && pl.dependents(i).iter().any(|d| done.contains(d)) {
+            done.push(i);
+        }
+    }
+    Ok(done)
 }
 
 fn ping(a: &PingArgs, archive_path: Option<&Path>) -> Result<u8> {
@@ -739,6 +791,8 @@ fn send_and_follow(
     wait: bool,
     timeout: Duration,
 ) -> Result<u8> {
+    // A dead OBSW or link is reported within LINK_LOSS_MS, not after every resend.
+    s.watch_links();
     let tc = s.send(robot, def, args, Some(0), None)?;
     out(&format!(
         "robot {robot}: sent {} seq {} ({} bytes)",
@@ -775,13 +829,24 @@ fn send_and_follow(
                         return Ok(exit::OK);
                     }
                 }
-                Update::Resent { send, .. } => out(&format!("robot {robot}: no acceptance yet, resent (send {send})"))?,
-                Update::GaveUp { sends, .. } => {
+                Update::Resent { send, .. } => out(&format!(
+                    "robot {robot}: no {} yet, resent the same bytes (send {send})",
+                    if accepted { "completion" } else { "acceptance" }
+                ))?,
+                Update::DamagedCopy { .. } => out(&format!(
+                    "robot {robot}: a copy arrived damaged (TM[1,2] CRC), resent the same bytes"
+                ))?,
+                Update::GaveUp { sends, accepted, .. } => {
                     return Err(coded(
                         exit::NO_ANSWER,
-                        format!("robot {robot}: no acceptance after {sends} sends"),
+                        if accepted {
+                            format!("robot {robot}: accepted, but no completion or failure report after {sends} sends: outcome unknown")
+                        } else {
+                            format!("robot {robot}: no acceptance after {sends} sends")
+                        },
                     ))
                 }
+                Update::LinkLost { why, .. } => return Err(coded(exit::NO_ANSWER, why)),
                 Update::Event { robot: r, event } if r == robot => out(&format!("robot {robot}: event {event}"))?,
                 _ => {}
             }

@@ -945,6 +945,7 @@ pub fn tm_by_type(service: u8, subservice: u8) -> Option<&'static TmDef> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: MMIC-CMD-06
     #[test]
     fn tc_names_and_keys_unique() {
         for (i, t) in TCS.iter().enumerate() {
@@ -963,6 +964,7 @@ mod tests {
             assert!(t.fixed_len() <= crate::config::MAX_TC_APP_DATA);
         }
     }
+    // verifies: MMIC-MODE-01
     #[test]
     fn table7_standby_accepts_no_robot_function_and_safed_only_hip_and_arm() {
         for t in TCS

@@ -876,6 +876,7 @@ pub fn icd_markdown() -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: MMIC-MOT-04
     #[test]
     fn every_matched_state_reaches_every_other_within_the_limit() {
         for a in STATES.iter().filter(|s| s.kind() == StateKind::Matched) {

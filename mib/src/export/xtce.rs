@@ -671,6 +671,7 @@ fn meta_command(x: &mut Xml, t: &TcDef, apid: u16) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: ICD-03
     #[test]
     fn document_mentions_every_hk_parameter_and_tc() {
         let d = xtce_document();
