@@ -3,8 +3,8 @@
 
 pub mod alarms;
 pub mod archive;
-pub mod dashboard;
 pub mod collect;
+pub mod dashboard;
 pub mod link;
 pub mod ops;
 pub mod plan;

@@ -14,9 +14,10 @@ use crate::pus::{self, BuiltTc, Tm, TmBody};
 use super::tracker::Pos;
 
 /// How often the lease of the downlink subscription is renewed (every accepted TC
-/// renews it; a ping is the cheapest). A third of the obsw's lease, so two renewals
-/// may be lost in a row.
-pub const LEASE_RENEW_MS: i64 = 1_000;
+/// renews it; a ping is the cheapest): the MIB's ground heartbeat, well inside the
+/// obsw's `SUBSCRIPTION_LEASE_MS`.
+pub const LEASE_RENEW_MS: i64 = mib::config::GROUND_HEARTBEAT_MS as i64;
+const _: () = assert!(3 * LEASE_RENEW_MS < mib::config::SUBSCRIPTION_LEASE_MS as i64);
 
 /// On-board APID of a robot.
 pub fn apid(robot: u8) -> Option<u16> {

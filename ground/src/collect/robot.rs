@@ -97,6 +97,8 @@ pub struct Worker {
     started_ms: i64,
     last_rx_ms: Option<i64>,
     last_hk_ms: Option<i64>,
+    /// When the link last came up: housekeeping is expected from then on.
+    up_since_ms: i64,
     backoff_ms: i64,
     next_send_ms: i64,
     hk_interval_ms: u32,
@@ -153,6 +155,7 @@ impl Worker {
             started_ms: now,
             last_rx_ms: None,
             last_hk_ms: None,
+            up_since_ms: now,
             backoff_ms: BACKOFF_START_MS,
             next_send_ms: now,
             hk_interval_ms,
@@ -268,7 +271,7 @@ impl Worker {
         }
         // Stale: TM flows but no HK.
         if self.state == LinkState::Up {
-            let hk_since = self.last_hk_ms.unwrap_or(self.started_ms);
+            let hk_since = self.last_hk_ms.unwrap_or(self.started_ms).max(self.up_since_ms);
             let stale_ms = self.global.stale_hk_intervals as i64 * self.hk_interval_ms as i64;
             if now - hk_since > stale_ms.max(1000) {
                 self.condition(
@@ -489,6 +492,7 @@ impl Worker {
         if self.state != LinkState::Up {
             let was = self.state;
             self.state = LinkState::Up;
+            self.up_since_ms = now;
             self.backoff_ms = BACKOFF_START_MS;
             self.next_send_ms = now;
             self.hk_set = None;
