@@ -522,6 +522,7 @@ mod tests {
         d
     }
 
+    // verifies: GND-02
     #[test]
     fn every_record_lands_in_its_tables() {
         let path = tmp("a.db");

@@ -241,6 +241,7 @@ fn reader_loop(robot: u8, io: &Io, tcp: Option<TcpStream>, stop: &AtomicBool, tx
 mod tests {
     use super::*;
 
+    // verifies: DD-LINK-01
     #[test]
     fn cobs_frames_round_trip_across_partial_reads() {
         let p1 = vec![0x19, 0x01, 0x00, 0x05, 0x00, 0x00, 0x07];
@@ -258,6 +259,7 @@ mod tests {
         assert_eq!(got, vec![p1, p2]);
     }
 
+    // verifies: DD-LINK-01
     #[test]
     fn datagram_with_two_packets_splits() {
         let t = [0x40, 0, 1, 0, 0, 0, 0];

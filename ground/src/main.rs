@@ -84,6 +84,11 @@ enum Cmd {
     Mib(MibCmd),
     /// Start two simulated robots, run the demo plan and summarise.
     Demo(demo::DemoArgs),
+    /// Follow robots unattended: archive everything, fill gaps, raise alarms.
+    Collect(ground::collect::CollectArgs),
+    /// List, acknowledge or shelve the collector's alarms.
+    #[command(subcommand)]
+    Alarms(ground::collect::AlarmsCmd),
 }
 
 #[derive(Subcommand, Debug)]
@@ -463,6 +468,8 @@ fn run(cli: Cli) -> Result<u8> {
         Cmd::Archive(a) => archive_cmd(a, &cli.archive),
         Cmd::Mib(MibCmd::Export { format, out: dir }) => mib_export(&format, &dir),
         Cmd::Demo(a) => demo::demo(&a, archive_path.as_deref()),
+        Cmd::Collect(a) => ground::collect::collect_cli(&cli.archive, a),
+        Cmd::Alarms(a) => ground::collect::alarms_cli(&cli.archive, a),
     }
 }
 

@@ -1917,6 +1917,7 @@ mod tests {
         (addr, h)
     }
 
+    // verifies: GND-01
     #[test]
     fn session_resends_with_the_same_count_and_skips_foreign_apids() {
         let (addr, fake) = fake_obsw(1);
@@ -1950,6 +1951,7 @@ mod tests {
         assert_eq!(fake.join().unwrap(), vec![(0x101, 100), (0x101, 100)]);
     }
 
+    // verifies: MMIC-VAL-02
     #[test]
     fn seq_track_finds_gaps_duplicates_and_late_packets_across_the_wrap() {
         let mut t = SeqTrack::default();

@@ -354,15 +354,38 @@ impl fmt::Display for Failure {
         write!(f, "{} ({}): {}", self.name, self.code, self.description)?;
         if !self.fields.is_empty() {
             write!(f, " [")?;
+            let defs = FailureCode::from_code(self.code).data();
             for (i, fl) in self.fields.iter().enumerate() {
                 if i > 0 {
                     write!(f, ", ")?;
                 }
-                write!(f, "{}={}", fl.name, fl.value)?;
+                write!(f, "{}={}", fl.name, named(defs, &self.fields, i))?;
             }
             write!(f, "]")?;
         }
         Ok(())
+    }
+}
+
+/// The value of field `i` as a person reads it: the MIB's name for it (a mode named for
+/// the `node` field beside it) with the raw value, or the raw value alone.
+fn named(defs: &[mib::layout::Field], values: &[Field], i: usize) -> String {
+    let v = values[i].value;
+    let Some(def) = defs.get(i) else {
+        return v.to_string();
+    };
+    let name = if def.names == mib::layout::Names::Mode {
+        values
+            .iter()
+            .find(|x| x.name == "node")
+            .and_then(|n| mib::layout::Names::mode_name_for(n.value, v))
+            .or_else(|| def.names.name(v))
+    } else {
+        def.names.name(v)
+    };
+    match name {
+        Some(n) => format!("{n} ({v})"),
+        None => v.to_string(),
     }
 }
 
@@ -460,8 +483,9 @@ impl Event {
 impl fmt::Display for Event {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{} [{}] {}", self.name, self.severity, self.description)?;
-        for p in &self.params {
-            write!(f, " {}={}", p.name, p.value)?;
+        let defs = mib::events::by_id(self.id).map_or(&[][..], |e| e.params);
+        for (i, p) in self.params.iter().enumerate() {
+            write!(f, " {}={}", p.name, named(defs, &self.params, i))?;
         }
         Ok(())
     }
@@ -1120,6 +1144,24 @@ mod tests {
 
     const T0: [u8; 7] = [CDS_PFIELD, 0x5A, 0x00, 0x00, 0x00, 0x03, 0xE8];
 
+    // verifies: MMIC-FW-01
+    #[test]
+    fn events_and_failures_read_with_the_mib_names() {
+        let mut src = mib::events::eid::MODE_CHANGED.to_be_bytes().to_vec();
+        for v in [10u32, 0, 1] {
+            src.extend_from_slice(&v.to_be_bytes());
+        }
+        src.extend_from_slice(&0u16.to_be_bytes());
+        let TmBody::Event(e) = decode_tm(&tm(5, 1, &src)).unwrap().body else {
+            panic!("not an event")
+        };
+        let s = e.to_string();
+        assert!(s.contains("node=BOLTER_B (10) from=OFF (0) to=ON (1)"), "{s}");
+        let f = Failure::from_code(FailureCode::INITIAL_STATE_MISMATCH.code(), &[0, 4]);
+        assert!(f.to_string().contains("believed="), "{f}");
+        assert!(!f.to_string().contains("believed=0,"), "{f}");
+    }
+
     #[test]
     fn ping_tc_bytes_match_ccsds_and_pus_c_layout() {
         let def = mib::tc::by_name("PING").unwrap();
@@ -1139,6 +1181,7 @@ mod tests {
         );
     }
 
+    // verifies: PUS-1-03
     #[test]
     fn robot_action_requests_all_four_acknowledgements_and_round_trips() {
         let def = mib::tc::lookup(8, 1, Some(function::RECONFIGURE)).unwrap();
@@ -1159,6 +1202,7 @@ mod tests {
         assert_eq!(d.arg_error, None);
     }
 
+    // verifies: PUS-8-02
     #[test]
     fn out_of_range_argument_is_refused_before_sending() {
         let def = mib::tc::by_name("BOLT_FACE").unwrap();
@@ -1167,6 +1211,7 @@ mod tests {
         assert!(matches!(build_tc(0, 0, def, &[0, 1]), Err(BuildError::UnknownRobot(0))));
     }
 
+    // verifies: PUS-PKT-03
     #[test]
     fn sequence_counts_are_per_apid_and_wrap_at_14_bits() {
         let mut s = SeqCounters::new();
@@ -1182,6 +1227,7 @@ mod tests {
         build_tm(0x101, 9, service, sub, 3, &T0, src)
     }
 
+    // verifies: PUS-1-01
     #[test]
     fn acceptance_success_from_static_bytes() {
         // TM[1,1] for request 0x1901/0xC005, hand-assembled.
@@ -1209,6 +1255,7 @@ mod tests {
         assert_eq!(v.request.seq(), 5);
     }
 
+    // verifies: PUS-1-03
     #[test]
     fn progress_and_failure_reports_carry_step_code_and_named_data() {
         let t = decode_tm(&tm(1, 5, &[0x19, 0x01, 0xC0, 0x05, 2])).unwrap();
@@ -1240,6 +1287,7 @@ mod tests {
         assert!(decode_tm(&tm(1, 7, &[0x19, 0x01, 0xC0, 0x05, 9])).is_err());
     }
 
+    // verifies: PUS-3-01
     #[test]
     fn hk_report_decodes_with_calibration() {
         let def = mib::hk::by_sid(mib::hk::sid::ROBOT_STATUS).unwrap();
@@ -1255,6 +1303,7 @@ mod tests {
         assert!(decode_tm(&tm(3, 25, &src[..n - 1])).is_err());
     }
 
+    // verifies: PUS-5-01
     #[test]
     fn event_report_must_match_its_severity() {
         let def = mib::events::by_id(eid::BOLT_FAILURE).unwrap();
@@ -1268,6 +1317,7 @@ mod tests {
         assert!(decode_tm(&tm(5, 1, &src[..n])).is_err());
     }
 
+    // verifies: DD-DEC-01
     #[test]
     fn other_tm_types_decode_per_mib_layouts() {
         assert_eq!(decode_tm(&tm(17, 2, &[])).unwrap().body, TmBody::PingReply);
@@ -1341,6 +1391,7 @@ mod tests {
         ));
     }
 
+    // verifies: PUS-PKT-01
     #[test]
     fn crc_error_and_bad_versions_are_values() {
         let mut b = tm(17, 2, &[]);
@@ -1360,6 +1411,7 @@ mod tests {
         ));
     }
 
+    // verifies: DD-LINK-01
     #[test]
     fn stream_decoder_resynchronises_after_garbage() {
         let mut s = tm(17, 2, &[]);
@@ -1374,6 +1426,7 @@ mod tests {
         assert!(matches!(items[1], StreamItem::Corrupt { len: 3, .. }));
     }
 
+    // verifies: PUS-PKT-04
     #[test]
     fn time_stamp_round_trips_through_unix_ms() {
         let t = CdsShort::from_unix_ms(1_700_000_000_123);
@@ -1387,6 +1440,7 @@ mod tests {
         use proptest::prelude::*;
         proptest! {
             #![proptest_config(ProptestConfig::with_cases(2000))]
+            // verifies: DD-ROBUST-01
             #[test]
             fn random_bytes_never_panic(data in proptest::collection::vec(any::<u8>(), 0..400)) {
                 let mut st = StreamStats::default();
@@ -1402,6 +1456,7 @@ mod tests {
                 prop_assert_eq!(covered, data.len());
             }
 
+            // verifies: GND-08
             #[test]
             fn valid_header_random_body_never_panics(
                 tc in any::<bool>(), svc in any::<u8>(), sub in any::<u8>(),

@@ -131,6 +131,7 @@ fn text(o: &Output) -> String {
     )
 }
 
+// verifies: GND-07
 #[test]
 fn ping_mode_and_send_against_the_real_obsw() {
     let o = start_obsw(1, 50.0, "Xneg");
@@ -223,6 +224,7 @@ fn ping_mode_and_send_against_the_real_obsw() {
     assert!(String::from_utf8_lossy(&out.stdout).starts_with("id,t_ms,robot,event_id,name"));
 }
 
+// verifies: GND-05
 #[test]
 fn demo_plan_runs_on_two_robots_over_tcp() {
     let a = start_obsw(1, 50.0, "Xneg");
@@ -252,6 +254,7 @@ fn demo_plan_runs_on_two_robots_over_tcp() {
     assert!(t.contains("bolts per attempt: 1st"), "{t}");
 }
 
+// verifies: GND-06
 #[test]
 fn a_fault_stops_the_dependent_steps_and_says_why() {
     let a = start_obsw(1, 50.0, "Xneg");
@@ -331,6 +334,7 @@ fn lossy_relay(obsw: SocketAddr, drop_first: usize, stop: Arc<AtomicBool>) -> So
     addr
 }
 
+// verifies: GND-01
 #[test]
 fn a_lost_tc_is_resent_with_the_same_sequence_count() {
     let a = start_obsw(1, 50.0, "Xneg");
@@ -354,6 +358,7 @@ fn a_lost_tc_is_resent_with_the_same_sequence_count() {
     assert_eq!(rows[1]["attempt"], 2);
 }
 
+// verifies: GND-06
 #[test]
 fn an_unreachable_obsw_is_reported_within_the_link_loss_time() {
     let dir = tmpdir("dead");
@@ -381,6 +386,7 @@ fn an_unreachable_obsw_is_reported_within_the_link_loss_time() {
     );
 }
 
+// verifies: MMIC-FW-02
 #[test]
 fn watch_shows_housekeeping_without_a_request() {
     let a = start_obsw(1, 20.0, "Xneg");

@@ -117,6 +117,7 @@ impl EventDef {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: PUS-5-01
     #[test]
     fn event_ids_unique() {
         for (i, e) in EVENTS.iter().enumerate() {

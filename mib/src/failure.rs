@@ -84,6 +84,7 @@ failure_codes! {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: PUS-1-02
     #[test]
     fn codes_round_trip_and_unknown_is_a_value() {
         for (i, c) in FailureCode::ALL.iter().enumerate() {

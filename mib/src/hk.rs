@@ -158,6 +158,7 @@ impl HkDef {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: PUS-3-01
     #[test]
     fn every_hk_parameter_exists_and_sids_are_unique() {
         for (i, h) in HK_STRUCTS.iter().enumerate() {

@@ -186,6 +186,7 @@ pub fn by_name(name: &str) -> Option<&'static ParamDef> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: ICD-05
     #[test]
     fn ids_and_names_are_unique() {
         for (i, a) in PARAMS.iter().enumerate() {
@@ -195,6 +196,7 @@ mod tests {
             }
         }
     }
+    // verifies: MMIC-AV-01
     #[test]
     fn battery_calibration_maps_empty_to_about_ten_volts() {
         let p = by_id(pid::V_BAT_A).unwrap();

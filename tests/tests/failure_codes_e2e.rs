@@ -15,6 +15,7 @@ fn operational(c: &mut Client) {
     assert_eq!(c.wait_done(&raw, Duration::from_secs(60)).unwrap().subservice, 7);
 }
 
+// verifies: PUS-15-02
 #[test]
 fn store_disabled_and_schedule_full_are_reported() {
     let o = Obsw::start(&[]);
@@ -51,6 +52,7 @@ fn store_disabled_and_schedule_full_are_reported() {
     assert_eq!(last.unwrap().failure_code(), Some(F::SCHEDULE_FULL.code()));
 }
 
+// verifies: MMIC-CTL-03
 #[test]
 fn a_hip_rotation_with_both_grippers_holding_is_refused_at_start() {
     let o = Obsw::start(&["--speed", "20"]);
@@ -65,6 +67,7 @@ fn a_hip_rotation_with_both_grippers_holding_is_refused_at_start() {
     );
 }
 
+// verifies: MMIC-FLT-02
 #[test]
 fn an_unbolting_failure_is_reported() {
     let o = Obsw::start(&["--speed", "50"]);
@@ -84,6 +87,7 @@ fn an_unbolting_failure_is_reported() {
     );
 }
 
+// verifies: MMIC-FLT-11
 #[test]
 fn a_command_board_b_never_acknowledges_fails() {
     let o = Obsw::start(&[]);
@@ -100,6 +104,7 @@ fn a_command_board_b_never_acknowledges_fails() {
 /// Codes that a packet cannot provoke with this MIB, and why.
 const UNREACHABLE: &[(F, &str)] = &[(F::UNREACHABLE_STATE, "every state pair is within 3 primitives")];
 
+// verifies: PUS-1-02
 #[test]
 fn every_failure_code_is_exercised_by_an_end_to_end_test() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests");

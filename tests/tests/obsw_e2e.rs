@@ -22,6 +22,7 @@ fn code(t: &Tm) -> u16 {
     t.failure_code().expect("a failure report")
 }
 
+// verifies: PUS-1-01, PUS-17-01
 #[test]
 fn ping_is_verified_in_order_over_udp() {
     let o = Obsw::start(&[]);
@@ -36,6 +37,7 @@ fn ping_is_verified_in_order_over_udp() {
     );
 }
 
+// verifies: PUS-17-01
 #[test]
 fn ping_is_verified_in_order_over_tcp_with_cobs() {
     let o = Obsw::start(&[]);
@@ -45,6 +47,7 @@ fn ping_is_verified_in_order_over_tcp_with_cobs() {
     assert_eq!(c.verifications(&ping), vec![1, 3, 7]);
 }
 
+// verifies: PUS-PKT-03
 #[test]
 fn tm_sequence_count_is_continuous() {
     let o = Obsw::start(&[]);
@@ -61,6 +64,7 @@ fn tm_sequence_count_is_continuous() {
     assert!(c.log.iter().all(|t| t.apid == 0x101));
 }
 
+// verifies: MMIC-FW-02, PUS-3-03
 #[test]
 fn hk_arrives_at_the_configured_rate_without_request() {
     let o = Obsw::start(&[]);
@@ -77,6 +81,7 @@ fn hk_arrives_at_the_configured_rate_without_request() {
     assert!(v > mib::params::CAL_VOLT.raw(10.0), "battery voltage reported: {v}");
 }
 
+// verifies: PUS-1-02
 #[test]
 fn every_acceptance_failure_code_is_reachable_from_a_real_packet() {
     let o = Obsw::start(&[]);
@@ -138,6 +143,7 @@ fn every_acceptance_failure_code_is_reachable_from_a_real_packet() {
     assert_eq!(c.wait_done(&ping, T).unwrap().subservice, 7);
 }
 
+// verifies: MMIC-MODE-01
 #[test]
 fn table7_standby_accepts_only_mode_changes() {
     let o = Obsw::start(&[]);
@@ -156,6 +162,7 @@ fn table7_standby_accepts_only_mode_changes() {
     }
 }
 
+// verifies: MMIC-MODE-02
 #[test]
 fn table7_safed_accepts_only_hip_and_arm_commands() {
     let o = Obsw::start(&["--speed", "20"]);
@@ -177,6 +184,7 @@ fn table7_safed_accepts_only_hip_and_arm_commands() {
     );
 }
 
+// verifies: MMIC-MODE-03, PUS-200-01
 #[test]
 fn mode_tree_propagates_and_reports_every_node() {
     let o = Obsw::start(&["--speed", "20"]);
@@ -228,6 +236,7 @@ fn mode_tree_propagates_and_reports_every_node() {
     assert_eq!(u32::from_be_bytes(t.data[4..8].try_into().unwrap()), module_mode::HOLD);
 }
 
+// verifies: MMIC-CMD-01, PUS-1-03
 #[test]
 fn full_reconfiguration_reports_every_verification_stage_in_order() {
     let o = Obsw::start(&["--speed", "50"]);
@@ -264,6 +273,7 @@ fn full_reconfiguration_reports_every_verification_stage_in_order() {
     assert_eq!(&t.data[6..8], &[0, 1], "believed 0, computed 1");
 }
 
+// verifies: MMIC-CMD-08
 #[test]
 fn a_second_action_while_one_runs_is_busy() {
     let o = Obsw::start(&["--speed", "5"]);
@@ -289,6 +299,7 @@ fn a_second_action_while_one_runs_is_busy() {
     assert_eq!(code(&t), F::ABORTED_BY_COMMAND.code());
 }
 
+// verifies: DD-ROBUST-02, GND-01
 #[test]
 fn a_duplicate_tc_is_acknowledged_again_but_never_executed_twice() {
     let o = Obsw::start(&["--speed", "50"]);
@@ -320,6 +331,7 @@ fn a_duplicate_tc_is_acknowledged_again_but_never_executed_twice() {
     assert_eq!(hk.hk(pid::TC_DUPLICATE), Some(2));
 }
 
+// verifies: DD-ROBUST-01
 #[test]
 fn garbage_never_stalls_the_obsw() {
     let o = Obsw::start(&[]);

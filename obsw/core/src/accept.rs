@@ -77,7 +77,7 @@ pub struct Tc<'a> {
 }
 
 /// Why a TC was refused.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Rejection {
     /// `None` when the packet is too short to carry a request ID.
     pub req: Option<RequestId>,
@@ -213,6 +213,7 @@ pub(crate) mod tests {
         accept(raw, 0x101).unwrap_err().code()
     }
 
+    // verifies: PUS-1-01
     #[test]
     fn a_valid_ping_is_accepted() {
         let raw = tc_bytes(0x101, 7, 17, 1, &[]);
@@ -221,6 +222,7 @@ pub(crate) mod tests {
         assert!(t.ack.acceptance() && t.ack.completion());
     }
 
+    // verifies: PUS-1-02
     #[test]
     fn every_acceptance_failure_code_is_reachable_from_bytes() {
         let ping = tc_bytes(0x101, 1, 17, 1, &[]);
@@ -240,16 +242,18 @@ pub(crate) mod tests {
         assert_eq!(code(&tc_bytes(0x101, 1, 8, 1, &[0, 1, 0])), FailureCode::BAD_ARG_LENGTH);
         let r = accept(&tc_bytes(0x101, 1, 8, 1, &[0, 1, 0, 15]), 0x101).unwrap_err();
         assert_eq!(
-            (r.code(), r.failure.data()),
+            (r.code(), &r.failure.data()[..]),
             (FailureCode::ARG_OUT_OF_RANGE, &[1u8, 0, 0, 0, 15][..])
         );
     }
 
     proptest::proptest! {
+        // verifies: DD-ROBUST-01
         #[test]
         fn random_bytes_never_panic(data in proptest::collection::vec(proptest::num::u8::ANY, 0..300)) {
             let _ = accept(&data, 0x101);
         }
+        // verifies: PUS-PKT-01
         #[test]
         fn bit_flips_in_a_valid_tc_are_rejected_or_still_valid(pos in 0usize..15, bit in 0u8..8) {
             let mut raw = tc_bytes(0x101, 3, 8, 1, &[0, 1, 0, 1]);

@@ -200,6 +200,7 @@ mod tests {
     use satrs::spacepackets::ecss::tm::PusTmReader;
     use satrs::spacepackets::CcsdsPacket;
 
+    // verifies: PUS-PKT-03
     #[test]
     fn tm_sequence_count_is_continuous_and_packets_parse() {
         let mut w = TmWriter::new(0x101, OnboardTime::new(1_790_000_000_000));
@@ -213,6 +214,7 @@ mod tests {
         }
     }
 
+    // verifies: PUS-15-01
     #[test]
     fn ring_store_keeps_order_and_overwrites_oldest_when_full() {
         let mut s: RingStore<64> = RingStore::default();

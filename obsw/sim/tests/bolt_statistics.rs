@@ -11,6 +11,7 @@ use mmic_sim::{Harness, SimConfig};
 /// Chi-square critical value, 3 degrees of freedom, p = 0.001.
 const CHI2_3DOF_P001: f64 = 16.27;
 
+// verifies: MMIC-VAL-01
 #[test]
 fn bolt_outcomes_over_many_pairs_match_the_ground_demo_distribution() {
     let mut h = Harness::new(SimConfig {

@@ -23,6 +23,7 @@ fn param(h: &Harness, p: u16) -> i64 {
     h.ctrl.param(p).expect("domain parameter")
 }
 
+// verifies: MMIC-CMD-01
 #[test]
 fn reconfiguration_xneg_to_xpos_reaches_the_true_state() {
     let mut h = harness(0, 1);
@@ -50,6 +51,7 @@ fn reconfiguration_xneg_to_xpos_reaches_the_true_state() {
     assert_eq!(param(&h, pid::CMD_COMPLETE), 1);
 }
 
+// verifies: MMIC-MOT-06
 #[test]
 fn reconfiguration_xneg_to_yneg_turns_the_hip_and_reaches_the_true_state() {
     let mut h = harness(0, 2);
@@ -73,6 +75,7 @@ fn reconfiguration_xneg_to_yneg_turns_the_hip_and_reaches_the_true_state() {
     assert_eq!(h.ctrl.computed_state(), Some(2));
 }
 
+// verifies: MMIC-CMD-01
 #[test]
 fn reconfiguration_round_trip_over_every_matched_state() {
     let mut h = harness(0, 3);
@@ -85,6 +88,7 @@ fn reconfiguration_round_trip_over_every_matched_state() {
     assert!(h.sim.truth().v_bat < 12.6);
 }
 
+// verifies: MMIC-AB-07
 #[test]
 fn reconfiguration_survives_a_lossy_corrupting_link() {
     let mut h = Harness::new(SimConfig {
@@ -102,6 +106,7 @@ fn reconfiguration_survives_a_lossy_corrupting_link() {
     assert_eq!(param(&h, pid::B_LINK_OK), 1);
 }
 
+// verifies: MMIC-CMD-02
 #[test]
 fn bolting_a_face_reports_attempts_that_match_the_simulated_fasteners() {
     let mut h = harness(0, 5);
@@ -147,6 +152,7 @@ fn bolting_a_face_reports_attempts_that_match_the_simulated_fasteners() {
     }
 }
 
+// verifies: MMIC-FLT-06
 #[test]
 fn fault_stuck_arm_gives_arm_not_contracted() {
     let mut h = harness(0, 6);
@@ -167,6 +173,7 @@ fn fault_stuck_arm_gives_arm_not_contracted() {
     assert!(!h.ctrl.busy());
 }
 
+// verifies: MMIC-FLT-10
 #[test]
 fn fault_cut_cable_ages_the_heartbeat_and_gives_comm_loss_no_ack() {
     let mut h = harness(0, 7);
@@ -200,6 +207,7 @@ fn fault_cut_cable_ages_the_heartbeat_and_gives_comm_loss_no_ack() {
     assert!(param(&h, pid::B_HB_AGE_MS) <= 100);
 }
 
+// verifies: MMIC-AV-01
 #[test]
 fn fault_battery_sag_drops_v_bat_below_ten_volts() {
     let mut h = harness(0, 8);
@@ -218,6 +226,7 @@ fn fault_battery_sag_drops_v_bat_below_ten_volts() {
     assert!((CAL_VOLT.eng(param(&h, pid::V_REG)) - 5.5).abs() < 0.1);
 }
 
+// verifies: MMIC-FLT-08
 #[test]
 fn fault_obstacle_gives_locomotion_overcurrent() {
     let mut h = harness(0, 9);
@@ -232,6 +241,7 @@ fn fault_obstacle_gives_locomotion_overcurrent() {
     assert!(param(&h, pid::I_LOC_B) < limit);
 }
 
+// verifies: MMIC-FLT-03
 #[test]
 fn fault_misplaced_voxel_refuses_reconfiguration_with_initial_state_mismatch() {
     let mut h = harness(0, 10);
@@ -250,6 +260,7 @@ fn fault_misplaced_voxel_refuses_reconfiguration_with_initial_state_mismatch() {
     assert_eq!(h.ctrl.computed_state(), Some(0));
 }
 
+// verifies: MMIC-FLT-09
 #[test]
 fn fault_dead_hip_encoder_reads_far_from_zero() {
     let mut h = harness(0, 11);
@@ -262,6 +273,7 @@ fn fault_dead_hip_encoder_reads_far_from_zero() {
     assert_eq!(h.ctrl.computed_state(), None);
 }
 
+// verifies: MMIC-FLT-01
 #[test]
 fn fault_fastener_jam_fails_every_attempt() {
     let mut h = harness(0, 12);
@@ -292,6 +304,7 @@ fn fault_fastener_jam_fails_every_attempt() {
     assert!(!h.sim.fastener(Face::Xneg, 2).unwrap().locked);
 }
 
+// verifies: MMIC-CMD-04
 #[test]
 fn hip_rotation_reaches_target_in_the_simulator() {
     // turn state "Yneg Xneg": hip at -90 deg; rotate the hip while... the robot is
@@ -304,6 +317,7 @@ fn hip_rotation_reaches_target_in_the_simulator() {
     assert_eq!(h.sim.truth().state, Some(11));
 }
 
+// verifies: MMIC-MOT-06
 #[test]
 fn reconfiguration_to_every_state_and_back_reaches_the_true_state() {
     let mut h = harness(0, 14);
@@ -324,6 +338,7 @@ fn reconfiguration_to_every_state_and_back_reaches_the_true_state() {
     assert!(!h.sim.truth().fallen);
 }
 
+// verifies: MMIC-FLT-02
 #[test]
 fn fault_fastener_jam_gives_unbolting_failure() {
     let mut h = harness(0, 15);
@@ -368,6 +383,7 @@ fn fault_fastener_jam_gives_unbolting_failure() {
     }
 }
 
+// verifies: MMIC-AB-07
 #[test]
 fn board_b_on_a_jittery_schedule_still_runs_reconfigurations() {
     let mut h = Harness::new(SimConfig {
@@ -384,6 +400,7 @@ fn board_b_on_a_jittery_schedule_still_runs_reconfigurations() {
     assert!(param(&h, pid::B_HB_AGE_MS) <= 100);
 }
 
+// verifies: MMIC-CMD-05
 #[test]
 fn home_after_an_aborted_primitive_contracts_then_grips() {
     let mut h = harness(0, 17);
@@ -404,6 +421,7 @@ fn home_after_an_aborted_primitive_contracts_then_grips() {
     assert_eq!(h.ctrl.computed_state(), Some(0));
 }
 
+// verifies: MMIC-AB-07
 #[test]
 fn cut_cable_does_not_flood_board_b_with_retries() {
     let mut h = harness(0, 18);

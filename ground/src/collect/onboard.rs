@@ -1,0 +1,153 @@
+//! Everything the collector needs to know about the obsw's side of the link, in one
+//! place: how to subscribe and renew the lease, how to ask the on-board store for a
+//! range, how to read the store's end report, how to recognise a reboot.
+//!
+//! The TCs are looked up by MIB name at run time, so the collector uses store retrieval
+//! by sequence-count range (TC[15,128] `STORE_DOWNLINK_SEQ`) when the MIB has it and
+//! falls back to the whole-store downlink otherwise; the archive keeps each packet once
+//! either way.
+
+use mib::tc::TcDef;
+
+use crate::pus::{self, BuiltTc, Tm, TmBody};
+
+use super::tracker::Pos;
+
+/// How often the lease of the downlink subscription is renewed (every accepted TC
+/// renews it; a ping is the cheapest): the MIB's ground heartbeat, well inside the
+/// obsw's `SUBSCRIPTION_LEASE_MS`.
+pub const LEASE_RENEW_MS: i64 = mib::config::GROUND_HEARTBEAT_MS as i64;
+const _: () = assert!(3 * LEASE_RENEW_MS < mib::config::SUBSCRIPTION_LEASE_MS as i64);
+
+/// On-board APID of a robot.
+pub fn apid(robot: u8) -> Option<u16> {
+    mib::apid::robot_apid(robot)
+}
+
+fn def(name: &str) -> Option<&'static TcDef> {
+    mib::tc::by_name(name)
+}
+
+/// The TC that subscribes to (or renews) the downlink: a connection test.
+pub fn subscribe_tc(robot: u8, seq: u16) -> Option<BuiltTc> {
+    pus::build_tc(robot, seq, def("PING")?, &[]).ok()
+}
+
+/// Sets the collection interval of a housekeeping structure.
+pub fn hk_interval_tc(robot: u8, seq: u16, sid: u16, interval_ms: u32) -> Option<BuiltTc> {
+    pus::build_tc(robot, seq, def("HK_SET_INTERVAL")?, &[sid as i64, interval_ms as i64]).ok()
+}
+
+/// Asks the on-board store for the packets of `apid` with sequence counts
+/// `first..=last` (mod 2^14). `true` in the result: a range request; `false`: the MIB
+/// has no range retrieval and the whole store is asked for.
+pub fn store_range_tc(robot: u8, seq: u16, apid: u16, first: u16, last: u16) -> Option<(BuiltTc, bool)> {
+    if let Some(d) = def("STORE_DOWNLINK_SEQ") {
+        return pus::build_tc(robot, seq, d, &[apid as i64, first as i64, last as i64])
+            .ok()
+            .map(|t| (t, true));
+    }
+    let d = def("STORE_DOWNLINK")?;
+    pus::build_tc(robot, seq, d, &[]).ok().map(|t| (t, false))
+}
+
+/// Sequence count and on-board time of a packet whose headers and CRC are good (it
+/// was delivered intact) even if its body does not match the MIB.
+pub fn intact_position(raw: &[u8]) -> Option<(u16, Pos)> {
+    let p = mib_wire::header::TmPacket::parse(raw).ok()?;
+    Some((
+        p.primary.apid,
+        Pos {
+            seq: p.primary.seq_count,
+            obt_ms: pus::CdsShort::from_wire(&p.time).unix_ms(),
+        },
+    ))
+}
+
+/// Whether this TM is the obsw's BOOT event (its sequence counts restart).
+pub fn is_boot(tm: &Tm) -> bool {
+    matches!(&tm.body, TmBody::Event(e) if e.id == mib::events::eid::BOOT)
+}
+
+/// The store's end report TM[15,19].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StoreDone {
+    pub packets: u32,
+    /// The oldest packet still in the store (`None` when the store is empty).
+    pub oldest: Option<Pos>,
+    /// Stored packets overwritten since boot.
+    pub overwritten: u32,
+}
+
+/// The CCSDS epoch (1958-01-01) in Unix ms.
+const CCSDS_EPOCH_UNIX_MS: i64 = -4383 * 86_400_000;
+
+/// Reads a TM[15,19] (`None` for other TM).
+pub fn store_done(tm: &Tm) -> Option<StoreDone> {
+    match &tm.body {
+        TmBody::StoreDownlinkDone {
+            packets,
+            oldest_time,
+            oldest_seq,
+            overwritten,
+        } => Some(StoreDone {
+            packets: *packets,
+            // An empty store reports day 0, ms 0 (the CCSDS epoch) and count 0.
+            oldest: (oldest_time.unix_ms() != CCSDS_EPOCH_UNIX_MS || *oldest_seq > 0).then_some(Pos {
+                seq: *oldest_seq & 0x3FFF,
+                obt_ms: oldest_time.unix_ms(),
+            }),
+            overwritten: *overwritten,
+        }),
+        _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn subscription_and_store_requests_build_from_the_mib() {
+        let t = subscribe_tc(1, 5).unwrap();
+        assert_eq!((t.def.service, t.def.subservice, t.seq), (17, 1, 5));
+        let (t, _) = store_range_tc(1, 6, 0x101, 10, 20).unwrap();
+        assert_eq!(t.def.service, 15);
+        let h = hk_interval_tc(2, 7, 1, 100).unwrap();
+        assert_eq!(h.args, vec![1, 100]);
+    }
+
+    #[test]
+    fn store_end_report_gives_the_oldest_stored_packet() {
+        let t = pus::CdsShort::from_unix_ms(1_000_000);
+        let tm = Tm {
+            apid: 0x101,
+            robot: Some(1),
+            seq: 9,
+            service: 15,
+            subservice: 19,
+            name: "STORE_DOWNLINK_DONE",
+            msg_counter: 0,
+            time: t,
+            len: 0,
+            body: TmBody::StoreDownlinkDone {
+                packets: 7,
+                oldest_time: t,
+                oldest_seq: 42,
+                overwritten: 3,
+            },
+        };
+        let d = store_done(&tm).unwrap();
+        assert_eq!(
+            d,
+            StoreDone {
+                packets: 7,
+                oldest: Some(Pos {
+                    seq: 42,
+                    obt_ms: 1_000_000
+                }),
+                overwritten: 3
+            }
+        );
+    }
+}
