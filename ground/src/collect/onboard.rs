@@ -14,9 +14,10 @@ use crate::pus::{self, BuiltTc, Tm, TmBody};
 use super::tracker::Pos;
 
 /// How often the lease of the downlink subscription is renewed (every accepted TC
-/// renews it; a ping is the cheapest). A third of the obsw's lease, so two renewals
-/// may be lost in a row.
-pub const LEASE_RENEW_MS: i64 = 1_000;
+/// renews it; a ping is the cheapest): the MIB's ground heartbeat, well inside the
+/// obsw's `SUBSCRIPTION_LEASE_MS`.
+pub const LEASE_RENEW_MS: i64 = mib::config::GROUND_HEARTBEAT_MS as i64;
+const _: () = assert!(3 * LEASE_RENEW_MS < mib::config::SUBSCRIPTION_LEASE_MS as i64);
 
 /// On-board APID of a robot.
 pub fn apid(robot: u8) -> Option<u16> {
@@ -50,56 +51,56 @@ pub fn store_range_tc(robot: u8, seq: u16, apid: u16, first: u16, last: u16) -> 
     pus::build_tc(robot, seq, d, &[]).ok().map(|t| (t, false))
 }
 
+/// Sequence count and on-board time of a packet whose headers and CRC are good (it
+/// was delivered intact) even if its body does not match the MIB.
+pub fn intact_position(raw: &[u8]) -> Option<(u16, Pos)> {
+    let p = mib_wire::header::TmPacket::parse(raw).ok()?;
+    Some((
+        p.primary.apid,
+        Pos {
+            seq: p.primary.seq_count,
+            obt_ms: pus::CdsShort::from_wire(&p.time).unix_ms(),
+        },
+    ))
+}
+
 /// Whether this TM is the obsw's BOOT event (its sequence counts restart).
 pub fn is_boot(tm: &Tm) -> bool {
     matches!(&tm.body, TmBody::Event(e) if e.id == mib::events::eid::BOOT)
 }
 
-/// The store's end report TM[15,19]: packets sent and, when the MIB's layout has them,
-/// the oldest packet still stored.
+/// The store's end report TM[15,19].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct StoreDone {
-    pub packets: Option<i64>,
+    pub packets: u32,
+    /// The oldest packet still in the store (`None` when the store is empty).
     pub oldest: Option<Pos>,
-    pub overwritten: Option<i64>,
+    /// Stored packets overwritten since boot.
+    pub overwritten: u32,
 }
 
-/// Reads a TM[15,19] from its raw bytes with the MIB's layout (`None` for other TM).
-pub fn store_done(tm: &Tm, raw: &[u8]) -> Option<StoreDone> {
-    if (tm.service, tm.subservice) != (15, 19) {
-        return None;
-    }
-    let layout = mib::tc::TMS
-        .iter()
-        .find(|t| t.service == 15 && t.subservice == 19)?
-        .layout;
-    let start = pus::PRIMARY_HEADER_LEN + pus::TM_SEC_HEADER_LEN + mib::config::TIMESTAMP_LEN;
-    let data = raw.get(start..raw.len().checked_sub(pus::CRC_LEN)?)?;
-    let f = pus::decode_layout(layout, data);
-    let get = |n: &str| f.iter().find(|x| x.name == n).map(|x| x.value);
-    let oldest = match (get("oldest_seq"), get("oldest_days"), get("oldest_ms"), get("packets")) {
-        (Some(seq), Some(days), Some(ms), Some(p)) if p > 0 || days > 0 || ms > 0 => Some(Pos {
-            seq: (seq & 0x3FFF) as u16,
-            obt_ms: cds_unix_ms(days, ms),
+/// The CCSDS epoch (1958-01-01) in Unix ms.
+const CCSDS_EPOCH_UNIX_MS: i64 = -4383 * 86_400_000;
+
+/// Reads a TM[15,19] (`None` for other TM).
+pub fn store_done(tm: &Tm) -> Option<StoreDone> {
+    match &tm.body {
+        TmBody::StoreDownlinkDone {
+            packets,
+            oldest_time,
+            oldest_seq,
+            overwritten,
+        } => Some(StoreDone {
+            packets: *packets,
+            // An empty store reports day 0, ms 0 (the CCSDS epoch) and count 0.
+            oldest: (oldest_time.unix_ms() != CCSDS_EPOCH_UNIX_MS || *oldest_seq > 0).then_some(Pos {
+                seq: *oldest_seq & 0x3FFF,
+                obt_ms: oldest_time.unix_ms(),
+            }),
+            overwritten: *overwritten,
         }),
         _ => None,
-    };
-    Some(StoreDone {
-        packets: get("packets"),
-        oldest,
-        overwritten: get("overwritten"),
-    })
-}
-
-fn cds_unix_ms(days: i64, ms: i64) -> i64 {
-    let bytes = {
-        let mut b = [0u8; mib::config::TIMESTAMP_LEN];
-        b[0] = pus::CDS_PFIELD;
-        b[1..3].copy_from_slice(&(days as u16).to_be_bytes());
-        b[3..7].copy_from_slice(&(ms as u32).to_be_bytes());
-        b
-    };
-    pus::CdsShort::parse(&bytes).map_or(0, |t| t.unix_ms())
+    }
 }
 
 #[cfg(test)]
@@ -117,34 +118,36 @@ mod tests {
     }
 
     #[test]
-    fn store_end_report_is_read_with_the_mib_layout() {
-        let ts = pus::CdsShort::from_unix_ms(1_000_000).to_bytes();
-        let layout = mib::tc::TMS
-            .iter()
-            .find(|t| t.service == 15 && t.subservice == 19)
-            .unwrap()
-            .layout;
-        // packets u32 first in every version of the layout.
-        let mut data = vec![0, 0, 0, 7];
-        if layout.contains("oldest_seq") {
-            data.extend_from_slice(&ts[1..3]);
-            data.extend_from_slice(&ts[3..7]);
-            data.extend_from_slice(&42u16.to_be_bytes());
-            data.extend_from_slice(&3u32.to_be_bytes());
-        }
-        let raw = pus::build_tm(0x101, 9, 15, 19, 0, &ts, &data);
-        let tm = pus::decode_tm(&raw).unwrap();
-        let d = store_done(&tm, &raw).unwrap();
-        assert_eq!(d.packets, Some(7));
-        if layout.contains("oldest_seq") {
-            assert_eq!(
-                d.oldest,
-                Some(Pos {
+    fn store_end_report_gives_the_oldest_stored_packet() {
+        let t = pus::CdsShort::from_unix_ms(1_000_000);
+        let tm = Tm {
+            apid: 0x101,
+            robot: Some(1),
+            seq: 9,
+            service: 15,
+            subservice: 19,
+            name: "STORE_DOWNLINK_DONE",
+            msg_counter: 0,
+            time: t,
+            len: 0,
+            body: TmBody::StoreDownlinkDone {
+                packets: 7,
+                oldest_time: t,
+                oldest_seq: 42,
+                overwritten: 3,
+            },
+        };
+        let d = store_done(&tm).unwrap();
+        assert_eq!(
+            d,
+            StoreDone {
+                packets: 7,
+                oldest: Some(Pos {
                     seq: 42,
                     obt_ms: 1_000_000
-                })
-            );
-            assert_eq!(d.overwritten, Some(3));
-        }
+                }),
+                overwritten: 3
+            }
+        );
     }
 }
