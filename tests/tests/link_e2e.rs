@@ -201,6 +201,8 @@ fn checkout_through(faults: Faults, seed: u64) -> Duration {
         }
     }
     assert!(missing.is_empty(), "seed {seed}: not archived: {missing:?}\n{t}");
+    // Kept only when a check fails (for a look at the archive and the obsw's log).
+    let _ = std::fs::remove_dir_all(&dir);
     took
 }
 
@@ -400,6 +402,8 @@ fn a_killed_obsw_is_reported_fast_and_the_run_resumes() {
         })
         .unwrap();
     assert_eq!(resent, 1, "hk-fast sent in one run only");
+    drop(c);
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// A TCP frame longer than any packet gets TM[1,2] FRAME_TOO_LONG for the request ID its
