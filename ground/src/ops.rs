@@ -417,6 +417,8 @@ pub struct Session {
     pub max_resends: u32,
     /// Report a robot's link as lost after this long without TM (`None`: never).
     pub link_loss: Option<Duration>,
+    /// When each robot last got a new TC (not a resend).
+    last_new_tc: HashMap<u8, Instant>,
 }
 
 impl Session {
@@ -456,6 +458,7 @@ impl Session {
             ack_timeout: Duration::from_millis(TC_RETRY_INITIAL_MS as u64),
             max_resends: TC_RETRY_MAX,
             link_loss: None,
+            last_new_tc: HashMap::new(),
         })
     }
 
@@ -493,6 +496,7 @@ impl Session {
         pus::build_tc(robot, 0, def, args)?;
         let tc = pus::build_tc(robot, self.seq.next(apid), def, args)?;
         link.send(&tc.bytes).map_err(|err| OpsError::Send { robot, err })?;
+        self.last_new_tc.insert(robot, Instant::now());
         if let Some(a) = &self.archive {
             a.send(Record::Tc {
                 t_ms: now_ms(),
@@ -611,6 +615,12 @@ impl Session {
         }
     }
 
+    /// True if `robot` got a new TC within `period` (its answers check the link as a
+    /// heartbeat would).
+    pub fn sent_within(&self, robot: u8, period: Duration) -> bool {
+        self.last_new_tc.get(&robot).is_some_and(|t| t.elapsed() < period)
+    }
+
     /// True while a store retrieval of `robot` is waiting for its outcome.
     pub fn retrieving(&self, robot: u8) -> bool {
         self.pending
@@ -621,7 +631,7 @@ impl Session {
     /// Asks `robot`'s on-board store for every missing TM at or before `cutoff` (all
     /// missing if `None`), by APID and sequence range (TC[15,128]); at most
     /// `GAP_REQUESTS_MAX` ranges at a time. Returns the ranges asked for.
-    pub fn request_gaps(&mut self, robot: u8, cutoff: Option<u16>) -> Vec<(u16, u16)> {
+    pub fn request_gaps(&mut self, robot: u8, cutoff: Option<u16>, max_ranges: usize) -> Vec<(u16, u16)> {
         let Some(st) = self.robots.get(&robot) else {
             return Vec::new();
         };
@@ -640,7 +650,7 @@ impl Session {
                 _ => merged.push((a, b)),
             }
         }
-        let ranges: Vec<(u16, u16)> = merged.into_iter().take(GAP_REQUESTS_MAX).collect();
+        let ranges: Vec<(u16, u16)> = merged.into_iter().take(max_ranges.min(GAP_REQUESTS_MAX)).collect();
         for &(a, b) in &ranges {
             let args = [apid as i64, a as i64, b as i64];
             // A failed send shows as a retrieval without result: asked again later.
@@ -1635,12 +1645,18 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, done: &[u
                 }
                 Effect::Forget(tc) => session.forget(&tc),
                 Effect::Heartbeat(r) => {
-                    // A failed send shows as silence: the link-loss check reports it.
-                    let _ = session.send_heartbeat(r);
+                    // Not when another TC just went out: every TC enters the OBSW's
+                    // duplicate window, which must keep the plan's TCs for their whole
+                    // retry span. A failed send shows as silence: the link-loss check
+                    // reports it.
+                    let period = opts.ping_period.unwrap_or_default();
+                    if !session.sent_within(r, period) {
+                        let _ = session.send_heartbeat(r);
+                    }
                 }
                 Effect::Retrieve(r) => {
                     if !session.retrieving(r) {
-                        session.request_gaps(r, None);
+                        session.request_gaps(r, None, 1);
                     }
                 }
                 Effect::Log(line) => disp.log(line),
@@ -1664,7 +1680,9 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, done: &[u
             for &r in &robots {
                 let lost = session.robots.get(&r).is_some_and(|s| s.lost.is_some());
                 if !lost && !session.retrieving(r) {
-                    session.request_gaps(r, None);
+                    // One range per period while plan TCs may still be resent (the
+                    // duplicate window holds a bounded number of TCs); the rest at the end.
+                    session.request_gaps(r, None, 1);
                 }
             }
         }
@@ -1841,7 +1859,7 @@ fn complete_tm(session: &mut Session, robots: &[u8], disp: &Display) -> Vec<TmCo
             while t0.elapsed() < limit && session.retrieving(r) {
                 session.poll(Duration::from_millis(50));
             }
-            let asked = session.request_gaps(r, Some(cut));
+            let asked = session.request_gaps(r, Some(cut), GAP_REQUESTS_MAX);
             if asked.is_empty() {
                 break;
             }

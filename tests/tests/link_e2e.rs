@@ -201,6 +201,8 @@ fn checkout_through(faults: Faults, seed: u64) -> Duration {
         }
     }
     assert!(missing.is_empty(), "seed {seed}: not archived: {missing:?}\n{t}");
+    // Kept only when a check fails (for a look at the archive and the obsw's log).
+    let _ = std::fs::remove_dir_all(&dir);
     took
 }
 
@@ -400,6 +402,8 @@ fn a_killed_obsw_is_reported_fast_and_the_run_resumes() {
         })
         .unwrap();
     assert_eq!(resent, 1, "hk-fast sent in one run only");
+    drop(c);
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// A TCP frame longer than any packet gets TM[1,2] FRAME_TOO_LONG for the request ID its
@@ -419,4 +423,28 @@ fn an_oversize_tcp_frame_is_refused_with_its_own_code() {
     assert_eq!(t.failure_code(), Some(F::FRAME_TOO_LONG.code()));
     let raw = c.send("PING", &[]);
     assert_eq!(c.wait_done(&raw, Duration::from_secs(5)).map(|t| t.subservice), Some(7));
+}
+
+/// Over TCP the end of the connection is the loss: reported at once.
+#[test]
+fn a_killed_obsw_over_tcp_is_reported_at_the_connection_end() {
+    let mut o = Obsw::start(&[]);
+    let plan = plan_path("checkout.toml");
+    let child = Command::new(bin("ground"))
+        .args(["--no-archive", "run"])
+        .arg(&plan)
+        .args(["--tcp", "--robot", &format!("1={}", o.tcp), "--plain"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_secs(4));
+    o.kill9();
+    let killed = Instant::now();
+    let out = child.wait_with_output().unwrap();
+    let after = killed.elapsed();
+    let t = text(&out);
+    assert_eq!(out.status.code(), Some(5), "{t}");
+    assert!(t.contains("closed the TCP connection"), "{t}");
+    assert!(after < Duration::from_millis(1500), "reported after {after:?}");
 }
