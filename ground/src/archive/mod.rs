@@ -83,6 +83,8 @@ pub struct ArchiveStats {
     pub hk_rows: u64,
     pub transactions: u64,
     pub max_queue: usize,
+    /// Why the final WAL checkpoint did not run (SQLite), if it did not.
+    pub checkpoint_error: Option<String>,
 }
 
 #[derive(Debug)]
@@ -235,6 +237,13 @@ fn writer(mut db: Box<dyn Db>, rx: Receiver<Record>) -> Result<ArchiveStats, Arc
         }
         ingest.write_batch(db.as_mut(), &batch)?;
         batch.clear();
+    }
+    if db.dialect() == db::Dialect::Sqlite {
+        // Fold the WAL into the database file so it does not stay on disk beside it. A
+        // reader holding the WAL open makes this a no-op, which is harmless.
+        if let Err(e) = db.batch("PRAGMA wal_checkpoint(TRUNCATE)") {
+            ingest.stats.checkpoint_error = Some(e.to_string());
+        }
     }
     Ok(ingest.stats)
 }

@@ -36,6 +36,10 @@ impl Sqlite {
     pub fn open(path: &Path) -> DbResult<Sqlite> {
         let conn = Connection::open(path).map_err(err)?;
         conn.busy_timeout(std::time::Duration::from_secs(10)).map_err(err)?;
+        // 16 KiB pages: a parameter chunk (up to ~2 KB) then fits in its B-tree page
+        // instead of spilling into a mostly empty overflow page (2.9x -> under 2x the raw
+        // bytes). Only takes effect when the file is created (before WAL mode).
+        conn.pragma_update(None, "page_size", 16384).map_err(err)?;
         conn.pragma_update(None, "journal_mode", "WAL").map_err(err)?;
         conn.pragma_update(None, "synchronous", "NORMAL").map_err(err)?;
         conn.set_prepared_statement_cache_capacity(64);
