@@ -4,14 +4,15 @@
 # initdb in DIR, listens only on a Unix socket in DIR (no TCP port), and stops the
 # server and deletes DIR on `stop` — or by itself once process OWNER_PID has exited.
 #
+#   scripts/postgres-test.sh install                 only installs (CI set-up step)
 #   scripts/postgres-test.sh start DIR [OWNER_PID]   prints the URL of database "postgres"
 #   scripts/postgres-test.sh stop DIR
 #
 # initdb refuses to run as root: as root the server runs as the `postgres` user that the
 # Debian package creates.
 set -euo pipefail
-cmd=${1:?usage: postgres-test.sh start|stop DIR [OWNER_PID]}
-dir=${2:?usage: postgres-test.sh start|stop DIR [OWNER_PID]}
+cmd=${1:?usage: postgres-test.sh install | start|stop DIR [OWNER_PID]}
+if [ "$cmd" = install ]; then dir=; else dir=${2:?usage: postgres-test.sh start|stop DIR [OWNER_PID]}; fi
 
 find_bin() {
     local d
@@ -35,6 +36,9 @@ AS=()
 if [ "$(id -u)" = 0 ]; then AS=(runuser -u postgres --); fi
 
 case "$cmd" in
+install)
+    echo "PostgreSQL server binaries: $BIN"
+    ;;
 start)
     mkdir -p "$dir"
     if [ "$(id -u)" = 0 ]; then chown postgres "$dir"; fi
@@ -57,7 +61,7 @@ stop)
     rm -rf "$dir"
     ;;
 *)
-    echo "usage: postgres-test.sh start|stop DIR [OWNER_PID]" >&2
+    echo "usage: postgres-test.sh install | start|stop DIR [OWNER_PID]" >&2
     exit 2
     ;;
 esac
