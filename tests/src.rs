@@ -1,6 +1,8 @@
 //! Harness for the end-to-end tests in `tests/tests/`: starts the real `obsw` binary on
 //! free loopback ports and talks PUS to it over UDP or TCP.
 
+pub mod relay;
+
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpStream, UdpSocket};
 use std::path::PathBuf;
@@ -239,6 +241,13 @@ impl Client {
         let raw = tc_named(self.apid, seq, name, args);
         self.send_raw(&raw);
         raw
+    }
+    /// Subscribes to the downlink (UDP: TM goes only to grounds whose TC was accepted)
+    /// with a ping, and waits for its completion.
+    pub fn subscribe(&mut self) {
+        let raw = self.send("PING", &[]);
+        self.wait_done(&raw, Duration::from_secs(5))
+            .expect("ping answered: subscribed to the downlink");
     }
     /// Receives TM for up to `timeout`, appending to the log; returns what arrived.
     pub fn recv_for(&mut self, timeout: Duration) -> Vec<Tm> {

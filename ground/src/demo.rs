@@ -202,7 +202,7 @@ pub fn demo(a: &DemoArgs, archive_path: Option<&Path>) -> Result<u8> {
         display: !a.plain && std::io::IsTerminal::is_terminal(&std::io::stderr()),
         ..RunOptions::default()
     };
-    let summary = ops::run_plan(&pl, &mut session, &opts);
+    let summary = ops::run_plan(&pl, &mut session, &opts, &[]);
     drop(session);
     drop(procs);
     let stats = match arch {

@@ -1,7 +1,10 @@
 //! MMIC-I ground tool library: PUS packets, plans, links, the archive and live
 //! operations. The `ground` binary is a thin CLI over these modules.
 
+pub mod alarms;
 pub mod archive;
+pub mod collect;
+pub mod dashboard;
 pub mod link;
 pub mod ops;
 pub mod plan;

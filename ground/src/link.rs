@@ -41,6 +41,8 @@ pub struct Link {
     pub addr: SocketAddr,
     io: Arc<Io>,
     stop: Arc<AtomicBool>,
+    /// Set by the reader when a TCP connection ends (EOF or error).
+    closed: Arc<AtomicBool>,
     reader: Option<JoinHandle<()>>,
 }
 
@@ -104,6 +106,7 @@ impl CobsSplitter {
 impl Link {
     pub fn open(robot: u8, addr: SocketAddr, transport: Transport, tx: Sender<Incoming>) -> io::Result<Link> {
         let stop = Arc::new(AtomicBool::new(false));
+        let closed = Arc::new(AtomicBool::new(false));
         let io = match transport {
             Transport::Udp => {
                 let bind: SocketAddr = if addr.ip().is_loopback() {
@@ -129,21 +132,33 @@ impl Link {
         let reader = {
             let io = io.clone();
             let stop = stop.clone();
+            let closed = closed.clone();
             let reader_stream = match &*io {
                 Io::Tcp(m) => Some(m.lock().map_err(|_| io::Error::other("lock"))?.try_clone()?),
                 Io::Udp(_) => None,
             };
             std::thread::Builder::new()
                 .name(format!("link-{robot}"))
-                .spawn(move || reader_loop(robot, &io, reader_stream, &stop, &tx))?
+                .spawn(move || {
+                    reader_loop(robot, &io, reader_stream, &stop, &tx);
+                    if !stop.load(Ordering::Relaxed) {
+                        closed.store(true, Ordering::Relaxed);
+                    }
+                })?
         };
         Ok(Link {
             robot,
             addr,
             io,
             stop,
+            closed,
             reader: Some(reader),
         })
+    }
+
+    /// True once a TCP connection ended (the peer closed it or it failed).
+    pub fn closed(&self) -> bool {
+        self.closed.load(Ordering::Relaxed)
     }
 
     /// Sends one packet.
@@ -226,6 +241,7 @@ fn reader_loop(robot: u8, io: &Io, tcp: Option<TcpStream>, stop: &AtomicBool, tx
 mod tests {
     use super::*;
 
+    // verifies: DD-LINK-01
     #[test]
     fn cobs_frames_round_trip_across_partial_reads() {
         let p1 = vec![0x19, 0x01, 0x00, 0x05, 0x00, 0x00, 0x07];
@@ -243,6 +259,7 @@ mod tests {
         assert_eq!(got, vec![p1, p2]);
     }
 
+    // verifies: DD-LINK-01
     #[test]
     fn datagram_with_two_packets_splits() {
         let t = [0x40, 0, 1, 0, 0, 0, 0];

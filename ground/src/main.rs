@@ -16,7 +16,7 @@ use ground::archive::{self, Archive, Filter, Kind};
 use ground::link::Transport;
 use ground::ops::{self, RunOptions, Session, Update};
 use ground::plan;
-use ground::pus::{self, Packet, Stage, StreamDecoder, StreamItem, StreamStats, TmBody};
+use ground::pus::{self, Packet, Stage, TmBody};
 
 mod demo;
 mod plot;
@@ -85,6 +85,11 @@ enum Cmd {
     Mib(MibCmd),
     /// Start two simulated robots, run the demo plan and summarise.
     Demo(demo::DemoArgs),
+    /// Follow robots unattended: archive everything, fill gaps, raise alarms.
+    Collect(ground::collect::CollectArgs),
+    /// List, acknowledge or shelve the collector's alarms.
+    #[command(subcommand)]
+    Alarms(ground::collect::AlarmsCmd),
 }
 
 #[derive(Subcommand, Debug)]
@@ -180,7 +185,7 @@ struct RunArgs {
     /// Longest a step may take (seconds) unless the step sets `timeout`.
     #[arg(long, default_value_t = 120.0)]
     step_timeout: f64,
-    /// No connection tests while robots are idle.
+    /// No heartbeat connection tests (and so no link-loss watch).
     #[arg(long)]
     no_ping: bool,
     /// Plain log lines instead of the live display.
@@ -189,6 +194,10 @@ struct RunArgs {
     /// Print the summary as JSON.
     #[arg(long)]
     json: bool,
+    /// Continue an interrupted run: steps whose TC the archive shows completed are not
+    /// sent again.
+    #[arg(long)]
+    resume: bool,
 }
 
 #[derive(Args, Debug)]
@@ -488,6 +497,8 @@ fn run(cli: Cli) -> Result<u8> {
         Cmd::Archive(a) => archive_cmd(a, &cli.archive),
         Cmd::Mib(MibCmd::Export { format, out: dir }) => mib_export(&format, &dir),
         Cmd::Demo(a) => demo::demo(&a, archive_path.as_deref()),
+        Cmd::Collect(a) => ground::collect::collect_cli(&cli.archive, a),
+        Cmd::Alarms(a) => ground::collect::alarms_cli(&cli.archive, a),
     }
 }
 
@@ -545,6 +556,7 @@ fn plan_encode(path: &Path, dir: &Path) -> Result<u8> {
 }
 
 fn decode(a: &DecodeArgs) -> Result<u8> {
+    use ground::pus::out::{Format, RawItem, RawStream, Writer};
     let data = if a.file.as_os_str() == "-" {
         let mut v = Vec::new();
         std::io::Read::read_to_end(&mut std::io::stdin(), &mut v)?;
@@ -552,52 +564,50 @@ fn decode(a: &DecodeArgs) -> Result<u8> {
     } else {
         std::fs::read(&a.file).with_context(|| format!("cannot read {}", a.file.display()))?
     };
-    let mut st = StreamStats::default();
+    // Counters: packets by type, bodies that do not follow the MIB (undefined kind or
+    // wrong structure), corrupt stretches.
+    let (mut tc, mut tm, mut bad_body, mut stretches, mut corrupt_bytes) = (0u64, 0u64, 0u64, 0u64, 0u64);
     let t0 = Instant::now();
-    let mut o = std::io::BufWriter::new(std::io::stdout().lock());
-    for item in StreamDecoder::new(&data) {
-        st.add(&item);
-        if a.summary {
-            continue;
-        }
+    let mut o = std::io::stdout().lock();
+    let mut w = Writer::new(if a.json { Format::Json } else { Format::Text });
+    for item in RawStream::new(&data) {
         match &item {
-            StreamItem::Packet { offset, packet } => {
-                if a.json {
-                    let mut v = serde_json::to_value(packet)?;
-                    v["offset"] = (*offset).into();
-                    writeln!(o, "{v}")?;
+            RawItem::Tm { offset, packet } => {
+                tm += 1;
+                if a.summary {
+                    bad_body += u64::from(pus::decode_tm(&data[*offset..*offset + packet.primary.len]).is_err());
                 } else {
-                    writeln!(o, "{offset:8} {}", pus::describe(packet))?;
+                    bad_body += u64::from(w.tm(*offset, packet).is_err());
                 }
             }
-            StreamItem::Corrupt { offset, len, reason } => {
-                if a.json {
-                    writeln!(
-                        o,
-                        "{}",
-                        serde_json::json!({"type": "corrupt", "offset": offset, "len": len, "reason": reason.to_string()})
-                    )?;
+            RawItem::Tc { offset, packet } => {
+                tc += 1;
+                if a.summary {
+                    bad_body += u64::from(pus::decode_tc(&data[*offset..*offset + packet.primary.len]).is_err());
                 } else {
-                    writeln!(o, "{offset:8} CORRUPT {len} bytes skipped: {reason}")?;
+                    bad_body += u64::from(w.tc(*offset, packet).is_err());
+                }
+            }
+            RawItem::Corrupt { offset, len, reason } => {
+                stretches += 1;
+                corrupt_bytes += *len as u64;
+                if !a.summary {
+                    w.corrupt(*offset, *len, reason);
                 }
             }
         }
+        w.flush_if_full(&mut o)?;
     }
+    w.flush(&mut o)?;
     o.flush()?;
     drop(o);
     let secs = t0.elapsed().as_secs_f64();
-    let n = st.tc + st.tm;
+    let n = tc + tm;
     eprintln!(
-        "{} packets ({} TC, {} TM), {} of undefined type, {} corrupt stretches ({} bytes); {:.0} packets/s",
-        n,
-        st.tc,
-        st.tm,
-        st.unknown,
-        st.corrupt_stretches,
-        st.corrupt_bytes,
+        "{n} packets ({tc} TC, {tm} TM), {bad_body} with a body not matching the MIB, {stretches} corrupt stretches ({corrupt_bytes} bytes); {:.0} packets/s",
         if secs > 0.0 { n as f64 / secs } else { 0.0 }
     );
-    Ok(if a.strict && st.corrupt_bytes > 0 {
+    Ok(if a.strict && (corrupt_bytes > 0 || bad_body > 0) {
         exit::INVALID
     } else {
         exit::OK
@@ -642,10 +652,16 @@ fn run_plan(a: &RunArgs, archive_path: Option<&Path>) -> Result<u8> {
     let (mut session, arch) = open_session(&links, a.links.transport(), archive_path)?;
     let opts = RunOptions {
         step_timeout: Duration::from_secs_f64(a.step_timeout),
-        ping_period: (!a.no_ping).then(|| Duration::from_millis(mib::config::GROUND_PING_PERIOD_MS as u64)),
+        ping_period: (!a.no_ping).then(|| Duration::from_millis(mib::config::GROUND_HEARTBEAT_MS as u64)),
         display: !a.plain && std::io::IsTerminal::is_terminal(&std::io::stderr()),
     };
-    let summary = ops::run_plan(&pl, &mut session, &opts);
+    let done = if a.resume {
+        let p = archive_path.ok_or_else(|| coded(exit::INVALID, "--resume needs the archive (drop --no-archive)"))?;
+        completed_steps(p, &pl)?
+    } else {
+        Vec::new()
+    };
+    let summary = ops::run_plan(&pl, &mut session, &opts, &done);
     drop(session);
     close_archive(arch)?;
     if a.json {
@@ -656,7 +672,49 @@ fn run_plan(a: &RunArgs, archive_path: Option<&Path>) -> Result<u8> {
             out(&format!("archive: {}", p.display()))?;
         }
     }
-    Ok(if summary.success() { exit::OK } else { exit::FAILED })
+    Ok(if !summary.link_lost.is_empty() {
+        exit::NO_ANSWER
+    } else if summary.success() {
+        exit::OK
+    } else {
+        exit::FAILED
+    })
+}
+
+/// Steps of `pl` whose TC the archive shows completed (TM[1,7] for its request ID after
+/// it was sent), for `run --resume`.
+fn completed_steps(path: &Path, pl: &plan::Plan) -> Result<Vec<usize>> {
+    if !path.exists() {
+        return Err(coded(
+            exit::INVALID,
+            format!("--resume: archive {} does not exist", path.display()),
+        ));
+    }
+    let c = rusqlite::Connection::open_with_flags(path, rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY)
+        .with_context(|| format!("--resume: opening archive {}", path.display()))?;
+    let mut q = c
+        .prepare(
+            "SELECT 1 FROM tc JOIN verification v ON v.req_apid = tc.apid AND v.req_seq = tc.seq
+             WHERE tc.step = ?1 AND tc.robot = ?2 AND tc.name = ?3 AND v.stage = 'completion'
+               AND v.success = 1 AND v.t_ms >= tc.t_ms LIMIT 1",
+        )
+        .context("--resume: reading the archive")?;
+    let mut done = Vec::new();
+    for (i, s) in pl.steps.iter().enumerate() {
+        let Some((def, _)) = s.action.tc() else { continue };
+        if q.exists(rusqlite::params![s.id, s.robot, def.name])
+            .context("--resume: reading the archive")?
+        {
+            done.push(i);
+        }
+    }
+    // A wait step between completed steps is done too.
+    for (i, s) in pl.steps.iter().enumerate() {
+        if s.action.tc().is_none() && pl.dependents(i).iter().any(|d| done.contains(d)) {
+            done.push(i);
+        }
+    }
+    Ok(done)
 }
 
 fn ping(a: &PingArgs, archive_path: Option<&Path>) -> Result<u8> {
@@ -772,6 +830,8 @@ fn send_and_follow(
     wait: bool,
     timeout: Duration,
 ) -> Result<u8> {
+    // A dead OBSW or link is reported within LINK_LOSS_MS, not after every resend.
+    s.watch_links();
     let tc = s.send(robot, def, args, Some(0), None)?;
     out(&format!(
         "robot {robot}: sent {} seq {} ({} bytes)",
@@ -808,13 +868,24 @@ fn send_and_follow(
                         return Ok(exit::OK);
                     }
                 }
-                Update::Resent { send, .. } => out(&format!("robot {robot}: no acceptance yet, resent (send {send})"))?,
-                Update::GaveUp { sends, .. } => {
+                Update::Resent { send, .. } => out(&format!(
+                    "robot {robot}: no {} yet, resent the same bytes (send {send})",
+                    if accepted { "completion" } else { "acceptance" }
+                ))?,
+                Update::DamagedCopy { .. } => out(&format!(
+                    "robot {robot}: a copy arrived damaged (TM[1,2] CRC), resent the same bytes"
+                ))?,
+                Update::GaveUp { sends, accepted, .. } => {
                     return Err(coded(
                         exit::NO_ANSWER,
-                        format!("robot {robot}: no acceptance after {sends} sends"),
+                        if accepted {
+                            format!("robot {robot}: accepted, but no completion or failure report after {sends} sends: outcome unknown")
+                        } else {
+                            format!("robot {robot}: no acceptance after {sends} sends")
+                        },
                     ))
                 }
+                Update::LinkLost { why, .. } => return Err(coded(exit::NO_ANSWER, why)),
                 Update::Event { robot: r, event } if r == robot => out(&format!("robot {robot}: event {event}"))?,
                 _ => {}
             }

@@ -1,15 +1,20 @@
 //! Live operations: a [`Session`] holds the links to several robots, sends TCs with
-//! per-APID sequence counts, tracks PUS 1 verification per TC, resends a TC that was
-//! not accepted in time (same sequence count, so the OBSW suppresses the duplicate),
-//! archives everything and keeps each robot's status (mode, state, battery, link
-//! quality). [`run_plan`] executes a plan on top of it.
+//! per-APID sequence counts, tracks PUS 1 verification per TC, resends a TC until its
+//! completion or failure report arrives (identical bytes, same sequence count, so the
+//! OBSW's duplicate window answers again instead of executing twice; waits from
+//! `mib::config::tc_retry_wait_ms`), follows the sequence count of every APID (duplicates
+//! dropped, gaps listed), notices a lost link within `LINK_LOSS_MS`, archives everything
+//! and keeps each robot's status (mode, state, battery, link quality). [`run_plan`]
+//! executes a plan on top of it.
 
 use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
 use crossbeam_channel::Receiver;
-use mib::config::{GROUND_ACK_TIMEOUT_MS, GROUND_MAX_RESENDS, GROUND_PING_PERIOD_MS, LINK_QUALITY_WINDOW};
+use mib::config::{
+    tc_retry_wait_ms, GROUND_HEARTBEAT_MS, LINK_LOSS_MS, LINK_QUALITY_WINDOW, TC_RETRY_INITIAL_MS, TC_RETRY_MAX,
+};
 use mib::events::eid;
 use mib::params::pid;
 use mib::tc::TcDef;
@@ -37,6 +42,16 @@ pub struct RobotStatus {
     /// Outcome of the last exchanges (TC sent → acceptance within the timeout).
     pub quality: VecDeque<bool>,
     pub last_tm: Option<Instant>,
+    /// APID of the last TM with another robot's APID on this link.
+    pub foreign_apid: Option<u16>,
+    /// TM packets received again (same APID and sequence count): dropped, counted.
+    pub duplicates: u64,
+    /// Sequence-count tracking of this robot's APID.
+    pub seq: SeqTrack,
+    /// Why the link counts as lost (latched).
+    pub lost: Option<String>,
+    /// Since when the link is watched (for link loss before any TM).
+    pub since: Instant,
 }
 
 impl RobotStatus {
@@ -53,6 +68,11 @@ impl RobotStatus {
             foreign: 0,
             quality: VecDeque::with_capacity(LINK_QUALITY_WINDOW),
             last_tm: None,
+            foreign_apid: None,
+            duplicates: 0,
+            seq: SeqTrack::default(),
+            lost: None,
+            since: Instant::now(),
         }
     }
     fn exchange(&mut self, ok: bool) {
@@ -95,6 +115,111 @@ impl RobotStatus {
     }
 }
 
+/// Sequence counts (14 bits) of one APID as they arrive: which were seen recently, which
+/// are missing. Bounded: at most `SEQ_TRACK_WINDOW` counts behind the newest are
+/// remembered; a gap older than that counts as unrecoverable.
+#[derive(Clone, Debug, Default)]
+pub struct SeqTrack {
+    newest: Option<u16>,
+    /// Missing counts (oldest first).
+    pub missing: std::collections::BTreeSet<u16>,
+    /// Recently received counts, to recognise duplicates.
+    recent: VecDeque<u16>,
+    recent_set: std::collections::HashSet<u16>,
+    /// Missing counts given up because they fell out of the window.
+    pub expired: u64,
+    /// Missing counts that arrived later (late or replayed).
+    pub filled: u64,
+}
+
+/// Sequence counts remembered behind the newest one.
+pub const SEQ_TRACK_WINDOW: u16 = 4096;
+const SEQ_MOD: u16 = 0x4000;
+
+/// What a sequence count was.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SeqKind {
+    /// The next one, or ahead (the counts in between are now missing).
+    New,
+    /// A missing count that arrived after all.
+    Filled,
+    /// Seen before.
+    Duplicate,
+}
+
+impl SeqTrack {
+    fn remember(&mut self, seq: u16) {
+        if self.recent_set.insert(seq) {
+            self.recent.push_back(seq);
+            if self.recent.len() > SEQ_TRACK_WINDOW as usize {
+                if let Some(old) = self.recent.pop_front() {
+                    self.recent_set.remove(&old);
+                }
+            }
+        }
+    }
+
+    /// Takes one received sequence count.
+    pub fn on_seq(&mut self, seq: u16) -> SeqKind {
+        let seq = seq % SEQ_MOD;
+        let Some(newest) = self.newest else {
+            self.newest = Some(seq);
+            self.remember(seq);
+            return SeqKind::New;
+        };
+        let ahead = seq.wrapping_sub(newest) % SEQ_MOD;
+        if ahead != 0 && ahead < SEQ_MOD / 2 {
+            // Ahead: everything in between is missing (a jump beyond the window, e.g. an
+            // obsw restart, is not a gap to fill but counted as expired).
+            if ahead > SEQ_TRACK_WINDOW {
+                self.expired += (ahead - 1) as u64;
+            } else {
+                for k in 1..ahead {
+                    self.missing.insert((newest + k) % SEQ_MOD);
+                }
+            }
+            self.newest = Some(seq);
+            self.remember(seq);
+            // Forget gaps that fell out of the window.
+            let behind = |m: u16| seq.wrapping_sub(m) % SEQ_MOD;
+            let old: Vec<u16> = self
+                .missing
+                .iter()
+                .copied()
+                .filter(|&m| behind(m) > SEQ_TRACK_WINDOW)
+                .collect();
+            for m in old {
+                self.missing.remove(&m);
+                self.expired += 1;
+            }
+            return SeqKind::New;
+        }
+        if self.missing.remove(&seq) {
+            self.filled += 1;
+            self.remember(seq);
+            return SeqKind::Filled;
+        }
+        if self.recent_set.contains(&seq) {
+            return SeqKind::Duplicate;
+        }
+        // Older than anything remembered: cannot tell; take it as late.
+        self.remember(seq);
+        SeqKind::Filled
+    }
+
+    /// Missing counts as inclusive ranges (wrap-around split).
+    pub fn missing_ranges(&self) -> Vec<(u16, u16)> {
+        let mut out: Vec<(u16, u16)> = Vec::new();
+        for &m in &self.missing {
+            match out.last_mut() {
+                Some((_, last)) if *last + 1 == m => *last = m,
+                _ => out.push((m, m)),
+            }
+        }
+        out
+    }
+}
+
 /// A TC waiting for verification.
 #[derive(Clone, Debug)]
 pub struct Pending {
@@ -106,6 +231,8 @@ pub struct Pending {
     pub last_sent: Instant,
     pub sends: u32,
     pub accepted: bool,
+    /// Most sends of this TC (1 for a connection test).
+    pub max_sends: u32,
 }
 
 /// Something that happened on the links.
@@ -142,6 +269,20 @@ pub enum Update {
         tag: Option<usize>,
         tc: &'static str,
         sends: u32,
+        /// The TC was accepted (so it may have executed): its outcome is unknown.
+        accepted: bool,
+    },
+    /// A TM[1,2] for a copy of a TC that was damaged on the way (CRC or length): not the
+    /// TC's verdict; the TC is resent.
+    DamagedCopy {
+        robot: u8,
+        tag: Option<usize>,
+        tc: &'static str,
+    },
+    /// No TM from the robot for `LINK_LOSS_MS`, or its TCP connection closed.
+    LinkLost {
+        robot: u8,
+        why: String,
     },
     Corrupt {
         robot: u8,
@@ -171,6 +312,8 @@ pub enum OpsError {
     Send { robot: u8, err: std::io::Error },
     #[error(transparent)]
     Build(#[from] pus::BuildError),
+    #[error("the MIB has no PING telecommand")]
+    NoPing,
 }
 
 /// Links to several robots with verification tracking.
@@ -181,8 +324,13 @@ pub struct Session {
     pending: HashMap<(u16, u16), Pending>,
     archive: Option<ArchiveSender>,
     pub robots: BTreeMap<u8, RobotStatus>,
+    /// First wait for a report before resending (later waits grow, see
+    /// `mib::config::tc_retry_wait_ms`).
     pub ack_timeout: Duration,
+    /// Resends of a TC after the first send.
     pub max_resends: u32,
+    /// Report a robot's link as lost after this long without TM (`None`: never).
+    pub link_loss: Option<Duration>,
 }
 
 impl Session {
@@ -219,8 +367,9 @@ impl Session {
             pending: HashMap::new(),
             archive,
             robots: status,
-            ack_timeout: Duration::from_millis(GROUND_ACK_TIMEOUT_MS as u64),
-            max_resends: GROUND_MAX_RESENDS,
+            ack_timeout: Duration::from_millis(TC_RETRY_INITIAL_MS as u64),
+            max_resends: TC_RETRY_MAX,
+            link_loss: None,
         })
     }
 
@@ -233,6 +382,24 @@ impl Session {
         args: &[i64],
         tag: Option<usize>,
         label: Option<String>,
+    ) -> Result<BuiltTc, OpsError> {
+        self.send_limited(robot, def, args, tag, label, None)
+    }
+
+    /// Sends a connection test that is not resent (a heartbeat: the next one follows).
+    pub fn send_heartbeat(&mut self, robot: u8) -> Result<BuiltTc, OpsError> {
+        let def = mib::tc::by_name("PING").ok_or(OpsError::NoPing)?;
+        self.send_limited(robot, def, &[], None, Some("heartbeat".into()), Some(1))
+    }
+
+    fn send_limited(
+        &mut self,
+        robot: u8,
+        def: &'static TcDef,
+        args: &[i64],
+        tag: Option<usize>,
+        label: Option<String>,
+        max_sends: Option<u32>,
     ) -> Result<BuiltTc, OpsError> {
         let link = self.links.get(&robot).ok_or(OpsError::NoLink(robot))?;
         let apid = mib::apid::robot_apid(robot).ok_or(pus::BuildError::UnknownRobot(robot))?;
@@ -260,6 +427,7 @@ impl Session {
                 last_sent: now,
                 sends: 1,
                 accepted: false,
+                max_sends: max_sends.unwrap_or(self.max_resends + 1),
             },
         );
         Ok(tc)
@@ -268,6 +436,19 @@ impl Session {
     /// True if a TC of `robot` is still waiting for acceptance or completion.
     pub fn busy(&self, robot: u8) -> bool {
         self.pending.values().any(|p| p.robot == robot)
+    }
+
+    /// True if a TC of `robot` other than a heartbeat is waiting for its outcome.
+    pub fn commanding(&self, robot: u8) -> bool {
+        self.pending.values().any(|p| p.robot == robot && p.max_sends > 1)
+    }
+
+    /// Waits with when the wait after send `sends` of `p` ends.
+    fn resend_due(&self, p: &Pending) -> Instant {
+        let first = self.ack_timeout.as_millis() as u64;
+        // The MIB's schedule, scaled to this session's first wait.
+        let ms = tc_retry_wait_ms(p.sends.saturating_sub(1)) as u64 * first / TC_RETRY_INITIAL_MS.max(1) as u64;
+        p.last_sent + Duration::from_millis(ms)
     }
 
     /// Forgets a pending TC (e.g. after its step timed out).
@@ -281,13 +462,9 @@ impl Session {
         let deadline = Instant::now() + max_wait;
         loop {
             let now = Instant::now();
-            let next_resend = self
-                .pending
-                .values()
-                .filter(|p| !p.accepted)
-                .map(|p| p.last_sent + self.ack_timeout)
-                .min();
+            let next_resend = self.pending.values().map(|p| self.resend_due(p)).min();
             let until = next_resend.map_or(deadline, |r| r.min(deadline));
+            let until = until.min(now + Duration::from_millis(100));
             let wait = until.saturating_duration_since(now);
             match self.rx.recv_timeout(wait) {
                 Ok(inc) => {
@@ -303,24 +480,67 @@ impl Session {
                 }
             }
             self.check_resends(&mut out);
+            self.check_links(&mut out);
             if !out.is_empty() || Instant::now() >= deadline {
                 return out;
             }
         }
     }
 
+    /// Link loss: a closed TCP connection, or no TM for `link_loss`.
+    fn check_links(&mut self, out: &mut Vec<Update>) {
+        let Some(limit) = self.link_loss else { return };
+        for (robot, s) in self.robots.iter_mut() {
+            if s.lost.is_some() {
+                continue;
+            }
+            let closed = self.links.get(robot).is_some_and(|l| l.closed());
+            let silent = s.last_tm.map_or(s.since.elapsed(), |t| t.elapsed());
+            if !closed && silent < limit {
+                continue;
+            }
+            let apid = mib::apid::robot_apid(*robot).unwrap_or(0);
+            let why = if closed {
+                format!("robot {robot}: the OBSW at {} closed the TCP connection", s.addr)
+            } else if let Some(f) = s.foreign_apid.filter(|_| s.last_tm.is_none()) {
+                format!(
+                    "robot {robot}: replies from {} carry APID 0x{f:03X}, not robot {robot}'s 0x{apid:03X} (wrong robot at this address?)",
+                    s.addr
+                )
+            } else {
+                format!(
+                    "robot {robot}: no TM from {} for {:.1} s (link down or OBSW not running)",
+                    s.addr,
+                    silent.as_secs_f64()
+                )
+            };
+            s.lost = Some(why.clone());
+            out.push(Update::LinkLost { robot: *robot, why });
+        }
+    }
+
+    /// Starts watching every robot's link for loss (`LINK_LOSS_MS` without TM).
+    pub fn watch_links(&mut self) {
+        self.link_loss = Some(Duration::from_millis(LINK_LOSS_MS as u64));
+        for s in self.robots.values_mut() {
+            s.since = Instant::now();
+        }
+    }
+
     fn check_resends(&mut self, out: &mut Vec<Update>) {
         let now = Instant::now();
         let mut gave_up = Vec::new();
-        for (key, p) in self.pending.iter_mut() {
-            if p.accepted || now < p.last_sent + self.ack_timeout {
+        let due: Vec<((u16, u16), Instant)> = self.pending.iter().map(|(k, p)| (*k, self.resend_due(p))).collect();
+        for (key, at) in due {
+            let Some(p) = self.pending.get_mut(&key) else { continue };
+            if now < at {
                 continue;
             }
             if let Some(r) = self.robots.get_mut(&p.robot) {
                 r.exchange(false);
             }
-            if p.sends > self.max_resends {
-                gave_up.push(*key);
+            if p.sends >= p.max_sends {
+                gave_up.push(key);
                 continue;
             }
             if let Some(link) = self.links.get(&p.robot) {
@@ -351,6 +571,7 @@ impl Session {
                     tag: p.tag,
                     tc: p.tc.def.name,
                     sends: p.sends,
+                    accepted: p.accepted,
                 });
             }
         }
@@ -380,15 +601,23 @@ impl Session {
         };
         if let Some(s) = st {
             s.tm_count += 1;
-            s.last_tm = Some(Instant::now());
+            if tm.robot == Some(robot) {
+                s.last_tm = Some(Instant::now());
+            }
             if tm.robot != Some(robot) && tm.apid != mib::apid::IDLE_APID {
                 s.foreign += 1;
+                s.foreign_apid = Some(tm.apid);
                 out.push(Update::Foreign {
                     robot,
                     apid: tm.apid,
                     service: tm.service,
                     subservice: tm.subservice,
                 });
+                return;
+            }
+            if tm.robot == Some(robot) && s.seq.on_seq(tm.seq) == SeqKind::Duplicate {
+                // Archived (the archive counts it once), but not acted on twice.
+                s.duplicates += 1;
                 return;
             }
         }
@@ -399,6 +628,29 @@ impl Session {
                 let mut name = None;
                 let mut after = None;
                 let mut finished = false;
+                // The ground builds every TC with a right CRC and length: a TM[1,2] saying
+                // otherwise is about a copy damaged on the way, not about the TC.
+                let damaged = !v.success
+                    && v.stage == Stage::Acceptance
+                    && v.failure.as_ref().is_some_and(|f| {
+                        f.code == mib::failure::FailureCode::CRC_MISMATCH.code()
+                            || f.code == mib::failure::FailureCode::MALFORMED_PACKET.code()
+                    });
+                if damaged {
+                    if let Some(p) = self.pending.get_mut(&key) {
+                        // Resend at once (same bytes).
+                        if let Some(link) = self.links.get(&p.robot) {
+                            let _ = link.send(&p.tc.bytes);
+                        }
+                        p.last_sent = Instant::now();
+                        out.push(Update::DamagedCopy {
+                            robot,
+                            tag: p.tag,
+                            tc: p.tc.def.name,
+                        });
+                    }
+                    return;
+                }
                 if let Some(p) = self.pending.get_mut(&key) {
                     tag = p.tag;
                     name = Some(p.tc.def.name);
@@ -518,7 +770,8 @@ impl StepState {
 pub struct RunOptions {
     /// Longest a step may run before it fails (unless the step gives `timeout`).
     pub step_timeout: Duration,
-    /// Connection test (TC[17,1]) period per idle robot; `None` for no pings.
+    /// Heartbeat (TC[17,1]) period per robot while the plan runs; `None` for no
+    /// heartbeats and no link-loss watch.
     pub ping_period: Option<Duration>,
     /// Show the indicatif progress display (else plain log lines).
     pub display: bool,
@@ -528,7 +781,7 @@ impl Default for RunOptions {
     fn default() -> Self {
         RunOptions {
             step_timeout: Duration::from_secs(120),
-            ping_period: Some(Duration::from_millis(GROUND_PING_PERIOD_MS as u64)),
+            ping_period: Some(Duration::from_millis(GROUND_HEARTBEAT_MS as u64)),
             display: true,
         }
     }
@@ -561,6 +814,14 @@ pub struct LinkSummary {
     pub exchanges: usize,
     pub tm: u64,
     pub corrupt: u64,
+    /// TM packets received twice (same APID and sequence count), acted on once.
+    pub duplicates: u64,
+    /// Sequence counts never received (inclusive ranges).
+    pub tm_missing: Vec<(u16, u16)>,
+    /// Sequence counts that arrived after later ones (late or replayed).
+    pub tm_late: u64,
+    /// Why the link was lost, if it was.
+    pub lost: Option<String>,
     pub resends: u32,
 }
 
@@ -571,16 +832,22 @@ pub struct RunSummary {
     pub done: usize,
     pub failed: usize,
     pub blocked: usize,
+    /// Steps completed in an earlier run (`--resume`), not sent again.
+    pub resumed: usize,
     pub bolts: BoltStats,
     pub unbolted_pairs: u32,
     pub faults: Vec<String>,
+    pub link_lost: Vec<String>,
     pub links: Vec<LinkSummary>,
     pub seconds: f64,
 }
 
 impl RunSummary {
+    fn lost_lines(&self) -> Vec<String> {
+        self.link_lost.clone()
+    }
     pub fn success(&self) -> bool {
-        self.failed == 0 && self.blocked == 0
+        self.failed == 0 && self.blocked == 0 && self.link_lost.is_empty()
     }
     /// Human-readable summary.
     pub fn text(&self) -> String {
@@ -623,17 +890,49 @@ impl RunSummary {
                 let _ = writeln!(s, "  {f}");
             }
         }
+        if self.resumed > 0 {
+            let _ = writeln!(s, "resumed: {} steps completed in an earlier run", self.resumed);
+        }
+        for l in &self.lost_lines() {
+            let _ = writeln!(s, "LINK LOST: {l}");
+        }
         for l in &self.links {
+            let missing: u32 = l
+                .tm_missing
+                .iter()
+                .map(|(a, b)| (b.wrapping_sub(*a) & 0x3FFF) as u32 + 1)
+                .sum();
             let _ = writeln!(
                 s,
-                "link robot {}: quality {} over {} exchanges, {} TM, {} corrupt, {} resends",
+                "link robot {}: quality {} over {} exchanges, {} TM ({} duplicates dropped, {} late), {} corrupt, {} resends",
                 l.robot,
                 l.quality.map_or("-".into(), |q| format!("{:.0}%", q * 100.0)),
                 l.exchanges,
                 l.tm,
+                l.duplicates,
+                l.tm_late,
                 l.corrupt,
                 l.resends
             );
+            if missing == 0 {
+                let _ = writeln!(
+                    s,
+                    "  TM gaps: none (every sequence count up to the last report arrived)"
+                );
+            } else {
+                let ranges: Vec<String> = l
+                    .tm_missing
+                    .iter()
+                    .take(8)
+                    .map(|(a, b)| if a == b { format!("{a}") } else { format!("{a}-{b}") })
+                    .collect();
+                let _ = writeln!(
+                    s,
+                    "  TM gaps: {missing} packets not received (seq {}{}); not retrieved from the on-board store",
+                    ranges.join(", "),
+                    if l.tm_missing.len() > 8 { ", ..." } else { "" }
+                );
+            }
         }
         s
     }
@@ -689,281 +988,485 @@ impl Display {
     }
 }
 
-/// Executes a plan: each step is sent once every step it depends on has completed.
-pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions) -> RunSummary {
-    let start = Instant::now();
-    let n = plan.steps.len();
-    let mut state: Vec<StepState> = vec![StepState::Waiting; n];
-    let mut sends: HashMap<usize, u32> = HashMap::new();
-    let mut bolts = BoltStats::default();
-    let mut unbolted = 0u32;
-    let mut faults: Vec<String> = Vec::new();
-    let mut last_ping: HashMap<u8, Instant> = HashMap::new();
-    let mut ping_tc: HashMap<u8, BuiltTc> = HashMap::new();
-    let robots: Vec<u8> = plan.robots.iter().map(|r| r.number).collect();
-    let disp = Display::new(plan, &robots, opts.display);
-    let ping = mib::tc::by_name("PING");
+/// What the executor asks its driver to do.
+#[derive(Clone, Debug)]
+pub enum Effect {
+    /// Send the TC of step `step` and report the result with [`Executor::on_sent`].
+    Send {
+        step: usize,
+        robot: u8,
+        def: &'static TcDef,
+        args: Vec<i64>,
+    },
+    /// Stop tracking a TC (its step ended without it).
+    Forget(BuiltTc),
+    /// Send a connection test to keep the lease and check the link.
+    Heartbeat(u8),
+    /// A line for the operator.
+    Log(String),
+    /// One more step finished (for the progress display).
+    Finished,
+}
 
-    let block_dependents = |state: &mut Vec<StepState>, i: usize, why: &str, disp: &Display| {
-        for d in plan.dependents(i) {
-            if state[d] == StepState::Waiting {
-                state[d] = StepState::Blocked(format!("waits for \"{}\", which {why}", plan.steps[i].id));
-                disp.log(format!(
+/// Plan execution as a pure state machine: it sees time only through the `now` it is
+/// given, and acts only through the [`Effect`]s it returns, so it is tested with a mock
+/// clock and no sockets. [`run_plan`] drives it with a [`Session`].
+pub struct Executor<'p> {
+    plan: &'p Plan,
+    opts: RunOptions,
+    pub state: Vec<StepState>,
+    sends: HashMap<usize, u32>,
+    bolts: BoltStats,
+    unbolted: u32,
+    faults: Vec<String>,
+    lost: Vec<String>,
+    resumed: usize,
+    start: Instant,
+    last_heartbeat: HashMap<u8, Instant>,
+}
+
+impl<'p> Executor<'p> {
+    /// A run of `plan` starting at `now`; steps in `done` completed in an earlier run
+    /// (`--resume`) and are not sent again.
+    pub fn new(plan: &'p Plan, opts: &RunOptions, done: &[usize], now: Instant) -> Executor<'p> {
+        let mut state = vec![StepState::Waiting; plan.steps.len()];
+        let mut resumed = 0;
+        let n = state.len();
+        for &i in done.iter().filter(|&&i| i < n) {
+            state[i] = StepState::Done { secs: 0.0 };
+            resumed += 1;
+        }
+        Executor {
+            plan,
+            opts: opts.clone(),
+            state,
+            sends: HashMap::new(),
+            bolts: BoltStats::default(),
+            unbolted: 0,
+            faults: Vec::new(),
+            lost: Vec::new(),
+            resumed,
+            start: now,
+            last_heartbeat: HashMap::new(),
+        }
+    }
+
+    /// True when every step is done, failed or blocked.
+    pub fn finished(&self) -> bool {
+        self.state.iter().all(StepState::terminal)
+    }
+
+    fn block_dependents(&mut self, i: usize, why: &str, fx: &mut Vec<Effect>) {
+        for d in self.plan.dependents(i) {
+            if self.state[d] == StepState::Waiting {
+                self.state[d] = StepState::Blocked(format!("waits for \"{}\", which {why}", self.plan.steps[i].id));
+                fx.push(Effect::Log(format!(
                     "  blocked  {} (waits for {})",
-                    plan.steps[d].id, plan.steps[i].id
-                ));
+                    self.plan.steps[d].id, self.plan.steps[i].id
+                )));
             }
         }
-    };
+    }
 
-    loop {
-        // Start every step whose dependencies have completed.
+    fn fail(&mut self, i: usize, why: String, fx: &mut Vec<Effect>) {
+        if let StepState::Running { tc: Some(tc), .. } = &self.state[i] {
+            fx.push(Effect::Forget(tc.clone()));
+        }
+        fx.push(Effect::Log(format!("  FAILED   {}: {why}", self.plan.steps[i].id)));
+        self.state[i] = StepState::Failed(why);
+        self.block_dependents(i, "failed", fx);
+    }
+
+    /// Starts every step whose dependencies have completed; heartbeats; timeouts.
+    pub fn on_tick(&mut self, now: Instant) -> Vec<Effect> {
+        let mut fx = Vec::new();
+        let n = self.plan.steps.len();
         for i in 0..n {
-            if state[i] != StepState::Waiting {
+            if self.state[i] != StepState::Waiting {
                 continue;
             }
-            let s = &plan.steps[i];
-            if !s.deps.iter().all(|&d| matches!(state[d], StepState::Done { .. })) {
+            let s = &self.plan.steps[i];
+            if !s.deps.iter().all(|&d| matches!(self.state[d], StepState::Done { .. })) {
                 continue;
             }
+            self.state[i] = StepState::Running {
+                tc: None,
+                since: now,
+                stage: if s.action.tc().is_some() { "sending" } else { "waiting" },
+                progress: 0,
+            };
             match s.action.tc() {
-                None => {
-                    state[i] = StepState::Running {
-                        tc: None,
-                        since: Instant::now(),
-                        stage: "waiting",
-                        progress: 0,
-                    };
-                    disp.log(format!(
-                        "  start    {} robot {}: {}",
-                        s.id,
-                        s.robot,
-                        s.action.describe()
-                    ));
-                }
-                Some((def, args)) => {
-                    // Drop a connection test still in flight so it does not hold the robot.
-                    if let Some(p) = ping_tc.remove(&s.robot) {
-                        session.forget(&p);
-                    }
-                    match session.send(s.robot, def, &args, Some(i), Some(s.id.clone())) {
-                        Ok(tc) => {
-                            sends.insert(i, 1);
-                            disp.log(format!(
-                                "  send     {} robot {}: {} (seq {})",
-                                s.id,
-                                s.robot,
-                                s.action.describe(),
-                                tc.seq
-                            ));
-                            state[i] = StepState::Running {
-                                tc: Some(tc),
-                                since: Instant::now(),
-                                stage: "sent",
-                                progress: 0,
-                            };
-                        }
-                        Err(e) => {
-                            let why = format!("could not be sent: {e}");
-                            disp.log(format!("  FAILED   {} {why}", s.id));
-                            state[i] = StepState::Failed(why.clone());
-                            block_dependents(&mut state, i, "failed", &disp);
-                        }
-                    }
-                }
+                None => fx.push(Effect::Log(format!(
+                    "  start    {} robot {}: {}",
+                    s.id,
+                    s.robot,
+                    s.action.describe()
+                ))),
+                Some((def, args)) => fx.push(Effect::Send {
+                    step: i,
+                    robot: s.robot,
+                    def,
+                    args,
+                }),
             }
         }
-        if state.iter().all(StepState::terminal) {
-            break;
-        }
-
-        let updates = session.poll(Duration::from_millis(50));
-        for u in updates {
-            match u {
-                Update::Verification {
-                    tag: Some(i), v, after, ..
-                } if i < n => {
-                    let s = &plan.steps[i];
-                    let StepState::Running {
-                        since, stage, progress, ..
-                    } = &mut state[i]
-                    else {
-                        continue;
-                    };
-                    if !v.success {
-                        let why = failure_words(&v);
-                        disp.log(format!("  FAILED   {} robot {}: {why}", s.id, s.robot));
-                        state[i] = StepState::Failed(why);
-                        block_dependents(&mut state, i, "failed", &disp);
-                        continue;
-                    }
-                    match v.stage {
-                        Stage::Acceptance => {
-                            *stage = "accepted";
-                            if let Some(a) = after {
-                                if a > session.ack_timeout {
-                                    disp.log(format!("  accepted {} after {:.2} s", s.id, a.as_secs_f64()));
-                                }
-                            }
-                        }
-                        Stage::Start => *stage = "started",
-                        Stage::Progress => {
-                            *stage = "progress";
-                            *progress = v.step.unwrap_or(*progress + 1);
-                        }
-                        Stage::Completion => {
-                            let secs = since.elapsed().as_secs_f64();
-                            disp.log(format!("  done     {} robot {} in {secs:.1} s", s.id, s.robot));
-                            state[i] = StepState::Done { secs };
-                            disp.total.inc(1);
-                        }
-                    }
+        // Wait steps and step timeouts.
+        for i in 0..n {
+            let StepState::Running { tc, since, .. } = &self.state[i] else {
+                continue;
+            };
+            let s = &self.plan.steps[i];
+            let limit = s.timeout_s.map_or(self.opts.step_timeout, Duration::from_secs_f64);
+            let ran = now.saturating_duration_since(*since);
+            match (&s.action, tc) {
+                (Action::Wait { seconds }, None) if ran.as_secs_f64() >= *seconds => {
+                    let secs = ran.as_secs_f64();
+                    fx.push(Effect::Log(format!("  done     {} (waited {secs:.1} s)", s.id)));
+                    self.state[i] = StepState::Done { secs };
+                    fx.push(Effect::Finished);
                 }
-                Update::Verification {
-                    robot, tag: None, v, ..
-                } => {
-                    if let Some(p) = ping_tc.get(&robot) {
-                        if v.request.seq() == p.seq && (v.stage == Stage::Completion || !v.success) {
-                            ping_tc.remove(&robot);
-                        }
-                    }
-                }
-                Update::Resent {
-                    robot,
-                    tag: Some(i),
-                    tc,
-                    send,
-                } if i < n => {
-                    sends.insert(i, send);
-                    disp.log(format!(
-                        "  resend   {} robot {robot}: {tc} not accepted within {} ms (send {send})",
-                        plan.steps[i].id,
-                        session.ack_timeout.as_millis()
-                    ));
-                }
-                Update::GaveUp {
-                    robot,
-                    tag,
-                    tc,
-                    sends: k,
-                } => {
-                    if let Some(i) = tag.filter(|&i| i < n) {
-                        let why = format!(
-                            "no acceptance of {tc} from robot {robot} after {k} sends (link down or OBSW not running)"
-                        );
-                        disp.log(format!("  FAILED   {}: {why}", plan.steps[i].id));
-                        state[i] = StepState::Failed(why);
-                        block_dependents(&mut state, i, "failed", &disp);
-                    } else {
-                        ping_tc.remove(&robot);
-                    }
-                }
-                Update::Event { robot, event } => {
-                    match event.id {
-                        eid::BOLT_PAIR_DONE => match event.param("attempts") {
-                            Some(1) => bolts.first += 1,
-                            Some(2) => bolts.second += 1,
-                            Some(3) => bolts.third += 1,
-                            _ => bolts.later += 1,
-                        },
-                        eid::BOLT_FAILURE => bolts.failed += 1,
-                        eid::UNBOLT_PAIR_DONE => unbolted += 1,
-                        _ => {}
-                    }
-                    if event.fault {
-                        let line = format!("robot {robot}: {event}");
-                        disp.log(format!("  FAULT    {line}"));
-                        faults.push(line);
-                        // Steps of this robot not yet sent, and everything after them,
-                        // stop; the running one finishes per its verification.
-                        for i in 0..n {
-                            if plan.steps[i].robot == robot && state[i] == StepState::Waiting {
-                                state[i] = StepState::Blocked(format!(
-                                    "robot {robot} reported fault {}: {}",
-                                    event.name, event.description
-                                ));
-                                block_dependents(&mut state, i, "was stopped by a fault", &disp);
-                            }
-                        }
-                    } else if matches!(event.severity, "medium" | "high") {
-                        disp.log(format!("  event    robot {robot}: {event}"));
-                    }
-                }
-                Update::Corrupt { robot, error } => {
-                    disp.log(format!("  corrupt  TM from robot {robot}: {error}"));
-                }
-                Update::Foreign {
-                    robot,
-                    apid,
-                    service,
-                    subservice,
-                } => {
-                    disp.log(format!(
-                        "  skipped  TM[{service},{subservice}] of APID 0x{apid:03X} on robot {robot}'s link"
-                    ));
+                (_, Some(tc)) if ran > limit => {
+                    let why = format!("no completion of {} within {:.0} s", tc.def.name, limit.as_secs_f64());
+                    self.fail(i, why, &mut fx);
                 }
                 _ => {}
             }
         }
+        // Heartbeats while the plan runs.
+        if let Some(period) = self.opts.ping_period {
+            if !self.finished() {
+                for r in self.plan.robots.iter().map(|r| r.number) {
+                    let due = self
+                        .last_heartbeat
+                        .get(&r)
+                        .is_none_or(|t| now.saturating_duration_since(*t) >= period);
+                    if due {
+                        self.last_heartbeat.insert(r, now);
+                        fx.push(Effect::Heartbeat(r));
+                    }
+                }
+            }
+        }
+        fx
+    }
 
-        // Wait steps and step timeouts.
-        for i in 0..n {
-            if let StepState::Running { tc, since, .. } = &state[i] {
-                let s = &plan.steps[i];
-                let limit = s.timeout_s.map_or(opts.step_timeout, Duration::from_secs_f64);
-                match (&s.action, tc) {
-                    (Action::Wait { seconds }, None) if since.elapsed().as_secs_f64() >= *seconds => {
-                        let secs = since.elapsed().as_secs_f64();
-                        disp.log(format!("  done     {} (waited {secs:.1} s)", s.id));
-                        state[i] = StepState::Done { secs };
-                        disp.total.inc(1);
+    /// The result of an [`Effect::Send`].
+    pub fn on_sent(&mut self, step: usize, sent: Result<BuiltTc, String>, now: Instant) -> Vec<Effect> {
+        let mut fx = Vec::new();
+        let Some(s) = self.plan.steps.get(step) else { return fx };
+        match sent {
+            Ok(tc) => {
+                self.sends.insert(step, 1);
+                fx.push(Effect::Log(format!(
+                    "  send     {} robot {}: {} (seq {})",
+                    s.id,
+                    s.robot,
+                    s.action.describe(),
+                    tc.seq
+                )));
+                self.state[step] = StepState::Running {
+                    tc: Some(tc),
+                    since: now,
+                    stage: "sent",
+                    progress: 0,
+                };
+            }
+            Err(e) => self.fail(step, format!("could not be sent: {e}"), &mut fx),
+        }
+        fx
+    }
+
+    /// Takes one update from the session.
+    pub fn on_update(&mut self, now: Instant, u: Update) -> Vec<Effect> {
+        let mut fx = Vec::new();
+        let n = self.plan.steps.len();
+        match u {
+            Update::Verification {
+                tag: Some(i), v, after, ..
+            } if i < n => {
+                let StepState::Running {
+                    since, stage, progress, ..
+                } = &mut self.state[i]
+                else {
+                    return fx;
+                };
+                let s = &self.plan.steps[i];
+                if !v.success {
+                    let why = format!("robot {}: {}", s.robot, failure_words(&v));
+                    self.fail(i, why, &mut fx);
+                    return fx;
+                }
+                match v.stage {
+                    Stage::Acceptance => {
+                        *stage = "accepted";
+                        if let Some(a) = after.filter(|a| a.as_millis() > TC_RETRY_INITIAL_MS as u128) {
+                            fx.push(Effect::Log(format!(
+                                "  accepted {} after {:.2} s",
+                                s.id,
+                                a.as_secs_f64()
+                            )));
+                        }
                     }
-                    (_, Some(tc)) if since.elapsed() > limit => {
-                        let tc = tc.clone();
-                        session.forget(&tc);
-                        let why = format!("no completion of {} within {:.0} s", tc.def.name, limit.as_secs_f64());
-                        disp.log(format!("  FAILED   {}: {why}", s.id));
-                        state[i] = StepState::Failed(why);
-                        block_dependents(&mut state, i, "failed", &disp);
+                    Stage::Start => *stage = "started",
+                    Stage::Progress => {
+                        *stage = "progress";
+                        *progress = v.step.unwrap_or(*progress + 1);
                     }
+                    Stage::Completion => {
+                        let secs = now.saturating_duration_since(*since).as_secs_f64();
+                        fx.push(Effect::Log(format!(
+                            "  done     {} robot {} in {secs:.1} s",
+                            s.id, s.robot
+                        )));
+                        self.state[i] = StepState::Done { secs };
+                        fx.push(Effect::Finished);
+                    }
+                }
+            }
+            Update::Resent {
+                robot,
+                tag: Some(i),
+                tc,
+                send,
+            } if i < n => {
+                self.sends.insert(i, send);
+                fx.push(Effect::Log(format!(
+                    "  resend   {} robot {robot}: {tc}, no outcome yet (send {send}, same bytes)",
+                    self.plan.steps[i].id
+                )));
+            }
+            Update::DamagedCopy {
+                robot,
+                tag: Some(i),
+                tc,
+            } if i < n => {
+                *self.sends.entry(i).or_insert(1) += 1;
+                fx.push(Effect::Log(format!(
+                    "  resend   {} robot {robot}: a copy of {tc} arrived damaged (CRC), sent again",
+                    self.plan.steps[i].id
+                )));
+            }
+            Update::GaveUp {
+                robot,
+                tag: Some(i),
+                tc,
+                sends: k,
+                accepted,
+            } if i < n => {
+                let why = if accepted {
+                    format!("{tc} accepted by robot {robot}, but no completion or failure report after {k} sends: outcome unknown")
+                } else {
+                    format!("no report of {tc} from robot {robot} after {k} sends (link down or OBSW not running)")
+                };
+                self.fail(i, why, &mut fx);
+            }
+            Update::LinkLost { robot, why } => {
+                fx.push(Effect::Log(format!("  LINK     {why}")));
+                self.lost.push(why.clone());
+                for i in 0..n {
+                    if self.plan.steps[i].robot != robot {
+                        continue;
+                    }
+                    match self.state[i] {
+                        StepState::Running { .. } => self.fail(i, format!("link lost: {why}"), &mut fx),
+                        StepState::Waiting => {
+                            self.state[i] = StepState::Blocked(format!("link lost: {why}"));
+                            self.block_dependents(i, "could not run (link lost)", &mut fx);
+                        }
+                        StepState::Done { .. } | StepState::Failed(_) | StepState::Blocked(_) => {}
+                    }
+                }
+            }
+            Update::Event { robot, event } => {
+                match event.id {
+                    eid::BOLT_PAIR_DONE => match event.param("attempts") {
+                        Some(1) => self.bolts.first += 1,
+                        Some(2) => self.bolts.second += 1,
+                        Some(3) => self.bolts.third += 1,
+                        _ => self.bolts.later += 1,
+                    },
+                    eid::BOLT_FAILURE => self.bolts.failed += 1,
+                    eid::UNBOLT_PAIR_DONE => self.unbolted += 1,
                     _ => {}
                 }
-            }
-        }
-
-        // Connection tests for idle robots.
-        if let (Some(period), Some(ping)) = (opts.ping_period, ping) {
-            for &r in &robots {
-                let idle = !session.busy(r);
-                let due = last_ping.get(&r).is_none_or(|t| t.elapsed() >= period);
-                if idle && due {
-                    last_ping.insert(r, Instant::now());
-                    if let Ok(tc) = session.send(r, ping, &[], None, Some("ping".into())) {
-                        ping_tc.insert(r, tc);
+                if event.fault {
+                    let line = format!("robot {robot}: {event}");
+                    fx.push(Effect::Log(format!("  FAULT    {line}")));
+                    self.faults.push(line);
+                    // Steps of this robot not yet sent, and everything after them,
+                    // stop; the running one finishes per its verification.
+                    for i in 0..n {
+                        if self.plan.steps[i].robot == robot && self.state[i] == StepState::Waiting {
+                            self.state[i] = StepState::Blocked(format!(
+                                "robot {robot} reported fault {}: {}",
+                                event.name, event.description
+                            ));
+                            self.block_dependents(i, "was stopped by a fault", &mut fx);
+                        }
                     }
+                } else if matches!(event.severity, "medium" | "high") {
+                    fx.push(Effect::Log(format!("  event    robot {robot}: {event}")));
                 }
             }
+            Update::Corrupt { robot, error } => {
+                fx.push(Effect::Log(format!("  corrupt  TM from robot {robot}: {error}")));
+            }
+            Update::Foreign {
+                robot,
+                apid,
+                service,
+                subservice,
+            } => {
+                fx.push(Effect::Log(format!(
+                    "  skipped  TM[{service},{subservice}] of APID 0x{apid:03X} on robot {robot}'s link"
+                )));
+            }
+            Update::Verification { .. }
+            | Update::Resent { .. }
+            | Update::DamagedCopy { .. }
+            | Update::GaveUp { .. }
+            | Update::Hk { .. }
+            | Update::Tm { .. } => {}
         }
+        fx
+    }
 
-        // Display.
+    /// One-line status of `robot`'s current step, for the display.
+    fn robot_line(&self, r: u8) -> String {
+        let steps = &self.plan.steps;
+        let n = steps.len();
+        let cur = (0..n).find(|&i| steps[i].robot == r && matches!(self.state[i], StepState::Running { .. }));
+        let done = (0..n)
+            .filter(|&i| steps[i].robot == r && self.state[i].terminal())
+            .count();
+        let total = (0..n).filter(|&i| steps[i].robot == r).count();
+        let step = match cur.map(|i| (i, &self.state[i])) {
+            Some((i, StepState::Running { stage, progress, .. })) if *progress > 0 => {
+                format!("{} {stage} {progress}", steps[i].id)
+            }
+            Some((i, StepState::Running { stage, .. })) => format!("{} {stage}", steps[i].id),
+            _ => "idle".into(),
+        };
+        format!("{done}/{total} | {step}")
+    }
+
+    /// The summary of the run, with the session's link figures.
+    pub fn summary(&self, session: &Session, now: Instant) -> RunSummary {
+        let plan = self.plan;
+        let steps: Vec<StepOutcome> = plan
+            .steps
+            .iter()
+            .zip(&self.state)
+            .map(|(s, st)| {
+                let (result, reason, seconds) = match st {
+                    StepState::Done { secs } => ("done", None, Some(*secs)),
+                    StepState::Failed(w) => ("FAILED", Some(w.clone()), None),
+                    StepState::Blocked(w) => ("blocked", Some(w.clone()), None),
+                    StepState::Waiting | StepState::Running { .. } => ("unfinished", None, None),
+                };
+                StepOutcome {
+                    id: s.id.clone(),
+                    robot: s.robot,
+                    action: s.action.describe(),
+                    result: result.into(),
+                    reason,
+                    seconds,
+                }
+            })
+            .collect();
+        let links = session
+            .robots
+            .values()
+            .map(|r| LinkSummary {
+                robot: r.robot,
+                quality: r.link_quality(),
+                exchanges: r.quality.len(),
+                tm: r.tm_count,
+                corrupt: r.corrupt,
+                duplicates: r.duplicates,
+                tm_missing: r.seq.missing_ranges(),
+                tm_late: r.seq.filled,
+                lost: r.lost.clone(),
+                resends: plan
+                    .steps
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, s)| s.robot == r.robot)
+                    .map(|(i, _)| self.sends.get(&i).copied().unwrap_or(1).saturating_sub(1))
+                    .sum(),
+            })
+            .collect();
+        RunSummary {
+            plan: plan.name.clone(),
+            done: self
+                .state
+                .iter()
+                .filter(|s| matches!(s, StepState::Done { .. }))
+                .count(),
+            failed: self.state.iter().filter(|s| matches!(s, StepState::Failed(_))).count(),
+            blocked: self.state.iter().filter(|s| matches!(s, StepState::Blocked(_))).count(),
+            resumed: self.resumed,
+            steps,
+            bolts: self.bolts.clone(),
+            unbolted_pairs: self.unbolted,
+            faults: self.faults.clone(),
+            link_lost: self.lost.clone(),
+            links,
+            seconds: now.saturating_duration_since(self.start).as_secs_f64(),
+        }
+    }
+}
+
+/// Executes a plan: each step is sent once every step it depends on has completed.
+/// `done` lists steps completed in an earlier run (`--resume`).
+pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, done: &[usize]) -> RunSummary {
+    let robots: Vec<u8> = plan.robots.iter().map(|r| r.number).collect();
+    let disp = Display::new(plan, &robots, opts.display);
+    let mut exec = Executor::new(plan, opts, done, Instant::now());
+    disp.total.inc(exec.resumed as u64);
+    if exec.resumed > 0 {
+        disp.log(format!(
+            "  resume   {} steps completed in an earlier run are not sent again",
+            exec.resumed
+        ));
+    }
+    if opts.ping_period.is_some() {
+        session.watch_links();
+    }
+    let apply = |fx: Vec<Effect>, exec: &mut Executor, session: &mut Session| {
+        let mut queue: VecDeque<Effect> = fx.into();
+        while let Some(e) = queue.pop_front() {
+            match e {
+                Effect::Send { step, robot, def, args } => {
+                    let label = Some(plan.steps[step].id.clone());
+                    let sent = session
+                        .send(robot, def, &args, Some(step), label)
+                        .map_err(|e| e.to_string());
+                    queue.extend(exec.on_sent(step, sent, Instant::now()));
+                }
+                Effect::Forget(tc) => session.forget(&tc),
+                Effect::Heartbeat(r) => {
+                    // A failed send shows as silence: the link-loss check reports it.
+                    let _ = session.send_heartbeat(r);
+                }
+                Effect::Log(line) => disp.log(line),
+                Effect::Finished => disp.total.inc(1),
+            }
+        }
+    };
+    loop {
+        let fx = exec.on_tick(Instant::now());
+        apply(fx, &mut exec, session);
+        if exec.finished() {
+            break;
+        }
+        for u in session.poll(Duration::from_millis(50)) {
+            let fx = exec.on_update(Instant::now(), u);
+            apply(fx, &mut exec, session);
+        }
         for (&r, bar) in &disp.robots {
-            let cur = (0..n).find(|&i| plan.steps[i].robot == r && matches!(state[i], StepState::Running { .. }));
-            let done = (0..n)
-                .filter(|&i| plan.steps[i].robot == r && state[i].terminal())
-                .count();
-            let total = (0..n).filter(|&i| plan.steps[i].robot == r).count();
-            let step = match cur {
-                Some(i) => match &state[i] {
-                    StepState::Running { stage, progress, .. } if *progress > 0 => {
-                        format!("{} {stage} {progress}", plan.steps[i].id)
-                    }
-                    StepState::Running { stage, .. } => format!("{} {stage}", plan.steps[i].id),
-                    _ => String::new(),
-                },
-                None => "idle".into(),
-            };
             let st = session.robots.get(&r).map(|s| s.line()).unwrap_or_default();
-            bar.set_message(format!("{done}/{total} | {step} | {st}"));
+            bar.set_message(format!("{} | {st}", exec.robot_line(r)));
             bar.tick();
         }
     }
@@ -972,58 +1475,7 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions) -> RunSum
         b.finish();
     }
     let _ = disp.mp.clear();
-
-    let steps: Vec<StepOutcome> = plan
-        .steps
-        .iter()
-        .zip(&state)
-        .map(|(s, st)| {
-            let (result, reason, seconds) = match st {
-                StepState::Done { secs } => ("done", None, Some(*secs)),
-                StepState::Failed(w) => ("FAILED", Some(w.clone()), None),
-                StepState::Blocked(w) => ("blocked", Some(w.clone()), None),
-                _ => ("?", None, None),
-            };
-            StepOutcome {
-                id: s.id.clone(),
-                robot: s.robot,
-                action: s.action.describe(),
-                result: result.into(),
-                reason,
-                seconds,
-            }
-        })
-        .collect();
-    let links = session
-        .robots
-        .values()
-        .map(|r| LinkSummary {
-            robot: r.robot,
-            quality: r.link_quality(),
-            exchanges: r.quality.len(),
-            tm: r.tm_count,
-            corrupt: r.corrupt,
-            resends: plan
-                .steps
-                .iter()
-                .enumerate()
-                .filter(|(_, s)| s.robot == r.robot)
-                .map(|(i, _)| sends.get(&i).copied().unwrap_or(1).saturating_sub(1))
-                .sum(),
-        })
-        .collect();
-    RunSummary {
-        plan: plan.name.clone(),
-        done: state.iter().filter(|s| matches!(s, StepState::Done { .. })).count(),
-        failed: state.iter().filter(|s| matches!(s, StepState::Failed(_))).count(),
-        blocked: state.iter().filter(|s| matches!(s, StepState::Blocked(_))).count(),
-        steps,
-        bolts,
-        unbolted_pairs: unbolted,
-        faults,
-        links,
-        seconds: start.elapsed().as_secs_f64(),
-    }
+    exec.summary(session, Instant::now())
 }
 
 #[cfg(test)]
@@ -1064,6 +1516,7 @@ mod tests {
         (addr, h)
     }
 
+    // verifies: GND-01
     #[test]
     fn session_resends_with_the_same_count_and_skips_foreign_apids() {
         let (addr, fake) = fake_obsw(1);
@@ -1095,6 +1548,256 @@ mod tests {
         assert_eq!(st.link_quality(), Some(0.5));
         assert_eq!(st.foreign, 1);
         assert_eq!(fake.join().unwrap(), vec![(0x101, 100), (0x101, 100)]);
+    }
+
+    // verifies: MMIC-VAL-02
+    #[test]
+    fn seq_track_finds_gaps_duplicates_and_late_packets_across_the_wrap() {
+        let mut t = SeqTrack::default();
+        assert_eq!(t.on_seq(0x3FFD), SeqKind::New);
+        assert_eq!(t.on_seq(0x3FFE), SeqKind::New);
+        // 0x3FFF, 0 and 1 lost; 2 arrives.
+        assert_eq!(t.on_seq(2), SeqKind::New);
+        assert_eq!(t.missing_ranges(), vec![(0, 1), (0x3FFF, 0x3FFF)]);
+        assert_eq!(t.on_seq(2), SeqKind::Duplicate);
+        assert_eq!(t.on_seq(0x3FFE), SeqKind::Duplicate);
+        assert_eq!(t.on_seq(0), SeqKind::Filled);
+        assert_eq!(t.on_seq(0), SeqKind::Duplicate);
+        assert_eq!(t.missing_ranges(), vec![(1, 1), (0x3FFF, 0x3FFF)]);
+        // A gap falls out of the window: expired, not kept for ever.
+        assert_eq!(t.on_seq(2 + SEQ_TRACK_WINDOW), SeqKind::New);
+        assert_eq!(t.on_seq(3 + SEQ_TRACK_WINDOW), SeqKind::New);
+        assert!(t.expired >= 2, "{t:?}");
+        assert_eq!(t.filled, 1);
+    }
+
+    fn plan(src: &str) -> Plan {
+        crate::plan::parse(src).unwrap_or_else(|e| panic!("{e:?}"))
+    }
+
+    const TWO_STEPS: &str = r#"
+name = "t"
+[[robot]]
+number = 1
+initial_state = "Xneg"
+[[step]]
+id = "ping1"
+robot = 1
+action = "command"
+tc = "PING"
+[[step]]
+id = "ping2"
+robot = 1
+action = "command"
+tc = "PING"
+timeout = 5
+"#;
+
+    /// A verification update for `tc` as the session would give it.
+    fn verification(tc: &BuiltTc, step: usize, subservice: u8) -> Update {
+        let t = CdsShort::now().to_bytes();
+        let rid = &tc.bytes[..4];
+        let mut data = rid.to_vec();
+        if subservice.is_multiple_of(2) {
+            data.extend_from_slice(&mib::failure::FailureCode::NOT_ALLOWED_IN_MODE.code().to_be_bytes());
+        }
+        let tm = pus::decode_tm(&build_tm(tc.apid, 9, 1, subservice, 0, &t, &data)).unwrap();
+        let TmBody::Verification(v) = tm.body else {
+            panic!("not a verification")
+        };
+        Update::Verification {
+            robot: 1,
+            tag: Some(step),
+            tc: Some(tc.def.name),
+            v,
+            after: None,
+        }
+    }
+
+    fn sends(fx: &[Effect]) -> Vec<usize> {
+        fx.iter()
+            .filter_map(|e| match e {
+                Effect::Send { step, .. } => Some(*step),
+                _ => None,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn executor_runs_steps_in_order_with_a_mock_clock() {
+        let pl = plan(TWO_STEPS);
+        let opts = RunOptions {
+            step_timeout: Duration::from_secs(60),
+            ping_period: Some(Duration::from_secs(1)),
+            display: false,
+        };
+        let t0 = Instant::now();
+        let mut ex = Executor::new(&pl, &opts, &[], t0);
+        let fx = ex.on_tick(t0);
+        assert_eq!(sends(&fx), vec![0], "only the first step: the second depends on it");
+        assert!(fx.iter().any(|e| matches!(e, Effect::Heartbeat(1))));
+        let ping = mib::tc::by_name("PING").unwrap();
+        let tc0 = pus::build_tc(1, 10, ping, &[]).unwrap();
+        ex.on_sent(0, Ok(tc0.clone()), t0);
+        // Nothing new before the completion, and no heartbeat before its period.
+        let fx = ex.on_tick(t0 + Duration::from_millis(500));
+        assert!(sends(&fx).is_empty() && !fx.iter().any(|e| matches!(e, Effect::Heartbeat(_))));
+        assert!(ex
+            .on_update(t0 + Duration::from_millis(600), verification(&tc0, 0, 1))
+            .is_empty());
+        let fx = ex.on_update(t0 + Duration::from_millis(700), verification(&tc0, 0, 7));
+        assert!(fx.iter().any(|e| matches!(e, Effect::Finished)));
+        assert_eq!(ex.state[0], StepState::Done { secs: 0.7 });
+        let fx = ex.on_tick(t0 + Duration::from_millis(1100));
+        assert_eq!(sends(&fx), vec![1]);
+        assert!(fx.iter().any(|e| matches!(e, Effect::Heartbeat(1))));
+        let tc1 = pus::build_tc(1, 11, ping, &[]).unwrap();
+        ex.on_sent(1, Ok(tc1.clone()), t0 + Duration::from_millis(1100));
+        // Step 2's own timeout (5 s) passes on the mock clock: it fails and its TC is
+        // forgotten.
+        let fx = ex.on_tick(t0 + Duration::from_millis(6200));
+        assert!(
+            fx.iter().any(|e| matches!(e, Effect::Forget(tc) if tc.seq == 11)),
+            "{fx:?}"
+        );
+        assert!(matches!(&ex.state[1], StepState::Failed(w) if w.contains("within 5 s")));
+        assert!(ex.finished());
+        let fx = ex.on_tick(t0 + Duration::from_secs(60));
+        assert!(fx.is_empty(), "no heartbeat after the end: {fx:?}");
+    }
+
+    #[test]
+    fn executor_stops_a_robot_on_link_loss_and_resumes_past_done_steps() {
+        let pl = plan(TWO_STEPS);
+        let opts = RunOptions {
+            display: false,
+            ..RunOptions::default()
+        };
+        let t0 = Instant::now();
+        let mut ex = Executor::new(&pl, &opts, &[], t0);
+        ex.on_tick(t0);
+        let ping = mib::tc::by_name("PING").unwrap();
+        ex.on_sent(0, Ok(pus::build_tc(1, 10, ping, &[]).unwrap()), t0);
+        let fx = ex.on_update(
+            t0,
+            Update::LinkLost {
+                robot: 1,
+                why: "robot 1: no TM".into(),
+            },
+        );
+        assert!(fx.iter().any(|e| matches!(e, Effect::Forget(_))));
+        assert!(matches!(&ex.state[0], StepState::Failed(w) if w.contains("link lost")));
+        assert!(matches!(&ex.state[1], StepState::Blocked(_)));
+        assert_eq!(ex.lost.len(), 1);
+
+        // Resumed with the first step done: only the second is sent.
+        let mut ex = Executor::new(&pl, &opts, &[0], t0);
+        assert_eq!(sends(&ex.on_tick(t0)), vec![1]);
+        assert_eq!(ex.resumed, 1);
+    }
+
+    #[test]
+    fn executor_failure_report_fails_the_step_and_blocks_dependents() {
+        let pl = plan(TWO_STEPS);
+        let opts = RunOptions {
+            display: false,
+            ping_period: None,
+            ..RunOptions::default()
+        };
+        let t0 = Instant::now();
+        let mut ex = Executor::new(&pl, &opts, &[], t0);
+        ex.on_tick(t0);
+        let tc0 = pus::build_tc(1, 10, mib::tc::by_name("PING").unwrap(), &[]).unwrap();
+        ex.on_sent(0, Ok(tc0.clone()), t0);
+        ex.on_update(t0, verification(&tc0, 0, 4));
+        assert!(matches!(&ex.state[0], StepState::Failed(w) if w.contains("NOT_ALLOWED_IN_MODE")));
+        assert!(matches!(&ex.state[1], StepState::Blocked(_)));
+        assert!(ex.finished());
+    }
+
+    /// A fake OBSW that answers every copy of a TC like the real one's duplicate window:
+    /// the first `corrupt` copies get TM[1,2] CRC_MISMATCH (damaged on the way), the
+    /// completion of the next `lose` copies is lost, then TM[1,1] + TM[1,7].
+    fn lossy_obsw(corrupt: usize, lose: usize) -> (SocketAddr, std::thread::JoinHandle<Vec<Vec<u8>>>) {
+        let s = UdpSocket::bind("127.0.0.1:0").unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+        let addr = s.local_addr().unwrap();
+        let h = std::thread::spawn(move || {
+            let mut copies = Vec::new();
+            let mut buf = [0u8; 2048];
+            let t = CdsShort::now().to_bytes();
+            let mut seq = 0;
+            while let Ok((n, from)) = s.recv_from(&mut buf) {
+                copies.push(buf[..n].to_vec());
+                let k = copies.len();
+                let rid = [buf[0], buf[1], buf[2], buf[3]];
+                let mut out = Vec::new();
+                if k <= corrupt {
+                    let mut d = rid.to_vec();
+                    d.extend_from_slice(&mib::failure::FailureCode::CRC_MISMATCH.code().to_be_bytes());
+                    d.extend_from_slice(&[0, 1, 0, 2]);
+                    out.push((1, 2, d));
+                } else {
+                    out.push((1, 1, rid.to_vec()));
+                    if k > corrupt + lose {
+                        out.push((1, 7, rid.to_vec()));
+                    }
+                }
+                for (sv, sub, d) in out {
+                    seq += 1;
+                    s.send_to(&build_tm(0x101, seq, sv, sub, 0, &t, &d), from).unwrap();
+                }
+                if k > corrupt + lose {
+                    break;
+                }
+            }
+            copies
+        });
+        (addr, h)
+    }
+
+    #[test]
+    fn a_tc_is_resent_identically_until_its_completion_and_a_damaged_copy_is_no_verdict() {
+        let (addr, fake) = lossy_obsw(1, 2);
+        let mut s = Session::connect(&[(1, addr)], Transport::Udp, None, |_| Some(200)).unwrap();
+        s.ack_timeout = Duration::from_millis(60);
+        let tc = s
+            .send(1, mib::tc::by_name("PING").unwrap(), &[], Some(3), None)
+            .unwrap();
+        let mut stages = Vec::new();
+        let mut damaged = 0;
+        let t0 = Instant::now();
+        while t0.elapsed() < Duration::from_secs(5) && !stages.contains(&Stage::Completion) {
+            for u in s.poll(Duration::from_millis(20)) {
+                match u {
+                    Update::Verification { tag: Some(3), v, .. } => {
+                        assert!(v.success, "a damaged copy's TM[1,2] is not the TC's verdict");
+                        stages.push(v.stage);
+                    }
+                    Update::DamagedCopy { tag: Some(3), .. } => damaged += 1,
+                    Update::GaveUp { .. } => panic!("gave up"),
+                    _ => {}
+                }
+            }
+        }
+        assert_eq!(damaged, 1);
+        assert_eq!(stages.last(), Some(&Stage::Completion));
+        assert!(!s.busy(1));
+        let copies = fake.join().unwrap();
+        assert_eq!(copies.len(), 4, "1 damaged + 2 without completion + 1 complete");
+        assert!(
+            copies.iter().all(|c| *c == tc.bytes),
+            "every copy identical (same seq, same bytes)"
+        );
+    }
+
+    #[test]
+    fn the_retry_span_fits_in_the_obsw_duplicate_window() {
+        let total: u32 = (0..=TC_RETRY_MAX).map(tc_retry_wait_ms).sum();
+        assert_eq!(total, mib::config::TC_RETRY_SPAN_MS);
+        const { assert!(mib::config::TC_RETRY_SPAN_MS <= mib::config::DUPLICATE_MAX_AGE_MS) };
+        assert!(tc_retry_wait_ms(1) > tc_retry_wait_ms(0), "backoff");
+        assert_eq!(tc_retry_wait_ms(100), mib::config::TC_RETRY_CAP_MS);
     }
 
     #[test]

@@ -1178,6 +1178,7 @@ tc = "HK_SET_INTERVAL"
 args = { sid = 1, interval_ms = 100 }
 "#;
 
+    // verifies: GND-04
     #[test]
     fn valid_plan_parses_with_implicit_and_explicit_dependencies() {
         let p = parse(GOOD).unwrap();
@@ -1199,6 +1200,7 @@ args = { sid = 1, interval_ms = 100 }
         diagnostics("p.toml", src, &parse(src).unwrap_err())
     }
 
+    // verifies: GND-03
     #[test]
     fn every_error_is_reported_with_line_and_column() {
         let src = r#"[[robot]]
@@ -1243,6 +1245,7 @@ colour = "red"
         assert!(d.len() >= 9, "{text:#?}");
     }
 
+    // verifies: GND-04
     #[test]
     fn from_state_must_match_previous_to_state_and_be_reachable() {
         let src = r#"[[robot]]
@@ -1273,6 +1276,7 @@ to = "Xneg"
         );
     }
 
+    // verifies: GND-04
     #[test]
     fn unreachable_reconfiguration_is_an_error() {
         // Find a pair of states more than 3 primitives apart, if the map has one.
@@ -1291,6 +1295,7 @@ to = "Xneg"
         assert!(text.iter().any(|t| t.contains("is not reachable")), "{text:#?}");
     }
 
+    // verifies: GND-04
     #[test]
     fn bfs_follows_the_reconfiguration_map() {
         // Xneg -> Xpos: extend one side, contract the other (two primitives).
@@ -1312,6 +1317,7 @@ to = "Xneg"
         }
     }
 
+    // verifies: GND-04
     #[test]
     fn dependency_cycle_is_reported() {
         let src = r#"[[robot]]
@@ -1335,6 +1341,7 @@ after = ["x"]
         assert!(text.iter().any(|t| t.contains("dependency cycle")), "{text:#?}");
     }
 
+    // verifies: GND-03
     #[test]
     fn syntax_errors_and_bad_command_args_are_located() {
         let d = errors("[[robot]\nnumber = 1\n");
@@ -1357,6 +1364,7 @@ args = { sid = 1, interval_ms = 1, bogus = 2 }
         assert!(text.iter().any(|t| t.contains("unknown key `bogus`")), "{text:#?}");
     }
 
+    // verifies: GND-03
     #[test]
     fn line_col_counts_characters() {
         assert_eq!(line_col("ab\ncd", 4), (2, 2));

@@ -6,37 +6,27 @@
 //! bytes are checked here before they reach the `spacepackets` readers, so a corrupt
 //! packet is an error value and never a panic.
 
+pub mod out;
+
 use std::collections::HashMap;
 use std::fmt;
 
 use arbitrary_int::{u11, u14};
-use mib::codec::{self, ArgError, CodecError};
+use mib::codec::{self, ArgError};
 use mib::config::{GROUND_ID, MAX_PACKET_LEN, TIMESTAMP_LEN};
-use mib::events::{EventDef, Severity};
+use mib::events::Severity;
 use mib::tc::{service, TcDef};
 use mib::FailureCode;
-use satrs::spacepackets::ecss::tc::{
-    AckFlags, GenericPusTcSecondaryHeader, PusTcCreator, PusTcReader, PusTcSecondaryHeader, ACK_ALL,
-};
-use satrs::spacepackets::ecss::tm::{PusTmCreator, PusTmReader, PusTmSecondaryHeader};
-use satrs::spacepackets::ecss::{CreatorConfig, MessageTypeId, PusPacket, WritablePusPacket};
-use satrs::spacepackets::{CcsdsPacket, SpHeader};
+use mib_wire::header::{HeaderError, TcPacket, TmPacket};
+use satrs::spacepackets::ecss::tc::{AckFlags, PusTcCreator, PusTcSecondaryHeader, ACK_ALL};
+use satrs::spacepackets::ecss::tm::{PusTmCreator, PusTmSecondaryHeader};
+use satrs::spacepackets::ecss::{CreatorConfig, MessageTypeId, WritablePusPacket};
+use satrs::spacepackets::SpHeader;
 use serde::Serialize;
 
-/// Length of the CCSDS primary header.
-pub const PRIMARY_HEADER_LEN: usize = 6;
-/// PUS-C TC secondary header length (version/ack, service, subservice, source ID).
-pub const TC_SEC_HEADER_LEN: usize = 5;
-/// PUS-C TM secondary header length without the time stamp.
-pub const TM_SEC_HEADER_LEN: usize = 7;
-/// Packet error control length.
-pub const CRC_LEN: usize = 2;
-/// Shortest TC we accept: headers and CRC.
-pub const MIN_TC_LEN: usize = PRIMARY_HEADER_LEN + TC_SEC_HEADER_LEN + CRC_LEN;
-/// Shortest TM we accept: headers, time stamp and CRC.
-pub const MIN_TM_LEN: usize = PRIMARY_HEADER_LEN + TM_SEC_HEADER_LEN + TIMESTAMP_LEN + CRC_LEN;
-/// PUS-C version number in the secondary header.
-const PUS_C: u8 = 2;
+pub use mib_wire::header::{
+    CDS_PFIELD, CRC_LEN, MIN_TC_LEN, MIN_TM_LEN, PRIMARY_HEADER_LEN, TC_SEC_HEADER_LEN, TM_SEC_HEADER_LEN,
+};
 
 /// Why a packet could not be decoded.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -128,11 +118,11 @@ impl RequestId {
     pub fn seq(self) -> u16 {
         self.psc & 0x3FFF
     }
-    fn parse(b: &[u8]) -> Option<RequestId> {
-        Some(RequestId {
-            packet_id: u16::from_be_bytes([*b.first()?, *b.get(1)?]),
-            psc: u16::from_be_bytes([*b.get(2)?, *b.get(3)?]),
-        })
+    fn from_wire(r: &mib_wire::RequestId) -> RequestId {
+        RequestId {
+            packet_id: r.packet_id(),
+            psc: r.psc(),
+        }
     }
 }
 
@@ -193,10 +183,8 @@ pub struct BuiltTc {
 
 impl BuiltTc {
     pub fn request_id(&self) -> RequestId {
-        RequestId {
-            packet_id: u16::from_be_bytes([self.bytes[0], self.bytes[1]]),
-            psc: u16::from_be_bytes([self.bytes[2], self.bytes[3]]),
-        }
+        // A built TC always has its primary header.
+        mib_wire::RequestId::of_tc(&self.bytes).map_or(RequestId { packet_id: 0, psc: 0 }, |r| RequestId::from_wire(&r))
     }
 }
 
@@ -262,36 +250,33 @@ pub struct CdsShort {
     pub ms_of_day: u32,
 }
 
-/// Days between the CCSDS epoch (1958-01-01) and the Unix epoch.
-const CCSDS_TO_UNIX_DAYS: i64 = 4383;
-/// P-field of a CDS short time stamp with 16-bit days and no sub-milliseconds.
-pub const CDS_PFIELD: u8 = 0x40;
-
 impl CdsShort {
     pub fn parse(b: &[u8]) -> Option<CdsShort> {
-        if b.len() < TIMESTAMP_LEN {
-            return None;
+        let t = mib_wire::CdsTime::parse(b.get(..TIMESTAMP_LEN)?).ok()?;
+        Some(CdsShort::from_wire(&t))
+    }
+    pub fn from_wire(t: &mib_wire::CdsTime) -> CdsShort {
+        CdsShort {
+            days: t.days,
+            ms_of_day: t.ms_of_day,
         }
-        Some(CdsShort {
-            days: u16::from_be_bytes([b[1], b[2]]),
-            ms_of_day: u32::from_be_bytes([b[3], b[4], b[5], b[6]]),
-        })
+    }
+    fn wire(self) -> mib_wire::CdsTime {
+        mib_wire::CdsTime {
+            pfield: CDS_PFIELD,
+            days: self.days,
+            ms_of_day: self.ms_of_day,
+        }
     }
     pub fn to_bytes(self) -> [u8; TIMESTAMP_LEN] {
-        let d = self.days.to_be_bytes();
-        let m = self.ms_of_day.to_be_bytes();
-        [CDS_PFIELD, d[0], d[1], m[0], m[1], m[2], m[3]]
+        self.wire().to_bytes()
     }
     /// Milliseconds since the Unix epoch.
     pub fn unix_ms(self) -> i64 {
-        (self.days as i64 - CCSDS_TO_UNIX_DAYS) * 86_400_000 + self.ms_of_day as i64
+        self.wire().unix_ms()
     }
     pub fn from_unix_ms(ms: i64) -> CdsShort {
-        let days = ms.div_euclid(86_400_000) + CCSDS_TO_UNIX_DAYS;
-        CdsShort {
-            days: days.clamp(0, u16::MAX as i64) as u16,
-            ms_of_day: ms.rem_euclid(86_400_000) as u32,
-        }
+        CdsShort::from_wire(&mib_wire::CdsTime::from_unix_ms(ms))
     }
     pub fn now() -> CdsShort {
         CdsShort::from_unix_ms(chrono::Utc::now().timestamp_millis())
@@ -355,7 +340,7 @@ impl Failure {
             code,
             name: fc.name(),
             description: fc.description(),
-            fields: decode_layout(fc.data_layout(), data),
+            fields: decode_fields(fc.data(), data),
             data: data.to_vec(),
         }
     }
@@ -395,40 +380,27 @@ pub fn hex(v: &[u8]) -> String {
     s
 }
 
-fn ptype_of(name: &str) -> Option<mib::PType> {
-    use mib::PType::*;
-    Some(match name {
-        "u8" => U8,
-        "u16" => U16,
-        "u32" => U32,
-        "i16" => I16,
-        "i32" => I32,
-        "bool" => Bool,
-        _ => return None,
-    })
-}
-
-/// Decodes `data` with a MIB layout string such as `"side u8, pair u8, attempts u8"`.
-/// Returns the fields that fit; unknown types stop the decoding.
-pub fn decode_layout(layout: &str, data: &[u8]) -> Vec<Field> {
-    let mut out = Vec::new();
-    let mut off = 0;
-    for part in layout.split(',') {
-        let mut it = part.split_whitespace();
-        let (Some(name), Some(ty)) = (it.next(), it.next()) else {
-            break;
-        };
-        let Some(pt) = ptype_of(ty) else { break };
-        let Some(v) = data.get(off..).and_then(|d| pt.decode(d)) else {
-            break;
-        };
+/// Decodes `data` with a MIB field list; returns the fields that fit.
+pub fn decode_fields(fields: &[mib::layout::Field], data: &[u8]) -> Vec<Field> {
+    let mut r = mib_wire::Reader::new(data);
+    let mut out = Vec::with_capacity(fields.len());
+    for f in fields {
+        let Ok(u) = r.uint(f.bits, f.name) else { break };
         out.push(Field {
-            name: name.to_string(),
-            value: v,
+            name: f.name.to_string(),
+            value: raw_value(f.ptype, u),
         });
-        off += pt.size();
     }
     out
+}
+
+/// Raw value of an unsigned wire word read for a field of type `t`.
+pub fn raw_value(t: mib::PType, u: u32) -> i64 {
+    match t {
+        mib::PType::I16 => u as u16 as i16 as i64,
+        mib::PType::I32 => u as i32 as i64,
+        _ => u as i64,
+    }
 }
 
 /// A PUS 1 verification report.
@@ -480,22 +452,6 @@ pub struct Event {
 }
 
 impl Event {
-    fn from_report(def: &'static EventDef, rep: &codec::EventReport<'_>) -> Event {
-        Event {
-            id: def.id,
-            name: def.name,
-            severity: def.severity.name(),
-            fault: def.fault,
-            description: def.desc,
-            params: rep
-                .params()
-                .map(|(n, v)| Field {
-                    name: n.to_string(),
-                    value: v,
-                })
-                .collect(),
-        }
-    }
     pub fn param(&self, name: &str) -> Option<i64> {
         self.params.iter().find(|f| f.name == name).map(|f| f.value)
     }
@@ -556,6 +512,12 @@ pub enum TmBody {
     },
     StoreDownlinkDone {
         packets: u32,
+        /// On-board time of the oldest packet still in the store.
+        oldest_time: CdsShort,
+        /// Sequence count of the oldest packet still in the store.
+        oldest_seq: u16,
+        /// Stored packets overwritten since boot.
+        overwritten: u32,
     },
     PingReply,
     EaDefinitions {
@@ -626,315 +588,204 @@ pub enum Packet {
     Tm(Tm),
 }
 
-/// Checks the primary header and returns `(total length, is TC)`.
-fn check_header(b: &[u8]) -> Result<(usize, bool), DecodeError> {
-    if b.len() < PRIMARY_HEADER_LEN {
-        return Err(DecodeError::Truncated {
-            need: PRIMARY_HEADER_LEN,
-            have: b.len(),
-        });
+fn header_err(e: HeaderError) -> DecodeError {
+    match e {
+        HeaderError::Truncated { need, have } => DecodeError::Truncated { need, have },
+        HeaderError::TooLong { len } => DecodeError::TooLong { len },
+        HeaderError::NotPus { reason } => DecodeError::NotPus { reason },
+        HeaderError::WrongType { is_tc: true } => DecodeError::NotPus {
+            reason: "packet is a TC, TM expected",
+        },
+        HeaderError::WrongType { is_tc: false } => DecodeError::NotPus {
+            reason: "packet is a TM, TC expected",
+        },
+        HeaderError::Crc { received, computed } => DecodeError::Crc { received, computed },
+        // HeaderError is non_exhaustive (another crate): a new kind is still an error.
+        other => DecodeError::Data {
+            what: other.to_string(),
+        },
     }
-    if b[0] >> 5 != 0 {
-        return Err(DecodeError::NotPus {
-            reason: "CCSDS version is not 0",
-        });
-    }
-    if b[0] & 0x08 == 0 {
-        return Err(DecodeError::NotPus {
-            reason: "no secondary header",
-        });
-    }
-    let is_tc = b[0] & 0x10 != 0;
-    let len = u16::from_be_bytes([b[4], b[5]]) as usize + PRIMARY_HEADER_LEN + 1;
-    if len > MAX_PACKET_LEN {
-        return Err(DecodeError::TooLong { len });
-    }
-    let min = if is_tc { MIN_TC_LEN } else { MIN_TM_LEN };
-    if len < min {
-        return Err(DecodeError::Truncated { need: min, have: len });
-    }
-    if b.len() < len {
-        return Err(DecodeError::Truncated {
-            need: len,
-            have: b.len(),
-        });
-    }
-    if b[PRIMARY_HEADER_LEN] >> 4 != PUS_C {
-        return Err(DecodeError::NotPus {
-            reason: "PUS version is not C",
-        });
-    }
-    Ok((len, is_tc))
-}
-
-fn crc_error(raw: &[u8]) -> DecodeError {
-    let n = raw.len();
-    let received = u16::from_be_bytes([raw[n - 2], raw[n - 1]]);
-    let computed = satrs::spacepackets::crc::CRC_CCITT_FALSE.checksum(&raw[..n - 2]);
-    DecodeError::Crc { received, computed }
 }
 
 /// Length of the packet at the start of `b`, if its header is plausible.
 pub fn packet_len(b: &[u8]) -> Result<usize, DecodeError> {
-    check_header(b).map(|(l, _)| l)
+    mib_wire::header::check_primary(b).map(|p| p.len).map_err(header_err)
 }
 
 /// Decodes the packet at the start of `b` (trailing bytes are ignored).
 pub fn decode_packet(b: &[u8]) -> Result<Packet, DecodeError> {
-    let (len, is_tc) = check_header(b)?;
-    if is_tc {
-        decode_tc(&b[..len]).map(Packet::Tc)
+    let p = mib_wire::header::check_primary(b).map_err(header_err)?;
+    if p.is_tc {
+        decode_tc(&b[..p.len]).map(Packet::Tc)
     } else {
-        decode_tm(&b[..len]).map(Packet::Tm)
+        decode_tm(&b[..p.len]).map(Packet::Tm)
     }
 }
 
-/// Decodes one TM packet (CRC checked).
+/// Decodes one TM packet (headers, CRC and body checked against the MIB).
 pub fn decode_tm(b: &[u8]) -> Result<Tm, DecodeError> {
-    let (len, is_tc) = check_header(b)?;
-    if is_tc {
-        return Err(DecodeError::NotPus {
-            reason: "packet is a TC, TM expected",
-        });
-    }
-    let raw = &b[..len];
-    let r = PusTmReader::new(raw, TIMESTAMP_LEN).map_err(|_| crc_error(raw))?;
-    let service = r.service_type_id();
-    let subservice = r.message_subtype_id();
-    let apid = r.apid().value();
-    let time = CdsShort::parse(r.timestamp()).unwrap_or(CdsShort { days: 0, ms_of_day: 0 });
-    let body = decode_tm_body(service, subservice, r.source_data())?;
+    let p = TmPacket::parse(b).map_err(header_err)?;
+    let body = decode_tm_source(p.service, p.subservice, p.source)?;
+    let apid = p.primary.apid;
     Ok(Tm {
         apid,
         robot: mib::apid::apid_robot(apid),
-        seq: r.seq_count().value(),
-        service,
-        subservice,
-        name: mib::tc::tm_by_type(service, subservice).map_or("UNKNOWN", |d| d.name),
-        msg_counter: r.sec_header.msg_counter,
-        time,
-        len,
+        seq: p.primary.seq_count,
+        service: p.service,
+        subservice: p.subservice,
+        name: mib::tc::tm_by_type(p.service, p.subservice).map_or("UNKNOWN", |d| d.name),
+        msg_counter: p.msg_counter,
+        time: CdsShort::from_wire(&p.time),
+        len: p.primary.len,
         body,
     })
-}
-
-fn be16(d: &[u8], o: usize) -> Option<u16> {
-    Some(u16::from_be_bytes([*d.get(o)?, *d.get(o + 1)?]))
-}
-fn be32(d: &[u8], o: usize) -> Option<u32> {
-    Some(u32::from_be_bytes([
-        *d.get(o)?,
-        *d.get(o + 1)?,
-        *d.get(o + 2)?,
-        *d.get(o + 3)?,
-    ]))
 }
 
 fn data_err(what: impl Into<String>) -> DecodeError {
     DecodeError::Data { what: what.into() }
 }
 
-fn exact(d: &[u8], n: usize, what: &str) -> Result<(), DecodeError> {
-    if d.len() != n {
-        Err(data_err(format!("{what}: {} bytes, {n} expected", d.len())))
-    } else {
-        Ok(())
+/// Decodes TM source data through the wire crate's `Repr`s (generated from the MIB).
+fn decode_tm_source(service: u8, subservice: u8, d: &[u8]) -> Result<TmBody, DecodeError> {
+    use mib_wire::Tm as W;
+    if mib::tc::tm_by_type(service, subservice).is_none() {
+        return Ok(TmBody::Unknown { data: d.to_vec() });
     }
-}
-
-fn codec_err(e: CodecError) -> DecodeError {
-    data_err(e.to_string())
-}
-
-/// Decodes TM source data by service and subservice.
-pub fn decode_tm_body(service: u8, subservice: u8, d: &[u8]) -> Result<TmBody, DecodeError> {
-    use mib::tc::service as s;
-    Ok(match (service, subservice) {
-        (s::VERIFICATION, 1..=8) => TmBody::Verification(decode_verification(subservice, d)?),
-        (s::HOUSEKEEPING, 25) => TmBody::Hk(decode_hk(d)?),
-        (s::EVENT, 1..=4) => {
-            let rep = codec::decode_event(d).map_err(codec_err)?;
-            if rep.def.severity != Severity::from_subservice(subservice).unwrap_or(Severity::Info) {
-                return Err(data_err(format!(
-                    "event {} has severity {} but came as TM[5,{subservice}]",
-                    rep.def.name,
-                    rep.def.severity.name()
-                )));
-            }
-            TmBody::Event(Event::from_report(rep.def, &rep))
+    let w = W::parse(service, subservice, d).map_err(|e| data_err(format!("TM[{service},{subservice}]: {e}")))?;
+    let verif = |stage, success, rid: &mib_wire::RequestId, step: Option<u8>, f: Option<&mib_wire::Failure>| {
+        Verification {
+            stage,
+            success,
+            request: RequestId::from_wire(rid),
+            step,
+            // The failure data is the tail of the source data.
+            failure: f.map(|f| Failure::from_code(f.code(), &d[d.len() - f.buffer_len()..])),
         }
-        (s::EVENT, 8) => {
-            let n = be16(d, 0).ok_or_else(|| data_err("TM[5,8]: no count"))? as usize;
-            exact(d, 2 + 2 * n, "TM[5,8]")?;
-            TmBody::DisabledEvents {
-                events: (0..n).filter_map(|i| be16(d, 2 + 2 * i)).collect(),
-            }
+    };
+    Ok(match w {
+        W::AcceptanceSuccess(x) => TmBody::Verification(verif(Stage::Acceptance, true, &x.request_id, None, None)),
+        W::AcceptanceFailure(x) => {
+            TmBody::Verification(verif(Stage::Acceptance, false, &x.request_id, None, Some(&x.failure)))
         }
-        (s::TIME, 2) => {
-            exact(d, 1 + TIMESTAMP_LEN, "TM[9,2]")?;
-            TmBody::TimeReport {
-                rate_exp: d[0],
-                time: CdsShort::parse(&d[1..]).ok_or_else(|| data_err("TM[9,2] time"))?,
-            }
+        W::StartSuccess(x) => TmBody::Verification(verif(Stage::Start, true, &x.request_id, None, None)),
+        W::StartFailure(x) => TmBody::Verification(verif(Stage::Start, false, &x.request_id, None, Some(&x.failure))),
+        W::ProgressSuccess(x) => TmBody::Verification(verif(Stage::Progress, true, &x.request_id, Some(x.step), None)),
+        W::ProgressFailure(x) => TmBody::Verification(verif(
+            Stage::Progress,
+            false,
+            &x.request_id,
+            Some(x.step),
+            Some(&x.failure),
+        )),
+        W::CompletionSuccess(x) => TmBody::Verification(verif(Stage::Completion, true, &x.request_id, None, None)),
+        W::CompletionFailure(x) => {
+            TmBody::Verification(verif(Stage::Completion, false, &x.request_id, None, Some(&x.failure)))
         }
-        (s::MONITORING, 9) => {
-            const REC: usize = 2 + 2 + 1 + 4 + 4 + 2 + 2;
-            let n = be16(d, 0).ok_or_else(|| data_err("TM[12,9]: no count"))? as usize;
-            exact(d, 2 + REC * n, "TM[12,9]")?;
-            let monitors = (0..n)
-                .filter_map(|i| {
-                    let o = 2 + REC * i;
-                    Some(MonDefinition {
-                        id: be16(d, o)?,
-                        param: be16(d, o + 2)?,
-                        enabled: *d.get(o + 4)? != 0,
-                        low: be32(d, o + 5)? as i32,
-                        high: be32(d, o + 9)? as i32,
-                        persistence: be16(d, o + 13)?,
-                        event: be16(d, o + 15)?,
-                    })
+        W::HkReport(x) => TmBody::Hk(hk_of(&x.hk)?),
+        W::EventInfo(x) => TmBody::Event(event_of(subservice, &x.event, d)?),
+        W::EventLow(x) => TmBody::Event(event_of(subservice, &x.event, d)?),
+        W::EventMedium(x) => TmBody::Event(event_of(subservice, &x.event, d)?),
+        W::EventHigh(x) => TmBody::Event(event_of(subservice, &x.event, d)?),
+        W::DisabledEvents(x) => TmBody::DisabledEvents {
+            events: x.events.iter().map(|e| e.event_id).collect(),
+        },
+        W::TimeReport(x) => TmBody::TimeReport {
+            rate_exp: x.rate_exp,
+            time: CdsShort::from_wire(&x.time),
+        },
+        W::MonDefinitions(x) => TmBody::MonDefinitions {
+            monitors: x
+                .monitors
+                .iter()
+                .map(|m| MonDefinition {
+                    id: m.monitor_id,
+                    param: m.param,
+                    enabled: m.enabled != 0,
+                    low: m.low,
+                    high: m.high,
+                    persistence: m.persistence,
+                    event: m.event,
                 })
-                .collect();
-            TmBody::MonDefinitions { monitors }
-        }
-        (s::MONITORING, 12) => {
-            exact(d, 2 + 2 + 4 + 4 + 1, "TM[12,12]")?;
-            TmBody::MonTransition {
-                monitor: be16(d, 0).unwrap_or(0),
-                param: be16(d, 2).unwrap_or(0),
-                value: be32(d, 4).unwrap_or(0) as i32,
-                limit: be32(d, 8).unwrap_or(0) as i32,
-                state: d[12],
-            }
-        }
-        (s::STORAGE, 19) => {
-            exact(d, 4, "TM[15,19]")?;
-            TmBody::StoreDownlinkDone {
-                packets: be32(d, 0).unwrap_or(0),
-            }
-        }
-        (s::TEST, 2) => {
-            exact(d, 0, "TM[17,2]")?;
-            TmBody::PingReply
-        }
-        (s::EVENT_ACTION, 9) => {
-            const REC: usize = 2 + 1 + 4 + 1;
-            let n = be16(d, 0).ok_or_else(|| data_err("TM[19,9]: no count"))? as usize;
-            exact(d, 2 + REC * n, "TM[19,9]")?;
-            let links = (0..n)
-                .filter_map(|i| {
-                    let o = 2 + REC * i;
-                    Some(EaDefinition {
-                        event: be16(d, o)?,
-                        enabled: *d.get(o + 2)? != 0,
-                        mode: be32(d, o + 3)?,
-                        deferred: *d.get(o + 7)? != 0,
-                    })
+                .collect(),
+        },
+        W::MonTransition(x) => TmBody::MonTransition {
+            monitor: x.monitor_id,
+            param: x.param,
+            value: x.value,
+            limit: x.limit,
+            state: x.state,
+        },
+        W::StoreDownlinkDone(x) => TmBody::StoreDownlinkDone {
+            packets: x.packets,
+            oldest_time: CdsShort::from_wire(&x.oldest_time),
+            oldest_seq: x.oldest_seq,
+            overwritten: x.overwritten,
+        },
+        W::PingReply(_) => TmBody::PingReply,
+        W::EaDefinitions(x) => TmBody::EaDefinitions {
+            links: x
+                .links
+                .iter()
+                .map(|l| EaDefinition {
+                    event: l.event,
+                    enabled: l.enabled != 0,
+                    mode: l.mode,
+                    deferred: l.deferred != 0,
                 })
-                .collect();
-            TmBody::EaDefinitions { links }
-        }
-        (s::PARAMETER, 2) => {
-            exact(d, 6, "TM[20,2]")?;
-            TmBody::ParamValue {
-                param: be16(d, 0).unwrap_or(0),
-                value: be32(d, 2).unwrap_or(0) as i32,
-            }
-        }
-        (s::MODE, 6) => {
-            exact(d, 10, "TM[200,6]")?;
-            TmBody::ModeReply {
-                node: be32(d, 0).unwrap_or(0),
-                mode: be32(d, 4).unwrap_or(0),
-                submode: be16(d, 8).unwrap_or(0),
-            }
-        }
-        (s::MODE, 7) => {
-            exact(d, 12, "TM[200,7]")?;
-            TmBody::ModeCantReach {
-                node: be32(d, 0).unwrap_or(0),
-                mode: be32(d, 4).unwrap_or(0),
-                submode: be16(d, 8).unwrap_or(0),
-                reason: be16(d, 10).unwrap_or(0),
-            }
-        }
-        _ => TmBody::Unknown { data: d.to_vec() },
+                .collect(),
+        },
+        W::ParamValue(x) => TmBody::ParamValue {
+            param: x.param_id,
+            value: x.value,
+        },
+        W::ModeReply(x) => TmBody::ModeReply {
+            node: x.node,
+            mode: x.mode,
+            submode: x.submode,
+        },
+        W::ModeCantReach(x) => TmBody::ModeCantReach {
+            node: x.node,
+            mode: x.mode,
+            submode: x.submode,
+            reason: x.reason,
+        },
     })
 }
 
-fn decode_verification(subservice: u8, d: &[u8]) -> Result<Verification, DecodeError> {
-    let stage = match subservice {
-        1 | 2 => Stage::Acceptance,
-        3 | 4 => Stage::Start,
-        5 | 6 => Stage::Progress,
-        _ => Stage::Completion,
+fn event_of(subservice: u8, e: &mib_wire::Event, d: &[u8]) -> Result<Event, DecodeError> {
+    let Some(def) = mib::events::by_id(e.id()) else {
+        return Err(data_err(format!("event ID 0x{:04X} not in the MIB", e.id())));
     };
-    let success = subservice % 2 == 1;
-    let request = RequestId::parse(d).ok_or_else(|| data_err("TM[1,x]: no request ID"))?;
-    let mut off = 4;
-    let step = if stage == Stage::Progress {
-        let s = *d.get(off).ok_or_else(|| data_err("TM[1,5/6]: no step number"))?;
-        off += 1;
-        Some(s)
-    } else {
-        None
-    };
-    let failure = if success {
-        if d.len() != off {
-            return Err(data_err(format!(
-                "TM[1,{subservice}]: {} bytes, {off} expected",
-                d.len()
-            )));
-        }
-        None
-    } else {
-        let code = be16(d, off).ok_or_else(|| data_err("TM[1,x]: no failure code"))?;
-        Some(Failure::from_code(code, &d[off + 2..]))
-    };
-    Ok(Verification {
-        stage,
-        success,
-        request,
-        step,
-        failure,
+    if Some(def.severity) != Severity::from_subservice(subservice) {
+        return Err(data_err(format!(
+            "event {} has severity {} but came as TM[5,{subservice}]",
+            def.name,
+            def.severity.name()
+        )));
+    }
+    Ok(Event {
+        id: def.id,
+        name: def.name,
+        severity: def.severity.name(),
+        fault: def.fault,
+        description: def.desc,
+        params: decode_fields(def.params, &d[2..]),
     })
 }
 
-/// Precomputed parameter lookup (the MIB's `by_id` is a linear search; the archive
-/// decodes thousands of HK packets per second).
-struct ParamTable {
-    by_id: Vec<Option<&'static mib::params::ParamDef>>,
-}
-
-impl ParamTable {
-    fn get() -> &'static ParamTable {
-        static T: std::sync::OnceLock<ParamTable> = std::sync::OnceLock::new();
-        T.get_or_init(|| {
-            let max = mib::params::PARAMS.iter().map(|p| p.id).max().unwrap_or(0) as usize;
-            let mut by_id = vec![None; max + 1];
-            for p in mib::params::PARAMS {
-                by_id[p.id as usize] = Some(p);
-            }
-            ParamTable { by_id }
-        })
-    }
-}
-
-/// Decodes TM[3,25] source data (length checked by `mib::codec::decode_hk`).
-pub fn decode_hk(d: &[u8]) -> Result<Hk, DecodeError> {
-    let rep = codec::decode_hk(d).map_err(codec_err)?;
-    let table = ParamTable::get();
-    let mut values = Vec::with_capacity(rep.def.params.len());
-    let mut off = 2;
-    for id in rep.def.params {
-        let Some(p) = table.by_id.get(*id as usize).copied().flatten() else {
+/// The decoded values of a housekeeping report, in structure order.
+fn hk_of(h: &mib_wire::Hk) -> Result<Hk, DecodeError> {
+    let Some(def) = mib::hk::by_sid(h.sid()) else {
+        return Err(data_err(format!(
+            "housekeeping structure ID {} not in the MIB",
+            h.sid()
+        )));
+    };
+    let mut values = Vec::with_capacity(def.params.len());
+    for id in def.params {
+        let (Some(p), Some(raw)) = (mib::params::by_id(*id), h.get(*id)) else {
             return Err(data_err(format!("HK parameter {id} not in the MIB")));
         };
-        let raw = p
-            .ptype
-            .decode(&d[off..])
-            .ok_or_else(|| data_err("HK report too short"))?;
-        off += p.ptype.size();
         values.push(HkValue {
             id: p.id,
             name: p.name,
@@ -944,31 +795,25 @@ pub fn decode_hk(d: &[u8]) -> Result<Hk, DecodeError> {
         });
     }
     Ok(Hk {
-        sid: rep.def.sid,
-        name: rep.def.name,
+        sid: def.sid,
+        name: def.name,
         values,
     })
 }
 
+/// Decodes TM[3,25] source data.
+pub fn decode_hk(d: &[u8]) -> Result<Hk, DecodeError> {
+    let r = mib_wire::tm::HkReport::parse(d).map_err(|e| data_err(format!("TM[3,25]: {e}")))?;
+    hk_of(&r.hk)
+}
+
 /// Decodes one TC packet (CRC checked) and its arguments against the MIB.
 pub fn decode_tc(b: &[u8]) -> Result<Tc, DecodeError> {
-    let (len, is_tc) = check_header(b)?;
-    if !is_tc {
-        return Err(DecodeError::NotPus {
-            reason: "packet is a TM, TC expected",
-        });
-    }
-    let raw = &b[..len];
-    let r = PusTcReader::new(raw).map_err(|_| crc_error(raw))?;
-    let service = PusPacket::service_type_id(&r);
-    let subservice = PusPacket::message_subtype_id(&r);
-    let apid = r.apid().value();
-    let app = r.app_data();
-    let (function, data) = if service == service::FUNCTION {
-        match be16(app, 0) {
-            Some(f) => (Some(f), &app[2..]),
-            None => (None, app),
-        }
+    let p = TcPacket::parse(b).map_err(header_err)?;
+    let (service, subservice, app) = (p.service, p.subservice, p.app_data);
+    let apid = p.primary.apid;
+    let (function, data) = if service == service::FUNCTION && app.len() >= 2 {
+        (Some(u16::from_be_bytes([app[0], app[1]])), &app[2..])
     } else {
         (None, app)
     };
@@ -987,6 +832,10 @@ pub fn decode_tc(b: &[u8]) -> Result<Tc, DecodeError> {
                         value: *v,
                     })
                     .collect();
+                // The structure (variable part included) must follow the MIB too.
+                if let Err(e) = mib_wire::Tc::parse(service, subservice, app) {
+                    arg_error = Some(format!("{}: {e}", def.name));
+                }
             }
             Err(e) => arg_error = Some(BuildError::Args { tc: def.name, err: e }.to_string()),
         },
@@ -1000,16 +849,16 @@ pub fn decode_tc(b: &[u8]) -> Result<Tc, DecodeError> {
     Ok(Tc {
         apid,
         robot: mib::apid::apid_robot(apid),
-        seq: r.seq_count().value(),
+        seq: p.primary.seq_count,
         service,
         subservice,
-        ack: r.ack_flags().raw_value().value(),
-        source_id: r.source_id(),
+        ack: p.ack,
+        source_id: p.source_id,
         name: def.map(|d| d.name),
         function,
         args,
         arg_error,
-        len,
+        len: p.primary.len,
     })
 }
 
@@ -1216,7 +1065,14 @@ pub fn describe_body(b: &TmBody) -> String {
                 _ => "?",
             }
         ),
-        TmBody::StoreDownlinkDone { packets } => format!("store downlink done, {packets} packets"),
+        TmBody::StoreDownlinkDone {
+            packets,
+            oldest_time,
+            oldest_seq,
+            overwritten,
+        } => format!(
+            "store downlink done, {packets} packets; oldest stored: {oldest_time} seq {oldest_seq}; {overwritten} overwritten since boot"
+        ),
         TmBody::PingReply => "ping reply".to_string(),
         TmBody::EaDefinitions { links } => format!("{} links {links:?}", links.len()),
         TmBody::ParamValue { param, value } => format!(
@@ -1264,6 +1120,7 @@ mod tests {
 
     const T0: [u8; 7] = [CDS_PFIELD, 0x5A, 0x00, 0x00, 0x00, 0x03, 0xE8];
 
+    // verifies: MMIC-FW-01
     #[test]
     fn ping_tc_bytes_match_ccsds_and_pus_c_layout() {
         let def = mib::tc::by_name("PING").unwrap();
@@ -1283,6 +1140,7 @@ mod tests {
         );
     }
 
+    // verifies: PUS-1-03
     #[test]
     fn robot_action_requests_all_four_acknowledgements_and_round_trips() {
         let def = mib::tc::lookup(8, 1, Some(function::RECONFIGURE)).unwrap();
@@ -1303,6 +1161,7 @@ mod tests {
         assert_eq!(d.arg_error, None);
     }
 
+    // verifies: PUS-8-02
     #[test]
     fn out_of_range_argument_is_refused_before_sending() {
         let def = mib::tc::by_name("BOLT_FACE").unwrap();
@@ -1311,6 +1170,7 @@ mod tests {
         assert!(matches!(build_tc(0, 0, def, &[0, 1]), Err(BuildError::UnknownRobot(0))));
     }
 
+    // verifies: PUS-PKT-03
     #[test]
     fn sequence_counts_are_per_apid_and_wrap_at_14_bits() {
         let mut s = SeqCounters::new();
@@ -1326,6 +1186,7 @@ mod tests {
         build_tm(0x101, 9, service, sub, 3, &T0, src)
     }
 
+    // verifies: PUS-1-01
     #[test]
     fn acceptance_success_from_static_bytes() {
         // TM[1,1] for request 0x1901/0xC005, hand-assembled.
@@ -1353,6 +1214,7 @@ mod tests {
         assert_eq!(v.request.seq(), 5);
     }
 
+    // verifies: PUS-1-03
     #[test]
     fn progress_and_failure_reports_carry_step_code_and_named_data() {
         let t = decode_tm(&tm(1, 5, &[0x19, 0x01, 0xC0, 0x05, 2])).unwrap();
@@ -1384,6 +1246,7 @@ mod tests {
         assert!(decode_tm(&tm(1, 7, &[0x19, 0x01, 0xC0, 0x05, 9])).is_err());
     }
 
+    // verifies: PUS-3-01
     #[test]
     fn hk_report_decodes_with_calibration() {
         let def = mib::hk::by_sid(mib::hk::sid::ROBOT_STATUS).unwrap();
@@ -1399,6 +1262,7 @@ mod tests {
         assert!(decode_tm(&tm(3, 25, &src[..n - 1])).is_err());
     }
 
+    // verifies: PUS-5-01
     #[test]
     fn event_report_must_match_its_severity() {
         let def = mib::events::by_id(eid::BOLT_FAILURE).unwrap();
@@ -1412,6 +1276,7 @@ mod tests {
         assert!(decode_tm(&tm(5, 1, &src[..n])).is_err());
     }
 
+    // verifies: DD-DEC-01
     #[test]
     fn other_tm_types_decode_per_mib_layouts() {
         assert_eq!(decode_tm(&tm(17, 2, &[])).unwrap().body, TmBody::PingReply);
@@ -1443,8 +1308,22 @@ mod tests {
             TmBody::ParamValue { param: 3, value: 4 }
         );
         assert_eq!(
-            decode_tm(&tm(15, 19, &[0, 0, 1, 0])).unwrap().body,
-            TmBody::StoreDownlinkDone { packets: 256 }
+            decode_tm(&tm(
+                15,
+                19,
+                &[0, 0, 1, 0, CDS_PFIELD, 0x5A, 0, 0, 0, 0, 1, 0, 7, 0, 0, 0, 2]
+            ))
+            .unwrap()
+            .body,
+            TmBody::StoreDownlinkDone {
+                packets: 256,
+                oldest_time: CdsShort {
+                    days: 0x5A00,
+                    ms_of_day: 1
+                },
+                oldest_seq: 7,
+                overwritten: 2
+            }
         );
         let mon = [
             0, 1, 0, 1, 0, 20, 1, 0, 0, 0x0A, 0xAA, 0x7F, 0xFF, 0xFF, 0xFF, 0, 50, 1, 4,
@@ -1471,6 +1350,7 @@ mod tests {
         ));
     }
 
+    // verifies: PUS-PKT-01
     #[test]
     fn crc_error_and_bad_versions_are_values() {
         let mut b = tm(17, 2, &[]);
@@ -1490,6 +1370,7 @@ mod tests {
         ));
     }
 
+    // verifies: DD-LINK-01
     #[test]
     fn stream_decoder_resynchronises_after_garbage() {
         let mut s = tm(17, 2, &[]);
@@ -1504,6 +1385,7 @@ mod tests {
         assert!(matches!(items[1], StreamItem::Corrupt { len: 3, .. }));
     }
 
+    // verifies: PUS-PKT-04
     #[test]
     fn time_stamp_round_trips_through_unix_ms() {
         let t = CdsShort::from_unix_ms(1_700_000_000_123);
@@ -1517,6 +1399,7 @@ mod tests {
         use proptest::prelude::*;
         proptest! {
             #![proptest_config(ProptestConfig::with_cases(2000))]
+            // verifies: DD-ROBUST-01
             #[test]
             fn random_bytes_never_panic(data in proptest::collection::vec(any::<u8>(), 0..400)) {
                 let mut st = StreamStats::default();
@@ -1532,6 +1415,7 @@ mod tests {
                 prop_assert_eq!(covered, data.len());
             }
 
+            // verifies: GND-08
             #[test]
             fn valid_header_random_body_never_panics(
                 tc in any::<bool>(), svc in any::<u8>(), sub in any::<u8>(),

@@ -25,6 +25,7 @@ fn tmpdir(name: &str) -> PathBuf {
     d
 }
 
+// verifies: GND-07
 #[test]
 fn every_verb_has_help() {
     for verb in [
@@ -52,6 +53,7 @@ fn every_verb_has_help() {
     assert_eq!(ground(&["frobnicate"]).status.code(), Some(2));
 }
 
+// verifies: GND-03
 #[test]
 fn shipped_plans_check_and_a_bad_plan_lists_every_error() {
     let plans: Vec<String> = std::fs::read_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/../plans"))
@@ -79,6 +81,7 @@ fn shipped_plans_check_and_a_bad_plan_lists_every_error() {
     assert!(t.contains("2 error(s)"), "{t}");
 }
 
+// verifies: GND-02
 #[test]
 fn encoded_plan_decodes_back_and_corruption_is_counted() {
     let dir = tmpdir("enc");
@@ -117,6 +120,7 @@ fn encoded_plan_decodes_back_and_corruption_is_counted() {
     );
 }
 
+// verifies: GND-07
 #[test]
 fn closed_pipe_is_a_quiet_exit() {
     let dir = tmpdir("pipe");
@@ -140,6 +144,7 @@ fn closed_pipe_is_a_quiet_exit() {
     assert!(!String::from_utf8_lossy(&o.stderr).contains("panicked"));
 }
 
+// verifies: GND-07
 #[test]
 fn mib_export_writes_files() {
     let dir = tmpdir("mib");

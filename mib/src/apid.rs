@@ -32,6 +32,7 @@ pub const fn apid_robot(apid: u16) -> Option<u8> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: PUS-PKT-02
     #[test]
     fn robot_one_is_0x101_and_round_trips() {
         assert_eq!(robot_apid(1), Some(0x101));

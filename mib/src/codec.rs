@@ -267,6 +267,7 @@ mod tests {
     use crate::params::pid;
     use crate::tc::{self, function};
 
+    // verifies: PUS-3-01
     #[test]
     fn hk_round_trip_preserves_every_value() {
         for def in hk::HK_STRUCTS {
@@ -284,6 +285,7 @@ mod tests {
         }
     }
 
+    // verifies: PUS-3-04
     #[test]
     fn hk_decode_rejects_truncation_and_unknown_sid() {
         let def = hk::by_sid(hk::sid::ROBOT_STATUS).unwrap();
@@ -301,6 +303,7 @@ mod tests {
         assert_eq!(rep.get(pid::MODE), Some(1));
     }
 
+    // verifies: PUS-5-01
     #[test]
     fn event_round_trip() {
         let def = events::by_id(events::eid::LOW_BATTERY).unwrap();
@@ -312,6 +315,7 @@ mod tests {
         assert!(decode_event(&buf[..n - 1]).is_err());
     }
 
+    // verifies: PUS-8-02
     #[test]
     fn args_are_range_checked_both_ways() {
         let def = tc::lookup(8, 1, Some(function::RECONFIGURE)).unwrap();

@@ -83,6 +83,11 @@ pub mod reset_cause {
 /// `events::UNTHROTTLED` lists the exempt events.
 pub const EVENT_THROTTLE_WINDOW_MS: u32 = 1000;
 pub const EVENT_THROTTLE_MAX: u8 = 20;
+/// Capacity of the queue of event reports raised in one control period. An event that
+/// finds it full is dropped and counted in HK `EVENTS_DROPPED`; the core then raises
+/// `EVENT_QUEUE_OVERFLOW` (with the count since its last report) at most once per
+/// `EVENT_THROTTLE_WINDOW_MS`.
+pub const EVENT_QUEUE_DEPTH: usize = 8;
 /// Default time report rate exponent (TM[9,2] every 2^n s).
 pub const TIME_REPORT_DEFAULT_EXP: u8 = 6;
 /// A mode transition not confirmed by every node within this time fails.
@@ -98,3 +103,69 @@ pub const GROUND_PING_PERIOD_MS: u32 = 1200;
 pub const LINK_QUALITY_WINDOW: usize = 100;
 /// Ground: resends of one TC before the step fails.
 pub const GROUND_MAX_RESENDS: u32 = 5;
+
+// --- Link robustness (ground retries, downlink subscriptions, TCP bounds) ---
+
+/// Ground: first wait for a TC's completion (or failure) report before sending the same
+/// bytes again.
+pub const TC_RETRY_INITIAL_MS: u32 = 700;
+/// Ground: each further wait is this many tenths of the previous one (×1.5) ...
+pub const TC_RETRY_BACKOFF_TENTHS: u32 = 15;
+/// ... up to this wait.
+pub const TC_RETRY_CAP_MS: u32 = 4000;
+/// Ground: sends of one TC after the first before its outcome is asked of the on-board
+/// store; every send carries the same sequence count and bytes.
+pub const TC_RETRY_MAX: u32 = 12;
+
+/// Ground: wait after send number `n` (0 = the first send).
+pub const fn tc_retry_wait_ms(n: u32) -> u32 {
+    let mut w = TC_RETRY_INITIAL_MS;
+    let mut i = 0;
+    while i < n && w < TC_RETRY_CAP_MS {
+        w = w * TC_RETRY_BACKOFF_TENTHS / 10;
+        i += 1;
+    }
+    if w > TC_RETRY_CAP_MS {
+        TC_RETRY_CAP_MS
+    } else {
+        w
+    }
+}
+
+/// Ground: time from the first send of a TC to the end of its last wait.
+pub const TC_RETRY_SPAN_MS: u32 = {
+    let mut total = 0;
+    let mut n = 0;
+    while n <= TC_RETRY_MAX {
+        total += tc_retry_wait_ms(n);
+        n += 1;
+    }
+    total
+};
+
+// The on-board duplicate window must recognise every resend of a TC as the same TC.
+const _: () = assert!(DUPLICATE_MAX_AGE_MS >= TC_RETRY_SPAN_MS);
+
+/// OBSW: most UDP grounds receiving TM at once. A ground subscribes with any accepted TC.
+pub const MAX_SUBSCRIBERS: usize = 4;
+/// OBSW: a UDP subscription ends this long after the ground's last accepted TC.
+pub const SUBSCRIPTION_LEASE_MS: u32 = 30_000;
+/// Ground: a running ground sends a TC[17,1] at least this often (keeps the lease and
+/// checks the link).
+pub const GROUND_HEARTBEAT_MS: u32 = 1000;
+/// Ground: no TM at all for this long while a step runs means the link or the obsw is
+/// lost.
+pub const LINK_LOSS_MS: u32 = 3000;
+const _: () =
+    assert!(GROUND_HEARTBEAT_MS * 2 < LINK_LOSS_MS && (LINK_LOSS_MS as usize) < SUBSCRIPTION_LEASE_MS as usize);
+
+/// OBSW: most TCP clients at once; a further connection is closed at once (counted).
+pub const TCP_MAX_CONNECTIONS: usize = 8;
+/// OBSW: decoded TCs waiting per TCP connection; when full, the obsw stops reading that
+/// connection (the kernel's window then holds the sender back).
+pub const TCP_INPUT_QUEUE: usize = 16;
+/// OBSW: bytes of TM waiting to be written to one TCP client; a client that falls
+/// further behind is disconnected (its TM stays in the on-board store).
+pub const TCP_TM_BACKLOG: usize = 256 * 1024;
+/// OBSW: longest simulator-control line.
+pub const SIM_CTL_MAX_LINE: usize = 256;

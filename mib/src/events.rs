@@ -2,6 +2,7 @@
 //! 3 medium, 4 high); its source data is the event ID (u16) followed by the event's
 //! parameters, packed with their wire types.
 
+use crate::layout::{Field, Names, RESET_CAUSE_NAMES, SIDE_NAMES};
 use crate::types::PType;
 
 /// PUS 5 severity; the value is the TM[5,x] subservice.
@@ -36,11 +37,8 @@ impl Severity {
     }
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct EventParam {
-    pub name: &'static str,
-    pub ptype: PType,
-}
+/// An event parameter is a field of the event report's body.
+pub type EventParam = Field;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct EventDef {
@@ -54,46 +52,47 @@ pub struct EventDef {
 }
 
 const fn p(name: &'static str, ptype: PType) -> EventParam {
-    EventParam { name, ptype }
+    Field::new(name, ptype, "")
 }
 
 macro_rules! events {
-    ($( $name:ident = $id:literal, $sev:ident, $fault:literal, [$($pn:literal : $pt:ident),*], $desc:literal; )*) => {
+    ($( $name:ident = $id:literal, $sev:ident, $fault:literal, [$($pn:literal : $pt:ident $(@ $en:expr)?),*], $desc:literal; )*) => {
         /// Event IDs by mnemonic.
         pub mod eid { $( #[doc = $desc] pub const $name: u16 = $id; )* }
         pub const EVENTS: &[EventDef] = &[ $( EventDef {
             id: $id, name: stringify!($name), severity: Severity::$sev, fault: $fault,
-            params: &[$( p($pn, PType::$pt) ),*], desc: $desc,
+            params: &[$( p($pn, PType::$pt)$(.names($en))? ),*], desc: $desc,
         }, )* ];
     };
 }
 
 events! {
     // --- faults (paper Table 8) ---
-    BOLT_FAILURE = 0x0101, High, true, ["side": U8, "pair": U8, "attempts": U8], "Bolting failure: a fastener pair did not lock in the allowed attempts";
-    UNBOLT_FAILURE = 0x0102, High, true, ["side": U8, "pair": U8, "attempts": U8], "Unbolting failure: a fastener pair did not release";
-    INITIAL_STATE_MISMATCH = 0x0103, Medium, true, ["believed": U8, "computed": U8], "Reconfiguration refused: ground's initial state differs from the computed state";
-    LOW_BATTERY = 0x0104, High, true, ["param_id": U16, "value": U16, "limit": U16], "V_batA or V_batB below the limit for longer than the persistence";
+    BOLT_FAILURE = 0x0101, High, true, ["side": U8 @SIDE_NAMES, "pair": U8, "attempts": U8], "Bolting failure: a fastener pair did not lock in the allowed attempts";
+    UNBOLT_FAILURE = 0x0102, High, true, ["side": U8 @SIDE_NAMES, "pair": U8, "attempts": U8], "Unbolting failure: a fastener pair did not release";
+    INITIAL_STATE_MISMATCH = 0x0103, Medium, true, ["believed": U8 @Names::State, "computed": U8 @Names::State], "Reconfiguration refused: ground's initial state differs from the computed state";
+    LOW_BATTERY = 0x0104, High, true, ["param_id": U16 @Names::Param, "value": U16, "limit": U16], "V_batA or V_batB below the limit for longer than the persistence";
     ASSEMBLY_SYSTEM_FAULT = 0x0105, High, true, ["reason": U16], "Assembly system operation fault commanded by the ground";
-    ARM_NOT_CONTRACTED = 0x0106, High, true, ["side": U8], "Arm contracted switch not pushed after a contract command";
-    IDLE_OVERCURRENT = 0x0107, High, true, ["param_id": U16, "value": U16, "limit": U16], "Current above the idle limit at the start or end of a reconfiguration";
-    OPERATIONAL_OVERCURRENT = 0x0108, High, true, ["param_id": U16, "value": U16, "limit": U16], "Current above the module's absolute limit";
+    ARM_NOT_CONTRACTED = 0x0106, High, true, ["side": U8 @SIDE_NAMES], "Arm contracted switch not pushed after a contract command";
+    IDLE_OVERCURRENT = 0x0107, High, true, ["param_id": U16 @Names::Param, "value": U16, "limit": U16], "Current above the idle limit at the start or end of a reconfiguration";
+    OPERATIONAL_OVERCURRENT = 0x0108, High, true, ["param_id": U16 @Names::Param, "value": U16, "limit": U16], "Current above the module's absolute limit";
     HIP_MISMATCH = 0x0109, High, true, ["angle_cdeg": I16, "expected_cdeg": I16], "Hip encoder far from the contracted angle when entering operational";
-    COMM_LOSS_HEARTBEAT = 0x010A, High, true, ["param_id": U16, "value": U16, "limit": U16], "Board B heartbeat missing for longer than the timeout";
+    COMM_LOSS_HEARTBEAT = 0x010A, High, true, ["param_id": U16 @Names::Param, "value": U16, "limit": U16], "Board B heartbeat missing for longer than the timeout";
     COMM_LOSS_NO_ACK = 0x010B, High, true, ["command": U8, "retries": U8], "Board B never acknowledged a repeated command";
     // --- information ---
-    MODE_CHANGED = 0x0201, Info, false, ["node": U32, "from": U32, "to": U32, "cause": U16], "Mode of a mode-tree node changed (cause: 0 command, else the fault event ID)";
-    STATE_REACHED = 0x0202, Info, false, ["state": U8], "Robot reached a configuration state";
-    BOLT_PAIR_DONE = 0x0203, Info, false, ["side": U8, "pair": U8, "attempts": U8], "Fastener pair locked";
-    UNBOLT_PAIR_DONE = 0x0204, Info, false, ["side": U8, "pair": U8, "attempts": U8], "Fastener pair released";
-    PRIMITIVE_DONE = 0x0205, Info, false, ["primitive": U8, "state": U8], "Motion primitive completed";
-    TC_REJECTED = 0x0206, Low, false, ["service": U8, "subservice": U8, "code": U16], "A telecommand was refused (see the PUS 1 report)";
-    BOOT = 0x0207, Info, false, ["reset_cause": U8], "On-board software started";
-    FAULT_CLEARED = 0x0208, Info, false, ["event_id": U16], "The cause of a fault is no longer present";
+    MODE_CHANGED = 0x0201, Info, false, ["node": U32 @Names::Node, "from": U32 @Names::Mode, "to": U32 @Names::Mode, "cause": U16 @Names::Event], "Mode of a mode-tree node changed (cause: 0 command, else the fault event ID)";
+    STATE_REACHED = 0x0202, Info, false, ["state": U8 @Names::State], "Robot reached a configuration state";
+    BOLT_PAIR_DONE = 0x0203, Info, false, ["side": U8 @SIDE_NAMES, "pair": U8, "attempts": U8], "Fastener pair locked";
+    UNBOLT_PAIR_DONE = 0x0204, Info, false, ["side": U8 @SIDE_NAMES, "pair": U8, "attempts": U8], "Fastener pair released";
+    PRIMITIVE_DONE = 0x0205, Info, false, ["primitive": U8 @Names::Primitive, "state": U8 @Names::State], "Motion primitive completed";
+    TC_REJECTED = 0x0206, Low, false, ["service": U8, "subservice": U8, "code": U16 @Names::FailureCode], "A telecommand was refused (see the PUS 1 report)";
+    BOOT = 0x0207, Info, false, ["reset_cause": U8 @RESET_CAUSE_NAMES], "On-board software started";
+    FAULT_CLEARED = 0x0208, Info, false, ["event_id": U16 @Names::Event], "The cause of a fault is no longer present";
     STORE_OVERFLOW = 0x0209, Medium, false, ["dropped": U32], "On-board TM store full: oldest packets overwritten";
-    MODE_CHANGE_FAILED = 0x020A, Medium, false, ["node": U32, "mode": U32, "reason": U16], "A mode transition could not complete";
-    BOLT_ATTEMPT_FAILED = 0x020B, Low, false, ["side": U8, "pair": U8, "attempt": U8], "One bolting attempt failed; retrying";
-    PREVIOUS_PANIC = 0x020C, High, false, ["reset_cause": U8, "line": U32, "file_crc": U32], "The previous run ended in a panic (location recorded before the reset; file_crc = CRC-32 of the source path)";
+    MODE_CHANGE_FAILED = 0x020A, Medium, false, ["node": U32 @Names::Node, "mode": U32 @Names::Mode, "reason": U16 @Names::FailureCode], "A mode transition could not complete";
+    BOLT_ATTEMPT_FAILED = 0x020B, Low, false, ["side": U8 @SIDE_NAMES, "pair": U8, "attempt": U8], "One bolting attempt failed; retrying";
+    PREVIOUS_PANIC = 0x020C, High, false, ["reset_cause": U8 @RESET_CAUSE_NAMES, "line": U32, "file_crc": U32], "The previous run ended in a panic (location recorded before the reset; file_crc = CRC-32 of the source path)";
+    EVENT_QUEUE_OVERFLOW = 0x020D, Low, false, ["dropped": U16], "Event reports dropped because the event queue was full (total in HK EVENTS_DROPPED; raised throttled, dropped = count since the last report)";
 }
 
 /// Events exempt from throttling (`config::EVENT_THROTTLE_MAX`): `MODE_CHANGED` is
@@ -118,6 +117,7 @@ impl EventDef {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: PUS-5-01
     #[test]
     fn event_ids_unique() {
         for (i, e) in EVENTS.iter().enumerate() {

@@ -1,8 +1,13 @@
 //! PUS 1 failure codes. Every refusal or failure of a TC carries one of these as the
-//! failure notice code (u16), followed by the failure data listed for it.
+//! failure notice code (u16), followed by the failure data listed for it: a field list
+//! per code ([`FailureCode::data`]), the one description the wire crate, the exports and
+//! the ground decoder use.
+
+use crate::layout::{f, fields_len, Field, Names, ROOT_MODE_NAMES, SIDE_NAMES};
+use crate::types::PType;
 
 macro_rules! failure_codes {
-    ($( $name:ident = $code:literal, $data:literal, $desc:literal; )*) => {
+    ($( $name:ident = $code:literal, [$($data:expr),* $(,)?], $desc:literal; )*) => {
         /// A PUS 1 failure code. Unknown codes (from a newer OBSW) decode to `Unknown`.
         /// Variants keep the MIB mnemonics (upper case) so code, ICD and SCOS agree.
         #[allow(non_camel_case_types)]
@@ -22,9 +27,13 @@ macro_rules! failure_codes {
             pub const fn name(self) -> &'static str {
                 match self { $( FailureCode::$name => stringify!($name), )* FailureCode::Unknown(_) => "UNKNOWN" }
             }
-            /// Layout of the failure data that follows the code.
-            pub const fn data_layout(self) -> &'static str {
-                match self { $( FailureCode::$name => $data, )* FailureCode::Unknown(_) => "" }
+            /// Fields of the failure data that follows the code (empty for an unknown code).
+            pub const fn data(self) -> &'static [Field] {
+                match self { $( FailureCode::$name => { const D: &[Field] = &[$($data),*]; D } )* FailureCode::Unknown(_) => &[] }
+            }
+            /// Length of the failure data (0 for an unknown code).
+            pub const fn data_len(self) -> usize {
+                fields_len(self.data())
             }
             pub const fn description(self) -> &'static str {
                 match self { $( FailureCode::$name => $desc, )* FailureCode::Unknown(_) => "code not in this MIB" }
@@ -34,44 +43,48 @@ macro_rules! failure_codes {
 }
 
 failure_codes! {
-    CRC_MISMATCH = 1, "crc_received u16, crc_computed u16", "Packet error control (CRC-16/CCITT-FALSE) does not match";
-    MALFORMED_PACKET = 2, "received_len u16, expected_len u16", "Truncated packet, length field mismatch or secondary header too short";
-    WRONG_APID = 3, "apid u16", "APID is not this robot's";
-    NOT_A_PUS_TC = 4, "version u8, type u8, sec_hdr u8", "Not a CCSDS version 0 telecommand with a PUS-C secondary header";
-    UNKNOWN_SERVICE = 5, "service u8", "Service not implemented";
-    UNKNOWN_SUBSERVICE = 6, "service u8, subservice u8", "Subservice not implemented for this service";
-    UNKNOWN_FUNCTION = 7, "function u16", "PUS 8 function ID not defined";
-    BAD_ARG_LENGTH = 8, "received_len u16, expected_len u16", "Application data length does not match the command's arguments";
-    ARG_OUT_OF_RANGE = 9, "arg_index u8, value i32", "An argument is outside its MIB range";
-    NOT_ALLOWED_IN_MODE = 10, "mode u8", "Command not accepted in the current mode (paper Table 7)";
-    BUSY = 11, "running_function u16", "Another robot action is running";
-    INITIAL_STATE_MISMATCH = 12, "believed u8, computed u8", "Ground's initial state differs from the state computed from sensors";
-    UNREACHABLE_STATE = 13, "from u8, to u8", "No primitive sequence of at most 3 steps connects the states (cannot happen with the current map, where every pair is within 3; kept for map changes)";
-    BOLT_FAILED = 14, "side u8, pair u8, attempts u8", "A fastener pair did not lock within the allowed attempts";
-    UNBOLT_FAILED = 15, "side u8, pair u8, attempts u8", "A fastener pair did not release within the allowed attempts";
-    ABORTED_BY_FAULT = 16, "event_id u16", "Action aborted because FDIR detected a fault";
-    MODE_CHANGE_FAILED = 17, "node u32, mode u32, reason u16 (failure code), event u16 (fault event or 0)", "A mode transition could not complete";
-    FAULT_NOT_CLEARED = 18, "event_id u16", "Recovery to operational refused while the fault is still present";
-    UNKNOWN_SID = 19, "sid u16", "Housekeeping structure ID not defined";
-    UNKNOWN_EVENT = 20, "event_id u16", "Event ID not defined";
-    UNKNOWN_PARAMETER = 21, "param_id u16", "On-board parameter ID not defined";
-    PARAM_OUT_OF_RANGE = 22, "param_id u16, value i32", "Value outside the parameter's range";
-    UNKNOWN_MONITOR = 23, "monitor_id u16", "Monitoring definition not defined";
-    SCHEDULE_FULL = 24, "capacity u16", "Time-based schedule is full";
-    RELEASE_TIME_PASSED = 25, "release_ms u32", "Release time of a scheduled TC lies in the past";
-    SCHEDULED_TC_INVALID = 26, "inner_code u16", "An embedded TC of TC[11,4] is not a valid TC for this robot";
-    BOARD_B_NO_ACK = 27, "command u8, retries u8", "Board B did not acknowledge a module command";
-    UNKNOWN_MODE_TARGET = 28, "node u32", "Mode tree node not defined";
-    INVALID_MODE = 29, "node u32, mode u32", "Mode or submode not defined for the node, or not commandable there";
-    UNKNOWN_ACTION_LINK = 30, "event_id u16", "No event-action definition for this event";
-    STORE_DISABLED = 31, "", "On-board storage is disabled";
-    TIMEOUT = 32, "elapsed_ms u32", "Action did not complete in its time limit";
-    ABORTED_BY_COMMAND = 33, "function u16", "Action aborted by a STOP command or a commanded mode change";
+    CRC_MISMATCH = 1, [f("crc_received", PType::U16, "crc received"), f("crc_computed", PType::U16, "crc computed")], "Packet error control (CRC-16/CCITT-FALSE) does not match";
+    MALFORMED_PACKET = 2, [f("received_len", PType::U16, "received len").unit("byte"), f("expected_len", PType::U16, "expected len").unit("byte")], "Truncated packet, length field mismatch or secondary header too short";
+    WRONG_APID = 3, [f("apid", PType::U16, "apid")], "APID is not this robot's";
+    NOT_A_PUS_TC = 4, [f("version", PType::U8, "version"), f("type", PType::U8, "type"), f("sec_hdr", PType::U8, "sec hdr")], "Not a CCSDS version 0 telecommand with a PUS-C secondary header";
+    UNKNOWN_SERVICE = 5, [f("service", PType::U8, "service")], "Service not implemented";
+    UNKNOWN_SUBSERVICE = 6, [f("service", PType::U8, "service"), f("subservice", PType::U8, "subservice")], "Subservice not implemented for this service";
+    UNKNOWN_FUNCTION = 7, [f("function", PType::U16, "function").names(Names::Function)], "PUS 8 function ID not defined";
+    BAD_ARG_LENGTH = 8, [f("received_len", PType::U16, "received len").unit("byte"), f("expected_len", PType::U16, "expected len").unit("byte")], "Application data length does not match the command's arguments";
+    ARG_OUT_OF_RANGE = 9, [f("arg_index", PType::U8, "arg index"), f("value", PType::I32, "value")], "An argument is outside its MIB range";
+    NOT_ALLOWED_IN_MODE = 10, [f("mode", PType::U8, "mode").names(ROOT_MODE_NAMES)], "Command not accepted in the current mode (paper Table 7)";
+    BUSY = 11, [f("running_function", PType::U16, "running function").names(Names::Function)], "Another robot action is running";
+    INITIAL_STATE_MISMATCH = 12, [f("believed", PType::U8, "believed").names(Names::State), f("computed", PType::U8, "computed").names(Names::State)], "Ground's initial state differs from the state computed from sensors";
+    UNREACHABLE_STATE = 13, [f("from", PType::U8, "from").names(Names::State), f("to", PType::U8, "to").names(Names::State)], "No primitive sequence of at most 3 steps connects the states (cannot happen with the current map, where every pair is within 3; kept for map changes)";
+    BOLT_FAILED = 14, [f("side", PType::U8, "side").names(SIDE_NAMES), f("pair", PType::U8, "pair"), f("attempts", PType::U8, "attempts")], "A fastener pair did not lock within the allowed attempts";
+    UNBOLT_FAILED = 15, [f("side", PType::U8, "side").names(SIDE_NAMES), f("pair", PType::U8, "pair"), f("attempts", PType::U8, "attempts")], "A fastener pair did not release within the allowed attempts";
+    ABORTED_BY_FAULT = 16, [f("event_id", PType::U16, "event id").names(Names::Event)], "Action aborted because FDIR detected a fault";
+    MODE_CHANGE_FAILED = 17, [f("node", PType::U32, "node").names(Names::Node), f("mode", PType::U32, "mode").names(Names::Mode), f("reason", PType::U16, "failure code").names(Names::FailureCode), f("event", PType::U16, "fault event or 0").names(Names::Event)], "A mode transition could not complete";
+    FAULT_NOT_CLEARED = 18, [f("event_id", PType::U16, "event id").names(Names::Event)], "Recovery to operational refused while the fault is still present";
+    UNKNOWN_SID = 19, [f("sid", PType::U16, "sid").names(Names::Sid)], "Housekeeping structure ID not defined";
+    UNKNOWN_EVENT = 20, [f("event_id", PType::U16, "event id").names(Names::Event)], "Event ID not defined";
+    UNKNOWN_PARAMETER = 21, [f("param_id", PType::U16, "param id").names(Names::Tunable)], "On-board parameter ID not defined";
+    PARAM_OUT_OF_RANGE = 22, [f("param_id", PType::U16, "param id").names(Names::Tunable), f("value", PType::I32, "value")], "Value outside the parameter's range";
+    UNKNOWN_MONITOR = 23, [f("monitor_id", PType::U16, "monitor id").names(Names::Monitor)], "Monitoring definition not defined";
+    SCHEDULE_FULL = 24, [f("capacity", PType::U16, "capacity")], "Time-based schedule is full";
+    RELEASE_TIME_PASSED = 25, [f("release_ms", PType::U32, "release ms").unit("ms")], "Release time of a scheduled TC lies in the past";
+    SCHEDULED_TC_INVALID = 26, [f("inner_code", PType::U16, "inner code").names(Names::FailureCode)], "An embedded TC of TC[11,4] is not a valid TC for this robot";
+    BOARD_B_NO_ACK = 27, [f("command", PType::U8, "command"), f("retries", PType::U8, "retries")], "Board B did not acknowledge a module command";
+    UNKNOWN_MODE_TARGET = 28, [f("node", PType::U32, "node").names(Names::Node)], "Mode tree node not defined";
+    INVALID_MODE = 29, [f("node", PType::U32, "node").names(Names::Node), f("mode", PType::U32, "mode").names(Names::Mode)], "Mode or submode not defined for the node, or not commandable there";
+    UNKNOWN_ACTION_LINK = 30, [f("event_id", PType::U16, "event id").names(Names::Event)], "No event-action definition for this event";
+    STORE_DISABLED = 31, [], "On-board storage is disabled";
+    TIMEOUT = 32, [f("elapsed_ms", PType::U32, "elapsed ms").unit("ms")], "Action did not complete in its time limit";
+    ABORTED_BY_COMMAND = 33, [f("function", PType::U16, "function").names(Names::Function)], "Action aborted by a STOP command or a commanded mode change";
+    BOTH_SIDES_GRIPPED = 34, [f("grip_a_pwm", PType::U16, "grip a pwm").unit("us"), f("grip_b_pwm", PType::U16, "grip b pwm").unit("us")], "Start refused: the primitive needs a hip rotation but both grippers hold (the robot is clamped to the lattice on both sides, the hip cannot turn); data: the two gripper PWM pulse widths (us) that show both closed";
+    FRAME_TOO_LONG = 35, [f("frame_len", PType::U32, "frame len").unit("byte"), f("max_len", PType::U32, "max len").unit("byte")], "Acceptance refused: a TCP or serial frame is longer than the largest packet (config::MAX_PACKET_LEN); data: the frame length and the limit";
+    NESTED_SCHEDULE = 36, [f("activity", PType::U8, "activity")], "Acceptance refused: an activity of TC[11,4] embeds another TC[11,4] (schedules do not nest); data: the activity's index (0-based)";
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: PUS-1-02
     #[test]
     fn codes_round_trip_and_unknown_is_a_value() {
         for (i, c) in FailureCode::ALL.iter().enumerate() {

@@ -326,6 +326,7 @@ pub const fn action_for(event: u16) -> Option<ActionDef> {
 mod tests {
     use super::*;
     use crate::events;
+    // verifies: MMIC-FLT-12
     #[test]
     fn every_fault_event_has_a_fault_entry_and_unique_bit() {
         for e in events::EVENTS.iter().filter(|e| e.fault) {
@@ -336,6 +337,7 @@ mod tests {
             assert!(f.bit < 32);
         }
     }
+    // verifies: MMIC-FLT-04
     #[test]
     fn low_battery_is_ten_volts_for_half_a_second() {
         let m = monitor_by_id(1).unwrap();

@@ -98,6 +98,7 @@ pub const HK_STRUCTS: &[HkDef] = &[
             PENDING_MODE,
             MODE,
             HIP_DEVIATION,
+            EVENTS_DROPPED,
         ],
         default_interval_ms: 5000,
         default_enabled: true,
@@ -157,6 +158,7 @@ impl HkDef {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: PUS-3-01
     #[test]
     fn every_hk_parameter_exists_and_sids_are_unique() {
         for (i, h) in HK_STRUCTS.iter().enumerate() {

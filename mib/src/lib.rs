@@ -19,6 +19,7 @@ pub mod export;
 pub mod failure;
 pub mod fdir;
 pub mod hk;
+pub mod layout;
 pub mod modes;
 pub mod params;
 pub mod robot;

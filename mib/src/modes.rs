@@ -168,6 +168,7 @@ pub mod submode {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: MMIC-MODE-04
     #[test]
     fn tree_is_rooted_and_parents_exist() {
         let roots = NODES.iter().filter(|n| n.parent.is_none()).count();
@@ -178,6 +179,7 @@ mod tests {
             }
         }
     }
+    // verifies: MMIC-MODE-02
     #[test]
     fn safed_keeps_hip_and_arms_powered_and_standby_powers_nothing() {
         assert_eq!(child_mode(robot_mode::SAFED, NodeKind::Hip), module_mode::HOLD);

@@ -3,6 +3,7 @@
 //! Parameter IDs are stable: they name the parameter in HK reports, PUS 12 monitors,
 //! events and the ground archive.
 
+use crate::layout::{Field, Names, ROOT_MODE_NAMES, SIDE_NAMES};
 use crate::types::{Calib, Limits, PType};
 
 /// One telemetry parameter.
@@ -130,6 +131,7 @@ params! {
     MON_ENABLED = 62, U32, "", ID, None, "Enabled PUS 12 monitors (bit n = monitor n)";
     LAST_FAULT_EVENT = 63, U16, "", ID, None, "Event ID of the last fault (0 = none)";
     HIP_DEVIATION = 65, I16, "deg", CAL_CDEG, lim(-3.0, 3.0, -HIP_CONTRACTED_TOL_DEG, HIP_CONTRACTED_TOL_DEG), "Hip encoder minus the hip angle implied by the IMU-derived state (0 deg when the state is unknown)";
+    EVENTS_DROPPED = 66, U16, "", ID, None, "PUS 5 event reports dropped because the event queue was full (saturates at 65535)";
     PENDING_MODE = 64, U8, "", ID, None, "Mode to enter when the running motion completes (255 = none)";
     // --- OBSW ---
     TC_ACCEPTED = 70, U32, "", ID, None, "Telecommands accepted";
@@ -150,6 +152,27 @@ params! {
     IO_AB_BYTES_DROPPED = 84, U32, "", ID, None, "A-B serial bytes dropped by board A's receive or transmit queue";
 }
 
+impl ParamDef {
+    /// How the parameter's raw values are named (enumerated parameters).
+    pub const fn names(&self) -> Names {
+        match self.id {
+            pid::MODE | pid::PENDING_MODE => ROOT_MODE_NAMES,
+            pid::CONFIG_STATE | pid::TARGET_STATE => Names::State,
+            pid::ACTIVE_PRIMITIVE => Names::Primitive,
+            pid::BOLT_SIDE => SIDE_NAMES,
+            pid::LAST_FAULT_EVENT => Names::Event,
+            _ => Names::None,
+        }
+    }
+    /// The parameter as a field of a housekeeping report body.
+    pub const fn field(&self) -> Field {
+        Field::new(self.name, self.ptype, self.desc)
+            .unit(self.unit)
+            .calib(self.calib)
+            .names(self.names())
+    }
+}
+
 /// Looks a parameter up by ID.
 pub fn by_id(id: u16) -> Option<&'static ParamDef> {
     PARAMS.iter().find(|p| p.id == id)
@@ -163,6 +186,7 @@ pub fn by_name(name: &str) -> Option<&'static ParamDef> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: ICD-05
     #[test]
     fn ids_and_names_are_unique() {
         for (i, a) in PARAMS.iter().enumerate() {
@@ -172,6 +196,7 @@ mod tests {
             }
         }
     }
+    // verifies: MMIC-AV-01
     #[test]
     fn battery_calibration_maps_empty_to_about_ten_volts() {
         let p = by_id(pid::V_BAT_A).unwrap();

@@ -509,6 +509,7 @@ pub mod bolter {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: MMIC-MOT-01
     #[test]
     fn fifteen_states_three_matched_four_stretch_eight_turn() {
         let count = |k| STATES.iter().filter(|s| s.kind() == k).count();
@@ -521,6 +522,7 @@ mod tests {
         }
         assert_eq!(state_of(Ypos, Ypos), None);
     }
+    // verifies: MMIC-MOT-03
     #[test]
     fn map_has_no_self_loops_and_primitives_are_reversible() {
         for (i, row) in RECONFIG_MAP.iter().enumerate() {
@@ -536,6 +538,7 @@ mod tests {
         // "Xpos Xneg" contracts B onto Xpos: matched Xpos
         assert_eq!(RECONFIG_MAP[4][1], 2);
     }
+    // verifies: MMIC-MOT-01
     #[test]
     fn state_by_name_accepts_labels_and_names() {
         assert_eq!(state_by_name("Xneg Xpos").unwrap().id, 3);

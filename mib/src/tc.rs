@@ -5,6 +5,7 @@
 //! header with a CDS short time stamp. Multi-byte fields are big-endian.
 
 use crate::failure::FailureCode as F;
+use crate::layout::{f, Field, Item, Names, CDS_TIME, REQUEST_ID, SIDE_NAMES};
 use crate::robot::{servo, NUM_STATES};
 use crate::types::PType;
 
@@ -47,15 +48,8 @@ impl ModeSet {
     }
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct ArgDef {
-    pub name: &'static str,
-    pub ptype: PType,
-    pub unit: &'static str,
-    pub min: i64,
-    pub max: i64,
-    pub desc: &'static str,
-}
+/// A TC argument is a field of the TC's application data.
+pub type ArgDef = Field;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TcDef {
@@ -67,6 +61,8 @@ pub struct TcDef {
     pub args: &'static [ArgDef],
     /// Application data continues after the fixed arguments (e.g. embedded TCs).
     pub variable: bool,
+    /// Items after the fixed arguments (empty unless `variable`).
+    pub rest: &'static [Item],
     /// Root modes in which the TC is accepted.
     pub modes: ModeSet,
     /// The TC starts a robot action that reports start, progress and completion later.
@@ -89,14 +85,7 @@ pub const ACCEPTANCE_FAILURES: &[F] = &[
 ];
 
 const fn a(name: &'static str, ptype: PType, unit: &'static str, min: i64, max: i64, desc: &'static str) -> ArgDef {
-    ArgDef {
-        name,
-        ptype,
-        unit,
-        min,
-        max,
-        desc,
-    }
+    Field::new(name, ptype, desc).unit(unit).range(min, max)
 }
 
 const fn tc(
@@ -114,6 +103,7 @@ const fn tc(
         name,
         args,
         variable: false,
+        rest: &[],
         modes: ModeSet::ALL,
         long_running: false,
         failures,
@@ -137,6 +127,7 @@ const fn func(
         name,
         args,
         variable: false,
+        rest: &[],
         modes,
         long_running,
         failures,
@@ -160,7 +151,7 @@ pub mod function {
 }
 
 const LAST_STATE: i64 = NUM_STATES as i64 - 1;
-const SIDE: ArgDef = a("side", PType::U8, "", 0, 1, "0 = side A, 1 = side B");
+const SIDE: ArgDef = a("side", PType::U8, "", 0, 1, "0 = side A, 1 = side B").names(SIDE_NAMES);
 const PAIR: ArgDef = a("pair", PType::U8, "", 1, 4, "fastener pair 1..4 (multiplexer A0/A1)");
 const PAIRS: ArgDef = a(
     "pairs",
@@ -204,10 +195,11 @@ const UNBOLT_FAIL: &[F] = &[
     F::TIMEOUT,
     F::UNBOLT_FAILED,
 ];
-const SID: ArgDef = a("sid", PType::U16, "", 1, 65535, "housekeeping structure ID");
-const EVT: ArgDef = a("event_id", PType::U16, "", 1, 65535, "event ID");
-const MON: ArgDef = a("monitor_id", PType::U16, "", 1, 65535, "monitoring definition ID");
-const NODE: ArgDef = a("node", PType::U32, "", 1, 4_294_967_295, "mode tree node ID");
+const SID: ArgDef = a("sid", PType::U16, "", 1, 65535, "housekeeping structure ID").names(Names::Sid);
+const EVT: ArgDef = a("event_id", PType::U16, "", 1, 65535, "event ID").names(Names::Event);
+const MON: ArgDef = a("monitor_id", PType::U16, "", 1, 65535, "monitoring definition ID").names(Names::Monitor);
+const NODE: ArgDef = a("node", PType::U32, "", 1, 4_294_967_295, "mode tree node ID").names(Names::Node);
+const TUNABLE: ArgDef = a("param_id", PType::U16, "", 1, 65535, "on-board parameter ID").names(Names::Tunable);
 
 /// Every telecommand the OBSW accepts.
 pub const TCS: &[TcDef] = &[
@@ -291,8 +283,9 @@ pub const TCS: &[TcDef] = &[
                 0,
                 LAST_STATE,
                 "ground's belief of the current state",
-            ),
-            a("to", PType::U8, "", 0, LAST_STATE, "target state"),
+            )
+            .names(Names::State),
+            a("to", PType::U8, "", 0, LAST_STATE, "target state").names(Names::State),
         ],
         ModeSet::OPERATIONAL,
         true,
@@ -429,6 +422,21 @@ pub const TCS: &[TcDef] = &[
     tc(11, 3, "SCHED_RESET", &[], &[], "Delete every scheduled TC"),
     TcDef {
         variable: true,
+        rest: &[Item::Group {
+            name: "activities",
+            count: "count",
+            max: crate::config::SCHEDULE_CAPACITY,
+            items: &[
+                Item::Sub {
+                    name: "release_time",
+                    sub: &CDS_TIME,
+                },
+                Item::Packet {
+                    name: "tc",
+                    max_len: crate::config::MAX_SCHEDULED_TC_LEN,
+                },
+            ],
+        }],
         ..tc(
             11,
             4,
@@ -517,10 +525,66 @@ pub const TCS: &[TcDef] = &[
     tc(
         15,
         9,
-        "STORE_DOWNLINK",
-        &[],
+        "STORE_DOWNLINK_TIME",
+        &[
+            a(
+                "start_days",
+                PType::U16,
+                "day",
+                0,
+                65535,
+                "start of the time span: CDS day (since 1958-01-01)",
+            ),
+            a(
+                "start_ms",
+                PType::U32,
+                "ms",
+                0,
+                4_294_967_295,
+                "start of the time span: ms of the day",
+            ),
+            a(
+                "end_days",
+                PType::U16,
+                "day",
+                0,
+                65535,
+                "end of the time span (inclusive): CDS day",
+            ),
+            a(
+                "end_ms",
+                PType::U32,
+                "ms",
+                0,
+                4_294_967_295,
+                "end of the time span (inclusive): ms of the day",
+            ),
+        ],
         &[F::STORE_DISABLED],
-        "Downlink every stored packet (oldest first), then TM[15,19]",
+        "ECSS TC[15,9] by time range: downlink (oldest first) every stored packet whose on-board \
+         time stamp (CDS short, as in every TM secondary header) lies in [start, end], then TM[15,19]. \
+         The whole store is the full span 0/0 .. 65535/4294967295",
+    ),
+    tc(
+        15,
+        128,
+        "STORE_DOWNLINK_SEQ",
+        &[
+            a("apid", PType::U16, "", 0, 2047, "APID of the packets to downlink"),
+            a("first_seq", PType::U16, "", 0, 16383, "first packet sequence count"),
+            a(
+                "last_seq",
+                PType::U16,
+                "",
+                0,
+                16383,
+                "last packet sequence count (inclusive)",
+            ),
+        ],
+        &[F::STORE_DISABLED],
+        "Mission-specific: downlink the stored packets of one APID whose sequence count lies in \
+         [first_seq, last_seq], counted modulo 2^14 (first_seq > last_seq wraps through 16383 -> 0), \
+         oldest first, then TM[15,19]",
     ),
     tc(15, 11, "STORE_DELETE", &[], &[], "Delete the store content"),
     // --- 17 test ---
@@ -555,7 +619,7 @@ pub const TCS: &[TcDef] = &[
         20,
         1,
         "PARAM_REPORT",
-        &[a("param_id", PType::U16, "", 1, 65535, "on-board parameter ID")],
+        &[TUNABLE],
         &[F::UNKNOWN_PARAMETER],
         "Report an on-board parameter value (TM[20,2])",
     ),
@@ -564,7 +628,7 @@ pub const TCS: &[TcDef] = &[
         3,
         "PARAM_SET",
         &[
-            a("param_id", PType::U16, "", 1, 65535, "on-board parameter ID"),
+            TUNABLE,
             a("value", PType::I32, "", i32::MIN as i64, i32::MAX as i64, "new value"),
         ],
         &[F::UNKNOWN_PARAMETER, F::PARAM_OUT_OF_RANGE],
@@ -577,7 +641,7 @@ pub const TCS: &[TcDef] = &[
         "MODE_SET",
         &[
             NODE,
-            a("mode", PType::U32, "", 0, 2, "mode"),
+            a("mode", PType::U32, "", 0, 2, "mode").names(Names::Mode),
             a("submode", PType::U16, "", 0, 0, "submode (0)"),
         ],
         &[
@@ -638,179 +702,240 @@ pub fn subservice_known(service: u8, subservice: u8) -> bool {
     TCS.iter().any(|t| t.service == service && t.subservice == subservice)
 }
 
-/// A telemetry packet type (for the ICD and the ground's packet identification).
+/// A telemetry packet type: its source data as a list of items.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TmDef {
     pub service: u8,
     pub subservice: u8,
     pub name: &'static str,
-    /// Source data layout.
-    pub layout: &'static str,
+    /// Source data, field by field.
+    pub body: &'static [Item],
     pub desc: &'static str,
 }
 
+const fn tm(service: u8, subservice: u8, name: &'static str, body: &'static [Item], desc: &'static str) -> TmDef {
+    TmDef {
+        service,
+        subservice,
+        name,
+        body,
+        desc,
+    }
+}
+
+const RID: Item = Item::Sub {
+    name: "request_id",
+    sub: &REQUEST_ID,
+};
+const STEP: Item = Item::Field(f(
+    "step",
+    PType::U8,
+    "step number (primitive 1..3 or fastener pair 1..4)",
+));
+const FAILURE_CODE: Item = Item::Field(f("failure_code", PType::U16, "PUS 1 failure code").names(Names::FailureCode));
+const FAILURE_DATA: Item = Item::Tail(crate::layout::Tail::FailureData);
+const TM_NODE: Item = Item::Field(f("node", PType::U32, "mode tree node").names(Names::Node));
+const TM_MODE: Item = Item::Field(f("mode", PType::U32, "mode").names(Names::Mode));
+const TM_SUBMODE: Item = Item::Field(f(
+    "submode",
+    PType::U16,
+    "submode (robot: 0 idle, 1 executing an action)",
+));
+const EVENT_BODY: &[Item] = &[
+    Item::Field(f("event_id", PType::U16, "event ID").names(Names::Event)),
+    Item::Tail(crate::layout::Tail::EventParams),
+];
+const MAX_LIST: usize = 64;
+
+/// Every telemetry packet type the OBSW emits.
 pub const TMS: &[TmDef] = &[
-    TmDef {
-        service: 1,
-        subservice: 1,
-        name: "ACCEPTANCE_SUCCESS",
-        layout: "request_id (packet id u16, psc u16)",
-        desc: "TC accepted",
-    },
-    TmDef {
-        service: 1,
-        subservice: 2,
-        name: "ACCEPTANCE_FAILURE",
-        layout: "request_id, code u16, data",
-        desc: "TC refused at acceptance",
-    },
-    TmDef {
-        service: 1,
-        subservice: 3,
-        name: "START_SUCCESS",
-        layout: "request_id",
-        desc: "Execution started",
-    },
-    TmDef {
-        service: 1,
-        subservice: 4,
-        name: "START_FAILURE",
-        layout: "request_id, code u16, data",
-        desc: "Execution could not start",
-    },
-    TmDef {
-        service: 1,
-        subservice: 5,
-        name: "PROGRESS_SUCCESS",
-        layout: "request_id, step u8",
-        desc: "Step done (primitive or bolter pair)",
-    },
-    TmDef {
-        service: 1,
-        subservice: 6,
-        name: "PROGRESS_FAILURE",
-        layout: "request_id, step u8, code u16, data",
-        desc: "Step failed",
-    },
-    TmDef {
-        service: 1,
-        subservice: 7,
-        name: "COMPLETION_SUCCESS",
-        layout: "request_id",
-        desc: "Execution completed",
-    },
-    TmDef {
-        service: 1,
-        subservice: 8,
-        name: "COMPLETION_FAILURE",
-        layout: "request_id, code u16, data",
-        desc: "Execution failed",
-    },
-    TmDef {
-        service: 3,
-        subservice: 25,
-        name: "HK_REPORT",
-        layout: "sid u16, parameters of the structure",
-        desc: "Housekeeping parameter report",
-    },
-    TmDef {
-        service: 5,
-        subservice: 1,
-        name: "EVENT_INFO",
-        layout: "event_id u16, parameters",
-        desc: "Informative event",
-    },
-    TmDef {
-        service: 5,
-        subservice: 2,
-        name: "EVENT_LOW",
-        layout: "event_id u16, parameters",
-        desc: "Low severity anomaly",
-    },
-    TmDef {
-        service: 5,
-        subservice: 3,
-        name: "EVENT_MEDIUM",
-        layout: "event_id u16, parameters",
-        desc: "Medium severity anomaly",
-    },
-    TmDef {
-        service: 5,
-        subservice: 4,
-        name: "EVENT_HIGH",
-        layout: "event_id u16, parameters",
-        desc: "High severity anomaly",
-    },
-    TmDef {
-        service: 5,
-        subservice: 8,
-        name: "DISABLED_EVENTS",
-        layout: "count u16, event_id u16 ...",
-        desc: "List of disabled events",
-    },
-    TmDef {
-        service: 9,
-        subservice: 2,
-        name: "TIME_REPORT",
-        layout: "rate_exp u8, CDS short time (7 bytes)",
-        desc: "On-board time",
-    },
-    TmDef {
-        service: 12,
-        subservice: 9,
-        name: "MON_DEFINITIONS",
-        layout: "count u16, per monitor: id u16, param u16, enabled u8, low i32, high i32, persistence u16, event u16",
-        desc: "Monitoring definitions",
-    },
-    TmDef {
-        service: 12,
-        subservice: 12,
-        name: "MON_TRANSITION",
-        layout: "monitor_id u16, param u16, value i32, limit i32, state u8 (0 ok, 1 below low, 2 above high)",
-        desc: "Check transition report",
-    },
-    TmDef {
-        service: 15,
-        subservice: 19,
-        name: "STORE_DOWNLINK_DONE",
-        layout: "packets u32",
-        desc: "End of a store downlink",
-    },
-    TmDef {
-        service: 17,
-        subservice: 2,
-        name: "PING_REPLY",
-        layout: "(empty)",
-        desc: "Connection test report",
-    },
-    TmDef {
-        service: 19,
-        subservice: 9,
-        name: "EA_DEFINITIONS",
-        layout: "count u16, per link: event u16, enabled u8, mode u32, deferred u8",
-        desc: "Event-action definitions",
-    },
-    TmDef {
-        service: 20,
-        subservice: 2,
-        name: "PARAM_VALUE",
-        layout: "param_id u16, value i32",
-        desc: "On-board parameter value",
-    },
-    TmDef {
-        service: 200,
-        subservice: 6,
-        name: "MODE_REPLY",
-        layout: "node u32, mode u32, submode u16",
-        desc: "Mode of a node",
-    },
-    TmDef {
-        service: 200,
-        subservice: 7,
-        name: "MODE_CANT_REACH",
-        layout: "node u32, mode u32, submode u16, reason u16",
-        desc: "Mode could not be reached",
-    },
+    tm(1, 1, "ACCEPTANCE_SUCCESS", &[RID], "TC accepted"),
+    tm(
+        1,
+        2,
+        "ACCEPTANCE_FAILURE",
+        &[RID, FAILURE_CODE, FAILURE_DATA],
+        "TC refused at acceptance",
+    ),
+    tm(1, 3, "START_SUCCESS", &[RID], "Execution started"),
+    tm(
+        1,
+        4,
+        "START_FAILURE",
+        &[RID, FAILURE_CODE, FAILURE_DATA],
+        "Execution could not start",
+    ),
+    tm(
+        1,
+        5,
+        "PROGRESS_SUCCESS",
+        &[RID, STEP],
+        "Step done (primitive or bolter pair)",
+    ),
+    tm(
+        1,
+        6,
+        "PROGRESS_FAILURE",
+        &[RID, STEP, FAILURE_CODE, FAILURE_DATA],
+        "Step failed",
+    ),
+    tm(1, 7, "COMPLETION_SUCCESS", &[RID], "Execution completed"),
+    tm(
+        1,
+        8,
+        "COMPLETION_FAILURE",
+        &[RID, FAILURE_CODE, FAILURE_DATA],
+        "Execution failed",
+    ),
+    tm(
+        3,
+        25,
+        "HK_REPORT",
+        &[
+            Item::Field(f("sid", PType::U16, "housekeeping structure ID").names(Names::Sid)),
+            Item::Tail(crate::layout::Tail::HkParams),
+        ],
+        "Housekeeping parameter report",
+    ),
+    tm(5, 1, "EVENT_INFO", EVENT_BODY, "Informative event"),
+    tm(5, 2, "EVENT_LOW", EVENT_BODY, "Low severity anomaly"),
+    tm(5, 3, "EVENT_MEDIUM", EVENT_BODY, "Medium severity anomaly"),
+    tm(5, 4, "EVENT_HIGH", EVENT_BODY, "High severity anomaly"),
+    tm(
+        5,
+        8,
+        "DISABLED_EVENTS",
+        &[
+            Item::Field(f("count", PType::U16, "number of disabled events").range(0, MAX_LIST as i64)),
+            Item::Group {
+                name: "events",
+                count: "count",
+                max: MAX_LIST,
+                items: &[Item::Field(
+                    f("event_id", PType::U16, "disabled event").names(Names::Event),
+                )],
+            },
+        ],
+        "List of disabled events",
+    ),
+    tm(
+        9,
+        2,
+        "TIME_REPORT",
+        &[
+            Item::Field(f("rate_exp", PType::U8, "report every 2^n seconds").range(0, 8)),
+            Item::Sub {
+                name: "time",
+                sub: &CDS_TIME,
+            },
+        ],
+        "On-board time",
+    ),
+    tm(
+        12,
+        9,
+        "MON_DEFINITIONS",
+        &[
+            Item::Field(f("count", PType::U16, "number of monitoring definitions").range(0, MAX_LIST as i64)),
+            Item::Group {
+                name: "monitors",
+                count: "count",
+                max: MAX_LIST,
+                items: &[
+                    Item::Field(f("monitor_id", PType::U16, "monitoring definition").names(Names::Monitor)),
+                    Item::Field(f("param", PType::U16, "monitored parameter").names(Names::Param)),
+                    Item::Field(f("enabled", PType::U8, "1 = enabled").names(crate::layout::BOOL_NAMES)),
+                    Item::Field(f("low", PType::I32, "low limit (raw)")),
+                    Item::Field(f("high", PType::I32, "high limit (raw)")),
+                    Item::Field(f("persistence", PType::U16, "consecutive violating samples").unit("samples")),
+                    Item::Field(f("event", PType::U16, "event raised").names(Names::Event)),
+                ],
+            },
+        ],
+        "Monitoring definitions",
+    ),
+    tm(
+        12,
+        12,
+        "MON_TRANSITION",
+        &[
+            Item::Field(f("monitor_id", PType::U16, "monitoring definition").names(Names::Monitor)),
+            Item::Field(f("param", PType::U16, "monitored parameter").names(Names::Param)),
+            Item::Field(f("value", PType::I32, "parameter value (raw)")),
+            Item::Field(f("limit", PType::I32, "limit crossed (raw)")),
+            Item::Field(f("state", PType::U8, "new check state").names(crate::layout::CHECK_STATE_NAMES)),
+        ],
+        "Check transition report",
+    ),
+    tm(
+        15,
+        19,
+        "STORE_DOWNLINK_DONE",
+        &[
+            Item::Field(f("packets", PType::U32, "packets sent by this downlink")),
+            Item::Sub {
+                name: "oldest_time",
+                sub: &CDS_TIME,
+            },
+            Item::Field(f("oldest_seq", PType::U16, "sequence count of the oldest stored packet").range(0, 16383)),
+            Item::Field(f(
+                "overwritten",
+                PType::U32,
+                "stored packets overwritten since boot (store full)",
+            )),
+        ],
+        "End of a store downlink: packets sent; on-board time and sequence count of the oldest packet \
+         still in the store (of the request's APID for TC[15,128], of any APID for TC[15,9]; all 0 when \
+         the store is empty); packets overwritten since boot. Anything the ground misses that is older \
+         than the oldest stored packet is unrecoverable",
+    ),
+    tm(17, 2, "PING_REPLY", &[], "Connection test report"),
+    tm(
+        19,
+        9,
+        "EA_DEFINITIONS",
+        &[
+            Item::Field(f("count", PType::U16, "number of event-action links").range(0, MAX_LIST as i64)),
+            Item::Group {
+                name: "links",
+                count: "count",
+                max: MAX_LIST,
+                items: &[
+                    Item::Field(f("event", PType::U16, "triggering event").names(Names::Event)),
+                    Item::Field(f("enabled", PType::U8, "1 = enabled").names(crate::layout::BOOL_NAMES)),
+                    Item::Field(f("mode", PType::U32, "robot mode commanded").names(Names::Mode)),
+                    Item::Field(
+                        f("deferred", PType::U8, "1 = after the running motion completes")
+                            .names(crate::layout::BOOL_NAMES),
+                    ),
+                ],
+            },
+        ],
+        "Event-action definitions",
+    ),
+    tm(
+        20,
+        2,
+        "PARAM_VALUE",
+        &[
+            Item::Field(f("param_id", PType::U16, "on-board parameter").names(Names::Tunable)),
+            Item::Field(f("value", PType::I32, "value (unit of the parameter)")),
+        ],
+        "On-board parameter value",
+    ),
+    tm(200, 6, "MODE_REPLY", &[TM_NODE, TM_MODE, TM_SUBMODE], "Mode of a node"),
+    tm(
+        200,
+        7,
+        "MODE_CANT_REACH",
+        &[
+            TM_NODE,
+            TM_MODE,
+            TM_SUBMODE,
+            Item::Field(f("reason", PType::U16, "why (failure code)").names(Names::FailureCode)),
+        ],
+        "Mode could not be reached",
+    ),
 ];
 
 pub fn tm_by_type(service: u8, subservice: u8) -> Option<&'static TmDef> {
@@ -820,6 +945,7 @@ pub fn tm_by_type(service: u8, subservice: u8) -> Option<&'static TmDef> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: MMIC-CMD-06
     #[test]
     fn tc_names_and_keys_unique() {
         for (i, t) in TCS.iter().enumerate() {
@@ -838,6 +964,7 @@ mod tests {
             assert!(t.fixed_len() <= crate::config::MAX_TC_APP_DATA);
         }
     }
+    // verifies: MMIC-MODE-01
     #[test]
     fn table7_standby_accepts_no_robot_function_and_safed_only_hip_and_arm() {
         for t in TCS

@@ -48,6 +48,7 @@ pub fn by_name(name: &str) -> Option<&'static TunableDef> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: PUS-20-01
     #[test]
     fn defaults_in_range_ids_unique() {
         for (i, t) in TUNABLES.iter().enumerate() {

@@ -118,6 +118,9 @@ impl Calib {
     }
 }
 
+/// Calibrations are constants of the MIB and never NaN, so equality is total.
+impl Eq for Calib {}
+
 /// Out-of-limit bands in engineering units (ground display; SCOS `ocf`/`ocp`).
 /// Soft limits warn, hard limits alarm. The on-board monitors (PUS 12) use the
 /// hard limits of the same parameter, converted to raw.

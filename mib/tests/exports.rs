@@ -66,6 +66,7 @@ fn set(v: Vec<String>) -> BTreeSet<String> {
     v.into_iter().filter(|s| !s.is_empty()).collect()
 }
 
+// verifies: ICD-02
 #[test]
 fn scos_tables_have_the_icd_column_counts_and_no_stray_characters() {
     let t = tables();
@@ -87,6 +88,7 @@ fn scos_tables_have_the_icd_column_counts_and_no_stray_characters() {
     assert_eq!(t.len(), COLUMNS.len());
 }
 
+// verifies: ICD-02
 #[test]
 fn scos_names_and_texts_fit_their_columns() {
     let t = tables();
@@ -140,6 +142,7 @@ fn scos_names_and_texts_fit_their_columns() {
     }
 }
 
+// verifies: ICD-02
 #[test]
 fn scos_references_between_tables_resolve() {
     let t = tables();
@@ -194,6 +197,7 @@ fn scos_references_between_tables_resolve() {
     }
 }
 
+// verifies: ICD-02
 #[test]
 fn scos_tables_describe_every_packet_parameter_and_command_of_robot_one() {
     let t = tables();
@@ -315,6 +319,7 @@ fn xtce_doc() -> String {
     export::xtce_document()
 }
 
+// verifies: ICD-03
 #[test]
 fn xtce_is_xml_in_the_xtce_1_2_namespace_and_references_resolve() {
     let text = xtce_doc();
@@ -470,6 +475,7 @@ fn xtce_is_xml_in_the_xtce_1_2_namespace_and_references_resolve() {
     }
 }
 
+// verifies: ICD-04
 #[test]
 fn json_round_trips_against_the_tables() {
     let text = export::json_document();
@@ -535,6 +541,7 @@ fn json_round_trips_against_the_tables() {
     assert_eq!(v["packet_layout"]["tm_source_data_offset"], 20);
 }
 
+// verifies: ICD-04
 #[test]
 fn write_all_writes_each_format_into_the_directory() {
     let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("export-write-all");

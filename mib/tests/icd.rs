@@ -4,6 +4,7 @@
 
 use std::path::Path;
 
+// verifies: ICD-01
 #[test]
 fn docs_icd_md_is_generated_from_the_mib() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/ICD.md");
@@ -27,6 +28,7 @@ fn docs_icd_md_is_generated_from_the_mib() {
     }
 }
 
+// verifies: ICD-01
 #[test]
 fn icd_covers_every_table() {
     let icd = mib::export::icd_markdown();

@@ -270,6 +270,7 @@ fn as_i64(v: &Value) -> Option<i64> {
         .or_else(|| v.as_u64().map(|u| u as i64))
 }
 
+// verifies: ICD-03
 #[test]
 fn space_packet_parser_decodes_our_packets_like_our_decoder() {
     let root = repo_root();
@@ -372,6 +373,7 @@ fn read_fields(pkt: &[u8], start: usize, fields: &[export::layout::Field]) -> Ve
         .collect()
 }
 
+// verifies: MMIC-FW-01
 #[test]
 fn header_layout_tables_match_the_sat_rs_encoders() {
     use export::layout::{self, PRIMARY_HEADER, TC_SEC_HEADER, TM_SEC_HEADER};
@@ -559,6 +561,7 @@ fn encode_from_xtce(doc: &roxmltree::Document, name: &str, args: &[i64], seq: u1
     unreachable!()
 }
 
+// verifies: MMIC-CMD-06
 #[test]
 fn xtce_meta_commands_encode_like_the_sat_rs_tc_encoder() {
     use satrs::spacepackets::ecss::tc::{AckFlags, PusTcCreator, PusTcSecondaryHeader};

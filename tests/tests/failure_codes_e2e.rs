@@ -15,13 +15,14 @@ fn operational(c: &mut Client) {
     assert_eq!(c.wait_done(&raw, Duration::from_secs(60)).unwrap().subservice, 7);
 }
 
+// verifies: PUS-15-02
 #[test]
 fn store_disabled_and_schedule_full_are_reported() {
     let o = Obsw::start(&[]);
     let mut c = Client::udp(&o);
     let raw = c.send("STORE_DISABLE", &[]);
     assert_eq!(c.wait_done(&raw, T).unwrap().subservice, 7);
-    let raw = c.send("STORE_DOWNLINK", &[]);
+    let raw = c.send("STORE_DOWNLINK_TIME", &[0, 0, 65535, 4_294_967_295]);
     assert_eq!(
         c.wait_done(&raw, T).unwrap().failure_code(),
         Some(F::STORE_DISABLED.code())
@@ -51,19 +52,22 @@ fn store_disabled_and_schedule_full_are_reported() {
     assert_eq!(last.unwrap().failure_code(), Some(F::SCHEDULE_FULL.code()));
 }
 
+// verifies: MMIC-CTL-03
 #[test]
-fn a_hip_rotation_against_the_structure_times_out() {
+fn a_hip_rotation_with_both_grippers_holding_is_refused_at_start() {
     let o = Obsw::start(&["--speed", "20"]);
     let mut c = Client::udp(&o);
     operational(&mut c);
-    // Both grippers hold one face: the hip cannot turn.
+    // Both grippers hold one face: the hip cannot turn, refused before it stalls.
     let raw = c.send("ROTATE_HIP", &[4500]);
+    let t = c.wait_done(&raw, Duration::from_secs(60)).unwrap();
     assert_eq!(
-        c.wait_done(&raw, Duration::from_secs(60)).unwrap().failure_code(),
-        Some(F::TIMEOUT.code())
+        (t.subservice, t.failure_code()),
+        (4, Some(F::BOTH_SIDES_GRIPPED.code()))
     );
 }
 
+// verifies: MMIC-FLT-02
 #[test]
 fn an_unbolting_failure_is_reported() {
     let o = Obsw::start(&["--speed", "50"]);
@@ -83,6 +87,7 @@ fn an_unbolting_failure_is_reported() {
     );
 }
 
+// verifies: MMIC-FLT-11
 #[test]
 fn a_command_board_b_never_acknowledges_fails() {
     let o = Obsw::start(&[]);
@@ -99,6 +104,7 @@ fn a_command_board_b_never_acknowledges_fails() {
 /// Codes that a packet cannot provoke with this MIB, and why.
 const UNREACHABLE: &[(F, &str)] = &[(F::UNREACHABLE_STATE, "every state pair is within 3 primitives")];
 
+// verifies: PUS-1-02
 #[test]
 fn every_failure_code_is_exercised_by_an_end_to_end_test() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests");
@@ -109,6 +115,8 @@ fn every_failure_code_is_exercised_by_an_end_to_end_test() {
             text.push_str(&std::fs::read_to_string(&p).unwrap());
         }
     }
+    // The FDIR faults run in process against the core and the simulator (mock clock).
+    text.push_str(include_str!("../../obsw/core/tests/fdir.rs"));
     text.push_str(
         include_str!("failure_codes_e2e.rs")
             .split("/// Codes that a packet cannot")

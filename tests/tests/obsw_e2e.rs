@@ -22,6 +22,7 @@ fn code(t: &Tm) -> u16 {
     t.failure_code().expect("a failure report")
 }
 
+// verifies: PUS-1-01, PUS-17-01
 #[test]
 fn ping_is_verified_in_order_over_udp() {
     let o = Obsw::start(&[]);
@@ -36,6 +37,7 @@ fn ping_is_verified_in_order_over_udp() {
     );
 }
 
+// verifies: PUS-17-01
 #[test]
 fn ping_is_verified_in_order_over_tcp_with_cobs() {
     let o = Obsw::start(&[]);
@@ -45,6 +47,7 @@ fn ping_is_verified_in_order_over_tcp_with_cobs() {
     assert_eq!(c.verifications(&ping), vec![1, 3, 7]);
 }
 
+// verifies: PUS-PKT-03
 #[test]
 fn tm_sequence_count_is_continuous() {
     let o = Obsw::start(&[]);
@@ -61,6 +64,7 @@ fn tm_sequence_count_is_continuous() {
     assert!(c.log.iter().all(|t| t.apid == 0x101));
 }
 
+// verifies: MMIC-FW-02, PUS-3-03
 #[test]
 fn hk_arrives_at_the_configured_rate_without_request() {
     let o = Obsw::start(&[]);
@@ -77,11 +81,14 @@ fn hk_arrives_at_the_configured_rate_without_request() {
     assert!(v > mib::params::CAL_VOLT.raw(10.0), "battery voltage reported: {v}");
 }
 
+// verifies: PUS-1-02
 #[test]
 fn every_acceptance_failure_code_is_reachable_from_a_real_packet() {
     let o = Obsw::start(&[]);
     let mut c = Client::udp(&o);
     let apid = c.apid;
+    // Refused TCs do not subscribe: their reports go to the grounds already subscribed.
+    c.subscribe();
     let check = |c: &mut Client, raw: Vec<u8>, want: F| {
         c.send_raw(&raw);
         let r = request_of(&raw);
@@ -94,7 +101,7 @@ fn every_acceptance_failure_code_is_reachable_from_a_real_packet() {
             "event for {want:?}"
         );
     };
-    let ping = tc(apid, 1, 17, 1, &[]);
+    let ping = tc(apid, 101, 17, 1, &[]);
     let mut bad_crc = ping.clone();
     *bad_crc.last_mut().unwrap() ^= 1;
     check(&mut c, bad_crc, F::CRC_MISMATCH);
@@ -136,6 +143,7 @@ fn every_acceptance_failure_code_is_reachable_from_a_real_packet() {
     assert_eq!(c.wait_done(&ping, T).unwrap().subservice, 7);
 }
 
+// verifies: MMIC-MODE-01
 #[test]
 fn table7_standby_accepts_only_mode_changes() {
     let o = Obsw::start(&[]);
@@ -154,6 +162,7 @@ fn table7_standby_accepts_only_mode_changes() {
     }
 }
 
+// verifies: MMIC-MODE-02
 #[test]
 fn table7_safed_accepts_only_hip_and_arm_commands() {
     let o = Obsw::start(&["--speed", "20"]);
@@ -175,6 +184,7 @@ fn table7_safed_accepts_only_hip_and_arm_commands() {
     );
 }
 
+// verifies: MMIC-MODE-03, PUS-200-01
 #[test]
 fn mode_tree_propagates_and_reports_every_node() {
     let o = Obsw::start(&["--speed", "20"]);
@@ -226,6 +236,7 @@ fn mode_tree_propagates_and_reports_every_node() {
     assert_eq!(u32::from_be_bytes(t.data[4..8].try_into().unwrap()), module_mode::HOLD);
 }
 
+// verifies: MMIC-CMD-01, PUS-1-03
 #[test]
 fn full_reconfiguration_reports_every_verification_stage_in_order() {
     let o = Obsw::start(&["--speed", "50"]);
@@ -262,6 +273,7 @@ fn full_reconfiguration_reports_every_verification_stage_in_order() {
     assert_eq!(&t.data[6..8], &[0, 1], "believed 0, computed 1");
 }
 
+// verifies: MMIC-CMD-08
 #[test]
 fn a_second_action_while_one_runs_is_busy() {
     let o = Obsw::start(&["--speed", "5"]);
@@ -287,6 +299,7 @@ fn a_second_action_while_one_runs_is_busy() {
     assert_eq!(code(&t), F::ABORTED_BY_COMMAND.code());
 }
 
+// verifies: DD-ROBUST-02, GND-01
 #[test]
 fn a_duplicate_tc_is_acknowledged_again_but_never_executed_twice() {
     let o = Obsw::start(&["--speed", "50"]);
@@ -318,6 +331,7 @@ fn a_duplicate_tc_is_acknowledged_again_but_never_executed_twice() {
     assert_eq!(hk.hk(pid::TC_DUPLICATE), Some(2));
 }
 
+// verifies: DD-ROBUST-01
 #[test]
 fn garbage_never_stalls_the_obsw() {
     let o = Obsw::start(&[]);

@@ -24,6 +24,7 @@ fn unix_ms() -> u64 {
     SystemTime::now().duration_since(UNIX_EPOCH).unwrap().as_millis() as u64
 }
 
+// verifies: PUS-3-02
 #[test]
 fn hk_can_be_disabled_enabled_and_requested_once() {
     let o = Obsw::start(&[]);
@@ -49,6 +50,7 @@ fn hk_can_be_disabled_enabled_and_requested_once() {
     );
 }
 
+// verifies: PUS-5-02
 #[test]
 fn events_can_be_disabled_and_the_disabled_list_reported() {
     let o = Obsw::start(&[]);
@@ -73,6 +75,7 @@ fn events_can_be_disabled_and_the_disabled_list_reported() {
     assert!(c.wait_for(T, |t| t.event_id() == Some(eid::TC_REJECTED)).is_some());
 }
 
+// verifies: PUS-9-01
 #[test]
 fn time_reports_follow_the_commanded_rate_and_carry_on_board_time() {
     let o = Obsw::start(&[]);
@@ -101,6 +104,7 @@ fn time_reports_follow_the_commanded_rate_and_carry_on_board_time() {
     );
 }
 
+// verifies: MMIC-FW-03, PUS-11-01
 #[test]
 fn a_scheduled_tc_is_released_at_its_time() {
     let o = Obsw::start(&[]);
@@ -140,6 +144,7 @@ fn a_scheduled_tc_is_released_at_its_time() {
     assert!(hk.is_some(), "schedule empty after reset");
 }
 
+// verifies: PUS-15-01, GND-02
 #[test]
 fn stored_tm_is_downlinked_on_request_with_nothing_lost() {
     let o = Obsw::start(&[]);
@@ -157,7 +162,7 @@ fn stored_tm_is_downlinked_on_request_with_nothing_lost() {
     // was sent while it was not listening, oldest first, then TM[15,19].
     std::thread::sleep(Duration::from_millis(500));
     let mut c = Client::udp(&o);
-    let raw = c.send("STORE_DOWNLINK", &[]);
+    let raw = c.send("STORE_DOWNLINK_TIME", &[0, 0, 65535, 4_294_967_295]);
     let end = c
         .wait_for(T, |t| t.service == 15 && t.subservice == 19)
         .expect("end of downlink");
@@ -184,6 +189,7 @@ fn stored_tm_is_downlinked_on_request_with_nothing_lost() {
     );
 }
 
+// verifies: PUS-20-01
 #[test]
 fn tunables_are_reported_set_and_range_checked() {
     let o = Obsw::start(&[]);

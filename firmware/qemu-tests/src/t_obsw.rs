@@ -815,7 +815,11 @@ fn obsw_store_returns_every_packet_the_full_downlink_dropped() -> TestResult {
         queue: &BIG,
         counters: &S2,
     };
-    let n = ok!(crate::t_packets::build(10, 15, 9, &[], &mut tc));
+    // TC[15,9] by time span: the whole span (CDS day 0 ms 0 .. day 65535 ms 2^32-1).
+    let mut span = [0u8; 12];
+    span[6..8].copy_from_slice(&u16::MAX.to_be_bytes());
+    span[8..].copy_from_slice(&u32::MAX.to_be_bytes());
+    let n = ok!(crate::t_packets::build(10, 15, 9, &span, &mut tc));
     obsw.handle_tc(100, &tc[..n], &mut sink);
     let mut bytes = [0u8; 16384];
     let n = link::drain(&BIG, &mut bytes);
@@ -849,5 +853,36 @@ fn obsw_store_returns_every_packet_the_full_downlink_dropped() -> TestResult {
     check_eq!(kinds[1], (5, 1));
     check_eq!(&kinds[43..], &[(15, 19), (1, 3), (1, 7)][..]);
     check_eq!(S2.get().overflow, 0);
+
+    // TC[15,128] by APID and sequence range: exactly packets 5..=7 again, unchanged
+    // (the store is read, not emptied), then TM[15,19]: 3 sent, oldest stored seq 0,
+    // nothing overwritten.
+    let apid = obsw.apid();
+    let mut range = [0u8; 6];
+    range[..2].copy_from_slice(&apid.to_be_bytes());
+    range[2..4].copy_from_slice(&5u16.to_be_bytes());
+    range[4..].copy_from_slice(&7u16.to_be_bytes());
+    let n = ok!(crate::t_packets::build(11, 15, 128, &range, &mut tc));
+    obsw.handle_tc(200, &tc[..n], &mut sink);
+    let n = link::drain(&BIG, &mut bytes);
+    let mut replayed: heapless::Vec<u16, 8> = heapless::Vec::new();
+    let mut end = None;
+    for &b in &bytes[..n] {
+        if let Some(r) = d.push(b) {
+            let p = ok!(r);
+            let tm = ok!(parse_tm(p));
+            if (tm.svc, tm.sub) == (15, 19) {
+                end = Some(tm.data);
+            } else if end.is_none() {
+                let _ = replayed.push(seq_of(p));
+            }
+        }
+    }
+    // First the TC's own acceptance (live), then the three stored packets.
+    check_eq!(&replayed[1..], &[5u16, 6, 7][..]);
+    let end = ok!(end);
+    check_eq!(&end[..4], &3u32.to_be_bytes()[..]);
+    check_eq!(&end[10..12], &0u16.to_be_bytes()[..]);
+    check_eq!(&end[12..16], &0u32.to_be_bytes()[..]);
     Ok(())
 }

@@ -145,6 +145,23 @@ pub fn connect(loc: &str) -> Result<Box<dyn Db>, ArchiveError> {
     Ok(db)
 }
 
+/// A plain SQLite connection to the archive file at `path`, its schema brought to the
+/// current version first (for code that keeps tables of its own beside the archive's).
+pub fn open_db(path: &Path) -> Result<rusqlite::Connection, ArchiveError> {
+    drop(connect(&path.to_string_lossy())?);
+    let sqlite_err = |e: rusqlite::Error| {
+        ArchiveError::Db(DbError {
+            backend: "sqlite",
+            message: e.to_string(),
+            retryable: false,
+        })
+    };
+    let c = rusqlite::Connection::open(path).map_err(sqlite_err)?;
+    c.busy_timeout(std::time::Duration::from_secs(10)).map_err(sqlite_err)?;
+    c.pragma_update(None, "synchronous", "NORMAL").map_err(sqlite_err)?;
+    Ok(c)
+}
+
 /// Whether an archive exists at `loc` (a server URL always counts: it is asked).
 pub fn exists(loc: &str) -> bool {
     is_url(loc) || Path::new(loc).exists()

@@ -325,7 +325,7 @@ pub fn icd_markdown() -> String {
             t.service,
             t.subservice,
             t.name,
-            c(t.layout),
+            c(&crate::layout::summary(t.body)),
             c(t.desc)
         );
     }
@@ -443,10 +443,10 @@ pub fn icd_markdown() -> String {
             "| {} | `{}` | {} | {} |",
             f.code(),
             f.name(),
-            if f.data_layout().is_empty() {
-                "—"
+            if f.data().is_empty() {
+                "—".to_string()
             } else {
-                f.data_layout()
+                crate::layout::fields_summary(f.data())
             },
             c(f.description())
         );
@@ -876,6 +876,7 @@ pub fn icd_markdown() -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: MMIC-MOT-04
     #[test]
     fn every_matched_state_reaches_every_other_within_the_limit() {
         for a in STATES.iter().filter(|s| s.kind() == StateKind::Matched) {

@@ -103,7 +103,7 @@ pub fn json_document() -> String {
             "data_len": e.data_len(), "desc": e.desc,
         })).collect::<Vec<_>>(),
         "failure_codes": FailureCode::ALL.iter().map(|c| json!({
-            "code": c.code(), "name": c.name(), "data": c.data_layout(), "desc": c.description(),
+            "code": c.code(), "name": c.name(), "data": crate::layout::fields_summary(c.data()), "desc": c.description(),
         })).collect::<Vec<_>>(),
         "telecommands": TCS.iter().map(|t| json!({
             "service": t.service, "subservice": t.subservice, "function": t.function,
@@ -118,7 +118,7 @@ pub fn json_document() -> String {
         })).collect::<Vec<_>>(),
         "acceptance_failures": crate::tc::ACCEPTANCE_FAILURES.iter().map(|f| f.name()).collect::<Vec<_>>(),
         "telemetry": TMS.iter().map(|t| json!({
-            "service": t.service, "subservice": t.subservice, "name": t.name, "layout": t.layout, "desc": t.desc,
+            "service": t.service, "subservice": t.subservice, "name": t.name, "layout": crate::layout::summary(t.body), "desc": t.desc,
         })).collect::<Vec<_>>(),
         "mode_tree": {
             "nodes": NODES.iter().map(|n| json!({

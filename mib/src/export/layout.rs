@@ -143,6 +143,7 @@ pub fn offsets(fields: &[Field]) -> impl Iterator<Item = (u32, &Field)> {
 mod tests {
     use super::*;
     use crate::config;
+    // verifies: MMIC-FW-01
     #[test]
     fn header_lengths_match_ccsds_and_pus_c() {
         assert_eq!(len(PRIMARY_HEADER), 6);

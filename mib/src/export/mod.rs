@@ -118,6 +118,7 @@ pub(crate) fn trunc(s: &str, n: usize) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: ICD-04
     #[test]
     fn format_parses_case_insensitively_and_rejects_others() {
         assert_eq!("SCOS".parse::<Format>(), Ok(Format::Scos));
@@ -128,6 +129,7 @@ mod tests {
             assert_eq!(f.name().parse::<Format>(), Ok(f));
         }
     }
+    // verifies: ICD-04
     #[test]
     fn numbers_print_without_noise() {
         assert_eq!(num(1.0), "1");

@@ -864,6 +864,7 @@ fn file_name(table: &str) -> &'static str {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: ICD-02
     #[test]
     fn every_table_has_a_file_and_rows_fit_the_columns() {
         let t = scos_tables();
@@ -875,6 +876,7 @@ mod tests {
             }
         }
     }
+    // verifies: ICD-02
     #[test]
     fn generated_names_fit_eight_characters_and_are_unique() {
         let mut names: Vec<String> = TCS.iter().map(ScosNames::command).collect();

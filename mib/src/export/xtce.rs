@@ -487,7 +487,10 @@ pub fn xtce_document_for(robot: u8) -> String {
             &format!("TM_{}", t.name),
             &format!(
                 "TM[{},{}] {}; source data: {}",
-                t.service, t.subservice, t.desc, t.layout
+                t.service,
+                t.subservice,
+                t.desc,
+                crate::layout::summary(t.body)
             ),
             false,
             &["TM_SOURCE_DATA".to_string(), layout::PEC.name.to_string()],
@@ -668,6 +671,7 @@ fn meta_command(x: &mut Xml, t: &TcDef, apid: u16) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: ICD-03
     #[test]
     fn document_mentions_every_hk_parameter_and_tc() {
         let d = xtce_document();

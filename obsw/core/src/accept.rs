@@ -5,6 +5,8 @@
 use mib::codec::{self, ArgError, MAX_ARGS};
 use mib::tc::{self, service, TcDef};
 use mib::FailureCode;
+
+use crate::failure::Failure;
 use satrs::spacepackets::crc::CRC_CCITT_FALSE;
 
 /// CCSDS primary header length.
@@ -74,30 +76,23 @@ pub struct Tc<'a> {
     pub raw: &'a [u8],
 }
 
-/// Why a TC was refused, with the failure data laid out as the MIB says.
+/// Why a TC was refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Rejection {
     /// `None` when the packet is too short to carry a request ID.
     pub req: Option<RequestId>,
     pub service: u8,
     pub subservice: u8,
-    pub code: FailureCode,
-    pub data: [u8; 8],
-    pub data_len: u8,
+    pub failure: Failure,
 }
 
 impl Rejection {
-    fn new(req: Option<RequestId>, code: FailureCode, data: &[u8]) -> Self {
-        let mut d = [0u8; 8];
-        let n = data.len().min(8);
-        d[..n].copy_from_slice(&data[..n]);
+    fn new(req: Option<RequestId>, failure: Failure) -> Self {
         Rejection {
             req,
             service: 0,
             subservice: 0,
-            code,
-            data: d,
-            data_len: n as u8,
+            failure,
         }
     }
     fn with_type(mut self, service: u8, subservice: u8) -> Self {
@@ -105,24 +100,24 @@ impl Rejection {
         self.subservice = subservice;
         self
     }
-    pub fn data(&self) -> &[u8] {
-        &self.data[..self.data_len as usize]
+    pub fn code(&self) -> FailureCode {
+        self.failure.code()
     }
 }
 
-fn u16s(a: u16, b: u16) -> [u8; 4] {
-    let (x, y) = (a.to_be_bytes(), b.to_be_bytes());
-    [x[0], x[1], y[0], y[1]]
+fn arg_failure(e: ArgError) -> Failure {
+    match e {
+        ArgError::Length { got, expected } => Failure::bad_arg_length(got, expected),
+        ArgError::OutOfRange { index, value } => {
+            Failure::arg_out_of_range(index, value.clamp(i32::MIN as i64, i32::MAX as i64) as i32)
+        }
+    }
 }
 
 /// Runs every acceptance check on `raw` for the robot with APID `apid`.
 pub fn accept(raw: &[u8], apid: u16) -> Result<Tc<'_>, Rejection> {
     if raw.len() < 4 {
-        return Err(Rejection::new(
-            None,
-            FailureCode::MALFORMED_PACKET,
-            &u16s(raw.len() as u16, MIN_TC_LEN as u16),
-        ));
+        return Err(Rejection::new(None, Failure::malformed_packet(raw.len(), MIN_TC_LEN)));
     }
     let req = RequestId {
         packet_id: u16::from_be_bytes([raw[0], raw[1]]),
@@ -130,81 +125,59 @@ pub fn accept(raw: &[u8], apid: u16) -> Result<Tc<'_>, Rejection> {
     };
     let r = Some(req);
     if raw.len() < PRIMARY_LEN {
-        return Err(Rejection::new(
-            r,
-            FailureCode::MALFORMED_PACKET,
-            &u16s(raw.len() as u16, MIN_TC_LEN as u16),
-        ));
+        return Err(Rejection::new(r, Failure::malformed_packet(raw.len(), MIN_TC_LEN)));
     }
     let version = raw[0] >> 5;
     let is_tc = raw[0] & 0x10 != 0;
     let sec_hdr = raw[0] & 0x08 != 0;
     if version != 0 || !is_tc || !sec_hdr {
-        return Err(Rejection::new(
-            r,
-            FailureCode::NOT_A_PUS_TC,
-            &[version, is_tc as u8, sec_hdr as u8],
-        ));
+        return Err(Rejection::new(r, Failure::not_a_pus_tc(version, is_tc, sec_hdr)));
     }
     let total = PRIMARY_LEN + u16::from_be_bytes([raw[4], raw[5]]) as usize + 1;
     if total != raw.len() || !(MIN_TC_LEN..=mib::config::MAX_PACKET_LEN).contains(&total) {
         let expected = if total < MIN_TC_LEN { MIN_TC_LEN } else { total };
-        return Err(Rejection::new(
-            r,
-            FailureCode::MALFORMED_PACKET,
-            &u16s(
-                raw.len().min(u16::MAX as usize) as u16,
-                expected.min(u16::MAX as usize) as u16,
-            ),
-        ));
+        return Err(Rejection::new(r, Failure::malformed_packet(raw.len(), expected)));
     }
     let crc_rx = u16::from_be_bytes([raw[total - 2], raw[total - 1]]);
     let crc_calc = CRC_CCITT_FALSE.checksum(&raw[..total - 2]);
     if crc_rx != crc_calc {
-        return Err(Rejection::new(r, FailureCode::CRC_MISMATCH, &u16s(crc_rx, crc_calc)));
+        return Err(Rejection::new(r, Failure::crc_mismatch(crc_rx, crc_calc)));
     }
     let pus_version = raw[PRIMARY_LEN] >> 4;
     if pus_version != 2 {
-        return Err(Rejection::new(
-            r,
-            FailureCode::NOT_A_PUS_TC,
-            &[version, is_tc as u8, sec_hdr as u8],
-        ));
+        return Err(Rejection::new(r, Failure::not_a_pus_tc(version, is_tc, sec_hdr)));
     }
     let ack = Ack(raw[PRIMARY_LEN] & 0x0F);
     let svc = raw[PRIMARY_LEN + 1];
     let sub = raw[PRIMARY_LEN + 2];
     let source_id = u16::from_be_bytes([raw[PRIMARY_LEN + 3], raw[PRIMARY_LEN + 4]]);
     if req.apid() != apid {
-        return Err(Rejection::new(r, FailureCode::WRONG_APID, &req.apid().to_be_bytes()).with_type(svc, sub));
+        return Err(Rejection::new(r, Failure::wrong_apid(req.apid())).with_type(svc, sub));
     }
     if !tc::service_known(svc) {
-        return Err(Rejection::new(r, FailureCode::UNKNOWN_SERVICE, &[svc]).with_type(svc, sub));
+        return Err(Rejection::new(r, Failure::unknown_service(svc)).with_type(svc, sub));
     }
     if !tc::subservice_known(svc, sub) {
-        return Err(Rejection::new(r, FailureCode::UNKNOWN_SUBSERVICE, &[svc, sub]).with_type(svc, sub));
+        return Err(Rejection::new(r, Failure::unknown_subservice(svc, sub)).with_type(svc, sub));
     }
     let app = &raw[PRIMARY_LEN + SEC_LEN..total - CRC_LEN];
     let (def, arg_bytes) = if svc == service::FUNCTION {
         if app.len() < 2 {
-            return Err(Rejection::new(r, FailureCode::BAD_ARG_LENGTH, &u16s(app.len() as u16, 2)).with_type(svc, sub));
+            return Err(Rejection::new(r, Failure::bad_arg_length(app.len(), 2)).with_type(svc, sub));
         }
         let f = u16::from_be_bytes([app[0], app[1]]);
         match tc::lookup(svc, sub, Some(f)) {
             Some(d) => (d, &app[2..]),
-            None => return Err(Rejection::new(r, FailureCode::UNKNOWN_FUNCTION, &f.to_be_bytes()).with_type(svc, sub)),
+            None => return Err(Rejection::new(r, Failure::unknown_function(f)).with_type(svc, sub)),
         }
     } else {
         match tc::lookup(svc, sub, None) {
             Some(d) => (d, app),
-            None => return Err(Rejection::new(r, FailureCode::UNKNOWN_SUBSERVICE, &[svc, sub]).with_type(svc, sub)),
+            None => return Err(Rejection::new(r, Failure::unknown_subservice(svc, sub)).with_type(svc, sub)),
         }
     };
-    let (args, rest) = codec::decode_args(def, arg_bytes).map_err(|e: ArgError| {
-        let mut d = [0u8; 5];
-        let n = e.failure_data(&mut d);
-        Rejection::new(r, e.failure_code(), &d[..n]).with_type(svc, sub)
-    })?;
+    let (args, rest) = codec::decode_args(def, arg_bytes)
+        .map_err(|e: ArgError| Rejection::new(r, arg_failure(e)).with_type(svc, sub))?;
     Ok(Tc {
         req,
         ack,
@@ -237,9 +210,10 @@ pub(crate) mod tests {
     }
 
     fn code(raw: &[u8]) -> FailureCode {
-        accept(raw, 0x101).unwrap_err().code
+        accept(raw, 0x101).unwrap_err().code()
     }
 
+    // verifies: PUS-1-01
     #[test]
     fn a_valid_ping_is_accepted() {
         let raw = tc_bytes(0x101, 7, 17, 1, &[]);
@@ -248,6 +222,7 @@ pub(crate) mod tests {
         assert!(t.ack.acceptance() && t.ack.completion());
     }
 
+    // verifies: PUS-1-02
     #[test]
     fn every_acceptance_failure_code_is_reachable_from_bytes() {
         let ping = tc_bytes(0x101, 1, 17, 1, &[]);
@@ -267,16 +242,18 @@ pub(crate) mod tests {
         assert_eq!(code(&tc_bytes(0x101, 1, 8, 1, &[0, 1, 0])), FailureCode::BAD_ARG_LENGTH);
         let r = accept(&tc_bytes(0x101, 1, 8, 1, &[0, 1, 0, 15]), 0x101).unwrap_err();
         assert_eq!(
-            (r.code, r.data()),
+            (r.code(), r.failure.data()),
             (FailureCode::ARG_OUT_OF_RANGE, &[1u8, 0, 0, 0, 15][..])
         );
     }
 
     proptest::proptest! {
+        // verifies: DD-ROBUST-01
         #[test]
         fn random_bytes_never_panic(data in proptest::collection::vec(proptest::num::u8::ANY, 0..300)) {
             let _ = accept(&data, 0x101);
         }
+        // verifies: PUS-PKT-01
         #[test]
         fn bit_flips_in_a_valid_tc_are_rejected_or_still_valid(pos in 0usize..15, bit in 0u8..8) {
             let mut raw = tc_bytes(0x101, 3, 8, 1, &[0, 1, 0, 1]);

@@ -107,6 +107,7 @@ impl Monitoring {
                 m.count = 0;
                 if m.state != check::OK {
                     m.state = check::OK;
+                    // At most one transition per monitor: `out` holds N_MONITORS.
                     let _ = out.push(Transition {
                         monitor: m.def.id,
                         param: m.def.param,
@@ -121,6 +122,7 @@ impl Monitoring {
             m.count = m.count.saturating_add(1);
             if m.count >= m.def.persistence.max(1) && m.state != now {
                 m.state = now;
+                // At most one transition per monitor: `out` holds N_MONITORS.
                 let _ = out.push(Transition {
                     monitor: m.def.id,
                     param: m.def.param,
@@ -251,6 +253,7 @@ mod tests {
         n
     }
 
+    // verifies: MMIC-FLT-04, PUS-12-01
     #[test]
     fn low_battery_needs_half_a_second_of_persistence() {
         let mut m = Monitoring::new();
@@ -263,6 +266,7 @@ mod tests {
         assert_eq!(m.violated_fault_bits(), 0);
     }
 
+    // verifies: MMIC-FLT-04, PUS-12-01
     #[test]
     fn a_short_dip_resets_the_persistence_count() {
         let mut m = Monitoring::new();
@@ -272,6 +276,7 @@ mod tests {
         assert_eq!(run(&mut m, low, 40), 0);
     }
 
+    // verifies: MMIC-FLT-12, PUS-19-01
     #[test]
     fn table8_responses() {
         let mut f = Faults::default();

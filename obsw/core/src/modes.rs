@@ -124,7 +124,7 @@ impl ModeTree {
             let ready = match n.kind {
                 NodeKind::Root => children_done && root_ready,
                 NodeKind::Assembly => children_done,
-                _ => confirmed(n, nm.commanded),
+                NodeKind::Arm | NodeKind::Gripper | NodeKind::Bolter | NodeKind::Hip => confirmed(n, nm.commanded),
             };
             if ready {
                 self.nodes[i].actual = nm.commanded;
@@ -167,6 +167,7 @@ mod tests {
     use super::*;
     use mib::modes::node;
 
+    // verifies: MMIC-MODE-02
     #[test]
     fn safed_propagates_hold_to_hip_and_arms_and_root_waits_for_children() {
         let mut t = ModeTree::new();
@@ -186,6 +187,7 @@ mod tests {
         assert!(ch.iter().any(|c| c.node == node::ARM_B && c.to == module_mode::HOLD));
     }
 
+    // verifies: MMIC-MODE-04
     #[test]
     fn subtree_of_side_a_is_side_and_its_three_modules() {
         let s = ModeTree::subtree(node::SIDE_A);

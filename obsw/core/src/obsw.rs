@@ -1,33 +1,28 @@
-//! The on-board software: TC handling, PUS services, mode tree, FDIR and the robot
-//! controller, as one bounded state machine driven by `handle_tc` and `tick`.
+//! The on-board software of one robot: TC acceptance, duplicate handling and routing
+//! of each typed [`Request`] to its PUS service (`crate::services`), and the control
+//! cycle (`tick`). The services live in their own files; this file only routes.
 
-use mib::codec;
 use mib::config;
-use mib::events::{self, eid, EVENTS};
-use mib::fdir::{Phase, FAULTS};
-use mib::hk::{self, HK_STRUCTS};
-use mib::modes::{module_mode, node, robot_mode, submode, NodeKind};
-use mib::params::{self, pid};
-use mib::robot::{Side, STATE_UNKNOWN};
-use mib::tc::{function, service};
-use mib::FailureCode;
+use mib::events::eid;
+use mib::params::pid;
+use mib::robot::STATE_UNKNOWN;
 
-use mmic_domain::controller::{Action, ActionReport, Controller, DomainEvent, ModuleModes, StartError, TickOut};
+use mmic_domain::controller::{Controller, TickOut};
 use mmic_domain::SensorsA;
-use satrs::pus::verification::{
-    FailParams, FailParamsWithStep, RequestId as SatrsRequestId, VerificationReportCreator, VerificationToken,
-};
-use satrs::spacepackets::ecss::{EcssEnumU16, EcssEnumU8};
 
-use crate::accept::{accept, Ack, Rejection, RequestId, Tc, PRIMARY_LEN};
-use crate::fdir::{self, Faults, Monitoring, Response, N_MONITORS};
-use crate::modes::{Change, ModeTree, N_NODES};
+use crate::accept::{accept, RequestId, Tc};
+use crate::downlink::{Accepted, Downlink, New, Stage, Started};
+use crate::failure::Failure;
+use crate::fdir::{self, Faults, Monitoring};
+use crate::modes::ModeTree;
+use crate::request::{Ctx, Request};
+use crate::services::function::Running;
+use crate::services::hk::Hk;
+use crate::services::mode::{ModeCmd, Transition};
+use crate::services::scheduling::Schedule;
+use crate::services::time::TimeReports;
 use crate::time::OnboardTime;
-use crate::tm::{TmSink, TmStore, TmWriter};
-
-const N_HK: usize = HK_STRUCTS.len();
-const N_EVENTS: usize = EVENTS.len();
-const _: () = assert!(N_EVENTS <= 64, "event enable mask is a u64");
+use crate::tm::{TmSink, TmStore};
 
 /// Start-up configuration of one robot's OBSW.
 #[derive(Clone, Copy, Debug)]
@@ -36,81 +31,6 @@ pub struct Config {
     pub robot: u8,
     /// Unix time in ms at `now_ms == 0`.
     pub epoch_unix_ms: u64,
-}
-
-/// Verification stages (TM[1,x]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Stage {
-    Acceptance,
-    Start,
-    Progress(u8),
-    Completion,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Outcome {
-    Pending,
-    Done,
-    Failed(u16),
-}
-
-#[derive(Clone, Copy, Debug)]
-struct Seen {
-    req: RequestId,
-    crc: u16,
-    at: u64,
-    outcome: Outcome,
-}
-
-#[derive(Clone, Copy, Debug)]
-struct Running {
-    /// `None` for actions the OBSW starts itself (homing when entering operational).
-    req: Option<(RequestId, Ack)>,
-    function: u16,
-    reconfigure: bool,
-}
-
-#[derive(Clone, Copy, Debug)]
-struct ModeCmd {
-    req: RequestId,
-    ack: Ack,
-    target: u32,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Entering {
-    /// Waiting for the modules to confirm power.
-    Powering,
-    /// Homing after the hip check passed.
-    Homing,
-    /// Homing done: the robot node may take the mode.
-    Ready,
-}
-
-#[derive(Clone, Copy, Debug)]
-struct Transition {
-    target: u32,
-    started: u64,
-    cause: u16,
-    entering: Entering,
-}
-
-#[derive(Clone, Copy, Debug, Default)]
-struct HkState {
-    enabled: bool,
-    interval: u32,
-    next: u64,
-}
-
-#[derive(Clone, Copy, Debug, Default)]
-struct Throttle {
-    window_start: u64,
-    count: u8,
-}
-
-struct Scheduled {
-    release: u64,
-    tc: heapless::Vec<u8, { config::MAX_SCHEDULED_TC_LEN }>,
 }
 
 /// Counters of the platform's I/O, kept by the host binary or the firmware and
@@ -130,82 +50,85 @@ pub struct Counters {
     pub tc_accepted: u32,
     pub tc_rejected: u32,
     pub tc_duplicate: u32,
-    pub store_dropped: u32,
-    pub events_throttled: u32,
+    /// Domain events and reports lost to a full per-tick queue (HK EVENTS_DROPPED).
+    pub events_dropped: u32,
+    /// Lost since the last EVENT_QUEUE_OVERFLOW event.
+    overflow_unreported: u32,
+    /// Earliest time of the next EVENT_QUEUE_OVERFLOW event.
+    overflow_next: u64,
 }
 
-type Fail = (FailureCode, heapless::Vec<u8, 12>);
-
-fn fail(code: FailureCode, data: &[u8]) -> Fail {
-    let mut v = heapless::Vec::new();
-    let _ = v.extend_from_slice(&data[..data.len().min(12)]);
-    (code, v)
+/// What became of a request (kept for duplicate TCs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Outcome {
+    Pending,
+    Done,
+    Failed(Stage, Failure),
 }
 
-/// What executing a TC led to.
-enum Exec {
+#[derive(Clone, Copy, Debug)]
+struct Seen {
+    req: RequestId,
+    crc: u16,
+    at: u64,
+    outcome: Outcome,
+}
+
+/// What executing a request led to.
+pub(crate) enum Exec {
     /// Finished: report start and completion now.
     Done,
-    /// Started: completion comes later (action or mode transition).
-    Async,
+    /// An action started; its completion comes from the controller.
+    Action(Running<()>),
+    /// A mode command started; its completion comes with the transition.
+    Mode(ModeCmd<()>),
+}
+
+/// Why a request did not start: its failure, and a fault to raise after the refusal
+/// was reported (an initial-state mismatch is both).
+pub(crate) struct Refused {
+    pub failure: Failure,
+    pub fault: Option<(u16, [i64; 2])>,
+}
+
+impl From<Failure> for Refused {
+    fn from(failure: Failure) -> Self {
+        Refused { failure, fault: None }
+    }
 }
 
 pub struct Obsw<S: TmStore> {
     apid: u16,
-    tmw: TmWriter,
-    verif: VerificationReportCreator,
-    store: S,
-    store_enabled: bool,
+    pub(crate) dl: Downlink<S>,
     pub ctrl: Controller,
     seen: heapless::Deque<Seen, { config::DUPLICATE_WINDOW }>,
-    hk: [HkState; N_HK],
-    ev_disabled: u64,
-    throttle: [Throttle; N_EVENTS],
-    time_exp: u8,
-    next_time_report: u64,
-    sched: heapless::Vec<Scheduled, { config::SCHEDULE_CAPACITY }>,
-    sched_enabled: bool,
+    pub(crate) hk: Hk,
+    pub(crate) time_reports: TimeReports,
+    pub(crate) sched: Schedule,
     pub monitoring: Monitoring,
     pub faults: Faults,
     pub modes: ModeTree,
-    transition: Option<Transition>,
-    mode_cmd: Option<ModeCmd>,
-    running: Option<Running>,
+    pub(crate) transition: Option<Transition>,
+    pub(crate) mode_cmd: Option<ModeCmd<Started>>,
+    pub(crate) running: Option<Running<Option<Started>>>,
     pub counters: Counters,
     /// Platform I/O counters; the host or firmware updates them.
     pub io: IoCounters,
-    last_now: u64,
+    pub(crate) last_now: u64,
     out: TickOut,
 }
 
 impl<S: TmStore> Obsw<S> {
     pub fn new(cfg: Config, store: S) -> Self {
         let apid = mib::apid::robot_apid(cfg.robot).unwrap_or(mib::apid::APID_BASE + mib::apid::DEFAULT_ROBOT as u16);
-        let mut hk = [HkState::default(); N_HK];
-        for (s, d) in hk.iter_mut().zip(HK_STRUCTS) {
-            *s = HkState {
-                enabled: d.default_enabled,
-                interval: d.default_interval_ms,
-                next: d.default_interval_ms as u64,
-            };
-        }
-        let tmw = TmWriter::new(apid, OnboardTime::new(cfg.epoch_unix_ms));
-        let verif = VerificationReportCreator::new(tmw.apid_u11());
         let mut o = Obsw {
             apid,
-            tmw,
-            verif,
-            store,
-            store_enabled: true,
+            dl: Downlink::new(apid, OnboardTime::new(cfg.epoch_unix_ms), store),
             ctrl: Controller::new(),
             seen: heapless::Deque::new(),
-            hk,
-            ev_disabled: 0,
-            throttle: [Throttle::default(); N_EVENTS],
-            time_exp: config::TIME_REPORT_DEFAULT_EXP,
-            next_time_report: 1000u64 << config::TIME_REPORT_DEFAULT_EXP,
-            sched: heapless::Vec::new(),
-            sched_enabled: true,
+            hk: Hk::new(),
+            time_reports: TimeReports::new(),
+            sched: Schedule::new(),
             monitoring: Monitoring::new(),
             faults: Faults::default(),
             modes: ModeTree::new(),
@@ -254,135 +177,30 @@ impl<S: TmStore> Obsw<S> {
 
     /// The earliest time at which `tick` has periodic work (HK, time report, schedule).
     pub fn next_deadline(&self) -> u64 {
-        let mut t = self.next_time_report;
-        for h in self.hk.iter().filter(|h| h.enabled) {
-            t = t.min(h.next);
+        let mut t = self.time_reports.next_deadline();
+        if let Some(h) = self.hk.next_deadline() {
+            t = t.min(h);
         }
-        if self.sched_enabled {
-            for s in &self.sched {
-                t = t.min(s.release);
-            }
+        if let Some(s) = self.sched.next_release() {
+            t = t.min(s);
         }
         t
     }
 
+    /// Parameter value for the state estimate shown to tests and the host.
+    pub fn computed_state(&self) -> u8 {
+        self.ctrl.computed_state().unwrap_or(STATE_UNKNOWN)
+    }
+
     // ------------------------------------------------------------------ output
 
-    fn emit(&mut self, now: u64, svc: u8, sub: u8, data: &[u8], sink: &mut impl TmSink) {
-        let mut buf = [0u8; config::MAX_PACKET_LEN];
-        if let Some(n) = self.tmw.build(now, svc, sub, data, &mut buf) {
-            self.send_raw(&buf[..n], sink);
-        }
-    }
-
-    fn send_raw(&mut self, pkt: &[u8], sink: &mut impl TmSink) {
-        sink.send_tm(pkt);
-        self.tmw.sent = self.tmw.sent.wrapping_add(1);
-        if self.store_enabled && self.store.push(pkt) {
-            self.counters.store_dropped = self.counters.store_dropped.wrapping_add(1);
-        }
-    }
-
-    fn verify(
-        &mut self,
-        now: u64,
-        stage: Stage,
-        req: RequestId,
-        failure: Option<(FailureCode, &[u8])>,
-        sink: &mut impl TmSink,
-    ) {
-        let stamp = self.tmw.time.cds(now);
-        let seq = TmWriter::seq_u14(self.tmw.next_seq());
-        let msg = self.tmw.next_msg_count(service::VERIFICATION);
-        let rid = SatrsRequestId::from(req.raw());
-        let mut src = [0u8; 64];
-        let mut out = [0u8; config::MAX_PACKET_LEN];
-        let code = failure.map(|(c, _)| EcssEnumU16::new(c.code()));
-        let data = failure.map_or(&[][..], |(_, d)| d);
-        let v = &self.verif;
-        let tm = match (stage, &code) {
-            (Stage::Acceptance, None) => v.acceptance_success(&mut src, &rid, seq, msg, &stamp),
-            (Stage::Acceptance, Some(c)) => {
-                v.acceptance_failure(&mut src, &rid, seq, msg, FailParams::new(&stamp, c, data))
-            }
-            (Stage::Start, None) => v.start_success(&mut src, &rid, seq, msg, &stamp),
-            (Stage::Start, Some(c)) => v.start_failure(&mut src, &rid, seq, msg, FailParams::new(&stamp, c, data)),
-            (Stage::Progress(s), None) => v.step_success(&mut src, &rid, seq, msg, &stamp, EcssEnumU8::new(s)),
-            (Stage::Progress(s), Some(c)) => {
-                let step = EcssEnumU8::new(s);
-                v.step_failure(
-                    &mut src,
-                    VerificationToken::new_started_state(rid),
-                    seq,
-                    msg,
-                    FailParamsWithStep::new(&stamp, &step, c, data),
-                )
-            }
-            (Stage::Completion, None) => v.completion_success(&mut src, &rid, seq, msg, &stamp),
-            (Stage::Completion, Some(c)) => {
-                v.completion_failure(&mut src, &rid, seq, msg, FailParams::new(&stamp, c, data))
-            }
-        };
-        if let Ok(n) = tm.and_then(|t| t.write_to_bytes(&mut out)) {
-            self.send_raw(&out[..n], sink);
-        }
-    }
-
-    /// Reports a failure at `stage`, raises the TC_REJECTED event and records the
-    /// outcome for duplicate handling.
-    fn refuse(
-        &mut self,
-        now: u64,
-        stage: Stage,
-        req: RequestId,
-        (svc, sub): (u8, u8),
-        f: &Fail,
-        sink: &mut impl TmSink,
-    ) {
-        self.verify(now, stage, req, Some((f.0, &f.1)), sink);
-        self.set_outcome(req, Outcome::Failed(f.0.code()));
-        self.event(
-            now,
-            eid::TC_REJECTED,
-            &[svc as i64, sub as i64, f.0.code() as i64],
-            sink,
-        );
+    pub(crate) fn emit(&mut self, now: u64, svc: u8, sub: u8, data: &[u8], sink: &mut impl TmSink) {
+        self.dl.emit(now, svc, sub, data, sink);
     }
 
     /// Emits an event report unless the event is disabled or throttled.
-    fn event(&mut self, now: u64, id: u16, args: &[i64], sink: &mut impl TmSink) {
-        let Some(i) = EVENTS.iter().position(|e| e.id == id) else {
-            return;
-        };
-        if self.ev_disabled & (1 << i) != 0 {
-            return;
-        }
-        let t = &mut self.throttle[i];
-        let throttled = !events::UNTHROTTLED.contains(&id);
-        if now.saturating_sub(t.window_start) >= config::EVENT_THROTTLE_WINDOW_MS as u64 {
-            *t = Throttle {
-                window_start: now,
-                count: 0,
-            };
-        }
-        if throttled && t.count >= config::EVENT_THROTTLE_MAX {
-            self.counters.events_throttled = self.counters.events_throttled.wrapping_add(1);
-            return;
-        }
-        t.count += 1;
-        let def = &EVENTS[i];
-        let mut buf = [0u8; 64];
-        if let Ok(n) = codec::encode_event(def, args, &mut buf) {
-            self.emit(now, service::EVENT, def.severity.subservice(), &buf[..n], sink);
-        }
-    }
-
-    fn hk_report(&mut self, now: u64, index: usize, sink: &mut impl TmSink) {
-        let def = &HK_STRUCTS[index];
-        let mut buf = [0u8; config::MAX_PACKET_LEN];
-        if let Ok(n) = codec::encode_hk(def, |p| self.param(p), &mut buf) {
-            self.emit(now, service::HOUSEKEEPING, 25, &buf[..n], sink);
-        }
+    pub(crate) fn event(&mut self, now: u64, id: u16, args: &[i64], sink: &mut impl TmSink) {
+        self.dl.event(now, id, args, sink);
     }
 
     /// Raw value of any MIB telemetry parameter (0 when it has no valid value).
@@ -403,13 +221,14 @@ impl<S: TmStore> Obsw<S> {
             pid::TC_ACCEPTED => self.counters.tc_accepted as i64,
             pid::TC_REJECTED => self.counters.tc_rejected as i64,
             pid::TC_DUPLICATE => self.counters.tc_duplicate as i64,
-            pid::TM_SENT => self.tmw.sent as i64,
-            pid::TM_STORED => self.store.len() as i64,
-            pid::TM_STORE_DROPPED => self.counters.store_dropped as i64,
+            pid::TM_SENT => self.dl.tmw.sent as i64,
+            pid::TM_STORED => self.dl.store.len() as i64,
+            pid::TM_STORE_DROPPED => self.dl.store_dropped as i64,
             pid::SCHED_COUNT => self.sched.len() as i64,
-            pid::SCHED_ENABLED => self.sched_enabled as i64,
+            pid::SCHED_ENABLED => self.sched.enabled as i64,
             pid::UPTIME_S => (self.last_now / 1000) as i64,
-            pid::EVENTS_THROTTLED => self.counters.events_throttled as i64,
+            pid::EVENTS_THROTTLED => self.dl.events.throttled as i64,
+            pid::EVENTS_DROPPED => self.counters.events_dropped.min(u16::MAX as u32) as i64,
             pid::IO_TC_DROPPED => self.io.tc_dropped as i64,
             pid::IO_TM_DROPPED => self.io.tm_dropped as i64,
             pid::IO_SENSOR_ERRORS => self.io.sensor_errors as i64,
@@ -426,65 +245,146 @@ impl<S: TmStore> Obsw<S> {
         self.last_now = self.last_now.max(now);
         let tc = match accept(raw, self.apid) {
             Ok(tc) => tc,
-            Err(rej) => return self.rejected(now, &rej, sink),
+            Err(rej) => {
+                self.counters.tc_rejected = self.counters.tc_rejected.wrapping_add(1);
+                if let Some(req) = rej.req {
+                    self.dl.fail(now, req, Stage::Acceptance, &rej.failure, sink);
+                }
+                self.tc_rejected_event(now, (rej.service, rej.subservice), &rej.failure, sink);
+                return;
+            }
         };
-        let crc = u16::from_be_bytes([tc.raw[tc.raw.len() - 2], tc.raw[tc.raw.len() - 1]]);
+        let crc = tc.crc();
         if let Some(prev) = self.find_seen(tc.req, crc, now) {
-            // A ground retry: acknowledge again, never execute twice.
-            self.counters.tc_duplicate = self.counters.tc_duplicate.wrapping_add(1);
-            if tc.ack.acceptance() {
-                self.verify(now, Stage::Acceptance, tc.req, None, sink);
-            }
-            match prev {
-                Outcome::Done if tc.ack.completion() => self.verify(now, Stage::Completion, tc.req, None, sink),
-                Outcome::Failed(c) => {
-                    let code = FailureCode::from_code(c);
-                    self.verify(now, Stage::Completion, tc.req, Some((code, &[])), sink)
-                }
-                _ => {}
-            }
-            return;
+            return self.repeat(now, &tc, prev, sink);
         }
-        if let Err(f) = self.validate(&tc) {
-            self.counters.tc_rejected = self.counters.tc_rejected.wrapping_add(1);
-            self.remember(tc.req, crc, now);
-            return self.refuse(now, Stage::Acceptance, tc.req, (tc.service, tc.subservice), &f, sink);
-        }
-        self.counters.tc_accepted = self.counters.tc_accepted.wrapping_add(1);
         self.remember(tc.req, crc, now);
-        if tc.ack.acceptance() {
-            self.verify(now, Stage::Acceptance, tc.req, None, sink);
-        }
-        match self.execute(now, &tc, sink) {
+        let token = New::new(tc.req, tc.ack);
+        let ctx = Ctx {
+            apid: self.apid,
+            time: self.dl.tmw.time,
+            now: self.last_now,
+            sched_free: self.sched.free(),
+        };
+        let request = match Request::parse(&tc, &ctx) {
+            Ok(r) => r,
+            Err(f) => {
+                self.counters.tc_rejected = self.counters.tc_rejected.wrapping_add(1);
+                self.dl.reject(now, token, &f, sink);
+                return self.refused(now, &tc, Stage::Acceptance, f, sink);
+            }
+        };
+        self.counters.tc_accepted = self.counters.tc_accepted.wrapping_add(1);
+        let token = self.dl.accept(now, token, sink);
+        self.execute(now, &tc, request, token, sink);
+    }
+
+    /// Refuses a frame longer than any packet (`config::MAX_PACKET_LEN`) that the
+    /// platform could not take in whole (TCP or serial framing). `head` is what it kept
+    /// of the frame's start: with the 4 bytes of a request ID the refusal is reported
+    /// in a TM[1,2] FRAME_TOO_LONG; the TC_REJECTED event and the counter always.
+    pub fn reject_frame(&mut self, now: u64, frame_len: usize, head: &[u8], sink: &mut impl TmSink) {
+        self.last_now = self.last_now.max(now);
+        self.counters.tc_rejected = self.counters.tc_rejected.wrapping_add(1);
+        let f = Failure::frame_too_long(frame_len, config::MAX_PACKET_LEN);
+        let ty = match head {
+            [h0, h1, h2, h3, rest @ ..] => {
+                let req = RequestId {
+                    packet_id: u16::from_be_bytes([*h0, *h1]),
+                    psc: u16::from_be_bytes([*h2, *h3]),
+                };
+                self.dl.fail(now, req, Stage::Acceptance, &f, sink);
+                // Service and subservice, if the secondary header was kept.
+                match rest {
+                    [_, _, _, svc, sub, ..] => (*svc, *sub),
+                    _ => (0, 0),
+                }
+            }
+            _ => (0, 0),
+        };
+        self.tc_rejected_event(now, ty, &f, sink);
+    }
+
+    /// Runs an accepted request and reports its start and (for immediate requests)
+    /// its completion.
+    fn execute(&mut self, now: u64, tc: &Tc, request: Request, token: Accepted, sink: &mut impl TmSink) {
+        let root = self.modes.root();
+        let result = if tc.def.modes.contains(root) {
+            self.route(now, request, sink)
+        } else {
+            Err(Failure::not_allowed_in_mode(root).into())
+        };
+        match result {
             Ok(Exec::Done) => {
-                if tc.ack.start() {
-                    self.verify(now, Stage::Start, tc.req, None, sink);
-                }
-                if tc.ack.completion() {
-                    self.verify(now, Stage::Completion, tc.req, None, sink);
-                }
+                let started = self.dl.start(now, token, sink);
+                self.dl.complete(now, started, sink);
                 self.set_outcome(tc.req, Outcome::Done);
             }
-            Ok(Exec::Async) => {
-                if tc.ack.start() {
-                    self.verify(now, Stage::Start, tc.req, None, sink);
+            Ok(Exec::Action(r)) => {
+                let started = self.dl.start(now, token, sink);
+                self.running = Some(r.with_token(Some(started)));
+            }
+            Ok(Exec::Mode(m)) => {
+                let started = self.dl.start(now, token, sink);
+                self.mode_command_started(now, m.with_token(started), sink);
+            }
+            Err(Refused { failure, fault }) => {
+                self.dl.fail_start(now, token, &failure, sink);
+                self.refused(now, tc, Stage::Start, failure, sink);
+                if let Some((event, args)) = fault {
+                    self.fault(now, event, &args, sink);
                 }
             }
-            Err(f) => self.refuse(now, Stage::Start, tc.req, (tc.service, tc.subservice), &f, sink),
         }
     }
 
-    fn rejected(&mut self, now: u64, rej: &Rejection, sink: &mut impl TmSink) {
-        self.counters.tc_rejected = self.counters.tc_rejected.wrapping_add(1);
-        if let Some(req) = rej.req {
-            self.verify(now, Stage::Acceptance, req, Some((rej.code, rej.data())), sink);
+    /// One arm per PUS service: each service file handles its own requests.
+    fn route(&mut self, now: u64, request: Request, sink: &mut impl TmSink) -> Result<Exec, Refused> {
+        match request {
+            Request::Test(r) => self.test_request(now, r, sink),
+            Request::Hk(r) => self.hk_request(now, r, sink),
+            Request::Event(r) => self.event_request(now, r, sink),
+            Request::Function(r) => return self.function_request(now, r, sink),
+            Request::Time(r) => self.time_request(now, r, sink),
+            Request::Scheduling(r) => self.scheduling_request(r)?,
+            Request::Monitoring(r) => self.monitoring_request(now, r, sink),
+            Request::Storage(r) => self.storage_request(now, r, sink)?,
+            Request::EventAction(r) => self.event_action_request(now, r, sink),
+            Request::Parameter(r) => self.parameter_request(now, r, sink)?,
+            Request::Mode(r) => return self.mode_request(now, r, sink),
         }
+        Ok(Exec::Done)
+    }
+
+    /// Records a failed request and raises TC_REJECTED.
+    fn refused(&mut self, now: u64, tc: &Tc, stage: Stage, f: Failure, sink: &mut impl TmSink) {
+        self.set_outcome(tc.req, Outcome::Failed(stage, f));
+        self.tc_rejected_event(now, (tc.service, tc.subservice), &f, sink);
+    }
+
+    pub(crate) fn tc_rejected_event(&mut self, now: u64, (svc, sub): (u8, u8), f: &Failure, sink: &mut impl TmSink) {
         self.event(
             now,
             eid::TC_REJECTED,
-            &[rej.service as i64, rej.subservice as i64, rej.code.code() as i64],
+            &[svc as i64, sub as i64, f.code().code() as i64],
             sink,
         );
+    }
+
+    // ------------------------------------------------------------------ duplicates
+
+    /// A ground retry: the same reports again, never a second execution.
+    fn repeat(&mut self, now: u64, tc: &Tc, prev: Outcome, sink: &mut impl TmSink) {
+        self.counters.tc_duplicate = self.counters.tc_duplicate.wrapping_add(1);
+        let accepted = !matches!(prev, Outcome::Failed(Stage::Acceptance, _));
+        if accepted && tc.ack.acceptance() {
+            self.dl.repeat_acceptance(now, tc.req, sink);
+        }
+        match prev {
+            Outcome::Done if tc.ack.completion() => self.dl.repeat_completion(now, tc.req, sink),
+            Outcome::Done | Outcome::Pending => {}
+            Outcome::Failed(stage, f) => self.dl.fail(now, tc.req, stage, &f, sink),
+        }
     }
 
     fn find_seen(&self, req: RequestId, crc: u16, now: u64) -> Option<Outcome> {
@@ -498,6 +398,7 @@ impl<S: TmStore> Obsw<S> {
         if self.seen.is_full() {
             self.seen.pop_front();
         }
+        // Space was made above.
         let _ = self.seen.push_back(Seen {
             req,
             crc,
@@ -506,775 +407,23 @@ impl<S: TmStore> Obsw<S> {
         });
     }
 
-    fn set_outcome(&mut self, req: RequestId, outcome: Outcome) {
+    /// Counts events and reports a full queue dropped, and raises EVENT_QUEUE_OVERFLOW
+    /// (with the count since the last one) at most once per throttle window.
+    fn count_dropped(&mut self, now: u64, dropped: u32, sink: &mut impl TmSink) {
+        let c = &mut self.counters;
+        c.events_dropped = c.events_dropped.saturating_add(dropped);
+        c.overflow_unreported = c.overflow_unreported.saturating_add(dropped);
+        if c.overflow_unreported > 0 && now >= c.overflow_next {
+            let n = core::mem::take(&mut c.overflow_unreported);
+            c.overflow_next = now + config::EVENT_THROTTLE_WINDOW_MS as u64;
+            self.event(now, eid::EVENT_QUEUE_OVERFLOW, &[n.min(u16::MAX as u32) as i64], sink);
+        }
+    }
+
+    pub(crate) fn set_outcome(&mut self, req: RequestId, outcome: Outcome) {
         if let Some(s) = self.seen.iter_mut().rev().find(|s| s.req == req) {
             s.outcome = outcome;
         }
-    }
-
-    /// Acceptance checks that need the MIB's tables beyond the argument ranges.
-    fn validate(&self, tc: &Tc) -> Result<(), Fail> {
-        let a = &tc.args;
-        let u16a = |i: usize| a[i] as u16;
-        match (tc.service, tc.subservice) {
-            (service::HOUSEKEEPING, _) if hk::by_sid(u16a(0)).is_none() => {
-                Err(fail(FailureCode::UNKNOWN_SID, &u16a(0).to_be_bytes()))
-            }
-            (service::EVENT, 5 | 6) if events::by_id(u16a(0)).is_none() => {
-                Err(fail(FailureCode::UNKNOWN_EVENT, &u16a(0).to_be_bytes()))
-            }
-            (service::MONITORING, 1 | 2 | 7) => {
-                let Some(m) = mib::fdir::monitor_by_id(u16a(0)) else {
-                    return Err(fail(FailureCode::UNKNOWN_MONITOR, &u16a(0).to_be_bytes()));
-                };
-                if tc.subservice == 7 && a[1] > a[2] {
-                    let mut d = [0u8; 6];
-                    d[..2].copy_from_slice(&m.param.to_be_bytes());
-                    d[2..].copy_from_slice(&(a[1] as i32).to_be_bytes());
-                    return Err(fail(FailureCode::PARAM_OUT_OF_RANGE, &d));
-                }
-                Ok(())
-            }
-            (service::EVENT_ACTION, 4 | 5) if mib::fdir::fault_by_event(u16a(0)).is_none() => {
-                Err(fail(FailureCode::UNKNOWN_ACTION_LINK, &u16a(0).to_be_bytes()))
-            }
-            (service::PARAMETER, _) => {
-                let Some(t) = mib::tunables::by_id(u16a(0)) else {
-                    return Err(fail(FailureCode::UNKNOWN_PARAMETER, &u16a(0).to_be_bytes()));
-                };
-                if tc.subservice == 3 && (a[1] < t.min as i64 || a[1] > t.max as i64) {
-                    let mut d = [0u8; 6];
-                    d[..2].copy_from_slice(&t.id.to_be_bytes());
-                    d[2..].copy_from_slice(&(a[1] as i32).to_be_bytes());
-                    return Err(fail(FailureCode::PARAM_OUT_OF_RANGE, &d));
-                }
-                Ok(())
-            }
-            (service::MODE, _) => {
-                let n = a[0] as u32;
-                if ModeTree::index(n).is_none() {
-                    return Err(fail(FailureCode::UNKNOWN_MODE_TARGET, &n.to_be_bytes()));
-                }
-                if tc.subservice == 1 && (n != node::ROBOT || !mib::modes::is_commandable_root_mode(a[1] as u32)) {
-                    let mut d = [0u8; 8];
-                    d[..4].copy_from_slice(&n.to_be_bytes());
-                    d[4..].copy_from_slice(&(a[1] as u32).to_be_bytes());
-                    return Err(fail(FailureCode::INVALID_MODE, &d));
-                }
-                Ok(())
-            }
-            (service::SCHEDULING, 4) => self.validate_schedule(tc),
-            _ => Ok(()),
-        }
-    }
-
-    /// Walks the activities of a TC[11,4]: count, then per activity a CDS short release
-    /// time and a complete TC for this robot.
-    fn validate_schedule(&self, tc: &Tc) -> Result<(), Fail> {
-        let count = tc.args[0] as usize;
-        if self.sched.len() + count > config::SCHEDULE_CAPACITY {
-            return Err(fail(
-                FailureCode::SCHEDULE_FULL,
-                &(config::SCHEDULE_CAPACITY as u16).to_be_bytes(),
-            ));
-        }
-        let mut rest = tc.rest;
-        for _ in 0..count {
-            let Some((release, inner, tail)) = split_activity(rest) else {
-                return Err(fail(
-                    FailureCode::SCHEDULED_TC_INVALID,
-                    &FailureCode::MALFORMED_PACKET.code().to_be_bytes(),
-                ));
-            };
-            let Some(at) = self.tmw.time.from_cds(release) else {
-                return Err(fail(FailureCode::RELEASE_TIME_PASSED, &0u32.to_be_bytes()));
-            };
-            if at <= self.last_now {
-                return Err(fail(
-                    FailureCode::RELEASE_TIME_PASSED,
-                    &(at.min(u32::MAX as u64) as u32).to_be_bytes(),
-                ));
-            }
-            if inner.len() > config::MAX_SCHEDULED_TC_LEN {
-                return Err(fail(
-                    FailureCode::SCHEDULED_TC_INVALID,
-                    &FailureCode::MALFORMED_PACKET.code().to_be_bytes(),
-                ));
-            }
-            if let Err(r) = accept(inner, self.apid) {
-                return Err(fail(FailureCode::SCHEDULED_TC_INVALID, &r.code.code().to_be_bytes()));
-            }
-            rest = tail;
-        }
-        if !rest.is_empty() {
-            return Err(fail(
-                FailureCode::SCHEDULED_TC_INVALID,
-                &FailureCode::BAD_ARG_LENGTH.code().to_be_bytes(),
-            ));
-        }
-        Ok(())
-    }
-
-    fn execute(&mut self, now: u64, tc: &Tc, sink: &mut impl TmSink) -> Result<Exec, Fail> {
-        let root = self.modes.root();
-        if !tc.def.modes.contains(root) {
-            return Err(fail(FailureCode::NOT_ALLOWED_IN_MODE, &[root as u8]));
-        }
-        let a = tc.args;
-        let u16a = |i: usize| a[i] as u16;
-        match (tc.service, tc.subservice) {
-            (service::TEST, 1) => self.emit(now, service::TEST, 2, &[], sink),
-            (service::HOUSEKEEPING, sub) => {
-                let i = HK_STRUCTS.iter().position(|h| h.sid == u16a(0)).unwrap_or(0);
-                match sub {
-                    5 => {
-                        self.hk[i].enabled = true;
-                        self.hk[i].next = now + self.hk[i].interval as u64;
-                    }
-                    6 => self.hk[i].enabled = false,
-                    27 => self.hk_report(now, i, sink),
-                    _ => {
-                        self.hk[i].interval = a[1] as u32;
-                        self.hk[i].next = now + a[1] as u64;
-                    }
-                }
-            }
-            (service::EVENT, 5 | 6) => {
-                let i = EVENTS.iter().position(|e| e.id == u16a(0)).unwrap_or(0);
-                if tc.subservice == 5 {
-                    self.ev_disabled &= !(1 << i);
-                } else {
-                    self.ev_disabled |= 1 << i;
-                }
-            }
-            (service::EVENT, _) => {
-                let mut buf = [0u8; 2 + 2 * N_EVENTS];
-                let mut n = 2;
-                let disabled = EVENTS
-                    .iter()
-                    .enumerate()
-                    .filter(|(i, _)| self.ev_disabled & (1 << i) != 0);
-                for (_, e) in disabled {
-                    buf[n..n + 2].copy_from_slice(&e.id.to_be_bytes());
-                    n += 2;
-                }
-                buf[..2].copy_from_slice(&(((n - 2) / 2) as u16).to_be_bytes());
-                self.emit(now, service::EVENT, 8, &buf[..n], sink);
-            }
-            (service::FUNCTION, _) => return self.function(now, tc, sink),
-            (service::TIME, 1) => {
-                self.time_exp = a[0] as u8;
-                self.next_time_report = now + (1000u64 << self.time_exp);
-                self.time_report(now, sink);
-            }
-            (service::TIME, _) => self.time_report(now, sink),
-            (service::SCHEDULING, 1) => self.sched_enabled = true,
-            (service::SCHEDULING, 2) => self.sched_enabled = false,
-            (service::SCHEDULING, 3) => self.sched.clear(),
-            (service::SCHEDULING, _) => self.insert_schedule(tc)?,
-            (service::MONITORING, 1 | 2) => {
-                if let Some(m) = self.monitoring.get_mut(u16a(0)) {
-                    m.enabled = tc.subservice == 1;
-                    m.state = fdir::check::OK;
-                }
-            }
-            (service::MONITORING, 7) => {
-                if let Some(m) = self.monitoring.get_mut(u16a(0)) {
-                    m.def.low = a[1] as i32;
-                    m.def.high = a[2] as i32;
-                    m.def.persistence = a[3] as u16;
-                }
-            }
-            (service::MONITORING, _) => self.report_monitors(now, sink),
-            (service::STORAGE, 1) => self.store_enabled = true,
-            (service::STORAGE, 2) => self.store_enabled = false,
-            (service::STORAGE, 9) => self.downlink_store(now, sink)?,
-            (service::STORAGE, _) => self.store.clear(),
-            (service::EVENT_ACTION, 4 | 5) => {
-                self.faults.set_link_enabled(u16a(0), tc.subservice == 4);
-            }
-            (service::EVENT_ACTION, _) => self.report_links(now, sink),
-            (service::PARAMETER, 1) => self.report_tunable(now, u16a(0), sink),
-            (service::PARAMETER, _) => {
-                // Range and ID were checked at acceptance against the same MIB table.
-                let _ = self.ctrl.set_tunable(u16a(0), a[1] as i32);
-                self.report_tunable(now, u16a(0), sink);
-            }
-            (service::MODE, 1) => return self.mode_command(now, tc, sink),
-            (service::MODE, 3) => self.mode_reply(now, a[0] as u32, sink),
-            (service::MODE, _) => {
-                for n in ModeTree::subtree(a[0] as u32) {
-                    self.mode_reply(now, n, sink);
-                }
-            }
-            _ => return Err(fail(FailureCode::UNKNOWN_SUBSERVICE, &[tc.service, tc.subservice])),
-        }
-        Ok(Exec::Done)
-    }
-
-    fn time_report(&mut self, now: u64, sink: &mut impl TmSink) {
-        let mut d = [0u8; 1 + config::TIMESTAMP_LEN];
-        d[0] = self.time_exp;
-        d[1..].copy_from_slice(&self.tmw.time.cds(now));
-        self.emit(now, service::TIME, 2, &d, sink);
-    }
-
-    fn report_tunable(&mut self, now: u64, id: u16, sink: &mut impl TmSink) {
-        let Some(v) = self.ctrl.tunable(id) else { return };
-        let mut d = [0u8; 6];
-        d[..2].copy_from_slice(&id.to_be_bytes());
-        d[2..].copy_from_slice(&v.to_be_bytes());
-        self.emit(now, service::PARAMETER, 2, &d, sink);
-    }
-
-    fn report_monitors(&mut self, now: u64, sink: &mut impl TmSink) {
-        let mut buf = [0u8; 2 + 17 * N_MONITORS];
-        buf[..2].copy_from_slice(&(N_MONITORS as u16).to_be_bytes());
-        let mut n = 2;
-        for m in &self.monitoring.mons {
-            buf[n..n + 2].copy_from_slice(&m.def.id.to_be_bytes());
-            buf[n + 2..n + 4].copy_from_slice(&m.def.param.to_be_bytes());
-            buf[n + 4] = m.enabled as u8;
-            buf[n + 5..n + 9].copy_from_slice(&m.def.low.to_be_bytes());
-            buf[n + 9..n + 13].copy_from_slice(&m.def.high.to_be_bytes());
-            buf[n + 13..n + 15].copy_from_slice(&m.def.persistence.to_be_bytes());
-            buf[n + 15..n + 17].copy_from_slice(&m.def.event.to_be_bytes());
-            n += 17;
-        }
-        self.emit(now, service::MONITORING, 9, &buf[..n], sink);
-    }
-
-    fn report_links(&mut self, now: u64, sink: &mut impl TmSink) {
-        let mut buf = [0u8; 2 + 8 * FAULTS.len()];
-        buf[..2].copy_from_slice(&(FAULTS.len() as u16).to_be_bytes());
-        let mut n = 2;
-        for (i, f) in FAULTS.iter().enumerate() {
-            buf[n..n + 2].copy_from_slice(&f.event.to_be_bytes());
-            buf[n + 2] = self.faults.link_enabled(i) as u8;
-            buf[n + 3..n + 7].copy_from_slice(&f.mode.to_be_bytes());
-            buf[n + 7] = (f.timing == mib::fdir::Timing::AfterMotion) as u8;
-            n += 8;
-        }
-        self.emit(now, service::EVENT_ACTION, 9, &buf[..n], sink);
-    }
-
-    fn downlink_store(&mut self, now: u64, sink: &mut impl TmSink) -> Result<(), Fail> {
-        if !self.store_enabled {
-            return Err(fail(FailureCode::STORE_DISABLED, &[]));
-        }
-        let mut buf = [0u8; config::MAX_PACKET_LEN];
-        let mut count: u32 = 0;
-        while let Some(n) = self.store.pop(&mut buf) {
-            sink.send_tm(&buf[..n]);
-            count += 1;
-        }
-        // Nothing downlinked is stored again: disable while reporting the end.
-        self.store_enabled = false;
-        self.emit(now, service::STORAGE, 19, &count.to_be_bytes(), sink);
-        self.store_enabled = true;
-        Ok(())
-    }
-
-    fn insert_schedule(&mut self, tc: &Tc) -> Result<(), Fail> {
-        let mut rest = tc.rest;
-        for _ in 0..tc.args[0] {
-            let Some((release, inner, tail)) = split_activity(rest) else {
-                break;
-            };
-            let at = self.tmw.time.from_cds(release).unwrap_or(0);
-            let mut v = heapless::Vec::new();
-            let _ = v.extend_from_slice(inner);
-            if self.sched.push(Scheduled { release: at, tc: v }).is_err() {
-                return Err(fail(
-                    FailureCode::SCHEDULE_FULL,
-                    &(config::SCHEDULE_CAPACITY as u16).to_be_bytes(),
-                ));
-            }
-            rest = tail;
-        }
-        Ok(())
-    }
-
-    fn mode_reply(&mut self, now: u64, n: u32, sink: &mut impl TmSink) {
-        let Some(ms) = self.modes.mode_and_submode(n) else {
-            return;
-        };
-        let mut d = [0u8; 10];
-        d[..4].copy_from_slice(&n.to_be_bytes());
-        d[4..8].copy_from_slice(&ms.mode().to_be_bytes());
-        d[8..].copy_from_slice(&ms.submode().to_be_bytes());
-        self.emit(
-            now,
-            service::MODE,
-            satrs::pus::mode::Subservice::TmModeReply as u8,
-            &d,
-            sink,
-        );
-    }
-
-    // ------------------------------------------------------------------ actions
-
-    fn function(&mut self, now: u64, tc: &Tc, sink: &mut impl TmSink) -> Result<Exec, Fail> {
-        let f = tc.def.function;
-        let a = tc.args;
-        let side = |v: i64| Side::from_u8(v as u8).unwrap_or(Side::A);
-        match f {
-            function::ASSEMBLY_FAULT => {
-                self.fault(now, eid::ASSEMBLY_SYSTEM_FAULT, &[a[0]], sink);
-                return Ok(Exec::Done);
-            }
-            function::STOP => {
-                if let Some(r) = self.running.take() {
-                    self.ctrl.abort();
-                    self.finish_running(
-                        now,
-                        &r,
-                        Some(fail(FailureCode::ABORTED_BY_COMMAND, &r.function.to_be_bytes())),
-                        sink,
-                    );
-                }
-                return Ok(Exec::Done);
-            }
-            _ => {}
-        }
-        if self.running.is_some() || self.transition.is_some() {
-            let busy = self.running.map_or(0, |r| r.function);
-            return Err(fail(FailureCode::BUSY, &busy.to_be_bytes()));
-        }
-        let action = match f {
-            function::RECONFIGURE => Action::Reconfigure {
-                from: a[0] as u8,
-                to: a[1] as u8,
-            },
-            function::BOLT_FACE => Action::BoltFace {
-                side: side(a[0]),
-                pairs: a[1] as u8,
-            },
-            function::UNBOLT_FACE => Action::UnboltFace {
-                side: side(a[0]),
-                pairs: a[1] as u8,
-            },
-            function::HOME => Action::Home,
-            function::MOVE_ARM => Action::MoveArm {
-                side: side(a[0]),
-                pwm: a[1] as u16,
-            },
-            function::MOVE_GRIPPER => Action::MoveGripper {
-                side: side(a[0]),
-                pwm: a[1] as u16,
-            },
-            function::ROTATE_HIP => Action::RotateHip { cdeg: a[0] as i16 },
-            function::BOLT_PAIR => Action::BoltPair {
-                side: side(a[0]),
-                pair: a[1] as u8,
-            },
-            function::UNBOLT_PAIR => Action::UnboltPair {
-                side: side(a[0]),
-                pair: a[1] as u8,
-            },
-            other => return Err(fail(FailureCode::UNKNOWN_FUNCTION, &other.to_be_bytes())),
-        };
-        let reconfigure = f == function::RECONFIGURE;
-        if reconfigure {
-            // Paper: idle overcurrent is checked at the start of every reconfiguration.
-            if let Some(ev) = self.idle_check(now, sink) {
-                return Err(fail(FailureCode::ABORTED_BY_FAULT, &ev.to_be_bytes()));
-            }
-        }
-        match self.ctrl.start(action, now) {
-            Ok(_) => {
-                self.running = Some(Running {
-                    req: Some((tc.req, tc.ack)),
-                    function: f,
-                    reconfigure,
-                });
-                self.modes.submode = submode::BUSY;
-                Ok(Exec::Async)
-            }
-            Err(StartError::NotPowered) => Err(fail(FailureCode::NOT_ALLOWED_IN_MODE, &[self.modes.root() as u8])),
-            Err(StartError::InitialStateMismatch { believed, computed }) => {
-                // Report the refusal first, then let FDIR act on the fault.
-                let fl = fail(FailureCode::INITIAL_STATE_MISMATCH, &[believed, computed]);
-                self.refuse(now, Stage::Start, tc.req, (tc.service, tc.subservice), &fl, sink);
-                self.fault(
-                    now,
-                    eid::INITIAL_STATE_MISMATCH,
-                    &[believed as i64, computed as i64],
-                    sink,
-                );
-                Ok(Exec::Async)
-            }
-            Err(e) => {
-                let (code, data, len) = e.failure();
-                Err(fail(code, &data[..len as usize]))
-            }
-        }
-    }
-
-    /// Runs the idle-phase monitors once; returns the fault event if one fired.
-    fn idle_check(&mut self, now: u64, sink: &mut impl TmSink) -> Option<u16> {
-        self.run_monitors(now, |p| p == Phase::Idle, sink)
-    }
-
-    /// Ends the running action with a completion report (success if `failure` is None).
-    fn finish_running(&mut self, now: u64, r: &Running, failure: Option<Fail>, sink: &mut impl TmSink) {
-        self.modes.submode = submode::IDLE;
-        if let Some((req, ack)) = r.req {
-            match &failure {
-                None => {
-                    if ack.completion() {
-                        self.verify(now, Stage::Completion, req, None, sink);
-                    }
-                    self.set_outcome(req, Outcome::Done);
-                }
-                Some(f) => {
-                    self.verify(now, Stage::Completion, req, Some((f.0, &f.1)), sink);
-                    self.set_outcome(req, Outcome::Failed(f.0.code()));
-                }
-            }
-        } else if self.transition.is_some_and(|t| t.entering == Entering::Homing) {
-            // Homing for entry into operational.
-            match failure {
-                None => {
-                    if let Some(t) = self.transition.as_mut() {
-                        t.entering = Entering::Ready;
-                    }
-                }
-                Some(f) => {
-                    // A homing aborted by a fault carries the fault's event ID.
-                    let event = if f.0 == FailureCode::ABORTED_BY_FAULT && f.1.len() >= 2 {
-                        u16::from_be_bytes([f.1[0], f.1[1]])
-                    } else {
-                        0
-                    };
-                    self.transition_failed(now, f.0, event, sink);
-                }
-            }
-        }
-        if let Some(m) = self.faults.pending_mode.take() {
-            let cause = self.faults.last_event;
-            self.set_mode(now, m, cause, sink);
-        }
-    }
-
-    // ------------------------------------------------------------------ modes
-
-    fn mode_command(&mut self, now: u64, tc: &Tc, sink: &mut impl TmSink) -> Result<Exec, Fail> {
-        let target = tc.args[1] as u32;
-        if target == robot_mode::OPERATIONAL {
-            if let Some(ev) = self.faults.first_active_event() {
-                return Err(fail(FailureCode::FAULT_NOT_CLEARED, &ev.to_be_bytes()));
-            }
-        }
-        if let Some(prev) = self.mode_cmd.take() {
-            self.fail_mode_cmd(now, prev, FailureCode::ABORTED_BY_COMMAND, 0, sink);
-        }
-        if target == self.modes.root() && self.transition.is_none() {
-            self.mode_reply(now, node::ROBOT, sink);
-            return Ok(Exec::Done);
-        }
-        self.mode_cmd = Some(ModeCmd {
-            req: tc.req,
-            ack: tc.ack,
-            target,
-        });
-        self.set_mode(now, target, 0, sink);
-        Ok(Exec::Async)
-    }
-
-    /// Starts a transition of the robot node (by command, cause 0, or by FDIR, cause =
-    /// fault event). A running action is aborted unless the target is operational.
-    fn set_mode(&mut self, now: u64, target: u32, cause: u16, sink: &mut impl TmSink) {
-        if target != robot_mode::OPERATIONAL {
-            if let Some(r) = self.running.take() {
-                self.ctrl.abort();
-                let f = if cause != 0 {
-                    fail(FailureCode::ABORTED_BY_FAULT, &cause.to_be_bytes())
-                } else {
-                    fail(FailureCode::ABORTED_BY_COMMAND, &r.function.to_be_bytes())
-                };
-                if r.req.is_some() {
-                    self.finish_running(now, &r, Some(f), sink);
-                }
-                self.modes.submode = submode::IDLE;
-            }
-        }
-        if cause != 0 {
-            // FDIR takes over: a pending mode command loses.
-            if let Some(c) = self.mode_cmd.take() {
-                if c.target != target {
-                    self.fail_mode_cmd(now, c, FailureCode::ABORTED_BY_FAULT, cause, sink);
-                } else {
-                    self.mode_cmd = Some(c);
-                }
-            }
-        }
-        self.modes.command(target);
-        self.transition = Some(Transition {
-            target,
-            started: now,
-            cause,
-            entering: Entering::Powering,
-        });
-        self.apply_module_modes();
-        self.progress_transition(now, sink);
-    }
-
-    fn apply_module_modes(&mut self) {
-        let m = &self.modes;
-        self.ctrl.set_module_modes(ModuleModes {
-            arm_a: m.commanded(node::ARM_A),
-            grip_a: m.commanded(node::GRIPPER_A),
-            bolter_a: m.commanded(node::BOLTER_A),
-            arm_b: m.commanded(node::ARM_B),
-            grip_b: m.commanded(node::GRIPPER_B),
-            bolter_b: m.commanded(node::BOLTER_B),
-            hip: m.commanded(node::HIP),
-        });
-    }
-
-    /// True when the hardware shows that a module is in `mode`.
-    fn module_confirms(&self, n: &mib::modes::NodeDef, mode: u32) -> bool {
-        if mode == module_mode::OFF {
-            return true;
-        }
-        let v_reg_min = params::by_id(pid::V_REG)
-            .and_then(|p| p.limits)
-            .map_or(0, |l| params::CAL_VOLT.raw(l.hard_lo));
-        let powered = self.ctrl.param(pid::V_REG).unwrap_or(0) >= v_reg_min;
-        if n.parent != Some(node::SIDE_B) {
-            return powered;
-        }
-        // Board B keeps driving its servos at their last set point when A's commands
-        // stop, so side B holds position even with the A-B link down (what safed after
-        // a communication loss needs); anything else needs B's acknowledgement.
-        mode == module_mode::HOLD || self.ctrl.param(pid::B_LINK_OK).unwrap_or(0) == 1
-    }
-
-    fn progress_transition(&mut self, now: u64, sink: &mut impl TmSink) {
-        let Some(t) = self.transition else { return };
-        let mut changes: heapless::Vec<Change, N_NODES> = heapless::Vec::new();
-        let root_ready = t.target != robot_mode::OPERATIONAL || t.entering == Entering::Ready;
-        {
-            let this = &*self;
-            let confirmed: heapless::Vec<(u32, bool), N_NODES> = mib::modes::NODES
-                .iter()
-                .map(|n| (n.id, this.module_confirms(n, this.modes.commanded(n.id))))
-                .collect();
-            self.modes.update(
-                |n, _| confirmed.iter().any(|(id, ok)| *id == n.id && *ok),
-                root_ready,
-                &mut changes,
-            );
-        }
-        for c in &changes {
-            self.event(
-                now,
-                eid::MODE_CHANGED,
-                &[c.node as i64, c.from as i64, c.to as i64, t.cause as i64],
-                sink,
-            );
-        }
-        if t.target == robot_mode::OPERATIONAL && t.entering == Entering::Powering {
-            let children_done = mib::modes::NODES
-                .iter()
-                .filter(|n| n.kind != NodeKind::Root)
-                .all(|n| self.modes.get(n.id).is_some_and(|m| m.actual == m.commanded));
-            if children_done {
-                // Paper: hip mismatch is checked when entering operational, then
-                // entering operational sends every actuator home.
-                if self
-                    .run_monitors(now, |p| p == Phase::EnteringOperational, sink)
-                    .is_some()
-                {
-                    return;
-                }
-                match self.ctrl.start(Action::Home, now) {
-                    Ok(_) => {
-                        self.running = Some(Running {
-                            req: None,
-                            function: function::HOME,
-                            reconfigure: false,
-                        });
-                        if let Some(t) = self.transition.as_mut() {
-                            t.entering = Entering::Homing;
-                        }
-                    }
-                    Err(_) => return self.transition_failed(now, FailureCode::BUSY, 0, sink),
-                }
-                return;
-            }
-        }
-        if !self.modes.in_transition() {
-            self.transition = None;
-            self.mode_reply(now, node::ROBOT, sink);
-            if let Some(c) = self.mode_cmd.take() {
-                if c.target == self.modes.root() {
-                    if c.ack.completion() {
-                        self.verify(now, Stage::Completion, c.req, None, sink);
-                    }
-                    self.set_outcome(c.req, Outcome::Done);
-                } else {
-                    self.mode_cmd = Some(c);
-                }
-            }
-            if t.target == robot_mode::OPERATIONAL {
-                // Recovery done: one-shot faults and latches are cleared.
-                self.faults.oneshot = 0;
-                self.faults.latched = self.faults.monitored;
-            } else if t.cause != 0 {
-                // The fault has been dealt with by its mode change.
-                self.clear_oneshot(now, t.cause, sink);
-            }
-            return;
-        }
-        let entering_homing = t.entering == Entering::Homing;
-        if !entering_homing && now.saturating_sub(t.started) > config::MODE_TRANSITION_TIMEOUT_MS as u64 {
-            self.transition_failed(now, FailureCode::TIMEOUT, 0, sink);
-        }
-    }
-
-    fn clear_oneshot(&mut self, now: u64, event: u16, sink: &mut impl TmSink) {
-        if let Some(f) = mib::fdir::fault_by_event(event) {
-            if self.faults.oneshot & (1 << f.bit) != 0 {
-                self.faults.oneshot &= !(1 << f.bit);
-                self.event(now, eid::FAULT_CLEARED, &[event as i64], sink);
-            }
-        }
-    }
-
-    /// A transition that cannot complete: report it and fall back to standby.
-    /// Completes a mode command with MODE_CHANGE_FAILED: node, target mode, the reason
-    /// (a failure code) and the fault event behind it (0 if none).
-    fn fail_mode_cmd(&mut self, now: u64, c: ModeCmd, reason: FailureCode, event: u16, sink: &mut impl TmSink) {
-        let mut d = [0u8; 12];
-        d[..4].copy_from_slice(&node::ROBOT.to_be_bytes());
-        d[4..8].copy_from_slice(&c.target.to_be_bytes());
-        d[8..10].copy_from_slice(&reason.code().to_be_bytes());
-        d[10..].copy_from_slice(&event.to_be_bytes());
-        self.verify(
-            now,
-            Stage::Completion,
-            c.req,
-            Some((FailureCode::MODE_CHANGE_FAILED, &d)),
-            sink,
-        );
-        self.set_outcome(c.req, Outcome::Failed(FailureCode::MODE_CHANGE_FAILED.code()));
-    }
-
-    fn transition_failed(&mut self, now: u64, reason: FailureCode, event: u16, sink: &mut impl TmSink) {
-        let Some(t) = self.transition.take() else { return };
-        let mut d = [0u8; 12];
-        d[..4].copy_from_slice(&node::ROBOT.to_be_bytes());
-        d[4..8].copy_from_slice(&t.target.to_be_bytes());
-        d[8..10].copy_from_slice(&0u16.to_be_bytes());
-        d[10..12].copy_from_slice(&reason.code().to_be_bytes());
-        self.emit(
-            now,
-            service::MODE,
-            satrs::pus::mode::Subservice::TmCantReachMode as u8,
-            &d,
-            sink,
-        );
-        self.event(
-            now,
-            eid::MODE_CHANGE_FAILED,
-            &[node::ROBOT as i64, t.target as i64, reason.code() as i64],
-            sink,
-        );
-        if let Some(c) = self.mode_cmd.take() {
-            self.fail_mode_cmd(now, c, reason, event, sink);
-        }
-        if t.target != robot_mode::STANDBY {
-            self.set_mode(now, robot_mode::STANDBY, t.cause, sink);
-        } else {
-            let mut ch = heapless::Vec::new();
-            self.modes.settle(&mut ch);
-        }
-    }
-
-    // ------------------------------------------------------------------ FDIR
-
-    /// Raises a fault event and applies its event-action link.
-    fn fault(&mut self, now: u64, event: u16, args: &[i64], sink: &mut impl TmSink) {
-        self.fault_inner(now, event, args, false, sink);
-    }
-
-    fn fault_inner(&mut self, now: u64, event: u16, args: &[i64], monitored: bool, sink: &mut impl TmSink) {
-        self.event(now, event, args, sink);
-        let bit = mib::fdir::fault_by_event(event).map_or(0, |f| 1u32 << f.bit);
-        if !monitored && self.faults.oneshot & bit != 0 {
-            // Already active and being dealt with (e.g. every command left unacknowledged
-            // by a silent board B): reported, not counted or acted on again.
-            return;
-        }
-        match self.faults.raise(event, monitored) {
-            Response::None => {}
-            // Standby already has every module unpowered and the robot resting on its
-            // grippers: a fault never powers the servos up just to hold (safed).
-            Response::Now(m) if m == robot_mode::SAFED && self.modes.root_target() == robot_mode::STANDBY => {
-                self.clear_oneshot(now, event, sink);
-            }
-            Response::Now(m) => self.set_mode(now, m, event, sink),
-            Response::AfterMotion(m) => {
-                if self.running.is_some() {
-                    self.faults.pending_mode = Some(match self.faults.pending_mode {
-                        Some(p) if p == robot_mode::SAFED => p,
-                        _ => m,
-                    });
-                } else if self.modes.root_target() != m {
-                    self.set_mode(now, m, event, sink);
-                } else {
-                    self.clear_oneshot(now, event, sink);
-                }
-            }
-        }
-    }
-
-    /// Runs the monitors of the accepted phases; emits TM[12,12] for each transition
-    /// and raises the fault of each new violation. Returns the last fault event raised.
-    fn run_monitors(&mut self, now: u64, phases: impl Fn(Phase) -> bool, sink: &mut impl TmSink) -> Option<u16> {
-        let mut tr: heapless::Vec<fdir::Transition, N_MONITORS> = heapless::Vec::new();
-        {
-            let this = &*self;
-            // A parameter without a valid value (board B never heard) is not checked.
-            let mut vals = [None; N_MONITORS];
-            for (v, m) in vals.iter_mut().zip(this.monitoring.mons.iter()) {
-                *v = this.param_opt(m.def.param);
-            }
-            let ids: [u16; N_MONITORS] = core::array::from_fn(|i| this.monitoring.mons[i].def.param);
-            self.monitoring.check(
-                phases,
-                |p| ids.iter().position(|x| *x == p).and_then(|i| vals[i]),
-                &mut tr,
-            );
-        }
-        self.faults.monitored = self.monitoring.violated_fault_bits();
-        let mut raised = None;
-        for t in &tr {
-            let mut d = [0u8; 13];
-            d[..2].copy_from_slice(&t.monitor.to_be_bytes());
-            d[2..4].copy_from_slice(&t.param.to_be_bytes());
-            d[4..8].copy_from_slice(&(t.value.clamp(i32::MIN as i64, i32::MAX as i64) as i32).to_be_bytes());
-            d[8..12].copy_from_slice(&t.limit.to_be_bytes());
-            d[12] = t.state;
-            self.emit(now, service::MONITORING, 12, &d, sink);
-            if t.state != fdir::check::OK {
-                let args: [i64; 3] = if t.event == eid::HIP_MISMATCH {
-                    [self.param(pid::HIP_ANGLE), self.param(pid::HIP_ANGLE) - t.value, 0]
-                } else {
-                    [t.param as i64, t.value, t.limit as i64]
-                };
-                let continuous = mib::fdir::monitor_by_id(t.monitor).is_some_and(|m| fdir::is_continuous(m.phase));
-                self.fault_inner(now, t.event, &args, continuous, sink);
-                raised = Some(t.event);
-            } else if mib::fdir::monitor_by_id(t.monitor).is_some_and(|m| fdir::is_continuous(m.phase))
-                && self.faults.monitored & mib::fdir::fault_by_event(t.event).map_or(0, |f| 1 << f.bit) == 0
-            {
-                self.event(now, eid::FAULT_CLEARED, &[t.event as i64], sink);
-            }
-        }
-        raised
     }
 
     // ------------------------------------------------------------------ periodic
@@ -1287,129 +436,161 @@ impl<S: TmStore> Obsw<S> {
         let mut out = core::mem::take(&mut self.out);
         out.clear();
         self.ctrl.tick(now, sensors, link_rx, &mut out);
-        for r in out.reports.clone().iter() {
+        self.count_dropped(now, out.dropped, sink);
+        for r in out.reports.iter() {
             self.on_report(now, r, sink);
         }
-        for e in out.events.clone().iter() {
+        for e in out.events.iter() {
             self.on_domain_event(now, e, sink);
         }
         self.run_monitors(now, fdir::is_continuous, sink);
         self.progress_transition(now, sink);
-        for i in 0..N_HK {
-            let h = self.hk[i];
-            if h.enabled && now >= h.next {
-                self.hk_report(now, i, sink);
-                let next = h.next + h.interval as u64;
-                self.hk[i].next = if next <= now { now + h.interval as u64 } else { next };
-            }
-        }
-        if now >= self.next_time_report {
-            self.time_report(now, sink);
-            self.next_time_report = now + (1000u64 << self.time_exp);
-        }
+        self.hk_tick(now, sink);
+        self.time_tick(now, sink);
         self.release_schedule(now, sink);
         self.out = out;
         &self.out
     }
+}
 
-    fn release_schedule(&mut self, now: u64, sink: &mut impl TmSink) {
-        if !self.sched_enabled {
-            return;
-        }
-        while let Some(i) = self.sched.iter().position(|s| s.release <= now) {
-            let s = self.sched.swap_remove(i);
-            self.handle_tc(now, &s.tc, sink);
-        }
-    }
-
-    fn on_report(&mut self, now: u64, r: &ActionReport, sink: &mut impl TmSink) {
-        let Some(run) = self.running else { return };
-        match r {
-            ActionReport::Step { n } => {
-                if let Some((req, ack)) = run.req {
-                    if ack.progress() {
-                        self.verify(now, Stage::Progress(*n), req, None, sink);
-                    }
-                }
-            }
-            ActionReport::Completed => {
-                self.running = None;
-                self.finish_running(now, &run, None, sink);
-                if run.reconfigure {
-                    // Paper: idle overcurrent is checked at the end of a reconfiguration too.
-                    self.idle_check(now, sink);
-                }
-            }
-            ActionReport::Failed { code, data, len } => {
-                self.running = None;
-                let f = fail(*code, &data[..(*len as usize).min(data.len())]);
-                self.finish_running(now, &run, Some(f), sink);
-            }
-        }
-    }
-
-    fn on_domain_event(&mut self, now: u64, e: &DomainEvent, sink: &mut impl TmSink) {
-        let s = |v: Side| v as i64;
-        match *e {
-            DomainEvent::PrimitiveDone { primitive, state } => {
-                self.event(now, eid::PRIMITIVE_DONE, &[primitive as i64, state as i64], sink)
-            }
-            DomainEvent::StateReached { state } => self.event(now, eid::STATE_REACHED, &[state as i64], sink),
-            DomainEvent::BoltPairDone { side, pair, attempts } => {
-                self.event(now, eid::BOLT_PAIR_DONE, &[s(side), pair as i64, attempts as i64], sink)
-            }
-            DomainEvent::BoltAttemptFailed { side, pair, attempt } => self.event(
-                now,
-                eid::BOLT_ATTEMPT_FAILED,
-                &[s(side), pair as i64, attempt as i64],
-                sink,
-            ),
-            DomainEvent::UnboltPairDone { side, pair, attempts } => self.event(
-                now,
-                eid::UNBOLT_PAIR_DONE,
-                &[s(side), pair as i64, attempts as i64],
-                sink,
-            ),
-            DomainEvent::BoltFailure { side, pair, attempts } => {
-                self.fault(now, eid::BOLT_FAILURE, &[s(side), pair as i64, attempts as i64], sink)
-            }
-            DomainEvent::UnboltFailure { side, pair, attempts } => {
-                self.fault(now, eid::UNBOLT_FAILURE, &[s(side), pair as i64, attempts as i64], sink)
-            }
-            DomainEvent::ArmNotContracted { side } => self.fault(now, eid::ARM_NOT_CONTRACTED, &[s(side)], sink),
-            DomainEvent::CommLossNoAck { command, retries } => {
-                self.fault(now, eid::COMM_LOSS_NO_ACK, &[command as i64, retries as i64], sink)
-            }
-            // The state computed after a primitive is not the one planned: the robot is
-            // not where the ground believes, the same hazard as an initial-state mismatch.
-            DomainEvent::StateMismatch { expected, computed } => self.fault(
-                now,
-                eid::INITIAL_STATE_MISMATCH,
-                &[expected as i64, computed as i64],
-                sink,
-            ),
-            _ => {}
-        }
-    }
-
-    /// Parameter value for the state estimate shown to tests and the host.
-    pub fn computed_state(&self) -> u8 {
-        self.ctrl.computed_state().unwrap_or(STATE_UNKNOWN)
+impl Tc<'_> {
+    /// The packet error control field (with the request ID it identifies a retry).
+    fn crc(&self) -> u16 {
+        let n = self.raw.len();
+        u16::from_be_bytes([self.raw[n - 2], self.raw[n - 1]])
     }
 }
 
-/// Splits one TC[11,4] activity: 7-byte CDS release time, then a TC whose length comes
-/// from its own primary header.
-fn split_activity(data: &[u8]) -> Option<(&[u8], &[u8], &[u8])> {
-    let t = config::TIMESTAMP_LEN;
-    if data.len() < t + PRIMARY_LEN {
-        return None;
+#[cfg(test)]
+pub(crate) mod tests {
+    //! Helpers for the services' unit tests: an OBSW, TCs and report look-ups.
+    use super::*;
+    use crate::accept::tests::tc_bytes;
+    use crate::tm::RingStore;
+
+    pub type TestObsw = Obsw<RingStore<8192>>;
+    pub const APID: u16 = 0x101;
+
+    pub fn obsw() -> TestObsw {
+        Obsw::new(
+            Config {
+                robot: 1,
+                epoch_unix_ms: 1_790_000_000_000,
+            },
+            RingStore::default(),
+        )
     }
-    let (release, rest) = data.split_at(t);
-    let len = PRIMARY_LEN + u16::from_be_bytes([rest[4], rest[5]]) as usize + 1;
-    if rest.len() < len {
-        return None;
+
+    /// Sends a TC and returns every packet it produced.
+    pub fn send(o: &mut TestObsw, now: u64, seq: u16, svc: u8, sub: u8, app: &[u8]) -> Vec<Vec<u8>> {
+        let mut sink: Vec<Vec<u8>> = Vec::new();
+        o.handle_tc(now, &tc_bytes(APID, seq, svc, sub, app), &mut sink);
+        sink
     }
-    let (tc, tail) = rest.split_at(len);
-    Some((release, tc, tail))
+
+    /// (service, subservice, source data) of a TM packet.
+    pub fn kind(p: &[u8]) -> (u8, u8, &[u8]) {
+        (p[7], p[8], &p[20..p.len() - 2])
+    }
+
+    /// The packets of one type.
+    pub fn of(pkts: &[Vec<u8>], svc: u8, sub: u8) -> Vec<Vec<u8>> {
+        pkts.iter()
+            .filter(|p| kind(p).0 == svc && kind(p).1 == sub)
+            .cloned()
+            .collect()
+    }
+
+    /// Failure code and data of a TM[1,2/4/6/8] (after the 4-byte request ID).
+    pub fn failure(p: &[u8]) -> (u16, Vec<u8>) {
+        let d = kind(p).2;
+        (u16::from_be_bytes([d[4], d[5]]), d[6..].to_vec())
+    }
+
+    #[test]
+    fn a_ping_gets_acceptance_start_completion_and_a_reply() {
+        let mut o = obsw();
+        let pkts = send(&mut o, 10, 1, 17, 1, &[]);
+        let kinds: Vec<(u8, u8)> = pkts.iter().map(|p| (kind(p).0, kind(p).1)).collect();
+        assert_eq!(kinds, [(1, 1), (17, 2), (1, 3), (1, 7)]);
+    }
+
+    #[test]
+    fn a_retry_is_answered_again_but_not_executed_again() {
+        let mut o = obsw();
+        send(&mut o, 10, 1, 17, 1, &[]);
+        let again = send(&mut o, 20, 1, 17, 1, &[]);
+        assert_eq!(of(&again, 17, 2).len(), 0, "not executed twice");
+        assert_eq!((of(&again, 1, 1).len(), of(&again, 1, 7).len()), (1, 1));
+        assert_eq!(o.counters.tc_duplicate, 1);
+    }
+
+    #[test]
+    fn a_retry_of_a_refused_tc_repeats_the_same_failure_at_the_same_stage() {
+        let mut o = obsw();
+        // HK_ENABLE of an unknown SID: refused at acceptance with the SID as data.
+        let first = send(&mut o, 10, 2, 3, 5, &[0x7F, 0x7F]);
+        let again = send(&mut o, 20, 2, 3, 5, &[0x7F, 0x7F]);
+        for pkts in [&first, &again] {
+            let f = of(pkts, 1, 2);
+            assert_eq!(f.len(), 1);
+            assert_eq!(failure(&f[0]), (mib::FailureCode::UNKNOWN_SID.code(), vec![0x7F, 0x7F]));
+            assert!(of(pkts, 1, 1).is_empty());
+        }
+    }
+
+    #[test]
+    fn an_oversize_frame_is_refused_with_frame_too_long_for_its_request() {
+        let mut o = obsw();
+        let ping = tc_bytes(APID, 9, 17, 1, &[]);
+        let mut sink: Vec<Vec<u8>> = Vec::new();
+        o.reject_frame(5, 5000, &ping, &mut sink);
+        let f = of(&sink, 1, 2);
+        assert_eq!(&kind(&f[0]).2[..4], &ping[..4], "request ID of the frame");
+        let mut data = 5000u32.to_be_bytes().to_vec();
+        data.extend_from_slice(&(config::MAX_PACKET_LEN as u32).to_be_bytes());
+        assert_eq!(failure(&f[0]), (mib::FailureCode::FRAME_TOO_LONG.code(), data));
+        assert_eq!(o.counters.tc_rejected, 1);
+        // Without a request ID: the event only.
+        sink.clear();
+        o.reject_frame(6, 5000, &[], &mut sink);
+        assert!(of(&sink, 1, 2).is_empty());
+        assert_eq!(
+            of(&sink, 5, 1).len() + of(&sink, 5, 2).len() + of(&sink, 5, 3).len() + of(&sink, 5, 4).len(),
+            1
+        );
+    }
+
+    #[test]
+    fn a_full_event_queue_is_counted_and_reported_once_per_window() {
+        let mut o = obsw();
+        let mut sink: Vec<Vec<u8>> = Vec::new();
+        o.count_dropped(100, 3, &mut sink);
+        o.count_dropped(200, 2, &mut sink);
+        let ev = |s: &Vec<Vec<u8>>| {
+            s.iter()
+                .filter(|p| p[7] == 5 && p[20..22] == eid::EVENT_QUEUE_OVERFLOW.to_be_bytes())
+                .map(|p| u16::from_be_bytes([p[22], p[23]]))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(ev(&sink), [3], "one event in the window, with the count so far");
+        o.count_dropped(100 + config::EVENT_THROTTLE_WINDOW_MS as u64, 0, &mut sink);
+        assert_eq!(ev(&sink), [3, 2], "the rest once the window passed");
+        assert_eq!(o.param(pid::EVENTS_DROPPED), 5);
+    }
+
+    #[test]
+    fn a_command_not_allowed_in_the_mode_reports_the_real_mode() {
+        let mut o = obsw();
+        // RECONFIGURE in standby.
+        let pkts = send(&mut o, 10, 3, 8, 1, &[0, 1, 0, 1]);
+        let f = of(&pkts, 1, 4);
+        assert_eq!(
+            failure(&f[0]),
+            (
+                mib::FailureCode::NOT_ALLOWED_IN_MODE.code(),
+                vec![mib::modes::robot_mode::STANDBY as u8]
+            )
+        );
+    }
 }

@@ -44,6 +44,7 @@ impl OnboardTime {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: PUS-PKT-04
     #[test]
     fn cds_round_trips_through_on_board_time() {
         let t = OnboardTime::new(1_790_000_000_000);
@@ -57,6 +58,7 @@ mod tests {
             1_790_000_000_000 / MS_PER_DAY + 4383
         );
     }
+    // verifies: PUS-11-02
     #[test]
     fn malformed_or_past_stamps_are_rejected() {
         let t = OnboardTime::new(1_790_000_000_000);

@@ -29,6 +29,9 @@ pub trait TmStore {
     fn push(&mut self, packet: &[u8]) -> bool;
     /// Removes the oldest packet into `buf`; returns its length.
     fn pop(&mut self, buf: &mut [u8]) -> Option<usize>;
+    /// Calls `f` with every stored packet, oldest first, leaving the store unchanged
+    /// (PUS 15 downlinks by range read the store; nothing is removed).
+    fn visit(&self, f: &mut dyn FnMut(&[u8]));
     fn len(&self) -> usize;
     fn is_empty(&self) -> bool {
         self.len() == 0
@@ -96,6 +99,25 @@ impl<const N: usize> TmStore for RingStore<N> {
         }
         self.count -= 1;
         Some(len)
+    }
+    fn visit(&self, f: &mut dyn FnMut(&[u8])) {
+        let mut it = self.buf.iter().copied();
+        let mut pkt = [0u8; MAX_PACKET_LEN];
+        while let (Some(hi), Some(lo)) = (it.next(), it.next()) {
+            let len = u16::from_be_bytes([hi, lo]) as usize;
+            let mut n = 0;
+            for b in it.by_ref().take(len) {
+                if let Some(slot) = pkt.get_mut(n) {
+                    *slot = b;
+                }
+                n += 1;
+            }
+            // `push` keeps only packets of at most MAX_PACKET_LEN bytes from the TM
+            // writer; a longer record could only come from a larger store user.
+            if let Some(p) = pkt.get(..n) {
+                f(p);
+            }
+        }
     }
     fn len(&self) -> usize {
         self.count
@@ -178,6 +200,7 @@ mod tests {
     use satrs::spacepackets::ecss::tm::PusTmReader;
     use satrs::spacepackets::CcsdsPacket;
 
+    // verifies: PUS-PKT-03
     #[test]
     fn tm_sequence_count_is_continuous_and_packets_parse() {
         let mut w = TmWriter::new(0x101, OnboardTime::new(1_790_000_000_000));
@@ -191,6 +214,7 @@ mod tests {
         }
     }
 
+    // verifies: PUS-15-01
     #[test]
     fn ring_store_keeps_order_and_overwrites_oldest_when_full() {
         let mut s: RingStore<64> = RingStore::default();
@@ -200,6 +224,10 @@ mod tests {
         assert_eq!(s.len(), 3);
         // 22 + 22 + 20 = 64: full; the next push drops the oldest.
         assert!(s.push(&[4; 10]));
+        assert_eq!(s.len(), 3);
+        let mut seen = Vec::new();
+        s.visit(&mut |p| seen.push((p[0], p.len())));
+        assert_eq!(seen, [(2, 20), (3, 18), (4, 10)], "oldest first, store unchanged");
         assert_eq!(s.len(), 3);
         let mut out = [0u8; 64];
         assert_eq!(s.pop(&mut out), Some(20));

@@ -121,6 +121,7 @@ fn fix_crc(raw: &mut [u8]) {
 
 proptest! {
     #![proptest_config(ProptestConfig { cases: 64, .. ProptestConfig::default() })]
+    // verifies: PUS-1-04, DD-ROBUST-01
     #[test]
     fn mutated_tcs_never_panic_and_each_gets_one_acceptance_report(
         picks in proptest::collection::vec((0usize..64, proptest::collection::vec(mutation(), 1..4)), 1..40)

@@ -647,6 +647,7 @@ mod tests {
         bytes.iter().filter_map(|&b| d.push(b)).collect()
     }
 
+    // verifies: MMIC-AB-02
     #[test]
     fn ab_frames_round_trip_for_every_message() {
         let msgs = [
@@ -691,6 +692,7 @@ mod tests {
         }
     }
 
+    // verifies: MMIC-AB-04
     #[test]
     fn ab_frame_layout_is_cobs_of_payload_and_crc() {
         let mut wire: Vec<u8, 64> = Vec::new();
@@ -702,6 +704,7 @@ mod tests {
         assert_eq!(CRC16.checksum(b"123456789"), 0x29B1);
     }
 
+    // verifies: MMIC-AB-04
     #[test]
     fn ab_decoder_reports_crc_errors_and_recovers() {
         let mut wire: Vec<u8, 128> = Vec::new();
@@ -730,6 +733,7 @@ mod tests {
         );
     }
 
+    // verifies: MMIC-AB-04
     #[test]
     fn ab_decoder_drops_overlong_frames() {
         let mut stream = std::vec![0x55u8; 300];
@@ -760,6 +764,7 @@ mod tests {
         g
     }
 
+    // verifies: MMIC-AB-03
     #[test]
     fn ab_link_resends_after_ack_timeout_and_counts_retries() {
         let mut lm = LinkManager::new();
@@ -776,6 +781,7 @@ mod tests {
         assert_eq!(lm.counters().ack_missed, 0);
     }
 
+    // verifies: MMIC-FLT-11
     #[test]
     fn ab_link_detects_no_ack_after_max_retries() {
         let mut lm = LinkManager::new();
@@ -797,6 +803,7 @@ mod tests {
         assert!((4 * 60..5 * 60).contains(&t), "gave up at {t} ms");
     }
 
+    // verifies: MMIC-AB-07
     #[test]
     fn ab_link_coalesces_queued_commands_but_not_across_barriers() {
         let mut lm = LinkManager::new();
@@ -819,6 +826,7 @@ mod tests {
         assert_eq!(lm.counters().queue_dropped, 0);
     }
 
+    // verifies: MMIC-AB-03
     #[test]
     fn ab_link_heartbeat_acknowledges_when_the_ack_frame_is_lost_and_reports_b_rx_errors() {
         let mut lm = LinkManager::new();
@@ -842,6 +850,7 @@ mod tests {
         assert_eq!(lm.counters().frame_errors, 9);
     }
 
+    // verifies: MMIC-AB-02
     #[test]
     fn ab_link_heartbeat_age_and_counters() {
         let mut lm = LinkManager::new();
@@ -861,6 +870,7 @@ mod tests {
     }
 
     proptest! {
+        // verifies: MMIC-AB-04
         #[test]
         fn ab_decoding_garbage_never_panics(bytes in proptest::collection::vec(any::<u8>(), 0..600)) {
             let mut d = FrameDecoder::new();
@@ -872,6 +882,7 @@ mod tests {
             lm.receive(0, &bytes);
         }
 
+        // verifies: MMIC-AB-04
         #[test]
         fn ab_corrupted_frames_are_never_accepted_as_different_messages(
             arm in 900u16..2100, seq: u8, pos in 0usize..16, bit in 0u8..8

@@ -287,6 +287,7 @@ mod tests {
         bytes.iter().filter_map(|&b| d.push(b)).map(|r| r.unwrap()).collect()
     }
 
+    // verifies: MMIC-AB-01
     #[test]
     fn board_b_acks_every_command_executes_once_and_heartbeats_periodically() {
         let mut b = BoardB::new();
@@ -342,6 +343,7 @@ mod tests {
         assert_eq!(hb.last_seq, 2);
     }
 
+    // verifies: MMIC-AB-05
     #[test]
     fn board_b_flags_overcurrent_from_filtered_currents() {
         let mut b = BoardB::new();
@@ -365,6 +367,7 @@ mod tests {
         assert_eq!(hb.flags & flag::OC_BO, 0);
     }
 
+    // verifies: MMIC-AB-01
     #[test]
     fn board_b_repeated_power_command_does_not_cancel_a_move() {
         let mut b = BoardB::new();
@@ -436,6 +439,7 @@ mod tests {
         assert!(held > 1480 && held < 1500, "{held}");
     }
 
+    // verifies: MMIC-AB-06
     #[test]
     fn board_b_hold_and_off_refuse_motion_and_bolter_needs_on() {
         let mut b = BoardB::new();

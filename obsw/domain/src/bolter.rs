@@ -305,6 +305,7 @@ mod tests {
         panic!("bolter never finished: {trace:?}");
     }
 
+    // verifies: MMIC-CTL-04
     #[test]
     fn bolter_transitions_on_push_and_lock_current_thresholds() {
         let c = cfg();
@@ -330,6 +331,7 @@ mod tests {
         assert_eq!(b.drive(), BolterDrive::Off);
     }
 
+    // verifies: MMIC-CTL-04
     #[test]
     fn bolter_waits_for_both_sides_and_just_below_threshold_does_not_advance() {
         let c = cfg();
@@ -354,6 +356,7 @@ mod tests {
         assert_eq!(b.phase(), BolterPhase::Retract);
     }
 
+    // verifies: MMIC-CTL-05
     #[test]
     fn bolter_retries_after_step_timeout_and_fails_after_max_attempts() {
         let c = cfg();
@@ -388,6 +391,7 @@ mod tests {
         assert!(t >= 3 * c.step_timeout_ms as u64);
     }
 
+    // verifies: MMIC-CTL-05
     #[test]
     fn bolter_succeeds_on_second_attempt() {
         let c = cfg();
@@ -419,6 +423,7 @@ mod tests {
         );
     }
 
+    // verifies: MMIC-CMD-03
     #[test]
     fn unbolting_is_the_reverse_and_released_by_current_drop() {
         let c = cfg();
@@ -450,6 +455,7 @@ mod tests {
         assert_eq!(evs.last(), Some(&BolterEvent::Failed { attempts: 3 }));
     }
 
+    // verifies: MMIC-AV-03
     #[test]
     fn bolter_rejects_invalid_pairs() {
         let mut b = Bolter::new();

@@ -252,6 +252,7 @@ mod tests {
     use super::*;
     use crate::tunables::Tunables;
 
+    // verifies: MMIC-CTL-02
     #[test]
     fn interpolator_moves_at_the_servo_speed() {
         let mut i = Interpolator::servo(1000);
@@ -299,6 +300,7 @@ mod tests {
         angle
     }
 
+    // verifies: MMIC-CTL-01
     #[test]
     fn hip_pi_reaches_target_at_ten_degrees_per_second_and_switches_at_three_degrees() {
         let mut switched_at = None;
@@ -320,6 +322,7 @@ mod tests {
         assert!((end - 9000.0).abs() <= servo::HIP_DONE_CDEG as f64, "ended at {end}");
     }
 
+    // verifies: MMIC-CTL-01
     #[test]
     fn hip_pi_reports_done_only_when_settled() {
         let mut c = HipController::new(0, HipGains::from_tunables(&Tunables::default()));
@@ -338,6 +341,7 @@ mod tests {
         assert!((end + 9000.0).abs() <= 50.0, "{end}");
     }
 
+    // verifies: MMIC-CTL-03
     #[test]
     fn hip_held_against_the_structure_does_not_wind_up() {
         // blocked hip 40 cdeg off target (inside the done band) for 10 minutes

@@ -4,7 +4,7 @@
 
 use crate::ablink::{LinkManager, ModuleCmd};
 use crate::bolter::{BoltOp, Bolter, BolterConfig, BolterEvent};
-use crate::consts::{LINK_TX_CAP, STATE_SETTLE_TIMEOUT_MS};
+use crate::consts::{EST_HIP_TOL_CDEG, LINK_TX_CAP, STATE_SETTLE_TIMEOUT_MS};
 use crate::control::{HipController, HipGains, Interpolator};
 use crate::estimate::{grippers_closed, state_from_imus, state_from_sensors};
 use crate::filter::{to_i16, to_u16, Ma};
@@ -18,7 +18,6 @@ use mib::modes::module_mode::{HOLD, OFF, ON};
 use mib::params::{pid, B_HEARTBEAT_TIMEOUT_MS};
 use mib::robot::{primitive, servo, Motion, Side, StateKind, NUM_STATES, STATES, STATE_UNKNOWN};
 use mib::tunables::tid;
-use mib::FailureCode;
 
 /// Modes of the modules (`mib::modes::module_mode`: OFF, ON, HOLD).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -145,7 +144,8 @@ impl Action {
     }
 }
 
-/// Why an action was refused.
+/// Why an action was refused. The core turns each variant into the PUS 1 failure
+/// code and data the MIB lists for it (`obsw_core::failure`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum StartError {
     Busy,
@@ -159,35 +159,50 @@ pub enum StartError {
     },
     /// A module the action needs is not in a mode that allows it.
     NotPowered,
-    /// An argument outside its range (pair 0 or > 4, empty pair mask).
-    InvalidArgument,
+    /// An argument outside the range the domain can execute (pair 0 or > 4, empty pair
+    /// mask): the index of the argument in the TC (after the function ID) and its value.
+    InvalidArgument {
+        index: u8,
+        value: i32,
+    },
+    /// The action would turn the hip while both grippers hold a face: the two faces are
+    /// fixed to the lattice, so the hip cannot move (it would stall against the
+    /// structure). Open one gripper first. Data: the gripper PWMs that show both closed.
+    BothSidesGripped {
+        grip_a_pwm: u16,
+        grip_b_pwm: u16,
+    },
 }
 
-impl StartError {
-    /// The PUS 1 failure code and data (layout as in `mib::failure`), for refusals the
-    /// domain can describe. `NotPowered` maps to `NOT_ALLOWED_IN_MODE` with mode 255:
-    /// the core knows the robot mode and should fill it in.
-    pub fn failure(&self) -> (FailureCode, [u8; 8], u8) {
-        let mut d = [0u8; 8];
-        match *self {
-            StartError::Busy => (FailureCode::BUSY, d, 2),
-            StartError::InitialStateMismatch { believed, computed } => {
-                d[0] = believed;
-                d[1] = computed;
-                (FailureCode::INITIAL_STATE_MISMATCH, d, 2)
-            }
-            StartError::Unreachable { from, to } => {
-                d[0] = from;
-                d[1] = to;
-                (FailureCode::UNREACHABLE_STATE, d, 2)
-            }
-            StartError::NotPowered => {
-                d[0] = 255;
-                (FailureCode::NOT_ALLOWED_IN_MODE, d, 1)
-            }
-            StartError::InvalidArgument => (FailureCode::ARG_OUT_OF_RANGE, d, 5),
-        }
-    }
+/// Why a running action ended without completing (the data the MIB lists per code).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ActionFailure {
+    /// FDIR detected a fault (the fault's event ID).
+    AbortedByFault {
+        event: u16,
+    },
+    BoltFailed {
+        side: Side,
+        pair: u8,
+        attempts: u8,
+    },
+    UnboltFailed {
+        side: Side,
+        pair: u8,
+        attempts: u8,
+    },
+    BoardBNoAck {
+        command: u8,
+        retries: u8,
+    },
+    Timeout {
+        elapsed_ms: u32,
+    },
+    /// The state computed after a primitive is not the planned one.
+    StateMismatch {
+        expected: u8,
+        computed: u8,
+    },
 }
 
 /// Progress of the running action (PUS 1 progress / completion / failure).
@@ -198,17 +213,11 @@ pub enum ActionReport {
         n: u8,
     },
     Completed,
-    /// Failure code and data laid out as `mib::failure` says (`len` bytes used).
-    Failed {
-        code: FailureCode,
-        data: [u8; 8],
-        len: u8,
-    },
+    Failed(ActionFailure),
 }
 
 /// Domain events for the core to turn into PUS 5 events (and FDIR).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[non_exhaustive]
 pub enum DomainEvent {
     PrimitiveDone {
         primitive: u8,
@@ -263,9 +272,14 @@ pub struct TickOut {
     pub actuators: ActuatorsA,
     /// Bytes for the serial line to board B.
     pub link_tx: Vec<u8, LINK_TX_CAP>,
-    pub events: Vec<DomainEvent, 8>,
-    pub reports: Vec<ActionReport, 8>,
+    pub events: Vec<DomainEvent, TICK_QUEUE>,
+    pub reports: Vec<ActionReport, TICK_QUEUE>,
+    /// Events and reports that did not fit this tick's queues (counted, never silent).
+    pub dropped: u32,
 }
+
+/// Capacity of one tick's event and report queues.
+pub const TICK_QUEUE: usize = mib::config::EVENT_QUEUE_DEPTH;
 
 impl TickOut {
     pub fn new() -> Self {
@@ -275,6 +289,19 @@ impl TickOut {
         self.link_tx.clear();
         self.events.clear();
         self.reports.clear();
+        self.dropped = 0;
+    }
+    /// Queues a domain event; a full queue counts the loss in `dropped`.
+    pub fn event(&mut self, e: DomainEvent) {
+        if self.events.push(e).is_err() {
+            self.dropped = self.dropped.saturating_add(1);
+        }
+    }
+    /// Queues an action report; a full queue counts the loss in `dropped`.
+    pub fn report(&mut self, r: ActionReport) {
+        if self.reports.push(r).is_err() {
+            self.dropped = self.dropped.saturating_add(1);
+        }
     }
 }
 
@@ -328,25 +355,7 @@ struct Run {
 enum SegResult {
     Running,
     Done,
-    Fail { code: FailureCode, data: [u8; 8], len: u8 },
-}
-
-fn fail_event(event_id: u16) -> SegResult {
-    let mut data = [0u8; 8];
-    data[..2].copy_from_slice(&event_id.to_be_bytes());
-    SegResult::Fail {
-        code: FailureCode::ABORTED_BY_FAULT,
-        data,
-        len: 2,
-    }
-}
-
-fn fail3(code: FailureCode, a: u8, b: u8, c: u8) -> SegResult {
-    SegResult::Fail {
-        code,
-        data: [a, b, c, 0, 0, 0, 0, 0],
-        len: 3,
-    }
+    Fail(ActionFailure),
 }
 
 /// Filtered board A channels.
@@ -631,6 +640,32 @@ impl Controller {
         }
     }
 
+    /// The hip angle an action turns the hip to before it opens any gripper, if any.
+    /// Reconfiguration primitives open a gripper before they turn the hip; `Home` turns
+    /// the hip first, `RotateHip` only turns it.
+    fn hip_turn_of(&self, a: &Action) -> Option<i16> {
+        match *a {
+            Action::RotateHip { cdeg } => Some(cdeg),
+            Action::Home => Some(servo::HIP_HOME_CDEG),
+            Action::Reconfigure { .. }
+            | Action::BoltFace { .. }
+            | Action::UnboltFace { .. }
+            | Action::MoveArm { .. }
+            | Action::MoveGripper { .. }
+            | Action::BoltPair { .. }
+            | Action::UnboltPair { .. } => None,
+        }
+    }
+
+    /// The two gripper PWMs when both grippers are known to hold (A from its own servo,
+    /// B from its last heartbeat). Without a heartbeat B's gripper is unknown: not known
+    /// to hold.
+    fn both_gripped(&self) -> Option<(u16, u16)> {
+        let hb = self.link.heartbeat()?;
+        let a = self.grip_a.current();
+        grippers_closed(a, hb.grip_pwm).then_some((a, hb.grip_pwm))
+    }
+
     /// Starts an action. Returns the number of progress steps it will report.
     pub fn start(&mut self, action: Action, now_ms: u64) -> Result<u8, StartError> {
         if self.run.is_some() {
@@ -642,17 +677,28 @@ impl Controller {
                 return Err(StartError::Unreachable { from, to })
             }
             Action::BoltFace { pairs, .. } | Action::UnboltFace { pairs, .. } if pairs & 0x0F == 0 || pairs > 0x0F => {
-                return Err(StartError::InvalidArgument)
+                return Err(StartError::InvalidArgument {
+                    index: 1,
+                    value: pairs as i32,
+                })
             }
             Action::BoltPair { pair, .. } | Action::UnboltPair { pair, .. }
                 if !(1..=mib::robot::bolter::PAIRS_PER_FACE).contains(&pair) =>
             {
-                return Err(StartError::InvalidArgument)
+                return Err(StartError::InvalidArgument {
+                    index: 1,
+                    value: pair as i32,
+                })
             }
             _ => {}
         }
         if !self.action_allowed(&action) {
             return Err(StartError::NotPowered);
+        }
+        if let (Some(target), Some((grip_a_pwm, grip_b_pwm))) = (self.hip_turn_of(&action), self.both_gripped()) {
+            if (target as i32 - self.hip_angle() as i32).abs() > EST_HIP_TOL_CDEG as i32 {
+                return Err(StartError::BothSidesGripped { grip_a_pwm, grip_b_pwm });
+            }
         }
         let mut run = Run {
             action,
@@ -870,15 +916,18 @@ impl Controller {
             gave_up_evt = Some(g);
         }
         if let Some(g) = gave_up_evt {
-            let _ = out.events.push(DomainEvent::CommLossNoAck {
+            out.event(DomainEvent::CommLossNoAck {
                 command: g.command,
                 retries: g.retries,
             });
             if self.run.is_some() {
-                let mut data = [0u8; 8];
-                data[0] = g.command;
-                data[1] = g.retries;
-                self.finish_fail(FailureCode::BOARD_B_NO_ACK, data, 2, out);
+                self.finish_fail(
+                    ActionFailure::BoardBNoAck {
+                        command: g.command,
+                        retries: g.retries,
+                    },
+                    out,
+                );
             }
         }
 
@@ -942,8 +991,8 @@ impl Controller {
         ]
     }
 
-    fn finish_fail(&mut self, code: FailureCode, data: [u8; 8], len: u8, out: &mut TickOut) {
-        let _ = out.reports.push(ActionReport::Failed { code, data, len });
+    fn finish_fail(&mut self, f: ActionFailure, out: &mut TickOut) {
+        out.report(ActionReport::Failed(f));
         self.end_run_hold();
     }
 
@@ -953,9 +1002,9 @@ impl Controller {
         if run.steps == 0 {
             // reconfiguration to the current state
             if let Action::Reconfigure { to, .. } = run.action {
-                let _ = out.events.push(DomainEvent::StateReached { state: to });
+                out.event(DomainEvent::StateReached { state: to });
             }
-            let _ = out.reports.push(ActionReport::Completed);
+            out.report(ActionReport::Completed);
             self.run = None;
             self.cmd_complete = true;
             return;
@@ -969,9 +1018,8 @@ impl Controller {
         let motion_step = !matches!(seg, Seg::Bolt { .. });
         let step_elapsed = now.saturating_sub(run.step_t0);
         if motion_step && step_elapsed > self.tun.get_u32(tid::PRIMITIVE_TIMEOUT_MS) as u64 {
-            let mut data = [0u8; 8];
-            data[..4].copy_from_slice(&(step_elapsed.min(u32::MAX as u64) as u32).to_be_bytes());
-            self.finish_fail(FailureCode::TIMEOUT, data, 4, out);
+            let elapsed_ms = step_elapsed.min(u32::MAX as u64) as u32;
+            self.finish_fail(ActionFailure::Timeout { elapsed_ms }, out);
             return;
         }
         if !run.seg_started {
@@ -983,7 +1031,7 @@ impl Controller {
         }
         match self.seg_poll(seg, now, out) {
             SegResult::Running => {}
-            SegResult::Fail { code, data, len } => self.finish_fail(code, data, len, out),
+            SegResult::Fail(f) => self.finish_fail(f, out),
             SegResult::Done => {
                 let Some(r) = self.run.as_mut() else { return };
                 r.seg += 1;
@@ -1002,16 +1050,16 @@ impl Controller {
         r.step_t0 = now;
         if let Action::Reconfigure { .. } = r.action {
             if let (Some(&p), Some(&s)) = (r.plan.get(k), r.path.get(k + 1)) {
-                let _ = out.events.push(DomainEvent::PrimitiveDone { primitive: p, state: s });
+                out.event(DomainEvent::PrimitiveDone { primitive: p, state: s });
             }
         }
         let n = r.done_steps;
-        let _ = out.reports.push(ActionReport::Step { n });
+        out.report(ActionReport::Step { n });
         if r.done_steps >= r.steps {
             if let Action::Reconfigure { to, .. } = r.action {
-                let _ = out.events.push(DomainEvent::StateReached { state: to });
+                out.event(DomainEvent::StateReached { state: to });
             }
-            let _ = out.reports.push(ActionReport::Completed);
+            out.report(ActionReport::Completed);
             self.run = None;
             self.cmd_complete = true;
             self.active_primitive = 0;
@@ -1091,8 +1139,10 @@ impl Controller {
                 }
                 if el > self.tun.get_u32(tid::ARM_SWITCH_WAIT_MS) as u64 {
                     let bad = if !a { Side::A } else { Side::B };
-                    let _ = out.events.push(DomainEvent::ArmNotContracted { side: bad });
-                    return fail_event(eid::ARM_NOT_CONTRACTED);
+                    out.event(DomainEvent::ArmNotContracted { side: bad });
+                    return SegResult::Fail(ActionFailure::AbortedByFault {
+                        event: eid::ARM_NOT_CONTRACTED,
+                    });
                 }
                 SegResult::Running
             }
@@ -1102,18 +1152,14 @@ impl Controller {
                 }
                 if el > STATE_SETTLE_TIMEOUT_MS as u64 {
                     let computed = self.computed.unwrap_or(STATE_UNKNOWN);
-                    let _ = out.events.push(DomainEvent::StateMismatch {
+                    out.event(DomainEvent::StateMismatch {
                         expected: expect,
                         computed,
                     });
-                    let mut data = [0u8; 8];
-                    data[0] = expect;
-                    data[1] = computed;
-                    return SegResult::Fail {
-                        code: FailureCode::INITIAL_STATE_MISMATCH,
-                        data,
-                        len: 2,
-                    };
+                    return SegResult::Fail(ActionFailure::StateMismatch {
+                        expected: expect,
+                        computed,
+                    });
                 }
                 SegResult::Running
             }
@@ -1125,7 +1171,7 @@ impl Controller {
                 match ev {
                     None => SegResult::Running,
                     Some(BolterEvent::AttemptFailed { attempt, .. }) => {
-                        let _ = out.events.push(DomainEvent::BoltAttemptFailed { side, pair, attempt });
+                        out.event(DomainEvent::BoltAttemptFailed { side, pair, attempt });
                         SegResult::Running
                     }
                     Some(BolterEvent::Succeeded { attempts }) => {
@@ -1133,23 +1179,23 @@ impl Controller {
                             BoltOp::Bolt => DomainEvent::BoltPairDone { side, pair, attempts },
                             BoltOp::Unbolt => DomainEvent::UnboltPairDone { side, pair, attempts },
                         };
-                        let _ = out.events.push(e);
+                        out.event(e);
                         self.bolt_pair = 0;
                         SegResult::Done
                     }
                     Some(BolterEvent::Failed { attempts }) => {
-                        let (e, code) = match op {
+                        let (e, f) = match op {
                             BoltOp::Bolt => (
                                 DomainEvent::BoltFailure { side, pair, attempts },
-                                FailureCode::BOLT_FAILED,
+                                ActionFailure::BoltFailed { side, pair, attempts },
                             ),
                             BoltOp::Unbolt => (
                                 DomainEvent::UnboltFailure { side, pair, attempts },
-                                FailureCode::UNBOLT_FAILED,
+                                ActionFailure::UnboltFailed { side, pair, attempts },
                             ),
                         };
-                        let _ = out.events.push(e);
-                        fail3(code, side as u8, pair, attempts)
+                        out.event(e);
+                        SegResult::Fail(f)
                     }
                 }
             }
@@ -1418,11 +1464,11 @@ mod tests {
                 },
                 0
             ),
-            Err(StartError::InvalidArgument)
+            Err(StartError::InvalidArgument { index: 1, value: 0 })
         );
         assert_eq!(
             c.start(Action::BoltPair { side: Side::A, pair: 5 }, 0),
-            Err(StartError::InvalidArgument)
+            Err(StartError::InvalidArgument { index: 1, value: 5 })
         );
         assert_eq!(c.start(Action::Home, 0), Ok(1));
         assert!(c.busy());
@@ -1477,18 +1523,6 @@ mod tests {
             Action::UnboltPair { side: Side::B, pair: 1 }.function_id(),
             mib::tc::function::UNBOLT_PAIR
         );
-    }
-
-    #[test]
-    fn start_errors_map_to_mib_failure_codes() {
-        let (c, d, l) = StartError::InitialStateMismatch {
-            believed: 3,
-            computed: 255,
-        }
-        .failure();
-        assert_eq!(c, FailureCode::INITIAL_STATE_MISMATCH);
-        assert_eq!(&d[..l as usize], &[3, 255]);
-        assert_eq!(StartError::Busy.failure().0, FailureCode::BUSY);
     }
 
     /// Controller and a real board B on a perfect serial line, with fixed sensors of a
@@ -1588,11 +1622,48 @@ mod tests {
         assert_eq!(l.c.link.heartbeat().unwrap().modes, 0b10_10_10);
     }
 
+    /// Opens gripper A and waits until the move completed.
+    fn open_gripper_a(l: &mut Loop) {
+        l.c.start(
+            Action::MoveGripper {
+                side: Side::A,
+                pwm: servo::GRIP_OPEN_US,
+            },
+            l.t,
+        )
+        .unwrap();
+        for _ in 0..500 {
+            l.run(10);
+            if !l.c.busy() {
+                return;
+            }
+        }
+        panic!("gripper A did not open");
+    }
+
+    #[test]
+    fn turning_the_hip_while_both_grippers_hold_is_refused_at_start() {
+        let mut l = Loop::new();
+        l.c.set_module_modes(ModuleModes::all(ON));
+        l.run(600);
+        let r = l.c.start(Action::RotateHip { cdeg: 4000 }, l.t);
+        assert!(matches!(r, Err(StartError::BothSidesGripped { .. })), "{r:?}");
+        assert!(!l.c.busy(), "nothing started");
+        // Turning to where the hip already is moves nothing: allowed.
+        let here = l.c.hip_angle();
+        assert!(l.c.start(Action::RotateHip { cdeg: here }, l.t).is_ok());
+        l.c.abort();
+        // With one side open the hip turns.
+        open_gripper_a(&mut l);
+        assert!(l.c.start(Action::RotateHip { cdeg: 4000 }, l.t).is_ok());
+    }
+
     #[test]
     fn entering_hold_during_a_hip_rotation_ends_it_and_same_modes_do_not() {
         let mut l = Loop::new();
         l.c.set_module_modes(ModuleModes::all(ON));
         l.run(600);
+        open_gripper_a(&mut l);
         l.c.start(Action::RotateHip { cdeg: 4000 }, l.t).unwrap();
         l.run(100);
         l.c.set_module_modes(ModuleModes::all(ON));

@@ -73,6 +73,7 @@ mod tests {
     use crate::imu::gravity_in_board_frame as g;
     use mib::robot::{Face, NUM_STATES};
 
+    // verifies: MMIC-MOT-02
     #[test]
     fn estimator_recovers_each_of_the_fifteen_states() {
         for s in STATES.iter() {
@@ -87,6 +88,7 @@ mod tests {
         assert_eq!(STATES.len(), NUM_STATES);
     }
 
+    // verifies: MMIC-MOT-02
     #[test]
     fn estimator_detects_mismatch_between_imus_hip_and_arms() {
         let s = &STATES[0]; // matched Xneg
@@ -119,6 +121,7 @@ mod tests {
         );
     }
 
+    // verifies: MMIC-MOT-02
     #[test]
     fn a_state_needs_both_grippers_closed() {
         assert!(grippers_closed(1100, 1140));

@@ -86,6 +86,7 @@ pub fn to_i16(v: i32) -> i16 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: MMIC-AV-02
     #[test]
     fn moving_average_uses_a_window_of_fifty_samples() {
         let mut m = Ma::new();
@@ -100,6 +101,7 @@ mod tests {
         assert!(m.is_full());
         assert_eq!(m.push(1000), 1000);
     }
+    // verifies: MMIC-AV-02
     #[test]
     fn moving_average_partial_window_and_negatives() {
         let mut m = MovingAverage::<4>::new();

@@ -47,6 +47,7 @@ pub fn face_from_gravity(g: [i16; 3]) -> Option<Face> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: MMIC-AV-04
     #[test]
     fn imu_model_gives_four_distinct_unit_vectors_recognised_back() {
         for f in Face::ALL {
@@ -59,6 +60,7 @@ mod tests {
         assert_eq!(gravity_in_board_frame(Face::Xpos), [1000, 0, 0]);
         assert_eq!(gravity_in_board_frame(Face::Yneg), [0, 0, -1000]);
     }
+    // verifies: MMIC-AV-04
     #[test]
     fn imu_rejects_free_fall_tilt_and_overrange() {
         assert_eq!(face_from_gravity([0, 0, 0]), None);

@@ -143,6 +143,7 @@ mod tests {
         }
     }
 
+    // verifies: MMIC-MOT-04
     #[test]
     fn search_is_valid_and_minimal_for_every_pair_of_states() {
         for f in 0..NUM_STATES as u8 {
@@ -152,6 +153,7 @@ mod tests {
         }
     }
 
+    // verifies: MMIC-MOT-04
     #[test]
     fn every_matched_pair_is_reachable_in_one_to_three_primitives() {
         let matched: std::vec::Vec<u8> = STATES
@@ -175,6 +177,7 @@ mod tests {
         assert_eq!(shortest_states(0, 1).unwrap().as_slice(), &[0, 3, 1]);
     }
 
+    // verifies: MMIC-MOT-05
     #[test]
     fn search_rejects_invalid_states() {
         assert!(shortest_path(15, 0).is_none());
@@ -183,10 +186,12 @@ mod tests {
     }
 
     proptest! {
+        // verifies: MMIC-MOT-04
         #[test]
         fn search_result_is_a_valid_minimal_sequence(from in 0u8..15, to in 0u8..15) {
             check(from, to);
         }
+        // verifies: MMIC-MOT-05
         #[test]
         fn search_never_panics_on_any_input(from: u8, to: u8) {
             let _ = shortest_path(from, to);

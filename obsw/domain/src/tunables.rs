@@ -71,6 +71,7 @@ impl Tunables {
 mod tests {
     use super::*;
     use mib::tunables::tid;
+    // verifies: PUS-20-01
     #[test]
     fn tunables_start_at_mib_defaults_and_reject_out_of_range() {
         let mut t = Tunables::default();

@@ -1,8 +1,8 @@
 //! `obsw`: the MMIC-I on-board software on a host, against the MMIC-I simulator.
 //!
 //! It runs the same `obsw-core` and `mmic-domain` code as the firmware. TCs arrive on
-//! UDP and TCP (COBS-framed); TM goes back to every TCP client and to the last UDP
-//! sender. Simulated time runs `--speed` times faster than the wall clock.
+//! UDP and TCP (COBS-framed); TM goes back to every TCP client and to every UDP ground
+//! that subscribed with an accepted TC (see `net`). Simulated time runs `--speed` times faster than the wall clock.
 
 mod net;
 
@@ -28,7 +28,7 @@ use net::{Input, Origin};
     name = "obsw",
     version,
     about = "MMIC-I on-board software (host build) with its simulator",
-    long_about = "MMIC-I on-board software (host build) running against the MMIC-I simulator.\n\nTCs: CCSDS space packets with a PUS-C secondary header and CRC, as UDP datagrams or over TCP framed with COBS (0x00 after every frame). TM: to every connected TCP client and to the last UDP sender. The robot boots in STANDBY.\n\nOn start, one line `READY robot=N apid=0x... udp=ADDR tcp=ADDR sim_ctl=ADDR` is printed on stdout.\n\nSimulator control (fault injection; not the flight TC path): UDP text lines to --sim-ctl: `stuck-arm a|b`, `obstacle a|b`, `battery-sag VOLTS`, `dead-hip-encoder`, `cut-cable`, `misplaced-voxel`, `fastener-jam`, `clear [FAULT]`, `link-loss P`, `link-corrupt P`, `status`. Each gets one reply line starting with `ok` or `error`."
+    long_about = "MMIC-I on-board software (host build) running against the MMIC-I simulator.\n\nTCs: CCSDS space packets with a PUS-C secondary header and CRC, as UDP datagrams or over TCP framed with COBS (0x00 after every frame). TM: to every connected TCP client and to every UDP ground subscribed by an accepted TC (a lease renewed by each accepted TC; rejected or malformed datagrams never change who gets TM). The robot boots in STANDBY.\n\nOn start, one line `READY robot=N apid=0x... udp=ADDR tcp=ADDR sim_ctl=ADDR` is printed on stdout.\n\nSimulator control (fault injection; not the flight TC path): UDP text lines to --sim-ctl: `stuck-arm a|b`, `obstacle a|b`, `battery-sag VOLTS`, `dead-hip-encoder`, `cut-cable`, `misplaced-voxel`, `fastener-jam`, `clear [FAULT]`, `link-loss P`, `link-corrupt P`, `status`. Each gets one reply line starting with `ok` or `error`."
 )]
 struct Args {
     /// Robot number 1..=254; the APID is 0x100 + N and the default ports follow from it.
@@ -61,6 +61,9 @@ struct Args {
     /// Stop after this many simulated seconds (default: run until killed).
     #[arg(long)]
     duration: Option<f64>,
+    /// Test aid: write every TM packet the obsw sends to this file, one line of hex each.
+    #[arg(long)]
+    tm_log: Option<PathBuf>,
     /// TOML file with any of the options above.
     #[arg(long)]
     config: Option<PathBuf>,
@@ -92,6 +95,7 @@ struct Settings {
     link_loss: f64,
     link_corrupt: f64,
     duration: Option<f64>,
+    tm_log: Option<PathBuf>,
 }
 
 fn settings(a: Args) -> Result<Settings> {
@@ -156,6 +160,7 @@ fn settings(a: Args) -> Result<Settings> {
         link_loss,
         link_corrupt,
         duration,
+        tm_log: a.tm_log,
     })
 }
 
@@ -186,6 +191,9 @@ impl TmStore for HostStore {
     fn clear(&mut self) {
         self.0.clear();
     }
+    fn visit(&self, f: &mut dyn FnMut(&[u8])) {
+        self.0.iter().for_each(|p| f(p));
+    }
 }
 
 fn main() {
@@ -199,6 +207,10 @@ fn main() {
 fn run(args: Args) -> Result<()> {
     let s = settings(args)?;
     let (mut inputs, mut down, bound) = net::start(s.udp, s.tcp, s.sim_ctl)?;
+    if let Some(p) = &s.tm_log {
+        let f = std::fs::File::create(p).with_context(|| format!("--tm-log {}", p.display()))?;
+        down.log_tm_to(f);
+    }
     let (udp, tcp, ctl_addr) = (bound.udp, bound.tcp, bound.sim_ctl);
     let epoch = SystemTime::now()
         .duration_since(UNIX_EPOCH)
@@ -247,7 +259,7 @@ fn run(args: Args) -> Result<()> {
         // cannot hold back the control period (and a late period cannot starve TCs).
         let mut handled = 0;
         while handled < config::HOST_INPUT_BATCH {
-            let Some(input) = inputs.next() else { break };
+            let Some(input) = inputs.next(&mut down) else { break };
             handle_input(
                 input,
                 arrival(sim_ms),
@@ -263,12 +275,12 @@ fn run(args: Args) -> Result<()> {
         let wait = due.saturating_duration_since(Instant::now());
         if !wait.is_zero() {
             if handled < config::HOST_INPUT_BATCH {
-                inputs.wait(wait);
+                inputs.wait(wait, &mut down);
             }
             continue;
         }
         sim_ms += period;
-        obsw.io.tm_dropped = down.tm_dropped;
+        obsw.io.tm_dropped = down.counters.tm_dropped;
         let sensors = sim.sensors_a();
         let out = obsw.tick(sim_ms, &sensors, &link_rx, &mut down);
         link_rx.clear();
@@ -292,7 +304,11 @@ fn handle_input(
     match input {
         Input::Tc(bytes, origin) => {
             if let Origin::Udp(peer) = origin {
-                down.set_udp_peer(peer);
+                // Only a TC that passes acceptance subscribes its sender (or renews the
+                // lease); a rejected one is reported to the current subscribers.
+                if obsw_core::accept::accept(&bytes, obsw.apid()).is_ok() {
+                    down.subscribe(peer, Instant::now());
+                }
             }
             obsw.handle_tc(now, &bytes, down);
         }
@@ -304,6 +320,23 @@ fn handle_input(
             // malformed packet through the normal acceptance path.
             obsw.handle_tc(now, &[], down);
         }
+        Input::OversizeFrame(len) => {
+            *bad_frames += 1;
+            obsw.io.tc_dropped = *bad_frames;
+            log::warn!(
+                "dropped a TCP frame of {len} bytes (longest packet {}; {bad_frames} bad frames so far)",
+                config::MAX_PACKET_LEN
+            );
+            // No request ID either: TM[1,2] through the acceptance path.
+            obsw.handle_tc(now, &[], down);
+        }
+        Input::BadSimCtl(len, from) => inputs.reply_sim_ctl(
+            from,
+            &format!(
+                "error line of {len} bytes refused: at most {} bytes of UTF-8 text",
+                config::SIM_CTL_MAX_LINE
+            ),
+        ),
         Input::SimCtl(line, from) => inputs.reply_sim_ctl(from, &sim_control(sim, &line)),
     }
 }
@@ -316,6 +349,10 @@ fn sim_control(sim: &mut Sim, line: &str) -> String {
             "ok cleared all faults".into()
         }
         "status" => format!("ok {:?}", sim.truth()),
+        // A probability is never negative, not even "-0".
+        other if other.split_whitespace().skip(1).any(|w| w.starts_with('-')) => {
+            format!("error {other:?}: arguments are never negative")
+        }
         other => match other.parse::<SimCommand>() {
             Ok(c) => {
                 sim.apply(c);

@@ -198,6 +198,7 @@ impl BolterPhys {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: MMIC-VAL-01
     #[test]
     fn conditional_probabilities_reproduce_the_demo_counts() {
         let n = DEMO_PAIRS as f64;

@@ -277,6 +277,7 @@ pub fn parse_script(text: &str) -> Result<Vec<SimCommand>, (usize, ParseError)> 
 mod tests {
     use super::*;
 
+    // verifies: MMIC-SIM-01
     #[test]
     fn control_protocol_parses_every_table8_fault() {
         let cases = [
@@ -305,6 +306,7 @@ mod tests {
         );
     }
 
+    // verifies: MMIC-SIM-01
     #[test]
     fn control_protocol_errors_name_what_is_wrong() {
         let e = |l: &str| l.parse::<SimCommand>().unwrap_err().to_string();
@@ -332,11 +334,13 @@ mod fuzz {
     use super::*;
     use proptest::prelude::*;
     proptest! {
+        // verifies: MMIC-SIM-01
         #[test]
         fn control_lines_never_panic(line in ".{0,60}") {
             let _ = line.parse::<SimCommand>();
             let _ = line.parse::<Fault>();
         }
+        // verifies: MMIC-SIM-01
         #[test]
         fn control_words_never_panic(words in proptest::collection::vec(
             prop_oneof![Just("stuck-arm"), Just("obstacle"), Just("battery-sag"), Just("clear"),

@@ -101,7 +101,7 @@ impl Harness {
         let done = self.run_until(max_ms, |h| {
             h.reports[first..]
                 .iter()
-                .any(|(_, r)| matches!(r, ActionReport::Completed | ActionReport::Failed { .. }))
+                .any(|(_, r)| matches!(r, ActionReport::Completed | ActionReport::Failed(_)))
         });
         if !done {
             return Ok(None);
@@ -109,7 +109,7 @@ impl Harness {
         Ok(self.reports[first..]
             .iter()
             .map(|(_, r)| *r)
-            .find(|r| matches!(r, ActionReport::Completed | ActionReport::Failed { .. })))
+            .find(|r| matches!(r, ActionReport::Completed | ActionReport::Failed(_))))
     }
 
     /// Events since index `from`.

@@ -75,6 +75,7 @@ mod tests {
     use super::*;
     use rand::SeedableRng;
 
+    // verifies: MMIC-AB-07
     #[test]
     fn serial_line_delivers_in_order_after_transmission_time() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
@@ -90,6 +91,7 @@ mod tests {
         assert_eq!(out.len(), 3, "a cut cable delivers nothing");
     }
 
+    // verifies: MMIC-AB-07
     #[test]
     fn serial_line_loss_and_corruption_rates() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2);

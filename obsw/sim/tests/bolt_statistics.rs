@@ -11,6 +11,7 @@ use mmic_sim::{Harness, SimConfig};
 /// Chi-square critical value, 3 degrees of freedom, p = 0.001.
 const CHI2_3DOF_P001: f64 = 16.27;
 
+// verifies: MMIC-VAL-01
 #[test]
 fn bolt_outcomes_over_many_pairs_match_the_ground_demo_distribution() {
     let mut h = Harness::new(SimConfig {
@@ -44,7 +45,7 @@ fn bolt_outcomes_over_many_pairs_match_the_ground_demo_distribution() {
                 assert_eq!(truth.lock_attempts, n, "attempts seen by the domain");
                 counts[n as usize - 1] += 1;
             }
-            (Some(ActionReport::Failed { .. }), Some(Err(3))) => {
+            (Some(ActionReport::Failed(_)), Some(Err(3))) => {
                 assert!(!truth.locked, "pair reported failed must be loose");
                 assert_eq!(truth.lock_attempts, 3);
                 counts[3] += 1;

@@ -6,8 +6,7 @@
 use mib::events::eid;
 use mib::params::{pid, CAL_AMP, CAL_VOLT, I_LOC_MAX, V_BAT_EMPTY};
 use mib::robot::{Face, Side};
-use mib::FailureCode;
-use mmic_domain::controller::{Action, ActionReport, DomainEvent, StartError};
+use mmic_domain::controller::{Action, ActionFailure, ActionReport, DomainEvent, StartError};
 use mmic_sim::{Fault, Harness, SimConfig};
 
 fn harness(initial: u8, seed: u64) -> Harness {
@@ -24,6 +23,7 @@ fn param(h: &Harness, p: u16) -> i64 {
     h.ctrl.param(p).expect("domain parameter")
 }
 
+// verifies: MMIC-CMD-01
 #[test]
 fn reconfiguration_xneg_to_xpos_reaches_the_true_state() {
     let mut h = harness(0, 1);
@@ -51,6 +51,7 @@ fn reconfiguration_xneg_to_xpos_reaches_the_true_state() {
     assert_eq!(param(&h, pid::CMD_COMPLETE), 1);
 }
 
+// verifies: MMIC-MOT-06
 #[test]
 fn reconfiguration_xneg_to_yneg_turns_the_hip_and_reaches_the_true_state() {
     let mut h = harness(0, 2);
@@ -74,6 +75,7 @@ fn reconfiguration_xneg_to_yneg_turns_the_hip_and_reaches_the_true_state() {
     assert_eq!(h.ctrl.computed_state(), Some(2));
 }
 
+// verifies: MMIC-CMD-01
 #[test]
 fn reconfiguration_round_trip_over_every_matched_state() {
     let mut h = harness(0, 3);
@@ -86,6 +88,7 @@ fn reconfiguration_round_trip_over_every_matched_state() {
     assert!(h.sim.truth().v_bat < 12.6);
 }
 
+// verifies: MMIC-AB-07
 #[test]
 fn reconfiguration_survives_a_lossy_corrupting_link() {
     let mut h = Harness::new(SimConfig {
@@ -103,6 +106,7 @@ fn reconfiguration_survives_a_lossy_corrupting_link() {
     assert_eq!(param(&h, pid::B_LINK_OK), 1);
 }
 
+// verifies: MMIC-CMD-02
 #[test]
 fn bolting_a_face_reports_attempts_that_match_the_simulated_fasteners() {
     let mut h = harness(0, 5);
@@ -125,7 +129,7 @@ fn bolting_a_face_reports_attempts_that_match_the_simulated_fasteners() {
         .collect();
     match r {
         Some(ActionReport::Completed) => assert_eq!(done.len(), 4),
-        Some(ActionReport::Failed { code, .. }) => assert_eq!(code, FailureCode::BOLT_FAILED),
+        Some(ActionReport::Failed(f)) => assert!(matches!(f, ActionFailure::BoltFailed { .. }), "{f:?}"),
         other => panic!("bolting never finished: {other:?}"),
     }
     for (pair, attempts) in done {
@@ -148,6 +152,7 @@ fn bolting_a_face_reports_attempts_that_match_the_simulated_fasteners() {
     }
 }
 
+// verifies: MMIC-FLT-06
 #[test]
 fn fault_stuck_arm_gives_arm_not_contracted() {
     let mut h = harness(0, 6);
@@ -156,17 +161,19 @@ fn fault_stuck_arm_gives_arm_not_contracted() {
     h.sim.inject(Fault::StuckArm(Side::A));
     let mark = h.events.len();
     let r = h.run_action(Action::Reconfigure { from: 3, to: 1 }, 60_000).unwrap();
-    let Some(ActionReport::Failed { code, data, len }) = r else {
-        panic!("expected a failure, got {r:?}")
-    };
-    assert_eq!(code, FailureCode::ABORTED_BY_FAULT);
-    assert_eq!(&data[..len as usize], &eid::ARM_NOT_CONTRACTED.to_be_bytes());
+    assert_eq!(
+        r,
+        Some(ActionReport::Failed(ActionFailure::AbortedByFault {
+            event: eid::ARM_NOT_CONTRACTED
+        }))
+    );
     assert!(h
         .events_since(mark)
         .any(|e| *e == DomainEvent::ArmNotContracted { side: Side::A }));
     assert!(!h.ctrl.busy());
 }
 
+// verifies: MMIC-FLT-10
 #[test]
 fn fault_cut_cable_ages_the_heartbeat_and_gives_comm_loss_no_ack() {
     let mut h = harness(0, 7);
@@ -185,11 +192,10 @@ fn fault_cut_cable_ages_the_heartbeat_and_gives_comm_loss_no_ack() {
             10_000,
         )
         .unwrap();
-    let Some(ActionReport::Failed { code, data, .. }) = r else {
+    let Some(ActionReport::Failed(ActionFailure::BoardBNoAck { command, .. })) = r else {
         panic!("expected a failure, got {r:?}")
     };
-    assert_eq!(code, FailureCode::BOARD_B_NO_ACK);
-    assert_eq!(data[0], 2, "gripper command");
+    assert_eq!(command, 2, "gripper command");
     assert!(h
         .events_since(mark)
         .any(|e| matches!(e, DomainEvent::CommLossNoAck { command: 2, retries: 3 })));
@@ -201,6 +207,7 @@ fn fault_cut_cable_ages_the_heartbeat_and_gives_comm_loss_no_ack() {
     assert!(param(&h, pid::B_HB_AGE_MS) <= 100);
 }
 
+// verifies: MMIC-AV-01
 #[test]
 fn fault_battery_sag_drops_v_bat_below_ten_volts() {
     let mut h = harness(0, 8);
@@ -219,6 +226,7 @@ fn fault_battery_sag_drops_v_bat_below_ten_volts() {
     assert!((CAL_VOLT.eng(param(&h, pid::V_REG)) - 5.5).abs() < 0.1);
 }
 
+// verifies: MMIC-FLT-08
 #[test]
 fn fault_obstacle_gives_locomotion_overcurrent() {
     let mut h = harness(0, 9);
@@ -233,6 +241,7 @@ fn fault_obstacle_gives_locomotion_overcurrent() {
     assert!(param(&h, pid::I_LOC_B) < limit);
 }
 
+// verifies: MMIC-FLT-03
 #[test]
 fn fault_misplaced_voxel_refuses_reconfiguration_with_initial_state_mismatch() {
     let mut h = harness(0, 10);
@@ -251,6 +260,7 @@ fn fault_misplaced_voxel_refuses_reconfiguration_with_initial_state_mismatch() {
     assert_eq!(h.ctrl.computed_state(), Some(0));
 }
 
+// verifies: MMIC-FLT-09
 #[test]
 fn fault_dead_hip_encoder_reads_far_from_zero() {
     let mut h = harness(0, 11);
@@ -263,6 +273,7 @@ fn fault_dead_hip_encoder_reads_far_from_zero() {
     assert_eq!(h.ctrl.computed_state(), None);
 }
 
+// verifies: MMIC-FLT-01
 #[test]
 fn fault_fastener_jam_fails_every_attempt() {
     let mut h = harness(0, 12);
@@ -271,11 +282,14 @@ fn fault_fastener_jam_fails_every_attempt() {
     let r = h
         .run_action(Action::BoltPair { side: Side::A, pair: 2 }, 120_000)
         .unwrap();
-    let Some(ActionReport::Failed { code, data, len }) = r else {
-        panic!("expected a failure, got {r:?}")
-    };
-    assert_eq!(code, FailureCode::BOLT_FAILED);
-    assert_eq!(&data[..len as usize], &[0, 2, 3]);
+    assert_eq!(
+        r,
+        Some(ActionReport::Failed(ActionFailure::BoltFailed {
+            side: Side::A,
+            pair: 2,
+            attempts: 3
+        }))
+    );
     let attempts_failed = h
         .events_since(mark)
         .filter(|e| matches!(e, DomainEvent::BoltAttemptFailed { pair: 2, .. }))
@@ -290,6 +304,7 @@ fn fault_fastener_jam_fails_every_attempt() {
     assert!(!h.sim.fastener(Face::Xneg, 2).unwrap().locked);
 }
 
+// verifies: MMIC-CMD-04
 #[test]
 fn hip_rotation_reaches_target_in_the_simulator() {
     // turn state "Yneg Xneg": hip at -90 deg; rotate the hip while... the robot is
@@ -302,6 +317,7 @@ fn hip_rotation_reaches_target_in_the_simulator() {
     assert_eq!(h.sim.truth().state, Some(11));
 }
 
+// verifies: MMIC-MOT-06
 #[test]
 fn reconfiguration_to_every_state_and_back_reaches_the_true_state() {
     let mut h = harness(0, 14);
@@ -322,6 +338,7 @@ fn reconfiguration_to_every_state_and_back_reaches_the_true_state() {
     assert!(!h.sim.truth().fallen);
 }
 
+// verifies: MMIC-FLT-02
 #[test]
 fn fault_fastener_jam_gives_unbolting_failure() {
     let mut h = harness(0, 15);
@@ -341,11 +358,14 @@ fn fault_fastener_jam_gives_unbolting_failure() {
             120_000,
         )
         .unwrap();
-    let Some(ActionReport::Failed { code, data, len }) = r else {
-        panic!("expected a failure, got {r:?}")
-    };
-    assert_eq!(code, FailureCode::UNBOLT_FAILED);
-    assert_eq!(&data[..len as usize], &[1, 3, 3]);
+    assert_eq!(
+        r,
+        Some(ActionReport::Failed(ActionFailure::UnboltFailed {
+            side: Side::B,
+            pair: 3,
+            attempts: 3
+        }))
+    );
     assert!(h.events_since(mark).any(|e| *e
         == DomainEvent::UnboltFailure {
             side: Side::B,
@@ -363,6 +383,7 @@ fn fault_fastener_jam_gives_unbolting_failure() {
     }
 }
 
+// verifies: MMIC-AB-07
 #[test]
 fn board_b_on_a_jittery_schedule_still_runs_reconfigurations() {
     let mut h = Harness::new(SimConfig {
@@ -379,6 +400,7 @@ fn board_b_on_a_jittery_schedule_still_runs_reconfigurations() {
     assert!(param(&h, pid::B_HB_AGE_MS) <= 100);
 }
 
+// verifies: MMIC-CMD-05
 #[test]
 fn home_after_an_aborted_primitive_contracts_then_grips() {
     let mut h = harness(0, 17);
@@ -399,6 +421,7 @@ fn home_after_an_aborted_primitive_contracts_then_grips() {
     assert_eq!(h.ctrl.computed_state(), Some(0));
 }
 
+// verifies: MMIC-AB-07
 #[test]
 fn cut_cable_does_not_flood_board_b_with_retries() {
     let mut h = harness(0, 18);

@@ -21,6 +21,7 @@ fn frame(seq: u8, cmd: ModuleCmd) -> Vec<u8> {
     v.to_vec()
 }
 
+// verifies: MMIC-MOT-07
 #[test]
 fn geometry_truth_wrong_motion_gives_no_state_and_releasing_both_sides_falls() {
     let mut sim = Sim::new(SimConfig {
@@ -88,6 +89,7 @@ fn geometry_truth_wrong_motion_gives_no_state_and_releasing_both_sides_falls() {
     assert_eq!(sim.truth().state, None);
 }
 
+// verifies: MMIC-VAL-03
 #[test]
 fn simulation_is_deterministic_for_a_seed() {
     let go = |seed: u64| {
@@ -110,6 +112,7 @@ fn simulation_is_deterministic_for_a_seed() {
     assert_ne!(a.3, c.3, "another seed gives other sensor noise");
 }
 
+// verifies: MMIC-FLT-07
 #[test]
 fn idle_locomotion_current_stays_below_the_idle_limit_at_rest() {
     let mut h = Harness::new(SimConfig {
@@ -130,6 +133,7 @@ fn idle_locomotion_current_stays_below_the_idle_limit_at_rest() {
     }
 }
 
+// verifies: MMIC-MOT-02
 #[test]
 fn boot_in_a_stretch_or_turn_state_recovers_arm_positions_from_the_imus() {
     for initial in [3u8, 11, 6] {
@@ -156,6 +160,7 @@ fn boot_in_a_stretch_or_turn_state_recovers_arm_positions_from_the_imus() {
     }
 }
 
+// verifies: MMIC-CTL-06
 #[test]
 fn abort_during_a_hip_rotation_holds_the_hip_where_it_is() {
     let mut h = Harness::new(SimConfig {
@@ -179,6 +184,7 @@ fn abort_during_a_hip_rotation_holds_the_hip_where_it_is() {
     assert!(!h.sim.truth().fallen, "the anchored side still grips");
 }
 
+// verifies: MMIC-VAL-03
 #[test]
 fn truth_status_line_names_state_faces_and_faults() {
     let mut sim = Sim::new(SimConfig::default());
@@ -190,6 +196,7 @@ fn truth_status_line_names_state_faces_and_faults() {
     assert!(!line.contains('\n'));
 }
 
+// verifies: MMIC-AV-05
 #[test]
 fn controller_and_board_b_fit_a_microcontroller() {
     let c = std::mem::size_of::<mmic_domain::controller::Controller>();

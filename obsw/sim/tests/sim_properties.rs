@@ -46,6 +46,7 @@ proptest! {
         ..ProptestConfig::default()
     })]
 
+    // verifies: MMIC-MOT-07
     #[test]
     fn no_reported_success_contradicts_the_simulated_truth(
         seed in 0u64..1000,

@@ -1,0 +1,635 @@
+//! Ground-side alarms of the collector (`ground collect`), ISA-18.2 style.
+//!
+//! Three pure parts, no I/O and no clock (time is passed in):
+//! - [`AlarmState`]: the life cycle of one alarm — active (unacknowledged),
+//!   acknowledged, cleared (returned to normal, still unacknowledged), normal (closed),
+//!   and shelved on top of any of them — as a state machine with `apply(input) -> effect`;
+//! - [`LimitChecker`]: every HK parameter with MIB limits, checked against its soft and
+//!   hard limits with persistence and hysteresis;
+//! - [`Source`]: what an alarm is about (a parameter, an event, link loss, stale data,
+//!   the archive).
+//!
+//! The MIB gives soft and hard limits but neither persistence nor hysteresis for the
+//! ground check, nor when a limit applies. Until it does, they are derived here, in
+//! [`persistence`], [`hysteresis`] and [`applicable`] and nowhere else.
+
+use std::fmt;
+
+use mib::params::{pid, ParamDef};
+use mib::types::Limits;
+use serde::Serialize;
+
+// ---------------------------------------------------------------------------
+// Severity and source
+
+/// Alarm severity (a soft limit warns, a hard limit alarms; events keep theirs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Severity {
+    Low,
+    Medium,
+    High,
+}
+
+impl Severity {
+    pub fn name(self) -> &'static str {
+        match self {
+            Severity::Low => "low",
+            Severity::Medium => "medium",
+            Severity::High => "high",
+        }
+    }
+    pub fn parse(s: &str) -> Option<Severity> {
+        [Severity::Low, Severity::Medium, Severity::High]
+            .into_iter()
+            .find(|v| v.name().eq_ignore_ascii_case(s))
+    }
+    /// The alarm severity of an on-board event severity (info and low raise none).
+    pub fn of_event(s: mib::events::Severity) -> Option<Severity> {
+        match s {
+            mib::events::Severity::Info | mib::events::Severity::Low => None,
+            mib::events::Severity::Medium => Some(Severity::Medium),
+            mib::events::Severity::High => Some(Severity::High),
+        }
+    }
+}
+
+/// What an alarm is about.
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
+#[serde(tag = "kind", content = "name", rename_all = "snake_case")]
+pub enum Source {
+    /// An HK parameter out of its limits (MIB name).
+    Param(String),
+    /// An on-board event of medium or high severity (MIB name).
+    Event(String),
+    /// No TM from the robot for the loss timeout.
+    LinkLoss,
+    /// The link carries TM but no housekeeping for three HK intervals.
+    StaleData,
+    /// The archive cannot be written (disk full, I/O error).
+    Archive,
+}
+
+impl Source {
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Source::Param(_) => "param",
+            Source::Event(_) => "event",
+            Source::LinkLoss => "link",
+            Source::StaleData => "stale",
+            Source::Archive => "archive",
+        }
+    }
+    /// The name shown to operators: the parameter or event name, or the condition.
+    pub fn name(&self) -> &str {
+        match self {
+            Source::Param(n) | Source::Event(n) => n,
+            Source::LinkLoss => "LINK_LOSS",
+            Source::StaleData => "STALE_DATA",
+            Source::Archive => "ARCHIVE_WRITE",
+        }
+    }
+    /// Inverse of (`kind`, `name`), for rows read back from the archive.
+    pub fn from_parts(kind: &str, name: &str) -> Option<Source> {
+        match kind {
+            "param" => Some(Source::Param(name.to_string())),
+            "event" => Some(Source::Event(name.to_string())),
+            "link" => Some(Source::LinkLoss),
+            "stale" => Some(Source::StaleData),
+            "archive" => Some(Source::Archive),
+            _ => None,
+        }
+    }
+}
+
+impl fmt::Display for Source {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+// ---------------------------------------------------------------------------
+// The ISA-18.2 state machine
+
+/// The state an operator sees.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum State {
+    /// Condition gone and acknowledged: the alarm is closed.
+    Normal,
+    /// Condition present, not acknowledged.
+    Active,
+    /// Condition present, acknowledged.
+    Acknowledged,
+    /// Condition gone (returned to normal) but never acknowledged.
+    Cleared,
+    /// Hidden by an operator until a time; the condition is still followed underneath.
+    Shelved,
+}
+
+impl State {
+    pub fn name(self) -> &'static str {
+        match self {
+            State::Normal => "normal",
+            State::Active => "active",
+            State::Acknowledged => "acknowledged",
+            State::Cleared => "cleared",
+            State::Shelved => "shelved",
+        }
+    }
+    pub fn parse(s: &str) -> Option<State> {
+        [
+            State::Normal,
+            State::Active,
+            State::Acknowledged,
+            State::Cleared,
+            State::Shelved,
+        ]
+        .into_iter()
+        .find(|v| v.name() == s)
+    }
+}
+
+/// What happens to an alarm.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Input {
+    /// The condition is present (again).
+    Activate,
+    /// The condition is gone.
+    Clear,
+    /// An operator acknowledges.
+    Ack,
+    /// An operator shelves it until `until_ms`.
+    Shelve { until_ms: i64 },
+    /// An operator unshelves it.
+    Unshelve,
+    /// Time passes (ends an expired shelve).
+    Tick,
+}
+
+/// Why an operator input was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Refused {
+    /// Nothing to acknowledge: already acknowledged or closed.
+    NothingToAck,
+    /// The alarm is closed (normal); there is nothing to shelve.
+    Closed,
+    /// Unshelve of an alarm that is not shelved.
+    NotShelved,
+    /// Shelve end not after now.
+    ShelveInPast,
+}
+
+impl fmt::Display for Refused {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Refused::NothingToAck => "nothing to acknowledge (already acknowledged or closed)",
+            Refused::Closed => "the alarm is closed",
+            Refused::NotShelved => "the alarm is not shelved",
+            Refused::ShelveInPast => "the shelve must end in the future",
+        })
+    }
+}
+
+impl std::error::Error for Refused {}
+
+/// What a transition did, for logs and for the live display.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Effect {
+    pub from: State,
+    pub to: State,
+}
+
+impl Effect {
+    pub fn changed(&self) -> bool {
+        self.from != self.to
+    }
+    /// The alarm has just closed (a later activation opens a new alarm).
+    pub fn closed(&self) -> bool {
+        self.to == State::Normal && self.from != State::Normal
+    }
+}
+
+/// The state of one alarm: the condition, whether the current occurrence is
+/// acknowledged, and a shelve. Starts in [`State::Normal`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct AlarmState {
+    pub condition: bool,
+    pub acked: bool,
+    /// True from the first activation until the alarm is closed.
+    pub open: bool,
+    pub shelved_until_ms: Option<i64>,
+}
+
+impl AlarmState {
+    pub fn state(&self) -> State {
+        if !self.open {
+            State::Normal
+        } else if self.shelved_until_ms.is_some() {
+            State::Shelved
+        } else if self.condition {
+            if self.acked {
+                State::Acknowledged
+            } else {
+                State::Active
+            }
+        } else {
+            State::Cleared
+        }
+    }
+
+    /// Applies one input at time `now_ms`.
+    pub fn apply(&mut self, input: Input, now_ms: i64) -> Result<Effect, Refused> {
+        let from = self.state();
+        let mut next = *self;
+        if let Some(until) = next.shelved_until_ms {
+            if now_ms >= until {
+                next.unshelve();
+            }
+        }
+        match input {
+            Input::Activate => {
+                if !next.open {
+                    next = AlarmState {
+                        open: true,
+                        ..AlarmState::default()
+                    };
+                } else if !next.condition {
+                    // Back while still unacknowledged or acknowledged-and-cleared:
+                    // a new occurrence needs a new acknowledgement.
+                    next.acked = false;
+                }
+                next.condition = true;
+            }
+            Input::Clear => {
+                next.condition = false;
+                if next.acked && next.shelved_until_ms.is_none() {
+                    next.open = false;
+                }
+            }
+            Input::Ack => {
+                if !next.open || next.acked {
+                    return Err(Refused::NothingToAck);
+                }
+                next.acked = true;
+                if !next.condition && next.shelved_until_ms.is_none() {
+                    next.open = false;
+                }
+            }
+            Input::Shelve { until_ms } => {
+                if !next.open {
+                    return Err(Refused::Closed);
+                }
+                if until_ms <= now_ms {
+                    return Err(Refused::ShelveInPast);
+                }
+                next.shelved_until_ms = Some(until_ms);
+            }
+            Input::Unshelve => {
+                if next.shelved_until_ms.is_none() {
+                    return Err(Refused::NotShelved);
+                }
+                next.unshelve();
+            }
+            Input::Tick => {}
+        }
+        if !next.open {
+            next = AlarmState::default();
+        }
+        *self = next;
+        Ok(Effect { from, to: self.state() })
+    }
+
+    /// Ends a shelve: a condition still present comes back unacknowledged; one that
+    /// went away while shelved closes the alarm.
+    fn unshelve(&mut self) {
+        self.shelved_until_ms = None;
+        if self.condition {
+            self.acked = false;
+        } else {
+            self.open = false;
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Limit checking
+
+/// How far out of its limits a value is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Level {
+    Ok,
+    Soft,
+    Hard,
+}
+
+impl Level {
+    pub fn severity(self) -> Option<Severity> {
+        match self {
+            Level::Ok => None,
+            Level::Soft => Some(Severity::Medium),
+            Level::Hard => Some(Severity::High),
+        }
+    }
+}
+
+/// Consecutive samples a value must be out of a limit before the level rises (and back
+/// inside the limit, by the hysteresis, before it falls). Derived here: the MIB's
+/// `Limits` carry no ground persistence yet.
+pub const fn persistence(_p: &ParamDef) -> u8 {
+    2
+}
+
+/// Hysteresis around each limit, in engineering units: 2 % of the soft band. Derived
+/// here: the MIB's `Limits` carry no hysteresis yet.
+pub fn hysteresis(l: &Limits) -> f64 {
+    ((l.soft_hi - l.soft_lo).abs() * 0.02).max(f64::EPSILON)
+}
+
+/// Whether a parameter's limits apply to this HK sample. The MIB has no applicability
+/// conditions yet; the one needed today: the regulated voltage reads 0 V whenever the
+/// regulator is off, which is the case in STANDBY (mode 0), so it is only checked in
+/// the other modes. `mode` is the robot's mode from the same packet, if it has one.
+pub fn applicable(p: &ParamDef, mode: Option<i64>) -> bool {
+    match p.id {
+        pid::V_REG => mode.is_some_and(|m| m != mib::modes::robot_mode::STANDBY as i64),
+        _ => true,
+    }
+}
+
+/// Raw level of a value against limits, with hysteresis relative to the current level:
+/// to fall back from a level the value must be inside that level's limit by `hyst`.
+pub fn level_of(v: f64, l: &Limits, current: Level, hyst: f64) -> Level {
+    let beyond = |lo: f64, hi: f64| v < lo || v > hi;
+    let within_margin = |lo: f64, hi: f64| v < lo + hyst || v > hi - hyst;
+    if beyond(l.hard_lo, l.hard_hi) || (current >= Level::Hard && within_margin(l.hard_lo, l.hard_hi)) {
+        Level::Hard
+    } else if beyond(l.soft_lo, l.soft_hi) || (current >= Level::Soft && within_margin(l.soft_lo, l.soft_hi)) {
+        Level::Soft
+    } else {
+        Level::Ok
+    }
+}
+
+/// A change of one parameter's limit level.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct LimitChange {
+    pub param: &'static str,
+    pub from: Level,
+    pub to: Level,
+    pub value: f64,
+    pub unit: &'static str,
+    /// The limit crossed (the one of the new level, or of the old when returning).
+    pub limit: f64,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct ParamTrack {
+    level: Level,
+    candidate: Level,
+    count: u8,
+}
+
+/// Limit checks of every HK parameter with MIB limits, for one robot.
+#[derive(Clone, Debug)]
+pub struct LimitChecker {
+    tracks: Vec<(u16, ParamTrack)>,
+}
+
+impl Default for LimitChecker {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl LimitChecker {
+    pub fn new() -> LimitChecker {
+        LimitChecker {
+            tracks: mib::params::PARAMS
+                .iter()
+                .filter(|p| p.limits.is_some())
+                .map(|p| {
+                    (
+                        p.id,
+                        ParamTrack {
+                            level: Level::Ok,
+                            candidate: Level::Ok,
+                            count: 0,
+                        },
+                    )
+                })
+                .collect(),
+        }
+    }
+
+    /// Checks one HK sample (parameter ID, engineering value); `mode` is the robot's
+    /// mode if the same packet carries it. Returns the level change, if any.
+    pub fn check(&mut self, id: u16, eng: f64, mode: Option<i64>) -> Option<LimitChange> {
+        let p = mib::params::by_id(id)?;
+        let l = p.limits?;
+        let (_, t) = self.tracks.iter_mut().find(|(i, _)| *i == id)?;
+        let raw_level = if applicable(p, mode) && eng.is_finite() {
+            level_of(eng, &l, t.level, hysteresis(&l))
+        } else if applicable(p, mode) {
+            Level::Hard
+        } else {
+            Level::Ok
+        };
+        if raw_level == t.level {
+            t.candidate = t.level;
+            t.count = 0;
+            return None;
+        }
+        if raw_level != t.candidate {
+            t.candidate = raw_level;
+            t.count = 0;
+        }
+        t.count = t.count.saturating_add(1);
+        if t.count < persistence(p) {
+            return None;
+        }
+        let from = t.level;
+        t.level = raw_level;
+        t.count = 0;
+        let shown = raw_level.max(from);
+        let limit = match (shown, eng < (l.soft_lo + l.soft_hi) / 2.0) {
+            (Level::Hard, true) => l.hard_lo,
+            (Level::Hard, false) => l.hard_hi,
+            (_, true) => l.soft_lo,
+            (_, false) => l.soft_hi,
+        };
+        Some(LimitChange {
+            param: p.name,
+            from,
+            to: raw_level,
+            value: eng,
+            unit: p.unit,
+            limit,
+        })
+    }
+
+    /// Current level of a parameter.
+    pub fn level(&self, id: u16) -> Level {
+        self.tracks
+            .iter()
+            .find(|(i, _)| *i == id)
+            .map_or(Level::Ok, |(_, t)| t.level)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lifecycle_active_ack_clear_closes() {
+        let mut a = AlarmState::default();
+        assert_eq!(a.state(), State::Normal);
+        assert_eq!(a.apply(Input::Activate, 0).unwrap().to, State::Active);
+        assert_eq!(a.apply(Input::Ack, 1).unwrap().to, State::Acknowledged);
+        let e = a.apply(Input::Clear, 2).unwrap();
+        assert_eq!(e.to, State::Normal);
+        assert!(e.closed());
+    }
+
+    #[test]
+    fn cleared_alarm_waits_for_ack_and_comes_back_unacked() {
+        let mut a = AlarmState::default();
+        a.apply(Input::Activate, 0).unwrap();
+        assert_eq!(a.apply(Input::Clear, 1).unwrap().to, State::Cleared);
+        assert_eq!(a.apply(Input::Activate, 2).unwrap().to, State::Active);
+        a.apply(Input::Ack, 3).unwrap();
+        a.apply(Input::Clear, 4).unwrap();
+        assert_eq!(a.state(), State::Normal);
+        // Cleared then acknowledged closes.
+        a.apply(Input::Activate, 5).unwrap();
+        a.apply(Input::Clear, 6).unwrap();
+        assert!(a.apply(Input::Ack, 7).unwrap().closed());
+    }
+
+    #[test]
+    fn acknowledging_twice_or_a_closed_alarm_is_refused() {
+        let mut a = AlarmState::default();
+        assert_eq!(a.apply(Input::Ack, 0), Err(Refused::NothingToAck));
+        a.apply(Input::Activate, 0).unwrap();
+        a.apply(Input::Ack, 1).unwrap();
+        assert_eq!(a.apply(Input::Ack, 2), Err(Refused::NothingToAck));
+        assert_eq!(a.state(), State::Acknowledged);
+    }
+
+    #[test]
+    fn acknowledged_alarm_reactivating_after_clear_needs_new_ack() {
+        let mut a = AlarmState::default();
+        a.apply(Input::Activate, 0).unwrap();
+        a.apply(Input::Ack, 1).unwrap();
+        // Activate again while acknowledged and still active: stays acknowledged.
+        assert_eq!(a.apply(Input::Activate, 2).unwrap().to, State::Acknowledged);
+    }
+
+    #[test]
+    fn shelve_hides_until_expiry_then_returns_unacked_if_still_present() {
+        let mut a = AlarmState::default();
+        a.apply(Input::Activate, 0).unwrap();
+        a.apply(Input::Ack, 1).unwrap();
+        assert_eq!(a.apply(Input::Shelve { until_ms: 100 }, 2).unwrap().to, State::Shelved);
+        assert_eq!(a.apply(Input::Activate, 50).unwrap().to, State::Shelved);
+        let e = a.apply(Input::Tick, 100).unwrap();
+        assert_eq!((e.from, e.to), (State::Shelved, State::Active));
+    }
+
+    #[test]
+    fn shelved_alarm_whose_condition_went_away_closes_on_unshelve() {
+        let mut a = AlarmState::default();
+        a.apply(Input::Activate, 0).unwrap();
+        a.apply(Input::Shelve { until_ms: 100 }, 1).unwrap();
+        assert_eq!(a.apply(Input::Clear, 10).unwrap().to, State::Shelved);
+        assert!(a.apply(Input::Unshelve, 20).unwrap().closed());
+        assert_eq!(a.apply(Input::Unshelve, 21), Err(Refused::NotShelved));
+    }
+
+    #[test]
+    fn shelving_closed_alarms_or_into_the_past_is_refused() {
+        let mut a = AlarmState::default();
+        assert_eq!(a.apply(Input::Shelve { until_ms: 10 }, 0), Err(Refused::Closed));
+        a.apply(Input::Activate, 0).unwrap();
+        assert_eq!(a.apply(Input::Shelve { until_ms: 5 }, 5), Err(Refused::ShelveInPast));
+        assert_eq!(a.state(), State::Active);
+    }
+
+    fn vbat_raw(volts: f64) -> f64 {
+        volts
+    }
+
+    #[test]
+    fn battery_sag_raises_soft_then_hard_after_persistence() {
+        let mut c = LimitChecker::new();
+        let id = pid::V_BAT_A;
+        assert_eq!(c.check(id, vbat_raw(12.0), Some(0)), None);
+        assert_eq!(c.check(id, 10.3, Some(0)), None, "one sample is not persistent");
+        let ch = c.check(id, 10.3, Some(0)).unwrap();
+        assert_eq!((ch.from, ch.to, ch.limit), (Level::Ok, Level::Soft, 10.5));
+        assert_eq!(c.check(id, 9.8, Some(0)), None);
+        let ch = c.check(id, 9.8, Some(0)).unwrap();
+        assert_eq!((ch.to, ch.limit), (Level::Hard, 10.0));
+        assert_eq!(ch.to.severity(), Some(Severity::High));
+    }
+
+    #[test]
+    fn hysteresis_keeps_a_value_hovering_at_the_limit_from_chattering() {
+        let mut c = LimitChecker::new();
+        let id = pid::V_BAT_A;
+        for _ in 0..2 {
+            c.check(id, 10.45, Some(0));
+        }
+        assert_eq!(c.level(id), Level::Soft);
+        // Just inside the soft limit, within the hysteresis (2 % of 2.1 V = 42 mV).
+        for _ in 0..5 {
+            assert_eq!(c.check(id, 10.52, Some(0)), None);
+        }
+        assert_eq!(c.level(id), Level::Soft);
+        c.check(id, 10.6, Some(0));
+        let ch = c.check(id, 10.6, Some(0)).unwrap();
+        assert_eq!((ch.from, ch.to), (Level::Soft, Level::Ok));
+    }
+
+    #[test]
+    fn interrupted_excursion_does_not_count_as_persistent() {
+        let mut c = LimitChecker::new();
+        let id = pid::I_BO_A;
+        assert_eq!(c.check(id, 2.2, Some(1)), None);
+        assert_eq!(c.check(id, 1.0, Some(1)), None);
+        assert_eq!(c.check(id, 2.2, Some(1)), None);
+        assert!(c.check(id, 2.2, Some(1)).is_some());
+    }
+
+    #[test]
+    fn regulator_voltage_is_not_checked_in_standby() {
+        let mut c = LimitChecker::new();
+        for _ in 0..5 {
+            assert_eq!(c.check(pid::V_REG, 0.0, Some(0)), None);
+        }
+        c.check(pid::V_REG, 0.0, Some(1));
+        assert_eq!(c.check(pid::V_REG, 0.0, Some(1)).unwrap().to, Level::Hard);
+    }
+
+    #[test]
+    fn parameters_without_limits_are_not_checked() {
+        let mut c = LimitChecker::new();
+        for _ in 0..5 {
+            assert_eq!(c.check(pid::MODE, 99.0, Some(0)), None);
+        }
+    }
+
+    #[test]
+    fn event_severities_map_to_alarm_severities() {
+        assert_eq!(Severity::of_event(mib::events::Severity::Info), None);
+        assert_eq!(Severity::of_event(mib::events::Severity::Low), None);
+        assert_eq!(Severity::of_event(mib::events::Severity::High), Some(Severity::High));
+        assert_eq!(
+            Source::from_parts("event", "LOW_BATTERY"),
+            Some(Source::Event("LOW_BATTERY".into()))
+        );
+        assert_eq!(Source::from_parts(Source::LinkLoss.kind(), "x"), Some(Source::LinkLoss));
+    }
+}

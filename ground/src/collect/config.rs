@@ -1,0 +1,456 @@
+//! The collector's TOML configuration (see `docs/collector.md` for the reference), read
+//! with every error located as file:line:column.
+
+use std::collections::BTreeMap;
+use std::net::{SocketAddr, ToSocketAddrs};
+use std::ops::Range;
+use std::path::Path;
+
+use serde::Deserialize;
+
+use crate::link::Transport;
+
+/// Longest pause between reconnection attempts the issue allows.
+pub const MAX_BACKOFF_CAP_MS: u64 = 5_000;
+
+#[derive(Deserialize, Debug, Default)]
+#[serde(deny_unknown_fields)]
+struct FileCfg {
+    /// Default transport: "udp" or "tcp".
+    transport: Option<toml::Spanned<String>>,
+    /// Delete archived data older than this ("30d", "12h", "90m", "45s").
+    retain: Option<toml::Spanned<String>>,
+    #[serde(default)]
+    link: LinkFile,
+    #[serde(default)]
+    gaps: GapsFile,
+    #[serde(default)]
+    alarms: AlarmsFile,
+    #[serde(default)]
+    robot: Vec<RobotFile>,
+}
+
+#[derive(Deserialize, Debug, Default)]
+#[serde(deny_unknown_fields)]
+struct LinkFile {
+    loss_timeout_ms: Option<toml::Spanned<u64>>,
+    max_backoff_ms: Option<toml::Spanned<u64>>,
+    lease_renew_ms: Option<toml::Spanned<u64>>,
+}
+
+#[derive(Deserialize, Debug, Default)]
+#[serde(deny_unknown_fields)]
+struct GapsFile {
+    settle_ms: Option<u64>,
+    retry_ms: Option<toml::Spanned<u64>>,
+    max_tries: Option<toml::Spanned<u32>>,
+}
+
+#[derive(Deserialize, Debug, Default)]
+#[serde(deny_unknown_fields)]
+struct AlarmsFile {
+    stale_hk_intervals: Option<toml::Spanned<u32>>,
+    event_min_severity: Option<toml::Spanned<String>>,
+    limits: Option<bool>,
+}
+
+#[derive(Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+struct RobotFile {
+    number: toml::Spanned<i64>,
+    addr: Option<toml::Spanned<String>>,
+    transport: Option<toml::Spanned<String>>,
+    hk_interval_ms: Option<toml::Spanned<u32>>,
+    name: Option<String>,
+}
+
+/// One robot to follow.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RobotCfg {
+    pub number: u8,
+    pub addr: SocketAddr,
+    pub transport: Transport,
+    /// ROBOT_STATUS collection interval commanded at each subscription (ms).
+    pub hk_interval_ms: Option<u32>,
+    pub name: Option<String>,
+}
+
+/// Everything the collector runs with.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Config {
+    pub robots: Vec<RobotCfg>,
+    pub retain_ms: Option<i64>,
+    pub loss_timeout_ms: u64,
+    pub max_backoff_ms: u64,
+    pub lease_renew_ms: u64,
+    pub gap_settle_ms: u64,
+    pub gap_retry_ms: u64,
+    pub gap_max_tries: u32,
+    pub stale_hk_intervals: u32,
+    pub event_min_severity: mib::events::Severity,
+    pub limits: bool,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Config {
+            robots: Vec::new(),
+            retain_ms: None,
+            loss_timeout_ms: 3_000,
+            max_backoff_ms: MAX_BACKOFF_CAP_MS,
+            lease_renew_ms: super::onboard::LEASE_RENEW_MS as u64,
+            gap_settle_ms: 300,
+            gap_retry_ms: 3_000,
+            gap_max_tries: 5,
+            stale_hk_intervals: 3,
+            event_min_severity: mib::events::Severity::Medium,
+            limits: true,
+        }
+    }
+}
+
+impl Config {
+    /// The link-loss timeout of a robot: no TM for max(3 HK intervals, the configured
+    /// minimum, 3 s).
+    pub fn loss_ms(&self, hk_interval_ms: u32) -> i64 {
+        (3 * hk_interval_ms as u64).max(self.loss_timeout_ms).max(3_000) as i64
+    }
+}
+
+/// One configuration error with its place.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct CfgError {
+    pub line: usize,
+    pub column: usize,
+    pub message: String,
+}
+
+/// All errors of a configuration file, each shown as `file:line:column: message`.
+#[derive(Clone, Debug)]
+pub struct CfgErrors {
+    pub file: String,
+    pub errors: Vec<CfgError>,
+}
+
+impl std::fmt::Display for CfgErrors {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        for (i, e) in self.errors.iter().enumerate() {
+            if i > 0 {
+                writeln!(f)?;
+            }
+            write!(f, "{}:{}:{}: {}", self.file, e.line, e.column, e.message)?;
+        }
+        Ok(())
+    }
+}
+
+impl std::error::Error for CfgErrors {}
+
+/// Parses a duration such as "30d", "12h", "90m", "45s" or "500ms" into ms.
+pub fn parse_duration_ms(s: &str) -> Option<i64> {
+    let s = s.trim();
+    let split = s.find(|c: char| !c.is_ascii_digit())?;
+    let (num, unit) = s.split_at(split);
+    let n: i64 = num.parse().ok()?;
+    let mul = match unit.trim() {
+        "ms" => 1,
+        "s" => 1_000,
+        "m" => 60_000,
+        "h" => 3_600_000,
+        "d" => 86_400_000,
+        "w" => 7 * 86_400_000,
+        _ => return None,
+    };
+    n.checked_mul(mul).filter(|v| *v > 0)
+}
+
+fn transport_of(s: &str) -> Option<Transport> {
+    match s.to_ascii_lowercase().as_str() {
+        "udp" => Some(Transport::Udp),
+        "tcp" => Some(Transport::Tcp),
+        _ => None,
+    }
+}
+
+/// Default TC/TM address of robot `n`.
+pub fn default_addr(n: u8) -> SocketAddr {
+    (std::net::Ipv4Addr::LOCALHOST, mib::config::robot_port(n)).into()
+}
+
+struct Cx<'a> {
+    src: &'a str,
+    errors: Vec<CfgError>,
+}
+
+impl Cx<'_> {
+    fn err(&mut self, span: Range<usize>, message: impl Into<String>) {
+        let (line, column) = crate::plan::line_col(self.src, span.start);
+        self.errors.push(CfgError {
+            line,
+            column,
+            message: message.into(),
+        });
+    }
+}
+
+/// Reads a configuration text; `file` names it in errors.
+pub fn parse(file: &str, src: &str) -> Result<Config, CfgErrors> {
+    let mut cx = Cx {
+        src,
+        errors: Vec::new(),
+    };
+    let f: FileCfg = match toml::from_str(src) {
+        Ok(f) => f,
+        Err(e) => {
+            let span = e.span().unwrap_or(0..0);
+            cx.err(span, e.message().to_string());
+            return Err(CfgErrors {
+                file: file.into(),
+                errors: cx.errors,
+            });
+        }
+    };
+    let mut c = Config::default();
+    let default_transport = match &f.transport {
+        Some(t) => transport_of(t.get_ref()).unwrap_or_else(|| {
+            cx.err(
+                t.span(),
+                format!("transport \"{}\": use \"udp\" or \"tcp\"", t.get_ref()),
+            );
+            Transport::Udp
+        }),
+        None => Transport::Udp,
+    };
+    if let Some(r) = &f.retain {
+        match parse_duration_ms(r.get_ref()) {
+            Some(ms) => c.retain_ms = Some(ms),
+            None => cx.err(
+                r.span(),
+                format!("retain \"{}\": a duration like \"30d\", \"12h\", \"90m\"", r.get_ref()),
+            ),
+        }
+    }
+    if let Some(v) = &f.link.loss_timeout_ms {
+        c.loss_timeout_ms = *v.get_ref();
+    }
+    if let Some(v) = &f.link.max_backoff_ms {
+        if *v.get_ref() == 0 || *v.get_ref() > MAX_BACKOFF_CAP_MS {
+            cx.err(
+                v.span(),
+                format!("max_backoff_ms = {}: must be 1..={MAX_BACKOFF_CAP_MS}", v.get_ref()),
+            );
+        } else {
+            c.max_backoff_ms = *v.get_ref();
+        }
+    }
+    if let Some(v) = &f.link.lease_renew_ms {
+        if !(100..=60_000).contains(v.get_ref()) {
+            cx.err(
+                v.span(),
+                format!("lease_renew_ms = {}: must be 100..=60000", v.get_ref()),
+            );
+        } else {
+            c.lease_renew_ms = *v.get_ref();
+        }
+    }
+    if let Some(v) = f.gaps.settle_ms {
+        c.gap_settle_ms = v;
+    }
+    if let Some(v) = &f.gaps.retry_ms {
+        if *v.get_ref() < 100 {
+            cx.err(v.span(), "retry_ms must be at least 100");
+        } else {
+            c.gap_retry_ms = *v.get_ref();
+        }
+    }
+    if let Some(v) = &f.gaps.max_tries {
+        if *v.get_ref() == 0 {
+            cx.err(v.span(), "max_tries must be at least 1");
+        } else {
+            c.gap_max_tries = *v.get_ref();
+        }
+    }
+    if let Some(v) = &f.alarms.stale_hk_intervals {
+        if *v.get_ref() < 2 {
+            cx.err(v.span(), "stale_hk_intervals must be at least 2");
+        } else {
+            c.stale_hk_intervals = *v.get_ref();
+        }
+    }
+    if let Some(v) = &f.alarms.event_min_severity {
+        use mib::events::Severity as S;
+        match [S::Low, S::Medium, S::High]
+            .into_iter()
+            .find(|s| s.name().eq_ignore_ascii_case(v.get_ref()))
+        {
+            Some(s) => c.event_min_severity = s,
+            None => cx.err(
+                v.span(),
+                format!("event_min_severity \"{}\": low, medium or high", v.get_ref()),
+            ),
+        }
+    }
+    if let Some(l) = f.alarms.limits {
+        c.limits = l;
+    }
+    let mut seen: BTreeMap<u8, ()> = BTreeMap::new();
+    for r in &f.robot {
+        let n = *r.number.get_ref();
+        let Some(number) = u8::try_from(n).ok().filter(|n| mib::apid::robot_apid(*n).is_some()) else {
+            cx.err(
+                r.number.span(),
+                format!(
+                    "robot number {n} outside {}..={}",
+                    mib::apid::ROBOT_MIN,
+                    mib::apid::ROBOT_MAX
+                ),
+            );
+            continue;
+        };
+        if seen.insert(number, ()).is_some() {
+            cx.err(r.number.span(), format!("robot {number} is listed twice"));
+            continue;
+        }
+        let addr = match &r.addr {
+            None => default_addr(number),
+            Some(a) => match a.get_ref().to_socket_addrs().ok().and_then(|mut i| i.next()) {
+                Some(s) => s,
+                None => {
+                    cx.err(
+                        a.span(),
+                        format!("address \"{}\" is not HOST:PORT or does not resolve", a.get_ref()),
+                    );
+                    continue;
+                }
+            },
+        };
+        let transport = match &r.transport {
+            None => default_transport,
+            Some(t) => match transport_of(t.get_ref()) {
+                Some(t) => t,
+                None => {
+                    cx.err(
+                        t.span(),
+                        format!("transport \"{}\": use \"udp\" or \"tcp\"", t.get_ref()),
+                    );
+                    continue;
+                }
+            },
+        };
+        let hk_interval_ms = match &r.hk_interval_ms {
+            Some(v) if !(mib::hk::MIN_INTERVAL_MS..=mib::hk::MAX_INTERVAL_MS).contains(v.get_ref()) => {
+                cx.err(
+                    v.span(),
+                    format!(
+                        "hk_interval_ms = {} outside {}..={}",
+                        v.get_ref(),
+                        mib::hk::MIN_INTERVAL_MS,
+                        mib::hk::MAX_INTERVAL_MS
+                    ),
+                );
+                continue;
+            }
+            Some(v) => Some(*v.get_ref()),
+            None => None,
+        };
+        c.robots.push(RobotCfg {
+            number,
+            addr,
+            transport,
+            hk_interval_ms,
+            name: r.name.clone(),
+        });
+    }
+    if cx.errors.is_empty() {
+        Ok(c)
+    } else {
+        Err(CfgErrors {
+            file: file.into(),
+            errors: cx.errors,
+        })
+    }
+}
+
+/// Reads and parses a configuration file.
+pub fn load(path: &Path) -> anyhow::Result<Config> {
+    let src = std::fs::read_to_string(path).map_err(|e| anyhow::anyhow!("cannot read {}: {e}", path.display()))?;
+    Ok(parse(&path.display().to_string(), &src)?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_full_config_reads() {
+        let c = parse(
+            "c.toml",
+            r#"
+transport = "udp"
+retain = "30d"
+[link]
+loss_timeout_ms = 4000
+max_backoff_ms = 2000
+[gaps]
+retry_ms = 2000
+max_tries = 4
+[alarms]
+stale_hk_intervals = 3
+event_min_severity = "high"
+[[robot]]
+number = 1
+addr = "127.0.0.1:9001"
+hk_interval_ms = 100
+[[robot]]
+number = 2
+transport = "tcp"
+"#,
+        )
+        .unwrap();
+        assert_eq!(c.robots.len(), 2);
+        assert_eq!(c.robots[0].addr, "127.0.0.1:9001".parse().unwrap());
+        assert_eq!(c.robots[1].transport, Transport::Tcp);
+        assert_eq!(c.robots[1].addr, default_addr(2));
+        assert_eq!(c.retain_ms, Some(30 * 86_400_000));
+        assert_eq!(c.max_backoff_ms, 2000);
+        assert_eq!(c.event_min_severity, mib::events::Severity::High);
+        assert_eq!(c.loss_ms(1000), 4000);
+        assert_eq!(c.loss_ms(2000), 6000);
+    }
+
+    #[test]
+    fn every_error_has_its_line_and_column() {
+        let e = parse(
+            "c.toml",
+            "retain = \"30 days\"\n[link]\nmax_backoff_ms = 9000\n[[robot]]\nnumber = 300\n[[robot]]\nnumber = 1\ntransport = \"x\"\n",
+        )
+        .unwrap_err();
+        let text = e.to_string();
+        assert!(text.contains("c.toml:1:10: retain"), "{text}");
+        assert!(text.contains("c.toml:3:18: max_backoff_ms"), "{text}");
+        assert!(text.contains("c.toml:5:10: robot number 300"), "{text}");
+        assert!(text.contains("c.toml:8:13: transport"), "{text}");
+        assert_eq!(e.errors.len(), 4);
+    }
+
+    #[test]
+    fn unknown_keys_and_bad_toml_are_located() {
+        let e = parse("c.toml", "[link]\nloss_timeout = 5\n").unwrap_err();
+        assert_eq!((e.errors[0].line, e.errors[0].column), (2, 1));
+        assert!(e.errors[0].message.contains("unknown field"), "{}", e);
+        let e = parse("c.toml", "[[robot]]\nnumber = 1\nnumber = 2\n").unwrap_err();
+        assert_eq!(e.errors[0].line, 3);
+        let e = parse("c.toml", "[[robot]]\nnumber = 1\n[[robot]]\nnumber = 1\n").unwrap_err();
+        assert!(e.to_string().contains("c.toml:4:10: robot 1 is listed twice"));
+    }
+
+    #[test]
+    fn durations_read() {
+        assert_eq!(parse_duration_ms("30d"), Some(2_592_000_000));
+        assert_eq!(parse_duration_ms("90m"), Some(5_400_000));
+        assert_eq!(parse_duration_ms("500ms"), Some(500));
+        assert_eq!(parse_duration_ms("0s"), None);
+        assert_eq!(parse_duration_ms("d"), None);
+        assert_eq!(parse_duration_ms("5x"), None);
+    }
+}

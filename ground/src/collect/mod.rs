@@ -1,0 +1,548 @@
+//! `ground collect`: the unattended housekeeping collector (see `docs/collector.md`).
+//!
+//! One thread per robot ([`robot::Worker`]) with its own link; one sink thread that
+//! writes the archive ([`store`]); the main thread waits for SIGINT/SIGTERM and shows a
+//! live table on a terminal. Touch points with the rest of the ground tool are kept in
+//! two files: [`onboard`] (the obsw's protocol) and [`store`] (the archive).
+
+pub mod config;
+pub mod onboard;
+pub mod robot;
+pub mod store;
+pub mod tracker;
+
+use std::collections::VecDeque;
+use std::io::{IsTerminal, Write};
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+use clap::{Args, Subcommand};
+
+use crate::alarms::Input;
+use crate::archive::now_ms;
+use crate::link::Transport;
+
+use config::{Config, RobotCfg};
+use robot::{RobotStatus, Worker};
+use store::{SinkCfg, SinkMsg};
+
+/// Exit code of an invalid configuration (the ground tool's "invalid input").
+pub const EXIT_INVALID: u8 = 3;
+/// How long the shutdown may take before the collector gives up waiting.
+pub const SHUTDOWN_LIMIT: Duration = Duration::from_millis(4_500);
+/// Archived positions read per robot and APID at start (holes among them are retrieved).
+pub const RESUME_WINDOW: usize = mib::config::TM_STORE_CAPACITY;
+
+/// `ground collect` options.
+#[derive(Args, Debug, Clone)]
+pub struct CollectArgs {
+    /// Robot link `N=HOST:PORT` (or `N` for 127.0.0.1:7300+N); repeat per robot. Adds to
+    /// (or overrides) the robots of --config.
+    #[arg(long = "robot", short = 'r', value_parser = parse_robot)]
+    pub robots: Vec<(u8, SocketAddr)>,
+    /// Use TCP (COBS framing) instead of UDP for the --robot links.
+    #[arg(long)]
+    pub tcp: bool,
+    /// TOML configuration (robots, links, retention, alarm settings).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Check a configuration file and exit (errors as file:line:column).
+    #[arg(long, value_name = "FILE")]
+    pub check_config: Option<PathBuf>,
+    /// Print when each robot was last heard (from the archive) and exit.
+    #[arg(long)]
+    pub status: bool,
+    /// With --status: JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// Delete archived data older than this, e.g. 30d (overrides the config's `retain`).
+    #[arg(long)]
+    pub retain: Option<String>,
+    /// Plain log lines even on a terminal (no live table).
+    #[arg(long)]
+    pub plain: bool,
+    /// Debug log lines (every store request, every corrupt packet).
+    #[arg(long, short = 'v')]
+    pub verbose: bool,
+}
+
+/// `ground alarms` subcommands.
+#[derive(Subcommand, Debug, Clone)]
+pub enum AlarmsCmd {
+    /// List alarms that are not closed (with --all, closed ones too).
+    List {
+        #[arg(long)]
+        robot: Option<u8>,
+        #[arg(long)]
+        all: bool,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Acknowledge an alarm.
+    Ack { id: i64 },
+    /// Shelve an alarm for a while, e.g. `--for 2h`.
+    Shelve {
+        id: i64,
+        #[arg(long = "for", value_name = "DURATION")]
+        duration: String,
+    },
+    /// End a shelve.
+    Unshelve { id: i64 },
+}
+
+fn parse_robot(s: &str) -> Result<(u8, SocketAddr), String> {
+    let (n, addr) = match s.split_once('=') {
+        Some((n, a)) => (n, Some(a)),
+        None => (s, None),
+    };
+    let n: u8 = n.trim().parse().map_err(|_| format!("\"{n}\" is not a robot number"))?;
+    if mib::apid::robot_apid(n).is_none() {
+        return Err(format!(
+            "robot {n} outside {}..={}",
+            mib::apid::ROBOT_MIN,
+            mib::apid::ROBOT_MAX
+        ));
+    }
+    let addr = match addr {
+        Some(a) => {
+            use std::net::ToSocketAddrs;
+            a.to_socket_addrs()
+                .map_err(|e| format!("address \"{a}\": {e}"))?
+                .next()
+                .ok_or_else(|| format!("address \"{a}\" does not resolve"))?
+        }
+        None => config::default_addr(n),
+    };
+    Ok((n, addr))
+}
+
+fn emit(line: &str) -> Result<()> {
+    let mut o = std::io::stdout().lock();
+    writeln!(o, "{line}")?;
+    Ok(())
+}
+
+/// Entry of `ground collect`.
+pub fn collect_cli(archive: &Path, a: CollectArgs) -> Result<u8> {
+    if let Some(f) = &a.check_config {
+        return match config::load(f) {
+            Ok(c) => {
+                emit(&format!(
+                    "{}: ok ({} robots, retain {})",
+                    f.display(),
+                    c.robots.len(),
+                    c.retain_ms.map_or("forever".into(), |ms| format!("{} s", ms / 1000))
+                ))?;
+                Ok(0)
+            }
+            Err(e) => {
+                eprintln!("{e:#}");
+                Ok(EXIT_INVALID)
+            }
+        };
+    }
+    if a.status {
+        return status(archive, a.json);
+    }
+    let mut cfg = match &a.config {
+        Some(f) => match config::load(f) {
+            Ok(c) => c,
+            Err(e) => {
+                eprintln!("{e:#}");
+                return Ok(EXIT_INVALID);
+            }
+        },
+        None => Config::default(),
+    };
+    for (n, addr) in &a.robots {
+        cfg.robots.retain(|r| r.number != *n);
+        cfg.robots.push(RobotCfg {
+            number: *n,
+            addr: *addr,
+            transport: if a.tcp { Transport::Tcp } else { Transport::Udp },
+            hk_interval_ms: None,
+            name: None,
+        });
+    }
+    if let Some(r) = &a.retain {
+        match config::parse_duration_ms(r) {
+            Some(ms) => cfg.retain_ms = Some(ms),
+            None => {
+                eprintln!("ground: error: --retain {r}: a duration like 30d, 12h, 90m");
+                return Ok(EXIT_INVALID);
+            }
+        }
+    }
+    if cfg.robots.is_empty() {
+        eprintln!("ground: error: no robots: give --robot N=HOST:PORT or a --config with [[robot]] tables");
+        return Ok(2);
+    }
+    let table = std::io::stdout().is_terminal() && !a.plain;
+    let ring = Arc::new(Mutex::new(VecDeque::new()));
+    init_logging(a.verbose, table.then(|| ring.clone()));
+    run(archive, cfg, table, ring)
+}
+
+/// Runs the collector until SIGINT or SIGTERM.
+pub fn run(archive: &Path, cfg: Config, table: bool, ring: LogRing) -> Result<u8> {
+    let stop = Arc::new(AtomicBool::new(false));
+    ignore_file_size_signal();
+    {
+        let stop = stop.clone();
+        ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
+    }
+    // Read where each robot was before the collector (re)started.
+    let conn = store::open_conn(archive)?;
+    let mut histories = Vec::new();
+    for r in &cfg.robots {
+        let h = store::recent_positions(&conn, r.number, RESUME_WINDOW)?;
+        if let Some(last) = h.iter().find_map(|(_, v)| v.last()) {
+            tracing::info!(
+                robot = r.number,
+                "robot {}: resuming after sequence count {} (on-board time {})",
+                r.number,
+                last.seq,
+                crate::pus::CdsShort::from_unix_ms(last.obt_ms)
+            );
+        }
+        histories.push(h);
+    }
+    drop(conn);
+    let (sink_tx, sink_rx) = crossbeam_channel::unbounded::<SinkMsg>();
+    let sink_cfg = SinkCfg {
+        path: archive.to_path_buf(),
+        retain_ms: cfg.retain_ms,
+        prune_every_ms: 3_600_000,
+    };
+    let sink = std::thread::Builder::new()
+        .name("collect-sink".into())
+        .spawn(move || store::run_sink(sink_cfg, sink_rx))?;
+    let global = Arc::new(cfg.clone());
+    let mut workers = Vec::new();
+    let mut statuses = Vec::new();
+    for (r, h) in cfg.robots.iter().zip(histories) {
+        let status = Arc::new(Mutex::new(RobotStatus {
+            robot: r.number,
+            addr: r.addr.to_string(),
+            ..Default::default()
+        }));
+        statuses.push(status.clone());
+        let w = Worker::new(r.clone(), global.clone(), sink_tx.clone(), status, stop.clone(), h);
+        workers.push(
+            std::thread::Builder::new()
+                .name(format!("robot-{}", r.number))
+                .spawn(move || w.run())?,
+        );
+    }
+    tracing::info!("collecting from {} robots into {}", cfg.robots.len(), archive.display());
+    let started = Instant::now();
+    while !stop.load(Ordering::Relaxed) {
+        std::thread::sleep(Duration::from_millis(200));
+        if table {
+            draw(&statuses, &ring, started);
+        }
+    }
+    let t0 = Instant::now();
+    tracing::info!("stopping: flushing the archive");
+    for w in workers {
+        let _ = w.join();
+    }
+    let (ftx, frx) = crossbeam_channel::bounded(1);
+    let _ = sink_tx.send(SinkMsg::Flush(ftx));
+    let _ = frx.recv_timeout(SHUTDOWN_LIMIT.saturating_sub(t0.elapsed()));
+    drop(sink_tx);
+    // The sink ends once the robots' senders are gone; do not wait past the limit.
+    let deadline = t0 + SHUTDOWN_LIMIT;
+    while !sink.is_finished() && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    if sink.is_finished() {
+        if let Ok(st) = sink.join() {
+            tracing::info!(
+                "stopped: {} TM written, {} not written, {} rows pruned",
+                st.tm_written,
+                st.pending,
+                st.pruned_rows
+            );
+        }
+    } else {
+        tracing::error!("the archive did not finish within the shutdown limit");
+        return Ok(1);
+    }
+    if table {
+        draw(&statuses, &ring, started);
+    }
+    Ok(0)
+}
+
+/// A file-size limit (RLIMIT_FSIZE, e.g. a quota set with `prlimit`) must surface as a
+/// write error the sink handles (alarm, keep in memory, retry), not kill the collector
+/// with SIGXFSZ.
+#[allow(unsafe_code)]
+fn ignore_file_size_signal() {
+    use nix::sys::signal::{signal, SigHandler, Signal};
+    // SAFETY: installs the "ignore" disposition, no handler code runs.
+    if let Err(e) = unsafe { signal(Signal::SIGXFSZ, SigHandler::SigIgn) } {
+        tracing::warn!("cannot ignore SIGXFSZ: {e}");
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Logging and the live table
+
+/// Recent log lines kept for the live table.
+pub type LogRing = Arc<Mutex<VecDeque<String>>>;
+const RING_LINES: usize = 8;
+
+struct RingWriter {
+    ring: LogRing,
+    buf: Vec<u8>,
+}
+
+impl Write for RingWriter {
+    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+        self.buf.extend_from_slice(b);
+        Ok(b.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+impl Drop for RingWriter {
+    fn drop(&mut self) {
+        let line = String::from_utf8_lossy(&self.buf).trim_end().to_string();
+        if let Ok(mut r) = self.ring.lock() {
+            r.push_back(line);
+            while r.len() > RING_LINES {
+                r.pop_front();
+            }
+        }
+    }
+}
+
+#[derive(Clone)]
+struct RingMake(LogRing);
+
+impl<'a> tracing_subscriber::fmt::MakeWriter<'a> for RingMake {
+    type Writer = RingWriter;
+    fn make_writer(&'a self) -> Self::Writer {
+        RingWriter {
+            ring: self.0.clone(),
+            buf: Vec::new(),
+        }
+    }
+}
+
+fn init_logging(verbose: bool, ring: Option<LogRing>) {
+    let level = if verbose {
+        tracing::Level::DEBUG
+    } else {
+        tracing::Level::INFO
+    };
+    let b = tracing_subscriber::fmt().with_max_level(level).with_target(false);
+    let r = match ring {
+        Some(ring) => b.with_ansi(false).without_time().with_writer(RingMake(ring)).try_init(),
+        None => b.with_ansi(false).with_writer(std::io::stderr).try_init(),
+    };
+    if r.is_err() {
+        // A subscriber is already installed (tests): keep it.
+    }
+}
+
+fn age(now: i64, t: Option<i64>) -> String {
+    match t {
+        None => "-".into(),
+        Some(t) => {
+            let s = (now - t).max(0) as f64 / 1000.0;
+            if s < 100.0 {
+                format!("{s:.1}s")
+            } else if s < 6000.0 {
+                format!("{:.0}m", s / 60.0)
+            } else {
+                format!("{:.0}h", s / 3600.0)
+            }
+        }
+    }
+}
+
+fn draw(statuses: &[Arc<Mutex<RobotStatus>>], ring: &LogRing, started: Instant) {
+    let now = now_ms();
+    let mut out = String::from("\x1b[H\x1b[J");
+    out.push_str(&format!(
+        "ground collect: {} robots, up {} s  (Ctrl-C stops)\n",
+        statuses.len(),
+        started.elapsed().as_secs()
+    ));
+    out.push_str(&format!(
+        "{:>5}  {:<21} {:<10} {:>9} {:>7} {:>6} {:>5} {:>7} {:>8}  {}\n",
+        "robot", "address", "link", "packets", "filled", "lost", "holes", "dups", "last HK", "alarms"
+    ));
+    for s in statuses {
+        let Ok(s) = s.lock().map(|g| g.clone()) else { continue };
+        out.push_str(&format!(
+            "{:>5}  {:<21} {:<10} {:>9} {:>7} {:>6} {:>5} {:>7} {:>8}  {}\n",
+            s.robot,
+            s.addr,
+            s.link.name(),
+            s.packets,
+            s.filled,
+            s.lost,
+            s.holes,
+            s.duplicates,
+            age(now, s.last_hk_ms),
+            if s.conditions.is_empty() {
+                "-".to_string()
+            } else {
+                s.conditions.join(" ")
+            }
+        ));
+    }
+    if let Ok(r) = ring.lock() {
+        out.push('\n');
+        for l in r.iter() {
+            out.push_str(l);
+            out.push('\n');
+        }
+    }
+    let mut o = std::io::stdout().lock();
+    let _ = o.write_all(out.as_bytes());
+    let _ = o.flush();
+}
+
+// ---------------------------------------------------------------------------
+// --status and `ground alarms`
+
+fn utc(ms: i64) -> String {
+    chrono::DateTime::from_timestamp_millis(ms)
+        .map(|t| t.format("%Y-%m-%d %H:%M:%S").to_string())
+        .unwrap_or_else(|| ms.to_string())
+}
+
+fn status(archive: &Path, json: bool) -> Result<u8> {
+    let c = store::open_existing(archive)?;
+    let health = store::health(&c)?;
+    let alarms = store::alarms(&c, None, false)?;
+    let lost = store::lost_runs(&c, None)?;
+    if json {
+        let v = serde_json::json!({"robots": health, "open_alarms": alarms, "unrecoverable": lost});
+        emit(&v.to_string())?;
+        return Ok(0);
+    }
+    let now = now_ms();
+    emit(&format!(
+        "{:>5}  {:<21} {:<10} {:<20} {:>9} {:>9} {:>7} {:>6} {:>6}",
+        "robot", "address", "link", "last heard (UTC)", "ago", "packets", "filled", "lost", "alarms"
+    ))?;
+    for h in &health {
+        let n_alarms = alarms.iter().filter(|a| a.robot == h.robot).count();
+        emit(&format!(
+            "{:>5}  {:<21} {:<10} {:<20} {:>9} {:>9} {:>7} {:>6} {:>6}",
+            h.robot,
+            h.addr,
+            h.link,
+            h.last_heard_ms.map_or("never".into(), utc),
+            age(now, h.last_heard_ms),
+            h.packets,
+            h.filled,
+            h.lost,
+            n_alarms
+        ))?;
+    }
+    if health.is_empty() {
+        emit("no robot has been collected into this archive")?;
+    }
+    let sys = alarms.iter().filter(|a| a.robot == 0).count();
+    if sys > 0 {
+        emit(&format!(
+            "{sys} open collector alarm(s) (archive): see `ground alarms list`"
+        ))?;
+    }
+    if let Some(u) = health.iter().map(|h| h.updated_ms).max() {
+        emit(&format!("collector last wrote its status {} ago", age(now, Some(u))))?;
+    }
+    if !lost.is_empty() {
+        emit(&format!("{} unrecoverable run(s) of packets; newest:", lost.len()))?;
+        for l in lost.iter().rev().take(10) {
+            emit(&format!(
+                "  robot {} APID 0x{:03X} seq {}..={} ({} packets): {}",
+                l["robot"],
+                l["apid"].as_i64().unwrap_or(0),
+                l["first_seq"],
+                l["last_seq"],
+                l["count"],
+                l["reason"].as_str().unwrap_or("")
+            ))?;
+        }
+    }
+    Ok(0)
+}
+
+/// Entry of `ground alarms`.
+pub fn alarms_cli(archive: &Path, cmd: AlarmsCmd) -> Result<u8> {
+    let mut c = store::open_existing(archive)?;
+    let now = now_ms();
+    match cmd {
+        AlarmsCmd::List { robot, all, json } => {
+            let rows = store::alarms(&c, robot, all)?;
+            if json {
+                for r in &rows {
+                    emit(&serde_json::to_string(r)?)?;
+                }
+                return Ok(0);
+            }
+            emit(&format!(
+                "{:>5} {:>5}  {:<24} {:<7} {:<13} {:<19} {:<19} {:>5}  {}",
+                "id", "robot", "source", "sev", "state", "first (UTC)", "last (UTC)", "count", "message"
+            ))?;
+            for r in &rows {
+                let state = match r.shelved_until_ms {
+                    Some(u) if r.state == "shelved" => format!("shelved<{}", utc(u).get(11..16).unwrap_or("")),
+                    _ => r.state.clone(),
+                };
+                emit(&format!(
+                    "{:>5} {:>5}  {:<24} {:<7} {:<13} {:<19} {:<19} {:>5}  {}",
+                    r.id,
+                    if r.robot == 0 { "-".into() } else { r.robot.to_string() },
+                    r.source,
+                    r.severity,
+                    state,
+                    utc(r.first_ms),
+                    utc(r.last_ms),
+                    r.count,
+                    r.message
+                ))?;
+            }
+            if rows.is_empty() {
+                emit(if all { "no alarms" } else { "no open alarms" })?;
+            }
+            Ok(0)
+        }
+        AlarmsCmd::Ack { id } => one_input(&mut c, id, Input::Ack, now),
+        AlarmsCmd::Unshelve { id } => one_input(&mut c, id, Input::Unshelve, now),
+        AlarmsCmd::Shelve { id, duration } => match config::parse_duration_ms(&duration) {
+            Some(ms) => one_input(&mut c, id, Input::Shelve { until_ms: now + ms }, now),
+            None => {
+                eprintln!("ground: error: --for {duration}: a duration like 30m, 2h, 1d");
+                Ok(EXIT_INVALID)
+            }
+        },
+    }
+}
+
+fn one_input(c: &mut rusqlite::Connection, id: i64, input: Input, now: i64) -> Result<u8> {
+    match store::alarm_input(c, id, input, now) {
+        Ok(s) => {
+            emit(&format!("alarm {id}: {}", s.name()))?;
+            Ok(0)
+        }
+        Err(e) => {
+            eprintln!("ground: error: {e:#}");
+            Ok(EXIT_INVALID)
+        }
+    }
+}

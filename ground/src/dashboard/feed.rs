@@ -1,0 +1,497 @@
+//! A small feed that fills a [`Hub`] straight from `obsw` links and implements
+//! [`Commander`] over them — for the example binary and the browser tests until the
+//! collector (`ground collect`) mounts the dashboard. It is deliberately minimal: no
+//! reconnects, no gap filling, no archive, alarms without persistence or hysteresis
+//! (the collector does all of that properly). It only uses `link::Link`,
+//! `pus::build_tc` and `pus::decode_tm`.
+
+use std::collections::HashMap;
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use crossbeam_channel::RecvTimeoutError;
+
+use super::{
+    AlarmRecord, AlarmState, CommandError, CommandRecord, Commander, ConfigState, EventRecord, FailureInfo, Hub,
+    LimitState, LinkState, PlanInfo, PlanRun, PlanStep, Stage, StageReport,
+};
+use crate::link::{Incoming, Link, Transport};
+use crate::pus::{self, TmBody};
+
+/// No TM for this long counts as a link loss (the collector's rule: max(3 HK intervals, 3 s)).
+const LOSS_MS: i64 = 3000;
+
+struct Shared {
+    hub: Hub,
+    links: HashMap<u8, Link>,
+    seq: Mutex<pus::SeqCounters>,
+    /// (robot, source) → alarm ID.
+    alarm_ids: Mutex<HashMap<(u8, String), u64>>,
+    next_alarm: Mutex<u64>,
+    plans_dir: Option<PathBuf>,
+    next_run: Mutex<u64>,
+    stop: AtomicBool,
+}
+
+/// Feeds a hub from live links and sends the page's commands over them.
+#[derive(Clone)]
+pub struct LinkFeed {
+    shared: Arc<Shared>,
+}
+
+fn now_ms() -> i64 {
+    chrono::Utc::now().timestamp_millis()
+}
+
+/// Request ID as the hub and the page show it: robot, APID and sequence count.
+pub fn request_id(robot: u8, apid: u16, seq: u16) -> String {
+    format!("{robot}-{apid:03x}-{seq}")
+}
+
+impl LinkFeed {
+    /// Opens a link to each robot, asks for its mode tree and starts following it.
+    /// `plans_dir` holds the plan files (`*.toml`) the page may start.
+    pub fn start(hub: Hub, robots: &[(u8, SocketAddr)], plans_dir: Option<PathBuf>) -> std::io::Result<LinkFeed> {
+        let (tx, rx) = crossbeam_channel::bounded::<Incoming>(4096);
+        let mut links = HashMap::new();
+        for &(robot, addr) in robots {
+            hub.add_robot(robot);
+            links.insert(robot, Link::open(robot, addr, Transport::Udp, tx.clone())?);
+        }
+        let feed = LinkFeed {
+            shared: Arc::new(Shared {
+                hub,
+                links,
+                seq: Mutex::new(pus::SeqCounters::new()),
+                alarm_ids: Mutex::new(HashMap::new()),
+                next_alarm: Mutex::new(1),
+                plans_dir,
+                next_run: Mutex::new(1),
+                stop: AtomicBool::new(false),
+            }),
+        };
+        for &(robot, _) in robots {
+            // Any TC makes the OBSW send TM to us; MODE_ANNOUNCE also fills the mode tree.
+            feed.send(robot, "MODE_ANNOUNCE", &[mib::modes::node::ROBOT as i64], "feed")
+                .map_err(|e| std::io::Error::other(e.0))?;
+        }
+        let f = feed.clone();
+        std::thread::Builder::new()
+            .name("dashboard-feed".into())
+            .spawn(move || f.run(&rx))?;
+        Ok(feed)
+    }
+
+    /// Stops following the links.
+    pub fn stop(&self) {
+        self.shared.stop.store(true, Ordering::Relaxed);
+    }
+
+    fn hub(&self) -> &Hub {
+        &self.shared.hub
+    }
+
+    fn send(&self, robot: u8, name: &str, args: &[i64], origin: &str) -> Result<String, CommandError> {
+        let def = mib::tc::by_name(name).ok_or_else(|| CommandError(format!("no TC named {name}")))?;
+        let link = self
+            .shared
+            .links
+            .get(&robot)
+            .ok_or_else(|| CommandError(format!("no link to robot {robot}")))?;
+        let apid = mib::apid::robot_apid(robot).ok_or_else(|| CommandError(format!("robot {robot} has no APID")))?;
+        let seq = self
+            .shared
+            .seq
+            .lock()
+            .map_err(|_| CommandError("lock".into()))?
+            .next(apid);
+        let tc = pus::build_tc(robot, seq, def, args).map_err(|e| CommandError(e.to_string()))?;
+        let id = request_id(robot, tc.apid, tc.seq);
+        self.hub().tc_sent(CommandRecord {
+            request_id: id.clone(),
+            robot,
+            name: def.name.to_string(),
+            args: def
+                .args
+                .iter()
+                .map(|a| a.name.to_string())
+                .zip(args.iter().copied())
+                .collect(),
+            sent_ms: now_ms(),
+            origin: origin.to_string(),
+            stages: Vec::new(),
+        });
+        link.send(&tc.bytes)
+            .map_err(|e| CommandError(format!("sending to robot {robot}: {e}")))?;
+        Ok(id)
+    }
+
+    fn run(&self, rx: &crossbeam_channel::Receiver<Incoming>) {
+        let mut last: HashMap<u8, i64> = HashMap::new();
+        while !self.shared.stop.load(Ordering::Relaxed) {
+            match rx.recv_timeout(Duration::from_millis(200)) {
+                Ok(inc) => {
+                    last.insert(inc.robot, inc.t_ms);
+                    self.packet(&inc);
+                }
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => break,
+            }
+            let now = now_ms();
+            for &robot in self.shared.links.keys() {
+                let silent = last.get(&robot).is_none_or(|t| now - t > LOSS_MS);
+                if silent && last.contains_key(&robot) {
+                    self.hub().link(robot, LinkState::Lost);
+                    self.raise(robot, "LINK", "high", "no TM for 3 s", now);
+                } else if !silent {
+                    self.clear(robot, "LINK", now);
+                }
+            }
+        }
+    }
+
+    fn packet(&self, inc: &Incoming) {
+        let tm = match pus::decode_tm(&inc.bytes) {
+            Ok(tm) => tm,
+            Err(e) => {
+                self.hub().event(EventRecord {
+                    robot: inc.robot,
+                    t_ms: inc.t_ms,
+                    name: "GROUND_DECODE_ERROR".into(),
+                    severity: "low".into(),
+                    description: e.to_string(),
+                    params: Vec::new(),
+                });
+                return;
+            }
+        };
+        let robot = tm.robot.unwrap_or(inc.robot);
+        let t = tm.time.unix_ms();
+        self.hub().heard(robot, inc.t_ms);
+        match tm.body {
+            TmBody::Hk(hk) => {
+                let values: Vec<(&str, f64)> = hk.values.iter().map(|v| (v.name, v.eng)).collect();
+                // The MIB's limits assume powered modules (V_REG is 0 V with the regulator
+                // off in standby), so this feed raises limit alarms outside standby only.
+                let powered = hk
+                    .raw(mib::params::pid::MODE)
+                    .is_some_and(|m| m != mib::modes::robot_mode::STANDBY as i64);
+                self.hub().hk(robot, t, &values);
+                for v in &hk.values {
+                    if v.id == mib::params::pid::MODE {
+                        if let Some(n) = mib::modes::mode_name(mib::modes::NodeKind::Root, v.raw as u32) {
+                            self.hub().mode(robot, "ROBOT", n);
+                        }
+                    }
+                    if v.id == mib::params::pid::CONFIG_STATE {
+                        self.hub().config(robot, ConfigState::from_mib(v.raw as u8));
+                    }
+                    let limits = mib::params::by_id(v.id).and_then(|p| p.limits);
+                    match LimitState::check(limits.as_ref(), v.eng) {
+                        LimitState::Hard if powered => {
+                            let msg = format!("{} = {:.3} {} outside the hard limits", v.name, v.eng, v.unit);
+                            self.raise(robot, v.name, "high", &msg, t);
+                        }
+                        LimitState::Ok | LimitState::Soft => self.clear(robot, v.name, t),
+                        LimitState::Hard | LimitState::None => {}
+                    }
+                }
+            }
+            TmBody::Event(ev) => {
+                if ev.id == mib::events::eid::MODE_CHANGED {
+                    if let (Some(node), Some(to)) = (ev.param("node"), ev.param("to")) {
+                        self.node_mode(robot, node as u32, to as u32);
+                    }
+                }
+                if matches!(ev.severity, "medium" | "high") {
+                    self.raise(robot, ev.name, ev.severity, ev.description, t);
+                }
+                self.hub().event(EventRecord {
+                    robot,
+                    t_ms: t,
+                    name: ev.name.to_string(),
+                    severity: ev.severity.to_string(),
+                    description: ev.description.to_string(),
+                    params: ev.params.iter().map(|f| (f.name.clone(), f.value)).collect(),
+                });
+            }
+            TmBody::ModeReply { node, mode, .. } => self.node_mode(robot, node, mode),
+            TmBody::Verification(v) => {
+                let stage = match v.stage {
+                    pus::Stage::Acceptance => Stage::Acceptance,
+                    pus::Stage::Start => Stage::Start,
+                    pus::Stage::Progress => Stage::Progress,
+                    pus::Stage::Completion => Stage::Completion,
+                };
+                let failure = v.failure.map(|f| FailureInfo {
+                    code: f.code,
+                    name: f.name.to_string(),
+                    description: f.description.to_string(),
+                    fields: f.fields.into_iter().map(|x| (x.name, x.value)).collect(),
+                    data_hex: pus::hex(&f.data),
+                });
+                let id = request_id(robot, v.request.apid(), v.request.seq());
+                self.hub().tc_stage(
+                    robot,
+                    &id,
+                    StageReport {
+                        stage,
+                        step: v.step,
+                        t_ms: t,
+                        success: v.success,
+                        failure,
+                    },
+                );
+            }
+            TmBody::DisabledEvents { .. }
+            | TmBody::TimeReport { .. }
+            | TmBody::MonDefinitions { .. }
+            | TmBody::MonTransition { .. }
+            | TmBody::StoreDownlinkDone { .. }
+            | TmBody::PingReply
+            | TmBody::EaDefinitions { .. }
+            | TmBody::ParamValue { .. }
+            | TmBody::ModeCantReach { .. }
+            | TmBody::Unknown { .. } => {}
+        }
+    }
+
+    fn node_mode(&self, robot: u8, node: u32, mode: u32) {
+        if let Some(n) = mib::modes::node_by_id(node) {
+            if let Some(m) = mib::modes::mode_name(n.kind, mode) {
+                self.hub().mode(robot, n.name, m);
+            }
+        }
+    }
+
+    fn raise(&self, robot: u8, source: &str, severity: &str, message: &str, t: i64) {
+        let Ok(mut ids) = self.shared.alarm_ids.lock() else {
+            return;
+        };
+        let key = (robot, source.to_string());
+        let existing = ids.get(&key).and_then(|id| self.hub().alarm_by_id(*id));
+        let rec = match existing {
+            Some(mut a) if a.state != AlarmState::Cleared => {
+                if a.last_ms == t {
+                    return;
+                }
+                a.last_ms = t;
+                a.message = message.to_string();
+                a
+            }
+            _ => {
+                let Ok(mut n) = self.shared.next_alarm.lock() else {
+                    return;
+                };
+                let id = *n;
+                *n += 1;
+                ids.insert(key, id);
+                AlarmRecord {
+                    id,
+                    robot,
+                    source: source.to_string(),
+                    severity: severity.to_string(),
+                    state: AlarmState::Active,
+                    message: message.to_string(),
+                    first_ms: t,
+                    last_ms: t,
+                    shelved_until_ms: None,
+                }
+            }
+        };
+        self.hub().alarm(rec);
+    }
+
+    fn clear(&self, robot: u8, source: &str, t: i64) {
+        let Ok(ids) = self.shared.alarm_ids.lock() else { return };
+        let Some(id) = ids.get(&(robot, source.to_string())) else {
+            return;
+        };
+        if let Some(mut a) = self.hub().alarm_by_id(*id) {
+            // Event alarms stay until acknowledged; condition alarms clear by themselves.
+            if a.state != AlarmState::Cleared && mib::events::by_name(source).is_none() {
+                a.state = AlarmState::Cleared;
+                a.last_ms = t;
+                self.hub().alarm(a);
+            }
+        }
+    }
+
+    fn plan_path(&self, name: &str) -> Result<PathBuf, CommandError> {
+        let dir = self
+            .shared
+            .plans_dir
+            .as_ref()
+            .ok_or_else(|| CommandError("no plan folder given".into()))?;
+        if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_') {
+            return Err(CommandError(format!("\"{name}\" is not a plan name")));
+        }
+        Ok(dir.join(format!("{name}.toml")))
+    }
+
+    /// Runs the steps one at a time in dependency order; each TC step waits for its
+    /// completion report (or failure, or its timeout).
+    fn run_plan(&self, run_id: String, name: String, plan: crate::plan::Plan) {
+        let mut run = PlanRun {
+            run_id,
+            plan: name,
+            state: "running".into(),
+            started_ms: now_ms(),
+            steps: plan
+                .steps
+                .iter()
+                .map(|s| PlanStep {
+                    id: s.id.clone(),
+                    robot: s.robot,
+                    label: s.action.describe(),
+                    state: "waiting".into(),
+                    request_id: None,
+                    detail: String::new(),
+                })
+                .collect(),
+        };
+        self.hub().plan(run.clone());
+        let mut done = vec![false; plan.steps.len()];
+        while let Some(i) = (0..plan.steps.len()).find(|&i| !done[i] && plan.steps[i].deps.iter().all(|&d| done[d])) {
+            let step = &plan.steps[i];
+            run.steps[i].state = "running".into();
+            self.hub().plan(run.clone());
+            let outcome = match step.action.tc() {
+                None => {
+                    if let crate::plan::Action::Wait { seconds } = step.action {
+                        std::thread::sleep(Duration::from_secs_f64(seconds.clamp(0.0, 3600.0)));
+                    }
+                    Ok("waited".to_string())
+                }
+                Some((def, args)) => match self.send(step.robot, def.name, &args, &format!("plan {}", run.plan)) {
+                    Ok(id) => {
+                        run.steps[i].request_id = Some(id.clone());
+                        self.hub().plan(run.clone());
+                        self.wait_for(&id, step.timeout_s.unwrap_or(120.0))
+                    }
+                    Err(e) => Err(e.0),
+                },
+            };
+            match outcome {
+                Ok(d) => {
+                    run.steps[i].state = "done".into();
+                    run.steps[i].detail = d;
+                    done[i] = true;
+                    self.hub().plan(run.clone());
+                }
+                Err(e) => {
+                    run.steps[i].state = "failed".into();
+                    run.steps[i].detail = e;
+                    run.state = "failed".into();
+                    self.hub().plan(run);
+                    return;
+                }
+            }
+        }
+        run.state = "done".into();
+        self.hub().plan(run);
+    }
+
+    fn wait_for(&self, id: &str, timeout_s: f64) -> Result<String, String> {
+        let deadline = std::time::Instant::now() + Duration::from_secs_f64(timeout_s.clamp(1.0, 3600.0));
+        while std::time::Instant::now() < deadline {
+            if let Some(c) = self.hub().command(id) {
+                if let Some(f) = c.stages.iter().find(|s| !s.success) {
+                    let why = f.failure.as_ref().map_or("failed".to_string(), |x| x.name.clone());
+                    return Err(format!("{:?} failed: {why}", f.stage).to_lowercase());
+                }
+                if c.stages.iter().any(|s| s.stage == Stage::Completion) {
+                    return Ok("completed".into());
+                }
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        Err(format!("no completion within {timeout_s} s"))
+    }
+}
+
+impl Commander for LinkFeed {
+    fn send_tc(&self, robot: u8, name: &str, args: &[i64]) -> Result<String, CommandError> {
+        self.send(robot, name, args, "page")
+    }
+
+    fn ack_alarm(&self, id: u64) -> Result<(), CommandError> {
+        let mut a = self
+            .hub()
+            .alarm_by_id(id)
+            .ok_or_else(|| CommandError(format!("no alarm {id}")))?;
+        match a.state {
+            AlarmState::Active | AlarmState::Shelved => {
+                a.state = AlarmState::Acknowledged;
+                a.shelved_until_ms = None;
+                self.hub().alarm(a);
+                Ok(())
+            }
+            AlarmState::Acknowledged => Ok(()),
+            AlarmState::Cleared => Err(CommandError(format!("alarm {id} is cleared"))),
+        }
+    }
+
+    fn shelve_alarm(&self, id: u64, for_ms: i64) -> Result<(), CommandError> {
+        let mut a = self
+            .hub()
+            .alarm_by_id(id)
+            .ok_or_else(|| CommandError(format!("no alarm {id}")))?;
+        a.state = AlarmState::Shelved;
+        a.shelved_until_ms = Some(now_ms() + for_ms);
+        self.hub().alarm(a);
+        Ok(())
+    }
+
+    fn plans(&self) -> Vec<PlanInfo> {
+        let Some(dir) = &self.shared.plans_dir else {
+            return Vec::new();
+        };
+        let Ok(rd) = std::fs::read_dir(dir) else {
+            return Vec::new();
+        };
+        let mut out: Vec<PlanInfo> = rd
+            .filter_map(|e| e.ok())
+            .filter_map(|e| {
+                let p = e.path();
+                let name = p.file_stem()?.to_str()?.to_string();
+                if p.extension()? != "toml" {
+                    return None;
+                }
+                let plan = crate::plan::load(&p).ok()?;
+                Some(PlanInfo {
+                    name,
+                    description: plan.description,
+                })
+            })
+            .collect();
+        out.sort_by(|a, b| a.name.cmp(&b.name));
+        out
+    }
+
+    fn start_plan(&self, name: &str) -> Result<String, CommandError> {
+        let path = self.plan_path(name)?;
+        let plan = crate::plan::load(&path).map_err(|e| CommandError(format!("{}: {e}", path.display())))?;
+        if let Some(r) = plan.robots.iter().find(|r| !self.shared.links.contains_key(&r.number)) {
+            return Err(CommandError(format!(
+                "plan {name} needs robot {}, which is not connected",
+                r.number
+            )));
+        }
+        let run_id = {
+            let mut n = self.shared.next_run.lock().map_err(|_| CommandError("lock".into()))?;
+            *n += 1;
+            format!("{name}-{}", *n - 1)
+        };
+        let me = self.clone();
+        let (rid, pname) = (run_id.clone(), name.to_string());
+        std::thread::Builder::new()
+            .name("dashboard-plan".into())
+            .spawn(move || me.run_plan(rid, pname, plan))
+            .map_err(|e| CommandError(format!("starting the plan: {e}")))?;
+        Ok(run_id)
+    }
+}

@@ -1,0 +1,377 @@
+//! Operator dashboard: a live web page over the fleet, served by the collector.
+//!
+//! The collector (or any other feed) keeps a [`Hub`] up to date through plain methods
+//! with plain data types — robot link state, modes, configuration state, housekeeping
+//! values by MIB name, events, alarms, the PUS 1 stages of every TC and plan progress.
+//! The page reads a snapshot of the hub and then follows it through server-sent
+//! events that resume without loss after a reconnect. Commands from the page go back
+//! to the collector through the [`Commander`] trait; plots read the archive through
+//! the [`Series`] trait (min/max per pixel column) and are extended live from the hub.
+//!
+//! ```text
+//!  collector ──(Hub methods)──► Hub ──(snapshot + SSE)──► page
+//!  collector ◄──(Commander)──── server ◄──(JSON API)───── page
+//!  archive   ◄──(Series)─────── server
+//! ```
+//!
+//! [`serve`] runs the HTTP server (axum on tokio). [`feed`] is a small adapter that
+//! feeds a hub straight from `obsw` links, for the example binary and the browser
+//! tests until the collector mounts the dashboard.
+
+pub mod feed;
+mod hub;
+pub mod mibinfo;
+mod server;
+
+pub use hub::{Hub, HubStats, DEFAULT_LIVE_SAMPLES, DEFAULT_REPLAY};
+pub use server::{serve, spawn, Running, ServeError};
+
+use serde::Serialize;
+
+/// Link state of one robot as the collector sees it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LinkState {
+    /// Not yet connected, or reconnecting after a loss.
+    Connecting,
+    /// TM arrives.
+    Up,
+    /// No TM for longer than the loss timeout.
+    Lost,
+}
+
+/// Configuration state of a robot: the MIB state and the faces its two sides grip.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct ConfigState {
+    /// MIB state name ("Xneg", "Xneg Xpos", …), or "unknown".
+    pub name: String,
+    /// Kind: "matched", "stretch", "turn" or "unknown".
+    pub kind: String,
+    /// Face gripped by side A ("Xpos", "Ypos", "Xneg", "Yneg"), if known.
+    pub face_a: Option<String>,
+    /// Face gripped by side B, if known.
+    pub face_b: Option<String>,
+}
+
+impl ConfigState {
+    /// The configuration state with MIB ID `id` (`mib::robot::STATES`); any other
+    /// value (e.g. `STATE_UNKNOWN`) gives an "unknown" state.
+    pub fn from_mib(id: u8) -> ConfigState {
+        match mib::robot::STATES.get(id as usize) {
+            Some(s) => ConfigState {
+                name: s.name.to_string(),
+                kind: s.kind().name().to_string(),
+                face_a: Some(s.a.name().to_string()),
+                face_b: Some(s.b.name().to_string()),
+            },
+            None => ConfigState {
+                name: "unknown".into(),
+                kind: "unknown".into(),
+                face_a: None,
+                face_b: None,
+            },
+        }
+    }
+}
+
+/// Limit state of a housekeeping value against the MIB's soft and hard limits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LimitState {
+    /// The parameter has no limits in the MIB.
+    None,
+    /// Inside the soft limits.
+    Ok,
+    /// Outside the soft limits, inside the hard limits.
+    Soft,
+    /// Outside the hard limits.
+    Hard,
+}
+
+impl LimitState {
+    /// Checks `value` against `limits`.
+    pub fn check(limits: Option<&mib::Limits>, value: f64) -> LimitState {
+        match limits {
+            None => LimitState::None,
+            Some(l) if value < l.hard_lo || value > l.hard_hi => LimitState::Hard,
+            Some(l) if value < l.soft_lo || value > l.soft_hi => LimitState::Soft,
+            Some(_) => LimitState::Ok,
+        }
+    }
+}
+
+/// An event report (PUS 5) by MIB name.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct EventRecord {
+    pub robot: u8,
+    pub t_ms: i64,
+    /// MIB event name.
+    pub name: String,
+    /// "info", "low", "medium" or "high".
+    pub severity: String,
+    pub description: String,
+    /// Parameters by name.
+    pub params: Vec<(String, i64)>,
+}
+
+/// Alarm state, ISA-18.2 style.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AlarmState {
+    /// Raised and not yet acknowledged.
+    Active,
+    /// Acknowledged by an operator; the condition may still be present.
+    Acknowledged,
+    /// The condition is gone.
+    Cleared,
+    /// Hidden by an operator until `shelved_until_ms`.
+    Shelved,
+}
+
+/// One alarm.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct AlarmRecord {
+    pub id: u64,
+    pub robot: u8,
+    /// Parameter or event name (or "LINK" for link loss).
+    pub source: String,
+    /// "low", "medium" or "high".
+    pub severity: String,
+    pub state: AlarmState,
+    pub message: String,
+    pub first_ms: i64,
+    pub last_ms: i64,
+    pub shelved_until_ms: Option<i64>,
+}
+
+/// PUS 1 verification stage.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Stage {
+    Acceptance,
+    Start,
+    Progress,
+    Completion,
+}
+
+/// A PUS 1 failure: code name and decoded data.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FailureInfo {
+    pub code: u16,
+    /// MIB failure code name.
+    pub name: String,
+    pub description: String,
+    /// Failure data fields by name (decoded with the MIB layout).
+    pub fields: Vec<(String, i64)>,
+    /// Raw failure data in hex.
+    pub data_hex: String,
+}
+
+/// One PUS 1 report of a TC.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct StageReport {
+    pub stage: Stage,
+    /// Step number of a progress report.
+    pub step: Option<u8>,
+    pub t_ms: i64,
+    pub success: bool,
+    pub failure: Option<FailureInfo>,
+}
+
+/// A TC and every verification report received for it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct CommandRecord {
+    pub request_id: String,
+    pub robot: u8,
+    /// MIB TC name.
+    pub name: String,
+    /// Arguments by MIB name.
+    pub args: Vec<(String, i64)>,
+    pub sent_ms: i64,
+    /// Who sent it ("page", "plan NAME", "cli", …).
+    pub origin: String,
+    pub stages: Vec<StageReport>,
+}
+
+impl CommandRecord {
+    /// True once a completion report arrived, or any failure.
+    pub fn finished(&self) -> bool {
+        self.stages.iter().any(|s| s.stage == Stage::Completion || !s.success)
+    }
+}
+
+/// Progress of a plan run.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PlanRun {
+    pub run_id: String,
+    pub plan: String,
+    /// "running", "done" or "failed".
+    pub state: String,
+    pub started_ms: i64,
+    pub steps: Vec<PlanStep>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PlanStep {
+    pub id: String,
+    pub robot: u8,
+    /// What the step does ("RECONFIGURE Xneg → Xpos", …).
+    pub label: String,
+    /// "waiting", "running", "done" or "failed".
+    pub state: String,
+    pub request_id: Option<String>,
+    pub detail: String,
+}
+
+/// A plan the commander can start.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct PlanInfo {
+    pub name: String,
+    pub description: String,
+}
+
+/// Why the commander refused a request (shown on the page as is).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct CommandError(pub String);
+
+impl std::fmt::Display for CommandError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for CommandError {}
+
+/// What the page asks of the collector. Implementations must not block for long: each
+/// call runs on a blocking thread of the server.
+pub trait Commander: Send + Sync + 'static {
+    /// Sends the TC `name` (MIB name) with `args` (raw values in MIB argument order,
+    /// already range-checked against the MIB) to `robot`. Returns the request ID the
+    /// hub's command history uses for it.
+    fn send_tc(&self, robot: u8, name: &str, args: &[i64]) -> Result<String, CommandError>;
+    /// Acknowledges an alarm.
+    fn ack_alarm(&self, id: u64) -> Result<(), CommandError>;
+    /// Shelves an alarm for `for_ms`.
+    fn shelve_alarm(&self, id: u64, for_ms: i64) -> Result<(), CommandError>;
+    /// Plans that can be started.
+    fn plans(&self) -> Vec<PlanInfo>;
+    /// Starts a plan; returns its run ID (progress arrives through [`Hub::plan`]).
+    fn start_plan(&self, name: &str) -> Result<String, CommandError>;
+}
+
+/// Archived samples of one parameter, decimated for plotting.
+pub trait Series: Send + Sync + 'static {
+    /// Minimum and maximum of `param` (MIB name, engineering value) of `robot` in each
+    /// of `columns` equal slices of `[t0_ms, t1_ms)`; one `(slice start, min, max)` per
+    /// slice that holds samples, in time order. See [`decimate`] for the reference.
+    fn decimate(&self, robot: u8, param: &str, t0_ms: i64, t1_ms: i64, columns: usize) -> Vec<(i64, f64, f64)>;
+}
+
+/// A [`Series`] with no archive (plots show what the hub holds live).
+pub struct NoArchive;
+
+impl Series for NoArchive {
+    fn decimate(&self, _: u8, _: &str, _: i64, _: i64, _: usize) -> Vec<(i64, f64, f64)> {
+        Vec::new()
+    }
+}
+
+/// Reference decimation: min/max of `samples` (time-ordered `(t_ms, value)`) per
+/// column of `[t0_ms, t1_ms)` split into `columns` equal slices. Non-finite values are
+/// skipped (a NaN never blanks a column); returns the points and the number skipped.
+pub fn decimate(samples: &[(i64, f64)], t0_ms: i64, t1_ms: i64, columns: usize) -> (Vec<(i64, f64, f64)>, usize) {
+    let mut out: Vec<(i64, f64, f64)> = Vec::new();
+    let mut skipped = 0;
+    if columns == 0 || t1_ms <= t0_ms {
+        return (out, 0);
+    }
+    let span = (t1_ms - t0_ms) as i128;
+    let cols = columns as i128;
+    let mut cur: Option<(i128, f64, f64)> = None;
+    let start = samples.partition_point(|s| s.0 < t0_ms);
+    for &(t, v) in &samples[start..] {
+        if t >= t1_ms {
+            break;
+        }
+        if !v.is_finite() {
+            skipped += 1;
+            continue;
+        }
+        let col = (t - t0_ms) as i128 * cols / span;
+        match &mut cur {
+            Some((c, lo, hi)) if *c == col => {
+                *lo = lo.min(v);
+                *hi = hi.max(v);
+            }
+            _ => {
+                if let Some((c, lo, hi)) = cur.take() {
+                    out.push((column_start(t0_ms, span, cols, c), lo, hi));
+                }
+                cur = Some((col, v, v));
+            }
+        }
+    }
+    if let Some((c, lo, hi)) = cur {
+        out.push((column_start(t0_ms, span, cols, c), lo, hi));
+    }
+    (out, skipped)
+}
+
+fn column_start(t0_ms: i64, span: i128, cols: i128, c: i128) -> i64 {
+    t0_ms + (c * span / cols) as i64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn decimation_keeps_min_and_max_of_every_column() {
+        let s: Vec<(i64, f64)> = (0..1000).map(|i| (i, (i % 10) as f64)).collect();
+        let (d, skipped) = decimate(&s, 0, 1000, 10);
+        assert_eq!(skipped, 0);
+        assert_eq!(d.len(), 10);
+        for (i, p) in d.iter().enumerate() {
+            assert_eq!(*p, (i as i64 * 100, 0.0, 9.0));
+        }
+    }
+
+    #[test]
+    fn one_outlier_stays_a_spike_and_a_nan_blanks_nothing() {
+        let mut s: Vec<(i64, f64)> = (0..100).map(|i| (i, 12.0)).collect();
+        s[50].1 = 1.0e9;
+        s[70].1 = f64::NAN;
+        let (d, skipped) = decimate(&s, 0, 100, 10);
+        assert_eq!(skipped, 1);
+        assert_eq!(d.len(), 10, "every column drawn");
+        assert_eq!(d[5], (50, 12.0, 1.0e9));
+        assert_eq!(d[7], (70, 12.0, 12.0));
+    }
+
+    #[test]
+    fn empty_columns_are_left_out_and_range_is_half_open() {
+        let s = vec![(0, 1.0), (5, 2.0), (99, 3.0), (100, 4.0)];
+        let (d, _) = decimate(&s, 0, 100, 4);
+        assert_eq!(d, vec![(0, 1.0, 2.0), (75, 3.0, 3.0)]);
+        assert!(decimate(&s, 100, 100, 4).0.is_empty());
+        assert!(decimate(&s, 0, 100, 0).0.is_empty());
+    }
+
+    #[test]
+    fn limit_state_follows_the_mib_bands() {
+        let p = mib::params::by_name("V_BAT_A").unwrap();
+        let l = p.limits.as_ref();
+        assert_eq!(LimitState::check(l, 12.0), LimitState::Ok);
+        assert_eq!(LimitState::check(l, 10.2), LimitState::Soft);
+        assert_eq!(LimitState::check(l, 9.5), LimitState::Hard);
+        assert_eq!(LimitState::check(None, 9.5), LimitState::None);
+    }
+
+    #[test]
+    fn config_state_names_faces_from_the_mib() {
+        let c = ConfigState::from_mib(0);
+        assert_eq!(c.name, mib::robot::STATES[0].name);
+        assert_eq!(c.face_a.as_deref(), Some(mib::robot::STATES[0].a.name()));
+        assert_eq!(ConfigState::from_mib(mib::robot::STATE_UNKNOWN).name, "unknown");
+    }
+}

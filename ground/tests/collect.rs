@@ -1,0 +1,335 @@
+//! `ground collect` and `ground alarms` against the real `obsw` binary over loopback:
+//! configuration errors with their place, kill -9 and restart losing and duplicating
+//! nothing, alarms raised by a battery sag and acknowledged or shelved from the CLI,
+//! SIGTERM ending the collector with exit 0, `--status`.
+//!
+//! The obsw binary is `$OBSW_BIN`, or the one next to this test's profile directory
+//! (`cargo build -p obsw`), or it is built into `<target>/ground-obsw`.
+
+use std::collections::BTreeMap;
+use std::io::BufRead;
+use std::net::{SocketAddr, UdpSocket};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::sync::OnceLock;
+use std::time::{Duration, Instant};
+
+const GROUND: &str = env!("CARGO_BIN_EXE_ground");
+
+fn obsw_bin() -> PathBuf {
+    static BIN: OnceLock<PathBuf> = OnceLock::new();
+    BIN.get_or_init(|| {
+        if let Some(p) = std::env::var_os("OBSW_BIN") {
+            return PathBuf::from(p);
+        }
+        let exe = std::env::current_exe().unwrap();
+        let profile_dir = exe.parent().and_then(Path::parent).unwrap();
+        let next = profile_dir.join("obsw");
+        if next.is_file() {
+            return next;
+        }
+        let own = profile_dir.parent().unwrap().join("ground-obsw");
+        let st = Command::new(env!("CARGO"))
+            .args(["build", "-q", "-p", "obsw", "--bin", "obsw"])
+            .env("CARGO_TARGET_DIR", &own)
+            .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+            .status()
+            .expect("running cargo to build obsw");
+        assert!(st.success(), "building obsw failed");
+        own.join("debug").join("obsw")
+    })
+    .clone()
+}
+
+fn free_port() -> u16 {
+    loop {
+        let t = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let p = t.local_addr().unwrap().port();
+        if UdpSocket::bind(("127.0.0.1", p)).is_ok() {
+            return p;
+        }
+    }
+}
+
+struct Proc(Child);
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn start_obsw(robot: u8) -> (Proc, SocketAddr, SocketAddr) {
+    let addr: SocketAddr = ([127, 0, 0, 1], free_port()).into();
+    let ctl: SocketAddr = ([127, 0, 0, 1], free_port()).into();
+    let mut child = Command::new(obsw_bin())
+        .args(["--robot", &robot.to_string(), "--udp", &addr.to_string()])
+        .args(["--tcp", &addr.to_string(), "--sim-ctl", &ctl.to_string()])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("starting obsw");
+    let out = child.stdout.take().unwrap();
+    let mut lines = std::io::BufReader::new(out).lines();
+    let ready = lines.next().and_then(Result::ok).unwrap_or_default();
+    assert!(ready.starts_with("READY"), "obsw did not start: {ready:?}");
+    std::thread::spawn(move || for _ in lines {});
+    (Proc(child), addr, ctl)
+}
+
+fn tmpdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("ground-collect-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn ground(dir: &Path, args: &[&str]) -> Output {
+    Command::new(GROUND)
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .expect("running ground")
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+fn collector(dir: &Path, robots: &[String]) -> Proc {
+    let mut c = Command::new(GROUND);
+    c.current_dir(dir).args(["--archive", "a.db", "collect", "--plain"]);
+    for r in robots {
+        c.args(["--robot", r]);
+    }
+    let log = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(dir.join("collect.log"))
+        .unwrap();
+    Proc(
+        c.stdout(Stdio::null())
+            .stderr(Stdio::from(log))
+            .spawn()
+            .expect("starting ground collect"),
+    )
+}
+
+fn signal(p: &Proc, sig: &str) {
+    let st = Command::new("kill")
+        .args([sig, &p.0.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(st.success());
+}
+
+fn wait_exit(p: &mut Proc, limit: Duration) -> Option<i32> {
+    let t0 = Instant::now();
+    while t0.elapsed() < limit {
+        if let Some(s) = p.0.try_wait().unwrap() {
+            return s.code();
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    None
+}
+
+/// Sequence counts of robot 1's APID in the archive, with how often each is stored.
+fn archived_seqs(dir: &Path) -> BTreeMap<i64, u32> {
+    let out = ground(
+        dir,
+        &["--archive", "a.db", "archive", "query", "--type", "tm", "--json"],
+    );
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    let mut m = BTreeMap::new();
+    for line in String::from_utf8_lossy(&out.stdout).lines() {
+        let v: serde_json::Value = serde_json::from_str(line).unwrap();
+        if v["apid"] == 0x101 {
+            *m.entry(v["seq"].as_i64().unwrap()).or_insert(0) += 1;
+        }
+    }
+    m
+}
+
+#[test]
+fn check_config_names_file_line_and_column() {
+    let dir = tmpdir("cfg");
+    std::fs::write(
+        dir.join("bad.toml"),
+        "retain = \"30 days\"\n[link]\nmax_backoff_ms = 9000\n[[robot]]\nnumber = 1\naddres = \"x\"\n",
+    )
+    .unwrap();
+    let out = ground(&dir, &["collect", "--check-config", "bad.toml"]);
+    assert_eq!(out.status.code(), Some(3), "{}", text(&out));
+    let t = text(&out);
+    assert!(t.contains("bad.toml:6:1: unknown field `addres`"), "{t}");
+    std::fs::write(
+        dir.join("bad2.toml"),
+        "retain = \"30 days\"\n[link]\nmax_backoff_ms = 9000\n",
+    )
+    .unwrap();
+    let t = text(&ground(&dir, &["collect", "--check-config", "bad2.toml"]));
+    assert!(t.contains("bad2.toml:1:10: retain"), "{t}");
+    assert!(t.contains("bad2.toml:3:18: max_backoff_ms = 9000"), "{t}");
+    std::fs::write(
+        dir.join("good.toml"),
+        "retain = \"30d\"\n[[robot]]\nnumber = 1\naddr = \"127.0.0.1:7301\"\n",
+    )
+    .unwrap();
+    let out = ground(&dir, &["collect", "--check-config", "good.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    // The shipped example configuration is valid.
+    let example = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/collector.example.toml");
+    let out = ground(&dir, &["collect", "--check-config", example]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+}
+
+#[test]
+fn kill_9_and_restart_lose_and_duplicate_nothing_alarms_and_sigterm() {
+    let (_o, addr, ctl) = start_obsw(1);
+    let dir = tmpdir("kill");
+    let robots = vec![format!("1={addr}"), "2=127.0.0.1:9".to_string()];
+    let mut c = collector(&dir, &robots);
+    std::thread::sleep(Duration::from_secs(5));
+    signal(&c, "-KILL");
+    assert!(
+        wait_exit(&mut c, Duration::from_secs(2)).is_none(),
+        "killed, no exit code"
+    );
+    // The obsw goes on while nobody collects.
+    std::thread::sleep(Duration::from_secs(6));
+    let mut c = collector(&dir, &robots);
+    std::thread::sleep(Duration::from_secs(3));
+    let out = ground(&dir, &["sim", "--addr", &ctl.to_string(), "battery-sag", "10.3"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    std::thread::sleep(Duration::from_secs(6));
+    let t0 = Instant::now();
+    signal(&c, "-TERM");
+    assert_eq!(
+        wait_exit(&mut c, Duration::from_secs(5)),
+        Some(0),
+        "SIGTERM: exit 0 within 5 s"
+    );
+    eprintln!("collector stopped in {:?}", t0.elapsed());
+    let log = std::fs::read_to_string(dir.join("collect.log")).unwrap();
+
+    // Every count from the first to the last archived, each once: the 6 s while the
+    // collector was dead came from the on-board store.
+    let seqs = archived_seqs(&dir);
+    let (first, last) = (*seqs.keys().next().unwrap(), *seqs.keys().last().unwrap());
+    let missing: Vec<i64> = (first..=last).filter(|s| !seqs.contains_key(s)).collect();
+    let twice: Vec<_> = seqs.iter().filter(|(_, n)| **n > 1).collect();
+    assert!(missing.is_empty(), "missing {missing:?}\n{log}");
+    assert!(twice.is_empty(), "stored twice {twice:?}\n{log}");
+    assert_eq!(first, 0, "from the obsw's first packet (BOOT)");
+    assert!(last - first > 20, "{seqs:?}");
+
+    // Alarms: the sagging battery (soft limit 10.5 V) and the robot that never answered.
+    let out = ground(&dir, &["--archive", "a.db", "alarms", "list", "--json"]);
+    let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let find = |robot: i64, src: &str| {
+        rows.iter()
+            .find(|r| r["robot"] == robot && r["source"] == src)
+            .unwrap_or_else(|| panic!("no {src} alarm for robot {robot}: {rows:?}\n{log}"))
+            .clone()
+    };
+    let bat = find(1, "V_BAT_A");
+    assert_eq!(
+        (bat["severity"].as_str(), bat["state"].as_str()),
+        (Some("medium"), Some("active"))
+    );
+    let link = find(2, "LINK_LOSS");
+    assert_eq!(link["severity"], "high");
+    let id = bat["id"].to_string();
+    let out = ground(&dir, &["--archive", "a.db", "alarms", "ack", &id]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    assert!(text(&out).contains("acknowledged"));
+    let out = ground(&dir, &["--archive", "a.db", "alarms", "ack", &id]);
+    assert_eq!(out.status.code(), Some(3), "acknowledging twice is refused");
+    let lid = link["id"].to_string();
+    let out = ground(&dir, &["--archive", "a.db", "alarms", "shelve", &lid, "--for", "1h"]);
+    assert!(text(&out).contains("shelved"), "{}", text(&out));
+    let out = ground(&dir, &["--archive", "a.db", "alarms", "list"]);
+    assert!(text(&out).contains("shelved<"), "{}", text(&out));
+
+    // Health: when each robot was last heard.
+    let out = ground(&dir, &["--archive", "a.db", "collect", "--status"]);
+    let t = text(&out);
+    assert!(t.contains(&addr.to_string()) && t.contains("never"), "{t}");
+}
+
+#[test]
+fn full_disk_raises_an_alarm_and_the_collector_goes_on_losing_nothing() {
+    let (_o, addr, _ctl) = start_obsw(1);
+    let dir = tmpdir("full");
+    // Log lines through a pipe: a file would hit the same size limit.
+    let mut child = Command::new(GROUND)
+        .current_dir(&dir)
+        .args([
+            "--archive",
+            "a.db",
+            "collect",
+            "--plain",
+            "--robot",
+            &format!("1={addr}"),
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("starting ground collect");
+    let err = child.stderr.take().unwrap();
+    let log = std::sync::Arc::new(std::sync::Mutex::new(String::new()));
+    let sink = log.clone();
+    std::thread::spawn(move || {
+        for l in std::io::BufReader::new(err).lines().map_while(Result::ok) {
+            sink.lock().unwrap().push_str(&(l + "\n"));
+        }
+    });
+    let mut c = Proc(child);
+    std::thread::sleep(Duration::from_secs(4));
+    // The "disk" is full: no file of the collector may grow past 4 KiB.
+    let pid = c.0.id().to_string();
+    let st = Command::new("prlimit")
+        .args(["--pid", &pid, "--fsize=4096:unlimited"])
+        .status()
+        .expect("prlimit (util-linux)");
+    assert!(st.success());
+    std::thread::sleep(Duration::from_secs(6));
+    assert!(c.0.try_wait().unwrap().is_none(), "still running on a full disk");
+    let st = Command::new("prlimit")
+        .args(["--pid", &pid, "--fsize=unlimited:unlimited"])
+        .status()
+        .unwrap();
+    assert!(st.success());
+    std::thread::sleep(Duration::from_secs(6));
+    signal(&c, "-TERM");
+    assert_eq!(wait_exit(&mut c, Duration::from_secs(5)), Some(0));
+    let log = log.lock().unwrap().clone();
+    assert!(log.contains("archive: cannot write"), "{log}");
+    assert!(log.contains("writable again"), "{log}");
+
+    let conn = rusqlite::Connection::open(dir.join("a.db")).unwrap();
+    let ok: String = conn.query_row("PRAGMA integrity_check", [], |r| r.get(0)).unwrap();
+    assert_eq!(ok, "ok");
+    let seqs = archived_seqs(&dir);
+    let (first, last) = (*seqs.keys().next().unwrap(), *seqs.keys().last().unwrap());
+    let missing: Vec<i64> = (first..=last).filter(|s| !seqs.contains_key(s)).collect();
+    let twice: Vec<_> = seqs.iter().filter(|(_, n)| **n > 1).collect();
+    assert!(
+        missing.is_empty() && twice.is_empty(),
+        "missing {missing:?} twice {twice:?}\n{log}"
+    );
+    assert!(last - first > 30, "{seqs:?}");
+    let out = ground(&dir, &["--archive", "a.db", "alarms", "list", "--all", "--json"]);
+    let t = text(&out);
+    assert!(t.contains("\"source\":\"ARCHIVE_WRITE\""), "{t}");
+    assert!(t.contains("\"state\":\"cleared\""), "{t}");
+}

@@ -1,0 +1,201 @@
+// Drives the real dashboard page in headless Chromium (Debian's package) against two
+// real obsw processes fed through ground::dashboard::feed (examples/dashboard_demo).
+// Usage: node e2e.mjs DEMO_BINARY [SCREENSHOT_DIR]
+// Checks: both robots shown with modes and live values; a PING sent from the page
+// completes with its stages; a battery sag injected through the simulator control
+// port raises an alarm that is acknowledged from the page; a plan started from the
+// page shows step progress; the event stream resumes after a reconnect.
+import { spawn } from 'node:child_process';
+import { createInterface } from 'node:readline';
+import { createSocket } from 'node:dgram';
+import { mkdtempSync, rmSync } from 'node:fs';
+import { tmpdir } from 'node:os';
+import { join } from 'node:path';
+import { chromium } from 'playwright-core';
+
+const [demoBin, shotDir] = process.argv.slice(2);
+if (!demoBin) {
+  console.error('usage: node e2e.mjs DEMO_BINARY [SCREENSHOT_DIR]');
+  process.exit(2);
+}
+const T = 60_000; // generous: the machine is shared
+let failures = 0;
+const step = async (name, fn) => {
+  const t0 = Date.now();
+  try {
+    await fn();
+    console.log(`ok   ${name} (${Date.now() - t0} ms)`);
+  } catch (e) {
+    failures++;
+    console.log(`FAIL ${name}: ${e.message.split('\n')[0]}`);
+  }
+};
+const assert = (c, msg) => { if (!c) throw new Error(msg); };
+
+const demo = spawn(demoBin, ['--robots', '2', '--speed', '1'], { stdio: ['pipe', 'pipe', 'inherit'] });
+const info = await new Promise((resolve, reject) => {
+  const rl = createInterface({ input: demo.stdout });
+  rl.once('line', (l) => resolve(JSON.parse(l)));
+  demo.once('exit', (c) => reject(new Error('dashboard_demo exited with ' + c)));
+  setTimeout(() => reject(new Error('dashboard_demo did not start')), T);
+});
+console.log('dashboard at', info.url);
+
+const profile = mkdtempSync(join(tmpdir(), 'dash-chromium-'));
+const browser = await chromium.launchPersistentContext(profile, {
+  executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
+  headless: true,
+  viewport: { width: 1400, height: 900 },
+  args: ['--no-sandbox', '--disable-gpu', '--disable-background-networking', '--disable-component-update',
+    '--disable-sync', '--no-first-run'],
+});
+const page = browser.pages()[0] || await browser.newPage();
+page.setDefaultTimeout(T);
+page.on('pageerror', (e) => { failures++; console.log('FAIL page error:', e.message); });
+page.on('dialog', (d) => { console.log('dialog:', d.message()); d.dismiss(); });
+const shot = async (name) => { if (shotDir) await page.screenshot({ path: join(shotDir, name), fullPage: false }); };
+const tab = (v) => page.click(`#tabs button[data-view="${v}"]`);
+
+async function sendTc(robot, name, args = {}, hazardous = false) {
+  await tab('commands');
+  await page.selectOption('#tc-robot', String(robot));
+  await page.selectOption('#tc-name', name);
+  for (const [k, v] of Object.entries(args)) {
+    const sel = `#tc-args [name="${k}"]`;
+    if (await page.$eval(sel, (e) => e.tagName) === 'SELECT') await page.selectOption(sel, String(v));
+    else await page.fill(sel, String(v));
+  }
+  await page.evaluate(() => { delete document.querySelector('#tc-result').dataset.request; });
+  await page.click('#tc-send');
+  if (hazardous) {
+    await page.waitForSelector('#modal:not([hidden])');
+    await page.click('#modal-yes');
+  }
+  await page.waitForFunction(() => document.querySelector('#tc-result').dataset.request || document.querySelector('#tc-result.bad'));
+  const id = await page.$eval('#tc-result', (e) => e.dataset.request || e.textContent);
+  assert(!/error|outside|no /.test(id), `${name} refused: ${id}`);
+  return id;
+}
+
+try {
+  await page.goto(info.url);
+
+  await step('fleet shows both robots with modes and live values', async () => {
+    for (const n of [1, 2]) {
+      await page.waitForFunction((n) => {
+        const c = document.querySelector('#robot-' + n);
+        return c && /STANDBY|OPERATIONAL|SAFED/.test(c.querySelector('.mode').textContent)
+          && /\d+\.\d+ V/.test(c.querySelector('[data-param="V_BAT_A"]').textContent)
+          && c.querySelector('.link').textContent === 'up'
+          && c.querySelector('svg.voxel .grip');
+      }, n);
+    }
+    const v1 = await page.$eval('#robot-1 [data-param="V_BAT_A"]', (e) => e.textContent);
+    await page.waitForFunction((v) => document.querySelector('#robot-1 [data-param="I_BAT"]').textContent !== '—', v1);
+    // live: the last-heard age keeps being small
+    const age = await page.$eval('#robot-1 .age', (e) => e.textContent);
+    assert(/heard (< 1|\d+) s ago/.test(age), 'age shown: ' + age);
+    const tree = await page.$eval('#robot-1 .modetree', (e) => e.textContent);
+    assert(tree.includes('SIDE_A') && tree.includes('GRIPPER_B'), 'mode tree: ' + tree);
+    await shot('dashboard-fleet.png');
+  });
+
+  await step('PING sent from the page completes with its stages shown', async () => {
+    const id = await sendTc(1, 'PING');
+    await page.waitForSelector(`#history tr[data-request="${id}"] td[data-stage="completion"] .ok`);
+    const acc = await page.$eval(`#history tr[data-request="${id}"] td[data-stage="acceptance"]`, (e) => e.textContent);
+    assert(acc.startsWith('✓'), 'acceptance shown: ' + acc);
+    const api = await page.evaluate(async (id) => (await fetch('/api/tc/' + id)).json(), id);
+    const stages = api.stages.map((s) => s.stage + ':' + s.success);
+    assert(stages.includes('acceptance:true') && stages.includes('completion:true'), 'API stages ' + stages);
+  });
+
+  await step('a refused TC shows its failure code name', async () => {
+    // RECONFIGURE is refused in standby: acceptance or start fails with a MIB code name.
+    const id = await sendTc(2, 'RECONFIGURE', { from: 'Xneg', to: 'Xpos' });
+    await page.waitForSelector(`#history tr[data-request="${id}"] .failure`);
+    const f = await page.$eval(`#history tr[data-request="${id}"] .failure`, (e) => e.textContent);
+    assert(/[A-Z_]{4,}/.test(f), 'failure name: ' + f);
+    await shot('dashboard-commands.png');
+  });
+
+  await step('injected battery sag raises an alarm that is acknowledged from the page', async () => {
+    await sendTc(1, 'MODE_SET', { node: 'ROBOT', mode: 'OPERATIONAL', submode: 0 }, true);
+    await tab('fleet');
+    await page.waitForFunction(() => document.querySelector('#robot-1 .mode').textContent === 'OPERATIONAL');
+    const ctl = info.robots.find((r) => r.robot === 1).sim_ctl.split(':');
+    const sock = createSocket('udp4');
+    await new Promise((res, rej) => sock.send('battery-sag 9.2\n', Number(ctl[1]), ctl[0], (e) => (e ? rej(e) : res())));
+    sock.close();
+    await page.waitForSelector('#robot-1 .ralarms .alarm button.ack');
+    const text = await page.$eval('#robot-1 .ralarms', (e) => e.textContent);
+    assert(/V_BAT|LOW_BATTERY/.test(text), 'battery alarm: ' + text);
+    await shot('dashboard-alarm.png');
+    await tab('alarms');
+    await page.waitForSelector('#alarms tr.st-active button.ack');
+    await shot('dashboard-alarms.png');
+    const id = await page.$eval('#alarms tr.st-active', (e) => e.dataset.alarm);
+    await page.click(`#alarms tr[data-alarm="${id}"] button.ack`);
+    await page.waitForSelector(`#alarms tr[data-alarm="${id}"].st-acknowledged`);
+    const sock2 = createSocket('udp4');
+    await new Promise((res, rej) => sock2.send('clear\n', Number(ctl[1]), ctl[0], (e) => (e ? rej(e) : res())));
+    sock2.close();
+  });
+
+  await step('events list names events and their parameters', async () => {
+    await tab('events');
+    await page.waitForSelector('#events tbody tr');
+    const t = await page.$eval('#events tbody', (e) => e.textContent);
+    assert(/MODE_CHANGED/.test(t) && /OPERATIONAL/.test(t), 'events: ' + t.slice(0, 200));
+    await shot('dashboard-events.png');
+  });
+
+  await step('telemetry table has units and limit colours; plot draws', async () => {
+    await tab('hk');
+    await page.selectOption('#hk-robot', '1');
+    await page.waitForSelector('#hk-table tr[data-param="V_BAT_A"][class^="lim-"]');
+    const unit = await page.$eval('#hk-table tr[data-param="V_BAT_A"] td:nth-child(3)', (e) => e.textContent);
+    assert(unit === 'V', 'unit of V_BAT_A: ' + unit);
+    assert(await page.$('#hk-table tr.lim-hard, #hk-table tr.lim-soft'), 'some value out of limits is coloured');
+    await page.click('#hk-table tr[data-param="V_BAT_A"] a');
+    await page.waitForSelector('#plot .u-over');
+    await page.click('[data-range="60"]');
+    const mode = await page.$eval('#hk-table tr[data-param="MODE"] td.num', (e) => e.textContent);
+    assert(/STANDBY|OPERATIONAL|SAFED/.test(mode), 'MODE by name: ' + mode);
+    await page.waitForFunction(() => /columns/.test(document.querySelector('#plot-info').textContent));
+    await shot('dashboard-telemetry.png');
+  });
+
+  await step('event stream resumes after a reconnect without loss', async () => {
+    const r = await page.evaluate(async () => {
+      // Count messages with IDs; drop the connection; the browser reconnects with
+      // Last-Event-ID and the IDs must continue without a gap.
+      const seen = [];
+      const q = new URLSearchParams({ since: String(window.dashState.lastId) });
+      const es1 = new EventSource('/api/stream?' + q);
+      await new Promise((res) => { es1.onmessage = (e) => { seen.push(Number(e.lastEventId)); if (seen.length >= 5) res(); }; });
+      es1.close();
+      await new Promise((r) => setTimeout(r, 1500));
+      const es2 = new EventSource('/api/stream?since=' + seen[seen.length - 1]);
+      await new Promise((res) => { es2.onmessage = (e) => { seen.push(Number(e.lastEventId)); if (seen.length >= 40) res(); }; });
+      es2.close();
+      return seen;
+    });
+    for (let i = 1; i < r.length; i++) assert(r[i] === r[i - 1] + 1, `gap between ${r[i - 1]} and ${r[i]}`);
+  });
+
+  await step('plan started from the page shows live step progress', async () => {
+    await tab('plans');
+    await page.waitForSelector('button[data-plan="checkout"]');
+    await page.click('button[data-plan="checkout"]');
+    await page.waitForSelector('.run tr.step-done');
+    await shot('dashboard-plans.png');
+  });
+} finally {
+  await browser.close();
+  rmSync(profile, { recursive: true, force: true });
+  demo.stdin.end();
+  await new Promise((r) => { demo.once('exit', r); setTimeout(() => { demo.kill('SIGKILL'); r(); }, 5000); });
+}
+console.log(failures ? `${failures} check(s) failed` : 'all dashboard browser checks passed');
+process.exit(failures ? 1 : 0);

@@ -1,0 +1,321 @@
+//! Everything that leaves the OBSW goes through [`Downlink`]: service reports (stamped
+//! by the [`TmWriter`]), PUS 1 verification reports (through sat-rs's
+//! `VerificationReportCreator`, driven by typestate tokens), PUS 5 events (enable mask
+//! and throttling) and the copy kept in the on-board store.
+//!
+//! Verification follows the request's life: [`Downlink::accept`] turns a fresh token
+//! into an accepted one, [`Downlink::start`] an accepted one into a started one, and
+//! [`Downlink::complete`] / [`Downlink::fail_completion`] consume the started token.
+//! Each failure consumes the token of its stage, so no report can be written for a
+//! stage the request is not in, and none twice. The tokens are sat-rs's
+//! `VerificationToken<TcStateAccepted/Started>`; only this module advances them.
+
+use mib::config;
+use mib::events::{self, EVENTS};
+use mib::tc::service;
+use satrs::pus::verification::{
+    FailParams, FailParamsWithStep, RequestId as SatrsRequestId, TcStateAccepted, TcStateNone, TcStateStarted,
+    VerificationReportCreator, VerificationToken,
+};
+use satrs::spacepackets::ecss::tm::PusTmCreator;
+use satrs::spacepackets::ecss::{EcssEnumU16, EcssEnumU8};
+use satrs::spacepackets::ByteConversionError;
+
+use crate::accept::{Ack, RequestId};
+use crate::failure::Failure;
+use crate::time::OnboardTime;
+use crate::tm::{TmSink, TmStore, TmWriter};
+
+const N_EVENTS: usize = EVENTS.len();
+const _: () = assert!(N_EVENTS <= 64, "event enable mask is a u64");
+
+/// A request's verification token with the acknowledgement flags the TC asked for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Token<State> {
+    tok: VerificationToken<State>,
+    pub ack: Ack,
+    pub req: RequestId,
+}
+
+pub type New = Token<TcStateNone>;
+pub type Accepted = Token<TcStateAccepted>;
+pub type Started = Token<TcStateStarted>;
+
+impl New {
+    /// The token of a TC that has just arrived.
+    pub fn new(req: RequestId, ack: Ack) -> Self {
+        Token {
+            tok: VerificationToken::<TcStateNone>::new(SatrsRequestId::from(req.raw())),
+            ack,
+            req,
+        }
+    }
+}
+
+/// The verification stage a failure was reported at (kept for duplicate TCs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    Acceptance,
+    Start,
+    Completion,
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+struct Throttle {
+    window_start: u64,
+    count: u8,
+}
+
+/// Event reporting state (PUS 5): enable mask, throttling and counters.
+pub struct Events {
+    disabled: u64,
+    throttle: [Throttle; N_EVENTS],
+    pub throttled: u32,
+}
+
+impl Default for Events {
+    fn default() -> Self {
+        Events {
+            disabled: 0,
+            throttle: [Throttle::default(); N_EVENTS],
+            throttled: 0,
+        }
+    }
+}
+
+/// Index of an event in `mib::events::EVENTS`; only made from a defined event ID.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct EventIndex(usize);
+
+impl EventIndex {
+    pub fn of(id: u16) -> Option<Self> {
+        EVENTS.iter().position(|e| e.id == id).map(EventIndex)
+    }
+}
+
+impl Events {
+    pub fn set_enabled(&mut self, e: EventIndex, enabled: bool) {
+        if enabled {
+            self.disabled &= !(1 << e.0);
+        } else {
+            self.disabled |= 1 << e.0;
+        }
+    }
+    pub fn is_enabled(&self, e: EventIndex) -> bool {
+        self.disabled & (1 << e.0) == 0
+    }
+    /// True when the event may be reported now (enabled and not throttled); counts it.
+    fn admit(&mut self, now: u64, e: EventIndex) -> bool {
+        if !self.is_enabled(e) {
+            return false;
+        }
+        let id = EVENTS[e.0].id;
+        let t = &mut self.throttle[e.0];
+        if now.saturating_sub(t.window_start) >= config::EVENT_THROTTLE_WINDOW_MS as u64 {
+            *t = Throttle {
+                window_start: now,
+                count: 0,
+            };
+        }
+        if !events::UNTHROTTLED.contains(&id) && t.count >= config::EVENT_THROTTLE_MAX {
+            self.throttled = self.throttled.wrapping_add(1);
+            return false;
+        }
+        t.count = t.count.saturating_add(1);
+        true
+    }
+}
+
+/// The TM path of one robot.
+pub struct Downlink<S: TmStore> {
+    pub tmw: TmWriter,
+    verif: VerificationReportCreator,
+    pub store: S,
+    pub store_enabled: bool,
+    pub store_dropped: u32,
+    pub events: Events,
+}
+
+impl<S: TmStore> Downlink<S> {
+    pub fn new(apid: u16, time: OnboardTime, store: S) -> Self {
+        let tmw = TmWriter::new(apid, time);
+        let verif = VerificationReportCreator::new(tmw.apid_u11());
+        Downlink {
+            tmw,
+            verif,
+            store,
+            store_enabled: true,
+            store_dropped: 0,
+            events: Events::default(),
+        }
+    }
+
+    /// Stamps and sends a service report.
+    pub fn emit(&mut self, now: u64, svc: u8, sub: u8, data: &[u8], sink: &mut impl TmSink) {
+        let mut buf = [0u8; config::MAX_PACKET_LEN];
+        if let Some(n) = self.tmw.build(now, svc, sub, data, &mut buf) {
+            self.send_raw(&buf[..n], sink);
+        }
+    }
+
+    /// Sends a finished packet and keeps a copy in the store.
+    pub fn send_raw(&mut self, pkt: &[u8], sink: &mut impl TmSink) {
+        sink.send_tm(pkt);
+        self.tmw.sent = self.tmw.sent.wrapping_add(1);
+        if self.store_enabled && self.store.push(pkt) {
+            self.store_dropped = self.store_dropped.wrapping_add(1);
+        }
+    }
+
+    /// Emits an event report unless the event is disabled or throttled.
+    pub fn event(&mut self, now: u64, id: u16, args: &[i64], sink: &mut impl TmSink) {
+        let Some(e) = EventIndex::of(id) else { return };
+        if !self.events.admit(now, e) {
+            return;
+        }
+        let def = &EVENTS[e.0];
+        let mut buf = [0u8; 64];
+        if let Ok(n) = mib::codec::encode_event(def, args, &mut buf) {
+            self.emit(now, service::EVENT, def.severity.subservice(), &buf[..n], sink);
+        }
+    }
+
+    // ------------------------------------------------------------ verification
+
+    fn report(
+        &mut self,
+        now: u64,
+        sink: &mut impl TmSink,
+        make: impl for<'s> FnOnce(
+            &VerificationReportCreator,
+            &'s mut [u8],
+            arbitrary_int::u14,
+            u16,
+            &'s [u8],
+        ) -> Result<PusTmCreator<'s, 's>, ByteConversionError>,
+    ) {
+        let stamp = self.tmw.time.cds(now);
+        let seq = TmWriter::seq_u14(self.tmw.next_seq());
+        let msg = self.tmw.next_msg_count(service::VERIFICATION);
+        let mut src = [0u8; 64];
+        let mut out = [0u8; config::MAX_PACKET_LEN];
+        let n = make(&self.verif, &mut src, seq, msg, &stamp).and_then(|t| t.write_to_bytes(&mut out));
+        if let Ok(n) = n {
+            self.send_raw(&out[..n], sink);
+        }
+    }
+
+    /// TM[1,1] (if asked for): the request is accepted.
+    pub fn accept(&mut self, now: u64, t: New, sink: &mut impl TmSink) -> Accepted {
+        let rid = t.tok.request_id();
+        if t.ack.acceptance() {
+            self.report(now, sink, |v, s, seq, msg, st| {
+                v.acceptance_success(s, &rid, seq, msg, st)
+            });
+        }
+        Token {
+            tok: VerificationToken::new_accepted_state(rid),
+            ack: t.ack,
+            req: t.req,
+        }
+    }
+
+    /// TM[1,2]: the request is refused (always reported).
+    pub fn reject(&mut self, now: u64, t: New, f: &Failure, sink: &mut impl TmSink) {
+        self.fail(now, t.tok.request_id(), Stage::Acceptance, f, sink);
+    }
+
+    /// TM[1,3] (if asked for): execution started.
+    pub fn start(&mut self, now: u64, t: Accepted, sink: &mut impl TmSink) -> Started {
+        let rid = t.tok.request_id();
+        if t.ack.start() {
+            self.report(now, sink, |v, s, seq, msg, st| v.start_success(s, &rid, seq, msg, st));
+        }
+        Token {
+            tok: VerificationToken::new_started_state(rid),
+            ack: t.ack,
+            req: t.req,
+        }
+    }
+
+    /// TM[1,4]: execution could not start (always reported).
+    pub fn fail_start(&mut self, now: u64, t: Accepted, f: &Failure, sink: &mut impl TmSink) {
+        self.fail(now, t.tok.request_id(), Stage::Start, f, sink);
+    }
+
+    /// TM[1,5] (if asked for): progress step `n` done.
+    pub fn step(&mut self, now: u64, t: &Started, n: u8, sink: &mut impl TmSink) {
+        if !t.ack.progress() {
+            return;
+        }
+        let rid = t.tok.request_id();
+        self.report(now, sink, |v, s, seq, msg, st| {
+            v.step_success(s, &rid, seq, msg, st, EcssEnumU8::new(n))
+        });
+    }
+
+    /// TM[1,6]: progress step `n` failed; the request ends (always reported).
+    pub fn fail_step(&mut self, now: u64, t: Started, n: u8, f: &Failure, sink: &mut impl TmSink) {
+        let code = EcssEnumU16::new(f.code().code());
+        let step = EcssEnumU8::new(n);
+        self.report(now, sink, |v, s, seq, msg, st| {
+            v.step_failure(s, t.tok, seq, msg, FailParamsWithStep::new(st, &step, &code, f.data()))
+        });
+    }
+
+    /// TM[1,7] (if asked for): the request completed.
+    pub fn complete(&mut self, now: u64, t: Started, sink: &mut impl TmSink) {
+        if t.ack.completion() {
+            self.repeat_completion(now, t.req, sink);
+        }
+    }
+
+    /// TM[1,8]: the request failed (always reported).
+    pub fn fail_completion(&mut self, now: u64, t: Started, f: &Failure, sink: &mut impl TmSink) {
+        self.fail(now, t.tok.request_id(), Stage::Completion, f, sink);
+    }
+
+    /// Repeats TM[1,7] for a duplicate of a request that completed.
+    pub fn repeat_completion(&mut self, now: u64, req: RequestId, sink: &mut impl TmSink) {
+        let rid = SatrsRequestId::from(req.raw());
+        self.report(now, sink, |v, s, seq, msg, st| {
+            v.completion_success(s, &rid, seq, msg, st)
+        });
+    }
+
+    /// Repeats TM[1,1] for a duplicate of an accepted request.
+    pub fn repeat_acceptance(&mut self, now: u64, req: RequestId, sink: &mut impl TmSink) {
+        let rid = SatrsRequestId::from(req.raw());
+        self.report(now, sink, |v, s, seq, msg, st| {
+            v.acceptance_success(s, &rid, seq, msg, st)
+        });
+    }
+
+    /// A failure report at `stage`; used for the first report (through the token
+    /// methods above) and to repeat it for a duplicate.
+    pub fn fail(
+        &mut self,
+        now: u64,
+        rid: impl Into<SatrsRequestId>,
+        stage: Stage,
+        f: &Failure,
+        sink: &mut impl TmSink,
+    ) {
+        let rid = rid.into();
+        let code = EcssEnumU16::new(f.code().code());
+        self.report(now, sink, |v, s, seq, msg, st| {
+            let p = FailParams::new(st, &code, f.data());
+            match stage {
+                Stage::Acceptance => v.acceptance_failure(s, &rid, seq, msg, p),
+                Stage::Start => v.start_failure(s, &rid, seq, msg, p),
+                Stage::Completion => v.completion_failure(s, &rid, seq, msg, p),
+            }
+        });
+    }
+}
+
+impl From<RequestId> for SatrsRequestId {
+    fn from(r: RequestId) -> Self {
+        SatrsRequestId::from(r.raw())
+    }
+}

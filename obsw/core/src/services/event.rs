@@ -1,0 +1,82 @@
+//! PUS 5 event reporting: enable/disable per event and the list of disabled events
+//! (TM[5,8]). Emission, enable mask and throttling live in `crate::downlink::Events`.
+
+use mib::events::EVENTS;
+use mib::tc::service;
+
+use crate::accept::Tc;
+use crate::downlink::EventIndex;
+use crate::failure::Failure;
+use crate::obsw::Obsw;
+use crate::request::{u16_arg, unknown};
+use crate::tm::{TmSink, TmStore};
+
+const N_EVENTS: usize = EVENTS.len();
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Request {
+    /// TC[5,5]
+    Enable(EventIndex),
+    /// TC[5,6]
+    Disable(EventIndex),
+    /// TC[5,7]: answered with TM[5,8].
+    ReportDisabled,
+}
+
+impl Request {
+    pub fn parse(tc: &Tc) -> Result<Self, Failure> {
+        let ev = || {
+            let id = u16_arg(tc, 0);
+            EventIndex::of(id).ok_or(Failure::unknown_event(id))
+        };
+        Ok(match tc.subservice {
+            5 => Request::Enable(ev()?),
+            6 => Request::Disable(ev()?),
+            7 => Request::ReportDisabled,
+            _ => return Err(unknown(tc)),
+        })
+    }
+}
+
+impl<S: TmStore> Obsw<S> {
+    pub(crate) fn event_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) {
+        match r {
+            Request::Enable(e) => self.dl.events.set_enabled(e, true),
+            Request::Disable(e) => self.dl.events.set_enabled(e, false),
+            Request::ReportDisabled => {
+                let mut buf = [0u8; 2 + 2 * N_EVENTS];
+                let mut n = 2;
+                for e in EVENTS {
+                    let disabled = EventIndex::of(e.id).is_some_and(|i| !self.dl.events.is_enabled(i));
+                    if disabled {
+                        buf[n..n + 2].copy_from_slice(&e.id.to_be_bytes());
+                        n += 2;
+                    }
+                }
+                buf[..2].copy_from_slice(&(((n - 2) / 2) as u16).to_be_bytes());
+                self.emit(now, service::EVENT, 8, &buf[..n], sink);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::obsw::tests::{kind, obsw, of, send};
+    use mib::events::eid;
+
+    #[test]
+    fn a_disabled_event_is_listed_and_no_longer_reported() {
+        let mut o = obsw();
+        send(&mut o, 1, 1, 5, 6, &eid::BOOT.to_be_bytes());
+        let pkts = send(&mut o, 2, 2, 5, 7, &[]);
+        let list = of(&pkts, 5, 8);
+        assert_eq!(kind(&list[0]).2, [&[0u8, 1][..], &eid::BOOT.to_be_bytes()].concat());
+        let mut sink: Vec<Vec<u8>> = Vec::new();
+        o.boot(3, 0, &mut sink);
+        assert!(sink.is_empty());
+        send(&mut o, 4, 3, 5, 5, &eid::BOOT.to_be_bytes());
+        o.boot(5, 0, &mut sink);
+        assert_eq!(sink.len(), 1);
+    }
+}

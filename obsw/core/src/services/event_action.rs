@@ -1,0 +1,143 @@
+//! PUS 19 event-action: each fault event of Table 8 is linked to a mode change (now or
+//! after the running motion). This file raises faults and applies their links; the
+//! links can be disabled, enabled and reported (TM[19,9]).
+
+use mib::events::eid;
+use mib::fdir::FAULTS;
+use mib::modes::robot_mode;
+use mib::tc::service;
+
+use crate::accept::Tc;
+use crate::failure::Failure;
+use crate::fdir::Response;
+use crate::obsw::Obsw;
+use crate::request::{u16_arg, unknown};
+use crate::tm::{TmSink, TmStore};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Request {
+    /// TC[19,4]: enable the link of a fault event.
+    Enable(u16),
+    /// TC[19,5]
+    Disable(u16),
+    /// TC[19,8]: answered with TM[19,9].
+    Report,
+}
+
+impl Request {
+    pub fn parse(tc: &Tc) -> Result<Self, Failure> {
+        let link = || {
+            let ev = u16_arg(tc, 0);
+            mib::fdir::fault_by_event(ev)
+                .map(|f| f.event)
+                .ok_or(Failure::unknown_action_link(ev))
+        };
+        Ok(match tc.subservice {
+            4 => Request::Enable(link()?),
+            5 => Request::Disable(link()?),
+            8 => Request::Report,
+            _ => return Err(unknown(tc)),
+        })
+    }
+}
+
+impl<S: TmStore> Obsw<S> {
+    pub(crate) fn event_action_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) {
+        match r {
+            // The event was looked up in the fault table at acceptance.
+            Request::Enable(ev) => {
+                self.faults.set_link_enabled(ev, true);
+            }
+            Request::Disable(ev) => {
+                self.faults.set_link_enabled(ev, false);
+            }
+            Request::Report => self.report_links(now, sink),
+        }
+    }
+
+    fn report_links(&mut self, now: u64, sink: &mut impl TmSink) {
+        let mut buf = [0u8; 2 + 8 * FAULTS.len()];
+        buf[..2].copy_from_slice(&(FAULTS.len() as u16).to_be_bytes());
+        let mut n = 2;
+        for (i, f) in FAULTS.iter().enumerate() {
+            buf[n..n + 2].copy_from_slice(&f.event.to_be_bytes());
+            buf[n + 2] = self.faults.link_enabled(i) as u8;
+            buf[n + 3..n + 7].copy_from_slice(&f.mode.to_be_bytes());
+            buf[n + 7] = (f.timing == mib::fdir::Timing::AfterMotion) as u8;
+            n += 8;
+        }
+        self.emit(now, service::EVENT_ACTION, 9, &buf[..n], sink);
+    }
+
+    /// Raises a fault event and applies its event-action link.
+    pub(crate) fn fault(&mut self, now: u64, event: u16, args: &[i64], sink: &mut impl TmSink) {
+        self.fault_inner(now, event, args, false, sink);
+    }
+
+    pub(crate) fn fault_inner(&mut self, now: u64, event: u16, args: &[i64], monitored: bool, sink: &mut impl TmSink) {
+        self.event(now, event, args, sink);
+        let bit = mib::fdir::fault_by_event(event).map_or(0, |f| 1u32 << f.bit);
+        if !monitored && self.faults.oneshot & bit != 0 {
+            // Already active and being dealt with (e.g. every command left unacknowledged
+            // by a silent board B): reported, not counted or acted on again.
+            return;
+        }
+        match self.faults.raise(event, monitored) {
+            Response::None => {}
+            // Standby already has every module unpowered and the robot resting on its
+            // grippers: a fault never powers the servos up just to hold (safed).
+            Response::Now(m) if m == robot_mode::SAFED && self.modes.root_target() == robot_mode::STANDBY => {
+                self.clear_oneshot(now, event, sink);
+            }
+            Response::Now(m) => self.set_mode(now, m, event, sink),
+            Response::AfterMotion(m) => {
+                if self.running.is_some() {
+                    self.faults.pending_mode = Some(match self.faults.pending_mode {
+                        Some(p) if p == robot_mode::SAFED => p,
+                        _ => m,
+                    });
+                } else if self.modes.root_target() != m {
+                    self.set_mode(now, m, event, sink);
+                } else {
+                    self.clear_oneshot(now, event, sink);
+                }
+            }
+        }
+    }
+
+    /// A one-shot fault dealt with by its mode change: FAULT_CLEARED.
+    pub(crate) fn clear_oneshot(&mut self, now: u64, event: u16, sink: &mut impl TmSink) {
+        if let Some(f) = mib::fdir::fault_by_event(event) {
+            if self.faults.oneshot & (1 << f.bit) != 0 {
+                self.faults.oneshot &= !(1 << f.bit);
+                self.event(now, eid::FAULT_CLEARED, &[event as i64], sink);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::obsw::tests::{failure, kind, obsw, of, send};
+    use mib::events::eid;
+    use mib::fdir::FAULTS;
+    use mib::FailureCode;
+
+    #[test]
+    fn a_link_can_be_disabled_and_is_reported_so_and_an_unknown_link_is_refused() {
+        let mut o = obsw();
+        let ev = FAULTS[0].event;
+        send(&mut o, 1, 1, 19, 5, &ev.to_be_bytes());
+        let pkts = send(&mut o, 2, 2, 19, 8, &[]);
+        let d = kind(&of(&pkts, 19, 9)[0]).2.to_vec();
+        assert_eq!((&d[2..4], d[4]), (&ev.to_be_bytes()[..], 0));
+        let pkts = send(&mut o, 3, 3, 19, 4, &eid::BOOT.to_be_bytes());
+        assert_eq!(
+            failure(&of(&pkts, 1, 2)[0]),
+            (
+                FailureCode::UNKNOWN_ACTION_LINK.code(),
+                eid::BOOT.to_be_bytes().to_vec()
+            )
+        );
+    }
+}

@@ -1,0 +1,262 @@
+//! PUS 8 function management: the robot's actions (reconfigure, bolt, unbolt, home,
+//! single-module moves), STOP and the commanded assembly-system fault. An action runs
+//! in the domain controller; its progress and completion come back through `tick`.
+
+use mib::events::eid;
+use mib::modes::submode;
+use mib::robot::Side;
+use mib::tc::function;
+
+use mmic_domain::controller::{Action, ActionReport, DomainEvent, StartError};
+
+use crate::accept::Tc;
+use crate::downlink::{Stage, Started};
+use crate::failure::Failure;
+use crate::obsw::{Exec, Obsw, Outcome, Refused};
+use crate::tm::{TmSink, TmStore};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Request {
+    /// ASSEMBLY_FAULT: the externally commanded "assembly system operation" fault.
+    AssemblyFault(i64),
+    /// STOP: abort the running action; actuators hold.
+    Stop,
+    /// Any other function: an action of the domain controller.
+    Start(Action),
+}
+
+impl Request {
+    pub fn parse(tc: &Tc) -> Result<Self, Failure> {
+        let a = tc.args;
+        // Side arguments are range-checked (0..=1) by `accept`.
+        let side = |i: usize| Side::from_u8(a[i] as u8).ok_or(Failure::arg_out_of_range(i as u8, a[i] as i32));
+        Ok(Request::Start(match tc.def.function {
+            function::ASSEMBLY_FAULT => return Ok(Request::AssemblyFault(a[0])),
+            function::STOP => return Ok(Request::Stop),
+            function::RECONFIGURE => Action::Reconfigure {
+                from: a[0] as u8,
+                to: a[1] as u8,
+            },
+            function::BOLT_FACE => Action::BoltFace {
+                side: side(0)?,
+                pairs: a[1] as u8,
+            },
+            function::UNBOLT_FACE => Action::UnboltFace {
+                side: side(0)?,
+                pairs: a[1] as u8,
+            },
+            function::HOME => Action::Home,
+            function::MOVE_ARM => Action::MoveArm {
+                side: side(0)?,
+                pwm: a[1] as u16,
+            },
+            function::MOVE_GRIPPER => Action::MoveGripper {
+                side: side(0)?,
+                pwm: a[1] as u16,
+            },
+            function::ROTATE_HIP => Action::RotateHip { cdeg: a[0] as i16 },
+            function::BOLT_PAIR => Action::BoltPair {
+                side: side(0)?,
+                pair: a[1] as u8,
+            },
+            function::UNBOLT_PAIR => Action::UnboltPair {
+                side: side(0)?,
+                pair: a[1] as u8,
+            },
+            other => return Err(Failure::unknown_function(other)),
+        }))
+    }
+}
+
+/// The action that runs, with the started token of its request (`None` for actions
+/// the OBSW starts itself: homing when entering operational).
+#[derive(Clone, Copy, Debug)]
+pub struct Running<T> {
+    pub token: T,
+    pub function: u16,
+    pub reconfigure: bool,
+}
+
+impl Running<()> {
+    pub(crate) fn with_token(self, token: Option<Started>) -> Running<Option<Started>> {
+        Running {
+            token,
+            function: self.function,
+            reconfigure: self.reconfigure,
+        }
+    }
+}
+
+impl<S: TmStore> Obsw<S> {
+    pub(crate) fn function_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) -> Result<Exec, Refused> {
+        let action = match r {
+            Request::AssemblyFault(arg) => {
+                self.fault(now, eid::ASSEMBLY_SYSTEM_FAULT, &[arg], sink);
+                return Ok(Exec::Done);
+            }
+            Request::Stop => {
+                if let Some(run) = self.running.take() {
+                    self.ctrl.abort();
+                    self.finish_running(now, run, Some(Failure::aborted_by_command(run.function)), sink);
+                }
+                return Ok(Exec::Done);
+            }
+            Request::Start(a) => a,
+        };
+        if self.running.is_some() || self.transition.is_some() {
+            let busy = self.running.map_or(0, |r| r.function);
+            return Err(Failure::busy(busy).into());
+        }
+        let f = action.function_id();
+        let reconfigure = f == function::RECONFIGURE;
+        if reconfigure {
+            // Paper: idle overcurrent is checked at the start of every reconfiguration.
+            if let Some(ev) = self.idle_check(now, sink) {
+                return Err(Failure::aborted_by_fault(ev).into());
+            }
+        }
+        match self.ctrl.start(action, now) {
+            Ok(_) => {
+                self.modes.submode = submode::BUSY;
+                Ok(Exec::Action(Running {
+                    token: (),
+                    function: f,
+                    reconfigure,
+                }))
+            }
+            // Report the refusal first, then let FDIR act on the fault.
+            Err(StartError::InitialStateMismatch { believed, computed }) => Err(Refused {
+                failure: Failure::initial_state_mismatch(believed, computed),
+                fault: Some((eid::INITIAL_STATE_MISMATCH, [believed as i64, computed as i64])),
+            }),
+            Err(e) => Err(Failure::from_start(e, f, self.modes.root()).into()),
+        }
+    }
+
+    /// Ends the running action with a completion report (success if `failure` is None).
+    pub(crate) fn finish_running(
+        &mut self,
+        now: u64,
+        r: Running<Option<Started>>,
+        failure: Option<Failure>,
+        sink: &mut impl TmSink,
+    ) {
+        self.modes.submode = submode::IDLE;
+        if let Some(token) = r.token {
+            let req = token.req;
+            match failure {
+                None => {
+                    self.dl.complete(now, token, sink);
+                    self.set_outcome(req, Outcome::Done);
+                }
+                Some(f) => {
+                    self.dl.fail_completion(now, token, &f, sink);
+                    self.set_outcome(req, Outcome::Failed(Stage::Completion, f));
+                }
+            }
+        } else if let Some(t) = self
+            .transition
+            .as_mut()
+            .filter(|t| t.entering == crate::services::mode::Entering::Homing)
+        {
+            // Homing for entry into operational.
+            match failure {
+                None => t.entering = crate::services::mode::Entering::Ready,
+                Some(f) => {
+                    // A homing aborted by a fault carries the fault's event ID.
+                    let event = f.fault_event().unwrap_or(0);
+                    self.transition_failed(now, f.code(), event, sink);
+                }
+            }
+        }
+        if let Some(m) = self.faults.pending_mode.take() {
+            let cause = self.faults.last_event;
+            self.set_mode(now, m, cause, sink);
+        }
+    }
+
+    /// Progress and end of the running action, from the controller.
+    pub(crate) fn on_report(&mut self, now: u64, r: &ActionReport, sink: &mut impl TmSink) {
+        let Some(run) = self.running else { return };
+        match *r {
+            ActionReport::Step { n } => {
+                if let Some(t) = &run.token {
+                    self.dl.step(now, t, n, sink);
+                }
+            }
+            ActionReport::Completed => {
+                self.running = None;
+                self.finish_running(now, run, None, sink);
+                if run.reconfigure {
+                    // Paper: idle overcurrent is checked at the end of a reconfiguration too.
+                    self.idle_check(now, sink);
+                }
+            }
+            ActionReport::Failed(f) => {
+                self.running = None;
+                self.finish_running(now, run, Some(Failure::from_action(f)), sink);
+            }
+        }
+    }
+
+    /// Domain events become PUS 5 events; fault events go through event-action.
+    pub(crate) fn on_domain_event(&mut self, now: u64, e: &DomainEvent, sink: &mut impl TmSink) {
+        let s = |v: Side| v as i64;
+        match *e {
+            DomainEvent::PrimitiveDone { primitive, state } => {
+                self.event(now, eid::PRIMITIVE_DONE, &[primitive as i64, state as i64], sink)
+            }
+            DomainEvent::StateReached { state } => self.event(now, eid::STATE_REACHED, &[state as i64], sink),
+            DomainEvent::BoltPairDone { side, pair, attempts } => {
+                self.event(now, eid::BOLT_PAIR_DONE, &[s(side), pair as i64, attempts as i64], sink)
+            }
+            DomainEvent::BoltAttemptFailed { side, pair, attempt } => self.event(
+                now,
+                eid::BOLT_ATTEMPT_FAILED,
+                &[s(side), pair as i64, attempt as i64],
+                sink,
+            ),
+            DomainEvent::UnboltPairDone { side, pair, attempts } => self.event(
+                now,
+                eid::UNBOLT_PAIR_DONE,
+                &[s(side), pair as i64, attempts as i64],
+                sink,
+            ),
+            DomainEvent::BoltFailure { side, pair, attempts } => {
+                self.fault(now, eid::BOLT_FAILURE, &[s(side), pair as i64, attempts as i64], sink)
+            }
+            DomainEvent::UnboltFailure { side, pair, attempts } => {
+                self.fault(now, eid::UNBOLT_FAILURE, &[s(side), pair as i64, attempts as i64], sink)
+            }
+            DomainEvent::ArmNotContracted { side } => self.fault(now, eid::ARM_NOT_CONTRACTED, &[s(side)], sink),
+            DomainEvent::CommLossNoAck { command, retries } => {
+                self.fault(now, eid::COMM_LOSS_NO_ACK, &[command as i64, retries as i64], sink)
+            }
+            // The state computed after a primitive is not the one planned: the robot is
+            // not where the ground believes, the same hazard as an initial-state mismatch.
+            DomainEvent::StateMismatch { expected, computed } => self.fault(
+                now,
+                eid::INITIAL_STATE_MISMATCH,
+                &[expected as i64, computed as i64],
+                sink,
+            ),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::obsw::tests::{failure, obsw, of, send};
+    use mib::tc::function;
+    use mib::FailureCode;
+
+    #[test]
+    fn an_action_in_standby_is_refused_at_start_with_the_mode() {
+        let mut o = obsw();
+        let pkts = send(&mut o, 1, 1, 8, 1, &function::HOME.to_be_bytes());
+        assert_eq!(
+            failure(&of(&pkts, 1, 4)[0]),
+            (FailureCode::NOT_ALLOWED_IN_MODE.code(), vec![0])
+        );
+    }
+}

@@ -1,0 +1,209 @@
+//! PUS 12 on-board monitoring: the limit and persistence checks of `crate::fdir` run
+//! each cycle (and at the instants the paper names); every check transition is
+//! reported (TM[12,12]) and a violation raises its fault event. Monitors can be
+//! enabled, disabled, modified and reported (TM[12,9]).
+
+use mib::events::eid;
+use mib::fdir::{Phase, MONITORS};
+use mib::params::pid;
+use mib::tc::service;
+
+use crate::accept::Tc;
+use crate::failure::Failure;
+use crate::fdir::{self, Monitor, Monitoring, N_MONITORS};
+use crate::obsw::Obsw;
+use crate::request::{u16_arg, unknown};
+use crate::tm::{TmSink, TmStore};
+
+/// Index of a monitor in `mib::fdir::MONITORS` (and `Monitoring::mons`, built from it
+/// in the same order); only made from a defined monitor ID.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MonitorIndex(usize);
+
+impl MonitorIndex {
+    fn of(id: u16) -> Result<Self, Failure> {
+        MONITORS
+            .iter()
+            .position(|m| m.id == id)
+            .map(MonitorIndex)
+            .ok_or(Failure::unknown_monitor(id))
+    }
+}
+
+impl Monitoring {
+    fn at(&mut self, i: MonitorIndex) -> &mut Monitor {
+        &mut self.mons[i.0]
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Request {
+    /// TC[12,1]
+    Enable(MonitorIndex),
+    /// TC[12,2]
+    Disable(MonitorIndex),
+    /// TC[12,7]: new limits (low <= high) and persistence.
+    Modify {
+        mon: MonitorIndex,
+        low: i32,
+        high: i32,
+        persistence: u16,
+    },
+    /// TC[12,8]: answered with TM[12,9].
+    Report,
+}
+
+impl Request {
+    pub fn parse(tc: &Tc) -> Result<Self, Failure> {
+        let mon = || MonitorIndex::of(u16_arg(tc, 0));
+        Ok(match tc.subservice {
+            1 => Request::Enable(mon()?),
+            2 => Request::Disable(mon()?),
+            7 => {
+                let m = mon()?;
+                let (low, high) = (tc.args[1] as i32, tc.args[2] as i32);
+                if low > high {
+                    return Err(Failure::param_out_of_range(MONITORS[m.0].param, low));
+                }
+                Request::Modify {
+                    mon: m,
+                    low,
+                    high,
+                    persistence: tc.args[3] as u16,
+                }
+            }
+            8 => Request::Report,
+            _ => return Err(unknown(tc)),
+        })
+    }
+}
+
+impl<S: TmStore> Obsw<S> {
+    pub(crate) fn monitoring_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) {
+        match r {
+            Request::Enable(i) | Request::Disable(i) => {
+                let m = self.monitoring.at(i);
+                m.enabled = matches!(r, Request::Enable(_));
+                m.state = fdir::check::OK;
+            }
+            Request::Modify {
+                mon,
+                low,
+                high,
+                persistence,
+            } => {
+                let m = self.monitoring.at(mon);
+                m.def.low = low;
+                m.def.high = high;
+                m.def.persistence = persistence;
+            }
+            Request::Report => self.report_monitors(now, sink),
+        }
+    }
+
+    fn report_monitors(&mut self, now: u64, sink: &mut impl TmSink) {
+        let mut buf = [0u8; 2 + 17 * N_MONITORS];
+        buf[..2].copy_from_slice(&(N_MONITORS as u16).to_be_bytes());
+        let mut n = 2;
+        for m in &self.monitoring.mons {
+            buf[n..n + 2].copy_from_slice(&m.def.id.to_be_bytes());
+            buf[n + 2..n + 4].copy_from_slice(&m.def.param.to_be_bytes());
+            buf[n + 4] = m.enabled as u8;
+            buf[n + 5..n + 9].copy_from_slice(&m.def.low.to_be_bytes());
+            buf[n + 9..n + 13].copy_from_slice(&m.def.high.to_be_bytes());
+            buf[n + 13..n + 15].copy_from_slice(&m.def.persistence.to_be_bytes());
+            buf[n + 15..n + 17].copy_from_slice(&m.def.event.to_be_bytes());
+            n += 17;
+        }
+        self.emit(now, service::MONITORING, 9, &buf[..n], sink);
+    }
+
+    /// Runs the idle-phase monitors once; returns the fault event if one fired.
+    pub(crate) fn idle_check(&mut self, now: u64, sink: &mut impl TmSink) -> Option<u16> {
+        self.run_monitors(now, |p| p == Phase::Idle, sink)
+    }
+
+    /// Runs the monitors of the accepted phases; emits TM[12,12] for each transition
+    /// and raises the fault of each new violation. Returns the last fault event raised.
+    pub(crate) fn run_monitors(
+        &mut self,
+        now: u64,
+        phases: impl Fn(Phase) -> bool,
+        sink: &mut impl TmSink,
+    ) -> Option<u16> {
+        let mut tr: heapless::Vec<fdir::Transition, N_MONITORS> = heapless::Vec::new();
+        {
+            let this = &*self;
+            // A parameter without a valid value (board B never heard) is not checked.
+            let mut vals = [None; N_MONITORS];
+            for (v, m) in vals.iter_mut().zip(this.monitoring.mons.iter()) {
+                *v = this.param_opt(m.def.param);
+            }
+            let ids: [u16; N_MONITORS] = core::array::from_fn(|i| this.monitoring.mons[i].def.param);
+            self.monitoring.check(
+                phases,
+                |p| ids.iter().position(|x| *x == p).and_then(|i| vals[i]),
+                &mut tr,
+            );
+        }
+        self.faults.monitored = self.monitoring.violated_fault_bits();
+        let mut raised = None;
+        for t in &tr {
+            let mut d = [0u8; 13];
+            d[..2].copy_from_slice(&t.monitor.to_be_bytes());
+            d[2..4].copy_from_slice(&t.param.to_be_bytes());
+            d[4..8].copy_from_slice(&(t.value.clamp(i32::MIN as i64, i32::MAX as i64) as i32).to_be_bytes());
+            d[8..12].copy_from_slice(&t.limit.to_be_bytes());
+            d[12] = t.state;
+            self.emit(now, service::MONITORING, 12, &d, sink);
+            let continuous = mib::fdir::monitor_by_id(t.monitor).is_some_and(|m| fdir::is_continuous(m.phase));
+            if t.state != fdir::check::OK {
+                let args: [i64; 3] = if t.event == eid::HIP_MISMATCH {
+                    [self.param(pid::HIP_ANGLE), self.param(pid::HIP_ANGLE) - t.value, 0]
+                } else {
+                    [t.param as i64, t.value, t.limit as i64]
+                };
+                self.fault_inner(now, t.event, &args, continuous, sink);
+                raised = Some(t.event);
+            } else if continuous
+                && self.faults.monitored & mib::fdir::fault_by_event(t.event).map_or(0, |f| 1 << f.bit) == 0
+            {
+                self.event(now, eid::FAULT_CLEARED, &[t.event as i64], sink);
+            }
+        }
+        raised
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::obsw::tests::{failure, kind, obsw, of, send};
+    use mib::fdir::MONITORS;
+    use mib::FailureCode;
+
+    #[test]
+    fn modify_changes_the_reported_limits_and_inverted_limits_are_refused() {
+        let mut o = obsw();
+        let m = MONITORS[0];
+        let mut app = m.id.to_be_bytes().to_vec();
+        for v in [-5i32, 5] {
+            app.extend_from_slice(&v.to_be_bytes());
+        }
+        app.extend_from_slice(&3u16.to_be_bytes());
+        send(&mut o, 1, 1, 12, 7, &app);
+        let d = kind(&of(&send(&mut o, 2, 2, 12, 8, &[]), 12, 9)[0]).2.to_vec();
+        assert_eq!(&d[7..15], &[(-5i32).to_be_bytes(), 5i32.to_be_bytes()].concat()[..]);
+        let mut bad = m.id.to_be_bytes().to_vec();
+        for v in [5i32, -5] {
+            bad.extend_from_slice(&v.to_be_bytes());
+        }
+        bad.extend_from_slice(&3u16.to_be_bytes());
+        let pkts = send(&mut o, 3, 3, 12, 7, &bad);
+        let mut data = m.param.to_be_bytes().to_vec();
+        data.extend_from_slice(&5i32.to_be_bytes());
+        assert_eq!(
+            failure(&of(&pkts, 1, 2)[0]),
+            (FailureCode::PARAM_OUT_OF_RANGE.code(), data)
+        );
+    }
+}

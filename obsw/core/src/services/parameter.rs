@@ -1,0 +1,85 @@
+//! PUS 20 on-board parameter management: report and set the domain's tunables
+//! (`mib::tunables`), range-checked at acceptance.
+
+use mib::tc::service;
+use mib::tunables::TunableDef;
+
+use crate::accept::Tc;
+use crate::failure::Failure;
+use crate::obsw::Obsw;
+use crate::request::{u16_arg, unknown};
+use crate::tm::{TmSink, TmStore};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Request {
+    /// TC[20,1]: answered with TM[20,2].
+    Report(&'static TunableDef),
+    /// TC[20,3]: value within the tunable's range.
+    Set(&'static TunableDef, i32),
+}
+
+impl Request {
+    pub fn parse(tc: &Tc) -> Result<Self, Failure> {
+        let id = u16_arg(tc, 0);
+        let t = mib::tunables::by_id(id).ok_or(Failure::unknown_parameter(id))?;
+        Ok(match tc.subservice {
+            1 => Request::Report(t),
+            3 => {
+                let v = tc.args[1];
+                if v < t.min as i64 || v > t.max as i64 {
+                    return Err(Failure::param_out_of_range(t.id, v as i32));
+                }
+                Request::Set(t, v as i32)
+            }
+            _ => return Err(unknown(tc)),
+        })
+    }
+}
+
+impl<S: TmStore> Obsw<S> {
+    pub(crate) fn parameter_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) -> Result<(), Failure> {
+        let t = match r {
+            Request::Report(t) => t,
+            Request::Set(t, v) => {
+                self.ctrl
+                    .set_tunable(t.id, v)
+                    .map_err(|_| Failure::param_out_of_range(t.id, v))?;
+                t
+            }
+        };
+        let v = self.ctrl.tunable(t.id).ok_or(Failure::unknown_parameter(t.id))?;
+        let mut d = [0u8; 6];
+        d[..2].copy_from_slice(&t.id.to_be_bytes());
+        d[2..].copy_from_slice(&v.to_be_bytes());
+        self.emit(now, service::PARAMETER, 2, &d, sink);
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::obsw::tests::{failure, kind, obsw, of, send};
+    use mib::tunables::TUNABLES;
+    use mib::FailureCode;
+
+    #[test]
+    fn set_reports_the_new_value_and_out_of_range_is_refused_with_id_and_value() {
+        let mut o = obsw();
+        let t = TUNABLES[0];
+        let mut app = t.id.to_be_bytes().to_vec();
+        app.extend_from_slice(&t.max.to_be_bytes());
+        let pkts = send(&mut o, 1, 1, 20, 3, &app);
+        assert_eq!(&kind(&of(&pkts, 20, 2)[0]).2[2..], &t.max.to_be_bytes());
+        if t.max < i32::MAX {
+            let mut app = t.id.to_be_bytes().to_vec();
+            app.extend_from_slice(&(t.max + 1).to_be_bytes());
+            let pkts = send(&mut o, 2, 2, 20, 3, &app);
+            let mut data = t.id.to_be_bytes().to_vec();
+            data.extend_from_slice(&(t.max + 1).to_be_bytes());
+            assert_eq!(
+                failure(&of(&pkts, 1, 2)[0]),
+                (FailureCode::PARAM_OUT_OF_RANGE.code(), data)
+            );
+        }
+    }
+}

@@ -1,0 +1,102 @@
+//! PUS 9 time management: periodic time reports (TM[9,2], every 2^n s) and a report on
+//! request.
+
+use mib::config;
+use mib::tc::service;
+
+use crate::accept::Tc;
+use crate::failure::Failure;
+use crate::obsw::Obsw;
+use crate::request::unknown;
+use crate::tm::{TmSink, TmStore};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Request {
+    /// TC[9,1]: report every 2^exp seconds (0..=8, range-checked by `accept`).
+    SetRate(u8),
+    /// TC[9,128]
+    ReportNow,
+}
+
+impl Request {
+    pub fn parse(tc: &Tc) -> Result<Self, Failure> {
+        Ok(match tc.subservice {
+            1 => Request::SetRate(tc.args[0] as u8),
+            128 => Request::ReportNow,
+            _ => return Err(unknown(tc)),
+        })
+    }
+}
+
+/// Rate and next due time of the periodic time report.
+pub struct TimeReports {
+    exp: u8,
+    next: u64,
+}
+
+impl TimeReports {
+    pub fn new() -> Self {
+        TimeReports {
+            exp: config::TIME_REPORT_DEFAULT_EXP,
+            next: 1000u64 << config::TIME_REPORT_DEFAULT_EXP,
+        }
+    }
+    pub fn next_deadline(&self) -> u64 {
+        self.next
+    }
+    fn period(&self) -> u64 {
+        1000u64 << self.exp
+    }
+}
+
+impl Default for TimeReports {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<S: TmStore> Obsw<S> {
+    pub(crate) fn time_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) {
+        match r {
+            Request::SetRate(exp) => {
+                self.time_reports.exp = exp;
+                self.time_reports.next = now + self.time_reports.period();
+                self.time_report(now, sink);
+            }
+            Request::ReportNow => self.time_report(now, sink),
+        }
+    }
+
+    pub(crate) fn time_tick(&mut self, now: u64, sink: &mut impl TmSink) {
+        if now >= self.time_reports.next {
+            self.time_report(now, sink);
+            self.time_reports.next = now + self.time_reports.period();
+        }
+    }
+
+    fn time_report(&mut self, now: u64, sink: &mut impl TmSink) {
+        let mut d = [0u8; 1 + config::TIMESTAMP_LEN];
+        d[0] = self.time_reports.exp;
+        d[1..].copy_from_slice(&self.dl.tmw.time.cds(now));
+        self.emit(now, service::TIME, 2, &d, sink);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::obsw::tests::{kind, obsw, of, send};
+
+    #[test]
+    fn the_rate_sets_the_period_and_the_report_carries_exponent_and_time() {
+        let mut o = obsw();
+        let pkts = send(&mut o, 1000, 1, 9, 1, &[0]);
+        let r = of(&pkts, 9, 2);
+        assert_eq!(kind(&r[0]).2[0], 0);
+        assert_eq!(&kind(&r[0]).2[1..], &o.dl.tmw.time.cds(1000));
+        let mut sink: Vec<Vec<u8>> = Vec::new();
+        for t in (1000..=3000).step_by(10) {
+            o.time_tick(t, &mut sink);
+        }
+        assert_eq!(of(&sink, 9, 2).len(), 2, "every second");
+    }
+}
