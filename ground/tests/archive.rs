@@ -51,11 +51,28 @@ fn pg_db(name: &str) -> String {
     base.replace("/postgres?", &format!("/{name}?"))
 }
 
+/// Removes files when dropped (the suite's archives are tens of MB).
+struct Rm(Vec<PathBuf>);
+impl Drop for Rm {
+    fn drop(&mut self) {
+        for p in &self.0 {
+            for suffix in ["", "-wal", "-shm"] {
+                let _ = std::fs::remove_file(format!("{}{suffix}", p.display()));
+            }
+        }
+    }
+}
+
 /// The same test on both backends: `f(location, backend name)`.
 fn both(name: &str, f: impl Fn(&str, &str)) {
     let file = tmp(&format!("{name}.db"));
+    let _rm = Rm(vec![file.clone()]);
     f(file.to_str().unwrap(), "sqlite");
+    drop(_rm);
     f(&pg_db(name), "postgresql");
+    let mut c = postgres::Client::connect(pg_server(), postgres::NoTls).unwrap();
+    c.batch_execute(&format!("DROP DATABASE IF EXISTS {name} WITH (FORCE)"))
+        .unwrap();
 }
 
 fn hk_packet(robot: u8, seq: u16, t_ms: i64, i: i64) -> Vec<u8> {
@@ -106,6 +123,7 @@ fn ground(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_ground")).args(args).output().unwrap()
 }
 
+// verifies: GND-02
 #[test]
 fn every_record_lands_in_its_tables() {
     both("records", |loc, backend| {
@@ -185,9 +203,11 @@ fn every_record_lands_in_its_tables() {
     });
 }
 
+// verifies: GND-02
 #[test]
 fn import_twice_adds_nothing_and_counts_duplicates() {
     let file = hk_file("dup.bin", 2, 5000);
+    let _rm = Rm(vec![file.clone()]);
     both("dup", |loc, backend| {
         let r1 = import::import(Path::new(loc), &file, 2).unwrap();
         assert_eq!(
@@ -223,10 +243,12 @@ fn import_twice_adds_nothing_and_counts_duplicates() {
     });
 }
 
+// verifies: GND-02
 #[test]
 fn size_is_at_most_three_times_the_raw_packets() {
     let file = hk_file("size.bin", 1, 20_000);
     let loc = tmp("size.db");
+    let _rm = Rm(vec![file.clone(), loc.clone()]);
     let r = import::import(&loc, &file, 1).unwrap();
     let mut s = Store::open(loc.to_str().unwrap()).unwrap();
     s.db().batch("PRAGMA wal_checkpoint(TRUNCATE)").unwrap();
@@ -239,6 +261,7 @@ fn size_is_at_most_three_times_the_raw_packets() {
     );
 }
 
+// verifies: GND-02
 #[test]
 fn holes_reboots_and_store_notes() {
     both("gaps", |loc, backend| {
@@ -293,6 +316,7 @@ fn holes_reboots_and_store_notes() {
     });
 }
 
+// verifies: GND-02
 #[test]
 fn alarms_go_through_their_states() {
     both("alarms", |loc, backend| {
@@ -337,6 +361,7 @@ fn alarms_go_through_their_states() {
     });
 }
 
+// verifies: GND-02
 #[test]
 fn decimation_keeps_extremes_per_column() {
     both("decimate", |loc, backend| {
@@ -360,9 +385,11 @@ fn decimation_keeps_extremes_per_column() {
     });
 }
 
+// verifies: GND-02
 #[test]
 fn concurrent_writers_never_store_a_packet_twice() {
     let file = hk_file("conc.bin", 4, 6000);
+    let _rm = Rm(vec![file.clone()]);
     both("concurrent", |loc, backend| {
         // Create the schema first, then four writers race over the same packets.
         drop(Store::open(loc).unwrap());
@@ -392,9 +419,11 @@ fn concurrent_writers_never_store_a_packet_twice() {
     });
 }
 
+// verifies: GND-02
 #[test]
 fn kill_9_during_import_leaves_nothing_half_written() {
     let file = hk_file("kill.bin", 5, 150_000);
+    let _rm = Rm(vec![file.clone()]);
     both("kill", |loc, backend| {
         drop(Store::open(loc).unwrap());
         let mut child = Command::new(env!("CARGO_BIN_EXE_ground"))
@@ -447,9 +476,11 @@ fn kill_9_during_import_leaves_nothing_half_written() {
     });
 }
 
+// verifies: GND-02
 #[test]
 fn cli_query_export_plot_check_gaps_status() {
     let file = hk_file("cli.bin", 1, 3000);
+    let _rm = Rm(vec![file.clone()]);
     both("cli", |loc, backend| {
         let out = ground(&[
             "--archive",
@@ -534,6 +565,7 @@ fn cli_query_export_plot_check_gaps_status() {
     });
 }
 
+// verifies: GND-02
 #[test]
 fn a_newer_schema_is_refused_with_what_to_do() {
     both("newer", |loc, backend| {
@@ -546,9 +578,11 @@ fn a_newer_schema_is_refused_with_what_to_do() {
 }
 
 /// The turn-1 layout (SQLite only: that is all turn 1 wrote) migrates on open.
+// verifies: GND-02
 #[test]
 fn a_turn_one_archive_is_migrated() {
     let p = tmp("v1.db");
+    let _rm = Rm(vec![p.clone()]);
     {
         let c = rusqlite::Connection::open(&p).unwrap();
         c.execute_batch(
@@ -599,4 +633,50 @@ fn a_turn_one_archive_is_migrated() {
     assert!(!s.db().has_table("hk").unwrap());
     let check = s.check(None).unwrap();
     assert!(check.bad.is_empty() && check.chunk_mismatch.is_empty() && check.gaps.is_empty());
+}
+
+/// `archive query --type alarm` lists the collector's alarms (its own table) beside the
+/// archive's.
+// verifies: GND-02
+#[test]
+fn collector_alarms_are_listed_by_the_alarm_query() {
+    use ground::alarms::{Input, Severity, Source};
+    let p = tmp("collector-alarms.db");
+    let _rm = Rm(vec![p.clone()]);
+    let c = ground::collect::store::open_conn(&p).unwrap();
+    ground::collect::store::apply_alarm(
+        &c,
+        2,
+        &Source::LinkLoss,
+        Severity::High,
+        Input::Activate,
+        T0,
+        None,
+        "no TM for 3 s",
+    )
+    .unwrap();
+    drop(c);
+    let mut s = Store::open(p.to_str().unwrap()).unwrap();
+    s.raise_alarm(&AlarmUpdate {
+        robot: 1,
+        source: "V_BAT_A",
+        severity: "high",
+        value: "9.6 V",
+        limit: "< 10 V",
+        t_ms: T0 + 1,
+    })
+    .unwrap();
+    let rows = s.query(Kind::Alarm, &Filter::default()).unwrap();
+    assert_eq!(rows.rows.len(), 2, "{rows:?}");
+    let robot2 = s
+        .query(
+            Kind::Alarm,
+            &Filter {
+                robot: Some(2),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+    assert_eq!(robot2.rows.len(), 1);
+    assert_eq!(robot2.rows[0][9], 1, "{robot2:?}");
 }

@@ -153,6 +153,7 @@ pub fn decode(b: &[u8]) -> Result<(Vec<i64>, Vec<i64>), ChunkError> {
 mod tests {
     use super::*;
 
+    // verifies: GND-02
     #[test]
     fn round_trip_steady_noisy_and_extreme() {
         let cases: Vec<(Vec<i64>, Vec<i64>)> = vec![
@@ -172,6 +173,7 @@ mod tests {
         }
     }
 
+    // verifies: GND-02
     #[test]
     fn steady_period_and_constant_value_cost_almost_nothing() {
         let t: Vec<i64> = (0..1024).map(|i| 1_767_225_600_000 + i * 100).collect();
@@ -179,6 +181,7 @@ mod tests {
         assert!(b.len() < 20, "{} bytes", b.len());
     }
 
+    // verifies: GND-08
     #[test]
     fn damaged_chunks_are_errors_not_panics() {
         let b = encode(&[1, 2, 3], &[4, 5, 6]);

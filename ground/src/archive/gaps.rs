@@ -220,6 +220,7 @@ impl Store {
 mod tests {
     use super::*;
 
+    // verifies: GND-02
     #[test]
     fn steps_are_classified() {
         assert_eq!(classify(5, 6, false), None);

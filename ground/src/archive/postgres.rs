@@ -205,6 +205,7 @@ impl Db for Postgres {
 mod tests {
     use super::*;
 
+    // verifies: GND-02
     #[test]
     fn placeholders_and_redaction() {
         assert_eq!(

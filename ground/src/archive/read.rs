@@ -469,7 +469,17 @@ impl Store {
             Kind::Corrupt => ("bad_packet", "id, t_ms, link_robot, reason, raw", "t_ms"),
             Kind::Tm | Kind::Hk => unreachable_kind(kind)?,
         };
-        let mut sql = format!("SELECT {columns} FROM {table} WHERE 1=1");
+        // The collector (ground collect) keeps its alarms in `collect_alarm`: listed too.
+        let from = if kind == Kind::Alarm && self.db.has_table("collect_alarm")? {
+            format!(
+                "(SELECT {columns} FROM alarm UNION ALL SELECT id, robot, source, severity, state, first_ms, last_ms, \
+                 CAST(value AS TEXT) AS value, message AS limit_text, count, NULL AS ack_ms, shelved_until_ms, \
+                 NULL AS cleared_ms FROM collect_alarm) AS a"
+            )
+        } else {
+            table.to_string()
+        };
+        let mut sql = format!("SELECT {columns} FROM {from} WHERE 1=1");
         let mut args = Vec::new();
         let f2 = Filter {
             robot: if kind == Kind::Corrupt { None } else { f.robot },
