@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
 # Creates (or completes) the Python virtual environment `.venv` at the repository root with
-# the independent XTCE decoder used by the MIB cross-check (mib/tests/xtce_crosscheck.rs).
+# the independent XTCE decoder used by the MIB cross-check (mib/tests/xtce_crosscheck.rs)
+# and the decode benchmark's Python peers (ground/bench/decode_bench.sh).
 # Idempotent: a second run only verifies the pinned version.
 set -euo pipefail
 
 SPP_VERSION="6.2.0"   # space-packet-parser, verified with the XTCE cross-check
+SPACEPACKETS_VERSION="0.32.0"   # spacepackets, the benchmark's header-unpacking reference
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 VENV="$ROOT/.venv"
@@ -22,6 +24,11 @@ fi
 have="$("$VENV/bin/python" -c 'import importlib.metadata as m; print(m.version("space_packet_parser"))' 2>/dev/null || true)"
 if [ "$have" != "$SPP_VERSION" ]; then
     "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check "space-packet-parser==$SPP_VERSION"
+fi
+
+have="$("$VENV/bin/python" -c 'import importlib.metadata as m; print(m.version("spacepackets"))' 2>/dev/null || true)"
+if [ "$have" != "$SPACEPACKETS_VERSION" ]; then
+    "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check "spacepackets==$SPACEPACKETS_VERSION"
 fi
 
 "$VENV/bin/python" -c 'import space_packet_parser, importlib.metadata as m; print("space-packet-parser", m.version("space_packet_parser"), "in", __import__("sys").prefix)'

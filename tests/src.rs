@@ -81,6 +81,17 @@ impl Obsw {
         }
     }
 
+    /// Process ID of the obsw.
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// Kills the obsw with SIGKILL (no chance to flush or say goodbye).
+    pub fn kill9(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+
     /// Sends a simulator-control line and returns the reply.
     pub fn sim(&self, line: &str) -> String {
         let s = UdpSocket::bind("127.0.0.1:0").unwrap();

@@ -6,6 +6,20 @@
 
 use std::io::Write;
 
+/// Raw value of parameter `id` in packet `i`: varying, and one of the MIB's named values
+/// for enumerated parameters (so that decoders with enumerations, like XTCE, name them).
+fn value(id: u16, i: usize) -> i64 {
+    let v = (id as i64 * 131 + i as i64 * 7) % 4000;
+    let names = mib::params::by_id(id).map_or(mib::layout::Names::None, |p| p.names());
+    let mut named = Vec::new();
+    names.for_each(|raw, _| named.push(raw));
+    if named.is_empty() {
+        v
+    } else {
+        named[v as usize % named.len()]
+    }
+}
+
 fn main() -> anyhow::Result<()> {
     let mut a = std::env::args().skip(1);
     let n: usize = a.next().unwrap_or_else(|| "1000000".into()).parse()?;
@@ -16,7 +30,7 @@ fn main() -> anyhow::Result<()> {
     let mut src = [0u8; 512];
     let t0 = ground::pus::CdsShort::from_unix_ms(1_767_225_600_000);
     for i in 0..n {
-        let len = mib::codec::encode_hk(def, |id| (id as i64 * 131 + i as i64 * 7) % 4000, &mut src)?;
+        let len = mib::codec::encode_hk(def, |id| value(id, i), &mut src)?;
         let t = ground::pus::CdsShort::from_unix_ms(t0.unix_ms() + i as i64 * 100).to_bytes();
         let p = ground::pus::build_tm(apid, (i & 0x3FFF) as u16, 3, 25, i as u16, &t, &src[..len]);
         out.write_all(&p)?;

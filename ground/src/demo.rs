@@ -174,7 +174,7 @@ pub fn demo(a: &DemoArgs, archive_path: Option<&Path>) -> Result<u8> {
     let bin = find_obsw(a.obsw.as_deref())?;
     let logdir = std::env::temp_dir().join(format!("ground-demo-{}", std::process::id()));
     std::fs::create_dir_all(&logdir)?;
-    eprintln!(
+    crate::err_line!(
         "demo: plan \"{}\" ({} steps, robots {}); starting {} OBSW(s) from {} at speed x{}",
         pl.name,
         pl.steps.len(),
@@ -192,7 +192,7 @@ pub fn demo(a: &DemoArgs, archive_path: Option<&Path>) -> Result<u8> {
     for r in &pl.robots {
         let log = logdir.join(format!("obsw-{}.log", r.number));
         let (child, addr) = start_obsw(&bin, r.number, a.speed, a.seed + r.number as u64, r.initial_state, &log)?;
-        eprintln!("demo: robot {} OBSW at {addr} (log {})", r.number, log.display());
+        crate::err_line!("demo: robot {} OBSW at {addr} (log {})", r.number, log.display());
         procs.0.push((r.number, child));
         links.push((r.number, addr));
     }

@@ -460,7 +460,7 @@ fn main() -> ExitCode {
                 return ExitCode::from(exit::OK);
             }
             let code = e.downcast_ref::<Coded>().map_or(exit::ERROR, |c| c.0);
-            eprintln!("ground: error: {e:#}");
+            err_line!("ground: error: {e:#}");
             ExitCode::from(code)
         }
     }
@@ -471,6 +471,16 @@ fn is_broken_pipe(e: &anyhow::Error) -> bool {
         c.downcast_ref::<std::io::Error>()
             .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
     })
+}
+
+/// Writes a line to standard error, ignoring a closed stderr (no panic, unlike
+/// `eprintln!`).
+#[macro_export]
+macro_rules! err_line {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr().lock(), $($t)*);
+    }};
 }
 
 /// Writes a line to standard output; a closed pipe surfaces as an error that `main`
@@ -512,7 +522,19 @@ fn load_plan(path: &Path) -> Result<plan::Plan> {
 fn plan_check(plans: &[PathBuf], json: bool) -> Result<u8> {
     let mut bad = 0;
     for p in plans {
-        let src = std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
+        let bytes = std::fs::read(p).with_context(|| format!("cannot read {}", p.display()))?;
+        let src = match String::from_utf8(bytes) {
+            Ok(s) => s,
+            Err(e) => {
+                bad += 1;
+                err_line!(
+                    "{}: error: not a plan: not UTF-8 text (invalid byte at offset {})",
+                    p.display(),
+                    e.utf8_error().valid_up_to()
+                );
+                continue;
+            }
+        };
         match plan::parse(&src) {
             Ok(pl) => {
                 if json {
@@ -535,9 +557,9 @@ fn plan_check(plans: &[PathBuf], json: bool) -> Result<u8> {
                     out(&serde_json::to_string_pretty(&d)?)?;
                 } else {
                     for x in &d {
-                        eprintln!("{x}");
+                        err_line!("{x}");
                     }
-                    eprintln!("{}: {} error(s)", p.display(), d.len());
+                    err_line!("{}: {} error(s)", p.display(), d.len());
                 }
             }
         }
@@ -603,7 +625,7 @@ fn decode(a: &DecodeArgs) -> Result<u8> {
     drop(o);
     let secs = t0.elapsed().as_secs_f64();
     let n = tc + tm;
-    eprintln!(
+    err_line!(
         "{n} packets ({tc} TC, {tm} TM), {bad_body} with a body not matching the MIB, {stretches} corrupt stretches ({corrupt_bytes} bytes); {:.0} packets/s",
         if secs > 0.0 { n as f64 / secs } else { 0.0 }
     );
@@ -800,8 +822,15 @@ fn tc_args(def: &'static mib::tc::TcDef, args: &[String]) -> Result<Vec<i64>> {
                 .iter()
                 .position(|m| m.eq_ignore_ascii_case(v))
                 .ok_or_else(|| coded(exit::INVALID, format!("unknown mode \"{v}\"")))? as i64
-        } else if d.name == "side" && (v.eq_ignore_ascii_case("a") || v.eq_ignore_ascii_case("b")) {
-            (v.eq_ignore_ascii_case("b")) as i64
+        } else if d.name == "side" {
+            if v.eq_ignore_ascii_case("a") || v.eq_ignore_ascii_case("b") {
+                (v.eq_ignore_ascii_case("b")) as i64
+            } else {
+                return Err(coded(
+                    exit::INVALID,
+                    format!("{}: side = \"{v}\": the sides are A (0) and B (1)", def.name),
+                ));
+            }
         } else if let Some(e) = mib::events::by_name(v).filter(|_| d.name == "event_id") {
             e.id as i64
         } else {
@@ -978,16 +1007,26 @@ fn watch(a: &WatchArgs, archive_path: Option<&Path>) -> Result<u8> {
         links.push((mib::apid::DEFAULT_ROBOT, default_addr(mib::apid::DEFAULT_ROBOT)));
     }
     let (mut s, arch) = open_session(&links, a.links.transport(), archive_path)?;
-    // The OBSW sends TM to the last UDP sender: announce ourselves with a ping.
+    // The OBSW sends TM to the grounds whose TC it accepted: subscribe with a ping, and
+    // renew the lease well before it ends.
     if let Some(ping) = mib::tc::by_name("PING") {
         for &(r, _) in &links {
             s.send(r, ping, &[], None, Some("watch".into()))?;
         }
     }
+    let renew = Duration::from_millis(mib::config::SUBSCRIPTION_LEASE_MS as u64 / 3);
+    let mut renewed = Instant::now();
     let t0 = Instant::now();
     let mut n = 0u64;
     let result = (|| -> Result<()> {
         loop {
+            if renewed.elapsed() >= renew {
+                renewed = Instant::now();
+                for &(r, _) in &links {
+                    // A lost renewal is made good by the next one, a third of a lease later.
+                    let _ = s.send_heartbeat(r);
+                }
+            }
             if a.duration.is_some_and(|d| t0.elapsed().as_secs_f64() >= d) || a.count.is_some_and(|c| n >= c) {
                 return Ok(());
             }
@@ -1125,7 +1164,7 @@ fn archive_cmd(a: ArchiveCmd, path: &Path) -> Result<u8> {
                         .collect();
                     out(&cells.join(" | "))?;
                 }
-                eprintln!("{} row(s)", rows.rows.len());
+                err_line!("{} row(s)", rows.rows.len());
             }
         }
         ArchiveCmd::Export {
@@ -1139,7 +1178,7 @@ fn archive_cmd(a: ArchiveCmd, path: &Path) -> Result<u8> {
                 Some(p) => {
                     let mut o = std::fs::File::create(&p).with_context(|| format!("writing {}", p.display()))?;
                     let n = store.export_csv(kind, &f, &mut o)?;
-                    eprintln!("{n} row(s) written to {}", p.display());
+                    err_line!("{n} row(s) written to {}", p.display());
                 }
                 None => {
                     let mut o = std::io::stdout().lock();

@@ -52,6 +52,12 @@ pub struct RobotStatus {
     pub lost: Option<String>,
     /// Since when the link is watched (for link loss before any TM).
     pub since: Instant,
+    /// First TM sequence count of the run (from the start marker's reports).
+    pub run_first_seq: Option<u16>,
+    /// Sequence count of the oldest packet in the on-board store (last TM[15,19]).
+    pub store_oldest: Option<u16>,
+    /// Stored packets overwritten on board since boot (last TM[15,19]).
+    pub store_overwritten: u32,
 }
 
 impl RobotStatus {
@@ -73,6 +79,9 @@ impl RobotStatus {
             seq: SeqTrack::default(),
             lost: None,
             since: Instant::now(),
+            run_first_seq: None,
+            store_oldest: None,
+            store_overwritten: 0,
         }
     }
     fn exchange(&mut self, ok: bool) {
@@ -125,12 +134,24 @@ pub struct SeqTrack {
     pub missing: std::collections::BTreeSet<u16>,
     /// Recently received counts, to recognise duplicates.
     recent: VecDeque<u16>,
-    recent_set: std::collections::HashSet<u16>,
+    /// Recent counts with the on-board time of their packet.
+    recent_set: HashMap<u16, u64>,
     /// Missing counts given up because they fell out of the window.
     pub expired: u64,
     /// Missing counts that arrived later (late or replayed).
     pub filled: u64,
 }
+
+/// Label of the connection test that starts a run's TM accounting.
+pub const START_LABEL: &str = "start marker";
+
+/// Label of the store retrievals a session sends for TM gaps.
+pub const GAP_LABEL: &str = "gap retrieval";
+/// Most sequence ranges asked of one robot's store at a time.
+pub const GAP_REQUESTS_MAX: usize = 16;
+/// Gaps closer than this are asked in one range (the packets between come again and
+/// are dropped as duplicates): fewer requests on a link that loses many packets.
+pub const GAP_MERGE_DISTANCE: u16 = 16;
 
 /// Sequence counts remembered behind the newest one.
 pub const SEQ_TRACK_WINDOW: u16 = 4096;
@@ -148,8 +169,8 @@ pub enum SeqKind {
 }
 
 impl SeqTrack {
-    fn remember(&mut self, seq: u16) {
-        if self.recent_set.insert(seq) {
+    fn remember(&mut self, seq: u16, stamp: u64) {
+        if self.recent_set.insert(seq, stamp).is_none() {
             self.recent.push_back(seq);
             if self.recent.len() > SEQ_TRACK_WINDOW as usize {
                 if let Some(old) = self.recent.pop_front() {
@@ -159,12 +180,22 @@ impl SeqTrack {
         }
     }
 
-    /// Takes one received sequence count.
-    pub fn on_seq(&mut self, seq: u16) -> SeqKind {
+    /// Takes one received sequence count with its packet's on-board time (`stamp`): the
+    /// same count with another time is another packet (the OBSW restarted and counts
+    /// again), which starts the tracking afresh.
+    pub fn on_seq(&mut self, seq: u16, stamp: u64) -> SeqKind {
         let seq = seq % SEQ_MOD;
+        if self.recent_set.get(&seq).is_some_and(|&t| t != stamp) {
+            self.expired += self.missing.len() as u64;
+            *self = SeqTrack {
+                expired: self.expired,
+                filled: self.filled,
+                ..SeqTrack::default()
+            };
+        }
         let Some(newest) = self.newest else {
             self.newest = Some(seq);
-            self.remember(seq);
+            self.remember(seq, stamp);
             return SeqKind::New;
         };
         let ahead = seq.wrapping_sub(newest) % SEQ_MOD;
@@ -179,7 +210,7 @@ impl SeqTrack {
                 }
             }
             self.newest = Some(seq);
-            self.remember(seq);
+            self.remember(seq, stamp);
             // Forget gaps that fell out of the window.
             let behind = |m: u16| seq.wrapping_sub(m) % SEQ_MOD;
             let old: Vec<u16> = self
@@ -196,15 +227,67 @@ impl SeqTrack {
         }
         if self.missing.remove(&seq) {
             self.filled += 1;
-            self.remember(seq);
+            self.remember(seq, stamp);
             return SeqKind::Filled;
         }
-        if self.recent_set.contains(&seq) {
+        if self.recent_set.contains_key(&seq) {
             return SeqKind::Duplicate;
         }
         // Older than anything remembered: cannot tell; take it as late.
-        self.remember(seq);
+        self.remember(seq, stamp);
         SeqKind::Filled
+    }
+
+    /// Newest count received.
+    pub fn newest(&self) -> Option<u16> {
+        self.newest
+    }
+
+    /// Missing counts at or before `cutoff` (in the 14-bit circle: at most half of it
+    /// behind), as inclusive ranges.
+    pub fn missing_upto(&self, cutoff: u16) -> Vec<(u16, u16)> {
+        let mut out: Vec<(u16, u16)> = Vec::new();
+        let mut ms: Vec<u16> = self
+            .missing
+            .iter()
+            .copied()
+            .filter(|&m| cutoff.wrapping_sub(m) % SEQ_MOD < SEQ_MOD / 2)
+            .collect();
+        // Oldest first relative to the cutoff.
+        ms.sort_by_key(|&m| std::cmp::Reverse(cutoff.wrapping_sub(m) % SEQ_MOD));
+        for m in ms {
+            match out.last_mut() {
+                Some((_, last)) if (*last + 1) % SEQ_MOD == m => *last = m,
+                _ => out.push((m, m)),
+            }
+        }
+        out
+    }
+
+    #[cfg(test)]
+    fn on_seq_t(&mut self, seq: u16) -> SeqKind {
+        self.on_seq(seq, seq as u64)
+    }
+
+    /// Expects every count from `first` on: counts between it and the newest that were
+    /// not received become missing.
+    pub fn expect_from(&mut self, first: u16) {
+        let first = first % SEQ_MOD;
+        let Some(newest) = self.newest else {
+            // Nothing yet: the next packet is checked against `first`.
+            self.newest = Some(first.wrapping_sub(1) % SEQ_MOD);
+            return;
+        };
+        let behind = newest.wrapping_sub(first) % SEQ_MOD;
+        if behind >= SEQ_TRACK_WINDOW {
+            return;
+        }
+        for k in 0..=behind {
+            let m = (first + k) % SEQ_MOD;
+            if !self.recent_set.contains_key(&m) {
+                self.missing.insert(m);
+            }
+        }
     }
 
     /// Missing counts as inclusive ranges (wrap-around split).
@@ -233,6 +316,9 @@ pub struct Pending {
     pub accepted: bool,
     /// Most sends of this TC (1 for a connection test).
     pub max_sends: u32,
+    /// Every send was made and the TC was accepted: its outcome is asked of the
+    /// on-board store (no more resends).
+    pub exhausted: bool,
 }
 
 /// Something that happened on the links.
@@ -428,6 +514,7 @@ impl Session {
                 sends: 1,
                 accepted: false,
                 max_sends: max_sends.unwrap_or(self.max_resends + 1),
+                exhausted: false,
             },
         );
         Ok(tc)
@@ -462,7 +549,12 @@ impl Session {
         let deadline = Instant::now() + max_wait;
         loop {
             let now = Instant::now();
-            let next_resend = self.pending.values().map(|p| self.resend_due(p)).min();
+            let next_resend = self
+                .pending
+                .values()
+                .filter(|p| !p.exhausted)
+                .map(|p| self.resend_due(p))
+                .min();
             let until = next_resend.map_or(deadline, |r| r.min(deadline));
             let until = until.min(now + Duration::from_millis(100));
             let wait = until.saturating_duration_since(now);
@@ -519,6 +611,44 @@ impl Session {
         }
     }
 
+    /// True while a store retrieval of `robot` is waiting for its outcome.
+    pub fn retrieving(&self, robot: u8) -> bool {
+        self.pending
+            .values()
+            .any(|p| p.robot == robot && p.label.as_deref() == Some(GAP_LABEL))
+    }
+
+    /// Asks `robot`'s on-board store for every missing TM at or before `cutoff` (all
+    /// missing if `None`), by APID and sequence range (TC[15,128]); at most
+    /// `GAP_REQUESTS_MAX` ranges at a time. Returns the ranges asked for.
+    pub fn request_gaps(&mut self, robot: u8, cutoff: Option<u16>) -> Vec<(u16, u16)> {
+        let Some(st) = self.robots.get(&robot) else {
+            return Vec::new();
+        };
+        let Some(def) = mib::tc::by_name("STORE_DOWNLINK_SEQ") else {
+            return Vec::new();
+        };
+        let apid = mib::apid::robot_apid(robot).unwrap_or(0);
+        let ranges = match cutoff.or(st.seq.newest()) {
+            Some(c) => st.seq.missing_upto(c),
+            None => Vec::new(),
+        };
+        let mut merged: Vec<(u16, u16)> = Vec::new();
+        for (a, b) in ranges {
+            match merged.last_mut() {
+                Some((_, last)) if a.wrapping_sub(*last) % SEQ_MOD <= GAP_MERGE_DISTANCE => *last = b,
+                _ => merged.push((a, b)),
+            }
+        }
+        let ranges: Vec<(u16, u16)> = merged.into_iter().take(GAP_REQUESTS_MAX).collect();
+        for &(a, b) in &ranges {
+            let args = [apid as i64, a as i64, b as i64];
+            // A failed send shows as a retrieval without result: asked again later.
+            let _ = self.send(robot, def, &args, None, Some(GAP_LABEL.into()));
+        }
+        ranges
+    }
+
     /// Starts watching every robot's link for loss (`LINK_LOSS_MS` without TM).
     pub fn watch_links(&mut self) {
         self.link_loss = Some(Duration::from_millis(LINK_LOSS_MS as u64));
@@ -530,7 +660,12 @@ impl Session {
     fn check_resends(&mut self, out: &mut Vec<Update>) {
         let now = Instant::now();
         let mut gave_up = Vec::new();
-        let due: Vec<((u16, u16), Instant)> = self.pending.iter().map(|(k, p)| (*k, self.resend_due(p))).collect();
+        let due: Vec<((u16, u16), Instant)> = self
+            .pending
+            .iter()
+            .filter(|(_, p)| !p.exhausted)
+            .map(|(k, p)| (*k, self.resend_due(p)))
+            .collect();
         for (key, at) in due {
             let Some(p) = self.pending.get_mut(&key) else { continue };
             if now < at {
@@ -540,7 +675,20 @@ impl Session {
                 r.exchange(false);
             }
             if p.sends >= p.max_sends {
-                gave_up.push(key);
+                if p.accepted && p.tag.is_some() {
+                    // Accepted, so it may have run: its completion or failure report is
+                    // in the on-board store. Keep it pending for the replay.
+                    p.exhausted = true;
+                    out.push(Update::GaveUp {
+                        robot: p.robot,
+                        tag: p.tag,
+                        tc: p.tc.def.name,
+                        sends: p.sends,
+                        accepted: true,
+                    });
+                } else {
+                    gave_up.push(key);
+                }
                 continue;
             }
             if let Some(link) = self.links.get(&p.robot) {
@@ -579,6 +727,18 @@ impl Session {
 
     fn handle(&mut self, inc: Incoming, out: &mut Vec<Update>) {
         let decoded = pus::decode_tm(&inc.bytes);
+        // A packet received again (same APID, sequence count and on-board time) is
+        // counted, neither archived nor acted on twice.
+        if let (Ok(tm), Some(s)) = (&decoded, self.robots.get_mut(&inc.robot)) {
+            if tm.robot == Some(inc.robot) {
+                let stamp = tm.time.to_bytes().iter().fold(0u64, |a, b| (a << 8) | *b as u64);
+                if s.seq.on_seq(tm.seq, stamp) == SeqKind::Duplicate {
+                    s.duplicates += 1;
+                    s.last_tm = Some(Instant::now());
+                    return;
+                }
+            }
+        }
         if let Some(a) = &self.archive {
             a.send(Record::Tm {
                 t_ms: inc.t_ms,
@@ -615,11 +775,6 @@ impl Session {
                 });
                 return;
             }
-            if tm.robot == Some(robot) && s.seq.on_seq(tm.seq) == SeqKind::Duplicate {
-                // Archived (the archive counts it once), but not acted on twice.
-                s.duplicates += 1;
-                return;
-            }
         }
         match tm.body {
             TmBody::Verification(v) => {
@@ -628,19 +783,25 @@ impl Session {
                 let mut name = None;
                 let mut after = None;
                 let mut finished = false;
-                // The ground builds every TC with a right CRC and length: a TM[1,2] saying
-                // otherwise is about a copy damaged on the way, not about the TC.
+                // The ground builds every TC from the MIB and checks it as the OBSW's
+                // acceptance does (CRC, length, version, APID, service, argument lengths and
+                // ranges): a TM[1,2] with one of those codes is about a copy damaged on the
+                // way (the order of the on-board checks lets a flipped header bit show as
+                // any of them), not about the TC.
                 let damaged = !v.success
                     && v.stage == Stage::Acceptance
-                    && v.failure.as_ref().is_some_and(|f| {
-                        f.code == mib::failure::FailureCode::CRC_MISMATCH.code()
-                            || f.code == mib::failure::FailureCode::MALFORMED_PACKET.code()
-                    });
+                    && v.failure
+                        .as_ref()
+                        .is_some_and(|f| mib::tc::ACCEPTANCE_FAILURES.iter().any(|c| c.code() == f.code));
                 if damaged {
                     if let Some(p) = self.pending.get_mut(&key) {
-                        // Resend at once (same bytes).
-                        if let Some(link) = self.links.get(&p.robot) {
-                            let _ = link.send(&p.tc.bytes);
+                        // Resend at once (same bytes); it counts as a send, so a TC that
+                        // only ever gets such answers ends after its sends.
+                        if p.sends < p.max_sends {
+                            if let Some(link) = self.links.get(&p.robot) {
+                                let _ = link.send(&p.tc.bytes);
+                            }
+                            p.sends += 1;
                         }
                         p.last_sent = Instant::now();
                         out.push(Update::DamagedCopy {
@@ -650,6 +811,22 @@ impl Session {
                         });
                     }
                     return;
+                }
+                if let Some(p) = self
+                    .pending
+                    .get(&key)
+                    .filter(|p| p.label.as_deref() == Some(START_LABEL))
+                {
+                    // A start marker's reports follow each other on board: TM[1,1] has
+                    // the first count of the run, TM[1,7] two more (TM[17,2] between).
+                    let first = match v.stage {
+                        Stage::Acceptance => Some(tm.seq),
+                        Stage::Completion => Some(tm.seq.wrapping_sub(2) % SEQ_MOD),
+                        Stage::Start | Stage::Progress => None,
+                    };
+                    if let (Some(f), Some(s)) = (first, self.robots.get_mut(&p.robot)) {
+                        s.run_first_seq.get_or_insert(f);
+                    }
                 }
                 if let Some(p) = self.pending.get_mut(&key) {
                     tag = p.tag;
@@ -677,6 +854,20 @@ impl Session {
                     tc: name,
                     v,
                     after,
+                });
+            }
+            TmBody::StoreDownlinkDone {
+                oldest_seq,
+                overwritten,
+                ..
+            } => {
+                if let Some(s) = self.robots.get_mut(&robot) {
+                    s.store_oldest = Some(oldest_seq);
+                    s.store_overwritten = overwritten;
+                }
+                out.push(Update::Tm {
+                    robot,
+                    tm: Tm { body: tm.body, ..tm },
                 });
             }
             TmBody::Hk(hk) => {
@@ -839,6 +1030,8 @@ pub struct RunSummary {
     pub faults: Vec<String>,
     pub link_lost: Vec<String>,
     pub links: Vec<LinkSummary>,
+    /// Completeness of each robot's TM at the end (after gap retrieval).
+    pub tm: Vec<TmCompleteness>,
     pub seconds: f64,
 }
 
@@ -897,11 +1090,6 @@ impl RunSummary {
             let _ = writeln!(s, "LINK LOST: {l}");
         }
         for l in &self.links {
-            let missing: u32 = l
-                .tm_missing
-                .iter()
-                .map(|(a, b)| (b.wrapping_sub(*a) & 0x3FFF) as u32 + 1)
-                .sum();
             let _ = writeln!(
                 s,
                 "link robot {}: quality {} over {} exchanges, {} TM ({} duplicates dropped, {} late), {} corrupt, {} resends",
@@ -914,25 +1102,9 @@ impl RunSummary {
                 l.corrupt,
                 l.resends
             );
-            if missing == 0 {
-                let _ = writeln!(
-                    s,
-                    "  TM gaps: none (every sequence count up to the last report arrived)"
-                );
-            } else {
-                let ranges: Vec<String> = l
-                    .tm_missing
-                    .iter()
-                    .take(8)
-                    .map(|(a, b)| if a == b { format!("{a}") } else { format!("{a}-{b}") })
-                    .collect();
-                let _ = writeln!(
-                    s,
-                    "  TM gaps: {missing} packets not received (seq {}{}); not retrieved from the on-board store",
-                    ranges.join(", "),
-                    if l.tm_missing.len() > 8 { ", ..." } else { "" }
-                );
-            }
+        }
+        for c in &self.tm {
+            let _ = writeln!(s, "{}", c.line());
         }
         s
     }
@@ -983,7 +1155,9 @@ impl Display {
         if self.visible {
             let _ = self.mp.println(line);
         } else {
-            eprintln!("{line}");
+            // A closed stderr must not stop a run.
+            use std::io::Write as _;
+            let _ = writeln!(std::io::stderr().lock(), "{line}");
         }
     }
 }
@@ -1002,6 +1176,8 @@ pub enum Effect {
     Forget(BuiltTc),
     /// Send a connection test to keep the lease and check the link.
     Heartbeat(u8),
+    /// Ask the robot's on-board store for its missing TM (a TC's outcome is among it).
+    Retrieve(u8),
     /// A line for the operator.
     Log(String),
     /// One more step finished (for the progress display).
@@ -1253,12 +1429,22 @@ impl<'p> Executor<'p> {
                 sends: k,
                 accepted,
             } if i < n => {
-                let why = if accepted {
-                    format!("{tc} accepted by robot {robot}, but no completion or failure report after {k} sends: outcome unknown")
+                if accepted {
+                    // Still running (the step timeout bounds it): the outcome is asked of
+                    // the on-board store.
+                    if let StepState::Running { stage, .. } = &mut self.state[i] {
+                        *stage = "outcome asked of the store";
+                    }
+                    fx.push(Effect::Log(format!(
+                        "  store    {} robot {robot}: {tc} accepted, no outcome after {k} sends; asking the on-board store",
+                        self.plan.steps[i].id
+                    )));
+                    fx.push(Effect::Retrieve(robot));
                 } else {
-                    format!("no report of {tc} from robot {robot} after {k} sends (link down or OBSW not running)")
-                };
-                self.fail(i, why, &mut fx);
+                    let why =
+                        format!("no report of {tc} from robot {robot} after {k} sends (link down or OBSW not running)");
+                    self.fail(i, why, &mut fx);
+                }
             }
             Update::LinkLost { robot, why } => {
                 fx.push(Effect::Log(format!("  LINK     {why}")));
@@ -1412,6 +1598,7 @@ impl<'p> Executor<'p> {
             faults: self.faults.clone(),
             link_lost: self.lost.clone(),
             links,
+            tm: Vec::new(),
             seconds: now.saturating_duration_since(self.start).as_secs_f64(),
         }
     }
@@ -1423,6 +1610,7 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, done: &[u
     let robots: Vec<u8> = plan.robots.iter().map(|r| r.number).collect();
     let disp = Display::new(plan, &robots, opts.display);
     let mut exec = Executor::new(plan, opts, done, Instant::now());
+    let mut last_gap_check = Instant::now();
     disp.total.inc(exec.resumed as u64);
     if exec.resumed > 0 {
         disp.log(format!(
@@ -1432,6 +1620,7 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, done: &[u
     }
     if opts.ping_period.is_some() {
         session.watch_links();
+        start_markers(session, &robots);
     }
     let apply = |fx: Vec<Effect>, exec: &mut Executor, session: &mut Session| {
         let mut queue: VecDeque<Effect> = fx.into();
@@ -1449,6 +1638,11 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, done: &[u
                     // A failed send shows as silence: the link-loss check reports it.
                     let _ = session.send_heartbeat(r);
                 }
+                Effect::Retrieve(r) => {
+                    if !session.retrieving(r) {
+                        session.request_gaps(r, None);
+                    }
+                }
                 Effect::Log(line) => disp.log(line),
                 Effect::Finished => disp.total.inc(1),
             }
@@ -1464,18 +1658,225 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, done: &[u
             let fx = exec.on_update(Instant::now(), u);
             apply(fx, &mut exec, session);
         }
+        // TM gaps are filled from the on-board store while the plan runs.
+        if last_gap_check.elapsed() >= GAP_CHECK_PERIOD {
+            last_gap_check = Instant::now();
+            for &r in &robots {
+                let lost = session.robots.get(&r).is_some_and(|s| s.lost.is_some());
+                if !lost && !session.retrieving(r) {
+                    session.request_gaps(r, None);
+                }
+            }
+        }
         for (&r, bar) in &disp.robots {
             let st = session.robots.get(&r).map(|s| s.line()).unwrap_or_default();
             bar.set_message(format!("{} | {st}", exec.robot_line(r)));
             bar.tick();
         }
     }
+    let tm = if opts.ping_period.is_some() {
+        complete_tm(session, &robots, &disp)
+    } else {
+        Vec::new()
+    };
     disp.total.finish();
     for b in disp.robots.values() {
         b.finish();
     }
     let _ = disp.mp.clear();
-    exec.summary(session, Instant::now())
+    let mut summary = exec.summary(session, Instant::now());
+    summary.tm = tm;
+    summary
+}
+
+/// Starts every robot's TM accounting: a connection test (resent until answered) whose
+/// reports give the first sequence count of the run; every TM from there on is expected.
+fn start_markers(session: &mut Session, robots: &[u8]) {
+    let Some(ping) = mib::tc::by_name("PING") else { return };
+    let mut markers = Vec::new();
+    for &r in robots {
+        if let Ok(m) = session.send(r, ping, &[], None, Some(START_LABEL.into())) {
+            markers.push((r, m));
+        }
+    }
+    let t0 = Instant::now();
+    let limit = Duration::from_millis(mib::config::TC_RETRY_SPAN_MS as u64);
+    while t0.elapsed() < limit
+        && markers.iter().any(|(r, m)| {
+            session.pending.contains_key(&(m.apid, m.seq)) && session.robots.get(r).is_some_and(|s| s.lost.is_none())
+        })
+    {
+        session.poll(Duration::from_millis(50));
+    }
+    for (r, _) in markers {
+        if let Some(s) = session.robots.get_mut(&r) {
+            if let Some(f) = s.run_first_seq {
+                s.seq.expect_from(f);
+            }
+        }
+    }
+}
+
+/// How often a running plan asks the stores for missing TM.
+const GAP_CHECK_PERIOD: Duration = Duration::from_secs(2);
+/// Retrieval rounds at the end of a run that bring nothing back before the rest counts
+/// as not recovered.
+const GAP_ROUNDS_IDLE_MAX: u32 = 8;
+/// Retrieval rounds at the end of a run at most.
+const GAP_ROUNDS_MAX: u32 = 40;
+
+/// The state of a robot's TM at the end of a run.
+#[derive(Clone, Debug, Serialize)]
+pub struct TmCompleteness {
+    pub robot: u8,
+    /// Every sequence count from this one (the start marker's first report) ...
+    pub from: Option<u16>,
+    /// ... up to this one (the end marker's report) was checked.
+    pub upto: Option<u16>,
+    /// Missing counts overwritten in the on-board store (unrecoverable).
+    pub overwritten: Vec<(u16, u16)>,
+    /// Missing counts still not received after the retrieval rounds.
+    pub not_received: Vec<(u16, u16)>,
+    /// Store retrievals sent at the end of the run.
+    pub retrievals: u32,
+}
+
+impl TmCompleteness {
+    pub fn complete(&self) -> bool {
+        self.upto.is_some() && self.overwritten.is_empty() && self.not_received.is_empty()
+    }
+    /// One line for the summary.
+    pub fn line(&self) -> String {
+        let count = |v: &[(u16, u16)]| -> u32 { v.iter().map(|(a, b)| (b.wrapping_sub(*a) & 0x3FFF) as u32 + 1).sum() };
+        let list = |v: &[(u16, u16)]| -> String {
+            let mut l: Vec<String> = v
+                .iter()
+                .take(8)
+                .map(|(a, b)| if a == b { format!("{a}") } else { format!("{a}-{b}") })
+                .collect();
+            if v.len() > 8 {
+                l.push("...".into());
+            }
+            l.join(", ")
+        };
+        match self.upto {
+            None => format!("TM robot {}: completeness unknown (no end marker answered)", self.robot),
+            Some(u) if self.complete() => format!(
+                "TM robot {}: complete from seq {} up to seq {u} ({} store retrievals at the end)",
+                self.robot,
+                self.from.map_or("?".into(), |f| f.to_string()),
+                self.retrievals
+            ),
+            Some(u) => format!(
+                "TM robot {}: up to seq {u}: {} packets unrecoverable (overwritten on board: {}), {} not received after {} retrievals ({})",
+                self.robot,
+                count(&self.overwritten),
+                list(&self.overwritten),
+                count(&self.not_received),
+                self.retrievals,
+                list(&self.not_received)
+            ),
+        }
+    }
+}
+
+/// Ends a run's TM: an end marker (a connection test, resent until answered) fixes how
+/// far the TM must be complete; then every gap up to it is asked of the on-board store
+/// until it is filled, found overwritten, or `GAP_ROUNDS_MAX` rounds passed.
+fn complete_tm(session: &mut Session, robots: &[u8], disp: &Display) -> Vec<TmCompleteness> {
+    let mut out = Vec::new();
+    let Some(ping) = mib::tc::by_name("PING") else {
+        return out;
+    };
+    for &r in robots {
+        let mut c = TmCompleteness {
+            robot: r,
+            from: session.robots.get(&r).and_then(|s| s.run_first_seq),
+            upto: None,
+            overwritten: Vec::new(),
+            not_received: Vec::new(),
+            retrievals: 0,
+        };
+        if session.robots.get(&r).is_none_or(|s| s.lost.is_some()) {
+            out.push(c);
+            continue;
+        }
+        let marker = session.send(r, ping, &[], None, Some("end marker".into()));
+        let limit = Duration::from_millis(mib::config::TC_RETRY_SPAN_MS as u64);
+        if let Ok(m) = &marker {
+            let t0 = Instant::now();
+            while t0.elapsed() < limit && session.pending.contains_key(&(m.apid, m.seq)) {
+                session.poll(Duration::from_millis(50));
+                if session.robots.get(&r).is_some_and(|s| s.lost.is_some()) {
+                    break;
+                }
+            }
+        }
+        let upto = session.robots.get(&r).and_then(|s| s.seq.newest());
+        c.upto = upto;
+        let Some(cut) = upto else {
+            out.push(c);
+            continue;
+        };
+        let mut rounds = 0;
+        let mut idle_rounds = 0;
+        let mut before = usize::MAX;
+        loop {
+            let missing = session
+                .robots
+                .get(&r)
+                .map(|s| s.seq.missing_upto(cut))
+                .unwrap_or_default();
+            let count = session.robots.get(&r).map_or(0, |s| s.seq.missing.len());
+            if count >= before {
+                idle_rounds += 1;
+            } else {
+                idle_rounds = 0;
+            }
+            before = count;
+            if missing.is_empty() || rounds >= GAP_ROUNDS_MAX || idle_rounds >= GAP_ROUNDS_IDLE_MAX {
+                break;
+            }
+            let t0 = Instant::now();
+            while t0.elapsed() < limit && session.retrieving(r) {
+                session.poll(Duration::from_millis(50));
+            }
+            let asked = session.request_gaps(r, Some(cut));
+            if asked.is_empty() {
+                break;
+            }
+            rounds += 1;
+            c.retrievals += asked.len() as u32;
+            disp.log(format!(
+                "  gaps     robot {r}: {} ranges missing, retrieval round {rounds}",
+                missing.len()
+            ));
+            let t0 = Instant::now();
+            while t0.elapsed() < limit && session.retrieving(r) {
+                session.poll(Duration::from_millis(50));
+            }
+            // Replays still on their way.
+            let settle = Instant::now();
+            while settle.elapsed() < Duration::from_millis(300) {
+                session.poll(Duration::from_millis(50));
+            }
+        }
+        if let Some(s) = session.robots.get(&r) {
+            for (a, b) in s.seq.missing_upto(cut) {
+                // Older than the oldest packet still stored: overwritten on board.
+                let gone = s
+                    .store_oldest
+                    .is_some_and(|o| o != b && o.wrapping_sub(b) % SEQ_MOD < SEQ_MOD / 2);
+                if gone {
+                    c.overwritten.push((a, b));
+                } else {
+                    c.not_received.push((a, b));
+                }
+            }
+        }
+        out.push(c);
+    }
+    out
 }
 
 #[cfg(test)]
@@ -1554,21 +1955,26 @@ mod tests {
     #[test]
     fn seq_track_finds_gaps_duplicates_and_late_packets_across_the_wrap() {
         let mut t = SeqTrack::default();
-        assert_eq!(t.on_seq(0x3FFD), SeqKind::New);
-        assert_eq!(t.on_seq(0x3FFE), SeqKind::New);
+        assert_eq!(t.on_seq_t(0x3FFD), SeqKind::New);
+        assert_eq!(t.on_seq_t(0x3FFE), SeqKind::New);
         // 0x3FFF, 0 and 1 lost; 2 arrives.
-        assert_eq!(t.on_seq(2), SeqKind::New);
+        assert_eq!(t.on_seq_t(2), SeqKind::New);
         assert_eq!(t.missing_ranges(), vec![(0, 1), (0x3FFF, 0x3FFF)]);
-        assert_eq!(t.on_seq(2), SeqKind::Duplicate);
-        assert_eq!(t.on_seq(0x3FFE), SeqKind::Duplicate);
-        assert_eq!(t.on_seq(0), SeqKind::Filled);
-        assert_eq!(t.on_seq(0), SeqKind::Duplicate);
+        assert_eq!(t.on_seq_t(2), SeqKind::Duplicate);
+        assert_eq!(t.on_seq_t(0x3FFE), SeqKind::Duplicate);
+        assert_eq!(t.on_seq_t(0), SeqKind::Filled);
+        assert_eq!(t.on_seq_t(0), SeqKind::Duplicate);
         assert_eq!(t.missing_ranges(), vec![(1, 1), (0x3FFF, 0x3FFF)]);
         // A gap falls out of the window: expired, not kept for ever.
-        assert_eq!(t.on_seq(2 + SEQ_TRACK_WINDOW), SeqKind::New);
-        assert_eq!(t.on_seq(3 + SEQ_TRACK_WINDOW), SeqKind::New);
+        assert_eq!(t.on_seq_t(2 + SEQ_TRACK_WINDOW), SeqKind::New);
+        assert_eq!(t.on_seq_t(3 + SEQ_TRACK_WINDOW), SeqKind::New);
         assert!(t.expired >= 2, "{t:?}");
         assert_eq!(t.filled, 1);
+        // The same count with another on-board time: the OBSW restarted, not a duplicate.
+        let newest = t.newest().unwrap();
+        assert_eq!(t.on_seq(newest, 1), SeqKind::New);
+        assert!(t.missing.is_empty());
+        assert_eq!(t.missing_upto(newest), vec![]);
     }
 
     fn plan(src: &str) -> Plan {
@@ -1600,6 +2006,7 @@ timeout = 5
         let mut data = rid.to_vec();
         if subservice.is_multiple_of(2) {
             data.extend_from_slice(&mib::failure::FailureCode::NOT_ALLOWED_IN_MODE.code().to_be_bytes());
+            data.push(0); // mode: standby
         }
         let tm = pus::decode_tm(&build_tm(tc.apid, 9, 1, subservice, 0, &t, &data)).unwrap();
         let TmBody::Verification(v) = tm.body else {

@@ -11,7 +11,7 @@ use std::fmt;
 use std::ops::Range;
 
 use mib::modes::robot_mode;
-use mib::robot::{self, NUM_STATES, RECONFIG_MAP};
+use mib::robot::{self, NUM_STATES};
 use mib::tc::{function, TcDef};
 use serde::Serialize;
 use toml::de::{DeTable, DeValue};
@@ -64,21 +64,36 @@ pub fn line_col(src: &str, offset: usize) -> (usize, usize) {
     (line, col)
 }
 
-/// Places errors in `file`, sorted by position.
+/// Places errors in `file`, sorted by position. One pass over the source for all errors
+/// (linear in the source and the number of errors).
 pub fn diagnostics(file: &str, src: &str, errors: &[PlanError]) -> Vec<Diagnostic> {
     let mut errs: Vec<&PlanError> = errors.iter().collect();
     errs.sort_by_key(|e| e.span.start);
-    errs.iter()
-        .map(|e| {
-            let (line, column) = line_col(src, e.span.start);
-            Diagnostic {
-                file: file.to_string(),
-                line,
-                column,
-                message: e.message.clone(),
+    let mut out = Vec::with_capacity(errs.len());
+    let (mut line, mut col) = (1usize, 1usize);
+    let mut chars = src.char_indices().peekable();
+    for e in errs {
+        let offset = e.span.start.min(src.len());
+        while let Some(&(i, c)) = chars.peek() {
+            if i >= offset {
+                break;
             }
-        })
-        .collect()
+            if c == '\n' {
+                line += 1;
+                col = 1;
+            } else {
+                col += 1;
+            }
+            chars.next();
+        }
+        out.push(Diagnostic {
+            file: file.to_string(),
+            line,
+            column: col,
+            message: e.message.clone(),
+        });
+    }
+    out
 }
 
 /// A robot taking part in the plan.
@@ -273,43 +288,11 @@ impl Plan {
 }
 
 /// Shortest primitive sequence from `from` to `to` (at most
-/// `mib::config::MAX_RECONFIG_PRIMITIVES`), by breadth-first search over the MIB's
+/// `mib::config::MAX_RECONFIG_PRIMITIVES`), by the same breadth-first search over the MIB's
 /// reconfiguration map. `Some(vec![])` if the states are equal.
 pub fn reconfig_path(from: u8, to: u8) -> Option<Vec<u8>> {
-    let (f, t) = (from as usize, to as usize);
-    if f >= NUM_STATES || t >= NUM_STATES {
-        return None;
-    }
-    let mut prev: [Option<(usize, u8)>; NUM_STATES] = [None; NUM_STATES];
-    let mut depth = [usize::MAX; NUM_STATES];
-    depth[f] = 0;
-    let mut q = VecDeque::from([f]);
-    while let Some(s) = q.pop_front() {
-        if s == t {
-            break;
-        }
-        if depth[s] >= mib::config::MAX_RECONFIG_PRIMITIVES {
-            continue;
-        }
-        for (n, &p) in RECONFIG_MAP[s].iter().enumerate() {
-            if p != 0 && depth[n] == usize::MAX {
-                depth[n] = depth[s] + 1;
-                prev[n] = Some((s, p));
-                q.push_back(n);
-            }
-        }
-    }
-    if depth[t] == usize::MAX {
-        return None;
-    }
-    let mut path = Vec::new();
-    let mut c = t;
-    while let Some((p, prim)) = prev[c] {
-        path.push(prim);
-        c = p;
-    }
-    path.reverse();
-    Some(path)
+    // One search for ground and board: the domain crate's (the OBSW runs the same code).
+    mmic_domain::search::shortest_path(from, to).map(|p| p.to_vec())
 }
 
 // ---------------------------------------------------------------------------
@@ -1007,7 +990,18 @@ fn find_cycles(deps: &[Vec<usize>]) -> Vec<Vec<usize>> {
 
 /// Reads and parses a plan file; errors come back as diagnostics.
 pub fn load(path: &std::path::Path) -> Result<Plan, LoadError> {
-    let src = std::fs::read_to_string(path).map_err(|e| LoadError::Io(path.display().to_string(), e))?;
+    let bytes = std::fs::read(path).map_err(|e| LoadError::Io(path.display().to_string(), e))?;
+    let src = String::from_utf8(bytes).map_err(|e| {
+        LoadError::Invalid(vec![Diagnostic {
+            file: path.display().to_string(),
+            line: 1,
+            column: 1,
+            message: format!(
+                "not a plan: not UTF-8 text (invalid byte at offset {})",
+                e.utf8_error().valid_up_to()
+            ),
+        }])
+    })?;
     parse(&src).map_err(|errs| LoadError::Invalid(diagnostics(&path.display().to_string(), &src, &errs)))
 }
 

@@ -354,15 +354,38 @@ impl fmt::Display for Failure {
         write!(f, "{} ({}): {}", self.name, self.code, self.description)?;
         if !self.fields.is_empty() {
             write!(f, " [")?;
+            let defs = FailureCode::from_code(self.code).data();
             for (i, fl) in self.fields.iter().enumerate() {
                 if i > 0 {
                     write!(f, ", ")?;
                 }
-                write!(f, "{}={}", fl.name, fl.value)?;
+                write!(f, "{}={}", fl.name, named(defs, &self.fields, i))?;
             }
             write!(f, "]")?;
         }
         Ok(())
+    }
+}
+
+/// The value of field `i` as a person reads it: the MIB's name for it (a mode named for
+/// the `node` field beside it) with the raw value, or the raw value alone.
+fn named(defs: &[mib::layout::Field], values: &[Field], i: usize) -> String {
+    let v = values[i].value;
+    let Some(def) = defs.get(i) else {
+        return v.to_string();
+    };
+    let name = if def.names == mib::layout::Names::Mode {
+        values
+            .iter()
+            .find(|x| x.name == "node")
+            .and_then(|n| mib::layout::Names::mode_name_for(n.value, v))
+            .or_else(|| def.names.name(v))
+    } else {
+        def.names.name(v)
+    };
+    match name {
+        Some(n) => format!("{n} ({v})"),
+        None => v.to_string(),
     }
 }
 
@@ -460,8 +483,9 @@ impl Event {
 impl fmt::Display for Event {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{} [{}] {}", self.name, self.severity, self.description)?;
-        for p in &self.params {
-            write!(f, " {}={}", p.name, p.value)?;
+        let defs = mib::events::by_id(self.id).map_or(&[][..], |e| e.params);
+        for (i, p) in self.params.iter().enumerate() {
+            write!(f, " {}={}", p.name, named(defs, &self.params, i))?;
         }
         Ok(())
     }
@@ -1121,6 +1145,23 @@ mod tests {
     const T0: [u8; 7] = [CDS_PFIELD, 0x5A, 0x00, 0x00, 0x00, 0x03, 0xE8];
 
     // verifies: MMIC-FW-01
+    #[test]
+    fn events_and_failures_read_with_the_mib_names() {
+        let mut src = mib::events::eid::MODE_CHANGED.to_be_bytes().to_vec();
+        for v in [10u32, 0, 1] {
+            src.extend_from_slice(&v.to_be_bytes());
+        }
+        src.extend_from_slice(&0u16.to_be_bytes());
+        let TmBody::Event(e) = decode_tm(&tm(5, 1, &src)).unwrap().body else {
+            panic!("not an event")
+        };
+        let s = e.to_string();
+        assert!(s.contains("node=BOLTER_B (10) from=OFF (0) to=ON (1)"), "{s}");
+        let f = Failure::from_code(FailureCode::INITIAL_STATE_MISMATCH.code(), &[0, 4]);
+        assert!(f.to_string().contains("believed="), "{f}");
+        assert!(!f.to_string().contains("believed=0,"), "{f}");
+    }
+
     #[test]
     fn ping_tc_bytes_match_ccsds_and_pus_c_layout() {
         let def = mib::tc::by_name("PING").unwrap();

@@ -160,3 +160,75 @@ fn mib_export_writes_files() {
         Some(3)
     );
 }
+
+#[test]
+fn binary_junk_as_a_plan_is_invalid_input() {
+    let d = tmpdir("junk");
+    let p = d.join("junk.toml");
+    std::fs::write(&p, [0xFFu8, 0xFE, 0x00, 0x9F, 0x80, 0x41]).unwrap();
+    for verb in [&["plan", "check"][..], &["run", "--no-archive"][..]] {
+        let mut args = verb.to_vec();
+        args.push(p.to_str().unwrap());
+        let o = ground(&args);
+        assert_eq!(o.status.code(), Some(3), "{verb:?}: {}", text(&o));
+        assert!(text(&o).contains("not UTF-8"), "{}", text(&o));
+    }
+}
+
+#[test]
+fn plan_check_is_linear_in_the_number_of_errors() {
+    let d = tmpdir("many-errors");
+    let time_for = |n: usize| {
+        let mut src = String::from("name = \"x\"\n[[robot]]\nnumber = 1\ninitial_state = \"Xneg\"\n");
+        for i in 0..n {
+            src.push_str(&format!(
+                "[[step]]\nid = \"s{i}\"\nrobot = 1\naction = \"frobnicate\"\n"
+            ));
+        }
+        let p = d.join(format!("e{n}.toml"));
+        std::fs::write(&p, src).unwrap();
+        let t0 = std::time::Instant::now();
+        let o = ground(&["plan", "check", p.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(3));
+        t0.elapsed().as_secs_f64()
+    };
+    let small = time_for(2_000);
+    let big = time_for(20_000);
+    // Ten times the errors, well under a hundred times the time (quadratic was ~100x).
+    assert!(
+        big < 25.0 * small.max(0.05),
+        "2k errors {small:.2} s, 20k errors {big:.2} s"
+    );
+}
+
+#[test]
+fn a_closed_stderr_is_no_panic() {
+    let d = tmpdir("closed-stderr");
+    let p = d.join("bad.toml");
+    std::fs::write(&p, "name = 1\n").unwrap();
+    let mut c = Command::new(GROUND)
+        .args(["plan", "check", p.to_str().unwrap()])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(c.stderr.take());
+    let st = c.wait().unwrap();
+    assert_ne!(st.code(), Some(101), "panicked on a closed stderr");
+    assert_eq!(st.code(), Some(3));
+}
+
+#[test]
+fn send_names_the_allowed_sides() {
+    let o = ground(&[
+        "send",
+        "--no-archive",
+        "--robot",
+        "1=127.0.0.1:9",
+        "MOVE_ARM",
+        "side=C",
+        "pwm_us=1500",
+    ]);
+    assert_eq!(o.status.code(), Some(3), "{}", text(&o));
+    assert!(text(&o).contains("the sides are A (0) and B (1)"), "{}", text(&o));
+}

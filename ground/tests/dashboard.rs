@@ -352,3 +352,18 @@ fn the_page_is_served_from_the_binary() {
         .cloned();
     assert_eq!(ping.unwrap()["hazard"], Value::Null);
 }
+
+#[test]
+fn stop_returns_with_an_event_stream_open() {
+    let (srv, _) = start(None, Hub::new());
+    let mut s = TcpStream::connect(srv.local_addr()).unwrap();
+    s.write_all(b"GET /api/stream HTTP/1.1\r\nHost: localhost\r\n\r\n")
+        .unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    let mut first = [0u8; 12];
+    s.read_exact(&mut first).unwrap();
+    assert_eq!(&first, b"HTTP/1.1 200");
+    let t = std::time::Instant::now();
+    srv.stop();
+    assert!(t.elapsed() < Duration::from_secs(5), "stop took {:?}", t.elapsed());
+}

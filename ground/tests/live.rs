@@ -410,3 +410,17 @@ fn watch_shows_housekeeping_without_a_request() {
         .count();
     assert!(hk >= 2, "{}", text(&out));
 }
+
+#[test]
+fn a_run_against_the_wrong_robot_says_the_replies_carry_another_apid() {
+    // Robot 2's OBSW at the address given for robot 1.
+    let b = start_obsw(2, 20.0, "Xneg");
+    let dir = tmpdir("wrong-robot");
+    let out = ground(
+        &dir,
+        &["send", "--no-archive", "--robot", &format!("1={}", b.addr), "PING"],
+    );
+    let t = text(&out);
+    assert_eq!(out.status.code(), Some(5), "{t}");
+    assert!(t.contains("carry APID 0x102, not robot 1's 0x101"), "{t}");
+}

@@ -19,7 +19,7 @@ pub enum Names {
     List(&'static [(i64, &'static str)]),
     /// PUS 1 failure codes ([`crate::failure::FailureCode`]).
     FailureCode,
-    /// Event IDs ([`crate::events::EVENTS`]).
+    /// Event IDs ([`crate::events::EVENTS`]; 0 = NONE, e.g. a mode change by command).
     Event,
     /// Telemetry parameter IDs ([`crate::params::PARAMS`]).
     Param,
@@ -73,7 +73,10 @@ impl Names {
                     known => Some(known.name()),
                 }
             }
-            Names::Event => crate::events::by_id(u16::try_from(raw).ok()?).map(|e| e.name),
+            Names::Event => match raw {
+                0 => Some("NONE"),
+                _ => crate::events::by_id(u16::try_from(raw).ok()?).map(|e| e.name),
+            },
             Names::Param => crate::params::by_id(u16::try_from(raw).ok()?).map(|p| p.name),
             Names::Tunable => crate::tunables::by_id(u16::try_from(raw).ok()?).map(|t| t.name),
             Names::Sid => crate::hk::by_sid(u16::try_from(raw).ok()?).map(|h| h.name),
@@ -112,7 +115,10 @@ impl Names {
             Names::FailureCode => crate::failure::FailureCode::ALL
                 .iter()
                 .for_each(|c| f(c.code() as i64, c.name())),
-            Names::Event => crate::events::EVENTS.iter().for_each(|e| f(e.id as i64, e.name)),
+            Names::Event => {
+                f(0, "NONE");
+                crate::events::EVENTS.iter().for_each(|e| f(e.id as i64, e.name));
+            }
             Names::Param => crate::params::PARAMS.iter().for_each(|p| f(p.id as i64, p.name)),
             Names::Tunable => crate::tunables::TUNABLES.iter().for_each(|t| f(t.id as i64, t.name)),
             Names::Sid => crate::hk::HK_STRUCTS.iter().for_each(|h| f(h.sid as i64, h.name)),

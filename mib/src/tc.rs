@@ -745,7 +745,10 @@ const EVENT_BODY: &[Item] = &[
     Item::Field(f("event_id", PType::U16, "event ID").names(Names::Event)),
     Item::Tail(crate::layout::Tail::EventParams),
 ];
-const MAX_LIST: usize = 64;
+/// Most entries of the list reports: every event, monitor, fault (event-action link).
+const MAX_EVENTS: usize = crate::events::EVENTS.len();
+const MAX_MONITORS: usize = crate::fdir::MONITORS.len();
+const MAX_LINKS: usize = crate::fdir::FAULTS.len();
 
 /// Every telemetry packet type the OBSW emits.
 pub const TMS: &[TmDef] = &[
@@ -806,11 +809,11 @@ pub const TMS: &[TmDef] = &[
         8,
         "DISABLED_EVENTS",
         &[
-            Item::Field(f("count", PType::U16, "number of disabled events").range(0, MAX_LIST as i64)),
+            Item::Field(f("count", PType::U16, "number of disabled events").range(0, MAX_EVENTS as i64)),
             Item::Group {
                 name: "events",
                 count: "count",
-                max: MAX_LIST,
+                max: MAX_EVENTS,
                 items: &[Item::Field(
                     f("event_id", PType::U16, "disabled event").names(Names::Event),
                 )],
@@ -836,11 +839,11 @@ pub const TMS: &[TmDef] = &[
         9,
         "MON_DEFINITIONS",
         &[
-            Item::Field(f("count", PType::U16, "number of monitoring definitions").range(0, MAX_LIST as i64)),
+            Item::Field(f("count", PType::U16, "number of monitoring definitions").range(0, MAX_MONITORS as i64)),
             Item::Group {
                 name: "monitors",
                 count: "count",
-                max: MAX_LIST,
+                max: MAX_MONITORS,
                 items: &[
                     Item::Field(f("monitor_id", PType::U16, "monitoring definition").names(Names::Monitor)),
                     Item::Field(f("param", PType::U16, "monitored parameter").names(Names::Param)),
@@ -895,11 +898,11 @@ pub const TMS: &[TmDef] = &[
         9,
         "EA_DEFINITIONS",
         &[
-            Item::Field(f("count", PType::U16, "number of event-action links").range(0, MAX_LIST as i64)),
+            Item::Field(f("count", PType::U16, "number of event-action links").range(0, MAX_LINKS as i64)),
             Item::Group {
                 name: "links",
                 count: "count",
-                max: MAX_LIST,
+                max: MAX_LINKS,
                 items: &[
                     Item::Field(f("event", PType::U16, "triggering event").names(Names::Event)),
                     Item::Field(f("enabled", PType::U8, "1 = enabled").names(crate::layout::BOOL_NAMES)),

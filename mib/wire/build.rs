@@ -120,7 +120,7 @@ struct Gen {
 
 impl Gen {
     /// Normalises a body and emits the structs it needs (group elements first).
-    fn body(&mut self, ty: &str, prefix: &[G], items: &[Item], doc: &str) {
+    fn body(&mut self, ty: &str, prefix: &[G], items: &[Item], doc: &str) -> Vec<G> {
         let mut g: Vec<G> = Vec::new();
         let counts: Vec<(&str, &str)> = items
             .iter()
@@ -195,6 +195,90 @@ impl Gen {
             });
         }
         self.emit_struct(ty, &g, doc);
+        g
+    }
+
+    /// A zero-copy view over a body (smoltcp's `Packet<T>`): getters and setters of the
+    /// fields at fixed offsets, up to the first variable part.
+    fn emit_view(&mut self, ty: &str, g: &[G]) {
+        let o = &mut self.out;
+        let v = format!("{ty}View");
+        let _ = writeln!(
+            o,
+            "/// A view over the bytes of a [`{ty}`] body: the fields at fixed offsets, read and written in place.\n#[derive(Clone, Copy, Debug, PartialEq, Eq)]\npub struct {v}<T: AsRef<[u8]>> {{ buffer: T }}\n"
+        );
+        let _ = writeln!(o, "impl<T: AsRef<[u8]>> {v}<T> {{");
+        let _ = writeln!(
+            o,
+            "    /// Wraps bytes without a check (getters of missing bytes read 0).\n    pub const fn new_unchecked(buffer: T) -> Self {{ {v} {{ buffer }} }}"
+        );
+        let _ = writeln!(
+            o,
+            "    /// Wraps bytes that hold a whole, well-formed body.\n    pub fn new_checked(buffer: T) -> Result<Self, Error> {{ {ty}::parse(buffer.as_ref())?; Ok({v} {{ buffer }}) }}"
+        );
+        let _ = writeln!(o, "    pub fn into_inner(self) -> T {{ self.buffer }}");
+        let mut bit = 0usize;
+        let mut setters = Vec::new();
+        for x in g {
+            match x {
+                G::Member(f) | G::Count { field: f, .. } | G::Disc { field: f, .. } | G::Const { field: f, .. } => {
+                    let n = ident(f.name);
+                    let conv = match f.ptype {
+                        PType::Bool => "!= 0".to_string(),
+                        PType::I16 => "as u16 as i16".to_string(),
+                        PType::I32 => "as i32".to_string(),
+                        PType::U32 => String::new(),
+                        _ => format!("as {}", rust_type(f)),
+                    };
+                    let _ = writeln!(
+                        o,
+                        "    #[doc = {:?}]\n    pub fn {}(&self) -> {} {{ get_bits(self.buffer.as_ref(), {bit}, {}) {conv} }}",
+                        field_doc(f),
+                        n.trim_start_matches("r#"),
+                        rust_type(f),
+                        f.bits
+                    );
+                    let wconv = match f.ptype {
+                        PType::I16 => "as u16 as u32",
+                        _ => "as u32",
+                    };
+                    setters.push(format!(
+                        "    pub fn set_{}(&mut self, value: {}) {{ set_bits(self.buffer.as_mut(), {bit}, {}, value {wconv}) }}",
+                        n.trim_start_matches("r#"),
+                        rust_type(f),
+                        f.bits
+                    ));
+                    bit += f.bits as usize;
+                }
+                G::Sub { name, sub } => {
+                    let _ = writeln!(
+                        o,
+                        "    pub fn {}(&self) -> Result<{}, Error> {{ {}::read(&mut Reader::new(self.buffer.as_ref().get({}..).unwrap_or(&[]))) }}",
+                        ident(name),
+                        sub.name,
+                        sub.name,
+                        bit / 8
+                    );
+                    bit += sub.len() * 8;
+                }
+                G::Group { .. } | G::Packet { .. } | G::Tail(_) => {
+                    let _ = writeln!(
+                        o,
+                        "    /// The variable part of the body (from the first field whose offset depends on the data).\n    pub fn rest(&self) -> &[u8] {{ self.buffer.as_ref().get({}..).unwrap_or(&[]) }}",
+                        bit / 8
+                    );
+                    break;
+                }
+            }
+        }
+        let _ = writeln!(o, "}}\n");
+        if !setters.is_empty() {
+            let _ = writeln!(
+                o,
+                "impl<T: AsRef<[u8]> + AsMut<[u8]>> {v}<T> {{\n{}\n}}\n",
+                setters.join("\n")
+            );
+        }
     }
 
     fn emit_struct(&mut self, ty: &str, g: &[G], doc: &str) {
@@ -504,6 +588,23 @@ fn main() {
         &cases,
     );
 
+    // The severity of each event is its TM[5,x] subservice.
+    let o = &mut g.out;
+    let _ = writeln!(
+        o,
+        "impl Event {{\n    /// Subservice of the event's TM[5,x] (its severity); `None` for an unknown event.\n    pub fn subservice(&self) -> Option<u8> {{ match self {{"
+    );
+    for e in mib::events::EVENTS {
+        let pat = if e.params.is_empty() { "" } else { " { .. }" };
+        let _ = writeln!(
+            o,
+            "        Event::{}{pat} => Some({}),",
+            camel(e.name),
+            e.severity.subservice()
+        );
+    }
+    let _ = writeln!(o, "        Event::Unknown {{ .. }} => None,\n    }} }}\n}}\n");
+
     // Housekeeping structures.
     let _ = writeln!(
         g.out,
@@ -598,7 +699,8 @@ fn main() {
     let mut tm_kinds = Vec::new();
     for t in mib::tc::TMS {
         let ty = camel(t.name);
-        g.body(&ty, &[], t.body, t.desc);
+        let parts = g.body(&ty, &[], t.body, t.desc);
+        g.emit_view(&ty, &parts);
         let _ = writeln!(
             g.out,
             "impl {ty} {{ pub const SERVICE: u8 = {}; pub const SUBSERVICE: u8 = {}; pub const NAME: &'static str = {:?}; }}\n",
@@ -627,7 +729,8 @@ fn main() {
         };
         let mut prefix = prefix;
         prefix.extend(t.args.iter().map(|a| G::Member(*a)));
-        g.body(&ty, &prefix, t.rest, t.desc);
+        let parts = g.body(&ty, &prefix, t.rest, t.desc);
+        g.emit_view(&ty, &parts);
         let _ = writeln!(
             g.out,
             "impl {ty} {{ pub const SERVICE: u8 = {}; pub const SUBSERVICE: u8 = {}; pub const FUNCTION: Option<u16> = {}; pub const NAME: &'static str = {:?}; }}\n",

@@ -12,6 +12,7 @@ const LONG: Duration = Duration::from_secs(60);
 
 /// A regulator that never comes up (battery sagged to 5 V): the commanded mode change
 /// times out, the command fails with the reason, and the robot falls back to standby.
+// verifies: PUS-200-01, PUS-1-02
 #[test]
 fn a_mode_transition_that_cannot_complete_times_out_over_the_real_link() {
     let o = Obsw::start(&["--speed", "20"]);

@@ -6,6 +6,7 @@ use std::time::Duration;
 use e2e_tests::{tc, Client, Obsw};
 use mib::FailureCode as F;
 
+// verifies: PUS-11-02
 #[test]
 fn a_schedule_nested_in_a_schedule_is_refused() {
     let o = Obsw::start(&["--speed", "20"]);

@@ -882,7 +882,8 @@ fn obsw_store_returns_every_packet_the_full_downlink_dropped() -> TestResult {
     check_eq!(&replayed[1..], &[5u16, 6, 7][..]);
     let end = ok!(end);
     check_eq!(&end[..4], &3u32.to_be_bytes()[..]);
-    check_eq!(&end[10..12], &0u16.to_be_bytes()[..]);
-    check_eq!(&end[12..16], &0u32.to_be_bytes()[..]);
+    // packets u32, oldest_time CDS (7 bytes), oldest_seq u16, overwritten u32
+    check_eq!(&end[11..13], &0u16.to_be_bytes()[..]);
+    check_eq!(&end[13..17], &0u32.to_be_bytes()[..]);
     Ok(())
 }

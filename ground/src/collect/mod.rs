@@ -68,6 +68,12 @@ pub struct CollectArgs {
     /// Debug log lines (every store request, every corrupt packet).
     #[arg(long, short = 'v')]
     pub verbose: bool,
+    /// Also serve the operators' dashboard on this address (docs/dashboard.md).
+    #[arg(long, value_name = "ADDR")]
+    pub http: Option<SocketAddr>,
+    /// Access token of the dashboard (required when --http is not a loopback address).
+    #[arg(long, value_name = "TOKEN")]
+    pub http_token: Option<String>,
 }
 
 /// `ground alarms` subcommands.
@@ -184,7 +190,23 @@ pub fn collect_cli(archive: &Path, a: CollectArgs) -> Result<u8> {
     let table = std::io::stdout().is_terminal() && !a.plain;
     let ring = Arc::new(Mutex::new(VecDeque::new()));
     init_logging(a.verbose, table.then(|| ring.clone()));
+    let _dashboard = match a.http {
+        Some(addr) => Some(dashboard(addr, a.http_token.clone(), &cfg)?),
+        None => None,
+    };
     run(archive, cfg, table, ring)
+}
+
+/// The dashboard beside the collector: its own feed (a further downlink subscriber per
+/// robot, which also carries the page's commands) on the dashboard's own runtime.
+fn dashboard(addr: SocketAddr, token: Option<String>, cfg: &Config) -> Result<crate::dashboard::Running> {
+    use crate::dashboard::{self, feed::LinkFeed, Hub, NoArchive};
+    let hub = Hub::new();
+    let links: Vec<(u8, SocketAddr)> = cfg.robots.iter().map(|r| (r.number, r.addr)).collect();
+    let feed = LinkFeed::start(hub.clone(), &links, None).context("dashboard feed")?;
+    let running = dashboard::spawn(addr, token, hub, Arc::new(feed), Arc::new(NoArchive))?;
+    tracing::info!("dashboard at http://{}/", running.local_addr());
+    Ok(running)
 }
 
 /// Runs the collector until SIGINT or SIGTERM.

@@ -14,9 +14,10 @@ use crate::pus::{self, BuiltTc, Tm, TmBody};
 use super::tracker::Pos;
 
 /// How often the lease of the downlink subscription is renewed (every accepted TC
-/// renews it; a ping is the cheapest). A third of the obsw's lease, so two renewals
-/// may be lost in a row.
-pub const LEASE_RENEW_MS: i64 = 1_000;
+/// renews it; a ping is the cheapest): the MIB's ground heartbeat, well inside the
+/// obsw's `SUBSCRIPTION_LEASE_MS`.
+pub const LEASE_RENEW_MS: i64 = mib::config::GROUND_HEARTBEAT_MS as i64;
+const _: () = assert!(3 * LEASE_RENEW_MS < mib::config::SUBSCRIPTION_LEASE_MS as i64);
 
 /// On-board APID of a robot.
 pub fn apid(robot: u8) -> Option<u16> {
@@ -50,40 +51,56 @@ pub fn store_range_tc(robot: u8, seq: u16, apid: u16, first: u16, last: u16) -> 
     pus::build_tc(robot, seq, d, &[]).ok().map(|t| (t, false))
 }
 
+/// Sequence count and on-board time of a packet whose headers and CRC are good (it
+/// was delivered intact) even if its body does not match the MIB.
+pub fn intact_position(raw: &[u8]) -> Option<(u16, Pos)> {
+    let p = mib_wire::header::TmPacket::parse(raw).ok()?;
+    Some((
+        p.primary.apid,
+        Pos {
+            seq: p.primary.seq_count,
+            obt_ms: pus::CdsShort::from_wire(&p.time).unix_ms(),
+        },
+    ))
+}
+
 /// Whether this TM is the obsw's BOOT event (its sequence counts restart).
 pub fn is_boot(tm: &Tm) -> bool {
     matches!(&tm.body, TmBody::Event(e) if e.id == mib::events::eid::BOOT)
 }
 
-/// The store's end report TM[15,19]: packets sent and, when the MIB's layout has them,
-/// the oldest packet still stored.
+/// The store's end report TM[15,19].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct StoreDone {
-    pub packets: Option<i64>,
+    pub packets: u32,
+    /// The oldest packet still in the store (`None` when the store is empty).
     pub oldest: Option<Pos>,
-    pub overwritten: Option<i64>,
+    /// Stored packets overwritten since boot.
+    pub overwritten: u32,
 }
 
+/// The CCSDS epoch (1958-01-01) in Unix ms.
+const CCSDS_EPOCH_UNIX_MS: i64 = -4383 * 86_400_000;
+
 /// Reads a TM[15,19] (`None` for other TM).
-pub fn store_done(tm: &Tm, _raw: &[u8]) -> Option<StoreDone> {
-    let TmBody::StoreDownlinkDone {
-        packets,
-        oldest_time,
-        oldest_seq,
-        overwritten,
-    } = &tm.body
-    else {
-        return None;
-    };
-    let oldest = (*packets > 0 || oldest_time.days > 0 || oldest_time.ms_of_day > 0).then_some(Pos {
-        seq: oldest_seq & 0x3FFF,
-        obt_ms: oldest_time.unix_ms(),
-    });
-    Some(StoreDone {
-        packets: Some(i64::from(*packets)),
-        oldest,
-        overwritten: Some(i64::from(*overwritten)),
-    })
+pub fn store_done(tm: &Tm) -> Option<StoreDone> {
+    match &tm.body {
+        TmBody::StoreDownlinkDone {
+            packets,
+            oldest_time,
+            oldest_seq,
+            overwritten,
+        } => Some(StoreDone {
+            packets: *packets,
+            // An empty store reports day 0, ms 0 (the CCSDS epoch) and count 0.
+            oldest: (oldest_time.unix_ms() != CCSDS_EPOCH_UNIX_MS || *oldest_seq > 0).then_some(Pos {
+                seq: *oldest_seq & 0x3FFF,
+                obt_ms: oldest_time.unix_ms(),
+            }),
+            overwritten: *overwritten,
+        }),
+        _ => None,
+    }
 }
 
 #[cfg(test)]
@@ -101,24 +118,36 @@ mod tests {
     }
 
     #[test]
-    fn store_end_report_is_read_with_the_mib_layout() {
-        let ts = pus::CdsShort::from_unix_ms(1_000_000).to_bytes();
-        // packets u32, oldest time (CDS short), oldest seq u16, overwritten u32.
-        let mut data = vec![0, 0, 0, 7];
-        data.extend_from_slice(&ts);
-        data.extend_from_slice(&42u16.to_be_bytes());
-        data.extend_from_slice(&3u32.to_be_bytes());
-        let raw = pus::build_tm(0x101, 9, 15, 19, 0, &ts, &data);
-        let tm = pus::decode_tm(&raw).unwrap();
-        let d = store_done(&tm, &raw).unwrap();
-        assert_eq!(d.packets, Some(7));
+    fn store_end_report_gives_the_oldest_stored_packet() {
+        let t = pus::CdsShort::from_unix_ms(1_000_000);
+        let tm = Tm {
+            apid: 0x101,
+            robot: Some(1),
+            seq: 9,
+            service: 15,
+            subservice: 19,
+            name: "STORE_DOWNLINK_DONE",
+            msg_counter: 0,
+            time: t,
+            len: 0,
+            body: TmBody::StoreDownlinkDone {
+                packets: 7,
+                oldest_time: t,
+                oldest_seq: 42,
+                overwritten: 3,
+            },
+        };
+        let d = store_done(&tm).unwrap();
         assert_eq!(
-            d.oldest,
-            Some(Pos {
-                seq: 42,
-                obt_ms: 1_000_000
-            })
+            d,
+            StoreDone {
+                packets: 7,
+                oldest: Some(Pos {
+                    seq: 42,
+                    obt_ms: 1_000_000
+                }),
+                overwritten: 3
+            }
         );
-        assert_eq!(d.overwritten, Some(3));
     }
 }

@@ -27,6 +27,12 @@ const BACKOFF_START_MS: i64 = 250;
 const HEALTH_MS: i64 = 2_000;
 /// Most store-range requests sent at once per robot.
 const MAX_RUNS_PER_REQUEST: usize = 4;
+/// Least time between two rounds of store requests of one robot: the collector's own
+/// requests produce TM whose loss makes holes, so their rate is bounded.
+const STORE_REQUEST_MIN_GAP_MS: i64 = 500;
+/// Holes closer than this (in sequence counts) are asked for in one range; the packets
+/// between them come back as duplicates, which costs less than another request.
+const MERGE_GAP: u32 = 64;
 /// Subscription and HK-interval commands tried this many times per link-up before
 /// waiting for the next renewal.
 const HK_SET_TRIES: u32 = 10;
@@ -91,11 +97,14 @@ pub struct Worker {
     started_ms: i64,
     last_rx_ms: Option<i64>,
     last_hk_ms: Option<i64>,
+    /// When the link last came up: housekeeping is expected from then on.
+    up_since_ms: i64,
     backoff_ms: i64,
     next_send_ms: i64,
     hk_interval_ms: u32,
     hk_set: Option<(RequestId, u32)>,
     hk_confirmed: bool,
+    last_store_request_ms: i64,
     conditions: BTreeSet<Source>,
     last_health_ms: i64,
     st: RobotStatus,
@@ -146,11 +155,13 @@ impl Worker {
             started_ms: now,
             last_rx_ms: None,
             last_hk_ms: None,
+            up_since_ms: now,
             backoff_ms: BACKOFF_START_MS,
             next_send_ms: now,
             hk_interval_ms,
             hk_set: None,
             hk_confirmed: cfg.hk_interval_ms.is_none(),
+            last_store_request_ms: i64::MIN / 2,
             conditions: BTreeSet::new(),
             last_health_ms: 0,
             st,
@@ -260,7 +271,7 @@ impl Worker {
         }
         // Stale: TM flows but no HK.
         if self.state == LinkState::Up {
-            let hk_since = self.last_hk_ms.unwrap_or(self.started_ms);
+            let hk_since = self.last_hk_ms.unwrap_or(self.started_ms).max(self.up_since_ms);
             let stale_ms = self.global.stale_hk_intervals as i64 * self.hk_interval_ms as i64;
             if now - hk_since > stale_ms.max(1000) {
                 self.condition(
@@ -301,12 +312,15 @@ impl Worker {
             }
         }
         // Holes → store requests (only while the link is up).
-        if self.state == LinkState::Up {
+        if self.state == LinkState::Up && now - self.last_store_request_ms >= STORE_REQUEST_MIN_GAP_MS {
             let g = &self.global;
             let (settle, retry, tries) = (g.gap_settle_ms as i64, g.gap_retry_ms as i64, g.gap_max_tries);
             let mut requests = Vec::new();
             if let Some(t) = self.trackers.get_mut(&self.apid) {
-                requests = t.due(now, settle, retry, tries, MAX_RUNS_PER_REQUEST);
+                requests = t.due(now, settle, retry, tries, MAX_RUNS_PER_REQUEST, MERGE_GAP);
+            }
+            if !requests.is_empty() {
+                self.last_store_request_ms = now;
             }
             let mut whole_sent = false;
             for (first, last) in requests {
@@ -420,8 +434,23 @@ impl Worker {
         let tm = match pus::decode_tm(&m.bytes) {
             Ok(tm) => tm,
             Err(e) => {
-                self.st.corrupt += 1;
-                tracing::debug!(robot = self.robot(), "corrupt TM ({e})");
+                // Headers and CRC good, body not as the MIB says: delivered, archived
+                // as it is (with its decode error), never asked for again.
+                if let Some((apid, pos)) = onboard::intact_position(&m.bytes) {
+                    self.heard(now);
+                    tracing::warn!(robot = self.robot(), "undecodable TM kept as raw: {e}");
+                    let v = self.trackers.entry(apid).or_default().on_packet(pos, false, now);
+                    if v != Verdict::Duplicate {
+                        let _ = self.sink.send(SinkMsg::Tm {
+                            t_ms: now,
+                            robot: self.robot(),
+                            raw: m.bytes,
+                        });
+                    }
+                } else {
+                    self.st.corrupt += 1;
+                    tracing::debug!(robot = self.robot(), "corrupt TM ({e})");
+                }
                 return;
             }
         };
@@ -450,7 +479,7 @@ impl Worker {
             Verdict::New | Verdict::Filled => {}
         }
         let live = verdict != Verdict::Filled;
-        self.inspect(&tm, &m.bytes, live, now);
+        self.inspect(&tm, live, now);
         let _ = self.sink.send(SinkMsg::Tm {
             t_ms: now,
             robot: self.robot(),
@@ -463,6 +492,7 @@ impl Worker {
         if self.state != LinkState::Up {
             let was = self.state;
             self.state = LinkState::Up;
+            self.up_since_ms = now;
             self.backoff_ms = BACKOFF_START_MS;
             self.next_send_ms = now;
             self.hk_set = None;
@@ -476,7 +506,7 @@ impl Worker {
     }
 
     /// Limits, events, store end reports, HK-interval confirmation.
-    fn inspect(&mut self, tm: &Tm, raw: &[u8], live: bool, now: i64) {
+    fn inspect(&mut self, tm: &Tm, live: bool, now: i64) {
         match &tm.body {
             TmBody::Hk(h) => {
                 if live && tm.apid == self.apid && h.sid == mib::hk::sid::ROBOT_STATUS {
@@ -550,7 +580,7 @@ impl Worker {
                 }
             }
             _ => {
-                if let Some(done) = onboard::store_done(tm, raw) {
+                if let Some(done) = onboard::store_done(tm) {
                     if let (Some(oldest), Some(t)) = (done.oldest, self.trackers.get_mut(&self.apid)) {
                         t.store_oldest(oldest);
                     }

@@ -90,11 +90,35 @@ pub fn recent_positions(c: &Connection, robot: u8, n: usize) -> Result<Vec<(u16,
         v.reverse();
         out.push((apid as u16, v));
     }
+    // Packets kept raw (intact, but their body did not decode) count as received too.
+    let raws: Vec<Vec<u8>> = c
+        .prepare("SELECT raw FROM tm WHERE ok = 0 AND link_robot = ?1 ORDER BY id DESC LIMIT ?2")?
+        .query_map(params![robot as i64, n as i64], |r| r.get(0))?
+        .collect::<Result<_, _>>()?;
+    for raw in raws {
+        let Some((apid, pos)) = super::onboard::intact_position(&raw) else {
+            continue;
+        };
+        match out.iter_mut().find(|(a, _)| *a == apid) {
+            Some((_, v)) => v.push(pos),
+            None => out.push((apid, vec![pos])),
+        }
+    }
+    for (_, v) in out.iter_mut() {
+        v.sort_by_key(|p| (p.obt_ms, p.seq));
+    }
     Ok(out)
 }
 
 fn archived(c: &Connection, raw: &[u8]) -> bool {
-    let Ok(tm) = pus::decode_tm(raw) else { return false };
+    let Ok(tm) = pus::decode_tm(raw) else {
+        return c
+            .query_row("SELECT 1 FROM tm WHERE raw = ?1 LIMIT 1", [raw], |_| Ok(()))
+            .optional()
+            .ok()
+            .flatten()
+            .is_some();
+    };
     c.query_row(
         "SELECT 1 FROM packet WHERE apid = ?1 AND seq = ?2 AND obt_ms = ?3 LIMIT 1",
         params![tm.apid, tm.seq, tm.time.unix_ms()],

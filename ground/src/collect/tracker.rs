@@ -255,7 +255,8 @@ impl ApidTracker {
     /// Contiguous runs of holes due for a store request: found at least `settle_ms`
     /// ago, not requested in the last `retry_ms`. Each returned run counts as one try;
     /// holes that were already tried `max_tries` times are declared not delivered.
-    /// At most `max_runs` runs.
+    /// At most `max_runs` runs; runs at most `merge_gap` counts apart are asked for as
+    /// one range (the packets between them come back as duplicates).
     pub fn due(
         &mut self,
         now_ms: i64,
@@ -263,6 +264,7 @@ impl ApidTracker {
         retry_ms: i64,
         max_tries: u32,
         max_runs: usize,
+        merge_gap: u32,
     ) -> Vec<(u16, u16)> {
         let exhausted: Vec<u16> = self
             .holes
@@ -279,8 +281,15 @@ impl ApidTracker {
             })
             .map(|(s, _)| *s)
             .collect();
+        let mut merged: Vec<(u16, u16)> = Vec::new();
+        for (first, last, _) in runs(&ready) {
+            match merged.last_mut() {
+                Some((_, l)) if ahead(*l, first) <= merge_gap => *l = last,
+                _ => merged.push((first, last)),
+            }
+        }
         let mut out = Vec::new();
-        for (first, last, _) in runs(&ready).into_iter().take(max_runs) {
+        for (first, last) in merged.into_iter().take(max_runs) {
             let mut s = first;
             loop {
                 if let Some(h) = self.holes.get_mut(&s) {
@@ -366,12 +375,12 @@ mod tests {
         let mut t = ApidTracker::resume(Some(p(10, 1000)));
         assert_eq!(t.on_packet(p(15, 1500), false, 0), Verdict::New);
         assert_eq!(t.holes(), 4);
-        assert!(t.due(100, 200, 1000, 3, 8).is_empty(), "settling");
-        assert_eq!(t.due(300, 200, 1000, 3, 8), vec![(11, 14)]);
-        assert!(t.due(400, 200, 1000, 3, 8).is_empty(), "just requested");
+        assert!(t.due(100, 200, 1000, 3, 8, 0).is_empty(), "settling");
+        assert_eq!(t.due(300, 200, 1000, 3, 8, 0), vec![(11, 14)]);
+        assert!(t.due(400, 200, 1000, 3, 8, 0).is_empty(), "just requested");
         assert_eq!(t.on_packet(p(12, 1200), false, 500), Verdict::Filled);
         assert_eq!(t.on_packet(p(12, 1200), false, 500), Verdict::Duplicate);
-        assert_eq!(t.due(1300, 200, 1000, 3, 8), vec![(11, 11), (13, 14)]);
+        assert_eq!(t.due(1300, 200, 1000, 3, 8, 0), vec![(11, 11), (13, 14)]);
         assert_eq!(t.filled, 1);
     }
 
@@ -379,8 +388,25 @@ mod tests {
     fn first_packet_without_history_asks_for_the_earlier_packets_of_the_boot() {
         let mut t = ApidTracker::default();
         assert_eq!(t.on_packet(p(5, 500), false, 0), Verdict::New);
-        assert_eq!(t.due(10, 0, 0, 3, 8), vec![(0, 4)]);
+        assert_eq!(t.due(10, 0, 0, 3, 8, 0), vec![(0, 4)]);
         assert_eq!(t.on_packet(p(0, 100), true, 20), Verdict::Filled);
+    }
+
+    #[test]
+    fn nearby_holes_are_asked_for_in_one_range() {
+        let fill = |t: &mut ApidTracker| {
+            t.on_packet(p(2, 2), false, 0);
+            for s in 100..=200u16 {
+                t.on_packet(p(s, s as i64), false, 0);
+            }
+            t.on_packet(p(202, 202), false, 0);
+        };
+        let mut t = ApidTracker::resume(Some(p(0, 0)));
+        fill(&mut t);
+        assert_eq!(t.due(0, 0, 0, 3, 8, 64), vec![(1, 99), (201, 201)]);
+        let mut t = ApidTracker::resume(Some(p(0, 0)));
+        fill(&mut t);
+        assert_eq!(t.due(0, 0, 0, 3, 8, 0), vec![(1, 1), (3, 99), (201, 201)]);
     }
 
     #[test]
@@ -389,11 +415,11 @@ mod tests {
         assert_eq!(t.on_packet(p(16383, 2), false, 0), Verdict::New);
         assert_eq!(t.on_packet(p(0, 3), false, 0), Verdict::New);
         assert_eq!(t.on_packet(p(2, 4), false, 0), Verdict::New);
-        assert_eq!(t.due(1000, 0, 0, 3, 8), vec![(1, 1)]);
+        assert_eq!(t.due(1000, 0, 0, 3, 8, 0), vec![(1, 1)]);
         // A gap across the wrap is one run.
         let mut t = ApidTracker::resume(Some(p(16380, 1)));
         t.on_packet(p(3, 9), false, 0);
-        assert_eq!(t.due(1000, 0, 0, 3, 8), vec![(16381, 2)]);
+        assert_eq!(t.due(1000, 0, 0, 3, 8, 0), vec![(16381, 2)]);
     }
 
     #[test]
@@ -417,7 +443,7 @@ mod tests {
     fn reboot_seen_without_its_boot_event_leaves_the_first_counts_as_holes() {
         let mut t = ApidTracker::resume(Some(p(7000, 10_000)));
         assert_eq!(t.on_packet(p(3, 30_000), false, 0), Verdict::Reboot);
-        assert_eq!(t.due(10, 0, 0, 3, 8), vec![(0, 2)]);
+        assert_eq!(t.due(10, 0, 0, 3, 8, 0), vec![(0, 2)]);
         assert_eq!(t.on_packet(p(0, 29_000), true, 0), Verdict::Filled);
     }
 
@@ -425,9 +451,9 @@ mod tests {
     fn holes_never_delivered_are_declared_after_the_retries() {
         let mut t = ApidTracker::resume(Some(p(1, 1)));
         t.on_packet(p(3, 3), false, 0);
-        assert_eq!(t.due(0, 0, 10, 2, 8), vec![(2, 2)]);
-        assert_eq!(t.due(10, 0, 10, 2, 8), vec![(2, 2)]);
-        assert!(t.due(20, 0, 10, 2, 8).is_empty());
+        assert_eq!(t.due(0, 0, 10, 2, 8, 0), vec![(2, 2)]);
+        assert_eq!(t.due(10, 0, 10, 2, 8, 0), vec![(2, 2)]);
+        assert!(t.due(20, 0, 10, 2, 8, 0).is_empty());
         let lost = t.take_lost();
         assert_eq!((lost[0].first, lost[0].count, lost[0].why), (2, 1, Lost::NotDelivered));
         assert_eq!(t.lost_packets, 1);
@@ -443,7 +469,7 @@ mod tests {
             (lost[0].first, lost[0].last, lost[0].why),
             (101, 149, Lost::Overwritten)
         );
-        assert_eq!(t.due(0, 0, 0, 3, 8), vec![(150, 199)]);
+        assert_eq!(t.due(0, 0, 0, 3, 8, 0), vec![(150, 199)]);
     }
 
     #[test]

@@ -275,7 +275,8 @@ impl LinkFeed {
         let existing = ids.get(&key).and_then(|id| self.hub().alarm_by_id(*id));
         let rec = match existing {
             Some(mut a) if a.state != AlarmState::Cleared => {
-                if a.last_ms == t {
+                // A standing condition refreshes its alarm once a second, not per report.
+                if t - a.last_ms < 1000 {
                     return;
                 }
                 a.last_ms = t;

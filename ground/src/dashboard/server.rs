@@ -142,7 +142,7 @@ pub async fn serve(
 /// A dashboard server running on its own threads (see [`spawn`]).
 pub struct Running {
     addr: SocketAddr,
-    stop: Option<tokio::sync::oneshot::Sender<()>>,
+    stop: Option<tokio::sync::watch::Sender<bool>>,
     thread: Option<std::thread::JoinHandle<()>>,
 }
 
@@ -158,7 +158,7 @@ impl Running {
     fn shutdown(&mut self) {
         if let Some(s) = self.stop.take() {
             // The server may have ended already; nothing to stop then.
-            let _already_stopped = s.send(());
+            let _already_stopped = s.send(true);
         }
         if let Some(t) = self.thread.take() {
             // A panicked server thread has nothing left to clean up.
@@ -191,7 +191,7 @@ pub fn spawn(
         .thread_name("dashboard")
         .enable_all()
         .build()?;
-    let (tx, rx) = tokio::sync::oneshot::channel::<()>();
+    let (tx, rx) = tokio::sync::watch::channel(false);
     let router = router(app(token, hub, commander, series));
     let (ready_tx, ready_rx) = std::sync::mpsc::channel::<Result<(), std::io::Error>>();
     let thread = std::thread::Builder::new().name("dashboard".into()).spawn(move || {
@@ -204,17 +204,22 @@ pub fn spawn(
                 }
             };
             let _caller_gone = ready_tx.send(Ok(()));
-            let served = axum::serve(listener, router)
-                .with_graceful_shutdown(async move {
-                    // A dropped sender also means stop.
-                    let _stop_or_dropped = rx.await;
-                })
-                .await;
-            if let Err(e) = served {
-                eprintln!("dashboard: server ended: {e}");
+            let stop = |mut rx: tokio::sync::watch::Receiver<bool>| async move {
+                // A dropped sender also means stop.
+                let _stop_or_dropped = rx.wait_for(|s| *s).await;
+            };
+            let served = axum::serve(listener, router).with_graceful_shutdown(stop(rx.clone()));
+            // Open event streams never end by themselves and would hold a graceful
+            // shutdown forever: requests get 1 s to finish after the stop.
+            tokio::select! {
+                r = served => {
+                    if let Err(e) = r {
+                        eprintln!("dashboard: server ended: {e}");
+                    }
+                }
+                () = async { stop(rx).await; tokio::time::sleep(Duration::from_secs(1)).await } => {}
             }
         });
-        // Open event streams would hold graceful shutdown forever: give them 1 s.
         rt.shutdown_timeout(Duration::from_secs(1));
     })?;
     match ready_rx.recv() {

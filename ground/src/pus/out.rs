@@ -99,13 +99,36 @@ impl Writer {
         self.out.extend_from_slice(s.as_bytes());
     }
 
+    /// An engineering value with `decimals` digits after the point (fixed point, so
+    /// that no float formatting is needed per value); shortest form beyond 10^15.
     #[inline]
-    fn float(&mut self, v: f64) {
-        if v.is_finite() {
+    fn float(&mut self, v: f64, decimals: u32) {
+        if !v.is_finite() {
+            self.out.extend_from_slice(b"null");
+            return;
+        }
+        let p = 10i64.pow(decimals);
+        let scaled = (v * p as f64).round();
+        if scaled.abs() >= 1e15 {
             let s = self.ryu.format_finite(v);
             self.out.extend_from_slice(s.as_bytes());
-        } else {
-            self.out.extend_from_slice(b"null");
+            return;
+        }
+        let n = scaled as i64;
+        if n < 0 {
+            self.out.push(b'-');
+        }
+        let a = n.unsigned_abs();
+        let s = self.itoa.format(a / p as u64);
+        self.out.extend_from_slice(s.as_bytes());
+        if decimals > 0 {
+            self.out.push(b'.');
+            let frac = a % p as u64;
+            let s = self.itoa.format(frac);
+            for _ in s.len()..decimals as usize {
+                self.out.push(b'0');
+            }
+            self.out.extend_from_slice(s.as_bytes());
         }
     }
 
@@ -201,7 +224,7 @@ impl Writer {
                     self.out.extend_from_slice(b"{\"raw\":");
                     self.int(raw);
                     self.out.extend_from_slice(b",\"eng\":");
-                    self.float(f.calib.eng(raw));
+                    self.float(f.calib.eng(raw), decimals(f.calib.scale));
                     self.out.extend_from_slice(b",\"unit\":");
                     self.jstr(f.unit);
                     self.out.push(b'}');
@@ -213,8 +236,7 @@ impl Writer {
                 if let Some(n) = name {
                     self.out.extend_from_slice(n.as_bytes());
                 } else if calibrated {
-                    let e = f.calib.eng(raw);
-                    let _ = write!(self.out, "{e:.3}");
+                    self.float(f.calib.eng(raw), decimals(f.calib.scale));
                     self.out.extend_from_slice(f.unit.as_bytes());
                 } else {
                     self.int(raw);
@@ -335,11 +357,18 @@ impl Writer {
     fn body(&mut self, items: &[Item], prefix: &[Field], data: &[u8]) -> Result<(), BodyError> {
         self.ctx.clear();
         let mut r = Reader::new(data);
-        self.open(b'{');
+        // Text: the body's fields follow the packet name on the same line.
+        let json = self.fmt == Format::Json;
+        if json {
+            self.open(b'{');
+        }
+        self.comma = false;
         self.fields(prefix, &mut r)?;
         self.items(items, &mut r)?;
         r.finish().map_err(|e| BodyError(e.to_string()))?;
-        self.close(b'}');
+        if json {
+            self.close(b'}');
+        }
         Ok(())
     }
 
@@ -355,14 +384,52 @@ impl Writer {
         let m = if mp < 10 { mp + 3 } else { mp - 9 };
         let y = yoe + era * 400 + if m <= 2 { 1 } else { 0 };
         let ms = t.ms_of_day as i64;
-        let _ = write!(
-            self.out,
-            "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}.{:03}Z",
-            ms / 3_600_000,
-            ms / 60_000 % 60,
-            ms / 1000 % 60,
-            ms % 1000
-        );
+        let digits = |out: &mut Vec<u8>, v: i64, n: u32| {
+            let mut p = 10i64.pow(n - 1);
+            while p > 0 {
+                out.push(b'0' + (v / p % 10) as u8);
+                p /= 10;
+            }
+        };
+        digits(&mut self.out, y, 4);
+        self.out.push(b'-');
+        digits(&mut self.out, m, 2);
+        self.out.push(b'-');
+        digits(&mut self.out, d, 2);
+        self.out.push(b'T');
+        digits(&mut self.out, ms / 3_600_000, 2);
+        self.out.push(b':');
+        digits(&mut self.out, ms / 60_000 % 60, 2);
+        self.out.push(b':');
+        digits(&mut self.out, ms / 1000 % 60, 2);
+        self.out.push(b'.');
+        digits(&mut self.out, ms % 1000, 3);
+        self.out.push(b'Z');
+    }
+
+    /// `{offset:8} TM  apid=0x{apid:03X} seq={seq:5} [{service},{subservice}]`, without fmt.
+    fn text_head(&mut self, offset: usize, kind: &[u8], apid: u16, seq: u16, service: u8, subservice: u8) {
+        let pad = |out: &mut Vec<u8>, s: &str, w: usize| {
+            for _ in s.len()..w {
+                out.push(b' ');
+            }
+            out.extend_from_slice(s.as_bytes());
+        };
+        pad(&mut self.out, self.itoa.format(offset as u64), 8);
+        self.out.push(b' ');
+        self.out.extend_from_slice(kind);
+        self.out.extend_from_slice(b"  apid=0x");
+        let h = b"0123456789ABCDEF";
+        for sh in [8, 4, 0] {
+            self.out.push(h[(apid >> sh & 15) as usize]);
+        }
+        self.out.extend_from_slice(b" seq=");
+        pad(&mut self.out, self.itoa.format(seq), 5);
+        self.out.extend_from_slice(b" [");
+        self.int(service as i64);
+        self.out.push(b',');
+        self.int(subservice as i64);
+        self.out.push(b']');
     }
 
     /// Writes one TM packet (one line).
@@ -399,11 +466,15 @@ impl Writer {
                 self.out.extend_from_slice(b",\"body\":");
             }
             Format::Text => {
-                let _ = write!(
-                    self.out,
-                    "{offset:8} TM  apid=0x{:03X} seq={:5} [{},{}] ",
-                    p.primary.apid, p.primary.seq_count, p.service, p.subservice
+                self.text_head(
+                    offset,
+                    b"TM",
+                    p.primary.apid,
+                    p.primary.seq_count,
+                    p.service,
+                    p.subservice,
                 );
+                self.out.push(b' ');
                 self.time(&p.time);
                 self.out.push(b' ');
                 self.out.extend_from_slice(name.as_bytes());
@@ -455,11 +526,16 @@ impl Writer {
                 self.out.extend_from_slice(b",\"body\":");
             }
             Format::Text => {
-                let _ = write!(
-                    self.out,
-                    "{offset:8} TC  apid=0x{:03X} seq={:5} [{},{}] {name}",
-                    p.primary.apid, p.primary.seq_count, p.service, p.subservice
+                self.text_head(
+                    offset,
+                    b"TC",
+                    p.primary.apid,
+                    p.primary.seq_count,
+                    p.service,
+                    p.subservice,
                 );
+                self.out.push(b' ');
+                self.out.extend_from_slice(name.as_bytes());
             }
         }
         let res = match def {
@@ -543,6 +619,25 @@ impl Writer {
         self.out.clear();
         Ok(())
     }
+}
+
+/// Digits after the decimal point that show one raw count of a calibration with this
+/// scale: enough to reach the scale's first significant digit, one more when the scale is
+/// not a power of ten (e.g. 15/4095 V per count: 4 digits; 0.001 A: 3; 0.01 deg: 2).
+pub fn decimals(scale: f64) -> u32 {
+    let mut s = scale.abs();
+    if s == 0.0 || !s.is_finite() {
+        return 0;
+    }
+    let mut d = 0;
+    while s < 1.0 - 1e-9 && d < 9 {
+        s *= 10.0;
+        d += 1;
+    }
+    if (s - s.round()).abs() > 1e-9 && d < 9 {
+        d += 1;
+    }
+    d
 }
 
 fn find_last(h: &[u8], n: &[u8]) -> Option<usize> {
@@ -685,6 +780,21 @@ mod tests {
         assert_eq!(v["name"], "PING_REPLY");
         assert!(v["error"].as_str().unwrap().contains("2 bytes after"));
         assert_eq!(v["data"], "0102");
+    }
+
+    #[test]
+    fn engineering_values_show_one_raw_count() {
+        assert_eq!(decimals(0.001), 3);
+        assert_eq!(decimals(0.01), 2);
+        assert_eq!(decimals(15.0 / 4095.0), 4);
+        assert_eq!(decimals(1.0), 0);
+        let mut w = Writer::new(Format::Json);
+        w.float(-0.0405, 3);
+        w.out.push(b' ');
+        w.float(9.597069597, 4);
+        w.out.push(b' ');
+        w.float(23.58, 2);
+        assert_eq!(String::from_utf8(w.out).unwrap(), "-0.041 9.5971 23.58");
     }
 
     #[test]

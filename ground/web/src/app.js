@@ -22,7 +22,11 @@ const fmtVal = (v) => (v === null || v === undefined ? '—' : Math.abs(v) >= 10
 
 // ---- access token (needed when the server is bound beyond localhost) -------------
 const params = new URLSearchParams(location.search);
-if (params.get('token')) sessionStorage.setItem('dash-token', params.get('token'));
+if (params.get('token')) {
+  sessionStorage.setItem('dash-token', params.get('token'));
+  // Keep the token out of the address bar and the history.
+  history.replaceState(null, '', location.pathname + location.hash);
+}
 const token = sessionStorage.getItem('dash-token');
 async function api(path, opts = {}) {
   const headers = Object.assign({ 'Content-Type': 'application/json' }, opts.headers || {});

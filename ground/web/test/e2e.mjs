@@ -191,6 +191,35 @@ try {
     await page.waitForSelector('.run tr.step-done');
     await shot('dashboard-plans.png');
   });
+  await step('bound beyond localhost: the page needs the token, and commands with it', async () => {
+    const d2 = spawn(demoBin, ['--robots', '1', '--http', '0.0.0.0:0', '--token', 'e2e-secret'], { stdio: ['pipe', 'pipe', 'inherit'] });
+    try {
+      const i2 = await new Promise((resolve, reject) => {
+        createInterface({ input: d2.stdout }).once('line', (l) => resolve(JSON.parse(l)));
+        d2.once('exit', (c) => reject(new Error('second demo exited with ' + c)));
+      });
+      const url = new URL(i2.url);
+      url.hostname = '127.0.0.1';
+      const p2 = await browser.newPage();
+      const bare = url.origin + '/';
+      await p2.goto(bare);
+      await p2.waitForFunction(() => /error/.test(document.querySelector('#conn').textContent));
+      const refused = await p2.evaluate(async () => (await fetch('/api/tc', { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: JSON.stringify({ robot: 1, name: 'PING', args: {} }) })).status);
+      assert(refused === 401, 'POST /api/tc without the token: ' + refused);
+      await p2.goto(url.href);
+      await p2.waitForSelector('#robot-1');
+      await p2.click('#tabs button[data-view="commands"]');
+      await p2.selectOption('#tc-name', 'PING');
+      await p2.click('#tc-send');
+      await p2.waitForFunction(() => document.querySelector('#tc-result').dataset.request);
+      const id = await p2.$eval('#tc-result', (e) => e.dataset.request);
+      await p2.waitForSelector(`#history tr[data-request="${id}"] td[data-stage="completion"] .ok`);
+      await p2.close();
+    } finally {
+      d2.stdin.end();
+      await new Promise((r) => { d2.once('exit', r); setTimeout(() => { d2.kill('SIGKILL'); r(); }, 5000); });
+    }
+  });
 } finally {
   await browser.close();
   rmSync(profile, { recursive: true, force: true });

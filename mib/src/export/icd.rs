@@ -334,6 +334,14 @@ pub fn icd_markdown() -> String {
         "\nHousekeeping reports are told apart by their SID and event reports by their event ID: the first\nu16 of the source data (octet {} of the packet, the SCOS-2000 PI1).\n",
         layout::tm_source_data_offset()
     );
+    let _ = writeln!(
+        o,
+        "Source data field by field (the MIB's field lists, `mib::layout`; the wire crate `mib-wire`, the\nXTCE export and `ground decode` use the same lists). Offsets in octets from the start of the source\ndata (`.b` = first bit of a bit field); \"—\" after a variable part.\n"
+    );
+    for t in TMS {
+        let _ = writeln!(o, "### TM[{},{}] {}\n", t.service, t.subservice, t.name);
+        body_table(&mut o, t.body);
+    }
 
     // 5 ---------------------------------------------------------------
     let _ = writeln!(o, "## 5. Housekeeping structures\n");
@@ -865,12 +873,111 @@ pub fn icd_markdown() -> String {
     let _ = writeln!(o, "## 17. Ground-system exports\n");
     let _ = writeln!(
         o,
-        "`ground mib export --format scos|xtce|json --out DIR` writes (through `mib::export::write_all`):\n\n- **scos** — SCOS-2000 MIB ASCII tables (`vdf pid pic tpcf pcf plf caf cap ocf ocp tcp pcpc pcdf ccf cdf\n  cpc prf prv`.dat), tab-separated, no header line, every column of the SCOS-2000 MIB ICD in order.\n  TM packets are identified by APID, type, subtype and PI1 (the SID of TM[3,25], the event ID of\n  TM[5,x]) at octet {} (`pic`); `PLF_OFFBY` counts octets from the start of the packet, `CDF_BIT` bits\n  from the start of the application data. SCOS-2000 names have 8 characters: HK parameter *n* is\n  `MMT` + *n* (5 digits), event parameters `ME` + event ID (hex) + position, commands `MC` + service +\n  subservice (3 digits each) or `MF` + function ID (6 digits), command parameters `P` + the command\n  name's digits + position. The PUS 8 function ID is a fixed element (`MMFUNCID`) of every TC[8,1].\n- **xtce** — XTCE 1.2 (`http://www.omg.org/spec/XTCE/20180204`): container tree `CCSDSPacket` →\n  `PUS_TM` → `HK_REPORT` → `HK_<structure>` (restricted on the SID) / `EVENT_<severity>` →\n  `EVT_<event>` (restricted on the event ID) / `TM_<name>` (binary source data); polynomial\n  calibrators and alarm ranges; every TC as a MetaCommand derived from the abstract `PUS_TC` with\n  argument valid ranges. `scripts/xtce_decode.py` decodes packets with it (space-packet-parser).\n- **json** — the whole MIB.\n\nThe exports are generated for robot {} (APID 0x{:03X}). Every robot is its own SCOS-2000/XTCE\nspacecraft: for robot *N* call `mib::export::scos_tables_for(N)` / `xtce_document_for(N)`, which change\nonly the APIDs (and the SCOS-2000 SPIDs, `N` × 10000 + index).\n",
+        "`ground mib export --format scos|xtce|json --out DIR` writes (through `mib::export::write_all`):\n\n- **scos** — SCOS-2000 MIB ASCII tables (`vdf pid pic tpcf pcf plf caf cap ocf ocp tcp pcpc pcdf ccf cdf\n  cpc prf prv`.dat), tab-separated, no header line, every column of the SCOS-2000 MIB ICD in order.\n  TM packets are identified by APID, type, subtype and PI1 (the SID of TM[3,25], the event ID of\n  TM[5,x]) at octet {} (`pic`); `PLF_OFFBY` counts octets from the start of the packet, `CDF_BIT` bits\n  from the start of the application data. SCOS-2000 names have 8 characters: HK parameter *n* is\n  `MMT` + *n* (5 digits), event parameters `ME` + event ID (hex) + position, commands `MC` + service +\n  subservice (3 digits each) or `MF` + function ID (6 digits), command parameters `P` + the command\n  name's digits + position. The PUS 8 function ID is a fixed element (`MMFUNCID`) of every TC[8,1].\n  The other reports: their fixed fields are parameters `MR` + kind index (2 digits, order of §4) +\n  field index at their octet and bit offsets (`PLF_OFFBI`; bit fields of 1-3 bits PTC 2, 4-16 bits\n  PTC 3); failure reports are one packet per failure code (PI1 = the code), whose failure data\n  fields are `MD` + code (3 digits) + field index. List reports (TM[5,8], [12,9], [19,9]) carry\n  their count; their entries are described in the XTCE export.\n- **xtce** — XTCE 1.2 (`http://www.omg.org/spec/XTCE/20180204`): container tree `CCSDSPacket` →\n  `PUS_TM` → `HK_REPORT` → `HK_<structure>` (restricted on the SID) / `EVENT_<severity>` →\n  `EVT_<event>` (restricted on the event ID) / `TM_<name>` with the report's fields from §4\n  (parameters `<name>_<field path>`, enumerated with the MIB's names; failure reports one child\n  container `<name>_<code>` per failure code with its failure data; list reports one child\n  `<name>_N<count>` per entry count, entries as containers `<name>_<group>_<i>`); polynomial\n  calibrators and alarm ranges; every TC as a MetaCommand derived from the abstract `PUS_TC` with\n  argument valid ranges. `scripts/xtce_decode.py` decodes packets with it (space-packet-parser).\n- **json** — the whole MIB.\n\nThe exports are generated for robot {} (APID 0x{:03X}). Every robot is its own SCOS-2000/XTCE\nspacecraft: for robot *N* call `mib::export::scos_tables_for(N)` / `xtce_document_for(N)`, which change\nonly the APIDs (and the SCOS-2000 SPIDs, `N` × 10000 + index).\n",
         layout::tm_source_data_offset(),
         apid::DEFAULT_ROBOT,
         robot1
     );
     o
+}
+
+/// Markdown table of a body's fields (offset, name, type, unit, value names, description).
+fn body_table(o: &mut String, items: &[crate::layout::Item]) {
+    use crate::layout::{type_name, Field, Item, Names, Tail};
+    if items.is_empty() {
+        let _ = writeln!(o, "No source data.\n");
+        return;
+    }
+    let _ = writeln!(o, "| offset | field | type | unit | values | description |");
+    let _ = writeln!(o, "|---|---|---|---|---|---|");
+    fn names(n: Names) -> String {
+        match n {
+            Names::None => String::new(),
+            Names::List(l) => l.iter().map(|(v, n)| format!("{v} {n}")).collect::<Vec<_>>().join(", "),
+            Names::FailureCode => "failure codes (§8)".into(),
+            Names::Event => "events (§7), 0 NONE".into(),
+            Names::Param => "parameters (§6)".into(),
+            Names::Tunable => "tunable parameters (§14)".into(),
+            Names::Sid => "HK structures (§5)".into(),
+            Names::Node => "mode-tree nodes (§9)".into(),
+            Names::Mode => "modes of the node (§9)".into(),
+            Names::State => "configuration states (§10), 255 UNKNOWN".into(),
+            Names::Primitive => "motion primitives (§11), 0 NONE".into(),
+            Names::Function => "PUS 8 functions (§3)".into(),
+            Names::Monitor => "monitors (§13)".into(),
+        }
+    }
+    fn rows(o: &mut String, prefix: &str, items: &[Item], bit: &mut Option<usize>) {
+        let row = |o: &mut String, name: String, f: &Field, bit: &mut Option<usize>| {
+            let off = match *bit {
+                Some(b) if b % 8 == 0 => format!("{}", b / 8),
+                Some(b) => format!("{}.{}", b / 8, b % 8),
+                None => "—".into(),
+            };
+            let _ = writeln!(
+                o,
+                "| {off} | `{name}` | {} | {} | {} | {} |",
+                type_name(f),
+                f.unit,
+                c(&names(f.names)),
+                c(f.desc)
+            );
+            if let Some(b) = bit.as_mut() {
+                *b += f.bits as usize;
+            }
+        };
+        for it in items {
+            match it {
+                Item::Field(f) => row(o, format!("{prefix}{}", f.name), f, bit),
+                Item::Sub { name, sub } => {
+                    for f in sub.fields {
+                        row(o, format!("{prefix}{name}.{}", f.name), f, bit);
+                    }
+                }
+                Item::Group {
+                    name,
+                    count,
+                    max,
+                    items,
+                } => {
+                    let _ = writeln!(
+                        o,
+                        "| {} | `{prefix}{name}[]` | group | | | `{count}` entries (at most {max}) of (offsets within an entry): |",
+                        bit.map_or("—".into(), |b| (b / 8).to_string())
+                    );
+                    *bit = None;
+                    rows(o, &format!("{prefix}{name}[]."), items, &mut Some(0));
+                }
+                Item::Packet { name, max_len } => {
+                    let _ = writeln!(
+                        o,
+                        "| — | `{prefix}{name}` | packet | | | embedded space packet, at most {max_len} octets |"
+                    );
+                    *bit = None;
+                }
+                Item::Tail(t) => {
+                    let what = match t {
+                        Tail::FailureData => "failure data of the failure code (§8)",
+                        Tail::EventParams => "parameters of the event (§7)",
+                        Tail::HkParams => "parameters of the structure (§5)",
+                    };
+                    let _ = writeln!(
+                        o,
+                        "| {} | `{prefix}{}` | per `{}` | | | {what} |",
+                        bit.map_or("—".into(), |b| (b / 8).to_string()),
+                        match t {
+                            Tail::FailureData => "failure_data",
+                            Tail::EventParams | Tail::HkParams => "params",
+                        },
+                        t.discriminant()
+                    );
+                    *bit = None;
+                }
+            }
+        }
+    }
+    rows(o, "", items, &mut Some(0));
+    let _ = writeln!(o);
 }
 
 #[cfg(test)]

@@ -353,8 +353,66 @@ struct TmPacket {
     interval_ms: Option<u32>,
     event: &'static str,
     evid: String,
-    /// (PCF name, octet offset in the packet) of every parameter.
-    params: Vec<(String, usize)>,
+    /// (PCF name, octet offset in the packet, bit offset in the octet) of every parameter.
+    params: Vec<(String, usize, usize)>,
+    /// Octet offset of PI1 in the packet (16 bits) when packets of this type are told
+    /// apart by it.
+    pi1_off: Option<usize>,
+}
+
+/// Monitoring parameter of field `field` (0-based) of the fixed part of TM kind `tm`
+/// (index in `TMS`): `MR` + 2-digit kind + 2-digit field.
+fn report_param(tm: usize, field: usize) -> String {
+    format!("MR{tm:02}{field:02}")
+}
+
+/// Monitoring parameter of failure-data field `field` of failure code `code`:
+/// `MD` + 3-digit code + 2-digit field.
+fn failure_param(code: u16, field: usize) -> String {
+    format!("MD{code:03}{field:02}")
+}
+
+/// The fields of a report body at fixed offsets (up to the first variable part), with
+/// their bit offsets from the start of the source data.
+fn fixed_fields(items: &[crate::layout::Item]) -> Vec<(String, crate::layout::Field, usize)> {
+    use crate::layout::Item;
+    let mut out = Vec::new();
+    let mut bit = 0;
+    for it in items {
+        match it {
+            Item::Field(f) => {
+                out.push((f.name.to_string(), *f, bit));
+                bit += f.bits as usize;
+            }
+            Item::Sub { name, sub } => {
+                for f in sub.fields {
+                    out.push((format!("{name}.{}", f.name), *f, bit));
+                    bit += f.bits as usize;
+                }
+            }
+            Item::Group { .. } | Item::Packet { .. } | Item::Tail(_) => break,
+        }
+    }
+    out
+}
+
+/// Monitoring parameters of the report bodies: (PCF name, description, field).
+fn report_pcf() -> Vec<(String, String, crate::layout::Field)> {
+    let mut out = Vec::new();
+    for (ti, t) in TMS.iter().enumerate() {
+        if is_identified_by_pi1(t.service, t.subservice) {
+            continue;
+        }
+        for (fi, (path, f, _)) in fixed_fields(t.body).into_iter().enumerate() {
+            out.push((report_param(ti, fi), format!("{}.{path}", t.name), f));
+        }
+    }
+    for c in crate::FailureCode::ALL {
+        for (fi, f) in c.data().iter().enumerate() {
+            out.push((failure_param(c.code(), fi), format!("{}.{}", c.name(), f.name), *f));
+        }
+    }
+    out
 }
 
 /// TM[3,25] and TM[5,1..4] are told apart by PI1 (SID / event ID).
@@ -366,26 +424,71 @@ pub(crate) fn is_identified_by_pi1(service: u8, subservice: u8) -> bool {
 fn tm_packets() -> Vec<TmPacket> {
     let sd = layout::tm_source_data_offset();
     let mut out = Vec::new();
-    for t in TMS.iter().filter(|t| !is_identified_by_pi1(t.service, t.subservice)) {
-        out.push(TmPacket {
-            service: t.service,
-            subservice: t.subservice,
-            pi1: 0,
-            name: t.name.to_string(),
-            descr: format!("TM[{},{}] {}: {}", t.service, t.subservice, t.name, t.desc),
-            data_len: None,
-            interval_ms: None,
-            event: "N",
-            evid: String::new(),
-            params: Vec::new(),
-        });
+    for (ti, t) in TMS.iter().enumerate() {
+        if is_identified_by_pi1(t.service, t.subservice) {
+            continue;
+        }
+        let fixed = fixed_fields(t.body);
+        let params: Vec<(String, usize, usize)> = fixed
+            .iter()
+            .enumerate()
+            .map(|(fi, (_, _, bit))| (report_param(ti, fi), sd + bit / 8, bit % 8))
+            .collect();
+        let failure = t
+            .body
+            .contains(&crate::layout::Item::Tail(crate::layout::Tail::FailureData));
+        if failure {
+            // One packet per failure code (PI1 = the code): the fixed part, then the code's
+            // failure data.
+            let (_, _, code_bit) = fixed
+                .iter()
+                .find(|(n, ..)| n == "failure_code")
+                .cloned()
+                .expect("a failure report has a failure_code field");
+            let data_off = sd + code_bit / 8 + 2;
+            for c in crate::FailureCode::ALL {
+                let mut ps = params.clone();
+                let mut bit = 0;
+                for (fi, f) in c.data().iter().enumerate() {
+                    ps.push((failure_param(c.code(), fi), data_off + bit / 8, bit % 8));
+                    bit += f.bits as usize;
+                }
+                out.push(TmPacket {
+                    service: t.service,
+                    subservice: t.subservice,
+                    pi1: c.code(),
+                    name: format!("TM{}_{}_{}", t.service, t.subservice, c.code()),
+                    descr: format!("TM[{},{}] {} {}", t.service, t.subservice, t.name, c.name()),
+                    data_len: Some(code_bit / 8 + 2 + c.data_len()),
+                    interval_ms: None,
+                    event: "N",
+                    evid: String::new(),
+                    params: ps,
+                    pi1_off: Some(sd + code_bit / 8),
+                });
+            }
+        } else {
+            out.push(TmPacket {
+                service: t.service,
+                subservice: t.subservice,
+                pi1: 0,
+                name: t.name.to_string(),
+                descr: format!("TM[{},{}] {}: {}", t.service, t.subservice, t.name, t.desc),
+                data_len: crate::layout::fixed_len(t.body),
+                interval_ms: None,
+                event: "N",
+                evid: String::new(),
+                params,
+                pi1_off: None,
+            });
+        }
     }
     for h in HK_STRUCTS {
-        let mut params = vec![(ScosNames::SID.to_string(), sd)];
+        let mut params = vec![(ScosNames::SID.to_string(), sd, 0)];
         let mut off = sd + 2;
         for id in h.params {
             if let Some(p) = crate::params::by_id(*id) {
-                params.push((ScosNames::tm_param(p.id), off));
+                params.push((ScosNames::tm_param(p.id), off, 0));
                 off += p.ptype.size();
             }
         }
@@ -400,13 +503,14 @@ fn tm_packets() -> Vec<TmPacket> {
             event: "N",
             evid: String::new(),
             params,
+            pi1_off: Some(sd),
         });
     }
     for e in EVENTS {
-        let mut params = vec![(ScosNames::EVENT_ID.to_string(), sd)];
+        let mut params = vec![(ScosNames::EVENT_ID.to_string(), sd, 0)];
         let mut off = sd + 2;
         for (i, p) in e.params.iter().enumerate() {
-            params.push((ScosNames::event_param(e.id, i), off));
+            params.push((ScosNames::event_param(e.id, i), off, 0));
             off += p.ptype.size();
         }
         out.push(TmPacket {
@@ -430,6 +534,7 @@ fn tm_packets() -> Vec<TmPacket> {
             },
             evid: fit(e.name, 17),
             params,
+            pi1_off: Some(sd),
         });
     }
     out
@@ -515,16 +620,16 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
                 .map(|n| layout::tm_packet_len(n).to_string())
                 .unwrap_or_default(),
         ]);
-        for (name, off) in &p.params {
-            plf.row([name, &spid, &off.to_string(), "0", "1", "0", "0", "1"]);
+        for (name, off, bit) in &p.params {
+            plf.row([name, &spid, &off.to_string(), &bit.to_string(), "1", "0", "0", "1"]);
         }
         if !pic_keys.contains(&(p.service, p.subservice)) {
             pic_keys.push((p.service, p.subservice));
-            if is_identified_by_pi1(p.service, p.subservice) {
+            if let Some(pi1_off) = p.pi1_off {
                 pic.row([
                     &p.service.to_string(),
                     &p.subservice.to_string(),
-                    &layout::tm_source_data_offset().to_string(),
+                    &pi1_off.to_string(),
                     "16",
                     "-1",
                     "0",
@@ -550,8 +655,8 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
     // --- monitoring parameters, calibrations, limits ---
     let cals = calibrations();
     let mut pcf = Table::new("pcf");
-    let mut pcf_row = |name: &str, descr: &str, obpid: &str, unit: &str, t: PType, curtx: &str, descr2: &str| {
-        let (ptc, pfc) = ptc_pfc(t);
+    let mut pcf_row = |name: &str, descr: &str, obpid: &str, unit: &str, tf: (u8, u8), curtx: &str, descr2: &str| {
+        let (ptc, pfc) = tf;
         pcf.row([
             name,
             &fit(descr, 24),
@@ -584,7 +689,7 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
         "HK_SID",
         "",
         "",
-        PType::U16,
+        ptc_pfc(PType::U16),
         "",
         "Housekeeping structure ID (PI1 of TM[3,25])",
     );
@@ -593,7 +698,7 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
         "EVENT_ID",
         "",
         "",
-        PType::U16,
+        ptc_pfc(PType::U16),
         "",
         "Event ID (PI1 of TM[5,x])",
     );
@@ -608,7 +713,7 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
             p.name,
             &p.id.to_string(),
             p.unit,
-            p.ptype,
+            ptc_pfc(p.ptype),
             &curtx,
             p.desc,
         );
@@ -620,11 +725,24 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
                 &format!("{}.{}", e.name, ep.name),
                 "",
                 "",
-                ep.ptype,
+                ptc_pfc(ep.ptype),
                 "",
                 &format!("Parameter '{}' of event {} (0x{:04X})", ep.name, e.name, e.id),
             );
         }
+    }
+    // Fields of the other reports and the failure data of every code.
+    for (name, path, f) in report_pcf() {
+        let tf = if f.is_whole() {
+            ptc_pfc(f.ptype)
+        } else if f.bits >= 4 {
+            // Unsigned integer of 4..16 bits: PFC = bits - 4.
+            (3, f.bits - 4)
+        } else {
+            // 1..3 bits: an enumerated value of that many bits.
+            (2, f.bits)
+        };
+        pcf_row(&name, &path, "", f.unit, tf, "", f.desc);
     }
     tables.push(pcf);
     tables.push(plf);

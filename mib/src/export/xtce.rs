@@ -5,8 +5,10 @@
 //! secondary header with the CDS short time stamp, restricted to TM of the robot's
 //! APID) → `HK_REPORT` (TM[3,25], the SID) → `HK_<structure>` (restricted on the SID,
 //! the structure's parameters, the PEC); → `EVENT_<severity>` (TM[5,1..4], the event
-//! ID) → `EVT_<event>` (restricted on the event ID); and one container per other TM
-//! type, whose source data is one binary parameter sized from the packet length.
+//! ID) → `EVT_<event>` (restricted on the event ID); parameters whose values the MIB names
+//! are enumerated (HK, event parameters, report fields); and one container per other TM
+//! type with its fields from the MIB's field list (`crate::layout`): failure reports with
+//! one child container per failure code, list reports with one per entry count.
 //! Telecommands are MetaCommands deriving from the abstract `PUS_TC`.
 
 use super::layout::{self, Field};
@@ -122,8 +124,37 @@ fn header_type(x: &mut Xml, f: &Field) {
     x.close("</xtce:IntegerParameterType>");
 }
 
+/// Enumerated parameter type of a field whose values the MIB names.
+fn enumerated_type(x: &mut Xml, tname: &str, f: &crate::layout::Field) {
+    x.open(&format!(
+        "<xtce:EnumeratedParameterType name=\"{}\" shortDescription=\"{}\">",
+        esc(tname),
+        esc(f.desc)
+    ));
+    unit_set(x, f.unit);
+    x.line(&format!(
+        "<xtce:IntegerDataEncoding sizeInBits=\"{}\" encoding=\"{}\"/>",
+        f.bits,
+        if f.ptype.signed() { "twosComplement" } else { "unsigned" }
+    ));
+    x.open("<xtce:EnumerationList>");
+    let mut seen = std::collections::BTreeMap::new();
+    f.names.for_each(|v, n| {
+        seen.entry(v).or_insert(n);
+    });
+    for (v, n) in seen {
+        x.line(&format!("<xtce:Enumeration value=\"{v}\" label=\"{}\"/>", esc(n)));
+    }
+    x.close("</xtce:EnumerationList>");
+    x.close("</xtce:EnumeratedParameterType>");
+}
+
 fn param_type(x: &mut Xml, p: &ParamDef) {
     let tname = format!("{}_Type", p.name);
+    if !p.names().is_none() {
+        enumerated_type(x, &tname, &p.field());
+        return;
+    }
     if p.calib.is_identity() && p.limits.is_none() {
         raw_type(x, &tname, p.ptype, p.unit, p.desc);
         return;
@@ -317,35 +348,31 @@ pub fn xtce_document_for(robot: u8) -> String {
             desc: "event ID",
         },
     );
-    x.open("<xtce:BinaryParameterType name=\"TM_SOURCE_DATA_Type\" shortDescription=\"source data of a TM whose layout is given in the ICD\">");
-    x.line("<xtce:UnitSet/>");
-    x.open("<xtce:BinaryDataEncoding>");
-    x.open("<xtce:SizeInBits>");
-    x.open("<xtce:DynamicValue>");
-    x.line("<xtce:ParameterInstanceRef parameterRef=\"PKT_LEN\" useCalibratedValue=\"false\"/>");
-    // bits = 8 * (PKT_LEN + 1) - 8 * (secondary header + PEC)
-    let fixed_after_primary = layout::len(layout::TM_SEC_HEADER) + layout::len(&[layout::PEC]);
-    x.line(&format!(
-        "<xtce:LinearAdjustment slope=\"8\" intercept=\"{}\"/>",
-        8 - 8 * fixed_after_primary as i64
-    ));
-    x.close("</xtce:DynamicValue>");
-    x.close("</xtce:SizeInBits>");
-    x.close("</xtce:BinaryDataEncoding>");
-    x.close("</xtce:BinaryParameterType>");
+    let mut body = BodyXtce::new();
+    for t in TMS
+        .iter()
+        .filter(|t| !super::scos::is_identified_by_pi1(t.service, t.subservice))
+    {
+        body.tm(t);
+    }
+    x.s.push_str(&body.types.s);
     for p in PARAMS {
         param_type(&mut x, p);
     }
     for e in EVENTS {
         for ep in e.params {
             let n = event_param_name(e, ep.name);
-            raw_type(
-                &mut x,
-                &format!("{n}_Type"),
-                ep.ptype,
-                "",
-                &format!("{} of event {}", ep.name, e.name),
-            );
+            if ep.names.is_none() {
+                raw_type(
+                    &mut x,
+                    &format!("{n}_Type"),
+                    ep.ptype,
+                    "",
+                    &format!("{} of event {}", ep.name, e.name),
+                );
+            } else {
+                enumerated_type(&mut x, &format!("{n}_Type"), ep);
+            }
         }
     }
     x.close("</xtce:ParameterTypeSet>");
@@ -360,13 +387,7 @@ pub fn xtce_document_for(robot: u8) -> String {
     }
     parameter(&mut x, "HK_SID", "HK_SID_Type", "housekeeping structure ID", &[]);
     parameter(&mut x, "EVENT_ID", "EVENT_ID_Type", "event ID", &[]);
-    parameter(
-        &mut x,
-        "TM_SOURCE_DATA",
-        "TM_SOURCE_DATA_Type",
-        "source data (layout in the ICD)",
-        &[],
-    );
+    x.s.push_str(&body.params.s);
     for p in PARAMS {
         parameter(
             &mut x,
@@ -478,31 +499,7 @@ pub fn xtce_document_for(robot: u8) -> String {
             Some((&severity_container(e.severity), &[("EVENT_ID", e.id.to_string())])),
         );
     }
-    for t in TMS
-        .iter()
-        .filter(|t| !super::scos::is_identified_by_pi1(t.service, t.subservice))
-    {
-        container(
-            &mut x,
-            &format!("TM_{}", t.name),
-            &format!(
-                "TM[{},{}] {}; source data: {}",
-                t.service,
-                t.subservice,
-                t.desc,
-                crate::layout::summary(t.body)
-            ),
-            false,
-            &["TM_SOURCE_DATA".to_string(), layout::PEC.name.to_string()],
-            Some((
-                "PUS_TM",
-                &[
-                    ("TM_SERVICE", t.service.to_string()),
-                    ("TM_SUBSERVICE", t.subservice.to_string()),
-                ],
-            )),
-        );
-    }
+    x.s.push_str(&body.containers.s);
     x.close("</xtce:ContainerSet>");
     x.close("</xtce:TelemetryMetaData>");
 
@@ -666,6 +663,211 @@ fn meta_command(x: &mut Xml, t: &TcDef, apid: u16) {
     x.line("<xtce:BaseContainer containerRef=\"PUS_TC\"/>");
     x.close("</xtce:CommandContainer>");
     x.close("</xtce:MetaCommand>");
+}
+
+/// XTCE of the TM kinds that are not told apart by PI1 (all but HK and events), generated
+/// from their field lists (`crate::layout`): every field a parameter named
+/// `<TM>_<path>`; a failure report an abstract container with one child per failure code
+/// (restricted on the code) holding that code's failure data; a list report one child per
+/// entry count (restricted on the count) holding that many entry containers.
+struct BodyXtce {
+    types: Xml,
+    params: Xml,
+    containers: Xml,
+}
+
+const PEC_NAME: &str = "PEC";
+
+fn items_fields(prefix: &str, items: &[crate::layout::Item], out: &mut Vec<(String, crate::layout::Field)>) {
+    use crate::layout::Item;
+    for it in items {
+        match it {
+            Item::Field(f) => out.push((format!("{prefix}_{}", f.name), *f)),
+            Item::Sub { name, sub } => {
+                for f in sub.fields {
+                    out.push((format!("{prefix}_{name}_{}", f.name), *f));
+                }
+            }
+            Item::Group { .. } | Item::Packet { .. } | Item::Tail(_) => {}
+        }
+    }
+}
+
+impl BodyXtce {
+    fn new() -> Self {
+        let x = || Xml {
+            s: String::new(),
+            depth: 3,
+        };
+        BodyXtce {
+            types: x(),
+            params: x(),
+            containers: x(),
+        }
+    }
+
+    /// Type and parameter of one field (enumerated when the MIB names its values).
+    fn field(&mut self, name: &str, f: &crate::layout::Field, desc: &str) {
+        let x = &mut self.types;
+        let tname = format!("{name}_Type");
+        let enc = format!(
+            "<xtce:IntegerDataEncoding sizeInBits=\"{}\" encoding=\"{}\"/>",
+            f.bits,
+            if f.ptype.signed() { "twosComplement" } else { "unsigned" }
+        );
+        if !f.names.is_none() {
+            enumerated_type(x, &tname, f);
+        } else {
+            x.open(&format!(
+                "<xtce:IntegerParameterType name=\"{}\" shortDescription=\"{}\" signed=\"{}\" sizeInBits=\"32\">",
+                esc(&tname),
+                esc(f.desc),
+                f.ptype.signed()
+            ));
+            unit_set(x, f.unit);
+            x.line(&enc);
+            x.close("</xtce:IntegerParameterType>");
+        }
+        parameter(&mut self.params, name, &tname, desc, &[]);
+    }
+
+    fn fields(&mut self, list: &[(String, crate::layout::Field)]) -> Vec<String> {
+        for (n, f) in list {
+            self.field(n, f, f.desc);
+        }
+        list.iter().map(|(n, _)| n.clone()).collect()
+    }
+
+    fn tm(&mut self, t: &crate::tc::TmDef) {
+        use crate::layout::{Item, Tail};
+        let base_crit = [
+            ("TM_SERVICE", t.service.to_string()),
+            ("TM_SUBSERVICE", t.subservice.to_string()),
+        ];
+        let cname = format!("TM_{}", t.name);
+        let desc = format!("TM[{},{}] {}", t.service, t.subservice, t.desc);
+        let mut fixed = Vec::new();
+        items_fields(t.name, t.body, &mut fixed);
+        let entries = self.fields(&fixed);
+        let tail = t.body.iter().find_map(|i| match i {
+            Item::Tail(x) => Some(*x),
+            _ => None,
+        });
+        let group = t.body.iter().find_map(|i| match i {
+            Item::Group {
+                name,
+                count,
+                max,
+                items,
+                ..
+            } => Some((*name, *count, *max, *items)),
+            _ => None,
+        });
+        match (tail, group) {
+            (Some(Tail::FailureData), None) => {
+                container(
+                    &mut self.containers,
+                    &cname,
+                    &desc,
+                    true,
+                    &entries,
+                    Some(("PUS_TM", &base_crit)),
+                );
+                let code_param = format!("{}_failure_code", t.name);
+                for c in crate::FailureCode::ALL {
+                    let list: Vec<(String, crate::layout::Field)> = c
+                        .data()
+                        .iter()
+                        .map(|f| (format!("{}_{}_{}", t.name, c.name(), f.name), *f))
+                        .collect();
+                    let mut e = self.fields(&list);
+                    e.push(PEC_NAME.to_string());
+                    container(
+                        &mut self.containers,
+                        &format!("{}_{}", t.name, c.name()),
+                        &format!(
+                            "{} with failure {} ({}): {}",
+                            t.name,
+                            c.name(),
+                            c.code(),
+                            c.description()
+                        ),
+                        false,
+                        &e,
+                        Some((&cname, &[(code_param.as_str(), c.code().to_string())])),
+                    );
+                }
+            }
+            (None, Some((gname, count, max, items))) => {
+                container(
+                    &mut self.containers,
+                    &cname,
+                    &desc,
+                    true,
+                    &entries,
+                    Some(("PUS_TM", &base_crit)),
+                );
+                for i in 0..max {
+                    let mut list = Vec::new();
+                    items_fields(&format!("{}_{gname}_{i}", t.name), items, &mut list);
+                    let e = self.fields(&list);
+                    container(
+                        &mut self.containers,
+                        &format!("{}_{gname}_{i}", t.name),
+                        &format!("entry {i} of {}", t.name),
+                        false,
+                        &e,
+                        None,
+                    );
+                }
+                let count_param = format!("{}_{count}", t.name);
+                for n in 0..=max {
+                    // Entries are containers: written here rather than through `container`.
+                    let x = &mut self.containers;
+                    x.open(&format!(
+                        "<xtce:SequenceContainer name=\"{}_N{n}\" shortDescription=\"{} with {n} entries\">",
+                        t.name, t.name
+                    ));
+                    x.open("<xtce:EntryList>");
+                    for i in 0..n {
+                        x.line(&format!(
+                            "<xtce:ContainerRefEntry containerRef=\"{}_{gname}_{i}\"/>",
+                            t.name
+                        ));
+                    }
+                    x.line(&format!("<xtce:ParameterRefEntry parameterRef=\"{PEC_NAME}\"/>"));
+                    x.close("</xtce:EntryList>");
+                    x.open(&format!("<xtce:BaseContainer containerRef=\"{cname}\">"));
+                    x.open("<xtce:RestrictionCriteria>");
+                    x.open("<xtce:ComparisonList>");
+                    x.line(&format!(
+                        "<xtce:Comparison parameterRef=\"{count_param}\" value=\"{n}\" useCalibratedValue=\"false\"/>"
+                    ));
+                    x.close("</xtce:ComparisonList>");
+                    x.close("</xtce:RestrictionCriteria>");
+                    x.close("</xtce:BaseContainer>");
+                    x.close("</xtce:SequenceContainer>");
+                }
+            }
+            (None, None) => {
+                let mut e = entries;
+                e.push(PEC_NAME.to_string());
+                container(
+                    &mut self.containers,
+                    &cname,
+                    &desc,
+                    false,
+                    &e,
+                    Some(("PUS_TM", &base_crit)),
+                );
+            }
+            (Some(_), _) => {
+                // A body with another tail (events, HK) or a group and a tail: HK and events
+                // have their own containers above; no other TM has both.
+                unreachable!("TM {} has a body the XTCE export does not describe", t.name)
+            }
+        }
+    }
 }
 
 #[cfg(test)]

@@ -26,8 +26,11 @@ pub const CCSDS_TO_UNIX_DAYS: i64 = 4383;
 /// Milliseconds in a day.
 pub const MS_PER_DAY: i64 = 86_400_000;
 
-const fn crc_table() -> [u16; 256] {
-    let mut t = [0u16; 256];
+/// CRC tables for four bytes per step: `T[0]` the byte-wise table of poly 0x1021,
+/// `T[k][i]` the register after byte `i` followed by `k` zero bytes (the CRC is linear, so
+/// four table look-ups XOR to the register after four bytes).
+const fn crc_tables() -> [[u16; 256]; 4] {
+    let mut t = [[0u16; 256]; 4];
     let mut i = 0;
     while i < 256 {
         let mut c = (i as u16) << 8;
@@ -36,18 +39,36 @@ const fn crc_table() -> [u16; 256] {
             c = if c & 0x8000 != 0 { (c << 1) ^ 0x1021 } else { c << 1 };
             k += 1;
         }
-        t[i] = c;
+        t[0][i] = c;
         i += 1;
+    }
+    let mut k = 1;
+    while k < 4 {
+        let mut i = 0;
+        while i < 256 {
+            let p = t[k - 1][i];
+            t[k][i] = (p << 8) ^ t[0][(p >> 8) as usize];
+            i += 1;
+        }
+        k += 1;
     }
     t
 }
-const CRC_TABLE: [u16; 256] = crc_table();
+const CRC_TABLES: [[u16; 256]; 4] = crc_tables();
 
 /// CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF), the PUS packet error control.
 pub fn crc16(data: &[u8]) -> u16 {
+    let t = &CRC_TABLES;
     let mut c: u16 = 0xFFFF;
-    for b in data {
-        c = (c << 8) ^ CRC_TABLE[((c >> 8) as u8 ^ b) as usize];
+    let mut chunks = data.chunks_exact(4);
+    for b in &mut chunks {
+        c = t[3][((c >> 8) as u8 ^ b[0]) as usize]
+            ^ t[2][(c as u8 ^ b[1]) as usize]
+            ^ t[1][b[2] as usize]
+            ^ t[0][b[3] as usize];
+    }
+    for b in chunks.remainder() {
+        c = (c << 8) ^ t[0][((c >> 8) as u8 ^ b) as usize];
     }
     c
 }
@@ -384,9 +405,26 @@ pub fn emit_tc(
 #[cfg(test)]
 mod tests {
     use super::*;
+    /// Bit by bit, as the standard defines it.
+    fn crc16_bitwise(data: &[u8]) -> u16 {
+        let mut c: u16 = 0xFFFF;
+        for b in data {
+            c ^= (*b as u16) << 8;
+            for _ in 0..8 {
+                c = if c & 0x8000 != 0 { (c << 1) ^ 0x1021 } else { c << 1 };
+            }
+        }
+        c
+    }
     #[test]
-    fn crc_matches_the_ccitt_false_check_value() {
+    fn crc_matches_the_ccitt_false_check_value_and_the_bitwise_definition() {
         assert_eq!(crc16(b"123456789"), 0x29B1);
+        let data: Vec<u8> = (0..1000u32)
+            .map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8)
+            .collect();
+        for n in 0..data.len() {
+            assert_eq!(crc16(&data[..n]), crc16_bitwise(&data[..n]), "{n} bytes");
+        }
     }
     #[test]
     fn tm_emit_then_parse_gives_the_headers_back() {

@@ -214,6 +214,31 @@ impl<'a> Writer<'a> {
     }
 }
 
+/// Reads `bits` bits at bit offset `bit` (big-endian); 0 for bits beyond the buffer
+/// (views made with `new_unchecked` over short bytes read zeros, never panic).
+#[inline]
+pub fn get_bits(buf: &[u8], bit: usize, bits: u8) -> u32 {
+    let mut v = 0u32;
+    for i in bit..bit + bits as usize {
+        let b = buf.get(i / 8).map_or(0, |x| (x >> (7 - i % 8)) & 1);
+        v = (v << 1) | b as u32;
+    }
+    v
+}
+
+/// Writes the low `bits` bits of `v` at bit offset `bit`; bits beyond the buffer are
+/// dropped.
+#[inline]
+pub fn set_bits(buf: &mut [u8], bit: usize, bits: u8, v: u32) {
+    for (k, i) in (bit..bit + bits as usize).enumerate() {
+        let b = ((v >> (bits as usize - 1 - k)) & 1) as u8;
+        if let Some(x) = buf.get_mut(i / 8) {
+            let sh = 7 - i % 8;
+            *x = (*x & !(1 << sh)) | (b << sh);
+        }
+    }
+}
+
 /// The code generated from the MIB (see `build.rs`). Casts are written uniformly for
 /// every field type, and the kind enums hold their largest body inline (no heap), hence
 /// the allowed lints.

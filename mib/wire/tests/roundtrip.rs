@@ -292,6 +292,16 @@ fn acceptance_failure_bytes_split_the_request_id_into_its_fields() {
 }
 
 #[test]
+fn every_event_knows_the_subservice_of_its_severity() {
+    for e in mib::events::EVENTS {
+        let data = vec![0u8; e.data_len() - 2];
+        let ev = mib_wire::Event::read(e.id, &mut mib_wire::Reader::new(&data)).unwrap();
+        assert_eq!(ev.id(), e.id);
+        assert_eq!(ev.subservice(), Some(e.severity.subservice()), "{}", e.name);
+    }
+}
+
+#[test]
 fn hk_report_from_values_is_the_structure_the_mib_lists() {
     let h = mib_wire::Hk::from_values(mib::hk::sid::FDIR, |p| p as i64 * 3).unwrap();
     let rep = mib_wire::tm::HkReport { hk: h };
@@ -301,4 +311,53 @@ fn hk_report_from_values_is_the_structure_the_mib_lists() {
     let back = mib_wire::tm::HkReport::parse(&buf[..n]).unwrap();
     assert_eq!(back.hk.get(mib::params::pid::FAULT_COUNT), Some(61 * 3));
     assert_eq!(back.hk.get(mib::params::pid::EVENTS_DROPPED), Some(66 * 3));
+}
+
+#[test]
+fn views_read_and_write_the_fixed_fields_in_place() {
+    let bytes = [0x19, 0x01, 0xC0, 0x05, 0x00, 0x09, 0x01, 0xFF, 0xFF, 0xFF, 0xFD];
+    let v = mib_wire::tm::AcceptanceFailureView::new_checked(&bytes[..]).unwrap();
+    assert_eq!(v.request_id().unwrap().seq_count, 5);
+    assert_eq!(v.failure_code(), mib::FailureCode::ARG_OUT_OF_RANGE.code());
+    assert_eq!(v.rest(), &bytes[6..]);
+    assert!(mib_wire::tm::AcceptanceFailureView::new_checked(&bytes[..7]).is_err());
+
+    let mut buf = [0u8; 10];
+    let mut m = mib_wire::tm::ModeReplyView::new_unchecked(&mut buf[..]);
+    m.set_node(mib::modes::node::HIP);
+    m.set_mode(1);
+    m.set_submode(0);
+    let r = mib_wire::tm::ModeReply::parse(&buf).unwrap();
+    assert_eq!((r.node, r.mode, r.submode), (mib::modes::node::HIP, 1, 0));
+    // A view over too few bytes reads zeros, never panics.
+    let short = mib_wire::tm::ModeReplyView::new_unchecked(&buf[..3]);
+    assert_eq!(short.mode(), 0);
+}
+
+proptest! {
+    #[test]
+    fn view_getters_agree_with_the_repr_of_a_tc(seed in proptest::collection::vec(any::<u8>(), 64..256)) {
+        let mut s = Src { b: &seed, i: 0 };
+        let def = mib::tc::by_name("MON_MODIFY").unwrap();
+        let bytes = tc_body(def, &mut s);
+        let r = mib_wire::tc::MonModify::parse(&bytes).unwrap();
+        let v = mib_wire::tc::MonModifyView::new_checked(&bytes[..]).unwrap();
+        prop_assert_eq!((v.monitor_id(), v.low(), v.high(), v.persistence()), (r.monitor_id, r.low, r.high, r.persistence));
+    }
+}
+
+#[test]
+fn header_lengths_agree_with_the_exporters_header_tables() {
+    use mib::export::layout as x;
+    use mib_wire::header::*;
+    assert_eq!(x::len(x::PRIMARY_HEADER), PRIMARY_HEADER_LEN);
+    assert_eq!(x::len(x::TC_SEC_HEADER), TC_SEC_HEADER_LEN);
+    assert_eq!(
+        x::tm_source_data_offset(),
+        PRIMARY_HEADER_LEN + TM_SEC_HEADER_LEN + mib::config::TIMESTAMP_LEN
+    );
+    assert_eq!(x::tc_app_data_offset(), PRIMARY_HEADER_LEN + TC_SEC_HEADER_LEN);
+    assert_eq!(x::tm_packet_len(0), MIN_TM_LEN);
+    assert_eq!(x::CDS_SHORT_PFIELD, CDS_PFIELD as u32);
+    assert_eq!(x::PUS_C_VERSION, PUS_C as u32);
 }

@@ -77,7 +77,7 @@ pub struct Tc<'a> {
 }
 
 /// Why a TC was refused.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Rejection {
     /// `None` when the packet is too short to carry a request ID.
     pub req: Option<RequestId>,
@@ -242,7 +242,7 @@ pub(crate) mod tests {
         assert_eq!(code(&tc_bytes(0x101, 1, 8, 1, &[0, 1, 0])), FailureCode::BAD_ARG_LENGTH);
         let r = accept(&tc_bytes(0x101, 1, 8, 1, &[0, 1, 0, 15]), 0x101).unwrap_err();
         assert_eq!(
-            (r.code(), r.failure.data()),
+            (r.code(), &r.failure.data()[..]),
             (FailureCode::ARG_OUT_OF_RANGE, &[1u8, 0, 0, 0, 15][..])
         );
     }

@@ -9,6 +9,31 @@
 //! Each failure consumes the token of its stage, so no report can be written for a
 //! stage the request is not in, and none twice. The tokens are sat-rs's
 //! `VerificationToken<TcStateAccepted/Started>`; only this module advances them.
+//!
+//! A request cannot be completed twice (the started token is moved):
+//!
+//! ```compile_fail,E0382
+//! use obsw_core::downlink::{Downlink, Started};
+//! use obsw_core::tm::{RingStore, TmSink};
+//! struct S;
+//! impl TmSink for S { fn send_tm(&mut self, _: &[u8]) {} }
+//! fn twice(dl: &mut Downlink<RingStore<64>>, t: Started) {
+//!     dl.complete(0, t, &mut S);
+//!     dl.complete(0, t, &mut S);
+//! }
+//! ```
+//!
+//! nor completed before it was started (an accepted token is not a started one):
+//!
+//! ```compile_fail,E0308
+//! use obsw_core::downlink::{Accepted, Downlink};
+//! use obsw_core::tm::{RingStore, TmSink};
+//! struct S;
+//! impl TmSink for S { fn send_tm(&mut self, _: &[u8]) {} }
+//! fn skip_start(dl: &mut Downlink<RingStore<64>>, t: Accepted) {
+//!     dl.complete(0, t, &mut S);
+//! }
+//! ```
 
 use mib::config;
 use mib::events::{self, EVENTS};
@@ -29,8 +54,44 @@ use crate::tm::{TmSink, TmStore, TmWriter};
 const N_EVENTS: usize = EVENTS.len();
 const _: () = assert!(N_EVENTS <= 64, "event enable mask is a u64");
 
+/// A service report of the wire crate. Implemented per report kind the core sends, so
+/// that only those kinds' emit code is linked (flash on the firmware).
+pub trait Report {
+    const SERVICE: u8;
+    const SUBSERVICE: u8;
+    fn emit(&self, buf: &mut [u8]) -> Result<usize, mib_wire::Error>;
+}
+
+macro_rules! reports {
+    ($($t:ident),* $(,)?) => {$(
+        impl Report for mib_wire::tm::$t {
+            const SERVICE: u8 = mib_wire::tm::$t::SERVICE;
+            const SUBSERVICE: u8 = mib_wire::tm::$t::SUBSERVICE;
+            fn emit(&self, buf: &mut [u8]) -> Result<usize, mib_wire::Error> {
+                mib_wire::tm::$t::emit(self, buf)
+            }
+        }
+    )*};
+}
+
+reports!(
+    PingReply,
+    HkReport,
+    DisabledEvents,
+    TimeReport,
+    MonDefinitions,
+    MonTransition,
+    StoreDownlinkDone,
+    EaDefinitions,
+    ParamValue,
+    ModeReply,
+    ModeCantReach,
+);
+
 /// A request's verification token with the acknowledgement flags the TC asked for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// Not `Copy` or `Clone`: each stage consumes the token of the stage before, so a
+/// request is completed (or failed) once.
+#[derive(Debug, PartialEq, Eq)]
 pub struct Token<State> {
     tok: VerificationToken<State>,
     pub ack: Ack,
@@ -158,6 +219,16 @@ impl<S: TmStore> Downlink<S> {
         }
     }
 
+    /// Stamps and sends a service report built by the wire crate (`mib_wire::tm`): the
+    /// body is laid out by the MIB's field list, never by hand.
+    pub fn emit_tm<R: Report>(&mut self, now: u64, r: &R, sink: &mut impl TmSink) {
+        let mut body = [0u8; config::MAX_PACKET_LEN];
+        // Every report of the core fits a packet (MAX_PACKET_LEN bounds its body).
+        if let Ok(n) = r.emit(&mut body) {
+            self.emit(now, R::SERVICE, R::SUBSERVICE, &body[..n], sink);
+        }
+    }
+
     /// Sends a finished packet and keeps a copy in the store.
     pub fn send_raw(&mut self, pkt: &[u8], sink: &mut impl TmSink) {
         sink.send_tm(pkt);
@@ -257,9 +328,10 @@ impl<S: TmStore> Downlink<S> {
     /// TM[1,6]: progress step `n` failed; the request ends (always reported).
     pub fn fail_step(&mut self, now: u64, t: Started, n: u8, f: &Failure, sink: &mut impl TmSink) {
         let code = EcssEnumU16::new(f.code().code());
+        let data = f.data();
         let step = EcssEnumU8::new(n);
         self.report(now, sink, |v, s, seq, msg, st| {
-            v.step_failure(s, t.tok, seq, msg, FailParamsWithStep::new(st, &step, &code, f.data()))
+            v.step_failure(s, t.tok, seq, msg, FailParamsWithStep::new(st, &step, &code, &data))
         });
     }
 
@@ -303,8 +375,9 @@ impl<S: TmStore> Downlink<S> {
     ) {
         let rid = rid.into();
         let code = EcssEnumU16::new(f.code().code());
+        let data = f.data();
         self.report(now, sink, |v, s, seq, msg, st| {
-            let p = FailParams::new(st, &code, f.data());
+            let p = FailParams::new(st, &code, &data);
             match stage {
                 Stage::Acceptance => v.acceptance_failure(s, &rid, seq, msg, p),
                 Stage::Start => v.start_failure(s, &rid, seq, msg, p),

@@ -1,202 +1,188 @@
-//! The one shape of a PUS 1 failure: a MIB failure code and its failure data, laid out
-//! exactly as `mib::failure` lists it for that code. Every refusal and every failed
-//! action of the core is built here, by a constructor named after its code, so no
-//! caller packs failure bytes by hand.
+//! The one shape of a PUS 1 failure: the wire crate's typed [`mib_wire::Failure`] (a
+//! MIB failure code with exactly the data the MIB lists for it, generated from the
+//! MIB's field lists). The core builds every refusal and every failed action here, by
+//! a constructor named after its code, so no caller packs failure bytes.
 
 use mib::FailureCode;
+use mib_wire::Failure as W;
 use mmic_domain::controller::{ActionFailure, StartError};
 
 /// Longest failure data of any code (MODE_CHANGE_FAILED: 12 bytes).
 pub const MAX_FAILURE_DATA: usize = 12;
 
 /// A failure code with its data.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Failure {
-    code: FailureCode,
-    data: [u8; MAX_FAILURE_DATA],
-    len: u8,
-}
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Failure(pub W);
 
-/// Big-endian fields of a failure's data, in MIB order.
-#[derive(Clone, Copy)]
-enum F {
-    U8(u8),
-    U16(u16),
-    U32(u32),
-    I32(i32),
+fn sat16(v: usize) -> u16 {
+    v.min(u16::MAX as usize) as u16
+}
+fn sat32(v: u64) -> u32 {
+    v.min(u32::MAX as u64) as u32
 }
 
 impl Failure {
-    fn new(code: FailureCode, fields: &[F]) -> Self {
-        let mut data = [0u8; MAX_FAILURE_DATA];
-        let mut n = 0;
-        for f in fields {
-            let (b, l): ([u8; 4], usize) = match *f {
-                F::U8(v) => ([v, 0, 0, 0], 1),
-                F::U16(v) => {
-                    let x = v.to_be_bytes();
-                    ([x[0], x[1], 0, 0], 2)
-                }
-                F::U32(v) => (v.to_be_bytes(), 4),
-                F::I32(v) => (v.to_be_bytes(), 4),
-            };
-            // Every constructor below stays within MAX_FAILURE_DATA (tested).
-            let end = (n + l).min(MAX_FAILURE_DATA);
-            data[n..end].copy_from_slice(&b[..end - n]);
-            n = end;
-        }
-        Failure {
-            code,
-            data,
-            len: n as u8,
-        }
-    }
-
     pub fn code(&self) -> FailureCode {
-        self.code
+        FailureCode::from_code(self.0.code())
     }
-    pub fn data(&self) -> &[u8] {
-        &self.data[..self.len as usize]
+    /// The failure data as sent after the code.
+    pub fn data(&self) -> heapless::Vec<u8, MAX_FAILURE_DATA> {
+        let mut buf = [0u8; MAX_FAILURE_DATA];
+        let mut w = mib_wire::Writer::new(&mut buf);
+        // Every code of this MIB fits MAX_FAILURE_DATA (tested).
+        let n = match self.0.write(&mut w) {
+            Ok(()) => w.len(),
+            Err(_) => 0,
+        };
+        heapless::Vec::from_slice(&buf[..n]).unwrap_or_default()
     }
     /// The fault event of an ABORTED_BY_FAULT failure.
     pub fn fault_event(&self) -> Option<u16> {
-        (self.code == FailureCode::ABORTED_BY_FAULT).then(|| u16::from_be_bytes([self.data[0], self.data[1]]))
+        match self.0 {
+            W::AbortedByFault { event_id } => Some(event_id),
+            _ => None,
+        }
     }
 
-    pub fn crc_mismatch(received: u16, computed: u16) -> Self {
-        Self::new(FailureCode::CRC_MISMATCH, &[F::U16(received), F::U16(computed)])
+    pub fn crc_mismatch(crc_received: u16, crc_computed: u16) -> Self {
+        Failure(W::CrcMismatch {
+            crc_received,
+            crc_computed,
+        })
     }
     pub fn malformed_packet(received_len: usize, expected_len: usize) -> Self {
-        Self::new(
-            FailureCode::MALFORMED_PACKET,
-            &[F::U16(sat16(received_len)), F::U16(sat16(expected_len))],
-        )
+        Failure(W::MalformedPacket {
+            received_len: sat16(received_len),
+            expected_len: sat16(expected_len),
+        })
     }
     pub fn wrong_apid(apid: u16) -> Self {
-        Self::new(FailureCode::WRONG_APID, &[F::U16(apid)])
+        Failure(W::WrongApid { apid })
     }
     pub fn not_a_pus_tc(version: u8, is_tc: bool, sec_hdr: bool) -> Self {
-        Self::new(
-            FailureCode::NOT_A_PUS_TC,
-            &[F::U8(version), F::U8(is_tc as u8), F::U8(sec_hdr as u8)],
-        )
+        Failure(W::NotAPusTc {
+            version,
+            r#type: is_tc as u8,
+            sec_hdr: sec_hdr as u8,
+        })
     }
     pub fn unknown_service(service: u8) -> Self {
-        Self::new(FailureCode::UNKNOWN_SERVICE, &[F::U8(service)])
+        Failure(W::UnknownService { service })
     }
     pub fn unknown_subservice(service: u8, subservice: u8) -> Self {
-        Self::new(FailureCode::UNKNOWN_SUBSERVICE, &[F::U8(service), F::U8(subservice)])
+        Failure(W::UnknownSubservice { service, subservice })
     }
     pub fn unknown_function(function: u16) -> Self {
-        Self::new(FailureCode::UNKNOWN_FUNCTION, &[F::U16(function)])
+        Failure(W::UnknownFunction { function })
     }
     pub fn bad_arg_length(received_len: usize, expected_len: usize) -> Self {
-        Self::new(
-            FailureCode::BAD_ARG_LENGTH,
-            &[F::U16(sat16(received_len)), F::U16(sat16(expected_len))],
-        )
+        Failure(W::BadArgLength {
+            received_len: sat16(received_len),
+            expected_len: sat16(expected_len),
+        })
     }
     pub fn arg_out_of_range(arg_index: u8, value: i32) -> Self {
-        Self::new(FailureCode::ARG_OUT_OF_RANGE, &[F::U8(arg_index), F::I32(value)])
+        Failure(W::ArgOutOfRange { arg_index, value })
     }
     /// `mode` is the robot's current mode (`mib::modes::robot_mode`, fits a u8).
     pub fn not_allowed_in_mode(mode: u32) -> Self {
-        Self::new(
-            FailureCode::NOT_ALLOWED_IN_MODE,
-            &[F::U8(mode.min(u8::MAX as u32) as u8)],
-        )
+        Failure(W::NotAllowedInMode {
+            mode: mode.min(u8::MAX as u32) as u8,
+        })
     }
     pub fn busy(running_function: u16) -> Self {
-        Self::new(FailureCode::BUSY, &[F::U16(running_function)])
+        Failure(W::Busy { running_function })
     }
     pub fn initial_state_mismatch(believed: u8, computed: u8) -> Self {
-        Self::new(FailureCode::INITIAL_STATE_MISMATCH, &[F::U8(believed), F::U8(computed)])
+        Failure(W::InitialStateMismatch { believed, computed })
     }
     pub fn unreachable_state(from: u8, to: u8) -> Self {
-        Self::new(FailureCode::UNREACHABLE_STATE, &[F::U8(from), F::U8(to)])
+        Failure(W::UnreachableState { from, to })
     }
     pub fn bolt_failed(side: u8, pair: u8, attempts: u8) -> Self {
-        Self::new(FailureCode::BOLT_FAILED, &[F::U8(side), F::U8(pair), F::U8(attempts)])
+        Failure(W::BoltFailed { side, pair, attempts })
     }
     pub fn unbolt_failed(side: u8, pair: u8, attempts: u8) -> Self {
-        Self::new(FailureCode::UNBOLT_FAILED, &[F::U8(side), F::U8(pair), F::U8(attempts)])
+        Failure(W::UnboltFailed { side, pair, attempts })
     }
     pub fn aborted_by_fault(event_id: u16) -> Self {
-        Self::new(FailureCode::ABORTED_BY_FAULT, &[F::U16(event_id)])
+        Failure(W::AbortedByFault { event_id })
     }
     pub fn mode_change_failed(node: u32, mode: u32, reason: FailureCode, event: u16) -> Self {
-        Self::new(
-            FailureCode::MODE_CHANGE_FAILED,
-            &[F::U32(node), F::U32(mode), F::U16(reason.code()), F::U16(event)],
-        )
+        Failure(W::ModeChangeFailed {
+            node,
+            mode,
+            reason: reason.code(),
+            event,
+        })
     }
     pub fn fault_not_cleared(event_id: u16) -> Self {
-        Self::new(FailureCode::FAULT_NOT_CLEARED, &[F::U16(event_id)])
+        Failure(W::FaultNotCleared { event_id })
     }
     pub fn unknown_sid(sid: u16) -> Self {
-        Self::new(FailureCode::UNKNOWN_SID, &[F::U16(sid)])
+        Failure(W::UnknownSid { sid })
     }
     pub fn unknown_event(event_id: u16) -> Self {
-        Self::new(FailureCode::UNKNOWN_EVENT, &[F::U16(event_id)])
+        Failure(W::UnknownEvent { event_id })
     }
     pub fn unknown_parameter(param_id: u16) -> Self {
-        Self::new(FailureCode::UNKNOWN_PARAMETER, &[F::U16(param_id)])
+        Failure(W::UnknownParameter { param_id })
     }
     pub fn param_out_of_range(param_id: u16, value: i32) -> Self {
-        Self::new(FailureCode::PARAM_OUT_OF_RANGE, &[F::U16(param_id), F::I32(value)])
+        Failure(W::ParamOutOfRange { param_id, value })
     }
     pub fn unknown_monitor(monitor_id: u16) -> Self {
-        Self::new(FailureCode::UNKNOWN_MONITOR, &[F::U16(monitor_id)])
+        Failure(W::UnknownMonitor { monitor_id })
     }
     pub fn schedule_full(capacity: usize) -> Self {
-        Self::new(FailureCode::SCHEDULE_FULL, &[F::U16(sat16(capacity))])
+        Failure(W::ScheduleFull {
+            capacity: sat16(capacity),
+        })
     }
     pub fn release_time_passed(release_ms: u64) -> Self {
-        Self::new(
-            FailureCode::RELEASE_TIME_PASSED,
-            &[F::U32(release_ms.min(u32::MAX as u64) as u32)],
-        )
+        Failure(W::ReleaseTimePassed {
+            release_ms: sat32(release_ms),
+        })
     }
     pub fn scheduled_tc_invalid(inner: FailureCode) -> Self {
-        Self::new(FailureCode::SCHEDULED_TC_INVALID, &[F::U16(inner.code())])
+        Failure(W::ScheduledTcInvalid {
+            inner_code: inner.code(),
+        })
     }
     pub fn board_b_no_ack(command: u8, retries: u8) -> Self {
-        Self::new(FailureCode::BOARD_B_NO_ACK, &[F::U8(command), F::U8(retries)])
+        Failure(W::BoardBNoAck { command, retries })
     }
     pub fn unknown_mode_target(node: u32) -> Self {
-        Self::new(FailureCode::UNKNOWN_MODE_TARGET, &[F::U32(node)])
+        Failure(W::UnknownModeTarget { node })
     }
     pub fn invalid_mode(node: u32, mode: u32) -> Self {
-        Self::new(FailureCode::INVALID_MODE, &[F::U32(node), F::U32(mode)])
+        Failure(W::InvalidMode { node, mode })
     }
     pub fn unknown_action_link(event_id: u16) -> Self {
-        Self::new(FailureCode::UNKNOWN_ACTION_LINK, &[F::U16(event_id)])
+        Failure(W::UnknownActionLink { event_id })
     }
     pub fn store_disabled() -> Self {
-        Self::new(FailureCode::STORE_DISABLED, &[])
+        Failure(W::StoreDisabled)
     }
     pub fn timeout(elapsed_ms: u64) -> Self {
-        Self::new(FailureCode::TIMEOUT, &[F::U32(elapsed_ms.min(u32::MAX as u64) as u32)])
+        Failure(W::Timeout {
+            elapsed_ms: sat32(elapsed_ms),
+        })
     }
     pub fn aborted_by_command(function: u16) -> Self {
-        Self::new(FailureCode::ABORTED_BY_COMMAND, &[F::U16(function)])
+        Failure(W::AbortedByCommand { function })
     }
-
     pub fn both_sides_gripped(grip_a_pwm: u16, grip_b_pwm: u16) -> Self {
-        Self::new(
-            FailureCode::BOTH_SIDES_GRIPPED,
-            &[F::U16(grip_a_pwm), F::U16(grip_b_pwm)],
-        )
+        Failure(W::BothSidesGripped { grip_a_pwm, grip_b_pwm })
     }
     pub fn frame_too_long(frame_len: usize, max_len: usize) -> Self {
-        let sat = |v: usize| v.min(u32::MAX as usize) as u32;
-        Self::new(
-            FailureCode::FRAME_TOO_LONG,
-            &[F::U32(sat(frame_len)), F::U32(sat(max_len))],
-        )
+        Failure(W::FrameTooLong {
+            frame_len: sat32(frame_len as u64),
+            max_len: sat32(max_len as u64),
+        })
     }
     pub fn nested_schedule(activity: u8) -> Self {
-        Self::new(FailureCode::NESTED_SCHEDULE, &[F::U8(activity)])
+        Failure(W::NestedSchedule { activity })
     }
 
     /// The failure of an action the domain refused to start. `running` is the function
@@ -225,14 +211,11 @@ impl Failure {
     }
 }
 
-fn sat16(v: usize) -> u16 {
-    v.min(u16::MAX as usize) as u16
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    // verifies: PUS-1-02
     #[test]
     fn every_constructor_carries_the_data_the_mib_lists_for_its_code() {
         let all = [
@@ -273,8 +256,9 @@ mod tests {
             Failure::frame_too_long(2000, 1024),
             Failure::nested_schedule(0),
         ];
-        for f in all {
+        for f in &all {
             assert_eq!(f.data().len(), f.code().data_len(), "{:?}", f.code());
+            assert!(f.data().len() <= MAX_FAILURE_DATA);
         }
         // Every code of the MIB has a constructor.
         for c in FailureCode::ALL {
@@ -282,14 +266,18 @@ mod tests {
         }
     }
 
+    // verifies: PUS-1-02
     #[test]
     fn invalid_argument_and_not_powered_carry_real_values() {
         let f = Failure::from_start(StartError::InvalidArgument { index: 1, value: 5 }, 0, 2);
         assert_eq!(
-            (f.code(), f.data()),
+            (f.code(), &f.data()[..]),
             (FailureCode::ARG_OUT_OF_RANGE, &[1u8, 0, 0, 0, 5][..])
         );
         let f = Failure::from_start(StartError::NotPowered, 0, 4);
-        assert_eq!((f.code(), f.data()), (FailureCode::NOT_ALLOWED_IN_MODE, &[4u8][..]));
+        assert_eq!(
+            (f.code(), &f.data()[..]),
+            (FailureCode::NOT_ALLOWED_IN_MODE, &[4u8][..])
+        );
     }
 }

@@ -59,14 +59,21 @@ pub struct Counters {
 }
 
 /// What became of a request (kept for duplicate TCs).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub(crate) enum Outcome {
     Pending,
     Done,
     Failed(Stage, Failure),
 }
 
-#[derive(Clone, Copy, Debug)]
+// The duplicate window must recognise every resend of a TC: the ground resends the same
+// bytes for at most `TC_RETRY_SPAN_MS` (its retry schedule), so a TC is remembered at
+// least that long, and the window holds more entries than the heartbeat pings the
+// ground sends in that span (the rest is for other TCs: see docs/architecture.md).
+const _: () = assert!(config::DUPLICATE_MAX_AGE_MS >= config::TC_RETRY_SPAN_MS);
+const _: () = assert!(config::DUPLICATE_WINDOW as u32 > config::TC_RETRY_SPAN_MS / config::GROUND_HEARTBEAT_MS);
+
+#[derive(Clone, Debug)]
 struct Seen {
     req: RequestId,
     crc: u16,
@@ -194,8 +201,8 @@ impl<S: TmStore> Obsw<S> {
 
     // ------------------------------------------------------------------ output
 
-    pub(crate) fn emit(&mut self, now: u64, svc: u8, sub: u8, data: &[u8], sink: &mut impl TmSink) {
-        self.dl.emit(now, svc, sub, data, sink);
+    pub(crate) fn emit_tm(&mut self, now: u64, report: impl crate::downlink::Report, sink: &mut impl TmSink) {
+        self.dl.emit_tm(now, &report, sink);
     }
 
     /// Emits an event report unless the event is disabled or throttled.
@@ -358,8 +365,8 @@ impl<S: TmStore> Obsw<S> {
 
     /// Records a failed request and raises TC_REJECTED.
     fn refused(&mut self, now: u64, tc: &Tc, stage: Stage, f: Failure, sink: &mut impl TmSink) {
-        self.set_outcome(tc.req, Outcome::Failed(stage, f));
         self.tc_rejected_event(now, (tc.service, tc.subservice), &f, sink);
+        self.set_outcome(tc.req, Outcome::Failed(stage, f));
     }
 
     pub(crate) fn tc_rejected_event(&mut self, now: u64, (svc, sub): (u8, u8), f: &Failure, sink: &mut impl TmSink) {
@@ -391,7 +398,7 @@ impl<S: TmStore> Obsw<S> {
         self.seen
             .iter()
             .find(|s| s.req == req && s.crc == crc && now.saturating_sub(s.at) <= config::DUPLICATE_MAX_AGE_MS as u64)
-            .map(|s| s.outcome)
+            .map(|s| s.outcome.clone())
     }
 
     fn remember(&mut self, req: RequestId, crc: u16, now: u64) {
@@ -507,6 +514,7 @@ pub(crate) mod tests {
         (u16::from_be_bytes([d[4], d[5]]), d[6..].to_vec())
     }
 
+    // verifies: PUS-17-01, PUS-1-01
     #[test]
     fn a_ping_gets_acceptance_start_completion_and_a_reply() {
         let mut o = obsw();
@@ -515,16 +523,19 @@ pub(crate) mod tests {
         assert_eq!(kinds, [(1, 1), (17, 2), (1, 3), (1, 7)]);
     }
 
+    // verifies: DD-ROBUST-02
     #[test]
     fn a_retry_is_answered_again_but_not_executed_again() {
         let mut o = obsw();
-        send(&mut o, 10, 1, 17, 1, &[]);
-        let again = send(&mut o, 20, 1, 17, 1, &[]);
-        assert_eq!(of(&again, 17, 2).len(), 0, "not executed twice");
+        let sid = mib::hk::HK_STRUCTS[0].sid.to_be_bytes();
+        assert_eq!(of(&send(&mut o, 10, 1, 3, 27, &sid), 3, 25).len(), 1);
+        let again = send(&mut o, 20, 1, 3, 27, &sid);
+        assert_eq!(of(&again, 3, 25).len(), 0, "not executed twice");
         assert_eq!((of(&again, 1, 1).len(), of(&again, 1, 7).len()), (1, 1));
         assert_eq!(o.counters.tc_duplicate, 1);
     }
 
+    // verifies: DD-ROBUST-02
     #[test]
     fn a_retry_of_a_refused_tc_repeats_the_same_failure_at_the_same_stage() {
         let mut o = obsw();
@@ -539,6 +550,7 @@ pub(crate) mod tests {
         }
     }
 
+    // verifies: PUS-1-02, DD-ROBUST-01
     #[test]
     fn an_oversize_frame_is_refused_with_frame_too_long_for_its_request() {
         let mut o = obsw();
@@ -561,6 +573,7 @@ pub(crate) mod tests {
         );
     }
 
+    // verifies: DD-ROBUST-01
     #[test]
     fn a_full_event_queue_is_counted_and_reported_once_per_window() {
         let mut o = obsw();
@@ -579,6 +592,7 @@ pub(crate) mod tests {
         assert_eq!(o.param(pid::EVENTS_DROPPED), 5);
     }
 
+    // verifies: PUS-1-02, MMIC-MODE-01
     #[test]
     fn a_command_not_allowed_in_the_mode_reports_the_real_mode() {
         let mut o = obsw();

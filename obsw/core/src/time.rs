@@ -31,6 +31,16 @@ impl OnboardTime {
         out
     }
 
+    /// The same time stamp as the wire crate's `CdsTime` (for report bodies).
+    pub fn cds_time(&self, now_ms: u64) -> mib_wire::CdsTime {
+        let b = self.cds(now_ms);
+        mib_wire::CdsTime {
+            pfield: b[0],
+            days: u16::from_be_bytes([b[1], b[2]]),
+            ms_of_day: u32::from_be_bytes([b[3], b[4], b[5], b[6]]),
+        }
+    }
+
     /// On-board `now_ms` of a CDS short time stamp, or `None` if it is malformed or
     /// before boot.
     pub fn from_cds(&self, stamp: &[u8]) -> Option<u64> {

@@ -269,6 +269,7 @@ fn cause(t: &Tm) -> u16 {
     u16::from_be_bytes([t.data[14], t.data[15]])
 }
 
+// verifies: MMIC-FLT-04, PUS-12-01
 #[test]
 fn low_battery_mid_motion_lets_the_motion_complete_then_standby() {
     let mut c = Rig::start();
@@ -308,6 +309,7 @@ fn low_battery_mid_motion_lets_the_motion_complete_then_standby() {
     c.recover("clear battery-sag");
 }
 
+// verifies: MMIC-FLT-05
 #[test]
 fn assembly_system_fault_mid_motion_lets_the_motion_complete_then_standby() {
     let mut c = Rig::start();
@@ -328,6 +330,7 @@ fn assembly_system_fault_mid_motion_lets_the_motion_complete_then_standby() {
     c.operational();
 }
 
+// verifies: MMIC-FLT-01
 #[test]
 fn bolting_failure_goes_to_standby() {
     let mut c = Rig::start();
@@ -351,6 +354,7 @@ fn bolting_failure_goes_to_standby() {
     c.recover("clear");
 }
 
+// verifies: MMIC-FLT-03
 #[test]
 fn initial_state_mismatch_is_refused_and_goes_to_standby() {
     let mut c = Rig::start();
@@ -373,6 +377,7 @@ fn initial_state_mismatch_is_refused_and_goes_to_standby() {
     c.recover("clear misplaced-voxel");
 }
 
+// verifies: MMIC-FLT-06
 #[test]
 fn arm_not_contracted_goes_to_safed_and_holds_arms_and_hip() {
     let mut c = Rig::start();
@@ -401,6 +406,7 @@ fn arm_not_contracted_goes_to_safed_and_holds_arms_and_hip() {
     c.operational();
 }
 
+// verifies: MMIC-FLT-08
 #[test]
 fn operational_overcurrent_mid_motion_aborts_to_safed() {
     let mut c = Rig::start();
@@ -431,6 +437,7 @@ fn operational_overcurrent_mid_motion_aborts_to_safed() {
     c.operational();
 }
 
+// verifies: MMIC-FLT-07
 #[test]
 fn idle_overcurrent_at_reconfiguration_start_goes_to_safed() {
     let mut c = Rig::start();
@@ -449,6 +456,7 @@ fn idle_overcurrent_at_reconfiguration_start_goes_to_safed() {
     c.operational();
 }
 
+// verifies: MMIC-FLT-09
 #[test]
 fn hip_mismatch_when_entering_operational_goes_to_safed() {
     let mut c = Rig::start();
@@ -462,6 +470,7 @@ fn hip_mismatch_when_entering_operational_goes_to_safed() {
     c.recover("clear dead-hip-encoder");
 }
 
+// verifies: MMIC-FLT-10
 #[test]
 fn heartbeat_loss_while_idle_goes_to_safed_and_blocks_recovery_until_the_link_is_back() {
     let mut c = Rig::start();
@@ -482,6 +491,7 @@ fn heartbeat_loss_while_idle_goes_to_safed_and_blocks_recovery_until_the_link_is
     c.operational();
 }
 
+// verifies: MMIC-FLT-10, MMIC-FLT-11
 #[test]
 fn communication_loss_mid_motion_aborts_to_safed() {
     let mut c = Rig::start();
@@ -498,6 +508,7 @@ fn communication_loss_mid_motion_aborts_to_safed() {
     c.recover("clear");
 }
 
+// verifies: PUS-19-01, MMIC-FLT-12
 #[test]
 fn a_disabled_event_action_link_reports_but_does_not_change_mode() {
     let mut c = Rig::start();
@@ -518,6 +529,7 @@ fn a_disabled_event_action_link_reports_but_does_not_change_mode() {
     assert_ne!(c.hk(3, pid::FAULT_FLAGS), 0, "the fault is still active and visible");
 }
 
+// verifies: PUS-12-01
 #[test]
 fn a_disabled_monitor_does_not_detect_and_definitions_are_reportable() {
     let mut c = Rig::start();
@@ -539,6 +551,7 @@ fn a_disabled_monitor_does_not_detect_and_definitions_are_reportable() {
     assert_eq!(c.robot_mode_reported(), robot_mode::OPERATIONAL);
 }
 
+// verifies: MMIC-FLT-10, MMIC-MODE-05
 #[test]
 fn a_safing_fault_in_standby_is_reported_but_does_not_power_the_servos() {
     let mut c = Rig::start();
@@ -554,6 +567,7 @@ fn a_safing_fault_in_standby_is_reported_but_does_not_power_the_servos() {
     c.operational();
 }
 
+// verifies: MMIC-MOT-07
 #[test]
 fn turning_the_hip_with_both_grippers_holding_is_refused_before_it_stalls() {
     let mut c = Rig::start();
@@ -578,6 +592,7 @@ fn turning_the_hip_with_both_grippers_holding_is_refused_before_it_stalls() {
     assert_eq!(c.wait_done(&raw, LONG).unwrap().subservice, 7);
 }
 
+// verifies: MMIC-MODE-02, PUS-200-01
 #[test]
 fn a_regulator_that_never_comes_up_times_the_mode_transition_out() {
     let mut c = Rig::start();

@@ -193,7 +193,7 @@ fn every_telecommand_at_its_argument_limits_in_every_mode_gets_one_verdict() {
     every_tc(&mut r, 2_000);
     r.mode(robot_mode::STANDBY);
     assert_eq!(r.o.mode(), robot_mode::STANDBY);
-    assert_eq!(r.by_name("STORE_DOWNLINK", &[]), 1);
+    assert_eq!(r.by_name("STORE_DOWNLINK_TIME", &[0, 0, 65535, 4_294_967_295]), 1);
 }
 
 /// BOLT_PAIR side A, pair 2 (as the end-to-end bolting-failure test).

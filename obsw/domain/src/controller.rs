@@ -1641,6 +1641,7 @@ mod tests {
         panic!("gripper A did not open");
     }
 
+    // verifies: MMIC-MOT-07
     #[test]
     fn turning_the_hip_while_both_grippers_hold_is_refused_at_start() {
         let mut l = Loop::new();

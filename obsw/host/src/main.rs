@@ -303,14 +303,20 @@ fn handle_input(
 ) {
     match input {
         Input::Tc(bytes, origin) => {
+            let mut refused_from = None;
             if let Origin::Udp(peer) = origin {
                 // Only a TC that passes acceptance subscribes its sender (or renews the
-                // lease); a rejected one is reported to the current subscribers.
+                // lease); a refused one is reported to the current subscribers and to
+                // its sender, which does not become a subscriber.
                 if obsw_core::accept::accept(&bytes, obsw.apid()).is_ok() {
                     down.subscribe(peer, Instant::now());
+                } else {
+                    refused_from = Some(peer);
                 }
             }
+            down.reply_to(refused_from);
             obsw.handle_tc(now, &bytes, down);
+            down.reply_to(None);
         }
         Input::BadFrame => {
             *bad_frames += 1;
@@ -320,15 +326,15 @@ fn handle_input(
             // malformed packet through the normal acceptance path.
             obsw.handle_tc(now, &[], down);
         }
-        Input::OversizeFrame(len) => {
+        Input::OversizeFrame(len, head) => {
             *bad_frames += 1;
             obsw.io.tc_dropped = *bad_frames;
             log::warn!(
-                "dropped a TCP frame of {len} bytes (longest packet {}; {bad_frames} bad frames so far)",
+                "refused a TCP frame of {len} bytes (longest packet {}; {bad_frames} bad frames so far)",
                 config::MAX_PACKET_LEN
             );
-            // No request ID either: TM[1,2] through the acceptance path.
-            obsw.handle_tc(now, &[], down);
+            // TM[1,2] FRAME_TOO_LONG (with the request ID if the frame's head gives it).
+            obsw.reject_frame(now, len, &head, down);
         }
         Input::BadSimCtl(len, from) => inputs.reply_sim_ctl(
             from,

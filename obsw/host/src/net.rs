@@ -41,8 +41,10 @@ pub enum Input {
     BadSimCtl(usize, SocketAddr),
     /// A malformed frame on a TCP stream (counted, then reported).
     BadFrame,
-    /// A TCP frame longer than any packet (counted, then reported).
-    OversizeFrame(usize),
+    /// A TCP frame longer than any packet (counted, then reported with TM[1,2]
+    /// FRAME_TOO_LONG): its length and its first decoded bytes (the request ID if the
+    /// COBS prefix gives it).
+    OversizeFrame(usize, Vec<u8>),
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -81,6 +83,8 @@ struct Conn {
     frame: Vec<u8>,
     /// Length of a frame that passed `MAX_FRAME` (0: none).
     overflow: usize,
+    /// First decoded bytes of that frame.
+    overflow_head: Vec<u8>,
     /// Decoded inputs waiting for the main loop (bounded by `TCP_INPUT_QUEUE`).
     queue: VecDeque<Input>,
     /// TM frames not yet written (bounded by `TCP_TM_BACKLOG` bytes).
@@ -108,6 +112,10 @@ pub struct Downlink {
     lease: Duration,
     /// `--tm-log`: every TM packet handed to the downlink, one hex line each.
     tm_log: Option<std::fs::File>,
+    /// The sender of a refused datagram while its refusal is reported: it gets that
+    /// report too (so a ground talking to the wrong robot learns why), without
+    /// subscribing.
+    reply_to: Option<SocketAddr>,
 }
 
 impl Downlink {
@@ -137,6 +145,11 @@ impl Downlink {
     /// test can judge from what the obsw really sent.
     pub fn log_tm_to(&mut self, file: std::fs::File) {
         self.tm_log = Some(file);
+    }
+
+    /// While `peer`'s refused datagram is reported, its reports go to `peer` as well.
+    pub fn reply_to(&mut self, peer: Option<SocketAddr>) {
+        self.reply_to = peer;
     }
 
     /// Current UDP subscribers (lease not over at `now`).
@@ -201,6 +214,11 @@ impl obsw_core::tm::TmSink for Downlink {
         }
         let now = Instant::now();
         self.subscribers.retain(|s| s.until > now);
+        if let Some(p) = self.reply_to.filter(|p| !self.subscribers.iter().any(|s| s.addr == *p)) {
+            if !send_udp(&self.udp, packet, p) {
+                self.counters.tm_dropped = self.counters.tm_dropped.wrapping_add(1);
+            }
+        }
         for s in &self.subscribers {
             // A full socket buffer or an unreachable peer must not stop the OBSW; the
             // on-board store keeps the packet for a later downlink.
@@ -323,6 +341,7 @@ fn start_with_lease(
         counters: LinkCounters::default(),
         lease,
         tm_log: None,
+        reply_to: None,
     };
     let inputs = Inputs {
         poll,
@@ -417,6 +436,7 @@ impl Inputs {
                         stream,
                         frame: Vec::with_capacity(MAX_FRAME),
                         overflow: 0,
+                        overflow_head: Vec::new(),
                         queue: VecDeque::with_capacity(TCP_INPUT_QUEUE),
                         backlog: VecDeque::new(),
                         readable: true,
@@ -514,12 +534,16 @@ fn frame_byte(c: &mut Conn, b: u8) {
             c.frame.push(b);
         } else {
             c.overflow = c.frame.len() + 1;
+            // COBS: the first byte k says k-1 data bytes without a zero follow.
+            let k = c.frame.first().map_or(0, |&k| k as usize).min(c.frame.len());
+            c.overflow_head = c.frame.get(1..k.min(10)).map(<[u8]>::to_vec).unwrap_or_default();
             c.frame.clear();
         }
         return;
     }
     if c.overflow > 0 {
-        c.queue.push_back(Input::OversizeFrame(c.overflow));
+        c.queue
+            .push_back(Input::OversizeFrame(c.overflow, std::mem::take(&mut c.overflow_head)));
         c.overflow = 0;
         return;
     }
@@ -620,7 +644,7 @@ mod tests {
         c.write_all(&f[..=n]).unwrap();
         let got = drain(&mut inputs, &mut down, Instant::now() + Duration::from_millis(300));
         assert!(
-            matches!(got[0], Input::OversizeFrame(n) if n == 3 * MAX_PACKET_LEN),
+            matches!(got[0], Input::OversizeFrame(n, _) if n == 3 * MAX_PACKET_LEN),
             "{got:?}"
         );
         assert!(matches!(got[1], Input::BadFrame), "{got:?}");

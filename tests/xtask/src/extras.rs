@@ -313,6 +313,15 @@ pub fn firmware(root: &Path, out: &Path) -> FirmwareInfo {
     }
     if !fw.ok {
         fw.note = format!("the firmware step failed: see {}", rel(root, &log));
+    } else {
+        eprintln!("== review: stack high-water mark of the on-target tests (QEMU gdbstub)");
+        match qemu_stack_high_water(root) {
+            Ok((used, note)) => {
+                fw.stack_high_water = Some(used);
+                fw.stack_note = note;
+            }
+            Err(e) => fw.stack_note = format!("not measured: {e:#}"),
+        }
     }
     fw
 }
@@ -367,6 +376,7 @@ const FW_STORE_BYTES: f64 = 48.0 * 1024.0;
 pub fn budgets(fw: &FirmwareInfo) -> Vec<Budget> {
     let mut b = Vec::new();
     let size_src = "firmware/tools/size-report.sh via scripts/firmware-ci.sh (this run)";
+    let mut stack_avail = None;
     for img in ["board-a", "board-b"] {
         let row = fw.size_lines.iter().find(|l| l.split_whitespace().next() == Some(img));
         let nums: Vec<f64> = row
@@ -393,16 +403,26 @@ pub fn budgets(fw: &FirmwareInfo) -> Vec<Budget> {
             "bytes",
             size_src,
         ));
-        // Stack: the usable SRAM of the ESP32-C3 left after static RAM is the stack;
-        // its high-water mark is not measured by the QEMU tests (anomaly REV-ANOM-01).
-        b.push(budget(
-            &format!("{img} stack high-water mark (QEMU)"),
-            None,
-            ram.map(|r| 320.0 * 1024.0 - 7.0 * 1024.0 - r),
-            "bytes",
-            "not measured: the QEMU test binary does not paint its stack (docs/anomalies.toml REV-ANOM-01); available = usable SRAM − static RAM",
-        ));
+        if img == "board-a" {
+            stack_avail = ram.map(|r| 320.0 * 1024.0 - 7.0 * 1024.0 - r);
+        }
     }
+    // Stack: the usable SRAM of the ESP32-C3 (≈ 313 KiB) left after static RAM is the
+    // stack; board A has the least. The deepest use is measured on the on-target test
+    // binary under QEMU, which runs board A's and B's core code (Obsw::tick/handle_tc,
+    // CycleA/CycleB) but keeps the OBSW and the mocks on its stack where the images keep
+    // them in static RAM: an upper bound (anomaly REV-ANOM-01).
+    b.push(budget(
+        "stack high-water, on-target tests under QEMU (upper bound for boards A and B)",
+        fw.stack_high_water.map(|x| x as f64),
+        stack_avail,
+        "bytes",
+        &if fw.stack_note.is_empty() {
+            "not measured (firmware step not run)".to_string()
+        } else {
+            format!("{}; available = board A's usable SRAM − static RAM", fw.stack_note)
+        },
+    ));
     let period = 800_000.0; // 10 ms at 160 MHz, 2 cycles per instruction
     let (tick, tc) = (fw.worst_tick_instructions, fw.worst_handle_tc_instructions);
     b.push(budget(
@@ -456,20 +476,19 @@ fn event_name(e: u16) -> String {
         .unwrap_or_else(|| format!("0x{e:04X}"))
 }
 
-fn detection(event: &str) -> &'static str {
-    match event {
-        "BOLT_FAILURE" => "bolter state machine: pair not locked after 3 attempts (I_bo current)",
-        "UNBOLT_FAILURE" => "bolter state machine: pair not released after 3 attempts",
-        "INITIAL_STATE_MISMATCH" => "RECONFIGURE's initial state differs from the state computed from IMU and PWM",
-        "LOW_BATTERY" => "PUS 12 monitors V_BAT_A_LOW / V_BAT_B_LOW (< 10 V)",
-        "ASSEMBLY_SYSTEM_FAULT" => "external: TC[8,1] ASSEMBLY_FAULT from the assembly system",
-        "ARM_NOT_CONTRACTED" => "arm-contracted switch not pushed after a contract command",
-        "IDLE_OVERCURRENT" => "PUS 12 monitors I_LOC_*_IDLE at start and end of a reconfiguration",
-        "OPERATIONAL_OVERCURRENT" => "PUS 12 monitors I_*_OPER (absolute per-module limit), always",
-        "HIP_MISMATCH" => "PUS 12 monitor HIP_CONTRACTED when entering operational",
-        "COMM_LOSS_HEARTBEAT" => "PUS 12 monitor B_HEARTBEAT: board B heartbeat age",
-        "COMM_LOSS_NO_ACK" => "A–B link: command resent without acknowledgement",
-        _ => "see the MIB",
+/// What detects a fault: the MIB's description of its event, and the PUS 12 monitors
+/// that raise it.
+fn detection(event: u16) -> String {
+    let desc = mib::events::by_id(event).map(|d| d.desc).unwrap_or("");
+    let mons: Vec<String> = mib::fdir::MONITORS
+        .iter()
+        .filter(|m| m.event == event)
+        .map(|m| format!("{} ({})", m.name, m.phase.name()))
+        .collect();
+    if mons.is_empty() {
+        format!("{desc} (detected by the domain or a ground command)")
+    } else {
+        format!("{desc}; PUS 12 monitors {}", mons.join(", "))
     }
 }
 
@@ -501,7 +520,7 @@ pub fn fdir_table(reqs: &[Requirement], rows: &[ReqRow]) -> Vec<FdirRow> {
         out.push(FdirRow {
             kind: format!("Table 8 fault (bit {})", f.bit),
             name: ev.clone(),
-            detection: detection(&ev).into(),
+            detection: detection(f.event),
             persistence: if mons.is_empty() {
                 "—".into()
             } else {
@@ -915,6 +934,141 @@ pub fn anomalies(path: &Path) -> Result<Vec<Anomaly>> {
     Ok(f.anomalies.into_iter().filter(|a| a.status != "closed").collect())
 }
 
+// ---------------------------------------------------------------- stack high-water (QEMU)
+
+/// Deepest stack use of the on-target test binary under QEMU: QEMU's RAM starts zeroed
+/// and nothing paints the stack, so after the tests (a breakpoint on the semihosting exit,
+/// through QEMU's gdbstub) the lowest non-zero byte below `_stack_start` marks the deepest
+/// the stack reached. A word written as zero at the very bottom is not seen, so this can
+/// under-read by a few bytes. Returns (bytes used, note).
+pub fn qemu_stack_high_water(root: &Path) -> Result<(u64, String)> {
+    use std::io::{Read, Write};
+    use std::net::{TcpListener, TcpStream};
+    use std::time::{Duration, Instant};
+    let fw_target = std::env::var("FIRMWARE_TARGET_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|_| root.join("firmware/target"));
+    let elf = fw_target.join("qemu-tests/riscv32imc-unknown-none-elf/debug/qemu-tests");
+    if !elf.exists() {
+        bail!("{} not built (the firmware step builds it)", elf.display());
+    }
+    let nm = Command::new("riscv64-unknown-elf-nm").arg("-C").arg(&elf).output()?;
+    let syms = String::from_utf8_lossy(&nm.stdout).into_owned();
+    let sym = |name: &str| -> Option<u64> {
+        syms.lines().find_map(|l| {
+            let mut it = l.splitn(3, ' ');
+            let (a, _, n) = (it.next()?, it.next()?, it.next()?);
+            (n == name).then(|| u64::from_str_radix(a, 16).ok()).flatten()
+        })
+    };
+    let exit = sym("semihosting::process::exit").context("no semihosting::process::exit symbol")?;
+    let top = sym("_stack_start").context("no _stack_start symbol")?;
+    let bss_end = sym("__ebss").context("no __ebss symbol")?;
+    let port = TcpListener::bind("127.0.0.1:0")?.local_addr()?.port();
+    let mut qemu = Command::new("qemu-system-riscv32")
+        .args([
+            "-machine",
+            "virt",
+            "-cpu",
+            "rv32",
+            "-m",
+            "64M",
+            "-nographic",
+            "-monitor",
+            "none",
+        ])
+        .args([
+            "-serial",
+            "none",
+            "-icount",
+            "shift=0",
+            "-semihosting-config",
+            "enable=on,target=native",
+        ])
+        .args([
+            "-bios",
+            "none",
+            "-S",
+            "-gdb",
+            &format!("tcp:127.0.0.1:{port}"),
+            "-kernel",
+        ])
+        .arg(&elf)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .context("qemu-system-riscv32")?;
+    let result = (|| -> Result<(u64, String)> {
+        let start = Instant::now();
+        let mut s = loop {
+            match TcpStream::connect(("127.0.0.1", port)) {
+                Ok(s) => break s,
+                Err(_) if start.elapsed() < Duration::from_secs(10) => std::thread::sleep(Duration::from_millis(100)),
+                Err(e) => return Err(e.into()),
+            }
+        };
+        s.set_read_timeout(Some(Duration::from_secs(300)))?;
+        let mut rsp = |cmd: &str| -> Result<String> {
+            let sum = cmd.bytes().fold(0u8, |a, b| a.wrapping_add(b));
+            s.write_all(format!("${cmd}#{sum:02x}").as_bytes())?;
+            // skip acks, read one packet, acknowledge it
+            let mut out = Vec::new();
+            let mut byte = [0u8; 1];
+            loop {
+                s.read_exact(&mut byte)?;
+                if byte[0] == b'$' {
+                    break;
+                }
+            }
+            loop {
+                s.read_exact(&mut byte)?;
+                if byte[0] == b'#' {
+                    break;
+                }
+                out.push(byte[0]);
+            }
+            let mut cks = [0u8; 2];
+            s.read_exact(&mut cks)?;
+            s.write_all(b"+")?;
+            Ok(String::from_utf8_lossy(&out).into_owned())
+        };
+        let ok = rsp(&format!("Z0,{exit:x},2"))?;
+        if ok != "OK" {
+            bail!("breakpoint refused: {ok}");
+        }
+        let stop = rsp("c")?;
+        if !stop.starts_with('T') && !stop.starts_with('S') {
+            bail!("the tests did not stop at the exit breakpoint: {stop}");
+        }
+        let lo = bss_end.max(top.saturating_sub(1024 * 1024));
+        let mut lowest = top;
+        let mut addr = lo;
+        while addr < top {
+            let n = (top - addr).min(1024);
+            let hex = rsp(&format!("m{addr:x},{n:x}"))?;
+            if hex.starts_with('E') {
+                bail!("memory read at {addr:#x} failed: {hex}");
+            }
+            if let Some(i) = (0..hex.len() / 2).find(|i| &hex[2 * i..2 * i + 2] != "00") {
+                lowest = addr + i as u64;
+                break;
+            }
+            addr += n;
+        }
+        let _ = s.write_all(b"$k#6b");
+        Ok((
+            top - lowest,
+            format!(
+                "qemu-tests (opt-level 1, all 58 on-target tests incl. Obsw::tick/handle_tc), deepest stack byte {lowest:#x} below _stack_start {top:#x}; measured window {} KiB",
+                (top - lo) / 1024
+            ),
+        ))
+    })();
+    let _ = qemu.kill();
+    let _ = qemu.wait();
+    result
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -930,6 +1084,46 @@ mod tests {
         let b = budget("x", None, Some(1.0), "B", "s");
         assert_eq!(b.margin_pct, None);
         assert_eq!(b.verdict, "not measured");
+    }
+
+    // verifies: REV-FDIR-01
+    #[test]
+    fn fdir_table_has_a_row_per_fault_and_monitor_with_the_tests_of_its_requirements() {
+        let req = Requirement {
+            id: "X-1".into(),
+            text: String::new(),
+            source: String::new(),
+            method: "test".into(),
+            criticality: "high".into(),
+            fdir: vec!["LOW_BATTERY".into(), "MON:V_BAT_A_LOW".into()],
+        };
+        let row = ReqRow {
+            id: "X-1".into(),
+            text: String::new(),
+            source: String::new(),
+            method: "test".into(),
+            criticality: "high".into(),
+            tests: vec![ReqTest {
+                package: "p".into(),
+                name: "t".into(),
+                outcome: Outcome::Passed,
+            }],
+            status: "verified".into(),
+        };
+        let t = fdir_table(&[req], &[row]);
+        assert_eq!(t.len(), mib::fdir::FAULTS.len() + mib::fdir::MONITORS.len());
+        let lb = t.iter().find(|r| r.name == "LOW_BATTERY").expect("fault row");
+        assert_eq!(lb.requirements, vec!["X-1".to_string()]);
+        assert_eq!(lb.tests.len(), 1);
+        assert!(lb.reaction.contains("STANDBY") && lb.reaction.contains("after the running motion"));
+        assert!(lb.detection.contains("V_BAT_A_LOW"));
+        let m = t.iter().find(|r| r.name == "V_BAT_A_LOW").expect("monitor row");
+        assert!(m.persistence.contains("500 ms"), "{}", m.persistence);
+        assert_eq!(m.tests.len(), 1);
+        assert!(t
+            .iter()
+            .filter(|r| r.name != "LOW_BATTERY" && r.name != "V_BAT_A_LOW")
+            .all(|r| r.tests.is_empty()));
     }
 
     // verifies: REV-BUDGET-01

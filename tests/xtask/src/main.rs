@@ -341,6 +341,9 @@ fn run(args: &Args) -> Result<bool> {
     for f in &trace_findings {
         eprintln!("   traceability: {f}");
     }
+    for t in &untraced {
+        eprintln!("   test without a requirement: {t}");
+    }
     for t in &failed {
         eprintln!("   FAILED: {t}");
     }

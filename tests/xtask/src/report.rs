@@ -120,6 +120,9 @@ pub struct FirmwareInfo {
     pub qemu_tests: Vec<(String, bool)>,
     pub worst_tick_instructions: Option<u64>,
     pub worst_handle_tc_instructions: Option<u64>,
+    /// Deepest stack use of the on-target tests under QEMU (bytes) and how it was measured.
+    pub stack_high_water: Option<u64>,
+    pub stack_note: String,
     pub seconds: f64,
 }
 

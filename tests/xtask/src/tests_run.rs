@@ -199,82 +199,169 @@ pub fn run_all(
         .context("cargo test")?;
     let stdout = child.stdout.take().context("stdout")?;
     let mut logf = std::fs::File::create(log)?;
-    let mut res = RunResult::default();
-    let mut current: Option<String> = None; // exe key
-    let mut doc_pkg: Option<String> = None;
-    let mut capture: Option<(String, String)> = None;
+    let mut parser = LibtestParser::new(pkgs);
     for line in BufReader::new(stdout).lines() {
         let line = line.unwrap_or_default();
         writeln!(logf, "{line}")?;
         if echo {
             println!("{line}");
         }
-        let t = line.trim();
-        if let Some(rest) = t.strip_prefix("Running ") {
-            if let (Some(a), Some(b)) = (rest.rfind('('), rest.rfind(')')) {
-                current = Some(exe_key(&rest[a + 1..b]));
-                doc_pkg = None;
-            }
-            capture = None;
-            continue;
-        }
-        if let Some(krate) = t.strip_prefix("Doc-tests ") {
-            let krate = krate.trim().replace('-', "_");
-            doc_pkg = pkgs
-                .iter()
-                .find(|p| p.lib_names.contains(&krate))
-                .map(|p| p.name.clone())
-                .or(Some(krate));
-            current = None;
-            capture = None;
-            continue;
-        }
-        if let Some(name) = t.strip_prefix("---- ").and_then(|r| r.strip_suffix(" stdout ----")) {
-            if let Some((n, o)) = capture.take() {
-                res.outputs.insert(n, o);
-            }
-            capture = Some((name.to_string(), String::new()));
-            continue;
-        }
-        if t == "successes:" || t == "failures:" || t.starts_with("test result:") {
-            if let Some((n, o)) = capture.take() {
-                res.outputs.insert(n, o);
-            }
-        }
-        if let Some((_, o)) = capture.as_mut() {
-            o.push_str(&line);
-            o.push('\n');
-            continue;
-        }
-        if let Some(rest) = line.strip_prefix("test ") {
-            if let Some(pos) = rest.rfind(" ... ") {
-                let name = rest[..pos].to_string();
-                let verdict = rest[pos + 5..].trim();
-                let outcome = if verdict == "ok" {
-                    Outcome::Passed
-                } else if verdict.starts_with("FAILED") {
-                    Outcome::Failed
-                } else if verdict.starts_with("ignored") {
-                    Outcome::Ignored
-                } else {
-                    continue;
-                };
-                if let Some(p) = &doc_pkg {
-                    res.doc_tests.push((p.clone(), name, outcome));
-                } else if let Some(exe) = &current {
-                    res.outcomes.entry(exe.clone()).or_default().insert(name, outcome);
-                }
-            }
-        }
+        parser.feed(&line);
     }
+    let mut res = parser.finish();
     res.exit_ok = child.wait()?.success();
     res.seconds = start.elapsed().as_secs_f64();
     Ok(res)
 }
 
+/// Parses `cargo test`'s merged stdout/stderr line by line.
+pub struct LibtestParser<'a> {
+    pkgs: &'a [Package],
+    res: RunResult,
+    /// exe key of the binary running now
+    current: Option<String>,
+    doc_pkg: Option<String>,
+    capture: Option<(String, String)>,
+}
+
+impl<'a> LibtestParser<'a> {
+    pub fn new(pkgs: &'a [Package]) -> Self {
+        LibtestParser {
+            pkgs,
+            res: RunResult::default(),
+            current: None,
+            doc_pkg: None,
+            capture: None,
+        }
+    }
+
+    fn end_capture(&mut self) {
+        if let Some((n, o)) = self.capture.take() {
+            self.res.outputs.insert(n, o);
+        }
+    }
+
+    pub fn feed(&mut self, line: &str) {
+        let t = line.trim();
+        if let Some(rest) = t.strip_prefix("Running ") {
+            if let (Some(a), Some(b)) = (rest.rfind('('), rest.rfind(')')) {
+                self.current = Some(exe_key(&rest[a + 1..b]));
+                self.doc_pkg = None;
+            }
+            self.end_capture();
+            return;
+        }
+        if let Some(krate) = t.strip_prefix("Doc-tests ") {
+            let krate = krate.trim().replace('-', "_");
+            self.doc_pkg = self
+                .pkgs
+                .iter()
+                .find(|p| p.lib_names.contains(&krate))
+                .map(|p| p.name.clone())
+                .or(Some(krate));
+            self.current = None;
+            self.end_capture();
+            return;
+        }
+        if let Some(name) = t.strip_prefix("---- ").and_then(|r| r.strip_suffix(" stdout ----")) {
+            self.end_capture();
+            self.capture = Some((name.to_string(), String::new()));
+            return;
+        }
+        if t == "successes:" || t == "failures:" || t.starts_with("test result:") {
+            self.end_capture();
+        }
+        if let Some((_, o)) = self.capture.as_mut() {
+            o.push_str(line);
+            o.push('\n');
+            return;
+        }
+        let Some((name, verdict)) = line.strip_prefix("test ").and_then(|r| r.rsplit_once(" ... ")) else {
+            return;
+        };
+        let verdict = verdict.trim();
+        let outcome = if verdict == "ok" {
+            Outcome::Passed
+        } else if verdict.starts_with("FAILED") {
+            Outcome::Failed
+        } else if verdict.starts_with("ignored") {
+            Outcome::Ignored
+        } else {
+            return;
+        };
+        if let Some(p) = &self.doc_pkg {
+            self.res.doc_tests.push((p.clone(), name.to_string(), outcome));
+        } else if let Some(exe) = &self.current {
+            self.res
+                .outcomes
+                .entry(exe.clone())
+                .or_default()
+                .insert(name.to_string(), outcome);
+        }
+    }
+
+    pub fn finish(mut self) -> RunResult {
+        self.end_capture();
+        self.res
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    // verifies: REV-TRACE-02
+    #[test]
+    fn libtest_lines_are_attached_to_their_binary_and_outputs_captured() {
+        let pkgs = [Package {
+            name: "mib".into(),
+            id: "x".into(),
+            dir: PathBuf::from("/w/mib"),
+            lib_names: vec!["mib".into()],
+        }];
+        let log = "\
+     Running unittests src/lib.rs (target/debug/deps/mib-aa11)
+running 3 tests
+test codec::tests::a ... ok
+test codec::tests::b ... FAILED
+test codec::tests::c ... ignored, slow
+
+failures:
+
+---- codec::tests::b stdout ----
+test inside output ... ok
+assertion failed
+
+failures:
+    codec::tests::b
+
+test result: FAILED. 1 passed; 1 failed; 1 ignored
+     Running tests/icd.rs (target/debug/deps/icd-bb22)
+test a ... ok
+   Doc-tests mib
+test mib/src/lib.rs - codec (line 3) ... ok
+";
+        let mut p = LibtestParser::new(&pkgs);
+        for l in log.lines() {
+            p.feed(l);
+        }
+        let r = p.finish();
+        let lib = &r.outcomes["mib-aa11"];
+        assert_eq!(lib["codec::tests::a"], Outcome::Passed);
+        assert_eq!(lib["codec::tests::b"], Outcome::Failed);
+        assert_eq!(lib["codec::tests::c"], Outcome::Ignored);
+        assert_eq!(lib.len(), 3, "the test line inside captured output is no result");
+        assert_eq!(r.outcomes["icd-bb22"]["a"], Outcome::Passed);
+        assert!(r.outputs["codec::tests::b"].contains("assertion failed"));
+        assert_eq!(
+            r.doc_tests,
+            vec![(
+                "mib".to_string(),
+                "mib/src/lib.rs - codec (line 3)".to_string(),
+                Outcome::Passed
+            )]
+        );
+    }
 
     // verifies: REV-TRACE-02
     #[test]

@@ -2,7 +2,7 @@
 //! (TM[5,8]). Emission, enable mask and throttling live in `crate::downlink::Events`.
 
 use mib::events::EVENTS;
-use mib::tc::service;
+use mib_wire::tm;
 
 use crate::accept::Tc;
 use crate::downlink::EventIndex;
@@ -10,8 +10,6 @@ use crate::failure::Failure;
 use crate::obsw::Obsw;
 use crate::request::{u16_arg, unknown};
 use crate::tm::{TmSink, TmStore};
-
-const N_EVENTS: usize = EVENTS.len();
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Request {
@@ -44,17 +42,17 @@ impl<S: TmStore> Obsw<S> {
             Request::Enable(e) => self.dl.events.set_enabled(e, true),
             Request::Disable(e) => self.dl.events.set_enabled(e, false),
             Request::ReportDisabled => {
-                let mut buf = [0u8; 2 + 2 * N_EVENTS];
-                let mut n = 2;
+                let mut r = tm::DisabledEvents {
+                    events: heapless::Vec::new(),
+                };
                 for e in EVENTS {
                     let disabled = EventIndex::of(e.id).is_some_and(|i| !self.dl.events.is_enabled(i));
-                    if disabled {
-                        buf[n..n + 2].copy_from_slice(&e.id.to_be_bytes());
-                        n += 2;
+                    // The list holds every event of the MIB (N_EVENTS <= its capacity).
+                    if disabled && r.events.push(tm::DisabledEventsEvents { event_id: e.id }).is_err() {
+                        break;
                     }
                 }
-                buf[..2].copy_from_slice(&(((n - 2) / 2) as u16).to_be_bytes());
-                self.emit(now, service::EVENT, 8, &buf[..n], sink);
+                self.emit_tm(now, r, sink);
             }
         }
     }
@@ -65,6 +63,7 @@ mod tests {
     use crate::obsw::tests::{kind, obsw, of, send};
     use mib::events::eid;
 
+    // verifies: PUS-5-02
     #[test]
     fn a_disabled_event_is_listed_and_no_longer_reported() {
         let mut o = obsw();

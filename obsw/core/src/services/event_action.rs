@@ -5,7 +5,7 @@
 use mib::events::eid;
 use mib::fdir::FAULTS;
 use mib::modes::robot_mode;
-use mib::tc::service;
+use mib_wire::tm;
 
 use crate::accept::Tc;
 use crate::failure::Failure;
@@ -56,17 +56,22 @@ impl<S: TmStore> Obsw<S> {
     }
 
     fn report_links(&mut self, now: u64, sink: &mut impl TmSink) {
-        let mut buf = [0u8; 2 + 8 * FAULTS.len()];
-        buf[..2].copy_from_slice(&(FAULTS.len() as u16).to_be_bytes());
-        let mut n = 2;
+        let mut r = tm::EaDefinitions {
+            links: heapless::Vec::new(),
+        };
         for (i, f) in FAULTS.iter().enumerate() {
-            buf[n..n + 2].copy_from_slice(&f.event.to_be_bytes());
-            buf[n + 2] = self.faults.link_enabled(i) as u8;
-            buf[n + 3..n + 7].copy_from_slice(&f.mode.to_be_bytes());
-            buf[n + 7] = (f.timing == mib::fdir::Timing::AfterMotion) as u8;
-            n += 8;
+            let link = tm::EaDefinitionsLinks {
+                event: f.event,
+                enabled: self.faults.link_enabled(i) as u8,
+                mode: f.mode,
+                deferred: (f.timing == mib::fdir::Timing::AfterMotion) as u8,
+            };
+            // The list holds every fault of the MIB (FAULTS.len() <= its capacity).
+            if r.links.push(link).is_err() {
+                break;
+            }
         }
-        self.emit(now, service::EVENT_ACTION, 9, &buf[..n], sink);
+        self.emit_tm(now, r, sink);
     }
 
     /// Raises a fault event and applies its event-action link.
@@ -123,6 +128,7 @@ mod tests {
     use mib::fdir::FAULTS;
     use mib::FailureCode;
 
+    // verifies: PUS-19-01
     #[test]
     fn a_link_can_be_disabled_and_is_reported_so_and_an_unknown_link_is_refused() {
         let mut o = obsw();

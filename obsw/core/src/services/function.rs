@@ -70,7 +70,7 @@ impl Request {
 
 /// The action that runs, with the started token of its request (`None` for actions
 /// the OBSW starts itself: homing when entering operational).
-#[derive(Clone, Copy, Debug)]
+#[derive(Debug)]
 pub struct Running<T> {
     pub token: T,
     pub function: u16,
@@ -97,14 +97,15 @@ impl<S: TmStore> Obsw<S> {
             Request::Stop => {
                 if let Some(run) = self.running.take() {
                     self.ctrl.abort();
-                    self.finish_running(now, run, Some(Failure::aborted_by_command(run.function)), sink);
+                    let f = Failure::aborted_by_command(run.function);
+                    self.finish_running(now, run, Some(f), sink);
                 }
                 return Ok(Exec::Done);
             }
             Request::Start(a) => a,
         };
         if self.running.is_some() || self.transition.is_some() {
-            let busy = self.running.map_or(0, |r| r.function);
+            let busy = self.running.as_ref().map_or(0, |r| r.function);
             return Err(Failure::busy(busy).into());
         }
         let f = action.function_id();
@@ -177,23 +178,23 @@ impl<S: TmStore> Obsw<S> {
 
     /// Progress and end of the running action, from the controller.
     pub(crate) fn on_report(&mut self, now: u64, r: &ActionReport, sink: &mut impl TmSink) {
-        let Some(run) = self.running else { return };
         match *r {
             ActionReport::Step { n } => {
-                if let Some(t) = &run.token {
+                if let Some(Running { token: Some(t), .. }) = &self.running {
                     self.dl.step(now, t, n, sink);
                 }
             }
             ActionReport::Completed => {
-                self.running = None;
+                let Some(run) = self.running.take() else { return };
+                let reconfigure = run.reconfigure;
                 self.finish_running(now, run, None, sink);
-                if run.reconfigure {
+                if reconfigure {
                     // Paper: idle overcurrent is checked at the end of a reconfiguration too.
                     self.idle_check(now, sink);
                 }
             }
             ActionReport::Failed(f) => {
-                self.running = None;
+                let Some(run) = self.running.take() else { return };
                 self.finish_running(now, run, Some(Failure::from_action(f)), sink);
             }
         }
@@ -250,6 +251,7 @@ mod tests {
     use mib::tc::function;
     use mib::FailureCode;
 
+    // verifies: MMIC-MODE-01, PUS-1-02
     #[test]
     fn an_action_in_standby_is_refused_at_start_with_the_mode() {
         let mut o = obsw();

@@ -2,7 +2,7 @@
 //! enable/disable, one-shot and collection interval.
 
 use mib::hk::HK_STRUCTS;
-use mib::tc::service;
+use mib_wire::tm;
 
 use crate::accept::Tc;
 use crate::failure::Failure;
@@ -101,10 +101,9 @@ impl<S: TmStore> Obsw<S> {
     }
 
     fn hk_report(&mut self, now: u64, index: usize, sink: &mut impl TmSink) {
-        let def = &HK_STRUCTS[index];
-        let mut buf = [0u8; mib::config::MAX_PACKET_LEN];
-        if let Ok(n) = mib::codec::encode_hk(def, |p| self.param(p), &mut buf) {
-            self.emit(now, service::HOUSEKEEPING, 25, &buf[..n], sink);
+        // The index names a structure of the MIB, which the wire crate generates.
+        if let Some(hk) = mib_wire::Hk::from_values(HK_STRUCTS[index].sid, |p| self.param(p)) {
+            self.emit_tm(now, tm::HkReport { hk }, sink);
         }
     }
 
@@ -133,6 +132,7 @@ mod tests {
     use crate::obsw::tests::{failure, obsw, of, send};
     use mib::FailureCode;
 
+    // verifies: PUS-3-02
     #[test]
     fn one_shot_reports_the_structure_and_an_unknown_sid_is_refused_with_it() {
         let mut o = obsw();
@@ -148,6 +148,7 @@ mod tests {
         );
     }
 
+    // verifies: PUS-3-02, PUS-3-03
     #[test]
     fn disable_stops_and_interval_paces_periodic_reports() {
         let mut o = obsw();

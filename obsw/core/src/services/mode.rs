@@ -8,8 +8,9 @@ use mib::events::eid;
 use mib::fdir::Phase;
 use mib::modes::{module_mode, node, robot_mode, NodeKind};
 use mib::params::{self, pid};
-use mib::tc::{function, service};
+use mib::tc::function;
 use mib::FailureCode;
+use mib_wire::tm;
 
 use mmic_domain::controller::{Action, ModuleModes};
 
@@ -63,7 +64,7 @@ impl Request {
 }
 
 /// A mode command waiting for its transition.
-#[derive(Clone, Copy, Debug)]
+#[derive(Debug)]
 pub struct ModeCmd<T> {
     pub token: T,
     pub target: u32,
@@ -142,17 +143,12 @@ impl<S: TmStore> Obsw<S> {
         let Some(ms) = self.modes.mode_and_submode(n) else {
             return;
         };
-        let mut d = [0u8; 10];
-        d[..4].copy_from_slice(&n.to_be_bytes());
-        d[4..8].copy_from_slice(&ms.mode().to_be_bytes());
-        d[8..].copy_from_slice(&ms.submode().to_be_bytes());
-        self.emit(
-            now,
-            service::MODE,
-            satrs::pus::mode::Subservice::TmModeReply as u8,
-            &d,
-            sink,
-        );
+        let r = tm::ModeReply {
+            node: n,
+            mode: ms.mode(),
+            submode: ms.submode(),
+        };
+        self.emit_tm(now, r, sink);
     }
 
     /// Starts a transition of the robot node (by command, cause 0, or by FDIR, cause =
@@ -328,18 +324,13 @@ impl<S: TmStore> Obsw<S> {
     /// A transition that cannot complete: report it and fall back to standby.
     pub(crate) fn transition_failed(&mut self, now: u64, reason: FailureCode, event: u16, sink: &mut impl TmSink) {
         let Some(t) = self.transition.take() else { return };
-        let mut d = [0u8; 12];
-        d[..4].copy_from_slice(&node::ROBOT.to_be_bytes());
-        d[4..8].copy_from_slice(&t.target.to_be_bytes());
-        d[8..10].copy_from_slice(&0u16.to_be_bytes());
-        d[10..12].copy_from_slice(&reason.code().to_be_bytes());
-        self.emit(
-            now,
-            service::MODE,
-            satrs::pus::mode::Subservice::TmCantReachMode as u8,
-            &d,
-            sink,
-        );
+        let r = tm::ModeCantReach {
+            node: node::ROBOT,
+            mode: t.target,
+            submode: 0,
+            reason: reason.code(),
+        };
+        self.emit_tm(now, r, sink);
         self.event(
             now,
             eid::MODE_CHANGE_FAILED,
@@ -371,6 +362,7 @@ mod tests {
         app
     }
 
+    // verifies: PUS-200-01
     #[test]
     fn a_child_node_is_not_commandable_and_an_unknown_node_is_refused() {
         let mut o = obsw();
@@ -388,6 +380,7 @@ mod tests {
         );
     }
 
+    // verifies: PUS-200-01
     #[test]
     fn commanding_the_current_mode_completes_at_once_with_a_mode_report() {
         let mut o = obsw();
@@ -397,6 +390,7 @@ mod tests {
         assert_eq!(of(&pkts, 1, 7).len(), 1);
     }
 
+    // verifies: PUS-200-01, PUS-1-02
     #[test]
     fn safed_without_power_times_out_and_the_command_fails_with_the_reason() {
         let mut o = obsw();

@@ -6,7 +6,7 @@
 use mib::events::eid;
 use mib::fdir::{Phase, MONITORS};
 use mib::params::pid;
-use mib::tc::service;
+use mib_wire::tm;
 
 use crate::accept::Tc;
 use crate::failure::Failure;
@@ -102,20 +102,25 @@ impl<S: TmStore> Obsw<S> {
     }
 
     fn report_monitors(&mut self, now: u64, sink: &mut impl TmSink) {
-        let mut buf = [0u8; 2 + 17 * N_MONITORS];
-        buf[..2].copy_from_slice(&(N_MONITORS as u16).to_be_bytes());
-        let mut n = 2;
+        let mut r = tm::MonDefinitions {
+            monitors: heapless::Vec::new(),
+        };
         for m in &self.monitoring.mons {
-            buf[n..n + 2].copy_from_slice(&m.def.id.to_be_bytes());
-            buf[n + 2..n + 4].copy_from_slice(&m.def.param.to_be_bytes());
-            buf[n + 4] = m.enabled as u8;
-            buf[n + 5..n + 9].copy_from_slice(&m.def.low.to_be_bytes());
-            buf[n + 9..n + 13].copy_from_slice(&m.def.high.to_be_bytes());
-            buf[n + 13..n + 15].copy_from_slice(&m.def.persistence.to_be_bytes());
-            buf[n + 15..n + 17].copy_from_slice(&m.def.event.to_be_bytes());
-            n += 17;
+            let d = tm::MonDefinitionsMonitors {
+                monitor_id: m.def.id,
+                param: m.def.param,
+                enabled: m.enabled as u8,
+                low: m.def.low,
+                high: m.def.high,
+                persistence: m.def.persistence,
+                event: m.def.event,
+            };
+            // The list holds every monitor of the MIB (N_MONITORS <= its capacity).
+            if r.monitors.push(d).is_err() {
+                break;
+            }
         }
-        self.emit(now, service::MONITORING, 9, &buf[..n], sink);
+        self.emit_tm(now, r, sink);
     }
 
     /// Runs the idle-phase monitors once; returns the fault event if one fired.
@@ -149,13 +154,14 @@ impl<S: TmStore> Obsw<S> {
         self.faults.monitored = self.monitoring.violated_fault_bits();
         let mut raised = None;
         for t in &tr {
-            let mut d = [0u8; 13];
-            d[..2].copy_from_slice(&t.monitor.to_be_bytes());
-            d[2..4].copy_from_slice(&t.param.to_be_bytes());
-            d[4..8].copy_from_slice(&(t.value.clamp(i32::MIN as i64, i32::MAX as i64) as i32).to_be_bytes());
-            d[8..12].copy_from_slice(&t.limit.to_be_bytes());
-            d[12] = t.state;
-            self.emit(now, service::MONITORING, 12, &d, sink);
+            let r = tm::MonTransition {
+                monitor_id: t.monitor,
+                param: t.param,
+                value: t.value.clamp(i32::MIN as i64, i32::MAX as i64) as i32,
+                limit: t.limit,
+                state: t.state,
+            };
+            self.emit_tm(now, r, sink);
             let continuous = mib::fdir::monitor_by_id(t.monitor).is_some_and(|m| fdir::is_continuous(m.phase));
             if t.state != fdir::check::OK {
                 let args: [i64; 3] = if t.event == eid::HIP_MISMATCH {
@@ -181,6 +187,7 @@ mod tests {
     use mib::fdir::MONITORS;
     use mib::FailureCode;
 
+    // verifies: PUS-12-02
     #[test]
     fn modify_changes_the_reported_limits_and_inverted_limits_are_refused() {
         let mut o = obsw();

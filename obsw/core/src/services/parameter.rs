@@ -1,8 +1,8 @@
 //! PUS 20 on-board parameter management: report and set the domain's tunables
 //! (`mib::tunables`), range-checked at acceptance.
 
-use mib::tc::service;
 use mib::tunables::TunableDef;
+use mib_wire::tm;
 
 use crate::accept::Tc;
 use crate::failure::Failure;
@@ -48,10 +48,14 @@ impl<S: TmStore> Obsw<S> {
             }
         };
         let v = self.ctrl.tunable(t.id).ok_or(Failure::unknown_parameter(t.id))?;
-        let mut d = [0u8; 6];
-        d[..2].copy_from_slice(&t.id.to_be_bytes());
-        d[2..].copy_from_slice(&v.to_be_bytes());
-        self.emit(now, service::PARAMETER, 2, &d, sink);
+        self.emit_tm(
+            now,
+            tm::ParamValue {
+                param_id: t.id,
+                value: v,
+            },
+            sink,
+        );
         Ok(())
     }
 }
@@ -62,6 +66,7 @@ mod tests {
     use mib::tunables::TUNABLES;
     use mib::FailureCode;
 
+    // verifies: PUS-20-01
     #[test]
     fn set_reports_the_new_value_and_out_of_range_is_refused_with_id_and_value() {
         let mut o = obsw();

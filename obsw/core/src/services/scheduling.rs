@@ -194,6 +194,7 @@ mod tests {
         app
     }
 
+    // verifies: PUS-11-01
     #[test]
     fn a_scheduled_ping_runs_at_its_release_time() {
         let mut o = obsw();
@@ -207,6 +208,7 @@ mod tests {
         assert_eq!(of(&sink, 17, 2).len(), 1);
     }
 
+    // verifies: PUS-11-02
     #[test]
     fn a_schedule_inside_a_schedule_is_refused_with_the_activity_index() {
         let mut o = obsw();
@@ -225,6 +227,7 @@ mod tests {
         assert_eq!(o.sched.len(), 0, "nothing inserted");
     }
 
+    // verifies: PUS-11-02
     #[test]
     fn a_release_time_in_the_past_is_refused_with_it() {
         let mut o = obsw();

@@ -6,7 +6,7 @@
 //! with what was sent and what is gone (the oldest packet still stored, the count of
 //! overwritten packets): anything older than that oldest packet is unrecoverable.
 
-use mib::tc::service;
+use mib_wire::tm;
 
 use crate::accept::Tc;
 use crate::failure::Failure;
@@ -69,16 +69,19 @@ impl Request {
     }
 }
 
-/// APID, sequence count and time of a stored TM packet (PUS-C: CDS short with
-/// P-field after the 7 fixed bytes of the secondary header).
+/// APID, sequence count and time of a stored TM packet (headers as the wire crate
+/// reads them; the store holds only packets the TM writer made, so no CRC check).
 fn identify(p: &[u8]) -> Option<(u16, u16, Cds)> {
-    let t = p.get(13..20)?;
+    use mib_wire::header::{PRIMARY_HEADER_LEN, TM_SEC_HEADER_LEN};
+    let h = mib_wire::header::Primary::parse(p).ok()?;
+    let at = PRIMARY_HEADER_LEN + TM_SEC_HEADER_LEN;
+    let t = mib_wire::CdsTime::parse(p.get(at..at + mib::config::TIMESTAMP_LEN)?).ok()?;
     Some((
-        u16::from_be_bytes([p[0], p[1]]) & 0x7FF,
-        u16::from_be_bytes([p[2], p[3]]) & 0x3FFF,
+        h.apid,
+        h.seq_count,
         Cds {
-            days: u16::from_be_bytes([t[1], t[2]]),
-            ms: u32::from_be_bytes([t[3], t[4], t[5], t[6]]),
+            days: t.days,
+            ms: t.ms_of_day,
         },
     ))
 }
@@ -133,14 +136,19 @@ impl<S: TmStore> Obsw<S> {
                 sent += 1;
             }
         });
-        let (seq, t) = oldest.unwrap_or((0, Cds { days: 0, ms: 0 }));
-        let mut d = [0u8; 16];
-        d[..4].copy_from_slice(&sent.to_be_bytes());
-        d[4..6].copy_from_slice(&t.days.to_be_bytes());
-        d[6..10].copy_from_slice(&t.ms.to_be_bytes());
-        d[10..12].copy_from_slice(&seq.to_be_bytes());
-        d[12..16].copy_from_slice(&self.dl.store_dropped.to_be_bytes());
-        self.emit(now, service::STORAGE, 19, &d, sink);
+        // An empty store reports time and sequence count 0.
+        let (oldest_seq, t) = oldest.unwrap_or((0, Cds { days: 0, ms: 0 }));
+        let r = tm::StoreDownlinkDone {
+            packets: sent,
+            oldest_time: mib_wire::CdsTime {
+                pfield: mib_wire::header::CDS_PFIELD,
+                days: t.days,
+                ms_of_day: t.ms,
+            },
+            oldest_seq,
+            overwritten: self.dl.store_dropped,
+        };
+        self.emit_tm(now, r, sink);
         Ok(())
     }
 }
@@ -150,6 +158,10 @@ mod tests {
     use super::*;
     use crate::obsw::tests::{failure, kind, obsw, of, send, TestObsw, APID};
     use mib::FailureCode;
+
+    fn end(pkts: &[Vec<u8>]) -> tm::StoreDownlinkDone {
+        tm::StoreDownlinkDone::parse(kind(&of(pkts, 15, 19)[0]).2).expect("TM[15,19] parses")
+    }
 
     fn seq(p: &[u8]) -> u16 {
         u16::from_be_bytes([p[2], p[3]]) & 0x3FFF
@@ -167,6 +179,7 @@ mod tests {
         pkts.iter().filter(|p| seq(p) < live_from).cloned().collect()
     }
 
+    // verifies: PUS-15-01
     #[test]
     fn a_sequence_range_replays_exactly_those_packets_unchanged() {
         let mut o = obsw();
@@ -194,6 +207,7 @@ mod tests {
         assert_eq!(replayed(&by_seq(&mut o, 200, 10, 4, 7), 20), all[4..8].to_vec());
     }
 
+    // verifies: PUS-15-01
     #[test]
     fn a_time_span_replays_the_packets_stamped_inside_it() {
         let mut o = obsw();
@@ -217,6 +231,7 @@ mod tests {
         assert_eq!(replayed(&pkts, 12), mid);
     }
 
+    // verifies: PUS-15-01, PUS-15-02
     #[test]
     fn the_end_report_says_what_was_overwritten_and_a_disabled_store_refuses() {
         let mut o = obsw();
@@ -226,9 +241,8 @@ mod tests {
         }
         let pkts = by_seq(&mut o, 500, 300, 0, 3);
         assert!(replayed(&pkts, 800).is_empty(), "the first packets are gone");
-        let end = kind(&of(&pkts, 15, 19)[0]).2.to_vec();
-        let oldest = u16::from_be_bytes([end[10], end[11]]);
-        let overwritten = u32::from_be_bytes(end[12..16].try_into().unwrap());
+        let e = end(&pkts);
+        let (oldest, overwritten) = (e.oldest_seq, e.overwritten);
         assert!(
             oldest > 3 && overwritten as u16 == oldest,
             "oldest {oldest}, overwritten {overwritten}"
@@ -241,6 +255,7 @@ mod tests {
         );
     }
 
+    // verifies: PUS-15-01
     #[test]
     fn a_sequence_range_wraps_through_16383() {
         let r = Range::Seq {

@@ -1,6 +1,6 @@
 //! PUS 17 test: the connection test (replaces the paper's heartbeat polling).
 
-use mib::tc::service;
+use mib_wire::tm;
 
 use crate::accept::Tc;
 use crate::failure::Failure;
@@ -26,7 +26,7 @@ impl Request {
 impl<S: TmStore> Obsw<S> {
     pub(crate) fn test_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) {
         match r {
-            Request::Ping => self.emit(now, service::TEST, 2, &[], sink),
+            Request::Ping => self.emit_tm(now, tm::PingReply {}, sink),
         }
     }
 }
@@ -35,6 +35,7 @@ impl<S: TmStore> Obsw<S> {
 mod tests {
     use crate::obsw::tests::{obsw, of, send};
 
+    // verifies: PUS-17-01
     #[test]
     fn a_ping_is_answered_in_every_mode() {
         let mut o = obsw();

@@ -2,7 +2,7 @@
 //! request.
 
 use mib::config;
-use mib::tc::service;
+use mib_wire::tm;
 
 use crate::accept::Tc;
 use crate::failure::Failure;
@@ -75,10 +75,11 @@ impl<S: TmStore> Obsw<S> {
     }
 
     fn time_report(&mut self, now: u64, sink: &mut impl TmSink) {
-        let mut d = [0u8; 1 + config::TIMESTAMP_LEN];
-        d[0] = self.time_reports.exp;
-        d[1..].copy_from_slice(&self.dl.tmw.time.cds(now));
-        self.emit(now, service::TIME, 2, &d, sink);
+        let r = tm::TimeReport {
+            rate_exp: self.time_reports.exp,
+            time: self.dl.tmw.time.cds_time(now),
+        };
+        self.emit_tm(now, r, sink);
     }
 }
 
@@ -86,6 +87,7 @@ impl<S: TmStore> Obsw<S> {
 mod tests {
     use crate::obsw::tests::{kind, obsw, of, send};
 
+    // verifies: PUS-9-01
     #[test]
     fn the_rate_sets_the_period_and_the_report_carries_exponent_and_time() {
         let mut o = obsw();
