@@ -51,14 +51,15 @@ python3 - "$DB" "$N" "$SECS" "$USR" "$SYS" "$WALL" "$MAXKB" <<'PY'
 import sqlite3, sys
 db, n, secs, usr, sys_, wall, maxkb = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), float(sys.argv[4]), float(sys.argv[5]), float(sys.argv[6]), int(sys.argv[7])
 c = sqlite3.connect(db)
-total = c.execute("select count(*) from tm").fetchone()[0]
-corrupt = c.execute("select count(*) from tm where ok = 0").fetchone()[0]
-hk10 = c.execute("select count(*) from tm where service = 3 and decoded like '%\"sid\":1,%'").fetchone()[0]
+total = c.execute("select count(*) from packet").fetchone()[0]
+corrupt = c.execute("select count(*) from bad_packet").fetchone()[0]
+# TM[3,25] whose SID (first two bytes of the source data, byte 21 on) is 1.
+hk10 = c.execute("select count(*) from packet where substr(raw, 8, 2) = x'0319' and substr(raw, 21, 2) = x'0001'").fetchone()[0]
 gaps = lost = 0
 robots = 0
-for (apid,) in c.execute("select distinct apid from tm where apid is not null").fetchall():
+for (apid,) in c.execute("select apid from stream").fetchall():
     robots += 1
-    seqs = [s for (s,) in c.execute("select seq from tm where apid = ? order by id", (apid,))]
+    seqs = [s for (s,) in c.execute("select seq from packet where apid = ? order by obt_ms, seq", (apid,))]
     for a, b in zip(seqs, seqs[1:]):
         d = (b - a) % 16384
         if d != 1:

@@ -47,7 +47,8 @@ pub fn coded(code: u8, msg: impl Into<String>) -> anyhow::Error {
 #[derive(Parser, Debug)]
 #[command(name = "ground", version, about = "MMIC-I ground tool: plans, live operations, TM decode and archive", long_about = None)]
 struct Cli {
-    /// Archive database (SQLite) written by run, send, ping, mode, watch and demo.
+    /// Archive written by run, send, ping, mode, watch and demo: an SQLite file, or a
+    /// PostgreSQL server as `postgresql://USER@HOST/DB` (see docs/archive.md).
     #[arg(long, global = true, default_value = "ground-archive.db")]
     archive: PathBuf,
     /// Do not write the archive.
@@ -391,6 +392,44 @@ enum ArchiveCmd {
         since: Option<String>,
         #[arg(long)]
         until: Option<String>,
+    },
+    /// Import a raw packet stream (a capture, a store dump); packets already archived
+    /// are counted and not stored again.
+    Import {
+        file: PathBuf,
+        /// Robot whose link the stream came from.
+        #[arg(long)]
+        robot: u8,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Verify every stored packet's CRC and the parameter chunks; list holes.
+    Check {
+        #[arg(long)]
+        robot: Option<u8>,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Remaining holes per robot and APID, with why.
+    Gaps {
+        #[arg(long)]
+        robot: Option<u8>,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Last archived position per robot/APID, when each robot was last heard, size.
+    Status {
+        #[arg(long)]
+        robot: Option<u8>,
+        #[arg(long)]
+        json: bool,
+    },
+    /// The newest value of every HK parameter.
+    Latest {
+        #[arg(long)]
+        robot: Option<u8>,
+        #[arg(long)]
+        json: bool,
     },
 }
 
@@ -1089,13 +1128,17 @@ fn sim(a: &SimArgs) -> Result<u8> {
 }
 
 fn archive_cmd(a: ArchiveCmd, path: &Path) -> Result<u8> {
-    if !path.exists() {
+    if let ArchiveCmd::Import { file, robot, json } = &a {
+        return archive_import(path, file, *robot, *json);
+    }
+    let loc = path.to_string_lossy().to_string();
+    if !archive::exists(&loc) {
         return Err(coded(exit::INVALID, format!("no archive at {}", path.display())));
     }
-    let conn = archive::open_db(path)?;
+    let mut store = archive::Store::open(&loc).with_context(|| format!("opening archive {loc}"))?;
     match a {
         ArchiveCmd::Query { kind, filter, json } => {
-            let rows = archive::query(&conn, kind, &filter.filter()?)?;
+            let rows = store.query(kind, &filter.filter()?)?;
             if json {
                 for r in &rows.rows {
                     let obj: serde_json::Map<String, serde_json::Value> =
@@ -1130,16 +1173,16 @@ fn archive_cmd(a: ArchiveCmd, path: &Path) -> Result<u8> {
             out: file,
             ..
         } => {
-            let rows = archive::query(&conn, kind, &filter.filter()?)?;
-            let csv = archive::to_csv(&rows);
+            let f = filter.filter()?;
             match file {
-                Some(f) => {
-                    std::fs::write(&f, csv).with_context(|| format!("writing {}", f.display()))?;
-                    err_line!("{} row(s) written to {}", rows.rows.len(), f.display());
+                Some(p) => {
+                    let mut o = std::fs::File::create(&p).with_context(|| format!("writing {}", p.display()))?;
+                    let n = store.export_csv(kind, &f, &mut o)?;
+                    err_line!("{n} row(s) written to {}", p.display());
                 }
                 None => {
                     let mut o = std::io::stdout().lock();
-                    o.write_all(csv.as_bytes())?;
+                    store.export_csv(kind, &f, &mut o)?;
                 }
             }
         }
@@ -1160,9 +1203,159 @@ fn archive_cmd(a: ArchiveCmd, path: &Path) -> Result<u8> {
                 limit: None,
             }
             .filter()?;
-            let n = plot::plot(&conn, &params, &f, &file)?;
+            let n = plot::plot(&mut store, &params, &f, &file)?;
             out(&format!("{} points plotted to {}", n, file.display()))?;
         }
+        ArchiveCmd::Import { .. } => {}
+        ArchiveCmd::Check { robot, json } => {
+            let rep = store.check(robot)?;
+            if json {
+                out(&serde_json::to_string(&rep)?)?;
+            } else {
+                out(&format!(
+                    "{} packet(s), {} raw bytes checked",
+                    rep.packets, rep.raw_bytes
+                ))?;
+                for (r, apid, seq, obt, why) in &rep.bad {
+                    out(&format!(
+                        "BAD robot {r} APID {apid:#x} seq {seq} at {}: {why}",
+                        fmt_ms(*obt)
+                    ))?;
+                }
+                for (r, p, stored, expected) in &rep.chunk_mismatch {
+                    let name = mib::params::by_id(*p).map_or("?", |d| d.name);
+                    out(&format!(
+                        "BAD robot {r} parameter {name}: {stored} value(s) in chunks, {expected} in packets"
+                    ))?;
+                }
+                print_gaps(&rep.gaps)?;
+                out(if rep.bad.is_empty() && rep.chunk_mismatch.is_empty() {
+                    "check: ok"
+                } else {
+                    "check: FAILED"
+                })?;
+            }
+            if !rep.bad.is_empty() || !rep.chunk_mismatch.is_empty() {
+                return Ok(exit::INVALID);
+            }
+        }
+        ArchiveCmd::Gaps { robot, json } => {
+            let gaps = store.gaps(robot)?;
+            if json {
+                for g in &gaps {
+                    out(&serde_json::to_string(g)?)?;
+                }
+            } else {
+                print_gaps(&gaps)?;
+            }
+        }
+        ArchiveCmd::Status { robot, json } => {
+            let pos = store.positions(robot)?;
+            let health = store.health()?;
+            let (packets, raw) = store.packet_totals()?;
+            let size = store.size_bytes()?;
+            if json {
+                out(&serde_json::json!({
+                    "archive": store.db().location(), "packets": packets, "raw_bytes": raw,
+                    "size_bytes": size, "positions": pos, "health": health,
+                })
+                .to_string())?;
+            } else {
+                out(&format!(
+                    "{}: {packets} packet(s), {raw} raw bytes, {size} bytes on disk ({:.2}x)",
+                    store.db().location(),
+                    size as f64 / raw.max(1) as f64
+                ))?;
+                for h in health.iter().filter(|h| robot.is_none_or(|r| r == h.robot)) {
+                    out(&format!(
+                        "robot {}: last heard {}, newest on-board time {}, {} packet(s) received",
+                        h.robot,
+                        fmt_ms(h.last_heard_ms),
+                        fmt_ms(h.last_obt_ms),
+                        h.packets
+                    ))?;
+                }
+                for p in &pos {
+                    out(&format!(
+                        "robot {} APID {:#x}: last seq {} at {}, {} stored, {} duplicate(s)",
+                        p.robot,
+                        p.apid,
+                        p.seq,
+                        fmt_ms(p.obt_ms),
+                        p.packets,
+                        p.duplicates
+                    ))?;
+                }
+            }
+        }
+        ArchiveCmd::Latest { robot, json } => {
+            for l in store.latest(robot)? {
+                if json {
+                    out(&serde_json::to_string(&l)?)?;
+                } else {
+                    out(&format!(
+                        "robot {} {:<16} {:>12.4} {:<4} (raw {}) at {}",
+                        l.robot,
+                        l.name,
+                        l.eng,
+                        l.unit,
+                        l.raw,
+                        fmt_ms(l.t_ms)
+                    ))?;
+                }
+            }
+        }
+    }
+    Ok(exit::OK)
+}
+
+fn fmt_ms(ms: i64) -> String {
+    chrono::DateTime::from_timestamp_millis(ms)
+        .map_or(ms.to_string(), |t| t.format("%Y-%m-%dT%H:%M:%S%.3fZ").to_string())
+}
+
+fn print_gaps(gaps: &[archive::Gap]) -> Result<()> {
+    for g in gaps {
+        out(&format!(
+            "robot {} APID {:#x}: {} missing after seq {} ({}) before seq {} ({}): {}{}",
+            g.robot,
+            g.apid,
+            g.missing,
+            g.after_seq,
+            fmt_ms(g.after_obt_ms),
+            g.before_seq,
+            fmt_ms(g.before_obt_ms),
+            g.reason.name(),
+            g.note.as_deref().map_or(String::new(), |n| format!(" ({n})"))
+        ))?;
+    }
+    let missing: u64 = gaps.iter().map(|g| g.missing as u64).sum();
+    out(&format!("{} hole(s), {missing} packet(s) missing", gaps.len()))
+}
+
+fn archive_import(path: &Path, file: &Path, robot: u8, json: bool) -> Result<u8> {
+    if !file.exists() {
+        return Err(coded(exit::INVALID, format!("no file {}", file.display())));
+    }
+    let rep = archive::import::import(path, file, robot).with_context(|| format!("importing {}", file.display()))?;
+    if json {
+        out(&serde_json::to_string(&rep)?)?;
+    } else {
+        let a = &rep.archive;
+        out(&format!(
+            "{}: {} TM packet(s) read, {} stored, {} already archived, {} undecodable stretch(es) ({} bytes) kept as corrupt, \
+             {} TC skipped, {} of another robot; {:.2} s ({:.0} packets/s)",
+            file.display(),
+            rep.tm,
+            a.tm,
+            a.duplicates,
+            rep.corrupt_stretches,
+            rep.corrupt_bytes,
+            rep.tc_skipped,
+            rep.other_robot,
+            rep.seconds,
+            rep.tm as f64 / rep.seconds.max(1e-9)
+        ))?;
     }
     Ok(exit::OK)
 }

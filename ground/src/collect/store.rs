@@ -71,13 +71,13 @@ pub fn open_existing(path: &Path) -> Result<Connection> {
 pub fn recent_positions(c: &Connection, robot: u8, n: usize) -> Result<Vec<(u16, Vec<Pos>)>> {
     let mut out = Vec::new();
     let apids: Vec<i64> = c
-        .prepare("SELECT DISTINCT apid FROM tm WHERE robot = ?1 AND apid IS NOT NULL")?
+        .prepare("SELECT DISTINCT apid FROM packet WHERE robot = ?1")?
         .query_map([robot as i64], |r| r.get(0))?
         .collect::<Result<_, _>>()?;
     for apid in apids {
         let mut v: Vec<Pos> = c
             .prepare(
-                "SELECT seq, obt_ms FROM tm WHERE robot = ?1 AND apid = ?2 AND ok = 1
+                "SELECT seq, obt_ms FROM packet WHERE robot = ?1 AND apid = ?2
                  ORDER BY obt_ms DESC, seq DESC LIMIT ?3",
             )?
             .query_map(params![robot as i64, apid, n as i64], |r| {
@@ -120,7 +120,7 @@ fn archived(c: &Connection, raw: &[u8]) -> bool {
             .is_some();
     };
     c.query_row(
-        "SELECT 1 FROM tm WHERE apid = ?1 AND seq = ?2 AND obt_ms = ?3 LIMIT 1",
+        "SELECT 1 FROM packet WHERE apid = ?1 AND seq = ?2 AND obt_ms = ?3 LIMIT 1",
         params![tm.apid, tm.seq, tm.time.unix_ms()],
         |_| Ok(()),
     )
@@ -550,10 +550,10 @@ impl Sink {
 pub fn prune(c: &Connection, before_ms: i64) -> Result<u64> {
     let mut n = 0u64;
     for (table, cond) in [
-        ("hk", "t_ms < ?1"),
+        ("hk_chunk", "t1 < ?1"),
         ("event", "t_ms < ?1"),
         ("verification", "t_ms < ?1"),
-        ("tm", "t_ms < ?1"),
+        ("packet", "t_ms < ?1"),
         ("tc", "t_ms < ?1"),
         ("collect_gap", "t_ms < ?1"),
         ("collect_alarm", "state = 'normal' AND last_ms < ?1"),
@@ -830,7 +830,7 @@ mod tests {
         let path = tmp("prune.db");
         let c = open_conn(&path).unwrap();
         c.execute(
-            "INSERT INTO tm (t_ms, ok, raw) VALUES (1, 1, x'00'), (5000, 1, x'00')",
+            "INSERT INTO packet (robot, apid, obt_ms, seq, t_ms, raw) VALUES (1, 257, 1, 0, 1, x'00'), (1, 257, 5000, 1, 5000, x'00')",
             [],
         )
         .unwrap();

@@ -1,0 +1,235 @@
+//! Holes per robot and APID, the last archived position, and the notes a collector adds
+//! about holes it could not fill.
+//!
+//! Packets are followed in on-board time order. Between two stored packets of one APID
+//! the next sequence count is expected (modulo 2^14). A restart of the on-board software
+//! restarts the counts: it is recognised by a BOOT event, or by a count that went back
+//! (not a plausible wrap), and reported as a reboot with the packets of the new boot
+//! that are missing — never as a 16k-packet gap, and never as duplicates (the key holds
+//! the on-board time, so equal counts of two boots are two packets).
+
+use serde::Serialize;
+
+use super::db::{collect, Val};
+use super::{ArchiveError, Store};
+
+const SEQ_MOD: i64 = 1 << 14;
+/// A count that goes back from above `SEQ_MOD - WRAP_WINDOW` to below `WRAP_WINDOW` is
+/// taken for a wrap with lost packets, not a reboot (unless a BOOT event says so).
+const WRAP_WINDOW: i64 = 1024;
+
+/// Why packets are missing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GapReason {
+    /// Not received and not (yet) retrieved from the on-board store.
+    Lost,
+    /// The on-board software restarted; the first packets of the new boot are missing.
+    Rebooted,
+    /// The collector asked the on-board store and it no longer held them.
+    StoreOverwritten,
+    /// Other reason given by the collector (see the note).
+    Unrecoverable,
+}
+
+impl GapReason {
+    pub fn name(self) -> &'static str {
+        match self {
+            GapReason::Lost => "lost",
+            GapReason::Rebooted => "rebooted",
+            GapReason::StoreOverwritten => "store_overwritten",
+            GapReason::Unrecoverable => "unrecoverable",
+        }
+    }
+    pub fn parse(s: &str) -> Option<GapReason> {
+        [
+            GapReason::Lost,
+            GapReason::Rebooted,
+            GapReason::StoreOverwritten,
+            GapReason::Unrecoverable,
+        ]
+        .into_iter()
+        .find(|r| r.name() == s)
+    }
+}
+
+/// A hole in one robot's APID: the packets strictly between `after` and `before`.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct Gap {
+    pub robot: u8,
+    pub apid: u16,
+    pub after_seq: u16,
+    pub after_obt_ms: i64,
+    pub before_seq: u16,
+    pub before_obt_ms: i64,
+    /// Sequence counts missing (for a reboot: those of the new boot before `before`).
+    pub missing: u32,
+    pub reason: GapReason,
+    /// What the collector noted about it, if anything.
+    pub note: Option<String>,
+}
+
+/// The newest archived packet of one robot's APID.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct Position {
+    pub robot: u8,
+    pub apid: u16,
+    pub seq: u16,
+    pub obt_ms: i64,
+    /// Ground time it was archived.
+    pub t_ms: i64,
+    pub packets: i64,
+    pub duplicates: i64,
+}
+
+/// Classifies the step from `(s1)` to `(s2)`: `None` if contiguous, else
+/// `(missing, reason)`.
+pub fn classify(s1: u16, s2: u16, boot_at_s2: bool) -> Option<(u32, GapReason)> {
+    let (a, b) = (s1 as i64, s2 as i64);
+    if boot_at_s2 {
+        return Some((b as u32, GapReason::Rebooted));
+    }
+    let forward = (b - a).rem_euclid(SEQ_MOD);
+    if forward == 1 {
+        return None;
+    }
+    let wrap = a >= SEQ_MOD - WRAP_WINDOW && b < WRAP_WINDOW;
+    if b <= a && !wrap {
+        return Some((b as u32, GapReason::Rebooted));
+    }
+    Some(((forward - 1) as u32, GapReason::Lost))
+}
+
+impl Store {
+    /// The last archived position of each robot's APIDs (all robots if `None`).
+    pub fn positions(&mut self, robot: Option<u8>) -> Result<Vec<Position>, ArchiveError> {
+        let mut sql = String::from("SELECT robot, apid, seq, obt_ms, t_ms, packets, duplicates FROM stream WHERE 1=1");
+        let mut args = Vec::new();
+        if let Some(r) = robot {
+            args.push(Val::Int(r as i64));
+            sql.push_str(" AND robot = ?1");
+        }
+        sql.push_str(" ORDER BY robot, apid");
+        Ok(collect(self.db.as_mut(), &sql, &args)?
+            .iter()
+            .map(|r| Position {
+                robot: r[0].int().unwrap_or(0) as u8,
+                apid: r[1].int().unwrap_or(0) as u16,
+                seq: r[2].int().unwrap_or(0) as u16,
+                obt_ms: r[3].int().unwrap_or(0),
+                t_ms: r[4].int().unwrap_or(0),
+                packets: r[5].int().unwrap_or(0),
+                duplicates: r[6].int().unwrap_or(0),
+            })
+            .collect())
+    }
+
+    /// Remaining holes per robot and APID, oldest first.
+    pub fn gaps(&mut self, robot: Option<u8>) -> Result<Vec<Gap>, ArchiveError> {
+        let mut out = Vec::new();
+        for p in self.positions(robot)? {
+            let key = [Val::Int(p.robot as i64), Val::Int(p.apid as i64)];
+            let boots: std::collections::HashSet<(i64, i64)> = collect(
+                self.db.as_mut(),
+                "SELECT obt_ms, seq FROM event WHERE robot = ?1 AND apid = ?2 AND event_id = ?3",
+                &[key[0].clone(), key[1].clone(), Val::Int(mib::events::eid::BOOT as i64)],
+            )?
+            .iter()
+            .map(|r| (r[0].int().unwrap_or(0), r[1].int().unwrap_or(0)))
+            .collect();
+            let notes: std::collections::HashMap<(i64, i64), (String, Option<String>)> = collect(
+                self.db.as_mut(),
+                "SELECT after_obt_ms, after_seq, reason, note FROM gap_note WHERE robot = ?1 AND apid = ?2",
+                &key,
+            )?
+            .iter()
+            .map(|r| {
+                (
+                    (r[0].int().unwrap_or(0), r[1].int().unwrap_or(0)),
+                    (r[2].text().unwrap_or("").to_string(), r[3].text().map(str::to_string)),
+                )
+            })
+            .collect();
+            let mut prev: Option<(i64, i64)> = None;
+            self.db.rows(
+                "SELECT obt_ms, seq FROM packet WHERE robot = ?1 AND apid = ?2 ORDER BY obt_ms, seq",
+                &key,
+                &mut |r| {
+                    let cur = (r[0].int().unwrap_or(0), r[1].int().unwrap_or(0));
+                    if let Some(pv) = prev {
+                        let boot = boots.contains(&cur);
+                        if let Some((missing, mut reason)) = classify(pv.1 as u16, cur.1 as u16, boot) {
+                            let note = notes.get(&pv).map(|(why, n)| {
+                                if let Some(r) = GapReason::parse(why) {
+                                    reason = r;
+                                }
+                                n.clone()
+                            });
+                            if missing > 0 {
+                                out.push(Gap {
+                                    robot: p.robot,
+                                    apid: p.apid,
+                                    after_seq: pv.1 as u16,
+                                    after_obt_ms: pv.0,
+                                    before_seq: cur.1 as u16,
+                                    before_obt_ms: cur.0,
+                                    missing,
+                                    reason,
+                                    note: note.flatten(),
+                                });
+                            }
+                        }
+                    }
+                    prev = Some(cur);
+                    Ok(())
+                },
+            )?;
+        }
+        Ok(out)
+    }
+
+    /// Records why `gap` cannot be filled (the collector calls this when the on-board
+    /// store no longer holds the packets); [`Store::gaps`] then reports that reason.
+    pub fn note_gap(
+        &mut self,
+        gap: &Gap,
+        reason: GapReason,
+        note: Option<&str>,
+        t_ms: i64,
+    ) -> Result<(), ArchiveError> {
+        let (robot, apid, after_obt_ms, after_seq) = (gap.robot, gap.apid, gap.after_obt_ms, gap.after_seq);
+        self.db.exec(
+            "INSERT INTO gap_note (robot, apid, after_obt_ms, after_seq, reason, note, t_ms) \
+             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7) ON CONFLICT (robot, apid, after_obt_ms, after_seq) \
+             DO UPDATE SET reason = excluded.reason, note = excluded.note, t_ms = excluded.t_ms",
+            &[
+                Val::Int(robot as i64),
+                Val::Int(apid as i64),
+                Val::Int(after_obt_ms),
+                Val::Int(after_seq as i64),
+                reason.name().into(),
+                note.into(),
+                Val::Int(t_ms),
+            ],
+        )?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // verifies: GND-02
+    #[test]
+    fn steps_are_classified() {
+        assert_eq!(classify(5, 6, false), None);
+        assert_eq!(classify(16383, 0, false), None);
+        assert_eq!(classify(5, 9, false), Some((3, GapReason::Lost)));
+        assert_eq!(classify(16380, 3, false), Some((6, GapReason::Lost)));
+        // A restart: the count goes back; not 16k lost.
+        assert_eq!(classify(500, 0, false), Some((0, GapReason::Rebooted)));
+        assert_eq!(classify(500, 4, false), Some((4, GapReason::Rebooted)));
+        assert_eq!(classify(16000, 2, true), Some((2, GapReason::Rebooted)));
+    }
+}

@@ -1,0 +1,58 @@
+//! Migration from the turn-1 layout (version 1: `tm` rows with a JSON body, one `hk` row
+//! per parameter value). Its TCs are copied; its TM packets are ingested again from
+//! their raw bytes, so the new archive holds exactly what a fresh import would.
+
+use super::db::{collect, Db, Val};
+use super::ingest::Ingest;
+use super::schema::ddl;
+use super::{ArchiveError, Record};
+use crate::pus::decode_tm;
+
+const PAGE: i64 = 10_000;
+
+/// Runs inside the caller's transaction.
+pub fn from_v1(db: &mut dyn Db) -> Result<(), ArchiveError> {
+    db.batch(
+        "DROP INDEX IF EXISTS hk_name_t; DROP INDEX IF EXISTS tm_t; DROP INDEX IF EXISTS event_t;
+         DROP INDEX IF EXISTS tc_apid;
+         ALTER TABLE tm RENAME TO v1_tm; ALTER TABLE tc RENAME TO v1_tc;
+         ALTER TABLE verification RENAME TO v1_verification; ALTER TABLE event RENAME TO v1_event;
+         ALTER TABLE hk RENAME TO v1_hk;",
+    )?;
+    db.batch(&ddl(db.dialect()))?;
+    db.exec(
+        "INSERT INTO tc (t_ms, robot, apid, seq, service, subservice, name, args, step, attempt, raw) \
+         SELECT t_ms, robot, apid, seq, service, subservice, name, args, step, attempt, raw FROM v1_tc ORDER BY id",
+        &[],
+    )?;
+    let mut ingest = Ingest::new();
+    let mut last = i64::MIN;
+    loop {
+        let rows = collect(
+            db,
+            "SELECT id, t_ms, link_robot, raw FROM v1_tm WHERE id > ?1 ORDER BY id LIMIT ?2",
+            &[Val::Int(last), Val::Int(PAGE)],
+        )?;
+        if rows.is_empty() {
+            break;
+        }
+        let mut batch = Vec::with_capacity(rows.len());
+        for r in &rows {
+            last = r[0].int().unwrap_or(last);
+            let raw = r[3].blob().map(<[u8]>::to_vec).unwrap_or_default();
+            batch.push(Record::Tm {
+                t_ms: r[1].int().unwrap_or(0),
+                link_robot: r[2].int().and_then(|v| u8::try_from(v).ok()),
+                decoded: decode_tm(&raw),
+                raw,
+            });
+        }
+        ingest.write_in_tx(db, &batch)?;
+        ingest.after_commit();
+    }
+    db.batch(
+        "DROP TABLE v1_tm; DROP TABLE v1_tc; DROP TABLE v1_verification; DROP TABLE v1_event;
+         DROP TABLE v1_hk;",
+    )?;
+    Ok(())
+}

@@ -1,0 +1,682 @@
+//! The archive suite, run against both backends: an SQLite file and a throwaway
+//! PostgreSQL server that the suite starts itself (`scripts/postgres-test.sh`: Debian's
+//! package, a temporary data directory, a Unix socket; stopped when this process ends).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::OnceLock;
+
+use ground::archive::{self, import, Alarm, AlarmState, AlarmUpdate, Archive, Filter, GapReason, Kind, Record, Store};
+use ground::pus::{build_tc, build_tm, decode_tm, CdsShort};
+
+const T0: i64 = 1_767_225_600_000;
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("ground-archive-test-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    let p = d.join(name);
+    let _ = std::fs::remove_file(&p);
+    p
+}
+
+/// URL of the suite's PostgreSQL server (database `postgres`).
+fn pg_server() -> &'static str {
+    static URL: OnceLock<String> = OnceLock::new();
+    URL.get_or_init(|| {
+        let dir = format!("/tmp/ground-pg-{}", std::process::id());
+        let out = Command::new("bash")
+            .arg(root().join("scripts/postgres-test.sh"))
+            .args(["start", &dir, &std::process::id().to_string()])
+            .output()
+            .expect("running scripts/postgres-test.sh");
+        assert!(
+            out.status.success(),
+            "starting PostgreSQL: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8(out.stdout).unwrap().trim().to_string()
+    })
+}
+
+/// A fresh database on the suite's server.
+fn pg_db(name: &str) -> String {
+    let base = pg_server();
+    let mut c = postgres::Client::connect(base, postgres::NoTls).unwrap();
+    c.batch_execute(&format!("DROP DATABASE IF EXISTS {name}")).unwrap();
+    c.batch_execute(&format!("CREATE DATABASE {name}")).unwrap();
+    base.replace("/postgres?", &format!("/{name}?"))
+}
+
+/// Removes files when dropped (the suite's archives are tens of MB).
+struct Rm(Vec<PathBuf>);
+impl Drop for Rm {
+    fn drop(&mut self) {
+        for p in &self.0 {
+            for suffix in ["", "-wal", "-shm"] {
+                let _ = std::fs::remove_file(format!("{}{suffix}", p.display()));
+            }
+        }
+    }
+}
+
+/// The same test on both backends: `f(location, backend name)`.
+fn both(name: &str, f: impl Fn(&str, &str)) {
+    let file = tmp(&format!("{name}.db"));
+    let _rm = Rm(vec![file.clone()]);
+    f(file.to_str().unwrap(), "sqlite");
+    drop(_rm);
+    f(&pg_db(name), "postgresql");
+    let mut c = postgres::Client::connect(pg_server(), postgres::NoTls).unwrap();
+    c.batch_execute(&format!("DROP DATABASE IF EXISTS {name} WITH (FORCE)"))
+        .unwrap();
+}
+
+fn hk_packet(robot: u8, seq: u16, t_ms: i64, i: i64) -> Vec<u8> {
+    let def = mib::hk::by_sid(mib::hk::sid::ROBOT_STATUS).unwrap();
+    let mut src = [0u8; 512];
+    let n = mib::codec::encode_hk(def, |id| (id as i64 * 131 + i * 7) % 4000, &mut src).unwrap();
+    let apid = mib::apid::robot_apid(robot).unwrap();
+    build_tm(apid, seq, 3, 25, 0, &CdsShort::from_unix_ms(t_ms).to_bytes(), &src[..n])
+}
+
+fn event_packet(robot: u8, seq: u16, t_ms: i64, id: u16, args: &[i64]) -> Vec<u8> {
+    let ev = mib::events::by_id(id).unwrap();
+    let mut src = [0u8; 256];
+    let n = mib::codec::encode_event(ev, args, &mut src).unwrap();
+    let apid = mib::apid::robot_apid(robot).unwrap();
+    build_tm(
+        apid,
+        seq,
+        5,
+        ev.severity.subservice(),
+        0,
+        &CdsShort::from_unix_ms(t_ms).to_bytes(),
+        &src[..n],
+    )
+}
+
+/// `n` HK packets of `robot` at 10 Hz from `T0`, sequence counts from 0.
+fn hk_file(name: &str, robot: u8, n: usize) -> PathBuf {
+    let p = tmp(name);
+    let mut buf = Vec::new();
+    for i in 0..n {
+        buf.extend(hk_packet(robot, (i & 0x3FFF) as u16, T0 + i as i64 * 100, i as i64));
+    }
+    std::fs::write(&p, buf).unwrap();
+    p
+}
+
+fn tm(raw: Vec<u8>, t_ms: i64) -> Record {
+    Record::Tm {
+        t_ms,
+        link_robot: Some(1),
+        decoded: decode_tm(&raw),
+        raw,
+    }
+}
+
+fn ground(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_ground")).args(args).output().unwrap()
+}
+
+// verifies: GND-02
+#[test]
+fn every_record_lands_in_its_tables() {
+    both("records", |loc, backend| {
+        let a = Archive::open(Path::new(loc)).unwrap();
+        let s = a.sender();
+        let tc = build_tc(1, 41, mib::tc::by_name("PING").unwrap(), &[]).unwrap();
+        s.send(Record::Tc {
+            t_ms: 1,
+            tc,
+            step: Some("x".into()),
+            attempt: 1,
+        });
+        for i in 0..500 {
+            s.send(tm(hk_packet(1, i as u16, T0 + i * 100, i), T0 + i * 100 + 3));
+        }
+        s.send(tm(
+            event_packet(1, 500, T0 + 50_000, mib::events::eid::BOLT_FAILURE, &[0, 1, 3]),
+            T0,
+        ));
+        let t = CdsShort::from_unix_ms(T0 + 50_001).to_bytes();
+        s.send(tm(build_tm(0x101, 501, 1, 1, 0, &t, &[0x19, 0x01, 0xC0, 41]), T0));
+        s.send(tm(vec![1, 2, 3], T0));
+        s.sync().unwrap();
+        drop(s);
+        let st = a.close().unwrap();
+        assert_eq!(st.tm, 502, "{backend}");
+        assert_eq!(st.tm_corrupt, 1, "{backend}");
+        assert_eq!(st.hk_rows, 500, "{backend}");
+        let mut c = Store::open(loc).unwrap();
+        let ev = c
+            .query(
+                Kind::Event,
+                &Filter {
+                    min_level: Some(4),
+                    ..Default::default()
+                },
+            )
+            .unwrap();
+        assert_eq!(ev.rows.len(), 1, "{backend}");
+        assert_eq!(ev.rows[0][4], "BOLT_FAILURE", "{backend}");
+        let hk = c.hk_series("v_bat_a", &Filter::default()).unwrap();
+        assert_eq!(hk[0].1.len(), 500, "{backend}");
+        let v = c.query(Kind::Verification, &Filter::default()).unwrap();
+        let req_seq = v.columns.iter().position(|c| c == "req_seq").unwrap();
+        assert_eq!(v.rows[0][req_seq], 41, "{backend}");
+        assert_eq!(c.next_tc_seq(0x101).unwrap(), Some(42), "{backend}");
+        assert_eq!(c.next_tc_seq(0x102).unwrap(), None, "{backend}");
+        let csv = archive::to_csv(&c.query(Kind::Tc, &Filter::default()).unwrap());
+        assert!(csv.starts_with("id,t_ms,robot"), "{backend}");
+        assert!(csv.contains("PING"), "{backend}");
+        let bad = c.query(Kind::Corrupt, &Filter::default()).unwrap();
+        assert_eq!(bad.rows.len(), 1, "{backend}");
+        // One line per stored packet with its key, times and decoded body.
+        let rows = c.query(Kind::Tm, &Filter::default()).unwrap();
+        assert_eq!(rows.rows.len(), 502, "{backend}");
+        let col = |n: &str| rows.columns.iter().position(|c| c == n).unwrap();
+        let first = &rows.rows[0];
+        assert_eq!(first[col("robot")], 1);
+        assert_eq!(first[col("apid")], 0x101);
+        assert_eq!(first[col("seq")], 0);
+        assert_eq!(first[col("obt_ms")], T0);
+        assert_eq!(first[col("t_ms")], T0 + 3);
+        assert_eq!(first[col("decoded")]["kind"], "hk", "{backend}");
+        assert!(first[col("decoded")]["values"][0]["name"].is_string(), "{backend}");
+        // Latest values and the health record.
+        let latest = c.latest(Some(1)).unwrap();
+        let vbat = latest.iter().find(|l| l.name == "V_BAT_A").unwrap();
+        assert_eq!(vbat.t_ms, T0 + 499 * 100, "{backend}");
+        let h = c.health().unwrap();
+        assert_eq!(h.len(), 1);
+        assert_eq!(h[0].last_obt_ms, T0 + 50_001, "{backend}");
+        let check = c.check(None).unwrap();
+        assert!(
+            check.bad.is_empty() && check.chunk_mismatch.is_empty(),
+            "{backend}: {check:?}"
+        );
+    });
+}
+
+// verifies: GND-02
+#[test]
+fn import_twice_adds_nothing_and_counts_duplicates() {
+    let file = hk_file("dup.bin", 2, 5000);
+    let _rm = Rm(vec![file.clone()]);
+    both("dup", |loc, backend| {
+        let r1 = import::import(Path::new(loc), &file, 2).unwrap();
+        assert_eq!(
+            (r1.tm, r1.archive.tm, r1.archive.duplicates),
+            (5000, 5000, 0),
+            "{backend}"
+        );
+        let r2 = import::import(Path::new(loc), &file, 2).unwrap();
+        assert_eq!((r2.archive.tm, r2.archive.duplicates), (0, 5000), "{backend}");
+        let mut s = Store::open(loc).unwrap();
+        assert_eq!(s.packet_totals().unwrap().0, 5000, "{backend}");
+        let pos = s.positions(Some(2)).unwrap();
+        assert_eq!(pos.len(), 1);
+        assert_eq!((pos[0].seq, pos[0].obt_ms), (4999, T0 + 4999 * 100), "{backend}");
+        assert_eq!((pos[0].packets, pos[0].duplicates), (5000, 5000), "{backend}");
+        let mut csv = Vec::new();
+        let n = s
+            .export_csv(
+                Kind::Hk,
+                &Filter {
+                    params: vec!["V_BAT_A".into()],
+                    ..Default::default()
+                },
+                &mut csv,
+            )
+            .unwrap();
+        assert_eq!(n, 5000, "{backend}");
+        let text = String::from_utf8(csv).unwrap();
+        assert!(text.starts_with("t_ms,robot,param,name,raw,eng,unit\n"), "{backend}");
+        assert_eq!(text.lines().count(), 5001);
+        let check = s.check(None).unwrap();
+        assert!(check.bad.is_empty() && check.chunk_mismatch.is_empty() && check.gaps.is_empty());
+    });
+}
+
+// verifies: GND-02
+#[test]
+fn size_is_at_most_three_times_the_raw_packets() {
+    let file = hk_file("size.bin", 1, 20_000);
+    let loc = tmp("size.db");
+    let _rm = Rm(vec![file.clone(), loc.clone()]);
+    let r = import::import(&loc, &file, 1).unwrap();
+    let mut s = Store::open(loc.to_str().unwrap()).unwrap();
+    s.db().batch("PRAGMA wal_checkpoint(TRUNCATE)").unwrap();
+    let size = s.size_bytes().unwrap();
+    let ratio = size as f64 / r.bytes as f64;
+    assert!(
+        ratio <= 3.0,
+        "archive {size} bytes for {} raw bytes: {ratio:.2}x",
+        r.bytes
+    );
+}
+
+// verifies: GND-02
+#[test]
+fn holes_reboots_and_store_notes() {
+    both("gaps", |loc, backend| {
+        let a = Archive::open(Path::new(loc)).unwrap();
+        let s = a.sender();
+        let mut t = T0;
+        // seq 0..=99, then 105..=199 (5 lost), then a reboot: BOOT at 0 and 1..=49, then
+        // another restart whose first two packets are missing (seq 2 onward, no BOOT).
+        for seq in (0..100).chain(105..200) {
+            t += 100;
+            s.send(tm(hk_packet(1, seq, t, seq as i64), t));
+        }
+        t += 5_000;
+        s.send(tm(event_packet(1, 0, t, mib::events::eid::BOOT, &[1]), t));
+        for seq in 1..50 {
+            t += 100;
+            s.send(tm(hk_packet(1, seq, t, seq as i64), t));
+        }
+        t += 5_000;
+        for seq in 2..10 {
+            t += 100;
+            s.send(tm(hk_packet(1, seq, t, seq as i64), t));
+        }
+        drop(s);
+        a.close().unwrap();
+        let mut st = Store::open(loc).unwrap();
+        let gaps = st.gaps(Some(1)).unwrap();
+        assert_eq!(gaps.len(), 2, "{backend}: {gaps:?}");
+        assert_eq!(
+            (gaps[0].after_seq, gaps[0].before_seq, gaps[0].missing, gaps[0].reason),
+            (99, 105, 5, GapReason::Lost)
+        );
+        assert_eq!(
+            (gaps[1].after_seq, gaps[1].before_seq, gaps[1].missing, gaps[1].reason),
+            (49, 2, 2, GapReason::Rebooted)
+        );
+        // The collector found the first hole overwritten in the on-board store.
+        st.note_gap(
+            &gaps[0],
+            GapReason::StoreOverwritten,
+            Some("store oldest is seq 200"),
+            T0,
+        )
+        .unwrap();
+        let g = st.gaps(None).unwrap();
+        assert_eq!(g[0].reason, GapReason::StoreOverwritten, "{backend}");
+        assert_eq!(g[0].note.as_deref(), Some("store oldest is seq 200"));
+        let pos = st.positions(None).unwrap();
+        assert_eq!((pos[0].seq, pos[0].obt_ms), (9, t), "{backend}");
+        // Three boots' packets with equal counts are all stored (the key has the time).
+        assert_eq!(st.packet_totals().unwrap().0, 195 + 50 + 8, "{backend}");
+    });
+}
+
+// verifies: GND-02
+#[test]
+fn alarms_go_through_their_states() {
+    both("alarms", |loc, backend| {
+        let mut s = Store::open(loc).unwrap();
+        let up = |t| AlarmUpdate {
+            robot: 3,
+            source: "V_BAT_A",
+            severity: "high",
+            value: "9.61 V",
+            limit: "< 10.00 V (hard)",
+            t_ms: t,
+        };
+        let id = s.raise_alarm(&up(T0)).unwrap();
+        assert_eq!(s.raise_alarm(&up(T0 + 1000)).unwrap(), id, "{backend}");
+        let a: Alarm = s.ack_alarm(id, T0 + 2000).unwrap();
+        assert_eq!(
+            (a.state, a.count, a.ack_ms),
+            (AlarmState::Acknowledged, 2, Some(T0 + 2000))
+        );
+        let a = s.shelve_alarm(id, T0 + 60_000).unwrap();
+        assert_eq!(a.state, AlarmState::Shelved);
+        assert_eq!(s.unshelve_expired(T0 + 59_000).unwrap(), 0);
+        assert_eq!(s.unshelve_expired(T0 + 60_000).unwrap(), 1);
+        assert_eq!(s.clear_alarm(3, "V_BAT_A", T0 + 70_000).unwrap(), Some(id));
+        assert_eq!(s.clear_alarm(3, "V_BAT_A", T0 + 71_000).unwrap(), None);
+        // A new condition after clearing is a new alarm.
+        let id2 = s.raise_alarm(&up(T0 + 80_000)).unwrap();
+        assert_ne!(id2, id, "{backend}");
+        assert_eq!(s.alarms(Some(3), true).unwrap().len(), 1);
+        let all = s.alarms(None, false).unwrap();
+        assert_eq!(all[0].state, AlarmState::Cleared);
+        assert_eq!(all[0].first_ms, T0);
+        assert_eq!(all[0].last_ms, T0 + 70_000);
+        assert!(s.ack_alarm(999, T0).is_err(), "{backend}");
+        let rows = s.query(Kind::Alarm, &Filter::default()).unwrap();
+        assert_eq!(
+            rows.columns[..7],
+            ["id", "robot", "source", "severity", "state", "first_ms", "last_ms"]
+        );
+        assert_eq!(rows.rows.len(), 2);
+        assert_eq!(rows.rows[0][4], "cleared");
+    });
+}
+
+// verifies: GND-02
+#[test]
+fn decimation_keeps_extremes_per_column() {
+    both("decimate", |loc, backend| {
+        let a = Archive::open(Path::new(loc)).unwrap();
+        let s = a.sender();
+        for i in 0..3000 {
+            s.send(tm(hk_packet(1, i as u16, T0 + i * 100, i), T0));
+        }
+        drop(s);
+        a.close().unwrap();
+        let mut st = Store::open(loc).unwrap();
+        let cols = st.decimate(1, "V_BAT_A", T0, T0 + 2999 * 100, 100).unwrap();
+        assert_eq!(cols.len(), 100, "{backend}");
+        assert_eq!(cols.iter().map(|c| c.n).sum::<u32>(), 3000);
+        let all = st
+            .samples(1, mib::params::by_name("V_BAT_A").unwrap().id, None, None)
+            .unwrap();
+        let def = mib::params::by_name("V_BAT_A").unwrap();
+        let max = all.iter().map(|p| def.calib.eng(p.1)).fold(f64::MIN, f64::max);
+        assert_eq!(cols.iter().map(|c| c.max).fold(f64::MIN, f64::max), max);
+    });
+}
+
+// verifies: GND-02
+#[test]
+fn concurrent_writers_never_store_a_packet_twice() {
+    let file = hk_file("conc.bin", 4, 6000);
+    let _rm = Rm(vec![file.clone()]);
+    both("concurrent", |loc, backend| {
+        // Create the schema first, then four writers race over the same packets.
+        drop(Store::open(loc).unwrap());
+        let handles: Vec<_> = (0..4)
+            .map(|_| {
+                let (loc, file) = (loc.to_string(), file.clone());
+                std::thread::spawn(move || import::import(Path::new(&loc), &file, 4).unwrap())
+            })
+            .collect();
+        let reps: Vec<_> = handles.into_iter().map(|h| h.join().unwrap()).collect();
+        let stored: u64 = reps.iter().map(|r| r.archive.tm).sum();
+        let dups: u64 = reps.iter().map(|r| r.archive.duplicates).sum();
+        assert_eq!((stored, dups), (6000, 18_000), "{backend}");
+        let mut s = Store::open(loc).unwrap();
+        assert_eq!(s.packet_totals().unwrap().0, 6000, "{backend}");
+        let check = s.check(None).unwrap();
+        assert!(
+            check.bad.is_empty() && check.chunk_mismatch.is_empty(),
+            "{backend}: {check:?}"
+        );
+        assert_eq!(
+            s.samples(4, mib::params::by_name("I_BAT").unwrap().id, None, None)
+                .unwrap()
+                .len(),
+            6000
+        );
+    });
+}
+
+// verifies: GND-02
+#[test]
+fn kill_9_during_import_leaves_nothing_half_written() {
+    let file = hk_file("kill.bin", 5, 150_000);
+    let _rm = Rm(vec![file.clone()]);
+    both("kill", |loc, backend| {
+        drop(Store::open(loc).unwrap());
+        let mut child = Command::new(env!("CARGO_BIN_EXE_ground"))
+            .args([
+                "--archive",
+                loc,
+                "archive",
+                "import",
+                file.to_str().unwrap(),
+                "--robot",
+                "5",
+            ])
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        // Kill it once some batches are committed.
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+        let mut stored = 0;
+        while std::time::Instant::now() < deadline {
+            std::thread::sleep(std::time::Duration::from_millis(20));
+            stored = Store::open(loc).unwrap().packet_totals().unwrap().0;
+            if stored > 0 {
+                break;
+            }
+        }
+        child.kill().unwrap(); // SIGKILL
+        child.wait().unwrap();
+        assert!(stored > 0, "{backend}: nothing committed before the kill");
+        let mut s = Store::open(loc).unwrap();
+        let check = s.check(None).unwrap();
+        assert!(
+            check.bad.is_empty() && check.chunk_mismatch.is_empty(),
+            "{backend}: {check:?}"
+        );
+        let out = ground(&["--archive", loc, "archive", "check"]);
+        assert_eq!(
+            out.status.code(),
+            Some(0),
+            "{backend}: {}",
+            String::from_utf8_lossy(&out.stdout)
+        );
+        // Importing again completes the archive, each packet once.
+        let r = import::import(Path::new(loc), &file, 5).unwrap();
+        let total = s.packet_totals().unwrap().0;
+        assert_eq!(total, 150_000, "{backend}");
+        assert_eq!(r.archive.tm + r.archive.duplicates, 150_000, "{backend}");
+        let check = s.check(None).unwrap();
+        assert!(check.bad.is_empty() && check.chunk_mismatch.is_empty() && check.gaps.is_empty());
+    });
+}
+
+// verifies: GND-02
+#[test]
+fn cli_query_export_plot_check_gaps_status() {
+    let file = hk_file("cli.bin", 1, 3000);
+    let _rm = Rm(vec![file.clone()]);
+    both("cli", |loc, backend| {
+        let out = ground(&[
+            "--archive",
+            loc,
+            "archive",
+            "import",
+            file.to_str().unwrap(),
+            "--robot",
+            "1",
+        ]);
+        assert_eq!(
+            out.status.code(),
+            Some(0),
+            "{backend}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let out = ground(&[
+            "--archive",
+            loc,
+            "archive",
+            "query",
+            "--type",
+            "tm",
+            "--json",
+            "--limit",
+            "5",
+        ]);
+        let text = String::from_utf8(out.stdout).unwrap();
+        assert_eq!(text.lines().count(), 5, "{backend}");
+        for l in text.lines() {
+            let v: serde_json::Value = serde_json::from_str(l).unwrap();
+            for k in ["robot", "apid", "seq", "obt_ms", "t_ms", "decoded"] {
+                assert!(!v[k].is_null(), "{backend}: {k} missing in {l}");
+            }
+        }
+        let csv = tmp(&format!("cli-{backend}.csv"));
+        let out = ground(&[
+            "--archive",
+            loc,
+            "archive",
+            "export",
+            "--csv",
+            "--type",
+            "hk",
+            "--param",
+            "V_BAT_A",
+            "--out",
+            csv.to_str().unwrap(),
+        ]);
+        assert_eq!(out.status.code(), Some(0), "{backend}");
+        assert_eq!(std::fs::read_to_string(&csv).unwrap().lines().count(), 3001);
+        let svg = tmp(&format!("cli-{backend}.svg"));
+        let out = ground(&[
+            "--archive",
+            loc,
+            "archive",
+            "plot",
+            "V_BAT_A",
+            "--out",
+            svg.to_str().unwrap(),
+        ]);
+        assert_eq!(
+            out.status.code(),
+            Some(0),
+            "{backend}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(String::from_utf8_lossy(&out.stdout).starts_with("3000 points"));
+        assert!(std::fs::read_to_string(&svg).unwrap().contains("<svg"));
+        let out = ground(&["--archive", loc, "archive", "check"]);
+        assert_eq!(out.status.code(), Some(0), "{backend}");
+        assert!(String::from_utf8_lossy(&out.stdout).contains("check: ok"));
+        let out = ground(&["--archive", loc, "archive", "gaps"]);
+        assert!(String::from_utf8_lossy(&out.stdout).contains("0 hole(s)"), "{backend}");
+        let out = ground(&["--archive", loc, "archive", "status", "--json"]);
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(v["packets"], 3000, "{backend}");
+        assert_eq!(v["positions"][0]["seq"], 2999);
+        assert_eq!(v["health"][0]["robot"], 1);
+        let out = ground(&["--archive", loc, "archive", "query", "--type", "alarm", "--json"]);
+        assert_eq!(out.status.code(), Some(0), "{backend}");
+    });
+}
+
+// verifies: GND-02
+#[test]
+fn a_newer_schema_is_refused_with_what_to_do() {
+    both("newer", |loc, backend| {
+        let mut s = Store::open(loc).unwrap();
+        s.db().exec("UPDATE schema_version SET version = 99", &[]).unwrap();
+        drop(s);
+        let e = Store::open(loc).err().unwrap().to_string();
+        assert!(e.contains("version 99") && e.contains("newer"), "{backend}: {e}");
+    });
+}
+
+/// The turn-1 layout (SQLite only: that is all turn 1 wrote) migrates on open.
+// verifies: GND-02
+#[test]
+fn a_turn_one_archive_is_migrated() {
+    let p = tmp("v1.db");
+    let _rm = Rm(vec![p.clone()]);
+    {
+        let c = rusqlite::Connection::open(&p).unwrap();
+        c.execute_batch(
+            "CREATE TABLE tc (id INTEGER PRIMARY KEY, t_ms INTEGER NOT NULL, robot INTEGER, apid INTEGER, seq INTEGER,
+                service INTEGER, subservice INTEGER, name TEXT, args TEXT, step TEXT, attempt INTEGER, raw BLOB);
+             CREATE TABLE tm (id INTEGER PRIMARY KEY, t_ms INTEGER NOT NULL, obt_ms INTEGER, link_robot INTEGER,
+                robot INTEGER, apid INTEGER, seq INTEGER, service INTEGER, subservice INTEGER, name TEXT,
+                ok INTEGER NOT NULL, decoded TEXT, raw BLOB);
+             CREATE TABLE verification (id INTEGER PRIMARY KEY, tm_id INTEGER, t_ms INTEGER NOT NULL, robot INTEGER,
+                req_apid INTEGER, req_seq INTEGER, stage TEXT, success INTEGER, step INTEGER, code INTEGER,
+                code_name TEXT, failure TEXT);
+             CREATE TABLE event (id INTEGER PRIMARY KEY, tm_id INTEGER, t_ms INTEGER NOT NULL, robot INTEGER,
+                event_id INTEGER, name TEXT, severity TEXT, level INTEGER, fault INTEGER, params TEXT, description TEXT);
+             CREATE TABLE hk (tm_id INTEGER, t_ms INTEGER NOT NULL, robot INTEGER, sid INTEGER, param INTEGER,
+                name TEXT, raw INTEGER, eng REAL, unit TEXT);
+             CREATE INDEX hk_name_t ON hk(name, t_ms);
+             CREATE INDEX tm_t ON tm(t_ms);
+             CREATE INDEX event_t ON event(t_ms);
+             CREATE INDEX tc_apid ON tc(apid, id);",
+        )
+        .unwrap();
+        let tc = build_tc(1, 7, mib::tc::by_name("PING").unwrap(), &[]).unwrap();
+        c.execute(
+            "INSERT INTO tc (t_ms, robot, apid, seq, service, subservice, name, args, raw) VALUES (1, 1, ?1, 7, 17, 1, 'PING', '{}', ?2)",
+            rusqlite::params![tc.apid, tc.bytes],
+        )
+        .unwrap();
+        for i in 0..300i64 {
+            let raw = hk_packet(1, i as u16, T0 + i * 100, i);
+            c.execute(
+                "INSERT INTO tm (t_ms, link_robot, robot, apid, seq, ok, decoded, raw) VALUES (?1, 1, 1, 257, ?2, 1, '{}', ?3)",
+                rusqlite::params![T0 + i * 100, i, raw],
+            )
+            .unwrap();
+        }
+        c.execute(
+            "INSERT INTO tm (t_ms, link_robot, ok, decoded, raw) VALUES (5, 1, 0, 'bad', x'010203')",
+            [],
+        )
+        .unwrap();
+    }
+    let mut s = Store::open(p.to_str().unwrap()).unwrap();
+    assert_eq!(s.packet_totals().unwrap().0, 300);
+    assert_eq!(s.next_tc_seq(0x101).unwrap(), Some(8));
+    assert_eq!(s.query(Kind::Corrupt, &Filter::default()).unwrap().rows.len(), 1);
+    assert_eq!(s.hk_series("I_BAT", &Filter::default()).unwrap()[0].1.len(), 300);
+    assert!(!s.db().has_table("v1_tm").unwrap());
+    assert!(!s.db().has_table("hk").unwrap());
+    let check = s.check(None).unwrap();
+    assert!(check.bad.is_empty() && check.chunk_mismatch.is_empty() && check.gaps.is_empty());
+}
+
+/// `archive query --type alarm` lists the collector's alarms (its own table) beside the
+/// archive's.
+// verifies: GND-02
+#[test]
+fn collector_alarms_are_listed_by_the_alarm_query() {
+    use ground::alarms::{Input, Severity, Source};
+    let p = tmp("collector-alarms.db");
+    let _rm = Rm(vec![p.clone()]);
+    let c = ground::collect::store::open_conn(&p).unwrap();
+    ground::collect::store::apply_alarm(
+        &c,
+        2,
+        &Source::LinkLoss,
+        Severity::High,
+        Input::Activate,
+        T0,
+        None,
+        "no TM for 3 s",
+    )
+    .unwrap();
+    drop(c);
+    let mut s = Store::open(p.to_str().unwrap()).unwrap();
+    s.raise_alarm(&AlarmUpdate {
+        robot: 1,
+        source: "V_BAT_A",
+        severity: "high",
+        value: "9.6 V",
+        limit: "< 10 V",
+        t_ms: T0 + 1,
+    })
+    .unwrap();
+    let rows = s.query(Kind::Alarm, &Filter::default()).unwrap();
+    assert_eq!(rows.rows.len(), 2, "{rows:?}");
+    let robot2 = s
+        .query(
+            Kind::Alarm,
+            &Filter {
+                robot: Some(2),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+    assert_eq!(robot2.rows.len(), 1);
+    assert_eq!(robot2.rows[0][9], 1, "{robot2:?}");
+}
