@@ -84,6 +84,7 @@ wait "$CPID"
 CODE=$?
 set -e
 CPID=""
+cp "$WORK/collect.log" "${TMPDIR:-/tmp}/collect_bench_last.log" 2>/dev/null || true
 STOP_S=$(awk -v a="$T_STOP" -v b="$(date +%s.%N)" 'BEGIN { printf "%.2f", b - a }')
 
 python3 - "$DB" "$N" "$MIN" "$SAMPLES" "$WORK" "$TMLOG" "$CODE" "$STOP_S" <<'PY'

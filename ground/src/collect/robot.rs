@@ -25,8 +25,11 @@ use super::tracker::{ApidTracker, Pos, Verdict};
 const BACKOFF_START_MS: i64 = 250;
 /// Health written to the archive this often.
 const HEALTH_MS: i64 = 2_000;
-/// Most store-range requests sent at once per robot.
-const MAX_RUNS_PER_REQUEST: usize = 4;
+/// Store-range requests sent per round; the next round waits for the store's end report
+/// (TM[15,19]) or [`STORE_REQUEST_TIMEOUT_MS`], so one robot has one replay in flight.
+const MAX_RUNS_PER_REQUEST: usize = 1;
+/// A store request whose end report did not come is given up after this long.
+const STORE_REQUEST_TIMEOUT_MS: i64 = 2_000;
 /// Least time between two rounds of store requests of one robot: the collector's own
 /// requests produce TM whose loss makes holes, so their rate is bounded.
 const STORE_REQUEST_MIN_GAP_MS: i64 = 500;
@@ -105,6 +108,8 @@ pub struct Worker {
     hk_set: Option<(RequestId, u32)>,
     hk_confirmed: bool,
     last_store_request_ms: i64,
+    /// A store request whose end report has not come yet.
+    store_in_flight: bool,
     conditions: BTreeSet<Source>,
     last_health_ms: i64,
     st: RobotStatus,
@@ -162,6 +167,7 @@ impl Worker {
             hk_set: None,
             hk_confirmed: cfg.hk_interval_ms.is_none(),
             last_store_request_ms: i64::MIN / 2,
+            store_in_flight: false,
             conditions: BTreeSet::new(),
             last_health_ms: 0,
             st,
@@ -312,7 +318,13 @@ impl Worker {
             }
         }
         // Holes → store requests (only while the link is up).
-        if self.state == LinkState::Up && now - self.last_store_request_ms >= STORE_REQUEST_MIN_GAP_MS {
+        if self.store_in_flight && now - self.last_store_request_ms >= STORE_REQUEST_TIMEOUT_MS {
+            self.store_in_flight = false;
+        }
+        if self.state == LinkState::Up
+            && !self.store_in_flight
+            && now - self.last_store_request_ms >= STORE_REQUEST_MIN_GAP_MS
+        {
             let g = &self.global;
             let (settle, retry, tries) = (g.gap_settle_ms as i64, g.gap_retry_ms as i64, g.gap_max_tries);
             let mut requests = Vec::new();
@@ -321,6 +333,7 @@ impl Worker {
             }
             if !requests.is_empty() {
                 self.last_store_request_ms = now;
+                self.store_in_flight = true;
             }
             let mut whole_sent = false;
             for (first, last) in requests {
@@ -581,6 +594,7 @@ impl Worker {
             }
             _ => {
                 if let Some(done) = onboard::store_done(tm) {
+                    self.store_in_flight = false;
                     if let (Some(oldest), Some(t)) = (done.oldest, self.trackers.get_mut(&self.apid)) {
                         t.store_oldest(oldest);
                     }

@@ -110,24 +110,33 @@ pub fn recent_positions(c: &Connection, robot: u8, n: usize) -> Result<Vec<(u16,
     Ok(out)
 }
 
-fn archived(c: &Connection, raw: &[u8]) -> bool {
-    let Ok(tm) = pus::decode_tm(raw) else {
-        return c
-            .query_row("SELECT 1 FROM tm WHERE raw = ?1 LIMIT 1", [raw], |_| Ok(()))
-            .optional()
-            .ok()
-            .flatten()
-            .is_some();
+/// Of `records` (handed to a writer that then failed), those the archive does not hold.
+/// One range scan over the ground-time index, however many records.
+fn not_archived(c: &Connection, records: Vec<(i64, u8, Vec<u8>)>) -> rusqlite::Result<Vec<(i64, u8, Vec<u8>)>> {
+    let Some(since) = records.iter().map(|r| r.0).min() else {
+        return Ok(records);
     };
-    c.query_row(
-        "SELECT 1 FROM packet WHERE apid = ?1 AND seq = ?2 AND obt_ms = ?3 LIMIT 1",
-        params![tm.apid, tm.seq, tm.time.unix_ms()],
-        |_| Ok(()),
-    )
-    .optional()
-    .ok()
-    .flatten()
-    .is_some()
+    let mut keys = std::collections::HashSet::new();
+    let mut st = c.prepare("SELECT apid, seq, obt_ms FROM packet WHERE t_ms >= ?1")?;
+    let mut rows = st.query([since])?;
+    while let Some(r) = rows.next()? {
+        keys.insert((r.get::<_, i64>(0)?, r.get::<_, i64>(1)?, r.get::<_, i64>(2)?));
+    }
+    let mut raws = std::collections::HashSet::new();
+    let mut st = c.prepare("SELECT raw FROM bad_packet WHERE t_ms >= ?1")?;
+    let mut rows = st.query([since])?;
+    while let Some(r) = rows.next()? {
+        if let Some(raw) = r.get::<_, Option<Vec<u8>>>(0)? {
+            raws.insert(raw);
+        }
+    }
+    Ok(records
+        .into_iter()
+        .filter(|(_, _, raw)| match pus::decode_tm(raw) {
+            Ok(tm) => !keys.contains(&(tm.apid as i64, tm.seq as i64, tm.time.unix_ms())),
+            Err(_) => !raws.contains(raw),
+        })
+        .collect())
 }
 
 /// A robot's health, as the collector last wrote it.
@@ -202,6 +211,8 @@ struct Sink {
     conn: Option<Connection>,
     /// Handed to the writer, not yet confirmed committed.
     unconfirmed: Vec<(i64, u8, Vec<u8>)>,
+    /// Handed to a writer that then failed: committed or not, checked on reopening.
+    suspect: Vec<(i64, u8, Vec<u8>)>,
     /// Not handed over (archive failing).
     pending: std::collections::VecDeque<(i64, u8, Vec<u8>)>,
     /// Collector records waiting for a writable archive.
@@ -221,6 +232,7 @@ pub fn run_sink(cfg: SinkCfg, rx: Receiver<SinkMsg>) -> SinkStats {
         sender: None,
         conn: None,
         unconfirmed: Vec::new(),
+        suspect: Vec::new(),
         pending: Default::default(),
         deferred: Vec::new(),
         failing_since: None,
@@ -265,7 +277,7 @@ pub fn run_sink(cfg: SinkCfg, rx: Receiver<SinkMsg>) -> SinkStats {
             tracing::error!("archive: closing: {e}");
         }
     }
-    s.stats.pending = s.pending.len() + s.unconfirmed.len();
+    s.stats.pending = s.pending.len() + s.unconfirmed.len() + s.suspect.len();
     if s.stats.pending > 0 {
         tracing::error!(
             "archive: {} TM packets could not be written (they stay in the on-board stores)",
@@ -350,10 +362,8 @@ impl Sink {
             }
             None => why,
         };
-        // Uncommitted records go back in front, in order.
-        for r in self.unconfirmed.drain(..).rev() {
-            self.pending.push_front(r);
-        }
+        // Records the failed writer had: checked against the archive on reopening.
+        self.suspect.append(&mut self.unconfirmed);
         if self.failing_since.is_none() {
             self.failing_since = Some(now);
             tracing::error!("archive: cannot write ({detail}); keeping TM in memory and retrying");
@@ -392,9 +402,21 @@ impl Sink {
             }
         };
         // What a failed writer may have committed before failing is not written twice.
-        let before = self.pending.len();
-        self.pending.retain(|(_, _, raw)| !archived(&conn, raw));
-        self.stats.tm_skipped_present += (before - self.pending.len()) as u64;
+        let suspect = std::mem::take(&mut self.suspect);
+        let n = suspect.len();
+        match not_archived(&conn, suspect.clone()) {
+            Ok(missing) => {
+                self.stats.tm_skipped_present += (n - missing.len()) as u64;
+                for r in missing.into_iter().rev() {
+                    self.pending.push_front(r);
+                }
+            }
+            Err(e) => {
+                self.suspect = suspect;
+                tracing::debug!("archive: checking what the failed writer committed: {e}");
+                return;
+            }
+        }
         self.sender = Some(archive.sender());
         self.archive = Some(archive);
         self.conn = Some(conn);

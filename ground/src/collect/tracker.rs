@@ -9,6 +9,9 @@ use std::collections::BTreeMap;
 pub const SEQ_MOD: u32 = 1 << 14;
 /// A count at most this far ahead of the last one is "ahead"; further is "behind".
 pub const AHEAD: u32 = SEQ_MOD / 2;
+/// Most sequence counts asked for in one store request: the replay of one request stays
+/// a short burst however long the outage was.
+pub const MAX_RANGE: u32 = 256;
 /// Most holes followed at once per APID. More than the host store holds cannot be
 /// retrieved anyway; the excess is reported unrecoverable at once.
 pub const MAX_MISSING: usize = 2 * mib::config::TM_STORE_CAPACITY;
@@ -289,7 +292,11 @@ impl ApidTracker {
             }
         }
         let mut out = Vec::new();
-        for (first, last) in merged.into_iter().take(max_runs) {
+        for (first, mut last) in merged.into_iter().take(max_runs) {
+            // A long range is asked for in pieces (the rest stays due).
+            if ahead(first, last) >= MAX_RANGE {
+                last = ((first as u32 + MAX_RANGE - 1) % SEQ_MOD) as u16;
+            }
             let mut s = first;
             loop {
                 if let Some(h) = self.holes.get_mut(&s) {
@@ -407,6 +414,17 @@ mod tests {
         let mut t = ApidTracker::resume(Some(p(0, 0)));
         fill(&mut t);
         assert_eq!(t.due(0, 0, 0, 3, 8, 0), vec![(1, 1), (3, 99), (201, 201)]);
+    }
+
+    #[test]
+    fn a_long_outage_is_asked_for_in_bounded_pieces() {
+        let mut t = ApidTracker::resume(Some(p(0, 0)));
+        t.on_packet(p(1000, 1000), false, 0);
+        assert_eq!(t.due(0, 0, 100, 3, 1, 64), vec![(1, MAX_RANGE as u16)]);
+        assert_eq!(
+            t.due(1, 0, 100, 3, 1, 64),
+            vec![(MAX_RANGE as u16 + 1, 2 * MAX_RANGE as u16)]
+        );
     }
 
     #[test]
