@@ -92,7 +92,7 @@ pub fn recent_positions(c: &Connection, robot: u8, n: usize) -> Result<Vec<(u16,
     }
     // Packets kept raw (intact, but their body did not decode) count as received too.
     let raws: Vec<Vec<u8>> = c
-        .prepare("SELECT raw FROM tm WHERE ok = 0 AND link_robot = ?1 ORDER BY id DESC LIMIT ?2")?
+        .prepare("SELECT raw FROM bad_packet WHERE link_robot = ?1 ORDER BY id DESC LIMIT ?2")?
         .query_map(params![robot as i64, n as i64], |r| r.get(0))?
         .collect::<Result<_, _>>()?;
     for raw in raws {
