@@ -21,7 +21,8 @@ use crate::alarms::{AlarmState, Input, Refused, Severity, Source, State};
 use crate::archive::{self, Archive, ArchiveSender, Record};
 use crate::pus;
 
-use super::tracker::{LostRun, Pos};
+use super::tracker::{Lost, LostRun, Pos, SEQ_MOD};
+use crate::archive::GapReason;
 
 /// Most TM records kept in memory while the archive cannot be written; beyond, the
 /// oldest are dropped and counted (`dropped_unwritable`).
@@ -476,6 +477,30 @@ impl Sink {
                 }
             }
             SinkMsg::Lost { robot, apid, run, t_ms } => {
+                // The archive's own gap report (`ground archive gaps`) gives the reason
+                // too; its note is keyed by the packet before the hole.
+                if run.after_obt_ms > i64::MIN {
+                    let reason = match run.why {
+                        Lost::Rebooted => GapReason::Rebooted,
+                        Lost::Overwritten => GapReason::StoreOverwritten,
+                        Lost::NotDelivered | Lost::TooMany => GapReason::Unrecoverable,
+                    };
+                    let after_seq = (run.first as u32 + SEQ_MOD - 1) % SEQ_MOD;
+                    c.execute(
+                        "INSERT INTO gap_note (robot, apid, after_obt_ms, after_seq, reason, note, t_ms)
+                         VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7) ON CONFLICT (robot, apid, after_obt_ms, after_seq)
+                         DO UPDATE SET reason = excluded.reason, note = excluded.note, t_ms = excluded.t_ms",
+                        params![
+                            robot,
+                            apid,
+                            run.after_obt_ms,
+                            after_seq,
+                            reason.name(),
+                            format!("collector: {} ({} packets)", run.why.reason(), run.count),
+                            t_ms
+                        ],
+                    )?;
+                }
                 c.execute(
                     "INSERT INTO collect_gap (t_ms, robot, apid, first_seq, last_seq, count, after_obt_ms, before_obt_ms, reason)
                      VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)",
@@ -845,6 +870,47 @@ mod tests {
             State::Shelved
         );
         assert_eq!(alarm_input(&mut c, id2, Input::Tick, 100).unwrap(), State::Active);
+    }
+
+    #[test]
+    fn unrecoverable_holes_reach_the_archives_gap_notes() {
+        let path = tmp("gapnote.db");
+        drop(open_conn(&path).unwrap());
+        let (tx, rx) = crossbeam_channel::unbounded();
+        let run = LostRun {
+            first: 0,
+            last: 9,
+            count: 10,
+            after_obt_ms: 5_000,
+            before_obt_ms: 9_000,
+            why: Lost::Rebooted,
+        };
+        tx.send(SinkMsg::Lost {
+            robot: 3,
+            apid: 0x103,
+            run,
+            t_ms: 10_000,
+        })
+        .unwrap();
+        drop(tx);
+        run_sink(
+            SinkCfg {
+                path: path.clone(),
+                retain_ms: None,
+                prune_every_ms: 3_600_000,
+            },
+            rx,
+        );
+        let c = open_conn(&path).unwrap();
+        let (seq, reason): (i64, String) = c
+            .query_row(
+                "SELECT after_seq, reason FROM gap_note WHERE robot = 3 AND apid = 259 AND after_obt_ms = 5000",
+                [],
+                |r| Ok((r.get(0)?, r.get(1)?)),
+            )
+            .unwrap();
+        assert_eq!((seq, reason.as_str()), (16383, "rebooted"));
+        assert_eq!(lost_runs(&c, Some(3)).unwrap().len(), 1);
     }
 
     #[test]
