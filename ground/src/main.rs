@@ -779,10 +779,8 @@ fn tc_args(def: &'static mib::tc::TcDef, args: &[String]) -> Result<Vec<i64>> {
                 .ok_or_else(|| coded(exit::INVALID, format!("unknown state \"{v}\"")))?
                 .id as i64
         } else if d.name == "mode" {
-            ["standby", "operational", "safed"]
-                .iter()
-                .position(|m| m.eq_ignore_ascii_case(v))
-                .ok_or_else(|| coded(exit::INVALID, format!("unknown mode \"{v}\"")))? as i64
+            mib::modes::root_mode_by_name(v).ok_or_else(|| coded(exit::INVALID, format!("unknown mode \"{v}\"")))?
+                as i64
         } else if d.name == "side" {
             if v.eq_ignore_ascii_case("a") || v.eq_ignore_ascii_case("b") {
                 (v.eq_ignore_ascii_case("b")) as i64
@@ -933,10 +931,8 @@ fn send(a: &SendArgs, archive_path: Option<&Path>) -> Result<u8> {
 
 fn mode(a: &ModeArgs, archive_path: Option<&Path>) -> Result<u8> {
     let def = mib::tc::by_name("MODE_SET").ok_or_else(|| anyhow!("MODE_SET not in the MIB"))?;
-    let m = ["standby", "operational", "safed"]
-        .iter()
-        .position(|m| m.eq_ignore_ascii_case(&a.mode))
-        .map(|m| m as i64)
+    let m = mib::modes::root_mode_by_name(&a.mode)
+        .map(i64::from)
         .or_else(|| a.mode.parse().ok())
         .ok_or_else(|| {
             coded(

@@ -517,7 +517,12 @@ fn encode_from_xtce(doc: &roxmltree::Document, name: &str, args: &[i64], seq: u1
             .descendants()
             .find(|x| x.tag_name().name() == "Argument" && x.attribute("name") == Some(arg))
             .unwrap_or_else(|| panic!("argument {arg}"));
-        let ty = by_name("IntegerArgumentType", a.attribute("argumentTypeRef").unwrap());
+        // Integer or enumerated (values the MIB names): both carry an integer encoding.
+        let tref = a.attribute("argumentTypeRef").unwrap();
+        let ty = doc
+            .descendants()
+            .find(|x| x.tag_name().name().ends_with("ArgumentType") && x.attribute("name") == Some(tref))
+            .unwrap_or_else(|| panic!("argument type {tref}"));
         let enc = ty
             .descendants()
             .find(|x| x.tag_name().name() == "IntegerDataEncoding")
