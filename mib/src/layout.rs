@@ -302,11 +302,14 @@ pub const REQUEST_ID: Sub = Sub {
 pub const CDS_TIME: Sub = Sub {
     name: "CdsTime",
     fields: &[
-        f("pfield", PType::U8, "CDS p-field (0x40: 16-bit days, no sub-ms)").range(0x40, 0x40),
+        f("pfield", PType::U8, "CDS p-field (0x40: 16-bit days, no sub-ms)").range(
+            crate::headers::CDS_SHORT_PFIELD as i64,
+            crate::headers::CDS_SHORT_PFIELD as i64,
+        ),
         f("days", PType::U16, "days since 1958-01-01 (CCSDS epoch)").unit("day"),
         f("ms_of_day", PType::U32, "milliseconds of the day")
             .unit("ms")
-            .range(0, 86_400_000),
+            .range(0, crate::headers::MS_PER_DAY),
     ],
     desc: "CDS short time stamp",
 };
