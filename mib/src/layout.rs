@@ -100,6 +100,25 @@ impl Names {
         }
     }
 
+    /// The raw value named `name` (case-insensitive, trimmed; configuration states also by
+    /// their one-letter label or with `_` for spaces), if any. The inverse of [`Names::name`]
+    /// for tools that read names typed by a person.
+    pub fn value_of(self, name: &str) -> Option<i64> {
+        let name = name.trim();
+        match self {
+            Names::State => crate::robot::state_by_name(name).map(|s| s.id as i64),
+            _ => {
+                let mut found = None;
+                self.for_each(|v, n| {
+                    if found.is_none() && n.eq_ignore_ascii_case(name) {
+                        found = Some(v);
+                    }
+                });
+                found
+            }
+        }
+    }
+
     /// Name of a mode for the node `node` (robot or module names); falls back to
     /// [`Names::name`] when the node is not in the MIB.
     pub fn mode_name_for(node: i64, mode: i64) -> Option<&'static str> {
@@ -392,6 +411,7 @@ mod tests {
         assert_eq!(REQUEST_ID.len(), 4);
         assert_eq!(CDS_TIME.len(), crate::config::TIMESTAMP_LEN);
     }
+    // verifies: MMIC-CMD-06
     #[test]
     fn every_named_value_names_back() {
         for n in [
@@ -410,6 +430,9 @@ mod tests {
             let mut count = 0;
             n.for_each(|v, name| {
                 assert_eq!(n.name(v), Some(name));
+                if n != Names::State || v != 255 {
+                    assert_eq!(n.value_of(&name.to_ascii_lowercase()), Some(v), "{name}");
+                }
                 count += 1;
             });
             assert!(count > 0);
