@@ -48,8 +48,8 @@ pub fn parse_args(def: &TcDef, args: &Map<String, Value>) -> Result<Vec<i64>, St
             Value::Number(n) => n
                 .as_i64()
                 .ok_or_else(|| format!("{}: argument \"{}\" must be an integer, not {n}", def.name, a.name))?,
-            Value::String(s) => match enumeration(a).and_then(|e| e.into_iter().find(|(_, n)| n == s)) {
-                Some((v, _)) => v,
+            Value::String(s) => match a.names.value_of(s) {
+                Some(v) => v,
                 None => s
                     .trim()
                     .parse::<i64>()
