@@ -594,7 +594,18 @@ fn json_round_trips_against_the_tables() {
         assert_eq!(j["subservice"], t.subservice);
         assert_eq!(j["function"], t.function);
         assert_eq!(j["args"].as_array().unwrap().len(), t.args.len());
+        assert_eq!(j["hazard"].as_str(), t.hazard, "{}", t.name);
+        for (ja, a) in j["args"].as_array().unwrap().iter().zip(t.args) {
+            assert_eq!(ja["names"].is_null(), a.names.is_none(), "{} {}", t.name, a.name);
+        }
     }
+    let v_reg = v["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["name"] == "V_REG")
+        .unwrap();
+    assert_eq!(v_reg["limits_in"], "operational, safed");
     assert_eq!(v["telemetry"].as_array().unwrap().len(), TMS.len());
     assert_eq!(ids("states", "id").len(), mib::robot::NUM_STATES);
     assert_eq!(ids("primitives", "id").len(), mib::robot::NUM_PRIMITIVES);
