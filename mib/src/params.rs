@@ -174,6 +174,12 @@ pub const fn limits_apply(param: &ParamDef, root_mode: u32) -> bool {
     param.limits.is_some() && param.limits_in.contains(root_mode)
 }
 
+/// [`limits_apply`] for a sample whose root mode is not known (no `MODE` value yet):
+/// only the limits that hold in every root mode apply.
+pub const fn limits_always_apply(param: &ParamDef) -> bool {
+    param.limits.is_some() && param.limits_in.0 == ModeSet::ALL.0
+}
+
 impl ParamDef {
     /// How the parameter's raw values are named (enumerated parameters).
     pub const fn names(&self) -> Names {
@@ -232,6 +238,7 @@ mod tests {
             assert!(!limits_apply(by_id(pid::MODE).unwrap(), m), "MODE has no limits");
         }
         assert!(!limits_apply(v_bat, 7), "no limits in a mode the MIB does not know");
+        assert!(limits_always_apply(v_bat) && !limits_always_apply(v_reg));
     }
     // verifies: MMIC-AV-01
     #[test]
