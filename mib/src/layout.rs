@@ -406,6 +406,7 @@ pub fn type_name(f: &Field) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: PUS-PKT-04
     #[test]
     fn request_id_and_cds_time_have_their_ccsds_lengths() {
         assert_eq!(REQUEST_ID.len(), 4);

@@ -707,6 +707,7 @@ fn flatten(tm: &str, body: &Value, out: &mut Vec<(String, Value)>) {
 /// Chooses a field's raw value by the field's name.
 type Pick = Box<dyn Fn(&str) -> i64>;
 
+// verifies: ICD-03
 #[test]
 fn space_packet_parser_decodes_every_report_kind_like_ground_decode_json() {
     let root = repo_root();

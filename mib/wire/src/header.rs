@@ -408,6 +408,7 @@ mod tests {
         }
         c
     }
+    // verifies: PUS-PKT-01
     #[test]
     fn crc_matches_the_ccitt_false_check_value_and_the_bitwise_definition() {
         assert_eq!(crc16(b"123456789"), 0x29B1);
@@ -418,6 +419,7 @@ mod tests {
             assert_eq!(crc16(&data[..n]), crc16_bitwise(&data[..n]), "{n} bytes");
         }
     }
+    // verifies: PUS-PKT-04
     #[test]
     fn tm_emit_then_parse_gives_the_headers_back() {
         let h = TmHeader {
