@@ -813,26 +813,29 @@ fn tc_args(def: &'static mib::tc::TcDef, args: &[String]) -> Result<Vec<i64>> {
             n
         } else if let Some(h) = v.strip_prefix("0x") {
             i64::from_str_radix(h, 16).map_err(|_| coded(exit::INVALID, format!("bad number \"{v}\"")))?
-        } else if matches!(d.name, "from" | "to") {
-            mib::robot::state_by_name(v)
-                .ok_or_else(|| coded(exit::INVALID, format!("unknown state \"{v}\"")))?
-                .id as i64
-        } else if d.name == "mode" {
-            ["standby", "operational", "safed"]
-                .iter()
-                .position(|m| m.eq_ignore_ascii_case(v))
-                .ok_or_else(|| coded(exit::INVALID, format!("unknown mode \"{v}\"")))? as i64
-        } else if d.name == "side" {
-            if v.eq_ignore_ascii_case("a") || v.eq_ignore_ascii_case("b") {
-                (v.eq_ignore_ascii_case("b")) as i64
-            } else {
-                return Err(coded(
-                    exit::INVALID,
-                    format!("{}: side = \"{v}\": the sides are A (0) and B (1)", def.name),
-                ));
-            }
-        } else if let Some(e) = mib::events::by_name(v).filter(|_| d.name == "event_id") {
-            e.id as i64
+        } else if let Some(n) = d.names.value_of(v) {
+            n
+        } else if !d.names.is_none() {
+            let mut names = Vec::new();
+            d.names.for_each(|n, name| {
+                if (d.min..=d.max).contains(&n) {
+                    names.push(format!("{name} ({n})"));
+                }
+            });
+            let which = match names.split_last() {
+                Some((last, rest)) if names.len() <= 8 && !rest.is_empty() => {
+                    format!("the {}s are {} and {last}", d.name, rest.join(", "))
+                }
+                _ => format!(
+                    "it is none of the {} names of {} (see docs/ICD.md)",
+                    names.len(),
+                    d.name
+                ),
+            };
+            return Err(coded(
+                exit::INVALID,
+                format!("{}: {} = \"{v}\": {which}", def.name, d.name),
+            ));
         } else {
             return Err(coded(exit::INVALID, format!("{}: \"{v}\" is not a number", d.name)));
         };
@@ -972,10 +975,8 @@ fn send(a: &SendArgs, archive_path: Option<&Path>) -> Result<u8> {
 
 fn mode(a: &ModeArgs, archive_path: Option<&Path>) -> Result<u8> {
     let def = mib::tc::by_name("MODE_SET").ok_or_else(|| anyhow!("MODE_SET not in the MIB"))?;
-    let m = ["standby", "operational", "safed"]
-        .iter()
-        .position(|m| m.eq_ignore_ascii_case(&a.mode))
-        .map(|m| m as i64)
+    let m = mib::modes::root_mode_by_name(&a.mode)
+        .map(i64::from)
         .or_else(|| a.mode.parse().ok())
         .ok_or_else(|| {
             coded(

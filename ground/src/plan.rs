@@ -459,12 +459,8 @@ fn pairs_value(cx: &mut Cx, v: &Val<'_>) -> Option<u8> {
 
 fn mode_value(cx: &mut Cx, v: &Val<'_>) -> Option<u32> {
     if let Some(s) = v.get_ref().as_str() {
-        for m in [robot_mode::STANDBY, robot_mode::OPERATIONAL, robot_mode::SAFED] {
-            if let Some(n) = mib::modes::mode_name(mib::modes::NodeKind::Root, m) {
-                if n.eq_ignore_ascii_case(s) {
-                    return Some(m);
-                }
-            }
+        if let Some(m) = mib::modes::root_mode_by_name(s) {
+            return Some(m);
         }
         cx.err(
             v.span(),

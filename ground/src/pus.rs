@@ -18,7 +18,7 @@ use mib::events::Severity;
 use mib::tc::{service, TcDef};
 use mib::FailureCode;
 use mib_wire::header::{HeaderError, TcPacket, TmPacket};
-use satrs::spacepackets::ecss::tc::{AckFlags, PusTcCreator, PusTcSecondaryHeader, ACK_ALL};
+use satrs::spacepackets::ecss::tc::{AckFlags, ACK_ALL};
 use satrs::spacepackets::ecss::tm::{PusTmCreator, PusTmSecondaryHeader};
 use satrs::spacepackets::ecss::{CreatorConfig, MessageTypeId, WritablePusPacket};
 use satrs::spacepackets::SpHeader;
@@ -203,7 +203,8 @@ pub fn build_tc(robot: u8, seq: u16, def: &'static TcDef, args: &[i64]) -> Resul
     })
 }
 
-/// Builds a raw PUS-C TC (no MIB check of the application data).
+/// Builds a raw PUS-C TC (no MIB check of the application data), through the wire
+/// crate's TC emitter (the one the OBSW's tests and the firmware share).
 pub fn build_raw_tc(
     apid: u16,
     seq: u16,
@@ -215,11 +216,21 @@ pub fn build_raw_tc(
     if app_data.len() > MAX_PACKET_LEN - MIN_TC_LEN {
         return Err(BuildError::TooLong(app_data.len()));
     }
-    let sp = SpHeader::new_for_unseg_tc(u11::new(apid & 0x7FF), u14::new(seq & 0x3FFF), 0);
-    let sec = PusTcSecondaryHeader::new(MessageTypeId::new(service, subservice), ack, GROUND_ID);
-    let tc = PusTcCreator::new(sp, sec, app_data, CreatorConfig::default());
-    let mut v = Vec::with_capacity(tc.len_written());
-    tc.append_to_vec(&mut v);
+    let h = mib_wire::header::TcHeader {
+        apid: apid & 0x7FF,
+        seq_count: seq & 0x3FFF,
+        ack: ack.raw_value().value(),
+        service,
+        subservice,
+        source_id: GROUND_ID,
+    };
+    let mut v = vec![0u8; MIN_TC_LEN + app_data.len()];
+    let n = mib_wire::header::emit_tc(&h, &mut v, |b| {
+        b[..app_data.len()].copy_from_slice(app_data);
+        Ok(app_data.len())
+    })
+    .map_err(|_| BuildError::TooLong(app_data.len()))?;
+    v.truncate(n);
     Ok(v)
 }
 
@@ -1162,6 +1173,34 @@ mod tests {
         assert!(!f.to_string().contains("believed=0,"), "{f}");
     }
 
+    // verifies: PUS-PKT-01
+    #[test]
+    fn raw_tc_bytes_equal_the_sat_rs_encoder() {
+        use satrs::spacepackets::ecss::tc::{PusTcCreator, PusTcSecondaryHeader};
+        let data: Vec<u8> = (0..=255u8).collect();
+        for (apid, seq, svc, sub, n) in [
+            (0x101u16, 0u16, 17u8, 1u8, 0usize),
+            (0x7FF, 0x3FFF, 8, 1, 6),
+            (0x10A, 1234, 200, 1, 10),
+            (0x102, 99, 11, 4, 255),
+        ] {
+            for ack in [ACK_ALL, ack_flags_for(mib::tc::by_name("PING").unwrap())] {
+                let ours = build_raw_tc(apid, seq, svc, sub, ack, &data[..n]).unwrap();
+                let sp = SpHeader::new_for_unseg_tc(u11::new(apid), u14::new(seq), 0);
+                let sec = PusTcSecondaryHeader::new(MessageTypeId::new(svc, sub), ack, GROUND_ID);
+                let tc = PusTcCreator::new(sp, sec, &data[..n], CreatorConfig::default());
+                let mut theirs = Vec::new();
+                tc.append_to_vec(&mut theirs);
+                assert_eq!(ours, theirs, "apid {apid:#x} seq {seq} TC[{svc},{sub}] {n} bytes");
+            }
+        }
+        assert!(matches!(
+            build_raw_tc(0x101, 0, 17, 1, ACK_ALL, &[0u8; MAX_PACKET_LEN]),
+            Err(BuildError::TooLong(_))
+        ));
+    }
+
+    // verifies: PUS-PKT-01
     #[test]
     fn ping_tc_bytes_match_ccsds_and_pus_c_layout() {
         let def = mib::tc::by_name("PING").unwrap();

@@ -100,6 +100,25 @@ impl Names {
         }
     }
 
+    /// The raw value named `name` (case-insensitive, trimmed; configuration states also by
+    /// their one-letter label or with `_` for spaces), if any. The inverse of [`Names::name`]
+    /// for tools that read names typed by a person.
+    pub fn value_of(self, name: &str) -> Option<i64> {
+        let name = name.trim();
+        match self {
+            Names::State => crate::robot::state_by_name(name).map(|s| s.id as i64),
+            _ => {
+                let mut found = None;
+                self.for_each(|v, n| {
+                    if found.is_none() && n.eq_ignore_ascii_case(name) {
+                        found = Some(v);
+                    }
+                });
+                found
+            }
+        }
+    }
+
     /// Name of a mode for the node `node` (robot or module names); falls back to
     /// [`Names::name`] when the node is not in the MIB.
     pub fn mode_name_for(node: i64, mode: i64) -> Option<&'static str> {
@@ -302,11 +321,14 @@ pub const REQUEST_ID: Sub = Sub {
 pub const CDS_TIME: Sub = Sub {
     name: "CdsTime",
     fields: &[
-        f("pfield", PType::U8, "CDS p-field (0x40: 16-bit days, no sub-ms)").range(0x40, 0x40),
+        f("pfield", PType::U8, "CDS p-field (0x40: 16-bit days, no sub-ms)").range(
+            crate::headers::CDS_SHORT_PFIELD as i64,
+            crate::headers::CDS_SHORT_PFIELD as i64,
+        ),
         f("days", PType::U16, "days since 1958-01-01 (CCSDS epoch)").unit("day"),
         f("ms_of_day", PType::U32, "milliseconds of the day")
             .unit("ms")
-            .range(0, 86_400_000),
+            .range(0, crate::headers::MS_PER_DAY),
     ],
     desc: "CDS short time stamp",
 };
@@ -384,11 +406,13 @@ pub fn type_name(f: &Field) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: PUS-PKT-04
     #[test]
     fn request_id_and_cds_time_have_their_ccsds_lengths() {
         assert_eq!(REQUEST_ID.len(), 4);
         assert_eq!(CDS_TIME.len(), crate::config::TIMESTAMP_LEN);
     }
+    // verifies: MMIC-CMD-06
     #[test]
     fn every_named_value_names_back() {
         for n in [
@@ -407,6 +431,9 @@ mod tests {
             let mut count = 0;
             n.for_each(|v, name| {
                 assert_eq!(n.name(v), Some(name));
+                if n != Names::State || v != 255 {
+                    assert_eq!(n.value_of(&name.to_ascii_lowercase()), Some(v), "{name}");
+                }
                 count += 1;
             });
             assert!(count > 0);

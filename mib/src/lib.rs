@@ -18,6 +18,7 @@ pub mod events;
 pub mod export;
 pub mod failure;
 pub mod fdir;
+pub mod headers;
 pub mod hk;
 pub mod layout;
 pub mod modes;

@@ -139,6 +139,19 @@ pub const fn mode_name(kind: NodeKind, mode: u32) -> Option<&'static str> {
     }
 }
 
+/// The mode of a node kind named `name` (case-insensitive): "operational" → 1 for the
+/// robot, "hold" → 2 for a module. The one parser of mode names for every tool.
+pub fn mode_by_name(kind: NodeKind, name: &str) -> Option<u32> {
+    let name = name.trim();
+    (0..=robot_mode::SAFED.max(module_mode::HOLD))
+        .find(|m| mode_name(kind, *m).is_some_and(|n| n.eq_ignore_ascii_case(name)))
+}
+
+/// The root (robot) mode named `name` (case-insensitive: "standby", "OPERATIONAL", ...).
+pub fn root_mode_by_name(name: &str) -> Option<u32> {
+    mode_by_name(NodeKind::Root, name)
+}
+
 /// The mode each node is in when the root is in `root_mode` (paper Table 7):
 /// standby — no module powered; operational — all powered; safed — hip and arms hold
 /// position, grippers hold their grip (releasing would detach the robot), bolters off.
@@ -159,6 +172,44 @@ pub const fn is_commandable_root_mode(mode: u32) -> bool {
     matches!(mode, robot_mode::STANDBY | robot_mode::OPERATIONAL | robot_mode::SAFED)
 }
 
+/// A set of root modes: where a TC is accepted (paper Table 7), where a parameter's
+/// limits apply.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ModeSet(pub u8);
+
+impl ModeSet {
+    pub const STANDBY: ModeSet = ModeSet(1 << robot_mode::STANDBY);
+    pub const OPERATIONAL: ModeSet = ModeSet(1 << robot_mode::OPERATIONAL);
+    pub const SAFED: ModeSet = ModeSet(1 << robot_mode::SAFED);
+    pub const ALL: ModeSet = ModeSet(Self::STANDBY.0 | Self::OPERATIONAL.0 | Self::SAFED.0);
+    /// The modes in which the modules are powered (the servo regulator is on).
+    pub const OPER_SAFED: ModeSet = ModeSet(Self::OPERATIONAL.0 | Self::SAFED.0);
+    pub const fn contains(self, root_mode: u32) -> bool {
+        root_mode < 8 && self.0 & (1 << root_mode) != 0
+    }
+    /// The root modes of the set, in mode order.
+    pub fn modes(self) -> impl Iterator<Item = u32> {
+        ROOT_MODES.iter().copied().filter(move |m| self.contains(*m))
+    }
+    /// Names of the modes, lower case, comma separated ("operational, safed").
+    pub const fn names(self) -> &'static str {
+        match self.0 {
+            0 => "none",
+            1 => "standby",
+            2 => "operational",
+            3 => "standby, operational",
+            4 => "safed",
+            5 => "standby, safed",
+            6 => "operational, safed",
+            7 => "standby, operational, safed",
+            _ => "invalid mode set",
+        }
+    }
+}
+
+/// Every root mode, in mode order.
+pub const ROOT_MODES: [u32; 3] = [robot_mode::STANDBY, robot_mode::OPERATIONAL, robot_mode::SAFED];
+
 /// Submode of the robot node: 0 = idle, 1 = executing an action.
 pub mod submode {
     pub const IDLE: u16 = 0;
@@ -178,6 +229,24 @@ mod tests {
                 assert!(node_by_id(p).is_some());
             }
         }
+    }
+    // verifies: MMIC-MODE-01
+    #[test]
+    fn mode_names_parse_back_case_insensitively() {
+        for m in ROOT_MODES {
+            let n = mode_name(NodeKind::Root, m).unwrap();
+            assert_eq!(root_mode_by_name(n), Some(m));
+            assert_eq!(root_mode_by_name(&n.to_ascii_lowercase()), Some(m));
+        }
+        assert_eq!(root_mode_by_name(" Safed "), Some(robot_mode::SAFED));
+        assert_eq!(root_mode_by_name("HOLD"), None);
+        assert_eq!(root_mode_by_name(""), None);
+        assert_eq!(mode_by_name(NodeKind::Arm, "hold"), Some(module_mode::HOLD));
+        assert_eq!(
+            ModeSet::OPER_SAFED.modes().collect::<Vec<_>>(),
+            [robot_mode::OPERATIONAL, robot_mode::SAFED]
+        );
+        assert_eq!(ModeSet::OPER_SAFED.names(), "operational, safed");
     }
     // verifies: MMIC-MODE-02
     #[test]

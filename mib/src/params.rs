@@ -4,6 +4,7 @@
 //! events and the ground archive.
 
 use crate::layout::{Field, Names, ROOT_MODE_NAMES, SIDE_NAMES};
+use crate::modes::ModeSet;
 use crate::types::{Calib, Limits, PType};
 
 /// One telemetry parameter.
@@ -17,6 +18,10 @@ pub struct ParamDef {
     pub unit: &'static str,
     pub calib: Calib,
     pub limits: Option<Limits>,
+    /// Root modes in which `limits` apply. A value outside them in another mode is no
+    /// anomaly: the regulated servo voltage is 0 V in standby, where the regulator is off
+    /// (paper Table 7). Use [`limits_apply`].
+    pub limits_in: ModeSet,
     pub desc: &'static str,
 }
 
@@ -73,7 +78,7 @@ macro_rules! params {
         /// Every telemetry parameter, in ID order.
         pub const PARAMS: &[ParamDef] = &[ $( ParamDef {
             id: $id, name: stringify!($name), ptype: PType::$t, unit: $unit,
-            calib: $cal, limits: $lim, desc: $desc,
+            calib: $cal, limits: $lim, limits_in: limits_in($id), desc: $desc,
         }, )* ];
     };
 }
@@ -152,6 +157,29 @@ params! {
     IO_AB_BYTES_DROPPED = 84, U32, "", ID, None, "A-B serial bytes dropped by board A's receive or transmit queue";
 }
 
+/// Root modes in which the limits of parameter `id` apply: the regulated servo supply
+/// only while the modules are powered (operational, safed); every other limit always.
+const fn limits_in(id: u16) -> ModeSet {
+    match id {
+        pid::V_REG => ModeSet::OPER_SAFED,
+        _ => ModeSet::ALL,
+    }
+}
+
+/// True if the limits of `param` apply while the robot is in root mode `root_mode`
+/// (the value of the `MODE` parameter); false for a parameter without limits. Ground
+/// limit checks (alarms, limit colouring) call this before comparing a value with
+/// `param.limits`.
+pub const fn limits_apply(param: &ParamDef, root_mode: u32) -> bool {
+    param.limits.is_some() && param.limits_in.contains(root_mode)
+}
+
+/// [`limits_apply`] for a sample whose root mode is not known (no `MODE` value yet):
+/// only the limits that hold in every root mode apply.
+pub const fn limits_always_apply(param: &ParamDef) -> bool {
+    param.limits.is_some() && param.limits_in.0 == ModeSet::ALL.0
+}
+
 impl ParamDef {
     /// How the parameter's raw values are named (enumerated parameters).
     pub const fn names(&self) -> Names {
@@ -195,6 +223,22 @@ mod tests {
                 assert_ne!(a.name, b.name);
             }
         }
+    }
+    // verifies: MMIC-MODE-01
+    #[test]
+    fn regulator_voltage_limits_apply_only_while_the_modules_are_powered() {
+        use crate::modes::robot_mode;
+        let v_reg = by_id(pid::V_REG).unwrap();
+        assert!(!limits_apply(v_reg, robot_mode::STANDBY));
+        assert!(limits_apply(v_reg, robot_mode::OPERATIONAL));
+        assert!(limits_apply(v_reg, robot_mode::SAFED));
+        let v_bat = by_id(pid::V_BAT_A).unwrap();
+        for m in crate::modes::ROOT_MODES {
+            assert!(limits_apply(v_bat, m));
+            assert!(!limits_apply(by_id(pid::MODE).unwrap(), m), "MODE has no limits");
+        }
+        assert!(!limits_apply(v_bat, 7), "no limits in a mode the MIB does not know");
+        assert!(limits_always_apply(v_bat) && !limits_always_apply(v_reg));
     }
     // verifies: MMIC-AV-01
     #[test]

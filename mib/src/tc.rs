@@ -5,7 +5,7 @@
 //! header with a CDS short time stamp. Multi-byte fields are big-endian.
 
 use crate::failure::FailureCode as F;
-use crate::layout::{f, Field, Item, Names, CDS_TIME, REQUEST_ID, SIDE_NAMES};
+use crate::layout::{f, Field, Item, Names, CDS_TIME, REQUEST_ID, ROOT_MODE_NAMES, SIDE_NAMES};
 use crate::robot::{servo, NUM_STATES};
 use crate::types::PType;
 
@@ -25,28 +25,7 @@ pub mod service {
     pub const MODE: u8 = 200;
 }
 
-/// Set of root modes in which a TC is accepted (paper Table 7).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct ModeSet(pub u8);
-
-impl ModeSet {
-    pub const STANDBY: ModeSet = ModeSet(1);
-    pub const OPERATIONAL: ModeSet = ModeSet(2);
-    pub const SAFED: ModeSet = ModeSet(4);
-    pub const ALL: ModeSet = ModeSet(7);
-    pub const OPER_SAFED: ModeSet = ModeSet(6);
-    pub const fn contains(self, root_mode: u32) -> bool {
-        root_mode < 8 && self.0 & (1 << root_mode) != 0
-    }
-    pub const fn names(self) -> &'static str {
-        match self.0 {
-            7 => "standby, operational, safed",
-            6 => "operational, safed",
-            2 => "operational",
-            _ => "?",
-        }
-    }
-}
+pub use crate::modes::ModeSet;
 
 /// A TC argument is a field of the TC's application data.
 pub type ArgDef = Field;
@@ -69,6 +48,11 @@ pub struct TcDef {
     pub long_running: bool,
     /// Failure codes specific to this TC (besides the acceptance checks every TC gets).
     pub failures: &'static [F],
+    /// Why the TC is hazardous (`None` if it is not): it can leave the robot less
+    /// attached to the structure, forces a fault or a mode change, destroys on-board data
+    /// or weakens on-board protection. Ground tools ask for confirmation before sending
+    /// it; the exports mark it critical (SCOS-2000 `CCF_CRITICAL`, XTCE significance).
+    pub hazard: Option<&'static str>,
     pub desc: &'static str,
 }
 
@@ -107,6 +91,7 @@ const fn tc(
         modes: ModeSet::ALL,
         long_running: false,
         failures,
+        hazard: None,
         desc,
     }
 }
@@ -131,6 +116,7 @@ const fn func(
         modes,
         long_running,
         failures,
+        hazard: None,
         desc,
     }
 }
@@ -151,7 +137,7 @@ pub mod function {
 }
 
 const LAST_STATE: i64 = NUM_STATES as i64 - 1;
-const SIDE: ArgDef = a("side", PType::U8, "", 0, 1, "0 = side A, 1 = side B").names(SIDE_NAMES);
+const SIDE: ArgDef = a("side", PType::U8, "", 0, 1, "robot side").names(SIDE_NAMES);
 const PAIR: ArgDef = a("pair", PType::U8, "", 1, 4, "fastener pair 1..4 (multiplexer A0/A1)");
 const PAIRS: ArgDef = a(
     "pairs",
@@ -219,7 +205,8 @@ pub const TCS: &[TcDef] = &[
         &[SID],
         &[F::UNKNOWN_SID],
         "Disable periodic generation of a housekeeping structure",
-    ),
+    )
+    .hazardous("stops a housekeeping report"),
     tc(
         3,
         27,
@@ -262,7 +249,8 @@ pub const TCS: &[TcDef] = &[
         &[EVT],
         &[F::UNKNOWN_EVENT],
         "Disable reporting of an event",
-    ),
+    )
+    .hazardous("hides an event from the ground"),
     tc(
         5,
         7,
@@ -319,7 +307,8 @@ pub const TCS: &[TcDef] = &[
         true,
         UNBOLT_FAIL,
         "Unbolt the selected pairs of the face under a side (progress per pair)",
-    ),
+    )
+    .hazardous("removes fasteners: the structure loses a joint"),
     func(
         function::HOME,
         "HOME",
@@ -337,7 +326,8 @@ pub const TCS: &[TcDef] = &[
         true,
         MOTION_FAIL,
         "Debug: move one arm to a PWM target",
-    ),
+    )
+    .hazardous("direct actuator motion outside the reconfiguration planner"),
     func(
         function::MOVE_GRIPPER,
         "MOVE_GRIPPER",
@@ -346,7 +336,8 @@ pub const TCS: &[TcDef] = &[
         true,
         MOTION_FAIL,
         "Debug: move one gripper to a PWM target",
-    ),
+    )
+    .hazardous("opening a gripper can detach the robot from the structure"),
     func(
         function::ROTATE_HIP,
         "ROTATE_HIP",
@@ -362,7 +353,8 @@ pub const TCS: &[TcDef] = &[
         true,
         MOTION_FAIL,
         "Debug: rotate the hip to an angle",
-    ),
+    )
+    .hazardous("direct actuator motion outside the reconfiguration planner"),
     func(
         function::BOLT_PAIR,
         "BOLT_PAIR",
@@ -380,7 +372,8 @@ pub const TCS: &[TcDef] = &[
         true,
         UNBOLT_FAIL,
         "Debug: unbolt one fastener pair",
-    ),
+    )
+    .hazardous("removes fasteners: the structure loses a joint"),
     func(
         function::ASSEMBLY_FAULT,
         "ASSEMBLY_FAULT",
@@ -389,7 +382,8 @@ pub const TCS: &[TcDef] = &[
         false,
         &[],
         "Assembly system operation fault: enter standby after the running motion completes",
-    ),
+    )
+    .hazardous("forces an assembly system fault: the robot goes to standby"),
     func(
         function::STOP,
         "STOP",
@@ -419,7 +413,7 @@ pub const TCS: &[TcDef] = &[
     // --- 11 scheduling ---
     tc(11, 1, "SCHED_ENABLE", &[], &[], "Enable release of scheduled TCs"),
     tc(11, 2, "SCHED_DISABLE", &[], &[], "Disable release of scheduled TCs"),
-    tc(11, 3, "SCHED_RESET", &[], &[], "Delete every scheduled TC"),
+    tc(11, 3, "SCHED_RESET", &[], &[], "Delete every scheduled TC").hazardous("deletes every scheduled TC"),
     TcDef {
         variable: true,
         rest: &[Item::Group {
@@ -469,7 +463,8 @@ pub const TCS: &[TcDef] = &[
         &[MON],
         &[F::UNKNOWN_MONITOR],
         "Disable a parameter monitoring definition",
-    ),
+    )
+    .hazardous("weakens on-board limit monitoring (FDIR)"),
     tc(
         12,
         7,
@@ -503,7 +498,8 @@ pub const TCS: &[TcDef] = &[
         ],
         &[F::UNKNOWN_MONITOR, F::PARAM_OUT_OF_RANGE],
         "Modify the limits and persistence of a monitoring definition",
-    ),
+    )
+    .hazardous("weakens on-board limit monitoring (FDIR)"),
     tc(
         12,
         8,
@@ -521,7 +517,8 @@ pub const TCS: &[TcDef] = &[
         &[],
         "Enable storage of TM in the on-board store",
     ),
-    tc(15, 2, "STORE_DISABLE", &[], &[], "Disable storage of TM"),
+    tc(15, 2, "STORE_DISABLE", &[], &[], "Disable storage of TM")
+        .hazardous("TM is no longer stored: what the link misses is lost for good"),
     tc(
         15,
         9,
@@ -586,7 +583,8 @@ pub const TCS: &[TcDef] = &[
          [first_seq, last_seq], counted modulo 2^14 (first_seq > last_seq wraps through 16383 -> 0), \
          oldest first, then TM[15,19]",
     ),
-    tc(15, 11, "STORE_DELETE", &[], &[], "Delete the store content"),
+    tc(15, 11, "STORE_DELETE", &[], &[], "Delete the store content")
+        .hazardous("empties the on-board TM store: its packets are lost for good"),
     // --- 17 test ---
     tc(17, 1, "PING", &[], &[], "Connection test: answered by TM[17,2]"),
     // --- 19 event-action ---
@@ -605,7 +603,8 @@ pub const TCS: &[TcDef] = &[
         &[EVT],
         &[F::UNKNOWN_ACTION_LINK],
         "Disable the action linked to an event",
-    ),
+    )
+    .hazardous("disables an on-board fault reaction (FDIR)"),
     tc(
         19,
         8,
@@ -633,7 +632,8 @@ pub const TCS: &[TcDef] = &[
         ],
         &[F::UNKNOWN_PARAMETER, F::PARAM_OUT_OF_RANGE],
         "Set an on-board parameter (range-checked)",
-    ),
+    )
+    .hazardous("changes an on-board threshold or gain"),
     // --- 200 modes ---
     tc(
         200,
@@ -641,7 +641,7 @@ pub const TCS: &[TcDef] = &[
         "MODE_SET",
         &[
             NODE,
-            a("mode", PType::U32, "", 0, 2, "mode").names(Names::Mode),
+            a("mode", PType::U32, "", 0, 2, "robot mode").names(ROOT_MODE_NAMES),
             a("submode", PType::U16, "", 0, 0, "submode (0)"),
         ],
         &[
@@ -652,7 +652,8 @@ pub const TCS: &[TcDef] = &[
             F::BUSY,
         ],
         "Command the mode of a mode-tree node (only the robot node is commandable; children follow)",
-    ),
+    )
+    .hazardous("changes module power (standby releases the servos)"),
     tc(
         200,
         3,
@@ -672,6 +673,13 @@ pub const TCS: &[TcDef] = &[
 ];
 
 impl TcDef {
+    /// The same TC, marked hazardous for the reason `why`.
+    pub const fn hazardous(self, why: &'static str) -> TcDef {
+        TcDef {
+            hazard: Some(why),
+            ..self
+        }
+    }
     /// Length of the fixed application data (PUS 8: function ID included).
     pub fn fixed_len(&self) -> usize {
         let f = if self.service == service::FUNCTION { 2 } else { 0 };
@@ -966,6 +974,59 @@ mod tests {
             }
             assert!(t.fixed_len() <= crate::config::MAX_TC_APP_DATA);
         }
+    }
+    // verifies: MMIC-CMD-06
+    #[test]
+    fn hazardous_tcs_are_those_that_detach_force_or_destroy() {
+        let hazardous: Vec<&str> = TCS.iter().filter(|t| t.hazard.is_some()).map(|t| t.name).collect();
+        assert_eq!(
+            hazardous,
+            [
+                "HK_DISABLE",
+                "EVENT_DISABLE",
+                "UNBOLT_FACE",
+                "MOVE_ARM",
+                "MOVE_GRIPPER",
+                "ROTATE_HIP",
+                "UNBOLT_PAIR",
+                "ASSEMBLY_FAULT",
+                "SCHED_RESET",
+                "MON_DISABLE",
+                "MON_MODIFY",
+                "STORE_DISABLE",
+                "STORE_DELETE",
+                "EA_DISABLE",
+                "PARAM_SET",
+                "MODE_SET",
+            ]
+        );
+        for t in TCS {
+            assert!(t.hazard.is_none_or(|h| !h.is_empty()), "{}", t.name);
+        }
+    }
+    // verifies: MMIC-CMD-06
+    #[test]
+    fn every_enumerated_argument_names_values_in_its_range() {
+        // Arguments that select one of a set of MIB items carry their names.
+        for t in TCS {
+            for a in t.args {
+                let enumerated = matches!(
+                    a.name,
+                    "side" | "from" | "to" | "node" | "mode" | "sid" | "event_id" | "monitor_id" | "param_id"
+                );
+                assert_eq!(!a.names.is_none(), enumerated, "{} {}", t.name, a.name);
+                let mut n = 0;
+                a.names.for_each(|v, _| n += usize::from((a.min..=a.max).contains(&v)));
+                assert!(
+                    !enumerated || n > 0,
+                    "{} {} names no value in its range",
+                    t.name,
+                    a.name
+                );
+            }
+        }
+        let mode = by_name("MODE_SET").unwrap().args[1];
+        assert_eq!(mode.names.name(1), Some("OPERATIONAL"));
     }
     // verifies: MMIC-MODE-01
     #[test]

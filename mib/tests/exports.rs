@@ -182,6 +182,35 @@ fn scos_references_between_tables_resolve() {
         let n: usize = r[col("ocf", "OCF_NBOOL")].parse().unwrap();
         assert_eq!(ocp_names.iter().filter(|x| **x == r[0]).count(), n);
     }
+    // A limit that holds only in some root modes is relevant per mode (OCP_RLCHK on the
+    // MODE parameter, OCP_VALPAR its raw value); every other limit always.
+    let mode_pcf = mib::export::ScosNames::tm_param(mib::params::pid::MODE);
+    for p in PARAMS.iter().filter(|p| p.limits.is_some()) {
+        let n = mib::export::ScosNames::tm_param(p.id);
+        let rows: Vec<&Vec<String>> = t["ocp.dat"].iter().filter(|r| r[0] == n).collect();
+        let mut modes: Vec<String> = rows.iter().map(|r| r[col("ocp", "OCP_VALPAR")].clone()).collect();
+        modes.dedup();
+        if p.limits_in == mib::modes::ModeSet::ALL {
+            assert!(rows.iter().all(|r| r[col("ocp", "OCP_RLCHK")].is_empty()), "{}", p.name);
+        } else {
+            assert!(
+                rows.iter().all(|r| r[col("ocp", "OCP_RLCHK")] == mode_pcf),
+                "{}",
+                p.name
+            );
+            let want: Vec<String> = p.limits_in.modes().map(|m| m.to_string()).collect();
+            assert_eq!(modes, want, "{}", p.name);
+        }
+    }
+    // A hazardous TC is critical.
+    for tc in TCS {
+        let r = t["ccf.dat"]
+            .iter()
+            .find(|r| r[0] == mib::export::ScosNames::command(tc))
+            .unwrap();
+        let want = if tc.hazard.is_some() { "Y" } else { "N" };
+        assert_eq!(r[col("ccf", "CCF_CRITICAL")], want, "{}", tc.name);
+    }
     // PIC covers every (type, subtype) of PID.
     let pic: BTreeSet<(String, String)> = t["pic.dat"].iter().map(|r| (r[0].clone(), r[1].clone())).collect();
     for r in &t["pid.dat"] {
@@ -439,6 +468,29 @@ fn xtce_is_xml_in_the_xtce_1_2_namespace_and_references_resolve() {
         .collect();
     assert_eq!(crit.get("TM_SERVICE"), Some(&"3"));
     assert_eq!(crit.get("TM_SUBSERVICE"), Some(&"25"));
+    // Limits that hold only in some root modes: context alarms on MODE, no default alarm.
+    for p in PARAMS.iter().filter(|p| p.limits.is_some()) {
+        let ty = doc
+            .descendants()
+            .find(|n| n.attribute("name") == Some(&format!("{}_Type", p.name)))
+            .unwrap();
+        let has_default = ty.children().any(|n| n.tag_name().name() == "DefaultAlarm");
+        let contexts: Vec<u32> = ty
+            .descendants()
+            .filter(|n| n.tag_name().name() == "ContextAlarm")
+            .map(|c| {
+                let cmp = c.descendants().find(|n| n.tag_name().name() == "Comparison").unwrap();
+                assert_eq!(cmp.attribute("parameterRef"), Some("MODE"));
+                cmp.attribute("value").unwrap().parse().unwrap()
+            })
+            .collect();
+        if p.limits_in == mib::modes::ModeSet::ALL {
+            assert!(has_default && contexts.is_empty(), "{}", p.name);
+        } else {
+            assert!(!has_default, "{}", p.name);
+            assert_eq!(contexts, p.limits_in.modes().collect::<Vec<_>>(), "{}", p.name);
+        }
+    }
     for e in EVENTS {
         assert!(containers.contains(&format!("EVT_{}", e.name)));
     }
@@ -459,10 +511,38 @@ fn xtce_is_xml_in_the_xtce_1_2_namespace_and_references_resolve() {
                 .descendants()
                 .find(|n| n.attribute("name") == Some(&format!("{}_{}_Type", tc.name, a.name)))
                 .unwrap();
-            let r = ty.descendants().find(|n| n.tag_name().name() == "ValidRange").unwrap();
-            assert_eq!(r.attribute("minInclusive"), Some(a.min.to_string().as_str()));
-            assert_eq!(r.attribute("maxInclusive"), Some(a.max.to_string().as_str()));
+            if a.names.is_none() {
+                let r = ty.descendants().find(|n| n.tag_name().name() == "ValidRange").unwrap();
+                assert_eq!(r.attribute("minInclusive"), Some(a.min.to_string().as_str()));
+                assert_eq!(r.attribute("maxInclusive"), Some(a.max.to_string().as_str()));
+            } else {
+                // An enumerated argument: its named values within its range.
+                assert_eq!(ty.tag_name().name(), "EnumeratedArgumentType", "{} {}", tc.name, a.name);
+                let values: Vec<(i64, &str)> = ty
+                    .descendants()
+                    .filter(|n| n.tag_name().name() == "Enumeration")
+                    .map(|n| {
+                        (
+                            n.attribute("value").unwrap().parse().unwrap(),
+                            n.attribute("label").unwrap(),
+                        )
+                    })
+                    .collect();
+                let mut want = Vec::new();
+                a.names.for_each(|v, n| {
+                    if (a.min..=a.max).contains(&v) {
+                        want.push((v, n));
+                    }
+                });
+                assert_eq!(values, want, "{} {}", tc.name, a.name);
+            }
         }
+        // A hazardous TC is critical.
+        let sig = mc
+            .children()
+            .find(|n| n.tag_name().name() == "DefaultSignificance")
+            .map(|n| (n.attribute("consequenceLevel"), n.attribute("reasonForWarning")));
+        assert_eq!(sig, tc.hazard.map(|h| (Some("critical"), Some(h))), "{}", tc.name);
         let fixed = mc.descendants().find(|n| n.tag_name().name() == "FixedValueEntry");
         if tc.service == 8 {
             assert_eq!(
@@ -514,7 +594,18 @@ fn json_round_trips_against_the_tables() {
         assert_eq!(j["subservice"], t.subservice);
         assert_eq!(j["function"], t.function);
         assert_eq!(j["args"].as_array().unwrap().len(), t.args.len());
+        assert_eq!(j["hazard"].as_str(), t.hazard, "{}", t.name);
+        for (ja, a) in j["args"].as_array().unwrap().iter().zip(t.args) {
+            assert_eq!(ja["names"].is_null(), a.names.is_none(), "{} {}", t.name, a.name);
+        }
     }
+    let v_reg = v["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["name"] == "V_REG")
+        .unwrap();
+    assert_eq!(v_reg["limits_in"], "operational, safed");
     assert_eq!(v["telemetry"].as_array().unwrap().len(), TMS.len());
     assert_eq!(ids("states", "id").len(), mib::robot::NUM_STATES);
     assert_eq!(ids("primitives", "id").len(), mib::robot::NUM_PRIMITIVES);

@@ -517,7 +517,12 @@ fn encode_from_xtce(doc: &roxmltree::Document, name: &str, args: &[i64], seq: u1
             .descendants()
             .find(|x| x.tag_name().name() == "Argument" && x.attribute("name") == Some(arg))
             .unwrap_or_else(|| panic!("argument {arg}"));
-        let ty = by_name("IntegerArgumentType", a.attribute("argumentTypeRef").unwrap());
+        // Integer or enumerated (values the MIB names): both carry an integer encoding.
+        let tref = a.attribute("argumentTypeRef").unwrap();
+        let ty = doc
+            .descendants()
+            .find(|x| x.tag_name().name().ends_with("ArgumentType") && x.attribute("name") == Some(tref))
+            .unwrap_or_else(|| panic!("argument type {tref}"));
         let enc = ty
             .descendants()
             .find(|x| x.tag_name().name() == "IntegerDataEncoding")
@@ -702,6 +707,7 @@ fn flatten(tm: &str, body: &Value, out: &mut Vec<(String, Value)>) {
 /// Chooses a field's raw value by the field's name.
 type Pick = Box<dyn Fn(&str) -> i64>;
 
+// verifies: ICD-03
 #[test]
 fn space_packet_parser_decodes_every_report_kind_like_ground_decode_json() {
     let root = repo_root();

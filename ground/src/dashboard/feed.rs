@@ -174,11 +174,9 @@ impl LinkFeed {
         match tm.body {
             TmBody::Hk(hk) => {
                 let values: Vec<(&str, f64)> = hk.values.iter().map(|v| (v.name, v.eng)).collect();
-                // The MIB's limits assume powered modules (V_REG is 0 V with the regulator
-                // off in standby), so this feed raises limit alarms outside standby only.
-                let powered = hk
-                    .raw(mib::params::pid::MODE)
-                    .is_some_and(|m| m != mib::modes::robot_mode::STANDBY as i64);
+                // The MIB says in which root modes each parameter's limits apply (V_REG's
+                // only with the regulator powered).
+                let mode = hk.raw(mib::params::pid::MODE).and_then(|m| u32::try_from(m).ok());
                 self.hub().hk(robot, t, &values);
                 for v in &hk.values {
                     if v.id == mib::params::pid::MODE {
@@ -189,9 +187,14 @@ impl LinkFeed {
                     if v.id == mib::params::pid::CONFIG_STATE {
                         self.hub().config(robot, ConfigState::from_mib(v.raw as u8));
                     }
-                    let limits = mib::params::by_id(v.id).and_then(|p| p.limits);
+                    let param = mib::params::by_id(v.id);
+                    let limits = param.and_then(|p| p.limits);
+                    let applies = param.is_some_and(|p| match mode {
+                        Some(m) => mib::params::limits_apply(p, m),
+                        None => mib::params::limits_always_apply(p),
+                    });
                     match LimitState::check(limits.as_ref(), v.eng) {
-                        LimitState::Hard if powered => {
+                        LimitState::Hard if applies => {
                             let msg = format!("{} = {:.3} {} outside the hard limits", v.name, v.eng, v.unit);
                             self.raise(robot, v.name, "high", &msg, t);
                         }

@@ -1,77 +1,27 @@
-//! What the page needs from the MIB: TC forms (arguments, ranges, enumerations,
-//! hazard), parameters (units, limits), events, configuration states and the mode tree.
+//! What the page needs from the MIB: TC forms (arguments, ranges, enumerations and
+//! hazard, all as the MIB defines them), parameters (units, limits), events, configuration states and the mode tree.
 //! Argument checking for `POST /api/tc` lives here too, so the page and the server
 //! check against the same table.
 
 use mib::tc::{ArgDef, TcDef};
 use serde_json::{json, Map, Value};
 
-/// Why a TC is hazardous, or `None` if it is not.
-///
-/// The MIB has no hazard flag yet, so this is derived here from the TC definition —
-/// the one place to replace when the MIB gains one. A TC is hazardous when it:
-/// - can leave the robot less attached to the structure (unbolting, opening a
-///   gripper, moving an arm or the hip directly, outside the reconfiguration planner);
-/// - forces a fault or a mode change (module power);
-/// - destroys on-board data (store, schedule) or weakens on-board protection
-///   (disables monitors, event actions, events, housekeeping; changes parameters).
+/// Why a TC is hazardous (the MIB's `TcDef::hazard`), or `None` if it is not.
 pub fn hazard(def: &TcDef) -> Option<&'static str> {
-    use mib::tc::{function as f, service as s};
-    if def.service == s::FUNCTION {
-        return match def.function {
-            f::UNBOLT_FACE | f::UNBOLT_PAIR => Some("removes fasteners: the structure loses a joint"),
-            f::MOVE_GRIPPER => Some("opening a gripper can detach the robot from the structure"),
-            f::MOVE_ARM | f::ROTATE_HIP => Some("direct actuator motion outside the reconfiguration planner"),
-            f::ASSEMBLY_FAULT => Some("forces an assembly system fault: the robot goes to standby"),
-            _ => None,
-        };
-    }
-    match (def.service, def.name) {
-        (s::MODE, "MODE_SET") => Some("changes module power (standby releases the servos)"),
-        (s::STORAGE, "STORE_DELETE" | "STORE_DISABLE") => Some("on-board TM store: packets are lost for good"),
-        (s::SCHEDULING, "SCHED_RESET") => Some("deletes every scheduled TC"),
-        (s::MONITORING, "MON_DISABLE" | "MON_MODIFY") => Some("weakens on-board limit monitoring (FDIR)"),
-        (s::EVENT_ACTION, "EA_DISABLE") => Some("disables an on-board fault reaction (FDIR)"),
-        (s::EVENT, "EVENT_DISABLE") => Some("hides an event from the ground"),
-        (s::HOUSEKEEPING, "HK_DISABLE") => Some("stops a housekeeping report"),
-        (s::PARAMETER, "PARAM_SET") => Some("changes an on-board threshold or gain"),
-        _ => None,
-    }
+    def.hazard
 }
 
-/// Named values of an argument, when its values have names in the MIB.
-pub fn enumeration(def: &TcDef, arg: &ArgDef) -> Option<Vec<(i64, String)>> {
-    use mib::robot::{Side, STATES};
-    let list: Vec<(i64, String)> = match (def.name, arg.name) {
-        (_, "side") => [Side::A, Side::B]
-            .iter()
-            .map(|s| (*s as i64, format!("side {}", s.name())))
-            .collect(),
-        ("RECONFIGURE", "from" | "to") => STATES.iter().map(|s| (s.id as i64, s.name.to_string())).collect(),
-        ("MODE_SET", "mode") => (arg.min..=arg.max)
-            .filter_map(|m| {
-                let mode = u32::try_from(m).ok()?;
-                mib::modes::mode_name(mib::modes::NodeKind::Root, mode).map(|n| (m, n.to_string()))
-            })
-            .collect(),
-        (_, "node") => mib::modes::NODES
-            .iter()
-            .map(|n| (n.id as i64, n.name.to_string()))
-            .collect(),
-        (_, "sid") => mib::hk::HK_STRUCTS
-            .iter()
-            .map(|h| (h.sid as i64, h.name.to_string()))
-            .collect(),
-        (_, "event_id") => mib::events::EVENTS
-            .iter()
-            .map(|e| (e.id as i64, e.name.to_string()))
-            .collect(),
-        ("PARAM_SET" | "PARAM_REPORT", "param_id") => mib::tunables::TUNABLES
-            .iter()
-            .map(|t| (t.id as i64, t.name.to_string()))
-            .collect(),
-        _ => return None,
-    };
+/// Named values of an argument within its range, when the MIB names its values.
+pub fn enumeration(arg: &ArgDef) -> Option<Vec<(i64, String)>> {
+    if arg.names.is_none() {
+        return None;
+    }
+    let mut list = Vec::new();
+    arg.names.for_each(|v, n| {
+        if (arg.min..=arg.max).contains(&v) {
+            list.push((v, n.to_string()));
+        }
+    });
     Some(list)
 }
 
@@ -98,8 +48,8 @@ pub fn parse_args(def: &TcDef, args: &Map<String, Value>) -> Result<Vec<i64>, St
             Value::Number(n) => n
                 .as_i64()
                 .ok_or_else(|| format!("{}: argument \"{}\" must be an integer, not {n}", def.name, a.name))?,
-            Value::String(s) => match enumeration(def, a).and_then(|e| e.into_iter().find(|(_, n)| n == s)) {
-                Some((v, _)) => v,
+            Value::String(s) => match a.names.value_of(s) {
+                Some(v) => v,
                 None => s
                     .trim()
                     .parse::<i64>()
@@ -116,7 +66,7 @@ pub fn parse_args(def: &TcDef, args: &Map<String, Value>) -> Result<Vec<i64>, St
                 def.name, a.name, a.min, a.max
             ));
         }
-        if let Some(e) = enumeration(def, a) {
+        if let Some(e) = enumeration(a) {
             if !e.iter().any(|(v, _)| *v == raw) {
                 return Err(format!("{}: argument \"{}\" = {raw} names no value", def.name, a.name));
             }
@@ -136,7 +86,7 @@ pub fn page_mib() -> Value {
                 .iter()
                 .map(|a| {
                     json!({"name": a.name, "type": a.ptype.name(), "unit": a.unit, "min": a.min, "max": a.max,
-                        "desc": a.desc, "enum": enumeration(t, a)})
+                        "desc": a.desc, "enum": enumeration(a)})
                 })
                 .collect();
             json!({"name": t.name, "service": t.service, "subservice": t.subservice, "function": t.function,
@@ -192,6 +142,7 @@ mod tests {
         }
     }
 
+    // verifies: GND-07
     #[test]
     fn args_are_checked_against_mib_ranges_and_enumerations() {
         let rec = mib::tc::by_name("RECONFIGURE").unwrap();
@@ -219,8 +170,9 @@ mod tests {
         );
     }
 
+    // verifies: MMIC-CMD-06
     #[test]
-    fn hazard_marks_motion_that_detaches_and_leaves_ping_alone() {
+    fn hazard_and_enumerations_come_from_the_mib() {
         let h = |n| hazard(mib::tc::by_name(n).unwrap());
         assert!(h("PING").is_none());
         assert!(h("RECONFIGURE").is_none());
@@ -228,8 +180,40 @@ mod tests {
         assert!(h("MOVE_GRIPPER").is_some());
         assert!(h("MODE_SET").is_some());
         assert!(h("STORE_DELETE").is_some());
+        let m = page_mib();
+        for (t, pt) in mib::tc::TCS.iter().zip(m["tcs"].as_array().into_iter().flatten()) {
+            assert_eq!(pt["hazard"].as_str(), t.hazard, "{}", t.name);
+        }
+        let mode = mib::tc::by_name("MODE_SET").unwrap();
+        let names = enumeration(&mode.args[1]).unwrap();
+        assert_eq!(
+            names,
+            [
+                (0, "STANDBY".to_string()),
+                (1, "OPERATIONAL".to_string()),
+                (2, "SAFED".to_string())
+            ]
+        );
+        let side = enumeration(&mib::tc::by_name("BOLT_PAIR").unwrap().args[0]).unwrap();
+        assert_eq!(side, [(0, "A".to_string()), (1, "B".to_string())]);
+        let mon = mib::tc::by_name("MON_DISABLE").unwrap();
+        assert_eq!(
+            enumeration(&mon.args[0]).map(|e| e.len()),
+            Some(mib::fdir::MONITORS.len())
+        );
+        assert_eq!(
+            parse_args(mon, &obj(json!({"monitor_id": mib::fdir::MONITORS[0].name}))),
+            Ok(vec![i64::from(mib::fdir::MONITORS[0].id)])
+        );
+        let events = enumeration(&mib::tc::by_name("EVENT_DISABLE").unwrap().args[0]).unwrap();
+        assert!(
+            events.iter().all(|(v, _)| *v != 0),
+            "NONE (0) is outside the argument's range"
+        );
+        assert!(enumeration(&mib::tc::by_name("BOLT_PAIR").unwrap().args[1]).is_none());
     }
 
+    // verifies: GND-07
     #[test]
     fn every_tc_of_the_mib_appears_in_the_page_mib() {
         let m = page_mib();

@@ -99,6 +99,21 @@ fn shortest_path(from: u8, to: u8) -> Option<Vec<u8>> {
     Some(path)
 }
 
+/// Description of a TC argument, with its value names when the MIB names its values.
+fn arg_desc(a: &tc::ArgDef) -> String {
+    let mut names = Vec::new();
+    a.names.for_each(|v, n| {
+        if (a.min..=a.max).contains(&v) {
+            names.push(format!("{v} = {n}"));
+        }
+    });
+    match names.len() {
+        0 => a.desc.to_string(),
+        1..=6 => format!("{} ({})", a.desc, names.join(", ")),
+        n => format!("{} ({n} named values, e.g. {}, …)", a.desc, names[..2].join(", ")),
+    }
+}
+
 fn param_row(o: &mut String, p: &ParamDef) {
     let (s, h) = match p.limits {
         Some(l) => (
@@ -109,7 +124,7 @@ fn param_row(o: &mut String, p: &ParamDef) {
     };
     let _ = writeln!(
         o,
-        "| {} | `{}` | {} | {} | {} | {} | {} | `{}` | {} |",
+        "| {} | `{}` | {} | {} | {} | {} | {} | {} | `{}` | {} |",
         p.id,
         p.name,
         p.ptype.name(),
@@ -117,6 +132,7 @@ fn param_row(o: &mut String, p: &ParamDef) {
         calib_text(&p.calib),
         s,
         h,
+        if p.limits.is_some() { p.limits_in.names() } else { "—" },
         ScosNames::tm_param(p.id),
         c(p.desc)
     );
@@ -229,13 +245,13 @@ pub fn icd_markdown() -> String {
     );
     let _ = writeln!(
         o,
-        "| service | subservice | function | name | accepted in | long-running | fixed data octets |"
+        "| service | subservice | function | name | accepted in | long-running | fixed data octets | hazardous |"
     );
-    let _ = writeln!(o, "|---:|---:|---:|---|---|---|---:|");
+    let _ = writeln!(o, "|---:|---:|---:|---|---|---|---:|---|");
     for t in TCS {
         let _ = writeln!(
             o,
-            "| {} | {} | {} | [`{}`](#tc-{}) | {} | {} | {}{} |",
+            "| {} | {} | {} | [`{}`](#tc-{}) | {} | {} | {}{} | {} |",
             t.service,
             t.subservice,
             if t.service == tc::service::FUNCTION {
@@ -248,7 +264,9 @@ pub fn icd_markdown() -> String {
             t.modes.names(),
             if t.long_running { "yes" } else { "no" },
             t.fixed_len(),
-            if t.variable { " + variable" } else { "" }
+            if t.variable { " + variable" } else { "" },
+            t.hazard
+                .map_or_else(|| "no".to_string(), |h| format!("**yes**: {}", c(h)))
         );
     }
     let _ = writeln!(o);
@@ -268,6 +286,13 @@ pub fn icd_markdown() -> String {
             t.modes.names(),
             ScosNames::command(t)
         );
+        if let Some(h) = t.hazard {
+            let _ = writeln!(
+                o,
+                "**Hazardous** (confirmation before sending; SCOS-2000 `CCF_CRITICAL` = Y, XTCE significance critical): {}.\n",
+                c(h)
+            );
+        }
         let mut off = if t.service == tc::service::FUNCTION { 2 } else { 0 };
         if t.args.is_empty() && t.service != tc::service::FUNCTION {
             let _ = writeln!(o, "No application data.\n");
@@ -290,7 +315,7 @@ pub fn icd_markdown() -> String {
                     if a.unit.is_empty() { "—" } else { a.unit },
                     a.min,
                     a.max,
-                    c(a.desc)
+                    c(&arg_desc(a))
                 );
                 off += a.ptype.size();
             }
@@ -389,13 +414,13 @@ pub fn icd_markdown() -> String {
     let _ = writeln!(o, "## 6. Parameters\n");
     let _ = writeln!(
         o,
-        "Engineering value = raw × scale + offset. Limits are in engineering units: outside the soft range\nthe ground warns, outside the hard range it alarms; the on-board monitors (section 13) use their own\nraw limits.\n"
+        "Engineering value = raw × scale + offset. Limits are in engineering units: outside the soft range\nthe ground warns, outside the hard range it alarms, in the root modes where the limits apply (the\nregulated servo voltage is 0 V in standby, where the regulator is off; SCOS-2000 makes such a check\nrelevant through `OCP_RLCHK`/`OCP_VALPAR` on the mode, XTCE through context alarms on `MODE`); the\non-board monitors (section 13) use their own raw limits.\n"
     );
     let _ = writeln!(
         o,
-        "| ID | name | type | unit | calibration | soft limits | hard limits | SCOS-2000 | description |"
+        "| ID | name | type | unit | calibration | soft limits | hard limits | limits apply in | SCOS-2000 | description |"
     );
-    let _ = writeln!(o, "|---:|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(o, "|---:|---|---|---|---|---|---|---|---|---|");
     for p in PARAMS {
         param_row(&mut o, p);
     }

@@ -31,6 +31,20 @@ fn limits(l: &Option<Limits>) -> Value {
     }
 }
 
+/// Named values of a TC argument within its range (`null` for a plain number).
+fn arg_names(a: &crate::tc::ArgDef) -> Value {
+    if a.names.is_none() {
+        return Value::Null;
+    }
+    let mut v = Vec::new();
+    a.names.for_each(|raw, name| {
+        if (a.min..=a.max).contains(&raw) {
+            v.push(json!({"value": raw, "name": name}));
+        }
+    });
+    Value::Array(v)
+}
+
 fn timing(t: Timing) -> &'static str {
     match t {
         Timing::Immediate => "immediate",
@@ -88,7 +102,9 @@ pub fn json_document() -> String {
         "parameters": PARAMS.iter().map(|p| json!({
             "id": p.id, "name": p.name, "type": p.ptype.name(), "unit": p.unit,
             "calibration": {"scale": p.calib.scale, "offset": p.calib.offset},
-            "limits": limits(&p.limits), "desc": p.desc,
+            "limits": limits(&p.limits),
+            "limits_in": p.limits.map(|_| p.limits_in.names()), "limits_in_mask": p.limits.map(|_| p.limits_in.0),
+            "desc": p.desc,
         })).collect::<Vec<_>>(),
         "hk_structures": HK_STRUCTS.iter().map(|h| json!({
             "sid": h.sid, "name": h.name, "params": h.params, "data_len": h.data_len(),
@@ -110,9 +126,10 @@ pub fn json_document() -> String {
             "name": t.name,
             "args": t.args.iter().map(|a| json!({
                 "name": a.name, "type": a.ptype.name(), "unit": a.unit, "min": a.min, "max": a.max, "desc": a.desc,
+                "names": arg_names(a),
             })).collect::<Vec<_>>(),
             "variable": t.variable, "modes": t.modes.names(), "mode_mask": t.modes.0,
-            "long_running": t.long_running,
+            "long_running": t.long_running, "hazard": t.hazard,
             "failures": t.failures.iter().map(|f| f.name()).collect::<Vec<_>>(),
             "fixed_len": t.fixed_len(), "desc": t.desc,
         })).collect::<Vec<_>>(),

@@ -772,9 +772,24 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
     for p in PARAMS {
         if let Some(l) = p.limits {
             let n = ScosNames::tm_param(p.id);
-            ocf.row([&n, "1", "2", "C", "R"]);
-            ocp.row([&n, "1", "S", &num(l.soft_lo), &num(l.soft_hi), "", ""]);
-            ocp.row([&n, "2", "H", &num(l.hard_lo), &num(l.hard_hi), "", ""]);
+            // Limits that apply only in some root modes: one soft and one hard check per
+            // mode, relevant when the MODE parameter (OCP_RLCHK) has that raw value.
+            let contexts: Vec<(String, String)> = if p.limits_in == crate::modes::ModeSet::ALL {
+                vec![(String::new(), String::new())]
+            } else {
+                p.limits_in
+                    .modes()
+                    .map(|m| (ScosNames::tm_param(crate::params::pid::MODE), m.to_string()))
+                    .collect()
+            };
+            ocf.row([&n, "1", &(2 * contexts.len()).to_string(), "C", "R"]);
+            let mut pos = 0;
+            for (rlchk, valpar) in &contexts {
+                for (kind, lo, hi) in [("S", l.soft_lo, l.soft_hi), ("H", l.hard_lo, l.hard_hi)] {
+                    pos += 1;
+                    ocp.row([&n, &pos.to_string(), kind, &num(lo), &num(hi), rlchk, valpar]);
+                }
+            }
         }
     }
     tables.push(ocf);
@@ -921,7 +936,7 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
             &fit(t.name, 24),
             &fit(&descr2, 64),
             "",
-            "N",
+            if t.hazard.is_some() { "Y" } else { "N" },
             ScosNames::TC_HEADER,
             &t.service.to_string(),
             &t.subservice.to_string(),

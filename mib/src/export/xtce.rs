@@ -126,8 +126,14 @@ fn header_type(x: &mut Xml, f: &Field) {
 
 /// Enumerated parameter type of a field whose values the MIB names.
 fn enumerated_type(x: &mut Xml, tname: &str, f: &crate::layout::Field) {
+    enumerated(x, "EnumeratedParameterType", tname, f, None);
+}
+
+/// Enumerated type (`kind`: parameter or argument) of a field whose values the MIB names;
+/// only the values within `range` when given (an argument's valid range).
+fn enumerated(x: &mut Xml, kind: &str, tname: &str, f: &crate::layout::Field, range: Option<(i64, i64)>) {
     x.open(&format!(
-        "<xtce:EnumeratedParameterType name=\"{}\" shortDescription=\"{}\">",
+        "<xtce:{kind} name=\"{}\" shortDescription=\"{}\">",
         esc(tname),
         esc(f.desc)
     ));
@@ -140,13 +146,15 @@ fn enumerated_type(x: &mut Xml, tname: &str, f: &crate::layout::Field) {
     x.open("<xtce:EnumerationList>");
     let mut seen = std::collections::BTreeMap::new();
     f.names.for_each(|v, n| {
-        seen.entry(v).or_insert(n);
+        if range.is_none_or(|(lo, hi)| (lo..=hi).contains(&v)) {
+            seen.entry(v).or_insert(n);
+        }
     });
     for (v, n) in seen {
         x.line(&format!("<xtce:Enumeration value=\"{v}\" label=\"{}\"/>", esc(n)));
     }
     x.close("</xtce:EnumerationList>");
-    x.close("</xtce:EnumeratedParameterType>");
+    x.close(&format!("</xtce:{kind}>"));
 }
 
 fn param_type(x: &mut Xml, p: &ParamDef) {
@@ -194,20 +202,41 @@ fn param_type(x: &mut Xml, p: &ParamDef) {
         x.close("</xtce:IntegerDataEncoding>");
     }
     if let Some(l) = p.limits {
-        x.open("<xtce:DefaultAlarm>");
-        x.open("<xtce:StaticAlarmRanges>");
-        x.line(&format!(
-            "<xtce:WarningRange minInclusive=\"{}\" maxInclusive=\"{}\"/>",
-            num(l.soft_lo),
-            num(l.soft_hi)
-        ));
-        x.line(&format!(
-            "<xtce:CriticalRange minInclusive=\"{}\" maxInclusive=\"{}\"/>",
-            num(l.hard_lo),
-            num(l.hard_hi)
-        ));
-        x.close("</xtce:StaticAlarmRanges>");
-        x.close("</xtce:DefaultAlarm>");
+        let ranges = |x: &mut Xml| {
+            x.open("<xtce:StaticAlarmRanges>");
+            x.line(&format!(
+                "<xtce:WarningRange minInclusive=\"{}\" maxInclusive=\"{}\"/>",
+                num(l.soft_lo),
+                num(l.soft_hi)
+            ));
+            x.line(&format!(
+                "<xtce:CriticalRange minInclusive=\"{}\" maxInclusive=\"{}\"/>",
+                num(l.hard_lo),
+                num(l.hard_hi)
+            ));
+            x.close("</xtce:StaticAlarmRanges>");
+        };
+        if p.limits_in == crate::modes::ModeSet::ALL {
+            x.open("<xtce:DefaultAlarm>");
+            ranges(x);
+            x.close("</xtce:DefaultAlarm>");
+        } else {
+            // No default alarm: the limits hold only in the root modes of `limits_in`,
+            // one context per mode (raw value of the MODE parameter).
+            x.open("<xtce:ContextAlarmList>");
+            for m in p.limits_in.modes() {
+                x.open("<xtce:ContextAlarm>");
+                ranges(x);
+                x.open("<xtce:ContextMatch>");
+                x.line(&format!(
+                    "<xtce:Comparison parameterRef=\"{}\" useCalibratedValue=\"false\" comparisonOperator=\"==\" value=\"{m}\"/>",
+                    crate::params::by_id(crate::params::pid::MODE).map_or("MODE", |p| p.name)
+                ));
+                x.close("</xtce:ContextMatch>");
+                x.close("</xtce:ContextAlarm>");
+            }
+            x.close("</xtce:ContextAlarmList>");
+        }
     }
     if p.calib.is_identity() {
         x.close("</xtce:IntegerParameterType>");
@@ -526,6 +555,11 @@ pub fn xtce_document_for(robot: u8) -> String {
     }
     for t in TCS {
         for a in t.args {
+            if !a.names.is_none() {
+                let tname = format!("{}_{}_Type", t.name, a.name);
+                enumerated(&mut x, "EnumeratedArgumentType", &tname, a, Some((a.min, a.max)));
+                continue;
+            }
             x.open(&format!(
                 "<xtce:IntegerArgumentType name=\"{}_{}_Type\" shortDescription=\"{}\" signed=\"{}\" sizeInBits=\"{}\">",
                 t.name,
@@ -662,6 +696,12 @@ fn meta_command(x: &mut Xml, t: &TcDef, apid: u16) {
     x.close("</xtce:EntryList>");
     x.line("<xtce:BaseContainer containerRef=\"PUS_TC\"/>");
     x.close("</xtce:CommandContainer>");
+    if let Some(why) = t.hazard {
+        x.line(&format!(
+            "<xtce:DefaultSignificance consequenceLevel=\"critical\" reasonForWarning=\"{}\"/>",
+            esc(why)
+        ));
+    }
     x.close("</xtce:MetaCommand>");
 }
 

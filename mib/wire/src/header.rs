@@ -4,27 +4,19 @@
 use crate::{CdsTime, Error};
 use mib::config::{MAX_PACKET_LEN, TIMESTAMP_LEN};
 
-/// Length of the CCSDS primary header.
-pub const PRIMARY_HEADER_LEN: usize = 6;
-/// PUS-C TC secondary header (version/ack, service, subservice, source ID u16).
-pub const TC_SEC_HEADER_LEN: usize = 5;
-/// PUS-C TM secondary header without the time stamp (version/time ref, service,
-/// subservice, message counter u16, destination ID u16).
-pub const TM_SEC_HEADER_LEN: usize = 7;
-/// Packet error control.
-pub const CRC_LEN: usize = 2;
+// Header lengths, PUS version, CDS p-field and the CCSDS epoch come from the MIB's header
+// tables (`mib::headers`), the one place they are defined.
+pub use mib::headers::{
+    CCSDS_TO_UNIX_DAYS, CRC_LEN, MS_PER_DAY, PRIMARY_HEADER_LEN, TC_SEC_HEADER_LEN, TM_SEC_HEADER_LEN,
+};
 /// Shortest TC: headers and CRC.
 pub const MIN_TC_LEN: usize = PRIMARY_HEADER_LEN + TC_SEC_HEADER_LEN + CRC_LEN;
 /// Shortest TM: headers, time stamp and CRC.
 pub const MIN_TM_LEN: usize = PRIMARY_HEADER_LEN + TM_SEC_HEADER_LEN + TIMESTAMP_LEN + CRC_LEN;
 /// PUS-C version number in the secondary headers.
-pub const PUS_C: u8 = 2;
+pub const PUS_C: u8 = mib::headers::PUS_C_VERSION as u8;
 /// P-field of our CDS short time stamps (16-bit days, no sub-milliseconds).
-pub const CDS_PFIELD: u8 = 0x40;
-/// Days from the CCSDS epoch (1958-01-01) to the Unix epoch (1970-01-01).
-pub const CCSDS_TO_UNIX_DAYS: i64 = 4383;
-/// Milliseconds in a day.
-pub const MS_PER_DAY: i64 = 86_400_000;
+pub const CDS_PFIELD: u8 = mib::headers::CDS_SHORT_PFIELD as u8;
 
 /// CRC tables for four bytes per step: `T[0]` the byte-wise table of poly 0x1021,
 /// `T[k][i]` the register after byte `i` followed by `k` zero bytes (the CRC is linear, so
@@ -416,6 +408,7 @@ mod tests {
         }
         c
     }
+    // verifies: PUS-PKT-01
     #[test]
     fn crc_matches_the_ccitt_false_check_value_and_the_bitwise_definition() {
         assert_eq!(crc16(b"123456789"), 0x29B1);
@@ -426,6 +419,7 @@ mod tests {
             assert_eq!(crc16(&data[..n]), crc16_bitwise(&data[..n]), "{n} bytes");
         }
     }
+    // verifies: PUS-PKT-04
     #[test]
     fn tm_emit_then_parse_gives_the_headers_back() {
         let h = TmHeader {

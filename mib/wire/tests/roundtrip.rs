@@ -205,6 +205,7 @@ fn tm_body(def: &mib::tc::TmDef, s: &mut Src) -> Vec<u8> {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(200))]
 
+    // verifies: DD-DEC-01
     #[test]
     fn every_tm_kind_parses_what_the_mib_describes_and_emits_the_same_bytes(seed in proptest::collection::vec(any::<u8>(), 64..512)) {
         let mut s = Src { b: &seed, i: 0 };
@@ -221,6 +222,7 @@ proptest! {
         }
     }
 
+    // verifies: MMIC-CMD-06
     #[test]
     fn every_tc_kind_parses_what_the_mib_describes_and_emits_the_same_bytes(seed in proptest::collection::vec(any::<u8>(), 64..512)) {
         let mut s = Src { b: &seed, i: 0 };
@@ -237,6 +239,7 @@ proptest! {
         }
     }
 
+    // verifies: DD-ROBUST-01
     #[test]
     fn parse_never_panics_on_arbitrary_bytes(data in proptest::collection::vec(any::<u8>(), 0..300)) {
         for def in mib::tc::TMS {
@@ -249,6 +252,7 @@ proptest! {
         let _ = mib_wire::header::TcPacket::parse(&data);
     }
 
+    // verifies: DD-ROBUST-01
     #[test]
     fn emit_into_a_short_buffer_is_an_error_not_a_panic(seed in proptest::collection::vec(any::<u8>(), 64..256), cut in 0usize..64) {
         let mut s = Src { b: &seed, i: 0 };
@@ -261,6 +265,7 @@ proptest! {
     }
 }
 
+// verifies: PUS-1-01
 #[test]
 fn acceptance_failure_bytes_split_the_request_id_into_its_fields() {
     // TM[1,2] for TC apid 0x101 seq 5, refused with ARG_OUT_OF_RANGE (arg 1, value -3).
@@ -291,6 +296,7 @@ fn acceptance_failure_bytes_split_the_request_id_into_its_fields() {
     assert!(Tm::parse(1, 2, &bytes[..10]).is_err());
 }
 
+// verifies: PUS-5-01
 #[test]
 fn every_event_knows_the_subservice_of_its_severity() {
     for e in mib::events::EVENTS {
@@ -301,6 +307,7 @@ fn every_event_knows_the_subservice_of_its_severity() {
     }
 }
 
+// verifies: PUS-3-01
 #[test]
 fn hk_report_from_values_is_the_structure_the_mib_lists() {
     let h = mib_wire::Hk::from_values(mib::hk::sid::FDIR, |p| p as i64 * 3).unwrap();
@@ -313,6 +320,7 @@ fn hk_report_from_values_is_the_structure_the_mib_lists() {
     assert_eq!(back.hk.get(mib::params::pid::EVENTS_DROPPED), Some(66 * 3));
 }
 
+// verifies: DD-DEC-01
 #[test]
 fn views_read_and_write_the_fixed_fields_in_place() {
     let bytes = [0x19, 0x01, 0xC0, 0x05, 0x00, 0x09, 0x01, 0xFF, 0xFF, 0xFF, 0xFD];
@@ -335,6 +343,7 @@ fn views_read_and_write_the_fixed_fields_in_place() {
 }
 
 proptest! {
+    // verifies: MMIC-CMD-06
     #[test]
     fn view_getters_agree_with_the_repr_of_a_tc(seed in proptest::collection::vec(any::<u8>(), 64..256)) {
         let mut s = Src { b: &seed, i: 0 };
@@ -346,6 +355,7 @@ proptest! {
     }
 }
 
+// verifies: PUS-PKT-01
 #[test]
 fn header_lengths_agree_with_the_exporters_header_tables() {
     use mib::export::layout as x;
