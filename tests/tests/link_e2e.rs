@@ -76,7 +76,7 @@ fn obsw_log(path: &Path) -> Vec<Vec<u8>> {
 /// Raw TM rows of the archive.
 fn archived_tm(db: &Path) -> Vec<Vec<u8>> {
     let c = rusqlite::Connection::open(db).unwrap();
-    let mut q = c.prepare("SELECT raw FROM tm WHERE ok = 1").unwrap();
+    let mut q = c.prepare("SELECT raw FROM packet").unwrap();
     let rows = q.query_map([], |r| r.get::<_, Vec<u8>>(0)).unwrap();
     rows.map(Result::unwrap).collect()
 }
