@@ -463,6 +463,7 @@ fn tcp_pump(mut from: TcpStream, mut to: TcpStream, up: bool, s: Arc<Shared>, in
 mod tests {
     use super::*;
 
+    // verifies: DD-TEST-01
     #[test]
     fn fates_follow_the_probabilities_and_the_seed() {
         let f = Faults::new(0.2, 0.05, 0.05);
@@ -486,6 +487,7 @@ mod tests {
         assert_eq!(ca.forwarded, ca.seen - ca.dropped + ca.duplicated);
     }
 
+    // verifies: DD-TEST-01
     #[test]
     fn bad_probabilities_are_refused() {
         let t = SocketAddr::from(([127, 0, 0, 1], 9));
@@ -495,6 +497,7 @@ mod tests {
         }
     }
 
+    // verifies: DD-TEST-01
     #[test]
     fn udp_and_tcp_are_relayed_and_counted() {
         // An echo "obsw" on UDP and TCP.
@@ -547,6 +550,7 @@ mod tests {
         assert_eq!(relay.counts.down.snapshot().seen, 4);
     }
 
+    // verifies: DD-TEST-01
     #[test]
     fn stops_by_itself_when_idle() {
         let t = SocketAddr::from(([127, 0, 0, 1], 9));

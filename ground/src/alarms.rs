@@ -482,6 +482,7 @@ impl LimitChecker {
 mod tests {
     use super::*;
 
+    // verifies: GND-13
     #[test]
     fn lifecycle_active_ack_clear_closes() {
         let mut a = AlarmState::default();
@@ -493,6 +494,7 @@ mod tests {
         assert!(e.closed());
     }
 
+    // verifies: GND-13
     #[test]
     fn cleared_alarm_waits_for_ack_and_comes_back_unacked() {
         let mut a = AlarmState::default();
@@ -508,6 +510,7 @@ mod tests {
         assert!(a.apply(Input::Ack, 7).unwrap().closed());
     }
 
+    // verifies: GND-13
     #[test]
     fn acknowledging_twice_or_a_closed_alarm_is_refused() {
         let mut a = AlarmState::default();
@@ -518,6 +521,7 @@ mod tests {
         assert_eq!(a.state(), State::Acknowledged);
     }
 
+    // verifies: GND-13
     #[test]
     fn acknowledged_alarm_reactivating_after_clear_needs_new_ack() {
         let mut a = AlarmState::default();
@@ -527,6 +531,7 @@ mod tests {
         assert_eq!(a.apply(Input::Activate, 2).unwrap().to, State::Acknowledged);
     }
 
+    // verifies: GND-13
     #[test]
     fn shelve_hides_until_expiry_then_returns_unacked_if_still_present() {
         let mut a = AlarmState::default();
@@ -538,6 +543,7 @@ mod tests {
         assert_eq!((e.from, e.to), (State::Shelved, State::Active));
     }
 
+    // verifies: GND-13
     #[test]
     fn shelved_alarm_whose_condition_went_away_closes_on_unshelve() {
         let mut a = AlarmState::default();
@@ -548,6 +554,7 @@ mod tests {
         assert_eq!(a.apply(Input::Unshelve, 21), Err(Refused::NotShelved));
     }
 
+    // verifies: GND-13
     #[test]
     fn shelving_closed_alarms_or_into_the_past_is_refused() {
         let mut a = AlarmState::default();
@@ -561,6 +568,7 @@ mod tests {
         volts
     }
 
+    // verifies: GND-13
     #[test]
     fn battery_sag_raises_soft_then_hard_after_persistence() {
         let mut c = LimitChecker::new();
@@ -575,6 +583,7 @@ mod tests {
         assert_eq!(ch.to.severity(), Some(Severity::High));
     }
 
+    // verifies: GND-13
     #[test]
     fn hysteresis_keeps_a_value_hovering_at_the_limit_from_chattering() {
         let mut c = LimitChecker::new();
@@ -593,6 +602,7 @@ mod tests {
         assert_eq!((ch.from, ch.to), (Level::Soft, Level::Ok));
     }
 
+    // verifies: GND-13
     #[test]
     fn interrupted_excursion_does_not_count_as_persistent() {
         let mut c = LimitChecker::new();
@@ -603,6 +613,7 @@ mod tests {
         assert!(c.check(id, 2.2, Some(1)).is_some());
     }
 
+    // verifies: GND-13
     #[test]
     fn regulator_voltage_is_not_checked_in_standby() {
         let mut c = LimitChecker::new();
@@ -613,6 +624,7 @@ mod tests {
         assert_eq!(c.check(pid::V_REG, 0.0, Some(1)).unwrap().to, Level::Hard);
     }
 
+    // verifies: GND-13
     #[test]
     fn parameters_without_limits_are_not_checked() {
         let mut c = LimitChecker::new();
@@ -621,6 +633,7 @@ mod tests {
         }
     }
 
+    // verifies: GND-13, PUS-5-01
     #[test]
     fn event_severities_map_to_alarm_severities() {
         assert_eq!(Severity::of_event(mib::events::Severity::Info), None);

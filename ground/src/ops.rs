@@ -2048,6 +2048,7 @@ timeout = 5
             .collect()
     }
 
+    // verifies: GND-05
     #[test]
     fn executor_runs_steps_in_order_with_a_mock_clock() {
         let pl = plan(TWO_STEPS);
@@ -2091,6 +2092,7 @@ timeout = 5
         assert!(fx.is_empty(), "no heartbeat after the end: {fx:?}");
     }
 
+    // verifies: GND-09
     #[test]
     fn executor_stops_a_robot_on_link_loss_and_resumes_past_done_steps() {
         let pl = plan(TWO_STEPS);
@@ -2121,6 +2123,7 @@ timeout = 5
         assert_eq!(ex.resumed, 1);
     }
 
+    // verifies: GND-06
     #[test]
     fn executor_failure_report_fails_the_step_and_blocks_dependents() {
         let pl = plan(TWO_STEPS);
@@ -2181,6 +2184,7 @@ timeout = 5
         (addr, h)
     }
 
+    // verifies: GND-01
     #[test]
     fn a_tc_is_resent_identically_until_its_completion_and_a_damaged_copy_is_no_verdict() {
         let (addr, fake) = lossy_obsw(1, 2);
@@ -2216,6 +2220,7 @@ timeout = 5
         );
     }
 
+    // verifies: GND-01, DD-ROBUST-02
     #[test]
     fn the_retry_span_fits_in_the_obsw_duplicate_window() {
         let total: u32 = (0..=TC_RETRY_MAX).map(tc_retry_wait_ms).sum();
@@ -2225,6 +2230,7 @@ timeout = 5
         assert_eq!(tc_retry_wait_ms(100), mib::config::TC_RETRY_CAP_MS);
     }
 
+    // verifies: MMIC-VAL-02
     #[test]
     fn link_quality_is_over_the_last_window_of_exchanges() {
         let mut r = RobotStatus::new(1, "127.0.0.1:1".parse().unwrap());

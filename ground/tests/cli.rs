@@ -161,6 +161,7 @@ fn mib_export_writes_files() {
     );
 }
 
+// verifies: GND-03, DD-ROBUST-01
 #[test]
 fn binary_junk_as_a_plan_is_invalid_input() {
     let d = tmpdir("junk");
@@ -175,6 +176,7 @@ fn binary_junk_as_a_plan_is_invalid_input() {
     }
 }
 
+// verifies: GND-03
 #[test]
 fn plan_check_is_linear_in_the_number_of_errors() {
     let d = tmpdir("many-errors");
@@ -201,6 +203,7 @@ fn plan_check_is_linear_in_the_number_of_errors() {
     );
 }
 
+// verifies: GND-07
 #[test]
 fn a_closed_stderr_is_no_panic() {
     let d = tmpdir("closed-stderr");
@@ -218,6 +221,7 @@ fn a_closed_stderr_is_no_panic() {
     assert_eq!(st.code(), Some(3));
 }
 
+// verifies: GND-07
 #[test]
 fn send_names_the_allowed_sides() {
     let o = ground(&[

@@ -161,6 +161,7 @@ fn archived_seqs(dir: &Path) -> BTreeMap<i64, u32> {
     m
 }
 
+// verifies: GND-11
 #[test]
 fn check_config_names_file_line_and_column() {
     let dir = tmpdir("cfg");
@@ -194,6 +195,7 @@ fn check_config_names_file_line_and_column() {
     assert_eq!(out.status.code(), Some(0), "{}", text(&out));
 }
 
+// verifies: GND-10, GND-02
 #[test]
 fn kill_9_and_restart_lose_and_duplicate_nothing_alarms_and_sigterm() {
     let (_o, addr, ctl) = start_obsw(1);
@@ -275,6 +277,7 @@ fn kill_9_and_restart_lose_and_duplicate_nothing_alarms_and_sigterm() {
     assert!(t.contains(&addr.to_string()) && t.contains("never"), "{t}");
 }
 
+// verifies: GND-10, GND-13
 #[test]
 fn full_disk_raises_an_alarm_and_the_collector_goes_on_losing_nothing() {
     let (_o, addr, _ctl) = start_obsw(1);

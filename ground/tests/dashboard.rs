@@ -125,6 +125,7 @@ fn stream_ids(addr: SocketAddr, query: &str, last_event_id: Option<u64>, n: usiz
     (ids, kinds)
 }
 
+// verifies: GND-18, PUS-17-01
 #[test]
 fn ping_round_trip_returns_a_request_id_and_its_stages() {
     let hub = Hub::new();
@@ -163,6 +164,7 @@ fn ping_round_trip_returns_a_request_id_and_its_stages() {
     assert_eq!(http(srv.local_addr(), "GET", "/api/tc/nope", &[], None).0, 404);
 }
 
+// verifies: GND-18, PUS-8-02
 #[test]
 fn arguments_are_checked_and_hazardous_tcs_need_confirmation() {
     let (srv, rec) = start(None, Hub::new());
@@ -185,6 +187,7 @@ fn arguments_are_checked_and_hazardous_tcs_need_confirmation() {
     assert_eq!(rec.sent.lock().unwrap()[0].2, vec![1, 1, 0]);
 }
 
+// verifies: GND-16
 #[test]
 fn event_stream_resumes_from_last_event_id_and_resets_when_too_far_behind() {
     let hub = Hub::with_capacity(50, 16);
@@ -215,6 +218,7 @@ fn event_stream_resumes_from_last_event_id_and_resets_when_too_far_behind() {
     assert_eq!(hub.stats().resets, 1);
 }
 
+// verifies: GND-15
 #[test]
 fn a_token_guards_the_api_and_commanding() {
     let (srv, rec) = start(Some("s3cret"), Hub::new());
@@ -252,6 +256,7 @@ fn a_token_guards_the_api_and_commanding() {
     assert!(matches!(err, Err(dashboard::ServeError::TokenRequired(_))));
 }
 
+// verifies: GND-15
 #[test]
 fn without_a_token_only_loopback_host_names_are_answered() {
     let (srv, _) = start(None, Hub::new());
@@ -266,6 +271,7 @@ fn without_a_token_only_loopback_host_names_are_answered() {
     assert!(out.starts_with("HTTP/1.1 403"), "{out}");
 }
 
+// verifies: GND-18, GND-13
 #[test]
 fn alarms_are_acknowledged_through_the_commander() {
     let hub = Hub::new();
@@ -296,6 +302,7 @@ fn alarms_are_acknowledged_through_the_commander() {
     assert_eq!(snap["alarms"][0]["source"], "V_BAT_A");
 }
 
+// verifies: GND-17
 #[test]
 fn plots_merge_archive_and_live_samples_per_column() {
     let hub = Hub::new();
@@ -334,6 +341,7 @@ fn plots_merge_archive_and_live_samples_per_column() {
     assert_eq!(st, 404);
 }
 
+// verifies: GND-15
 #[test]
 fn the_page_is_served_from_the_binary() {
     let (srv, _) = start(None, Hub::new());
@@ -353,6 +361,7 @@ fn the_page_is_served_from_the_binary() {
     assert_eq!(ping.unwrap()["hazard"], Value::Null);
 }
 
+// verifies: GND-16
 #[test]
 fn stop_returns_with_an_event_stream_open() {
     let (srv, _) = start(None, Hub::new());

@@ -114,6 +114,7 @@ fn wait_for<T>(secs: u64, what: &str, mut f: impl FnMut() -> Option<T>) -> T {
     }
 }
 
+// verifies: GND-16, GND-18
 #[test]
 fn live_robot_ping_and_injected_fault_through_the_dashboard_api() {
     let (_obsw, tc, ctl) = start_obsw(1);

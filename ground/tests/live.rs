@@ -411,6 +411,7 @@ fn watch_shows_housekeeping_without_a_request() {
     assert!(hk >= 2, "{}", text(&out));
 }
 
+// verifies: PUS-PKT-02, GND-01
 #[test]
 fn a_run_against_the_wrong_robot_says_the_replies_carry_another_apid() {
     // Robot 2's OBSW at the address given for robot 1.

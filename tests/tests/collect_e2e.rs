@@ -131,6 +131,7 @@ fn tmpdir() -> PathBuf {
     d
 }
 
+// verifies: GND-10, GND-02, GND-12
 #[test]
 fn collector_archives_everything_once_through_loss_blackout_kill_and_raises_alarms() {
     let dir = tmpdir();

@@ -212,6 +212,7 @@ const BAD: Faults = Faults {
     corrupt: 0.05,
 };
 
+// verifies: GND-01, GND-02, GND-12
 #[test]
 fn checkout_completes_exactly_once_and_gap_free_through_a_bad_link() {
     // Several seeds at once (each its own obsw, relay and ground).
@@ -227,6 +228,7 @@ fn checkout_completes_exactly_once_and_gap_free_through_a_bad_link() {
 
 /// A junk sender at 50 datagrams/s (empty, garbage and rejected TCs) never takes the
 /// downlink: the ground keeps getting every HK report.
+// verifies: DD-LINK-02, DD-ROBUST-01
 #[test]
 fn a_junk_sender_does_not_take_the_downlink() {
     let o = Obsw::start(&[]);
@@ -277,6 +279,7 @@ fn proc_status(pid: u32, field: &str) -> u64 {
 
 /// A flood of valid pings on TCP plus hundreds of idle connections: threads and memory
 /// stay flat, connections beyond the cap are refused, a ping is answered right after.
+// verifies: DD-LINK-02, DD-ROBUST-01
 #[test]
 fn a_tcp_flood_keeps_the_obsw_bounded_and_answering() {
     let o = Obsw::start(&[]);
@@ -332,6 +335,7 @@ fn a_tcp_flood_keeps_the_obsw_bounded_and_answering() {
 
 /// `kill -9` of the obsw mid-plan is reported within 3 s with the no-answer exit code;
 /// `run --resume` against a new obsw continues without repeating completed steps.
+// verifies: GND-09, GND-06
 #[test]
 fn a_killed_obsw_is_reported_fast_and_the_run_resumes() {
     let dir = tmpdir("kill");
@@ -408,6 +412,7 @@ fn a_killed_obsw_is_reported_fast_and_the_run_resumes() {
 
 /// A TCP frame longer than any packet gets TM[1,2] FRAME_TOO_LONG for the request ID its
 /// head carries; the connection stays usable.
+// verifies: DD-LINK-02, PUS-1-02
 #[test]
 fn an_oversize_tcp_frame_is_refused_with_its_own_code() {
     use mib::failure::FailureCode as F;
@@ -426,6 +431,7 @@ fn an_oversize_tcp_frame_is_refused_with_its_own_code() {
 }
 
 /// Over TCP the end of the connection is the loss: reported at once.
+// verifies: GND-09, DD-LINK-01
 #[test]
 fn a_killed_obsw_over_tcp_is_reported_at_the_connection_end() {
     let mut o = Obsw::start(&[]);

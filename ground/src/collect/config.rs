@@ -381,6 +381,7 @@ pub fn load(path: &Path) -> anyhow::Result<Config> {
 mod tests {
     use super::*;
 
+    // verifies: GND-11
     #[test]
     fn a_full_config_reads() {
         let c = parse(
@@ -418,6 +419,7 @@ transport = "tcp"
         assert_eq!(c.loss_ms(2000), 6000);
     }
 
+    // verifies: GND-11
     #[test]
     fn every_error_has_its_line_and_column() {
         let e = parse(
@@ -433,6 +435,7 @@ transport = "tcp"
         assert_eq!(e.errors.len(), 4);
     }
 
+    // verifies: GND-11
     #[test]
     fn unknown_keys_and_bad_toml_are_located() {
         let e = parse("c.toml", "[link]\nloss_timeout = 5\n").unwrap_err();
@@ -444,6 +447,7 @@ transport = "tcp"
         assert!(e.to_string().contains("c.toml:4:10: robot 1 is listed twice"));
     }
 
+    // verifies: GND-11
     #[test]
     fn durations_read() {
         assert_eq!(parse_duration_ms("30d"), Some(2_592_000_000));

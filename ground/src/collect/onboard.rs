@@ -107,6 +107,7 @@ pub fn store_done(tm: &Tm) -> Option<StoreDone> {
 mod tests {
     use super::*;
 
+    // verifies: GND-12, PUS-15-01
     #[test]
     fn subscription_and_store_requests_build_from_the_mib() {
         let t = subscribe_tc(1, 5).unwrap();
@@ -117,6 +118,7 @@ mod tests {
         assert_eq!(h.args, vec![1, 100]);
     }
 
+    // verifies: GND-12, PUS-15-01
     #[test]
     fn store_end_report_gives_the_oldest_stored_packet() {
         let t = pus::CdsShort::from_unix_ms(1_000_000);

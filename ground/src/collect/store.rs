@@ -838,6 +838,7 @@ mod tests {
         d
     }
 
+    // verifies: GND-13, GND-14
     #[test]
     fn alarm_rows_follow_the_state_machine_and_reopen_after_closing() {
         let path = tmp("alarm.db");
@@ -913,6 +914,7 @@ mod tests {
         assert_eq!(lost_runs(&c, Some(3)).unwrap().len(), 1);
     }
 
+    // verifies: GND-14
     #[test]
     fn prune_deletes_old_rows_and_keeps_open_alarms() {
         let path = tmp("prune.db");

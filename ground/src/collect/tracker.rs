@@ -363,6 +363,7 @@ mod tests {
         Pos { seq, obt_ms: obt }
     }
 
+    // verifies: GND-12
     #[test]
     fn in_order_packets_are_new_and_repeats_duplicates() {
         let mut t = ApidTracker::default();
@@ -377,6 +378,7 @@ mod tests {
         assert_eq!(t.holes(), 0);
     }
 
+    // verifies: GND-12, GND-02
     #[test]
     fn lost_packets_become_holes_requested_by_range_and_filled_once() {
         let mut t = ApidTracker::resume(Some(p(10, 1000)));
@@ -391,6 +393,7 @@ mod tests {
         assert_eq!(t.filled, 1);
     }
 
+    // verifies: GND-12
     #[test]
     fn first_packet_without_history_asks_for_the_earlier_packets_of_the_boot() {
         let mut t = ApidTracker::default();
@@ -399,6 +402,7 @@ mod tests {
         assert_eq!(t.on_packet(p(0, 100), true, 20), Verdict::Filled);
     }
 
+    // verifies: GND-12
     #[test]
     fn nearby_holes_are_asked_for_in_one_range() {
         let fill = |t: &mut ApidTracker| {
@@ -416,6 +420,7 @@ mod tests {
         assert_eq!(t.due(0, 0, 0, 3, 8, 0), vec![(1, 1), (3, 99), (201, 201)]);
     }
 
+    // verifies: GND-12
     #[test]
     fn a_long_outage_is_asked_for_in_bounded_pieces() {
         let mut t = ApidTracker::resume(Some(p(0, 0)));
@@ -427,6 +432,7 @@ mod tests {
         );
     }
 
+    // verifies: GND-12, PUS-PKT-03
     #[test]
     fn wrap_of_the_sequence_count_is_not_a_gap() {
         let mut t = ApidTracker::resume(Some(p(16382, 1)));
@@ -440,6 +446,7 @@ mod tests {
         assert_eq!(t.due(1000, 0, 0, 3, 8, 0), vec![(16381, 2)]);
     }
 
+    // verifies: GND-12, PUS-PKT-03
     #[test]
     fn reboot_restarting_counts_is_neither_a_16k_gap_nor_duplicates() {
         let mut t = ApidTracker::resume(Some(p(5000, 10_000)));
@@ -457,6 +464,7 @@ mod tests {
         assert_eq!(t.duplicates, 0);
     }
 
+    // verifies: GND-12
     #[test]
     fn reboot_seen_without_its_boot_event_leaves_the_first_counts_as_holes() {
         let mut t = ApidTracker::resume(Some(p(7000, 10_000)));
@@ -465,6 +473,7 @@ mod tests {
         assert_eq!(t.on_packet(p(0, 29_000), true, 0), Verdict::Filled);
     }
 
+    // verifies: GND-12
     #[test]
     fn holes_never_delivered_are_declared_after_the_retries() {
         let mut t = ApidTracker::resume(Some(p(1, 1)));
@@ -477,6 +486,7 @@ mod tests {
         assert_eq!(t.lost_packets, 1);
     }
 
+    // verifies: GND-12
     #[test]
     fn holes_older_than_the_store_are_overwritten() {
         let mut t = ApidTracker::resume(Some(p(100, 100)));
@@ -490,6 +500,7 @@ mod tests {
         assert_eq!(t.due(0, 0, 0, 3, 8, 0), vec![(150, 199)]);
     }
 
+    // verifies: GND-12
     #[test]
     fn a_stale_copy_from_before_a_reboot_is_a_duplicate() {
         let mut t = ApidTracker::resume(Some(p(10, 50_000)));

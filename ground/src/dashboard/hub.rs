@@ -477,6 +477,7 @@ mod tests {
         }
     }
 
+    // verifies: GND-16
     #[test]
     fn reconnect_replays_exactly_what_was_missed() {
         let hub = Hub::with_capacity(10, 16);
@@ -488,6 +489,7 @@ mod tests {
         assert_eq!(ids(&hub.subscribe(None)), Vec::<u64>::new());
     }
 
+    // verifies: GND-16
     #[test]
     fn a_client_behind_the_ring_gets_a_reset() {
         let hub = Hub::with_capacity(4, 16);
@@ -500,6 +502,7 @@ mod tests {
         assert_eq!(hub.stats().resets, 1);
     }
 
+    // verifies: GND-16
     #[test]
     fn hk_gets_units_and_limit_states_from_the_mib() {
         let hub = Hub::new();
@@ -514,6 +517,7 @@ mod tests {
         assert_eq!(hub.live_samples(2, "V_BAT_A", 0, 1000), vec![(100, 9.0)]);
     }
 
+    // verifies: GND-18, PUS-1-03
     #[test]
     fn stages_accumulate_on_the_sent_command_and_orphans_are_counted() {
         let hub = Hub::new();

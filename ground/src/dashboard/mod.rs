@@ -325,6 +325,7 @@ fn column_start(t0_ms: i64, span: i128, cols: i128, c: i128) -> i64 {
 mod tests {
     use super::*;
 
+    // verifies: GND-17
     #[test]
     fn decimation_keeps_min_and_max_of_every_column() {
         let s: Vec<(i64, f64)> = (0..1000).map(|i| (i, (i % 10) as f64)).collect();
@@ -336,6 +337,7 @@ mod tests {
         }
     }
 
+    // verifies: GND-17
     #[test]
     fn one_outlier_stays_a_spike_and_a_nan_blanks_nothing() {
         let mut s: Vec<(i64, f64)> = (0..100).map(|i| (i, 12.0)).collect();
@@ -348,6 +350,7 @@ mod tests {
         assert_eq!(d[7], (70, 12.0, 12.0));
     }
 
+    // verifies: GND-17
     #[test]
     fn empty_columns_are_left_out_and_range_is_half_open() {
         let s = vec![(0, 1.0), (5, 2.0), (99, 3.0), (100, 4.0)];
@@ -357,6 +360,7 @@ mod tests {
         assert!(decimate(&s, 0, 100, 0).0.is_empty());
     }
 
+    // verifies: GND-16, GND-13
     #[test]
     fn limit_state_follows_the_mib_bands() {
         let p = mib::params::by_name("V_BAT_A").unwrap();
@@ -367,6 +371,7 @@ mod tests {
         assert_eq!(LimitState::check(None, 9.5), LimitState::None);
     }
 
+    // verifies: GND-16, MMIC-MOT-01
     #[test]
     fn config_state_names_faces_from_the_mib() {
         let c = ConfigState::from_mib(0);

@@ -557,6 +557,7 @@ async fn series(State(app): State<App>, Query(q): Query<SeriesQuery>) -> Respons
 mod tests {
     use super::*;
 
+    // verifies: GND-15
     #[test]
     fn only_loopback_hosts_pass_without_a_token() {
         assert!(loopback_host("127.0.0.1:8080"));
@@ -566,6 +567,7 @@ mod tests {
         assert!(!loopback_host("10.0.0.5:8080"));
     }
 
+    // verifies: GND-15
     #[test]
     fn binding_elsewhere_needs_a_token() {
         let any: SocketAddr = "0.0.0.0:8080".parse().unwrap();

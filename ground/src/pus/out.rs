@@ -745,6 +745,7 @@ mod tests {
         serde_json::from_slice(&w.out).unwrap()
     }
 
+    // verifies: DD-DEC-01, PUS-1-02
     #[test]
     fn failure_report_json_splits_request_id_and_names_code_and_data() {
         // TM[1,4] START_FAILURE for TC 0x1901/0xC007: NOT_ALLOWED_IN_MODE, mode 0.
@@ -760,6 +761,7 @@ mod tests {
         assert_eq!(v["time"], "2021-01-30T00:00:01.000Z");
     }
 
+    // verifies: DD-DEC-01, PUS-200-01
     #[test]
     fn mode_changed_event_names_node_and_modes_of_that_node() {
         let mut src = mib::events::eid::MODE_CHANGED.to_be_bytes().to_vec();
@@ -774,6 +776,7 @@ mod tests {
         assert_eq!(v["body"]["params"]["to"]["name"], "ON");
     }
 
+    // verifies: DD-DEC-01, GND-08
     #[test]
     fn a_body_that_does_not_match_is_an_error_line_with_its_bytes() {
         let v = json_of(&build_tm(0x101, 3, 17, 2, 0, &T0, &[1, 2]));
@@ -782,6 +785,7 @@ mod tests {
         assert_eq!(v["data"], "0102");
     }
 
+    // verifies: DD-DEC-01
     #[test]
     fn engineering_values_show_one_raw_count() {
         assert_eq!(decimals(0.001), 3);
@@ -797,6 +801,7 @@ mod tests {
         assert_eq!(String::from_utf8(w.out).unwrap(), "-0.041 9.5971 23.58");
     }
 
+    // verifies: DD-DEC-01
     #[test]
     fn every_mib_name_and_unit_is_plain_json() {
         let plain = |s: &str| s.bytes().all(|c| c >= 0x20 && c != b'"' && c != b'\\');

@@ -419,7 +419,7 @@ mod tests {
             assert_eq!(crc16(&data[..n]), crc16_bitwise(&data[..n]), "{n} bytes");
         }
     }
-    // verifies: PUS-PKT-04
+    // verifies: PUS-PKT-04, ICD-06
     #[test]
     fn tm_emit_then_parse_gives_the_headers_back() {
         let h = TmHeader {

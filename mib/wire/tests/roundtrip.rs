@@ -205,7 +205,7 @@ fn tm_body(def: &mib::tc::TmDef, s: &mut Src) -> Vec<u8> {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(200))]
 
-    // verifies: DD-DEC-01
+    // verifies: DD-DEC-01, ICD-06
     #[test]
     fn every_tm_kind_parses_what_the_mib_describes_and_emits_the_same_bytes(seed in proptest::collection::vec(any::<u8>(), 64..512)) {
         let mut s = Src { b: &seed, i: 0 };
@@ -222,7 +222,7 @@ proptest! {
         }
     }
 
-    // verifies: MMIC-CMD-06
+    // verifies: MMIC-CMD-06, ICD-06
     #[test]
     fn every_tc_kind_parses_what_the_mib_describes_and_emits_the_same_bytes(seed in proptest::collection::vec(any::<u8>(), 64..512)) {
         let mut s = Src { b: &seed, i: 0 };
@@ -320,7 +320,7 @@ fn hk_report_from_values_is_the_structure_the_mib_lists() {
     assert_eq!(back.hk.get(mib::params::pid::EVENTS_DROPPED), Some(66 * 3));
 }
 
-// verifies: DD-DEC-01
+// verifies: DD-DEC-01, ICD-06
 #[test]
 fn views_read_and_write_the_fixed_fields_in_place() {
     let bytes = [0x19, 0x01, 0xC0, 0x05, 0x00, 0x09, 0x01, 0xFF, 0xFF, 0xFF, 0xFD];
@@ -343,7 +343,7 @@ fn views_read_and_write_the_fixed_fields_in_place() {
 }
 
 proptest! {
-    // verifies: MMIC-CMD-06
+    // verifies: MMIC-CMD-06, ICD-06
     #[test]
     fn view_getters_agree_with_the_repr_of_a_tc(seed in proptest::collection::vec(any::<u8>(), 64..256)) {
         let mut s = Src { b: &seed, i: 0 };
@@ -355,7 +355,7 @@ proptest! {
     }
 }
 
-// verifies: PUS-PKT-01
+// verifies: PUS-PKT-01, ICD-06
 #[test]
 fn header_lengths_agree_with_the_exporters_header_tables() {
     use mib::export::layout as x;

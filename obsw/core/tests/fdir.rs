@@ -354,7 +354,7 @@ fn bolting_failure_goes_to_standby() {
     c.recover("clear");
 }
 
-// verifies: MMIC-FLT-03
+// verifies: MMIC-FLT-03, MMIC-CMD-07, PUS-8-01
 #[test]
 fn initial_state_mismatch_is_refused_and_goes_to_standby() {
     let mut c = Rig::start();

@@ -1385,6 +1385,7 @@ fn primitive_segments(from: u8, to: u8, prim: u8) -> Vec<Seg, MAX_SEGS> {
 mod tests {
     use super::*;
 
+    // verifies: MMIC-MOT-03
     #[test]
     fn primitives_are_release_move_grip_and_confirm() {
         // matched Xneg -> "Xpos Xneg": A releases, arms extend, A grips
@@ -1439,6 +1440,7 @@ mod tests {
         }
     }
 
+    // verifies: MMIC-CMD-08, MMIC-CMD-07
     #[test]
     fn controller_refuses_when_busy_unpowered_mismatched_or_unreachable() {
         let mut c = Controller::new();
@@ -1499,6 +1501,7 @@ mod tests {
         );
     }
 
+    // verifies: PUS-20-01
     #[test]
     fn controller_answers_every_domain_parameter() {
         let c = Controller::new();
@@ -1511,6 +1514,7 @@ mod tests {
         assert_eq!(c.param(pid::CONFIG_STATE), Some(255));
     }
 
+    // verifies: MMIC-MODE-04
     #[test]
     fn module_modes_follow_the_root_mode_and_actions_name_their_function() {
         use mib::modes::robot_mode;
@@ -1575,6 +1579,7 @@ mod tests {
         }
     }
 
+    // verifies: MMIC-MODE-01, MMIC-MODE-03
     #[test]
     fn module_modes_off_unpowers_everything_and_on_powers() {
         let mut l = Loop::new();
@@ -1599,6 +1604,7 @@ mod tests {
         assert_eq!(l.bout.side.arm_pwm, None);
     }
 
+    // verifies: MMIC-CTL-06, MMIC-AB-06
     #[test]
     fn hold_mode_aborts_running_motion_and_keeps_position() {
         let mut l = Loop::new();
@@ -1659,6 +1665,7 @@ mod tests {
         assert!(l.c.start(Action::RotateHip { cdeg: 4000 }, l.t).is_ok());
     }
 
+    // verifies: MMIC-CTL-06, PUS-200-01
     #[test]
     fn entering_hold_during_a_hip_rotation_ends_it_and_same_modes_do_not() {
         let mut l = Loop::new();
@@ -1675,6 +1682,7 @@ mod tests {
         assert!(l.out.reports.is_empty());
     }
 
+    // verifies: MMIC-CTL-06
     #[test]
     fn abort_holds_arm_a_and_board_b_where_they_are() {
         let mut l = Loop::new();
@@ -1699,6 +1707,7 @@ mod tests {
         assert!(l.out.reports.is_empty());
     }
 
+    // verifies: MMIC-CMD-04
     #[test]
     fn move_arm_completes_when_board_b_reports_the_target() {
         let mut l = Loop::new();
@@ -1724,6 +1733,7 @@ mod tests {
         assert_eq!(l.c.param(pid::ARM_B_TARGET), Some(1500));
     }
 
+    // verifies: MMIC-AB-07
     #[test]
     fn board_b_modes_are_resent_after_b_restarts() {
         let mut l = Loop::new();
@@ -1735,6 +1745,7 @@ mod tests {
         assert_eq!(l.bout.side.arm_pwm, Some(servo::ARM_CONTRACTED_US));
     }
 
+    // verifies: PUS-20-01
     #[test]
     fn tunables_reach_the_controller_and_bad_values_are_refused() {
         let mut c = Controller::new();
@@ -1748,6 +1759,7 @@ mod tests {
     }
 
     proptest::proptest! {
+        // verifies: MMIC-AB-04, DD-ROBUST-01
         #[test]
         fn controller_never_panics_on_garbage_link_bytes(
             chunks in proptest::collection::vec(proptest::collection::vec(proptest::prelude::any::<u8>(), 0..80), 1..20)

@@ -586,6 +586,7 @@ mod tests {
         got
     }
 
+    // verifies: DD-LINK-02
     #[test]
     fn subscribers_are_bounded_and_leases_expire() {
         let (_i, mut down, _b) = net(Duration::from_millis(200));
@@ -607,6 +608,7 @@ mod tests {
         assert!(down.subscribers(t0 + Duration::from_millis(400)).is_empty());
     }
 
+    // verifies: DD-LINK-02, DD-LINK-01
     #[test]
     fn every_subscriber_gets_tm() {
         let (_i, mut down, _b) = net(Duration::from_secs(10));
@@ -623,6 +625,7 @@ mod tests {
         }
     }
 
+    // verifies: DD-LINK-02
     #[test]
     fn tcp_connections_are_capped_and_frames_bounded() {
         let (mut inputs, mut down, bound) = net(Duration::from_secs(10));
@@ -654,6 +657,7 @@ mod tests {
         );
     }
 
+    // verifies: DD-LINK-02, DD-ROBUST-01
     #[test]
     fn a_flood_is_read_only_as_fast_as_it_is_served() {
         let (mut inputs, mut down, bound) = net(Duration::from_secs(10));
@@ -703,6 +707,7 @@ mod tests {
         assert_eq!(served * frame.len(), written);
     }
 
+    // verifies: DD-LINK-02
     #[test]
     fn a_client_that_stops_reading_is_disconnected() {
         let (mut inputs, mut down, bound) = net(Duration::from_secs(10));
