@@ -134,7 +134,11 @@ fn lex(src: &str) -> (Vec<String>, Vec<bool>) {
                 }
             }
             St::Str => {
-                if c == '\\' {
+                if c == '\\' && next == Some('\n') {
+                    // a line continuation: the newline still ends a line
+                    i += 1;
+                    continue;
+                } else if c == '\\' {
                     i += 2;
                     continue;
                 } else if c == '"' {
@@ -335,6 +339,16 @@ const NOT_A_FN: u8 = 0;
         let (tags, orphans) = scan(Path::new("f.rs"), src);
         assert!(tags.is_empty(), "{tags:?}");
         assert!(orphans.is_empty(), "{orphans:?}");
+    }
+
+    // verifies: REV-TRACE-01
+    #[test]
+    fn a_string_continued_over_lines_keeps_the_line_numbers() {
+        let src = "const S: &str = \"a \\\n  b\";\n// verifies: X-1\n#[test]\nfn after_continuation() {}\n";
+        let (tags, orphans) = scan(Path::new("x.rs"), src);
+        assert!(orphans.is_empty());
+        assert_eq!(tags.len(), 1);
+        assert_eq!((tags[0].line, tags[0].fn_name.as_str()), (3, "after_continuation"));
     }
 
     // verifies: REV-TRACE-01
