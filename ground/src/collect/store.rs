@@ -873,6 +873,7 @@ mod tests {
         assert_eq!(alarm_input(&mut c, id2, Input::Tick, 100).unwrap(), State::Active);
     }
 
+    // verifies: GND-12, GND-14, GND-02
     #[test]
     fn unrecoverable_holes_reach_the_archives_gap_notes() {
         let path = tmp("gapnote.db");
