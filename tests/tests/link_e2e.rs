@@ -323,7 +323,10 @@ fn a_tcp_flood_keeps_the_obsw_bounded_and_answering() {
         .iter()
         .filter(|t| t.event_id() == Some(mib::events::eid::TCP_CONNECTION_REFUSED))
         .count();
-    assert!(refused > 0, "no TCP_CONNECTION_REFUSED event reached the subscribed ground");
+    assert!(
+        refused > 0,
+        "no TCP_CONNECTION_REFUSED event reached the subscribed ground"
+    );
     // Answered right after (UDP, subscribed with the ping itself).
     std::thread::sleep(Duration::from_millis(200));
     let mut c = Client::udp(&o);
