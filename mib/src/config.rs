@@ -56,8 +56,11 @@ pub const TM_QUEUE_DEPTH: usize = 64;
 pub const TM_STORE_CAPACITY: usize = 4096;
 /// PUS 11 schedule capacity (activities).
 pub const SCHEDULE_CAPACITY: usize = 32;
-/// Number of recent TC request IDs remembered for duplicate suppression.
-pub const DUPLICATE_WINDOW: usize = 64;
+/// Number of recent TC request IDs remembered for duplicate suppression. A ground's
+/// heartbeat pings take about `TC_RETRY_SPAN_MS / GROUND_HEARTBEAT_MS` (~38) entries in
+/// one retry span; 128 leaves room for ~90 other TCs in that span, so a plan TC is
+/// still remembered at its last resend (the core asserts the relation at compile time).
+pub const DUPLICATE_WINDOW: usize = 128;
 /// A TC seen longer ago than this is executed again even with the same request ID and
 /// CRC (a ground restarted its sequence counts).
 pub const DUPLICATE_MAX_AGE_MS: u32 = 60_000;

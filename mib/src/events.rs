@@ -93,6 +93,8 @@ events! {
     BOLT_ATTEMPT_FAILED = 0x020B, Low, false, ["side": U8 @SIDE_NAMES, "pair": U8, "attempt": U8], "One bolting attempt failed; retrying";
     PREVIOUS_PANIC = 0x020C, High, false, ["reset_cause": U8 @RESET_CAUSE_NAMES, "line": U32, "file_crc": U32], "The previous run ended in a panic (location recorded before the reset; file_crc = CRC-32 of the source path)";
     EVENT_QUEUE_OVERFLOW = 0x020D, Low, false, ["dropped": U16], "Event reports dropped because the event queue was full (total in HK EVENTS_DROPPED; raised throttled, dropped = count since the last report)";
+    TCP_CONNECTION_REFUSED = 0x020E, Low, false, ["refused": U32], "Ground link: TCP connections refused because TCP_MAX_CONNECTIONS were open (refused = total since boot; at most one report per control period, then throttled)";
+    TCP_CLIENT_DROPPED = 0x020F, Medium, false, ["dropped": U32], "Ground link: TCP clients disconnected because their unsent TM passed TCP_TM_BACKLOG bytes (dropped = total since boot; the TM stays in the on-board store)";
 }
 
 /// Events exempt from throttling (`config::EVENT_THROTTLE_MAX`): `MODE_CHANGED` is

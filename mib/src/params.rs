@@ -174,6 +174,21 @@ pub const fn limits_apply(param: &ParamDef, root_mode: u32) -> bool {
     param.limits.is_some() && param.limits_in.contains(root_mode)
 }
 
+/// Ground-side limit checking (collector alarms, dashboard colouring): consecutive HK
+/// samples a value must be beyond a limit before its level rises, and back inside the
+/// limit by [`limit_hysteresis`] before it falls. On board, PUS 12 monitors keep their own
+/// persistence (`fdir::MONITORS`).
+pub const GROUND_LIMIT_PERSISTENCE: u8 = 2;
+/// Hysteresis around each limit for ground-side checking, in per-mille of the soft band
+/// (`soft_hi - soft_lo`).
+pub const GROUND_LIMIT_HYSTERESIS_PERMILLE: u16 = 20;
+
+/// Hysteresis around each limit of `l` in engineering units
+/// (`GROUND_LIMIT_HYSTERESIS_PERMILLE` of the soft band, never 0).
+pub fn limit_hysteresis(l: &crate::types::Limits) -> f64 {
+    ((l.soft_hi - l.soft_lo).abs() * f64::from(GROUND_LIMIT_HYSTERESIS_PERMILLE) / 1000.0).max(f64::EPSILON)
+}
+
 /// [`limits_apply`] for a sample whose root mode is not known (no `MODE` value yet):
 /// only the limits that hold in every root mode apply.
 pub const fn limits_always_apply(param: &ParamDef) -> bool {

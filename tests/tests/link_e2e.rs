@@ -285,6 +285,9 @@ fn a_tcp_flood_keeps_the_obsw_bounded_and_answering() {
     let o = Obsw::start(&[]);
     let pid = o.pid();
     let (threads0, rss0) = (proc_status(pid, "Threads:"), proc_status(pid, "VmRSS:"));
+    // A ground subscribed on UDP sees the refusals as events, not only as counters.
+    let mut watcher = Client::udp(&o);
+    watcher.subscribe();
     let mut idle: Vec<TcpStream> = (0..300).filter_map(|_| TcpStream::connect(o.tcp).ok()).collect();
     let flood_addr: SocketAddr = o.tcp;
     let apid = o.apid;
@@ -318,6 +321,15 @@ fn a_tcp_flood_keeps_the_obsw_bounded_and_answering() {
     assert!(sent > 0);
     assert!(threads1 <= threads0 + 2, "threads {threads0} -> {threads1}");
     assert!(rss1 < rss0 + 64 * 1024, "RSS {rss0} kB -> {rss1} kB");
+    let refused = watcher
+        .recv_for(Duration::from_millis(500))
+        .iter()
+        .filter(|t| t.event_id() == Some(mib::events::eid::TCP_CONNECTION_REFUSED))
+        .count();
+    assert!(
+        refused > 0,
+        "no TCP_CONNECTION_REFUSED event reached the subscribed ground"
+    );
     // Answered right after (UDP, subscribed with the ping itself).
     std::thread::sleep(Duration::from_millis(200));
     let mut c = Client::udp(&o);

@@ -418,6 +418,12 @@ pub fn icd_markdown() -> String {
     );
     let _ = writeln!(
         o,
+        "Ground-side checking (collector alarms, dashboard colours): a level rises after {} consecutive\nsamples beyond a limit (`GROUND_LIMIT_PERSISTENCE`) and falls once the value is back inside by\n{} ‰ of the soft band (`GROUND_LIMIT_HYSTERESIS_PERMILLE`).\n",
+        params::GROUND_LIMIT_PERSISTENCE,
+        params::GROUND_LIMIT_HYSTERESIS_PERMILLE
+    );
+    let _ = writeln!(
+        o,
         "| ID | name | type | unit | calibration | soft limits | hard limits | limits apply in | SCOS-2000 | description |"
     );
     let _ = writeln!(o, "|---:|---|---|---|---|---|---|---|---|---|");

@@ -24,6 +24,15 @@ use crate::services::time::TimeReports;
 use crate::time::OnboardTime;
 use crate::tm::{TmSink, TmStore};
 
+/// Something the platform's ground link did on its own, for [`Obsw::link_event`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LinkEvent {
+    /// A TCP connection was refused (connection cap); `total` since boot.
+    TcpRefused { total: u32 },
+    /// A TCP client was disconnected (TM backlog bound); `total` since boot.
+    TcpClientDropped { total: u32 },
+}
+
 /// Start-up configuration of one robot's OBSW.
 #[derive(Clone, Copy, Debug)]
 pub struct Config {
@@ -175,6 +184,15 @@ impl<S: TmStore> Obsw<S> {
             &[reset_cause as i64, line as i64, file_crc as i64],
             sink,
         );
+    }
+
+    /// Reports what the platform's ground link did on its own (host TCP bounds): events
+    /// `TCP_CONNECTION_REFUSED` / `TCP_CLIENT_DROPPED` with the totals since boot.
+    pub fn link_event(&mut self, now: u64, ev: LinkEvent, sink: &mut impl TmSink) {
+        match ev {
+            LinkEvent::TcpRefused { total } => self.event(now, eid::TCP_CONNECTION_REFUSED, &[total as i64], sink),
+            LinkEvent::TcpClientDropped { total } => self.event(now, eid::TCP_CLIENT_DROPPED, &[total as i64], sink),
+        }
     }
 
     /// Actual mode of the robot node.

@@ -16,7 +16,7 @@ use serde::Deserialize;
 
 use mib::config;
 use mmic_sim::{Sim, SimCommand, SimConfig};
-use obsw_core::obsw::{Config, Obsw};
+use obsw_core::obsw::{Config, LinkEvent, Obsw};
 use obsw_core::tm::TmStore;
 
 use net::{Input, Origin};
@@ -253,6 +253,8 @@ fn run(args: Args) -> Result<()> {
     let mut sim_ms: u64 = 0;
     let mut link_rx: Vec<u8> = Vec::new();
     let mut bad_frames: u32 = 0;
+    // Link counters already reported as events.
+    let mut reported = down.counters;
     obsw.boot(0, config::reset_cause::POWER_ON, &mut down);
     loop {
         // Inputs already waiting first, but a bounded batch, so that a flood of TCs
@@ -281,6 +283,7 @@ fn run(args: Args) -> Result<()> {
         }
         sim_ms += period;
         obsw.io.tm_dropped = down.counters.tm_dropped;
+        report_link_events(&mut obsw, sim_ms, &mut reported, &mut down);
         let sensors = sim.sensors_a();
         let out = obsw.tick(sim_ms, &sensors, &link_rx, &mut down);
         link_rx.clear();
@@ -289,6 +292,31 @@ fn run(args: Args) -> Result<()> {
             return Ok(());
         }
     }
+}
+
+/// Raises one event per kind and control period for what the TCP bounds did since the
+/// last period (the core throttles repeats further), so a flood of connections or a
+/// stalled client is visible in TM, not only in the counters.
+fn report_link_events(
+    obsw: &mut Obsw<HostStore>,
+    now: u64,
+    reported: &mut net::LinkCounters,
+    down: &mut net::Downlink,
+) {
+    let c = down.counters;
+    if c.tcp_refused != reported.tcp_refused {
+        obsw.link_event(now, LinkEvent::TcpRefused { total: c.tcp_refused }, down);
+    }
+    if c.tcp_slow_dropped != reported.tcp_slow_dropped {
+        obsw.link_event(
+            now,
+            LinkEvent::TcpClientDropped {
+                total: c.tcp_slow_dropped,
+            },
+            down,
+        );
+    }
+    *reported = c;
 }
 
 /// Handles one input of the main loop at on-board time `now`.
