@@ -422,7 +422,16 @@ fn dashboard_under_collect_uses_the_collectors_link_alarms_and_archive() {
     });
     assert!(stages.iter().all(|s| s["success"] == true), "{stages:?}");
 
-    // Plans are refused with the reason.
+    // Plans are refused with the reason, in the list the page shows and on start.
+    let (st, r) = http(web, "GET", "/api/plans", None);
+    assert_eq!(st, 501, "{r}");
+    assert!(
+        r["error"]
+            .as_str()
+            .unwrap_or("")
+            .contains("not available under collect"),
+        "{r}"
+    );
     let (st, r) = http(web, "POST", "/api/plans", Some(serde_json::json!({"name": "x"})));
     assert_eq!(st, 400, "{r}");
     assert!(r.to_string().contains("not available under collect"), "{r}");

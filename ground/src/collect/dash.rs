@@ -311,6 +311,10 @@ impl Commander for CollectCommander {
         Vec::new()
     }
 
+    fn plans_unavailable(&self) -> Option<String> {
+        Some(PLANS_NOT_AVAILABLE.into())
+    }
+
     fn start_plan(&self, _name: &str) -> Result<String, CommandError> {
         Err(CommandError(PLANS_NOT_AVAILABLE.into()))
     }
