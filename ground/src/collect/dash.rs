@@ -189,7 +189,9 @@ fn alarm_record(r: &store::AlarmRow) -> AlarmRecord {
 pub struct AlarmSync {
     archive: PathBuf,
     hub: Hub,
-    shown: Mutex<BTreeSet<u64>>,
+    /// Open alarm IDs last shown, and the connection kept between reads (reopened after
+    /// an error).
+    state: Mutex<(BTreeSet<u64>, Option<rusqlite::Connection>)>,
 }
 
 impl AlarmSync {
@@ -197,15 +199,28 @@ impl AlarmSync {
         AlarmSync {
             archive,
             hub,
-            shown: Mutex::new(BTreeSet::new()),
+            state: Mutex::new((BTreeSet::new(), None)),
         }
     }
 
     /// Reads the open alarms once and publishes what changed; alarms that closed since
     /// are shown cleared.
     pub fn sync(&self) -> anyhow::Result<()> {
-        let c = store::open_existing(&self.archive)?;
-        let rows = store::alarms(&c, None, false)?;
+        let Ok(mut guard) = self.state.lock() else {
+            anyhow::bail!("alarm sync lock poisoned")
+        };
+        let (shown, conn) = &mut *guard;
+        if conn.is_none() {
+            *conn = Some(store::open_existing(&self.archive)?);
+        }
+        let rows = match conn.as_ref().map(|c| store::alarms(c, None, false)) {
+            Some(Ok(rows)) => rows,
+            Some(Err(e)) => {
+                *conn = None;
+                return Err(e);
+            }
+            None => return Ok(()),
+        };
         let mut now_open = BTreeSet::new();
         for r in &rows {
             let rec = alarm_record(r);
@@ -214,9 +229,6 @@ impl AlarmSync {
                 self.hub.alarm(rec);
             }
         }
-        let Ok(mut shown) = self.shown.lock() else {
-            anyhow::bail!("alarm sync lock poisoned")
-        };
         for id in shown.difference(&now_open) {
             if let Some(mut a) = self.hub.alarm_by_id(*id) {
                 if a.state != AlarmState::Cleared {
