@@ -345,3 +345,166 @@ fn full_disk_raises_an_alarm_and_the_collector_goes_on_losing_nothing() {
     assert!(t.contains("\"source\":\"ARCHIVE_WRITE\""), "{t}");
     assert!(t.contains("\"state\":\"cleared\""), "{t}");
 }
+
+fn http(addr: SocketAddr, method: &str, path: &str, body: Option<serde_json::Value>) -> (u16, serde_json::Value) {
+    use std::io::{Read, Write};
+    let Ok(mut s) = std::net::TcpStream::connect(addr) else {
+        return (0, serde_json::Value::Null);
+    };
+    s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+    let body = body.map(|b| b.to_string()).unwrap_or_default();
+    let mut req = format!(
+        "{method} {path} HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\nContent-Length: {}\r\n",
+        body.len()
+    );
+    if !body.is_empty() {
+        req.push_str("Content-Type: application/json\r\n");
+    }
+    req.push_str("\r\n");
+    req.push_str(&body);
+    s.write_all(req.as_bytes()).unwrap();
+    let mut out = String::new();
+    let _ = s.read_to_string(&mut out);
+    let status = out.get(9..12).and_then(|x| x.parse().ok()).unwrap_or(0);
+    let text = out.split_once("\r\n\r\n").map(|x| x.1).unwrap_or("");
+    (status, serde_json::from_str(text).unwrap_or(serde_json::Value::Null))
+}
+
+/// Polls `f` until it returns `Some`, for at most `secs` seconds (the machine is shared).
+fn wait_for<T>(secs: u64, what: &str, mut f: impl FnMut() -> Option<T>) -> T {
+    let end = Instant::now() + Duration::from_secs(secs);
+    loop {
+        if let Some(v) = f() {
+            return v;
+        }
+        assert!(Instant::now() < end, "timed out waiting for {what}");
+        std::thread::sleep(Duration::from_millis(200));
+    }
+}
+
+// verifies: GND-07
+#[test]
+fn dashboard_under_collect_uses_the_collectors_link_alarms_and_archive() {
+    let (_o, addr, ctl) = start_obsw(1);
+    let dir = tmpdir("dash");
+    let port = free_port();
+    let web: SocketAddr = ([127, 0, 0, 1], port).into();
+    let log = std::fs::File::create(dir.join("collect.log")).unwrap();
+    let t_start = Instant::now();
+    let mut c = Proc(
+        Command::new(GROUND)
+            .current_dir(&dir)
+            .args(["--archive", "a.db", "collect", "--plain", "--http", &web.to_string()])
+            .args(["--robot", &format!("1={addr}")])
+            .stdout(Stdio::null())
+            .stderr(Stdio::from(log))
+            .spawn()
+            .expect("starting ground collect --http"),
+    );
+    let snapshot = || http(web, "GET", "/api/snapshot", None).1;
+    // The robot, fed by the collector's own thread: link, mode, live HK.
+    wait_for(30, "robot 1 up with mode and HK", || {
+        let r = snapshot()["robots"][0].clone();
+        (r["link"] == "up" && r["mode"].is_string() && r["hk"]["V_BAT_A"]["unit"] == "V").then_some(())
+    });
+
+    // PING from the page goes over the collector's link; its stages are tracked.
+    let (st, r) = http(
+        web,
+        "POST",
+        "/api/tc",
+        Some(serde_json::json!({"robot": 1, "name": "PING", "args": {}})),
+    );
+    assert_eq!(st, 200, "{r}");
+    let id = r["request_id"].as_str().unwrap().to_string();
+    assert!(id.starts_with("1-101-"), "{id}");
+    let stages = wait_for(30, "PING completion", || {
+        let (_, c) = http(web, "GET", &format!("/api/tc/{id}"), None);
+        let s = c["stages"].as_array().cloned().unwrap_or_default();
+        s.iter().any(|x| x["stage"] == "completion").then_some(s)
+    });
+    assert!(stages.iter().all(|s| s["success"] == true), "{stages:?}");
+
+    // Plans are refused with the reason, in the list the page shows and on start.
+    let (st, r) = http(web, "GET", "/api/plans", None);
+    assert_eq!(st, 501, "{r}");
+    assert!(
+        r["error"]
+            .as_str()
+            .unwrap_or("")
+            .contains("not available under collect"),
+        "{r}"
+    );
+    let (st, r) = http(web, "POST", "/api/plans", Some(serde_json::json!({"name": "x"})));
+    assert_eq!(st, 400, "{r}");
+    assert!(r.to_string().contains("not available under collect"), "{r}");
+
+    // One alarm set: the collector's V_BAT_A alarm shows on the page, is acknowledged
+    // there, and `ground alarms list` sees the acknowledgement.
+    let out = ground(&dir, &["sim", "--addr", &ctl.to_string(), "battery-sag", "10.3"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    let alarm = wait_for(30, "V_BAT_A alarm on the page", || {
+        snapshot()["alarms"].as_array().and_then(|v| {
+            v.iter()
+                .find(|a| a["source"] == "V_BAT_A" && a["state"] == "active")
+                .cloned()
+        })
+    });
+    let aid = alarm["id"].as_u64().unwrap();
+    let (st, r) = http(web, "POST", &format!("/api/alarms/{aid}/ack"), None);
+    assert_eq!(st, 200, "{r}");
+    let out = ground(&dir, &["--archive", "a.db", "alarms", "list", "--json"]);
+    let row: serde_json::Value = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .find(|r| r["id"].as_u64() == Some(aid))
+        .unwrap_or_else(|| panic!("alarm {aid} not in `ground alarms list`: {}", text(&out)));
+    assert_eq!(row["state"], "acknowledged", "{row}");
+
+    // Plots come from the archive's decimation.
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_millis() as i64;
+    wait_for(30, "archived V_BAT_A series", || {
+        let (_, s) = http(
+            web,
+            "GET",
+            &format!(
+                "/api/series?robot=1&param=V_BAT_A&t0={}&t1={}&columns=50",
+                now - 600_000,
+                now + 60_000
+            ),
+            None,
+        );
+        s["points"].as_array().filter(|p| !p.is_empty()).map(|_| ())
+    });
+
+    // The page does not go stale after the 30 s downlink lease: the collector renews it.
+    let past_lease = Duration::from_secs(40);
+    if let Some(rest) = past_lease.checked_sub(t_start.elapsed()) {
+        std::thread::sleep(rest);
+    }
+    let r = snapshot()["robots"][0].clone();
+    let heard = r["last_heard_ms"].as_i64().unwrap();
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_millis() as i64;
+    assert_eq!(r["link"], "up", "{r}");
+    assert!(
+        now - heard < 5_000,
+        "last heard {} ms ago after the lease time",
+        now - heard
+    );
+
+    signal(&c, "-TERM");
+    assert_eq!(wait_exit(&mut c, Duration::from_secs(5)), Some(0), "SIGTERM: exit 0");
+    // What the page's plots read besides the hub's live samples: the archive's
+    // min/max decimation of what the collector archived.
+    use ground::dashboard::Series;
+    let series = ground::collect::dash::ArchiveSeries::new(dir.join("a.db"));
+    let cols = series.decimate(1, "V_BAT_A", now - 600_000, now + 60_000, 50);
+    assert!(!cols.is_empty(), "no archived V_BAT_A columns");
+    assert!(cols.iter().any(|c| c.1 < 10.5), "the sag is in the archive: {cols:?}");
+}

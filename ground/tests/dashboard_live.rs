@@ -1,4 +1,5 @@
-//! The dashboard fed by `dashboard::feed::LinkFeed` from a real `obsw`, driven through
+//! The dashboard fed by `dashboard::feed::LinkFeed` (the example binary's feed; `ground
+//! collect --http` is tested in `tests/collect.rs`) from a real `obsw`, driven through
 //! its JSON API (the same calls the page makes; `scripts/web-test.sh` drives the page
 //! itself in Chromium): the robot appears with its mode tree and live values, a PING
 //! completes with its stages, and a battery sag injected through the simulator control

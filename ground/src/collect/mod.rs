@@ -6,6 +6,7 @@
 //! two files: [`onboard`] (the obsw's protocol) and [`store`] (the archive).
 
 pub mod config;
+pub mod dash;
 pub mod onboard;
 pub mod robot;
 pub mod store;
@@ -190,27 +191,24 @@ pub fn collect_cli(archive: &Path, a: CollectArgs) -> Result<u8> {
     let table = std::io::stdout().is_terminal() && !a.plain;
     let ring = Arc::new(Mutex::new(VecDeque::new()));
     init_logging(a.verbose, table.then(|| ring.clone()));
-    let _dashboard = match a.http {
-        Some(addr) => Some(dashboard(addr, a.http_token.clone(), &cfg)?),
-        None => None,
-    };
-    run(archive, cfg, table, ring)
-}
-
-/// The dashboard beside the collector: its own feed (a further downlink subscriber per
-/// robot, which also carries the page's commands) on the dashboard's own runtime.
-fn dashboard(addr: SocketAddr, token: Option<String>, cfg: &Config) -> Result<crate::dashboard::Running> {
-    use crate::dashboard::{self, feed::LinkFeed, Hub, NoArchive};
-    let hub = Hub::new();
-    let links: Vec<(u8, SocketAddr)> = cfg.robots.iter().map(|r| (r.number, r.addr)).collect();
-    let feed = LinkFeed::start(hub.clone(), &links, None).context("dashboard feed")?;
-    let running = dashboard::spawn(addr, token, hub, Arc::new(feed), Arc::new(NoArchive))?;
-    tracing::info!("dashboard at http://{}/", running.local_addr());
-    Ok(running)
+    let http = a.http.map(|addr| (addr, a.http_token.clone()));
+    run_with(archive, cfg, table, ring, http)
 }
 
 /// Runs the collector until SIGINT or SIGTERM.
 pub fn run(archive: &Path, cfg: Config, table: bool, ring: LogRing) -> Result<u8> {
+    run_with(archive, cfg, table, ring, None)
+}
+
+/// Runs the collector until SIGINT or SIGTERM; with `http`, also serves the dashboard
+/// fed by the robot threads (see [`dash`]).
+pub fn run_with(
+    archive: &Path,
+    cfg: Config,
+    table: bool,
+    ring: LogRing,
+    http: Option<(SocketAddr, Option<String>)>,
+) -> Result<u8> {
     let stop = Arc::new(AtomicBool::new(false));
     ignore_file_size_signal();
     {
@@ -244,6 +242,8 @@ pub fn run(archive: &Path, cfg: Config, table: bool, ring: LogRing) -> Result<u8
         .name("collect-sink".into())
         .spawn(move || store::run_sink(sink_cfg, sink_rx))?;
     let global = Arc::new(cfg.clone());
+    let hub = http.as_ref().map(|_| crate::dashboard::Hub::new());
+    let mut dash_tx = std::collections::BTreeMap::new();
     let mut workers = Vec::new();
     let mut statuses = Vec::new();
     for (r, h) in cfg.robots.iter().zip(histories) {
@@ -253,13 +253,35 @@ pub fn run(archive: &Path, cfg: Config, table: bool, ring: LogRing) -> Result<u8
             ..Default::default()
         }));
         statuses.push(status.clone());
-        let w = Worker::new(r.clone(), global.clone(), sink_tx.clone(), status, stop.clone(), h);
+        let mut w = Worker::new(r.clone(), global.clone(), sink_tx.clone(), status, stop.clone(), h);
+        if let Some(hub) = &hub {
+            let (tx, rx) = crossbeam_channel::bounded(64);
+            dash_tx.insert(r.number, tx);
+            w = w.with_dashboard(dash::RobotDash {
+                hub: hub.clone(),
+                cmds: rx,
+            });
+        }
         workers.push(
             std::thread::Builder::new()
                 .name(format!("robot-{}", r.number))
                 .spawn(move || w.run())?,
         );
     }
+    // The dashboard: one hub fed by the robot threads, the collector's alarms, the
+    // archive's decimation.
+    let _dashboard = match (http, hub) {
+        (Some((addr, token)), Some(hub)) => {
+            let alarms = Arc::new(dash::AlarmSync::new(archive.to_path_buf(), hub.clone()));
+            alarms.clone().spawn(stop.clone())?;
+            let commander = dash::CollectCommander::new(dash_tx, archive.to_path_buf(), alarms);
+            let series = dash::ArchiveSeries::new(archive.to_path_buf());
+            let running = crate::dashboard::spawn(addr, token, hub, Arc::new(commander), Arc::new(series))?;
+            tracing::info!("dashboard at http://{}/", running.local_addr());
+            Some(running)
+        }
+        _ => None,
+    };
     tracing::info!("collecting from {} robots into {}", cfg.robots.len(), archive.display());
     let started = Instant::now();
     while !stop.load(Ordering::Relaxed) {

@@ -17,6 +17,7 @@ use crate::link::{Incoming, Link, Transport};
 use crate::pus::{self, RequestId, Stage, Tm, TmBody};
 
 use super::config::{Config, RobotCfg};
+use super::dash::{self, DashCmd, RobotDash};
 use super::onboard;
 use super::store::{Health, SinkMsg};
 use super::tracker::{ApidTracker, Pos, Verdict};
@@ -113,6 +114,8 @@ pub struct Worker {
     conditions: BTreeSet<Source>,
     last_health_ms: i64,
     st: RobotStatus,
+    /// The dashboard this thread feeds, when `--http` is given.
+    dash: Option<RobotDash>,
 }
 
 impl Worker {
@@ -171,11 +174,66 @@ impl Worker {
             conditions: BTreeSet::new(),
             last_health_ms: 0,
             st,
+            dash: None,
             cfg,
             global,
             sink,
             status,
             stop,
+        }
+    }
+
+    /// Feeds `dash`'s hub and takes its TCs (`ground collect --http`).
+    pub fn with_dashboard(mut self, dash: RobotDash) -> Worker {
+        dash.hub.add_robot(self.cfg.number);
+        self.dash = Some(dash);
+        self
+    }
+
+    /// Sends the page's TCs, numbered with this thread's own sequence counter.
+    fn dash_commands(&mut self) {
+        let Some(d) = &self.dash else { return };
+        let cmds: Vec<DashCmd> = d.cmds.try_iter().take(64).collect();
+        for c in cmds {
+            match c {
+                DashCmd::Tc { name, args, reply } => {
+                    let r = self.dash_tc(&name, &args);
+                    let _ = reply.send(r);
+                }
+            }
+        }
+    }
+
+    fn dash_tc(&mut self, name: &str, args: &[i64]) -> Result<String, String> {
+        let def = mib::tc::by_name(name).ok_or_else(|| format!("no TC named {name}"))?;
+        if self.link.is_none() {
+            return Err(format!("robot {}: no link (reconnecting)", self.robot()));
+        }
+        let seq = self.next_seq();
+        let tc = pus::build_tc(self.robot(), seq, def, args).map_err(|e| e.to_string())?;
+        let id = match &self.dash {
+            Some(d) => dash::tc_sent(&d.hub, self.robot(), &tc, def, args, "page"),
+            None => return Err("no dashboard".into()),
+        };
+        match &self.link {
+            Some(l) => l
+                .send(&tc.bytes)
+                .map_err(|e| format!("sending to robot {}: {e}", self.robot()))?,
+            None => return Err(format!("robot {}: no link", self.robot())),
+        }
+        Ok(id)
+    }
+
+    fn dash_link(&self) {
+        if let Some(d) = &self.dash {
+            d.hub.link(
+                self.cfg.number,
+                match self.state {
+                    LinkState::Connecting => crate::dashboard::LinkState::Connecting,
+                    LinkState::Up => crate::dashboard::LinkState::Up,
+                    LinkState::Lost => crate::dashboard::LinkState::Lost,
+                },
+            );
         }
     }
 
@@ -207,6 +265,7 @@ impl Worker {
                 Err(crossbeam_channel::RecvTimeoutError::Timeout) => {}
                 Err(crossbeam_channel::RecvTimeoutError::Disconnected) => break,
             }
+            self.dash_commands();
             let now = now_ms();
             self.timers(now);
         }
@@ -252,6 +311,7 @@ impl Worker {
         if self.state != LinkState::Lost && now - silent_since > loss_ms {
             let was = self.state;
             self.state = LinkState::Lost;
+            self.dash_link();
             self.backoff_ms = BACKOFF_START_MS;
             self.next_send_ms = now;
             tracing::warn!(
@@ -493,6 +553,9 @@ impl Worker {
         }
         let live = verdict != Verdict::Filled;
         self.inspect(&tm, live, now);
+        if let (true, Some(d)) = (live, &self.dash) {
+            dash::to_hub(&d.hub, self.cfg.number, &tm);
+        }
         let _ = self.sink.send(SinkMsg::Tm {
             t_ms: now,
             robot: self.robot(),
@@ -502,6 +565,9 @@ impl Worker {
 
     fn heard(&mut self, now: i64) {
         self.last_rx_ms = Some(now);
+        if let Some(d) = &self.dash {
+            d.hub.heard(self.cfg.number, now);
+        }
         if self.state != LinkState::Up {
             let was = self.state;
             self.state = LinkState::Up;

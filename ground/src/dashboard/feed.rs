@@ -1,7 +1,8 @@
 //! A small feed that fills a [`Hub`] straight from `obsw` links and implements
-//! [`Commander`] over them — for the example binary and the browser tests until the
-//! collector (`ground collect`) mounts the dashboard. It is deliberately minimal: no
-//! reconnects, no gap filling, no archive, alarms without persistence or hysteresis
+//! [`Commander`] over them — for the example binary only (`examples/dashboard_demo.rs`).
+//! `ground collect --http` does not use it: there the collector's robot threads feed
+//! the hub (`collect::dash`). It is deliberately minimal: no renewal of the downlink
+//! lease, no reconnects, no gap filling, no archive, alarms without persistence or hysteresis
 //! (the collector does all of that properly). It only uses `link::Link`,
 //! `pus::build_tc` and `pus::decode_tm`.
 

@@ -14,9 +14,11 @@
 //!  archive   ◄──(Series)─────── server
 //! ```
 //!
-//! [`serve`] runs the HTTP server (axum on tokio). [`feed`] is a small adapter that
-//! feeds a hub straight from `obsw` links, for the example binary and the browser
-//! tests until the collector mounts the dashboard.
+//! [`serve`] runs the HTTP server (axum on tokio). `ground collect --http` mounts it
+//! with the collector's robot threads as the feed (`collect::dash`). [`feed`] is a
+//! small stand-alone adapter that feeds a hub straight from `obsw` links, used only by
+//! the example binary (`examples/dashboard_demo.rs`: synthetic fleets for the 50-robot
+//! benchmark, and plan runs from the page, which the collector does not offer).
 
 pub mod feed;
 mod hub;
@@ -255,6 +257,11 @@ pub trait Commander: Send + Sync + 'static {
     fn shelve_alarm(&self, id: u64, for_ms: i64) -> Result<(), CommandError>;
     /// Plans that can be started.
     fn plans(&self) -> Vec<PlanInfo>;
+    /// Why this commander cannot run plans at all (`GET /api/plans` answers 501 with
+    /// it and the page shows it), or `None` when it can.
+    fn plans_unavailable(&self) -> Option<String> {
+        None
+    }
     /// Starts a plan; returns its run ID (progress arrives through [`Hub::plan`]).
     fn start_plan(&self, name: &str) -> Result<String, CommandError>;
 }

@@ -485,6 +485,9 @@ async fn shelve_alarm(State(app): State<App>, Path(id): Path<u64>, Json(s): Json
 }
 
 async fn plans(State(app): State<App>) -> Response {
+    if let Some(why) = app.commander.plans_unavailable() {
+        return error(StatusCode::NOT_IMPLEMENTED, why);
+    }
     let c = app.commander.clone();
     match tokio::task::spawn_blocking(move || c.plans()).await {
         Ok(p) => Json(json!(p)).into_response(),

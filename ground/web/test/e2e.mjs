@@ -1,21 +1,25 @@
-// Drives the real dashboard page in headless Chromium (Debian's package) against two
-// real obsw processes fed through ground::dashboard::feed (examples/dashboard_demo).
-// Usage: node e2e.mjs DEMO_BINARY [SCREENSHOT_DIR]
+// Drives the real dashboard page in headless Chromium (Debian's package) against the
+// real collector: `ground collect --http` following two real obsw processes (the page is
+// fed by the collector's own robot threads, its alarms and its archive).
+// Usage: node e2e.mjs GROUND_BINARY OBSW_BINARY [SCREENSHOT_DIR]
 // Checks: both robots shown with modes and live values; a PING sent from the page
 // completes with its stages; a battery sag injected through the simulator control
-// port raises an alarm that is acknowledged from the page; a plan started from the
-// page shows step progress; the event stream resumes after a reconnect.
-import { spawn } from 'node:child_process';
+// port raises the collector's alarm, acknowledged from the page and seen acknowledged
+// by `ground alarms list`; plans say they are not available under collect; the event
+// stream resumes after a reconnect; the page is still live after the 30 s downlink
+// lease (the collector renews it).
+import { spawn, execFileSync } from 'node:child_process';
 import { createInterface } from 'node:readline';
 import { createSocket } from 'node:dgram';
-import { mkdtempSync, rmSync } from 'node:fs';
+import { createServer } from 'node:net';
+import { mkdtempSync, rmSync, openSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 import { chromium } from 'playwright-core';
 
-const [demoBin, shotDir] = process.argv.slice(2);
-if (!demoBin) {
-  console.error('usage: node e2e.mjs DEMO_BINARY [SCREENSHOT_DIR]');
+const [groundBin, obswBin, shotDir] = process.argv.slice(2);
+if (!groundBin || !obswBin) {
+  console.error('usage: node e2e.mjs GROUND_BINARY OBSW_BINARY [SCREENSHOT_DIR]');
   process.exit(2);
 }
 const T = 60_000; // generous: the machine is shared
@@ -31,14 +35,55 @@ const step = async (name, fn) => {
   }
 };
 const assert = (c, msg) => { if (!c) throw new Error(msg); };
+const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
-const demo = spawn(demoBin, ['--robots', '2', '--speed', '1'], { stdio: ['pipe', 'pipe', 'inherit'] });
-const info = await new Promise((resolve, reject) => {
-  const rl = createInterface({ input: demo.stdout });
-  rl.once('line', (l) => resolve(JSON.parse(l)));
-  demo.once('exit', (c) => reject(new Error('dashboard_demo exited with ' + c)));
-  setTimeout(() => reject(new Error('dashboard_demo did not start')), T);
+// A port free for TCP now (the obsw and the dashboard bind it next).
+const freePort = () => new Promise((resolve, reject) => {
+  const srv = createServer();
+  srv.once('error', reject);
+  srv.listen(0, '127.0.0.1', () => { const p = srv.address().port; srv.close(() => resolve(p)); });
 });
+
+const work = mkdtempSync(join(tmpdir(), 'dash-e2e-'));
+const children = [];
+async function startObsw(robot) {
+  const udp = `127.0.0.1:${await freePort()}`;
+  const ctl = `127.0.0.1:${await freePort()}`;
+  const p = spawn(obswBin, ['--robot', String(robot), '--udp', udp, '--sim-ctl', ctl, '--speed', '1', '--seed', String(robot)],
+    { stdio: ['ignore', 'pipe', 'ignore'] });
+  children.push(p);
+  await new Promise((resolve, reject) => {
+    const rl = createInterface({ input: p.stdout });
+    rl.once('line', (l) => (l.startsWith('READY') ? resolve() : reject(new Error('obsw: ' + l))));
+    p.once('exit', (c) => reject(new Error(`obsw ${robot} exited with ${c}`)));
+    setTimeout(() => reject(new Error(`obsw ${robot} did not start`)), T);
+  });
+  p.stdout.resume();
+  return { robot, udp, sim_ctl: ctl };
+}
+
+// `ground collect --http ADDR` with its own archive in `dir`; resolves once the API answers.
+async function startCollector(dir, robots, http, extra = []) {
+  const args = ['--archive', join(dir, 'a.db'), 'collect', '--plain', '--http', http, ...extra];
+  for (const r of robots) args.push('--robot', `${r.robot}=${r.udp}`);
+  const log = openSync(join(dir, 'collect.log'), 'a');
+  const p = spawn(groundBin, args, { stdio: ['ignore', 'ignore', log] });
+  children.push(p);
+  const url = `http://${http.replace('0.0.0.0', '127.0.0.1')}/`;
+  const end = Date.now() + T;
+  for (;;) {
+    if (p.exitCode !== null) throw new Error('ground collect exited with ' + p.exitCode);
+    try { const r = await fetch(url + 'api/mib'); if (r.status < 500) break; } catch { /* not yet */ }
+    if (Date.now() > end) throw new Error('ground collect --http did not start');
+    await sleep(200);
+  }
+  return { proc: p, url };
+}
+
+const robots = [await startObsw(1), await startObsw(2)];
+const started = Date.now();
+const collector = await startCollector(work, robots, `127.0.0.1:${await freePort()}`);
+const info = { url: collector.url, robots };
 console.log('dashboard at', info.url);
 
 const profile = mkdtempSync(join(tmpdir(), 'dash-chromium-'));
@@ -137,6 +182,11 @@ try {
     const id = await page.$eval('#alarms tr.st-active', (e) => e.dataset.alarm);
     await page.click(`#alarms tr[data-alarm="${id}"] button.ack`);
     await page.waitForSelector(`#alarms tr[data-alarm="${id}"].st-acknowledged`);
+    // One alarm set: the collector's archive has the acknowledgement.
+    const rows = execFileSync(groundBin, ['--archive', join(work, 'a.db'), 'alarms', 'list', '--json'], { encoding: 'utf8' })
+      .split('\n').filter((l) => l.trim()).map((l) => JSON.parse(l));
+    const row = rows.find((r) => String(r.id) === String(id));
+    assert(row && row.state === 'acknowledged', `ground alarms list: ${JSON.stringify(row)}`);
     const sock2 = createSocket('udp4');
     await new Promise((res, rej) => sock2.send('clear\n', Number(ctl[1]), ctl[0], (e) => (e ? rej(e) : res())));
     sock2.close();
@@ -184,20 +234,27 @@ try {
     for (let i = 1; i < r.length; i++) assert(r[i] === r[i - 1] + 1, `gap between ${r[i - 1]} and ${r[i]}`);
   });
 
-  await step('plan started from the page shows live step progress', async () => {
+  await step('plans say they are not available under collect', async () => {
     await tab('plans');
-    await page.waitForSelector('button[data-plan="checkout"]');
-    await page.click('button[data-plan="checkout"]');
-    await page.waitForSelector('.run tr.step-done');
+    await page.waitForFunction(() => /not available under collect/.test(document.querySelector('#plan-list').textContent));
     await shot('dashboard-plans.png');
   });
+
+  await step('the page is still live after the 30 s downlink lease (the collector renews it)', async () => {
+    const wait = 40_000 - (Date.now() - started);
+    if (wait > 0) await sleep(wait);
+    await tab('fleet');
+    const heard = await page.evaluate(async () => (await (await fetch('/api/snapshot')).json()).robots.map((r) => [r.link, Date.now() - r.last_heard_ms]));
+    for (const [link, age] of heard) assert(link === 'up' && age < 5000, `link ${link}, last heard ${age} ms ago`);
+    const age = await page.$eval('#robot-1 .age', (e) => e.textContent);
+    assert(/heard (< 1|[0-4]) s ago/.test(age), 'age shown: ' + age);
+  });
+
   await step('bound beyond localhost: the page needs the token, and commands with it', async () => {
-    const d2 = spawn(demoBin, ['--robots', '1', '--http', '0.0.0.0:0', '--token', 'e2e-secret'], { stdio: ['pipe', 'pipe', 'inherit'] });
+    const dir2 = mkdtempSync(join(tmpdir(), 'dash-e2e-tok-'));
+    const c2 = await startCollector(dir2, [robots[0]], `0.0.0.0:${await freePort()}`, ['--http-token', 'e2e-secret']);
     try {
-      const i2 = await new Promise((resolve, reject) => {
-        createInterface({ input: d2.stdout }).once('line', (l) => resolve(JSON.parse(l)));
-        d2.once('exit', (c) => reject(new Error('second demo exited with ' + c)));
-      });
+      const i2 = { url: c2.url + '?token=e2e-secret' };
       const url = new URL(i2.url);
       url.hostname = '127.0.0.1';
       const p2 = await browser.newPage();
@@ -216,15 +273,21 @@ try {
       await p2.waitForSelector(`#history tr[data-request="${id}"] td[data-stage="completion"] .ok`);
       await p2.close();
     } finally {
-      d2.stdin.end();
-      await new Promise((r) => { d2.once('exit', r); setTimeout(() => { d2.kill('SIGKILL'); r(); }, 5000); });
+      c2.proc.kill('SIGTERM');
+      await new Promise((r) => { c2.proc.once('exit', r); setTimeout(r, 5000); });
+      rmSync(dir2, { recursive: true, force: true });
     }
   });
 } finally {
   await browser.close();
   rmSync(profile, { recursive: true, force: true });
-  demo.stdin.end();
-  await new Promise((r) => { demo.once('exit', r); setTimeout(() => { demo.kill('SIGKILL'); r(); }, 5000); });
+  for (const c of children.reverse()) {
+    if (c.exitCode === null) {
+      c.kill('SIGTERM');
+      await new Promise((r) => { c.once('exit', r); setTimeout(() => { c.kill('SIGKILL'); r(); }, 5000); });
+    }
+  }
+  rmSync(work, { recursive: true, force: true });
 }
 console.log(failures ? `${failures} check(s) failed` : 'all dashboard browser checks passed');
 process.exit(failures ? 1 : 0);

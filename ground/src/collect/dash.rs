@@ -1,0 +1,377 @@
+//! The operators' dashboard mounted on the collector (`ground collect --http`).
+//!
+//! One link per robot — the collector's own: each robot thread feeds the [`Hub`] with
+//! its link state, last-heard time and every live decoded TM ([`to_hub`]). The hub
+//! shows the collector's alarms, read from the archive's alarm table (the one
+//! `ground alarms list` reads) by [`AlarmSync`]; acknowledge and shelve from the page
+//! go to that table too. TCs from the page are handed to the robot's thread
+//! ([`DashCmd`]), which numbers them with its own sequence counter and sends them over
+//! its link. Plots read the archive's min/max decimation ([`ArchiveSeries`]).
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use crossbeam_channel::{Receiver, Sender};
+
+use crate::alarms::Input;
+use crate::archive::now_ms;
+use crate::dashboard::{
+    self, AlarmRecord, AlarmState, CommandError, Commander, ConfigState, EventRecord, FailureInfo, Hub, PlanInfo,
+    Series, Stage, StageReport,
+};
+use crate::pus::{self, Tm, TmBody};
+
+use super::store;
+
+/// What `POST /api/plan` answers under the collector.
+pub const PLANS_NOT_AVAILABLE: &str =
+    "plans are not available under collect: run them with `ground plan run` (the collector keeps archiving)";
+
+/// How long the page waits for the robot's thread to take a TC.
+const SEND_TIMEOUT: Duration = Duration::from_secs(2);
+/// How often the hub's alarms are read back from the archive.
+const ALARM_SYNC_MS: u64 = 500;
+
+/// A request from the page to a robot's thread.
+pub enum DashCmd {
+    /// Send a TC (MIB name, raw arguments); the reply is its request ID.
+    Tc {
+        name: String,
+        args: Vec<i64>,
+        reply: Sender<Result<String, String>>,
+    },
+}
+
+/// What a robot thread holds of the dashboard.
+pub struct RobotDash {
+    pub hub: Hub,
+    pub cmds: Receiver<DashCmd>,
+}
+
+/// Request ID as the hub and the page show it: robot, APID and sequence count.
+pub fn request_id(robot: u8, apid: u16, seq: u16) -> String {
+    format!("{robot}-{apid:03x}-{seq}")
+}
+
+/// Records a TC the robot's thread is about to send from the page.
+pub fn tc_sent(hub: &Hub, robot: u8, tc: &pus::BuiltTc, def: &mib::tc::TcDef, args: &[i64], origin: &str) -> String {
+    let id = request_id(robot, tc.apid, tc.seq);
+    hub.tc_sent(dashboard::CommandRecord {
+        request_id: id.clone(),
+        robot,
+        name: def.name.to_string(),
+        args: def
+            .args
+            .iter()
+            .map(|a| a.name.to_string())
+            .zip(args.iter().copied())
+            .collect(),
+        sent_ms: now_ms(),
+        origin: origin.to_string(),
+        stages: Vec::new(),
+    });
+    id
+}
+
+fn node_mode(hub: &Hub, robot: u8, node: u32, mode: u32) {
+    if let Some(n) = mib::modes::node_by_id(node) {
+        if let Some(m) = mib::modes::mode_name(n.kind, mode) {
+            hub.mode(robot, n.name, m);
+        }
+    }
+}
+
+/// Hands one live decoded TM of `robot` to the hub: HK values (and the mode and
+/// configuration state they carry), events, mode reports, and the verification stages
+/// of TCs the hub knows (the collector's own subscription renewals are not shown).
+pub fn to_hub(hub: &Hub, robot: u8, tm: &Tm) {
+    let t = tm.time.unix_ms();
+    match &tm.body {
+        TmBody::Hk(hk) => {
+            let values: Vec<(&str, f64)> = hk.values.iter().map(|v| (v.name, v.eng)).collect();
+            hub.hk(robot, t, &values);
+            for v in &hk.values {
+                if v.id == mib::params::pid::MODE {
+                    if let Some(n) = mib::modes::mode_name(mib::modes::NodeKind::Root, v.raw as u32) {
+                        hub.mode(robot, "ROBOT", n);
+                    }
+                }
+                if v.id == mib::params::pid::CONFIG_STATE {
+                    hub.config(robot, ConfigState::from_mib(v.raw as u8));
+                }
+            }
+        }
+        TmBody::Event(ev) => {
+            if ev.id == mib::events::eid::MODE_CHANGED {
+                if let (Some(node), Some(to)) = (ev.param("node"), ev.param("to")) {
+                    node_mode(hub, robot, node as u32, to as u32);
+                }
+            }
+            hub.event(EventRecord {
+                robot,
+                t_ms: t,
+                name: ev.name.to_string(),
+                severity: ev.severity.to_string(),
+                description: ev.description.to_string(),
+                params: ev.params.iter().map(|f| (f.name.clone(), f.value)).collect(),
+            });
+        }
+        TmBody::ModeReply { node, mode, .. } => node_mode(hub, robot, *node, *mode),
+        TmBody::Verification(v) => {
+            let id = request_id(robot, v.request.apid(), v.request.seq());
+            if hub.command(&id).is_none() {
+                return;
+            }
+            let stage = match v.stage {
+                pus::Stage::Acceptance => Stage::Acceptance,
+                pus::Stage::Start => Stage::Start,
+                pus::Stage::Progress => Stage::Progress,
+                pus::Stage::Completion => Stage::Completion,
+            };
+            let failure = v.failure.clone().map(|f| FailureInfo {
+                code: f.code,
+                name: f.name.to_string(),
+                description: f.description.to_string(),
+                fields: f.fields.into_iter().map(|x| (x.name, x.value)).collect(),
+                data_hex: pus::hex(&f.data),
+            });
+            hub.tc_stage(
+                robot,
+                &id,
+                StageReport {
+                    stage,
+                    step: v.step,
+                    t_ms: t,
+                    success: v.success,
+                    failure,
+                },
+            );
+        }
+        TmBody::DisabledEvents { .. }
+        | TmBody::TimeReport { .. }
+        | TmBody::MonDefinitions { .. }
+        | TmBody::MonTransition { .. }
+        | TmBody::StoreDownlinkDone { .. }
+        | TmBody::PingReply
+        | TmBody::EaDefinitions { .. }
+        | TmBody::ParamValue { .. }
+        | TmBody::ModeCantReach { .. }
+        | TmBody::Unknown { .. } => {}
+    }
+}
+
+/// The dashboard's view of a collector alarm row.
+fn alarm_record(r: &store::AlarmRow) -> AlarmRecord {
+    let state = match crate::alarms::State::parse(&r.state) {
+        Some(crate::alarms::State::Active) => AlarmState::Active,
+        Some(crate::alarms::State::Acknowledged) => AlarmState::Acknowledged,
+        Some(crate::alarms::State::Shelved) => AlarmState::Shelved,
+        Some(crate::alarms::State::Cleared) | Some(crate::alarms::State::Normal) | None => AlarmState::Cleared,
+    };
+    AlarmRecord {
+        id: r.id as u64,
+        robot: r.robot,
+        // The same names `ground alarms list` shows (V_BAT_A, LOW_BATTERY, LINK_LOSS, …).
+        source: r.source.clone(),
+        severity: r.severity.clone(),
+        state,
+        message: r.message.clone(),
+        first_ms: r.first_ms,
+        last_ms: r.last_ms,
+        shelved_until_ms: r.shelved_until_ms,
+    }
+}
+
+/// Keeps the hub's alarms equal to the open alarms of the archive's alarm table.
+pub struct AlarmSync {
+    archive: PathBuf,
+    hub: Hub,
+    /// Open alarm IDs last shown, and the connection kept between reads (reopened after
+    /// an error).
+    state: Mutex<(BTreeSet<u64>, Option<rusqlite::Connection>)>,
+}
+
+impl AlarmSync {
+    pub fn new(archive: PathBuf, hub: Hub) -> AlarmSync {
+        AlarmSync {
+            archive,
+            hub,
+            state: Mutex::new((BTreeSet::new(), None)),
+        }
+    }
+
+    /// Reads the open alarms once and publishes what changed; alarms that closed since
+    /// are shown cleared.
+    pub fn sync(&self) -> anyhow::Result<()> {
+        let Ok(mut guard) = self.state.lock() else {
+            anyhow::bail!("alarm sync lock poisoned")
+        };
+        let (shown, conn) = &mut *guard;
+        if conn.is_none() {
+            *conn = Some(store::open_existing(&self.archive)?);
+        }
+        let rows = match conn.as_ref().map(|c| store::alarms(c, None, false)) {
+            Some(Ok(rows)) => rows,
+            Some(Err(e)) => {
+                *conn = None;
+                return Err(e);
+            }
+            None => return Ok(()),
+        };
+        let mut now_open = BTreeSet::new();
+        for r in &rows {
+            let rec = alarm_record(r);
+            now_open.insert(rec.id);
+            if self.hub.alarm_by_id(rec.id).as_ref() != Some(&rec) {
+                self.hub.alarm(rec);
+            }
+        }
+        for id in shown.difference(&now_open) {
+            if let Some(mut a) = self.hub.alarm_by_id(*id) {
+                if a.state != AlarmState::Cleared {
+                    a.state = AlarmState::Cleared;
+                    self.hub.alarm(a);
+                }
+            }
+        }
+        *shown = now_open;
+        Ok(())
+    }
+
+    /// Syncs every [`ALARM_SYNC_MS`] until `stop`.
+    pub fn spawn(self: Arc<Self>, stop: Arc<AtomicBool>) -> std::io::Result<std::thread::JoinHandle<()>> {
+        std::thread::Builder::new()
+            .name("dashboard-alarms".into())
+            .spawn(move || {
+                let mut logged = false;
+                while !stop.load(Ordering::Relaxed) {
+                    match self.sync() {
+                        Ok(()) => logged = false,
+                        Err(e) if !logged => {
+                            tracing::debug!("dashboard alarms: {e:#}");
+                            logged = true;
+                        }
+                        Err(_) => {}
+                    }
+                    std::thread::sleep(Duration::from_millis(ALARM_SYNC_MS));
+                }
+            })
+    }
+}
+
+/// The page's commands, carried out by the collector.
+pub struct CollectCommander {
+    robots: BTreeMap<u8, Sender<DashCmd>>,
+    archive: PathBuf,
+    alarms: Arc<AlarmSync>,
+}
+
+impl CollectCommander {
+    pub fn new(robots: BTreeMap<u8, Sender<DashCmd>>, archive: PathBuf, alarms: Arc<AlarmSync>) -> CollectCommander {
+        CollectCommander {
+            robots,
+            archive,
+            alarms,
+        }
+    }
+
+    fn alarm_input(&self, id: u64, input: Input) -> Result<(), CommandError> {
+        let mut c = store::open_existing(&self.archive).map_err(|e| CommandError(format!("{e:#}")))?;
+        store::alarm_input(&mut c, id as i64, input, now_ms()).map_err(|e| CommandError(format!("{e:#}")))?;
+        self.alarms.sync().map_err(|e| CommandError(format!("{e:#}")))
+    }
+}
+
+impl Commander for CollectCommander {
+    fn send_tc(&self, robot: u8, name: &str, args: &[i64]) -> Result<String, CommandError> {
+        let tx = self
+            .robots
+            .get(&robot)
+            .ok_or_else(|| CommandError(format!("robot {robot} is not followed by this collector")))?;
+        let (reply, answer) = crossbeam_channel::bounded(1);
+        tx.send(DashCmd::Tc {
+            name: name.to_string(),
+            args: args.to_vec(),
+            reply,
+        })
+        .map_err(|_| CommandError(format!("robot {robot}: the collector's thread has stopped")))?;
+        match answer.recv_timeout(SEND_TIMEOUT) {
+            Ok(r) => r.map_err(CommandError),
+            Err(_) => Err(CommandError(format!(
+                "robot {robot}: the collector did not take the TC"
+            ))),
+        }
+    }
+
+    fn ack_alarm(&self, id: u64) -> Result<(), CommandError> {
+        self.alarm_input(id, Input::Ack)
+    }
+
+    fn shelve_alarm(&self, id: u64, for_ms: i64) -> Result<(), CommandError> {
+        self.alarm_input(
+            id,
+            Input::Shelve {
+                until_ms: now_ms() + for_ms,
+            },
+        )
+    }
+
+    fn plans(&self) -> Vec<PlanInfo> {
+        Vec::new()
+    }
+
+    fn plans_unavailable(&self) -> Option<String> {
+        Some(PLANS_NOT_AVAILABLE.into())
+    }
+
+    fn start_plan(&self, _name: &str) -> Result<String, CommandError> {
+        Err(CommandError(PLANS_NOT_AVAILABLE.into()))
+    }
+}
+
+/// Plots from the archive's min/max-per-column decimation.
+pub struct ArchiveSeries {
+    store: Mutex<Option<crate::archive::read::Store>>,
+    archive: PathBuf,
+}
+
+impl ArchiveSeries {
+    pub fn new(archive: PathBuf) -> ArchiveSeries {
+        ArchiveSeries {
+            store: Mutex::new(None),
+            archive,
+        }
+    }
+}
+
+impl Series for ArchiveSeries {
+    fn decimate(&self, robot: u8, param: &str, t0_ms: i64, t1_ms: i64, columns: usize) -> Vec<(i64, f64, f64)> {
+        let Ok(mut guard) = self.store.lock() else {
+            return Vec::new();
+        };
+        if guard.is_none() {
+            match crate::archive::read::Store::open(&self.archive.to_string_lossy()) {
+                Ok(s) => *guard = Some(s),
+                Err(e) => {
+                    tracing::debug!("dashboard series: {e}");
+                    return Vec::new();
+                }
+            }
+        }
+        let Some(s) = guard.as_mut() else {
+            return Vec::new();
+        };
+        match s.decimate(robot, param, t0_ms, t1_ms, columns) {
+            Ok(cols) => cols.into_iter().map(|c| (c.t_ms, c.min, c.max)).collect(),
+            Err(e) => {
+                tracing::debug!("dashboard series {param}: {e}");
+                // Reopen next time (the archive may have been replaced or pruned).
+                *guard = None;
+                Vec::new()
+            }
+        }
+    }
+}
