@@ -375,3 +375,54 @@ impl Series for ArchiveSeries {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::alarms::{Severity, Source};
+
+    // verifies: GND-02
+    #[test]
+    fn the_page_shows_and_acknowledges_the_archived_alarms() {
+        let dir = std::env::temp_dir().join(format!("collect-dash-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("a.db");
+        let c = store::open_conn(&path).unwrap();
+        let src = Source::Param("V_BAT_A".into());
+        let id = store::apply_alarm(&c, 1, &src, Severity::Medium, Input::Activate, 1_000, Some(10.3), "low")
+            .unwrap()
+            .unwrap();
+        let hub = Hub::new();
+        let sync = Arc::new(AlarmSync::new(path.clone(), hub.clone()));
+        sync.sync().unwrap();
+        let a = hub.alarm_by_id(id as u64).expect("archived alarm on the page");
+        assert_eq!(
+            (a.state, a.source.as_str(), a.severity.as_str()),
+            (AlarmState::Active, "V_BAT_A", "medium")
+        );
+
+        // Acknowledged from the page: the archive's record changes, the hub follows.
+        let cmd = CollectCommander::new(BTreeMap::new(), path.clone(), sync.clone());
+        cmd.ack_alarm(id as u64).unwrap();
+        let rows = store::alarms(&c, None, true).unwrap();
+        assert_eq!(rows[0].state, "acknowledged");
+        assert_eq!(hub.alarm_by_id(id as u64).unwrap().state, AlarmState::Acknowledged);
+        let e = cmd.ack_alarm(id as u64).unwrap_err();
+        assert!(e.0.contains("nothing to acknowledge"), "{e}");
+
+        // The condition goes: the alarm closes in the archive and shows cleared.
+        store::apply_alarm(&c, 1, &src, Severity::Medium, Input::Clear, 2_000, Some(12.0), "ok").unwrap();
+        sync.sync().unwrap();
+        assert_eq!(hub.alarm_by_id(id as u64).unwrap().state, AlarmState::Cleared);
+
+        // No robot, no plans: clear errors.
+        assert!(cmd.send_tc(3, "PING", &[]).unwrap_err().0.contains("robot 3"));
+        assert!(cmd
+            .start_plan("x")
+            .unwrap_err()
+            .0
+            .contains("not available under collect"));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
