@@ -9,13 +9,13 @@
 //! - [`Source`]: what an alarm is about (a parameter, an event, link loss, stale data,
 //!   the archive).
 //!
-//! The MIB gives soft and hard limits but neither persistence nor hysteresis for the
-//! ground check, nor when a limit applies. Until it does, they are derived here, in
-//! [`persistence`], [`hysteresis`] and [`applicable`] and nowhere else.
+//! Limits, the root modes in which they apply, persistence and hysteresis all come from
+//! the MIB (`mib::params`: `limits_apply`, `GROUND_LIMIT_PERSISTENCE`,
+//! `limit_hysteresis`).
 
 use std::fmt;
 
-use mib::params::{pid, ParamDef};
+use mib::params::ParamDef;
 use mib::types::Limits;
 use serde::Serialize;
 
@@ -334,27 +334,13 @@ impl Level {
     }
 }
 
-/// Consecutive samples a value must be out of a limit before the level rises (and back
-/// inside the limit, by the hysteresis, before it falls). Derived here: the MIB's
-/// `Limits` carry no ground persistence yet.
-pub const fn persistence(_p: &ParamDef) -> u8 {
-    2
-}
-
-/// Hysteresis around each limit, in engineering units: 2 % of the soft band. Derived
-/// here: the MIB's `Limits` carry no hysteresis yet.
-pub fn hysteresis(l: &Limits) -> f64 {
-    ((l.soft_hi - l.soft_lo).abs() * 0.02).max(f64::EPSILON)
-}
-
-/// Whether a parameter's limits apply to this HK sample. The MIB has no applicability
-/// conditions yet; the one needed today: the regulated voltage reads 0 V whenever the
-/// regulator is off, which is the case in STANDBY (mode 0), so it is only checked in
-/// the other modes. `mode` is the robot's mode from the same packet, if it has one.
-pub fn applicable(p: &ParamDef, mode: Option<i64>) -> bool {
-    match p.id {
-        pid::V_REG => mode.is_some_and(|m| m != mib::modes::robot_mode::STANDBY as i64),
-        _ => true,
+/// Whether a parameter's limits apply to this HK sample: in the root modes the MIB gives
+/// for it (`mode` is the robot's mode from the same packet, if it has one; without one,
+/// only limits that hold in every mode apply).
+fn applicable(p: &ParamDef, mode: Option<i64>) -> bool {
+    match mode.and_then(|m| u32::try_from(m).ok()) {
+        Some(m) => mib::params::limits_apply(p, m),
+        None => mib::params::limits_always_apply(p),
     }
 }
 
@@ -430,7 +416,7 @@ impl LimitChecker {
         let l = p.limits?;
         let (_, t) = self.tracks.iter_mut().find(|(i, _)| *i == id)?;
         let raw_level = if applicable(p, mode) && eng.is_finite() {
-            level_of(eng, &l, t.level, hysteresis(&l))
+            level_of(eng, &l, t.level, mib::params::limit_hysteresis(&l))
         } else if applicable(p, mode) {
             Level::Hard
         } else {
@@ -446,7 +432,7 @@ impl LimitChecker {
             t.count = 0;
         }
         t.count = t.count.saturating_add(1);
-        if t.count < persistence(p) {
+        if t.count < mib::params::GROUND_LIMIT_PERSISTENCE {
             return None;
         }
         let from = t.level;
@@ -481,6 +467,7 @@ impl LimitChecker {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use mib::params::pid;
 
     // verifies: GND-13
     #[test]
