@@ -157,8 +157,9 @@ pub const SUBSCRIPTION_LEASE_MS: u32 = 30_000;
 /// checks the link).
 pub const GROUND_HEARTBEAT_MS: u32 = 1000;
 /// Ground: no TM at all for this long while a step runs means the link or the obsw is
-/// lost.
-pub const LINK_LOSS_MS: u32 = 3000;
+/// lost. 2.5 s (2.5 heartbeats) so that a dead link is reported within 3 s, the ground's
+/// promise, including the poll and process exit.
+pub const LINK_LOSS_MS: u32 = 2500;
 const _: () =
     assert!(GROUND_HEARTBEAT_MS * 2 < LINK_LOSS_MS && (LINK_LOSS_MS as usize) < SUBSCRIPTION_LEASE_MS as usize);
 
