@@ -13,6 +13,8 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, Context, Result};
 use clap::{Args, Parser, Subcommand};
 use ground::archive::{self, Archive, Filter, Kind};
+use ground::collect::config::default_addr;
+use ground::collect::parse_robot;
 use ground::link::Transport;
 use ground::ops::{self, RunOptions, Session, Update};
 use ground::plan;
@@ -144,37 +146,6 @@ impl Links {
             Transport::Udp
         }
     }
-}
-
-fn parse_robot(s: &str) -> Result<(u8, SocketAddr), String> {
-    let (n, addr) = match s.split_once('=') {
-        Some((n, a)) => (n, Some(a)),
-        None => (s, None),
-    };
-    let n: u8 = n.trim().parse().map_err(|_| format!("\"{n}\" is not a robot number"))?;
-    if mib::apid::robot_apid(n).is_none() {
-        return Err(format!(
-            "robot {n} outside {}..={}",
-            mib::apid::ROBOT_MIN,
-            mib::apid::ROBOT_MAX
-        ));
-    }
-    let addr = match addr {
-        Some(a) => {
-            use std::net::ToSocketAddrs;
-            a.to_socket_addrs()
-                .map_err(|e| format!("address \"{a}\": {e}"))?
-                .next()
-                .ok_or_else(|| format!("address \"{a}\" does not resolve"))?
-        }
-        None => default_addr(n),
-    };
-    Ok((n, addr))
-}
-
-/// Default TC/TM address of robot `n` (robot 1 is `mib::config::DEFAULT_PORT`).
-pub fn default_addr(n: u8) -> SocketAddr {
-    (std::net::Ipv4Addr::LOCALHOST, mib::config::robot_port(n)).into()
 }
 
 #[derive(Args, Debug)]

@@ -101,7 +101,9 @@ pub enum AlarmsCmd {
     Unshelve { id: i64 },
 }
 
-fn parse_robot(s: &str) -> Result<(u8, SocketAddr), String> {
+/// `N` or `N=HOST:PORT` (robot number in the MIB's range; the default address of robot N
+/// when no address is given), as `--robot` takes it.
+pub fn parse_robot(s: &str) -> Result<(u8, SocketAddr), String> {
     let (n, addr) = match s.split_once('=') {
         Some((n, a)) => (n, Some(a)),
         None => (s, None),
