@@ -381,7 +381,7 @@ mod tests {
     use super::*;
     use crate::alarms::{Severity, Source};
 
-    // verifies: GND-02
+    // verifies: GND-02, GND-13, GND-18
     #[test]
     fn the_page_shows_and_acknowledges_the_archived_alarms() {
         let dir = std::env::temp_dir().join(format!("collect-dash-{}", std::process::id()));
