@@ -19,8 +19,8 @@ use crossbeam_channel::{Receiver, Sender};
 use crate::alarms::Input;
 use crate::archive::now_ms;
 use crate::dashboard::{
-    self, AlarmRecord, AlarmState, CommandError, Commander, ConfigState, EventRecord, FailureInfo, Hub, PlanInfo,
-    Series, Stage, StageReport,
+    self, AlarmRecord, AlarmState, CommandError, Commander, ConfigState, EventRecord, Hub, PlanInfo, Series,
+    StageReport,
 };
 use crate::pus::{self, Tm, TmBody};
 
@@ -125,30 +125,7 @@ pub fn to_hub(hub: &Hub, robot: u8, tm: &Tm) {
             if hub.command(&id).is_none() {
                 return;
             }
-            let stage = match v.stage {
-                pus::Stage::Acceptance => Stage::Acceptance,
-                pus::Stage::Start => Stage::Start,
-                pus::Stage::Progress => Stage::Progress,
-                pus::Stage::Completion => Stage::Completion,
-            };
-            let failure = v.failure.clone().map(|f| FailureInfo {
-                code: f.code,
-                name: f.name.to_string(),
-                description: f.description.to_string(),
-                fields: f.fields.into_iter().map(|x| (x.name, x.value)).collect(),
-                data_hex: pus::hex(&f.data),
-            });
-            hub.tc_stage(
-                robot,
-                &id,
-                StageReport {
-                    stage,
-                    step: v.step,
-                    t_ms: t,
-                    success: v.success,
-                    failure,
-                },
-            );
+            hub.tc_stage(robot, &id, StageReport::from_verification(v, t));
         }
         TmBody::DisabledEvents { .. }
         | TmBody::TimeReport { .. }

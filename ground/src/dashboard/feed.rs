@@ -16,8 +16,8 @@ use std::time::Duration;
 use crossbeam_channel::RecvTimeoutError;
 
 use super::{
-    AlarmRecord, AlarmState, CommandError, CommandRecord, Commander, ConfigState, EventRecord, FailureInfo, Hub,
-    LimitState, LinkState, PlanInfo, PlanRun, PlanStep, Stage, StageReport,
+    AlarmRecord, AlarmState, CommandError, CommandRecord, Commander, ConfigState, EventRecord, Hub, LimitState,
+    LinkState, PlanInfo, PlanRun, PlanStep, Stage, StageReport,
 };
 use crate::link::{Incoming, Link, Transport};
 use crate::pus::{self, TmBody};
@@ -224,31 +224,8 @@ impl LinkFeed {
             }
             TmBody::ModeReply { node, mode, .. } => self.node_mode(robot, node, mode),
             TmBody::Verification(v) => {
-                let stage = match v.stage {
-                    pus::Stage::Acceptance => Stage::Acceptance,
-                    pus::Stage::Start => Stage::Start,
-                    pus::Stage::Progress => Stage::Progress,
-                    pus::Stage::Completion => Stage::Completion,
-                };
-                let failure = v.failure.map(|f| FailureInfo {
-                    code: f.code,
-                    name: f.name.to_string(),
-                    description: f.description.to_string(),
-                    fields: f.fields.into_iter().map(|x| (x.name, x.value)).collect(),
-                    data_hex: pus::hex(&f.data),
-                });
                 let id = request_id(robot, v.request.apid(), v.request.seq());
-                self.hub().tc_stage(
-                    robot,
-                    &id,
-                    StageReport {
-                        stage,
-                        step: v.step,
-                        t_ms: t,
-                        success: v.success,
-                        failure,
-                    },
-                );
+                self.hub().tc_stage(robot, &id, StageReport::from_verification(&v, t));
             }
             TmBody::DisabledEvents { .. }
             | TmBody::TimeReport { .. }

@@ -180,6 +180,32 @@ pub struct StageReport {
     pub failure: Option<FailureInfo>,
 }
 
+impl StageReport {
+    /// The dashboard's view of a decoded PUS 1 report received at on-board time `t_ms`.
+    pub fn from_verification(v: &crate::pus::Verification, t_ms: i64) -> StageReport {
+        let stage = match v.stage {
+            crate::pus::Stage::Acceptance => Stage::Acceptance,
+            crate::pus::Stage::Start => Stage::Start,
+            crate::pus::Stage::Progress => Stage::Progress,
+            crate::pus::Stage::Completion => Stage::Completion,
+        };
+        let failure = v.failure.as_ref().map(|f| FailureInfo {
+            code: f.code,
+            name: f.name.to_string(),
+            description: f.description.to_string(),
+            fields: f.fields.iter().map(|x| (x.name.clone(), x.value)).collect(),
+            data_hex: crate::pus::hex(&f.data),
+        });
+        StageReport {
+            stage,
+            step: v.step,
+            t_ms,
+            success: v.success,
+            failure,
+        }
+    }
+}
+
 /// A TC and every verification report received for it.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct CommandRecord {
