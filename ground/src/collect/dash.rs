@@ -19,10 +19,10 @@ use crossbeam_channel::{Receiver, Sender};
 use crate::alarms::Input;
 use crate::archive::now_ms;
 use crate::dashboard::{
-    self, AlarmRecord, AlarmState, CommandError, Commander, ConfigState, EventRecord, Hub, PlanInfo, Series,
-    StageReport,
+    node_mode, request_id, AlarmRecord, AlarmState, CommandError, Commander, ConfigState, EventRecord, Hub, PlanInfo,
+    Series, StageReport,
 };
-use crate::pus::{self, Tm, TmBody};
+use crate::pus::{Tm, TmBody};
 
 use super::store;
 
@@ -49,39 +49,6 @@ pub enum DashCmd {
 pub struct RobotDash {
     pub hub: Hub,
     pub cmds: Receiver<DashCmd>,
-}
-
-/// Request ID as the hub and the page show it: robot, APID and sequence count.
-pub fn request_id(robot: u8, apid: u16, seq: u16) -> String {
-    format!("{robot}-{apid:03x}-{seq}")
-}
-
-/// Records a TC the robot's thread is about to send from the page.
-pub fn tc_sent(hub: &Hub, robot: u8, tc: &pus::BuiltTc, def: &mib::tc::TcDef, args: &[i64], origin: &str) -> String {
-    let id = request_id(robot, tc.apid, tc.seq);
-    hub.tc_sent(dashboard::CommandRecord {
-        request_id: id.clone(),
-        robot,
-        name: def.name.to_string(),
-        args: def
-            .args
-            .iter()
-            .map(|a| a.name.to_string())
-            .zip(args.iter().copied())
-            .collect(),
-        sent_ms: now_ms(),
-        origin: origin.to_string(),
-        stages: Vec::new(),
-    });
-    id
-}
-
-fn node_mode(hub: &Hub, robot: u8, node: u32, mode: u32) {
-    if let Some(n) = mib::modes::node_by_id(node) {
-        if let Some(m) = mib::modes::mode_name(n.kind, mode) {
-            hub.mode(robot, n.name, m);
-        }
-    }
 }
 
 /// Hands one live decoded TM of `robot` to the hub: HK values (and the mode and

@@ -212,7 +212,7 @@ impl Worker {
         let seq = self.next_seq();
         let tc = pus::build_tc(self.robot(), seq, def, args).map_err(|e| e.to_string())?;
         let id = match &self.dash {
-            Some(d) => dash::tc_sent(&d.hub, self.robot(), &tc, def, args, "page"),
+            Some(d) => crate::dashboard::tc_sent(&d.hub, self.robot(), &tc, def, args, "page"),
             None => return Err("no dashboard".into()),
         };
         match &self.link {

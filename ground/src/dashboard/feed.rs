@@ -16,8 +16,8 @@ use std::time::Duration;
 use crossbeam_channel::RecvTimeoutError;
 
 use super::{
-    AlarmRecord, AlarmState, CommandError, CommandRecord, Commander, ConfigState, EventRecord, Hub, LimitState,
-    LinkState, PlanInfo, PlanRun, PlanStep, Stage, StageReport,
+    AlarmRecord, AlarmState, CommandError, Commander, ConfigState, EventRecord, Hub, LimitState, LinkState, PlanInfo,
+    PlanRun, PlanStep, Stage, StageReport,
 };
 use crate::link::{Incoming, Link, Transport};
 use crate::pus::{self, TmBody};
@@ -45,11 +45,6 @@ pub struct LinkFeed {
 
 fn now_ms() -> i64 {
     chrono::Utc::now().timestamp_millis()
-}
-
-/// Request ID as the hub and the page show it: robot, APID and sequence count.
-pub fn request_id(robot: u8, apid: u16, seq: u16) -> String {
-    format!("{robot}-{apid:03x}-{seq}")
 }
 
 impl LinkFeed {
@@ -110,21 +105,7 @@ impl LinkFeed {
             .map_err(|_| CommandError("lock".into()))?
             .next(apid);
         let tc = pus::build_tc(robot, seq, def, args).map_err(|e| CommandError(e.to_string()))?;
-        let id = request_id(robot, tc.apid, tc.seq);
-        self.hub().tc_sent(CommandRecord {
-            request_id: id.clone(),
-            robot,
-            name: def.name.to_string(),
-            args: def
-                .args
-                .iter()
-                .map(|a| a.name.to_string())
-                .zip(args.iter().copied())
-                .collect(),
-            sent_ms: now_ms(),
-            origin: origin.to_string(),
-            stages: Vec::new(),
-        });
+        let id = super::tc_sent(self.hub(), robot, &tc, def, args, origin);
         link.send(&tc.bytes)
             .map_err(|e| CommandError(format!("sending to robot {robot}: {e}")))?;
         Ok(id)
@@ -224,7 +205,7 @@ impl LinkFeed {
             }
             TmBody::ModeReply { node, mode, .. } => self.node_mode(robot, node, mode),
             TmBody::Verification(v) => {
-                let id = request_id(robot, v.request.apid(), v.request.seq());
+                let id = super::request_id(robot, v.request.apid(), v.request.seq());
                 self.hub().tc_stage(robot, &id, StageReport::from_verification(&v, t));
             }
             TmBody::DisabledEvents { .. }
@@ -241,11 +222,7 @@ impl LinkFeed {
     }
 
     fn node_mode(&self, robot: u8, node: u32, mode: u32) {
-        if let Some(n) = mib::modes::node_by_id(node) {
-            if let Some(m) = mib::modes::mode_name(n.kind, mode) {
-                self.hub().mode(robot, n.name, m);
-            }
-        }
+        super::node_mode(self.hub(), robot, node, mode);
     }
 
     fn raise(&self, robot: u8, source: &str, severity: &str, message: &str, t: i64) {

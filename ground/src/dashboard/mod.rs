@@ -354,6 +354,46 @@ fn column_start(t0_ms: i64, span: i128, cols: i128, c: i128) -> i64 {
     t0_ms + (c * span / cols) as i64
 }
 
+/// Request ID as the hub and the page show it: robot, APID and sequence count.
+pub fn request_id(robot: u8, apid: u16, seq: u16) -> String {
+    format!("{robot}-{apid:03x}-{seq}")
+}
+
+/// Records a TC the robot's thread is about to send from the page.
+pub fn tc_sent(
+    hub: &Hub,
+    robot: u8,
+    tc: &crate::pus::BuiltTc,
+    def: &mib::tc::TcDef,
+    args: &[i64],
+    origin: &str,
+) -> String {
+    let id = request_id(robot, tc.apid, tc.seq);
+    hub.tc_sent(CommandRecord {
+        request_id: id.clone(),
+        robot,
+        name: def.name.to_string(),
+        args: def
+            .args
+            .iter()
+            .map(|a| a.name.to_string())
+            .zip(args.iter().copied())
+            .collect(),
+        sent_ms: crate::archive::now_ms(),
+        origin: origin.to_string(),
+        stages: Vec::new(),
+    });
+    id
+}
+
+pub fn node_mode(hub: &Hub, robot: u8, node: u32, mode: u32) {
+    if let Some(n) = mib::modes::node_by_id(node) {
+        if let Some(m) = mib::modes::mode_name(n.kind, mode) {
+            hub.mode(robot, n.name, m);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
