@@ -14,8 +14,14 @@ MIN="${2:-10}"
 BASE="${COLLECT_BENCH_BASE_PORT:-21000}"
 export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$ROOT/target}"
 cd "$ROOT"
-cargo build --release -q -p obsw -p ground
-BIN="$CARGO_TARGET_DIR/release"
+# COLLECT_BENCH_BIN: a directory with prebuilt `obsw` and `ground` (for long runs while
+# the tree is rebuilt); otherwise they are built here.
+if [ -n "${COLLECT_BENCH_BIN:-}" ]; then
+    BIN="$COLLECT_BENCH_BIN"
+else
+    cargo build --release -q -p obsw -p ground
+    BIN="$CARGO_TARGET_DIR/release"
+fi
 WORK="$(mktemp -d)"
 PIDS=()
 CPID=""
@@ -92,7 +98,7 @@ import sqlite3, sys, os
 db, n, mins, samples, work, tmlog, code, stop_s = sys.argv[1:9]
 n = int(n)
 c = sqlite3.connect(db)
-rows = c.execute("select apid, seq, obt_ms, count(*) from tm where ok = 1 and apid is not null group by apid, seq, obt_ms").fetchall()
+rows = c.execute("select apid, seq, obt_ms, count(*) from packet group by apid, seq, obt_ms").fetchall()
 archived = {}
 twice = 0
 for apid, seq, obt, k in rows:
@@ -130,7 +136,7 @@ else:
         lost += (seqs[-1] - seqs[0] + 1) - len(set(seqs))
     sent_total = total
     judge = "from sequence-count continuity (obsw has no --tm-log)"
-hk10 = c.execute("select count(*) from tm where service = 3 and subservice = 25").fetchone()[0]
+hk10 = c.execute("select count(*) from packet where substr(raw, 8, 2) = x'0319'").fetchone()[0]
 lines = [l.split() for l in open(samples)]
 def avg(ls, i): return sum(float(l[i]) for l in ls) / max(1, len(ls))
 k = max(1, min(3, len(lines) // 3))
