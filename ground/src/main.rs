@@ -677,26 +677,20 @@ fn run_plan(a: &RunArgs, archive_path: Option<&Path>) -> Result<u8> {
 /// Steps of `pl` whose TC the archive shows completed (TM[1,7] for its request ID after
 /// it was sent), for `run --resume`.
 fn completed_steps(path: &Path, pl: &plan::Plan) -> Result<Vec<usize>> {
-    if !path.exists() {
-        return Err(coded(
-            exit::INVALID,
-            format!("--resume: archive {} does not exist", path.display()),
-        ));
-    }
-    let c = rusqlite::Connection::open_with_flags(path, rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY)
-        .with_context(|| format!("--resume: opening archive {}", path.display()))?;
-    let mut q = c
-        .prepare(
-            "SELECT 1 FROM tc JOIN verification v ON v.req_apid = tc.apid AND v.req_seq = tc.seq
-             WHERE tc.step = ?1 AND tc.robot = ?2 AND tc.name = ?3 AND v.stage = 'completion'
-               AND v.success = 1 AND v.t_ms >= tc.t_ms LIMIT 1",
-        )
-        .context("--resume: reading the archive")?;
+    let loc = path.to_string_lossy();
+    let mut st = match archive::Store::open_existing(&loc) {
+        Ok(st) => st,
+        Err(archive::ArchiveError::NotFound(_)) => {
+            return Err(coded(exit::INVALID, format!("--resume: archive {loc} does not exist")));
+        }
+        Err(e) => return Err(anyhow!("--resume: {e}")),
+    };
     let mut done = Vec::new();
     for (i, s) in pl.steps.iter().enumerate() {
         let Some((def, _)) = s.action.tc() else { continue };
-        if q.exists(rusqlite::params![s.id, s.robot, def.name])
-            .context("--resume: reading the archive")?
+        if st
+            .step_completed(&s.id, s.robot, def.name)
+            .map_err(|e| anyhow!("--resume: reading the archive: {e}"))?
         {
             done.push(i);
         }

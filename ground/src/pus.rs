@@ -657,6 +657,17 @@ pub fn decode_packet(b: &[u8]) -> Result<Packet, DecodeError> {
     }
 }
 
+/// `(APID, sequence count, on-board ms)` of a TM packet whose headers and CRC are intact,
+/// whether or not its body decodes.
+pub fn intact_position(raw: &[u8]) -> Option<(u16, u16, i64)> {
+    let p = mib_wire::header::TmPacket::parse(raw).ok()?;
+    Some((
+        p.primary.apid,
+        p.primary.seq_count,
+        CdsShort::from_wire(&p.time).unix_ms(),
+    ))
+}
+
 /// Decodes one TM packet (headers, CRC and body checked against the MIB).
 pub fn decode_tm(b: &[u8]) -> Result<Tm, DecodeError> {
     let p = TmPacket::parse(b).map_err(header_err)?;

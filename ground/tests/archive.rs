@@ -4,16 +4,16 @@
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use std::sync::OnceLock;
 
-use ground::archive::{self, import, Alarm, AlarmState, AlarmUpdate, Archive, Filter, GapReason, Kind, Record, Store};
+use ground::archive::{
+    self, import, Alarm, AlarmUpdate, Archive, ArchiveError, Filter, GapReason, Kind, LinkHealth, Record, Store,
+};
 use ground::pus::{build_tc, build_tm, decode_tm, CdsShort};
 
-const T0: i64 = 1_767_225_600_000;
+mod common;
+use common::{pg_db, pg_drop};
 
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
+const T0: i64 = 1_767_225_600_000;
 
 fn tmp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("ground-archive-test-{}", std::process::id()));
@@ -21,34 +21,6 @@ fn tmp(name: &str) -> PathBuf {
     let p = d.join(name);
     let _ = std::fs::remove_file(&p);
     p
-}
-
-/// URL of the suite's PostgreSQL server (database `postgres`).
-fn pg_server() -> &'static str {
-    static URL: OnceLock<String> = OnceLock::new();
-    URL.get_or_init(|| {
-        let dir = format!("/tmp/ground-pg-{}", std::process::id());
-        let out = Command::new("bash")
-            .arg(root().join("scripts/postgres-test.sh"))
-            .args(["start", &dir, &std::process::id().to_string()])
-            .output()
-            .expect("running scripts/postgres-test.sh");
-        assert!(
-            out.status.success(),
-            "starting PostgreSQL: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        String::from_utf8(out.stdout).unwrap().trim().to_string()
-    })
-}
-
-/// A fresh database on the suite's server.
-fn pg_db(name: &str) -> String {
-    let base = pg_server();
-    let mut c = postgres::Client::connect(base, postgres::NoTls).unwrap();
-    c.batch_execute(&format!("DROP DATABASE IF EXISTS {name}")).unwrap();
-    c.batch_execute(&format!("CREATE DATABASE {name}")).unwrap();
-    base.replace("/postgres?", &format!("/{name}?"))
 }
 
 /// Removes files when dropped (the suite's archives are tens of MB).
@@ -70,9 +42,7 @@ fn both(name: &str, f: impl Fn(&str, &str)) {
     f(file.to_str().unwrap(), "sqlite");
     drop(_rm);
     f(&pg_db(name), "postgresql");
-    let mut c = postgres::Client::connect(pg_server(), postgres::NoTls).unwrap();
-    c.batch_execute(&format!("DROP DATABASE IF EXISTS {name} WITH (FORCE)"))
-        .unwrap();
+    pg_drop(name);
 }
 
 fn hk_packet(robot: u8, seq: u16, t_ms: i64, i: i64) -> Vec<u8> {
@@ -316,48 +286,141 @@ fn holes_reboots_and_store_notes() {
     });
 }
 
-// verifies: GND-02
+// verifies: GND-02, GND-13, GND-14
 #[test]
 fn alarms_go_through_their_states() {
+    use ground::alarms::{Input, Severity, Source, State};
     both("alarms", |loc, backend| {
         let mut s = Store::open(loc).unwrap();
-        let up = |t| AlarmUpdate {
+        let src = Source::Param("V_BAT_A".into());
+        let up = |input, t, severity| AlarmUpdate {
             robot: 3,
-            source: "V_BAT_A",
-            severity: "high",
-            value: "9.61 V",
-            limit: "< 10.00 V (hard)",
+            source: &src,
+            severity,
+            input,
             t_ms: t,
+            value: Some(9.61),
+            message: "< 10.00 V (hard)",
         };
-        let id = s.raise_alarm(&up(T0)).unwrap();
-        assert_eq!(s.raise_alarm(&up(T0 + 1000)).unwrap(), id, "{backend}");
-        let a: Alarm = s.ack_alarm(id, T0 + 2000).unwrap();
+        let id = s
+            .apply_alarm(&up(Input::Activate, T0, Severity::Medium))
+            .unwrap()
+            .unwrap();
         assert_eq!(
-            (a.state, a.count, a.ack_ms),
-            (AlarmState::Acknowledged, 2, Some(T0 + 2000))
+            s.apply_alarm(&up(Input::Activate, T0 + 1000, Severity::High)).unwrap(),
+            Some(id),
+            "{backend}"
         );
-        let a = s.shelve_alarm(id, T0 + 60_000).unwrap();
-        assert_eq!(a.state, AlarmState::Shelved);
-        assert_eq!(s.unshelve_expired(T0 + 59_000).unwrap(), 0);
-        assert_eq!(s.unshelve_expired(T0 + 60_000).unwrap(), 1);
-        assert_eq!(s.clear_alarm(3, "V_BAT_A", T0 + 70_000).unwrap(), Some(id));
-        assert_eq!(s.clear_alarm(3, "V_BAT_A", T0 + 71_000).unwrap(), None);
-        // A new condition after clearing is a new alarm.
-        let id2 = s.raise_alarm(&up(T0 + 80_000)).unwrap();
+        let a: &Alarm = &s.alarms(Some(3), false).unwrap()[0];
+        assert_eq!(
+            (a.state, a.count, a.severity.as_str(), a.value, a.kind.as_str()),
+            (State::Active, 2, "high", Some(9.61), "param"),
+            "{backend}"
+        );
+        assert_eq!(s.alarm_input(id, Input::Ack, T0 + 2000).unwrap(), State::Acknowledged);
+        // A second acknowledgement is refused and changes nothing.
+        let e = s.alarm_input(id, Input::Ack, T0 + 2500).unwrap_err();
+        assert!(matches!(e, ArchiveError::Refused(_)), "{backend}: {e}");
+        assert!(e.to_string().contains("nothing to acknowledge"), "{e}");
+        assert_eq!(s.alarms(None, true).unwrap()[0].ack_ms, Some(T0 + 2000));
+        // Acknowledged and gone: closed (normal), a new condition is a new alarm.
+        s.apply_alarm(&up(Input::Clear, T0 + 3000, Severity::Medium)).unwrap();
+        assert!(s.alarms(Some(3), false).unwrap().is_empty(), "{backend}");
+        let closed = &s.alarms(Some(3), true).unwrap()[0];
+        assert_eq!((closed.state, closed.cleared_ms), (State::Normal, Some(T0 + 3000)));
+        let id2 = s
+            .apply_alarm(&up(Input::Activate, T0 + 4000, Severity::Medium))
+            .unwrap()
+            .unwrap();
         assert_ne!(id2, id, "{backend}");
-        assert_eq!(s.alarms(Some(3), true).unwrap().len(), 1);
-        let all = s.alarms(None, false).unwrap();
-        assert_eq!(all[0].state, AlarmState::Cleared);
-        assert_eq!(all[0].first_ms, T0);
-        assert_eq!(all[0].last_ms, T0 + 70_000);
-        assert!(s.ack_alarm(999, T0).is_err(), "{backend}");
+        // Gone before anyone looked: cleared, waiting for its acknowledgement.
+        s.apply_alarm(&up(Input::Clear, T0 + 5000, Severity::Medium)).unwrap();
+        assert_eq!(s.alarms(Some(3), false).unwrap()[0].state, State::Cleared);
+        s.apply_alarm(&up(Input::Activate, T0 + 6000, Severity::Medium))
+            .unwrap();
+        // Shelved, then the shelve runs out: active again (unacknowledged).
+        assert_eq!(
+            s.alarm_input(id2, Input::Shelve { until_ms: T0 + 60_000 }, T0 + 7000)
+                .unwrap(),
+            State::Shelved
+        );
+        assert_eq!(s.expire_shelves(T0 + 59_000).unwrap(), 0, "{backend}");
+        assert_eq!(s.expire_shelves(T0 + 60_000).unwrap(), 1, "{backend}");
+        assert_eq!(s.alarms(Some(3), false).unwrap()[0].state, State::Active);
+        // A clear with nothing open opens nothing; an unknown ID is named.
+        assert_eq!(
+            s.apply_alarm(&AlarmUpdate {
+                robot: 2,
+                source: &Source::LinkLoss,
+                severity: Severity::High,
+                input: Input::Clear,
+                t_ms: T0,
+                value: None,
+                message: "",
+            })
+            .unwrap(),
+            None
+        );
+        let e = s.alarm_input(999, Input::Ack, T0).unwrap_err();
+        assert!(e.to_string().contains("no alarm with ID 999"), "{backend}: {e}");
         let rows = s.query(Kind::Alarm, &Filter::default()).unwrap();
         assert_eq!(
-            rows.columns[..7],
-            ["id", "robot", "source", "severity", "state", "first_ms", "last_ms"]
+            rows.columns[..8],
+            ["id", "robot", "kind", "source", "severity", "state", "first_ms", "last_ms"]
         );
-        assert_eq!(rows.rows.len(), 2);
-        assert_eq!(rows.rows[0][4], "cleared");
+        assert_eq!(rows.rows.len(), 2, "{backend}");
+        assert_eq!(rows.rows[0][5], "normal");
+        assert_eq!(rows.rows[1][5], "active");
+    });
+}
+
+/// Retention deletes what is older than the cut in every table, closed alarms too, and
+/// keeps open alarms whatever their age; link records survive.
+// verifies: GND-14
+#[test]
+fn prune_deletes_old_rows_and_keeps_open_alarms() {
+    use ground::alarms::{Input, Severity, Source};
+    both("prune", |loc, backend| {
+        let a = Archive::open(Path::new(loc)).unwrap();
+        let s = a.sender();
+        s.send(tm(hk_packet(1, 0, T0, 0), T0));
+        s.send(tm(hk_packet(1, 1, T0 + 100, 1), T0 + 7_200_000));
+        drop(s);
+        a.close().unwrap();
+        let mut st = Store::open(loc).unwrap();
+        let raise = |st: &mut Store, robot, input| {
+            st.apply_alarm(&AlarmUpdate {
+                robot,
+                source: &Source::LinkLoss,
+                severity: Severity::High,
+                input,
+                t_ms: T0,
+                value: None,
+                message: "no TM",
+            })
+            .unwrap()
+        };
+        raise(&mut st, 1, Input::Activate);
+        let closed = raise(&mut st, 2, Input::Activate).unwrap();
+        st.alarm_input(closed, Input::Ack, T0).unwrap();
+        raise(&mut st, 2, Input::Clear);
+        st.write_links(
+            &[LinkHealth {
+                robot: 1,
+                addr: "127.0.0.1:1".into(),
+                link: "up".into(),
+                ..Default::default()
+            }],
+            T0,
+        )
+        .unwrap();
+        let n = st.prune(T0 + 3_600_000).unwrap();
+        // One packet, its chunk rows and the closed alarm.
+        assert!(n >= 3, "{backend}: {n}");
+        assert_eq!(st.packet_totals().unwrap().0, 1, "{backend}");
+        let left = st.alarms(None, true).unwrap();
+        assert_eq!((left.len(), left[0].robot), (1, 1), "{backend}");
+        assert_eq!(st.links().unwrap().len(), 1);
     });
 }
 
@@ -635,48 +698,73 @@ fn a_turn_one_archive_is_migrated() {
     assert!(check.bad.is_empty() && check.chunk_mismatch.is_empty() && check.gaps.is_empty());
 }
 
-/// `archive query --type alarm` lists the collector's alarms (its own table) beside the
-/// archive's.
-// verifies: GND-02
+/// A version-2 archive (SQLite: the collector kept its alarms, link health and holes in
+/// tables of its own) is migrated on open: one alarm table with the ISA-18.2 states, the
+/// link table, the collector's tables gone.
+// verifies: GND-02, GND-14
 #[test]
-fn collector_alarms_are_listed_by_the_alarm_query() {
-    use ground::alarms::{Input, Severity, Source};
-    let p = tmp("collector-alarms.db");
+fn a_version_2_archive_with_collector_tables_is_migrated() {
+    use ground::alarms::State;
+    let p = tmp("v2.db");
     let _rm = Rm(vec![p.clone()]);
-    let c = ground::collect::store::open_conn(&p).unwrap();
-    ground::collect::store::apply_alarm(
-        &c,
-        2,
-        &Source::LinkLoss,
-        Severity::High,
-        Input::Activate,
-        T0,
-        None,
-        "no TM for 3 s",
-    )
-    .unwrap();
-    drop(c);
-    let mut s = Store::open(p.to_str().unwrap()).unwrap();
-    s.raise_alarm(&AlarmUpdate {
-        robot: 1,
-        source: "V_BAT_A",
-        severity: "high",
-        value: "9.6 V",
-        limit: "< 10 V",
-        t_ms: T0 + 1,
-    })
-    .unwrap();
-    let rows = s.query(Kind::Alarm, &Filter::default()).unwrap();
-    assert_eq!(rows.rows.len(), 2, "{rows:?}");
-    let robot2 = s
-        .query(
-            Kind::Alarm,
-            &Filter {
-                robot: Some(2),
-                ..Default::default()
-            },
+    drop(Store::open(p.to_str().unwrap()).unwrap());
+    {
+        // Back to version 2's alarm table and the collector's tables of that version.
+        let c = rusqlite::Connection::open(&p).unwrap();
+        c.execute_batch(
+            "DROP TABLE alarm; DROP TABLE link; UPDATE schema_version SET version = 2;
+             CREATE TABLE alarm (id INTEGER PRIMARY KEY, robot INTEGER NOT NULL, source TEXT NOT NULL,
+                severity TEXT NOT NULL, state TEXT NOT NULL, first_ms INTEGER NOT NULL, last_ms INTEGER NOT NULL,
+                value TEXT, limit_text TEXT, count INTEGER NOT NULL, ack_ms INTEGER, shelved_until_ms INTEGER,
+                cleared_ms INTEGER);
+             CREATE INDEX alarm_t ON alarm (first_ms);
+             CREATE INDEX alarm_open ON alarm (robot, source, state);
+             CREATE TABLE collect_alarm (id INTEGER PRIMARY KEY, robot INTEGER NOT NULL, kind TEXT NOT NULL,
+                source TEXT NOT NULL, severity TEXT NOT NULL, state TEXT NOT NULL, condition INTEGER NOT NULL,
+                acked INTEGER NOT NULL, shelved_until_ms INTEGER, first_ms INTEGER NOT NULL, last_ms INTEGER NOT NULL,
+                value REAL, message TEXT, count INTEGER NOT NULL);
+             CREATE TABLE collect_gap (id INTEGER PRIMARY KEY, t_ms INTEGER NOT NULL, robot INTEGER NOT NULL,
+                apid INTEGER NOT NULL, first_seq INTEGER NOT NULL, last_seq INTEGER NOT NULL, count INTEGER NOT NULL,
+                after_obt_ms INTEGER, before_obt_ms INTEGER, reason TEXT NOT NULL);
+             CREATE TABLE collect_robot (robot INTEGER PRIMARY KEY, addr TEXT, link TEXT, last_heard_ms INTEGER,
+                last_hk_ms INTEGER, packets INTEGER, filled INTEGER, lost INTEGER, duplicates INTEGER,
+                corrupt INTEGER, reboots INTEGER, updated_ms INTEGER NOT NULL);
+             INSERT INTO alarm (robot, source, severity, state, first_ms, last_ms, value, limit_text, count)
+                VALUES (1, 'V_BAT_A', 'high', 'cleared', 1, 2, '9.6 V', '< 10 V', 1);
+             INSERT INTO collect_alarm (robot, kind, source, severity, state, condition, acked, first_ms, last_ms,
+                value, message, count) VALUES (2, 'link', 'LINK_LOSS', 'high', 'active', 1, 0, 3, 4, NULL, 'no TM', 2);
+             INSERT INTO collect_robot (robot, addr, link, packets, updated_ms) VALUES (2, '127.0.0.1:9', 'lost', 77, 5);
+             INSERT INTO collect_gap (t_ms, robot, apid, first_seq, last_seq, count, reason)
+                VALUES (5, 2, 258, 0, 9, 10, 'rebooted');",
         )
         .unwrap();
-    assert_eq!(robot2.rows.len(), 1);
-    assert_eq!(robot2.rows[0][9], 1, "{robot2:?}");
+    }
+    let mut s = Store::open(p.to_str().unwrap()).unwrap();
+    for t in ["collect_alarm", "collect_robot", "collect_gap", "v2_alarm"] {
+        assert!(!s.db().has_table(t).unwrap(), "{t}");
+    }
+    let all = s.alarms(None, true).unwrap();
+    assert_eq!(all.len(), 2, "{all:?}");
+    // Newest first: the collector's open link loss, then the closed battery alarm.
+    assert_eq!(
+        (
+            all[0].robot,
+            all[0].kind.as_str(),
+            all[0].source.as_str(),
+            all[0].state,
+            all[0].count
+        ),
+        (2, "link", "LINK_LOSS", State::Active, 2)
+    );
+    assert_eq!((all[1].state, all[1].message.as_str()), (State::Normal, "9.6 V < 10 V"));
+    // The migrated alarm still follows the state machine.
+    assert_eq!(
+        s.alarm_input(all[0].id, ground::alarms::Input::Ack, 10).unwrap(),
+        State::Acknowledged
+    );
+    let links = s.links().unwrap();
+    assert_eq!(
+        (links[0].robot, links[0].link.as_str(), links[0].packets),
+        (2, "lost", 77)
+    );
 }

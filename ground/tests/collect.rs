@@ -14,6 +14,9 @@ use std::process::{Child, Command, Output, Stdio};
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
+mod common;
+use common::{pg_db, pg_drop};
+
 const GROUND: &str = env!("CARGO_BIN_EXE_ground");
 
 fn obsw_bin() -> PathBuf {
@@ -101,9 +104,10 @@ fn text(o: &Output) -> String {
     )
 }
 
-fn collector(dir: &Path, robots: &[String]) -> Proc {
+/// Starts `ground --archive ARCH collect` (ARCH: a file in `dir`, or a server URL).
+fn collector(dir: &Path, arch: &str, robots: &[String]) -> Proc {
     let mut c = Command::new(GROUND);
-    c.current_dir(dir).args(["--archive", "a.db", "collect", "--plain"]);
+    c.current_dir(dir).args(["--archive", arch, "collect", "--plain"]);
     for r in robots {
         c.args(["--robot", r]);
     }
@@ -140,11 +144,8 @@ fn wait_exit(p: &mut Proc, limit: Duration) -> Option<i32> {
 }
 
 /// Sequence counts of robot 1's APID in the archive, with how often each is stored.
-fn archived_seqs(dir: &Path) -> BTreeMap<i64, u32> {
-    let out = ground(
-        dir,
-        &["--archive", "a.db", "archive", "query", "--type", "tm", "--json"],
-    );
+fn archived_seqs(dir: &Path, arch: &str) -> BTreeMap<i64, u32> {
+    let out = ground(dir, &["--archive", arch, "archive", "query", "--type", "tm", "--json"]);
     assert_eq!(out.status.code(), Some(0), "{}", text(&out));
     let mut m = BTreeMap::new();
     for line in String::from_utf8_lossy(&out.stdout).lines() {
@@ -198,10 +199,23 @@ fn check_config_names_file_line_and_column() {
 // verifies: GND-10, GND-02
 #[test]
 fn kill_9_and_restart_lose_and_duplicate_nothing_alarms_and_sigterm() {
+    kill_and_restart(&tmpdir("kill"), "a.db");
+}
+
+/// The same on a PostgreSQL archive: the collector's alarms, holes and link health go
+/// through the archive's backend-neutral store.
+// verifies: GND-10, GND-02, GND-14
+#[test]
+fn kill_9_and_restart_on_a_postgresql_archive() {
+    let url = pg_db("collect_kill");
+    kill_and_restart(&tmpdir("kill-pg"), &url);
+    pg_drop("collect_kill");
+}
+
+fn kill_and_restart(dir: &Path, arch: &str) {
     let (_o, addr, ctl) = start_obsw(1);
-    let dir = tmpdir("kill");
     let robots = vec![format!("1={addr}"), "2=127.0.0.1:9".to_string()];
-    let mut c = collector(&dir, &robots);
+    let mut c = collector(dir, arch, &robots);
     std::thread::sleep(Duration::from_secs(5));
     signal(&c, "-KILL");
     assert!(
@@ -210,9 +224,9 @@ fn kill_9_and_restart_lose_and_duplicate_nothing_alarms_and_sigterm() {
     );
     // The obsw goes on while nobody collects.
     std::thread::sleep(Duration::from_secs(6));
-    let mut c = collector(&dir, &robots);
+    let mut c = collector(dir, arch, &robots);
     std::thread::sleep(Duration::from_secs(3));
-    let out = ground(&dir, &["sim", "--addr", &ctl.to_string(), "battery-sag", "10.3"]);
+    let out = ground(dir, &["sim", "--addr", &ctl.to_string(), "battery-sag", "10.3"]);
     assert_eq!(out.status.code(), Some(0), "{}", text(&out));
     std::thread::sleep(Duration::from_secs(6));
     let t0 = Instant::now();
@@ -227,7 +241,7 @@ fn kill_9_and_restart_lose_and_duplicate_nothing_alarms_and_sigterm() {
 
     // Every count from the first to the last archived, each once: the 6 s while the
     // collector was dead came from the on-board store.
-    let seqs = archived_seqs(&dir);
+    let seqs = archived_seqs(dir, arch);
     let (first, last) = (*seqs.keys().next().unwrap(), *seqs.keys().last().unwrap());
     let missing: Vec<i64> = (first..=last).filter(|s| !seqs.contains_key(s)).collect();
     let twice: Vec<_> = seqs.iter().filter(|(_, n)| **n > 1).collect();
@@ -241,7 +255,7 @@ fn kill_9_and_restart_lose_and_duplicate_nothing_alarms_and_sigterm() {
     assert!(last - first > 20, "{seqs:?}");
 
     // Alarms: the sagging battery (soft limit 10.5 V) and the robot that never answered.
-    let out = ground(&dir, &["--archive", "a.db", "alarms", "list", "--json"]);
+    let out = ground(dir, &["--archive", arch, "alarms", "list", "--json"]);
     let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
         .lines()
         .map(|l| serde_json::from_str(l).unwrap())
@@ -260,19 +274,19 @@ fn kill_9_and_restart_lose_and_duplicate_nothing_alarms_and_sigterm() {
     let link = find(2, "LINK_LOSS");
     assert_eq!(link["severity"], "high");
     let id = bat["id"].to_string();
-    let out = ground(&dir, &["--archive", "a.db", "alarms", "ack", &id]);
+    let out = ground(dir, &["--archive", arch, "alarms", "ack", &id]);
     assert_eq!(out.status.code(), Some(0), "{}", text(&out));
     assert!(text(&out).contains("acknowledged"));
-    let out = ground(&dir, &["--archive", "a.db", "alarms", "ack", &id]);
+    let out = ground(dir, &["--archive", arch, "alarms", "ack", &id]);
     assert_eq!(out.status.code(), Some(3), "acknowledging twice is refused");
     let lid = link["id"].to_string();
-    let out = ground(&dir, &["--archive", "a.db", "alarms", "shelve", &lid, "--for", "1h"]);
+    let out = ground(dir, &["--archive", arch, "alarms", "shelve", &lid, "--for", "1h"]);
     assert!(text(&out).contains("shelved"), "{}", text(&out));
-    let out = ground(&dir, &["--archive", "a.db", "alarms", "list"]);
+    let out = ground(dir, &["--archive", arch, "alarms", "list"]);
     assert!(text(&out).contains("shelved<"), "{}", text(&out));
 
     // Health: when each robot was last heard.
-    let out = ground(&dir, &["--archive", "a.db", "collect", "--status"]);
+    let out = ground(dir, &["--archive", arch, "collect", "--status"]);
     let t = text(&out);
     assert!(t.contains(&addr.to_string()) && t.contains("never"), "{t}");
 }
@@ -331,7 +345,7 @@ fn full_disk_raises_an_alarm_and_the_collector_goes_on_losing_nothing() {
     let conn = rusqlite::Connection::open(dir.join("a.db")).unwrap();
     let ok: String = conn.query_row("PRAGMA integrity_check", [], |r| r.get(0)).unwrap();
     assert_eq!(ok, "ok");
-    let seqs = archived_seqs(&dir);
+    let seqs = archived_seqs(&dir, "a.db");
     let (first, last) = (*seqs.keys().next().unwrap(), *seqs.keys().last().unwrap());
     let missing: Vec<i64> = (first..=last).filter(|s| !seqs.contains_key(s)).collect();
     let twice: Vec<_> = seqs.iter().filter(|(_, n)| **n > 1).collect();

@@ -1,207 +1,264 @@
-//! Alarm records (ISA-18.2 style states) kept beside the data they are about. The
-//! collector raises and clears them; operators acknowledge and shelve them.
+//! The alarm records: one table, whichever backend, for everything that raises alarms
+//! (the collector's limit checks, events, link loss, stale data, the archive itself) and
+//! everything that reads or answers them (`ground alarms`, `archive query --type alarm`,
+//! the dashboard). Every transition goes through the ISA-18.2 state machine
+//! [`crate::alarms::AlarmState`], read and written back in one transaction.
 
 use serde::Serialize;
 
-use super::db::{collect, scalar, Val};
+use super::db::{collect, Db, Dialect, Val};
 use super::{ArchiveError, Store};
-
-/// The state of an alarm.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum AlarmState {
-    /// The condition holds and nobody has acknowledged it.
-    Active,
-    /// An operator has seen it; the condition may still hold.
-    Acknowledged,
-    /// Hidden from the active list until `shelved_until_ms`.
-    Shelved,
-    /// The condition no longer holds (final).
-    Cleared,
-}
-
-impl AlarmState {
-    pub fn name(self) -> &'static str {
-        match self {
-            AlarmState::Active => "active",
-            AlarmState::Acknowledged => "acknowledged",
-            AlarmState::Shelved => "shelved",
-            AlarmState::Cleared => "cleared",
-        }
-    }
-    pub fn parse(s: &str) -> Option<AlarmState> {
-        [
-            AlarmState::Active,
-            AlarmState::Acknowledged,
-            AlarmState::Shelved,
-            AlarmState::Cleared,
-        ]
-        .into_iter()
-        .find(|a| a.name() == s)
-    }
-}
+use crate::alarms::{AlarmState, Input, Severity, Source, State};
 
 /// One alarm.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Alarm {
     pub id: i64,
+    /// 0 for the collector's own alarms (the archive).
     pub robot: u8,
-    /// Parameter or event name (or `LINK`, `STALE`, `DISK` for the collector's own).
+    /// `param`, `event`, `link`, `stale`, `archive` ([`Source::kind`]).
+    pub kind: String,
+    /// Parameter or event name, or `LINK_LOSS`, `STALE_DATA`, `ARCHIVE_WRITE`.
     pub source: String,
     pub severity: String,
-    pub state: AlarmState,
+    pub state: State,
     pub first_ms: i64,
     pub last_ms: i64,
-    pub value: Option<String>,
-    pub limit: Option<String>,
+    pub shelved_until_ms: Option<i64>,
+    /// The value that raised or last refreshed it (engineering units), if any.
+    pub value: Option<f64>,
+    pub message: String,
     /// How many times the condition was reported while the alarm was open.
     pub count: i64,
     pub ack_ms: Option<i64>,
-    pub shelved_until_ms: Option<i64>,
+    /// When the condition went away (the alarm may still wait for an acknowledgement).
     pub cleared_ms: Option<i64>,
 }
 
-/// A report of an alarm condition.
+/// A condition report from a checker.
 #[derive(Clone, Debug, PartialEq)]
 pub struct AlarmUpdate<'a> {
     pub robot: u8,
-    pub source: &'a str,
-    pub severity: &'a str,
-    pub value: &'a str,
-    pub limit: &'a str,
+    pub source: &'a Source,
+    pub severity: Severity,
+    pub input: Input,
     pub t_ms: i64,
+    pub value: Option<f64>,
+    pub message: &'a str,
 }
 
-const COLUMNS: &str = "id, robot, source, severity, state, first_ms, last_ms, value, limit_text, count, ack_ms, \
-                       shelved_until_ms, cleared_ms";
+/// The columns of [`Alarm`], in its order (also `archive query --type alarm`'s).
+pub const COLUMNS: &str = "id, robot, kind, source, severity, state, first_ms, last_ms, shelved_until_ms, value, \
+                           message, count, ack_ms, cleared_ms";
 
 fn alarm_of(r: &[Val]) -> Result<Alarm, ArchiveError> {
-    let state = r[4].text().unwrap_or("");
+    let id = r[0].int().unwrap_or(0);
+    let state = r[5].text().unwrap_or("");
     Ok(Alarm {
-        id: r[0].int().unwrap_or(0),
+        id,
         robot: r[1].int().unwrap_or(0) as u8,
-        source: r[2].text().unwrap_or("").to_string(),
-        severity: r[3].text().unwrap_or("").to_string(),
-        state: AlarmState::parse(state).ok_or_else(|| {
-            ArchiveError::Damaged(format!(
-                "alarm {} has unknown state \"{state}\"",
-                r[0].int().unwrap_or(0)
-            ))
-        })?,
-        first_ms: r[5].int().unwrap_or(0),
-        last_ms: r[6].int().unwrap_or(0),
-        value: r[7].text().map(str::to_string),
-        limit: r[8].text().map(str::to_string),
-        count: r[9].int().unwrap_or(0),
-        ack_ms: r[10].int(),
-        shelved_until_ms: r[11].int(),
-        cleared_ms: r[12].int(),
+        kind: r[2].text().unwrap_or("").to_string(),
+        source: r[3].text().unwrap_or("").to_string(),
+        severity: r[4].text().unwrap_or("").to_string(),
+        state: State::parse(state)
+            .ok_or_else(|| ArchiveError::Damaged(format!("alarm {id} has unknown state \"{state}\"")))?,
+        first_ms: r[6].int().unwrap_or(0),
+        last_ms: r[7].int().unwrap_or(0),
+        shelved_until_ms: r[8].int(),
+        value: match r[9] {
+            Val::Real(v) => Some(v),
+            Val::Int(v) => Some(v as f64),
+            Val::Null | Val::Text(_) | Val::Blob(_) => None,
+        },
+        message: r[10].text().unwrap_or("").to_string(),
+        count: r[11].int().unwrap_or(0),
+        ack_ms: r[12].int(),
+        cleared_ms: r[13].int(),
     })
 }
 
+/// The state machine's view of a stored alarm (`condition, acked, shelved_until_ms, state`).
+fn machine_of(r: &[Val]) -> AlarmState {
+    AlarmState {
+        condition: r[0].int().unwrap_or(0) != 0,
+        acked: r[1].int().unwrap_or(0) != 0,
+        shelved_until_ms: r[2].int(),
+        open: r[3].text() != Some(State::Normal.name()),
+    }
+}
+
+const MACHINE: &str = "condition, acked, shelved_until_ms, state";
+
+fn for_update(d: Dialect) -> &'static str {
+    match d {
+        // SQLite: the transaction already holds the write lock (BEGIN IMMEDIATE).
+        Dialect::Sqlite => "",
+        Dialect::Postgres => " FOR UPDATE",
+    }
+}
+
 impl Store {
-    /// Raises (or refreshes) the open alarm of `(robot, source)`; returns its id. An
-    /// acknowledged or shelved alarm keeps its state; its value and last time move on.
-    pub fn raise_alarm(&mut self, u: &AlarmUpdate<'_>) -> Result<i64, ArchiveError> {
-        let open = scalar(
-            self.db.as_mut(),
-            "SELECT id FROM alarm WHERE robot = ?1 AND source = ?2 AND state <> 'cleared' ORDER BY id DESC LIMIT 1",
-            &[Val::Int(u.robot as i64), u.source.into()],
-        )?
-        .and_then(|v| v.int());
-        if let Some(id) = open {
-            self.db.exec(
-                "UPDATE alarm SET last_ms = ?1, value = ?2, limit_text = ?3, severity = ?4, count = count + 1 \
-                 WHERE id = ?5",
+    /// Runs `f` in one write transaction (rolled back if it fails).
+    pub(crate) fn write_tx<R>(
+        &mut self,
+        f: impl FnOnce(&mut dyn Db) -> Result<R, ArchiveError>,
+    ) -> Result<R, ArchiveError> {
+        let db = self.db.as_mut();
+        db.batch(match db.dialect() {
+            Dialect::Sqlite => "BEGIN IMMEDIATE",
+            Dialect::Postgres => "BEGIN",
+        })?;
+        match f(db) {
+            Ok(r) => {
+                db.batch("COMMIT")?;
+                Ok(r)
+            }
+            Err(e) => {
+                let _ = db.batch("ROLLBACK");
+                Err(e)
+            }
+        }
+    }
+
+    /// Applies a condition report to the open alarm of (robot, source), opening a new
+    /// alarm if there is none and the condition is present. Returns the alarm's ID, or
+    /// `None` for a clear with nothing open.
+    pub fn apply_alarm(&mut self, u: &AlarmUpdate<'_>) -> Result<Option<i64>, ArchiveError> {
+        self.write_tx(|db| {
+            let lock = for_update(db.dialect());
+            let open = collect(
+                db,
+                &format!(
+                    "SELECT id, {MACHINE} FROM alarm WHERE robot = ?1 AND kind = ?2 AND source = ?3 \
+                     AND state <> 'normal' ORDER BY id DESC LIMIT 1{lock}"
+                ),
+                &[Val::Int(u.robot as i64), u.source.kind().into(), u.source.name().into()],
+            )?;
+            let raise = u.input == Input::Activate;
+            match open.first() {
+                Some(row) => {
+                    let id = row[0].int().unwrap_or(0);
+                    let mut st = machine_of(&row[1..]);
+                    st.apply(u.input, u.t_ms)
+                        .map_err(|e| ArchiveError::Refused(format!("alarm {id}: {e}")))?;
+                    let value = u.value.map_or(Val::Null, Val::Real);
+                    db.exec(
+                        "UPDATE alarm SET condition = ?2, acked = ?3, shelved_until_ms = ?4, state = ?5, last_ms = ?6, \
+                         value = COALESCE(?7, value), message = ?8, count = count + ?9, \
+                         severity = CASE WHEN ?9 > 0 AND ?10 = 'high' THEN 'high' ELSE severity END, \
+                         cleared_ms = CASE WHEN ?9 > 0 THEN NULL WHEN cleared_ms IS NULL THEN ?6 ELSE cleared_ms END \
+                         WHERE id = ?1",
+                        &[
+                            Val::Int(id),
+                            Val::Int(st.condition as i64),
+                            Val::Int(st.acked as i64),
+                            st.shelved_until_ms.into(),
+                            st.state().name().into(),
+                            Val::Int(u.t_ms),
+                            value,
+                            u.message.into(),
+                            Val::Int(raise as i64),
+                            u.severity.name().into(),
+                        ],
+                    )?;
+                    Ok(Some(id))
+                }
+                None if raise => {
+                    let mut st = AlarmState::default();
+                    st.apply(u.input, u.t_ms)
+                        .map_err(|e| ArchiveError::Refused(e.to_string()))?;
+                    let id = collect(
+                        db,
+                        "INSERT INTO alarm (robot, kind, source, severity, state, condition, acked, first_ms, last_ms, \
+                         value, message, count) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?8, ?9, ?10, 1) RETURNING id",
+                        &[
+                            Val::Int(u.robot as i64),
+                            u.source.kind().into(),
+                            u.source.name().into(),
+                            u.severity.name().into(),
+                            st.state().name().into(),
+                            Val::Int(st.condition as i64),
+                            Val::Int(st.acked as i64),
+                            Val::Int(u.t_ms),
+                            u.value.map_or(Val::Null, Val::Real),
+                            u.message.into(),
+                        ],
+                    )?
+                    .first()
+                    .and_then(|r| r[0].int())
+                    .ok_or_else(|| ArchiveError::Damaged("alarm insert returned no id".into()))?;
+                    Ok(Some(id))
+                }
+                None => Ok(None),
+            }
+        })
+    }
+
+    /// Applies an operator input (acknowledge, shelve, unshelve) or a tick to alarm
+    /// `id`; returns the state it is in afterwards. A refused input changes nothing and
+    /// is an [`ArchiveError::Refused`] saying why.
+    pub fn alarm_input(&mut self, id: i64, input: Input, now_ms: i64) -> Result<State, ArchiveError> {
+        self.write_tx(|db| {
+            let lock = for_update(db.dialect());
+            let rows = collect(
+                db,
+                &format!("SELECT {MACHINE} FROM alarm WHERE id = ?1{lock}"),
+                &[Val::Int(id)],
+            )?;
+            let Some(row) = rows.first() else {
+                return Err(ArchiveError::NotFound(format!("no alarm with ID {id}")));
+            };
+            let mut st = machine_of(row);
+            st.apply(input, now_ms)
+                .map_err(|e| ArchiveError::Refused(format!("alarm {id}: {e}")))?;
+            let ack_ms = (input == Input::Ack).then_some(now_ms);
+            db.exec(
+                "UPDATE alarm SET condition = ?2, acked = ?3, shelved_until_ms = ?4, state = ?5, \
+                 ack_ms = COALESCE(?6, ack_ms) WHERE id = ?1",
                 &[
-                    Val::Int(u.t_ms),
-                    u.value.into(),
-                    u.limit.into(),
-                    u.severity.into(),
                     Val::Int(id),
+                    Val::Int(st.condition as i64),
+                    Val::Int(st.acked as i64),
+                    st.shelved_until_ms.into(),
+                    st.state().name().into(),
+                    ack_ms.into(),
                 ],
             )?;
-            return Ok(id);
-        }
-        scalar(
+            Ok(st.state())
+        })
+    }
+
+    /// Ends the shelves whose time is up; returns how many alarms changed.
+    pub fn expire_shelves(&mut self, now_ms: i64) -> Result<u64, ArchiveError> {
+        let ids: Vec<i64> = collect(
             self.db.as_mut(),
-            "INSERT INTO alarm (robot, source, severity, state, first_ms, last_ms, value, limit_text, count) \
-             VALUES (?1, ?2, ?3, 'active', ?4, ?4, ?5, ?6, 1) RETURNING id",
-            &[
-                Val::Int(u.robot as i64),
-                u.source.into(),
-                u.severity.into(),
-                Val::Int(u.t_ms),
-                u.value.into(),
-                u.limit.into(),
-            ],
-        )?
-        .and_then(|v| v.int())
-        .ok_or_else(|| ArchiveError::Damaged("alarm insert returned no id".into()))
-    }
-
-    /// Clears the open alarm of `(robot, source)`; returns its id if there was one.
-    pub fn clear_alarm(&mut self, robot: u8, source: &str, t_ms: i64) -> Result<Option<i64>, ArchiveError> {
-        Ok(scalar(
-            self.db.as_mut(),
-            "UPDATE alarm SET state = 'cleared', cleared_ms = ?1, last_ms = ?1 \
-             WHERE robot = ?2 AND source = ?3 AND state <> 'cleared' RETURNING id",
-            &[Val::Int(t_ms), Val::Int(robot as i64), source.into()],
-        )?
-        .and_then(|v| v.int()))
-    }
-
-    fn alarm_by_id(&mut self, id: i64) -> Result<Alarm, ArchiveError> {
-        let rows = collect(
-            self.db.as_mut(),
-            &format!("SELECT {COLUMNS} FROM alarm WHERE id = ?1"),
-            &[Val::Int(id)],
-        )?;
-        match rows.first() {
-            Some(r) => alarm_of(r),
-            None => Err(ArchiveError::NotFound(format!("no alarm {id}"))),
-        }
-    }
-
-    /// Acknowledges alarm `id` (active or shelved); a cleared alarm stays cleared.
-    pub fn ack_alarm(&mut self, id: i64, t_ms: i64) -> Result<Alarm, ArchiveError> {
-        self.db.exec(
-            "UPDATE alarm SET state = 'acknowledged', ack_ms = ?1, shelved_until_ms = NULL \
-             WHERE id = ?2 AND state IN ('active', 'shelved')",
-            &[Val::Int(t_ms), Val::Int(id)],
-        )?;
-        self.alarm_by_id(id)
-    }
-
-    /// Shelves alarm `id` until `until_ms` (not a cleared one).
-    pub fn shelve_alarm(&mut self, id: i64, until_ms: i64) -> Result<Alarm, ArchiveError> {
-        self.db.exec(
-            "UPDATE alarm SET state = 'shelved', shelved_until_ms = ?1 WHERE id = ?2 AND state <> 'cleared'",
-            &[Val::Int(until_ms), Val::Int(id)],
-        )?;
-        self.alarm_by_id(id)
-    }
-
-    /// Returns shelved alarms whose time is up to active; returns how many.
-    pub fn unshelve_expired(&mut self, now_ms: i64) -> Result<u64, ArchiveError> {
-        Ok(self.db.exec(
-            "UPDATE alarm SET state = 'active', shelved_until_ms = NULL WHERE state = 'shelved' AND shelved_until_ms <= ?1",
+            "SELECT id FROM alarm WHERE state = 'shelved' AND shelved_until_ms <= ?1",
             &[Val::Int(now_ms)],
-        )?)
+        )?
+        .iter()
+        .filter_map(|r| r[0].int())
+        .collect();
+        let mut n = 0;
+        for id in ids {
+            self.alarm_input(id, Input::Tick, now_ms)?;
+            n += 1;
+        }
+        Ok(n)
     }
 
-    /// Alarms of `robot` (all if `None`), optionally only those not cleared, oldest first.
-    pub fn alarms(&mut self, robot: Option<u8>, open_only: bool) -> Result<Vec<Alarm>, ArchiveError> {
+    /// Alarms of `robot` (all robots if `None`), newest first; closed (normal) ones
+    /// only with `all`.
+    pub fn alarms(&mut self, robot: Option<u8>, all: bool) -> Result<Vec<Alarm>, ArchiveError> {
         let mut sql = format!("SELECT {COLUMNS} FROM alarm WHERE 1=1");
         let mut args = Vec::new();
         if let Some(r) = robot {
             args.push(Val::Int(r as i64));
             sql.push_str(" AND robot = ?1");
         }
-        if open_only {
-            sql.push_str(" AND state <> 'cleared'");
+        if !all {
+            sql.push_str(" AND state <> 'normal'");
         }
-        sql.push_str(" ORDER BY first_ms, id");
+        sql.push_str(" ORDER BY id DESC");
         collect(self.db.as_mut(), &sql, &args)?
             .iter()
             .map(|r| alarm_of(r))

@@ -69,6 +69,20 @@ pub struct Gap {
     pub note: Option<String>,
 }
 
+/// Why the packets after one archived packet cannot be had (a collector's finding).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct GapNote {
+    pub robot: u8,
+    pub apid: u16,
+    /// The archived packet the hole follows.
+    pub after_obt_ms: i64,
+    pub after_seq: u16,
+    pub reason: GapReason,
+    pub note: Option<String>,
+    /// Ground time of the finding.
+    pub t_ms: i64,
+}
+
 /// The newest archived packet of one robot's APID.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize)]
 pub struct Position {
@@ -197,22 +211,78 @@ impl Store {
         note: Option<&str>,
         t_ms: i64,
     ) -> Result<(), ArchiveError> {
-        let (robot, apid, after_obt_ms, after_seq) = (gap.robot, gap.apid, gap.after_obt_ms, gap.after_seq);
+        self.note_hole(&GapNote {
+            robot: gap.robot,
+            apid: gap.apid,
+            after_obt_ms: gap.after_obt_ms,
+            after_seq: gap.after_seq,
+            reason,
+            note: note.map(str::to_string),
+            t_ms,
+        })
+    }
+
+    /// Records why the hole after packet (`after_obt_ms`, `after_seq`) of a robot's
+    /// APID cannot be filled; a later note on the same hole replaces it.
+    pub fn note_hole(&mut self, n: &GapNote) -> Result<(), ArchiveError> {
         self.db.exec(
             "INSERT INTO gap_note (robot, apid, after_obt_ms, after_seq, reason, note, t_ms) \
              VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7) ON CONFLICT (robot, apid, after_obt_ms, after_seq) \
              DO UPDATE SET reason = excluded.reason, note = excluded.note, t_ms = excluded.t_ms",
             &[
-                Val::Int(robot as i64),
-                Val::Int(apid as i64),
-                Val::Int(after_obt_ms),
-                Val::Int(after_seq as i64),
-                reason.name().into(),
-                note.into(),
-                Val::Int(t_ms),
+                Val::Int(n.robot as i64),
+                Val::Int(n.apid as i64),
+                Val::Int(n.after_obt_ms),
+                Val::Int(n.after_seq as i64),
+                n.reason.name().into(),
+                n.note.as_deref().into(),
+                Val::Int(n.t_ms),
             ],
         )?;
         Ok(())
+    }
+
+    /// The newest `limit` gap notes (of `robot`, or all), newest first.
+    pub fn gap_notes(&mut self, robot: Option<u8>, limit: usize) -> Result<Vec<GapNote>, ArchiveError> {
+        let mut sql =
+            String::from("SELECT robot, apid, after_obt_ms, after_seq, reason, note, t_ms FROM gap_note WHERE 1=1");
+        let mut args = Vec::new();
+        if let Some(r) = robot {
+            args.push(Val::Int(r as i64));
+            sql.push_str(" AND robot = ?1");
+        }
+        sql.push_str(&format!(" ORDER BY t_ms DESC LIMIT {limit}"));
+        collect(self.db.as_mut(), &sql, &args)?
+            .iter()
+            .map(|r| {
+                let why = r[4].text().unwrap_or("");
+                Ok(GapNote {
+                    robot: r[0].int().unwrap_or(0) as u8,
+                    apid: r[1].int().unwrap_or(0) as u16,
+                    after_obt_ms: r[2].int().unwrap_or(0),
+                    after_seq: r[3].int().unwrap_or(0) as u16,
+                    reason: GapReason::parse(why)
+                        .ok_or_else(|| ArchiveError::Damaged(format!("gap note with unknown reason \"{why}\"")))?,
+                    note: r[5].text().map(str::to_string),
+                    t_ms: r[6].int().unwrap_or(0),
+                })
+            })
+            .collect()
+    }
+
+    /// How many gap notes there are (of `robot`, or all).
+    pub fn gap_note_count(&mut self, robot: Option<u8>) -> Result<u64, ArchiveError> {
+        let (sql, args) = match robot {
+            Some(r) => (
+                "SELECT COUNT(*) FROM gap_note WHERE robot = ?1",
+                vec![Val::Int(r as i64)],
+            ),
+            None => ("SELECT COUNT(*) FROM gap_note", vec![]),
+        };
+        Ok(collect(self.db.as_mut(), sql, &args)?
+            .first()
+            .and_then(|r| r[0].int())
+            .unwrap_or(0) as u64)
     }
 }
 

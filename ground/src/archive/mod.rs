@@ -5,8 +5,8 @@
 //!   count); a packet seen again (a re-import, a store dump overlapping live TM, two
 //!   collectors) is counted as a duplicate and not stored.
 //! - HK parameter values live in column chunks per robot and parameter ([`codec`]).
-//! - Events, verification reports, TCs, alarms, per-stream positions and per-robot
-//!   health have small tables of their own.
+//! - Events, verification reports, TCs, alarms, per-stream positions, per-robot
+//!   health and the collector's link records have small tables of their own.
 //!
 //! Two backends behind one interface ([`db::Db`]): SQLite (a file, the default) and
 //! PostgreSQL (`--archive postgresql://…`). The schema is versioned ([`schema`]).
@@ -23,6 +23,7 @@ pub mod db;
 pub mod gaps;
 pub mod import;
 mod ingest;
+pub mod links;
 mod migrate;
 pub mod postgres;
 pub mod read;
@@ -38,9 +39,10 @@ use serde::Serialize;
 
 use crate::pus::{BuiltTc, DecodeError, Tm};
 
-pub use alarms::{Alarm, AlarmState, AlarmUpdate};
+pub use alarms::{Alarm, AlarmUpdate};
 pub use db::{Db, DbError, Val};
-pub use gaps::{Gap, GapReason, Position};
+pub use gaps::{Gap, GapNote, GapReason, Position};
+pub use links::{Handed, LinkHealth};
 pub use read::{CheckReport, Column, Health, Latest, Store};
 
 /// Most records committed in one transaction.
@@ -99,6 +101,8 @@ pub enum ArchiveError {
     Io(std::io::Error),
     /// Something asked of the archive that it does not have.
     NotFound(String),
+    /// An operator input the alarm's state does not allow (the text says why).
+    Refused(String),
 }
 
 impl fmt::Display for ArchiveError {
@@ -109,7 +113,7 @@ impl fmt::Display for ArchiveError {
             ArchiveError::Damaged(s) => write!(f, "archive damaged: {s}"),
             ArchiveError::WriterGone => write!(f, "archive writer thread stopped"),
             ArchiveError::Io(e) => write!(f, "archive I/O: {e}"),
-            ArchiveError::NotFound(s) => write!(f, "{s}"),
+            ArchiveError::NotFound(s) | ArchiveError::Refused(s) => write!(f, "{s}"),
         }
     }
 }
@@ -143,23 +147,6 @@ pub fn connect(loc: &str) -> Result<Box<dyn Db>, ArchiveError> {
     };
     schema::prepare(db.as_mut())?;
     Ok(db)
-}
-
-/// A plain SQLite connection to the archive file at `path`, its schema brought to the
-/// current version first (for code that keeps tables of its own beside the archive's).
-pub fn open_db(path: &Path) -> Result<rusqlite::Connection, ArchiveError> {
-    drop(connect(&path.to_string_lossy())?);
-    let sqlite_err = |e: rusqlite::Error| {
-        ArchiveError::Db(DbError {
-            backend: "sqlite",
-            message: e.to_string(),
-            retryable: false,
-        })
-    };
-    let c = rusqlite::Connection::open(path).map_err(sqlite_err)?;
-    c.busy_timeout(std::time::Duration::from_secs(10)).map_err(sqlite_err)?;
-    c.pragma_update(None, "synchronous", "NORMAL").map_err(sqlite_err)?;
-    Ok(c)
 }
 
 /// Whether an archive exists at `loc` (a server URL always counts: it is asked).

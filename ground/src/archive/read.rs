@@ -88,6 +88,14 @@ impl Store {
         Ok(Store { db: connect(loc)? })
     }
 
+    /// Opens the archive at `loc` if there is one (never creates a file).
+    pub fn open_existing(loc: &str) -> Result<Store, ArchiveError> {
+        if !super::exists(loc) {
+            return Err(ArchiveError::NotFound(format!("archive {loc} does not exist")));
+        }
+        Self::open(loc)
+    }
+
     /// The backend connection (for tests and tools).
     pub fn db(&mut self) -> &mut dyn Db {
         self.db.as_mut()
@@ -460,26 +468,11 @@ impl Store {
                 "id, t_ms, robot, event_id, name, severity, fault, params, description, obt_ms, apid, seq",
                 "obt_ms",
             ),
-            Kind::Alarm => (
-                "alarm",
-                "id, robot, source, severity, state, first_ms, last_ms, value, limit_text, count, ack_ms, \
-                 shelved_until_ms, cleared_ms",
-                "last_ms",
-            ),
+            Kind::Alarm => ("alarm", super::alarms::COLUMNS, "last_ms"),
             Kind::Corrupt => ("bad_packet", "id, t_ms, link_robot, reason, raw", "t_ms"),
             Kind::Tm | Kind::Hk => unreachable_kind(kind)?,
         };
-        // The collector (ground collect) keeps its alarms in `collect_alarm`: listed too.
-        let from = if kind == Kind::Alarm && self.db.has_table("collect_alarm")? {
-            format!(
-                "(SELECT {columns} FROM alarm UNION ALL SELECT id, robot, source, severity, state, first_ms, last_ms, \
-                 CAST(value AS TEXT) AS value, message AS limit_text, count, NULL AS ack_ms, shelved_until_ms, \
-                 NULL AS cleared_ms FROM collect_alarm) AS a"
-            )
-        } else {
-            table.to_string()
-        };
-        let mut sql = format!("SELECT {columns} FROM {from} WHERE 1=1");
+        let mut sql = format!("SELECT {columns} FROM {table} WHERE 1=1");
         let mut args = Vec::new();
         let f2 = Filter {
             robot: if kind == Kind::Corrupt { None } else { f.robot },
@@ -504,13 +497,7 @@ impl Store {
         if let Some(l) = f.limit {
             sql.push_str(&format!(" LIMIT {l}"));
         }
-        let names: Vec<String> = columns
-            .split(',')
-            .map(|c| match c.trim() {
-                "limit_text" => "limit".to_string(),
-                c => c.to_string(),
-            })
-            .collect();
+        let names: Vec<String> = columns.split(',').map(|c| c.trim().to_string()).collect();
         let mut rows = Vec::new();
         self.db.rows(&sql, &args, &mut |r| {
             rows.push(r.iter().map(json).collect());

@@ -6,14 +6,18 @@ use super::db::{scalar, Db, Dialect, Val};
 use super::ArchiveError;
 
 /// The schema this build writes.
-pub const VERSION: i64 = 2;
+pub const VERSION: i64 = 3;
 
 /// Longest time span of one parameter chunk (ms); range queries rely on it.
 pub const CHUNK_SPAN_MS: i64 = 3_600_000;
 /// Most samples in one parameter chunk.
 pub const CHUNK_MAX: usize = 1024;
 
-/// Tables of version 2. `{int}`, `{blob}`, `{id}` and `{norowid}` are filled per dialect.
+/// Tables of version 3. `{int}`, `{real}`, `{blob}`, `{id}` and `{norowid}` are filled per
+/// dialect. Version 3 (over 2): the alarm table holds the ISA-18.2 state of every
+/// alarm (`condition`, `acked`, `kind`, `message`, a numeric `value`) and `link` holds
+/// the collector's view of each robot's link; the collector's own SQLite-only tables
+/// (`collect_alarm`, `collect_robot`, `collect_gap`) are gone.
 const TABLES: &str = "
 CREATE TABLE IF NOT EXISTS schema_version (version {int} NOT NULL);
 CREATE TABLE IF NOT EXISTS packet (
@@ -48,26 +52,33 @@ CREATE TABLE IF NOT EXISTS health (
     robot {int} PRIMARY KEY, last_heard_ms {int} NOT NULL, last_obt_ms {int} NOT NULL,
     packets {int} NOT NULL);
 CREATE TABLE IF NOT EXISTS alarm (
-    id {id}, robot {int} NOT NULL, source TEXT NOT NULL, severity TEXT NOT NULL,
-    state TEXT NOT NULL, first_ms {int} NOT NULL, last_ms {int} NOT NULL, value TEXT,
-    limit_text TEXT, count {int} NOT NULL, ack_ms {int}, shelved_until_ms {int},
-    cleared_ms {int});
+    id {id}, robot {int} NOT NULL, kind TEXT NOT NULL, source TEXT NOT NULL,
+    severity TEXT NOT NULL, state TEXT NOT NULL, condition {int} NOT NULL,
+    acked {int} NOT NULL, first_ms {int} NOT NULL, last_ms {int} NOT NULL,
+    shelved_until_ms {int}, value {real}, message TEXT, count {int} NOT NULL,
+    ack_ms {int}, cleared_ms {int});
 CREATE INDEX IF NOT EXISTS alarm_t ON alarm (first_ms);
-CREATE INDEX IF NOT EXISTS alarm_open ON alarm (robot, source, state);
+CREATE INDEX IF NOT EXISTS alarm_open ON alarm (robot, kind, source, state);
 CREATE TABLE IF NOT EXISTS gap_note (
     robot {int} NOT NULL, apid {int} NOT NULL, after_obt_ms {int} NOT NULL,
     after_seq {int} NOT NULL, reason TEXT NOT NULL, note TEXT, t_ms {int} NOT NULL,
     PRIMARY KEY (robot, apid, after_obt_ms, after_seq));
+CREATE TABLE IF NOT EXISTS link (
+    robot {int} PRIMARY KEY, addr TEXT NOT NULL, state TEXT NOT NULL, last_heard_ms {int},
+    last_hk_ms {int}, packets {int} NOT NULL, filled {int} NOT NULL, lost {int} NOT NULL,
+    duplicates {int} NOT NULL, corrupt {int} NOT NULL, reboots {int} NOT NULL,
+    updated_ms {int} NOT NULL);
 ";
 
 /// The DDL of the current version in `d`'s dialect.
 pub fn ddl(d: Dialect) -> String {
-    let (int, blob, id, norowid) = match d {
-        Dialect::Sqlite => ("INTEGER", "BLOB", "INTEGER PRIMARY KEY", " WITHOUT ROWID"),
-        Dialect::Postgres => ("BIGINT", "BYTEA", "BIGSERIAL PRIMARY KEY", ""),
+    let (int, real, blob, id, norowid) = match d {
+        Dialect::Sqlite => ("INTEGER", "REAL", "BLOB", "INTEGER PRIMARY KEY", " WITHOUT ROWID"),
+        Dialect::Postgres => ("BIGINT", "DOUBLE PRECISION", "BYTEA", "BIGSERIAL PRIMARY KEY", ""),
     };
     TABLES
         .replace("{int}", int)
+        .replace("{real}", real)
         .replace("{blob}", blob)
         .replace("{id}", id)
         .replace("{norowid}", norowid)
@@ -108,7 +119,7 @@ pub fn prepare(db: &mut dyn Db) -> Result<Prepared, ArchiveError> {
     match r {
         Ok(p) => {
             db.batch("COMMIT")?;
-            if matches!(p, Prepared::Migrated(_)) && db.dialect() == Dialect::Sqlite {
+            if p == Prepared::Migrated(1) && db.dialect() == Dialect::Sqlite {
                 db.batch("VACUUM")?;
             }
             Ok(p)
@@ -128,6 +139,11 @@ fn prepare_locked(db: &mut dyn Db) -> Result<Prepared, ArchiveError> {
              `ground` (or another --archive)",
             db.location()
         ))),
+        Some(2) => {
+            super::migrate::from_v2(db)?;
+            set_version(db)?;
+            Ok(Prepared::Migrated(2))
+        }
         Some(v) => Err(ArchiveError::Schema(format!(
             "archive {} has schema version {v}, which no migration of this ground tool ({VERSION}) \
              knows: export it with the ground tool that wrote it",

@@ -17,14 +17,12 @@ use std::time::Duration;
 use crossbeam_channel::{Receiver, Sender};
 
 use crate::alarms::Input;
-use crate::archive::now_ms;
+use crate::archive::{now_ms, Alarm, Store};
 use crate::dashboard::{
     node_mode, request_id, AlarmRecord, AlarmState, CommandError, Commander, ConfigState, EventRecord, Hub, PlanInfo,
     Series, StageReport,
 };
 use crate::pus::{Tm, TmBody};
-
-use super::store;
 
 /// What `POST /api/plan` answers under the collector.
 pub const PLANS_NOT_AVAILABLE: &str =
@@ -108,12 +106,12 @@ pub fn to_hub(hub: &Hub, robot: u8, tm: &Tm) {
 }
 
 /// The dashboard's view of a collector alarm row.
-fn alarm_record(r: &store::AlarmRow) -> AlarmRecord {
-    let state = match crate::alarms::State::parse(&r.state) {
-        Some(crate::alarms::State::Active) => AlarmState::Active,
-        Some(crate::alarms::State::Acknowledged) => AlarmState::Acknowledged,
-        Some(crate::alarms::State::Shelved) => AlarmState::Shelved,
-        Some(crate::alarms::State::Cleared) | Some(crate::alarms::State::Normal) | None => AlarmState::Cleared,
+fn alarm_record(r: &Alarm) -> AlarmRecord {
+    let state = match r.state {
+        crate::alarms::State::Active => AlarmState::Active,
+        crate::alarms::State::Acknowledged => AlarmState::Acknowledged,
+        crate::alarms::State::Shelved => AlarmState::Shelved,
+        crate::alarms::State::Cleared | crate::alarms::State::Normal => AlarmState::Cleared,
     };
     AlarmRecord {
         id: r.id as u64,
@@ -135,7 +133,7 @@ pub struct AlarmSync {
     hub: Hub,
     /// Open alarm IDs last shown, and the connection kept between reads (reopened after
     /// an error).
-    state: Mutex<(BTreeSet<u64>, Option<rusqlite::Connection>)>,
+    state: Mutex<(BTreeSet<u64>, Option<Store>)>,
 }
 
 impl AlarmSync {
@@ -155,13 +153,13 @@ impl AlarmSync {
         };
         let (shown, conn) = &mut *guard;
         if conn.is_none() {
-            *conn = Some(store::open_existing(&self.archive)?);
+            *conn = Some(Store::open_existing(&self.archive.to_string_lossy())?);
         }
-        let rows = match conn.as_ref().map(|c| store::alarms(c, None, false)) {
+        let rows = match conn.as_mut().map(|c| c.alarms(None, false)) {
             Some(Ok(rows)) => rows,
             Some(Err(e)) => {
                 *conn = None;
-                return Err(e);
+                return Err(e.into());
             }
             None => return Ok(()),
         };
@@ -223,8 +221,9 @@ impl CollectCommander {
     }
 
     fn alarm_input(&self, id: u64, input: Input) -> Result<(), CommandError> {
-        let mut c = store::open_existing(&self.archive).map_err(|e| CommandError(format!("{e:#}")))?;
-        store::alarm_input(&mut c, id as i64, input, now_ms()).map_err(|e| CommandError(format!("{e:#}")))?;
+        let mut c = Store::open_existing(&self.archive.to_string_lossy()).map_err(|e| CommandError(e.to_string()))?;
+        c.alarm_input(id as i64, input, now_ms())
+            .map_err(|e| CommandError(e.to_string()))?;
         self.alarms.sync().map_err(|e| CommandError(format!("{e:#}")))
     }
 }
@@ -324,6 +323,7 @@ impl Series for ArchiveSeries {
 mod tests {
     use super::*;
     use crate::alarms::{Severity, Source};
+    use crate::archive::AlarmUpdate;
 
     // verifies: GND-02, GND-13, GND-18
     #[test]
@@ -332,9 +332,19 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("a.db");
-        let c = store::open_conn(&path).unwrap();
+        let mut c = Store::open(path.to_str().unwrap()).unwrap();
         let src = Source::Param("V_BAT_A".into());
-        let id = store::apply_alarm(&c, 1, &src, Severity::Medium, Input::Activate, 1_000, Some(10.3), "low")
+        let up = |input, t_ms, value, message| AlarmUpdate {
+            robot: 1,
+            source: &src,
+            severity: Severity::Medium,
+            input,
+            t_ms,
+            value: Some(value),
+            message,
+        };
+        let id = c
+            .apply_alarm(&up(Input::Activate, 1_000, 10.3, "low"))
             .unwrap()
             .unwrap();
         let hub = Hub::new();
@@ -349,14 +359,14 @@ mod tests {
         // Acknowledged from the page: the archive's record changes, the hub follows.
         let cmd = CollectCommander::new(BTreeMap::new(), path.clone(), sync.clone());
         cmd.ack_alarm(id as u64).unwrap();
-        let rows = store::alarms(&c, None, true).unwrap();
-        assert_eq!(rows[0].state, "acknowledged");
+        let rows = c.alarms(None, true).unwrap();
+        assert_eq!(rows[0].state, crate::alarms::State::Acknowledged);
         assert_eq!(hub.alarm_by_id(id as u64).unwrap().state, AlarmState::Acknowledged);
         let e = cmd.ack_alarm(id as u64).unwrap_err();
         assert!(e.0.contains("nothing to acknowledge"), "{e}");
 
         // The condition goes: the alarm closes in the archive and shows cleared.
-        store::apply_alarm(&c, 1, &src, Severity::Medium, Input::Clear, 2_000, Some(12.0), "ok").unwrap();
+        c.apply_alarm(&up(Input::Clear, 2_000, 12.0, "ok")).unwrap();
         sync.sync().unwrap();
         assert_eq!(hub.alarm_by_id(id as u64).unwrap().state, AlarmState::Cleared);
 

@@ -23,13 +23,14 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 
-use crate::alarms::Input;
-use crate::archive::now_ms;
+use crate::alarms::{Input, State};
+use crate::archive::{now_ms, Store};
 use crate::link::Transport;
 
 use config::{Config, RobotCfg};
 use robot::{RobotStatus, Worker};
 use store::{SinkCfg, SinkMsg};
+use tracker::Pos;
 
 /// Exit code of an invalid configuration (the ground tool's "invalid input").
 pub const EXIT_INVALID: u8 = 3;
@@ -37,6 +38,8 @@ pub const EXIT_INVALID: u8 = 3;
 pub const SHUTDOWN_LIMIT: Duration = Duration::from_millis(4_500);
 /// Archived positions read per robot and APID at start (holes among them are retrieved).
 pub const RESUME_WINDOW: usize = mib::config::TM_STORE_CAPACITY;
+/// Gap notes `--status` lists (newest first).
+const STATUS_NOTES: usize = 10;
 
 /// `ground collect` options.
 #[derive(Args, Debug, Clone)]
@@ -218,10 +221,15 @@ pub fn run_with(
         ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
     }
     // Read where each robot was before the collector (re)started.
-    let conn = store::open_conn(archive)?;
+    let loc = archive.to_string_lossy();
+    let mut st = Store::open(&loc).with_context(|| format!("archive {loc}"))?;
     let mut histories = Vec::new();
     for r in &cfg.robots {
-        let h = store::recent_positions(&conn, r.number, RESUME_WINDOW)?;
+        let h: Vec<(u16, Vec<Pos>)> = st
+            .recent_positions(r.number, RESUME_WINDOW)?
+            .into_iter()
+            .map(|(apid, v)| (apid, v.into_iter().map(|(seq, obt_ms)| Pos { seq, obt_ms }).collect()))
+            .collect();
         if let Some(last) = h.iter().find_map(|(_, v)| v.last()) {
             tracing::info!(
                 robot = r.number,
@@ -233,7 +241,7 @@ pub fn run_with(
         }
         histories.push(h);
     }
-    drop(conn);
+    drop(st);
     let (sink_tx, sink_rx) = crossbeam_channel::unbounded::<SinkMsg>();
     let sink_cfg = SinkCfg {
         path: archive.to_path_buf(),
@@ -470,12 +478,15 @@ fn utc(ms: i64) -> String {
 }
 
 fn status(archive: &Path, json: bool) -> Result<u8> {
-    let c = store::open_existing(archive)?;
-    let health = store::health(&c)?;
-    let alarms = store::alarms(&c, None, false)?;
-    let lost = store::lost_runs(&c, None)?;
+    let mut st = Store::open_existing(&archive.to_string_lossy())?;
+    let links = st.links()?;
+    let alarms = st.alarms(None, false)?;
+    let notes = st.gap_notes(None, STATUS_NOTES)?;
+    let n_notes = st.gap_note_count(None)?;
     if json {
-        let v = serde_json::json!({"robots": health, "open_alarms": alarms, "unrecoverable": lost});
+        let v = serde_json::json!({
+            "robots": links, "open_alarms": alarms, "unrecoverable": notes, "unrecoverable_total": n_notes,
+        });
         emit(&v.to_string())?;
         return Ok(0);
     }
@@ -484,7 +495,7 @@ fn status(archive: &Path, json: bool) -> Result<u8> {
         "{:>5}  {:<21} {:<10} {:<20} {:>9} {:>9} {:>7} {:>6} {:>6}",
         "robot", "address", "link", "last heard (UTC)", "ago", "packets", "filled", "lost", "alarms"
     ))?;
-    for h in &health {
+    for h in &links {
         let n_alarms = alarms.iter().filter(|a| a.robot == h.robot).count();
         emit(&format!(
             "{:>5}  {:<21} {:<10} {:<20} {:>9} {:>9} {:>7} {:>6} {:>6}",
@@ -499,7 +510,7 @@ fn status(archive: &Path, json: bool) -> Result<u8> {
             n_alarms
         ))?;
     }
-    if health.is_empty() {
+    if links.is_empty() {
         emit("no robot has been collected into this archive")?;
     }
     let sys = alarms.iter().filter(|a| a.robot == 0).count();
@@ -508,20 +519,22 @@ fn status(archive: &Path, json: bool) -> Result<u8> {
             "{sys} open collector alarm(s) (archive): see `ground alarms list`"
         ))?;
     }
-    if let Some(u) = health.iter().map(|h| h.updated_ms).max() {
+    if let Some(u) = links.iter().map(|h| h.updated_ms).max() {
         emit(&format!("collector last wrote its status {} ago", age(now, Some(u))))?;
     }
-    if !lost.is_empty() {
-        emit(&format!("{} unrecoverable run(s) of packets; newest:", lost.len()))?;
-        for l in lost.iter().rev().take(10) {
+    if n_notes > 0 {
+        emit(&format!(
+            "{n_notes} hole(s) that cannot be filled (`ground archive gaps` lists every hole); newest:"
+        ))?;
+        for n in &notes {
             emit(&format!(
-                "  robot {} APID 0x{:03X} seq {}..={} ({} packets): {}",
-                l["robot"],
-                l["apid"].as_i64().unwrap_or(0),
-                l["first_seq"],
-                l["last_seq"],
-                l["count"],
-                l["reason"].as_str().unwrap_or("")
+                "  robot {} APID 0x{:03X} after seq {} ({}): {} — {}",
+                n.robot,
+                n.apid,
+                n.after_seq,
+                utc(n.after_obt_ms),
+                n.reason.name(),
+                n.note.as_deref().unwrap_or("")
             ))?;
         }
     }
@@ -530,11 +543,11 @@ fn status(archive: &Path, json: bool) -> Result<u8> {
 
 /// Entry of `ground alarms`.
 pub fn alarms_cli(archive: &Path, cmd: AlarmsCmd) -> Result<u8> {
-    let mut c = store::open_existing(archive)?;
+    let mut c = Store::open_existing(&archive.to_string_lossy())?;
     let now = now_ms();
     match cmd {
         AlarmsCmd::List { robot, all, json } => {
-            let rows = store::alarms(&c, robot, all)?;
+            let rows = c.alarms(robot, all)?;
             if json {
                 for r in &rows {
                     emit(&serde_json::to_string(r)?)?;
@@ -547,8 +560,8 @@ pub fn alarms_cli(archive: &Path, cmd: AlarmsCmd) -> Result<u8> {
             ))?;
             for r in &rows {
                 let state = match r.shelved_until_ms {
-                    Some(u) if r.state == "shelved" => format!("shelved<{}", utc(u).get(11..16).unwrap_or("")),
-                    _ => r.state.clone(),
+                    Some(u) if r.state == State::Shelved => format!("shelved<{}", utc(u).get(11..16).unwrap_or("")),
+                    _ => r.state.name().to_string(),
                 };
                 emit(&format!(
                     "{:>5} {:>5}  {:<24} {:<7} {:<13} {:<19} {:<19} {:>5}  {}",
@@ -580,14 +593,14 @@ pub fn alarms_cli(archive: &Path, cmd: AlarmsCmd) -> Result<u8> {
     }
 }
 
-fn one_input(c: &mut rusqlite::Connection, id: i64, input: Input, now: i64) -> Result<u8> {
-    match store::alarm_input(c, id, input, now) {
+fn one_input(c: &mut Store, id: i64, input: Input, now: i64) -> Result<u8> {
+    match c.alarm_input(id, input, now) {
         Ok(s) => {
             emit(&format!("alarm {id}: {}", s.name()))?;
             Ok(0)
         }
         Err(e) => {
-            eprintln!("ground: error: {e:#}");
+            eprintln!("ground: error: {e}");
             Ok(EXIT_INVALID)
         }
     }

@@ -54,14 +54,8 @@ pub fn store_range_tc(robot: u8, seq: u16, apid: u16, first: u16, last: u16) -> 
 /// Sequence count and on-board time of a packet whose headers and CRC are good (it
 /// was delivered intact) even if its body does not match the MIB.
 pub fn intact_position(raw: &[u8]) -> Option<(u16, Pos)> {
-    let p = mib_wire::header::TmPacket::parse(raw).ok()?;
-    Some((
-        p.primary.apid,
-        Pos {
-            seq: p.primary.seq_count,
-            obt_ms: pus::CdsShort::from_wire(&p.time).unix_ms(),
-        },
-    ))
+    let (apid, seq, obt_ms) = pus::intact_position(raw)?;
+    Some((apid, Pos { seq, obt_ms }))
 }
 
 /// Whether this TM is the obsw's BOOT event (its sequence counts restart).
