@@ -8,50 +8,23 @@
 
 use std::collections::BTreeMap;
 use std::io::BufRead;
-use std::net::{SocketAddr, UdpSocket};
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output, Stdio};
-use std::sync::OnceLock;
+use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 mod common;
-use common::{pg_db, pg_drop};
+use common::{free_port, ground, pg_db, pg_drop, text, Obsw, GROUND};
 
-const GROUND: &str = env!("CARGO_BIN_EXE_ground");
-
-fn obsw_bin() -> PathBuf {
-    static BIN: OnceLock<PathBuf> = OnceLock::new();
-    BIN.get_or_init(|| {
-        if let Some(p) = std::env::var_os("OBSW_BIN") {
-            return PathBuf::from(p);
-        }
-        let exe = std::env::current_exe().unwrap();
-        let profile_dir = exe.parent().and_then(Path::parent).unwrap();
-        let next = profile_dir.join("obsw");
-        if next.is_file() {
-            return next;
-        }
-        let own = profile_dir.parent().unwrap().join("ground-obsw");
-        let st = Command::new(env!("CARGO"))
-            .args(["build", "-q", "-p", "obsw", "--bin", "obsw"])
-            .env("CARGO_TARGET_DIR", &own)
-            .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
-            .status()
-            .expect("running cargo to build obsw");
-        assert!(st.success(), "building obsw failed");
-        own.join("debug").join("obsw")
-    })
-    .clone()
+/// Robot `robot`'s obsw: `(process, TC address, simulator control address)`.
+fn start_obsw(robot: u8) -> (Obsw, SocketAddr, SocketAddr) {
+    let o = Obsw::start(robot, &[]);
+    let (addr, ctl) = (o.addr, o.ctl);
+    (o, addr, ctl)
 }
 
-fn free_port() -> u16 {
-    loop {
-        let t = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
-        let p = t.local_addr().unwrap().port();
-        if UdpSocket::bind(("127.0.0.1", p)).is_ok() {
-            return p;
-        }
-    }
+fn tmpdir(name: &str) -> PathBuf {
+    common::tmpdir("collect", name)
 }
 
 struct Proc(Child);
@@ -61,47 +34,6 @@ impl Drop for Proc {
         let _ = self.0.kill();
         let _ = self.0.wait();
     }
-}
-
-fn start_obsw(robot: u8) -> (Proc, SocketAddr, SocketAddr) {
-    let addr: SocketAddr = ([127, 0, 0, 1], free_port()).into();
-    let ctl: SocketAddr = ([127, 0, 0, 1], free_port()).into();
-    let mut child = Command::new(obsw_bin())
-        .args(["--robot", &robot.to_string(), "--udp", &addr.to_string()])
-        .args(["--tcp", &addr.to_string(), "--sim-ctl", &ctl.to_string()])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("starting obsw");
-    let out = child.stdout.take().unwrap();
-    let mut lines = std::io::BufReader::new(out).lines();
-    let ready = lines.next().and_then(Result::ok).unwrap_or_default();
-    assert!(ready.starts_with("READY"), "obsw did not start: {ready:?}");
-    std::thread::spawn(move || for _ in lines {});
-    (Proc(child), addr, ctl)
-}
-
-fn tmpdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("ground-collect-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn ground(dir: &Path, args: &[&str]) -> Output {
-    Command::new(GROUND)
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .expect("running ground")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
 }
 
 /// Starts `ground --archive ARCH collect` (ARCH: a file in `dir`, or a server URL).

@@ -4,131 +4,23 @@
 //! `<target>/ground-obsw` (a separate target directory, so the running `cargo test`
 //! does not block on its own build lock).
 
-use std::io::BufRead;
 use std::net::{SocketAddr, UdpSocket};
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, OnceLock};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-const GROUND: &str = env!("CARGO_BIN_EXE_ground");
-
-fn target_dir() -> PathBuf {
-    // <target>/<profile>/deps/live-<hash>
-    let exe = std::env::current_exe().unwrap();
-    exe.parent()
-        .and_then(Path::parent)
-        .and_then(Path::parent)
-        .unwrap()
-        .to_path_buf()
-}
-
-fn obsw_bin() -> PathBuf {
-    static BIN: OnceLock<PathBuf> = OnceLock::new();
-    BIN.get_or_init(|| {
-        if let Some(p) = std::env::var_os("OBSW_BIN") {
-            return PathBuf::from(p);
-        }
-        let exe = std::env::current_exe().unwrap();
-        let profile_dir = exe.parent().and_then(Path::parent).unwrap();
-        let next = profile_dir.join("obsw");
-        if next.is_file() {
-            return next;
-        }
-        let own = target_dir().join("ground-obsw");
-        let built = own.join("debug").join("obsw");
-        let st = Command::new(env!("CARGO"))
-            .args(["build", "-q", "-p", "obsw", "--bin", "obsw"])
-            .env("CARGO_TARGET_DIR", &own)
-            .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
-            .status()
-            .expect("running cargo to build obsw");
-        assert!(st.success(), "building obsw failed");
-        built
-    })
-    .clone()
-}
-
-fn free_port() -> u16 {
-    loop {
-        let t = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
-        let p = t.local_addr().unwrap().port();
-        if UdpSocket::bind(("127.0.0.1", p)).is_ok() {
-            return p;
-        }
-    }
-}
-
-struct Obsw {
-    child: Child,
-    addr: SocketAddr,
-    ctl: SocketAddr,
-}
-
-impl Drop for Obsw {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
+mod common;
+use common::{free_port, ground, text, Obsw};
 
 fn start_obsw(robot: u8, speed: f64, initial: &str) -> Obsw {
-    let port = free_port();
-    let ctl_port = free_port();
-    let addr: SocketAddr = ([127, 0, 0, 1], port).into();
-    let ctl: SocketAddr = ([127, 0, 0, 1], ctl_port).into();
-    let mut child = Command::new(obsw_bin())
-        .args([
-            "--robot",
-            &robot.to_string(),
-            "--udp",
-            &addr.to_string(),
-            "--tcp",
-            &addr.to_string(),
-        ])
-        .args([
-            "--sim-ctl",
-            &ctl.to_string(),
-            "--speed",
-            &speed.to_string(),
-            "--seed",
-            "7",
-        ])
-        .args(["--initial-state", initial])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("starting obsw");
-    let out = child.stdout.take().unwrap();
-    let mut lines = std::io::BufReader::new(out).lines();
-    let ready = lines.next().and_then(Result::ok).unwrap_or_default();
-    assert!(ready.starts_with("READY"), "obsw did not start: {ready:?}");
-    std::thread::spawn(move || for _ in lines {});
-    Obsw { child, addr, ctl }
-}
-
-fn tmpdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("ground-live-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn ground(dir: &Path, args: &[&str]) -> Output {
-    Command::new(GROUND)
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .expect("running ground")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
+    Obsw::start(
+        robot,
+        &["--speed", &speed.to_string(), "--seed", "7", "--initial-state", initial],
     )
+}
+
+fn tmpdir(name: &str) -> std::path::PathBuf {
+    common::tmpdir("live", name)
 }
 
 // verifies: GND-07

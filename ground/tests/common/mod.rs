@@ -1,14 +1,122 @@
-//! Shared by the ground test suites: a throwaway PostgreSQL server that a suite starts
-//! itself (`scripts/postgres-test.sh`: Debian's package, a temporary data directory, a
-//! Unix socket; stopped when the test process ends).
+//! Shared by the ground test suites (each uses part of it):
+//! - the real `obsw` ([`Obsw::start`]) and the real `ground` binary ([`ground`]);
+//! - a throwaway PostgreSQL server that a suite starts itself
+//!   (`scripts/postgres-test.sh`: Debian's package, a temporary data directory, a Unix
+//!   socket; stopped when the test process ends).
 #![allow(dead_code)]
 
+use std::io::BufRead;
+use std::net::{SocketAddr, UdpSocket};
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Child, Command, Output, Stdio};
 use std::sync::OnceLock;
+
+pub const GROUND: &str = env!("CARGO_BIN_EXE_ground");
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// The obsw binary: `$OBSW_BIN`, the one beside the test binary's profile, or one built
+/// into a target directory of its own.
+pub fn obsw_bin() -> PathBuf {
+    static BIN: OnceLock<PathBuf> = OnceLock::new();
+    BIN.get_or_init(|| {
+        if let Some(p) = std::env::var_os("OBSW_BIN") {
+            return PathBuf::from(p);
+        }
+        // <target>/<profile>/deps/<test>-<hash>
+        let exe = std::env::current_exe().unwrap();
+        let profile_dir = exe.parent().and_then(Path::parent).unwrap();
+        let next = profile_dir.join("obsw");
+        if next.is_file() {
+            return next;
+        }
+        let own = profile_dir.parent().unwrap().join("ground-obsw");
+        let st = Command::new(env!("CARGO"))
+            .args(["build", "-q", "-p", "obsw", "--bin", "obsw"])
+            .env("CARGO_TARGET_DIR", &own)
+            .current_dir(root())
+            .status()
+            .expect("running cargo to build obsw");
+        assert!(st.success(), "building obsw failed");
+        own.join("debug").join("obsw")
+    })
+    .clone()
+}
+
+/// A localhost port free for both TCP and UDP.
+pub fn free_port() -> u16 {
+    loop {
+        let t = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let p = t.local_addr().unwrap().port();
+        if UdpSocket::bind(("127.0.0.1", p)).is_ok() {
+            return p;
+        }
+    }
+}
+
+/// A running obsw (killed when dropped): TCs on `addr` (UDP and TCP), simulator control
+/// on `ctl`.
+pub struct Obsw {
+    pub child: Child,
+    pub addr: SocketAddr,
+    pub ctl: SocketAddr,
+}
+
+impl Obsw {
+    /// Starts robot `robot`'s obsw with `extra` arguments and waits for its READY line.
+    pub fn start(robot: u8, extra: &[&str]) -> Obsw {
+        let addr: SocketAddr = ([127, 0, 0, 1], free_port()).into();
+        let ctl: SocketAddr = ([127, 0, 0, 1], free_port()).into();
+        let mut child = Command::new(obsw_bin())
+            .args(["--robot", &robot.to_string(), "--udp", &addr.to_string()])
+            .args(["--tcp", &addr.to_string(), "--sim-ctl", &ctl.to_string()])
+            .args(extra)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("starting obsw");
+        let out = child.stdout.take().unwrap();
+        let mut lines = std::io::BufReader::new(out).lines();
+        let ready = lines.next().and_then(Result::ok).unwrap_or_default();
+        assert!(ready.starts_with("READY"), "obsw did not start: {ready:?}");
+        std::thread::spawn(move || for _ in lines {});
+        Obsw { child, addr, ctl }
+    }
+}
+
+impl Drop for Obsw {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// A fresh temporary directory `ground-<suite>-<pid>-<name>`.
+pub fn tmpdir(suite: &str, name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("ground-{suite}-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Runs the real `ground` in `dir`.
+pub fn ground(dir: &Path, args: &[&str]) -> Output {
+    Command::new(GROUND)
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .expect("running ground")
+}
+
+/// stdout then stderr of a finished command.
+pub fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
 }
 
 /// URL of the suite's PostgreSQL server (database `postgres`).
