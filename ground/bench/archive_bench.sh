@@ -5,6 +5,9 @@
 # answered by decoding the packets). Medians of RUNS runs; every ingest into a new file.
 #   ground/bench/archive_bench.sh [PACKETS] [RUNS]    (default 300000 packets = 8.3 h of
 #                                                      10 Hz HK, 3 runs)
+# With ARCHIVE_BENCH_PG=1 the same file is also imported into a throwaway PostgreSQL
+# (scripts/postgres-test.sh: Unix socket, fsync off) and compared with SQLite's ingest
+# of the same run.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 N="${1:-300000}"
@@ -72,3 +75,27 @@ printf '%-34s %14s %14s\n' "query $PARAM, 1 hour (ms)" "$(echo "${g_q[*]}" | med
 printf '%-34s %14s %14s\n' "export $PARAM, $N rows CSV (ms)" "$(echo "${g_ex[*]}" | median)" "$(echo "${p_ex[*]}" | median)"
 printf '%-34s %14s %14s\n' "plot $PARAM, whole file PNG (ms)" "$(echo "${g_pl[*]}" | median)" "-"
 echo "(times include process start; the baseline's ingest runs in one process without CRC checks)"
+
+if [ "${ARCHIVE_BENCH_PG:-0}" = 1 ]; then
+    PGDIR="$WORK/pg"
+    URL=$(bash "$ROOT/scripts/postgres-test.sh" start "$PGDIR" $$)
+    PSQL=$(ls /usr/lib/postgresql/*/bin/psql | head -1)
+    pq_in=() ; pq_re=()
+    for r in $(seq "$RUNS"); do
+        "$PSQL" -q "$URL" -c "CREATE DATABASE bench$r" > /dev/null
+        DBURL="${URL/\/postgres?//bench$r?}"
+        pq_in+=("$(ms "$G" --archive "$DBURL" archive import "$WORK/hk.bin" --robot 1)")
+        pq_re+=("$(ms "$G" --archive "$DBURL" archive import "$WORK/hk.bin" --robot 1)")
+    done
+    DBURL="${URL/\/postgres?//bench1?}"
+    "$G" --archive "$DBURL" archive import "$WORK/hk.bin" --robot 1 > "$WORK/pre.txt"
+    grep -q " 0 stored, $N already archived" "$WORK/pre.txt" || { echo "PostgreSQL re-import stored something:"; cat "$WORK/pre.txt"; exit 1; }
+    "$G" --archive "$DBURL" archive check > "$WORK/pcheck.txt" || { cat "$WORK/pcheck.txt"; exit 1; }
+    qi=$(echo "${pq_in[*]}" | median)
+    echo
+    printf '%-34s %14s %14s\n' "" "PostgreSQL" "SQLite"
+    printf '%-34s %14s %14s\n' "ingest (packets/s)" "$(rate "$N" "$qi")" "$(rate "$N" "$gi")"
+    printf '%-34s %14s %14s\n' "re-import, nothing added (ms)" "$(echo "${pq_re[*]}" | median)" "$(echo "${g_re[*]}" | median)"
+    echo "PostgreSQL ingest / SQLite ingest: $(ratio "$gi" "$qi")"
+    bash "$ROOT/scripts/postgres-test.sh" stop "$PGDIR"
+fi

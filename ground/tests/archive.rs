@@ -213,6 +213,35 @@ fn import_twice_adds_nothing_and_counts_duplicates() {
     });
 }
 
+/// Copies of a packet inside one write batch (a store dump overlapping live TM) are
+/// stored once and counted, and their HK values enter the chunks once.
+// verifies: GND-02
+#[test]
+fn copies_within_one_batch_are_stored_once() {
+    both("dupbatch", |loc, backend| {
+        let a = Archive::open_with(Path::new(loc), Some(100_000)).unwrap();
+        let s = a.sender();
+        for seq in 0..600u16 {
+            let t = T0 + seq as i64 * 100;
+            for _ in 0..(1 + seq % 3) {
+                s.send(tm(hk_packet(4, seq, t, seq as i64), t));
+            }
+        }
+        drop(s);
+        let stats = a.close().unwrap();
+        // 600 packets, 200 once, 200 twice, 200 three times.
+        assert_eq!((stats.tm, stats.duplicates), (600, 600), "{backend}");
+        let mut st = Store::open(loc).unwrap();
+        assert_eq!(st.packet_totals().unwrap().0, 600, "{backend}");
+        assert_eq!(st.hk_series("V_BAT_A", &Filter::default()).unwrap()[0].1.len(), 600);
+        let check = st.check(None).unwrap();
+        assert!(
+            check.chunk_mismatch.is_empty() && check.gaps.is_empty(),
+            "{backend}: {check:?}"
+        );
+    });
+}
+
 // verifies: GND-02
 #[test]
 fn size_is_at_most_three_times_the_raw_packets() {

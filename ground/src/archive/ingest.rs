@@ -3,7 +3,7 @@
 //! position and per-robot health beside them — all of one batch in one transaction, so
 //! a crash leaves either the whole batch or none of it.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 use super::adapter::{self, Content};
 use super::codec;
@@ -11,6 +11,14 @@ use super::db::{Db, Dialect, Val};
 use super::schema::{CHUNK_MAX, CHUNK_SPAN_MS};
 use super::{ArchiveError, ArchiveStats, Record};
 use crate::pus::BuiltTc;
+
+/// Packets per multi-row INSERT on PostgreSQL (7 parameters each, well under its 65,535).
+/// A batch is cut into statements of these sizes, largest first, so that only these few
+/// statements are ever prepared (and cached) whatever the batch sizes.
+const PG_ROWS: [usize; 5] = [1000, 250, 50, 10, 1];
+
+/// A packet's unique key: (robot, APID, on-board ms, sequence count).
+type Key = (i64, i64, i64, i64);
 
 /// Open chunks kept per robot and parameter (samples arriving out of time order, e.g. a
 /// store dump beside live TM, go to the one they extend).
@@ -177,6 +185,13 @@ impl Ingest {
 
     /// Writes everything inside an open transaction (used by migrations too).
     pub fn write_in_tx(&mut self, db: &mut dyn Db, batch: &[Record]) -> Result<(), ArchiveError> {
+        // PostgreSQL: the batch's packets go in with a few multi-row statements (a round
+        // trip per packet would bound ingest to the server's latency); SQLite: one cached
+        // statement per packet is as fast and keeps the statement cache small.
+        let mut fresh = match db.dialect() {
+            Dialect::Postgres => Some(insert_packets(db, batch)?),
+            Dialect::Sqlite => None,
+        };
         let mut streams: HashMap<(u8, u16), StreamAcc> = HashMap::new();
         let mut health: HashMap<u8, HealthAcc> = HashMap::new();
         for r in batch {
@@ -241,19 +256,26 @@ impl Ingest {
                         Val::Int(obt),
                         Val::Int(tm.seq as i64),
                     ];
-                    let new = db.exec(
-                        "INSERT INTO packet (robot, apid, obt_ms, seq, t_ms, link_robot, raw) \
-                         VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7) ON CONFLICT DO NOTHING",
-                        &[
-                            key[0].clone(),
-                            key[1].clone(),
-                            key[2].clone(),
-                            key[3].clone(),
-                            Val::Int(*t_ms),
-                            link_robot.map(|r| r as i64).into(),
-                            Val::Blob(raw.clone()),
-                        ],
-                    )? == 1;
+                    let new = match fresh.as_mut() {
+                        // Stored by this batch's statement; a second copy in the same batch
+                        // finds the key taken.
+                        Some(f) => f.remove(&(robot as i64, tm.apid as i64, obt, tm.seq as i64)),
+                        None => {
+                            db.exec(
+                                "INSERT INTO packet (robot, apid, obt_ms, seq, t_ms, link_robot, raw) \
+                                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7) ON CONFLICT DO NOTHING",
+                                &[
+                                    key[0].clone(),
+                                    key[1].clone(),
+                                    key[2].clone(),
+                                    key[3].clone(),
+                                    Val::Int(*t_ms),
+                                    link_robot.map(|r| r as i64).into(),
+                                    Val::Blob(raw.clone()),
+                                ],
+                            )? == 1
+                        }
+                    };
                     let s = streams.entry((robot, tm.apid)).or_insert(StreamAcc {
                         obt_ms: i64::MIN,
                         ..Default::default()
@@ -431,4 +453,64 @@ impl Ingest {
         }
         self.open.retain(|_, c| !c.is_empty());
     }
+}
+
+/// Inserts the decodable packets of `batch` with multi-row statements, skipping keys
+/// already stored; returns the keys this call stored.
+fn insert_packets(db: &mut dyn Db, batch: &[Record]) -> Result<HashSet<Key>, ArchiveError> {
+    let mut stored = HashSet::new();
+    let rows: Vec<[Val; 7]> = batch
+        .iter()
+        .filter_map(|r| match r {
+            Record::Tm {
+                t_ms,
+                link_robot,
+                raw,
+                decoded: Ok(tm),
+            } => {
+                let robot = tm.robot.or(*link_robot)?;
+                Some([
+                    Val::Int(robot as i64),
+                    Val::Int(tm.apid as i64),
+                    Val::Int(tm.time.unix_ms()),
+                    Val::Int(tm.seq as i64),
+                    Val::Int(*t_ms),
+                    link_robot.map(|r| r as i64).into(),
+                    Val::Blob(raw.clone()),
+                ])
+            }
+            Record::Tm { .. } | Record::Tc { .. } | Record::Sync(_) => None,
+        })
+        .collect();
+    let mut rest = &rows[..];
+    while !rest.is_empty() {
+        let n = PG_ROWS.into_iter().find(|&n| n <= rest.len()).unwrap_or(1);
+        let (page, tail) = rest.split_at(n);
+        rest = tail;
+        let mut sql = String::from("INSERT INTO packet (robot, apid, obt_ms, seq, t_ms, link_robot, raw) VALUES ");
+        for i in 0..page.len() {
+            let b = i * 7;
+            if i > 0 {
+                sql.push(',');
+            }
+            sql.push_str(&format!(
+                "(?{}, ?{}, ?{}, ?{}, ?{}, ?{}, ?{})",
+                b + 1,
+                b + 2,
+                b + 3,
+                b + 4,
+                b + 5,
+                b + 6,
+                b + 7
+            ));
+        }
+        sql.push_str(" ON CONFLICT DO NOTHING RETURNING robot, apid, obt_ms, seq");
+        let params: Vec<Val> = page.iter().flat_map(|r| r.iter().cloned()).collect();
+        db.rows(&sql, &params, &mut |r| {
+            let k = |i: usize| r[i].int().unwrap_or(-1);
+            stored.insert((k(0), k(1), k(2), k(3)));
+            Ok(())
+        })?;
+    }
+    Ok(stored)
 }
