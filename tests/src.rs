@@ -86,6 +86,20 @@ impl Obsw {
         self.child.id()
     }
 
+    /// Its exit status, if it exits within `limit`.
+    pub fn wait_exit(&mut self, limit: Duration) -> Option<std::process::ExitStatus> {
+        let t0 = std::time::Instant::now();
+        loop {
+            if let Ok(Some(s)) = self.child.try_wait() {
+                return Some(s);
+            }
+            if t0.elapsed() >= limit {
+                return None;
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+
     /// Kills the obsw with SIGKILL (no chance to flush or say goodbye).
     pub fn kill9(&mut self) {
         let _ = self.child.kill();
@@ -104,7 +118,14 @@ impl Obsw {
 }
 
 impl Drop for Obsw {
+    /// SIGTERM first (the obsw stops at its next control period and exits 0, so an
+    /// instrumented build writes its coverage profile), SIGKILL after 2 s.
     fn drop(&mut self) {
+        if let Ok(None) = self.child.try_wait() {
+            let pid = self.child.id().to_string();
+            let _ = std::process::Command::new("kill").args(["-TERM", &pid]).status();
+            self.wait_exit(Duration::from_secs(2));
+        }
         let _ = self.child.kill();
         let _ = self.child.wait();
     }

@@ -47,6 +47,51 @@ fn ping_is_verified_in_order_over_tcp_with_cobs() {
     assert_eq!(c.verifications(&ping), vec![1, 3, 7]);
 }
 
+// verifies: DD-STOP-01
+#[test]
+fn sigterm_stops_the_obsw_with_exit_0_and_a_complete_tm_log() {
+    let dir = std::env::temp_dir().join(format!("obsw-sigterm-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let log = dir.join("tm.hex");
+    let mut o = Obsw::start(&["--tm-log", log.to_str().unwrap()]);
+    let mut c = Client::udp(&o);
+    let ping = c.send("PING", &[]);
+    c.wait_done(&ping, T).expect("ping completes");
+    let st = std::process::Command::new("kill")
+        .args(["-TERM", &o.pid().to_string()])
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let exit = o
+        .wait_exit(Duration::from_secs(1))
+        .expect("exits within 1 s of SIGTERM");
+    assert_eq!(exit.code(), Some(0), "exit code after SIGTERM");
+    // Everything it sent is in its log, the ping's four reports among it.
+    let lines: Vec<Tm> = std::fs::read_to_string(&log)
+        .unwrap()
+        .lines()
+        .filter_map(|l| Tm::parse(&hex_bytes(l)))
+        .collect();
+    let req = request_of(&ping);
+    let reports: Vec<u8> = lines
+        .iter()
+        .filter(|t| t.request() == Some(req))
+        .map(|t| t.subservice)
+        .collect();
+    assert_eq!(reports, vec![1, 3, 7], "the ping's PUS 1 reports in the log");
+    assert!(
+        lines.iter().any(|t| (t.service, t.subservice) == (17, 2)),
+        "TM[17,2] in the log"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+fn hex_bytes(s: &str) -> Vec<u8> {
+    (0..s.len() / 2)
+        .filter_map(|i| u8::from_str_radix(&s[2 * i..2 * i + 2], 16).ok())
+        .collect()
+}
+
 // verifies: PUS-PKT-03
 #[test]
 fn tm_sequence_count_is_continuous() {

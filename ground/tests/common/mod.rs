@@ -87,7 +87,18 @@ impl Obsw {
 }
 
 impl Drop for Obsw {
+    /// SIGTERM first (the obsw exits 0 at its next control period, so an instrumented
+    /// build writes its coverage profile), SIGKILL after 2 s.
     fn drop(&mut self) {
+        let pid = self.child.id().to_string();
+        let _ = Command::new("kill")
+            .args(["-TERM", &pid])
+            .stderr(Stdio::null())
+            .status();
+        let t0 = std::time::Instant::now();
+        while t0.elapsed().as_secs() < 2 && matches!(self.child.try_wait(), Ok(None)) {
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
         let _ = self.child.kill();
         let _ = self.child.wait();
     }

@@ -8,6 +8,8 @@ mod net;
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{bail, Context, Result};
@@ -255,6 +257,13 @@ fn run(args: Args) -> Result<()> {
     let mut bad_frames: u32 = 0;
     // Link counters already reported as events.
     let mut reported = down.counters;
+    // SIGTERM or SIGINT: stop at the next control period and exit 0 (the TM log is
+    // flushed, and an instrumented build writes its coverage profile).
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
+    }
     obsw.boot(0, config::reset_cause::POWER_ON, &mut down);
     loop {
         // Inputs already waiting first, but a bounded batch, so that a flood of TCs
@@ -288,7 +297,7 @@ fn run(args: Args) -> Result<()> {
         let out = obsw.tick(sim_ms, &sensors, &link_rx, &mut down);
         link_rx.clear();
         sim.step(period as u32, &out.actuators, &out.link_tx, &mut link_rx);
-        if end_ms.is_some_and(|e| sim_ms >= e) {
+        if end_ms.is_some_and(|e| sim_ms >= e) || stop.load(Ordering::SeqCst) {
             return Ok(());
         }
     }
