@@ -77,7 +77,7 @@ printf '%-34s %14s %14s\n' "plot $PARAM, whole file PNG (ms)" "$(echo "${g_pl[*]
 echo "(times include process start; the baseline's ingest runs in one process without CRC checks)"
 
 if [ "${ARCHIVE_BENCH_PG:-0}" = 1 ]; then
-    PGDIR="$WORK/pg"
+    PGDIR="/tmp/archive-bench-pg-$$"   # the server user must reach it (not in the 0700 $WORK)
     URL=$(bash "$ROOT/scripts/postgres-test.sh" start "$PGDIR" $$)
     PSQL=$(ls /usr/lib/postgresql/*/bin/psql | head -1)
     pq_in=() ; pq_re=()
