@@ -9,7 +9,7 @@
 //! Options: `--robots N` (obsw processes, robots 1..=N, default 2), `--obsw PATH`
 //! (default: next to this example's target folder, then `$OBSW_BIN`), `--speed X`
 //! (simulator speed, default 1), `--http ADDR` (default 127.0.0.1:0), `--token T`,
-//! `--plans DIR` (default `plans/`), `--synthetic N --hz F` (no obsw: N robots with
+//! `--synthetic N --hz F` (no obsw: N robots with
 //! generated HK at F Hz and a day of archived V_BAT_A for robot 1, for the benchmark). Prints one JSON line
 //! `{"url": …, "robots": [{"robot": N, "tc": ADDR, "sim_ctl": ADDR}, …]}` when ready,
 //! then serves until stdin closes or it is killed.
@@ -30,7 +30,6 @@ struct Opts {
     speed: f64,
     http: SocketAddr,
     token: Option<String>,
-    plans: PathBuf,
     synthetic: Option<u8>,
     hz: f64,
 }
@@ -42,7 +41,6 @@ fn opts() -> Result<Opts> {
         speed: 1.0,
         http: "127.0.0.1:0".parse()?,
         token: None,
-        plans: PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../plans")),
         synthetic: None,
         hz: 10.0,
     };
@@ -55,7 +53,6 @@ fn opts() -> Result<Opts> {
             "--speed" => o.speed = val()?.parse()?,
             "--http" => o.http = val()?.parse()?,
             "--token" => o.token = Some(val()?),
-            "--plans" => o.plans = val()?.into(),
             "--synthetic" => o.synthetic = Some(val()?.parse()?),
             "--hz" => o.hz = val()?.parse()?,
             other => bail!("unknown option {other} (see the file's doc comment)"),
@@ -220,8 +217,10 @@ impl dashboard::Commander for Refuse {
     fn plans(&self) -> Vec<dashboard::PlanInfo> {
         Vec::new()
     }
-    fn start_plan(&self, name: &str) -> Result<String, dashboard::CommandError> {
-        Err(dashboard::CommandError(format!("synthetic feed: no plan {name}")))
+    fn start_plan(&self, name: &str, _: bool) -> Result<String, dashboard::PlanStartError> {
+        Err(dashboard::PlanStartError::Unknown(format!(
+            "synthetic feed: no plan {name}"
+        )))
     }
 }
 
@@ -251,7 +250,7 @@ fn main() -> Result<()> {
             for &(r, _) in &links {
                 hub.link(r, LinkState::Connecting);
             }
-            Arc::new(LinkFeed::start(hub.clone(), &links, Some(o.plans.clone()))?)
+            Arc::new(LinkFeed::start(hub.clone(), &links)?)
         }
     };
     let series: Arc<dyn dashboard::Series> = match o.synthetic {

@@ -2,13 +2,12 @@
 //! [`Commander`] over them — for the example binary only (`examples/dashboard_demo.rs`).
 //! `ground collect --http` does not use it: there the collector's robot threads feed
 //! the hub (`collect::dash`). It is deliberately minimal: no renewal of the downlink
-//! lease, no reconnects, no gap filling, no archive, alarms without persistence or hysteresis
-//! (the collector does all of that properly). It only uses `link::Link`,
+//! lease, no reconnects, no gap filling, no archive, alarms without persistence or hysteresis,
+//! no plans (the collector does all of that properly). It only uses `link::Link`,
 //! `pus::build_tc` and `pus::decode_tm`.
 
 use std::collections::HashMap;
 use std::net::SocketAddr;
-use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -17,7 +16,7 @@ use crossbeam_channel::RecvTimeoutError;
 
 use super::{
     AlarmRecord, AlarmState, CommandError, Commander, ConfigState, EventRecord, Hub, LimitState, LinkState, PlanInfo,
-    PlanRun, PlanStep, Stage, StageReport,
+    PlanStartError, StageReport,
 };
 use crate::link::{Incoming, Link, Transport};
 use crate::pus::{self, TmBody};
@@ -32,8 +31,6 @@ struct Shared {
     /// (robot, source) → alarm ID.
     alarm_ids: Mutex<HashMap<(u8, String), u64>>,
     next_alarm: Mutex<u64>,
-    plans_dir: Option<PathBuf>,
-    next_run: Mutex<u64>,
     stop: AtomicBool,
 }
 
@@ -49,8 +46,7 @@ fn now_ms() -> i64 {
 
 impl LinkFeed {
     /// Opens a link to each robot, asks for its mode tree and starts following it.
-    /// `plans_dir` holds the plan files (`*.toml`) the page may start.
-    pub fn start(hub: Hub, robots: &[(u8, SocketAddr)], plans_dir: Option<PathBuf>) -> std::io::Result<LinkFeed> {
+    pub fn start(hub: Hub, robots: &[(u8, SocketAddr)]) -> std::io::Result<LinkFeed> {
         let (tx, rx) = crossbeam_channel::bounded::<Incoming>(4096);
         let mut links = HashMap::new();
         for &(robot, addr) in robots {
@@ -64,8 +60,6 @@ impl LinkFeed {
                 seq: Mutex::new(pus::SeqCounters::new()),
                 alarm_ids: Mutex::new(HashMap::new()),
                 next_alarm: Mutex::new(1),
-                plans_dir,
-                next_run: Mutex::new(1),
                 stop: AtomicBool::new(false),
             }),
         };
@@ -278,98 +272,6 @@ impl LinkFeed {
             }
         }
     }
-
-    fn plan_path(&self, name: &str) -> Result<PathBuf, CommandError> {
-        let dir = self
-            .shared
-            .plans_dir
-            .as_ref()
-            .ok_or_else(|| CommandError("no plan folder given".into()))?;
-        if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_') {
-            return Err(CommandError(format!("\"{name}\" is not a plan name")));
-        }
-        Ok(dir.join(format!("{name}.toml")))
-    }
-
-    /// Runs the steps one at a time in dependency order; each TC step waits for its
-    /// completion report (or failure, or its timeout).
-    fn run_plan(&self, run_id: String, name: String, plan: crate::plan::Plan) {
-        let mut run = PlanRun {
-            run_id,
-            plan: name,
-            state: "running".into(),
-            started_ms: now_ms(),
-            steps: plan
-                .steps
-                .iter()
-                .map(|s| PlanStep {
-                    id: s.id.clone(),
-                    robot: s.robot,
-                    label: s.action.describe(),
-                    state: "waiting".into(),
-                    request_id: None,
-                    detail: String::new(),
-                })
-                .collect(),
-        };
-        self.hub().plan(run.clone());
-        let mut done = vec![false; plan.steps.len()];
-        while let Some(i) = (0..plan.steps.len()).find(|&i| !done[i] && plan.steps[i].deps.iter().all(|&d| done[d])) {
-            let step = &plan.steps[i];
-            run.steps[i].state = "running".into();
-            self.hub().plan(run.clone());
-            let outcome = match step.action.tc() {
-                None => {
-                    if let crate::plan::Action::Wait { seconds } = step.action {
-                        std::thread::sleep(Duration::from_secs_f64(seconds.clamp(0.0, 3600.0)));
-                    }
-                    Ok("waited".to_string())
-                }
-                Some((def, args)) => match self.send(step.robot, def.name, &args, &format!("plan {}", run.plan)) {
-                    Ok(id) => {
-                        run.steps[i].request_id = Some(id.clone());
-                        self.hub().plan(run.clone());
-                        self.wait_for(&id, step.timeout_s.unwrap_or(120.0))
-                    }
-                    Err(e) => Err(e.0),
-                },
-            };
-            match outcome {
-                Ok(d) => {
-                    run.steps[i].state = "done".into();
-                    run.steps[i].detail = d;
-                    done[i] = true;
-                    self.hub().plan(run.clone());
-                }
-                Err(e) => {
-                    run.steps[i].state = "failed".into();
-                    run.steps[i].detail = e;
-                    run.state = "failed".into();
-                    self.hub().plan(run);
-                    return;
-                }
-            }
-        }
-        run.state = "done".into();
-        self.hub().plan(run);
-    }
-
-    fn wait_for(&self, id: &str, timeout_s: f64) -> Result<String, String> {
-        let deadline = std::time::Instant::now() + Duration::from_secs_f64(timeout_s.clamp(1.0, 3600.0));
-        while std::time::Instant::now() < deadline {
-            if let Some(c) = self.hub().command(id) {
-                if let Some(f) = c.stages.iter().find(|s| !s.success) {
-                    let why = f.failure.as_ref().map_or("failed".to_string(), |x| x.name.clone());
-                    return Err(format!("{:?} failed: {why}", f.stage).to_lowercase());
-                }
-                if c.stages.iter().any(|s| s.stage == Stage::Completion) {
-                    return Ok("completed".into());
-                }
-            }
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        Err(format!("no completion within {timeout_s} s"))
-    }
 }
 
 impl Commander for LinkFeed {
@@ -406,51 +308,12 @@ impl Commander for LinkFeed {
     }
 
     fn plans(&self) -> Vec<PlanInfo> {
-        let Some(dir) = &self.shared.plans_dir else {
-            return Vec::new();
-        };
-        let Ok(rd) = std::fs::read_dir(dir) else {
-            return Vec::new();
-        };
-        let mut out: Vec<PlanInfo> = rd
-            .filter_map(|e| e.ok())
-            .filter_map(|e| {
-                let p = e.path();
-                let name = p.file_stem()?.to_str()?.to_string();
-                if p.extension()? != "toml" {
-                    return None;
-                }
-                let plan = crate::plan::load(&p).ok()?;
-                Some(PlanInfo {
-                    name,
-                    description: plan.description,
-                })
-            })
-            .collect();
-        out.sort_by(|a, b| a.name.cmp(&b.name));
-        out
+        Vec::new()
     }
 
-    fn start_plan(&self, name: &str) -> Result<String, CommandError> {
-        let path = self.plan_path(name)?;
-        let plan = crate::plan::load(&path).map_err(|e| CommandError(format!("{}: {e}", path.display())))?;
-        if let Some(r) = plan.robots.iter().find(|r| !self.shared.links.contains_key(&r.number)) {
-            return Err(CommandError(format!(
-                "plan {name} needs robot {}, which is not connected",
-                r.number
-            )));
-        }
-        let run_id = {
-            let mut n = self.shared.next_run.lock().map_err(|_| CommandError("lock".into()))?;
-            *n += 1;
-            format!("{name}-{}", *n - 1)
-        };
-        let me = self.clone();
-        let (rid, pname) = (run_id.clone(), name.to_string());
-        std::thread::Builder::new()
-            .name("dashboard-plan".into())
-            .spawn(move || me.run_plan(rid, pname, plan))
-            .map_err(|e| CommandError(format!("starting the plan: {e}")))?;
-        Ok(run_id)
+    fn start_plan(&self, name: &str, _confirmed: bool) -> Result<String, PlanStartError> {
+        Err(PlanStartError::Unknown(format!(
+            "no plan \"{name}\": this feed runs no plans (`ground collect --http` does)"
+        )))
     }
 }
