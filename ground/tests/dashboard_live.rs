@@ -1,14 +1,13 @@
-//! The dashboard fed by `dashboard::feed::LinkFeed` (the example binary's feed; `ground
-//! collect --http` is tested in `tests/collect.rs`) from a real `obsw`, driven through
-//! its JSON API (the same calls the page makes; `scripts/web-test.sh` drives the page
-//! itself in Chromium): the robot appears with its mode tree and live values, a PING
-//! completes with its stages, and a battery sag injected through the simulator control
-//! port raises an alarm that is acknowledged.
+//! The dashboard of a real `ground collect --http` following a real `obsw`, driven
+//! through its JSON API (the same calls the page makes; `scripts/web-test.sh` drives the
+//! page itself in Chromium): the robot appears with its mode tree and live values, a PING
+//! completes with its stages, a hazardous TC needs confirmation, and a battery sag
+//! injected through the simulator control port raises an alarm that is acknowledged.
 //!
-//! Plans under a real `ground collect --http` (configured with `plans = [...]`): started
-//! through the JSON API, every step's progress and the run's end followed over the SSE
-//! stream; hazardous plans need confirmation; a second start on a busy robot is refused;
-//! a refused step ends the run failed with its failure name.
+//! Plans (configured with `plans = [...]`): started through the JSON API, every step's
+//! progress and the run's end followed over the SSE stream; hazardous plans need
+//! confirmation; a second start on a busy robot is refused; a refused step ends the run
+//! failed with its failure name.
 //!
 //! The obsw binary is `$OBSW_BIN`, or the one next to this test's target profile, or
 //! built into `<target>/ground-obsw` (as `tests/live.rs` does).
@@ -17,10 +16,8 @@ use std::io::{BufRead, Read, Write};
 use std::net::{SocketAddr, TcpStream, UdpSocket};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use ground::dashboard::{self, feed::LinkFeed, Hub, NoArchive};
 use serde_json::{json, Value};
 
 fn obsw_bin() -> PathBuf {
@@ -120,27 +117,57 @@ fn wait_for<T>(secs: u64, what: &str, mut f: impl FnMut() -> Option<T>) -> T {
     }
 }
 
+struct Proc(Child);
+impl Drop for Proc {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// `ground collect --http` in `dir` with the configuration `config` (robots and plans);
+/// returns once the robots are up and in STANDBY.
+fn start_collector(dir: &Path, config: &str, robots: usize) -> (Proc, SocketAddr) {
+    std::fs::write(dir.join("collect.toml"), config).unwrap();
+    let web: SocketAddr = ([127, 0, 0, 1], free_port()).into();
+    let log = std::fs::File::create(dir.join("collect.log")).unwrap();
+    let p = Proc(
+        Command::new(env!("CARGO_BIN_EXE_ground"))
+            .current_dir(dir)
+            .args(["--archive", "a.db", "collect", "--plain", "--config", "collect.toml"])
+            .args(["--http", &web.to_string()])
+            .stdout(Stdio::null())
+            .stderr(Stdio::from(log))
+            .spawn()
+            .expect("starting ground collect --http"),
+    );
+    wait_for(60, "robots up under the collector", || {
+        let s = std::panic::catch_unwind(|| http(web, "GET", "/api/snapshot", None).1).ok()?;
+        let r = s["robots"].as_array()?;
+        (r.len() == robots && r.iter().all(|r| r["link"] == "up" && r["mode"] == "STANDBY")).then_some(())
+    });
+    (p, web)
+}
+
+fn tmpdir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("dash-live-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
 // verifies: GND-16, GND-18
 #[test]
 fn live_robot_ping_and_injected_fault_through_the_dashboard_api() {
     let (_obsw, tc, ctl) = start_obsw(1);
-    let hub = Hub::new();
-    let feed = LinkFeed::start(hub.clone(), &[(1, tc)]).expect("links open");
-    let srv = dashboard::spawn(
-        "127.0.0.1:0".parse().unwrap(),
-        None,
-        hub.clone(),
-        Arc::new(feed.clone()),
-        Arc::new(NoArchive),
-    )
-    .expect("server starts");
-    let a = srv.local_addr();
+    let dir = tmpdir("api");
+    let (_collector, a) = start_collector(&dir, &format!("[[robot]]\nnumber = 1\naddr = \"{tc}\"\n"), 1);
 
-    // The robot with its mode, mode tree and live values.
-    let robot = wait_for(30, "robot 1 with mode tree and HK", || {
+    // The robot with its mode and live values.
+    let robot = wait_for(30, "robot 1 with mode and HK", || {
         let (_, s) = http(a, "GET", "/api/snapshot", None);
         let r = s["robots"][0].clone();
-        (r["mode"] == "STANDBY" && r["modes"]["GRIPPER_B"] == "OFF" && r["hk"]["V_BAT_A"]["unit"] == "V").then_some(r)
+        (r["mode"] == "STANDBY" && r["hk"]["V_BAT_A"]["unit"] == "V").then_some(r)
     });
     assert_eq!(robot["link"], "up");
     assert!(robot["config"]["face_a"].is_string(), "{}", robot["config"]);
@@ -162,13 +189,18 @@ fn live_robot_ping_and_injected_fault_through_the_dashboard_api() {
     assert_eq!(stages[0]["stage"], "acceptance");
     assert!(stages.iter().all(|s| s["success"] == true), "{stages:?}");
 
-    // Operational (hazardous: confirmed), then a battery sag from the simulator.
-    let mode = json!({"robot": 1, "name": "MODE_SET", "confirm": true,
+    // Operational (hazardous: refused unconfirmed, then confirmed), then a battery sag
+    // from the simulator.
+    let mut mode = json!({"robot": 1, "name": "MODE_SET",
         "args": {"node": "ROBOT", "mode": "OPERATIONAL", "submode": 0}});
+    assert_eq!(http(a, "POST", "/api/tc", Some(mode.clone())).0, 409);
+    mode["confirm"] = json!(true);
     assert_eq!(http(a, "POST", "/api/tc", Some(mode)).0, 200);
-    wait_for(30, "OPERATIONAL", || {
+    // The mode tree follows the board's MODE_CHANGED events down to the leaves.
+    wait_for(30, "OPERATIONAL with its mode tree", || {
         let (_, s) = http(a, "GET", "/api/snapshot", None);
-        (s["robots"][0]["mode"] == "OPERATIONAL").then_some(())
+        let r = &s["robots"][0];
+        (r["mode"] == "OPERATIONAL" && r["modes"]["GRIPPER_B"] == "ON").then_some(())
     });
     let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
     sock.send_to(b"battery-sag 9.2\n", ctl).unwrap();
@@ -204,20 +236,11 @@ fn live_robot_ping_and_injected_fault_through_the_dashboard_api() {
             .as_array()
             .and_then(|v| v.iter().find(|e| e["name"] == "LOW_BATTERY").cloned())
     });
-    feed.stop();
-    srv.stop();
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 // ---------------------------------------------------------------------------
 // Plans started from the page under a real `ground collect --http`.
-
-struct Proc(Child);
-impl Drop for Proc {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
 
 /// A short plan for robot 1: a connection test, OPERATIONAL (hazardous: changes module
 /// power), a ground pause, STANDBY.
@@ -325,32 +348,11 @@ fn follow_run(rx: &std::sync::mpsc::Receiver<Value>, run_id: &str, secs: u64) ->
 #[test]
 fn plans_start_from_the_page_under_collect_with_live_progress_and_one_per_robot() {
     let (_obsw, tc, _ctl) = start_obsw(1);
-    let dir = std::env::temp_dir().join(format!("dash-plans-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = tmpdir("plans");
     std::fs::write(dir.join("short.toml"), SHORT_PLAN).unwrap();
     std::fs::write(dir.join("refused.toml"), REFUSED_PLAN).unwrap();
-    std::fs::write(
-        dir.join("collect.toml"),
-        format!("plans = [\"short.toml\", \"refused.toml\"]\n[[robot]]\nnumber = 1\naddr = \"{tc}\"\n"),
-    )
-    .unwrap();
-    let web: SocketAddr = ([127, 0, 0, 1], free_port()).into();
-    let log = std::fs::File::create(dir.join("collect.log")).unwrap();
-    let _collector = Proc(
-        Command::new(env!("CARGO_BIN_EXE_ground"))
-            .current_dir(&dir)
-            .args(["--archive", "a.db", "collect", "--plain", "--config", "collect.toml"])
-            .args(["--http", &web.to_string()])
-            .stdout(Stdio::null())
-            .stderr(Stdio::from(log))
-            .spawn()
-            .expect("starting ground collect --http"),
-    );
-    wait_for(60, "robot 1 up under the collector", || {
-        let s = std::panic::catch_unwind(|| http(web, "GET", "/api/snapshot", None).1).ok()?;
-        (s["robots"][0]["link"] == "up" && s["robots"][0]["mode"] == "STANDBY").then_some(())
-    });
+    let config = format!("plans = [\"short.toml\", \"refused.toml\"]\n[[robot]]\nnumber = 1\naddr = \"{tc}\"\n");
+    let (_collector, web) = start_collector(&dir, &config, 1);
 
     // The configured plans, with the hazardous TCs named.
     let (st, list) = http(web, "GET", "/api/plans", None);

@@ -593,8 +593,14 @@ impl Worker {
         if let (true, Some(d)) = (live, &self.dash) {
             dash::to_hub(&d.hub, self.cfg.number, &tm);
         }
-        // Replayed reports too: a plan TC's outcome may come from the on-board store.
-        if self.plan.is_some() && matches!(tm.body, TmBody::Verification(_) | TmBody::Event(_)) {
+        // Replayed reports too (a plan TC's outcome may come from the on-board store);
+        // events live only (an old fault replayed must not stop a plan started since).
+        let for_plan = match tm.body {
+            TmBody::Verification(_) => true,
+            TmBody::Event(_) => live,
+            _ => false,
+        };
+        if self.plan.is_some() && for_plan {
             let robot = self.robot();
             self.tell_plan(PlanInput::Tm { robot, tm: tm.clone() });
         }

@@ -15,12 +15,9 @@
 //! ```
 //!
 //! [`serve`] runs the HTTP server (axum on tokio). `ground collect --http` mounts it
-//! with the collector's robot threads as the feed (`collect::dash`). [`feed`] is a
-//! small stand-alone adapter that feeds a hub straight from `obsw` links, used only by
-//! the example binary (`examples/dashboard_demo.rs`: synthetic fleets for the 50-robot
-//! benchmark, and plan runs from the page, which the collector does not offer).
+//! with the collector's robot threads as the feed (`collect::dash`), and runs plans from
+//! the page through them (`collect::planrun`).
 
-pub mod feed;
 mod hub;
 pub mod mibinfo;
 mod server;
