@@ -442,6 +442,21 @@ impl PlanBook {
                 r.number
             )));
         }
+        if let Some((r, st)) = plan
+            .robots
+            .iter()
+            .map(|r| (r.number, self.hub.link_state(r.number)))
+            .find(|(_, st)| *st != Some(crate::dashboard::LinkState::Up))
+        {
+            let st = match st {
+                Some(crate::dashboard::LinkState::Lost) => "lost",
+                Some(crate::dashboard::LinkState::Connecting) | None => "not up yet",
+                Some(crate::dashboard::LinkState::Up) => "up",
+            };
+            return Err(PlanStartError::Refused(format!(
+                "plan {name} not started: robot {r}'s link is {st}"
+            )));
+        }
         let info = PlanInfo::of(name, &plan);
         if !info.hazards.is_empty() && !confirmed {
             return Err(PlanStartError::NeedsConfirmation(format!(
@@ -640,6 +655,60 @@ mod tests {
         assert!(re.is_empty());
         assert!(matches!(u, Some(Update::Verification { v, .. }) if !v.success));
         assert!(r.is_empty());
+    }
+
+    // verifies: GND-19, GND-18
+    #[test]
+    fn starts_are_checked_unknown_hazard_link_and_one_plan_per_robot() {
+        let dir = std::env::temp_dir().join(format!("planbook-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let plan = |name: &str, tc: &str| {
+            let path = dir.join(format!("{name}.toml"));
+            std::fs::write(
+                &path,
+                format!("name = \"{name}\"\n[[robot]]\nnumber = 1\n[[step]]\nid = \"s\"\nrobot = 1\naction = \"command\"\ntc = \"{tc}\"\n"),
+            )
+            .unwrap();
+            PlanCfg {
+                name: name.into(),
+                path,
+            }
+        };
+        let hub = Hub::new();
+        hub.add_robot(1);
+        let (tx, rx) = crossbeam_channel::bounded(64);
+        let book = PlanBook::new(
+            vec![plan("ping", "PING"), plan("clear", "STORE_DELETE")],
+            hub.clone(),
+            BTreeMap::from([(1, tx)]),
+        );
+        assert!(matches!(book.start("nope", true), Err(PlanStartError::Unknown(m)) if m.contains("ping, clear")));
+        assert!(matches!(book.start("ping", false), Err(PlanStartError::Refused(m)) if m.contains("not up yet")));
+        hub.link(1, crate::dashboard::LinkState::Up);
+        let hazards = &book.list()[1].hazards;
+        assert_eq!(hazards.len(), 1, "{hazards:?}");
+        assert!(matches!(
+            book.start("clear", false),
+            Err(PlanStartError::NeedsConfirmation(_))
+        ));
+        let run = book.start("ping", false).unwrap();
+        // The run follows the robot's thread, then hands it its TC.
+        assert!(matches!(
+            rx.recv_timeout(Duration::from_secs(5)),
+            Ok(DashCmd::Follow(_))
+        ));
+        assert!(
+            matches!(rx.recv_timeout(Duration::from_secs(5)), Ok(DashCmd::PlanTc { def, .. }) if def.name == "PING")
+        );
+        assert!(matches!(book.start("clear", true), Err(PlanStartError::Busy(m)) if m.contains(&run)));
+        // The robot's thread is gone: the run ends failed and the robot is free again.
+        drop(rx);
+        let end = Instant::now() + Duration::from_secs(10);
+        while book.busy.lock().unwrap().contains_key(&1) {
+            assert!(Instant::now() < end, "robot 1 still busy");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     fn run(states: &[&str], details: &[&str]) -> PlanRun {
