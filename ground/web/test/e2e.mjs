@@ -8,7 +8,8 @@
 // by `ground alarms list`; a plan from the collector's configuration, started from the
 // page (its hazardous TC confirmed), runs with live step progress to completion; the
 // event stream resumes after a reconnect; the page is still live after the 30 s
-// downlink lease (the collector renews it).
+// downlink lease (the collector renews it); bound beyond localhost, TCs and plan starts
+// need the token.
 import { spawn, execFileSync } from 'node:child_process';
 import { createInterface } from 'node:readline';
 import { createSocket } from 'node:dgram';
@@ -332,6 +333,8 @@ try {
       await p2.waitForFunction(() => /error/.test(document.querySelector('#conn').textContent));
       const refused = await p2.evaluate(async () => (await fetch('/api/tc', { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: JSON.stringify({ robot: 1, name: 'PING', args: {} }) })).status);
       assert(refused === 401, 'POST /api/tc without the token: ' + refused);
+      const planRefused = await p2.evaluate(async () => (await fetch('/api/plans', { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: JSON.stringify({ name: 'r2-mode', confirm: true }) })).status);
+      assert(planRefused === 401, 'POST /api/plans without the token: ' + planRefused);
       await p2.goto(url.href);
       await p2.waitForSelector('#robot-1');
       await p2.click('#tabs button[data-view="commands"]');
