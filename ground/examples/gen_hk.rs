@@ -2,7 +2,8 @@
 //! decode benchmark, and prints the Python `struct` format of the HK source data so
 //! that the Python side decodes the same structure.
 //!
-//! `cargo run --release -p ground --example gen_hk -- N FILE`
+//! `cargo run --release -p ground --example gen_hk -- N FILE [START_MS]` (START_MS: Unix
+//! time of the first packet, default 2026-01-01; packets are 100 ms apart).
 
 use std::io::Write;
 
@@ -28,7 +29,11 @@ fn main() -> anyhow::Result<()> {
     let apid = mib::apid::robot_apid(1).ok_or_else(|| anyhow::anyhow!("no APID"))?;
     let mut out = std::io::BufWriter::new(std::fs::File::create(&path)?);
     let mut src = [0u8; 512];
-    let t0 = ground::pus::CdsShort::from_unix_ms(1_767_225_600_000);
+    let start_ms: i64 = match a.next() {
+        Some(s) => s.parse()?,
+        None => 1_767_225_600_000,
+    };
+    let t0 = ground::pus::CdsShort::from_unix_ms(start_ms);
     for i in 0..n {
         let len = mib::codec::encode_hk(def, |id| value(id, i), &mut src)?;
         let t = ground::pus::CdsShort::from_unix_ms(t0.unix_ms() + i as i64 * 100).to_bytes();

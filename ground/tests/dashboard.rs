@@ -9,7 +9,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use ground::dashboard::{
-    self, AlarmRecord, AlarmState, CommandError, Commander, Hub, PlanInfo, Series, Stage, StageReport,
+    self, AlarmRecord, AlarmState, CommandError, Commander, Hub, PlanInfo, PlanStartError, Series, Stage, StageReport,
 };
 use serde_json::{json, Value};
 
@@ -37,9 +37,12 @@ impl Commander for Recorder {
         vec![PlanInfo {
             name: "demo".into(),
             description: "d".into(),
+            robots: vec![1],
+            steps: 1,
+            hazards: Vec::new(),
         }]
     }
-    fn start_plan(&self, name: &str) -> Result<String, CommandError> {
+    fn start_plan(&self, name: &str, _confirmed: bool) -> Result<String, PlanStartError> {
         Ok(format!("{name}-1"))
     }
 }

@@ -4,7 +4,7 @@
 use std::collections::BTreeMap;
 use std::net::{SocketAddr, ToSocketAddrs};
 use std::ops::Range;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
@@ -20,6 +20,9 @@ struct FileCfg {
     transport: Option<toml::Spanned<String>>,
     /// Delete archived data older than this ("30d", "12h", "90m", "45s").
     retain: Option<toml::Spanned<String>>,
+    /// Plan files the dashboard offers (relative to this file's folder).
+    #[serde(default)]
+    plans: Vec<toml::Spanned<String>>,
     #[serde(default)]
     link: LinkFile,
     #[serde(default)]
@@ -75,10 +78,20 @@ pub struct RobotCfg {
     pub name: Option<String>,
 }
 
+/// A plan the dashboard offers (`plans = [...]`), checked when the configuration is read.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PlanCfg {
+    /// The plan's `name`, by which the page starts it.
+    pub name: String,
+    pub path: PathBuf,
+}
+
 /// Everything the collector runs with.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Config {
     pub robots: Vec<RobotCfg>,
+    /// Plans the dashboard can start (`ground collect --http`).
+    pub plans: Vec<PlanCfg>,
     pub retain_ms: Option<i64>,
     pub loss_timeout_ms: u64,
     pub max_backoff_ms: u64,
@@ -95,6 +108,7 @@ impl Default for Config {
     fn default() -> Self {
         Config {
             robots: Vec::new(),
+            plans: Vec::new(),
             retain_ms: None,
             loss_timeout_ms: 3_000,
             max_backoff_ms: MAX_BACKOFF_CAP_MS,
@@ -293,6 +307,37 @@ pub fn parse(file: &str, src: &str) -> Result<Config, CfgErrors> {
     if let Some(l) = f.alarms.limits {
         c.limits = l;
     }
+    let base = Path::new(file).parent().unwrap_or(Path::new(""));
+    for p in &f.plans {
+        let path = base.join(p.get_ref());
+        match crate::plan::load(&path) {
+            Ok(plan) => {
+                if c.plans.iter().any(|q| q.name == plan.name) {
+                    cx.err(
+                        p.span(),
+                        format!("plan \"{}\" ({}) is listed twice", plan.name, path.display()),
+                    );
+                } else {
+                    c.plans.push(PlanCfg { name: plan.name, path });
+                }
+            }
+            Err(crate::plan::LoadError::Io(_, e)) => {
+                cx.err(p.span(), format!("plan {}: cannot read it: {e}", path.display()))
+            }
+            Err(crate::plan::LoadError::Invalid(d)) => {
+                let lines: Vec<String> = d.iter().map(|x| x.to_string()).collect();
+                cx.err(
+                    p.span(),
+                    format!(
+                        "plan {} has {} error(s):\n{}",
+                        path.display(),
+                        d.len(),
+                        lines.join("\n")
+                    ),
+                )
+            }
+        }
+    }
     let mut seen: BTreeMap<u8, ()> = BTreeMap::new();
     for r in &f.robot {
         let n = *r.number.get_ref();
@@ -445,6 +490,61 @@ transport = "tcp"
         assert_eq!(e.errors[0].line, 3);
         let e = parse("c.toml", "[[robot]]\nnumber = 1\n[[robot]]\nnumber = 1\n").unwrap_err();
         assert!(e.to_string().contains("c.toml:4:10: robot 1 is listed twice"));
+    }
+
+    // verifies: GND-11, GND-19
+    #[test]
+    fn plans_are_checked_and_their_errors_located() {
+        let dir = std::env::temp_dir().join(format!("collect-cfg-plans-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(
+            dir.join("ok.toml"),
+            "name = \"ping\"\n[[robot]]\nnumber = 1\n[[step]]\nid = \"p\"\nrobot = 1\naction = \"command\"\ntc = \"PING\"\n",
+        )
+        .unwrap();
+        std::fs::write(
+            dir.join("bad.toml"),
+            "name = \"bad\"\n[[robot]]\nnumber = 1\n[[step]]\nid = \"p\"\nrobot = 1\naction = \"fly\"\n",
+        )
+        .unwrap();
+        let cfg_file = dir.join("c.toml");
+        let file = cfg_file.display().to_string();
+        let c = parse(&file, "plans = [\"ok.toml\"]\n").unwrap();
+        assert_eq!(
+            c.plans,
+            vec![PlanCfg {
+                name: "ping".into(),
+                path: dir.join("ok.toml")
+            }]
+        );
+        let e = parse(
+            &file,
+            "plans = [\"ok.toml\", \"bad.toml\", \"none.toml\", \"ok.toml\"]\n",
+        )
+        .unwrap_err();
+        let text = e.to_string();
+        assert_eq!(e.errors.len(), 3, "{text}");
+        assert!(
+            text.contains(&format!("{file}:1:21: plan {}", dir.join("bad.toml").display())),
+            "{text}"
+        );
+        // The plan's own error, located in the plan file.
+        assert!(
+            text.contains(&format!("{}:7:", dir.join("bad.toml").display())),
+            "{text}"
+        );
+        assert!(
+            text.contains(&format!(
+                "{file}:1:33: plan {}: cannot read",
+                dir.join("none.toml").display()
+            )),
+            "{text}"
+        );
+        assert!(
+            text.contains(&format!("{file}:1:46: plan \"ping\"")) && text.contains("listed twice"),
+            "{text}"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     // verifies: GND-11

@@ -6,7 +6,8 @@
 //! `ground alarms list` reads) by [`AlarmSync`]; acknowledge and shelve from the page
 //! go to that table too. TCs from the page are handed to the robot's thread
 //! ([`DashCmd`]), which numbers them with its own sequence counter and sends them over
-//! its link. Plots read the archive's min/max decimation ([`ArchiveSeries`]).
+//! its link; so do plan runs started from the page (`super::planrun`). Plots read the
+//! archive's min/max decimation ([`ArchiveSeries`]).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::PathBuf;
@@ -20,13 +21,9 @@ use crate::alarms::Input;
 use crate::archive::{now_ms, Alarm, Store};
 use crate::dashboard::{
     node_mode, request_id, AlarmRecord, AlarmState, CommandError, Commander, ConfigState, EventRecord, Hub, PlanInfo,
-    Series, StageReport,
+    PlanStartError, Series, StageReport,
 };
 use crate::pus::{Tm, TmBody};
-
-/// What `POST /api/plan` answers under the collector.
-pub const PLANS_NOT_AVAILABLE: &str =
-    "plans are not available under collect: run them with `ground plan run` (the collector keeps archiving)";
 
 /// How long the page waits for the robot's thread to take a TC.
 const SEND_TIMEOUT: Duration = Duration::from_secs(2);
@@ -41,6 +38,18 @@ pub enum DashCmd {
         args: Vec<i64>,
         reply: Sender<Result<String, String>>,
     },
+    /// Send a plan step's TC (numbered by the thread like the page's); the reply is the
+    /// TC as sent (`collect::planrun`).
+    PlanTc {
+        def: &'static mib::tc::TcDef,
+        args: Vec<i64>,
+        origin: String,
+        reply: Sender<Result<crate::pus::BuiltTc, String>>,
+    },
+    /// Send these bytes again: a plan TC resent unchanged.
+    Resend { bytes: Vec<u8> },
+    /// Hand this plan run every verification report and event, and the link's loss.
+    Follow(Sender<super::planrun::PlanInput>),
 }
 
 /// What a robot thread holds of the dashboard.
@@ -209,6 +218,7 @@ pub struct CollectCommander {
     robots: BTreeMap<u8, Sender<DashCmd>>,
     archive: PathBuf,
     alarms: Arc<AlarmSync>,
+    plans: Option<super::planrun::PlanBook>,
 }
 
 impl CollectCommander {
@@ -217,7 +227,15 @@ impl CollectCommander {
             robots,
             archive,
             alarms,
+            plans: None,
         }
+    }
+
+    /// Offers `plans` (the configuration's `plans = [...]`) on the page, run through the
+    /// robots' threads with progress to `hub`.
+    pub fn with_plans(mut self, plans: Vec<super::config::PlanCfg>, hub: Hub) -> CollectCommander {
+        self.plans = Some(super::planrun::PlanBook::new(plans, hub, self.robots.clone()));
+        self
     }
 
     fn alarm_input(&self, id: u64, input: Input) -> Result<(), CommandError> {
@@ -263,15 +281,16 @@ impl Commander for CollectCommander {
     }
 
     fn plans(&self) -> Vec<PlanInfo> {
-        Vec::new()
+        self.plans.as_ref().map(|p| p.list()).unwrap_or_default()
     }
 
-    fn plans_unavailable(&self) -> Option<String> {
-        Some(PLANS_NOT_AVAILABLE.into())
-    }
-
-    fn start_plan(&self, _name: &str) -> Result<String, CommandError> {
-        Err(CommandError(PLANS_NOT_AVAILABLE.into()))
+    fn start_plan(&self, name: &str, confirmed: bool) -> Result<String, PlanStartError> {
+        match &self.plans {
+            Some(p) => p.start(name, confirmed),
+            None => Err(PlanStartError::Unknown(format!(
+                "no plan named \"{name}\": this collector offers no plans"
+            ))),
+        }
     }
 }
 
@@ -372,11 +391,7 @@ mod tests {
 
         // No robot, no plans: clear errors.
         assert!(cmd.send_tc(3, "PING", &[]).unwrap_err().0.contains("robot 3"));
-        assert!(cmd
-            .start_plan("x")
-            .unwrap_err()
-            .0
-            .contains("not available under collect"));
+        assert!(matches!(cmd.start_plan("x", true), Err(PlanStartError::Unknown(_))));
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -8,6 +8,7 @@
 pub mod config;
 pub mod dash;
 pub mod onboard;
+pub mod planrun;
 pub mod robot;
 pub mod store;
 pub mod tracker;
@@ -284,7 +285,8 @@ pub fn run_with(
         (Some((addr, token)), Some(hub)) => {
             let alarms = Arc::new(dash::AlarmSync::new(archive.to_path_buf(), hub.clone()));
             alarms.clone().spawn(stop.clone())?;
-            let commander = dash::CollectCommander::new(dash_tx, archive.to_path_buf(), alarms);
+            let commander = dash::CollectCommander::new(dash_tx, archive.to_path_buf(), alarms)
+                .with_plans(cfg.plans.clone(), hub.clone());
             let series = dash::ArchiveSeries::new(archive.to_path_buf());
             let running = crate::dashboard::spawn(addr, token, hub, Arc::new(commander), Arc::new(series))?;
             tracing::info!("dashboard at http://{}/", running.local_addr());

@@ -14,11 +14,12 @@ use serde::Serialize;
 use crate::alarms::{Input, Level, LimitChecker, Severity, Source};
 use crate::archive::now_ms;
 use crate::link::{Incoming, Link, Transport};
-use crate::pus::{self, RequestId, Stage, Tm, TmBody};
+use crate::pus::{self, BuiltTc, RequestId, Stage, Tm, TmBody};
 
 use super::config::{Config, RobotCfg};
 use super::dash::{self, DashCmd, RobotDash};
 use super::onboard;
+use super::planrun::PlanInput;
 use super::store::{Health, SinkMsg};
 use super::tracker::{ApidTracker, Pos, Verdict};
 
@@ -116,6 +117,9 @@ pub struct Worker {
     st: RobotStatus,
     /// The dashboard this thread feeds, when `--http` is given.
     dash: Option<RobotDash>,
+    /// The plan run following this robot (`collect::planrun`): it gets every
+    /// verification report and event, and the link's loss.
+    plan: Option<Sender<PlanInput>>,
 }
 
 impl Worker {
@@ -175,6 +179,7 @@ impl Worker {
             last_health_ms: 0,
             st,
             dash: None,
+            plan: None,
             cfg,
             global,
             sink,
@@ -196,23 +201,41 @@ impl Worker {
         let cmds: Vec<DashCmd> = d.cmds.try_iter().take(64).collect();
         for c in cmds {
             match c {
+                // The page's answer channel may be gone (it timed out): nothing to tell.
                 DashCmd::Tc { name, args, reply } => {
-                    let r = self.dash_tc(&name, &args);
+                    let r = mib::tc::by_name(&name)
+                        .ok_or_else(|| format!("no TC named {name}"))
+                        .and_then(|def| self.dash_tc(def, &args, "page"))
+                        .map(|tc| crate::dashboard::request_id(self.robot(), tc.apid, tc.seq));
                     let _ = reply.send(r);
                 }
+                DashCmd::PlanTc {
+                    def,
+                    args,
+                    origin,
+                    reply,
+                } => {
+                    let r = self.dash_tc(def, &args, &origin);
+                    let _ = reply.send(r);
+                }
+                DashCmd::Resend { bytes } => self.send(&bytes),
+                DashCmd::Follow(tx) => self.plan = Some(tx),
             }
         }
     }
 
-    fn dash_tc(&mut self, name: &str, args: &[i64]) -> Result<String, String> {
-        let def = mib::tc::by_name(name).ok_or_else(|| format!("no TC named {name}"))?;
+    /// Numbers a TC of the page or a plan with this thread's sequence counter, shows it
+    /// in the dashboard's history and sends it.
+    fn dash_tc(&mut self, def: &'static mib::tc::TcDef, args: &[i64], origin: &str) -> Result<BuiltTc, String> {
         if self.link.is_none() {
             return Err(format!("robot {}: no link (reconnecting)", self.robot()));
         }
+        // Check the arguments before using up a sequence count.
+        pus::build_tc(self.robot(), 0, def, args).map_err(|e| e.to_string())?;
         let seq = self.next_seq();
         let tc = pus::build_tc(self.robot(), seq, def, args).map_err(|e| e.to_string())?;
-        let id = match &self.dash {
-            Some(d) => crate::dashboard::tc_sent(&d.hub, self.robot(), &tc, def, args, "page"),
+        match &self.dash {
+            Some(d) => crate::dashboard::tc_sent(&d.hub, self.robot(), &tc, def, args, origin),
             None => return Err("no dashboard".into()),
         };
         match &self.link {
@@ -221,7 +244,16 @@ impl Worker {
                 .map_err(|e| format!("sending to robot {}: {e}", self.robot()))?,
             None => return Err(format!("robot {}: no link", self.robot())),
         }
-        Ok(id)
+        Ok(tc)
+    }
+
+    /// Hands the following plan run `msg`; a run that ended stops being followed.
+    fn tell_plan(&mut self, msg: PlanInput) {
+        if let Some(tx) = &self.plan {
+            if tx.send(msg).is_err() {
+                self.plan = None;
+            }
+        }
     }
 
     fn dash_link(&self) {
@@ -333,6 +365,11 @@ impl Worker {
                 None,
                 format!("no TM for {} ms", now - silent_since),
             );
+            let why = format!("robot {}: no TM for {} ms", self.robot(), now - silent_since);
+            self.tell_plan(PlanInput::LinkLost {
+                robot: self.robot(),
+                why,
+            });
             self.condition(Source::StaleData, Severity::Medium, false, now, None, String::new());
         }
         // Stale: TM flows but no HK.
@@ -555,6 +592,17 @@ impl Worker {
         self.inspect(&tm, live, now);
         if let (true, Some(d)) = (live, &self.dash) {
             dash::to_hub(&d.hub, self.cfg.number, &tm);
+        }
+        // Replayed reports too (a plan TC's outcome may come from the on-board store);
+        // events live only (an old fault replayed must not stop a plan started since).
+        let for_plan = match tm.body {
+            TmBody::Verification(_) => true,
+            TmBody::Event(_) => live,
+            _ => false,
+        };
+        if self.plan.is_some() && for_plan {
+            let robot = self.robot();
+            self.tell_plan(PlanInput::Tm { robot, tm: tm.clone() });
         }
         let _ = self.sink.send(SinkMsg::Tm {
             t_ms: now,

@@ -411,6 +411,11 @@ impl Hub {
     }
 
     /// The whole picture as JSON, with the ID of the last message it includes.
+    /// The link state of `robot` as last reported (`None` for a robot not added).
+    pub fn link_state(&self, robot: u8) -> Option<LinkState> {
+        self.lock().robots.get(&robot).map(|r| r.link)
+    }
+
     pub fn snapshot(&self) -> Value {
         let st = self.lock();
         let robots: Vec<&RobotView> = st.robots.values().collect();

@@ -15,12 +15,9 @@
 //! ```
 //!
 //! [`serve`] runs the HTTP server (axum on tokio). `ground collect --http` mounts it
-//! with the collector's robot threads as the feed (`collect::dash`). [`feed`] is a
-//! small stand-alone adapter that feeds a hub straight from `obsw` links, used only by
-//! the example binary (`examples/dashboard_demo.rs`: synthetic fleets for the 50-robot
-//! benchmark, and plan runs from the page, which the collector does not offer).
+//! with the collector's robot threads as the feed (`collect::dash`), and runs plans from
+//! the page through them (`collect::planrun`).
 
-pub mod feed;
 mod hub;
 pub mod mibinfo;
 mod server;
@@ -233,8 +230,12 @@ impl CommandRecord {
 pub struct PlanRun {
     pub run_id: String,
     pub plan: String,
-    /// "running", "done" or "failed".
+    /// "running", "done", "failed" (a step failed or was blocked) or "lost" (a robot's
+    /// link was lost).
     pub state: String,
+    /// Why the run ended as it did (the failing step and its failure name, the lost
+    /// link); empty while it runs and when it completed.
+    pub detail: String,
     pub started_ms: i64,
     pub steps: Vec<PlanStep>,
 }
@@ -245,7 +246,8 @@ pub struct PlanStep {
     pub robot: u8,
     /// What the step does ("RECONFIGURE Xneg → Xpos", …).
     pub label: String,
-    /// "waiting", "running", "done" or "failed".
+    /// "waiting", "running", "done", "failed" or "blocked" (it waited for a step that
+    /// failed, or its robot's link was lost).
     pub state: String,
     pub request_id: Option<String>,
     pub detail: String,
@@ -256,7 +258,60 @@ pub struct PlanStep {
 pub struct PlanInfo {
     pub name: String,
     pub description: String,
+    /// Robots the plan commands.
+    pub robots: Vec<u8>,
+    pub steps: usize,
+    /// One line per step that sends a TC the MIB marks hazardous (`TcDef::hazard`):
+    /// starting the plan then needs the operator's confirmation.
+    pub hazards: Vec<String>,
 }
+
+impl PlanInfo {
+    /// What the page shows of `plan`, offered as `name`.
+    pub fn of(name: &str, plan: &crate::plan::Plan) -> PlanInfo {
+        PlanInfo {
+            name: name.to_string(),
+            description: plan.description.clone(),
+            robots: plan.robots.iter().map(|r| r.number).collect(),
+            steps: plan.steps.len(),
+            hazards: plan
+                .steps
+                .iter()
+                .filter_map(|s| {
+                    let (def, _) = s.action.tc()?;
+                    let why = mibinfo::hazard(def)?;
+                    Some(format!("step {} (robot {}): {} — {why}", s.id, s.robot, def.name))
+                })
+                .collect(),
+        }
+    }
+}
+
+/// Why a plan was not started.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum PlanStartError {
+    /// No plan by that name is offered (HTTP 404).
+    Unknown(String),
+    /// A robot of the plan is running another plan (HTTP 409).
+    Busy(String),
+    /// The plan sends hazardous TCs and the start was not confirmed (HTTP 409).
+    NeedsConfirmation(String),
+    /// Anything else: plan file unreadable, robot not followed, … (HTTP 400).
+    Refused(String),
+}
+
+impl std::fmt::Display for PlanStartError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            PlanStartError::Unknown(m)
+            | PlanStartError::Busy(m)
+            | PlanStartError::NeedsConfirmation(m)
+            | PlanStartError::Refused(m) => f.write_str(m),
+        }
+    }
+}
+
+impl std::error::Error for PlanStartError {}
 
 /// Why the commander refused a request (shown on the page as is).
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -283,13 +338,10 @@ pub trait Commander: Send + Sync + 'static {
     fn shelve_alarm(&self, id: u64, for_ms: i64) -> Result<(), CommandError>;
     /// Plans that can be started.
     fn plans(&self) -> Vec<PlanInfo>;
-    /// Why this commander cannot run plans at all (`GET /api/plans` answers 501 with
-    /// it and the page shows it), or `None` when it can.
-    fn plans_unavailable(&self) -> Option<String> {
-        None
-    }
     /// Starts a plan; returns its run ID (progress arrives through [`Hub::plan`]).
-    fn start_plan(&self, name: &str) -> Result<String, CommandError>;
+    /// `confirmed`: the operator confirmed the plan's hazardous TCs
+    /// ([`PlanInfo::hazards`]); a plan with any is refused without it.
+    fn start_plan(&self, name: &str, confirmed: bool) -> Result<String, PlanStartError>;
 }
 
 /// Archived samples of one parameter, decimated for plotting.

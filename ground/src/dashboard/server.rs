@@ -10,7 +10,7 @@
 //! | `POST /api/tc` | `{"robot", "name", "args", "confirm"}` → `{"request_id"}` |
 //! | `GET /api/tc/{request_id}` | the TC and its PUS 1 stages |
 //! | `POST /api/alarms/{id}/ack`, `/shelve` | `{"minutes"}` for shelve |
-//! | `GET /api/plans`, `POST /api/plans` | `{"name"}` → `{"run_id"}` |
+//! | `GET /api/plans`, `POST /api/plans` | `{"name", "confirm"}` → `{"run_id"}` (404 unknown, 409 busy or not confirmed) |
 //! | `GET /api/series?robot&param&t0&t1&columns` | min/max per column, archive + live |
 //!
 //! Access: without a token the server binds to loopback addresses only and checks
@@ -36,7 +36,7 @@ use tokio::sync::broadcast::error::RecvError;
 use tower_http::set_header::SetResponseHeaderLayer;
 
 use super::hub::Resume;
-use super::{mibinfo, CommandRecord, Commander, Hub, Series};
+use super::{mibinfo, CommandRecord, Commander, Hub, PlanStartError, Series};
 
 const INDEX_HTML: &str = include_str!("../../web/dist/index.html");
 const APP_JS: &str = include_str!("../../web/dist/app.js");
@@ -485,9 +485,6 @@ async fn shelve_alarm(State(app): State<App>, Path(id): Path<u64>, Json(s): Json
 }
 
 async fn plans(State(app): State<App>) -> Response {
-    if let Some(why) = app.commander.plans_unavailable() {
-        return error(StatusCode::NOT_IMPLEMENTED, why);
-    }
     let c = app.commander.clone();
     match tokio::task::spawn_blocking(move || c.plans()).await {
         Ok(p) => Json(json!(p)).into_response(),
@@ -498,13 +495,30 @@ async fn plans(State(app): State<App>) -> Response {
 #[derive(Deserialize)]
 struct StartPlan {
     name: String,
+    /// Must be true for a plan that sends hazardous TCs (the page asks the operator).
+    #[serde(default)]
+    confirm: bool,
 }
 
-async fn start_plan(State(app): State<App>, Json(p): Json<StartPlan>) -> Response {
+async fn start_plan(
+    State(app): State<App>,
+    body: Result<Json<StartPlan>, axum::extract::rejection::JsonRejection>,
+) -> Response {
+    let Json(p) = match body {
+        Ok(b) => b,
+        Err(e) => return error(StatusCode::BAD_REQUEST, format!("POST /api/plans: {e}")),
+    };
     let c = app.commander.clone();
-    match tokio::task::spawn_blocking(move || c.start_plan(&p.name)).await {
+    match tokio::task::spawn_blocking(move || c.start_plan(&p.name, p.confirm)).await {
         Ok(Ok(run_id)) => Json(json!({"run_id": run_id})).into_response(),
-        Ok(Err(e)) => error(StatusCode::BAD_REQUEST, e.0),
+        Ok(Err(e)) => {
+            let status = match &e {
+                PlanStartError::Unknown(_) => StatusCode::NOT_FOUND,
+                PlanStartError::Busy(_) | PlanStartError::NeedsConfirmation(_) => StatusCode::CONFLICT,
+                PlanStartError::Refused(_) => StatusCode::BAD_REQUEST,
+            };
+            error(status, e.to_string())
+        }
         Err(e) => error(StatusCode::INTERNAL_SERVER_ERROR, format!("commander failed: {e}")),
     }
 }

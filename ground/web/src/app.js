@@ -618,26 +618,55 @@ function renderHistory() {
 }
 
 // --- plans
+let planList = [];
 async function loadPlans() {
-  let list = [];
-  try { list = await api('/api/plans'); } catch (e) { $('#plan-list').textContent = e.message; return; }
-  $('#plan-list').replaceChildren(...(list.length ? list.map((p) => el('div', { class: 'card plan' },
-    el('b', {}, p.name), ' ', el('span', { class: 'hint' }, p.description), ' ',
-    el('button', { 'data-plan': p.name, onclick: () => startPlan(p.name) }, 'Start'))) : [el('span', { class: 'hint' }, 'No plans available.')]));
+  try { planList = await api('/api/plans'); } catch (e) { $('#plan-list').textContent = e.message; return; }
+  $('#plan-list').replaceChildren(...(planList.length ? planList.map((p) => el('div', { class: 'card plan', 'data-plan-card': p.name },
+    el('b', {}, p.name), ' ', el('span', { class: 'hint' }, `${p.description} — robots ${p.robots.join(', ')}, ${p.steps} steps`), ' ',
+    p.hazards.length ? el('span', { class: 'bad', title: p.hazards.join('\n') }, `⚠ ${p.hazards.length} hazardous`) : null, ' ',
+    el('button', { 'data-plan': p.name, onclick: () => startPlan(p) }, 'Start'))) : [el('span', { class: 'hint' },
+      'No plans: list plan files in the collector configuration (plans = ["…"], docs/collector.md).')]),
+  el('span', { id: 'plan-result' }));
 }
-async function startPlan(name) {
-  try { await api('/api/plans', { method: 'POST', body: JSON.stringify({ name }) }); } catch (e) { alert(e.message); }
+function confirmPlan(p) {
+  return new Promise((resolve) => {
+    $('#modal-title').textContent = `Start plan ${p.name}? It sends hazardous TCs:`;
+    $('#modal-text').textContent = p.hazards.join('\n');
+    const m = $('#modal');
+    m.hidden = false;
+    const done = (v) => { m.hidden = true; resolve(v); };
+    $('#modal-yes').onclick = () => done(true);
+    $('#modal-no').onclick = () => done(false);
+  });
+}
+async function startPlan(p) {
+  const out = $('#plan-result');
+  let confirm = false;
+  if (p.hazards.length) {
+    confirm = await confirmPlan(p);
+    if (!confirm) { out.textContent = 'not started'; out.className = 'hint'; return; }
+  }
+  try {
+    const r = await api('/api/plans', { method: 'POST', body: JSON.stringify({ name: p.name, confirm }) });
+    out.textContent = `started: run ${r.run_id}`;
+    out.className = 'ok';
+    out.dataset.run = r.run_id;
+  } catch (e) {
+    out.textContent = e.message;
+    out.className = 'bad';
+  }
 }
 function renderPlans() {
   S.dirty.plans = false;
   const runs = [...S.plans.values()].sort((a, b) => b.started_ms - a.started_ms);
   $('#plan-runs').replaceChildren(...runs.map((r) => {
     const done = r.steps.filter((s) => s.state === 'done').length;
-    return el('div', { class: 'card run st-' + r.state, 'data-run': r.run_id },
+    return el('div', { class: 'card run st-' + r.state, 'data-run': r.run_id, 'data-state': r.state },
       el('h2', {}, `${r.plan} — ${r.state} (${done}/${r.steps.length} steps)`),
+      r.detail ? el('div', { class: r.state === 'done' ? 'hint' : 'bad run-detail' }, r.detail) : null,
       el('progress', { max: r.steps.length, value: done }),
-      el('table', { class: 'grid' }, el('tbody', {}, r.steps.map((s) => el('tr', { class: 'step-' + s.state },
-        el('td', {}, s.id), el('td', {}, 'robot ' + s.robot), el('td', {}, s.label), el('td', {}, s.state),
+      el('table', { class: 'grid' }, el('tbody', {}, r.steps.map((s) => el('tr', { class: 'step-' + s.state, 'data-step': s.id },
+        el('td', {}, s.id), el('td', {}, 'robot ' + s.robot), el('td', {}, s.label), el('td', { class: 'state' }, s.state),
         el('td', {}, s.request_id || ''), el('td', { class: 'hint' }, s.detail))))));
   }));
 }

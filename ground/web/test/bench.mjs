@@ -1,29 +1,23 @@
-// Dashboard benchmark: N robots with HK at F Hz (synthetic feed of examples/dashboard_demo)
-// shown in headless Chromium. Measures, over the same run:
+// Dashboard benchmark: the page of a running `ground collect --http` following N real
+// obsw processes with HK at F Hz (started by ground/bench/dashboard_bench.sh), shown in
+// headless Chromium. Measures, over the same run:
 // - update latency: HK generation time → value drawn on the fleet view (page's own
 //   metric, sampled per robot card per frame), against the baseline of a bare
 //   EventSource in the same page (HK time → message delivered to JS, nothing drawn);
 // - browser CPU: renderer main-thread busy share (DevTools Performance.getMetrics
 //   TaskDuration) and the CPU of every Chromium process (/proc), fleet view vs the
 //   baseline of the same page on a view that draws no HK (Plans);
-// - server CPU (/proc of the demo process).
-// Usage: node bench.mjs DEMO_BINARY [robots=50] [hz=10] [seconds=20]
-import { spawn } from 'node:child_process';
-import { createInterface } from 'node:readline';
+// - server CPU (/proc of the collector process) and the obsw processes' CPU.
+// Usage: node bench.mjs URL COLLECTOR_PID OBSW_PIDS(comma-separated) [robots=50] [hz=10] [seconds=20]
 import { mkdtempSync, rmSync, readdirSync, readFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 import { chromium } from 'playwright-core';
 
-const [bin, robots = '50', hz = '10', seconds = '20'] = process.argv.slice(2);
+const [url, collectorPid, obswPids, robots = '50', hz = '10', seconds = '20'] = process.argv.slice(2);
 const secs = Number(seconds);
 const TICK = 100; // USER_HZ on Linux
-
-const demo = spawn(bin, ['--synthetic', robots, '--hz', hz], { stdio: ['pipe', 'pipe', 'inherit'] });
-const info = await new Promise((res, rej) => {
-  createInterface({ input: demo.stdout }).once('line', (l) => res(JSON.parse(l)));
-  demo.once('exit', (c) => rej(new Error('demo exited ' + c)));
-});
+const info = { url };
 
 function cpuTicks(pids) {
   let t = 0;
@@ -74,17 +68,18 @@ await page.evaluate(() => {
   es.onmessage = (e) => { const m = JSON.parse(e.data); if (m.type === 'hk') window.rawLat.push(Date.now() - m.t_ms); };
 });
 const chromePids = pidsWith(profile);
-const serverPid = [demo.pid];
+const serverPid = [Number(collectorPid)];
+const obsw = obswPids.split(',').map(Number);
 
 async function phase(view) {
   await page.click(`#tabs button[data-view="${view}"]`);
   await page.waitForTimeout(2000);
   await page.evaluate(() => { window.dashMetrics.latency.length = 0; window.rawLat.length = 0; window.dashMetrics.messages = 0; });
   const m0 = Object.fromEntries((await cdp.send('Performance.getMetrics')).metrics.map((m) => [m.name, m.value]));
-  const c0 = cpuTicks(chromePids), s0 = cpuTicks(serverPid), w0 = Date.now();
+  const c0 = cpuTicks(chromePids), s0 = cpuTicks(serverPid), o0 = cpuTicks(obsw), w0 = Date.now();
   await page.waitForTimeout(secs * 1000);
   const m1 = Object.fromEntries((await cdp.send('Performance.getMetrics')).metrics.map((m) => [m.name, m.value]));
-  const c1 = cpuTicks(chromePids), s1 = cpuTicks(serverPid), wall = (Date.now() - w0) / 1000;
+  const c1 = cpuTicks(chromePids), s1 = cpuTicks(serverPid), o1 = cpuTicks(obsw), wall = (Date.now() - w0) / 1000;
   const r = await page.evaluate(() => ({ lat: window.dashMetrics.latency.slice(), raw: window.rawLat.slice(), msgs: window.dashMetrics.messages }));
   return {
     view,
@@ -93,6 +88,7 @@ async function phase(view) {
     script_pct: +((100 * (m1.ScriptDuration - m0.ScriptDuration)) / wall).toFixed(1),
     chromium_cpu_pct: +((100 * (c1 - c0)) / TICK / wall).toFixed(1),
     server_cpu_pct: +((100 * (s1 - s0)) / TICK / wall).toFixed(1),
+    obsw_cpu_pct_all: +((100 * (o1 - o0)) / TICK / wall).toFixed(1),
     drawn_latency_ms: r.lat.length ? { median: median(r.lat), p95: pct(r.lat, 0.95), p99: pct(r.lat, 0.99), n: r.lat.length } : null,
     delivered_latency_ms: { median: median(r.raw), p95: pct(r.raw, 0.95), p99: pct(r.raw, 0.99), n: r.raw.length },
   };
@@ -118,5 +114,3 @@ results.day_plot_ms = { median: median(dayTimes.map((p) => p.ms)), max: Math.max
 console.log(JSON.stringify(results, null, 1));
 await ctx.close();
 rmSync(profile, { recursive: true, force: true });
-demo.stdin.end();
-await new Promise((r) => { demo.once('exit', r); setTimeout(() => { demo.kill('SIGKILL'); r(); }, 5000); });

@@ -5,14 +5,16 @@
 // Checks: both robots shown with modes and live values; a PING sent from the page
 // completes with its stages; a battery sag injected through the simulator control
 // port raises the collector's alarm, acknowledged from the page and seen acknowledged
-// by `ground alarms list`; plans say they are not available under collect; the event
-// stream resumes after a reconnect; the page is still live after the 30 s downlink
-// lease (the collector renews it).
+// by `ground alarms list`; a plan from the collector's configuration, started from the
+// page (its hazardous TC confirmed), runs with live step progress to completion; the
+// event stream resumes after a reconnect; the page is still live after the 30 s
+// downlink lease (the collector renews it); bound beyond localhost, TCs and plan starts
+// need the token.
 import { spawn, execFileSync } from 'node:child_process';
 import { createInterface } from 'node:readline';
 import { createSocket } from 'node:dgram';
 import { createServer } from 'node:net';
-import { mkdtempSync, rmSync, openSync } from 'node:fs';
+import { mkdtempSync, rmSync, openSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 import { chromium } from 'playwright-core';
@@ -82,7 +84,34 @@ async function startCollector(dir, robots, http, extra = []) {
 
 const robots = [await startObsw(1), await startObsw(2)];
 const started = Date.now();
-const collector = await startCollector(work, robots, `127.0.0.1:${await freePort()}`);
+// The plans the collector offers: its configuration lists them (robots come from --robot).
+writeFileSync(join(work, 'r2-mode.toml'), `name = "r2-mode"
+description = "robot 2: ping, operational, pause, standby"
+[[robot]]
+number = 2
+[[step]]
+id = "ping"
+robot = 2
+action = "command"
+tc = "PING"
+[[step]]
+id = "operational"
+robot = 2
+action = "mode"
+mode = "operational"
+[[step]]
+id = "pause"
+robot = 2
+action = "wait"
+seconds = 1
+[[step]]
+id = "standby"
+robot = 2
+action = "mode"
+mode = "standby"
+`);
+writeFileSync(join(work, 'collect.toml'), 'plans = ["r2-mode.toml"]\n');
+const collector = await startCollector(work, robots, `127.0.0.1:${await freePort()}`, ['--config', join(work, 'collect.toml')]);
 const info = { url: collector.url, robots };
 console.log('dashboard at', info.url);
 
@@ -234,10 +263,51 @@ try {
     for (let i = 1; i < r.length; i++) assert(r[i] === r[i - 1] + 1, `gap between ${r[i - 1]} and ${r[i]}`);
   });
 
-  await step('plans say they are not available under collect', async () => {
+  await step('a plan started from the page runs with live step progress to completion', async () => {
     await tab('plans');
-    await page.waitForFunction(() => /not available under collect/.test(document.querySelector('#plan-list').textContent));
+    await page.waitForSelector('#plan-list button[data-plan="r2-mode"]');
+    const card = await page.$eval('[data-plan-card="r2-mode"]', (e) => e.textContent);
+    assert(/robots 2, 4 steps/.test(card) && /2 hazardous/.test(card), 'plan card: ' + card);
+    // The page keeps every plan message it is sent: the steps' states are recorded as
+    // they arrive over the event stream.
+    await page.evaluate(() => {
+      window.planTrail = {};
+      const orig = window.dashState.plans.set.bind(window.dashState.plans);
+      window.dashState.plans.set = (k, v) => {
+        for (const s of v.steps) {
+          const t = (window.planTrail[s.id] ||= []);
+          if (t[t.length - 1] !== s.state) t.push(s.state);
+        }
+        return orig(k, v);
+      };
+    });
+    await page.click('#plan-list button[data-plan="r2-mode"]');
+    // MODE_SET is hazardous: the page asks first.
+    await page.waitForSelector('#modal:not([hidden])');
+    const q = await page.$eval('#modal-text', (e) => e.textContent);
+    assert(/MODE_SET/.test(q), 'confirmation names the hazardous TC: ' + q);
+    await page.click('#modal-yes');
+    await page.waitForFunction(() => document.querySelector('#plan-result').dataset.run);
+    const run = await page.$eval('#plan-result', (e) => e.dataset.run);
+    await page.waitForSelector(`[data-run="${run}"] tr.step-running`);
+    // A second start while it runs: refused, the page says why.
+    await page.click('#plan-list button[data-plan="r2-mode"]');
+    await page.waitForSelector('#modal:not([hidden])');
+    await page.click('#modal-yes');
+    await page.waitForFunction(() => /one plan per robot/.test(document.querySelector('#plan-result').textContent));
+    await page.waitForSelector(`[data-run="${run}"][data-state="done"]`);
     await shot('dashboard-plans.png');
+    const rows = await page.$$eval(`[data-run="${run}"] tr`, (trs) => trs.map((t) => t.querySelector('.state').textContent));
+    assert(rows.length === 4 && rows.every((x) => x === 'done'), 'steps: ' + rows);
+    const trail = await page.evaluate(() => window.planTrail);
+    for (const id of ['ping', 'operational', 'pause', 'standby']) {
+      const t = (trail[id] || []).join('>');
+      assert(/running/.test(t) && t.endsWith('done'), `step ${id} seen live as ${t}`);
+    }
+    // Its TCs are in the command history, sent by the plan over the collector's link.
+    await tab('commands');
+    await page.waitForFunction(() => [...document.querySelectorAll('#history tbody tr')]
+      .filter((t) => t.lastChild.textContent === 'plan r2-mode').length === 3);
   });
 
   await step('the page is still live after the 30 s downlink lease (the collector renews it)', async () => {
@@ -263,6 +333,8 @@ try {
       await p2.waitForFunction(() => /error/.test(document.querySelector('#conn').textContent));
       const refused = await p2.evaluate(async () => (await fetch('/api/tc', { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: JSON.stringify({ robot: 1, name: 'PING', args: {} }) })).status);
       assert(refused === 401, 'POST /api/tc without the token: ' + refused);
+      const planRefused = await p2.evaluate(async () => (await fetch('/api/plans', { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: JSON.stringify({ name: 'r2-mode', confirm: true }) })).status);
+      assert(planRefused === 401, 'POST /api/plans without the token: ' + planRefused);
       await p2.goto(url.href);
       await p2.waitForSelector('#robot-1');
       await p2.click('#tabs button[data-view="commands"]');
