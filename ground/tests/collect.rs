@@ -10,11 +10,11 @@ use std::collections::BTreeMap;
 use std::io::BufRead;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 mod common;
-use common::{free_port, ground, pg_db, pg_drop, text, Obsw, GROUND};
+use common::{free_port, ground, http, pg_db, pg_drop, text, wait_for, Obsw, Proc, GROUND};
 
 /// Robot `robot`'s obsw: `(process, TC address, simulator control address)`.
 fn start_obsw(robot: u8) -> (Obsw, SocketAddr, SocketAddr) {
@@ -25,15 +25,6 @@ fn start_obsw(robot: u8) -> (Obsw, SocketAddr, SocketAddr) {
 
 fn tmpdir(name: &str) -> PathBuf {
     common::tmpdir("collect", name)
-}
-
-struct Proc(Child);
-
-impl Drop for Proc {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
 }
 
 /// Starts `ground --archive ARCH collect` (ARCH: a file in `dir`, or a server URL).
@@ -290,42 +281,6 @@ fn full_disk_raises_an_alarm_and_the_collector_goes_on_losing_nothing() {
     let t = text(&out);
     assert!(t.contains("\"source\":\"ARCHIVE_WRITE\""), "{t}");
     assert!(t.contains("\"state\":\"cleared\""), "{t}");
-}
-
-fn http(addr: SocketAddr, method: &str, path: &str, body: Option<serde_json::Value>) -> (u16, serde_json::Value) {
-    use std::io::{Read, Write};
-    let Ok(mut s) = std::net::TcpStream::connect(addr) else {
-        return (0, serde_json::Value::Null);
-    };
-    s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
-    let body = body.map(|b| b.to_string()).unwrap_or_default();
-    let mut req = format!(
-        "{method} {path} HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\nContent-Length: {}\r\n",
-        body.len()
-    );
-    if !body.is_empty() {
-        req.push_str("Content-Type: application/json\r\n");
-    }
-    req.push_str("\r\n");
-    req.push_str(&body);
-    s.write_all(req.as_bytes()).unwrap();
-    let mut out = String::new();
-    let _ = s.read_to_string(&mut out);
-    let status = out.get(9..12).and_then(|x| x.parse().ok()).unwrap_or(0);
-    let text = out.split_once("\r\n\r\n").map(|x| x.1).unwrap_or("");
-    (status, serde_json::from_str(text).unwrap_or(serde_json::Value::Null))
-}
-
-/// Polls `f` until it returns `Some`, for at most `secs` seconds (the machine is shared).
-fn wait_for<T>(secs: u64, what: &str, mut f: impl FnMut() -> Option<T>) -> T {
-    let end = Instant::now() + Duration::from_secs(secs);
-    loop {
-        if let Some(v) = f() {
-            return v;
-        }
-        assert!(Instant::now() < end, "timed out waiting for {what}");
-        std::thread::sleep(Duration::from_millis(200));
-    }
 }
 
 // verifies: GND-07

@@ -12,117 +12,22 @@
 //! The obsw binary is `$OBSW_BIN`, or the one next to this test's target profile, or
 //! built into `<target>/ground-obsw` (as `tests/live.rs` does).
 
-use std::io::{BufRead, Read, Write};
+use std::io::{BufRead, Write};
 use std::net::{SocketAddr, TcpStream, UdpSocket};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use serde_json::{json, Value};
 
-fn obsw_bin() -> PathBuf {
-    if let Some(p) = std::env::var_os("OBSW_BIN") {
-        return PathBuf::from(p);
-    }
-    let exe = std::env::current_exe().unwrap();
-    let profile_dir = exe.parent().and_then(Path::parent).unwrap();
-    let next = profile_dir.join("obsw");
-    if next.is_file() {
-        return next;
-    }
-    let own = profile_dir.parent().unwrap().join("ground-obsw");
-    let st = Command::new(env!("CARGO"))
-        .args(["build", "-q", "-p", "obsw", "--bin", "obsw"])
-        .env("CARGO_TARGET_DIR", &own)
-        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
-        .status()
-        .expect("running cargo to build obsw");
-    assert!(st.success(), "building obsw failed");
-    own.join("debug").join("obsw")
-}
+mod common;
+use common::{free_port, http, wait_for, Obsw, Proc};
 
-fn free_port() -> u16 {
-    loop {
-        let t = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
-        let p = t.local_addr().unwrap().port();
-        if UdpSocket::bind(("127.0.0.1", p)).is_ok() {
-            return p;
-        }
-    }
-}
-
-struct Obsw(Child);
-impl Drop for Obsw {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
+/// Robot `robot`'s obsw at double speed: `(process, TC address, simulator control)`.
 fn start_obsw(robot: u8) -> (Obsw, SocketAddr, SocketAddr) {
-    let tc: SocketAddr = ([127, 0, 0, 1], free_port()).into();
-    let ctl: SocketAddr = ([127, 0, 0, 1], free_port()).into();
-    let mut child = Command::new(obsw_bin())
-        .args([
-            "--robot",
-            &robot.to_string(),
-            "--udp",
-            &tc.to_string(),
-            "--sim-ctl",
-            &ctl.to_string(),
-        ])
-        .args(["--speed", "2", "--seed", "7"])
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("obsw starts");
-    let mut lines = std::io::BufReader::new(child.stdout.take().unwrap()).lines();
-    let first = lines.next().unwrap().unwrap();
-    assert!(first.starts_with("READY"), "{first}");
-    std::thread::spawn(move || for _ in lines {});
-    (Obsw(child), tc, ctl)
-}
-
-fn http(addr: SocketAddr, method: &str, path: &str, body: Option<Value>) -> (u16, Value) {
-    let mut s = TcpStream::connect(addr).unwrap();
-    s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
-    let body = body.map(|b| b.to_string()).unwrap_or_default();
-    let mut req = format!(
-        "{method} {path} HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\nContent-Length: {}\r\n",
-        body.len()
-    );
-    if !body.is_empty() {
-        req.push_str("Content-Type: application/json\r\n");
-    }
-    req.push_str("\r\n");
-    req.push_str(&body);
-    s.write_all(req.as_bytes()).unwrap();
-    let mut out = String::new();
-    s.read_to_string(&mut out).unwrap();
-    let status = out[9..12].parse().unwrap();
-    let text = out.split_once("\r\n\r\n").map(|x| x.1).unwrap_or("");
-    (status, serde_json::from_str(text).unwrap_or(Value::Null))
-}
-
-/// Polls `f` until it returns `Some`, for at most `secs` seconds (the machine is shared).
-fn wait_for<T>(secs: u64, what: &str, mut f: impl FnMut() -> Option<T>) -> T {
-    let end = Instant::now() + Duration::from_secs(secs);
-    loop {
-        if let Some(v) = f() {
-            return v;
-        }
-        assert!(Instant::now() < end, "timed out waiting for {what}");
-        std::thread::sleep(Duration::from_millis(100));
-    }
-}
-
-struct Proc(Child);
-impl Drop for Proc {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
+    let o = Obsw::start(robot, &["--speed", "2", "--seed", "7"]);
+    let (tc, ctl) = (o.addr, o.ctl);
+    (o, tc, ctl)
 }
 
 /// `ground collect --http` in `dir` with the configuration `config` (robots and plans);

@@ -5,11 +5,12 @@
 //!   socket; stopped when the test process ends).
 #![allow(dead_code)]
 
-use std::io::BufRead;
-use std::net::{SocketAddr, UdpSocket};
+use std::io::{BufRead, Read, Write};
+use std::net::{SocketAddr, TcpStream, UdpSocket};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::sync::OnceLock;
+use std::time::{Duration, Instant};
 
 pub const GROUND: &str = env!("CARGO_BIN_EXE_ground");
 
@@ -163,4 +164,51 @@ pub fn pg_drop(name: &str) {
     let mut c = postgres::Client::connect(pg_server(), postgres::NoTls).unwrap();
     c.batch_execute(&format!("DROP DATABASE IF EXISTS {name} WITH (FORCE)"))
         .unwrap();
+}
+
+/// A child process killed when dropped (a collector, a relay).
+pub struct Proc(pub Child);
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// One HTTP/1.1 request; returns the status and the JSON body (`Null` if none). Status
+/// 0: nobody answered (not listening yet).
+pub fn http(addr: SocketAddr, method: &str, path: &str, body: Option<serde_json::Value>) -> (u16, serde_json::Value) {
+    let Ok(mut s) = TcpStream::connect(addr) else {
+        return (0, serde_json::Value::Null);
+    };
+    s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+    let body = body.map(|b| b.to_string()).unwrap_or_default();
+    let mut req = format!(
+        "{method} {path} HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\nContent-Length: {}\r\n",
+        body.len()
+    );
+    if !body.is_empty() {
+        req.push_str("Content-Type: application/json\r\n");
+    }
+    req.push_str("\r\n");
+    req.push_str(&body);
+    s.write_all(req.as_bytes()).unwrap();
+    let mut out = String::new();
+    let _ = s.read_to_string(&mut out);
+    let status = out.get(9..12).and_then(|x| x.parse().ok()).unwrap_or(0);
+    let text = out.split_once("\r\n\r\n").map(|x| x.1).unwrap_or("");
+    (status, serde_json::from_str(text).unwrap_or(serde_json::Value::Null))
+}
+
+/// Polls `f` until it returns `Some`, for at most `secs` seconds (the machine is shared).
+pub fn wait_for<T>(secs: u64, what: &str, mut f: impl FnMut() -> Option<T>) -> T {
+    let end = Instant::now() + Duration::from_secs(secs);
+    loop {
+        if let Some(v) = f() {
+            return v;
+        }
+        assert!(Instant::now() < end, "timed out waiting for {what}");
+        std::thread::sleep(Duration::from_millis(100));
+    }
 }
