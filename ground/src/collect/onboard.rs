@@ -33,6 +33,12 @@ pub fn subscribe_tc(robot: u8, seq: u16) -> Option<BuiltTc> {
     pus::build_tc(robot, seq, def("PING")?, &[]).ok()
 }
 
+/// Asks for the modes of the whole mode tree (TM[200,6] for the robot node and every
+/// descendant), so the dashboard's mode tree is complete without waiting for a change.
+pub fn mode_announce_tc(robot: u8, seq: u16) -> Option<BuiltTc> {
+    pus::build_tc(robot, seq, def("MODE_ANNOUNCE")?, &[mib::modes::node::ROBOT as i64]).ok()
+}
+
 /// Sets the collection interval of a housekeeping structure.
 pub fn hk_interval_tc(robot: u8, seq: u16, sid: u16, interval_ms: u32) -> Option<BuiltTc> {
     pus::build_tc(robot, seq, def("HK_SET_INTERVAL")?, &[sid as i64, interval_ms as i64]).ok()

@@ -109,6 +109,9 @@ pub struct Worker {
     hk_interval_ms: u32,
     hk_set: Option<(RequestId, u32)>,
     hk_confirmed: bool,
+    /// A mode report has arrived since start or the last reboot (the dashboard's mode
+    /// tree is asked for with MODE_ANNOUNCE until then).
+    modes_known: bool,
     last_store_request_ms: i64,
     /// A store request whose end report has not come yet.
     store_in_flight: bool,
@@ -173,6 +176,7 @@ impl Worker {
             hk_interval_ms,
             hk_set: None,
             hk_confirmed: cfg.hk_interval_ms.is_none(),
+            modes_known: false,
             last_store_request_ms: i64::MIN / 2,
             store_in_flight: false,
             conditions: BTreeSet::new(),
@@ -407,6 +411,11 @@ impl Worker {
                     }
                 }
             }
+            if self.dash.is_some() && !self.modes_known && self.state == LinkState::Up {
+                if let Some(tc) = onboard::mode_announce_tc(self.robot(), self.next_seq()) {
+                    self.send(&tc.bytes);
+                }
+            }
             if self.state == LinkState::Up {
                 self.next_send_ms = now + self.global.lease_renew_ms as i64;
             } else {
@@ -584,6 +593,7 @@ impl Worker {
                 self.limits = LimitChecker::new();
                 self.hk_confirmed = self.cfg.hk_interval_ms.is_none();
                 self.hk_set = None;
+                self.modes_known = false;
                 self.next_send_ms = now;
             }
             Verdict::New | Verdict::Filled => {}
@@ -691,6 +701,11 @@ impl Worker {
                             message: e.to_string(),
                         });
                     }
+                }
+            }
+            TmBody::ModeReply { .. } => {
+                if live && tm.apid == self.apid {
+                    self.modes_known = true;
                 }
             }
             TmBody::Verification(v) => {

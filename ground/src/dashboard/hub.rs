@@ -249,10 +249,19 @@ impl Hub {
         let mut out = Vec::with_capacity(values.len());
         let mut unknown = 0;
         let mut non_finite = 0;
+        // The root mode that decides which limits apply: this report's, else the last.
+        let mode_of = |v: f64| (v.is_finite() && v >= 0.0).then_some(v as u32);
+        let mode = match values.iter().find(|(n, _)| *n == "MODE") {
+            Some(&(_, v)) => mode_of(v),
+            None => Self::robot(&mut st, robot)
+                .hk
+                .get("MODE")
+                .and_then(|c| mode_of(c.value)),
+        };
         for &(name, value) in values {
             let def = mib::params::by_name(name);
             let (unit, limit) = match def {
-                Some(p) => (p.unit, LimitState::check(p.limits.as_ref(), value)),
+                Some(p) => (p.unit, LimitState::of(p, value, mode)),
                 None => {
                     unknown += 1;
                     ("", LimitState::None)
@@ -520,6 +529,14 @@ mod tests {
         assert_eq!(hk["NOT_A_PARAM"]["limit"], "none");
         assert_eq!(hub.stats().unknown_params, 1);
         assert_eq!(hub.live_samples(2, "V_BAT_A", 0, 1000), vec![(100, 9.0)]);
+        // V_REG at 0 V is no limit violation in STANDBY (MODE 0), one in OPERATIONAL; a
+        // report without MODE is judged in the robot's last reported mode.
+        hub.hk(2, 200, &[("MODE", 0.0), ("V_REG", 0.0)]);
+        assert_eq!(hub.snapshot()["robots"][0]["hk"]["V_REG"]["limit"], "off");
+        hub.hk(2, 300, &[("MODE", 1.0), ("V_REG", 0.0)]);
+        assert_eq!(hub.snapshot()["robots"][0]["hk"]["V_REG"]["limit"], "hard");
+        hub.hk(2, 400, &[("V_REG", 0.0)]);
+        assert_eq!(hub.snapshot()["robots"][0]["hk"]["V_REG"]["limit"], "hard");
     }
 
     // verifies: GND-18, PUS-1-03

@@ -85,11 +85,28 @@ pub enum LimitState {
     Soft,
     /// Outside the hard limits.
     Hard,
+    /// The parameter has limits, but not in the robot's current root mode (the MIB's
+    /// `limits_in`: e.g. V_REG only in OPERATIONAL and SAFED).
+    Off,
 }
 
 impl LimitState {
+    /// The state of `value` of parameter `p` while the robot is in root mode `mode`
+    /// (`None`: not known yet, so only limits that hold in every mode apply) — the same
+    /// applicability rule as the collector's alarms.
+    pub fn of(p: &mib::params::ParamDef, value: f64, mode: Option<u32>) -> LimitState {
+        let applies = match mode {
+            Some(m) => mib::params::limits_apply(p, m),
+            None => mib::params::limits_always_apply(p),
+        };
+        match p.limits.as_ref() {
+            Some(_) if !applies => LimitState::Off,
+            l => Self::check(l, value),
+        }
+    }
+
     /// Checks `value` against `limits`.
-    pub fn check(limits: Option<&mib::Limits>, value: f64) -> LimitState {
+    fn check(limits: Option<&mib::Limits>, value: f64) -> LimitState {
         match limits {
             None => LimitState::None,
             Some(l) if value < l.hard_lo || value > l.hard_hi => LimitState::Hard,
@@ -494,6 +511,18 @@ mod tests {
         assert_eq!(LimitState::check(l, 10.2), LimitState::Soft);
         assert_eq!(LimitState::check(l, 9.5), LimitState::Hard);
         assert_eq!(LimitState::check(None, 9.5), LimitState::None);
+        // V_REG's limits hold in OPERATIONAL and SAFED only: off in STANDBY, unknown mode.
+        let v_reg = mib::params::by_name("V_REG").unwrap();
+        use mib::modes::robot_mode;
+        assert_eq!(LimitState::of(v_reg, 0.0, Some(robot_mode::STANDBY)), LimitState::Off);
+        assert_eq!(LimitState::of(v_reg, 0.0, None), LimitState::Off);
+        assert_eq!(
+            LimitState::of(v_reg, 0.0, Some(robot_mode::OPERATIONAL)),
+            LimitState::Hard
+        );
+        assert_eq!(LimitState::of(p, 9.5, None), LimitState::Hard);
+        let mode = mib::params::by_name("MODE").unwrap();
+        assert_eq!(LimitState::of(mode, 1.0, Some(1)), LimitState::None);
     }
 
     // verifies: GND-16, MMIC-MOT-01

@@ -169,8 +169,13 @@ try {
     // live: the last-heard age keeps being small
     const age = await page.$eval('#robot-1 .age', (e) => e.textContent);
     assert(/heard (< 1|\d+) s ago/.test(age), 'age shown: ' + age);
+    // The whole mode tree has modes (the collector asks for them), not only names.
+    await page.waitForFunction(() => !document.querySelector('#robot-1 .modetree').textContent.includes('?'));
     const tree = await page.$eval('#robot-1 .modetree', (e) => e.textContent);
     assert(tree.includes('SIDE_A') && tree.includes('GRIPPER_B'), 'mode tree: ' + tree);
+    // V_REG's limits hold only in OPERATIONAL/SAFED (MIB limits_in): no colour in STANDBY.
+    const vreg = await page.$eval('#robot-1 [data-param="V_REG"]', (e) => e.className);
+    assert(vreg.includes('lim-off'), 'V_REG in STANDBY: ' + vreg);
     await shot('dashboard-fleet.png');
   });
 
