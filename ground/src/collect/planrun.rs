@@ -1,12 +1,12 @@
 //! Plan runs started from the dashboard under `ground collect --http`.
 //!
-//! A run is the pure plan [`Executor`] (`ops`, the one `ground plan run` uses) driven by
+//! A run is the pure plan [`Executor`] (`ops`, the one `ground run` uses) driven by
 //! a thread of its own. Each step's TC goes out through the robot's collector thread
 //! ([`DashCmd::PlanTc`]): its link and its TC sequence counter, the same as the page's
 //! single TCs, so a request ID is never used twice on an APID. That thread hands the
 //! run every verification report and event it receives and tells it when the link is
 //! lost ([`PlanInput`]). [`Resender`] resends a TC with identical bytes on the MIB's
-//! retry schedule until its outcome arrives, as `ground plan run`'s session does; the
+//! retry schedule until its outcome arrives, as `ground run`'s session does; the
 //! collector's thread already renews the downlink lease, watches the link and asks the
 //! on-board store for every hole, so the run sends no heartbeats of its own. Every
 //! change of the run is published to the hub ([`Hub::plan`]), which streams it to the
