@@ -173,6 +173,53 @@ fn every_record_lands_in_its_tables() {
     });
 }
 
+/// Chunks a writer is filling are in `hk_open` and read like closed ones; full chunks
+/// move to `hk_chunk` as they fill and a clean stop moves the rest, so `hk_open` keeps
+/// only what a writer is filling (one chunk per parameter here).
+// verifies: GND-02
+#[test]
+fn open_chunks_are_read_and_a_clean_stop_closes_them() {
+    both("open-chunks", |loc, backend| {
+        let rows = |s: &mut Store, table: &str| {
+            let mut n = 0;
+            s.db()
+                .rows(&format!("SELECT COUNT(*) FROM {table}"), &[], &mut |r| {
+                    n = r[0].int().unwrap();
+                    Ok(())
+                })
+                .unwrap();
+            n
+        };
+        let params = mib::hk::by_sid(mib::hk::sid::ROBOT_STATUS).unwrap().params.len() as i64;
+        let a = Archive::open(Path::new(loc)).unwrap();
+        let s = a.sender();
+        // 2.5 chunks of every parameter: two full ones, one being filled.
+        let n = 1024 * 2 + 500;
+        for i in 0..n {
+            s.send(tm(hk_packet(1, i as u16, T0 + i * 100, i), T0 + i * 100 + 3));
+        }
+        s.sync().unwrap();
+        let mut r = Store::open(loc).unwrap();
+        assert_eq!(rows(&mut r, "hk_open"), params, "{backend}");
+        assert_eq!(rows(&mut r, "hk_chunk"), 2 * params, "{backend}");
+        let v = r.hk_series("v_bat_a", &Filter::default()).unwrap();
+        assert_eq!(v[0].1.len(), n as usize, "{backend}");
+        let latest = r.latest(Some(1)).unwrap();
+        assert_eq!(
+            latest.iter().find(|l| l.name == "V_BAT_A").unwrap().t_ms,
+            T0 + (n - 1) * 100,
+            "{backend}"
+        );
+        drop(s);
+        a.close().unwrap();
+        assert_eq!(rows(&mut r, "hk_open"), 0, "{backend}");
+        assert_eq!(rows(&mut r, "hk_chunk"), 3 * params, "{backend}");
+        assert_eq!(r.hk_series("v_bat_a", &Filter::default()).unwrap()[0].1.len(), n as usize);
+        let check = r.check(None).unwrap();
+        assert!(check.chunk_mismatch.is_empty(), "{backend}: {check:?}");
+    });
+}
+
 // verifies: GND-02
 #[test]
 fn import_twice_adds_nothing_and_counts_duplicates() {
@@ -727,6 +774,37 @@ fn a_turn_one_archive_is_migrated() {
     assert!(check.bad.is_empty() && check.chunk_mismatch.is_empty() && check.gaps.is_empty());
 }
 
+/// A version-3 archive (no `hk_open`; a writer's open chunks were in `hk_chunk`) is
+/// migrated on open and reads the same values.
+// verifies: GND-02
+#[test]
+fn a_version_3_archive_is_migrated() {
+    let p = tmp("v3.db");
+    let _rm = Rm(vec![p.clone()]);
+    let a = Archive::open(&p).unwrap();
+    let s = a.sender();
+    for i in 0..1500 {
+        s.send(tm(hk_packet(2, i as u16, T0 + i * 100, i), T0 + i * 100));
+    }
+    drop(s);
+    a.close().unwrap();
+    {
+        let c = rusqlite::Connection::open(&p).unwrap();
+        c.execute_batch("DROP TABLE hk_open; UPDATE schema_version SET version = 3;")
+            .unwrap();
+    }
+    let mut s = Store::open(p.to_str().unwrap()).unwrap();
+    assert!(s.db().has_table("hk_open").unwrap());
+    assert_eq!(s.hk_series("v_bat_a", &Filter::default()).unwrap()[0].1.len(), 1500);
+    let a = Archive::open(&p).unwrap();
+    let tx = a.sender();
+    tx.send(tm(hk_packet(2, 1500, T0 + 150_000, 1500), T0 + 150_000));
+    drop(tx);
+    a.close().unwrap();
+    assert_eq!(s.hk_series("v_bat_a", &Filter::default()).unwrap()[0].1.len(), 1501);
+    assert!(s.check(None).unwrap().chunk_mismatch.is_empty());
+}
+
 /// A version-2 archive (SQLite: the collector kept its alarms, link health and holes in
 /// tables of its own) is migrated on open: one alarm table with the ISA-18.2 states, the
 /// link table, the collector's tables gone.
@@ -741,7 +819,7 @@ fn a_version_2_archive_with_collector_tables_is_migrated() {
         // Back to version 2's alarm table and the collector's tables of that version.
         let c = rusqlite::Connection::open(&p).unwrap();
         c.execute_batch(
-            "DROP TABLE alarm; DROP TABLE link; UPDATE schema_version SET version = 2;
+            "DROP TABLE alarm; DROP TABLE link; DROP TABLE hk_open; UPDATE schema_version SET version = 2;
              CREATE TABLE alarm (id INTEGER PRIMARY KEY, robot INTEGER NOT NULL, source TEXT NOT NULL,
                 severity TEXT NOT NULL, state TEXT NOT NULL, first_ms INTEGER NOT NULL, last_ms INTEGER NOT NULL,
                 value TEXT, limit_text TEXT, count INTEGER NOT NULL, ack_ms INTEGER, shelved_until_ms INTEGER,

@@ -53,22 +53,88 @@ fn unzigzag(u: u128) -> i128 {
     ((u >> 1) as i128) ^ -((u & 1) as i128)
 }
 
-/// Writes a column of differences with zero runs.
-fn put_column(out: &mut Vec<u8>, diffs: impl Iterator<Item = i128>) {
-    let mut zeros: u128 = 0;
-    for d in diffs {
+/// One column of differences being written: its tokens so far and the zero run not yet
+/// written (a run is only known to end when the next non-zero difference comes).
+#[derive(Clone, Debug, Default)]
+struct Column {
+    bytes: Vec<u8>,
+    zeros: u128,
+}
+
+impl Column {
+    fn push(&mut self, d: i128) {
         if d == 0 {
-            zeros += 1;
-            continue;
+            self.zeros += 1;
+            return;
         }
-        if zeros > 0 {
-            put_varint(out, (zeros << 1) | 1);
-            zeros = 0;
+        if self.zeros > 0 {
+            put_varint(&mut self.bytes, (self.zeros << 1) | 1);
+            self.zeros = 0;
         }
-        put_varint(out, zigzag(d) << 1);
+        put_varint(&mut self.bytes, zigzag(d) << 1);
     }
-    if zeros > 0 {
-        put_varint(out, (zeros << 1) | 1);
+
+    fn write_to(&self, out: &mut Vec<u8>) {
+        out.extend_from_slice(&self.bytes);
+        if self.zeros > 0 {
+            put_varint(out, (self.zeros << 1) | 1);
+        }
+    }
+}
+
+/// A chunk built one sample at a time: appending costs the new sample's tokens only, and
+/// [`ChunkEncoder::bytes`] gives the BLOB [`encode`] gives for the same samples. An open
+/// chunk is rewritten many times while it fills; re-encoding all of it each time made
+/// the writer's work grow with the chunk.
+#[derive(Clone, Debug, Default)]
+pub struct ChunkEncoder {
+    n: usize,
+    first_t: i64,
+    prev_t: i64,
+    prev_dt: i128,
+    first_v: i64,
+    prev_v: i64,
+    times: Column,
+    values: Column,
+}
+
+impl ChunkEncoder {
+    pub fn push(&mut self, t: i64, v: i64) {
+        if self.n == 0 {
+            self.first_t = t;
+            self.first_v = v;
+        } else {
+            let dt = t as i128 - self.prev_t as i128;
+            self.times.push(dt - self.prev_dt);
+            self.prev_dt = dt;
+            self.values.push(v as i128 - self.prev_v as i128);
+        }
+        self.prev_t = t;
+        self.prev_v = v;
+        self.n += 1;
+    }
+
+    /// Samples so far.
+    pub fn len(&self) -> usize {
+        self.n
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.n == 0
+    }
+
+    /// The chunk BLOB of the samples so far.
+    pub fn bytes(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(24 + self.times.bytes.len() + self.values.bytes.len());
+        put_varint(&mut out, self.n as u128);
+        if self.n == 0 {
+            return out;
+        }
+        put_varint(&mut out, zigzag(self.first_t as i128));
+        self.times.write_to(&mut out);
+        put_varint(&mut out, zigzag(self.first_v as i128));
+        self.values.write_to(&mut out);
+        out
     }
 }
 
@@ -96,26 +162,11 @@ fn get_column(b: &[u8], pos: &mut usize, n: usize, mut each: impl FnMut(i128)) -
 
 /// Packs samples (in the order given; times need not be sorted).
 pub fn encode(times: &[i64], values: &[i64]) -> Vec<u8> {
-    let n = times.len().min(values.len());
-    let mut out = Vec::with_capacity(8 + n * 2);
-    put_varint(&mut out, n as u128);
-    if n == 0 {
-        return out;
+    let mut enc = ChunkEncoder::default();
+    for (t, v) in times.iter().zip(values) {
+        enc.push(*t, *v);
     }
-    put_varint(&mut out, zigzag(times[0] as i128));
-    let mut prev_dt: i128 = 0;
-    put_column(
-        &mut out,
-        times[..n].windows(2).map(|w| {
-            let dt = w[1] as i128 - w[0] as i128;
-            let dod = dt - prev_dt;
-            prev_dt = dt;
-            dod
-        }),
-    );
-    put_varint(&mut out, zigzag(values[0] as i128));
-    put_column(&mut out, values[..n].windows(2).map(|w| w[1] as i128 - w[0] as i128));
-    out
+    enc.bytes()
 }
 
 /// Unpacks a chunk into `(times, values)`.
@@ -179,6 +230,24 @@ mod tests {
         let t: Vec<i64> = (0..1024).map(|i| 1_767_225_600_000 + i * 100).collect();
         let b = encode(&t, &vec![3; 1024]);
         assert!(b.len() < 20, "{} bytes", b.len());
+    }
+
+    // verifies: GND-02
+    #[test]
+    fn every_prefix_of_an_appended_chunk_decodes_to_its_samples() {
+        // Zero runs that end, that are still open, and value runs across the two columns.
+        let t: Vec<i64> = (0..300).map(|i| 1_000 + i * 100 + if i % 50 == 7 { 3 } else { 0 }).collect();
+        let v: Vec<i64> = (0..300).map(|i| if i % 40 < 30 { 5 } else { i }).collect();
+        let mut enc = ChunkEncoder::default();
+        for k in 0..t.len() {
+            enc.push(t[k], v[k]);
+            assert_eq!(enc.len(), k + 1);
+            let b = enc.bytes();
+            assert_eq!(decode(&b).unwrap(), (t[..=k].to_vec(), v[..=k].to_vec()), "after {} samples", k + 1);
+        }
+        // The open zero runs were merged, not written one token per sample.
+        assert!(enc.bytes().len() < 300, "{} bytes", enc.bytes().len());
+        assert_eq!(decode(&ChunkEncoder::default().bytes()).unwrap(), (vec![], vec![]));
     }
 
     // verifies: GND-08

@@ -24,14 +24,30 @@ type Key = (i64, i64, i64, i64);
 /// store dump beside live TM, go to the one they extend).
 const OPEN_PER_PARAM: usize = 4;
 
+/// A chunk being filled. It lives in `hk_open` (a small table, so the rewrite after each
+/// batch touches a few pages however large the archive grows) and moves to `hk_chunk`
+/// once it is closed: full, pushed out, or at a clean stop.
 #[derive(Clone, Debug)]
 struct OpenChunk {
     cid: i64,
     t0: i64,
     last_t: i64,
-    times: Vec<i64>,
-    values: Vec<i64>,
+    enc: codec::ChunkEncoder,
+    /// Samples not yet written.
     dirty: bool,
+    /// A row for it is committed in `hk_open`.
+    in_open_table: bool,
+}
+
+impl OpenChunk {
+    fn key(&self, robot: u8, param: u16) -> [Val; 4] {
+        [
+            Val::Int(robot as i64),
+            Val::Int(param as i64),
+            Val::Int(self.t0),
+            Val::Int(self.cid),
+        ]
+    }
 }
 
 #[derive(Default)]
@@ -53,8 +69,8 @@ struct HealthAcc {
 /// The ingest state of one writer.
 pub struct Ingest {
     open: HashMap<(u8, u16), Vec<OpenChunk>>,
-    /// Chunks pushed out of `open` before they were written.
-    evicted: Vec<(u8, u16, OpenChunk)>,
+    /// Chunks taken out of `open` (full or pushed out), to be moved to `hk_chunk`.
+    closed: Vec<(u8, u16, OpenChunk)>,
     cid_state: u64,
     pub stats: ArchiveStats,
 }
@@ -83,7 +99,7 @@ impl Ingest {
             .map_or(0, |d| d.as_nanos() as u64);
         Ingest {
             open: HashMap::new(),
-            evicted: Vec::new(),
+            closed: Vec::new(),
             cid_state: nanos ^ ((std::process::id() as u64) << 32),
             stats: ArchiveStats::default(),
         }
@@ -104,7 +120,7 @@ impl Ingest {
         let best = chunks
             .iter_mut()
             .enumerate()
-            .filter(|(_, c)| c.last_t <= t && t - c.t0 < CHUNK_SPAN_MS && c.times.len() < CHUNK_MAX)
+            .filter(|(_, c)| c.last_t <= t && t - c.t0 < CHUNK_SPAN_MS)
             .max_by_key(|(_, c)| c.last_t)
             .map(|(i, _)| i);
         let idx = match best {
@@ -117,9 +133,7 @@ impl Ingest {
                         .min_by_key(|(_, c)| c.last_t)
                         .unwrap_or((0, &chunks[0]));
                     let c = chunks.swap_remove(oldest);
-                    if c.dirty {
-                        self.evicted.push((robot, param, c));
-                    }
+                    self.closed.push((robot, param, c));
                 }
                 let cid = self.next_cid();
                 let chunks = self.open.entry(key).or_default();
@@ -127,9 +141,9 @@ impl Ingest {
                     cid,
                     t0: t,
                     last_t: t,
-                    times: Vec::with_capacity(64),
-                    values: Vec::with_capacity(64),
+                    enc: codec::ChunkEncoder::default(),
                     dirty: false,
+                    in_open_table: false,
                 });
                 chunks.len() - 1
             }
@@ -138,10 +152,13 @@ impl Ingest {
             return;
         };
         let c = &mut chunks[idx];
-        c.times.push(t);
-        c.values.push(v);
+        c.enc.push(t, v);
         c.last_t = t;
         c.dirty = true;
+        if c.enc.len() >= CHUNK_MAX {
+            let full = chunks.swap_remove(idx);
+            self.closed.push((robot, param, full));
+        }
     }
 
     /// Writes one batch in one transaction (retried when PostgreSQL reports a deadlock
@@ -170,7 +187,7 @@ impl Ingest {
                     let _ = db.batch("ROLLBACK");
                     // What is in memory was not committed: start new chunks.
                     self.open.clear();
-                    self.evicted.clear();
+                    self.closed.clear();
                     self.stats = before;
                     attempt += 1;
                     let retry = matches!(&e, ArchiveError::Db(d) if d.retryable);
@@ -414,29 +431,41 @@ impl Ingest {
     }
 
     fn write_chunks(&mut self, db: &mut dyn Db) -> Result<(), ArchiveError> {
-        let sql = "INSERT INTO hk_chunk (robot, param, t0, cid, t1, n, data) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7) \
-                   ON CONFLICT (robot, param, t0, cid) DO UPDATE SET t1 = excluded.t1, n = excluded.n, data = excluded.data";
-        let write = |db: &mut dyn Db, robot: u8, param: u16, c: &OpenChunk| -> Result<(), ArchiveError> {
+        let upsert = |table: &str| {
+            format!(
+                "INSERT INTO {table} (robot, param, t0, cid, t1, n, data) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7) \
+                 ON CONFLICT (robot, param, t0, cid) DO UPDATE SET t1 = excluded.t1, n = excluded.n, data = excluded.data"
+            )
+        };
+        let write = |db: &mut dyn Db, sql: &str, robot: u8, param: u16, c: &OpenChunk| -> Result<(), ArchiveError> {
+            let [r, p, t0, cid] = c.key(robot, param);
             db.exec(
                 sql,
                 &[
-                    Val::Int(robot as i64),
-                    Val::Int(param as i64),
-                    Val::Int(c.t0),
-                    Val::Int(c.cid),
+                    r,
+                    p,
+                    t0,
+                    cid,
                     Val::Int(c.last_t),
-                    Val::Int(c.times.len() as i64),
-                    Val::Blob(codec::encode(&c.times, &c.values)),
+                    Val::Int(c.enc.len() as i64),
+                    Val::Blob(c.enc.bytes()),
                 ],
             )?;
             Ok(())
         };
-        for (robot, param, c) in &self.evicted {
-            write(db, *robot, *param, c)?;
+        let (to_chunk, to_open) = (upsert("hk_chunk"), upsert("hk_open"));
+        for (robot, param, c) in &self.closed {
+            write(db, &to_chunk, *robot, *param, c)?;
+            if c.in_open_table {
+                db.exec(
+                    "DELETE FROM hk_open WHERE robot = ?1 AND param = ?2 AND t0 = ?3 AND cid = ?4",
+                    &c.key(*robot, *param),
+                )?;
+            }
         }
         for ((robot, param), chunks) in &self.open {
             for c in chunks.iter().filter(|c| c.dirty) {
-                write(db, *robot, *param, c)?;
+                write(db, &to_open, *robot, *param, c)?;
             }
         }
         Ok(())
@@ -444,14 +473,35 @@ impl Ingest {
 
     /// Marks everything written as clean (after a commit).
     pub fn after_commit(&mut self) {
-        self.evicted.clear();
+        self.closed.clear();
         for chunks in self.open.values_mut() {
-            chunks.retain(|c| c.times.len() < CHUNK_MAX);
-            for c in chunks.iter_mut() {
+            for c in chunks.iter_mut().filter(|c| c.dirty) {
                 c.dirty = false;
+                c.in_open_table = true;
             }
         }
-        self.open.retain(|_, c| !c.is_empty());
+    }
+
+    /// Closes every open chunk at a clean stop: moves them to `hk_chunk` in one
+    /// transaction, so that `hk_open` holds only chunks a writer is filling (and those of
+    /// a writer that was killed, which read like any other).
+    pub fn close_all(&mut self, db: &mut dyn Db) -> Result<(), ArchiveError> {
+        self.take_all();
+        self.write_batch(db, &[])
+    }
+
+    /// [`Ingest::close_all`] inside the caller's transaction (a migration).
+    pub fn close_all_in_tx(&mut self, db: &mut dyn Db) -> Result<(), ArchiveError> {
+        self.take_all();
+        self.write_chunks(db)?;
+        self.closed.clear();
+        Ok(())
+    }
+
+    fn take_all(&mut self) {
+        for ((robot, param), chunks) in self.open.drain() {
+            self.closed.extend(chunks.into_iter().map(|c| (robot, param, c)));
+        }
     }
 }
 

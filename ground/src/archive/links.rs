@@ -187,6 +187,7 @@ impl Store {
             let mut n = 0;
             for (table, cond) in [
                 ("hk_chunk", "t1 < ?1"),
+                ("hk_open", "t1 < ?1"),
                 ("event", "t_ms < ?1"),
                 ("verification", "t_ms < ?1"),
                 ("packet", "t_ms < ?1"),

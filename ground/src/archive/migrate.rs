@@ -55,6 +55,7 @@ pub fn from_v1(db: &mut dyn Db) -> Result<(), ArchiveError> {
         ingest.write_in_tx(db, &batch)?;
         ingest.after_commit();
     }
+    ingest.close_all_in_tx(db)?;
     db.batch(
         "DROP TABLE v1_tm; DROP TABLE v1_tc; DROP TABLE v1_verification; DROP TABLE v1_event;
          DROP TABLE v1_hk;",

@@ -255,6 +255,7 @@ fn writer(mut db: Box<dyn Db>, rx: Receiver<Record>) -> Result<ArchiveStats, Arc
         ingest.write_batch(db.as_mut(), &batch)?;
         batch.clear();
     }
+    ingest.close_all(db.as_mut())?;
     if db.dialect() == db::Dialect::Sqlite {
         // Fold the WAL into the database file so it does not stay on disk beside it. A
         // reader holding the WAL open makes this a no-op, which is harmless.

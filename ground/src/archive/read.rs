@@ -7,7 +7,7 @@ use serde::Serialize;
 use super::adapter;
 use super::codec;
 use super::db::{collect, scalar, Db, Val};
-use super::schema::CHUNK_SPAN_MS;
+use super::schema::{CHUNKS, CHUNK_SPAN_MS};
 use super::{connect, ArchiveError, Filter, Kind, RobotSeries, Rows};
 use crate::pus::{self, decode_tm};
 
@@ -168,8 +168,10 @@ impl Store {
         let mut out: Vec<(i64, i64)> = Vec::new();
         let mut damaged = None;
         self.db.rows(
-            "SELECT data FROM hk_chunk WHERE robot = ?1 AND param = ?2 AND t0 >= ?3 AND t0 <= ?4 AND t1 >= ?5 \
-             ORDER BY t0",
+            &format!(
+                "SELECT data FROM {CHUNKS} c WHERE robot = ?1 AND param = ?2 AND t0 >= ?3 AND t0 <= ?4 AND t1 >= ?5 \
+                 ORDER BY t0"
+            ),
             &[
                 Val::Int(robot as i64),
                 Val::Int(param as i64),
@@ -199,7 +201,7 @@ impl Store {
     pub fn param_span(&mut self, robot: u8, param: u16) -> Result<Option<(i64, i64)>, ArchiveError> {
         let r = collect(
             self.db.as_mut(),
-            "SELECT MIN(t0), MAX(t1) FROM hk_chunk WHERE robot = ?1 AND param = ?2",
+            &format!("SELECT MIN(t0), MAX(t1) FROM {CHUNKS} c WHERE robot = ?1 AND param = ?2"),
             &[Val::Int(robot as i64), Val::Int(param as i64)],
         )?;
         Ok(r.first().and_then(|r| Some((r[0].int()?, r[1].int()?))))
@@ -248,9 +250,11 @@ impl Store {
         for r in robots {
             let rows = collect(
                 self.db.as_mut(),
-                "SELECT c.param, c.data FROM hk_chunk c JOIN \
-                 (SELECT param, MAX(t1) AS t1 FROM hk_chunk WHERE robot = ?1 GROUP BY param) m \
-                 ON c.param = m.param AND c.t1 = m.t1 WHERE c.robot = ?1 ORDER BY c.param",
+                &format!(
+                    "SELECT c.param, c.data FROM {CHUNKS} c JOIN \
+                     (SELECT param, MAX(t1) AS t1 FROM {CHUNKS} a WHERE robot = ?1 GROUP BY param) m \
+                     ON c.param = m.param AND c.t1 = m.t1 WHERE c.robot = ?1 ORDER BY c.param"
+                ),
                 &[Val::Int(r as i64)],
             )?;
             for row in rows {
@@ -556,7 +560,7 @@ impl Store {
             }
             Ok(())
         })?;
-        let mut sql = String::from("SELECT robot, param, SUM(n) FROM hk_chunk WHERE 1=1");
+        let mut sql = format!("SELECT robot, param, SUM(n) FROM {CHUNKS} c WHERE 1=1");
         let mut args = Vec::new();
         if let Some(r) = robot {
             args.push(Val::Int(r as i64));

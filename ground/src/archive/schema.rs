@@ -6,18 +6,26 @@ use super::db::{scalar, Db, Dialect, Val};
 use super::ArchiveError;
 
 /// The schema this build writes.
-pub const VERSION: i64 = 3;
+pub const VERSION: i64 = 4;
 
 /// Longest time span of one parameter chunk (ms); range queries rely on it.
 pub const CHUNK_SPAN_MS: i64 = 3_600_000;
 /// Most samples in one parameter chunk.
 pub const CHUNK_MAX: usize = 1024;
 
-/// Tables of version 3. `{int}`, `{real}`, `{blob}`, `{id}` and `{norowid}` are filled per
-/// dialect. Version 3 (over 2): the alarm table holds the ISA-18.2 state of every
-/// alarm (`condition`, `acked`, `kind`, `message`, a numeric `value`) and `link` holds
-/// the collector's view of each robot's link; the collector's own SQLite-only tables
-/// (`collect_alarm`, `collect_robot`, `collect_gap`) are gone.
+/// Every parameter chunk, closed (`hk_chunk`) or being filled (`hk_open`): what reads
+/// select from (`FROM {CHUNKS} c`).
+pub const CHUNKS: &str = "(SELECT robot, param, t0, cid, t1, n, data FROM hk_chunk \
+                          UNION ALL SELECT robot, param, t0, cid, t1, n, data FROM hk_open)";
+
+/// Tables of version 4. `{int}`, `{real}`, `{blob}`, `{id}` and `{norowid}` are filled
+/// per dialect. Version 4 (over 3): chunks being filled live in `hk_open` and move to
+/// `hk_chunk` when closed, so that rewriting them after every batch touches a small table
+/// instead of pages spread over the whole history. Version 3 (over 2): the alarm table
+/// holds the ISA-18.2 state of every alarm (`condition`, `acked`, `kind`, `message`, a
+/// numeric `value`) and `link` holds the collector's view of each robot's link; the
+/// collector's own SQLite-only tables (`collect_alarm`, `collect_robot`, `collect_gap`)
+/// are gone.
 const TABLES: &str = "
 CREATE TABLE IF NOT EXISTS schema_version (version {int} NOT NULL);
 CREATE TABLE IF NOT EXISTS packet (
@@ -25,6 +33,10 @@ CREATE TABLE IF NOT EXISTS packet (
     t_ms {int} NOT NULL, link_robot {int}, raw {blob} NOT NULL,
     PRIMARY KEY (robot, apid, obt_ms, seq)){norowid};
 CREATE TABLE IF NOT EXISTS hk_chunk (
+    robot {int} NOT NULL, param {int} NOT NULL, t0 {int} NOT NULL, cid {int} NOT NULL,
+    t1 {int} NOT NULL, n {int} NOT NULL, data {blob} NOT NULL,
+    PRIMARY KEY (robot, param, t0, cid)){norowid};
+CREATE TABLE IF NOT EXISTS hk_open (
     robot {int} NOT NULL, param {int} NOT NULL, t0 {int} NOT NULL, cid {int} NOT NULL,
     t1 {int} NOT NULL, n {int} NOT NULL, data {blob} NOT NULL,
     PRIMARY KEY (robot, param, t0, cid)){norowid};
@@ -143,6 +155,12 @@ fn prepare_locked(db: &mut dyn Db) -> Result<Prepared, ArchiveError> {
             super::migrate::from_v2(db)?;
             set_version(db)?;
             Ok(Prepared::Migrated(2))
+        }
+        // Version 4 only adds `hk_open` (created by `set_version`); the chunks a version-3
+        // writer left open stay in `hk_chunk`, where they read the same.
+        Some(3) => {
+            set_version(db)?;
+            Ok(Prepared::Migrated(3))
         }
         Some(v) => Err(ArchiveError::Schema(format!(
             "archive {} has schema version {v}, which no migration of this ground tool ({VERSION}) \
