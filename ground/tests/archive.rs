@@ -179,7 +179,7 @@ fn every_record_lands_in_its_tables() {
 // verifies: GND-02
 #[test]
 fn open_chunks_are_read_and_a_clean_stop_closes_them() {
-    both("open-chunks", |loc, backend| {
+    both("open_chunks", |loc, backend| {
         let rows = |s: &mut Store, table: &str| {
             let mut n = 0;
             s.db()
