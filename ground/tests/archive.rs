@@ -214,7 +214,10 @@ fn open_chunks_are_read_and_a_clean_stop_closes_them() {
         a.close().unwrap();
         assert_eq!(rows(&mut r, "hk_open"), 0, "{backend}");
         assert_eq!(rows(&mut r, "hk_chunk"), 3 * params, "{backend}");
-        assert_eq!(r.hk_series("v_bat_a", &Filter::default()).unwrap()[0].1.len(), n as usize);
+        assert_eq!(
+            r.hk_series("v_bat_a", &Filter::default()).unwrap()[0].1.len(),
+            n as usize
+        );
         let check = r.check(None).unwrap();
         assert!(check.chunk_mismatch.is_empty(), "{backend}: {check:?}");
     });

@@ -236,14 +236,21 @@ mod tests {
     #[test]
     fn every_prefix_of_an_appended_chunk_decodes_to_its_samples() {
         // Zero runs that end, that are still open, and value runs across the two columns.
-        let t: Vec<i64> = (0..300).map(|i| 1_000 + i * 100 + if i % 50 == 7 { 3 } else { 0 }).collect();
+        let t: Vec<i64> = (0..300)
+            .map(|i| 1_000 + i * 100 + if i % 50 == 7 { 3 } else { 0 })
+            .collect();
         let v: Vec<i64> = (0..300).map(|i| if i % 40 < 30 { 5 } else { i }).collect();
         let mut enc = ChunkEncoder::default();
         for k in 0..t.len() {
             enc.push(t[k], v[k]);
             assert_eq!(enc.len(), k + 1);
             let b = enc.bytes();
-            assert_eq!(decode(&b).unwrap(), (t[..=k].to_vec(), v[..=k].to_vec()), "after {} samples", k + 1);
+            assert_eq!(
+                decode(&b).unwrap(),
+                (t[..=k].to_vec(), v[..=k].to_vec()),
+                "after {} samples",
+                k + 1
+            );
         }
         // The open zero runs were merged, not written one token per sample.
         assert!(enc.bytes().len() < 300, "{} bytes", enc.bytes().len());
