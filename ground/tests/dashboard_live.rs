@@ -224,6 +224,11 @@ fn plan_messages(addr: SocketAddr) -> std::sync::mpsc::Receiver<Value> {
 
 /// Every state each step of run `run_id` went through (in order, repeats folded), and
 /// the run's last message, once it is no longer running.
+/// `POST /api/plans` for plan `name`, hazards confirmed.
+fn start_plan(addr: SocketAddr, name: &str) -> (u16, Value) {
+    http(addr, "POST", "/api/plans", Some(json!({"name": name, "confirm": true})))
+}
+
 fn follow_run(rx: &std::sync::mpsc::Receiver<Value>, run_id: &str, secs: u64) -> (Vec<Vec<String>>, Value) {
     let end = Instant::now() + Duration::from_secs(secs);
     let mut seen: Vec<Vec<String>> = Vec::new();
@@ -280,29 +285,14 @@ fn plans_start_from_the_page_under_collect_with_live_progress_and_one_per_robot(
     let (st, r) = http(web, "POST", "/api/plans", Some(json!({"name": "short"})));
     assert_eq!(st, 409, "{r}");
     assert!(r["error"].as_str().unwrap().contains("hazardous"), "{r}");
-    let (st, r) = http(
-        web,
-        "POST",
-        "/api/plans",
-        Some(json!({"name": "nope", "confirm": true})),
-    );
+    let (st, r) = start_plan(web, "nope");
     assert_eq!(st, 404, "{r}");
 
-    let (st, r) = http(
-        web,
-        "POST",
-        "/api/plans",
-        Some(json!({"name": "short", "confirm": true})),
-    );
+    let (st, r) = start_plan(web, "short");
     assert_eq!(st, 200, "{r}");
     let run = r["run_id"].as_str().unwrap().to_string();
     // One plan per robot: a second start while it runs is refused.
-    let (st, r) = http(
-        web,
-        "POST",
-        "/api/plans",
-        Some(json!({"name": "refused", "confirm": true})),
-    );
+    let (st, r) = start_plan(web, "refused");
     assert_eq!(st, 409, "{r}");
     assert!(r["error"].as_str().unwrap().contains(&run), "{r}");
     // A page TC meanwhile: the same thread, the same counter, never the same request ID.
@@ -349,12 +339,7 @@ fn plans_start_from_the_page_under_collect_with_live_progress_and_one_per_robot(
 
     // The robot is free again; a run the robot refuses ends failed with the failure name,
     // and the step after it is blocked.
-    let (st, r) = http(
-        web,
-        "POST",
-        "/api/plans",
-        Some(json!({"name": "refused", "confirm": true})),
-    );
+    let (st, r) = start_plan(web, "refused");
     assert_eq!(st, 200, "{r}");
     let run = r["run_id"].as_str().unwrap().to_string();
     let (_, last) = follow_run(&rx, &run, 60);
