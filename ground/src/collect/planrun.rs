@@ -697,12 +697,12 @@ mod tests {
             rx.recv_timeout(Duration::from_secs(5)),
             Ok(DashCmd::Follow(_))
         ));
-        assert!(
-            matches!(rx.recv_timeout(Duration::from_secs(5)), Ok(DashCmd::PlanTc { def, .. }) if def.name == "PING")
-        );
+        // Held unanswered: a dropped reply channel would end the run before the check.
+        let tc = rx.recv_timeout(Duration::from_secs(5));
+        assert!(matches!(&tc, Ok(DashCmd::PlanTc { def, .. }) if def.name == "PING"));
         assert!(matches!(book.start("clear", true), Err(PlanStartError::Busy(m)) if m.contains(&run)));
         // The robot's thread is gone: the run ends failed and the robot is free again.
-        drop(rx);
+        drop((tc, rx));
         let end = Instant::now() + Duration::from_secs(10);
         while book.busy.lock().unwrap().contains_key(&1) {
             assert!(Instant::now() < end, "robot 1 still busy");
