@@ -181,14 +181,10 @@ fn every_record_lands_in_its_tables() {
 fn open_chunks_are_read_and_a_clean_stop_closes_them() {
     both("open_chunks", |loc, backend| {
         let rows = |s: &mut Store, table: &str| {
-            let mut n = 0;
-            s.db()
-                .rows(&format!("SELECT COUNT(*) FROM {table}"), &[], &mut |r| {
-                    n = r[0].int().unwrap();
-                    Ok(())
-                })
-                .unwrap();
-            n
+            archive::db::scalar(s.db(), &format!("SELECT COUNT(*) FROM {table}"), &[])
+                .unwrap()
+                .and_then(|v| v.int())
+                .unwrap()
         };
         let params = mib::hk::by_sid(mib::hk::sid::ROBOT_STATUS).unwrap().params.len() as i64;
         let a = Archive::open(Path::new(loc)).unwrap();

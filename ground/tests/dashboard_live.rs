@@ -222,13 +222,13 @@ fn plan_messages(addr: SocketAddr) -> std::sync::mpsc::Receiver<Value> {
     rx
 }
 
-/// Every state each step of run `run_id` went through (in order, repeats folded), and
-/// the run's last message, once it is no longer running.
 /// `POST /api/plans` for plan `name`, hazards confirmed.
 fn start_plan(addr: SocketAddr, name: &str) -> (u16, Value) {
     http(addr, "POST", "/api/plans", Some(json!({"name": name, "confirm": true})))
 }
 
+/// Every state each step of run `run_id` went through (in order, repeats folded), and
+/// the run's last message, once it is no longer running.
 fn follow_run(rx: &std::sync::mpsc::Receiver<Value>, run_id: &str, secs: u64) -> (Vec<Vec<String>>, Value) {
     let end = Instant::now() + Duration::from_secs(secs);
     let mut seen: Vec<Vec<String>> = Vec::new();

@@ -83,11 +83,11 @@ impl Column {
 }
 
 /// A chunk built one sample at a time: appending costs the new sample's tokens only, and
-/// [`ChunkEncoder::bytes`] gives the BLOB [`encode`] gives for the same samples. An open
+/// [`ChunkEncoder::bytes`] is the chunk BLOB of the samples so far. An open
 /// chunk is rewritten many times while it fills; re-encoding all of it each time made
 /// the writer's work grow with the chunk.
 #[derive(Clone, Debug, Default)]
-pub struct ChunkEncoder {
+pub(crate) struct ChunkEncoder {
     n: usize,
     first_t: i64,
     prev_t: i64,
@@ -117,10 +117,6 @@ impl ChunkEncoder {
     /// Samples so far.
     pub fn len(&self) -> usize {
         self.n
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.n == 0
     }
 
     /// The chunk BLOB of the samples so far.
@@ -160,15 +156,6 @@ fn get_column(b: &[u8], pos: &mut usize, n: usize, mut each: impl FnMut(i128)) -
     Ok(())
 }
 
-/// Packs samples (in the order given; times need not be sorted).
-pub fn encode(times: &[i64], values: &[i64]) -> Vec<u8> {
-    let mut enc = ChunkEncoder::default();
-    for (t, v) in times.iter().zip(values) {
-        enc.push(*t, *v);
-    }
-    enc.bytes()
-}
-
 /// Unpacks a chunk into `(times, values)`.
 pub fn decode(b: &[u8]) -> Result<(Vec<i64>, Vec<i64>), ChunkError> {
     let mut pos = 0;
@@ -203,6 +190,15 @@ pub fn decode(b: &[u8]) -> Result<(Vec<i64>, Vec<i64>), ChunkError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Packs samples (in the order given; times need not be sorted).
+    fn encode(times: &[i64], values: &[i64]) -> Vec<u8> {
+        let mut enc = ChunkEncoder::default();
+        for (t, v) in times.iter().zip(values) {
+            enc.push(*t, *v);
+        }
+        enc.bytes()
+    }
 
     // verifies: GND-02
     #[test]

@@ -8,7 +8,7 @@ use std::collections::{HashMap, HashSet};
 use super::adapter::{self, Content};
 use super::codec;
 use super::db::{Db, Dialect, Val};
-use super::schema::{CHUNK_MAX, CHUNK_SPAN_MS};
+use super::schema::{chunk_columns, CHUNK_MAX, CHUNK_SPAN_MS};
 use super::{ArchiveError, ArchiveStats, Record};
 use crate::pus::BuiltTc;
 
@@ -24,6 +24,20 @@ type Key = (i64, i64, i64, i64);
 /// store dump beside live TM, go to the one they extend).
 const OPEN_PER_PARAM: usize = 4;
 
+/// Writes a chunk row into the chunk table `$table`.
+macro_rules! upsert_chunk {
+    ($table:literal) => {
+        concat!(
+            "INSERT INTO ",
+            $table,
+            " (",
+            chunk_columns!(),
+            ") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7) ON CONFLICT (robot, param, t0, cid) \
+             DO UPDATE SET t1 = excluded.t1, n = excluded.n, data = excluded.data"
+        )
+    };
+}
+
 /// A chunk being filled. It lives in `hk_open` (a small table, so the rewrite after each
 /// batch touches a few pages however large the archive grows) and moves to `hk_chunk`
 /// once it is closed: full, pushed out, or at a clean stop.
@@ -35,8 +49,6 @@ struct OpenChunk {
     enc: codec::ChunkEncoder,
     /// Samples not yet written.
     dirty: bool,
-    /// A row for it is committed in `hk_open`.
-    in_open_table: bool,
 }
 
 impl OpenChunk {
@@ -143,7 +155,6 @@ impl Ingest {
                     last_t: t,
                     enc: codec::ChunkEncoder::default(),
                     dirty: false,
-                    in_open_table: false,
                 });
                 chunks.len() - 1
             }
@@ -431,12 +442,6 @@ impl Ingest {
     }
 
     fn write_chunks(&mut self, db: &mut dyn Db) -> Result<(), ArchiveError> {
-        let upsert = |table: &str| {
-            format!(
-                "INSERT INTO {table} (robot, param, t0, cid, t1, n, data) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7) \
-                 ON CONFLICT (robot, param, t0, cid) DO UPDATE SET t1 = excluded.t1, n = excluded.n, data = excluded.data"
-            )
-        };
         let write = |db: &mut dyn Db, sql: &str, robot: u8, param: u16, c: &OpenChunk| -> Result<(), ArchiveError> {
             let [r, p, t0, cid] = c.key(robot, param);
             db.exec(
@@ -453,19 +458,17 @@ impl Ingest {
             )?;
             Ok(())
         };
-        let (to_chunk, to_open) = (upsert("hk_chunk"), upsert("hk_open"));
         for (robot, param, c) in &self.closed {
-            write(db, &to_chunk, *robot, *param, c)?;
-            if c.in_open_table {
-                db.exec(
-                    "DELETE FROM hk_open WHERE robot = ?1 AND param = ?2 AND t0 = ?3 AND cid = ?4",
-                    &c.key(*robot, *param),
-                )?;
-            }
+            write(db, upsert_chunk!("hk_chunk"), *robot, *param, c)?;
+            // Its row in `hk_open`, if an earlier batch wrote one (a no-op otherwise).
+            db.exec(
+                "DELETE FROM hk_open WHERE robot = ?1 AND param = ?2 AND t0 = ?3 AND cid = ?4",
+                &c.key(*robot, *param),
+            )?;
         }
         for ((robot, param), chunks) in &self.open {
             for c in chunks.iter().filter(|c| c.dirty) {
-                write(db, &to_open, *robot, *param, c)?;
+                write(db, upsert_chunk!("hk_open"), *robot, *param, c)?;
             }
         }
         Ok(())
@@ -475,9 +478,8 @@ impl Ingest {
     pub fn after_commit(&mut self) {
         self.closed.clear();
         for chunks in self.open.values_mut() {
-            for c in chunks.iter_mut().filter(|c| c.dirty) {
+            for c in chunks.iter_mut() {
                 c.dirty = false;
-                c.in_open_table = true;
             }
         }
     }

@@ -13,13 +13,32 @@ pub const CHUNK_SPAN_MS: i64 = 3_600_000;
 /// Most samples in one parameter chunk.
 pub const CHUNK_MAX: usize = 1024;
 
+/// The columns of a chunk table (`hk_chunk` and `hk_open` have the same), in order.
+macro_rules! chunk_columns {
+    () => {
+        "robot, param, t0, cid, t1, n, data"
+    };
+}
+pub(super) use chunk_columns;
+
 /// Every parameter chunk, closed (`hk_chunk`) or being filled (`hk_open`): what reads
 /// select from (`FROM {CHUNKS} c`).
-pub const CHUNKS: &str = "(SELECT robot, param, t0, cid, t1, n, data FROM hk_chunk \
-                          UNION ALL SELECT robot, param, t0, cid, t1, n, data FROM hk_open)";
+pub const CHUNKS: &str = concat!(
+    "(SELECT ",
+    chunk_columns!(),
+    " FROM hk_chunk UNION ALL SELECT ",
+    chunk_columns!(),
+    " FROM hk_open)"
+);
 
-/// Tables of version 4. `{int}`, `{real}`, `{blob}`, `{id}` and `{norowid}` are filled
-/// per dialect. Version 4 (over 3): chunks being filled live in `hk_open` and move to
+/// The definition of a chunk table, for both `hk_chunk` and `hk_open`.
+const CHUNK_TABLE: &str = "(
+    robot {int} NOT NULL, param {int} NOT NULL, t0 {int} NOT NULL, cid {int} NOT NULL,
+    t1 {int} NOT NULL, n {int} NOT NULL, data {blob} NOT NULL,
+    PRIMARY KEY (robot, param, t0, cid)){norowid}";
+
+/// Tables of version 4. `{chunk_table}`, then `{int}`, `{real}`, `{blob}`, `{id}` and
+/// `{norowid}` are filled per dialect. Version 4 (over 3): chunks being filled live in `hk_open` and move to
 /// `hk_chunk` when closed, so that rewriting them after every batch touches a small table
 /// instead of pages spread over the whole history. Version 3 (over 2): the alarm table
 /// holds the ISA-18.2 state of every alarm (`condition`, `acked`, `kind`, `message`, a
@@ -32,14 +51,8 @@ CREATE TABLE IF NOT EXISTS packet (
     robot {int} NOT NULL, apid {int} NOT NULL, obt_ms {int} NOT NULL, seq {int} NOT NULL,
     t_ms {int} NOT NULL, link_robot {int}, raw {blob} NOT NULL,
     PRIMARY KEY (robot, apid, obt_ms, seq)){norowid};
-CREATE TABLE IF NOT EXISTS hk_chunk (
-    robot {int} NOT NULL, param {int} NOT NULL, t0 {int} NOT NULL, cid {int} NOT NULL,
-    t1 {int} NOT NULL, n {int} NOT NULL, data {blob} NOT NULL,
-    PRIMARY KEY (robot, param, t0, cid)){norowid};
-CREATE TABLE IF NOT EXISTS hk_open (
-    robot {int} NOT NULL, param {int} NOT NULL, t0 {int} NOT NULL, cid {int} NOT NULL,
-    t1 {int} NOT NULL, n {int} NOT NULL, data {blob} NOT NULL,
-    PRIMARY KEY (robot, param, t0, cid)){norowid};
+CREATE TABLE IF NOT EXISTS hk_chunk {chunk_table};
+CREATE TABLE IF NOT EXISTS hk_open {chunk_table};
 CREATE TABLE IF NOT EXISTS event (
     id {id}, robot {int} NOT NULL, apid {int} NOT NULL, seq {int} NOT NULL,
     obt_ms {int} NOT NULL, t_ms {int} NOT NULL, event_id {int} NOT NULL, name TEXT,
@@ -89,6 +102,7 @@ pub fn ddl(d: Dialect) -> String {
         Dialect::Postgres => ("BIGINT", "DOUBLE PRECISION", "BYTEA", "BIGSERIAL PRIMARY KEY", ""),
     };
     TABLES
+        .replace("{chunk_table}", CHUNK_TABLE)
         .replace("{int}", int)
         .replace("{real}", real)
         .replace("{blob}", blob)
