@@ -42,9 +42,51 @@ pub struct RequirementsFile {
     pub requirements: Vec<Requirement>,
 }
 
+/// Extra requirement files, one per area of the product (`docs/requirements/*.toml`): only
+/// `[[requirement]]` blocks; the policy stays in the main file.
+#[derive(Clone, Debug, Deserialize)]
+struct AreaFile {
+    #[serde(rename = "requirement", default)]
+    requirements: Vec<Requirement>,
+}
+
+/// Loads the main requirements file and every `*.toml` in the `requirements/` folder beside
+/// it (sorted by name). A requirement ID defined twice is an error naming both files.
 pub fn load(path: &Path) -> Result<RequirementsFile> {
     let s = std::fs::read_to_string(path).with_context(|| format!("{}", path.display()))?;
-    let f: RequirementsFile = toml::from_str(&s).with_context(|| format!("{}", path.display()))?;
+    let mut f: RequirementsFile =
+        toml::from_str(&s).with_context(|| format!("{}", path.display()))?;
+    let mut origin: BTreeMap<String, PathBuf> = f
+        .requirements
+        .iter()
+        .map(|r| (r.id.clone(), path.to_path_buf()))
+        .collect();
+    let dir = path.with_file_name("requirements");
+    let mut extra: Vec<PathBuf> = match std::fs::read_dir(&dir) {
+        Ok(rd) => rd
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+            .collect(),
+        Err(_) => Vec::new(),
+    };
+    extra.sort();
+    for p in extra {
+        let s = std::fs::read_to_string(&p).with_context(|| format!("{}", p.display()))?;
+        let a: AreaFile = toml::from_str(&s).with_context(|| format!("{}", p.display()))?;
+        for r in a.requirements {
+            if let Some(first) = origin.get(&r.id) {
+                anyhow::bail!(
+                    "requirement {} is defined in {} and again in {}",
+                    r.id,
+                    first.display(),
+                    p.display()
+                );
+            }
+            origin.insert(r.id.clone(), p.clone());
+            f.requirements.push(r);
+        }
+    }
     Ok(f)
 }
 
