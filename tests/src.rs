@@ -15,17 +15,59 @@ use satrs::spacepackets::ecss::tm::PusTmReader;
 use satrs::spacepackets::ecss::{CreatorConfig, MessageTypeId};
 use satrs::spacepackets::{CcsdsPacket, SpHeader};
 
-/// Path of a workspace binary next to the test executable (target/<profile>/NAME).
+/// Path of a workspace binary (`obsw`, `ground`, `relay`) for the tests to start:
+/// `$<NAME>_BIN` if set, else target/<profile>/NAME beside the test executable — built
+/// first (once per test process) with the same target directory and profile, so a test
+/// run by its exact name on a fresh checkout finds a binary, and never a stale one.
 pub fn bin(name: &str) -> PathBuf {
     if let Ok(p) = std::env::var(format!("{}_BIN", name.to_uppercase())) {
         return PathBuf::from(p);
     }
     let exe = std::env::current_exe().expect("test executable path");
     // target/<profile>/deps/test-xxxx -> target/<profile>/NAME
-    exe.parent()
+    let profile_dir = exe
+        .parent()
         .and_then(|d| d.parent())
-        .map(|d| d.join(name))
-        .expect("target directory")
+        .expect("test executable under target/<profile>/deps");
+    let path = profile_dir.join(name);
+    ensure_built(name, profile_dir);
+    path
+}
+
+/// Runs `cargo build -p PACKAGE --bin NAME` once per binary and process, into the
+/// target directory and profile the test executable itself was built in. Cargo makes this
+/// a no-op when the binary is up to date (a fraction of a second).
+fn ensure_built(name: &str, profile_dir: &std::path::Path) {
+    use std::collections::BTreeSet;
+    use std::sync::Mutex;
+    static BUILT: Mutex<BTreeSet<String>> = Mutex::new(BTreeSet::new());
+    let mut built = BUILT.lock().unwrap_or_else(|e| e.into_inner());
+    if built.contains(name) {
+        return;
+    }
+    let package = match name {
+        "relay" => "e2e-tests",
+        other => other,
+    };
+    let target_dir = profile_dir.parent().expect("target directory");
+    let profile = match profile_dir.file_name().and_then(|n| n.to_str()) {
+        Some("debug") | None => "dev".to_string(),
+        Some(p) => p.to_string(),
+    };
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let out = Command::new(cargo)
+        .args(["build", "-q", "-p", package, "--bin", name, "--profile", &profile])
+        .arg("--target-dir")
+        .arg(target_dir)
+        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run cargo to build {name}: {e}"));
+    assert!(
+        out.status.success(),
+        "building {name} (cargo build -p {package} --bin {name}) failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    built.insert(name.to_string());
 }
 
 /// A running `obsw` process; killed on drop.
