@@ -1,3 +1,125 @@
 //! The space link: TC/TM transfer frames, virtual channels, COP-1 and SDLS parameters
 //! (CCSDS 232.0-B-4, 132.0-B-3, 232.1-B-2, 355.0-B-2). One place for every number the
-//! on-board FARM, the ground's FOP and the exports share.
+//! on-board FARM, the ground's FOP and the exports share. `docs/space-link.md` explains them.
+
+/// Spacecraft identifier (10 bits, the same in TC and TM frames).
+pub const SCID: u16 = 0x0AB;
+
+/// Transfer frame version number of TC frames (`00`, 232.0-B-4 §4.1.2.2).
+pub const TC_TFVN: u8 = 0;
+/// Transfer frame version number of TM frames (`00`, 132.0-B-3 §4.1.2.2).
+pub const TM_TFVN: u8 = 0;
+
+/// Uplink virtual channels.
+pub mod tc_vc {
+    /// The one TC virtual channel: AD frames (COP-1 sequence controlled, SDLS protected),
+    /// BD frames (SDLS protected, bypass) and BC control frames (in clear, as Yamcs sends them).
+    pub const COMMAND: u8 = 0;
+}
+
+/// Downlink virtual channels (3-bit VCID).
+pub mod tm_vc {
+    /// Realtime TM (HK, events, verification reports), SDLS protected.
+    pub const REALTIME: u8 = 0;
+    /// Store replay (PUS 15 dumps), SDLS protected.
+    pub const REPLAY: u8 = 1;
+    /// Idle frames (only idle data, first header pointer 0x7FE), in clear; they carry the
+    /// CLCW when nothing else is to send.
+    pub const IDLE: u8 = 7;
+}
+
+/// TC frame sizes (232.0-B-4; Yamcs `maxFrameLength`).
+pub mod tc_frame {
+    /// Primary header length.
+    pub const HEADER_LEN: usize = 5;
+    /// Frame error control field (CRC-16/CCITT-FALSE), always present.
+    pub const FECF_LEN: usize = 2;
+    /// Largest TC frame (the 10-bit length field allows 1024; Yamcs' `maxFrameLength`).
+    pub const MAX_LEN: usize = 1024;
+    /// Shortest TC frame we accept: a header, one data byte and the FECF.
+    pub const MIN_LEN: usize = HEADER_LEN + 1 + FECF_LEN;
+    /// Largest TC space packet in one SDLS-protected frame (no segment header):
+    /// 1024 − 5 − 14 − 16 − 2 = 987.
+    pub const MAX_PACKET_LEN: usize =
+        MAX_LEN - HEADER_LEN - super::sdls::HEADER_LEN - super::sdls::MAC_LEN - FECF_LEN;
+}
+
+/// TM frame sizes (132.0-B-3): fixed length, no secondary header, OCF (CLCW) and FECF on
+/// every frame.
+pub mod tm_frame {
+    /// Fixed TM frame length on every virtual channel (one UDP datagram).
+    pub const LEN: usize = 1024;
+    /// Primary header length.
+    pub const HEADER_LEN: usize = 6;
+    /// Operational control field (the CLCW).
+    pub const OCF_LEN: usize = 4;
+    /// Frame error control field (CRC-16/CCITT-FALSE).
+    pub const FECF_LEN: usize = 2;
+    /// Data field of an SDLS-protected frame (VC0, VC1): 1024 − 6 − 14 − 16 − 4 − 2 = 982.
+    pub const SECURE_DATA_LEN: usize =
+        LEN - HEADER_LEN - super::sdls::HEADER_LEN - super::sdls::MAC_LEN - OCF_LEN - FECF_LEN;
+    /// Data field of a clear frame (the idle VC): 1024 − 6 − 4 − 2 = 1012.
+    pub const CLEAR_DATA_LEN: usize = LEN - HEADER_LEN - OCF_LEN - FECF_LEN;
+}
+
+/// COP-1 (232.1-B-2) parameters shared by the on-board FARM-1 and the ground's FOP-1.
+pub mod cop1 {
+    /// FARM-1 sliding window width W (even, 2..=254); positive and negative window are W/2.
+    pub const FARM_WINDOW_WIDTH: u8 = 20;
+    /// FOP-1 sliding window width K (Yamcs `slidingWindowWidth`). K ≤ W/2 so the ground can
+    /// never push the FARM into lockout with frames it has not seen acknowledged.
+    pub const FOP_SLIDING_WINDOW: u8 = 10;
+    /// FOP-1 timer T1 initial value in milliseconds (Yamcs `cop1T1`, seconds there).
+    pub const FOP_T1_MS: u64 = 2_000;
+    /// FOP-1 transmission limit (Yamcs `cop1TxLimit`): first transmission included.
+    pub const FOP_TX_LIMIT: u8 = 5;
+    /// FOP-1 timeout type (0: alert on the last expiry, 1: suspend).
+    pub const FOP_TIMEOUT_TYPE: u8 = 0;
+}
+
+/// SDLS (355.0-B-2) parameters: AES-256-GCM authenticated encryption in Yamcs 5.12.8's layout.
+pub mod sdls {
+    /// Security header: SPI (2 bytes) + IV (12 bytes, the anti-replay counter).
+    pub const SPI_LEN: usize = 2;
+    /// GCM IV length, which is also the anti-replay sequence number length.
+    pub const IV_LEN: usize = 12;
+    /// Security header length.
+    pub const HEADER_LEN: usize = SPI_LEN + IV_LEN;
+    /// Security trailer: the GCM tag.
+    pub const MAC_LEN: usize = 16;
+    /// AES-256 key length.
+    pub const KEY_LEN: usize = 32;
+    /// Uplink SPIs (ground → robot, TC frames on `tc_vc::COMMAND`). Two, for key change
+    /// without downtime: the ground switches with a command, the robot accepts both while both
+    /// are provisioned.
+    pub const TC_SPIS: [u16; 2] = [1, 2];
+    /// Downlink SPIs (robot → ground, TM frames on VC0 and VC1). Separate keys per direction:
+    /// a key shared by both directions with both counters starting at 0 would reuse nonces.
+    pub const TM_SPIS: [u16; 2] = [17, 18];
+    /// Anti-replay window N: a frame's IV must lie in (last, last + N].
+    pub const ANTI_REPLAY_WINDOW: u64 = 64;
+    /// Transmit counters are reserved in blocks of this many IVs: the high-water mark is
+    /// persisted before the first IV of a block is used, so a restart skips at most one block
+    /// and never reuses a nonce.
+    pub const IV_RESERVE_BLOCK: u64 = 1024;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // verifies: LINK-MIB-01
+    #[test]
+    fn link_sizes_are_consistent() {
+        assert_eq!(tc_frame::MAX_PACKET_LEN, 987);
+        assert_eq!(tm_frame::SECURE_DATA_LEN, 982);
+        assert_eq!(tm_frame::CLEAR_DATA_LEN, 1012);
+        assert_eq!(cop1::FARM_WINDOW_WIDTH % 2, 0);
+        assert!(cop1::FOP_SLIDING_WINDOW <= cop1::FARM_WINDOW_WIDTH / 2);
+        assert!(SCID < 1024);
+        assert!(tm_vc::IDLE < 8 && tm_vc::REPLAY < 8);
+        for s in sdls::TC_SPIS {
+            assert!(!sdls::TM_SPIS.contains(&s));
+        }
+    }
+}

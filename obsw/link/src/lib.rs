@@ -1,4 +1,29 @@
-//! MMIC-I space link: CCSDS TC (232.0-B-4) and TM (132.0-B-3) transfer frames, COP-1
-//! (232.1-B-2) and SDLS (355.0-B-2). `no_std`, no heap, time passed in.
+//! MMIC-I space link: CCSDS TC (232.0-B-4) and TM (132.0-B-3) transfer frames, the CLCW,
+//! COP-1 (232.1-B-2: FARM-1 on board, FOP-1 on the ground) and SDLS (355.0-B-2,
+//! AES-256-GCM in Yamcs 5.12.8's layout). `no_std`, no heap, time passed in.
+//!
+//! Layers, smoltcp style:
+//! - [`tc`], [`tm`], [`clcw`]: wire formats, a zero-copy view and a `Repr` each, checked
+//!   constructors for untrusted bytes.
+//! - [`sdls`]: security associations, the anti-replay window and the persisted IV counters.
+//! - [`farm`], [`fop`]: COP-1 as pure state machines, `on_event(now, input) -> effects`.
+//! - [`mux`]: space packets into fixed TM frames and back.
+//! - [`rx`]: the on-board TC receive pipeline CRC → lengths → SDLS → FARM → packet, with the
+//!   rejection counters the host puts in HK.
+//!
+//! Every number (SCID, VCIDs, lengths, windows, SPIs) comes from `mib::link`.
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
 #![deny(unsafe_code)]
+
+pub mod clcw;
+pub mod farm;
+pub mod fecf;
+pub mod fop;
+pub mod mux;
+pub mod rx;
+pub mod sdls;
+pub mod tc;
+pub mod test_keys;
+pub mod tm;
+
+pub use clcw::Clcw;
