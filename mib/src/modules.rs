@@ -1,2 +1,0 @@
-//! Plug-and-work: module types, variants and revisions (the module database), module
-//! descriptors and the supported robot configurations.

@@ -1,0 +1,453 @@
+//! The module database: one entry per (type, variant, revision) with its frames,
+//! joint, inertial, calibration defaults and compatibility.
+//!
+//! ## Frames (metres, radians; see `docs/modules.md` and [`super::geometry`])
+//! Every entry's `mount` places the module's frame in its parent's frame:
+//!
+//! | type | parent | frame |
+//! |---|---|---|
+//! | gripper | — (it is the side's end body) | clamp frame `G`: origin at the clamp centre on the face's mid-plane, `z` from the face toward the hip, `y` = hip axis (world +Z), `x = y × z` |
+//! | board, bolter | gripper `G` | board / bolter body |
+//! | imu, adc | board | the chip |
+//! | arm | gripper `G` | arm link frame = the hip point, axes of `G`; the prismatic joint moves it along `+z` of `G` |
+//! | hip | arm of the root side | hip link frame at the hip point, axes of the far side's `G` |
+//! | encoder | hip | the sensor, on the hip axis |
+//!
+//! The inertial of an entry is given in the module's own frame: mass (kg), centre of
+//! mass, inertia about the centre of mass (kg·m², `ixx iyy izz ixy ixz iyz`).
+
+use super::descriptor::Calibration;
+use super::ModuleType;
+
+/// A rigid placement: translation, then roll-pitch-yaw (URDF convention).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Frame {
+    pub xyz: [f64; 3],
+    pub rpy: [f64; 3],
+}
+
+impl Frame {
+    pub const IDENTITY: Frame = Frame::at(0.0, 0.0, 0.0);
+    pub const fn at(x: f64, y: f64, z: f64) -> Frame {
+        Frame {
+            xyz: [x, y, z],
+            rpy: [0.0, 0.0, 0.0],
+        }
+    }
+}
+
+/// Mass properties of one rigid body.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Inertial {
+    pub mass_kg: f64,
+    pub com: [f64; 3],
+    /// `ixx, iyy, izz, ixy, ixz, iyz` about the centre of mass, axes of the body frame.
+    pub inertia: [f64; 6],
+}
+
+/// Inertia of a solid box `a × b × c` (along x, y, z) of mass `m`.
+pub const fn box_inertia(m: f64, a: f64, b: f64, c: f64) -> [f64; 6] {
+    [
+        m * (b * b + c * c) / 12.0,
+        m * (a * a + c * c) / 12.0,
+        m * (a * a + b * b) / 12.0,
+        0.0,
+        0.0,
+        0.0,
+    ]
+}
+
+/// Inertia of a solid cylinder of radius `r`, length `h` along z, mass `m`.
+pub const fn cylinder_z_inertia(m: f64, r: f64, h: f64) -> [f64; 6] {
+    let t = m * (3.0 * r * r + h * h) / 12.0;
+    [t, t, m * r * r / 2.0, 0.0, 0.0, 0.0]
+}
+
+/// The module's own joint.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum JointKind {
+    Fixed,
+    /// Rotation about `axis` (unit, in the joint frame), limits in rad, effort N·m,
+    /// velocity rad/s.
+    Revolute {
+        axis: [f64; 3],
+        lower: f64,
+        upper: f64,
+        effort: f64,
+        velocity: f64,
+    },
+    /// Translation along `axis`, limits in m, effort N, velocity m/s.
+    Prismatic {
+        axis: [f64; 3],
+        lower: f64,
+        upper: f64,
+        effort: f64,
+        velocity: f64,
+    },
+}
+
+/// A second body of a module: the gripper's jaw (moved by the module's joint) or the
+/// bolter's driver bit (fixed; its frame is the bolter tool frame).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Part {
+    /// Appended to the module's link name (`gripper_a` + `_jaw`).
+    pub suffix: &'static str,
+    /// Placement in the module's frame.
+    pub frame: Frame,
+    pub inertial: Inertial,
+}
+
+/// What a module needs from the board it is wired to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Compat {
+    /// Board revisions (inclusive range) the module works with.
+    pub board_rev_min: u8,
+    pub board_rev_max: u8,
+    /// Oldest board firmware (`major << 8 | minor`) that drives it.
+    pub fw_min: u16,
+}
+
+/// One database entry.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ModuleDef {
+    pub ty: ModuleType,
+    pub variant: u8,
+    pub revision: u8,
+    pub part_name: &'static str,
+    /// Placement of the module's frame in its parent's (table in the module doc).
+    pub mount: Frame,
+    /// The module's joint: arm (prismatic, the arm link moves along `+z` of `G`), hip
+    /// (revolute, sign per model root, see the URDF exporter), gripper (its jaw).
+    pub joint: JointKind,
+    pub inertial: Inertial,
+    pub part: Option<Part>,
+    pub cal_default: Calibration,
+    pub compat: Compat,
+}
+
+const PI: f64 = core::f64::consts::PI;
+/// Arm stroke (m): at least the reach of a stretch ([`super::geometry::ARM_REACH_M`]).
+pub const ARM_STROKE_M: f64 = 0.160;
+const COMPAT_ANY: Compat = Compat {
+    board_rev_min: 1,
+    board_rev_max: 2,
+    fw_min: 0x0100,
+};
+
+const fn inertial(mass_kg: f64, com: [f64; 3], inertia: [f64; 6]) -> Inertial {
+    Inertial { mass_kg, com, inertia }
+}
+
+/// The module database, sorted by (type code, variant, revision).
+pub const MODULE_DB: &[ModuleDef] = &[
+    ModuleDef {
+        ty: ModuleType::Hip,
+        variant: 0,
+        revision: 1,
+        part_name: "hip: continuous servo with PI control, magnet for the AS5600",
+        mount: Frame::IDENTITY,
+        joint: JointKind::Revolute {
+            axis: [0.0, 1.0, 0.0],
+            lower: -120.0 * PI / 180.0,
+            upper: 120.0 * PI / 180.0,
+            effort: 2.0,
+            velocity: 30.0 * PI / 180.0,
+        },
+        inertial: inertial(0.260, [0.0, 0.0, 0.0], box_inertia(0.260, 0.050, 0.060, 0.050)),
+        part: None,
+        cal_default: Calibration([0, 400, 3000, 0, 0, 0, 0, 0]),
+        compat: COMPAT_ANY,
+    },
+    ModuleDef {
+        ty: ModuleType::Arm,
+        variant: 0,
+        revision: 1,
+        part_name: "telescopic extension arm, 160 mm stroke, positional servo",
+        mount: Frame::IDENTITY,
+        joint: JointKind::Prismatic {
+            axis: [0.0, 0.0, 1.0],
+            lower: 0.0,
+            upper: ARM_STROKE_M,
+            effort: 20.0,
+            velocity: 0.08,
+        },
+        // The tube hangs from the hip toward its gripper (−z of the arm link frame).
+        inertial: inertial(0.120, [0.0, 0.0, -0.060], cylinder_z_inertia(0.120, 0.012, 0.120)),
+        part: None,
+        cal_default: Calibration([1000, 2000, 1000, 400, 3000, 0, 0, 0]),
+        compat: COMPAT_ANY,
+    },
+    ModuleDef {
+        ty: ModuleType::Gripper,
+        variant: 0,
+        revision: 1,
+        part_name: "servo clamp gripper, rev 1",
+        mount: Frame::IDENTITY,
+        joint: JointKind::Revolute {
+            axis: [0.0, 1.0, 0.0],
+            lower: 0.0,
+            upper: 0.52,
+            effort: 1.5,
+            velocity: 1.0,
+        },
+        inertial: inertial(0.180, [0.0, 0.0, 0.030], box_inertia(0.180, 0.060, 0.050, 0.060)),
+        part: Some(Part {
+            suffix: "_jaw",
+            frame: Frame::at(0.0, 0.0, 0.010),
+            inertial: inertial(0.020, [0.015, 0.0, 0.0], box_inertia(0.020, 0.040, 0.012, 0.010)),
+        }),
+        cal_default: Calibration([1100, 1900, 1100, 400, 1500, 0, 0, 0]),
+        compat: COMPAT_ANY,
+    },
+    ModuleDef {
+        ty: ModuleType::Gripper,
+        variant: 0,
+        revision: 2,
+        part_name: "servo clamp gripper, rev 2: stiffer jaw spring, narrower PWM range",
+        mount: Frame::IDENTITY,
+        joint: JointKind::Revolute {
+            axis: [0.0, 1.0, 0.0],
+            lower: 0.0,
+            upper: 0.61,
+            effort: 1.8,
+            velocity: 1.0,
+        },
+        inertial: inertial(0.195, [0.0, 0.0, 0.032], box_inertia(0.195, 0.060, 0.052, 0.064)),
+        part: Some(Part {
+            suffix: "_jaw",
+            frame: Frame::at(0.0, 0.0, 0.010),
+            inertial: inertial(0.024, [0.016, 0.0, 0.0], box_inertia(0.024, 0.042, 0.012, 0.011)),
+        }),
+        cal_default: Calibration([1150, 1850, 1150, 450, 1600, 0, 0, 0]),
+        // The narrower PWM range and the higher holding current need firmware 1.1.
+        compat: Compat {
+            board_rev_min: 1,
+            board_rev_max: 2,
+            fw_min: 0x0101,
+        },
+    },
+    ModuleDef {
+        ty: ModuleType::Bolter,
+        variant: 0,
+        revision: 1,
+        part_name: "bolter: 4 fastener pairs through the ADG1604 multiplexer",
+        mount: Frame::at(0.065, 0.0, 0.030),
+        joint: JointKind::Fixed,
+        inertial: inertial(0.210, [0.0, 0.0, 0.0], box_inertia(0.210, 0.050, 0.040, 0.060)),
+        // Tool frame: the driver bit's tip on the face's mid-plane, z pointing into the face.
+        part: Some(Part {
+            suffix: "_tool",
+            frame: Frame {
+                xyz: [0.0, 0.0, -0.030],
+                rpy: [PI, 0.0, 0.0],
+            },
+            inertial: inertial(0.008, [0.0, 0.0, -0.012], cylinder_z_inertia(0.008, 0.004, 0.024)),
+        }),
+        cal_default: Calibration([1200, 1800, 200, 2500, 0, 0, 0, 0]),
+        compat: COMPAT_ANY,
+    },
+    ModuleDef {
+        ty: ModuleType::Imu,
+        variant: 0,
+        revision: 1,
+        part_name: "MPU-6000 6-axis IMU",
+        // Axes of the board = axes of G (the domain's board frame in stretch and turn).
+        mount: Frame::at(0.010, 0.0, 0.002),
+        joint: JointKind::Fixed,
+        inertial: inertial(0.0005, [0.0, 0.0, 0.0], box_inertia(0.0005, 0.004, 0.004, 0.001)),
+        part: None,
+        cal_default: Calibration([0; 8]),
+        compat: COMPAT_ANY,
+    },
+    ModuleDef {
+        ty: ModuleType::Adc,
+        variant: 0,
+        revision: 1,
+        part_name: "ADS7828 8-channel 12-bit ADC",
+        mount: Frame::at(-0.015, 0.0, 0.002),
+        joint: JointKind::Fixed,
+        inertial: inertial(0.0005, [0.0, 0.0, 0.0], box_inertia(0.0005, 0.005, 0.006, 0.001)),
+        part: None,
+        cal_default: Calibration([0; 8]),
+        compat: COMPAT_ANY,
+    },
+    ModuleDef {
+        ty: ModuleType::Encoder,
+        variant: 0,
+        revision: 1,
+        part_name: "AS5600 magnetic absolute encoder",
+        mount: Frame::at(0.0, 0.032, 0.0),
+        joint: JointKind::Fixed,
+        inertial: inertial(0.003, [0.0, 0.0, 0.0], box_inertia(0.003, 0.015, 0.002, 0.015)),
+        part: None,
+        cal_default: Calibration([2048, 1, 0, 0, 0, 0, 0, 0]),
+        compat: COMPAT_ANY,
+    },
+    ModuleDef {
+        ty: ModuleType::BoardA,
+        variant: 0,
+        revision: 1,
+        part_name: "controller board A (ESP32, MPU-6000, ADS7828, ground link)",
+        mount: Frame::at(0.0, 0.0, 0.075),
+        joint: JointKind::Fixed,
+        inertial: inertial(0.045, [0.0, 0.0, 0.0], box_inertia(0.045, 0.070, 0.050, 0.0016)),
+        part: None,
+        cal_default: Calibration([0x0100, 0, 0, 0, 0, 0, 0, 0]),
+        compat: COMPAT_ANY,
+    },
+    ModuleDef {
+        ty: ModuleType::BoardB,
+        variant: 0,
+        revision: 1,
+        part_name: "controller board B (ESP32, MPU-6000, ADS7828, subordinate)",
+        mount: Frame::at(0.0, 0.0, 0.075),
+        joint: JointKind::Fixed,
+        inertial: inertial(0.045, [0.0, 0.0, 0.0], box_inertia(0.045, 0.070, 0.050, 0.0016)),
+        part: None,
+        cal_default: Calibration([0x0100, 0, 0, 0, 0, 0, 0, 0]),
+        compat: COMPAT_ANY,
+    },
+];
+
+/// The database entry of (type, variant, revision).
+pub fn lookup(ty: ModuleType, variant: u8, revision: u8) -> Option<&'static ModuleDef> {
+    MODULE_DB
+        .iter()
+        .find(|d| d.ty == ty && d.variant == variant && d.revision == revision)
+}
+
+/// The newest revision of variant 0 of `ty` (the default build).
+pub fn default_def(ty: ModuleType) -> Option<&'static ModuleDef> {
+    MODULE_DB
+        .iter()
+        .filter(|d| d.ty == ty && d.variant == 0)
+        .min_by_key(|d| d.revision)
+}
+
+/// Whether `def` works on a board of revision `board_rev` running firmware `fw`.
+pub const fn compatible(def: &ModuleDef, board_rev: u8, fw: u16) -> bool {
+    board_rev >= def.compat.board_rev_min && board_rev <= def.compat.board_rev_max && fw >= def.compat.fw_min
+}
+
+/// Arm extension (m) commanded by pulse width `pwm_us` under `cal` (linear between
+/// contracted = 0 and extended = [`super::geometry::ARM_REACH_M`]); `None` when the
+/// calibration is degenerate.
+pub fn arm_extension_m(cal: &Calibration, pwm_us: u16) -> Option<f64> {
+    let c = cal.0[0] as f64;
+    let e = cal.0[1] as f64;
+    if (e - c).abs() < 1.0 {
+        return None;
+    }
+    Some((pwm_us as f64 - c) / (e - c) * super::geometry::ARM_REACH_M)
+}
+
+/// Real eigenvalues of a symmetric 3×3 matrix (closed form), ascending. std only: the
+/// physical-validity check runs in tests and exporters, no_std builds need no trigonometry.
+#[cfg(any(test, feature = "std"))]
+fn sym_eigenvalues(i: &[f64; 6]) -> [f64; 3] {
+    let (a, b, c, d, e, f) = (i[0], i[1], i[2], i[3], i[4], i[5]);
+    // Matrix [[a, d, e], [d, b, f], [e, f, c]].
+    let p1 = d * d + e * e + f * f;
+    let q = (a + b + c) / 3.0;
+    let p2 = (a - q) * (a - q) + (b - q) * (b - q) + (c - q) * (c - q) + 2.0 * p1;
+    if p2 <= 0.0 {
+        return [q, q, q];
+    }
+    let p = (p2 / 6.0).sqrt();
+    let (ba, bb, bc, bd, be, bf) = ((a - q) / p, (b - q) / p, (c - q) / p, d / p, e / p, f / p);
+    let r = (ba * (bb * bc - bf * bf) - bd * (bd * bc - bf * be) + be * (bd * bf - bb * be)) / 2.0;
+    let r = r.clamp(-1.0, 1.0);
+    let phi = r.acos() / 3.0;
+    let e1 = q + 2.0 * p * phi.cos();
+    let e3 = q + 2.0 * p * (phi + 2.0 * PI / 3.0).cos();
+    let e2 = 3.0 * q - e1 - e3;
+    let mut v = [e1, e2, e3];
+    v.sort_by(|x, y| x.partial_cmp(y).unwrap_or(core::cmp::Ordering::Equal));
+    v
+}
+
+/// Whether an inertial is physically valid: mass > 0, inertia positive definite and the
+/// principal moments satisfy the triangle inequality.
+#[cfg(any(test, feature = "std"))]
+pub fn physically_valid(i: &Inertial) -> bool {
+    if i.mass_kg.partial_cmp(&0.0) != Some(core::cmp::Ordering::Greater) {
+        return false;
+    }
+    let e = sym_eigenvalues(&i.inertia);
+    e[0] > 0.0 && e[0] + e[1] >= e[2] * (1.0 - 1e-12)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::modules::{ModuleType, SLOTS};
+
+    // verifies: MOD-DB-01
+    #[test]
+    fn every_slot_type_has_a_default_and_entries_are_unique() {
+        for s in SLOTS {
+            assert!(default_def(s.ty).is_some(), "{} has no database entry", s.name);
+        }
+        for (i, a) in MODULE_DB.iter().enumerate() {
+            for b in &MODULE_DB[i + 1..] {
+                assert!(
+                    (a.ty, a.variant, a.revision) != (b.ty, b.variant, b.revision),
+                    "duplicate {:?}",
+                    a.ty
+                );
+            }
+            assert_eq!(lookup(a.ty, a.variant, a.revision), Some(a));
+        }
+        assert_eq!(lookup(ModuleType::Gripper, 0, 9), None);
+    }
+
+    // verifies: MOD-DB-02
+    #[test]
+    fn every_inertial_is_physically_valid() {
+        for d in MODULE_DB {
+            assert!(physically_valid(&d.inertial), "{:?} rev {}", d.ty, d.revision);
+            if let Some(p) = d.part {
+                assert!(physically_valid(&p.inertial), "{:?}{}", d.ty, p.suffix);
+            }
+        }
+        // The check can fail: a rod-like inertia violating the triangle inequality,
+        // a negative moment, a zero mass.
+        let bad = Inertial {
+            mass_kg: 1.0,
+            com: [0.0; 3],
+            inertia: [1.0, 1.0, 3.0, 0.0, 0.0, 0.0],
+        };
+        assert!(!physically_valid(&bad));
+        assert!(!physically_valid(&Inertial {
+            inertia: [1.0, -1.0, 1.0, 0.0, 0.0, 0.0],
+            ..bad
+        }));
+        assert!(!physically_valid(&Inertial { mass_kg: 0.0, ..bad }));
+        // Off-diagonal terms rotate the principal axes but keep a valid body valid.
+        assert!(physically_valid(&Inertial {
+            inertia: [2.0, 2.0, 2.0, 0.5, 0.2, 0.1],
+            ..bad
+        }));
+    }
+
+    // verifies: MOD-DB-03
+    #[test]
+    fn two_gripper_revisions_differ_in_calibration_and_compatibility() {
+        let r1 = lookup(ModuleType::Gripper, 0, 1).unwrap();
+        let r2 = lookup(ModuleType::Gripper, 0, 2).unwrap();
+        assert_ne!(r1.cal_default, r2.cal_default);
+        assert!(compatible(r1, 1, 0x0100));
+        assert!(!compatible(r2, 1, 0x0100));
+        assert!(compatible(r2, 1, 0x0101));
+        assert!(!compatible(r2, 3, 0x0200));
+        // The arm calibration maps the MIB's servo set points onto the geometry.
+        let arm = default_def(ModuleType::Arm).unwrap();
+        let ext = |us| arm_extension_m(&arm.cal_default, us).unwrap();
+        assert_eq!(ext(crate::robot::servo::ARM_CONTRACTED_US), 0.0);
+        assert!((ext(crate::robot::servo::ARM_EXTENDED_US) - super::super::geometry::ARM_REACH_M).abs() < 1e-12);
+        match arm.joint {
+            JointKind::Prismatic { upper, .. } => assert!(upper >= super::super::geometry::ARM_REACH_M),
+            other => panic!("arm joint {other:?}"),
+        }
+    }
+}
