@@ -350,7 +350,9 @@ impl<const N: usize> Default for RxSas<N> {
 }
 
 impl<const N: usize> RxSas<N> {
-    /// Adds or replaces the SA of its SPI; hands it back when full.
+    /// Adds or replaces the SA of its SPI; hands it back when full (workspace rule: a failed
+    /// push returns the item, however large).
+    #[allow(clippy::result_large_err)]
     pub fn insert(&mut self, sa: RxSa) -> Result<(), RxSa> {
         if let Some(s) = self.sas.iter_mut().find(|s| s.spi == sa.spi) {
             *s = sa;
