@@ -1,3 +1,138 @@
 //! Team coordination without the ground: inter-robot link, leader selection timing and
 //! capacities, limited leader authority. One place for every number the on-board team
 //! logic, the simulator and the ground share.
+//!
+//! Rationale for the timing figures is in `docs/team.md` ("Timing"). In short: the
+//! inter-robot link is assumed to deliver within [`LINK_MAX_DELAY_MS`] (or lose the packet);
+//! on-board clocks drift by at most [`CLOCK_DRIFT_PPM`]; a leader's lease must run out before
+//! any robot that acknowledged it can vote for somebody else, so
+//! `LEADER_LEASE_MS * (1 + drift) < ELECTION_TIMEOUT_MIN_MS * (1 - drift)`.
+
+// ---------------------------------------------------------------------------------------
+// Roster
+// ---------------------------------------------------------------------------------------
+
+/// Most robots in a team roster (the roster is uploaded by the ground and fixed).
+pub const ROSTER_MAX: usize = 8;
+/// Fewest robots in a roster: a team of one has nobody to coordinate.
+pub const ROSTER_MIN: usize = 2;
+
+/// Votes needed to win an election in a roster of `n` robots: a strict majority of the
+/// whole roster (not of the robots currently reachable). A team of two needs both.
+pub const fn quorum(n: usize) -> usize {
+    n / 2 + 1
+}
+
+// ---------------------------------------------------------------------------------------
+// Timing (all in ms of the robot's own monotonic clock)
+// ---------------------------------------------------------------------------------------
+
+/// The ground is declared lost after this long without a valid ground TC. The ground
+/// sends at least a time/housekeeping TC every few seconds during a pass; 5 s is two missed
+/// 2 s ground heartbeats plus margin.
+pub const GROUND_LOSS_TIMEOUT_MS: u64 = 5_000;
+/// Shortest randomised election timeout (time without a leader heartbeat, or since the ground
+/// loss was detected, before a robot stands as candidate).
+pub const ELECTION_TIMEOUT_MIN_MS: u64 = 1_000;
+/// Longest randomised election timeout (exclusive upper bound of the uniform draw).
+pub const ELECTION_TIMEOUT_MAX_MS: u64 = 2_000;
+/// A leader sends a heartbeat (carrying its directive) this often.
+pub const HEARTBEAT_PERIOD_MS: u64 = 200;
+/// A candidate repeats its vote request to robots that have not answered this often
+/// (the link may lose packets).
+pub const VOTE_RETRY_MS: u64 = 300;
+/// Leader lease: a leader only directs while a quorum (itself included) has acknowledged a
+/// heartbeat it sent less than this long ago; otherwise it steps down.
+pub const LEADER_LEASE_MS: u64 = 900;
+/// Assumed worst one-way delay of the inter-robot link (later packets are treated as lost).
+pub const LINK_MAX_DELAY_MS: u64 = 500;
+/// Assumed worst relative drift of two robots' clocks, parts per million.
+pub const CLOCK_DRIFT_PPM: u64 = 1_000;
+
+/// Floodmax baseline (paper `002_…`): length of one synchronous round. Floodmax assumes
+/// synchronous rounds, so a round lasts the worst link delay.
+pub const FLOODMAX_ROUND_MS: u64 = LINK_MAX_DELAY_MS;
+
+// The lease is shorter than the election timeout, with margin for the drift.
+const _: () =
+    assert!(LEADER_LEASE_MS * (1_000_000 + CLOCK_DRIFT_PPM) < ELECTION_TIMEOUT_MIN_MS * (1_000_000 - CLOCK_DRIFT_PPM));
+const _: () = assert!(HEARTBEAT_PERIOD_MS * 3 < LEADER_LEASE_MS);
+const _: () = assert!(ELECTION_TIMEOUT_MIN_MS < ELECTION_TIMEOUT_MAX_MS);
+const _: () = assert!(ROSTER_MIN <= ROSTER_MAX && ROSTER_MAX <= 32);
+
+// ---------------------------------------------------------------------------------------
+// Authority
+// ---------------------------------------------------------------------------------------
+
+/// Most plan steps a ground authorisation may let a leader continue without the ground.
+pub const MAX_AUTHORISED_STEPS: u8 = 4;
+/// Longest validity of a ground authorisation, counted from its upload.
+pub const MAX_AUTHORISATION_MS: u64 = 30 * 60 * 1_000;
+
+// ---------------------------------------------------------------------------------------
+// Inter-robot link
+// ---------------------------------------------------------------------------------------
+
+/// APID of inter-robot team packets (robot APIDs are `0x101..=0x1FE`, idle is `0x7FF`).
+/// Intended: a PUS TM-like packet, service [`TEAM_SERVICE`], the team message as the
+/// application data, authenticated like the ground link once SDLS has landed.
+pub const TEAM_APID: u16 = 0x0E0;
+/// Private PUS service type of team messages and of the team TM (events stay in service 5).
+pub const TEAM_SERVICE: u8 = 210;
+/// Subservice of a team message between robots.
+pub const TEAM_SUBSERVICE_MESSAGE: u8 = 1;
+/// Subservice of the team status report (TM to the ground).
+pub const TEAM_SUBSERVICE_STATUS: u8 = 2;
+/// Subservice of the ground's authorisation upload (TC).
+pub const TEAM_SUBSERVICE_AUTHORISE: u8 = 3;
+/// Version byte of the team message format.
+pub const WIRE_VERSION: u8 = 1;
+/// Length of the common header of every team message.
+pub const WIRE_HEADER_LEN: usize = 15;
+/// Longest team message (header + largest body).
+pub const WIRE_MAX_LEN: usize = 24;
+
+// ---------------------------------------------------------------------------------------
+// Events (PUS 5) the team logic raises. Proposed IDs; the entries in `events.rs` are to be
+// added when the team logic is wired into the obsw (see docs/team.md, integration status).
+// ---------------------------------------------------------------------------------------
+
+/// Team event IDs (range 0x0300).
+pub mod eid {
+    /// No valid ground TC for `GROUND_LOSS_TIMEOUT_MS`: the robot holds on its own.
+    pub const GROUND_LOST: u16 = 0x0301;
+    /// The robot stood as candidate (params: term).
+    pub const ELECTION_STARTED: u16 = 0x0302;
+    /// A leader is known for the term (params: term, leader).
+    pub const LEADER_ELECTED: u16 = 0x0303;
+    /// The robot stopped leading (params: term, reason).
+    pub const STEPPED_DOWN: u16 = 0x0304;
+    /// A valid ground TC arrived: obedience to the leader ended (params: term).
+    pub const GROUND_REGAINED: u16 = 0x0305;
+    /// A leader's directive was executed (params: term, leader, directive, step).
+    pub const DIRECTIVE_EXECUTED: u16 = 0x0306;
+    /// A directive was refused (params: term, sender, reason).
+    pub const DIRECTIVE_REFUSED: u16 = 0x0307;
+}
+
+/// Length of the team status report's application data: term (4), role (1), leader (1),
+/// ground seen (1), roster length (1), roster (ROSTER_MAX).
+pub const STATUS_REPORT_LEN: usize = 8 + ROSTER_MAX;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // verifies: TEAM-QUORUM-01
+    #[test]
+    fn quorum_is_a_strict_majority_of_the_roster() {
+        for n in ROSTER_MIN..=ROSTER_MAX {
+            let q = quorum(n);
+            assert!(2 * q > n, "n={n}");
+            assert!(2 * (q - 1) <= n, "n={n}");
+        }
+        assert_eq!(quorum(2), 2);
+        assert_eq!(quorum(3), 2);
+        assert_eq!(quorum(8), 5);
+    }
+}
