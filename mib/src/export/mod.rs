@@ -17,6 +17,7 @@ use std::str::FromStr;
 mod icd;
 mod json;
 pub mod layout;
+pub mod urdf;
 mod scos;
 mod xtce;
 

@@ -277,6 +277,29 @@ pub const fn slot_of(ty: ModuleType, side: ModuleSide) -> Option<u8> {
     None
 }
 
+/// A robot's modules, indexed by slot (`None` = absent).
+pub type ModuleSet = [Option<Descriptor>; NUM_SLOTS];
+
+/// The default build: every slot with variant 0 at its lowest revision, the database's
+/// calibration defaults, serial `serial_base + slot`.
+pub fn default_set(serial_base: u32) -> ModuleSet {
+    let mut set = [None; NUM_SLOTS];
+    for s in SLOTS {
+        if let Some(d) = db::default_def(s.ty) {
+            set[s.id as usize] = Some(Descriptor {
+                ty: s.ty,
+                variant: d.variant,
+                revision: d.revision,
+                serial: serial_base.wrapping_add(s.id as u32),
+                side: s.side,
+                port: s.port,
+                cal: d.cal_default,
+            });
+        }
+    }
+    set
+}
+
 /// The slot with the given name (`"gripper_a"`, ...).
 pub fn slot_by_name(name: &str) -> Option<&'static SlotDef> {
     SLOTS.iter().find(|s| s.name.eq_ignore_ascii_case(name.trim()))
