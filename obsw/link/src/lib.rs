@@ -8,6 +8,8 @@
 //! - [`sdls`]: security associations, the anti-replay window and the persisted IV counters.
 //! - [`farm`], [`fop`]: COP-1 as pure state machines, `on_event(now, input) -> effects`.
 //! - [`mux`]: space packets into fixed TM frames and back.
+//! - [`downlink`]: TM frames on board (VC0 realtime, VC1 replay, VC7 idle) and their
+//!   reception on the ground.
 //! - [`rx`]: the on-board TC receive pipeline CRC → lengths → SDLS → FARM → packet, with the
 //!   rejection counters the host puts in HK.
 //!
@@ -16,6 +18,7 @@
 #![deny(unsafe_code)]
 
 pub mod clcw;
+pub mod downlink;
 pub mod farm;
 pub mod fecf;
 pub mod fop;

@@ -1,0 +1,480 @@
+//! The downlink: TM frames built on board ([`Downlink`]) and read on the ground
+//! ([`TmReceiver`]).
+//!
+//! Virtual channels (`mib::link::tm_vc`): VC0 realtime and VC1 store replay carry packets,
+//! SDLS-protected with the TM SA; VC7 carries idle frames in clear (only idle data, first
+//! header pointer 0x7FE). Every frame carries the CLCW in its OCF — outside the SDLS MAC, as
+//! 355.0-B-2 and Yamcs place it — and a FECF. The master channel frame count runs over all
+//! VCs, each VC has its own count.
+
+use core::fmt;
+
+use mib::link::tm_frame::{HEADER_LEN, LEN, SECURE_DATA_LEN};
+use mib::link::tm_vc;
+
+use crate::clcw::{Clcw, ClcwError};
+use crate::mux::{DemuxCounters, MuxError, PacketDemux, PacketMux, Zone};
+use crate::sdls::{IvStore, RxSas, SdlsError, TxSa};
+use crate::tm::{FirstHeaderPointer, TmError, TmFrame, TmRepr};
+
+/// The packet-carrying TM virtual channels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TmVc {
+    Realtime,
+    Replay,
+}
+
+impl TmVc {
+    pub fn id(self) -> u8 {
+        match self {
+            TmVc::Realtime => tm_vc::REALTIME,
+            TmVc::Replay => tm_vc::REPLAY,
+        }
+    }
+}
+
+/// Why a TM frame could not be built.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DownlinkError {
+    Packet(MuxError),
+    Sdls(SdlsError),
+}
+
+impl fmt::Display for DownlinkError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            DownlinkError::Packet(MuxError::NotAPacket) => write!(f, "not a space packet"),
+            DownlinkError::Sdls(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl core::error::Error for DownlinkError {}
+
+/// Frame counters of the downlink, for HK.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TxCounters {
+    pub frames: u32,
+    pub idle_frames: u32,
+    /// Frames not sent because SDLS failed (counter store): their packets are lost.
+    pub sdls_failed: u32,
+}
+
+/// The on-board TM framer: master and VC counters, two packet multiplexers.
+#[derive(Debug)]
+pub struct Downlink {
+    scid: u16,
+    mc: u8,
+    vc: [u8; 8],
+    rt: PacketMux<SECURE_DATA_LEN>,
+    replay: PacketMux<SECURE_DATA_LEN>,
+    pub counters: TxCounters,
+}
+
+struct FrameCtx<'a, S: IvStore, O: FnMut(&[u8])> {
+    scid: u16,
+    mc: &'a mut u8,
+    vc: &'a mut [u8; 8],
+    counters: &'a mut TxCounters,
+    clcw: u32,
+    sa: &'a mut TxSa,
+    store: &'a mut S,
+    out: O,
+    err: Option<SdlsError>,
+}
+
+impl<S: IvStore, O: FnMut(&[u8])> FrameCtx<'_, S, O> {
+    fn secure(&mut self, vcid: u8, z: Zone<'_>) {
+        let mut buf = [0u8; LEN];
+        let repr = TmRepr {
+            scid: self.scid,
+            vcid,
+            mc_count: *self.mc,
+            vc_count: self.vc[usize::from(vcid & 7)],
+            fhp: z.fhp,
+        };
+        let mut f = TmFrame::new_unchecked(&mut buf[..]);
+        repr.emit(&mut f);
+        let p = HEADER_LEN + mib::link::sdls::HEADER_LEN;
+        buf[p..p + SECURE_DATA_LEN].copy_from_slice(z.data);
+        if let Err(e) = self.sa.apply_tm(self.store, &mut buf) {
+            self.counters.sdls_failed = self.counters.sdls_failed.saturating_add(1);
+            self.err = Some(e);
+            return;
+        }
+        let mut f = TmFrame::new_unchecked(&mut buf[..]);
+        f.set_ocf(self.clcw);
+        f.fill_fecf();
+        *self.mc = self.mc.wrapping_add(1);
+        let c = &mut self.vc[usize::from(vcid & 7)];
+        *c = c.wrapping_add(1);
+        self.counters.frames = self.counters.frames.saturating_add(1);
+        (self.out)(&buf);
+    }
+}
+
+impl Downlink {
+    pub fn new(scid: u16) -> Downlink {
+        Downlink {
+            scid,
+            mc: 0,
+            vc: [0; 8],
+            rt: PacketMux::default(),
+            replay: PacketMux::default(),
+            counters: TxCounters::default(),
+        }
+    }
+
+    pub fn mission() -> Downlink {
+        Downlink::new(mib::link::SCID)
+    }
+
+    /// Queues a packet on `vc`; `out` receives every frame that fills up.
+    pub fn send(
+        &mut self,
+        vc: TmVc,
+        packet: &[u8],
+        clcw: Clcw,
+        sa: &mut TxSa,
+        store: &mut impl IvStore,
+        out: impl FnMut(&[u8]),
+    ) -> Result<(), DownlinkError> {
+        let mux = match vc {
+            TmVc::Realtime => &mut self.rt,
+            TmVc::Replay => &mut self.replay,
+        };
+        let mut c = FrameCtx {
+            scid: self.scid,
+            mc: &mut self.mc,
+            vc: &mut self.vc,
+            counters: &mut self.counters,
+            clcw: clcw.emit(),
+            sa,
+            store,
+            out,
+            err: None,
+        };
+        mux.push(packet, |z| c.secure(vc.id(), z))
+            .map_err(DownlinkError::Packet)?;
+        c.err.map_or(Ok(()), |e| Err(DownlinkError::Sdls(e)))
+    }
+
+    /// Sends the partly filled frame of `vc` (padded with an idle packet), if any.
+    pub fn flush(
+        &mut self,
+        vc: TmVc,
+        clcw: Clcw,
+        sa: &mut TxSa,
+        store: &mut impl IvStore,
+        out: impl FnMut(&[u8]),
+    ) -> Result<(), DownlinkError> {
+        let mux = match vc {
+            TmVc::Realtime => &mut self.rt,
+            TmVc::Replay => &mut self.replay,
+        };
+        let mut c = FrameCtx {
+            scid: self.scid,
+            mc: &mut self.mc,
+            vc: &mut self.vc,
+            counters: &mut self.counters,
+            clcw: clcw.emit(),
+            sa,
+            store,
+            out,
+            err: None,
+        };
+        mux.flush(|z| c.secure(vc.id(), z));
+        c.err.map_or(Ok(()), |e| Err(DownlinkError::Sdls(e)))
+    }
+
+    /// An idle frame on VC7 carrying the CLCW (in clear: nothing secret, and the OCF is
+    /// outside the MAC on every VC anyway).
+    pub fn idle(&mut self, clcw: Clcw, out: &mut [u8; LEN]) {
+        let repr = TmRepr {
+            scid: self.scid,
+            vcid: tm_vc::IDLE,
+            mc_count: self.mc,
+            vc_count: self.vc[usize::from(tm_vc::IDLE)],
+            fhp: FirstHeaderPointer::IdleOnly,
+        };
+        let mut f = TmFrame::new_unchecked(&mut out[..]);
+        repr.emit(&mut f);
+        f.data_mut().fill(0x55);
+        f.set_ocf(clcw.emit());
+        f.fill_fecf();
+        self.mc = self.mc.wrapping_add(1);
+        let c = &mut self.vc[usize::from(tm_vc::IDLE)];
+        *c = c.wrapping_add(1);
+        self.counters.idle_frames = self.counters.idle_frames.saturating_add(1);
+    }
+}
+
+/// Why the ground refused a TM frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TmRxError {
+    Frame(TmError),
+    WrongScid(u16),
+    UnknownVc(u8),
+    /// An idle-VC frame that claims packets, or a packet VC frame that claims idle-only.
+    BadFirstHeaderPointer,
+    Sdls(SdlsError),
+    Clcw(ClcwError),
+}
+
+impl fmt::Display for TmRxError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            TmRxError::Frame(e) => write!(f, "{e}"),
+            TmRxError::WrongScid(s) => write!(f, "TM frame for spacecraft {s:#05x}"),
+            TmRxError::UnknownVc(v) => write!(f, "TM frame on unknown VC {v}"),
+            TmRxError::BadFirstHeaderPointer => write!(f, "first header pointer inconsistent with the VC"),
+            TmRxError::Sdls(e) => write!(f, "{e}"),
+            TmRxError::Clcw(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl core::error::Error for TmRxError {}
+
+/// Counters of the ground's TM receiver.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TmRxCounters {
+    pub frames: u32,
+    pub idle_frames: u32,
+    pub bad_frame: u32,
+    pub bad_crc: u32,
+    pub wrong_scid: u32,
+    pub unknown_vc: u32,
+    pub bad_fhp: u32,
+    pub sdls_rejected: u32,
+    pub bad_clcw: u32,
+}
+
+/// The ground's TM frame receiver: CRC, header, SDLS, demultiplexing; returns the CLCW.
+#[derive(Debug)]
+pub struct TmReceiver<const N: usize> {
+    scid: u16,
+    pub sas: RxSas<N>,
+    pub demux: [PacketDemux; 2],
+    pub counters: TmRxCounters,
+}
+
+impl<const N: usize> TmReceiver<N> {
+    pub fn new(scid: u16, sas: RxSas<N>) -> Self {
+        TmReceiver {
+            scid,
+            sas,
+            demux: [PacketDemux::default(), PacketDemux::default()],
+            counters: TmRxCounters::default(),
+        }
+    }
+
+    /// Demultiplexer counters of a VC.
+    pub fn demux_counters(&self, vc: TmVc) -> DemuxCounters {
+        self.demux[usize::from(vc.id() & 1)].counters
+    }
+
+    /// Processes one frame (decrypted in place); `out(vcid, packet)` receives its complete
+    /// packets. Returns the CLCW of an accepted frame.
+    pub fn receive(
+        &mut self,
+        store: &mut impl IvStore,
+        frame: &mut [u8],
+        out: impl FnMut(u8, &[u8]),
+    ) -> Result<Clcw, TmRxError> {
+        let r = self.process(store, frame, out);
+        let c = &mut self.counters;
+        let slot = match r {
+            Ok(_) => None,
+            Err(TmRxError::Frame(TmError::BadCrc)) => Some(&mut c.bad_crc),
+            Err(TmRxError::Frame(_)) => Some(&mut c.bad_frame),
+            Err(TmRxError::WrongScid(_)) => Some(&mut c.wrong_scid),
+            Err(TmRxError::UnknownVc(_)) => Some(&mut c.unknown_vc),
+            Err(TmRxError::BadFirstHeaderPointer) => Some(&mut c.bad_fhp),
+            Err(TmRxError::Sdls(_)) => Some(&mut c.sdls_rejected),
+            Err(TmRxError::Clcw(_)) => Some(&mut c.bad_clcw),
+        };
+        if let Some(s) = slot {
+            *s = s.saturating_add(1);
+        }
+        r
+    }
+
+    fn process(
+        &mut self,
+        store: &mut impl IvStore,
+        frame: &mut [u8],
+        mut out: impl FnMut(u8, &[u8]),
+    ) -> Result<Clcw, TmRxError> {
+        let (repr, ocf) = {
+            let f = TmFrame::new_checked(&*frame).map_err(TmRxError::Frame)?;
+            if !f.check_fecf() {
+                return Err(TmRxError::Frame(TmError::BadCrc));
+            }
+            (TmRepr::parse(&f), f.ocf())
+        };
+        if repr.scid != self.scid {
+            return Err(TmRxError::WrongScid(repr.scid));
+        }
+        let clcw = Clcw::parse(ocf).map_err(TmRxError::Clcw)?;
+        match repr.vcid {
+            tm_vc::IDLE => {
+                if repr.fhp != FirstHeaderPointer::IdleOnly {
+                    return Err(TmRxError::BadFirstHeaderPointer);
+                }
+                self.counters.idle_frames = self.counters.idle_frames.saturating_add(1);
+                Ok(clcw)
+            }
+            tm_vc::REALTIME | tm_vc::REPLAY => {
+                if repr.fhp == FirstHeaderPointer::IdleOnly {
+                    return Err(TmRxError::BadFirstHeaderPointer);
+                }
+                let pt = self.sas.process_tm(store, frame).map_err(TmRxError::Sdls)?;
+                let vc = repr.vcid;
+                self.demux[usize::from(vc & 1)].feed(repr.vc_count, repr.fhp, &frame[pt], |p| out(vc, p));
+                self.counters.frames = self.counters.frames.saturating_add(1);
+                Ok(clcw)
+            }
+            other => Err(TmRxError::UnknownVc(other)),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::farm::Farm;
+    use crate::sdls::{MemoryIvStore, RxSa};
+    use crate::test_keys::*;
+    use proptest::prelude::*;
+
+    fn packet(apid: u16, seq: u16, len: usize) -> Vec<u8> {
+        let mut p = vec![0u8; len.max(7)];
+        p[0..2].copy_from_slice(&(0x0800 | apid).to_be_bytes());
+        p[2..4].copy_from_slice(&(0xC000 | (seq & 0x3FFF)).to_be_bytes());
+        let n = p.len();
+        p[4..6].copy_from_slice(&((n - 7) as u16).to_be_bytes());
+        for (i, b) in p[6..].iter_mut().enumerate() {
+            *b = (i as u8).wrapping_mul(7) ^ (seq as u8);
+        }
+        p
+    }
+
+    fn ground() -> TmReceiver<2> {
+        let mut sas = RxSas::default();
+        sas.insert(RxSa::new(17, &TEST_KEY_TM_A, 64)).unwrap();
+        TmReceiver::new(mib::link::SCID, sas)
+    }
+
+    // verifies: LINK-TM-01, LINK-TM-02, LINK-SDLS-03
+    #[test]
+    fn downlink_frames_carry_clcw_counters_and_packets() {
+        let mut dl = Downlink::mission();
+        let mut sa = TxSa::resume(17, &TEST_KEY_TM_A, 0);
+        let (mut st, mut gst) = (MemoryIvStore::default(), MemoryIvStore::default());
+        let farm = Farm::mission();
+        let mut frames: Vec<Vec<u8>> = vec![];
+        let ps: Vec<_> = (0..12).map(|i| packet(100, i, 300)).collect();
+        for p in &ps {
+            dl.send(TmVc::Realtime, p, farm.clcw(), &mut sa, &mut st, |f| {
+                frames.push(f.to_vec())
+            })
+            .unwrap();
+        }
+        dl.flush(TmVc::Realtime, farm.clcw(), &mut sa, &mut st, |f| {
+            frames.push(f.to_vec())
+        })
+        .unwrap();
+        dl.send(TmVc::Replay, &packet(101, 0, 50), farm.clcw(), &mut sa, &mut st, |f| {
+            frames.push(f.to_vec())
+        })
+        .unwrap();
+        dl.flush(TmVc::Replay, farm.clcw(), &mut sa, &mut st, |f| frames.push(f.to_vec()))
+            .unwrap();
+        let mut idle = [0u8; LEN];
+        dl.idle(farm.clcw(), &mut idle);
+        frames.push(idle.to_vec());
+        assert_eq!(frames.len(), 4 + 1 + 1); // 3600 bytes in 982-byte zones, one replay, one idle
+        assert_eq!(
+            dl.counters,
+            TxCounters {
+                frames: 5,
+                idle_frames: 1,
+                sdls_failed: 0
+            }
+        );
+        let mut g = ground();
+        let mut got = vec![];
+        for (i, f) in frames.iter().enumerate() {
+            let v = TmFrame::new_checked(&f[..]).unwrap();
+            assert_eq!(v.mc_count() as usize, i);
+            let mut f = f.clone();
+            let c = g.receive(&mut gst, &mut f, |vc, p| got.push((vc, p.to_vec()))).unwrap();
+            assert_eq!(c, farm.clcw());
+        }
+        let want: Vec<_> = ps
+            .iter()
+            .map(|p| (0u8, p.clone()))
+            .chain([(1u8, packet(101, 0, 50))])
+            .collect();
+        assert_eq!(got, want);
+        assert_eq!(g.counters.idle_frames, 1);
+        // A replayed TM frame and a flipped bit are refused.
+        let mut f = frames[0].clone();
+        assert_eq!(
+            g.receive(&mut gst, &mut f, |_, _| {}),
+            Err(TmRxError::Sdls(SdlsError::Replay))
+        );
+        let mut f = frames[0].clone();
+        f[500] ^= 1;
+        assert_eq!(
+            g.receive(&mut gst, &mut f, |_, _| {}),
+            Err(TmRxError::Frame(TmError::BadCrc))
+        );
+    }
+
+    proptest! {
+        // verifies: LINK-RX-02
+        #[test]
+        fn tm_receiver_random_bytes_never_panic(d in proptest::collection::vec(any::<u8>(), 0..1100), fix_len in any::<bool>()) {
+            let mut g = ground();
+            let mut st = MemoryIvStore::default();
+            let mut d = d;
+            if fix_len { d.resize(LEN, 0); crate::fecf::seal(&mut d); }
+            let _ = g.receive(&mut st, &mut d, |_, _| {});
+        }
+
+        // verifies: LINK-TM-02
+        #[test]
+        fn downlink_round_trip_with_frame_loss_never_corrupts(
+            lens in proptest::collection::vec(7usize..2500, 1..30),
+            drop in proptest::collection::vec(any::<bool>(), 64),
+        ) {
+            let mut dl = Downlink::mission();
+            let mut sa = TxSa::resume(17, &TEST_KEY_TM_A, 0);
+            let (mut st, mut gst) = (MemoryIvStore::default(), MemoryIvStore::default());
+            let clcw = Farm::mission().clcw();
+            let ps: Vec<_> = lens.iter().enumerate().map(|(i, l)| packet(7, i as u16, *l)).collect();
+            let mut frames = vec![];
+            for p in &ps {
+                dl.send(TmVc::Realtime, p, clcw, &mut sa, &mut st, |f| frames.push(f.to_vec())).unwrap();
+            }
+            dl.flush(TmVc::Realtime, clcw, &mut sa, &mut st, |f| frames.push(f.to_vec())).unwrap();
+            let mut g = ground();
+            let mut got = vec![];
+            let mut dropped = 0;
+            for (i, f) in frames.iter().enumerate() {
+                if drop[i % drop.len()] { dropped += 1; continue; }
+                let mut f = f.clone();
+                g.receive(&mut gst, &mut f, |_, p| got.push(p.to_vec())).unwrap();
+            }
+            let mut it = ps.iter();
+            for p in &got {
+                prop_assert!(it.any(|q| q == p), "corrupted or reordered packet");
+            }
+            if dropped == 0 { prop_assert_eq!(got.len(), ps.len()); }
+            let lost = g.demux_counters(TmVc::Realtime).frames_lost;
+            prop_assert!(lost <= dropped);
+        }
+    }
+}
