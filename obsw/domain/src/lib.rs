@@ -21,6 +21,7 @@ pub mod bolter;
 pub mod consts;
 pub mod control;
 pub mod controller;
+pub mod discovery;
 pub mod estimate;
 pub mod filter;
 pub mod imu;
