@@ -13,6 +13,7 @@
 pub mod fastener;
 pub mod fault;
 pub mod harness;
+pub mod modules;
 pub mod serial;
 
 pub use fault::{Fault, FaultKind, ParseError, SimCommand};

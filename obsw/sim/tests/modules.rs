@@ -1,0 +1,200 @@
+//! Module-set files (plans/modules) through discovery: each example reaches its
+//! documented outcome; faults give the expected reasons; bad files give clear errors.
+
+use mib::export::urdf::urdf;
+use mib::modules::{slot, Board, NUM_SLOTS};
+use mib::tc::function;
+use mmic_domain::discovery::{compare, missing_for, operational_allowed, Blocked, ModuleIdentity, Replacement};
+use mmic_sim::modules::{outcome_key, ModuleSetSpec, SetError, SetFault};
+use std::path::{Path, PathBuf};
+
+fn plans() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../plans/modules")
+}
+
+fn load(name: &str) -> ModuleSetSpec {
+    ModuleSetSpec::load(&plans().join(name)).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn parse(text: &str) -> Result<ModuleSetSpec, SetError> {
+    ModuleSetSpec::parse(Path::new("plans/modules/test.toml"), text)
+}
+
+// verifies: MOD-SIM-03, MOD-SIM-01
+#[test]
+fn every_example_module_set_reaches_its_documented_outcome() {
+    let mut names: Vec<String> = std::fs::read_dir(plans())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".toml"))
+        .collect();
+    names.sort();
+    for required in [
+        "full.toml",
+        "locomotion-only.toml",
+        "gripper-rev-b.toml",
+        "missing-arm-b.toml",
+        "corrupted-descriptor.toml",
+    ] {
+        assert!(
+            names.iter().any(|n| n == required),
+            "{required} missing from plans/modules"
+        );
+    }
+    for n in &names {
+        let spec = load(n);
+        let expect = spec
+            .expect
+            .clone()
+            .unwrap_or_else(|| panic!("{n} states no expected outcome"));
+        let d = spec.discovery_input().discover();
+        assert_eq!(outcome_key(&d), expect, "{n}: {:?}", d.outcome);
+    }
+}
+
+// verifies: MOD-SIM-03, MOD-DISC-03, MOD-DISC-04
+#[test]
+fn rev_b_grippers_replace_the_accepted_full_set_and_locomotion_only_refuses_bolting() {
+    let full = load("full.toml").discovery_input().discover();
+    let mut ids = [None; NUM_SLOTS];
+    for (i, d) in full.set.iter().enumerate() {
+        ids[i] = d.as_ref().map(ModuleIdentity::from);
+    }
+    let rev_b = load("gripper-rev-b.toml").discovery_input().discover();
+    assert_ne!(rev_b.hash, full.hash);
+    let r = compare(&rev_b, Some(full.hash), Some(&ids));
+    assert_eq!(
+        r,
+        Replacement::Changed {
+            slot: Some(slot::GRIPPER_A)
+        }
+    );
+    assert_eq!(
+        operational_allowed(&rev_b, r),
+        Err(Blocked::NotAccepted { hash: rev_b.hash })
+    );
+    // The rev-2 calibration is what the table carries.
+    let g = rev_b.set[slot::GRIPPER_B as usize].unwrap();
+    assert_eq!((g.revision, g.cal.0[0], g.cal.0[1]), (2, 1150, 1850));
+
+    let loco = load("locomotion-only.toml").discovery_input().discover();
+    for f in [function::BOLT_FACE, function::UNBOLT_FACE] {
+        assert_eq!(missing_for(f, None, loco.present), Some(slot::BOLTER_A));
+    }
+    assert_eq!(missing_for(function::RECONFIGURE, None, loco.present), None);
+    assert_eq!(missing_for(function::BOLT_FACE, None, full.present), None);
+}
+
+// verifies: MOD-SIM-01
+#[test]
+fn injected_faults_give_their_reasons() {
+    let case = |extra: &str| {
+        let spec = parse(&format!("base = \"full\"\n{extra}")).unwrap_or_else(|e| panic!("{e}"));
+        outcome_key(&spec.discovery_input().discover())
+    };
+    assert_eq!(case(""), "FULL");
+    assert_eq!(
+        case("[[fault]]\nkind = \"unplugged\"\nslot = \"imu_b\""),
+        "invalid: probe-disagrees imu_b"
+    );
+    assert_eq!(
+        case("[[fault]]\nkind = \"unlisted\"\nslot = \"adc_a\""),
+        "invalid: probe-disagrees adc_a"
+    );
+    // A fitted gripper left out of the table has no probe: simply missing.
+    assert_eq!(
+        case("[[fault]]\nkind = \"unlisted\"\nslot = \"gripper_b\""),
+        "invalid: missing gripper_b"
+    );
+    assert_eq!(case("[[fault]]\nkind = \"board-b-silent\""), "invalid: board-b-silent");
+    assert_eq!(
+        case("[[fault]]\nkind = \"swap-revision\"\nslot = \"hip\"\nrevision = 9"),
+        "invalid: unknown-revision hip"
+    );
+    assert_eq!(
+        case("[[fault]]\nkind = \"corrupt-descriptor\"\nslot = \"bolter_b\"\nbyte = 27\nbit = 0"),
+        "invalid: corrupt-descriptor b/5"
+    );
+    let spec = parse("base = \"none\"\n[[module]]\nslot = \"board_a\"\n[[fault]]\nkind = \"board-b-silent\"").unwrap();
+    assert_eq!(spec.faults, vec![SetFault::BoardBSilent]);
+    assert_eq!(spec.fitted.iter().filter(|d| d.is_some()).count(), 1);
+}
+
+// verifies: MOD-SIM-02
+#[test]
+fn bad_files_name_file_line_key_and_problem() {
+    let err = |text: &str| parse(text).expect_err("must be refused");
+    let e = err("base = \"full\"\nabsent = [\"arm_b\", \"grip_a\"]\n");
+    assert_eq!(e.line, Some(2));
+    assert_eq!(e.key.as_deref(), Some("absent[1]"));
+    assert!(e.message.contains("unknown slot 'grip_a'"), "{e}");
+    let text = e.to_string();
+    assert!(
+        text.starts_with("plans/modules/test.toml:2: `absent[1]`: unknown slot"),
+        "{text}"
+    );
+
+    let e = err("[[fault]]\nkind = \"melt\"\nslot = \"hip\"\n");
+    assert_eq!((e.line, e.key.as_deref()), (Some(2), Some("fault[0].kind")));
+    assert!(e.message.contains("unknown fault 'melt'"), "{e}");
+
+    let e = err("[boards]\na = { firmware = \"one\" }\n");
+    assert_eq!((e.line, e.key.as_deref()), (Some(2), Some("boards.a.firmware")));
+
+    let e = err("\n\ncolour = \"red\"\n");
+    assert_eq!(e.line, Some(3));
+    assert!(e.message.contains("unknown field `colour`"), "{e}");
+
+    let e = err("[[module]]\nslot = \"arm_a\"\nrevision = \"two\"\n");
+    assert_eq!(e.line, Some(3), "{e}");
+
+    let e = err("base = \"full\"\nabsent = [\n");
+    assert!(e.line.is_some(), "{e}");
+
+    let e = err("[[fault]]\nkind = \"swap-revision\"\nslot = \"gripper_a\"\n");
+    assert_eq!(e.key.as_deref(), Some("fault[0].revision"));
+
+    let e = err("[[module]]\nslot = \"hip\"\n[[module]]\nslot = \"hip\"\n");
+    assert_eq!((e.line, e.key.as_deref()), (Some(4), Some("module[1].slot")));
+
+    let e = err("[[module]]\nslot = \"arm_a\"\ncalibration = [1,2,3,4,5,6,7,8,9]\n");
+    assert_eq!(e.key.as_deref(), Some("module[0].calibration"));
+
+    let e = ModuleSetSpec::load(Path::new("/nonexistent/x.toml")).unwrap_err();
+    assert!(e.to_string().starts_with("/nonexistent/x.toml: cannot read"), "{e}");
+}
+
+// verifies: MOD-URDF-01, MOD-SIM-01
+#[test]
+fn urdf_from_module_set_files_full_and_locomotion_only() {
+    let full = load("full.toml").discovery_input().discover();
+    let x = urdf(&full.set, Board::A, "full").unwrap();
+    assert_eq!(x.matches("<link ").count(), 18);
+    let loco = load("locomotion-only.toml").discovery_input().discover();
+    let y = urdf(&loco.set, Board::B, "loco").unwrap();
+    assert_eq!(y.matches("<link ").count(), 14);
+    assert!(y.contains(&format!("Configuration hash {:#010x}", loco.hash)));
+    // Without arm B there is no model.
+    let miss = load("missing-arm-b.toml").discovery_input().discover();
+    assert!(urdf(&miss.set, Board::A, "x").is_err());
+}
+
+// verifies: MOD-DISC-05
+#[test]
+fn discovery_of_every_example_takes_far_less_than_two_seconds() {
+    let specs: Vec<ModuleSetSpec> = ["full.toml", "missing-arm-b.toml", "corrupted-descriptor.toml"]
+        .iter()
+        .map(|n| load(n))
+        .collect();
+    let inputs: Vec<_> = specs.iter().map(|s| s.discovery_input()).collect();
+    let t = std::time::Instant::now();
+    let n = 1000;
+    for _ in 0..n {
+        for i in &inputs {
+            std::hint::black_box(i.discover());
+        }
+    }
+    let per = t.elapsed() / (n * inputs.len() as u32);
+    println!("discovery: {per:?} per run (debug build, host)");
+    assert!(per < std::time::Duration::from_millis(2000));
+}
