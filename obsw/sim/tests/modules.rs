@@ -198,3 +198,19 @@ fn discovery_of_every_example_takes_far_less_than_two_seconds() {
     println!("discovery: {per:?} per run (debug build, host)");
     assert!(per < std::time::Duration::from_millis(2000));
 }
+
+// verifies: MOD-SIM-03, MOD-CFG-02
+#[test]
+fn files_hash_to_the_documented_configuration_hashes() {
+    let doc = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/modules.md")).unwrap();
+    for file in ["full.toml", "locomotion-only.toml", "gripper-rev-b.toml"] {
+        let marker = format!("hash of {file}: `");
+        let at = doc
+            .find(&marker)
+            .unwrap_or_else(|| panic!("docs/modules.md lacks {marker}"))
+            + marker.len();
+        let documented = doc[at..].split('`').next().unwrap();
+        let d = load(file).discovery_input().discover();
+        assert_eq!(documented, format!("{:#010x}", d.hash), "{file}");
+    }
+}
