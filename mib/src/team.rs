@@ -31,11 +31,23 @@ pub const fn quorum(n: usize) -> usize {
 /// sends at least a time/housekeeping TC every few seconds during a pass; 5 s is two missed
 /// 2 s ground heartbeats plus margin.
 pub const GROUND_LOSS_TIMEOUT_MS: u64 = 5_000;
-/// Shortest randomised election timeout (time without a leader heartbeat, or since the ground
-/// loss was detected, before a robot stands as candidate).
+/// Election timeout after hearing a leader (or granting a vote, or a failed candidacy): a
+/// robot waits `ELECTION_TIMEOUT_MIN_MS + rank * ELECTION_RANK_STAGGER_MS + jitter` before
+/// standing, `rank` being its index in the roster (the ground's order of preference) and
+/// `jitter` uniform in `0..ELECTION_JITTER_MS` (randomness from the host). It never votes
+/// within `ELECTION_TIMEOUT_MIN_MS` of hearing a leader or granting a vote.
 pub const ELECTION_TIMEOUT_MIN_MS: u64 = 1_000;
-/// Longest randomised election timeout (exclusive upper bound of the uniform draw).
-pub const ELECTION_TIMEOUT_MAX_MS: u64 = 2_000;
+/// Extra wait per roster rank: the preferred robot stands first, the next one a stagger
+/// later, so that with a one-way delay below the stagger their candidacies rarely collide.
+pub const ELECTION_RANK_STAGGER_MS: u64 = 800;
+/// Random part of every election timeout (exclusive upper bound of the uniform draw).
+pub const ELECTION_JITTER_MS: u64 = 200;
+/// First election after the ground loss is detected: no leader can exist then, so the
+/// base is short: `ELECTION_FIRST_BASE_MS + rank * ELECTION_RANK_STAGGER_MS + jitter`.
+pub const ELECTION_FIRST_BASE_MS: u64 = 500;
+/// Longest election timeout of any robot (last rank, largest jitter; exclusive bound).
+pub const ELECTION_TIMEOUT_MAX_MS: u64 =
+    ELECTION_TIMEOUT_MIN_MS + (ROSTER_MAX as u64 - 1) * ELECTION_RANK_STAGGER_MS + ELECTION_JITTER_MS;
 /// A leader sends a heartbeat (carrying its directive) this often.
 pub const HEARTBEAT_PERIOD_MS: u64 = 200;
 /// A candidate repeats its vote request to robots that have not answered this often
@@ -44,6 +56,9 @@ pub const VOTE_RETRY_MS: u64 = 300;
 /// Leader lease: a leader only directs while a quorum (itself included) has acknowledged a
 /// heartbeat it sent less than this long ago; otherwise it steps down.
 pub const LEADER_LEASE_MS: u64 = 900;
+/// A leader steps down when no quorum acknowledged a heartbeat it sent within this time
+/// (check-quorum; longer than the worst round trip plus a heartbeat period).
+pub const LEADER_QUORUM_CHECK_MS: u64 = 2_000;
 /// Assumed worst one-way delay of the inter-robot link (later packets are treated as lost).
 pub const LINK_MAX_DELAY_MS: u64 = 500;
 /// Assumed worst relative drift of two robots' clocks, parts per million.
@@ -58,6 +73,8 @@ const _: () =
     assert!(LEADER_LEASE_MS * (1_000_000 + CLOCK_DRIFT_PPM) < ELECTION_TIMEOUT_MIN_MS * (1_000_000 - CLOCK_DRIFT_PPM));
 const _: () = assert!(HEARTBEAT_PERIOD_MS * 3 < LEADER_LEASE_MS);
 const _: () = assert!(ELECTION_TIMEOUT_MIN_MS < ELECTION_TIMEOUT_MAX_MS);
+const _: () = assert!(LEADER_LEASE_MS < LEADER_QUORUM_CHECK_MS);
+const _: () = assert!(2 * LINK_MAX_DELAY_MS + HEARTBEAT_PERIOD_MS < LEADER_QUORUM_CHECK_MS);
 const _: () = assert!(ROSTER_MIN <= ROSTER_MAX && ROSTER_MAX <= 32);
 
 // ---------------------------------------------------------------------------------------

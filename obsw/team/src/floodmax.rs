@@ -84,6 +84,15 @@ impl Floodmax {
         self.done
     }
 
+    /// When the next `Tick` may change something.
+    pub fn next_deadline(&self) -> u64 {
+        match self.round_end {
+            None => self.ground_last.saturating_add(GROUND_LOSS_TIMEOUT_MS),
+            Some(_) if self.done => u64::MAX,
+            Some(end) => end,
+        }
+    }
+
     pub fn on_event(&mut self, now: u64, input: FloodInput) -> FloodEffects {
         let mut out = FloodEffects::new();
         match input {

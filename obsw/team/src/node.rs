@@ -26,8 +26,9 @@ use crate::wire::{Body, Directive, Message, PlanRef, RobotId, TeamFunction};
 use core::fmt;
 use heapless::Vec;
 use mib::team::{
-    quorum, ELECTION_TIMEOUT_MAX_MS, ELECTION_TIMEOUT_MIN_MS, GROUND_LOSS_TIMEOUT_MS, HEARTBEAT_PERIOD_MS,
-    LEADER_LEASE_MS, MAX_AUTHORISATION_MS, MAX_AUTHORISED_STEPS, ROSTER_MAX, ROSTER_MIN, VOTE_RETRY_MS,
+    quorum, ELECTION_FIRST_BASE_MS, ELECTION_JITTER_MS, ELECTION_RANK_STAGGER_MS, ELECTION_TIMEOUT_MIN_MS,
+    GROUND_LOSS_TIMEOUT_MS, HEARTBEAT_PERIOD_MS, LEADER_LEASE_MS, LEADER_QUORUM_CHECK_MS, MAX_AUTHORISATION_MS,
+    MAX_AUTHORISED_STEPS, ROSTER_MAX, ROSTER_MIN, VOTE_RETRY_MS,
 };
 
 /// The team roster uploaded by the ground (fixed while the ground is away).
@@ -366,10 +367,6 @@ fn check_roster(me: RobotId, roster: &[RobotId]) -> Result<Roster, RosterError> 
     Ok(out)
 }
 
-fn election_timeout(rand: u32) -> u64 {
-    ELECTION_TIMEOUT_MIN_MS + u64::from(rand) % (ELECTION_TIMEOUT_MAX_MS - ELECTION_TIMEOUT_MIN_MS)
-}
-
 struct Out {
     effects: Effects,
     dropped: u32,
@@ -494,6 +491,22 @@ impl Node {
         Ok(())
     }
 
+    /// Election timeout: base + roster rank * stagger + random jitter.
+    fn timeout(&self, base: u64, rand: u32) -> u64 {
+        let rank = self.index(self.me).unwrap_or(0) as u64;
+        base + rank * ELECTION_RANK_STAGGER_MS + u64::from(rand) % ELECTION_JITTER_MS
+    }
+
+    fn election_timeout(&self, rand: u32) -> u64 {
+        self.timeout(ELECTION_TIMEOUT_MIN_MS, rand)
+    }
+
+    /// A leader (or a granted vote) was heard less than `ELECTION_TIMEOUT_MIN_MS` ago.
+    fn sticky(&self, now: u64) -> bool {
+        self.leader_contact
+            .is_some_and(|t| now.saturating_sub(t) < ELECTION_TIMEOUT_MIN_MS)
+    }
+
     fn index(&self, r: RobotId) -> Option<usize> {
         self.roster.iter().position(|x| *x == r)
     }
@@ -585,7 +598,7 @@ impl Node {
                 return;
             }
             self.ground_seen = false;
-            self.election_deadline = now + election_timeout(rand);
+            self.election_deadline = now + self.timeout(ELECTION_FIRST_BASE_MS, rand);
             out.push(Effect::Event(TeamEvent::GroundLost));
             // Each robot holds on its own until a leader (if any) says otherwise.
             out.push(Effect::Act(Action::Hold(self.hold_target())));
@@ -593,7 +606,13 @@ impl Node {
         match self.role {
             Role::Follower => {
                 if now >= self.election_deadline {
-                    self.start_election(now, rand, out);
+                    if self.sticky(now) {
+                        // Never stand within an election timeout of hearing a leader or
+                        // granting a vote (that leader's lease may still run).
+                        self.election_deadline = self.leader_contact.unwrap_or(now) + self.election_timeout(rand);
+                    } else {
+                        self.start_election(now, rand, out);
+                    }
                 }
             }
             Role::Candidate => {
@@ -608,13 +627,13 @@ impl Node {
             Role::Leader => {
                 // Check quorum: step down when no quorum acknowledged for an election
                 // timeout (a new leader may be elected elsewhere by then).
-                if now.saturating_sub(self.leader_since) >= ELECTION_TIMEOUT_MIN_MS
-                    && self.acked_within(now, ELECTION_TIMEOUT_MIN_MS) < self.quorum()
+                if now.saturating_sub(self.leader_since) >= LEADER_QUORUM_CHECK_MS
+                    && self.acked_within(now, LEADER_QUORUM_CHECK_MS) < self.quorum()
                 {
                     self.role = Role::Follower;
                     self.leader = None;
                     self.leader_contact = None;
-                    self.election_deadline = now + election_timeout(rand);
+                    self.election_deadline = now + self.election_timeout(rand);
                     out.push(Effect::Event(TeamEvent::SteppedDown {
                         term: self.term,
                         reason: StepDownReason::QuorumLost,
@@ -639,7 +658,7 @@ impl Node {
             self.votes |= 1 << i;
         }
         self.candidacy_start = now;
-        self.election_deadline = now + election_timeout(rand);
+        self.election_deadline = now + self.election_timeout(rand);
         self.next_send = now + VOTE_RETRY_MS;
         out.push(Effect::Event(TeamEvent::ElectionStarted { term: self.term }));
         let m = self.header(Body::RequestVote);
@@ -736,7 +755,7 @@ impl Node {
                 if m.term > self.term {
                     self.adopt_term(m.term, out);
                     if !self.ground_seen {
-                        self.election_deadline = now + election_timeout(rand);
+                        self.election_deadline = now + self.election_timeout(rand);
                     }
                     return;
                 }
@@ -758,7 +777,7 @@ impl Node {
                 if m.term > self.term {
                     self.adopt_term(m.term, out);
                     if !self.ground_seen {
-                        self.election_deadline = now + election_timeout(rand);
+                        self.election_deadline = now + self.election_timeout(rand);
                     }
                     return;
                 }
@@ -787,12 +806,12 @@ impl Node {
             // stepped down): it ignores candidates until it learns a higher term.
             return;
         }
-        if let Some(t) = self.leader_contact {
-            if now.saturating_sub(t) < ELECTION_TIMEOUT_MIN_MS && self.role != Role::Candidate {
-                // A leader (or boot) was heard too recently: the leader's lease may still
-                // be running. Ignore the request without adopting its term.
-                return;
-            }
+        let repeat = m.term == self.term && self.voted_for == Some(m.sender);
+        if self.sticky(now) && self.role != Role::Candidate && !repeat {
+            // A leader (or boot, or a vote granted) too recently: that leader's lease may
+            // still run. Ignore the request without adopting its term (a repeated request
+            // of the candidate it voted for is answered again: the vote may have been lost).
+            return;
         }
         if m.term < self.term {
             self.counters.stale = self.counters.stale.saturating_add(1);
@@ -811,9 +830,13 @@ impl Node {
         }
         let free = self.voted_for.is_none() || self.voted_for == Some(m.sender);
         let granted = free && m.plan == self.plan && m.progress >= self.progress;
-        if granted {
+        if granted && self.voted_for.is_none() {
             self.voted_for = Some(m.sender);
-            self.election_deadline = now + election_timeout(rand);
+            // The candidate may win and count this vote in its lease (from the start of its
+            // candidacy): no other vote (nor own candidacy) before an election timeout. A
+            // repeated grant to the same candidate changes nothing.
+            self.leader_contact = Some(now);
+            self.election_deadline = now + self.election_timeout(rand);
         }
         let reply = self.header(Body::Vote {
             candidate: m.sender,
@@ -859,7 +882,7 @@ impl Node {
             }));
         }
         self.leader_contact = Some(now);
-        self.election_deadline = now + election_timeout(rand);
+        self.election_deadline = now + self.election_timeout(rand);
         let reply = self.header(Body::HeartbeatAck { stamp, ok: true });
         out.push(Effect::Send {
             to: Dest::To(m.sender),

@@ -142,11 +142,11 @@ fn ground_loss_is_detected_after_the_mib_timeout_and_the_robot_holds() {
     assert_eq!(events(&e), vec![TeamEvent::GroundLost]);
     assert_eq!(actions(&e), vec![Action::Hold(HoldTarget::Standby)]);
     assert!(!n.ground_seen());
-    // No election before the shortest election timeout.
+    // Robot 1 is first in the roster: it stands after the first-election base (+ jitter).
     assert!(n
-        .on_event(2 * LOST + ELECTION_TIMEOUT_MIN_MS - 1, 0, Input::Tick)
+        .on_event(2 * LOST + ELECTION_FIRST_BASE_MS - 1, 0, Input::Tick)
         .is_empty());
-    let e = n.on_event(2 * LOST + ELECTION_TIMEOUT_MIN_MS, 0, Input::Tick);
+    let e = n.on_event(2 * LOST + ELECTION_FIRST_BASE_MS, 0, Input::Tick);
     assert_eq!(events(&e), vec![TeamEvent::ElectionStarted { term: 1 }]);
 }
 
@@ -160,16 +160,33 @@ fn holding_without_both_grippers_means_safed() {
 
 // verifies: TEAM-ELECT-02
 #[test]
-fn election_timeouts_are_drawn_from_the_mib_range() {
-    let mut seen = std::collections::BTreeSet::new();
-    for rand in [0u32, 1, 499, 999, 1_000, u32::MAX, 123_456_789] {
-        let mut n = node(1, &[1, 2, 3]);
-        n.on_event(LOST, rand, Input::Tick);
-        let d = n.next_deadline() - LOST;
-        assert!((ELECTION_TIMEOUT_MIN_MS..ELECTION_TIMEOUT_MAX_MS).contains(&d), "{d}");
-        seen.insert(d);
+fn election_timeouts_are_staggered_by_rank_and_randomised() {
+    for (me, rank) in [(1u8, 0u64), (3, 2)] {
+        let mut seen = std::collections::BTreeSet::new();
+        for rand in [0u32, 1, 499, 999, 1_000, u32::MAX, 123_456_789] {
+            let mut n = node(me, &[1, 2, 3]);
+            n.on_event(LOST, rand, Input::Tick);
+            // First election after the ground loss.
+            let d = n.next_deadline() - LOST;
+            let lo = ELECTION_FIRST_BASE_MS + rank * ELECTION_RANK_STAGGER_MS;
+            assert!((lo..lo + ELECTION_JITTER_MS).contains(&d), "{d}");
+            seen.insert(d);
+            // After a failed candidacy: the full timeout.
+            let t = LOST + d;
+            n.on_event(t, rand, Input::Tick);
+            assert_eq!(n.role(), Role::Candidate);
+            let lo = ELECTION_TIMEOUT_MIN_MS + rank * ELECTION_RANK_STAGGER_MS;
+            assert_eq!(n.term(), 1);
+            let mut k = t;
+            while n.term() == 1 {
+                k += 1;
+                n.on_event(k, rand, Input::Tick);
+            }
+            assert!((lo..lo + ELECTION_JITTER_MS).contains(&(k - t)), "{}", k - t);
+            assert!(k - t < mib::team::ELECTION_TIMEOUT_MAX_MS);
+        }
+        assert!(seen.len() >= 5, "the random input must spread the timeout: {seen:?}");
     }
-    assert!(seen.len() >= 5, "the random input must spread the timeout: {seen:?}");
 }
 
 // verifies: TEAM-PERSIST-01
@@ -430,10 +447,14 @@ fn votes_only_for_the_same_plan_and_at_least_the_voters_progress() {
     // Same plan, equal progress: granted.
     let e = b.on_event(t, 0, ask(4, 3, PLAN));
     assert!(granted(&e));
+    // After a grant the robot ignores requests for an election timeout.
+    assert!(sends(&b.on_event(t + 1, 0, ask(5, 9, PLAN))).is_empty());
     // More progress: granted (term 5).
+    let t = t + ELECTION_TIMEOUT_MIN_MS;
     let e = b.on_event(t, 0, ask(5, 9, PLAN));
     assert!(granted(&e));
     // A stale term is refused.
+    let t = t + ELECTION_TIMEOUT_MIN_MS;
     let e = b.on_event(t, 0, ask(4, 9, PLAN));
     assert!(!granted(&e));
 }
@@ -573,12 +594,16 @@ fn continue_needs_the_lease_and_the_lease_expires() {
         }
     }
     now += HEARTBEAT_PERIOD_MS;
-    assert!(now >= t + 250 + LEADER_LEASE_MS && now < t + 250 + ELECTION_TIMEOUT_MIN_MS);
+    assert!(now >= t + 250 + LEADER_LEASE_MS && now < t + 250 + LEADER_QUORUM_CHECK_MS);
     assert_eq!(directives(&a.on_event(now, 0, Input::Tick)), vec![Directive::Hold]);
     assert!(!a.status(now).lease);
     assert_eq!(a.role(), Role::Leader);
-    // Without a quorum for an election timeout, it steps down.
-    let e = a.on_event(t + 250 + ELECTION_TIMEOUT_MIN_MS, 0, Input::Tick);
+    // HOLD goes on until the quorum check fails; then it steps down.
+    while now + HEARTBEAT_PERIOD_MS < t + 250 + LEADER_QUORUM_CHECK_MS {
+        now += HEARTBEAT_PERIOD_MS;
+        assert_eq!(directives(&a.on_event(now, 0, Input::Tick)), vec![Directive::Hold]);
+    }
+    let e = a.on_event(t + 250 + LEADER_QUORUM_CHECK_MS, 0, Input::Tick);
     assert_eq!(a.role(), Role::Follower);
     assert!(events(&e).contains(&TeamEvent::SteppedDown {
         term: 1,
