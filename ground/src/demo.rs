@@ -39,6 +39,15 @@ pub struct DemoArgs {
     plain: bool,
 }
 
+/// A temporary directory removed (with its content) when dropped.
+pub struct TempDir(pub PathBuf);
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
 /// Running OBSW processes, stopped on drop.
 pub struct Obsws(pub Vec<(u8, Child)>);
 
@@ -171,9 +180,13 @@ pub fn demo(a: &DemoArgs, archive_path: Option<&Path>) -> Result<u8> {
         let lines: Vec<String> = d.iter().map(|x| x.to_string()).collect();
         crate::coded(crate::exit::INVALID, lines.join("\n"))
     })?;
+    crate::plan_policy(&name, &pl)?;
     let bin = find_obsw(a.obsw.as_deref())?;
-    let logdir = std::env::temp_dir().join(format!("ground-demo-{}", std::process::id()));
-    std::fs::create_dir_all(&logdir)?;
+    // The OBSWs' logs live as long as the demo (their last line is shown if one does not
+    // start); nothing is left behind.
+    let logdir = TempDir(std::env::temp_dir().join(format!("ground-demo-{}", std::process::id())));
+    std::fs::create_dir_all(&logdir.0)?;
+    let logdir = &logdir.0;
     crate::err_line!(
         "demo: plan \"{}\" ({} steps, robots {}); starting {} OBSW(s) from {} at speed x{}",
         pl.name,
@@ -192,17 +205,19 @@ pub fn demo(a: &DemoArgs, archive_path: Option<&Path>) -> Result<u8> {
     for r in &pl.robots {
         let log = logdir.join(format!("obsw-{}.log", r.number));
         let (child, addr) = start_obsw(&bin, r.number, a.speed, a.seed + r.number as u64, r.initial_state, &log)?;
-        crate::err_line!("demo: robot {} OBSW at {addr} (log {})", r.number, log.display());
+        crate::err_line!("demo: robot {} OBSW at {addr}", r.number);
         procs.0.push((r.number, child));
         links.push((r.number, addr));
     }
     let transport = if a.tcp { Transport::Tcp } else { Transport::Udp };
     let (mut session, arch) = crate::open_session(&links, transport, archive_path)?;
+    session.run_id = Some(ops::runs::new_run_id());
     let opts = RunOptions {
         display: !a.plain && std::io::IsTerminal::is_terminal(&std::io::stderr()),
+        stop: Some(crate::interrupt_flag()),
         ..RunOptions::default()
     };
-    let summary = ops::run_plan(&pl, &mut session, &opts, &[]);
+    let summary = ops::run_plan(&pl, &mut session, &opts, &ops::Resume::default());
     drop(session);
     drop(procs);
     let stats = match arch {
@@ -221,7 +236,9 @@ pub fn demo(a: &DemoArgs, archive_path: Option<&Path>) -> Result<u8> {
         ))?,
         _ => crate::out("archive: disabled (--no-archive)")?,
     }
-    Ok(if summary.success() {
+    Ok(if summary.interrupted {
+        crate::exit::INTERRUPTED
+    } else if summary.success() {
         crate::exit::OK
     } else {
         crate::exit::FAILED

@@ -1,9 +1,13 @@
 //! `ground`: the MMIC-I operators' tool. See `docs/operator-guide.md`.
 //!
-//! Exit codes: 0 success; 1 error (I/O, archive, internal); 2 command-line usage;
-//! 3 invalid input (plan, TC name or arguments, corrupt packets with `decode --strict`);
-//! 4 a TC or plan step failed or was refused; 5 no answer from a robot.
+//! Exit codes (the table in docs/operator-guide.md): 0 success; 1 error (I/O, archive,
+//! internal); 2 command-line usage; 3 invalid input or refused before sending (plan, TC
+//! name or arguments, an unconfirmed hazardous TC, corrupt packets with
+//! `decode --strict`); 4 a TC or plan step failed, was refused or timed out; 5 nothing
+//! heard from a robot; 6 a run interrupted by the operator; 7 replies from another APID
+//! (wrong robot at the address); 8 a robot heard, then lost; 130 a second Ctrl-C.
 
+use std::collections::BTreeMap;
 use std::io::Write;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
@@ -27,9 +31,16 @@ mod plot;
 pub mod exit {
     pub const OK: u8 = 0;
     pub const ERROR: u8 = 1;
+    pub const USAGE: u8 = 2;
     pub const INVALID: u8 = 3;
     pub const FAILED: u8 = 4;
+    /// Nothing heard from a robot (also: no simulator answering); see
+    /// `ground::ops::NoAnswer` for 5, 7 and 8.
     pub const NO_ANSWER: u8 = 5;
+    /// `ground run` interrupted by Ctrl-C or SIGTERM: summary printed, `--resume` continues.
+    pub const INTERRUPTED: u8 = 6;
+    /// A second Ctrl-C: exit at once.
+    pub const INTERRUPTED_AGAIN: i32 = 130;
 }
 
 /// An error with its exit code.
@@ -130,7 +141,8 @@ struct DecodeArgs {
 /// Robot links: `N=HOST:PORT`, or `N` for 127.0.0.1:(7300+N).
 #[derive(Args, Debug, Clone)]
 struct Links {
-    /// Robot link `N=HOST:PORT` (or just `N` for 127.0.0.1:7300+N, robot 1 = 7301); repeat per robot.
+    /// Robot link `N=HOST:PORT` (or just `N` for 127.0.0.1:7300+N, robot 1 = 7301); repeat
+    /// per robot. Required by ping, send, mode and watch; `run` adds the plan's robots.
     #[arg(long = "robot", short = 'r', value_parser = parse_robot)]
     robots: Vec<(u8, SocketAddr)>,
     /// Use TCP (COBS framing) instead of UDP.
@@ -165,10 +177,14 @@ struct RunArgs {
     /// Print the summary as JSON.
     #[arg(long)]
     json: bool,
-    /// Continue an interrupted run: steps whose TC the archive shows completed are not
-    /// sent again.
-    #[arg(long)]
-    resume: bool,
+    /// Continue a run (the latest run of this plan in the archive, or RUN_ID): its
+    /// completed steps are not sent again, a TC whose outcome is unknown is resolved
+    /// from the robot's reports and on-board store before anything is sent.
+    #[arg(long, value_name = "RUN_ID", num_args = 0..=1, default_missing_value = "")]
+    resume: Option<String>,
+    /// After a first Ctrl-C, longest wait (seconds) for the steps in flight.
+    #[arg(long, default_value_t = ground::ops::INTERRUPT_GRACE.as_secs_f64())]
+    grace: f64,
 }
 
 #[derive(Args, Debug)]
@@ -197,6 +213,9 @@ struct SendArgs {
     /// Longest wait for completion (seconds).
     #[arg(long, default_value_t = 60.0)]
     timeout: f64,
+    /// Confirm a hazardous TC (the MIB's hazard flag); without it one is refused.
+    #[arg(long)]
+    confirm: bool,
 }
 
 #[derive(Args, Debug)]
@@ -207,6 +226,9 @@ struct ModeArgs {
     mode: String,
     #[arg(long, default_value_t = 60.0)]
     timeout: f64,
+    /// Confirm the mode change (MODE_SET is hazardous in the MIB); refused without it.
+    #[arg(long)]
+    confirm: bool,
 }
 
 #[derive(Args, Debug)]
@@ -230,8 +252,8 @@ struct WatchArgs {
 #[derive(Args, Debug)]
 struct SimArgs {
     /// Robot number (control port 127.0.0.1:7400+N unless --addr).
-    #[arg(long, short = 'r', default_value_t = mib::apid::DEFAULT_ROBOT)]
-    robot: u8,
+    #[arg(long, short = 'r', required_unless_present = "addr")]
+    robot: Option<u8>,
     /// Simulator control address.
     #[arg(long)]
     addr: Option<SocketAddr>,
@@ -245,10 +267,10 @@ struct FilterArgs {
     #[arg(long)]
     robot: Option<u8>,
     /// From this time (RFC 3339, "YYYY-MM-DD HH:MM:SS" UTC, Unix ms, or relative like -10m).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     since: Option<String>,
     /// Until this time (same forms as --since).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     until: Option<String>,
     /// PUS service (TC and TM).
     #[arg(long)]
@@ -359,9 +381,9 @@ enum ArchiveCmd {
         out: PathBuf,
         #[arg(long)]
         robot: Option<u8>,
-        #[arg(long)]
+        #[arg(long, allow_hyphen_values = true)]
         since: Option<String>,
-        #[arg(long)]
+        #[arg(long, allow_hyphen_values = true)]
         until: Option<String>,
     },
     /// Import a raw packet stream (a capture, a store dump); packets already archived
@@ -507,6 +529,15 @@ fn plan_check(plans: &[PathBuf], json: bool) -> Result<u8> {
             }
         };
         match plan::parse(&src) {
+            Ok(pl) if !unconfirmed(&pl).is_empty() => {
+                bad += 1;
+                let list = unconfirmed(&pl);
+                for (st, e) in &list {
+                    let (line, col) = plan::line_col(&src, st.span.start);
+                    err_line!("{}:{line}:{col}: error: step \"{}\": {e}", p.display(), st.id);
+                }
+                err_line!("{}: {} error(s)", p.display(), list.len());
+            }
             Ok(pl) => {
                 if json {
                     out(&serde_json::to_string_pretty(&pl)?)?;
@@ -636,25 +667,53 @@ fn close_archive(a: Option<Archive>) -> Result<()> {
 
 fn run_plan(a: &RunArgs, archive_path: Option<&Path>) -> Result<u8> {
     let pl = load_plan(&a.plan)?;
+    // A --robot the plan does not use is a mistake in the command, not a robot to wait
+    // for: refused before anything is sent.
+    for (n, addr) in &a.links.robots {
+        if !pl.robots.iter().any(|r| r.number == *n) {
+            let theirs: Vec<String> = pl.robots.iter().map(|r| r.number.to_string()).collect();
+            return Err(coded(
+                exit::USAGE,
+                format!(
+                    "--robot {n}={addr}: robot {n} is not in plan \"{}\" (its robots: {}); drop it",
+                    pl.name,
+                    theirs.join(", ")
+                ),
+            ));
+        }
+    }
+    plan_policy(&a.plan.display().to_string(), &pl)?;
     let mut links = a.links.robots.clone();
     for r in &pl.robots {
         if !links.iter().any(|(n, _)| *n == r.number) {
             links.push((r.number, default_addr(r.number)));
         }
     }
+    let (run_id, resume) = match &a.resume {
+        None => (ground::ops::runs::new_run_id(), ops::Resume::default()),
+        Some(wanted) => {
+            let p =
+                archive_path.ok_or_else(|| coded(exit::INVALID, "--resume needs the archive (drop --no-archive)"))?;
+            resume_state(p, &pl, (!wanted.is_empty()).then_some(wanted.as_str()))?
+        }
+    };
+    say_links(&links, a.links.transport());
     let (mut session, arch) = open_session(&links, a.links.transport(), archive_path)?;
+    session.run_id = Some(run_id.clone());
+    err_line!(
+        "run {run_id}: plan \"{}\"{}",
+        pl.name,
+        if a.resume.is_some() { " (resumed)" } else { "" }
+    );
     let opts = RunOptions {
         step_timeout: Duration::from_secs_f64(a.step_timeout),
         ping_period: (!a.no_ping).then(|| Duration::from_millis(mib::config::GROUND_HEARTBEAT_MS as u64)),
         display: !a.plain && std::io::IsTerminal::is_terminal(&std::io::stderr()),
+        stop: Some(interrupt_flag()),
+        grace: Duration::from_secs_f64(a.grace.max(0.0)),
     };
-    let done = if a.resume {
-        let p = archive_path.ok_or_else(|| coded(exit::INVALID, "--resume needs the archive (drop --no-archive)"))?;
-        completed_steps(p, &pl)?
-    } else {
-        Vec::new()
-    };
-    let summary = ops::run_plan(&pl, &mut session, &opts, &done);
+    let summary = ops::run_plan(&pl, &mut session, &opts, &resume);
+    let no_answer = session.robots.values().find_map(|s| s.lost_kind);
     drop(session);
     close_archive(arch)?;
     if a.json {
@@ -665,8 +724,10 @@ fn run_plan(a: &RunArgs, archive_path: Option<&Path>) -> Result<u8> {
             out(&format!("archive: {}", p.display()))?;
         }
     }
-    Ok(if !summary.link_lost.is_empty() {
-        exit::NO_ANSWER
+    Ok(if summary.interrupted {
+        exit::INTERRUPTED
+    } else if let Some(k) = no_answer {
+        k.exit_code()
     } else if summary.success() {
         exit::OK
     } else {
@@ -674,9 +735,56 @@ fn run_plan(a: &RunArgs, archive_path: Option<&Path>) -> Result<u8> {
     })
 }
 
-/// Steps of `pl` whose TC the archive shows completed (TM[1,7] for its request ID after
-/// it was sent), for `run --resume`.
-fn completed_steps(path: &Path, pl: &plan::Plan) -> Result<Vec<usize>> {
+/// The steps of `pl` with a hazardous TC and no `confirm = true`.
+fn unconfirmed(pl: &plan::Plan) -> Vec<(&plan::Step, ops::policy::PolicyError)> {
+    pl.steps
+        .iter()
+        .filter_map(|s| {
+            let (def, _) = s.action.tc()?;
+            ops::policy::check_confirmed(def, s.confirm, "add `confirm = true` to the step")
+                .err()
+                .map(|e| (s, e))
+        })
+        .collect()
+}
+
+/// Refuses a plan whose hazardous steps are not confirmed (every one listed).
+pub fn plan_policy(file: &str, pl: &plan::Plan) -> Result<()> {
+    let refused: Vec<String> = unconfirmed(pl)
+        .into_iter()
+        .map(|(s, e)| format!("{file}: step \"{}\": {e}", s.id))
+        .collect();
+    if refused.is_empty() {
+        Ok(())
+    } else {
+        Err(coded(exit::INVALID, refused.join("\n")))
+    }
+}
+
+/// Sets up Ctrl-C and SIGTERM: the first sets the returned flag (the run stops sending
+/// and ends with its summary), a second exits at once with 130.
+pub fn interrupt_flag() -> std::sync::Arc<std::sync::atomic::AtomicBool> {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let flag = std::sync::Arc::new(AtomicBool::new(false));
+    let f = flag.clone();
+    let set = ctrlc::set_handler(move || {
+        if f.swap(true, Ordering::SeqCst) {
+            err_line!("ground: interrupted again: exiting at once (exit 130); steps in flight keep running on board");
+            std::process::exit(exit::INTERRUPTED_AGAIN);
+        }
+        err_line!(
+            "ground: interrupted: no new step is sent; waiting for the steps in flight (Ctrl-C again to quit at once)"
+        );
+    });
+    if let Err(e) = set {
+        err_line!("ground: warning: no Ctrl-C handling ({e})");
+    }
+    flag
+}
+
+/// What `--resume` continues: the run (latest of this plan, or `wanted`), its completed
+/// steps and the TCs whose outcome it does not know.
+fn resume_state(path: &Path, pl: &plan::Plan, wanted: Option<&str>) -> Result<(String, ops::Resume)> {
     let loc = path.to_string_lossy();
     let mut st = match archive::Store::open_existing(&loc) {
         Ok(st) => st,
@@ -685,137 +793,162 @@ fn completed_steps(path: &Path, pl: &plan::Plan) -> Result<Vec<usize>> {
         }
         Err(e) => return Err(anyhow!("--resume: {e}")),
     };
-    let mut done = Vec::new();
+    let rec = ops::runs::find_run(&mut st, pl, wanted).map_err(|e| match e {
+        ops::runs::ResumeError::Archive(e) => anyhow!("--resume: reading the archive: {e}"),
+        e => coded(exit::INVALID, format!("--resume: {e}")),
+    })?;
+    let mut r = ops::Resume::default();
     for (i, s) in pl.steps.iter().enumerate() {
-        let Some((def, _)) = s.action.tc() else { continue };
-        if st
-            .step_completed(&s.id, s.robot, def.name)
-            .map_err(|e| anyhow!("--resume: reading the archive: {e}"))?
-        {
-            done.push(i);
+        let (Some((def, args)), Some(tc)) = (s.action.tc(), rec.steps.get(&s.id)) else {
+            continue;
+        };
+        match tc.outcome {
+            ops::runs::Outcome::Completed => r.done.push(i),
+            // Failed: it did not complete; it runs again as a new TC.
+            ops::runs::Outcome::Failed(_) => {}
+            ops::runs::Outcome::Accepted | ops::runs::Outcome::NoReport => r.in_flight.push(ops::InFlight {
+                step: i,
+                tc: pus::BuiltTc {
+                    def,
+                    args,
+                    apid: tc.apid,
+                    seq: tc.seq,
+                    bytes: tc.raw.clone(),
+                },
+                accepted: tc.outcome == ops::runs::Outcome::Accepted,
+            }),
         }
     }
-    // A wait step between completed steps is done too.
+    // A wait step before a step that completed or was sent is done too.
     for (i, s) in pl.steps.iter().enumerate() {
-        if s.action.tc().is_none() && pl.dependents(i).iter().any(|d| done.contains(d)) {
-            done.push(i);
+        let started = |d: &usize| r.done.contains(d) || r.in_flight.iter().any(|f| f.step == *d);
+        if s.action.tc().is_none() && pl.dependents(i).iter().any(started) {
+            r.done.push(i);
         }
     }
-    Ok(done)
+    for f in &r.in_flight {
+        let robot = pl.steps[f.step].robot;
+        if !r.last_seq.iter().any(|(x, _)| *x == robot) {
+            if let Some(seq) = ops::runs::last_tm_seq(&mut st, robot).map_err(|e| anyhow!("--resume: {e}"))? {
+                r.last_seq.push((robot, seq));
+            }
+        }
+    }
+    err_line!(
+        "resuming run {} of plan \"{}\" (first TC {}, last TC {}): {} step(s) completed, {} with an outcome to resolve",
+        rec.run_id,
+        pl.name,
+        fmt_ms(rec.first_ms),
+        fmt_ms(rec.last_ms),
+        r.done.iter().filter(|&&i| pl.steps[i].action.tc().is_some()).count(),
+        r.in_flight.len()
+    );
+    Ok((rec.run_id, r))
+}
+
+/// Says which robots a verb talks to, and how.
+fn say_links(links: &[(u8, SocketAddr)], transport: Transport) {
+    let l: Vec<String> = links.iter().map(|(r, a)| format!("robot {r} at {a}")).collect();
+    err_line!(
+        "talking to {} ({})",
+        l.join(", "),
+        if transport == Transport::Tcp { "TCP" } else { "UDP" }
+    );
 }
 
 fn ping(a: &PingArgs, archive_path: Option<&Path>) -> Result<u8> {
     let def = mib::tc::by_name("PING").ok_or_else(|| anyhow!("PING not in the MIB"))?;
-    let (mut s, arch) = open_session(&a.links.robots, a.links.transport(), archive_path)?;
-    let mut lost = 0u32;
+    let links = robots_given(&a.links)?;
+    say_links(&links, a.links.transport());
+    let (mut s, arch) = open_session(&links, a.links.transport(), archive_path)?;
+    s.max_resends = 0;
+    let mut answered: BTreeMap<u8, (u32, bool)> = BTreeMap::new(); // robot -> (replies, last answered)
+    let mut silent: Vec<u8> = Vec::new(); // never answered: not pinged again
     for k in 0..a.count {
-        for &(r, addr) in &a.links.robots {
-            s.max_resends = 0;
+        for &(r, addr) in &links {
+            if silent.contains(&r) {
+                continue;
+            }
             let tc = s.send(r, def, &[], Some(r as usize), None)?;
             let t0 = Instant::now();
             let mut got = None;
-            while t0.elapsed() < s.ack_timeout * 2 && got.is_none() {
+            let mut foreign = false;
+            while t0.elapsed() < s.ack_timeout * 2 && got.is_none() && !foreign {
                 for u in s.poll(Duration::from_millis(50)) {
                     match u {
                         Update::Tm { robot, tm } if robot == r && tm.body == TmBody::PingReply => {
                             got = Some(t0.elapsed());
                         }
-                        Update::GaveUp { robot, .. } if robot == r => {}
+                        Update::Foreign { robot, .. } if robot == r => {
+                            foreign = s.robots.get(&r).is_some_and(|st| st.last_tm.is_none());
+                        }
                         _ => {}
                     }
                 }
             }
             s.forget(&tc);
+            let e = answered.entry(r).or_insert((0, false));
+            e.1 = got.is_some();
             match got {
-                Some(rtt) => out(&format!(
-                    "robot {r} ({addr}) seq {}: reply in {:.1} ms",
-                    tc.seq,
-                    rtt.as_secs_f64() * 1000.0
-                ))?,
+                Some(rtt) => {
+                    e.0 += 1;
+                    out(&format!(
+                        "robot {r} ({addr}) seq {}: reply in {:.1} ms",
+                        tc.seq,
+                        rtt.as_secs_f64() * 1000.0
+                    ))?
+                }
                 None => {
-                    lost += 1;
                     out(&format!(
                         "robot {r} ({addr}) seq {}: no reply within {} ms",
                         tc.seq,
                         (s.ack_timeout * 2).as_millis()
-                    ))?
+                    ))?;
+                    if e.0 == 0 {
+                        silent.push(r);
+                    }
                 }
             }
         }
-        if k + 1 < a.count {
+        if k + 1 < a.count && silent.len() < links.len() {
             std::thread::sleep(Duration::from_secs_f64(a.interval));
         }
     }
     for st in s.robots.values() {
         out(&format!("robot {}: {}", st.robot, st.line()))?;
     }
+    // The verdict: the same three cases as every verb.
+    let mut code = exit::OK;
+    for st in s.robots.values() {
+        let (replies, last) = answered.get(&st.robot).copied().unwrap_or((0, false));
+        if replies == 0 || !last {
+            let (kind, why) = st.no_answer(false);
+            err_line!("ground: {why}");
+            code = code.max(kind.exit_code());
+        }
+    }
     drop(s);
     close_archive(arch)?;
-    Ok(if lost > 0 { exit::NO_ANSWER } else { exit::OK })
+    Ok(code)
 }
 
-/// Reads `NAME=VALUE` arguments for `def`, checking them against the MIB.
-fn tc_args(def: &'static mib::tc::TcDef, args: &[String]) -> Result<Vec<i64>> {
-    let mut vals: Vec<Option<i64>> = vec![None; def.args.len()];
-    for a in args {
-        let (k, v) = a
-            .split_once('=')
-            .ok_or_else(|| coded(exit::INVALID, format!("argument \"{a}\" is not NAME=VALUE")))?;
-        let idx = def
-            .args
-            .iter()
-            .position(|d| d.name.eq_ignore_ascii_case(k))
-            .ok_or_else(|| {
-                let names: Vec<&str> = def.args.iter().map(|d| d.name).collect();
-                coded(
-                    exit::INVALID,
-                    format!("{} has no argument \"{k}\" (arguments: {})", def.name, names.join(", ")),
-                )
-            })?;
-        let d = &def.args[idx];
-        let v = v.trim();
-        let num = if let Ok(n) = v.parse::<i64>() {
-            n
-        } else if let Some(h) = v.strip_prefix("0x") {
-            i64::from_str_radix(h, 16).map_err(|_| coded(exit::INVALID, format!("bad number \"{v}\"")))?
-        } else if let Some(n) = d.names.value_of(v) {
-            n
-        } else if !d.names.is_none() {
-            let mut names = Vec::new();
-            d.names.for_each(|n, name| {
-                if (d.min..=d.max).contains(&n) {
-                    names.push(format!("{name} ({n})"));
-                }
-            });
-            let which = match names.split_last() {
-                Some((last, rest)) if names.len() <= 8 && !rest.is_empty() => {
-                    format!("the {}s are {} and {last}", d.name, rest.join(", "))
-                }
-                _ => format!(
-                    "it is none of the {} names of {} (see docs/ICD.md)",
-                    names.len(),
-                    d.name
-                ),
+/// A "robot does not answer" error for `robot` of session `s` (one of the three cases,
+/// with its exit code).
+fn no_answer_error(s: &Session, robot: u8) -> anyhow::Error {
+    match s.robots.get(&robot) {
+        Some(st) => {
+            let (kind, why) = match (&st.lost, st.lost_kind) {
+                (Some(w), Some(k)) => (k, w.clone()),
+                _ => st.no_answer(false),
             };
-            return Err(coded(
-                exit::INVALID,
-                format!("{}: {} = \"{v}\": {which}", def.name, d.name),
-            ));
-        } else {
-            return Err(coded(exit::INVALID, format!("{}: \"{v}\" is not a number", d.name)));
-        };
-        if num < d.min || num > d.max {
-            return Err(coded(
-                exit::INVALID,
-                format!("{}: {} = {num} outside {}..={}", def.name, d.name, d.min, d.max),
-            ));
+            coded(kind.exit_code(), why)
         }
-        vals[idx] = Some(num);
+        None => coded(exit::NO_ANSWER, format!("robot {robot}: no link")),
     }
-    vals.iter()
-        .zip(def.args)
-        .map(|(v, d)| v.ok_or_else(|| coded(exit::INVALID, format!("{}: missing argument {}=…", def.name, d.name))))
-        .collect()
+}
+
+fn policy_error(e: ops::policy::PolicyError) -> anyhow::Error {
+    coded(exit::INVALID, e.to_string())
 }
 
 /// Sends one TC and reports its verification until completion or failure.
@@ -827,7 +960,7 @@ fn send_and_follow(
     wait: bool,
     timeout: Duration,
 ) -> Result<u8> {
-    // A dead OBSW or link is reported within LINK_LOSS_MS, not after every resend.
+    // A robot that does not answer is reported within LINK_LOSS_MS, not after every resend.
     s.watch_links();
     let tc = s.send(robot, def, args, Some(0), None)?;
     out(&format!(
@@ -838,6 +971,7 @@ fn send_and_follow(
     ))?;
     let t0 = Instant::now();
     let mut accepted = false;
+    let mut last_gap_check = Instant::now();
     while t0.elapsed() < timeout {
         for u in s.poll(Duration::from_millis(100)) {
             match u {
@@ -866,64 +1000,62 @@ fn send_and_follow(
                     }
                 }
                 Update::Resent { send, .. } => out(&format!(
-                    "robot {robot}: no {} yet, resent the same bytes (send {send})",
-                    if accepted { "completion" } else { "acceptance" }
+                    "robot {robot}: no acceptance yet, resent the same bytes (send {send})"
                 ))?,
                 Update::DamagedCopy { .. } => out(&format!(
                     "robot {robot}: a copy arrived damaged (TM[1,2] CRC), resent the same bytes"
                 ))?,
-                Update::GaveUp { sends, accepted, .. } => {
-                    return Err(coded(
-                        exit::NO_ANSWER,
-                        if accepted {
-                            format!("robot {robot}: accepted, but no completion or failure report after {sends} sends: outcome unknown")
-                        } else {
-                            format!("robot {robot}: no acceptance after {sends} sends")
-                        },
-                    ))
-                }
-                Update::LinkLost { why, .. } => return Err(coded(exit::NO_ANSWER, why)),
+                Update::GaveUp { .. } | Update::LinkLost { .. } => return Err(no_answer_error(s, robot)),
                 Update::Event { robot: r, event } if r == robot => out(&format!("robot {robot}: event {event}"))?,
                 _ => {}
             }
         }
+        // An accepted TC is not resent: a completion report lost on the way is a TM gap,
+        // asked of the on-board store.
+        if accepted && last_gap_check.elapsed() >= Duration::from_secs(2) {
+            last_gap_check = Instant::now();
+            if !s.retrieving(robot) {
+                s.request_gaps(robot, None, 1);
+            }
+        }
+    }
+    if !accepted {
+        return Err(no_answer_error(s, robot));
     }
     Err(coded(
-        exit::NO_ANSWER,
+        exit::FAILED,
         format!(
-            "robot {robot}: no {} within {:.0} s",
-            if accepted { "completion" } else { "acceptance" },
+            "robot {robot}: {} accepted, but no completion within {:.0} s (--timeout)",
+            def.name,
             timeout.as_secs_f64()
         ),
     ))
 }
 
+/// The robots given with `--robot` (at least one: which robot is never guessed).
+fn robots_given(l: &Links) -> Result<Vec<(u8, SocketAddr)>> {
+    if l.robots.is_empty() {
+        return Err(coded(
+            exit::USAGE,
+            "give --robot N (robot N at 127.0.0.1:7300+N) or --robot N=HOST:PORT",
+        ));
+    }
+    Ok(l.robots.clone())
+}
+
 fn one_robot(l: &Links) -> Result<(u8, SocketAddr)> {
-    match l.robots.as_slice() {
+    match robots_given(l)?.as_slice() {
         [one] => Ok(*one),
-        [] => Ok((mib::apid::DEFAULT_ROBOT, default_addr(mib::apid::DEFAULT_ROBOT))),
-        _ => Err(coded(exit::INVALID, "give exactly one --robot")),
+        _ => Err(coded(exit::USAGE, "give exactly one --robot")),
     }
 }
 
 fn send(a: &SendArgs, archive_path: Option<&Path>) -> Result<u8> {
-    let def = mib::tc::by_name(&a.tc).ok_or_else(|| {
-        coded(
-            exit::INVALID,
-            format!(
-                "\"{}\" is not a TC of the MIB (see `ground mib export --format json`)",
-                a.tc
-            ),
-        )
-    })?;
-    if def.variable {
-        return Err(coded(
-            exit::INVALID,
-            format!("{} has variable data; not sendable from the command line", def.name),
-        ));
-    }
-    let args = tc_args(def, &a.args)?;
+    let def = ops::policy::tc_by_name(&a.tc).map_err(policy_error)?;
+    let args = ops::policy::parse_arg_words(def, &a.args).map_err(policy_error)?;
+    ops::policy::check_confirmed(def, a.confirm, "add --confirm").map_err(policy_error)?;
     let (robot, addr) = one_robot(&a.links)?;
+    say_links(&[(robot, addr)], a.links.transport());
     let (mut s, arch) = open_session(&[(robot, addr)], a.links.transport(), archive_path)?;
     let r = send_and_follow(
         &mut s,
@@ -949,7 +1081,9 @@ fn mode(a: &ModeArgs, archive_path: Option<&Path>) -> Result<u8> {
                 format!("unknown mode \"{}\" (standby, operational, safed)", a.mode),
             )
         })?;
+    ops::policy::check_confirmed(def, a.confirm, "add --confirm").map_err(policy_error)?;
     let (robot, addr) = one_robot(&a.links)?;
+    say_links(&[(robot, addr)], a.links.transport());
     let (mut s, arch) = open_session(&[(robot, addr)], a.links.transport(), archive_path)?;
     let r = send_and_follow(
         &mut s,
@@ -968,11 +1102,11 @@ fn mode(a: &ModeArgs, archive_path: Option<&Path>) -> Result<u8> {
 }
 
 fn watch(a: &WatchArgs, archive_path: Option<&Path>) -> Result<u8> {
-    let mut links = a.links.robots.clone();
-    if links.is_empty() {
-        links.push((mib::apid::DEFAULT_ROBOT, default_addr(mib::apid::DEFAULT_ROBOT)));
-    }
+    let links = robots_given(&a.links)?;
+    say_links(&links, a.links.transport());
     let (mut s, arch) = open_session(&links, a.links.transport(), archive_path)?;
+    // A robot that does not answer ends the watch with its case's message and code.
+    s.watch_links();
     // The OBSW sends TM to the grounds whose TC it accepted: subscribe with a ping, and
     // renew the lease well before it ends.
     if let Some(ping) = mib::tc::by_name("PING") {
@@ -990,6 +1124,19 @@ fn watch(a: &WatchArgs, archive_path: Option<&Path>) -> Result<u8> {
                 renewed = Instant::now();
                 for &(r, _) in &links {
                     // A lost renewal is made good by the next one, a third of a lease later.
+                    let _ = s.send_heartbeat(r);
+                }
+            }
+            // A quiet robot (slow HK) is asked once a heartbeat period, so the link-loss
+            // watch tells silence from a dead link.
+            let beat = Duration::from_millis(mib::config::GROUND_HEARTBEAT_MS as u64);
+            for &(r, _) in &links {
+                let quiet = s
+                    .robots
+                    .get(&r)
+                    .and_then(|st| st.last_tm)
+                    .is_some_and(|t| t.elapsed() >= beat);
+                if quiet && !s.sent_within(r, beat) {
                     let _ = s.send_heartbeat(r);
                 }
             }
@@ -1024,6 +1171,7 @@ fn watch(a: &WatchArgs, archive_path: Option<&Path>) -> Result<u8> {
                         format!("CORRUPT {error}"),
                         serde_json::json!({"corrupt": error.to_string()}),
                     ),
+                    Update::LinkLost { robot, .. } => return Err(no_answer_error(&s, *robot)),
                     Update::Foreign {
                         robot,
                         apid,
@@ -1082,15 +1230,146 @@ pub fn sim_addr(n: u8) -> SocketAddr {
 }
 
 fn sim(a: &SimArgs) -> Result<u8> {
-    let addr = a.addr.unwrap_or_else(|| sim_addr(a.robot));
+    let (addr, who) = match (a.addr, a.robot) {
+        (Some(addr), Some(r)) => (addr, format!("robot {r} (simulator at {addr})")),
+        (Some(addr), None) => (addr, format!("simulator at {addr}")),
+        (None, Some(r)) => (sim_addr(r), format!("robot {r}")),
+        (None, None) => return Err(coded(exit::USAGE, "give --robot N or --addr HOST:PORT")),
+    };
     let line = a.line.join(" ");
     let reply = sim_command(addr, &line, Duration::from_millis(500))?;
-    out(&format!("robot {}: {reply}", a.robot))?;
-    if reply.starts_with("ok") {
-        Ok(exit::OK)
-    } else {
-        Ok(exit::FAILED)
+    let ok = reply.starts_with("ok");
+    for (i, l) in sim_reply_lines(&line, &reply).iter().enumerate() {
+        if i == 0 {
+            out(&format!("{who}: {l}"))?;
+        } else {
+            out(l)?;
+        }
     }
+    Ok(if ok { exit::OK } else { exit::FAILED })
+}
+
+/// Faults `clear NAME` removes (the simulator's fault names).
+const SIM_FAULTS: &[&str] = &[
+    "stuck-arm",
+    "obstacle",
+    "battery-sag",
+    "dead-hip-encoder",
+    "cut-cable",
+    "misplaced-voxel",
+    "fastener-jam",
+];
+
+/// The simulator's reply for the operator: `status` (a structure) as one `name: value`
+/// line per field, a `clear` of something that is not a fault said as such.
+fn sim_reply_lines(line: &str, reply: &str) -> Vec<String> {
+    let mut words = line.split_whitespace();
+    let cmd = words.next().unwrap_or("").to_ascii_lowercase();
+    let arg = words.next();
+    if let (true, Some(x), false) = (cmd == "clear", arg, reply.starts_with("ok")) {
+        if !SIM_FAULTS.iter().any(|f| f.eq_ignore_ascii_case(x)) {
+            let hint = if x.starts_with("link-") {
+                format!(" (end {x} with `{x} 0`)")
+            } else {
+                ops::policy::suggest(x, SIM_FAULTS.iter().copied())
+                    .map_or(String::new(), |s| format!(" — did you mean {s}?"))
+            };
+            return vec![format!(
+                "error: '{x}' is not a fault; `clear` takes one of {}{hint}",
+                SIM_FAULTS.join(", ")
+            )];
+        }
+    }
+    match reply.strip_prefix("ok ") {
+        Some(body) if cmd == "status" && body.contains('{') => {
+            let mut v = vec!["ok".to_string()];
+            v.extend(
+                debug_fields(body)
+                    .into_iter()
+                    .map(|(depth, t)| format!("{}{}", "  ".repeat(depth + 1), unwrap_some(&t))),
+            );
+            v
+        }
+        _ => vec![reply.to_string()],
+    }
+}
+
+/// `Some(x)` written as `x`, `None` as `-` (Rust's optional values, for the operator).
+fn unwrap_some(t: &str) -> String {
+    let mut out = String::with_capacity(t.len());
+    let mut open = Vec::new(); // per '(': whether it belonged to a Some
+    let mut rest = t;
+    while let Some(c) = rest.chars().next() {
+        if let Some(r) = rest.strip_prefix("Some(") {
+            open.push(true);
+            rest = r;
+            continue;
+        }
+        if let Some(r) = rest.strip_prefix("None") {
+            if !r.starts_with(|c: char| c.is_alphanumeric() || c == '_') {
+                out.push('-');
+                rest = r;
+                continue;
+            }
+        }
+        match c {
+            '(' => {
+                open.push(false);
+                out.push(c);
+            }
+            ')' => {
+                if !open.pop().unwrap_or(false) {
+                    out.push(c);
+                }
+            }
+            c => out.push(c),
+        }
+        rest = &rest[c.len_utf8()..];
+    }
+    out
+}
+
+/// Splits a `Name { a: 1, b: Inner { c: 2 } }` structure into indented `a: 1` lines.
+fn debug_fields(s: &str) -> Vec<(usize, String)> {
+    let mut out = Vec::new();
+    let (mut depth, mut nest, mut cur) = (0usize, 0usize, String::new());
+    let flush = |cur: &mut String, depth: usize, out: &mut Vec<(usize, String)>| {
+        let t = cur.trim().trim_end_matches(',').trim().to_string();
+        if !t.is_empty() {
+            out.push((depth.saturating_sub(1), t));
+        }
+        cur.clear();
+    };
+    for ch in s.chars() {
+        match ch {
+            '[' | '(' => {
+                nest += 1;
+                cur.push(ch);
+            }
+            ']' | ')' => {
+                nest = nest.saturating_sub(1);
+                cur.push(ch);
+            }
+            '{' if nest == 0 => {
+                // "field: Type {" -> "field:" heads a nested block; the top type name goes.
+                let head = cur.trim().to_string();
+                let name = head.rsplit_once(' ').map_or(head.as_str(), |(f, _)| f).to_string();
+                cur.clear();
+                if depth > 0 {
+                    out.push((depth - 1, name));
+                }
+                depth += 1;
+            }
+            '}' if nest == 0 => {
+                flush(&mut cur, depth, &mut out);
+                depth = depth.saturating_sub(1);
+            }
+            ',' if nest == 0 => flush(&mut cur, depth, &mut out),
+            c => cur.push(c),
+        }
+    }
+    flush(&mut cur, depth, &mut out);
+    out
 }
 
 fn archive_cmd(a: ArchiveCmd, path: &Path) -> Result<u8> {
@@ -1147,8 +1426,17 @@ fn archive_cmd(a: ArchiveCmd, path: &Path) -> Result<u8> {
                     err_line!("{n} row(s) written to {}", p.display());
                 }
                 None => {
-                    let mut o = std::io::stdout().lock();
-                    store.export_csv(kind, &f, &mut o)?;
+                    // The archive's error keeps only the I/O error's text: the writer
+                    // remembers a closed pipe so that it stays a quiet exit.
+                    let mut o = PipeWatch {
+                        inner: std::io::stdout().lock(),
+                        closed: false,
+                    };
+                    let r = store.export_csv(kind, &f, &mut o);
+                    if o.closed {
+                        return Ok(exit::OK);
+                    }
+                    r?;
                 }
             }
         }
@@ -1273,6 +1561,25 @@ fn archive_cmd(a: ArchiveCmd, path: &Path) -> Result<u8> {
         }
     }
     Ok(exit::OK)
+}
+
+/// A writer that notes when its reader went away (EPIPE).
+struct PipeWatch<W: Write> {
+    inner: W,
+    closed: bool,
+}
+
+impl<W: Write> Write for PipeWatch<W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let r = self.inner.write(buf);
+        self.closed |= matches!(&r, Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe);
+        r
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        let r = self.inner.flush();
+        self.closed |= matches!(&r, Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe);
+        r
+    }
 }
 
 fn fmt_ms(ms: i64) -> String {

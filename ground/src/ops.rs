@@ -9,7 +9,12 @@
 
 use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::net::SocketAddr;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
+
+pub mod policy;
+pub mod runs;
 
 use crossbeam_channel::Receiver;
 use mib::config::{
@@ -50,6 +55,8 @@ pub struct RobotStatus {
     pub seq: SeqTrack,
     /// Why the link counts as lost (latched).
     pub lost: Option<String>,
+    /// Which of the "robot does not answer" cases it was (latched with `lost`).
+    pub lost_kind: Option<NoAnswer>,
     /// Since when the link is watched (for link loss before any TM).
     pub since: Instant,
     /// First TM sequence count of the run (from the start marker's reports).
@@ -78,6 +85,7 @@ impl RobotStatus {
             duplicates: 0,
             seq: SeqTrack::default(),
             lost: None,
+            lost_kind: None,
             since: Instant::now(),
             run_first_seq: None,
             store_oldest: None,
@@ -109,6 +117,45 @@ impl RobotStatus {
             (None, None) => "?".into(),
         }
     }
+    /// Which "does not answer" case a robot that stopped answering is in, with the
+    /// operator's message. `closed`: its TCP connection closed.
+    pub fn no_answer(&self, closed: bool) -> (NoAnswer, String) {
+        let robot = self.robot;
+        let apid = mib::apid::robot_apid(robot).unwrap_or(0);
+        let addr = self.addr;
+        match (self.last_tm, self.foreign_apid) {
+            (None, Some(f)) => (
+                NoAnswer::OtherApid(f),
+                format!(
+                    "robot {robot}: the replies from {addr} carry APID 0x{f:03X}{}, not robot {robot}'s 0x{apid:03X}: another robot answers at this address",
+                    mib::apid::apid_robot(f).map_or(String::new(), |r| format!(" (robot {r})"))
+                ),
+            ),
+            (None, None) if closed => (
+                NoAnswer::NothingHeard,
+                format!("robot {robot}: nothing heard from {addr}: the TCP connection closed before any TM (no OBSW there?)"),
+            ),
+            (None, None) => (
+                NoAnswer::NothingHeard,
+                format!(
+                    "robot {robot}: nothing heard from {addr} in {:.1} s (no OBSW running there, wrong address, or link down)",
+                    self.since.elapsed().as_secs_f64()
+                ),
+            ),
+            (Some(_), _) if closed => (
+                NoAnswer::Lost,
+                format!("robot {robot}: heard, then lost: the OBSW at {addr} closed the TCP connection"),
+            ),
+            (Some(t), _) => (
+                NoAnswer::Lost,
+                format!(
+                    "robot {robot}: heard, then lost: no TM from {addr} for {:.1} s (link down or OBSW stopped)",
+                    t.elapsed().as_secs_f64()
+                ),
+            ),
+        }
+    }
+
     /// One-line status.
     pub fn line(&self) -> String {
         format!(
@@ -121,6 +168,30 @@ impl RobotStatus {
                 |q| format!("{:.0}% of {}", q * 100.0, self.quality.len())
             )
         )
+    }
+}
+
+/// The three ways a robot does not answer, the same for every verb (`run`, `send`,
+/// `mode`, `ping`, `watch`); each has its own exit code (docs/operator-guide.md).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum NoAnswer {
+    /// Nothing at all heard from the robot's address within `LINK_LOSS_MS`.
+    NothingHeard,
+    /// Replies came, but only with another APID (another robot at that address):
+    /// reported at the first such reply.
+    OtherApid(u16),
+    /// Heard, then no TM for `LINK_LOSS_MS` (or its TCP connection closed).
+    Lost,
+}
+
+impl NoAnswer {
+    /// The exit code of this case.
+    pub fn exit_code(self) -> u8 {
+        match self {
+            NoAnswer::NothingHeard => 5,
+            NoAnswer::OtherApid(_) => 7,
+            NoAnswer::Lost => 8,
+        }
     }
 }
 
@@ -316,9 +387,18 @@ pub struct Pending {
     pub accepted: bool,
     /// Most sends of this TC (1 for a connection test).
     pub max_sends: u32,
-    /// Every send was made and the TC was accepted: its outcome is asked of the
-    /// on-board store (no more resends).
+    /// Never resent (a TC adopted from an interrupted run: its outcome is asked of the
+    /// on-board store).
     pub exhausted: bool,
+}
+
+impl Pending {
+    /// Resent while it waits for acceptance. After acceptance it is never resent: its
+    /// completion is awaited on the step's own timeout, and a completion report lost on
+    /// the way is a TM gap, filled from the on-board store.
+    fn resendable(&self) -> bool {
+        !self.exhausted && !self.accepted
+    }
 }
 
 /// Something that happened on the links.
@@ -419,6 +499,9 @@ pub struct Session {
     pub link_loss: Option<Duration>,
     /// When each robot last got a new TC (not a resend).
     last_new_tc: HashMap<u8, Instant>,
+    /// The run this session's TCs belong to (`ground run`): archived with every TC as
+    /// `LABEL@RUN_ID` in the TC's step column (see [`runs`]).
+    pub run_id: Option<String>,
 }
 
 impl Session {
@@ -459,6 +542,7 @@ impl Session {
             max_resends: TC_RETRY_MAX,
             link_loss: None,
             last_new_tc: HashMap::new(),
+            run_id: None,
         })
     }
 
@@ -501,7 +585,7 @@ impl Session {
             a.send(Record::Tc {
                 t_ms: now_ms(),
                 tc: tc.clone(),
-                step: label.clone(),
+                step: runs::archived_label(label.as_deref(), self.run_id.as_deref()),
                 attempt: 1,
             });
         }
@@ -522,6 +606,38 @@ impl Session {
             },
         );
         Ok(tc)
+    }
+
+    /// Tracks a TC that an earlier, interrupted session of the same run sent (same
+    /// request ID), without sending it again: its reports, live or replayed from the
+    /// on-board store, come back through [`Session::poll`] with `tag`. It is never resent.
+    pub fn adopt(&mut self, robot: u8, tc: BuiltTc, tag: Option<usize>, label: Option<String>, accepted: bool) {
+        let now = Instant::now();
+        self.pending.insert(
+            (tc.apid, tc.seq),
+            Pending {
+                robot,
+                tc,
+                tag,
+                label,
+                first_sent: now,
+                last_sent: now,
+                sends: 1,
+                accepted,
+                max_sends: 1,
+                exhausted: true,
+            },
+        );
+    }
+
+    /// True if the TC with this request ID is still waiting for its outcome.
+    pub fn is_pending(&self, tc: &BuiltTc) -> bool {
+        self.pending.contains_key(&(tc.apid, tc.seq))
+    }
+
+    /// Whether the TC with this request ID was accepted (`None`: not tracked).
+    pub fn accepted(&self, tc: &BuiltTc) -> Option<bool> {
+        self.pending.get(&(tc.apid, tc.seq)).map(|p| p.accepted)
     }
 
     /// True if a TC of `robot` is still waiting for acceptance or completion.
@@ -556,7 +672,7 @@ impl Session {
             let next_resend = self
                 .pending
                 .values()
-                .filter(|p| !p.exhausted)
+                .filter(|p| p.resendable())
                 .map(|p| self.resend_due(p))
                 .min();
             let until = next_resend.map_or(deadline, |r| r.min(deadline));
@@ -586,33 +702,27 @@ impl Session {
     /// Link loss: a closed TCP connection, or no TM for `link_loss`.
     fn check_links(&mut self, out: &mut Vec<Update>) {
         let Some(limit) = self.link_loss else { return };
+        let mut lost = Vec::new();
         for (robot, s) in self.robots.iter_mut() {
             if s.lost.is_some() {
                 continue;
             }
             let closed = self.links.get(robot).is_some_and(|l| l.closed());
             let silent = s.last_tm.map_or(s.since.elapsed(), |t| t.elapsed());
-            if !closed && silent < limit {
+            // Replies with another APID and none with ours: the wrong robot, said at once.
+            let wrong = s.last_tm.is_none() && s.foreign_apid.is_some();
+            if !closed && !wrong && silent < limit {
                 continue;
             }
-            let apid = mib::apid::robot_apid(*robot).unwrap_or(0);
-            let why = if closed {
-                format!("robot {robot}: the OBSW at {} closed the TCP connection", s.addr)
-            } else if let Some(f) = s.foreign_apid.filter(|_| s.last_tm.is_none()) {
-                format!(
-                    "robot {robot}: replies from {} carry APID 0x{f:03X}, not robot {robot}'s 0x{apid:03X} (wrong robot at this address?)",
-                    s.addr
-                )
-            } else {
-                format!(
-                    "robot {robot}: no TM from {} for {:.1} s (link down or OBSW not running)",
-                    s.addr,
-                    silent.as_secs_f64()
-                )
-            };
+            let (kind, why) = s.no_answer(closed);
+            s.lost_kind = Some(kind);
             s.lost = Some(why.clone());
             out.push(Update::LinkLost { robot: *robot, why });
+            lost.push(*robot);
         }
+        // Nothing more is resent to a robot that does not answer; its steps end with the
+        // link loss.
+        self.pending.retain(|_, p| !lost.contains(&p.robot));
     }
 
     /// True if `robot` got a new TC within `period` (its answers check the link as a
@@ -673,7 +783,7 @@ impl Session {
         let due: Vec<((u16, u16), Instant)> = self
             .pending
             .iter()
-            .filter(|(_, p)| !p.exhausted)
+            .filter(|(_, p)| p.resendable())
             .map(|(k, p)| (*k, self.resend_due(p)))
             .collect();
         for (key, at) in due {
@@ -685,20 +795,7 @@ impl Session {
                 r.exchange(false);
             }
             if p.sends >= p.max_sends {
-                if p.accepted && p.tag.is_some() {
-                    // Accepted, so it may have run: its completion or failure report is
-                    // in the on-board store. Keep it pending for the replay.
-                    p.exhausted = true;
-                    out.push(Update::GaveUp {
-                        robot: p.robot,
-                        tag: p.tag,
-                        tc: p.tc.def.name,
-                        sends: p.sends,
-                        accepted: true,
-                    });
-                } else {
-                    gave_up.push(key);
-                }
+                gave_up.push(key);
                 continue;
             }
             if let Some(link) = self.links.get(&p.robot) {
@@ -711,7 +808,7 @@ impl Session {
                 a.send(Record::Tc {
                     t_ms: now_ms(),
                     tc: p.tc.clone(),
-                    step: p.label.clone(),
+                    step: runs::archived_label(p.label.as_deref(), self.run_id.as_deref()),
                     attempt: p.sends,
                 });
             }
@@ -976,7 +1073,15 @@ pub struct RunOptions {
     pub ping_period: Option<Duration>,
     /// Show the indicatif progress display (else plain log lines).
     pub display: bool,
+    /// Set by the first Ctrl-C / SIGTERM: no new step is sent; the steps in flight get
+    /// `grace` to finish, then the run ends with its summary.
+    pub stop: Option<Arc<AtomicBool>>,
+    /// Longest wait for the steps in flight after `stop`.
+    pub grace: Duration,
 }
+
+/// How long an interrupted run waits for the steps in flight by default.
+pub const INTERRUPT_GRACE: Duration = Duration::from_secs(10);
 
 impl Default for RunOptions {
     fn default() -> Self {
@@ -984,6 +1089,8 @@ impl Default for RunOptions {
             step_timeout: Duration::from_secs(120),
             ping_period: Some(Duration::from_millis(GROUND_HEARTBEAT_MS as u64)),
             display: true,
+            stop: None,
+            grace: INTERRUPT_GRACE,
         }
     }
 }
@@ -1029,6 +1136,12 @@ pub struct LinkSummary {
 #[derive(Clone, Debug, Serialize)]
 pub struct RunSummary {
     pub plan: String,
+    /// The run's ID (archived with every TC it sent); `--resume` continues it.
+    pub run_id: Option<String>,
+    /// The operator interrupted the run (Ctrl-C or SIGTERM).
+    pub interrupted: bool,
+    /// Steps still running on board when the run ended (after an interruption).
+    pub in_flight: usize,
     pub steps: Vec<StepOutcome>,
     pub done: usize,
     pub failed: usize,
@@ -1050,12 +1163,15 @@ impl RunSummary {
         self.link_lost.clone()
     }
     pub fn success(&self) -> bool {
-        self.failed == 0 && self.blocked == 0 && self.link_lost.is_empty()
+        self.failed == 0 && self.blocked == 0 && self.link_lost.is_empty() && !self.interrupted
     }
     /// Human-readable summary.
     pub fn text(&self) -> String {
         use std::fmt::Write;
         let mut s = String::new();
+        if let Some(r) = &self.run_id {
+            let _ = writeln!(s, "run {r}");
+        }
         let _ = writeln!(
             s,
             "plan {}: {} of {} steps done, {} failed, {} blocked, in {:.1} s",
@@ -1066,6 +1182,16 @@ impl RunSummary {
             self.blocked,
             self.seconds
         );
+        if self.interrupted {
+            let _ = writeln!(
+                s,
+                "INTERRUPTED: no new step was sent after the interruption; {} step(s) still running on board{}",
+                self.in_flight,
+                self.run_id.as_ref().map_or(String::new(), |r| format!(
+                    "; continue with `ground run PLAN --resume {r}`"
+                ))
+            );
+        }
         for o in &self.steps {
             let _ = writeln!(
                 s,
@@ -1209,6 +1335,8 @@ pub struct Executor<'p> {
     resumed: usize,
     start: Instant,
     last_heartbeat: HashMap<u8, Instant>,
+    /// Interrupted: no new step starts; the steps in flight are awaited until then.
+    halted: Option<Instant>,
 }
 
 impl<'p> Executor<'p> {
@@ -1234,7 +1362,72 @@ impl<'p> Executor<'p> {
             resumed,
             start: now,
             last_heartbeat: HashMap::new(),
+            halted: None,
         }
+    }
+
+    /// The operator interrupted the run at `now`: no new step starts; the steps in
+    /// flight get until `now + grace` to finish.
+    pub fn interrupt(&mut self, now: Instant, grace: Duration) -> Vec<Effect> {
+        if self.halted.is_some() {
+            return Vec::new();
+        }
+        self.halted = Some(now + grace);
+        let running: Vec<&str> = self
+            .plan
+            .steps
+            .iter()
+            .zip(&self.state)
+            .filter(|(_, st)| matches!(st, StepState::Running { .. }))
+            .map(|(s, _)| s.id.as_str())
+            .collect();
+        vec![Effect::Log(if running.is_empty() {
+            "  INTERRUPTED: no step in flight; no new step is sent".to_string()
+        } else {
+            format!(
+                "  INTERRUPTED: no new step is sent; waiting up to {:.0} s for {} (Ctrl-C again to quit at once)",
+                grace.as_secs_f64(),
+                running.join(", ")
+            )
+        })]
+    }
+
+    /// True once an interrupted run has nothing left to wait for: no step in flight, or
+    /// its grace time is over.
+    pub fn stopped(&self, now: Instant) -> bool {
+        self.halted
+            .is_some_and(|t| now >= t || !self.state.iter().any(|s| matches!(s, StepState::Running { .. })))
+    }
+
+    /// Takes over a step whose TC an earlier session of this run sent (`--resume`): it
+    /// runs from `now` on, its outcome comes from the TC's reports.
+    pub fn adopt(&mut self, step: usize, tc: BuiltTc, stage: &'static str, now: Instant) {
+        if let Some(st) = self.state.get_mut(step) {
+            *st = StepState::Running {
+                tc: Some(tc),
+                since: now,
+                stage,
+                progress: 0,
+            };
+            self.sends.insert(step, 1);
+        }
+    }
+
+    /// A step adopted by [`Executor::adopt`] whose TC is known never to have reached the
+    /// robot: it is sent again (as a new TC) like a step not yet started.
+    pub fn requeue(&mut self, step: usize) {
+        if let Some(st) = self.state.get_mut(step) {
+            *st = StepState::Waiting;
+        }
+    }
+
+    /// Fails a step with `why` (and blocks what depends on it).
+    pub fn fail_step(&mut self, step: usize, why: String) -> Vec<Effect> {
+        let mut fx = Vec::new();
+        if step < self.state.len() {
+            self.fail(step, why, &mut fx);
+        }
+        fx
     }
 
     /// True when every step is done, failed or blocked.
@@ -1268,7 +1461,7 @@ impl<'p> Executor<'p> {
         let mut fx = Vec::new();
         let n = self.plan.steps.len();
         for i in 0..n {
-            if self.state[i] != StepState::Waiting {
+            if self.state[i] != StepState::Waiting || self.halted.is_some() {
                 continue;
             }
             let s = &self.plan.steps[i];
@@ -1558,6 +1751,17 @@ impl<'p> Executor<'p> {
                     StepState::Done { secs } => ("done", None, Some(*secs)),
                     StepState::Failed(w) => ("FAILED", Some(w.clone()), None),
                     StepState::Blocked(w) => ("blocked", Some(w.clone()), None),
+                    StepState::Running { .. } if self.halted.is_some() => (
+                        "RUNNING",
+                        Some(
+                            "still running on board when the run was interrupted: `--resume` resolves its outcome"
+                                .into(),
+                        ),
+                        None,
+                    ),
+                    StepState::Waiting if self.halted.is_some() => {
+                        ("not sent", Some("the run was interrupted".into()), None)
+                    }
                     StepState::Waiting | StepState::Running { .. } => ("unfinished", None, None),
                 };
                 StepOutcome {
@@ -1594,6 +1798,13 @@ impl<'p> Executor<'p> {
             .collect();
         RunSummary {
             plan: plan.name.clone(),
+            run_id: session.run_id.clone(),
+            interrupted: self.halted.is_some(),
+            in_flight: self
+                .state
+                .iter()
+                .filter(|s| matches!(s, StepState::Running { tc: Some(_), .. }))
+                .count(),
             done: self
                 .state
                 .iter()
@@ -1614,23 +1825,68 @@ impl<'p> Executor<'p> {
     }
 }
 
+/// What `--resume` hands to [`run_plan`]: the state of the run's earlier session(s).
+#[derive(Clone, Debug, Default)]
+pub struct Resume {
+    /// Steps completed earlier: not sent again.
+    pub done: Vec<usize>,
+    /// Steps whose TC was sent earlier but whose outcome the archive does not show.
+    pub in_flight: Vec<InFlight>,
+    /// Per robot, the last TM sequence count of its APID in the archive: the on-board
+    /// store is asked for everything after it before anything is sent.
+    pub last_seq: Vec<(u8, u16)>,
+}
+
+/// A step whose TC an earlier session sent, outcome unknown.
+#[derive(Clone, Debug)]
+pub struct InFlight {
+    pub step: usize,
+    pub tc: BuiltTc,
+    /// The archive has its acceptance report.
+    pub accepted: bool,
+}
+
 /// Executes a plan: each step is sent once every step it depends on has completed.
-/// `done` lists steps completed in an earlier run (`--resume`).
-pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, done: &[usize]) -> RunSummary {
+/// `resume` holds what earlier sessions of the same run did (`--resume`).
+pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &Resume) -> RunSummary {
     let robots: Vec<u8> = plan.robots.iter().map(|r| r.number).collect();
     let disp = Display::new(plan, &robots, opts.display);
-    let mut exec = Executor::new(plan, opts, done, Instant::now());
+    let mut exec = Executor::new(plan, opts, &resume.done, Instant::now());
     let mut last_gap_check = Instant::now();
     disp.total.inc(exec.resumed as u64);
     if exec.resumed > 0 {
         disp.log(format!(
-            "  resume   {} steps completed in an earlier run are not sent again",
+            "  resume   {} steps completed earlier in this run are not sent again",
             exec.resumed
         ));
     }
-    if opts.ping_period.is_some() {
+    let stop_asked = || opts.stop.as_ref().is_some_and(|f| f.load(Ordering::SeqCst));
+    // TCs of the earlier session whose outcome is unknown: tracked again (never resent),
+    // and the TM the ground missed since is asked of the on-board store first.
+    for f in &resume.in_flight {
+        let Some(st) = plan.steps.get(f.step) else { continue };
+        session.adopt(st.robot, f.tc.clone(), Some(f.step), Some(st.id.clone()), f.accepted);
+        exec.adopt(f.step, f.tc.clone(), "outcome asked of the store", Instant::now());
+        disp.log(format!(
+            "  resume   {} robot {}: {} (seq {}) was sent before the interruption, {}; resolving its outcome before anything is sent",
+            st.id,
+            st.robot,
+            f.tc.def.name,
+            f.tc.seq,
+            if f.accepted { "accepted, no completion archived" } else { "no report archived" }
+        ));
+        if let Some((_, last)) = resume.last_seq.iter().find(|(r, _)| *r == st.robot) {
+            if let Some(s) = session.robots.get_mut(&st.robot) {
+                if s.seq.newest().is_none() {
+                    s.seq.expect_from(last.wrapping_add(1) % SEQ_MOD);
+                }
+            }
+        }
+    }
+    let mut early = Vec::new();
+    if opts.ping_period.is_some() || !resume.in_flight.is_empty() {
         session.watch_links();
-        start_markers(session, &robots);
+        early = start_markers(session, &robots, &stop_asked);
     }
     let apply = |fx: Vec<Effect>, exec: &mut Executor, session: &mut Session| {
         let mut queue: VecDeque<Effect> = fx.into();
@@ -1664,10 +1920,22 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, done: &[u
             }
         }
     };
+    for u in early {
+        let fx = exec.on_update(Instant::now(), u);
+        apply(fx, &mut exec, session);
+    }
+    if !resume.in_flight.is_empty() {
+        let fx = resolve_in_flight(session, &mut exec, &resume.in_flight, &stop_asked);
+        apply(fx, &mut exec, session);
+    }
     loop {
+        if stop_asked() {
+            let fx = exec.interrupt(Instant::now(), opts.grace);
+            apply(fx, &mut exec, session);
+        }
         let fx = exec.on_tick(Instant::now());
         apply(fx, &mut exec, session);
-        if exec.finished() {
+        if exec.finished() || exec.stopped(Instant::now()) {
             break;
         }
         for u in session.poll(Duration::from_millis(50)) {
@@ -1692,7 +1960,8 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, done: &[u
             bar.tick();
         }
     }
-    let tm = if opts.ping_period.is_some() {
+    // An interrupted run ends at once: the TM it missed is filled by the next session.
+    let tm = if opts.ping_period.is_some() && !stop_asked() {
         complete_tm(session, &robots, &disp)
     } else {
         Vec::new()
@@ -1709,8 +1978,12 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, done: &[u
 
 /// Starts every robot's TM accounting: a connection test (resent until answered) whose
 /// reports give the first sequence count of the run; every TM from there on is expected.
-fn start_markers(session: &mut Session, robots: &[u8]) {
-    let Some(ping) = mib::tc::by_name("PING") else { return };
+/// Returns what happened meanwhile (a link found lost, reports of adopted TCs).
+fn start_markers(session: &mut Session, robots: &[u8], stop: &dyn Fn() -> bool) -> Vec<Update> {
+    let mut seen = Vec::new();
+    let Some(ping) = mib::tc::by_name("PING") else {
+        return seen;
+    };
     let mut markers = Vec::new();
     for &r in robots {
         if let Ok(m) = session.send(r, ping, &[], None, Some(START_LABEL.into())) {
@@ -1720,11 +1993,12 @@ fn start_markers(session: &mut Session, robots: &[u8]) {
     let t0 = Instant::now();
     let limit = Duration::from_millis(mib::config::TC_RETRY_SPAN_MS as u64);
     while t0.elapsed() < limit
+        && !stop()
         && markers.iter().any(|(r, m)| {
             session.pending.contains_key(&(m.apid, m.seq)) && session.robots.get(r).is_some_and(|s| s.lost.is_none())
         })
     {
-        session.poll(Duration::from_millis(50));
+        seen.extend(session.poll(Duration::from_millis(50)));
     }
     for (r, _) in markers {
         if let Some(s) = session.robots.get_mut(&r) {
@@ -1733,6 +2007,121 @@ fn start_markers(session: &mut Session, robots: &[u8]) {
             }
         }
     }
+    seen
+}
+
+/// Resolves the TCs of an interrupted session (`--resume`) before anything is sent: the
+/// on-board store is asked for every TM the ground missed since its last archived one,
+/// until none is missing. Then a TC with a report ends as it says; one accepted without
+/// completion is still running on board (its completion is awaited); one with no report
+/// at all in a complete TM stream never reached the robot and is sent again as a new TC;
+/// one whose TM cannot be completed (overwritten, not answered) fails as "outcome
+/// unknown" and is never sent again.
+fn resolve_in_flight(
+    session: &mut Session,
+    exec: &mut Executor,
+    in_flight: &[InFlight],
+    stop: &dyn Fn() -> bool,
+) -> Vec<Effect> {
+    let mut fx = Vec::new();
+    let robots: Vec<u8> = {
+        let mut r: Vec<u8> = in_flight
+            .iter()
+            .filter_map(|f| exec.plan.steps.get(f.step))
+            .map(|s| s.robot)
+            .collect();
+        r.dedup();
+        r
+    };
+    let expired0: HashMap<u8, u64> = robots
+        .iter()
+        .map(|&r| (r, session.robots.get(&r).map_or(0, |s| s.seq.expired)))
+        .collect();
+    let t0 = Instant::now();
+    let limit = Duration::from_millis(mib::config::TC_RETRY_SPAN_MS as u64);
+    let mut idle_rounds = 0;
+    loop {
+        let open: Vec<u8> = robots
+            .iter()
+            .copied()
+            .filter(|&r| {
+                session
+                    .robots
+                    .get(&r)
+                    .is_some_and(|s| s.lost.is_none() && !s.seq.missing.is_empty())
+                    && in_flight.iter().any(|f| session.is_pending(&f.tc))
+            })
+            .collect();
+        if open.is_empty() || t0.elapsed() >= limit || stop() || idle_rounds >= GAP_ROUNDS_IDLE_MAX {
+            break;
+        }
+        let before: usize = open
+            .iter()
+            .map(|r| session.robots.get(r).map_or(0, |s| s.seq.missing.len()))
+            .sum();
+        for &r in &open {
+            if !session.retrieving(r) {
+                session.request_gaps(r, None, GAP_REQUESTS_MAX);
+            }
+        }
+        let round = Instant::now();
+        while round.elapsed() < Duration::from_secs(3) && open.iter().any(|&r| session.retrieving(r)) {
+            for u in session.poll(Duration::from_millis(50)) {
+                fx.extend(exec.on_update(Instant::now(), u));
+            }
+        }
+        let settle = Instant::now();
+        while settle.elapsed() < Duration::from_millis(300) {
+            for u in session.poll(Duration::from_millis(50)) {
+                fx.extend(exec.on_update(Instant::now(), u));
+            }
+        }
+        let after: usize = open
+            .iter()
+            .map(|r| session.robots.get(r).map_or(0, |s| s.seq.missing.len()))
+            .sum();
+        idle_rounds = if after < before { 0 } else { idle_rounds + 1 };
+    }
+    for f in in_flight {
+        if !session.is_pending(&f.tc) {
+            continue; // ended by its reports (or the link loss)
+        }
+        let Some(step) = exec.plan.steps.get(f.step) else {
+            continue;
+        };
+        let r = step.robot;
+        let complete = session.robots.get(&r).is_some_and(|s| {
+            s.lost.is_none()
+                && s.seq.newest().is_some()
+                && s.seq.missing.is_empty()
+                && s.seq.expired == expired0.get(&r).copied().unwrap_or(0)
+        });
+        match (complete, session.accepted(&f.tc).unwrap_or(f.accepted)) {
+            (true, true) => fx.push(Effect::Log(format!(
+                "  resume   {}: accepted and still running on board; its completion is awaited",
+                step.id
+            ))),
+            (true, false) => {
+                session.forget(&f.tc);
+                exec.requeue(f.step);
+                fx.push(Effect::Log(format!(
+                    "  resume   {}: its TC (seq {}) never reached the robot (no report in the complete TM since): sent as a new TC",
+                    step.id, f.tc.seq
+                )));
+            }
+            (false, _) => {
+                session.forget(&f.tc);
+                fx.extend(exec.fail_step(
+                    f.step,
+                    format!(
+                        "outcome unknown: {} (seq {}) may have executed and the robot's TM since cannot be completed from its store; not sent again (check the robot, then run the step by hand)",
+                        f.tc.def.name, f.tc.seq
+                    ),
+                ));
+            }
+        }
+    }
+    fx
 }
 
 /// How often a running plan asks the stores for missing TM.
@@ -2056,6 +2445,7 @@ timeout = 5
             step_timeout: Duration::from_secs(60),
             ping_period: Some(Duration::from_secs(1)),
             display: false,
+            ..RunOptions::default()
         };
         let t0 = Instant::now();
         let mut ex = Executor::new(&pl, &opts, &[], t0);
@@ -2123,6 +2513,63 @@ timeout = 5
         assert_eq!(ex.resumed, 1);
     }
 
+    // verifies: OPS-RUN-02
+    #[test]
+    fn an_interrupted_executor_sends_nothing_new_and_waits_a_bounded_time() {
+        let pl = plan(TWO_STEPS);
+        let opts = RunOptions {
+            display: false,
+            ping_period: None,
+            ..RunOptions::default()
+        };
+        let t0 = Instant::now();
+        let mut ex = Executor::new(&pl, &opts, &[], t0);
+        ex.on_tick(t0);
+        let tc0 = pus::build_tc(1, 10, mib::tc::by_name("PING").unwrap(), &[]).unwrap();
+        ex.on_sent(0, Ok(tc0.clone()), t0);
+        let fx = ex.interrupt(t0 + Duration::from_millis(100), Duration::from_secs(2));
+        assert!(
+            fx.iter().any(|e| matches!(e, Effect::Log(l) if l.contains("ping1"))),
+            "{fx:?}"
+        );
+        assert!(
+            !ex.stopped(t0 + Duration::from_secs(1)),
+            "the step in flight is awaited"
+        );
+        assert!(ex.stopped(t0 + Duration::from_millis(2200)), "for a bounded time");
+        // Its completion still counts; the next step is never sent.
+        ex.on_update(t0 + Duration::from_millis(500), verification(&tc0, 0, 7));
+        assert!(ex.stopped(t0 + Duration::from_millis(600)));
+        assert!(sends(&ex.on_tick(t0 + Duration::from_secs(1))).is_empty());
+        assert_eq!(ex.state[1], StepState::Waiting);
+    }
+
+    // verifies: OPS-RUN-03
+    #[test]
+    fn an_adopted_step_ends_by_its_reports_or_is_requeued() {
+        let pl = plan(TWO_STEPS);
+        let opts = RunOptions {
+            display: false,
+            ping_period: None,
+            ..RunOptions::default()
+        };
+        let t0 = Instant::now();
+        let mut ex = Executor::new(&pl, &opts, &[], t0);
+        let tc0 = pus::build_tc(1, 10, mib::tc::by_name("PING").unwrap(), &[]).unwrap();
+        ex.adopt(0, tc0.clone(), "outcome asked of the store", t0);
+        assert!(
+            sends(&ex.on_tick(t0)).is_empty(),
+            "nothing sent while its outcome is unknown"
+        );
+        ex.on_update(t0, verification(&tc0, 0, 7));
+        assert!(matches!(ex.state[0], StepState::Done { .. }));
+        assert_eq!(sends(&ex.on_tick(t0)), vec![1]);
+        let mut ex = Executor::new(&pl, &opts, &[], t0);
+        ex.adopt(0, tc0, "outcome asked of the store", t0);
+        ex.requeue(0);
+        assert_eq!(sends(&ex.on_tick(t0)), vec![0], "never arrived: sent as a new TC");
+    }
+
     // verifies: GND-06
     #[test]
     fn executor_failure_report_fails_the_step_and_blocks_dependents() {
@@ -2145,7 +2592,7 @@ timeout = 5
 
     /// A fake OBSW that answers every copy of a TC like the real one's duplicate window:
     /// the first `corrupt` copies get TM[1,2] CRC_MISMATCH (damaged on the way), the
-    /// completion of the next `lose` copies is lost, then TM[1,1] + TM[1,7].
+    /// next `lose` copies are lost on the way, then TM[1,1] + TM[1,7].
     fn lossy_obsw(corrupt: usize, lose: usize) -> (SocketAddr, std::thread::JoinHandle<Vec<Vec<u8>>>) {
         let s = UdpSocket::bind("127.0.0.1:0").unwrap();
         s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
@@ -2165,11 +2612,9 @@ timeout = 5
                     d.extend_from_slice(&mib::failure::FailureCode::CRC_MISMATCH.code().to_be_bytes());
                     d.extend_from_slice(&[0, 1, 0, 2]);
                     out.push((1, 2, d));
-                } else {
+                } else if k > corrupt + lose {
                     out.push((1, 1, rid.to_vec()));
-                    if k > corrupt + lose {
-                        out.push((1, 7, rid.to_vec()));
-                    }
+                    out.push((1, 7, rid.to_vec()));
                 }
                 for (sv, sub, d) in out {
                     seq += 1;
@@ -2186,7 +2631,7 @@ timeout = 5
 
     // verifies: GND-01
     #[test]
-    fn a_tc_is_resent_identically_until_its_completion_and_a_damaged_copy_is_no_verdict() {
+    fn a_tc_is_resent_identically_until_its_acceptance_and_a_damaged_copy_is_no_verdict() {
         let (addr, fake) = lossy_obsw(1, 2);
         let mut s = Session::connect(&[(1, addr)], Transport::Udp, None, |_| Some(200)).unwrap();
         s.ack_timeout = Duration::from_millis(60);
@@ -2213,11 +2658,62 @@ timeout = 5
         assert_eq!(stages.last(), Some(&Stage::Completion));
         assert!(!s.busy(1));
         let copies = fake.join().unwrap();
-        assert_eq!(copies.len(), 4, "1 damaged + 2 without completion + 1 complete");
+        assert_eq!(copies.len(), 4, "1 damaged + 2 lost + 1 accepted and complete");
         assert!(
             copies.iter().all(|c| *c == tc.bytes),
             "every copy identical (same seq, same bytes)"
         );
+    }
+
+    // verifies: OPS-LINK-01
+    #[test]
+    fn an_accepted_tc_is_not_resent_while_its_completion_is_awaited() {
+        // A fake that accepts at once and completes after 800 ms: with a first wait of
+        // 60 ms the old rule resent it ("no outcome yet") about eight times.
+        let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
+        sock.set_read_timeout(Some(Duration::from_millis(1500))).unwrap();
+        let addr = sock.local_addr().unwrap();
+        let fake = std::thread::spawn(move || {
+            let t = CdsShort::now().to_bytes();
+            let mut buf = [0u8; 2048];
+            let mut copies = 0;
+            let mut from = None;
+            let t0 = Instant::now();
+            while t0.elapsed() < Duration::from_millis(1500) {
+                let Ok((n, f)) = sock.recv_from(&mut buf) else { break };
+                copies += 1;
+                let rid = [buf[0], buf[1], buf[2], buf[3]];
+                if from.is_none() {
+                    from = Some((f, rid));
+                    sock.send_to(&build_tm(0x101, 1, 1, 1, 0, &t, &rid), f).unwrap();
+                    sock.set_read_timeout(Some(Duration::from_millis(800))).unwrap();
+                }
+                let _ = n;
+            }
+            if let Some((f, rid)) = from {
+                sock.send_to(&build_tm(0x101, 2, 1, 7, 0, &t, &rid), f).unwrap();
+            }
+            copies
+        });
+        let mut s = Session::connect(&[(1, addr)], Transport::Udp, None, |_| Some(300)).unwrap();
+        s.ack_timeout = Duration::from_millis(60);
+        s.send(1, mib::tc::by_name("PING").unwrap(), &[], Some(1), None)
+            .unwrap();
+        let (mut done, mut resent) = (false, 0);
+        let t0 = Instant::now();
+        while t0.elapsed() < Duration::from_secs(4) && !done {
+            for u in s.poll(Duration::from_millis(20)) {
+                match u {
+                    Update::Verification { tag: Some(1), v, .. } => done |= v.stage == Stage::Completion,
+                    Update::Resent { .. } => resent += 1,
+                    _ => {}
+                }
+            }
+        }
+        assert!(done, "completion awaited and received");
+        assert_eq!(resent, 0);
+        assert_eq!(fake.join().unwrap(), 1, "one copy on the wire");
+        assert_eq!(s.robots[&1].link_quality(), Some(1.0));
     }
 
     // verifies: GND-01, DD-ROBUST-02

@@ -251,6 +251,10 @@ pub struct Step {
     pub deps: Vec<usize>,
     /// Longest wait for completion, seconds (`None`: the run's default).
     pub timeout_s: Option<f64>,
+    /// `confirm = true`: the operator confirms the step's hazardous TC (the MIB's
+    /// `hazard`); `ground run` refuses a hazardous step without it.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub confirm: bool,
     #[serde(skip)]
     pub span: Range<usize>,
 }
@@ -486,11 +490,12 @@ struct RawStep {
     from_given: Option<(u8, Range<usize>)>,
     after: Vec<(String, Range<usize>)>,
     timeout_s: Option<f64>,
+    confirm: bool,
     span: Range<usize>,
     action_span: Range<usize>,
 }
 
-const COMMON_KEYS: &[&str] = &["id", "robot", "action", "after", "timeout", "note"];
+const COMMON_KEYS: &[&str] = &["id", "robot", "action", "after", "timeout", "confirm", "note"];
 
 fn action_keys(action: &str) -> Option<&'static [&'static str]> {
     Some(match action {
@@ -519,6 +524,7 @@ fn parse_step(cx: &mut Cx, t: &Tbl<'_>, span: Range<usize>) -> RawStep {
         from_given: None,
         after: Vec::new(),
         timeout_s: None,
+        confirm: false,
         span: span.clone(),
         action_span: span.clone(),
     };
@@ -556,6 +562,12 @@ fn parse_step(cx: &mut Cx, t: &Tbl<'_>, span: Range<usize>) -> RawStep {
         match float_of(v.get_ref()) {
             Some(f) if f > 0.0 && f.is_finite() => rs.timeout_s = Some(f),
             _ => cx.err(v.span(), "`timeout` must be a positive number of seconds"),
+        }
+    }
+    if let Some(v) = get(t, "confirm") {
+        match v.get_ref().as_bool() {
+            Some(b) => rs.confirm = b,
+            None => cx.err(v.span(), "`confirm` must be true or false"),
         }
     }
     let Some(av) = req(cx, t, "action", span.clone(), &what) else {
@@ -657,9 +669,12 @@ fn parse_step(cx: &mut Cx, t: &Tbl<'_>, span: Range<usize>) -> RawStep {
 fn parse_command(cx: &mut Cx, t: &Tbl<'_>, what: &str, span: Range<usize>) -> Option<Action> {
     let v = req(cx, t, "tc", span, &format!("{what} (command)"))?;
     let name = string(cx, v, "tc")?;
-    let Some(def) = mib::tc::by_name(name) else {
-        cx.err(v.span(), format!("`tc`: \"{name}\" is not a TC of the MIB"));
-        return None;
+    let def = match crate::ops::policy::tc_by_name(name) {
+        Ok(def) => def,
+        Err(e) => {
+            cx.err(v.span(), format!("`tc`: {e}"));
+            return None;
+        }
     };
     if def.variable {
         cx.err(
@@ -679,16 +694,44 @@ fn parse_command(cx: &mut Cx, t: &Tbl<'_>, what: &str, span: Range<usize>) -> Op
         },
         None => (&empty, v.span()),
     };
-    let names: Vec<&str> = def.args.iter().map(|a| a.name).collect();
-    unknown_keys(cx, args_t, &names, &format!("arguments of {}", def.name));
-    let mut vals = Vec::new();
+    // Names and values are read as `ground send` reads them (one reader, ops::policy):
+    // numbers, or the argument's names in the MIB; a near miss gets a suggestion.
+    use crate::ops::policy;
     let mut ok = true;
+    for (k, _) in args_t.iter() {
+        if !def.args.iter().any(|a| a.name == k.get_ref().as_ref()) {
+            let e = policy::arg_by_name(def, k.get_ref())
+                .err()
+                .map_or_else(|| format!("write `{}` in lower case", k.get_ref()), |e| e.to_string());
+            cx.err(k.span(), e);
+            ok = false;
+        }
+    }
+    let mut vals = Vec::new();
     for a in def.args {
         match get(args_t, a.name) {
-            Some(av) => match int_in(cx, av, a.name, a.min, a.max) {
-                Some(i) => vals.push(i),
-                None => ok = false,
-            },
+            Some(av) => {
+                let text = match (int_of(av.get_ref()), av.get_ref().as_str()) {
+                    (Some(i), _) => Some(i.to_string()),
+                    (None, Some(s)) => Some(s.to_string()),
+                    (None, None) => None,
+                };
+                let parsed = match text {
+                    Some(t) => policy::parse_value(def, a, &t).map_err(|e| e.to_string()),
+                    None => Err(format!(
+                        "`{}` must be an integer or a name, found {}",
+                        a.name,
+                        av.get_ref().type_str()
+                    )),
+                };
+                match parsed {
+                    Ok(i) => vals.push(i),
+                    Err(e) => {
+                        cx.err(av.span(), e);
+                        ok = false;
+                    }
+                }
+            }
             None => {
                 cx.err(
                     args_span.clone(),
@@ -928,6 +971,7 @@ pub fn parse(src: &str) -> Result<Plan, Vec<PlanError>> {
                 after: s.after.into_iter().map(|a| a.0).collect(),
                 deps,
                 timeout_s: s.timeout_s,
+                confirm: s.confirm,
                 span: s.span,
             })
         })

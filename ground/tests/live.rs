@@ -38,7 +38,7 @@ fn ping_mode_and_send_against_the_real_obsw() {
     assert_eq!(out.status.code(), Some(4), "{}", text(&out));
     assert!(text(&out).contains("NOT_ALLOWED_IN_MODE"), "{}", text(&out));
 
-    let out = ground(&dir, &["mode", "--robot", &r, "operational"]);
+    let out = ground(&dir, &["mode", "--robot", &r, "operational", "--confirm"]);
     assert_eq!(out.status.code(), Some(0), "{}", text(&out));
 
     let out = ground(&dir, &["send", "--robot", &r, "RECONFIGURE", "from=Xneg", "to=Xpos"]);
@@ -163,6 +163,7 @@ id = "op"
 robot = 1
 action = "mode"
 mode = "operational"
+confirm = true
 [[step]]
 id = "bolt"
 robot = 1
@@ -268,7 +269,10 @@ fn an_unreachable_obsw_is_reported_within_the_link_loss_time() {
     );
     let t = text(&out);
     assert_eq!(out.status.code(), Some(5), "{t}");
-    assert!(t.contains("no TM from") && t.contains("OBSW not running"), "{t}");
+    assert!(
+        t.contains("nothing heard from") && t.contains("no OBSW running there"),
+        "{t}"
+    );
     // Reported within the MIB's link-loss time, not after every resend.
     let expect = Duration::from_millis(mib::config::LINK_LOSS_MS as u64);
     assert!(
@@ -314,6 +318,6 @@ fn a_run_against_the_wrong_robot_says_the_replies_carry_another_apid() {
         &["send", "--no-archive", "--robot", &format!("1={}", b.addr), "PING"],
     );
     let t = text(&out);
-    assert_eq!(out.status.code(), Some(5), "{t}");
-    assert!(t.contains("carry APID 0x102, not robot 1's 0x101"), "{t}");
+    assert_eq!(out.status.code(), Some(7), "{t}");
+    assert!(t.contains("carry APID 0x102 (robot 2), not robot 1's 0x101"), "{t}");
 }
