@@ -61,10 +61,8 @@ impl World {
                         }
                     }
                 }
-                FopEffect::TransmitBc(cmd) => {
-                    if !self.link.lose_up() {
-                        self.farm.on_event(FarmInput::Bc(cmd));
-                    }
+                FopEffect::TransmitBc(cmd) if !self.link.lose_up() => {
+                    self.farm.on_event(FarmInput::Bc(cmd));
                 }
                 FopEffect::Acknowledged { fdu, .. } => self.acked.push(fdu),
                 FopEffect::Alert(a) => panic!("alert {a:?}"),
