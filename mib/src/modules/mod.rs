@@ -13,6 +13,7 @@ pub mod config;
 pub mod db;
 pub mod descriptor;
 pub mod geometry;
+pub mod report;
 
 pub use config::{config_hash, ConfigDef, ConfigId, SlotSet, CONFIGS};
 pub use db::{lookup, ModuleDef, MODULE_DB};

@@ -459,6 +459,119 @@ pub fn missing_for(function_id: u16, side: Option<u8>, present: SlotSet) -> Opti
     mib::modules::config::needs(function_id, side).without(present).first()
 }
 
+/// Board B's half over the A–B link, one descriptor per message (the link's frames hold
+/// at most 64 bytes): chunk = `index u8 | count u8 | descriptor (28 bytes)`. Proposed
+/// body of a new A–B message kind (not yet in `ablink`, see docs/modules.md).
+pub const CHUNK_LEN: usize = 2 + mib::modules::DESCRIPTOR_LEN;
+
+/// Why a chunk was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ChunkError {
+    /// Not [`CHUNK_LEN`] bytes.
+    Length(usize),
+    /// `count` above `MAX_TABLE_ENTRIES`, or `index` not below `count`.
+    Index { index: u8, count: u8 },
+}
+
+impl fmt::Display for ChunkError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ChunkError::Length(n) => write!(f, "descriptor chunk of {n} bytes (expected {CHUNK_LEN})"),
+            ChunkError::Index { index, count } => write!(f, "descriptor chunk {index} of {count}"),
+        }
+    }
+}
+
+impl core::error::Error for ChunkError {}
+
+/// Rebuilds board B's descriptor table from chunks (any order, repeats harmless; a new
+/// `count` starts over). Entries are stored as received: their CRCs are checked by
+/// [`discover`], so a corrupted entry is reported as such rather than lost.
+#[derive(Clone, Debug)]
+pub struct TableAssembler {
+    buf: [u8; mib::modules::descriptor::MAX_TABLE_LEN],
+    count: Option<u8>,
+    have: u8,
+    /// Chunks refused (length, index); nothing is dropped uncounted.
+    pub refused: u16,
+}
+
+impl Default for TableAssembler {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl TableAssembler {
+    pub const fn new() -> Self {
+        TableAssembler {
+            buf: [0; mib::modules::descriptor::MAX_TABLE_LEN],
+            count: None,
+            have: 0,
+            refused: 0,
+        }
+    }
+
+    /// The chunk for entry `index` of a table of `count` entries (board B's side).
+    pub fn chunk(index: u8, count: u8, desc: &[u8; mib::modules::DESCRIPTOR_LEN]) -> [u8; CHUNK_LEN] {
+        let mut c = [0u8; CHUNK_LEN];
+        c[0] = index;
+        c[1] = count;
+        c[2..].copy_from_slice(desc);
+        c
+    }
+
+    /// Takes one chunk; `Ok(true)` once every entry has arrived.
+    pub fn push(&mut self, chunk: &[u8]) -> Result<bool, ChunkError> {
+        let r = self.take(chunk);
+        if r.is_err() {
+            self.refused = self.refused.saturating_add(1);
+        }
+        r
+    }
+
+    fn take(&mut self, chunk: &[u8]) -> Result<bool, ChunkError> {
+        use mib::modules::descriptor::{TABLE_HEADER_LEN, TABLE_MAGIC, TABLE_VERSION};
+        use mib::modules::{DESCRIPTOR_LEN, MAX_TABLE_ENTRIES};
+        if chunk.len() != CHUNK_LEN {
+            return Err(ChunkError::Length(chunk.len()));
+        }
+        let (index, count) = (chunk[0], chunk[1]);
+        if count as usize > MAX_TABLE_ENTRIES || index >= count {
+            return Err(ChunkError::Index { index, count });
+        }
+        if self.count != Some(count) {
+            self.count = Some(count);
+            self.have = 0;
+        }
+        let at = TABLE_HEADER_LEN + index as usize * DESCRIPTOR_LEN;
+        self.buf[at..at + DESCRIPTOR_LEN].copy_from_slice(&chunk[2..]);
+        self.buf[0..2].copy_from_slice(&TABLE_MAGIC);
+        self.buf[2] = TABLE_VERSION;
+        self.buf[3] = count;
+        self.have |= 1 << index;
+        Ok(self.complete())
+    }
+
+    fn complete(&self) -> bool {
+        match self.count {
+            Some(0) => true,
+            Some(n) => self.have.count_ones() == n as u32,
+            None => false,
+        }
+    }
+
+    /// The rebuilt table once complete.
+    pub fn table(&self) -> Option<&[u8]> {
+        let n = self.count? as usize;
+        if !self.complete() {
+            return None;
+        }
+        self.buf
+            .get(..mib::modules::descriptor::TABLE_HEADER_LEN + n * mib::modules::DESCRIPTOR_LEN)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -836,5 +949,51 @@ mod tests {
             let d = discover(&BoardInput { table: &t[..na], probes: good_probes(Board::A) }, None);
             prop_assert!(d.outcome.is_err());
         });
+    }
+
+    // verifies: MOD-DISC-06
+    #[test]
+    fn board_b_half_rebuilt_from_chunks_in_any_order() {
+        let r = full();
+        let (ta, na, tb, nb) = tables(&r.set);
+        let table = Table::parse(&tb[..nb]).unwrap();
+        let n = table.len() as u8;
+        let mut asm = TableAssembler::new();
+        assert_eq!(asm.table(), None);
+        // Reverse order, one repeat, garbage in between.
+        for i in (0..n).rev() {
+            let raw: [u8; 28] = table.raw(i as usize).unwrap().try_into().unwrap();
+            let c = TableAssembler::chunk(i, n, &raw);
+            assert_eq!(asm.push(&c), Ok(i == 0));
+            if i == 3 {
+                assert_eq!(asm.push(&c), Ok(false));
+                assert_eq!(asm.push(&c[..10]), Err(ChunkError::Length(10)));
+                assert_eq!(
+                    asm.push(&TableAssembler::chunk(9, 9, &raw)),
+                    Err(ChunkError::Index { index: 9, count: 9 })
+                );
+                assert_eq!(
+                    asm.push(&TableAssembler::chunk(6, 6, &raw)),
+                    Err(ChunkError::Index { index: 6, count: 6 })
+                );
+            }
+        }
+        assert_eq!(asm.refused, 3);
+        assert_eq!(asm.table(), Some(&tb[..nb]));
+        let d = discover(
+            &BoardInput {
+                table: &ta[..na],
+                probes: r.probes[0],
+            },
+            Some(&BoardInput {
+                table: asm.table().unwrap(),
+                probes: r.probes[1],
+            }),
+        );
+        assert_eq!(d.outcome, Ok(ConfigId::Full));
+        // A new count starts over.
+        let raw: [u8; 28] = table.raw(0).unwrap().try_into().unwrap();
+        assert_eq!(asm.push(&TableAssembler::chunk(0, 2, &raw)), Ok(false));
+        assert_eq!(asm.table(), None);
     }
 }
