@@ -40,8 +40,7 @@ pub mod tc_frame {
     pub const MIN_LEN: usize = HEADER_LEN + 1 + FECF_LEN;
     /// Largest TC space packet in one SDLS-protected frame (no segment header):
     /// 1024 − 5 − 14 − 16 − 2 = 987.
-    pub const MAX_PACKET_LEN: usize =
-        MAX_LEN - HEADER_LEN - super::sdls::HEADER_LEN - super::sdls::MAC_LEN - FECF_LEN;
+    pub const MAX_PACKET_LEN: usize = MAX_LEN - HEADER_LEN - super::sdls::HEADER_LEN - super::sdls::MAC_LEN - FECF_LEN;
 }
 
 /// TM frame sizes (132.0-B-3): fixed length, no secondary header, OCF (CLCW) and FECF on
@@ -96,12 +95,16 @@ pub mod sdls {
     /// Downlink SPIs (robot → ground, TM frames on VC0 and VC1). Separate keys per direction:
     /// a key shared by both directions with both counters starting at 0 would reuse nonces.
     pub const TM_SPIS: [u16; 2] = [17, 18];
-    /// Anti-replay window N: a frame's IV must lie in (last, last + N].
-    pub const ANTI_REPLAY_WINDOW: u64 = 64;
     /// Transmit counters are reserved in blocks of this many IVs: the high-water mark is
     /// persisted before the first IV of a block is used, so a restart skips at most one block
     /// and never reuses a nonce.
     pub const IV_RESERVE_BLOCK: u64 = 1024;
+    /// Anti-replay window N: a frame's IV must lie in (last, last + N]. Larger than the
+    /// reserve block plus lost frames, so a sender's restart (a jump of up to one block) is
+    /// accepted. Replays (IV ≤ last) are refused whatever N is; Yamcs' TM link needs
+    /// `seqNumWindow` of at least this too (its default, 10, would refuse TM after a robot
+    /// restart).
+    pub const ANTI_REPLAY_WINDOW: u64 = 4096;
 }
 
 #[cfg(test)]
@@ -118,6 +121,7 @@ mod tests {
         assert!(cop1::FOP_SLIDING_WINDOW <= cop1::FARM_WINDOW_WIDTH / 2);
         assert!(SCID < 1024);
         assert!(tm_vc::IDLE < 8 && tm_vc::REPLAY < 8);
+        assert!(sdls::ANTI_REPLAY_WINDOW > 2 * sdls::IV_RESERVE_BLOCK);
         for s in sdls::TC_SPIS {
             assert!(!sdls::TM_SPIS.contains(&s));
         }

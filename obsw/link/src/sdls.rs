@@ -663,6 +663,34 @@ mod tests {
         assert!(fresh.in_window(0) && fresh.in_window(63) && !fresh.in_window(64));
     }
 
+    // verifies: LINK-SDLS-05, LINK-SDLS-04
+    #[test]
+    fn receiver_with_mission_window_accepts_the_senders_restart_jump() {
+        use mib::link::sdls::ANTI_REPLAY_WINDOW;
+        let (mut st, mut rst) = (MemoryIvStore::default(), MemoryIvStore::default());
+        let mut rx: RxSas<2> = RxSas::default();
+        rx.insert(RxSa::new(1, &TEST_KEY_TC_A, ANTI_REPLAY_WINDOW)).unwrap();
+        let mut tx = TxSa::resume(1, &TEST_KEY_TC_A, 0);
+        let mut f = frame(&mut tx, &mut st, b"before");
+        assert!(rx.process_tc(&mut rst, &mut f).is_ok());
+        // The sender restarts: it resumes a whole block ahead.
+        let mut tx = TxSa::resume(1, &TEST_KEY_TC_A, st.tx_high_water(1).unwrap());
+        let mut f = frame(&mut tx, &mut st, b"after");
+        assert_eq!(iv_value(f[7..19].try_into().unwrap()), 1024);
+        assert!(rx.process_tc(&mut rst, &mut f).is_ok());
+        // The receiver restarts too: it resumes at its stored `last`.
+        let mut rx2: RxSas<2> = RxSas::default();
+        rx2.insert(RxSa::resume(
+            1,
+            &TEST_KEY_TC_A,
+            ANTI_REPLAY_WINDOW,
+            rst.rx_last(1).unwrap(),
+        ))
+        .unwrap();
+        let mut again = f.clone();
+        assert_eq!(rx2.process_tc(&mut rst, &mut again), Err(SdlsError::Replay));
+    }
+
     // verifies: LINK-SDLS-05
     #[test]
     fn tx_counter_reserved_before_use_and_never_reused_after_restart() {
