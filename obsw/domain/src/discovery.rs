@@ -636,6 +636,10 @@ mod tests {
         assert!(d.issues.is_empty());
         assert_eq!(d.hash, config_hash(&r.set));
         assert_eq!(d.set, r.set);
+        // The whole result lives on the stack (docs/modules.md quotes the size).
+        let size = core::mem::size_of::<Discovery>();
+        println!("size_of::<Discovery>() = {size} bytes");
+        assert!(size <= 2048, "{size}");
         let mut loco = full();
         loco.set[slot::BOLTER_A as usize] = None;
         loco.set[slot::BOLTER_B as usize] = None;
