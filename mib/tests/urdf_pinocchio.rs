@@ -72,6 +72,7 @@ fn cases(root: Board, with_bolters: bool, tweak: &dyn Fn(u8, &mut Value)) -> Vec
             "joints": joints,
             "root": {"face": r.face.name(), "approach": approach(r.approach)},
             "expect": expect,
+            "gravity_frames": ["imu_a", "imu_b"],
         }));
     }
     out
@@ -137,6 +138,17 @@ fn assert_all_on_face(report: &Value, what: &str) -> (f64, f64) {
     (dmax, amax)
 }
 
+/// Mass of a module set from the database (each module's body and its second part).
+fn db_mass(set: &ModuleSet) -> f64 {
+    set.iter()
+        .flatten()
+        .map(|d| {
+            let e = mib::modules::lookup(d.ty, d.variant, d.revision).unwrap();
+            e.inertial.mass_kg + e.part.map(|p| p.inertial.mass_kg).unwrap_or(0.0)
+        })
+        .sum()
+}
+
 fn assert_masses_valid(report: &Value, links: usize, what: &str) {
     let l = report["links"].as_array().unwrap();
     assert_eq!(l.len(), links, "{what}: links in the URDF");
@@ -160,6 +172,8 @@ fn full_robot_grippers_on_the_mib_faces_in_all_15_states_both_roots() {
         );
         let (d, a) = assert_all_on_face(&report, &format!("full, root {}", root.name()));
         assert_masses_valid(&report, 18, "full");
+        let total = report["total_mass"].as_f64().unwrap();
+        assert!((total - db_mass(&set)).abs() < 1e-9, "Pinocchio {total} kg");
         println!(
             "full robot, root {}: largest plane error {d:.3e} m, axis error {a:.3e} deg",
             root.name()
@@ -175,6 +189,9 @@ fn locomotion_only_robot_grippers_on_the_mib_faces_in_all_15_states() {
     let report = run("loco", &text, Board::A, cases(Board::A, false, &|_, _| {}));
     assert_all_on_face(&report, "locomotion-only");
     assert_masses_valid(&report, 14, "locomotion-only");
+    let total = report["total_mass"].as_f64().unwrap();
+    assert!((total - db_mass(&set)).abs() < 1e-9, "Pinocchio {total} kg");
+    assert!(total < db_mass(&default_set(1000)));
 }
 
 // verifies: MOD-URDF-02
@@ -236,4 +253,53 @@ fn a_broken_inertia_is_reported_by_the_independent_check() {
         .map(|r| r["name"].as_str().unwrap())
         .collect();
     assert_eq!(bad, ["hip", "encoder"]);
+}
+
+/// What `mmic_domain::imu` says a board gripped to `face` reads (docs/domain.md: board
+/// frame z = inward normal, y = world Z; gravity world −Y): `[−nx, 0, −ny]` g.
+fn domain_gravity_mg(face: mib::robot::Face) -> [f64; 3] {
+    let (nx, ny) = face.inward_normal();
+    [-1000.0 * nx as f64, 0.0, -1000.0 * ny as f64]
+}
+
+// verifies: MOD-GEO-02
+#[test]
+fn imu_frames_read_the_domain_gravity_except_board_b_in_matched_states() {
+    let set = default_set(1000);
+    let text = urdf(&set, Board::A, "mmic_i").unwrap();
+    let report = run("imu", &text, Board::A, cases(Board::A, false, &|_, _| {}));
+    let close = |v: &Value, w: [f64; 3]| {
+        let v: Vec<f64> = v.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+        v.iter().zip(w).all(|(a, b)| (a - b).abs() < 1e-6)
+    };
+    for (id, c) in report["cases"].as_array().unwrap().iter().enumerate() {
+        let s = &STATES[id];
+        let g = &c["gravity_mg"];
+        assert!(
+            close(&g["imu_a"], domain_gravity_mg(s.a)),
+            "{}: imu_a {}",
+            s.name,
+            g["imu_a"]
+        );
+        match s.kind() {
+            StateKind::Stretch | StateKind::Turn => {
+                assert!(
+                    close(&g["imu_b"], domain_gravity_mg(s.b)),
+                    "{}: imu_b {}",
+                    s.name,
+                    g["imu_b"]
+                );
+            }
+            // docs/modules.md, open finding 2: the rigid robot's board B faces the other
+            // way in a matched state and reads the gravity the domain gives the opposite face.
+            StateKind::Matched => {
+                assert!(
+                    close(&g["imu_b"], domain_gravity_mg(s.a.opposite())),
+                    "{}: imu_b {}",
+                    s.name,
+                    g["imu_b"]
+                );
+            }
+        }
+    }
 }

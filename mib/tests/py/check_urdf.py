@@ -17,7 +17,8 @@ face normal as `approach` says, y along world +Z), runs forward kinematics and d
 its own which face of the voxel each frame lies on: within tol_m of a face plane, inside
 the face square, z axis within tol_deg of the face normal. It also checks every link's
 mass and inertia (positive mass, positive definite, triangle inequality) from the URDF
-text and from Pinocchio's model.
+text and from Pinocchio's model, reports the model's total mass, and, for the frames a
+case lists in "gravity_frames", the gravity vector (world -Y, 1000 mg) in that frame.
 """
 import json
 import math
@@ -118,8 +119,11 @@ def main():
     data = model.createData()
     report = {"pinocchio": pin.__version__, "nq": model.nq,
               "joints": [model.names[i] for i in range(1, model.njoints)],
-              "links": check_links(text), "bodies": [], "cases": []}
-    for i in range(1, model.njoints):
+              "links": check_links(text), "bodies": [], "cases": [],
+              # The root link and the links fixed to it are merged into the universe's
+              # inertia (index 0), which pin.computeTotalMass leaves out: sum them all.
+              "total_mass": float(sum(model.inertias[i].mass for i in range(model.njoints)))}
+    for i in range(model.njoints):
         Y = model.inertias[i]
         r = inertia_ok(float(Y.mass), np.array(Y.inertia))
         r["name"] = model.names[i]
@@ -153,6 +157,15 @@ def main():
                 "found": found, "approach": exp_approach, "plane_err_m": dist,
                 "axis_err_deg": ang, "y_err_deg": y_err, "inside": inside,
                 "position": [float(v) for v in M.translation], "ok": bool(ok)}
+        # Gravity (world -Y, 1000 mg) as read in the given frames (IMU model check).
+        res["gravity_mg"] = {}
+        for fname in case.get("gravity_frames", []):
+            if not model.existFrame(fname):
+                res["errors"].append(f"no frame {fname}")
+                continue
+            M = base * data.oMf[model.getFrameId(fname)]
+            g = M.rotation.T @ np.array([0.0, -1000.0, 0.0])
+            res["gravity_mg"][fname] = [float(v) for v in g]
         report["cases"].append(res)
     json.dump(report, sys.stdout, indent=1)
 
