@@ -171,8 +171,14 @@ proptest! {
         }
         prop_assert_eq!(w.fop.state(), FopState::Active);
         // The FDU sent as N(S) = N(R) is the first not accepted on board; if none was sent
-        // with that number, everything handed out was accepted.
-        let resume = w.ns_of.get(&nr).copied().unwrap_or(next);
+        // with that number, every transmitted FDU was accepted and the ground resumes after
+        // the last one transmitted (an FDU still in the FOP's wait queue was never sent).
+        let resume = w
+            .ns_of
+            .get(&nr)
+            .copied()
+            .unwrap_or_else(|| w.ns_of.values().max().map_or(0, |m| m + 1));
+        prop_assert!(resume <= next);
         w.run(resume, 200, 200_000);
         prop_assert_eq!(&w.delivered, &(0..200).collect::<Vec<_>>());
     }
