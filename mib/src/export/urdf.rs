@@ -164,7 +164,8 @@ fn joint_xml(out: &mut String, name: &str, kind: &JointKind, axis_sign: f64, par
         let _ = writeln!(
             out,
             "    <axis xyz=\"{}\"/>",
-            v3([a[0] * axis_sign, a[1] * axis_sign, a[2] * axis_sign])
+            // `+ 0.0` turns a negated zero into 0 (no "-0" in the file).
+            v3([a[0] * axis_sign + 0.0, a[1] * axis_sign + 0.0, a[2] * axis_sign + 0.0])
         );
     }
     if let Some((lower, upper, effort, velocity)) = limit {
@@ -347,6 +348,7 @@ mod tests {
         assert_eq!(count(&x, "type=\"prismatic\""), 2);
         assert_eq!(count(&x, "type=\"revolute\""), 3, "hip and two gripper jaws");
         assert!(x.contains("<link name=\"bolter_a_tool\">"));
+        assert!(!x.contains("-0 "), "no negative zeros");
         // The first link is the root: gripper A.
         let first = doc.descendants().find(|n| n.has_tag_name("link")).unwrap();
         assert_eq!(first.attribute("name"), Some("gripper_a"));
