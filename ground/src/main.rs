@@ -3,9 +3,10 @@
 //! Exit codes (the table in docs/operator-guide.md): 0 success; 1 error (I/O, archive,
 //! internal); 2 command-line usage; 3 invalid input or refused before sending (plan, TC
 //! name or arguments, an unconfirmed hazardous TC, corrupt packets with
-//! `decode --strict`); 4 a TC or plan step failed, was refused or timed out; 5 nothing
-//! heard from a robot; 6 a run interrupted by the operator; 7 replies from another APID
-//! (wrong robot at the address); 8 a robot heard, then lost; 130 a second Ctrl-C.
+//! `decode --strict`); 4 a TC or plan step failed, was refused or timed out; 5 a robot
+//! heard, then lost (link lost; also: no simulator answering); 6 a run interrupted by the
+//! operator; 7 replies from another APID (wrong robot at the address); 8 nothing heard
+//! from a robot; 130 a second Ctrl-C.
 
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -34,7 +35,7 @@ pub mod exit {
     pub const USAGE: u8 = 2;
     pub const INVALID: u8 = 3;
     pub const FAILED: u8 = 4;
-    /// Nothing heard from a robot (also: no simulator answering); see
+    /// A robot heard, then lost (also: no simulator answering); see
     /// `ground::ops::NoAnswer` for 5, 7 and 8.
     pub const NO_ANSWER: u8 = 5;
     /// `ground run` interrupted by Ctrl-C or SIGTERM: summary printed, `--resume` continues.

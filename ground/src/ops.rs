@@ -172,7 +172,8 @@ impl RobotStatus {
 }
 
 /// The three ways a robot does not answer, the same for every verb (`run`, `send`,
-/// `mode`, `ping`, `watch`); each has its own exit code (docs/operator-guide.md).
+/// `mode`, `ping`, `watch`); each has its own exit code (docs/operator-guide.md): 5 heard
+/// then lost (the link-loss code), 7 another APID, 8 nothing heard.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub enum NoAnswer {
     /// Nothing at all heard from the robot's address within `LINK_LOSS_MS`.
@@ -188,9 +189,9 @@ impl NoAnswer {
     /// The exit code of this case.
     pub fn exit_code(self) -> u8 {
         match self {
-            NoAnswer::NothingHeard => 5,
+            NoAnswer::Lost => 5,
             NoAnswer::OtherApid(_) => 7,
-            NoAnswer::Lost => 8,
+            NoAnswer::NothingHeard => 8,
         }
     }
 }
@@ -1883,11 +1884,13 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
             }
         }
     }
-    let mut early = Vec::new();
-    if opts.ping_period.is_some() || !resume.in_flight.is_empty() {
+    // Every session of a run starts with a start marker per robot: it names the run in
+    // the archive (see `runs`) and, answered, starts the TM accounting.
+    let watch = opts.ping_period.is_some() || !resume.in_flight.is_empty();
+    if watch {
         session.watch_links();
-        early = start_markers(session, &robots, &stop_asked);
     }
+    let early = start_markers(session, &robots, watch, &stop_asked);
     let apply = |fx: Vec<Effect>, exec: &mut Executor, session: &mut Session| {
         let mut queue: VecDeque<Effect> = fx.into();
         while let Some(e) = queue.pop_front() {
@@ -1925,7 +1928,7 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
         apply(fx, &mut exec, session);
     }
     if !resume.in_flight.is_empty() {
-        let fx = resolve_in_flight(session, &mut exec, &resume.in_flight, &stop_asked);
+        let fx = resolve_in_flight(session, &mut exec, resume, &stop_asked);
         apply(fx, &mut exec, session);
     }
     loop {
@@ -1979,7 +1982,7 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
 /// Starts every robot's TM accounting: a connection test (resent until answered) whose
 /// reports give the first sequence count of the run; every TM from there on is expected.
 /// Returns what happened meanwhile (a link found lost, reports of adopted TCs).
-fn start_markers(session: &mut Session, robots: &[u8], stop: &dyn Fn() -> bool) -> Vec<Update> {
+fn start_markers(session: &mut Session, robots: &[u8], wait: bool, stop: &dyn Fn() -> bool) -> Vec<Update> {
     let mut seen = Vec::new();
     let Some(ping) = mib::tc::by_name("PING") else {
         return seen;
@@ -1992,7 +1995,8 @@ fn start_markers(session: &mut Session, robots: &[u8], stop: &dyn Fn() -> bool) 
     }
     let t0 = Instant::now();
     let limit = Duration::from_millis(mib::config::TC_RETRY_SPAN_MS as u64);
-    while t0.elapsed() < limit
+    while wait
+        && t0.elapsed() < limit
         && !stop()
         && markers.iter().any(|(r, m)| {
             session.pending.contains_key(&(m.apid, m.seq)) && session.robots.get(r).is_some_and(|s| s.lost.is_none())
@@ -2020,9 +2024,10 @@ fn start_markers(session: &mut Session, robots: &[u8], stop: &dyn Fn() -> bool) 
 fn resolve_in_flight(
     session: &mut Session,
     exec: &mut Executor,
-    in_flight: &[InFlight],
+    resume: &Resume,
     stop: &dyn Fn() -> bool,
 ) -> Vec<Effect> {
+    let in_flight = &resume.in_flight;
     let mut fx = Vec::new();
     let robots: Vec<u8> = {
         let mut r: Vec<u8> = in_flight
@@ -2090,9 +2095,18 @@ fn resolve_in_flight(
             continue;
         };
         let r = step.robot;
+        // Complete: every count from the last archived one up to the newest received,
+        // the newest ahead of it (a robot that restarted counts from 0 again: its TM
+        // does not continue the archive's, and the TC's fate is unknown).
+        let last = resume.last_seq.iter().find(|(x, _)| *x == r).map(|(_, q)| *q);
         let complete = session.robots.get(&r).is_some_and(|s| {
+            let ahead = match (s.seq.newest(), last) {
+                (Some(n), Some(l)) => (1..SEQ_TRACK_WINDOW).contains(&(n.wrapping_sub(l) % SEQ_MOD)),
+                (Some(_), None) => true,
+                (None, _) => false,
+            };
             s.lost.is_none()
-                && s.seq.newest().is_some()
+                && ahead
                 && s.seq.missing.is_empty()
                 && s.seq.expired == expired0.get(&r).copied().unwrap_or(0)
         });
@@ -2114,7 +2128,7 @@ fn resolve_in_flight(
                 fx.extend(exec.fail_step(
                     f.step,
                     format!(
-                        "outcome unknown: {} (seq {}) may have executed and the robot's TM since cannot be completed from its store; not sent again (check the robot, then run the step by hand)",
+                        "outcome unknown: {} (seq {}) may have executed, and the robot's TM since the interruption cannot be completed (store overwritten, robot restarted or not answering); not sent again: check the robot, then send the step by hand",
                         f.tc.def.name, f.tc.seq
                     ),
                 ));

@@ -268,7 +268,7 @@ fn an_unreachable_obsw_is_reported_within_the_link_loss_time() {
         ],
     );
     let t = text(&out);
-    assert_eq!(out.status.code(), Some(5), "{t}");
+    assert_eq!(out.status.code(), Some(8), "{t}");
     assert!(
         t.contains("nothing heard from") && t.contains("no OBSW running there"),
         "{t}"

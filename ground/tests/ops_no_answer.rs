@@ -46,12 +46,12 @@ fn check_all(dir: &Path, robot: &str, code: i32, says: &str, within: Duration) {
 
 // verifies: OPS-ANSWER-01
 #[test]
-fn nothing_heard_is_exit_5_from_every_verb_within_the_link_loss_time() {
+fn nothing_heard_is_exit_8_from_every_verb_within_the_link_loss_time() {
     let dir = tmpdir("ops", "nothing");
     std::fs::write(dir.join("one.toml"), ONE_ROBOT_PLAN).unwrap();
     let robot = format!("1=127.0.0.1:{}", free_port());
     let limit = Duration::from_millis(mib::config::LINK_LOSS_MS as u64) + Duration::from_secs(2);
-    check_all(&dir, &robot, 5, "robot 1: nothing heard from 127.0.0.1:", limit);
+    check_all(&dir, &robot, 8, "robot 1: nothing heard from 127.0.0.1:", limit);
 }
 
 // verifies: OPS-ANSWER-01
@@ -72,7 +72,7 @@ fn replies_from_another_apid_are_exit_7_from_every_verb_at_once() {
 
 // verifies: OPS-ANSWER-01
 #[test]
-fn heard_then_lost_is_exit_8_from_watch_and_run() {
+fn heard_then_lost_is_exit_5_from_watch_and_run() {
     let dir = tmpdir("ops", "lost");
     std::fs::write(
         dir.join("walk.toml"),
@@ -115,7 +115,7 @@ to = "Xpos"
         drop(o); // SIGTERM: the obsw stops
         let out = child.wait_with_output().unwrap();
         let t = text(&out);
-        assert_eq!(out.status.code(), Some(8), "{a:?}: {t}");
+        assert_eq!(out.status.code(), Some(5), "{a:?}: {t}");
         assert!(t.contains("robot 1: heard, then lost: no TM from"), "{a:?}: {t}");
         assert!(t0.elapsed() < Duration::from_secs(6), "{a:?}: {:?}", t0.elapsed());
     }

@@ -1,11 +1,13 @@
 //! Run identity and what `ground run --resume` reads back from the archive.
 //!
-//! Every `ground run` gets a run ID ([`new_run_id`]). The session archives it with
-//! every TC it sends, in the TC's `step` column as `LABEL@RUN_ID` (`r1-bolt@20261124-
-//! 061502-3fa2`, `heartbeat@…`): no schema change, and a step's TCs of one run are told
-//! from those of another. A resume continues one run under the same ID: [`find_run`]
-//! picks it (the latest run of the plan, or the one named) and says, per step, whether
-//! its TC completed, failed, was accepted or has no report at all.
+//! Every `ground run` gets a run ID ([`new_run_id`]). Each session of a run (the first
+//! one and every `--resume`) starts with a *start marker* per robot (a connection test),
+//! archived with the label `start marker@RUN_ID` in the TC's `step` column: the TCs that
+//! follow it on that robot's APID, up to the next start marker of any run, belong to that
+//! run. Step TCs keep their plain step ID as label, so no schema change is needed and
+//! `step = 'r1-bolt'` still finds a step's TCs. A resume continues one run under the same
+//! ID: [`find_run`] picks it (the latest run of the plan, or the one named) and says, per
+//! step, whether its TC completed, failed, was accepted or has no report at all.
 
 use std::collections::BTreeMap;
 
@@ -13,7 +15,9 @@ use crate::archive::db::{collect, Val};
 use crate::archive::{ArchiveError, Store};
 use crate::plan::Plan;
 
-/// Separates a TC's label from its run ID in the archive's `step` column.
+use super::START_LABEL;
+
+/// Separates the start marker's label from its run ID in the archive's `step` column.
 pub const RUN_SEP: char = '@';
 
 /// A fresh run ID: UTC start time and 16 bits that differ between two runs started in
@@ -24,22 +28,20 @@ pub fn new_run_id() -> String {
     format!("{}-{salt:04x}", now.format("%Y%m%d-%H%M%S"))
 }
 
-/// The text archived in a TC's `step` column: its label, and `@RUN_ID` when the TC
-/// belongs to a run.
+/// The text archived in a TC's `step` column: its label, and for a start marker of a
+/// run, `start marker@RUN_ID`.
 pub fn archived_label(label: Option<&str>, run: Option<&str>) -> Option<String> {
     match (label, run) {
-        (l, Some(r)) => Some(format!("{}{RUN_SEP}{r}", l.unwrap_or(""))),
-        (Some(l), None) => Some(l.to_string()),
-        (None, None) => None,
+        (Some(START_LABEL), Some(r)) => Some(format!("{START_LABEL}{RUN_SEP}{r}")),
+        (l, _) => l.map(str::to_string),
     }
 }
 
-/// `(label, run ID)` of an archived `step` column.
-pub fn split_label(s: &str) -> (&str, Option<&str>) {
-    match s.rsplit_once(RUN_SEP) {
-        Some((l, r)) if !r.is_empty() => (l, Some(r)),
-        _ => (s, None),
-    }
+/// The run ID of an archived start marker's `step` column.
+pub fn marker_run(step: &str) -> Option<&str> {
+    step.strip_prefix(START_LABEL)
+        .and_then(|r| r.strip_prefix(RUN_SEP))
+        .filter(|r| !r.is_empty())
 }
 
 /// What the archive knows of a step's TC in a run.
@@ -94,90 +96,115 @@ pub enum ResumeError {
     Archive(#[from] ArchiveError),
 }
 
-/// Picks the run to resume: `wanted`, or else the run of `plan` that sent a TC last.
+/// A start marker: where a session of a run begins on one robot.
+struct Marker {
+    id: i64,
+    robot: u8,
+    run: String,
+    t_ms: i64,
+}
+
+/// Picks the run to resume: `wanted`, or else the latest run of `plan` (one whose
+/// sessions sent a TC for a step of the plan).
 pub fn find_run(store: &mut Store, plan: &Plan, wanted: Option<&str>) -> Result<RunRecord, ResumeError> {
-    let is_step = |l: &str| plan.steps.iter().any(|s| s.id == l);
-    // One row per (label, run): steps × runs rows, not one per TC sent.
+    let robots: Vec<u8> = plan.robots.iter().map(|r| r.number).collect();
+    // Every start marker of a run, oldest first: a small table (one row per session and
+    // robot), read once.
     let rows = collect(
         store.db(),
-        "SELECT step, MIN(t_ms), MAX(t_ms) FROM tc WHERE step LIKE '%@%' GROUP BY step",
-        &[],
+        "SELECT id, robot, step, t_ms FROM tc WHERE step LIKE ?1 ORDER BY id",
+        &[Val::Text(format!("{START_LABEL}{RUN_SEP}%"))],
     )
     .map_err(ArchiveError::from)?;
-    // run -> (first, last, has a step of this plan)
-    let mut runs: BTreeMap<String, (i64, i64, bool)> = BTreeMap::new();
-    for r in &rows {
-        let Some(step) = r.first().and_then(Val::text) else {
-            continue;
-        };
-        let (label, Some(run)) = split_label(step) else {
-            continue;
-        };
-        let first = r.get(1).and_then(Val::int).unwrap_or(0);
-        let last = r.get(2).and_then(Val::int).unwrap_or(0);
-        let e = runs.entry(run.to_string()).or_insert((first, last, false));
-        e.0 = e.0.min(first);
-        e.1 = e.1.max(last);
-        e.2 |= is_step(label);
+    let markers: Vec<Marker> = rows
+        .iter()
+        .filter_map(|r| {
+            Some(Marker {
+                id: r.first()?.int()?,
+                robot: r.get(1)?.int()? as u8,
+                run: marker_run(r.get(2)?.text()?)?.to_string(),
+                t_ms: r.get(3)?.int()?,
+            })
+        })
+        .filter(|m| robots.contains(&m.robot))
+        .collect();
+    // Runs, the latest first.
+    let mut runs: Vec<&str> = Vec::new();
+    for m in markers.iter().rev() {
+        if !runs.contains(&m.run.as_str()) {
+            runs.push(&m.run);
+        }
     }
-    let (run_id, (first_ms, last_ms, _)) = match wanted {
-        Some(w) => {
-            let (k, v) = runs
-                .get_key_value(w)
-                .ok_or_else(|| ResumeError::UnknownRun(w.to_string()))?;
-            if !v.2 {
-                return Err(ResumeError::OtherPlan {
-                    run: w.to_string(),
-                    plan: plan.name.clone(),
-                });
-            }
-            (k.clone(), *v)
-        }
-        None => runs
-            .iter()
-            .filter(|(_, v)| v.2)
-            .max_by_key(|(_, v)| v.1)
-            .map(|(k, v)| (k.clone(), *v))
-            .ok_or_else(|| ResumeError::NoRun(plan.name.clone()))?,
+    let candidates: Vec<&str> = match wanted {
+        Some(w) if runs.contains(&w) => vec![w],
+        Some(w) => return Err(ResumeError::UnknownRun(w.to_string())),
+        None => runs,
     };
-    let mut steps = BTreeMap::new();
-    let tcs = collect(
-        store.db(),
-        "SELECT step, robot, name, apid, seq, raw, MIN(t_ms) FROM tc WHERE step LIKE ?1 \
-         GROUP BY step, robot, name, apid, seq, raw ORDER BY MIN(t_ms)",
-        &[Val::Text(format!("%{RUN_SEP}{run_id}"))],
-    )
-    .map_err(ArchiveError::from)?;
-    for r in tcs {
-        let Some(step) = r.first().and_then(Val::text) else {
-            continue;
-        };
-        let (label, Some(run)) = split_label(step) else {
-            continue;
-        };
-        if run != run_id || !is_step(label) {
-            continue;
+    for run in candidates {
+        let rec = read_run(store, plan, &markers, run)?;
+        if !rec.steps.is_empty() {
+            return Ok(rec);
         }
-        let int = |i: usize| r.get(i).and_then(Val::int).unwrap_or(0);
-        let tc = StepTc {
-            robot: int(1) as u8,
-            name: r.get(2).and_then(Val::text).unwrap_or("").to_string(),
-            apid: int(3) as u16,
-            seq: int(4) as u16,
-            raw: r.get(5).and_then(Val::blob).map(<[u8]>::to_vec).unwrap_or_default(),
-            sent_ms: int(6),
-            outcome: Outcome::NoReport,
-        };
-        // Later TCs of the same step (sent after a resume) replace earlier ones.
-        steps.insert(label.to_string(), tc);
+        if wanted.is_some() {
+            return Err(ResumeError::OtherPlan {
+                run: run.to_string(),
+                plan: plan.name.clone(),
+            });
+        }
+    }
+    Err(ResumeError::NoRun(plan.name.clone()))
+}
+
+/// The step TCs of `run`: on each robot, those after each of its start markers up to
+/// the next start marker (of any run) of that robot.
+fn read_run(store: &mut Store, plan: &Plan, markers: &[Marker], run: &str) -> Result<RunRecord, ResumeError> {
+    let mut steps: BTreeMap<String, StepTc> = BTreeMap::new();
+    let (mut first_ms, mut last_ms) = (i64::MAX, i64::MIN);
+    for (k, m) in markers.iter().enumerate().filter(|(_, m)| m.run == run) {
+        first_ms = first_ms.min(m.t_ms);
+        let end = markers[k + 1..]
+            .iter()
+            .find(|n| n.robot == m.robot)
+            .map_or(i64::MAX, |n| n.id);
+        let tcs = collect(
+            store.db(),
+            "SELECT step, name, apid, seq, raw, MIN(t_ms), MAX(t_ms) FROM tc \
+             WHERE robot = ?1 AND id > ?2 AND id < ?3 AND step IS NOT NULL \
+             GROUP BY step, name, apid, seq, raw ORDER BY MIN(t_ms)",
+            &[Val::Int(m.robot as i64), Val::Int(m.id), Val::Int(end)],
+        )
+        .map_err(ArchiveError::from)?;
+        for r in tcs {
+            let int = |i: usize| r.get(i).and_then(Val::int).unwrap_or(0);
+            last_ms = last_ms.max(int(6));
+            let Some(label) = r.first().and_then(Val::text) else {
+                continue;
+            };
+            if !plan.steps.iter().any(|s| s.id == label && s.robot == m.robot) {
+                continue;
+            }
+            // Later TCs of the same step (sent after a resume) replace earlier ones.
+            steps.insert(
+                label.to_string(),
+                StepTc {
+                    robot: m.robot,
+                    name: r.get(1).and_then(Val::text).unwrap_or("").to_string(),
+                    apid: int(2) as u16,
+                    seq: int(3) as u16,
+                    raw: r.get(4).and_then(Val::blob).map(<[u8]>::to_vec).unwrap_or_default(),
+                    sent_ms: int(5),
+                    outcome: Outcome::NoReport,
+                },
+            );
+        }
     }
     for tc in steps.values_mut() {
         tc.outcome = outcome(store, tc)?;
     }
     Ok(RunRecord {
-        run_id,
+        run_id: run.to_string(),
         first_ms,
-        last_ms,
+        last_ms: last_ms.max(first_ms),
         steps,
     })
 }
@@ -227,15 +254,16 @@ mod tests {
 
     // verifies: OPS-RUN-01
     #[test]
-    fn labels_carry_the_run_and_split_back() {
+    fn start_markers_carry_the_run_and_step_labels_stay_plain() {
         assert_eq!(
-            archived_label(Some("r1-bolt"), Some("R1")).as_deref(),
-            Some("r1-bolt@R1")
+            archived_label(Some(START_LABEL), Some("R1")).as_deref(),
+            Some("start marker@R1")
         );
-        assert_eq!(archived_label(None, Some("R1")).as_deref(), Some("@R1"));
-        assert_eq!(archived_label(Some("watch"), None).as_deref(), Some("watch"));
-        assert_eq!(split_label("r1@bolt@R1"), ("r1@bolt", Some("R1")));
-        assert_eq!(split_label("heartbeat"), ("heartbeat", None));
+        assert_eq!(archived_label(Some("r1-bolt"), Some("R1")).as_deref(), Some("r1-bolt"));
+        assert_eq!(archived_label(None, Some("R1")), None);
+        assert_eq!(marker_run("start marker@R1"), Some("R1"));
+        assert_eq!(marker_run("start marker"), None);
+        assert_eq!(marker_run("r1-bolt"), None);
         let (a, b) = (new_run_id(), new_run_id());
         assert!(!a.contains(RUN_SEP) && a.len() >= 20, "{a}");
         assert_eq!(a[..15], b[..15]);
