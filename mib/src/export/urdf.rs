@@ -126,14 +126,38 @@ fn link(out: &mut String, name: &str, i: &Inertial, comment: Option<&Entry>) {
         );
     }
     let [ixx, iyy, izz, ixy, ixz, iyz] = i.inertia;
+    let com = origin(&Frame::at(i.com[0], i.com[1], i.com[2]));
     let _ = writeln!(
         out,
-        "  <link name=\"{name}\">\n    <inertial>\n      {}\n      <mass value=\"{}\"/>\n      \
+        "  <link name=\"{name}\">\n    <inertial>\n      {com}\n      <mass value=\"{}\"/>\n      \
          <inertia ixx=\"{ixx}\" ixy=\"{ixy}\" ixz=\"{ixz}\" iyy=\"{iyy}\" iyz=\"{iyz}\" izz=\"{izz}\"/>\n    \
-         </inertial>\n  </link>",
-        origin(&Frame::at(i.com[0], i.com[1], i.com[2])),
+         </inertial>",
         i.mass_kg
     );
+    if let Some(b) = equivalent_box(i) {
+        let _ = writeln!(
+            out,
+            "    <visual>\n      {com}\n      <geometry><box size=\"{}\"/></geometry>\n    </visual>",
+            v3(b)
+        );
+    }
+    let _ = writeln!(out, "  </link>");
+}
+
+/// Edges of the solid box with the same mass and (diagonal) inertia: the visual of a link,
+/// exact for the parts the database models as boxes. `None` when the inertia is not
+/// diagonal or not a box's.
+fn equivalent_box(i: &Inertial) -> Option<[f64; 3]> {
+    let [ixx, iyy, izz, ixy, ixz, iyz] = i.inertia;
+    if ixy != 0.0 || ixz != 0.0 || iyz != 0.0 || i.mass_kg <= 0.0 {
+        return None;
+    }
+    let k = 6.0 / i.mass_kg;
+    let sq = [k * (iyy + izz - ixx), k * (ixx + izz - iyy), k * (ixx + iyy - izz)];
+    if sq.iter().any(|v| *v <= 0.0) {
+        return None;
+    }
+    Some([sq[0].sqrt(), sq[1].sqrt(), sq[2].sqrt()])
 }
 
 fn joint_xml(out: &mut String, name: &str, kind: &JointKind, axis_sign: f64, parent: &str, child: &str, at: &Frame) {
@@ -250,6 +274,31 @@ fn end_body(out: &mut String, set: &ModuleSet, side: Board) -> Result<(), UrdfEr
     Ok(())
 }
 
+/// Why no model can be made from a module report.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ModelError {
+    Report(crate::modules::report::ReportError),
+    Urdf(UrdfError),
+}
+
+impl std::fmt::Display for ModelError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ModelError::Report(e) => e.fmt(f),
+            ModelError::Urdf(e) => e.fmt(f),
+        }
+    }
+}
+
+impl std::error::Error for ModelError {}
+
+/// The URDF of the robot a module report body describes (what `ground model` does with a
+/// live or archived report): the report is checked (lengths, CRCs, slots, hash) first.
+pub fn urdf_from_report(report: &[u8], root: Board, robot_name: &str) -> Result<String, ModelError> {
+    let r = crate::modules::report::ModuleReport::parse(report).map_err(ModelError::Report)?;
+    urdf(&r.set, root, robot_name).map_err(ModelError::Urdf)
+}
+
 /// The robot's URDF, rooted at side `root`'s gripper clamp frame.
 pub fn urdf(set: &ModuleSet, root: Board, robot_name: &str) -> Result<String, UrdfError> {
     let far = root.other();
@@ -349,6 +398,22 @@ mod tests {
         assert_eq!(count(&x, "type=\"revolute\""), 3, "hip and two gripper jaws");
         assert!(x.contains("<link name=\"bolter_a_tool\">"));
         assert!(!x.contains("-0 "), "no negative zeros");
+        // Box-modelled parts get their own box back as visual (the board: 70 × 50 × 1.6 mm).
+        let board = doc
+            .descendants()
+            .find(|n| n.has_tag_name("link") && n.attribute("name") == Some("board_a"))
+            .unwrap();
+        let size: Vec<f64> = board
+            .descendants()
+            .find(|n| n.has_tag_name("box"))
+            .and_then(|n| n.attribute("size"))
+            .unwrap()
+            .split(' ')
+            .map(|v| v.parse().unwrap())
+            .collect();
+        for (got, want) in size.iter().zip([0.070, 0.050, 0.0016]) {
+            assert!((got - want).abs() < 1e-9, "{size:?}");
+        }
         // The first link is the root: gripper A.
         let first = doc.descendants().find(|n| n.has_tag_name("link")).unwrap();
         assert_eq!(first.attribute("name"), Some("gripper_a"));

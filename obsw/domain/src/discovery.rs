@@ -108,6 +108,23 @@ impl Invalid {
             Invalid::Unsupported { .. } => 7,
         }
     }
+    /// The slot the reason names, if any.
+    pub const fn slot(&self) -> Option<u8> {
+        match *self {
+            Invalid::WrongBoard { slot, .. }
+            | Invalid::WrongPort { slot, .. }
+            | Invalid::Duplicate { slot }
+            | Invalid::UnknownRevision { slot, .. }
+            | Invalid::Incompatible { slot, .. }
+            | Invalid::ProbeDisagrees { slot, .. }
+            | Invalid::Missing { slot } => Some(slot),
+            Invalid::BoardBSilent
+            | Invalid::TableUnreadable { .. }
+            | Invalid::CorruptDescriptor { .. }
+            | Invalid::UnknownModule { .. }
+            | Invalid::Unsupported { .. } => None,
+        }
+    }
     /// Reason code for the event / module report (proposed MIB enumeration, see
     /// docs/modules.md).
     pub const fn code(&self) -> u8 {
@@ -457,6 +474,27 @@ pub fn accept(d: &Discovery, hash: u32) -> Result<u32, u32> {
 /// is absent from `present`.
 pub fn missing_for(function_id: u16, side: Option<u8>, present: SlotSet) -> Option<u8> {
     mib::modules::config::needs(function_id, side).without(present).first()
+}
+
+/// The module report body (`mib::modules::report`) of a discovery: what the robot tells
+/// the ground at boot and on request.
+pub fn report(d: &Discovery, r: Replacement) -> mib::modules::report::ModuleReport {
+    let (reason, reason_slot) = match d.outcome {
+        Ok(_) => (0, mib::modules::report::NO_SLOT),
+        Err(why) => (why.code(), why.slot().unwrap_or(mib::modules::report::NO_SLOT)),
+    };
+    mib::modules::report::ModuleReport {
+        hash: d.hash,
+        config: d.outcome.map(|c| c.code()).unwrap_or(0),
+        reason,
+        reason_slot,
+        replacement: match r {
+            Replacement::NoneAccepted => 0,
+            Replacement::Same => 1,
+            Replacement::Changed { .. } => 2,
+        },
+        set: d.set,
+    }
 }
 
 /// Board B's half over the A–B link, one descriptor per message (the link's frames hold

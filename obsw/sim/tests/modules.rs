@@ -214,3 +214,35 @@ fn files_hash_to_the_documented_configuration_hashes() {
         assert_eq!(documented, format!("{:#010x}", d.hash), "{file}");
     }
 }
+
+// verifies: MOD-REP-01, MOD-URDF-01
+#[test]
+fn module_report_of_a_file_rebuilds_the_same_model_on_the_ground() {
+    use mib::export::urdf::urdf_from_report;
+    use mib::modules::report::{ModuleReport, MAX_REPORT_LEN, NO_SLOT};
+    use mmic_domain::discovery::report;
+    for (file, config, reason) in [
+        ("full.toml", 1, 0),
+        ("locomotion-only.toml", 2, 0),
+        ("missing-arm-b.toml", 0, 11),
+    ] {
+        let d = load(file).discovery_input().discover();
+        let r = report(&d, Replacement::NoneAccepted);
+        assert_eq!((r.config, r.reason), (config, reason), "{file}");
+        let mut buf = [0u8; MAX_REPORT_LEN];
+        let n = r.emit(&mut buf).unwrap();
+        assert_eq!(ModuleReport::parse(&buf[..n]), Ok(r));
+        match urdf(&d.set, Board::A, "m") {
+            Ok(direct) => assert_eq!(urdf_from_report(&buf[..n], Board::A, "m").unwrap(), direct),
+            Err(_) => assert!(urdf_from_report(&buf[..n], Board::A, "m").is_err()),
+        }
+        if reason == 0 {
+            assert_eq!(r.reason_slot, NO_SLOT);
+        } else {
+            assert_eq!(r.reason_slot, slot::ARM_B);
+        }
+        // A corrupted report is refused, not modelled.
+        buf[n - 1] ^= 1;
+        assert!(urdf_from_report(&buf[..n], Board::A, "m").is_err());
+    }
+}
