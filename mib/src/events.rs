@@ -95,6 +95,8 @@ events! {
     EVENT_QUEUE_OVERFLOW = 0x020D, Low, false, ["dropped": U16], "Event reports dropped because the event queue was full (total in HK EVENTS_DROPPED; raised throttled, dropped = count since the last report)";
     TCP_CONNECTION_REFUSED = 0x020E, Low, false, ["refused": U32], "Ground link: TCP connections refused because TCP_MAX_CONNECTIONS were open (refused = total since boot; at most one report per control period, then throttled)";
     TCP_CLIENT_DROPPED = 0x020F, Medium, false, ["dropped": U32], "Ground link: TCP clients disconnected because their unsent TM passed TCP_TM_BACKLOG bytes (dropped = total since boot; the TM stays in the on-board store)";
+    LINK_FRAME_REJECTED = 0x0230, Low, false, ["reason": U8, "total": U32], "Space link: TC frames refused since the last report (reason = the SPACE_LINK HK parameter ID minus 120: 4 bare packet, 5 CRC, 6 length, 7 header, 8 SCID, 9 VC, 10 SDLS too short, 11 unknown SPI, 12 replay, 13 MAC, 14 counter store, 15 unknown control, 16 not packets; total since boot); at most one per reason and control period, then throttled";
+    LINK_CONTROL_FRAME = 0x0231, Low, false, ["command": U8, "vr": U8, "total": U32], "Space link: a BC control frame in clear was executed (command 0 Unlock, 1 Set V(R) with vr; total since boot); at most one per control period, then throttled";
 }
 
 /// Events exempt from throttling (`config::EVENT_THROTTLE_MAX`): `MODE_CHANGED` is

@@ -23,6 +23,7 @@ pub mod sid {
     pub const FDIR: u16 = 3;
     pub const OBSW: u16 = 4;
     pub const PLATFORM_IO: u16 = 5;
+    pub const SPACE_LINK: u16 = 22;
 }
 
 /// Shortest and longest collection interval accepted by TC[3,31].
@@ -136,6 +137,37 @@ pub const HK_STRUCTS: &[HkDef] = &[
         default_interval_ms: 10000,
         default_enabled: true,
         desc: "Counters of the platform's I/O (board A firmware or host binary)",
+    },
+    HkDef {
+        sid: sid::SPACE_LINK,
+        name: "SPACE_LINK",
+        params: &[
+            LINK_AD_ACCEPTED,
+            LINK_BD_ACCEPTED,
+            LINK_CONTROL_FRAMES,
+            LINK_PACKETS,
+            LINK_REJ_BARE_PACKET,
+            LINK_REJ_BAD_CRC,
+            LINK_REJ_BAD_LENGTH,
+            LINK_REJ_BAD_HEADER,
+            LINK_REJ_WRONG_SCID,
+            LINK_REJ_UNKNOWN_VC,
+            LINK_REJ_SDLS_SHORT,
+            LINK_REJ_UNKNOWN_SPI,
+            LINK_REJ_REPLAY,
+            LINK_REJ_BAD_MAC,
+            LINK_REJ_STORE_FAILED,
+            LINK_REJ_UNKNOWN_CONTROL,
+            LINK_REJ_NOT_PACKETS,
+            LINK_FARM_DISCARDED,
+            LINK_CLCW,
+            LINK_TM_FRAMES,
+            LINK_TM_IDLE_FRAMES,
+            LINK_TM_SDLS_FAILED,
+        ],
+        default_interval_ms: 10000,
+        default_enabled: true,
+        desc: "Space link (TC/TM frames, COP-1, SDLS): frames accepted and refused by reason, CLCW, TM frames sent",
     },
 ];
 

@@ -155,6 +155,29 @@ params! {
     IO_SENSOR_ERRORS = 82, U32, "", ID, None, "Sensor reads that failed (I2C errors on the ADC, IMU or hip encoder)";
     IO_OUTPUT_ERRORS = 83, U32, "", ID, None, "Actuator writes that failed (PWM, GPIO)";
     IO_AB_BYTES_DROPPED = 84, U32, "", ID, None, "A-B serial bytes dropped by board A's receive or transmit queue";
+    // --- space link (host frame endpoint; issue 22) ---
+    LINK_AD_ACCEPTED = 120, U32, "", ID, None, "Space link: AD (sequence-controlled) TC frames accepted by FARM-1";
+    LINK_BD_ACCEPTED = 121, U32, "", ID, None, "Space link: BD (bypass) TC frames accepted";
+    LINK_CONTROL_FRAMES = 122, U32, "", ID, None, "Space link: BC control frames (Unlock, Set V(R), in clear) executed by FARM-1";
+    LINK_PACKETS = 123, U32, "", ID, None, "Space link: TC packets extracted from accepted frames";
+    LINK_REJ_BARE_PACKET = 124, U32, "", ID, None, "Space link: bare space packets refused on the frame port";
+    LINK_REJ_BAD_CRC = 125, U32, "", ID, None, "Space link: TC frames refused for a frame CRC mismatch";
+    LINK_REJ_BAD_LENGTH = 126, U32, "", ID, None, "Space link: TC frames refused for a length (too short, too long, header length not the datagram's)";
+    LINK_REJ_BAD_HEADER = 127, U32, "", ID, None, "Space link: TC frames refused for a header field (version, frame type flags)";
+    LINK_REJ_WRONG_SCID = 128, U32, "", ID, None, "Space link: TC frames for another spacecraft";
+    LINK_REJ_UNKNOWN_VC = 129, U32, "", ID, None, "Space link: TC frames on an unknown virtual channel";
+    LINK_REJ_SDLS_SHORT = 130, U32, "", ID, None, "Space link: TC frames too short for the SDLS header and trailer";
+    LINK_REJ_UNKNOWN_SPI = 131, U32, "", ID, None, "Space link: TC frames with an unknown SPI";
+    LINK_REJ_REPLAY = 132, U32, "", ID, None, "Space link: TC frames whose IV is outside the anti-replay window (replays)";
+    LINK_REJ_BAD_MAC = 133, U32, "", ID, None, "Space link: TC frames failing the SDLS MAC (wrong key, altered, forged)";
+    LINK_REJ_STORE_FAILED = 134, U32, "", ID, None, "Space link: TC frames refused because the counter state file could not be written";
+    LINK_REJ_UNKNOWN_CONTROL = 135, U32, "", ID, None, "Space link: BC frames with an unknown control command";
+    LINK_REJ_NOT_PACKETS = 136, U32, "", ID, None, "Space link: authentic TC frames whose data is not whole space packets";
+    LINK_FARM_DISCARDED = 137, U32, "", ID, None, "Space link: authentic AD frames discarded by FARM-1 (E2-E5: no buffer, gap, duplicate, lockout area)";
+    LINK_CLCW = 138, U32, "", ID, None, "Space link: the current CLCW (raw 32-bit word: FARM state, flags, N(R))";
+    LINK_TM_FRAMES = 139, U32, "", ID, None, "Space link: TM frames sent on VC0/VC1";
+    LINK_TM_IDLE_FRAMES = 140, U32, "", ID, None, "Space link: idle TM frames sent on VC7";
+    LINK_TM_SDLS_FAILED = 141, U32, "", ID, None, "Space link: TM frames not sent because SDLS failed (counter state file)";
 }
 
 /// Root modes in which the limits of parameter `id` apply: the regulated servo supply

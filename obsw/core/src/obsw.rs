@@ -31,7 +31,15 @@ pub enum LinkEvent {
     TcpRefused { total: u32 },
     /// A TCP client was disconnected (TM backlog bound); `total` since boot.
     TcpClientDropped { total: u32 },
+    /// Space link: TC frames refused for `reason` (a `LINK_FRAME_REJECTED` reason code);
+    /// `total` since boot.
+    FrameRejected { reason: u8, total: u32 },
+    /// Space link: a BC control frame was executed (`command` 0 Unlock, 1 Set V(R)).
+    ControlFrame { command: u8, vr: u8, total: u32 },
 }
+
+/// Number of space-link HK parameters (`pid::LINK_AD_ACCEPTED..=pid::LINK_TM_SDLS_FAILED`).
+pub const SPACE_LINK_PARAMS: usize = (pid::LINK_TM_SDLS_FAILED - pid::LINK_AD_ACCEPTED + 1) as usize;
 
 /// Start-up configuration of one robot's OBSW.
 #[derive(Clone, Copy, Debug)]
@@ -130,6 +138,9 @@ pub struct Obsw<S: TmStore> {
     pub counters: Counters,
     /// Platform I/O counters; the host or firmware updates them.
     pub io: IoCounters,
+    /// Space-link counters kept by the platform (the host's frame endpoint), reported in HK
+    /// structure SPACE_LINK: entry `i` is parameter `pid::LINK_AD_ACCEPTED + i`.
+    pub space_link: [u32; SPACE_LINK_PARAMS],
     pub(crate) last_now: u64,
     out: TickOut,
 }
@@ -153,6 +164,7 @@ impl<S: TmStore> Obsw<S> {
             running: None,
             counters: Counters::default(),
             io: IoCounters::default(),
+            space_link: [0; SPACE_LINK_PARAMS],
             last_now: 0,
             out: TickOut::new(),
         };
@@ -192,6 +204,15 @@ impl<S: TmStore> Obsw<S> {
         match ev {
             LinkEvent::TcpRefused { total } => self.event(now, eid::TCP_CONNECTION_REFUSED, &[total as i64], sink),
             LinkEvent::TcpClientDropped { total } => self.event(now, eid::TCP_CLIENT_DROPPED, &[total as i64], sink),
+            LinkEvent::FrameRejected { reason, total } => {
+                self.event(now, eid::LINK_FRAME_REJECTED, &[reason as i64, total as i64], sink)
+            }
+            LinkEvent::ControlFrame { command, vr, total } => self.event(
+                now,
+                eid::LINK_CONTROL_FRAME,
+                &[command as i64, vr as i64, total as i64],
+                sink,
+            ),
         }
     }
 
@@ -259,6 +280,9 @@ impl<S: TmStore> Obsw<S> {
             pid::IO_SENSOR_ERRORS => self.io.sensor_errors as i64,
             pid::IO_OUTPUT_ERRORS => self.io.output_errors as i64,
             pid::IO_AB_BYTES_DROPPED => self.io.ab_bytes_dropped as i64,
+            pid::LINK_AD_ACCEPTED..=pid::LINK_TM_SDLS_FAILED => {
+                self.space_link[usize::from(id - pid::LINK_AD_ACCEPTED)] as i64
+            }
             _ => return self.ctrl.param(id),
         })
     }

@@ -23,6 +23,8 @@ pub mod farm;
 pub mod fecf;
 pub mod fop;
 pub mod mux;
+#[cfg(any(test, feature = "std"))]
+pub mod persist;
 pub mod rx;
 pub mod sdls;
 pub mod tc;
