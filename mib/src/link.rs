@@ -107,6 +107,17 @@ pub mod sdls {
     pub const ANTI_REPLAY_WINDOW: u64 = 4096;
 }
 
+// Invariants between the numbers above, checked when the MIB is compiled.
+const _: () = {
+    assert!(cop1::FARM_WINDOW_WIDTH.is_multiple_of(2));
+    // K <= W/2: the ground can never push the FARM into lockout.
+    assert!(cop1::FOP_SLIDING_WINDOW <= cop1::FARM_WINDOW_WIDTH / 2);
+    assert!(SCID < 1024);
+    assert!(tm_vc::IDLE < 8 && tm_vc::REPLAY < 8);
+    // A sender that restarts jumps at most one reserve block ahead.
+    assert!(sdls::ANTI_REPLAY_WINDOW > 2 * sdls::IV_RESERVE_BLOCK);
+};
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -117,11 +128,6 @@ mod tests {
         assert_eq!(tc_frame::MAX_PACKET_LEN, 987);
         assert_eq!(tm_frame::SECURE_DATA_LEN, 982);
         assert_eq!(tm_frame::CLEAR_DATA_LEN, 1012);
-        assert_eq!(cop1::FARM_WINDOW_WIDTH % 2, 0);
-        assert!(cop1::FOP_SLIDING_WINDOW <= cop1::FARM_WINDOW_WIDTH / 2);
-        assert!(SCID < 1024);
-        assert!(tm_vc::IDLE < 8 && tm_vc::REPLAY < 8);
-        assert!(sdls::ANTI_REPLAY_WINDOW > 2 * sdls::IV_RESERVE_BLOCK);
         for s in sdls::TC_SPIS {
             assert!(!sdls::TM_SPIS.contains(&s));
         }

@@ -21,6 +21,7 @@ mod t_obsw;
 mod t_packets;
 mod t_periph;
 mod t_reconfig;
+mod t_spacelink;
 mod t_support;
 
 #[riscv_rt::entry]
@@ -37,6 +38,7 @@ fn main() -> ! {
         t_domain::TESTS,
         t_obsw::TESTS,
         t_cycle::TESTS,
+        t_spacelink::TESTS,
     ]);
     semihosting::process::exit(code)
 }
