@@ -714,7 +714,13 @@ fn run_plan(a: &RunArgs, archive_path: Option<&Path>) -> Result<u8> {
         grace: Duration::from_secs_f64(a.grace.max(0.0)),
     };
     let summary = ops::run_plan(&pl, &mut session, &opts, &resume);
-    let no_answer = session.robots.values().find_map(|s| s.lost_kind);
+    // The case of a link lost while the plan ran (not one noticed in the final gap
+    // retrieval, after the last step).
+    let no_answer = session
+        .robots
+        .values()
+        .filter(|s| s.lost.as_ref().is_some_and(|w| summary.link_lost.contains(w)))
+        .find_map(|s| s.lost_kind);
     drop(session);
     close_archive(arch)?;
     if a.json {

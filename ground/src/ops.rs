@@ -225,6 +225,11 @@ pub const GAP_REQUESTS_MAX: usize = 16;
 /// are dropped as duplicates): fewer requests on a link that loses many packets.
 pub const GAP_MERGE_DISTANCE: u16 = 16;
 
+/// How long an accepted TC that no step waits for (a marker, a store retrieval) is
+/// tracked for its completion: it is never resent, and a lost completion report is
+/// recovered as a TM gap; after this it is forgotten (a retrieval is asked again).
+pub const UNTAGGED_COMPLETION_WAIT: Duration = Duration::from_secs(5);
+
 /// Sequence counts remembered behind the newest one.
 pub const SEQ_TRACK_WINDOW: u16 = 4096;
 const SEQ_MOD: u16 = 0x4000;
@@ -780,6 +785,9 @@ impl Session {
 
     fn check_resends(&mut self, out: &mut Vec<Update>) {
         let now = Instant::now();
+        self.pending.retain(|_, p| {
+            p.tag.is_some() || !p.accepted || now.saturating_duration_since(p.last_sent) < UNTAGGED_COMPLETION_WAIT
+        });
         let mut gave_up = Vec::new();
         let due: Vec<((u16, u16), Instant)> = self
             .pending
@@ -1611,7 +1619,7 @@ impl<'p> Executor<'p> {
             } if i < n => {
                 self.sends.insert(i, send);
                 fx.push(Effect::Log(format!(
-                    "  resend   {} robot {robot}: {tc}, no outcome yet (send {send}, same bytes)",
+                    "  resend   {} robot {robot}: {tc}, no acceptance yet (send {send}, same bytes)",
                     self.plan.steps[i].id
                 )));
             }
@@ -1999,7 +2007,8 @@ fn start_markers(session: &mut Session, robots: &[u8], wait: bool, stop: &dyn Fn
         && t0.elapsed() < limit
         && !stop()
         && markers.iter().any(|(r, m)| {
-            session.pending.contains_key(&(m.apid, m.seq)) && session.robots.get(r).is_some_and(|s| s.lost.is_none())
+            // Answered once accepted: its first report gives the run's first count.
+            session.accepted(m) == Some(false) && session.robots.get(r).is_some_and(|s| s.lost.is_none())
         })
     {
         seen.extend(session.poll(Duration::from_millis(50)));
@@ -2226,7 +2235,7 @@ fn complete_tm(session: &mut Session, robots: &[u8], disp: &Display) -> Vec<TmCo
         let limit = Duration::from_millis(mib::config::TC_RETRY_SPAN_MS as u64);
         if let Ok(m) = &marker {
             let t0 = Instant::now();
-            while t0.elapsed() < limit && session.pending.contains_key(&(m.apid, m.seq)) {
+            while t0.elapsed() < limit && session.accepted(m) == Some(false) {
                 session.poll(Duration::from_millis(50));
                 if session.robots.get(&r).is_some_and(|s| s.lost.is_some()) {
                     break;
