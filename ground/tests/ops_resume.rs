@@ -83,8 +83,12 @@ impl Running {
     }
 
     fn interrupt(&self) {
+        self.signal("-INT");
+    }
+
+    fn signal(&self, sig: &str) {
         let st = Command::new("kill")
-            .args(["-INT", &self.child.id().to_string()])
+            .args([sig, &self.child.id().to_string()])
             .status()
             .unwrap();
         assert!(st.success());
@@ -245,7 +249,8 @@ fn resume_continues_the_latest_run_and_counts_only_its_steps() {
         &["run", plan, "--plain", "--robot", &ra, "--robot", &rb, "--grace", "0.5"],
     );
     run.wait_for("done     r1-walk", Duration::from_secs(60));
-    run.interrupt();
+    // SIGTERM (a service manager stopping the ground) is the same operation as Ctrl-C.
+    run.signal("-TERM");
     let (code, out, err) = run.finish();
     assert_eq!(code, Some(6), "{out}\n{err}");
     let run2 = out
@@ -289,4 +294,23 @@ fn resume_continues_the_latest_run_and_counts_only_its_steps() {
     );
     assert_eq!(bad.status.code(), Some(3), "{}", text(&bad));
     assert!(text(&bad).contains("no run nope"), "{}", text(&bad));
+}
+
+// verifies: OPS-RUN-02
+#[test]
+fn a_second_ctrl_c_exits_at_once() {
+    let dir = tmpdir("ops", "ctrlc-twice");
+    let o = Obsw::start(1, &["--speed", "1", "--seed", "7", "--initial-state", "Xneg"]);
+    std::fs::write(dir.join("bolt.toml"), BOLT_PLAN).unwrap();
+    let r = format!("1={}", o.addr);
+    let mut run = Running::start(&dir, &["run", "bolt.toml", "--robot", &r, "--plain", "--grace", "60"]);
+    run.wait_for("send     bolt", Duration::from_secs(20));
+    run.interrupt();
+    run.wait_for("waiting up to 60 s for bolt", Duration::from_secs(5));
+    let t0 = Instant::now();
+    run.interrupt();
+    let (code, _out, err) = run.finish();
+    assert_eq!(code, Some(130), "{err}");
+    assert!(t0.elapsed() < Duration::from_secs(2), "{:?}", t0.elapsed());
+    assert!(err.contains("interrupted again: exiting at once"), "{err}");
 }
