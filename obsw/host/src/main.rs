@@ -4,6 +4,7 @@
 //! UDP and TCP (COBS-framed); TM goes back to every TCP client and to every UDP ground
 //! that subscribed with an accepted TC (see `net`). Simulated time runs `--speed` times faster than the wall clock.
 
+mod frames;
 mod net;
 
 use std::net::SocketAddr;
@@ -66,6 +67,24 @@ struct Args {
     /// Test aid: write every TM packet the obsw sends to this file, one line of hex each.
     #[arg(long)]
     tm_log: Option<PathBuf>,
+    /// Space link: UDP address taking one TC transfer frame per datagram (CCSDS 232.0-B-4,
+    /// COP-1, SDLS). Needs --frame-tm-to, --tc-key, --tm-key and --link-state.
+    #[arg(long)]
+    frame_udp: Option<SocketAddr>,
+    /// Space link: the ground's UDP address receiving the TM frames (fixed; grounds do not
+    /// subscribe on the frame link).
+    #[arg(long)]
+    frame_tm_to: Option<SocketAddr>,
+    /// Space link: file with the raw 32-byte AES-256 key of TC SPI 1 (ground → robot).
+    #[arg(long)]
+    tc_key: Option<PathBuf>,
+    /// Space link: file with the raw 32-byte AES-256 key of TM SPI 17 (robot → ground).
+    #[arg(long)]
+    tm_key: Option<PathBuf>,
+    /// Space link: SDLS counter state file (created if missing; written and synced before
+    /// a counter is used, so no nonce is reused and no replay accepted across restarts).
+    #[arg(long)]
+    link_state: Option<PathBuf>,
     /// TOML file with any of the options above.
     #[arg(long)]
     config: Option<PathBuf>,
@@ -84,6 +103,11 @@ struct FileConfig {
     link_loss: Option<f64>,
     link_corrupt: Option<f64>,
     duration: Option<f64>,
+    frame_udp: Option<SocketAddr>,
+    frame_tm_to: Option<SocketAddr>,
+    tc_key: Option<PathBuf>,
+    tm_key: Option<PathBuf>,
+    link_state: Option<PathBuf>,
 }
 
 struct Settings {
@@ -98,6 +122,7 @@ struct Settings {
     link_corrupt: f64,
     duration: Option<f64>,
     tm_log: Option<PathBuf>,
+    frames: Option<frames::FrameConfig>,
 }
 
 fn settings(a: Args) -> Result<Settings> {
@@ -151,6 +176,23 @@ fn settings(a: Args) -> Result<Settings> {
             bail!("--duration {d}: must be a positive number of seconds");
         }
     }
+    let frames = match (
+        a.frame_udp.or(f.frame_udp),
+        a.frame_tm_to.or(f.frame_tm_to),
+        a.tc_key.or(f.tc_key),
+        a.tm_key.or(f.tm_key),
+        a.link_state.or(f.link_state),
+    ) {
+        (None, None, None, None, None) => None,
+        (Some(listen), Some(tm_to), Some(tc_key), Some(tm_key), Some(state)) => Some(frames::FrameConfig {
+            listen,
+            tm_to,
+            tc_key,
+            tm_key,
+            state,
+        }),
+        _ => bail!("the frame link needs all of --frame-udp, --frame-tm-to, --tc-key, --tm-key and --link-state"),
+    };
     Ok(Settings {
         robot,
         udp,
@@ -163,6 +205,7 @@ fn settings(a: Args) -> Result<Settings> {
         link_corrupt,
         duration,
         tm_log: a.tm_log,
+        frames,
     })
 }
 
@@ -214,6 +257,21 @@ fn run(args: Args) -> Result<()> {
         down.log_tm_to(f);
     }
     let (udp, tcp, ctl_addr) = (bound.udp, bound.tcp, bound.sim_ctl);
+    let mut frame_note = String::new();
+    if let Some(fc) = &s.frames {
+        let ep = frames::FrameEndpoint::open(fc)?;
+        inputs.register_frames(ep.socket())?;
+        let addr = ep.local_addr()?;
+        frame_note = format!(" frame_udp={addr} frame_tm_to={}", fc.tm_to);
+        eprintln!(
+            "obsw: space link on {addr}: TC frames (COP-1, SDLS SPI {}), TM frames to {} (SDLS SPI {}), counters in {}",
+            mib::link::sdls::TC_SPIS[0],
+            fc.tm_to,
+            mib::link::sdls::TM_SPIS[0],
+            fc.state.display()
+        );
+        down.frames = Some(ep);
+    }
     let epoch = SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map(|d| d.as_millis() as u64)
@@ -233,7 +291,7 @@ fn run(args: Args) -> Result<()> {
         ..SimConfig::default()
     });
     println!(
-        "READY robot={} apid=0x{:03X} udp={udp} tcp={tcp} sim_ctl={ctl_addr} speed={}",
+        "READY robot={} apid=0x{:03X} udp={udp} tcp={tcp} sim_ctl={ctl_addr} speed={}{frame_note}",
         s.robot,
         obsw.apid(),
         s.speed
@@ -270,17 +328,35 @@ fn run(args: Args) -> Result<()> {
         // cannot hold back the control period (and a late period cannot starve TCs).
         let mut handled = 0;
         while handled < config::HOST_INPUT_BATCH {
-            let Some(input) = inputs.next(&mut down) else { break };
-            handle_input(
-                input,
-                arrival(sim_ms),
-                &mut obsw,
-                &mut sim,
-                &mut down,
-                &inputs,
-                &mut bad_frames,
-            );
-            handled += 1;
+            let mut any = false;
+            if let Some(fi) = down.frames.as_mut().and_then(frames::FrameEndpoint::next) {
+                if let frames::FrameInput::Packets(packets) = fi {
+                    for p in packets {
+                        obsw.handle_tc(arrival(sim_ms), &p, &mut down);
+                    }
+                }
+                handled += 1;
+                any = true;
+            }
+            if let Some(input) = inputs.next(&mut down) {
+                handle_input(
+                    input,
+                    arrival(sim_ms),
+                    &mut obsw,
+                    &mut sim,
+                    &mut down,
+                    &inputs,
+                    &mut bad_frames,
+                );
+                handled += 1;
+                any = true;
+            }
+            if !any {
+                break;
+            }
+        }
+        if let Some(f) = down.frames.as_mut() {
+            f.flush(Instant::now());
         }
         let due = wall_of(sim_ms + period);
         let wait = due.saturating_duration_since(Instant::now());
@@ -293,10 +369,21 @@ fn run(args: Args) -> Result<()> {
         sim_ms += period;
         obsw.io.tm_dropped = down.counters.tm_dropped;
         report_link_events(&mut obsw, sim_ms, &mut reported, &mut down);
+        if let Some(f) = down.frames.as_mut() {
+            obsw.space_link = f.hk();
+            obsw.io.tm_dropped = obsw.io.tm_dropped.wrapping_add(f.send_failures);
+            let events = f.events();
+            for ev in events {
+                obsw.link_event(sim_ms, ev, &mut down);
+            }
+        }
         let sensors = sim.sensors_a();
         let out = obsw.tick(sim_ms, &sensors, &link_rx, &mut down);
         link_rx.clear();
         sim.step(period as u32, &out.actuators, &out.link_tx, &mut link_rx);
+        if let Some(f) = down.frames.as_mut() {
+            f.flush(Instant::now());
+        }
         if end_ms.is_some_and(|e| sim_ms >= e) || stop.load(Ordering::SeqCst) {
             return Ok(());
         }

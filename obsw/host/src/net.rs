@@ -57,6 +57,8 @@ const UDP: Token = Token(0);
 const SIM_CTL: Token = Token(1);
 const TIMER: Token = Token(3);
 const LISTENER: Token = Token(4);
+/// The space-link frame socket (read by the main loop through `Downlink::frames`).
+const FRAMES: Token = Token(5);
 /// Connection `i` has token `CONN0 + i`.
 const CONN0: usize = 16;
 
@@ -116,6 +118,9 @@ pub struct Downlink {
     /// report too (so a ground talking to the wrong robot learns why), without
     /// subscribing.
     reply_to: Option<SocketAddr>,
+    /// The space-link frame endpoint (`--frame-udp`): every TM packet also goes out in TM
+    /// frames to its fixed ground address.
+    pub frames: Option<crate::frames::FrameEndpoint>,
 }
 
 impl Downlink {
@@ -212,6 +217,9 @@ impl obsw_core::tm::TmSink for Downlink {
                 self.tm_log = None;
             }
         }
+        if let Some(f) = self.frames.as_mut() {
+            f.send_packet(packet);
+        }
         let now = Instant::now();
         self.subscribers.retain(|s| s.until > now);
         if let Some(p) = self.reply_to.filter(|p| !self.subscribers.iter().any(|s| s.addr == *p)) {
@@ -255,7 +263,7 @@ impl obsw_core::tm::TmSink for Downlink {
 /// Sends one datagram on the non-blocking socket. A full send buffer (the ground reads
 /// slower than the OBSW writes) is waited out for up to `TM_WRITE_TIMEOUT_MS`, so a
 /// burst is paced rather than lost; an unreachable peer fails at once.
-fn send_udp(sock: &UdpSocket, packet: &[u8], peer: SocketAddr) -> bool {
+pub(crate) fn send_udp(sock: &UdpSocket, packet: &[u8], peer: SocketAddr) -> bool {
     let deadline = Instant::now() + Duration::from_millis(mib::config::TM_WRITE_TIMEOUT_MS as u64);
     loop {
         match sock.send_to(packet, peer) {
@@ -342,6 +350,7 @@ fn start_with_lease(
         lease,
         tm_log: None,
         reply_to: None,
+        frames: None,
     };
     let inputs = Inputs {
         poll,
@@ -490,6 +499,13 @@ impl Inputs {
                 Token(_) => {}
             }
         }
+    }
+
+    /// Wakes the poll when the frame endpoint's socket has a datagram.
+    pub fn register_frames(&mut self, sock: &UdpSocket) -> std::io::Result<()> {
+        self.poll
+            .registry()
+            .register(&mut SourceFd(&sock.as_raw_fd()), FRAMES, Interest::READABLE)
     }
 
     /// Answers a simulator-control line.

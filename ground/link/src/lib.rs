@@ -1,0 +1,512 @@
+//! The ground's frame link to one robot (issue 22, phase 2): space packets in, TC transfer
+//! frames (CCSDS 232.0-B-4) out through FOP-1 (232.1-B-2) and SDLS AES-256-GCM
+//! (355.0-B-2, Yamcs 5.12.8's layout), over one UDP socket; TM transfer frames
+//! (132.0-B-3) in, space packets and CLCWs out. Everything below the socket is
+//! `mmic-link`, the code the robot runs.
+//!
+//! ```text
+//! send_packet(pkt) ─▶ queue ─▶ FOP-1 (window K, T1, transmission limit) ─▶ AD frame, SDLS ─▶ UDP
+//! poll(now)        ◀─ packets ◀─ TmReceiver (CRC, SDLS, demux) ◀─ TM frames ◀──────────── UDP
+//!                                  └─ CLCW ─▶ FOP-1 (acknowledges, retransmits)
+//! ```
+//!
+//! **Exactly once.** A packet is handed to FOP-1 once; COP-1 retransmits its frame (a new
+//! SDLS encryption with a fresh IV each time) until a CLCW acknowledges it
+//! ([`Event::Acknowledged`]). When FOP-1 gives up (an alert: T1 expired the last time,
+//! lockout, an inconsistent CLCW) the frames it purged may or may not have been accepted
+//! on board. The link does not guess: it re-initialises with Set V(R) = N(R) from the next
+//! CLCW, and since FARM-1 accepts in order, N(R) tells exactly which of the purged frames
+//! were accepted (acknowledged now) and which were not (sent again, in order). Only when
+//! N(R) lies outside the purged range — the robot restarted and its FARM-1 began again at
+//! 0 — is the fate unknown: those packets are reported as [`Event::Unknown`] and not
+//! resent (the caller checks their PUS 1 reports).
+//!
+//! **Start and restart.** A new `FrameLink` has no COP-1 state: it waits for a CLCW (idle
+//! frames carry it at least every 100 ms) and initiates the AD service with Set V(R) =
+//! N(R). A ground restarted mid-sequence resumes with the packet that had N(S) = N(R)
+//! (see [`Event::Transmitted`]; keeping that record is the caller's).
+//!
+//! **Counters and keys.** The SDLS counters (TC transmit high-water mark, TM last IV) live
+//! in a state file written before use ([`mmic_link::persist::FileIvStore`]); keys come from
+//! raw 32-byte files ([`read_key`], [`create_key_file`]) and are never printed.
+
+use std::collections::{BTreeMap, VecDeque};
+use std::fmt;
+use std::net::{SocketAddr, UdpSocket};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use mib::link::sdls::{ANTI_REPLAY_WINDOW, TC_SPIS, TM_SPIS};
+use mib::link::tc_frame::{MAX_LEN as TC_MAX_LEN, MAX_PACKET_LEN};
+use mmic_link::clcw::Clcw;
+use mmic_link::downlink::{TmReceiver, TmRxCounters};
+use mmic_link::fop::{AlertReason, Fop, FopConfig, FopEffect, FopInput, FopState};
+use mmic_link::persist::{Dir, FileIvStore, PersistError};
+use mmic_link::sdls::{build_tc, RxSa, RxSas, SdlsError, TxSa};
+use mmic_link::tc::{FrameType, TcRepr};
+
+pub use mmic_link::persist::{create_key_file, read_key};
+pub use mmic_link::sdls::Key;
+
+/// Handle of a packet given to [`FrameLink::send_packet`].
+pub type PacketId = u64;
+
+/// What went wrong.
+#[derive(Debug)]
+#[non_exhaustive]
+pub enum LinkError {
+    /// Socket error.
+    Io(std::io::Error),
+    /// Key or state file.
+    Persist(PersistError),
+    /// A packet longer than a TC frame carries (or shorter than a packet header).
+    PacketLength { len: usize, max: usize },
+    /// SDLS refused to protect a frame (counter store failed or exhausted).
+    Sdls(SdlsError),
+    /// The same key for both directions (GCM nonces would repeat).
+    SameKey,
+}
+
+impl fmt::Display for LinkError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            LinkError::Io(e) => write!(f, "frame link socket: {e}"),
+            LinkError::Persist(e) => write!(f, "{e}"),
+            LinkError::PacketLength { len, max } => {
+                write!(f, "a packet of {len} bytes does not fit a TC frame (7..={max} bytes)")
+            }
+            LinkError::Sdls(e) => write!(f, "SDLS: {e}"),
+            LinkError::SameKey => write!(f, "the TC and TM keys are the same: each direction needs its own"),
+        }
+    }
+}
+
+impl std::error::Error for LinkError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            LinkError::Io(e) => Some(e),
+            LinkError::Persist(e) => Some(e),
+            LinkError::PacketLength { .. } | LinkError::Sdls(_) | LinkError::SameKey => None,
+        }
+    }
+}
+
+impl From<std::io::Error> for LinkError {
+    fn from(e: std::io::Error) -> Self {
+        LinkError::Io(e)
+    }
+}
+
+impl From<PersistError> for LinkError {
+    fn from(e: PersistError) -> Self {
+        LinkError::Persist(e)
+    }
+}
+
+/// What the link reports besides packets.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Event {
+    /// The packet's frame went out with this N(S) (again, when `retransmission`).
+    Transmitted { id: PacketId, ns: u8, retransmission: bool },
+    /// A CLCW acknowledged the packet's frame: it was accepted on board. Delivered.
+    Acknowledged { id: PacketId },
+    /// The robot's FARM-1 restarted while the frame was outstanding: it may or may not have
+    /// been accepted. Not resent; check its PUS 1 reports.
+    Unknown { id: PacketId },
+    /// The AD service is (again) initialised, V(S) = N(R) = `vr`.
+    Initialised { vr: u8 },
+    /// FOP-1 raised an alert; the link re-initialises from the next CLCW.
+    Alert(AlertReason),
+}
+
+/// Where and with what the link runs.
+#[derive(Clone, Debug)]
+pub struct Config {
+    /// The robot's frame port (`obsw --frame-udp`).
+    pub robot: SocketAddr,
+    /// The local address TM frames arrive at (`obsw --frame-tm-to`); TC frames leave from it.
+    pub listen: SocketAddr,
+    pub tc_key: Key,
+    pub tm_key: Key,
+    /// The ground's SDLS counter state file.
+    pub state: PathBuf,
+    pub fop: FopConfig,
+}
+
+impl Config {
+    /// The mission's link with keys read from files.
+    pub fn from_key_files(
+        robot: SocketAddr,
+        listen: SocketAddr,
+        tc_key: &Path,
+        tm_key: &Path,
+        state: &Path,
+    ) -> Result<Config, LinkError> {
+        Ok(Config {
+            robot,
+            listen,
+            tc_key: read_key(tc_key)?,
+            tm_key: read_key(tm_key)?,
+            state: state.into(),
+            fop: FopConfig::mission(),
+        })
+    }
+}
+
+/// Counters of the ground side.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Counters {
+    pub ad_frames_sent: u64,
+    pub retransmissions: u64,
+    pub bc_frames_sent: u64,
+    pub acknowledged: u64,
+    pub unknown: u64,
+    pub alerts: u64,
+    /// TM frames refused, by the receiver's reasons.
+    pub tm: TmRxCounters,
+    /// Datagrams that are not TM frames of our length.
+    pub odd_datagrams: u64,
+}
+
+/// The frame link (see the crate documentation).
+pub struct FrameLink {
+    sock: UdpSocket,
+    robot: SocketAddr,
+    fop: Fop<PacketId>,
+    tc_sa: TxSa,
+    tm: TmReceiver<2>,
+    store: FileIvStore,
+    queue: VecDeque<PacketId>,
+    packets: BTreeMap<PacketId, Vec<u8>>,
+    next_id: PacketId,
+    /// Frames purged by FOP-1 (N(S), id), in order, until a CLCW decides their fate.
+    limbo: Vec<(u8, PacketId)>,
+    /// A packet purged from the wait queue (never transmitted).
+    purged_wait: Vec<PacketId>,
+    /// CLCWs received so far; the one that re-initialises must come after `init_after`.
+    clcws: u64,
+    init_after: u64,
+    last_clcw: Option<Clcw>,
+    events: Vec<Event>,
+    capture: Option<Vec<Vec<u8>>>,
+    pub counters: Counters,
+    epoch: Instant,
+    buf: Vec<u8>,
+}
+
+impl fmt::Debug for FrameLink {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("FrameLink")
+            .field("robot", &self.robot)
+            .field("fop", &self.fop.state())
+            .field("queued", &self.queue.len())
+            .finish_non_exhaustive()
+    }
+}
+
+impl FrameLink {
+    /// Binds the socket and opens the counter state file. COP-1 initialises from the first
+    /// CLCW that arrives.
+    pub fn open(cfg: Config) -> Result<FrameLink, LinkError> {
+        if cfg.tc_key == cfg.tm_key {
+            return Err(LinkError::SameKey);
+        }
+        let store = FileIvStore::open(&cfg.state)?;
+        let (tc_spi, tm_spi) = (TC_SPIS[0], TM_SPIS[0]);
+        let tc_sa = TxSa::resume(tc_spi, &cfg.tc_key, store.get(Dir::Tx, tc_spi).unwrap_or(0));
+        let rx = match store.get(Dir::Rx, tm_spi) {
+            Some(last) => RxSa::resume(tm_spi, &cfg.tm_key, ANTI_REPLAY_WINDOW, last),
+            None => RxSa::new(tm_spi, &cfg.tm_key, ANTI_REPLAY_WINDOW),
+        };
+        let mut sas = RxSas::default();
+        // Room for two SAs: the first insert always fits.
+        let _ = sas.insert(rx);
+        let sock = UdpSocket::bind(cfg.listen)?;
+        sock.set_nonblocking(true)?;
+        Ok(FrameLink {
+            sock,
+            robot: cfg.robot,
+            fop: Fop::new(mib::link::tc_vc::COMMAND, cfg.fop),
+            tc_sa,
+            tm: TmReceiver::new(mib::link::SCID, sas),
+            store,
+            queue: VecDeque::new(),
+            packets: BTreeMap::new(),
+            next_id: 0,
+            limbo: Vec::new(),
+            purged_wait: Vec::new(),
+            clcws: 0,
+            init_after: 0,
+            last_clcw: None,
+            events: Vec::new(),
+            capture: None,
+            counters: Counters::default(),
+            epoch: Instant::now(),
+            buf: vec![0u8; 65_536],
+        })
+    }
+
+    /// The local address (TM frames arrive here).
+    pub fn local_addr(&self) -> Result<SocketAddr, LinkError> {
+        Ok(self.sock.local_addr()?)
+    }
+
+    /// Milliseconds since the link was opened (the clock `poll` is usually given).
+    pub fn now_ms(&self) -> u64 {
+        self.epoch.elapsed().as_millis() as u64
+    }
+
+    /// Queues a space packet for the AD service; it is delivered exactly once (see the
+    /// crate documentation) as soon as FOP-1's window allows.
+    pub fn send_packet(&mut self, packet: &[u8]) -> Result<PacketId, LinkError> {
+        if packet.len() < 7 || packet.len() > MAX_PACKET_LEN {
+            return Err(LinkError::PacketLength {
+                len: packet.len(),
+                max: MAX_PACKET_LEN,
+            });
+        }
+        let id = self.next_id;
+        self.next_id += 1;
+        self.packets.insert(id, packet.to_vec());
+        self.queue.push_back(id);
+        Ok(id)
+    }
+
+    /// Packets queued or sent and not yet acknowledged (or declared unknown).
+    pub fn pending(&self) -> usize {
+        self.packets.len()
+    }
+
+    pub fn fop_state(&self) -> FopState {
+        self.fop.state()
+    }
+
+    /// The last CLCW received.
+    pub fn clcw(&self) -> Option<Clcw> {
+        self.last_clcw
+    }
+
+    /// Events since the last call.
+    pub fn take_events(&mut self) -> Vec<Event> {
+        std::mem::take(&mut self.events)
+    }
+
+    /// Test aid: keep a copy of every TC frame sent (from now on, until switched off).
+    pub fn capture(&mut self, on: bool) {
+        self.capture = on.then(Vec::new);
+    }
+
+    /// The frames captured since the last call.
+    pub fn take_captured(&mut self) -> Vec<Vec<u8>> {
+        self.capture.as_mut().map(std::mem::take).unwrap_or_default()
+    }
+
+    /// One round at time `now_ms`, never blocking: reads every TM frame waiting, feeds the
+    /// CLCWs and the timer to FOP-1, (re)initialises when needed, sends what FOP-1 says.
+    /// Returns the space packets received.
+    pub fn poll(&mut self, now_ms: u64) -> Result<Vec<Vec<u8>>, LinkError> {
+        let mut out = Vec::new();
+        loop {
+            let n = match self.sock.recv_from(&mut self.buf) {
+                Ok((n, _)) => n,
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => break,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                // ICMP errors of earlier sends (robot not up yet): nothing to read.
+                Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => continue,
+                Err(e) => return Err(e.into()),
+            };
+            if n != mib::link::tm_frame::LEN {
+                self.counters.odd_datagrams += 1;
+                continue;
+            }
+            let frame = &mut self.buf[..n];
+            let r = self.tm.receive(&mut self.store, frame, |_vc, p| out.push(p.to_vec()));
+            self.counters.tm = self.tm.counters;
+            if let Ok(clcw) = r {
+                self.clcws += 1;
+                self.last_clcw = Some(clcw);
+                let fx = self.fop.on_event(now_ms, FopInput::Clcw(clcw));
+                self.apply(now_ms, fx)?;
+            }
+        }
+        let fx = self.fop.on_event(now_ms, FopInput::Tick);
+        self.apply(now_ms, fx)?;
+        self.maybe_initiate(now_ms)?;
+        // Only while the AD service runs (S1, S2): an FDU taken into the wait queue during
+        // initialisation would wait there until some later CLCW looks for it.
+        while self.fop.ready() && matches!(self.fop.state(), FopState::Active | FopState::RetransmitWithoutWait) {
+            let Some(id) = self.queue.pop_front() else { break };
+            let fx = self.fop.on_event(now_ms, FopInput::TransmitAd(id));
+            self.apply(now_ms, fx)?;
+        }
+        Ok(out)
+    }
+
+    /// Polls until `timeout` passes or a packet arrives, sleeping on the socket in between.
+    pub fn recv(&mut self, timeout: Duration) -> Result<Vec<Vec<u8>>, LinkError> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            let got = self.poll(self.now_ms())?;
+            let left = deadline.saturating_duration_since(Instant::now());
+            if !got.is_empty() || left.is_zero() {
+                return Ok(got);
+            }
+            self.wait_readable(left.min(Duration::from_millis(20)))?;
+        }
+    }
+
+    fn wait_readable(&mut self, d: Duration) -> Result<(), LinkError> {
+        self.sock.set_nonblocking(false)?;
+        self.sock.set_read_timeout(Some(d.max(Duration::from_millis(1))))?;
+        let mut b = [0u8; 1];
+        // Peek only: the datagram stays for `poll`.
+        let _ = self.sock.peek_from(&mut b);
+        self.sock.set_nonblocking(true)?;
+        Ok(())
+    }
+
+    /// In S6 with a CLCW newer than the alert: decide the purged frames' fate from N(R),
+    /// then initiate AD (Unlock when locked out, else Set V(R) = N(R)).
+    fn maybe_initiate(&mut self, now_ms: u64) -> Result<(), LinkError> {
+        if self.fop.state() != FopState::Initial || self.clcws <= self.init_after {
+            return Ok(());
+        }
+        let Some(clcw) = self.last_clcw else { return Ok(()) };
+        let nr = clcw.report_value;
+        if let Some(&(ns0, _)) = self.limbo.first() {
+            let k = usize::from(nr.wrapping_sub(ns0));
+            let limbo = std::mem::take(&mut self.limbo);
+            let mut resend = Vec::new();
+            if k <= limbo.len() {
+                for (i, (_, id)) in limbo.into_iter().enumerate() {
+                    if i < k {
+                        self.delivered(id);
+                    } else {
+                        resend.push(id);
+                    }
+                }
+            } else {
+                for (_, id) in limbo {
+                    self.packets.remove(&id);
+                    self.counters.unknown += 1;
+                    self.events.push(Event::Unknown { id });
+                }
+            }
+            resend.append(&mut self.purged_wait);
+            for id in resend.into_iter().rev() {
+                self.queue.push_front(id);
+            }
+        } else {
+            for id in std::mem::take(&mut self.purged_wait).into_iter().rev() {
+                self.queue.push_front(id);
+            }
+        }
+        self.init_after = self.clcws;
+        let input = if clcw.lockout {
+            FopInput::InitiateAdWithUnlock
+        } else {
+            FopInput::InitiateAdWithSetVr(nr)
+        };
+        let fx = self.fop.on_event(now_ms, input);
+        self.apply(now_ms, fx)
+    }
+
+    fn delivered(&mut self, id: PacketId) {
+        if self.packets.remove(&id).is_some() {
+            self.counters.acknowledged += 1;
+            self.events.push(Event::Acknowledged { id });
+        }
+    }
+
+    fn send(&mut self, frame: &[u8]) -> Result<(), LinkError> {
+        if let Some(c) = self.capture.as_mut() {
+            c.push(frame.to_vec());
+        }
+        match self.sock.send_to(frame, self.robot) {
+            Ok(_) => Ok(()),
+            // The robot's port not (yet) open, a full buffer: the frame is lost like on
+            // a radio link; COP-1 retransmits.
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::ConnectionRefused | std::io::ErrorKind::WouldBlock
+                ) =>
+            {
+                Ok(())
+            }
+            Err(e) => Err(e.into()),
+        }
+    }
+
+    fn apply(&mut self, now_ms: u64, fx: mmic_link::fop::Effects<PacketId>) -> Result<(), LinkError> {
+        for e in fx {
+            match e {
+                FopEffect::TransmitAd {
+                    ns,
+                    fdu,
+                    retransmission,
+                } => {
+                    let Some(p) = self.packets.get(&fdu) else { continue };
+                    let mut buf = [0u8; TC_MAX_LEN];
+                    let repr = TcRepr {
+                        frame_type: FrameType::Ad,
+                        scid: mib::link::SCID,
+                        vcid: mib::link::tc_vc::COMMAND,
+                        seq: ns,
+                        data_len: 0,
+                    };
+                    let n = build_tc(&mut self.tc_sa, &mut self.store, repr, p, &mut buf).map_err(LinkError::Sdls)?;
+                    self.send(&buf[..n])?;
+                    self.counters.ad_frames_sent += 1;
+                    if retransmission {
+                        self.counters.retransmissions += 1;
+                    }
+                    self.events.push(Event::Transmitted {
+                        id: fdu,
+                        ns,
+                        retransmission,
+                    });
+                }
+                FopEffect::TransmitBc(cmd) => {
+                    let mut buf = [0u8; 16];
+                    if let Some(n) = cmd.build_frame(mib::link::SCID, mib::link::tc_vc::COMMAND, &mut buf) {
+                        self.send(&buf[..n])?;
+                        self.counters.bc_frames_sent += 1;
+                    }
+                }
+                FopEffect::TransmitBd(id) => {
+                    // The link never requests BD; a packet handed back is queued again.
+                    self.queue.push_front(id);
+                }
+                FopEffect::Acknowledged { fdu, .. } => self.delivered(fdu),
+                FopEffect::RequestRejected(id) => self.queue.push_front(id),
+                FopEffect::NotDelivered { ns, fdu } => self.limbo.push((ns, fdu)),
+                FopEffect::Purged(id) => self.purged_wait.push(id),
+                FopEffect::Initialised => self.events.push(Event::Initialised { vr: self.fop.vs() }),
+                FopEffect::Alert(a) => {
+                    self.counters.alerts += 1;
+                    self.init_after = self.clcws;
+                    self.events.push(Event::Alert(a));
+                }
+                FopEffect::Suspended(_) => {
+                    // Timeout type 1 is not the mission's; resume at once.
+                    let fx = self.fop.on_event(now_ms, FopInput::ResumeAd);
+                    for e in fx {
+                        if let FopEffect::Alert(a) = e {
+                            self.events.push(Event::Alert(a));
+                        }
+                    }
+                }
+                FopEffect::RequestAccepted
+                | FopEffect::DirectiveAccepted
+                | FopEffect::DirectiveRejected
+                | FopEffect::Event(_) => {}
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests;

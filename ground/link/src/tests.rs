@@ -1,0 +1,243 @@
+//! The link against an in-process robot (mmic-link's `TcReceiver` and TM framer on a
+//! loopback UDP socket, with seeded loss in both directions).
+
+use super::*;
+use mmic_link::downlink::{Downlink, TmVc};
+use mmic_link::rx::{RxOutcome, TcReceiver};
+use mmic_link::sdls::MemoryIvStore;
+use mmic_link::test_keys::{TEST_KEY_TC_A, TEST_KEY_TM_A};
+
+struct Robot {
+    sock: UdpSocket,
+    ground: SocketAddr,
+    rx: TcReceiver<2>,
+    dl: Downlink,
+    tm_sa: TxSa,
+    store: MemoryIvStore,
+    /// Packets executed, in order.
+    executed: Vec<Vec<u8>>,
+    rng: u64,
+    loss: f64,
+}
+
+impl Robot {
+    fn new(ground: SocketAddr, loss: f64, seed: u64) -> Robot {
+        let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
+        sock.set_nonblocking(true).unwrap();
+        let mut sas = RxSas::default();
+        sas.insert(RxSa::new(TC_SPIS[0], &TEST_KEY_TC_A, ANTI_REPLAY_WINDOW))
+            .unwrap();
+        Robot {
+            sock,
+            ground,
+            rx: TcReceiver::mission(sas),
+            dl: Downlink::mission(),
+            tm_sa: TxSa::resume(TM_SPIS[0], &TEST_KEY_TM_A, 0),
+            store: MemoryIvStore::default(),
+            executed: Vec::new(),
+            rng: seed | 1,
+            loss,
+        }
+    }
+
+    fn lose(&mut self) -> bool {
+        self.rng ^= self.rng << 13;
+        self.rng ^= self.rng >> 7;
+        self.rng ^= self.rng << 17;
+        ((self.rng >> 11) as f64 / (1u64 << 53) as f64) < self.loss
+    }
+
+    /// Takes waiting TC frames, answers each with a TM frame (echo of the packet) or an
+    /// idle frame carrying the CLCW.
+    fn step(&mut self) {
+        let mut buf = [0u8; 2048];
+        while let Ok((n, _)) = self.sock.recv_from(&mut buf) {
+            if self.lose() {
+                continue;
+            }
+            let mut echoes = Vec::new();
+            if let RxOutcome::Accepted { packets, .. } = self.rx.receive(&mut self.store, &mut buf[..n], true) {
+                for p in packets {
+                    self.executed.push(p.to_vec());
+                    echoes.push(p.to_vec());
+                }
+            }
+            let clcw = self.rx.farm.clcw();
+            let mut frames = Vec::new();
+            for p in echoes {
+                self.dl
+                    .send(TmVc::Realtime, &p, clcw, &mut self.tm_sa, &mut self.store, |f| {
+                        frames.push(f.to_vec())
+                    })
+                    .unwrap();
+            }
+            self.dl
+                .flush(TmVc::Realtime, clcw, &mut self.tm_sa, &mut self.store, |f| {
+                    frames.push(f.to_vec())
+                })
+                .unwrap();
+            if frames.is_empty() {
+                let mut f = [0u8; 1024];
+                self.dl.idle(clcw, &mut f);
+                frames.push(f.to_vec());
+            }
+            for f in frames {
+                if !self.lose() {
+                    let _ = self.sock.send_to(&f, self.ground);
+                }
+            }
+        }
+        let mut f = [0u8; 1024];
+        self.dl.idle(self.rx.farm.clcw(), &mut f);
+        if !self.lose() {
+            let _ = self.sock.send_to(&f, self.ground);
+        }
+    }
+}
+
+fn state(name: &str) -> PathBuf {
+    let p = std::env::temp_dir().join(format!("ground-link-{}-{name}.state", std::process::id()));
+    let _ = std::fs::remove_file(&p);
+    p
+}
+
+fn link(robot: SocketAddr, listen: SocketAddr, state: &Path) -> FrameLink {
+    FrameLink::open(Config {
+        robot,
+        listen,
+        tc_key: TEST_KEY_TC_A,
+        tm_key: TEST_KEY_TM_A,
+        state: state.into(),
+        fop: FopConfig {
+            t1_ms: 40,
+            tx_limit: 20,
+            ..FopConfig::mission()
+        },
+    })
+    .unwrap()
+}
+
+fn packet(i: u16) -> Vec<u8> {
+    // A TC space packet header (APID 0x101, sequence count i) and 4 data bytes.
+    let mut p = vec![0x18, 0x01, 0xC0 | (i >> 8) as u8, i as u8, 0x00, 0x03];
+    p.extend_from_slice(&i.to_be_bytes());
+    p.extend_from_slice(&[0xAA, 0x55]);
+    p
+}
+
+/// Runs ground and robot (time by the link's own clock) until `done` or 20 s.
+fn run(g: &mut FrameLink, r: &mut Robot, mut done: impl FnMut(&FrameLink, &Robot) -> bool) -> Vec<Vec<u8>> {
+    let mut got = Vec::new();
+    let until = Instant::now() + Duration::from_secs(20);
+    while !done(g, r) && Instant::now() < until {
+        r.step();
+        got.extend(g.poll(g.now_ms()).unwrap());
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    got
+}
+
+// verifies: LINK-GND-01
+#[test]
+fn lossy_link_delivers_each_packet_exactly_once_and_in_order() {
+    let st = state("lossy");
+    let gsock = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let gaddr = gsock.local_addr().unwrap();
+    drop(gsock);
+    let mut r = Robot::new(gaddr, 0.2, 7);
+    let mut g = link(r.sock.local_addr().unwrap(), gaddr, &st);
+    let want: Vec<Vec<u8>> = (0..60).map(packet).collect();
+    for p in &want {
+        g.send_packet(p).unwrap();
+    }
+    let echoed = run(&mut g, &mut r, |g, _| g.pending() == 0);
+    let ev = g.take_events();
+    assert_eq!(
+        g.pending(),
+        0,
+        "all acknowledged: {:?} {:?} {:?}",
+        g.counters,
+        g.fop_state(),
+        ev
+    );
+    assert_eq!(r.executed, want, "each executed once, in order");
+    assert!(g.counters.retransmissions > 0, "the loss made COP-1 work");
+    assert!(echoed.iter().all(|p| want.contains(p)), "only real packets came back");
+    let acked = ev.iter().filter(|e| matches!(e, Event::Acknowledged { .. })).count();
+    assert_eq!(acked, 60);
+    let _ = std::fs::remove_file(&st);
+}
+
+// verifies: LINK-GND-01, LINK-FOP-02
+#[test]
+fn a_restarted_ground_resynchronises_without_repeat_or_skip() {
+    let st = state("restart");
+    let gsock = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let gaddr = gsock.local_addr().unwrap();
+    drop(gsock);
+    let mut r = Robot::new(gaddr, 0.15, 11);
+    let want: Vec<Vec<u8>> = (0..40).map(packet).collect();
+    let mut g = link(r.sock.local_addr().unwrap(), gaddr, &st);
+    for p in &want {
+        g.send_packet(p).unwrap();
+    }
+    // Run until about half are on board, then "kill" the ground (drop, no goodbye),
+    // keeping its record of N(S) per packet.
+    let mut ns_of: BTreeMap<u8, PacketId> = BTreeMap::new();
+    let until = Instant::now() + Duration::from_secs(20);
+    while r.executed.len() < 20 && Instant::now() < until {
+        r.step();
+        g.poll(g.now_ms()).unwrap();
+        for e in g.take_events() {
+            if let Event::Transmitted { id, ns, .. } = e {
+                ns_of.insert(ns, id);
+            }
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    drop(g);
+    // The new ground: same keys and state file, no COP-1 memory.
+    let mut g = link(r.sock.local_addr().unwrap(), gaddr, &st);
+    run(&mut g, &mut r, |g, _| g.fop_state() == FopState::Active);
+    assert_eq!(g.fop_state(), FopState::Active);
+    let nr = g.clcw().unwrap().report_value;
+    let resume = ns_of
+        .get(&nr)
+        .map(|&id| id as usize)
+        .unwrap_or_else(|| ns_of.values().max().map_or(0, |&m| m as usize + 1));
+    for p in &want[resume..] {
+        g.send_packet(p).unwrap();
+    }
+    run(&mut g, &mut r, |g, _| g.pending() == 0);
+    assert_eq!(r.executed, want, "no repeat, no skip");
+    let _ = std::fs::remove_file(&st);
+}
+
+// verifies: LINK-GND-01
+#[test]
+fn bad_packets_and_shared_keys_are_refused() {
+    let st = state("bad");
+    let a = SocketAddr::from(([127, 0, 0, 1], 0));
+    let mut g = link(a, a, &st);
+    assert!(matches!(
+        g.send_packet(&[1, 2, 3]),
+        Err(LinkError::PacketLength { len: 3, .. })
+    ));
+    assert!(matches!(
+        g.send_packet(&vec![0u8; MAX_PACKET_LEN + 1]),
+        Err(LinkError::PacketLength { .. })
+    ));
+    assert_eq!(g.pending(), 0);
+    let e = FrameLink::open(Config {
+        robot: a,
+        listen: a,
+        tc_key: TEST_KEY_TC_A,
+        tm_key: TEST_KEY_TC_A,
+        state: st.clone(),
+        fop: FopConfig::mission(),
+    })
+    .unwrap_err();
+    assert!(matches!(e, LinkError::SameKey));
+    assert!(!e.to_string().contains("MMIC"), "never the key");
+    let _ = std::fs::remove_file(&st);
+}
