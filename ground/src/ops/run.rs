@@ -1,0 +1,484 @@
+//! [`run_plan`]: drives the [`Executor`] with a [`Session`]: start markers, resolution
+//! of a resumed run's unknown TCs, interruption, gap retrieval, the live display.
+
+use std::collections::{BTreeMap, HashMap, VecDeque};
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+
+use crate::plan::Plan;
+use crate::pus::BuiltTc;
+
+use super::*;
+
+struct Display {
+    mp: indicatif::MultiProgress,
+    total: indicatif::ProgressBar,
+    robots: BTreeMap<u8, indicatif::ProgressBar>,
+    visible: bool,
+}
+
+impl Display {
+    fn new(plan: &Plan, robots: &[u8], want: bool) -> Display {
+        use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
+        let target = if want {
+            ProgressDrawTarget::stderr_with_hz(10)
+        } else {
+            ProgressDrawTarget::hidden()
+        };
+        let mp = MultiProgress::with_draw_target(target);
+        let total = mp.add(ProgressBar::new(plan.steps.len() as u64));
+        total.set_style(
+            ProgressStyle::with_template("{prefix:>9} [{bar:30}] {pos}/{len} steps {elapsed} {msg}")
+                .unwrap_or_else(|_| ProgressStyle::default_bar())
+                .progress_chars("=> "),
+        );
+        total.set_prefix(plan.name.clone());
+        let mut bars = BTreeMap::new();
+        for &r in robots {
+            let b = mp.add(ProgressBar::new_spinner());
+            b.set_style(
+                ProgressStyle::with_template("{prefix:>9} {spinner} {msg}")
+                    .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+            );
+            b.set_prefix(format!("robot {r}"));
+            bars.insert(r, b);
+        }
+        let visible = !mp.is_hidden();
+        Display {
+            mp,
+            total,
+            robots: bars,
+            visible,
+        }
+    }
+    fn log(&self, line: String) {
+        if self.visible {
+            let _ = self.mp.println(line);
+        } else {
+            // A closed stderr must not stop a run.
+            use std::io::Write as _;
+            let _ = writeln!(std::io::stderr().lock(), "{line}");
+        }
+    }
+}
+
+/// What `--resume` hands to [`run_plan`]: the state of the run's earlier session(s).
+#[derive(Clone, Debug, Default)]
+pub struct Resume {
+    /// Steps completed earlier: not sent again.
+    pub done: Vec<usize>,
+    /// Steps whose TC was sent earlier but whose outcome the archive does not show.
+    pub in_flight: Vec<InFlight>,
+    /// Per robot, the last TM sequence count of its APID in the archive: the on-board
+    /// store is asked for everything after it before anything is sent.
+    pub last_seq: Vec<(u8, u16)>,
+}
+
+/// A step whose TC an earlier session sent, outcome unknown.
+#[derive(Clone, Debug)]
+pub struct InFlight {
+    pub step: usize,
+    pub tc: BuiltTc,
+    /// The archive has its acceptance report.
+    pub accepted: bool,
+}
+
+/// Executes a plan: each step is sent once every step it depends on has completed.
+/// `resume` holds what earlier sessions of the same run did (`--resume`).
+pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &Resume) -> RunSummary {
+    let robots: Vec<u8> = plan.robots.iter().map(|r| r.number).collect();
+    let disp = Display::new(plan, &robots, opts.display);
+    let mut exec = Executor::new(plan, opts, &resume.done, Instant::now());
+    let mut last_gap_check = Instant::now();
+    disp.total.inc(exec.resumed as u64);
+    if exec.resumed > 0 {
+        disp.log(format!(
+            "  resume   {} steps completed earlier in this run are not sent again",
+            exec.resumed
+        ));
+    }
+    let stop_asked = || opts.stop.as_ref().is_some_and(|f| f.load(Ordering::SeqCst));
+    // TCs of the earlier session whose outcome is unknown: tracked again (never resent),
+    // and the TM the ground missed since is asked of the on-board store first.
+    for f in &resume.in_flight {
+        let Some(st) = plan.steps.get(f.step) else { continue };
+        session.adopt(st.robot, f.tc.clone(), Some(f.step), Some(st.id.clone()), f.accepted);
+        exec.adopt(f.step, f.tc.clone(), "outcome asked of the store", Instant::now());
+        disp.log(format!(
+            "  resume   {} robot {}: {} (seq {}) was sent before the interruption, {}; resolving its outcome before anything is sent",
+            st.id,
+            st.robot,
+            f.tc.def.name,
+            f.tc.seq,
+            if f.accepted { "accepted, no completion archived" } else { "no report archived" }
+        ));
+        if let Some((_, last)) = resume.last_seq.iter().find(|(r, _)| *r == st.robot) {
+            if let Some(s) = session.robots.get_mut(&st.robot) {
+                if s.seq.newest().is_none() {
+                    s.seq.expect_from(last.wrapping_add(1) % SEQ_MOD);
+                }
+            }
+        }
+    }
+    // Every session of a run starts with a start marker per robot: it names the run in
+    // the archive (see `runs`) and, answered, starts the TM accounting.
+    let watch = opts.ping_period.is_some() || !resume.in_flight.is_empty();
+    if watch {
+        session.watch_links();
+    }
+    let early = start_markers(session, &robots, watch, &stop_asked);
+    let apply = |fx: Vec<Effect>, exec: &mut Executor, session: &mut Session| {
+        let mut queue: VecDeque<Effect> = fx.into();
+        while let Some(e) = queue.pop_front() {
+            match e {
+                Effect::Send { step, robot, def, args } => {
+                    let label = Some(plan.steps[step].id.clone());
+                    let sent = session
+                        .send(robot, def, &args, Some(step), label)
+                        .map_err(|e| e.to_string());
+                    queue.extend(exec.on_sent(step, sent, Instant::now()));
+                }
+                Effect::Forget(tc) => session.forget(&tc),
+                Effect::Heartbeat(r) => {
+                    // Not when another TC just went out: every TC enters the OBSW's
+                    // duplicate window, which must keep the plan's TCs for their whole
+                    // retry span. A failed send shows as silence: the link-loss check
+                    // reports it.
+                    let period = opts.ping_period.unwrap_or_default();
+                    if !session.sent_within(r, period) {
+                        let _ = session.send_heartbeat(r);
+                    }
+                }
+                Effect::Retrieve(r) => {
+                    if !session.retrieving(r) {
+                        session.request_gaps(r, None, 1);
+                    }
+                }
+                Effect::Log(line) => disp.log(line),
+                Effect::Finished => disp.total.inc(1),
+            }
+        }
+    };
+    for u in early {
+        let fx = exec.on_update(Instant::now(), u);
+        apply(fx, &mut exec, session);
+    }
+    if !resume.in_flight.is_empty() {
+        let fx = resolve_in_flight(session, &mut exec, resume, &stop_asked);
+        apply(fx, &mut exec, session);
+    }
+    loop {
+        if stop_asked() {
+            let fx = exec.interrupt(Instant::now(), opts.grace);
+            apply(fx, &mut exec, session);
+        }
+        let fx = exec.on_tick(Instant::now());
+        apply(fx, &mut exec, session);
+        if exec.finished() || exec.stopped(Instant::now()) {
+            break;
+        }
+        for u in session.poll(Duration::from_millis(50)) {
+            let fx = exec.on_update(Instant::now(), u);
+            apply(fx, &mut exec, session);
+        }
+        // TM gaps are filled from the on-board store while the plan runs.
+        if last_gap_check.elapsed() >= GAP_CHECK_PERIOD {
+            last_gap_check = Instant::now();
+            for &r in &robots {
+                let lost = session.robots.get(&r).is_some_and(|s| s.lost.is_some());
+                if !lost && !session.retrieving(r) {
+                    // One range per period while plan TCs may still be resent (the
+                    // duplicate window holds a bounded number of TCs); the rest at the end.
+                    session.request_gaps(r, None, 1);
+                }
+            }
+        }
+        for (&r, bar) in &disp.robots {
+            let st = session.robots.get(&r).map(|s| s.line()).unwrap_or_default();
+            bar.set_message(format!("{} | {st}", exec.robot_line(r)));
+            bar.tick();
+        }
+    }
+    // An interrupted run ends at once: the TM it missed is filled by the next session.
+    let tm = if opts.ping_period.is_some() && !stop_asked() {
+        complete_tm(session, &robots, &disp, &stop_asked)
+    } else {
+        Vec::new()
+    };
+    disp.total.finish();
+    for b in disp.robots.values() {
+        b.finish();
+    }
+    let _ = disp.mp.clear();
+    let mut summary = exec.summary(session, Instant::now());
+    summary.tm = tm;
+    summary
+}
+
+/// Starts every robot's TM accounting: a connection test (resent until answered) whose
+/// reports give the first sequence count of the run; every TM from there on is expected.
+/// Returns what happened meanwhile (a link found lost, reports of adopted TCs).
+fn start_markers(session: &mut Session, robots: &[u8], wait: bool, stop: &dyn Fn() -> bool) -> Vec<Update> {
+    let mut seen = Vec::new();
+    let Some(ping) = mib::tc::by_name("PING") else {
+        return seen;
+    };
+    let mut markers = Vec::new();
+    for &r in robots {
+        if let Ok(m) = session.send(r, ping, &[], None, Some(START_LABEL.into())) {
+            markers.push((r, m));
+        }
+    }
+    let t0 = Instant::now();
+    let limit = Duration::from_millis(mib::config::TC_RETRY_SPAN_MS as u64);
+    while wait
+        && t0.elapsed() < limit
+        && !stop()
+        && markers.iter().any(|(r, m)| {
+            // Answered once accepted: its first report gives the run's first count.
+            session.accepted(m) == Some(false) && session.robots.get(r).is_some_and(|s| s.lost.is_none())
+        })
+    {
+        seen.extend(session.poll(Duration::from_millis(50)));
+    }
+    for (r, _) in markers {
+        if let Some(s) = session.robots.get_mut(&r) {
+            if let Some(f) = s.run_first_seq {
+                s.seq.expect_from(f);
+            }
+        }
+    }
+    seen
+}
+
+/// Resolves the TCs of an interrupted session (`--resume`) before anything is sent: the
+/// on-board store is asked for every TM the ground missed since its last archived one,
+/// until none is missing. Then a TC with a report ends as it says; one accepted without
+/// completion is still running on board (its completion is awaited); one with no report
+/// at all in a complete TM stream never reached the robot and is sent again as a new TC;
+/// one whose TM cannot be completed (overwritten, not answered) fails as "outcome
+/// unknown" and is never sent again.
+fn resolve_in_flight(
+    session: &mut Session,
+    exec: &mut Executor,
+    resume: &Resume,
+    stop: &dyn Fn() -> bool,
+) -> Vec<Effect> {
+    let in_flight = &resume.in_flight;
+    let mut fx = Vec::new();
+    let robots: Vec<u8> = {
+        let mut r: Vec<u8> = in_flight
+            .iter()
+            .filter_map(|f| exec.plan.steps.get(f.step))
+            .map(|s| s.robot)
+            .collect();
+        r.dedup();
+        r
+    };
+    let expired0: HashMap<u8, u64> = robots
+        .iter()
+        .map(|&r| (r, session.robots.get(&r).map_or(0, |s| s.seq.expired)))
+        .collect();
+    let t0 = Instant::now();
+    let limit = Duration::from_millis(mib::config::TC_RETRY_SPAN_MS as u64);
+    let mut idle_rounds = 0;
+    loop {
+        let open: Vec<u8> = robots
+            .iter()
+            .copied()
+            .filter(|&r| {
+                session
+                    .robots
+                    .get(&r)
+                    .is_some_and(|s| s.lost.is_none() && !s.seq.missing.is_empty())
+                    && in_flight.iter().any(|f| session.is_pending(&f.tc))
+            })
+            .collect();
+        if open.is_empty() || t0.elapsed() >= limit || stop() || idle_rounds >= GAP_ROUNDS_IDLE_MAX {
+            break;
+        }
+        let before: usize = open
+            .iter()
+            .map(|r| session.robots.get(r).map_or(0, |s| s.seq.missing.len()))
+            .sum();
+        for &r in &open {
+            if !session.retrieving(r) {
+                session.request_gaps(r, None, GAP_REQUESTS_MAX);
+            }
+        }
+        let round = Instant::now();
+        while round.elapsed() < Duration::from_secs(3) && open.iter().any(|&r| session.retrieving(r)) {
+            for u in session.poll(Duration::from_millis(50)) {
+                fx.extend(exec.on_update(Instant::now(), u));
+            }
+        }
+        let settle = Instant::now();
+        while settle.elapsed() < Duration::from_millis(300) {
+            for u in session.poll(Duration::from_millis(50)) {
+                fx.extend(exec.on_update(Instant::now(), u));
+            }
+        }
+        let after: usize = open
+            .iter()
+            .map(|r| session.robots.get(r).map_or(0, |s| s.seq.missing.len()))
+            .sum();
+        idle_rounds = if after < before { 0 } else { idle_rounds + 1 };
+    }
+    for f in in_flight {
+        if !session.is_pending(&f.tc) {
+            continue; // ended by its reports (or the link loss)
+        }
+        let Some(step) = exec.plan.steps.get(f.step) else {
+            continue;
+        };
+        let r = step.robot;
+        // Complete: every count from the last archived one up to the newest received,
+        // the newest ahead of it (a robot that restarted counts from 0 again: its TM
+        // does not continue the archive's, and the TC's fate is unknown).
+        let last = resume.last_seq.iter().find(|(x, _)| *x == r).map(|(_, q)| *q);
+        let complete = session.robots.get(&r).is_some_and(|s| {
+            let ahead = match (s.seq.newest(), last) {
+                (Some(n), Some(l)) => (1..SEQ_TRACK_WINDOW).contains(&(n.wrapping_sub(l) % SEQ_MOD)),
+                (Some(_), None) => true,
+                (None, _) => false,
+            };
+            s.lost.is_none()
+                && ahead
+                && s.seq.missing.is_empty()
+                && s.seq.expired == expired0.get(&r).copied().unwrap_or(0)
+        });
+        match (complete, session.accepted(&f.tc).unwrap_or(f.accepted)) {
+            (true, true) => fx.push(Effect::Log(format!(
+                "  resume   {}: accepted and still running on board; its completion is awaited",
+                step.id
+            ))),
+            (true, false) => {
+                session.forget(&f.tc);
+                exec.requeue(f.step);
+                fx.push(Effect::Log(format!(
+                    "  resume   {}: its TC (seq {}) never reached the robot (no report in the complete TM since): sent as a new TC",
+                    step.id, f.tc.seq
+                )));
+            }
+            (false, _) => {
+                session.forget(&f.tc);
+                fx.extend(exec.fail_step(
+                    f.step,
+                    format!(
+                        "outcome unknown: {} (seq {}) may have executed, and the robot's TM since the interruption cannot be completed (store overwritten, robot restarted or not answering); not sent again: check the robot, then send the step by hand",
+                        f.tc.def.name, f.tc.seq
+                    ),
+                ));
+            }
+        }
+    }
+    fx
+}
+
+/// How often a running plan asks the stores for missing TM.
+const GAP_CHECK_PERIOD: Duration = Duration::from_secs(2);
+/// Retrieval rounds at the end of a run that bring nothing back before the rest counts
+/// as not recovered.
+const GAP_ROUNDS_IDLE_MAX: u32 = 8;
+/// Retrieval rounds at the end of a run at most.
+const GAP_ROUNDS_MAX: u32 = 40;
+
+/// Ends a run's TM: an end marker (a connection test, resent until answered) fixes how
+/// far the TM must be complete; then every gap up to it is asked of the on-board store
+/// until it is filled, found overwritten, or `GAP_ROUNDS_MAX` rounds passed.
+fn complete_tm(session: &mut Session, robots: &[u8], disp: &Display, stop: &dyn Fn() -> bool) -> Vec<TmCompleteness> {
+    let mut out = Vec::new();
+    let Some(ping) = mib::tc::by_name("PING") else {
+        return out;
+    };
+    for &r in robots {
+        let mut c = TmCompleteness {
+            robot: r,
+            from: session.robots.get(&r).and_then(|s| s.run_first_seq),
+            upto: None,
+            overwritten: Vec::new(),
+            not_received: Vec::new(),
+            retrievals: 0,
+        };
+        if session.robots.get(&r).is_none_or(|s| s.lost.is_some()) {
+            out.push(c);
+            continue;
+        }
+        let marker = session.send(r, ping, &[], None, Some("end marker".into()));
+        let limit = Duration::from_millis(mib::config::TC_RETRY_SPAN_MS as u64);
+        if let Ok(m) = &marker {
+            let t0 = Instant::now();
+            while t0.elapsed() < limit && session.accepted(m) == Some(false) && !stop() {
+                session.poll(Duration::from_millis(50));
+                if session.robots.get(&r).is_some_and(|s| s.lost.is_some()) {
+                    break;
+                }
+            }
+        }
+        let upto = session.robots.get(&r).and_then(|s| s.seq.newest());
+        c.upto = upto;
+        let Some(cut) = upto else {
+            out.push(c);
+            continue;
+        };
+        let mut rounds = 0;
+        let mut idle_rounds = 0;
+        let mut before = usize::MAX;
+        loop {
+            let missing = session
+                .robots
+                .get(&r)
+                .map(|s| s.seq.missing_upto(cut))
+                .unwrap_or_default();
+            let count = session.robots.get(&r).map_or(0, |s| s.seq.missing.len());
+            if count >= before {
+                idle_rounds += 1;
+            } else {
+                idle_rounds = 0;
+            }
+            before = count;
+            // A Ctrl-C here ends the retrieval: the next session fills the rest.
+            if missing.is_empty() || rounds >= GAP_ROUNDS_MAX || idle_rounds >= GAP_ROUNDS_IDLE_MAX || stop() {
+                break;
+            }
+            let t0 = Instant::now();
+            while t0.elapsed() < limit && session.retrieving(r) && !stop() {
+                session.poll(Duration::from_millis(50));
+            }
+            let asked = session.request_gaps(r, Some(cut), GAP_REQUESTS_MAX);
+            if asked.is_empty() {
+                break;
+            }
+            rounds += 1;
+            c.retrievals += asked.len() as u32;
+            disp.log(format!(
+                "  gaps     robot {r}: {} ranges missing, retrieval round {rounds}",
+                missing.len()
+            ));
+            let t0 = Instant::now();
+            while t0.elapsed() < limit && session.retrieving(r) && !stop() {
+                session.poll(Duration::from_millis(50));
+            }
+            // Replays still on their way.
+            let settle = Instant::now();
+            while settle.elapsed() < Duration::from_millis(300) {
+                session.poll(Duration::from_millis(50));
+            }
+        }
+        if let Some(s) = session.robots.get(&r) {
+            for (a, b) in s.seq.missing_upto(cut) {
+                // Older than the oldest packet still stored: overwritten on board.
+                let gone = s
+                    .store_oldest
+                    .is_some_and(|o| o != b && o.wrapping_sub(b) % SEQ_MOD < SEQ_MOD / 2);
+                if gone {
+                    c.overwritten.push((a, b));
+                } else {
+                    c.not_received.push((a, b));
+                }
+            }
+        }
+        out.push(c);
+    }
+    out
+}

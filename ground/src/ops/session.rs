@@ -1,0 +1,682 @@
+//! The [`Session`]: links to several robots, TCs with per-APID sequence counts, PUS 1
+//! verification, resends until acceptance, link-loss watch, archive.
+
+use std::collections::{BTreeMap, HashMap};
+use std::net::SocketAddr;
+use std::time::{Duration, Instant};
+
+use crossbeam_channel::Receiver;
+use mib::config::{tc_retry_wait_ms, LINK_LOSS_MS, TC_RETRY_INITIAL_MS, TC_RETRY_MAX};
+use mib::events::eid;
+use mib::params::pid;
+use mib::tc::TcDef;
+
+use crate::archive::{now_ms, ArchiveSender, Record};
+use crate::link::{Incoming, Link, Transport};
+use crate::pus::{self, BuiltTc, DecodeError, Event, Hk, SeqCounters, Stage, Tm, TmBody, Verification};
+
+use super::*;
+
+/// A TC waiting for verification.
+#[derive(Clone, Debug)]
+pub struct Pending {
+    pub robot: u8,
+    pub tc: BuiltTc,
+    pub tag: Option<usize>,
+    pub label: Option<String>,
+    pub first_sent: Instant,
+    pub last_sent: Instant,
+    pub sends: u32,
+    pub accepted: bool,
+    /// Most sends of this TC (1 for a connection test).
+    pub max_sends: u32,
+    /// Never resent (a TC adopted from an interrupted run: its outcome is asked of the
+    /// on-board store).
+    pub exhausted: bool,
+}
+
+impl Pending {
+    /// Resent while it waits for acceptance. After acceptance it is never resent: its
+    /// completion is awaited on the step's own timeout, and a completion report lost on
+    /// the way is a TM gap, filled from the on-board store.
+    fn resendable(&self) -> bool {
+        !self.exhausted && !self.accepted
+    }
+}
+
+/// Something that happened on the links.
+#[derive(Clone, Debug)]
+pub enum Update {
+    Verification {
+        robot: u8,
+        tag: Option<usize>,
+        tc: Option<&'static str>,
+        v: Verification,
+        /// Time from the first send of the TC.
+        after: Option<Duration>,
+    },
+    Event {
+        robot: u8,
+        event: Event,
+    },
+    Hk {
+        robot: u8,
+        hk: Hk,
+    },
+    Tm {
+        robot: u8,
+        tm: Tm,
+    },
+    Resent {
+        robot: u8,
+        tag: Option<usize>,
+        tc: &'static str,
+        send: u32,
+    },
+    GaveUp {
+        robot: u8,
+        tag: Option<usize>,
+        tc: &'static str,
+        sends: u32,
+        /// The TC was accepted (so it may have executed): its outcome is unknown.
+        accepted: bool,
+    },
+    /// A TM[1,2] for a copy of a TC that was damaged on the way (CRC or length): not the
+    /// TC's verdict; the TC is resent.
+    DamagedCopy {
+        robot: u8,
+        tag: Option<usize>,
+        tc: &'static str,
+    },
+    /// No TM from the robot for `LINK_LOSS_MS`, or its TCP connection closed.
+    LinkLost {
+        robot: u8,
+        why: String,
+    },
+    Corrupt {
+        robot: u8,
+        error: DecodeError,
+    },
+    /// A TM whose APID is not the link's robot's (archived, otherwise ignored).
+    Foreign {
+        robot: u8,
+        apid: u16,
+        service: u8,
+        subservice: u8,
+    },
+}
+
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum OpsError {
+    #[error("robot {0} has no link (give --robot {0}=HOST:PORT)")]
+    NoLink(u8),
+    #[error("cannot open link to robot {robot} at {addr}: {err}")]
+    Connect {
+        robot: u8,
+        addr: SocketAddr,
+        err: std::io::Error,
+    },
+    #[error("sending to robot {robot}: {err}")]
+    Send { robot: u8, err: std::io::Error },
+    #[error(transparent)]
+    Build(#[from] pus::BuildError),
+    #[error("the MIB has no PING telecommand")]
+    NoPing,
+}
+
+/// Links to several robots with verification tracking.
+pub struct Session {
+    links: BTreeMap<u8, Link>,
+    rx: Receiver<Incoming>,
+    seq: SeqCounters,
+    pending: HashMap<(u16, u16), Pending>,
+    archive: Option<ArchiveSender>,
+    pub robots: BTreeMap<u8, RobotStatus>,
+    /// First wait for a report before resending (later waits grow, see
+    /// `mib::config::tc_retry_wait_ms`).
+    pub ack_timeout: Duration,
+    /// Resends of a TC after the first send.
+    pub max_resends: u32,
+    /// Report a robot's link as lost after this long without TM (`None`: never).
+    pub link_loss: Option<Duration>,
+    /// When each robot last got a new TC (not a resend).
+    last_new_tc: HashMap<u8, Instant>,
+    /// The run this session's TCs belong to (`ground run`): archived with every TC as
+    /// `LABEL@RUN_ID` in the TC's step column (see [`runs`]).
+    pub run_id: Option<String>,
+}
+
+impl Session {
+    /// Opens a link per robot. `first_seq` gives the starting sequence count per APID
+    /// (e.g. from the archive), otherwise a time-derived value is used.
+    pub fn connect(
+        robots: &[(u8, SocketAddr)],
+        transport: Transport,
+        archive: Option<ArchiveSender>,
+        first_seq: impl Fn(u16) -> Option<u16>,
+    ) -> Result<Session, OpsError> {
+        let (tx, rx) = crossbeam_channel::unbounded();
+        let mut links = BTreeMap::new();
+        let mut status = BTreeMap::new();
+        let mut seq = SeqCounters::new();
+        for &(robot, addr) in robots {
+            let apid = mib::apid::robot_apid(robot).ok_or(pus::BuildError::UnknownRobot(robot))?;
+            let link =
+                Link::open(robot, addr, transport, tx.clone()).map_err(|err| OpsError::Connect { robot, addr, err })?;
+            links.insert(robot, link);
+            status.insert(robot, RobotStatus::new(robot, addr));
+            let start = first_seq(apid).unwrap_or_else(|| {
+                let n = std::time::SystemTime::now()
+                    .duration_since(std::time::UNIX_EPOCH)
+                    .map_or(0, |d| d.subsec_nanos() ^ d.as_secs() as u32);
+                (n % 0x4000) as u16
+            });
+            seq.set(apid, start);
+        }
+        Ok(Session {
+            links,
+            rx,
+            seq,
+            pending: HashMap::new(),
+            archive,
+            robots: status,
+            ack_timeout: Duration::from_millis(TC_RETRY_INITIAL_MS as u64),
+            max_resends: TC_RETRY_MAX,
+            link_loss: None,
+            last_new_tc: HashMap::new(),
+            run_id: None,
+        })
+    }
+
+    /// Builds and sends a TC; verification reports come back through [`Session::poll`]
+    /// with `tag`.
+    pub fn send(
+        &mut self,
+        robot: u8,
+        def: &'static TcDef,
+        args: &[i64],
+        tag: Option<usize>,
+        label: Option<String>,
+    ) -> Result<BuiltTc, OpsError> {
+        self.send_limited(robot, def, args, tag, label, None)
+    }
+
+    /// Sends a connection test that is not resent (a heartbeat: the next one follows).
+    pub fn send_heartbeat(&mut self, robot: u8) -> Result<BuiltTc, OpsError> {
+        let def = mib::tc::by_name("PING").ok_or(OpsError::NoPing)?;
+        self.send_limited(robot, def, &[], None, Some("heartbeat".into()), Some(1))
+    }
+
+    fn send_limited(
+        &mut self,
+        robot: u8,
+        def: &'static TcDef,
+        args: &[i64],
+        tag: Option<usize>,
+        label: Option<String>,
+        max_sends: Option<u32>,
+    ) -> Result<BuiltTc, OpsError> {
+        let link = self.links.get(&robot).ok_or(OpsError::NoLink(robot))?;
+        let apid = mib::apid::robot_apid(robot).ok_or(pus::BuildError::UnknownRobot(robot))?;
+        // Check the arguments before using up a sequence count.
+        pus::build_tc(robot, 0, def, args)?;
+        let tc = pus::build_tc(robot, self.seq.next(apid), def, args)?;
+        link.send(&tc.bytes).map_err(|err| OpsError::Send { robot, err })?;
+        self.last_new_tc.insert(robot, Instant::now());
+        if let Some(a) = &self.archive {
+            a.send(Record::Tc {
+                t_ms: now_ms(),
+                tc: tc.clone(),
+                step: runs::archived_label(label.as_deref(), self.run_id.as_deref()),
+                attempt: 1,
+            });
+        }
+        let now = Instant::now();
+        self.pending.insert(
+            (tc.apid, tc.seq),
+            Pending {
+                robot,
+                tc: tc.clone(),
+                tag,
+                label,
+                first_sent: now,
+                last_sent: now,
+                sends: 1,
+                accepted: false,
+                max_sends: max_sends.unwrap_or(self.max_resends + 1),
+                exhausted: false,
+            },
+        );
+        Ok(tc)
+    }
+
+    /// Tracks a TC that an earlier, interrupted session of the same run sent (same
+    /// request ID), without sending it again: its reports, live or replayed from the
+    /// on-board store, come back through [`Session::poll`] with `tag`. It is never resent.
+    pub fn adopt(&mut self, robot: u8, tc: BuiltTc, tag: Option<usize>, label: Option<String>, accepted: bool) {
+        let now = Instant::now();
+        self.pending.insert(
+            (tc.apid, tc.seq),
+            Pending {
+                robot,
+                tc,
+                tag,
+                label,
+                first_sent: now,
+                last_sent: now,
+                sends: 1,
+                accepted,
+                max_sends: 1,
+                exhausted: true,
+            },
+        );
+    }
+
+    /// True if the TC with this request ID is still waiting for its outcome.
+    pub fn is_pending(&self, tc: &BuiltTc) -> bool {
+        self.pending.contains_key(&(tc.apid, tc.seq))
+    }
+
+    /// Whether the TC with this request ID was accepted (`None`: not tracked).
+    pub fn accepted(&self, tc: &BuiltTc) -> Option<bool> {
+        self.pending.get(&(tc.apid, tc.seq)).map(|p| p.accepted)
+    }
+
+    /// True if a TC of `robot` is still waiting for acceptance or completion.
+    pub fn busy(&self, robot: u8) -> bool {
+        self.pending.values().any(|p| p.robot == robot)
+    }
+
+    /// True if a TC of `robot` other than a heartbeat is waiting for its outcome.
+    pub fn commanding(&self, robot: u8) -> bool {
+        self.pending.values().any(|p| p.robot == robot && p.max_sends > 1)
+    }
+
+    /// Waits with when the wait after send `sends` of `p` ends.
+    fn resend_due(&self, p: &Pending) -> Instant {
+        let first = self.ack_timeout.as_millis() as u64;
+        // The MIB's schedule, scaled to this session's first wait.
+        let ms = tc_retry_wait_ms(p.sends.saturating_sub(1)) as u64 * first / TC_RETRY_INITIAL_MS.max(1) as u64;
+        p.last_sent + Duration::from_millis(ms)
+    }
+
+    /// Forgets a pending TC (e.g. after its step timed out).
+    pub fn forget(&mut self, tc: &BuiltTc) {
+        self.pending.remove(&(tc.apid, tc.seq));
+    }
+
+    /// Waits up to `max_wait` for traffic; handles resends. Returns what happened.
+    pub fn poll(&mut self, max_wait: Duration) -> Vec<Update> {
+        let mut out = Vec::new();
+        let deadline = Instant::now() + max_wait;
+        loop {
+            let now = Instant::now();
+            let next_resend = self
+                .pending
+                .values()
+                .filter(|p| p.resendable())
+                .map(|p| self.resend_due(p))
+                .min();
+            let until = next_resend.map_or(deadline, |r| r.min(deadline));
+            let until = until.min(now + Duration::from_millis(100));
+            let wait = until.saturating_duration_since(now);
+            match self.rx.recv_timeout(wait) {
+                Ok(inc) => {
+                    self.handle(inc, &mut out);
+                    // Drain what is already there without waiting.
+                    while let Ok(inc) = self.rx.try_recv() {
+                        self.handle(inc, &mut out);
+                    }
+                }
+                Err(crossbeam_channel::RecvTimeoutError::Timeout) => {}
+                Err(crossbeam_channel::RecvTimeoutError::Disconnected) => {
+                    std::thread::sleep(wait);
+                }
+            }
+            self.check_resends(&mut out);
+            self.check_links(&mut out);
+            if !out.is_empty() || Instant::now() >= deadline {
+                return out;
+            }
+        }
+    }
+
+    /// Link loss: a closed TCP connection, or no TM for `link_loss`.
+    fn check_links(&mut self, out: &mut Vec<Update>) {
+        let Some(limit) = self.link_loss else { return };
+        let mut lost = Vec::new();
+        for (robot, s) in self.robots.iter_mut() {
+            if s.lost.is_some() {
+                continue;
+            }
+            let closed = self.links.get(robot).is_some_and(|l| l.closed());
+            let silent = s.last_tm.map_or(s.since.elapsed(), |t| t.elapsed());
+            // Replies with another APID and none with ours: the wrong robot, said at once.
+            let wrong = s.last_tm.is_none() && s.foreign_apid.is_some();
+            if !closed && !wrong && silent < limit {
+                continue;
+            }
+            let (kind, why) = s.no_answer(closed);
+            s.lost_kind = Some(kind);
+            s.lost = Some(why.clone());
+            out.push(Update::LinkLost { robot: *robot, why });
+            lost.push(*robot);
+        }
+        // Nothing more is resent to a robot that does not answer; its steps end with the
+        // link loss.
+        self.pending.retain(|_, p| !lost.contains(&p.robot));
+    }
+
+    /// True if `robot` got a new TC within `period` (its answers check the link as a
+    /// heartbeat would).
+    pub fn sent_within(&self, robot: u8, period: Duration) -> bool {
+        self.last_new_tc.get(&robot).is_some_and(|t| t.elapsed() < period)
+    }
+
+    /// True while a store retrieval of `robot` is waiting for its outcome.
+    pub fn retrieving(&self, robot: u8) -> bool {
+        self.pending
+            .values()
+            .any(|p| p.robot == robot && p.label.as_deref() == Some(GAP_LABEL))
+    }
+
+    /// Asks `robot`'s on-board store for every missing TM at or before `cutoff` (all
+    /// missing if `None`), by APID and sequence range (TC[15,128]); at most
+    /// `GAP_REQUESTS_MAX` ranges at a time. Returns the ranges asked for.
+    pub fn request_gaps(&mut self, robot: u8, cutoff: Option<u16>, max_ranges: usize) -> Vec<(u16, u16)> {
+        let Some(st) = self.robots.get(&robot) else {
+            return Vec::new();
+        };
+        let Some(def) = mib::tc::by_name("STORE_DOWNLINK_SEQ") else {
+            return Vec::new();
+        };
+        let apid = mib::apid::robot_apid(robot).unwrap_or(0);
+        let ranges = match cutoff.or(st.seq.newest()) {
+            Some(c) => st.seq.missing_upto(c),
+            None => Vec::new(),
+        };
+        let mut merged: Vec<(u16, u16)> = Vec::new();
+        for (a, b) in ranges {
+            match merged.last_mut() {
+                Some((_, last)) if a.wrapping_sub(*last) % SEQ_MOD <= GAP_MERGE_DISTANCE => *last = b,
+                _ => merged.push((a, b)),
+            }
+        }
+        let ranges: Vec<(u16, u16)> = merged.into_iter().take(max_ranges.min(GAP_REQUESTS_MAX)).collect();
+        for &(a, b) in &ranges {
+            let args = [apid as i64, a as i64, b as i64];
+            // A failed send shows as a retrieval without result: asked again later.
+            let _ = self.send(robot, def, &args, None, Some(GAP_LABEL.into()));
+        }
+        ranges
+    }
+
+    /// Starts watching every robot's link for loss (`LINK_LOSS_MS` without TM).
+    pub fn watch_links(&mut self) {
+        self.link_loss = Some(Duration::from_millis(LINK_LOSS_MS as u64));
+        for s in self.robots.values_mut() {
+            s.since = Instant::now();
+        }
+    }
+
+    fn check_resends(&mut self, out: &mut Vec<Update>) {
+        let now = Instant::now();
+        self.pending.retain(|_, p| {
+            p.tag.is_some() || !p.accepted || now.saturating_duration_since(p.last_sent) < UNTAGGED_COMPLETION_WAIT
+        });
+        let mut gave_up = Vec::new();
+        let due: Vec<((u16, u16), Instant)> = self
+            .pending
+            .iter()
+            .filter(|(_, p)| p.resendable())
+            .map(|(k, p)| (*k, self.resend_due(p)))
+            .collect();
+        for (key, at) in due {
+            let Some(p) = self.pending.get_mut(&key) else { continue };
+            if now < at {
+                continue;
+            }
+            if let Some(r) = self.robots.get_mut(&p.robot) {
+                r.exchange(false);
+            }
+            if p.sends >= p.max_sends {
+                gave_up.push(key);
+                continue;
+            }
+            if let Some(link) = self.links.get(&p.robot) {
+                // A failing send is the same as a lost packet: the next timeout retries.
+                let _ = link.send(&p.tc.bytes);
+            }
+            p.sends += 1;
+            p.last_sent = now;
+            if let Some(a) = &self.archive {
+                a.send(Record::Tc {
+                    t_ms: now_ms(),
+                    tc: p.tc.clone(),
+                    step: runs::archived_label(p.label.as_deref(), self.run_id.as_deref()),
+                    attempt: p.sends,
+                });
+            }
+            out.push(Update::Resent {
+                robot: p.robot,
+                tag: p.tag,
+                tc: p.tc.def.name,
+                send: p.sends,
+            });
+        }
+        for k in gave_up {
+            if let Some(p) = self.pending.remove(&k) {
+                out.push(Update::GaveUp {
+                    robot: p.robot,
+                    tag: p.tag,
+                    tc: p.tc.def.name,
+                    sends: p.sends,
+                    accepted: p.accepted,
+                });
+            }
+        }
+    }
+
+    fn handle(&mut self, inc: Incoming, out: &mut Vec<Update>) {
+        let decoded = pus::decode_tm(&inc.bytes);
+        // A packet received again (same APID, sequence count and on-board time) is
+        // counted, neither archived nor acted on twice.
+        if let (Ok(tm), Some(s)) = (&decoded, self.robots.get_mut(&inc.robot)) {
+            if tm.robot == Some(inc.robot) {
+                let stamp = tm.time.to_bytes().iter().fold(0u64, |a, b| (a << 8) | *b as u64);
+                if s.seq.on_seq(tm.seq, stamp) == SeqKind::Duplicate {
+                    s.duplicates += 1;
+                    s.last_tm = Some(Instant::now());
+                    return;
+                }
+            }
+        }
+        if let Some(a) = &self.archive {
+            a.send(Record::Tm {
+                t_ms: inc.t_ms,
+                link_robot: Some(inc.robot),
+                raw: inc.bytes,
+                decoded: decoded.clone(),
+            });
+        }
+        let robot = inc.robot;
+        let st = self.robots.get_mut(&robot);
+        let tm = match decoded {
+            Ok(tm) => tm,
+            Err(error) => {
+                if let Some(s) = st {
+                    s.corrupt += 1;
+                }
+                out.push(Update::Corrupt { robot, error });
+                return;
+            }
+        };
+        if let Some(s) = st {
+            s.tm_count += 1;
+            if tm.robot == Some(robot) {
+                s.last_tm = Some(Instant::now());
+            }
+            if tm.robot != Some(robot) && tm.apid != mib::apid::IDLE_APID {
+                s.foreign += 1;
+                s.foreign_apid = Some(tm.apid);
+                out.push(Update::Foreign {
+                    robot,
+                    apid: tm.apid,
+                    service: tm.service,
+                    subservice: tm.subservice,
+                });
+                return;
+            }
+        }
+        match tm.body {
+            TmBody::Verification(v) => {
+                let key = (v.request.apid(), v.request.seq());
+                let mut tag = None;
+                let mut name = None;
+                let mut after = None;
+                let mut finished = false;
+                // The ground builds every TC from the MIB and checks it as the OBSW's
+                // acceptance does (CRC, length, version, APID, service, argument lengths and
+                // ranges): a TM[1,2] with one of those codes is about a copy damaged on the
+                // way (the order of the on-board checks lets a flipped header bit show as
+                // any of them), not about the TC.
+                let damaged = !v.success
+                    && v.stage == Stage::Acceptance
+                    && v.failure
+                        .as_ref()
+                        .is_some_and(|f| mib::tc::ACCEPTANCE_FAILURES.iter().any(|c| c.code() == f.code));
+                if damaged {
+                    if let Some(p) = self.pending.get_mut(&key) {
+                        // Resend at once (same bytes); it counts as a send, so a TC that
+                        // only ever gets such answers ends after its sends.
+                        if p.sends < p.max_sends {
+                            if let Some(link) = self.links.get(&p.robot) {
+                                let _ = link.send(&p.tc.bytes);
+                            }
+                            p.sends += 1;
+                        }
+                        p.last_sent = Instant::now();
+                        out.push(Update::DamagedCopy {
+                            robot,
+                            tag: p.tag,
+                            tc: p.tc.def.name,
+                        });
+                    }
+                    return;
+                }
+                if let Some(p) = self
+                    .pending
+                    .get(&key)
+                    .filter(|p| p.label.as_deref() == Some(START_LABEL))
+                {
+                    // A start marker's reports follow each other on board: TM[1,1] has
+                    // the first count of the run, TM[1,7] two more (TM[17,2] between).
+                    let first = match v.stage {
+                        Stage::Acceptance => Some(tm.seq),
+                        Stage::Completion => Some(tm.seq.wrapping_sub(2) % SEQ_MOD),
+                        Stage::Start | Stage::Progress => None,
+                    };
+                    if let (Some(f), Some(s)) = (first, self.robots.get_mut(&p.robot)) {
+                        s.run_first_seq.get_or_insert(f);
+                    }
+                }
+                if let Some(p) = self.pending.get_mut(&key) {
+                    tag = p.tag;
+                    name = Some(p.tc.def.name);
+                    after = Some(p.first_sent.elapsed());
+                    if v.stage == Stage::Acceptance && !p.accepted {
+                        p.accepted = true;
+                        if let Some(s) = self.robots.get_mut(&p.robot) {
+                            s.exchange(true);
+                        }
+                    }
+                    // A TC is finished by its completion report or any failure; TCs
+                    // that do not ask for completion finish with acceptance.
+                    let wants_completion = p.tc.bytes.get(6).is_some_and(|b| b & 0x01 != 0);
+                    finished = !v.success
+                        || v.stage == Stage::Completion
+                        || (!wants_completion && v.stage == Stage::Acceptance);
+                }
+                if finished {
+                    self.pending.remove(&key);
+                }
+                out.push(Update::Verification {
+                    robot,
+                    tag,
+                    tc: name,
+                    v,
+                    after,
+                });
+            }
+            TmBody::StoreDownlinkDone {
+                oldest_seq,
+                overwritten,
+                ..
+            } => {
+                if let Some(s) = self.robots.get_mut(&robot) {
+                    s.store_oldest = Some(oldest_seq);
+                    s.store_overwritten = overwritten;
+                }
+                out.push(Update::Tm {
+                    robot,
+                    tm: Tm { body: tm.body, ..tm },
+                });
+            }
+            TmBody::Hk(hk) => {
+                if hk.sid == mib::hk::sid::ROBOT_STATUS {
+                    if let Some(s) = self.robots.get_mut(&robot) {
+                        s.mode = hk.raw(pid::MODE).map(|m| m as u32);
+                        s.state = hk
+                            .raw(pid::CONFIG_STATE)
+                            .filter(|&v| v != mib::robot::STATE_UNKNOWN as i64)
+                            .map(|v| v as u8);
+                        s.target = hk
+                            .raw(pid::TARGET_STATE)
+                            .filter(|&v| v != mib::robot::STATE_UNKNOWN as i64)
+                            .map(|v| v as u8);
+                        s.battery_v = hk.eng(pid::V_BAT_A);
+                    }
+                }
+                out.push(Update::Hk { robot, hk });
+            }
+            TmBody::Event(event) => {
+                if let Some(s) = self.robots.get_mut(&robot) {
+                    if event.id == eid::MODE_CHANGED && event.param("node") == Some(mib::modes::node::ROBOT as i64) {
+                        s.mode = event.param("to").map(|m| m as u32);
+                    }
+                    if event.id == eid::STATE_REACHED {
+                        s.state = event.param("state").map(|v| v as u8);
+                    }
+                }
+                out.push(Update::Event { robot, event });
+            }
+            TmBody::ModeReply { node, mode, .. } => {
+                if node == mib::modes::node::ROBOT {
+                    if let Some(s) = self.robots.get_mut(&robot) {
+                        s.mode = Some(mode);
+                    }
+                }
+                out.push(Update::Tm {
+                    robot,
+                    tm: Tm {
+                        body: TmBody::ModeReply { node, mode, submode: 0 },
+                        ..tm
+                    },
+                });
+            }
+            body => out.push(Update::Tm {
+                robot,
+                tm: Tm { body, ..tm },
+            }),
+        }
+    }
+}
+
+/// Words for a verification failure.
+pub fn failure_words(v: &Verification) -> String {
+    match &v.failure {
+        Some(f) => format!("{} failed: {f}", v.stage.name()),
+        None => format!("{} failed", v.stage.name()),
+    }
+}

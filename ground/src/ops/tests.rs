@@ -1,0 +1,455 @@
+use std::net::{SocketAddr, UdpSocket};
+use std::time::{Duration, Instant};
+
+use mib::config::{tc_retry_wait_ms, LINK_QUALITY_WINDOW, TC_RETRY_MAX};
+
+use super::*;
+use crate::link::Transport;
+use crate::plan::Plan;
+use crate::pus::{self, build_tm, BuiltTc, CdsShort, Stage, TmBody};
+
+/// A minimal fake OBSW speaking real PUS: answers each TC with TM[1,1] and TM[1,7],
+/// after first sending a TM of another robot's APID; ignores the first `drop` TCs.
+fn fake_obsw(drop: usize) -> (SocketAddr, std::thread::JoinHandle<Vec<(u16, u16)>>) {
+    let s = UdpSocket::bind("127.0.0.1:0").unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(3))).unwrap();
+    let addr = s.local_addr().unwrap();
+    let h = std::thread::spawn(move || {
+        let mut seen = Vec::new();
+        let mut buf = [0u8; 2048];
+        let t = CdsShort::now().to_bytes();
+        while let Ok((n, from)) = s.recv_from(&mut buf) {
+            let Ok(tc) = pus::decode_tc(&buf[..n]) else { continue };
+            seen.push((tc.apid, tc.seq));
+            if seen.len() <= drop {
+                continue;
+            }
+            let rid = [buf[0], buf[1], buf[2], buf[3]];
+            let other = build_tm(0x1FE, 0, 17, 2, 0, &t, &[]);
+            let acc = build_tm(tc.apid, 1, 1, 1, 0, &t, &rid);
+            let done = build_tm(tc.apid, 2, 1, 7, 0, &t, &rid);
+            for p in [other, acc, done] {
+                s.send_to(&p, from).unwrap();
+            }
+            if seen.len() > drop {
+                break;
+            }
+        }
+        seen
+    });
+    (addr, h)
+}
+
+// verifies: GND-01
+#[test]
+fn session_resends_with_the_same_count_and_skips_foreign_apids() {
+    let (addr, fake) = fake_obsw(1);
+    let mut s = Session::connect(&[(1, addr)], Transport::Udp, None, |_| Some(100)).unwrap();
+    s.ack_timeout = Duration::from_millis(150);
+    let tc = s
+        .send(1, mib::tc::by_name("PING").unwrap(), &[], Some(7), None)
+        .unwrap();
+    assert_eq!(tc.seq, 100);
+    let mut stages = Vec::new();
+    let mut resent = 0;
+    let mut foreign = 0;
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_secs(3) && !stages.contains(&Stage::Completion) {
+        for u in s.poll(Duration::from_millis(50)) {
+            match u {
+                Update::Verification { tag: Some(7), v, .. } => stages.push(v.stage),
+                Update::Resent { send, .. } => resent = send,
+                Update::Foreign { apid, .. } => foreign += (apid == 0x1FE) as u32,
+                _ => {}
+            }
+        }
+    }
+    assert_eq!(stages, vec![Stage::Acceptance, Stage::Completion]);
+    assert_eq!((resent, foreign), (2, 1));
+    assert!(!s.busy(1));
+    let st = &s.robots[&1];
+    // one exchange timed out, the resend was accepted
+    assert_eq!(st.link_quality(), Some(0.5));
+    assert_eq!(st.foreign, 1);
+    assert_eq!(fake.join().unwrap(), vec![(0x101, 100), (0x101, 100)]);
+}
+
+// verifies: MMIC-VAL-02
+#[test]
+fn seq_track_finds_gaps_duplicates_and_late_packets_across_the_wrap() {
+    let mut t = SeqTrack::default();
+    assert_eq!(t.on_seq_t(0x3FFD), SeqKind::New);
+    assert_eq!(t.on_seq_t(0x3FFE), SeqKind::New);
+    // 0x3FFF, 0 and 1 lost; 2 arrives.
+    assert_eq!(t.on_seq_t(2), SeqKind::New);
+    assert_eq!(t.missing_ranges(), vec![(0, 1), (0x3FFF, 0x3FFF)]);
+    assert_eq!(t.on_seq_t(2), SeqKind::Duplicate);
+    assert_eq!(t.on_seq_t(0x3FFE), SeqKind::Duplicate);
+    assert_eq!(t.on_seq_t(0), SeqKind::Filled);
+    assert_eq!(t.on_seq_t(0), SeqKind::Duplicate);
+    assert_eq!(t.missing_ranges(), vec![(1, 1), (0x3FFF, 0x3FFF)]);
+    // A gap falls out of the window: expired, not kept for ever.
+    assert_eq!(t.on_seq_t(2 + SEQ_TRACK_WINDOW), SeqKind::New);
+    assert_eq!(t.on_seq_t(3 + SEQ_TRACK_WINDOW), SeqKind::New);
+    assert!(t.expired >= 2, "{t:?}");
+    assert_eq!(t.filled, 1);
+    // The same count with another on-board time: the OBSW restarted, not a duplicate.
+    let newest = t.newest().unwrap();
+    assert_eq!(t.on_seq(newest, 1), SeqKind::New);
+    assert!(t.missing.is_empty());
+    assert_eq!(t.missing_upto(newest), vec![]);
+}
+
+fn plan(src: &str) -> Plan {
+    crate::plan::parse(src).unwrap_or_else(|e| panic!("{e:?}"))
+}
+
+const TWO_STEPS: &str = r#"
+name = "t"
+[[robot]]
+number = 1
+initial_state = "Xneg"
+[[step]]
+id = "ping1"
+robot = 1
+action = "command"
+tc = "PING"
+[[step]]
+id = "ping2"
+robot = 1
+action = "command"
+tc = "PING"
+timeout = 5
+"#;
+
+/// A verification update for `tc` as the session would give it.
+fn verification(tc: &BuiltTc, step: usize, subservice: u8) -> Update {
+    let t = CdsShort::now().to_bytes();
+    let rid = &tc.bytes[..4];
+    let mut data = rid.to_vec();
+    if subservice.is_multiple_of(2) {
+        data.extend_from_slice(&mib::failure::FailureCode::NOT_ALLOWED_IN_MODE.code().to_be_bytes());
+        data.push(0); // mode: standby
+    }
+    let tm = pus::decode_tm(&build_tm(tc.apid, 9, 1, subservice, 0, &t, &data)).unwrap();
+    let TmBody::Verification(v) = tm.body else {
+        panic!("not a verification")
+    };
+    Update::Verification {
+        robot: 1,
+        tag: Some(step),
+        tc: Some(tc.def.name),
+        v,
+        after: None,
+    }
+}
+
+fn sends(fx: &[Effect]) -> Vec<usize> {
+    fx.iter()
+        .filter_map(|e| match e {
+            Effect::Send { step, .. } => Some(*step),
+            _ => None,
+        })
+        .collect()
+}
+
+// verifies: GND-05
+#[test]
+fn executor_runs_steps_in_order_with_a_mock_clock() {
+    let pl = plan(TWO_STEPS);
+    let opts = RunOptions {
+        step_timeout: Duration::from_secs(60),
+        ping_period: Some(Duration::from_secs(1)),
+        display: false,
+        ..RunOptions::default()
+    };
+    let t0 = Instant::now();
+    let mut ex = Executor::new(&pl, &opts, &[], t0);
+    let fx = ex.on_tick(t0);
+    assert_eq!(sends(&fx), vec![0], "only the first step: the second depends on it");
+    assert!(fx.iter().any(|e| matches!(e, Effect::Heartbeat(1))));
+    let ping = mib::tc::by_name("PING").unwrap();
+    let tc0 = pus::build_tc(1, 10, ping, &[]).unwrap();
+    ex.on_sent(0, Ok(tc0.clone()), t0);
+    // Nothing new before the completion, and no heartbeat before its period.
+    let fx = ex.on_tick(t0 + Duration::from_millis(500));
+    assert!(sends(&fx).is_empty() && !fx.iter().any(|e| matches!(e, Effect::Heartbeat(_))));
+    assert!(ex
+        .on_update(t0 + Duration::from_millis(600), verification(&tc0, 0, 1))
+        .is_empty());
+    let fx = ex.on_update(t0 + Duration::from_millis(700), verification(&tc0, 0, 7));
+    assert!(fx.iter().any(|e| matches!(e, Effect::Finished)));
+    assert_eq!(ex.state[0], StepState::Done { secs: 0.7 });
+    let fx = ex.on_tick(t0 + Duration::from_millis(1100));
+    assert_eq!(sends(&fx), vec![1]);
+    assert!(fx.iter().any(|e| matches!(e, Effect::Heartbeat(1))));
+    let tc1 = pus::build_tc(1, 11, ping, &[]).unwrap();
+    ex.on_sent(1, Ok(tc1.clone()), t0 + Duration::from_millis(1100));
+    // Step 2's own timeout (5 s) passes on the mock clock: it fails and its TC is
+    // forgotten.
+    let fx = ex.on_tick(t0 + Duration::from_millis(6200));
+    assert!(
+        fx.iter().any(|e| matches!(e, Effect::Forget(tc) if tc.seq == 11)),
+        "{fx:?}"
+    );
+    assert!(matches!(&ex.state[1], StepState::Failed(w) if w.contains("within 5 s")));
+    assert!(ex.finished());
+    let fx = ex.on_tick(t0 + Duration::from_secs(60));
+    assert!(fx.is_empty(), "no heartbeat after the end: {fx:?}");
+}
+
+// verifies: GND-09
+#[test]
+fn executor_stops_a_robot_on_link_loss_and_resumes_past_done_steps() {
+    let pl = plan(TWO_STEPS);
+    let opts = RunOptions {
+        display: false,
+        ..RunOptions::default()
+    };
+    let t0 = Instant::now();
+    let mut ex = Executor::new(&pl, &opts, &[], t0);
+    ex.on_tick(t0);
+    let ping = mib::tc::by_name("PING").unwrap();
+    ex.on_sent(0, Ok(pus::build_tc(1, 10, ping, &[]).unwrap()), t0);
+    let fx = ex.on_update(
+        t0,
+        Update::LinkLost {
+            robot: 1,
+            why: "robot 1: no TM".into(),
+        },
+    );
+    assert!(fx.iter().any(|e| matches!(e, Effect::Forget(_))));
+    assert!(matches!(&ex.state[0], StepState::Failed(w) if w.contains("link lost")));
+    assert!(matches!(&ex.state[1], StepState::Blocked(_)));
+    assert_eq!(ex.lost.len(), 1);
+
+    // Resumed with the first step done: only the second is sent.
+    let mut ex = Executor::new(&pl, &opts, &[0], t0);
+    assert_eq!(sends(&ex.on_tick(t0)), vec![1]);
+    assert_eq!(ex.resumed, 1);
+}
+
+// verifies: OPS-RUN-02
+#[test]
+fn an_interrupted_executor_sends_nothing_new_and_waits_a_bounded_time() {
+    let pl = plan(TWO_STEPS);
+    let opts = RunOptions {
+        display: false,
+        ping_period: None,
+        ..RunOptions::default()
+    };
+    let t0 = Instant::now();
+    let mut ex = Executor::new(&pl, &opts, &[], t0);
+    ex.on_tick(t0);
+    let tc0 = pus::build_tc(1, 10, mib::tc::by_name("PING").unwrap(), &[]).unwrap();
+    ex.on_sent(0, Ok(tc0.clone()), t0);
+    let fx = ex.interrupt(t0 + Duration::from_millis(100), Duration::from_secs(2));
+    assert!(
+        fx.iter().any(|e| matches!(e, Effect::Log(l) if l.contains("ping1"))),
+        "{fx:?}"
+    );
+    assert!(
+        !ex.stopped(t0 + Duration::from_secs(1)),
+        "the step in flight is awaited"
+    );
+    assert!(ex.stopped(t0 + Duration::from_millis(2200)), "for a bounded time");
+    // Its completion still counts; the next step is never sent.
+    ex.on_update(t0 + Duration::from_millis(500), verification(&tc0, 0, 7));
+    assert!(ex.stopped(t0 + Duration::from_millis(600)));
+    assert!(sends(&ex.on_tick(t0 + Duration::from_secs(1))).is_empty());
+    assert_eq!(ex.state[1], StepState::Waiting);
+}
+
+// verifies: OPS-RUN-03
+#[test]
+fn an_adopted_step_ends_by_its_reports_or_is_requeued() {
+    let pl = plan(TWO_STEPS);
+    let opts = RunOptions {
+        display: false,
+        ping_period: None,
+        ..RunOptions::default()
+    };
+    let t0 = Instant::now();
+    let mut ex = Executor::new(&pl, &opts, &[], t0);
+    let tc0 = pus::build_tc(1, 10, mib::tc::by_name("PING").unwrap(), &[]).unwrap();
+    ex.adopt(0, tc0.clone(), "outcome asked of the store", t0);
+    assert!(
+        sends(&ex.on_tick(t0)).is_empty(),
+        "nothing sent while its outcome is unknown"
+    );
+    ex.on_update(t0, verification(&tc0, 0, 7));
+    assert!(matches!(ex.state[0], StepState::Done { .. }));
+    assert_eq!(sends(&ex.on_tick(t0)), vec![1]);
+    let mut ex = Executor::new(&pl, &opts, &[], t0);
+    ex.adopt(0, tc0, "outcome asked of the store", t0);
+    ex.requeue(0);
+    assert_eq!(sends(&ex.on_tick(t0)), vec![0], "never arrived: sent as a new TC");
+}
+
+// verifies: GND-06
+#[test]
+fn executor_failure_report_fails_the_step_and_blocks_dependents() {
+    let pl = plan(TWO_STEPS);
+    let opts = RunOptions {
+        display: false,
+        ping_period: None,
+        ..RunOptions::default()
+    };
+    let t0 = Instant::now();
+    let mut ex = Executor::new(&pl, &opts, &[], t0);
+    ex.on_tick(t0);
+    let tc0 = pus::build_tc(1, 10, mib::tc::by_name("PING").unwrap(), &[]).unwrap();
+    ex.on_sent(0, Ok(tc0.clone()), t0);
+    ex.on_update(t0, verification(&tc0, 0, 4));
+    assert!(matches!(&ex.state[0], StepState::Failed(w) if w.contains("NOT_ALLOWED_IN_MODE")));
+    assert!(matches!(&ex.state[1], StepState::Blocked(_)));
+    assert!(ex.finished());
+}
+
+/// A fake OBSW that answers every copy of a TC like the real one's duplicate window:
+/// the first `corrupt` copies get TM[1,2] CRC_MISMATCH (damaged on the way), the
+/// next `lose` copies are lost on the way, then TM[1,1] + TM[1,7].
+fn lossy_obsw(corrupt: usize, lose: usize) -> (SocketAddr, std::thread::JoinHandle<Vec<Vec<u8>>>) {
+    let s = UdpSocket::bind("127.0.0.1:0").unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    let addr = s.local_addr().unwrap();
+    let h = std::thread::spawn(move || {
+        let mut copies = Vec::new();
+        let mut buf = [0u8; 2048];
+        let t = CdsShort::now().to_bytes();
+        let mut seq = 0;
+        while let Ok((n, from)) = s.recv_from(&mut buf) {
+            copies.push(buf[..n].to_vec());
+            let k = copies.len();
+            let rid = [buf[0], buf[1], buf[2], buf[3]];
+            let mut out = Vec::new();
+            if k <= corrupt {
+                let mut d = rid.to_vec();
+                d.extend_from_slice(&mib::failure::FailureCode::CRC_MISMATCH.code().to_be_bytes());
+                d.extend_from_slice(&[0, 1, 0, 2]);
+                out.push((1, 2, d));
+            } else if k > corrupt + lose {
+                out.push((1, 1, rid.to_vec()));
+                out.push((1, 7, rid.to_vec()));
+            }
+            for (sv, sub, d) in out {
+                seq += 1;
+                s.send_to(&build_tm(0x101, seq, sv, sub, 0, &t, &d), from).unwrap();
+            }
+            if k > corrupt + lose {
+                break;
+            }
+        }
+        copies
+    });
+    (addr, h)
+}
+
+// verifies: GND-01
+#[test]
+fn a_tc_is_resent_identically_until_its_acceptance_and_a_damaged_copy_is_no_verdict() {
+    let (addr, fake) = lossy_obsw(1, 2);
+    let mut s = Session::connect(&[(1, addr)], Transport::Udp, None, |_| Some(200)).unwrap();
+    s.ack_timeout = Duration::from_millis(60);
+    let tc = s
+        .send(1, mib::tc::by_name("PING").unwrap(), &[], Some(3), None)
+        .unwrap();
+    let mut stages = Vec::new();
+    let mut damaged = 0;
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_secs(5) && !stages.contains(&Stage::Completion) {
+        for u in s.poll(Duration::from_millis(20)) {
+            match u {
+                Update::Verification { tag: Some(3), v, .. } => {
+                    assert!(v.success, "a damaged copy's TM[1,2] is not the TC's verdict");
+                    stages.push(v.stage);
+                }
+                Update::DamagedCopy { tag: Some(3), .. } => damaged += 1,
+                Update::GaveUp { .. } => panic!("gave up"),
+                _ => {}
+            }
+        }
+    }
+    assert_eq!(damaged, 1);
+    assert_eq!(stages.last(), Some(&Stage::Completion));
+    assert!(!s.busy(1));
+    let copies = fake.join().unwrap();
+    assert_eq!(copies.len(), 4, "1 damaged + 2 lost + 1 accepted and complete");
+    assert!(
+        copies.iter().all(|c| *c == tc.bytes),
+        "every copy identical (same seq, same bytes)"
+    );
+}
+
+// verifies: OPS-LINK-01
+#[test]
+fn an_accepted_tc_is_not_resent_while_its_completion_is_awaited() {
+    // A fake that accepts at once and completes after 800 ms: with a first wait of
+    // 60 ms the old rule resent it ("no outcome yet") about eight times.
+    let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
+    sock.set_read_timeout(Some(Duration::from_millis(1500))).unwrap();
+    let addr = sock.local_addr().unwrap();
+    let fake = std::thread::spawn(move || {
+        let t = CdsShort::now().to_bytes();
+        let mut buf = [0u8; 2048];
+        let mut copies = 0;
+        let mut from = None;
+        let t0 = Instant::now();
+        while t0.elapsed() < Duration::from_millis(1500) {
+            let Ok((n, f)) = sock.recv_from(&mut buf) else { break };
+            copies += 1;
+            let rid = [buf[0], buf[1], buf[2], buf[3]];
+            if from.is_none() {
+                from = Some((f, rid));
+                sock.send_to(&build_tm(0x101, 1, 1, 1, 0, &t, &rid), f).unwrap();
+                sock.set_read_timeout(Some(Duration::from_millis(800))).unwrap();
+            }
+            let _ = n;
+        }
+        if let Some((f, rid)) = from {
+            sock.send_to(&build_tm(0x101, 2, 1, 7, 0, &t, &rid), f).unwrap();
+        }
+        copies
+    });
+    let mut s = Session::connect(&[(1, addr)], Transport::Udp, None, |_| Some(300)).unwrap();
+    s.ack_timeout = Duration::from_millis(60);
+    s.send(1, mib::tc::by_name("PING").unwrap(), &[], Some(1), None)
+        .unwrap();
+    let (mut done, mut resent) = (false, 0);
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_secs(4) && !done {
+        for u in s.poll(Duration::from_millis(20)) {
+            match u {
+                Update::Verification { tag: Some(1), v, .. } => done |= v.stage == Stage::Completion,
+                Update::Resent { .. } => resent += 1,
+                _ => {}
+            }
+        }
+    }
+    assert!(done, "completion awaited and received");
+    assert_eq!(resent, 0);
+    assert_eq!(fake.join().unwrap(), 1, "one copy on the wire");
+    assert_eq!(s.robots[&1].link_quality(), Some(1.0));
+}
+
+// verifies: GND-01, DD-ROBUST-02
+#[test]
+fn the_retry_span_fits_in_the_obsw_duplicate_window() {
+    let total: u32 = (0..=TC_RETRY_MAX).map(tc_retry_wait_ms).sum();
+    assert_eq!(total, mib::config::TC_RETRY_SPAN_MS);
+    const { assert!(mib::config::TC_RETRY_SPAN_MS <= mib::config::DUPLICATE_MAX_AGE_MS) };
+    assert!(tc_retry_wait_ms(1) > tc_retry_wait_ms(0), "backoff");
+    assert_eq!(tc_retry_wait_ms(100), mib::config::TC_RETRY_CAP_MS);
+}
+
+// verifies: MMIC-VAL-02
+#[test]
+fn link_quality_is_over_the_last_window_of_exchanges() {
+    let mut r = RobotStatus::new(1, "127.0.0.1:1".parse().unwrap());
+    assert_eq!(r.link_quality(), None);
+    for i in 0..(LINK_QUALITY_WINDOW + 50) {
+        r.exchange(i >= 50 + LINK_QUALITY_WINDOW / 2);
+    }
+    assert_eq!(r.quality.len(), LINK_QUALITY_WINDOW);
+    assert_eq!(r.link_quality(), Some(0.5));
+}
