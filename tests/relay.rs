@@ -11,6 +11,13 @@
 //!
 //! Each UDP ground gets its own upstream socket, so the obsw sees one address per ground,
 //! as it would without the relay.
+//!
+//! Transfer frames (issue 22) go up the same UDP path (one TC frame per datagram to the
+//! obsw's `--frame-udp` port), but the obsw sends TM frames to a fixed ground address
+//! rather than back to the sender: [`Relay::add_downlink_route`] listens where the obsw
+//! sends them (`--frame-tm-to`) and forwards each datagram to the ground with the
+//! downlink's faults, counted with the other downlink traffic. A corrupted frame keeps its
+//! length and fails the frame CRC at the receiver.
 
 use std::collections::HashMap;
 use std::io::{ErrorKind, Read, Write};
@@ -223,6 +230,8 @@ pub struct Relay {
     pub counts: Arc<Counts>,
     stop: Arc<AtomicBool>,
     threads: Vec<JoinHandle<()>>,
+    shared: Arc<Shared>,
+    routes: u64,
 }
 
 struct Shared {
@@ -287,7 +296,24 @@ impl Relay {
             counts,
             stop,
             threads,
+            shared,
+            routes: 0,
         })
+    }
+
+    /// A one-way downlink route for TM frames: datagrams arriving at `listen` (port may be
+    /// 0; the bound address is returned — give it to the obsw as `--frame-tm-to`) are
+    /// forwarded to `to` with the downlink's faults.
+    pub fn add_downlink_route(&mut self, listen: SocketAddr, to: SocketAddr) -> Result<SocketAddr, String> {
+        let sock = UdpSocket::bind(listen).map_err(|e| format!("cannot bind UDP {listen}: {e}"))?;
+        let addr = sock.local_addr().map_err(|e| e.to_string())?;
+        sock.set_read_timeout(Some(POLL)).map_err(|e| e.to_string())?;
+        let out = UdpSocket::bind(SocketAddr::from(([127, 0, 0, 1], 0))).map_err(|e| e.to_string())?;
+        self.routes += 1;
+        let (s, index) = (self.shared.clone(), self.routes);
+        self.threads
+            .push(thread::spawn(move || route_down(sock, out, to, s, index)));
+        Ok(addr)
     }
 
     /// True until the relay stops (asked to, lifetime or idle time over).
@@ -362,6 +388,24 @@ fn udp_down(up: UdpSocket, listen: Arc<UdpSocket>, ground: SocketAddr, s: Arc<Sh
         if let Fate::Send(copies) = decide(&mut rng, &s.cfg.down, &buf[..n], &s.counts.down) {
             for c in copies {
                 let _ = listen.send_to(&c, ground);
+            }
+        }
+    }
+}
+
+/// Obsw → a fixed ground address (TM frames), downlink faults.
+fn route_down(listen: UdpSocket, out: UdpSocket, to: SocketAddr, s: Arc<Shared>, index: u64) {
+    let mut rng = s.rng(5, index);
+    let mut buf = vec![0u8; MAX_DATAGRAM];
+    while s.running() {
+        let n = match listen.recv(&mut buf) {
+            Ok(n) => n,
+            Err(_) => continue,
+        };
+        s.touch();
+        if let Fate::Send(copies) = decide(&mut rng, &s.cfg.down, &buf[..n], &s.counts.down) {
+            for c in copies {
+                let _ = out.send_to(&c, to);
             }
         }
     }
@@ -548,6 +592,31 @@ mod tests {
         let up = relay.counts.up.snapshot();
         assert_eq!((up.seen, up.duplicated, up.forwarded), (2, 2, 4));
         assert_eq!(relay.counts.down.snapshot().seen, 4);
+    }
+
+    // verifies: DD-TEST-01, LINK-E2E-01
+    #[test]
+    fn downlink_routes_forward_frames_to_a_fixed_ground_with_faults() {
+        let t = SocketAddr::from(([127, 0, 0, 1], 9));
+        let mut cfg = Config::both_ways(t, t, Faults::CLEAN, 5);
+        cfg.down = Faults::new(0.0, 1.0, 0.0);
+        let mut relay = Relay::start(cfg).unwrap();
+        let ground = UdpSocket::bind("127.0.0.1:0").unwrap();
+        ground.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+        let tm_in = relay
+            .add_downlink_route(SocketAddr::from(([127, 0, 0, 1], 0)), ground.local_addr().unwrap())
+            .unwrap();
+        let obsw = UdpSocket::bind("127.0.0.1:0").unwrap();
+        let frame = [0x5Au8; 1024];
+        obsw.send_to(&frame, tm_in).unwrap();
+        let mut b = [0u8; 2048];
+        for _ in 0..2 {
+            let n = ground.recv(&mut b).unwrap();
+            assert_eq!(&b[..n], &frame[..], "duplicated on the way down, unchanged");
+        }
+        relay.stop();
+        let down = relay.counts.down.snapshot();
+        assert_eq!((down.seen, down.duplicated, down.forwarded), (1, 1, 2));
     }
 
     // verifies: DD-TEST-01

@@ -1,7 +1,12 @@
 //! `relay`: the project's lossy link between a ground and an `obsw` (see `e2e_tests::relay`).
 //!
-//! Prints `RELAY udp=ADDR tcp=ADDR` when ready, the counts when it stops (after
-//! `--lifetime` or `--idle` seconds, or end of input on stdin).
+//! Prints `RELAY udp=ADDR tcp=ADDR` when ready (plus ` tm_frames=ADDR` with
+//! `--tm-frames-to`), the counts when it stops (after `--lifetime` or `--idle` seconds, or
+//! end of input on stdin).
+//!
+//! Frames: point `--to-udp` at the obsw's `--frame-udp` port, and give the obsw the
+//! printed `tm_frames` address as `--frame-tm-to`; the relay forwards TM frames to
+//! `--tm-frames-to` (the ground's TM frame address).
 
 use std::net::SocketAddr;
 use std::time::Duration;
@@ -47,6 +52,13 @@ struct Args {
     /// Seconds without traffic until the relay stops.
     #[arg(long, default_value_t = 60.0)]
     idle: f64,
+    /// TM frames: the ground's address; the relay listens on --tm-frames-listen for the
+    /// obsw's TM frames (its --frame-tm-to) and forwards them here with the downlink faults.
+    #[arg(long)]
+    tm_frames_to: Option<SocketAddr>,
+    /// Where the relay takes the obsw's TM frames [default: a free loopback port].
+    #[arg(long, default_value = "127.0.0.1:0")]
+    tm_frames_listen: SocketAddr,
 }
 
 fn triple(s: &str) -> Result<Faults, String> {
@@ -78,7 +90,11 @@ fn run(a: Args) -> Result<(), String> {
         idle: secs("idle", a.idle)?,
     };
     let mut relay = Relay::start(cfg)?;
-    println!("RELAY udp={} tcp={}", relay.udp, relay.tcp);
+    let frames = match a.tm_frames_to {
+        Some(to) => format!(" tm_frames={}", relay.add_downlink_route(a.tm_frames_listen, to)?),
+        None => String::new(),
+    };
+    println!("RELAY udp={} tcp={}{frames}", relay.udp, relay.tcp);
     while relay.running() {
         std::thread::sleep(Duration::from_millis(100));
     }

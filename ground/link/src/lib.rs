@@ -282,6 +282,11 @@ impl FrameLink {
         self.fop.state()
     }
 
+    /// The IV (anti-replay counter) the next TC frame will carry.
+    pub fn tc_next_iv(&self) -> u128 {
+        self.tc_sa.next_iv()
+    }
+
     /// The last CLCW received.
     pub fn clcw(&self) -> Option<Clcw> {
         self.last_clcw

@@ -330,6 +330,10 @@ fn run(args: Args) -> Result<()> {
         while handled < config::HOST_INPUT_BATCH {
             let mut any = false;
             if let Some(fi) = down.frames.as_mut().and_then(frames::FrameEndpoint::next) {
+                // HK reports the counters including this frame (an HK request it carries too).
+                if let Some(f) = down.frames.as_ref() {
+                    obsw.space_link = f.hk();
+                }
                 if let frames::FrameInput::Packets(packets) = fi {
                     for p in packets {
                         obsw.handle_tc(arrival(sim_ms), &p, &mut down);

@@ -243,13 +243,15 @@ impl<const N: usize> TcReceiver<N> {
         datagram: &'a mut [u8],
         buffer_available: bool,
     ) -> Result<RxOutcome<'a>, RxError> {
+        // 0. A bare space packet: a TC packet's first byte (version 000, type 1) is an
+        // illegal frame (bypass 0, control 1), and a PUS TC ends with the same CRC-16 as a
+        // frame, so it is recognised before the CRC check, which it would pass.
+        if looks_like_bare_packet(datagram) {
+            return Err(RxError::BarePacket);
+        }
         // 1. CRC.
         if !fecf::check(datagram) {
-            return Err(if looks_like_bare_packet(datagram) {
-                RxError::BarePacket
-            } else {
-                RxError::BadCrc
-            });
+            return Err(RxError::BadCrc);
         }
         // 2. Lengths and header.
         let (frame_type, seq) = {
@@ -400,6 +402,12 @@ mod tests {
         let mut cases: Vec<(Vec<u8>, RxError)> = vec![];
         // Bare space packet.
         cases.push((tc_packet(5, 30), RxError::BarePacket));
+        // A PUS TC ends with a CRC-16/CCITT-FALSE, so it passes the frame CRC check: still
+        // a bare packet (found by the obsw end-to-end test).
+        let mut p = tc_packet(6, 30);
+        crate::fecf::seal(&mut p);
+        assert!(crate::fecf::check(&p));
+        cases.push((p, RxError::BarePacket));
         // One flipped bit, CRC not recomputed.
         let mut f = good.clone();
         f[22] ^= 1;
@@ -498,13 +506,13 @@ mod tests {
                 c.wrong_scid,
                 c.unknown_vc
             ),
-            (1, 2, 2, 1, 1, 1)
+            (2, 2, 2, 1, 1, 1)
         );
         assert_eq!(
             (c.unknown_spi, c.not_packets, c.sdls_too_short, c.unknown_control),
             (1, 1, 1, 1)
         );
-        assert_eq!(c.rejected(), 12);
+        assert_eq!(c.rejected(), 13);
         assert_eq!(c.ad_accepted, 0);
         // The genuine frame still goes through, then its replay is refused.
         let mut g = good.clone();
