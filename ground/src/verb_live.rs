@@ -1,0 +1,370 @@
+//! The verbs that talk to robots one TC at a time: `ping`, `send`, `mode`, `watch`.
+
+use std::collections::BTreeMap;
+use std::net::SocketAddr;
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use anyhow::{anyhow, Result};
+use ground::archive;
+use ground::link::Transport;
+use ground::ops::{self, Session, Update};
+use ground::pus::{self, Packet, Stage, TmBody};
+
+use crate::{close_archive, coded, err_line, exit, open_session, out};
+use crate::{Links, ModeArgs, PingArgs, SendArgs, WatchArgs};
+
+/// Says which robots a verb talks to, and how.
+pub(crate) fn say_links(links: &[(u8, SocketAddr)], transport: Transport) {
+    let l: Vec<String> = links.iter().map(|(r, a)| format!("robot {r} at {a}")).collect();
+    err_line!(
+        "talking to {} ({})",
+        l.join(", "),
+        if transport == Transport::Tcp { "TCP" } else { "UDP" }
+    );
+}
+
+pub(crate) fn ping(a: &PingArgs, archive_path: Option<&Path>) -> Result<u8> {
+    let def = mib::tc::by_name("PING").ok_or_else(|| anyhow!("PING not in the MIB"))?;
+    let links = robots_given(&a.links)?;
+    say_links(&links, a.links.transport());
+    let (mut s, arch) = open_session(&links, a.links.transport(), archive_path)?;
+    s.max_resends = 0;
+    let mut answered: BTreeMap<u8, (u32, bool)> = BTreeMap::new(); // robot -> (replies, last answered)
+    let mut silent: Vec<u8> = Vec::new(); // never answered: not pinged again
+    for k in 0..a.count {
+        for &(r, addr) in &links {
+            if silent.contains(&r) {
+                continue;
+            }
+            let tc = s.send(r, def, &[], Some(r as usize), None)?;
+            let t0 = Instant::now();
+            let mut got = None;
+            let mut foreign = false;
+            while t0.elapsed() < s.ack_timeout * 2 && got.is_none() && !foreign {
+                for u in s.poll(Duration::from_millis(50)) {
+                    match u {
+                        Update::Tm { robot, tm } if robot == r && tm.body == TmBody::PingReply => {
+                            got = Some(t0.elapsed());
+                        }
+                        Update::Foreign { robot, .. } if robot == r => {
+                            foreign = s.robots.get(&r).is_some_and(|st| st.last_tm.is_none());
+                        }
+                        _ => {}
+                    }
+                }
+            }
+            s.forget(&tc);
+            let e = answered.entry(r).or_insert((0, false));
+            e.1 = got.is_some();
+            match got {
+                Some(rtt) => {
+                    e.0 += 1;
+                    out(&format!(
+                        "robot {r} ({addr}) seq {}: reply in {:.1} ms",
+                        tc.seq,
+                        rtt.as_secs_f64() * 1000.0
+                    ))?
+                }
+                None => {
+                    out(&format!(
+                        "robot {r} ({addr}) seq {}: no reply within {} ms",
+                        tc.seq,
+                        (s.ack_timeout * 2).as_millis()
+                    ))?;
+                    if e.0 == 0 {
+                        silent.push(r);
+                    }
+                }
+            }
+        }
+        if k + 1 < a.count && silent.len() < links.len() {
+            std::thread::sleep(Duration::from_secs_f64(a.interval));
+        }
+    }
+    for st in s.robots.values() {
+        out(&format!("robot {}: {}", st.robot, st.line()))?;
+    }
+    // The verdict: the same three cases as every verb.
+    let mut code = exit::OK;
+    for st in s.robots.values() {
+        let (replies, last) = answered.get(&st.robot).copied().unwrap_or((0, false));
+        if replies == 0 || !last {
+            let (kind, why) = st.no_answer(false);
+            err_line!("ground: {why}");
+            code = code.max(kind.exit_code());
+        }
+    }
+    drop(s);
+    close_archive(arch)?;
+    Ok(code)
+}
+
+/// A "robot does not answer" error for `robot` of session `s` (one of the three cases,
+/// with its exit code).
+pub(crate) fn no_answer_error(s: &Session, robot: u8) -> anyhow::Error {
+    match s.robots.get(&robot) {
+        Some(st) => {
+            let (kind, why) = match (&st.lost, st.lost_kind) {
+                (Some(w), Some(k)) => (k, w.clone()),
+                _ => st.no_answer(false),
+            };
+            coded(kind.exit_code(), why)
+        }
+        None => coded(exit::NO_ANSWER, format!("robot {robot}: no link")),
+    }
+}
+
+pub(crate) fn policy_error(e: ops::policy::PolicyError) -> anyhow::Error {
+    coded(exit::INVALID, e.to_string())
+}
+
+/// Sends one TC and reports its verification until completion or failure.
+pub(crate) fn send_and_follow(
+    s: &mut Session,
+    robot: u8,
+    def: &'static mib::tc::TcDef,
+    args: &[i64],
+    wait: bool,
+    timeout: Duration,
+) -> Result<u8> {
+    // A robot that does not answer is reported within LINK_LOSS_MS, not after every resend.
+    s.watch_links();
+    let tc = s.send(robot, def, args, Some(0), None)?;
+    out(&format!(
+        "robot {robot}: sent {} seq {} ({} bytes)",
+        def.name,
+        tc.seq,
+        tc.bytes.len()
+    ))?;
+    let t0 = Instant::now();
+    let mut accepted = false;
+    let mut last_gap_check = Instant::now();
+    while t0.elapsed() < timeout {
+        for u in s.poll(Duration::from_millis(100)) {
+            match u {
+                Update::Verification {
+                    tag: Some(0), v, after, ..
+                } if v.request.seq() == tc.seq => {
+                    out(&format!(
+                        "robot {robot}: {} {}{}{} after {:.0} ms",
+                        v.stage.name(),
+                        if v.success { "ok" } else { "FAILED" },
+                        v.step.map_or(String::new(), |st| format!(" step {st}")),
+                        v.failure.as_ref().map_or(String::new(), |f| format!(": {f}")),
+                        after.unwrap_or_default().as_secs_f64() * 1000.0
+                    ))?;
+                    if !v.success {
+                        return Ok(exit::FAILED);
+                    }
+                    if v.stage == Stage::Acceptance {
+                        accepted = true;
+                        if !wait {
+                            return Ok(exit::OK);
+                        }
+                    }
+                    if v.stage == Stage::Completion {
+                        return Ok(exit::OK);
+                    }
+                }
+                Update::Resent { send, .. } => out(&format!(
+                    "robot {robot}: no acceptance yet, resent the same bytes (send {send})"
+                ))?,
+                Update::DamagedCopy { .. } => out(&format!(
+                    "robot {robot}: a copy arrived damaged (TM[1,2] CRC), resent the same bytes"
+                ))?,
+                Update::GaveUp { .. } | Update::LinkLost { .. } => return Err(no_answer_error(s, robot)),
+                Update::Event { robot: r, event } if r == robot => out(&format!("robot {robot}: event {event}"))?,
+                _ => {}
+            }
+        }
+        // An accepted TC is not resent: a completion report lost on the way is a TM gap,
+        // asked of the on-board store.
+        if accepted && last_gap_check.elapsed() >= Duration::from_secs(2) {
+            last_gap_check = Instant::now();
+            if !s.retrieving(robot) {
+                s.request_gaps(robot, None, 1);
+            }
+        }
+    }
+    if !accepted {
+        return Err(no_answer_error(s, robot));
+    }
+    Err(coded(
+        exit::FAILED,
+        format!(
+            "robot {robot}: {} accepted, but no completion within {:.0} s (--timeout)",
+            def.name,
+            timeout.as_secs_f64()
+        ),
+    ))
+}
+
+/// The robots given with `--robot` (at least one: which robot is never guessed).
+pub(crate) fn robots_given(l: &Links) -> Result<Vec<(u8, SocketAddr)>> {
+    if l.robots.is_empty() {
+        return Err(coded(
+            exit::USAGE,
+            "give --robot N (robot N at 127.0.0.1:7300+N) or --robot N=HOST:PORT",
+        ));
+    }
+    Ok(l.robots.clone())
+}
+
+pub(crate) fn one_robot(l: &Links) -> Result<(u8, SocketAddr)> {
+    match robots_given(l)?.as_slice() {
+        [one] => Ok(*one),
+        _ => Err(coded(exit::USAGE, "give exactly one --robot")),
+    }
+}
+
+pub(crate) fn send(a: &SendArgs, archive_path: Option<&Path>) -> Result<u8> {
+    let def = ops::policy::tc_by_name(&a.tc).map_err(policy_error)?;
+    let args = ops::policy::parse_arg_words(def, &a.args).map_err(policy_error)?;
+    ops::policy::check_confirmed(def, a.confirm, "add --confirm").map_err(policy_error)?;
+    let (robot, addr) = one_robot(&a.links)?;
+    say_links(&[(robot, addr)], a.links.transport());
+    let (mut s, arch) = open_session(&[(robot, addr)], a.links.transport(), archive_path)?;
+    let r = send_and_follow(
+        &mut s,
+        robot,
+        def,
+        &args,
+        !a.no_wait,
+        Duration::from_secs_f64(a.timeout),
+    );
+    drop(s);
+    close_archive(arch)?;
+    r
+}
+
+pub(crate) fn mode(a: &ModeArgs, archive_path: Option<&Path>) -> Result<u8> {
+    let def = mib::tc::by_name("MODE_SET").ok_or_else(|| anyhow!("MODE_SET not in the MIB"))?;
+    let m = mib::modes::root_mode_by_name(&a.mode)
+        .map(i64::from)
+        .or_else(|| a.mode.parse().ok())
+        .ok_or_else(|| {
+            coded(
+                exit::INVALID,
+                format!("unknown mode \"{}\" (standby, operational, safed)", a.mode),
+            )
+        })?;
+    ops::policy::check_confirmed(def, a.confirm, "add --confirm").map_err(policy_error)?;
+    let (robot, addr) = one_robot(&a.links)?;
+    say_links(&[(robot, addr)], a.links.transport());
+    let (mut s, arch) = open_session(&[(robot, addr)], a.links.transport(), archive_path)?;
+    let r = send_and_follow(
+        &mut s,
+        robot,
+        def,
+        &[mib::modes::node::ROBOT as i64, m, 0],
+        true,
+        Duration::from_secs_f64(a.timeout),
+    );
+    if let Some(st) = s.robots.get(&robot) {
+        out(&format!("robot {robot}: {}", st.line()))?;
+    }
+    drop(s);
+    close_archive(arch)?;
+    r
+}
+
+pub(crate) fn watch(a: &WatchArgs, archive_path: Option<&Path>) -> Result<u8> {
+    let links = robots_given(&a.links)?;
+    say_links(&links, a.links.transport());
+    let (mut s, arch) = open_session(&links, a.links.transport(), archive_path)?;
+    // A robot that does not answer ends the watch with its case's message and code.
+    s.watch_links();
+    // The OBSW sends TM to the grounds whose TC it accepted: subscribe with a ping, and
+    // renew the lease well before it ends.
+    if let Some(ping) = mib::tc::by_name("PING") {
+        for &(r, _) in &links {
+            s.send(r, ping, &[], None, Some("watch".into()))?;
+        }
+    }
+    let renew = Duration::from_millis(mib::config::SUBSCRIPTION_LEASE_MS as u64 / 3);
+    let mut renewed = Instant::now();
+    let t0 = Instant::now();
+    let mut n = 0u64;
+    let result = (|| -> Result<()> {
+        loop {
+            if renewed.elapsed() >= renew {
+                renewed = Instant::now();
+                for &(r, _) in &links {
+                    // A lost renewal is made good by the next one, a third of a lease later.
+                    let _ = s.send_heartbeat(r);
+                }
+            }
+            // A quiet robot (slow HK) is asked once a heartbeat period, so the link-loss
+            // watch tells silence from a dead link.
+            let beat = Duration::from_millis(mib::config::GROUND_HEARTBEAT_MS as u64);
+            for &(r, _) in &links {
+                let quiet = s
+                    .robots
+                    .get(&r)
+                    .and_then(|st| st.last_tm)
+                    .is_some_and(|t| t.elapsed() >= beat);
+                if quiet && !s.sent_within(r, beat) {
+                    let _ = s.send_heartbeat(r);
+                }
+            }
+            if a.duration.is_some_and(|d| t0.elapsed().as_secs_f64() >= d) || a.count.is_some_and(|c| n >= c) {
+                return Ok(());
+            }
+            for u in s.poll(Duration::from_millis(200)) {
+                let (robot, line, json) = match &u {
+                    Update::Verification { robot, v, .. } => (
+                        *robot,
+                        pus::describe_body(&TmBody::Verification(v.clone())),
+                        serde_json::to_value(v)?,
+                    ),
+                    Update::Hk { robot, hk } => {
+                        if a.no_hk {
+                            continue;
+                        }
+                        (
+                            *robot,
+                            pus::describe_body(&TmBody::Hk(hk.clone())),
+                            serde_json::to_value(hk)?,
+                        )
+                    }
+                    Update::Event { robot, event } => (*robot, format!("EVENT {event}"), serde_json::to_value(event)?),
+                    Update::Tm { robot, tm } => (
+                        *robot,
+                        pus::describe(&Packet::Tm(tm.clone())),
+                        serde_json::to_value(tm)?,
+                    ),
+                    Update::Corrupt { robot, error } => (
+                        *robot,
+                        format!("CORRUPT {error}"),
+                        serde_json::json!({"corrupt": error.to_string()}),
+                    ),
+                    Update::LinkLost { robot, .. } => return Err(no_answer_error(&s, *robot)),
+                    Update::Foreign {
+                        robot,
+                        apid,
+                        service,
+                        subservice,
+                    } => (
+                        *robot,
+                        format!("FOREIGN TM[{service},{subservice}] of APID 0x{apid:03X}"),
+                        serde_json::json!({"foreign_apid": apid, "service": service, "subservice": subservice}),
+                    ),
+                    _ => continue,
+                };
+                n += 1;
+                if a.json {
+                    out(&serde_json::json!({"robot": robot, "t_ms": archive::now_ms(), "tm": json}).to_string())?;
+                } else {
+                    out(&format!(
+                        "{} robot {robot}: {line}",
+                        chrono::Utc::now().format("%H:%M:%S%.3f")
+                    ))?;
+                }
+            }
+        }
+    })();
+    drop(s);
+    close_archive(arch)?;
+    result.map(|_| exit::OK)
+}
