@@ -442,6 +442,10 @@ impl Node {
     pub fn counters(&self) -> Counters {
         self.counters
     }
+    /// The counters, zeroed (for a report of increments, or a ground reset).
+    pub fn take_counters(&mut self) -> Counters {
+        core::mem::take(&mut self.counters)
+    }
 
     /// The earliest time at which `on_event(Tick)` may do something (for hosts that sleep).
     pub fn next_deadline(&self) -> u64 {
