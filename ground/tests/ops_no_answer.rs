@@ -72,7 +72,7 @@ fn replies_from_another_apid_are_exit_7_from_every_verb_at_once() {
 
 // verifies: OPS-ANSWER-01
 #[test]
-fn heard_then_lost_is_exit_5_from_watch_and_run() {
+fn heard_then_lost_is_exit_5_from_watch_run_and_send() {
     let dir = tmpdir("ops", "lost");
     std::fs::write(
         dir.join("walk.toml"),
@@ -98,9 +98,17 @@ to = "Xpos"
     for args in [
         vec!["--no-archive", "watch", "--duration", "30"],
         vec!["--no-archive", "run", "walk.toml", "--plain"],
+        vec!["--no-archive", "send", "RECONFIGURE", "from=Xneg", "to=Xpos"],
     ] {
         let o = Obsw::start(1, &["--speed", "1", "--initial-state", "Xneg"]);
         let r = format!("1={}", o.addr);
+        if args[1] == "send" {
+            let out = ground(
+                &dir,
+                &["--no-archive", "mode", "--robot", &r, "operational", "--confirm"],
+            );
+            assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+        }
         let mut a = args.clone();
         a.extend(["--robot", &r]);
         let child = Command::new(GROUND)
