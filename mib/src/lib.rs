@@ -26,8 +26,8 @@ pub mod modes;
 pub mod modules;
 pub mod params;
 pub mod robot;
-pub mod team;
 pub mod tc;
+pub mod team;
 pub mod tunables;
 pub mod types;
 

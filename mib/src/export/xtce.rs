@@ -216,22 +216,36 @@ fn param_type(x: &mut Xml, p: &ParamDef) {
             ));
             x.close("</xtce:StaticAlarmRanges>");
         };
-        if p.limits_in == crate::modes::ModeSet::ALL {
-            x.open("<xtce:DefaultAlarm>");
+        // Persistence: consecutive violating samples before the alarm (the collector's).
+        let min_violations = crate::params::GROUND_LIMIT_PERSISTENCE;
+        let contexts = super::limit_contexts(p);
+        if contexts.is_empty() {
+            x.open(&format!("<xtce:DefaultAlarm minViolations=\"{min_violations}\">"));
             ranges(x);
             x.close("</xtce:DefaultAlarm>");
         } else {
-            // No default alarm: the limits hold only in the root modes of `limits_in`,
-            // one context per mode (raw value of the MODE parameter).
+            // No default alarm: the limits hold only in the robot states of `limits_in`
+            // and `limits_if`, one context per root mode, each matching the raw values
+            // of the parameters that decide (all in the same HK structures).
             x.open("<xtce:ContextAlarmList>");
-            for m in p.limits_in.modes() {
-                x.open("<xtce:ContextAlarm>");
+            for context in contexts {
+                x.open(&format!("<xtce:ContextAlarm minViolations=\"{min_violations}\">"));
                 ranges(x);
                 x.open("<xtce:ContextMatch>");
-                x.line(&format!(
-                    "<xtce:Comparison parameterRef=\"{}\" useCalibratedValue=\"false\" comparisonOperator=\"==\" value=\"{m}\"/>",
-                    crate::params::by_id(crate::params::pid::MODE).map_or("MODE", |p| p.name)
-                ));
+                let many = context.len() > 1;
+                if many {
+                    x.open("<xtce:ComparisonList>");
+                }
+                for (param, raw) in context {
+                    let param = crate::params::by_id(param).map_or("?", |q| q.name);
+                    x.line(&format!(
+                        "<xtce:Comparison parameterRef=\"{}\" useCalibratedValue=\"false\" comparisonOperator=\"==\" value=\"{raw}\"/>",
+                        esc(param)
+                    ));
+                }
+                if many {
+                    x.close("</xtce:ComparisonList>");
+                }
                 x.close("</xtce:ContextMatch>");
                 x.close("</xtce:ContextAlarm>");
             }
