@@ -347,7 +347,8 @@ pub trait Commander: Send + Sync + 'static {
     /// already range-checked against the MIB) to `robot`. Returns the request ID the
     /// hub's command history uses for it.
     fn send_tc(&self, robot: u8, name: &str, args: &[i64]) -> Result<String, CommandError>;
-    /// Acknowledges an alarm.
+    /// Acknowledges an alarm. A refusal names the alarm itself (the page shows it as
+    /// is, without a prefix of its own).
     fn ack_alarm(&self, id: u64) -> Result<(), CommandError>;
     /// Shelves an alarm for `for_ms`.
     fn shelve_alarm(&self, id: u64, for_ms: i64) -> Result<(), CommandError>;
