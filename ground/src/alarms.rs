@@ -556,7 +556,7 @@ mod tests {
         }
     }
 
-    // verifies: GND-13
+    // verifies: GND-13, ALM-PERSIST-01
     #[test]
     fn battery_sag_raises_soft_then_hard_after_persistence() {
         let mut c = LimitChecker::new();

@@ -158,7 +158,7 @@ fn scos_names_and_texts_fit_their_columns() {
     }
 }
 
-// verifies: ICD-02
+// verifies: ICD-02, ALM-COND-01, ALM-PERSIST-01
 #[test]
 fn scos_references_between_tables_resolve() {
     let t = tables();
@@ -364,7 +364,7 @@ fn xtce_doc() -> String {
     export::xtce_document()
 }
 
-// verifies: ICD-03
+// verifies: ICD-03, ALM-COND-01, ALM-PERSIST-01
 #[test]
 fn xtce_is_xml_in_the_xtce_1_2_namespace_and_references_resolve() {
     let text = xtce_doc();
@@ -591,7 +591,7 @@ fn xtce_is_xml_in_the_xtce_1_2_namespace_and_references_resolve() {
     }
 }
 
-// verifies: ICD-04
+// verifies: ICD-04, ALM-COND-01
 #[test]
 fn json_round_trips_against_the_tables() {
     let text = export::json_document();
