@@ -2,7 +2,8 @@
 //! run (issue 26 point 7), so an example cannot go stale.
 //!
 //! An *example* is a line of a fenced code block in those documents (blank lines and
-//! `#` comment lines aside). Rules, all explicit:
+//! `#` comment lines aside), or an inline code span that is a whole command line
+//! (starting with `bash `, `cargo test ` or `NAME=VALUE bash `). Rules, all explicit:
 //! - [`RUN`] names every example the tests run, by document and the start of its line.
 //!   The runners take the line from the document (not a copy of it), apply the listed
 //!   substitutions — documented addresses, paths and alarm IDs become those of the
@@ -12,7 +13,12 @@
 //!   [`NOT_RUN`] lists those blocks (document and first line), and any other such note is
 //!   an error: nothing is skipped silently.
 //! - `cargo build …` lines are not run (the tests run after the build); their bin
-//!   targets are checked to exist.
+//!   targets are checked to exist. Inline `cargo test -p ground --test NAME [FILTER]`
+//!   spans name this suite's own tests: the test file and a test starting with FILTER
+//!   must exist.
+//! - An inline span in a section (from one heading to the next) that says
+//!   `(Not run by the doc tests: REASON)` is not run; [`NOT_RUN_INLINE`] lists those
+//!   spans (benchmarks, Chromium, the npm registry).
 //!
 //! [`every_example_is_run_or_listed_as_not_run`] fails on an example that is neither,
 //! and on an entry of [`RUN`] that matches no example (an example changed or removed).
@@ -53,6 +59,10 @@ const RUN: &[(&str, &str)] = &[
     ("dashboard.md", "cargo build --bin obsw --bin ground"),
     ("dashboard.md", "target/debug/obsw --robot 1 &"),
     ("dashboard.md", "target/debug/ground collect --robot 1 --robot 2 --http"),
+    (
+        "dashboard.md",
+        "target/debug/ground sim --addr 127.0.0.1:7401 battery-sag",
+    ),
     ("archive.md", "ground --archive ground-archive.db"),
     ("archive.md", "ground --archive 'postgresql://ground@db.example/mmic'"),
     (
@@ -76,6 +86,111 @@ const NOT_RUN: &[(&str, &str, &str)] = &[
 ];
 
 const NOTE: &str = "> Not run by the doc tests:";
+
+/// Inline spans not run: (document, span, why). Their section carries the visible note.
+const NOT_RUN_INLINE: &[(&str, &str, &str)] = &[
+    (
+        "collector.md",
+        "bash ground/bench/collect_bench.sh ROBOTS MINUTES",
+        "benchmark, up to hours",
+    ),
+    ("dashboard.md", "bash scripts/web-build.sh", "needs the npm registry"),
+    (
+        "dashboard.md",
+        "bash scripts/web-build.sh --check",
+        "needs the npm packages",
+    ),
+    ("dashboard.md", "bash scripts/web-test.sh", "installs Chromium"),
+    (
+        "dashboard.md",
+        "bash ground/bench/dashboard_bench.sh 50 10 20",
+        "benchmark on 50 robots",
+    ),
+    ("archive.md", "bash ground/bench/archive_bench.sh", "benchmark"),
+    (
+        "archive.md",
+        "ARCHIVE_BENCH_PG=1 bash ground/bench/archive_bench.sh 100000 3",
+        "benchmark",
+    ),
+];
+
+/// An inline command span: (document, span, the text of its section).
+fn inline_examples() -> Vec<(&'static str, String, String)> {
+    let mut out = Vec::new();
+    for doc in DOCS {
+        let text = std::fs::read_to_string(root().join("docs").join(doc)).unwrap();
+        let mut sections: Vec<String> = vec![String::new()];
+        let mut in_block = false;
+        for l in text.lines() {
+            if l.trim().starts_with("```") {
+                in_block = !in_block;
+                continue;
+            }
+            if in_block {
+                continue;
+            }
+            if l.starts_with('#') {
+                sections.push(String::new());
+            }
+            let cur = sections.last_mut().unwrap();
+            cur.push_str(l.trim());
+            cur.push(' ');
+        }
+        for sec in sections {
+            let spans: Vec<&str> = sec.split('`').skip(1).step_by(2).collect();
+            for span in spans {
+                let env_bash = span.split_once(' ').is_some_and(|(a, b)| {
+                    a.contains('=')
+                        && a.chars().next().is_some_and(|c| c.is_ascii_uppercase())
+                        && b.starts_with("bash ")
+                });
+                if span.starts_with("bash ") || span.starts_with("cargo test ") || env_bash {
+                    out.push((doc, span.to_string(), sec.clone()));
+                }
+            }
+        }
+    }
+    out
+}
+
+// verifies: ALM-DOC-01
+#[test]
+fn every_inline_command_is_checked_or_listed_as_not_run() {
+    let ex = inline_examples();
+    assert!(ex.len() >= NOT_RUN_INLINE.len(), "{ex:?}");
+    let mut checked = 0;
+    for (doc, span, section) in &ex {
+        if let Some(rest) = span.strip_prefix("cargo test -p ground --test ") {
+            let mut w = rest.split_whitespace();
+            let file = root().join("ground/tests").join(format!("{}.rs", w.next().unwrap()));
+            let src =
+                std::fs::read_to_string(&file).unwrap_or_else(|e| panic!("{doc}: `{span}`: {}: {e}", file.display()));
+            if let Some(filter) = w.next() {
+                assert!(
+                    src.contains(&format!("fn {filter}")),
+                    "{doc}: `{span}`: no test {filter}"
+                );
+            }
+            checked += 1;
+            continue;
+        }
+        assert!(
+            NOT_RUN_INLINE.iter().any(|(d, s, _)| d == doc && s == span),
+            "{doc}: `{span}` is neither checked nor listed in NOT_RUN_INLINE"
+        );
+        assert!(
+            section.to_ascii_lowercase().contains("not run by the doc tests"),
+            "{doc}: `{span}`: its section has no visible \"Not run by the doc tests\" note"
+        );
+    }
+    for (d, s, why) in NOT_RUN_INLINE {
+        assert!(
+            ex.iter().any(|(doc, span, _)| doc == d && span == s),
+            "{d}: `{s}` ({why}) is no longer in the document: update NOT_RUN_INLINE"
+        );
+    }
+    assert!(checked >= 4, "the cargo test lines were not found: {ex:?}");
+}
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
@@ -360,16 +475,18 @@ fn collector_examples_run_against_two_loopback_robots() {
     let list = ex("ground --archive /var/lib/mmic/archive.db alarms list");
     let out = wait_for(30, "V_BAT_A and LOW_BATTERY alarms", || {
         let (_, out) = run(&dir, &list, &subst);
-        (out.contains("V_BAT_A") && out.contains("LOW_BATTERY")).then_some(out)
+        let has = |src: &str| out.lines().any(|l| l.split_whitespace().nth(2) == Some(src));
+        (has("V_BAT_A") && has("LOW_BATTERY")).then_some(out)
     });
     assert!(out.lines().next().unwrap_or("").contains("source"), "{out}");
     // The IDs of the documented `ack 12` and `shelve 13`: the two alarms just raised.
+    // Columns: id, robot, source, … (an event's message may name a parameter too).
     let id_of = |source: &str| {
         out.lines()
-            .find(|l| l.contains(source))
-            .and_then(|l| l.split_whitespace().next())
-            .unwrap()
-            .to_string()
+            .map(|l| l.split_whitespace().collect::<Vec<_>>())
+            .find(|w| w.get(2) == Some(&source))
+            .map(|w| w[0].to_string())
+            .unwrap_or_else(|| panic!("no {source} alarm: {out}"))
     };
     let (v_bat, low_bat) = (id_of("V_BAT_A"), id_of("LOW_BATTERY"));
     subst.push(("alarms ack 12", format!("alarms ack {v_bat}")));
@@ -528,6 +645,21 @@ fn dashboard_examples_run_against_simulated_robots() {
         "c2.log",
     );
     dashboard_up(web, 2);
+    // `ground sim --addr 127.0.0.1:7401 battery-sag 9.2`: robot 1's simulator control
+    // port, here 7400 + the first robot's number; the page then shows the alarm.
+    let sim = ex("target/debug/ground sim --addr 127.0.0.1:7401 battery-sag");
+    let subst = vec![("127.0.0.1:7401", format!("127.0.0.1:{}", 7400 + nums[0] as u16))];
+    let (code, out) = run(&dir, &sim, &subst);
+    assert_eq!(code, Some(0), "{out}");
+    assert!(out.contains("ok"), "{out}");
+    wait_for(30, "the battery alarm on the page", || {
+        let (_, s) = http(web, "GET", "/api/snapshot", None);
+        s["alarms"]
+            .as_array()?
+            .iter()
+            .any(|a| a["robot"] == nums[0] && a["severity"] == "high")
+            .then_some(())
+    });
     assert_eq!(sigterm(&mut c), Some(0));
 }
 
