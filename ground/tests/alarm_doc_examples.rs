@@ -385,9 +385,8 @@ fn tmpdir(name: &str) -> PathBuf {
     common::tmpdir("doc-examples", name)
 }
 
-/// Waits until the collector's log in `dir` says robots 1 and 2 are up. `--status` is
-/// run only after that: opening an archive while a collector creates it can make the
-/// collector's own open fail ("database is locked"; noted in the report of this work).
+/// Waits until the collector's log in `dir` says robots 1 and 2 are up (then `--status`
+/// has something to show).
 fn links_up(dir: &Path, log: &str) {
     wait_for(30, "collector links up", || {
         let l = std::fs::read_to_string(dir.join(log)).unwrap_or_default();

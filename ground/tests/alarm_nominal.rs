@@ -70,8 +70,6 @@ fn run_with_collector(name: &str, robots: &[(u8, &str)], hip_robot: u8) -> (Vec<
     let links: Vec<(u8, SocketAddr)> = robots.iter().zip(&started).map(|((n, _), (_, a))| (*n, *a)).collect();
     let mut c = collector(&dir, &links);
     // The collector's links are up before the plan starts (it archives from the start).
-    // Its log says so; `collect --status` is not polled here, as opening the archive
-    // while the collector creates it can make the collector's own open fail.
     common::wait_for(30, "collector links up", || {
         let log = std::fs::read_to_string(dir.join("collect.log")).unwrap_or_default();
         (robots.iter().all(|(n, _)| log.contains(&format!("robot {n}: link up")))).then_some(())
