@@ -9,13 +9,12 @@
 //! - [`Source`]: what an alarm is about (a parameter, an event, link loss, stale data,
 //!   the archive).
 //!
-//! Limits, the root modes in which they apply, persistence and hysteresis all come from
-//! the MIB (`mib::params`: `limits_apply`, `GROUND_LIMIT_PERSISTENCE`,
-//! `limit_hysteresis`).
+//! Limits, the robot state in which they apply (root modes, a condition such as "no
+//! primitive running"), persistence and hysteresis all come from the MIB
+//! (`mib::params`: `limits_apply`, `GROUND_LIMIT_PERSISTENCE`, `limit_hysteresis`).
 
 use std::fmt;
 
-use mib::params::ParamDef;
 use mib::types::Limits;
 use serde::Serialize;
 
@@ -334,16 +333,6 @@ impl Level {
     }
 }
 
-/// Whether a parameter's limits apply to this HK sample: in the root modes the MIB gives
-/// for it (`mode` is the robot's mode from the same packet, if it has one; without one,
-/// only limits that hold in every mode apply).
-fn applicable(p: &ParamDef, mode: Option<i64>) -> bool {
-    match mode.and_then(|m| u32::try_from(m).ok()) {
-        Some(m) => mib::params::limits_apply(p, m),
-        None => mib::params::limits_always_apply(p),
-    }
-}
-
 /// Raw level of a value against limits, with hysteresis relative to the current level:
 /// to fall back from a level the value must be inside that level's limit by `hyst`.
 pub fn level_of(v: f64, l: &Limits, current: Level, hyst: f64) -> Level {
@@ -409,15 +398,18 @@ impl LimitChecker {
         }
     }
 
-    /// Checks one HK sample (parameter ID, engineering value); `mode` is the robot's
-    /// mode if the same packet carries it. Returns the level change, if any.
-    pub fn check(&mut self, id: u16, eng: f64, mode: Option<i64>) -> Option<LimitChange> {
+    /// Checks one HK sample (parameter ID, engineering value); `ctx` gives the raw
+    /// values of the same packet, which decide whether the MIB's limits apply
+    /// (`mib::params::limits_apply`: the root mode, a condition such as "no primitive
+    /// running"). Returns the level change, if any.
+    pub fn check(&mut self, id: u16, eng: f64, ctx: impl Fn(u16) -> Option<i64>) -> Option<LimitChange> {
         let p = mib::params::by_id(id)?;
         let l = p.limits?;
         let (_, t) = self.tracks.iter_mut().find(|(i, _)| *i == id)?;
-        let raw_level = if applicable(p, mode) && eng.is_finite() {
+        let applies = mib::params::limits_apply(p, ctx);
+        let raw_level = if applies && eng.is_finite() {
             level_of(eng, &l, t.level, mib::params::limit_hysteresis(&l))
-        } else if applicable(p, mode) {
+        } else if applies {
             Level::Hard
         } else {
             Level::Ok
@@ -555,17 +547,26 @@ mod tests {
         volts
     }
 
-    // verifies: GND-13
+    /// The raw values of an HK packet in root mode `mode` with no primitive running.
+    fn m(mode: i64) -> impl Fn(u16) -> Option<i64> {
+        move |id| match id {
+            pid::MODE => Some(mode),
+            pid::ACTIVE_PRIMITIVE => Some(0),
+            _ => None,
+        }
+    }
+
+    // verifies: GND-13, ALM-PERSIST-01
     #[test]
     fn battery_sag_raises_soft_then_hard_after_persistence() {
         let mut c = LimitChecker::new();
         let id = pid::V_BAT_A;
-        assert_eq!(c.check(id, vbat_raw(12.0), Some(0)), None);
-        assert_eq!(c.check(id, 10.3, Some(0)), None, "one sample is not persistent");
-        let ch = c.check(id, 10.3, Some(0)).unwrap();
+        assert_eq!(c.check(id, vbat_raw(12.0), m(0)), None);
+        assert_eq!(c.check(id, 10.3, m(0)), None, "one sample is not persistent");
+        let ch = c.check(id, 10.3, m(0)).unwrap();
         assert_eq!((ch.from, ch.to, ch.limit), (Level::Ok, Level::Soft, 10.5));
-        assert_eq!(c.check(id, 9.8, Some(0)), None);
-        let ch = c.check(id, 9.8, Some(0)).unwrap();
+        assert_eq!(c.check(id, 9.8, m(0)), None);
+        let ch = c.check(id, 9.8, m(0)).unwrap();
         assert_eq!((ch.to, ch.limit), (Level::Hard, 10.0));
         assert_eq!(ch.to.severity(), Some(Severity::High));
     }
@@ -576,16 +577,16 @@ mod tests {
         let mut c = LimitChecker::new();
         let id = pid::V_BAT_A;
         for _ in 0..2 {
-            c.check(id, 10.45, Some(0));
+            c.check(id, 10.45, m(0));
         }
         assert_eq!(c.level(id), Level::Soft);
         // Just inside the soft limit, within the hysteresis (2 % of 2.1 V = 42 mV).
         for _ in 0..5 {
-            assert_eq!(c.check(id, 10.52, Some(0)), None);
+            assert_eq!(c.check(id, 10.52, m(0)), None);
         }
         assert_eq!(c.level(id), Level::Soft);
-        c.check(id, 10.6, Some(0));
-        let ch = c.check(id, 10.6, Some(0)).unwrap();
+        c.check(id, 10.6, m(0));
+        let ch = c.check(id, 10.6, m(0)).unwrap();
         assert_eq!((ch.from, ch.to), (Level::Soft, Level::Ok));
     }
 
@@ -594,10 +595,10 @@ mod tests {
     fn interrupted_excursion_does_not_count_as_persistent() {
         let mut c = LimitChecker::new();
         let id = pid::I_BO_A;
-        assert_eq!(c.check(id, 2.2, Some(1)), None);
-        assert_eq!(c.check(id, 1.0, Some(1)), None);
-        assert_eq!(c.check(id, 2.2, Some(1)), None);
-        assert!(c.check(id, 2.2, Some(1)).is_some());
+        assert_eq!(c.check(id, 2.2, m(1)), None);
+        assert_eq!(c.check(id, 1.0, m(1)), None);
+        assert_eq!(c.check(id, 2.2, m(1)), None);
+        assert!(c.check(id, 2.2, m(1)).is_some());
     }
 
     // verifies: GND-13
@@ -605,10 +606,28 @@ mod tests {
     fn regulator_voltage_is_not_checked_in_standby() {
         let mut c = LimitChecker::new();
         for _ in 0..5 {
-            assert_eq!(c.check(pid::V_REG, 0.0, Some(0)), None);
+            assert_eq!(c.check(pid::V_REG, 0.0, m(0)), None);
         }
-        c.check(pid::V_REG, 0.0, Some(1));
-        assert_eq!(c.check(pid::V_REG, 0.0, Some(1)).unwrap().to, Level::Hard);
+        c.check(pid::V_REG, 0.0, m(1));
+        assert_eq!(c.check(pid::V_REG, 0.0, m(1)).unwrap().to, Level::Hard);
+    }
+
+    // verifies: ALM-COND-01
+    #[test]
+    fn hip_deviation_is_checked_only_while_no_primitive_runs() {
+        let mut c = LimitChecker::new();
+        let turning = |id| match id {
+            pid::MODE => Some(1),
+            pid::ACTIVE_PRIMITIVE => Some(4),
+            _ => None,
+        };
+        // The corner turn of issue 26: -55 deg while a primitive turns the hip.
+        for _ in 0..5 {
+            assert_eq!(c.check(pid::HIP_DEVIATION, -55.05, turning), None);
+        }
+        assert_eq!(c.check(pid::HIP_DEVIATION, -55.05, m(1)), None);
+        let ch = c.check(pid::HIP_DEVIATION, -55.05, m(1)).unwrap();
+        assert_eq!((ch.to, ch.limit), (Level::Hard, -5.0));
     }
 
     // verifies: GND-13
@@ -616,7 +635,7 @@ mod tests {
     fn parameters_without_limits_are_not_checked() {
         let mut c = LimitChecker::new();
         for _ in 0..5 {
-            assert_eq!(c.check(pid::MODE, 99.0, Some(0)), None);
+            assert_eq!(c.check(pid::MODE, 99.0, m(0)), None);
         }
     }
 

@@ -1,10 +1,11 @@
 //! `ground archive plot`: HK parameters over time, SVG or PNG (plotters), drawn from the
-//! archive's per-pixel-column min/max decimation.
+//! archive's per-pixel-column min/max decimation: one panel per unit, each with its own
+//! y axis, and a gap where the data has a hole.
 
 use std::path::Path;
 
 use anyhow::{anyhow, Context, Result};
-use ground::archive::{Filter, Store};
+use ground::archive::{Column, Filter, Store};
 use plotters::prelude::*;
 
 /// Font files tried for labels (plotters' ab_glyph backend needs one registered).
@@ -34,28 +35,66 @@ fn font() -> bool {
     })
 }
 
-type Series = (String, Vec<(f64, f64)>);
+/// One line of the plot: its legend name, its colour index, and its runs of points
+/// (a run ends at a hole in the data, which is drawn as a gap).
+struct Series {
+    name: String,
+    color: usize,
+    runs: Vec<Vec<(f64, f64)>>,
+}
+
+/// One panel per engineering unit, with its own y axis.
+struct Panel {
+    unit: &'static str,
+    series: Vec<Series>,
+}
 
 /// Pixel columns the data is decimated to (the plot is 1000 pixels wide).
 pub const COLUMNS: usize = 1000;
+/// Height of the title strip and of each panel (pixels).
+const TITLE_H: u32 = 40;
+const PANEL_H: u32 = 320;
 
-/// Plots `params` (one line per parameter and robot) into `out`. The archive decimates
-/// each series to min/max per pixel column ([`Store::decimate`]), so a day of 10 Hz HK
-/// draws as fast as a minute. Returns the number of samples plotted.
+/// A pause between two samples longer than this many typical sample intervals of the
+/// series is a hole: the collector's rule for stale housekeeping (its default
+/// `stale_hk_intervals`).
+fn gap_intervals() -> i64 {
+    i64::from(ground::collect::config::Config::default().stale_hk_intervals)
+}
+
+/// Splits decimated columns into runs without holes. The typical interval is the median
+/// of the sample spacings the columns show (inside a column, and from one column's last
+/// sample to the next one's first); a pause longer than [`gap_intervals`] of it ends a run.
+fn runs(cols: &[Column]) -> Vec<&[Column]> {
+    let mut spacing: Vec<i64> = cols
+        .iter()
+        .filter(|c| c.n >= 2)
+        .map(|c| (c.t_last_ms - c.t_first_ms) / i64::from(c.n - 1))
+        .chain(cols.windows(2).map(|w| w[1].t_first_ms - w[0].t_last_ms))
+        .collect();
+    spacing.sort_unstable();
+    let Some(&typical) = spacing.get(spacing.len() / 2) else {
+        return vec![cols];
+    };
+    let limit = typical.max(1) * gap_intervals();
+    cols.chunk_by(|a, b| b.t_first_ms - a.t_last_ms <= limit).collect()
+}
+
+/// Plots `params` into `out`: one panel per unit, one line per parameter and robot, a
+/// gap where the data has a hole. The archive decimates each series to min/max per pixel
+/// column ([`Store::decimate`]), so a day of 10 Hz HK draws as fast as a minute. Returns
+/// the number of samples plotted.
 pub fn plot(store: &mut Store, params: &[String], f: &Filter, out: &Path) -> Result<usize> {
-    let mut series: Vec<Series> = Vec::new();
+    let mut panels: Vec<Panel> = Vec::new();
     let mut t0 = i64::MAX;
-    let mut units = Vec::new();
     let mut n = 0usize;
+    let mut color = 0;
     let robots = match f.robot {
         Some(r) => vec![r],
         None => store.robots()?,
     };
     for p in params {
         let def = mib::params::by_name(p).ok_or_else(|| anyhow!("unknown HK parameter \"{p}\""))?;
-        if !def.unit.is_empty() && !units.contains(&def.unit) {
-            units.push(def.unit);
-        }
         for &robot in &robots {
             let Some((lo, hi)) = store.param_span(robot, def.id)? else {
                 continue;
@@ -70,12 +109,30 @@ pub fn plot(store: &mut Store, params: &[String], f: &Filter, out: &Path) -> Res
             }
             t0 = t0.min(cols[0].t_ms);
             n += cols.iter().map(|c| c.n as usize).sum::<usize>();
-            let mut pts = Vec::with_capacity(cols.len() * 4);
-            for c in &cols {
-                let x = c.t_ms as f64;
-                pts.extend([(x, c.first), (x, c.min), (x, c.max), (x, c.last)]);
+            let runs = runs(&cols)
+                .into_iter()
+                .map(|run| {
+                    run.iter()
+                        .flat_map(|c| {
+                            let x = c.t_ms as f64;
+                            [(x, c.first), (x, c.min), (x, c.max), (x, c.last)]
+                        })
+                        .collect()
+                })
+                .collect();
+            let s = Series {
+                name: format!("{} robot {robot}", def.name),
+                color,
+                runs,
+            };
+            color += 1;
+            match panels.iter_mut().find(|p| p.unit == def.unit) {
+                Some(p) => p.series.push(s),
+                None => panels.push(Panel {
+                    unit: def.unit,
+                    series: vec![s],
+                }),
             }
-            series.push((format!("{} robot {robot}", def.name), pts));
         }
     }
     if n == 0 {
@@ -84,46 +141,37 @@ pub fn plot(store: &mut Store, params: &[String], f: &Filter, out: &Path) -> Res
             "no archived values for these parameters",
         ));
     }
-    for s in &mut series {
-        for p in &mut s.1 {
-            p.0 = (p.0 - t0 as f64) / 1000.0;
+    let mut x1 = 0.0f64;
+    for p in panels
+        .iter_mut()
+        .flat_map(|p| p.series.iter_mut())
+        .flat_map(|s| s.runs.iter_mut())
+    {
+        for pt in p {
+            pt.0 = (pt.0 - t0 as f64) / 1000.0;
+            x1 = x1.max(pt.0);
         }
     }
-    let (mut x1, mut y0, mut y1) = (0.0f64, f64::MAX, f64::MIN);
-    for (_, pts) in &series {
-        for &(x, y) in pts {
-            if y.is_finite() {
-                x1 = x1.max(x);
-                y0 = y0.min(y);
-                y1 = y1.max(y);
-            }
-        }
-    }
-    if y1 <= y0 {
-        y0 -= 1.0;
-        y1 += 1.0;
-    }
-    let pad = (y1 - y0) * 0.05;
     let x1 = if x1 <= 0.0 { 1.0 } else { x1 };
     let start = chrono::DateTime::from_timestamp_millis(t0)
         .map_or(String::new(), |t| t.format("%Y-%m-%d %H:%M:%S UTC").to_string());
     let title = format!("{} from {start}", params.join(", ").to_uppercase());
-    let ylabel = units.join(", ");
     let ext = out
         .extension()
         .and_then(|e| e.to_str())
         .unwrap_or("")
         .to_ascii_lowercase();
     let text = font();
+    let size = (1000, TITLE_H + PANEL_H * panels.len() as u32);
     match ext.as_str() {
         "svg" => {
-            let root = SVGBackend::new(out, (1000, 560)).into_drawing_area();
-            draw(&root, &series, (x1, y0 - pad, y1 + pad), &title, &ylabel, text)?;
+            let root = SVGBackend::new(out, size).into_drawing_area();
+            draw(&root, &panels, x1, &title, text)?;
             root.present().with_context(|| format!("writing {}", out.display()))?;
         }
         "png" => {
-            let root = BitMapBackend::new(out, (1000, 560)).into_drawing_area();
-            draw(&root, &series, (x1, y0 - pad, y1 + pad), &title, &ylabel, text)?;
+            let root = BitMapBackend::new(out, size).into_drawing_area();
+            draw(&root, &panels, x1, &title, text)?;
             root.present().with_context(|| format!("writing {}", out.display()))?;
         }
         _ => {
@@ -136,12 +184,31 @@ pub fn plot(store: &mut Store, params: &[String], f: &Filter, out: &Path) -> Res
     Ok(n)
 }
 
+/// The y range of a panel's values, padded by 5 %.
+fn y_range(p: &Panel) -> (f64, f64) {
+    let (mut y0, mut y1) = (f64::MAX, f64::MIN);
+    for &(_, y) in p.series.iter().flat_map(|s| s.runs.iter()).flatten() {
+        if y.is_finite() {
+            y0 = y0.min(y);
+            y1 = y1.max(y);
+        }
+    }
+    if y1 < y0 {
+        (y0, y1) = (0.0, 0.0);
+    }
+    if y1 <= y0 {
+        y0 -= 1.0;
+        y1 += 1.0;
+    }
+    let pad = (y1 - y0) * 0.05;
+    (y0 - pad, y1 + pad)
+}
+
 fn draw<DB: DrawingBackend>(
     root: &DrawingArea<DB, plotters::coord::Shift>,
-    series: &[Series],
-    (x1, y0, y1): (f64, f64, f64),
+    panels: &[Panel],
+    x1: f64,
     title: &str,
-    ylabel: &str,
     text: bool,
 ) -> Result<()>
 where
@@ -149,41 +216,50 @@ where
 {
     let e = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow!("drawing the plot: {e:?}");
     root.fill(&WHITE).map_err(e)?;
-    let mut b = ChartBuilder::on(root);
-    b.margin(15);
+    let (top, body) = root.split_vertically(TITLE_H);
     if text {
-        b.caption(title, ("sans-serif", 22))
-            .x_label_area_size(40)
-            .y_label_area_size(60);
+        top.titled(title, ("sans-serif", 22)).map_err(e)?;
     }
-    let mut chart = b.build_cartesian_2d(0.0..x1, y0..y1).map_err(e)?;
-    let mut mesh = chart.configure_mesh();
-    if text {
-        mesh.x_desc("time since start (s)").y_desc(ylabel);
-    } else {
-        mesh.disable_x_axis().disable_y_axis();
-    }
-    mesh.draw().map_err(e)?;
-    for (i, (name, pts)) in series.iter().enumerate() {
-        let color = Palette99::pick(i).to_rgba();
-        let s = chart
-            .draw_series(LineSeries::new(
-                pts.iter().copied().filter(|p| p.1.is_finite()),
-                color.stroke_width(2),
-            ))
-            .map_err(e)?;
+    for (area, panel) in body.split_evenly((panels.len(), 1)).iter().zip(panels) {
+        let (y0, y1) = y_range(panel);
+        let mut b = ChartBuilder::on(area);
+        b.margin(15);
         if text {
-            s.label(name.clone())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+            b.x_label_area_size(40).y_label_area_size(60);
         }
-    }
-    if text {
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .map_err(e)?;
+        let mut chart = b.build_cartesian_2d(0.0..x1, y0..y1).map_err(e)?;
+        let mut mesh = chart.configure_mesh();
+        if text {
+            let unit = if panel.unit.is_empty() { "(no unit)" } else { panel.unit };
+            mesh.x_desc("time since start (s)").y_desc(unit);
+        } else {
+            mesh.disable_x_axis().disable_y_axis();
+        }
+        mesh.draw().map_err(e)?;
+        for s in &panel.series {
+            let color = Palette99::pick(s.color).to_rgba();
+            for (i, run) in s.runs.iter().enumerate() {
+                let drawn = chart
+                    .draw_series(LineSeries::new(
+                        run.iter().copied().filter(|p| p.1.is_finite()),
+                        color.stroke_width(2),
+                    ))
+                    .map_err(e)?;
+                if text && i == 0 {
+                    drawn
+                        .label(s.name.clone())
+                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+                }
+            }
+        }
+        if text {
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .draw()
+                .map_err(e)?;
+        }
     }
     Ok(())
 }

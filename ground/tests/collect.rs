@@ -85,7 +85,7 @@ fn archived_seqs(dir: &Path, arch: &str) -> BTreeMap<i64, u32> {
     m
 }
 
-// verifies: GND-11
+// verifies: GND-11, ALM-CFG-01, ALM-MSG-01
 #[test]
 fn check_config_names_file_line_and_column() {
     let dir = tmpdir("cfg");
@@ -113,6 +113,27 @@ fn check_config_names_file_line_and_column() {
     .unwrap();
     let out = ground(&dir, &["collect", "--check-config", "good.toml"]);
     assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    // The retention period is shown in the unit it was given (issue 26: "3m" was
+    // logged as "older than 0 days").
+    std::fs::write(dir.join("short.toml"), "retain = \"3m\"\n").unwrap();
+    let out = ground(&dir, &["collect", "--check-config", "short.toml"]);
+    assert!(
+        text(&out).contains("short.toml: ok (0 robots, retain 3m)"),
+        "{}",
+        text(&out)
+    );
+    // Every error of a file, not only the first unknown key.
+    std::fs::write(
+        dir.join("seven.toml"),
+        "retian = \"1d\"\nretain = \"x\"\ntransport = \"ip\"\n[link]\nmax_backoff_ms = 0\n\
+         [gaps]\nmax_tries = 0\n[[robot]]\nnumber = 0\n[[robot]]\nnumber = 1\nhk_interval_ms = 1\n",
+    )
+    .unwrap();
+    let out = ground(&dir, &["collect", "--check-config", "seven.toml"]);
+    assert_eq!(out.status.code(), Some(3), "{}", text(&out));
+    let t = text(&out);
+    assert_eq!(t.matches("seven.toml:").count(), 7, "{t}");
+    assert!(t.contains("seven.toml:1:1: unknown field `retian`"), "{t}");
     // The shipped example configuration is valid.
     let example = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/collector.example.toml");
     let out = ground(&dir, &["collect", "--check-config", example]);

@@ -61,7 +61,7 @@ fn tmpdir(name: &str) -> PathBuf {
     dir
 }
 
-// verifies: GND-16, GND-18
+// verifies: GND-16, GND-18, ALM-MSG-01
 #[test]
 fn live_robot_ping_and_injected_fault_through_the_dashboard_api() {
     let (_obsw, tc, ctl) = start_obsw(1);
@@ -134,6 +134,16 @@ fn live_robot_ping_and_injected_fault_through_the_dashboard_api() {
         .cloned()
         .unwrap();
     assert_eq!(acked["state"], "acknowledged");
+    // Acknowledging again is refused, and the refusal names the alarm once (issue 26:
+    // "alarm 3: alarm 3: nothing to acknowledge").
+    let (st, r) = http(a, "POST", &format!("/api/alarms/{aid}/ack"), None);
+    assert_eq!(st, 400, "{r}");
+    let msg = r["error"].as_str().unwrap_or_default();
+    assert!(
+        msg.starts_with(&format!("alarm {aid}: nothing to acknowledge")),
+        "{msg}"
+    );
+    assert_eq!(msg.matches("alarm ").count(), 1, "{msg}");
     // The board's own fault event is there too, by name.
     wait_for(30, "LOW_BATTERY event", || {
         let (_, s) = http(a, "GET", "/api/snapshot", None);

@@ -100,6 +100,7 @@ pub const HK_STRUCTS: &[HkDef] = &[
             MODE,
             HIP_DEVIATION,
             EVENTS_DROPPED,
+            ACTIVE_PRIMITIVE,
         ],
         default_interval_ms: 5000,
         default_enabled: true,

@@ -22,6 +22,22 @@ pub struct ParamDef {
     /// anomaly: the regulated servo voltage is 0 V in standby, where the regulator is off
     /// (paper Table 7). Use [`limits_apply`].
     pub limits_in: ModeSet,
+    /// A condition on the robot's state under which `limits` apply, on top of
+    /// `limits_in` (`None`: always). The hip deviation, for example, is only an anomaly
+    /// while no motion primitive runs: a turning hip is legitimately away from the
+    /// angle of the last configuration state. Use [`limits_apply`].
+    pub limits_if: Option<LimitCond>,
+    pub desc: &'static str,
+}
+
+/// A condition on another parameter's raw value: `param == raw`. The condition parameter
+/// travels in every HK structure that carries a parameter it conditions (checked by a
+/// test), so a sample is judged with the state of the same instant.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LimitCond {
+    pub param: u16,
+    pub raw: i64,
+    /// What the condition means, for documents and exports.
     pub desc: &'static str,
 }
 
@@ -78,7 +94,7 @@ macro_rules! params {
         /// Every telemetry parameter, in ID order.
         pub const PARAMS: &[ParamDef] = &[ $( ParamDef {
             id: $id, name: stringify!($name), ptype: PType::$t, unit: $unit,
-            calib: $cal, limits: $lim, limits_in: limits_in($id), desc: $desc,
+            calib: $cal, limits: $lim, limits_in: limits_in($id), limits_if: limits_if($id), desc: $desc,
         }, )* ];
     };
 }
@@ -189,12 +205,45 @@ const fn limits_in(id: u16) -> ModeSet {
     }
 }
 
-/// True if the limits of `param` apply while the robot is in root mode `root_mode`
-/// (the value of the `MODE` parameter); false for a parameter without limits. Ground
-/// limit checks (alarms, limit colouring) call this before comparing a value with
-/// `param.limits`.
-pub const fn limits_apply(param: &ParamDef, root_mode: u32) -> bool {
-    param.limits.is_some() && param.limits_in.contains(root_mode)
+/// Condition under which the limits of parameter `id` apply (besides `limits_in`): the
+/// hip deviation only while no motion primitive runs (a primitive turns the hip away
+/// from the angle of the last configuration state; paper: the hip is checked when the
+/// robot is idle); every other limit unconditionally.
+const fn limits_if(id: u16) -> Option<LimitCond> {
+    match id {
+        pid::HIP_DEVIATION => Some(LimitCond {
+            param: pid::ACTIVE_PRIMITIVE,
+            raw: 0,
+            desc: "no motion primitive running",
+        }),
+        _ => None,
+    }
+}
+
+/// True if the limits of `param` apply in the robot state given by `value` (raw value
+/// of a parameter by ID, `None` if not known): the root mode (`MODE`) must be one of
+/// `limits_in` and the condition `limits_if`, if any, must hold. An unknown mode counts
+/// only for limits that hold in every mode; an unknown condition parameter means the
+/// limits do not apply (a conditional limit is never judged on a guess). False for a
+/// parameter without limits. Ground limit checks (collector alarms, page colours) and
+/// the on-board monitors call this before comparing a value with the limits.
+pub fn limits_apply(param: &ParamDef, value: impl Fn(u16) -> Option<i64>) -> bool {
+    if param.limits.is_none() {
+        return false;
+    }
+    let mode_ok = param.limits_in.0 == ModeSet::ALL.0
+        || value(pid::MODE)
+            .and_then(|m| u32::try_from(m).ok())
+            .is_some_and(|m| param.limits_in.contains(m));
+    mode_ok && param.limits_if.is_none_or(|c| value(c.param) == Some(c.raw))
+}
+
+/// The parameters whose values decide whether the limits of `param` apply (`MODE` if
+/// they hold in some modes only, the parameter of `limits_if`).
+pub fn limit_context(param: &ParamDef) -> impl Iterator<Item = u16> {
+    let mode = (param.limits.is_some() && param.limits_in.0 != ModeSet::ALL.0).then_some(pid::MODE);
+    let cond = param.limits.and(param.limits_if).map(|c| c.param);
+    mode.into_iter().chain(cond)
 }
 
 /// Ground-side limit checking (collector alarms, dashboard colouring): consecutive HK
@@ -210,12 +259,6 @@ pub const GROUND_LIMIT_HYSTERESIS_PERMILLE: u16 = 20;
 /// (`GROUND_LIMIT_HYSTERESIS_PERMILLE` of the soft band, never 0).
 pub fn limit_hysteresis(l: &crate::types::Limits) -> f64 {
     ((l.soft_hi - l.soft_lo).abs() * f64::from(GROUND_LIMIT_HYSTERESIS_PERMILLE) / 1000.0).max(f64::EPSILON)
-}
-
-/// [`limits_apply`] for a sample whose root mode is not known (no `MODE` value yet):
-/// only the limits that hold in every root mode apply.
-pub const fn limits_always_apply(param: &ParamDef) -> bool {
-    param.limits.is_some() && param.limits_in.0 == ModeSet::ALL.0
 }
 
 impl ParamDef {
@@ -262,22 +305,64 @@ mod tests {
             }
         }
     }
+    fn state(mode: Option<i64>, primitive: Option<i64>) -> impl Fn(u16) -> Option<i64> {
+        move |id| match id {
+            pid::MODE => mode,
+            pid::ACTIVE_PRIMITIVE => primitive,
+            _ => None,
+        }
+    }
+
     // verifies: MMIC-MODE-01
     #[test]
     fn regulator_voltage_limits_apply_only_while_the_modules_are_powered() {
         use crate::modes::robot_mode;
         let v_reg = by_id(pid::V_REG).unwrap();
-        assert!(!limits_apply(v_reg, robot_mode::STANDBY));
-        assert!(limits_apply(v_reg, robot_mode::OPERATIONAL));
-        assert!(limits_apply(v_reg, robot_mode::SAFED));
+        let m = |m: u32| state(Some(m as i64), Some(0));
+        assert!(!limits_apply(v_reg, m(robot_mode::STANDBY)));
+        assert!(limits_apply(v_reg, m(robot_mode::OPERATIONAL)));
+        assert!(limits_apply(v_reg, m(robot_mode::SAFED)));
         let v_bat = by_id(pid::V_BAT_A).unwrap();
-        for m in crate::modes::ROOT_MODES {
-            assert!(limits_apply(v_bat, m));
-            assert!(!limits_apply(by_id(pid::MODE).unwrap(), m), "MODE has no limits");
+        for mode in crate::modes::ROOT_MODES {
+            assert!(limits_apply(v_bat, m(mode)));
+            assert!(!limits_apply(by_id(pid::MODE).unwrap(), m(mode)), "MODE has no limits");
         }
-        assert!(!limits_apply(v_bat, 7), "no limits in a mode the MIB does not know");
-        assert!(limits_always_apply(v_bat) && !limits_always_apply(v_reg));
+        assert!(!limits_apply(v_reg, m(7)), "no limits in a mode the MIB does not know");
+        assert!(
+            limits_apply(v_bat, state(None, None)),
+            "V_BAT's limits hold in every mode"
+        );
+        assert!(!limits_apply(v_reg, state(None, None)), "V_REG's need the mode");
+        assert_eq!(limit_context(v_reg).collect::<Vec<_>>(), [pid::MODE]);
+        assert_eq!(limit_context(v_bat).count(), 0);
     }
+
+    // verifies: ALM-COND-01
+    #[test]
+    fn hip_deviation_limits_apply_only_while_no_primitive_runs() {
+        let hip = by_id(pid::HIP_DEVIATION).unwrap();
+        assert!(limits_apply(hip, state(Some(1), Some(0))));
+        assert!(!limits_apply(hip, state(Some(1), Some(3))), "turning: not an anomaly");
+        assert!(!limits_apply(hip, state(Some(1), None)), "unknown state: not judged");
+        assert_eq!(limit_context(hip).collect::<Vec<_>>(), [pid::ACTIVE_PRIMITIVE]);
+    }
+
+    // verifies: ALM-COND-01
+    #[test]
+    fn every_hk_structure_carrying_a_limited_parameter_carries_its_context() {
+        for h in crate::hk::HK_STRUCTS {
+            for p in h.params.iter().filter_map(|id| by_id(*id)) {
+                for c in limit_context(p) {
+                    assert!(h.params.contains(&c), "SID {} has {} without {}", h.sid, p.name, c);
+                }
+                if let Some(c) = p.limits_if {
+                    let cp = by_id(c.param).unwrap();
+                    assert!(c.raw >= cp.ptype.min() && c.raw <= cp.ptype.max(), "{}", p.name);
+                }
+            }
+        }
+    }
+
     // verifies: MMIC-AV-01
     #[test]
     fn battery_calibration_maps_empty_to_about_ten_volts() {

@@ -7,7 +7,7 @@
 use mib::events::EVENTS;
 use mib::export::{self, Format, ScosNames};
 use mib::hk::HK_STRUCTS;
-use mib::params::PARAMS;
+use mib::params::{ParamDef, PARAMS};
 use mib::tc::{TCS, TMS};
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -64,6 +64,22 @@ fn values(t: &BTreeMap<&str, Rows>, table: &str, column: &str) -> Vec<String> {
 
 fn set(v: Vec<String>) -> BTreeSet<String> {
     v.into_iter().filter(|s| !s.is_empty()).collect()
+}
+
+/// The states in which the limits of `p` apply, from the MIB's fields (not from the
+/// exporters' helper): (relevance parameter named by `name`, raw value), one per root
+/// mode of `limits_in` or the condition of `limits_if`; ("", "") when always.
+fn want_states(p: &ParamDef, name: impl Fn(u16) -> String) -> Vec<(String, String)> {
+    match (p.limits_in == mib::modes::ModeSet::ALL, p.limits_if) {
+        (true, None) => vec![(String::new(), String::new())],
+        (true, Some(c)) => vec![(name(c.param), c.raw.to_string())],
+        (false, None) => p
+            .limits_in
+            .modes()
+            .map(|m| (name(mib::params::pid::MODE), m.to_string()))
+            .collect(),
+        (false, Some(_)) => panic!("{}: mode and condition together do not fit SCOS-2000", p.name),
+    }
 }
 
 // verifies: ICD-02
@@ -142,7 +158,7 @@ fn scos_names_and_texts_fit_their_columns() {
     }
 }
 
-// verifies: ICD-02
+// verifies: ICD-02, ALM-COND-01, ALM-PERSIST-01
 #[test]
 fn scos_references_between_tables_resolve() {
     let t = tables();
@@ -182,25 +198,25 @@ fn scos_references_between_tables_resolve() {
         let n: usize = r[col("ocf", "OCF_NBOOL")].parse().unwrap();
         assert_eq!(ocp_names.iter().filter(|x| **x == r[0]).count(), n);
     }
-    // A limit that holds only in some root modes is relevant per mode (OCP_RLCHK on the
-    // MODE parameter, OCP_VALPAR its raw value); every other limit always.
-    let mode_pcf = mib::export::ScosNames::tm_param(mib::params::pid::MODE);
+    // A limit that holds only in some robot states is relevant per state (OCP_RLCHK on
+    // the MODE parameter or on the parameter of the MIB's condition, OCP_VALPAR its raw
+    // value); every other limit always. Every check waits for the MIB's persistence.
     for p in PARAMS.iter().filter(|p| p.limits.is_some()) {
         let n = mib::export::ScosNames::tm_param(p.id);
+        let ocf = t["ocf.dat"].iter().find(|r| r[0] == n).unwrap();
+        assert_eq!(
+            ocf[col("ocf", "OCF_NBCHCK")],
+            mib::params::GROUND_LIMIT_PERSISTENCE.to_string(),
+            "{}",
+            p.name
+        );
         let rows: Vec<&Vec<String>> = t["ocp.dat"].iter().filter(|r| r[0] == n).collect();
-        let mut modes: Vec<String> = rows.iter().map(|r| r[col("ocp", "OCP_VALPAR")].clone()).collect();
-        modes.dedup();
-        if p.limits_in == mib::modes::ModeSet::ALL {
-            assert!(rows.iter().all(|r| r[col("ocp", "OCP_RLCHK")].is_empty()), "{}", p.name);
-        } else {
-            assert!(
-                rows.iter().all(|r| r[col("ocp", "OCP_RLCHK")] == mode_pcf),
-                "{}",
-                p.name
-            );
-            let want: Vec<String> = p.limits_in.modes().map(|m| m.to_string()).collect();
-            assert_eq!(modes, want, "{}", p.name);
-        }
+        let mut got: Vec<(String, String)> = rows
+            .iter()
+            .map(|r| (r[col("ocp", "OCP_RLCHK")].clone(), r[col("ocp", "OCP_VALPAR")].clone()))
+            .collect();
+        got.dedup();
+        assert_eq!(got, want_states(p, mib::export::ScosNames::tm_param), "{}", p.name);
     }
     // A hazardous TC is critical.
     for tc in TCS {
@@ -348,7 +364,7 @@ fn xtce_doc() -> String {
     export::xtce_document()
 }
 
-// verifies: ICD-03
+// verifies: ICD-03, ALM-COND-01, ALM-PERSIST-01
 #[test]
 fn xtce_is_xml_in_the_xtce_1_2_namespace_and_references_resolve() {
     let text = xtce_doc();
@@ -468,27 +484,47 @@ fn xtce_is_xml_in_the_xtce_1_2_namespace_and_references_resolve() {
         .collect();
     assert_eq!(crit.get("TM_SERVICE"), Some(&"3"));
     assert_eq!(crit.get("TM_SUBSERVICE"), Some(&"25"));
-    // Limits that hold only in some root modes: context alarms on MODE, no default alarm.
+    // Limits that hold only in some robot states: context alarms matching MODE and the
+    // MIB's condition parameter, no default alarm; every alarm waits for the persistence.
+    let persistence = mib::params::GROUND_LIMIT_PERSISTENCE.to_string();
     for p in PARAMS.iter().filter(|p| p.limits.is_some()) {
         let ty = doc
             .descendants()
             .find(|n| n.attribute("name") == Some(&format!("{}_Type", p.name)))
             .unwrap();
-        let has_default = ty.children().any(|n| n.tag_name().name() == "DefaultAlarm");
-        let contexts: Vec<u32> = ty
+        let default = ty.children().find(|n| n.tag_name().name() == "DefaultAlarm");
+        let alarms: Vec<_> = ty
+            .descendants()
+            .filter(|n| ["DefaultAlarm", "ContextAlarm"].contains(&n.tag_name().name()))
+            .collect();
+        assert!(!alarms.is_empty(), "{}", p.name);
+        for a in &alarms {
+            assert_eq!(a.attribute("minViolations"), Some(persistence.as_str()), "{}", p.name);
+        }
+        let contexts: Vec<(String, String)> = ty
             .descendants()
             .filter(|n| n.tag_name().name() == "ContextAlarm")
             .map(|c| {
-                let cmp = c.descendants().find(|n| n.tag_name().name() == "Comparison").unwrap();
-                assert_eq!(cmp.attribute("parameterRef"), Some("MODE"));
-                cmp.attribute("value").unwrap().parse().unwrap()
+                let cmps: Vec<_> = c
+                    .descendants()
+                    .filter(|n| n.tag_name().name() == "Comparison")
+                    .collect();
+                assert_eq!(cmps.len(), 1, "{}", p.name);
+                let cmp = cmps[0];
+                assert_eq!(cmp.attribute("useCalibratedValue"), Some("false"));
+                assert_eq!(cmp.attribute("comparisonOperator"), Some("=="));
+                (
+                    cmp.attribute("parameterRef").unwrap().to_string(),
+                    cmp.attribute("value").unwrap().to_string(),
+                )
             })
             .collect();
-        if p.limits_in == mib::modes::ModeSet::ALL {
-            assert!(has_default && contexts.is_empty(), "{}", p.name);
+        let want = want_states(p, |id| mib::params::by_id(id).unwrap().name.to_string());
+        if want == [(String::new(), String::new())] {
+            assert!(default.is_some() && contexts.is_empty(), "{}", p.name);
         } else {
-            assert!(!has_default, "{}", p.name);
-            assert_eq!(contexts, p.limits_in.modes().collect::<Vec<_>>(), "{}", p.name);
+            assert!(default.is_none(), "{}", p.name);
+            assert_eq!(contexts, want, "{}", p.name);
         }
     }
     for e in EVENTS {
@@ -555,7 +591,7 @@ fn xtce_is_xml_in_the_xtce_1_2_namespace_and_references_resolve() {
     }
 }
 
-// verifies: ICD-04
+// verifies: ICD-04, ALM-COND-01
 #[test]
 fn json_round_trips_against_the_tables() {
     let text = export::json_document();
@@ -606,6 +642,16 @@ fn json_round_trips_against_the_tables() {
         .find(|p| p["name"] == "V_REG")
         .unwrap();
     assert_eq!(v_reg["limits_in"], "operational, safed");
+    assert_eq!(v_reg["limits_if"], serde_json::Value::Null);
+    let hip = v["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["name"] == "HIP_DEVIATION")
+        .unwrap();
+    assert_eq!(hip["limits_if"]["param_name"], "ACTIVE_PRIMITIVE");
+    assert_eq!(hip["limits_if"]["raw"], 0);
+    assert_eq!(hip["limit_persistence"], mib::params::GROUND_LIMIT_PERSISTENCE);
     assert_eq!(v["telemetry"].as_array().unwrap().len(), TMS.len());
     assert_eq!(ids("states", "id").len(), mib::robot::NUM_STATES);
     assert_eq!(ids("primitives", "id").len(), mib::robot::NUM_PRIMITIVES);

@@ -707,7 +707,7 @@ fn flatten(tm: &str, body: &Value, out: &mut Vec<(String, Value)>) {
 /// Chooses a field's raw value by the field's name.
 type Pick = Box<dyn Fn(&str) -> i64>;
 
-// verifies: ICD-03
+// verifies: ICD-03, ALM-XTCE-01
 #[test]
 fn space_packet_parser_decodes_every_report_kind_like_ground_decode_json() {
     let root = repo_root();
@@ -773,6 +773,13 @@ fn space_packet_parser_decodes_every_report_kind_like_ground_decode_json() {
         (6, mib::FailureCode::BOLT_FAILED),
         (8, mib::FailureCode::MODE_CHANGE_FAILED),
         (8, mib::FailureCode::INITIAL_STATE_MISMATCH),
+        // Issue 23 item 10: failure data carrying a value the MIB does not define (a
+        // ground-sent function or SID that does not exist) must decode too.
+        (2, mib::FailureCode::UNKNOWN_FUNCTION),
+        (4, mib::FailureCode::UNKNOWN_SID),
+        (4, mib::FailureCode::UNKNOWN_EVENT),
+        (4, mib::FailureCode::UNKNOWN_MONITOR),
+        (4, mib::FailureCode::INVALID_MODE),
     ] {
         kinds.push((
             1,
@@ -791,6 +798,11 @@ fn space_packet_parser_decodes_every_report_kind_like_ground_decode_json() {
                 "believed" => 0,
                 "computed" => 4,
                 "event" => mib::events::eid::LOW_BATTERY as i64,
+                "function" => 65_535,
+                "sid" => 99,
+                "event_id" => 4_321,
+                "monitor_id" => 250,
+                "mode" if code == mib::FailureCode::INVALID_MODE => 77,
                 other => common(other),
             }),
         ));

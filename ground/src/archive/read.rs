@@ -21,6 +21,10 @@ pub struct Store {
 pub struct Column {
     /// Start of the column's time slot (ms).
     pub t_ms: i64,
+    /// Times of the column's first and last sample (ms): a plot tells a hole in the data
+    /// from a slot that is merely empty.
+    pub t_first_ms: i64,
+    pub t_last_ms: i64,
     pub min: f64,
     pub max: f64,
     pub first: f64,
@@ -624,6 +628,7 @@ pub fn decimate_samples(s: &[(i64, i64)], eng: impl Fn(i64) -> f64, t0: i64, t1:
                 acc.min = acc.min.min(e);
                 acc.max = acc.max.max(e);
                 acc.last = e;
+                acc.t_last_ms = t;
                 acc.n += 1;
             }
             _ => {
@@ -635,6 +640,8 @@ pub fn decimate_samples(s: &[(i64, i64)], eng: impl Fn(i64) -> f64, t0: i64, t1:
                     col,
                     Column {
                         t_ms: start as i64,
+                        t_first_ms: t,
+                        t_last_ms: t,
                         min: e,
                         max: e,
                         first: e,

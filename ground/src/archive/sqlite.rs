@@ -32,15 +32,32 @@ impl rusqlite::ToSql for Val {
     }
 }
 
+/// How long a statement waits for another connection's lock.
+const BUSY_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(10);
+
 impl Sqlite {
     pub fn open(path: &Path) -> DbResult<Sqlite> {
         let conn = Connection::open(path).map_err(err)?;
-        conn.busy_timeout(std::time::Duration::from_secs(10)).map_err(err)?;
+        conn.busy_timeout(BUSY_TIMEOUT).map_err(err)?;
         // 16 KiB pages: a parameter chunk (up to ~2 KB) then fits in its B-tree page
         // instead of spilling into a mostly empty overflow page (2.9x -> under 2x the raw
         // bytes). Only takes effect when the file is created (before WAL mode).
         conn.pragma_update(None, "page_size", 16384).map_err(err)?;
-        conn.pragma_update(None, "journal_mode", "WAL").map_err(err)?;
+        // Switching a new file to WAL needs it alone for a moment, and SQLite answers
+        // "database is locked" at once, without its busy handler, when another process
+        // opens the same new file then (a collector starting while `collect --status`
+        // runs). Retried for as long as the busy timeout.
+        let t0 = std::time::Instant::now();
+        loop {
+            match conn.pragma_update(None, "journal_mode", "WAL") {
+                Err(rusqlite::Error::SqliteFailure(e, _))
+                    if e.code == rusqlite::ErrorCode::DatabaseBusy && t0.elapsed() < BUSY_TIMEOUT =>
+                {
+                    std::thread::sleep(std::time::Duration::from_millis(10));
+                }
+                r => break r.map_err(err)?,
+            }
+        }
         conn.pragma_update(None, "synchronous", "NORMAL").map_err(err)?;
         // 32 MiB of page cache (the default is 2 MiB): a collector appends to every
         // robot's part of the packet and chunk trees at once, and with a small cache each

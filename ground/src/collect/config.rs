@@ -178,6 +178,22 @@ pub fn parse_duration_ms(s: &str) -> Option<i64> {
     n.checked_mul(mul).filter(|v| *v > 0)
 }
 
+/// A duration in the largest unit of [`parse_duration_ms`] that holds it exactly
+/// ("3m", "30d", "500ms"): how the collector shows a retention period.
+pub fn format_duration_ms(ms: i64) -> String {
+    const UNITS: [(&str, i64); 5] = [
+        ("w", 7 * 86_400_000),
+        ("d", 86_400_000),
+        ("h", 3_600_000),
+        ("m", 60_000),
+        ("s", 1_000),
+    ];
+    match UNITS.iter().find(|(_, u)| ms != 0 && ms % u == 0) {
+        Some((name, u)) => format!("{}{name}", ms / u),
+        None => format!("{ms}ms"),
+    }
+}
+
 fn transport_of(s: &str) -> Option<Transport> {
     match s.to_ascii_lowercase().as_str() {
         "udp" => Some(Transport::Udp),
@@ -207,22 +223,97 @@ impl Cx<'_> {
     }
 }
 
+/// Deserializes `src`, recording every error in `cx`: after an error (an unknown key,
+/// a value of the wrong type, a missing field) the entry it points at is left out and
+/// the rest is read again, so one error does not hide the others. `None` if the text is
+/// not TOML or an error points at nothing that can be left out.
+fn read_all(src: &str, cx: &mut Cx<'_>) -> Option<FileCfg> {
+    let (mut doc, errors) = toml::de::DeTable::parse_recoverable(src);
+    if !errors.is_empty() {
+        for e in errors {
+            cx.err(e.span().unwrap_or(0..0), e.message().to_string());
+        }
+        return None;
+    }
+    loop {
+        match FileCfg::deserialize(toml::de::Deserializer::from(doc.clone())) {
+            Ok(f) => return Some(f),
+            Err(e) => {
+                let span = e.span().unwrap_or(0..0);
+                cx.err(span.clone(), e.message().to_string());
+                if !leave_out(doc.get_mut(), span.start) {
+                    return None;
+                }
+            }
+        }
+    }
+}
+
+/// Removes from `t` the innermost entry (key and value, or array element) whose text
+/// holds byte offset `at`; false if there is none. Every sub-table is searched: the
+/// span of a `[table]` value need not cover its keys.
+fn leave_out(t: &mut toml::de::DeTable<'_>, at: usize) -> bool {
+    use toml::de::DeValue;
+    let holds = |span: Range<usize>| span.contains(&at);
+    let mut hit = None;
+    for (k, v) in t.iter_mut() {
+        let inner = match v.get_mut() {
+            DeValue::Table(sub) => leave_out(sub, at),
+            DeValue::Array(items) => {
+                let mut found = false;
+                let mut drop = None;
+                for (i, item) in items.iter_mut().enumerate() {
+                    let span = item.span();
+                    if let DeValue::Table(sub) = item.get_mut() {
+                        if leave_out(sub, at) {
+                            found = true;
+                            break;
+                        }
+                    }
+                    if holds(span) {
+                        drop = Some(i);
+                        break;
+                    }
+                }
+                if let Some(i) = drop {
+                    let mut kept = toml::de::DeArray::new();
+                    for (j, item) in items.iter().enumerate() {
+                        if j != i {
+                            kept.push(item.clone());
+                        }
+                    }
+                    *items = kept;
+                    found = true;
+                }
+                found
+            }
+            _ => false,
+        };
+        if inner {
+            return true;
+        }
+        if holds(k.span()) || holds(v.span()) {
+            hit = Some(k.clone());
+            break;
+        }
+    }
+    match hit {
+        Some(k) => t.remove(&k).is_some(),
+        None => false,
+    }
+}
+
 /// Reads a configuration text; `file` names it in errors.
 pub fn parse(file: &str, src: &str) -> Result<Config, CfgErrors> {
     let mut cx = Cx {
         src,
         errors: Vec::new(),
     };
-    let f: FileCfg = match toml::from_str(src) {
-        Ok(f) => f,
-        Err(e) => {
-            let span = e.span().unwrap_or(0..0);
-            cx.err(span, e.message().to_string());
-            return Err(CfgErrors {
-                file: file.into(),
-                errors: cx.errors,
-            });
-        }
+    let Some(f) = read_all(src, &mut cx) else {
+        return Err(CfgErrors {
+            file: file.into(),
+            errors: cx.errors,
+        });
     };
     let mut c = Config::default();
     let default_transport = match &f.transport {
@@ -478,6 +569,41 @@ transport = "tcp"
         assert!(text.contains("c.toml:5:10: robot number 300"), "{text}");
         assert!(text.contains("c.toml:8:13: transport"), "{text}");
         assert_eq!(e.errors.len(), 4);
+    }
+
+    // verifies: ALM-CFG-01, GND-11
+    #[test]
+    fn an_unknown_key_or_a_wrong_type_does_not_hide_the_other_errors() {
+        // Issue 26: one unknown key used to be the only error shown of seven.
+        let src = "retain = \"30 days\"\nretian = \"1d\"\n[link]\nmax_backoff_ms = 9000\nloss_timeout_ms = \"x\"\n\
+                   [alarms]\nlimit = true\n[[robot]]\nnumber = 300\n[[robot]]\nnumber = 1\ntransport = \"x\"\naddres = \"y\"\n\
+                   [[robot]]\nname = \"no number\"\n";
+        let e = parse("c.toml", src).unwrap_err();
+        let text = e.to_string();
+        for want in [
+            "c.toml:1:10: retain",
+            "c.toml:2:1: unknown field `retian`",
+            "c.toml:4:18: max_backoff_ms",
+            "c.toml:5:19: invalid type",
+            "c.toml:7:1: unknown field `limit`",
+            "c.toml:9:10: robot number 300",
+            "c.toml:12:13: transport",
+            "c.toml:13:1: unknown field `addres`",
+            "missing field `number`",
+        ] {
+            assert!(text.contains(want), "{want:?} not in:\n{text}");
+        }
+        assert_eq!(e.errors.len(), 9, "{text}");
+    }
+
+    // verifies: ALM-MSG-01
+    #[test]
+    fn durations_are_shown_in_the_largest_exact_unit() {
+        for s in ["3m", "30d", "12h", "45s", "500ms", "2w", "90m"] {
+            assert_eq!(format_duration_ms(parse_duration_ms(s).unwrap()), s);
+        }
+        assert_eq!(format_duration_ms(parse_duration_ms("36h").unwrap()), "36h");
+        assert_eq!(format_duration_ms(parse_duration_ms("7d").unwrap()), "1w");
     }
 
     // verifies: GND-11

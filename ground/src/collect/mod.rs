@@ -148,7 +148,7 @@ pub fn collect_cli(archive: &Path, a: CollectArgs) -> Result<u8> {
                     "{}: ok ({} robots, retain {})",
                     f.display(),
                     c.robots.len(),
-                    c.retain_ms.map_or("forever".into(), |ms| format!("{} s", ms / 1000))
+                    c.retain_ms.map_or("forever".into(), config::format_duration_ms)
                 ))?;
                 Ok(0)
             }

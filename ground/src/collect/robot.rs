@@ -653,9 +653,8 @@ impl Worker {
                     self.last_hk_ms = Some(now);
                 }
                 if live && self.global.limits && tm.apid == self.apid {
-                    let mode = h.raw(mib::params::pid::MODE);
                     for v in &h.values {
-                        if let Some(ch) = self.limits.check(v.id, v.eng, mode) {
+                        if let Some(ch) = self.limits.check(v.id, v.eng, |id| h.raw(id)) {
                             let src = Source::Param(ch.param.to_string());
                             let msg = format!(
                                 "{} = {:.3} {} ({} limit {:.3})",

@@ -423,7 +423,10 @@ impl Sink {
             Ok(n) => {
                 self.stats.pruned_rows += n;
                 if n > 0 {
-                    tracing::info!("retention: deleted {n} rows older than {} days", keep / 86_400_000);
+                    tracing::info!(
+                        "retention: deleted {n} rows older than {}",
+                        super::config::format_duration_ms(keep)
+                    );
                 }
             }
             Err(e) => tracing::warn!("retention: {e}"),

@@ -249,19 +249,24 @@ impl Hub {
         let mut out = Vec::with_capacity(values.len());
         let mut unknown = 0;
         let mut non_finite = 0;
-        // The root mode that decides which limits apply: this report's, else the last.
-        let mode_of = |v: f64| (v.is_finite() && v >= 0.0).then_some(v as u32);
-        let mode = match values.iter().find(|(n, _)| *n == "MODE") {
-            Some(&(_, v)) => mode_of(v),
-            None => Self::robot(&mut st, robot)
-                .hk
-                .get("MODE")
-                .and_then(|c| mode_of(c.value)),
+        // The robot state that decides which limits apply (root mode, a condition such
+        // as "no primitive running"): this report's values, else the last known ones.
+        let known: HashMap<u16, i64> = {
+            let last = &Self::robot(&mut st, robot).hk;
+            let raw = |name: &str, v: f64| {
+                let p = mib::params::by_name(name)?;
+                v.is_finite().then(|| (p.id, p.calib.raw(v)))
+            };
+            last.iter()
+                .filter_map(|(n, c)| raw(n, c.value))
+                .chain(values.iter().filter_map(|&(n, v)| raw(n, v)))
+                .collect()
         };
+        let ctx = |id: u16| known.get(&id).copied();
         for &(name, value) in values {
             let def = mib::params::by_name(name);
             let (unit, limit) = match def {
-                Some(p) => (p.unit, LimitState::of(p, value, mode)),
+                Some(p) => (p.unit, LimitState::of(p, value, ctx)),
                 None => {
                     unknown += 1;
                     ("", LimitState::None)

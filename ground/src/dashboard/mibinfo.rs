@@ -77,6 +77,19 @@ pub fn parse_args(def: &TcDef, args: &Map<String, Value>) -> Result<Vec<i64>, St
 }
 
 /// The MIB as the page uses it.
+/// When the limits of `p` apply, in words ("" when always): the MIB's root modes and
+/// condition (`limits_in`, `limits_if`), as the page shows beside the limits.
+fn applies(p: &mib::params::ParamDef) -> String {
+    let mut w = Vec::new();
+    if p.limits_in != mib::modes::ModeSet::ALL {
+        w.push(format!("in {}", p.limits_in.names()));
+    }
+    if let Some(c) = p.limits_if {
+        w.push(format!("if {}", c.desc));
+    }
+    w.join(", ")
+}
+
 pub fn page_mib() -> Value {
     let tcs: Vec<Value> = mib::tc::TCS
         .iter()
@@ -104,7 +117,7 @@ pub fn page_mib() -> Value {
             json!({"id": p.id, "name": p.name, "unit": p.unit, "desc": p.desc, "hk": hk,
                 "scale": p.calib.scale, "offset": p.calib.offset,
                 "limits": p.limits.map(|l| json!({"soft_lo": l.soft_lo, "soft_hi": l.soft_hi,
-                    "hard_lo": l.hard_lo, "hard_hi": l.hard_hi}))})
+                    "hard_lo": l.hard_lo, "hard_hi": l.hard_hi, "applies": applies(p)}))})
         })
         .collect();
     let events: Vec<Value> = mib::events::EVENTS
@@ -219,5 +232,23 @@ mod tests {
         let m = page_mib();
         assert_eq!(m["tcs"].as_array().map(Vec::len), Some(mib::tc::TCS.len()));
         assert_eq!(m["params"].as_array().map(Vec::len), Some(mib::params::PARAMS.len()));
+    }
+
+    // verifies: ALM-COND-01
+    #[test]
+    fn the_page_mib_says_when_limits_apply() {
+        let m = page_mib();
+        let lim = |name: &str| {
+            m["params"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|p| p["name"] == name)
+                .unwrap()["limits"]["applies"]
+                .clone()
+        };
+        assert_eq!(lim("HIP_DEVIATION"), "if no motion primitive running");
+        assert_eq!(lim("V_REG"), "in operational, safed");
+        assert_eq!(lim("V_BAT_A"), "");
     }
 }

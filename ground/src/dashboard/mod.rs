@@ -85,20 +85,18 @@ pub enum LimitState {
     Soft,
     /// Outside the hard limits.
     Hard,
-    /// The parameter has limits, but not in the robot's current root mode (the MIB's
-    /// `limits_in`: e.g. V_REG only in OPERATIONAL and SAFED).
+    /// The parameter has limits, but they do not apply in the robot's current state (the
+    /// MIB's `limits_in` and `limits_if`: e.g. V_REG only in OPERATIONAL and SAFED, the
+    /// hip deviation only while no primitive runs).
     Off,
 }
 
 impl LimitState {
-    /// The state of `value` of parameter `p` while the robot is in root mode `mode`
-    /// (`None`: not known yet, so only limits that hold in every mode apply) — the same
-    /// applicability rule as the collector's alarms.
-    pub fn of(p: &mib::params::ParamDef, value: f64, mode: Option<u32>) -> LimitState {
-        let applies = match mode {
-            Some(m) => mib::params::limits_apply(p, m),
-            None => mib::params::limits_always_apply(p),
-        };
+    /// The state of `value` of parameter `p` in the robot state `ctx` (raw values by
+    /// parameter ID, `None` when not known) — the same applicability rule as the
+    /// collector's alarms and the on-board monitors (`mib::params::limits_apply`).
+    pub fn of(p: &mib::params::ParamDef, value: f64, ctx: impl Fn(u16) -> Option<i64>) -> LimitState {
+        let applies = mib::params::limits_apply(p, ctx);
         match p.limits.as_ref() {
             Some(_) if !applies => LimitState::Off,
             l => Self::check(l, value),
@@ -349,7 +347,8 @@ pub trait Commander: Send + Sync + 'static {
     /// already range-checked against the MIB) to `robot`. Returns the request ID the
     /// hub's command history uses for it.
     fn send_tc(&self, robot: u8, name: &str, args: &[i64]) -> Result<String, CommandError>;
-    /// Acknowledges an alarm.
+    /// Acknowledges an alarm. A refusal names the alarm itself (the page shows it as
+    /// is, without a prefix of its own).
     fn ack_alarm(&self, id: u64) -> Result<(), CommandError>;
     /// Shelves an alarm for `for_ms`.
     fn shelve_alarm(&self, id: u64, for_ms: i64) -> Result<(), CommandError>;
@@ -502,7 +501,7 @@ mod tests {
         assert!(decimate(&s, 0, 100, 0).0.is_empty());
     }
 
-    // verifies: GND-16, GND-13
+    // verifies: GND-16, GND-13, ALM-COND-01
     #[test]
     fn limit_state_follows_the_mib_bands() {
         let p = mib::params::by_name("V_BAT_A").unwrap();
@@ -514,15 +513,30 @@ mod tests {
         // V_REG's limits hold in OPERATIONAL and SAFED only: off in STANDBY, unknown mode.
         let v_reg = mib::params::by_name("V_REG").unwrap();
         use mib::modes::robot_mode;
-        assert_eq!(LimitState::of(v_reg, 0.0, Some(robot_mode::STANDBY)), LimitState::Off);
-        assert_eq!(LimitState::of(v_reg, 0.0, None), LimitState::Off);
+        use mib::params::pid;
+        let state = |mode: Option<u32>, prim: i64| {
+            move |id| match id {
+                pid::MODE => mode.map(i64::from),
+                pid::ACTIVE_PRIMITIVE => Some(prim),
+                _ => None,
+            }
+        };
         assert_eq!(
-            LimitState::of(v_reg, 0.0, Some(robot_mode::OPERATIONAL)),
+            LimitState::of(v_reg, 0.0, state(Some(robot_mode::STANDBY), 0)),
+            LimitState::Off
+        );
+        assert_eq!(LimitState::of(v_reg, 0.0, state(None, 0)), LimitState::Off);
+        assert_eq!(
+            LimitState::of(v_reg, 0.0, state(Some(robot_mode::OPERATIONAL), 0)),
             LimitState::Hard
         );
-        assert_eq!(LimitState::of(p, 9.5, None), LimitState::Hard);
+        assert_eq!(LimitState::of(p, 9.5, state(None, 0)), LimitState::Hard);
         let mode = mib::params::by_name("MODE").unwrap();
-        assert_eq!(LimitState::of(mode, 1.0, Some(1)), LimitState::None);
+        assert_eq!(LimitState::of(mode, 1.0, state(Some(1), 0)), LimitState::None);
+        // The hip deviation is off while a primitive turns the hip (issue 26).
+        let hip = mib::params::by_name("HIP_DEVIATION").unwrap();
+        assert_eq!(LimitState::of(hip, -55.0, state(Some(1), 4)), LimitState::Off);
+        assert_eq!(LimitState::of(hip, -55.0, state(Some(1), 0)), LimitState::Hard);
     }
 
     // verifies: GND-16, MMIC-MOT-01

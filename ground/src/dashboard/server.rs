@@ -461,7 +461,7 @@ async fn ack_alarm(State(app): State<App>, Path(id): Path<u64>) -> Response {
     let c = app.commander.clone();
     match tokio::task::spawn_blocking(move || c.ack_alarm(id)).await {
         Ok(Ok(())) => Json(json!({"ok": true})).into_response(),
-        Ok(Err(e)) => error(StatusCode::BAD_REQUEST, format!("alarm {id}: {e}")),
+        Ok(Err(e)) => error(StatusCode::BAD_REQUEST, e.to_string()),
         Err(e) => error(StatusCode::INTERNAL_SERVER_ERROR, format!("commander failed: {e}")),
     }
 }
@@ -479,7 +479,7 @@ async fn shelve_alarm(State(app): State<App>, Path(id): Path<u64>, Json(s): Json
     let for_ms = (s.minutes * 60_000.0) as i64;
     match tokio::task::spawn_blocking(move || c.shelve_alarm(id, for_ms)).await {
         Ok(Ok(())) => Json(json!({"ok": true})).into_response(),
-        Ok(Err(e)) => error(StatusCode::BAD_REQUEST, format!("alarm {id}: {e}")),
+        Ok(Err(e)) => error(StatusCode::BAD_REQUEST, e.to_string()),
         Err(e) => error(StatusCode::INTERNAL_SERVER_ERROR, format!("commander failed: {e}")),
     }
 }

@@ -364,7 +364,7 @@ function renderHk() {
         const row = el('tr', { 'data-param': name },
           el('td', {}, el('a', { href: '#', onclick: (e) => { e.preventDefault(); plotParam(n, name); } }, name)),
           v, el('td', {}, p.unit || ''),
-          el('td', { class: 'hint' }, l ? `${l.soft_lo} … ${l.soft_hi} / ${l.hard_lo} … ${l.hard_hi}` : ''),
+          el('td', { class: 'hint' }, l ? `${l.soft_lo} … ${l.soft_hi} / ${l.hard_lo} … ${l.hard_hi}${l.applies ? ' (' + l.applies + ')' : ''}` : ''),
           el('td', { class: 'hint' }, p.desc || ''));
         hkRows.rows.set(name, { row, v });
         tbody.append(row);

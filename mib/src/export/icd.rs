@@ -114,6 +114,23 @@ fn arg_desc(a: &tc::ArgDef) -> String {
     }
 }
 
+/// When the limits of `p` apply: root modes, then the MIB's condition.
+fn applies_text(p: &crate::params::ParamDef) -> String {
+    if p.limits.is_none() {
+        return "—".into();
+    }
+    match p.limits_if {
+        Some(c) => format!(
+            "{} if `{} = {}` ({})",
+            p.limits_in.names(),
+            params::by_id(c.param).map_or("?", |q| q.name),
+            c.raw,
+            c.desc
+        ),
+        None => p.limits_in.names().into(),
+    }
+}
+
 fn param_row(o: &mut String, p: &ParamDef) {
     let (s, h) = match p.limits {
         Some(l) => (
@@ -132,7 +149,7 @@ fn param_row(o: &mut String, p: &ParamDef) {
         calib_text(&p.calib),
         s,
         h,
-        if p.limits.is_some() { p.limits_in.names() } else { "—" },
+        applies_text(p),
         ScosNames::tm_param(p.id),
         c(p.desc)
     );
@@ -414,7 +431,7 @@ pub fn icd_markdown() -> String {
     let _ = writeln!(o, "## 6. Parameters\n");
     let _ = writeln!(
         o,
-        "Engineering value = raw × scale + offset. Limits are in engineering units: outside the soft range\nthe ground warns, outside the hard range it alarms, in the root modes where the limits apply (the\nregulated servo voltage is 0 V in standby, where the regulator is off; SCOS-2000 makes such a check\nrelevant through `OCP_RLCHK`/`OCP_VALPAR` on the mode, XTCE through context alarms on `MODE`); the\non-board monitors (section 13) use their own raw limits.\n"
+        "Engineering value = raw × scale + offset. Limits are in engineering units: outside the soft range\nthe ground warns, outside the hard range it alarms, in the root modes where the limits apply (the\nregulated servo voltage is 0 V in standby, where the regulator is off; SCOS-2000 makes such a check\nrelevant through `OCP_RLCHK`/`OCP_VALPAR` on the mode, XTCE through context alarms on `MODE`), and\nonly while the condition given after \"if\" holds (the hip deviation while no motion primitive runs:\na turning hip is away from the angle of the last state; context on `ACTIVE_PRIMITIVE`). The on-board\nmonitors (section 13) use their own raw limits and are skipped in the same states.\n"
     );
     let _ = writeln!(
         o,

@@ -26,6 +26,29 @@ pub use json::json_document;
 pub use scos::{scos_columns, scos_tables, scos_tables_for, ScosNames};
 pub use xtce::{xtce_document, xtce_document_for};
 
+/// The robot states in which the limits of `p` apply (`limits_in`, `limits_if`), as
+/// lists of (parameter ID, raw value) that must all match: one per root mode of
+/// `limits_in` (without `MODE` if the limits hold in every mode), each with the
+/// condition of `limits_if`. Empty when the limits always apply. XTCE turns each list
+/// into a context alarm, SCOS-2000 into checks made relevant by `OCP_RLCHK`/`OCP_VALPAR`.
+pub fn limit_contexts(p: &crate::params::ParamDef) -> Vec<Vec<(u16, i64)>> {
+    let cond: Vec<(u16, i64)> = p.limits_if.iter().map(|c| (c.param, c.raw)).collect();
+    if p.limits.is_none() {
+        return Vec::new();
+    }
+    if p.limits_in == crate::modes::ModeSet::ALL {
+        return if cond.is_empty() { Vec::new() } else { vec![cond] };
+    }
+    p.limits_in
+        .modes()
+        .map(|m| {
+            let mut v = vec![(crate::params::pid::MODE, i64::from(m))];
+            v.extend(cond.iter().copied());
+            v
+        })
+        .collect()
+}
+
 /// Export format of `ground mib export --format`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Format {
@@ -137,5 +160,26 @@ mod tests {
         assert_eq!(num(0.01), "0.01");
         assert_eq!(num(-3.0), "-3");
         assert_eq!(trunc("abcdef", 3), "abc");
+    }
+}
+
+#[cfg(test)]
+mod limit_context_tests {
+    use super::*;
+    use crate::params::{by_id, pid, PARAMS};
+
+    // verifies: ALM-COND-01
+    #[test]
+    fn limit_states_fit_one_relevance_parameter_and_name_the_condition() {
+        for p in PARAMS {
+            for c in limit_contexts(p) {
+                assert_eq!(c.len(), 1, "{}: SCOS-2000 OCP_RLCHK takes one parameter", p.name);
+            }
+        }
+        let hip = by_id(pid::HIP_DEVIATION).unwrap();
+        assert_eq!(limit_contexts(hip), vec![vec![(pid::ACTIVE_PRIMITIVE, 0)]]);
+        let v_reg = by_id(pid::V_REG).unwrap();
+        assert_eq!(limit_contexts(v_reg), vec![vec![(pid::MODE, 1)], vec![(pid::MODE, 2)]]);
+        assert!(limit_contexts(by_id(pid::V_BAT_A).unwrap()).is_empty());
     }
 }

@@ -772,17 +772,20 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
     for p in PARAMS {
         if let Some(l) = p.limits {
             let n = ScosNames::tm_param(p.id);
-            // Limits that apply only in some root modes: one soft and one hard check per
-            // mode, relevant when the MODE parameter (OCP_RLCHK) has that raw value.
-            let contexts: Vec<(String, String)> = if p.limits_in == crate::modes::ModeSet::ALL {
-                vec![(String::new(), String::new())]
-            } else {
-                p.limits_in
-                    .modes()
-                    .map(|m| (ScosNames::tm_param(crate::params::pid::MODE), m.to_string()))
-                    .collect()
+            // Limits that apply only in some robot states: one soft and one hard check
+            // per state, relevant when one parameter (OCP_RLCHK: the mode, or the
+            // parameter of the MIB's condition) has that raw value. SCOS-2000 has one
+            // relevance parameter per check: a MIB test keeps every state to one.
+            let contexts: Vec<(String, String)> = match super::limit_contexts(p) {
+                c if c.is_empty() => vec![(String::new(), String::new())],
+                c => c
+                    .iter()
+                    .filter_map(|ctx| ctx.first())
+                    .map(|&(id, raw)| (ScosNames::tm_param(id), raw.to_string()))
+                    .collect(),
             };
-            ocf.row([&n, "1", &(2 * contexts.len()).to_string(), "C", "R"]);
+            let nbchck = crate::params::GROUND_LIMIT_PERSISTENCE.to_string();
+            ocf.row([&n, &nbchck, &(2 * contexts.len()).to_string(), "C", "R"]);
             let mut pos = 0;
             for (rlchk, valpar) in &contexts {
                 for (kind, lo, hi) in [("S", l.soft_lo, l.soft_hi), ("H", l.hard_lo, l.hard_hi)] {

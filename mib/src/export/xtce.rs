@@ -8,7 +8,10 @@
 //! ID) → `EVT_<event>` (restricted on the event ID); parameters whose values the MIB names
 //! are enumerated (HK, event parameters, report fields); and one container per other TM
 //! type with its fields from the MIB's field list (`crate::layout`): failure reports with
-//! one child container per failure code, list reports with one per entry count.
+//! one child container per failure code (its failure data integers, not enumerations:
+//! they may carry a value the MIB does not define, such as an unknown function), list
+//! reports with one per entry count. Limits become default or context alarms (on the
+//! parameters that decide when they apply, `crate::params::limits_apply`).
 //! Telecommands are MetaCommands deriving from the abstract `PUS_TC`.
 
 use super::layout::{self, Field};
@@ -216,22 +219,36 @@ fn param_type(x: &mut Xml, p: &ParamDef) {
             ));
             x.close("</xtce:StaticAlarmRanges>");
         };
-        if p.limits_in == crate::modes::ModeSet::ALL {
-            x.open("<xtce:DefaultAlarm>");
+        // Persistence: consecutive violating samples before the alarm (the collector's).
+        let min_violations = crate::params::GROUND_LIMIT_PERSISTENCE;
+        let contexts = super::limit_contexts(p);
+        if contexts.is_empty() {
+            x.open(&format!("<xtce:DefaultAlarm minViolations=\"{min_violations}\">"));
             ranges(x);
             x.close("</xtce:DefaultAlarm>");
         } else {
-            // No default alarm: the limits hold only in the root modes of `limits_in`,
-            // one context per mode (raw value of the MODE parameter).
+            // No default alarm: the limits hold only in the robot states of `limits_in`
+            // and `limits_if`, one context per root mode, each matching the raw values
+            // of the parameters that decide (all in the same HK structures).
             x.open("<xtce:ContextAlarmList>");
-            for m in p.limits_in.modes() {
-                x.open("<xtce:ContextAlarm>");
+            for context in contexts {
+                x.open(&format!("<xtce:ContextAlarm minViolations=\"{min_violations}\">"));
                 ranges(x);
                 x.open("<xtce:ContextMatch>");
-                x.line(&format!(
-                    "<xtce:Comparison parameterRef=\"{}\" useCalibratedValue=\"false\" comparisonOperator=\"==\" value=\"{m}\"/>",
-                    crate::params::by_id(crate::params::pid::MODE).map_or("MODE", |p| p.name)
-                ));
+                let many = context.len() > 1;
+                if many {
+                    x.open("<xtce:ComparisonList>");
+                }
+                for (param, raw) in context {
+                    let param = crate::params::by_id(param).map_or("?", |q| q.name);
+                    x.line(&format!(
+                        "<xtce:Comparison parameterRef=\"{}\" useCalibratedValue=\"false\" comparisonOperator=\"==\" value=\"{raw}\"/>",
+                        esc(param)
+                    ));
+                }
+                if many {
+                    x.close("</xtce:ComparisonList>");
+                }
                 x.close("</xtce:ContextMatch>");
                 x.close("</xtce:ContextAlarm>");
             }
@@ -746,8 +763,9 @@ impl BodyXtce {
         }
     }
 
-    /// Type and parameter of one field (enumerated when the MIB names its values).
-    fn field(&mut self, name: &str, f: &crate::layout::Field, desc: &str) {
+    /// Type and parameter of one field (enumerated when the MIB names its values, unless
+    /// `open`: the field may carry a value the MIB does not define).
+    fn field(&mut self, name: &str, f: &crate::layout::Field, desc: &str, open: bool) {
         let x = &mut self.types;
         let tname = format!("{name}_Type");
         let enc = format!(
@@ -755,7 +773,7 @@ impl BodyXtce {
             f.bits,
             if f.ptype.signed() { "twosComplement" } else { "unsigned" }
         );
-        if !f.names.is_none() {
+        if !f.names.is_none() && !open {
             enumerated_type(x, &tname, f);
         } else {
             x.open(&format!(
@@ -771,9 +789,9 @@ impl BodyXtce {
         parameter(&mut self.params, name, &tname, desc, &[]);
     }
 
-    fn fields(&mut self, list: &[(String, crate::layout::Field)]) -> Vec<String> {
+    fn fields(&mut self, list: &[(String, crate::layout::Field)], open: bool) -> Vec<String> {
         for (n, f) in list {
-            self.field(n, f, f.desc);
+            self.field(n, f, f.desc, open);
         }
         list.iter().map(|(n, _)| n.clone()).collect()
     }
@@ -788,7 +806,7 @@ impl BodyXtce {
         let desc = format!("TM[{},{}] {}", t.service, t.subservice, t.desc);
         let mut fixed = Vec::new();
         items_fields(t.name, t.body, &mut fixed);
-        let entries = self.fields(&fixed);
+        let entries = self.fields(&fixed, false);
         let tail = t.body.iter().find_map(|i| match i {
             Item::Tail(x) => Some(*x),
             _ => None,
@@ -820,7 +838,11 @@ impl BodyXtce {
                         .iter()
                         .map(|f| (format!("{}_{}_{}", t.name, c.name(), f.name), *f))
                         .collect();
-                    let mut e = self.fields(&list);
+                    // Failure data report what the robot received or found (an unknown
+                    // function, SID, event, monitor or mode among them): integers, so an
+                    // independent decoder reads any value (issue 23 item 10); the ICD and
+                    // `ground decode` name the values the MIB defines.
+                    let mut e = self.fields(&list, true);
                     e.push(PEC_NAME.to_string());
                     container(
                         &mut self.containers,
@@ -850,7 +872,7 @@ impl BodyXtce {
                 for i in 0..max {
                     let mut list = Vec::new();
                     items_fields(&format!("{}_{gname}_{i}", t.name), items, &mut list);
-                    let e = self.fields(&list);
+                    let e = self.fields(&list, false);
                     container(
                         &mut self.containers,
                         &format!("{}_{gname}_{i}", t.name),

@@ -76,8 +76,12 @@ impl Monitoring {
     }
 
     /// Evaluates every enabled monitor whose phase `in_phase` accepts, with the values
-    /// from `value`. A violation must persist `persistence` consecutive samples before
-    /// it is reported; a return inside the limits is reported at once.
+    /// from `value`. A monitor is skipped, like one out of its phase, while the MIB says
+    /// its parameter's limits do not apply in the robot's state
+    /// (`mib::params::limits_apply`: root mode, a condition such as "no primitive
+    /// running"); `value` must answer those parameters too. A violation must persist
+    /// `persistence` consecutive samples before it is reported; a return inside the
+    /// limits is reported at once.
     pub fn check(
         &mut self,
         in_phase: impl Fn(Phase) -> bool,
@@ -86,6 +90,10 @@ impl Monitoring {
     ) {
         for m in self.mons.iter_mut() {
             if !m.enabled || !in_phase(m.def.phase) {
+                continue;
+            }
+            let limited = mib::params::by_id(m.def.param).filter(|p| p.limits.is_some());
+            if limited.is_some_and(|p| !mib::params::limits_apply(p, &value)) {
                 continue;
             }
             let Some(v) = value(m.def.param) else { continue };
@@ -274,6 +282,29 @@ mod tests {
         assert_eq!(run(&mut m, low, 40), 0);
         assert_eq!(run(&mut m, low + 100, 1), 0);
         assert_eq!(run(&mut m, low, 40), 0);
+    }
+
+    // verifies: ALM-COND-01, PUS-12-01
+    #[test]
+    fn the_hip_monitor_is_skipped_while_a_primitive_runs_as_the_mib_says() {
+        let mut m = Monitoring::new();
+        let high = mib::fdir::monitor_by_id(11).unwrap().high as i64;
+        let mut check = |primitive: Option<i64>| {
+            let mut out = heapless::Vec::new();
+            m.check(
+                |p| p == Phase::EnteringOperational,
+                |p| match p {
+                    pid::HIP_DEVIATION => Some(high + 500),
+                    pid::ACTIVE_PRIMITIVE => primitive,
+                    _ => None,
+                },
+                &mut out,
+            );
+            out.len()
+        };
+        assert_eq!(check(Some(4)), 0, "a turning hip is no mismatch");
+        assert_eq!(check(None), 0, "an unknown state is not judged");
+        assert_eq!(check(Some(0)), 1, "idle and 5 deg off: mismatch");
     }
 
     // verifies: MMIC-FLT-12, PUS-19-01

@@ -140,14 +140,22 @@ impl<S: TmStore> Obsw<S> {
         {
             let this = &*self;
             // A parameter without a valid value (board B never heard) is not checked.
-            let mut vals = [None; N_MONITORS];
-            for (v, m) in vals.iter_mut().zip(this.monitoring.mons.iter()) {
-                *v = this.param_opt(m.def.param);
+            // Values of every monitored parameter and of the parameters deciding whether
+            // its MIB limits apply (mode, active primitive): at most 3 per monitor, so
+            // the list cannot fill.
+            let mut vals: heapless::Vec<(u16, Option<i64>), { 3 * N_MONITORS }> = heapless::Vec::new();
+            for m in &this.monitoring.mons {
+                let p = m.def.param;
+                let context = mib::params::by_id(p).into_iter().flat_map(mib::params::limit_context);
+                for id in core::iter::once(p).chain(context) {
+                    if !vals.iter().any(|(i, _)| *i == id) && vals.push((id, this.param_opt(id))).is_err() {
+                        break;
+                    }
+                }
             }
-            let ids: [u16; N_MONITORS] = core::array::from_fn(|i| this.monitoring.mons[i].def.param);
             self.monitoring.check(
                 phases,
-                |p| ids.iter().position(|x| *x == p).and_then(|i| vals[i]),
+                |p| vals.iter().find(|(i, _)| *i == p).and_then(|(_, v)| *v),
                 &mut tr,
             );
         }
