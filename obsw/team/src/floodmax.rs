@@ -10,7 +10,6 @@
 //! no failure handling, exactly as in the paper: no terms, no quorum, no retry.
 
 use crate::wire::RobotId;
-use heapless::Vec;
 use mib::team::{FLOODMAX_ROUND_MS, GROUND_LOSS_TIMEOUT_MS};
 
 /// The leader flag of the paper.
@@ -39,8 +38,6 @@ pub enum FloodEffect {
     /// Decided at `round = diam`.
     Decided { leader: Leader, maxid: RobotId },
 }
-
-pub type FloodEffects = Vec<FloodEffect, 2>;
 
 /// One agent of the paper's Floodmax.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
@@ -93,8 +90,8 @@ impl Floodmax {
         }
     }
 
-    pub fn on_event(&mut self, now: u64, input: FloodInput) -> FloodEffects {
-        let mut out = FloodEffects::new();
+    /// Handle one input; at most one effect per call.
+    pub fn on_event(&mut self, now: u64, input: FloodInput) -> Option<FloodEffect> {
         match input {
             FloodInput::GroundTc => self.ground_last = now,
             FloodInput::Message { maxid, .. } => {
@@ -109,9 +106,9 @@ impl Floodmax {
                 if now.saturating_sub(self.ground_last) >= GROUND_LOSS_TIMEOUT_MS {
                     // Round 0 starts: msg(w, i) = maxid while round < diam.
                     self.round_end = Some(now + FLOODMAX_ROUND_MS);
-                    // Capacity 2: cannot fail on an empty vector.
-                    let _ = out.push(FloodEffect::Broadcast { maxid: self.maxid });
+                    return Some(FloodEffect::Broadcast { maxid: self.maxid });
                 }
+                None
             }
             Some(end) if !self.done && now >= end => {
                 // define_leader(w, y): new maxid, round + 1, decide at round = diam.
@@ -124,24 +121,24 @@ impl Floodmax {
                     } else {
                         Leader::False
                     };
-                    let _ = out.push(FloodEffect::Decided {
+                    Some(FloodEffect::Decided {
                         leader: self.leader,
                         maxid: self.maxid,
-                    });
+                    })
                 } else {
                     self.round_end = Some(end + FLOODMAX_ROUND_MS);
-                    let _ = out.push(FloodEffect::Broadcast { maxid: self.maxid });
+                    Some(FloodEffect::Broadcast { maxid: self.maxid })
                 }
             }
-            Some(_) => {}
+            Some(_) => None,
         }
-        out
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use heapless::Vec;
 
     fn run(ids: &[RobotId], diam: u8, deliver: impl Fn(RobotId, RobotId) -> bool) -> Vec<Floodmax, 8> {
         let mut nodes: Vec<Floodmax, 8> = ids.iter().map(|i| Floodmax::new(*i, diam, 0)).collect();
@@ -149,10 +146,8 @@ mod tests {
         while t < GROUND_LOSS_TIMEOUT_MS + FLOODMAX_ROUND_MS * (u64::from(diam) + 2) {
             let mut sends: Vec<(RobotId, RobotId), 8> = Vec::new();
             for n in nodes.iter_mut() {
-                for e in n.on_event(t, FloodInput::Tick) {
-                    if let FloodEffect::Broadcast { maxid } = e {
-                        sends.push((n.id, maxid)).unwrap();
-                    }
+                if let Some(FloodEffect::Broadcast { maxid }) = n.on_event(t, FloodInput::Tick) {
+                    sends.push((n.id, maxid)).unwrap();
                 }
             }
             for (from, maxid) in sends {

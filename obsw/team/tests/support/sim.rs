@@ -289,7 +289,7 @@ impl Robot for FloodRobot {
             SimInput::Msg((from, maxid)) => floodmax::FloodInput::Message { from, maxid },
         };
         let mut out = Outbox::default();
-        for e in self.f.on_event(now, input) {
+        if let Some(e) = self.f.on_event(now, input) {
             match e {
                 floodmax::FloodEffect::Broadcast { maxid } => out.sends.push((None, (self.me, maxid))),
                 floodmax::FloodEffect::Decided { .. } => {}
