@@ -11,8 +11,9 @@ use ground::link::Transport;
 use ground::ops::{self, Session, Update};
 use ground::pus::{self, Packet, Stage, TmBody};
 
+use crate::Links;
 use crate::{close_archive, coded, err_line, exit, open_session, out};
-use crate::{Links, ModeArgs, PingArgs, SendArgs, WatchArgs};
+use clap::Args;
 
 /// Says which robots a verb talks to, and how.
 pub(crate) fn say_links(links: &[(u8, SocketAddr)], transport: Transport) {
@@ -367,4 +368,66 @@ pub(crate) fn watch(a: &WatchArgs, archive_path: Option<&Path>) -> Result<u8> {
     drop(s);
     close_archive(arch)?;
     result.map(|_| exit::OK)
+}
+
+#[derive(Args, Debug)]
+pub(crate) struct PingArgs {
+    #[command(flatten)]
+    links: Links,
+    /// Pings per robot.
+    #[arg(long, short = 'c', default_value_t = 3)]
+    count: u32,
+    /// Pause between pings (seconds).
+    #[arg(long, default_value_t = 0.2)]
+    interval: f64,
+}
+
+#[derive(Args, Debug)]
+pub(crate) struct SendArgs {
+    #[command(flatten)]
+    links: Links,
+    /// TC name from the MIB (e.g. RECONFIGURE, HK_SET_INTERVAL, PING).
+    tc: String,
+    /// Arguments as NAME=VALUE (state names allowed for from/to).
+    args: Vec<String>,
+    /// Do not wait for completion.
+    #[arg(long)]
+    no_wait: bool,
+    /// Longest wait for completion (seconds).
+    #[arg(long, default_value_t = 60.0)]
+    timeout: f64,
+    /// Confirm a hazardous TC (the MIB's hazard flag); without it one is refused.
+    #[arg(long)]
+    confirm: bool,
+}
+
+#[derive(Args, Debug)]
+pub(crate) struct ModeArgs {
+    #[command(flatten)]
+    links: Links,
+    /// standby, operational or safed.
+    mode: String,
+    #[arg(long, default_value_t = 60.0)]
+    timeout: f64,
+    /// Confirm the mode change (MODE_SET is hazardous in the MIB); refused without it.
+    #[arg(long)]
+    confirm: bool,
+}
+
+#[derive(Args, Debug)]
+pub(crate) struct WatchArgs {
+    #[command(flatten)]
+    links: Links,
+    /// One JSON object per packet.
+    #[arg(long)]
+    json: bool,
+    /// Hide housekeeping reports.
+    #[arg(long)]
+    no_hk: bool,
+    /// Stop after this many seconds.
+    #[arg(long)]
+    duration: Option<f64>,
+    /// Stop after this many packets.
+    #[arg(long)]
+    count: Option<u64>,
 }

@@ -11,9 +11,12 @@ use ground::ops::{self, RunOptions};
 use ground::plan;
 use ground::pus;
 
+use crate::verb_archive::fmt_ms;
 use crate::verb_live::say_links;
-use crate::RunArgs;
-use crate::{close_archive, coded, err_line, exit, fmt_ms, load_plan, open_session, out};
+use crate::verb_plan::load_plan;
+use crate::{close_archive, coded, err_line, exit, open_session, out, Links};
+use clap::Args;
+use std::path::PathBuf;
 
 pub(crate) fn run_plan(a: &RunArgs, archive_path: Option<&Path>) -> Result<u8> {
     let pl = load_plan(&a.plan)?;
@@ -200,4 +203,31 @@ pub(crate) fn resume_state(path: &Path, pl: &plan::Plan, wanted: Option<&str>) -
         r.in_flight.len()
     );
     Ok((rec.run_id, r))
+}
+
+#[derive(Args, Debug)]
+pub(crate) struct RunArgs {
+    plan: PathBuf,
+    #[command(flatten)]
+    links: Links,
+    /// Longest a step may take (seconds) unless the step sets `timeout`.
+    #[arg(long, default_value_t = 120.0)]
+    step_timeout: f64,
+    /// No heartbeat connection tests (and so no link-loss watch).
+    #[arg(long)]
+    no_ping: bool,
+    /// Plain log lines instead of the live display.
+    #[arg(long)]
+    plain: bool,
+    /// Print the summary as JSON.
+    #[arg(long)]
+    json: bool,
+    /// Continue a run (the latest run of this plan in the archive, or RUN_ID): its
+    /// completed steps are not sent again, a TC whose outcome is unknown is resolved
+    /// from the robot's reports and on-board store before anything is sent.
+    #[arg(long, value_name = "RUN_ID", num_args = 0..=1, default_missing_value = "")]
+    resume: Option<String>,
+    /// After a first Ctrl-C, longest wait (seconds) for the steps in flight.
+    #[arg(long, default_value_t = ground::ops::INTERRUPT_GRACE.as_secs_f64())]
+    grace: f64,
 }

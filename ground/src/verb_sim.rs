@@ -6,8 +6,8 @@ use std::time::Duration;
 use anyhow::Result;
 use ground::ops;
 
-use crate::SimArgs;
 use crate::{coded, exit, out};
+use clap::Args;
 
 /// Sends one line to a simulator control port and returns the reply.
 pub(crate) fn sim_command(addr: SocketAddr, line: &str, timeout: Duration) -> Result<String> {
@@ -178,4 +178,17 @@ pub(crate) fn debug_fields(s: &str) -> Vec<(usize, String)> {
     }
     flush(&mut cur, depth, &mut out);
     out
+}
+
+#[derive(Args, Debug)]
+pub(crate) struct SimArgs {
+    /// Robot number (control port 127.0.0.1:7400+N unless --addr).
+    #[arg(long, short = 'r', required_unless_present = "addr")]
+    robot: Option<u8>,
+    /// Simulator control address.
+    #[arg(long)]
+    addr: Option<SocketAddr>,
+    /// The command, e.g. `stuck-arm a`, `battery-sag 9.5`, `clear`.
+    #[arg(required = true, num_args = 1..)]
+    line: Vec<String>,
 }

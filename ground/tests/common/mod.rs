@@ -18,8 +18,9 @@ fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
-/// The obsw binary: `$OBSW_BIN`, the one beside the test binary's profile, or one built
-/// into a target directory of its own.
+/// The obsw binary: `$OBSW_BIN`, or the one beside the test binary's profile — built first
+/// (once per test process, a no-op when up to date), so a test never runs a stale obsw
+/// after a change to the MIB or the core.
 pub fn obsw_bin() -> PathBuf {
     static BIN: OnceLock<PathBuf> = OnceLock::new();
     BIN.get_or_init(|| {
@@ -29,19 +30,23 @@ pub fn obsw_bin() -> PathBuf {
         // <target>/<profile>/deps/<test>-<hash>
         let exe = std::env::current_exe().unwrap();
         let profile_dir = exe.parent().and_then(Path::parent).unwrap();
-        let next = profile_dir.join("obsw");
-        if next.is_file() {
-            return next;
-        }
-        let own = profile_dir.parent().unwrap().join("ground-obsw");
-        let st = Command::new(env!("CARGO"))
-            .args(["build", "-q", "-p", "obsw", "--bin", "obsw"])
-            .env("CARGO_TARGET_DIR", &own)
+        let profile = match profile_dir.file_name().and_then(|n| n.to_str()) {
+            Some("debug") | None => "dev".to_string(),
+            Some(p) => p.to_string(),
+        };
+        let out = Command::new(env!("CARGO"))
+            .args(["build", "-q", "-p", "obsw", "--bin", "obsw", "--profile", &profile])
+            .arg("--target-dir")
+            .arg(profile_dir.parent().unwrap())
             .current_dir(root())
-            .status()
+            .output()
             .expect("running cargo to build obsw");
-        assert!(st.success(), "building obsw failed");
-        own.join("debug").join("obsw")
+        assert!(
+            out.status.success(),
+            "building obsw failed:\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        profile_dir.join("obsw")
     })
     .clone()
 }

@@ -1,0 +1,31 @@
+//! `ground mib export`: the MIB in the formats other ground systems read.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use clap::Subcommand;
+
+use crate::{coded, exit, out};
+
+#[derive(Subcommand, Debug)]
+pub(crate) enum MibCmd {
+    /// Write SCOS-2000 tables, XTCE or JSON.
+    Export {
+        /// scos, xtce or json.
+        #[arg(long)]
+        format: String,
+        #[arg(long)]
+        out: PathBuf,
+    },
+}
+
+pub(crate) fn mib_export(format: &str, dir: &Path) -> Result<u8> {
+    let f: mib::export::Format = format
+        .parse()
+        .map_err(|e: mib::export::UnknownFormat| coded(exit::INVALID, e.to_string()))?;
+    let files = mib::export::write_all(f, dir).with_context(|| format!("writing {}", dir.display()))?;
+    for p in files {
+        out(&p.display().to_string())?;
+    }
+    Ok(exit::OK)
+}
