@@ -66,6 +66,12 @@ struct Args {
     /// Test aid: write every TM packet the obsw sends to this file, one line of hex each.
     #[arg(long)]
     tm_log: Option<PathBuf>,
+    /// Fixed UDP destination of all TM, besides the subscribers (repeatable): a mission
+    /// control system such as Yamcs, whose TM link listens on its own port and sends TCs
+    /// from another one, so it never subscribes. No lease: TM flows from boot, with or
+    /// without TCs. Lab and loopback use: the datagrams go out of the --udp socket.
+    #[arg(long = "tm-dest", value_name = "ADDR")]
+    tm_dest: Vec<SocketAddr>,
     /// TOML file with any of the options above.
     #[arg(long)]
     config: Option<PathBuf>,
@@ -84,6 +90,7 @@ struct FileConfig {
     link_loss: Option<f64>,
     link_corrupt: Option<f64>,
     duration: Option<f64>,
+    tm_dest: Option<Vec<SocketAddr>>,
 }
 
 struct Settings {
@@ -98,6 +105,7 @@ struct Settings {
     link_corrupt: f64,
     duration: Option<f64>,
     tm_log: Option<PathBuf>,
+    tm_dest: Vec<SocketAddr>,
 }
 
 fn settings(a: Args) -> Result<Settings> {
@@ -163,6 +171,11 @@ fn settings(a: Args) -> Result<Settings> {
         link_corrupt,
         duration,
         tm_log: a.tm_log,
+        tm_dest: if a.tm_dest.is_empty() {
+            f.tm_dest.unwrap_or_default()
+        } else {
+            a.tm_dest
+        },
     })
 }
 
@@ -209,6 +222,9 @@ fn main() {
 fn run(args: Args) -> Result<()> {
     let s = settings(args)?;
     let (mut inputs, mut down, bound) = net::start(s.udp, s.tcp, s.sim_ctl)?;
+    for d in &s.tm_dest {
+        down.add_fixed(*d)?;
+    }
     if let Some(p) = &s.tm_log {
         let f = std::fs::File::create(p).with_context(|| format!("--tm-log {}", p.display()))?;
         down.log_tm_to(f);
@@ -233,10 +249,11 @@ fn run(args: Args) -> Result<()> {
         ..SimConfig::default()
     });
     println!(
-        "READY robot={} apid=0x{:03X} udp={udp} tcp={tcp} sim_ctl={ctl_addr} speed={}",
+        "READY robot={} apid=0x{:03X} udp={udp} tcp={tcp} sim_ctl={ctl_addr} speed={}{}",
         s.robot,
         obsw.apid(),
-        s.speed
+        s.speed,
+        s.tm_dest.iter().map(|d| format!(" tm_dest={d}")).collect::<String>()
     );
     eprintln!(
         "obsw: robot {} (APID 0x{:03X}) TC/TM on udp={udp} tcp={tcp}, simulator control on {ctl_addr}, speed x{}",
