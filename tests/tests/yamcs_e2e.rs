@@ -345,7 +345,26 @@ fn yamcs_receives_tm_and_verifies_commands_from_the_generated_instance() {
         .unwrap_or_else(|| panic!("no INITIAL_STATE_MISMATCH event in {events:?}"));
     let msg = ev["message"].as_str().unwrap();
     assert!(msg.contains("believed=Xpos") && msg.contains("computed=Xneg"), "{msg}");
-    assert!(events.iter().any(|e| e["type"] == "MODE_CHANGED"), "{events:?}");
+    // Mode names per node kind (robot: STANDBY/OPERATIONAL/SAFED, modules: OFF/ON/HOLD).
+    let mut mode_events = 0;
+    for e in events.iter().filter(|e| e["type"] == "MODE_CHANGED") {
+        let msg = e["message"].as_str().unwrap();
+        let field = |k: &str| {
+            msg.split("; ")
+                .find_map(|p| p.strip_prefix(&format!("{k}=")))
+                .unwrap_or_else(|| panic!("no {k} in {msg}"))
+        };
+        let node = mib::modes::NODES.iter().find(|n| n.name == field("node")).expect(msg);
+        for k in ["from", "to"] {
+            assert!(
+                mib::modes::mode_by_name(node.kind, field(k)).is_some(),
+                "{k} of {}: {msg}",
+                node.name
+            );
+        }
+        mode_events += 1;
+    }
+    assert!(mode_events >= 2, "{events:?}");
 
     let links = r["links"].as_array().unwrap();
     eprintln!(

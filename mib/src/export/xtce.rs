@@ -414,6 +414,9 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
     for e in EVENTS {
         for ep in e.params {
             let n = event_param_name(e, ep.name);
+            if yamcs && super::yamcs::robot_mode_type(&mut x, &format!("{n}_Type"), ep) {
+                continue;
+            }
             if ep.names.is_none() {
                 raw_type(
                     &mut x,
@@ -546,6 +549,9 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
         );
     }
     for e in EVENTS {
+        if yamcs && super::yamcs::mode_event_containers(&mut x, e, &severity_container(e.severity), robot) {
+            continue;
+        }
         let mut en: Vec<String> = e.params.iter().map(|p| event_param_name(e, p.name)).collect();
         en.extend(pec.iter().cloned());
         container(
@@ -662,6 +668,9 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
     }
     x.close("</xtce:MetaCommandSet>");
     x.close("</xtce:CommandMetaData>");
+    if yamcs {
+        super::yamcs::module_modes_space_system(&mut x);
+    }
     x.close("</xtce:SpaceSystem>");
     x.s
 }

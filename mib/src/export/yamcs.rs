@@ -26,8 +26,9 @@ use std::str::FromStr;
 
 use super::layout::Field as HeaderField;
 use super::xtce::{self, enumerated_type, esc, parameter, Flavor, Xml};
-use crate::events::EVENTS;
+use crate::events::{EventDef, EVENTS};
 use crate::layout::{Field, Names, REQUEST_ID};
+use crate::modes::NodeKind;
 use crate::tc::TMS;
 use crate::types::PType;
 use crate::{apid, config};
@@ -200,7 +201,7 @@ pub fn yamcs_xtce(n: u8) -> String {
 fn server_yaml(s: &YamcsSetup) -> String {
     format!(
         "# Generated from the MMIC-I MIB (crate mib {ver}): do not edit, regenerate with\n\
-         # `ground mib export --format yamcs DIR`.\n\
+         # `ground mib export --format yamcs --out DIR`.\n\
          services:\n  - class: org.yamcs.http.HttpServer\n    args:\n      address: {addr}\n      port: {port}\n\
          instances:\n  - {inst}\n\
          # Overridden by `--data-dir` (scripts/yamcs.sh).\n\
@@ -313,6 +314,11 @@ pub fn event_template(e: &crate::events::EventDef) -> String {
         let _ = write!(t, "; {}={{{}}}", p.name, xtce::event_param_name(e, p.name));
     }
     t
+}
+
+/// Name of the MDB parameter of event parameter `p` of `e` (as in the generic XTCE).
+pub fn event_param(e: &EventDef, p: &str) -> String {
+    xtce::event_param_name(e, p)
 }
 
 /// The event templates (JSON list of `eventId` (the EVENT_ID label) and `template`).
@@ -504,6 +510,143 @@ pub(super) fn verifiers(x: &mut Xml) {
         x.close(&format!("</xtce:{kind}Verifier>"));
     }
     x.close("</xtce:VerifierSet>");
+}
+
+// --- Mode names per node kind -------------------------------------------------------
+
+/// Sub-space system of the robot's MDB with the module-named variants of the mode fields
+/// of events (same short names, so the event templates need no change).
+pub const MODULE_MODES: &str = "MODULE_MODES";
+
+fn mode_enum_type(x: &mut Xml, tname: &str, f: &Field, kind: NodeKind) {
+    x.open(&format!(
+        "<xtce:EnumeratedParameterType name=\"{}\" shortDescription=\"{} ({} modes)\">",
+        esc(tname),
+        esc(f.desc),
+        if kind == NodeKind::Root { "robot" } else { "module" }
+    ));
+    x.line("<xtce:UnitSet/>");
+    x.line(&format!(
+        "<xtce:IntegerDataEncoding sizeInBits=\"{}\" encoding=\"unsigned\"/>",
+        f.bits
+    ));
+    x.open("<xtce:EnumerationList>");
+    for m in 0..=u8::MAX as u32 {
+        if let Some(n) = crate::modes::mode_name(kind, m) {
+            x.line(&format!("<xtce:Enumeration value=\"{m}\" label=\"{n}\"/>"));
+        }
+    }
+    x.close("</xtce:EnumerationList>");
+    x.close("</xtce:EnumeratedParameterType>");
+}
+
+/// An event whose mode fields are named by its `node` field (its first parameter).
+fn mode_split(e: &EventDef) -> bool {
+    e.params.first().is_some_and(|p| p.names == Names::Node) && e.params.iter().any(|p| p.names == Names::Mode)
+}
+
+/// Type of an event's mode field in the robot's space system: the robot's mode names
+/// (the module-named variant is in [`MODULE_MODES`]); false for any other field.
+pub(super) fn robot_mode_type(x: &mut Xml, tname: &str, f: &Field) -> bool {
+    if f.names != Names::Mode {
+        return false;
+    }
+    mode_enum_type(x, tname, f, NodeKind::Root);
+    true
+}
+
+/// Containers of an event with mode fields: the event container holds the node; one child
+/// for the robot node (robot mode names), one for every other node (module mode names).
+/// False for an event without mode fields.
+pub(super) fn mode_event_containers(x: &mut Xml, e: &EventDef, severity_container: &str, robot: u8) -> bool {
+    if !mode_split(e) {
+        return false;
+    }
+    let name = format!("EVT_{}", e.name);
+    let node = xtce::event_param_name(e, e.params[0].name);
+    xtce::container(
+        x,
+        &name,
+        &format!("event 0x{:04X}: {}", e.id, e.desc),
+        false,
+        std::slice::from_ref(&node),
+        Some((severity_container, &[("EVENT_ID", e.id.to_string())])),
+    );
+    for (suffix, op, module) in [("ROBOT", "==", false), ("MODULE", "!=", true)] {
+        let mut entries: Vec<String> = e.params[1..]
+            .iter()
+            .map(|p| {
+                let n = xtce::event_param_name(e, p.name);
+                if module && p.names == Names::Mode {
+                    // Absolute: Yamcs 5.12.8 resolves "MODULE_MODES/NAME" to the NAME of
+                    // the enclosing space system (measured: the module child then read
+                    // the robot-named parameter).
+                    format!("/MMIC_I_ROBOT_{robot}/{MODULE_MODES}/{n}")
+                } else {
+                    n
+                }
+            })
+            .collect();
+        entries.push("PEC".into());
+        x.open(&format!(
+            "<xtce:SequenceContainer name=\"{name}_{suffix}\" shortDescription=\"{} of the {} node{}\">",
+            e.name,
+            suffix.to_ascii_lowercase(),
+            if module {
+                "s (module mode names)"
+            } else {
+                " (robot mode names)"
+            }
+        ));
+        x.open("<xtce:EntryList>");
+        for n in &entries {
+            x.line(&format!("<xtce:ParameterRefEntry parameterRef=\"{}\"/>", esc(n)));
+        }
+        x.close("</xtce:EntryList>");
+        x.open(&format!("<xtce:BaseContainer containerRef=\"{name}\">"));
+        x.open("<xtce:RestrictionCriteria>");
+        x.open("<xtce:ComparisonList>");
+        x.line(&format!(
+            "<xtce:Comparison parameterRef=\"{node}\" comparisonOperator=\"{}\" value=\"{}\" useCalibratedValue=\"false\"/>",
+            esc(op),
+            crate::modes::node::ROBOT
+        ));
+        x.close("</xtce:ComparisonList>");
+        x.close("</xtce:RestrictionCriteria>");
+        x.close("</xtce:BaseContainer>");
+        x.close("</xtce:SequenceContainer>");
+    }
+    true
+}
+
+/// The [`MODULE_MODES`] space system (written last in the robot's space system).
+pub(super) fn module_modes_space_system(x: &mut Xml) {
+    x.open(&format!(
+        "<xtce:SpaceSystem name=\"{MODULE_MODES}\" shortDescription=\"Mode fields of events about module nodes, with the module mode names\">"
+    ));
+    x.open("<xtce:TelemetryMetaData>");
+    let fields: Vec<(String, &Field)> = EVENTS
+        .iter()
+        .filter(|e| mode_split(e))
+        .flat_map(|e| {
+            e.params
+                .iter()
+                .filter(|p| p.names == Names::Mode)
+                .map(move |p| (xtce::event_param_name(e, p.name), p))
+        })
+        .collect();
+    x.open("<xtce:ParameterTypeSet>");
+    for (n, f) in &fields {
+        mode_enum_type(x, &format!("{n}_Type"), f, NodeKind::Arm);
+    }
+    x.close("</xtce:ParameterTypeSet>");
+    x.open("<xtce:ParameterSet>");
+    for (n, f) in &fields {
+        parameter(x, n, &format!("{n}_Type"), f.desc, &[]);
+    }
+    x.close("</xtce:ParameterSet>");
+    x.close("</xtce:TelemetryMetaData>");
+    x.close("</xtce:SpaceSystem>");
 }
 
 #[cfg(test)]
