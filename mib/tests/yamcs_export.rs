@@ -139,15 +139,17 @@ fn ids_are_enumerated_and_every_event_has_a_template_over_its_parameters() {
         assert!(sids.contains(&(h.sid as i64, h.name.to_string())), "{}", h.name);
     }
 
-    let templates: serde_json::Value = serde_json::from_str(&events_json()).unwrap();
+    let templates: serde_json::Value = serde_json::from_str(&events_json(&[1, 3])).unwrap();
     let list = templates.as_array().unwrap();
-    assert_eq!(list.len(), EVENTS.len());
-    for e in EVENTS {
+    assert_eq!(list.len(), 2 * EVENTS.len());
+    for (robot, e) in [1u8, 3].into_iter().flat_map(|r| EVENTS.iter().map(move |e| (r, e))) {
+        let key = format!("{}-{}", e.name, 0x100 + robot as u16);
         let t = list
             .iter()
-            .find(|t| t["eventId"] == e.name)
-            .unwrap_or_else(|| panic!("no template for {}", e.name));
+            .find(|t| t["eventId"] == key.as_str())
+            .unwrap_or_else(|| panic!("no template for {key}"));
         let text = t["template"].as_str().unwrap();
+        assert!(text.starts_with(&format!("robot {robot}: ")), "{text}");
         let refs: Vec<&str> = text.split('{').skip(1).filter_map(|s| s.split('}').next()).collect();
         assert_eq!(refs.len(), e.params.len(), "{text}");
         for (r, p) in refs.iter().zip(e.params) {

@@ -344,7 +344,10 @@ fn yamcs_receives_tm_and_verifies_commands_from_the_generated_instance() {
         .find(|e| e["type"] == "INITIAL_STATE_MISMATCH")
         .unwrap_or_else(|| panic!("no INITIAL_STATE_MISMATCH event in {events:?}"));
     let msg = ev["message"].as_str().unwrap();
-    assert!(msg.contains("believed=Xpos") && msg.contains("computed=Xneg"), "{msg}");
+    assert!(
+        msg.starts_with("robot 1: ") && msg.contains("believed=Xpos") && msg.contains("computed=Xneg"),
+        "{msg}"
+    );
     // Mode names per node kind (robot: STANDBY/OPERATIONAL/SAFED, modules: OFF/ON/HOLD).
     let mut mode_events = 0;
     for e in events.iter().filter(|e| e["type"] == "MODE_CHANGED") {

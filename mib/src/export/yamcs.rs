@@ -185,7 +185,10 @@ pub fn yamcs_instance(setup: &YamcsSetup) -> Vec<(String, String)> {
         ("etc/yamcs.yaml".to_string(), server_yaml(setup)),
         (format!("etc/yamcs.{}.yaml", setup.instance), instance_yaml(setup)),
         ("etc/processor.yaml".to_string(), PROCESSOR_YAML.to_string()),
-        (EVENTS_FILE.to_string(), events_json()),
+        (
+            EVENTS_FILE.to_string(),
+            events_json(&setup.robots.iter().map(|r| r.robot).collect::<Vec<_>>()),
+        ),
     ];
     for r in &setup.robots {
         files.push((mdb_file(r.robot), yamcs_xtce(r.robot)));
@@ -321,11 +324,21 @@ pub fn event_param(e: &EventDef, p: &str) -> String {
     xtce::event_param_name(e, p)
 }
 
-/// The event templates (JSON list of `eventId` (the EVENT_ID label) and `template`).
-pub fn events_json() -> String {
-    let list: Vec<serde_json::Value> = EVENTS
+/// The event templates of `robots` (JSON list of `eventId` and `template`). The key is
+/// `<EVENT_ID label>-<APID>`, which `PusEventDecoder` looks up before the bare label, so
+/// each robot's events say which robot they come from.
+pub fn events_json(robots: &[u8]) -> String {
+    let list: Vec<serde_json::Value> = robots
         .iter()
-        .map(|e| serde_json::json!({ "eventId": e.name, "template": event_template(e) }))
+        .filter_map(|&n| apid::robot_apid(n).map(|a| (n, a)))
+        .flat_map(|(n, a)| {
+            EVENTS.iter().map(move |e| {
+                serde_json::json!({
+                    "eventId": format!("{}-{a}", e.name),
+                    "template": format!("robot {n}: {}", event_template(e)),
+                })
+            })
+        })
         .collect();
     serde_json::to_string_pretty(&list).unwrap_or_else(|_| "[]".into())
 }
