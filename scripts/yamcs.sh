@@ -13,6 +13,10 @@
 #   YAMCS_VENV   the venv [default: $XDG_CACHE_HOME/mmic/yamcs-venv or ~/.cache/mmic/yamcs-venv];
 #                an existing venv with the pinned versions is used as it is (no download)
 #   YAMCS_HEAP   Java heap limit [default: 256m]
+#   YAMCS_RESTART_GUARD_S  run/start wait until this long after the last write to DIR/data
+#                (the previous run's last command) [default: 60, the obsw's duplicate window
+#                DUPLICATE_MAX_AGE_MS]: a restarted Yamcs numbers TCs from 1 again, and an
+#                identical TC within the window would be taken on board for a resend
 #   PYTHON       Python 3.10+ with venv for the install [default: python3]
 set -euo pipefail
 
@@ -23,6 +27,7 @@ CLIENT_VERSION="2.1.0"            # yamcs-client: the REST client the tests use
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 VENV="${YAMCS_VENV:-${XDG_CACHE_HOME:-$HOME/.cache}/mmic/yamcs-venv}"
 HEAP="${YAMCS_HEAP:-256m}"
+GUARD="${YAMCS_RESTART_GUARD_S:-60}"
 PY="${PYTHON:-python3}"
 
 die() { echo "yamcs.sh: $*" >&2; exit 1; }
@@ -80,6 +85,21 @@ java_cmd() { # dir -> the command line, cwd must be dir
         -cp "$LIB/*" org.yamcs.YamcsServer --etc-dir etc --data-dir "$1/data")
 }
 
+restart_guard() { # dir: wait out the on-board duplicate window after the previous run
+    local newest now wait
+    [ "$GUARD" -gt 0 ] 2>/dev/null || return 0
+    [ -d "$1/data" ] || return 0
+    newest="$(find "$1/data" -type f -printf '%T@\n' 2>/dev/null | sort -n | tail -1 | cut -d. -f1)"
+    [ -n "$newest" ] || return 0
+    now="$(date +%s)"
+    wait=$((newest + GUARD - now))
+    if [ "$wait" -gt 0 ]; then
+        echo "yamcs.sh: the previous Yamcs wrote $1/data $((now - newest)) s ago; waiting ${wait} s" \
+            "(a restarted Yamcs numbers TCs from 1 again: docs/yamcs.md, 'Restarting Yamcs')"
+        sleep "$wait"
+    fi
+}
+
 check_instance() {
     [ -f "$1/etc/yamcs.yaml" ] || die "$1 has no etc/yamcs.yaml: run 'bash scripts/yamcs.sh generate $1' first"
 }
@@ -89,6 +109,7 @@ run() {
     dir="$(cd "$1" && pwd)"
     check_instance "$dir"
     java_cmd "$dir"
+    restart_guard "$dir"
     mkdir -p "$dir/data"
     cd "$dir"
     exec "${CMD[@]}"
@@ -102,6 +123,7 @@ start() {
         die "Yamcs already runs for $dir (pid $(cat "$dir/yamcs.pid"))"
     fi
     java_cmd "$dir"
+    restart_guard "$dir"
     mkdir -p "$dir/data"
     (cd "$dir" && exec "${CMD[@]}" >"$dir/yamcs.log" 2>&1 </dev/null) &
     echo $! >"$dir/yamcs.pid"
@@ -144,5 +166,5 @@ generate) [ $# -ge 2 ] || die "usage: generate DIR [ROBOTS]"; generate "$2" "${3
 run) [ $# -eq 2 ] || die "usage: run DIR"; run "$2" ;;
 start) [ $# -eq 2 ] || die "usage: start DIR"; start "$2" ;;
 stop) [ $# -eq 2 ] || die "usage: stop DIR"; stop "$2" ;;
-*) sed -n '2,17p' "$0" | sed 's/^# \{0,1\}//'; exit 2 ;;
+*) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 2 ;;
 esac

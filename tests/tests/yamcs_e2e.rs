@@ -54,16 +54,21 @@ struct Yamcs {
 }
 
 impl Yamcs {
-    fn script(venv: &Path, args: &[&str]) -> std::process::Output {
+    fn script(venv: &Path, args: &[&str], guard_s: u32) -> std::process::Output {
         Command::new("bash")
             .arg(repo_root().join("scripts/yamcs.sh"))
             .args(args)
             .env("YAMCS_VENV", venv)
+            .env("YAMCS_RESTART_GUARD_S", guard_s.to_string())
             .output()
             .expect("bash scripts/yamcs.sh")
     }
     fn start(dir: &Path, venv: &Path) -> Yamcs {
-        let out = Self::script(venv, &["start", dir.to_str().unwrap()]);
+        Self::start_guarded(dir, venv, 0)
+    }
+    /// Started with the restart guard `guard_s` (`YAMCS_RESTART_GUARD_S`).
+    fn start_guarded(dir: &Path, venv: &Path, guard_s: u32) -> Yamcs {
+        let out = Self::script(venv, &["start", dir.to_str().unwrap()], guard_s);
         let log = std::fs::read_to_string(dir.join("yamcs.log")).unwrap_or_default();
         assert!(
             out.status.success(),
@@ -92,7 +97,7 @@ impl Yamcs {
 
 impl Drop for Yamcs {
     fn drop(&mut self) {
-        let _ = Self::script(&self.venv, &["stop", self.dir.to_str().unwrap()]);
+        let _ = Self::script(&self.venv, &["stop", self.dir.to_str().unwrap()], 0);
     }
 }
 
@@ -139,9 +144,9 @@ fn status<'a>(c: &'a Value, stage: &str) -> &'a str {
         .unwrap_or("(none)")
 }
 
-// verifies: YAMCS-EXPORT-01, YAMCS-TM-02, YAMCS-TIME-01, YAMCS-CMD-01, YAMCS-EVT-01, YAMCS-XTCE-01
-#[test]
-fn yamcs_receives_tm_and_verifies_commands_from_the_generated_instance() {
+/// The Yamcs venv, or `None` (after a loud message) when it is absent and
+/// `MMIC_SKIP_YAMCS=1`; panics when it is absent otherwise.
+fn yamcs_venv() -> Option<PathBuf> {
     let venv = venv();
     let installed = venv.join("bin/python").exists()
         && Command::new(venv.join("bin/python"))
@@ -155,7 +160,7 @@ fn yamcs_receives_tm_and_verifies_commands_from_the_generated_instance() {
                  Run `bash scripts/yamcs.sh install`. !!!!!!!!!!\n",
                 venv.display()
             );
-            return;
+            return None;
         }
         panic!(
             "Yamcs is not installed in {}: run `bash scripts/yamcs.sh install` (or set YAMCS_VENV); \
@@ -163,18 +168,20 @@ fn yamcs_receives_tm_and_verifies_commands_from_the_generated_instance() {
             venv.display()
         );
     }
-    let t_total = Instant::now();
-    let dir = std::env::temp_dir().join(format!("mmic-yamcs-e2e-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    Some(venv)
+}
 
-    // The obsw first (its TC port goes into the Yamcs configuration); its TM goes to
-    // Yamcs' TM port from boot (lost until Yamcs listens: counted, and still stored).
-    let tm_port = free_udp_port();
-    let tm_log = dir.join("tm.log");
-    let tm_dest = format!("127.0.0.1:{tm_port}");
-    let obsw = Obsw::start(&["--tm-dest", &tm_dest, "--tm-log", tm_log.to_str().unwrap()]);
-    let setup = YamcsSetup {
+/// Writes the instance of `setup` into `dir`.
+fn write_instance(dir: &Path, setup: &YamcsSetup) {
+    for (path, content) in yamcs_instance(setup) {
+        let p = dir.join(path);
+        std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+        std::fs::write(p, content).unwrap();
+    }
+}
+
+fn setup_for(obsw: &Obsw, tm_port: u16) -> YamcsSetup {
+    YamcsSetup {
         instance: INSTANCE.into(),
         http_address: "127.0.0.1".into(),
         http_port: free_tcp_port(),
@@ -184,12 +191,56 @@ fn yamcs_receives_tm_and_verifies_commands_from_the_generated_instance() {
             tc_port: obsw.udp.port(),
             tm_port,
         }],
-    };
-    for (path, content) in yamcs_instance(&setup) {
-        let p = dir.join(path);
-        std::fs::create_dir_all(p.parent().unwrap()).unwrap();
-        std::fs::write(p, content).unwrap();
     }
+}
+
+/// Runs `tests/py/yamcs_check.py` with `plan` for `seconds`; its result.
+fn check(venv: &Path, dir: &Path, setup: &YamcsSetup, plan: &Value, seconds: f64) -> Value {
+    let plan_path = dir.join("plan.json");
+    std::fs::write(&plan_path, plan.to_string()).unwrap();
+    let result_path = dir.join("result.json");
+    let _ = std::fs::remove_file(&result_path);
+    let out = Command::new(venv.join("bin/python"))
+        .arg(repo_root().join("tests/py/yamcs_check.py"))
+        .args(["--url", &format!("127.0.0.1:{}", setup.http_port)])
+        .args(["--instance", INSTANCE, "--robot", "1"])
+        .args(["--seconds", &seconds.to_string()])
+        .arg("--commands")
+        .arg(&plan_path)
+        .arg("--out")
+        .arg(&result_path)
+        .output()
+        .expect("python yamcs_check.py");
+    assert!(
+        out.status.success(),
+        "yamcs_check.py failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_str(&std::fs::read_to_string(&result_path).unwrap()).unwrap()
+}
+
+fn temp_dir(tag: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("mmic-yamcs-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+// verifies: YAMCS-EXPORT-01, YAMCS-TM-02, YAMCS-TIME-01, YAMCS-CMD-01, YAMCS-EVT-01, YAMCS-XTCE-01
+#[test]
+fn yamcs_receives_tm_and_verifies_commands_from_the_generated_instance() {
+    let Some(venv) = yamcs_venv() else { return };
+    let t_total = Instant::now();
+    let dir = temp_dir("e2e");
+
+    // The obsw first (its TC port goes into the Yamcs configuration); its TM goes to
+    // Yamcs' TM port from boot (lost until Yamcs listens: counted, and still stored).
+    let tm_port = free_udp_port();
+    let tm_log = dir.join("tm.log");
+    let tm_dest = format!("127.0.0.1:{tm_port}");
+    let obsw = Obsw::start(&["--tm-dest", &tm_dest, "--tm-log", tm_log.to_str().unwrap()]);
+    let setup = setup_for(&obsw, tm_port);
+    write_instance(&dir, &setup);
     let t_start = Instant::now();
     let yamcs = Yamcs::start(&dir, &venv);
     let started_s = t_start.elapsed().as_secs_f64();
@@ -219,27 +270,8 @@ fn yamcs_receives_tm_and_verifies_commands_from_the_generated_instance() {
             {"name": "PARAM_SET", "args": {"param_id": "BOLT_MAX_ATTEMPTS", "value": 2_000_000_000}, "at": 6.0},
         ],
     });
-    let plan_path = dir.join("plan.json");
-    std::fs::write(&plan_path, plan.to_string()).unwrap();
-    let result_path = dir.join("result.json");
-    let out = Command::new(venv.join("bin/python"))
-        .arg(repo_root().join("tests/py/yamcs_check.py"))
-        .args(["--url", &format!("127.0.0.1:{}", setup.http_port)])
-        .args(["--instance", INSTANCE, "--robot", "1"])
-        .args(["--seconds", &WATCH_S.to_string()])
-        .arg("--commands")
-        .arg(&plan_path)
-        .arg("--out")
-        .arg(&result_path)
-        .output()
-        .expect("python yamcs_check.py");
-    assert!(
-        out.status.success(),
-        "yamcs_check.py failed:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let r = check(&venv, &dir, &setup, &plan, WATCH_S);
     let rss_kb = yamcs.rss_kb();
-    let r: Value = serde_json::from_str(&std::fs::read_to_string(&result_path).unwrap()).unwrap();
     drop(obsw);
     let sent = logged_tm(&tm_log);
 
@@ -378,5 +410,68 @@ fn yamcs_receives_tm_and_verifies_commands_from_the_generated_instance() {
         t_total.elapsed().as_secs_f64()
     );
     drop(yamcs);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// PING replies (TM[17,2]) the obsw sent, from its TM log.
+fn ping_replies(tm_log: &Path) -> usize {
+    logged_tm(tm_log)
+        .iter()
+        .filter_map(|raw| Tm::parse(raw))
+        .filter(|t| t.service == 17 && t.subservice == 2)
+        .count()
+}
+
+// verifies: YAMCS-RESTART-01
+#[test]
+fn a_restarted_yamcs_waits_out_the_duplicate_window_so_no_command_is_skipped() {
+    let Some(venv) = yamcs_venv() else { return };
+    let dir = temp_dir("restart");
+    // On-board time runs 5x faster: the 60 s duplicate window is 12 s of wall time.
+    let speed = 5u32;
+    let window_s = mib::config::DUPLICATE_MAX_AGE_MS / 1000 / speed + 1;
+    let tm_port = free_udp_port();
+    let tm_log = dir.join("tm.log");
+    let tm_dest = format!("127.0.0.1:{tm_port}");
+    let speed_arg = speed.to_string();
+    let obsw = Obsw::start(&[
+        "--tm-dest",
+        &tm_dest,
+        "--tm-log",
+        tm_log.to_str().unwrap(),
+        "--speed",
+        &speed_arg,
+    ]);
+    let setup = setup_for(&obsw, tm_port);
+    write_instance(&dir, &setup);
+    let plan = json!({"hk_params": [], "commands": [{"name": "PING", "at": 0.2}]});
+    let ping = |r: &Value| command(r, "PING")["attrs"]["CommandComplete_Status"].clone();
+
+    // Session 1: PING, the first TC of this Yamcs (sequence count 1).
+    let y = Yamcs::start(&dir, &venv);
+    assert_eq!(ping(&check(&venv, &dir, &setup, &plan, 2.0)), "OK");
+    drop(y);
+    assert_eq!(ping_replies(&tm_log), 1);
+
+    // Session 2, no guard: the same PING with the same sequence count, within the window,
+    // is taken on board for a resend: no reply, yet Yamcs shows it completed.
+    let y = Yamcs::start(&dir, &venv);
+    assert_eq!(ping(&check(&venv, &dir, &setup, &plan, 2.0)), "OK");
+    drop(y);
+    assert_eq!(
+        ping_replies(&tm_log),
+        1,
+        "the unguarded restart's PING was not executed"
+    );
+
+    // Session 3, with the script's guard: start waits out the window; the PING executes.
+    let t = Instant::now();
+    let y = Yamcs::start_guarded(&dir, &venv, window_s);
+    let waited = t.elapsed().as_secs_f64();
+    assert_eq!(ping(&check(&venv, &dir, &setup, &plan, 2.0)), "OK");
+    drop(y);
+    drop(obsw);
+    assert_eq!(ping_replies(&tm_log), 2, "the guarded restart's PING was executed");
+    eprintln!("yamcs_e2e restart: guard {window_s} s, start took {waited:.1} s");
     let _ = std::fs::remove_dir_all(&dir);
 }
