@@ -160,7 +160,7 @@ fn ids_are_enumerated_and_every_event_has_a_template_over_its_parameters() {
 
 // verifies: YAMCS-EVT-01
 #[test]
-fn mode_fields_of_events_are_named_per_node_kind() {
+fn mode_fields_of_events_and_mode_reports_are_named_per_node_kind() {
     let text = yamcs_xtce(1);
     let doc = roxmltree::Document::parse(&text).unwrap();
     let module_ss = doc
@@ -178,20 +178,30 @@ fn mode_fields_of_events_are_named_per_node_kind() {
             .collect()
     };
     let mut split = 0;
-    for e in EVENTS {
-        for p in e.params.iter().filter(|p| p.names == mib::layout::Names::Mode) {
-            let t = format!("{}_{}_Type", e.name, p.name);
-            let robot: Vec<String> = names_in(doc.root_element(), &t);
-            let module: Vec<String> = names_in(module_ss, &t);
-            let kind_names = |k| {
-                (0..8)
-                    .filter_map(|m| mib::modes::mode_name(k, m).map(str::to_string))
-                    .collect::<Vec<_>>()
-            };
-            assert_eq!(robot, kind_names(mib::modes::NodeKind::Root), "{t}");
-            assert_eq!(module, kind_names(mib::modes::NodeKind::Arm), "{t}");
-            split += 1;
-        }
+    let tm_modes = mib::tc::TMS
+        .iter()
+        .filter(|t| t.service == 200)
+        .map(|t| (t.name, "mode"))
+        .collect::<Vec<_>>();
+    assert_eq!(tm_modes.len(), 2, "MODE_REPLY and MODE_CANT_REACH");
+    let event_modes = EVENTS.iter().flat_map(|e| {
+        e.params
+            .iter()
+            .filter(|p| p.names == mib::layout::Names::Mode)
+            .map(move |p| (e.name, p.name))
+    });
+    for (owner, field) in event_modes.chain(tm_modes) {
+        let t = format!("{owner}_{field}_Type");
+        let robot: Vec<String> = names_in(doc.root_element(), &t);
+        let module: Vec<String> = names_in(module_ss, &t);
+        let kind_names = |k| {
+            (0..8)
+                .filter_map(|m| mib::modes::mode_name(k, m).map(str::to_string))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(robot, kind_names(mib::modes::NodeKind::Root), "{t}");
+        assert_eq!(module, kind_names(mib::modes::NodeKind::Arm), "{t}");
+        split += 1;
     }
     assert!(split >= 3, "{split} mode fields");
     // Every event container with mode fields has a robot and a module child.

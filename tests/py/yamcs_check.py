@@ -12,6 +12,7 @@ result.json:
   hk:        [{t (reception, s since start), seq, params: {NAME: {raw, eng}}}] for SID 1
   commands:  [{name, args, attrs: {Verifier_*_Status / _Message, CommandComplete_*}}]
   events:    [{type, severity, message, generation_time}]
+  watched:   [{t, params}] every delivery with one of the plan's "watch" parameters
 """
 
 import argparse
@@ -53,6 +54,9 @@ def main():
     # The HK parameters to follow (the test takes them from the MIB), plus the headers
     # that identify the packet.
     names = [f"{ss}/{n}" for n in plan["hk_params"]]
+    # Other parameters to record wherever they come (names relative to the robot's space
+    # system, e.g. "MODULE_MODES/MODE_REPLY_mode").
+    watch = [f"{ss}/{n}" for n in plan.get("watch", [])]
     headers = [f"{ss}/SRC_SEQ_CTR", f"{ss}/TM_TIME_DAYS", f"{ss}/TM_TIME_MS", f"{ss}/HK_SID"]
 
     t0 = time.monotonic()
@@ -70,7 +74,7 @@ def main():
         with lock:
             deliveries.append({"t": now, "params": vals})
 
-    sub = proc.create_parameter_subscription(headers + names, on_data=on_data, send_from_cache=False)
+    sub = proc.create_parameter_subscription(headers + names + watch, on_data=on_data, send_from_cache=False)
 
     hist = proc.create_command_history_subscription()
     events = []
@@ -114,6 +118,8 @@ def main():
 
     hk_out = []
     with lock:
+        watched = [d for d in deliveries
+                   if any(w.rsplit("/", 1)[-1] in d["params"] for w in watch)]
         for d in deliveries:
             p = d["params"]
             if p.get("HK_SID", {}).get("eng") != "ROBOT_STATUS":
@@ -121,7 +127,7 @@ def main():
             hk_out.append({"t": d["t"], "seq": p.get("SRC_SEQ_CTR", {}).get("raw"), "params": p})
 
     with open(a.out, "w") as f:
-        json.dump({"links": links, "hk": hk_out, "commands": commands, "events": events,
+        json.dump({"links": links, "hk": hk_out, "watched": watched, "commands": commands, "events": events,
                    "hk_names": [n.rsplit("/", 1)[-1] for n in names]}, f, indent=1)
     # Closing the WebSocket subscriptions takes seconds; the process ends them.
     os._exit(0)

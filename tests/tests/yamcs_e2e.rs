@@ -261,7 +261,10 @@ fn yamcs_receives_tm_and_verifies_commands_from_the_generated_instance() {
     let out_of_range = FailureCode::PARAM_OUT_OF_RANGE.name();
     let plan = json!({
         "hk_params": hk_params,
+        "watch": ["MODE_REPLY_node", "MODE_REPLY_mode", "MODULE_MODES/MODE_REPLY_mode"],
         "commands": [
+            {"name": "MODE_READ", "args": {"node": "ARM_A"}, "at": 0.5},
+            {"name": "MODE_READ", "args": {"node": "ROBOT"}, "at": 0.7},
             {"name": "PING", "at": 1.0},
             {"name": "MODE_SET", "args": {"node": "ROBOT", "mode": "OPERATIONAL", "submode": 0}, "at": 2.0},
             {"name": "HK_ONE_SHOT", "args": {"sid": "B_LINK"}, "at": 3.0},
@@ -284,12 +287,19 @@ fn yamcs_receives_tm_and_verifies_commands_from_the_generated_instance() {
         "{} robot-status reports in {WATCH_S} s",
         times.len()
     );
-    let max_gap = times
-        .windows(2)
-        .map(|w| w[1] - w[0])
-        .chain([times[0], WATCH_S - times[times.len() - 1]])
-        .fold(0.0, f64::max);
-    assert!(max_gap < 2.5 * period_s, "largest gap in HK: {max_gap:.2} s");
+    // Between consecutive reports: reception gaps (Yamcs to the client) and on-board time
+    // steps (a lost report would show as a step of two periods).
+    let max_gap = times.windows(2).map(|w| w[1] - w[0]).fold(0.0, f64::max);
+    assert!(max_gap < 2.5 * period_s, "largest reception gap in HK: {max_gap:.2} s");
+    let onboard: Vec<i64> = hk
+        .iter()
+        .map(|h| h["params"]["TM_TIME_MS"]["eng_unix_ms"].as_i64().expect("TM_TIME_MS"))
+        .collect();
+    let max_step = onboard.windows(2).map(|w| w[1] - w[0]).max().unwrap_or(0);
+    assert!(
+        (max_step as f64) < 1.5 * status_def.default_interval_ms as f64,
+        "on-board time step between consecutive reports: {max_step} ms (a report lost)"
+    );
 
     // --- Every HK value equals our decode of the same packet (by sequence count). ---
     let by_seq: BTreeMap<u16, &Vec<u8>> = sent
@@ -401,10 +411,32 @@ fn yamcs_receives_tm_and_verifies_commands_from_the_generated_instance() {
     }
     assert!(mode_events >= 2, "{events:?}");
 
+    // Mode reports (TM[200,6]) name the mode for the node's kind.
+    let replies: Vec<(&str, &str)> = r["watched"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|d| {
+            let p = &d["params"];
+            Some((
+                p["MODE_REPLY_node"]["eng"].as_str()?,
+                p["MODE_REPLY_mode"]["eng"].as_str()?,
+            ))
+        })
+        .collect();
+    for node in ["ARM_A", "ROBOT"] {
+        let (_, mode) = replies
+            .iter()
+            .find(|(n, _)| *n == node)
+            .unwrap_or_else(|| panic!("no MODE_REPLY for {node}: {replies:?}"));
+        let kind = mib::modes::NODES.iter().find(|n| n.name == node).unwrap().kind;
+        assert!(mib::modes::mode_by_name(kind, mode).is_some(), "{node}: {mode}");
+    }
+
     let links = r["links"].as_array().unwrap();
     eprintln!(
         "yamcs_e2e: Yamcs ready in {started_s:.1} s, RSS {} MB; {} HK reports, {compared} values equal, \
-         largest gap {max_gap:.2} s, on-board time within {worst_time_ms} ms; links {links:?}; total {:.0} s",
+         largest gap {max_gap:.2} s (on-board step {max_step} ms), on-board time within {worst_time_ms} ms; links {links:?}; total {:.0} s",
         rss_kb.map_or(0, |k| k / 1024),
         hk.len(),
         t_total.elapsed().as_secs_f64()

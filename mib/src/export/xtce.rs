@@ -405,6 +405,9 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
         .iter()
         .filter(|t| !super::scos::is_identified_by_pi1(t.service, t.subservice))
     {
+        if yamcs && super::yamcs::mode_tm(t, &mut body.types, &mut body.params, &mut body.containers, robot) {
+            continue;
+        }
         body.tm(t);
     }
     x.s.push_str(&body.types.s);

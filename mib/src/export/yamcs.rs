@@ -27,9 +27,10 @@ use std::str::FromStr;
 use super::layout::Field as HeaderField;
 use super::xtce::{self, enumerated_type, esc, parameter, Flavor, Xml};
 use crate::events::{EventDef, EVENTS};
+use crate::layout::Item;
 use crate::layout::{Field, Names, REQUEST_ID};
 use crate::modes::NodeKind;
-use crate::tc::TMS;
+use crate::tc::{TmDef, TMS};
 use crate::types::PType;
 use crate::{apid, config};
 
@@ -585,25 +586,89 @@ pub(super) fn mode_event_containers(x: &mut Xml, e: &EventDef, severity_containe
         std::slice::from_ref(&node),
         Some((severity_container, &[("EVENT_ID", e.id.to_string())])),
     );
+    let rest: Vec<(String, bool)> = e.params[1..]
+        .iter()
+        .map(|p| (xtce::event_param_name(e, p.name), p.names == Names::Mode))
+        .collect();
+    node_children(x, &name, &node, &rest, e.name, robot);
+    true
+}
+
+/// The fields of a TM body whose mode fields are named by its `node` field (the first),
+/// if it is one: plain fields only.
+fn mode_tm_fields(t: &TmDef) -> Option<Vec<Field>> {
+    let fields: Vec<Field> = t
+        .body
+        .iter()
+        .map(|i| match i {
+            Item::Field(f) => Some(*f),
+            Item::Sub { .. } | Item::Group { .. } | Item::Packet { .. } | Item::Tail(_) => None,
+        })
+        .collect::<Option<_>>()?;
+    (fields.first().is_some_and(|f| f.names == Names::Node) && fields.iter().any(|f| f.names == Names::Mode))
+        .then_some(fields)
+}
+
+/// Containers, types and parameters of a TM whose mode fields depend on its node (TM[200,6]
+/// and [200,7]), split like the events ([`mode_event_containers`]); false for any other TM.
+pub(super) fn mode_tm(t: &TmDef, types: &mut Xml, params: &mut Xml, containers: &mut Xml, robot: u8) -> bool {
+    let Some(fields) = mode_tm_fields(t) else {
+        return false;
+    };
+    for f in &fields {
+        let n = format!("{}_{}", t.name, f.name);
+        let tname = format!("{n}_Type");
+        if f.names == Names::Mode {
+            mode_enum_type(types, &tname, f, NodeKind::Root);
+        } else if !f.names.is_none() {
+            enumerated_type(types, &tname, f);
+        } else {
+            types.open(&format!(
+                "<xtce:IntegerParameterType name=\"{}\" shortDescription=\"{}\" signed=\"{}\" sizeInBits=\"32\">",
+                esc(&tname),
+                esc(f.desc),
+                f.ptype.signed()
+            ));
+            types.line("<xtce:UnitSet/>");
+            types.line(&format!(
+                "<xtce:IntegerDataEncoding sizeInBits=\"{}\" encoding=\"{}\"/>",
+                f.bits,
+                if f.ptype.signed() { "twosComplement" } else { "unsigned" }
+            ));
+            types.close("</xtce:IntegerParameterType>");
+        }
+        parameter(params, &n, &tname, f.desc, &[]);
+    }
+    let name = format!("TM_{}", t.name);
+    let node = format!("{}_{}", t.name, fields[0].name);
+    xtce::container(
+        containers,
+        &name,
+        &format!("TM[{},{}] {}", t.service, t.subservice, t.desc),
+        false,
+        std::slice::from_ref(&node),
+        Some((
+            "PUS_TM",
+            &[
+                ("TM_SERVICE", t.service.to_string()),
+                ("TM_SUBSERVICE", t.subservice.to_string()),
+            ],
+        )),
+    );
+    let rest: Vec<(String, bool)> = fields[1..]
+        .iter()
+        .map(|f| (format!("{}_{}", t.name, f.name), f.names == Names::Mode))
+        .collect();
+    node_children(containers, &name, &node, &rest, t.name, robot);
+    true
+}
+
+/// The robot-node and module-node children of container `name`, restricted on `node`;
+/// `rest` lists the parameters after the node and whether each is a mode field.
+fn node_children(x: &mut Xml, name: &str, node: &str, rest: &[(String, bool)], what: &str, robot: u8) {
     for (suffix, op, module) in [("ROBOT", "==", false), ("MODULE", "!=", true)] {
-        let mut entries: Vec<String> = e.params[1..]
-            .iter()
-            .map(|p| {
-                let n = xtce::event_param_name(e, p.name);
-                if module && p.names == Names::Mode {
-                    // Absolute: Yamcs 5.12.8 resolves "MODULE_MODES/NAME" to the NAME of
-                    // the enclosing space system (measured: the module child then read
-                    // the robot-named parameter).
-                    format!("/MMIC_I_ROBOT_{robot}/{MODULE_MODES}/{n}")
-                } else {
-                    n
-                }
-            })
-            .collect();
-        entries.push("PEC".into());
         x.open(&format!(
-            "<xtce:SequenceContainer name=\"{name}_{suffix}\" shortDescription=\"{} of the {} node{}\">",
-            e.name,
+            "<xtce:SequenceContainer name=\"{name}_{suffix}\" shortDescription=\"{what} of the {} node{}\">",
             suffix.to_ascii_lowercase(),
             if module {
                 "s (module mode names)"
@@ -612,9 +677,18 @@ pub(super) fn mode_event_containers(x: &mut Xml, e: &EventDef, severity_containe
             }
         ));
         x.open("<xtce:EntryList>");
-        for n in &entries {
-            x.line(&format!("<xtce:ParameterRefEntry parameterRef=\"{}\"/>", esc(n)));
+        for (n, is_mode) in rest {
+            // Absolute: Yamcs 5.12.8 resolves "MODULE_MODES/NAME" to the NAME of the
+            // enclosing space system (measured: the module child then read the
+            // robot-named parameter).
+            let r = if module && *is_mode {
+                format!("/MMIC_I_ROBOT_{robot}/{MODULE_MODES}/{n}")
+            } else {
+                n.clone()
+            };
+            x.line(&format!("<xtce:ParameterRefEntry parameterRef=\"{}\"/>", esc(&r)));
         }
+        x.line("<xtce:ParameterRefEntry parameterRef=\"PEC\"/>");
         x.close("</xtce:EntryList>");
         x.open(&format!("<xtce:BaseContainer containerRef=\"{name}\">"));
         x.open("<xtce:RestrictionCriteria>");
@@ -629,25 +703,40 @@ pub(super) fn mode_event_containers(x: &mut Xml, e: &EventDef, severity_containe
         x.close("</xtce:BaseContainer>");
         x.close("</xtce:SequenceContainer>");
     }
-    true
 }
 
-/// The [`MODULE_MODES`] space system (written last in the robot's space system).
-pub(super) fn module_modes_space_system(x: &mut Xml) {
-    x.open(&format!(
-        "<xtce:SpaceSystem name=\"{MODULE_MODES}\" shortDescription=\"Mode fields of events about module nodes, with the module mode names\">"
-    ));
-    x.open("<xtce:TelemetryMetaData>");
-    let fields: Vec<(String, &Field)> = EVENTS
+/// The module-named variants of every mode field: (parameter name, field).
+fn module_mode_fields() -> Vec<(String, Field)> {
+    let mut out: Vec<(String, Field)> = EVENTS
         .iter()
         .filter(|e| mode_split(e))
         .flat_map(|e| {
             e.params
                 .iter()
                 .filter(|p| p.names == Names::Mode)
-                .map(move |p| (xtce::event_param_name(e, p.name), p))
+                .map(move |p| (xtce::event_param_name(e, p.name), *p))
         })
         .collect();
+    for t in TMS {
+        if let Some(fields) = mode_tm_fields(t) {
+            out.extend(
+                fields
+                    .into_iter()
+                    .filter(|f| f.names == Names::Mode)
+                    .map(|f| (format!("{}_{}", t.name, f.name), f)),
+            );
+        }
+    }
+    out
+}
+
+/// The [`MODULE_MODES`] space system (written last in the robot's space system).
+pub(super) fn module_modes_space_system(x: &mut Xml) {
+    x.open(&format!(
+        "<xtce:SpaceSystem name=\"{MODULE_MODES}\" shortDescription=\"Mode fields of events and reports about module nodes, with the module mode names\">"
+    ));
+    x.open("<xtce:TelemetryMetaData>");
+    let fields = module_mode_fields();
     x.open("<xtce:ParameterTypeSet>");
     for (n, f) in &fields {
         mode_enum_type(x, &format!("{n}_Type"), f, NodeKind::Arm);
