@@ -127,8 +127,8 @@ start() {
     mkdir -p "$dir/data"
     (cd "$dir" && exec "${CMD[@]}" >"$dir/yamcs.log" 2>&1 </dev/null) &
     echo $! >"$dir/yamcs.pid"
-    # Ready when the log says so (about 5 s).
-    for _ in $(seq 1 120); do
+    # Ready when the log says so (about 5 s; 20 s and more on a loaded machine).
+    for _ in $(seq 1 240); do
         if grep -q "Yamcs started in" "$dir/yamcs.log" 2>/dev/null; then
             grep "Yamcs started in" "$dir/yamcs.log" | sed 's/.*\(Yamcs started in [0-9]*ms\).*/yamcs.sh: \1/'
             return
@@ -136,7 +136,7 @@ start() {
         kill -0 "$(cat "$dir/yamcs.pid")" 2>/dev/null || die "Yamcs exited; see $dir/yamcs.log"
         sleep 0.5
     done
-    die "Yamcs not ready after 60 s; see $dir/yamcs.log"
+    die "Yamcs not ready after 120 s; see $dir/yamcs.log"
 }
 
 stop() {

@@ -5,11 +5,11 @@ compares them with the MIB.
     python yamcs_check.py --url 127.0.0.1:PORT --instance mmic --robot 1 \
         --seconds 20 --commands commands.json --out result.json
 
-commands.json: {"hk_params": [names of the SID 1 parameters], "commands": [{"name": "PING",
+commands.json: {"hk_params": [names of the HK parameters], "commands": [{"name": "PING",
 "args": {...}, "at": seconds after the start}]}.
 result.json:
   links:     [{name, status, in_count, out_count}]
-  hk:        [{t (reception, s since start), seq, params: {NAME: {raw, eng}}}] for SID 1
+  hk:        [{t (reception, s since start), sid, seq, params: {NAME: {raw, eng}}}], every HK report
   commands:  [{name, args, attrs: {Verifier_*_Status / _Message, CommandComplete_*}}]
   events:    [{type, severity, message, generation_time}]
   watched:   [{t, params}] every delivery with one of the plan's "watch" parameters
@@ -122,9 +122,10 @@ def main():
                    if any(w.rsplit("/", 1)[-1] in d["params"] for w in watch)]
         for d in deliveries:
             p = d["params"]
-            if p.get("HK_SID", {}).get("eng") != "ROBOT_STATUS":
+            if "HK_SID" not in p:
                 continue
-            hk_out.append({"t": d["t"], "seq": p.get("SRC_SEQ_CTR", {}).get("raw"), "params": p})
+            hk_out.append({"t": d["t"], "sid": p["HK_SID"]["eng"],
+                           "seq": p.get("SRC_SEQ_CTR", {}).get("raw"), "params": p})
 
     with open(a.out, "w") as f:
         json.dump({"links": links, "hk": hk_out, "watched": watched, "commands": commands, "events": events,

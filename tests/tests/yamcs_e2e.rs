@@ -250,12 +250,14 @@ fn yamcs_receives_tm_and_verifies_commands_from_the_generated_instance() {
         "the MDB loads:\n{log}"
     );
 
-    // Robot-status HK from the MIB; commands with the MIB's names.
+    // Every HK parameter of the MIB; commands with the MIB's names.
     let status_def = by_sid(sid::ROBOT_STATUS).unwrap();
-    let hk_params: Vec<&str> = status_def
-        .params
+    let hk_params: Vec<&str> = mib::hk::HK_STRUCTS
         .iter()
+        .flat_map(|h| h.params)
         .map(|id| mib::params::by_id(*id).unwrap().name)
+        .collect::<std::collections::BTreeSet<_>>()
+        .into_iter()
         .collect();
     let mismatch = FailureCode::INITIAL_STATE_MISMATCH.name();
     let out_of_range = FailureCode::PARAM_OUT_OF_RANGE.name();
@@ -279,7 +281,8 @@ fn yamcs_receives_tm_and_verifies_commands_from_the_generated_instance() {
     let sent = logged_tm(&tm_log);
 
     // --- TM flows: every robot-status report of the watch, no gap. ---
-    let hk = r["hk"].as_array().unwrap();
+    let all_hk = r["hk"].as_array().unwrap();
+    let hk: Vec<&Value> = all_hk.iter().filter(|h| h["sid"] == status_def.name).collect();
     let period_s = status_def.default_interval_ms as f64 / 1000.0;
     let times: Vec<f64> = hk.iter().map(|h| h["t"].as_f64().unwrap()).collect();
     assert!(
@@ -301,18 +304,16 @@ fn yamcs_receives_tm_and_verifies_commands_from_the_generated_instance() {
         "on-board time step between consecutive reports: {max_step} ms (a report lost)"
     );
 
-    // --- Every HK value equals our decode of the same packet (by sequence count). ---
+    // --- Every HK value, of every structure, equals our decode of the same packet (by
+    // sequence count). ---
     let by_seq: BTreeMap<u16, &Vec<u8>> = sent
         .iter()
-        .filter_map(|raw| {
-            Tm::parse(raw)
-                .filter(|t| t.sid() == Some(sid::ROBOT_STATUS))
-                .map(|t| (t.seq, raw))
-        })
+        .filter_map(|raw| Tm::parse(raw).filter(|t| t.sid().is_some()).map(|t| (t.seq, raw)))
         .collect();
     let mut compared = 0;
     let mut worst_time_ms = 0i64;
-    for h in hk {
+    let mut sids_seen = std::collections::BTreeSet::new();
+    for h in all_hk {
         let seq = h["seq"].as_u64().unwrap() as u16;
         let raw = by_seq
             .get(&seq)
@@ -320,6 +321,9 @@ fn yamcs_receives_tm_and_verifies_commands_from_the_generated_instance() {
         let tm = Tm::parse(raw).unwrap();
         let ours = mib::codec::decode_hk(&tm.data).unwrap();
         let p = &h["params"];
+        let def_sid = tm.sid().unwrap();
+        assert_eq!(h["sid"].as_str(), by_sid(def_sid).map(|d| d.name), "SID of seq {seq}");
+        sids_seen.insert(def_sid);
         for (def, value) in ours.values() {
             let y = &p[def.name];
             assert!(!y.is_null(), "{} missing in Yamcs (seq {seq})", def.name);
@@ -355,7 +359,10 @@ fn yamcs_receives_tm_and_verifies_commands_from_the_generated_instance() {
             onboard_unix_ms(raw)
         );
     }
-    assert!(compared >= hk_params.len() * 10, "{compared} values compared");
+    assert!(compared >= status_def.params.len() * 10, "{compared} values compared");
+    for h in mib::hk::HK_STRUCTS {
+        assert!(sids_seen.contains(&h.sid), "no {} report compared", h.name);
+    }
 
     // --- Command verification in Yamcs' command history. ---
     for name in ["PING", "MODE_SET", "HK_ONE_SHOT"] {
@@ -435,10 +442,12 @@ fn yamcs_receives_tm_and_verifies_commands_from_the_generated_instance() {
 
     let links = r["links"].as_array().unwrap();
     eprintln!(
-        "yamcs_e2e: Yamcs ready in {started_s:.1} s, RSS {} MB; {} HK reports, {compared} values equal, \
+        "yamcs_e2e: Yamcs ready in {started_s:.1} s, RSS {} MB; {} robot-status reports, {} HK reports of {} SIDs with {compared} values equal, \
          largest gap {max_gap:.2} s (on-board step {max_step} ms), on-board time within {worst_time_ms} ms; links {links:?}; total {:.0} s",
         rss_kb.map_or(0, |k| k / 1024),
         hk.len(),
+        all_hk.len(),
+        sids_seen.len(),
         t_total.elapsed().as_secs_f64()
     );
     drop(yamcs);
@@ -459,8 +468,9 @@ fn ping_replies(tm_log: &Path) -> usize {
 fn a_restarted_yamcs_waits_out_the_duplicate_window_so_no_command_is_skipped() {
     let Some(venv) = yamcs_venv() else { return };
     let dir = temp_dir("restart");
-    // On-board time runs 5x faster: the 60 s duplicate window is 12 s of wall time.
-    let speed = 5u32;
+    // On-board time runs 3x faster: the 60 s duplicate window is 20 s of wall time (the
+    // whole test stays within about a minute).
+    let speed = 3u32;
     let window_s = mib::config::DUPLICATE_MAX_AGE_MS / 1000 / speed + 1;
     let tm_port = free_udp_port();
     let tm_log = dir.join("tm.log");
@@ -481,6 +491,7 @@ fn a_restarted_yamcs_waits_out_the_duplicate_window_so_no_command_is_skipped() {
 
     // Session 1: PING, the first TC of this Yamcs (sequence count 1).
     let y = Yamcs::start(&dir, &venv);
+    let first = Instant::now();
     assert_eq!(ping(&check(&venv, &dir, &setup, &plan, 2.0)), "OK");
     drop(y);
     assert_eq!(ping_replies(&tm_log), 1);
@@ -488,13 +499,23 @@ fn a_restarted_yamcs_waits_out_the_duplicate_window_so_no_command_is_skipped() {
     // Session 2, no guard: the same PING with the same sequence count, within the window,
     // is taken on board for a resend: no reply, yet Yamcs shows it completed.
     let y = Yamcs::start(&dir, &venv);
+    let apart = first.elapsed().as_secs_f64();
     assert_eq!(ping(&check(&venv, &dir, &setup, &plan, 2.0)), "OK");
     drop(y);
-    assert_eq!(
-        ping_replies(&tm_log),
-        1,
-        "the unguarded restart's PING was not executed"
-    );
+    if apart + 1.0 < window_s as f64 {
+        assert_eq!(
+            ping_replies(&tm_log),
+            1,
+            "the unguarded restart's PING was not executed"
+        );
+    } else {
+        // A slow machine: the restart itself outlasted the window.
+        eprintln!(
+            "yamcs_e2e restart: the unguarded restart took {apart:.1} s, longer than the {window_s} s \
+             window; its PING could not be a duplicate (defect not shown in this run)"
+        );
+    }
+    let replies_before = ping_replies(&tm_log);
 
     // Session 3, with the script's guard: start waits out the window; the PING executes.
     let t = Instant::now();
@@ -503,7 +524,11 @@ fn a_restarted_yamcs_waits_out_the_duplicate_window_so_no_command_is_skipped() {
     assert_eq!(ping(&check(&venv, &dir, &setup, &plan, 2.0)), "OK");
     drop(y);
     drop(obsw);
-    assert_eq!(ping_replies(&tm_log), 2, "the guarded restart's PING was executed");
-    eprintln!("yamcs_e2e restart: guard {window_s} s, start took {waited:.1} s");
+    assert_eq!(
+        ping_replies(&tm_log),
+        replies_before + 1,
+        "the guarded restart's PING was executed"
+    );
+    eprintln!("yamcs_e2e restart: second session {apart:.1} s after the first, guard {window_s} s, guarded start took {waited:.1} s");
     let _ = std::fs::remove_dir_all(&dir);
 }

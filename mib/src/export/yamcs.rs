@@ -27,6 +27,7 @@ use std::str::FromStr;
 use super::layout::Field as HeaderField;
 use super::xtce::{self, enumerated_type, esc, parameter, Flavor, Xml};
 use crate::events::{EventDef, EVENTS};
+use crate::headers::{PRIMARY_HEADER as HEADER_PRIMARY, TM_SEC_HEADER as HEADER_TM_SEC};
 use crate::layout::Item;
 use crate::layout::{Field, Names, REQUEST_ID};
 use crate::modes::NodeKind;
@@ -426,6 +427,12 @@ pub(super) fn extra_types(x: &mut Xml) {
         ));
         x.close("</xtce:IntegerParameterType>");
     }
+    x.open(&format!(
+        "<xtce:IntegerParameterType name=\"{VERIFICATION_SUBTYPE}_Type\" shortDescription=\"TM[1,x] subtype (read again by the shared container)\" signed=\"false\" sizeInBits=\"32\">"
+    ));
+    x.line("<xtce:UnitSet/>");
+    x.line("<xtce:IntegerDataEncoding sizeInBits=\"8\" encoding=\"unsigned\"/>");
+    x.close("</xtce:IntegerParameterType>");
 }
 
 pub(super) fn extra_params(x: &mut Xml) {
@@ -433,23 +440,67 @@ pub(super) fn extra_params(x: &mut Xml) {
         let n = verification_param(f);
         parameter(x, &n, &format!("{n}_Type"), &format!("{} (every TM[1,x])", f.desc), &[]);
     }
+    parameter(
+        x,
+        VERIFICATION_SUBTYPE,
+        &format!("{VERIFICATION_SUBTYPE}_Type"),
+        "subtype of the last TM[1,x] (stage and outcome of the verification)",
+        &[],
+    );
+}
+
+/// The TM[1,x] subtype as a parameter of its own, set only by TM[1,x]: the verifiers'
+/// request ID, subtype and failure code then always come from the same report
+/// (`TM_SUBSERVICE` is set by every packet).
+pub const VERIFICATION_SUBTYPE: &str = "VERIFICATION_subtype";
+
+/// Bit offset of `TM_SUBSERVICE` from the start of a TM packet.
+fn subservice_bit_offset() -> u32 {
+    let primary: u32 = HEADER_PRIMARY.iter().map(|f| f.bits).sum();
+    let before: u32 = HEADER_TM_SEC
+        .iter()
+        .take_while(|f| f.name != "TM_SUBSERVICE")
+        .map(|f| f.bits)
+        .sum();
+    primary + before
 }
 
 /// The container every TM[1,x] matches besides its own: the request ID under one set of
 /// names, for the verifiers.
 pub(super) fn extra_containers(x: &mut Xml) {
-    let entries: Vec<String> = REQUEST_ID.fields.iter().map(verification_param).collect();
-    xtce::container(
-        x,
-        &format!("{VERIFICATION}_REPORT"),
-        "TM[1,x] request verification report: the request ID, shared by every subtype (Yamcs command verifiers)",
-        false,
-        &entries,
-        Some((
-            "PUS_TM",
-            &[("TM_SERVICE", crate::tc::service::VERIFICATION.to_string())],
-        )),
-    );
+    x.open(&format!(
+        "<xtce:SequenceContainer name=\"{VERIFICATION}_REPORT\" shortDescription=\"TM[1,x] request verification report: the request ID and the subtype, shared by every subtype (Yamcs command verifiers)\">"
+    ));
+    x.open("<xtce:EntryList>");
+    for f in REQUEST_ID.fields {
+        x.line(&format!(
+            "<xtce:ParameterRefEntry parameterRef=\"{}\"/>",
+            verification_param(f)
+        ));
+    }
+    // The subtype again, from its place in the secondary header.
+    x.open(&format!(
+        "<xtce:ParameterRefEntry parameterRef=\"{VERIFICATION_SUBTYPE}\">"
+    ));
+    x.open("<xtce:LocationInContainerInBits referenceLocation=\"containerStart\">");
+    x.line(&format!(
+        "<xtce:FixedValue>{}</xtce:FixedValue>",
+        subservice_bit_offset()
+    ));
+    x.close("</xtce:LocationInContainerInBits>");
+    x.close("</xtce:ParameterRefEntry>");
+    x.close("</xtce:EntryList>");
+    x.open("<xtce:BaseContainer containerRef=\"PUS_TM\">");
+    x.open("<xtce:RestrictionCriteria>");
+    x.open("<xtce:ComparisonList>");
+    x.line(&format!(
+        "<xtce:Comparison parameterRef=\"TM_SERVICE\" value=\"{}\" useCalibratedValue=\"false\"/>",
+        crate::tc::service::VERIFICATION
+    ));
+    x.close("</xtce:ComparisonList>");
+    x.close("</xtce:RestrictionCriteria>");
+    x.close("</xtce:BaseContainer>");
+    x.close("</xtce:SequenceContainer>");
 }
 
 /// Value of a TC header field that is no operator argument in the Yamcs flavour (written
@@ -504,7 +555,7 @@ pub(super) fn verifiers(x: &mut Xml) {
             ("/yamcs/cmdHist/ccsds-seqcount", "sentSeq"),
             (apid.as_str(), "rcvdApid"),
             (seq.as_str(), "rcvdSeq"),
-            ("TM_SUBSERVICE", "subtype"),
+            (VERIFICATION_SUBTYPE, "subtype"),
             (code.as_str(), "code"),
         ] {
             x.line(&format!(
@@ -512,11 +563,10 @@ pub(super) fn verifiers(x: &mut Xml) {
             ));
         }
         x.close("</xtce:InputSet>");
-        // Run only on a TM[1,x]: TM_SUBSERVICE alone would match other services' subtypes
-        // with a stale request ID.
-        x.open("<xtce:TriggerSet>");
-        x.line(&format!("<xtce:OnParameterUpdateTrigger parameterRef=\"{seq}\"/>"));
-        x.close("</xtce:TriggerSet>");
+        // No trigger set: a verifier runs when one of its inputs changes, i.e. on a
+        // TM[1,x] (request ID, subtype and code all from that report) or when the sent
+        // sequence count reaches the command history (a TM[1,x] that came first is then
+        // judged).
         x.close("</xtce:CustomAlgorithm>");
         x.line(&format!(
             "<xtce:CheckWindow timeToStopChecking=\"PT{window}S\" timeWindowIsRelativeTo=\"commandRelease\"/>"
