@@ -408,7 +408,7 @@ enum ArchiveCmd {
 enum MibCmd {
     /// Write SCOS-2000 tables, XTCE or JSON.
     Export {
-        /// scos, xtce or json.
+        /// scos, xtce, json, or yamcs[:ROBOTS] (a Yamcs instance, e.g. yamcs:1-3).
         #[arg(long)]
         format: String,
         #[arg(long)]

@@ -1,8 +1,8 @@
 //! `obsw`: the MMIC-I on-board software on a host, against the MMIC-I simulator.
 //!
 //! It runs the same `obsw-core` and `mmic-domain` code as the firmware. TCs arrive on
-//! UDP and TCP (COBS-framed); TM goes back to every TCP client and to every UDP ground
-//! that subscribed with an accepted TC (see `net`). Simulated time runs `--speed` times faster than the wall clock.
+//! UDP and TCP (COBS-framed); TM goes back to every TCP client, to every UDP ground
+//! that subscribed with an accepted TC and to the fixed `--tm-dest` addresses (see `net`). Simulated time runs `--speed` times faster than the wall clock.
 
 mod net;
 
@@ -30,7 +30,7 @@ use net::{Input, Origin};
     name = "obsw",
     version,
     about = "MMIC-I on-board software (host build) with its simulator",
-    long_about = "MMIC-I on-board software (host build) running against the MMIC-I simulator.\n\nTCs: CCSDS space packets with a PUS-C secondary header and CRC, as UDP datagrams or over TCP framed with COBS (0x00 after every frame). TM: to every connected TCP client and to every UDP ground subscribed by an accepted TC (a lease renewed by each accepted TC; rejected or malformed datagrams never change who gets TM). The robot boots in STANDBY.\n\nOn start, one line `READY robot=N apid=0x... udp=ADDR tcp=ADDR sim_ctl=ADDR` is printed on stdout.\n\nSimulator control (fault injection; not the flight TC path): UDP text lines to --sim-ctl: `stuck-arm a|b`, `obstacle a|b`, `battery-sag VOLTS`, `dead-hip-encoder`, `cut-cable`, `misplaced-voxel`, `fastener-jam`, `clear [FAULT]`, `link-loss P`, `link-corrupt P`, `status`. Each gets one reply line starting with `ok` or `error`."
+    long_about = "MMIC-I on-board software (host build) running against the MMIC-I simulator.\n\nTCs: CCSDS space packets with a PUS-C secondary header and CRC, as UDP datagrams or over TCP framed with COBS (0x00 after every frame). TM: to every connected TCP client, to every UDP ground subscribed by an accepted TC (a lease renewed by each accepted TC; rejected or malformed datagrams never change who gets TM) and to every fixed --tm-dest (e.g. Yamcs' TM link). The robot boots in STANDBY.\n\nOn start, one line `READY robot=N apid=0x... udp=ADDR tcp=ADDR sim_ctl=ADDR` is printed on stdout.\n\nSimulator control (fault injection; not the flight TC path): UDP text lines to --sim-ctl: `stuck-arm a|b`, `obstacle a|b`, `battery-sag VOLTS`, `dead-hip-encoder`, `cut-cable`, `misplaced-voxel`, `fastener-jam`, `clear [FAULT]`, `link-loss P`, `link-corrupt P`, `status`. Each gets one reply line starting with `ok` or `error`."
 )]
 struct Args {
     /// Robot number 1..=254; the APID is 0x100 + N and the default ports follow from it.
