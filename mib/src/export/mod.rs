@@ -156,6 +156,32 @@ mod tests {
             assert_eq!(f.name().parse::<Format>(), Ok(f));
         }
     }
+    // verifies: YAMCS-EXPORT-01
+    #[test]
+    fn yamcs_format_takes_robots_and_writes_the_instance_tree() {
+        let Ok(Format::Yamcs(set)) = "Yamcs:1-2,5".parse::<Format>() else {
+            panic!("yamcs:ROBOTS parses")
+        };
+        assert_eq!(set.iter().collect::<Vec<_>>(), [1, 2, 5]);
+        assert!("yamcs:0".parse::<Format>().is_err());
+        assert!("yamcs:".parse::<Format>().is_err());
+        let dir = std::env::temp_dir().join(format!("mib-yamcs-export-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let files = write_all(Format::Yamcs(set), &dir).unwrap();
+        for f in [
+            "etc/yamcs.yaml",
+            "etc/yamcs.mmic.yaml",
+            "etc/processor.yaml",
+            "etc/events.json",
+        ] {
+            assert!(files.contains(&dir.join(f)), "{f}");
+        }
+        for n in [1, 2, 5] {
+            assert!(dir.join(yamcs::mdb_file(n)).is_file());
+        }
+        assert_eq!(files.len(), 7);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
     // verifies: ICD-04
     #[test]
     fn numbers_print_without_noise() {
