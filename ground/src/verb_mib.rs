@@ -9,9 +9,9 @@ use crate::{coded, exit, out};
 
 #[derive(Subcommand, Debug)]
 pub(crate) enum MibCmd {
-    /// Write SCOS-2000 tables, XTCE or JSON.
+    /// Write SCOS-2000 tables, XTCE, JSON or a Yamcs instance.
     Export {
-        /// scos, xtce or json.
+        /// scos, xtce, json, or yamcs[:ROBOTS] (a Yamcs instance, e.g. yamcs:1-3).
         #[arg(long)]
         format: String,
         #[arg(long)]

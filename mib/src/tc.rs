@@ -27,6 +27,15 @@ pub mod service {
 
 pub use crate::modes::ModeSet;
 
+/// Bits of the PUS-C acknowledgement flags (TC secondary header).
+pub mod ack {
+    pub const ACCEPTANCE: u8 = 0b1000;
+    pub const START: u8 = 0b0100;
+    pub const PROGRESS: u8 = 0b0010;
+    pub const COMPLETION: u8 = 0b0001;
+    pub const ALL: u8 = ACCEPTANCE | START | PROGRESS | COMPLETION;
+}
+
 /// A TC argument is a field of the TC's application data.
 pub type ArgDef = Field;
 
@@ -678,6 +687,17 @@ impl TcDef {
         TcDef {
             hazard: Some(why),
             ..self
+        }
+    }
+    /// PUS-C acknowledgement flags (TC secondary header, 4 bits: 0b1000 acceptance,
+    /// 0b0100 start, 0b0010 progress, 0b0001 completion) a mission control system sets
+    /// on this TC without asking the operator: acceptance, start and completion for every
+    /// TC, progress as well for a robot action (it reports its steps).
+    pub const fn ack_flags(&self) -> u8 {
+        if self.long_running {
+            ack::ALL
+        } else {
+            ack::ACCEPTANCE | ack::START | ack::COMPLETION
         }
     }
     /// Length of the fixed application data (PUS 8: function ID included).

@@ -3,7 +3,9 @@
 //! - [`scos_tables`]: SCOS-2000 MIB ASCII tables (tab-separated `.dat` files);
 //! - [`xtce_document`]: XTCE 1.2 XML (telemetry containers and telecommands);
 //! - [`json_document`]: the whole MIB as JSON;
-//! - [`icd_markdown`]: the interface control document (`docs/ICD.md`).
+//! - [`icd_markdown`]: the interface control document (`docs/ICD.md`);
+//! - [`yamcs_instance`]: a complete Yamcs instance (configuration, MDB, event templates)
+//!   for a set of robots.
 //!
 //! The APID-dependent exports (SCOS-2000, XTCE) are generated for the default robot
 //! ([`crate::apid::DEFAULT_ROBOT`], APID 0x101); the `*_for` variants take another robot
@@ -20,11 +22,13 @@ pub mod layout;
 pub mod urdf;
 mod scos;
 mod xtce;
+pub mod yamcs;
 
 pub use icd::icd_markdown;
 pub use json::json_document;
 pub use scos::{scos_columns, scos_tables, scos_tables_for, ScosNames};
 pub use xtce::{xtce_document, xtce_document_for};
+pub use yamcs::{yamcs_instance, RobotSet, YamcsRobot, YamcsSetup};
 
 /// The robot states in which the limits of `p` apply (`limits_in`, `limits_if`), as
 /// lists of (parameter ID, raw value) that must all match: one per root mode of
@@ -58,15 +62,23 @@ pub enum Format {
     Xtce,
     /// One JSON file with the whole MIB.
     Json,
+    /// A Yamcs instance for these robots (`yamcs` = the default robot, `yamcs:1-3,7`).
+    Yamcs(RobotSet),
 }
 
 impl Format {
-    pub const ALL: [Format; 3] = [Format::Scos, Format::Xtce, Format::Json];
+    pub const ALL: [Format; 4] = [
+        Format::Scos,
+        Format::Xtce,
+        Format::Json,
+        Format::Yamcs(RobotSet::one(crate::apid::DEFAULT_ROBOT)),
+    ];
     pub const fn name(self) -> &'static str {
         match self {
             Format::Scos => "scos",
             Format::Xtce => "xtce",
             Format::Json => "json",
+            Format::Yamcs(_) => "yamcs",
         }
     }
 }
@@ -83,7 +95,11 @@ pub struct UnknownFormat(pub String);
 
 impl core::fmt::Display for UnknownFormat {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        write!(f, "unknown export format '{}' (expected scos, xtce or json)", self.0)
+        write!(
+            f,
+            "unknown export format '{}' (expected scos, xtce, json, yamcs or yamcs:ROBOTS such as yamcs:1-3,7)",
+            self.0
+        )
     }
 }
 
@@ -96,7 +112,14 @@ impl FromStr for Format {
             "scos" | "scos2000" | "scos-2000" => Ok(Format::Scos),
             "xtce" | "xml" => Ok(Format::Xtce),
             "json" => Ok(Format::Json),
-            _ => Err(UnknownFormat(s.to_string())),
+            "yamcs" => Ok(Format::Yamcs(RobotSet::one(crate::apid::DEFAULT_ROBOT))),
+            other => match other.strip_prefix("yamcs:") {
+                Some(robots) => robots
+                    .parse()
+                    .map(Format::Yamcs)
+                    .map_err(|e| UnknownFormat(format!("{s}: {e}"))),
+                None => Err(UnknownFormat(s.to_string())),
+            },
         }
     }
 }
@@ -114,10 +137,14 @@ pub fn write_all(format: Format, dir: &Path) -> std::io::Result<Vec<PathBuf>> {
         Format::Scos => scos_tables().into_iter().map(|(n, c)| (n.to_string(), c)).collect(),
         Format::Xtce => vec![(XTCE_FILE.to_string(), xtce_document())],
         Format::Json => vec![(JSON_FILE.to_string(), json_document())],
+        Format::Yamcs(robots) => yamcs_instance(&YamcsSetup::for_robots(robots)),
     };
     let mut out = Vec::with_capacity(files.len());
     for (name, content) in files {
         let path = dir.join(name);
+        if let Some(parent) = path.parent() {
+            std::fs::create_dir_all(parent)?;
+        }
         std::fs::write(&path, content)?;
         out.push(path);
     }
@@ -152,6 +179,32 @@ mod tests {
         for f in Format::ALL {
             assert_eq!(f.name().parse::<Format>(), Ok(f));
         }
+    }
+    // verifies: YAMCS-EXPORT-01
+    #[test]
+    fn yamcs_format_takes_robots_and_writes_the_instance_tree() {
+        let Ok(Format::Yamcs(set)) = "Yamcs:1-2,5".parse::<Format>() else {
+            panic!("yamcs:ROBOTS parses")
+        };
+        assert_eq!(set.iter().collect::<Vec<_>>(), [1, 2, 5]);
+        assert!("yamcs:0".parse::<Format>().is_err());
+        assert!("yamcs:".parse::<Format>().is_err());
+        let dir = std::env::temp_dir().join(format!("mib-yamcs-export-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let files = write_all(Format::Yamcs(set), &dir).unwrap();
+        for f in [
+            "etc/yamcs.yaml",
+            "etc/yamcs.mmic.yaml",
+            "etc/processor.yaml",
+            "etc/events.json",
+        ] {
+            assert!(files.contains(&dir.join(f)), "{f}");
+        }
+        for n in [1, 2, 5] {
+            assert!(dir.join(yamcs::mdb_file(n)).is_file());
+        }
+        assert_eq!(files.len(), 7);
+        let _ = std::fs::remove_dir_all(&dir);
     }
     // verifies: ICD-04
     #[test]

@@ -31,7 +31,7 @@ pub fn event_param_name(e: &EventDef, p: &str) -> String {
     format!("{}_{}", e.name, p)
 }
 
-fn esc(s: &str) -> String {
+pub(super) fn esc(s: &str) -> String {
     let mut o = String::with_capacity(s.len());
     for c in s.chars() {
         match c {
@@ -46,24 +46,24 @@ fn esc(s: &str) -> String {
     o
 }
 
-struct Xml {
-    s: String,
-    depth: usize,
+pub(super) struct Xml {
+    pub(super) s: String,
+    pub(super) depth: usize,
 }
 
 impl Xml {
-    fn line(&mut self, l: &str) {
+    pub(super) fn line(&mut self, l: &str) {
         for _ in 0..self.depth {
             self.s.push_str("  ");
         }
         self.s.push_str(l);
         self.s.push('\n');
     }
-    fn open(&mut self, l: &str) {
+    pub(super) fn open(&mut self, l: &str) {
         self.line(l);
         self.depth += 1;
     }
-    fn close(&mut self, l: &str) {
+    pub(super) fn close(&mut self, l: &str) {
         self.depth = self.depth.saturating_sub(1);
         self.line(l);
     }
@@ -128,7 +128,7 @@ fn header_type(x: &mut Xml, f: &Field) {
 }
 
 /// Enumerated parameter type of a field whose values the MIB names.
-fn enumerated_type(x: &mut Xml, tname: &str, f: &crate::layout::Field) {
+pub(super) fn enumerated_type(x: &mut Xml, tname: &str, f: &crate::layout::Field) {
     enumerated(x, "EnumeratedParameterType", tname, f, None);
 }
 
@@ -262,7 +262,7 @@ fn param_type(x: &mut Xml, p: &ParamDef) {
     }
 }
 
-fn parameter(x: &mut Xml, name: &str, type_ref: &str, desc: &str, aliases: &[(&str, String)]) {
+pub(super) fn parameter(x: &mut Xml, name: &str, type_ref: &str, desc: &str, aliases: &[(&str, String)]) {
     if aliases.is_empty() {
         x.line(&format!(
             "<xtce:Parameter name=\"{}\" parameterTypeRef=\"{}\" shortDescription=\"{}\"/>",
@@ -294,7 +294,7 @@ fn entries(x: &mut Xml, names: &[String]) {
     x.close("</xtce:EntryList>");
 }
 
-fn container(
+pub(super) fn container(
     x: &mut Xml,
     name: &str,
     desc: &str,
@@ -342,6 +342,23 @@ pub fn xtce_document() -> String {
 
 /// XTCE document for robot `robot` (1..=254; out-of-range numbers use the default robot).
 pub fn xtce_document_for(robot: u8) -> String {
+    document(robot, Flavor::Generic)
+}
+
+/// Which reader the XTCE is written for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Flavor {
+    /// Plain XTCE 1.2 (any decoder, e.g. space-packet-parser).
+    Generic,
+    /// The MDB of a Yamcs instance: the additions of [`super::yamcs`] (enumerated event
+    /// and SID fields, on-board time as absolute times, shared request-ID container,
+    /// command verifiers, header fields fixed or assigned, not operator arguments).
+    Yamcs,
+}
+
+/// XTCE document for robot `robot` in `flavor`.
+pub(super) fn document(robot: u8, flavor: Flavor) -> String {
+    let yamcs = flavor == Flavor::Yamcs;
     let (robot, apid) = match apid::robot_apid(robot) {
         Some(a) => (robot, a),
         None => (
@@ -374,31 +391,40 @@ pub fn xtce_document_for(robot: u8) -> String {
         .chain(layout::TM_SEC_HEADER)
         .chain([&layout::PEC])
     {
-        header_type(&mut x, f);
+        if !(yamcs && super::yamcs::header_type(&mut x, f)) {
+            header_type(&mut x, f);
+        }
     }
-    header_type(
-        &mut x,
-        &Field {
-            name: "HK_SID",
-            bits: 16,
-            fixed: None,
-            desc: "housekeeping structure ID",
-        },
-    );
-    header_type(
-        &mut x,
-        &Field {
-            name: "EVENT_ID",
-            bits: 16,
-            fixed: None,
-            desc: "event ID",
-        },
-    );
+    if yamcs {
+        super::yamcs::id_types(&mut x);
+    } else {
+        header_type(
+            &mut x,
+            &Field {
+                name: "HK_SID",
+                bits: 16,
+                fixed: None,
+                desc: "housekeeping structure ID",
+            },
+        );
+        header_type(
+            &mut x,
+            &Field {
+                name: "EVENT_ID",
+                bits: 16,
+                fixed: None,
+                desc: "event ID",
+            },
+        );
+    }
     let mut body = BodyXtce::new();
     for t in TMS
         .iter()
         .filter(|t| !super::scos::is_identified_by_pi1(t.service, t.subservice))
     {
+        if yamcs && super::yamcs::mode_tm(t, &mut body.types, &mut body.params, &mut body.containers, robot) {
+            continue;
+        }
         body.tm(t);
     }
     x.s.push_str(&body.types.s);
@@ -408,6 +434,9 @@ pub fn xtce_document_for(robot: u8) -> String {
     for e in EVENTS {
         for ep in e.params {
             let n = event_param_name(e, ep.name);
+            if yamcs && super::yamcs::robot_mode_type(&mut x, &format!("{n}_Type"), ep) {
+                continue;
+            }
             if ep.names.is_none() {
                 raw_type(
                     &mut x,
@@ -420,6 +449,9 @@ pub fn xtce_document_for(robot: u8) -> String {
                 enumerated_type(&mut x, &format!("{n}_Type"), ep);
             }
         }
+    }
+    if yamcs {
+        super::yamcs::extra_types(&mut x);
     }
     x.close("</xtce:ParameterTypeSet>");
 
@@ -457,6 +489,9 @@ pub fn xtce_document_for(robot: u8) -> String {
                 &[("SCOS-2000", super::ScosNames::event_param(e.id, i))],
             );
         }
+    }
+    if yamcs {
+        super::yamcs::extra_params(&mut x);
     }
     x.close("</xtce:ParameterSet>");
 
@@ -534,6 +569,9 @@ pub fn xtce_document_for(robot: u8) -> String {
         );
     }
     for e in EVENTS {
+        if yamcs && super::yamcs::mode_event_containers(&mut x, e, &severity_container(e.severity), robot) {
+            continue;
+        }
         let mut en: Vec<String> = e.params.iter().map(|p| event_param_name(e, p.name)).collect();
         en.extend(pec.iter().cloned());
         container(
@@ -546,6 +584,9 @@ pub fn xtce_document_for(robot: u8) -> String {
         );
     }
     x.s.push_str(&body.containers.s);
+    if yamcs {
+        super::yamcs::extra_containers(&mut x);
+    }
     x.close("</xtce:ContainerSet>");
     x.close("</xtce:TelemetryMetaData>");
 
@@ -556,6 +597,7 @@ pub fn xtce_document_for(robot: u8) -> String {
         .iter()
         .chain(layout::TC_SEC_HEADER)
         .filter(|f| f.fixed.is_none() && f.name != "PKT_TYPE" && f.name != "TC_SOURCE_ID")
+        .filter(|f| !(yamcs && super::yamcs::tc_header_fixed(f).is_some()))
         .collect();
     for f in &tc_header_args {
         x.open(&format!(
@@ -621,6 +663,7 @@ pub fn xtce_document_for(robot: u8) -> String {
         let fixed = match f.name {
             "PKT_TYPE" => Some(1),
             "TC_SOURCE_ID" => Some(config::GROUND_ID as u32),
+            _ if yamcs => super::yamcs::tc_header_fixed(f).or(f.fixed),
             _ => f.fixed,
         };
         match fixed {
@@ -635,13 +678,19 @@ pub fn xtce_document_for(robot: u8) -> String {
     }
     x.close("</xtce:EntryList>");
     x.close("</xtce:CommandContainer>");
+    if yamcs {
+        super::yamcs::verifiers(&mut x);
+    }
     x.close("</xtce:MetaCommand>");
 
     for t in TCS {
-        meta_command(&mut x, t, apid);
+        meta_command(&mut x, t, apid, flavor);
     }
     x.close("</xtce:MetaCommandSet>");
     x.close("</xtce:CommandMetaData>");
+    if yamcs {
+        super::yamcs::module_modes_space_system(&mut x);
+    }
     x.close("</xtce:SpaceSystem>");
     x.s
 }
@@ -652,7 +701,7 @@ fn hex_value(v: u64, bits: u32) -> String {
     format!("{:0width$X}", v, width = octets * 2)
 }
 
-fn meta_command(x: &mut Xml, t: &TcDef, apid: u16) {
+fn meta_command(x: &mut Xml, t: &TcDef, apid: u16, flavor: Flavor) {
     let mut desc = format!(
         "TC[{},{}]{}: {}; accepted in {}",
         t.service,
@@ -675,11 +724,15 @@ fn meta_command(x: &mut Xml, t: &TcDef, apid: u16) {
     ));
     x.open("<xtce:BaseMetaCommand metaCommandRef=\"PUS_TC\">");
     x.open("<xtce:ArgumentAssignmentList>");
-    for (n, v) in [
+    let mut assigned = vec![
         ("PKT_APID", apid.to_string()),
         ("TC_SERVICE", t.service.to_string()),
         ("TC_SUBSERVICE", t.subservice.to_string()),
-    ] {
+    ];
+    if flavor == Flavor::Yamcs {
+        assigned.push(("TC_ACK_FLAGS", t.ack_flags().to_string()));
+    }
+    for (n, v) in assigned {
         x.line(&format!(
             "<xtce:ArgumentAssignment argumentName=\"{n}\" argumentValue=\"{v}\"/>"
         ));

@@ -1,8 +1,8 @@
 //! `obsw`: the MMIC-I on-board software on a host, against the MMIC-I simulator.
 //!
 //! It runs the same `obsw-core` and `mmic-domain` code as the firmware. TCs arrive on
-//! UDP and TCP (COBS-framed); TM goes back to every TCP client and to every UDP ground
-//! that subscribed with an accepted TC (see `net`). Simulated time runs `--speed` times faster than the wall clock.
+//! UDP and TCP (COBS-framed); TM goes back to every TCP client, to every UDP ground
+//! that subscribed with an accepted TC and to the fixed `--tm-dest` addresses (see `net`). Simulated time runs `--speed` times faster than the wall clock.
 
 mod frames;
 mod net;
@@ -31,7 +31,7 @@ use net::{Input, Origin};
     name = "obsw",
     version,
     about = "MMIC-I on-board software (host build) with its simulator",
-    long_about = "MMIC-I on-board software (host build) running against the MMIC-I simulator.\n\nTCs: CCSDS space packets with a PUS-C secondary header and CRC, as UDP datagrams or over TCP framed with COBS (0x00 after every frame). TM: to every connected TCP client and to every UDP ground subscribed by an accepted TC (a lease renewed by each accepted TC; rejected or malformed datagrams never change who gets TM). The robot boots in STANDBY.\n\nOn start, one line `READY robot=N apid=0x... udp=ADDR tcp=ADDR sim_ctl=ADDR` is printed on stdout.\n\nSimulator control (fault injection; not the flight TC path): UDP text lines to --sim-ctl: `stuck-arm a|b`, `obstacle a|b`, `battery-sag VOLTS`, `dead-hip-encoder`, `cut-cable`, `misplaced-voxel`, `fastener-jam`, `clear [FAULT]`, `link-loss P`, `link-corrupt P`, `status`. Each gets one reply line starting with `ok` or `error`."
+    long_about = "MMIC-I on-board software (host build) running against the MMIC-I simulator.\n\nTCs: CCSDS space packets with a PUS-C secondary header and CRC, as UDP datagrams or over TCP framed with COBS (0x00 after every frame). TM: to every connected TCP client, to every UDP ground subscribed by an accepted TC (a lease renewed by each accepted TC; rejected or malformed datagrams never change who gets TM) and to every fixed --tm-dest (e.g. Yamcs' TM link). The robot boots in STANDBY.\n\nOn start, one line `READY robot=N apid=0x... udp=ADDR tcp=ADDR sim_ctl=ADDR` is printed on stdout.\n\nSimulator control (fault injection; not the flight TC path): UDP text lines to --sim-ctl: `stuck-arm a|b`, `obstacle a|b`, `battery-sag VOLTS`, `dead-hip-encoder`, `cut-cable`, `misplaced-voxel`, `fastener-jam`, `clear [FAULT]`, `link-loss P`, `link-corrupt P`, `status`. Each gets one reply line starting with `ok` or `error`."
 )]
 struct Args {
     /// Robot number 1..=254; the APID is 0x100 + N and the default ports follow from it.
@@ -85,6 +85,12 @@ struct Args {
     /// a counter is used, so no nonce is reused and no replay accepted across restarts).
     #[arg(long)]
     link_state: Option<PathBuf>,
+    /// Fixed UDP destination of all TM, besides the subscribers (repeatable): a mission
+    /// control system such as Yamcs, whose TM link listens on its own port and sends TCs
+    /// from another one, so it never subscribes. No lease: TM flows from boot, with or
+    /// without TCs. Lab and loopback use: the datagrams go out of the --udp socket.
+    #[arg(long = "tm-dest", value_name = "ADDR")]
+    tm_dest: Vec<SocketAddr>,
     /// TOML file with any of the options above.
     #[arg(long)]
     config: Option<PathBuf>,
@@ -108,6 +114,7 @@ struct FileConfig {
     tc_key: Option<PathBuf>,
     tm_key: Option<PathBuf>,
     link_state: Option<PathBuf>,
+    tm_dest: Option<Vec<SocketAddr>>,
 }
 
 struct Settings {
@@ -123,6 +130,7 @@ struct Settings {
     duration: Option<f64>,
     tm_log: Option<PathBuf>,
     frames: Option<frames::FrameConfig>,
+    tm_dest: Vec<SocketAddr>,
 }
 
 fn settings(a: Args) -> Result<Settings> {
@@ -206,6 +214,11 @@ fn settings(a: Args) -> Result<Settings> {
         duration,
         tm_log: a.tm_log,
         frames,
+        tm_dest: if a.tm_dest.is_empty() {
+            f.tm_dest.unwrap_or_default()
+        } else {
+            a.tm_dest
+        },
     })
 }
 
@@ -252,6 +265,9 @@ fn main() {
 fn run(args: Args) -> Result<()> {
     let s = settings(args)?;
     let (mut inputs, mut down, bound) = net::start(s.udp, s.tcp, s.sim_ctl)?;
+    for d in &s.tm_dest {
+        down.add_fixed(*d)?;
+    }
     if let Some(p) = &s.tm_log {
         let f = std::fs::File::create(p).with_context(|| format!("--tm-log {}", p.display()))?;
         down.log_tm_to(f);
@@ -291,10 +307,11 @@ fn run(args: Args) -> Result<()> {
         ..SimConfig::default()
     });
     println!(
-        "READY robot={} apid=0x{:03X} udp={udp} tcp={tcp} sim_ctl={ctl_addr} speed={}{frame_note}",
+        "READY robot={} apid=0x{:03X} udp={udp} tcp={tcp} sim_ctl={ctl_addr} speed={}{}{frame_note}",
         s.robot,
         obsw.apid(),
-        s.speed
+        s.speed,
+        s.tm_dest.iter().map(|d| format!(" tm_dest={d}")).collect::<String>()
     );
     eprintln!(
         "obsw: robot {} (APID 0x{:03X}) TC/TM on udp={udp} tcp={tcp}, simulator control on {ctl_addr}, speed x{}",

@@ -107,6 +107,8 @@ struct Subscriber {
 /// Where TM goes; also holds the TCP connections (their input and output sides).
 pub struct Downlink {
     udp: UdpSocket,
+    /// Fixed TM destinations (`--tm-dest`): always sent to, no lease.
+    fixed: Vec<SocketAddr>,
     subscribers: Vec<Subscriber>,
     conns: Vec<Option<Conn>>,
     frame: Vec<u8>,
@@ -124,6 +126,18 @@ pub struct Downlink {
 }
 
 impl Downlink {
+    /// Adds a fixed TM destination (`--tm-dest`), at most `MAX_SUBSCRIBERS` of them.
+    pub fn add_fixed(&mut self, dest: SocketAddr) -> anyhow::Result<()> {
+        if self.fixed.contains(&dest) {
+            return Ok(());
+        }
+        if self.fixed.len() >= MAX_SUBSCRIBERS {
+            anyhow::bail!("--tm-dest {dest}: at most {MAX_SUBSCRIBERS} fixed TM destinations");
+        }
+        self.fixed.push(dest);
+        Ok(())
+    }
+
     /// Subscribes `peer` (or renews its lease): called for every accepted UDP TC.
     pub fn subscribe(&mut self, peer: SocketAddr, now: Instant) {
         let until = now + self.lease;
@@ -222,12 +236,21 @@ impl obsw_core::tm::TmSink for Downlink {
         }
         let now = Instant::now();
         self.subscribers.retain(|s| s.until > now);
-        if let Some(p) = self.reply_to.filter(|p| !self.subscribers.iter().any(|s| s.addr == *p)) {
+        if let Some(p) = self
+            .reply_to
+            .filter(|p| !self.subscribers.iter().any(|s| s.addr == *p) && !self.fixed.contains(p))
+        {
             if !send_udp(&self.udp, packet, p) {
                 self.counters.tm_dropped = self.counters.tm_dropped.wrapping_add(1);
             }
         }
-        for s in &self.subscribers {
+        for d in &self.fixed {
+            if !send_udp(&self.udp, packet, *d) {
+                self.counters.tm_dropped = self.counters.tm_dropped.wrapping_add(1);
+            }
+        }
+        // A subscriber that is also a fixed destination gets each packet once.
+        for s in self.subscribers.iter().filter(|s| !self.fixed.contains(&s.addr)) {
             // A full socket buffer or an unreachable peer must not stop the OBSW; the
             // on-board store keeps the packet for a later downlink.
             if !send_udp(&self.udp, packet, s.addr) {
@@ -343,6 +366,7 @@ fn start_with_lease(
         .register(&mut SourceFd(&timer.as_raw_fd()), TIMER, Interest::READABLE)?;
     let down = Downlink {
         udp: udp.try_clone()?,
+        fixed: Vec::with_capacity(MAX_SUBSCRIBERS),
         subscribers: Vec::with_capacity(MAX_SUBSCRIBERS),
         conns: (0..TCP_MAX_CONNECTIONS).map(|_| None).collect(),
         frame: Vec::new(),
@@ -639,6 +663,31 @@ mod tests {
         for s in [&a, &b] {
             assert_eq!(s.recv(&mut buf).unwrap(), 3);
         }
+    }
+
+    // verifies: YAMCS-TM-01
+    #[test]
+    fn fixed_destinations_get_tm_without_a_lease_and_once() {
+        let (_i, mut down, _b) = net(Duration::from_millis(50));
+        let a = UdpSocket::bind(local()).unwrap();
+        a.set_read_timeout(Some(Duration::from_millis(300))).unwrap();
+        let addr = a.local_addr().unwrap();
+        down.add_fixed(addr).unwrap();
+        down.add_fixed(addr).unwrap();
+        // Also a subscriber whose lease then ends: still exactly one copy per packet.
+        down.subscribe(addr, Instant::now());
+        let mut buf = [0u8; 16];
+        down.send_tm(&[1]);
+        assert_eq!(a.recv(&mut buf).unwrap(), 1);
+        assert!(a.recv(&mut buf).is_err(), "one copy only");
+        std::thread::sleep(Duration::from_millis(100));
+        assert!(down.subscribers(Instant::now()).is_empty());
+        down.send_tm(&[2, 2]);
+        assert_eq!(a.recv(&mut buf).unwrap(), 2, "sent after the lease ended");
+        for p in 0..MAX_SUBSCRIBERS as u16 {
+            let _ = down.add_fixed(SocketAddr::from(([127, 0, 0, 1], 2000 + p)));
+        }
+        assert!(down.add_fixed(SocketAddr::from(([127, 0, 0, 1], 3000))).is_err());
     }
 
     // verifies: DD-LINK-02

@@ -1,0 +1,837 @@
+//! A complete Yamcs 5.12 instance generated from the MIB (`ground mib export --format
+//! yamcs DIR`): server and instance configuration, the realtime processor, one MDB (XTCE)
+//! per robot, the PUS 5 event templates.
+//!
+//! Per robot N (APID 0x100 + N): a TM link `tm_robot_N` (UDP, Yamcs listens; the obsw is
+//! started with `--tm-dest` pointing at it), a TC link `tc_robot_N` (UDP to the obsw's TC
+//! port), PUS pre- and post-processing with the packet error control (CRC-16/CCITT-FALSE,
+//! Yamcs' `CRC-16-CCIIT`), the MDB `/MMIC_I_ROBOT_N` and a `PusEventDecoder` on that
+//! robot's TM. The MDB is the XTCE of [`super::xtce_document_for`] with the additions a
+//! Yamcs operator needs (the `Yamcs` flavour of the XTCE exporter):
+//! - `HK_SID` and `EVENT_ID` are enumerated (PUS event decoder, readable SIDs);
+//! - the CDS short time stamp of every TM is decoded by plain XTCE: `TM_TIME_DAYS` is an
+//!   absolute time (UNIX epoch, offset and scale of a day) and `TM_TIME_MS` an absolute
+//!   time offset from it, so `TM_TIME_MS` reads as the on-board time (Yamcs' PUS
+//!   preprocessor reads only CUC, fixed or float64 times: packets carry the reception
+//!   time as generation time, `useLocalGenerationTime`);
+//! - one container shared by every TM[1,x] with the request ID (`VERIFICATION_*`), so
+//!   that `org.yamcs.pus.Pus1Verifier` verifies acceptance, start and completion of every
+//!   command and names the failure code;
+//! - TC header fields are no operator arguments: sequence count and packet length are
+//!   written by `PusCommandPostprocessor`, the acknowledgement flags come from the MIB
+//!   ([`crate::tc::TcDef::ack_flags`]).
+
+use std::fmt::Write as _;
+use std::str::FromStr;
+
+use super::layout::Field as HeaderField;
+use super::xtce::{self, enumerated_type, esc, parameter, Flavor, Xml};
+use crate::events::{EventDef, EVENTS};
+use crate::headers::{PRIMARY_HEADER as HEADER_PRIMARY, TM_SEC_HEADER as HEADER_TM_SEC};
+use crate::layout::Item;
+use crate::layout::{Field, Names, REQUEST_ID};
+use crate::modes::NodeKind;
+use crate::tc::{TmDef, TMS};
+use crate::types::PType;
+use crate::{apid, config};
+
+/// Name of the Yamcs instance.
+pub const INSTANCE: &str = "mmic";
+/// Port of Yamcs' web server and REST API.
+pub const HTTP_PORT: u16 = 8090;
+/// Yamcs listens for robot N's TM on UDP port `TM_BASE_PORT + N`.
+pub const TM_BASE_PORT: u16 = 10_000;
+/// Prefix of the shared request-ID parameters of TM[1,x].
+pub const VERIFICATION: &str = "VERIFICATION";
+/// Seconds after release within which each verification stage must be reported.
+pub const ACCEPTANCE_WINDOW_S: u32 = 5;
+pub const START_WINDOW_S: u32 = 10;
+/// Completion: robot actions (reconfigurations) take minutes.
+pub const COMPLETION_WINDOW_S: u32 = 600;
+
+/// A set of robot numbers (1..=254).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct RobotSet([u64; 4]);
+
+impl RobotSet {
+    pub const EMPTY: RobotSet = RobotSet([0; 4]);
+    /// Only robot `n` (the default robot if `n` is out of range).
+    pub const fn one(n: u8) -> RobotSet {
+        let n = if apid::robot_apid(n).is_some() {
+            n
+        } else {
+            apid::DEFAULT_ROBOT
+        };
+        let mut w = [0u64; 4];
+        w[(n / 64) as usize] = 1 << (n % 64);
+        RobotSet(w)
+    }
+    /// Adds robot `n`; false if `n` is not a robot number.
+    pub fn insert(&mut self, n: u8) -> bool {
+        if apid::robot_apid(n).is_none() {
+            return false;
+        }
+        self.0[(n / 64) as usize] |= 1 << (n % 64);
+        true
+    }
+    pub fn contains(&self, n: u8) -> bool {
+        self.0[(n / 64) as usize] & (1 << (n % 64)) != 0
+    }
+    /// Robot numbers in increasing order.
+    pub fn iter(&self) -> impl Iterator<Item = u8> + '_ {
+        (apid::ROBOT_MIN..=apid::ROBOT_MAX).filter(|n| self.contains(*n))
+    }
+    pub fn is_empty(&self) -> bool {
+        self.iter().next().is_none()
+    }
+}
+
+impl FromStr for RobotSet {
+    type Err = String;
+    /// "1", "1,2,5", "1-4,7".
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let mut set = RobotSet::EMPTY;
+        for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+            let num = |t: &str| {
+                t.trim()
+                    .parse::<u8>()
+                    .ok()
+                    .filter(|n| apid::robot_apid(*n).is_some())
+                    .ok_or_else(|| {
+                        format!(
+                            "'{t}' is not a robot number ({}..={})",
+                            apid::ROBOT_MIN,
+                            apid::ROBOT_MAX
+                        )
+                    })
+            };
+            let (lo, hi) = match part.split_once('-') {
+                Some((a, b)) => (num(a)?, num(b)?),
+                None => (num(part)?, num(part)?),
+            };
+            if lo > hi {
+                return Err(format!("'{part}': empty range"));
+            }
+            for n in lo..=hi {
+                set.insert(n);
+            }
+        }
+        if set.is_empty() {
+            return Err(format!("'{s}': no robot"));
+        }
+        Ok(set)
+    }
+}
+
+/// One robot of the instance and where its links go.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct YamcsRobot {
+    pub robot: u8,
+    /// Host and UDP port of the obsw's TC socket (`obsw --udp`).
+    pub tc_host: String,
+    pub tc_port: u16,
+    /// UDP port on which Yamcs receives this robot's TM (`obsw --tm-dest`).
+    pub tm_port: u16,
+}
+
+impl YamcsRobot {
+    /// Robot `n` with the default ports: TC to the obsw's default port
+    /// ([`config::robot_port`]) on the loopback, TM on `TM_BASE_PORT + n`.
+    pub fn default_for(n: u8) -> YamcsRobot {
+        YamcsRobot {
+            robot: n,
+            tc_host: "127.0.0.1".into(),
+            tc_port: config::robot_port(n),
+            tm_port: TM_BASE_PORT + n as u16,
+        }
+    }
+    fn space_system(&self) -> String {
+        format!("MMIC_I_ROBOT_{}", self.robot)
+    }
+}
+
+/// Everything the generated instance depends on.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct YamcsSetup {
+    pub instance: String,
+    /// Address and port of Yamcs' web server.
+    pub http_address: String,
+    pub http_port: u16,
+    pub robots: Vec<YamcsRobot>,
+}
+
+impl YamcsSetup {
+    /// The robots of `set` with the default ports, web server on 127.0.0.1:8090.
+    pub fn for_robots(set: RobotSet) -> YamcsSetup {
+        YamcsSetup {
+            instance: INSTANCE.into(),
+            http_address: "127.0.0.1".into(),
+            http_port: HTTP_PORT,
+            robots: set.iter().map(YamcsRobot::default_for).collect(),
+        }
+    }
+}
+
+/// MDB file of robot `n`, relative to the instance directory.
+pub fn mdb_file(n: u8) -> String {
+    format!("mdb/mmic-i-robot-{n}.xml")
+}
+/// Event templates, relative to the instance directory.
+pub const EVENTS_FILE: &str = "etc/events.json";
+
+/// The files of a Yamcs instance for `setup`: (path relative to the instance directory,
+/// content). Yamcs is started in that directory (`--etc-dir etc`; the MDB and template
+/// paths in the configuration are relative to it).
+pub fn yamcs_instance(setup: &YamcsSetup) -> Vec<(String, String)> {
+    let mut files = vec![
+        ("etc/yamcs.yaml".to_string(), server_yaml(setup)),
+        (format!("etc/yamcs.{}.yaml", setup.instance), instance_yaml(setup)),
+        ("etc/processor.yaml".to_string(), PROCESSOR_YAML.to_string()),
+        (
+            EVENTS_FILE.to_string(),
+            events_json(&setup.robots.iter().map(|r| r.robot).collect::<Vec<_>>()),
+        ),
+    ];
+    for r in &setup.robots {
+        files.push((mdb_file(r.robot), yamcs_xtce(r.robot)));
+    }
+    files
+}
+
+/// The XTCE of robot `n` as the Yamcs MDB.
+pub fn yamcs_xtce(n: u8) -> String {
+    xtce::document(n, Flavor::Yamcs)
+}
+
+fn server_yaml(s: &YamcsSetup) -> String {
+    format!(
+        "# Generated from the MMIC-I MIB (crate mib {ver}): do not edit, regenerate with\n\
+         # `ground mib export --format yamcs --out DIR`.\n\
+         services:\n  - class: org.yamcs.http.HttpServer\n    args:\n      address: {addr}\n      port: {port}\n\
+         instances:\n  - {inst}\n\
+         # Overridden by `--data-dir` (scripts/yamcs.sh).\n\
+         dataDir: yamcs-data\n\
+         yamcs-web:\n  tag: MMIC-I\n",
+        ver = env!("CARGO_PKG_VERSION"),
+        addr = s.http_address,
+        port = s.http_port,
+        inst = s.instance
+    )
+}
+
+fn instance_yaml(s: &YamcsSetup) -> String {
+    let mut y = String::new();
+    let _ = writeln!(
+        y,
+        "# Generated from the MMIC-I MIB (crate mib {}): Yamcs instance '{}' for robot(s) {}.\n\
+         # Links: bare CCSDS space packets over UDP, one datagram per packet (lab / loopback).",
+        env!("CARGO_PKG_VERSION"),
+        s.instance,
+        s.robots
+            .iter()
+            .map(|r| r.robot.to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    y.push_str(
+        "services:\n  - class: org.yamcs.archive.XtceTmRecorder\n  - class: org.yamcs.archive.ParameterRecorder\n  \
+         - class: org.yamcs.archive.AlarmRecorder\n  - class: org.yamcs.archive.EventRecorder\n  \
+         - class: org.yamcs.archive.ReplayServer\n  - class: org.yamcs.archive.CommandHistoryRecorder\n  \
+         - class: org.yamcs.parameterarchive.ParameterArchive\n  \
+         - class: org.yamcs.ProcessorCreatorService\n    args:\n      name: realtime\n      type: realtime\n",
+    );
+    for r in &s.robots {
+        let _ = write!(
+            y,
+            "  - class: org.yamcs.pus.PusEventDecoder\n    name: events_robot_{n}\n    args:\n      \
+             eventIdParameter: /{ss}/EVENT_ID\n      eventTemplateFile: {EVENTS_FILE}\n      \
+             realtimeStreams: [tm_robot_{n}]\n",
+            n = r.robot,
+            ss = r.space_system()
+        );
+    }
+    y.push_str("dataLinks:\n");
+    for r in &s.robots {
+        let _ = write!(
+            y,
+            "  - name: tm_robot_{n}\n    class: org.yamcs.tctm.UdpTmDataLink\n    stream: tm_robot_{n}\n    \
+             port: {tm}\n    maxLength: {max}\n    \
+             packetPreprocessorClassName: org.yamcs.pus.PusPacketPreprocessor\n    packetPreprocessorArgs:\n      \
+             errorDetection:\n        type: CRC-16-CCIIT\n      \
+             # CDS short time: not a time format of the PUS preprocessor; the on-board time is\n      \
+             # the parameter TM_TIME_MS (see docs/yamcs.md).\n      useLocalGenerationTime: true\n  \
+             - name: tc_robot_{n}\n    class: org.yamcs.tctm.UdpTcDataLink\n    stream: tc_robot_{n}\n    \
+             host: {host}\n    port: {tc}\n    \
+             commandPostprocessorClassName: org.yamcs.pus.PusCommandPostprocessor\n    commandPostprocessorArgs:\n      \
+             errorDetection:\n        type: CRC-16-CCIIT\n",
+            n = r.robot,
+            tm = r.tm_port,
+            max = config::MAX_PACKET_LEN,
+            host = r.tc_host,
+            tc = r.tc_port
+        );
+    }
+    y.push_str("mdb:\n");
+    for r in &s.robots {
+        let _ = writeln!(y, "  - type: xtce\n    spec: {}", mdb_file(r.robot));
+    }
+    y.push_str("streamConfig:\n  tm:\n");
+    for r in &s.robots {
+        let _ = writeln!(
+            y,
+            "    - name: tm_robot_{n}\n      processor: realtime\n      rootContainer: /{ss}/CCSDSPacket",
+            n = r.robot,
+            ss = r.space_system()
+        );
+    }
+    y.push_str(
+        "  invalidTm: invalid_tm_stream\n  cmdHist: [cmdhist_realtime, cmdhist_dump]\n  \
+         event: [events_realtime, events_dump]\n  param: [pp_realtime, sys_param, proc_param]\n  \
+         parameterAlarm: [alarms_realtime]\n  eventAlarm: [event_alarms_realtime]\n  tc:\n",
+    );
+    for r in &s.robots {
+        let _ = writeln!(
+            y,
+            "    - name: tc_robot_{n}\n      processor: realtime\n      tcPatterns: [\"/{ss}/.*\"]",
+            n = r.robot,
+            ss = r.space_system()
+        );
+    }
+    y
+}
+
+const PROCESSOR_YAML: &str = "# Generated from the MMIC-I MIB: Yamcs processors.\n\
+realtime:\n  services:\n    - class: org.yamcs.StreamTmPacketProvider\n    - class: org.yamcs.StreamTcCommandReleaser\n    \
+- class: org.yamcs.tctm.StreamParameterProvider\n    - class: org.yamcs.algorithms.AlgorithmManager\n    \
+- class: org.yamcs.parameter.LocalParameterManager\n  config:\n    generateEvents: true\n    subscribeAll: true\n    \
+alarm:\n      parameterCheck: true\n      parameterServer: enabled\n      eventServer: enabled\n    \
+tmProcessor:\n      ignoreOutOfContainerEntries: false\n    recordInitialValues: true\n    recordLocalValues: true\n\
+Archive:\n  services:\n    - class: org.yamcs.tctm.ReplayService\n    - class: org.yamcs.algorithms.AlgorithmManager\n\
+ParameterArchive:\n  services:\n    - class: org.yamcs.tctm.ReplayService\n    - class: org.yamcs.algorithms.AlgorithmManager\n\
+ArchiveRetrieval:\n  config:\n    subscribeContainerArchivePartitions: false\n  services:\n    \
+- class: org.yamcs.tctm.ReplayService\n    - class: org.yamcs.algorithms.AlgorithmManager\n";
+
+/// Template of event `e` for `PusEventDecoder`: the description, then every parameter
+/// (engineering value: names for enumerated ones).
+pub fn event_template(e: &crate::events::EventDef) -> String {
+    let mut t = e.desc.replace(['{', '}'], "");
+    for p in e.params {
+        let _ = write!(t, "; {}={{{}}}", p.name, xtce::event_param_name(e, p.name));
+    }
+    t
+}
+
+/// Name of the MDB parameter of event parameter `p` of `e` (as in the generic XTCE).
+pub fn event_param(e: &EventDef, p: &str) -> String {
+    xtce::event_param_name(e, p)
+}
+
+/// The event templates of `robots` (JSON list of `eventId` and `template`). The key is
+/// `<EVENT_ID label>-<APID>`, which `PusEventDecoder` looks up before the bare label, so
+/// each robot's events say which robot they come from.
+pub fn events_json(robots: &[u8]) -> String {
+    let list: Vec<serde_json::Value> = robots
+        .iter()
+        .filter_map(|&n| apid::robot_apid(n).map(|a| (n, a)))
+        .flat_map(|(n, a)| {
+            EVENTS.iter().map(move |e| {
+                serde_json::json!({
+                    "eventId": format!("{}-{a}", e.name),
+                    "template": format!("robot {n}: {}", event_template(e)),
+                })
+            })
+        })
+        .collect();
+    serde_json::to_string_pretty(&list).unwrap_or_else(|_| "[]".into())
+}
+
+// ---------------------------------------------------------------------------
+// Additions to the XTCE (called by the XTCE exporter in the Yamcs flavour).
+
+/// Days from 1958-01-01 to 1970-01-01, in seconds (offset of `TM_TIME_DAYS`).
+const CDS_EPOCH_OFFSET_S: i64 = -crate::headers::CCSDS_TO_UNIX_DAYS * 86_400;
+
+/// Types of the TM header fields that differ in the Yamcs flavour; false if `f` is not one.
+pub(super) fn header_type(x: &mut Xml, f: &HeaderField) -> bool {
+    match f.name {
+        "TM_TIME_DAYS" => {
+            x.open(&format!(
+                "<xtce:AbsoluteTimeParameterType name=\"TM_TIME_DAYS_Type\" shortDescription=\"{}: start of the on-board day (UTC)\">",
+                esc(f.desc)
+            ));
+            x.open(&format!(
+                "<xtce:Encoding units=\"seconds\" offset=\"{CDS_EPOCH_OFFSET_S}\" scale=\"86400\">"
+            ));
+            x.line(&format!(
+                "<xtce:IntegerDataEncoding sizeInBits=\"{}\" encoding=\"unsigned\"/>",
+                f.bits
+            ));
+            x.close("</xtce:Encoding>");
+            x.open("<xtce:ReferenceTime>");
+            x.line("<xtce:Epoch>UNIX</xtce:Epoch>");
+            x.close("</xtce:ReferenceTime>");
+            x.close("</xtce:AbsoluteTimeParameterType>");
+            true
+        }
+        "TM_TIME_MS" => {
+            x.open(&format!(
+                "<xtce:AbsoluteTimeParameterType name=\"TM_TIME_MS_Type\" shortDescription=\"{}: with TM_TIME_DAYS, the on-board time of the packet (UTC)\">",
+                esc(f.desc)
+            ));
+            x.open("<xtce:Encoding units=\"seconds\" scale=\"0.001\">");
+            x.line(&format!(
+                "<xtce:IntegerDataEncoding sizeInBits=\"{}\" encoding=\"unsigned\"/>",
+                f.bits
+            ));
+            x.close("</xtce:Encoding>");
+            x.open("<xtce:ReferenceTime>");
+            x.line("<xtce:OffsetFrom parameterRef=\"TM_TIME_DAYS\"/>");
+            x.close("</xtce:ReferenceTime>");
+            x.close("</xtce:AbsoluteTimeParameterType>");
+            true
+        }
+        _ => false,
+    }
+}
+
+/// `HK_SID` and `EVENT_ID` as enumerations (`PusEventDecoder` needs an enumerated ID).
+pub(super) fn id_types(x: &mut Xml) {
+    enumerated_type(
+        x,
+        "HK_SID_Type",
+        &Field::new("HK_SID", PType::U16, "housekeeping structure ID").names(Names::Sid),
+    );
+    enumerated_type(
+        x,
+        "EVENT_ID_Type",
+        &Field::new("EVENT_ID", PType::U16, "event ID").names(Names::Event),
+    );
+}
+
+fn verification_param(f: &Field) -> String {
+    format!("{VERIFICATION}_request_id_{}", f.name)
+}
+
+/// Types of the shared request-ID parameters.
+pub(super) fn extra_types(x: &mut Xml) {
+    for f in REQUEST_ID.fields {
+        x.open(&format!(
+            "<xtce:IntegerParameterType name=\"{}_Type\" shortDescription=\"{}\" signed=\"false\" sizeInBits=\"32\">",
+            verification_param(f),
+            esc(f.desc)
+        ));
+        x.line("<xtce:UnitSet/>");
+        x.line(&format!(
+            "<xtce:IntegerDataEncoding sizeInBits=\"{}\" encoding=\"unsigned\"/>",
+            f.bits
+        ));
+        x.close("</xtce:IntegerParameterType>");
+    }
+    x.open(&format!(
+        "<xtce:IntegerParameterType name=\"{VERIFICATION_SUBTYPE}_Type\" shortDescription=\"TM[1,x] subtype (read again by the shared container)\" signed=\"false\" sizeInBits=\"32\">"
+    ));
+    x.line("<xtce:UnitSet/>");
+    x.line("<xtce:IntegerDataEncoding sizeInBits=\"8\" encoding=\"unsigned\"/>");
+    x.close("</xtce:IntegerParameterType>");
+}
+
+pub(super) fn extra_params(x: &mut Xml) {
+    for f in REQUEST_ID.fields {
+        let n = verification_param(f);
+        parameter(x, &n, &format!("{n}_Type"), &format!("{} (every TM[1,x])", f.desc), &[]);
+    }
+    parameter(
+        x,
+        VERIFICATION_SUBTYPE,
+        &format!("{VERIFICATION_SUBTYPE}_Type"),
+        "subtype of the last TM[1,x] (stage and outcome of the verification)",
+        &[],
+    );
+}
+
+/// The TM[1,x] subtype as a parameter of its own, set only by TM[1,x]: the verifiers'
+/// request ID, subtype and failure code then always come from the same report
+/// (`TM_SUBSERVICE` is set by every packet).
+pub const VERIFICATION_SUBTYPE: &str = "VERIFICATION_subtype";
+
+/// Bit offset of `TM_SUBSERVICE` from the start of a TM packet.
+fn subservice_bit_offset() -> u32 {
+    let primary: u32 = HEADER_PRIMARY.iter().map(|f| f.bits).sum();
+    let before: u32 = HEADER_TM_SEC
+        .iter()
+        .take_while(|f| f.name != "TM_SUBSERVICE")
+        .map(|f| f.bits)
+        .sum();
+    primary + before
+}
+
+/// The container every TM[1,x] matches besides its own: the request ID under one set of
+/// names, for the verifiers.
+pub(super) fn extra_containers(x: &mut Xml) {
+    x.open(&format!(
+        "<xtce:SequenceContainer name=\"{VERIFICATION}_REPORT\" shortDescription=\"TM[1,x] request verification report: the request ID and the subtype, shared by every subtype (Yamcs command verifiers)\">"
+    ));
+    x.open("<xtce:EntryList>");
+    for f in REQUEST_ID.fields {
+        x.line(&format!(
+            "<xtce:ParameterRefEntry parameterRef=\"{}\"/>",
+            verification_param(f)
+        ));
+    }
+    // The subtype again, from its place in the secondary header.
+    x.open(&format!(
+        "<xtce:ParameterRefEntry parameterRef=\"{VERIFICATION_SUBTYPE}\">"
+    ));
+    x.open("<xtce:LocationInContainerInBits referenceLocation=\"containerStart\">");
+    x.line(&format!(
+        "<xtce:FixedValue>{}</xtce:FixedValue>",
+        subservice_bit_offset()
+    ));
+    x.close("</xtce:LocationInContainerInBits>");
+    x.close("</xtce:ParameterRefEntry>");
+    x.close("</xtce:EntryList>");
+    x.open("<xtce:BaseContainer containerRef=\"PUS_TM\">");
+    x.open("<xtce:RestrictionCriteria>");
+    x.open("<xtce:ComparisonList>");
+    x.line(&format!(
+        "<xtce:Comparison parameterRef=\"TM_SERVICE\" value=\"{}\" useCalibratedValue=\"false\"/>",
+        crate::tc::service::VERIFICATION
+    ));
+    x.close("</xtce:ComparisonList>");
+    x.close("</xtce:RestrictionCriteria>");
+    x.close("</xtce:BaseContainer>");
+    x.close("</xtce:SequenceContainer>");
+}
+
+/// Value of a TC header field that is no operator argument in the Yamcs flavour (written
+/// as 0, filled in by `PusCommandPostprocessor`).
+pub(super) fn tc_header_fixed(f: &HeaderField) -> Option<u32> {
+    match f.name {
+        "SRC_SEQ_CTR" | "PKT_LEN" => Some(0),
+        _ => None,
+    }
+}
+
+/// Name of the TM[1,x] failure report of stage `sub` (its failure code parameter is
+/// `<name>_failure_code`).
+fn failure_report(sub: u8) -> &'static str {
+    TMS.iter()
+        .find(|t| t.service == crate::tc::service::VERIFICATION && t.subservice == sub + 1)
+        .map_or("?", |t| t.name)
+}
+
+/// Command verifiers of the abstract `PUS_TC` (inherited by every command).
+pub(super) fn verifiers(x: &mut Xml) {
+    x.open("<xtce:VerifierSet>");
+    for (kind, stage, sub, window) in [
+        ("Accepted", "Acceptance", 1u8, ACCEPTANCE_WINDOW_S),
+        ("Execution", "Start", 3, START_WINDOW_S),
+        ("Complete", "Completion", 7, COMPLETION_WINDOW_S),
+    ] {
+        let code = format!("{}_failure_code", failure_report(sub));
+        x.open(&format!("<xtce:{kind}Verifier name=\"{stage}\">"));
+        x.open(&format!(
+            "<xtce:CustomAlgorithm name=\"PUS1_{}\" shortDescription=\"TM[1,{sub}] / TM[1,{}] for this command\">",
+            stage.to_ascii_uppercase(),
+            sub + 1
+        ));
+        x.line(&format!(
+            "<xtce:AlgorithmText language=\"Java\">org.yamcs.pus.Pus1Verifier({{stage: {sub}, template: \"{{code}}\"}})</xtce:AlgorithmText>"
+        ));
+        x.open("<xtce:InputSet>");
+        let apid = REQUEST_ID
+            .fields
+            .iter()
+            .find(|f| f.name == "apid")
+            .map(verification_param);
+        let seq = REQUEST_ID
+            .fields
+            .iter()
+            .find(|f| f.name == "seq_count")
+            .map(verification_param);
+        let (apid, seq) = (apid.unwrap_or_default(), seq.unwrap_or_default());
+        for (p, n) in [
+            ("/yamcs/cmd/arg/PKT_APID", "sentApid"),
+            ("/yamcs/cmdHist/ccsds-seqcount", "sentSeq"),
+            (apid.as_str(), "rcvdApid"),
+            (seq.as_str(), "rcvdSeq"),
+            (VERIFICATION_SUBTYPE, "subtype"),
+            (code.as_str(), "code"),
+        ] {
+            x.line(&format!(
+                "<xtce:InputParameterInstanceRef parameterRef=\"{p}\" inputName=\"{n}\"/>"
+            ));
+        }
+        x.close("</xtce:InputSet>");
+        // No trigger set: a verifier runs when one of its inputs changes, i.e. on a
+        // TM[1,x] (request ID, subtype and code all from that report) or when the sent
+        // sequence count reaches the command history (a TM[1,x] that came first is then
+        // judged).
+        x.close("</xtce:CustomAlgorithm>");
+        x.line(&format!(
+            "<xtce:CheckWindow timeToStopChecking=\"PT{window}S\" timeWindowIsRelativeTo=\"commandRelease\"/>"
+        ));
+        x.close(&format!("</xtce:{kind}Verifier>"));
+    }
+    x.close("</xtce:VerifierSet>");
+}
+
+// --- Mode names per node kind -------------------------------------------------------
+
+/// Sub-space system of the robot's MDB with the module-named variants of the mode fields
+/// of events (same short names, so the event templates need no change).
+pub const MODULE_MODES: &str = "MODULE_MODES";
+
+fn mode_enum_type(x: &mut Xml, tname: &str, f: &Field, kind: NodeKind) {
+    x.open(&format!(
+        "<xtce:EnumeratedParameterType name=\"{}\" shortDescription=\"{} ({} modes)\">",
+        esc(tname),
+        esc(f.desc),
+        if kind == NodeKind::Root { "robot" } else { "module" }
+    ));
+    x.line("<xtce:UnitSet/>");
+    x.line(&format!(
+        "<xtce:IntegerDataEncoding sizeInBits=\"{}\" encoding=\"unsigned\"/>",
+        f.bits
+    ));
+    x.open("<xtce:EnumerationList>");
+    for m in 0..=u8::MAX as u32 {
+        if let Some(n) = crate::modes::mode_name(kind, m) {
+            x.line(&format!("<xtce:Enumeration value=\"{m}\" label=\"{n}\"/>"));
+        }
+    }
+    x.close("</xtce:EnumerationList>");
+    x.close("</xtce:EnumeratedParameterType>");
+}
+
+/// An event whose mode fields are named by its `node` field (its first parameter).
+fn mode_split(e: &EventDef) -> bool {
+    e.params.first().is_some_and(|p| p.names == Names::Node) && e.params.iter().any(|p| p.names == Names::Mode)
+}
+
+/// Type of an event's mode field in the robot's space system: the robot's mode names
+/// (the module-named variant is in [`MODULE_MODES`]); false for any other field.
+pub(super) fn robot_mode_type(x: &mut Xml, tname: &str, f: &Field) -> bool {
+    if f.names != Names::Mode {
+        return false;
+    }
+    mode_enum_type(x, tname, f, NodeKind::Root);
+    true
+}
+
+/// Containers of an event with mode fields: the event container holds the node; one child
+/// for the robot node (robot mode names), one for every other node (module mode names).
+/// False for an event without mode fields.
+pub(super) fn mode_event_containers(x: &mut Xml, e: &EventDef, severity_container: &str, robot: u8) -> bool {
+    if !mode_split(e) {
+        return false;
+    }
+    let name = format!("EVT_{}", e.name);
+    let node = xtce::event_param_name(e, e.params[0].name);
+    xtce::container(
+        x,
+        &name,
+        &format!("event 0x{:04X}: {}", e.id, e.desc),
+        false,
+        std::slice::from_ref(&node),
+        Some((severity_container, &[("EVENT_ID", e.id.to_string())])),
+    );
+    let rest: Vec<(String, bool)> = e.params[1..]
+        .iter()
+        .map(|p| (xtce::event_param_name(e, p.name), p.names == Names::Mode))
+        .collect();
+    node_children(x, &name, &node, &rest, e.name, robot);
+    true
+}
+
+/// The fields of a TM body whose mode fields are named by its `node` field (the first),
+/// if it is one: plain fields only.
+fn mode_tm_fields(t: &TmDef) -> Option<Vec<Field>> {
+    let fields: Vec<Field> = t
+        .body
+        .iter()
+        .map(|i| match i {
+            Item::Field(f) => Some(*f),
+            Item::Sub { .. } | Item::Group { .. } | Item::Packet { .. } | Item::Tail(_) => None,
+        })
+        .collect::<Option<_>>()?;
+    (fields.first().is_some_and(|f| f.names == Names::Node) && fields.iter().any(|f| f.names == Names::Mode))
+        .then_some(fields)
+}
+
+/// Containers, types and parameters of a TM whose mode fields depend on its node (TM[200,6]
+/// and [200,7]), split like the events ([`mode_event_containers`]); false for any other TM.
+pub(super) fn mode_tm(t: &TmDef, types: &mut Xml, params: &mut Xml, containers: &mut Xml, robot: u8) -> bool {
+    let Some(fields) = mode_tm_fields(t) else {
+        return false;
+    };
+    for f in &fields {
+        let n = format!("{}_{}", t.name, f.name);
+        let tname = format!("{n}_Type");
+        if f.names == Names::Mode {
+            mode_enum_type(types, &tname, f, NodeKind::Root);
+        } else if !f.names.is_none() {
+            enumerated_type(types, &tname, f);
+        } else {
+            types.open(&format!(
+                "<xtce:IntegerParameterType name=\"{}\" shortDescription=\"{}\" signed=\"{}\" sizeInBits=\"32\">",
+                esc(&tname),
+                esc(f.desc),
+                f.ptype.signed()
+            ));
+            types.line("<xtce:UnitSet/>");
+            types.line(&format!(
+                "<xtce:IntegerDataEncoding sizeInBits=\"{}\" encoding=\"{}\"/>",
+                f.bits,
+                if f.ptype.signed() { "twosComplement" } else { "unsigned" }
+            ));
+            types.close("</xtce:IntegerParameterType>");
+        }
+        parameter(params, &n, &tname, f.desc, &[]);
+    }
+    let name = format!("TM_{}", t.name);
+    let node = format!("{}_{}", t.name, fields[0].name);
+    xtce::container(
+        containers,
+        &name,
+        &format!("TM[{},{}] {}", t.service, t.subservice, t.desc),
+        false,
+        std::slice::from_ref(&node),
+        Some((
+            "PUS_TM",
+            &[
+                ("TM_SERVICE", t.service.to_string()),
+                ("TM_SUBSERVICE", t.subservice.to_string()),
+            ],
+        )),
+    );
+    let rest: Vec<(String, bool)> = fields[1..]
+        .iter()
+        .map(|f| (format!("{}_{}", t.name, f.name), f.names == Names::Mode))
+        .collect();
+    node_children(containers, &name, &node, &rest, t.name, robot);
+    true
+}
+
+/// The robot-node and module-node children of container `name`, restricted on `node`;
+/// `rest` lists the parameters after the node and whether each is a mode field.
+fn node_children(x: &mut Xml, name: &str, node: &str, rest: &[(String, bool)], what: &str, robot: u8) {
+    for (suffix, op, module) in [("ROBOT", "==", false), ("MODULE", "!=", true)] {
+        x.open(&format!(
+            "<xtce:SequenceContainer name=\"{name}_{suffix}\" shortDescription=\"{what} of the {} node{}\">",
+            suffix.to_ascii_lowercase(),
+            if module {
+                "s (module mode names)"
+            } else {
+                " (robot mode names)"
+            }
+        ));
+        x.open("<xtce:EntryList>");
+        for (n, is_mode) in rest {
+            // Absolute: Yamcs 5.12.8 resolves "MODULE_MODES/NAME" to the NAME of the
+            // enclosing space system (measured: the module child then read the
+            // robot-named parameter).
+            let r = if module && *is_mode {
+                format!("/MMIC_I_ROBOT_{robot}/{MODULE_MODES}/{n}")
+            } else {
+                n.clone()
+            };
+            x.line(&format!("<xtce:ParameterRefEntry parameterRef=\"{}\"/>", esc(&r)));
+        }
+        x.line("<xtce:ParameterRefEntry parameterRef=\"PEC\"/>");
+        x.close("</xtce:EntryList>");
+        x.open(&format!("<xtce:BaseContainer containerRef=\"{name}\">"));
+        x.open("<xtce:RestrictionCriteria>");
+        x.open("<xtce:ComparisonList>");
+        x.line(&format!(
+            "<xtce:Comparison parameterRef=\"{node}\" comparisonOperator=\"{}\" value=\"{}\" useCalibratedValue=\"false\"/>",
+            esc(op),
+            crate::modes::node::ROBOT
+        ));
+        x.close("</xtce:ComparisonList>");
+        x.close("</xtce:RestrictionCriteria>");
+        x.close("</xtce:BaseContainer>");
+        x.close("</xtce:SequenceContainer>");
+    }
+}
+
+/// The module-named variants of every mode field: (parameter name, field).
+fn module_mode_fields() -> Vec<(String, Field)> {
+    let mut out: Vec<(String, Field)> = EVENTS
+        .iter()
+        .filter(|e| mode_split(e))
+        .flat_map(|e| {
+            e.params
+                .iter()
+                .filter(|p| p.names == Names::Mode)
+                .map(move |p| (xtce::event_param_name(e, p.name), *p))
+        })
+        .collect();
+    for t in TMS {
+        if let Some(fields) = mode_tm_fields(t) {
+            out.extend(
+                fields
+                    .into_iter()
+                    .filter(|f| f.names == Names::Mode)
+                    .map(|f| (format!("{}_{}", t.name, f.name), f)),
+            );
+        }
+    }
+    out
+}
+
+/// The [`MODULE_MODES`] space system (written last in the robot's space system).
+pub(super) fn module_modes_space_system(x: &mut Xml) {
+    x.open(&format!(
+        "<xtce:SpaceSystem name=\"{MODULE_MODES}\" shortDescription=\"Mode fields of events and reports about module nodes, with the module mode names\">"
+    ));
+    x.open("<xtce:TelemetryMetaData>");
+    let fields = module_mode_fields();
+    x.open("<xtce:ParameterTypeSet>");
+    for (n, f) in &fields {
+        mode_enum_type(x, &format!("{n}_Type"), f, NodeKind::Arm);
+    }
+    x.close("</xtce:ParameterTypeSet>");
+    x.open("<xtce:ParameterSet>");
+    for (n, f) in &fields {
+        parameter(x, n, &format!("{n}_Type"), f.desc, &[]);
+    }
+    x.close("</xtce:ParameterSet>");
+    x.close("</xtce:TelemetryMetaData>");
+    x.close("</xtce:SpaceSystem>");
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // verifies: YAMCS-EXPORT-01
+    #[test]
+    fn robot_sets_parse_lists_and_ranges() {
+        let s: RobotSet = "1-3, 7".parse().unwrap();
+        assert_eq!(s.iter().collect::<Vec<_>>(), [1, 2, 3, 7]);
+        assert!("0".parse::<RobotSet>().is_err());
+        assert!("255".parse::<RobotSet>().is_err());
+        assert!("3-1".parse::<RobotSet>().is_err());
+        assert!("".parse::<RobotSet>().is_err());
+        assert_eq!(RobotSet::one(0).iter().collect::<Vec<_>>(), [apid::DEFAULT_ROBOT]);
+        assert_eq!("254".parse::<RobotSet>().unwrap().iter().collect::<Vec<_>>(), [254]);
+    }
+
+    // verifies: YAMCS-EXPORT-01
+    #[test]
+    fn instance_has_links_mdb_and_decoder_per_robot() {
+        let setup = YamcsSetup::for_robots("2,5".parse().unwrap());
+        let files = yamcs_instance(&setup);
+        let get = |n: &str| &files.iter().find(|(p, _)| p == n).unwrap().1;
+        let inst = get("etc/yamcs.mmic.yaml");
+        for n in [2u8, 5] {
+            assert!(inst.contains(&format!("port: {}", TM_BASE_PORT + n as u16)));
+            assert!(inst.contains(&format!("port: {}", config::robot_port(n))));
+            assert!(inst.contains(&format!("eventIdParameter: /MMIC_I_ROBOT_{n}/EVENT_ID")));
+            assert!(get(&mdb_file(n)).contains(&format!("value=\"{}\"", 0x100 + n as u16)));
+        }
+        assert!(!inst.contains("tm_robot_1"));
+        assert_eq!(inst.matches("CRC-16-CCIIT").count(), 4);
+    }
+}

@@ -1,0 +1,138 @@
+"""Drives a running Yamcs (the MMIC-I instance) through its REST/WebSocket API with
+yamcs-client, for tests/tests/yamcs_e2e.rs. Collects facts, judges nothing: the Rust test
+compares them with the MIB.
+
+    python yamcs_check.py --url 127.0.0.1:PORT --instance mmic --robot 1 \
+        --seconds 20 --commands commands.json --out result.json
+
+commands.json: {"hk_params": [names of the HK parameters], "commands": [{"name": "PING",
+"args": {...}, "at": seconds after the start}]}.
+result.json:
+  links:     [{name, status, in_count, out_count}]
+  hk:        [{t (reception, s since start), sid, seq, params: {NAME: {raw, eng}}}], every HK report
+  commands:  [{name, args, attrs: {Verifier_*_Status / _Message, CommandComplete_*}}]
+  events:    [{type, severity, message, generation_time}]
+  watched:   [{t, params}] every delivery with one of the plan's "watch" parameters
+"""
+
+import argparse
+import datetime
+import json
+import os
+import threading
+import time
+
+from yamcs.client import YamcsClient
+
+
+def plain(v):
+    if isinstance(v, datetime.datetime):
+        return v.astimezone(datetime.timezone.utc).isoformat()
+    if isinstance(v, (bytes, bytearray)):
+        return v.hex()
+    if isinstance(v, (bool, int, float, str)) or v is None:
+        return v
+    return str(v)
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--url", required=True)
+    ap.add_argument("--instance", default="mmic")
+    ap.add_argument("--robot", type=int, default=1)
+    ap.add_argument("--seconds", type=float, default=20)
+    ap.add_argument("--commands", required=True)
+    ap.add_argument("--out", required=True)
+    a = ap.parse_args()
+
+    ss = f"/MMIC_I_ROBOT_{a.robot}"
+    client = YamcsClient(a.url)
+    proc = client.get_processor(a.instance, "realtime")
+
+    with open(a.commands) as f:
+        plan = json.load(f)
+    # The HK parameters to follow (the test takes them from the MIB), plus the headers
+    # that identify the packet.
+    names = [f"{ss}/{n}" for n in plan["hk_params"]]
+    # Other parameters to record wherever they come (names relative to the robot's space
+    # system, e.g. "MODULE_MODES/MODE_REPLY_mode").
+    watch = [f"{ss}/{n}" for n in plan.get("watch", [])]
+    headers = [f"{ss}/SRC_SEQ_CTR", f"{ss}/TM_TIME_DAYS", f"{ss}/TM_TIME_MS", f"{ss}/HK_SID"]
+
+    t0 = time.monotonic()
+    lock = threading.Lock()
+    deliveries = []
+
+    def on_data(delivery):
+        now = time.monotonic() - t0
+        vals = {}
+        for pv in delivery.parameters:
+            v = {"raw": plain(pv.raw_value), "eng": plain(pv.eng_value)}
+            if isinstance(pv.eng_value, datetime.datetime):
+                v["eng_unix_ms"] = round(pv.eng_value.timestamp() * 1000)
+            vals[pv.name.rsplit("/", 1)[-1]] = v
+        with lock:
+            deliveries.append({"t": now, "params": vals})
+
+    sub = proc.create_parameter_subscription(headers + names + watch, on_data=on_data, send_from_cache=False)
+
+    hist = proc.create_command_history_subscription()
+    events = []
+
+    def on_event(ev):
+        events.append({
+            "type": ev.event_type,
+            "severity": ev.severity,
+            "message": ev.message,
+            "generation_time": plain(ev.generation_time),
+        })
+
+    ev_sub = client.create_event_subscription(a.instance, on_data=on_event)
+
+    issued = []
+    for c in sorted(plan["commands"], key=lambda c: c["at"]):
+        wait = c["at"] - (time.monotonic() - t0)
+        if wait > 0:
+            time.sleep(wait)
+        try:
+            cmd = proc.issue_command(f"{ss}/{c['name']}", args=c.get("args", {}))
+            issued.append((c, cmd, None))
+        except Exception as e:  # the test reports it
+            issued.append((c, None, str(e)))
+    rest = a.seconds - (time.monotonic() - t0)
+    if rest > 0:
+        time.sleep(rest)
+
+    commands = []
+    for c, cmd, err in issued:
+        attrs = {}
+        if cmd is not None:
+            h = hist.get_command_history(cmd)
+            if h is not None:
+                attrs = {k: plain(v) for k, v in h.attributes.items()
+                         if k.startswith("Verifier_") or k.startswith("CommandComplete") or k == "binary"}
+        commands.append({"name": c["name"], "args": c.get("args", {}), "error": err, "attrs": attrs})
+
+    links = [{"name": l.name, "status": l.status, "in_count": l.in_count, "out_count": l.out_count}
+             for l in client.list_links(a.instance)]
+
+    hk_out = []
+    with lock:
+        watched = [d for d in deliveries
+                   if any(w.rsplit("/", 1)[-1] in d["params"] for w in watch)]
+        for d in deliveries:
+            p = d["params"]
+            if "HK_SID" not in p:
+                continue
+            hk_out.append({"t": d["t"], "sid": p["HK_SID"]["eng"],
+                           "seq": p.get("SRC_SEQ_CTR", {}).get("raw"), "params": p})
+
+    with open(a.out, "w") as f:
+        json.dump({"links": links, "hk": hk_out, "watched": watched, "commands": commands, "events": events,
+                   "hk_names": [n.rsplit("/", 1)[-1] for n in names]}, f, indent=1)
+    # Closing the WebSocket subscriptions takes seconds; the process ends them.
+    os._exit(0)
+
+
+if __name__ == "__main__":
+    main()

