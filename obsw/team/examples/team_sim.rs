@@ -23,7 +23,7 @@ fn ms(v: Option<u64>) -> String {
 
 fn row(n: usize, scenario: &str, proto: &str, s: &Summary) -> String {
     format!(
-        "| {n} | {scenario} | {proto} | {} | {} | {} | {:.2} % | {} | {} | {} | {} | {:.3} % | {:.3} % |",
+        "| {n} | {scenario} | {proto} | {} | {} | {} | {:.2} % | {} | {} | {} | {} | {:.3} % | {:.3} % | {:.3} % |",
         s.runs,
         s.violations,
         s.runs_with_two_leaders,
@@ -33,6 +33,7 @@ fn row(n: usize, scenario: &str, proto: &str, s: &Summary) -> String {
         ms(s.percentile(99.0)),
         ms(s.times.iter().max().copied()),
         100.0 * s.within(3_500),
+        100.0 * s.within(6_000),
         100.0 * s.within(10_000),
     )
 }
@@ -48,9 +49,9 @@ fn main() {
         .filter(|n| (mib::team::ROSTER_MIN..=mib::team::ROSTER_MAX).contains(n))
         .collect();
     println!(
-        "| robots | scenario | protocol | runs | safety violations | runs with 2 leaders | agreed at end | t50 s | t90 s | t99 s | max s | ≤ 3.5 s | ≤ 10 s |"
+        "| robots | scenario | protocol | runs | safety violations | runs with 2 leaders | agreed at end | t50 s | t90 s | t99 s | max s | ≤ 3.5 s | ≤ 6 s | ≤ 10 s |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let mut ok = true;
     for &n in &robots {
         for (si, sc) in SCENARIOS.iter().enumerate() {
@@ -59,7 +60,12 @@ fn main() {
             if t.violations > 0 {
                 ok = false;
             }
-            if let Some((limit, share)) = sc.target {
+            if sc.kill_leader && n == 2 {
+                // A team of two has no leader without both robots: none may emerge.
+                if t.agreed_at_end > 0 || !t.times.is_empty() {
+                    ok = false;
+                }
+            } else if let Some((limit, share)) = sc.target {
                 if t.within(limit) < share {
                     ok = false;
                 }

@@ -56,6 +56,9 @@ pub struct Scenario {
     /// Target time to a leader (ms after the first detection) and the share of runs that
     /// must meet it; `None` for the fault scenario (reported, no target).
     pub target: Option<(u64, f64)>,
+    /// Once a leader is agreed, kill it for good; the time reported is then from the kill
+    /// until the others agree on a new live leader (issue 25: within 6 s).
+    pub kill_leader: bool,
 }
 
 /// No loss; duplication, reordering and 0–500 ms delay.
@@ -68,6 +71,7 @@ pub const LOSS_FREE: Scenario = Scenario {
     crashes: false,
     crash_after_persist: 0.0,
     target: Some((3_500, 0.99)),
+    kill_leader: false,
 };
 /// 20 % loss; duplication, reordering and 0–500 ms delay.
 pub const LOSS_20: Scenario = Scenario {
@@ -79,6 +83,7 @@ pub const LOSS_20: Scenario = Scenario {
     crashes: false,
     crash_after_persist: 0.0,
     target: Some((10_000, 0.99)),
+    kill_leader: false,
 };
 /// 20 % loss, duplication, delay, one partition, crashes (including after a persist).
 pub const FAULTS: Scenario = Scenario {
@@ -90,9 +95,22 @@ pub const FAULTS: Scenario = Scenario {
     crashes: true,
     crash_after_persist: 0.05,
     target: None,
+    kill_leader: false,
+};
+/// Loss-free; the first agreed leader is killed and never comes back.
+pub const LEADER_KILLED: Scenario = Scenario {
+    name: "leader killed",
+    loss: 0.0,
+    dup: 0.05,
+    max_delay: 500,
+    partitions: false,
+    crashes: false,
+    crash_after_persist: 0.0,
+    target: Some((6_000, 0.99)),
+    kill_leader: true,
 };
 
-pub const SCENARIOS: [Scenario; 3] = [LOSS_FREE, LOSS_20, FAULTS];
+pub const SCENARIOS: [Scenario; 4] = [LOSS_FREE, LOSS_20, FAULTS, LEADER_KILLED];
 
 pub const PLAN: PlanRef = PlanRef {
     id: 3,
@@ -336,7 +354,8 @@ pub struct RunResult {
     /// A CONTINUE ordered while another robot held a lease.
     pub lease_overlaps: u32,
     /// Time from the first ground-loss detection until every robot that is up follows one
-    /// leader that is up and leads; `None` if never within the horizon.
+    /// leader that is up and leads; `None` if never within the horizon. In the
+    /// leader-killed scenario: from the kill until the survivors agree again.
     pub time_to_leader: Option<u64>,
     /// Agreement on one live leader at the end of the run.
     pub agreed_at_end: bool,
@@ -560,6 +579,7 @@ pub fn run<R: Robot>(n: usize, sc: Scenario, seed: u64) -> RunResult {
     }
     w.rng = Rng::new(rng.next_u64());
     let stop_early = !(sc.crashes || sc.partitions);
+    let mut killed_at: Option<u64> = None;
     while let Some(Reverse((t, _, k))) = w.queue.pop() {
         if t > horizon {
             break;
@@ -604,9 +624,23 @@ pub fn run<R: Robot>(n: usize, sc: Scenario, seed: u64) -> RunResult {
             }
         }
         if t >= first_detect && w.res.time_to_leader.is_none() && w.agreed() {
-            w.res.time_to_leader = Some(t - first_detect);
+            match (sc.kill_leader, killed_at) {
+                (true, None) => {
+                    // Kill the agreed leader; it never restarts.
+                    let leader = w.robots.iter().flatten().find_map(|r| r.view());
+                    if let Some((_, l)) = leader {
+                        if let Some(li) = w.roster.iter().position(|x| *x == l) {
+                            w.crash(li, t, u64::MAX / 4);
+                            killed_at = Some(t);
+                        }
+                    }
+                }
+                (true, Some(k)) => w.res.time_to_leader = Some(t - k),
+                (false, _) => w.res.time_to_leader = Some(t - first_detect),
+            }
         }
-        if stop_early && w.res.time_to_leader.is_some_and(|d| t >= first_detect + d + 2_000) {
+        let since = killed_at.unwrap_or(first_detect);
+        if stop_early && w.res.time_to_leader.is_some_and(|d| t >= since + d + 2_000) {
             break;
         }
     }
