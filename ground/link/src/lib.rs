@@ -21,9 +21,12 @@
 //! 0 — is the fate unknown: those packets are reported as [`Event::Unknown`] and not
 //! resent (the caller checks their PUS 1 reports).
 //!
-//! **Start and restart.** A new `FrameLink` has no COP-1 state: it waits for a CLCW (idle
-//! frames carry it at least every 100 ms) and initiates the AD service with Set V(R) =
-//! N(R). A ground restarted mid-sequence resumes with the packet that had N(S) = N(R)
+//! **Start and restart.** A new `FrameLink` has no COP-1 state: it waits until the CLCW's
+//! N(R) has not changed for [`Config::settle_ms`] (idle frames carry the CLCW at least
+//! every 100 ms; a dead ground's frames still in flight or queued on board land first —
+//! without the wait, a Set V(R) from a stale CLCW would wind V(R) back over frames already
+//! accepted, and they would execute twice: the end-to-end test found this) and initiates
+//! the AD service with Set V(R) = N(R). A ground restarted mid-sequence resumes with the packet that had N(S) = N(R)
 //! (see [`Event::Transmitted`]; keeping that record is the caller's).
 //!
 //! **Counters and keys.** The SDLS counters (TC transmit high-water mark, TM last IV) live
@@ -132,7 +135,15 @@ pub struct Config {
     /// The ground's SDLS counter state file.
     pub state: PathBuf,
     pub fop: FopConfig,
+    /// N(R) must stay the same this long (over several CLCWs) before the link initiates the
+    /// AD service with Set V(R) = N(R): frames of a previous ground still in flight or
+    /// waiting in the robot's queue land first, so Set V(R) never winds V(R) back over
+    /// frames already accepted. [`RESYNC_SETTLE_MS`] by default.
+    pub settle_ms: u64,
 }
+
+/// Default [`Config::settle_ms`]: three idle-frame intervals of the robot.
+pub const RESYNC_SETTLE_MS: u64 = 300;
 
 impl Config {
     /// The mission's link with keys read from files.
@@ -150,6 +161,7 @@ impl Config {
             tm_key: read_key(tm_key)?,
             state: state.into(),
             fop: FopConfig::mission(),
+            settle_ms: RESYNC_SETTLE_MS,
         })
     }
 }
@@ -188,6 +200,9 @@ pub struct FrameLink {
     clcws: u64,
     init_after: u64,
     last_clcw: Option<Clcw>,
+    /// N(R) of the CLCWs and since when (ms) it has not changed.
+    stable_nr: Option<(u8, u64)>,
+    settle_ms: u64,
     events: Vec<Event>,
     capture: Option<Vec<Vec<u8>>>,
     pub counters: Counters,
@@ -239,6 +254,8 @@ impl FrameLink {
             clcws: 0,
             init_after: 0,
             last_clcw: None,
+            stable_nr: None,
+            settle_ms: cfg.settle_ms,
             events: Vec::new(),
             capture: None,
             counters: Counters::default(),
@@ -331,6 +348,9 @@ impl FrameLink {
             if let Ok(clcw) = r {
                 self.clcws += 1;
                 self.last_clcw = Some(clcw);
+                if self.stable_nr.map(|s| s.0) != Some(clcw.report_value) {
+                    self.stable_nr = Some((clcw.report_value, now_ms));
+                }
                 let fx = self.fop.on_event(now_ms, FopInput::Clcw(clcw));
                 self.apply(now_ms, fx)?;
             }
@@ -378,6 +398,11 @@ impl FrameLink {
             return Ok(());
         }
         let Some(clcw) = self.last_clcw else { return Ok(()) };
+        // N(R) must have settled (see `Config::settle_ms`).
+        match self.stable_nr {
+            Some((_, since)) if now_ms >= since + self.settle_ms => {}
+            _ => return Ok(()),
+        }
         let nr = clcw.report_value;
         if let Some(&(ns0, _)) = self.limbo.first() {
             let k = usize::from(nr.wrapping_sub(ns0));

@@ -113,6 +113,7 @@ fn link(robot: SocketAddr, listen: SocketAddr, state: &Path) -> FrameLink {
             tx_limit: 20,
             ..FopConfig::mission()
         },
+        settle_ms: 30,
     })
     .unwrap()
 }
@@ -235,6 +236,7 @@ fn bad_packets_and_shared_keys_are_refused() {
         tm_key: TEST_KEY_TC_A,
         state: st.clone(),
         fop: FopConfig::mission(),
+        settle_ms: RESYNC_SETTLE_MS,
     })
     .unwrap_err();
     assert!(matches!(e, LinkError::SameKey));

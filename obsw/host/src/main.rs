@@ -81,6 +81,12 @@ struct Args {
     /// Space link: file with the raw 32-byte AES-256 key of TM SPI 17 (robot → ground).
     #[arg(long)]
     tm_key: Option<PathBuf>,
+    /// Lab mode: keep the bare-packet link (unauthenticated space packets on --udp/--tcp,
+    /// TM to their senders and to --tm-dest) beside the frame link; loopback addresses
+    /// only. Without --frame-udp the bare-packet link is on anyway (the ground does not
+    /// speak frames yet); with --frame-udp it is off unless this flag is given.
+    #[arg(long)]
+    lab_bare_packets: bool,
     /// Space link: SDLS counter state file (created if missing; written and synced before
     /// a counter is used, so no nonce is reused and no replay accepted across restarts).
     #[arg(long)]
@@ -131,6 +137,8 @@ struct Settings {
     tm_log: Option<PathBuf>,
     frames: Option<frames::FrameConfig>,
     tm_dest: Vec<SocketAddr>,
+    /// The bare-packet link is on (lab mode, or no frame link configured).
+    bare: bool,
 }
 
 fn settings(a: Args) -> Result<Settings> {
@@ -201,6 +209,18 @@ fn settings(a: Args) -> Result<Settings> {
         }),
         _ => bail!("the frame link needs all of --frame-udp, --frame-tm-to, --tc-key, --tm-key and --link-state"),
     };
+    let tm_dest = if a.tm_dest.is_empty() {
+        f.tm_dest.clone().unwrap_or_default()
+    } else {
+        a.tm_dest.clone()
+    };
+    if a.lab_bare_packets && !(udp.ip().is_loopback() && tcp.ip().is_loopback()) {
+        bail!("--lab-bare-packets: the bare-packet link is for the lab, loopback addresses only (--udp {udp}, --tcp {tcp})");
+    }
+    let bare = frames.is_none() || a.lab_bare_packets;
+    if !bare && !tm_dest.is_empty() {
+        bail!("--tm-dest sends bare (unauthenticated) packets: with --frame-udp it needs --lab-bare-packets");
+    }
     Ok(Settings {
         robot,
         udp,
@@ -214,11 +234,8 @@ fn settings(a: Args) -> Result<Settings> {
         duration,
         tm_log: a.tm_log,
         frames,
-        tm_dest: if a.tm_dest.is_empty() {
-            f.tm_dest.unwrap_or_default()
-        } else {
-            a.tm_dest
-        },
+        tm_dest,
+        bare,
     })
 }
 
@@ -273,6 +290,21 @@ fn run(args: Args) -> Result<()> {
         down.log_tm_to(f);
     }
     let (udp, tcp, ctl_addr) = (bound.udp, bound.tcp, bound.sim_ctl);
+    down.bare = s.bare;
+    if s.bare {
+        eprintln!(
+            "obsw: bare-packet link (lab mode: unauthenticated space packets) on udp={udp} tcp={tcp}{}",
+            if s.frames.is_some() {
+                ", beside the frame link (--lab-bare-packets)"
+            } else {
+                ""
+            }
+        );
+    } else {
+        eprintln!(
+            "obsw: bare-packet link off (frame link only): packets on udp={udp}/tcp={tcp} are dropped and counted"
+        );
+    }
     let mut frame_note = String::new();
     if let Some(fc) = &s.frames {
         let ep = frames::FrameEndpoint::open(fc)?;
@@ -352,8 +384,9 @@ fn run(args: Args) -> Result<()> {
                     obsw.space_link = f.hk();
                 }
                 if let frames::FrameInput::Packets(packets) = fi {
+                    // COP-1 and SDLS deliver each frame once: no packet duplicate window.
                     for p in packets {
-                        obsw.handle_tc(arrival(sim_ms), &p, &mut down);
+                        obsw.handle_tc_delivered_once(arrival(sim_ms), &p, &mut down);
                     }
                 }
                 handled += 1;
@@ -446,6 +479,15 @@ fn handle_input(
     inputs: &net::Inputs,
     bad_frames: &mut u32,
 ) {
+    if !down.bare && matches!(input, Input::Tc(..) | Input::BadFrame | Input::OversizeFrame(..)) {
+        // Frame link only: a bare packet executes nothing, changes nothing, is counted.
+        *bad_frames += 1;
+        obsw.io.tc_dropped = *bad_frames;
+        if bad_frames.is_power_of_two() {
+            log::warn!("dropped a bare packet: the bare-packet link is off ({bad_frames} so far)");
+        }
+        return;
+    }
     match input {
         Input::Tc(bytes, origin) => {
             let mut refused_from = None;

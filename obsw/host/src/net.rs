@@ -123,6 +123,9 @@ pub struct Downlink {
     /// The space-link frame endpoint (`--frame-udp`): every TM packet also goes out in TM
     /// frames to its fixed ground address.
     pub frames: Option<crate::frames::FrameEndpoint>,
+    /// The bare-packet link (UDP subscribers, TCP clients) gets TM. Off when the obsw runs
+    /// the frame link without `--lab-bare-packets`.
+    pub bare: bool,
 }
 
 impl Downlink {
@@ -233,6 +236,9 @@ impl obsw_core::tm::TmSink for Downlink {
         }
         if let Some(f) = self.frames.as_mut() {
             f.send_packet(packet);
+        }
+        if !self.bare {
+            return;
         }
         let now = Instant::now();
         self.subscribers.retain(|s| s.until > now);
@@ -375,6 +381,7 @@ fn start_with_lease(
         tm_log: None,
         reply_to: None,
         frames: None,
+        bare: true,
     };
     let inputs = Inputs {
         poll,
