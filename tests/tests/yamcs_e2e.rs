@@ -191,6 +191,7 @@ fn setup_for(obsw: &Obsw, tm_port: u16) -> YamcsSetup {
             tc_port: obsw.udp.port(),
             tm_port,
         }],
+        links: mib::export::yamcs::Links::LabPackets,
     }
 }
 

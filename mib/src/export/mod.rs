@@ -19,8 +19,8 @@ use std::str::FromStr;
 mod icd;
 mod json;
 pub mod layout;
-pub mod urdf;
 mod scos;
+pub mod urdf;
 mod xtce;
 pub mod yamcs;
 
@@ -62,16 +62,20 @@ pub enum Format {
     Xtce,
     /// One JSON file with the whole MIB.
     Json,
-    /// A Yamcs instance for these robots (`yamcs` = the default robot, `yamcs:1-3,7`).
+    /// A Yamcs instance for these robots (`yamcs` = the default robot, `yamcs:1-3,7`), over
+    /// the space link (TC/TM frames, COP-1, SDLS).
     Yamcs(RobotSet),
+    /// Lab only: the same instance over bare space packets on UDP (`yamcs-lab[:ROBOTS]`).
+    YamcsLab(RobotSet),
 }
 
 impl Format {
-    pub const ALL: [Format; 4] = [
+    pub const ALL: [Format; 5] = [
         Format::Scos,
         Format::Xtce,
         Format::Json,
         Format::Yamcs(RobotSet::one(crate::apid::DEFAULT_ROBOT)),
+        Format::YamcsLab(RobotSet::one(crate::apid::DEFAULT_ROBOT)),
     ];
     pub const fn name(self) -> &'static str {
         match self {
@@ -79,6 +83,7 @@ impl Format {
             Format::Xtce => "xtce",
             Format::Json => "json",
             Format::Yamcs(_) => "yamcs",
+            Format::YamcsLab(_) => "yamcs-lab",
         }
     }
 }
@@ -97,7 +102,7 @@ impl core::fmt::Display for UnknownFormat {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         write!(
             f,
-            "unknown export format '{}' (expected scos, xtce, json, yamcs or yamcs:ROBOTS such as yamcs:1-3,7)",
+            "unknown export format '{}' (expected scos, xtce, json, yamcs or yamcs:ROBOTS such as yamcs:1-3,7, or yamcs-lab[:ROBOTS] for bare packets in the lab)",
             self.0
         )
     }
@@ -113,13 +118,17 @@ impl FromStr for Format {
             "xtce" | "xml" => Ok(Format::Xtce),
             "json" => Ok(Format::Json),
             "yamcs" => Ok(Format::Yamcs(RobotSet::one(crate::apid::DEFAULT_ROBOT))),
-            other => match other.strip_prefix("yamcs:") {
-                Some(robots) => robots
-                    .parse()
-                    .map(Format::Yamcs)
-                    .map_err(|e| UnknownFormat(format!("{s}: {e}"))),
-                None => Err(UnknownFormat(s.to_string())),
-            },
+            "yamcs-lab" => Ok(Format::YamcsLab(RobotSet::one(crate::apid::DEFAULT_ROBOT))),
+            other => {
+                let (robots, make): (&str, fn(RobotSet) -> Format) = if let Some(r) = other.strip_prefix("yamcs:") {
+                    (r, Format::Yamcs)
+                } else if let Some(r) = other.strip_prefix("yamcs-lab:") {
+                    (r, Format::YamcsLab)
+                } else {
+                    return Err(UnknownFormat(s.to_string()));
+                };
+                robots.parse().map(make).map_err(|e| UnknownFormat(format!("{s}: {e}")))
+            }
         }
     }
 }
@@ -137,7 +146,8 @@ pub fn write_all(format: Format, dir: &Path) -> std::io::Result<Vec<PathBuf>> {
         Format::Scos => scos_tables().into_iter().map(|(n, c)| (n.to_string(), c)).collect(),
         Format::Xtce => vec![(XTCE_FILE.to_string(), xtce_document())],
         Format::Json => vec![(JSON_FILE.to_string(), json_document())],
-        Format::Yamcs(robots) => yamcs_instance(&YamcsSetup::for_robots(robots)),
+        Format::Yamcs(robots) => yamcs_instance(&YamcsSetup::with_links(robots, yamcs::Links::Frames)),
+        Format::YamcsLab(robots) => yamcs_instance(&YamcsSetup::with_links(robots, yamcs::Links::LabPackets)),
     };
     let mut out = Vec::with_capacity(files.len());
     for (name, content) in files {

@@ -2,9 +2,13 @@
 //! yamcs DIR`): server and instance configuration, the realtime processor, one MDB (XTCE)
 //! per robot, the PUS 5 event templates.
 //!
-//! Per robot N (APID 0x100 + N): a TM link `tm_robot_N` (UDP, Yamcs listens; the obsw is
-//! started with `--tm-dest` pointing at it), a TC link `tc_robot_N` (UDP to the obsw's TC
-//! port), PUS pre- and post-processing with the packet error control (CRC-16/CCITT-FALSE,
+//! Per robot N (APID 0x100 + N), by default over the authenticated space link ([`Links::Frames`],
+//! `crate::link`): a TC frame link `tc_robot_N` (Yamcs' `UdpTcFrameLink` to the obsw's
+//! `--frame-udp` port, COP-1 with FOP-1 driven by the CLCW, SDLS AES-256-GCM with the uplink
+//! key) and a TM frame link `tm_robot_N` (`UdpTmFrameLink`, Yamcs listens; the obsw's
+//! `--frame-tm-to` points at it; SDLS with the downlink key, anti-replay on). The lab option
+//! ([`Links::LabPackets`], `--format yamcs-lab`) writes bare space packets over UDP instead
+//! (`--udp` / `--tm-dest`, no authentication). Both: PUS pre- and post-processing with the packet error control (CRC-16/CCITT-FALSE,
 //! Yamcs' `CRC-16-CCIIT`), the MDB `/MMIC_I_ROBOT_N` and a `PusEventDecoder` on that
 //! robot's TM. The MDB is the XTCE of [`super::xtce_document_for`] with the additions a
 //! Yamcs operator needs (the `Yamcs` flavour of the XTCE exporter):
@@ -39,8 +43,32 @@ use crate::{apid, config};
 pub const INSTANCE: &str = "mmic";
 /// Port of Yamcs' web server and REST API.
 pub const HTTP_PORT: u16 = 8090;
-/// Yamcs listens for robot N's TM on UDP port `TM_BASE_PORT + N`.
+/// Yamcs listens for robot N's TM (frames, or packets in the lab) on UDP port `TM_BASE_PORT + N`.
 pub const TM_BASE_PORT: u16 = 10_000;
+/// Yamcs sends robot N's TC frames to UDP port `FRAME_BASE_PORT + N` (`obsw --frame-udp`).
+pub const FRAME_BASE_PORT: u16 = 7_500;
+/// Directory of the SDLS key files, relative to the instance directory (Yamcs runs there).
+pub const KEY_DIR: &str = "etc/keys";
+
+/// What the links of the instance carry.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Links {
+    /// The space link (issue 22): TC frames with COP-1 and TM frames, both SDLS-protected.
+    #[default]
+    Frames,
+    /// Lab only: bare space packets over UDP, no authentication, no COP-1.
+    LabPackets,
+}
+
+/// Key file of robot `n`'s uplink (TC, SPI `spi`), relative to the instance directory: 32
+/// raw bytes, the same key as the obsw's `--tc-key`.
+pub fn tc_key_file(n: u8, spi: u16) -> String {
+    format!("{KEY_DIR}/robot-{n}-tc-spi{spi}.key")
+}
+/// Key file of robot `n`'s downlink (TM, SPI `spi`): the obsw's `--tm-key`.
+pub fn tm_key_file(n: u8, spi: u16) -> String {
+    format!("{KEY_DIR}/robot-{n}-tm-spi{spi}.key")
+}
 /// Prefix of the shared request-ID parameters of TM[1,x].
 pub const VERIFICATION: &str = "VERIFICATION";
 /// Seconds after release within which each verification stage must be reported.
@@ -127,21 +155,27 @@ impl FromStr for RobotSet {
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct YamcsRobot {
     pub robot: u8,
-    /// Host and UDP port of the obsw's TC socket (`obsw --udp`).
+    /// Host and UDP port of the obsw's TC socket: `obsw --frame-udp` ([`Links::Frames`]),
+    /// `obsw --udp` ([`Links::LabPackets`]).
     pub tc_host: String,
     pub tc_port: u16,
-    /// UDP port on which Yamcs receives this robot's TM (`obsw --tm-dest`).
+    /// UDP port on which Yamcs receives this robot's TM: `obsw --frame-tm-to` (frames),
+    /// `obsw --tm-dest` (lab).
     pub tm_port: u16,
 }
 
 impl YamcsRobot {
-    /// Robot `n` with the default ports: TC to the obsw's default port
-    /// ([`config::robot_port`]) on the loopback, TM on `TM_BASE_PORT + n`.
-    pub fn default_for(n: u8) -> YamcsRobot {
+    /// Robot `n` with the default ports on the loopback: TC frames to `FRAME_BASE_PORT + n`
+    /// (lab: packets to the obsw's default port [`config::robot_port`]), TM on
+    /// `TM_BASE_PORT + n`.
+    pub fn default_for(n: u8, links: Links) -> YamcsRobot {
         YamcsRobot {
             robot: n,
             tc_host: "127.0.0.1".into(),
-            tc_port: config::robot_port(n),
+            tc_port: match links {
+                Links::Frames => FRAME_BASE_PORT + n as u16,
+                Links::LabPackets => config::robot_port(n),
+            },
             tm_port: TM_BASE_PORT + n as u16,
         }
     }
@@ -158,16 +192,23 @@ pub struct YamcsSetup {
     pub http_address: String,
     pub http_port: u16,
     pub robots: Vec<YamcsRobot>,
+    pub links: Links,
 }
 
 impl YamcsSetup {
-    /// The robots of `set` with the default ports, web server on 127.0.0.1:8090.
+    /// The robots of `set` over the space link with the default ports, web server on
+    /// 127.0.0.1:8090.
     pub fn for_robots(set: RobotSet) -> YamcsSetup {
+        Self::with_links(set, Links::Frames)
+    }
+    /// The robots of `set` over `links` with the default ports.
+    pub fn with_links(set: RobotSet, links: Links) -> YamcsSetup {
         YamcsSetup {
             instance: INSTANCE.into(),
             http_address: "127.0.0.1".into(),
             http_port: HTTP_PORT,
-            robots: set.iter().map(YamcsRobot::default_for).collect(),
+            robots: set.iter().map(|n| YamcsRobot::default_for(n, links)).collect(),
+            links,
         }
     }
 }
@@ -224,14 +265,19 @@ fn instance_yaml(s: &YamcsSetup) -> String {
     let _ = writeln!(
         y,
         "# Generated from the MMIC-I MIB (crate mib {}): Yamcs instance '{}' for robot(s) {}.\n\
-         # Links: bare CCSDS space packets over UDP, one datagram per packet (lab / loopback).",
+         # Links: {}",
         env!("CARGO_PKG_VERSION"),
         s.instance,
         s.robots
             .iter()
             .map(|r| r.robot.to_string())
             .collect::<Vec<_>>()
-            .join(", ")
+            .join(", "),
+        match s.links {
+            Links::Frames => "TC and TM transfer frames over UDP, COP-1, SDLS AES-256-GCM (docs/space-link.md).",
+            Links::LabPackets =>
+                "LAB ONLY: bare CCSDS space packets over UDP, one datagram per packet, no authentication.",
+        }
     );
     y.push_str(
         "services:\n  - class: org.yamcs.archive.XtceTmRecorder\n  - class: org.yamcs.archive.ParameterRecorder\n  \
@@ -252,24 +298,10 @@ fn instance_yaml(s: &YamcsSetup) -> String {
     }
     y.push_str("dataLinks:\n");
     for r in &s.robots {
-        let _ = write!(
-            y,
-            "  - name: tm_robot_{n}\n    class: org.yamcs.tctm.UdpTmDataLink\n    stream: tm_robot_{n}\n    \
-             port: {tm}\n    maxLength: {max}\n    \
-             packetPreprocessorClassName: org.yamcs.pus.PusPacketPreprocessor\n    packetPreprocessorArgs:\n      \
-             errorDetection:\n        type: CRC-16-CCIIT\n      \
-             # CDS short time: not a time format of the PUS preprocessor; the on-board time is\n      \
-             # the parameter TM_TIME_MS (see docs/yamcs.md).\n      useLocalGenerationTime: true\n  \
-             - name: tc_robot_{n}\n    class: org.yamcs.tctm.UdpTcDataLink\n    stream: tc_robot_{n}\n    \
-             host: {host}\n    port: {tc}\n    \
-             commandPostprocessorClassName: org.yamcs.pus.PusCommandPostprocessor\n    commandPostprocessorArgs:\n      \
-             errorDetection:\n        type: CRC-16-CCIIT\n",
-            n = r.robot,
-            tm = r.tm_port,
-            max = config::MAX_PACKET_LEN,
-            host = r.tc_host,
-            tc = r.tc_port
-        );
+        match s.links {
+            Links::Frames => frame_links(&mut y, r),
+            Links::LabPackets => packet_links(&mut y, r),
+        }
     }
     y.push_str("mdb:\n");
     for r in &s.robots {
@@ -298,6 +330,115 @@ fn instance_yaml(s: &YamcsSetup) -> String {
         );
     }
     y
+}
+
+/// The PUS packet pre-processor of a TM link or VC (CRC check, reception time).
+fn pus_preprocessor(indent: &str) -> String {
+    format!(
+        "{indent}packetPreprocessorClassName: org.yamcs.pus.PusPacketPreprocessor\n{indent}packetPreprocessorArgs:\n\
+         {indent}  errorDetection:\n{indent}    type: CRC-16-CCIIT\n\
+         {indent}  # CDS short time: not a time format of the PUS preprocessor; the on-board time is\n\
+         {indent}  # the parameter TM_TIME_MS (see docs/yamcs.md).\n{indent}  useLocalGenerationTime: true\n"
+    )
+}
+
+/// The PUS command post-processor of a TC link or VC (sequence count, length, CRC).
+fn pus_postprocessor(indent: &str) -> String {
+    format!(
+        "{indent}commandPostprocessorClassName: org.yamcs.pus.PusCommandPostprocessor\n\
+         {indent}commandPostprocessorArgs:\n{indent}  errorDetection:\n{indent}    type: CRC-16-CCIIT\n"
+    )
+}
+
+/// Lab links: bare space packets over UDP.
+fn packet_links(y: &mut String, r: &YamcsRobot) {
+    let _ = write!(
+        y,
+        "  - name: tm_robot_{n}\n    class: org.yamcs.tctm.UdpTmDataLink\n    stream: tm_robot_{n}\n    \
+         port: {tm}\n    maxLength: {max}\n{pre}  \
+         - name: tc_robot_{n}\n    class: org.yamcs.tctm.UdpTcDataLink\n    stream: tc_robot_{n}\n    \
+         host: {host}\n    port: {tc}\n{post}",
+        n = r.robot,
+        tm = r.tm_port,
+        max = config::MAX_PACKET_LEN,
+        host = r.tc_host,
+        tc = r.tc_port,
+        pre = pus_preprocessor("    "),
+        post = pus_postprocessor("    "),
+    );
+}
+
+/// One SDLS security association of a frame link.
+fn sdls_sa(y: &mut String, spi: u16, key_file: &str, rx_args: &str) {
+    let _ = write!(
+        y,
+        "      - spi: {spi}\n        class: org.yamcs.security.sdls.SecurityAssociationAes256Gcm128Factory\n        \
+         args:\n          keyFile: {key_file}\n{rx_args}"
+    );
+}
+
+/// The space link (`crate::link`): TC frames with COP-1 and TM frames, SDLS both ways.
+fn frame_links(y: &mut String, r: &YamcsRobot) {
+    use crate::link::{cop1, sdls, tc_frame, tc_vc, tm_frame, tm_vc, SCID};
+    let n = r.robot;
+    let tc_spi = sdls::TC_SPIS[0];
+    let tm_spi = sdls::TM_SPIS[0];
+    // FOP-1 timer in whole seconds (Yamcs' unit), never shorter than ours.
+    let t1_s = cop1::FOP_T1_MS.div_ceil(1000);
+    let _ = write!(
+        y,
+        "  - name: tc_robot_{n}\n    class: org.yamcs.tctm.ccsds.UdpTcFrameLink\n    host: {host}\n    port: {port}\n    \
+         spacecraftId: {SCID}\n    maxFrameLength: {max}\n    errorDetection: CRC16\n    \
+         # Uplink SDLS: AES-256-GCM, the IV is the anti-replay counter (Yamcs persists it).\n    encryption:\n",
+        host = r.tc_host,
+        port = r.tc_port,
+        max = tc_frame::MAX_LEN,
+    );
+    sdls_sa(y, tc_spi, &tc_key_file(n, tc_spi), "");
+    let _ = write!(
+        y,
+        "    virtualChannels:\n      - vcId: {vc}\n        service: PACKET\n        encryptionSpi: {tc_spi}\n        \
+         stream: tc_robot_{n}\n{post}        \
+         # COP-1: FOP-1 driven by the CLCW of the TM frames (mib::link::cop1).\n        useCop1: true\n        \
+         clcwStream: clcw_robot_{n}\n        cop1T1: {t1_s}\n        cop1TxLimit: {tx}\n        \
+         slidingWindowWidth: {k}\n        initialClcwWait: 10\n",
+        vc = tc_vc::COMMAND,
+        post = pus_postprocessor("        "),
+        tx = cop1::FOP_TX_LIMIT,
+        k = cop1::FOP_SLIDING_WINDOW,
+    );
+    let _ = write!(
+        y,
+        "  - name: tm_robot_{n}\n    class: org.yamcs.tctm.ccsds.UdpTmFrameLink\n    port: {port}\n    frameType: TM\n    \
+         spacecraftId: {SCID}\n    frameLength: {len}\n    errorDetection: CRC16\n    \
+         clcwStream: clcw_robot_{n}\n    \
+         # Downlink SDLS: a key of its own; anti-replay on, window = the on-board reserve rule.\n    encryption:\n",
+        port = r.tm_port,
+        len = tm_frame::LEN,
+    );
+    sdls_sa(
+        y,
+        tm_spi,
+        &tm_key_file(n, tm_spi),
+        &format!(
+            "          verifySeqNum: true\n          seqNumWindow: {}\n",
+            sdls::ANTI_REPLAY_WINDOW
+        ),
+    );
+    let _ = write!(
+        y,
+        "    virtualChannels:\n      - vcId: {rt}\n        ocfPresent: true\n        service: PACKET\n        \
+         encryptionSpis: [{tm_spi}]\n        maxPacketLength: {max}\n        stream: tm_robot_{n}\n{pre}      \
+         - vcId: {rp}\n        ocfPresent: true\n        service: PACKET\n        encryptionSpis: [{tm_spi}]\n        \
+         maxPacketLength: {max}\n        stream: tm_robot_{n}\n{pre}      \
+         # Idle frames in clear: only their CLCW is used.\n      - vcId: {idle}\n        ocfPresent: true\n        \
+         service: PACKET\n        maxPacketLength: {max}\n        stream: tm_robot_{n}\n{pre}",
+        rt = tm_vc::REALTIME,
+        rp = tm_vc::REPLAY,
+        idle = tm_vc::IDLE,
+        max = config::MAX_PACKET_LEN.max(tm_frame::SECURE_DATA_LEN),
+        pre = pus_preprocessor("        "),
+    );
 }
 
 const PROCESSOR_YAML: &str = "# Generated from the MMIC-I MIB: Yamcs processors.\n\
@@ -820,11 +961,12 @@ mod tests {
 
     // verifies: YAMCS-EXPORT-01
     #[test]
-    fn instance_has_links_mdb_and_decoder_per_robot() {
-        let setup = YamcsSetup::for_robots("2,5".parse().unwrap());
+    fn lab_instance_has_packet_links_mdb_and_decoder_per_robot() {
+        let setup = YamcsSetup::with_links("2,5".parse().unwrap(), Links::LabPackets);
         let files = yamcs_instance(&setup);
         let get = |n: &str| &files.iter().find(|(p, _)| p == n).unwrap().1;
         let inst = get("etc/yamcs.mmic.yaml");
+        assert!(inst.contains("LAB ONLY"));
         for n in [2u8, 5] {
             assert!(inst.contains(&format!("port: {}", TM_BASE_PORT + n as u16)));
             assert!(inst.contains(&format!("port: {}", config::robot_port(n))));
@@ -832,6 +974,44 @@ mod tests {
             assert!(get(&mdb_file(n)).contains(&format!("value=\"{}\"", 0x100 + n as u16)));
         }
         assert!(!inst.contains("tm_robot_1"));
+        assert!(!inst.contains("ccsds."));
         assert_eq!(inst.matches("CRC-16-CCIIT").count(), 4);
+    }
+
+    // verifies: YAMCS-LINK-01
+    #[test]
+    fn default_instance_has_frame_links_with_cop1_and_sdls_from_the_mib_link() {
+        use crate::link::{cop1, sdls, tc_frame, tm_frame, SCID};
+        let setup = YamcsSetup::for_robots("2,5".parse().unwrap());
+        assert_eq!(setup.links, Links::Frames);
+        let files = yamcs_instance(&setup);
+        let inst = &files.iter().find(|(p, _)| p == "etc/yamcs.mmic.yaml").unwrap().1;
+        assert!(!inst.contains("UdpTmDataLink") && !inst.contains("UdpTcDataLink"));
+        assert_eq!(inst.matches("class: org.yamcs.tctm.ccsds.UdpTcFrameLink").count(), 2);
+        assert_eq!(inst.matches("class: org.yamcs.tctm.ccsds.UdpTmFrameLink").count(), 2);
+        for n in [2u8, 5] {
+            assert!(inst.contains(&format!("port: {}", FRAME_BASE_PORT + n as u16)));
+            assert!(inst.contains(&format!("port: {}", TM_BASE_PORT + n as u16)));
+            assert!(inst.contains(&format!("keyFile: {}", tc_key_file(n, sdls::TC_SPIS[0]))));
+            assert!(inst.contains(&format!("keyFile: {}", tm_key_file(n, sdls::TM_SPIS[0]))));
+            assert_eq!(inst.matches(&format!("clcwStream: clcw_robot_{n}\n")).count(), 2);
+        }
+        for want in [
+            format!("spacecraftId: {SCID}"),
+            format!("maxFrameLength: {}", tc_frame::MAX_LEN),
+            format!("frameLength: {}", tm_frame::LEN),
+            format!("cop1T1: {}", cop1::FOP_T1_MS / 1000),
+            format!("cop1TxLimit: {}", cop1::FOP_TX_LIMIT),
+            format!("slidingWindowWidth: {}", cop1::FOP_SLIDING_WINDOW),
+            format!("encryptionSpi: {}", sdls::TC_SPIS[0]),
+            format!("encryptionSpis: [{}]", sdls::TM_SPIS[0]),
+            format!("seqNumWindow: {}", sdls::ANTI_REPLAY_WINDOW),
+            "verifySeqNum: true".to_string(),
+            "useCop1: true".to_string(),
+        ] {
+            assert!(inst.contains(&want), "{want}");
+        }
+        // Pre-processing on VC0, VC1 and VC7 of both robots; post-processing per TC VC.
+        assert_eq!(inst.matches("CRC-16-CCIIT").count(), 2 * 4);
     }
 }
