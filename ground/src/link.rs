@@ -44,7 +44,7 @@ impl Transport {
 }
 
 /// Where the frame link of each robot finds its keys and receives its TM frames.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct FrameOptions {
     /// The key directory (`ground keys create`): robot N uses `KEYS/robot-N/`
     /// (`tc-spi1.key`, `tm-spi17.key`, and the ground's counter file `ground-link.state`).

@@ -387,3 +387,58 @@ fn count_before(line: &str, label: &str) -> u64 {
         .parse()
         .unwrap()
 }
+
+// verifies: LINK-GND-02
+#[test]
+fn the_collector_follows_a_robot_over_frames_and_archives_each_tm_once() {
+    let dir = tmpdir("frames", "collect");
+    let keys = frame_keys(&dir, &[1]);
+    let o = Obsw::start_frames(1, &keys, &["--speed", "5", "--seed", "3"]);
+    // The configuration file names the frame link too (checked, not run).
+    std::fs::write(
+        dir.join("c.toml"),
+        "transport = \"frames\"\nkeys = \"TEST-KEYS\"\n[[robot]]\nnumber = 1\ntm_listen = \"127.0.0.1:7401\"\n",
+    )
+    .unwrap();
+    let out = ground(&dir, &["collect", "--check-config", "c.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    std::fs::write(dir.join("bad.toml"), "transport = \"frames\"\n[[robot]]\nnumber = 1\n").unwrap();
+    let out = ground(&dir, &["collect", "--check-config", "bad.toml"]);
+    assert_eq!(out.status.code(), Some(3), "{}", text(&out));
+    assert!(text(&out).contains("keys = \"DIR\""), "{}", text(&out));
+
+    let mut args: Vec<String> = vec!["collect".into(), "--plain".into()];
+    args.extend(o.frame_args(1, &keys));
+    let mut c = Command::new(GROUND)
+        .current_dir(&dir)
+        .args(&args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_secs(8));
+    Command::new("kill")
+        .args(["-TERM", &c.id().to_string()])
+        .status()
+        .unwrap();
+    let t0 = Instant::now();
+    while c.try_wait().unwrap().is_none() && t0.elapsed() < Duration::from_secs(10) {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let _ = c.kill();
+    assert_eq!(c.wait().unwrap().code(), Some(0));
+    drop(o);
+    let out = ground(&dir, &["archive", "query", "--type", "tm", "--json"]);
+    let apid = i64::from(mib::apid::robot_apid(1).unwrap());
+    let mut seqs: BTreeMap<i64, u32> = BTreeMap::new();
+    for l in String::from_utf8_lossy(&out.stdout).lines() {
+        let v: serde_json::Value = serde_json::from_str(l).unwrap();
+        if v["apid"].as_i64() == Some(apid) {
+            *seqs.entry(v["seq"].as_i64().unwrap()).or_insert(0) += 1;
+        }
+    }
+    assert!(seqs.len() >= 10, "TM over frames archived: {seqs:?}");
+    assert!(seqs.values().all(|&n| n == 1), "each TM once: {seqs:?}");
+    let (lo, hi) = (*seqs.keys().next().unwrap(), *seqs.keys().last().unwrap());
+    assert_eq!(seqs.len() as i64, hi - lo + 1, "no gap: {seqs:?}");
+}
