@@ -630,3 +630,123 @@ fn a_restarted_yamcs_never_skips_a_command_over_cop1() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Frame type of a TC frame: (bypass, control command) flags.
+fn tc_flags(frame: &[u8]) -> (bool, bool) {
+    (frame[0] & 0x20 != 0, frame[0] & 0x10 != 0)
+}
+
+// verifies: YAMCS-LINK-03
+#[test]
+fn yamcs_cop1_retransmission_encrypts_the_already_encrypted_frame_again() {
+    use mmic_link::sdls::{MemoryIvStore, RxSa, RxSas};
+    use mmic_link::test_keys::TEST_KEY_TC_A;
+    use std::sync::{Arc, Mutex};
+
+    let Some(venv) = yamcs_venv() else { return };
+    let dir = temp_dir("retx");
+    // Yamcs sends its TC frames to a relay on `ports.frame`, which drops the first AD frame
+    // (as a lossy uplink would) and forwards everything else to the obsw.
+    let ports = Ports::free();
+    let obsw_ports = Ports {
+        frame: free_udp_port(),
+        tm: ports.tm,
+    };
+    let setup = setup_for(&ports);
+    write_instance(&dir, &setup, &venv);
+    let tm_log = dir.join("tm.log");
+    let obsw = obsw_on_frames(&dir, &obsw_ports, &tm_log, &[]);
+    let relay = UdpSocket::bind(("127.0.0.1", ports.frame)).unwrap();
+    relay
+        .set_read_timeout(Some(std::time::Duration::from_millis(200)))
+        .unwrap();
+    let frames: Arc<Mutex<Vec<Vec<u8>>>> = Arc::default();
+    let stop = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let t = {
+        let (frames, stop) = (frames.clone(), stop.clone());
+        let to = ("127.0.0.1", obsw_ports.frame);
+        std::thread::spawn(move || {
+            let mut buf = [0u8; 2048];
+            let mut dropped = false;
+            while !stop.load(std::sync::atomic::Ordering::SeqCst) {
+                let Ok(n) = relay.recv(&mut buf) else { continue };
+                let f = buf[..n].to_vec();
+                let ad = tc_flags(&f) == (false, false);
+                frames.lock().unwrap().push(f.clone());
+                if ad && !dropped {
+                    dropped = true;
+                    continue;
+                }
+                let _ = relay.send_to(&f, to);
+            }
+        })
+    };
+    let y = Yamcs::start(&dir, &venv);
+    let plan = json!({"hk_params": [], "commands": [{"name": "PING", "at": 0.2}]});
+    // T1 is 2 s: two retransmissions within 5 s.
+    let r = check(&venv, &dir, &setup, &plan, 5.0);
+    let log = y.log();
+    drop(y);
+    stop.store(true, std::sync::atomic::Ordering::SeqCst);
+    t.join().unwrap();
+    drop(obsw);
+    let frames = frames.lock().unwrap().clone();
+    let ad: Vec<&Vec<u8>> = frames.iter().filter(|f| tc_flags(f) == (false, false)).collect();
+    assert!(
+        ad.len() >= 2,
+        "the dropped AD frame was retransmitted: {} AD frames; FOP: {}",
+        ad.len(),
+        fop_lines(&log)
+    );
+    let (orig, retx) = (ad[0], ad[1]);
+    assert_eq!(orig[4], retx[4], "same N(S)");
+    assert_eq!(orig.len(), retx.len());
+
+    // Decrypt both with the TC key, as the FARM side does.
+    let mut sas: RxSas<2> = RxSas::default();
+    assert!(sas
+        .insert(RxSa::new(
+            TC_SPIS[0],
+            &TEST_KEY_TC_A,
+            mib::link::sdls::ANTI_REPLAY_WINDOW
+        ))
+        .is_ok());
+    let mut store = MemoryIvStore::default();
+    let h = mib::link::tc_frame::HEADER_LEN + mib::link::sdls::HEADER_LEN;
+    let orig_ciphertext = orig[h..orig.len() - 2 - mib::link::sdls::MAC_LEN].to_vec();
+    let mut o = orig.clone();
+    let ro = sas
+        .process_tc(&mut store, &mut o)
+        .expect("the original frame is authentic");
+    let packet = o[ro].to_vec();
+    // A TC space packet (version 0, type 1, secondary header) whose length field fits.
+    let whole = packet.len() >= 7 && usize::from(u16::from_be_bytes([packet[4], packet[5]])) + 7 == packet.len();
+    assert!(packet[0] >> 4 == 0x1 && whole, "a TC packet: {packet:02X?}");
+    let mut x = retx.clone();
+    let rx = sas
+        .process_tc(&mut store, &mut x)
+        .expect("the retransmission is authentic (a fresh IV, a valid MAC)");
+    let inner = x[rx].to_vec();
+    // The defect: what the retransmission protects is not the TC but the first
+    // transmission's ciphertext.
+    assert_ne!(
+        inner, packet,
+        "Yamcs fixed? the retransmission carries the TC in clear after decryption"
+    );
+    assert_eq!(
+        inner, orig_ciphertext,
+        "the retransmission is the original ciphertext encrypted again"
+    );
+    // So the robot never gets the TC: no PING reply, Yamcs' command is not completed.
+    assert_eq!(ping_replies(&tm_log), 0);
+    let c = command(&r, "PING");
+    assert_ne!(c["attrs"]["CommandComplete_Status"], "OK", "{c}");
+    eprintln!(
+        "yamcs_e2e retransmission: {} AD frames with N(S) {} (1 dropped), retransmission decrypts to the first ciphertext; PING: {}; FOP: {}",
+        ad.len(),
+        orig[4],
+        c["attrs"],
+        fop_lines(&log)
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
