@@ -93,6 +93,14 @@ fn ping_mode_send_and_run_over_frames_against_the_real_obsw() {
     let (code, t) = run(&dir, &["mode"], &links, &["operational", "--confirm"]);
     assert_eq!(code, Some(0), "{t}");
 
+    // `watch` sends nothing: the TM frames arrive anyway (the obsw's fixed --frame-tm-to).
+    let (code, t) = run(&dir, &["watch"], &links, &["--duration", "2"]);
+    assert_eq!(code, Some(0), "{t}");
+    assert!(
+        t.lines().filter(|l| l.contains(" robot 1: ")).count() >= 3,
+        "TM over frames: {t}"
+    );
+
     let (code, t) = run(&dir, &["send"], &links, &["RECONFIGURE", "from=Xneg", "to=Xpos"]);
     assert_eq!(code, Some(0), "{t}");
     assert!(t.contains("progress ok step 1") && t.contains("completion ok"), "{t}");
