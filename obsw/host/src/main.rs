@@ -3,6 +3,10 @@
 //! It runs the same `obsw-core` and `mmic-domain` code as the firmware. TCs arrive on
 //! UDP and TCP (COBS-framed); TM goes back to every TCP client, to every UDP ground
 //! that subscribed with an accepted TC and to the fixed `--tm-dest` addresses (see `net`). Simulated time runs `--speed` times faster than the wall clock.
+//!
+//! With `--frame-udp` the space link runs beside it (see `frames`): TC transfer frames
+//! through SDLS and FARM-1, TM frames to `--frame-tm-to`; the bare-packet link is then off
+//! unless `--lab-bare-packets` keeps it (loopback only).
 
 mod frames;
 mod net;
@@ -31,7 +35,7 @@ use net::{Input, Origin};
     name = "obsw",
     version,
     about = "MMIC-I on-board software (host build) with its simulator",
-    long_about = "MMIC-I on-board software (host build) running against the MMIC-I simulator.\n\nTCs: CCSDS space packets with a PUS-C secondary header and CRC, as UDP datagrams or over TCP framed with COBS (0x00 after every frame). TM: to every connected TCP client, to every UDP ground subscribed by an accepted TC (a lease renewed by each accepted TC; rejected or malformed datagrams never change who gets TM) and to every fixed --tm-dest (e.g. Yamcs' TM link). The robot boots in STANDBY.\n\nOn start, one line `READY robot=N apid=0x... udp=ADDR tcp=ADDR sim_ctl=ADDR` is printed on stdout.\n\nSimulator control (fault injection; not the flight TC path): UDP text lines to --sim-ctl: `stuck-arm a|b`, `obstacle a|b`, `battery-sag VOLTS`, `dead-hip-encoder`, `cut-cable`, `misplaced-voxel`, `fastener-jam`, `clear [FAULT]`, `link-loss P`, `link-corrupt P`, `status`. Each gets one reply line starting with `ok` or `error`."
+    long_about = "MMIC-I on-board software (host build) running against the MMIC-I simulator.\n\nTCs: CCSDS space packets with a PUS-C secondary header and CRC, as UDP datagrams or over TCP framed with COBS (0x00 after every frame). TM: to every connected TCP client, to every UDP ground subscribed by an accepted TC (a lease renewed by each accepted TC; rejected or malformed datagrams never change who gets TM) and to every fixed --tm-dest (e.g. Yamcs' TM link). Space link (issue 22): with --frame-udp, one TC transfer frame per datagram (CRC, SDLS AES-256-GCM with --tc-key, FARM-1) and fixed-length TM frames (SDLS with --tm-key, CLCW, idle frames) to --frame-tm-to, counters in --link-state; the bare-packet link is then off unless --lab-bare-packets (loopback only). The robot boots in STANDBY.\n\nOn start, one line `READY robot=N apid=0x... udp=ADDR tcp=ADDR sim_ctl=ADDR` is printed on stdout.\n\nSimulator control (fault injection; not the flight TC path): UDP text lines to --sim-ctl: `stuck-arm a|b`, `obstacle a|b`, `battery-sag VOLTS`, `dead-hip-encoder`, `cut-cable`, `misplaced-voxel`, `fastener-jam`, `clear [FAULT]`, `link-loss P`, `link-corrupt P`, `status`. Each gets one reply line starting with `ok` or `error`."
 )]
 struct Args {
     /// Robot number 1..=254; the APID is 0x100 + N and the default ports follow from it.
@@ -121,6 +125,7 @@ struct FileConfig {
     tm_key: Option<PathBuf>,
     link_state: Option<PathBuf>,
     tm_dest: Option<Vec<SocketAddr>>,
+    lab_bare_packets: Option<bool>,
 }
 
 struct Settings {
@@ -214,10 +219,11 @@ fn settings(a: Args) -> Result<Settings> {
     } else {
         a.tm_dest.clone()
     };
-    if a.lab_bare_packets && !(udp.ip().is_loopback() && tcp.ip().is_loopback()) {
+    let lab_bare_packets = a.lab_bare_packets || f.lab_bare_packets.unwrap_or(false);
+    if lab_bare_packets && !(udp.ip().is_loopback() && tcp.ip().is_loopback()) {
         bail!("--lab-bare-packets: the bare-packet link is for the lab, loopback addresses only (--udp {udp}, --tcp {tcp})");
     }
-    let bare = frames.is_none() || a.lab_bare_packets;
+    let bare = frames.is_none() || lab_bare_packets;
     if !bare && !tm_dest.is_empty() {
         bail!("--tm-dest sends bare (unauthenticated) packets: with --frame-udp it needs --lab-bare-packets");
     }
@@ -553,5 +559,49 @@ fn sim_control(sim: &mut Sim, line: &str) -> String {
             }
             Err(e) => format!("error {e}"),
         },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(args: &[&str]) -> Result<Settings> {
+        settings(Args::try_parse_from([&["obsw"], args].concat()).expect("options parse"))
+    }
+
+    const FRAMES: [&str; 10] = [
+        "--frame-udp",
+        "127.0.0.1:0",
+        "--frame-tm-to",
+        "127.0.0.1:9",
+        "--tc-key",
+        "tc.key",
+        "--tm-key",
+        "tm.key",
+        "--link-state",
+        "link.state",
+    ];
+
+    // verifies: LINK-HOST-01
+    #[test]
+    fn the_frame_link_needs_all_its_options_and_the_lab_mode_is_explicit_and_local() {
+        // Today's users: no frame link, the bare-packet link on.
+        let s = parse(&[]).unwrap();
+        assert!(s.bare && s.frames.is_none());
+        // The frame link alone: bare packets off.
+        let s = parse(&FRAMES).unwrap();
+        assert!(!s.bare && s.frames.is_some());
+        // Part of the frame options: refused.
+        assert!(parse(&FRAMES[..4]).is_err());
+        // Lab mode keeps the bare link, on loopback only.
+        let with_lab = [&FRAMES[..], &["--lab-bare-packets"]].concat();
+        assert!(parse(&with_lab).unwrap().bare);
+        let remote = [&with_lab[..], &["--udp", "0.0.0.0:7301"]].concat();
+        assert!(parse(&remote).is_err());
+        // --tm-dest sends bare packets: beside frames only in lab mode.
+        let dest = [&FRAMES[..], &["--tm-dest", "127.0.0.1:10015"]].concat();
+        assert!(parse(&dest).is_err());
+        assert!(parse(&[&dest[..], &["--lab-bare-packets"]].concat()).is_ok());
     }
 }
