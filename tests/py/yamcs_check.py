@@ -13,6 +13,9 @@ result.json:
   commands:  [{name, args, attrs: {Verifier_*_Status / _Message, CommandComplete_*}}]
   events:    [{type, severity, message, generation_time}]
   watched:   [{t, params}] every delivery with one of the plan's "watch" parameters
+  alarms:    [{name, severity, violations, count, trigger_eng, trigger_raw}] the active parameter
+             alarms at the end
+  alarm_updates: [{t, type (TRIGGERED_PENDING, TRIGGERED, ...), name, violations}] as they came
 """
 
 import argparse
@@ -89,6 +92,16 @@ def main():
 
     ev_sub = client.create_event_subscription(a.instance, on_data=on_event)
 
+    alarm_updates = []
+
+    def on_alarm(u):
+        al = u.alarm
+        with lock:
+            alarm_updates.append({"t": time.monotonic() - t0, "type": u.update_type, "name": al.name,
+                                  "violations": al.violation_count})
+
+    al_sub = proc.create_alarm_subscription(on_data=on_alarm)
+
     issued = []
     for c in sorted(plan["commands"], key=lambda c: c["at"]):
         wait = c["at"] - (time.monotonic() - t0)
@@ -113,6 +126,14 @@ def main():
                          if k.startswith("Verifier_") or k.startswith("CommandComplete") or k == "binary"}
         commands.append({"name": c["name"], "args": c.get("args", {}), "error": err, "attrs": attrs})
 
+    alarms = []
+    for al in proc.list_alarms():
+        tv = getattr(al, "trigger_value", None)
+        alarms.append({"name": al.name, "severity": al.severity, "violations": al.violation_count,
+                       "count": al.count,
+                       "trigger_eng": plain(tv.eng_value) if tv is not None else None,
+                       "trigger_raw": plain(tv.raw_value) if tv is not None else None})
+
     links = [{"name": l.name, "status": l.status, "in_count": l.in_count, "out_count": l.out_count}
              for l in client.list_links(a.instance)]
 
@@ -128,7 +149,8 @@ def main():
                            "seq": p.get("SRC_SEQ_CTR", {}).get("raw"), "params": p})
 
     with open(a.out, "w") as f:
-        json.dump({"links": links, "hk": hk_out, "watched": watched, "commands": commands, "events": events,
+        json.dump({"links": links, "hk": hk_out, "watched": watched, "commands": commands, "events": events, "alarms": alarms,
+                   "alarm_updates": alarm_updates,
                    "hk_names": [n.rsplit("/", 1)[-1] for n in names]}, f, indent=1)
     # Closing the WebSocket subscriptions takes seconds; the process ends them.
     os._exit(0)

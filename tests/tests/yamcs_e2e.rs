@@ -27,6 +27,9 @@ use serde_json::{json, Value};
 
 /// How long TM is watched (HK flows all along; commands are issued in the first seconds).
 const WATCH_S: f64 = 20.0;
+/// When the battery sags (seconds after the watch starts, about), and to what (volts).
+const SAG_AT_S: f64 = 11.0;
+const SAG_V: f64 = 9.5;
 
 fn repo_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()
@@ -282,7 +285,7 @@ fn temp_dir(tag: &str) -> PathBuf {
     dir
 }
 
-// verifies: YAMCS-EXPORT-01, YAMCS-LINK-01, YAMCS-TM-02, YAMCS-TIME-01, YAMCS-CMD-01, YAMCS-EVT-01, YAMCS-XTCE-01
+// verifies: YAMCS-EXPORT-01, YAMCS-LINK-01, YAMCS-TM-02, YAMCS-TIME-01, YAMCS-CMD-01, YAMCS-EVT-01, YAMCS-XTCE-01, YAMCS-ALARM-01
 #[test]
 fn yamcs_operates_the_robot_over_frames_with_sdls_and_cop1() {
     let Some(venv) = yamcs_venv() else { return };
@@ -330,7 +333,20 @@ fn yamcs_operates_the_robot_over_frames_with_sdls_and_cop1() {
             {"name": "PARAM_SET", "args": {"param_id": "BOLT_MAX_ATTEMPTS", "value": 2_000_000_000}, "at": 6.0},
         ],
     });
+    // A battery sag half-way through (simulator control, not a TC).
+    let sim_ctl = obsw.sim_ctl;
+    let sag = std::thread::spawn(move || {
+        std::thread::sleep(std::time::Duration::from_secs_f64(SAG_AT_S));
+        let s = UdpSocket::bind("127.0.0.1:0").unwrap();
+        s.set_read_timeout(Some(std::time::Duration::from_secs(2))).unwrap();
+        s.send_to(format!("battery-sag {SAG_V}").as_bytes(), sim_ctl).unwrap();
+        let mut buf = [0u8; 256];
+        let n = s.recv(&mut buf).expect("sim-ctl reply");
+        String::from_utf8_lossy(&buf[..n]).to_string()
+    });
     let r = check(&venv, &dir, &setup, &plan, WATCH_S);
+    let sag_reply = sag.join().unwrap();
+    assert!(sag_reply.starts_with("ok"), "{sag_reply}");
     let rss_kb = yamcs.rss_kb();
     let yamcs_log = yamcs.log();
     drop(obsw);
@@ -495,6 +511,73 @@ fn yamcs_operates_the_robot_over_frames_with_sdls_and_cop1() {
         let kind = mib::modes::NODES.iter().find(|n| n.name == node).unwrap().kind;
         assert!(mib::modes::mode_by_name(kind, mode).is_some(), "{node}: {mode}");
     }
+
+    // --- The battery sag raises a Yamcs alarm on V_BAT_A after the MIB's persistence:
+    // its trigger value is the GROUND_LIMIT_PERSISTENCE-th consecutive violating sample. ---
+    let vbat = mib::params::by_name("V_BAT_A").unwrap();
+    let lim = vbat.limits.unwrap();
+    let samples: Vec<f64> = all_hk
+        .iter()
+        .filter_map(|h| h["params"]["V_BAT_A"]["eng"].as_f64())
+        .collect();
+    let first_bad = samples
+        .iter()
+        .position(|v| *v < lim.soft_lo || *v > lim.soft_hi)
+        .unwrap_or_else(|| panic!("V_BAT_A never left its limits: {samples:?}"));
+    let persistence = mib::params::GROUND_LIMIT_PERSISTENCE as usize;
+    let alarms = r["alarms"].as_array().unwrap();
+    let alarm = alarms
+        .iter()
+        .find(|a| a["name"].as_str().is_some_and(|n| n.ends_with("/V_BAT_A")))
+        .unwrap_or_else(|| panic!("no V_BAT_A alarm: {alarms:?}"));
+    // Yamcs keeps the first violating value as the trigger value, and raises the alarm
+    // (TRIGGERED) only at the persistence-th violation (TRIGGERED_PENDING before).
+    let trigger = alarm["trigger_eng"].as_f64().unwrap();
+    assert!(
+        (trigger - samples[first_bad]).abs() < 1e-9,
+        "trigger value {trigger}: the first violating sample {}",
+        samples[first_bad]
+    );
+    let updates: Vec<&Value> = r["alarm_updates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|u| u["name"].as_str().is_some_and(|n| n.ends_with("/V_BAT_A")))
+        .collect();
+    // The first alarm update a client sees (Yamcs 5.12.8 sends "ACTIVE"; the pending state
+    // before the persistence is reached is not published) comes with the persistence-th
+    // violation, and not before that sample was received.
+    let triggered = updates
+        .first()
+        .unwrap_or_else(|| panic!("no alarm update for V_BAT_A: {alarms:?}"));
+    assert_eq!(
+        triggered["violations"].as_i64(),
+        Some(persistence as i64),
+        "raised at violation {persistence}: {updates:?}"
+    );
+    let bad_times: Vec<f64> = all_hk
+        .iter()
+        .filter(|h| {
+            h["params"]["V_BAT_A"]["eng"]
+                .as_f64()
+                .is_some_and(|v| v < lim.soft_lo || v > lim.soft_hi)
+        })
+        .map(|h| h["t"].as_f64().unwrap())
+        .collect();
+    let raised_t = triggered["t"].as_f64().unwrap();
+    assert!(
+        raised_t > bad_times[0] + 0.5 * period_s,
+        "alarm at {raised_t:.2} s, first violating sample at {:.2} s: no persistence",
+        bad_times[0]
+    );
+    assert!(alarm["violations"].as_i64() >= Some(persistence as i64), "{alarm}");
+    eprintln!(
+        "yamcs_e2e: battery sag to {SAG_V} V: V_BAT_A samples {:?} (warning below {}); Yamcs alarm {} raised at violation {}, trigger value {trigger} V; updates {updates:?}",
+        &samples[first_bad.saturating_sub(1)..(first_bad + persistence + 1).min(samples.len())],
+        lim.soft_lo,
+        alarm["severity"],
+        triggered["violations"]
+    );
 
     // --- Over the frame link: every command in an AD frame accepted by FARM-1 after SDLS,
     // nothing refused, Yamcs' FOP-1 initialised from the CLCW. ---
