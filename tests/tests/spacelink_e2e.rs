@@ -103,8 +103,22 @@ impl Ground {
         )
         .unwrap();
         cfg.fop = fop;
+        // Reopening a fixed address: another process on this shared machine may hold the
+        // just-freed port for a moment.
+        let mut tries = 0;
+        let link = loop {
+            match FrameLink::open(cfg.clone()) {
+                Ok(l) => break l,
+                Err(e) if tries < 100 => {
+                    tries += 1;
+                    eprintln!("ground link open: {e}; retrying");
+                    std::thread::sleep(Duration::from_millis(20));
+                }
+                Err(e) => panic!("ground link open: {e}"),
+            }
+        };
         Ground {
-            link: FrameLink::open(cfg).unwrap(),
+            link,
             log: Vec::new(),
             events: Vec::new(),
         }
@@ -514,7 +528,13 @@ fn counters_survive_an_obsw_restart_no_tm_iv_repeats_and_no_tc_replays() {
         }
         ivs
     };
-    let wire = UdpSocket::bind(listen).unwrap();
+    let wire = (0..100)
+        .find_map(|_| {
+            UdpSocket::bind(listen)
+                .map_err(|_| std::thread::sleep(Duration::from_millis(20)))
+                .ok()
+        })
+        .expect("rebind the ground's address");
     let run1 = tm_ivs(&wire, Duration::from_millis(1500));
     assert!(!run1.is_empty(), "HK came down on VC0");
     o.kill9();
