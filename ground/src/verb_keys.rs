@@ -40,7 +40,7 @@ pub(crate) fn keys(c: &KeysCmd) -> Result<u8> {
                 }
                 let d = keys::robot_dir(dir, r);
                 out(&format!(
-                    "robot {r}: obsw --tc-key {} --tm-key {}; ground --frames --keys {}",
+                    "robot {r}: obsw --frame-udp ADDR --frame-tm-to ADDR --tc-key {} --tm-key {} --link-state FILE; ground --frames --keys {} --robot {r}=ADDR",
                     keys::tc_key_path(&d).display(),
                     keys::tm_key_path(&d).display(),
                     dir.display()
