@@ -199,6 +199,11 @@ mod tests {
         assert_eq!(set.iter().collect::<Vec<_>>(), [1, 2, 5]);
         assert!("yamcs:0".parse::<Format>().is_err());
         assert!("yamcs:".parse::<Format>().is_err());
+        let Ok(Format::YamcsLab(lab)) = "yamcs-lab:3".parse::<Format>() else {
+            panic!("yamcs-lab:ROBOTS parses")
+        };
+        assert_eq!(lab.iter().collect::<Vec<_>>(), [3]);
+        assert!("yamcs-lab:0".parse::<Format>().is_err());
         let dir = std::env::temp_dir().join(format!("mib-yamcs-export-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         let files = write_all(Format::Yamcs(set), &dir).unwrap();
