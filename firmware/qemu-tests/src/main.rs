@@ -23,6 +23,7 @@ mod t_periph;
 mod t_reconfig;
 mod t_spacelink;
 mod t_support;
+mod t_team;
 
 #[riscv_rt::entry]
 fn main() -> ! {
@@ -39,6 +40,7 @@ fn main() -> ! {
         t_obsw::TESTS,
         t_cycle::TESTS,
         t_spacelink::TESTS,
+        t_team::TESTS,
     ]);
     semihosting::process::exit(code)
 }
