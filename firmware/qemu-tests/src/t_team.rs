@@ -116,7 +116,7 @@ fn team_three_robots_elect_one_leader_hold_and_yield_to_the_ground() -> TestResu
         }
     }
     let at = ok!(elected_at);
-    let ground_loss = mib::team::GROUND_LOSS_TIMEOUT_MS as u64;
+    let ground_loss = mib::team::GROUND_LOSS_TIMEOUT_MS;
     check!(
         at > ground_loss,
         "a leader at {} ms, before the ground-loss time {}",
