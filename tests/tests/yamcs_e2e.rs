@@ -177,14 +177,19 @@ fn yamcs_venv() -> Option<PathBuf> {
     Some(venv)
 }
 
-/// Writes the instance of `setup` into `dir`, and the published test keys with the
-/// script (`scripts/yamcs.sh test-keys`), checked against `mmic_link::test_keys`.
-fn write_instance(dir: &Path, setup: &YamcsSetup, venv: &Path) {
+/// Writes the files of the instance of `setup` into `dir`.
+fn write_instance_files(dir: &Path, setup: &YamcsSetup) {
     for (path, content) in yamcs_instance(setup) {
         let p = dir.join(path);
         std::fs::create_dir_all(p.parent().unwrap()).unwrap();
         std::fs::write(p, content).unwrap();
     }
+}
+
+/// Writes the instance of `setup` into `dir`, and the published test keys with the
+/// script (`scripts/yamcs.sh test-keys`), checked against `mmic_link::test_keys`.
+fn write_instance(dir: &Path, setup: &YamcsSetup, venv: &Path) {
+    write_instance_files(dir, setup);
     let out = Yamcs::script(venv, &["test-keys", dir.to_str().unwrap()], 0);
     assert!(
         out.status.success(),
@@ -661,7 +666,26 @@ fn a_restarted_yamcs_never_skips_a_command_over_cop1() {
     let dir = temp_dir("restart");
     let ports = Ports::free();
     let setup = setup_for(&ports);
-    write_instance(&dir, &setup, &venv);
+    write_instance_files(&dir, &setup);
+    // Random keys in the layout of `ground keys create KEYDIR` (robot-1/tc-spi1.key,
+    // tm-spi17.key), copied in by `scripts/yamcs.sh keys DIR KEYDIR`.
+    let keydir = dir.join("keydir");
+    let mut random = [0u8; 64];
+    std::io::Read::read_exact(&mut std::fs::File::open("/dev/urandom").unwrap(), &mut random).unwrap();
+    std::fs::create_dir_all(keydir.join("robot-1")).unwrap();
+    std::fs::write(keydir.join("robot-1/tc-spi1.key"), &random[..32]).unwrap();
+    std::fs::write(keydir.join("robot-1/tm-spi17.key"), &random[32..]).unwrap();
+    let out = Yamcs::script(&venv, &["keys", dir.to_str().unwrap(), keydir.to_str().unwrap()], 0);
+    assert!(out.status.success(), "keys: {}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(
+        std::fs::read(dir.join(tc_key_file(1, TC_SPIS[0]))).unwrap(),
+        &random[..32]
+    );
+    assert_eq!(
+        std::fs::read(dir.join(tm_key_file(1, TM_SPIS[0]))).unwrap(),
+        &random[32..]
+    );
+    assert!(!dir.join("etc/keys/TEST-KEYS-NOT-SECRET").exists());
     let tm_log = dir.join("tm.log");
     let obsw = obsw_on_frames(&dir, &ports, &tm_log, &[]);
     let plan = json!({"hk_params": [], "commands": [{"name": "PING", "at": 0.2}]});
