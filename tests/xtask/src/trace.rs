@@ -54,8 +54,7 @@ struct AreaFile {
 /// it (sorted by name). A requirement ID defined twice is an error naming both files.
 pub fn load(path: &Path) -> Result<RequirementsFile> {
     let s = std::fs::read_to_string(path).with_context(|| format!("{}", path.display()))?;
-    let mut f: RequirementsFile =
-        toml::from_str(&s).with_context(|| format!("{}", path.display()))?;
+    let mut f: RequirementsFile = toml::from_str(&s).with_context(|| format!("{}", path.display()))?;
     let mut origin: BTreeMap<String, PathBuf> = f
         .requirements
         .iter()
