@@ -165,6 +165,7 @@ pub const HK_STRUCTS: &[HkDef] = &[
             LINK_TM_FRAMES,
             LINK_TM_IDLE_FRAMES,
             LINK_TM_SDLS_FAILED,
+            LINK_REJ_CONTROL_RATE,
         ],
         default_interval_ms: 10000,
         default_enabled: true,

@@ -194,6 +194,7 @@ params! {
     LINK_TM_FRAMES = 139, U32, "", ID, None, "Space link: TM frames sent on VC0/VC1";
     LINK_TM_IDLE_FRAMES = 140, U32, "", ID, None, "Space link: idle TM frames sent on VC7";
     LINK_TM_SDLS_FAILED = 141, U32, "", ID, None, "Space link: TM frames not sent because SDLS failed (counter state file)";
+    LINK_REJ_CONTROL_RATE = 142, U32, "", ID, None, "Space link: BC control frames (in clear) dropped beyond the rate limit of the host's frame endpoint";
 }
 
 /// Root modes in which the limits of parameter `id` apply: the regulated servo supply

@@ -7,7 +7,8 @@
 //! the packets of an accepted frame go to `Obsw::handle_tc`. Every refusal is counted by
 //! reason (HK SPACE_LINK) and reported by a throttled event; a refused frame changes
 //! nothing (no TC, no COP-1 state, no TM destination: TM frames go to `--frame-tm-to`
-//! only, whoever sends frames).
+//! only, whoever sends frames). BC control frames, which come in clear, are taken at most
+//! [`CONTROL_FRAMES_PER_S`] per second; the rest are dropped and counted.
 //!
 //! Downlink: every TM packet the OBSW sends is multiplexed into VC0 frames (SDLS with the
 //! TM key); a partly filled frame is flushed at the end of each batch of inputs and each
@@ -33,6 +34,16 @@ use obsw_core::obsw::SPACE_LINK_PARAMS;
 
 /// Longest time without a TM frame: then an idle frame carries the CLCW.
 pub const IDLE_INTERVAL: Duration = Duration::from_millis(100);
+
+/// BC control frames (Unlock, Set V(R): in clear, anyone can send them) taken per second;
+/// more are dropped and counted (`LINK_REJ_CONTROL_RATE`). The ground's FOP-1 sends one
+/// per T1 (2 s) while it initialises, a few more after a restart.
+pub const CONTROL_FRAMES_PER_S: u32 = 5;
+
+/// Whether a datagram's header says BC frame (version 00, bypass 1, control 1).
+fn is_control_frame(d: &[u8]) -> bool {
+    d.first().is_some_and(|b| b & 0xF0 == 0x30)
+}
 
 /// What the command line gives the endpoint.
 #[derive(Clone, Debug)]
@@ -72,6 +83,11 @@ pub struct FrameEndpoint {
     /// Counters already reported by events.
     reported: RxCounters,
     last_control: Option<ControlCommand>,
+    /// Control frames taken in the current one-second window, and its start.
+    control_window: (Instant, u32),
+    /// Control frames dropped by the rate limit.
+    control_rate_limited: u32,
+    reported_rate_limited: u32,
 }
 
 impl FrameEndpoint {
@@ -111,6 +127,9 @@ impl FrameEndpoint {
             send_failures: 0,
             reported: RxCounters::default(),
             last_control: None,
+            control_window: (Instant::now(), 0),
+            control_rate_limited: 0,
+            reported_rate_limited: 0,
         })
     }
 
@@ -134,6 +153,17 @@ impl FrameEndpoint {
             }
         };
         let dgram = &mut self.buf[..n];
+        if is_control_frame(dgram) {
+            let now = Instant::now();
+            if now.duration_since(self.control_window.0) >= Duration::from_secs(1) {
+                self.control_window = (now, 0);
+            }
+            if self.control_window.1 >= CONTROL_FRAMES_PER_S {
+                self.control_rate_limited = self.control_rate_limited.saturating_add(1);
+                return Some(FrameInput::Nothing);
+            }
+            self.control_window.1 += 1;
+        }
         Some(match self.rx.receive(&mut self.store, dgram, true) {
             RxOutcome::Accepted { packets, .. } => {
                 self.clcw_due = true;
@@ -239,6 +269,7 @@ impl FrameEndpoint {
             t.frames,
             t.idle_frames,
             t.sdls_failed,
+            self.control_rate_limited,
         ]
     }
 
@@ -254,8 +285,14 @@ impl FrameEndpoint {
             b
         };
         let mut out = Vec::new();
-        for reason in 4..=16usize {
-            if now[reason] != before[reason] {
+        // Refusal reasons: the parameter offsets of the LINK_REJ_ counters.
+        for reason in (4..=16usize).chain([22]) {
+            let before = if reason == 22 {
+                self.reported_rate_limited
+            } else {
+                before[reason]
+            };
+            if now[reason] != before {
                 out.push(LinkEvent::FrameRejected {
                     reason: reason as u8,
                     total: now[reason],
@@ -274,6 +311,7 @@ impl FrameEndpoint {
             });
         }
         self.reported = self.rx.counters;
+        self.reported_rate_limited = self.control_rate_limited;
         out
     }
 }
