@@ -6,7 +6,9 @@ compares them with the MIB.
         --seconds 20 --commands commands.json --out result.json
 
 commands.json: {"hk_params": [names of the HK parameters], "commands": [{"name": "PING",
-"args": {...}, "at": seconds after the start}]}.
+"args": {...}, "at": seconds after the start}, or {"cop1_init": "SET_VR", "v_r": 0, "link":
+"tc_robot_1.vc0", "at": ...} (an operator's COP-1 initialisation)], "cop1_link": a link whose
+COP-1 status is recorded at the start and the end}.
 result.json:
   links:     [{name, status, in_count, out_count}]
   hk:        [{t (reception, s since start), sid, seq, params: {NAME: {raw, eng}}}], every HK report
@@ -16,6 +18,7 @@ result.json:
   alarms:    [{name, severity, violations, count, trigger_eng, trigger_raw}] the active parameter
              alarms at the end
   alarm_updates: [{t, type (TRIGGERED_PENDING, TRIGGERED, ...), name, violations}] as they came
+  cop1:      {"start": status, "end": status} (state, v_s, nn_r) of plan["cop1_link"], if given
 """
 
 import argparse
@@ -102,11 +105,21 @@ def main():
 
     al_sub = proc.create_alarm_subscription(on_data=on_alarm)
 
+    def cop1_status():
+        if not plan.get("cop1_link"):
+            return None
+        st = client.get_link(a.instance, plan["cop1_link"]).get_cop1_status()
+        return {"active": st.cop1_active, "state": st.state, "v_s": st.v_s, "nn_r": st.nn_r}
+
+    cop1 = {"start": cop1_status()}
     issued = []
     for c in sorted(plan["commands"], key=lambda c: c["at"]):
         wait = c["at"] - (time.monotonic() - t0)
         if wait > 0:
             time.sleep(wait)
+        if "cop1_init" in c:
+            client.get_link(a.instance, c["link"]).initialize_cop1(c["cop1_init"], v_r=c.get("v_r"))
+            continue
         try:
             cmd = proc.issue_command(f"{ss}/{c['name']}", args=c.get("args", {}))
             issued.append((c, cmd, None))
@@ -134,6 +147,7 @@ def main():
                        "trigger_eng": plain(tv.eng_value) if tv is not None else None,
                        "trigger_raw": plain(tv.raw_value) if tv is not None else None})
 
+    cop1["end"] = cop1_status()
     links = [{"name": l.name, "status": l.status, "in_count": l.in_count, "out_count": l.out_count}
              for l in client.list_links(a.instance)]
 
@@ -150,7 +164,7 @@ def main():
 
     with open(a.out, "w") as f:
         json.dump({"links": links, "hk": hk_out, "watched": watched, "commands": commands, "events": events, "alarms": alarms,
-                   "alarm_updates": alarm_updates,
+                   "alarm_updates": alarm_updates, "cop1": cop1,
                    "hk_names": [n.rsplit("/", 1)[-1] for n in names]}, f, indent=1)
     # Closing the WebSocket subscriptions takes seconds; the process ends them.
     os._exit(0)

@@ -857,3 +857,83 @@ fn yamcs_cop1_retransmission_encrypts_the_already_encrypted_frame_again() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+// verifies: YAMCS-LINK-04
+#[test]
+fn after_an_obsw_restart_the_operator_reinitialises_cop1_and_nothing_is_reported_done_undone() {
+    let Some(venv) = yamcs_venv() else { return };
+    let dir = temp_dir("obsw-restart");
+    let ports = Ports::free();
+    let setup = setup_for(&ports);
+    write_instance(&dir, &setup, &venv);
+    let y = Yamcs::start(&dir, &venv);
+    let vc = "tc_robot_1.vc0";
+    let ping_at = |at: f64| json!({"name": "PING", "at": at});
+
+    // Session A: the robot as booted; PING completes.
+    let log_a = dir.join("tm-a.log");
+    let obsw = obsw_on_frames(&dir, &ports, &log_a, &[]);
+    let a = check(
+        &venv,
+        &dir,
+        &setup,
+        &json!({"hk_params": [], "commands": [ping_at(0.2)], "cop1_link": vc}),
+        2.0,
+    );
+    assert_eq!(command(&a, "PING")["attrs"]["CommandComplete_Status"], "OK", "{a}");
+    drop(obsw);
+    assert_eq!(ping_replies(&log_a), 1);
+
+    // The obsw restarts (FARM-1 at V(R) = 0 again; its SDLS counters persisted).
+    let log_b = dir.join("tm-b.log");
+    let obsw = obsw_on_frames(&dir, &ports, &log_b, &[]);
+    // Session B: a PING to the restarted robot while Yamcs' FOP-1 still counts on.
+    let b = check(
+        &venv,
+        &dir,
+        &setup,
+        &json!({"hk_params": [], "commands": [ping_at(0.5)], "cop1_link": vc}),
+        5.0,
+    );
+    // Session C: the operator re-initialises COP-1 with Set V(R) = 0 (a restarted robot's
+    // V(R)), then PINGs.
+    let c = check(
+        &venv,
+        &dir,
+        &setup,
+        &json!({"hk_params": [], "cop1_link": vc, "commands": [
+            {"cop1_init": "SET_VR", "v_r": 0, "link": vc, "at": 0.2},
+            ping_at(2.0),
+        ]}),
+        5.0,
+    );
+    let log = y.log();
+    drop(y);
+    drop(obsw);
+    let done = |r: &Value| command(r, "PING")["attrs"]["CommandComplete_Status"] == "OK";
+    assert!(
+        done(&c),
+        "PING after the re-initialisation: {}; FOP: {}",
+        c,
+        fop_lines(&log)
+    );
+    // Yamcs never shows a PING completed that the robot did not answer.
+    let shown_done = usize::from(done(&b)) + usize::from(done(&c));
+    assert_eq!(
+        ping_replies(&log_b),
+        shown_done,
+        "PINGs completed in Yamcs vs TM[17,2] of the restarted obsw; B {}; FOP: {}",
+        command(&b, "PING")["attrs"],
+        fop_lines(&log)
+    );
+    eprintln!(
+        "yamcs_e2e obsw restart: COP-1 before B {} after B {}; PING B {}; after SET_VR {}; PING C done; replies {}; FOP: {}",
+        b["cop1"]["start"],
+        b["cop1"]["end"],
+        command(&b, "PING")["attrs"],
+        c["cop1"]["end"],
+        ping_replies(&log_b),
+        fop_lines(&log)
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
