@@ -17,8 +17,10 @@ use clap::Parser;
 use serde::Deserialize;
 
 use mib::config;
+use mmic_domain::discovery::BoardInput;
 use mmic_sim::{Sim, SimCommand, SimConfig};
 use obsw_core::obsw::{Config, LinkEvent, Obsw};
+use obsw_core::services::modules::AcceptedConfig;
 use obsw_core::tm::TmStore;
 
 use net::{Input, Origin};
@@ -63,6 +65,9 @@ struct Args {
     /// Stop after this many simulated seconds (default: run until killed).
     #[arg(long)]
     duration: Option<f64>,
+    /// Module-set file of the simulated robot (plans/modules/*.toml) [default: the full robot].
+    #[arg(long)]
+    modules: Option<PathBuf>,
     /// Test aid: write every TM packet the obsw sends to this file, one line of hex each.
     #[arg(long)]
     tm_log: Option<PathBuf>,
@@ -84,6 +89,7 @@ struct FileConfig {
     link_loss: Option<f64>,
     link_corrupt: Option<f64>,
     duration: Option<f64>,
+    modules: Option<PathBuf>,
 }
 
 struct Settings {
@@ -98,6 +104,7 @@ struct Settings {
     link_corrupt: f64,
     duration: Option<f64>,
     tm_log: Option<PathBuf>,
+    modules: mmic_sim::modules::ModuleSetSpec,
 }
 
 fn settings(a: Args) -> Result<Settings> {
@@ -151,6 +158,10 @@ fn settings(a: Args) -> Result<Settings> {
             bail!("--duration {d}: must be a positive number of seconds");
         }
     }
+    let modules = match a.modules.or(f.modules) {
+        Some(p) => mmic_sim::modules::ModuleSetSpec::load(&p).map_err(|e| anyhow::anyhow!("--modules: {e}"))?,
+        None => mmic_sim::modules::ModuleSetSpec::full(),
+    };
     Ok(Settings {
         robot,
         udp,
@@ -163,6 +174,7 @@ fn settings(a: Args) -> Result<Settings> {
         link_corrupt,
         duration,
         tm_log: a.tm_log,
+        modules,
     })
 }
 
@@ -232,6 +244,12 @@ fn run(args: Args) -> Result<()> {
         link_corrupt: s.link_corrupt,
         ..SimConfig::default()
     });
+    sim.set_modules(&s.modules);
+    // The configuration accepted at the factory: the full robot (no persistent store on
+    // the host; an ACCEPT_CONFIG holds until the process ends).
+    obsw.set_accepted_config(Some(AcceptedConfig::of(
+        &mmic_sim::modules::ModuleSetSpec::full().fitted,
+    )));
     println!(
         "READY robot={} apid=0x{:03X} udp={udp} tcp={tcp} sim_ctl={ctl_addr} speed={}",
         s.robot,
@@ -265,6 +283,18 @@ fn run(args: Args) -> Result<()> {
         ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
     }
     obsw.boot(0, config::reset_cause::POWER_ON, &mut down);
+    {
+        let m = sim.modules();
+        let a = BoardInput {
+            table: &m.table_a,
+            probes: m.probes_a,
+        };
+        let b = m.table_b.as_deref().map(|table| BoardInput {
+            table,
+            probes: m.probes_b,
+        });
+        obsw.discover_modules(0, &a, b.as_ref(), &mut down);
+    }
     loop {
         // Inputs already waiting first, but a bounded batch, so that a flood of TCs
         // cannot hold back the control period (and a late period cannot starve TCs).

@@ -211,6 +211,8 @@ pub struct Sim {
     faults: Vec<Fault>,
     fasteners: HashMap<(Face, u8), FastenerPair>,
     fallen: bool,
+    /// What module discovery reads from this robot (issue 24): tables and probes.
+    modules: modules::DiscoveryInput,
 }
 
 fn near(x: f64, target: f64, tol: f64) -> bool {
@@ -264,12 +266,24 @@ impl Sim {
             faults: Vec::new(),
             fasteners: HashMap::new(),
             fallen: false,
+            modules: modules::ModuleSetSpec::full().discovery_input(),
             cfg,
         }
     }
 
     pub fn config(&self) -> &SimConfig {
         &self.cfg
+    }
+
+    /// Builds the simulated robot from a module set (default: the full robot,
+    /// [`modules::ModuleSetSpec::full`]): what its descriptor tables and probes answer.
+    pub fn set_modules(&mut self, spec: &modules::ModuleSetSpec) {
+        self.modules = spec.discovery_input();
+    }
+    /// What discovery reads: board A's table and probes, board B's table (`None` when
+    /// board B stays silent) and probes.
+    pub fn modules(&self) -> &modules::DiscoveryInput {
+        &self.modules
     }
     pub fn time_ms(&self) -> u64 {
         self.t_ms
