@@ -466,6 +466,23 @@ pub fn type_name(f: &Field) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: MOD-OBSW-06
+    #[test]
+    fn module_value_names_follow_the_module_tables() {
+        for s in crate::modules::SLOTS {
+            assert_eq!(SLOT_NAMES.name(s.id as i64), Some(s.name.to_ascii_uppercase().as_str()));
+        }
+        for c in crate::modules::config::CONFIGS {
+            assert_eq!(CONFIG_ID_NAMES.name(c.id.code() as i64), Some(c.name));
+        }
+        for code in 1..=9u8 {
+            let t = crate::modules::ModuleType::from_code(code);
+            assert_eq!(
+                MODULE_TYPE_NAMES.name(code as i64),
+                Some(t.name().to_ascii_uppercase().as_str())
+            );
+        }
+    }
     // verifies: PUS-PKT-04
     #[test]
     fn request_id_and_cds_time_have_their_ccsds_lengths() {

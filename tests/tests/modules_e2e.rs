@@ -63,7 +63,16 @@ struct Boot {
 /// The boot as the store recorded it: the BOOT event, the events up to the module
 /// report, and the report.
 fn boot(c: &mut Client) -> Boot {
-    let s = stored(c);
+    // Discovery completes a few control periods after boot (board B's half comes over
+    // the A-B link): read the store until the report is in it.
+    let mut s = stored(c);
+    for _ in 0..100 {
+        if s.iter().any(|t| (t.service, t.subservice) == (210, 3)) {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+        s = stored(c);
+    }
     let b = s
         .iter()
         .position(|t| t.event_id() == Some(eid::BOOT))

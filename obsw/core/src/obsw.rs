@@ -501,6 +501,7 @@ impl<S: TmStore> Obsw<S> {
         for e in out.events.iter() {
             self.on_domain_event(now, e, sink);
         }
+        self.modules_tick(now, sink);
         self.run_monitors(now, fdir::is_continuous, sink);
         self.progress_transition(now, sink);
         self.hk_tick(now, sink);

@@ -1281,6 +1281,11 @@ impl Controller {
         })
     }
 
+    /// Board B's half of module discovery, once its whole descriptor table arrived over
+    /// the link (issue 24).
+    pub fn board_b_modules(&self) -> Option<(&[u8], crate::discovery::BoardProbes)> {
+        self.link.board_b_modules()
+    }
     /// Counters of the A–B link.
     pub fn link_counters(&self) -> crate::ablink::LinkCounters {
         *self.link.counters()

@@ -17,7 +17,6 @@ use clap::Parser;
 use serde::Deserialize;
 
 use mib::config;
-use mmic_domain::discovery::BoardInput;
 use mmic_sim::{Sim, SimCommand, SimConfig};
 use obsw_core::obsw::{Config, LinkEvent, Obsw};
 use obsw_core::services::modules::AcceptedConfig;
@@ -283,18 +282,9 @@ fn run(args: Args) -> Result<()> {
         ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
     }
     obsw.boot(0, config::reset_cause::POWER_ON, &mut down);
-    {
-        let m = sim.modules();
-        let a = BoardInput {
-            table: &m.table_a,
-            probes: m.probes_a,
-        };
-        let b = m.table_b.as_deref().map(|table| BoardInput {
-            table,
-            probes: m.probes_b,
-        });
-        obsw.discover_modules(0, &a, b.as_ref(), &mut down);
-    }
+    // Board A's table and probes now; board B's half arrives over the A-B link and the
+    // control cycle runs discovery (issue 24).
+    obsw.start_discovery(0, &sim.modules().table_a, sim.modules().probes_a);
     loop {
         // Inputs already waiting first, but a bounded batch, so that a flood of TCs
         // cannot hold back the control period (and a late period cannot starve TCs).

@@ -11,6 +11,7 @@
 
 use mib::events::eid;
 use mib::modes::robot_mode;
+use mib::modules::descriptor::MAX_TABLE_LEN;
 use mib::modules::report::{MAX_REPORT_LEN, NO_SLOT};
 use mib::modules::NUM_SLOTS;
 use mib::params::pid;
@@ -18,8 +19,8 @@ use mib_wire::tm;
 
 use mmic_domain::controller::Action;
 use mmic_domain::discovery::{
-    self, accept, compare, discover, missing_for, operational_allowed, Blocked, BoardInput, Discovery, ModuleIdentity,
-    Replacement,
+    self, accept, compare, discover, missing_for, operational_allowed, Blocked, BoardInput, BoardProbes, Discovery,
+    ModuleIdentity, Replacement,
 };
 
 use crate::accept::Tc;
@@ -64,6 +65,16 @@ pub struct Modules {
     pub replacement: Option<Replacement>,
     /// An acceptance the platform has not persisted yet.
     update: Option<AcceptedConfig>,
+    /// Board A's table and probes, waiting for board B's half ([`Obsw::start_discovery`]).
+    pending: Option<PendingA>,
+}
+
+/// Board A's half of discovery, kept until board B's arrives or the wait times out.
+#[derive(Clone, Debug)]
+struct PendingA {
+    table: heapless::Vec<u8, MAX_TABLE_LEN>,
+    probes: BoardProbes,
+    since: u64,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -122,6 +133,48 @@ impl<S: TmStore> Obsw<S> {
     /// persist.
     pub fn take_accepted_update(&mut self) -> Option<AcceptedConfig> {
         self.modules.update.take()
+    }
+
+    /// Starts discovery with what board A read at boot (its descriptor table from flash
+    /// and its probes); board B's half comes over the A–B link. [`Obsw::tick`] runs
+    /// discovery once B's whole table arrived, or after `config::MODULE_B_TIMEOUT_MS`
+    /// without it (BOARD_B_SILENT). A table longer than any table is kept truncated
+    /// (discovery then finds it unreadable).
+    pub fn start_discovery(&mut self, now: u64, table: &[u8], probes: BoardProbes) {
+        self.last_now = self.last_now.max(now);
+        let mut t = heapless::Vec::new();
+        // Truncated on purpose when too long: discovery reports the table as unreadable.
+        let _ = t.extend_from_slice(&table[..table.len().min(MAX_TABLE_LEN)]);
+        self.modules.pending = Some(PendingA {
+            table: t,
+            probes,
+            since: now,
+        });
+    }
+
+    /// Runs a pending discovery when board B's half is in, or the wait is over.
+    pub(crate) fn modules_tick(&mut self, now: u64, sink: &mut impl TmSink) {
+        let Some(p) = self.modules.pending.as_ref() else { return };
+        let mut b_table = [0u8; MAX_TABLE_LEN];
+        let b = match self.ctrl.board_b_modules() {
+            Some((t, probes)) => {
+                let n = t.len().min(MAX_TABLE_LEN);
+                b_table[..n].copy_from_slice(&t[..n]);
+                Some((n, probes))
+            }
+            None if now.saturating_sub(p.since) >= mib::config::MODULE_B_TIMEOUT_MS as u64 => None,
+            None => return,
+        };
+        let Some(p) = self.modules.pending.take() else { return };
+        let a = BoardInput {
+            table: &p.table,
+            probes: p.probes,
+        };
+        let b = b.map(|(n, probes)| BoardInput {
+            table: &b_table[..n],
+            probes,
+        });
+        self.discover_modules(now, &a, b.as_ref(), sink);
     }
 
     /// Runs discovery on what the platform read at boot (`b` = `None`: board B sent
@@ -276,7 +329,7 @@ mod tests {
     use crate::obsw::tests::{failure, kind, obsw, of, send, TestObsw};
     use mib::modules::descriptor::{emit_table, MAX_TABLE_LEN};
     use mib::modules::report::ModuleReport;
-    use mib::modules::{default_set, slot, Board, ModuleSet, SLOTS};
+    use mib::modules::{default_set, slot, Board, ModuleSet, NUM_SLOTS, SLOTS};
     use mib::FailureCode;
     use mmic_domain::discovery::{ArmSwitch, BoardProbes};
 
@@ -494,5 +547,66 @@ mod tests {
             let m = w.emit(&mut back).unwrap();
             assert_eq!(&back[..m], &buf[..n]);
         }
+    }
+
+    fn half(set: &ModuleSet, board: Board) -> Vec<u8> {
+        let descs: Vec<_> = (0..NUM_SLOTS)
+            .filter(|i| SLOTS[*i].board == board)
+            .filter_map(|i| set[i])
+            .collect();
+        let mut t = [0u8; MAX_TABLE_LEN];
+        let n = emit_table(&descs, &mut t).unwrap();
+        t[..n].to_vec()
+    }
+
+    // verifies: MOD-OBSW-01, MOD-OBSW-07
+    #[test]
+    fn board_b_half_over_the_link_completes_discovery_within_a_few_periods() {
+        use mmic_domain::board_b::{BoardB, BoardBOut};
+        let set = default_set(1000);
+        let mut o = obsw();
+        o.set_accepted_config(accepted_full());
+        o.start_discovery(0, &half(&set, Board::A), probes(&set, Board::A));
+        let mut b = BoardB::new();
+        b.set_modules(&half(&set, Board::B), probes(&set, Board::B));
+        let mut out = BoardBOut::default();
+        let mut sink: Vec<Vec<u8>> = Vec::new();
+        let mut rx: Vec<u8> = Vec::new();
+        let mut done_at = None;
+        for t in (10..2000u64).step_by(10) {
+            o.tick(t, &mmic_domain::SensorsA::default(), &rx, &mut sink);
+            b.tick(t, &mmic_domain::SensorsB::default(), &[], &mut out);
+            rx = out.tx.to_vec();
+            if done_at.is_none() && !of(&sink, 210, 3).is_empty() {
+                done_at = Some(t);
+            }
+        }
+        let done_at = done_at.expect("module report sent");
+        assert!(
+            done_at <= 100,
+            "B's 6 entries arrive one per period: done at {done_at} ms"
+        );
+        let r = ModuleReport::parse(kind(&of(&sink, 210, 3)[0]).2).unwrap();
+        assert_eq!((r.config, r.replacement), (1, 1));
+        assert_eq!(of(&sink, 210, 3).len(), 1, "discovery runs once");
+    }
+
+    // verifies: MOD-OBSW-01, MOD-OBSW-02
+    #[test]
+    fn a_silent_board_b_is_reported_after_the_wait() {
+        let set = default_set(1000);
+        let mut o = obsw();
+        o.start_discovery(0, &half(&set, Board::A), probes(&set, Board::A));
+        let mut sink: Vec<Vec<u8>> = Vec::new();
+        let wait = mib::config::MODULE_B_TIMEOUT_MS as u64;
+        for t in (10..wait).step_by(10) {
+            o.tick(t, &mmic_domain::SensorsA::default(), &[], &mut sink);
+        }
+        assert!(of(&sink, 210, 3).is_empty(), "still waiting for board B");
+        o.tick(wait, &mmic_domain::SensorsA::default(), &[], &mut sink);
+        let ev = events(&sink, eid::CONFIG_INVALID);
+        assert_eq!(ev.len(), 1);
+        assert_eq!(ev[0][..2], [1, NO_SLOT], "BOARD_B_SILENT");
+        assert_eq!(of(&sink, 210, 3).len(), 1);
     }
 }
