@@ -181,3 +181,6 @@ pub const MODULE_DISCOVERY_BUDGET_MS: u32 = 2000;
 /// without it (reason BOARD_B_SILENT). Inside the budget with room for a control period.
 pub const MODULE_B_TIMEOUT_MS: u32 = 1000;
 const _: () = assert!(MODULE_B_TIMEOUT_MS + 2 * CONTROL_PERIOD_MS < MODULE_DISCOVERY_BUDGET_MS);
+/// OBSW: while board B's table is incomplete, board A asks for it again this often.
+pub const MODULE_B_REQUEST_MS: u32 = 250;
+const _: () = assert!(MODULE_B_REQUEST_MS < MODULE_B_TIMEOUT_MS);

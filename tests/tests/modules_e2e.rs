@@ -28,7 +28,14 @@ fn plan(name: &str) -> String {
 }
 
 fn start(file: &str) -> (Obsw, Client) {
-    let o = Obsw::start(&["--modules", &plan(file), "--speed", "50"]);
+    start_with(file, &[])
+}
+
+fn start_with(file: &str, extra: &[&str]) -> (Obsw, Client) {
+    let mut args = vec!["--modules".to_string(), plan(file), "--speed".into(), "50".into()];
+    args.extend(extra.iter().map(|s| s.to_string()));
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let o = Obsw::start(&args);
     let mut c = Client::udp(&o);
     c.subscribe();
     (o, c)
@@ -298,4 +305,21 @@ fn missing_arm_keeps_standby_with_config_invalid() {
 fn corrupted_descriptor_keeps_standby_with_its_reason() {
     // Reason 3 = CORRUPT_DESCRIPTOR; it names a table entry, not a slot (NONE = 255).
     invalid_set("corrupted-descriptor.toml", 3, 255);
+}
+
+// verifies: MOD-OBSW-01, MOD-OBSW-07
+#[test]
+fn discovery_over_a_lossy_a_b_link_still_finds_the_full_robot_within_2_s() {
+    // 2 % of the bytes on the A-B line lost (about half of board B's 38-byte Modules
+    // frames): board A asks for the table again until it is whole.
+    for seed in ["1", "2", "3"] {
+        let (_o, mut c) = start_with("full.toml", &["--link-loss", "0.02", "--seed", seed]);
+        let b = boot(&mut c);
+        eprintln!(
+            "full robot, 2 % byte loss, seed {seed}: discovery {} ms after BOOT",
+            b.discovery_ms
+        );
+        assert!(b.discovery_ms <= DISCOVERY_BUDGET_MS, "{} ms", b.discovery_ms);
+        assert_eq!((b.report.config, b.report.reason), (1, 0), "FULL, not BOARD_B_SILENT");
+    }
 }

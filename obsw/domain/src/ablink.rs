@@ -48,6 +48,9 @@ pub enum ModuleCmd {
     /// At boot, while B's modules are unpowered: the arm and gripper are known (from
     /// A's state estimate) to be at these pulse widths; B starts interpolating there.
     Assume { arm: u16, grip: u16 },
+    /// Send the descriptor table again (module discovery, issue 24): A asks when B's
+    /// `Modules` frames did not all arrive.
+    SendModules,
 }
 
 impl ModuleCmd {
@@ -59,6 +62,7 @@ impl ModuleCmd {
             ModuleCmd::Power { .. } => 4,
             ModuleCmd::Stop => 5,
             ModuleCmd::Assume { .. } => 6,
+            ModuleCmd::SendModules => 7,
         }
     }
     /// Commands that order the queue: never coalesced across.
@@ -83,7 +87,7 @@ impl ModuleCmd {
                 out[3] = bolter;
                 4
             }
-            ModuleCmd::Stop => 1,
+            ModuleCmd::Stop | ModuleCmd::SendModules => 1,
             ModuleCmd::Assume { arm, grip } => {
                 out[1..3].copy_from_slice(&arm.to_be_bytes());
                 out[3..5].copy_from_slice(&grip.to_be_bytes());
@@ -139,6 +143,10 @@ impl ModuleCmd {
                     arm: u16::from_be_bytes([args[0], args[1]]),
                     grip: u16::from_be_bytes([args[2], args[3]]),
                 })
+            }
+            7 => {
+                need(0)?;
+                Ok(ModuleCmd::SendModules)
             }
             other => Err(FrameError::UnknownCommand(other)),
         }

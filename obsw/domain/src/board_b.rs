@@ -205,6 +205,11 @@ impl BoardB {
                     self.grip.reset_to(grip);
                 }
             }
+            ModuleCmd::SendModules => {
+                if let Some(m) = self.modules.as_mut() {
+                    m.sent = 0;
+                }
+            }
         }
     }
 

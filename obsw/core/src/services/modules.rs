@@ -75,6 +75,8 @@ struct PendingA {
     table: heapless::Vec<u8, MAX_TABLE_LEN>,
     probes: BoardProbes,
     since: u64,
+    /// Requests for board B's table sent so far.
+    requests: u32,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -149,6 +151,7 @@ impl<S: TmStore> Obsw<S> {
             table: t,
             probes,
             since: now,
+            requests: 0,
         });
     }
 
@@ -163,7 +166,17 @@ impl<S: TmStore> Obsw<S> {
                 Some((n, probes))
             }
             None if now.saturating_sub(p.since) >= mib::config::MODULE_B_TIMEOUT_MS as u64 => None,
-            None => return,
+            None => {
+                // Ask again every MODULE_B_REQUEST_MS (frames lost on the line).
+                let due = (p.requests as u64 + 1) * mib::config::MODULE_B_REQUEST_MS as u64;
+                if now.saturating_sub(p.since) >= due {
+                    self.ctrl.request_board_b_modules();
+                    if let Some(p) = self.modules.pending.as_mut() {
+                        p.requests += 1;
+                    }
+                }
+                return;
+            }
         };
         let Some(p) = self.modules.pending.take() else { return };
         let a = BoardInput {
@@ -608,5 +621,42 @@ mod tests {
         assert_eq!(ev.len(), 1);
         assert_eq!(ev[0][..2], [1, NO_SLOT], "BOARD_B_SILENT");
         assert_eq!(of(&sink, 210, 3).len(), 1);
+    }
+
+    // verifies: MOD-OBSW-01, MOD-OBSW-07
+    #[test]
+    fn a_asks_board_b_again_when_its_table_was_lost_on_the_line() {
+        use mmic_domain::board_b::{BoardB, BoardBOut};
+        let set = default_set(1000);
+        let mut o = obsw();
+        o.set_accepted_config(accepted_full());
+        o.start_discovery(0, &half(&set, Board::A), probes(&set, Board::A));
+        let mut b = BoardB::new();
+        b.set_modules(&half(&set, Board::B), probes(&set, Board::B));
+        let mut out = BoardBOut::default();
+        let mut sink: Vec<Vec<u8>> = Vec::new();
+        let (mut to_a, mut to_b): (Vec<u8>, Vec<u8>) = (Vec::new(), Vec::new());
+        let mut done_at = None;
+        for t in (10..2000u64).step_by(10) {
+            let tx = o
+                .tick(t, &mmic_domain::SensorsA::default(), &to_a, &mut sink)
+                .link_tx
+                .to_vec();
+            b.tick(t, &mmic_domain::SensorsB::default(), &to_b, &mut out);
+            to_b = tx;
+            // The line loses everything B sends in its first 200 ms: all three passes.
+            to_a = if t < 200 { Vec::new() } else { out.tx.to_vec() };
+            if done_at.is_none() && !of(&sink, 210, 3).is_empty() {
+                done_at = Some(t);
+            }
+        }
+        let done_at = done_at.expect("module report sent");
+        let ask = mib::config::MODULE_B_REQUEST_MS as u64;
+        assert!(
+            done_at > ask && done_at < mib::config::MODULE_B_TIMEOUT_MS as u64,
+            "complete after A asked again, before the wait ends: {done_at} ms"
+        );
+        let r = ModuleReport::parse(kind(&of(&sink, 210, 3)[0]).2).unwrap();
+        assert_eq!((r.config, r.reason), (1, 0), "FULL, not BOARD_B_SILENT");
     }
 }
