@@ -187,6 +187,20 @@ fn locomotion_only_robot_walks_and_refuses_bolt_face_with_module_absent() {
         "{}",
         c.summary()
     );
+    // The mode tree left the absent bolters OFF: MODE_CHANGED for the arms, none for them.
+    let changed = |n: u32| {
+        c.log
+            .iter()
+            .filter(|t| t.event_id() == Some(eid::MODE_CHANGED) && t.data[2..6] == n.to_be_bytes())
+            .count()
+    };
+    assert!(changed(node::ARM_A) > 0 && changed(node::ARM_B) > 0, "{}", c.summary());
+    assert_eq!(
+        (changed(node::BOLTER_A), changed(node::BOLTER_B)),
+        (0, 0),
+        "{}",
+        c.summary()
+    );
     // Xneg (0) -> Xpos (1).
     let raw = c.send("RECONFIGURE", &[0, 1]);
     let done = c

@@ -98,6 +98,21 @@ impl Request {
     }
 }
 
+/// The mode tree's module nodes and the slot of their module.
+const MODULE_NODES: [(u32, u8); 7] = {
+    use mib::modes::node;
+    use mib::modules::slot;
+    [
+        (node::ARM_A, slot::ARM_A),
+        (node::GRIPPER_A, slot::GRIPPER_A),
+        (node::BOLTER_A, slot::BOLTER_A),
+        (node::HIP, slot::HIP),
+        (node::ARM_B, slot::ARM_B),
+        (node::GRIPPER_B, slot::GRIPPER_B),
+        (node::BOLTER_B, slot::BOLTER_B),
+    ]
+};
+
 /// The side argument of an action, for [`missing_for`].
 fn side_of(a: &Action) -> Option<u8> {
     match *a {
@@ -221,6 +236,10 @@ impl<S: TmStore> Obsw<S> {
         }
         self.modules.discovery = Some(d);
         self.modules.replacement = Some(r);
+        for (n, s) in MODULE_NODES {
+            let absent = self.module_absent(s);
+            self.modes.set_absent(n, absent);
+        }
         self.apply_module_modes();
         self.report_modules(now, sink);
     }
@@ -533,6 +552,15 @@ mod tests {
             o.present_or_off(slot::ARM_A, mib::modes::module_mode::ON),
             mib::modes::module_mode::ON
         );
+        // The mode tree keeps the absent bolters OFF in every robot mode.
+        use mib::modes::{module_mode, node};
+        for m in [robot_mode::OPERATIONAL, robot_mode::SAFED, robot_mode::STANDBY] {
+            o.modes.command(m);
+            assert_eq!(o.modes.commanded(node::BOLTER_A), module_mode::OFF);
+            assert_eq!(o.modes.commanded(node::BOLTER_B), module_mode::OFF);
+        }
+        o.modes.command(robot_mode::OPERATIONAL);
+        assert_eq!(o.modes.commanded(node::ARM_A), module_mode::ON);
     }
 
     // verifies: MOD-OBSW-06
