@@ -337,3 +337,15 @@ fn discovery_over_a_lossy_a_b_link_still_finds_the_full_robot_within_2_s() {
         assert_eq!((b.report.config, b.report.reason), (1, 0), "FULL, not BOARD_B_SILENT");
     }
 }
+
+// verifies: MOD-OBSW-01, MOD-OBSW-02
+#[test]
+fn silent_board_b_is_reported_within_2_s_and_keeps_standby() {
+    // Reason 1 = BOARD_B_SILENT, no slot; board A waits MODULE_B_TIMEOUT_MS for B's half.
+    let (_o, mut c) = start("board-b-silent.toml");
+    let b = boot(&mut c);
+    eprintln!("board-b-silent.toml: discovery {} ms after BOOT", b.discovery_ms);
+    assert!(b.discovery_ms >= mib::config::MODULE_B_TIMEOUT_MS as u64);
+    drop(c);
+    invalid_set("board-b-silent.toml", 1, 255);
+}
