@@ -173,3 +173,14 @@ pub const TCP_INPUT_QUEUE: usize = 16;
 pub const TCP_TM_BACKLOG: usize = 256 * 1024;
 /// OBSW: longest simulator-control line.
 pub const SIM_CTL_MAX_LINE: usize = 256;
+
+/// OBSW: module discovery (issue 24) must be done this long after boot.
+pub const MODULE_DISCOVERY_BUDGET_MS: u32 = 2000;
+/// OBSW: board A waits this long after it read its own table for board B's half (sent
+/// over the A-B link, one entry per B period, three passes); then it runs discovery
+/// without it (reason BOARD_B_SILENT). Inside the budget with room for a control period.
+pub const MODULE_B_TIMEOUT_MS: u32 = 1000;
+const _: () = assert!(MODULE_B_TIMEOUT_MS + 2 * CONTROL_PERIOD_MS < MODULE_DISCOVERY_BUDGET_MS);
+/// OBSW: while board B's table is incomplete, board A asks for it again this often.
+pub const MODULE_B_REQUEST_MS: u32 = 250;
+const _: () = assert!(MODULE_B_REQUEST_MS < MODULE_B_TIMEOUT_MS);

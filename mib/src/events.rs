@@ -2,7 +2,7 @@
 //! 3 medium, 4 high); its source data is the event ID (u16) followed by the event's
 //! parameters, packed with their wire types.
 
-use crate::layout::{Field, Names, RESET_CAUSE_NAMES, SIDE_NAMES};
+use crate::layout::{Field, Names, MODULE_REASON_NAMES, RESET_CAUSE_NAMES, SIDE_NAMES, SLOT_NAMES};
 use crate::types::PType;
 
 /// PUS 5 severity; the value is the TM[5,x] subservice.
@@ -97,6 +97,8 @@ events! {
     TCP_CLIENT_DROPPED = 0x020F, Medium, false, ["dropped": U32], "Ground link: TCP clients disconnected because their unsent TM passed TCP_TM_BACKLOG bytes (dropped = total since boot; the TM stays in the on-board store)";
     LINK_FRAME_REJECTED = 0x0230, Low, false, ["reason": U8, "total": U32], "Space link: TC frames refused since the last report (reason = the SPACE_LINK HK parameter ID minus 120: 4 bare packet, 5 CRC, 6 length, 7 header, 8 SCID, 9 VC, 10 SDLS too short, 11 unknown SPI, 12 replay, 13 MAC, 14 counter store, 15 unknown control, 16 not packets, 22 control-frame rate; total since boot); at most one per reason and control period, then throttled";
     LINK_CONTROL_FRAME = 0x0231, Low, false, ["command": U8, "vr": U8, "total": U32], "Space link: a BC control frame in clear was executed (command 0 Unlock, 1 Set V(R) with vr; total since boot); at most one per control period, then throttled";
+    CONFIG_INVALID = 0x0232, High, false, ["reason": U8 @MODULE_REASON_NAMES, "slot": U8 @SLOT_NAMES, "hash": U32], "Module discovery at boot: the module set is invalid or unsupported (reason, the slot it names or NONE, configuration hash of what was found); the robot stays in STANDBY and OPERATIONAL is refused with CONFIG_INVALID";
+    MODULE_REPLACED = 0x0233, Medium, false, ["slot": U8 @SLOT_NAMES, "accepted_hash": U32, "hash": U32], "Module discovery at boot: the module set differs from the configuration the ground last accepted (first slot whose presence, serial or revision differs, or NONE when only calibration changed); OPERATIONAL is refused with CONFIG_NOT_ACCEPTED until ACCEPT_CONFIG with the current hash";
 }
 
 /// Events exempt from throttling (`config::EVENT_THROTTLE_MAX`): `MODE_CHANGED` is

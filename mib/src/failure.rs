@@ -3,7 +3,7 @@
 //! per code ([`FailureCode::data`]), the one description the wire crate, the exports and
 //! the ground decoder use.
 
-use crate::layout::{f, fields_len, Field, Names, ROOT_MODE_NAMES, SIDE_NAMES};
+use crate::layout::{f, fields_len, Field, Names, MODULE_REASON_NAMES, ROOT_MODE_NAMES, SIDE_NAMES, SLOT_NAMES};
 use crate::types::PType;
 
 macro_rules! failure_codes {
@@ -79,6 +79,10 @@ failure_codes! {
     BOTH_SIDES_GRIPPED = 34, [f("grip_a_pwm", PType::U16, "grip a pwm").unit("us"), f("grip_b_pwm", PType::U16, "grip b pwm").unit("us")], "Start refused: the primitive needs a hip rotation but both grippers hold (the robot is clamped to the lattice on both sides, the hip cannot turn); data: the two gripper PWM pulse widths (us) that show both closed";
     FRAME_TOO_LONG = 35, [f("frame_len", PType::U32, "frame len").unit("byte"), f("max_len", PType::U32, "max len").unit("byte")], "Acceptance refused: a TCP or serial frame is longer than the largest packet (config::MAX_PACKET_LEN); data: the frame length and the limit";
     NESTED_SCHEDULE = 36, [f("activity", PType::U8, "activity")], "Acceptance refused: an activity of TC[11,4] embeds another TC[11,4] (schedules do not nest); data: the activity's index (0-based)";
+    CONFIG_INVALID = 37, [f("reason", PType::U8, "why the module set is invalid").names(MODULE_REASON_NAMES), f("slot", PType::U8, "slot the reason names").names(SLOT_NAMES)], "Refused: the module set found at boot is invalid or unsupported (robot stays in STANDBY); data: the reason and its slot (NONE if it names none)";
+    CONFIG_NOT_ACCEPTED = 38, [f("hash", PType::U32, "current configuration hash")], "OPERATIONAL refused: the module configuration differs from the one the ground accepted (MODULE_REPLACED); data: the current hash, to accept with ACCEPT_CONFIG";
+    CONFIG_HASH_STALE = 39, [f("received", PType::U32, "hash in the TC"), f("current", PType::U32, "current configuration hash")], "ACCEPT_CONFIG refused: the hash is not the current configuration's";
+    MODULE_ABSENT = 40, [f("slot", PType::U8, "first absent module the command needs").names(SLOT_NAMES)], "Refused: the command needs a module this robot does not have; data: its slot";
 }
 
 #[cfg(test)]

@@ -24,6 +24,7 @@ pub mod sid {
     pub const OBSW: u16 = 4;
     pub const PLATFORM_IO: u16 = 5;
     pub const SPACE_LINK: u16 = 22;
+    pub const MODULES: u16 = 23;
 }
 
 /// Shortest and longest collection interval accepted by TC[3,31].
@@ -170,6 +171,14 @@ pub const HK_STRUCTS: &[HkDef] = &[
         default_interval_ms: 10000,
         default_enabled: true,
         desc: "Space link (TC/TM frames, COP-1, SDLS): frames accepted and refused by reason, CLCW, TM frames sent",
+    },
+    HkDef {
+        sid: sid::MODULES,
+        name: "MODULES",
+        params: &[CONFIG_HASH, CONFIG_ID, CONFIG_STATUS, MODULES_PRESENT],
+        default_interval_ms: 10000,
+        default_enabled: true,
+        desc: "Module configuration found at boot (issue 24): hash, supported configuration, state against the ground-accepted configuration, present slots",
     },
 ];
 

@@ -58,6 +58,66 @@ pub const BOOL_NAMES: Names = Names::List(&[(0, "FALSE"), (1, "TRUE")]);
 /// Reset causes of the BOOT event.
 pub const RESET_CAUSE_NAMES: Names = Names::List(&[(0, "POWER_ON"), (1, "PANIC"), (2, "WATCHDOG"), (3, "OTHER")]);
 
+/// Module slots (`crate::modules::SLOTS`, by slot number); 255 = none.
+pub const SLOT_NAMES: Names = Names::List(&[
+    (0, "BOARD_A"),
+    (1, "IMU_A"),
+    (2, "ADC_A"),
+    (3, "ARM_A"),
+    (4, "GRIPPER_A"),
+    (5, "BOLTER_A"),
+    (6, "HIP"),
+    (7, "ENCODER"),
+    (8, "BOARD_B"),
+    (9, "IMU_B"),
+    (10, "ADC_B"),
+    (11, "ARM_B"),
+    (12, "GRIPPER_B"),
+    (13, "BOLTER_B"),
+    (255, "NONE"),
+]);
+/// Why a module set is invalid (`mmic_domain::discovery::Invalid::code`); 0 = valid.
+pub const MODULE_REASON_NAMES: Names = Names::List(&[
+    (0, "NONE"),
+    (1, "BOARD_B_SILENT"),
+    (2, "TABLE_UNREADABLE"),
+    (3, "CORRUPT_DESCRIPTOR"),
+    (4, "UNKNOWN_MODULE"),
+    (5, "WRONG_BOARD"),
+    (6, "WRONG_PORT"),
+    (7, "DUPLICATE"),
+    (8, "UNKNOWN_REVISION"),
+    (9, "INCOMPATIBLE"),
+    (10, "PROBE_DISAGREES"),
+    (11, "MISSING"),
+    (12, "UNSUPPORTED"),
+]);
+/// Supported configurations (`crate::modules::config::CONFIGS`); 0 = none (invalid set).
+pub const CONFIG_ID_NAMES: Names = Names::List(&[(0, "NONE"), (1, "FULL"), (2, "LOCOMOTION_ONLY")]);
+/// State of the module configuration against the one the ground accepted.
+pub const CONFIG_STATUS_NAMES: Names = Names::List(&[
+    (0, "NOT_DISCOVERED"),
+    (1, "ACCEPTED"),
+    (2, "NOT_ACCEPTED"),
+    (3, "INVALID"),
+]);
+/// The module set against the configuration the ground accepted (module report).
+pub const REPLACEMENT_NAMES: Names = Names::List(&[(0, "NONE_ACCEPTED"), (1, "SAME"), (2, "CHANGED")]);
+/// Module types of a descriptor (`crate::modules::ModuleType`).
+pub const MODULE_TYPE_NAMES: Names = Names::List(&[
+    (1, "HIP"),
+    (2, "ARM"),
+    (3, "GRIPPER"),
+    (4, "BOLTER"),
+    (5, "IMU"),
+    (6, "ADC"),
+    (7, "ENCODER"),
+    (8, "BOARD_A"),
+    (9, "BOARD_B"),
+]);
+/// Side of a module descriptor (`crate::modules::ModuleSide`).
+pub const MODULE_SIDE_NAMES: Names = Names::List(&[(0, "A"), (1, "B"), (2, "CENTRE")]);
+
 const MODE_BOTH: &[(i64, &str)] = &[(0, "STANDBY/OFF"), (1, "OPERATIONAL/ON"), (2, "SAFED/HOLD")];
 
 impl Names {
@@ -406,6 +466,23 @@ pub fn type_name(f: &Field) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: MOD-OBSW-06
+    #[test]
+    fn module_value_names_follow_the_module_tables() {
+        for s in crate::modules::SLOTS {
+            assert_eq!(SLOT_NAMES.name(s.id as i64), Some(s.name.to_ascii_uppercase().as_str()));
+        }
+        for c in crate::modules::config::CONFIGS {
+            assert_eq!(CONFIG_ID_NAMES.name(c.id.code() as i64), Some(c.name));
+        }
+        for code in 1..=9u8 {
+            let t = crate::modules::ModuleType::from_code(code);
+            assert_eq!(
+                MODULE_TYPE_NAMES.name(code as i64),
+                Some(t.name().to_ascii_uppercase().as_str())
+            );
+        }
+    }
     // verifies: PUS-PKT-04
     #[test]
     fn request_id_and_cds_time_have_their_ccsds_lengths() {

@@ -3,7 +3,7 @@
 //! Parameter IDs are stable: they name the parameter in HK reports, PUS 12 monitors,
 //! events and the ground archive.
 
-use crate::layout::{Field, Names, ROOT_MODE_NAMES, SIDE_NAMES};
+use crate::layout::{Field, Names, CONFIG_ID_NAMES, CONFIG_STATUS_NAMES, ROOT_MODE_NAMES, SIDE_NAMES};
 use crate::modes::ModeSet;
 use crate::types::{Calib, Limits, PType};
 
@@ -195,6 +195,10 @@ params! {
     LINK_TM_IDLE_FRAMES = 140, U32, "", ID, None, "Space link: idle TM frames sent on VC7";
     LINK_TM_SDLS_FAILED = 141, U32, "", ID, None, "Space link: TM frames not sent because SDLS failed (counter state file)";
     LINK_REJ_CONTROL_RATE = 142, U32, "", ID, None, "Space link: BC control frames (in clear) dropped beyond the rate limit of the host's frame endpoint";
+    CONFIG_HASH = 146, U32, "", ID, None, "Module configuration hash (CRC-32 over the present slots' descriptors, mib::modules::config::config_hash; 0 before discovery)";
+    CONFIG_ID = 147, U8, "", ID, None, "Supported module configuration found at boot: 0 none (invalid set), 1 FULL, 2 LOCOMOTION_ONLY";
+    CONFIG_STATUS = 148, U8, "", ID, None, "Module configuration state: 0 not discovered, 1 accepted by the ground, 2 not accepted (MODULE_REPLACED: OPERATIONAL refused until ACCEPT_CONFIG), 3 invalid (STANDBY only)";
+    MODULES_PRESENT = 149, U16, "", ID, None, "Present module slots (bit n = slot n of mib::modules::SLOTS)";
 }
 
 /// Root modes in which the limits of parameter `id` apply: the regulated servo supply
@@ -271,6 +275,8 @@ impl ParamDef {
             pid::ACTIVE_PRIMITIVE => Names::Primitive,
             pid::BOLT_SIDE => SIDE_NAMES,
             pid::LAST_FAULT_EVENT => Names::Event,
+            pid::CONFIG_ID => CONFIG_ID_NAMES,
+            pid::CONFIG_STATUS => CONFIG_STATUS_NAMES,
             _ => Names::None,
         }
     }

@@ -23,6 +23,8 @@ pub mod service {
     pub const EVENT_ACTION: u8 = 19;
     pub const PARAMETER: u8 = 20;
     pub const MODE: u8 = 200;
+    /// Mission-specific: the module set (issue 24).
+    pub const MODULES: u8 = 210;
 }
 
 pub use crate::modes::ModeSet;
@@ -679,6 +681,31 @@ pub const TCS: &[TcDef] = &[
         &[F::UNKNOWN_MODE_TARGET],
         "Report the modes of a node and all its descendants",
     ),
+    // --- 210 modules (mission-specific) ---
+    tc(
+        210,
+        1,
+        "REPORT_MODULES",
+        &[],
+        &[],
+        "Report the module set found at boot (TM[210,3] MODULE_REPORT)",
+    ),
+    tc(
+        210,
+        2,
+        "ACCEPT_CONFIG",
+        &[a(
+            "hash",
+            PType::U32,
+            "",
+            0,
+            4_294_967_295,
+            "configuration hash the ground accepts (HK CONFIG_HASH, MODULE_REPORT)",
+        )],
+        &[F::CONFIG_INVALID, F::CONFIG_HASH_STALE],
+        "Accept the module configuration found at boot by its hash: clears MODULE_REPLACED so that OPERATIONAL may be entered",
+    )
+    .hazardous("lets the robot operate with modules the ground has not seen before"),
 ];
 
 impl TcDef {
@@ -967,6 +994,73 @@ pub const TMS: &[TmDef] = &[
         ],
         "Mode could not be reached",
     ),
+    tm(
+        210,
+        3,
+        "MODULE_REPORT",
+        MODULE_REPORT_BODY,
+        "Module set found at boot (sent at boot and on REPORT_MODULES): configuration hash, supported \
+         configuration, reason it is invalid, state against the ground-accepted configuration, and the \
+         descriptor of every present slot (mib::modules::report::ModuleReport; the ground rebuilds the \
+         module set and its URDF from it)",
+    ),
+];
+
+const CAL: &str = "calibration word (meaning per module type, docs/modules.md)";
+/// Body of TM[210,3]: `mib::modules::report::ModuleReport`.
+const MODULE_REPORT_BODY: &[Item] = &[
+    Item::Field(f(
+        "hash",
+        PType::U32,
+        "configuration hash of the present slots' descriptors",
+    )),
+    Item::Field(
+        f(
+            "config_id",
+            PType::U8,
+            "supported configuration (0 = none: invalid set)",
+        )
+        .names(crate::layout::CONFIG_ID_NAMES),
+    ),
+    Item::Field(f("reason", PType::U8, "why the set is invalid (0 = valid)").names(crate::layout::MODULE_REASON_NAMES)),
+    Item::Field(f("reason_slot", PType::U8, "slot the reason names (255 = none)").names(crate::layout::SLOT_NAMES)),
+    Item::Field(
+        f("replacement", PType::U8, "against the ground-accepted configuration")
+            .names(crate::layout::REPLACEMENT_NAMES),
+    ),
+    Item::Field(
+        f("present", PType::U16, "present slots (bit n = slot n)").range(0, (1 << crate::modules::NUM_SLOTS) - 1),
+    ),
+    Item::Field(
+        f("count", PType::U8, "number of descriptors (present slots)").range(0, crate::modules::NUM_SLOTS as i64),
+    ),
+    Item::Group {
+        name: "descriptors",
+        count: "count",
+        max: crate::modules::NUM_SLOTS,
+        items: &[
+            Item::Field(f("layout", PType::U8, "descriptor layout version").range(1, 1)),
+            Item::Field(f("module_type", PType::U8, "module type").names(crate::layout::MODULE_TYPE_NAMES)),
+            Item::Field(f("variant", PType::U8, "variant")),
+            Item::Field(f("revision", PType::U8, "revision")),
+            Item::Field(f("serial", PType::U32, "serial number")),
+            Item::Field(f("side", PType::U8, "side").names(crate::layout::MODULE_SIDE_NAMES)),
+            Item::Field(f("port", PType::U8, "PWM channel, I2C address, or 0 for a board")),
+            Item::Field(f("cal0", PType::I16, CAL)),
+            Item::Field(f("cal1", PType::I16, CAL)),
+            Item::Field(f("cal2", PType::I16, CAL)),
+            Item::Field(f("cal3", PType::I16, CAL)),
+            Item::Field(f("cal4", PType::I16, CAL)),
+            Item::Field(f("cal5", PType::I16, CAL)),
+            Item::Field(f("cal6", PType::I16, CAL)),
+            Item::Field(f("cal7", PType::I16, CAL)),
+            Item::Field(f(
+                "crc",
+                PType::U16,
+                "CRC-16/CCITT-FALSE over the descriptor's first 26 bytes",
+            )),
+        ],
+    },
 ];
 
 pub fn tm_by_type(service: u8, subservice: u8) -> Option<&'static TmDef> {
@@ -1018,6 +1112,7 @@ mod tests {
                 "EA_DISABLE",
                 "PARAM_SET",
                 "MODE_SET",
+                "ACCEPT_CONFIG",
             ]
         );
         for t in TCS {

@@ -8,7 +8,8 @@ compares them with the MIB.
 commands.json: {"hk_params": [names of the HK parameters], "commands": [{"name": "PING",
 "args": {...}, "at": seconds after the start}, or {"cop1_init": "SET_VR", "v_r": 0, "link":
 "tc_robot_1.vc0", "at": ...} (an operator's COP-1 initialisation)], "cop1_link": a link whose
-COP-1 status is recorded at the start and the end}.
+COP-1 status is recorded at the start and the end, "settle_s": how long to wait at most after
+the watch for every command's final status (default 15)}.
 result.json:
   links:     [{name, status, in_count, out_count}]
   hk:        [{t (reception, s since start), sid, seq, params: {NAME: {raw, eng}}}], every HK report
@@ -128,6 +129,17 @@ def main():
     rest = a.seconds - (time.monotonic() - t0)
     if rest > 0:
         time.sleep(rest)
+
+    # Settle: wait (at most plan["settle_s"], default 15 s) until every issued command has
+    # its final status, so that a loaded machine does not cut a verification short.
+    settle_until = time.monotonic() + plan.get("settle_s", 15)
+    while time.monotonic() < settle_until:
+        pending = [cmd for _, cmd, _ in issued if cmd is not None and
+                   (hist.get_command_history(cmd) is None or
+                    "CommandComplete_Status" not in hist.get_command_history(cmd).attributes)]
+        if not pending:
+            break
+        time.sleep(0.2)
 
     commands = []
     for c, cmd, err in issued:

@@ -789,7 +789,7 @@ fn yamcs_cop1_retransmission_encrypts_the_already_encrypted_frame_again() {
         })
     };
     let y = Yamcs::start(&dir, &venv);
-    let plan = json!({"hk_params": [], "commands": [{"name": "PING", "at": 0.2}]});
+    let plan = json!({"hk_params": [], "commands": [{"name": "PING", "at": 0.2}], "settle_s": 0});
     // T1 is 2 s: two retransmissions within 5 s.
     let r = check(&venv, &dir, &setup, &plan, 5.0);
     let log = y.log();
@@ -892,7 +892,7 @@ fn after_an_obsw_restart_the_operator_reinitialises_cop1_and_nothing_is_reported
         &venv,
         &dir,
         &setup,
-        &json!({"hk_params": [], "commands": [ping_at(0.5)], "cop1_link": vc}),
+        &json!({"hk_params": [], "commands": [ping_at(0.5)], "cop1_link": vc, "settle_s": 0}),
         5.0,
     );
     // Session C: the operator re-initialises COP-1 with Set V(R) = 0 (a restarted robot's

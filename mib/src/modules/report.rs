@@ -1,6 +1,8 @@
-//! Body of the proposed module report TM (sent at boot and on request): what discovery
-//! found, in a layout the ground turns back into a module set (and so into a URDF).
-//! Not yet in `crate::tc::TMS` (see docs/modules.md, "Integration status").
+//! Body of the module report TM[210,3] `MODULE_REPORT` (sent at boot and on request): what
+//! discovery found, in a layout the ground turns back into a module set (and so into a
+//! URDF). Described field by field in `crate::tc::TMS` like every other packet; the
+//! descriptor count at offset 10 is the MIB's group count (the number of bits set in the
+//! present-slot mask, checked by [`ModuleReport::parse`]).
 //!
 //! | offset | size | field |
 //! |---|---|---|
@@ -10,7 +12,8 @@
 //! | 6 | 1 | slot the reason names (0xFF = none) |
 //! | 7 | 1 | replacement: 0 none accepted, 1 same as accepted, 2 changed |
 //! | 8 | 2 | present slots (`SlotSet` bits) |
-//! | 10 | 28 × n | the descriptors of the present slots, ascending, each with its CRC |
+//! | 10 | 1 | n = number of descriptors (= present slots) |
+//! | 11 | 28 × n | the descriptors of the present slots, ascending, each with its CRC |
 
 use super::config::{config_hash, SlotSet};
 use super::descriptor::{DescError, Descriptor, DESCRIPTOR_LEN};
@@ -18,7 +21,7 @@ use super::{ModuleSet, NUM_SLOTS, SLOTS};
 use core::fmt;
 
 /// Header length.
-pub const REPORT_HEADER_LEN: usize = 10;
+pub const REPORT_HEADER_LEN: usize = 11;
 /// Largest report body.
 pub const MAX_REPORT_LEN: usize = REPORT_HEADER_LEN + NUM_SLOTS * DESCRIPTOR_LEN;
 /// "No slot" in the reason-slot field.
@@ -50,6 +53,8 @@ pub enum ReportError {
     WrongSlot { slot: u8 },
     /// The hash does not match the descriptors.
     Hash { stated: u32, computed: u32 },
+    /// The descriptor count differs from the number of present slots.
+    Count { stated: u8, present: u8 },
 }
 
 impl fmt::Display for ReportError {
@@ -64,6 +69,9 @@ impl fmt::Display for ReportError {
             ReportError::BadSlots(m) => write!(f, "module report slot mask {m:#06x} names unknown slots"),
             ReportError::Descriptor { slot, error } => write!(f, "module report slot {slot}: {error}"),
             ReportError::WrongSlot { slot } => write!(f, "module report slot {slot}: descriptor of another slot"),
+            ReportError::Count { stated, present } => {
+                write!(f, "module report states {stated} descriptors, {present} slots present")
+            }
             ReportError::Hash { stated, computed } => {
                 write!(
                     f,
@@ -105,7 +113,9 @@ impl ModuleReport {
         out[5] = self.reason;
         out[6] = self.reason_slot;
         out[7] = self.replacement;
-        out[8..10].copy_from_slice(&present(&self.set).0.to_be_bytes());
+        let p = present(&self.set);
+        out[8..10].copy_from_slice(&p.0.to_be_bytes());
+        out[10] = p.len() as u8;
         let mut at = REPORT_HEADER_LEN;
         for d in self.set.iter().flatten() {
             out[at..at + DESCRIPTOR_LEN].copy_from_slice(&d.to_bytes());
@@ -126,6 +136,12 @@ impl ModuleReport {
         let slots = SlotSet(mask);
         if !slots.is_subset_of(SlotSet::ALL) {
             return Err(ReportError::BadSlots(mask));
+        }
+        if u32::from(bytes[10]) != slots.len() {
+            return Err(ReportError::Count {
+                stated: bytes[10],
+                present: slots.len() as u8,
+            });
         }
         let expected = REPORT_HEADER_LEN + slots.len() as usize * DESCRIPTOR_LEN;
         if bytes.len() < expected {

@@ -184,6 +184,18 @@ impl Failure {
     pub fn nested_schedule(activity: u8) -> Self {
         Failure(W::NestedSchedule { activity })
     }
+    pub fn config_invalid(reason: u8, slot: u8) -> Self {
+        Failure(W::ConfigInvalid { reason, slot })
+    }
+    pub fn config_not_accepted(hash: u32) -> Self {
+        Failure(W::ConfigNotAccepted { hash })
+    }
+    pub fn config_hash_stale(received: u32, current: u32) -> Self {
+        Failure(W::ConfigHashStale { received, current })
+    }
+    pub fn module_absent(slot: u8) -> Self {
+        Failure(W::ModuleAbsent { slot })
+    }
 
     /// The failure of an action the domain refused to start. `running` is the function
     /// of the running action (for BUSY), `mode` the robot's mode (for NOT_POWERED).
@@ -255,6 +267,10 @@ mod tests {
             Failure::both_sides_gripped(1100, 1100),
             Failure::frame_too_long(2000, 1024),
             Failure::nested_schedule(0),
+            Failure::config_invalid(11, 11),
+            Failure::config_not_accepted(0x0900_3d97),
+            Failure::config_hash_stale(1, 0x0900_3d97),
+            Failure::module_absent(5),
         ];
         for f in &all {
             assert_eq!(f.data().len(), f.code().data_len(), "{:?}", f.code());

@@ -30,7 +30,11 @@ pub struct ModeTree {
     nodes: [NodeMode; N_NODES],
     /// Robot submode (idle / busy).
     pub submode: u16,
+    /// Leaves whose module discovery found absent (bit = node index): always OFF.
+    absent: u32,
 }
+
+const _: () = assert!(N_NODES <= 32, "the absent mask is a u32");
 
 impl Default for ModeTree {
     fn default() -> Self {
@@ -47,6 +51,23 @@ impl ModeTree {
                 actual: robot_mode::STANDBY,
             }; N_NODES],
             submode: 0,
+            absent: 0,
+        }
+    }
+
+    /// Marks a leaf's module absent (module discovery): it is commanded OFF whatever the
+    /// robot's mode, so it takes no part in transitions. Nodes that are not leaves are
+    /// never absent.
+    pub fn set_absent(&mut self, node: u32, absent: bool) {
+        let Some(i) = Self::index(node) else { return };
+        if matches!(NODES[i].kind, NodeKind::Root | NodeKind::Assembly) {
+            return;
+        }
+        if absent {
+            self.absent |= 1 << i;
+            self.nodes[i].commanded = module_mode::OFF;
+        } else {
+            self.absent &= !(1 << i);
         }
     }
 
@@ -88,6 +109,8 @@ impl ModeTree {
         for (i, n) in NODES.iter().enumerate() {
             self.nodes[i].commanded = if n.kind == NodeKind::Root {
                 root_mode
+            } else if self.absent & (1 << i) != 0 {
+                module_mode::OFF
             } else {
                 child_mode(root_mode, n.kind)
             };

@@ -19,6 +19,7 @@ use crate::request::{Ctx, Request};
 use crate::services::function::Running;
 use crate::services::hk::Hk;
 use crate::services::mode::{ModeCmd, Transition};
+use crate::services::modules::Modules;
 use crate::services::scheduling::Schedule;
 use crate::services::time::TimeReports;
 use crate::time::OnboardTime;
@@ -143,6 +144,8 @@ pub struct Obsw<S: TmStore> {
     pub space_link: [u32; SPACE_LINK_PARAMS],
     pub(crate) last_now: u64,
     out: TickOut,
+    /// The module set found at boot (issue 24; `services::modules`).
+    pub modules: Modules,
 }
 
 impl<S: TmStore> Obsw<S> {
@@ -167,6 +170,7 @@ impl<S: TmStore> Obsw<S> {
             space_link: [0; SPACE_LINK_PARAMS],
             last_now: 0,
             out: TickOut::new(),
+            modules: Modules::default(),
         };
         o.apply_module_modes();
         o
@@ -256,6 +260,9 @@ impl<S: TmStore> Obsw<S> {
 
     /// Raw value of any MIB telemetry parameter; `None` when it has no valid value.
     pub fn param_opt(&self, id: u16) -> Option<i64> {
+        if self.param_of_absent_module(id) {
+            return None;
+        }
         Some(match id {
             pid::MODE => self.modes.root() as i64,
             pid::FAULT_FLAGS => self.faults.active() as i64,
@@ -283,6 +290,7 @@ impl<S: TmStore> Obsw<S> {
             pid::LINK_AD_ACCEPTED..=pid::LINK_REJ_CONTROL_RATE => {
                 self.space_link[usize::from(id - pid::LINK_AD_ACCEPTED)] as i64
             }
+            pid::CONFIG_HASH..=pid::MODULES_PRESENT => return self.modules_param(id),
             _ => return self.ctrl.param(id),
         })
     }
@@ -415,6 +423,7 @@ impl<S: TmStore> Obsw<S> {
             Request::EventAction(r) => self.event_action_request(now, r, sink),
             Request::Parameter(r) => self.parameter_request(now, r, sink)?,
             Request::Mode(r) => return self.mode_request(now, r, sink),
+            Request::Modules(r) => self.modules_request(now, r, sink)?,
         }
         Ok(Exec::Done)
     }
@@ -506,6 +515,7 @@ impl<S: TmStore> Obsw<S> {
         for e in out.events.iter() {
             self.on_domain_event(now, e, sink);
         }
+        self.modules_tick(now, sink);
         self.run_monitors(now, fdir::is_continuous, sink);
         self.progress_transition(now, sink);
         self.hk_tick(now, sink);

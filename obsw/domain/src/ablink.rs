@@ -11,6 +11,7 @@
 //! | `0x01` Command | A→B | `code u8` + arguments ([`ModuleCmd`]) |
 //! | `0x81` Ack | B→A | empty (`seq` = the command's sequence number) |
 //! | `0x82` Heartbeat | B→A | [`Heartbeat`], 28 bytes (`seq` counts heartbeats); its `last_seq` also acknowledges |
+//! | `0x83` Modules | B→A | [`ModulesChunk`], 32 bytes: B's probe results and one entry of its descriptor table (issue 24) |
 //!
 //! Untrusted bytes go through [`FrameDecoder`], which never panics: a bad COBS code,
 //! CRC, kind, length or value is an error value, and a frame longer than the buffer is
@@ -26,6 +27,7 @@ pub const CRC16: crc::Crc<u16> = crc::Crc::<u16>::new(&crc::CRC_16_IBM_3740);
 pub const KIND_COMMAND: u8 = 0x01;
 pub const KIND_ACK: u8 = 0x81;
 pub const KIND_HEARTBEAT: u8 = 0x82;
+pub const KIND_MODULES: u8 = 0x83;
 
 /// Largest encoded frame on the wire (delimiters included).
 pub const MAX_WIRE_FRAME: usize = cobs::max_encoding_length(LINK_MAX_FRAME) + 2;
@@ -46,6 +48,9 @@ pub enum ModuleCmd {
     /// At boot, while B's modules are unpowered: the arm and gripper are known (from
     /// A's state estimate) to be at these pulse widths; B starts interpolating there.
     Assume { arm: u16, grip: u16 },
+    /// Send the descriptor table again (module discovery, issue 24): A asks when B's
+    /// `Modules` frames did not all arrive.
+    SendModules,
 }
 
 impl ModuleCmd {
@@ -57,6 +62,7 @@ impl ModuleCmd {
             ModuleCmd::Power { .. } => 4,
             ModuleCmd::Stop => 5,
             ModuleCmd::Assume { .. } => 6,
+            ModuleCmd::SendModules => 7,
         }
     }
     /// Commands that order the queue: never coalesced across.
@@ -81,7 +87,7 @@ impl ModuleCmd {
                 out[3] = bolter;
                 4
             }
-            ModuleCmd::Stop => 1,
+            ModuleCmd::Stop | ModuleCmd::SendModules => 1,
             ModuleCmd::Assume { arm, grip } => {
                 out[1..3].copy_from_slice(&arm.to_be_bytes());
                 out[3..5].copy_from_slice(&grip.to_be_bytes());
@@ -137,6 +143,10 @@ impl ModuleCmd {
                     arm: u16::from_be_bytes([args[0], args[1]]),
                     grip: u16::from_be_bytes([args[2], args[3]]),
                 })
+            }
+            7 => {
+                need(0)?;
+                Ok(ModuleCmd::SendModules)
             }
             other => Err(FrameError::UnknownCommand(other)),
         }
@@ -244,12 +254,79 @@ impl Heartbeat {
     }
 }
 
+/// Board B's half of module discovery (issue 24), one table entry per frame: B's probe
+/// results (2 bytes, [`ModulesChunk::probe_bytes`]) and a `TableAssembler` chunk
+/// (`index u8 | count u8 | descriptor`, [`crate::discovery::CHUNK_LEN`] bytes).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ModulesChunk {
+    pub probes: crate::discovery::BoardProbes,
+    pub chunk: [u8; crate::discovery::CHUNK_LEN],
+}
+
+impl ModulesChunk {
+    pub const LEN: usize = 2 + crate::discovery::CHUNK_LEN;
+
+    /// Probe results on the wire: `who_am_i u8 | flags u8` (bit 0 the IMU answered,
+    /// bit 1 ADC ack, bit 2 encoder ack, bits 4-5 arm switch: 0 absent, 1 pushed,
+    /// 2 released).
+    pub fn probe_bytes(p: &crate::discovery::BoardProbes) -> [u8; 2] {
+        use crate::discovery::ArmSwitch;
+        let sw = match p.arm_switch {
+            ArmSwitch::Absent => 0u8,
+            ArmSwitch::Pushed => 1,
+            ArmSwitch::Released => 2,
+        };
+        let flags =
+            u8::from(p.imu_who_am_i.is_some()) | u8::from(p.adc_ack) << 1 | u8::from(p.encoder_ack) << 2 | sw << 4;
+        [p.imu_who_am_i.unwrap_or(0), flags]
+    }
+
+    fn probes_of(b: [u8; 2]) -> Result<crate::discovery::BoardProbes, FrameError> {
+        use crate::discovery::ArmSwitch;
+        let [who, flags] = b;
+        if flags & 0b1100_1000 != 0 {
+            return Err(FrameError::BadValue);
+        }
+        let arm_switch = match (flags >> 4) & 3 {
+            0 => ArmSwitch::Absent,
+            1 => ArmSwitch::Pushed,
+            2 => ArmSwitch::Released,
+            _ => return Err(FrameError::BadValue),
+        };
+        Ok(crate::discovery::BoardProbes {
+            imu_who_am_i: (flags & 1 != 0).then_some(who),
+            adc_ack: flags & 2 != 0,
+            encoder_ack: flags & 4 != 0,
+            arm_switch,
+        })
+    }
+
+    fn emit(&self, o: &mut [u8]) -> usize {
+        o[..2].copy_from_slice(&Self::probe_bytes(&self.probes));
+        o[2..Self::LEN].copy_from_slice(&self.chunk);
+        Self::LEN
+    }
+
+    fn parse(b: &[u8]) -> Result<ModulesChunk, FrameError> {
+        if b.len() != Self::LEN {
+            return Err(FrameError::BadLength);
+        }
+        let mut chunk = [0u8; crate::discovery::CHUNK_LEN];
+        chunk.copy_from_slice(&b[2..]);
+        Ok(ModulesChunk {
+            probes: Self::probes_of([b[0], b[1]])?,
+            chunk,
+        })
+    }
+}
+
 /// A decoded frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Message {
     Command { seq: u8, cmd: ModuleCmd },
     Ack { seq: u8 },
     Heartbeat { seq: u8, hb: Heartbeat },
+    Modules { seq: u8, m: ModulesChunk },
 }
 
 /// Why a frame was dropped.
@@ -302,6 +379,11 @@ impl Message {
                 out[1] = *seq;
                 2 + hb.emit(&mut out[2..])
             }
+            Message::Modules { seq, m } => {
+                out[0] = KIND_MODULES;
+                out[1] = *seq;
+                2 + m.emit(&mut out[2..])
+            }
         }
     }
 
@@ -332,6 +414,10 @@ impl Message {
             KIND_HEARTBEAT => Ok(Message::Heartbeat {
                 seq,
                 hb: Heartbeat::parse(rest)?,
+            }),
+            KIND_MODULES => Ok(Message::Modules {
+                seq,
+                m: ModulesChunk::parse(rest)?,
             }),
             k => Err(FrameError::UnknownKind(k)),
         }
@@ -442,6 +528,10 @@ pub struct LinkManager {
     start_ms: Option<u64>,
     counters: LinkCounters,
     failed: bool,
+    /// Board B's descriptor table, rebuilt from its `Modules` frames (issue 24).
+    b_table: crate::discovery::TableAssembler,
+    /// Board B's probe results (from its latest `Modules` frame).
+    b_probes: Option<crate::discovery::BoardProbes>,
 }
 
 impl Default for LinkManager {
@@ -469,7 +559,20 @@ impl LinkManager {
                 queue_dropped: 0,
             },
             failed: false,
+            b_table: crate::discovery::TableAssembler::new(),
+            b_probes: None,
         }
+    }
+
+    /// Board B's half of module discovery once its whole table arrived: the table and
+    /// B's probe results.
+    pub fn board_b_modules(&self) -> Option<(&[u8], crate::discovery::BoardProbes)> {
+        Some((self.b_table.table()?, self.b_probes?))
+    }
+
+    /// `Modules` frames whose chunk was refused (length, index).
+    pub fn modules_refused(&self) -> u16 {
+        self.b_table.refused
     }
 
     /// Queues a command for B.
@@ -527,6 +630,11 @@ impl LinkManager {
                     self.last_hb_ms = Some(now_ms);
                     self.counters.hb_rx += 1;
                     got_hb = true;
+                }
+                Some(Ok(Message::Modules { m, .. })) => {
+                    // A refused chunk is counted by the assembler.
+                    let taken = self.b_table.push(&m.chunk).is_ok();
+                    self.b_probes = if taken { Some(m.probes) } else { self.b_probes };
                 }
                 // B never sends commands: a command frame here is a fault of the line
                 Some(Ok(Message::Command { .. })) => self.counters.frame_errors += 1,

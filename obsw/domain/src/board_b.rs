@@ -4,14 +4,17 @@
 //! flags, bolter sync state and arm switch. Runs on its own schedule: `tick` may be
 //! called at any period.
 
-use crate::ablink::{flag, FrameDecoder, Heartbeat, Message, ModuleCmd};
+use crate::ablink::{flag, FrameDecoder, Heartbeat, Message, ModuleCmd, ModulesChunk};
 use crate::consts::LINK_TX_CAP;
 use crate::control::Interpolator;
+use crate::discovery::{BoardProbes, TableAssembler};
 use crate::filter::{to_i16, to_u16, Ma};
 use crate::types::{mux_bits, BolterDrive, SensorsB, SideActuators};
 use heapless::Vec;
 use mib::config::B_HEARTBEAT_PERIOD_MS;
 use mib::modes::module_mode::{HOLD, OFF, ON};
+use mib::modules::descriptor::{TABLE_HEADER_LEN, TABLE_MAGIC};
+use mib::modules::DESCRIPTOR_LEN;
 use mib::params::{CAL_AMP, I_BO_MAX, I_GRIP_MAX, I_LOC_MAX};
 use mib::robot::servo;
 
@@ -56,7 +59,21 @@ pub struct BoardB {
     hb_seq: u8,
     last_tick: Option<u64>,
     counters: BoardBCounters,
+    /// Module discovery (issue 24): B's descriptor table (flash copy) and probe results.
+    modules: Option<BoardModules>,
 }
+
+/// Board B's half of module discovery, sent to A one table entry per period.
+#[derive(Clone, Debug)]
+struct BoardModules {
+    table: Vec<u8, { mib::modules::descriptor::MAX_TABLE_LEN }>,
+    probes: BoardProbes,
+    /// Entries sent so far.
+    sent: u16,
+}
+
+/// Passes over B's table it sends after boot (repeats cover frames lost on the line).
+pub const MODULE_TABLE_PASSES: u16 = 3;
 
 impl Default for BoardB {
     fn default() -> Self {
@@ -88,7 +105,42 @@ impl BoardB {
             hb_seq: 0,
             last_tick: None,
             counters: BoardBCounters::default(),
+            modules: None,
         }
+    }
+
+    /// Gives board B its descriptor table (as read from its flash) and probe results:
+    /// from its next tick it sends A one `Modules` frame per period, entry by entry,
+    /// [`MODULE_TABLE_PASSES`] times. A table whose header is unreadable (magic,
+    /// count, length) cannot be split into entries and is not sent (A then finds
+    /// board B silent). Longer than a table can be: ignored likewise.
+    pub fn set_modules(&mut self, table: &[u8], probes: BoardProbes) {
+        self.modules = Vec::from_slice(table)
+            .ok()
+            .map(|table| BoardModules { table, probes, sent: 0 });
+    }
+
+    /// The next `Modules` frame due, if any.
+    fn modules_chunk(&self) -> Option<ModulesChunk> {
+        let m = self.modules.as_ref()?;
+        let t = &m.table;
+        if t.len() < TABLE_HEADER_LEN || t[0..2] != TABLE_MAGIC {
+            return None;
+        }
+        let count = t[3];
+        if count == 0 || t.len() != TABLE_HEADER_LEN + count as usize * DESCRIPTOR_LEN {
+            return None;
+        }
+        if m.sent >= MODULE_TABLE_PASSES * count as u16 {
+            return None;
+        }
+        let index = (m.sent % count as u16) as u8;
+        let at = TABLE_HEADER_LEN + index as usize * DESCRIPTOR_LEN;
+        let desc: &[u8; DESCRIPTOR_LEN] = t.get(at..at + DESCRIPTOR_LEN)?.try_into().ok()?;
+        Some(ModulesChunk {
+            probes: m.probes,
+            chunk: TableAssembler::chunk(index, count, desc),
+        })
     }
 
     /// Board B whose arm and gripper are known to be at the given pulse widths.
@@ -151,6 +203,11 @@ impl BoardB {
                 }
                 if self.grip_mode == OFF {
                     self.grip.reset_to(grip);
+                }
+            }
+            ModuleCmd::SendModules => {
+                if let Some(m) = self.modules.as_mut() {
+                    m.sent = 0;
                 }
             }
         }
@@ -258,6 +315,17 @@ impl BoardB {
                 next = now_ms + period;
             }
             self.next_hb_ms = Some(next);
+        }
+
+        if let Some(m) = self.modules_chunk() {
+            if (Message::Modules { seq: 0, m }).encode(&mut out.tx).is_ok() {
+                if let Some(bm) = self.modules.as_mut() {
+                    bm.sent += 1;
+                }
+            } else {
+                // Retried next period.
+                self.counters.tx_overflow += 1;
+            }
         }
 
         out.side = SideActuators {
@@ -474,5 +542,94 @@ mod tests {
         assert_eq!(out.side.arm_pwm, None);
         assert_eq!(out.side.grip_pwm, Some(servo::GRIP_CLOSED_US));
         assert_eq!(out.side.bolter, BolterDrive::Off);
+    }
+
+    // verifies: MOD-OBSW-07
+    #[test]
+    fn board_b_sends_its_descriptor_table_and_probes_and_a_rebuilds_them() {
+        use crate::ablink::LinkManager;
+        use crate::discovery::ArmSwitch;
+        use mib::modules::descriptor::{emit_table, MAX_TABLE_LEN};
+        use mib::modules::{default_set, Board, SLOTS};
+        let set = default_set(1000);
+        let descs: std::vec::Vec<_> = set
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| SLOTS[*i].board == Board::B)
+            .filter_map(|(_, d)| *d)
+            .collect();
+        let mut table = [0u8; MAX_TABLE_LEN];
+        let n = emit_table(&descs, &mut table).unwrap();
+        let probes = BoardProbes {
+            imu_who_am_i: Some(0x68),
+            adc_ack: true,
+            encoder_ack: false,
+            arm_switch: ArmSwitch::Pushed,
+        };
+        let mut b = BoardB::new();
+        b.set_modules(&table[..n], probes);
+        let mut a = LinkManager::new();
+        let mut out = BoardBOut::default();
+        let s = SensorsB::default();
+        let mut frames = 0;
+        for t in 0..100u64 {
+            b.tick(t * 10, &s, &[], &mut out);
+            frames += msgs(&out.tx)
+                .iter()
+                .filter(|m| matches!(m, Message::Modules { .. }))
+                .count();
+            a.receive(t * 10, &out.tx);
+            if t + 1 == descs.len() as u64 {
+                assert_eq!(a.board_b_modules(), Some((&table[..n], probes)), "one entry per period");
+            }
+        }
+        assert_eq!(frames, descs.len() * MODULE_TABLE_PASSES as usize, "then it stops");
+        assert_eq!(a.modules_refused(), 0);
+        // A corrupted entry travels as it is (discovery reports its CRC), an unreadable
+        // header is not sent.
+        let mut bad = table;
+        bad[TABLE_HEADER_LEN + 3] ^= 0x10;
+        let mut b = BoardB::new();
+        b.set_modules(&bad[..n], probes);
+        let mut a = LinkManager::new();
+        for t in 0..10u64 {
+            b.tick(t * 10, &s, &[], &mut out);
+            a.receive(t * 10, &out.tx);
+        }
+        assert_eq!(a.board_b_modules().map(|(t, _)| t.to_vec()), Some(bad[..n].to_vec()));
+        bad[0] = b'X';
+        let mut b = BoardB::new();
+        b.set_modules(&bad[..n], probes);
+        b.tick(0, &s, &[], &mut out);
+        assert!(!msgs(&out.tx).iter().any(|m| matches!(m, Message::Modules { .. })));
+    }
+
+    // verifies: MOD-OBSW-07
+    #[test]
+    fn modules_frames_round_trip_and_bad_probe_bits_are_refused() {
+        use crate::ablink::ModulesChunk;
+        use crate::discovery::ArmSwitch;
+        for sw in [ArmSwitch::Absent, ArmSwitch::Pushed, ArmSwitch::Released] {
+            for (imu, adc) in [(None, false), (Some(0x68), true), (Some(0x12), false)] {
+                let m = ModulesChunk {
+                    probes: BoardProbes {
+                        imu_who_am_i: imu,
+                        adc_ack: adc,
+                        encoder_ack: adc,
+                        arm_switch: sw,
+                    },
+                    chunk: [7; crate::discovery::CHUNK_LEN],
+                };
+                let mut v: Vec<u8, 64> = Vec::new();
+                Message::Modules { seq: 3, m }.encode(&mut v).unwrap();
+                assert_eq!(msgs(&v), [Message::Modules { seq: 3, m }]);
+            }
+        }
+        // Arm-switch code 3 is not a state.
+        let mut payload = std::vec![crate::ablink::KIND_MODULES, 0, 0x68, 0x31];
+        payload.extend_from_slice(&[0; crate::discovery::CHUNK_LEN]);
+        let crc = crate::ablink::CRC16.checksum(&payload);
+        payload.extend_from_slice(&crc.to_be_bytes());
+        assert_eq!(Message::parse(&payload), Err(crate::ablink::FrameError::BadValue));
     }
 }

@@ -1281,6 +1281,15 @@ impl Controller {
         })
     }
 
+    /// Asks board B to send its descriptor table again (module discovery).
+    pub fn request_board_b_modules(&mut self) {
+        self.link.send(ModuleCmd::SendModules);
+    }
+    /// Board B's half of module discovery, once its whole descriptor table arrived over
+    /// the link (issue 24).
+    pub fn board_b_modules(&self) -> Option<(&[u8], crate::discovery::BoardProbes)> {
+        self.link.board_b_modules()
+    }
     /// Counters of the A–B link.
     pub fn link_counters(&self) -> crate::ablink::LinkCounters {
         *self.link.counters()

@@ -125,7 +125,7 @@ impl Invalid {
             | Invalid::Unsupported { .. } => None,
         }
     }
-    /// Reason code for the event / module report (proposed MIB enumeration, see
+    /// Reason code for the event / module report (`mib::layout::MODULE_REASON_NAMES`, see
     /// docs/modules.md).
     pub const fn code(&self) -> u8 {
         match self {
@@ -498,8 +498,8 @@ pub fn report(d: &Discovery, r: Replacement) -> mib::modules::report::ModuleRepo
 }
 
 /// Board B's half over the A–B link, one descriptor per message (the link's frames hold
-/// at most 64 bytes): chunk = `index u8 | count u8 | descriptor (28 bytes)`. Proposed
-/// body of a new A–B message kind (not yet in `ablink`, see docs/modules.md).
+/// at most 64 bytes): chunk = `index u8 | count u8 | descriptor (28 bytes)`, carried
+/// in the A–B message kind `Modules` (`crate::ablink::ModulesChunk`).
 pub const CHUNK_LEN: usize = 2 + mib::modules::DESCRIPTOR_LEN;
 
 /// Why a chunk was refused.
@@ -616,6 +616,71 @@ mod tests {
     use mib::modules::descriptor::{emit_table, MAX_TABLE_LEN};
     use mib::modules::{default_set, slot};
     use mib::tc::function;
+
+    // verifies: MOD-OBSW-06
+    #[test]
+    fn reason_codes_are_the_mib_reason_names() {
+        use mib::layout::MODULE_REASON_NAMES as N;
+        let b = Board::A;
+        let all = [
+            (Invalid::BoardBSilent, "BOARD_B_SILENT"),
+            (
+                Invalid::TableUnreadable {
+                    board: b,
+                    error: TableError::Version(2),
+                },
+                "TABLE_UNREADABLE",
+            ),
+            (
+                Invalid::CorruptDescriptor {
+                    board: b,
+                    index: 0,
+                    error: DescError::Version(2),
+                },
+                "CORRUPT_DESCRIPTOR",
+            ),
+            (
+                Invalid::UnknownModule {
+                    board: b,
+                    index: 0,
+                    ty: ModuleType::Unknown(99),
+                    side: ModuleSide::A,
+                },
+                "UNKNOWN_MODULE",
+            ),
+            (Invalid::WrongBoard { slot: 1, board: b }, "WRONG_BOARD"),
+            (Invalid::WrongPort { slot: 1, port: 9 }, "WRONG_PORT"),
+            (Invalid::Duplicate { slot: 1 }, "DUPLICATE"),
+            (
+                Invalid::UnknownRevision {
+                    slot: 1,
+                    variant: 0,
+                    revision: 9,
+                },
+                "UNKNOWN_REVISION",
+            ),
+            (
+                Invalid::Incompatible {
+                    slot: 1,
+                    revision: 2,
+                    board_rev: 1,
+                    fw: 0x100,
+                },
+                "INCOMPATIBLE",
+            ),
+            (Invalid::ProbeDisagrees { slot: 1, listed: true }, "PROBE_DISAGREES"),
+            (Invalid::Missing { slot: 1 }, "MISSING"),
+            (
+                Invalid::Unsupported {
+                    present: SlotSet::EMPTY,
+                },
+                "UNSUPPORTED",
+            ),
+        ];
+        for (why, name) in all {
+            assert_eq!(N.name(why.code() as i64), Some(name), "{why}");
+        }
+    }
 
     struct Robot {
         set: ModuleSet,

@@ -24,6 +24,7 @@ use serde::Deserialize;
 use mib::config;
 use mmic_sim::{Sim, SimCommand, SimConfig};
 use obsw_core::obsw::{Config, LinkEvent, Obsw};
+use obsw_core::services::modules::AcceptedConfig;
 use obsw_core::tm::TmStore;
 
 use net::{Input, Origin};
@@ -68,6 +69,9 @@ struct Args {
     /// Stop after this many simulated seconds (default: run until killed).
     #[arg(long)]
     duration: Option<f64>,
+    /// Module-set file of the simulated robot (plans/modules/*.toml) [default: the full robot].
+    #[arg(long)]
+    modules: Option<PathBuf>,
     /// Test aid: write every TM packet the obsw sends to this file, one line of hex each.
     #[arg(long)]
     tm_log: Option<PathBuf>,
@@ -126,6 +130,7 @@ struct FileConfig {
     link_state: Option<PathBuf>,
     tm_dest: Option<Vec<SocketAddr>>,
     lab_bare_packets: Option<bool>,
+    modules: Option<PathBuf>,
 }
 
 struct Settings {
@@ -144,6 +149,7 @@ struct Settings {
     tm_dest: Vec<SocketAddr>,
     /// The bare-packet link is on (lab mode, or no frame link configured).
     bare: bool,
+    modules: mmic_sim::modules::ModuleSetSpec,
 }
 
 fn settings(a: Args) -> Result<Settings> {
@@ -227,6 +233,10 @@ fn settings(a: Args) -> Result<Settings> {
     if !bare && !tm_dest.is_empty() {
         bail!("--tm-dest sends bare (unauthenticated) packets: with --frame-udp it needs --lab-bare-packets");
     }
+    let modules = match a.modules.or(f.modules) {
+        Some(p) => mmic_sim::modules::ModuleSetSpec::load(&p).map_err(|e| anyhow::anyhow!("--modules: {e}"))?,
+        None => mmic_sim::modules::ModuleSetSpec::full(),
+    };
     Ok(Settings {
         robot,
         udp,
@@ -242,6 +252,7 @@ fn settings(a: Args) -> Result<Settings> {
         frames,
         tm_dest,
         bare,
+        modules,
     })
 }
 
@@ -344,6 +355,12 @@ fn run(args: Args) -> Result<()> {
         link_corrupt: s.link_corrupt,
         ..SimConfig::default()
     });
+    sim.set_modules(&s.modules);
+    // The configuration accepted at the factory: the full robot (no persistent store on
+    // the host; an ACCEPT_CONFIG holds until the process ends).
+    obsw.set_accepted_config(Some(AcceptedConfig::of(
+        &mmic_sim::modules::ModuleSetSpec::full().fitted,
+    )));
     println!(
         "READY robot={} apid=0x{:03X} udp={udp} tcp={tcp} sim_ctl={ctl_addr} speed={}{}{frame_note}",
         s.robot,
@@ -378,6 +395,9 @@ fn run(args: Args) -> Result<()> {
         ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
     }
     obsw.boot(0, config::reset_cause::POWER_ON, &mut down);
+    // Board A's table and probes now; board B's half arrives over the A-B link and the
+    // control cycle runs discovery (issue 24).
+    obsw.start_discovery(0, &sim.modules().table_a, sim.modules().probes_a);
     loop {
         // Inputs already waiting first, but a bounded batch, so that a flood of TCs
         // cannot hold back the control period (and a late period cannot starve TCs).

@@ -211,6 +211,8 @@ pub struct Sim {
     faults: Vec<Fault>,
     fasteners: HashMap<(Face, u8), FastenerPair>,
     fallen: bool,
+    /// What module discovery reads from this robot (issue 24): tables and probes.
+    modules: modules::DiscoveryInput,
 }
 
 fn near(x: f64, target: f64, tol: f64) -> bool {
@@ -245,7 +247,7 @@ impl Sim {
             bolter_cmd: BolterDrive::Off,
             mux: 0,
         };
-        Sim {
+        let mut sim = Sim {
             rng: ChaCha8Rng::seed_from_u64(cfg.seed),
             t_ms: 0,
             sides: [side(s.a), side(s.b)],
@@ -264,12 +266,33 @@ impl Sim {
             faults: Vec::new(),
             fasteners: HashMap::new(),
             fallen: false,
+            modules: modules::ModuleSetSpec::full().discovery_input(),
             cfg,
-        }
+        };
+        sim.set_modules(&modules::ModuleSetSpec::full());
+        sim
     }
 
     pub fn config(&self) -> &SimConfig {
         &self.cfg
+    }
+
+    /// Builds the simulated robot from a module set (default: the full robot,
+    /// [`modules::ModuleSetSpec::full`]): what its descriptor tables and probes answer.
+    /// Board B gets its half (table and probes) and sends it to A over the simulated
+    /// A–B link at boot; board A's half is for the platform to read ([`Sim::modules`]).
+    /// A set whose board B is silent sends nothing.
+    pub fn set_modules(&mut self, spec: &modules::ModuleSetSpec) {
+        self.modules = spec.discovery_input();
+        match &self.modules.table_b {
+            Some(t) => self.board_b.set_modules(t, self.modules.probes_b),
+            None => self.board_b.set_modules(&[], self.modules.probes_b),
+        }
+    }
+    /// What discovery reads: board A's table and probes, board B's table (`None` when
+    /// board B stays silent) and probes.
+    pub fn modules(&self) -> &modules::DiscoveryInput {
+        &self.modules
     }
     pub fn time_ms(&self) -> u64 {
         self.t_ms

@@ -124,6 +124,9 @@ pub enum SetFault {
     BoardBSilent,
 }
 
+/// Serial base of the factory-built full robot ([`ModuleSetSpec::full`]).
+pub const FACTORY_SERIAL_BASE: u32 = 1000;
+
 /// A parsed module-set file.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ModuleSetSpec {
@@ -401,6 +404,20 @@ impl ModuleSetSpec {
             fitted,
             faults,
         })
+    }
+
+    /// The full robot of the database's default build, serials `FACTORY_SERIAL_BASE + slot`
+    /// (the same set as `plans/modules/full.toml`): the simulator's robot when no
+    /// module-set file is given, and the configuration the host OBSW treats as accepted
+    /// at the factory.
+    pub fn full() -> ModuleSetSpec {
+        ModuleSetSpec {
+            name: "full".into(),
+            description: "every module of the database's default build".into(),
+            expect: Some("FULL".into()),
+            fitted: mib::modules::default_set(FACTORY_SERIAL_BASE),
+            faults: Vec::new(),
+        }
     }
 
     /// The descriptor tables and probe results of this robot.

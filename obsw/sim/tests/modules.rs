@@ -246,3 +246,18 @@ fn module_report_of_a_file_rebuilds_the_same_model_on_the_ground() {
         assert!(urdf_from_report(&buf[..n], Board::A, "m").is_err());
     }
 }
+
+// verifies: MOD-OBSW-07
+#[test]
+fn the_built_in_full_robot_is_full_toml_and_the_simulator_answers_with_its_module_set() {
+    assert_eq!(
+        ModuleSetSpec::full().discovery_input(),
+        load("full.toml").discovery_input()
+    );
+    let mut sim = mmic_sim::Sim::new(mmic_sim::SimConfig::default());
+    assert_eq!(*sim.modules(), load("full.toml").discovery_input());
+    let loco = load("locomotion-only.toml");
+    sim.set_modules(&loco);
+    assert_eq!(*sim.modules(), loco.discovery_input());
+    assert_eq!(outcome_key(&sim.modules().discover()), "LOCOMOTION_ONLY");
+}

@@ -104,6 +104,9 @@ impl<S: TmStore> Obsw<S> {
             }
             Request::Start(a) => a,
         };
+        if let Some(f) = self.absent_module_for(&action) {
+            return Err(f.into());
+        }
         if self.running.is_some() || self.transition.is_some() {
             let busy = self.running.as_ref().map_or(0, |r| r.function);
             return Err(Failure::busy(busy).into());

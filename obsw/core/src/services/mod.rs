@@ -6,6 +6,7 @@ pub mod event_action;
 pub mod function;
 pub mod hk;
 pub mod mode;
+pub mod modules;
 pub mod monitoring;
 pub mod parameter;
 pub mod scheduling;

@@ -118,6 +118,9 @@ impl<S: TmStore> Obsw<S> {
 
     fn mode_command(&mut self, now: u64, target: u32, sink: &mut impl TmSink) -> Result<Exec, Refused> {
         if target == robot_mode::OPERATIONAL {
+            if let Some(f) = self.modules_block_operational() {
+                return Err(f.into());
+            }
             if let Some(ev) = self.faults.first_active_event() {
                 return Err(Failure::fault_not_cleared(ev).into());
             }
@@ -191,15 +194,18 @@ impl<S: TmStore> Obsw<S> {
 
     pub(crate) fn apply_module_modes(&mut self) {
         let m = &self.modes;
-        self.ctrl.set_module_modes(ModuleModes {
-            arm_a: m.commanded(node::ARM_A),
-            grip_a: m.commanded(node::GRIPPER_A),
-            bolter_a: m.commanded(node::BOLTER_A),
-            arm_b: m.commanded(node::ARM_B),
-            grip_b: m.commanded(node::GRIPPER_B),
-            bolter_b: m.commanded(node::BOLTER_B),
-            hip: m.commanded(node::HIP),
-        });
+        // An absent module (boot discovery) is never powered.
+        use mib::modules::slot;
+        let mm = ModuleModes {
+            arm_a: self.present_or_off(slot::ARM_A, m.commanded(node::ARM_A)),
+            grip_a: self.present_or_off(slot::GRIPPER_A, m.commanded(node::GRIPPER_A)),
+            bolter_a: self.present_or_off(slot::BOLTER_A, m.commanded(node::BOLTER_A)),
+            arm_b: self.present_or_off(slot::ARM_B, m.commanded(node::ARM_B)),
+            grip_b: self.present_or_off(slot::GRIPPER_B, m.commanded(node::GRIPPER_B)),
+            bolter_b: self.present_or_off(slot::BOLTER_B, m.commanded(node::BOLTER_B)),
+            hip: self.present_or_off(slot::HIP, m.commanded(node::HIP)),
+        };
+        self.ctrl.set_module_modes(mm);
     }
 
     /// True when the hardware shows that a module is in `mode`.
