@@ -1090,6 +1090,7 @@ mod tests {
                 );
             }
             assert!(t.fixed_len() <= crate::config::MAX_TC_APP_DATA);
+            assert!(t.args.len() <= crate::codec::MAX_ARGS, "{}", t.name);
         }
     }
     // verifies: MMIC-CMD-06

@@ -86,6 +86,7 @@ reports!(
     ParamValue,
     ModeReply,
     ModeCantReach,
+    TeamStatus,
 );
 
 /// A request's verification token with the acknowledgement flags the TC asked for.

@@ -20,6 +20,7 @@ use crate::services::function::Running;
 use crate::services::hk::Hk;
 use crate::services::mode::{ModeCmd, Transition};
 use crate::services::scheduling::Schedule;
+use crate::services::team::Team;
 use crate::services::time::TimeReports;
 use crate::time::OnboardTime;
 use crate::tm::{TmSink, TmStore};
@@ -143,6 +144,8 @@ pub struct Obsw<S: TmStore> {
     pub space_link: [u32; SPACE_LINK_PARAMS],
     pub(crate) last_now: u64,
     out: TickOut,
+    /// Team coordination without the ground (service 210, `services::team`).
+    pub team: Team,
 }
 
 impl<S: TmStore> Obsw<S> {
@@ -167,6 +170,7 @@ impl<S: TmStore> Obsw<S> {
             space_link: [0; SPACE_LINK_PARAMS],
             last_now: 0,
             out: TickOut::new(),
+            team: Team::new(cfg.robot, OnboardTime::new(cfg.epoch_unix_ms)),
         };
         o.apply_module_modes();
         o
@@ -303,6 +307,8 @@ impl<S: TmStore> Obsw<S> {
                 return;
             }
         };
+        // Every valid ground TC is ground contact for the team logic.
+        self.team_ground_tc();
         let crc = tc.crc();
         if let Some(prev) = self.find_seen(tc.req, crc, now) {
             return self.repeat(now, &tc, prev, sink);
@@ -401,6 +407,7 @@ impl<S: TmStore> Obsw<S> {
             Request::EventAction(r) => self.event_action_request(now, r, sink),
             Request::Parameter(r) => self.parameter_request(now, r, sink)?,
             Request::Mode(r) => return self.mode_request(now, r, sink),
+            Request::Team(r) => self.team_request(now, r, sink)?,
         }
         Ok(Exec::Done)
     }
