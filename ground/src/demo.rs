@@ -1,6 +1,10 @@
 //! `ground demo`: starts one `obsw` per robot of the demo plan (with its simulator, at
 //! a high `--speed`), runs the plan with the live display, prints the summary and the
 //! archive path, and stops the OBSWs.
+//!
+//! By default over the space link (TC/TM frames, COP-1, SDLS): the demo makes random
+//! test keys for each robot in its temporary folder (removed at the end) and says so.
+//! `--bare` (UDP) and `--tcp` use the bare-packet lab links instead.
 
 use std::io::BufRead;
 use std::net::SocketAddr;
@@ -10,7 +14,7 @@ use std::time::Duration;
 
 use anyhow::{anyhow, Context, Result};
 use clap::Args;
-use ground::link::Transport;
+use ground::link::{FrameOptions, Transport};
 use ground::ops::{self, RunOptions};
 use ground::plan;
 
@@ -31,9 +35,12 @@ pub struct DemoArgs {
     /// Run another plan instead of the shipped demo.
     #[arg(long)]
     plan: Option<PathBuf>,
-    /// Use TCP instead of UDP.
-    #[arg(long)]
+    /// Lab mode: bare space packets over TCP instead of the frame link.
+    #[arg(long, conflicts_with = "bare")]
     tcp: bool,
+    /// Lab mode: bare space packets over UDP instead of the frame link.
+    #[arg(long)]
+    bare: bool,
     /// Plain log lines instead of the live display.
     #[arg(long)]
     plain: bool,
@@ -106,7 +113,18 @@ fn free_port() -> Result<u16> {
     Err(anyhow!("no free local port"))
 }
 
-/// Starts one obsw for `robot` and waits for its READY line. Returns the TC address.
+/// The frame endpoint of a demo obsw.
+pub struct ObswFrames {
+    /// The robot's key directory (`KEYS/robot-N`).
+    pub keys: PathBuf,
+    /// The ground's TM frame address (`--frame-tm-to`).
+    pub tm_to: SocketAddr,
+    /// The obsw's SDLS counter file.
+    pub state: PathBuf,
+}
+
+/// Starts one obsw for `robot` and waits for its READY line. Returns the TC address: the
+/// frame port with `frames`, else the bare-packet UDP/TCP port.
 pub fn start_obsw(
     bin: &Path,
     robot: u8,
@@ -114,10 +132,11 @@ pub fn start_obsw(
     seed: u64,
     initial_state: Option<u8>,
     log: &Path,
+    frames: Option<&ObswFrames>,
 ) -> Result<(Child, SocketAddr)> {
     let port = free_port()?;
     let ctl = free_port()?;
-    let addr: SocketAddr = ([127, 0, 0, 1], port).into();
+    let mut addr: SocketAddr = ([127, 0, 0, 1], port).into();
     let mut cmd = Command::new(bin);
     cmd.arg("--robot")
         .arg(robot.to_string())
@@ -133,6 +152,20 @@ pub fn start_obsw(
         .arg(seed.to_string());
     if let Some(s) = initial_state {
         cmd.arg("--initial-state").arg(s.to_string());
+    }
+    if let Some(f) = frames {
+        let frame: SocketAddr = ([127, 0, 0, 1], free_port()?).into();
+        cmd.arg("--frame-udp")
+            .arg(frame.to_string())
+            .arg("--frame-tm-to")
+            .arg(f.tm_to.to_string())
+            .arg("--tc-key")
+            .arg(ground::keys::tc_key_path(&f.keys))
+            .arg("--tm-key")
+            .arg(ground::keys::tm_key_path(&f.keys))
+            .arg("--link-state")
+            .arg(&f.state);
+        addr = frame;
     }
     let errlog = std::fs::File::create(log).with_context(|| format!("creating {}", log.display()))?;
     let mut child = cmd
@@ -200,17 +233,55 @@ pub fn demo(a: &DemoArgs, archive_path: Option<&Path>) -> Result<u8> {
         bin.display(),
         a.speed
     );
+    let transport = if a.tcp {
+        Transport::Tcp
+    } else if a.bare {
+        Transport::Udp
+    } else {
+        Transport::Frames
+    };
+    let mut frames = (transport == Transport::Frames).then(|| FrameOptions {
+        keys: logdir.join("TEST-KEYS-demo-only"),
+        tm_listen: Default::default(),
+    });
+    if let Some(f) = &mut frames {
+        for r in &pl.robots {
+            ground::keys::create_robot_keys(&f.keys, r.number).map_err(|e| anyhow!("demo test keys: {e}"))?;
+            f.tm_listen
+                .insert(r.number, SocketAddr::from(([127, 0, 0, 1], free_port()?)));
+        }
+        crate::err_line!(
+            "demo: space link (TC/TM frames, COP-1, SDLS AES-256-GCM) with TEST KEYS made for this demo only in {} (random, deleted at the end)",
+            f.keys.display()
+        );
+    }
     let mut procs = Obsws(Vec::new());
     let mut links = Vec::new();
     for r in &pl.robots {
         let log = logdir.join(format!("obsw-{}.log", r.number));
-        let (child, addr) = start_obsw(&bin, r.number, a.speed, a.seed + r.number as u64, r.initial_state, &log)?;
-        crate::err_line!("demo: robot {} OBSW at {addr}", r.number);
+        let of = frames.as_ref().map(|f| ObswFrames {
+            keys: ground::keys::robot_dir(&f.keys, r.number),
+            tm_to: f.listen(r.number, ([127, 0, 0, 1], 0).into()),
+            state: logdir.join(format!("obsw-{}-link.state", r.number)),
+        });
+        let (child, addr) = start_obsw(
+            &bin,
+            r.number,
+            a.speed,
+            a.seed + r.number as u64,
+            r.initial_state,
+            &log,
+            of.as_ref(),
+        )?;
+        crate::err_line!(
+            "demo: robot {} OBSW, {} at {addr}",
+            r.number,
+            if of.is_some() { "frame port" } else { "bare-packet port" }
+        );
         procs.0.push((r.number, child));
         links.push((r.number, addr));
     }
-    let transport = if a.tcp { Transport::Tcp } else { Transport::Udp };
-    let (mut session, arch) = crate::open_session(&links, transport, archive_path)?;
+    let (mut session, arch) = crate::open_session(&links, transport, frames.as_ref(), archive_path)?;
     session.run_id = Some(ops::runs::new_run_id());
     let opts = RunOptions {
         display: !a.plain && std::io::IsTerminal::is_terminal(&std::io::stderr()),

@@ -5,6 +5,7 @@ pub mod alarms;
 pub mod archive;
 pub mod collect;
 pub mod dashboard;
+pub mod keys;
 pub mod link;
 pub mod ops;
 pub mod plan;

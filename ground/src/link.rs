@@ -1,9 +1,16 @@
-//! Links to OBSWs: UDP (one space packet per datagram) or TCP (COBS frames delimited
-//! by 0x00, as sat-rs's TCP server frames them). Each link has a reader thread that
-//! pushes every received packet, with its arrival time, into one channel.
+//! Links to OBSWs: the space link (TC and TM transfer frames with COP-1 and SDLS, through
+//! `ground-link`), or the bare-packet lab links: UDP (one space packet per datagram) or
+//! TCP (COBS frames delimited by 0x00, as sat-rs's TCP server frames them). Each link has
+//! a thread that pushes every received packet, with its arrival time, into one channel.
+//!
+//! Over frames, [`Link::send`] hands the packet to FOP-1 (queued, never lost: COP-1
+//! retransmits its frame until a CLCW acknowledges it); the ground's own packet resends are
+//! not used ([`Link::resends_packets`]). [`Link::frame_stats`] counts what COP-1 did.
 
+use std::collections::BTreeMap;
 use std::io::{self, Read, Write};
 use std::net::{SocketAddr, TcpStream, UdpSocket};
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
@@ -18,8 +25,78 @@ const READ_POLL: Duration = Duration::from_millis(100);
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Transport {
+    /// Bare space packets, one per UDP datagram (lab mode).
     Udp,
+    /// Bare space packets over TCP, COBS-framed (lab mode).
     Tcp,
+    /// TC/TM transfer frames, COP-1, SDLS (the space link; needs [`FrameOptions`]).
+    Frames,
+}
+
+impl Transport {
+    pub fn name(self) -> &'static str {
+        match self {
+            Transport::Udp => "UDP, bare packets",
+            Transport::Tcp => "TCP, bare packets",
+            Transport::Frames => "space link: TC/TM frames, COP-1, SDLS",
+        }
+    }
+}
+
+/// Where the frame link of each robot finds its keys and receives its TM frames.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FrameOptions {
+    /// The key directory (`ground keys create`): robot N uses `KEYS/robot-N/`
+    /// (`tc-spi1.key`, `tm-spi17.key`, and the ground's counter file `ground-link.state`).
+    pub keys: PathBuf,
+    /// Robot N's TM frames arrive at this local address (the obsw's `--frame-tm-to`);
+    /// default [`default_tm_listen`].
+    pub tm_listen: BTreeMap<u8, SocketAddr>,
+}
+
+impl FrameOptions {
+    /// The local address robot `robot`'s TM frames arrive at.
+    pub fn listen(&self, robot: u8, robot_addr: SocketAddr) -> SocketAddr {
+        self.tm_listen
+            .get(&robot)
+            .copied()
+            .unwrap_or_else(|| default_tm_listen(robot, robot_addr))
+    }
+}
+
+/// Robot N's TM frames by default: port 7400 + N, on loopback when the robot is there.
+pub fn default_tm_listen(robot: u8, robot_addr: SocketAddr) -> SocketAddr {
+    let port = 7400 + u16::from(robot);
+    if robot_addr.ip().is_loopback() {
+        (std::net::Ipv4Addr::LOCALHOST, port).into()
+    } else {
+        (std::net::Ipv4Addr::UNSPECIFIED, port).into()
+    }
+}
+
+/// What COP-1 did on a frame link so far.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct FrameStats {
+    /// Packets handed to the link.
+    pub packets: u64,
+    /// AD frames transmitted (first transmissions and retransmissions).
+    pub ad_frames: u64,
+    /// COP-1 retransmissions of AD frames.
+    pub retransmissions: u64,
+    /// Packets whose frames a CLCW acknowledged ("sent").
+    pub acknowledged: u64,
+    /// Packets whose fate the link could not tell (the robot's FARM-1 restarted).
+    pub unknown: u64,
+    /// FOP-1 alerts (each followed by a re-initialisation).
+    pub alerts: u64,
+    /// Initialisations of the AD service (Set V(R) or Unlock).
+    pub initialisations: u64,
+    /// TM frames refused (CRC, SDLS, header).
+    pub tm_refused: u64,
+    /// Packets waiting in the link (queued or not yet acknowledged).
+    pub pending: u64,
+    /// Last N(R) seen in a CLCW.
+    pub nr: Option<u8>,
 }
 
 /// A packet (or undecodable chunk) received from a robot's link.
@@ -33,6 +110,14 @@ pub struct Incoming {
 enum Io {
     Udp(UdpSocket),
     Tcp(Mutex<TcpStream>),
+    Frames {
+        to_link: Sender<Vec<u8>>,
+        stats: Arc<Mutex<FrameStats>>,
+        /// The link could not start or stopped with this error.
+        failed: Arc<Mutex<Option<String>>>,
+        /// Packets given to `send`.
+        submitted: std::sync::atomic::AtomicU64,
+    },
 }
 
 /// An open link to one robot's OBSW.
@@ -104,10 +189,27 @@ impl CobsSplitter {
 }
 
 impl Link {
+    /// Opens a bare-packet link (UDP or TCP); frames need [`Link::open_with`].
     pub fn open(robot: u8, addr: SocketAddr, transport: Transport, tx: Sender<Incoming>) -> io::Result<Link> {
+        Link::open_with(robot, addr, transport, None, tx)
+    }
+
+    /// Opens a link; `frames` is required with [`Transport::Frames`].
+    pub fn open_with(
+        robot: u8,
+        addr: SocketAddr,
+        transport: Transport,
+        frames: Option<&FrameOptions>,
+        tx: Sender<Incoming>,
+    ) -> io::Result<Link> {
         let stop = Arc::new(AtomicBool::new(false));
         let closed = Arc::new(AtomicBool::new(false));
+        if transport == Transport::Frames {
+            let opts = frames.ok_or_else(|| io::Error::other("the frame link needs a key directory (--keys DIR)"))?;
+            return open_frames(robot, addr, opts, tx, stop, closed);
+        }
         let io = match transport {
+            Transport::Frames => unreachable_frames()?,
             Transport::Udp => {
                 let bind: SocketAddr = if addr.ip().is_loopback() {
                     (std::net::Ipv4Addr::LOCALHOST, 0).into()
@@ -135,7 +237,7 @@ impl Link {
             let closed = closed.clone();
             let reader_stream = match &*io {
                 Io::Tcp(m) => Some(m.lock().map_err(|_| io::Error::other("lock"))?.try_clone()?),
-                Io::Udp(_) => None,
+                Io::Udp(_) | Io::Frames { .. } => None,
             };
             std::thread::Builder::new()
                 .name(format!("link-{robot}"))
@@ -161,9 +263,41 @@ impl Link {
         self.closed.load(Ordering::Relaxed)
     }
 
-    /// Sends one packet.
+    /// False over frames: COP-1 retransmits, the ground never resends a packet itself.
+    pub fn resends_packets(&self) -> bool {
+        !matches!(&*self.io, Io::Frames { .. })
+    }
+
+    /// What COP-1 did (frame links only).
+    pub fn frame_stats(&self) -> Option<FrameStats> {
+        match &*self.io {
+            Io::Frames { stats, .. } => stats.lock().ok().map(|s| *s),
+            Io::Udp(_) | Io::Tcp(_) => None,
+        }
+    }
+
+    /// Why the frame link stopped, if it did.
+    pub fn failure(&self) -> Option<String> {
+        match &*self.io {
+            Io::Frames { failed, .. } => failed.lock().ok().and_then(|f| f.clone()),
+            Io::Udp(_) | Io::Tcp(_) => None,
+        }
+    }
+
+    /// Sends one packet (over frames: queues it for FOP-1; "sent" is its acknowledgement,
+    /// counted in [`Link::frame_stats`]).
     pub fn send(&self, packet: &[u8]) -> io::Result<()> {
         match &*self.io {
+            Io::Frames { to_link, .. } => {
+                if self.closed() {
+                    return Err(io::Error::other(
+                        self.failure().unwrap_or_else(|| "frame link stopped".into()),
+                    ));
+                }
+                to_link
+                    .send(packet.to_vec())
+                    .map_err(|_| io::Error::other("frame link stopped"))
+            }
             Io::Udp(s) => s.send(packet).map(|_| ()),
             Io::Tcp(m) => {
                 let frame = cobs_frame(packet);
@@ -175,8 +309,24 @@ impl Link {
     }
 }
 
+/// Longest wait, when a frame link closes, for COP-1 to deliver what is still queued.
+const FRAME_FLUSH: Duration = Duration::from_secs(5);
+
 impl Drop for Link {
     fn drop(&mut self) {
+        if let Io::Frames { stats, submitted, .. } = &*self.io {
+            // A packet given to `send` is delivered (acknowledged by a CLCW) before the
+            // link closes, e.g. `ground send --no-wait` exiting at once; bounded wait.
+            let t0 = std::time::Instant::now();
+            let given = submitted.load(Ordering::Relaxed);
+            while !self.closed() && t0.elapsed() < FRAME_FLUSH {
+                let settled = stats.lock().map_or(given, |s| s.acknowledged + s.unknown);
+                if settled >= given {
+                    break;
+                }
+                std::thread::sleep(Duration::from_millis(10));
+            }
+        }
         self.stop.store(true, Ordering::Relaxed);
         if let Io::Tcp(m) = &*self.io {
             if let Ok(s) = m.lock() {
@@ -233,8 +383,121 @@ fn reader_loop(robot: u8, io: &Io, tcp: Option<TcpStream>, stop: &AtomicBool, tx
                 }
             }
         }
-        (Io::Tcp(_), None) => {}
+        (Io::Tcp(_), None) | (Io::Frames { .. }, _) => {}
     }
+}
+
+fn unreachable_frames() -> io::Result<Io> {
+    Err(io::Error::other("frame link opened as a bare-packet link"))
+}
+
+/// Opens robot `robot`'s frame link: its thread owns the `ground_link::FrameLink`.
+fn open_frames(
+    robot: u8,
+    addr: SocketAddr,
+    opts: &FrameOptions,
+    tx: Sender<Incoming>,
+    stop: Arc<AtomicBool>,
+    closed: Arc<AtomicBool>,
+) -> io::Result<Link> {
+    let dir = crate::keys::robot_dir(&opts.keys, robot);
+    let listen = opts.listen(robot, addr);
+    let cfg = ground_link::Config::from_key_files(
+        addr,
+        listen,
+        &crate::keys::tc_key_path(&dir),
+        &crate::keys::tm_key_path(&dir),
+        &crate::keys::ground_state_path(&dir),
+    )
+    .map_err(|e| io::Error::other(format!("robot {robot}'s keys in {}: {e}", dir.display())))?;
+    let mut fl = ground_link::FrameLink::open(cfg)
+        .map_err(|e| io::Error::other(format!("frame link of robot {robot} (TM frames on {listen}): {e}")))?;
+    let (to_link, from_ground) = crossbeam_channel::unbounded::<Vec<u8>>();
+    let stats = Arc::new(Mutex::new(FrameStats::default()));
+    let failed = Arc::new(Mutex::new(None));
+    let reader = {
+        let (stop, closed, stats, failed) = (stop.clone(), closed.clone(), stats.clone(), failed.clone());
+        std::thread::Builder::new()
+            .name(format!("frames-{robot}"))
+            .spawn(move || {
+                if let Err(e) = frame_loop(robot, &mut fl, &from_ground, &stop, &tx, &stats) {
+                    if let Ok(mut f) = failed.lock() {
+                        *f = Some(e.to_string());
+                    }
+                    closed.store(true, Ordering::Relaxed);
+                }
+            })?
+    };
+    Ok(Link {
+        robot,
+        addr,
+        io: Arc::new(Io::Frames {
+            to_link,
+            stats,
+            failed,
+            submitted: Default::default(),
+        }),
+        stop,
+        closed,
+        reader: Some(reader),
+    })
+}
+
+/// How long the frame thread sleeps on its socket between rounds (the latency of a
+/// queued packet when no TM arrives).
+const FRAME_ROUND: Duration = Duration::from_millis(5);
+
+fn frame_loop(
+    robot: u8,
+    fl: &mut ground_link::FrameLink,
+    from_ground: &crossbeam_channel::Receiver<Vec<u8>>,
+    stop: &AtomicBool,
+    tx: &Sender<Incoming>,
+    stats: &Mutex<FrameStats>,
+) -> Result<(), ground_link::LinkError> {
+    let mut st = FrameStats::default();
+    while !stop.load(Ordering::Relaxed) {
+        while let Ok(p) = from_ground.try_recv() {
+            fl.send_packet(&p)?;
+            st.packets += 1;
+        }
+        let packets = fl.recv(FRAME_ROUND)?;
+        let t_ms = crate::archive::now_ms();
+        for p in packets {
+            let _ = tx.send(Incoming { robot, t_ms, bytes: p });
+        }
+        let events = fl.take_events();
+        st.initialisations += events
+            .iter()
+            .filter(|e| matches!(e, ground_link::Event::Initialised { .. }))
+            .count() as u64;
+        let c = fl.counters;
+        st.ad_frames = c.ad_frames_sent;
+        st.retransmissions = c.retransmissions;
+        st.acknowledged = c.acknowledged;
+        st.unknown = c.unknown;
+        st.alerts = c.alerts;
+        let t = &c.tm;
+        st.tm_refused = [
+            t.bad_frame,
+            t.bad_crc,
+            t.wrong_scid,
+            t.unknown_vc,
+            t.bad_fhp,
+            t.sdls_rejected,
+            t.bad_clcw,
+        ]
+        .iter()
+        .map(|&n| u64::from(n))
+        .sum::<u64>()
+            + c.odd_datagrams;
+        st.pending = fl.pending() as u64;
+        st.nr = fl.clcw().map(|c| c.report_value);
+        if let Ok(mut s) = stats.lock() {
+            *s = st;
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -17,13 +17,14 @@ use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use ground::archive::{self, Archive};
 use ground::collect::parse_robot;
-use ground::link::Transport;
+use ground::link::{FrameOptions, Transport};
 use ground::ops::Session;
 
 mod demo;
 mod plot;
 mod verb_archive;
 mod verb_decode;
+mod verb_keys;
 mod verb_live;
 mod verb_mib;
 mod verb_plan;
@@ -115,6 +116,9 @@ enum Cmd {
     /// List, acknowledge or shelve the collector's alarms.
     #[command(subcommand)]
     Alarms(ground::collect::AlarmsCmd),
+    /// Create or show the space link's key files (never prints a key).
+    #[command(subcommand)]
+    Keys(verb_keys::KeysCmd),
 }
 
 /// Robot links: `N=HOST:PORT`, or `N` for 127.0.0.1:(7300+N).
@@ -122,20 +126,41 @@ enum Cmd {
 struct Links {
     /// Robot link `N=HOST:PORT` (or just `N` for 127.0.0.1:7300+N, robot 1 = 7301); repeat
     /// per robot. Required by ping, send, mode and watch; `run` adds the plan's robots.
+    /// With --frames, the robot's frame port (obsw --frame-udp).
     #[arg(long = "robot", short = 'r', value_parser = parse_robot)]
     robots: Vec<(u8, SocketAddr)>,
-    /// Use TCP (COBS framing) instead of UDP.
-    #[arg(long)]
+    /// Use TCP (COBS framing) instead of UDP (bare packets, lab mode).
+    #[arg(long, conflicts_with = "frames")]
     tcp: bool,
+    /// The space link: TC/TM transfer frames with COP-1 and SDLS (needs --keys).
+    #[arg(long, requires = "keys")]
+    frames: bool,
+    /// Key directory of the frame link (`ground keys create`): robot N uses KEYS/robot-N/.
+    #[arg(long, value_name = "DIR")]
+    keys: Option<PathBuf>,
+    /// Local address robot N's TM frames arrive at, `N=HOST:PORT` (obsw --frame-tm-to);
+    /// default 127.0.0.1:7400+N (0.0.0.0 for a remote robot). Repeat per robot.
+    #[arg(long = "tm-listen", value_parser = parse_robot, value_name = "N=HOST:PORT")]
+    tm_listen: Vec<(u8, SocketAddr)>,
 }
 
 impl Links {
     fn transport(&self) -> Transport {
-        if self.tcp {
+        if self.frames {
+            Transport::Frames
+        } else if self.tcp {
             Transport::Tcp
         } else {
             Transport::Udp
         }
+    }
+
+    fn frame_options(&self) -> Option<FrameOptions> {
+        let keys = self.keys.clone()?;
+        self.frames.then(|| FrameOptions {
+            keys,
+            tm_listen: self.tm_listen.iter().copied().collect(),
+        })
     }
 }
 
@@ -203,6 +228,7 @@ fn run(cli: Cli) -> Result<u8> {
         Cmd::Demo(a) => demo::demo(&a, archive_path.as_deref()),
         Cmd::Collect(a) => ground::collect::collect_cli(&cli.archive, a),
         Cmd::Alarms(a) => ground::collect::alarms_cli(&cli.archive, a),
+        Cmd::Keys(a) => verb_keys::keys(&a),
     }
 }
 
@@ -210,6 +236,7 @@ fn run(cli: Cli) -> Result<u8> {
 pub fn open_session(
     links: &[(u8, SocketAddr)],
     transport: Transport,
+    frames: Option<&FrameOptions>,
     archive_path: Option<&Path>,
 ) -> Result<(Session, Option<Archive>)> {
     if links.is_empty() {
@@ -219,7 +246,7 @@ pub fn open_session(
         .map(|p| Archive::open(p).with_context(|| format!("opening archive {}", p.display())))
         .transpose()?;
     let path = archive_path.map(Path::to_path_buf);
-    let session = Session::connect(links, transport, archive.as_ref().map(|a| a.sender()), |apid| {
+    let session = Session::connect_with(links, transport, frames, archive.as_ref().map(|a| a.sender()), |apid| {
         path.as_deref().and_then(|p| archive::next_seq(p, apid))
     })
     .map_err(|e| coded(exit::NO_ANSWER, e.to_string()))?;

@@ -18,18 +18,19 @@ use clap::Args;
 /// Says which robots a verb talks to, and how.
 pub(crate) fn say_links(links: &[(u8, SocketAddr)], transport: Transport) {
     let l: Vec<String> = links.iter().map(|(r, a)| format!("robot {r} at {a}")).collect();
-    err_line!(
-        "talking to {} ({})",
-        l.join(", "),
-        if transport == Transport::Tcp { "TCP" } else { "UDP" }
-    );
+    err_line!("talking to {} ({})", l.join(", "), transport.name());
 }
 
 pub(crate) fn ping(a: &PingArgs, archive_path: Option<&Path>) -> Result<u8> {
     let def = mib::tc::by_name("PING").ok_or_else(|| anyhow!("PING not in the MIB"))?;
     let links = robots_given(&a.links)?;
     say_links(&links, a.links.transport());
-    let (mut s, arch) = open_session(&links, a.links.transport(), archive_path)?;
+    let (mut s, arch) = open_session(
+        &links,
+        a.links.transport(),
+        a.links.frame_options().as_ref(),
+        archive_path,
+    )?;
     s.max_resends = 0;
     let mut answered: BTreeMap<u8, (u32, bool)> = BTreeMap::new(); // robot -> (replies, last answered)
     let mut silent: Vec<u8> = Vec::new(); // never answered: not pinged again
@@ -225,7 +226,12 @@ pub(crate) fn send(a: &SendArgs, archive_path: Option<&Path>) -> Result<u8> {
     ops::policy::check_confirmed(def, a.confirm, "add --confirm").map_err(policy_error)?;
     let (robot, addr) = one_robot(&a.links)?;
     say_links(&[(robot, addr)], a.links.transport());
-    let (mut s, arch) = open_session(&[(robot, addr)], a.links.transport(), archive_path)?;
+    let (mut s, arch) = open_session(
+        &[(robot, addr)],
+        a.links.transport(),
+        a.links.frame_options().as_ref(),
+        archive_path,
+    )?;
     let r = send_and_follow(
         &mut s,
         robot,
@@ -253,7 +259,12 @@ pub(crate) fn mode(a: &ModeArgs, archive_path: Option<&Path>) -> Result<u8> {
     ops::policy::check_confirmed(def, a.confirm, "add --confirm").map_err(policy_error)?;
     let (robot, addr) = one_robot(&a.links)?;
     say_links(&[(robot, addr)], a.links.transport());
-    let (mut s, arch) = open_session(&[(robot, addr)], a.links.transport(), archive_path)?;
+    let (mut s, arch) = open_session(
+        &[(robot, addr)],
+        a.links.transport(),
+        a.links.frame_options().as_ref(),
+        archive_path,
+    )?;
     let r = send_and_follow(
         &mut s,
         robot,
@@ -273,7 +284,12 @@ pub(crate) fn mode(a: &ModeArgs, archive_path: Option<&Path>) -> Result<u8> {
 pub(crate) fn watch(a: &WatchArgs, archive_path: Option<&Path>) -> Result<u8> {
     let links = robots_given(&a.links)?;
     say_links(&links, a.links.transport());
-    let (mut s, arch) = open_session(&links, a.links.transport(), archive_path)?;
+    let (mut s, arch) = open_session(
+        &links,
+        a.links.transport(),
+        a.links.frame_options().as_ref(),
+        archive_path,
+    )?;
     // A robot that does not answer ends the watch with its case's message and code.
     s.watch_links();
     // The OBSW sends TM to the grounds whose TC it accepted: subscribe with a ping, and

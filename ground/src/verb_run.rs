@@ -51,7 +51,12 @@ pub(crate) fn run_plan(a: &RunArgs, archive_path: Option<&Path>) -> Result<u8> {
         }
     };
     say_links(&links, a.links.transport());
-    let (mut session, arch) = open_session(&links, a.links.transport(), archive_path)?;
+    let (mut session, arch) = open_session(
+        &links,
+        a.links.transport(),
+        a.links.frame_options().as_ref(),
+        archive_path,
+    )?;
     session.run_id = Some(run_id.clone());
     err_line!(
         "run {run_id}: plan \"{}\"{}",

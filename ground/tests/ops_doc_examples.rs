@@ -54,6 +54,14 @@ fn expectations() -> BTreeMap<&'static str, Expect> {
         ),
         ("target/release/ground --help", ok(&["Usage: ground"])),
         (
+            "ground keys create keys",
+            ok(&["created keys/robot-1/tc-spi1.key", "created keys/robot-1/tm-spi17.key"]),
+        ),
+        (
+            "ground keys show keys",
+            ok(&["SPI 1 ", "SPI 17 ", "sha256 ", "mode 600"]),
+        ),
+        (
             "ground ping --robot 1 --robot 2",
             ok(&["talking to robot 1 at", "reply in"]),
         ),

@@ -164,7 +164,7 @@ fn a_robot_not_in_the_plan_and_a_verb_without_a_robot_are_refused_up_front() {
         &["--no-archive", "ping", "--robot", &format!("1={}", o.addr), "-c", "1"],
     );
     assert!(
-        text(&out).contains(&format!("talking to robot 1 at {} (UDP)", o.addr)),
+        text(&out).contains(&format!("talking to robot 1 at {} (UDP, bare packets)", o.addr)),
         "{}",
         text(&out)
     );

@@ -94,6 +94,8 @@ fn main() {
         &s(&tmk),
         "--link-state",
         &s(&dir.join("obsw.state")),
+        // The bare-packet link beside the frame link, for the comparison.
+        "--lab-bare-packets",
     ]);
     let until = Instant::now() + Duration::from_secs(10);
     while g.fop_state() != FopState::Active && Instant::now() < until {

@@ -542,3 +542,78 @@ fn counters_survive_an_obsw_restart_no_tm_iv_repeats_and_no_tc_replays() {
     assert_eq!(reports(&sent, &ping, 1), 0, "the replayed PING never reached the OBSW");
     drop(o2);
 }
+
+/// Runs the independent checker (`obsw/link/tests/py/check_frames.py`, written from the
+/// standards with Python `cryptography`) over `frames`; returns name -> its line.
+fn python_check(d: &Dir, frames: &[(String, Vec<u8>)]) -> BTreeMap<String, String> {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let py = root.join(".venv/bin/python");
+    assert!(
+        py.exists(),
+        "{} missing: run `bash scripts/python-env.sh` first (needs cryptography)",
+        py.display()
+    );
+    let dir = d.p("wire");
+    std::fs::create_dir_all(&dir).unwrap();
+    for (name, bytes) in frames {
+        std::fs::write(dir.join(name), bytes).unwrap();
+    }
+    let hex = |k: &[u8; 32]| k.iter().map(|b| format!("{b:02x}")).collect::<String>();
+    let out = std::process::Command::new(py)
+        .arg(root.join("obsw/link/tests/py/check_frames.py"))
+        .arg(&dir)
+        .args(["--key", &format!("1={}", hex(&TEST_KEY_TC_A))])
+        .args(["--key", &format!("17={}", hex(&TEST_KEY_TM_A))])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .filter_map(|l| l.split_once(' ').map(|(n, r)| (n.to_string(), r.to_string())))
+        .collect()
+}
+
+// verifies: LINK-IND-01, LINK-HOST-01
+#[test]
+fn frames_on_the_wire_verify_with_an_independent_decoder() {
+    let d = Dir::new("wire");
+    let frame = free_udp();
+    let wire = UdpSocket::bind("127.0.0.1:0").unwrap();
+    wire.set_read_timeout(Some(Duration::from_millis(50))).unwrap();
+    let _o = obsw(&d, frame, wire.local_addr().unwrap(), "tm.log");
+    // One AD frame by hand (FARM-1 starts at V(R) = 0, the TC key's IVs at 0).
+    let ping = tc_named(APID, 7, "PING", &[]);
+    let tc_frame = forged(TC_SPIS[0], &TEST_KEY_TC_A, 0, 0, &ping);
+    std::thread::sleep(Duration::from_millis(300));
+    inject(frame, &tc_frame);
+    let mut frames = vec![("a.tc".to_string(), tc_frame)];
+    let until = Instant::now() + Duration::from_millis(1500);
+    let mut b = [0u8; 2048];
+    while Instant::now() < until && frames.len() < 40 {
+        if let Ok(n) = wire.recv(&mut b) {
+            frames.push((format!("f{:02}.tm", frames.len()), b[..n].to_vec()));
+        }
+    }
+    let r = python_check(&d, &frames);
+    assert_eq!(r.len(), frames.len());
+    let tc = &r["a.tc"];
+    assert!(tc.starts_with("OK ") && tc.contains("spi=1 iv=0"), "{tc}");
+    let ping_hex: String = ping.iter().map(|b| format!("{b:02x}")).collect();
+    assert!(tc.ends_with(&format!("data={ping_hex}")), "{tc}");
+    let tm: Vec<&String> = r.iter().filter(|(n, _)| n.ends_with(".tm")).map(|(_, l)| l).collect();
+    let short: Vec<&str> = tm.iter().map(|l| &l[..l.len().min(160)]).collect();
+    assert!(tm.len() >= 3, "TM frames on the wire: {short:#?}");
+    assert!(
+        tm.iter().all(|l| l.starts_with("OK ")),
+        "every TM frame verifies: {short:#?}"
+    );
+    // The ping's completion TM[1,7] (request ID = the TC's first 4 bytes) decrypted by
+    // Python, and the CLCW acknowledging the TC frame (N(R) = 1).
+    let req: String = ping[..4].iter().map(|b| format!("{b:02x}")).collect();
+    assert!(
+        tm.iter().any(|l| l.contains("spi=17") && l.contains(&req)),
+        "a VC0 frame with the ping's reports: {short:#?}"
+    );
+    assert!(tm.iter().any(|l| l.contains(" nr=1 ")), "{short:#?}");
+}

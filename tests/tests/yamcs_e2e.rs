@@ -1,6 +1,8 @@
-//! End to end with a real Yamcs 5.12.8: the instance generated from the MIB
-//! (`mib::export::yamcs_instance`) on free loopback ports, the real `obsw` sending its TM
-//! to Yamcs' TM link (`--tm-dest`) and receiving Yamcs' TCs, and `yamcs-client` (Python,
+//! End to end with a real Yamcs 5.12.8 over the space link: the instance generated from the
+//! MIB (`mib::export::yamcs_instance`, frame links) on free loopback ports with the test keys
+//! written by `scripts/yamcs.sh test-keys`, the real `obsw` with its frame endpoint
+//! (`--frame-udp`, `--frame-tm-to`: TC frames with COP-1 and SDLS from Yamcs' FOP-1, TM
+//! frames with the CLCW and SDLS to Yamcs' TM frame link), and `yamcs-client` (Python,
 //! `tests/py/yamcs_check.py`) issuing commands and collecting parameters, command history
 //! and events through Yamcs' API. Every judgement is made here, against the MIB and the
 //! packets the obsw logged (`--tm-log`).
@@ -16,9 +18,10 @@ use std::process::Command;
 use std::time::Instant;
 
 use e2e_tests::{Obsw, Tm};
-use mib::export::yamcs::{yamcs_instance, YamcsRobot, YamcsSetup, INSTANCE};
+use mib::export::yamcs::{tc_key_file, tm_key_file, yamcs_instance, Links, YamcsRobot, YamcsSetup, INSTANCE};
 use mib::hk::{by_sid, sid};
 use mib::layout::Names;
+use mib::link::sdls::{TC_SPIS, TM_SPIS};
 use mib::FailureCode;
 use serde_json::{json, Value};
 
@@ -171,16 +174,68 @@ fn yamcs_venv() -> Option<PathBuf> {
     Some(venv)
 }
 
-/// Writes the instance of `setup` into `dir`.
-fn write_instance(dir: &Path, setup: &YamcsSetup) {
+/// Writes the instance of `setup` into `dir`, and the published test keys with the
+/// script (`scripts/yamcs.sh test-keys`), checked against `mmic_link::test_keys`.
+fn write_instance(dir: &Path, setup: &YamcsSetup, venv: &Path) {
     for (path, content) in yamcs_instance(setup) {
         let p = dir.join(path);
         std::fs::create_dir_all(p.parent().unwrap()).unwrap();
         std::fs::write(p, content).unwrap();
     }
+    let out = Yamcs::script(venv, &["test-keys", dir.to_str().unwrap()], 0);
+    assert!(
+        out.status.success(),
+        "test-keys: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let tc = std::fs::read(dir.join(tc_key_file(1, TC_SPIS[0]))).unwrap();
+    let tm = std::fs::read(dir.join(tm_key_file(1, TM_SPIS[0]))).unwrap();
+    assert_eq!(tc, mmic_link::test_keys::TEST_KEY_TC_A, "the script's TC test key");
+    assert_eq!(tm, mmic_link::test_keys::TEST_KEY_TM_A, "the script's TM test key");
 }
 
-fn setup_for(obsw: &Obsw, tm_port: u16) -> YamcsSetup {
+/// Where the obsw's frame endpoint listens and where Yamcs takes the TM frames.
+struct Ports {
+    frame: u16,
+    tm: u16,
+}
+
+impl Ports {
+    fn free() -> Ports {
+        Ports {
+            frame: free_udp_port(),
+            tm: free_udp_port(),
+        }
+    }
+}
+
+/// The obsw with its frame endpoint (keys of the instance in `dir`, counters in
+/// `dir/obsw-link.state`), TM logged to `tm_log`.
+fn obsw_on_frames(dir: &Path, ports: &Ports, tm_log: &Path, extra: &[&str]) -> Obsw {
+    let frame = format!("127.0.0.1:{}", ports.frame);
+    let tm_to = format!("127.0.0.1:{}", ports.tm);
+    let tc_key = dir.join(tc_key_file(1, TC_SPIS[0]));
+    let tm_key = dir.join(tm_key_file(1, TM_SPIS[0]));
+    let state = dir.join("obsw-link.state");
+    let mut args = vec![
+        "--frame-udp",
+        &frame,
+        "--frame-tm-to",
+        &tm_to,
+        "--tc-key",
+        tc_key.to_str().unwrap(),
+        "--tm-key",
+        tm_key.to_str().unwrap(),
+        "--link-state",
+        state.to_str().unwrap(),
+        "--tm-log",
+        tm_log.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    Obsw::start(&args)
+}
+
+fn setup_for(ports: &Ports) -> YamcsSetup {
     YamcsSetup {
         instance: INSTANCE.into(),
         http_address: "127.0.0.1".into(),
@@ -188,10 +243,10 @@ fn setup_for(obsw: &Obsw, tm_port: u16) -> YamcsSetup {
         robots: vec![YamcsRobot {
             robot: 1,
             tc_host: "127.0.0.1".into(),
-            tc_port: obsw.udp.port(),
-            tm_port,
+            tc_port: ports.frame,
+            tm_port: ports.tm,
         }],
-        links: mib::export::yamcs::Links::LabPackets,
+        links: Links::Frames,
     }
 }
 
@@ -227,21 +282,20 @@ fn temp_dir(tag: &str) -> PathBuf {
     dir
 }
 
-// verifies: YAMCS-EXPORT-01, YAMCS-TM-02, YAMCS-TIME-01, YAMCS-CMD-01, YAMCS-EVT-01, YAMCS-XTCE-01
+// verifies: YAMCS-EXPORT-01, YAMCS-LINK-01, YAMCS-TM-02, YAMCS-TIME-01, YAMCS-CMD-01, YAMCS-EVT-01, YAMCS-XTCE-01
 #[test]
-fn yamcs_receives_tm_and_verifies_commands_from_the_generated_instance() {
+fn yamcs_operates_the_robot_over_frames_with_sdls_and_cop1() {
     let Some(venv) = yamcs_venv() else { return };
     let t_total = Instant::now();
     let dir = temp_dir("e2e");
 
-    // The obsw first (its TC port goes into the Yamcs configuration); its TM goes to
-    // Yamcs' TM port from boot (lost until Yamcs listens: counted, and still stored).
-    let tm_port = free_udp_port();
+    // The instance and its keys first, then the obsw with the same keys; its TM frames go
+    // to Yamcs' TM frame port from boot (lost until Yamcs listens; the packets stay stored).
+    let ports = Ports::free();
+    let setup = setup_for(&ports);
+    write_instance(&dir, &setup, &venv);
     let tm_log = dir.join("tm.log");
-    let tm_dest = format!("127.0.0.1:{tm_port}");
-    let obsw = Obsw::start(&["--tm-dest", &tm_dest, "--tm-log", tm_log.to_str().unwrap()]);
-    let setup = setup_for(&obsw, tm_port);
-    write_instance(&dir, &setup);
+    let obsw = obsw_on_frames(&dir, &ports, &tm_log, &[]);
     let t_start = Instant::now();
     let yamcs = Yamcs::start(&dir, &venv);
     let started_s = t_start.elapsed().as_secs_f64();
@@ -278,6 +332,7 @@ fn yamcs_receives_tm_and_verifies_commands_from_the_generated_instance() {
     });
     let r = check(&venv, &dir, &setup, &plan, WATCH_S);
     let rss_kb = yamcs.rss_kb();
+    let yamcs_log = yamcs.log();
     drop(obsw);
     let sent = logged_tm(&tm_log);
 
@@ -441,7 +496,50 @@ fn yamcs_receives_tm_and_verifies_commands_from_the_generated_instance() {
         assert!(mib::modes::mode_by_name(kind, mode).is_some(), "{node}: {mode}");
     }
 
+    // --- Over the frame link: every command in an AD frame accepted by FARM-1 after SDLS,
+    // nothing refused, Yamcs' FOP-1 initialised from the CLCW. ---
     let links = r["links"].as_array().unwrap();
+    let link = |name: &str| {
+        links
+            .iter()
+            .find(|l| l["name"] == name)
+            .unwrap_or_else(|| panic!("no link {name}: {links:?}"))
+    };
+    let issued = plan["commands"].as_array().unwrap().len() as i64;
+    assert_eq!(link("tc_robot_1")["status"], "OK", "{links:?}");
+    assert!(link("tc_robot_1")["out_count"].as_i64() >= Some(issued), "{links:?}");
+    assert!(link("tm_robot_1.vc0")["in_count"].as_i64() > Some(0), "{links:?}");
+    let space_link = all_hk
+        .iter()
+        .rev()
+        .find(|h| h["sid"] == "SPACE_LINK")
+        .unwrap_or_else(|| panic!("no SPACE_LINK report"));
+    let counter = |n: &str| i64_of(&space_link["params"][n]["raw"]).unwrap_or_else(|| panic!("{n}"));
+    assert!(counter("LINK_AD_ACCEPTED") >= 1, "{space_link}");
+    assert!(
+        counter("LINK_PACKETS") >= issued,
+        "every command came in a frame: {space_link}"
+    );
+    let refused: i64 = mib::hk::by_sid(mib::hk::sid::SPACE_LINK)
+        .unwrap()
+        .params
+        .iter()
+        .map(|id| mib::params::by_id(*id).unwrap().name)
+        .filter(|n| n.starts_with("LINK_REJ_") || *n == "LINK_FARM_DISCARDED")
+        .map(counter)
+        .sum();
+    assert_eq!(refused, 0, "frames refused on board: {space_link}");
+    assert!(
+        yamcs_log.contains("Initiating AD"),
+        "Yamcs' FOP-1 initialised AD service from the CLCW:\n{yamcs_log}"
+    );
+    eprintln!(
+        "yamcs_e2e: {issued} commands, SPACE_LINK at seq {}: AD accepted {}, packets {}, CLCW 0x{:08X}",
+        space_link["seq"],
+        counter("LINK_AD_ACCEPTED"),
+        counter("LINK_PACKETS"),
+        counter("LINK_CLCW")
+    );
     eprintln!(
         "yamcs_e2e: Yamcs ready in {started_s:.1} s, RSS {} MB; {} robot-status reports, {} HK reports of {} SIDs with {compared} values equal, \
          largest gap {max_gap:.2} s (on-board step {max_step} ms), on-board time within {worst_time_ms} ms; links {links:?}; total {:.0} s",
@@ -464,72 +562,191 @@ fn ping_replies(tm_log: &Path) -> usize {
         .count()
 }
 
-// verifies: YAMCS-RESTART-01
+/// Yamcs' FOP-1 lines (state changes, alerts) from its log, for the messages.
+fn fop_lines(log: &str) -> String {
+    log.lines()
+        .filter(|l| l.contains("Cop1TcPacketHandler"))
+        .map(|l| l.rsplit("[0;0m").next().unwrap_or(l).trim())
+        .collect::<Vec<_>>()
+        .join(" | ")
+}
+
+// verifies: YAMCS-RESTART-01, YAMCS-LINK-02
 #[test]
-fn a_restarted_yamcs_waits_out_the_duplicate_window_so_no_command_is_skipped() {
+fn a_restarted_yamcs_never_skips_a_command_over_cop1() {
     let Some(venv) = yamcs_venv() else { return };
     let dir = temp_dir("restart");
-    // On-board time runs 3x faster: the 60 s duplicate window is 20 s of wall time (the
-    // whole test stays within about a minute).
-    let speed = 3u32;
-    let window_s = mib::config::DUPLICATE_MAX_AGE_MS / 1000 / speed + 1;
-    let tm_port = free_udp_port();
+    let ports = Ports::free();
+    let setup = setup_for(&ports);
+    write_instance(&dir, &setup, &venv);
     let tm_log = dir.join("tm.log");
-    let tm_dest = format!("127.0.0.1:{tm_port}");
-    let speed_arg = speed.to_string();
-    let obsw = Obsw::start(&[
-        "--tm-dest",
-        &tm_dest,
-        "--tm-log",
-        tm_log.to_str().unwrap(),
-        "--speed",
-        &speed_arg,
-    ]);
-    let setup = setup_for(&obsw, tm_port);
-    write_instance(&dir, &setup);
+    let obsw = obsw_on_frames(&dir, &ports, &tm_log, &[]);
     let plan = json!({"hk_params": [], "commands": [{"name": "PING", "at": 0.2}]});
-    let ping = |r: &Value| command(r, "PING")["attrs"]["CommandComplete_Status"].clone();
+    let ping = |r: &Value| command(r, "PING")["attrs"].clone();
+    let window_s = mib::config::DUPLICATE_MAX_AGE_MS as f64 / 1000.0;
 
     // Session 1: PING, the first TC of this Yamcs (sequence count 1).
     let y = Yamcs::start(&dir, &venv);
     let first = Instant::now();
-    assert_eq!(ping(&check(&venv, &dir, &setup, &plan, 2.0)), "OK");
+    let a = ping(&check(&venv, &dir, &setup, &plan, 2.0));
+    assert_eq!(a["CommandComplete_Status"], "OK", "{a}");
+    let log1 = y.log();
     drop(y);
-    assert_eq!(ping_replies(&tm_log), 1);
+    assert_eq!(ping_replies(&tm_log), 1, "session 1: {}", fop_lines(&log1));
 
-    // Session 2, no guard: the same PING with the same sequence count, within the window,
-    // is taken on board for a resend: no reply, yet Yamcs shows it completed.
-    let y = Yamcs::start(&dir, &venv);
-    let apart = first.elapsed().as_secs_f64();
-    assert_eq!(ping(&check(&venv, &dir, &setup, &plan, 2.0)), "OK");
-    drop(y);
-    if apart + 1.0 < window_s as f64 {
-        assert_eq!(
-            ping_replies(&tm_log),
-            1,
-            "the unguarded restart's PING was not executed"
-        );
-    } else {
-        // A slow machine: the restart itself outlasted the window.
-        eprintln!(
-            "yamcs_e2e restart: the unguarded restart took {apart:.1} s, longer than the {window_s} s \
-             window; its PING could not be a duplicate (defect not shown in this run)"
-        );
-    }
-    let replies_before = ping_replies(&tm_log);
-
-    // Session 3, with the script's guard: start waits out the window; the PING executes.
+    // Session 2, restarted at once (the script's old 60 s guard is not used for a frame
+    // instance, even when asked for): the same PING with the same sequence count, well
+    // inside the obsw's packet duplicate window. Yamcs' FOP-1 starts from the CLCW
+    // (initialClcwWait), its SDLS counter resumes from its data directory; the TC is
+    // executed: a second TM[17,2].
     let t = Instant::now();
-    let y = Yamcs::start_guarded(&dir, &venv, window_s);
-    let waited = t.elapsed().as_secs_f64();
-    assert_eq!(ping(&check(&venv, &dir, &setup, &plan, 2.0)), "OK");
+    let y = Yamcs::start_guarded(&dir, &venv, 60);
+    let start_s = t.elapsed().as_secs_f64();
+    let apart = first.elapsed().as_secs_f64();
+    let b = ping(&check(&venv, &dir, &setup, &plan, 2.0));
+    let log2 = y.log();
     drop(y);
     drop(obsw);
+    assert_eq!(b["CommandComplete_Status"], "OK", "{b}; FOP: {}", fop_lines(&log2));
+    assert_eq!(a["binary"], b["binary"], "the same bytes (sequence count 1 again)");
     assert_eq!(
         ping_replies(&tm_log),
-        replies_before + 1,
-        "the guarded restart's PING was executed"
+        2,
+        "the PING after the restart was executed; FOP: {}",
+        fop_lines(&log2)
     );
-    eprintln!("yamcs_e2e restart: second session {apart:.1} s after the first, guard {window_s} s, guarded start took {waited:.1} s");
+    assert!(
+        apart < window_s,
+        "the restart ({apart:.1} s) must fall inside the {window_s} s packet duplicate window to show anything"
+    );
+    assert!(
+        start_s < 55.0,
+        "no restart guard over frames: start took {start_s:.1} s"
+    );
+    eprintln!(
+        "yamcs_e2e restart: second PING {apart:.1} s after the first (duplicate window {window_s} s), \
+         restart {start_s:.1} s, both executed; FOP after restart: {}",
+        fop_lines(&log2)
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Frame type of a TC frame: (bypass, control command) flags.
+fn tc_flags(frame: &[u8]) -> (bool, bool) {
+    (frame[0] & 0x20 != 0, frame[0] & 0x10 != 0)
+}
+
+// verifies: YAMCS-LINK-03
+#[test]
+fn yamcs_cop1_retransmission_encrypts_the_already_encrypted_frame_again() {
+    use mmic_link::sdls::{MemoryIvStore, RxSa, RxSas};
+    use mmic_link::test_keys::TEST_KEY_TC_A;
+    use std::sync::{Arc, Mutex};
+
+    let Some(venv) = yamcs_venv() else { return };
+    let dir = temp_dir("retx");
+    // Yamcs sends its TC frames to a relay on `ports.frame`, which drops the first AD frame
+    // (as a lossy uplink would) and forwards everything else to the obsw.
+    let ports = Ports::free();
+    let obsw_ports = Ports {
+        frame: free_udp_port(),
+        tm: ports.tm,
+    };
+    let setup = setup_for(&ports);
+    write_instance(&dir, &setup, &venv);
+    let tm_log = dir.join("tm.log");
+    let obsw = obsw_on_frames(&dir, &obsw_ports, &tm_log, &[]);
+    let relay = UdpSocket::bind(("127.0.0.1", ports.frame)).unwrap();
+    relay
+        .set_read_timeout(Some(std::time::Duration::from_millis(200)))
+        .unwrap();
+    let frames: Arc<Mutex<Vec<Vec<u8>>>> = Arc::default();
+    let stop = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let t = {
+        let (frames, stop) = (frames.clone(), stop.clone());
+        let to = ("127.0.0.1", obsw_ports.frame);
+        std::thread::spawn(move || {
+            let mut buf = [0u8; 2048];
+            let mut dropped = false;
+            while !stop.load(std::sync::atomic::Ordering::SeqCst) {
+                let Ok(n) = relay.recv(&mut buf) else { continue };
+                let f = buf[..n].to_vec();
+                let ad = tc_flags(&f) == (false, false);
+                frames.lock().unwrap().push(f.clone());
+                if ad && !dropped {
+                    dropped = true;
+                    continue;
+                }
+                let _ = relay.send_to(&f, to);
+            }
+        })
+    };
+    let y = Yamcs::start(&dir, &venv);
+    let plan = json!({"hk_params": [], "commands": [{"name": "PING", "at": 0.2}]});
+    // T1 is 2 s: two retransmissions within 5 s.
+    let r = check(&venv, &dir, &setup, &plan, 5.0);
+    let log = y.log();
+    drop(y);
+    stop.store(true, std::sync::atomic::Ordering::SeqCst);
+    t.join().unwrap();
+    drop(obsw);
+    let frames = frames.lock().unwrap().clone();
+    let ad: Vec<&Vec<u8>> = frames.iter().filter(|f| tc_flags(f) == (false, false)).collect();
+    assert!(
+        ad.len() >= 2,
+        "the dropped AD frame was retransmitted: {} AD frames; FOP: {}",
+        ad.len(),
+        fop_lines(&log)
+    );
+    let (orig, retx) = (ad[0], ad[1]);
+    assert_eq!(orig[4], retx[4], "same N(S)");
+    assert_eq!(orig.len(), retx.len());
+
+    // Decrypt both with the TC key, as the FARM side does.
+    let mut sas: RxSas<2> = RxSas::default();
+    assert!(sas
+        .insert(RxSa::new(
+            TC_SPIS[0],
+            &TEST_KEY_TC_A,
+            mib::link::sdls::ANTI_REPLAY_WINDOW
+        ))
+        .is_ok());
+    let mut store = MemoryIvStore::default();
+    let h = mib::link::tc_frame::HEADER_LEN + mib::link::sdls::HEADER_LEN;
+    let orig_ciphertext = orig[h..orig.len() - 2 - mib::link::sdls::MAC_LEN].to_vec();
+    let mut o = orig.clone();
+    let ro = sas
+        .process_tc(&mut store, &mut o)
+        .expect("the original frame is authentic");
+    let packet = o[ro].to_vec();
+    // A TC space packet (version 0, type 1, secondary header) whose length field fits.
+    let whole = packet.len() >= 7 && usize::from(u16::from_be_bytes([packet[4], packet[5]])) + 7 == packet.len();
+    assert!(packet[0] >> 4 == 0x1 && whole, "a TC packet: {packet:02X?}");
+    let mut x = retx.clone();
+    let rx = sas
+        .process_tc(&mut store, &mut x)
+        .expect("the retransmission is authentic (a fresh IV, a valid MAC)");
+    let inner = x[rx].to_vec();
+    // The defect: what the retransmission protects is not the TC but the first
+    // transmission's ciphertext.
+    assert_ne!(
+        inner, packet,
+        "Yamcs fixed? the retransmission carries the TC in clear after decryption"
+    );
+    assert_eq!(
+        inner, orig_ciphertext,
+        "the retransmission is the original ciphertext encrypted again"
+    );
+    // So the robot never gets the TC: no PING reply, Yamcs' command is not completed.
+    assert_eq!(ping_replies(&tm_log), 0);
+    let c = command(&r, "PING");
+    assert_ne!(c["attrs"]["CommandComplete_Status"], "OK", "{c}");
+    eprintln!(
+        "yamcs_e2e retransmission: {} AD frames with N(S) {} (1 dropped), retransmission decrypts to the first ciphertext; PING: {}; FOP: {}",
+        ad.len(),
+        orig[4],
+        c["attrs"],
+        fop_lines(&log)
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }

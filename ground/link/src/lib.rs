@@ -338,22 +338,7 @@ impl FrameLink {
                 Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => continue,
                 Err(e) => return Err(e.into()),
             };
-            if n != mib::link::tm_frame::LEN {
-                self.counters.odd_datagrams += 1;
-                continue;
-            }
-            let frame = &mut self.buf[..n];
-            let r = self.tm.receive(&mut self.store, frame, |_vc, p| out.push(p.to_vec()));
-            self.counters.tm = self.tm.counters;
-            if let Ok(clcw) = r {
-                self.clcws += 1;
-                self.last_clcw = Some(clcw);
-                if self.stable_nr.map(|s| s.0) != Some(clcw.report_value) {
-                    self.stable_nr = Some((clcw.report_value, now_ms));
-                }
-                let fx = self.fop.on_event(now_ms, FopInput::Clcw(clcw));
-                self.apply(now_ms, fx)?;
-            }
+            self.datagram(n, now_ms, &mut out)?;
         }
         let fx = self.fop.on_event(now_ms, FopInput::Tick);
         self.apply(now_ms, fx)?;
@@ -368,7 +353,30 @@ impl FrameLink {
         Ok(out)
     }
 
-    /// Polls until `timeout` passes or a packet arrives, sleeping on the socket in between.
+    /// One received datagram (in `self.buf[..n]`): a TM frame's packets to `out`, its CLCW
+    /// to FOP-1.
+    fn datagram(&mut self, n: usize, now_ms: u64, out: &mut Vec<Vec<u8>>) -> Result<(), LinkError> {
+        if n != mib::link::tm_frame::LEN {
+            self.counters.odd_datagrams += 1;
+            return Ok(());
+        }
+        let frame = &mut self.buf[..n];
+        let r = self.tm.receive(&mut self.store, frame, |_vc, p| out.push(p.to_vec()));
+        self.counters.tm = self.tm.counters;
+        if let Ok(clcw) = r {
+            self.clcws += 1;
+            self.last_clcw = Some(clcw);
+            if self.stable_nr.map(|s| s.0) != Some(clcw.report_value) {
+                self.stable_nr = Some((clcw.report_value, now_ms));
+            }
+            let fx = self.fop.on_event(now_ms, FopInput::Clcw(clcw));
+            self.apply(now_ms, fx)?;
+        }
+        Ok(())
+    }
+
+    /// Polls until `timeout` passes or a packet arrives, blocking on the socket in between
+    /// (at most 20 ms at a time, so FOP-1's timer is served).
     pub fn recv(&mut self, timeout: Duration) -> Result<Vec<Vec<u8>>, LinkError> {
         let deadline = Instant::now() + timeout;
         loop {
@@ -377,18 +385,20 @@ impl FrameLink {
             if !got.is_empty() || left.is_zero() {
                 return Ok(got);
             }
-            self.wait_readable(left.min(Duration::from_millis(20)))?;
+            self.sock.set_nonblocking(false)?;
+            self.sock
+                .set_read_timeout(Some(left.min(Duration::from_millis(20)).max(Duration::from_millis(1))))?;
+            let r = self.sock.recv_from(&mut self.buf);
+            self.sock.set_nonblocking(true)?;
+            if let Ok((n, _)) = r {
+                let mut out = Vec::new();
+                self.datagram(n, self.now_ms(), &mut out)?;
+                out.extend(self.poll(self.now_ms())?);
+                if !out.is_empty() {
+                    return Ok(out);
+                }
+            }
         }
-    }
-
-    fn wait_readable(&mut self, d: Duration) -> Result<(), LinkError> {
-        self.sock.set_nonblocking(false)?;
-        self.sock.set_read_timeout(Some(d.max(Duration::from_millis(1))))?;
-        let mut b = [0u8; 1];
-        // Peek only: the datagram stays for `poll`.
-        let _ = self.sock.peek_from(&mut b);
-        self.sock.set_nonblocking(true)?;
-        Ok(())
     }
 
     /// In S6 with a CLCW newer than the alert: decide the purged frames' fate from N(R),

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
-use crate::link::Transport;
+use crate::link::{FrameOptions, Transport};
 
 /// Longest pause between reconnection attempts the issue allows.
 pub const MAX_BACKOFF_CAP_MS: u64 = 5_000;
@@ -16,8 +16,11 @@ pub const MAX_BACKOFF_CAP_MS: u64 = 5_000;
 #[derive(Deserialize, Debug, Default)]
 #[serde(deny_unknown_fields)]
 struct FileCfg {
-    /// Default transport: "udp" or "tcp".
+    /// Default transport: "frames", "udp" or "tcp".
     transport: Option<toml::Spanned<String>>,
+    /// Key directory of the frame link (`ground keys create`), relative to this file's
+    /// folder; robot N uses KEYS/robot-N/.
+    keys: Option<toml::Spanned<String>>,
     /// Delete archived data older than this ("30d", "12h", "90m", "45s").
     retain: Option<toml::Spanned<String>>,
     /// Plan files the dashboard offers (relative to this file's folder).
@@ -63,6 +66,8 @@ struct RobotFile {
     number: toml::Spanned<i64>,
     addr: Option<toml::Spanned<String>>,
     transport: Option<toml::Spanned<String>>,
+    /// Over frames: the local address this robot's TM frames arrive at.
+    tm_listen: Option<toml::Spanned<String>>,
     hk_interval_ms: Option<toml::Spanned<u32>>,
     name: Option<String>,
 }
@@ -73,6 +78,8 @@ pub struct RobotCfg {
     pub number: u8,
     pub addr: SocketAddr,
     pub transport: Transport,
+    /// Keys and TM address of the frame link (with [`Transport::Frames`]).
+    pub frames: Option<FrameOptions>,
     /// ROBOT_STATUS collection interval commanded at each subscription (ms).
     pub hk_interval_ms: Option<u32>,
     pub name: Option<String>,
@@ -198,6 +205,7 @@ fn transport_of(s: &str) -> Option<Transport> {
     match s.to_ascii_lowercase().as_str() {
         "udp" => Some(Transport::Udp),
         "tcp" => Some(Transport::Tcp),
+        "frames" => Some(Transport::Frames),
         _ => None,
     }
 }
@@ -320,7 +328,7 @@ pub fn parse(file: &str, src: &str) -> Result<Config, CfgErrors> {
         Some(t) => transport_of(t.get_ref()).unwrap_or_else(|| {
             cx.err(
                 t.span(),
-                format!("transport \"{}\": use \"udp\" or \"tcp\"", t.get_ref()),
+                format!("transport \"{}\": use \"frames\", \"udp\" or \"tcp\"", t.get_ref()),
             );
             Transport::Udp
         }),
@@ -467,7 +475,7 @@ pub fn parse(file: &str, src: &str) -> Result<Config, CfgErrors> {
                 None => {
                     cx.err(
                         t.span(),
-                        format!("transport \"{}\": use \"udp\" or \"tcp\"", t.get_ref()),
+                        format!("transport \"{}\": use \"frames\", \"udp\" or \"tcp\"", t.get_ref()),
                     );
                     continue;
                 }
@@ -489,10 +497,40 @@ pub fn parse(file: &str, src: &str) -> Result<Config, CfgErrors> {
             Some(v) => Some(*v.get_ref()),
             None => None,
         };
+        let tm_listen = match &r.tm_listen {
+            None => None,
+            Some(a) => match a.get_ref().to_socket_addrs().ok().and_then(|mut i| i.next()) {
+                Some(s) => Some(s),
+                None => {
+                    cx.err(
+                        a.span(),
+                        format!("tm_listen \"{}\" is not HOST:PORT or does not resolve", a.get_ref()),
+                    );
+                    continue;
+                }
+            },
+        };
+        let frames = if transport == Transport::Frames {
+            let Some(k) = &f.keys else {
+                cx.err(
+                    r.number.span(),
+                    format!("robot {number} over frames: the file needs keys = \"DIR\" (ground keys create DIR)"),
+                );
+                continue;
+            };
+            let keys = Path::new(file).parent().unwrap_or(Path::new("")).join(k.get_ref());
+            Some(FrameOptions {
+                keys,
+                tm_listen: tm_listen.map(|a| (number, a)).into_iter().collect(),
+            })
+        } else {
+            None
+        };
         c.robots.push(RobotCfg {
             number,
             addr,
             transport,
+            frames,
             hk_interval_ms,
             name: r.name.clone(),
         });

@@ -49,9 +49,18 @@ pub struct CollectArgs {
     /// (or overrides) the robots of --config.
     #[arg(long = "robot", short = 'r', value_parser = parse_robot)]
     pub robots: Vec<(u8, SocketAddr)>,
-    /// Use TCP (COBS framing) instead of UDP for the --robot links.
-    #[arg(long)]
+    /// Use TCP (COBS framing) instead of UDP for the --robot links (bare packets, lab mode).
+    #[arg(long, conflicts_with = "frames")]
     pub tcp: bool,
+    /// The --robot links speak the space link (TC/TM frames, COP-1, SDLS); needs --keys.
+    #[arg(long, requires = "keys")]
+    pub frames: bool,
+    /// Key directory of the frame link (`ground keys create`): robot N uses KEYS/robot-N/.
+    #[arg(long, value_name = "DIR")]
+    pub keys: Option<PathBuf>,
+    /// Local address robot N's TM frames arrive at, `N=HOST:PORT` (default 127.0.0.1:7400+N).
+    #[arg(long = "tm-listen", value_parser = parse_robot, value_name = "N=HOST:PORT")]
+    pub tm_listen: Vec<(u8, SocketAddr)>,
     /// TOML configuration (robots, links, retention, alarm settings).
     #[arg(long)]
     pub config: Option<PathBuf>,
@@ -173,10 +182,24 @@ pub fn collect_cli(archive: &Path, a: CollectArgs) -> Result<u8> {
     };
     for (n, addr) in &a.robots {
         cfg.robots.retain(|r| r.number != *n);
+        let frames = match (&a.keys, a.frames) {
+            (Some(keys), true) => Some(crate::link::FrameOptions {
+                keys: keys.clone(),
+                tm_listen: a.tm_listen.iter().copied().collect(),
+            }),
+            _ => None,
+        };
         cfg.robots.push(RobotCfg {
             number: *n,
             addr: *addr,
-            transport: if a.tcp { Transport::Tcp } else { Transport::Udp },
+            transport: if frames.is_some() {
+                Transport::Frames
+            } else if a.tcp {
+                Transport::Tcp
+            } else {
+                Transport::Udp
+            },
+            frames,
             hk_interval_ms: None,
             name: None,
         });

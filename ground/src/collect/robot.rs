@@ -334,7 +334,13 @@ impl Worker {
             self.link = None;
             self.st.reconnects += 1;
         }
-        match Link::open(self.robot(), self.cfg.addr, self.cfg.transport, self.tx.clone()) {
+        match Link::open_with(
+            self.robot(),
+            self.cfg.addr,
+            self.cfg.transport,
+            self.cfg.frames.as_ref(),
+            self.tx.clone(),
+        ) {
             Ok(l) => self.link = Some(l),
             Err(e) => tracing::debug!(robot = self.robot(), "connect {}: {e}", self.cfg.addr),
         }

@@ -567,6 +567,7 @@ impl<'p> Executor<'p> {
                     .filter(|(_, s)| s.robot == r.robot)
                     .map(|(i, _)| self.sends.get(&i).copied().unwrap_or(1).saturating_sub(1))
                     .sum(),
+                frames: session.frame_stats(r.robot),
             })
             .collect();
         RunSummary {

@@ -12,7 +12,7 @@ use mib::params::pid;
 use mib::tc::TcDef;
 
 use crate::archive::{now_ms, ArchiveSender, Record};
-use crate::link::{Incoming, Link, Transport};
+use crate::link::{FrameOptions, FrameStats, Incoming, Link, Transport};
 use crate::pus::{self, BuiltTc, DecodeError, Event, Hk, SeqCounters, Stage, Tm, TmBody, Verification};
 
 use super::*;
@@ -33,6 +33,8 @@ pub struct Pending {
     /// Never resent (a TC adopted from an interrupted run: its outcome is asked of the
     /// on-board store).
     pub exhausted: bool,
+    /// Over frames: `sends` counts waits, the packet went to the link once.
+    pub waits_only: bool,
 }
 
 impl Pending {
@@ -156,14 +158,26 @@ impl Session {
         archive: Option<ArchiveSender>,
         first_seq: impl Fn(u16) -> Option<u16>,
     ) -> Result<Session, OpsError> {
+        Session::connect_with(robots, transport, None, archive, first_seq)
+    }
+
+    /// [`Session::connect`] with the frame link's options (required for
+    /// [`Transport::Frames`]).
+    pub fn connect_with(
+        robots: &[(u8, SocketAddr)],
+        transport: Transport,
+        frames: Option<&FrameOptions>,
+        archive: Option<ArchiveSender>,
+        first_seq: impl Fn(u16) -> Option<u16>,
+    ) -> Result<Session, OpsError> {
         let (tx, rx) = crossbeam_channel::unbounded();
         let mut links = BTreeMap::new();
         let mut status = BTreeMap::new();
         let mut seq = SeqCounters::new();
         for &(robot, addr) in robots {
             let apid = mib::apid::robot_apid(robot).ok_or(pus::BuildError::UnknownRobot(robot))?;
-            let link =
-                Link::open(robot, addr, transport, tx.clone()).map_err(|err| OpsError::Connect { robot, addr, err })?;
+            let link = Link::open_with(robot, addr, transport, frames, tx.clone())
+                .map_err(|err| OpsError::Connect { robot, addr, err })?;
             links.insert(robot, link);
             status.insert(robot, RobotStatus::new(robot, addr));
             let start = first_seq(apid).unwrap_or_else(|| {
@@ -246,6 +260,7 @@ impl Session {
                 accepted: false,
                 max_sends: max_sends.unwrap_or(self.max_resends + 1),
                 exhausted: false,
+                waits_only: false,
             },
         );
         Ok(tc)
@@ -269,6 +284,7 @@ impl Session {
                 accepted,
                 max_sends: 1,
                 exhausted: true,
+                waits_only: false,
             },
         );
     }
@@ -368,6 +384,16 @@ impl Session {
         self.pending.retain(|_, p| !lost.contains(&p.robot));
     }
 
+    /// What COP-1 did on `robot`'s frame link (`None`: a bare-packet link).
+    pub fn frame_stats(&self, robot: u8) -> Option<FrameStats> {
+        self.links.get(&robot).and_then(Link::frame_stats)
+    }
+
+    /// True if the links carry frames (COP-1 delivers; no packet resends).
+    pub fn over_frames(&self) -> bool {
+        self.links.values().any(|l| !l.resends_packets())
+    }
+
     /// True if `robot` got a new TC within `period` (its answers check the link as a
     /// heartbeat would).
     pub fn sent_within(&self, robot: u8, period: Duration) -> bool {
@@ -444,6 +470,14 @@ impl Session {
                 gave_up.push(key);
                 continue;
             }
+            if self.links.get(&p.robot).is_some_and(|l| !l.resends_packets()) {
+                // Over frames COP-1 retransmits: the packet is not sent again, the wait
+                // runs on the same schedule (and ends the same way) without a resend.
+                p.sends += 1;
+                p.last_sent = now;
+                p.waits_only = true;
+                continue;
+            }
             if let Some(link) = self.links.get(&p.robot) {
                 // A failing send is the same as a lost packet: the next timeout retries.
                 let _ = link.send(&p.tc.bytes);
@@ -471,7 +505,7 @@ impl Session {
                     robot: p.robot,
                     tag: p.tag,
                     tc: p.tc.def.name,
-                    sends: p.sends,
+                    sends: if p.waits_only { 1 } else { p.sends },
                     accepted: p.accepted,
                 });
             }
@@ -546,7 +580,8 @@ impl Session {
                     && v.failure
                         .as_ref()
                         .is_some_and(|f| mib::tc::ACCEPTANCE_FAILURES.iter().any(|c| c.code() == f.code));
-                if damaged {
+                let frames = self.links.get(&robot).is_some_and(|l| !l.resends_packets());
+                if damaged && !frames {
                     if let Some(p) = self.pending.get_mut(&key) {
                         // Resend at once (same bytes); it counts as a send, so a TC that
                         // only ever gets such answers ends after its sends.

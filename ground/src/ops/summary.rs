@@ -37,7 +37,10 @@ pub struct LinkSummary {
     pub tm_late: u64,
     /// Why the link was lost, if it was.
     pub lost: Option<String>,
+    /// Packet resends by the ground (bare-packet links; always 0 over frames).
     pub resends: u32,
+    /// What COP-1 did, over frames.
+    pub frames: Option<crate::link::FrameStats>,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -145,6 +148,20 @@ impl RunSummary {
                 l.corrupt,
                 l.resends
             );
+            if let Some(f) = &l.frames {
+                let _ = writeln!(
+                    s,
+                    "frames robot {}: {} TC packets, {} acknowledged by CLCW, {} AD frames ({} COP-1 retransmissions), {} initialisations, {} alerts, {} TM frames refused",
+                    l.robot,
+                    f.packets,
+                    f.acknowledged,
+                    f.ad_frames,
+                    f.retransmissions,
+                    f.initialisations,
+                    f.alerts,
+                    f.tm_refused
+                );
+            }
         }
         for c in &self.tm {
             let _ = writeln!(s, "{}", c.line());

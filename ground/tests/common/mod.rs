@@ -68,9 +68,71 @@ pub struct Obsw {
     pub child: Child,
     pub addr: SocketAddr,
     pub ctl: SocketAddr,
+    /// The frame port (`--frame-udp`), when started with [`Obsw::start_frames`].
+    pub frame: Option<SocketAddr>,
+    /// The ground's TM frame address (`--frame-tm-to`).
+    pub tm_to: Option<SocketAddr>,
+}
+
+/// Test keys for robot `robot` under `dir/keys` (`ground keys create`, random keys);
+/// returns the key directory (give it to `ground --frames --keys`).
+pub fn frame_keys(dir: &Path, robots: &[u8]) -> PathBuf {
+    let keys = dir.join("TEST-KEYS");
+    let mut args = vec!["keys".to_string(), "create".into(), keys.to_str().unwrap().into()];
+    for r in robots {
+        args.push("--robot".into());
+        args.push(r.to_string());
+    }
+    let a: Vec<&str> = args.iter().map(String::as_str).collect();
+    let o = ground(dir, &a);
+    assert!(o.status.success(), "ground keys create: {}", text(&o));
+    keys
 }
 
 impl Obsw {
+    /// Starts robot `robot`'s obsw with the frame endpoint too: TC frames on a free port,
+    /// TM frames to a free local port, keys from `keys/robot-N` (see [`frame_keys`]), its
+    /// SDLS counters in `keys/robot-N/obsw-link.state`.
+    pub fn start_frames(robot: u8, keys: &Path, extra: &[&str]) -> Obsw {
+        let frame: SocketAddr = ([127, 0, 0, 1], free_port()).into();
+        let tm_to: SocketAddr = ([127, 0, 0, 1], free_port()).into();
+        let rd = keys.join(format!("robot-{robot}"));
+        let p = |f: &str| rd.join(f).to_str().unwrap().to_string();
+        let (tc, tm, st) = (p("tc-spi1.key"), p("tm-spi17.key"), p("obsw-link.state"));
+        let (fs, ts) = (frame.to_string(), tm_to.to_string());
+        let mut args: Vec<&str> = vec![
+            "--frame-udp",
+            &fs,
+            "--frame-tm-to",
+            &ts,
+            "--tc-key",
+            &tc,
+            "--tm-key",
+            &tm,
+            "--link-state",
+            &st,
+        ];
+        args.extend_from_slice(extra);
+        let mut o = Obsw::start(robot, &args);
+        o.frame = Some(frame);
+        o.tm_to = Some(tm_to);
+        o
+    }
+
+    /// The ground's link flags for this obsw's frame endpoint: `--frames --keys KEYS
+    /// --robot N=FRAME --tm-listen N=TM_TO`.
+    pub fn frame_args(&self, robot: u8, keys: &Path) -> Vec<String> {
+        vec![
+            "--frames".into(),
+            "--keys".into(),
+            keys.to_str().unwrap().into(),
+            "--robot".into(),
+            format!("{robot}={}", self.frame.expect("started with start_frames")),
+            "--tm-listen".into(),
+            format!("{robot}={}", self.tm_to.expect("started with start_frames")),
+        ]
+    }
+
     /// Starts robot `robot`'s obsw with `extra` arguments and waits for its READY line.
     pub fn start(robot: u8, extra: &[&str]) -> Obsw {
         let addr: SocketAddr = ([127, 0, 0, 1], free_port()).into();
@@ -88,7 +150,13 @@ impl Obsw {
         let ready = lines.next().and_then(Result::ok).unwrap_or_default();
         assert!(ready.starts_with("READY"), "obsw did not start: {ready:?}");
         std::thread::spawn(move || for _ in lines {});
-        Obsw { child, addr, ctl }
+        Obsw {
+            child,
+            addr,
+            ctl,
+            frame: None,
+            tm_to: None,
+        }
     }
 }
 

@@ -61,13 +61,15 @@ pub enum Links {
 }
 
 /// Key file of robot `n`'s uplink (TC, SPI `spi`), relative to the instance directory: 32
-/// raw bytes, the same key as the obsw's `--tc-key`.
+/// raw bytes, the same key as the obsw's `--tc-key`. The layout under [`KEY_DIR`] is the
+/// one `ground keys create` makes (`robot-N/tc-spiS.key`), so a key directory can be
+/// copied in as it is (`scripts/yamcs.sh keys`).
 pub fn tc_key_file(n: u8, spi: u16) -> String {
-    format!("{KEY_DIR}/robot-{n}-tc-spi{spi}.key")
+    format!("{KEY_DIR}/robot-{n}/tc-spi{spi}.key")
 }
 /// Key file of robot `n`'s downlink (TM, SPI `spi`): the obsw's `--tm-key`.
 pub fn tm_key_file(n: u8, spi: u16) -> String {
-    format!("{KEY_DIR}/robot-{n}-tm-spi{spi}.key")
+    format!("{KEY_DIR}/robot-{n}/tm-spi{spi}.key")
 }
 /// Prefix of the shared request-ID parameters of TM[1,x].
 pub const VERIFICATION: &str = "VERIFICATION";

@@ -295,6 +295,20 @@ impl<S: TmStore> Obsw<S> {
 
     /// Handles one uplinked TC (raw space packet). Never panics, whatever the bytes.
     pub fn handle_tc(&mut self, now: u64, raw: &[u8], sink: &mut impl TmSink) {
+        self.handle_tc_from(now, raw, true, sink)
+    }
+
+    /// A TC that COP-1 delivered (the packet of an AD or BD frame accepted by FARM-1 after
+    /// SDLS): the link already gives exactly-once delivery (FARM-1 discards repeated AD
+    /// frames, SDLS refuses replayed frames), so the packet duplicate window is not asked.
+    /// It would be wrong here: a restarted ground (Yamcs) numbers its TCs from 1 again, and
+    /// a new TC identical to one sent before the restart would be taken for a resend and
+    /// not executed (issue 23 item 9). The TC is still remembered, for its outcome.
+    pub fn handle_tc_delivered_once(&mut self, now: u64, raw: &[u8], sink: &mut impl TmSink) {
+        self.handle_tc_from(now, raw, false, sink)
+    }
+
+    fn handle_tc_from(&mut self, now: u64, raw: &[u8], duplicate_check: bool, sink: &mut impl TmSink) {
         self.last_now = self.last_now.max(now);
         let tc = match accept(raw, self.apid) {
             Ok(tc) => tc,
@@ -310,7 +324,7 @@ impl<S: TmStore> Obsw<S> {
         // Every valid ground TC is ground contact for the team logic.
         self.team_ground_tc();
         let crc = tc.crc();
-        if let Some(prev) = self.find_seen(tc.req, crc, now) {
+        if let Some(prev) = self.find_seen(tc.req, crc, now).filter(|_| duplicate_check) {
             return self.repeat(now, &tc, prev, sink);
         }
         self.remember(tc.req, crc, now);
@@ -582,6 +596,21 @@ pub(crate) mod tests {
         assert_eq!(of(&again, 3, 25).len(), 0, "not executed twice");
         assert_eq!((of(&again, 1, 1).len(), of(&again, 1, 7).len()), (1, 1));
         assert_eq!(o.counters.tc_duplicate, 1);
+    }
+
+    // verifies: YAMCS-LINK-02
+    #[test]
+    fn a_tc_delivered_by_cop1_is_executed_even_when_identical_to_an_earlier_one() {
+        let mut o = obsw();
+        let sid = mib::hk::HK_STRUCTS[0].sid.to_be_bytes();
+        let raw = tc_bytes(APID, 1, 3, 27, &sid);
+        for now in [10, 20] {
+            let mut sink: Vec<Vec<u8>> = Vec::new();
+            o.handle_tc_delivered_once(now, &raw, &mut sink);
+            assert_eq!(of(&sink, 3, 25).len(), 1, "executed at {now}");
+            assert_eq!((of(&sink, 1, 1).len(), of(&sink, 1, 7).len()), (1, 1));
+        }
+        assert_eq!(o.counters.tc_duplicate, 0);
     }
 
     // verifies: DD-ROBUST-02

@@ -890,3 +890,92 @@ fn foreign_senders_and_bad_rosters_are_refused() {
     assert!(e.is_empty());
     assert_eq!(b.counters().foreign, 1);
 }
+
+mod prop {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn any_body() -> impl Strategy<Value = Body> {
+        prop_oneof![
+            Just(Body::RequestVote),
+            (1u8..5, any::<bool>()).prop_map(|(candidate, granted)| Body::Vote { candidate, granted }),
+            (any::<u32>(), any::<bool>(), 0u16..4).prop_map(|(stamp, hold, step)| {
+                Body::LeaderHeartbeat {
+                    stamp,
+                    directive: if hold {
+                        Directive::Hold
+                    } else {
+                        Directive::Continue {
+                            step,
+                            function: TeamFunction::BoltPair,
+                        }
+                    },
+                }
+            }),
+            (any::<u32>(), any::<bool>()).prop_map(|(stamp, ok)| Body::HeartbeatAck { stamp, ok }),
+        ]
+    }
+
+    fn any_input() -> impl Strategy<Value = Input> {
+        prop_oneof![
+            3 => Just(Input::Tick),
+            1 => Just(Input::GroundTc),
+            6 => (0u32..6, 1u8..5, 0u16..3, any_body()).prop_map(|(term, sender, progress, body)| {
+                Input::Message(msg(term, sender, progress, body))
+            }),
+            1 => (0u16..3).prop_map(|progress| Input::Progress {
+                plan: PLAN,
+                progress,
+                next: Some(TeamFunction::BoltPair),
+            }),
+            1 => any::<bool>().prop_map(|both_hold| Input::Grippers { both_hold }),
+        ]
+    }
+
+    proptest! {
+        // verifies: TEAM-ROBUST-01, TEAM-PERSIST-01, TEAM-VOTE-01
+        #[test]
+        fn any_input_sequence_keeps_the_invariants(
+            steps in proptest::collection::vec((0u64..700, any::<u32>(), any_input()), 1..200)
+        ) {
+            let mut n = node(2, &[1, 2, 3, 4]);
+            n.authorise(0, Authorisation { plan: PLAN, first_step: 1, max_steps: 2, expires_at: 600_000 }).unwrap();
+            let mut now = 0;
+            let mut durable = n.persisted();
+            for (dt, rand, input) in steps {
+                now += dt * 20;
+                let before = n.persisted();
+                let e = n.on_event(now, rand, input);
+                let after = n.persisted();
+                // The term never goes back; a vote never changes within a term.
+                prop_assert!(after.term >= before.term);
+                if after.term == before.term && before.voted_for.is_some() {
+                    prop_assert_eq!(after.voted_for, before.voted_for);
+                }
+                // A change is persisted first in the batch, before any send.
+                if after != before {
+                    prop_assert_eq!(e.first(), Some(&Effect::Persist(after)));
+                    durable = after;
+                }
+                prop_assert_eq!(durable, after);
+                for (k, eff) in e.iter().enumerate() {
+                    if k > 0 {
+                        prop_assert!(!matches!(eff, Effect::Persist(_)));
+                    }
+                    if let Effect::Send { msg, .. } = eff {
+                        // Nothing is sent from a term the durable state has not reached, and
+                        // a granted vote is durable (or superseded by a higher term, in which
+                        // the robot can never vote in the vote's term again).
+                        prop_assert!(msg.term <= after.term);
+                        if let Body::Vote { candidate, granted: true } = msg.body {
+                            prop_assert!(
+                                after.term > msg.term || after.voted_for == Some(candidate)
+                            );
+                        }
+                    }
+                }
+                prop_assert_eq!(n.counters().effects_dropped, 0);
+            }
+        }
+    }
+}

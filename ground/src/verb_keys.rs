@@ -1,0 +1,78 @@
+//! `ground keys`: create and show the space link's key files (see `ground::keys`). A key is
+//! never printed: `show` gives each file's direction, SPI, mode and SHA-256 fingerprint.
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::Subcommand;
+use ground::keys::{self, Direction};
+
+use crate::{coded, exit, out};
+
+#[derive(Subcommand, Debug)]
+pub(crate) enum KeysCmd {
+    /// Create random keys for each robot's link: DIR/robot-N/tc-spi{1,2}.key and
+    /// tm-spi{17,18}.key (raw 32 bytes, as Yamcs reads them; mode 0600). Existing key
+    /// files are never overwritten.
+    Create {
+        dir: PathBuf,
+        /// Robot number; repeat per robot [default: 1]. Each robot gets its own keys.
+        #[arg(long = "robot", short = 'r')]
+        robots: Vec<u8>,
+    },
+    /// List the key files under DIR: direction, SPI, mode, fingerprint (never the key).
+    Show { dir: PathBuf },
+}
+
+pub(crate) fn keys(c: &KeysCmd) -> Result<u8> {
+    match c {
+        KeysCmd::Create { dir, robots } => {
+            let robots = if robots.is_empty() { vec![1] } else { robots.clone() };
+            for &r in &robots {
+                if mib::apid::robot_apid(r).is_none() {
+                    return Err(coded(exit::USAGE, format!("robot {r} is not a robot number")));
+                }
+            }
+            for &r in &robots {
+                let made = keys::create_robot_keys(dir, r).map_err(|e| coded(exit::ERROR, e.to_string()))?;
+                for p in made {
+                    out(&format!("created {}", p.display()))?;
+                }
+                let d = keys::robot_dir(dir, r);
+                out(&format!(
+                    "robot {r}: obsw --tc-key {} --tm-key {}; ground --frames --keys {}",
+                    keys::tc_key_path(&d).display(),
+                    keys::tm_key_path(&d).display(),
+                    dir.display()
+                ))?;
+            }
+            Ok(exit::OK)
+        }
+        KeysCmd::Show { dir } => {
+            let list = keys::describe(dir).map_err(|e| coded(exit::ERROR, e.to_string()))?;
+            if list.is_empty() {
+                return Err(coded(
+                    exit::INVALID,
+                    format!("no key files (*.key) in {}", dir.display()),
+                ));
+            }
+            for k in list {
+                let dirn = match k.direction {
+                    Direction::Tc => "TC (ground to robot)",
+                    Direction::Tm => "TM (robot to ground)",
+                };
+                let fp = match &k.fingerprint {
+                    Some(f) => format!("sha256 {f}"),
+                    None => format!("NOT A KEY: {} bytes, 32 expected", k.len),
+                };
+                let mode = match k.mode {
+                    Some(m) if m & 0o077 != 0 => format!("mode {m:03o} (readable by others!)"),
+                    Some(m) => format!("mode {m:03o}"),
+                    None => String::new(),
+                };
+                out(format!("{}  {dirn}  SPI {}  {fp}  {mode}", k.path.display(), k.spi).trim_end())?;
+            }
+            Ok(exit::OK)
+        }
+    }
+}

@@ -1,0 +1,452 @@
+//! The ground over the space link (issue 22 item 6): `ground keys`, and `ping`, `mode`,
+//! `send`, `run` and `demo` over TC/TM transfer frames (FOP-1, SDLS) against the real
+//! `obsw` with its frame endpoint. What ran on board is judged from the obsw's own
+//! `--tm-log` (every TM packet it sent), not from the ground.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::io::BufRead;
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+mod common;
+use common::{frame_keys, ground, text, tmpdir, Obsw, GROUND};
+use ground::pus::{Stage, TmBody};
+
+fn run(dir: &Path, pre: &[&str], links: &[String], post: &[&str]) -> (Option<i32>, String) {
+    let mut a: Vec<&str> = pre.to_vec();
+    a.extend(links.iter().map(String::as_str));
+    a.extend_from_slice(post);
+    let o = ground(dir, &a);
+    (o.status.code(), text(&o))
+}
+
+/// Distinct TM packets of the obsw's `--tm-log`.
+fn tm_log(path: &Path) -> Vec<ground::pus::Tm> {
+    let text = std::fs::read_to_string(path).unwrap_or_default();
+    let mut seen = BTreeSet::new();
+    let mut out = Vec::new();
+    for l in text.lines() {
+        let bytes: Vec<u8> = (0..l.len() / 2)
+            .filter_map(|i| u8::from_str_radix(&l[2 * i..2 * i + 2], 16).ok())
+            .collect();
+        if !seen.insert(bytes.clone()) {
+            continue;
+        }
+        if let Ok(tm) = ground::pus::decode_tm(&bytes) {
+            out.push(tm);
+        }
+    }
+    out
+}
+
+/// Per TC request (APID, sequence count): how many acceptance reports (TM[1,1] or [1,2]).
+fn acceptances(tms: &[ground::pus::Tm]) -> BTreeMap<(u16, u16), usize> {
+    let mut m = BTreeMap::new();
+    for tm in tms {
+        if let TmBody::Verification(v) = &tm.body {
+            if v.stage == Stage::Acceptance {
+                *m.entry((v.request.apid(), v.request.seq())).or_insert(0) += 1;
+            }
+        }
+    }
+    m
+}
+
+fn events_named(tms: &[ground::pus::Tm], name: &str) -> usize {
+    tms.iter()
+        .filter(|t| matches!(&t.body, TmBody::Event(e) if e.name == name))
+        .count()
+}
+
+// verifies: LINK-GND-02
+#[test]
+fn ping_mode_send_and_run_over_frames_against_the_real_obsw() {
+    let dir = tmpdir("frames", "live");
+    let keys = frame_keys(&dir, &[1]);
+    let log = dir.join("tm.log");
+    let o = Obsw::start_frames(
+        1,
+        &keys,
+        &[
+            "--speed",
+            "50",
+            "--seed",
+            "7",
+            "--initial-state",
+            "Xneg",
+            "--tm-log",
+            log.to_str().unwrap(),
+        ],
+    );
+    let links = o.frame_args(1, &keys);
+
+    let (code, t) = run(&dir, &["ping"], &links, &["-c", "2"]);
+    assert_eq!(code, Some(0), "{t}");
+    assert!(t.contains("space link") && t.contains("reply in"), "{t}");
+
+    let (code, t) = run(&dir, &["send"], &links, &["RECONFIGURE", "from=Xneg", "to=Xpos"]);
+    assert_eq!(code, Some(4), "refused in STANDBY: {t}");
+    assert!(t.contains("NOT_ALLOWED_IN_MODE"), "{t}");
+
+    let (code, t) = run(&dir, &["mode"], &links, &["operational", "--confirm"]);
+    assert_eq!(code, Some(0), "{t}");
+
+    // `watch` sends nothing: the TM frames arrive anyway (the obsw's fixed --frame-tm-to).
+    let (code, t) = run(&dir, &["watch"], &links, &["--duration", "2"]);
+    assert_eq!(code, Some(0), "{t}");
+    assert!(
+        t.lines().filter(|l| l.contains(" robot 1: ")).count() >= 3,
+        "TM over frames: {t}"
+    );
+
+    let (code, t) = run(&dir, &["send"], &links, &["RECONFIGURE", "from=Xneg", "to=Xpos"]);
+    assert_eq!(code, Some(0), "{t}");
+    assert!(t.contains("progress ok step 1") && t.contains("completion ok"), "{t}");
+
+    // `--no-wait` exits once the frame is acknowledged: the TC still runs on board.
+    let (code, t) = run(
+        &dir,
+        &["send"],
+        &links,
+        &["HK_SET_INTERVAL", "sid=1", "interval_ms=500", "--no-wait"],
+    );
+    assert_eq!(code, Some(0), "{t}");
+
+    let plan = dir.join("p.toml");
+    std::fs::write(
+        &plan,
+        "name = \"frames\"\n[[robot]]\nnumber = 1\ninitial_state = \"Xpos\"\n\
+         [[step]]\nid = \"op\"\nrobot = 1\naction = \"mode\"\nmode = \"operational\"\nconfirm = true\n\
+         [[step]]\nid = \"turn\"\nrobot = 1\naction = \"reconfigure\"\nfrom = \"Xpos\"\nto = \"Yneg\"\n\
+         [[step]]\nid = \"standby\"\nrobot = 1\naction = \"mode\"\nmode = \"standby\"\nconfirm = true\n",
+    )
+    .unwrap();
+    let (code, t) = run(&dir, &["run", plan.to_str().unwrap(), "--plain"], &links, &[]);
+    assert_eq!(code, Some(0), "{t}");
+    assert!(t.contains("3 of 3 steps done"), "{t}");
+    assert!(t.contains("0 resends"), "no packet resends over frames: {t}");
+    assert!(t.contains("frames robot 1:"), "{t}");
+
+    // Judged from the obsw's TM: every TC the ground archived was accepted exactly once.
+    std::thread::sleep(Duration::from_millis(500));
+    drop(o);
+    let tms = tm_log(&log);
+    let acc = acceptances(&tms);
+    let out = ground(&dir, &["archive", "query", "--type", "tc", "--json"]);
+    let apid = mib::apid::robot_apid(1).unwrap();
+    let sent: Vec<(u16, u16)> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| {
+            let v: serde_json::Value = serde_json::from_str(l).unwrap();
+            (apid, v["seq"].as_u64().unwrap() as u16)
+        })
+        .collect();
+    assert!(sent.len() >= 8, "{sent:?}");
+    for k in &sent {
+        assert_eq!(acc.get(k), Some(&1), "TC {k:?} accepted once on board: {acc:?}");
+    }
+    assert_eq!(events_named(&tms, "STATE_REACHED"), 2, "two reconfigurations ran");
+}
+
+/// A `ground` child whose stderr lines arrive on a channel.
+struct Running {
+    child: std::process::Child,
+    lines: mpsc::Receiver<String>,
+    seen: Vec<String>,
+}
+
+impl Running {
+    fn start(dir: &Path, args: &[String]) -> Running {
+        let mut child = Command::new(GROUND)
+            .current_dir(dir)
+            .args(args)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("starting ground");
+        let err = child.stderr.take().unwrap();
+        let (tx, lines) = mpsc::channel();
+        std::thread::spawn(move || {
+            for l in std::io::BufReader::new(err).lines().map_while(Result::ok) {
+                let _ = tx.send(l);
+            }
+        });
+        Running {
+            child,
+            lines,
+            seen: Vec::new(),
+        }
+    }
+
+    fn wait_for(&mut self, what: &str, limit: Duration) {
+        let t0 = Instant::now();
+        while t0.elapsed() < limit {
+            if let Ok(l) = self.lines.recv_timeout(Duration::from_millis(100)) {
+                let hit = l.contains(what);
+                self.seen.push(l);
+                if hit {
+                    return;
+                }
+            }
+        }
+        panic!("no line with {what:?} within {limit:?}:\n{}", self.seen.join("\n"));
+    }
+}
+
+const BOLT_PLAN: &str = r#"
+name = "bolt"
+[[robot]]
+number = 1
+initial_state = "Xneg"
+[[step]]
+id = "operational"
+robot = 1
+action = "mode"
+mode = "operational"
+confirm = true
+[[step]]
+id = "bolt"
+robot = 1
+action = "bolt"
+side = "A"
+pairs = "all"
+[[step]]
+id = "walk"
+robot = 1
+action = "reconfigure"
+from = "Xneg"
+to = "Xpos"
+[[step]]
+id = "standby"
+robot = 1
+action = "mode"
+mode = "standby"
+confirm = true
+"#;
+
+// verifies: LINK-GND-03
+#[test]
+fn a_ground_killed_mid_plan_over_frames_resynchronises_and_neither_repeats_nor_skips() {
+    let dir = tmpdir("frames", "kill");
+    let keys = frame_keys(&dir, &[1]);
+    let log = dir.join("tm.log");
+    // At speed 2 BOLT_FACE runs for about 8 s.
+    let o = Obsw::start_frames(
+        1,
+        &keys,
+        &[
+            "--speed",
+            "2",
+            "--seed",
+            "7",
+            "--initial-state",
+            "Xneg",
+            "--tm-log",
+            log.to_str().unwrap(),
+        ],
+    );
+    std::fs::write(dir.join("bolt.toml"), BOLT_PLAN).unwrap();
+    let links = o.frame_args(1, &keys);
+    let mut args: Vec<String> = vec!["run".into(), "bolt.toml".into(), "--plain".into()];
+    args.extend(links.iter().cloned());
+    let mut g = Running::start(&dir, &args);
+    g.wait_for("send     bolt", Duration::from_secs(30));
+    // Long enough for the archive to hold the BOLT_FACE TC, well before it completes.
+    std::thread::sleep(Duration::from_millis(2000));
+    // SIGKILL: no summary, no goodbye; the FOP-1 state dies with the process.
+    g.child.kill().unwrap();
+    let _ = g.child.wait();
+
+    let mut args: Vec<String> = vec!["run".into(), "bolt.toml".into(), "--plain".into(), "--resume".into()];
+    args.extend(links.iter().cloned());
+    let a: Vec<&str> = args.iter().map(String::as_str).collect();
+    let res = ground(&dir, &a);
+    let t = text(&res);
+    assert_eq!(res.status.code(), Some(0), "{t}");
+    assert!(t.contains("4 of 4 steps done"), "{t}");
+    assert!(t.contains("initialisations"), "{t}");
+
+    std::thread::sleep(Duration::from_millis(500));
+    drop(o);
+    let tms = tm_log(&log);
+    // Nothing repeated: BOLT_FACE bolted the four pairs once, one action started per
+    // action TC (bolt, walk), every TC accepted exactly once.
+    assert_eq!(events_named(&tms, "BOLT_PAIR_DONE"), 4, "{t}");
+    let starts: BTreeSet<(u16, u16)> = tms
+        .iter()
+        .filter_map(|tm| match &tm.body {
+            TmBody::Verification(v) if v.stage == Stage::Start => Some((v.request.apid(), v.request.seq())),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        starts.len(),
+        2,
+        "BOLT_FACE and RECONFIGURE started once each: {starts:?}\n{t}"
+    );
+    let acc = acceptances(&tms);
+    assert!(acc.values().all(|&n| n == 1), "a TC accepted twice: {acc:?}");
+    // Nothing skipped: the walk ran and the robot ended in STANDBY at Xpos.
+    assert_eq!(events_named(&tms, "STATE_REACHED"), 1, "{t}");
+    let modes: Vec<i64> = tms
+        .iter()
+        .filter_map(|tm| match &tm.body {
+            TmBody::Event(e) if e.name == "MODE_CHANGED" && e.param("node") == Some(mib::modes::node::ROBOT as i64) => {
+                e.param("to")
+            }
+            _ => None,
+        })
+        .collect();
+    assert_eq!(modes.len(), 2, "operational, then standby, once each: {modes:?}");
+}
+
+fn hex(b: &[u8]) -> String {
+    b.iter().map(|x| format!("{x:02x}")).collect()
+}
+
+// verifies: LINK-KEYS-01
+#[test]
+fn ground_keys_creates_private_keys_and_never_prints_them() {
+    let dir = tmpdir("frames", "keys");
+    let keys = dir.join("k");
+    let o = ground(
+        &dir,
+        &["keys", "create", keys.to_str().unwrap(), "--robot", "1", "--robot", "2"],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let created = text(&o);
+    let show = ground(&dir, &["keys", "show", keys.to_str().unwrap()]);
+    assert!(show.status.success(), "{}", text(&show));
+    let shown = text(&show);
+    let files: Vec<_> = ["robot-1", "robot-2"]
+        .iter()
+        .flat_map(|r| ["tc-spi1.key", "tc-spi2.key", "tm-spi17.key", "tm-spi18.key"].map(|f| keys.join(r).join(f)))
+        .collect();
+    for f in &files {
+        let key = std::fs::read(f).unwrap();
+        assert_eq!(key.len(), 32, "{}", f.display());
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            assert_eq!(std::fs::metadata(f).unwrap().permissions().mode() & 0o777, 0o600);
+        }
+        assert!(shown.contains(&f.display().to_string()), "{shown}");
+        for out in [&created, &shown] {
+            let lower = out.to_lowercase();
+            // Not the key, nor any 8 bytes of it, in hex; not its raw bytes.
+            for w in key.windows(8) {
+                assert!(!lower.contains(&hex(w)), "key bytes printed:\n{out}");
+            }
+            assert!(!out.as_bytes().windows(8).any(|w| key.windows(8).any(|k| k == w)));
+        }
+    }
+    assert_eq!(shown.matches("SPI ").count(), 8, "{shown}");
+    assert_eq!(shown.matches("sha256 ").count(), 8, "{shown}");
+    assert!(
+        shown.contains("SPI 17") && shown.contains("TM (robot to ground)"),
+        "{shown}"
+    );
+    // Keys differ between robots (no nonce reuse under one key).
+    assert_ne!(std::fs::read(&files[0]).unwrap(), std::fs::read(&files[4]).unwrap());
+    // Never overwritten.
+    let again = ground(&dir, &["keys", "create", keys.to_str().unwrap()]);
+    assert!(!again.status.success(), "{}", text(&again));
+}
+
+// verifies: LINK-GND-04
+#[test]
+fn demo_runs_over_frames_with_test_keys_and_no_resends() {
+    let dir = tmpdir("frames", "demo");
+    let obsw = common::obsw_bin();
+    let o = ground(
+        &dir,
+        &["--no-archive", "demo", "--plain", "--obsw", obsw.to_str().unwrap()],
+    );
+    let t = text(&o);
+    assert_eq!(o.status.code(), Some(0), "{t}");
+    assert!(t.contains("TEST KEYS made for this demo only"), "{t}");
+    assert!(t.contains("10 of 10 steps done"), "{t}");
+    for r in [1, 2] {
+        let link = t
+            .lines()
+            .find(|l| l.starts_with(&format!("link robot {r}:")))
+            .unwrap_or_else(|| panic!("{t}"));
+        assert!(link.contains("quality 100%") && link.ends_with(" 0 resends"), "{link}");
+        let fr = t
+            .lines()
+            .find(|l| l.starts_with(&format!("frames robot {r}:")))
+            .unwrap_or_else(|| panic!("{t}"));
+        // Every TC packet was acknowledged by a CLCW; no alert.
+        let packets = count_before(fr, " TC packets");
+        assert!(packets > 0, "{fr}");
+        assert_eq!(count_before(fr, " acknowledged by CLCW"), packets, "{fr}");
+        assert_eq!(count_before(fr, " alerts"), 0, "{fr}");
+    }
+}
+
+/// The number just before `label` in `line`.
+fn count_before(line: &str, label: &str) -> u64 {
+    let head = &line[..line.find(label).unwrap_or_else(|| panic!("{label:?} in {line}"))];
+    head.rsplit(|c: char| !c.is_ascii_digit())
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap()
+}
+
+// verifies: LINK-GND-02
+#[test]
+fn the_collector_follows_a_robot_over_frames_and_archives_each_tm_once() {
+    let dir = tmpdir("frames", "collect");
+    let keys = frame_keys(&dir, &[1]);
+    let o = Obsw::start_frames(1, &keys, &["--speed", "5", "--seed", "3"]);
+    // The configuration file names the frame link too (checked, not run).
+    std::fs::write(
+        dir.join("c.toml"),
+        "transport = \"frames\"\nkeys = \"TEST-KEYS\"\n[[robot]]\nnumber = 1\ntm_listen = \"127.0.0.1:7401\"\n",
+    )
+    .unwrap();
+    let out = ground(&dir, &["collect", "--check-config", "c.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    std::fs::write(dir.join("bad.toml"), "transport = \"frames\"\n[[robot]]\nnumber = 1\n").unwrap();
+    let out = ground(&dir, &["collect", "--check-config", "bad.toml"]);
+    assert_eq!(out.status.code(), Some(3), "{}", text(&out));
+    assert!(text(&out).contains("keys = \"DIR\""), "{}", text(&out));
+
+    let mut args: Vec<String> = vec!["collect".into(), "--plain".into()];
+    args.extend(o.frame_args(1, &keys));
+    let mut c = Command::new(GROUND)
+        .current_dir(&dir)
+        .args(&args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_secs(8));
+    Command::new("kill")
+        .args(["-TERM", &c.id().to_string()])
+        .status()
+        .unwrap();
+    let t0 = Instant::now();
+    while c.try_wait().unwrap().is_none() && t0.elapsed() < Duration::from_secs(10) {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let _ = c.kill();
+    assert_eq!(c.wait().unwrap().code(), Some(0));
+    drop(o);
+    let out = ground(&dir, &["archive", "query", "--type", "tm", "--json"]);
+    let apid = i64::from(mib::apid::robot_apid(1).unwrap());
+    let mut seqs: BTreeMap<i64, u32> = BTreeMap::new();
+    for l in String::from_utf8_lossy(&out.stdout).lines() {
+        let v: serde_json::Value = serde_json::from_str(l).unwrap();
+        if v["apid"].as_i64() == Some(apid) {
+            *seqs.entry(v["seq"].as_i64().unwrap()).or_insert(0) += 1;
+        }
+    }
+    assert!(seqs.len() >= 10, "TM over frames archived: {seqs:?}");
+    assert!(seqs.values().all(|&n| n == 1), "each TM once: {seqs:?}");
+    let (lo, hi) = (*seqs.keys().next().unwrap(), *seqs.keys().last().unwrap());
+    assert_eq!(seqs.len() as i64, hi - lo + 1, "no gap: {seqs:?}");
+}
