@@ -8,6 +8,7 @@ use std::net::UdpSocket;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
+use e2e_tests::relay::{Config, Faults, Relay};
 use e2e_tests::{Client, Obsw, Tm};
 use mib::events::eid;
 
@@ -93,12 +94,13 @@ fn poll_until(logs: &mut [Log], limit: Duration, mut done: impl FnMut(&[Log]) ->
     }
 }
 
-fn start(dir: &Path, robot: u8, addrs: &[String]) -> Obsw {
+/// Starts robot `robot` listening on `listen[robot - 1]` and sending to `peers[n - 1]`.
+fn start(dir: &Path, robot: u8, listen: &[String], addrs: &[String]) -> Obsw {
     let mut args: Vec<String> = vec![
         "--tm-log".into(),
         dir.join(format!("tm-{robot}.hex")).display().to_string(),
         "--team-udp".into(),
-        addrs[robot as usize - 1].clone(),
+        listen[robot as usize - 1].clone(),
         "--team-state".into(),
         dir.join(format!("team-{robot}.state")).display().to_string(),
     ];
@@ -115,11 +117,41 @@ fn start(dir: &Path, robot: u8, addrs: &[String]) -> Obsw {
 // verifies: TEAM-E2E-01, TEAM-OBSW-02, TEAM-OBSW-03
 #[test]
 fn three_obsw_elect_hold_reelect_after_a_kill_and_obey_the_returning_ground() {
-    let dir = std::env::temp_dir().join(format!("team-e2e-{}", std::process::id()));
+    scenario("direct", None);
+}
+
+// verifies: TEAM-E2E-01
+#[test]
+fn the_same_through_the_lossy_relay_20_percent_drop() {
+    // Every inter-robot datagram through the project's relay: 20 % dropped, 5 % duplicated,
+    // 1 % corrupted (fails the packet CRC, counted and ignored). The ground link is direct.
+    scenario("relay", Some(Faults::new(0.2, 0.05, 0.01)));
+}
+
+/// Returns (election after the first GROUND_LOST, re-election after the kill, slowest
+/// GROUND_REGAINED after the ground's TC).
+fn scenario(name: &str, faults: Option<Faults>) -> (Duration, Duration, Duration) {
+    let dir = std::env::temp_dir().join(format!("team-e2e-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
-    let addrs: Vec<String> = (0..ROBOTS).map(|_| free_addr()).collect();
-    let mut obsw: Vec<Option<Obsw>> = (1..=ROBOTS).map(|r| Some(start(&dir, r, &addrs))).collect();
+    let listen: Vec<String> = (0..ROBOTS).map(|_| free_addr()).collect();
+    // With faults, robot n's peers send to a relay that forwards to robot n.
+    let mut relays: Vec<Relay> = Vec::new();
+    let addrs: Vec<String> = match faults {
+        None => listen.clone(),
+        Some(f) => listen
+            .iter()
+            .enumerate()
+            .map(|(i, a)| {
+                let target = a.parse().unwrap();
+                let r = Relay::start(Config::both_ways(target, target, f, 100 + i as u64)).unwrap();
+                let at = r.udp.to_string();
+                relays.push(r);
+                at
+            })
+            .collect(),
+    };
+    let mut obsw: Vec<Option<Obsw>> = (1..=ROBOTS).map(|r| Some(start(&dir, r, &listen, &addrs))).collect();
     let mut logs: Vec<Log> = (1..=ROBOTS)
         .map(|r| Log::new(dir.join(format!("tm-{r}.hex"))))
         .collect();
@@ -151,7 +183,7 @@ fn three_obsw_elect_hold_reelect_after_a_kill_and_obey_the_returning_ground() {
     let lost_at = logs.iter().map(|l| l.events(eid::GROUND_LOST)[0].0).min().unwrap();
     let elected_at = logs.iter().map(|l| l.leader().unwrap().0).max().unwrap();
     eprintln!(
-        "ground silent -> first GROUND_LOST {:.2} s, all agree on leader {leader1} (term {term1}) {:.2} s after it",
+        "{name}: ground silent -> first GROUND_LOST {:.2} s, all agree on leader {leader1} (term {term1}) {:.2} s after it",
         (lost_at - silent).as_secs_f64(),
         (elected_at - lost_at).as_secs_f64()
     );
@@ -185,7 +217,7 @@ fn three_obsw_elect_hold_reelect_after_a_kill_and_obey_the_returning_ground() {
     let (at, term2, leader2) = new_leader(&logs).unwrap();
     let reelect = at - killed;
     eprintln!(
-        "leader {leader1} killed -> robots {:?} agree on leader {leader2} (term {term2}) after {:.2} s",
+        "{name}: leader {leader1} killed -> robots {:?} agree on leader {leader2} (term {term2}) after {:.2} s",
         survivors.iter().map(|i| i + 1).collect::<Vec<_>>(),
         reelect.as_secs_f64()
     );
@@ -204,11 +236,13 @@ fn three_obsw_elect_hold_reelect_after_a_kill_and_obey_the_returning_ground() {
         "GROUND_REGAINED from every robot: {:?}",
         logs.iter().map(Log::summary).collect::<Vec<_>>()
     );
+    let mut slowest = Duration::ZERO;
     for (i, at) in sent {
         let regained = logs[i].events(eid::GROUND_REGAINED)[0].0;
         let d = regained.saturating_duration_since(at);
+        slowest = slowest.max(d);
         eprintln!(
-            "robot {}: ground TC -> GROUND_REGAINED after {:.3} s",
+            "{name}: robot {}: ground TC -> GROUND_REGAINED after {:.3} s",
             i + 1,
             d.as_secs_f64()
         );
@@ -228,5 +262,10 @@ fn three_obsw_elect_hold_reelect_after_a_kill_and_obey_the_returning_ground() {
     let state = std::fs::read_to_string(dir.join(format!("team-{leader2}.state"))).unwrap();
     assert!(state.split_whitespace().next().unwrap().parse::<u32>().unwrap() >= term2);
     drop(obsw);
+    for mut r in relays {
+        eprintln!("{name}: relay {}", r.counts);
+        r.stop();
+    }
     let _ = std::fs::remove_dir_all(&dir);
+    (elected_at - lost_at, reelect, slowest)
 }

@@ -146,8 +146,16 @@ impl TeamLink for TeamUdp {
 
     fn send(&mut self, to: Dest, packet: &[u8]) {
         for (n, addr) in &self.peers {
-            if (to == Dest::All || to == Dest::To(*n)) && self.sock.send_to(packet, addr).is_err() {
-                self.send_errors = self.send_errors.wrapping_add(1);
+            if to == Dest::All || to == Dest::To(*n) {
+                // An earlier send to a dead peer leaves an ICMP "port unreachable" pending
+                // on the socket, which fails the next send (to any peer) once: try again.
+                let sent = self
+                    .sock
+                    .send_to(packet, addr)
+                    .or_else(|_| self.sock.send_to(packet, addr));
+                if sent.is_err() {
+                    self.send_errors = self.send_errors.wrapping_add(1);
+                }
             }
         }
     }
