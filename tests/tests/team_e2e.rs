@@ -11,6 +11,7 @@ use std::time::{Duration, Instant};
 use e2e_tests::relay::{Config, Faults, Relay};
 use e2e_tests::{Client, Obsw, Tm};
 use mib::events::eid;
+use mib::modes::{node, robot_mode};
 
 const ROBOTS: u8 = 3;
 
@@ -163,6 +164,15 @@ fn scenario(name: &str, faults: Option<Faults>) -> (Duration, Duration, Duration
         let done = c.wait_done(&raw, Duration::from_secs(5)).expect("roster answered");
         assert_eq!(done.subservice, 7, "roster accepted: {}", c.summary());
     }
+    // The robots work (OPERATIONAL), so that holding is a visible mode change.
+    let ops: Vec<Vec<u8>> = ground
+        .iter_mut()
+        .map(|c| c.send("MODE_SET", &[node::ROBOT as i64, robot_mode::OPERATIONAL as i64, 0]))
+        .collect();
+    for (c, raw) in ground.iter_mut().zip(&ops) {
+        let done = c.wait_done(raw, Duration::from_secs(30)).expect("operational");
+        assert_eq!(done.subservice, 7, "operational: {}", c.summary());
+    }
     let silent = Instant::now();
 
     // 1. Ground loss → every robot holds, one leader agreed by all.
@@ -186,6 +196,26 @@ fn scenario(name: &str, faults: Option<Faults>) -> (Duration, Duration, Duration
         "{name}: ground silent -> first GROUND_LOST {:.2} s, all agree on leader {leader1} (term {term1}) {:.2} s after it",
         (lost_at - silent).as_secs_f64(),
         (elected_at - lost_at).as_secs_f64()
+    );
+    // Every robot holds: its robot node leaves OPERATIONAL for STANDBY (both grippers
+    // hold) or SAFED, caused by the team (MODE_CHANGED cause = GROUND_LOST).
+    let held = |l: &Log| {
+        l.events(eid::MODE_CHANGED).iter().any(|(at, p)| {
+            let (nd, to, cause) = (
+                u32::from_be_bytes([p[0], p[1], p[2], p[3]]),
+                u32::from_be_bytes([p[8], p[9], p[10], p[11]]),
+                u16::from_be_bytes([p[12], p[13]]),
+            );
+            *at > silent
+                && nd == node::ROBOT
+                && (to == robot_mode::STANDBY || to == robot_mode::SAFED)
+                && cause == eid::GROUND_LOST
+        })
+    };
+    assert!(
+        poll_until(&mut logs, Duration::from_secs(10), |l| l.iter().all(held)),
+        "every robot holds: {:?}",
+        logs.iter().map(Log::summary).collect::<Vec<_>>()
     );
     // Every follower executed the leader's HOLD (the leader holds on its own).
     assert!(
