@@ -253,6 +253,13 @@ impl<S: TmStore> Obsw<S> {
         self.team.ground_tc = true;
     }
 
+    /// Runs a TC the obsw released itself (PUS 11 schedule): it is not ground contact.
+    pub(crate) fn handle_onboard_tc(&mut self, now: u64, raw: &[u8], sink: &mut impl TmSink) {
+        let pending = self.team.ground_tc;
+        self.handle_tc(now, raw, sink);
+        self.team.ground_tc = pending;
+    }
+
     fn team_input(&mut self, now: u64, rand: u32, input: Input, link: &mut impl TeamLink, sink: &mut impl TmSink) {
         let Some(node) = self.team.node.as_mut() else { return };
         let effects = node.on_event(now, rand, input);
@@ -547,6 +554,33 @@ mod tests {
         assert_eq!(st.roster.iter().map(|r| r.robot).collect::<Vec<_>>(), [1, 2, 3]);
         assert_eq!(st.ground_seen, 1);
         assert!(st.term >= 1);
+    }
+
+    // verifies: TEAM-OBSW-01
+    #[test]
+    fn a_scheduled_tc_is_not_ground_contact() {
+        let mut o = robot(1);
+        roster_tc(&mut o, 0, &[1, 2, 3]);
+        // A PING scheduled at 4 s (before the 5 s ground-loss timeout ends).
+        let mut app = vec![1u8];
+        app.extend_from_slice(&o.dl.tmw.time.cds(4_000));
+        app.extend_from_slice(&tc_bytes(0x101, 77, 17, 1, &[]));
+        let mut sink = Vec::new();
+        o.handle_tc(0, &tc_bytes(0x101, 2, 11, 4, &app), &mut sink);
+        assert_eq!(o.sched.len(), 1);
+        let mut link = Link::default();
+        let mut now = 0;
+        while now <= 5_200 {
+            o.release_schedule(now, &mut sink);
+            o.team_poll(now, 7, &mut link, &mut sink);
+            now += 10;
+        }
+        assert_eq!(o.sched.len(), 0, "the scheduled ping ran");
+        assert_eq!(
+            events(&sink, eid::GROUND_LOST).len(),
+            1,
+            "ground lost 5 s after the last ground TC"
+        );
     }
 
     // verifies: TEAM-OBSW-01
