@@ -573,6 +573,24 @@ pub enum TmBody {
         submode: u16,
         reason: u16,
     },
+    /// TM[210,2]: team coordination without the ground (issue 25).
+    TeamStatus {
+        term: u32,
+        /// 0 follower, 1 candidate, 2 leader.
+        role: u8,
+        /// 0 = none known.
+        leader: u8,
+        ground_seen: bool,
+        lease: bool,
+        voted_for: u8,
+        auth_plan: u16,
+        auth_first_step: u16,
+        auth_steps: u8,
+        auth_left_s: u32,
+        refused: u32,
+        foreign: u32,
+        roster: Vec<u8>,
+    },
     /// A TM type the MIB does not define.
     Unknown {
         #[serde(serialize_with = "ser_hex")]
@@ -798,6 +816,21 @@ fn decode_tm_source(service: u8, subservice: u8, d: &[u8]) -> Result<TmBody, Dec
         // TM[210,3] (issue 24): checked, then kept as bytes until the ground has a module
         // view (`mib::modules::report::ModuleReport::parse` rebuilds the set).
         W::ModuleReport(_) => TmBody::Unknown { data: d.to_vec() },
+        W::TeamStatus(x) => TmBody::TeamStatus {
+            term: x.term,
+            role: x.role,
+            leader: x.leader,
+            ground_seen: x.ground_seen != 0,
+            lease: x.lease != 0,
+            voted_for: x.voted_for,
+            auth_plan: x.auth_plan,
+            auth_first_step: x.auth_first_step,
+            auth_steps: x.auth_steps,
+            auth_left_s: x.auth_left_s,
+            refused: x.refused,
+            foreign: x.foreign,
+            roster: x.roster.iter().map(|r| r.robot).collect(),
+        },
     })
 }
 
@@ -1143,6 +1176,19 @@ pub fn describe_body(b: &TmBody) -> String {
             node_name(*node),
             mode_name(*node, *mode),
             FailureCode::from_code(*reason).name()
+        ),
+        TmBody::TeamStatus {
+            term,
+            role,
+            leader,
+            ground_seen,
+            roster,
+            auth_steps,
+            ..
+        } => format!(
+            "team term {term} role {} leader {leader} ground {} roster {roster:?} authorised steps {auth_steps}",
+            mib::team::TEAM_ROLE_NAMES.name(i64::from(*role)).unwrap_or("?"),
+            if *ground_seen { "seen" } else { "lost" }
         ),
         TmBody::Unknown { data } => format!("undefined TM type, data {}", hex(data)),
     }

@@ -9,7 +9,7 @@ use crate::params::{self, ParamDef};
 use crate::tc::{service, TcDef};
 
 /// Most fixed arguments any TC has.
-pub const MAX_ARGS: usize = 4;
+pub const MAX_ARGS: usize = 8;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum CodecError {

@@ -3,6 +3,7 @@
 //! parameters, packed with their wire types.
 
 use crate::layout::{Field, Names, MODULE_REASON_NAMES, RESET_CAUSE_NAMES, SIDE_NAMES, SLOT_NAMES};
+use crate::team::{TEAM_DIRECTIVE_NAMES, TEAM_REFUSE_NAMES, TEAM_STEP_DOWN_NAMES};
 use crate::types::PType;
 
 /// PUS 5 severity; the value is the TM[5,x] subservice.
@@ -99,6 +100,14 @@ events! {
     LINK_CONTROL_FRAME = 0x0231, Low, false, ["command": U8, "vr": U8, "total": U32], "Space link: a BC control frame in clear was executed (command 0 Unlock, 1 Set V(R) with vr; total since boot); at most one per control period, then throttled";
     CONFIG_INVALID = 0x0232, High, false, ["reason": U8 @MODULE_REASON_NAMES, "slot": U8 @SLOT_NAMES, "hash": U32], "Module discovery at boot: the module set is invalid or unsupported (reason, the slot it names or NONE, configuration hash of what was found); the robot stays in STANDBY and OPERATIONAL is refused with CONFIG_INVALID";
     MODULE_REPLACED = 0x0233, Medium, false, ["slot": U8 @SLOT_NAMES, "accepted_hash": U32, "hash": U32], "Module discovery at boot: the module set differs from the configuration the ground last accepted (first slot whose presence, serial or revision differs, or NONE when only calibration changed); OPERATIONAL is refused with CONFIG_NOT_ACCEPTED until ACCEPT_CONFIG with the current hash";
+    // --- team coordination without the ground (issue 25; mib::team) ---
+    GROUND_LOST = 0x0301, Medium, false, ["term": U32], "Team: no valid ground TC for GROUND_LOSS_TIMEOUT_MS; the robot finishes its primitive and holds (STANDBY if both grippers hold, SAFED otherwise) and takes part in leader selection";
+    ELECTION_STARTED = 0x0302, Info, false, ["term": U32], "Team: the robot stood as candidate in a new term";
+    LEADER_ELECTED = 0x0303, Info, false, ["term": U32, "leader": U8], "Team: a leader is known for the term (the robot itself when leader = own number)";
+    STEPPED_DOWN = 0x0304, Low, false, ["term": U32, "reason": U8 @TEAM_STEP_DOWN_NAMES], "Team: the robot stopped leading";
+    GROUND_REGAINED = 0x0305, Info, false, ["term": U32], "Team: a valid ground TC arrived; obedience to the leader ended";
+    DIRECTIVE_EXECUTED = 0x0306, Info, false, ["term": U32, "leader": U8, "directive": U8 @TEAM_DIRECTIVE_NAMES, "step": U16], "Team: a leader's directive was executed (HOLD, or CONTINUE step within the ground authorisation)";
+    DIRECTIVE_REFUSED = 0x0307, Low, false, ["term": U32, "sender": U8, "reason": U8 @TEAM_REFUSE_NAMES], "Team: a directive was refused (one event per term and reason)";
 }
 
 /// Events exempt from throttling (`config::EVENT_THROTTLE_MAX`): `MODE_CHANGED` is

@@ -25,6 +25,8 @@ pub mod service {
     pub const MODE: u8 = 200;
     /// Mission-specific: the module set (issue 24).
     pub const MODULES: u8 = 210;
+    /// Team coordination without the ground (`crate::team`).
+    pub const TEAM: u8 = crate::team::TEAM_SERVICE;
 }
 
 pub use crate::modes::ModeSet;
@@ -706,6 +708,47 @@ pub const TCS: &[TcDef] = &[
         "Accept the module configuration found at boot by its hash: clears MODULE_REPLACED so that OPERATIONAL may be entered",
     )
     .hazardous("lets the robot operate with modules the ground has not seen before"),
+    // --- 211 team coordination without the ground (issue 25, crate::team) ---
+    tc(
+        211,
+        3,
+        "TEAM_AUTHORISE",
+        &[
+            a("plan_id", PType::U16, "", 0, 65535, "plan the leader may continue"),
+            a("plan_hash", PType::U32, "", 0, 4_294_967_295, "hash of that plan"),
+            a("first_step", PType::U16, "", 1, 65535, "first plan step (1-based) a leader may order"),
+            a("max_steps", PType::U8, "", 1, crate::team::MAX_AUTHORISED_STEPS as i64, "most steps from first_step"),
+            a("validity_s", PType::U32, "s", 1, crate::team::MAX_AUTHORISATION_MS as i64 / 1000, "validity from the upload"),
+        ],
+        &[F::ARG_OUT_OF_RANGE],
+        "Team: authorise a leader to order CONTINUE for at most max_steps steps of one plan while the ground is away (each step still passes the initial-state check; never UNBOLT)",
+    )
+    .hazardous("lets robots continue a plan without the ground"),
+    tc(
+        211,
+        4,
+        "TEAM_ROSTER",
+        &[
+        a("robot_1", PType::U8, "", 0, 254, "robot number 1 of the roster (0 = unused slot)"),
+        a("robot_2", PType::U8, "", 0, 254, "robot number 2 of the roster (0 = unused slot)"),
+        a("robot_3", PType::U8, "", 0, 254, "robot number 3 of the roster (0 = unused slot)"),
+        a("robot_4", PType::U8, "", 0, 254, "robot number 4 of the roster (0 = unused slot)"),
+        a("robot_5", PType::U8, "", 0, 254, "robot number 5 of the roster (0 = unused slot)"),
+        a("robot_6", PType::U8, "", 0, 254, "robot number 6 of the roster (0 = unused slot)"),
+        a("robot_7", PType::U8, "", 0, 254, "robot number 7 of the roster (0 = unused slot)"),
+        a("robot_8", PType::U8, "", 0, 254, "robot number 8 of the roster (0 = unused slot)"),
+        ],
+        &[F::ARG_OUT_OF_RANGE],
+        "Team: upload the roster (robot numbers in order of preference, 2..8 robots, this robot among them; 0 = unused); term and vote kept",
+    ),
+    tc(
+        211,
+        5,
+        "TEAM_STATUS_REQUEST",
+        &[],
+        &[],
+        "Team: report the team status (TM[210,2])",
+    ),
 ];
 
 impl TcDef {
@@ -1004,6 +1047,60 @@ pub const TMS: &[TmDef] = &[
          descriptor of every present slot (mib::modules::report::ModuleReport; the ground rebuilds the \
          module set and its URDF from it)",
     ),
+    tm(
+        211,
+        2,
+        "TEAM_STATUS",
+        &[
+            Item::Field(f("term", PType::U32, "current election term")),
+            Item::Field(f("role", PType::U8, "team role").names(crate::team::TEAM_ROLE_NAMES)),
+            Item::Field(f("leader", PType::U8, "leader of the term (0 = none known)")),
+            Item::Field(
+                f(
+                    "ground_seen",
+                    PType::U8,
+                    "1 = a valid ground TC within GROUND_LOSS_TIMEOUT_MS",
+                )
+                .names(crate::layout::BOOL_NAMES),
+            ),
+            Item::Field(
+                f("lease", PType::U8, "1 = this robot leads and holds the lease").names(crate::layout::BOOL_NAMES),
+            ),
+            Item::Field(f("voted_for", PType::U8, "vote cast in the term (0 = none)")),
+            Item::Field(f("auth_plan", PType::U16, "authorised plan ID")),
+            Item::Field(f("auth_first_step", PType::U16, "first authorised step")),
+            Item::Field(f("auth_steps", PType::U8, "authorised steps (0 = no authorisation)")),
+            Item::Field(
+                f(
+                    "auth_left_s",
+                    PType::U32,
+                    "seconds until the authorisation expires (0 = expired or none)",
+                )
+                .unit("s"),
+            ),
+            Item::Field(f("refused", PType::U32, "directives refused since boot")),
+            Item::Field(f(
+                "foreign",
+                PType::U32,
+                "team messages from outside the roster since boot",
+            )),
+            Item::Field(
+                f("roster_len", PType::U8, "robots in the roster (0 = no roster)")
+                    .range(0, crate::team::ROSTER_MAX as i64),
+            ),
+            Item::Group {
+                name: "roster",
+                count: "roster_len",
+                max: crate::team::ROSTER_MAX,
+                items: &[Item::Field(f(
+                    "robot",
+                    PType::U8,
+                    "robot number, in order of preference",
+                ))],
+            },
+        ],
+        "Team status: term, role, leader, ground seen, authorisation, roster",
+    ),
 ];
 
 const CAL: &str = "calibration word (meaning per module type, docs/modules.md)";
@@ -1087,6 +1184,7 @@ mod tests {
                 );
             }
             assert!(t.fixed_len() <= crate::config::MAX_TC_APP_DATA);
+            assert!(t.args.len() <= crate::codec::MAX_ARGS, "{}", t.name);
         }
     }
     // verifies: MMIC-CMD-06
@@ -1113,6 +1211,7 @@ mod tests {
                 "PARAM_SET",
                 "MODE_SET",
                 "ACCEPT_CONFIG",
+                "TEAM_AUTHORISE",
             ]
         );
         for t in TCS {

@@ -8,6 +8,8 @@
 //! any robot that acknowledged it can vote for somebody else, so
 //! `LEADER_LEASE_MS * (1 + drift) < ELECTION_TIMEOUT_MIN_MS * (1 - drift)`.
 
+use crate::layout::Names;
+
 // ---------------------------------------------------------------------------------------
 // Roster
 // ---------------------------------------------------------------------------------------
@@ -95,7 +97,7 @@ pub const MAX_AUTHORISATION_MS: u64 = 30 * 60 * 1_000;
 /// application data, authenticated like the ground link once SDLS has landed.
 pub const TEAM_APID: u16 = 0x0E0;
 /// Private PUS service type of team messages and of the team TM (events stay in service 5).
-pub const TEAM_SERVICE: u8 = 210;
+pub const TEAM_SERVICE: u8 = 211;
 /// Subservice of a team message between robots.
 pub const TEAM_SUBSERVICE_MESSAGE: u8 = 1;
 /// Subservice of the team status report (TM to the ground).
@@ -110,27 +112,40 @@ pub const WIRE_HEADER_LEN: usize = 15;
 pub const WIRE_MAX_LEN: usize = 24;
 
 // ---------------------------------------------------------------------------------------
-// Events (PUS 5) the team logic raises. Proposed IDs; the entries in `events.rs` are to be
-// added when the team logic is wired into the obsw (see docs/team.md, integration status).
+// Events (PUS 5) the team logic raises (defined in `events.rs`), names of their codes,
+// the team TCs and the status report period.
 // ---------------------------------------------------------------------------------------
 
-/// Team event IDs (range 0x0300).
+/// Team event IDs (range 0x0300), defined in `crate::events` with their parameters.
 pub mod eid {
-    /// No valid ground TC for `GROUND_LOSS_TIMEOUT_MS`: the robot holds on its own.
-    pub const GROUND_LOST: u16 = 0x0301;
-    /// The robot stood as candidate (params: term).
-    pub const ELECTION_STARTED: u16 = 0x0302;
-    /// A leader is known for the term (params: term, leader).
-    pub const LEADER_ELECTED: u16 = 0x0303;
-    /// The robot stopped leading (params: term, reason).
-    pub const STEPPED_DOWN: u16 = 0x0304;
-    /// A valid ground TC arrived: obedience to the leader ended (params: term).
-    pub const GROUND_REGAINED: u16 = 0x0305;
-    /// A leader's directive was executed (params: term, leader, directive, step).
-    pub const DIRECTIVE_EXECUTED: u16 = 0x0306;
-    /// A directive was refused (params: term, sender, reason).
-    pub const DIRECTIVE_REFUSED: u16 = 0x0307;
+    pub use crate::events::eid::{
+        DIRECTIVE_EXECUTED, DIRECTIVE_REFUSED, ELECTION_STARTED, GROUND_LOST, GROUND_REGAINED, LEADER_ELECTED,
+        STEPPED_DOWN,
+    };
 }
+
+/// Names of the STEPPED_DOWN reason codes (`mmic_team::node::StepDownReason`).
+pub const TEAM_STEP_DOWN_NAMES: Names = Names::List(&[(0, "GROUND_REGAINED"), (1, "HIGHER_TERM"), (2, "QUORUM_LOST")]);
+/// Names of the directive codes (wire: 1 HOLD, 2 CONTINUE).
+pub const TEAM_DIRECTIVE_NAMES: Names = Names::List(&[(1, "HOLD"), (2, "CONTINUE")]);
+/// Names of the DIRECTIVE_REFUSED reason codes (`mmic_team::node::RefuseReason`).
+pub const TEAM_REFUSE_NAMES: Names = Names::List(&[
+    (0, "STALE_TERM"),
+    (1, "GROUND_PRESENT"),
+    (2, "NOT_AUTHORISED"),
+    (3, "EXPIRED"),
+    (4, "PLAN_MISMATCH"),
+    (5, "WRONG_STEP"),
+]);
+/// Names of the team roles in the status report.
+pub const TEAM_ROLE_NAMES: Names = Names::List(&[(0, "FOLLOWER"), (1, "CANDIDATE"), (2, "LEADER")]);
+
+/// Subservice of the TC that uploads the team roster.
+pub const TEAM_SUBSERVICE_ROSTER: u8 = 4;
+/// Subservice of the TC that asks for a team status report.
+pub const TEAM_SUBSERVICE_STATUS_REQUEST: u8 = 5;
+/// The obsw sends a team status report this often (and on request).
+pub const STATUS_PERIOD_MS: u64 = 2_000;
 
 /// Length of the team status report's application data: term (4), role (1), leader (1),
 /// ground seen (1), roster length (1), roster (ROSTER_MAX).

@@ -86,6 +86,7 @@ pub fn content(tm: &Tm) -> Content {
         | TmBody::ParamValue { .. }
         | TmBody::ModeReply { .. }
         | TmBody::ModeCantReach { .. }
+        | TmBody::TeamStatus { .. }
         | TmBody::Unknown { .. } => Content::Other,
     }
 }

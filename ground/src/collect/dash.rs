@@ -110,6 +110,7 @@ pub fn to_hub(hub: &Hub, robot: u8, tm: &Tm) {
         | TmBody::EaDefinitions { .. }
         | TmBody::ParamValue { .. }
         | TmBody::ModeCantReach { .. }
+        | TmBody::TeamStatus { .. }
         | TmBody::Unknown { .. } => {}
     }
 }

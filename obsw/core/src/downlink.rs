@@ -87,6 +87,7 @@ reports!(
     ModeReply,
     ModeCantReach,
     ModuleReport,
+    TeamStatus,
 );
 
 /// A request's verification token with the acknowledgement flags the TC asked for.

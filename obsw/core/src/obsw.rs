@@ -21,6 +21,7 @@ use crate::services::hk::Hk;
 use crate::services::mode::{ModeCmd, Transition};
 use crate::services::modules::Modules;
 use crate::services::scheduling::Schedule;
+use crate::services::team::Team;
 use crate::services::time::TimeReports;
 use crate::time::OnboardTime;
 use crate::tm::{TmSink, TmStore};
@@ -146,6 +147,8 @@ pub struct Obsw<S: TmStore> {
     out: TickOut,
     /// The module set found at boot (issue 24; `services::modules`).
     pub modules: Modules,
+    /// Team coordination without the ground (service 211, `services::team`).
+    pub team: Team,
 }
 
 impl<S: TmStore> Obsw<S> {
@@ -171,6 +174,7 @@ impl<S: TmStore> Obsw<S> {
             last_now: 0,
             out: TickOut::new(),
             modules: Modules::default(),
+            team: Team::new(cfg.robot, OnboardTime::new(cfg.epoch_unix_ms)),
         };
         o.apply_module_modes();
         o
@@ -325,6 +329,8 @@ impl<S: TmStore> Obsw<S> {
                 return;
             }
         };
+        // Every valid ground TC is ground contact for the team logic.
+        self.team_ground_tc();
         let crc = tc.crc();
         if let Some(prev) = self.find_seen(tc.req, crc, now).filter(|_| duplicate_check) {
             return self.repeat(now, &tc, prev, sink);
@@ -424,6 +430,7 @@ impl<S: TmStore> Obsw<S> {
             Request::Parameter(r) => self.parameter_request(now, r, sink)?,
             Request::Mode(r) => return self.mode_request(now, r, sink),
             Request::Modules(r) => self.modules_request(now, r, sink)?,
+            Request::Team(r) => self.team_request(now, r, sink)?,
         }
         Ok(Exec::Done)
     }

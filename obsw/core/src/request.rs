@@ -9,7 +9,7 @@ use mib::tc::service;
 use crate::accept::Tc;
 use crate::failure::Failure;
 use crate::services::{
-    event, event_action, function, hk, mode, modules, monitoring, parameter, scheduling, storage, test, time,
+    event, event_action, function, hk, mode, modules, monitoring, parameter, scheduling, storage, team, test, time,
 };
 use crate::time::OnboardTime;
 
@@ -39,6 +39,7 @@ pub enum Request<'a> {
     Parameter(parameter::Request),
     Mode(mode::Request),
     Modules(modules::Request),
+    Team(team::Request),
 }
 
 impl<'a> Request<'a> {
@@ -56,6 +57,7 @@ impl<'a> Request<'a> {
             service::PARAMETER => Request::Parameter(parameter::Request::parse(tc)?),
             service::MODE => Request::Mode(mode::Request::parse(tc)?),
             service::MODULES => Request::Modules(modules::Request::parse(tc)?),
+            service::TEAM => Request::Team(team::Request::parse(tc)?),
             // `accept` only lets services of the MIB through; a service added to the
             // MIB without a handler here is refused, never run by another one.
             other => return Err(Failure::unknown_service(other)),

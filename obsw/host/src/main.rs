@@ -10,6 +10,7 @@
 
 mod frames;
 mod net;
+mod team;
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -105,9 +106,60 @@ struct Args {
     /// without TCs. Lab and loopback use: the datagrams go out of the --udp socket.
     #[arg(long = "tm-dest", value_name = "ADDR")]
     tm_dest: Vec<SocketAddr>,
+    /// Team coordination without the ground (issue 25): UDP address of this robot's
+    /// inter-robot link (team packets, APID 0x0E0, TM[210,1]). Needs --team-state; the
+    /// other robots are given by --peer. Not in the --config file.
+    #[arg(long)]
+    team_udp: Option<SocketAddr>,
+    /// Another robot's inter-robot address, `N=ADDR` (repeatable).
+    #[arg(long = "peer", value_name = "N=ADDR")]
+    peer: Vec<String>,
+    /// File holding the team's durable term and vote (written and synced before any
+    /// team packet of the same decision is sent).
+    #[arg(long)]
+    team_state: Option<PathBuf>,
+    /// Test aid: the team roster at boot, robot numbers in order of preference
+    /// (`1,2,3`); normally the ground uploads it with TEAM_ROSTER [210,4].
+    #[arg(long)]
+    team_roster: Option<String>,
     /// TOML file with any of the options above.
     #[arg(long)]
     config: Option<PathBuf>,
+}
+
+/// The inter-robot link's settings (`--team-udp`, `--peer`, `--team-state`, `--team-roster`).
+struct TeamSettings {
+    listen: SocketAddr,
+    peers: Vec<(u8, SocketAddr)>,
+    state: PathBuf,
+    roster: Option<Vec<u8>>,
+}
+
+fn team_settings(a: &Args) -> Result<Option<TeamSettings>> {
+    let Some(listen) = a.team_udp else {
+        if !a.peer.is_empty() || a.team_state.is_some() || a.team_roster.is_some() {
+            bail!("--peer, --team-state and --team-roster need --team-udp");
+        }
+        return Ok(None);
+    };
+    let Some(state) = a.team_state.clone() else {
+        bail!("--team-udp needs --team-state (term and vote must be durable before a vote is sent)");
+    };
+    let peers = a.peer.iter().map(|p| team::parse_peer(p)).collect::<Result<Vec<_>>>()?;
+    let roster = match &a.team_roster {
+        Some(r) => Some(
+            r.split(',')
+                .map(|n| n.trim().parse::<u8>().with_context(|| format!("--team-roster {r:?}")))
+                .collect::<Result<Vec<_>>>()?,
+        ),
+        None => None,
+    };
+    Ok(Some(TeamSettings {
+        listen,
+        peers,
+        state,
+        roster,
+    }))
 }
 
 #[derive(Deserialize, Default, Debug)]
@@ -150,9 +202,11 @@ struct Settings {
     /// The bare-packet link is on (lab mode, or no frame link configured).
     bare: bool,
     modules: mmic_sim::modules::ModuleSetSpec,
+    team: Option<TeamSettings>,
 }
 
 fn settings(a: Args) -> Result<Settings> {
+    let team = team_settings(&a)?;
     let f: FileConfig = match &a.config {
         Some(p) => {
             let text =
@@ -253,6 +307,7 @@ fn settings(a: Args) -> Result<Settings> {
         tm_dest,
         bare,
         modules,
+        team,
     })
 }
 
@@ -348,6 +403,26 @@ fn run(args: Args) -> Result<()> {
         },
         HostStore::default(),
     );
+    let mut team_link = match &s.team {
+        Some(t) => {
+            let (link, durable) = team::TeamUdp::open(t.listen, t.peers.clone(), t.state.clone())?;
+            obsw.team_restore(durable);
+            if let Some(r) = &t.roster {
+                obsw.team_set_roster(0, r)
+                    .map_err(|e| anyhow::anyhow!("--team-roster {r:?}: {e}"))?;
+            }
+            frame_note.push_str(&format!(" team_udp={}", link.local_addr()?));
+            eprintln!(
+                "obsw: team link on {} with {} peers, term {} from {}",
+                link.local_addr()?,
+                t.peers.len(),
+                durable.term,
+                t.state.display()
+            );
+            Some(link)
+        }
+        None => None,
+    };
     let mut sim = Sim::new(SimConfig {
         seed: s.seed,
         initial_state: s.initial_state,
@@ -448,6 +523,9 @@ fn run(args: Args) -> Result<()> {
         }
         sim_ms += period;
         obsw.io.tm_dropped = down.counters.tm_dropped;
+        if let Some(t) = team_link.as_ref() {
+            obsw.io.tm_dropped = obsw.io.tm_dropped.wrapping_add(t.send_errors);
+        }
         report_link_events(&mut obsw, sim_ms, &mut reported, &mut down);
         if let Some(f) = down.frames.as_mut() {
             obsw.space_link = f.hk();
@@ -461,6 +539,15 @@ fn run(args: Args) -> Result<()> {
         let out = obsw.tick(sim_ms, &sensors, &link_rx, &mut down);
         link_rx.clear();
         sim.step(period as u32, &out.actuators, &out.link_tx, &mut link_rx);
+        if let Some(t) = team_link.as_mut() {
+            let mut buf = [0u8; config::MAX_PACKET_LEN];
+            while let Some(n) = t.recv(&mut buf) {
+                let r = t.rand();
+                obsw.team_packet(sim_ms, r, &buf[..n], t, &mut down);
+            }
+            let r = t.rand();
+            obsw.team_poll(sim_ms, r, t, &mut down);
+        }
         if let Some(f) = down.frames.as_mut() {
             f.flush(Instant::now());
         }

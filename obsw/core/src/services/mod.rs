@@ -11,5 +11,6 @@ pub mod monitoring;
 pub mod parameter;
 pub mod scheduling;
 pub mod storage;
+pub mod team;
 pub mod test;
 pub mod time;

@@ -176,7 +176,7 @@ impl<S: TmStore> Obsw<S> {
         }
         while let Some(i) = self.sched.items.iter().position(|s| s.release <= now) {
             let s = self.sched.items.swap_remove(i);
-            self.handle_tc(now, &s.tc, sink);
+            self.handle_onboard_tc(now, &s.tc, sink);
         }
     }
 }

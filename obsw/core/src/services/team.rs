@@ -1,0 +1,633 @@
+//! Service 211, team coordination without the ground (issue 25): the obsw hosts a
+//! `mmic_team::Node` (leader selection with terms, quorum and lease; limited authority).
+//!
+//! - Every valid ground TC counts as ground contact (`Input::GroundTc`, fed at the next
+//!   [`Obsw::team_poll`]).
+//! - The platform calls [`Obsw::team_poll`] after every TC and every control period, and
+//!   [`Obsw::team_packet`] for every packet received on the inter-robot link. Both execute
+//!   the node's effects in order through a [`TeamLink`]: `Persist` first (the platform makes
+//!   term and vote durable before it returns; a failed persist is treated as a reset: the
+//!   rest of the batch is dropped and the node restarts from the last durable state), then
+//!   sends (team packets: APID `TEAM_APID`, TM[211,1], the team message as source data),
+//!   actions and events (PUS 5).
+//! - HOLD: finish the running primitive, then STANDBY if both grippers hold, SAFED
+//!   otherwise, through the same mode machinery as the FDIR's deferred mode changes.
+//!   "Both grippers hold" = the controller computes a configuration state (a state is the
+//!   pair of faces the two grippers hold).
+//! - CONTINUE: the obsw has no on-board plan yet (plans run from the ground), so it never
+//!   reports a plan or a next step to the node: a leader only ever orders HOLD and a
+//!   follower's node never outputs CONTINUE. Should one arrive it is not executed, counted
+//!   (`continue_not_executed`) and the robot holds.
+//! - TCs: TEAM_AUTHORISE [211,3], TEAM_ROSTER [211,4], TEAM_STATUS_REQUEST [211,5]; the
+//!   TEAM_STATUS report TM[211,2] also goes out every `STATUS_PERIOD_MS` while a roster is
+//!   set.
+
+use mib::events::eid;
+use mib::modes::robot_mode;
+use mib::team::{ROSTER_MAX, STATUS_PERIOD_MS, TEAM_APID, TEAM_SERVICE, TEAM_SUBSERVICE_MESSAGE};
+use mib_wire::tm;
+use mmic_team::node::{RefuseReason, StepDownReason};
+use mmic_team::wire::MAX_LEN;
+use mmic_team::TeamEvent;
+use mmic_team::{Action, Authorisation, Dest, Directive, Effect, HoldTarget, Input, Message, Node, Persisted, PlanRef};
+use satrs::spacepackets::ecss::tm::PusTmReader;
+use satrs::spacepackets::ecss::PusPacket;
+
+use crate::accept::Tc;
+use crate::failure::Failure;
+use crate::obsw::Obsw;
+use crate::request::unknown;
+use crate::time::OnboardTime;
+use crate::tm::{TmSink, TmStore, TmWriter};
+
+/// What the platform provides to the team logic: durable storage of term and vote, and
+/// the inter-robot link.
+pub trait TeamLink {
+    /// Makes `p` durable (written and synced) before returning; false if that failed.
+    fn persist(&mut self, p: Persisted) -> bool;
+    /// Sends one team packet to one robot of the roster or to every other one.
+    fn send(&mut self, to: Dest, packet: &[u8]);
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Request {
+    /// TC[211,3]: authorisation for a leader to order CONTINUE.
+    Authorise(Authorisation, u32),
+    /// TC[211,4]: roster (robot numbers in order, 0 = unused slot).
+    Roster([u8; ROSTER_MAX]),
+    /// TC[211,5]: report TM[211,2].
+    Status,
+}
+
+impl Request {
+    pub fn parse(tc: &Tc) -> Result<Self, Failure> {
+        match tc.subservice {
+            3 => Ok(Request::Authorise(
+                Authorisation {
+                    plan: PlanRef {
+                        id: tc.args[0] as u16,
+                        hash: tc.args[1] as u32,
+                    },
+                    first_step: tc.args[2] as u16,
+                    max_steps: tc.args[3] as u8,
+                    expires_at: 0,
+                },
+                tc.args[4] as u32,
+            )),
+            4 => {
+                let mut r = [0u8; ROSTER_MAX];
+                for (i, slot) in r.iter_mut().enumerate() {
+                    *slot = tc.args[i] as u8;
+                }
+                Ok(Request::Roster(r))
+            }
+            5 => Ok(Request::Status),
+            _ => Err(unknown(tc)),
+        }
+    }
+}
+
+/// Counters of the team hosting (besides the node's own).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TeamCounters {
+    /// Inter-robot packets that were not a valid team packet.
+    pub bad_packets: u32,
+    /// Persists the platform could not make durable (each treated as a reset).
+    pub persist_failed: u32,
+    /// Effects dropped after a failed persist.
+    pub effects_dropped: u32,
+    /// CONTINUE orders not executed (no on-board plan; the robot held instead).
+    pub continue_not_executed: u32,
+    /// Team packets that did not fit a packet buffer (never expected).
+    pub send_failed: u32,
+}
+
+/// The team state kept by the obsw.
+pub struct Team {
+    me: u8,
+    node: Option<Node>,
+    roster: heapless::Vec<u8, ROSTER_MAX>,
+    /// Last term and vote the platform made durable (restored at boot).
+    durable: Persisted,
+    /// The ground's authorisation (kept here so that a new roster keeps it).
+    auth: Option<Authorisation>,
+    ground_tc: bool,
+    both_hold: Option<bool>,
+    next_status: u64,
+    tmw: TmWriter,
+    pub counters: TeamCounters,
+}
+
+impl Team {
+    pub fn new(me: u8, time: OnboardTime) -> Self {
+        Team {
+            me,
+            node: None,
+            roster: heapless::Vec::new(),
+            durable: Persisted::default(),
+            auth: None,
+            ground_tc: false,
+            both_hold: None,
+            next_status: 0,
+            tmw: TmWriter::new(TEAM_APID, time),
+            counters: TeamCounters::default(),
+        }
+    }
+
+    /// The node, once a roster is set.
+    pub fn node(&self) -> Option<&Node> {
+        self.node.as_ref()
+    }
+}
+
+fn step_down_code(r: StepDownReason) -> i64 {
+    match r {
+        StepDownReason::GroundRegained => 0,
+        StepDownReason::HigherTerm => 1,
+        StepDownReason::QuorumLost => 2,
+    }
+}
+
+fn refuse_code(r: RefuseReason) -> i64 {
+    match r {
+        RefuseReason::StaleTerm => 0,
+        RefuseReason::GroundPresent => 1,
+        RefuseReason::NotAuthorised => 2,
+        RefuseReason::Expired => 3,
+        RefuseReason::PlanMismatch => 4,
+        RefuseReason::WrongStep => 5,
+    }
+}
+
+fn directive_args(d: Directive) -> (i64, i64) {
+    match d {
+        Directive::Hold => (1, 0),
+        Directive::Continue { step, .. } => (2, i64::from(step)),
+    }
+}
+
+impl<S: TmStore> Obsw<S> {
+    /// Restores the durable term and vote (at boot, before a roster is set).
+    pub fn team_restore(&mut self, p: Persisted) {
+        self.team.durable = p;
+    }
+
+    /// Sets the team roster (ground TC TEAM_ROSTER, or the platform's configuration).
+    /// The node starts from the durable term and vote; boot and upload count as ground
+    /// contact.
+    pub fn team_set_roster(&mut self, now: u64, roster: &[u8]) -> Result<(), mmic_team::node::RosterError> {
+        let node = Node::restore(self.team.me, roster, self.team.durable, now)?;
+        self.team.node = Some(node);
+        self.team.roster.clear();
+        for r in roster.iter().take(ROSTER_MAX) {
+            // At most ROSTER_MAX (checked by the node above).
+            let _ = self.team.roster.push(*r);
+        }
+        if let (Some(a), Some(n)) = (self.team.auth, self.team.node.as_mut()) {
+            // Was accepted when uploaded; an expired one is simply not re-applied.
+            let _ = n.authorise(now, a);
+        }
+        self.team.next_status = now;
+        Ok(())
+    }
+
+    /// Earliest time the team logic has work (node timers, status report).
+    pub fn team_next_deadline(&self) -> u64 {
+        match &self.team.node {
+            Some(n) => n.next_deadline().min(self.team.next_status),
+            None => u64::MAX,
+        }
+    }
+
+    /// Feeds pending ground contact, the grippers and the time to the node, executes its
+    /// effects and sends the periodic status report. Call after every TC and control
+    /// period. `rand` comes from the platform (election jitter).
+    pub fn team_poll(&mut self, now: u64, rand: u32, link: &mut impl TeamLink, sink: &mut impl TmSink) {
+        if self.team.node.is_none() {
+            self.team.ground_tc = false;
+            return;
+        }
+        if core::mem::take(&mut self.team.ground_tc) {
+            self.team_input(now, rand, Input::GroundTc, link, sink);
+        }
+        let both_hold = self.computed_state() != mib::robot::STATE_UNKNOWN;
+        if self.team.both_hold != Some(both_hold) {
+            self.team.both_hold = Some(both_hold);
+            self.team_input(now, rand, Input::Grippers { both_hold }, link, sink);
+        }
+        self.team_input(now, rand, Input::Tick, link, sink);
+        if now >= self.team.next_status {
+            self.team.next_status = now + STATUS_PERIOD_MS;
+            self.team_status(now, sink);
+        }
+    }
+
+    /// A packet from the inter-robot link: a TM[211,1] of APID `TEAM_APID` whose source
+    /// data is a team message. Anything else is counted (`bad_packets`) and ignored.
+    pub fn team_packet(
+        &mut self,
+        now: u64,
+        rand: u32,
+        packet: &[u8],
+        link: &mut impl TeamLink,
+        sink: &mut impl TmSink,
+    ) {
+        let msg = match PusTmReader::new(packet, 7) {
+            Ok(tm)
+                if tm.apid().value() == TEAM_APID
+                    && tm.message_type_id().type_id == TEAM_SERVICE
+                    && tm.message_type_id().subtype_id == TEAM_SUBSERVICE_MESSAGE =>
+            {
+                Message::parse(tm.user_data()).ok()
+            }
+            _ => None,
+        };
+        match (msg, self.team.node.is_some()) {
+            (Some(m), true) => self.team_input(now, rand, Input::Message(m), link, sink),
+            _ => self.team.counters.bad_packets = self.team.counters.bad_packets.wrapping_add(1),
+        }
+    }
+
+    /// Records ground contact (every valid ground TC); fed to the node at the next poll.
+    pub(crate) fn team_ground_tc(&mut self) {
+        self.team.ground_tc = true;
+    }
+
+    /// Runs a TC the obsw released itself (PUS 11 schedule): it is not ground contact.
+    pub(crate) fn handle_onboard_tc(&mut self, now: u64, raw: &[u8], sink: &mut impl TmSink) {
+        let pending = self.team.ground_tc;
+        self.handle_tc(now, raw, sink);
+        self.team.ground_tc = pending;
+    }
+
+    fn team_input(&mut self, now: u64, rand: u32, input: Input, link: &mut impl TeamLink, sink: &mut impl TmSink) {
+        let Some(node) = self.team.node.as_mut() else { return };
+        let effects = node.on_event(now, rand, input);
+        for (i, e) in effects.iter().enumerate() {
+            match *e {
+                Effect::Persist(p) => {
+                    if link.persist(p) {
+                        self.team.durable = p;
+                    } else {
+                        // Treated as a reset: nothing of this batch goes out.
+                        let c = &mut self.team.counters;
+                        c.persist_failed = c.persist_failed.wrapping_add(1);
+                        c.effects_dropped = c.effects_dropped.wrapping_add((effects.len() - i - 1) as u32);
+                        let roster = self.team.roster.clone();
+                        self.team.node = Node::restore(self.team.me, &roster, self.team.durable, now).ok();
+                        return;
+                    }
+                }
+                Effect::Send { to, msg } => self.team_send(now, to, &msg, link),
+                Effect::Act(a) => self.team_act(now, a, sink),
+                Effect::Event(ev) => self.team_event(now, ev, sink),
+            }
+        }
+    }
+
+    fn team_send(&mut self, now: u64, to: Dest, msg: &Message, link: &mut impl TeamLink) {
+        let mut body = [0u8; MAX_LEN];
+        let mut out = [0u8; mib::config::MAX_PACKET_LEN];
+        let packet = match msg.emit(&mut body) {
+            Ok(n) => self
+                .team
+                .tmw
+                .build(now, TEAM_SERVICE, TEAM_SUBSERVICE_MESSAGE, &body[..n], &mut out),
+            Err(_) => None,
+        };
+        match packet {
+            Some(n) => link.send(to, &out[..n]),
+            None => self.team.counters.send_failed = self.team.counters.send_failed.wrapping_add(1),
+        }
+    }
+
+    fn team_act(&mut self, now: u64, a: Action, sink: &mut impl TmSink) {
+        let target = match a {
+            Action::Hold(HoldTarget::Standby) => robot_mode::STANDBY,
+            Action::Hold(HoldTarget::Safed) => robot_mode::SAFED,
+            Action::Continue { .. } => {
+                let c = &mut self.team.counters;
+                c.continue_not_executed = c.continue_not_executed.wrapping_add(1);
+                if self.computed_state() != mib::robot::STATE_UNKNOWN {
+                    robot_mode::STANDBY
+                } else {
+                    robot_mode::SAFED
+                }
+            }
+        };
+        // As the FDIR's "after the running motion" response: the primitive finishes first.
+        if self.running.is_some() {
+            self.faults.pending_mode = Some(match self.faults.pending_mode {
+                Some(p) if p == robot_mode::SAFED => p,
+                _ => target,
+            });
+        } else if self.modes.root_target() != target {
+            self.set_mode(now, target, eid::GROUND_LOST, sink);
+        }
+    }
+
+    fn team_event(&mut self, now: u64, ev: TeamEvent, sink: &mut impl TmSink) {
+        let term = |t: u32| i64::from(t);
+        match ev {
+            TeamEvent::GroundLost => {
+                let t = self.team.node.as_ref().map_or(0, |n| n.term());
+                self.event(now, eid::GROUND_LOST, &[term(t)], sink)
+            }
+            TeamEvent::ElectionStarted { term: t } => self.event(now, eid::ELECTION_STARTED, &[term(t)], sink),
+            TeamEvent::LeaderElected { term: t, leader } => {
+                self.event(now, eid::LEADER_ELECTED, &[term(t), i64::from(leader)], sink)
+            }
+            TeamEvent::SteppedDown { term: t, reason } => {
+                self.event(now, eid::STEPPED_DOWN, &[term(t), step_down_code(reason)], sink)
+            }
+            TeamEvent::GroundRegained { term: t } => self.event(now, eid::GROUND_REGAINED, &[term(t)], sink),
+            TeamEvent::DirectiveExecuted {
+                term: t,
+                leader,
+                directive,
+            } => {
+                let (d, step) = directive_args(directive);
+                self.event(
+                    now,
+                    eid::DIRECTIVE_EXECUTED,
+                    &[term(t), i64::from(leader), d, step],
+                    sink,
+                )
+            }
+            TeamEvent::DirectiveRefused { term: t, from, reason } => self.event(
+                now,
+                eid::DIRECTIVE_REFUSED,
+                &[term(t), i64::from(from), refuse_code(reason)],
+                sink,
+            ),
+        }
+    }
+
+    /// Emits the TEAM_STATUS report TM[211,2].
+    pub fn team_status(&mut self, now: u64, sink: &mut impl TmSink) {
+        let mut r = tm::TeamStatus {
+            term: self.team.durable.term,
+            role: 0,
+            leader: 0,
+            ground_seen: 1,
+            lease: 0,
+            voted_for: 0,
+            auth_plan: 0,
+            auth_first_step: 0,
+            auth_steps: 0,
+            auth_left_s: 0,
+            refused: 0,
+            foreign: 0,
+            roster: heapless::Vec::new(),
+        };
+        if let Some(n) = &self.team.node {
+            let s = n.status(now);
+            r.term = s.term;
+            r.role = s.role.code();
+            r.leader = s.leader.unwrap_or(0);
+            r.ground_seen = u8::from(s.ground_seen);
+            r.lease = u8::from(s.lease);
+            r.voted_for = s.voted_for.unwrap_or(0);
+            r.refused = s.counters.refused;
+            r.foreign = s.counters.foreign;
+            for robot in s.roster.iter() {
+                // Same capacity (ROSTER_MAX).
+                let _ = r.roster.push(tm::TeamStatusRoster { robot: *robot });
+            }
+        }
+        if let Some(a) = self.team.auth {
+            r.auth_plan = a.plan.id;
+            r.auth_first_step = a.first_step;
+            r.auth_steps = a.max_steps;
+            r.auth_left_s = (a.expires_at.saturating_sub(now) / 1000).min(u64::from(u32::MAX)) as u32;
+        }
+        self.emit_tm(now, r, sink);
+    }
+
+    pub(crate) fn team_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) -> Result<(), Failure> {
+        match r {
+            Request::Authorise(mut a, validity_s) => {
+                a.expires_at = now.saturating_add(u64::from(validity_s) * 1000);
+                if let Some(n) = self.team.node.as_mut() {
+                    n.authorise(now, a)
+                        .map_err(|_| Failure::arg_out_of_range(4, validity_s as i32))?;
+                }
+                self.team.auth = Some(a);
+            }
+            Request::Roster(slots) => {
+                let mut roster: heapless::Vec<u8, ROSTER_MAX> = heapless::Vec::new();
+                for r in slots.iter().filter(|r| **r != 0) {
+                    // At most ROSTER_MAX slots.
+                    let _ = roster.push(*r);
+                }
+                self.team_set_roster(now, &roster)
+                    .map_err(|_| Failure::arg_out_of_range(0, i32::from(slots[0])))?;
+            }
+            Request::Status => self.team_status(now, sink),
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accept::tests::tc_bytes;
+    use crate::obsw::tests::{kind, of, TestObsw};
+    use crate::obsw::Config;
+    use crate::tm::RingStore;
+    use std::vec::Vec;
+
+    /// A link that records persists and sends in order; `fail_persist` makes persists fail.
+    #[derive(Default)]
+    struct Link {
+        log: Vec<&'static str>,
+        sent: Vec<(Dest, Vec<u8>)>,
+        fail_persist: bool,
+    }
+
+    impl TeamLink for Link {
+        fn persist(&mut self, _p: Persisted) -> bool {
+            self.log.push("persist");
+            !self.fail_persist
+        }
+        fn send(&mut self, to: Dest, packet: &[u8]) {
+            self.log.push("send");
+            self.sent.push((to, packet.to_vec()));
+        }
+    }
+
+    fn robot(n: u8) -> TestObsw {
+        Obsw::new(
+            Config {
+                robot: n,
+                epoch_unix_ms: 1_790_000_000_000,
+            },
+            RingStore::default(),
+        )
+    }
+
+    fn events(pkts: &[Vec<u8>], id: u16) -> Vec<Vec<u8>> {
+        pkts.iter()
+            .filter(|p| kind(p).0 == 5 && kind(p).2[..2] == id.to_be_bytes())
+            .map(|p| kind(p).2[2..].to_vec())
+            .collect()
+    }
+
+    fn roster_tc(o: &mut TestObsw, now: u64, robots: &[u8]) -> Vec<Vec<u8>> {
+        let mut app = [0u8; 8];
+        app[..robots.len()].copy_from_slice(robots);
+        let mut sink = Vec::new();
+        let apid = o.apid();
+        o.handle_tc(now, &tc_bytes(apid, 1, 211, 4, &app), &mut sink);
+        sink
+    }
+
+    /// Runs three robots on a lossless in-memory link from `from` to `to` ms (10 ms steps).
+    fn run(team: &mut [TestObsw], links: &mut [Link], sinks: &mut [Vec<Vec<u8>>], from: u64, to: u64) {
+        let mut now = from;
+        let mut rand = 12345u32;
+        while now < to {
+            for i in 0..team.len() {
+                rand = rand.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+                team[i].team_poll(now, rand, &mut links[i], &mut sinks[i]);
+            }
+            for i in 0..team.len() {
+                for (dest, pkt) in core::mem::take(&mut links[i].sent) {
+                    for j in 0..team.len() {
+                        let me = (j + 1) as u8;
+                        if j != i && (dest == Dest::All || dest == Dest::To(me)) {
+                            team[j].team_packet(now, rand, &pkt, &mut links[j], &mut sinks[j]);
+                        }
+                    }
+                }
+            }
+            now += 10;
+        }
+    }
+
+    // verifies: TEAM-OBSW-01, TEAM-OBSW-02, TEAM-OBSW-03
+    #[test]
+    fn three_robots_elect_a_leader_hold_and_obey_the_ground_again() {
+        let mut team: Vec<TestObsw> = (1..=3).map(robot).collect();
+        let mut links: Vec<Link> = (0..3).map(|_| Link::default()).collect();
+        let mut sinks: Vec<Vec<Vec<u8>>> = vec![Vec::new(); 3];
+        for o in team.iter_mut() {
+            let r = roster_tc(o, 0, &[1, 2, 3]);
+            assert_eq!(of(&r, 1, 7).len(), 1, "roster accepted");
+        }
+        run(&mut team, &mut links, &mut sinks, 0, 12_000);
+        for (i, s) in sinks.iter().enumerate() {
+            assert_eq!(events(s, eid::GROUND_LOST).len(), 1, "robot {}", i + 1);
+            let elected = events(s, eid::LEADER_ELECTED);
+            assert!(!elected.is_empty(), "robot {} knows a leader", i + 1);
+            // The robot holds: no computed state in a fresh controller, so SAFED.
+            assert_eq!(team[i].modes.root_target(), robot_mode::SAFED);
+            assert!(!of(s, 211, 2).is_empty(), "status reports");
+        }
+        let leaders: Vec<u8> = team
+            .iter()
+            .filter(|o| o.team.node().unwrap().role() == mmic_team::Role::Leader)
+            .map(|o| o.team.node().unwrap().me())
+            .collect();
+        assert_eq!(leaders.len(), 1, "one leader: {leaders:?}");
+        // Persist always came before the sends of its batch: the first entry is a persist.
+        for l in &links {
+            if let Some(first) = l.log.iter().position(|e| *e == "send") {
+                assert!(l.log[..first].contains(&"persist"));
+            }
+        }
+        // The ground comes back to robot 1 and 2: they stop obeying at once.
+        for (i, o) in team.iter_mut().enumerate().take(2) {
+            let mut s = Vec::new();
+            let apid = o.apid();
+            o.handle_tc(12_000, &tc_bytes(apid, 7, 17, 1, &[]), &mut s);
+            o.team_poll(12_000, 1, &mut links[i], &mut s);
+            assert_eq!(events(&s, eid::GROUND_REGAINED).len(), 1);
+            assert!(o.team.node().unwrap().ground_seen());
+        }
+        // Status on request: term and roster.
+        let mut s = Vec::new();
+        let apid = team[0].apid();
+        team[0].handle_tc(12_010, &tc_bytes(apid, 8, 211, 5, &[]), &mut s);
+        let st = tm::TeamStatus::parse(kind(&of(&s, 211, 2)[0]).2).unwrap();
+        assert_eq!(st.roster.iter().map(|r| r.robot).collect::<Vec<_>>(), [1, 2, 3]);
+        assert_eq!(st.ground_seen, 1);
+        assert!(st.term >= 1);
+    }
+
+    // verifies: TEAM-OBSW-01
+    #[test]
+    fn a_scheduled_tc_is_not_ground_contact() {
+        let mut o = robot(1);
+        roster_tc(&mut o, 0, &[1, 2, 3]);
+        // A PING scheduled at 4 s (before the 5 s ground-loss timeout ends).
+        let mut app = vec![1u8];
+        app.extend_from_slice(&o.dl.tmw.time.cds(4_000));
+        app.extend_from_slice(&tc_bytes(0x101, 77, 17, 1, &[]));
+        let mut sink = Vec::new();
+        o.handle_tc(0, &tc_bytes(0x101, 2, 11, 4, &app), &mut sink);
+        assert_eq!(o.sched.len(), 1);
+        let mut link = Link::default();
+        let mut now = 0;
+        while now <= 5_200 {
+            o.release_schedule(now, &mut sink);
+            o.team_poll(now, 7, &mut link, &mut sink);
+            now += 10;
+        }
+        assert_eq!(o.sched.len(), 0, "the scheduled ping ran");
+        assert_eq!(
+            events(&sink, eid::GROUND_LOST).len(),
+            1,
+            "ground lost 5 s after the last ground TC"
+        );
+    }
+
+    // verifies: TEAM-OBSW-01
+    #[test]
+    fn a_failed_persist_sends_nothing_of_its_batch() {
+        let mut o = robot(1);
+        roster_tc(&mut o, 0, &[1, 2, 3]);
+        let mut link = Link {
+            fail_persist: true,
+            ..Link::default()
+        };
+        let mut sink = Vec::new();
+        let mut now = 0;
+        while now < 20_000 {
+            o.team_poll(now, 7, &mut link, &mut sink);
+            now += 10;
+        }
+        assert!(link.log.contains(&"persist"), "it tried to stand");
+        assert!(link.sent.is_empty(), "no vote request without a durable term");
+        assert!(o.team.counters.persist_failed > 0);
+        assert_eq!(o.team.node().unwrap().term(), 0, "restarted from the durable term");
+    }
+
+    // verifies: TEAM-OBSW-03
+    #[test]
+    fn a_roster_without_this_robot_and_a_bad_authorisation_are_refused() {
+        let mut o = robot(1);
+        let r = roster_tc(&mut o, 0, &[2, 3]);
+        assert_eq!(of(&r, 1, 4).len(), 1);
+        assert!(o.team.node().is_none());
+        assert!(of(&roster_tc(&mut o, 0, &[1, 2]), 1, 7).len() == 1);
+        let mut app = Vec::new();
+        app.extend_from_slice(&7u16.to_be_bytes());
+        app.extend_from_slice(&0xDEAD_BEEFu32.to_be_bytes());
+        app.extend_from_slice(&1u16.to_be_bytes());
+        app.push(5); // more than MAX_AUTHORISED_STEPS
+        app.extend_from_slice(&60u32.to_be_bytes());
+        let mut s = Vec::new();
+        o.handle_tc(10, &tc_bytes(0x101, 3, 211, 3, &app), &mut s);
+        assert_eq!(of(&s, 1, 2).len(), 1, "max_steps out of its MIB range");
+        app[8] = 4;
+        s.clear();
+        o.handle_tc(10, &tc_bytes(0x101, 4, 211, 3, &app), &mut s);
+        assert_eq!(of(&s, 1, 7).len(), 1);
+        s.clear();
+        o.team_status(20, &mut s);
+        let st = tm::TeamStatus::parse(kind(&of(&s, 211, 2)[0]).2).unwrap();
+        assert_eq!((st.auth_plan, st.auth_steps, st.auth_left_s), (7, 4, 59));
+    }
+}
