@@ -232,6 +232,10 @@ fn run(cli: Cli) -> Result<u8> {
     }
 }
 
+/// Sequence counts skipped at the start of a frame-link session (more than the obsw's
+/// 128-entry duplicate window).
+const SEQ_SKIP_AFTER_RESTART: u16 = 256;
+
 /// Opens the archive (if wanted) and a session to the given robots.
 pub fn open_session(
     links: &[(u8, SocketAddr)],
@@ -246,8 +250,19 @@ pub fn open_session(
         .map(|p| Archive::open(p).with_context(|| format!("opening archive {}", p.display())))
         .transpose()?;
     let path = archive_path.map(Path::to_path_buf);
+    // Over frames a ground killed with SIGKILL may not have archived its last TCs (the
+    // archive writes behind): starting right after the archived count could reuse a
+    // request ID the robot has already seen, which its duplicate window (still applied
+    // to frame TCs) would answer as a resend without executing. Skip ahead.
+    let skip = if transport == Transport::Frames {
+        SEQ_SKIP_AFTER_RESTART
+    } else {
+        0
+    };
     let session = Session::connect_with(links, transport, frames, archive.as_ref().map(|a| a.sender()), |apid| {
-        path.as_deref().and_then(|p| archive::next_seq(p, apid))
+        path.as_deref()
+            .and_then(|p| archive::next_seq(p, apid))
+            .map(|s| s.wrapping_add(skip) & 0x3FFF)
     })
     .map_err(|e| coded(exit::NO_ANSWER, e.to_string()))?;
     Ok((session, archive))

@@ -450,3 +450,131 @@ fn the_collector_follows_a_robot_over_frames_and_archives_each_tm_once() {
     let (lo, hi) = (*seqs.keys().next().unwrap(), *seqs.keys().last().unwrap());
     assert_eq!(seqs.len() as i64, hi - lo + 1, "no gap: {seqs:?}");
 }
+
+const WALK_PLAN: &str = r#"
+name = "walk"
+[[robot]]
+number = 1
+initial_state = "Xneg"
+[[step]]
+id = "operational"
+robot = 1
+action = "mode"
+mode = "operational"
+confirm = true
+[[step]]
+id = "walk"
+robot = 1
+action = "reconfigure"
+from = "Xneg"
+to = "Xpos"
+[[step]]
+id = "turn"
+robot = 1
+action = "reconfigure"
+from = "Xpos"
+to = "Yneg"
+[[step]]
+id = "standby"
+robot = 1
+action = "mode"
+mode = "standby"
+confirm = true
+"#;
+
+/// Runs WALK_PLAN over frames, through the lossy relay when `faults` is given; returns
+/// the summary, the run's seconds and the obsw's TM.
+fn walk_over_frames(name: &str, faults: Option<(&str, u64)>) -> (String, f64, Vec<ground::pus::Tm>) {
+    let dir = tmpdir("frames", name);
+    let keys = frame_keys(&dir, &[1]);
+    let log = dir.join("tm.log");
+    std::fs::write(dir.join("walk.toml"), WALK_PLAN).unwrap();
+    let frame: std::net::SocketAddr = ([127, 0, 0, 1], common::free_port()).into();
+    let ground_tm: std::net::SocketAddr = ([127, 0, 0, 1], common::free_port()).into();
+    let extra = [
+        "--speed",
+        "10",
+        "--seed",
+        "7",
+        "--initial-state",
+        "Xneg",
+        "--tm-log",
+        log.to_str().unwrap(),
+    ];
+    let (_relay, tc_to, tm_to) = match faults {
+        None => (None, frame, ground_tm),
+        Some((p, seed)) => {
+            let mut child = Command::new(common::relay_bin())
+                .args(["--to-udp", &frame.to_string(), "--tm-frames-to", &ground_tm.to_string()])
+                .args(["--drop", p.split(',').next().unwrap()])
+                .args(["--duplicate", p.split(',').nth(1).unwrap()])
+                .args(["--corrupt", p.split(',').nth(2).unwrap()])
+                .args(["--seed", &seed.to_string()])
+                .stdin(Stdio::piped())
+                .stdout(Stdio::piped())
+                .stderr(Stdio::null())
+                .spawn()
+                .expect("starting the relay");
+            let mut lines = std::io::BufReader::new(child.stdout.take().unwrap()).lines();
+            let ready = lines.next().and_then(Result::ok).unwrap_or_default();
+            let field = |k: &str| -> std::net::SocketAddr {
+                ready
+                    .split_whitespace()
+                    .find_map(|w| w.strip_prefix(k))
+                    .unwrap_or_else(|| panic!("relay: {ready:?}"))
+                    .parse()
+                    .unwrap()
+            };
+            let (udp, tmf) = (field("udp="), field("tm_frames="));
+            std::thread::spawn(move || for _ in lines {});
+            (Some(common::Proc(child)), udp, tmf)
+        }
+    };
+    let o = Obsw::start_frames_at(1, &keys, frame, tm_to, &extra);
+    let links = [
+        "--frames".to_string(),
+        "--keys".into(),
+        keys.to_str().unwrap().into(),
+        "--robot".into(),
+        format!("1={tc_to}"),
+        "--tm-listen".into(),
+        format!("1={ground_tm}"),
+    ];
+    let t0 = Instant::now();
+    let (code, t) = run(&dir, &["run", "walk.toml", "--plain"], &links, &[]);
+    let secs = t0.elapsed().as_secs_f64();
+    assert_eq!(code, Some(0), "{t}");
+    std::thread::sleep(Duration::from_millis(500));
+    drop(o);
+    (t, secs, tm_log(&log))
+}
+
+// verifies: LINK-GND-02
+#[test]
+#[ignore = "known gap: over frames a TM[1,x] lost on the downlink is not asked for again soon \
+            (no packet resend, store retrieval only at the end): of 3 runs one failed a step, the \
+            others took 21.6x and 3.0x the clean time; run with --ignored"]
+fn a_plan_over_frames_through_the_lossy_relay_executes_every_tc_exactly_once() {
+    let (clean, clean_s, _) = walk_over_frames("relay-clean", None);
+    assert!(clean.contains("4 of 4 steps done"), "{clean}");
+    let (t, lossy_s, tms) = walk_over_frames("relay-lossy", Some(("0.2,0.05,0.05", 11)));
+    assert!(t.contains("4 of 4 steps done"), "{t}");
+    assert!(
+        t.contains(" 0 resends"),
+        "the ground never resends a packet over frames: {t}"
+    );
+    // Judged from the obsw's own TM: every TC it accepted, accepted once; both
+    // reconfigurations ran once; the robot reached STANDBY once more after OPERATIONAL.
+    let acc = acceptances(&tms);
+    assert!(acc.values().all(|&n| n == 1), "a TC accepted twice: {acc:?}\n{t}");
+    assert_eq!(events_named(&tms, "STATE_REACHED"), 2, "{t}");
+    let starts = tms
+        .iter()
+        .filter(|tm| matches!(&tm.body, TmBody::Verification(v) if v.stage == Stage::Start))
+        .count();
+    assert_eq!(starts, 2, "two action TCs started once each\n{t}");
+    eprintln!(
+        "walk plan over frames: clean {clean_s:.1} s, 20/5/5 relay {lossy_s:.1} s ({:.2}x)",
+        lossy_s / clean_s
+    );
+}

@@ -96,6 +96,11 @@ impl Obsw {
     pub fn start_frames(robot: u8, keys: &Path, extra: &[&str]) -> Obsw {
         let frame: SocketAddr = ([127, 0, 0, 1], free_port()).into();
         let tm_to: SocketAddr = ([127, 0, 0, 1], free_port()).into();
+        Obsw::start_frames_at(robot, keys, frame, tm_to, extra)
+    }
+
+    /// [`Obsw::start_frames`] with the frame port and the TM frame destination given.
+    pub fn start_frames_at(robot: u8, keys: &Path, frame: SocketAddr, tm_to: SocketAddr, extra: &[&str]) -> Obsw {
         let rd = keys.join(format!("robot-{robot}"));
         let p = |f: &str| rd.join(f).to_str().unwrap().to_string();
         let (tc, tm, st) = (p("tc-spi1.key"), p("tm-spi17.key"), p("obsw-link.state"));
@@ -284,4 +289,40 @@ pub fn wait_for<T>(secs: u64, what: &str, mut f: impl FnMut() -> Option<T>) -> T
         assert!(Instant::now() < end, "timed out waiting for {what}");
         std::thread::sleep(Duration::from_millis(100));
     }
+}
+
+/// The project's lossy relay (`e2e-tests`' `relay` binary), built first like the obsw.
+pub fn relay_bin() -> PathBuf {
+    static BIN: OnceLock<PathBuf> = OnceLock::new();
+    BIN.get_or_init(|| {
+        let exe = std::env::current_exe().unwrap();
+        let profile_dir = exe.parent().and_then(Path::parent).unwrap();
+        let profile = match profile_dir.file_name().and_then(|n| n.to_str()) {
+            Some("debug") | None => "dev".to_string(),
+            Some(p) => p.to_string(),
+        };
+        let out = Command::new(env!("CARGO"))
+            .args([
+                "build",
+                "-q",
+                "-p",
+                "e2e-tests",
+                "--bin",
+                "relay",
+                "--profile",
+                &profile,
+            ])
+            .arg("--target-dir")
+            .arg(profile_dir.parent().unwrap())
+            .current_dir(root())
+            .output()
+            .expect("running cargo to build the relay");
+        assert!(
+            out.status.success(),
+            "building the relay failed:\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        profile_dir.join("relay")
+    })
+    .clone()
 }
