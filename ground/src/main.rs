@@ -27,6 +27,7 @@ mod verb_decode;
 mod verb_keys;
 mod verb_live;
 mod verb_mib;
+mod verb_model;
 mod verb_plan;
 mod verb_run;
 mod verb_sim;
@@ -35,6 +36,7 @@ use verb_archive::{archive_cmd, ArchiveCmd};
 use verb_decode::{decode, DecodeArgs};
 use verb_live::{mode, ping, send, watch, ModeArgs, PingArgs, SendArgs, WatchArgs};
 use verb_mib::{mib_export, MibCmd};
+use verb_model::{model, ModelArgs};
 use verb_plan::{plan_check, plan_encode, PlanCmd};
 pub(crate) use verb_run::{interrupt_flag, plan_policy, unconfirmed};
 use verb_run::{run_plan, RunArgs};
@@ -109,6 +111,8 @@ enum Cmd {
     /// Export the MIB for other ground systems.
     #[command(subcommand)]
     Mib(MibCmd),
+    /// Write a robot's URDF from its module report (live) or a module-set file.
+    Model(ModelArgs),
     /// Start two simulated robots, run the demo plan and summarise.
     Demo(demo::DemoArgs),
     /// Follow robots unattended: archive everything, fill gaps, raise alarms.
@@ -225,6 +229,7 @@ fn run(cli: Cli) -> Result<u8> {
         Cmd::Sim(a) => sim(&a),
         Cmd::Archive(a) => archive_cmd(a, &cli.archive),
         Cmd::Mib(MibCmd::Export { format, out: dir }) => mib_export(&format, &dir),
+        Cmd::Model(a) => model(&a, archive_path.as_deref()),
         Cmd::Demo(a) => demo::demo(&a, archive_path.as_deref()),
         Cmd::Collect(a) => ground::collect::collect_cli(&cli.archive, a),
         Cmd::Alarms(a) => ground::collect::alarms_cli(&cli.archive, a),
