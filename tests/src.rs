@@ -34,7 +34,7 @@ pub fn bin(name: &str) -> PathBuf {
     path
 }
 
-/// Runs `cargo build -p PACKAGE --bin NAME` once per binary and process, into the
+/// Runs `cargo build --workspace --bins` once per binary and process, into the
 /// target directory and profile the test executable itself was built in. Cargo makes this
 /// a no-op when the binary is up to date (a fraction of a second).
 fn ensure_built(name: &str, profile_dir: &std::path::Path) {
@@ -45,10 +45,6 @@ fn ensure_built(name: &str, profile_dir: &std::path::Path) {
     if built.contains(name) {
         return;
     }
-    let package = match name {
-        "relay" => "e2e-tests",
-        other => other,
-    };
     let target_dir = profile_dir.parent().expect("target directory");
     let profile = match profile_dir.file_name().and_then(|n| n.to_str()) {
         Some("debug") | None => "dev".to_string(),
@@ -56,7 +52,10 @@ fn ensure_built(name: &str, profile_dir: &std::path::Path) {
     };
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
     let out = Command::new(cargo)
-        .args(["build", "-q", "-p", package, "--bin", name, "--profile", &profile])
+        // The whole workspace's binaries, as CI's build step and the review build them: the
+        // same feature set, so this is a no-op after them (building one package alone would
+        // resolve features differently and rebuild its libraries).
+        .args(["build", "-q", "--workspace", "--bins", "--profile", &profile])
         .arg("--target-dir")
         .arg(target_dir)
         .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
@@ -64,7 +63,7 @@ fn ensure_built(name: &str, profile_dir: &std::path::Path) {
         .unwrap_or_else(|e| panic!("cannot run cargo to build {name}: {e}"));
     assert!(
         out.status.success(),
-        "building {name} (cargo build -p {package} --bin {name}) failed:\n{}",
+        "building {name} (cargo build --workspace --bins) failed:\n{}",
         String::from_utf8_lossy(&out.stderr)
     );
     built.insert(name.to_string());

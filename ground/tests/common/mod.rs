@@ -35,7 +35,9 @@ pub fn obsw_bin() -> PathBuf {
             Some(p) => p.to_string(),
         };
         let out = Command::new(env!("CARGO"))
-            .args(["build", "-q", "-p", "obsw", "--bin", "obsw", "--profile", &profile])
+            // The workspace's binaries, as CI and the review build them (the same feature
+            // set, so a no-op after them).
+            .args(["build", "-q", "--workspace", "--bins", "--profile", &profile])
             .arg("--target-dir")
             .arg(profile_dir.parent().unwrap())
             .current_dir(root())
