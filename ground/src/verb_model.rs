@@ -101,7 +101,14 @@ fn report_of_robot(a: &ModelArgs, archive_path: Option<&Path>) -> Result<Vec<u8>
     'wait: while t0.elapsed() < Duration::from_secs_f64(a.timeout) {
         for u in s.poll(Duration::from_millis(100)) {
             match u {
-                Update::Tm { robot: r, tm } if r == robot && (tm.service, tm.subservice) == (210, 3) => {
+                Update::Tm { robot: r, tm }
+                    if r == robot
+                        && (tm.service, tm.subservice)
+                            == (
+                                mib_wire::tm::ModuleReport::SERVICE,
+                                mib_wire::tm::ModuleReport::SUBSERVICE,
+                            ) =>
+                {
                     if let TmBody::Unknown { data } = tm.body {
                         // A robot that has just booted reports before its discovery has
                         // finished (hash 0, CONFIG_HASH's "not discovered"): its boot report

@@ -685,7 +685,7 @@ pub const TCS: &[TcDef] = &[
     ),
     // --- 210 modules (mission-specific) ---
     tc(
-        210,
+        service::MODULES,
         1,
         "REPORT_MODULES",
         &[],
@@ -693,7 +693,7 @@ pub const TCS: &[TcDef] = &[
         "Report the module set found at boot (TM[210,3] MODULE_REPORT)",
     ),
     tc(
-        210,
+        service::MODULES,
         2,
         "ACCEPT_CONFIG",
         &[a(
@@ -710,7 +710,7 @@ pub const TCS: &[TcDef] = &[
     .hazardous("lets the robot operate with modules the ground has not seen before"),
     // --- 211 team coordination without the ground (issue 25, crate::team) ---
     tc(
-        211,
+        service::TEAM,
         3,
         "TEAM_AUTHORISE",
         &[
@@ -725,7 +725,7 @@ pub const TCS: &[TcDef] = &[
     )
     .hazardous("lets robots continue a plan without the ground"),
     tc(
-        211,
+        service::TEAM,
         4,
         "TEAM_ROSTER",
         &[
@@ -742,7 +742,7 @@ pub const TCS: &[TcDef] = &[
         "Team: upload the roster (robot numbers in order of preference, 2..8 robots, this robot among them; 0 = unused); term and vote kept",
     ),
     tc(
-        211,
+        service::TEAM,
         5,
         "TEAM_STATUS_REQUEST",
         &[],
@@ -1038,7 +1038,7 @@ pub const TMS: &[TmDef] = &[
         "Mode could not be reached",
     ),
     tm(
-        210,
+        service::MODULES,
         3,
         "MODULE_REPORT",
         MODULE_REPORT_BODY,
@@ -1048,7 +1048,7 @@ pub const TMS: &[TmDef] = &[
          module set and its URDF from it)",
     ),
     tm(
-        211,
+        service::TEAM,
         2,
         "TEAM_STATUS",
         &[
