@@ -139,24 +139,8 @@ impl Downlink {
         store: &mut impl IvStore,
         out: impl FnMut(&[u8]),
     ) -> Result<(), DownlinkError> {
-        let mux = match vc {
-            TmVc::Realtime => &mut self.rt,
-            TmVc::Replay => &mut self.replay,
-        };
-        let mut c = FrameCtx {
-            scid: self.scid,
-            mc: &mut self.mc,
-            vc: &mut self.vc,
-            counters: &mut self.counters,
-            clcw: clcw.emit(),
-            sa,
-            store,
-            out,
-            err: None,
-        };
-        mux.push(packet, |z| c.secure(vc.id(), z))
-            .map_err(DownlinkError::Packet)?;
-        c.err.map_or(Ok(()), |e| Err(DownlinkError::Sdls(e)))
+        self.with_vc(vc, clcw, sa, store, out, |mux, emit| mux.push(packet, emit))?
+            .map_err(DownlinkError::Packet)
     }
 
     /// Sends the partly filled frame of `vc` (padded with an idle packet), if any.
@@ -168,6 +152,21 @@ impl Downlink {
         store: &mut impl IvStore,
         out: impl FnMut(&[u8]),
     ) -> Result<(), DownlinkError> {
+        self.with_vc(vc, clcw, sa, store, out, |mux, emit| mux.flush(emit))
+    }
+
+    /// Runs `op` on `vc`'s multiplexer with a frame emitter that secures, stamps and sends
+    /// every frame the multiplexer fills (`send` and `flush` share it). An SDLS failure of
+    /// any frame is returned after `op`.
+    fn with_vc<R, S: IvStore, O: FnMut(&[u8])>(
+        &mut self,
+        vc: TmVc,
+        clcw: Clcw,
+        sa: &mut TxSa,
+        store: &mut S,
+        out: O,
+        op: impl FnOnce(&mut PacketMux<SECURE_DATA_LEN>, &mut dyn FnMut(Zone<'_>)) -> R,
+    ) -> Result<R, DownlinkError> {
         let mux = match vc {
             TmVc::Realtime => &mut self.rt,
             TmVc::Replay => &mut self.replay,
@@ -183,8 +182,8 @@ impl Downlink {
             out,
             err: None,
         };
-        mux.flush(|z| c.secure(vc.id(), z));
-        c.err.map_or(Ok(()), |e| Err(DownlinkError::Sdls(e)))
+        let r = op(mux, &mut |z| c.secure(vc.id(), z));
+        c.err.map_or(Ok(r), |e| Err(DownlinkError::Sdls(e)))
     }
 
     /// An idle frame on VC7 carrying the CLCW (in clear: nothing secret, and the OCF is
