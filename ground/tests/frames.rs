@@ -7,11 +7,10 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::io::BufRead;
 use std::path::Path;
 use std::process::{Command, Stdio};
-use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 mod common;
-use common::{frame_keys, ground, text, tmpdir, Obsw, GROUND};
+use common::{frame_keys, ground, text, tmpdir, Obsw, Running, GROUND};
 use ground::pus::{Stage, TmBody};
 
 fn run(dir: &Path, pre: &[&str], links: &[String], post: &[&str]) -> (Option<i32>, String) {
@@ -150,51 +149,6 @@ fn ping_mode_send_and_run_over_frames_against_the_real_obsw() {
     assert_eq!(events_named(&tms, "STATE_REACHED"), 2, "two reconfigurations ran");
 }
 
-/// A `ground` child whose stderr lines arrive on a channel.
-struct Running {
-    child: std::process::Child,
-    lines: mpsc::Receiver<String>,
-    seen: Vec<String>,
-}
-
-impl Running {
-    fn start(dir: &Path, args: &[String]) -> Running {
-        let mut child = Command::new(GROUND)
-            .current_dir(dir)
-            .args(args)
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped())
-            .spawn()
-            .expect("starting ground");
-        let err = child.stderr.take().unwrap();
-        let (tx, lines) = mpsc::channel();
-        std::thread::spawn(move || {
-            for l in std::io::BufReader::new(err).lines().map_while(Result::ok) {
-                let _ = tx.send(l);
-            }
-        });
-        Running {
-            child,
-            lines,
-            seen: Vec::new(),
-        }
-    }
-
-    fn wait_for(&mut self, what: &str, limit: Duration) {
-        let t0 = Instant::now();
-        while t0.elapsed() < limit {
-            if let Ok(l) = self.lines.recv_timeout(Duration::from_millis(100)) {
-                let hit = l.contains(what);
-                self.seen.push(l);
-                if hit {
-                    return;
-                }
-            }
-        }
-        panic!("no line with {what:?} within {limit:?}:\n{}", self.seen.join("\n"));
-    }
-}
-
 const BOLT_PLAN: &str = r#"
 name = "bolt"
 [[robot]]
@@ -256,8 +210,7 @@ fn a_ground_killed_mid_plan_over_frames_resynchronises_and_neither_repeats_nor_s
     // Long enough for the archive to hold the BOLT_FACE TC, well before it completes.
     std::thread::sleep(Duration::from_millis(2000));
     // SIGKILL: no summary, no goodbye; the FOP-1 state dies with the process.
-    g.child.kill().unwrap();
-    let _ = g.child.wait();
+    g.kill();
 
     let mut args: Vec<String> = vec!["run".into(), "bolt.toml".into(), "--plain".into(), "--resume".into()];
     args.extend(links.iter().cloned());

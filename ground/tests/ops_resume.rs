@@ -3,14 +3,11 @@
 //! `--tm-log` (every TM packet it sent, one hex line each), not from the ground.
 
 use std::collections::BTreeSet;
-use std::io::BufRead;
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
-use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 mod common;
-use common::{ground, text, tmpdir, Obsw, GROUND};
+use common::{ground, text, tmpdir, Obsw, Running};
 
 const BOLT_PLAN: &str = r#"
 name = "bolt"
@@ -36,77 +33,6 @@ action = "mode"
 mode = "standby"
 confirm = true
 "#;
-
-/// A `ground` child whose stderr lines arrive on a channel (stdout kept for the end).
-struct Running {
-    child: Child,
-    lines: mpsc::Receiver<String>,
-    seen: Vec<String>,
-}
-
-impl Running {
-    fn start(dir: &Path, args: &[&str]) -> Running {
-        let mut child = Command::new(GROUND)
-            .current_dir(dir)
-            .args(args)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .expect("starting ground");
-        let err = child.stderr.take().unwrap();
-        let (tx, lines) = mpsc::channel();
-        std::thread::spawn(move || {
-            for l in std::io::BufReader::new(err).lines().map_while(Result::ok) {
-                let _ = tx.send(l);
-            }
-        });
-        Running {
-            child,
-            lines,
-            seen: Vec::new(),
-        }
-    }
-
-    /// Waits (at most `limit`) for a stderr line containing `what`.
-    fn wait_for(&mut self, what: &str, limit: Duration) {
-        let t0 = Instant::now();
-        while t0.elapsed() < limit {
-            if let Ok(l) = self.lines.recv_timeout(Duration::from_millis(100)) {
-                let hit = l.contains(what);
-                self.seen.push(l);
-                if hit {
-                    return;
-                }
-            }
-        }
-        panic!("no line with {what:?} within {limit:?}:\n{}", self.seen.join("\n"));
-    }
-
-    fn interrupt(&self) {
-        self.signal("-INT");
-    }
-
-    fn signal(&self, sig: &str) {
-        let st = Command::new("kill")
-            .args([sig, &self.child.id().to_string()])
-            .status()
-            .unwrap();
-        assert!(st.success());
-    }
-
-    /// Exit code, stdout, and every stderr line.
-    fn finish(mut self) -> (Option<i32>, String, String) {
-        let mut out = String::new();
-        if let Some(mut o) = self.child.stdout.take() {
-            std::io::Read::read_to_string(&mut o, &mut out).unwrap();
-        }
-        let code = self.child.wait().unwrap().code();
-        while let Ok(l) = self.lines.recv_timeout(Duration::from_millis(200)) {
-            self.seen.push(l);
-        }
-        (code, out, self.seen.join("\n"))
-    }
-}
 
 /// Distinct TM packets of the obsw's `--tm-log` (a replay writes a packet again).
 fn tm_log(path: &Path) -> Vec<ground::pus::Tm> {

@@ -328,3 +328,98 @@ pub fn relay_bin() -> PathBuf {
     })
     .clone()
 }
+
+/// A running `ground` child: its stderr lines arrive on a channel as they are written (to
+/// wait for progress), its stdout is collected for the end.
+pub struct Running {
+    child: Child,
+    lines: std::sync::mpsc::Receiver<String>,
+    stdout: Option<std::thread::JoinHandle<String>>,
+    seen: Vec<String>,
+}
+
+impl Running {
+    pub fn start<S: AsRef<std::ffi::OsStr>>(dir: &Path, args: &[S]) -> Running {
+        let mut child = Command::new(GROUND)
+            .current_dir(dir)
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("starting ground");
+        let err = child.stderr.take().unwrap();
+        let mut out = child.stdout.take().unwrap();
+        let (tx, lines) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            for l in std::io::BufReader::new(err).lines().map_while(Result::ok) {
+                let _ = tx.send(l);
+            }
+        });
+        // Drained all along, so a chatty child never blocks on a full pipe.
+        let stdout = std::thread::spawn(move || {
+            let mut s = String::new();
+            let _ = out.read_to_string(&mut s);
+            s
+        });
+        Running {
+            child,
+            lines,
+            stdout: Some(stdout),
+            seen: Vec::new(),
+        }
+    }
+
+    /// Waits (at most `limit`) for a stderr line containing `what`; panics with every line
+    /// seen so far otherwise.
+    pub fn wait_for(&mut self, what: &str, limit: Duration) {
+        let t0 = Instant::now();
+        while t0.elapsed() < limit {
+            if let Ok(l) = self.lines.recv_timeout(Duration::from_millis(100)) {
+                let hit = l.contains(what);
+                self.seen.push(l);
+                if hit {
+                    return;
+                }
+            }
+        }
+        panic!("no line with {what:?} within {limit:?}:\n{}", self.seen.join("\n"));
+    }
+
+    /// Sends SIGINT, as Ctrl-C does.
+    pub fn interrupt(&self) {
+        self.signal("-INT");
+    }
+
+    pub fn signal(&self, sig: &str) {
+        let st = Command::new("kill")
+            .args([sig, &self.child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(st.success());
+    }
+
+    /// Sends SIGKILL and reaps the child.
+    pub fn kill(mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+
+    /// Waits for the exit: exit code, stdout, and every stderr line.
+    pub fn finish(mut self) -> (Option<i32>, String, String) {
+        let code = self.child.wait().unwrap().code();
+        let out = self.stdout.take().map(|h| h.join().unwrap_or_default()).unwrap_or_default();
+        while let Ok(l) = self.lines.recv_timeout(Duration::from_millis(200)) {
+            self.seen.push(l);
+        }
+        (code, out, self.seen.join("\n"))
+    }
+}
+
+impl Drop for Running {
+    fn drop(&mut self) {
+        if let Ok(None) = self.child.try_wait() {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
+}
