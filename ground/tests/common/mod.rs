@@ -407,7 +407,11 @@ impl Running {
     /// Waits for the exit: exit code, stdout, and every stderr line.
     pub fn finish(mut self) -> (Option<i32>, String, String) {
         let code = self.child.wait().unwrap().code();
-        let out = self.stdout.take().map(|h| h.join().unwrap_or_default()).unwrap_or_default();
+        let out = self
+            .stdout
+            .take()
+            .map(|h| h.join().unwrap_or_default())
+            .unwrap_or_default();
         while let Ok(l) = self.lines.recv_timeout(Duration::from_millis(200)) {
             self.seen.push(l);
         }
