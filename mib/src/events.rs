@@ -62,7 +62,7 @@ macro_rules! events {
         pub mod eid { $( #[doc = $desc] pub const $name: u16 = $id; )* }
         pub const EVENTS: &[EventDef] = &[ $( EventDef {
             id: $id, name: stringify!($name), severity: Severity::$sev, fault: $fault,
-            params: &[$( p($pn, PType::$pt)$(.names($en))? ),*], desc: $desc,
+            params: &[$( p($pn, PType::$pt)$(.names($en))? ),*], desc: $crate::types::text($desc),
         }, )* ];
     };
 }

@@ -23,7 +23,7 @@ const fn f(name: &'static str, bits: u32, fixed: Option<u32>, desc: &'static str
         name,
         bits,
         fixed,
-        desc,
+        desc: crate::types::text(desc),
     }
 }
 

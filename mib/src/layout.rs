@@ -255,7 +255,7 @@ impl Field {
             names: Names::None,
             min: ptype.min(),
             max: ptype.max(),
-            desc,
+            desc: crate::types::text(desc),
         }
     }
     /// A bit field of `bits` bits (unsigned).
@@ -374,7 +374,7 @@ pub const REQUEST_ID: Sub = Sub {
         Field::bitfield("seq_flags", 2, "sequence flags of the TC (3 = unsegmented)").names(SEQ_FLAG_NAMES),
         Field::bitfield("seq_count", 14, "packet sequence count of the TC"),
     ],
-    desc: "PUS 1 request ID: packet ID and packet sequence control of the TC",
+    desc: crate::types::text("PUS 1 request ID: packet ID and packet sequence control of the TC"),
 };
 
 /// A CDS short time stamp (p-field, days since 1958-01-01, ms of day).
@@ -390,7 +390,7 @@ pub const CDS_TIME: Sub = Sub {
             .unit("ms")
             .range(0, crate::headers::MS_PER_DAY),
     ],
-    desc: "CDS short time stamp",
+    desc: crate::types::text("CDS short time stamp"),
 };
 
 /// Length on the wire of a list of fields (bit fields summed; whole bytes).

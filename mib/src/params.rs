@@ -94,7 +94,7 @@ macro_rules! params {
         /// Every telemetry parameter, in ID order.
         pub const PARAMS: &[ParamDef] = &[ $( ParamDef {
             id: $id, name: stringify!($name), ptype: PType::$t, unit: $unit,
-            calib: $cal, limits: $lim, limits_in: limits_in($id), limits_if: limits_if($id), desc: $desc,
+            calib: $cal, limits: $lim, limits_in: limits_in($id), limits_if: limits_if($id), desc: $crate::types::text($desc),
         }, )* ];
     };
 }
@@ -219,7 +219,7 @@ const fn limits_if(id: u16) -> Option<LimitCond> {
         pid::HIP_DEVIATION => Some(LimitCond {
             param: pid::ACTIVE_PRIMITIVE,
             raw: 0,
-            desc: "no motion primitive running",
+            desc: crate::types::text("no motion primitive running"),
         }),
         _ => None,
     }

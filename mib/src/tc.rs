@@ -105,7 +105,7 @@ const fn tc(
         long_running: false,
         failures,
         hazard: None,
-        desc,
+        desc: crate::types::text(desc),
     }
 }
 
@@ -130,7 +130,7 @@ const fn func(
         long_running,
         failures,
         hazard: None,
-        desc,
+        desc: crate::types::text(desc),
     }
 }
 
@@ -755,7 +755,7 @@ impl TcDef {
     /// The same TC, marked hazardous for the reason `why`.
     pub const fn hazardous(self, why: &'static str) -> TcDef {
         TcDef {
-            hazard: Some(why),
+            hazard: Some(crate::types::text(why)),
             ..self
         }
     }
@@ -817,7 +817,7 @@ const fn tm(service: u8, subservice: u8, name: &'static str, body: &'static [Ite
         subservice,
         name,
         body,
-        desc,
+        desc: crate::types::text(desc),
     }
 }
 

@@ -17,7 +17,7 @@ macro_rules! tunables {
         /// Tunable IDs by mnemonic.
         pub mod tid { $( #[doc = $desc] pub const $name: u16 = $id; )* }
         pub const TUNABLES: &[TunableDef] = &[ $( TunableDef {
-            id: $id, name: stringify!($name), unit: $unit, default: $def, min: $min, max: $max, desc: $desc,
+            id: $id, name: stringify!($name), unit: $unit, default: $def, min: $min, max: $max, desc: $crate::types::text($desc),
         }, )* ];
     };
 }

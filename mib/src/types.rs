@@ -85,6 +85,18 @@ impl PType {
     }
 }
 
+/// Free text of a MIB table entry (description, hazard reason): `s` with feature
+/// `descriptions` (implied by `std`), `""` without, so that a no_std image that never
+/// shows the text does not store it. Only names, units and numbers are in every build.
+#[inline(always)]
+pub const fn text(s: &'static str) -> &'static str {
+    if cfg!(feature = "descriptions") {
+        s
+    } else {
+        ""
+    }
+}
+
 /// Linear raw → engineering calibration: `eng = raw * scale + offset`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Calib {
