@@ -91,7 +91,11 @@ pub const MODULE_REASON_NAMES: Names = Names::List(&[
     (10, "PROBE_DISAGREES"),
     (11, "MISSING"),
     (12, "UNSUPPORTED"),
+    (13, "CALIBRATION_OUT_OF_RANGE"),
 ]);
+/// Why the host's accepted-configuration state file gave nothing (event CONFIG_STATE_LOST).
+pub const CONFIG_STATE_LOST_NAMES: Names =
+    Names::List(&[(1, "MISSING"), (2, "UNREADABLE"), (3, "CORRUPT"), (4, "WRITE_FAILED")]);
 /// Supported configurations (`crate::modules::config::CONFIGS`); 0 = none (invalid set).
 pub const CONFIG_ID_NAMES: Names = Names::List(&[(0, "NONE"), (1, "FULL"), (2, "LOCOMOTION_ONLY")]);
 /// State of the module configuration against the one the ground accepted.

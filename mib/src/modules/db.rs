@@ -16,7 +16,7 @@
 //! The inertial of an entry is given in the module's own frame: mass (kg), centre of
 //! mass, inertia about the centre of mass (kg·m², `ixx iyy izz ixy ixz iyz`).
 
-use super::descriptor::Calibration;
+use super::descriptor::{Calibration, CAL_DEFAULT};
 use super::ModuleType;
 
 /// A rigid placement: translation, then roll-pitch-yaw (URDF convention).
@@ -122,7 +122,136 @@ pub struct ModuleDef {
     pub inertial: Inertial,
     pub part: Option<Part>,
     pub cal_default: Calibration,
+    /// Accepted range (inclusive) of each calibration word; `(0, 0)` for unused words.
+    /// A descriptor word outside its range makes the module set invalid
+    /// ([`resolve_calibration`]).
+    pub cal_range: CalRange,
     pub compat: Compat,
+}
+
+/// Inclusive `(min, max)` of each of the eight calibration words.
+pub type CalRange = [(i16, i16); 8];
+
+const UNUSED: (i16, i16) = (0, 0);
+/// Hip: home within ±5° (the states assume the hip at 0 when contracted), currents.
+const HIP_CAL_RANGE: CalRange = [
+    (-500, 500),
+    (100, 1000),
+    (1000, 4000),
+    UNUSED,
+    UNUSED,
+    UNUSED,
+    UNUSED,
+    UNUSED,
+];
+/// Arm: contracted and extended pulse widths (disjoint, so contracted < extended), home
+/// anywhere the servo is driven, currents.
+const ARM_CAL_RANGE: CalRange = [
+    (900, 1200),
+    (1800, 2100),
+    (900, 2100),
+    (100, 1000),
+    (1000, 4000),
+    UNUSED,
+    UNUSED,
+    UNUSED,
+];
+/// Gripper rev 1: closed, open, home (µs), currents (mA).
+const GRIPPER1_CAL_RANGE: CalRange = [
+    (1000, 1300),
+    (1700, 2100),
+    (900, 2100),
+    (100, 1000),
+    (500, 2500),
+    UNUSED,
+    UNUSED,
+    UNUSED,
+];
+/// Gripper rev 2: its narrower PWM range (end stops at 1120 and 1880 µs).
+const GRIPPER2_CAL_RANGE: CalRange = [
+    (1120, 1300),
+    (1700, 1880),
+    (1120, 1880),
+    (100, 1000),
+    (500, 2500),
+    UNUSED,
+    UNUSED,
+    UNUSED,
+];
+/// Bolter: push and lock thresholds within the PUS 20 tunables' ranges
+/// (`BOLT_PUSH_THRESHOLD_MA` 200..2400, `BOLT_LOCK_THRESHOLD_MA` 400..2450), currents.
+const BOLTER_CAL_RANGE: CalRange = [
+    (200, 2400),
+    (400, 2450),
+    (100, 1000),
+    (1000, 4000),
+    UNUSED,
+    UNUSED,
+    UNUSED,
+    UNUSED,
+];
+const IMU_CAL_RANGE: CalRange = [
+    (-200, 200),
+    (-200, 200),
+    (-200, 200),
+    UNUSED,
+    UNUSED,
+    UNUSED,
+    UNUSED,
+    UNUSED,
+];
+const ADC_CAL_RANGE: CalRange = [(-5000, 5000), (-50, 50), UNUSED, UNUSED, UNUSED, UNUSED, UNUSED, UNUSED];
+/// Encoder: zero 0..4095 counts (12 bits), direction −1 or +1 (0 is refused).
+const ENCODER_CAL_RANGE: CalRange = [(0, 4095), (-1, 1), UNUSED, UNUSED, UNUSED, UNUSED, UNUSED, UNUSED];
+/// Board: firmware version 1.0 .. 127.255.
+const BOARD_CAL_RANGE: CalRange = [(0x0100, 0x7FFF), UNUSED, UNUSED, UNUSED, UNUSED, UNUSED, UNUSED, UNUSED];
+
+/// A calibration word outside its database range.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CalError {
+    /// Word index (0..8, [`ModuleType::cal_names`]).
+    pub word: u8,
+    pub value: i16,
+    pub min: i16,
+    pub max: i16,
+}
+
+impl core::fmt::Display for CalError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(
+            f,
+            "calibration word {} = {} outside {}..={}",
+            self.word, self.value, self.min, self.max
+        )
+    }
+}
+
+impl core::error::Error for CalError {}
+
+/// The calibration a module runs with: each word of `cal` that is [`CAL_DEFAULT`] takes
+/// the database default of `def`; every word must then lie in `def.cal_range` (the
+/// encoder direction must also be non-zero). The first bad word is the error.
+pub fn resolve_calibration(def: &ModuleDef, cal: &Calibration) -> Result<Calibration, CalError> {
+    let mut out = [0i16; 8];
+    for (i, o) in out.iter_mut().enumerate() {
+        let v = if cal.0[i] == CAL_DEFAULT {
+            def.cal_default.0[i]
+        } else {
+            cal.0[i]
+        };
+        let (min, max) = def.cal_range[i];
+        let zero_direction = def.ty == ModuleType::Encoder && i == 1 && v == 0;
+        if v < min || v > max || zero_direction {
+            return Err(CalError {
+                word: i as u8,
+                value: v,
+                min,
+                max,
+            });
+        }
+        *o = v;
+    }
+    Ok(Calibration(out))
 }
 
 const PI: f64 = core::f64::consts::PI;
@@ -156,6 +285,7 @@ pub const MODULE_DB: &[ModuleDef] = &[
         inertial: inertial(0.260, [0.0, 0.0, 0.0], box_inertia(0.260, 0.050, 0.060, 0.050)),
         part: None,
         cal_default: Calibration([0, 400, 3000, 0, 0, 0, 0, 0]),
+        cal_range: HIP_CAL_RANGE,
         compat: COMPAT_ANY,
     },
     ModuleDef {
@@ -175,6 +305,7 @@ pub const MODULE_DB: &[ModuleDef] = &[
         inertial: inertial(0.120, [0.0, 0.0, -0.060], cylinder_z_inertia(0.120, 0.012, 0.120)),
         part: None,
         cal_default: Calibration([1000, 2000, 1000, 400, 3000, 0, 0, 0]),
+        cal_range: ARM_CAL_RANGE,
         compat: COMPAT_ANY,
     },
     ModuleDef {
@@ -197,6 +328,7 @@ pub const MODULE_DB: &[ModuleDef] = &[
             inertial: inertial(0.020, [0.015, 0.0, 0.0], box_inertia(0.020, 0.040, 0.012, 0.010)),
         }),
         cal_default: Calibration([1100, 1900, 1100, 400, 1500, 0, 0, 0]),
+        cal_range: GRIPPER1_CAL_RANGE,
         compat: COMPAT_ANY,
     },
     ModuleDef {
@@ -219,6 +351,7 @@ pub const MODULE_DB: &[ModuleDef] = &[
             inertial: inertial(0.024, [0.016, 0.0, 0.0], box_inertia(0.024, 0.042, 0.012, 0.011)),
         }),
         cal_default: Calibration([1150, 1850, 1150, 450, 1600, 0, 0, 0]),
+        cal_range: GRIPPER2_CAL_RANGE,
         // The narrower PWM range and the higher holding current need firmware 1.1.
         compat: Compat {
             board_rev_min: 1,
@@ -244,6 +377,7 @@ pub const MODULE_DB: &[ModuleDef] = &[
             inertial: inertial(0.008, [0.0, 0.0, -0.012], cylinder_z_inertia(0.008, 0.004, 0.024)),
         }),
         cal_default: Calibration([1200, 1800, 200, 2500, 0, 0, 0, 0]),
+        cal_range: BOLTER_CAL_RANGE,
         compat: COMPAT_ANY,
     },
     ModuleDef {
@@ -257,6 +391,7 @@ pub const MODULE_DB: &[ModuleDef] = &[
         inertial: inertial(0.0005, [0.0, 0.0, 0.0], box_inertia(0.0005, 0.004, 0.004, 0.001)),
         part: None,
         cal_default: Calibration([0; 8]),
+        cal_range: IMU_CAL_RANGE,
         compat: COMPAT_ANY,
     },
     ModuleDef {
@@ -269,6 +404,7 @@ pub const MODULE_DB: &[ModuleDef] = &[
         inertial: inertial(0.0005, [0.0, 0.0, 0.0], box_inertia(0.0005, 0.005, 0.006, 0.001)),
         part: None,
         cal_default: Calibration([0; 8]),
+        cal_range: ADC_CAL_RANGE,
         compat: COMPAT_ANY,
     },
     ModuleDef {
@@ -281,6 +417,7 @@ pub const MODULE_DB: &[ModuleDef] = &[
         inertial: inertial(0.003, [0.0, 0.0, 0.0], box_inertia(0.003, 0.015, 0.002, 0.015)),
         part: None,
         cal_default: Calibration([2048, 1, 0, 0, 0, 0, 0, 0]),
+        cal_range: ENCODER_CAL_RANGE,
         compat: COMPAT_ANY,
     },
     ModuleDef {
@@ -293,6 +430,7 @@ pub const MODULE_DB: &[ModuleDef] = &[
         inertial: inertial(0.045, [0.0, 0.0, 0.0], box_inertia(0.045, 0.070, 0.050, 0.0016)),
         part: None,
         cal_default: Calibration([0x0100, 0, 0, 0, 0, 0, 0, 0]),
+        cal_range: BOARD_CAL_RANGE,
         compat: COMPAT_ANY,
     },
     ModuleDef {
@@ -305,6 +443,7 @@ pub const MODULE_DB: &[ModuleDef] = &[
         inertial: inertial(0.045, [0.0, 0.0, 0.0], box_inertia(0.045, 0.070, 0.050, 0.0016)),
         part: None,
         cal_default: Calibration([0x0100, 0, 0, 0, 0, 0, 0, 0]),
+        cal_range: BOARD_CAL_RANGE,
         compat: COMPAT_ANY,
     },
 ];
@@ -428,6 +567,50 @@ mod tests {
             inertia: [2.0, 2.0, 2.0, 0.5, 0.2, 0.1],
             ..bad
         }));
+    }
+
+    // verifies: MOD-CAL-01
+    #[test]
+    fn defaults_resolve_within_their_ranges_and_out_of_range_words_are_refused() {
+        for d in MODULE_DB {
+            // Every default is inside its own range, and "default" words resolve to it.
+            assert_eq!(resolve_calibration(d, &d.cal_default), Ok(d.cal_default), "{:?}", d.ty);
+            assert_eq!(resolve_calibration(d, &Calibration::DEFAULT), Ok(d.cal_default));
+            // Unused words are (0, 0); used ones have a real range.
+            for (i, name) in d.ty.cal_names().iter().enumerate() {
+                assert_eq!(name.is_empty(), d.cal_range[i] == UNUSED, "{:?} word {i}", d.ty);
+            }
+        }
+        let r2 = lookup(ModuleType::Gripper, 0, 2).unwrap();
+        // Rev 1's closed pulse width is below rev 2's end stop: refused for rev 2.
+        let mut c = Calibration::DEFAULT;
+        c.0[0] = 1100;
+        assert_eq!(
+            resolve_calibration(r2, &c),
+            Err(CalError {
+                word: 0,
+                value: 1100,
+                min: 1120,
+                max: 1300
+            })
+        );
+        // One word given, the others default.
+        c.0[0] = 1160;
+        assert_eq!(
+            resolve_calibration(r2, &c).map(|c| c.0),
+            Ok([1160, 1850, 1150, 450, 1600, 0, 0, 0])
+        );
+        // An unused word must be 0; the encoder's direction must not be 0.
+        let mut c = r2.cal_default;
+        c.0[7] = 1;
+        assert_eq!(resolve_calibration(r2, &c).map_err(|e| e.word), Err(7));
+        let enc = lookup(ModuleType::Encoder, 0, 1).unwrap();
+        assert_eq!(
+            resolve_calibration(enc, &Calibration([2048, 0, 0, 0, 0, 0, 0, 0])).map_err(|e| e.word),
+            Err(1)
+        );
+        assert!(resolve_calibration(enc, &Calibration([4096, 1, 0, 0, 0, 0, 0, 0])).is_err());
+        assert!(resolve_calibration(enc, &Calibration([4095, -1, 0, 0, 0, 0, 0, 0])).is_ok());
     }
 
     // verifies: MOD-DB-03

@@ -39,8 +39,19 @@ pub const MAX_TABLE_LEN: usize = TABLE_HEADER_LEN + MAX_TABLE_ENTRIES * DESCRIPT
 pub const DESCRIPTOR_CRC: crc::Crc<u16> = crc::Crc::<u16>::new(&crc::CRC_16_IBM_3740);
 
 /// Calibration words of a module (meaning per type, see [`ModuleType::cal_names`]).
+/// A word equal to [`CAL_DEFAULT`] means "the database default of this revision"
+/// (`super::db::resolve_calibration`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
 pub struct Calibration(pub [i16; 8]);
+
+/// Calibration word meaning "use the module database's default for this word"
+/// (`0x8000`, never a valid value of any word).
+pub const CAL_DEFAULT: i16 = i16::MIN;
+
+impl Calibration {
+    /// Every word "database default".
+    pub const DEFAULT: Calibration = Calibration([CAL_DEFAULT; 8]);
+}
 
 /// A module descriptor.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -17,7 +17,7 @@ pub mod report;
 
 pub use config::{config_hash, ConfigDef, ConfigId, SlotSet, CONFIGS};
 pub use db::{lookup, ModuleDef, MODULE_DB};
-pub use descriptor::{Calibration, DescError, Descriptor, TableError, DESCRIPTOR_LEN};
+pub use descriptor::{Calibration, DescError, Descriptor, TableError, CAL_DEFAULT, DESCRIPTOR_LEN};
 
 /// Module type (descriptor byte 1). Wire code with `Unknown(n)`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

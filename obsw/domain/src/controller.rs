@@ -4,9 +4,10 @@
 
 use crate::ablink::{LinkManager, ModuleCmd};
 use crate::bolter::{BoltOp, Bolter, BolterConfig, BolterEvent};
+use crate::calib::RobotCal;
 use crate::consts::{EST_HIP_TOL_CDEG, LINK_TX_CAP, STATE_SETTLE_TIMEOUT_MS};
 use crate::control::{HipController, HipGains, Interpolator};
-use crate::estimate::{grippers_closed, state_from_imus, state_from_sensors};
+use crate::estimate::{grippers_closed_cal, state_from_imus, state_from_sensors_cal};
 use crate::filter::{to_i16, to_u16, Ma};
 use crate::search::{shortest_path, shortest_states, Plan, StatePath};
 use crate::tunables::{TunableError, Tunables};
@@ -308,15 +309,16 @@ impl TickOut {
 /// One module move of an action.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Seg {
-    /// Gripper(s) to a PWM (`None` = both).
+    /// Gripper(s) to a PWM (`None` = both), per side (index `Side as usize`: each side
+    /// has its own calibration).
     Grip {
         side: Option<Side>,
-        pwm: u16,
+        pwm: [u16; 2],
     },
-    /// Arm(s) to a PWM (`None` = both).
+    /// Arm(s) to a PWM (`None` = both), per side.
     Arm {
         side: Option<Side>,
-        pwm: u16,
+        pwm: [u16; 2],
     },
     Hip {
         cdeg: i16,
@@ -419,6 +421,9 @@ pub struct Controller {
     /// powered); until then they are recovered from the IMU-derived state.
     positions_known: bool,
     b_assume_sent_ms: Option<u64>,
+    /// The calibration in use (`RobotCal::COMPILED` until the platform sets the module
+    /// set's, issue 24).
+    cal: RobotCal,
 }
 
 impl Default for Controller {
@@ -458,6 +463,7 @@ impl Controller {
             b_modes_mismatch_since: None,
             positions_known: false,
             b_assume_sent_ms: None,
+            cal: RobotCal::COMPILED,
             tun,
         }
     }
@@ -470,6 +476,35 @@ impl Controller {
         c.grip_a.reset_to(grip_us);
         c.positions_known = true;
         c
+    }
+
+    // ---------------------------------------------------------------- calibration
+
+    /// Applies the module set's calibration (issue 24): servo set points per side, hip
+    /// home, encoder zero and direction from now on; the bolter thresholds become the
+    /// tunables `BOLT_PUSH_THRESHOLD_MA` / `BOLT_LOCK_THRESHOLD_MA` (clamped to their
+    /// ranges, which contain the database's), so the ground can still tune them. Arm and
+    /// gripper positions not known yet (boot) are recovered with the new set points.
+    pub fn set_calibration(&mut self, cal: RobotCal) {
+        self.cal = cal;
+        for (id, v) in [
+            (tid::BOLT_PUSH_THRESHOLD_MA, cal.bolt_push_ma),
+            (tid::BOLT_LOCK_THRESHOLD_MA, cal.bolt_lock_ma),
+        ] {
+            if let Some(d) = mib::tunables::by_id(id) {
+                // Cannot fail: clamped to the tunable's own range.
+                let _ = self.tun.set(id, (v as i32).clamp(d.min, d.max));
+            }
+        }
+        if !self.positions_known {
+            self.arm_a.reset_to(cal.of(Side::A).arm_contracted_us);
+            self.grip_a.reset_to(cal.of(Side::A).grip_closed_us);
+        }
+    }
+
+    /// The calibration in use.
+    pub fn calibration(&self) -> &RobotCal {
+        &self.cal
     }
 
     // ---------------------------------------------------------------- modes, tunables
@@ -536,18 +571,19 @@ impl Controller {
         if self.raw.arm_switch != contracted || hb.arm_switch() != contracted {
             return;
         }
-        let pwm = def.arm_pwm();
-        self.arm_a.reset_to(pwm);
-        self.grip_a.reset_to(servo::GRIP_CLOSED_US);
+        let (ca, cb) = (*self.cal.of(Side::A), *self.cal.of(Side::B));
+        let pwm = cb.arm_us(def.kind());
+        self.arm_a.reset_to(ca.arm_us(def.kind()));
+        self.grip_a.reset_to(ca.grip_closed_us);
         let fresh = self.link.hb_age_ms(now) <= 2 * mib::config::B_HEARTBEAT_PERIOD_MS as u64;
-        let b_ok = !fresh || (hb.arm_pwm == pwm && hb.grip_pwm == servo::GRIP_CLOSED_US);
+        let b_ok = !fresh || (hb.arm_pwm == pwm && hb.grip_pwm == cb.grip_closed_us);
         let due = self
             .b_assume_sent_ms
             .is_none_or(|t| now.saturating_sub(t) >= crate::consts::B_MODES_RESEND_MS as u64);
         if !b_ok && due && self.link.idle() {
             self.link.send(ModuleCmd::Assume {
                 arm: pwm,
-                grip: servo::GRIP_CLOSED_US,
+                grip: cb.grip_closed_us,
             });
             self.b_assume_sent_ms = Some(now);
         }
@@ -646,7 +682,7 @@ impl Controller {
     fn hip_turn_of(&self, a: &Action) -> Option<i16> {
         match *a {
             Action::RotateHip { cdeg } => Some(cdeg),
-            Action::Home => Some(servo::HIP_HOME_CDEG),
+            Action::Home => Some(self.cal.hip_home_cdeg),
             Action::Reconfigure { .. }
             | Action::BoltFace { .. }
             | Action::UnboltFace { .. }
@@ -663,7 +699,7 @@ impl Controller {
     fn both_gripped(&self) -> Option<(u16, u16)> {
         let hb = self.link.heartbeat()?;
         let a = self.grip_a.current();
-        grippers_closed(a, hb.grip_pwm).then_some((a, hb.grip_pwm))
+        grippers_closed_cal(a, hb.grip_pwm, &self.cal).then_some((a, hb.grip_pwm))
     }
 
     /// Starts an action. Returns the number of progress steps it will report.
@@ -761,6 +797,7 @@ impl Controller {
 
     /// Segments of the current step of the run.
     fn build_step(&mut self) {
+        let cal = self.cal;
         let Some(run) = self.run.as_mut() else { return };
         run.segs.clear();
         run.seg = 0;
@@ -773,7 +810,7 @@ impl Controller {
             Action::Reconfigure { .. } => {
                 if k < run.plan.len() {
                     let (from, to, prim) = (run.path[k], run.path[k + 1], run.plan[k]);
-                    for s in primitive_segments(from, to, prim) {
+                    for s in primitive_segments(from, to, prim, &cal) {
                         push(s);
                     }
                 }
@@ -811,25 +848,31 @@ impl Controller {
                 // is brought onto the face before its gripper closes (closing first
                 // would grip nothing). A gripper is never opened here.
                 push(Seg::Hip {
-                    cdeg: servo::HIP_HOME_CDEG,
+                    cdeg: cal.hip_home_cdeg,
                 });
                 push(Seg::Arm {
                     side: None,
-                    pwm: servo::ARM_CONTRACTED_US,
+                    pwm: cal.side.map(|c| c.arm_contracted_us),
                 });
                 push(Seg::ArmSwitch { side: None });
                 push(Seg::Grip {
                     side: None,
-                    pwm: servo::GRIP_CLOSED_US,
+                    pwm: cal.side.map(|c| c.grip_closed_us),
                 });
             }
             Action::MoveArm { side, pwm } => {
-                push(Seg::Arm { side: Some(side), pwm });
-                if pwm <= servo::ARM_CONTRACTED_US {
+                push(Seg::Arm {
+                    side: Some(side),
+                    pwm: [pwm; 2],
+                });
+                if pwm <= cal.of(side).arm_contracted_us {
                     push(Seg::ArmSwitch { side: Some(side) });
                 }
             }
-            Action::MoveGripper { side, pwm } => push(Seg::Grip { side: Some(side), pwm }),
+            Action::MoveGripper { side, pwm } => push(Seg::Grip {
+                side: Some(side),
+                pwm: [pwm; 2],
+            }),
             Action::RotateHip { cdeg } => push(Seg::Hip { cdeg }),
         }
         if let Action::Reconfigure { .. } = run.action {
@@ -867,6 +910,10 @@ impl Controller {
         self.last_tick = Some(now_ms);
         self.now = now_ms;
         self.raw = *sensors;
+        // The encoder's own zero and direction (issue 24).
+        self.raw.hip_cdeg = self.cal.hip_from_reading(sensors.hip_cdeg);
+        let corrected = self.raw;
+        let sensors = &corrected;
         let f = &mut self.f;
         f.v_bat.push(sensors.v_bat as i32);
         f.i_bat.push(sensors.i_bat as i32);
@@ -968,15 +1015,16 @@ impl Controller {
 
     fn estimate(&self) -> Option<u8> {
         let hb = self.link.heartbeat()?;
-        if !grippers_closed(self.grip_a.current(), hb.grip_pwm) {
+        if !grippers_closed_cal(self.grip_a.current(), hb.grip_pwm, &self.cal) {
             return None;
         }
-        let s = state_from_sensors(
+        let s = state_from_sensors_cal(
             self.grav_a(),
             hb.grav,
             self.hip_angle(),
             self.arm_a.current(),
             hb.arm_pwm,
+            &self.cal,
         )?;
         // the arm switches are pushed exactly in the matched (contracted) states
         let contracted = STATES[s as usize].kind() == StateKind::Matched;
@@ -1072,18 +1120,18 @@ impl Controller {
         match seg {
             Seg::Grip { side, pwm } => {
                 if side != Some(Side::B) {
-                    self.grip_a.set_target(pwm);
+                    self.grip_a.set_target(pwm[0]);
                 }
                 if side != Some(Side::A) {
-                    self.link.send(ModuleCmd::GripTarget(pwm));
+                    self.link.send(ModuleCmd::GripTarget(pwm[1]));
                 }
             }
             Seg::Arm { side, pwm } => {
                 if side != Some(Side::B) {
-                    self.arm_a.set_target(pwm);
+                    self.arm_a.set_target(pwm[0]);
                 }
                 if side != Some(Side::A) {
-                    self.link.send(ModuleCmd::ArmTarget(pwm));
+                    self.link.send(ModuleCmd::ArmTarget(pwm[1]));
                 }
             }
             Seg::Hip { cdeg } => self.hip.set_target(cdeg),
@@ -1107,7 +1155,7 @@ impl Controller {
             Seg::Grip { side, pwm } => {
                 let a = side == Some(Side::B) || self.grip_a.done();
                 let b = side == Some(Side::A)
-                    || (self.link.idle() && self.b_at(|h| h.grip_target == pwm && h.grip_pwm == pwm));
+                    || (self.link.idle() && self.b_at(|h| h.grip_target == pwm[1] && h.grip_pwm == pwm[1]));
                 if a && b {
                     SegResult::Done
                 } else {
@@ -1117,7 +1165,7 @@ impl Controller {
             Seg::Arm { side, pwm } => {
                 let a = side == Some(Side::B) || self.arm_a.done();
                 let b = side == Some(Side::A)
-                    || (self.link.idle() && self.b_at(|h| h.arm_target == pwm && h.arm_pwm == pwm));
+                    || (self.link.idle() && self.b_at(|h| h.arm_target == pwm[1] && h.arm_pwm == pwm[1]));
                 if a && b {
                     SegResult::Done
                 } else {
@@ -1351,7 +1399,7 @@ pub const DOMAIN_PARAMS: &[u16] = &[
 /// side's gripper; move the arms to the target state's length and the hip to its angle
 /// (arms first when entering a turn, hip first when leaving one); wait for the arm
 /// switches after contracting; grip; wait until the sensors confirm the new state.
-fn primitive_segments(from: u8, to: u8, prim: u8) -> Vec<Seg, MAX_SEGS> {
+fn primitive_segments(from: u8, to: u8, prim: u8, cal: &RobotCal) -> Vec<Seg, MAX_SEGS> {
     let mut v = Vec::new();
     let (Some(p), Some(f), Some(t)) = (primitive(prim), STATES.get(from as usize), STATES.get(to as usize)) else {
         return v;
@@ -1362,11 +1410,11 @@ fn primitive_segments(from: u8, to: u8, prim: u8) -> Vec<Seg, MAX_SEGS> {
     };
     push(Seg::Grip {
         side: mover,
-        pwm: servo::GRIP_OPEN_US,
+        pwm: cal.side.map(|c| c.grip_open_us),
     });
     let arms = Seg::Arm {
         side: None,
-        pwm: t.arm_pwm(),
+        pwm: cal.side.map(|c| c.arm_us(t.kind())),
     };
     let hip = Seg::Hip { cdeg: t.hip_cdeg() };
     let rotates = matches!(p.motion, Motion::Rotate(_));
@@ -1384,7 +1432,7 @@ fn primitive_segments(from: u8, to: u8, prim: u8) -> Vec<Seg, MAX_SEGS> {
     }
     push(Seg::Grip {
         side: mover,
-        pwm: servo::GRIP_CLOSED_US,
+        pwm: cal.side.map(|c| c.grip_closed_us),
     });
     push(Seg::Settle { expect: to });
     v
@@ -1398,41 +1446,41 @@ mod tests {
     #[test]
     fn primitives_are_release_move_grip_and_confirm() {
         // matched Xneg -> "Xpos Xneg": A releases, arms extend, A grips
-        let s = primitive_segments(0, 4, 1);
+        let s = primitive_segments(0, 4, 1, &RobotCal::COMPILED);
         assert_eq!(
             s.as_slice(),
             &[
                 Seg::Grip {
                     side: Some(Side::A),
-                    pwm: servo::GRIP_OPEN_US
+                    pwm: [servo::GRIP_OPEN_US; 2]
                 },
                 Seg::Arm {
                     side: None,
-                    pwm: servo::ARM_EXTENDED_US
+                    pwm: [servo::ARM_EXTENDED_US; 2]
                 },
                 Seg::Grip {
                     side: Some(Side::A),
-                    pwm: servo::GRIP_CLOSED_US
+                    pwm: [servo::GRIP_CLOSED_US; 2]
                 },
                 Seg::Settle { expect: 4 },
             ]
         );
         // stretch -> matched contracts and checks the switches
-        let s = primitive_segments(4, 1, 2);
+        let s = primitive_segments(4, 1, 2, &RobotCal::COMPILED);
         assert!(s.contains(&Seg::ArmSwitch { side: None }));
         assert_eq!(
             s[0],
             Seg::Grip {
                 side: Some(Side::B),
-                pwm: servo::GRIP_OPEN_US
+                pwm: [servo::GRIP_OPEN_US; 2]
             }
         );
         // into a turn: arms first, then hip; out of a turn: hip first
-        let into = primitive_segments(0, 11, 5);
+        let into = primitive_segments(0, 11, 5, &RobotCal::COMPILED);
         let pos_arm = into.iter().position(|s| matches!(s, Seg::Arm { .. })).unwrap();
         let pos_hip = into.iter().position(|s| matches!(s, Seg::Hip { .. })).unwrap();
         assert!(pos_arm < pos_hip);
-        let out = primitive_segments(11, 0, 6);
+        let out = primitive_segments(11, 0, 6, &RobotCal::COMPILED);
         let pos_arm = out.iter().position(|s| matches!(s, Seg::Arm { .. })).unwrap();
         let pos_hip = out.iter().position(|s| matches!(s, Seg::Hip { .. })).unwrap();
         assert!(pos_hip < pos_arm);
@@ -1441,12 +1489,61 @@ mod tests {
             for t in 0..NUM_STATES as u8 {
                 let p = mib::robot::RECONFIG_MAP[f as usize][t as usize];
                 if p != 0 {
-                    let s = primitive_segments(f, t, p);
+                    let s = primitive_segments(f, t, p, &RobotCal::COMPILED);
                     assert!(s.len() >= 4 && s.len() <= MAX_SEGS);
                     assert_eq!(*s.last().unwrap(), Seg::Settle { expect: t });
                 }
             }
         }
+    }
+
+    // verifies: MOD-CAL-03
+    #[test]
+    fn primitives_and_home_use_each_sides_calibration() {
+        let mut cal = RobotCal::COMPILED;
+        cal.side[1].grip_closed_us = 1150;
+        cal.side[1].grip_open_us = 1850;
+        cal.side[0].arm_extended_us = 1980;
+        cal.hip_home_cdeg = 120;
+        let s = primitive_segments(0, 4, 1, &cal);
+        assert_eq!(
+            &s[..3],
+            &[
+                Seg::Grip {
+                    side: Some(Side::A),
+                    pwm: [1900, 1850]
+                },
+                Seg::Arm {
+                    side: None,
+                    pwm: [1980, 2000]
+                },
+                Seg::Grip {
+                    side: Some(Side::A),
+                    pwm: [1100, 1150]
+                },
+            ]
+        );
+        // B's gripper target over the link is B's own closed width.
+        let mut c = Controller::new();
+        c.set_calibration(cal);
+        c.set_module_modes(ModuleModes::all(ON));
+        c.start(Action::Home, 0).unwrap();
+        let segs = c.run.as_ref().unwrap().segs.clone();
+        assert_eq!(segs[0], Seg::Hip { cdeg: 120 });
+        assert!(segs.contains(&Seg::Grip {
+            side: None,
+            pwm: [1100, 1150]
+        }));
+        // The bolter thresholds became the tunables (the ground can still change them).
+        cal.bolt_push_ma = 1000;
+        cal.bolt_lock_ma = 9999;
+        c.set_calibration(cal);
+        assert_eq!(c.tunable(tid::BOLT_PUSH_THRESHOLD_MA), Some(1000));
+        assert_eq!(
+            c.tunable(tid::BOLT_LOCK_THRESHOLD_MA),
+            Some(2450),
+            "clamped to the tunable's range"
+        );
     }
 
     // verifies: MMIC-CMD-08, MMIC-CMD-07

@@ -14,7 +14,7 @@
 use core::fmt;
 use heapless::Vec;
 use mib::modules::config::{config_hash, ConfigDef, ConfigId, SlotSet, CONFIGS};
-use mib::modules::db::{compatible, lookup};
+use mib::modules::db::{compatible, lookup, resolve_calibration, CalError};
 use mib::modules::descriptor::{DescError, Descriptor, Table, TableError};
 use mib::modules::{
     board_slot, slot_of, Board, ModuleSet, ModuleSide, ModuleType, Probe, MPU6000_WHO_AM_I, NUM_SLOTS, SLOTS,
@@ -81,6 +81,9 @@ pub enum Invalid {
         board_rev: u8,
         fw: u16,
     },
+    /// A calibration word (after "default" words took the database's value) is outside
+    /// the database's range for this revision.
+    CalibrationOutOfRange { slot: u8, error: CalError },
     /// The table lists the module but its probe finds nothing (`listed`), or the probe
     /// finds a module the table does not list.
     ProbeDisagrees { slot: u8, listed: bool },
@@ -102,7 +105,7 @@ impl Invalid {
             | Invalid::WrongPort { .. }
             | Invalid::Duplicate { .. } => 2,
             Invalid::UnknownRevision { .. } => 3,
-            Invalid::Incompatible { .. } => 4,
+            Invalid::Incompatible { .. } | Invalid::CalibrationOutOfRange { .. } => 4,
             Invalid::ProbeDisagrees { .. } => 5,
             Invalid::Missing { .. } => 6,
             Invalid::Unsupported { .. } => 7,
@@ -116,6 +119,7 @@ impl Invalid {
             | Invalid::Duplicate { slot }
             | Invalid::UnknownRevision { slot, .. }
             | Invalid::Incompatible { slot, .. }
+            | Invalid::CalibrationOutOfRange { slot, .. }
             | Invalid::ProbeDisagrees { slot, .. }
             | Invalid::Missing { slot } => Some(slot),
             Invalid::BoardBSilent
@@ -141,6 +145,7 @@ impl Invalid {
             Invalid::ProbeDisagrees { .. } => 10,
             Invalid::Missing { .. } => 11,
             Invalid::Unsupported { .. } => 12,
+            Invalid::CalibrationOutOfRange { .. } => 13,
         }
     }
 }
@@ -192,6 +197,7 @@ impl fmt::Display for Invalid {
                 fw >> 8,
                 fw & 0xff
             ),
+            Invalid::CalibrationOutOfRange { slot, error } => write!(f, "{}: {error}", slot_name(slot)),
             Invalid::ProbeDisagrees { slot, listed: true } => {
                 write!(f, "{} listed but its probe finds nothing", slot_name(slot))
             }
@@ -266,7 +272,11 @@ pub fn discover(a: &BoardInput<'_>, b: Option<&BoardInput<'_>>) -> Discovery {
             }
             Some(def) => {
                 if let Some(board) = d.set[board_slot(s.board) as usize] {
-                    let fw = board.cal.0[0] as u16;
+                    // The board's firmware version (its own calibration word 0, "default"
+                    // resolved; an out-of-range board calibration is reported above).
+                    let fw = lookup(board.ty, board.variant, board.revision)
+                        .and_then(|bd| resolve_calibration(bd, &board.cal).ok())
+                        .map_or(board.cal.0[0], |c| c.0[0]) as u16;
                     if !compatible(def, board.revision, fw) {
                         d.note(Invalid::Incompatible {
                             slot: s.id,
@@ -275,6 +285,11 @@ pub fn discover(a: &BoardInput<'_>, b: Option<&BoardInput<'_>>) -> Discovery {
                             fw,
                         });
                     }
+                }
+                // Same rank as Incompatible, noted after it: a revision the board cannot
+                // drive is named before its calibration.
+                if let Err(error) = resolve_calibration(def, &desc.cal) {
+                    d.note(Invalid::CalibrationOutOfRange { slot: s.id, error });
                 }
             }
         }
@@ -671,6 +686,18 @@ mod tests {
             (Invalid::ProbeDisagrees { slot: 1, listed: true }, "PROBE_DISAGREES"),
             (Invalid::Missing { slot: 1 }, "MISSING"),
             (
+                Invalid::CalibrationOutOfRange {
+                    slot: 4,
+                    error: CalError {
+                        word: 0,
+                        value: 1100,
+                        min: 1120,
+                        max: 1300,
+                    },
+                },
+                "CALIBRATION_OUT_OF_RANGE",
+            ),
+            (
                 Invalid::Unsupported {
                     present: SlotSet::EMPTY,
                 },
@@ -865,6 +892,7 @@ mod tests {
         // Gripper rev 2 needs firmware 1.1: with boards at 1.0 it is incompatible.
         let mut r = full();
         r.set[slot::GRIPPER_B as usize].as_mut().unwrap().revision = 2;
+        r.set[slot::GRIPPER_B as usize].as_mut().unwrap().cal = mib::modules::Calibration::DEFAULT;
         assert_eq!(
             run(&r).outcome,
             Err(Invalid::Incompatible {
@@ -953,6 +981,51 @@ mod tests {
             }),
         );
         assert!(matches!(d.outcome, Err(Invalid::UnknownModule { index: 7, .. })));
+    }
+
+    // verifies: MOD-CAL-02
+    #[test]
+    fn calibration_outside_the_database_range_is_its_own_reason() {
+        // Gripper B rev 2 (boards at firmware 1.1) still carrying rev 1's closed width:
+        // below rev 2's end stop.
+        let mut r = full();
+        r.set[slot::BOARD_A as usize].as_mut().unwrap().cal.0[0] = 0x0101;
+        r.set[slot::BOARD_B as usize].as_mut().unwrap().cal.0[0] = 0x0101;
+        let gb = r.set[slot::GRIPPER_B as usize].as_mut().unwrap();
+        gb.revision = 2;
+        let d = run(&r);
+        let why = Invalid::CalibrationOutOfRange {
+            slot: slot::GRIPPER_B,
+            error: CalError {
+                word: 0,
+                value: 1100,
+                min: 1120,
+                max: 1300,
+            },
+        };
+        assert_eq!(d.outcome, Err(why));
+        assert_eq!((why.code(), why.slot()), (13, Some(slot::GRIPPER_B)));
+        assert_eq!(
+            std::format!("{why}"),
+            "gripper_b: calibration word 0 = 1100 outside 1120..=1300"
+        );
+        // The module stays in the set (it is identified; its calibration is wrong), and
+        // OPERATIONAL is blocked by the reason.
+        assert!(d.present.contains(slot::GRIPPER_B));
+        assert_eq!(operational_allowed(&d, Replacement::Same), Err(Blocked::Invalid(why)));
+        // "Default" words take rev 2's values: valid.
+        r.set[slot::GRIPPER_B as usize].as_mut().unwrap().cal = mib::modules::Calibration::DEFAULT;
+        assert_eq!(run(&r).outcome, Ok(ConfigId::Full));
+        // A board's firmware word may be "default" too (1.0): then rev 2 is incompatible.
+        r.set[slot::BOARD_B as usize].as_mut().unwrap().cal = mib::modules::Calibration::DEFAULT;
+        assert!(matches!(run(&r).outcome, Err(Invalid::Incompatible { fw: 0x0100, .. })));
+        // An encoder whose zero is beyond 12 bits.
+        let mut r = full();
+        r.set[slot::ENCODER as usize].as_mut().unwrap().cal.0[0] = 5000;
+        assert!(matches!(
+            run(&r).outcome,
+            Err(Invalid::CalibrationOutOfRange { slot: slot::ENCODER, error }) if error.word == 0 && error.value == 5000
+        ));
     }
 
     // verifies: MOD-DISC-03

@@ -3,6 +3,7 @@
 //! and the arm PWM values (`StateDef::arm_pwm`). A belief that disagrees with this is an
 //! initial-state mismatch.
 
+use crate::calib::RobotCal;
 use crate::consts::{EST_ARM_TOL_US, EST_HIP_TOL_CDEG};
 use crate::imu::face_from_gravity;
 use mib::robot::{state_of, Side, STATES};
@@ -23,9 +24,13 @@ pub enum EstimateError {
 /// Both grippers closed (PWM within `EST_GRIP_TOL_US` of `servo::GRIP_CLOSED_US`): a
 /// configuration state needs both sides gripped.
 pub fn grippers_closed(grip_a_pwm: u16, grip_b_pwm: u16) -> bool {
-    let closed = mib::robot::servo::GRIP_CLOSED_US;
-    grip_a_pwm.abs_diff(closed) <= crate::consts::EST_GRIP_TOL_US
-        && grip_b_pwm.abs_diff(closed) <= crate::consts::EST_GRIP_TOL_US
+    grippers_closed_cal(grip_a_pwm, grip_b_pwm, &RobotCal::COMPILED)
+}
+
+/// [`grippers_closed`] against each side's calibrated closed pulse width.
+pub fn grippers_closed_cal(grip_a_pwm: u16, grip_b_pwm: u16, cal: &RobotCal) -> bool {
+    grip_a_pwm.abs_diff(cal.of(Side::A).grip_closed_us) <= crate::consts::EST_GRIP_TOL_US
+        && grip_b_pwm.abs_diff(cal.of(Side::B).grip_closed_us) <= crate::consts::EST_GRIP_TOL_US
 }
 
 /// The state implied by the IMUs alone (no cross-check), if any.
@@ -41,6 +46,18 @@ pub fn estimate(
     arm_a_pwm: u16,
     arm_b_pwm: u16,
 ) -> Result<u8, EstimateError> {
+    estimate_cal(grav_a, grav_b, hip_cdeg, arm_a_pwm, arm_b_pwm, &RobotCal::COMPILED)
+}
+
+/// [`estimate`] with each side's calibrated arm pulse widths.
+pub fn estimate_cal(
+    grav_a: [i16; 3],
+    grav_b: [i16; 3],
+    hip_cdeg: i16,
+    arm_a_pwm: u16,
+    arm_b_pwm: u16,
+    cal: &RobotCal,
+) -> Result<u8, EstimateError> {
     let fa = face_from_gravity(grav_a).ok_or(EstimateError::NoFace(Side::A))?;
     let fb = face_from_gravity(grav_b).ok_or(EstimateError::NoFace(Side::B))?;
     let state = state_of(fa, fb).ok_or(EstimateError::NotAState)?;
@@ -49,7 +66,7 @@ pub fn estimate(
         return Err(EstimateError::Hip { state, hip_cdeg });
     }
     for (side, pwm) in [(Side::A, arm_a_pwm), (Side::B, arm_b_pwm)] {
-        if pwm.abs_diff(def.arm_pwm()) > EST_ARM_TOL_US {
+        if pwm.abs_diff(cal.of(side).arm_us(def.kind())) > EST_ARM_TOL_US {
             return Err(EstimateError::Arm { state, side, pwm });
         }
     }
@@ -65,6 +82,18 @@ pub fn state_from_sensors(
     arm_b_pwm: u16,
 ) -> Option<u8> {
     estimate(grav_a, grav_b, hip_cdeg, arm_a_pwm, arm_b_pwm).ok()
+}
+
+/// [`state_from_sensors`] with each side's calibrated arm pulse widths.
+pub fn state_from_sensors_cal(
+    grav_a: [i16; 3],
+    grav_b: [i16; 3],
+    hip_cdeg: i16,
+    arm_a_pwm: u16,
+    arm_b_pwm: u16,
+    cal: &RobotCal,
+) -> Option<u8> {
+    estimate_cal(grav_a, grav_b, hip_cdeg, arm_a_pwm, arm_b_pwm, cal).ok()
 }
 
 #[cfg(test)]
@@ -119,6 +148,28 @@ mod tests {
             estimate([0; 3], g(s.b), 0, 1000, 1000),
             Err(EstimateError::NoFace(Side::A))
         );
+    }
+
+    // verifies: MOD-CAL-03
+    #[test]
+    fn the_estimator_follows_each_sides_calibration() {
+        let mut cal = RobotCal::COMPILED;
+        cal.side[1].grip_closed_us = 1150;
+        cal.side[1].arm_extended_us = 1900;
+        // Gripper B closed at rev 2's 1150 µs; at rev 1's 1100 it would still be within
+        // the tolerance, at 1210 not.
+        assert!(grippers_closed_cal(1100, 1150, &cal));
+        assert!(!grippers_closed_cal(1100, 1210, &cal));
+        assert!(grippers_closed(1100, 1140) && !grippers_closed(1100, 1160));
+        // A stretch with arm B at its own extended width: recognised with B's calibration
+        // only (1900 is 100 µs from the compiled 2000, 1850 is more).
+        let s = &STATES[4];
+        assert_eq!(s.kind(), mib::robot::StateKind::Stretch);
+        assert_eq!(
+            state_from_sensors_cal(g(s.a), g(s.b), s.hip_cdeg(), 2000, 1850, &cal),
+            Some(s.id)
+        );
+        assert_eq!(state_from_sensors(g(s.a), g(s.b), s.hip_cdeg(), 2000, 1850), None);
     }
 
     // verifies: MMIC-MOT-02

@@ -12,12 +12,14 @@
 //! - [`ablink`]: the framed, CRC-checked board A ↔ board B protocol and A's link manager.
 //! - [`board_b`]: board B, the subordinate.
 //! - [`controller`]: board A's robot logic driven by the OBSW core.
+//! - [`discovery`], [`calib`]: the module set found at boot and the calibration it brings.
 #![cfg_attr(not(test), no_std)]
 #![deny(unsafe_code)]
 
 pub mod ablink;
 pub mod board_b;
 pub mod bolter;
+pub mod calib;
 pub mod consts;
 pub mod control;
 pub mod controller;
