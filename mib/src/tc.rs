@@ -31,6 +31,38 @@ pub mod service {
 
 pub use crate::modes::ModeSet;
 
+/// The second form of TC[11,4] (`SCHED_INSERT`): the one Yamcs 5.12's
+/// `org.yamcs.pus.PusCommandPostprocessor` writes for a command issued with its option
+/// `pus11ScheduleAt` ("Schedule Time"). Application data: sub-schedule ID (u8), N (u8),
+/// then per activity a CUC release time with an implicit P-field and a complete TC.
+/// PUS-C leaves the presence of the sub-schedule and group IDs to the mission: this robot
+/// has one sub-schedule (ID [`SUB_SCHEDULE_ID`](sched_cuc::SUB_SCHEDULE_ID); another ID
+/// is refused as `ARG_OUT_OF_RANGE` of argument 0) and no scheduling groups (no group ID).
+/// The MIB's first form (N, then CDS with its P-field) stays: the two are told apart by
+/// the second octet, the CDS P-field in the first form, N ≤ `SCHEDULE_CAPACITY` < 0x40 in
+/// this one.
+pub mod sched_cuc {
+    /// The one time-based sub-schedule (Yamcs 5.12.8 always writes 1).
+    pub const SUB_SCHEDULE_ID: u8 = 1;
+    /// CUC P-field of the release time, implicit (not on the wire): agency-defined epoch,
+    /// 4 octets of seconds, 2 octets of binary fraction. Yamcs' default; the exporter
+    /// writes it into the post-processor's `timeEncoding` all the same.
+    pub const PFIELD: u8 = 0x2E;
+    /// Octets of whole seconds and of fraction (from [`PFIELD`]).
+    pub const COARSE_LEN: usize = 1 + ((PFIELD as usize >> 2) & 3);
+    pub const FINE_LEN: usize = PFIELD as usize & 3;
+    /// Length of the release time on the wire.
+    pub const TIME_LEN: usize = COARSE_LEN + FINE_LEN;
+    /// The epoch is Yamcs' time scale (`TimeEncoding`): seconds since 1970 counting leap
+    /// seconds, i.e. Unix time plus TAI − UTC. TAI − UTC has been 37 s since
+    /// 2017-01-01 (IERS Bulletin C); a new leap second changes this constant.
+    pub const TAI_MINUS_UTC_S: u64 = 37;
+    /// The octet that tells the forms apart: the first form's CDS P-field.
+    pub const CDS_FORM_MARK: u8 = crate::headers::CDS_SHORT_PFIELD as u8;
+    const _: () = assert!(crate::config::SCHEDULE_CAPACITY < CDS_FORM_MARK as usize);
+    const _: () = assert!(TIME_LEN == 6);
+}
+
 /// Bits of the PUS-C acknowledgement flags (TC secondary header).
 pub mod ack {
     pub const ACCEPTANCE: u8 = 0b1000;
@@ -457,7 +489,7 @@ pub const TCS: &[TcDef] = &[
                 "number of activities",
             )],
             &[F::SCHEDULE_FULL, F::RELEASE_TIME_PASSED, F::SCHEDULED_TC_INVALID],
-            "Insert activities: count, then per activity a CDS short release time and a complete TC",
+            "Insert activities: count, then per activity a CDS short release time and a complete TC (or Yamcs' form, sched_cuc: sub-schedule ID, count, CUC release times)",
         )
     },
     // --- 12 monitoring ---

@@ -344,11 +344,17 @@ fn pus_preprocessor(indent: &str) -> String {
     )
 }
 
-/// The PUS command post-processor of a TC link or VC (sequence count, length, CRC).
+/// The PUS command post-processor of a TC link or VC (sequence count, length, CRC), and
+/// its TC[11,4] wrapping for the command option `pus11ScheduleAt` in the form the obsw
+/// accepts (`mib::tc::sched_cuc`: CUC release time with an implicit P-field, CRC).
 fn pus_postprocessor(indent: &str) -> String {
     format!(
         "{indent}commandPostprocessorClassName: org.yamcs.pus.PusCommandPostprocessor\n\
-         {indent}commandPostprocessorArgs:\n{indent}  errorDetection:\n{indent}    type: CRC-16-CCIIT\n"
+         {indent}commandPostprocessorArgs:\n{indent}  errorDetection:\n{indent}    type: CRC-16-CCIIT\n\
+         {indent}  # TC[11,4] for \"Schedule Time\" (pus11ScheduleAt): mib::tc::sched_cuc\n\
+         {indent}  pus11Crc: true\n{indent}  timeEncoding:\n{indent}    pfield: {pfield}\n\
+         {indent}    implicitPfield: true\n",
+        pfield = crate::tc::sched_cuc::PFIELD,
     )
 }
 
@@ -802,6 +808,31 @@ fn mode_tm_fields(t: &TmDef) -> Option<Vec<Field>> {
         .then_some(fields)
 }
 
+/// Label of a value the MIB does not name, in an [`open_enumerated_type`].
+pub const UNNAMED_VALUE: &str = "UNNAMED_VALUE";
+
+/// An enumerated type that decodes whatever the value (issue item 10): the MIB's names,
+/// and every other value of the field's width as [`UNNAMED_VALUE`] (one enumeration
+/// range; Yamcs looks the exact values up before the ranges). For fields that carry a
+/// failure code, which an operator reads by name but which may hold a code the MIB
+/// does not know.
+fn open_enumerated_type(x: &mut Xml, tname: &str, f: &Field) {
+    enumerated_type(x, tname, f);
+    let close = "</xtce:EnumerationList>";
+    let Some(i) = x.s.rfind(close) else { return };
+    let line = x.s[..i].rfind('\n').map_or(0, |j| j + 1);
+    let indent = x.s[line..i].to_string();
+    let (lo, hi) = if f.ptype.signed() {
+        (-(1i64 << (f.bits - 1)), (1i64 << (f.bits - 1)) - 1)
+    } else {
+        (0, (1i64 << f.bits) - 1)
+    };
+    x.s.insert_str(
+        line,
+        &format!("{indent}  <xtce:Enumeration value=\"{lo}\" maxValue=\"{hi}\" label=\"{UNNAMED_VALUE}\"/>\n"),
+    );
+}
+
 /// Containers, types and parameters of a TM whose mode fields depend on its node (TM[200,6]
 /// and [200,7]), split like the events ([`mode_event_containers`]); false for any other TM.
 pub(super) fn mode_tm(t: &TmDef, types: &mut Xml, params: &mut Xml, containers: &mut Xml, robot: u8) -> bool {
@@ -813,6 +844,8 @@ pub(super) fn mode_tm(t: &TmDef, types: &mut Xml, params: &mut Xml, containers: 
         let tname = format!("{n}_Type");
         if f.names == Names::Mode {
             mode_enum_type(types, &tname, f, NodeKind::Root);
+        } else if f.names == Names::FailureCode {
+            open_enumerated_type(types, &tname, f);
         } else if !f.names.is_none() {
             enumerated_type(types, &tname, f);
         } else {
@@ -1010,10 +1043,30 @@ mod tests {
             format!("seqNumWindow: {}", sdls::ANTI_REPLAY_WINDOW),
             "verifySeqNum: true".to_string(),
             "useCop1: true".to_string(),
+            format!("pfield: {}", crate::tc::sched_cuc::PFIELD),
+            "implicitPfield: true".to_string(),
         ] {
             assert!(inst.contains(&want), "{want}");
         }
         // Pre-processing on VC0, VC1 and VC7 of both robots; post-processing per TC VC.
         assert_eq!(inst.matches("CRC-16-CCIIT").count(), 2 * 4);
+    }
+
+    // verifies: YAMCS-XTCE-01
+    #[test]
+    fn mode_cant_reach_reason_decodes_every_value_and_names_the_known_codes() {
+        let x = yamcs_xtce(1);
+        let start = x.find("name=\"MODE_CANT_REACH_reason_Type\"").expect("reason type");
+        let ty = &x[start..start + x[start..].find("</xtce:EnumeratedParameterType>").unwrap()];
+        assert!(
+            ty.contains(&format!("value=\"0\" maxValue=\"65535\" label=\"{UNNAMED_VALUE}\"")),
+            "{ty}"
+        );
+        for c in crate::FailureCode::ALL {
+            assert!(
+                ty.contains(&format!("value=\"{}\" label=\"{}\"", c.code(), c.name())),
+                "{c:?}"
+            );
+        }
     }
 }

@@ -2,14 +2,58 @@
 //! board when their time comes, through the same path as uplinked TCs.
 
 use mib::config;
-use mib::tc::service;
+use mib::tc::{sched_cuc, service};
 use mib::FailureCode;
 
 use crate::accept::{accept, Tc, PRIMARY_LEN};
 use crate::failure::Failure;
 use crate::obsw::Obsw;
 use crate::request::{unknown, Ctx};
+use crate::time::OnboardTime;
 use crate::tm::{TmSink, TmStore};
+
+/// The two forms of TC[11,4] (`mib::tc::sched_cuc`): the MIB's own (N, CDS release
+/// times with their P-field) and Yamcs' (sub-schedule ID, N, CUC release times with an
+/// implicit P-field).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Form {
+    Cds,
+    Cuc,
+}
+
+impl Form {
+    /// Length of an activity's release time.
+    fn time_len(self) -> usize {
+        match self {
+            Form::Cds => config::TIMESTAMP_LEN,
+            Form::Cuc => sched_cuc::TIME_LEN,
+        }
+    }
+
+    /// On-board time (ms since boot) of a release time of this form, or `None` if it is
+    /// malformed or before boot.
+    fn release_at(self, stamp: &[u8], time: &OnboardTime) -> Option<u64> {
+        match self {
+            Form::Cds => time.from_cds(stamp),
+            Form::Cuc => cuc_unix_ms(stamp)?.checked_sub(time.epoch_unix_ms),
+        }
+    }
+}
+
+/// Unix ms of a Yamcs CUC release time (`sched_cuc`: seconds since 1970 counting leap
+/// seconds, 16-bit binary fraction). Yamcs truncates its ms to the fraction, so rounding
+/// the fraction up gives its ms back exactly.
+fn cuc_unix_ms(stamp: &[u8]) -> Option<u64> {
+    let (c, f) = (sched_cuc::COARSE_LEN, sched_cuc::FINE_LEN);
+    if stamp.len() != c + f {
+        return None;
+    }
+    let coarse = stamp[..c].iter().fold(0u64, |a, b| (a << 8) | *b as u64);
+    let fine = stamp[c..].iter().fold(0u64, |a, b| (a << 8) | *b as u64);
+    let den = 1u64 << (8 * f);
+    let ms = (fine * 1000).div_ceil(den);
+    (coarse * 1000 + ms).checked_sub(sched_cuc::TAI_MINUS_UTC_S * 1000)
+}
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Request<'a> {
@@ -21,7 +65,11 @@ pub enum Request<'a> {
     Reset,
     /// TC[11,4]: `count` activities, each checked at acceptance (release time in the
     /// future, a valid TC for this robot that fits a schedule entry).
-    Insert { count: u8, activities: &'a [u8] },
+    Insert {
+        form: Form,
+        count: u8,
+        activities: &'a [u8],
+    },
 }
 
 impl<'a> Request<'a> {
@@ -31,11 +79,12 @@ impl<'a> Request<'a> {
             2 => Request::Disable,
             3 => Request::Reset,
             4 => {
-                let count = tc.args[0] as u8;
-                check_activities(count, tc.rest, ctx)?;
+                let (form, count, activities) = insert_form(tc)?;
+                check_activities(form, count, activities, ctx)?;
                 Request::Insert {
+                    form,
                     count,
-                    activities: tc.rest,
+                    activities,
                 }
             }
             _ => return Err(unknown(tc)),
@@ -43,17 +92,36 @@ impl<'a> Request<'a> {
     }
 }
 
-/// Walks the activities of a TC[11,4]: per activity a CDS short release time and a
+/// Which form a TC[11,4] has, its N and its activities. The MIB's first argument is N in
+/// the CDS form and the sub-schedule ID in Yamcs' form; the second octet tells them apart.
+fn insert_form<'a>(tc: &Tc<'a>) -> Result<(Form, u8, &'a [u8]), Failure> {
+    let first = tc.args[0] as u8;
+    match tc.rest.split_first() {
+        Some((&mark, _)) if mark == sched_cuc::CDS_FORM_MARK => Ok((Form::Cds, first, tc.rest)),
+        Some((&n, activities)) => {
+            if first != sched_cuc::SUB_SCHEDULE_ID {
+                return Err(Failure::arg_out_of_range(0, first as i32));
+            }
+            if n == 0 || n as usize > config::SCHEDULE_CAPACITY {
+                return Err(Failure::arg_out_of_range(1, n as i32));
+            }
+            Ok((Form::Cuc, n, activities))
+        }
+        None => Err(Failure::scheduled_tc_invalid(FailureCode::MALFORMED_PACKET)),
+    }
+}
+
+/// Walks the activities of a TC[11,4]: per activity a release time of the form and a
 /// complete TC for this robot.
-fn check_activities(count: u8, mut rest: &[u8], ctx: &Ctx) -> Result<(), Failure> {
+fn check_activities(form: Form, count: u8, mut rest: &[u8], ctx: &Ctx) -> Result<(), Failure> {
     if count as usize > ctx.sched_free {
         return Err(Failure::schedule_full(config::SCHEDULE_CAPACITY));
     }
     for i in 0..count {
-        let Some((release, inner, tail)) = split_activity(rest) else {
+        let Some((release, inner, tail)) = split_activity(form, rest) else {
             return Err(Failure::scheduled_tc_invalid(FailureCode::MALFORMED_PACKET));
         };
-        let Some(at) = ctx.time.from_cds(release) else {
+        let Some(at) = form.release_at(release, &ctx.time) else {
             return Err(Failure::release_time_passed(0));
         };
         if at <= ctx.now {
@@ -79,10 +147,10 @@ fn check_activities(count: u8, mut rest: &[u8], ctx: &Ctx) -> Result<(), Failure
     Ok(())
 }
 
-/// Splits one TC[11,4] activity: 7-byte CDS release time, then a TC whose length comes
+/// Splits one TC[11,4] activity: the form's release time, then a TC whose length comes
 /// from its own primary header.
-fn split_activity(data: &[u8]) -> Option<(&[u8], &[u8], &[u8])> {
-    let t = config::TIMESTAMP_LEN;
+fn split_activity(form: Form, data: &[u8]) -> Option<(&[u8], &[u8], &[u8])> {
+    let t = form.time_len();
     if data.len() < t + PRIMARY_LEN {
         return None;
     }
@@ -142,18 +210,19 @@ impl<S: TmStore> Obsw<S> {
             Request::Enable => self.sched.enabled = true,
             Request::Disable => self.sched.enabled = false,
             Request::Reset => self.sched.items.clear(),
-            Request::Insert { count, activities } => {
+            Request::Insert {
+                form,
+                count,
+                activities,
+            } => {
                 let mut rest = activities;
                 for _ in 0..count {
                     // Every activity was checked at acceptance.
-                    let Some((release, inner, tail)) = split_activity(rest) else {
+                    let Some((release, inner, tail)) = split_activity(form, rest) else {
                         return Err(Failure::scheduled_tc_invalid(FailureCode::MALFORMED_PACKET));
                     };
-                    let at = self
-                        .dl
-                        .tmw
-                        .time
-                        .from_cds(release)
+                    let at = form
+                        .release_at(release, &self.dl.tmw.time)
                         .ok_or(Failure::release_time_passed(0))?;
                     let mut tc = heapless::Vec::new();
                     tc.extend_from_slice(inner)
@@ -238,5 +307,88 @@ mod tests {
             failure(&of(&pkts, 1, 2)[0]),
             (FailureCode::RELEASE_TIME_PASSED.code(), 400u32.to_be_bytes().to_vec())
         );
+    }
+
+    /// TC[11,4] application data exactly as Yamcs 5.12.8's `PusCommandPostprocessor`
+    /// builds it (`buildScheduledTc`): sub-schedule ID, N = 1, CUC (coarse = Yamcs
+    /// instant / 1000, fine = (instant % 1000) * 65536 / 1000), the TC.
+    fn yamcs_insert(o: &crate::obsw::tests::TestObsw, sub: u8, at: u64, inner: &[u8]) -> Vec<u8> {
+        let mut app = vec![sub, 1u8];
+        app.extend_from_slice(&yamcs_cuc(o.dl.tmw.time.epoch_unix_ms + at));
+        app.extend_from_slice(inner);
+        app
+    }
+
+    fn yamcs_cuc(unix_ms: u64) -> [u8; 6] {
+        let instant = unix_ms + mib::tc::sched_cuc::TAI_MINUS_UTC_S * 1000;
+        let coarse = (instant / 1000) as u32;
+        let fine = ((instant % 1000) * 65536 / 1000) as u16;
+        let mut out = [0u8; 6];
+        out[..4].copy_from_slice(&coarse.to_be_bytes());
+        out[4..].copy_from_slice(&fine.to_be_bytes());
+        out
+    }
+
+    // verifies: YAMCS-SCHED-01
+    #[test]
+    fn every_ms_of_a_yamcs_cuc_release_time_decodes_to_itself() {
+        let base = 1_790_000_000_000u64;
+        for ms in 0..2000 {
+            assert_eq!(super::cuc_unix_ms(&yamcs_cuc(base + ms)), Some(base + ms), "{ms}");
+        }
+        assert_eq!(super::cuc_unix_ms(&yamcs_cuc(base)[..5]), None, "short stamp");
+        assert_eq!(super::cuc_unix_ms(&[0; 6]), None, "before the epoch");
+    }
+
+    // verifies: YAMCS-SCHED-01
+    #[test]
+    fn a_ping_scheduled_in_yamcs_form_runs_at_its_release_time_to_the_ms() {
+        let mut o = obsw();
+        let app = yamcs_insert(&o, 1, 1_234, &tc_bytes(APID, 77, 17, 1, &[]));
+        let pkts = send(&mut o, 10, 1, 11, 4, &app);
+        assert_eq!(of(&pkts, 1, 7).len(), 1, "TC[11,4] completed");
+        assert_eq!(o.sched.len(), 1);
+        assert_eq!(o.sched.next_release(), Some(1_234));
+        let mut sink: Vec<Vec<u8>> = Vec::new();
+        o.release_schedule(1_233, &mut sink);
+        assert!(sink.is_empty());
+        o.release_schedule(1_234, &mut sink);
+        assert_eq!(of(&sink, 17, 2).len(), 1);
+    }
+
+    // verifies: YAMCS-SCHED-01
+    #[test]
+    fn yamcs_form_refuses_another_sub_schedule_a_bad_n_a_short_time_and_the_past() {
+        let mut o = obsw();
+        let ping = tc_bytes(APID, 77, 17, 1, &[]);
+        let app = yamcs_insert(&o, 2, 500, &ping);
+        let pkts = send(&mut o, 10, 1, 11, 4, &app);
+        assert_eq!(
+            failure(&of(&pkts, 1, 2)[0]),
+            (FailureCode::ARG_OUT_OF_RANGE.code(), vec![0, 0, 0, 0, 2])
+        );
+        let mut app = yamcs_insert(&o, 1, 500, &ping);
+        app[1] = 33;
+        let pkts = send(&mut o, 10, 2, 11, 4, &app);
+        assert_eq!(
+            failure(&of(&pkts, 1, 2)[0]),
+            (FailureCode::ARG_OUT_OF_RANGE.code(), vec![1, 0, 0, 0, 33])
+        );
+        let app = yamcs_insert(&o, 1, 500, &ping);
+        let pkts = send(&mut o, 10, 3, 11, 4, &app[..6]);
+        assert_eq!(
+            failure(&of(&pkts, 1, 2)[0]),
+            (
+                FailureCode::SCHEDULED_TC_INVALID.code(),
+                FailureCode::MALFORMED_PACKET.code().to_be_bytes().to_vec()
+            )
+        );
+        let app = yamcs_insert(&o, 1, 400, &ping);
+        let pkts = send(&mut o, 1000, 4, 11, 4, &app);
+        assert_eq!(
+            failure(&of(&pkts, 1, 2)[0]),
+            (FailureCode::RELEASE_TIME_PASSED.code(), 400u32.to_be_bytes().to_vec())
+        );
+        assert_eq!(o.sched.len(), 0, "nothing inserted");
     }
 }
