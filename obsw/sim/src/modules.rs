@@ -15,6 +15,9 @@
 //! [[module]]                        # overrides for one slot (and adds it under base = "none")
 //! slot = "gripper_b"
 //! revision = 2                      # variant, revision, serial, calibration: optional
+//! calibration = [1160, "default"]   # words (µs, mA, ...; "default" = the database's
+//!                                   # value for this revision, 0x8000 in the descriptor;
+//!                                   # words not given: "default"), or "default" for all
 //! [[fault]]
 //! kind = "corrupt-descriptor"       # corrupt-descriptor | unplugged | unlisted |
 //! slot = "gripper_a"                # swap-revision | board-b-silent
@@ -23,7 +26,8 @@
 use mib::modules::db::{default_def, lookup};
 use mib::modules::descriptor::{emit_table, MAX_TABLE_LEN, TABLE_HEADER_LEN};
 use mib::modules::{
-    slot_by_name, Board, Calibration, Descriptor, ModuleSet, ModuleType, Probe, MPU6000_WHO_AM_I, NUM_SLOTS, SLOTS,
+    slot_by_name, Board, Calibration, Descriptor, ModuleSet, ModuleType, Probe, CAL_DEFAULT, MPU6000_WHO_AM_I,
+    NUM_SLOTS, SLOTS,
 };
 use mmic_domain::discovery::{discover, ArmSwitch, BoardInput, BoardProbes, Discovery, Invalid};
 use serde::Deserialize;
@@ -95,7 +99,23 @@ struct ModuleRepr {
     variant: Option<u8>,
     revision: Option<u8>,
     serial: Option<u32>,
-    calibration: Option<Spanned<Vec<i16>>>,
+    calibration: Option<Spanned<CalRepr>>,
+}
+
+/// `calibration = "default"` (every word the database default of the revision) or up to
+/// eight words, each a number or `"default"`.
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum CalRepr {
+    Words(Vec<CalWord>),
+    Keyword(String),
+}
+
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum CalWord {
+    Value(i16),
+    Keyword(String),
 }
 
 #[derive(Deserialize)]
@@ -285,16 +305,37 @@ impl ModuleSetSpec {
                 d.serial = n;
             }
             if let Some(c) = &m.calibration {
-                if c.get_ref().len() > 8 {
-                    return Err(cx.err(
+                let ckey = format!("{key}.calibration");
+                let not_default = |k: &str| {
+                    cx.err(
                         Some(&c.span()),
-                        &format!("{key}.calibration"),
-                        format!("{} words given, at most 8", c.get_ref().len()),
-                    ));
-                }
-                let mut w = [0i16; 8];
-                w[..c.get_ref().len()].copy_from_slice(c.get_ref());
-                d.cal = Calibration(w);
+                        &ckey,
+                        format!("'{k}': a calibration word is a number or \"default\""),
+                    )
+                };
+                d.cal = match c.get_ref() {
+                    CalRepr::Keyword(k) if k == "default" => Calibration::DEFAULT,
+                    CalRepr::Keyword(k) => return Err(not_default(k)),
+                    CalRepr::Words(words) => {
+                        if words.len() > 8 {
+                            return Err(cx.err(
+                                Some(&c.span()),
+                                &ckey,
+                                format!("{} words given, at most 8", words.len()),
+                            ));
+                        }
+                        // Words not given are "default" too.
+                        let mut w = [CAL_DEFAULT; 8];
+                        for (o, x) in w.iter_mut().zip(words) {
+                            *o = match x {
+                                CalWord::Value(v) => *v,
+                                CalWord::Keyword(k) if k == "default" => CAL_DEFAULT,
+                                CalWord::Keyword(k) => return Err(not_default(k)),
+                            };
+                        }
+                        Calibration(w)
+                    }
+                };
             }
             fitted[s as usize] = Some(d);
         }
@@ -529,6 +570,9 @@ pub fn outcome_key(d: &Discovery) -> String {
                 Invalid::ProbeDisagrees { slot, .. } => format!("probe-disagrees {}", name(slot)),
                 Invalid::Missing { slot } => format!("missing {}", name(slot)),
                 Invalid::Unsupported { present } => format!("unsupported {:#06x}", present.0),
+                Invalid::CalibrationOutOfRange { slot, error } => {
+                    format!("calibration-out-of-range {} word {}", name(slot), error.word)
+                }
             };
             format!("invalid: {r}")
         }

@@ -261,3 +261,47 @@ fn the_built_in_full_robot_is_full_toml_and_the_simulator_answers_with_its_modul
     assert_eq!(*sim.modules(), loco.discovery_input());
     assert_eq!(outcome_key(&sim.modules().discover()), "LOCOMOTION_ONLY");
 }
+
+// verifies: MOD-CAL-01, MOD-CAL-02, MOD-SIM-02
+#[test]
+fn calibration_words_may_be_default_and_out_of_range_ones_make_the_set_invalid() {
+    use mib::modules::{Calibration, CAL_DEFAULT};
+    // "default" for all words, or per word.
+    let s = parse("[[module]]\nslot = \"gripper_a\"\ncalibration = \"default\"\n").unwrap();
+    assert_eq!(s.fitted[slot::GRIPPER_A as usize].unwrap().cal, Calibration::DEFAULT);
+    let s = parse("[[module]]\nslot = \"arm_b\"\ncalibration = [1010, \"default\", 1010]\n").unwrap();
+    assert_eq!(
+        s.fitted[slot::ARM_B as usize].unwrap().cal.0,
+        [
+            1010,
+            CAL_DEFAULT,
+            1010,
+            CAL_DEFAULT,
+            CAL_DEFAULT,
+            CAL_DEFAULT,
+            CAL_DEFAULT,
+            CAL_DEFAULT
+        ]
+    );
+    // Such a robot is FULL: "default" words (and those not given) take the database's
+    // values, 1010 is in range.
+    let d = s.discovery_input().discover();
+    assert_eq!(outcome_key(&d), "FULL");
+    assert_eq!(
+        mmic_domain::calib::RobotCal::from_set(&d.set).side[1].arm_contracted_us,
+        1010
+    );
+    // Anything else is refused, naming the key.
+    let e = parse("[[module]]\nslot = \"arm_b\"\ncalibration = [1010, \"dflt\"]\n").unwrap_err();
+    assert_eq!((e.line, e.key.as_deref()), (Some(3), Some("module[0].calibration")));
+    assert!(e.message.contains("'dflt'"), "{e}");
+    let e = parse("[[module]]\nslot = \"arm_b\"\ncalibration = \"factory\"\n").unwrap_err();
+    assert_eq!(e.key.as_deref(), Some("module[0].calibration"));
+    // The example file: rev 2 gripper with rev 1's closed width.
+    let d = load("calibration-out-of-range.toml").discovery_input().discover();
+    assert_eq!(outcome_key(&d), "invalid: calibration-out-of-range gripper_b word 0");
+    // An arm extended beyond the servo's range, the other words default.
+    let s = parse("[[module]]\nslot = \"arm_a\"\ncalibration = [\"default\", 2200]\n").unwrap();
+    let d = s.discovery_input().discover();
+    assert_eq!(outcome_key(&d), "invalid: calibration-out-of-range arm_a word 1");
+}

@@ -7,7 +7,13 @@
 //!
 //! The configuration the ground last accepted is platform state (flash on the boards, a
 //! file on the host): the platform hands it in with [`Obsw::set_accepted_config`] before
-//! discovery and persists it when [`Obsw::take_accepted_update`] returns one.
+//! discovery and persists it when [`Obsw::take_accepted_update`] returns one, in the
+//! fixed layout of [`AcceptedConfig::to_bytes`] (checked by [`AcceptedConfig::from_bytes`]).
+//! A platform whose store gave nothing usable says why with [`Obsw::config_state_lost`].
+//!
+//! Discovery also sets the calibration the robot runs with
+//! (`mmic_domain::calib::RobotCal::from_set`): the controller's servo set points, hip home,
+//! encoder zero and bolter thresholds, and the high limits of the current monitors.
 
 use mib::events::eid;
 use mib::modes::robot_mode;
@@ -17,6 +23,7 @@ use mib::modules::NUM_SLOTS;
 use mib::params::pid;
 use mib_wire::tm;
 
+use mmic_domain::calib::RobotCal;
 use mmic_domain::controller::Action;
 use mmic_domain::discovery::{
     self, accept, compare, discover, missing_for, operational_allowed, Blocked, BoardInput, BoardProbes, Discovery,
@@ -42,6 +49,136 @@ impl AcceptedConfig {
         AcceptedConfig {
             hash: mib::modules::config::config_hash(set),
             ids: core::array::from_fn(|i| set[i].as_ref().map(ModuleIdentity::from)),
+        }
+    }
+
+    /// Slots the accepted configuration holds (bit = slot).
+    pub fn present(&self) -> u16 {
+        self.ids
+            .iter()
+            .enumerate()
+            .filter(|(_, id)| id.is_some())
+            .fold(0, |m, (i, _)| m | 1 << i)
+    }
+
+    /// The persisted form: [`STATE_MAGIC`], hash u32, present slots u16, per slot
+    /// (type u8, variant u8, revision u8, serial u32; zeros when absent), CRC-32/ISO-HDLC
+    /// over everything before it. Big-endian, [`STATE_LEN`] bytes.
+    pub fn to_bytes(&self) -> [u8; STATE_LEN] {
+        let mut b = [0u8; STATE_LEN];
+        b[..8].copy_from_slice(&STATE_MAGIC);
+        b[8..12].copy_from_slice(&self.hash.to_be_bytes());
+        b[12..14].copy_from_slice(&self.present().to_be_bytes());
+        for (i, id) in self.ids.iter().enumerate() {
+            let at = STATE_HEADER_LEN + i * STATE_ENTRY_LEN;
+            if let Some(id) = id {
+                b[at] = id.ty.code();
+                b[at + 1] = id.variant;
+                b[at + 2] = id.revision;
+                b[at + 3..at + 7].copy_from_slice(&id.serial.to_be_bytes());
+            }
+        }
+        let crc = mib::modules::config::HASH_CRC.checksum(&b[..STATE_LEN - 4]);
+        b[STATE_LEN - 4..].copy_from_slice(&crc.to_be_bytes());
+        b
+    }
+
+    /// Reads [`AcceptedConfig::to_bytes`]'s layout: length, magic, CRC, then the present
+    /// mask against the entries (an absent slot is all zeros, a present one has a type).
+    pub fn from_bytes(b: &[u8]) -> Result<AcceptedConfig, StateError> {
+        if b.len() != STATE_LEN {
+            return Err(StateError::Length(b.len()));
+        }
+        if b[..8] != STATE_MAGIC {
+            return Err(StateError::Magic);
+        }
+        let stored = u32::from_be_bytes([b[STATE_LEN - 4], b[STATE_LEN - 3], b[STATE_LEN - 2], b[STATE_LEN - 1]]);
+        let computed = mib::modules::config::HASH_CRC.checksum(&b[..STATE_LEN - 4]);
+        if stored != computed {
+            return Err(StateError::Crc { stored, computed });
+        }
+        let hash = u32::from_be_bytes([b[8], b[9], b[10], b[11]]);
+        let present = u16::from_be_bytes([b[12], b[13]]);
+        let mut ids = [None; NUM_SLOTS];
+        for (i, id) in ids.iter_mut().enumerate() {
+            let e = &b[STATE_HEADER_LEN + i * STATE_ENTRY_LEN..STATE_HEADER_LEN + (i + 1) * STATE_ENTRY_LEN];
+            let listed = present & (1 << i) != 0;
+            match (listed, e[0]) {
+                (false, _) if e.iter().all(|&x| x == 0) => {}
+                (true, ty) if ty != 0 => {
+                    *id = Some(ModuleIdentity {
+                        ty: mib::modules::ModuleType::from_code(ty),
+                        variant: e[1],
+                        revision: e[2],
+                        serial: u32::from_be_bytes([e[3], e[4], e[5], e[6]]),
+                    })
+                }
+                _ => return Err(StateError::Entry(i as u8)),
+            }
+        }
+        if present >> NUM_SLOTS != 0 {
+            return Err(StateError::Entry(NUM_SLOTS as u8));
+        }
+        Ok(AcceptedConfig { hash, ids })
+    }
+}
+
+/// Magic and layout version of the persisted accepted configuration.
+pub const STATE_MAGIC: [u8; 8] = *b"MMICCFG1";
+const STATE_HEADER_LEN: usize = 8 + 4 + 2;
+const STATE_ENTRY_LEN: usize = 7;
+/// Length of [`AcceptedConfig::to_bytes`].
+pub const STATE_LEN: usize = STATE_HEADER_LEN + NUM_SLOTS * STATE_ENTRY_LEN + 4;
+
+/// Why persisted bytes are not an accepted configuration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StateError {
+    Length(usize),
+    Magic,
+    Crc {
+        stored: u32,
+        computed: u32,
+    },
+    /// Slot entry inconsistent with the present mask (`NUM_SLOTS`: mask bits beyond).
+    Entry(u8),
+}
+
+impl core::fmt::Display for StateError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            StateError::Length(n) => write!(f, "{n} bytes, {STATE_LEN} expected"),
+            StateError::Magic => write!(f, "not an accepted-configuration state (magic)"),
+            StateError::Crc { stored, computed } => {
+                write!(f, "CRC {stored:#010x} stored, {computed:#010x} computed")
+            }
+            StateError::Entry(i) => write!(f, "slot entry {i} disagrees with the present mask"),
+        }
+    }
+}
+
+impl core::error::Error for StateError {}
+
+/// Why the platform's store gave no accepted configuration (event CONFIG_STATE_LOST,
+/// `mib::layout::CONFIG_STATE_LOST_NAMES`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StateLost {
+    /// Nothing stored yet.
+    Missing,
+    /// The store could not be read.
+    Unreadable,
+    /// The stored bytes failed [`AcceptedConfig::from_bytes`].
+    Corrupt,
+    /// An acceptance could not be written (it holds until the next restart only).
+    WriteFailed,
+}
+
+impl StateLost {
+    pub const fn code(self) -> u8 {
+        match self {
+            StateLost::Missing => 1,
+            StateLost::Unreadable => 2,
+            StateLost::Corrupt => 3,
+            StateLost::WriteFailed => 4,
         }
     }
 }
@@ -234,6 +371,7 @@ impl<S: TmStore> Obsw<S> {
             }
             (Ok(_), Replacement::Same | Replacement::NoneAccepted) => {}
         }
+        self.apply_calibration(RobotCal::from_set(&d.set));
         self.modules.discovery = Some(d);
         self.modules.replacement = Some(r);
         for (n, s) in MODULE_NODES {
@@ -242,6 +380,41 @@ impl<S: TmStore> Obsw<S> {
         }
         self.apply_module_modes();
         self.report_modules(now, sink);
+    }
+
+    /// Runs with `cal` from now on: the controller's set points and bolter thresholds
+    /// (`Controller::set_calibration`) and the high limits of the current monitors (as a
+    /// TC[12,7] would set them, so TM[12,9] reports them): locomotion A = the larger of
+    /// arm A's and the hip's (they share the sensor), locomotion B = arm B's, grippers and
+    /// bolters their own; operational and idle limits.
+    pub fn apply_calibration(&mut self, cal: RobotCal) {
+        self.ctrl.set_calibration(cal);
+        let i = |c: mmic_domain::calib::CurrentLimits| (c.idle_max_ma, c.op_max_ma);
+        let (arm_a, arm_b, hip) = (i(cal.arm_i[0]), i(cal.arm_i[1]), i(cal.hip_i));
+        let limits: [(&str, u16); 8] = [
+            ("I_LOC_A_OPER", arm_a.1.max(hip.1)),
+            ("I_LOC_B_OPER", arm_b.1),
+            ("I_GRIP_A_OPER", cal.grip_i[0].op_max_ma),
+            ("I_GRIP_B_OPER", cal.grip_i[1].op_max_ma),
+            ("I_BO_A_OPER", cal.bolter_i[0].op_max_ma),
+            ("I_BO_B_OPER", cal.bolter_i[1].op_max_ma),
+            ("I_LOC_A_IDLE", arm_a.0.max(hip.0)),
+            ("I_LOC_B_IDLE", arm_b.0),
+        ];
+        for (name, ma) in limits {
+            // The currents are in mA (CAL_AMP: 1 count = 1 mA).
+            if let Some(m) = self.monitoring.mons.iter_mut().find(|m| m.def.name == name) {
+                m.def.high = ma as i32;
+            }
+        }
+    }
+
+    /// Raises CONFIG_STATE_LOST: the platform's store of the accepted configuration gave
+    /// nothing (missing, unreadable, corrupt; the robot then has nothing accepted) or an
+    /// acceptance could not be written.
+    pub fn config_state_lost(&mut self, now: u64, why: StateLost, sink: &mut impl TmSink) {
+        self.last_now = self.last_now.max(now);
+        self.event(now, eid::CONFIG_STATE_LOST, &[why.code() as i64], sink);
     }
 
     /// Why OPERATIONAL is refused by the module set (`None`: allowed, or no discovery
@@ -521,6 +694,81 @@ mod tests {
         assert_eq!(o.take_accepted_update().map(|a| a.hash), Some(hash));
         assert!(o.modules_block_operational().is_none());
         assert_eq!(o.param(pid::CONFIG_STATUS), status::ACCEPTED as i64);
+    }
+
+    // verifies: MOD-CAL-03, MOD-CAL-04
+    #[test]
+    fn discovery_applies_the_module_sets_calibration_to_the_controller_and_the_monitors() {
+        let limit = |o: &TestObsw, name: &str| {
+            o.monitoring
+                .mons
+                .iter()
+                .find(|m| m.def.name == name)
+                .map(|m| m.def.high)
+                .unwrap()
+        };
+        // Before discovery: the compiled constants.
+        let mut o = obsw();
+        assert_eq!(*o.ctrl.calibration(), RobotCal::COMPILED);
+        assert_eq!(limit(&o, "I_GRIP_B_OPER"), 1500);
+        // Gripper B revision 2 (boards on firmware 1.1), its descriptor "default": the
+        // database's rev-2 values; arm A bench-calibrated; a stronger hip.
+        let mut set = default_set(1000);
+        for b in [slot::BOARD_A, slot::BOARD_B] {
+            set[b as usize].as_mut().unwrap().cal.0[0] = 0x0101;
+        }
+        let g = set[slot::GRIPPER_B as usize].as_mut().unwrap();
+        g.revision = 2;
+        g.cal = mib::modules::Calibration::DEFAULT;
+        set[slot::ARM_A as usize].as_mut().unwrap().cal.0[4] = 2600;
+        set[slot::HIP as usize].as_mut().unwrap().cal.0[2] = 3500;
+        let pkts = boot(&mut o, &set, None);
+        assert!(events(&pkts, eid::CONFIG_INVALID).is_empty());
+        let c = *o.ctrl.calibration();
+        assert_eq!((c.side[1].grip_closed_us, c.side[1].grip_open_us), (1150, 1850));
+        assert_eq!((c.side[0].grip_closed_us, c.side[0].grip_open_us), (1100, 1900));
+        assert_eq!(limit(&o, "I_GRIP_B_OPER"), 1600);
+        assert_eq!(limit(&o, "I_GRIP_A_OPER"), 1500);
+        assert_eq!(limit(&o, "I_LOC_A_OPER"), 3500, "the larger of arm A and hip");
+        assert_eq!(limit(&o, "I_LOC_B_OPER"), 3000);
+        assert_eq!(limit(&o, "I_LOC_A_IDLE"), 400);
+    }
+
+    // verifies: MOD-PERSIST-01, MOD-PERSIST-03
+    #[test]
+    fn the_accepted_configuration_round_trips_and_damage_is_refused() {
+        let a = accepted_full().unwrap();
+        let b = a.to_bytes();
+        assert_eq!(b.len(), STATE_LEN);
+        assert_eq!(AcceptedConfig::from_bytes(&b), Ok(a));
+        // A locomotion-only configuration (absent slots) too.
+        let mut set = default_set(7);
+        set[slot::BOLTER_A as usize] = None;
+        set[slot::BOLTER_B as usize] = None;
+        let l = AcceptedConfig::of(&set);
+        assert_eq!(l.present(), 0x3FFF & !(1 << slot::BOLTER_A) & !(1 << slot::BOLTER_B));
+        assert_eq!(AcceptedConfig::from_bytes(&l.to_bytes()), Ok(l));
+        // Every single bit flip and every truncation is refused.
+        for i in 0..STATE_LEN * 8 {
+            let mut x = b;
+            x[i / 8] ^= 1 << (i % 8);
+            assert!(AcceptedConfig::from_bytes(&x).is_err(), "bit {i}");
+        }
+        for n in 0..STATE_LEN {
+            assert_eq!(AcceptedConfig::from_bytes(&b[..n]), Err(StateError::Length(n)));
+        }
+        assert_eq!(AcceptedConfig::from_bytes(&[0u8; STATE_LEN]), Err(StateError::Magic));
+        // A mask that disagrees with its entries, with a valid CRC.
+        let mut x = l.to_bytes();
+        x[13] |= 1 << slot::BOLTER_A;
+        let crc = mib::modules::config::HASH_CRC.checksum(&x[..STATE_LEN - 4]);
+        x[STATE_LEN - 4..].copy_from_slice(&crc.to_be_bytes());
+        assert_eq!(AcceptedConfig::from_bytes(&x), Err(StateError::Entry(slot::BOLTER_A)));
+        // What the platform raises when its store gave nothing.
+        let mut o = obsw();
+        let mut sink = Vec::new();
+        o.config_state_lost(3, StateLost::Corrupt, &mut sink);
+        assert_eq!(events(&sink, eid::CONFIG_STATE_LOST), vec![vec![3u8]]);
     }
 
     // verifies: MOD-OBSW-04, MOD-OBSW-05
