@@ -175,10 +175,21 @@ pub const HK_STRUCTS: &[HkDef] = &[
     HkDef {
         sid: sid::MODULES,
         name: "MODULES",
-        params: &[CONFIG_HASH, CONFIG_ID, CONFIG_STATUS, MODULES_PRESENT],
+        params: &[
+            CONFIG_HASH,
+            CONFIG_ID,
+            CONFIG_STATUS,
+            MODULES_PRESENT,
+            CAL_GRIP_A_CLOSED,
+            CAL_GRIP_A_OPEN,
+            CAL_GRIP_B_CLOSED,
+            CAL_GRIP_B_OPEN,
+            CAL_ENC_ZERO,
+            CAL_FROM_DESCRIPTORS,
+        ],
         default_interval_ms: 10000,
         default_enabled: true,
-        desc: "Module configuration found at boot (issue 24): hash, supported configuration, state against the ground-accepted configuration, present slots",
+        desc: "Module configuration found at boot (issue 24): hash, supported configuration, state against the ground-accepted configuration, present slots; the calibration in use (gripper pulse widths, encoder zero, slots calibrated from their descriptors)",
     },
 ];
 

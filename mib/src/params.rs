@@ -199,6 +199,12 @@ params! {
     CONFIG_ID = 147, U8, "", ID, None, "Supported module configuration found at boot: 0 none (invalid set), 1 FULL, 2 LOCOMOTION_ONLY";
     CONFIG_STATUS = 148, U8, "", ID, None, "Module configuration state: 0 not discovered, 1 accepted by the ground, 2 not accepted (MODULE_REPLACED: OPERATIONAL refused until ACCEPT_CONFIG), 3 invalid (STANDBY only)";
     MODULES_PRESENT = 149, U16, "", ID, None, "Present module slots (bit n = slot n of mib::modules::SLOTS)";
+    CAL_GRIP_A_CLOSED = 150, U16, "us", ID, None, "Calibration in use (issue 24): gripper A closed pulse width (its descriptor, or the database default of its revision; the MIB constant before discovery)";
+    CAL_GRIP_A_OPEN = 151, U16, "us", ID, None, "Calibration in use (issue 24): gripper A open pulse width";
+    CAL_GRIP_B_CLOSED = 152, U16, "us", ID, None, "Calibration in use (issue 24): gripper B closed pulse width";
+    CAL_GRIP_B_OPEN = 153, U16, "us", ID, None, "Calibration in use (issue 24): gripper B open pulse width";
+    CAL_ENC_ZERO = 154, U16, "", ID, None, "Calibration in use (issue 24): hip encoder (AS5600) reading at the hip zero, counts (2048 nominal)";
+    CAL_FROM_DESCRIPTORS = 155, U16, "", ID, None, "Calibration in use (issue 24): slots whose calibration came from their descriptor (bit n = slot n; 0 = compiled constants, before discovery)";
 }
 
 /// Root modes in which the limits of parameter `id` apply: the regulated servo supply

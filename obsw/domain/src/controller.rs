@@ -1325,6 +1325,12 @@ impl Controller {
             pid::B_FRAME_ERRORS => self.link.counters().frame_errors as i64,
             pid::B_RETRIES => self.link.counters().retries as i64,
             pid::B_ACK_MISSED => self.link.counters().ack_missed as i64,
+            pid::CAL_GRIP_A_CLOSED => self.cal.side[0].grip_closed_us as i64,
+            pid::CAL_GRIP_A_OPEN => self.cal.side[0].grip_open_us as i64,
+            pid::CAL_GRIP_B_CLOSED => self.cal.side[1].grip_closed_us as i64,
+            pid::CAL_GRIP_B_OPEN => self.cal.side[1].grip_open_us as i64,
+            pid::CAL_ENC_ZERO => self.cal.encoder_zero as i64,
+            pid::CAL_FROM_DESCRIPTORS => self.cal.from_descriptors as i64,
             _ => return None,
         })
     }
@@ -1393,6 +1399,12 @@ pub const DOMAIN_PARAMS: &[u16] = &[
     pid::B_FRAME_ERRORS,
     pid::B_RETRIES,
     pid::B_ACK_MISSED,
+    pid::CAL_GRIP_A_CLOSED,
+    pid::CAL_GRIP_A_OPEN,
+    pid::CAL_GRIP_B_CLOSED,
+    pid::CAL_GRIP_B_OPEN,
+    pid::CAL_ENC_ZERO,
+    pid::CAL_FROM_DESCRIPTORS,
 ];
 
 /// Module moves of primitive `prim` from state `from` to `to`: release the moving

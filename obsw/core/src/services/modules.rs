@@ -732,6 +732,18 @@ mod tests {
         assert_eq!(limit(&o, "I_LOC_A_OPER"), 3500, "the larger of arm A and hip");
         assert_eq!(limit(&o, "I_LOC_B_OPER"), 3000);
         assert_eq!(limit(&o, "I_LOC_A_IDLE"), 400);
+        // HK structure MODULES reports the calibration in use.
+        assert_eq!(o.param(pid::CAL_GRIP_B_CLOSED), 1150);
+        assert_eq!(o.param(pid::CAL_GRIP_B_OPEN), 1850);
+        assert_eq!(o.param(pid::CAL_GRIP_A_CLOSED), 1100);
+        assert_eq!(o.param(pid::CAL_ENC_ZERO), 2048);
+        assert_eq!(
+            o.param(pid::CAL_FROM_DESCRIPTORS) & (1 << slot::GRIPPER_B),
+            1 << slot::GRIPPER_B
+        );
+        assert!(mib::hk::HK_STRUCTS
+            .iter()
+            .any(|h| h.sid == mib::hk::sid::MODULES && h.params.contains(&pid::CAL_GRIP_B_CLOSED)));
     }
 
     // verifies: MOD-PERSIST-01, MOD-PERSIST-03
