@@ -7,7 +7,7 @@
 //! - [`LimitChecker`]: every HK parameter with MIB limits, checked against its soft and
 //!   hard limits with persistence and hysteresis;
 //! - [`Source`]: what an alarm is about (a parameter, an event, link loss, stale data,
-//!   the archive).
+//!   the archive, a change of the robot's module configuration).
 //!
 //! Limits, the robot state in which they apply (root modes, a condition such as "no
 //! primitive running"), persistence and hysteresis all come from the MIB
@@ -67,6 +67,9 @@ pub enum Source {
     StaleData,
     /// The archive cannot be written (disk full, I/O error).
     Archive,
+    /// The robot's module configuration changed: its configuration hash (HK CONFIG_HASH,
+    /// module report TM[210,3]) differs from the last one the collector saw.
+    ConfigChange,
 }
 
 impl Source {
@@ -77,6 +80,7 @@ impl Source {
             Source::LinkLoss => "link",
             Source::StaleData => "stale",
             Source::Archive => "archive",
+            Source::ConfigChange => "config",
         }
     }
     /// The name shown to operators: the parameter or event name, or the condition.
@@ -86,6 +90,7 @@ impl Source {
             Source::LinkLoss => "LINK_LOSS",
             Source::StaleData => "STALE_DATA",
             Source::Archive => "ARCHIVE_WRITE",
+            Source::ConfigChange => "CONFIG_CHANGED",
         }
     }
     /// Inverse of (`kind`, `name`), for rows read back from the archive.
@@ -96,6 +101,7 @@ impl Source {
             "link" => Some(Source::LinkLoss),
             "stale" => Some(Source::StaleData),
             "archive" => Some(Source::Archive),
+            "config" => Some(Source::ConfigChange),
             _ => None,
         }
     }

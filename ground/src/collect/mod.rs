@@ -10,6 +10,7 @@ pub mod dash;
 pub mod onboard;
 pub mod planrun;
 pub mod robot;
+pub mod robotcfg;
 pub mod store;
 pub mod tracker;
 
@@ -248,7 +249,11 @@ pub fn run_with(
     let loc = archive.to_string_lossy();
     let mut st = Store::open(&loc).with_context(|| format!("archive {loc}"))?;
     let mut histories = Vec::new();
+    let mut hashes = Vec::new();
     for r in &cfg.robots {
+        // The configuration hash last archived: a change while the collector was down
+        // is a change too.
+        hashes.push(last_config_hash(&mut st, r.number)?);
         let h: Vec<(u16, Vec<Pos>)> = st
             .recent_positions(r.number, RESUME_WINDOW)?
             .into_iter()
@@ -280,14 +285,15 @@ pub fn run_with(
     let mut dash_tx = std::collections::BTreeMap::new();
     let mut workers = Vec::new();
     let mut statuses = Vec::new();
-    for (r, h) in cfg.robots.iter().zip(histories) {
+    for ((r, h), hash) in cfg.robots.iter().zip(histories).zip(hashes) {
         let status = Arc::new(Mutex::new(RobotStatus {
             robot: r.number,
             addr: r.addr.to_string(),
             ..Default::default()
         }));
         statuses.push(status.clone());
-        let mut w = Worker::new(r.clone(), global.clone(), sink_tx.clone(), status, stop.clone(), h);
+        let mut w =
+            Worker::new(r.clone(), global.clone(), sink_tx.clone(), status, stop.clone(), h).with_config_hash(hash);
         if let Some(hub) = &hub {
             let (tx, rx) = crossbeam_channel::bounded(64);
             dash_tx.insert(r.number, tx);
@@ -356,6 +362,42 @@ pub fn run_with(
         draw(&statuses, &ring, started);
     }
     Ok(0)
+}
+
+/// Module reports looked for among the newest archived packets of a robot at start.
+const HASH_SEARCH_PACKETS: i64 = 4096;
+
+/// The newest non-zero configuration hash `robot` reported before the collector
+/// (re)started: the newer of its last archived MODULES housekeeping (every 10 s) and the
+/// last module report among its newest archived packets.
+fn last_config_hash(st: &mut Store, robot: u8) -> Result<Option<u32>> {
+    let from_hk = st
+        .latest(Some(robot))?
+        .into_iter()
+        .find(|l| l.param == mib::params::pid::CONFIG_HASH && l.raw != 0)
+        .and_then(|l| Some((l.t_ms, u32::try_from(l.raw).ok()?)));
+    let mut from_report = None;
+    if let Some(apid) = onboard::apid(robot) {
+        let rows = crate::archive::db::collect(
+            st.db(),
+            "SELECT obt_ms, raw FROM packet WHERE robot = ?1 AND apid = ?2 ORDER BY obt_ms DESC LIMIT ?3",
+            &[
+                crate::archive::Val::Int(i64::from(robot)),
+                crate::archive::Val::Int(i64::from(apid)),
+                crate::archive::Val::Int(HASH_SEARCH_PACKETS),
+            ],
+        )?;
+        from_report = rows.iter().find_map(|r| {
+            let tm = crate::pus::decode_tm(r.get(1)?.blob()?).ok()?;
+            let body = onboard::module_report(&tm)?;
+            let h = u32::from_be_bytes(body.get(..4)?.try_into().ok()?);
+            (h != 0).then_some((r.first()?.int()?, h))
+        });
+    }
+    Ok(match (from_hk, from_report) {
+        (Some(a), Some(b)) => Some(if a.0 >= b.0 { a.1 } else { b.1 }),
+        (a, b) => a.or(b).map(|x| x.1),
+    })
 }
 
 /// A file-size limit (RLIMIT_FSIZE, e.g. a quota set with `prlimit`) must surface as a

@@ -39,6 +39,32 @@ pub fn mode_announce_tc(robot: u8, seq: u16) -> Option<BuiltTc> {
     pus::build_tc(robot, seq, def("MODE_ANNOUNCE")?, &[mib::modes::node::ROBOT as i64]).ok()
 }
 
+/// Asks for the module report TM[210,3] (REPORT_MODULES).
+pub fn report_modules_tc(robot: u8, seq: u16) -> Option<BuiltTc> {
+    pus::build_tc(robot, seq, def("REPORT_MODULES")?, &[]).ok()
+}
+
+/// Asks for the team status report TM[211,2] (TEAM_STATUS_REQUEST).
+pub fn team_status_tc(robot: u8, seq: u16) -> Option<BuiltTc> {
+    pus::build_tc(robot, seq, def("TEAM_STATUS_REQUEST")?, &[]).ok()
+}
+
+/// The body of a module report TM[210,3] (kept undecoded by the packet decoder).
+pub fn module_report(tm: &Tm) -> Option<&[u8]> {
+    match &tm.body {
+        TmBody::Unknown { data }
+            if (tm.service, tm.subservice)
+                == (
+                    mib_wire::tm::ModuleReport::SERVICE,
+                    mib_wire::tm::ModuleReport::SUBSERVICE,
+                ) =>
+        {
+            Some(data)
+        }
+        _ => None,
+    }
+}
+
 /// Sets the collection interval of a housekeeping structure.
 pub fn hk_interval_tc(robot: u8, seq: u16, sid: u16, interval_ms: u32) -> Option<BuiltTc> {
     pus::build_tc(robot, seq, def("HK_SET_INTERVAL")?, &[sid as i64, interval_ms as i64]).ok()

@@ -20,6 +20,7 @@ use super::config::{Config, RobotCfg};
 use super::dash::{self, DashCmd, RobotDash};
 use super::onboard;
 use super::planrun::PlanInput;
+use super::robotcfg::{self, ConfigTracker, ModulesHk, ReportOutcome};
 use super::store::{Health, SinkMsg};
 use super::tracker::{ApidTracker, Pos, Verdict};
 
@@ -41,6 +42,8 @@ const MERGE_GAP: u32 = 64;
 /// Subscription and HK-interval commands tried this many times per link-up before
 /// waiting for the next renewal.
 const HK_SET_TRIES: u32 = 10;
+/// Least time between two requests for the module report or the team status.
+const ASK_AGAIN_MS: i64 = 500;
 
 /// Link state shown to operators.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Default)]
@@ -123,6 +126,16 @@ pub struct Worker {
     /// The plan run following this robot (`collect::planrun`): it gets every
     /// verification report and event, and the link's loss.
     plan: Option<Sender<PlanInput>>,
+    /// The robot's module configuration (issue 24): hash, report, changes.
+    modules: ConfigTracker,
+    /// When the module report was last asked for (REPORT_MODULES).
+    modules_asked_ms: i64,
+    /// A team status report arrived since link-up or the last reboot (issue 25).
+    team_known: bool,
+    /// A team event arrived: ask for the team status.
+    team_due: bool,
+    /// When the team status was last asked for (TEAM_STATUS_REQUEST).
+    team_asked_ms: i64,
 }
 
 impl Worker {
@@ -184,12 +197,24 @@ impl Worker {
             st,
             dash: None,
             plan: None,
+            modules: ConfigTracker::new(None),
+            modules_asked_ms: i64::MIN / 2,
+            team_known: false,
+            team_due: false,
+            team_asked_ms: i64::MIN / 2,
             cfg,
             global,
             sink,
             status,
             stop,
         }
+    }
+
+    /// Starts from the configuration hash last archived for this robot: a robot that
+    /// comes back with another one raises CONFIG_CHANGED even across a collector restart.
+    pub fn with_config_hash(mut self, hash: Option<u32>) -> Worker {
+        self.modules = ConfigTracker::new(hash);
+        self
     }
 
     /// Feeds `dash`'s hub and takes its TCs (`ground collect --http`).
@@ -422,6 +447,9 @@ impl Worker {
                     self.send(&tc.bytes);
                 }
             }
+            if self.state == LinkState::Up && !self.team_known {
+                self.team_due = true;
+            }
             if self.state == LinkState::Up {
                 self.next_send_ms = now + self.global.lease_renew_ms as i64;
             } else {
@@ -429,6 +457,7 @@ impl Worker {
                 self.backoff_ms = (self.backoff_ms * 2).min(self.global.max_backoff_ms as i64);
             }
         }
+        self.ask_config(now);
         // Holes → store requests (only while the link is up).
         if self.store_in_flight && now - self.last_store_request_ms >= STORE_REQUEST_TIMEOUT_MS {
             self.store_in_flight = false;
@@ -600,6 +629,8 @@ impl Worker {
                 self.hk_confirmed = self.cfg.hk_interval_ms.is_none();
                 self.hk_set = None;
                 self.modes_known = false;
+                self.team_known = false;
+                self.modules.forget_report();
                 self.next_send_ms = now;
             }
             Verdict::New | Verdict::Filled => {}
@@ -627,6 +658,61 @@ impl Worker {
         });
     }
 
+    /// Asks for the module report until one with the current hash is held, and for the
+    /// team status at link-up, after a reboot and on every team event (at most one
+    /// request each per [`ASK_AGAIN_MS`]).
+    fn ask_config(&mut self, now: i64) {
+        if self.state != LinkState::Up || self.link.is_none() {
+            return;
+        }
+        if !self.modules.report_current()
+            && now - self.modules_asked_ms >= ASK_AGAIN_MS.max(self.global.lease_renew_ms as i64)
+        {
+            self.modules_asked_ms = now;
+            if let Some(tc) = onboard::report_modules_tc(self.robot(), self.next_seq()) {
+                self.send(&tc.bytes);
+            }
+        }
+        if self.team_due && now - self.team_asked_ms >= ASK_AGAIN_MS {
+            self.team_due = false;
+            self.team_asked_ms = now;
+            if let Some(tc) = onboard::team_status_tc(self.robot(), self.next_seq()) {
+                self.send(&tc.bytes);
+            }
+        }
+    }
+
+    /// The configuration hash changed: CONFIG_CHANGED (raised and cleared at once, like an
+    /// event: it stays until acknowledged) and the new module report asked for.
+    fn config_changed(&mut self, change: Option<robotcfg::Change>, t_ms: i64) {
+        self.publish_modules();
+        let Some(c) = change else { return };
+        tracing::warn!(
+            robot = self.robot(),
+            "robot {}: alarm CONFIG_CHANGED: {}",
+            self.robot(),
+            c.message
+        );
+        self.modules_asked_ms = i64::MIN / 2;
+        for input in [Input::Activate, Input::Clear] {
+            let _ = self.sink.send(SinkMsg::Alarm {
+                robot: self.robot(),
+                source: Source::ConfigChange,
+                severity: Severity::Medium,
+                input,
+                t_ms,
+                value: Some(f64::from(c.to)),
+                message: c.message.clone(),
+            });
+        }
+    }
+
+    fn publish_modules(&self) {
+        if let Some(d) = &self.dash {
+            d.hub.modules(self.cfg.number, self.modules.view().clone());
+        }
+    }
+
     fn heard(&mut self, now: i64) {
         self.last_rx_ms = Some(now);
         if let Some(d) = &self.dash {
@@ -639,6 +725,8 @@ impl Worker {
             self.backoff_ms = BACKOFF_START_MS;
             self.next_send_ms = now;
             self.hk_set = None;
+            self.modules.forget_report();
+            self.team_known = false;
             if was == LinkState::Lost {
                 tracing::info!(robot = self.robot(), "robot {}: link restored", self.robot());
             } else {
@@ -652,6 +740,10 @@ impl Worker {
     fn inspect(&mut self, tm: &Tm, live: bool, now: i64) {
         match &tm.body {
             TmBody::Hk(h) => {
+                if let (true, Some(m)) = (live && tm.apid == self.apid, ModulesHk::of(h)) {
+                    let change = self.modules.on_hk(m, tm.time.unix_ms());
+                    self.config_changed(change, tm.time.unix_ms());
+                }
                 if live && tm.apid == self.apid && h.sid == mib::hk::sid::ROBOT_STATUS {
                     self.last_hk_ms = Some(now);
                     self.condition(Source::StaleData, Severity::Medium, false, now, None, String::new());
@@ -688,6 +780,16 @@ impl Worker {
                 }
             }
             TmBody::Event(e) => {
+                if live && tm.apid == self.apid {
+                    if robotcfg::is_team_event(e.id) {
+                        self.team_due = true;
+                    }
+                    if e.id == mib::events::eid::CONFIG_INVALID || e.id == mib::events::eid::MODULE_REPLACED {
+                        // Discovery has finished: its report says why.
+                        self.modules_asked_ms = i64::MIN / 2;
+                        self.modules.forget_report();
+                    }
+                }
                 let sev = mib::events::by_id(e.id).map(|d| d.severity);
                 let min = self.global.event_min_severity;
                 if let Some(s) = sev.filter(|s| s.subservice() >= min.subservice()) {
@@ -713,6 +815,14 @@ impl Worker {
                     self.modes_known = true;
                 }
             }
+            TmBody::TeamStatus { .. } => {
+                if live && tm.apid == self.apid {
+                    self.team_known = true;
+                    if let (Some(v), Some(d)) = (robotcfg::team_view(&tm.body, tm.time.unix_ms()), &self.dash) {
+                        d.hub.team(self.cfg.number, v);
+                    }
+                }
+            }
             TmBody::Verification(v) => {
                 if let Some((rid, _)) = self.hk_set {
                     if v.request == rid && v.stage == Stage::Completion && v.success {
@@ -725,6 +835,26 @@ impl Worker {
                         );
                     }
                 }
+            }
+            TmBody::Unknown { .. } if live && tm.apid == self.apid && onboard::module_report(tm).is_some() => {
+                let body = onboard::module_report(tm).unwrap_or_default().to_vec();
+                let t = tm.time.unix_ms();
+                match self.modules.on_report(&body, t) {
+                    Ok(ReportOutcome::NotDiscovered) => {}
+                    Ok(ReportOutcome::Report(change)) => {
+                        tracing::info!(
+                            robot = self.robot(),
+                            "robot {}: module report: configuration {} {} ({})",
+                            self.robot(),
+                            self.modules.view().config,
+                            self.modules.view().hash,
+                            self.modules.view().status
+                        );
+                        self.config_changed(change, t);
+                    }
+                    Err(e) => tracing::warn!(robot = self.robot(), "robot {}: {e}", self.robot()),
+                }
+                self.publish_modules();
             }
             _ => {
                 if let Some(done) = onboard::store_done(tm) {

@@ -15,7 +15,8 @@ use serde_json::{json, Value};
 use tokio::sync::broadcast;
 
 use super::{
-    AlarmRecord, AlarmState, CommandRecord, ConfigState, EventRecord, LimitState, LinkState, PlanRun, StageReport,
+    AlarmRecord, AlarmState, CommandRecord, ConfigState, EventRecord, LimitState, LinkState, ModuleView, PlanRun,
+    StageReport, TeamView,
 };
 
 /// Messages kept for replay after a reconnect (at 50 robots × 10 Hz HK this is about
@@ -51,6 +52,10 @@ struct RobotView {
     config: Option<ConfigState>,
     hk: BTreeMap<String, HkCell>,
     hk_t_ms: Option<i64>,
+    /// Module set and configuration state (None until the collector heard of them).
+    modules: Option<ModuleView>,
+    /// Team status (None until a TEAM_STATUS report arrived).
+    team: Option<TeamView>,
 }
 
 impl RobotView {
@@ -64,6 +69,8 @@ impl RobotView {
             config: None,
             hk: BTreeMap::new(),
             hk_t_ms: None,
+            modules: None,
+            team: None,
         }
     }
 }
@@ -176,7 +183,7 @@ impl Hub {
     fn publish_robot(&self, st: &mut State, robot: u8) {
         let Some(r) = st.robots.get(&robot) else { return };
         let msg = json!({"type": "robot", "robot": robot, "link": r.link, "last_heard_ms": r.last_heard_ms,
-            "mode": r.mode, "modes": r.modes, "config": r.config});
+            "mode": r.mode, "modes": r.modes, "config": r.config, "modules": r.modules, "team": r.team});
         self.publish(st, msg);
     }
 
@@ -237,6 +244,26 @@ impl Hub {
         let r = Self::robot(&mut st, robot);
         if r.config.as_ref() != Some(&state) {
             r.config = Some(state);
+            self.publish_robot(&mut st, robot);
+        }
+    }
+
+    /// Module set and configuration state of a robot (published when it changed).
+    pub fn modules(&self, robot: u8, view: ModuleView) {
+        let mut st = self.lock();
+        let r = Self::robot(&mut st, robot);
+        if r.modules.as_ref() != Some(&view) {
+            r.modules = Some(view);
+            self.publish_robot(&mut st, robot);
+        }
+    }
+
+    /// Team status of a robot (published when it changed).
+    pub fn team(&self, robot: u8, view: TeamView) {
+        let mut st = self.lock();
+        let r = Self::robot(&mut st, robot);
+        if r.team.as_ref() != Some(&view) {
+            r.team = Some(view);
             self.publish_robot(&mut st, robot);
         }
     }

@@ -73,6 +73,72 @@ impl ConfigState {
     }
 }
 
+/// A robot's module set and the state of its configuration (issue 24), as the collector
+/// follows it: the module report TM[210,3] (slots, descriptors, why a set is invalid)
+/// and the MODULES housekeeping (SID 23: hash, configuration, state, present slots).
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct ModuleView {
+    /// Configuration hash, `0x` and 8 hex digits ("0x00000000" before discovery).
+    pub hash: String,
+    /// The hash the collector saw before this one, when it changed.
+    pub previous_hash: Option<String>,
+    /// Supported configuration by MIB name ("FULL", "LOCOMOTION_ONLY"), "NONE" for an
+    /// invalid set.
+    pub config: String,
+    /// Configuration state by MIB name: NOT_DISCOVERED, ACCEPTED, NOT_ACCEPTED, INVALID.
+    pub status: String,
+    /// Against the configuration the ground accepted: NONE_ACCEPTED, SAME, CHANGED
+    /// (from the module report).
+    pub replacement: String,
+    /// Why the set is invalid (MIB name, "NONE" when valid) and the slot it names.
+    pub reason: String,
+    pub reason_slot: Option<String>,
+    /// Every slot of the topology, present or not.
+    pub slots: Vec<SlotView>,
+    /// On-board time of the last module report (None: only HK seen so far).
+    pub report_t_ms: Option<i64>,
+    /// On-board time of the last MODULES housekeeping report.
+    pub hk_t_ms: Option<i64>,
+}
+
+/// One slot of a robot's module set.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct SlotView {
+    pub slot: u8,
+    /// MIB slot name (BOARD_A, GRIPPER_B, …).
+    pub name: String,
+    /// Module type of the slot (hip, arm, gripper, …).
+    pub kind: String,
+    pub present: bool,
+    pub variant: Option<u8>,
+    pub revision: Option<u8>,
+    pub serial: Option<u32>,
+    /// "ok", "absent", "invalid" (the reason names this slot) or "changed" (presence,
+    /// serial or revision differ from the set the collector saw before).
+    pub state: String,
+}
+
+/// A robot's team status (issue 25): TEAM_STATUS TM[211,2].
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct TeamView {
+    pub term: u32,
+    /// FOLLOWER, CANDIDATE or LEADER.
+    pub role: String,
+    /// Leader of the term (None: none known).
+    pub leader: Option<u8>,
+    pub ground_seen: bool,
+    /// This robot leads and holds the lease.
+    pub lease: bool,
+    pub voted_for: Option<u8>,
+    /// Robot numbers in order of preference (empty: no team).
+    pub roster: Vec<u8>,
+    /// Authorised plan steps (0: HOLD only).
+    pub auth_steps: u8,
+    pub refused: u32,
+    /// On-board time of the report.
+    pub t_ms: i64,
+}
+
 /// Limit state of a housekeeping value against the MIB's soft and hard limits.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]

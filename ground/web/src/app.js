@@ -41,7 +41,7 @@ async function api(path, opts = {}) {
 const S = {
   mib: null, params: new Map(), robots: new Map(), events: [], alarms: new Map(), commands: new Map(),
   plans: new Map(), lastId: 0, clockOffset: 0, view: 'fleet',
-  dirty: { robots: new Set(), hk: new Set(), events: true, alarms: true, commands: true, plans: true, fleetAll: true },
+  dirty: { robots: new Set(), hk: new Set(), events: true, alarms: true, commands: true, plans: true, fleetAll: true, modules: true, team: true },
 };
 // Update-latency samples (ms from HK time to drawn), read by the benchmark.
 const metrics = { latency: [], frames: 0, messages: 0, plots: [] };
@@ -51,7 +51,7 @@ window.dashState = S;
 function robotOf(n) {
   let r = S.robots.get(n);
   if (!r) {
-    r = { robot: n, link: 'connecting', last_heard_ms: null, mode: null, modes: {}, config: null, hk: {}, hk_t_ms: null };
+    r = { robot: n, link: 'connecting', last_heard_ms: null, mode: null, modes: {}, config: null, hk: {}, hk_t_ms: null, modules: null, team: null };
     S.robots.set(n, r);
     S.dirty.fleetAll = true;
   }
@@ -70,7 +70,7 @@ function applySnapshot(s) {
   // is mostly the snapshot's own transfer time.
   const skew = s.server_ms - Date.now();
   S.clockOffset = Math.abs(skew) > 1000 ? skew : 0;
-  Object.assign(S.dirty, { events: true, alarms: true, commands: true, plans: true, fleetAll: true });
+  Object.assign(S.dirty, { events: true, alarms: true, commands: true, plans: true, fleetAll: true, modules: true, team: true });
   refreshRobotSelects();
 }
 
@@ -79,8 +79,10 @@ function apply(m) {
   switch (m.type) {
     case 'robot': {
       const r = robotOf(m.robot);
-      Object.assign(r, { link: m.link, last_heard_ms: m.last_heard_ms, mode: m.mode, modes: m.modes, config: m.config });
+      Object.assign(r, { link: m.link, last_heard_ms: m.last_heard_ms, mode: m.mode, modes: m.modes, config: m.config, modules: m.modules, team: m.team });
       S.dirty.robots.add(m.robot);
+      S.dirty.modules = true;
+      S.dirty.team = true;
       refreshRobotSelects();
       break;
     }
@@ -171,6 +173,8 @@ function render() {
   if (S.view === 'events' && S.dirty.events) renderEvents();
   if (S.view === 'commands' && S.dirty.commands) renderHistory();
   if (S.view === 'plans' && S.dirty.plans) renderPlans();
+  if (S.view === 'modules' && S.dirty.modules) renderModules();
+  if (S.view === 'team' && S.dirty.team) renderTeam();
   if (S.dirty.alarms) renderAlarmBadge();
   if (S.view !== 'fleet') S.dirty.hk.clear();
 }
@@ -193,8 +197,9 @@ function makeCard(n) {
   const card = el('div', { class: 'card robot', id: 'robot-' + n, 'data-robot': n },
     el('div', { class: 'head' }, el('h2', {}, 'Robot ' + n), el('span', { class: 'link' }), el('span', { class: 'age' }), el('span', { class: 'mode' })),
     el('div', { class: 'body' }, el('div', { class: 'pic' }), el('div', { class: 'tree' }), grid),
+    el('div', { class: 'cfgline' }),
     el('div', { class: 'ralarms' }));
-  const c = { card, vals, link: $('.link', card), age: $('.age', card), mode: $('.mode', card), pic: $('.pic', card), tree: $('.tree', card), alarms: $('.ralarms', card) };
+  const c = { card, vals, link: $('.link', card), age: $('.age', card), mode: $('.mode', card), pic: $('.pic', card), tree: $('.tree', card), alarms: $('.ralarms', card), cfgline: $('.cfgline', card) };
   cards.set(n, c);
   return c;
 }
@@ -219,6 +224,7 @@ function renderFleet(now) {
     c.mode.className = 'mode pill m-' + (r.mode || 'unknown').toLowerCase();
     c.pic.replaceChildren(configPicture(r.config));
     c.tree.replaceChildren(modeTree(r.modes));
+    c.cfgline.replaceChildren(...cfgLine(r));
     c.alarms.replaceChildren(...robotAlarms(n));
   }
   S.dirty.robots.clear();
@@ -321,6 +327,85 @@ function configPicture(cfg) {
   }
   g.append(svg('text', { x: 50, y: 148, class: 'statename' }, `${cfg.name} (${cfg.kind})`));
   return g;
+}
+
+// --- module set and team (issues 24 and 25)
+const STATUS_CLASS = { ACCEPTED: 'up', NOT_ACCEPTED: 'm-hold', INVALID: 'lost', NOT_DISCOVERED: 'connecting' };
+const ROLE_CLASS = { LEADER: 'm-operational', CANDIDATE: 'm-hold', FOLLOWER: 'connecting' };
+// One line under a fleet card: the configuration (name, state, hash) and the team role.
+function cfgLine(r) {
+  const out = [];
+  const m = r.modules;
+  if (m) {
+    const absent = m.slots.filter((s) => s.present === false && s.state !== '?').length;
+    out.push(el('span', { class: 'modules', 'data-config': m.config, 'data-status': m.status, 'data-hash': m.hash },
+      el('span', { class: 'k' }, 'modules '), el('b', {}, m.config), ' ',
+      el('span', { class: 'pill ' + (STATUS_CLASS[m.status] || '') }, m.status), ' ',
+      el('code', {}, m.hash), absent ? el('span', { class: 'hint' }, ` ${absent} slot(s) absent`) : null,
+      m.previous_hash ? el('span', { class: 'bad' }, ` changed from ${m.previous_hash}`) : null));
+  }
+  const t = r.team;
+  if (t && t.roster.length) {
+    out.push(el('span', { class: 'team', 'data-role': t.role },
+      el('span', { class: 'k' }, ' team '), el('span', { class: 'pill ' + (ROLE_CLASS[t.role] || '') }, t.role),
+      ` term ${t.term}, leader ${t.leader ?? 'none'}, ground ${t.ground_seen ? 'seen' : 'LOST'}`));
+  }
+  return out;
+}
+
+function renderModules() {
+  S.dirty.modules = false;
+  const ns = [...S.robots.keys()].sort((a, b) => a - b);
+  $('#modules').replaceChildren(...ns.map((n) => {
+    const r = S.robots.get(n), m = r.modules;
+    if (!m) return el('div', { class: 'card', 'data-modules': n }, el('h2', {}, 'Robot ' + n), el('span', { class: 'hint' }, 'no module report or MODULES housekeeping yet'));
+    const rows = m.slots.map((s) => el('tr', { class: 'slot-' + s.state, 'data-slot': s.name, 'data-state': s.state },
+      el('td', {}, String(s.slot)), el('td', {}, s.name), el('td', {}, s.kind),
+      el('td', { class: 'num' }, s.variant ?? ''), el('td', { class: 'num' }, s.revision ?? ''), el('td', { class: 'num' }, s.serial ?? ''),
+      el('td', {}, s.state === '?' ? '?' : s.present ? 'present' : 'absent'),
+      el('td', { class: 'state' }, s.state)));
+    return el('div', { class: 'card', 'data-modules': n, 'data-hash': m.hash, 'data-config': m.config, 'data-status': m.status },
+      el('h2', {}, `Robot ${n}: ${m.config} `, el('span', { class: 'pill ' + (STATUS_CLASS[m.status] || '') }, m.status)),
+      el('div', { class: 'hint' },
+        `hash ${m.hash}`, m.previous_hash ? el('span', { class: 'bad' }, ` (was ${m.previous_hash})`) : null,
+        ` — against the accepted configuration: ${m.replacement}`,
+        m.reason && m.reason !== 'NONE' && m.reason !== '?' ? el('span', { class: 'bad' }, ` — invalid: ${m.reason}${m.reason_slot ? ' (' + m.reason_slot + ')' : ''}`) : null,
+        m.report_t_ms ? ` — report ${fmtDate(m.report_t_ms)}` : ' — no module report yet'),
+      el('table', { class: 'grid slots' },
+        el('thead', {}, el('tr', {}, ['Slot', 'Name', 'Type', 'Variant', 'Revision', 'Serial', 'Present', 'State'].map((h) => el('th', {}, h)))),
+        el('tbody', {}, rows)));
+  }));
+}
+
+function renderTeam() {
+  S.dirty.team = false;
+  const ns = [...S.robots.keys()].sort((a, b) => a - b);
+  const withTeam = ns.filter((n) => S.robots.get(n).team);
+  // The leader the robots of the newest term name.
+  let term = -1, leaders = new Set();
+  for (const n of withTeam) {
+    const t = S.robots.get(n).team;
+    if (t.term > term) { term = t.term; leaders = new Set(); }
+    if (t.term === term && t.leader) leaders.add(t.leader);
+  }
+  const summary = !withTeam.length ? 'No team status received (robots without a team roster report none).'
+    : leaders.size === 1 ? `Leader: robot ${[...leaders][0]} (term ${term})`
+      : leaders.size > 1 ? `Robots disagree on the leader of term ${term}: ${[...leaders].join(', ')}`
+        : `No leader (term ${Math.max(term, 0)})`;
+  $('#team-summary').textContent = summary;
+  $('#team-summary').dataset.leader = leaders.size === 1 ? String([...leaders][0]) : '';
+  $('#team tbody').replaceChildren(...withTeam.map((n) => {
+    const t = S.robots.get(n).team;
+    return el('tr', { 'data-robot': n, 'data-role': t.role, class: t.role === 'LEADER' ? 'leader' : '' },
+      el('td', {}, String(n)), el('td', { class: 'num' }, String(t.term)),
+      el('td', {}, el('span', { class: 'pill ' + (ROLE_CLASS[t.role] || '') }, t.role)),
+      el('td', { class: 'leader' }, t.leader ? 'robot ' + t.leader : 'none'),
+      el('td', {}, t.roster.length ? t.roster.join(', ') : 'no roster'),
+      el('td', { class: t.ground_seen ? 'ok' : 'bad' }, t.ground_seen ? 'seen' : 'lost'),
+      el('td', {}, t.lease ? 'yes' : ''), el('td', {}, t.voted_for ?? ''),
+      el('td', {}, t.auth_steps ? `${t.auth_steps} steps` : 'HOLD only'),
+      el('td', {}, fmtTime(t.t_ms)));
+  }));
 }
 
 function robotAlarms(n) {
@@ -693,7 +778,7 @@ function show(view) {
   S.view = view;
   for (const b of document.querySelectorAll('#tabs button')) b.classList.toggle('on', b.dataset.view === view);
   for (const s of document.querySelectorAll('.view')) s.classList.toggle('on', s.id === 'view-' + view);
-  Object.assign(S.dirty, { events: true, alarms: true, commands: true, plans: true });
+  Object.assign(S.dirty, { events: true, alarms: true, commands: true, plans: true, modules: true, team: true });
   if (view === 'fleet') for (const n of S.robots.keys()) { S.dirty.robots.add(n); S.dirty.hk.add(n); }
   if (view === 'hk') { hkRows.robot = null; if (!plotState.param) plotParam(Number($('#hk-robot').value), 'V_BAT_A'); }
   if (view === 'plans') loadPlans();
@@ -727,6 +812,6 @@ async function main() {
   // Ages tick even when nothing arrives.
   setInterval(schedule, 500);
   const v = location.hash.slice(1);
-  show(['fleet', 'hk', 'alarms', 'events', 'commands', 'plans'].includes(v) ? v : 'fleet');
+  show(['fleet', 'modules', 'team', 'hk', 'alarms', 'events', 'commands', 'plans'].includes(v) ? v : 'fleet');
 }
 main().catch((e) => setConn('error: ' + e.message, 'bad'));
