@@ -3,7 +3,10 @@
 //! parameters, packed with their wire types.
 
 use crate::layout::{Field, Names, MODULE_REASON_NAMES, RESET_CAUSE_NAMES, SIDE_NAMES, SLOT_NAMES};
-use crate::team::{TEAM_DIRECTIVE_NAMES, TEAM_REFUSE_NAMES, TEAM_STEP_DOWN_NAMES};
+use crate::team::{
+    TEAM_DIRECTIVE_NAMES, TEAM_PLAN_REFUSE_NAMES, TEAM_REFUSE_NAMES, TEAM_REJECT_NAMES, TEAM_STATE_NAMES,
+    TEAM_STEP_DOWN_NAMES,
+};
 use crate::types::PType;
 
 /// PUS 5 severity; the value is the TM[5,x] subservice.
@@ -109,6 +112,11 @@ events! {
     GROUND_REGAINED = 0x0305, Info, false, ["term": U32], "Team: a valid ground TC arrived; obedience to the leader ended";
     DIRECTIVE_EXECUTED = 0x0306, Info, false, ["term": U32, "leader": U8, "directive": U8 @TEAM_DIRECTIVE_NAMES, "step": U16], "Team: a leader's directive was executed (HOLD, or CONTINUE step within the ground authorisation)";
     DIRECTIVE_REFUSED = 0x0307, Low, false, ["term": U32, "sender": U8, "reason": U8 @TEAM_REFUSE_NAMES], "Team: a directive was refused (one event per term and reason)";
+    TEAM_PACKET_REJECTED = 0x0308, Low, false, ["reason": U8 @TEAM_REJECT_NAMES, "sender": U8, "total": U32], "Team: inter-robot packets refused (reason; sender as claimed, 0 if unknown; total of that reason since boot, also in HK TEAM); at most one per reason and control period, then throttled";
+    TEAM_STATE_LOADED = 0x0309, Info, false, ["status": U8 @TEAM_STATE_NAMES, "term": U32, "roster": U8, "plan": U16], "Team: the team state file read at start (status: 0 restored, 1 none, 2 corrupt: started from term 0 without roster, authorisation or plan; roster = robots restored; plan = authorised plan ID, 0 none)";
+    PLAN_UPLOADED = 0x030A, Info, false, ["plan": U16, "first_step": U16, "steps": U8, "hash": U32], "Team: plan steps uploaded by the ground (TC[211,6]) and matching the authorisation's hash";
+    PLAN_STEP_EXECUTED = 0x030B, Info, false, ["plan": U16, "step": U16, "function": U16, "leader": U8], "Team: an authorised plan step was started on a leader's CONTINUE (its initial-state check passed)";
+    PLAN_STEP_REFUSED = 0x030C, Low, false, ["plan": U16, "step": U16, "reason": U8 @TEAM_PLAN_REFUSE_NAMES], "Team: a CONTINUE was not executed (no plan, step outside the authorisation or expired, initial-state check failed, robot busy); the robot holds";
 }
 
 /// Events exempt from throttling (`config::EVENT_THROTTLE_MAX`): `MODE_CHANGED` is

@@ -25,6 +25,7 @@ pub mod sid {
     pub const PLATFORM_IO: u16 = 5;
     pub const SPACE_LINK: u16 = 22;
     pub const MODULES: u16 = 23;
+    pub const TEAM: u16 = 24;
 }
 
 /// Shortest and longest collection interval accepted by TC[3,31].
@@ -190,6 +191,32 @@ pub const HK_STRUCTS: &[HkDef] = &[
         default_interval_ms: 10000,
         default_enabled: true,
         desc: "Module configuration found at boot (issue 24): hash, supported configuration, state against the ground-accepted configuration, present slots; the calibration in use (gripper pulse widths, encoder zero, slots calibrated from their descriptors)",
+    },
+    HkDef {
+        sid: sid::TEAM,
+        name: "TEAM",
+        params: &[
+            TEAM_TERM,
+            TEAM_ROLE,
+            TEAM_LEADER,
+            TEAM_GROUND_SEEN,
+            TEAM_PKT_SENT,
+            TEAM_PKT_RECEIVED,
+            TEAM_REJ_MALFORMED,
+            TEAM_REJ_TRUNCATED,
+            TEAM_REJ_UNKNOWN_SENDER,
+            TEAM_REJ_BAD_MAC,
+            TEAM_REJ_REPLAY,
+            TEAM_REJ_STORE_FAILED,
+            TEAM_ELECTIONS,
+            TEAM_DIR_EXECUTED,
+            TEAM_DIR_REFUSED,
+            TEAM_PERSIST_FAILED,
+            TEAM_STEPS_EXECUTED,
+        ],
+        default_interval_ms: 5000,
+        default_enabled: true,
+        desc: "Team coordination without the ground (issue 25): term, role, leader, ground seen, inter-robot packets sent/accepted/refused by reason, elections, directives executed/refused, failed state writes, plan steps executed",
     },
 ];
 

@@ -205,6 +205,23 @@ params! {
     CAL_GRIP_B_OPEN = 153, U16, "us", ID, None, "Calibration in use (issue 24): gripper B open pulse width";
     CAL_ENC_ZERO = 154, U16, "", ID, None, "Calibration in use (issue 24): hip encoder (AS5600) reading at the hip zero, counts (2048 nominal)";
     CAL_FROM_DESCRIPTORS = 155, U16, "", ID, None, "Calibration in use (issue 24): slots whose calibration came from their descriptor (bit n = slot n; 0 = compiled constants, before discovery)";
+    TEAM_TERM = 160, U32, "", ID, None, "Team (issue 25): current term of the robot's leader-selection node (0 without a roster)";
+    TEAM_ROLE = 161, U8, "", ID, None, "Team: role 0 follower, 1 candidate, 2 leader";
+    TEAM_LEADER = 162, U8, "", ID, None, "Team: robot number of the known leader of the current term (0 = none)";
+    TEAM_GROUND_SEEN = 163, U8, "", ID, None, "Team: 1 while the ground is seen (a valid ground TC within GROUND_LOSS_TIMEOUT_MS), 0 after GROUND_LOST";
+    TEAM_PKT_SENT = 164, U32, "", ID, None, "Team: inter-robot packets sent (one per destination robot)";
+    TEAM_PKT_RECEIVED = 165, U32, "", ID, None, "Team: inter-robot packets accepted (authentic, in the replay window, valid team message)";
+    TEAM_REJ_MALFORMED = 166, U32, "", ID, None, "Team: inter-robot packets refused: authentic but not a TM[211,1] of APID 0x0E0 carrying a valid team message, or no roster set";
+    TEAM_REJ_TRUNCATED = 167, U32, "", ID, None, "Team: inter-robot packets refused: too short for the security header and MAC";
+    TEAM_REJ_UNKNOWN_SENDER = 168, U32, "", ID, None, "Team: inter-robot packets refused: sender not a peer of this robot, or a team message from a robot outside the roster";
+    TEAM_REJ_BAD_MAC = 169, U32, "", ID, None, "Team: inter-robot packets refused: AES-256-GCM tag mismatch (forged, altered, wrong team key)";
+    TEAM_REJ_REPLAY = 170, U32, "", ID, None, "Team: inter-robot packets refused: counter not above the sender's last accepted one (replayed)";
+    TEAM_REJ_STORE_FAILED = 171, U32, "", ID, None, "Team: inter-robot packets refused or not sent because the team counter state file could not be written";
+    TEAM_ELECTIONS = 172, U32, "", ID, None, "Team: elections this robot stood in (ELECTION_STARTED) since boot";
+    TEAM_DIR_EXECUTED = 173, U32, "", ID, None, "Team: leader directives executed since boot (DIRECTIVE_EXECUTED)";
+    TEAM_DIR_REFUSED = 174, U32, "", ID, None, "Team: leader directives refused since boot (stale term, ground present, outside the authorisation)";
+    TEAM_PERSIST_FAILED = 175, U32, "", ID, None, "Team: writes of the team state (term, vote, roster, authorisation) that failed (each treated as a reset of the node)";
+    TEAM_STEPS_EXECUTED = 176, U16, "", ID, None, "Team: authorised plan steps executed on CONTINUE since the authorisation was uploaded";
 }
 
 /// Root modes in which the limits of parameter `id` apply: the regulated servo supply
@@ -283,6 +300,7 @@ impl ParamDef {
             pid::LAST_FAULT_EVENT => Names::Event,
             pid::CONFIG_ID => CONFIG_ID_NAMES,
             pid::CONFIG_STATUS => CONFIG_STATUS_NAMES,
+            pid::TEAM_ROLE => crate::team::TEAM_ROLE_NAMES,
             _ => Names::None,
         }
     }

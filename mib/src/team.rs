@@ -104,6 +104,19 @@ pub const TEAM_SUBSERVICE_MESSAGE: u8 = 1;
 pub const TEAM_SUBSERVICE_STATUS: u8 = 2;
 /// Subservice of the ground's authorisation upload (TC).
 pub const TEAM_SUBSERVICE_AUTHORISE: u8 = 3;
+/// Version byte of the authenticated team datagram (host inter-robot link):
+/// `| version 1 | IV 12 (sender robot, 88-bit counter) | AES-256-GCM ciphertext | MAC 16 |`,
+/// the version and IV authenticated as additional data.
+pub const TEAM_SEC_VERSION: u8 = 1;
+/// Length of the team datagram's security header (version + IV).
+pub const TEAM_SEC_HEADER_LEN: usize = 1 + crate::link::sdls::IV_LEN;
+/// A sender reserves this many counters per durable write of its high-water mark (as the
+/// space link's `IV_RESERVE_BLOCK`): after a restart it resumes above every counter it
+/// may have used.
+pub const TEAM_IV_RESERVE_BLOCK: u64 = crate::link::sdls::IV_RESERVE_BLOCK;
+/// Per-sender replay window: besides any counter above the sender's highest accepted one,
+/// a counter up to this many below it that was not seen yet is accepted (reordering).
+pub const TEAM_REPLAY_WINDOW: u32 = 64;
 /// Version byte of the team message format.
 pub const WIRE_VERSION: u8 = 1;
 /// Length of the common header of every team message.
@@ -139,6 +152,26 @@ pub const TEAM_REFUSE_NAMES: Names = Names::List(&[
 ]);
 /// Names of the team roles in the status report.
 pub const TEAM_ROLE_NAMES: Names = Names::List(&[(0, "FOLLOWER"), (1, "CANDIDATE"), (2, "LEADER")]);
+/// Names of the TEAM_PACKET_REJECTED reasons (HK TEAM parameter `TEAM_REJ_MALFORMED + code`).
+pub const TEAM_REJECT_NAMES: Names = Names::List(&[
+    (0, "MALFORMED"),
+    (1, "TRUNCATED"),
+    (2, "UNKNOWN_SENDER"),
+    (3, "BAD_MAC"),
+    (4, "REPLAY"),
+    (5, "STORE_FAILED"),
+]);
+/// Names of the TEAM_STATE_LOADED status codes.
+pub const TEAM_STATE_NAMES: Names = Names::List(&[(0, "RESTORED"), (1, "NONE"), (2, "CORRUPT")]);
+/// Names of the PLAN_STEP_REFUSED reason codes.
+pub const TEAM_PLAN_REFUSE_NAMES: Names = Names::List(&[
+    (0, "NO_PLAN"),
+    (1, "NOT_AUTHORISED"),
+    (2, "INITIAL_STATE"),
+    (3, "BUSY"),
+    (4, "FORBIDDEN"),
+    (5, "REFUSED"),
+]);
 
 /// Subservice of the TC that uploads the team roster.
 pub const TEAM_SUBSERVICE_ROSTER: u8 = 4;

@@ -3,6 +3,12 @@
 //! uploaded by the ground (TC TEAM_ROSTER to each robot); then the ground is silent.
 //! Everything is judged from the TM each obsw wrote to its `--tm-log` (every packet it
 //! sent), read every 20 ms: a packet's time is when the test first saw its line.
+//!
+//! Team datagrams are authenticated with a team key (`--team-key`, 32 random bytes made
+//! here, mode 0600). The direct scenario also plays a forger on a robot's team port (random
+//! MACs claiming the leader, truncated and unknown-sender datagrams, replays of real
+//! datagrams captured by a tap) and restarts the killed leader with `kill -9` to check that
+//! roster and authorisation survive.
 
 use std::net::UdpSocket;
 use std::path::{Path, PathBuf};
@@ -12,6 +18,7 @@ use e2e_tests::relay::{Config, Faults, Relay};
 use e2e_tests::{Client, Obsw, Tm};
 use mib::events::eid;
 use mib::modes::{node, robot_mode};
+use mib::params::pid;
 
 const ROBOTS: u8 = 3;
 
@@ -19,6 +26,57 @@ const ROBOTS: u8 = 3;
 fn free_addr() -> String {
     let s = UdpSocket::bind("127.0.0.1:0").unwrap();
     s.local_addr().unwrap().to_string()
+}
+
+/// A fresh random team key file (raw 32 bytes, mode 0600, the space link's key format).
+fn team_key(dir: &Path) -> PathBuf {
+    let mut k = [0u8; 32];
+    std::io::Read::read_exact(&mut std::fs::File::open("/dev/urandom").unwrap(), &mut k).unwrap();
+    let p = dir.join("team.key");
+    mmic_link::persist::create_key_file(&p, &k).unwrap();
+    p
+}
+
+/// A UDP tap in front of a robot's team port: forwards every datagram and keeps a copy
+/// (for replays).
+struct Tap {
+    addr: String,
+    seen: std::sync::Arc<std::sync::Mutex<Vec<Vec<u8>>>>,
+}
+
+impl Tap {
+    fn start(target: &str) -> Tap {
+        let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
+        let addr = sock.local_addr().unwrap().to_string();
+        let target: std::net::SocketAddr = target.parse().unwrap();
+        let seen = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let keep = seen.clone();
+        std::thread::spawn(move || {
+            let mut buf = [0u8; 2048];
+            while let Ok((n, _)) = sock.recv_from(&mut buf) {
+                keep.lock().unwrap().push(buf[..n].to_vec());
+                let _ = sock.send_to(&buf[..n], target);
+            }
+        });
+        Tap { addr, seen }
+    }
+}
+
+/// TEAM_STATUS (TM[211,2]) fields: (term, leader, auth plan, auth steps, roster).
+fn team_status(t: &Tm) -> Option<(u32, u8, u16, u8, Vec<u8>)> {
+    let d = &t.data;
+    (t.service == mib::team::TEAM_SERVICE && t.subservice == mib::team::TEAM_SUBSERVICE_STATUS && d.len() >= 27).then(
+        || {
+            let n = usize::from(d[26]);
+            (
+                u32::from_be_bytes([d[0], d[1], d[2], d[3]]),
+                d[5],
+                u16::from_be_bytes([d[9], d[10]]),
+                d[13],
+                d[27..(27 + n).min(d.len())].to_vec(),
+            )
+        },
+    )
 }
 
 /// Every packet of one obsw's `--tm-log`, with the time the test first saw it.
@@ -67,6 +125,22 @@ impl Log {
             .map(|(at, p)| (at, u32::from_be_bytes([p[0], p[1], p[2], p[3]]), p[4]))
             .max_by_key(|(_, term, _)| *term)
     }
+    /// The last TEAM HK report (SID 24), if any.
+    fn team_hk(&self) -> Option<&Tm> {
+        self.tm
+            .iter()
+            .rev()
+            .map(|(_, t)| t)
+            .find(|t| t.sid() == Some(mib::hk::sid::TEAM))
+    }
+    /// A parameter of the last TEAM HK report.
+    fn hk(&self, param: u16) -> Option<i64> {
+        self.team_hk().and_then(|t| t.hk(param))
+    }
+    /// The last TEAM_STATUS report.
+    fn status(&self) -> Option<(u32, u8, u16, u8, Vec<u8>)> {
+        self.tm.iter().rev().find_map(|(_, t)| team_status(t))
+    }
     fn summary(&self) -> String {
         let mut s = String::new();
         for (_, t) in &self.tm {
@@ -95,18 +169,25 @@ fn poll_until(logs: &mut [Log], limit: Duration, mut done: impl FnMut(&[Log]) ->
     }
 }
 
-/// Starts robot `robot` listening on `listen[robot - 1]` and sending to `peers[n - 1]`.
-fn start(dir: &Path, robot: u8, listen: &[String], addrs: &[String]) -> Obsw {
+/// Starts robot `robot` listening on `listen[robot - 1]` and sending to `peers[n - 1]`
+/// (robot 2 sends to robot 1 through `tap` if given), its TM logged to `log`.
+fn start(dir: &Path, robot: u8, listen: &[String], addrs: &[String], tap: Option<&str>, log: &str) -> Obsw {
     let mut args: Vec<String> = vec![
         "--tm-log".into(),
-        dir.join(format!("tm-{robot}.hex")).display().to_string(),
+        dir.join(log).display().to_string(),
         "--team-udp".into(),
         listen[robot as usize - 1].clone(),
         "--team-state".into(),
         dir.join(format!("team-{robot}.state")).display().to_string(),
+        "--team-key".into(),
+        dir.join("team.key").display().to_string(),
     ];
     for (i, a) in addrs.iter().enumerate() {
         if i + 1 != robot as usize {
+            let a = match tap {
+                Some(t) if robot == 2 && i == 0 => t,
+                _ => a.as_str(),
+            };
             args.push("--peer".into());
             args.push(format!("{}={a}", i + 1));
         }
@@ -115,7 +196,7 @@ fn start(dir: &Path, robot: u8, listen: &[String], addrs: &[String]) -> Obsw {
     Obsw::start_robot(robot, &refs)
 }
 
-// verifies: TEAM-E2E-01, TEAM-OBSW-02, TEAM-OBSW-03
+// verifies: TEAM-E2E-01, TEAM-E2E-02, TEAM-OBSW-02, TEAM-OBSW-03, TEAM-HK-01, TEAM-SEC-01, TEAM-SEC-03
 #[test]
 fn three_obsw_elect_hold_reelect_after_a_kill_and_obey_the_returning_ground() {
     scenario("direct", None);
@@ -135,7 +216,10 @@ fn scenario(name: &str, faults: Option<Faults>) -> (Duration, Duration, Duration
     let dir = std::env::temp_dir().join(format!("team-e2e-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
+    team_key(&dir);
     let listen: Vec<String> = (0..ROBOTS).map(|_| free_addr()).collect();
+    // Direct: a tap between robot 2 and robot 1 keeps real datagrams for the replay.
+    let tap = faults.is_none().then(|| Tap::start(&listen[0]));
     // With faults, robot n's peers send to a relay that forwards to robot n.
     let mut relays: Vec<Relay> = Vec::new();
     let addrs: Vec<String> = match faults {
@@ -152,7 +236,19 @@ fn scenario(name: &str, faults: Option<Faults>) -> (Duration, Duration, Duration
             })
             .collect(),
     };
-    let mut obsw: Vec<Option<Obsw>> = (1..=ROBOTS).map(|r| Some(start(&dir, r, &listen, &addrs))).collect();
+    let tap_addr = tap.as_ref().map(|t| t.addr.clone());
+    let mut obsw: Vec<Option<Obsw>> = (1..=ROBOTS)
+        .map(|r| {
+            Some(start(
+                &dir,
+                r,
+                &listen,
+                &addrs,
+                tap_addr.as_deref(),
+                &format!("tm-{r}.hex"),
+            ))
+        })
+        .collect();
     let mut logs: Vec<Log> = (1..=ROBOTS)
         .map(|r| Log::new(dir.join(format!("tm-{r}.hex"))))
         .collect();
@@ -163,6 +259,12 @@ fn scenario(name: &str, faults: Option<Faults>) -> (Duration, Duration, Duration
         let raw = c.send("TEAM_ROSTER", &[1, 2, 3, 0, 0, 0, 0, 0]);
         let done = c.wait_done(&raw, Duration::from_secs(5)).expect("roster answered");
         assert_eq!(done.subservice, 7, "roster accepted: {}", c.summary());
+        // An authorisation for plan 7 (2 steps from step 1, 10 min).
+        let raw = c.send("TEAM_AUTHORISE", &[7, 0xC0FFEE, 1, 2, 600]);
+        let done = c
+            .wait_done(&raw, Duration::from_secs(5))
+            .expect("authorisation answered");
+        assert_eq!(done.subservice, 7, "authorisation accepted: {}", c.summary());
     }
     // The robots work (OPERATIONAL), so that holding is a visible mode change.
     let ops: Vec<Vec<u8>> = ground
@@ -217,6 +319,20 @@ fn scenario(name: &str, faults: Option<Faults>) -> (Duration, Duration, Duration
         "every robot holds: {:?}",
         logs.iter().map(Log::summary).collect::<Vec<_>>()
     );
+    // TEAM HK agrees with the events: term, leader, ground not seen, packets accepted.
+    assert!(
+        poll_until(&mut logs, Duration::from_secs(12), |l| l.iter().all(|x| x
+            .hk(pid::TEAM_TERM)
+            == Some(i64::from(term1))
+            && x.hk(pid::TEAM_LEADER) == Some(i64::from(leader1))
+            && x.hk(pid::TEAM_GROUND_SEEN) == Some(0)
+            && x.hk(pid::TEAM_PKT_RECEIVED).is_some_and(|n| n > 0)
+            && x.hk(pid::TEAM_PKT_SENT).is_some_and(|n| n > 0))),
+        "TEAM HK of every robot: term {term1}, leader {leader1}: {:?}",
+        logs.iter()
+            .map(|l| l.team_hk().map(|t| t.data.clone()))
+            .collect::<Vec<_>>()
+    );
     // Every follower executed the leader's HOLD (the leader holds on its own).
     assert!(
         poll_until(&mut logs, Duration::from_secs(3), |l| (1..=ROBOTS).all(|r| r
@@ -228,6 +344,10 @@ fn scenario(name: &str, faults: Option<Faults>) -> (Duration, Duration, Duration
         "every follower holds by the leader's order: {:?}",
         logs.iter().map(Log::summary).collect::<Vec<_>>()
     );
+
+    if let Some(tap) = &tap {
+        forge(&listen, tap, leader1, term1, &mut logs);
+    }
 
     // 2. The leader is killed → another leads within 6 s.
     obsw[leader1 as usize - 1].take().unwrap().kill9();
@@ -252,6 +372,45 @@ fn scenario(name: &str, faults: Option<Faults>) -> (Duration, Duration, Duration
         reelect.as_secs_f64()
     );
     assert!(reelect <= Duration::from_secs(6), "re-election took {reelect:?}");
+
+    // 2b. The killed leader restarts (same state file, new TM log): it keeps roster, term
+    // and authorisation without a new upload, and rejoins (follows the new leader once
+    // its own ground-loss timeout has run out; the boot counts as ground contact).
+    if tap.is_some() {
+        let li = leader1 as usize - 1;
+        obsw[li] = Some(start(
+            &dir,
+            leader1,
+            &listen,
+            &addrs,
+            tap_addr.as_deref(),
+            "tm-restarted.hex",
+        ));
+        let mut re = vec![Log::new(dir.join("tm-restarted.hex"))];
+        assert!(
+            poll_until(&mut re, Duration::from_secs(5), |l| l[0].status().is_some()),
+            "TEAM_STATUS of the restarted robot: {}",
+            re[0].summary()
+        );
+        let loaded = re[0].events(eid::TEAM_STATE_LOADED);
+        assert_eq!(loaded.len(), 1, "{}", re[0].summary());
+        let p = &loaded[0].1;
+        // status RESTORED, term >= term1, 3 robots, plan 7.
+        assert_eq!((p[0], p[5], u16::from_be_bytes([p[6], p[7]])), (0, 3, 7), "{p:?}");
+        assert!(u32::from_be_bytes([p[1], p[2], p[3], p[4]]) >= term1);
+        let (term, _, plan, steps, roster) = re[0].status().unwrap();
+        assert_eq!((plan, steps, roster.as_slice()), (7, 2, &[1u8, 2, 3][..]));
+        assert!(term >= term1);
+        eprintln!("{name}: robot {leader1} restarted after kill -9: term {term}, roster {roster:?}, plan {plan} ({steps} steps) restored");
+        assert!(
+            poll_until(&mut re, Duration::from_secs(15), |l| l[0]
+                .leader()
+                .is_some_and(|(_, t, ld)| t >= term2 && ld == leader2)
+                && l[0].hk(pid::TEAM_LEADER) == Some(i64::from(leader2))),
+            "the restarted robot follows leader {leader2}: {}",
+            re[0].summary()
+        );
+    }
 
     // 3. The ground returns (a TC to each robot) → every robot ignores the leader within 1.2 s.
     let mut sent = Vec::new();
@@ -290,7 +449,12 @@ fn scenario(name: &str, faults: Option<Faults>) -> (Duration, Duration, Duration
     );
     // The durable term survived on disk for every robot that voted.
     let state = std::fs::read_to_string(dir.join(format!("team-{leader2}.state"))).unwrap();
-    assert!(state.split_whitespace().next().unwrap().parse::<u32>().unwrap() >= term2);
+    let term_on_disk = state
+        .lines()
+        .find_map(|l| l.strip_prefix("term "))
+        .and_then(|t| t.parse::<u32>().ok());
+    assert!(term_on_disk.is_some_and(|t| t >= term2), "{state}");
+    assert!(state.contains("roster 1,2,3"), "{state}");
     drop(obsw);
     for mut r in relays {
         eprintln!("{name}: relay {}", r.counts);
@@ -298,4 +462,105 @@ fn scenario(name: &str, faults: Option<Faults>) -> (Duration, Duration, Duration
     }
     let _ = std::fs::remove_dir_all(&dir);
     (elected_at - lost_at, reelect, slowest)
+}
+
+/// A forger on robot 1's team port, without the team key: random MACs on well-formed
+/// datagrams claiming to be each robot (with the leader's and higher counters), truncated
+/// datagrams, an unknown sender, bare (unauthenticated) packets, and replays of robot 2's
+/// real datagrams captured by the tap. Nothing may change: same term, same leader, no
+/// directive from anybody but the leader, no new election; every datagram counted.
+fn forge(listen: &[String], tap: &Tap, leader: u8, term: u32, logs: &mut [Log]) {
+    let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let target = &listen[0];
+    let before = |l: &Log, p: u16| l.hk(p).unwrap_or(0);
+    let base: Vec<i64> = [
+        pid::TEAM_REJ_BAD_MAC,
+        pid::TEAM_REJ_TRUNCATED,
+        pid::TEAM_REJ_UNKNOWN_SENDER,
+        pid::TEAM_REJ_REPLAY,
+        pid::TEAM_REJ_MALFORMED,
+    ]
+    .iter()
+    .map(|p| before(&logs[0], *p))
+    .collect();
+    let elections_before: Vec<usize> = logs.iter().map(|l| l.events(eid::LEADER_ELECTED).len()).collect();
+    let executed_before: Vec<usize> = logs.iter().map(|l| l.events(eid::DIRECTIVE_EXECUTED).len()).collect();
+    let mut rnd = std::fs::File::open("/dev/urandom").unwrap();
+    let mut random = |n: usize| {
+        let mut b = vec![0u8; n];
+        std::io::Read::read_exact(&mut rnd, &mut b).unwrap();
+        b
+    };
+    let replays: Vec<Vec<u8>> = tap.seen.lock().unwrap().clone();
+    assert!(replays.len() > 5, "the tap saw robot 2's datagrams");
+    let (mut forged, mut short, mut unknown, mut bare) = (0, 0, 0, 0);
+    for round in 0..40u32 {
+        for claimed in 1..=ROBOTS {
+            // version 1 | IV: claimed sender + a high counter | 40 random bytes | random MAC.
+            let mut d = vec![mib::team::TEAM_SEC_VERSION, claimed];
+            d.extend_from_slice(&(u128::from(round) + (1 << 60)).to_be_bytes()[5..]);
+            d.extend_from_slice(&random(40 + 16));
+            sock.send_to(&d, target).unwrap();
+            // Robot 1 itself is no peer of robot 1.
+            if claimed == 1 {
+                unknown += 1;
+            } else {
+                forged += 1;
+            }
+        }
+        sock.send_to(&random(20), target).unwrap();
+        short += 1;
+        let mut d = vec![mib::team::TEAM_SEC_VERSION, 77];
+        d.extend_from_slice(&random(11 + 40 + 16));
+        sock.send_to(&d, target).unwrap();
+        unknown += 1;
+        // A bare packet (what a team packet was before authentication): not version 1.
+        let mut d = vec![0x08, 0xE0];
+        d.extend_from_slice(&random(60));
+        sock.send_to(&d, target).unwrap();
+        bare += 1;
+        std::thread::sleep(Duration::from_millis(25));
+    }
+    for r in &replays {
+        sock.send_to(r, target).unwrap();
+    }
+    let replayed = replays.len() as i64;
+    // Robot 1 counts every datagram by reason in its next TEAM HK reports.
+    let want = [forged, short, unknown, replayed, bare];
+    assert!(
+        poll_until(logs, Duration::from_secs(12), |l| {
+            [
+                pid::TEAM_REJ_BAD_MAC,
+                pid::TEAM_REJ_TRUNCATED,
+                pid::TEAM_REJ_UNKNOWN_SENDER,
+                pid::TEAM_REJ_REPLAY,
+                pid::TEAM_REJ_MALFORMED,
+            ]
+            .iter()
+            .zip(&base)
+            .zip(want)
+            .all(|((p, b), w)| l[0].hk(*p).unwrap_or(0) - b >= w)
+        }),
+        "robot 1 counts forged {forged}, truncated {short}, unknown {unknown}, replayed {replayed}, bare {bare}: HK {:?}",
+        logs[0].team_hk().map(|t| t.data.clone())
+    );
+    assert!(!logs[0].events(eid::TEAM_PACKET_REJECTED).is_empty());
+    // Nothing changed: same term and leader everywhere, no new election, no directive
+    // executed that did not come from the leader of the term.
+    for (i, l) in logs.iter().enumerate() {
+        assert_eq!(l.hk(pid::TEAM_TERM), Some(i64::from(term)), "robot {}", i + 1);
+        assert_eq!(l.hk(pid::TEAM_LEADER), Some(i64::from(leader)), "robot {}", i + 1);
+        assert_eq!(
+            l.events(eid::LEADER_ELECTED).len(),
+            elections_before[i],
+            "robot {}",
+            i + 1
+        );
+        for (_, p) in &l.events(eid::DIRECTIVE_EXECUTED)[executed_before[i]..] {
+            assert_eq!(p[4], leader, "robot {}: a directive from {} executed", i + 1, p[4]);
+        }
+    }
+    eprintln!(
+        "forger: {forged} forged, {short} truncated, {unknown} unknown-sender, {bare} bare, {replayed} replayed datagrams to robot 1: all refused and counted; term {term} and leader {leader} unchanged"
+    );
 }

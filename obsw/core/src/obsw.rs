@@ -295,6 +295,7 @@ impl<S: TmStore> Obsw<S> {
                 self.space_link[usize::from(id - pid::LINK_AD_ACCEPTED)] as i64
             }
             pid::CONFIG_HASH..=pid::MODULES_PRESENT => return self.modules_param(id),
+            pid::TEAM_TERM..=pid::TEAM_STEPS_EXECUTED => return self.team_param(id),
             _ => return self.ctrl.param(id),
         })
     }

@@ -8,6 +8,7 @@
 //! through SDLS and FARM-1, TM frames to `--frame-tm-to`; the bare-packet link is then off
 //! unless `--lab-bare-packets` keeps it (loopback only).
 
+mod config_state;
 mod frames;
 mod net;
 mod team;
@@ -73,6 +74,12 @@ struct Args {
     /// Module-set file of the simulated robot (plans/modules/*.toml) [default: the full robot].
     #[arg(long)]
     modules: Option<PathBuf>,
+    /// File holding the module configuration the ground accepted (ACCEPT_CONFIG), kept
+    /// across restarts (written to a temporary file, synced, renamed). Missing or corrupt:
+    /// nothing accepted (event CONFIG_STATE_LOST). Without it the factory configuration
+    /// (the full robot) is accepted at start and an ACCEPT_CONFIG holds until the process ends.
+    #[arg(long)]
+    config_state: Option<PathBuf>,
     /// Test aid: write every TM packet the obsw sends to this file, one line of hex each.
     #[arg(long)]
     tm_log: Option<PathBuf>,
@@ -107,10 +114,18 @@ struct Args {
     #[arg(long = "tm-dest", value_name = "ADDR")]
     tm_dest: Vec<SocketAddr>,
     /// Team coordination without the ground (issue 25): UDP address of this robot's
-    /// inter-robot link (team packets, APID 0x0E0, TM[210,1]). Needs --team-state; the
-    /// other robots are given by --peer. Not in the --config file.
+    /// inter-robot link (team packets, APID 0x0E0, TM[211,1]). Needs --team-state and
+    /// --team-key (or --lab-team-bare); the other robots are given by --peer.
     #[arg(long)]
     team_udp: Option<SocketAddr>,
+    /// Team key: file with the raw 32-byte AES-256 key shared by the team (same format as
+    /// the space link's key files); every team datagram is authenticated and encrypted.
+    #[arg(long)]
+    team_key: Option<PathBuf>,
+    /// Lab mode: team packets without authentication (no --team-key); loopback addresses
+    /// only (--team-udp and every --peer).
+    #[arg(long)]
+    lab_team_bare: bool,
     /// Another robot's inter-robot address, `N=ADDR` (repeatable).
     #[arg(long = "peer", value_name = "N=ADDR")]
     peer: Vec<String>,
@@ -127,26 +142,54 @@ struct Args {
     config: Option<PathBuf>,
 }
 
-/// The inter-robot link's settings (`--team-udp`, `--peer`, `--team-state`, `--team-roster`).
+/// The inter-robot link's settings (`--team-udp`, `--peer`, `--team-state`, `--team-key`,
+/// `--lab-team-bare`, `--team-roster`).
 struct TeamSettings {
     listen: SocketAddr,
     peers: Vec<(u8, SocketAddr)>,
     state: PathBuf,
+    /// `None`: lab bare mode.
+    key: Option<PathBuf>,
     roster: Option<Vec<u8>>,
 }
 
-fn team_settings(a: &Args) -> Result<Option<TeamSettings>> {
-    let Some(listen) = a.team_udp else {
-        if !a.peer.is_empty() || a.team_state.is_some() || a.team_roster.is_some() {
-            bail!("--peer, --team-state and --team-roster need --team-udp");
+/// The team options, from the command line or else the `--config` file.
+fn team_settings(a: &Args, f: &FileConfig) -> Result<Option<TeamSettings>> {
+    let peer_list = if a.peer.is_empty() {
+        f.peer.clone().unwrap_or_default()
+    } else {
+        a.peer.clone()
+    };
+    let state = a.team_state.clone().or(f.team_state.clone());
+    let key = a.team_key.clone().or(f.team_key.clone());
+    let roster_text = a.team_roster.clone().or(f.team_roster.clone());
+    let lab_bare = a.lab_team_bare || f.lab_team_bare.unwrap_or(false);
+    let Some(listen) = a.team_udp.or(f.team_udp) else {
+        if !peer_list.is_empty() || state.is_some() || roster_text.is_some() || key.is_some() || lab_bare {
+            bail!("--peer, --team-state, --team-key, --lab-team-bare and --team-roster need --team-udp");
         }
         return Ok(None);
     };
-    let Some(state) = a.team_state.clone() else {
+    let Some(state) = state else {
         bail!("--team-udp needs --team-state (term and vote must be durable before a vote is sent)");
     };
-    let peers = a.peer.iter().map(|p| team::parse_peer(p)).collect::<Result<Vec<_>>>()?;
-    let roster = match &a.team_roster {
+    let peers = peer_list
+        .iter()
+        .map(|p| team::parse_peer(p))
+        .collect::<Result<Vec<_>>>()?;
+    match (&key, lab_bare) {
+        (Some(_), true) => bail!("--team-key and --lab-team-bare exclude each other"),
+        (None, false) => bail!(
+            "--team-udp needs --team-key FILE (team packets are authenticated like the ground link), or --lab-team-bare on loopback addresses"
+        ),
+        (None, true) => {
+            if !listen.ip().is_loopback() || peers.iter().any(|(_, p)| !p.ip().is_loopback()) {
+                bail!("--lab-team-bare: unauthenticated team packets are for the lab, loopback addresses only");
+            }
+        }
+        (Some(_), false) => {}
+    }
+    let roster = match &roster_text {
         Some(r) => Some(
             r.split(',')
                 .map(|n| n.trim().parse::<u8>().with_context(|| format!("--team-roster {r:?}")))
@@ -158,6 +201,7 @@ fn team_settings(a: &Args) -> Result<Option<TeamSettings>> {
         listen,
         peers,
         state,
+        key,
         roster,
     }))
 }
@@ -183,6 +227,13 @@ struct FileConfig {
     tm_dest: Option<Vec<SocketAddr>>,
     lab_bare_packets: Option<bool>,
     modules: Option<PathBuf>,
+    config_state: Option<PathBuf>,
+    team_udp: Option<SocketAddr>,
+    peer: Option<Vec<String>>,
+    team_state: Option<PathBuf>,
+    team_key: Option<PathBuf>,
+    lab_team_bare: Option<bool>,
+    team_roster: Option<String>,
 }
 
 struct Settings {
@@ -202,11 +253,12 @@ struct Settings {
     /// The bare-packet link is on (lab mode, or no frame link configured).
     bare: bool,
     modules: mmic_sim::modules::ModuleSetSpec,
+    /// `--config-state` (issue 24).
+    config_state: Option<PathBuf>,
     team: Option<TeamSettings>,
 }
 
 fn settings(a: Args) -> Result<Settings> {
-    let team = team_settings(&a)?;
     let f: FileConfig = match &a.config {
         Some(p) => {
             let text =
@@ -215,6 +267,7 @@ fn settings(a: Args) -> Result<Settings> {
         }
         None => FileConfig::default(),
     };
+    let team = team_settings(&a, &f)?;
     let robot = a.robot.or(f.robot).unwrap_or(mib::apid::DEFAULT_ROBOT);
     if mib::apid::robot_apid(robot).is_none() {
         bail!(
@@ -307,6 +360,7 @@ fn settings(a: Args) -> Result<Settings> {
         tm_dest,
         bare,
         modules,
+        config_state: a.config_state.or(f.config_state),
         team,
     })
 }
@@ -405,19 +459,27 @@ fn run(args: Args) -> Result<()> {
     );
     let mut team_link = match &s.team {
         Some(t) => {
-            let (link, durable) = team::TeamUdp::open(t.listen, t.peers.clone(), t.state.clone())?;
-            obsw.team_restore(durable);
+            let (link, loaded) =
+                team::TeamUdp::open(s.robot, t.listen, t.peers.clone(), t.state.clone(), t.key.as_deref())?;
+            obsw.team_restore(0, loaded.status, &loaded.record, &mut down);
             if let Some(r) = &t.roster {
                 obsw.team_set_roster(0, r)
                     .map_err(|e| anyhow::anyhow!("--team-roster {r:?}: {e}"))?;
             }
             frame_note.push_str(&format!(" team_udp={}", link.local_addr()?));
             eprintln!(
-                "obsw: team link on {} with {} peers, term {} from {}",
+                "obsw: team link on {} with {} peers ({}), term {} roster {:?} from {} ({:?})",
                 link.local_addr()?,
                 t.peers.len(),
-                durable.term,
-                t.state.display()
+                if link.authenticated() {
+                    "AES-256-GCM, --team-key"
+                } else {
+                    "lab: unauthenticated, --lab-team-bare"
+                },
+                loaded.record.persisted.term,
+                loaded.record.roster,
+                t.state.display(),
+                loaded.status
             );
             Some(link)
         }
@@ -431,11 +493,34 @@ fn run(args: Args) -> Result<()> {
         ..SimConfig::default()
     });
     sim.set_modules(&s.modules);
-    // The configuration accepted at the factory: the full robot (no persistent store on
-    // the host; an ACCEPT_CONFIG holds until the process ends).
-    obsw.set_accepted_config(Some(AcceptedConfig::of(
-        &mmic_sim::modules::ModuleSetSpec::full().fitted,
-    )));
+    // The configuration the ground accepted: from --config-state (missing or corrupt:
+    // nothing accepted), else the factory one, the full robot (an ACCEPT_CONFIG then holds
+    // until the process ends).
+    let config_lost = match &s.config_state {
+        Some(p) => match config_state::load(p) {
+            Ok(a) => {
+                eprintln!(
+                    "obsw: accepted module configuration {:#010x} from {}",
+                    a.hash,
+                    p.display()
+                );
+                obsw.set_accepted_config(Some(a));
+                None
+            }
+            Err((why, line)) => {
+                log::warn!("{line}");
+                eprintln!("obsw: {line}");
+                obsw.set_accepted_config(None);
+                Some(why)
+            }
+        },
+        None => {
+            obsw.set_accepted_config(Some(AcceptedConfig::of(
+                &mmic_sim::modules::ModuleSetSpec::full().fitted,
+            )));
+            None
+        }
+    };
     println!(
         "READY robot={} apid=0x{:03X} udp={udp} tcp={tcp} sim_ctl={ctl_addr} speed={}{}{frame_note}",
         s.robot,
@@ -470,6 +555,9 @@ fn run(args: Args) -> Result<()> {
         ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
     }
     obsw.boot(0, config::reset_cause::POWER_ON, &mut down);
+    if let Some(why) = config_lost {
+        obsw.config_state_lost(0, why, &mut down);
+    }
     // Board A's table and probes now; board B's half arrives over the A-B link and the
     // control cycle runs discovery (issue 24).
     obsw.start_discovery(0, &sim.modules().table_a, sim.modules().probes_a);
@@ -506,6 +594,8 @@ fn run(args: Args) -> Result<()> {
                 handled += 1;
                 any = true;
             }
+            // An ACCEPT_CONFIG just executed is stored before the next input.
+            config_state::persist(&mut obsw, s.config_state.as_deref(), sim_ms, &mut down);
             if !any {
                 break;
             }
@@ -539,14 +629,30 @@ fn run(args: Args) -> Result<()> {
         let out = obsw.tick(sim_ms, &sensors, &link_rx, &mut down);
         link_rx.clear();
         sim.step(period as u32, &out.actuators, &out.link_tx, &mut link_rx);
+        // ... or one released by the on-board schedule.
+        config_state::persist(&mut obsw, s.config_state.as_deref(), sim_ms, &mut down);
         if let Some(t) = team_link.as_mut() {
             let mut buf = [0u8; config::MAX_PACKET_LEN];
             while let Some(n) = t.recv(&mut buf) {
                 let r = t.rand();
-                obsw.team_packet(sim_ms, r, &buf[..n], t, &mut down);
+                match t.open_datagram(&mut buf[..n]) {
+                    Ok((from, packet)) => {
+                        let packet = packet.to_vec();
+                        obsw.team_packet(sim_ms, r, from, &packet, t, &mut down);
+                    }
+                    Err((why, sender)) => obsw.team_rejected(sim_ms, why, sender, &mut down),
+                }
             }
             let r = t.rand();
             obsw.team_poll(sim_ms, r, t, &mut down);
+            for _ in 0..t.take_seal_errors() {
+                obsw.team_rejected(
+                    sim_ms,
+                    obsw_core::services::team::TeamReject::StoreFailed,
+                    s.robot,
+                    &mut down,
+                );
+            }
         }
         if let Some(f) = down.frames.as_mut() {
             f.flush(Instant::now());
@@ -689,6 +795,65 @@ mod tests {
         "--link-state",
         "link.state",
     ];
+
+    // verifies: TEAM-SEC-03, TEAM-CONF-01
+    #[test]
+    fn the_team_link_needs_a_key_or_the_local_lab_flag_and_is_accepted_in_the_config_file() {
+        let t = [
+            "--team-udp",
+            "127.0.0.1:0",
+            "--team-state",
+            "t.state",
+            "--peer",
+            "2=127.0.0.1:9",
+        ];
+        let e = parse(&t).err().expect("no key, no lab flag").to_string();
+        assert!(e.contains("--team-key"), "{e}");
+        let s = parse(&[&t[..], &["--team-key", "team.key"]].concat()).unwrap();
+        let team = s.team.unwrap();
+        assert_eq!(team.key.as_deref(), Some(std::path::Path::new("team.key")));
+        assert_eq!(team.peers.len(), 1);
+        assert!(parse(&[&t[..], &["--lab-team-bare"]].concat())
+            .unwrap()
+            .team
+            .unwrap()
+            .key
+            .is_none());
+        assert!(parse(&[&t[..], &["--lab-team-bare", "--team-key", "k"]].concat()).is_err());
+        let far = [
+            "--team-udp",
+            "127.0.0.1:0",
+            "--team-state",
+            "t",
+            "--peer",
+            "2=10.0.0.2:9",
+            "--lab-team-bare",
+        ];
+        assert!(parse(&far).is_err(), "bare team packets only on loopback");
+        assert!(parse(&["--peer", "2=127.0.0.1:9"]).is_err(), "--peer needs --team-udp");
+        // The same from the --config file; the command line wins.
+        let dir = std::env::temp_dir().join(format!("obsw-team-config-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let cfg = dir.join("obsw.toml");
+        std::fs::write(
+            &cfg,
+            "team_udp = \"127.0.0.1:0\"\npeer = [\"2=127.0.0.1:9\", \"3=127.0.0.1:10\"]\nteam_state = \"t.state\"\nteam_key = \"team.key\"\nteam_roster = \"1,2,3\"\n",
+        )
+        .unwrap();
+        let c = cfg.display().to_string();
+        let team = parse(&["--config", &c]).unwrap().team.unwrap();
+        assert_eq!(team.peers.len(), 2);
+        assert_eq!(team.roster, Some(vec![1, 2, 3]));
+        assert_eq!(team.key.as_deref(), Some(std::path::Path::new("team.key")));
+        let team = parse(&["--config", &c, "--team-key", "other.key"])
+            .unwrap()
+            .team
+            .unwrap();
+        assert_eq!(team.key.as_deref(), Some(std::path::Path::new("other.key")));
+        std::fs::write(&cfg, "team_udp = \"127.0.0.1:0\"\nteam_state = \"t\"\n").unwrap();
+        assert!(parse(&["--config", &c]).is_err(), "the key rule holds for the file too");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     // verifies: LINK-HOST-01
     #[test]

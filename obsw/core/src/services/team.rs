@@ -40,13 +40,102 @@ use crate::request::unknown;
 use crate::time::OnboardTime;
 use crate::tm::{TmSink, TmStore, TmWriter};
 
-/// What the platform provides to the team logic: durable storage of term and vote, and
-/// the inter-robot link.
+/// What the platform provides to the team logic: durable storage of the team record
+/// (term, vote, roster, authorisation), and the inter-robot link.
 pub trait TeamLink {
-    /// Makes `p` durable (written and synced) before returning; false if that failed.
-    fn persist(&mut self, p: Persisted) -> bool;
-    /// Sends one team packet to one robot of the roster or to every other one.
-    fn send(&mut self, to: Dest, packet: &[u8]);
+    /// Makes `r` durable (written and synced) before returning; false if that failed.
+    fn persist(&mut self, r: &TeamRecord) -> bool;
+    /// Sends one team packet to one robot of the roster or to every other one; returns the
+    /// number of datagrams handed to the link.
+    fn send(&mut self, to: Dest, packet: &[u8]) -> u32;
+}
+
+/// The ground's authorisation as stored: the expiry in Unix ms, so that it means the same
+/// after a reset (on-board time restarts at 0).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StoredAuth {
+    pub plan: PlanRef,
+    pub first_step: u16,
+    pub max_steps: u8,
+    pub expires_unix_ms: u64,
+}
+
+/// Everything of the team that survives a reset (the platform writes it whole, synced,
+/// before `persist` returns).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct TeamRecord {
+    pub persisted: Persisted,
+    /// Empty: no roster.
+    pub roster: heapless::Vec<u8, ROSTER_MAX>,
+    pub auth: Option<StoredAuth>,
+}
+
+/// How the platform found the team record at start.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LoadStatus {
+    Restored,
+    /// No record (first start).
+    None,
+    /// A record that could not be read: the robot starts from term 0 without roster or
+    /// authorisation (the platform logs why).
+    Corrupt,
+}
+
+impl LoadStatus {
+    pub const fn code(self) -> u8 {
+        match self {
+            LoadStatus::Restored => 0,
+            LoadStatus::None => 1,
+            LoadStatus::Corrupt => 2,
+        }
+    }
+}
+
+/// Why an inter-robot packet was refused (HK TEAM parameter `TEAM_REJ_MALFORMED + code`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TeamReject {
+    /// Authentic (or lab bare) but not a TM[211,1] of `TEAM_APID` with a valid team
+    /// message, or no roster set.
+    Malformed,
+    /// Too short for the security header and MAC.
+    Truncated,
+    /// Not a peer, or a message whose sender is not the authenticated one.
+    UnknownSender,
+    /// AES-GCM tag mismatch.
+    BadMac,
+    /// Counter already seen or too far behind.
+    Replay,
+    /// The counter state could not be made durable.
+    StoreFailed,
+}
+
+/// Number of [`TeamReject`] reasons.
+pub const TEAM_REJECT_REASONS: usize = 6;
+
+impl TeamReject {
+    pub const fn code(self) -> u8 {
+        match self {
+            TeamReject::Malformed => 0,
+            TeamReject::Truncated => 1,
+            TeamReject::UnknownSender => 2,
+            TeamReject::BadMac => 3,
+            TeamReject::Replay => 4,
+            TeamReject::StoreFailed => 5,
+        }
+    }
+}
+
+impl core::fmt::Display for TeamReject {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            TeamReject::Malformed => "not a valid team packet",
+            TeamReject::Truncated => "too short for the security header and MAC",
+            TeamReject::UnknownSender => "unknown sender",
+            TeamReject::BadMac => "MAC verification failed",
+            TeamReject::Replay => "replayed counter",
+            TeamReject::StoreFailed => "counter state not durable",
+        })
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -100,6 +189,20 @@ pub struct TeamCounters {
     pub continue_not_executed: u32,
     /// Team packets that did not fit a packet buffer (never expected).
     pub send_failed: u32,
+    /// Inter-robot datagrams sent.
+    pub pkt_sent: u32,
+    /// Inter-robot packets accepted and given to the node.
+    pub pkt_received: u32,
+    /// Inter-robot packets refused, by [`TeamReject::code`].
+    pub rejected: [u32; TEAM_REJECT_REASONS],
+    /// ELECTION_STARTED raised.
+    pub elections: u32,
+    /// DIRECTIVE_EXECUTED raised.
+    pub dir_executed: u32,
+    /// Refusals and foreign messages counted by nodes that were replaced (new roster,
+    /// restart after a failed persist), so that the HK counts stay monotonic.
+    pub refused_before: u32,
+    pub foreign_before: u32,
 }
 
 /// The team state kept by the obsw.
@@ -116,6 +219,10 @@ pub struct Team {
     next_status: u64,
     tmw: TmWriter,
     pub counters: TeamCounters,
+    /// Roster or authorisation changed and not yet durable (written at the next poll).
+    dirty: bool,
+    /// Last time a TEAM_PACKET_REJECTED was raised per reason (one per control period).
+    reject_reported: [Option<u64>; TEAM_REJECT_REASONS],
 }
 
 impl Team {
@@ -131,7 +238,38 @@ impl Team {
             next_status: 0,
             tmw: TmWriter::new(TEAM_APID, time),
             counters: TeamCounters::default(),
+            dirty: false,
+            reject_reported: [None; TEAM_REJECT_REASONS],
         }
+    }
+
+    /// The record as it must be durable now (the platform writes it whole).
+    pub fn record(&self) -> TeamRecord {
+        let epoch = self.tmw.time.epoch_unix_ms;
+        TeamRecord {
+            persisted: self.durable,
+            roster: if self.node.is_some() {
+                self.roster.clone()
+            } else {
+                heapless::Vec::new()
+            },
+            auth: self.auth.map(|a| StoredAuth {
+                plan: a.plan,
+                first_step: a.first_step,
+                max_steps: a.max_steps,
+                expires_unix_ms: epoch.saturating_add(a.expires_at),
+            }),
+        }
+    }
+
+    /// Replaces the node, keeping its counters' totals.
+    fn set_node(&mut self, node: Option<Node>) {
+        if let Some(old) = &self.node {
+            let c = old.counters();
+            self.counters.refused_before = self.counters.refused_before.wrapping_add(c.refused);
+            self.counters.foreign_before = self.counters.foreign_before.wrapping_add(c.foreign);
+        }
+        self.node = node;
     }
 
     /// The node, once a roster is set.
@@ -167,9 +305,96 @@ fn directive_args(d: Directive) -> (i64, i64) {
 }
 
 impl<S: TmStore> Obsw<S> {
-    /// Restores the durable term and vote (at boot, before a roster is set).
-    pub fn team_restore(&mut self, p: Persisted) {
-        self.team.durable = p;
+    /// Restores the team record at start (term, vote, roster, authorisation; an expired
+    /// authorisation or a roster the node refuses is dropped) and raises TEAM_STATE_LOADED.
+    pub fn team_restore(&mut self, now: u64, status: LoadStatus, r: &TeamRecord, sink: &mut impl TmSink) {
+        self.team.durable = r.persisted;
+        let epoch = self.team.tmw.time.epoch_unix_ms;
+        self.team.auth = r.auth.and_then(|a| {
+            let expires_at = a.expires_unix_ms.checked_sub(epoch)?;
+            (expires_at > now).then_some(Authorisation {
+                plan: a.plan,
+                first_step: a.first_step,
+                max_steps: a.max_steps,
+                expires_at,
+            })
+        });
+        if !r.roster.is_empty() {
+            // A stored roster was accepted once; should the node refuse it now, the
+            // robot starts without one (the event says roster 0).
+            let _ = self.team_set_roster(now, &r.roster);
+        }
+        let roster = if self.team.node.is_some() {
+            self.team.roster.len()
+        } else {
+            0
+        };
+        let plan = self.team.auth.map_or(0, |a| a.plan.id);
+        self.team.dirty = false;
+        self.event(
+            now,
+            eid::TEAM_STATE_LOADED,
+            &[
+                i64::from(status.code()),
+                i64::from(self.team.durable.term),
+                roster as i64,
+                i64::from(plan),
+            ],
+            sink,
+        );
+    }
+
+    /// An inter-robot packet refused before the node saw it (by the platform's
+    /// authentication, or here): counted, and TEAM_PACKET_REJECTED at most once per
+    /// reason and control period (the event service throttles further).
+    pub fn team_rejected(&mut self, now: u64, reason: TeamReject, sender: u8, sink: &mut impl TmSink) {
+        let i = usize::from(reason.code());
+        let c = &mut self.team.counters.rejected[i];
+        *c = c.wrapping_add(1);
+        let total = *c;
+        let period = u64::from(mib::config::CONTROL_PERIOD_MS);
+        if self.team.reject_reported[i].is_some_and(|t| now < t + period) {
+            return;
+        }
+        self.team.reject_reported[i] = Some(now);
+        self.event(
+            now,
+            eid::TEAM_PACKET_REJECTED,
+            &[i64::from(reason.code()), i64::from(sender), i64::from(total)],
+            sink,
+        );
+    }
+
+    /// Value of a TEAM HK parameter (`pid::TEAM_TERM..=pid::TEAM_STEPS_EXECUTED`).
+    pub(crate) fn team_param(&self, id: u16) -> Option<i64> {
+        use mib::params::pid;
+        let t = &self.team;
+        let c = &t.counters;
+        let node = t.node.as_ref();
+        let nc = node.map(Node::counters).unwrap_or_default();
+        let rej = |r: TeamReject| i64::from(c.rejected[usize::from(r.code())]);
+        Some(match id {
+            pid::TEAM_TERM => i64::from(node.map_or(t.durable.term, Node::term)),
+            pid::TEAM_ROLE => i64::from(node.map_or(0, |n| n.role().code())),
+            pid::TEAM_LEADER => i64::from(node.and_then(Node::leader).unwrap_or(0)),
+            pid::TEAM_GROUND_SEEN => i64::from(node.is_none_or(Node::ground_seen)),
+            pid::TEAM_PKT_SENT => i64::from(c.pkt_sent),
+            pid::TEAM_PKT_RECEIVED => i64::from(c.pkt_received),
+            pid::TEAM_REJ_MALFORMED => i64::from(c.bad_packets).wrapping_add(rej(TeamReject::Malformed)),
+            pid::TEAM_REJ_TRUNCATED => rej(TeamReject::Truncated),
+            pid::TEAM_REJ_UNKNOWN_SENDER => {
+                rej(TeamReject::UnknownSender) + i64::from(c.foreign_before.wrapping_add(nc.foreign))
+            }
+            pid::TEAM_REJ_BAD_MAC => rej(TeamReject::BadMac),
+            pid::TEAM_REJ_REPLAY => rej(TeamReject::Replay),
+            pid::TEAM_REJ_STORE_FAILED => rej(TeamReject::StoreFailed),
+            pid::TEAM_ELECTIONS => i64::from(c.elections),
+            pid::TEAM_DIR_EXECUTED => i64::from(c.dir_executed),
+            pid::TEAM_DIR_REFUSED => i64::from(c.refused_before.wrapping_add(nc.refused)),
+            pid::TEAM_PERSIST_FAILED => i64::from(c.persist_failed),
+            pid::TEAM_STEPS_EXECUTED => 0,
+            _ => return None,
+        })
     }
 
     /// Sets the team roster (ground TC TEAM_ROSTER, or the platform's configuration).
@@ -177,7 +402,8 @@ impl<S: TmStore> Obsw<S> {
     /// contact.
     pub fn team_set_roster(&mut self, now: u64, roster: &[u8]) -> Result<(), mmic_team::node::RosterError> {
         let node = Node::restore(self.team.me, roster, self.team.durable, now)?;
-        self.team.node = Some(node);
+        self.team.set_node(Some(node));
+        self.team.dirty = true;
         self.team.roster.clear();
         for r in roster.iter().take(ROSTER_MAX) {
             // At most ROSTER_MAX (checked by the node above).
@@ -207,6 +433,15 @@ impl<S: TmStore> Obsw<S> {
             self.team.ground_tc = false;
             return;
         }
+        if core::mem::take(&mut self.team.dirty) {
+            let r = self.team.record();
+            if !link.persist(&r) {
+                // The roster and authorisation hold in RAM until a reset; the ground sees
+                // the count in HK TEAM_PERSIST_FAILED.
+                let c = &mut self.team.counters;
+                c.persist_failed = c.persist_failed.wrapping_add(1);
+            }
+        }
         if core::mem::take(&mut self.team.ground_tc) {
             self.team_input(now, rand, Input::GroundTc, link, sink);
         }
@@ -223,11 +458,14 @@ impl<S: TmStore> Obsw<S> {
     }
 
     /// A packet from the inter-robot link: a TM[211,1] of APID `TEAM_APID` whose source
-    /// data is a team message. Anything else is counted (`bad_packets`) and ignored.
+    /// data is a team message. `from` is the sender the platform authenticated (`None`
+    /// in the lab's bare mode); a message claiming another sender is refused
+    /// (UNKNOWN_SENDER). Anything else is counted (MALFORMED) and ignored.
     pub fn team_packet(
         &mut self,
         now: u64,
         rand: u32,
+        from: Option<u8>,
         packet: &[u8],
         link: &mut impl TeamLink,
         sink: &mut impl TmSink,
@@ -243,8 +481,14 @@ impl<S: TmStore> Obsw<S> {
             _ => None,
         };
         match (msg, self.team.node.is_some()) {
-            (Some(m), true) => self.team_input(now, rand, Input::Message(m), link, sink),
-            _ => self.team.counters.bad_packets = self.team.counters.bad_packets.wrapping_add(1),
+            (Some(m), true) if from.is_some_and(|f| f != m.sender) => {
+                self.team_rejected(now, TeamReject::UnknownSender, m.sender, sink)
+            }
+            (Some(m), true) => {
+                self.team.counters.pkt_received = self.team.counters.pkt_received.wrapping_add(1);
+                self.team_input(now, rand, Input::Message(m), link, sink)
+            }
+            _ => self.team_rejected(now, TeamReject::Malformed, from.unwrap_or(0), sink),
         }
     }
 
@@ -266,7 +510,9 @@ impl<S: TmStore> Obsw<S> {
         for (i, e) in effects.iter().enumerate() {
             match *e {
                 Effect::Persist(p) => {
-                    if link.persist(p) {
+                    let mut r = self.team.record();
+                    r.persisted = p;
+                    if link.persist(&r) {
                         self.team.durable = p;
                     } else {
                         // Treated as a reset: nothing of this batch goes out.
@@ -274,7 +520,8 @@ impl<S: TmStore> Obsw<S> {
                         c.persist_failed = c.persist_failed.wrapping_add(1);
                         c.effects_dropped = c.effects_dropped.wrapping_add((effects.len() - i - 1) as u32);
                         let roster = self.team.roster.clone();
-                        self.team.node = Node::restore(self.team.me, &roster, self.team.durable, now).ok();
+                        let node = Node::restore(self.team.me, &roster, self.team.durable, now).ok();
+                        self.team.set_node(node);
                         return;
                     }
                 }
@@ -296,7 +543,10 @@ impl<S: TmStore> Obsw<S> {
             Err(_) => None,
         };
         match packet {
-            Some(n) => link.send(to, &out[..n]),
+            Some(n) => {
+                let sent = link.send(to, &out[..n]);
+                self.team.counters.pkt_sent = self.team.counters.pkt_sent.wrapping_add(sent);
+            }
             None => self.team.counters.send_failed = self.team.counters.send_failed.wrapping_add(1),
         }
     }
@@ -333,7 +583,10 @@ impl<S: TmStore> Obsw<S> {
                 let t = self.team.node.as_ref().map_or(0, |n| n.term());
                 self.event(now, eid::GROUND_LOST, &[term(t)], sink)
             }
-            TeamEvent::ElectionStarted { term: t } => self.event(now, eid::ELECTION_STARTED, &[term(t)], sink),
+            TeamEvent::ElectionStarted { term: t } => {
+                self.team.counters.elections = self.team.counters.elections.wrapping_add(1);
+                self.event(now, eid::ELECTION_STARTED, &[term(t)], sink)
+            }
             TeamEvent::LeaderElected { term: t, leader } => {
                 self.event(now, eid::LEADER_ELECTED, &[term(t), i64::from(leader)], sink)
             }
@@ -346,6 +599,7 @@ impl<S: TmStore> Obsw<S> {
                 leader,
                 directive,
             } => {
+                self.team.counters.dir_executed = self.team.counters.dir_executed.wrapping_add(1);
                 let (d, step) = directive_args(directive);
                 self.event(
                     now,
@@ -413,6 +667,7 @@ impl<S: TmStore> Obsw<S> {
                         .map_err(|_| Failure::arg_out_of_range(4, validity_s as i32))?;
                 }
                 self.team.auth = Some(a);
+                self.team.dirty = true;
             }
             Request::Roster(slots) => {
                 let mut roster: heapless::Vec<u8, ROSTER_MAX> = heapless::Vec::new();
@@ -443,17 +698,24 @@ mod tests {
     struct Link {
         log: Vec<&'static str>,
         sent: Vec<(Dest, Vec<u8>)>,
+        records: Vec<TeamRecord>,
         fail_persist: bool,
     }
 
     impl TeamLink for Link {
-        fn persist(&mut self, _p: Persisted) -> bool {
+        fn persist(&mut self, r: &TeamRecord) -> bool {
             self.log.push("persist");
+            self.records.push(r.clone());
             !self.fail_persist
         }
-        fn send(&mut self, to: Dest, packet: &[u8]) {
+        fn send(&mut self, to: Dest, packet: &[u8]) -> u32 {
             self.log.push("send");
             self.sent.push((to, packet.to_vec()));
+            // The in-memory teams here are of three robots.
+            match to {
+                Dest::All => 2,
+                Dest::To(_) => 1,
+            }
         }
     }
 
@@ -497,7 +759,7 @@ mod tests {
                     for j in 0..team.len() {
                         let me = (j + 1) as u8;
                         if j != i && (dest == Dest::All || dest == Dest::To(me)) {
-                            team[j].team_packet(now, rand, &pkt, &mut links[j], &mut sinks[j]);
+                            team[j].team_packet(now, rand, Some((i + 1) as u8), &pkt, &mut links[j], &mut sinks[j]);
                         }
                     }
                 }
@@ -554,6 +816,161 @@ mod tests {
         assert_eq!(st.roster.iter().map(|r| r.robot).collect::<Vec<_>>(), [1, 2, 3]);
         assert_eq!(st.ground_seen, 1);
         assert!(st.term >= 1);
+    }
+
+    /// The TEAM HK report (SID 24) of `o`, decoded by the MIB.
+    fn team_hk(o: &mut TestObsw, now: u64) -> mib_wire::hk::Team {
+        let mut s = Vec::new();
+        let apid = o.apid();
+        o.handle_tc(
+            now,
+            &tc_bytes(apid, (now / 10) as u16, 3, 27, &mib::hk::sid::TEAM.to_be_bytes()),
+            &mut s,
+        );
+        let hk = of(&s, 3, 25);
+        assert_eq!(
+            hk.len(),
+            1,
+            "one TEAM HK report: {:?}",
+            s.iter()
+                .map(|p| (kind(p).0, kind(p).1, kind(p).2.to_vec()))
+                .collect::<Vec<_>>()
+        );
+        let data = kind(&hk[0]).2;
+        assert_eq!(data.len(), mib::hk::by_sid(mib::hk::sid::TEAM).unwrap().data_len());
+        mib_wire::hk::Team::parse(&data[2..]).unwrap()
+    }
+
+    // verifies: TEAM-HK-01
+    #[test]
+    fn the_team_hk_counts_packets_elections_directives_and_rejections() {
+        let mut team: Vec<TestObsw> = (1..=3).map(robot).collect();
+        let mut links: Vec<Link> = (0..3).map(|_| Link::default()).collect();
+        let mut sinks: Vec<Vec<Vec<u8>>> = vec![Vec::new(); 3];
+        for o in team.iter_mut() {
+            roster_tc(o, 0, &[1, 2, 3]);
+        }
+        run(&mut team, &mut links, &mut sinks, 0, 12_000);
+        let hk: Vec<_> = team.iter_mut().map(|o| team_hk(o, 12_000)).collect();
+        let leader = team
+            .iter()
+            .position(|o| o.team.node().unwrap().role() == mmic_team::Role::Leader)
+            .unwrap();
+        let sent: u32 = hk.iter().map(|h| h.team_pkt_sent).sum();
+        let received: u32 = hk.iter().map(|h| h.team_pkt_received).sum();
+        assert!(sent > 50, "heartbeats and acks for ~6 s: {sent}");
+        assert_eq!(
+            sent, received,
+            "lossless in-memory link: every packet sent was accepted"
+        );
+        for (i, h) in hk.iter().enumerate() {
+            assert_eq!(h.team_term, team[i].team.node().unwrap().term());
+            assert_eq!(h.team_leader, (leader + 1) as u8, "robot {}", i + 1);
+            assert_eq!(h.team_ground_seen, 0);
+            assert_eq!(h.team_role, if i == leader { 2 } else { 0 });
+            if i != leader {
+                assert!(h.team_dir_executed >= 1, "follower {} executed HOLD", i + 1);
+            }
+        }
+        assert!(hk[leader].team_elections >= 1);
+        assert_eq!(links[leader].sent.len(), 0);
+        // Rejections: junk (malformed), a message claiming another sender than the
+        // authenticated one, and the platform's authentication refusals.
+        let o = &mut team[0];
+        let mut s = Vec::new();
+        let mut l = Link::default();
+        o.team_packet(12_000, 1, Some(2), b"junk", &mut l, &mut s);
+        let mut body = [0u8; MAX_LEN];
+        let n = Message {
+            term: 1,
+            sender: 3,
+            plan: PlanRef::default(),
+            progress: 0,
+            body: mmic_team::Body::RequestVote,
+        }
+        .emit(&mut body)
+        .unwrap();
+        let mut pkt = [0u8; mib::config::MAX_PACKET_LEN];
+        let len = TmWriter::new(TEAM_APID, OnboardTime::new(0))
+            .build(0, TEAM_SERVICE, TEAM_SUBSERVICE_MESSAGE, &body[..n], &mut pkt)
+            .unwrap();
+        o.team_packet(12_010, 1, Some(2), &pkt[..len], &mut l, &mut s);
+        o.team_rejected(12_020, TeamReject::BadMac, 9, &mut s);
+        o.team_rejected(12_020, TeamReject::BadMac, 9, &mut s);
+        o.team_rejected(12_030, TeamReject::Replay, 2, &mut s);
+        let ev = events(&s, eid::TEAM_PACKET_REJECTED);
+        // MALFORMED, UNKNOWN_SENDER, BAD_MAC (the second one in the same period is
+        // counted, not evented), REPLAY.
+        assert_eq!(ev.len(), 4, "{ev:?}");
+        assert_eq!(ev[2], [3, 9, 0, 0, 0, 1]);
+        let h = team_hk(&mut team[0], 12_040);
+        assert_eq!(
+            (
+                h.team_rej_malformed,
+                h.team_rej_unknown_sender,
+                h.team_rej_bad_mac,
+                h.team_rej_replay
+            ),
+            (1, 1, 2, 1)
+        );
+        assert!(l.sent.is_empty(), "nothing answered a refused packet");
+    }
+
+    // verifies: TEAM-PERSIST-03
+    #[test]
+    fn roster_and_authorisation_are_persisted_and_restored_after_a_reset() {
+        let mut o = robot(1);
+        roster_tc(&mut o, 0, &[1, 2, 3]);
+        let mut app = Vec::new();
+        app.extend_from_slice(&7u16.to_be_bytes());
+        app.extend_from_slice(&0xDEAD_BEEFu32.to_be_bytes());
+        app.extend_from_slice(&1u16.to_be_bytes());
+        app.push(3);
+        app.extend_from_slice(&600u32.to_be_bytes());
+        let mut s = Vec::new();
+        o.handle_tc(10, &tc_bytes(0x101, 3, 211, 3, &app), &mut s);
+        assert_eq!(of(&s, 1, 7).len(), 1);
+        let mut link = Link::default();
+        o.team_poll(20, 1, &mut link, &mut s);
+        let rec = link.records.last().expect("written at the next poll").clone();
+        assert_eq!(rec.roster.as_slice(), [1, 2, 3]);
+        let a = rec.auth.unwrap();
+        assert_eq!((a.plan.id, a.first_step, a.max_steps), (7, 1, 3));
+        assert_eq!(a.expires_unix_ms, 1_790_000_000_000 + 10 + 600_000);
+        // A reset 100 s later (new epoch): the roster is back, the authorisation keeps its
+        // absolute expiry (500 s left), and TEAM_STATE_LOADED says so.
+        let mut o2: TestObsw = Obsw::new(
+            Config {
+                robot: 1,
+                epoch_unix_ms: 1_790_000_100_000,
+            },
+            RingStore::default(),
+        );
+        let mut s = Vec::new();
+        o2.team_restore(0, LoadStatus::Restored, &rec, &mut s);
+        assert_eq!(o2.team.node().unwrap().status(0).roster.as_slice(), [1, 2, 3]);
+        let ev = events(&s, eid::TEAM_STATE_LOADED);
+        assert_eq!(ev, [vec![0, 0, 0, 0, 0, 3, 0, 7]]);
+        s.clear();
+        o2.team_status(0, &mut s);
+        let st = tm::TeamStatus::parse(kind(&of(&s, 211, 2)[0]).2).unwrap();
+        assert_eq!((st.auth_plan, st.auth_steps, st.auth_left_s), (7, 3, 500));
+        // An expired authorisation is not restored; a corrupt record starts empty.
+        let mut o3: TestObsw = Obsw::new(
+            Config {
+                robot: 1,
+                epoch_unix_ms: 1_790_001_000_000,
+            },
+            RingStore::default(),
+        );
+        let mut s = Vec::new();
+        o3.team_restore(0, LoadStatus::Restored, &rec, &mut s);
+        assert!(o3.team.record().auth.is_none());
+        let mut o4 = robot(1);
+        let mut s = Vec::new();
+        o4.team_restore(0, LoadStatus::Corrupt, &TeamRecord::default(), &mut s);
+        assert!(o4.team.node().is_none());
+        assert_eq!(events(&s, eid::TEAM_STATE_LOADED), [vec![2, 0, 0, 0, 0, 0, 0, 0]]);
     }
 
     // verifies: TEAM-OBSW-01
