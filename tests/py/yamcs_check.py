@@ -6,14 +6,17 @@ compares them with the MIB.
         --seconds 20 --commands commands.json --out result.json
 
 commands.json: {"hk_params": [names of the HK parameters], "commands": [{"name": "PING",
-"args": {...}, "at": seconds after the start}, or {"cop1_init": "SET_VR", "v_r": 0, "link":
+"args": {...}, "at": seconds after the start, optional "tag", "schedule_in_s": time-tag the
+command with Yamcs' pus11ScheduleAt that many seconds after issue (the result gives
+schedule_at_unix_ms; "schedule_as": "datetime" passes a datetime instead of the string), "windows": {"Acceptance": stop s, ...} check windows, "bypass": true for a BD frame}, or {"cop1_init": "SET_VR", "v_r": 0, "link":
 "tc_robot_1.vc0", "at": ...} (an operator's COP-1 initialisation)], "cop1_link": a link whose
 COP-1 status is recorded at the start and the end, "settle_s": how long to wait at most after
 the watch for every command's final status (default 15)}.
 result.json:
   links:     [{name, status, in_count, out_count}]
   hk:        [{t (reception, s since start), sid, seq, params: {NAME: {raw, eng}}}], every HK report
-  commands:  [{name, args, attrs: {Verifier_*_Status / _Message, CommandComplete_*}}]
+  commands:  [{name, tag, args, schedule_at_unix_ms, attrs: {Verifier_*_Status / _Message,
+             CommandComplete_*, binary, ccsds-seqcount, pus11-*}}]
   events:    [{type, severity, message, generation_time}]
   watched:   [{t, params}] every delivery with one of the plan's "watch" parameters
   alarms:    [{name, severity, violations, count, trigger_eng, trigger_raw}] the active parameter
@@ -29,7 +32,7 @@ import os
 import threading
 import time
 
-from yamcs.client import YamcsClient
+from yamcs.client import VerificationConfig, YamcsClient
 
 
 def plain(v):
@@ -122,7 +125,30 @@ def main():
             client.get_link(a.instance, c["link"]).initialize_cop1(c["cop1_init"], v_r=c.get("v_r"))
             continue
         try:
-            cmd = proc.issue_command(f"{ss}/{c['name']}", args=c.get("args", {}))
+            extra, verification = None, None
+            if "schedule_in_s" in c:
+                # Yamcs' own time-tagging: its PusCommandPostprocessor wraps the command
+                # into a TC[11,4] (command option pus11ScheduleAt, "Schedule Time").
+                at = datetime.datetime.now(datetime.timezone.utc) + datetime.timedelta(seconds=c["schedule_in_s"])
+                at = at.replace(microsecond=(at.microsecond // 1000) * 1000)
+                c = dict(c, schedule_at_unix_ms=round(at.timestamp() * 1000))
+                # As the web UI sends it: a STRING that Yamcs coerces to its time. A datetime
+                # ("schedule_as": "datetime") goes out as a TIMESTAMP Value with only its
+                # stringValue set, which Yamcs 5.12.8 takes as it is: time 0 (docs/yamcs.md).
+                if c.get("schedule_as") == "datetime":
+                    extra = {"pus11ScheduleAt": at}
+                else:
+                    extra = {"pus11ScheduleAt": at.isoformat(timespec="milliseconds").replace("+00:00", "Z")}
+            if c.get("bypass"):
+                # "COP-1 Bypass": a BD frame (Yamcs' option cop1Bypass).
+                extra = dict(extra or {}, cop1Bypass=True)
+            if "windows" in c:
+                # The operator's check windows (s after release), as in the web UI.
+                verification = VerificationConfig()
+                for stage, stop in c["windows"].items():
+                    verification.modify_check_window(stage, start=None, stop=stop)
+            cmd = proc.issue_command(f"{ss}/{c['name']}", args=c.get("args", {}), extra=extra,
+                                     verification=verification)
             issued.append((c, cmd, None))
         except Exception as e:  # the test reports it
             issued.append((c, None, str(e)))
@@ -148,8 +174,10 @@ def main():
             h = hist.get_command_history(cmd)
             if h is not None:
                 attrs = {k: plain(v) for k, v in h.attributes.items()
-                         if k.startswith("Verifier_") or k.startswith("CommandComplete") or k == "binary"}
-        commands.append({"name": c["name"], "args": c.get("args", {}), "error": err, "attrs": attrs})
+                         if k.startswith("Verifier_") or k.startswith("CommandComplete") or k == "binary"
+                         or k.startswith("pus11") or k == "ccsds-seqcount"}
+        commands.append({"name": c["name"], "tag": c.get("tag"), "args": c.get("args", {}), "error": err,
+                         "attrs": attrs, "schedule_at_unix_ms": c.get("schedule_at_unix_ms")})
 
     alarms = []
     for al in proc.list_alarms():

@@ -26,7 +26,11 @@ use mib::FailureCode;
 use serde_json::{json, Value};
 
 /// How long TM is watched (HK flows all along; commands are issued in the first seconds).
-const WATCH_S: f64 = 20.0;
+const WATCH_S: f64 = 60.0;
+/// Commands time-tagged in Yamcs (`pus11ScheduleAt`): issued at `at`, released `in` s later.
+const SCHED_AT_S: f64 = 8.0;
+const SCHED_IN_S: f64 = 6.0;
+const SCHED_LATE_IN_S: f64 = 12.0;
 /// When the battery sags (seconds after the watch starts, about), and to what (volts).
 const SAG_AT_S: f64 = 11.0;
 const SAG_V: f64 = 9.5;
@@ -140,7 +144,7 @@ fn command<'a>(r: &'a Value, name: &str) -> &'a Value {
         .as_array()
         .unwrap()
         .iter()
-        .find(|c| c["name"] == name)
+        .find(|c| c["name"] == name && c["tag"].is_null())
         .unwrap_or_else(|| panic!("no {name} in {r}"))
 }
 
@@ -290,7 +294,7 @@ fn temp_dir(tag: &str) -> PathBuf {
     dir
 }
 
-// verifies: YAMCS-EXPORT-01, YAMCS-LINK-01, YAMCS-TM-02, YAMCS-TIME-01, YAMCS-CMD-01, YAMCS-EVT-01, YAMCS-XTCE-01, YAMCS-ALARM-01
+// verifies: YAMCS-EXPORT-01, YAMCS-LINK-01, YAMCS-TM-02, YAMCS-TIME-01, YAMCS-CMD-01, YAMCS-EVT-01, YAMCS-XTCE-01, YAMCS-ALARM-01, YAMCS-SCHED-02
 #[test]
 fn yamcs_operates_the_robot_over_frames_with_sdls_and_cop1() {
     let Some(venv) = yamcs_venv() else { return };
@@ -336,6 +340,19 @@ fn yamcs_operates_the_robot_over_frames_with_sdls_and_cop1() {
             // The robot boots in Xneg: a reconfiguration from Xpos is refused.
             {"name": "RECONFIGURE", "args": {"from": "Xpos", "to": "Yneg"}, "at": 5.0},
             {"name": "PARAM_SET", "args": {"param_id": "BOLT_MAX_ATTEMPTS", "value": 2_000_000_000}, "at": 6.0},
+            // Time-tagged by Yamcs (TC[11,4] of its PusCommandPostprocessor), in BD frames
+            // ("COP-1 Bypass": Yamcs 5.12.8 cannot put a wrapped command into an AD frame,
+            // see "scheduled-ad"): with the check windows stretched over the release time
+            // by the operator, with Yamcs' defaults, with a release time already passed, and
+            // with the time given as a Python datetime.
+            {"name": "PING", "tag": "scheduled", "at": SCHED_AT_S, "schedule_in_s": SCHED_IN_S, "bypass": true,
+             "windows": {"Acceptance": SCHED_IN_S + 5.0, "Start": SCHED_IN_S + 10.0, "Completion": SCHED_IN_S + 20.0}},
+            {"name": "PING", "tag": "scheduled-default-windows", "at": SCHED_AT_S + 0.5, "schedule_in_s": SCHED_LATE_IN_S, "bypass": true},
+            {"name": "PING", "tag": "scheduled-past", "at": SCHED_AT_S + 1.0, "schedule_in_s": -5.0, "bypass": true},
+            {"name": "PING", "tag": "scheduled-datetime", "at": SCHED_AT_S + 1.5, "schedule_in_s": SCHED_IN_S, "bypass": true,
+             "schedule_as": "datetime"},
+            // Last (it is lost, with whatever shares its frame): the same through COP-1.
+            {"name": "PING", "tag": "scheduled-ad", "at": SCHED_AT_S + 3.0, "schedule_in_s": SCHED_IN_S},
         ],
     });
     // A battery sag half-way through (simulator control, not a TC).
@@ -463,6 +480,9 @@ fn yamcs_operates_the_robot_over_frames_with_sdls_and_cop1() {
     let ack = u8::from_str_radix(&bin[12..14], 16).unwrap() & 0x0F;
     assert_eq!(ack, mib::tc::by_name("PARAM_SET").unwrap().ack_flags());
 
+    // --- Time-tagged commands from Yamcs (TC[11,4]). ---
+    scheduled_commands_judged_from_the_obsw_tm(&r, &sent, &yamcs_log);
+
     // --- PUS 5 events as Yamcs events. ---
     let events = r["events"].as_array().unwrap();
     let ev = events
@@ -577,11 +597,12 @@ fn yamcs_operates_the_robot_over_frames_with_sdls_and_cop1() {
     );
     assert!(alarm["violations"].as_i64() >= Some(persistence as i64), "{alarm}");
     eprintln!(
-        "yamcs_e2e: battery sag to {SAG_V} V: V_BAT_A samples {:?} (warning below {}); Yamcs alarm {} raised at violation {}, trigger value {trigger} V; updates {updates:?}",
+        "yamcs_e2e: battery sag to {SAG_V} V: V_BAT_A samples {:?} (warning below {}); Yamcs alarm {} raised at violation {}, trigger value {trigger} V; first updates {:?}",
         &samples[first_bad.saturating_sub(1)..(first_bad + persistence + 1).min(samples.len())],
         lim.soft_lo,
         alarm["severity"],
-        triggered["violations"]
+        triggered["violations"],
+        &updates[..updates.len().min(3)]
     );
 
     // --- Over the frame link: every command in an AD frame accepted by FARM-1 after SDLS,
@@ -593,7 +614,8 @@ fn yamcs_operates_the_robot_over_frames_with_sdls_and_cop1() {
             .find(|l| l["name"] == name)
             .unwrap_or_else(|| panic!("no link {name}: {links:?}"))
     };
-    let issued = plan["commands"].as_array().unwrap().len() as i64;
+    // All but the time-tagged command Yamcs drops ("scheduled-ad").
+    let issued = plan["commands"].as_array().unwrap().len() as i64 - 1;
     assert_eq!(link("tc_robot_1")["status"], "OK", "{links:?}");
     assert!(link("tc_robot_1")["out_count"].as_i64() >= Some(issued), "{links:?}");
     assert!(link("tm_robot_1.vc0")["in_count"].as_i64() > Some(0), "{links:?}");
@@ -642,6 +664,177 @@ fn yamcs_operates_the_robot_over_frames_with_sdls_and_cop1() {
 }
 
 /// PING replies (TM[17,2]) the obsw sent, from its TM log.
+/// The command of the result with `tag`.
+fn tagged<'a>(r: &'a Value, tag: &str) -> &'a Value {
+    r["commands"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["tag"] == tag)
+        .unwrap_or_else(|| panic!("no command tagged {tag} in {r}"))
+}
+
+/// The TM[1,x] the obsw sent for the TC of APID `apid` and sequence count `seq`:
+/// (subtype, on-board Unix ms, failure code).
+fn reports_for(sent: &[Vec<u8>], apid: u16, seq: u16) -> Vec<(u8, i64, Option<u16>)> {
+    sent.iter()
+        .filter_map(|raw| Tm::parse(raw).map(|t| (t, raw)))
+        .filter(|(t, _)| t.request().is_some_and(|(p, s)| p & 0x7FF == apid && s & 0x3FFF == seq))
+        .map(|(t, raw)| (t.subservice, onboard_unix_ms(raw), t.failure_code()))
+        .collect()
+}
+
+/// Yamcs' release time in its TC[11,4] (`pus11-binary`), read as the MIB describes it
+/// (`mib::tc::sched_cuc`), in Unix ms; and the embedded TC.
+fn yamcs_tc_11_4(bin: &[u8]) -> (u8, u8, i64, Vec<u8>) {
+    use mib::tc::sched_cuc::{COARSE_LEN, FINE_LEN, TAI_MINUS_UTC_S, TIME_LEN};
+    assert_eq!((bin[7], bin[8]), (11, 4), "a TC[11,4]: {bin:02x?}");
+    let app = &bin[11..bin.len() - 2];
+    let (sub, n) = (app[0], app[1]);
+    let t = &app[2..2 + TIME_LEN];
+    let coarse = t[..COARSE_LEN].iter().fold(0i64, |a, b| (a << 8) | *b as i64);
+    let fine = t[COARSE_LEN..].iter().fold(0i64, |a, b| (a << 8) | *b as i64);
+    let den = 1i64 << (8 * FINE_LEN);
+    let unix_ms = coarse * 1000 + (fine * 1000 + den - 1) / den - TAI_MINUS_UTC_S as i64 * 1000;
+    (sub, n, unix_ms, app[2 + TIME_LEN..].to_vec())
+}
+
+/// Judges the commands time-tagged in Yamcs from what the obsw sent: the TC[11,4] Yamcs
+/// built is accepted, started and completed at once (or refused for a past release
+/// time), and the embedded TC runs at its release time; and records what Yamcs' own
+/// command history shows.
+fn scheduled_commands_judged_from_the_obsw_tm(r: &Value, sent: &[Vec<u8>], yamcs_log: &str) {
+    let apid = mib::apid::robot_apid(1).unwrap();
+    let hex = |v: &Value| -> Vec<u8> {
+        let h = v.as_str().unwrap_or_else(|| panic!("not hex: {v}"));
+        (0..h.len())
+            .step_by(2)
+            .map(|i| u8::from_str_radix(&h[i..i + 2], 16).unwrap())
+            .collect()
+    };
+    for tag in [
+        "scheduled",
+        "scheduled-default-windows",
+        "scheduled-past",
+        "scheduled-datetime",
+        "scheduled-ad",
+    ] {
+        let c = tagged(r, tag);
+        assert!(c["error"].is_null(), "{tag} not issued: {c}");
+        let a = &c["attrs"];
+        let at = c["schedule_at_unix_ms"].as_i64().unwrap();
+        let outer = hex(&a["pus11-binary"]);
+        let inner = hex(&a["binary"]);
+        let (sub, n, release, embedded) = yamcs_tc_11_4(&outer);
+        assert_eq!(
+            (sub, n),
+            (mib::tc::sched_cuc::SUB_SCHEDULE_ID, 1),
+            "{tag}: {outer:02x?}"
+        );
+        assert_eq!(embedded, inner, "{tag}: the embedded TC is the command Yamcs shows");
+        let s11 = a["pus11-ccsds-seqcount"].as_i64().unwrap() as u16;
+        let sp = a["ccsds-seqcount"].as_i64().unwrap() as u16;
+        let outer_reports = reports_for(sent, apid, s11);
+        let inner_reports = reports_for(sent, apid, sp);
+        let stages = |v: &[(u8, i64, Option<u16>)]| v.iter().map(|x| x.0).collect::<Vec<_>>();
+        if tag == "scheduled-datetime" {
+            // yamcs-client sends a datetime option as a TIMESTAMP Value with only its
+            // string set; Yamcs 5.12.8 keeps it as it is and encodes time 0 (CUC all zero,
+            // 1970 on its scale). The obsw refuses it as a release time passed.
+            assert_eq!(
+                release,
+                -(mib::tc::sched_cuc::TAI_MINUS_UTC_S as i64) * 1000,
+                "{tag}: {outer:02x?}"
+            );
+            assert_eq!(stages(&outer_reports), vec![2], "{tag}: {outer_reports:?}");
+            assert_eq!(outer_reports[0].2, Some(FailureCode::RELEASE_TIME_PASSED.code()));
+            assert!(inner_reports.is_empty(), "{tag}: {inner_reports:?}");
+            eprintln!("yamcs_e2e: {tag}: Yamcs wrote release time 0 (asked {at}); obsw TM[1,2] RELEASE_TIME_PASSED");
+            continue;
+        }
+        assert_eq!(release, at, "{tag}: Yamcs' CUC release time read as the MIB says");
+        if tag == "scheduled-ad" {
+            // Yamcs 5.12.8: PusCommandPostprocessor.getBinaryLength() ignores the TC[11,4]
+            // wrapping, Cop1TcPacketHandler sizes the AD frame with it, finds the wrapped
+            // command too long and drops the frame: nothing reaches the robot, Yamcs
+            // neither sends nor fails the command.
+            assert!(
+                outer_reports.is_empty() && inner_reports.is_empty(),
+                "{tag}: {outer_reports:?} {inner_reports:?}"
+            );
+            assert!(
+                yamcs_log.contains("getBinaryLength() returned"),
+                "{tag}: Yamcs' log names the frame it dropped"
+            );
+            assert_ne!(status(c, "Acceptance"), "OK", "{tag}: {c}");
+            eprintln!(
+                "yamcs_e2e: {tag}: AD frame dropped by Yamcs (getBinaryLength); Yamcs Acceptance {}",
+                status(c, "Acceptance")
+            );
+            continue;
+        }
+        if tag == "scheduled-past" {
+            assert_eq!(
+                stages(&outer_reports),
+                vec![2],
+                "{tag}: TC[11,4] refused: {outer_reports:?}"
+            );
+            assert_eq!(outer_reports[0].2, Some(FailureCode::RELEASE_TIME_PASSED.code()));
+            assert!(inner_reports.is_empty(), "{tag}: nothing scheduled: {inner_reports:?}");
+            // Yamcs verifies the embedded command only: the refusal of its TC[11,4] is not
+            // in its command history, the PING's stages time out.
+            assert_ne!(status(c, "Acceptance"), "OK", "{tag}: {c}");
+            eprintln!(
+                "yamcs_e2e: {tag}: obsw TM[1,2] RELEASE_TIME_PASSED; Yamcs Acceptance {}",
+                status(c, "Acceptance")
+            );
+            continue;
+        }
+        assert_eq!(
+            stages(&outer_reports),
+            vec![1, 3, 7],
+            "{tag}: TC[11,4] {outer_reports:?}"
+        );
+        assert!(
+            outer_reports.iter().all(|x| x.1 < at),
+            "{tag}: TC[11,4] done before the release"
+        );
+        assert_eq!(
+            stages(&inner_reports),
+            vec![1, 3, 7],
+            "{tag}: embedded PING {inner_reports:?}"
+        );
+        let late: Vec<i64> = inner_reports.iter().map(|x| x.1 - at).collect();
+        assert!(
+            late.iter().all(|d| (0..=1000).contains(d)),
+            "{tag}: embedded PING's reports {late:?} ms after its release time"
+        );
+        let replies: Vec<i64> = sent
+            .iter()
+            .filter(|raw| Tm::parse(raw).is_some_and(|t| (t.service, t.subservice) == (17, 2)))
+            .map(|raw| onboard_unix_ms(raw) - at)
+            .filter(|d| (0..=1000).contains(d))
+            .collect();
+        assert!(!replies.is_empty(), "{tag}: no TM[17,2] at the release time");
+        if tag == "scheduled" {
+            for stage in ["Acceptance", "Start", "Completion"] {
+                assert_eq!(status(c, stage), "OK", "{tag} {stage}: {c}");
+            }
+        } else {
+            // Yamcs times its verifiers from the upload of the TC[11,4], not from the
+            // release: with its default 5 s acceptance window a later release times out.
+            assert_ne!(status(c, "Acceptance"), "OK", "{tag}: {c}");
+        }
+        eprintln!(
+            "yamcs_e2e: {tag}: TC[11,4] seq {s11} accepted/started/completed; embedded PING seq {sp} \
+             reports {late:?} ms and TM[17,2] {replies:?} ms after its release time; Yamcs stages {} {} {}",
+            status(c, "Acceptance"),
+            status(c, "Start"),
+            status(c, "Completion")
+        );
+    }
+}
+
 fn ping_replies(tm_log: &Path) -> usize {
     logged_tm(tm_log)
         .iter()
