@@ -349,3 +349,216 @@ fn silent_board_b_is_reported_within_2_s_and_keeps_standby() {
     drop(c);
     invalid_set("board-b-silent.toml", 1, 255);
 }
+
+// verifies: MOD-CAL-02
+#[test]
+fn calibration_out_of_range_keeps_standby_with_its_own_reason() {
+    // Reason 13 = CALIBRATION_OUT_OF_RANGE: gripper B rev 2 carrying rev 1's 1100 µs.
+    invalid_set("calibration-out-of-range.toml", 13, slot::GRIPPER_B);
+}
+
+/// The high limit (raw, mA) of a monitoring definition, from TM[12,9].
+fn monitor_high(c: &mut Client, name: &str) -> i32 {
+    let id = mib::fdir::MONITORS
+        .iter()
+        .find(|m| m.name == name)
+        .map(|m| m.id)
+        .expect("monitor in the MIB");
+    let raw = c.send("MON_REPORT", &[]);
+    let t = c
+        .wait_for(T, |t| (t.service, t.subservice) == (12, 9))
+        .expect("TM[12,9]");
+    c.wait_done(&raw, T);
+    // count u16, then per monitor: id u16, param u16, enabled u8, low i32, high i32,
+    // persistence u16, event u16 (17 bytes).
+    let n = u16::from_be_bytes([t.data[0], t.data[1]]) as usize;
+    (0..n)
+        .map(|i| &t.data[2 + 17 * i..2 + 17 * (i + 1)])
+        .find(|e| u16::from_be_bytes([e[0], e[1]]) == id)
+        .map(|e| i32::from_be_bytes(e[9..13].try_into().unwrap()))
+        .expect("monitor reported")
+}
+
+// verifies: MOD-CAL-03, MOD-CAL-04
+#[test]
+fn each_gripper_revision_is_driven_with_its_own_pulse_widths_and_current_limit() {
+    // (file, closed µs, open µs, I_GRIP op limit mA): rev 1 (full robot), rev 2
+    // (gripper-rev-b: both grippers rev 2, database defaults of rev 2).
+    for (file, closed, open, limit) in [
+        ("full.toml", 1100, 1900, 1500),
+        ("gripper-rev-b.toml", 1150, 1850, 1600),
+    ] {
+        let (_o, mut c) = start(file);
+        let b = boot(&mut c);
+        if b.report.replacement != 1 {
+            assert_eq!(accept(&mut c, b.report.hash).subservice, 7, "{}", c.summary());
+        }
+        // The calibration in use, in HK structure MODULES and in the monitor definitions.
+        let hk = modules_hk(&mut c);
+        for p in [pid::CAL_GRIP_A_CLOSED, pid::CAL_GRIP_B_CLOSED] {
+            assert_eq!(hk.hk(p), Some(closed), "{file}");
+        }
+        for p in [pid::CAL_GRIP_A_OPEN, pid::CAL_GRIP_B_OPEN] {
+            assert_eq!(hk.hk(p), Some(open), "{file}");
+        }
+        let from = hk.hk(pid::CAL_FROM_DESCRIPTORS).unwrap();
+        assert_eq!(
+            from & (1 << slot::GRIPPER_A | 1 << slot::GRIPPER_B),
+            1 << slot::GRIPPER_A | 1 << slot::GRIPPER_B
+        );
+        assert_eq!(monitor_high(&mut c, "I_GRIP_A_OPER"), limit, "{file}");
+        assert_eq!(monitor_high(&mut c, "I_GRIP_B_OPER"), limit, "{file}");
+        // The grippers are driven there: a reconfiguration opens and closes them.
+        assert_eq!(
+            set_mode(&mut c, robot_mode::OPERATIONAL).subservice,
+            7,
+            "{}",
+            c.summary()
+        );
+        let from_log = c.log.len();
+        let raw = c.send("RECONFIGURE", &[0, 1]);
+        let done = c
+            .wait_done(&raw, Duration::from_secs(60))
+            .expect("reconfiguration done");
+        assert_eq!(done.subservice, 7, "{file}: {}", c.summary());
+        let status: Vec<Tm> = c.log[from_log..]
+            .iter()
+            .filter(|t| t.sid() == Some(mib::hk::sid::ROBOT_STATUS))
+            .cloned()
+            .collect();
+        let targets: std::collections::BTreeSet<i64> = status
+            .iter()
+            .flat_map(|t| [t.hk(pid::GRIP_A_TARGET), t.hk(pid::GRIP_B_TARGET)])
+            .flatten()
+            .collect();
+        eprintln!(
+            "{file}: gripper targets seen in {} ROBOT_STATUS reports during RECONFIGURE: {targets:?}",
+            status.len()
+        );
+        assert!(
+            targets.is_subset(&[closed, open].into_iter().collect()),
+            "{file}: {targets:?}"
+        );
+        assert!(targets.contains(&open), "{file}: a gripper was opened: {targets:?}");
+        // At the end both grippers hold at their closed width (B's from its heartbeat).
+        let raw = c.send("HK_ONE_SHOT", &[mib::hk::sid::ROBOT_STATUS as i64]);
+        let from_log = c.log.len();
+        c.wait_done(&raw, T).expect("HK one-shot done");
+        let end = c.log[from_log..]
+            .iter()
+            .find(|t| t.sid() == Some(mib::hk::sid::ROBOT_STATUS))
+            .cloned()
+            .or_else(|| c.wait_for(T, |t| t.sid() == Some(mib::hk::sid::ROBOT_STATUS)))
+            .expect("ROBOT_STATUS");
+        for p in [pid::GRIP_A_TARGET, pid::GRIP_A_PWM, pid::GRIP_B_TARGET, pid::GRIP_B_PWM] {
+            assert_eq!(end.hk(p), Some(closed), "{file}: {p}");
+        }
+    }
+}
+
+/// A fresh directory for a test's state files.
+fn state_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("modules-e2e-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn events_of(b: &Boot, id: u16) -> Vec<&(u16, u8, Vec<u8>)> {
+    b.events.iter().filter(|(e, ..)| *e == id).collect()
+}
+
+// verifies: MOD-PERSIST-01, MOD-PERSIST-02
+#[test]
+fn the_accepted_configuration_survives_a_restart_and_a_swapped_module_is_caught_after_it() {
+    let dir = state_dir("persist");
+    let state = dir.join("config.state");
+    let st = state.to_str().unwrap();
+    // 1. First start: no state file yet. Nothing accepted (CONFIG_STATE_LOST MISSING).
+    let (mut o, mut c) = start_with("gripper-rev-b.toml", &["--config-state", st]);
+    let b = boot(&mut c);
+    let lost = events_of(&b, eid::CONFIG_STATE_LOST);
+    assert_eq!(lost.len(), 1, "{}", c.summary());
+    assert_eq!(lost[0].2, vec![1], "MISSING");
+    assert_eq!(b.report.replacement, 0, "NONE_ACCEPTED");
+    let t = set_mode(&mut c, robot_mode::OPERATIONAL);
+    assert_eq!(failure(&t).0, F::CONFIG_NOT_ACCEPTED.code());
+    assert_eq!(accept(&mut c, b.report.hash).subservice, 7);
+    // Any later TC is handled after the state file was written: then SIGKILL (no
+    // orderly shutdown).
+    modules_hk(&mut c);
+    let bytes = std::fs::read(&state).expect("state file written");
+    assert_eq!((bytes.len(), &bytes[..8]), (116, &b"MMICCFG1"[..]));
+    assert_eq!(&bytes[8..12], &b.report.hash.to_be_bytes());
+    let rev_b_hash = b.report.hash;
+    o.kill9();
+    drop(c);
+    drop(o);
+
+    // 2. Restart with the same modules: accepted, OPERATIONAL without ACCEPT_CONFIG.
+    let (mut o, mut c) = start_with("gripper-rev-b.toml", &["--config-state", st]);
+    let b = boot(&mut c);
+    assert_eq!((b.report.hash, b.report.replacement), (rev_b_hash, 1), "SAME");
+    assert!(events_of(&b, eid::CONFIG_STATE_LOST).is_empty(), "{}", c.summary());
+    assert!(events_of(&b, eid::MODULE_REPLACED).is_empty(), "{}", c.summary());
+    assert_eq!(modules_hk(&mut c).hk(pid::CONFIG_STATUS), Some(1), "accepted");
+    assert_eq!(
+        set_mode(&mut c, robot_mode::OPERATIONAL).subservice,
+        7,
+        "{}",
+        c.summary()
+    );
+    o.kill9();
+    drop(c);
+    drop(o);
+
+    // 3. Restart with the grippers swapped back to revision 1 (the full robot):
+    // MODULE_REPLACED naming gripper A, OPERATIONAL refused until accepted.
+    let (_o, mut c) = start_with("full.toml", &["--config-state", st]);
+    let b = boot(&mut c);
+    assert_eq!(b.report.replacement, 2, "CHANGED");
+    let rep = events_of(&b, eid::MODULE_REPLACED);
+    assert_eq!(rep.len(), 1, "{}", c.summary());
+    assert_eq!(rep[0].2[0], slot::GRIPPER_A);
+    assert_eq!(
+        &rep[0].2[1..5],
+        &rev_b_hash.to_be_bytes(),
+        "the accepted hash, read back"
+    );
+    assert_eq!(&rep[0].2[5..9], &b.report.hash.to_be_bytes());
+    let t = set_mode(&mut c, robot_mode::OPERATIONAL);
+    assert_eq!(
+        failure(&t),
+        (F::CONFIG_NOT_ACCEPTED.code(), b.report.hash.to_be_bytes().to_vec())
+    );
+    assert_eq!(accept(&mut c, b.report.hash).subservice, 7);
+    assert_eq!(set_mode(&mut c, robot_mode::OPERATIONAL).subservice, 7);
+    let bytes = std::fs::read(&state).unwrap();
+    assert_eq!(&bytes[8..12], &b.report.hash.to_be_bytes(), "the new acceptance stored");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+// verifies: MOD-PERSIST-03
+#[test]
+fn a_corrupt_config_state_means_nothing_accepted_and_is_rewritten_on_accept() {
+    let dir = state_dir("corrupt");
+    let state = dir.join("config.state");
+    let st = state.to_str().unwrap();
+    // A torn or foreign file: the obsw starts, says why, and has nothing accepted.
+    std::fs::write(&state, b"MMICCFG1 but not what was written").unwrap();
+    let (_o, mut c) = start_with("full.toml", &["--config-state", st]);
+    let b = boot(&mut c);
+    let lost = events_of(&b, eid::CONFIG_STATE_LOST);
+    assert_eq!(lost.len(), 1, "{}", c.summary());
+    assert_eq!(lost[0].1, Severity::Medium.subservice());
+    assert_eq!(lost[0].2, vec![3], "CORRUPT");
+    assert_eq!(b.report.replacement, 0, "NONE_ACCEPTED");
+    assert_eq!(modules_hk(&mut c).hk(pid::CONFIG_STATUS), Some(2), "not accepted");
+    let t = set_mode(&mut c, robot_mode::OPERATIONAL);
+    assert_eq!(failure(&t).0, F::CONFIG_NOT_ACCEPTED.code());
+    assert_eq!(accept(&mut c, b.report.hash).subservice, 7);
+    modules_hk(&mut c);
+    let bytes = std::fs::read(&state).unwrap();
+    assert_eq!((bytes.len(), &bytes[8..12]), (116, &b.report.hash.to_be_bytes()[..]));
+    let _ = std::fs::remove_dir_all(&dir);
+}
