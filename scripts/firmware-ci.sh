@@ -19,7 +19,10 @@ bash "$ROOT/scripts/firmware-setup.sh"
 # The firmware workspace builds in its own firmware/target (git-ignored) unless the
 # caller chose a target directory.
 export CARGO_TARGET_DIR="${FIRMWARE_TARGET_DIR:-$FW/target}"
-export RUSTFLAGS="-D warnings"
+# Warnings denied; source paths in the images short and machine-independent (panic
+# locations: tools/rustflags.sh).
+RUSTFLAGS="$(bash "$FW/tools/rustflags.sh")"
+export RUSTFLAGS
 export CARGO_TERM_COLOR=never
 
 step "format and lints (firmware workspace and on-target tests)"

@@ -175,6 +175,17 @@ async fn main(spawner: Spawner) {
     .with_sda(p.GPIO4)
     .with_scl(p.GPIO5);
     let bus = bus::share(i2c);
+    // Arm-contracted switch to ground on GPIO10 (run-time pull: up).
+    let mut arm_line = Input::new(p.GPIO10, InputConfig::default().with_pull(Pull::Up));
+    // Module discovery (issue 24): probe side A's modules before the drivers take the bus
+    // (MPU-6000 WHO_AM_I, ADS7828 and AS5600 acknowledge, arm-switch line under both
+    // pulls); the OBSW completes discovery with board B's half from the A-B link.
+    let probes = fw_core::modules::probe_a(
+        &mut bus::device(bus),
+        &mut bus::device(bus),
+        &mut bus::device(bus),
+        &mut fw_esp::gpio::PullLine(&mut arm_line),
+    );
     let adc = Ads7828::new(bus::device(bus), i2c_addr::ADS7828, PowerMode::RefOnAdcOn);
     let imu = Mpu6000::init(bus::device(bus), i2c_addr::MPU6000).ok();
     let hip_encoder = As5600::new(bus::device(bus), i2c_addr::AS5600, cfg::HIP_ENCODER_ZERO);
@@ -196,8 +207,7 @@ async fn main(spawner: Spawner) {
         ),
     };
     let hip = bank.servo(Ch::Channel2, p.GPIO3).expect("hip servo");
-    // Arm-contracted switch to ground on GPIO10, internal pull-up.
-    let arm_switch = ActiveLowSwitch(Input::new(p.GPIO10, InputConfig::default().with_pull(Pull::Up)));
+    let arm_switch = ActiveLowSwitch(arm_line);
 
     let obsw = OBSW.init(Obsw::new(
         Config {
@@ -206,6 +216,10 @@ async fn main(spawner: Spawner) {
         },
         Store::default(),
     ));
+    // Board A's descriptor table (flash) and probes; discovery runs in the control period
+    // once board B's half is in (or its wait is over), then the module report goes out.
+    obsw.set_accepted_config(Some(fw_core::modules::integrated_config()));
+    obsw.start_discovery(fw_esp::clock::now_ms(), &fw_core::modules::TABLE_A, probes);
 
     spawner.spawn(uplink(usb_rx).expect("uplink task"));
     spawner.spawn(downlink(usb_tx).expect("downlink task"));

@@ -35,6 +35,7 @@ use fw_core::periph::ads7828::PowerMode;
 use fw_core::periph::{ActiveLowSwitch, Ads7828, BolterMux, BolterServos, Mpu6000, SideOutputs};
 use fw_esp::bus::{self, SensorDevice};
 use fw_esp::servos::{Servo, ServoBank};
+use mmic_domain::discovery::BoardProbes;
 
 esp_bootloader_esp_idf::esp_app_desc!();
 
@@ -91,13 +92,15 @@ async fn console(
 }
 
 #[embassy_executor::task]
-async fn control(mut io: Io, mut watchdog: Wdt<TIMG1<'static>>) {
+async fn control(mut io: Io, mut watchdog: Wdt<TIMG1<'static>>, probes: BoardProbes) {
     let links = LinksB {
         ab_rx: &AB_RX,
         ab_tx: &AB_TX,
         ab_tx_stats: &AB_TX_STATS,
     };
     let mut cycle = CycleB::new();
+    // Side B's descriptor table (flash) and probes, sent to board A over the A-B link.
+    cycle.board.set_modules(&fw_core::modules::TABLE_B, probes);
     io.side.release_all();
     let mut ticker = Ticker::every(Duration::from_millis(cfg::CONTROL_PERIOD_MS as u64));
     loop {
@@ -141,6 +144,15 @@ async fn main(spawner: Spawner) {
     .with_sda(p.GPIO4)
     .with_scl(p.GPIO5);
     let bus = bus::share(i2c);
+    // Arm-contracted switch to ground on GPIO10 (run-time pull: up).
+    let mut arm_line = Input::new(p.GPIO10, InputConfig::default().with_pull(Pull::Up));
+    // Module discovery (issue 24): side B's probes; the table and probes go to board A
+    // over the A-B link (BoardB::set_modules).
+    let probes = fw_core::modules::probe_b(
+        &mut bus::device(bus),
+        &mut bus::device(bus),
+        &mut fw_esp::gpio::PullLine(&mut arm_line),
+    );
     let adc = Ads7828::new(bus::device(bus), i2c_addr::ADS7828, PowerMode::RefOnAdcOn);
     let imu = Mpu6000::init(bus::device(bus), i2c_addr::MPU6000).ok();
 
@@ -159,8 +171,7 @@ async fn main(spawner: Spawner) {
             Output::new(p.GPIO2, Level::High, OutputConfig::default()),
         ),
     };
-    // Arm-contracted switch to ground on GPIO10, internal pull-up.
-    let arm_switch = ActiveLowSwitch(Input::new(p.GPIO10, InputConfig::default().with_pull(Pull::Up)));
+    let arm_switch = ActiveLowSwitch(arm_line);
 
     spawner.spawn(console(usb_tx, reset_cause, raw_reset, panic).expect("console task"));
     spawner.spawn(ab_rx(uart_rx).expect("ab_rx task"));
@@ -171,5 +182,5 @@ async fn main(spawner: Spawner) {
         arm_switch,
         side,
     };
-    spawner.spawn(control(io, watchdog).expect("control task"));
+    spawner.spawn(control(io, watchdog, probes).expect("control task"));
 }

@@ -11,7 +11,9 @@
 //! - [`panic_record`]: the layout of the panic reason kept in RTC fast RAM across a reset;
 //! - [`boot`]: board A's boot report (named reset cause, the previous run's panic);
 //! - [`cycle`]: one control period of each board, generic over the peripheral traits;
-//! - [`link`], [`sampling`]: the bounded queues between tasks, sensor sampling.
+//! - [`link`], [`sampling`]: the bounded queues between tasks, sensor sampling;
+//! - [`modules`]: the descriptor tables in flash and the probes of module discovery;
+//! - [`team`]: the transport of inter-robot team packets (the radio is future work).
 //!
 //! The robot logic itself (filters, controllers, bolter, A–B protocol, PUS services)
 //! is `mmic-domain` and `obsw-core`, shared with the host.
@@ -23,6 +25,8 @@ pub mod config;
 pub mod cycle;
 pub mod framing;
 pub mod link;
+pub mod modules;
 pub mod panic_record;
 pub mod periph;
 pub mod sampling;
+pub mod team;

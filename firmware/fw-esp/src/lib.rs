@@ -5,5 +5,6 @@
 
 pub mod bus;
 pub mod clock;
+pub mod gpio;
 pub mod panic;
 pub mod servos;

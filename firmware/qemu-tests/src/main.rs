@@ -17,6 +17,7 @@ mod t_cycle;
 mod t_domain;
 mod t_framing;
 mod t_link;
+mod t_modules;
 mod t_obsw;
 mod t_packets;
 mod t_periph;
@@ -41,6 +42,7 @@ fn main() -> ! {
         t_cycle::TESTS,
         t_spacelink::TESTS,
         t_team::TESTS,
+        t_modules::TESTS,
     ]);
     semihosting::process::exit(code)
 }

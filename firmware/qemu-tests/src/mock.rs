@@ -121,3 +121,111 @@ impl SetDutyCycle for MockPwm {
         Ok(())
     }
 }
+
+/// The arm-switch line with a switchable internal pull (module discovery's probe). A
+/// connected arm module drives the line through its own pull-up and its switch to
+/// ground: high when released, low when pushed, whatever the internal pull. With no
+/// module the line follows the internal pull.
+pub struct MockSwitchLine {
+    pub connected: bool,
+    pub pushed: bool,
+    /// The internal pull selected last (true = up).
+    pub pull_up: bool,
+    /// Reads made.
+    pub reads: u32,
+}
+
+impl MockSwitchLine {
+    /// A connected arm module.
+    pub fn arm(pushed: bool) -> Self {
+        Self {
+            connected: true,
+            pushed,
+            pull_up: true,
+            reads: 0,
+        }
+    }
+}
+
+impl fw_core::modules::PullProbe for MockSwitchLine {
+    fn level_with_pull(&mut self, pull_up: bool) -> Result<bool, fw_core::periph::HwError> {
+        self.pull_up = pull_up;
+        self.reads += 1;
+        Ok(if self.connected { !self.pushed } else { pull_up })
+    }
+}
+
+/// Datagrams a mock radio holds in each direction.
+pub const RADIO_QUEUE: usize = 32;
+type Datagram = ([u8; mmic_team::wire::MAX_LEN], usize);
+
+/// A mock inter-robot radio (`fw_core::team::TeamTransport`): what the robot sends waits
+/// in an outbox until the test's medium ([`MockRadio::take_sent`]) carries it to the other
+/// radios' inboxes ([`MockRadio::deliver`]), where `receive` finds it.
+pub struct MockRadio {
+    outbox: heapless::Deque<(mmic_team::Dest, Datagram), RADIO_QUEUE>,
+    inbox: heapless::Deque<Datagram, RADIO_QUEUE>,
+}
+
+impl Default for MockRadio {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl MockRadio {
+    pub const fn new() -> Self {
+        Self {
+            outbox: heapless::Deque::new(),
+            inbox: heapless::Deque::new(),
+        }
+    }
+
+    /// The medium takes the next sent datagram.
+    pub fn take_sent(&mut self) -> Option<(mmic_team::Dest, Datagram)> {
+        self.outbox.pop_front()
+    }
+
+    /// The medium delivers a datagram to this radio.
+    pub fn deliver(&mut self, bytes: &[u8]) -> Result<(), fw_core::team::TransportError> {
+        let mut d = [0u8; mmic_team::wire::MAX_LEN];
+        let n = bytes.len();
+        if n > d.len() {
+            return Err(fw_core::team::TransportError::TooLong { len: n, max: d.len() });
+        }
+        d[..n].copy_from_slice(bytes);
+        self.inbox
+            .push_back((d, n))
+            .map_err(|_| fw_core::team::TransportError::Full)
+    }
+}
+
+impl fw_core::team::TeamTransport for MockRadio {
+    const MAX_PACKET: usize = mmic_team::wire::MAX_LEN;
+
+    fn send(&mut self, to: mmic_team::Dest, packet: &[u8]) -> Result<(), fw_core::team::TransportError> {
+        let mut d = [0u8; mmic_team::wire::MAX_LEN];
+        let n = packet.len();
+        if n > Self::MAX_PACKET {
+            return Err(fw_core::team::TransportError::TooLong {
+                len: n,
+                max: Self::MAX_PACKET,
+            });
+        }
+        d[..n].copy_from_slice(packet);
+        self.outbox
+            .push_back((to, (d, n)))
+            .map_err(|_| fw_core::team::TransportError::Full)
+    }
+
+    fn receive(&mut self, buf: &mut [u8]) -> Result<Option<usize>, fw_core::team::TransportError> {
+        let Some((d, n)) = self.inbox.pop_front() else {
+            return Ok(None);
+        };
+        if n > buf.len() {
+            return Err(fw_core::team::TransportError::TooLong { len: n, max: buf.len() });
+        }
+        buf[..n].copy_from_slice(&d[..n]);
+        Ok(Some(n))
+    }
+}

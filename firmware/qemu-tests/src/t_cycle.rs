@@ -28,14 +28,14 @@ pub const TESTS: &[Test] = tests![
     cycle_a_reports_platform_io_counters_in_hk_structure_5,
 ];
 
-type Servo = PwmServo<MockPwm>;
-type Side = SideOutputs<Servo, Servo, Servo, Servo, BolterMux<MockPin, MockPin>>;
+pub(crate) type Servo = PwmServo<MockPwm>;
+pub(crate) type Side = SideOutputs<Servo, Servo, Servo, Servo, BolterMux<MockPin, MockPin>>;
 
-fn servo() -> Servo {
+pub(crate) fn servo() -> Servo {
     PwmServo::new(MockPwm { max: 1 << 14, duty: 0 })
 }
 
-fn side() -> Side {
+pub(crate) fn side() -> Side {
     SideOutputs {
         arm: servo(),
         grip: servo(),
