@@ -562,3 +562,71 @@ fn a_corrupt_config_state_means_nothing_accepted_and_is_rewritten_on_accept() {
     assert_eq!((bytes.len(), &bytes[8..12]), (116, &b.report.hash.to_be_bytes()[..]));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The simulator's true hip angle (cdeg), from its control channel's `status` reply.
+fn true_hip_cdeg(o: &Obsw) -> f64 {
+    let s = o.sim("status");
+    s.split("hip_cdeg: ")
+        .nth(1)
+        .and_then(|v| v.split(',').next())
+        .and_then(|v| v.trim().parse().ok())
+        .unwrap_or_else(|| panic!("no hip_cdeg in {s:?}"))
+}
+
+// verifies: MOD-CAL-03, MOD-CAL-04
+#[test]
+fn a_replacement_hip_encoder_is_read_through_its_own_zero_and_direction() {
+    // Encoder zero 2248 counts (17.6° off the nominal 2048), counting backwards.
+    let (o, mut c) = start("encoder-offset.toml");
+    let b = boot(&mut c);
+    assert_eq!(b.report.config, 1, "FULL");
+    let rep = events_of(&b, eid::MODULE_REPLACED);
+    assert_eq!(rep.len(), 1, "{}", c.summary());
+    assert_eq!(rep[0].2[0], slot::ENCODER, "the replaced module");
+    assert_eq!(accept(&mut c, b.report.hash).subservice, 7);
+    let hk = modules_hk(&mut c);
+    assert_eq!(hk.hk(pid::CAL_ENC_ZERO), Some(2248));
+    assert_ne!(hk.hk(pid::CAL_FROM_DESCRIPTORS).unwrap() & (1 << slot::ENCODER), 0);
+    // The robot booted at the true hip zero in Xneg: the hip reads 0 and the state is known.
+    let status = |c: &mut Client| {
+        let raw = c.send("HK_ONE_SHOT", &[mib::hk::sid::ROBOT_STATUS as i64]);
+        let from = c.log.len();
+        c.wait_done(&raw, T).expect("HK one-shot done");
+        c.log[from..]
+            .iter()
+            .find(|t| t.sid() == Some(mib::hk::sid::ROBOT_STATUS))
+            .cloned()
+            .or_else(|| c.wait_for(T, |t| t.sid() == Some(mib::hk::sid::ROBOT_STATUS)))
+            .expect("ROBOT_STATUS")
+    };
+    // The moving average of the hip needs its window after boot.
+    std::thread::sleep(Duration::from_millis(100));
+    let s = status(&mut c);
+    let hip = s.hk(pid::HIP_ANGLE).unwrap();
+    assert!(hip.abs() <= 50, "hip reads {hip} cdeg at the true zero");
+    assert_eq!(s.hk(pid::CONFIG_STATE), Some(0), "Xneg computed");
+    // Into a turn state: the hip turns to the state's angle, read and driven through the
+    // calibration (the real hip agrees).
+    assert_eq!(
+        set_mode(&mut c, robot_mode::OPERATIONAL).subservice,
+        7,
+        "{}",
+        c.summary()
+    );
+    let want = mib::robot::STATES[11].hip_cdeg() as i64;
+    let raw = c.send("RECONFIGURE", &[0, 11]);
+    let done = c
+        .wait_done(&raw, Duration::from_secs(60))
+        .expect("reconfiguration done");
+    assert_eq!(done.subservice, 7, "{}", c.summary());
+    let s = status(&mut c);
+    let hip = s.hk(pid::HIP_ANGLE).unwrap();
+    let truth = true_hip_cdeg(&o);
+    eprintln!(
+        "encoder-offset: after RECONFIGURE 0 -> 11 the hip reads {hip} cdeg, truth {truth:.0} cdeg, state {:?}",
+        s.hk(pid::CONFIG_STATE)
+    );
+    assert!((hip - want).abs() <= 100, "hip reads {hip}, state wants {want}");
+    assert!((truth - want as f64).abs() <= 150.0, "true hip {truth} cdeg");
+    assert_eq!(s.hk(pid::CONFIG_STATE), Some(11));
+}

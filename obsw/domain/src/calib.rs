@@ -203,9 +203,16 @@ impl RobotCal {
         v.clamp(i16::MIN as i32, i16::MAX as i32) as i16
     }
 
-    /// The angle (cdeg) the nominal conversion reads at this encoder's zero.
+    /// The angle (cdeg) the nominal conversion reads at this encoder's zero, rounded to
+    /// the nearest centidegree.
     pub const fn encoder_offset_cdeg(&self) -> i32 {
-        (self.encoder_zero as i32 - ENCODER_NOMINAL_ZERO as i32) * 36000 / ENCODER_COUNTS
+        let n = (self.encoder_zero as i32 - ENCODER_NOMINAL_ZERO as i32) * 36000;
+        let half = ENCODER_COUNTS / 2;
+        if n >= 0 {
+            (n + half) / ENCODER_COUNTS
+        } else {
+            (n - half) / ENCODER_COUNTS
+        }
     }
 }
 
@@ -294,10 +301,13 @@ mod tests {
         );
         assert_eq!((c.bolt_push_ma, c.bolt_lock_ma), (1000, 1700));
         assert_eq!(c.from_descriptors & (1 << slot::BOLTER_A), 0);
-        // 100 counts = 878 cdeg; reversed.
-        assert_eq!(c.encoder_offset_cdeg(), 878);
-        assert_eq!(c.hip_from_reading(878), 0);
-        assert_eq!(c.hip_from_reading(878 + 9000), -9000);
+        // 100 counts = 878.9 cdeg (rounded); reversed.
+        assert_eq!(c.encoder_offset_cdeg(), 879);
+        assert_eq!(c.hip_from_reading(879), 0);
+        assert_eq!(c.hip_from_reading(879 + 9000), -9000);
+        let mut low = c;
+        low.encoder_zero = 1948;
+        assert_eq!(low.encoder_offset_cdeg(), -879);
         assert_eq!(c.hip_from_reading(i16::MIN), i16::MAX, "saturates, never wraps");
         // An out-of-range word is not used (discovery reports the set invalid).
         set[slot::GRIPPER_A as usize].as_mut().unwrap().cal.0[0] = 500;

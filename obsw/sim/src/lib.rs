@@ -97,6 +97,9 @@ pub mod model {
     pub const GRIP_HOLD_FACE_MA: f64 = 250.0;
     pub const GRIP_HOLD_EMPTY_MA: f64 = 60.0;
     pub const GRIP_OPEN_MA: f64 = 40.0;
+    /// Gripper servo pushing against its end stop (commanded beyond it): above every
+    /// revision's operational limit (`I_GRIP_MAX`, the database's `i_op_max_ma`).
+    pub const GRIP_STALL_MA: f64 = 1800.0;
     /// Quiescent draw of the two boards, regulator efficiency, battery resistance.
     pub const BOARDS_MA: f64 = 150.0;
     pub const REG_EFFICIENCY: f64 = 0.9;
@@ -213,6 +216,8 @@ pub struct Sim {
     fallen: bool,
     /// What module discovery reads from this robot (issue 24): tables and probes.
     modules: modules::DiscoveryInput,
+    /// What the fitted modules' calibration means physically (issue 24).
+    phys: modules::ModulePhysics,
 }
 
 fn near(x: f64, target: f64, tol: f64) -> bool {
@@ -267,6 +272,7 @@ impl Sim {
             fasteners: HashMap::new(),
             fallen: false,
             modules: modules::ModuleSetSpec::full().discovery_input(),
+            phys: modules::ModuleSetSpec::full().physics(),
             cfg,
         };
         sim.set_modules(&modules::ModuleSetSpec::full());
@@ -284,6 +290,13 @@ impl Sim {
     /// A set whose board B is silent sends nothing.
     pub fn set_modules(&mut self, spec: &modules::ModuleSetSpec) {
         self.modules = spec.discovery_input();
+        self.phys = spec.physics();
+        if self.t_ms == 0 {
+            // At rest since boot: each gripper closed at its own width.
+            for (s, closed) in self.sides.iter_mut().zip(self.phys.grip_closed_us) {
+                s.grip_us = closed;
+            }
+        }
         match &self.modules.table_b {
             Some(t) => self.board_b.set_modules(t, self.modules.probes_b),
             None => self.board_b.set_modules(&[], self.modules.probes_b),
@@ -405,7 +418,10 @@ impl Sim {
         let hip = if self.has(Fault::DeadHipEncoder) {
             DEAD_ENCODER_CDEG
         } else {
-            (self.hip_cdeg.round() as i32 + self.n(20, ENC_NOISE_CDEG)).clamp(i16::MIN as i32, i16::MAX as i32) as i16
+            // The platform converts counts with the nominal zero: this encoder's own zero
+            // and direction show as an offset and a sign (issue 24 calibration).
+            let read = self.phys.encoder_offset_cdeg + self.phys.encoder_dir * self.hip_cdeg;
+            (read.round() as i32 + self.n(20, ENC_NOISE_CDEG)).clamp(i16::MIN as i32, i16::MAX as i32) as i16
         };
         SensorsA {
             v_bat: self.volts_raw(1, self.battery_v()),
@@ -510,14 +526,19 @@ impl Sim {
             // gripper
             s.i_grip_ma = 0.0;
             if let Some(cmd) = s.grip_cmd {
-                let err = cmd as f64 - s.grip_us;
+                // The gripper's end stops (its revision): beyond them the servo stalls.
+                let (stop_lo, stop_hi) = self.phys.grip_stops_us[i];
+                let target = (cmd as f64).clamp(stop_lo, stop_hi);
+                let err = target - s.grip_us;
                 if err.abs() >= 0.5 {
                     let step = (v_servo * dt).min(err.abs());
                     s.grip_us += step * err.signum();
                     s.i_grip_ma = GRIP_MOVE_MA;
+                } else if (cmd as f64 - target).abs() >= 0.5 {
+                    s.i_grip_ma = GRIP_STALL_MA;
                 } else if s.gripped.is_some() {
                     s.i_grip_ma = GRIP_HOLD_FACE_MA;
-                } else if s.grip_us <= servo::GRIP_CLOSED_US as f64 + GRIP_ATTACH_US {
+                } else if s.grip_us <= self.phys.grip_closed_us[i] + GRIP_ATTACH_US {
                     s.i_grip_ma = GRIP_HOLD_EMPTY_MA;
                 } else {
                     s.i_grip_ma = GRIP_OPEN_MA;
@@ -569,12 +590,13 @@ impl Sim {
         self.sides[0].i_loc_ma += hip_ma;
         servo_ma += hip_ma;
 
-        // grippers attach / release
+        // grippers attach / release (around each gripper's own closed width)
         for i in 0..2 {
             let g = self.sides[i].grip_us;
-            if g >= servo::GRIP_CLOSED_US as f64 + GRIP_RELEASE_US {
+            let closed = self.phys.grip_closed_us[i];
+            if g >= closed + GRIP_RELEASE_US {
                 self.sides[i].gripped = None;
-            } else if g <= servo::GRIP_CLOSED_US as f64 + GRIP_ATTACH_US
+            } else if g <= closed + GRIP_ATTACH_US
                 && self.sides[i].gripped.is_none()
                 && self.sides[i].grip_cmd.is_some()
             {

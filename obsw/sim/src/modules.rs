@@ -544,6 +544,50 @@ impl ModuleSetSpec {
     }
 }
 
+/// What the fitted modules' calibration means physically for the simulator (the
+/// descriptors are bench measurements, so they are the truth): each gripper's closed
+/// pulse width and its end stops, and where the hip encoder reads zero.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ModulePhysics {
+    /// Per side (A, B): the pulse width at which the gripper closes on a face (µs).
+    pub grip_closed_us: [f64; 2],
+    /// Per side: the gripper's end stops (µs): the narrowest closed and widest open
+    /// pulse widths its revision accepts (`db::cal_range` words 0 and 1). Commanded
+    /// beyond them, the servo stalls against the stop.
+    pub grip_stops_us: [(f64, f64); 2],
+    /// The hip angle the platform's nominal encoder conversion reads at the true zero
+    /// (cdeg): (zero − 2048) × 36000 / 4096.
+    pub encoder_offset_cdeg: f64,
+    /// +1 or −1: the encoder's counting direction.
+    pub encoder_dir: f64,
+}
+
+impl ModuleSetSpec {
+    /// The physics of this robot's fitted modules (absent or unknown modules: the MIB's
+    /// compiled constants, the servo's whole range).
+    pub fn physics(&self) -> ModulePhysics {
+        let cal = mmic_domain::calib::RobotCal::from_set(&self.fitted);
+        let stops = |slot: u8| -> (f64, f64) {
+            let full = (
+                mib::robot::servo::PWM_MIN_US as f64,
+                mib::robot::servo::PWM_MAX_US as f64,
+            );
+            self.fitted[slot as usize]
+                .and_then(|d| lookup(d.ty, d.variant, d.revision))
+                .map_or(full, |def| (def.cal_range[0].0 as f64, def.cal_range[1].1 as f64))
+        };
+        ModulePhysics {
+            grip_closed_us: [cal.side[0].grip_closed_us as f64, cal.side[1].grip_closed_us as f64],
+            grip_stops_us: [
+                stops(mib::modules::slot::GRIPPER_A),
+                stops(mib::modules::slot::GRIPPER_B),
+            ],
+            encoder_offset_cdeg: cal.encoder_offset_cdeg() as f64,
+            encoder_dir: cal.encoder_dir as f64,
+        }
+    }
+}
+
 /// Short, stable form of a discovery outcome, as module-set files state it in `expect`:
 /// the configuration name (`FULL`, `LOCOMOTION_ONLY`) or `invalid: <reason> <where>`.
 pub fn outcome_key(d: &Discovery) -> String {

@@ -305,3 +305,60 @@ fn calibration_words_may_be_default_and_out_of_range_ones_make_the_set_invalid()
     let d = s.discovery_input().discover();
     assert_eq!(outcome_key(&d), "invalid: calibration-out-of-range arm_a word 1");
 }
+
+// verifies: MOD-CAL-03, MOD-SIM-01
+#[test]
+fn the_simulator_models_each_grippers_end_stops_and_the_encoders_own_zero() {
+    use mib::robot::servo;
+    use mmic_domain::{ActuatorsA, BolterDrive, SideActuators};
+    use mmic_sim::{Sim, SimConfig};
+    let drive = |sim: &mut Sim, grip: u16, ms: u32| {
+        let act = ActuatorsA {
+            regulator_on: true,
+            side: SideActuators {
+                arm_pwm: Some(servo::ARM_CONTRACTED_US),
+                grip_pwm: Some(grip),
+                bolter: BolterDrive::Off,
+            },
+            hip_speed: None,
+            mux: 0,
+        };
+        let mut rx = Vec::new();
+        for _ in 0..ms / 10 {
+            sim.step(10, &act, &[], &mut rx);
+        }
+    };
+    let cfg = SimConfig {
+        noise: false,
+        ..SimConfig::default()
+    };
+    // Revision 2 grippers close at 1150 µs and stop at 1120 µs.
+    let mut sim = Sim::new(cfg.clone());
+    sim.set_modules(&load("gripper-rev-b.toml"));
+    assert_eq!(
+        sim.truth().grip_us,
+        [1150.0, 1150.0],
+        "at rest at their own closed width"
+    );
+    drive(&mut sim, 1150, 500);
+    assert!(sim.side(mib::robot::Side::A).i_grip_ma < 500.0, "holding the face");
+    // Commanded at revision 1's closed width: the servo stalls against its stop.
+    drive(&mut sim, servo::GRIP_CLOSED_US, 500);
+    assert_eq!(sim.truth().grip_us[0], 1120.0);
+    assert_eq!(sim.side(mib::robot::Side::A).i_grip_ma, mmic_sim::model::GRIP_STALL_MA);
+    // A revision 1 gripper goes there without stalling.
+    let mut sim = Sim::new(cfg.clone());
+    drive(&mut sim, servo::GRIP_CLOSED_US, 500);
+    assert_eq!(sim.truth().grip_us[0], 1100.0);
+    assert!(sim.side(mib::robot::Side::A).i_grip_ma < 500.0);
+    // The encoder: the robot boots at hip 0; the replacement encoder reads its offset
+    // through the nominal conversion, and the module set's calibration takes it back to 0.
+    let spec = load("encoder-offset.toml");
+    let mut sim = Sim::new(cfg);
+    sim.set_modules(&spec);
+    let reading = sim.sensors_a().hip_cdeg;
+    assert_eq!(reading, 1758, "200 counts = 17.58°");
+    let cal = mmic_domain::calib::RobotCal::from_set(&spec.discovery_input().discover().set);
+    assert_eq!(cal.hip_from_reading(reading), 0);
+    assert_eq!((cal.encoder_zero, cal.encoder_dir), (2248, -1));
+}
