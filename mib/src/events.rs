@@ -52,7 +52,7 @@ pub struct EventDef {
     pub params: &'static [EventParam],
     /// True for the faults of paper Table 8 (FDIR detections).
     pub fault: bool,
-    pub desc: &'static str,
+    pub desc: crate::types::Text,
 }
 
 const fn p(name: &'static str, ptype: PType) -> EventParam {

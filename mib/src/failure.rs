@@ -36,7 +36,7 @@ macro_rules! failure_codes {
                 fields_len(self.data())
             }
             pub const fn description(self) -> &'static str {
-                match self { $( FailureCode::$name => $crate::types::text($desc), )* FailureCode::Unknown(_) => $crate::types::text("code not in this MIB") }
+                match self { $( FailureCode::$name => $crate::types::text_str($desc), )* FailureCode::Unknown(_) => $crate::types::text_str("code not in this MIB") }
             }
         }
     };

@@ -15,7 +15,7 @@ pub struct Field {
     pub bits: u32,
     /// Value the field always has, if fixed.
     pub fixed: Option<u32>,
-    pub desc: &'static str,
+    pub desc: crate::types::Text,
 }
 
 const fn f(name: &'static str, bits: u32, fixed: Option<u32>, desc: &'static str) -> Field {

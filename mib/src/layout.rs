@@ -244,7 +244,7 @@ pub struct Field {
     /// Valid raw range (inclusive).
     pub min: i64,
     pub max: i64,
-    pub desc: &'static str,
+    pub desc: crate::types::Text,
 }
 
 impl Field {
@@ -300,7 +300,7 @@ pub struct Sub {
     /// Type name in generated code and exports (CamelCase).
     pub name: &'static str,
     pub fields: &'static [Field],
-    pub desc: &'static str,
+    pub desc: crate::types::Text,
 }
 
 impl Sub {

@@ -27,7 +27,7 @@ pub struct ParamDef {
     /// while no motion primitive runs: a turning hip is legitimately away from the
     /// angle of the last configuration state. Use [`limits_apply`].
     pub limits_if: Option<LimitCond>,
-    pub desc: &'static str,
+    pub desc: crate::types::Text,
 }
 
 /// A condition on another parameter's raw value: `param == raw`. The condition parameter
@@ -38,7 +38,7 @@ pub struct LimitCond {
     pub param: u16,
     pub raw: i64,
     /// What the condition means, for documents and exports.
-    pub desc: &'static str,
+    pub desc: crate::types::Text,
 }
 
 /// ADC (ADS7828, 12 bit) count → volts through the board's voltage divider.
@@ -306,10 +306,13 @@ impl ParamDef {
     }
     /// The parameter as a field of a housekeeping report body.
     pub const fn field(&self) -> Field {
-        Field::new(self.name, self.ptype, self.desc)
-            .unit(self.unit)
-            .calib(self.calib)
-            .names(self.names())
+        Field {
+            desc: self.desc,
+            ..Field::new(self.name, self.ptype, "")
+        }
+        .unit(self.unit)
+        .calib(self.calib)
+        .names(self.names())
     }
 }
 

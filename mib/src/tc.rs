@@ -97,8 +97,8 @@ pub struct TcDef {
     /// attached to the structure, forces a fault or a mode change, destroys on-board data
     /// or weakens on-board protection. Ground tools ask for confirmation before sending
     /// it; the exports mark it critical (SCOS-2000 `CCF_CRITICAL`, XTCE significance).
-    pub hazard: Option<&'static str>,
-    pub desc: &'static str,
+    pub hazard: Option<crate::types::Text>,
+    pub desc: crate::types::Text,
 }
 
 /// Failure codes any TC can receive at acceptance.
@@ -840,7 +840,7 @@ pub struct TmDef {
     pub name: &'static str,
     /// Source data, field by field.
     pub body: &'static [Item],
-    pub desc: &'static str,
+    pub desc: crate::types::Text,
 }
 
 const fn tm(service: u8, subservice: u8, name: &'static str, body: &'static [Item], desc: &'static str) -> TmDef {

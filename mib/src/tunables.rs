@@ -9,7 +9,7 @@ pub struct TunableDef {
     pub default: i32,
     pub min: i32,
     pub max: i32,
-    pub desc: &'static str,
+    pub desc: crate::types::Text,
 }
 
 macro_rules! tunables {

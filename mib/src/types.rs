@@ -89,13 +89,37 @@ impl PType {
 /// `descriptions` (implied by `std`), `""` without, so that a no_std image that never
 /// shows the text does not store it. Only names, units and numbers are in every build.
 #[inline(always)]
-pub const fn text(s: &'static str) -> &'static str {
+pub const fn text(s: &'static str) -> Text {
+    #[cfg(feature = "descriptions")]
+    return s;
+    #[cfg(not(feature = "descriptions"))]
+    {
+        let _ = s;
+        NoText
+    }
+}
+
+/// [`text`] as a string (`""` without feature `descriptions`).
+#[inline(always)]
+pub const fn text_str(s: &'static str) -> &'static str {
     if cfg!(feature = "descriptions") {
         s
     } else {
         ""
     }
 }
+
+/// The type of a table entry's free text: `&'static str` with feature `descriptions`,
+/// the empty [`NoText`] without, so that the entries of a no_std image carry not even
+/// the pointer.
+#[cfg(feature = "descriptions")]
+pub type Text = &'static str;
+#[cfg(not(feature = "descriptions"))]
+pub type Text = NoText;
+
+/// Free text left out of this build (feature `descriptions` off).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct NoText;
 
 /// Linear raw → engineering calibration: `eng = raw * scale + offset`.
 #[derive(Clone, Copy, Debug, PartialEq)]
