@@ -226,3 +226,51 @@ fn a_robot_rebuilt_with_another_module_set_raises_config_changed() {
     assert_eq!(slot(&m, "GRIPPER_A")["revision"], 2, "{m}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+// verifies: ALM-MODCFG-01, ALM-MODVIEW-01
+#[test]
+fn an_invalid_module_set_is_shown_with_its_reason_and_raises_config_invalid() {
+    let dir = common::tmpdir("collect-modules", "invalid");
+    let addr: SocketAddr = ([127, 0, 0, 1], free_port()).into();
+    let web: SocketAddr = ([127, 0, 0, 1], free_port()).into();
+    // Arm B not fitted: discovery names the missing slot.
+    let robot = obsw(1, addr, "missing-arm-b");
+    let c = collector(&dir, addr, web);
+    let m = modules_when(web, "NONE", 60);
+    assert_eq!(
+        (&m["status"], &m["reason"], &m["reason_slot"]),
+        (&Value::from("INVALID"), &Value::from("MISSING"), &Value::from("ARM_B")),
+        "{m}"
+    );
+    assert_eq!(
+        (&slot(&m, "ARM_B")["present"], &slot(&m, "ARM_B")["state"]),
+        (&Value::Bool(false), &Value::from("invalid")),
+        "{m}"
+    );
+    assert_eq!(slot(&m, "ARM_A")["state"], "ok", "{m}");
+    // A corrupted descriptor names a board's table entry, no slot: the slot is absent.
+    drop(robot);
+    let _robot = obsw(1, addr, "corrupted-descriptor");
+    let m = wait_for(60, "the corrupted set on the page", || {
+        let (_, s) = http(web, "GET", "/api/snapshot", None);
+        let m = s["robots"].get(0)?["modules"].clone();
+        (m["reason"] == "CORRUPT_DESCRIPTOR").then_some(m)
+    });
+    assert_eq!(
+        (&m["status"], &m["reason_slot"]),
+        (&Value::from("INVALID"), &Value::Null),
+        "{m}"
+    );
+    assert_eq!(slot(&m, "GRIPPER_A")["present"], false, "{m}");
+    // CONFIG_INVALID (high) is an event alarm of the collector.
+    wait_for(30, "CONFIG_INVALID alarm", || {
+        let o = ground(&dir, &["--archive", "a.db", "alarms", "list", "--all", "--json"]);
+        String::from_utf8_lossy(&o.stdout)
+            .lines()
+            .filter_map(|l| serde_json::from_str::<Value>(l).ok())
+            .any(|a| a["source"] == "CONFIG_INVALID" && a["severity"] == "high")
+            .then_some(())
+    });
+    drop(c);
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -606,6 +606,7 @@ function paramText(event, key, v) {
   if (key === 'cause') { const e = S.mib.events.find((x) => x.id === v); return v === 0 ? 'command' : e ? e.name : String(v); }
   if (key === 'event_id') { const e = S.mib.events.find((x) => x.id === v); return e ? e.name : String(v); }
   if (key === 'code') { const f = S.mib.failures.find((x) => x.code === v); return f ? f.name : String(v); }
+  if (key === 'hash' || key.endsWith('_hash')) return '0x' + (v >>> 0).toString(16).padStart(8, '0');
   if ((event === 'MODE_CHANGED' && (key === 'from' || key === 'to')) || key === 'mode') return ['STANDBY', 'OPERATIONAL', 'SAFED'][v] ?? String(v);
   return String(v);
 }

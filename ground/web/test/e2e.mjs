@@ -9,7 +9,12 @@
 // page (its hazardous TC confirmed), runs with live step progress to completion; the
 // event stream resumes after a reconnect; the page is still live after the 30 s
 // downlink lease (the collector renews it); bound beyond localhost, TCs and plan starts
-// need the token.
+// need the token. Modules and team (issues 24, 25): three more obsw with a team, one
+// built without bolters, each behind a UDP relay that can silence the ground, under a
+// second collector: the Modules tab shows every slot and the configuration state, the
+// Team tab the roster uploaded from the page and the leader the robots elect once the
+// ground is silent; a robot rebuilt with another module set raises CONFIG_CHANGED on the
+// page and in `ground alarms list`.
 import { spawn, execFileSync } from 'node:child_process';
 import { createInterface } from 'node:readline';
 import { createSocket } from 'node:dgram';
@@ -48,10 +53,10 @@ const freePort = () => new Promise((resolve, reject) => {
 
 const work = mkdtempSync(join(tmpdir(), 'dash-e2e-'));
 const children = [];
-async function startObsw(robot) {
-  const udp = `127.0.0.1:${await freePort()}`;
+async function startObsw(robot, extra = [], fixedUdp = null) {
+  const udp = fixedUdp || `127.0.0.1:${await freePort()}`;
   const ctl = `127.0.0.1:${await freePort()}`;
-  const p = spawn(obswBin, ['--robot', String(robot), '--udp', udp, '--sim-ctl', ctl, '--speed', '1', '--seed', String(robot)],
+  const p = spawn(obswBin, ['--robot', String(robot), '--udp', udp, '--sim-ctl', ctl, '--speed', '1', '--seed', String(robot), ...extra],
     { stdio: ['ignore', 'pipe', 'ignore'] });
   children.push(p);
   await new Promise((resolve, reject) => {
@@ -61,7 +66,21 @@ async function startObsw(robot) {
     setTimeout(() => reject(new Error(`obsw ${robot} did not start`)), T);
   });
   p.stdout.resume();
-  return { robot, udp, sim_ctl: ctl };
+  return { robot, udp, sim_ctl: ctl, proc: p };
+}
+
+// A UDP relay between a collector and one obsw: TCs forwarded unless `silent` (the
+// ground goes quiet), TM always forwarded back.
+async function groundRelay(obswUdp) {
+  const [host, port] = obswUdp.split(':');
+  const front = createSocket('udp4'), back = createSocket('udp4');
+  const r = { silent: false, ground: null, close: () => { front.close(); back.close(); } };
+  front.on('message', (m, from) => { r.ground = from; if (!r.silent) back.send(m, Number(port), host); });
+  back.on('message', (m) => { if (r.ground) front.send(m, r.ground.port, r.ground.address); });
+  await new Promise((res) => front.bind(0, '127.0.0.1', res));
+  await new Promise((res) => back.bind(0, '127.0.0.1', res));
+  r.udp = `127.0.0.1:${front.address().port}`;
+  return r;
 }
 
 // `ground collect --http ADDR` with its own archive in `dir`; resolves once the API answers.
@@ -324,6 +343,104 @@ try {
     const age = await page.$eval('#robot-1 .age', (e) => e.textContent);
     assert(/heard (< 1|[0-4]) s ago/.test(age), 'age shown: ' + age);
   });
+
+  // ---- modules and team: robots 3, 4, 5 with a team, robot 5 without bolters -------
+  const here = new URL('.', import.meta.url).pathname;
+  const modulesDir = join(here, '../../../plans/modules');
+  const teamPorts = [await freePort(), await freePort(), await freePort()];
+  // Team packets are authenticated (--team-key) where the obsw supports it; the page test
+  // runs them bare on loopback.
+  const bare = execFileSync(obswBin, ['--help'], { encoding: 'utf8' }).includes('--lab-team-bare') ? ['--lab-team-bare'] : [];
+  const teamArgs = (robot) => {
+    const a = ['--team-udp', `127.0.0.1:${teamPorts[robot - 3]}`, '--team-state', join(work, `team-${robot}.state`), ...bare];
+    for (const r of [3, 4, 5]) if (r !== robot) a.push('--peer', `${r}=127.0.0.1:${teamPorts[r - 3]}`);
+    return a;
+  };
+  const setOf = (robot) => join(modulesDir, robot === 5 ? 'locomotion-only.toml' : 'full.toml');
+  const teamRobots = [];
+  for (const r of [3, 4, 5]) teamRobots.push(await startObsw(r, [...teamArgs(r), '--modules', setOf(r)]));
+  const relays = [];
+  for (const o of teamRobots) relays.push(await groundRelay(o.udp));
+  const dir3 = mkdtempSync(join(tmpdir(), 'dash-e2e-team-'));
+  const c3 = await startCollector(dir3, teamRobots.map((o, i) => ({ robot: o.robot, udp: relays[i].udp })), `127.0.0.1:${await freePort()}`);
+  const p3 = await browser.newPage();
+  p3.setDefaultTimeout(T);
+  p3.on('pageerror', (e) => { failures++; console.log('FAIL page error:', e.message); });
+  const shot3 = async (name) => { if (shotDir) await p3.screenshot({ path: join(shotDir, name), fullPage: false }); };
+  await p3.goto(c3.url);
+  const tab3 = (v) => p3.click(`#tabs button[data-view="${v}"]`);
+
+  await step('modules: each robot\'s module set and configuration state', async () => {
+    await p3.waitForSelector('#robot-5 .cfgline .modules[data-config="LOCOMOTION_ONLY"]', { state: 'attached' });
+    const line = await p3.$eval('#robot-5 .cfgline', (e) => e.textContent);
+    // ACCEPTED, or NOT_ACCEPTED where the obsw accepts the factory (full) set at start.
+    assert(/LOCOMOTION_ONLY/.test(line) && /ACCEPTED/.test(line) && /0x[0-9a-f]{8}/.test(line) && /2 slot\(s\) absent/.test(line), 'fleet line: ' + line);
+    await shot3('dashboard-fleet-modules.png');
+    await tab3('modules');
+    await p3.waitForSelector('[data-modules="3"][data-config="FULL"][data-status="ACCEPTED"] tr[data-slot="BOLTER_A"][data-state="ok"]');
+    await p3.waitForSelector('[data-modules="5"][data-config="LOCOMOTION_ONLY"] tr[data-slot="BOLTER_B"][data-state="absent"]');
+    const st5 = await p3.$eval('[data-modules="5"]', (e) => e.dataset.status);
+    assert(st5 === 'ACCEPTED' || st5 === 'NOT_ACCEPTED', 'robot 5 state ' + st5);
+    const g = await p3.$eval('[data-modules="5"] tr[data-slot="GRIPPER_A"]', (e) => [...e.children].map((c) => c.textContent));
+    assert(g[2] === 'gripper' && /^\d+$/.test(g[4]) && /^\d+$/.test(g[5]) && g[6] === 'present' && g[7] === 'ok', 'gripper A row: ' + g);
+    const rows = await p3.$$eval('[data-modules="3"] tbody tr', (t) => t.length);
+    assert(rows === 14, 'slots of robot 3: ' + rows);
+    const h3 = await p3.$eval('[data-modules="3"]', (e) => e.dataset.hash), h5 = await p3.$eval('[data-modules="5"]', (e) => e.dataset.hash);
+    assert(h3 !== h5 && /^0x[0-9a-f]{8}$/.test(h3), `hashes ${h3} ${h5}`);
+    await shot3('dashboard-modules.png');
+  });
+
+  await step('team: roster from the page, the leader elected while the ground is silent', async () => {
+    const roster = { robot_1: 3, robot_2: 4, robot_3: 5, robot_4: 0, robot_5: 0, robot_6: 0, robot_7: 0, robot_8: 0 };
+    for (const r of [3, 4, 5]) {
+      const st = await p3.evaluate(async (b) => (await fetch('/api/tc', { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: JSON.stringify(b) })).status,
+        { robot: r, name: 'TEAM_ROSTER', args: roster });
+      assert(st === 200, 'TEAM_ROSTER: ' + st);
+    }
+    await tab3('team');
+    await p3.waitForFunction(() => {
+      const rows = [...document.querySelectorAll('#team tbody tr')];
+      return rows.length === 3 && rows.every((r) => r.children[4].textContent === '3, 4, 5' && r.children[5].textContent === 'seen');
+    });
+    const t0 = Date.now();
+    for (const r of relays) r.silent = true;
+    await p3.waitForFunction(() => {
+      const rows = [...document.querySelectorAll('#team tbody tr')];
+      const lead = document.querySelector('#team-summary').dataset.leader;
+      return lead && rows.length === 3 && rows.filter((r) => r.dataset.role === 'LEADER').length === 1
+        && document.querySelector(`#team tr[data-robot="${lead}"]`).dataset.role === 'LEADER'
+        && rows.every((r) => r.children[3].textContent === 'robot ' + lead && r.children[5].textContent === 'lost');
+    });
+    const summary = await p3.$eval('#team-summary', (e) => e.textContent);
+    console.log(`     ${summary}, shown ${((Date.now() - t0) / 1000).toFixed(1)} s after the ground went silent`);
+    await shot3('dashboard-team.png');
+    for (const r of relays) r.silent = false;
+    await p3.waitForFunction(() => [...document.querySelectorAll('#team tbody tr')].every((r) => r.children[5].textContent === 'seen'));
+  });
+
+  await step('a robot rebuilt with another module set raises CONFIG_CHANGED', async () => {
+    const old = teamRobots[2];
+    const oldHash = await p3.$eval('[data-modules="5"]', (e) => e.dataset.hash).catch(() => null);
+    old.proc.kill('SIGTERM');
+    await new Promise((r) => { old.proc.once('exit', r); setTimeout(r, 5000); });
+    teamRobots[2] = await startObsw(5, [...teamArgs(5), '--modules', join(modulesDir, 'full.toml')], old.udp);
+    await tab3('modules');
+    await p3.waitForSelector('[data-modules="5"][data-config="FULL"] tr[data-slot="BOLTER_A"][data-state="changed"]');
+    const head = await p3.$eval('[data-modules="5"]', (e) => e.textContent);
+    assert(!oldHash || head.includes('was ' + oldHash), 'previous hash shown: ' + head.slice(0, 200));
+    await tab3('alarms');
+    await p3.selectOption('#al-state', '');
+    await p3.waitForSelector('#alarms tbody tr[data-alarm]');
+    await p3.waitForFunction(() => [...document.querySelectorAll('#alarms tbody tr')].some((r) => r.children[2].textContent === 'CONFIG_CHANGED' && r.children[1].textContent === '5'));
+    await shot3('dashboard-config-changed.png');
+    const rows = execFileSync(groundBin, ['--archive', join(dir3, 'a.db'), 'alarms', 'list', '--json'], { encoding: 'utf8' })
+      .split('\n').filter((l) => l.trim()).map((l) => JSON.parse(l));
+    assert(rows.some((r) => r.source === 'CONFIG_CHANGED' && r.robot === 5), 'ground alarms list: ' + JSON.stringify(rows.map((r) => r.source)));
+  });
+  await p3.close();
+  c3.proc.kill('SIGTERM');
+  for (const r of relays) r.close();
+  for (const o of teamRobots) if (o.proc.exitCode === null) o.proc.kill('SIGTERM');
 
   await step('bound beyond localhost: the page needs the token, and commands with it', async () => {
     const dir2 = mkdtempSync(join(tmpdir(), 'dash-e2e-tok-'));
