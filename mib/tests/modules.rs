@@ -112,3 +112,37 @@ fn every_slot_configuration_and_database_entry_is_documented() {
     println!("full robot's mass: `{mass:.3} kg`");
     assert_eq!(documented(&d, "full robot's mass: `"), format!("{mass:.3} kg"));
 }
+
+/// The documentation row of one database entry's calibration ranges.
+fn cal_range_row(e: &mib::modules::ModuleDef) -> String {
+    let words: Vec<String> =
+        e.ty.cal_names()
+            .iter()
+            .zip(e.cal_range.iter())
+            .filter(|(n, _)| !n.is_empty())
+            .map(|(n, (lo, hi))| format!("{n} {lo}..{hi}"))
+            .collect();
+    format!(
+        "| {} | {} | {} | {} |",
+        e.ty.name(),
+        e.variant,
+        e.revision,
+        words.join(", ")
+    )
+}
+
+// verifies: MOD-CAL-01
+#[test]
+fn the_documented_calibration_ranges_are_the_databases() {
+    let d = doc();
+    let rows: Vec<String> = MODULE_DB.iter().map(cal_range_row).collect();
+    for row in &rows {
+        println!("{row}");
+    }
+    for row in &rows {
+        assert!(
+            d.contains(row.as_str()),
+            "calibration range row `{row}` not in docs/modules.md"
+        );
+    }
+}

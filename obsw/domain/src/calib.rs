@@ -265,6 +265,10 @@ mod tests {
                 .unwrap()
                 .default
         );
+        // Fixed size, on the stack (docs/modules.md quotes it).
+        let size = core::mem::size_of::<RobotCal>();
+        println!("size_of::<RobotCal>() = {size} bytes");
+        assert!(size <= 96, "{size}");
         let b = default_def(ModuleType::Bolter).unwrap().cal_default.0;
         assert_eq!((b[0], b[1]), (1200, 1800));
     }
