@@ -67,9 +67,15 @@ fn write_stmt(f: &Field, expr: &str) -> String {
 /// Saturating conversion from a raw i64 (what `mib::codec` and the OBSW's parameter
 /// functions produce) to the field's type.
 fn from_i64(f: &Field, v: &str) -> String {
+    // One out-of-line saturation per type (crate::sat): the clamp of an i64 is some ten
+    // instructions on a 32-bit target, repeated for every HK parameter otherwise.
     match f.ptype {
         PType::Bool => format!("{v} != 0"),
-        t => format!("{v}.clamp({}, {}) as {}", t.min(), t.max(), rust_type(f)),
+        PType::U8 => format!("sat::u8({v})"),
+        PType::U16 => format!("sat::u16({v})"),
+        PType::U32 => format!("sat::u32({v})"),
+        PType::I16 => format!("sat::i16({v})"),
+        PType::I32 => format!("sat::i32({v})"),
     }
 }
 

@@ -239,6 +239,32 @@ pub fn set_bits(buf: &mut [u8], bit: usize, bits: u8, v: u32) {
     }
 }
 
+/// Saturating conversions of a raw `i64` parameter value to a field's type, used by the
+/// generated `from_values` (out of line: one copy instead of one per parameter).
+#[doc(hidden)]
+pub mod sat {
+    #[inline(never)]
+    pub fn u8(v: i64) -> u8 {
+        v.clamp(0, u8::MAX as i64) as u8
+    }
+    #[inline(never)]
+    pub fn u16(v: i64) -> u16 {
+        v.clamp(0, u16::MAX as i64) as u16
+    }
+    #[inline(never)]
+    pub fn u32(v: i64) -> u32 {
+        v.clamp(0, u32::MAX as i64) as u32
+    }
+    #[inline(never)]
+    pub fn i16(v: i64) -> i16 {
+        v.clamp(i16::MIN as i64, i16::MAX as i64) as i16
+    }
+    #[inline(never)]
+    pub fn i32(v: i64) -> i32 {
+        v.clamp(i32::MIN as i64, i32::MAX as i64) as i32
+    }
+}
+
 /// The code generated from the MIB (see `build.rs`). Casts are written uniformly for
 /// every field type, and the kind enums hold their largest body inline (no heap), hence
 /// the allowed lints.

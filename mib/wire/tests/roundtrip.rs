@@ -371,3 +371,29 @@ fn header_lengths_agree_with_the_exporters_header_tables() {
     assert_eq!(x::CDS_SHORT_PFIELD, CDS_PFIELD as u32);
     assert_eq!(x::PUS_C_VERSION, PUS_C as u32);
 }
+
+// verifies: PUS-3-01
+#[test]
+fn hk_from_values_saturates_each_parameter_to_its_type() {
+    use mib::params::pid;
+    let h = mib_wire::Hk::from_values(mib::hk::sid::ROBOT_STATUS, |p| match p {
+        pid::MODE => 300,            // u8
+        pid::CONFIG_STATE => -5,     // u8
+        pid::HIP_ANGLE => -100_000,  // i16
+        pid::HIP_TARGET => 40_000,   // i16
+        pid::FAULT_FLAGS => 1 << 40, // u32
+        pid::V_BAT_A => 70_000,      // u16
+        pid::ARM_SW_A => 7,          // bool
+        _ => 1,
+    })
+    .unwrap();
+    assert_eq!(h.get(pid::MODE), Some(255));
+    assert_eq!(h.get(pid::CONFIG_STATE), Some(0));
+    assert_eq!(h.get(pid::HIP_ANGLE), Some(i16::MIN as i64));
+    assert_eq!(h.get(pid::HIP_TARGET), Some(i16::MAX as i64));
+    assert_eq!(h.get(pid::FAULT_FLAGS), Some(u32::MAX as i64));
+    assert_eq!(h.get(pid::V_BAT_A), Some(u16::MAX as i64));
+    assert_eq!(h.get(pid::ARM_SW_A), Some(1));
+    assert_eq!(mib_wire::sat::i32(i64::MIN), i32::MIN);
+    assert_eq!(mib_wire::sat::i32(i64::MAX), i32::MAX);
+}
