@@ -15,7 +15,7 @@ the watch for every command's final status (default 15)}.
 result.json:
   links:     [{name, status, in_count, out_count}]
   hk:        [{t (reception, s since start), sid, seq, params: {NAME: {raw, eng}}}], every HK report
-  commands:  [{name, tag, args, schedule_at_unix_ms, attrs: {Verifier_*_Status / _Message,
+  commands:  [{name, tag, id, args, schedule_at_unix_ms, attrs: {Verifier_*_Status / _Message,
              CommandComplete_*, binary, ccsds-seqcount, pus11-*}}]
   events:    [{type, severity, message, generation_time}]
   watched:   [{t, params}] every delivery with one of the plan's "watch" parameters
@@ -176,7 +176,8 @@ def main():
                 attrs = {k: plain(v) for k, v in h.attributes.items()
                          if k.startswith("Verifier_") or k.startswith("CommandComplete") or k == "binary"
                          or k.startswith("pus11") or k == "ccsds-seqcount"}
-        commands.append({"name": c["name"], "tag": c.get("tag"), "args": c.get("args", {}), "error": err,
+        commands.append({"name": c["name"], "tag": c.get("tag"), "id": cmd.id if cmd is not None else None,
+                         "args": c.get("args", {}), "error": err,
                          "attrs": attrs, "schedule_at_unix_ms": c.get("schedule_at_unix_ms")})
 
     alarms = []

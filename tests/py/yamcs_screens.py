@@ -6,7 +6,9 @@ websocket-client).
         yamcs-commands=/commanding/history?c=mmic__realtime ...
 
 Each NAME=PATH is loaded, given --wait seconds to render (the pages keep WebSockets
-open, so "load finished" never comes), and written to OUT/NAME.png.
+open, so "load finished" never comes), and written to OUT/NAME.png. NAME=PATH!TEXT also
+clicks the innermost element whose text is TEXT (e.g. a collapsed "Advanced options" step)
+and scrolls it to the top before the screenshot.
 """
 
 import argparse
@@ -60,8 +62,18 @@ def main():
         os.makedirs(a.out, exist_ok=True)
         for spec in a.pages:
             name, path = spec.split("=", 1)
+            path, _, click = path.partition("!")
             call("Page.navigate", url=a.url + path)
             time.sleep(a.wait)
+            if click:
+                js = ("(() => { const all = [...document.querySelectorAll('*')]"
+                      ".filter(e => e.children.length === 0 && e.textContent.trim() === %s);"
+                      " if (!all.length) return false; const e = all[0]; e.click();"
+                      " e.scrollIntoView({block: 'start'}); return true; })()") % json.dumps(click)
+                clicked = call("Runtime.evaluate", expression=js, returnByValue=True)
+                if not clicked.get("result", {}).get("value"):
+                    raise SystemExit(f"{name}: no element with the text {click!r} on {path}")
+                time.sleep(2.0)
             png = call("Page.captureScreenshot", format="png")["data"]
             out = os.path.join(a.out, name + ".png")
             with open(out, "wb") as f:

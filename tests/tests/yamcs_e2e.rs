@@ -782,8 +782,15 @@ fn scheduled_commands_judged_from_the_obsw_tm(r: &Value, sent: &[Vec<u8>], yamcs
             assert_eq!(outer_reports[0].2, Some(FailureCode::RELEASE_TIME_PASSED.code()));
             assert!(inner_reports.is_empty(), "{tag}: nothing scheduled: {inner_reports:?}");
             // Yamcs verifies the embedded command only: the refusal of its TC[11,4] is not
-            // in its command history, the PING's stages time out.
+            // in its command history, the PING's stages time out. The robot's event says it.
             assert_ne!(status(c, "Acceptance"), "OK", "{tag}: {c}");
+            let events = r["events"].as_array().unwrap();
+            assert!(
+                events.iter().any(|e| e["type"] == "TC_REJECTED"
+                    && e["message"].as_str().is_some_and(|m| m.contains("service=11")
+                        && m.contains(&format!("code={}", FailureCode::RELEASE_TIME_PASSED.name())))),
+                "{tag}: no TC_REJECTED event for the TC[11,4]: {events:?}"
+            );
             eprintln!(
                 "yamcs_e2e: {tag}: obsw TM[1,2] RELEASE_TIME_PASSED; Yamcs Acceptance {}",
                 status(c, "Acceptance")
@@ -1129,4 +1136,97 @@ fn after_an_obsw_restart_the_operator_reinitialises_cop1_and_nothing_is_reported
         fop_lines(&log)
     );
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Percent-encodes a path segment (command IDs carry `+`, `/`, `:`).
+fn url_segment(s: &str) -> String {
+    s.bytes()
+        .map(|b| match b {
+            b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'_' | b'.' | b'~' => (b as char).to_string(),
+            _ => format!("%{b:02X}"),
+        })
+        .collect()
+}
+
+/// The operator guide's screenshots (`docs/img/yamcs-*.png`) of the frame instance, taken
+/// in headless Chromium after commands over the space link, one of them time-tagged.
+/// By hand (`-- --ignored --nocapture screenshots`); it rewrites `docs/img` (or
+/// `$MMIC_SCREENS_DIR`). Needs `chromium`.
+// verifies: YAMCS-DOC-01
+#[test]
+#[ignore = "writes docs/img; run by hand"]
+fn screenshots_of_the_frame_instance_for_the_operator_guide() {
+    let Some(venv) = yamcs_venv() else { return };
+    let dir = temp_dir("screens");
+    let ports = Ports::free();
+    let setup = setup_for(&ports);
+    write_instance(&dir, &setup, &venv);
+    let tm_log = dir.join("tm.log");
+    let obsw = obsw_on_frames(&dir, &ports, &tm_log, &[]);
+    let _yamcs = Yamcs::start(&dir, &venv);
+    let sim_ctl = obsw.sim_ctl;
+    let sag = std::thread::spawn(move || {
+        std::thread::sleep(std::time::Duration::from_secs(6));
+        let s = UdpSocket::bind("127.0.0.1:0").unwrap();
+        s.send_to(format!("battery-sag {SAG_V}").as_bytes(), sim_ctl).unwrap();
+    });
+    let plan = json!({
+        "hk_params": ["V_BAT_A"],
+        "commands": [
+            {"name": "PING", "at": 0.5},
+            {"name": "MODE_SET", "args": {"node": "ROBOT", "mode": "OPERATIONAL", "submode": 0}, "at": 1.0},
+            {"name": "HK_ONE_SHOT", "args": {"sid": "B_LINK"}, "at": 1.5},
+            {"name": "RECONFIGURE", "args": {"from": "Xpos", "to": "Yneg"}, "at": 2.5},
+            {"name": "PARAM_SET", "args": {"param_id": "BOLT_MAX_ATTEMPTS", "value": 2_000_000_000}, "at": 3.0},
+            {"name": "PING", "tag": "scheduled", "at": 3.5, "schedule_in_s": 5.0, "bypass": true,
+             "windows": {"Acceptance": 10.0, "Start": 15.0, "Completion": 25.0}},
+        ],
+    });
+    let r = check(&venv, &dir, &setup, &plan, 14.0);
+    sag.join().unwrap();
+    let id_of = |c: &Value| url_segment(c["id"].as_str().unwrap());
+    let reconf = id_of(command(&r, "RECONFIGURE"));
+    let sched = id_of(tagged(&r, "scheduled"));
+    assert_eq!(status(tagged(&r, "scheduled"), "Completion"), "OK", "{r}");
+    let c = "?c=mmic__realtime";
+    let pages = [
+        format!("yamcs-links=/links{c}"),
+        format!("yamcs-cop1=/links/tc_robot_1.vc0{c}"),
+        format!("yamcs-command-history=/commanding/history{c}"),
+        format!("yamcs-command-detail=/commanding/history/{reconf}{c}"),
+        format!("yamcs-scheduled-detail=/commanding/history/{sched}{c}"),
+        format!("yamcs-scheduled-stages=/commanding/history/{sched}{c}!Yamcs acknowledgments"),
+        format!("yamcs-send-options=/commanding/send/MMIC_I_ROBOT_1/PING{c}!Advanced options"),
+        format!("yamcs-parameter=/telemetry/parameters/MMIC_I_ROBOT_1/V_BAT_A{c}"),
+        format!("yamcs-event-alarms=/alarms{c}"),
+        format!("yamcs-events-page-error=/events{c}"),
+    ];
+    let out_dir = std::env::var_os("MMIC_SCREENS_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| repo_root().join("docs/img"));
+    let out = Command::new(venv.join("bin/python"))
+        .arg(repo_root().join("tests/py/yamcs_screens.py"))
+        .args(["--url", &format!("http://127.0.0.1:{}", setup.http_port)])
+        .arg("--out")
+        .arg(&out_dir)
+        .args(["--port", &free_tcp_port().to_string()])
+        .args(&pages)
+        .output()
+        .expect("python yamcs_screens.py");
+    assert!(
+        out.status.success(),
+        "yamcs_screens.py: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    drop(obsw);
+    for p in &pages {
+        let name = p.split('=').next().unwrap();
+        let png = std::fs::read(out_dir.join(format!("{name}.png"))).unwrap();
+        assert!(
+            png.starts_with(b"\x89PNG") && png.len() > 10_000,
+            "{name}: {} bytes",
+            png.len()
+        );
+        eprintln!("screenshot {name}: {} bytes", png.len());
+    }
 }
