@@ -453,6 +453,16 @@ fn each_gripper_revision_is_driven_with_its_own_pulse_widths_and_current_limit()
         for p in [pid::GRIP_A_TARGET, pid::GRIP_A_PWM, pid::GRIP_B_TARGET, pid::GRIP_B_PWM] {
             assert_eq!(end.hk(p), Some(closed), "{file}: {p}");
         }
+        // No servo was driven against its end stops (the simulator's stall current would
+        // have raised an overcurrent fault).
+        assert!(
+            !c.log
+                .iter()
+                .any(|t| t.event_id() == Some(eid::OPERATIONAL_OVERCURRENT)
+                    || t.event_id() == Some(eid::IDLE_OVERCURRENT)),
+            "{file}: {}",
+            c.summary()
+        );
     }
 }
 
