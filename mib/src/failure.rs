@@ -83,6 +83,9 @@ failure_codes! {
     CONFIG_NOT_ACCEPTED = 38, [f("hash", PType::U32, "current configuration hash")], "OPERATIONAL refused: the module configuration differs from the one the ground accepted (MODULE_REPLACED); data: the current hash, to accept with ACCEPT_CONFIG";
     CONFIG_HASH_STALE = 39, [f("received", PType::U32, "hash in the TC"), f("current", PType::U32, "current configuration hash")], "ACCEPT_CONFIG refused: the hash is not the current configuration's";
     MODULE_ABSENT = 40, [f("slot", PType::U8, "first absent module the command needs").names(SLOT_NAMES)], "Refused: the command needs a module this robot does not have; data: its slot";
+    PLAN_NOT_AUTHORISED = 45, [f("plan", PType::U16, "plan ID of the step"), f("step", PType::U16, "step number")], "TEAM_PLAN_STEP refused: no authorisation for this plan, or the step lies outside it";
+    PLAN_FORBIDDEN_FUNCTION = 46, [f("function", PType::U16, "function of the step").names(Names::Function)], "TEAM_PLAN_STEP refused: the function cannot be a team step (UNBOLT_FACE, UNBOLT_PAIR, or not an action)";
+    PLAN_HASH_MISMATCH = 47, [f("authorised", PType::U32, "plan hash of the authorisation"), f("uploaded", PType::U32, "hash of the uploaded steps")], "TEAM_PLAN_STEP refused: the uploaded steps do not hash to the authorised plan hash; every uploaded step of the plan is dropped";
 }
 
 #[cfg(test)]

@@ -781,6 +781,21 @@ pub const TCS: &[TcDef] = &[
         &[],
         "Team: report the team status (TM[210,2])",
     ),
+    tc(
+        service::TEAM,
+        crate::team::TEAM_SUBSERVICE_PLAN_STEP,
+        "TEAM_PLAN_STEP",
+        &[
+            a("plan_id", PType::U16, "", 0, 65535, "authorised plan the step belongs to"),
+            a("step", PType::U16, "", 1, 65535, "plan step number (1-based), inside the authorisation"),
+            a("function", PType::U16, "", 0, 65535, "PUS 8 function ID of the step (never UNBOLT_FACE or UNBOLT_PAIR)"),
+            a("arg0", PType::I32, "", i32::MIN as i64, i32::MAX as i64, "first argument of the function (0 if none)"),
+            a("arg1", PType::I32, "", i32::MIN as i64, i32::MAX as i64, "second argument of the function (0 if none)"),
+            a("initial_state", PType::U8, "", 0, LAST_STATE, "configuration state ID the robot must be in when the step starts"),
+        ],
+        &[F::PLAN_NOT_AUTHORISED, F::PLAN_FORBIDDEN_FUNCTION, F::PLAN_HASH_MISMATCH],
+        "Team: upload one step of the authorised plan (the same step for every robot of the roster); once every authorised step is uploaded, their hash (mib::team::plan_hash) must equal the authorisation's plan hash, else all are dropped",
+    ),
 ];
 
 impl TcDef {

@@ -175,6 +175,38 @@ pub const TEAM_PLAN_REFUSE_NAMES: Names = Names::List(&[
 
 /// Subservice of the TC that uploads the team roster.
 pub const TEAM_SUBSERVICE_ROSTER: u8 = 4;
+/// Subservice of the TC that uploads one step of the authorised plan.
+pub const TEAM_SUBSERVICE_PLAN_STEP: u8 = 6;
+
+/// One step of an authorised plan as uploaded (TC TEAM_PLAN_STEP): the same for every
+/// robot of the roster.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PlanStep {
+    pub step: u16,
+    pub function: u16,
+    pub args: [i32; 2],
+    pub initial_state: u8,
+}
+
+const PLAN_CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+
+/// The plan hash the ground puts in TEAM_AUTHORISE: CRC-32 (ISO-HDLC) over plan ID (u16),
+/// then per step in order step (u16), function (u16), arg0 (i32), arg1 (i32), initial
+/// state (u8), all big-endian. A check that robots and ground mean the same steps (the
+/// uploads come over the authenticated ground link), not a cryptographic digest.
+pub fn plan_hash(plan_id: u16, steps: &[PlanStep]) -> u32 {
+    let mut d = PLAN_CRC.digest();
+    d.update(&plan_id.to_be_bytes());
+    for s in steps {
+        d.update(&s.step.to_be_bytes());
+        d.update(&s.function.to_be_bytes());
+        d.update(&s.args[0].to_be_bytes());
+        d.update(&s.args[1].to_be_bytes());
+        d.update(&[s.initial_state]);
+    }
+    d.finalize()
+}
+
 /// Subservice of the TC that asks for a team status report.
 pub const TEAM_SUBSERVICE_STATUS_REQUEST: u8 = 5;
 /// The obsw sends a team status report this often (and on request).

@@ -210,6 +210,162 @@ fn the_same_through_the_lossy_relay_20_percent_drop() {
     scenario("relay", Some(Faults::new(0.2, 0.05, 0.01)));
 }
 
+/// Everything in a robot's on-board store, read back by the ground with TC[15,9].
+fn stored(c: &mut Client) -> Vec<Tm> {
+    let raw = c.send("STORE_DOWNLINK_TIME", &[0, 0, 65535, 4_294_967_295]);
+    let from = c.log.len();
+    c.wait_for(Duration::from_secs(10), |t| (t.service, t.subservice) == (15, 19))
+        .expect("store downlink ends with TM[15,19]");
+    assert_eq!(c.wait_done(&raw, Duration::from_secs(5)).map(|t| t.subservice), Some(7));
+    c.log[from..].to_vec()
+}
+
+// verifies: TEAM-E2E-03, TEAM-PLAN-01, TEAM-PLAN-02, TEAM-AUTH-02
+#[test]
+fn without_the_ground_the_leader_continues_exactly_the_authorised_steps_and_the_ground_retrieves_them() {
+    use mib::tc::function;
+    const K: i64 = 2;
+    let dir = std::env::temp_dir().join(format!("team-e2e-plan-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    team_key(&dir);
+    let listen: Vec<String> = (0..ROBOTS).map(|_| free_addr()).collect();
+    let obsw: Vec<Obsw> = (1..=ROBOTS)
+        .map(|r| start(&dir, r, &listen, &listen, None, &format!("tm-{r}.hex")))
+        .collect();
+    let mut logs: Vec<Log> = (1..=ROBOTS)
+        .map(|r| Log::new(dir.join(format!("tm-{r}.hex"))))
+        .collect();
+    // The plan: every robot reconfigures from Xneg (0) to state 1 and back. The ground
+    // authorises K = 2 steps of it and uploads them; each step names its initial state.
+    let steps = [
+        mib::team::PlanStep {
+            step: 1,
+            function: function::RECONFIGURE,
+            args: [0, 1],
+            initial_state: 0,
+        },
+        mib::team::PlanStep {
+            step: 2,
+            function: function::RECONFIGURE,
+            args: [1, 0],
+            initial_state: 1,
+        },
+    ];
+    let hash = mib::team::plan_hash(7, &steps);
+    let mut ground: Vec<Client> = obsw.iter().map(Client::udp).collect();
+    let ok = |c: &mut Client, name: &str, args: &[i64]| {
+        let raw = c.send(name, args);
+        let done = c.wait_done(&raw, Duration::from_secs(30)).expect(name);
+        assert_eq!(done.subservice, 7, "{name} {args:?}: {}", c.summary());
+    };
+    for c in ground.iter_mut() {
+        ok(c, "TEAM_ROSTER", &[1, 2, 3, 0, 0, 0, 0, 0]);
+        ok(c, "TEAM_AUTHORISE", &[7, i64::from(hash), 1, K, 600]);
+        for s in &steps {
+            ok(
+                c,
+                "TEAM_PLAN_STEP",
+                &[
+                    7,
+                    i64::from(s.step),
+                    i64::from(s.function),
+                    i64::from(s.args[0]),
+                    i64::from(s.args[1]),
+                    i64::from(s.initial_state),
+                ],
+            );
+        }
+        ok(c, "MODE_SET", &[node::ROBOT as i64, robot_mode::OPERATIONAL as i64, 0]);
+    }
+    for l in logs.iter_mut() {
+        l.poll();
+        assert_eq!(l.events(eid::PLAN_UPLOADED).len(), 1, "plan loaded: {}", l.summary());
+    }
+    let silent = Instant::now();
+    // The ground is silent: every robot holds, a leader is elected, and on its CONTINUE
+    // every robot runs step 1 then step 2 (each only from its initial state), then holds.
+    let steps_of = |l: &Log| -> Vec<u16> {
+        l.events(eid::PLAN_STEP_EXECUTED)
+            .iter()
+            .map(|(_, p)| u16::from_be_bytes([p[2], p[3]]))
+            .collect()
+    };
+    assert!(
+        poll_until(&mut logs, Duration::from_secs(120), |l| l
+            .iter()
+            .all(|x| steps_of(x).len() == K as usize)),
+        "every robot ran the {K} authorised steps: {:?}",
+        logs.iter().map(Log::summary).collect::<Vec<_>>()
+    );
+    let done_at = Instant::now();
+    // Then the robots stop: back in STANDBY (both grippers hold), nothing more started.
+    let standby_after_steps = |l: &Log| {
+        let last_step = l.events(eid::PLAN_STEP_EXECUTED).last().map(|(at, _)| *at).unwrap();
+        l.events(eid::MODE_CHANGED).iter().any(|(at, p)| {
+            *at >= last_step
+                && u32::from_be_bytes([p[0], p[1], p[2], p[3]]) == node::ROBOT
+                && u32::from_be_bytes([p[8], p[9], p[10], p[11]]) == robot_mode::STANDBY
+        })
+    };
+    assert!(
+        poll_until(&mut logs, Duration::from_secs(60), |l| l
+            .iter()
+            .all(standby_after_steps)),
+        "every robot holds after the last authorised step: {:?}",
+        logs.iter().map(Log::summary).collect::<Vec<_>>()
+    );
+    std::thread::sleep(Duration::from_secs(3));
+    for (i, l) in logs.iter_mut().enumerate() {
+        l.poll();
+        assert_eq!(steps_of(l), [1, 2], "robot {}: exactly the K steps, in order", i + 1);
+        // Each step started from its initial state: the reconfiguration reached the
+        // target state (STATE_REACHED 1, then 0).
+        let reached: Vec<u8> = l.events(eid::STATE_REACHED).iter().map(|(_, p)| p[0]).collect();
+        assert!(reached.ends_with(&[1, 0]), "robot {}: states {reached:?}", i + 1);
+    }
+    let leaders: Vec<u8> = logs
+        .iter()
+        .flat_map(|l| l.events(eid::PLAN_STEP_EXECUTED).into_iter().map(|(_, p)| p[6]))
+        .collect();
+    eprintln!(
+        "plan: ground silent -> every robot ran the {K} authorised steps {:.1} s later (leaders named: {leaders:?}), then held",
+        (done_at - silent).as_secs_f64()
+    );
+    // The ground returns and retrieves what was done from each robot's on-board store.
+    for (i, c) in ground.iter_mut().enumerate() {
+        c.subscribe();
+        let st = stored(c);
+        let executed: Vec<(u16, u16, u16)> = st
+            .iter()
+            .filter(|t| t.event_id() == Some(eid::PLAN_STEP_EXECUTED))
+            .map(|t| {
+                let p = &t.data[2..];
+                (
+                    u16::from_be_bytes([p[0], p[1]]),
+                    u16::from_be_bytes([p[2], p[3]]),
+                    u16::from_be_bytes([p[4], p[5]]),
+                )
+            })
+            .collect();
+        assert_eq!(
+            executed,
+            [(7, 1, function::RECONFIGURE), (7, 2, function::RECONFIGURE)],
+            "robot {}: the store holds the executed steps",
+            i + 1
+        );
+        let hk = st.iter().rev().find(|t| t.sid() == Some(mib::hk::sid::TEAM));
+        assert_eq!(
+            hk.and_then(|t| t.hk(pid::TEAM_STEPS_EXECUTED)),
+            Some(K),
+            "robot {}",
+            i + 1
+        );
+    }
+    drop(obsw);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// Returns (election after the first GROUND_LOST, re-election after the kill, slowest
 /// GROUND_REGAINED after the ground's TC).
 fn scenario(name: &str, faults: Option<Faults>) -> (Duration, Duration, Duration) {
@@ -401,7 +557,7 @@ fn scenario(name: &str, faults: Option<Faults>) -> (Duration, Duration, Duration
         let (term, _, plan, steps, roster) = re[0].status().unwrap();
         assert_eq!((plan, steps, roster.as_slice()), (7, 2, &[1u8, 2, 3][..]));
         assert!(term >= term1);
-        eprintln!("{name}: robot {leader1} restarted after kill -9: term {term}, roster {roster:?}, plan {plan} ({steps} steps) restored");
+        eprintln!("{name}: robot {leader1} restarted after kill -9: term {term}, roster {roster:?}, authorisation of plan {plan} ({steps} steps) restored");
         assert!(
             poll_until(&mut re, Duration::from_secs(15), |l| l[0]
                 .leader()

@@ -32,11 +32,12 @@ use aes_gcm::aead::AeadInPlace;
 use aes_gcm::{Aes256Gcm, KeyInit, Nonce, Tag};
 use anyhow::{bail, Context, Result};
 use mib::link::sdls::{IV_LEN, MAC_LEN};
+use mib::team::PlanStep;
 use mib::team::{TEAM_IV_RESERVE_BLOCK, TEAM_REPLAY_WINDOW, TEAM_SEC_HEADER_LEN, TEAM_SEC_VERSION};
 use mmic_link::persist::{read_key, Dir, FileIvStore};
 use mmic_link::sdls::Key;
 use mmic_team::{Dest, Persisted, PlanRef};
-use obsw_core::services::team::{LoadStatus, StoredAuth, TeamLink, TeamRecord, TeamReject};
+use obsw_core::services::team::{LoadStatus, StoredAuth, StoredPlan, TeamLink, TeamRecord, TeamReject};
 
 /// Parses `N=ADDR` (a `--peer` value).
 pub fn parse_peer(s: &str) -> Result<(u8, SocketAddr)> {
@@ -356,6 +357,7 @@ impl TeamUdp {
 /// voted_for 3            (0 = none)
 /// roster 1,2,3           (empty = none)
 /// auth PLAN HASH FIRST STEPS EXPIRES_UNIX_MS   (or: auth none)
+/// plan ID DONE STEP:FUNCTION:ARG0:ARG1:STATE;...  (or: plan none)
 /// end
 /// ```
 /// Version 1 (`TERM VOTED_FOR` on one line) is still read.
@@ -368,8 +370,24 @@ fn encode_state(r: &TeamRecord) -> String {
         ),
         None => "none".into(),
     };
+    let plan = match &r.plan {
+        Some(p) => {
+            let steps: Vec<String> = p
+                .steps
+                .iter()
+                .map(|s| {
+                    format!(
+                        "{}:{}:{}:{}:{}",
+                        s.step, s.function, s.args[0], s.args[1], s.initial_state
+                    )
+                })
+                .collect();
+            format!("{} {} {}", p.id, p.done, steps.join(";"))
+        }
+        None => "none".into(),
+    };
     format!(
-        "mmic-team-state 2\nterm {}\nvoted_for {}\nroster {}\nauth {auth}\nend\n",
+        "mmic-team-state 2\nterm {}\nvoted_for {}\nroster {}\nauth {auth}\nplan {plan}\nend\n",
         r.persisted.term,
         r.persisted.voted_for.unwrap_or(0),
         roster.join(",")
@@ -430,6 +448,39 @@ fn decode_state(text: &str) -> Result<TeamRecord> {
             expires_unix_ms: exp.parse().context("auth expiry")?,
         })
     };
+    let plan_text = field("plan")?;
+    let plan = if plan_text == "none" {
+        None
+    } else {
+        let f: Vec<&str> = plan_text.split(' ').collect();
+        let [id, done, steps_text] = f[..] else {
+            bail!("plan {plan_text:?}: expected ID DONE STEPS");
+        };
+        let mut steps = heapless::Vec::new();
+        for st in steps_text.split(';') {
+            let v: Vec<&str> = st.split(':').collect();
+            let [step, function, a0, a1, state] = v[..] else {
+                bail!("plan step {st:?}: expected STEP:FUNCTION:ARG0:ARG1:STATE");
+            };
+            let s = PlanStep {
+                step: step.parse().context("plan step")?,
+                function: function.parse().context("plan function")?,
+                args: [a0.parse().context("plan arg0")?, a1.parse().context("plan arg1")?],
+                initial_state: state.parse().context("plan initial state")?,
+            };
+            if steps.push(s).is_err() {
+                bail!(
+                    "plan {plan_text:?}: more than {} steps",
+                    mib::team::MAX_AUTHORISED_STEPS
+                );
+            }
+        }
+        Some(StoredPlan {
+            id: id.parse().context("plan ID")?,
+            steps,
+            done: done.parse().context("plan done")?,
+        })
+    };
     if lines.next() != Some("end") {
         bail!("line 'end' missing (truncated?)");
     }
@@ -440,6 +491,7 @@ fn decode_state(text: &str) -> Result<TeamRecord> {
         },
         roster,
         auth,
+        plan,
     })
 }
 
@@ -563,6 +615,25 @@ mod tests {
                 },
                 1_790_000_000_000,
             )),
+            plan: Some(StoredPlan {
+                id: 9,
+                steps: heapless::Vec::from_slice(&[
+                    PlanStep {
+                        step: 2,
+                        function: mib::tc::function::RECONFIGURE,
+                        args: [0, 1],
+                        initial_state: 0,
+                    },
+                    PlanStep {
+                        step: 3,
+                        function: mib::tc::function::ROTATE_HIP,
+                        args: [-9000, 0],
+                        initial_state: 1,
+                    },
+                ])
+                .unwrap(),
+                done: 1,
+            }),
         };
         write_state(&p, &r).unwrap();
         assert_eq!(read_state(&p).unwrap(), Some(r.clone()));

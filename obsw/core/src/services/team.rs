@@ -24,18 +24,25 @@
 
 use mib::events::eid;
 use mib::modes::robot_mode;
-use mib::team::{ROSTER_MAX, STATUS_PERIOD_MS, TEAM_APID, TEAM_SERVICE, TEAM_SUBSERVICE_MESSAGE};
+use mib::robot::Side;
+use mib::team::{
+    PlanStep, MAX_AUTHORISED_STEPS, ROSTER_MAX, STATUS_PERIOD_MS, TEAM_APID, TEAM_SERVICE, TEAM_SUBSERVICE_MESSAGE,
+    TEAM_SUBSERVICE_PLAN_STEP,
+};
 use mib_wire::tm;
+use mmic_domain::controller::Action as DomainAction;
 use mmic_team::node::{RefuseReason, StepDownReason};
 use mmic_team::wire::MAX_LEN;
 use mmic_team::TeamEvent;
-use mmic_team::{Action, Authorisation, Dest, Directive, Effect, HoldTarget, Input, Message, Node, Persisted, PlanRef};
+use mmic_team::{
+    Action, Authorisation, Dest, Directive, Effect, HoldTarget, Input, Message, Node, Persisted, PlanRef, TeamFunction,
+};
 use satrs::spacepackets::ecss::tm::PusTmReader;
 use satrs::spacepackets::ecss::PusPacket;
 
 use crate::accept::Tc;
 use crate::failure::Failure;
-use crate::obsw::Obsw;
+use crate::obsw::{Exec, Obsw};
 use crate::request::unknown;
 use crate::time::OnboardTime;
 use crate::tm::{TmSink, TmStore, TmWriter};
@@ -68,6 +75,92 @@ pub struct TeamRecord {
     /// Empty: no roster.
     pub roster: heapless::Vec<u8, ROSTER_MAX>,
     pub auth: Option<StoredAuth>,
+    /// The uploaded, hash-checked plan of the authorisation.
+    pub plan: Option<StoredPlan>,
+}
+
+/// Steps a plan holds (the most an authorisation allows).
+pub const PLAN_CAPACITY: usize = MAX_AUTHORISED_STEPS as usize;
+
+/// The plan as stored: its steps and how many were started since the upload.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct StoredPlan {
+    pub id: u16,
+    pub steps: heapless::Vec<PlanStep, PLAN_CAPACITY>,
+    /// Steps started on a CONTINUE since the upload (never more than the authorisation's).
+    pub done: u8,
+}
+
+/// Why a CONTINUE was not executed (PLAN_STEP_REFUSED reason codes).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StepRefusal {
+    /// No hash-checked plan of that ID.
+    NoPlan,
+    /// Not the next step, beyond the authorised count, or expired.
+    NotAuthorised,
+    /// The robot is not in the step's initial state (or not holding: SAFED).
+    InitialState,
+    /// Another action or a mode transition runs.
+    Busy,
+    /// The step is not an action a team may run.
+    Forbidden,
+    /// The action refused to start (data in the failure the event names).
+    Refused,
+}
+
+impl StepRefusal {
+    pub const fn code(self) -> u8 {
+        match self {
+            StepRefusal::NoPlan => 0,
+            StepRefusal::NotAuthorised => 1,
+            StepRefusal::InitialState => 2,
+            StepRefusal::Busy => 3,
+            StepRefusal::Forbidden => 4,
+            StepRefusal::Refused => 5,
+        }
+    }
+}
+
+/// The domain action of a plan step: team functions only (UNBOLT is refused by type,
+/// `TeamFunction` has no such variant; STOP is no step).
+pub fn step_action(s: &PlanStep) -> Option<(TeamFunction, DomainAction)> {
+    let f = TeamFunction::from_code(s.function).ok()?;
+    let side = |v: i32| match v {
+        0 => Some(Side::A),
+        1 => Some(Side::B),
+        _ => None,
+    };
+    let u8_of = |v: i32| u8::try_from(v).ok();
+    let u16_of = |v: i32| u16::try_from(v).ok();
+    let [a0, a1] = s.args;
+    let action = match f {
+        TeamFunction::Reconfigure => DomainAction::Reconfigure {
+            from: u8_of(a0)?,
+            to: u8_of(a1)?,
+        },
+        TeamFunction::BoltFace => DomainAction::BoltFace {
+            side: side(a0)?,
+            pairs: u8_of(a1)?,
+        },
+        TeamFunction::Home => DomainAction::Home,
+        TeamFunction::MoveArm => DomainAction::MoveArm {
+            side: side(a0)?,
+            pwm: u16_of(a1)?,
+        },
+        TeamFunction::MoveGripper => DomainAction::MoveGripper {
+            side: side(a0)?,
+            pwm: u16_of(a1)?,
+        },
+        TeamFunction::RotateHip => DomainAction::RotateHip {
+            cdeg: i16::try_from(a0).ok()?,
+        },
+        TeamFunction::BoltPair => DomainAction::BoltPair {
+            side: side(a0)?,
+            pair: u8_of(a1)?,
+        },
+        TeamFunction::Stop => return None,
+    };
+    Some((f, action))
 }
 
 /// How the platform found the team record at start.
@@ -146,6 +239,8 @@ pub enum Request {
     Roster([u8; ROSTER_MAX]),
     /// TC[211,5]: report TM[211,2].
     Status,
+    /// TC[211,6]: one step of the authorised plan (plan ID, step).
+    PlanStep(u16, PlanStep),
 }
 
 impl Request {
@@ -171,6 +266,15 @@ impl Request {
                 Ok(Request::Roster(r))
             }
             5 => Ok(Request::Status),
+            TEAM_SUBSERVICE_PLAN_STEP => Ok(Request::PlanStep(
+                tc.args[0] as u16,
+                PlanStep {
+                    step: tc.args[1] as u16,
+                    function: tc.args[2] as u16,
+                    args: [tc.args[3] as i32, tc.args[4] as i32],
+                    initial_state: tc.args[5] as u8,
+                },
+            )),
             _ => Err(unknown(tc)),
         }
     }
@@ -223,6 +327,19 @@ pub struct Team {
     dirty: bool,
     /// Last time a TEAM_PACKET_REJECTED was raised per reason (one per control period).
     reject_reported: [Option<u64>; TEAM_REJECT_REASONS],
+    /// Steps of the authorised plan uploaded so far (slot = step - first step).
+    slots: [Option<PlanStep>; PLAN_CAPACITY],
+    /// The plan, once every authorised step is uploaded and the hash matches.
+    plan: Option<StoredPlan>,
+    /// The node must be told the plan progress at the next poll.
+    progress_dirty: bool,
+    /// A step waiting for the robot to be idle and OPERATIONAL (true: OPERATIONAL was
+    /// asked for, from STANDBY).
+    step_pending: Option<(u16, bool)>,
+    /// The step whose action runs, with the fault count at its start.
+    step_running: Option<(u16, u32)>,
+    /// A hold ordered while an action ran: applied when it has ended.
+    hold_after_run: bool,
 }
 
 impl Team {
@@ -240,7 +357,35 @@ impl Team {
             counters: TeamCounters::default(),
             dirty: false,
             reject_reported: [None; TEAM_REJECT_REASONS],
+            slots: [None; PLAN_CAPACITY],
+            plan: None,
+            progress_dirty: false,
+            step_pending: None,
+            step_running: None,
+            hold_after_run: false,
         }
+    }
+
+    /// The plan step `step` of the loaded plan, if it is the next one to run and within
+    /// the authorisation (count; the expiry is the node's and the caller's check).
+    fn next_step(&self) -> Option<PlanStep> {
+        let (a, p) = (self.auth?, self.plan.as_ref()?);
+        if p.id != a.plan.id || p.done >= a.max_steps {
+            return None;
+        }
+        p.steps.get(usize::from(p.done)).copied()
+    }
+
+    /// What the node must know of the plan: its reference, the progress (steps done,
+    /// counted from the plan's start) and the next step's function.
+    fn progress_input(&self) -> Option<Input> {
+        let (a, p) = (self.auth?, self.plan.as_ref()?);
+        let next = self.next_step().and_then(|s| step_action(&s)).map(|(f, _)| f);
+        Some(Input::Progress {
+            plan: a.plan,
+            progress: a.first_step.saturating_sub(1).saturating_add(u16::from(p.done)),
+            next,
+        })
     }
 
     /// The record as it must be durable now (the platform writes it whole).
@@ -259,6 +404,7 @@ impl Team {
                 max_steps: a.max_steps,
                 expires_unix_ms: epoch.saturating_add(a.expires_at),
             }),
+            plan: self.plan.clone(),
         }
     }
 
@@ -319,6 +465,15 @@ impl<S: TmStore> Obsw<S> {
                 expires_at,
             })
         });
+        // The plan only with its (unexpired) authorisation, and only if it still hashes to it.
+        self.team.plan = r.plan.clone().filter(|p| {
+            self.team.auth.is_some_and(|a| {
+                a.plan.id == p.id
+                    && p.steps.len() == usize::from(a.max_steps)
+                    && mib::team::plan_hash(p.id, &p.steps) == a.plan.hash
+            })
+        });
+        self.team.progress_dirty = self.team.plan.is_some();
         if !r.roster.is_empty() {
             // A stored roster was accepted once; should the node refuse it now, the
             // robot starts without one (the event says roster 0).
@@ -392,7 +547,7 @@ impl<S: TmStore> Obsw<S> {
             pid::TEAM_DIR_EXECUTED => i64::from(c.dir_executed),
             pid::TEAM_DIR_REFUSED => i64::from(c.refused_before.wrapping_add(nc.refused)),
             pid::TEAM_PERSIST_FAILED => i64::from(c.persist_failed),
-            pid::TEAM_STEPS_EXECUTED => 0,
+            pid::TEAM_STEPS_EXECUTED => i64::from(t.plan.as_ref().map_or(0, |p| p.done)),
             _ => return None,
         })
     }
@@ -404,6 +559,7 @@ impl<S: TmStore> Obsw<S> {
         let node = Node::restore(self.team.me, roster, self.team.durable, now)?;
         self.team.set_node(Some(node));
         self.team.dirty = true;
+        self.team.progress_dirty = true;
         self.team.roster.clear();
         for r in roster.iter().take(ROSTER_MAX) {
             // At most ROSTER_MAX (checked by the node above).
@@ -444,6 +600,12 @@ impl<S: TmStore> Obsw<S> {
         }
         if core::mem::take(&mut self.team.ground_tc) {
             self.team_input(now, rand, Input::GroundTc, link, sink);
+        }
+        self.team_steps(now, sink);
+        if core::mem::take(&mut self.team.progress_dirty) {
+            if let Some(p) = self.team.progress_input() {
+                self.team_input(now, rand, p, link, sink);
+            }
         }
         let both_hold = self.computed_state() != mib::robot::STATE_UNKNOWN;
         if self.team.both_hold != Some(both_hold) {
@@ -552,27 +714,190 @@ impl<S: TmStore> Obsw<S> {
     }
 
     fn team_act(&mut self, now: u64, a: Action, sink: &mut impl TmSink) {
+        if matches!(a, Action::Hold(_)) {
+            // A hold cancels a step that has not started yet.
+            if let Some((step, _)) = self.team.step_pending.take() {
+                let plan = self.team.plan.as_ref().map_or(0, |p| p.id);
+                self.step_refused(now, plan, step, StepRefusal::Refused, sink);
+            }
+        }
         let target = match a {
             Action::Hold(HoldTarget::Standby) => robot_mode::STANDBY,
             Action::Hold(HoldTarget::Safed) => robot_mode::SAFED,
-            Action::Continue { .. } => {
-                let c = &mut self.team.counters;
-                c.continue_not_executed = c.continue_not_executed.wrapping_add(1);
-                if self.computed_state() != mib::robot::STATE_UNKNOWN {
-                    robot_mode::STANDBY
-                } else {
-                    robot_mode::SAFED
+            Action::Continue { plan, step, function } => match self.team_continue(now, plan, step, function, sink) {
+                Ok(()) => return,
+                Err(why) => {
+                    self.step_refused(now, plan.id, step, why, sink);
+                    self.hold_target()
                 }
-            }
+            },
         };
-        // As the FDIR's "after the running motion" response: the primitive finishes first.
+        // The running motion finishes first; STANDBY or SAFED is chosen when it has ended
+        // (mid-motion no gripper pair holds, so choosing now would always say SAFED).
         if self.running.is_some() {
-            self.faults.pending_mode = Some(match self.faults.pending_mode {
-                Some(p) if p == robot_mode::SAFED => p,
-                _ => target,
-            });
+            self.team.hold_after_run = true;
         } else if self.modes.root_target() != target {
             self.set_mode(now, target, eid::GROUND_LOST, sink);
+        }
+    }
+
+    fn hold_target(&self) -> u32 {
+        if self.computed_state() != mib::robot::STATE_UNKNOWN {
+            robot_mode::STANDBY
+        } else {
+            robot_mode::SAFED
+        }
+    }
+
+    fn step_refused(&mut self, now: u64, plan: u16, step: u16, why: StepRefusal, sink: &mut impl TmSink) {
+        let c = &mut self.team.counters;
+        c.continue_not_executed = c.continue_not_executed.wrapping_add(1);
+        self.event(
+            now,
+            eid::PLAN_STEP_REFUSED,
+            &[i64::from(plan), i64::from(step), i64::from(why.code())],
+            sink,
+        );
+    }
+
+    /// A CONTINUE of the node (the leader's, checked by the node against this robot's
+    /// own authorisation): run the step if it is the next uploaded one, within the
+    /// authorised count, and the robot is in the step's initial state. From STANDBY (a
+    /// hold with both grippers holding) the robot first returns to OPERATIONAL; the step
+    /// starts when it is there (checked again then).
+    fn team_continue(
+        &mut self,
+        now: u64,
+        plan: PlanRef,
+        step: u16,
+        function: TeamFunction,
+        sink: &mut impl TmSink,
+    ) -> Result<(), StepRefusal> {
+        let auth = self.team.auth.ok_or(StepRefusal::NotAuthorised)?;
+        if self.team.plan.as_ref().is_none_or(|p| p.id != plan.id) || auth.plan != plan {
+            return Err(StepRefusal::NoPlan);
+        }
+        let next = self.team.next_step().ok_or(StepRefusal::NotAuthorised)?;
+        if next.step != step || now >= auth.expires_at {
+            return Err(StepRefusal::NotAuthorised);
+        }
+        match step_action(&next) {
+            Some((f, _)) if f == function => {}
+            _ => return Err(StepRefusal::Forbidden),
+        }
+        if self.team.step_pending.is_some() || self.team.step_running.is_some() {
+            return Err(StepRefusal::Busy);
+        }
+        // Started at the next poll, once the robot is idle (a hold may still be under way).
+        self.team.step_pending = Some((step, false));
+        self.team_steps(now, sink);
+        Ok(())
+    }
+
+    /// Starts plan step `s` (the next one, checked); counts it before it moves.
+    fn start_step(&mut self, now: u64, s: PlanStep, sink: &mut impl TmSink) -> Result<(), StepRefusal> {
+        if self.computed_state() != s.initial_state {
+            return Err(StepRefusal::InitialState);
+        }
+        let Some((_, action)) = step_action(&s) else {
+            return Err(StepRefusal::Forbidden);
+        };
+        let plan = self.team.plan.as_ref().map_or(0, |p| p.id);
+        match self.function_request(now, crate::services::function::Request::Start(action), sink) {
+            Ok(Exec::Action(r)) => {
+                self.running = Some(r.with_token(None));
+                self.team.step_running = Some((s.step, self.faults.count));
+                if let Some(p) = self.team.plan.as_mut() {
+                    p.done = p.done.saturating_add(1);
+                }
+                // The count is durable at the next poll (a reset never runs a step twice
+                // beyond the authorised count: done only grows).
+                self.team.dirty = true;
+                let leader = self.team.node.as_ref().and_then(Node::leader).unwrap_or(0);
+                self.event(
+                    now,
+                    eid::PLAN_STEP_EXECUTED,
+                    &[
+                        i64::from(plan),
+                        i64::from(s.step),
+                        i64::from(s.function),
+                        i64::from(leader),
+                    ],
+                    sink,
+                );
+                Ok(())
+            }
+            Ok(_) => Err(StepRefusal::Refused),
+            Err(refused) => {
+                if let Some((ev, args)) = refused.fault {
+                    self.fault(now, ev, &args, sink);
+                }
+                Err(StepRefusal::Refused)
+            }
+        }
+    }
+
+    /// Runs a pending step once the robot is OPERATIONAL; ends a running step (the node
+    /// learns the progress; after the last authorised step the robot holds).
+    fn team_steps(&mut self, now: u64, sink: &mut impl TmSink) {
+        if let Some((_, faults)) = self.team.step_running {
+            if self.running.is_none() {
+                self.team.step_running = None;
+                let ok = self.faults.count == faults && self.modes.root() == robot_mode::OPERATIONAL;
+                if ok {
+                    self.team.progress_dirty = true;
+                    if self.team.next_step().is_none() {
+                        // The authorisation is used up: the robot holds.
+                        self.team.hold_after_run = true;
+                    }
+                }
+            }
+        }
+        if self.team.hold_after_run && self.running.is_none() {
+            self.team.hold_after_run = false;
+            // Unless the FDIR (or a command) already chose the mode.
+            if self.transition.is_none()
+                && self.modes.root() == robot_mode::OPERATIONAL
+                && self.modes.root_target() == robot_mode::OPERATIONAL
+                && self.faults.pending_mode.is_none()
+            {
+                let target = self.hold_target();
+                self.set_mode(now, target, eid::GROUND_LOST, sink);
+            }
+        }
+        if let Some((step, up)) = self.team.step_pending {
+            let plan = self.team.plan.as_ref().map_or(0, |p| p.id);
+            let expired = self.team.auth.is_none_or(|a| now >= a.expires_at);
+            if up && self.modes.root_target() != robot_mode::OPERATIONAL {
+                // The FDIR took over on the way up.
+                self.team.step_pending = None;
+                self.step_refused(now, plan, step, StepRefusal::Refused, sink);
+            } else if expired {
+                self.team.step_pending = None;
+                self.step_refused(now, plan, step, StepRefusal::NotAuthorised, sink);
+            } else if self.transition.is_none() && self.running.is_none() {
+                let root = self.modes.root();
+                if root == robot_mode::STANDBY && !up && self.computed_state() != mib::robot::STATE_UNKNOWN {
+                    // Holding in STANDBY: back to OPERATIONAL first (the step's state is
+                    // checked again when it starts).
+                    self.team.step_pending = Some((step, true));
+                    self.set_mode(now, robot_mode::OPERATIONAL, eid::PLAN_STEP_EXECUTED, sink);
+                } else {
+                    self.team.step_pending = None;
+                    let started = match (root, self.team.next_step()) {
+                        (robot_mode::OPERATIONAL, Some(s)) if s.step == step => self.start_step(now, s, sink),
+                        (robot_mode::OPERATIONAL, _) => Err(StepRefusal::NotAuthorised),
+                        _ => Err(StepRefusal::InitialState),
+                    };
+                    if let Err(why) = started {
+                        self.step_refused(now, plan, step, why, sink);
+                        let target = self.hold_target();
+                        if self.modes.root_target() != target {
+                            self.set_mode(now, target, eid::GROUND_LOST, sink);
+                        }
+                    }
+                }
+            }
         }
     }
 
@@ -658,6 +983,59 @@ impl<S: TmStore> Obsw<S> {
         self.emit_tm(now, r, sink);
     }
 
+    /// TC[211,6]: one step of the authorised plan. When every authorised step is there,
+    /// their hash must be the authorisation's plan hash: the plan is loaded (PLAN_UPLOADED,
+    /// the node learns the plan) or every step is dropped (PLAN_HASH_MISMATCH).
+    fn team_plan_step(&mut self, now: u64, id: u16, s: PlanStep, sink: &mut impl TmSink) -> Result<(), Failure> {
+        use mib_wire::Failure as W;
+        let not_authorised = Failure(W::PlanNotAuthorised { plan: id, step: s.step });
+        let a = self
+            .team
+            .auth
+            .filter(|a| a.plan.id == id)
+            .ok_or(not_authorised.clone())?;
+        let i = s.step.checked_sub(a.first_step).map(usize::from);
+        let Some(i) = i.filter(|i| *i < usize::from(a.max_steps)) else {
+            return Err(not_authorised);
+        };
+        if step_action(&s).is_none() {
+            return Err(Failure(W::PlanForbiddenFunction { function: s.function }));
+        }
+        self.team.slots[i] = Some(s);
+        let n = usize::from(a.max_steps);
+        if self.team.slots[..n].iter().all(Option::is_some) {
+            let mut steps: heapless::Vec<PlanStep, PLAN_CAPACITY> = heapless::Vec::new();
+            for s in self.team.slots[..n].iter().flatten() {
+                // n <= PLAN_CAPACITY (MAX_AUTHORISED_STEPS, checked by the node).
+                let _ = steps.push(*s);
+            }
+            self.team.slots = [None; PLAN_CAPACITY];
+            let hash = mib::team::plan_hash(id, &steps);
+            if hash != a.plan.hash {
+                self.team.plan = None;
+                return Err(Failure(W::PlanHashMismatch {
+                    authorised: a.plan.hash,
+                    uploaded: hash,
+                }));
+            }
+            self.team.plan = Some(StoredPlan { id, steps, done: 0 });
+            self.team.dirty = true;
+            self.team.progress_dirty = true;
+            self.event(
+                now,
+                eid::PLAN_UPLOADED,
+                &[
+                    i64::from(id),
+                    i64::from(a.first_step),
+                    i64::from(a.max_steps),
+                    i64::from(hash),
+                ],
+                sink,
+            );
+        }
+        Ok(())
+    }
+
     pub(crate) fn team_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) -> Result<(), Failure> {
         match r {
             Request::Authorise(mut a, validity_s) => {
@@ -665,6 +1043,13 @@ impl<S: TmStore> Obsw<S> {
                 if let Some(n) = self.team.node.as_mut() {
                     n.authorise(now, a)
                         .map_err(|_| Failure::arg_out_of_range(4, validity_s as i32))?;
+                }
+                if self.team.auth.map(|o| (o.plan, o.first_step, o.max_steps))
+                    != Some((a.plan, a.first_step, a.max_steps))
+                {
+                    // Another authorisation: its steps must be uploaded anew.
+                    self.team.slots = [None; PLAN_CAPACITY];
+                    self.team.plan = None;
                 }
                 self.team.auth = Some(a);
                 self.team.dirty = true;
@@ -679,6 +1064,7 @@ impl<S: TmStore> Obsw<S> {
                     .map_err(|_| Failure::arg_out_of_range(0, i32::from(slots[0])))?;
             }
             Request::Status => self.team_status(now, sink),
+            Request::PlanStep(id, step) => self.team_plan_step(now, id, step, sink)?,
         }
         Ok(())
     }
@@ -971,6 +1357,185 @@ mod tests {
         o4.team_restore(0, LoadStatus::Corrupt, &TeamRecord::default(), &mut s);
         assert!(o4.team.node().is_none());
         assert_eq!(events(&s, eid::TEAM_STATE_LOADED), [vec![2, 0, 0, 0, 0, 0, 0, 0]]);
+    }
+
+    fn authorise_tc(o: &mut TestObsw, now: u64, seq: u16, plan: u16, hash: u32, first: u16, steps: u8) -> Vec<Vec<u8>> {
+        let mut app = Vec::new();
+        app.extend_from_slice(&plan.to_be_bytes());
+        app.extend_from_slice(&hash.to_be_bytes());
+        app.extend_from_slice(&first.to_be_bytes());
+        app.push(steps);
+        app.extend_from_slice(&600u32.to_be_bytes());
+        let mut s = Vec::new();
+        let apid = o.apid();
+        o.handle_tc(now, &tc_bytes(apid, seq, 211, 3, &app), &mut s);
+        s
+    }
+
+    fn step_tc(o: &mut TestObsw, now: u64, seq: u16, plan: u16, st: PlanStep) -> Vec<Vec<u8>> {
+        let mut app = Vec::new();
+        app.extend_from_slice(&plan.to_be_bytes());
+        app.extend_from_slice(&st.step.to_be_bytes());
+        app.extend_from_slice(&st.function.to_be_bytes());
+        app.extend_from_slice(&st.args[0].to_be_bytes());
+        app.extend_from_slice(&st.args[1].to_be_bytes());
+        app.push(st.initial_state);
+        let mut s = Vec::new();
+        let apid = o.apid();
+        o.handle_tc(now, &tc_bytes(apid, seq, 211, 6, &app), &mut s);
+        s
+    }
+
+    fn failure_code(s: &[Vec<u8>]) -> Option<u16> {
+        [2u8, 4, 8]
+            .iter()
+            .find_map(|sub| of(s, 1, *sub).first().cloned())
+            .as_ref()
+            .map(|p| u16::from_be_bytes([kind(p).2[4], kind(p).2[5]]))
+    }
+
+    const STEPS: [PlanStep; 2] = [
+        PlanStep {
+            step: 1,
+            function: mib::tc::function::RECONFIGURE,
+            args: [0, 1],
+            initial_state: 0,
+        },
+        PlanStep {
+            step: 2,
+            function: mib::tc::function::RECONFIGURE,
+            args: [1, 0],
+            initial_state: 1,
+        },
+    ];
+
+    // verifies: TEAM-PLAN-01, TEAM-AUTH-03
+    #[test]
+    fn plan_steps_are_stored_only_inside_the_authorisation_and_must_match_its_hash() {
+        use mib::FailureCode as F;
+        let mut o = robot(1);
+        roster_tc(&mut o, 0, &[1, 2, 3]);
+        let hash = mib::team::plan_hash(7, &STEPS);
+        // No authorisation yet.
+        let s = step_tc(&mut o, 10, 2, 7, STEPS[0]);
+        assert_eq!(failure_code(&s), Some(F::PLAN_NOT_AUTHORISED.code()), "{s:?}");
+        assert_eq!(of(&authorise_tc(&mut o, 20, 3, 7, hash, 1, 2), 1, 7).len(), 1);
+        // Another plan, a step outside [first, first + K), UNBOLT: refused.
+        assert_eq!(
+            failure_code(&step_tc(&mut o, 30, 4, 8, STEPS[0])),
+            Some(F::PLAN_NOT_AUTHORISED.code())
+        );
+        let outside = PlanStep { step: 3, ..STEPS[0] };
+        assert_eq!(
+            failure_code(&step_tc(&mut o, 30, 5, 7, outside)),
+            Some(F::PLAN_NOT_AUTHORISED.code())
+        );
+        for f in [
+            mib::tc::function::UNBOLT_FACE,
+            mib::tc::function::UNBOLT_PAIR,
+            mib::tc::function::STOP,
+        ] {
+            let unbolt = PlanStep {
+                function: f,
+                ..STEPS[0]
+            };
+            assert_eq!(
+                failure_code(&step_tc(&mut o, 30, 6 + f, 7, unbolt)),
+                Some(F::PLAN_FORBIDDEN_FUNCTION.code()),
+                "function {f}"
+            );
+        }
+        // Steps that do not hash to the authorised hash: all dropped.
+        assert_eq!(of(&step_tc(&mut o, 40, 40, 7, STEPS[0]), 1, 7).len(), 1);
+        let altered = PlanStep {
+            args: [1, 2],
+            ..STEPS[1]
+        };
+        assert_eq!(
+            failure_code(&step_tc(&mut o, 40, 41, 7, altered)),
+            Some(F::PLAN_HASH_MISMATCH.code())
+        );
+        assert!(o.team.record().plan.is_none());
+        // The right steps, in any order: loaded, evented, in the record, told to the node.
+        assert_eq!(of(&step_tc(&mut o, 50, 42, 7, STEPS[1]), 1, 7).len(), 1);
+        let s = step_tc(&mut o, 50, 43, 7, STEPS[0]);
+        assert_eq!(of(&s, 1, 7).len(), 1);
+        assert_eq!(events(&s, eid::PLAN_UPLOADED).len(), 1);
+        let rec = o.team.record();
+        assert_eq!(rec.plan.as_ref().unwrap().steps.as_slice(), STEPS);
+        let mut link = Link::default();
+        let mut s = Vec::new();
+        o.team_poll(60, 1, &mut link, &mut s);
+        assert_eq!(link.records.last().unwrap().plan, rec.plan, "durable at the next poll");
+        // A new authorisation needs a new upload.
+        authorise_tc(&mut o, 70, 50, 7, hash, 2, 2);
+        assert!(o.team.record().plan.is_none());
+    }
+
+    // verifies: TEAM-PLAN-02
+    #[test]
+    fn a_continue_outside_the_plan_or_in_the_wrong_state_is_refused_and_the_robot_holds() {
+        let mut o = robot(1);
+        roster_tc(&mut o, 0, &[1, 2, 3]);
+        let hash = mib::team::plan_hash(7, &STEPS);
+        authorise_tc(&mut o, 10, 2, 7, hash, 1, 2);
+        let plan = PlanRef { id: 7, hash };
+        let mut s = Vec::new();
+        let f = TeamFunction::Reconfigure;
+        // Before the upload: no plan.
+        o.team_act(
+            20,
+            Action::Continue {
+                plan,
+                step: 1,
+                function: f,
+            },
+            &mut s,
+        );
+        step_tc(&mut o, 30, 3, 7, STEPS[0]);
+        step_tc(&mut o, 30, 4, 7, STEPS[1]);
+        // Step 2 before step 1: not the next step.
+        o.team_act(
+            40,
+            Action::Continue {
+                plan,
+                step: 2,
+                function: f,
+            },
+            &mut s,
+        );
+        // Step 1: pending until the robot is idle.
+        let mut link = Link::default();
+        o.team_act(
+            50,
+            Action::Continue {
+                plan,
+                step: 1,
+                function: f,
+            },
+            &mut s,
+        );
+        o.team_poll(60, 1, &mut link, &mut s);
+        // The boot transition ends (a fresh obsw, default sensors), then the step is
+        // tried and refused: the controller computes no state (not state 0).
+        let mut t = 60;
+        while t < 3_000 && o.team.step_pending.is_some() {
+            o.tick(t, &mmic_domain::SensorsA::default(), &[], &mut s);
+            o.team_poll(t, 1, &mut link, &mut s);
+            t += 10;
+        }
+        let refused: Vec<u8> = events(&s, eid::PLAN_STEP_REFUSED).iter().map(|p| p[4]).collect();
+        assert_eq!(
+            refused,
+            [
+                StepRefusal::NoPlan.code(),
+                StepRefusal::NotAuthorised.code(),
+                StepRefusal::InitialState.code()
+            ]
+        );
+        assert!(events(&s, eid::PLAN_STEP_EXECUTED).is_empty());
+        assert_eq!(o.team.record().plan.unwrap().done, 0, "nothing counted");
+        assert_eq!(o.modes.root_target(), robot_mode::SAFED, "the robot holds");
     }
 
     // verifies: TEAM-OBSW-01
