@@ -389,19 +389,7 @@ impl<S: TmStore> Obsw<S> {
     /// bolters their own; operational and idle limits.
     pub fn apply_calibration(&mut self, cal: RobotCal) {
         self.ctrl.set_calibration(cal);
-        let i = |c: mmic_domain::calib::CurrentLimits| (c.idle_max_ma, c.op_max_ma);
-        let (arm_a, arm_b, hip) = (i(cal.arm_i[0]), i(cal.arm_i[1]), i(cal.hip_i));
-        let limits: [(&str, u16); 8] = [
-            ("I_LOC_A_OPER", arm_a.1.max(hip.1)),
-            ("I_LOC_B_OPER", arm_b.1),
-            ("I_GRIP_A_OPER", cal.grip_i[0].op_max_ma),
-            ("I_GRIP_B_OPER", cal.grip_i[1].op_max_ma),
-            ("I_BO_A_OPER", cal.bolter_i[0].op_max_ma),
-            ("I_BO_B_OPER", cal.bolter_i[1].op_max_ma),
-            ("I_LOC_A_IDLE", arm_a.0.max(hip.0)),
-            ("I_LOC_B_IDLE", arm_b.0),
-        ];
-        for (name, ma) in limits {
+        for (name, ma) in monitor_limits(&cal) {
             // The currents are in mA (CAL_AMP: 1 count = 1 mA).
             if let Some(m) = self.monitoring.mons.iter_mut().find(|m| m.def.name == name) {
                 m.def.high = ma as i32;
@@ -522,6 +510,22 @@ impl<S: TmStore> Obsw<S> {
             mode
         }
     }
+}
+
+/// The high limits (mA) the calibration gives the current monitors, by monitor name
+/// (`mib::fdir::MONITORS`).
+fn monitor_limits(cal: &RobotCal) -> [(&'static str, u16); 8] {
+    let (arm_a, arm_b, hip) = (cal.arm_i[0], cal.arm_i[1], cal.hip_i);
+    [
+        ("I_LOC_A_OPER", arm_a.op_max_ma.max(hip.op_max_ma)),
+        ("I_LOC_B_OPER", arm_b.op_max_ma),
+        ("I_GRIP_A_OPER", cal.grip_i[0].op_max_ma),
+        ("I_GRIP_B_OPER", cal.grip_i[1].op_max_ma),
+        ("I_BO_A_OPER", cal.bolter_i[0].op_max_ma),
+        ("I_BO_B_OPER", cal.bolter_i[1].op_max_ma),
+        ("I_LOC_A_IDLE", arm_a.idle_max_ma.max(hip.idle_max_ma)),
+        ("I_LOC_B_IDLE", arm_b.idle_max_ma),
+    ]
 }
 
 /// The root mode a refusal of OPERATIONAL leaves the robot in (for documentation and
@@ -707,6 +711,15 @@ mod tests {
                 .map(|m| m.def.high)
                 .unwrap()
         };
+        // Every monitor the calibration sets exists, measures a current in mA, and gets
+        // exactly its MIB limit from the compiled constants.
+        for (name, ma) in monitor_limits(&RobotCal::COMPILED) {
+            let m = mib::fdir::MONITORS.iter().find(|m| m.name == name);
+            let m = m.unwrap_or_else(|| panic!("no monitor {name}"));
+            assert_eq!(m.high, ma as i32, "{name}");
+            let p = mib::params::by_id(m.param).unwrap();
+            assert_eq!(p.unit, "A", "{name}");
+        }
         // Before discovery: the compiled constants.
         let mut o = obsw();
         assert_eq!(*o.ctrl.calibration(), RobotCal::COMPILED);
