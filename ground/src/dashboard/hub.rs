@@ -183,7 +183,7 @@ impl Hub {
     fn publish_robot(&self, st: &mut State, robot: u8) {
         let Some(r) = st.robots.get(&robot) else { return };
         let msg = json!({"type": "robot", "robot": robot, "link": r.link, "last_heard_ms": r.last_heard_ms,
-            "mode": r.mode, "modes": r.modes, "config": r.config, "modules": r.modules, "team": r.team});
+            "mode": r.mode, "modes": r.modes, "config": r.config});
         self.publish(st, msg);
     }
 
@@ -253,8 +253,9 @@ impl Hub {
         let mut st = self.lock();
         let r = Self::robot(&mut st, robot);
         if r.modules.as_ref() != Some(&view) {
+            let msg = json!({"type": "modules", "robot": robot, "modules": &view});
             r.modules = Some(view);
-            self.publish_robot(&mut st, robot);
+            self.publish(&mut st, msg);
         }
     }
 
@@ -263,8 +264,9 @@ impl Hub {
         let mut st = self.lock();
         let r = Self::robot(&mut st, robot);
         if r.team.as_ref() != Some(&view) {
+            let msg = json!({"type": "team", "robot": robot, "team": &view});
             r.team = Some(view);
-            self.publish_robot(&mut st, robot);
+            self.publish(&mut st, msg);
         }
     }
 
@@ -569,6 +571,47 @@ mod tests {
         assert_eq!(hub.snapshot()["robots"][0]["hk"]["V_REG"]["limit"], "hard");
         hub.hk(2, 400, &[("V_REG", 0.0)]);
         assert_eq!(hub.snapshot()["robots"][0]["hk"]["V_REG"]["limit"], "hard");
+    }
+
+    // verifies: ALM-MODVIEW-01, ALM-TEAMVIEW-01
+    #[test]
+    fn module_and_team_views_are_published_when_they_change_and_in_the_snapshot() {
+        let hub = Hub::new();
+        hub.add_robot(4);
+        let id0 = hub.last_id();
+        let view = ModuleView {
+            hash: "0x8e67d216".into(),
+            config: "LOCOMOTION_ONLY".into(),
+            ..Default::default()
+        };
+        hub.modules(4, view.clone());
+        hub.modules(4, view.clone());
+        let team = TeamView {
+            term: 2,
+            role: "LEADER".into(),
+            leader: Some(4),
+            roster: vec![4, 5],
+            ..Default::default()
+        };
+        hub.team(4, team.clone());
+        hub.team(4, team);
+        assert_eq!(hub.last_id(), id0 + 2, "one message per change");
+        let s = hub.snapshot();
+        assert_eq!(s["robots"][0]["modules"]["config"], "LOCOMOTION_ONLY");
+        assert_eq!(s["robots"][0]["team"]["leader"], 4);
+        let Resume::Replay(msgs, _) = hub.subscribe(Some(id0)) else {
+            panic!("reset")
+        };
+        let kinds: Vec<String> = msgs
+            .iter()
+            .map(|(_, m)| {
+                serde_json::from_str::<Value>(m).unwrap()["type"]
+                    .as_str()
+                    .unwrap()
+                    .to_string()
+            })
+            .collect();
+        assert_eq!(kinds, vec!["modules", "team"]);
     }
 
     // verifies: GND-18, PUS-1-03

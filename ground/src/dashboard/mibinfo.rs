@@ -114,8 +114,14 @@ pub fn page_mib() -> Value {
                 .iter()
                 .find(|h| h.params.contains(&p.id))
                 .map(|h| h.name);
+            // Value names the MIB lists (module configuration, states of small sets);
+            // modes, states and events are named by the page from their own tables.
+            let names: Option<Vec<(i64, &str)>> = match p.names() {
+                mib::layout::Names::List(l) => Some(l.to_vec()),
+                _ => None,
+            };
             json!({"id": p.id, "name": p.name, "unit": p.unit, "desc": p.desc, "hk": hk,
-                "scale": p.calib.scale, "offset": p.calib.offset,
+                "scale": p.calib.scale, "offset": p.calib.offset, "names": names,
                 "limits": p.limits.map(|l| json!({"soft_lo": l.soft_lo, "soft_hi": l.soft_hi,
                     "hard_lo": l.hard_lo, "hard_hi": l.hard_hi, "applies": applies(p)}))})
         })

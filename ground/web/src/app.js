@@ -79,13 +79,21 @@ function apply(m) {
   switch (m.type) {
     case 'robot': {
       const r = robotOf(m.robot);
-      Object.assign(r, { link: m.link, last_heard_ms: m.last_heard_ms, mode: m.mode, modes: m.modes, config: m.config, modules: m.modules, team: m.team });
+      Object.assign(r, { link: m.link, last_heard_ms: m.last_heard_ms, mode: m.mode, modes: m.modes, config: m.config });
       S.dirty.robots.add(m.robot);
-      S.dirty.modules = true;
-      S.dirty.team = true;
       refreshRobotSelects();
       break;
     }
+    case 'modules':
+      robotOf(m.robot).modules = m.modules;
+      S.dirty.robots.add(m.robot);
+      S.dirty.modules = true;
+      break;
+    case 'team':
+      robotOf(m.robot).team = m.team;
+      S.dirty.robots.add(m.robot);
+      S.dirty.team = true;
+      break;
     case 'hk': {
       const r = robotOf(m.robot);
       for (const [name, value, limit] of m.v) {
@@ -425,7 +433,13 @@ function hkText(name, v) {
     case 'CONFIG_STATE': case 'TARGET_STATE': { const s = S.mib.states.find((x) => x.id === v); return s ? s.name : v === 255 ? (name === 'CONFIG_STATE' ? 'unknown' : 'none') : String(v); }
     case 'BOLT_SIDE': return v === 0 ? 'A' : v === 1 ? 'B' : String(v);
     case 'LAST_FAULT_EVENT': { const e = S.mib.events.find((x) => x.id === v); return e ? e.name : v === 0 ? 'none' : String(v); }
-    default: return fmtVal(v);
+    case 'CONFIG_HASH': return '0x' + (v >>> 0).toString(16).padStart(8, '0');
+    case 'MODULES_PRESENT': return '0x' + (v >>> 0).toString(16).padStart(4, '0');
+    default: {
+      const p = S.params.get(name);
+      const n = p && p.names && p.names.find(([x]) => x === v);
+      return n ? n[1] : fmtVal(v);
+    }
   }
 }
 
