@@ -484,7 +484,8 @@ impl Controller {
     /// home, encoder zero and direction from now on; the bolter thresholds become the
     /// tunables `BOLT_PUSH_THRESHOLD_MA` / `BOLT_LOCK_THRESHOLD_MA` (clamped to their
     /// ranges, which contain the database's), so the ground can still tune them. Arm and
-    /// gripper positions not known yet (boot) are recovered with the new set points.
+    /// gripper positions not known yet (boot) start at the home widths and are recovered
+    /// with the new set points.
     pub fn set_calibration(&mut self, cal: RobotCal) {
         self.cal = cal;
         for (id, v) in [
@@ -497,8 +498,10 @@ impl Controller {
             }
         }
         if !self.positions_known {
-            self.arm_a.reset_to(cal.of(Side::A).arm_contracted_us);
-            self.grip_a.reset_to(cal.of(Side::A).grip_closed_us);
+            // Not moved since boot: the servos rest at their home widths until the
+            // IMU-derived state tells where the arms are (`recover_positions`).
+            self.arm_a.reset_to(cal.of(Side::A).arm_home_us);
+            self.grip_a.reset_to(cal.of(Side::A).grip_home_us);
         }
     }
 
@@ -1546,6 +1549,14 @@ mod tests {
             side: None,
             pwm: [1100, 1150]
         }));
+        // Before any move, arm A and gripper A are assumed at their home widths.
+        let mut home = RobotCal::COMPILED;
+        home.side[0].arm_home_us = 1010;
+        home.side[0].grip_home_us = 1120;
+        let mut fresh = Controller::new();
+        fresh.set_calibration(home);
+        assert_eq!(fresh.param(pid::ARM_A_PWM), Some(1010));
+        assert_eq!(fresh.param(pid::GRIP_A_PWM), Some(1120));
         // The bolter thresholds became the tunables (the ground can still change them).
         cal.bolt_push_ma = 1000;
         cal.bolt_lock_ma = 9999;
