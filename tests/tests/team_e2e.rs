@@ -361,6 +361,9 @@ fn without_the_ground_the_leader_continues_exactly_the_authorised_steps_and_the_
             "robot {}",
             i + 1
         );
+        // The started-step count is durable (written before each step moved).
+        let state = std::fs::read_to_string(dir.join(format!("team-{}.state", i + 1))).unwrap();
+        assert!(state.contains(&format!("plan 7 {K} ")), "robot {}: {state}", i + 1);
     }
     drop(obsw);
     let _ = std::fs::remove_dir_all(&dir);

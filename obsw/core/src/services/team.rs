@@ -601,7 +601,7 @@ impl<S: TmStore> Obsw<S> {
         if core::mem::take(&mut self.team.ground_tc) {
             self.team_input(now, rand, Input::GroundTc, link, sink);
         }
-        self.team_steps(now, sink);
+        self.team_steps(now, link, sink);
         if core::mem::take(&mut self.team.progress_dirty) {
             if let Some(p) = self.team.progress_input() {
                 self.team_input(now, rand, p, link, sink);
@@ -688,7 +688,7 @@ impl<S: TmStore> Obsw<S> {
                     }
                 }
                 Effect::Send { to, msg } => self.team_send(now, to, &msg, link),
-                Effect::Act(a) => self.team_act(now, a, sink),
+                Effect::Act(a) => self.team_act(now, a, link, sink),
                 Effect::Event(ev) => self.team_event(now, ev, sink),
             }
         }
@@ -713,7 +713,7 @@ impl<S: TmStore> Obsw<S> {
         }
     }
 
-    fn team_act(&mut self, now: u64, a: Action, sink: &mut impl TmSink) {
+    fn team_act(&mut self, now: u64, a: Action, link: &mut impl TeamLink, sink: &mut impl TmSink) {
         if matches!(a, Action::Hold(_)) {
             // A hold cancels a step that has not started yet.
             if let Some((step, _)) = self.team.step_pending.take() {
@@ -724,13 +724,15 @@ impl<S: TmStore> Obsw<S> {
         let target = match a {
             Action::Hold(HoldTarget::Standby) => robot_mode::STANDBY,
             Action::Hold(HoldTarget::Safed) => robot_mode::SAFED,
-            Action::Continue { plan, step, function } => match self.team_continue(now, plan, step, function, sink) {
-                Ok(()) => return,
-                Err(why) => {
-                    self.step_refused(now, plan.id, step, why, sink);
-                    self.hold_target()
+            Action::Continue { plan, step, function } => {
+                match self.team_continue(now, plan, step, function, link, sink) {
+                    Ok(()) => return,
+                    Err(why) => {
+                        self.step_refused(now, plan.id, step, why, sink);
+                        self.hold_target()
+                    }
                 }
-            },
+            }
         };
         // The running motion finishes first; STANDBY or SAFED is chosen when it has ended
         // (mid-motion no gripper pair holds, so choosing now would always say SAFED).
@@ -771,6 +773,7 @@ impl<S: TmStore> Obsw<S> {
         plan: PlanRef,
         step: u16,
         function: TeamFunction,
+        link: &mut impl TeamLink,
         sink: &mut impl TmSink,
     ) -> Result<(), StepRefusal> {
         let auth = self.team.auth.ok_or(StepRefusal::NotAuthorised)?;
@@ -790,29 +793,41 @@ impl<S: TmStore> Obsw<S> {
         }
         // Started at the next poll, once the robot is idle (a hold may still be under way).
         self.team.step_pending = Some((step, false));
-        self.team_steps(now, sink);
+        self.team_steps(now, link, sink);
         Ok(())
     }
 
-    /// Starts plan step `s` (the next one, checked); counts it before it moves.
-    fn start_step(&mut self, now: u64, s: PlanStep, sink: &mut impl TmSink) -> Result<(), StepRefusal> {
+    /// Starts plan step `s` (the next one, checked). The step is counted, durably, before
+    /// it moves: a reset never lets a robot start more than the authorised count.
+    fn start_step(
+        &mut self,
+        now: u64,
+        s: PlanStep,
+        link: &mut impl TeamLink,
+        sink: &mut impl TmSink,
+    ) -> Result<(), StepRefusal> {
         if self.computed_state() != s.initial_state {
             return Err(StepRefusal::InitialState);
         }
         let Some((_, action)) = step_action(&s) else {
             return Err(StepRefusal::Forbidden);
         };
+        let mut r = self.team.record();
+        if let Some(p) = r.plan.as_mut() {
+            p.done = p.done.saturating_add(1);
+        }
+        if !link.persist(&r) {
+            let c = &mut self.team.counters;
+            c.persist_failed = c.persist_failed.wrapping_add(1);
+            return Err(StepRefusal::Refused);
+        }
+        // Counted from here on, whether the action starts or not.
+        self.team.plan = r.plan;
         let plan = self.team.plan.as_ref().map_or(0, |p| p.id);
         match self.function_request(now, crate::services::function::Request::Start(action), sink) {
             Ok(Exec::Action(r)) => {
                 self.running = Some(r.with_token(None));
                 self.team.step_running = Some((s.step, self.faults.count));
-                if let Some(p) = self.team.plan.as_mut() {
-                    p.done = p.done.saturating_add(1);
-                }
-                // The count is durable at the next poll (a reset never runs a step twice
-                // beyond the authorised count: done only grows).
-                self.team.dirty = true;
                 let leader = self.team.node.as_ref().and_then(Node::leader).unwrap_or(0);
                 self.event(
                     now,
@@ -839,7 +854,7 @@ impl<S: TmStore> Obsw<S> {
 
     /// Runs a pending step once the robot is OPERATIONAL; ends a running step (the node
     /// learns the progress; after the last authorised step the robot holds).
-    fn team_steps(&mut self, now: u64, sink: &mut impl TmSink) {
+    fn team_steps(&mut self, now: u64, link: &mut impl TeamLink, sink: &mut impl TmSink) {
         if let Some((_, faults)) = self.team.step_running {
             if self.running.is_none() {
                 self.team.step_running = None;
@@ -885,7 +900,7 @@ impl<S: TmStore> Obsw<S> {
                 } else {
                     self.team.step_pending = None;
                     let started = match (root, self.team.next_step()) {
-                        (robot_mode::OPERATIONAL, Some(s)) if s.step == step => self.start_step(now, s, sink),
+                        (robot_mode::OPERATIONAL, Some(s)) if s.step == step => self.start_step(now, s, link, sink),
                         (robot_mode::OPERATIONAL, _) => Err(StepRefusal::NotAuthorised),
                         _ => Err(StepRefusal::InitialState),
                     };
@@ -1481,6 +1496,7 @@ mod tests {
         authorise_tc(&mut o, 10, 2, 7, hash, 1, 2);
         let plan = PlanRef { id: 7, hash };
         let mut s = Vec::new();
+        let mut link = Link::default();
         let f = TeamFunction::Reconfigure;
         // Before the upload: no plan.
         o.team_act(
@@ -1490,6 +1506,7 @@ mod tests {
                 step: 1,
                 function: f,
             },
+            &mut link,
             &mut s,
         );
         step_tc(&mut o, 30, 3, 7, STEPS[0]);
@@ -1502,10 +1519,10 @@ mod tests {
                 step: 2,
                 function: f,
             },
+            &mut link,
             &mut s,
         );
         // Step 1: pending until the robot is idle.
-        let mut link = Link::default();
         o.team_act(
             50,
             Action::Continue {
@@ -1513,6 +1530,7 @@ mod tests {
                 step: 1,
                 function: f,
             },
+            &mut link,
             &mut s,
         );
         o.team_poll(60, 1, &mut link, &mut s);
