@@ -589,6 +589,24 @@ pub(super) fn extra_params(x: &mut Xml) {
         let n = verification_param(f);
         parameter(x, &n, &format!("{n}_Type"), &format!("{} (every TM[1,x])", f.desc), &[]);
     }
+    for (_, stage, sub, _) in STAGES {
+        for f in REQUEST_ID.fields {
+            parameter(
+                x,
+                &stage_param(stage, f.name),
+                &format!("{}_Type", verification_param(f)),
+                &format!("{} (TM[1,{sub}] and TM[1,{}] only)", f.desc, sub + 1),
+                &[],
+            );
+        }
+        parameter(
+            x,
+            &stage_param(stage, "subtype"),
+            &format!("{VERIFICATION_SUBTYPE}_Type"),
+            &format!("subtype of the last TM[1,{sub}] or TM[1,{}]", sub + 1),
+            &[],
+        );
+    }
     parameter(
         x,
         VERIFICATION_SUBTYPE,
@@ -650,6 +668,63 @@ pub(super) fn extra_containers(x: &mut Xml) {
     x.close("</xtce:RestrictionCriteria>");
     x.close("</xtce:BaseContainer>");
     x.close("</xtce:SequenceContainer>");
+    // Per verification stage: the request ID and subtype of that stage's reports only, so
+    // that a verifier judges its own stage's last report whenever it runs (a TM[1,1]
+    // that arrives before the sequence count reaches the command history is still judged
+    // when the count comes, even if the TM[1,3] and TM[1,7] came in between).
+    for (_, stage, sub, _) in STAGES {
+        for s in [sub, sub + 1] {
+            x.open(&format!(
+                "<xtce:SequenceContainer name=\"{VERIFICATION}_REPORT_{s}\" shortDescription=\"TM[1,{s}]: request ID and subtype for the {stage} verifier\">"
+            ));
+            x.open("<xtce:EntryList>");
+            for f in REQUEST_ID.fields {
+                x.line(&format!(
+                    "<xtce:ParameterRefEntry parameterRef=\"{}\"/>",
+                    stage_param(stage, f.name)
+                ));
+            }
+            x.open(&format!(
+                "<xtce:ParameterRefEntry parameterRef=\"{}\">",
+                stage_param(stage, "subtype")
+            ));
+            x.open("<xtce:LocationInContainerInBits referenceLocation=\"containerStart\">");
+            x.line(&format!(
+                "<xtce:FixedValue>{}</xtce:FixedValue>",
+                subservice_bit_offset()
+            ));
+            x.close("</xtce:LocationInContainerInBits>");
+            x.close("</xtce:ParameterRefEntry>");
+            x.close("</xtce:EntryList>");
+            x.open("<xtce:BaseContainer containerRef=\"PUS_TM\">");
+            x.open("<xtce:RestrictionCriteria>");
+            x.open("<xtce:ComparisonList>");
+            x.line(&format!(
+                "<xtce:Comparison parameterRef=\"TM_SERVICE\" value=\"{}\" useCalibratedValue=\"false\"/>",
+                crate::tc::service::VERIFICATION
+            ));
+            x.line(&format!(
+                "<xtce:Comparison parameterRef=\"TM_SUBSERVICE\" value=\"{s}\" useCalibratedValue=\"false\"/>"
+            ));
+            x.close("</xtce:ComparisonList>");
+            x.close("</xtce:RestrictionCriteria>");
+            x.close("</xtce:BaseContainer>");
+            x.close("</xtce:SequenceContainer>");
+        }
+    }
+}
+
+/// The verification stages: XTCE verifier kind, Yamcs stage name, success subtype (the
+/// failure subtype is the next), check window (s after release).
+const STAGES: [(&str, &str, u8, u32); 3] = [
+    ("Accepted", "Acceptance", 1, ACCEPTANCE_WINDOW_S),
+    ("Execution", "Start", 3, START_WINDOW_S),
+    ("Complete", "Completion", 7, COMPLETION_WINDOW_S),
+];
+
+/// A parameter of stage `stage`'s own request-ID container (`VERIFICATION_ACCEPTANCE_apid`).
+pub fn stage_param(stage: &str, field: &str) -> String {
+    format!("{VERIFICATION}_{}_{field}", stage.to_ascii_uppercase())
 }
 
 /// Value of a TC header field that is no operator argument in the Yamcs flavour (written
@@ -672,11 +747,7 @@ fn failure_report(sub: u8) -> &'static str {
 /// Command verifiers of the abstract `PUS_TC` (inherited by every command).
 pub(super) fn verifiers(x: &mut Xml) {
     x.open("<xtce:VerifierSet>");
-    for (kind, stage, sub, window) in [
-        ("Accepted", "Acceptance", 1u8, ACCEPTANCE_WINDOW_S),
-        ("Execution", "Start", 3, START_WINDOW_S),
-        ("Complete", "Completion", 7, COMPLETION_WINDOW_S),
-    ] {
+    for (kind, stage, sub, window) in STAGES {
         let code = format!("{}_failure_code", failure_report(sub));
         x.open(&format!("<xtce:{kind}Verifier name=\"{stage}\">"));
         x.open(&format!(
@@ -688,23 +759,17 @@ pub(super) fn verifiers(x: &mut Xml) {
             "<xtce:AlgorithmText language=\"Java\">org.yamcs.pus.Pus1Verifier({{stage: {sub}, template: \"{{code}}\"}})</xtce:AlgorithmText>"
         ));
         x.open("<xtce:InputSet>");
-        let apid = REQUEST_ID
-            .fields
-            .iter()
-            .find(|f| f.name == "apid")
-            .map(verification_param);
-        let seq = REQUEST_ID
-            .fields
-            .iter()
-            .find(|f| f.name == "seq_count")
-            .map(verification_param);
-        let (apid, seq) = (apid.unwrap_or_default(), seq.unwrap_or_default());
+        let (apid, seq, subtype) = (
+            stage_param(stage, "apid"),
+            stage_param(stage, "seq_count"),
+            stage_param(stage, "subtype"),
+        );
         for (p, n) in [
             ("/yamcs/cmd/arg/PKT_APID", "sentApid"),
             ("/yamcs/cmdHist/ccsds-seqcount", "sentSeq"),
             (apid.as_str(), "rcvdApid"),
             (seq.as_str(), "rcvdSeq"),
-            (VERIFICATION_SUBTYPE, "subtype"),
+            (subtype.as_str(), "subtype"),
             (code.as_str(), "code"),
         ] {
             x.line(&format!(
@@ -713,9 +778,9 @@ pub(super) fn verifiers(x: &mut Xml) {
         }
         x.close("</xtce:InputSet>");
         // No trigger set: a verifier runs when one of its inputs changes, i.e. on a
-        // TM[1,x] (request ID, subtype and code all from that report) or when the sent
-        // sequence count reaches the command history (a TM[1,x] that came first is then
-        // judged).
+        // report of its stage (request ID, subtype and code all from that report) or when
+        // the sent sequence count reaches the command history (the stage's last report,
+        // if it came first, is then judged).
         x.close("</xtce:CustomAlgorithm>");
         x.line(&format!(
             "<xtce:CheckWindow timeToStopChecking=\"PT{window}S\" timeWindowIsRelativeTo=\"commandRelease\"/>"
@@ -1067,6 +1132,41 @@ mod tests {
                 ty.contains(&format!("value=\"{}\" label=\"{}\"", c.code(), c.name())),
                 "{c:?}"
             );
+        }
+    }
+
+    // verifies: YAMCS-CMD-01
+    #[test]
+    fn each_verifier_reads_the_request_id_of_its_own_stage_reports_only() {
+        let x = yamcs_xtce(1);
+        for (_, stage, sub, _) in STAGES {
+            for s in [sub, sub + 1] {
+                let start = x
+                    .find(&format!("name=\"{VERIFICATION}_REPORT_{s}\""))
+                    .unwrap_or_else(|| panic!("no container for TM[1,{s}]"));
+                let c = &x[start..start + x[start..].find("</xtce:SequenceContainer>").unwrap()];
+                assert!(
+                    c.contains(&format!("parameterRef=\"TM_SUBSERVICE\" value=\"{s}\"")),
+                    "{c}"
+                );
+                for f in ["apid", "seq_count", "subtype"] {
+                    assert!(
+                        c.contains(&format!("parameterRef=\"{}\"", stage_param(stage, f))),
+                        "{c}"
+                    );
+                }
+            }
+            let start = x.find(&format!("Verifier name=\"{stage}\"")).unwrap();
+            let v = &x[start..start + x[start..].find("</xtce:CustomAlgorithm>").unwrap()];
+            for (f, input) in [("apid", "rcvdApid"), ("seq_count", "rcvdSeq"), ("subtype", "subtype")] {
+                assert!(
+                    v.contains(&format!(
+                        "parameterRef=\"{}\" inputName=\"{input}\"",
+                        stage_param(stage, f)
+                    )),
+                    "{v}"
+                );
+            }
         }
     }
 }
