@@ -182,15 +182,13 @@ impl ConfigTracker {
             } else {
                 name(CONFIG_ID_NAMES, hk.config_id)
             };
+            // Which modules are present, not which ones: descriptors come with the report.
             for s in self.view.slots.iter_mut() {
-                let present = hk.present & (1 << s.slot) != 0;
-                if present != s.present {
-                    *s = SlotView {
-                        present,
-                        state: if present { "ok" } else { "absent" }.into(),
-                        ..slot_base(s.slot)
-                    };
-                }
+                *s = SlotView {
+                    present: hk.present & (1 << s.slot) != 0,
+                    state: "?".into(),
+                    ..slot_base(s.slot)
+                };
             }
         }
         change.map(|(from, to)| self.change(from, to))
@@ -383,6 +381,9 @@ mod tests {
         assert!(!t.report_current(), "the new report is to be asked for");
         assert_eq!(t.view().config, "LOCOMOTION_ONLY");
         assert!(!t.view().slots[slot::BOLTER_A as usize].present);
+        // Until the new report: presence from the HK, no descriptor of the old set.
+        let arm = &t.view().slots[slot::ARM_A as usize];
+        assert_eq!((arm.present, arm.serial, arm.state.as_str()), (true, None, "?"));
         // The report with that hash is no second change, and names the slots.
         let ReportOutcome::Report(None) = t.on_report(&report(loc, 2, 0), 40).unwrap() else {
             panic!("a second change for the same hash")

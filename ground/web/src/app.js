@@ -345,7 +345,7 @@ function cfgLine(r) {
   const out = [];
   const m = r.modules;
   if (m) {
-    const absent = m.slots.filter((s) => s.present === false && s.state !== '?').length;
+    const absent = m.slots.filter((s) => !s.present).length;
     out.push(el('span', { class: 'modules', 'data-config': m.config, 'data-status': m.status, 'data-hash': m.hash },
       el('span', { class: 'k' }, 'modules '), el('b', {}, m.config), ' ',
       el('span', { class: 'pill ' + (STATUS_CLASS[m.status] || '') }, m.status), ' ',
@@ -370,7 +370,7 @@ function renderModules() {
     const rows = m.slots.map((s) => el('tr', { class: 'slot-' + s.state, 'data-slot': s.name, 'data-state': s.state },
       el('td', {}, String(s.slot)), el('td', {}, s.name), el('td', {}, s.kind),
       el('td', { class: 'num' }, s.variant ?? ''), el('td', { class: 'num' }, s.revision ?? ''), el('td', { class: 'num' }, s.serial ?? ''),
-      el('td', {}, s.state === '?' ? '?' : s.present ? 'present' : 'absent'),
+      el('td', {}, s.present ? 'present' : 'absent'),
       el('td', { class: 'state' }, s.state)));
     return el('div', { class: 'card', 'data-modules': n, 'data-hash': m.hash, 'data-config': m.config, 'data-status': m.status },
       el('h2', {}, `Robot ${n}: ${m.config} `, el('span', { class: 'pill ' + (STATUS_CLASS[m.status] || '') }, m.status)),
