@@ -883,7 +883,13 @@ impl<S: TmStore> Obsw<S> {
         if let Some((step, up)) = self.team.step_pending {
             let plan = self.team.plan.as_ref().map_or(0, |p| p.id);
             let expired = self.team.auth.is_none_or(|a| now >= a.expires_at);
-            if up && self.modes.root_target() != robot_mode::OPERATIONAL {
+            let ground = self.team.ground_tc || self.team.node.as_ref().is_none_or(Node::ground_seen);
+            if ground {
+                // The ground is back (or never left): its first valid TC ends obedience,
+                // a step that has not started yet never starts.
+                self.team.step_pending = None;
+                self.step_refused(now, plan, step, StepRefusal::Refused, sink);
+            } else if up && self.modes.root_target() != robot_mode::OPERATIONAL {
                 // The FDIR took over on the way up.
                 self.team.step_pending = None;
                 self.step_refused(now, plan, step, StepRefusal::Refused, sink);
@@ -1522,22 +1528,26 @@ mod tests {
             &mut link,
             &mut s,
         );
-        // Step 1: pending until the robot is idle.
-        o.team_act(
-            50,
-            Action::Continue {
-                plan,
-                step: 1,
-                function: f,
-            },
-            &mut link,
-            &mut s,
-        );
-        o.team_poll(60, 1, &mut link, &mut s);
-        // The boot transition ends (a fresh obsw, default sensors), then the step is
-        // tried and refused: the controller computes no state (not state 0).
+        // Step 1 while the ground is seen (its TCs just came): never started.
+        let step1 = Action::Continue {
+            plan,
+            step: 1,
+            function: f,
+        };
+        o.team_act(50, step1, &mut link, &mut s);
+        assert!(o.team.step_pending.is_none());
+        // The ground falls silent: the robot holds (boot transition, default sensors: no
+        // computed state, so SAFED); step 1 then waits until the robot is idle and is
+        // refused: SAFED, not in the step's initial state.
         let mut t = 60;
-        while t < 3_000 && o.team.step_pending.is_some() {
+        while t < 6_000 {
+            o.tick(t, &mmic_domain::SensorsA::default(), &[], &mut s);
+            o.team_poll(t, 1, &mut link, &mut s);
+            t += 10;
+        }
+        assert!(!o.team.node().unwrap().ground_seen());
+        o.team_act(t, step1, &mut link, &mut s);
+        while t < 9_000 && o.team.step_pending.is_some() {
             o.tick(t, &mmic_domain::SensorsA::default(), &[], &mut s);
             o.team_poll(t, 1, &mut link, &mut s);
             t += 10;
@@ -1548,6 +1558,7 @@ mod tests {
             [
                 StepRefusal::NoPlan.code(),
                 StepRefusal::NotAuthorised.code(),
+                StepRefusal::Refused.code(),
                 StepRefusal::InitialState.code()
             ]
         );
