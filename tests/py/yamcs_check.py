@@ -8,7 +8,8 @@ compares them with the MIB.
 commands.json: {"hk_params": [names of the HK parameters], "commands": [{"name": "PING",
 "args": {...}, "at": seconds after the start, optional "tag", "schedule_in_s": time-tag the
 command with Yamcs' pus11ScheduleAt that many seconds after issue (the result gives
-schedule_at_unix_ms; "schedule_as": "datetime" passes a datetime instead of the string), "windows": {"Acceptance": stop s, ...} check windows, "bypass": true for a BD frame}, or {"cop1_init": "SET_VR", "v_r": 0, "link":
+schedule_at_unix_ms; "schedule_as": "datetime" passes a datetime instead of the string), "windows": {"Acceptance": stop s, ...} check windows, "bypass": true for a BD frame, "no_settle": true
+not to wait for its final status (one Yamcs never completes)}, or {"cop1_init": "SET_VR", "v_r": 0, "link":
 "tc_robot_1.vc0", "at": ...} (an operator's COP-1 initialisation)], "cop1_link": a link whose
 COP-1 status is recorded at the start and the end, "settle_s": how long to wait at most after
 the watch for every command's final status (default 15)}.
@@ -160,7 +161,7 @@ def main():
     # its final status, so that a loaded machine does not cut a verification short.
     settle_until = time.monotonic() + plan.get("settle_s", 15)
     while time.monotonic() < settle_until:
-        pending = [cmd for _, cmd, _ in issued if cmd is not None and
+        pending = [cmd for c, cmd, _ in issued if cmd is not None and not c.get("no_settle") and
                    (hist.get_command_history(cmd) is None or
                     "CommandComplete_Status" not in hist.get_command_history(cmd).attributes)]
         if not pending:

@@ -347,12 +347,12 @@ fn yamcs_operates_the_robot_over_frames_with_sdls_and_cop1() {
             // with the time given as a Python datetime.
             {"name": "PING", "tag": "scheduled", "at": SCHED_AT_S, "schedule_in_s": SCHED_IN_S, "bypass": true,
              "windows": {"Acceptance": SCHED_IN_S + 5.0, "Start": SCHED_IN_S + 10.0, "Completion": SCHED_IN_S + 20.0}},
-            {"name": "PING", "tag": "scheduled-default-windows", "at": SCHED_AT_S + 0.5, "schedule_in_s": SCHED_LATE_IN_S, "bypass": true},
-            {"name": "PING", "tag": "scheduled-past", "at": SCHED_AT_S + 1.0, "schedule_in_s": -5.0, "bypass": true},
-            {"name": "PING", "tag": "scheduled-datetime", "at": SCHED_AT_S + 1.5, "schedule_in_s": SCHED_IN_S, "bypass": true,
+            {"name": "PING", "tag": "scheduled-default-windows", "no_settle": true, "at": SCHED_AT_S + 0.5, "schedule_in_s": SCHED_LATE_IN_S, "bypass": true},
+            {"name": "PING", "tag": "scheduled-past", "no_settle": true, "at": SCHED_AT_S + 1.0, "schedule_in_s": -5.0, "bypass": true},
+            {"name": "PING", "tag": "scheduled-datetime", "no_settle": true, "at": SCHED_AT_S + 1.5, "schedule_in_s": SCHED_IN_S, "bypass": true,
              "schedule_as": "datetime"},
             // Last (it is lost, with whatever shares its frame): the same through COP-1.
-            {"name": "PING", "tag": "scheduled-ad", "at": SCHED_AT_S + 3.0, "schedule_in_s": SCHED_IN_S},
+            {"name": "PING", "tag": "scheduled-ad", "no_settle": true, "at": SCHED_AT_S + 3.0, "schedule_in_s": SCHED_IN_S},
         ],
     });
     // A battery sag half-way through (simulator control, not a TC).
