@@ -1,7 +1,11 @@
 #!/usr/bin/env bash
 # Flash and static-RAM use of ESP32-C3 images, from `riscv64-unknown-elf-size -A`.
 #
-#   size-report.sh [--flash-budget BYTES] [--ram-budget BYTES] ELF...
+#   size-report.sh [--flash-budget BYTES] [--ram-budget BYTES] [--margin PCT] ELF...
+#
+# Besides the budget (exceeding it fails), each image's use is shown in % of the budget
+# against the flight margin (default 30 %, GSFC-STD-1000): "margin ok" at or below
+# 100 - PCT %, "BELOW MARGIN" above it (reported, not failed: REV-ANOM-12).
 #
 # Flash (bytes stored in the image): .text, .rodata*, .trap, .rwtext*, .data* (initial
 #   values), .flash.appdesc, .rtc_fast.text, .rtc_fast.data.
@@ -17,13 +21,15 @@ set -euo pipefail
 
 FLASH_BUDGET=$((256 * 1024))
 RAM_BUDGET=$((128 * 1024))
+MARGIN=30
 SIZE=${SIZE:-riscv64-unknown-elf-size}
 elfs=()
 while [ $# -gt 0 ]; do
   case "$1" in
     --flash-budget) FLASH_BUDGET=$2; shift 2 ;;
     --ram-budget) RAM_BUDGET=$2; shift 2 ;;
-    -h|--help) sed -n '2,16p' "$0"; exit 0 ;;
+    --margin) MARGIN=$2; shift 2 ;;
+    -h|--help) sed -n '2,21p' "$0"; exit 0 ;;
     *) elfs+=("$1"); shift ;;
   esac
 done
@@ -32,6 +38,7 @@ command -v "$SIZE" >/dev/null || { echo "error: $SIZE not found (Debian: binutil
 
 status=0
 printf '%-10s %10s %10s %10s %10s %10s %10s  %s\n' image text rodata "data(init)" bss "flash" "static RAM" verdict
+margins=()
 for elf in "${elfs[@]}"; do
   [ -f "$elf" ] || { echo "error: no such file: $elf" >&2; exit 2; }
   name=$(basename "$elf")
@@ -53,7 +60,12 @@ for elf in "${elfs[@]}"; do
   if [ "$ram" -gt "$RAM_BUDGET" ]; then verdict="${verdict/ok/}RAM OVER BUDGET"; status=1; fi
   printf '%-10s %10d %10d %10d %10d %10d %10d  %s\n' "$name" "$text" "$rodata" "$data" "$bss" "$flash" "$ram" "$verdict"
   if [ "$unknown" != "-" ]; then echo "  note: unclassified sections counted as flash and RAM: $unknown"; fi
+  fpct=$(awk -v a="$flash" -v b="$FLASH_BUDGET" 'BEGIN { printf "%.1f", 100 * a / b }')
+  rpct=$(awk -v a="$ram" -v b="$RAM_BUDGET" 'BEGIN { printf "%.1f", 100 * a / b }')
+  m=$(awk -v f="$fpct" -v r="$rpct" -v m="$MARGIN" 'BEGIN { print (f <= 100 - m && r <= 100 - m) ? "margin ok" : "BELOW MARGIN" }')
+  margins+=("$(printf '%-10s flash %5s %%, static RAM %5s %% of budget: %s (flight margin %s %%)' "$name" "$fpct" "$rpct" "$m" "$MARGIN")")
 done
+for line in "${margins[@]}"; do echo "$line"; done
 printf 'budget: flash %d bytes (%d KiB), static RAM %d bytes (%d KiB)\n' \
   "$FLASH_BUDGET" $((FLASH_BUDGET / 1024)) "$RAM_BUDGET" $((RAM_BUDGET / 1024))
 exit $status
