@@ -81,6 +81,7 @@ function apply(m) {
       const r = robotOf(m.robot);
       Object.assign(r, { link: m.link, last_heard_ms: m.last_heard_ms, mode: m.mode, modes: m.modes, config: m.config });
       S.dirty.robots.add(m.robot);
+      S.dirty.team = true;
       refreshRobotSelects();
       break;
     }
@@ -389,9 +390,10 @@ function renderTeam() {
   S.dirty.team = false;
   const ns = [...S.robots.keys()].sort((a, b) => a - b);
   const withTeam = ns.filter((n) => S.robots.get(n).team);
-  // The leader the robots of the newest term name.
+  // The leader the robots of the newest term name (robots whose link is not up are left
+  // out: their last report is old).
   let term = -1, leaders = new Set();
-  for (const n of withTeam) {
+  for (const n of withTeam.filter((n) => S.robots.get(n).link === 'up')) {
     const t = S.robots.get(n).team;
     if (t.term > term) { term = t.term; leaders = new Set(); }
     if (t.term === term && t.leader) leaders.add(t.leader);
@@ -403,9 +405,10 @@ function renderTeam() {
   $('#team-summary').textContent = summary;
   $('#team-summary').dataset.leader = leaders.size === 1 ? String([...leaders][0]) : '';
   $('#team tbody').replaceChildren(...withTeam.map((n) => {
-    const t = S.robots.get(n).team;
-    return el('tr', { 'data-robot': n, 'data-role': t.role, class: t.role === 'LEADER' ? 'leader' : '' },
-      el('td', {}, String(n)), el('td', { class: 'num' }, String(t.term)),
+    const r = S.robots.get(n), t = r.team, stale = r.link !== 'up';
+    return el('tr', { 'data-robot': n, 'data-role': t.role, class: (t.role === 'LEADER' ? 'leader' : '') + (stale ? ' stale' : '') },
+      el('td', {}, String(n), stale ? el('span', { class: 'bad', title: 'the last report before the link was lost' }, ` (link ${r.link})`) : null),
+      el('td', { class: 'num' }, String(t.term)),
       el('td', {}, el('span', { class: 'pill ' + (ROLE_CLASS[t.role] || '') }, t.role)),
       el('td', { class: 'leader' }, t.leader ? 'robot ' + t.leader : 'none'),
       el('td', {}, t.roster.length ? t.roster.join(', ') : 'no roster'),

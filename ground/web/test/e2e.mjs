@@ -440,6 +440,17 @@ try {
       .split('\n').filter((l) => l.trim()).map((l) => JSON.parse(l));
     assert(rows.some((r) => r.source === 'CONFIG_CHANGED' && r.robot === 5), 'ground alarms list: ' + JSON.stringify(rows.map((r) => r.source)));
   });
+  await step('team: a robot whose link is lost keeps its last row, marked and left out', async () => {
+    await tab3('team');
+    const lead = await p3.$eval('#team-summary', (e) => e.textContent);
+    const gone = teamRobots[1];
+    gone.proc.kill('SIGKILL');
+    await p3.waitForSelector('#team tr.stale[data-robot="4"]', { state: 'attached' });
+    const row = await p3.$eval('#team tr[data-robot="4"] td', (e) => e.textContent);
+    assert(/link lost/.test(row), 'row of robot 4: ' + row);
+    const now = await p3.$eval('#team-summary', (e) => e.textContent);
+    assert(!/disagree/.test(now), `summary ${lead} -> ${now}`);
+  });
   await p3.close();
   c3.proc.kill('SIGTERM');
   for (const r of relays) r.close();
