@@ -870,8 +870,11 @@ impl<S: TmStore> Obsw<S> {
         }
         if self.team.hold_after_run && self.running.is_none() {
             self.team.hold_after_run = false;
-            // Unless the FDIR (or a command) already chose the mode.
-            if self.transition.is_none()
+            // Unless the ground is back (it commands again) or the FDIR or a command
+            // already chose the mode.
+            let ground = self.team.ground_tc || self.team.node.as_ref().is_none_or(Node::ground_seen);
+            if !ground
+                && self.transition.is_none()
                 && self.modes.root() == robot_mode::OPERATIONAL
                 && self.modes.root_target() == robot_mode::OPERATIONAL
                 && self.faults.pending_mode.is_none()
