@@ -33,6 +33,7 @@ pub const TESTS: &[Test] = tests![
     discovery_imu_not_answering_is_config_invalid_naming_its_slot,
     discovery_corrupted_descriptor_of_board_b_is_config_invalid,
     discovery_arm_switch_probe_tells_pushed_released_absent,
+    mib_free_text_is_left_out_of_the_firmware_build,
 ];
 
 /// What the boards find at boot.
@@ -322,5 +323,19 @@ fn discovery_arm_switch_probe_tells_pushed_released_absent() -> TestResult {
     check!(!fw_core::modules::encoder_acks(&mut nobody, i2c_addr::AS5600));
     let mut imu = imu_bus(true);
     check_eq!(fw_core::modules::who_am_i(&mut imu, i2c_addr::MPU6000), Some(0x68));
+    Ok(())
+}
+
+// verifies: FW-MOD-05
+fn mib_free_text_is_left_out_of_the_firmware_build() -> TestResult {
+    // The firmware builds the MIB without feature `descriptions`: table entries carry a
+    // zero-sized `Text` and the failure-code text is empty; names and numbers stay.
+    check_eq!(core::mem::size_of::<mib::types::Text>(), 0);
+    check_eq!(mib::FailureCode::CRC_MISMATCH.description(), "");
+    check_eq!(mib::types::text_str("any description"), "");
+    let p = ok!(mib::params::by_id(mib::params::pid::V_BAT_A));
+    check_eq!(p.name, "V_BAT_A");
+    check_eq!(p.unit, "V");
+    check!(p.limits.is_some());
     Ok(())
 }
