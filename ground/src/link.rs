@@ -7,7 +7,7 @@
 //! retransmits its frame until a CLCW acknowledges it); the ground's own packet resends are
 //! not used ([`Link::resends_packets`]). [`Link::frame_stats`] counts what COP-1 did.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 use std::io::{self, Read, Write};
 use std::net::{SocketAddr, TcpStream, UdpSocket};
 use std::path::PathBuf;
@@ -117,8 +117,14 @@ enum Io {
         failed: Arc<Mutex<Option<String>>>,
         /// Packets given to `send`.
         submitted: std::sync::atomic::AtomicU64,
+        /// Request IDs (APID, sequence count) of the packets whose frames a CLCW
+        /// acknowledged, newest last, at most [`DELIVERED_REMEMBERED`].
+        delivered: Arc<Mutex<VecDeque<(u16, u16)>>>,
     },
 }
+
+/// Acknowledged request IDs a frame link remembers (far more than TCs in flight).
+const DELIVERED_REMEMBERED: usize = 4096;
 
 /// An open link to one robot's OBSW.
 pub struct Link {
@@ -276,6 +282,16 @@ impl Link {
         }
     }
 
+    /// True if a CLCW acknowledged the frame of the packet with this request ID: COP-1
+    /// delivered it to the robot's FARM-1, so it reached the on-board software (frame
+    /// links only; a bare-packet link never knows).
+    pub fn delivered(&self, apid: u16, seq: u16) -> bool {
+        match &*self.io {
+            Io::Frames { delivered, .. } => delivered.lock().is_ok_and(|d| d.contains(&(apid, seq))),
+            Io::Udp(_) | Io::Tcp(_) => false,
+        }
+    }
+
     /// Why the frame link stopped, if it did.
     pub fn failure(&self) -> Option<String> {
         match &*self.io {
@@ -415,12 +431,18 @@ fn open_frames(
     let (to_link, from_ground) = crossbeam_channel::unbounded::<Vec<u8>>();
     let stats = Arc::new(Mutex::new(FrameStats::default()));
     let failed = Arc::new(Mutex::new(None));
+    let delivered = Arc::new(Mutex::new(VecDeque::new()));
     let reader = {
         let (stop, closed, stats, failed) = (stop.clone(), closed.clone(), stats.clone(), failed.clone());
+        let delivered = delivered.clone();
         std::thread::Builder::new()
             .name(format!("frames-{robot}"))
             .spawn(move || {
-                if let Err(e) = frame_loop(robot, &mut fl, &from_ground, &stop, &tx, &stats) {
+                let shared = FrameShared {
+                    stats: &stats,
+                    delivered: &delivered,
+                };
+                if let Err(e) = frame_loop(robot, &mut fl, &from_ground, &stop, &tx, shared) {
                     if let Ok(mut f) = failed.lock() {
                         *f = Some(e.to_string());
                     }
@@ -436,6 +458,7 @@ fn open_frames(
             stats,
             failed,
             submitted: Default::default(),
+            delivered,
         }),
         stop,
         closed,
@@ -447,18 +470,40 @@ fn open_frames(
 /// queued packet when no TM arrives).
 const FRAME_ROUND: Duration = Duration::from_millis(5);
 
+/// What the frame thread shares with its [`Link`].
+struct FrameShared<'a> {
+    stats: &'a Mutex<FrameStats>,
+    delivered: &'a Mutex<VecDeque<(u16, u16)>>,
+}
+
+/// A space packet's request ID: APID and sequence count from its primary header.
+fn request_id(packet: &[u8]) -> Option<(u16, u16)> {
+    match packet {
+        [a, b, c, d, ..] => Some((
+            u16::from_be_bytes([a & 0x07, *b]),
+            u16::from_be_bytes([c & 0x3F, *d]),
+        )),
+        _ => None,
+    }
+}
+
 fn frame_loop(
     robot: u8,
     fl: &mut ground_link::FrameLink,
     from_ground: &crossbeam_channel::Receiver<Vec<u8>>,
     stop: &AtomicBool,
     tx: &Sender<Incoming>,
-    stats: &Mutex<FrameStats>,
+    shared: FrameShared,
 ) -> Result<(), ground_link::LinkError> {
     let mut st = FrameStats::default();
+    // Packets handed to FOP-1 and not yet acknowledged (or given up as unknown).
+    let mut in_flight: std::collections::HashMap<ground_link::PacketId, (u16, u16)> = Default::default();
     while !stop.load(Ordering::Relaxed) {
         while let Ok(p) = from_ground.try_recv() {
-            fl.send_packet(&p)?;
+            let id = fl.send_packet(&p)?;
+            if let Some(rid) = request_id(&p) {
+                in_flight.insert(id, rid);
+            }
             st.packets += 1;
         }
         let packets = fl.recv(FRAME_ROUND)?;
@@ -467,6 +512,25 @@ fn frame_loop(
             let _ = tx.send(Incoming { robot, t_ms, bytes: p });
         }
         let events = fl.take_events();
+        for e in &events {
+            match e {
+                ground_link::Event::Acknowledged { id } => {
+                    if let (Some(rid), Ok(mut d)) = (in_flight.remove(id), shared.delivered.lock()) {
+                        if d.len() >= DELIVERED_REMEMBERED {
+                            d.pop_front();
+                        }
+                        d.push_back(rid);
+                    }
+                }
+                ground_link::Event::Unknown { id } => {
+                    in_flight.remove(id);
+                }
+                ground_link::Event::Transmitted { .. }
+                | ground_link::Event::Initialised { .. }
+                | ground_link::Event::Alert(_) => {}
+                _ => {}
+            }
+        }
         st.initialisations += events
             .iter()
             .filter(|e| matches!(e, ground_link::Event::Initialised { .. }))
@@ -493,7 +557,7 @@ fn frame_loop(
             + c.odd_datagrams;
         st.pending = fl.pending() as u64;
         st.nr = fl.clcw().map(|c| c.report_value);
-        if let Ok(mut s) = stats.lock() {
+        if let Ok(mut s) = shared.stats.lock() {
             *s = st;
         }
     }

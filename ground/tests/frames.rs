@@ -504,10 +504,10 @@ fn walk_over_frames(name: &str, faults: Option<(&str, u64)>) -> (String, f64, Ve
 
 // verifies: LINK-GND-02
 #[test]
-// Known gap (docs/anomalies.toml REV-ANOM-13): over frames a TM[1,x] lost on the downlink is
-// not asked for again soon (no packet resend, store retrieval only at the end): of 3 runs
-// one failed a step, the others took 21.6x and 3.0x the clean time. Run with --ignored.
-#[ignore = "REV-ANOM-13: slow or failing through the lossy relay; run with --ignored"]
+// Over frames a TM[1,x] lost on the downlink is a TM gap: the ground asks the store at once
+// for the gaps after the awaited TC went out, and a TC a CLCW acknowledged is never failed
+// for want of reports. The time against the clean link is printed (REV-ANOM-13 gives the
+// measured spread; the aim is 2x).
 fn a_plan_over_frames_through_the_lossy_relay_executes_every_tc_exactly_once() {
     let (clean, clean_s, _) = walk_over_frames("relay-clean", None);
     assert!(clean.contains("4 of 4 steps done"), "{clean}");

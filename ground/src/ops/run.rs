@@ -151,7 +151,7 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
                 }
                 Effect::Retrieve(r) => {
                     if !session.retrieving(r) {
-                        session.request_gaps(r, None, 1);
+                        session.request_missing_reports(r, 1);
                     }
                 }
                 Effect::Log(line) => disp.log(line),
@@ -181,15 +181,27 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
             let fx = exec.on_update(Instant::now(), u);
             apply(fx, &mut exec, session);
         }
-        // TM gaps are filled from the on-board store while the plan runs.
-        if last_gap_check.elapsed() >= GAP_CHECK_PERIOD {
+        // TM gaps are filled from the on-board store while the plan runs, those after the
+        // oldest TC awaiting its outcome first (its reports are there).
+        // Over frames a gap where an awaited TC's reports are is asked for at once.
+        if session.over_frames() {
+            for &r in &robots {
+                if !session.retrieving(r) && !session.awaited_gaps(r).is_empty() {
+                    session.request_missing_reports(r, 2);
+                }
+            }
+        }
+        let period = if session.over_frames() { GAP_CHECK_PERIOD_FRAMES } else { GAP_CHECK_PERIOD };
+        if last_gap_check.elapsed() >= period {
             last_gap_check = Instant::now();
             for &r in &robots {
                 let lost = session.robots.get(&r).is_some_and(|s| s.lost.is_some());
                 if !lost && !session.retrieving(r) {
-                    // One range per period while plan TCs may still be resent (the
-                    // duplicate window holds a bounded number of TCs); the rest at the end.
-                    session.request_gaps(r, None, 1);
+                    // One range per period: over bare packets plan TCs may still be resent
+                    // (the duplicate window holds a bounded number of TCs), over frames
+                    // retrievals queued in FOP-1 would hold the plan's next TC back. The
+                    // rest at the end.
+                    session.request_missing_reports(r, 1);
                 }
             }
         }
@@ -219,30 +231,55 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
 /// reports give the first sequence count of the run; every TM from there on is expected.
 /// Returns what happened meanwhile (a link found lost, reports of adopted TCs).
 fn start_markers(session: &mut Session, robots: &[u8], wait: bool, stop: &dyn Fn() -> bool) -> Vec<Update> {
-    let mut seen = Vec::new();
     let Some(ping) = mib::tc::by_name("PING") else {
-        return seen;
+        return Vec::new();
     };
+    // A first TM from each robot (at most FIRST_TM_WAIT) gives the count a marker whose
+    // reports are all lost is placed after.
+    let mut seen: Vec<Update> = Vec::new();
+    let t0 = Instant::now();
+    while wait
+        && session.over_frames()
+        && t0.elapsed() < FIRST_TM_WAIT
+        && !stop()
+        && robots.iter().any(|r| session.robots.get(r).is_some_and(|s| s.seq.newest().is_none()))
+    {
+        seen.extend(session.poll(Duration::from_millis(50)));
+    }
     let mut markers = Vec::new();
     for &r in robots {
+        // The newest count before the marker: over frames, a marker whose reports are
+        // lost still bounds the run's TM from below by the one after it.
+        let before = session.robots.get(&r).and_then(|s| s.seq.newest());
         if let Ok(m) = session.send(r, ping, &[], None, Some(START_LABEL.into())) {
-            markers.push((r, m));
+            markers.push((r, m, before));
         }
     }
     let t0 = Instant::now();
     let limit = Duration::from_millis(mib::config::TC_RETRY_SPAN_MS as u64);
+    let mut delivered_at: HashMap<u8, Instant> = HashMap::new();
     while wait
         && t0.elapsed() < limit
         && !stop()
-        && markers.iter().any(|(r, m)| {
-            // Answered once accepted: its first report gives the run's first count.
-            session.accepted(m) == Some(false) && session.robots.get(r).is_some_and(|s| s.lost.is_none())
+        && markers.iter().any(|(r, m, _)| {
+            // Answered once accepted: its first report gives the run's first count. Over
+            // frames, delivered (CLCW) and settled is enough.
+            let settled = delivered_at.get(r).is_some_and(|t| t.elapsed() >= MARKER_SETTLE);
+            !settled && session.accepted(m) == Some(false) && session.robots.get(r).is_some_and(|s| s.lost.is_none())
         })
     {
         seen.extend(session.poll(Duration::from_millis(50)));
+        for (r, m, _) in &markers {
+            if session.delivered(*r, m) {
+                delivered_at.entry(*r).or_insert_with(Instant::now);
+            }
+        }
     }
-    for (r, _) in markers {
+    for (r, _, before) in markers {
         if let Some(s) = session.robots.get_mut(&r) {
+            if s.run_first_seq.is_none() && delivered_at.contains_key(&r) {
+                s.run_first_seq = before.map(|b| (b + 1) % SEQ_MOD);
+            }
             if let Some(f) = s.run_first_seq {
                 s.seq.expect_from(f);
             }
@@ -377,6 +414,15 @@ fn resolve_in_flight(
 
 /// How often a running plan asks the stores for missing TM.
 const GAP_CHECK_PERIOD: Duration = Duration::from_secs(2);
+/// The same over frames: COP-1 delivers every retrieval once and no duplicate window
+/// fills up, so the store is asked twice as often.
+const GAP_CHECK_PERIOD_FRAMES: Duration = Duration::from_secs(1);
+/// Over frames: how long a run waits for a first TM of each robot before its start
+/// markers.
+const FIRST_TM_WAIT: Duration = Duration::from_secs(1);
+/// Over frames: how long after the CLCW acknowledged the end marker the TM received is
+/// taken to cover it when its acceptance report was lost.
+const MARKER_SETTLE: Duration = Duration::from_secs(1);
 /// Retrieval rounds at the end of a run that bring nothing back before the rest counts
 /// as not recovered.
 const GAP_ROUNDS_IDLE_MAX: u32 = 8;
@@ -408,9 +454,19 @@ fn complete_tm(session: &mut Session, robots: &[u8], disp: &Display, stop: &dyn 
         let limit = Duration::from_millis(mib::config::TC_RETRY_SPAN_MS as u64);
         if let Ok(m) = &marker {
             let t0 = Instant::now();
+            // Over frames a marker whose acceptance report was lost is known delivered
+            // from the CLCW: after MARKER_SETTLE the TM received covers it (its own
+            // reports are then a gap below the cut, filled like any other).
+            let mut delivered_at: Option<Instant> = None;
             while t0.elapsed() < limit && session.accepted(m) == Some(false) && !stop() {
                 session.poll(Duration::from_millis(50));
                 if session.robots.get(&r).is_some_and(|s| s.lost.is_some()) {
+                    break;
+                }
+                if delivered_at.is_none() && session.delivered(r, m) {
+                    delivered_at = Some(Instant::now());
+                }
+                if delivered_at.is_some_and(|t| t.elapsed() >= MARKER_SETTLE) {
                     break;
                 }
             }
@@ -456,7 +512,17 @@ fn complete_tm(session: &mut Session, robots: &[u8], disp: &Display, stop: &dyn 
                 missing.len()
             ));
             let t0 = Instant::now();
-            while t0.elapsed() < limit && session.retrieving(r) && !stop() {
+            // Until the ranges asked for are filled or their retrievals ended.
+            let filled = |session: &Session| {
+                session.robots.get(&r).is_some_and(|s| {
+                    !s.seq.missing.iter().any(|&m| {
+                        asked
+                            .iter()
+                            .any(|&(x, y)| m.wrapping_sub(x) % SEQ_MOD <= y.wrapping_sub(x) % SEQ_MOD)
+                    })
+                })
+            };
+            while t0.elapsed() < limit && session.retrieving(r) && !filled(session) && !stop() {
                 session.poll(Duration::from_millis(50));
             }
             // Replays still on their way.

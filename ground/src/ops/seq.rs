@@ -131,6 +131,27 @@ impl SeqTrack {
         out
     }
 
+    /// Missing counts after `from` (up to half the 14-bit circle ahead of it), oldest
+    /// first, as inclusive ranges: the TM sent since a TC went out, where its reports are.
+    pub fn missing_after(&self, from: u16) -> Vec<(u16, u16)> {
+        let ahead = |m: u16| m.wrapping_sub(from) % SEQ_MOD;
+        let mut ms: Vec<u16> = self
+            .missing
+            .iter()
+            .copied()
+            .filter(|&m| (1..SEQ_MOD / 2).contains(&ahead(m)))
+            .collect();
+        ms.sort_by_key(|&m| ahead(m));
+        let mut out: Vec<(u16, u16)> = Vec::new();
+        for m in ms {
+            match out.last_mut() {
+                Some((_, last)) if (*last + 1) % SEQ_MOD == m => *last = m,
+                _ => out.push((m, m)),
+            }
+        }
+        out
+    }
+
     #[cfg(test)]
     pub(crate) fn on_seq_t(&mut self, seq: u16) -> SeqKind {
         self.on_seq(seq, seq as u64)

@@ -35,6 +35,9 @@ pub struct Pending {
     pub exhausted: bool,
     /// Over frames: `sends` counts waits, the packet went to the link once.
     pub waits_only: bool,
+    /// The robot's newest TM sequence count when the TC went out: its reports come after
+    /// it, so a gap after it is asked of the store first.
+    pub tm_seq_at_send: Option<u16>,
 }
 
 impl Pending {
@@ -236,6 +239,7 @@ impl Session {
         // Check the arguments before using up a sequence count.
         pus::build_tc(robot, 0, def, args)?;
         let tc = pus::build_tc(robot, self.seq.next(apid), def, args)?;
+        let tm_seq_at_send = self.robots.get(&robot).and_then(|s| s.seq.newest());
         link.send(&tc.bytes).map_err(|err| OpsError::Send { robot, err })?;
         self.last_new_tc.insert(robot, Instant::now());
         if let Some(a) = &self.archive {
@@ -261,6 +265,7 @@ impl Session {
                 max_sends: max_sends.unwrap_or(self.max_resends + 1),
                 exhausted: false,
                 waits_only: false,
+                tm_seq_at_send,
             },
         );
         Ok(tc)
@@ -271,6 +276,8 @@ impl Session {
     /// on-board store, come back through [`Session::poll`] with `tag`. It is never resent.
     pub fn adopt(&mut self, robot: u8, tc: BuiltTc, tag: Option<usize>, label: Option<String>, accepted: bool) {
         let now = Instant::now();
+        // Sent by an earlier session: its reports may be anywhere in the store.
+        let tm_seq_at_send = None;
         self.pending.insert(
             (tc.apid, tc.seq),
             Pending {
@@ -285,6 +292,7 @@ impl Session {
                 max_sends: 1,
                 exhausted: true,
                 waits_only: false,
+                tm_seq_at_send,
             },
         );
     }
@@ -297,6 +305,11 @@ impl Session {
     /// Whether the TC with this request ID was accepted (`None`: not tracked).
     pub fn accepted(&self, tc: &BuiltTc) -> Option<bool> {
         self.pending.get(&(tc.apid, tc.seq)).map(|p| p.accepted)
+    }
+
+    /// True if a CLCW acknowledged the TC's frame (frame links only): COP-1 delivered it.
+    pub fn delivered(&self, robot: u8, tc: &BuiltTc) -> bool {
+        self.links.get(&robot).is_some_and(|l| l.delivered(tc.apid, tc.seq))
     }
 
     /// True if a TC of `robot` is still waiting for acceptance or completion.
@@ -400,11 +413,47 @@ impl Session {
         self.last_new_tc.get(&robot).is_some_and(|t| t.elapsed() < period)
     }
 
-    /// True while a store retrieval of `robot` is waiting for its outcome.
+    /// True while a store retrieval of `robot` waits for its outcome, for at most
+    /// [`RETRIEVAL_WAITS`] first waits (its reports can be lost too: an older one does not
+    /// hold the next back).
     pub fn retrieving(&self, robot: u8) -> bool {
+        let wait = self.ack_timeout * RETRIEVAL_WAITS;
         self.pending
             .values()
-            .any(|p| p.robot == robot && p.label.as_deref() == Some(GAP_LABEL))
+            .any(|p| p.robot == robot && p.label.as_deref() == Some(GAP_LABEL) && p.first_sent.elapsed() < wait)
+    }
+
+    /// Asks `robot`'s on-board store first for the TM missing since its oldest TC still
+    /// waiting for an outcome went out (that TC's reports are among it), at most
+    /// `max_ranges` ranges; with no such TC or no such gap, for the oldest missing TM
+    /// ([`Session::request_gaps`]). Returns the ranges asked for.
+    pub fn request_missing_reports(&mut self, robot: u8, max_ranges: usize) -> Vec<(u16, u16)> {
+        let ranges = self.awaited_gaps(robot);
+        if ranges.is_empty() {
+            return self.request_gaps(robot, None, max_ranges);
+        }
+        let ranges: Vec<(u16, u16)> = merge_close(ranges)
+            .into_iter()
+            .take(max_ranges.min(GAP_REQUESTS_MAX))
+            .collect();
+        self.send_retrievals(robot, &ranges);
+        ranges
+    }
+
+    /// TM missing since `robot`'s oldest TC still waiting for an outcome went out (where
+    /// its reports are), oldest first; empty if none waits or nothing is missing.
+    pub fn awaited_gaps(&self, robot: u8) -> Vec<(u16, u16)> {
+        let since = self
+            .pending
+            .values()
+            .filter(|p| p.robot == robot && p.label.as_deref() != Some(GAP_LABEL))
+            .filter_map(|p| p.tm_seq_at_send.map(|s| (p.first_sent, s)))
+            .min()
+            .map(|(_, s)| s);
+        match (since, self.robots.get(&robot)) {
+            (Some(from), Some(st)) => st.seq.missing_after(from),
+            _ => Vec::new(),
+        }
     }
 
     /// Asks `robot`'s on-board store for every missing TM at or before `cutoff` (all
@@ -414,28 +463,29 @@ impl Session {
         let Some(st) = self.robots.get(&robot) else {
             return Vec::new();
         };
-        let Some(def) = mib::tc::by_name("STORE_DOWNLINK_SEQ") else {
-            return Vec::new();
-        };
-        let apid = mib::apid::robot_apid(robot).unwrap_or(0);
         let ranges = match cutoff.or(st.seq.newest()) {
             Some(c) => st.seq.missing_upto(c),
             None => Vec::new(),
         };
-        let mut merged: Vec<(u16, u16)> = Vec::new();
-        for (a, b) in ranges {
-            match merged.last_mut() {
-                Some((_, last)) if a.wrapping_sub(*last) % SEQ_MOD <= GAP_MERGE_DISTANCE => *last = b,
-                _ => merged.push((a, b)),
-            }
-        }
-        let ranges: Vec<(u16, u16)> = merged.into_iter().take(max_ranges.min(GAP_REQUESTS_MAX)).collect();
-        for &(a, b) in &ranges {
+        let ranges: Vec<(u16, u16)> = merge_close(ranges)
+            .into_iter()
+            .take(max_ranges.min(GAP_REQUESTS_MAX))
+            .collect();
+        self.send_retrievals(robot, &ranges);
+        ranges
+    }
+
+    /// One TC[15,128] per range of `robot`'s own APID.
+    fn send_retrievals(&mut self, robot: u8, ranges: &[(u16, u16)]) {
+        let Some(def) = mib::tc::by_name("STORE_DOWNLINK_SEQ") else {
+            return;
+        };
+        let apid = mib::apid::robot_apid(robot).unwrap_or(0);
+        for &(a, b) in ranges {
             let args = [apid as i64, a as i64, b as i64];
             // A failed send shows as a retrieval without result: asked again later.
             let _ = self.send(robot, def, &args, None, Some(GAP_LABEL.into()));
         }
-        ranges
     }
 
     /// Starts watching every robot's link for loss (`LINK_LOSS_MS` without TM).
@@ -501,12 +551,15 @@ impl Session {
         }
         for k in gave_up {
             if let Some(p) = self.pending.remove(&k) {
+                // Over frames a TC whose frame a CLCW acknowledged reached the on-board
+                // software: like an accepted one, its outcome is asked of the store.
+                let delivered = self.links.get(&p.robot).is_some_and(|l| l.delivered(p.tc.apid, p.tc.seq));
                 out.push(Update::GaveUp {
                     robot: p.robot,
                     tag: p.tag,
                     tc: p.tc.def.name,
                     sends: if p.waits_only { 1 } else { p.sends },
-                    accepted: p.accepted,
+                    accepted: p.accepted || delivered,
                 });
             }
         }
@@ -709,6 +762,19 @@ impl Session {
 }
 
 /// Words for a verification failure.
+/// Gaps closer than [`GAP_MERGE_DISTANCE`] become one range (the packets between come
+/// again and are dropped as duplicates): fewer requests on a link that loses many packets.
+fn merge_close(ranges: Vec<(u16, u16)>) -> Vec<(u16, u16)> {
+    let mut merged: Vec<(u16, u16)> = Vec::new();
+    for (a, b) in ranges {
+        match merged.last_mut() {
+            Some((_, last)) if a.wrapping_sub(*last) % SEQ_MOD <= GAP_MERGE_DISTANCE => *last = b,
+            _ => merged.push((a, b)),
+        }
+    }
+    merged
+}
+
 pub fn failure_words(v: &Verification) -> String {
     match &v.failure {
         Some(f) => format!("{} failed: {f}", v.stage.name()),

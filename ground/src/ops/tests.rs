@@ -100,6 +100,21 @@ fn seq_track_finds_gaps_duplicates_and_late_packets_across_the_wrap() {
     assert_eq!(t.missing_upto(newest), vec![]);
 }
 
+// verifies: LINK-GND-02
+#[test]
+fn missing_after_gives_the_gaps_since_a_send_oldest_first_across_the_wrap() {
+    let mut t = SeqTrack::default();
+    for s in [0x3FF0, 0x3FF2, 0x3FF5, 3, 4, 7] {
+        t.on_seq_t(s);
+    }
+    // Gaps: 3FF1, 3FF3-3FF4, 3FF6-2 (across the wrap, one range as TC[15,128] takes it), 5-6.
+    assert_eq!(t.missing_after(0x3FF2), vec![(0x3FF3, 0x3FF4), (0x3FF6, 2), (5, 6)]);
+    assert_eq!(t.missing_after(4), vec![(5, 6)]);
+    assert_eq!(t.missing_after(7), vec![]);
+    // Counts before `from` are not "after" it.
+    assert!(!t.missing_after(0x3FF5).contains(&(0x3FF1, 0x3FF1)));
+}
+
 fn plan(src: &str) -> Plan {
     crate::plan::parse(src).unwrap_or_else(|e| panic!("{e:?}"))
 }
