@@ -196,6 +196,15 @@ impl Failure {
     pub fn module_absent(slot: u8) -> Self {
         Failure(W::ModuleAbsent { slot })
     }
+    pub fn plan_not_authorised(plan: u16, step: u16) -> Self {
+        Failure(W::PlanNotAuthorised { plan, step })
+    }
+    pub fn plan_forbidden_function(function: u16) -> Self {
+        Failure(W::PlanForbiddenFunction { function })
+    }
+    pub fn plan_hash_mismatch(authorised: u32, uploaded: u32) -> Self {
+        Failure(W::PlanHashMismatch { authorised, uploaded })
+    }
 
     /// The failure of an action the domain refused to start. `running` is the function
     /// of the running action (for BUSY), `mode` the robot's mode (for NOT_POWERED).
@@ -271,6 +280,9 @@ mod tests {
             Failure::config_not_accepted(0x0900_3d97),
             Failure::config_hash_stale(1, 0x0900_3d97),
             Failure::module_absent(5),
+            Failure::plan_not_authorised(7, 5),
+            Failure::plan_forbidden_function(3),
+            Failure::plan_hash_mismatch(1, 2),
         ];
         for f in &all {
             assert_eq!(f.data().len(), f.code().data_len(), "{:?}", f.code());

@@ -1011,8 +1011,7 @@ impl<S: TmStore> Obsw<S> {
     /// their hash must be the authorisation's plan hash: the plan is loaded (PLAN_UPLOADED,
     /// the node learns the plan) or every step is dropped (PLAN_HASH_MISMATCH).
     fn team_plan_step(&mut self, now: u64, id: u16, s: PlanStep, sink: &mut impl TmSink) -> Result<(), Failure> {
-        use mib_wire::Failure as W;
-        let not_authorised = Failure(W::PlanNotAuthorised { plan: id, step: s.step });
+        let not_authorised = Failure::plan_not_authorised(id, s.step);
         let a = self
             .team
             .auth
@@ -1023,7 +1022,7 @@ impl<S: TmStore> Obsw<S> {
             return Err(not_authorised);
         };
         if step_action(&s).is_none() {
-            return Err(Failure(W::PlanForbiddenFunction { function: s.function }));
+            return Err(Failure::plan_forbidden_function(s.function));
         }
         self.team.slots[i] = Some(s);
         let n = usize::from(a.max_steps);
@@ -1037,10 +1036,7 @@ impl<S: TmStore> Obsw<S> {
             let hash = mib::team::plan_hash(id, &steps);
             if hash != a.plan.hash {
                 self.team.plan = None;
-                return Err(Failure(W::PlanHashMismatch {
-                    authorised: a.plan.hash,
-                    uploaded: hash,
-                }));
+                return Err(Failure::plan_hash_mismatch(a.plan.hash, hash));
             }
             self.team.plan = Some(StoredPlan { id, steps, done: 0 });
             self.team.dirty = true;
