@@ -163,6 +163,22 @@ fn a_robot_rebuilt_with_another_module_set_raises_config_changed() {
     assert_eq!(alarm["severity"], "medium");
     // Raised and cleared at once, like an event: it waits for an acknowledgement.
     assert_eq!(alarm["state"], "cleared", "{alarm}");
+    // Not the configuration the robot accepts at start (the full robot): accepted from the
+    // page's API by its hash (hazardous: confirmed); the page shows it accepted at once.
+    assert_eq!(m["status"], "NOT_ACCEPTED", "{m}");
+    let hash = i64::from_str_radix(&loc_hash[2..], 16).unwrap();
+    let tc = serde_json::json!({"robot": 1, "name": "ACCEPT_CONFIG", "args": {"hash": hash}, "confirm": true});
+    let (st, body) = http(web, "POST", "/api/tc", Some(tc));
+    assert_eq!(st, 200, "{body}");
+    let t_acc = Instant::now();
+    wait_for(20, "ACCEPTED on the page", || {
+        let (_, s) = http(web, "GET", "/api/snapshot", None);
+        (s["robots"].get(0)?["modules"]["status"] == "ACCEPTED").then_some(())
+    });
+    eprintln!(
+        "ACCEPTED shown {:.2} s after ACCEPT_CONFIG",
+        t_acc.elapsed().as_secs_f64()
+    );
     // On the page's alarm list too.
     wait_for(10, "CONFIG_CHANGED on the page", || {
         let (_, s) = http(web, "GET", "/api/snapshot", None);

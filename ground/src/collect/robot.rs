@@ -261,6 +261,13 @@ impl Worker {
         }
         // Check the arguments before using up a sequence count.
         pus::build_tc(self.robot(), 0, def, args).map_err(|e| e.to_string())?;
+        if def.name == "ACCEPT_CONFIG" {
+            // The robot's configuration state changes: its module report is asked for
+            // again (after ASK_AGAIN_MS, the TC executed by then) instead of waiting up to
+            // 10 s for the MODULES housekeeping.
+            self.modules.forget_report();
+            self.modules_asked_ms = now_ms();
+        }
         let seq = self.next_seq();
         let tc = pus::build_tc(self.robot(), seq, def, args).map_err(|e| e.to_string())?;
         match &self.dash {

@@ -373,8 +373,11 @@ function renderModules() {
       el('td', { class: 'num' }, s.variant ?? ''), el('td', { class: 'num' }, s.revision ?? ''), el('td', { class: 'num' }, s.serial ?? ''),
       el('td', {}, s.present ? 'present' : 'absent'),
       el('td', { class: 'state' }, s.state)));
+    const accept = m.status === 'NOT_ACCEPTED'
+      ? el('button', { class: 'accept danger', 'data-robot': n, onclick: () => acceptConfig(n, m.hash) }, `Accept ${m.hash}`) : null;
     return el('div', { class: 'card', 'data-modules': n, 'data-hash': m.hash, 'data-config': m.config, 'data-status': m.status },
-      el('h2', {}, `Robot ${n}: ${m.config} `, el('span', { class: 'pill ' + (STATUS_CLASS[m.status] || '') }, m.status)),
+      el('h2', {}, `Robot ${n}: ${m.config} `, el('span', { class: 'pill ' + (STATUS_CLASS[m.status] || '') }, m.status), ' ', accept,
+        el('span', { class: 'accept-result', 'data-robot': n })),
       el('div', { class: 'hint' },
         `hash ${m.hash}`, m.previous_hash ? el('span', { class: 'bad' }, ` (was ${m.previous_hash})`) : null,
         ` — against the accepted configuration: ${m.replacement}`,
@@ -384,6 +387,20 @@ function renderModules() {
         el('thead', {}, el('tr', {}, ['Slot', 'Name', 'Type', 'Variant', 'Revision', 'Serial', 'Present', 'State'].map((h) => el('th', {}, h)))),
         el('tbody', {}, rows)));
   }));
+}
+
+// ACCEPT_CONFIG with the hash shown (hazardous in the MIB: the page asks first). The
+// robot refuses a stale hash (CONFIG_HASH_STALE), shown beside the button.
+async function acceptConfig(robot, hash) {
+  const t = S.mib.tcs.find((x) => x.name === 'ACCEPT_CONFIG');
+  const out = () => document.querySelector(`.accept-result[data-robot="${robot}"]`);
+  if (!t || !(await confirmHazard(t, robot))) return;
+  try {
+    const r = await api('/api/tc', { method: 'POST', body: JSON.stringify({ robot, name: 'ACCEPT_CONFIG', args: { hash: parseInt(hash, 16) }, confirm: true }) });
+    if (out()) { out().textContent = ` sent: request ${r.request_id}`; out().className = 'accept-result ok'; }
+  } catch (e) {
+    if (out()) { out().textContent = ' ' + e.message; out().className = 'accept-result bad'; }
+  }
 }
 
 function renderTeam() {

@@ -382,8 +382,10 @@ try {
     await tab3('modules');
     await p3.waitForSelector('[data-modules="3"][data-config="FULL"][data-status="ACCEPTED"] tr[data-slot="BOLTER_A"][data-state="ok"]');
     await p3.waitForSelector('[data-modules="5"][data-config="LOCOMOTION_ONLY"] tr[data-slot="BOLTER_B"][data-state="absent"]');
+    // The obsw accepts the factory (full) set at start: without bolters it waits for the
+    // ground to accept its hash. Accepted from the page (hazardous: confirmed).
     const st5 = await p3.$eval('[data-modules="5"]', (e) => e.dataset.status);
-    assert(st5 === 'ACCEPTED' || st5 === 'NOT_ACCEPTED', 'robot 5 state ' + st5);
+    assert(st5 === 'NOT_ACCEPTED', 'robot 5 state ' + st5);
     const g = await p3.$eval('[data-modules="5"] tr[data-slot="GRIPPER_A"]', (e) => [...e.children].map((c) => c.textContent));
     assert(g[2] === 'gripper' && /^\d+$/.test(g[4]) && /^\d+$/.test(g[5]) && g[6] === 'present' && g[7] === 'ok', 'gripper A row: ' + g);
     const rows = await p3.$$eval('[data-modules="3"] tbody tr', (t) => t.length);
@@ -391,6 +393,11 @@ try {
     const h3 = await p3.$eval('[data-modules="3"]', (e) => e.dataset.hash), h5 = await p3.$eval('[data-modules="5"]', (e) => e.dataset.hash);
     assert(h3 !== h5 && /^0x[0-9a-f]{8}$/.test(h3), `hashes ${h3} ${h5}`);
     await shot3('dashboard-modules.png');
+    await p3.click('[data-modules="5"] button.accept');
+    await p3.waitForSelector('#modal:not([hidden])');
+    await p3.click('#modal-yes');
+    await p3.waitForSelector('[data-modules="5"][data-status="ACCEPTED"]', { timeout: 20_000 });
+    assert(!(await p3.$('[data-modules="5"] button.accept')), 'no accept button once accepted');
   });
 
   await step('team: roster from the page, the leader elected while the ground is silent', async () => {
