@@ -19,6 +19,7 @@ use e2e_tests::{Client, Obsw, Tm};
 use mib::events::eid;
 use mib::modes::{node, robot_mode};
 use mib::params::pid;
+use mib::FailureCode as F;
 
 const ROBOTS: u8 = 3;
 
@@ -220,7 +221,7 @@ fn stored(c: &mut Client) -> Vec<Tm> {
     c.log[from..].to_vec()
 }
 
-// verifies: TEAM-E2E-03, TEAM-PLAN-01, TEAM-PLAN-02, TEAM-AUTH-02
+// verifies: TEAM-E2E-03, TEAM-PLAN-01, TEAM-PLAN-02, TEAM-AUTH-02, TEAM-AUTH-03
 #[test]
 fn without_the_ground_the_leader_continues_exactly_the_authorised_steps_and_the_ground_retrieves_them() {
     use mib::tc::function;
@@ -259,22 +260,42 @@ fn without_the_ground_the_leader_continues_exactly_the_authorised_steps_and_the_
         let done = c.wait_done(&raw, Duration::from_secs(30)).expect(name);
         assert_eq!(done.subservice, 7, "{name} {args:?}: {}", c.summary());
     };
-    for c in ground.iter_mut() {
+    let step_args = |s: &mib::team::PlanStep| -> Vec<i64> {
+        vec![
+            7,
+            i64::from(s.step),
+            i64::from(s.function),
+            i64::from(s.args[0]),
+            i64::from(s.args[1]),
+            i64::from(s.initial_state),
+        ]
+    };
+    for (i, c) in ground.iter_mut().enumerate() {
         ok(c, "TEAM_ROSTER", &[1, 2, 3, 0, 0, 0, 0, 0]);
         ok(c, "TEAM_AUTHORISE", &[7, i64::from(hash), 1, K, 600]);
+        if i == 0 {
+            // Refused uploads: a step outside the authorisation, an unbolt, and steps
+            // that do not hash to the authorised plan (all then dropped).
+            let refused = |c: &mut Client, s: &mib::team::PlanStep| {
+                let raw = c.send("TEAM_PLAN_STEP", &step_args(s));
+                c.wait_done(&raw, Duration::from_secs(5)).and_then(|t| t.failure_code())
+            };
+            let outside = mib::team::PlanStep { step: 3, ..steps[0] };
+            assert_eq!(refused(c, &outside), Some(F::PLAN_NOT_AUTHORISED.code()));
+            let unbolt = mib::team::PlanStep {
+                function: function::UNBOLT_FACE,
+                ..steps[0]
+            };
+            assert_eq!(refused(c, &unbolt), Some(F::PLAN_FORBIDDEN_FUNCTION.code()));
+            ok(c, "TEAM_PLAN_STEP", &step_args(&steps[0]));
+            let altered = mib::team::PlanStep {
+                args: [1, 2],
+                ..steps[1]
+            };
+            assert_eq!(refused(c, &altered), Some(F::PLAN_HASH_MISMATCH.code()));
+        }
         for s in &steps {
-            ok(
-                c,
-                "TEAM_PLAN_STEP",
-                &[
-                    7,
-                    i64::from(s.step),
-                    i64::from(s.function),
-                    i64::from(s.args[0]),
-                    i64::from(s.args[1]),
-                    i64::from(s.initial_state),
-                ],
-            );
+            ok(c, "TEAM_PLAN_STEP", &step_args(s));
         }
         ok(c, "MODE_SET", &[node::ROBOT as i64, robot_mode::OPERATIONAL as i64, 0]);
     }
