@@ -231,7 +231,7 @@ impl core::error::Error for CalError {}
 /// The calibration a module runs with: each word of `cal` that is [`CAL_DEFAULT`] takes
 /// the database default of `def`; every word must then lie in `def.cal_range` (the
 /// encoder direction must also be non-zero). The first bad word is the error.
-pub fn resolve_calibration(def: &ModuleDef, cal: &Calibration) -> Result<Calibration, CalError> {
+pub fn resolve_calibration(def: &ModuleInfo, cal: &Calibration) -> Result<Calibration, CalError> {
     let mut out = [0i16; 8];
     for (i, o) in out.iter_mut().enumerate() {
         let v = if cal.0[i] == CAL_DEFAULT {
@@ -448,23 +448,75 @@ pub const MODULE_DB: &[ModuleDef] = &[
     },
 ];
 
+/// What the robot's own software needs of a database entry: identity, calibration
+/// defaults and ranges, compatibility. With feature `descriptions` (every std build) it is
+/// the whole [`ModuleDef`]; without it (the firmware) the geometry, inertia and part
+/// names the URDF export uses are left out, and [`MODULE_INFO`] is built from
+/// [`MODULE_DB`] at compile time, so the image stores none of them (REV-ANOM-12).
+#[cfg(feature = "descriptions")]
+pub type ModuleInfo = ModuleDef;
+
+/// What the robot's own software needs of a database entry (see the std form).
+#[cfg(not(feature = "descriptions"))]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ModuleInfo {
+    pub ty: ModuleType,
+    pub variant: u8,
+    pub revision: u8,
+    pub cal_default: Calibration,
+    pub cal_range: CalRange,
+    pub compat: Compat,
+}
+
+/// The entries [`lookup`] and [`default_def`] search.
+#[cfg(feature = "descriptions")]
+pub const MODULE_INFO: &[ModuleInfo] = MODULE_DB;
+
+/// The entries [`lookup`] and [`default_def`] search: [`MODULE_DB`] without geometry.
+#[cfg(not(feature = "descriptions"))]
+pub const MODULE_INFO: &[ModuleInfo] = &{
+    const N: usize = MODULE_DB.len();
+    let mut out = [ModuleInfo {
+        ty: ModuleType::Unknown(0),
+        variant: 0,
+        revision: 0,
+        cal_default: Calibration([0; 8]),
+        cal_range: [(0, 0); 8],
+        compat: COMPAT_ANY,
+    }; N];
+    let mut i = 0;
+    while i < N {
+        let d = &MODULE_DB[i];
+        out[i] = ModuleInfo {
+            ty: d.ty,
+            variant: d.variant,
+            revision: d.revision,
+            cal_default: d.cal_default,
+            cal_range: d.cal_range,
+            compat: d.compat,
+        };
+        i += 1;
+    }
+    out
+};
+
 /// The database entry of (type, variant, revision).
-pub fn lookup(ty: ModuleType, variant: u8, revision: u8) -> Option<&'static ModuleDef> {
-    MODULE_DB
+pub fn lookup(ty: ModuleType, variant: u8, revision: u8) -> Option<&'static ModuleInfo> {
+    MODULE_INFO
         .iter()
         .find(|d| d.ty == ty && d.variant == variant && d.revision == revision)
 }
 
 /// The newest revision of variant 0 of `ty` (the default build).
-pub fn default_def(ty: ModuleType) -> Option<&'static ModuleDef> {
-    MODULE_DB
+pub fn default_def(ty: ModuleType) -> Option<&'static ModuleInfo> {
+    MODULE_INFO
         .iter()
         .filter(|d| d.ty == ty && d.variant == 0)
         .min_by_key(|d| d.revision)
 }
 
 /// Whether `def` works on a board of revision `board_rev` running firmware `fw`.
-pub const fn compatible(def: &ModuleDef, board_rev: u8, fw: u16) -> bool {
+pub const fn compatible(def: &ModuleInfo, board_rev: u8, fw: u16) -> bool {
     board_rev >= def.compat.board_rev_min && board_rev <= def.compat.board_rev_max && fw >= def.compat.fw_min
 }
 
