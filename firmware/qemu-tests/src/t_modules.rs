@@ -337,5 +337,25 @@ fn mib_free_text_is_left_out_of_the_firmware_build() -> TestResult {
     check_eq!(p.name, "V_BAT_A");
     check_eq!(p.unit, "V");
     check!(p.limits.is_some());
+    // The module database the firmware searches: every entry of MODULE_DB with its
+    // identity, calibration and compatibility, without the URDF geometry.
+    use mib::modules::db::{MODULE_DB, MODULE_INFO};
+    check_eq!(MODULE_INFO.len(), MODULE_DB.len());
+    for (i, d) in MODULE_DB.iter().enumerate() {
+        let m = &MODULE_INFO[i];
+        check_eq!(
+            (m.ty, m.variant, m.revision),
+            (d.ty, d.variant, d.revision),
+            "entry {}",
+            i
+        );
+        check_eq!(
+            (m.cal_default, m.cal_range, m.compat),
+            (d.cal_default, d.cal_range, d.compat),
+            "entry {}",
+            i
+        );
+    }
+    check!(core::mem::size_of_val(&MODULE_INFO[0]) < core::mem::size_of_val(&MODULE_DB[0]));
     Ok(())
 }
