@@ -407,20 +407,22 @@ function renderTeam() {
   S.dirty.team = false;
   const ns = [...S.robots.keys()].sort((a, b) => a - b);
   const withTeam = ns.filter((n) => S.robots.get(n).team);
-  // The leader the robots of the newest term name (robots whose link is not up are left
-  // out: their last report is old).
-  let term = -1, leaders = new Set();
-  for (const n of withTeam.filter((n) => S.robots.get(n).link === 'up')) {
-    const t = S.robots.get(n).team;
-    if (t.term > term) { term = t.term; leaders = new Set(); }
-    if (t.term === term && t.leader) leaders.add(t.leader);
-  }
+  // The newest term among the robots whose link is up (a lost robot's last report is
+  // old), the robots acting as leader in it and the leaders the others name.
+  const up = withTeam.filter((n) => S.robots.get(n).link === 'up').map((n) => S.robots.get(n).team);
+  const term = up.reduce((m, t) => Math.max(m, t.term), -1);
+  const acting = new Set(up.filter((t) => t.term === term && t.role === 'LEADER').map((t) => t.leader));
+  const named = new Set(up.filter((t) => t.term === term && t.leader).map((t) => t.leader));
+  const lost = up.filter((t) => !t.ground_seen).length;
+  const ground = !up.length ? '' : lost ? ` — ground lost by ${lost} of ${up.length}` : ' — ground seen by all';
+  const leader = acting.size === 1 && named.size === 1 && [...named][0] === [...acting][0] ? [...acting][0] : null;
   const summary = !withTeam.length ? 'No team status received (robots without a team roster report none).'
-    : leaders.size === 1 ? `Leader: robot ${[...leaders][0]} (term ${term})`
-      : leaders.size > 1 ? `Robots disagree on the leader of term ${term}: ${[...leaders].join(', ')}`
-        : `No leader (term ${Math.max(term, 0)})`;
+    : leader ? `Leader: robot ${leader} (term ${term})${ground}`
+      : acting.size > 1 || named.size > 1 ? `Robots disagree on the leader of term ${term}: ${[...new Set([...acting, ...named])].join(', ')}${ground}`
+        : named.size === 1 ? `No acting leader (term ${term} was led by robot ${[...named][0]})${ground}`
+          : `No leader (term ${Math.max(term, 0)})${ground}`;
   $('#team-summary').textContent = summary;
-  $('#team-summary').dataset.leader = leaders.size === 1 ? String([...leaders][0]) : '';
+  $('#team-summary').dataset.leader = leader ? String(leader) : '';
   $('#team tbody').replaceChildren(...withTeam.map((n) => {
     const r = S.robots.get(n), t = r.team, stale = r.link !== 'up';
     return el('tr', { 'data-robot': n, 'data-role': t.role, class: (t.role === 'LEADER' ? 'leader' : '') + (stale ? ' stale' : '') },

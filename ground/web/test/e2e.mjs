@@ -425,7 +425,10 @@ try {
     console.log(`     ${summary}, shown ${((Date.now() - t0) / 1000).toFixed(1)} s after the ground went silent`);
     await shot3('dashboard-team.png');
     for (const r of relays) r.silent = false;
-    await p3.waitForFunction(() => [...document.querySelectorAll('#team tbody tr')].every((r) => r.children[5].textContent === 'seen'));
+    // The ground is back: every robot sees it, the leader steps down.
+    await p3.waitForFunction(() => [...document.querySelectorAll('#team tbody tr')].every((r) => r.children[5].textContent === 'seen' && r.dataset.role !== 'LEADER'));
+    await p3.waitForFunction(() => /No acting leader|No leader/.test(document.querySelector('#team-summary').textContent)
+      && /ground seen by all/.test(document.querySelector('#team-summary').textContent) && !document.querySelector('#team-summary').dataset.leader);
   });
 
   await step('a robot rebuilt with another module set raises CONFIG_CHANGED', async () => {
