@@ -1566,6 +1566,174 @@ mod tests {
         assert_eq!(o.modes.root_target(), robot_mode::SAFED, "the robot holds");
     }
 
+    /// One robot with the simulator, one control period at a time (as the host runs it).
+    struct Rig {
+        o: TestObsw,
+        sim: mmic_sim::Sim,
+        now: u64,
+        link_rx: Vec<u8>,
+        link: Link,
+        log: Vec<Vec<u8>>,
+        seq: u16,
+    }
+
+    impl Rig {
+        fn start() -> Rig {
+            let mut r = Rig {
+                o: robot(1),
+                sim: mmic_sim::Sim::new(mmic_sim::SimConfig::default()),
+                now: 0,
+                link_rx: Vec::new(),
+                link: Link::default(),
+                log: Vec::new(),
+                seq: 0,
+            };
+            r.o.boot(0, mib::config::reset_cause::POWER_ON, &mut r.log);
+            r
+        }
+        fn tick(&mut self) {
+            self.now += u64::from(mib::config::CONTROL_PERIOD_MS);
+            let sensors = self.sim.sensors_a();
+            let out = self.o.tick(self.now, &sensors, &self.link_rx, &mut self.log);
+            let (act, tx) = (out.actuators, out.link_tx.clone());
+            self.link_rx.clear();
+            self.sim
+                .step(mib::config::CONTROL_PERIOD_MS, &act, &tx, &mut self.link_rx);
+            self.o.team_poll(self.now, 7, &mut self.link, &mut self.log);
+        }
+        fn send(&mut self, name: &str, args: &[i64]) {
+            let def = mib::tc::by_name(name).unwrap();
+            let mut app = [0u8; 64];
+            let n = mib::codec::encode_args(def, args, &mut app).unwrap();
+            self.seq += 1;
+            let apid = self.o.apid();
+            let raw = tc_bytes(apid, self.seq, def.service, def.subservice, &app[..n]);
+            self.o.handle_tc(self.now, &raw, &mut self.log);
+        }
+        fn run_until(&mut self, max_ms: u64, done: impl Fn(&Rig) -> bool) -> bool {
+            let end = self.now + max_ms;
+            while self.now < end {
+                if done(self) {
+                    return true;
+                }
+                self.tick();
+            }
+            done(self)
+        }
+    }
+
+    // verifies: TEAM-OBSW-02
+    #[test]
+    fn a_hold_during_a_motion_picks_standby_or_safed_when_the_motion_ends_and_the_ground_cancels_it() {
+        for ground_returns in [false, true] {
+            let mut r = Rig::start();
+            r.send("TEAM_ROSTER", &[1, 2, 3, 0, 0, 0, 0, 0]);
+            r.send(
+                "MODE_SET",
+                &[mib::modes::node::ROBOT as i64, robot_mode::OPERATIONAL as i64, 0],
+            );
+            assert!(r.run_until(120_000, |r| r.o.modes.root() == robot_mode::OPERATIONAL
+                && r.o.transition.is_none()));
+            r.send("RECONFIGURE", &[0, 1]);
+            assert!(r.o.running.is_some(), "the motion runs");
+            // A hold (the leader's, or the robot's own) arrives mid-motion, when no gripper
+            // pair holds (the node would say SAFED).
+            let mut s = Vec::new();
+            r.o.team_act(r.now, Action::Hold(HoldTarget::Safed), &mut r.link, &mut s);
+            assert_eq!(r.o.modes.root_target(), robot_mode::OPERATIONAL, "not while it moves");
+            if ground_returns {
+                // The ground is back during the motion (a PING every second).
+                while r.o.running.is_some() && r.now < 120_000 {
+                    r.send("PING", &[]);
+                    r.run_until(1_000, |r| r.o.running.is_none());
+                }
+                r.run_until(500, |_| false);
+                assert!(r.o.team.node().unwrap().ground_seen());
+                assert_eq!(
+                    r.o.modes.root_target(),
+                    robot_mode::OPERATIONAL,
+                    "the ground commands again: no deferred hold"
+                );
+            } else {
+                // The ground stays away: the robot also raises GROUND_LOST mid-motion.
+                assert!(r.run_until(120_000, |r| r.o.running.is_none()), "the motion ends");
+                r.run_until(50, |_| false);
+                assert!(!r.o.team.node().unwrap().ground_seen());
+                assert!(!events(&r.log, eid::GROUND_LOST).is_empty());
+                assert_eq!(r.o.computed_state(), 1, "the reconfiguration reached state 1");
+                assert_eq!(
+                    r.o.modes.root_target(),
+                    robot_mode::STANDBY,
+                    "both grippers hold at the end: STANDBY, not SAFED"
+                );
+            }
+        }
+    }
+
+    // verifies: TEAM-PLAN-02, TEAM-PERSIST-03
+    #[test]
+    fn a_continue_from_standby_runs_the_step_after_counting_it_durably_and_a_failed_write_moves_nothing() {
+        for fail in [false, true] {
+            let mut r = Rig::start();
+            r.send("TEAM_ROSTER", &[1, 2, 3, 0, 0, 0, 0, 0]);
+            let hash = mib::team::plan_hash(7, &STEPS);
+            r.send("TEAM_AUTHORISE", &[7, i64::from(hash), 1, 2, 600]);
+            for st in &STEPS {
+                let a = [
+                    7,
+                    i64::from(st.step),
+                    i64::from(st.function),
+                    i64::from(st.args[0]),
+                    i64::from(st.args[1]),
+                    i64::from(st.initial_state),
+                ];
+                r.send("TEAM_PLAN_STEP", &a);
+            }
+            assert_eq!(events(&r.log, eid::PLAN_UPLOADED).len(), 1);
+            // The ground goes away: GROUND_LOST, the robot holds in STANDBY (state 0).
+            assert!(r.run_until(8_000, |r| !r.o.team.node().unwrap().ground_seen()));
+            r.run_until(2_000, |_| false);
+            assert_eq!(r.o.modes.root(), robot_mode::STANDBY);
+            assert_eq!(r.o.computed_state(), 0);
+            r.link.fail_persist = fail;
+            let plan = PlanRef { id: 7, hash };
+            let step1 = Action::Continue {
+                plan,
+                step: 1,
+                function: TeamFunction::Reconfigure,
+            };
+            let mut s = Vec::new();
+            r.o.team_act(r.now, step1, &mut r.link, &mut s);
+            r.log.extend(s);
+            // Back to OPERATIONAL (homing), then the step starts.
+            r.run_until(120_000, |r| {
+                r.o.running.is_some() && r.o.team.step_running.is_some() || r.o.team.step_pending.is_none()
+            });
+            if fail {
+                assert!(r.o.team.step_running.is_none(), "nothing moves without a durable count");
+                assert_eq!(events(&r.log, eid::PLAN_STEP_REFUSED).len(), 1);
+                assert!(events(&r.log, eid::PLAN_STEP_EXECUTED).is_empty());
+                assert_eq!(r.o.team.record().plan.unwrap().done, 0);
+            } else {
+                let ev = events(&r.log, eid::PLAN_STEP_EXECUTED);
+                assert_eq!(ev.len(), 1);
+                // plan 7, step 1, RECONFIGURE.
+                assert_eq!(ev[0][..4], [0, 7, 0, 1]);
+                // The count was durable before the action started.
+                assert_eq!(r.link.records.last().unwrap().plan.as_ref().unwrap().done, 1);
+                // It ends in state 1; the node then knows progress 1 (next: step 2).
+                assert!(r.run_until(120_000, |r| r.o.running.is_none()));
+                r.run_until(50, |_| false);
+                assert_eq!(r.o.computed_state(), 1);
+                assert_eq!(r.o.team.plan.as_ref().unwrap().done, 1);
+                // Step 1 again (a stale order): not the next step, refused.
+                let mut s = Vec::new();
+                r.o.team_act(r.now, step1, &mut r.link, &mut s);
+                assert_eq!(events(&s, eid::PLAN_STEP_REFUSED).len(), 1);
+            }
+        }
+    }
+
     // verifies: TEAM-OBSW-01
     #[test]
     fn a_scheduled_tc_is_not_ground_contact() {
