@@ -6,8 +6,6 @@
 //! or corrupt file means "nothing accepted" (logged, and event CONFIG_STATE_LOST once the
 //! obsw has booted), never an error that stops the obsw.
 
-use std::fs::File;
-use std::io::Write;
 use std::path::Path;
 
 use obsw_core::obsw::Obsw;
@@ -45,18 +43,7 @@ pub fn load(p: &Path) -> Result<AcceptedConfig, (StateLost, String)> {
 
 /// Writes `a` durably (temporary file, sync, rename, directory sync).
 pub fn store(p: &Path, a: &AcceptedConfig) -> std::io::Result<()> {
-    let tmp = p.with_extension("tmp");
-    {
-        let mut f = File::create(&tmp)?;
-        f.write_all(&a.to_bytes())?;
-        f.sync_all()?;
-    }
-    std::fs::rename(&tmp, p)?;
-    let dir = p
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    File::open(dir)?.sync_all()
+    crate::durable::replace(p, &a.to_bytes())
 }
 
 /// Persists an acceptance the obsw made since the last call (ACCEPT_CONFIG), if any. With

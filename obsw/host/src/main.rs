@@ -9,6 +9,7 @@
 //! unless `--lab-bare-packets` keeps it (loopback only).
 
 mod config_state;
+mod durable;
 mod frames;
 mod net;
 mod team;

@@ -24,7 +24,7 @@
 //! - The election randomness comes from the OS (`/dev/urandom`).
 
 use std::fs::File;
-use std::io::{Read, Write};
+use std::io::Read;
 use std::net::{SocketAddr, UdpSocket};
 use std::path::{Path, PathBuf};
 
@@ -506,18 +506,7 @@ fn read_state(p: &Path) -> Result<Option<TeamRecord>> {
 }
 
 fn write_state(p: &Path, r: &TeamRecord) -> std::io::Result<()> {
-    let tmp = p.with_extension("tmp");
-    {
-        let mut f = File::create(&tmp)?;
-        f.write_all(encode_state(r).as_bytes())?;
-        f.sync_all()?;
-    }
-    std::fs::rename(&tmp, p)?;
-    let dir = p
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    File::open(dir)?.sync_all()
+    crate::durable::replace(p, encode_state(r).as_bytes())
 }
 
 impl TeamLink for TeamUdp {
