@@ -188,7 +188,7 @@ pub struct PlanStep {
     pub initial_state: u8,
 }
 
-const PLAN_CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+const PLAN_CRC: crc::Crc<u32, crc::NoTable> = crc::Crc::<u32, crc::NoTable>::new(&crc::CRC_32_ISO_HDLC);
 
 /// The plan hash the ground puts in TEAM_AUTHORISE: CRC-32 (ISO-HDLC) over plan ID (u16),
 /// then per step in order step (u16), function (u16), arg0 (i32), arg1 (i32), initial

@@ -130,7 +130,7 @@ pub const fn core_slots() -> SlotSet {
 }
 
 /// The configuration hash algorithm: CRC-32/ISO-HDLC (the zlib/Ethernet CRC).
-pub const HASH_CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+pub const HASH_CRC: crc::Crc<u32, crc::NoTable> = crc::Crc::<u32, crc::NoTable>::new(&crc::CRC_32_ISO_HDLC);
 
 /// Configuration hash over a descriptor set indexed by slot: CRC-32/ISO-HDLC over, for
 /// each present slot in ascending order, the slot number followed by the descriptor's
