@@ -166,6 +166,18 @@ fn a_robot_rebuilt_with_another_module_set_raises_config_changed() {
     // Not the configuration the robot accepts at start (the full robot): accepted from the
     // page's API by its hash (hazardous: confirmed); the page shows it accepted at once.
     assert_eq!(m["status"], "NOT_ACCEPTED", "{m}");
+    // MODULE_REPLACED named the first slot that differs from the accepted set.
+    let replaced = wait_for(10, "the replaced slot on the page", || {
+        let (_, s) = http(web, "GET", "/api/snapshot", None);
+        let slots = s["robots"].get(0)?["modules"]["slots"].as_array()?.clone();
+        let r: Vec<String> = slots
+            .iter()
+            .filter(|s| s["state"] == "replaced")
+            .filter_map(|s| s["name"].as_str().map(str::to_string))
+            .collect();
+        (r.len() == 1).then_some(r)
+    });
+    eprintln!("replaced slot: {replaced:?}");
     let hash = i64::from_str_radix(&loc_hash[2..], 16).unwrap();
     let tc = serde_json::json!({"robot": 1, "name": "ACCEPT_CONFIG", "args": {"hash": hash}, "confirm": true});
     let (st, body) = http(web, "POST", "/api/tc", Some(tc));
@@ -178,6 +190,12 @@ fn a_robot_rebuilt_with_another_module_set_raises_config_changed() {
     eprintln!(
         "ACCEPTED shown {:.2} s after ACCEPT_CONFIG",
         t_acc.elapsed().as_secs_f64()
+    );
+    let (_, s) = http(web, "GET", "/api/snapshot", None);
+    let m = &s["robots"][0]["modules"];
+    assert!(
+        m["slots"].as_array().unwrap().iter().all(|s| s["state"] != "replaced"),
+        "{m}"
     );
     // On the page's alarm list too.
     wait_for(10, "CONFIG_CHANGED on the page", || {

@@ -787,6 +787,15 @@ impl Worker {
                 }
             }
             TmBody::Event(e) => {
+                // Raised at boot, so often retrieved from the store (not live): the newest
+                // one names the replaced slot.
+                if let (true, Some(slot)) = (
+                    e.id == mib::events::eid::MODULE_REPLACED && tm.apid == self.apid,
+                    e.param("slot"),
+                ) {
+                    self.modules.on_replaced(slot, tm.time.unix_ms());
+                    self.publish_modules();
+                }
                 if live && tm.apid == self.apid {
                     if robotcfg::is_team_event(e.id) {
                         self.team_due = true;

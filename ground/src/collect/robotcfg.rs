@@ -89,6 +89,11 @@ pub struct ConfigTracker {
     baseline: Option<ModuleSet>,
     /// The report is to be asked for again (link-up, reboot, discovery events).
     want_report: bool,
+    /// The slot the last MODULE_REPLACED event named (first slot differing from the
+    /// configuration the ground accepted), while the set is not accepted.
+    replaced_slot: Option<u8>,
+    /// On-board time of the MODULE_REPLACED event that named it.
+    replaced_t_ms: i64,
     view: ModuleView,
 }
 
@@ -118,6 +123,20 @@ impl ConfigTracker {
     /// True once a report with the robot's current hash is held (no need to ask).
     pub fn report_current(&self) -> bool {
         !self.want_report && matches!((&self.report, self.last_hash), (Some(r), Some(h)) if r.hash == h)
+    }
+
+    /// A MODULE_REPLACED event at on-board time `t_ms` named `slot` (255 or out of range:
+    /// only calibration changed): shown `replaced` while the set is not accepted. An older
+    /// event than the one applied (a replay from the store) changes nothing.
+    pub fn on_replaced(&mut self, slot: i64, t_ms: i64) {
+        if t_ms < self.replaced_t_ms {
+            return;
+        }
+        self.replaced_t_ms = t_ms;
+        self.replaced_slot = u8::try_from(slot).ok().filter(|s| (*s as usize) < SLOTS.len());
+        if let Some(r) = self.report {
+            self.rebuild_slots(Some(&r));
+        }
     }
 
     /// The report held may no longer be the robot's (link-up, reboot, a discovery event):
@@ -256,6 +275,8 @@ impl ConfigTracker {
                 });
                 v.state = if r.config == 0 && r.reason_slot == sd.id {
                     "invalid"
+                } else if r.replacement == REPLACEMENT_CHANGED && self.replaced_slot == Some(sd.id) {
+                    "replaced"
                 } else if differs {
                     "changed"
                 } else if v.present {
@@ -413,6 +434,16 @@ mod tests {
                 60
             )
             .is_none());
+        // MODULE_REPLACED named gripper A: it is the replaced one while not accepted.
+        t.on_replaced(i64::from(slot::GRIPPER_A), 65);
+        t.on_replaced(i64::from(slot::HIP), 64);
+        assert_eq!(t.view().slots[slot::GRIPPER_A as usize].state, "replaced");
+        t.on_report(&report(full, 1, 1), 70).unwrap();
+        assert_eq!(
+            t.view().slots[slot::GRIPPER_A as usize].state,
+            "ok",
+            "accepted: no longer replaced"
+        );
     }
 
     // verifies: ALM-MODCFG-01
