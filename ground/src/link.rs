@@ -479,10 +479,7 @@ struct FrameShared<'a> {
 /// A space packet's request ID: APID and sequence count from its primary header.
 fn request_id(packet: &[u8]) -> Option<(u16, u16)> {
     match packet {
-        [a, b, c, d, ..] => Some((
-            u16::from_be_bytes([a & 0x07, *b]),
-            u16::from_be_bytes([c & 0x3F, *d]),
-        )),
+        [a, b, c, d, ..] => Some((u16::from_be_bytes([a & 0x07, *b]), u16::from_be_bytes([c & 0x3F, *d]))),
         _ => None,
     }
 }

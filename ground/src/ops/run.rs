@@ -191,7 +191,11 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
                 }
             }
         }
-        let period = if session.over_frames() { GAP_CHECK_PERIOD_FRAMES } else { GAP_CHECK_PERIOD };
+        let period = if session.over_frames() {
+            GAP_CHECK_PERIOD_FRAMES
+        } else {
+            GAP_CHECK_PERIOD
+        };
         if last_gap_check.elapsed() >= period {
             last_gap_check = Instant::now();
             for &r in &robots {
@@ -242,7 +246,9 @@ fn start_markers(session: &mut Session, robots: &[u8], wait: bool, stop: &dyn Fn
         && session.over_frames()
         && t0.elapsed() < FIRST_TM_WAIT
         && !stop()
-        && robots.iter().any(|r| session.robots.get(r).is_some_and(|s| s.seq.newest().is_none()))
+        && robots
+            .iter()
+            .any(|r| session.robots.get(r).is_some_and(|s| s.seq.newest().is_none()))
     {
         seen.extend(session.poll(Duration::from_millis(50)));
     }

@@ -432,12 +432,7 @@ impl Session {
         if ranges.is_empty() {
             return self.request_gaps(robot, None, max_ranges);
         }
-        let ranges: Vec<(u16, u16)> = merge_close(ranges)
-            .into_iter()
-            .take(max_ranges.min(GAP_REQUESTS_MAX))
-            .collect();
-        self.send_retrievals(robot, &ranges);
-        ranges
+        self.send_retrievals(robot, ranges, max_ranges)
     }
 
     /// TM missing since `robot`'s oldest TC still waiting for an outcome went out (where
@@ -467,25 +462,26 @@ impl Session {
             Some(c) => st.seq.missing_upto(c),
             None => Vec::new(),
         };
+        self.send_retrievals(robot, ranges, max_ranges)
+    }
+
+    /// Close gaps merged ([`merge_close`]), at most `max_ranges` of them: one TC[15,128]
+    /// each for `robot`'s own APID. Returns the ranges asked for.
+    fn send_retrievals(&mut self, robot: u8, ranges: Vec<(u16, u16)>, max_ranges: usize) -> Vec<(u16, u16)> {
         let ranges: Vec<(u16, u16)> = merge_close(ranges)
             .into_iter()
             .take(max_ranges.min(GAP_REQUESTS_MAX))
             .collect();
-        self.send_retrievals(robot, &ranges);
-        ranges
-    }
-
-    /// One TC[15,128] per range of `robot`'s own APID.
-    fn send_retrievals(&mut self, robot: u8, ranges: &[(u16, u16)]) {
         let Some(def) = mib::tc::by_name("STORE_DOWNLINK_SEQ") else {
-            return;
+            return Vec::new();
         };
         let apid = mib::apid::robot_apid(robot).unwrap_or(0);
-        for &(a, b) in ranges {
+        for &(a, b) in &ranges {
             let args = [apid as i64, a as i64, b as i64];
             // A failed send shows as a retrieval without result: asked again later.
             let _ = self.send(robot, def, &args, None, Some(GAP_LABEL.into()));
         }
+        ranges
     }
 
     /// Starts watching every robot's link for loss (`LINK_LOSS_MS` without TM).
@@ -553,7 +549,10 @@ impl Session {
             if let Some(p) = self.pending.remove(&k) {
                 // Over frames a TC whose frame a CLCW acknowledged reached the on-board
                 // software: like an accepted one, its outcome is asked of the store.
-                let delivered = self.links.get(&p.robot).is_some_and(|l| l.delivered(p.tc.apid, p.tc.seq));
+                let delivered = self
+                    .links
+                    .get(&p.robot)
+                    .is_some_and(|l| l.delivered(p.tc.apid, p.tc.seq));
                 out.push(Update::GaveUp {
                     robot: p.robot,
                     tag: p.tag,
