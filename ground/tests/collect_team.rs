@@ -189,8 +189,12 @@ fn the_page_shows_the_team_and_the_leader_the_robots_elect_without_the_ground() 
     for r in &relays {
         r.silent.store(false, Ordering::Relaxed);
     }
-    wait_for(30, "the ground seen again by every robot", || {
-        teams(web).iter().all(|t| t["ground_seen"] == true).then_some(())
+    // The ground is back: every robot sees it and the leader steps down.
+    wait_for(30, "the ground seen again by every robot, no robot leading", || {
+        teams(web)
+            .iter()
+            .all(|t| t["ground_seen"] == true && t["role"] != "LEADER")
+            .then_some(())
     });
     let _ = std::fs::remove_dir_all(&dir);
 }
