@@ -613,7 +613,7 @@ fn python_check(d: &Dir, frames: &[(String, Vec<u8>)]) -> BTreeMap<String, Strin
         .collect()
 }
 
-// verifies: LINK-IND-01, LINK-HOST-01
+// verifies: LINK-IND-01, LINK-HOST-01, LINK-TM-03
 #[test]
 fn frames_on_the_wire_verify_with_an_independent_decoder() {
     let d = Dir::new("wire");
@@ -627,13 +627,23 @@ fn frames_on_the_wire_verify_with_an_independent_decoder() {
     std::thread::sleep(Duration::from_millis(300));
     inject(frame, &tc_frame);
     let mut frames = vec![("a.tc".to_string(), tc_frame)];
-    let until = Instant::now() + Duration::from_millis(1500);
     let mut b = [0u8; 2048];
-    while Instant::now() < until && frames.len() < 40 {
-        if let Ok(n) = wire.recv(&mut b) {
-            frames.push((format!("f{:02}.tm", frames.len()), b[..n].to_vec()));
+    let mut capture = |frames: &mut Vec<(String, Vec<u8>)>| {
+        let until = Instant::now() + Duration::from_millis(1500);
+        while Instant::now() < until && frames.len() < 80 {
+            if let Ok(n) = wire.recv(&mut b) {
+                frames.push((format!("f{:02}.tm", frames.len()), b[..n].to_vec()));
+            }
         }
-    }
+    };
+    capture(&mut frames);
+    // A second AD frame asks the store for everything of the APID: the replay comes on the
+    // replay virtual channel (VC1), the ping's reports among it.
+    let replay_tc = tc_named(APID, 8, "STORE_DOWNLINK_SEQ", &[APID as i64, 0, 16383]);
+    let replay_frame = forged(TC_SPIS[0], &TEST_KEY_TC_A, 1, 1, &replay_tc);
+    inject(frame, &replay_frame);
+    frames.push(("b.tc".to_string(), replay_frame));
+    capture(&mut frames);
     let r = python_check(&d, &frames);
     assert_eq!(r.len(), frames.len());
     let tc = &r["a.tc"];
@@ -655,4 +665,15 @@ fn frames_on_the_wire_verify_with_an_independent_decoder() {
         "a VC0 frame with the ping's reports: {short:#?}"
     );
     assert!(tm.iter().any(|l| l.contains(" nr=1 ")), "{short:#?}");
+    assert!(r["b.tc"].starts_with("OK "), "{}", r["b.tc"]);
+    // Realtime TM on VC0 only; the store's replay of the ping's reports on VC1.
+    assert!(
+        tm.iter().any(|l| l.contains(" vc=1 ") && l.contains(&req)),
+        "a VC1 frame replaying the ping's reports: {short:#?}"
+    );
+    let replay_req: String = replay_tc[..4].iter().map(|b| format!("{b:02x}")).collect();
+    assert!(
+        tm.iter().any(|l| l.contains(" vc=0 ") && l.contains(&replay_req)),
+        "the retrieval's own reports are realtime (VC0): {short:#?}"
+    );
 }

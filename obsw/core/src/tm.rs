@@ -13,6 +13,13 @@ use mib::config::MAX_PACKET_LEN;
 /// Where finished TM packets go (sockets on the host, the UART on the firmware).
 pub trait TmSink {
     fn send_tm(&mut self, packet: &[u8]);
+    /// A packet replayed from the on-board store (PUS 15 downlink). On the space link it
+    /// goes on the replay virtual channel (`mib::link::tm_vc::REPLAY`), so that a replay
+    /// neither delays nor is mistaken for realtime TM; a sink without channels sends it
+    /// like any other packet.
+    fn send_replay(&mut self, packet: &[u8]) {
+        self.send_tm(packet);
+    }
 }
 
 /// A sink that collects packets (tests, recorders).

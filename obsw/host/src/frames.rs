@@ -64,6 +64,14 @@ pub enum FrameInput {
     Nothing,
 }
 
+/// Index of a TM virtual channel in [`FrameEndpoint`]'s pending flags.
+const fn vc_index(vc: TmVc) -> usize {
+    match vc {
+        TmVc::Realtime => 0,
+        TmVc::Replay => 1,
+    }
+}
+
 /// The frame endpoint (see the module documentation).
 pub struct FrameEndpoint {
     sock: UdpSocket,
@@ -72,8 +80,8 @@ pub struct FrameEndpoint {
     framer: Framer,
     tm_sa: TxSa,
     store: FileIvStore,
-    /// VC0 holds packet bytes not yet sent in a frame.
-    pending: bool,
+    /// Virtual channels holding packet bytes not yet sent in a frame (realtime, replay).
+    pending: [bool; 2],
     /// An authentic TC frame changed (or confirmed) the CLCW: send it at once.
     clcw_due: bool,
     last_tx: Instant,
@@ -120,7 +128,7 @@ impl FrameEndpoint {
             framer: Framer::mission(),
             tm_sa,
             store,
-            pending: false,
+            pending: [false; 2],
             clcw_due: true,
             last_tx: Instant::now(),
             buf: vec![0u8; 65_536],
@@ -187,14 +195,15 @@ impl FrameEndpoint {
         })
     }
 
-    /// Queues one TM packet on VC0; full frames go out at once.
-    pub fn send_packet(&mut self, packet: &[u8]) {
+    /// Queues one TM packet on `vc` (realtime VC0 or store replay VC1); full frames go out
+    /// at once.
+    pub fn send_packet(&mut self, packet: &[u8], vc: TmVc) {
         let clcw = self.rx.farm.clcw();
         let (sock, to, fails) = (&self.sock, self.tm_to, &mut self.send_failures);
         let mut sent = false;
         let r = self
             .framer
-            .send(TmVc::Realtime, packet, clcw, &mut self.tm_sa, &mut self.store, |f| {
+            .send(vc, packet, clcw, &mut self.tm_sa, &mut self.store, |f| {
                 sent = true;
                 if !crate::net::send_udp(sock, f, to) {
                     *fails = fails.saturating_add(1);
@@ -207,24 +216,27 @@ impl FrameEndpoint {
             self.last_tx = Instant::now();
             self.clcw_due = false;
         }
-        self.pending = true;
+        self.pending[vc_index(vc)] = true;
     }
 
-    /// Sends the partly filled VC0 frame, or an idle frame when the CLCW is due.
+    /// Sends the partly filled frames of VC0 and VC1, or an idle frame when the CLCW is
+    /// due.
     pub fn flush(&mut self, now: Instant) {
         let clcw = self.rx.farm.clcw();
-        if self.pending {
-            self.pending = false;
-            let (sock, to, fails) = (&self.sock, self.tm_to, &mut self.send_failures);
-            let r = self
-                .framer
-                .flush(TmVc::Realtime, clcw, &mut self.tm_sa, &mut self.store, |f| {
+        if self.pending.iter().any(|&p| p) {
+            for vc in [TmVc::Realtime, TmVc::Replay] {
+                if !std::mem::take(&mut self.pending[vc_index(vc)]) {
+                    continue;
+                }
+                let (sock, to, fails) = (&self.sock, self.tm_to, &mut self.send_failures);
+                let r = self.framer.flush(vc, clcw, &mut self.tm_sa, &mut self.store, |f| {
                     if !crate::net::send_udp(sock, f, to) {
                         *fails = fails.saturating_add(1);
                     }
                 });
-            if let Err(e) = r {
-                log::warn!("space link: TM frame not sent: {e}");
+                if let Err(e) = r {
+                    log::warn!("space link: TM frame not sent: {e}");
+                }
             }
             self.last_tx = now;
             self.clcw_due = false;

@@ -28,6 +28,7 @@ use mib::config::{
 use mio::net::{TcpListener, TcpStream};
 use mio::unix::SourceFd;
 use mio::{Events, Interest, Poll, Token};
+use mmic_link::downlink::TmVc;
 use timerfd::{ClockId, SetTimeFlags, TimerFd, TimerState};
 
 /// Something for the main loop.
@@ -223,6 +224,17 @@ impl Downlink {
 
 impl obsw_core::tm::TmSink for Downlink {
     fn send_tm(&mut self, packet: &[u8]) {
+        self.send_on(packet, TmVc::Realtime);
+    }
+
+    fn send_replay(&mut self, packet: &[u8]) {
+        self.send_on(packet, TmVc::Replay);
+    }
+}
+
+impl Downlink {
+    /// One TM packet to every destination: over the space link on virtual channel `vc`.
+    fn send_on(&mut self, packet: &[u8], vc: TmVc) {
         if let Some(f) = self.tm_log.as_mut() {
             let mut line = String::with_capacity(2 * packet.len() + 1);
             for b in packet {
@@ -235,7 +247,7 @@ impl obsw_core::tm::TmSink for Downlink {
             }
         }
         if let Some(f) = self.frames.as_mut() {
-            f.send_packet(packet);
+            f.send_packet(packet, vc);
         }
         if !self.bare {
             return;

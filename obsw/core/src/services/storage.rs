@@ -132,7 +132,7 @@ impl<S: TmStore> Obsw<S> {
                 oldest = Some((seq, t));
             }
             if range.contains(apid, seq, t) {
-                sink.send_tm(p);
+                sink.send_replay(p);
                 sent += 1;
             }
         });
