@@ -1059,7 +1059,7 @@ pub fn qemu_stack_high_water(root: &Path) -> Result<(u64, String)> {
         Ok((
             top - lowest,
             format!(
-                "qemu-tests (opt-level 1, all 58 on-target tests incl. Obsw::tick/handle_tc), deepest stack byte {lowest:#x} below _stack_start {top:#x}; measured window {} KiB",
+                "qemu-tests (opt-level 1, all on-target tests incl. Obsw::tick/handle_tc), deepest stack byte {lowest:#x} below _stack_start {top:#x}; measured window {} KiB",
                 (top - lo) / 1024
             ),
         ))
