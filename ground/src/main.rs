@@ -237,8 +237,8 @@ fn run(cli: Cli) -> Result<u8> {
     }
 }
 
-/// Sequence counts skipped at the start of a frame-link session (more than the obsw's
-/// 128-entry duplicate window).
+/// Sequence counts skipped at the start of a frame-link session: more than the TCs a
+/// killed ground can have sent without archiving them.
 const SEQ_SKIP_AFTER_RESTART: u16 = 256;
 
 /// Opens the archive (if wanted) and a session to the given robots.
@@ -257,8 +257,10 @@ pub fn open_session(
     let path = archive_path.map(Path::to_path_buf);
     // Over frames a ground killed with SIGKILL may not have archived its last TCs (the
     // archive writes behind): starting right after the archived count could reuse a
-    // request ID the robot has already seen, which its duplicate window (still applied
-    // to frame TCs) would answer as a resend without executing. Skip ahead.
+    // request ID the robot has already seen. The robot would still execute it (COP-1
+    // delivers once; frame TCs bypass its duplicate window), but that TC's old reports,
+    // replayed from the store, would be taken for the new one's. Skip ahead. (On the
+    // bare-packet lab link the duplicate window's CRC check tells the two apart.)
     let skip = if transport == Transport::Frames {
         SEQ_SKIP_AFTER_RESTART
     } else {
