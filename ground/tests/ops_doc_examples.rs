@@ -151,6 +151,69 @@ fn doc_commands(md: &str) -> Vec<(String, bool)> {
     out
 }
 
+/// The commands of every block fenced "```sh yamcs" (the Yamcs chapter: not ground
+/// commands), with `\` continuation lines joined.
+fn yamcs_commands(md: &str) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    let (mut inside, mut continued) = (false, false);
+    for line in md.lines() {
+        let t = line.trim();
+        if t.starts_with("```") {
+            inside = !inside && t == "```sh yamcs";
+            continue;
+        }
+        if !inside || t.is_empty() || t.starts_with('#') {
+            continue;
+        }
+        let cmd = t.split_once(" #").map_or(t, |c| c.0);
+        let (cmd, more) = match cmd.strip_suffix('\\') {
+            Some(c) => (c, true),
+            None => (cmd, false),
+        };
+        match out.last_mut() {
+            Some(last) if continued => {
+                last.push(' ');
+                last.push_str(cmd.trim());
+            }
+            _ => out.push(cmd.trim().to_string()),
+        }
+        continued = more;
+    }
+    out.iter().map(|c| c.split_whitespace().collect::<Vec<_>>().join(" ")).collect()
+}
+
+// verifies: OPS-DOC-01
+#[test]
+fn every_yamcs_example_of_the_operator_guide_names_real_subcommands_and_flags() {
+    // Running them needs Yamcs (tests/tests/yamcs_e2e.rs starts it with the same script
+    // subcommands); here every `scripts/yamcs.sh` subcommand must exist in the script and
+    // every `obsw` flag in `obsw --help`, so an example cannot drift from the tools.
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let md = std::fs::read_to_string(root.join("docs/operator-guide.md")).unwrap();
+    let cmds = yamcs_commands(&md);
+    assert!(cmds.len() >= 5, "the Yamcs chapter's examples: {cmds:?}");
+    let script = std::fs::read_to_string(root.join("scripts/yamcs.sh")).unwrap();
+    let help = Command::new(obsw_bin()).arg("--help").output().unwrap();
+    let help = String::from_utf8_lossy(&help.stdout).to_string();
+    for cmd in &cmds {
+        let w: Vec<&str> = cmd.split_whitespace().collect();
+        match w.as_slice() {
+            ["bash", "scripts/yamcs.sh", sub, ..] => {
+                assert!(
+                    script.lines().any(|l| l.trim_start().starts_with(&format!("{sub})"))),
+                    "`{cmd}`: scripts/yamcs.sh has no subcommand {sub}"
+                );
+            }
+            ["obsw", flags @ ..] => {
+                for f in flags.iter().filter(|f| f.starts_with("--")) {
+                    assert!(help.contains(f), "`{cmd}`: obsw has no flag {f}");
+                }
+            }
+            _ => panic!("`{cmd}` in a Yamcs block is neither scripts/yamcs.sh nor obsw"),
+        }
+    }
+}
+
 /// The test's robots.
 struct Robots {
     obsw: BTreeMap<u8, Obsw>,

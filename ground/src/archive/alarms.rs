@@ -16,7 +16,7 @@ pub struct Alarm {
     pub id: i64,
     /// 0 for the collector's own alarms (the archive).
     pub robot: u8,
-    /// `param`, `event`, `link`, `stale`, `archive` ([`Source::kind`]).
+    /// `param`, `event`, `link`, `stale`, `archive`, `config` ([`Source::kind`]).
     pub kind: String,
     /// Parameter or event name, or `LINK_LOSS`, `STALE_DATA`, `ARCHIVE_WRITE`.
     pub source: String,
