@@ -179,7 +179,9 @@ fn yamcs_commands(md: &str) -> Vec<String> {
         }
         continued = more;
     }
-    out.iter().map(|c| c.split_whitespace().collect::<Vec<_>>().join(" ")).collect()
+    out.iter()
+        .map(|c| c.split_whitespace().collect::<Vec<_>>().join(" "))
+        .collect()
 }
 
 // verifies: OPS-DOC-01
