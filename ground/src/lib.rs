@@ -10,3 +10,4 @@ pub mod link;
 pub mod ops;
 pub mod plan;
 pub mod pus;
+pub mod robot_lock;
