@@ -10,4 +10,3 @@ pub mod link;
 pub mod ops;
 pub mod plan;
 pub mod pus;
-pub mod robot_lock;

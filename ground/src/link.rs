@@ -135,8 +135,6 @@ pub struct Link {
     /// Set by the reader when a TCP connection ends (EOF or error).
     closed: Arc<AtomicBool>,
     reader: Option<JoinHandle<()>>,
-    /// This process commands the robot (see [`crate::robot_lock`]).
-    _lock: crate::robot_lock::RobotLock,
 }
 
 /// Splits a buffer of concatenated space packets (a UDP datagram or a COBS frame).
@@ -210,13 +208,11 @@ impl Link {
         frames: Option<&FrameOptions>,
         tx: Sender<Incoming>,
     ) -> io::Result<Link> {
-        // One commanding process per robot on this host, held as long as the link.
-        let lock = crate::robot_lock::RobotLock::acquire(robot, addr)?;
         let stop = Arc::new(AtomicBool::new(false));
         let closed = Arc::new(AtomicBool::new(false));
         if transport == Transport::Frames {
             let opts = frames.ok_or_else(|| io::Error::other("the frame link needs a key directory (--keys DIR)"))?;
-            return open_frames(robot, addr, opts, tx, stop, closed, lock);
+            return open_frames(robot, addr, opts, tx, stop, closed);
         }
         let io = match transport {
             Transport::Frames => unreachable_frames()?,
@@ -265,7 +261,6 @@ impl Link {
             stop,
             closed,
             reader: Some(reader),
-            _lock: lock,
         })
     }
 
@@ -420,7 +415,6 @@ fn open_frames(
     tx: Sender<Incoming>,
     stop: Arc<AtomicBool>,
     closed: Arc<AtomicBool>,
-    lock: crate::robot_lock::RobotLock,
 ) -> io::Result<Link> {
     let dir = crate::keys::robot_dir(&opts.keys, robot);
     let listen = opts.listen(robot, addr);
@@ -469,7 +463,6 @@ fn open_frames(
         stop,
         closed,
         reader: Some(reader),
-        _lock: lock,
     })
 }
 

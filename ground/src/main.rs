@@ -271,13 +271,7 @@ pub fn open_session(
             .and_then(|p| archive::next_seq(p, apid))
             .map(|s| s.wrapping_add(skip) & 0x3FFF)
     })
-    .map_err(|e| match &e {
-        // Another ground process commands the robot (ground::robot_lock): refused.
-        ground::ops::OpsError::Connect { err, .. } if err.kind() == std::io::ErrorKind::AddrInUse => {
-            coded(exit::INVALID, e.to_string())
-        }
-        _ => coded(exit::NO_ANSWER, e.to_string()),
-    })?;
+    .map_err(|e| coded(exit::NO_ANSWER, e.to_string()))?;
     Ok((session, archive))
 }
 

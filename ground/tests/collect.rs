@@ -423,32 +423,3 @@ fn dashboard_under_collect_uses_the_collectors_link_alarms_and_archive() {
     assert!(!cols.is_empty(), "no archived V_BAT_A columns");
     assert!(cols.iter().any(|c| c.1 < 10.5), "the sag is in the archive: {cols:?}");
 }
-
-// verifies: OPS-TWO-01
-#[test]
-fn ground_send_beside_ground_collect_on_one_robot_is_refused_naming_the_collector() {
-    let dir = tmpdir("two-grounds");
-    let (_o, addr, _ctl) = start_obsw(1);
-    let r = format!("1={addr}");
-    let mut c = collector(&dir, "a.db", std::slice::from_ref(&r));
-    // The collector holds the robot once its link is open (a second after its start).
-    let o = wait_for(15, "the collector holding robot 1", || {
-        let o = ground(&dir, &["--archive", "b.db", "send", "--robot", &r, "PING"]);
-        (o.status.code() != Some(0)).then_some(o)
-    });
-    let t = text(&o);
-    assert_eq!(o.status.code(), Some(3), "{t}");
-    assert!(
-        t.contains(&format!("robot 1 at {addr} is already commanded by pid {}", c.0.id())),
-        "{t}"
-    );
-    assert!(t.contains("collect"), "the holder's command line: {t}");
-    // Watching is commanding too (it keeps the downlink with PINGs): refused the same way.
-    let o = ground(&dir, &["--archive", "b.db", "watch", "--robot", &r, "--duration", "1"]);
-    assert_eq!(o.status.code(), Some(3), "{}", text(&o));
-    // The collector killed with SIGKILL: the operating system frees the robot at once.
-    signal(&c, "-KILL");
-    let _ = wait_exit(&mut c, Duration::from_secs(5));
-    let o = ground(&dir, &["--archive", "b.db", "send", "--robot", &r, "PING"]);
-    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
-}

@@ -99,8 +99,6 @@ pub struct Worker {
     limits: LimitChecker,
     tc_seq: u16,
     link: Option<Link>,
-    /// Another ground process holds the robot (said once until the link opens).
-    held_elsewhere: bool,
     tx: Sender<Incoming>,
     rx: Receiver<Incoming>,
     state: LinkState,
@@ -179,7 +177,6 @@ impl Worker {
             limits: LimitChecker::new(),
             tc_seq: ((now / 500) % 16384) as u16,
             link: None,
-            held_elsewhere: false,
             tx,
             rx,
             state: LinkState::Connecting,
@@ -376,16 +373,7 @@ impl Worker {
             self.cfg.frames.as_ref(),
             self.tx.clone(),
         ) {
-            Ok(l) => {
-                self.link = Some(l);
-                self.held_elsewhere = false;
-            }
-            // Another ground process commands the robot (ground::robot_lock): said once.
-            Err(e) if e.kind() == std::io::ErrorKind::AddrInUse => {
-                if !std::mem::replace(&mut self.held_elsewhere, true) {
-                    tracing::warn!(robot = self.robot(), "{e}");
-                }
-            }
+            Ok(l) => self.link = Some(l),
             Err(e) => tracing::debug!(robot = self.robot(), "connect {}: {e}", self.cfg.addr),
         }
     }
