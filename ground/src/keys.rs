@@ -45,6 +45,15 @@ pub fn tm_key_path(robot_dir: &Path) -> PathBuf {
     robot_dir.join(key_file_name(TM_SPIS[0]))
 }
 
+/// The team key of a key directory: one key for all robots of a team
+/// (`obsw --team-key`, docs/team.md), never a link key.
+pub fn team_key_path(base: &Path) -> PathBuf {
+    base.join(TEAM_KEY_FILE)
+}
+
+/// File name of the team key.
+pub const TEAM_KEY_FILE: &str = "team.key";
+
 /// The ground's SDLS counter state file of a robot link.
 pub fn ground_state_path(robot_dir: &Path) -> PathBuf {
     robot_dir.join("ground-link.state")
@@ -107,11 +116,32 @@ pub fn create_robot_keys(base: &Path, robot: u8) -> Result<Vec<PathBuf>, KeyErro
     Ok(made)
 }
 
-/// Which way a key protects frames.
+/// Creates `DIR/team.key`: a random key, mode 0600, in a 0700 directory. Refuses to
+/// overwrite an existing one. Returns the file made.
+pub fn create_team_key(base: &Path) -> Result<PathBuf, KeyError> {
+    let mut b = std::fs::DirBuilder::new();
+    b.recursive(true);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::DirBuilderExt;
+        b.mode(0o700);
+    }
+    b.create(base).map_err(|error| KeyError::Io {
+        path: base.to_path_buf(),
+        error,
+    })?;
+    let p = team_key_path(base);
+    create_key_file(&p, &random_key()?).map_err(|e| KeyError::Persist(e.to_string()))?;
+    Ok(p)
+}
+
+/// Which way a key protects frames (or, for the team key, robot-to-robot packets).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Direction {
     Tc,
     Tm,
+    /// The team's packets between robots (SPI not applicable: shown as 0).
+    Team,
 }
 
 /// A key file as [`describe`] shows it (never the key).
@@ -134,6 +164,9 @@ pub fn fingerprint(key: &[u8]) -> String {
 }
 
 fn spi_of(name: &str) -> Option<(Direction, u16)> {
+    if name == TEAM_KEY_FILE {
+        return Some((Direction::Team, 0));
+    }
     let stem = name.strip_suffix(".key")?;
     let (dir, n) = if let Some(n) = stem.strip_prefix("tc-spi") {
         (Direction::Tc, n)

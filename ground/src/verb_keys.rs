@@ -16,9 +16,14 @@ pub(crate) enum KeysCmd {
     /// files are never overwritten.
     Create {
         dir: PathBuf,
-        /// Robot number; repeat per robot [default: 1]. Each robot gets its own keys.
+        /// Robot number; repeat per robot [default: 1, unless --team alone]. Each robot
+        /// gets its own keys.
         #[arg(long = "robot", short = 'r')]
         robots: Vec<u8>,
+        /// Also create DIR/team.key, the one key all robots of a team share for their
+        /// team packets (`obsw --team-key`); never a link key.
+        #[arg(long)]
+        team: bool,
     },
     /// List the key files under DIR: direction, SPI, mode, fingerprint (never the key).
     Show { dir: PathBuf },
@@ -26,8 +31,12 @@ pub(crate) enum KeysCmd {
 
 pub(crate) fn keys(c: &KeysCmd) -> Result<u8> {
     match c {
-        KeysCmd::Create { dir, robots } => {
-            let robots = if robots.is_empty() { vec![1] } else { robots.clone() };
+        KeysCmd::Create { dir, robots, team } => {
+            let robots = match (robots.is_empty(), team) {
+                (true, true) => Vec::new(),
+                (true, false) => vec![1],
+                (false, _) => robots.clone(),
+            };
             for &r in &robots {
                 if mib::apid::robot_apid(r).is_none() {
                     return Err(coded(exit::USAGE, format!("robot {r} is not a robot number")));
@@ -46,6 +55,14 @@ pub(crate) fn keys(c: &KeysCmd) -> Result<u8> {
                     dir.display()
                 ))?;
             }
+            if *team {
+                let p = keys::create_team_key(dir).map_err(|e| coded(exit::ERROR, e.to_string()))?;
+                out(&format!("created {}", p.display()))?;
+                out(&format!(
+                    "team: obsw --team-udp ADDR --peer N=ADDR ... --team-state FILE --team-key {} (the same file on every robot of the team)",
+                    p.display()
+                ))?;
+            }
             Ok(exit::OK)
         }
         KeysCmd::Show { dir } => {
@@ -60,6 +77,7 @@ pub(crate) fn keys(c: &KeysCmd) -> Result<u8> {
                 let dirn = match k.direction {
                     Direction::Tc => "TC (ground to robot)",
                     Direction::Tm => "TM (robot to ground)",
+                    Direction::Team => "team (robot to robot)",
                 };
                 let fp = match &k.fingerprint {
                     Some(f) => format!("sha256 {f}"),
@@ -70,7 +88,11 @@ pub(crate) fn keys(c: &KeysCmd) -> Result<u8> {
                     Some(m) => format!("mode {m:03o}"),
                     None => String::new(),
                 };
-                out(format!("{}  {dirn}  SPI {}  {fp}  {mode}", k.path.display(), k.spi).trim_end())?;
+                let spi = match k.direction {
+                    Direction::Tc | Direction::Tm => format!("  SPI {}", k.spi),
+                    Direction::Team => String::new(),
+                };
+                out(format!("{}  {dirn}{spi}  {fp}  {mode}", k.path.display()).trim_end())?;
             }
             Ok(exit::OK)
         }

@@ -532,3 +532,49 @@ fn a_plan_over_frames_through_the_lossy_relay_executes_every_tc_exactly_once() {
         lossy_s / clean_s
     );
 }
+
+// verifies: LINK-KEYS-01, TEAM-AUTH-01
+#[test]
+fn ground_keys_create_team_makes_the_key_the_obsw_team_link_takes() {
+    let dir = tmpdir("frames", "team-key");
+    let keys = dir.join("k");
+    let o = ground(&dir, &["keys", "create", keys.to_str().unwrap(), "--team"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let team = keys.join("team.key");
+    let key = std::fs::read(&team).unwrap();
+    assert_eq!(key.len(), 32);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        assert_eq!(std::fs::metadata(&team).unwrap().permissions().mode() & 0o777, 0o600);
+    }
+    // --team alone makes no link keys; a second creation never overwrites.
+    assert!(!keys.join("robot-1").exists());
+    let again = ground(&dir, &["keys", "create", keys.to_str().unwrap(), "--team"]);
+    assert!(!again.status.success(), "{}", text(&again));
+    assert_eq!(std::fs::read(&team).unwrap(), key);
+    let show = text(&ground(&dir, &["keys", "show", keys.to_str().unwrap()]));
+    assert!(show.contains("team.key  team (robot to robot)  sha256 "), "{show}");
+    for out in [text(&o), show] {
+        for w in key.windows(8) {
+            assert!(!out.to_lowercase().contains(&hex(w)), "key bytes printed:\n{out}");
+        }
+    }
+    // The obsw's team link starts with it (READY), authenticated, no lab flag.
+    let port = common::free_port();
+    let peer = common::free_port();
+    let o = Obsw::start(
+        1,
+        &[
+            "--team-udp",
+            &format!("127.0.0.1:{port}"),
+            "--peer",
+            &format!("2=127.0.0.1:{peer}"),
+            "--team-state",
+            dir.join("team.state").to_str().unwrap(),
+            "--team-key",
+            team.to_str().unwrap(),
+        ],
+    );
+    drop(o);
+}
