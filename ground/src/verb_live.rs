@@ -6,7 +6,7 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
-use ground::archive;
+use ground::archive::{self, Archive};
 use ground::link::Transport;
 use ground::ops::{self, Session, Update};
 use ground::pus::{self, Packet, Stage, TmBody};
@@ -213,6 +213,19 @@ pub(crate) fn robots_given(l: &Links) -> Result<Vec<(u8, SocketAddr)>> {
     Ok(l.robots.clone())
 }
 
+/// The one robot of `l`, announced, with a session to it (and the archive, if any).
+pub(crate) fn open_one(l: &Links, archive_path: Option<&Path>) -> Result<(u8, Session, Option<Archive>)> {
+    let (robot, addr) = one_robot(l)?;
+    say_links(&[(robot, addr)], l.transport());
+    let (s, arch) = open_session(
+        &[(robot, addr)],
+        l.transport(),
+        l.frame_options().as_ref(),
+        archive_path,
+    )?;
+    Ok((robot, s, arch))
+}
+
 pub(crate) fn one_robot(l: &Links) -> Result<(u8, SocketAddr)> {
     match robots_given(l)?.as_slice() {
         [one] => Ok(*one),
@@ -224,14 +237,7 @@ pub(crate) fn send(a: &SendArgs, archive_path: Option<&Path>) -> Result<u8> {
     let def = ops::policy::tc_by_name(&a.tc).map_err(policy_error)?;
     let args = ops::policy::parse_arg_words(def, &a.args).map_err(policy_error)?;
     ops::policy::check_confirmed(def, a.confirm, "add --confirm").map_err(policy_error)?;
-    let (robot, addr) = one_robot(&a.links)?;
-    say_links(&[(robot, addr)], a.links.transport());
-    let (mut s, arch) = open_session(
-        &[(robot, addr)],
-        a.links.transport(),
-        a.links.frame_options().as_ref(),
-        archive_path,
-    )?;
+    let (robot, mut s, arch) = open_one(&a.links, archive_path)?;
     let r = send_and_follow(
         &mut s,
         robot,
@@ -257,14 +263,7 @@ pub(crate) fn mode(a: &ModeArgs, archive_path: Option<&Path>) -> Result<u8> {
             )
         })?;
     ops::policy::check_confirmed(def, a.confirm, "add --confirm").map_err(policy_error)?;
-    let (robot, addr) = one_robot(&a.links)?;
-    say_links(&[(robot, addr)], a.links.transport());
-    let (mut s, arch) = open_session(
-        &[(robot, addr)],
-        a.links.transport(),
-        a.links.frame_options().as_ref(),
-        archive_path,
-    )?;
+    let (robot, mut s, arch) = open_one(&a.links, archive_path)?;
     let r = send_and_follow(
         &mut s,
         robot,

@@ -13,8 +13,8 @@ use ground::ops::Update;
 use ground::pus::TmBody;
 use mib::modules::Board;
 
-use crate::verb_live::{one_robot, say_links};
-use crate::{close_archive, coded, err_line, exit, open_session, out, Links};
+use crate::verb_live::{one_robot, open_one};
+use crate::{close_archive, coded, err_line, exit, out, Links};
 
 #[derive(Args, Debug)]
 pub(crate) struct ModelArgs {
@@ -85,14 +85,7 @@ fn report_of_file(file: &Path) -> Result<Vec<u8>> {
 /// Asks the robot for its module report (TC[210,1]) and returns the report body.
 fn report_of_robot(a: &ModelArgs, archive_path: Option<&Path>) -> Result<Vec<u8>> {
     let def = mib::tc::by_name("REPORT_MODULES").ok_or_else(|| anyhow!("REPORT_MODULES not in the MIB"))?;
-    let (robot, addr) = one_robot(&a.links)?;
-    say_links(&[(robot, addr)], a.links.transport());
-    let (mut s, arch) = open_session(
-        &[(robot, addr)],
-        a.links.transport(),
-        a.links.frame_options().as_ref(),
-        archive_path,
-    )?;
+    let (robot, mut s, arch) = open_one(&a.links, archive_path)?;
     s.watch_links();
     s.send(robot, def, &[], Some(0), None)?;
     let t0 = Instant::now();
