@@ -18,15 +18,13 @@ fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
-/// The obsw binary: `$OBSW_BIN`, or the one beside the test binary's profile — built first
-/// (once per test process, a no-op when up to date), so a test never runs a stale obsw
-/// after a change to the MIB or the core.
-pub fn obsw_bin() -> PathBuf {
-    static BIN: OnceLock<PathBuf> = OnceLock::new();
-    BIN.get_or_init(|| {
-        if let Some(p) = std::env::var_os("OBSW_BIN") {
-            return PathBuf::from(p);
-        }
+/// The directory of the workspace's binaries for this test's profile, after building
+/// them (once per test process, a no-op when up to date), so a test never runs a stale
+/// obsw or relay after a change to the MIB or the core. The workspace's binaries, as CI
+/// and the review build them: the same feature set, so no library is rebuilt here.
+fn workspace_bins() -> &'static Path {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    DIR.get_or_init(|| {
         // <target>/<profile>/deps/<test>-<hash>
         let exe = std::env::current_exe().unwrap();
         let profile_dir = exe.parent().and_then(Path::parent).unwrap();
@@ -35,22 +33,27 @@ pub fn obsw_bin() -> PathBuf {
             Some(p) => p.to_string(),
         };
         let out = Command::new(env!("CARGO"))
-            // The workspace's binaries, as CI and the review build them (the same feature
-            // set, so a no-op after them).
             .args(["build", "-q", "--workspace", "--bins", "--profile", &profile])
             .arg("--target-dir")
             .arg(profile_dir.parent().unwrap())
             .current_dir(root())
             .output()
-            .expect("running cargo to build obsw");
+            .expect("running cargo to build the workspace's binaries");
         assert!(
             out.status.success(),
-            "building obsw failed:\n{}",
+            "building the workspace's binaries failed:\n{}",
             String::from_utf8_lossy(&out.stderr)
         );
-        profile_dir.join("obsw")
+        profile_dir.to_path_buf()
     })
-    .clone()
+}
+
+/// The obsw binary: `$OBSW_BIN`, or the workspace's ([`workspace_bins`]).
+pub fn obsw_bin() -> PathBuf {
+    match std::env::var_os("OBSW_BIN") {
+        Some(p) => PathBuf::from(p),
+        None => workspace_bins().join("obsw"),
+    }
 }
 
 /// A localhost port free for both TCP and UDP.
@@ -293,40 +296,9 @@ pub fn wait_for<T>(secs: u64, what: &str, mut f: impl FnMut() -> Option<T>) -> T
     }
 }
 
-/// The project's lossy relay (`e2e-tests`' `relay` binary), built first like the obsw.
+/// The project's lossy relay (`e2e-tests`' `relay` binary), built with the obsw.
 pub fn relay_bin() -> PathBuf {
-    static BIN: OnceLock<PathBuf> = OnceLock::new();
-    BIN.get_or_init(|| {
-        let exe = std::env::current_exe().unwrap();
-        let profile_dir = exe.parent().and_then(Path::parent).unwrap();
-        let profile = match profile_dir.file_name().and_then(|n| n.to_str()) {
-            Some("debug") | None => "dev".to_string(),
-            Some(p) => p.to_string(),
-        };
-        let out = Command::new(env!("CARGO"))
-            .args([
-                "build",
-                "-q",
-                "-p",
-                "e2e-tests",
-                "--bin",
-                "relay",
-                "--profile",
-                &profile,
-            ])
-            .arg("--target-dir")
-            .arg(profile_dir.parent().unwrap())
-            .current_dir(root())
-            .output()
-            .expect("running cargo to build the relay");
-        assert!(
-            out.status.success(),
-            "building the relay failed:\n{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        profile_dir.join("relay")
-    })
-    .clone()
+    workspace_bins().join("relay")
 }
 
 /// A running `ground` child: its stderr lines arrive on a channel as they are written (to
