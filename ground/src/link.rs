@@ -478,10 +478,9 @@ struct FrameShared<'a> {
 
 /// A space packet's request ID: APID and sequence count from its primary header.
 fn request_id(packet: &[u8]) -> Option<(u16, u16)> {
-    match packet {
-        [a, b, c, d, ..] => Some((u16::from_be_bytes([a & 0x07, *b]), u16::from_be_bytes([c & 0x3F, *d]))),
-        _ => None,
-    }
+    use satrs::spacepackets::CcsdsPacket;
+    let (h, _) = satrs::spacepackets::SpHeader::from_be_bytes(packet).ok()?;
+    Some((h.apid().value(), h.seq_count().value()))
 }
 
 fn frame_loop(
