@@ -42,10 +42,7 @@ pub const GAP_REQUESTS_MAX: usize = 16;
 /// Gaps closer than this are asked in one range (the packets between come again and
 /// are dropped as duplicates): fewer requests on a link that loses many packets.
 pub const GAP_MERGE_DISTANCE: u16 = 16;
-/// A store retrieval older than this many first waits (`Session::ack_timeout`, the time a
-/// report takes to come back) no longer holds the next one back: its own reports may have
-/// been lost, and the replayed packets come within a wait of its acceptance.
-pub const RETRIEVAL_WAITS: u32 = 2;
+pub use mib::config::RETRIEVAL_WAITS;
 
 /// How long an accepted TC that no step waits for (a marker, a store retrieval) is
 /// tracked for its completion: it is never resent, and a lost completion report is

@@ -109,6 +109,21 @@ pub const GROUND_MAX_RESENDS: u32 = 5;
 
 // --- Link robustness (ground retries, downlink subscriptions, TCP bounds) ---
 
+/// Ground: how often a running plan asks the on-board stores for missing TM, over the
+/// bare-packet lab link (one range each time: resends still fill the duplicate window).
+pub const GAP_CHECK_PERIOD_MS: u32 = 2000;
+/// Ground: the same over frames (COP-1 delivers every retrieval once; no window fills).
+pub const GAP_CHECK_PERIOD_FRAMES_MS: u32 = 1000;
+/// Ground, over frames: how long a run waits for a first TM of each robot before its
+/// start markers (the count a marker whose reports are all lost is placed after).
+pub const FIRST_TM_WAIT_MS: u32 = 1000;
+/// Ground, over frames: how long after a CLCW acknowledged a start or end marker the TM
+/// received is taken to cover it when its acceptance report was lost.
+pub const MARKER_SETTLE_MS: u32 = 1000;
+/// Ground: a store retrieval older than this many first waits no longer holds the next
+/// one back (its own reports may have been lost).
+pub const RETRIEVAL_WAITS: u32 = 2;
+
 /// Ground: first wait for a TC's completion (or failure) report before sending the same
 /// bytes again.
 pub const TC_RETRY_INITIAL_MS: u32 = 700;

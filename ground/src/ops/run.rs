@@ -418,17 +418,11 @@ fn resolve_in_flight(
     fx
 }
 
-/// How often a running plan asks the stores for missing TM.
-const GAP_CHECK_PERIOD: Duration = Duration::from_secs(2);
-/// The same over frames: COP-1 delivers every retrieval once and no duplicate window
-/// fills up, so the store is asked twice as often.
-const GAP_CHECK_PERIOD_FRAMES: Duration = Duration::from_secs(1);
-/// Over frames: how long a run waits for a first TM of each robot before its start
-/// markers.
-const FIRST_TM_WAIT: Duration = Duration::from_secs(1);
-/// Over frames: how long after the CLCW acknowledged the end marker the TM received is
-/// taken to cover it when its acceptance report was lost.
-const MARKER_SETTLE: Duration = Duration::from_secs(1);
+/// The MIB's ground timing (`mib::config`) as durations.
+const GAP_CHECK_PERIOD: Duration = Duration::from_millis(mib::config::GAP_CHECK_PERIOD_MS as u64);
+const GAP_CHECK_PERIOD_FRAMES: Duration = Duration::from_millis(mib::config::GAP_CHECK_PERIOD_FRAMES_MS as u64);
+const FIRST_TM_WAIT: Duration = Duration::from_millis(mib::config::FIRST_TM_WAIT_MS as u64);
+const MARKER_SETTLE: Duration = Duration::from_millis(mib::config::MARKER_SETTLE_MS as u64);
 /// Retrieval rounds at the end of a run that bring nothing back before the rest counts
 /// as not recovered.
 const GAP_ROUNDS_IDLE_MAX: u32 = 8;
