@@ -39,7 +39,7 @@ use net::{Input, Origin};
     name = "obsw",
     version,
     about = "MMIC-I on-board software (host build) with its simulator",
-    long_about = "MMIC-I on-board software (host build) running against the MMIC-I simulator.\n\nTCs: CCSDS space packets with a PUS-C secondary header and CRC, as UDP datagrams or over TCP framed with COBS (0x00 after every frame). TM: to every connected TCP client, to every UDP ground subscribed by an accepted TC (a lease renewed by each accepted TC; rejected or malformed datagrams never change who gets TM) and to every fixed --tm-dest (e.g. Yamcs' TM link). Space link (issue 22): with --frame-udp, one TC transfer frame per datagram (CRC, SDLS AES-256-GCM with --tc-key, FARM-1) and fixed-length TM frames (SDLS with --tm-key, CLCW, idle frames) to --frame-tm-to, counters in --link-state; the bare-packet link is then off unless --lab-bare-packets (loopback only). The robot boots in STANDBY.\n\nOn start, one line `READY robot=N apid=0x... udp=ADDR tcp=ADDR sim_ctl=ADDR` is printed on stdout.\n\nSimulator control (fault injection; not the flight TC path): UDP text lines to --sim-ctl: `stuck-arm a|b`, `obstacle a|b`, `battery-sag VOLTS`, `dead-hip-encoder`, `cut-cable`, `misplaced-voxel`, `fastener-jam`, `clear [FAULT]`, `link-loss P`, `link-corrupt P`, `status`. Each gets one reply line starting with `ok` or `error`."
+    long_about = "MMIC-I on-board software (host build) running against the MMIC-I simulator.\n\nTCs: CCSDS space packets with a PUS-C secondary header and CRC, as UDP datagrams or over TCP framed with COBS (0x00 after every frame). TM: to every connected TCP client, to every UDP ground subscribed by an accepted TC (a lease renewed by each accepted TC; rejected or malformed datagrams never change who gets TM) and to every fixed --tm-dest (e.g. Yamcs' TM link). Space link (issue 22): with --frame-udp, one TC transfer frame per datagram (CRC, SDLS AES-256-GCM with --tc-key, FARM-1) and fixed-length TM frames (SDLS with --tm-key, CLCW, idle frames) to --frame-tm-to, counters in --link-state; the bare-packet link is on only with --lab-bare-packets (loopback only); one of the two links must be chosen. The robot boots in STANDBY.\n\nOn start, one line `READY robot=N apid=0x... udp=ADDR tcp=ADDR sim_ctl=ADDR` is printed on stdout.\n\nSimulator control (fault injection; not the flight TC path): UDP text lines to --sim-ctl: `stuck-arm a|b`, `obstacle a|b`, `battery-sag VOLTS`, `dead-hip-encoder`, `cut-cable`, `misplaced-voxel`, `fastener-jam`, `clear [FAULT]`, `link-loss P`, `link-corrupt P`, `status`. Each gets one reply line starting with `ok` or `error`."
 )]
 struct Args {
     /// Robot number 1..=254; the APID is 0x100 + N and the default ports follow from it.
@@ -98,10 +98,9 @@ struct Args {
     /// Space link: file with the raw 32-byte AES-256 key of TM SPI 17 (robot → ground).
     #[arg(long)]
     tm_key: Option<PathBuf>,
-    /// Lab mode: keep the bare-packet link (unauthenticated space packets on --udp/--tcp,
-    /// TM to their senders and to --tm-dest) beside the frame link; loopback addresses
-    /// only. Without --frame-udp the bare-packet link is on anyway (the ground does not
-    /// speak frames yet); with --frame-udp it is off unless this flag is given.
+    /// Lab mode: the bare-packet link (unauthenticated space packets on --udp/--tcp, TM
+    /// to their senders and to --tm-dest), alone or beside the frame link; loopback
+    /// addresses only. Without it and without --frame-udp the obsw refuses to start.
     #[arg(long)]
     lab_bare_packets: bool,
     /// Space link: SDLS counter state file (created if missing; written and synced before
@@ -251,7 +250,7 @@ struct Settings {
     tm_log: Option<PathBuf>,
     frames: Option<frames::FrameConfig>,
     tm_dest: Vec<SocketAddr>,
-    /// The bare-packet link is on (lab mode, or no frame link configured).
+    /// The bare-packet link is on (lab mode, --lab-bare-packets).
     bare: bool,
     modules: mmic_sim::modules::ModuleSetSpec,
     /// `--config-state` (issue 24).
@@ -337,7 +336,13 @@ fn settings(a: Args) -> Result<Settings> {
     if lab_bare_packets && !(udp.ip().is_loopback() && tcp.ip().is_loopback()) {
         bail!("--lab-bare-packets: the bare-packet link is for the lab, loopback addresses only (--udp {udp}, --tcp {tcp})");
     }
-    let bare = frames.is_none() || lab_bare_packets;
+    if frames.is_none() && !lab_bare_packets {
+        bail!(
+            "no ground link chosen: give the space link (--frame-udp, --frame-tm-to, --tc-key, --tm-key, --link-state) \
+             or, in the lab on loopback addresses, --lab-bare-packets (unauthenticated space packets)"
+        );
+    }
+    let bare = lab_bare_packets;
     if !bare && !tm_dest.is_empty() {
         bail!("--tm-dest sends bare (unauthenticated) packets: with --frame-udp it needs --lab-bare-packets");
     }
@@ -780,7 +785,18 @@ fn sim_control(sim: &mut Sim, line: &str) -> String {
 mod tests {
     use super::*;
 
+    /// The settings of these options, with the lab link when no link is named (the
+    /// tests of other options do not care which link).
     fn parse(args: &[&str]) -> Result<Settings> {
+        let lab: &[&str] = if args.contains(&"--frame-udp") {
+            &[]
+        } else {
+            &["--lab-bare-packets"]
+        };
+        parse_raw(&[args, lab].concat())
+    }
+
+    fn parse_raw(args: &[&str]) -> Result<Settings> {
         settings(Args::try_parse_from([&["obsw"], args].concat()).expect("options parse"))
     }
 
@@ -856,12 +872,16 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
-    // verifies: LINK-HOST-01
+    // verifies: LINK-HOST-01, OPS-LINK-DEFAULT-02
     #[test]
     fn the_frame_link_needs_all_its_options_and_the_lab_mode_is_explicit_and_local() {
-        // Today's users: no frame link, the bare-packet link on.
-        let s = parse(&[]).unwrap();
+        // No link chosen: refused, naming both choices.
+        let e = parse_raw(&[]).err().expect("no link").to_string();
+        assert!(e.contains("--frame-udp") && e.contains("--lab-bare-packets"), "{e}");
+        // The lab link alone, on loopback.
+        let s = parse_raw(&["--lab-bare-packets"]).unwrap();
         assert!(s.bare && s.frames.is_none());
+        assert!(parse_raw(&["--lab-bare-packets", "--udp", "0.0.0.0:7301"]).is_err());
         // The frame link alone: bare packets off.
         let s = parse(&FRAMES).unwrap();
         assert!(!s.bare && s.frames.is_some());
