@@ -3,8 +3,10 @@
 //! to a fixed ground address.
 //!
 //! Uplink: `mmic_link::rx::TcReceiver` runs CRC → lengths/header → SDLS (AES-256-GCM,
-//! anti-replay window, receive counter persisted before use) → packet lengths → FARM-1;
-//! the packets of an accepted frame go to `Obsw::handle_tc`. Every refusal is counted by
+//! anti-replay window) → packet lengths → FARM-1 → the receive IV and FARM-1's state in
+//! one in-place write of the state file, `fdatasync`ed (`mmic_link::persist`); only then
+//! do the packets of the frame go to `Obsw::handle_tc`. After a restart FARM-1 resumes at
+//! the persisted V(R) (and lockout), so the ground's FOP-1 continues. Every refusal is counted by
 //! reason (HK SPACE_LINK) and reported by a throttled event; a refused frame changes
 //! nothing (no TC, no COP-1 state, no TM destination: TM frames go to `--frame-tm-to`
 //! only, whoever sends frames). BC control frames, which come in clear, are taken at most
@@ -15,8 +17,8 @@
 //! control period, so a reply never waits for a frame to fill. When no frame has gone out
 //! for [`IDLE_INTERVAL`], an idle frame on VC7 carries the CLCW; after an authentic TC
 //! frame (accepted, discarded or a control frame) the CLCW goes out at once, so the
-//! ground's FOP-1 learns of it without waiting. Store replay (PUS 15) packets are sent on
-//! VC0 like all TM: the `TmSink` interface does not tell them apart (VC1 is unused).
+//! ground's FOP-1 learns of it without waiting. Store replay (PUS 15) packets go on VC1
+//! (`TmSink::send_replay`), each channel with its own partial frame.
 
 use std::net::{SocketAddr, UdpSocket};
 use std::path::PathBuf;
@@ -26,6 +28,7 @@ use anyhow::{Context, Result};
 use mib::link::sdls::{ANTI_REPLAY_WINDOW, TC_SPIS, TM_SPIS};
 use mib::link::tm_frame::LEN as TM_LEN;
 use mmic_link::downlink::{Downlink as Framer, TmVc};
+use mmic_link::farm::Farm;
 use mmic_link::persist::{read_key, Dir, FileIvStore};
 use mmic_link::rx::{RxCounters, RxOutcome, TcReceiver};
 use mmic_link::sdls::{RxSa, RxSas, TxSa};
@@ -118,13 +121,32 @@ impl FrameEndpoint {
         let mut sas = RxSas::default();
         sas.insert(rx_sa)
             .map_err(|_| anyhow::anyhow!("no room for the TC security association"))?;
+        if let Some((slot, why)) = store.bad_slot() {
+            log::warn!(
+                "space link: {} slot {slot} invalid ({why}); the other slot (one write older) was used",
+                cfg.state.display()
+            );
+        }
+        // FARM-1 resumes where it was (V(R), lockout, FARM-B): the ground's AD frames in
+        // flight continue without a re-initialisation.
+        let farm = match store.farm() {
+            Some(rec) => {
+                log::info!(
+                    "space link: FARM-1 resumes at V(R) = {}{}",
+                    rec.vr,
+                    if rec.lockout { ", in lockout" } else { "" }
+                );
+                Farm::mission_restored(rec)
+            }
+            None => Farm::mission(),
+        };
         let tm_sa = TxSa::resume(tm_spi, &tm_key, store.get(Dir::Tx, tm_spi).unwrap_or(0));
         let sock = UdpSocket::bind(cfg.listen).with_context(|| format!("cannot bind --frame-udp {}", cfg.listen))?;
         sock.set_nonblocking(true)?;
         Ok(FrameEndpoint {
             sock,
             tm_to: cfg.tm_to,
-            rx: TcReceiver::mission(sas),
+            rx: TcReceiver::new(mib::link::SCID, mib::link::tc_vc::COMMAND, farm, sas),
             framer: Framer::mission(),
             tm_sa,
             store,

@@ -73,6 +73,19 @@ pub struct FarmEffect {
     pub action: FarmAction,
 }
 
+/// The part of FARM-1 that survives a restart: written with the receive IV of every
+/// authentic frame (one durable write, `IvStore::record_rx_farm`) and after every control
+/// frame (`IvStore::record_farm`), before the frame has any other effect.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FarmRecord {
+    /// V(R), the next expected N(S).
+    pub vr: u8,
+    /// The lockout flag (Lockout state).
+    pub lockout: bool,
+    /// The full FARM-B counter.
+    pub farm_b: u8,
+}
+
 /// FARM-1 for one virtual channel.
 #[derive(Clone, Debug)]
 pub struct Farm {
@@ -121,6 +134,39 @@ impl Farm {
     /// The full FARM-B counter (the CLCW carries its two low bits).
     pub fn farm_b_counter(&self) -> u8 {
         self.farm_b
+    }
+
+    /// What is persisted of this FARM (see [`FarmRecord`]).
+    pub fn record(&self) -> FarmRecord {
+        FarmRecord {
+            vr: self.vr,
+            lockout: self.lockout,
+            farm_b: self.farm_b,
+        }
+    }
+
+    /// A FARM resuming from a persisted record after a restart: V(R), the lockout flag and
+    /// the FARM-B counter as stored; Lockout when the lockout flag was set (only Unlock
+    /// leaves it, as before the restart), Open otherwise. The wait flag starts clear (the
+    /// back-end buffer is empty after a restart) and so does the retransmit flag (frames
+    /// lost in the restart are retransmitted by the ground's T1; a set flag with nothing
+    /// outstanding would be an inconsistent CLCW for its FOP-1).
+    pub fn restore(vcid: u8, window: u8, rec: FarmRecord) -> Farm {
+        let mut f = Farm::new(vcid, window);
+        f.vr = rec.vr;
+        f.farm_b = rec.farm_b;
+        f.lockout = rec.lockout;
+        f.state = if rec.lockout {
+            FarmState::Lockout
+        } else {
+            FarmState::Open
+        };
+        f
+    }
+
+    /// The mission's FARM resuming from `rec` ([`Farm::restore`]).
+    pub fn mission_restored(rec: FarmRecord) -> Farm {
+        Farm::restore(mib::link::tc_vc::COMMAND, mib::link::cop1::FARM_WINDOW_WIDTH, rec)
     }
 
     pub fn on_event(&mut self, input: FarmInput) -> FarmEffect {

@@ -6,6 +6,8 @@
 //! - [`tc`], [`tm`], [`clcw`]: wire formats, a zero-copy view and a `Repr` each, checked
 //!   constructors for untrusted bytes.
 //! - [`sdls`]: security associations, the anti-replay window and the persisted IV counters.
+//! - [`persist`]: the persisted link state record (SDLS counters, FARM-1), two CRC-checked
+//!   slots; with `std`, the host's state file and key files.
 //! - [`farm`], [`fop`]: COP-1 as pure state machines, `on_event(now, input) -> effects`.
 //! - [`mux`]: space packets into fixed TM frames and back.
 //! - [`downlink`]: TM frames on board (VC0 realtime, VC1 replay, VC7 idle) and their
@@ -23,7 +25,6 @@ pub mod farm;
 pub mod fecf;
 pub mod fop;
 pub mod mux;
-#[cfg(any(test, feature = "std"))]
 pub mod persist;
 pub mod rx;
 pub mod sdls;

@@ -3,11 +3,12 @@
 //! 1. **CRC** over the datagram (a bare space packet on the frame port is recognised here);
 //! 2. **lengths and header**: bounds, header length = datagram length, version, flags, SCID,
 //!    VCID, the SDLS data field size;
-//! 3. **SDLS** (AD and BD frames): SPI, anti-replay window, MAC, decryption, receive counter
-//!    persisted;
+//! 3. **SDLS** (AD and BD frames): SPI, anti-replay window, MAC, decryption;
 //! 4. the packets inside are length-checked (before FARM-1 so that a frame that will be
 //!    refused changes no COP-1 state);
-//! 5. **FARM-1**;
+//! 5. **FARM-1**, then the receive IV and FARM-1's new state in one durable write
+//!    ([`IvStore::record_rx_farm`]; control frames: [`IvStore::record_farm`]) — a store
+//!    failure refuses the frame and undoes the FARM-1 step;
 //! 6. **packet extraction**: the caller iterates the accepted packets.
 //!
 //! BC frames (Unlock, Set V(R)) arrive in clear, as Yamcs 5.12.8 sends them; they can deny
@@ -269,16 +270,25 @@ impl<const N: usize> TcReceiver<N> {
                 let f = TcFrame::new_unchecked(&*datagram);
                 ControlCommand::parse(f.data()).map_err(RxError::UnknownControl)?
             };
+            // FARM-1's new state is durable before the command counts as executed; a store
+            // failure leaves the FARM as it was.
+            let before = self.farm.clone();
             self.farm.on_event(FarmInput::Bc(cmd));
+            if store.record_farm(self.farm.record()).is_err() {
+                self.farm = before;
+                return Err(RxError::Sdls(SdlsError::StoreFailed));
+            }
             match cmd {
                 ControlCommand::Unlock => inc(&mut self.counters.unlock),
                 ControlCommand::SetVr(_) => inc(&mut self.counters.set_vr),
             }
             return Ok(RxOutcome::Control(cmd));
         }
-        // 3. SDLS.
-        let pt = self.sas.process_tc(store, datagram).map_err(RxError::Sdls)?;
-        let data: &'a [u8] = &datagram[pt];
+        // 3. SDLS: window, MAC, decryption. The IV is recorded with FARM-1's new state in
+        // one durable write (step 5).
+        let verified = self.sas.verify_tc(datagram).map_err(RxError::Sdls)?;
+        let datagram: &'a [u8] = datagram;
+        let data: &'a [u8] = &datagram[verified.data.clone()];
         // 4. Packet lengths, before COP-1 state changes.
         let packets = split_packets(data).ok_or(RxError::NotPackets)?;
         // 5. FARM-1.
@@ -289,7 +299,20 @@ impl<const N: usize> TcReceiver<N> {
             },
             FrameType::Bd | FrameType::Bc => FarmInput::Bd,
         };
+        let before = self.farm.clone();
         let fx = self.farm.on_event(input);
+        // The receive IV and FARM-1's state (V(R), lockout, FARM-B) reach the store before
+        // the frame has any effect: a frame accepted before a crash is a replay after it,
+        // and the restarted FARM-1 continues at V(R). A store failure refuses the frame and
+        // leaves SDLS and FARM-1 as they were.
+        if store
+            .record_rx_farm(verified.spi, verified.iv, self.farm.record())
+            .is_err()
+        {
+            self.farm = before;
+            return Err(RxError::Sdls(SdlsError::StoreFailed));
+        }
+        self.sas.commit(&verified);
         match fx.action {
             FarmAction::Accept => {
                 match frame_type {

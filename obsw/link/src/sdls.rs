@@ -24,6 +24,8 @@ use aes_gcm::aead::AeadInPlace;
 use aes_gcm::{Aes256Gcm, KeyInit, Nonce, Tag};
 use mib::link::sdls::{HEADER_LEN, IV_LEN, IV_RESERVE_BLOCK, KEY_LEN, MAC_LEN, SPI_LEN};
 
+use crate::farm::FarmRecord;
+
 /// An AES-256 key.
 pub type Key = [u8; KEY_LEN];
 
@@ -72,15 +74,20 @@ impl core::error::Error for SdlsError {}
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct StoreError;
 
-/// Durable storage of the IV counters, implemented by the host (a state file written and
-/// synced) or the firmware (a flash area). Both calls must return only once the value
-/// survives a restart.
+/// Durable storage of the IV counters (and the on-board FARM-1 state), implemented by the
+/// host (a state file written in place and synced, `persist::FileIvStore`) or the firmware
+/// (a flash area). Every call must return only once the value survives a restart.
 pub trait IvStore {
     /// The sender of `spi` may use every IV below `high_water`. On restart it resumes at the
     /// stored value.
     fn reserve_tx(&mut self, spi: u16, high_water: u128) -> Result<(), StoreError>;
     /// The receiver of `spi` accepted `last`; after a restart it accepts only IVs above it.
     fn record_rx(&mut self, spi: u16, last: u128) -> Result<(), StoreError>;
+    /// The on-board TC path: the receiver of `spi` accepted `last` and FARM-1 is now
+    /// `farm`, both in **one** durable write. The frame is used only after this returned Ok.
+    fn record_rx_farm(&mut self, spi: u16, last: u128, farm: FarmRecord) -> Result<(), StoreError>;
+    /// FARM-1 changed without an IV (a control frame, which comes in clear).
+    fn record_farm(&mut self, farm: FarmRecord) -> Result<(), StoreError>;
 }
 
 /// An in-memory [`IvStore`] (tests, simulator). `fail` makes every call fail.
@@ -88,6 +95,8 @@ pub trait IvStore {
 pub struct MemoryIvStore {
     pub tx: heapless::Vec<(u16, u128), 8>,
     pub rx: heapless::Vec<(u16, u128), 8>,
+    /// The FARM-1 record last stored.
+    pub farm: Option<FarmRecord>,
     pub writes: u32,
     pub fail: bool,
 }
@@ -125,6 +134,21 @@ impl IvStore for MemoryIvStore {
         }
         self.writes += 1;
         Self::put(&mut self.rx, spi, last)
+    }
+
+    fn record_rx_farm(&mut self, spi: u16, last: u128, farm: FarmRecord) -> Result<(), StoreError> {
+        self.record_rx(spi, last)?;
+        self.farm = Some(farm);
+        Ok(())
+    }
+
+    fn record_farm(&mut self, farm: FarmRecord) -> Result<(), StoreError> {
+        if self.fail {
+            return Err(StoreError);
+        }
+        self.writes += 1;
+        self.farm = Some(farm);
+        Ok(())
     }
 }
 
@@ -308,14 +332,15 @@ impl RxSa {
         d >= 1 && d <= u128::from(self.window)
     }
 
-    fn process<const M: usize>(
+    /// Window check, MAC and decryption in place; `last` does not move (see
+    /// [`RxSas::commit`]).
+    fn verify<const M: usize>(
         &mut self,
-        store: &mut impl IvStore,
         frame: &mut [u8],
         hdr_end: usize,
         mac_start: usize,
         mask: &[u8; M],
-    ) -> Result<Range<usize>, SdlsError> {
+    ) -> Result<Verified, SdlsError> {
         let mut ivb = [0u8; IV_LEN];
         ivb.copy_from_slice(&frame[hdr_end + SPI_LEN..hdr_end + HEADER_LEN]);
         let iv = iv_value(&ivb);
@@ -329,10 +354,22 @@ impl RxSa {
         self.cipher
             .decrypt_in_place_detached(Nonce::from_slice(&ivb), &a, &mut frame[pt.clone()], &tag)
             .map_err(|_| SdlsError::BadMac)?;
-        store.record_rx(self.spi, iv).map_err(|_| SdlsError::StoreFailed)?;
-        self.last = iv;
-        Ok(pt)
+        Ok(Verified {
+            spi: self.spi,
+            iv,
+            data: pt,
+        })
     }
+}
+
+/// An authentic frame whose IV is not yet recorded: [`RxSas::verify_tc`]'s result. Its IV
+/// becomes the SA's `last` with [`RxSas::commit`], once the store has it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Verified {
+    pub spi: u16,
+    pub iv: u128,
+    /// The plaintext's range in the frame.
+    pub data: Range<usize>,
 }
 
 /// The receive SAs of one direction (two for key change without downtime).
@@ -381,15 +418,33 @@ impl<const N: usize> RxSas<N> {
     }
 
     /// Verifies and decrypts a TC frame in place (`frame` = whole frame, FECF included and
-    /// already checked, header lengths already checked). Returns the plaintext's range.
+    /// already checked, header lengths already checked), recording the IV with
+    /// [`IvStore::record_rx`]. Returns the plaintext's range.
     pub fn process_tc(&mut self, store: &mut impl IvStore, frame: &mut [u8]) -> Result<Range<usize>, SdlsError> {
+        let v = self.verify_tc(frame)?;
+        store.record_rx(v.spi, v.iv).map_err(|_| SdlsError::StoreFailed)?;
+        self.commit(&v);
+        Ok(v.data)
+    }
+
+    /// Verifies and decrypts a TC frame in place without recording its IV: the caller
+    /// stores it (with FARM-1's state, [`IvStore::record_rx_farm`]) and then calls
+    /// [`RxSas::commit`]. Until then the SA's window is unchanged.
+    pub fn verify_tc(&mut self, frame: &mut [u8]) -> Result<Verified, SdlsError> {
         use mib::link::tc_frame::{FECF_LEN, HEADER_LEN as H};
         let data_len = frame.len().saturating_sub(H + FECF_LEN);
         if data_len < HEADER_LEN + MAC_LEN {
             return Err(SdlsError::TooShort(data_len));
         }
         let mac_start = frame.len() - FECF_LEN - MAC_LEN;
-        self.find(frame, H)?.process(store, frame, H, mac_start, &TC_AUTH_MASK)
+        self.find(frame, H)?.verify(frame, H, mac_start, &TC_AUTH_MASK)
+    }
+
+    /// The verified frame's IV becomes its SA's `last` (after the store has it).
+    pub fn commit(&mut self, v: &Verified) {
+        if let Some(sa) = self.sas.iter_mut().find(|s| s.spi == v.spi) {
+            sa.last = v.iv;
+        }
     }
 
     /// Verifies and decrypts a TM frame in place (`frame` = the whole fixed-length frame).
@@ -400,7 +455,10 @@ impl<const N: usize> RxSas<N> {
             return Err(SdlsError::TooShort(data_len));
         }
         let mac_start = frame.len() - FECF_LEN - OCF_LEN - MAC_LEN;
-        self.find(frame, H)?.process(store, frame, H, mac_start, &TM_AUTH_MASK)
+        let v = self.find(frame, H)?.verify(frame, H, mac_start, &TM_AUTH_MASK)?;
+        store.record_rx(v.spi, v.iv).map_err(|_| SdlsError::StoreFailed)?;
+        self.commit(&v);
+        Ok(v.data)
     }
 }
 
