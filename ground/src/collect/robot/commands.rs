@@ -1,0 +1,97 @@
+//! The page's and the plan runs' TCs, numbered with this thread's sequence counter and
+//! sent on its link; what the following plan run and the dashboard are told.
+
+use crate::archive::now_ms;
+use crate::collect::dash::DashCmd;
+use crate::collect::planrun::PlanInput;
+use crate::pus::{self, BuiltTc};
+
+use super::{LinkState, Worker};
+
+impl Worker {
+    /// Sends the page's TCs, numbered with this thread's own sequence counter.
+    pub(super) fn dash_commands(&mut self) {
+        let Some(d) = &self.dash else { return };
+        let cmds: Vec<DashCmd> = d.cmds.try_iter().take(64).collect();
+        for c in cmds {
+            match c {
+                // The page's answer channel may be gone (it timed out): nothing to tell.
+                DashCmd::Tc { name, args, reply } => {
+                    let r = mib::tc::by_name(&name)
+                        .ok_or_else(|| format!("no TC named {name}"))
+                        .and_then(|def| self.dash_tc(def, &args, "page"))
+                        .map(|tc| crate::dashboard::request_id(self.robot(), tc.apid, tc.seq));
+                    let _ = reply.send(r);
+                }
+                DashCmd::PlanTc {
+                    def,
+                    args,
+                    origin,
+                    reply,
+                } => {
+                    let r = self.dash_tc(def, &args, &origin);
+                    let _ = reply.send(r);
+                }
+                DashCmd::Resend { bytes } => self.send(&bytes),
+                DashCmd::Follow(tx) => self.plan = Some(tx),
+            }
+        }
+    }
+
+    /// Numbers a TC of the page or a plan with this thread's sequence counter, shows it
+    /// in the dashboard's history and sends it.
+    pub(super) fn dash_tc(
+        &mut self,
+        def: &'static mib::tc::TcDef,
+        args: &[i64],
+        origin: &str,
+    ) -> Result<BuiltTc, String> {
+        if self.link.is_none() {
+            return Err(format!("robot {}: no link (reconnecting)", self.robot()));
+        }
+        // Check the arguments before using up a sequence count.
+        pus::build_tc(self.robot(), 0, def, args).map_err(|e| e.to_string())?;
+        if def.name == "ACCEPT_CONFIG" {
+            // The robot's configuration state changes: its module report is asked for
+            // again (after ASK_AGAIN_MS, the TC executed by then) instead of waiting up to
+            // 10 s for the MODULES housekeeping.
+            self.modules.forget_report();
+            self.modules_asked_ms = now_ms();
+        }
+        let seq = self.next_seq();
+        let tc = pus::build_tc(self.robot(), seq, def, args).map_err(|e| e.to_string())?;
+        match &self.dash {
+            Some(d) => crate::dashboard::tc_sent(&d.hub, self.robot(), &tc, def, args, origin),
+            None => return Err("no dashboard".into()),
+        };
+        match &self.link {
+            Some(l) => l
+                .send(&tc.bytes)
+                .map_err(|e| format!("sending to robot {}: {e}", self.robot()))?,
+            None => return Err(format!("robot {}: no link", self.robot())),
+        }
+        Ok(tc)
+    }
+
+    /// Hands the following plan run `msg`; a run that ended stops being followed.
+    pub(super) fn tell_plan(&mut self, msg: PlanInput) {
+        if let Some(tx) = &self.plan {
+            if tx.send(msg).is_err() {
+                self.plan = None;
+            }
+        }
+    }
+
+    pub(super) fn dash_link(&self) {
+        if let Some(d) = &self.dash {
+            d.hub.link(
+                self.cfg.number,
+                match self.state {
+                    LinkState::Connecting => crate::dashboard::LinkState::Connecting,
+                    LinkState::Up => crate::dashboard::LinkState::Up,
+                    LinkState::Lost => crate::dashboard::LinkState::Lost,
+                },
+            );
+        }
+    }
+}

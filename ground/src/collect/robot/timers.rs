@@ -1,0 +1,138 @@
+//! What the worker does on its clock: link loss and stale housekeeping, subscription,
+//! lease renewal and reconnection with backoff, HK interval and mode announcements, and
+//! the on-board store asked for every hole.
+
+use crate::alarms::{Severity, Source};
+use crate::collect::onboard;
+use crate::collect::planrun::PlanInput;
+
+use super::{
+    LinkState, Worker, BACKOFF_START_MS, HK_SET_TRIES, MAX_RUNS_PER_REQUEST, MERGE_GAP, STORE_REQUEST_MIN_GAP_MS,
+    STORE_REQUEST_TIMEOUT_MS,
+};
+
+impl Worker {
+    pub(super) fn timers(&mut self, now: i64) {
+        // Link loss: no TM for max(3 HK intervals, 3 s).
+        let loss_ms = self.global.loss_ms(self.hk_interval_ms);
+        let silent_since = self.last_rx_ms.unwrap_or(self.started_ms);
+        if self.state != LinkState::Lost && now - silent_since > loss_ms {
+            let was = self.state;
+            self.state = LinkState::Lost;
+            self.dash_link();
+            self.backoff_ms = BACKOFF_START_MS;
+            self.next_send_ms = now;
+            tracing::warn!(
+                robot = self.robot(),
+                "robot {}: link lost (no TM for {} ms{})",
+                self.robot(),
+                now - silent_since,
+                if was == LinkState::Connecting {
+                    ", never heard"
+                } else {
+                    ""
+                }
+            );
+            self.condition(
+                Source::LinkLoss,
+                Severity::High,
+                true,
+                now,
+                None,
+                format!("no TM for {} ms", now - silent_since),
+            );
+            let why = format!("robot {}: no TM for {} ms", self.robot(), now - silent_since);
+            self.tell_plan(PlanInput::LinkLost {
+                robot: self.robot(),
+                why,
+            });
+            self.condition(Source::StaleData, Severity::Medium, false, now, None, String::new());
+        }
+        // Stale: TM flows but no HK.
+        if self.state == LinkState::Up {
+            let hk_since = self.last_hk_ms.unwrap_or(self.started_ms).max(self.up_since_ms);
+            let stale_ms = self.global.stale_hk_intervals as i64 * self.hk_interval_ms as i64;
+            if now - hk_since > stale_ms.max(1000) {
+                self.condition(
+                    Source::StaleData,
+                    Severity::Medium,
+                    true,
+                    now,
+                    None,
+                    format!("no housekeeping for {} ms", now - hk_since),
+                );
+            }
+        }
+        // Subscribe / renew / reconnect.
+        if now >= self.next_send_ms {
+            self.ensure_link();
+            if let Some(tc) = onboard::subscribe_tc(self.robot(), self.next_seq()) {
+                self.send(&tc.bytes);
+            }
+            if !self.hk_confirmed && self.state == LinkState::Up {
+                let tries = self.hk_set.map_or(0, |(_, n)| n);
+                if tries < HK_SET_TRIES {
+                    if let Some(tc) = onboard::hk_interval_tc(
+                        self.robot(),
+                        self.next_seq(),
+                        mib::hk::sid::ROBOT_STATUS,
+                        self.hk_interval_ms,
+                    ) {
+                        self.send(&tc.bytes);
+                        self.hk_set = Some((tc.request_id(), tries + 1));
+                    }
+                }
+            }
+            if self.dash.is_some() && !self.modes_known && self.state == LinkState::Up {
+                if let Some(tc) = onboard::mode_announce_tc(self.robot(), self.next_seq()) {
+                    self.send(&tc.bytes);
+                }
+            }
+            if self.state == LinkState::Up && !self.team_known {
+                self.team_due = true;
+            }
+            if self.state == LinkState::Up {
+                self.next_send_ms = now + self.global.lease_renew_ms as i64;
+            } else {
+                self.next_send_ms = now + self.backoff_ms;
+                self.backoff_ms = (self.backoff_ms * 2).min(self.global.max_backoff_ms as i64);
+            }
+        }
+        self.ask_config(now);
+        // Holes → store requests (only while the link is up).
+        if self.store_in_flight && now - self.last_store_request_ms >= STORE_REQUEST_TIMEOUT_MS {
+            self.store_in_flight = false;
+        }
+        if self.state == LinkState::Up
+            && !self.store_in_flight
+            && now - self.last_store_request_ms >= STORE_REQUEST_MIN_GAP_MS
+        {
+            let g = &self.global;
+            let (settle, retry, tries) = (g.gap_settle_ms as i64, g.gap_retry_ms as i64, g.gap_max_tries);
+            let mut requests = Vec::new();
+            if let Some(t) = self.trackers.get_mut(&self.apid) {
+                requests = t.due(now, settle, retry, tries, MAX_RUNS_PER_REQUEST, MERGE_GAP);
+            }
+            if !requests.is_empty() {
+                self.last_store_request_ms = now;
+                self.store_in_flight = true;
+            }
+            let mut whole_sent = false;
+            for (first, last) in requests {
+                let seq = self.next_seq();
+                let Some((tc, ranged)) = onboard::store_range_tc(self.robot(), seq, self.apid, first, last) else {
+                    continue;
+                };
+                if !ranged && whole_sent {
+                    continue;
+                }
+                whole_sent |= !ranged;
+                tracing::debug!(robot = self.robot(), "store request {first}..={last}");
+                self.send(&tc.bytes);
+                self.st.store_requests += 1;
+            }
+        }
+        self.report_lost(now);
+        self.publish(now, false);
+    }
+}
