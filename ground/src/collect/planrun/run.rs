@@ -1,0 +1,205 @@
+//! One run's thread: the executor driven by the robots' reports, its TCs handed to the
+//! robots' threads, and every change published to the hub.
+
+use std::collections::BTreeMap;
+use std::time::{Duration, Instant};
+
+use crossbeam_channel::{Receiver, RecvTimeoutError, Sender};
+
+use crate::collect::dash::DashCmd;
+use crate::dashboard::{request_id, Hub, PlanRun};
+use crate::ops::{Effect, Executor, RunOptions, StepState, Update};
+use crate::plan::Plan;
+use crate::pus::{BuiltTc, TmBody};
+
+use super::{PlanInput, Resend, Resender};
+
+/// How long a run waits for a robot's thread to take a TC.
+const SEND_TIMEOUT: Duration = Duration::from_secs(2);
+/// The run's thread wakes at least this often (timeouts, resends).
+const POLL: Duration = Duration::from_millis(50);
+
+/// The page's view of a run: each step's state from the executor.
+pub fn view(run: &mut PlanRun, exec: &Executor) {
+    for (s, st) in run.steps.iter_mut().zip(&exec.state) {
+        let (state, detail) = match st {
+            StepState::Waiting => ("waiting", String::new()),
+            StepState::Running { stage, progress, .. } if *progress > 0 => ("running", format!("{stage} {progress}")),
+            StepState::Running { stage, .. } => ("running", stage.to_string()),
+            StepState::Done { secs } => ("done", format!("completed in {secs:.1} s")),
+            StepState::Failed(w) => ("failed", w.clone()),
+            StepState::Blocked(w) => ("blocked", w.clone()),
+        };
+        s.state = state.into();
+        s.detail = detail;
+    }
+}
+
+/// How a finished run ended: `(state, detail)` for [`PlanRun`]. A lost link wins over
+/// the failures it caused; otherwise the first failed step (its failure name is in its
+/// reason), then the first blocked one.
+pub fn outcome(run: &PlanRun, lost: Option<&str>) -> (String, String) {
+    if let Some(why) = lost {
+        return ("lost".into(), format!("link lost: {why}"));
+    }
+    for want in ["failed", "blocked"] {
+        if let Some(s) = run.steps.iter().find(|s| s.state == want) {
+            return ("failed".into(), format!("step {} {want}: {}", s.id, s.detail));
+        }
+    }
+    ("done".into(), String::new())
+}
+
+/// One run: the executor, its TCs in flight, the robots' threads and the hub.
+pub(super) struct Run {
+    pub(super) plan: Plan,
+    pub(super) run: PlanRun,
+    pub(super) hub: Hub,
+    pub(super) robots: BTreeMap<u8, Sender<DashCmd>>,
+    pub(super) input: Receiver<PlanInput>,
+    pub(super) resender: Resender,
+    pub(super) lost: Option<String>,
+}
+
+impl Run {
+    pub(super) fn execute(mut self) -> PlanRun {
+        let plan = self.plan.clone();
+        let opts = RunOptions {
+            // The collector's threads renew the lease and watch the links.
+            ping_period: None,
+            display: false,
+            ..RunOptions::default()
+        };
+        let mut exec = Executor::new(&plan, &opts, &[], Instant::now());
+        self.hub.plan(self.run.clone());
+        loop {
+            let fx = exec.on_tick(Instant::now());
+            self.apply(&mut exec, fx);
+            let (updates, resends) = self.resender.on_tick(Instant::now());
+            self.resend(resends);
+            for u in updates {
+                let fx = exec.on_update(Instant::now(), u);
+                self.apply(&mut exec, fx);
+            }
+            self.publish(&exec);
+            if exec.finished() {
+                break;
+            }
+            let first = match self.input.recv_timeout(POLL) {
+                Ok(m) => Some(m),
+                Err(RecvTimeoutError::Timeout) => None,
+                Err(RecvTimeoutError::Disconnected) => {
+                    // The collector is stopping: its threads are gone.
+                    for r in plan.robots.iter().map(|r| r.number) {
+                        let why = format!("robot {r}: the collector stopped");
+                        let fx = exec.on_update(Instant::now(), Update::LinkLost { robot: r, why });
+                        self.apply(&mut exec, fx);
+                    }
+                    self.lost.get_or_insert("the collector stopped".into());
+                    continue;
+                }
+            };
+            for m in first
+                .into_iter()
+                .chain(self.input.try_iter().take(512).collect::<Vec<_>>())
+            {
+                self.input(&mut exec, m);
+            }
+        }
+        view(&mut self.run, &exec);
+        let (state, detail) = outcome(&self.run, self.lost.as_deref());
+        self.run.state = state;
+        self.run.detail = detail;
+        self.hub.plan(self.run.clone());
+        tracing::info!("plan run {}: {} {}", self.run.run_id, self.run.state, self.run.detail);
+        self.run
+    }
+
+    fn input(&mut self, exec: &mut Executor, m: PlanInput) {
+        let now = Instant::now();
+        let update = match m {
+            PlanInput::LinkLost { robot, why } => {
+                if !self.plan.robots.iter().any(|r| r.number == robot) {
+                    return;
+                }
+                self.lost.get_or_insert(why.clone());
+                Some(Update::LinkLost { robot, why })
+            }
+            PlanInput::Tm { robot, tm } => match tm.body {
+                TmBody::Verification(v) => {
+                    let (u, resends) = self.resender.on_verification(robot, v, now);
+                    self.resend(resends);
+                    u
+                }
+                TmBody::Event(event) => Some(Update::Event { robot, event }),
+                _ => None,
+            },
+        };
+        if let Some(u) = update {
+            let fx = exec.on_update(now, u);
+            self.apply(exec, fx);
+        }
+    }
+
+    fn resend(&self, resends: Vec<Resend>) {
+        for Resend::Bytes { robot, bytes } in resends {
+            if let Some(tx) = self.robots.get(&robot) {
+                // A resend that cannot be handed over is a lost packet: the next one
+                // follows on the schedule.
+                let _ = tx.try_send(DashCmd::Resend { bytes });
+            }
+        }
+    }
+
+    fn apply(&mut self, exec: &mut Executor, fx: Vec<Effect>) {
+        let mut queue: std::collections::VecDeque<Effect> = fx.into();
+        while let Some(e) = queue.pop_front() {
+            match e {
+                Effect::Send { step, robot, def, args } => {
+                    let sent = self.send(robot, def, args);
+                    if let Ok(tc) = &sent {
+                        self.resender.sent(step, robot, tc.clone(), Instant::now());
+                        if let Some(s) = self.run.steps.get_mut(step) {
+                            s.request_id = Some(request_id(robot, tc.apid, tc.seq));
+                        }
+                    }
+                    queue.extend(exec.on_sent(step, sent, Instant::now()));
+                }
+                Effect::Forget(tc) => self.resender.forget(&tc),
+                // Not asked for (no ping period): the collector's thread renews the lease.
+                Effect::Heartbeat(_) => {}
+                // The collector's thread asks the on-board store for every hole itself,
+                // and hands the run the replayed reports.
+                Effect::Retrieve(_) => {}
+                Effect::Log(line) => tracing::info!("plan run {}: {}", self.run.run_id, line.trim()),
+                Effect::Finished => {}
+            }
+        }
+    }
+
+    fn send(&self, robot: u8, def: &'static mib::tc::TcDef, args: Vec<i64>) -> Result<BuiltTc, String> {
+        let tx = self
+            .robots
+            .get(&robot)
+            .ok_or_else(|| format!("robot {robot} is not followed by this collector"))?;
+        let (reply, answer) = crossbeam_channel::bounded(1);
+        tx.send(DashCmd::PlanTc {
+            def,
+            args,
+            origin: format!("plan {}", self.run.plan),
+            reply,
+        })
+        .map_err(|_| format!("robot {robot}: the collector's thread has stopped"))?;
+        answer
+            .recv_timeout(SEND_TIMEOUT)
+            .map_err(|_| format!("robot {robot}: the collector did not take the TC"))?
+    }
+
+    fn publish(&mut self, exec: &Executor) {
+        let before = self.run.clone();
+        view(&mut self.run, exec);
+        if self.run != before {
+            self.hub.plan(self.run.clone());
+        }
+    }
+}

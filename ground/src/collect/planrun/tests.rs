@@ -1,0 +1,261 @@
+use super::*;
+use std::time::{Duration, Instant};
+
+use mib::config::{tc_retry_wait_ms, TC_RETRY_MAX};
+
+use crate::ops::{Effect, Executor, RunOptions, Update};
+use crate::pus::{build_tm, CdsShort};
+use crate::pus::{BuiltTc, TmBody, Verification};
+use mib::failure::FailureCode;
+
+fn ping(seq: u16) -> BuiltTc {
+    crate::pus::build_tc(1, seq, mib::tc::by_name("PING").unwrap(), &[]).unwrap()
+}
+
+/// A PUS 1 report (`subservice`) about `tc`, failing with `code` if even.
+fn report(tc: &BuiltTc, subservice: u8, code: FailureCode) -> Verification {
+    let mut data = tc.bytes[..4].to_vec();
+    if subservice == 5 || subservice == 6 {
+        data.push(2); // progress step
+    }
+    if subservice.is_multiple_of(2) {
+        data.extend_from_slice(&code.code().to_be_bytes());
+        data.extend(std::iter::repeat_n(0, mib::layout::fields_len(code.data())));
+    }
+    let raw = build_tm(tc.apid, 9, 1, subservice, 0, &CdsShort::now().to_bytes(), &data);
+    match crate::pus::decode_tm(&raw).unwrap().body {
+        TmBody::Verification(v) => v,
+        other => panic!("not a verification: {other:?}"),
+    }
+}
+
+// verifies: GND-19
+#[test]
+fn resends_identical_bytes_on_the_mib_schedule_until_accepted_then_waits_for_the_outcome() {
+    let t0 = Instant::now();
+    let mut r = Resender::default();
+    let tc = ping(42);
+    r.sent(3, 1, tc.clone(), t0);
+    let first = Duration::from_millis(tc_retry_wait_ms(0) as u64);
+    assert_eq!(r.on_tick(t0 + first - Duration::from_millis(1)).1, vec![]);
+    let (u, re) = r.on_tick(t0 + first);
+    assert_eq!(
+        re,
+        vec![Resend::Bytes {
+            robot: 1,
+            bytes: tc.bytes.clone()
+        }]
+    );
+    assert!(matches!(
+        u[..],
+        [Update::Resent {
+            tag: Some(3),
+            send: 2,
+            ..
+        }]
+    ));
+    // The next wait is the MIB's second one, counted from the resend.
+    let second = Duration::from_millis(tc_retry_wait_ms(1) as u64);
+    assert!(second > first);
+    assert!(r.on_tick(t0 + first + second - Duration::from_millis(1)).1.is_empty());
+    assert_eq!(r.on_tick(t0 + first + second).1.len(), 1);
+
+    // Accepted: the executor gets the report with its step; completion ends it.
+    let (u, re) = r.on_verification(1, report(&tc, 1, FailureCode::CRC_MISMATCH), t0 + first * 3);
+    assert!(re.is_empty());
+    assert!(matches!(u, Some(Update::Verification { tag: Some(3), .. })));
+    assert_eq!(r.len(), 1);
+    let (u, _) = r.on_verification(1, report(&tc, 7, FailureCode::CRC_MISMATCH), t0 + first * 4);
+    assert!(matches!(u, Some(Update::Verification { tag: Some(3), .. })));
+    assert!(r.is_empty());
+    // Reports of other TCs (the page's, the collector's) are not the run's.
+    assert!(r
+        .on_verification(1, report(&ping(7), 1, FailureCode::CRC_MISMATCH), t0)
+        .0
+        .is_none());
+}
+
+// verifies: GND-19
+#[test]
+fn a_damaged_copy_is_resent_at_once_and_a_silent_tc_is_given_up_after_its_sends() {
+    let t0 = Instant::now();
+    let mut r = Resender::default();
+    let tc = ping(9);
+    r.sent(0, 1, tc.clone(), t0);
+    let (u, re) = r.on_verification(1, report(&tc, 2, FailureCode::CRC_MISMATCH), t0);
+    assert!(matches!(u, Some(Update::DamagedCopy { tag: Some(0), .. })));
+    assert_eq!(re.len(), 1);
+    // Never answered: every send is made, then the TC is given up (not accepted).
+    let mut t = t0;
+    let mut sends = 2;
+    let mut gave_up = false;
+    for _ in 0..100 {
+        t += Duration::from_millis(mib::config::TC_RETRY_CAP_MS as u64);
+        let (u, re) = r.on_tick(t);
+        sends += re.len() as u32;
+        if let Some(Update::GaveUp { accepted, sends: k, .. }) = u.last() {
+            assert!(!accepted);
+            assert_eq!(*k, TC_RETRY_MAX + 1);
+            gave_up = true;
+            break;
+        }
+    }
+    assert!(gave_up);
+    assert_eq!(sends, TC_RETRY_MAX + 1);
+    assert!(r.is_empty());
+
+    // A failure that is the TC's verdict ends it and reaches the executor.
+    let tc = ping(10);
+    r.sent(1, 1, tc.clone(), t0);
+    let (u, re) = r.on_verification(1, report(&tc, 4, FailureCode::NOT_ALLOWED_IN_MODE), t0);
+    assert!(re.is_empty());
+    assert!(matches!(u, Some(Update::Verification { v, .. }) if !v.success));
+    assert!(r.is_empty());
+}
+
+// verifies: GND-19, GND-18
+#[test]
+fn starts_are_checked_unknown_hazard_link_and_one_plan_per_robot() {
+    let dir = std::env::temp_dir().join(format!("planbook-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let plan = |name: &str, tc: &str| {
+        let path = dir.join(format!("{name}.toml"));
+        std::fs::write(
+            &path,
+            format!("name = \"{name}\"\n[[robot]]\nnumber = 1\n[[step]]\nid = \"s\"\nrobot = 1\naction = \"command\"\ntc = \"{tc}\"\n"),
+        )
+        .unwrap();
+        PlanCfg {
+            name: name.into(),
+            path,
+        }
+    };
+    let hub = Hub::new();
+    hub.add_robot(1);
+    let (tx, rx) = crossbeam_channel::bounded(64);
+    let book = PlanBook::new(
+        vec![plan("ping", "PING"), plan("clear", "STORE_DELETE")],
+        hub.clone(),
+        BTreeMap::from([(1, tx)]),
+    );
+    assert!(matches!(book.start("nope", true), Err(PlanStartError::Unknown(m)) if m.contains("ping, clear")));
+    assert!(matches!(book.start("ping", false), Err(PlanStartError::Refused(m)) if m.contains("not up yet")));
+    hub.link(1, crate::dashboard::LinkState::Up);
+    let hazards = &book.list()[1].hazards;
+    assert_eq!(hazards.len(), 1, "{hazards:?}");
+    assert!(matches!(
+        book.start("clear", false),
+        Err(PlanStartError::NeedsConfirmation(_))
+    ));
+    let run = book.start("ping", false).unwrap();
+    // The run follows the robot's thread, then hands it its TC.
+    assert!(matches!(
+        rx.recv_timeout(Duration::from_secs(5)),
+        Ok(DashCmd::Follow(_))
+    ));
+    // Held unanswered: a dropped reply channel would end the run before the check.
+    let tc = rx.recv_timeout(Duration::from_secs(5));
+    assert!(matches!(&tc, Ok(DashCmd::PlanTc { def, .. }) if def.name == "PING"));
+    assert!(matches!(book.start("clear", true), Err(PlanStartError::Busy(m)) if m.contains(&run)));
+    // The robot's thread is gone: the run ends failed and the robot is free again.
+    drop((tc, rx));
+    let end = Instant::now() + Duration::from_secs(10);
+    while book.busy.lock().unwrap().contains_key(&1) {
+        assert!(Instant::now() < end, "robot 1 still busy");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+fn run(states: &[&str], details: &[&str]) -> PlanRun {
+    PlanRun {
+        run_id: "p-1".into(),
+        plan: "p".into(),
+        state: "running".into(),
+        detail: String::new(),
+        started_ms: 0,
+        steps: states
+            .iter()
+            .zip(details)
+            .enumerate()
+            .map(|(i, (s, d))| PlanStep {
+                id: format!("s{i}"),
+                robot: 1,
+                label: String::new(),
+                state: s.to_string(),
+                request_id: None,
+                detail: d.to_string(),
+            })
+            .collect(),
+    }
+}
+
+// verifies: GND-19
+#[test]
+fn a_run_ends_done_failed_with_the_failing_step_or_lost() {
+    assert_eq!(
+        outcome(&run(&["done", "done"], &["", ""]), None),
+        ("done".into(), String::new())
+    );
+    let r = run(
+        &["done", "failed", "blocked"],
+        &["", "robot 1: start failed: INITIAL_STATE_MISMATCH (…)", "waits for s1"],
+    );
+    assert_eq!(
+        outcome(&r, None),
+        (
+            "failed".into(),
+            "step s1 failed: robot 1: start failed: INITIAL_STATE_MISMATCH (…)".into()
+        )
+    );
+    assert_eq!(outcome(&r, Some("robot 1: no TM for 3000 ms")).0, "lost");
+    let r = run(&["blocked"], &["robot 1 reported fault LOW_BATTERY"]);
+    assert_eq!(
+        outcome(&r, None).1,
+        "step s0 blocked: robot 1 reported fault LOW_BATTERY"
+    );
+}
+
+// verifies: GND-19
+#[test]
+fn the_page_sees_each_steps_stage_and_progress() {
+    let plan = crate::plan::parse(
+        "name = \"p\"\n[[robot]]\nnumber = 1\n[[step]]\nid = \"a\"\nrobot = 1\naction = \"command\"\ntc = \"PING\"\n[[step]]\nid = \"b\"\nrobot = 1\naction = \"wait\"\nseconds = 1\n",
+    )
+    .unwrap();
+    let opts = RunOptions {
+        ping_period: None,
+        display: false,
+        ..RunOptions::default()
+    };
+    let t0 = Instant::now();
+    let mut exec = Executor::new(&plan, &opts, &[], t0);
+    let mut r = run(&["waiting", "waiting"], &["", ""]);
+    let fx = exec.on_tick(t0);
+    assert!(matches!(fx[..], [Effect::Send { step: 0, .. }]));
+    exec.on_sent(0, Ok(ping(5)), t0);
+    view(&mut r, &exec);
+    assert_eq!(
+        (r.steps[0].state.as_str(), r.steps[0].detail.as_str()),
+        ("running", "sent")
+    );
+    assert_eq!(r.steps[1].state, "waiting");
+    let v = report(&ping(5), 5, FailureCode::CRC_MISMATCH);
+    exec.on_update(
+        t0,
+        Update::Verification {
+            robot: 1,
+            tag: Some(0),
+            tc: None,
+            v,
+            after: None,
+        },
+    );
+    view(&mut r, &exec);
+    assert_eq!(r.steps[0].detail, "progress 2");
+    exec.on_sent(0, Err("no link".into()), t0);
+    view(&mut r, &exec);
+    assert_eq!(r.steps[0].state, "failed");
+    assert!(r.steps[0].detail.contains("no link"), "{}", r.steps[0].detail);
+    assert_eq!(r.steps[1].state, "blocked");
+}
