@@ -208,6 +208,10 @@ pub struct FrameLink {
     pub counters: Counters,
     epoch: Instant,
     buf: Vec<u8>,
+    /// The socket's mode and read timeout as last set (changed only when needed: system
+    /// calls saved on every blocking wait).
+    nonblocking: bool,
+    read_timeout: Option<Duration>,
 }
 
 impl fmt::Debug for FrameLink {
@@ -261,6 +265,8 @@ impl FrameLink {
             counters: Counters::default(),
             epoch: Instant::now(),
             buf: vec![0u8; 65_536],
+            nonblocking: true,
+            read_timeout: None,
         })
     }
 
@@ -328,6 +334,7 @@ impl FrameLink {
     /// CLCWs and the timer to FOP-1, (re)initialises when needed, sends what FOP-1 says.
     /// Returns the space packets received.
     pub fn poll(&mut self, now_ms: u64) -> Result<Vec<Vec<u8>>, LinkError> {
+        self.set_mode(None)?;
         let mut out = Vec::new();
         loop {
             let n = match self.sock.recv_from(&mut self.buf) {
@@ -385,11 +392,8 @@ impl FrameLink {
             if !got.is_empty() || left.is_zero() {
                 return Ok(got);
             }
-            self.sock.set_nonblocking(false)?;
-            self.sock
-                .set_read_timeout(Some(left.min(Duration::from_millis(20)).max(Duration::from_millis(1))))?;
+            self.set_mode(Some(left.min(Duration::from_millis(20)).max(Duration::from_millis(1))))?;
             let r = self.sock.recv_from(&mut self.buf);
-            self.sock.set_nonblocking(true)?;
             if let Ok((n, _)) = r {
                 let mut out = Vec::new();
                 self.datagram(n, self.now_ms(), &mut out)?;
@@ -399,6 +403,22 @@ impl FrameLink {
                 }
             }
         }
+    }
+
+    /// Puts the socket in non-blocking mode (`None`) or blocking with a read timeout, with
+    /// system calls only for what changes.
+    fn set_mode(&mut self, mode: Option<Duration>) -> Result<(), LinkError> {
+        if self.nonblocking != mode.is_none() {
+            self.sock.set_nonblocking(mode.is_none())?;
+            self.nonblocking = mode.is_none();
+        }
+        if let Some(t) = mode {
+            if self.read_timeout != Some(t) {
+                self.sock.set_read_timeout(Some(t))?;
+                self.read_timeout = Some(t);
+            }
+        }
+        Ok(())
     }
 
     /// In S6 with a CLCW newer than the alert: decide the purged frames' fate from N(R),
