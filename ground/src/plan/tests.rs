@@ -72,6 +72,14 @@ fn errors(src: &str) -> Vec<Diagnostic> {
     diagnostics("p.toml", src, &parse(src).unwrap_err())
 }
 
+/// Asserts that one of `text` is at `at` (`file:line:column`) and says `message`.
+fn assert_error_at(text: &[String], at: &str, message: &str) {
+    assert!(
+        text.iter().any(|t| t.contains(at) && t.contains(message)),
+        "{at}: {message:?} not in {text:#?}"
+    );
+}
+
 /// The errors of `src` as the operator reads them.
 fn texts(src: &str) -> Vec<String> {
     errors(src).iter().map(|x| x.to_string()).collect()
@@ -146,10 +154,10 @@ from = "Yneg"
 to = "Xneg"
 "#;
     let text = texts(src);
-    assert!(
-        text.iter()
-            .any(|t| t.contains("p.toml:18:8") && t.contains("from-state Yneg differs from robot 1's state Xpos")),
-        "{text:#?}"
+    assert_error_at(
+        &text,
+        "p.toml:18:8",
+        "from-state Yneg differs from robot 1's state Xpos",
     );
 }
 
@@ -234,16 +242,8 @@ args = { sid = 1, interval_ms = 1, bogus = 2 }
 "#;
     let text = texts(src);
     // The same reader and words as `ground send` (ops::policy), at the value's place.
-    assert!(
-        text.iter()
-            .any(|t| t.contains("p.toml:8:33") && t.contains("interval_ms = 1 outside 10..=3600000")),
-        "{text:#?}"
-    );
-    assert!(
-        text.iter()
-            .any(|t| t.contains("p.toml:8:36") && t.contains("has no argument \"bogus\"")),
-        "{text:#?}"
-    );
+    assert_error_at(&text, "p.toml:8:33", "interval_ms = 1 outside 10..=3600000");
+    assert_error_at(&text, "p.toml:8:36", "has no argument \"bogus\"");
 }
 
 // verifies: GND-03

@@ -10,16 +10,23 @@ use satrs::spacepackets::ecss::tc::ACK_ALL;
 use satrs::spacepackets::ecss::{CreatorConfig, MessageTypeId};
 use satrs::spacepackets::SpHeader;
 
-const T0: [u8; 7] = [CDS_PFIELD, 0x5A, 0x00, 0x00, 0x00, 0x03, 0xE8];
+/// A CDS time stamp (2021-01-30T00:00:01.000Z); `out::tests` uses it too.
+pub(super) const T0: [u8; 7] = [CDS_PFIELD, 0x5A, 0x00, 0x00, 0x00, 0x03, 0xE8];
 
-// verifies: MMIC-FW-01
-#[test]
-fn events_and_failures_read_with_the_mib_names() {
+/// TM[5,1] source data of MODE_CHANGED: node 10 (BOLTER_B) from 0 (OFF) to 1 (ON).
+pub(super) fn mode_changed_source() -> Vec<u8> {
     let mut src = mib::events::eid::MODE_CHANGED.to_be_bytes().to_vec();
     for v in [10u32, 0, 1] {
         src.extend_from_slice(&v.to_be_bytes());
     }
     src.extend_from_slice(&0u16.to_be_bytes());
+    src
+}
+
+// verifies: MMIC-FW-01
+#[test]
+fn events_and_failures_read_with_the_mib_names() {
+    let src = mode_changed_source();
     let TmBody::Event(e) = decode_tm(&tm(5, 1, &src)).unwrap().body else {
         panic!("not an event")
     };

@@ -1,6 +1,7 @@
 //! The writer's primitives: numbers without `fmt`, JSON strings, keys and brackets in
 //! either format, hex, ISO 8601 time, the text line's head.
 
+use mib_wire::header::Primary;
 use mib_wire::CdsTime;
 
 use super::{Format, Writer};
@@ -186,7 +187,8 @@ impl Writer {
 
     /// The start of a packet's line: in JSON `{"type":"tm","offset":…,"apid":…,"robot":…,
     /// "seq":…,"service":…,"subservice":…` (`kind` `tm` or `tc`), in text the line's head.
-    pub(super) fn head(&mut self, kind: &[u8], offset: usize, apid: u16, seq: u16, service: u8, subservice: u8) {
+    pub(super) fn head(&mut self, kind: &[u8], offset: usize, primary: &Primary, service: u8, subservice: u8) {
+        let (apid, seq) = (primary.apid, primary.seq_count);
         match self.fmt {
             Format::Json => {
                 self.out.extend_from_slice(b"{\"type\":\"");

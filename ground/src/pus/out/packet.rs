@@ -15,14 +15,7 @@ impl Writer {
         let def = tm_def(p.service, p.subservice);
         let name = def.map_or("UNKNOWN", |d| d.name);
         let start = self.out.len();
-        self.head(
-            b"tm",
-            offset,
-            p.primary.apid,
-            p.primary.seq_count,
-            p.service,
-            p.subservice,
-        );
+        self.head(b"tm", offset, &p.primary, p.service, p.subservice);
         match self.fmt {
             Format::Json => {
                 self.out.extend_from_slice(b",\"name\":\"");
@@ -59,14 +52,7 @@ impl Writer {
         let def = mib::tc::lookup(p.service, p.subservice, function);
         let name = def.map_or("UNKNOWN", |d| d.name);
         let start = self.out.len();
-        self.head(
-            b"tc",
-            offset,
-            p.primary.apid,
-            p.primary.seq_count,
-            p.service,
-            p.subservice,
-        );
+        self.head(b"tc", offset, &p.primary, p.service, p.subservice);
         match self.fmt {
             Format::Json => {
                 self.out.extend_from_slice(b",\"ack\":");

@@ -1,7 +1,6 @@
 use super::*;
-use crate::pus::{build_tm, CDS_PFIELD};
-
-const T0: [u8; 7] = [CDS_PFIELD, 0x5A, 0x00, 0x00, 0x00, 0x03, 0xE8];
+use crate::pus::build_tm;
+use crate::pus::tests::{mode_changed_source, T0};
 
 fn json_of(raw: &[u8]) -> serde_json::Value {
     let mut w = Writer::new(Format::Json);
@@ -31,11 +30,7 @@ fn failure_report_json_splits_request_id_and_names_code_and_data() {
 // verifies: DD-DEC-01, PUS-200-01
 #[test]
 fn mode_changed_event_names_node_and_modes_of_that_node() {
-    let mut src = mib::events::eid::MODE_CHANGED.to_be_bytes().to_vec();
-    for v in [10u32, 0, 1] {
-        src.extend_from_slice(&v.to_be_bytes());
-    }
-    src.extend_from_slice(&0u16.to_be_bytes());
+    let src = mode_changed_source();
     let v = json_of(&build_tm(0x101, 3, 5, 1, 0, &T0, &src));
     assert_eq!(v["body"]["event_id"]["name"], "MODE_CHANGED");
     assert_eq!(v["body"]["params"]["node"]["name"], "BOLTER_B");
