@@ -97,6 +97,11 @@ impl Obsw {
                 "--sim-ctl",
                 "127.0.0.1:0",
             ])
+            .args(if extra.contains(&"--frame-udp") {
+                &[][..]
+            } else {
+                &["--lab-bare-packets"][..]
+            })
             .args(extra)
             .stdout(Stdio::piped())
             .stderr(Stdio::null())

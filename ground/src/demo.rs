@@ -4,7 +4,7 @@
 //!
 //! By default over the space link (TC/TM frames, COP-1, SDLS): the demo makes random
 //! test keys for each robot in its temporary folder (removed at the end) and says so.
-//! `--bare` (UDP) and `--tcp` use the bare-packet lab links instead.
+//! `--lab-udp` and `--lab-tcp` use the bare-packet lab links instead.
 
 use std::io::BufRead;
 use std::net::SocketAddr;
@@ -36,11 +36,11 @@ pub struct DemoArgs {
     #[arg(long)]
     plan: Option<PathBuf>,
     /// Lab mode: bare space packets over TCP instead of the frame link.
-    #[arg(long, conflicts_with = "bare")]
-    tcp: bool,
+    #[arg(long, conflicts_with = "lab_udp")]
+    lab_tcp: bool,
     /// Lab mode: bare space packets over UDP instead of the frame link.
     #[arg(long)]
-    bare: bool,
+    lab_udp: bool,
     /// Plain log lines instead of the live display.
     #[arg(long)]
     plain: bool,
@@ -166,6 +166,8 @@ pub fn start_obsw(
             .arg("--link-state")
             .arg(&f.state);
         addr = frame;
+    } else {
+        cmd.arg("--lab-bare-packets");
     }
     let errlog = std::fs::File::create(log).with_context(|| format!("creating {}", log.display()))?;
     let mut child = cmd
@@ -233,9 +235,9 @@ pub fn demo(a: &DemoArgs, archive_path: Option<&Path>) -> Result<u8> {
         bin.display(),
         a.speed
     );
-    let transport = if a.tcp {
+    let transport = if a.lab_tcp {
         Transport::Tcp
-    } else if a.bare {
+    } else if a.lab_udp {
         Transport::Udp
     } else {
         Transport::Frames

@@ -7,6 +7,7 @@ pub mod collect;
 pub mod dashboard;
 pub mod keys;
 pub mod link;
+pub mod link_choice;
 pub mod ops;
 pub mod plan;
 pub mod pus;

@@ -64,9 +64,10 @@ impl FrameOptions {
     }
 }
 
-/// Robot N's TM frames by default: port 7400 + N, on loopback when the robot is there.
+/// Robot N's TM frames by default: port `mib::config::tm_frame_port(N)` (7600 + N), on
+/// loopback when the robot is there.
 pub fn default_tm_listen(robot: u8, robot_addr: SocketAddr) -> SocketAddr {
-    let port = 7400 + u16::from(robot);
+    let port = mib::config::tm_frame_port(robot);
     if robot_addr.ip().is_loopback() {
         (std::net::Ipv4Addr::LOCALHOST, port).into()
     } else {

@@ -16,8 +16,9 @@ use std::process::ExitCode;
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use ground::archive::{self, Archive};
-use ground::collect::parse_robot;
+use ground::collect::parse_robot_arg;
 use ground::link::{FrameOptions, Transport};
+use ground::link_choice::LinkFlags;
 use ground::ops::Session;
 
 mod demo;
@@ -125,46 +126,32 @@ enum Cmd {
     Keys(verb_keys::KeysCmd),
 }
 
-/// Robot links: `N=HOST:PORT`, or `N` for 127.0.0.1:(7300+N).
+/// Robot links: `N=HOST:PORT`, or `N` for 127.0.0.1:(7300+N), over the space link unless
+/// a lab flag says otherwise ([`ground::link_choice`]).
 #[derive(Args, Debug, Clone)]
 struct Links {
-    /// Robot link `N=HOST:PORT` (or just `N` for 127.0.0.1:7300+N, robot 1 = 7301); repeat
-    /// per robot. Required by ping, send, mode and watch; `run` adds the plan's robots.
-    /// With --frames, the robot's frame port (obsw --frame-udp).
-    #[arg(long = "robot", short = 'r', value_parser = parse_robot)]
-    robots: Vec<(u8, SocketAddr)>,
-    /// Use TCP (COBS framing) instead of UDP (bare packets, lab mode).
-    #[arg(long, conflicts_with = "frames")]
-    tcp: bool,
-    /// The space link: TC/TM transfer frames with COP-1 and SDLS (needs --keys).
-    #[arg(long, requires = "keys")]
-    frames: bool,
-    /// Key directory of the frame link (`ground keys create`): robot N uses KEYS/robot-N/.
-    #[arg(long, value_name = "DIR")]
-    keys: Option<PathBuf>,
-    /// Local address robot N's TM frames arrive at, `N=HOST:PORT` (obsw --frame-tm-to);
-    /// default 127.0.0.1:7400+N (0.0.0.0 for a remote robot). Repeat per robot.
-    #[arg(long = "tm-listen", value_parser = parse_robot, value_name = "N=HOST:PORT")]
-    tm_listen: Vec<(u8, SocketAddr)>,
+    /// Robot link `N=HOST:PORT`: the robot's space-link port (obsw --frame-udp), or with a
+    /// lab flag its --udp/--tcp port. Just `N`: 127.0.0.1:7500+N (the obsw's default
+    /// --frame-udp), with a lab flag 127.0.0.1:7300+N. Repeat per robot. Required by
+    /// ping, send, mode and watch; `run` adds the plan's robots.
+    #[arg(long = "robot", short = 'r', value_parser = parse_robot_arg)]
+    robots: Vec<(u8, Option<SocketAddr>)>,
+    #[command(flatten)]
+    link: LinkFlags,
 }
 
 impl Links {
-    fn transport(&self) -> Transport {
-        if self.frames {
-            Transport::Frames
-        } else if self.tcp {
-            Transport::Tcp
-        } else {
-            Transport::Udp
-        }
+    /// The transport and frame options for these robots (usage errors exit 2).
+    fn choice(&self, robots: &[(u8, SocketAddr)]) -> Result<(Transport, Option<FrameOptions>)> {
+        self.link.resolve(robots).map_err(|e| coded(exit::USAGE, e.to_string()))
     }
 
-    fn frame_options(&self) -> Option<FrameOptions> {
-        let keys = self.keys.clone()?;
-        self.frames.then(|| FrameOptions {
-            keys,
-            tm_listen: self.tm_listen.iter().copied().collect(),
-        })
+    /// Says which robots the verb talks to and how, then opens the archive (if wanted)
+    /// and a session to them.
+    fn open(&self, robots: &[(u8, SocketAddr)], archive_path: Option<&Path>) -> Result<(Session, Option<Archive>)> {
+        let (transport, frames) = self.choice(robots)?;
+        verb_live::say_links(robots, transport);
+        open_session(robots, transport, frames.as_ref(), archive_path)
     }
 }
 

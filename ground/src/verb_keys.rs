@@ -47,12 +47,11 @@ pub(crate) fn keys(c: &KeysCmd) -> Result<u8> {
                 for p in made {
                     out(&format!("created {}", p.display()))?;
                 }
-                let d = keys::robot_dir(dir, r);
                 out(&format!(
-                    "robot {r}: obsw --frame-udp ADDR --frame-tm-to ADDR --tc-key {} --tm-key {} --link-state FILE; ground --frames --keys {} --robot {r}=ADDR",
-                    keys::tc_key_path(&d).display(),
-                    keys::tm_key_path(&d).display(),
-                    dir.display()
+                    "robot {r}: obsw --robot {r} --keys {d} (TC frames on 127.0.0.1:{fp}, TM frames to 127.0.0.1:{tp}); ground … --keys {d} --robot {r}",
+                    d = dir.display(),
+                    fp = mib::config::frame_port(r),
+                    tp = mib::config::tm_frame_port(r),
                 ))?;
             }
             if *team {

@@ -12,7 +12,7 @@ use ground::ops::{self, Session, Update};
 use ground::pus::{self, Packet, Stage, TmBody};
 
 use crate::Links;
-use crate::{close_archive, coded, err_line, exit, open_session, out};
+use crate::{close_archive, coded, err_line, exit, out};
 use clap::Args;
 
 /// Says which robots a verb talks to, and how.
@@ -24,13 +24,7 @@ pub(crate) fn say_links(links: &[(u8, SocketAddr)], transport: Transport) {
 pub(crate) fn ping(a: &PingArgs, archive_path: Option<&Path>) -> Result<u8> {
     let def = mib::tc::by_name("PING").ok_or_else(|| anyhow!("PING not in the MIB"))?;
     let links = robots_given(&a.links)?;
-    say_links(&links, a.links.transport());
-    let (mut s, arch) = open_session(
-        &links,
-        a.links.transport(),
-        a.links.frame_options().as_ref(),
-        archive_path,
-    )?;
+    let (mut s, arch) = a.links.open(&links, archive_path)?;
     s.max_resends = 0;
     let mut answered: BTreeMap<u8, (u32, bool)> = BTreeMap::new(); // robot -> (replies, last answered)
     let mut silent: Vec<u8> = Vec::new(); // never answered: not pinged again
@@ -207,22 +201,16 @@ pub(crate) fn robots_given(l: &Links) -> Result<Vec<(u8, SocketAddr)>> {
     if l.robots.is_empty() {
         return Err(coded(
             exit::USAGE,
-            "give --robot N (robot N at 127.0.0.1:7300+N) or --robot N=HOST:PORT",
+            "give --robot N (robot N at its default port on 127.0.0.1) or --robot N=HOST:PORT",
         ));
     }
-    Ok(l.robots.clone())
+    Ok(crate::verb_run::robots_given_or_none(l))
 }
 
 /// The one robot of `l`, announced, with a session to it (and the archive, if any).
 pub(crate) fn open_one(l: &Links, archive_path: Option<&Path>) -> Result<(u8, Session, Option<Archive>)> {
     let (robot, addr) = one_robot(l)?;
-    say_links(&[(robot, addr)], l.transport());
-    let (s, arch) = open_session(
-        &[(robot, addr)],
-        l.transport(),
-        l.frame_options().as_ref(),
-        archive_path,
-    )?;
+    let (s, arch) = l.open(&[(robot, addr)], archive_path)?;
     Ok((robot, s, arch))
 }
 
@@ -282,13 +270,7 @@ pub(crate) fn mode(a: &ModeArgs, archive_path: Option<&Path>) -> Result<u8> {
 
 pub(crate) fn watch(a: &WatchArgs, archive_path: Option<&Path>) -> Result<u8> {
     let links = robots_given(&a.links)?;
-    say_links(&links, a.links.transport());
-    let (mut s, arch) = open_session(
-        &links,
-        a.links.transport(),
-        a.links.frame_options().as_ref(),
-        archive_path,
-    )?;
+    let (mut s, arch) = a.links.open(&links, archive_path)?;
     // A robot that does not answer ends the watch with its case's message and code.
     s.watch_links();
     // The OBSW sends TM to the grounds whose TC it accepted: subscribe with a ping, and

@@ -6,15 +6,13 @@ use std::time::Duration;
 
 use anyhow::{anyhow, Result};
 use ground::archive;
-use ground::collect::config::default_addr;
 use ground::ops::{self, RunOptions};
 use ground::plan;
 use ground::pus;
 
 use crate::verb_archive::fmt_ms;
-use crate::verb_live::say_links;
 use crate::verb_plan::load_plan;
-use crate::{close_archive, coded, err_line, exit, open_session, out, Links};
+use crate::{close_archive, coded, err_line, exit, out, Links};
 use clap::Args;
 use std::path::PathBuf;
 
@@ -22,7 +20,7 @@ pub(crate) fn run_plan(a: &RunArgs, archive_path: Option<&Path>) -> Result<u8> {
     let pl = load_plan(&a.plan)?;
     // A --robot the plan does not use is a mistake in the command, not a robot to wait
     // for: refused before anything is sent.
-    for (n, addr) in &a.links.robots {
+    for (n, addr) in &robots_given_or_none(&a.links) {
         if !pl.robots.iter().any(|r| r.number == *n) {
             let theirs: Vec<String> = pl.robots.iter().map(|r| r.number.to_string()).collect();
             return Err(coded(
@@ -36,10 +34,10 @@ pub(crate) fn run_plan(a: &RunArgs, archive_path: Option<&Path>) -> Result<u8> {
         }
     }
     plan_policy(&a.plan.display().to_string(), &pl)?;
-    let mut links = a.links.robots.clone();
+    let mut links = robots_given_or_none(&a.links);
     for r in &pl.robots {
         if !links.iter().any(|(n, _)| *n == r.number) {
-            links.push((r.number, default_addr(r.number)));
+            links.push((r.number, a.links.link.default_addr(r.number)));
         }
     }
     let (run_id, resume) = match &a.resume {
@@ -50,13 +48,7 @@ pub(crate) fn run_plan(a: &RunArgs, archive_path: Option<&Path>) -> Result<u8> {
             resume_state(p, &pl, (!wanted.is_empty()).then_some(wanted.as_str()))?
         }
     };
-    say_links(&links, a.links.transport());
-    let (mut session, arch) = open_session(
-        &links,
-        a.links.transport(),
-        a.links.frame_options().as_ref(),
-        archive_path,
-    )?;
+    let (mut session, arch) = a.links.open(&links, archive_path)?;
     session.run_id = Some(run_id.clone());
     err_line!(
         "run {run_id}: plan \"{}\"{}",
@@ -235,4 +227,13 @@ pub(crate) struct RunArgs {
     /// After a first Ctrl-C, longest wait (seconds) for the steps in flight.
     #[arg(long, default_value_t = ground::ops::INTERRUPT_GRACE.as_secs_f64())]
     grace: f64,
+}
+
+/// The robots given with `--robot`, at their default addresses where none is given
+/// (none given is fine for `run`: the plan names its robots).
+pub(crate) fn robots_given_or_none(l: &Links) -> Vec<(u8, std::net::SocketAddr)> {
+    l.robots
+        .iter()
+        .map(|&(n, addr)| (n, addr.unwrap_or_else(|| l.link.default_addr(n))))
+        .collect()
 }

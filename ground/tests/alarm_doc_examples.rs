@@ -38,7 +38,7 @@ const DOCS: [&str; 3] = ["collector.md", "dashboard.md", "archive.md"];
 const RUN: &[(&str, &str)] = &[
     (
         "collector.md",
-        "ground --archive /var/lib/mmic/archive.db collect --robot",
+        "ground --archive /var/lib/mmic/archive.db collect --keys",
     ),
     (
         "collector.md",
@@ -55,10 +55,17 @@ const RUN: &[(&str, &str)] = &[
         "collector.md",
         "ground --archive /var/lib/mmic/archive.db alarms shelve",
     ),
-    ("dashboard.md", "ground collect --robot 1=10.0.0.11:7301"),
+    ("dashboard.md", "ground collect --keys /etc/mmic/keys"),
     ("dashboard.md", "cargo build --bin obsw --bin ground"),
-    ("dashboard.md", "target/debug/obsw --robot 1 &"),
-    ("dashboard.md", "target/debug/ground collect --robot 1 --robot 2 --http"),
+    (
+        "dashboard.md",
+        "target/debug/ground keys create keys --robot 1 --robot 2",
+    ),
+    ("dashboard.md", "target/debug/obsw --robot 1 --keys keys &"),
+    (
+        "dashboard.md",
+        "target/debug/ground collect --keys keys --robot 1 --robot 2 --http",
+    ),
     (
         "dashboard.md",
         "target/debug/ground sim --addr 127.0.0.1:7401 battery-sag",
@@ -400,13 +407,20 @@ fn links_up(dir: &Path, log: &str) {
 // verifies: ALM-DOC-01
 #[test]
 fn collector_examples_run_against_two_loopback_robots() {
-    let r1 = Obsw::start(1, &[]);
-    let r2 = Obsw::start(2, &[]);
     let dir = tmpdir("collector");
+    // Over the space link, as documented: the robots with test keys on free ports.
+    let keys = common::frame_keys(&dir, &[1, 2]);
+    let r1 = Obsw::start_frames(1, &keys, &[]);
+    let r2 = Obsw::start_frames(2, &keys, &[]);
+    let (f1, f2) = (r1.frame.unwrap().to_string(), r2.frame.unwrap().to_string());
+    let (t1, t2) = (r1.tm_to.unwrap().to_string(), r2.tm_to.unwrap().to_string());
     let example_cfg = std::fs::read_to_string(root().join("docs/collector.example.toml")).unwrap();
     let cfg = example_cfg
-        .replace("127.0.0.1:7301", &r1.addr.to_string())
-        .replace("127.0.0.1:7302", &r2.addr.to_string())
+        .replace("\"127.0.0.1:7501\"", &format!("\"{f1}\""))
+        .replace("\"127.0.0.1:7502\"", &format!("\"{f2}\""))
+        .replace("\"127.0.0.1:7601\"", &format!("\"{t1}\""))
+        .replace("\"127.0.0.1:7602\"", &format!("\"{t2}\""))
+        .replace("keys = \"../keys\"", &format!("keys = \"{}\"", keys.display()))
         .replace("../plans/", &format!("{}/", root().join("plans").display()));
     std::fs::write(dir.join("collector.toml"), cfg).unwrap();
     let mut subst: Vec<(&str, String)> = vec![
@@ -415,8 +429,11 @@ fn collector_examples_run_against_two_loopback_robots() {
             "/etc/mmic/collector.toml",
             dir.join("collector.toml").display().to_string(),
         ),
-        ("10.0.0.11:7301", r1.addr.to_string()),
-        ("10.0.0.12:7302", r2.addr.to_string()),
+        ("/etc/mmic/keys", keys.display().to_string()),
+        ("10.0.0.11:7501", f1.clone()),
+        ("10.0.0.12:7502", f2.clone()),
+        ("0.0.0.0:7601", t1.clone()),
+        ("0.0.0.0:7602", t2.clone()),
     ];
     let ex = |s: &str| example("collector.md", s);
 
@@ -442,7 +459,7 @@ fn collector_examples_run_against_two_loopback_robots() {
     let status = ex("ground --archive /var/lib/mmic/archive.db collect --status");
     let mut c = spawn(
         &dir,
-        &ex("ground --archive /var/lib/mmic/archive.db collect --robot"),
+        &ex("ground --archive /var/lib/mmic/archive.db collect --keys"),
         &subst,
         "c1.log",
     );
@@ -550,16 +567,20 @@ fn dashboard_up(web: SocketAddr, n: usize) {
 fn dashboard_examples_run_against_simulated_robots() {
     let ex = |s: &str| example("dashboard.md", s);
     // First block.
-    let r1 = Obsw::start(1, &[]);
-    let r2 = Obsw::start(2, &[]);
     let dir = tmpdir("dashboard");
+    let keys = common::frame_keys(&dir, &[1, 2]);
+    let r1 = Obsw::start_frames(1, &keys, &[]);
+    let r2 = Obsw::start_frames(2, &keys, &[]);
     let web: SocketAddr = ([127, 0, 0, 1], free_port()).into();
     let subst = vec![
-        ("10.0.0.11:7301", r1.addr.to_string()),
-        ("10.0.0.12:7301", r2.addr.to_string()),
+        ("/etc/mmic/keys", keys.display().to_string()),
+        ("10.0.0.11:7501", r1.frame.unwrap().to_string()),
+        ("10.0.0.12:7502", r2.frame.unwrap().to_string()),
+        ("0.0.0.0:7601", r1.tm_to.unwrap().to_string()),
+        ("0.0.0.0:7602", r2.tm_to.unwrap().to_string()),
         ("127.0.0.1:8080", web.to_string()),
     ];
-    let mut c = spawn(&dir, &ex("ground collect --robot 1=10.0.0.11:7301"), &subst, "c.log");
+    let mut c = spawn(&dir, &ex("ground collect --keys /etc/mmic/keys"), &subst, "c.log");
     dashboard_up(web, 2);
     assert_eq!(sigterm(&mut c), Some(0));
     drop((r1, r2));
@@ -585,24 +606,37 @@ fn dashboard_examples_run_against_simulated_robots() {
         assert!(bins.contains(&w[1]), "{build}: no bin target {:?}", w[1]);
     }
 
-    // `target/debug/obsw --robot 1 & target/debug/obsw --robot 2 &`, then the collector
-    // with `--robot 1 --robot 2`: the robots' default ports follow from their numbers. Run
-    // with two numbers whose default ports (7300 + N, 7400 + N) are free here, so the
-    // test does not take 7301/7302 from robots running on this machine.
-    let line = ex("target/debug/obsw --robot 1 &");
-    assert!(line.contains("target/debug/obsw --robot 2 &"), "{line}");
+    // `ground keys create keys --robot 1 --robot 2`, `target/debug/obsw --robot 1 --keys
+    // keys &` (robot 2 the same), then the collector with `--keys keys --robot 1 --robot
+    // 2`: the robots' default ports follow from their numbers. Run with two numbers whose
+    // default ports (7300 + N, 7400 + N, 7500 + N, 7600 + N) are free here, so the test
+    // does not take 7501/7502 from robots running on this machine.
     let free = |n: u8| {
-        [7300 + n as u16, 7400 + n as u16].iter().all(|p| {
-            UdpSocket::bind(("127.0.0.1", *p)).is_ok() && std::net::TcpListener::bind(("127.0.0.1", *p)).is_ok()
-        })
+        [7300, 7400, 7500, 7600]
+            .iter()
+            .map(|b| b + n as u16)
+            .all(|p| UdpSocket::bind(("127.0.0.1", p)).is_ok() && std::net::TcpListener::bind(("127.0.0.1", p)).is_ok())
     };
     let nums: Vec<u8> = (200..=254).filter(|n| free(*n)).take(2).collect();
     assert_eq!(nums.len(), 2, "no free default ports for two robots");
+    let robots_subst = vec![(
+        "--robot 1 --robot 2",
+        format!("--robot {} --robot {}", nums[0], nums[1]),
+    )];
+    let (code, out) = run(
+        &dir,
+        &ex("target/debug/ground keys create keys --robot 1 --robot 2"),
+        &robots_subst,
+    );
+    assert_eq!(code, Some(0), "{out}");
+    let line = ex("target/debug/obsw --robot 1 --keys keys &");
+    assert!(line.contains("target/debug/obsw --robot 2 --keys keys &"), "{line}");
     let obsw = common::obsw_bin();
     let mut robots = Vec::new();
     for n in &nums {
         let mut child = Command::new(&obsw)
-            .args(["--robot", &n.to_string()])
+            .current_dir(&dir)
+            .args(["--robot", &n.to_string(), "--keys", "keys"])
             .stdout(Stdio::piped())
             .stderr(Stdio::null())
             .spawn()
@@ -613,16 +647,16 @@ fn dashboard_examples_run_against_simulated_robots() {
         while out.read(&mut b).unwrap_or(0) == 1 && b[0] != b'\n' {
             first.push(b[0] as char);
         }
-        // The documented comment: "UDP 7301/7302, sim-ctl 7401/7402" for robots 1 and 2.
+        // The documented comment: "frames 7501/7502, TM to 7601/7602, sim-ctl 7401/7402"
+        // for robots 1 and 2.
         assert!(first.starts_with("READY"), "{first}");
-        assert!(
-            first.contains(&format!("udp=127.0.0.1:{}", 7300 + *n as u16)),
-            "{first}"
-        );
-        assert!(
-            first.contains(&format!("sim_ctl=127.0.0.1:{}", 7400 + *n as u16)),
-            "{first}"
-        );
+        for want in [
+            format!("frame_udp=127.0.0.1:{}", 7500 + *n as u16),
+            format!("frame_tm_to=127.0.0.1:{}", 7600 + *n as u16),
+            format!("sim_ctl=127.0.0.1:{}", 7400 + *n as u16),
+        ] {
+            assert!(first.contains(&want), "{first} lacks {want}");
+        }
         std::thread::spawn(move || {
             let mut sink = Vec::new();
             let _ = out.read_to_end(&mut sink);
@@ -639,7 +673,7 @@ fn dashboard_examples_run_against_simulated_robots() {
     ];
     let mut c = spawn(
         &dir,
-        &ex("target/debug/ground collect --robot 1 --robot 2 --http"),
+        &ex("target/debug/ground collect --keys keys --robot 1 --robot 2 --http"),
         &subst,
         "c2.log",
     );

@@ -25,7 +25,13 @@ fn robot(robot: u8, initial: &str) -> (Proc, SocketAddr) {
     let addr: SocketAddr = ([127, 0, 0, 1], free_port()).into();
     let ctl: SocketAddr = ([127, 0, 0, 1], free_port()).into();
     let mut child = Command::new(obsw_bin())
-        .args(["--robot", &robot.to_string(), "--udp", &addr.to_string()])
+        .args([
+            "--robot",
+            &robot.to_string(),
+            "--udp",
+            &addr.to_string(),
+            "--lab-bare-packets",
+        ])
         .args(["--tcp", &addr.to_string(), "--sim-ctl", &ctl.to_string()])
         .args(["--initial-state", initial, "--speed", SPEED])
         .stdout(Stdio::piped())
@@ -43,7 +49,7 @@ fn robot(robot: u8, initial: &str) -> (Proc, SocketAddr) {
 fn collector(dir: &Path, robots: &[(u8, SocketAddr)]) -> Proc {
     let mut c = Command::new(GROUND);
     c.current_dir(dir)
-        .args(["--archive", "collect.db", "collect", "--plain"]);
+        .args(["--archive", "collect.db", "collect", "--lab-udp", "--plain"]);
     for (n, a) in robots {
         c.args(["--robot", &format!("{n}={a}")]);
     }

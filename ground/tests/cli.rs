@@ -167,7 +167,7 @@ fn binary_junk_as_a_plan_is_invalid_input() {
     let d = tmpdir("junk");
     let p = d.join("junk.toml");
     std::fs::write(&p, [0xFFu8, 0xFE, 0x00, 0x9F, 0x80, 0x41]).unwrap();
-    for verb in [&["plan", "check"][..], &["run", "--no-archive"][..]] {
+    for verb in [&["plan", "check"][..], &["run", "--lab-udp", "--no-archive"][..]] {
         let mut args = verb.to_vec();
         args.push(p.to_str().unwrap());
         let o = ground(&args);
@@ -226,6 +226,7 @@ fn a_closed_stderr_is_no_panic() {
 fn send_names_the_allowed_sides() {
     let o = ground(&[
         "send",
+        "--lab-udp",
         "--no-archive",
         "--robot",
         "1=127.0.0.1:9",

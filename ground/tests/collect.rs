@@ -30,7 +30,8 @@ fn tmpdir(name: &str) -> PathBuf {
 /// Starts `ground --archive ARCH collect` (ARCH: a file in `dir`, or a server URL).
 fn collector(dir: &Path, arch: &str, robots: &[String]) -> Proc {
     let mut c = Command::new(GROUND);
-    c.current_dir(dir).args(["--archive", arch, "collect", "--plain"]);
+    c.current_dir(dir)
+        .args(["--archive", arch, "collect", "--lab-udp", "--plain"]);
     for r in robots {
         c.args(["--robot", r]);
     }
@@ -108,7 +109,7 @@ fn check_config_names_file_line_and_column() {
     assert!(t.contains("bad2.toml:3:18: max_backoff_ms = 9000"), "{t}");
     std::fs::write(
         dir.join("good.toml"),
-        "retain = \"30d\"\n[[robot]]\nnumber = 1\naddr = \"127.0.0.1:7301\"\n",
+        "retain = \"30d\"\ntransport = \"lab-udp\"\n[[robot]]\nnumber = 1\naddr = \"127.0.0.1:7301\"\n",
     )
     .unwrap();
     let out = ground(&dir, &["collect", "--check-config", "good.toml"]);
@@ -247,6 +248,7 @@ fn full_disk_raises_an_alarm_and_the_collector_goes_on_losing_nothing() {
             "--archive",
             "a.db",
             "collect",
+            "--lab-udp",
             "--plain",
             "--robot",
             &format!("1={addr}"),
@@ -316,7 +318,15 @@ fn dashboard_under_collect_uses_the_collectors_link_alarms_and_archive() {
     let mut c = Proc(
         Command::new(GROUND)
             .current_dir(&dir)
-            .args(["--archive", "a.db", "collect", "--plain", "--http", &web.to_string()])
+            .args([
+                "--archive",
+                "a.db",
+                "collect",
+                "--lab-udp",
+                "--plain",
+                "--http",
+                &web.to_string(),
+            ])
             .args(["--robot", &format!("1={addr}")])
             .stdout(Stdio::null())
             .stderr(Stdio::from(log))

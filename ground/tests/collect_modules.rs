@@ -26,7 +26,13 @@ fn obsw(robot: u8, addr: SocketAddr, set: &str) -> Obsw {
     let ctl: SocketAddr = ([127, 0, 0, 1], free_port()).into();
     let modules = root().join("plans/modules").join(format!("{set}.toml"));
     let mut child = Command::new(obsw_bin())
-        .args(["--robot", &robot.to_string(), "--udp", &addr.to_string()])
+        .args([
+            "--robot",
+            &robot.to_string(),
+            "--udp",
+            &addr.to_string(),
+            "--lab-bare-packets",
+        ])
         .args(["--sim-ctl", &ctl.to_string(), "--modules"])
         .arg(&modules)
         .stdout(Stdio::piped())
@@ -59,6 +65,7 @@ fn collector(dir: &Path, robot: SocketAddr, web: SocketAddr) -> Proc {
                 "--archive",
                 "a.db",
                 "collect",
+                "--lab-udp",
                 "--plain",
                 "--robot",
                 &format!("1={robot}"),

@@ -120,8 +120,15 @@ fn the_page_shows_the_team_and_the_leader_the_robots_elect_without_the_ground() 
     let web: SocketAddr = ([127, 0, 0, 1], free_port()).into();
     let log = std::fs::File::create(dir.join("collect.log")).unwrap();
     let mut cmd = std::process::Command::new(common::GROUND);
-    cmd.current_dir(&dir)
-        .args(["--archive", "a.db", "collect", "--plain", "--http", &web.to_string()]);
+    cmd.current_dir(&dir).args([
+        "--archive",
+        "a.db",
+        "collect",
+        "--lab-udp",
+        "--plain",
+        "--http",
+        &web.to_string(),
+    ]);
     for (i, r) in relays.iter().enumerate() {
         cmd.args(["--robot", &format!("{}={}", i + 1, r.front)]);
     }

@@ -33,7 +33,8 @@ fn start_obsw(robot: u8) -> (Obsw, SocketAddr, SocketAddr) {
 /// `ground collect --http` in `dir` with the configuration `config` (robots and plans);
 /// returns once the robots are up and in STANDBY.
 fn start_collector(dir: &Path, config: &str, robots: usize) -> (Proc, SocketAddr) {
-    std::fs::write(dir.join("collect.toml"), config).unwrap();
+    // The bare-packet lab link (robots on loopback); frames.rs runs the collector over frames.
+    std::fs::write(dir.join("collect.toml"), format!("transport = \"lab-udp\"\n{config}")).unwrap();
     let web: SocketAddr = ([127, 0, 0, 1], free_port()).into();
     let log = std::fs::File::create(dir.join("collect.log")).unwrap();
     let p = Proc(

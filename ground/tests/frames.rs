@@ -485,8 +485,7 @@ fn walk_over_frames(name: &str, faults: Option<(&str, u64)>) -> (String, f64, Ve
     };
     let o = Obsw::start_frames_at(1, &keys, frame, tm_to, &extra);
     let links = [
-        "--frames".to_string(),
-        "--keys".into(),
+        "--keys".to_string(),
         keys.to_str().unwrap().into(),
         "--robot".into(),
         format!("1={tc_to}"),

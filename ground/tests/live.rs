@@ -29,30 +29,66 @@ fn ping_mode_and_send_against_the_real_obsw() {
     let o = start_obsw(1, 50.0, "Xneg");
     let dir = tmpdir("pms");
     let r = format!("1={}", o.addr);
-    let out = ground(&dir, &["ping", "--robot", &r, "-c", "2"]);
+    let out = ground(&dir, &["ping", "--lab-udp", "--robot", &r, "-c", "2"]);
     assert_eq!(out.status.code(), Some(0), "{}", text(&out));
     assert!(text(&out).contains("reply in"), "{}", text(&out));
 
     // Robot functions are refused in STANDBY: exit 4 and the reason in words.
-    let out = ground(&dir, &["send", "--robot", &r, "RECONFIGURE", "from=Xneg", "to=Xpos"]);
+    let out = ground(
+        &dir,
+        &[
+            "send",
+            "--lab-udp",
+            "--robot",
+            &r,
+            "RECONFIGURE",
+            "from=Xneg",
+            "to=Xpos",
+        ],
+    );
     assert_eq!(out.status.code(), Some(4), "{}", text(&out));
     assert!(text(&out).contains("NOT_ALLOWED_IN_MODE"), "{}", text(&out));
 
-    let out = ground(&dir, &["mode", "--robot", &r, "operational", "--confirm"]);
+    let out = ground(&dir, &["mode", "--lab-udp", "--robot", &r, "operational", "--confirm"]);
     assert_eq!(out.status.code(), Some(0), "{}", text(&out));
 
-    let out = ground(&dir, &["send", "--robot", &r, "RECONFIGURE", "from=Xneg", "to=Xpos"]);
+    let out = ground(
+        &dir,
+        &[
+            "send",
+            "--lab-udp",
+            "--robot",
+            &r,
+            "RECONFIGURE",
+            "from=Xneg",
+            "to=Xpos",
+        ],
+    );
     assert_eq!(out.status.code(), Some(0), "{}", text(&out));
     let t = text(&out);
     assert!(t.contains("progress ok step 1") && t.contains("completion ok"), "{t}");
 
     // The ground's belief of the state is wrong now: refused with INITIAL_STATE_MISMATCH.
-    let out = ground(&dir, &["send", "--robot", &r, "RECONFIGURE", "from=Xneg", "to=Xpos"]);
+    let out = ground(
+        &dir,
+        &[
+            "send",
+            "--lab-udp",
+            "--robot",
+            &r,
+            "RECONFIGURE",
+            "from=Xneg",
+            "to=Xpos",
+        ],
+    );
     assert_eq!(out.status.code(), Some(4), "{}", text(&out));
     assert!(text(&out).contains("INITIAL_STATE_MISMATCH"), "{}", text(&out));
 
     // Arguments are checked against the MIB before anything is sent.
-    let out = ground(&dir, &["send", "--robot", &r, "BOLT_FACE", "side=A", "pairs=16"]);
+    let out = ground(
+        &dir,
+        &["send", "--lab-udp", "--robot", &r, "BOLT_FACE", "side=A", "pairs=16"],
+    );
     assert_eq!(out.status.code(), Some(3), "{}", text(&out));
 
     // Everything went into the archive; sequence counts continue across invocations.
@@ -128,7 +164,7 @@ fn demo_plan_runs_on_two_robots_over_tcp() {
         &[
             "run",
             plan,
-            "--tcp",
+            "--lab-tcp",
             "--plain",
             "--robot",
             &format!("1={}", a.addr),
@@ -184,6 +220,7 @@ to = "Xpos"
         &dir,
         &[
             "run",
+            "--lab-udp",
             plan.to_str().unwrap(),
             "--plain",
             "--robot",
@@ -235,7 +272,7 @@ fn a_lost_tc_is_resent_with_the_same_sequence_count() {
     let relay = lossy_relay(a.addr, 1, stop.clone());
     let dir = tmpdir("resend");
     let t0 = Instant::now();
-    let out = ground(&dir, &["send", "--robot", &format!("1={relay}"), "PING"]);
+    let out = ground(&dir, &["send", "--lab-udp", "--robot", &format!("1={relay}"), "PING"]);
     stop.store(true, Ordering::Relaxed);
     let t = text(&out);
     assert_eq!(out.status.code(), Some(0), "{t}");
@@ -261,6 +298,7 @@ fn an_unreachable_obsw_is_reported_within_the_link_loss_time() {
         &dir,
         &[
             "send",
+            "--lab-udp",
             "--no-archive",
             "--robot",
             &format!("1=127.0.0.1:{port}"),
@@ -291,6 +329,7 @@ fn watch_shows_housekeeping_without_a_request() {
         &dir,
         &[
             "watch",
+            "--lab-udp",
             "--no-archive",
             "--robot",
             &format!("1={}", a.addr),
@@ -315,7 +354,14 @@ fn a_run_against_the_wrong_robot_says_the_replies_carry_another_apid() {
     let dir = tmpdir("wrong-robot");
     let out = ground(
         &dir,
-        &["send", "--no-archive", "--robot", &format!("1={}", b.addr), "PING"],
+        &[
+            "send",
+            "--lab-udp",
+            "--no-archive",
+            "--robot",
+            &format!("1={}", b.addr),
+            "PING",
+        ],
     );
     let t = text(&out);
     assert_eq!(out.status.code(), Some(7), "{t}");

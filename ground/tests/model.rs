@@ -23,7 +23,7 @@ fn the_model_of_a_live_locomotion_only_robot_equals_the_model_of_its_module_set_
     let set = format!("{}/../plans/modules/locomotion-only.toml", env!("CARGO_MANIFEST_DIR"));
     let o = Obsw::start(1, &["--speed", "5", "--modules", &set]);
     let r = format!("1={}", o.addr);
-    let live = ground(&dir, &["--no-archive", "model", "--robot", &r]);
+    let live = ground(&dir, &["--no-archive", "model", "--lab-udp", "--robot", &r]);
     assert_eq!(live.status.code(), Some(0), "{}", text(&live));
     let live = String::from_utf8_lossy(&live.stdout).to_string();
     let file = ground(&dir, &["--no-archive", "model", "--modules", &set]);

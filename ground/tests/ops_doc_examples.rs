@@ -4,9 +4,12 @@
 //! (its comment contains "not run by the doc test"). A new or changed example fails this
 //! test until it has an expectation below: an example cannot go stale silently.
 //!
-//! The guide's robots live at 127.0.0.1:7300+N; the test starts its own obsw per robot
-//! on free ports and rewrites `--robot N[=ADDR]` (and `sim -r N`) to them, so it never
-//! depends on, or disturbs, robots an operator runs on the default ports.
+//! The guide's robots live at their default space-link ports; the test starts its own
+//! obsw per robot over the space link (frames, COP-1, SDLS) on free ports with its own
+//! test keys (given to the ground as `$MMIC_KEYS`, as the guide says to) and rewrites
+//! `--robot N[=ADDR]` to `--robot N=FRAME_PORT --tm-listen N=TM_ADDR` (and `sim -r N`
+//! to its control port), so it never depends on, or disturbs, robots an operator runs
+//! on the default ports.
 
 use std::collections::BTreeMap;
 use std::io::BufRead;
@@ -54,8 +57,8 @@ fn expectations() -> BTreeMap<&'static str, Expect> {
         ),
         ("target/release/ground --help", ok(&["Usage: ground"])),
         (
-            "ground keys create keys",
-            ok(&["created keys/robot-1/tc-spi1.key", "created keys/robot-1/tm-spi17.key"]),
+            "ground keys create keys --robot 1 --robot 2",
+            ok(&["created keys/robot-1/tc-spi1.key", "created keys/robot-2/tm-spi17.key"]),
         ),
         (
             "ground keys show keys",
@@ -67,7 +70,7 @@ fn expectations() -> BTreeMap<&'static str, Expect> {
         ),
         ("ground plan check plans/demo.toml", ok(&["ok — plan \"demo\""])),
         (
-            "ground run plans/demo.toml --robot 1=127.0.0.1:7301 --robot 2=127.0.0.1:7302",
+            "ground run plans/demo.toml --robot 1=127.0.0.1:7501 --robot 2=127.0.0.1:7502",
             ok(&["10 of 10 steps done", "faults: none", " 0 resends"]),
         ),
         (
@@ -219,26 +222,31 @@ fn every_yamcs_example_of_the_operator_guide_names_real_subcommands_and_flags() 
 /// The test's robots.
 struct Robots {
     obsw: BTreeMap<u8, Obsw>,
-    /// Robot 3: nobody listens there.
-    silent: SocketAddr,
+    /// Robot 3: nobody listens there (its frame port; its TM address).
+    silent: (SocketAddr, SocketAddr),
 }
 
 impl Robots {
-    fn start() -> Robots {
+    /// Robots 1 and 2 over the space link with the test's keys (`keys` holds robots 1-3).
+    fn start(keys: &Path) -> Robots {
         let mut obsw = BTreeMap::new();
         for (n, state) in [(1u8, "Xneg"), (2, "Xpos")] {
             obsw.insert(
                 n,
-                Obsw::start(n, &["--speed", "10", "--seed", "5", "--initial-state", state]),
+                Obsw::start_frames(n, keys, &["--speed", "10", "--seed", "5", "--initial-state", state]),
             );
         }
+        let local = || SocketAddr::from(([127, 0, 0, 1], free_port()));
         Robots {
             obsw,
-            silent: ([127, 0, 0, 1], free_port()).into(),
+            silent: (local(), local()),
         }
     }
-    fn addr(&self, n: u8) -> SocketAddr {
-        self.obsw.get(&n).map_or(self.silent, |o| o.addr)
+    /// Robot `n`'s frame port and the address its TM frames go to.
+    fn addr(&self, n: u8) -> (SocketAddr, SocketAddr) {
+        self.obsw
+            .get(&n)
+            .map_or(self.silent, |o| (o.frame.expect("frames"), o.tm_to.expect("frames")))
     }
 }
 
@@ -266,7 +274,10 @@ fn rewrite(words: &[&str], robots: &Robots) -> Vec<String> {
                     out.push(o.ctl.to_string());
                 }
             } else {
-                out.push(format!("{n}={}", robots.addr(n)));
+                let (frame, tm) = robots.addr(n);
+                out.push(format!("{n}={frame}"));
+                out.push("--tm-listen".into());
+                out.push(format!("{n}={tm}"));
             }
         } else {
             out.push(w.to_string());
@@ -276,10 +287,11 @@ fn rewrite(words: &[&str], robots: &Robots) -> Vec<String> {
 }
 
 /// Runs `ground args` in `dir`; returns exit code and stdout + stderr.
-fn run(dir: &Path, args: &[String], interrupt_at: Option<&str>) -> (Option<i32>, String) {
+fn run(dir: &Path, keys: &Path, args: &[String], interrupt_at: Option<&str>) -> (Option<i32>, String) {
     let mut child = Command::new(GROUND)
         .current_dir(dir)
         .env("OBSW_BIN", obsw_bin())
+        .env("MMIC_KEYS", keys)
         .args(args)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -327,7 +339,8 @@ fn every_command_example_of_the_operator_guide_runs_as_documented() {
     let expect = expectations();
     let dir = tmpdir("ops", "doc-examples");
     std::os::unix::fs::symlink(root.join("plans"), dir.join("plans")).unwrap();
-    let mut robots = Robots::start();
+    let keys = common::frame_keys(&dir, &[1, 2, 3]);
+    let mut robots = Robots::start(&keys);
     let mut ran = 0;
     for (cmd, skip) in &cmds {
         if *skip {
@@ -343,12 +356,12 @@ fn every_command_example_of_the_operator_guide_runs_as_documented() {
         };
         if e.fresh {
             drop(robots);
-            robots = Robots::start();
+            robots = Robots::start(&keys);
             // `--robot N` in the command: the test's robots are at other ports.
         }
         let args = if e.fresh { rewrite(&words[1..], &robots) } else { args };
         let t0 = Instant::now();
-        let (code, out) = run(&dir, &args, e.interrupt_at);
+        let (code, out) = run(&dir, &keys, &args, e.interrupt_at);
         assert_eq!(code, Some(e.code), "`{cmd}` (as {args:?}):\n{out}");
         for s in e.says {
             assert!(out.contains(s), "`{cmd}` does not say {s:?}:\n{out}");

@@ -24,10 +24,26 @@ tc = "PING"
 fn verbs(robot: &str) -> Vec<Vec<String>> {
     let v = |a: &[&str]| a.iter().map(|s| s.to_string()).collect::<Vec<_>>();
     vec![
-        v(&["--no-archive", "send", "--robot", robot, "PING"]),
-        v(&["--no-archive", "ping", "--robot", robot, "-c", "2"]),
-        v(&["--no-archive", "watch", "--robot", robot, "--duration", "8"]),
-        v(&["--no-archive", "run", "one.toml", "--plain", "--robot", robot]),
+        v(&["--no-archive", "send", "--lab-udp", "--robot", robot, "PING"]),
+        v(&["--no-archive", "ping", "--lab-udp", "--robot", robot, "-c", "2"]),
+        v(&[
+            "--no-archive",
+            "watch",
+            "--lab-udp",
+            "--robot",
+            robot,
+            "--duration",
+            "8",
+        ]),
+        v(&[
+            "--no-archive",
+            "run",
+            "--lab-udp",
+            "one.toml",
+            "--plain",
+            "--robot",
+            robot,
+        ]),
     ]
 }
 
@@ -96,16 +112,31 @@ to = "Xpos"
     )
     .unwrap();
     for args in [
-        vec!["--no-archive", "watch", "--duration", "30"],
-        vec!["--no-archive", "run", "walk.toml", "--plain"],
-        vec!["--no-archive", "send", "RECONFIGURE", "from=Xneg", "to=Xpos"],
+        vec!["--no-archive", "watch", "--lab-udp", "--duration", "30"],
+        vec!["--no-archive", "run", "--lab-udp", "walk.toml", "--plain"],
+        vec![
+            "--no-archive",
+            "send",
+            "--lab-udp",
+            "RECONFIGURE",
+            "from=Xneg",
+            "to=Xpos",
+        ],
     ] {
         let o = Obsw::start(1, &["--speed", "1", "--initial-state", "Xneg"]);
         let r = format!("1={}", o.addr);
         if args[1] == "send" {
             let out = ground(
                 &dir,
-                &["--no-archive", "mode", "--robot", &r, "operational", "--confirm"],
+                &[
+                    "--no-archive",
+                    "mode",
+                    "--lab-udp",
+                    "--robot",
+                    &r,
+                    "operational",
+                    "--confirm",
+                ],
             );
             assert_eq!(out.status.code(), Some(0), "{}", text(&out));
         }
@@ -137,17 +168,25 @@ fn a_robot_not_in_the_plan_and_a_verb_without_a_robot_are_refused_up_front() {
     let t0 = Instant::now();
     let out = ground(
         &dir,
-        &["--no-archive", "run", plan.to_str().unwrap(), "--robot", "3", "--plain"],
+        &[
+            "--no-archive",
+            "run",
+            "--lab-udp",
+            plan.to_str().unwrap(),
+            "--robot",
+            "3",
+            "--plain",
+        ],
     );
     let t = text(&out);
     assert_eq!(out.status.code(), Some(2), "{t}");
     assert!(t.contains("robot 3 is not in plan \"demo\" (its robots: 1, 2)"), "{t}");
     assert!(t0.elapsed() < Duration::from_secs(2));
     for args in [
-        vec!["send", "PING"],
+        vec!["send", "--lab-udp", "PING"],
         vec!["ping"],
-        vec!["watch", "--duration", "1"],
-        vec!["mode", "standby", "--confirm"],
+        vec!["watch", "--lab-udp", "--duration", "1"],
+        vec!["mode", "--lab-udp", "standby", "--confirm"],
     ] {
         let mut a = vec!["--no-archive"];
         a.extend(args);
@@ -161,7 +200,15 @@ fn a_robot_not_in_the_plan_and_a_verb_without_a_robot_are_refused_up_front() {
     let o = Obsw::start(1, &["--speed", "20"]);
     let out = ground(
         &dir,
-        &["--no-archive", "ping", "--robot", &format!("1={}", o.addr), "-c", "1"],
+        &[
+            "--no-archive",
+            "ping",
+            "--lab-udp",
+            "--robot",
+            &format!("1={}", o.addr),
+            "-c",
+            "1",
+        ],
     );
     assert!(
         text(&out).contains(&format!("talking to robot 1 at {} (UDP, bare packets)", o.addr)),

@@ -62,7 +62,10 @@ fn a_closed_pipe_is_a_quiet_exit_0_on_every_verb_that_prints() {
     )
     .unwrap();
     // An archive with TC, TM, verification, HK and events in it.
-    let out = ground(&dir, &["ping", "--robot", &r, "-c", "3", "--interval", "0.5"]);
+    let out = ground(
+        &dir,
+        &["ping", "--lab-udp", "--robot", &r, "-c", "3", "--interval", "0.5"],
+    );
     assert_eq!(out.status.code(), Some(0), "{}", text(&out));
     let out = ground(&dir, &["plan", "encode", demo, "--out", "enc"]);
     assert_eq!(out.status.code(), Some(0), "{}", text(&out));
@@ -82,10 +85,10 @@ fn a_closed_pipe_is_a_quiet_exit_0_on_every_verb_that_prints() {
         vec!["archive", "latest"],
         vec!["archive", "gaps"],
         vec!["archive", "check"],
-        vec!["ping", "--robot", &r, "-c", "1"],
-        vec!["send", "--robot", &r, "PING"],
-        vec!["watch", "--robot", &r, "--duration", "1.5"],
-        vec!["run", "one.toml", "--plain", "--robot", &r],
+        vec!["ping", "--lab-udp", "--robot", &r, "-c", "1"],
+        vec!["send", "--lab-udp", "--robot", &r, "PING"],
+        vec!["watch", "--lab-udp", "--robot", &r, "--duration", "1.5"],
+        vec!["run", "--lab-udp", "one.toml", "--plain", "--robot", &r],
         vec!["sim", "--addr", &ctl, "status"],
         vec!["--help"],
     ];

@@ -31,9 +31,9 @@ fn a_hazardous_tc_is_refused_without_confirmation_on_the_command_line() {
     let dir = tmpdir("ops", "hazard-cli");
     let (sock, r) = listener();
     for args in [
-        vec!["send", "--robot", &r, "UNBOLT_FACE", "side=A", "pairs=15"],
-        vec!["send", "--robot", &r, "STORE_DELETE"],
-        vec!["mode", "--robot", &r, "standby"],
+        vec!["send", "--lab-udp", "--robot", &r, "UNBOLT_FACE", "side=A", "pairs=15"],
+        vec!["send", "--lab-udp", "--robot", &r, "STORE_DELETE"],
+        vec!["mode", "--lab-udp", "--robot", &r, "standby"],
     ] {
         let mut a = vec!["--no-archive"];
         a.extend(args);
@@ -54,6 +54,7 @@ fn a_hazardous_tc_is_refused_without_confirmation_on_the_command_line() {
         &[
             "--no-archive",
             "send",
+            "--lab-udp",
             "--robot",
             &r,
             "UNBOLT_FACE",
@@ -92,7 +93,10 @@ confirm = false
     )
     .unwrap();
     let (sock, r) = listener();
-    let out = ground(&dir, &["--no-archive", "run", "p.toml", "--plain", "--robot", &r]);
+    let out = ground(
+        &dir,
+        &["--no-archive", "run", "--lab-udp", "p.toml", "--plain", "--robot", &r],
+    );
     let t = text(&out);
     assert_eq!(out.status.code(), Some(3), "{t}");
     assert!(t.contains("step \"op\": MODE_SET is hazardous"), "{t}");
@@ -116,15 +120,31 @@ fn mistyped_names_get_a_suggestion_on_the_command_line_and_in_plans() {
     let (_sock, r) = listener();
     for (args, says) in [
         (
-            vec!["send", "--robot", &r, "BOLT_FCE", "side=A"],
+            vec!["send", "--lab-udp", "--robot", &r, "BOLT_FCE", "side=A"],
             "did you mean BOLT_FACE?",
         ),
         (
-            vec!["send", "--robot", &r, "RECONFIGURE", "form=Xneg", "to=Xpos"],
+            vec![
+                "send",
+                "--lab-udp",
+                "--robot",
+                &r,
+                "RECONFIGURE",
+                "form=Xneg",
+                "to=Xpos",
+            ],
             "did you mean from?",
         ),
         (
-            vec!["send", "--robot", &r, "RECONFIGURE", "from=Xnge", "to=Xpos"],
+            vec![
+                "send",
+                "--lab-udp",
+                "--robot",
+                &r,
+                "RECONFIGURE",
+                "from=Xnge",
+                "to=Xpos",
+            ],
             "did you mean Xneg?",
         ),
     ] {

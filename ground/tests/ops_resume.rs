@@ -80,7 +80,19 @@ fn ctrl_c_during_a_long_step_then_resume_executes_it_once() {
     );
     std::fs::write(dir.join("bolt.toml"), BOLT_PLAN).unwrap();
     let r = format!("1={}", o.addr);
-    let mut run = Running::start(&dir, &["run", "bolt.toml", "--robot", &r, "--plain", "--grace", "1"]);
+    let mut run = Running::start(
+        &dir,
+        &[
+            "run",
+            "--lab-udp",
+            "bolt.toml",
+            "--robot",
+            &r,
+            "--plain",
+            "--grace",
+            "1",
+        ],
+    );
     run.wait_for("send     bolt", Duration::from_secs(20));
     std::thread::sleep(Duration::from_millis(700));
     let t_int = Instant::now();
@@ -114,7 +126,10 @@ fn ctrl_c_during_a_long_step_then_resume_executes_it_once() {
 
     // The bolting finishes on board while no ground listens; then resume.
     std::thread::sleep(Duration::from_secs(10));
-    let res = ground(&dir, &["run", "bolt.toml", "--robot", &r, "--plain", "--resume"]);
+    let res = ground(
+        &dir,
+        &["run", "--lab-udp", "bolt.toml", "--robot", &r, "--plain", "--resume"],
+    );
     let t = text(&res);
     assert_eq!(res.status.code(), Some(0), "{t}");
     assert!(t.contains(&format!("resuming run {run_id}")), "{t}");
@@ -156,6 +171,7 @@ fn resume_continues_the_latest_run_and_counts_only_its_steps() {
             &dir,
             &[
                 "run",
+                "--lab-udp",
                 plan,
                 "--plain",
                 "--robot",
@@ -172,7 +188,18 @@ fn resume_continues_the_latest_run_and_counts_only_its_steps() {
     let (ra, rb) = (format!("1={}", a.addr), format!("2={}", b.addr));
     let mut run = Running::start(
         &dir,
-        &["run", plan, "--plain", "--robot", &ra, "--robot", &rb, "--grace", "0.5"],
+        &[
+            "run",
+            "--lab-udp",
+            plan,
+            "--plain",
+            "--robot",
+            &ra,
+            "--robot",
+            &rb,
+            "--grace",
+            "0.5",
+        ],
     );
     run.wait_for("done     r1-walk", Duration::from_secs(60));
     // SIGTERM (a service manager stopping the ground) is the same operation as Ctrl-C.
@@ -190,7 +217,17 @@ fn resume_continues_the_latest_run_and_counts_only_its_steps() {
 
     let res = ground(
         &dir,
-        &["run", plan, "--plain", "--robot", &ra, "--robot", &rb, "--resume"],
+        &[
+            "run",
+            "--lab-udp",
+            plan,
+            "--plain",
+            "--robot",
+            &ra,
+            "--robot",
+            &rb,
+            "--resume",
+        ],
     );
     let t = text(&res);
     assert_eq!(res.status.code(), Some(0), "{t}");
@@ -206,7 +243,18 @@ fn resume_continues_the_latest_run_and_counts_only_its_steps() {
     // The robots are where the plan leaves them (their own HK, via ping).
     let p = ground(
         &dir,
-        &["ping", "--robot", &ra, "--robot", &rb, "-c", "3", "--interval", "1"],
+        &[
+            "ping",
+            "--lab-udp",
+            "--robot",
+            &ra,
+            "--robot",
+            &rb,
+            "-c",
+            "3",
+            "--interval",
+            "1",
+        ],
     );
     let pt = text(&p);
     assert!(pt.contains("robot 1: mode STANDBY | state Yneg"), "{pt}");
@@ -215,7 +263,16 @@ fn resume_continues_the_latest_run_and_counts_only_its_steps() {
     let bad = ground(
         &dir,
         &[
-            "run", plan, "--plain", "--robot", &ra, "--robot", &rb, "--resume", "nope",
+            "run",
+            "--lab-udp",
+            plan,
+            "--plain",
+            "--robot",
+            &ra,
+            "--robot",
+            &rb,
+            "--resume",
+            "nope",
         ],
     );
     assert_eq!(bad.status.code(), Some(3), "{}", text(&bad));
@@ -229,7 +286,19 @@ fn a_second_ctrl_c_exits_at_once() {
     let o = Obsw::start(1, &["--speed", "1", "--seed", "7", "--initial-state", "Xneg"]);
     std::fs::write(dir.join("bolt.toml"), BOLT_PLAN).unwrap();
     let r = format!("1={}", o.addr);
-    let mut run = Running::start(&dir, &["run", "bolt.toml", "--robot", &r, "--plain", "--grace", "60"]);
+    let mut run = Running::start(
+        &dir,
+        &[
+            "run",
+            "--lab-udp",
+            "bolt.toml",
+            "--robot",
+            &r,
+            "--plain",
+            "--grace",
+            "60",
+        ],
+    );
     run.wait_for("send     bolt", Duration::from_secs(20));
     run.interrupt();
     run.wait_for("waiting up to 60 s for bolt", Duration::from_secs(5));

@@ -43,9 +43,26 @@ pub const TM_WRITE_TIMEOUT_MS: u32 = 100;
 /// Simulator control port of robot N is `SIM_CTL_BASE_PORT + N` (host simulator only).
 pub const SIM_CTL_BASE_PORT: u16 = 7400;
 
-/// TC/TM port of robot `n` (UDP and TCP).
+/// Bare-packet lab port of robot `n` (UDP and TCP; obsw --udp/--tcp).
 pub const fn robot_port(n: u8) -> u16 {
     DEFAULT_PORT - 1 + n as u16
+}
+
+/// Robot N's space-link port (one TC frame per datagram, obsw --frame-udp) is
+/// `FRAME_BASE_PORT + N`.
+pub const FRAME_BASE_PORT: u16 = 7_500;
+/// Robot N's TM frames go to `TM_FRAME_BASE_PORT + N` on the ground (obsw
+/// --frame-tm-to, ground --tm-listen).
+pub const TM_FRAME_BASE_PORT: u16 = 7_600;
+
+/// Space-link TC frame port of robot `n`.
+pub const fn frame_port(n: u8) -> u16 {
+    FRAME_BASE_PORT + n as u16
+}
+
+/// Port robot `n`'s TM frames arrive at on the ground.
+pub const fn tm_frame_port(n: u8) -> u16 {
+    TM_FRAME_BASE_PORT + n as u16
 }
 
 /// Outgoing TM queue depth of the OBSW (packets). When full, the oldest packet moves to

@@ -144,7 +144,7 @@ fn collector_archives_everything_once_through_loss_blackout_kill_and_raises_alar
         .enumerate()
         .map(|(i, o)| relay(o, None, 11 + i as u64))
         .collect();
-    let mut cfg = String::from("[gaps]\nretry_ms = 1500\nmax_tries = 8\n");
+    let mut cfg = String::from("transport = \"lab-udp\"\n[gaps]\nretry_ms = 1500\nmax_tries = 8\n");
     for (i, r) in relays.iter().enumerate() {
         cfg.push_str(&format!("[[robot]]\nnumber = {}\naddr = \"{}\"\n", i + 1, r.udp));
     }

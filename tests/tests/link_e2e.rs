@@ -114,6 +114,7 @@ fn checkout_through(faults: Faults, seed: u64) -> Duration {
         "--archive",
         db.to_str().unwrap(),
         "run",
+        "--lab-udp",
         plan_path("checkout.toml").to_str().unwrap(),
         "--robot",
         &format!("1={}", relay.udp),
@@ -360,6 +361,7 @@ fn a_killed_obsw_is_reported_fast_and_the_run_resumes() {
             "--archive",
             db.to_str().unwrap(),
             "run",
+            "--lab-udp",
             plan.to_str().unwrap(),
             "--robot",
             &format!("1={addr}"),
@@ -395,6 +397,7 @@ fn a_killed_obsw_is_reported_fast_and_the_run_resumes() {
         "--archive",
         db.to_str().unwrap(),
         "run",
+        "--lab-udp",
         plan.to_str().unwrap(),
         "--robot",
         &format!("1={}", o2.udp),
@@ -451,7 +454,7 @@ fn a_killed_obsw_over_tcp_is_reported_at_the_connection_end() {
     let child = Command::new(bin("ground"))
         .args(["--no-archive", "run"])
         .arg(&plan)
-        .args(["--tcp", "--robot", &format!("1={}", o.tcp), "--plain"])
+        .args(["--lab-tcp", "--robot", &format!("1={}", o.tcp), "--plain"])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()

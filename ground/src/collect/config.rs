@@ -16,7 +16,7 @@ pub const MAX_BACKOFF_CAP_MS: u64 = 5_000;
 #[derive(Deserialize, Debug, Default)]
 #[serde(deny_unknown_fields)]
 struct FileCfg {
-    /// Default transport: "frames", "udp" or "tcp".
+    /// Default transport: "frames" (the default), or a lab link "lab-udp" or "lab-tcp".
     transport: Option<toml::Spanned<String>>,
     /// Key directory of the frame link (`ground keys create`), relative to this file's
     /// folder; robot N uses KEYS/robot-N/.
@@ -201,18 +201,27 @@ pub fn format_duration_ms(ms: i64) -> String {
     }
 }
 
+fn unknown_transport(t: &str) -> String {
+    format!("transport \"{t}\": use \"frames\" (the default) or a lab link, \"lab-udp\" or \"lab-tcp\"")
+}
+
 fn transport_of(s: &str) -> Option<Transport> {
     match s.to_ascii_lowercase().as_str() {
-        "udp" => Some(Transport::Udp),
-        "tcp" => Some(Transport::Tcp),
+        "lab-udp" => Some(Transport::Udp),
+        "lab-tcp" => Some(Transport::Tcp),
         "frames" => Some(Transport::Frames),
         _ => None,
     }
 }
 
-/// Default TC/TM address of robot `n`.
-pub fn default_addr(n: u8) -> SocketAddr {
-    (std::net::Ipv4Addr::LOCALHOST, mib::config::robot_port(n)).into()
+/// Default address of robot `n` over `transport`: its space-link port, or its
+/// bare-packet port on a lab link (loopback either way).
+pub fn default_addr(n: u8, transport: Transport) -> SocketAddr {
+    let port = match transport {
+        Transport::Frames => mib::config::frame_port(n),
+        Transport::Udp | Transport::Tcp => mib::config::robot_port(n),
+    };
+    (std::net::Ipv4Addr::LOCALHOST, port).into()
 }
 
 struct Cx<'a> {
@@ -326,13 +335,10 @@ pub fn parse(file: &str, src: &str) -> Result<Config, CfgErrors> {
     let mut c = Config::default();
     let default_transport = match &f.transport {
         Some(t) => transport_of(t.get_ref()).unwrap_or_else(|| {
-            cx.err(
-                t.span(),
-                format!("transport \"{}\": use \"frames\", \"udp\" or \"tcp\"", t.get_ref()),
-            );
-            Transport::Udp
+            cx.err(t.span(), unknown_transport(t.get_ref()));
+            Transport::Frames
         }),
-        None => Transport::Udp,
+        None => Transport::Frames,
     };
     if let Some(r) = &f.retain {
         match parse_duration_ms(r.get_ref()) {
@@ -455,27 +461,24 @@ pub fn parse(file: &str, src: &str) -> Result<Config, CfgErrors> {
             cx.err(r.number.span(), format!("robot {number} is listed twice"));
             continue;
         }
+        let transport = match &r.transport {
+            None => default_transport,
+            Some(t) => match transport_of(t.get_ref()) {
+                Some(t) => t,
+                None => {
+                    cx.err(t.span(), unknown_transport(t.get_ref()));
+                    continue;
+                }
+            },
+        };
         let addr = match &r.addr {
-            None => default_addr(number),
+            None => default_addr(number, transport),
             Some(a) => match a.get_ref().to_socket_addrs().ok().and_then(|mut i| i.next()) {
                 Some(s) => s,
                 None => {
                     cx.err(
                         a.span(),
                         format!("address \"{}\" is not HOST:PORT or does not resolve", a.get_ref()),
-                    );
-                    continue;
-                }
-            },
-        };
-        let transport = match &r.transport {
-            None => default_transport,
-            Some(t) => match transport_of(t.get_ref()) {
-                Some(t) => t,
-                None => {
-                    cx.err(
-                        t.span(),
-                        format!("transport \"{}\": use \"frames\", \"udp\" or \"tcp\"", t.get_ref()),
                     );
                     continue;
                 }
@@ -510,6 +513,13 @@ pub fn parse(file: &str, src: &str) -> Result<Config, CfgErrors> {
                 }
             },
         };
+        if transport != Transport::Frames && !addr.ip().is_loopback() {
+            cx.err(
+                r.number.span(),
+                format!("robot {number} at {addr}: a lab link (bare packets) is for robots on loopback addresses only"),
+            );
+            continue;
+        }
         let frames = if transport == Transport::Frames {
             let Some(k) = &f.keys else {
                 cx.err(
@@ -561,7 +571,7 @@ mod tests {
         let c = parse(
             "c.toml",
             r#"
-transport = "udp"
+transport = "lab-udp"
 retain = "30d"
 [link]
 loss_timeout_ms = 4000
@@ -578,19 +588,37 @@ addr = "127.0.0.1:9001"
 hk_interval_ms = 100
 [[robot]]
 number = 2
-transport = "tcp"
+transport = "lab-tcp"
 "#,
         )
         .unwrap();
         assert_eq!(c.robots.len(), 2);
         assert_eq!(c.robots[0].addr, "127.0.0.1:9001".parse().unwrap());
         assert_eq!(c.robots[1].transport, Transport::Tcp);
-        assert_eq!(c.robots[1].addr, default_addr(2));
+        assert_eq!(c.robots[1].addr, default_addr(2, Transport::Tcp));
         assert_eq!(c.retain_ms, Some(30 * 86_400_000));
         assert_eq!(c.max_backoff_ms, 2000);
         assert_eq!(c.event_min_severity, mib::events::Severity::High);
         assert_eq!(c.loss_ms(1000), 4000);
         assert_eq!(c.loss_ms(2000), 6000);
+    }
+
+    // verifies: OPS-LINK-DEFAULT-01
+    #[test]
+    fn robots_use_the_space_link_unless_a_lab_link_is_named_and_local() {
+        let e = parse("c.toml", "[[robot]]\nnumber = 1\n").unwrap_err().to_string();
+        assert!(e.contains("robot 1 over frames: the file needs keys"), "{e}");
+        let c = parse("c.toml", "keys = \"k\"\n[[robot]]\nnumber = 1\n").unwrap();
+        assert_eq!(c.robots[0].transport, Transport::Frames);
+        let e = parse("c.toml", "transport = \"udp\"\n").unwrap_err().to_string();
+        assert!(e.contains("\"lab-udp\""), "{e}");
+        let e = parse(
+            "c.toml",
+            "transport = \"lab-udp\"\n[[robot]]\nnumber = 1\naddr = \"10.1.2.3:7301\"\n",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("c.toml:3:10: robot 1 at 10.1.2.3:7301: a lab link"), "{e}");
     }
 
     // verifies: GND-11

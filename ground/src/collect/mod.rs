@@ -27,7 +27,6 @@ use clap::{Args, Subcommand};
 
 use crate::alarms::{Input, State};
 use crate::archive::{now_ms, Store};
-use crate::link::Transport;
 
 use config::{Config, RobotCfg};
 use robot::{RobotStatus, Worker};
@@ -48,20 +47,11 @@ const STATUS_NOTES: usize = 10;
 pub struct CollectArgs {
     /// Robot link `N=HOST:PORT` (or `N` for 127.0.0.1:7300+N); repeat per robot. Adds to
     /// (or overrides) the robots of --config.
-    #[arg(long = "robot", short = 'r', value_parser = parse_robot)]
-    pub robots: Vec<(u8, SocketAddr)>,
-    /// Use TCP (COBS framing) instead of UDP for the --robot links (bare packets, lab mode).
-    #[arg(long, conflicts_with = "frames")]
-    pub tcp: bool,
-    /// The --robot links speak the space link (TC/TM frames, COP-1, SDLS); needs --keys.
-    #[arg(long, requires = "keys")]
-    pub frames: bool,
-    /// Key directory of the frame link (`ground keys create`): robot N uses KEYS/robot-N/.
-    #[arg(long, value_name = "DIR")]
-    pub keys: Option<PathBuf>,
-    /// Local address robot N's TM frames arrive at, `N=HOST:PORT` (default 127.0.0.1:7400+N).
-    #[arg(long = "tm-listen", value_parser = parse_robot, value_name = "N=HOST:PORT")]
-    pub tm_listen: Vec<(u8, SocketAddr)>,
+    #[arg(long = "robot", short = 'r', value_parser = parse_robot_arg)]
+    pub robots: Vec<(u8, Option<SocketAddr>)>,
+    /// How the --robot links are reached: the space link (needs --keys) unless a lab flag.
+    #[command(flatten)]
+    pub link: crate::link_choice::LinkFlags,
     /// TOML configuration (robots, links, retention, alarm settings).
     #[arg(long)]
     pub config: Option<PathBuf>,
@@ -115,9 +105,9 @@ pub enum AlarmsCmd {
     Unshelve { id: i64 },
 }
 
-/// `N` or `N=HOST:PORT` (robot number in the MIB's range; the default address of robot N
-/// when no address is given), as `--robot` takes it.
-pub fn parse_robot(s: &str) -> Result<(u8, SocketAddr), String> {
+/// `N` or `N=HOST:PORT` (robot number in the MIB's range; no address: the default of
+/// the link chosen, [`crate::link_choice::LinkFlags::default_addr`]), as `--robot` takes it.
+pub fn parse_robot_arg(s: &str) -> Result<(u8, Option<SocketAddr>), String> {
     let (n, addr) = match s.split_once('=') {
         Some((n, a)) => (n, Some(a)),
         None => (s, None),
@@ -133,14 +123,24 @@ pub fn parse_robot(s: &str) -> Result<(u8, SocketAddr), String> {
     let addr = match addr {
         Some(a) => {
             use std::net::ToSocketAddrs;
-            a.to_socket_addrs()
-                .map_err(|e| format!("address \"{a}\": {e}"))?
-                .next()
-                .ok_or_else(|| format!("address \"{a}\" does not resolve"))?
+            Some(
+                a.to_socket_addrs()
+                    .map_err(|e| format!("address \"{a}\": {e}"))?
+                    .next()
+                    .ok_or_else(|| format!("address \"{a}\" does not resolve"))?,
+            )
         }
-        None => config::default_addr(n),
+        None => None,
     };
     Ok((n, addr))
+}
+
+/// `N=HOST:PORT`, the address required (`--tm-listen`).
+pub fn parse_robot(s: &str) -> Result<(u8, SocketAddr), String> {
+    match parse_robot_arg(s)? {
+        (n, Some(a)) => Ok((n, a)),
+        (n, None) => Err(format!("give an address: {n}=HOST:PORT")),
+    }
 }
 
 fn emit(line: &str) -> Result<()> {
@@ -181,25 +181,22 @@ pub fn collect_cli(archive: &Path, a: CollectArgs) -> Result<u8> {
         },
         None => Config::default(),
     };
-    for (n, addr) in &a.robots {
+    for &(n, addr) in &a.robots {
+        let addr = addr.unwrap_or_else(|| a.link.default_addr(n));
+        let n = &n;
+        let addr = &addr;
         cfg.robots.retain(|r| r.number != *n);
-        let frames = match (&a.keys, a.frames) {
-            (Some(keys), true) => Some(crate::link::FrameOptions {
-                keys: keys.clone(),
-                tm_listen: a.tm_listen.iter().copied().collect(),
-            }),
-            _ => None,
+        let (transport, frames) = match a.link.resolve(&[(*n, *addr)]) {
+            Ok(c) => c,
+            Err(e) => {
+                eprintln!("ground: error: {e}");
+                return Ok(EXIT_INVALID);
+            }
         };
         cfg.robots.push(RobotCfg {
             number: *n,
             addr: *addr,
-            transport: if frames.is_some() {
-                Transport::Frames
-            } else if a.tcp {
-                Transport::Tcp
-            } else {
-                Transport::Udp
-            },
+            transport,
             frames,
             hk_interval_ms: None,
             name: None,

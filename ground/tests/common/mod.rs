@@ -80,7 +80,7 @@ pub struct Obsw {
 }
 
 /// Test keys for robot `robot` under `dir/keys` (`ground keys create`, random keys);
-/// returns the key directory (give it to `ground --frames --keys`).
+/// returns the key directory (give it to `ground --keys`).
 pub fn frame_keys(dir: &Path, robots: &[u8]) -> PathBuf {
     let keys = dir.join("TEST-KEYS");
     let mut args = vec!["keys".to_string(), "create".into(), keys.to_str().unwrap().into()];
@@ -133,7 +133,6 @@ impl Obsw {
     /// --robot N=FRAME --tm-listen N=TM_TO`.
     pub fn frame_args(&self, robot: u8, keys: &Path) -> Vec<String> {
         vec![
-            "--frames".into(),
             "--keys".into(),
             keys.to_str().unwrap().into(),
             "--robot".into(),
@@ -143,13 +142,15 @@ impl Obsw {
         ]
     }
 
-    /// Starts robot `robot`'s obsw with `extra` arguments and waits for its READY line.
+    /// Starts robot `robot`'s obsw with `extra` arguments and waits for its READY line:
+    /// the bare-packet lab link unless `extra` gives the frame link.
     pub fn start(robot: u8, extra: &[&str]) -> Obsw {
         let addr: SocketAddr = ([127, 0, 0, 1], free_port()).into();
         let ctl: SocketAddr = ([127, 0, 0, 1], free_port()).into();
         let mut child = Command::new(obsw_bin())
             .args(["--robot", &robot.to_string(), "--udp", &addr.to_string()])
             .args(["--tcp", &addr.to_string(), "--sim-ctl", &ctl.to_string()])
+            .args(lab_unless_frames(extra))
             .args(extra)
             .stdout(Stdio::piped())
             .stderr(Stdio::null())
@@ -397,5 +398,14 @@ impl Drop for Running {
             let _ = self.child.kill();
             let _ = self.child.wait();
         }
+    }
+}
+
+/// The obsw's lab flag for the bare-packet link, unless `args` choose the frame link.
+pub fn lab_unless_frames(args: &[&str]) -> &'static [&'static str] {
+    if args.contains(&"--frame-udp") {
+        &[]
+    } else {
+        &["--lab-bare-packets"]
     }
 }

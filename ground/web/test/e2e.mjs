@@ -56,7 +56,9 @@ const children = [];
 async function startObsw(robot, extra = [], fixedUdp = null) {
   const udp = fixedUdp || `127.0.0.1:${await freePort()}`;
   const ctl = `127.0.0.1:${await freePort()}`;
-  const p = spawn(obswBin, ['--robot', String(robot), '--udp', udp, '--sim-ctl', ctl, '--speed', '1', '--seed', String(robot), ...extra],
+  // The bare-packet lab link (loopback): the page's own checks, not the space link's
+  // (ground/tests/frames.rs runs the collector over frames).
+  const p = spawn(obswBin, ['--robot', String(robot), '--udp', udp, '--sim-ctl', ctl, '--speed', '1', '--seed', String(robot), '--lab-bare-packets', ...extra],
     { stdio: ['ignore', 'pipe', 'ignore'] });
   children.push(p);
   await new Promise((resolve, reject) => {
@@ -85,7 +87,7 @@ async function groundRelay(obswUdp) {
 
 // `ground collect --http ADDR` with its own archive in `dir`; resolves once the API answers.
 async function startCollector(dir, robots, http, extra = []) {
-  const args = ['--archive', join(dir, 'a.db'), 'collect', '--plain', '--http', http, ...extra];
+  const args = ['--archive', join(dir, 'a.db'), 'collect', '--plain', '--http', http, '--lab-udp', ...extra];
   for (const r of robots) args.push('--robot', `${r.robot}=${r.udp}`);
   const log = openSync(join(dir, 'collect.log'), 'a');
   const p = spawn(groundBin, args, { stdio: ['ignore', 'ignore', log] });

@@ -46,7 +46,7 @@ pub const HTTP_PORT: u16 = 8090;
 /// Yamcs listens for robot N's TM (frames, or packets in the lab) on UDP port `TM_BASE_PORT + N`.
 pub const TM_BASE_PORT: u16 = 10_000;
 /// Yamcs sends robot N's TC frames to UDP port `FRAME_BASE_PORT + N` (`obsw --frame-udp`).
-pub const FRAME_BASE_PORT: u16 = 7_500;
+pub use crate::config::FRAME_BASE_PORT;
 /// Directory of the SDLS key files, relative to the instance directory (Yamcs runs there).
 pub const KEY_DIR: &str = "etc/keys";
 

@@ -84,8 +84,14 @@ struct Args {
     /// Test aid: write every TM packet the obsw sends to this file, one line of hex each.
     #[arg(long)]
     tm_log: Option<PathBuf>,
+    /// Space link with the key folder of `ground keys create DIR`: the keys and state of
+    /// robot N from DIR/robot-N/ (tc-spi1.key, tm-spi17.key, obsw-link.state), TC frames on
+    /// 127.0.0.1:(7500 + N) and TM frames to 127.0.0.1:(7600 + N) unless the options below
+    /// say otherwise.
+    #[arg(long, value_name = "DIR")]
+    keys: Option<PathBuf>,
     /// Space link: UDP address taking one TC transfer frame per datagram (CCSDS 232.0-B-4,
-    /// COP-1, SDLS). Needs --frame-tm-to, --tc-key, --tm-key and --link-state.
+    /// COP-1, SDLS). Needs --frame-tm-to, --tc-key, --tm-key and --link-state (or --keys).
     #[arg(long)]
     frame_udp: Option<SocketAddr>,
     /// Space link: the ground's UDP address receiving the TM frames (fixed; grounds do not
@@ -221,6 +227,7 @@ struct FileConfig {
     duration: Option<f64>,
     frame_udp: Option<SocketAddr>,
     frame_tm_to: Option<SocketAddr>,
+    keys: Option<PathBuf>,
     tc_key: Option<PathBuf>,
     tm_key: Option<PathBuf>,
     link_state: Option<PathBuf>,
@@ -310,12 +317,20 @@ fn settings(a: Args) -> Result<Settings> {
             bail!("--duration {d}: must be a positive number of seconds");
         }
     }
+    // --keys DIR: every frame option not given takes its default from robot N's folder
+    // and ports.
+    let keys = a.keys.or(f.keys).map(|d| d.join(format!("robot-{robot}")));
+    let from_keys = |file: &str| keys.as_ref().map(|d| d.join(file));
     let frames = match (
-        a.frame_udp.or(f.frame_udp),
-        a.frame_tm_to.or(f.frame_tm_to),
-        a.tc_key.or(f.tc_key),
-        a.tm_key.or(f.tm_key),
-        a.link_state.or(f.link_state),
+        a.frame_udp
+            .or(f.frame_udp)
+            .or_else(|| keys.as_ref().map(|_| local(config::frame_port(robot)))),
+        a.frame_tm_to
+            .or(f.frame_tm_to)
+            .or_else(|| keys.as_ref().map(|_| local(config::tm_frame_port(robot)))),
+        a.tc_key.or(f.tc_key).or_else(|| from_keys("tc-spi1.key")),
+        a.tm_key.or(f.tm_key).or_else(|| from_keys("tm-spi17.key")),
+        a.link_state.or(f.link_state).or_else(|| from_keys("obsw-link.state")),
     ) {
         (None, None, None, None, None) => None,
         (Some(listen), Some(tm_to), Some(tc_key), Some(tm_key), Some(state)) => Some(frames::FrameConfig {
@@ -878,6 +893,17 @@ mod tests {
         // No link chosen: refused, naming both choices.
         let e = parse_raw(&[]).err().expect("no link").to_string();
         assert!(e.contains("--frame-udp") && e.contains("--lab-bare-packets"), "{e}");
+        // --keys DIR: robot N's files and the default ports.
+        let s = parse_raw(&["--robot", "3", "--keys", "k"]).unwrap();
+        let fc = s.frames.expect("frames from --keys");
+        assert!(!s.bare);
+        assert_eq!(fc.listen, "127.0.0.1:7503".parse().unwrap());
+        assert_eq!(fc.tm_to, "127.0.0.1:7603".parse().unwrap());
+        assert_eq!(fc.tc_key, PathBuf::from("k/robot-3/tc-spi1.key"));
+        assert_eq!(fc.tm_key, PathBuf::from("k/robot-3/tm-spi17.key"));
+        assert_eq!(fc.state, PathBuf::from("k/robot-3/obsw-link.state"));
+        let s = parse_raw(&["--keys", "k", "--frame-udp", "127.0.0.1:9000"]).unwrap();
+        assert_eq!(s.frames.unwrap().listen, "127.0.0.1:9000".parse().unwrap());
         // The lab link alone, on loopback.
         let s = parse_raw(&["--lab-bare-packets"]).unwrap();
         assert!(s.bare && s.frames.is_none());

@@ -1,0 +1,161 @@
+//! How the ground reaches its robots, chosen once for every front end (`run`, `send`,
+//! `ping`, `mode`, `watch`, `model`, `collect`): the space link (TC/TM frames, COP-1,
+//! SDLS) by default; the bare-packet links only as a lab mode named so on the command
+//! line, and only to robots on loopback addresses.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+
+use crate::link::{FrameOptions, Transport};
+
+/// Environment variable naming the key directory when `--keys` is not given.
+pub const KEYS_ENV: &str = "MMIC_KEYS";
+
+/// The link flags shared by every verb that talks to robots.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct LinkFlags {
+    /// Key directory of the space link (`ground keys create DIR`): robot N uses
+    /// DIR/robot-N/. Needed unless a lab link is chosen.
+    #[arg(long, value_name = "DIR", env = KEYS_ENV)]
+    pub keys: Option<PathBuf>,
+    /// Local address robot N's TM frames arrive at, `N=HOST:PORT` (the obsw's
+    /// --frame-tm-to); default 127.0.0.1:7400+N (0.0.0.0 for a remote robot). Repeat per robot.
+    #[arg(long = "tm-listen", value_parser = crate::collect::parse_robot, value_name = "N=HOST:PORT")]
+    pub tm_listen: Vec<(u8, SocketAddr)>,
+    /// Lab mode: bare (unauthenticated) space packets, one per UDP datagram, instead of
+    /// the space link; robots on loopback addresses only (obsw --lab-bare-packets).
+    #[arg(long, conflicts_with = "lab_tcp")]
+    pub lab_udp: bool,
+    /// Lab mode: bare (unauthenticated) space packets over TCP with COBS framing;
+    /// robots on loopback addresses only (obsw --lab-bare-packets).
+    #[arg(long)]
+    pub lab_tcp: bool,
+}
+
+/// Why the link flags cannot be used.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum LinkChoiceError {
+    #[error(
+        "the space link needs its keys: give --keys DIR (or set {KEYS_ENV}); `ground keys create DIR` makes them. \
+         For the unauthenticated lab link to a robot on loopback use --lab-udp or --lab-tcp"
+    )]
+    NoKeys,
+    #[error("--{flag}: robot {robot} at {addr} is not on a loopback address; bare packets are for the lab only")]
+    LabNotLoopback {
+        flag: &'static str,
+        robot: u8,
+        addr: SocketAddr,
+    },
+    #[error("--tm-listen is an option of the space link; it does not go with --{flag}")]
+    TmListenWithLab { flag: &'static str },
+}
+
+impl LinkFlags {
+    /// Robot `n`'s address when `--robot N` gives none: on loopback, its space-link port
+    /// (`mib::config::frame_port`, obsw --frame-udp's default), or with a lab flag its
+    /// bare-packet port (`mib::config::robot_port`, obsw --udp's default).
+    pub fn default_addr(&self, n: u8) -> SocketAddr {
+        let transport = match (self.lab_udp, self.lab_tcp) {
+            (true, _) => Transport::Udp,
+            (false, true) => Transport::Tcp,
+            (false, false) => Transport::Frames,
+        };
+        crate::collect::config::default_addr(n, transport)
+    }
+
+    /// The transport and, over frames, its keys and TM addresses, for these robots.
+    pub fn resolve(&self, robots: &[(u8, SocketAddr)]) -> Result<(Transport, Option<FrameOptions>), LinkChoiceError> {
+        let lab = match (self.lab_udp, self.lab_tcp) {
+            (true, _) => Some((Transport::Udp, "lab-udp")),
+            (false, true) => Some((Transport::Tcp, "lab-tcp")),
+            (false, false) => None,
+        };
+        match lab {
+            Some((transport, flag)) => {
+                if !self.tm_listen.is_empty() {
+                    return Err(LinkChoiceError::TmListenWithLab { flag });
+                }
+                if let Some(&(robot, addr)) = robots.iter().find(|(_, a)| !a.ip().is_loopback()) {
+                    return Err(LinkChoiceError::LabNotLoopback { flag, robot, addr });
+                }
+                Ok((transport, None))
+            }
+            None => {
+                let keys = self.keys.clone().ok_or(LinkChoiceError::NoKeys)?;
+                Ok((
+                    Transport::Frames,
+                    Some(FrameOptions {
+                        keys,
+                        tm_listen: self.tm_listen.iter().copied().collect(),
+                    }),
+                ))
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn local(port: u16) -> SocketAddr {
+        SocketAddr::from(([127, 0, 0, 1], port))
+    }
+
+    // verifies: OPS-LINK-DEFAULT-01
+    #[test]
+    fn frames_are_the_default_and_need_keys() {
+        let none = LinkFlags::default();
+        assert_eq!(none.resolve(&[(1, local(7301))]), Err(LinkChoiceError::NoKeys));
+        assert!(LinkChoiceError::NoKeys.to_string().contains("--keys DIR"));
+        assert_eq!(none.default_addr(2), local(7502));
+        let keyed = LinkFlags {
+            keys: Some("k".into()),
+            tm_listen: vec![(1, local(9401))],
+            ..LinkFlags::default()
+        };
+        let (t, f) = keyed.resolve(&[(1, local(7301))]).unwrap();
+        assert_eq!(t, Transport::Frames);
+        let f = f.unwrap();
+        assert_eq!(f.keys, PathBuf::from("k"));
+        assert_eq!(f.tm_listen.get(&1), Some(&local(9401)));
+    }
+
+    // verifies: OPS-LINK-DEFAULT-01
+    #[test]
+    fn the_lab_links_are_explicit_and_loopback_only() {
+        let udp = LinkFlags {
+            lab_udp: true,
+            ..LinkFlags::default()
+        };
+        assert_eq!(udp.resolve(&[(1, local(7301))]), Ok((Transport::Udp, None)));
+        assert_eq!(udp.default_addr(2), local(7302));
+        let tcp = LinkFlags {
+            lab_tcp: true,
+            keys: Some("ignored".into()),
+            ..LinkFlags::default()
+        };
+        assert_eq!(tcp.resolve(&[(2, local(7302))]), Ok((Transport::Tcp, None)));
+        let remote: SocketAddr = "10.0.0.7:7301".parse().unwrap();
+        let e = udp.resolve(&[(1, local(7301)), (3, remote)]).unwrap_err();
+        assert_eq!(
+            e,
+            LinkChoiceError::LabNotLoopback {
+                flag: "lab-udp",
+                robot: 3,
+                addr: remote
+            }
+        );
+        assert!(e.to_string().contains("robot 3 at 10.0.0.7:7301"));
+        let with_listen = LinkFlags {
+            lab_udp: true,
+            tm_listen: vec![(1, local(9401))],
+            ..LinkFlags::default()
+        };
+        assert!(matches!(
+            with_listen.resolve(&[(1, local(7301))]),
+            Err(LinkChoiceError::TmListenWithLab { .. })
+        ));
+    }
+}
