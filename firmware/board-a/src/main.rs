@@ -5,10 +5,16 @@
 //! | task        | runs                                              | talks through                    |
 //! |-------------|---------------------------------------------------|----------------------------------|
 //! | `control`   | every 10 ms `fw_core::cycle::CycleA::run`: TCs, sensors → `Obsw::tick` → outputs | `TCS`, `AB_RX` in; `AB_TX`, `TM` out |
-//! | `uplink`    | ground link receiver: COBS frames → TCs           | → `TCS` (channel of packets)     |
-//! | `downlink`  | ground link transmitter: HK, events, reports      | `TM` (framed bytes) → USB        |
+//! | `uplink`    | ground link receiver: COBS frames → TC frames     | → `TCS` (channel of TC frames)   |
+//! | `downlink`  | ground link transmitter: TM frames                | `TM` (COBS bytes) → USB          |
 //! | `ab_rx`     | UART1 receiver from board B                       | → `AB_RX` (byte queue)           |
 //! | `ab_tx`     | UART1 transmitter to board B                      | `AB_TX` → UART1                  |
+//!
+//! With the feature `frame-link` the ground link carries CCSDS TC and TM transfer frames
+//! with SDLS and COP-1 (`fw_core::spacelink`, the host's `mmic-link` code), keys and
+//! counters in the flash area of `fw_core::link_store`. Without it (the default until
+//! board A's flash has room for it inside the 30 % margin, REV-ANOM-12) the link still
+//! carries bare COBS-framed space packets (`fw_core::link::BarePackets`).
 //!
 //! The paper's rx/tx queues between the ESP32's two cores become these bounded
 //! embassy-sync queues between tasks of one executor on the single-core ESP32-C3.
@@ -29,13 +35,19 @@ use esp_hal::timer::timg::{MwdtStage, TimerGroup, Wdt};
 use esp_hal::uart::{Config as UartConfig, Uart, UartRx, UartTx};
 use esp_hal::usb::usb_serial_jtag::{UsbSerialJtag, UsbSerialJtagRx, UsbSerialJtagTx};
 use esp_hal::Async;
+#[cfg(feature = "frame-link")]
+use esp_storage::FlashStorage;
 use fw_core::config::{self as cfg, i2c_addr};
-use fw_core::cycle::{CycleA, LinksA, PeripheralsA};
-use fw_core::link::{self, ByteQueue, Counters, DownlinkSink, TcChannel};
+use fw_core::cycle::{CycleA, GroundSink, LinksA, PeripheralsA};
+use fw_core::link::{self, ByteQueue, Counters, TcChannel};
+#[cfg(feature = "frame-link")]
+use fw_core::link_store::{self, FlashIvStore};
 use fw_core::periph::ads7828::PowerMode;
 use fw_core::periph::{
     ActiveLowEnable, ActiveLowSwitch, Ads7828, As5600, BolterMux, BolterServos, Mpu6000, SideOutputs,
 };
+#[cfg(feature = "frame-link")]
+use fw_core::spacelink::FrameLink;
 use fw_esp::bus::{self, SensorDevice};
 use fw_esp::servos::{Servo, ServoBank};
 use obsw_core::obsw::{Config, Obsw};
@@ -44,9 +56,9 @@ use static_cell::StaticCell;
 
 esp_bootloader_esp_idf::esp_app_desc!();
 
-/// Uplinked TCs, decoded, waiting for the OBSW.
+/// Uplinked TC frames (COBS decoded), waiting for the control task's frame link.
 static TCS: TcChannel = TcChannel::new();
-/// Downlink: COBS frames of TM packets waiting for the ground link transmitter.
+/// Downlink: TM frames (COBS encoded) waiting for the ground link transmitter.
 static TM: ByteQueue<{ cfg::TM_DOWNLINK_BYTES }> = ByteQueue::new();
 /// Bytes from board B / for board B.
 static AB_RX: ByteQueue<{ cfg::AB_RX_BYTES }> = ByteQueue::new();
@@ -61,6 +73,12 @@ type Store = RingStore<{ cfg::TM_STORE_BYTES }>;
 /// The OBSW lives in a static (it holds the TM store and the schedule: tens of KiB),
 /// owned by the control task.
 static OBSW: StaticCell<Obsw<Store>> = StaticCell::new();
+#[cfg(feature = "frame-link")]
+type Link = FrameLink<FlashIvStore<FlashStorage<'static>>>;
+#[cfg(not(feature = "frame-link"))]
+type Link = fw_core::link::BarePackets;
+/// The ground link (TC receiver with its SDLS keys, TM framer), owned by the control task.
+static LINK: StaticCell<Link> = StaticCell::new();
 
 type Io = PeripheralsA<
     Ads7828<SensorDevice>,
@@ -102,7 +120,7 @@ async fn ab_tx(tx: UartTx<'static, Async>) {
 fn announce_boot(
     raw_reset: Option<u8>,
     obsw: &mut Obsw<Store>,
-    sink: &mut DownlinkSink<'_, { cfg::TM_DOWNLINK_BYTES }>,
+    sink: &mut GroundSink<'_, Link, { cfg::TM_DOWNLINK_BYTES }>,
 ) {
     let mut record = fw_esp::panic::with_record(|rec| *rec);
     fw_core::boot::announce(fw_esp::clock::now_ms(), raw_reset, &mut record, obsw, sink);
@@ -110,7 +128,13 @@ fn announce_boot(
 }
 
 #[embassy_executor::task]
-async fn control(mut io: Io, mut watchdog: Wdt<TIMG1<'static>>, obsw: &'static mut Obsw<Store>, raw_reset: Option<u8>) {
+async fn control(
+    mut io: Io,
+    mut watchdog: Wdt<TIMG1<'static>>,
+    obsw: &'static mut Obsw<Store>,
+    ground: &'static mut Link,
+    raw_reset: Option<u8>,
+) {
     let links = LinksA {
         tcs: &TCS,
         tc_stats: &UPLINK_STATS,
@@ -123,7 +147,8 @@ async fn control(mut io: Io, mut watchdog: Wdt<TIMG1<'static>>, obsw: &'static m
     };
     let mut cycle = CycleA::new();
     io.release_all();
-    let mut sink = DownlinkSink {
+    let mut sink = GroundSink {
+        link: &mut *ground,
         queue: &TM,
         counters: &DOWNLINK_STATS,
     };
@@ -134,7 +159,7 @@ async fn control(mut io: Io, mut watchdog: Wdt<TIMG1<'static>>, obsw: &'static m
     loop {
         ticker.next().await;
         watchdog.feed();
-        cycle.run(fw_esp::clock::now_ms(), obsw, &mut io, &links);
+        cycle.run(fw_esp::clock::now_ms(), obsw, ground, &mut io, &links);
     }
 }
 
@@ -155,7 +180,7 @@ async fn main(spawner: Spawner) {
     // Regulator enable first, so the servo rail stays off: GPIO9, active low.
     let regulator = ActiveLowEnable(Output::new(p.GPIO9, Level::High, OutputConfig::default()));
 
-    // Ground link: the chip's USB-Serial-JTAG (GPIO18/19), COBS-framed space packets.
+    // Ground link: the chip's USB-Serial-JTAG (GPIO18/19), COBS-framed TC/TM frames.
     let (usb_rx, usb_tx) = UsbSerialJtag::new(p.USB_DEVICE).into_async().split();
 
     // A↔B link on UART1: TX GPIO21, RX GPIO20 (crossed to board B).
@@ -221,6 +246,19 @@ async fn main(spawner: Spawner) {
     obsw.set_accepted_config(Some(fw_core::modules::integrated_config()));
     obsw.start_discovery(fw_esp::clock::now_ms(), &fw_core::modules::TABLE_A, probes);
 
+    // Space link: keys from the provisioning area in flash (none: no TC frame is
+    // accepted), SDLS counters and FARM-1 state from the counter log next to it.
+    #[cfg(feature = "frame-link")]
+    let ground = {
+        let mut flash = FlashStorage::new(p.FLASH);
+        let keys = link_store::read_keys(&mut flash, link_store::AREA_OFFSET);
+        let store = FlashIvStore::open(flash, link_store::AREA_OFFSET);
+        let resume = keys.map(|k| store.resume(k.tc_spi, k.tm_spi)).unwrap_or_default();
+        LINK.init(FrameLink::new(keys.as_ref(), resume, store))
+    };
+    #[cfg(not(feature = "frame-link"))]
+    let ground = LINK.init(fw_core::link::BarePackets);
+
     spawner.spawn(uplink(usb_rx).expect("uplink task"));
     spawner.spawn(downlink(usb_tx).expect("downlink task"));
     spawner.spawn(ab_rx(uart_rx).expect("ab_rx task"));
@@ -234,5 +272,5 @@ async fn main(spawner: Spawner) {
         hip,
         regulator,
     };
-    spawner.spawn(control(io, watchdog, obsw, raw_reset).expect("control task"));
+    spawner.spawn(control(io, watchdog, obsw, ground, raw_reset).expect("control task"));
 }

@@ -3,7 +3,7 @@
 //! peripherals.
 
 use crate::config;
-use crate::link::{self, ByteQueue, Counters, DownlinkSink, TcChannel};
+use crate::link::{self, ByteQueue, Counters, TcChannel};
 use crate::periph::{
     AnalogInput, AngleSensor, Enable, GravitySensor, HwError, PairSelect, ServoOutput, SideOutputs, Switch,
 };
@@ -11,7 +11,70 @@ use crate::sampling::{sample_a, sample_b, SensorErrors};
 use mmic_domain::board_b::{BoardB, BoardBOut};
 use mmic_domain::{ActuatorsA, SensorsA, SensorsB};
 use obsw_core::obsw::{IoCounters, Obsw};
-use obsw_core::tm::TmStore;
+use obsw_core::tm::{TmSink, TmStore};
+
+/// Board A's ground link as the control period sees it: takes the uplinked TCs, sends
+/// TM, and closes each period. The images use the frame link
+/// ([`crate::spacelink::FrameLink`]); tests of the control period may use their own.
+pub trait GroundLink {
+    /// Executes the TCs waiting in `tcs` (their replies go to `tm`).
+    fn receive<S: TmStore, const N: usize>(
+        &mut self,
+        now: u64,
+        obsw: &mut Obsw<S>,
+        tcs: &TcChannel,
+        tm: &ByteQueue<N>,
+        tm_stats: &Counters,
+    );
+    /// Sends one TM packet.
+    fn send_tm<const N: usize>(&mut self, packet: &[u8], tm: &ByteQueue<N>, tm_stats: &Counters);
+    /// End of the period (flushes, link counters and events).
+    fn end_period<S: TmStore, const N: usize>(
+        &mut self,
+        now: u64,
+        obsw: &mut Obsw<S>,
+        tm: &ByteQueue<N>,
+        tm_stats: &Counters,
+    );
+}
+
+impl<St: mmic_link::sdls::IvStore> GroundLink for crate::spacelink::FrameLink<St> {
+    fn receive<S: TmStore, const N: usize>(
+        &mut self,
+        now: u64,
+        obsw: &mut Obsw<S>,
+        tcs: &TcChannel,
+        tm: &ByteQueue<N>,
+        tm_stats: &Counters,
+    ) {
+        crate::spacelink::FrameLink::receive(self, now, obsw, tcs, tm, tm_stats)
+    }
+    fn send_tm<const N: usize>(&mut self, packet: &[u8], tm: &ByteQueue<N>, tm_stats: &Counters) {
+        crate::spacelink::FrameLink::send_tm(self, packet, tm, tm_stats)
+    }
+    fn end_period<S: TmStore, const N: usize>(
+        &mut self,
+        now: u64,
+        obsw: &mut Obsw<S>,
+        tm: &ByteQueue<N>,
+        tm_stats: &Counters,
+    ) {
+        crate::spacelink::FrameLink::end_period(self, now, obsw, tm, tm_stats)
+    }
+}
+
+/// The OBSW's TM sink over a [`GroundLink`].
+pub struct GroundSink<'a, L, const N: usize> {
+    pub link: &'a mut L,
+    pub queue: &'a ByteQueue<N>,
+    pub counters: &'a Counters,
+}
+
+impl<L: GroundLink, const N: usize> TmSink for GroundSink<'_, L, N> {
+    fn send_tm(&mut self, packet: &[u8]) {
+        self.link.send_tm(packet, self.queue, self.counters);
+    }
+}
 
 /// Board A's peripherals.
 pub struct PeripheralsA<Adc, Imu, Enc, Sw, A, G, T, R, M, H, E> {
@@ -157,15 +220,17 @@ impl CycleA {
     /// One period: queued TCs, sensors, `Obsw::tick`, outputs, bytes for board B.
     /// Returns the actuator commands applied.
     #[allow(clippy::too_many_arguments)]
-    pub fn run<S, Adc, Imu, Enc, Sw, A, G, T, R, M, H, E, const TM: usize, const RX: usize, const TX: usize>(
+    pub fn run<S, L, Adc, Imu, Enc, Sw, A, G, T, R, M, H, E, const TM: usize, const RX: usize, const TX: usize>(
         &mut self,
         now: u64,
         obsw: &mut Obsw<S>,
+        ground: &mut L,
         io: &mut PeripheralsA<Adc, Imu, Enc, Sw, A, G, T, R, M, H, E>,
         links: &LinksA<'_, TM, RX, TX>,
     ) -> ActuatorsA
     where
         S: TmStore,
+        L: GroundLink,
         Adc: AnalogInput,
         Imu: GravitySensor,
         Enc: AngleSensor,
@@ -178,18 +243,12 @@ impl CycleA {
         H: ServoOutput,
         E: Enable,
     {
-        let mut sink = DownlinkSink {
-            queue: links.tm,
-            counters: links.tm_stats,
-        };
         // The platform's I/O counters as of the start of this period, for housekeeping
         // PLATFORM_IO (a one-shot TC[3,27] below included; what fails during this
         // period is reported from the next one).
         obsw.io = self.io_counters(links);
         // Telecommands first, so that a TC and the tick that starts it share `now`.
-        while let Ok(tc) = links.tcs.try_receive() {
-            obsw.handle_tc(now, &tc, &mut sink);
-        }
+        ground.receive(now, obsw, links.tcs, links.tm, links.tm_stats);
         sample_a(
             &mut io.adc,
             &mut io.imu,
@@ -199,6 +258,11 @@ impl CycleA {
             &mut self.errors,
         );
         let n = link::drain(links.ab_rx, &mut self.rx);
+        let mut sink = GroundSink {
+            link: &mut *ground,
+            queue: links.tm,
+            counters: links.tm_stats,
+        };
         let out = obsw.tick(now, &self.sensors, &self.rx[..n], &mut sink);
         // A failing output keeps its last state; the OBSW sees the effect in currents and
         // positions and its FDIR acts on them.
@@ -206,7 +270,9 @@ impl CycleA {
             self.output_errors = self.output_errors.wrapping_add(1);
         }
         link::push_bytes(links.ab_tx, &out.link_tx, links.ab_tx_stats);
-        out.actuators
+        let actuators = out.actuators;
+        ground.end_period(now, obsw, links.tm, links.tm_stats);
+        actuators
     }
 }
 

@@ -13,7 +13,9 @@
 //! - [`cycle`]: one control period of each board, generic over the peripheral traits;
 //! - [`link`], [`sampling`]: the bounded queues between tasks, sensor sampling;
 //! - [`modules`]: the descriptor tables in flash and the probes of module discovery;
-//! - [`team`]: the transport of inter-robot team packets (the radio is future work).
+//! - [`team`]: the transport of inter-robot team packets (the radio is future work);
+//! - [`spacelink`], [`link_store`]: board A's ground link over TC/TM transfer frames with
+//!   SDLS and COP-1 (`mmic-link`), and its key and counter area in flash.
 //!
 //! The robot logic itself (filters, controllers, bolter, A–B protocol, PUS services)
 //! is `mmic-domain` and `obsw-core`, shared with the host.
@@ -25,8 +27,10 @@ pub mod config;
 pub mod cycle;
 pub mod framing;
 pub mod link;
+pub mod link_store;
 pub mod modules;
 pub mod panic_record;
 pub mod periph;
 pub mod sampling;
+pub mod spacelink;
 pub mod team;

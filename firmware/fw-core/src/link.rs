@@ -200,17 +200,40 @@ pub async fn queue_to_writer<W: embedded_io_async::Write, const N: usize>(
     }
 }
 
-/// The OBSW's TM sink on the boards: each packet becomes one COBS frame in the
-/// downlink queue. A packet that does not fit is not sent live (counted in
-/// `counters.overflow`); the OBSW keeps a copy of every packet in its on-board store,
-/// from which the ground downlinks it (PUS 15), so nothing is lost.
-pub struct DownlinkSink<'a, const N: usize> {
-    pub queue: &'a ByteQueue<N>,
-    pub counters: &'a Counters,
-}
+/// The bare-packet ground link of the images before the space link (one space packet per
+/// COBS frame each way, no authentication): the default image's link until board A's
+/// flash has room for [`crate::spacelink::FrameLink`] (docs/firmware.md, REV-ANOM-12),
+/// and the link of the control-period tests that are not about the link.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct BarePackets;
 
-impl<const N: usize> obsw_core::tm::TmSink for DownlinkSink<'_, N> {
-    fn send_tm(&mut self, packet: &[u8]) {
-        downlink_packet(self.queue, packet, self.counters);
+impl crate::cycle::GroundLink for BarePackets {
+    fn receive<S: obsw_core::tm::TmStore, const N: usize>(
+        &mut self,
+        now: u64,
+        obsw: &mut obsw_core::obsw::Obsw<S>,
+        tcs: &TcChannel,
+        tm: &ByteQueue<N>,
+        tm_stats: &Counters,
+    ) {
+        let mut sink = crate::cycle::GroundSink {
+            link: self,
+            queue: tm,
+            counters: tm_stats,
+        };
+        while let Ok(tc) = tcs.try_receive() {
+            obsw.handle_tc(now, &tc, &mut sink);
+        }
+    }
+    fn send_tm<const N: usize>(&mut self, packet: &[u8], tm: &ByteQueue<N>, tm_stats: &Counters) {
+        downlink_packet(tm, packet, tm_stats);
+    }
+    fn end_period<S: obsw_core::tm::TmStore, const N: usize>(
+        &mut self,
+        _now: u64,
+        _obsw: &mut obsw_core::obsw::Obsw<S>,
+        _tm: &ByteQueue<N>,
+        _tm_stats: &Counters,
+    ) {
     }
 }

@@ -15,6 +15,7 @@ mod t_boot;
 mod t_codec;
 mod t_cycle;
 mod t_domain;
+mod t_framelink;
 mod t_framing;
 mod t_link;
 mod t_modules;
@@ -41,6 +42,7 @@ fn main() -> ! {
         t_obsw::TESTS,
         t_cycle::TESTS,
         t_spacelink::TESTS,
+        t_framelink::TESTS,
         t_team::TESTS,
         t_modules::TESTS,
     ]);

@@ -6,8 +6,9 @@ use crate::harness::{Test, TestResult};
 use crate::tests;
 use crate::{check, check_eq, ok};
 use fw_core::config;
+use fw_core::cycle::GroundSink;
 use fw_core::framing::Deframer;
-use fw_core::link::{self, ByteQueue, Counters, DownlinkSink, TcChannel};
+use fw_core::link::{self, BarePackets, ByteQueue, Counters, TcChannel};
 use mib::events::eid;
 use mib::params::pid;
 use mib::FailureCode;
@@ -87,7 +88,8 @@ fn obsw_recorded_tc_stream_gives_the_expected_tm_sequence() -> TestResult {
         },
         RingStore::<4096>::default(),
     );
-    let mut sink = DownlinkSink {
+    let mut sink = GroundSink {
+        link: &mut BarePackets,
         queue: &TM,
         counters: &DOWN,
     };
@@ -794,7 +796,8 @@ fn obsw_store_returns_every_packet_the_full_downlink_dropped() -> TestResult {
         },
         RingStore::<{ config::TM_STORE_BYTES }>::default(),
     );
-    let mut live = DownlinkSink {
+    let mut live = GroundSink {
+        link: &mut BarePackets,
         queue: &SMALL,
         counters: &S1,
     };
@@ -811,7 +814,8 @@ fn obsw_store_returns_every_packet_the_full_downlink_dropped() -> TestResult {
     check_eq!(obsw.param(pid::TM_STORED), 41);
 
     // Link back: downlink the store.
-    let mut sink = DownlinkSink {
+    let mut sink = GroundSink {
+        link: &mut BarePackets,
         queue: &BIG,
         counters: &S2,
     };
