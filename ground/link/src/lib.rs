@@ -68,6 +68,8 @@ pub enum LinkError {
     Sdls(SdlsError),
     /// The same key for both directions (GCM nonces would repeat).
     SameKey,
+    /// Not a TC SPI of the mission (`mib::link::sdls::TC_SPIS`).
+    NotTcSpi(u16),
 }
 
 impl fmt::Display for LinkError {
@@ -80,6 +82,7 @@ impl fmt::Display for LinkError {
             }
             LinkError::Sdls(e) => write!(f, "SDLS: {e}"),
             LinkError::SameKey => write!(f, "the TC and TM keys are the same: each direction needs its own"),
+            LinkError::NotTcSpi(s) => write!(f, "SPI {s} is not a TC SPI (the mission's are {TC_SPIS:?})"),
         }
     }
 }
@@ -89,7 +92,7 @@ impl std::error::Error for LinkError {
         match self {
             LinkError::Io(e) => Some(e),
             LinkError::Persist(e) => Some(e),
-            LinkError::PacketLength { .. } | LinkError::Sdls(_) | LinkError::SameKey => None,
+            LinkError::PacketLength { .. } | LinkError::Sdls(_) | LinkError::SameKey | LinkError::NotTcSpi(_) => None,
         }
     }
 }
@@ -130,8 +133,14 @@ pub struct Config {
     pub robot: SocketAddr,
     /// The local address TM frames arrive at (`obsw --frame-tm-to`); TC frames leave from it.
     pub listen: SocketAddr,
+    /// The TC SPI the link sends under (one of `mib::link::sdls::TC_SPIS`) and its key.
+    pub tc_spi: u16,
     pub tc_key: Key,
+    /// The key of TM SPI 17 (`TM_SPIS[0]`).
     pub tm_key: Key,
+    /// The key of the spare TM SPI 18 (`TM_SPIS[1]`), when there is one: TM frames under
+    /// either SPI are accepted, so the robot can switch its TM SPI without a frame lost.
+    pub tm_spare_key: Option<Key>,
     /// The ground's SDLS counter state file.
     pub state: PathBuf,
     pub fop: FopConfig,
@@ -157,12 +166,49 @@ impl Config {
         Ok(Config {
             robot,
             listen,
+            tc_spi: TC_SPIS[0],
             tc_key: read_key(tc_key)?,
             tm_key: read_key(tm_key)?,
+            tm_spare_key: None,
             state: state.into(),
             fop: FopConfig::mission(),
             settle_ms: RESYNC_SETTLE_MS,
         })
+    }
+
+    /// The mission's link with the keys of one robot's folder as `ground keys create`
+    /// writes it: TC under `tc_spi` (key `tc-spi<tc_spi>.key`), TM under SPI 17
+    /// (`tm-spi17.key`) and, when the file is there, SPI 18 (`tm-spi18.key`). A key change
+    /// without downtime: the robot accepts both TC SPIs whose keys it has, so a ground
+    /// reopened (or switched with [`FrameLink::switch_tc_spi`]) with `tc_spi` 2 goes on
+    /// where the other left off.
+    pub fn from_key_dir(
+        robot: SocketAddr,
+        listen: SocketAddr,
+        dir: &Path,
+        state: &Path,
+        tc_spi: u16,
+    ) -> Result<Config, LinkError> {
+        if !TC_SPIS.contains(&tc_spi) {
+            return Err(LinkError::NotTcSpi(tc_spi));
+        }
+        let spare = dir.join(format!("tm-spi{}.key", TM_SPIS[1]));
+        Ok(Config {
+            tc_spi,
+            tm_spare_key: if spare.exists() { Some(read_key(&spare)?) } else { None },
+            ..Config::from_key_files(
+                robot,
+                listen,
+                &dir.join(format!("tc-spi{tc_spi}.key")),
+                &dir.join(format!("tm-spi{}.key", TM_SPIS[0])),
+                state,
+            )?
+        })
+    }
+
+    /// Whether two of the keys are the same (refused: GCM nonces would repeat).
+    fn shares_a_key(&self) -> bool {
+        self.tc_key == self.tm_key || self.tm_spare_key.is_some_and(|k| k == self.tc_key || k == self.tm_key)
     }
 }
 
@@ -188,6 +234,8 @@ pub struct FrameLink {
     fop: Fop<PacketId>,
     tc_sa: TxSa,
     tm: TmReceiver<2>,
+    /// The TM keys (a TC key must differ from each).
+    tm_keys: Vec<Key>,
     store: FileIvStore,
     queue: VecDeque<PacketId>,
     packets: BTreeMap<PacketId, Vec<u8>>,
@@ -228,19 +276,24 @@ impl FrameLink {
     /// Binds the socket and opens the counter state file. COP-1 initialises from the first
     /// CLCW that arrives.
     pub fn open(cfg: Config) -> Result<FrameLink, LinkError> {
-        if cfg.tc_key == cfg.tm_key {
+        if cfg.shares_a_key() {
             return Err(LinkError::SameKey);
         }
+        if !TC_SPIS.contains(&cfg.tc_spi) {
+            return Err(LinkError::NotTcSpi(cfg.tc_spi));
+        }
         let store = FileIvStore::open(&cfg.state)?;
-        let (tc_spi, tm_spi) = (TC_SPIS[0], TM_SPIS[0]);
-        let tc_sa = TxSa::resume(tc_spi, &cfg.tc_key, store.get(Dir::Tx, tc_spi).unwrap_or(0));
-        let rx = match store.get(Dir::Rx, tm_spi) {
-            Some(last) => RxSa::resume(tm_spi, &cfg.tm_key, ANTI_REPLAY_WINDOW, last),
-            None => RxSa::new(tm_spi, &cfg.tm_key, ANTI_REPLAY_WINDOW),
+        let tc_sa = TxSa::resume(cfg.tc_spi, &cfg.tc_key, store.get(Dir::Tx, cfg.tc_spi).unwrap_or(0));
+        let rx_sa = |spi: u16, key: &Key| match store.get(Dir::Rx, spi) {
+            Some(last) => RxSa::resume(spi, key, ANTI_REPLAY_WINDOW, last),
+            None => RxSa::new(spi, key, ANTI_REPLAY_WINDOW),
         };
         let mut sas = RxSas::default();
-        // Room for two SAs: the first insert always fits.
-        let _ = sas.insert(rx);
+        // Room for two SAs (TM SPIs 17 and 18): both inserts fit.
+        let _ = sas.insert(rx_sa(TM_SPIS[0], &cfg.tm_key));
+        if let Some(k) = cfg.tm_spare_key {
+            let _ = sas.insert(rx_sa(TM_SPIS[1], &k));
+        }
         let sock = UdpSocket::bind(cfg.listen)?;
         sock.set_nonblocking(true)?;
         Ok(FrameLink {
@@ -249,6 +302,7 @@ impl FrameLink {
             fop: Fop::new(mib::link::tc_vc::COMMAND, cfg.fop),
             tc_sa,
             tm: TmReceiver::new(mib::link::SCID, sas),
+            tm_keys: std::iter::once(cfg.tm_key).chain(cfg.tm_spare_key).collect(),
             store,
             queue: VecDeque::new(),
             packets: BTreeMap::new(),
@@ -308,6 +362,31 @@ impl FrameLink {
     /// The IV (anti-replay counter) the next TC frame will carry.
     pub fn tc_next_iv(&self) -> u128 {
         self.tc_sa.next_iv()
+    }
+
+    /// The TC SPI frames are sent under.
+    pub fn tc_spi(&self) -> u16 {
+        self.tc_sa.spi()
+    }
+
+    /// Key change without downtime: every TC frame from now on — new ones and COP-1
+    /// retransmissions alike (each is a fresh encryption) — goes under `spi` with `key`,
+    /// its counter resumed from the state file. Nothing queued or outstanding is lost: the
+    /// robot accepts both TC SPIs whose keys it holds (until one is retired on board).
+    pub fn switch_tc_spi(&mut self, spi: u16, key: &Key) -> Result<(), LinkError> {
+        if !TC_SPIS.contains(&spi) {
+            return Err(LinkError::NotTcSpi(spi));
+        }
+        if self.tm_keys.contains(key) {
+            return Err(LinkError::SameKey);
+        }
+        self.tc_sa = TxSa::resume(spi, key, self.store.get(Dir::Tx, spi).unwrap_or(0));
+        Ok(())
+    }
+
+    /// The last TM IV accepted under `spi` (`None`: no TM SA for it).
+    pub fn tm_last_iv(&self, spi: u16) -> Option<u128> {
+        self.tm.sas.get(spi).map(RxSa::last)
     }
 
     /// The last CLCW received.

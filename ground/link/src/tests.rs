@@ -105,8 +105,10 @@ fn link(robot: SocketAddr, listen: SocketAddr, state: &Path) -> FrameLink {
     FrameLink::open(Config {
         robot,
         listen,
+        tc_spi: 1,
         tc_key: TEST_KEY_TC_A,
         tm_key: TEST_KEY_TM_A,
+        tm_spare_key: None,
         state: state.into(),
         fop: FopConfig {
             t1_ms: 40,
@@ -232,14 +234,36 @@ fn bad_packets_and_shared_keys_are_refused() {
     let e = FrameLink::open(Config {
         robot: a,
         listen: a,
+        tc_spi: 1,
         tc_key: TEST_KEY_TC_A,
         tm_key: TEST_KEY_TC_A,
+        tm_spare_key: None,
         state: st.clone(),
         fop: FopConfig::mission(),
         settle_ms: RESYNC_SETTLE_MS,
     })
     .unwrap_err();
     assert!(matches!(e, LinkError::SameKey));
+    // The spare TM key counts too, and a TC SPI must be one of the mission's.
+    let cfg = Config {
+        robot: a,
+        listen: a,
+        tc_spi: 1,
+        tc_key: TEST_KEY_TC_A,
+        tm_key: TEST_KEY_TM_A,
+        tm_spare_key: Some(TEST_KEY_TC_A),
+        state: st.clone(),
+        fop: FopConfig::mission(),
+        settle_ms: RESYNC_SETTLE_MS,
+    };
+    assert!(matches!(FrameLink::open(cfg.clone()), Err(LinkError::SameKey)));
+    let e = FrameLink::open(Config {
+        tc_spi: 17,
+        tm_spare_key: None,
+        ..cfg
+    })
+    .unwrap_err();
+    assert!(matches!(e, LinkError::NotTcSpi(17)));
     assert!(!e.to_string().contains("MMIC"), "never the key");
     let _ = std::fs::remove_file(&st);
 }

@@ -21,7 +21,7 @@
 //! (`TmSink::send_replay`), each channel with its own partial frame.
 
 use std::net::{SocketAddr, UdpSocket};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
@@ -31,7 +31,7 @@ use mmic_link::downlink::{Downlink as Framer, TmVc};
 use mmic_link::farm::Farm;
 use mmic_link::persist::{read_key, Dir, FileIvStore};
 use mmic_link::rx::{RxCounters, RxOutcome, TcReceiver};
-use mmic_link::sdls::{RxSa, RxSas, TxSa};
+use mmic_link::sdls::{Key, RxSa, RxSas, TxSa};
 use mmic_link::tc::ControlCommand;
 use obsw_core::obsw::SPACE_LINK_PARAMS;
 
@@ -67,6 +67,62 @@ pub enum FrameInput {
     Nothing,
 }
 
+/// Why a key change ([`FrameEndpoint::select_spis`]) was refused. Nothing changed.
+#[cfg_attr(not(test), allow(dead_code))]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SpiError {
+    /// No key loaded for this SPI (or not an SPI of that direction).
+    NoKey(u16),
+    /// No TC SPI would be left to accept frames.
+    NoTcSpi,
+    /// The state file could not be written.
+    StoreFailed,
+}
+
+impl std::fmt::Display for SpiError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SpiError::NoKey(s) => write!(f, "no key loaded for SPI {s}"),
+            SpiError::NoTcSpi => write!(f, "no TC SPI would be left"),
+            SpiError::StoreFailed => write!(f, "the link state file could not be written"),
+        }
+    }
+}
+
+/// The key file of spare `spi` beside the first one (`tc-spiN.key` / `tm-spiN.key` in the
+/// folder of `--tc-key` / `--tm-key`, the layout of `ground keys create`), if there.
+fn spare_key(first: &Path, spi: u16) -> Result<Option<Key>> {
+    let dir = if TM_SPIS.contains(&spi) { "tm" } else { "tc" };
+    let p = first.with_file_name(format!("{dir}-spi{spi}.key"));
+    if p == first || !p.exists() {
+        return Ok(None);
+    }
+    read_key(&p)
+        .map(Some)
+        .with_context(|| format!("spare key of SPI {spi}"))
+}
+
+fn rx_sa(spi: u16, key: &Key, store: &FileIvStore) -> RxSa {
+    match store.get(Dir::Rx, spi) {
+        Some(last) => RxSa::resume(spi, key, ANTI_REPLAY_WINDOW, last),
+        None => RxSa::new(spi, key, ANTI_REPLAY_WINDOW),
+    }
+}
+
+/// The receive SAs of the TC keys not retired.
+fn rx_sas(tc_keys: &[(u16, Key)], retired: u8, store: &FileIvStore) -> RxSas<2> {
+    let mut sas = RxSas::default();
+    for (spi, key) in tc_keys {
+        let i = TC_SPIS.iter().position(|s| s == spi).unwrap_or(usize::MAX);
+        if i < 8 && retired & (1 << i) != 0 {
+            continue;
+        }
+        // Two TC SPIs, two places.
+        let _ = sas.insert(rx_sa(*spi, key, store));
+    }
+    sas
+}
+
 /// Index of a TM virtual channel in [`FrameEndpoint`]'s pending flags.
 const fn vc_index(vc: TmVc) -> usize {
     match vc {
@@ -81,7 +137,12 @@ pub struct FrameEndpoint {
     tm_to: SocketAddr,
     rx: TcReceiver<2>,
     framer: Framer,
-    tm_sa: TxSa,
+    /// TM SAs of the SPIs with a key (`TM_SPIS` order) and the one in use.
+    tm_sas: Vec<TxSa>,
+    tm_active: usize,
+    /// TC keys loaded (SPI, key); which are retired is in the state file.
+    #[cfg_attr(not(test), allow(dead_code))]
+    tc_keys: Vec<(u16, Key)>,
     store: FileIvStore,
     /// Virtual channels holding packet bytes not yet sent in a frame (realtime, replay).
     pending: [bool; 2],
@@ -106,24 +167,50 @@ impl FrameEndpoint {
     pub fn open(cfg: &FrameConfig) -> Result<FrameEndpoint> {
         let tc_key = read_key(&cfg.tc_key).context("--tc-key")?;
         let tm_key = read_key(&cfg.tm_key).context("--tm-key")?;
-        if tc_key == tm_key {
+        // The spare SPIs' keys (key change without downtime), when their files are there.
+        let mut tc_keys = vec![(TC_SPIS[0], tc_key)];
+        let mut tm_keys = vec![(TM_SPIS[0], tm_key)];
+        for &spi in &TC_SPIS[1..] {
+            if let Some(k) = spare_key(&cfg.tc_key, spi)? {
+                tc_keys.push((spi, k));
+            }
+        }
+        for &spi in &TM_SPIS[1..] {
+            if let Some(k) = spare_key(&cfg.tm_key, spi)? {
+                tm_keys.push((spi, k));
+            }
+        }
+        let all: Vec<&Key> = tc_keys.iter().chain(&tm_keys).map(|(_, k)| k).collect();
+        if (1..all.len()).any(|i| all[..i].contains(&all[i])) {
             anyhow::bail!(
-                "--tc-key and --tm-key hold the same key: each direction needs its own (GCM nonces would repeat)"
+                "two of the space link's key files (--tc-key, --tm-key and their spares) hold the same key: \
+                 each SPI and direction needs its own (GCM nonces would repeat)"
             );
         }
         let store = FileIvStore::open(&cfg.state).context("--link-state")?;
-        let tc_spi = TC_SPIS[0];
-        let tm_spi = TM_SPIS[0];
-        let rx_sa = match store.get(Dir::Rx, tc_spi) {
-            Some(last) => RxSa::resume(tc_spi, &tc_key, ANTI_REPLAY_WINDOW, last),
-            None => RxSa::new(tc_spi, &tc_key, ANTI_REPLAY_WINDOW),
-        };
-        let mut sas = RxSas::default();
-        sas.insert(rx_sa)
-            .map_err(|_| anyhow::anyhow!("no room for the TC security association"))?;
         if let Some((slot, why)) = store.bad_slot() {
             log::warn!(
                 "space link: {} slot {slot} invalid ({why}); the other slot (one write older) was used",
+                cfg.state.display()
+            );
+        }
+        let tm_spi = store.record().tm_spi.unwrap_or(TM_SPIS[0]);
+        let tm_sas: Vec<TxSa> = tm_keys
+            .iter()
+            .map(|(spi, k)| TxSa::resume(*spi, k, store.get(Dir::Tx, *spi).unwrap_or(0)))
+            .collect();
+        let tm_active = tm_sas.iter().position(|sa| sa.spi() == tm_spi).with_context(|| {
+            format!(
+                "{}: TM SPI {tm_spi} was selected, but its key file ({}) is missing",
+                cfg.state.display(),
+                cfg.tm_key.with_file_name(format!("tm-spi{tm_spi}.key")).display()
+            )
+        })?;
+        let tc_retired = store.record().tc_retired;
+        let sas = rx_sas(&tc_keys, tc_retired, &store);
+        if sas.is_empty() {
+            anyhow::bail!(
+                "{}: every TC SPI with a key file is retired (retired mask {tc_retired:#04b}): no TC could be accepted",
                 cfg.state.display()
             );
         }
@@ -140,7 +227,14 @@ impl FrameEndpoint {
             }
             None => Farm::mission(),
         };
-        let tm_sa = TxSa::resume(tm_spi, &tm_key, store.get(Dir::Tx, tm_spi).unwrap_or(0));
+        log::info!(
+            "space link: TC SPIs {:?} accepted, TM SPI {tm_spi}",
+            tc_keys
+                .iter()
+                .map(|(s, _)| *s)
+                .filter(|s| sas.get(*s).is_some())
+                .collect::<Vec<_>>()
+        );
         let sock = UdpSocket::bind(cfg.listen).with_context(|| format!("cannot bind --frame-udp {}", cfg.listen))?;
         sock.set_nonblocking(true)?;
         Ok(FrameEndpoint {
@@ -148,7 +242,9 @@ impl FrameEndpoint {
             tm_to: cfg.tm_to,
             rx: TcReceiver::new(mib::link::SCID, mib::link::tc_vc::COMMAND, farm, sas),
             framer: Framer::mission(),
-            tm_sa,
+            tm_sas,
+            tm_active,
+            tc_keys,
             store,
             pending: [false; 2],
             clcw_due: true,
@@ -161,6 +257,65 @@ impl FrameEndpoint {
             control_rate_limited: 0,
             reported_rate_limited: 0,
         })
+    }
+
+    /// Key change without downtime: TM from now on under `tm_spi`, TC accepted under the
+    /// SPIs of `tc_active` only (the others retired: refused as unknown SPI until activated
+    /// again). Stored in the state file before it takes effect, so it survives restarts.
+    /// Refused, changing nothing, for an SPI without a loaded key or an empty TC set.
+    // Called by the tests only until the key-change TC is routed to the host (see
+    // docs/space-link.md, "Key change without downtime").
+    #[cfg_attr(not(test), allow(dead_code))]
+    pub fn select_spis(&mut self, tm_spi: u16, tc_active: &[u16]) -> Result<(), SpiError> {
+        let tm_active = self
+            .tm_sas
+            .iter()
+            .position(|sa| sa.spi() == tm_spi)
+            .ok_or(SpiError::NoKey(tm_spi))?;
+        if tc_active.is_empty() {
+            return Err(SpiError::NoTcSpi);
+        }
+        if let Some(&s) = tc_active.iter().find(|s| !self.tc_keys.iter().any(|(k, _)| k == *s)) {
+            return Err(SpiError::NoKey(s));
+        }
+        let retired = TC_SPIS
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| !tc_active.contains(s))
+            .fold(0u8, |m, (i, _)| m | 1 << i);
+        self.store
+            .put_selection(tm_spi, retired)
+            .map_err(|_| SpiError::StoreFailed)?;
+        self.tm_active = tm_active;
+        // SAs: the retired ones go, the activated ones come back at their stored counter.
+        let fresh = rx_sas(&self.tc_keys, retired, &self.store);
+        for &spi in TC_SPIS.iter() {
+            match fresh.get(spi) {
+                Some(_) if self.rx.sas.get(spi).is_some() => {}
+                Some(_) => {
+                    let key = self.tc_keys.iter().find(|(s, _)| *s == spi).map(|(_, k)| *k);
+                    if let Some(k) = key {
+                        let _ = self.rx.sas.insert(rx_sa(spi, &k, &self.store));
+                    }
+                }
+                None => {
+                    self.rx.sas.remove(spi);
+                }
+            }
+        }
+        log::warn!("space link: SPIs selected: TM {tm_spi}, TC {tc_active:?}");
+        Ok(())
+    }
+
+    /// The TM SPI in use and the TC SPIs accepted.
+    #[cfg_attr(not(test), allow(dead_code))]
+    pub fn spis(&self) -> (u16, Vec<u16>) {
+        let tc = TC_SPIS
+            .iter()
+            .copied()
+            .filter(|s| self.rx.sas.get(*s).is_some())
+            .collect();
+        (self.tm_sas[self.tm_active].spi(), tc)
     }
 
     pub fn local_addr(&self) -> std::io::Result<SocketAddr> {
@@ -223,14 +378,19 @@ impl FrameEndpoint {
         let clcw = self.rx.farm.clcw();
         let (sock, to, fails) = (&self.sock, self.tm_to, &mut self.send_failures);
         let mut sent = false;
-        let r = self
-            .framer
-            .send(vc, packet, clcw, &mut self.tm_sa, &mut self.store, |f| {
+        let r = self.framer.send(
+            vc,
+            packet,
+            clcw,
+            &mut self.tm_sas[self.tm_active],
+            &mut self.store,
+            |f| {
                 sent = true;
                 if !crate::net::send_udp(sock, f, to) {
                     *fails = fails.saturating_add(1);
                 }
-            });
+            },
+        );
         if let Err(e) = r {
             log::warn!("space link: TM packet not framed: {e}");
         }
@@ -251,11 +411,13 @@ impl FrameEndpoint {
                     continue;
                 }
                 let (sock, to, fails) = (&self.sock, self.tm_to, &mut self.send_failures);
-                let r = self.framer.flush(vc, clcw, &mut self.tm_sa, &mut self.store, |f| {
-                    if !crate::net::send_udp(sock, f, to) {
-                        *fails = fails.saturating_add(1);
-                    }
-                });
+                let r = self
+                    .framer
+                    .flush(vc, clcw, &mut self.tm_sas[self.tm_active], &mut self.store, |f| {
+                        if !crate::net::send_udp(sock, f, to) {
+                            *fails = fails.saturating_add(1);
+                        }
+                    });
                 if let Err(e) = r {
                     log::warn!("space link: TM frame not sent: {e}");
                 }
@@ -347,5 +509,161 @@ impl FrameEndpoint {
         self.reported = self.rx.counters;
         self.reported_rate_limited = self.control_rate_limited;
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ground_link::{create_key_file, Config, FrameLink};
+    use mmic_link::fop::FopState;
+    use mmic_link::test_keys::{TEST_KEY_TC_A, TEST_KEY_TC_B, TEST_KEY_TM_A, TEST_KEY_TM_B};
+
+    /// A robot that echoes every TC packet it accepts as TM (the host loop's frame part).
+    fn serve(ep: &mut FrameEndpoint, got: &mut Vec<Vec<u8>>) {
+        while let Some(fi) = ep.next() {
+            if let FrameInput::Packets(ps) = fi {
+                for p in ps {
+                    ep.send_packet(&p, TmVc::Realtime);
+                    got.push(p);
+                }
+            }
+        }
+        ep.flush(Instant::now());
+    }
+
+    fn packet(n: u8) -> Vec<u8> {
+        vec![0x18, 0x01, 0xC0, n, 0x00, 0x01, n, 0x5A]
+    }
+
+    /// Runs robot and ground until `done` or 10 s.
+    fn run(
+        ep: &mut FrameEndpoint,
+        got: &mut Vec<Vec<u8>>,
+        g: &mut FrameLink,
+        echoes: &mut Vec<Vec<u8>>,
+        mut done: impl FnMut(&FrameLink, &[Vec<u8>], &[Vec<u8>]) -> bool,
+    ) {
+        let t0 = Instant::now();
+        while !done(g, got, echoes) {
+            serve(ep, got);
+            echoes.extend(g.poll(g.now_ms()).unwrap());
+            std::thread::sleep(Duration::from_millis(1));
+            assert!(
+                t0.elapsed() < Duration::from_secs(10),
+                "timed out: got {} echoes {}",
+                got.len(),
+                echoes.len()
+            );
+        }
+    }
+
+    // verifies: LINK-KEYCHG-01
+    #[test]
+    fn tc_spi_1_to_2_and_tm_spi_17_to_18_without_a_tc_lost_and_the_choice_survives_a_restart() {
+        let dir = std::env::temp_dir().join(format!("obsw-frames-spi-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        for (f, k) in [
+            ("tc-spi1.key", TEST_KEY_TC_A),
+            ("tc-spi2.key", TEST_KEY_TC_B),
+            ("tm-spi17.key", TEST_KEY_TM_A),
+            ("tm-spi18.key", TEST_KEY_TM_B),
+        ] {
+            create_key_file(&dir.join(f), &k).unwrap();
+        }
+        let ground_sock = UdpSocket::bind("127.0.0.1:0").unwrap();
+        let ground_addr = ground_sock.local_addr().unwrap();
+        drop(ground_sock);
+        let fc = FrameConfig {
+            listen: "127.0.0.1:0".parse().unwrap(),
+            tm_to: ground_addr,
+            tc_key: dir.join("tc-spi1.key"),
+            tm_key: dir.join("tm-spi17.key"),
+            state: dir.join("obsw.state"),
+        };
+        let mut ep = FrameEndpoint::open(&fc).unwrap();
+        assert_eq!(ep.spis(), (17, vec![1, 2]), "both TC keys loaded");
+        let robot = ep.local_addr().unwrap();
+        let mut cfg = Config::from_key_dir(robot, ground_addr, &dir, &dir.join("ground.state"), 1).unwrap();
+        cfg.fop.t1_ms = 300;
+        let mut g = FrameLink::open(cfg).unwrap();
+        let (mut got, mut echoes) = (Vec::new(), Vec::new());
+        run(&mut ep, &mut got, &mut g, &mut echoes, |g, _, _| {
+            g.fop_state() == FopState::Active
+        });
+
+        // Under SPI 1; then the ground switches to SPI 2 with frames still outstanding.
+        g.capture(true);
+        for n in 0..4 {
+            g.send_packet(&packet(n)).unwrap();
+        }
+        g.poll(g.now_ms()).unwrap();
+        g.switch_tc_spi(2, &TEST_KEY_TC_B).unwrap();
+        for n in 4..8 {
+            g.send_packet(&packet(n)).unwrap();
+        }
+        run(&mut ep, &mut got, &mut g, &mut echoes, |g, got, _| {
+            got.len() >= 8 && g.pending() == 0
+        });
+        let spis: Vec<u16> = g
+            .take_captured()
+            .iter()
+            .map(|f| u16::from_be_bytes([f[5], f[6]]))
+            .collect();
+        assert!(
+            spis.contains(&1) && spis.contains(&2),
+            "frames under both SPIs: {spis:?}"
+        );
+        assert_eq!(
+            got,
+            (0..8).map(packet).collect::<Vec<_>>(),
+            "each TC exactly once, in order"
+        );
+
+        // The robot retires TC SPI 1 and sends TM under SPI 18.
+        assert_eq!(ep.select_spis(19, &[2]), Err(SpiError::NoKey(19)));
+        assert_eq!(ep.select_spis(18, &[]), Err(SpiError::NoTcSpi));
+        assert_eq!(ep.spis(), (17, vec![1, 2]), "a refused change changes nothing");
+        let tm18 = g.tm_last_iv(18);
+        ep.select_spis(18, &[2]).unwrap();
+        g.send_packet(&packet(8)).unwrap();
+        run(&mut ep, &mut got, &mut g, &mut echoes, |_, got, e| {
+            got.len() >= 9 && e.contains(&packet(8))
+        });
+        assert_ne!(g.tm_last_iv(18), tm18, "TM now under SPI 18, and the ground reads it");
+
+        // A ground still on SPI 1 is refused (unknown SPI) and nothing executes; back on
+        // SPI 2, COP-1 retransmits and the TC arrives, once.
+        g.switch_tc_spi(1, &TEST_KEY_TC_A).unwrap();
+        g.send_packet(&packet(9)).unwrap();
+        let t0 = Instant::now();
+        while ep_unknown_spi(&ep) == 0 {
+            serve(&mut ep, &mut got);
+            echoes.extend(g.poll(g.now_ms()).unwrap());
+            std::thread::sleep(Duration::from_millis(1));
+            assert!(t0.elapsed() < Duration::from_secs(10));
+        }
+        assert_eq!(got.len(), 9);
+        g.switch_tc_spi(2, &TEST_KEY_TC_B).unwrap();
+        run(&mut ep, &mut got, &mut g, &mut echoes, |g, got, _| {
+            got.len() >= 10 && g.pending() == 0
+        });
+        assert_eq!(got, (0..10).map(packet).collect::<Vec<_>>());
+
+        // The choice survives a restart of the robot.
+        drop(ep);
+        let mut ep = FrameEndpoint::open(&FrameConfig { listen: robot, ..fc }).unwrap();
+        assert_eq!(ep.spis(), (18, vec![2]));
+        g.send_packet(&packet(10)).unwrap();
+        run(&mut ep, &mut got, &mut g, &mut echoes, |g, got, _| {
+            got.len() >= 11 && g.pending() == 0
+        });
+        assert_eq!(got.last(), Some(&packet(10)));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    fn ep_unknown_spi(ep: &FrameEndpoint) -> u32 {
+        ep.rx.counters.unknown_spi
     }
 }

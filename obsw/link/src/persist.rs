@@ -11,7 +11,9 @@
 //! 18       V(R)
 //! 19       FARM-B counter
 //! 20..324  16 entries × 19 bytes: direction (1 transmit, 2 receive), SPI (u16), value (u128)
-//! 324..508 zero
+//! 324..326 on board: the TM SPI in use (u16; 0 = the first of `mib::link::sdls::TM_SPIS`)
+//! 326      on board: retired TC SPIs, bit i = `TC_SPIS[i]` (refused until activated again)
+//! 327..508 zero
 //! 508..512 CRC-32/ISO-HDLC over bytes 0..508
 //! ```
 //! The CRC sits at a fixed place and covers the whole slot, so every single-bit error and
@@ -45,6 +47,7 @@ const MAGIC: &[u8; 8] = b"MMICLS02";
 const MAGIC_V1: &[u8; 8] = b"MMICIV01";
 const ENTRY: usize = 1 + 2 + 16;
 const ENTRIES_AT: usize = 20;
+const SELECTION_AT: usize = ENTRIES_AT + MAX_ENTRIES * ENTRY;
 const CRC_AT: usize = SLOT_LEN - 4;
 const FARM_PRESENT: u8 = 1;
 const FARM_LOCKOUT: u8 = 2;
@@ -140,6 +143,10 @@ pub struct LinkRecord {
     pub sequence: u64,
     pub entries: heapless::Vec<Entry, MAX_ENTRIES>,
     pub farm: Option<FarmRecord>,
+    /// On board: the TM SPI in use (`None`: the first of `TM_SPIS`).
+    pub tm_spi: Option<u16>,
+    /// On board: retired TC SPIs, bit i = `TC_SPIS[i]`.
+    pub tc_retired: u8,
 }
 
 impl LinkRecord {
@@ -178,6 +185,8 @@ impl LinkRecord {
             b[18] = f.vr;
             b[19] = f.farm_b;
         }
+        b[SELECTION_AT..SELECTION_AT + 2].copy_from_slice(&self.tm_spi.unwrap_or(0).to_be_bytes());
+        b[SELECTION_AT + 2] = self.tc_retired;
         for (e, chunk) in self.entries.iter().zip(b[ENTRIES_AT..].chunks_exact_mut(ENTRY)) {
             chunk[0] = e.dir.code();
             chunk[1..3].copy_from_slice(&e.spi.to_be_bytes());
@@ -221,10 +230,20 @@ impl LinkRecord {
             farm_b: b[19],
         });
         let entries = decode_entries(&b[ENTRIES_AT..], usize::from(n))?;
+        let tm_spi = match u16::from_be_bytes([b[SELECTION_AT], b[SELECTION_AT + 1]]) {
+            0 => None,
+            s => Some(s),
+        };
+        let tc_retired = b[SELECTION_AT + 2];
+        if u32::from(tc_retired) >> mib::link::sdls::TC_SPIS.len() != 0 {
+            return Err(RecordError::BadField);
+        }
         Ok(LinkRecord {
             sequence,
             entries,
             farm,
+            tm_spi,
+            tc_retired,
         })
     }
 }
@@ -270,6 +289,8 @@ fn decode_v1(b: &[u8], slot: usize) -> Result<LinkRecord, RecordError> {
         sequence,
         entries: decode_entries(&b[17..end], usize::from(n))?,
         farm: None,
+        tm_spi: None,
+        tc_retired: 0,
     })
 }
 
@@ -540,6 +561,15 @@ mod host {
             r.farm = Some(farm);
             self.write(r)
         }
+
+        /// Stores the on-board SA selection: the TM SPI in use and the retired TC SPIs
+        /// (bit i = `TC_SPIS[i]`).
+        pub fn put_selection(&mut self, tm_spi: u16, tc_retired: u8) -> Result<(), PersistError> {
+            let mut r = self.next();
+            r.tm_spi = Some(tm_spi);
+            r.tc_retired = tc_retired;
+            self.write(r)
+        }
     }
 
     impl IvStore for FileIvStore {
@@ -624,6 +654,8 @@ mod tests {
             lockout: true,
             farm_b: 3,
         });
+        r.tm_spi = Some(18);
+        r.tc_retired = 1;
         r
     }
 

@@ -409,6 +409,15 @@ impl<const N: usize> RxSas<N> {
         self.sas.iter().find(|s| s.spi == spi)
     }
 
+    /// Number of SAs.
+    pub fn len(&self) -> usize {
+        self.sas.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.sas.is_empty()
+    }
+
     fn find(&mut self, frame: &[u8], hdr_end: usize) -> Result<&mut RxSa, SdlsError> {
         let spi = u16::from_be_bytes([frame[hdr_end], frame[hdr_end + 1]]);
         self.sas
