@@ -86,6 +86,7 @@ failure_codes! {
     PLAN_NOT_AUTHORISED = 45, [f("plan", PType::U16, "plan ID of the step"), f("step", PType::U16, "step number")], "TEAM_PLAN_STEP refused: no authorisation for this plan, or the step lies outside it";
     PLAN_FORBIDDEN_FUNCTION = 46, [f("function", PType::U16, "function of the step").names(Names::Function)], "TEAM_PLAN_STEP refused: the function cannot be a team step (UNBOLT_FACE, UNBOLT_PAIR, or not an action)";
     PLAN_HASH_MISMATCH = 47, [f("authorised", PType::U32, "plan hash of the authorisation"), f("uploaded", PType::U32, "hash of the uploaded steps")], "TEAM_PLAN_STEP refused: the uploaded steps do not hash to the authorised plan hash; every uploaded step of the plan is dropped";
+    NO_KEY_FOR_SPI = 53, [f("spi", PType::U16, "SPI without a key on board")], "LINK_SPI_SELECT refused: the robot has no key loaded for this SPI (or has no space link); nothing changed";
 }
 
 #[cfg(test)]

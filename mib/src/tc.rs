@@ -27,6 +27,8 @@ pub mod service {
     pub const MODULES: u8 = 210;
     /// Team coordination without the ground (`crate::team`).
     pub const TEAM: u8 = crate::team::TEAM_SERVICE;
+    /// Mission-specific: space link management (SDLS security associations, issue 22).
+    pub const SPACE_LINK: u8 = 212;
 }
 
 pub use crate::modes::ModeSet;
@@ -796,6 +798,18 @@ pub const TCS: &[TcDef] = &[
         &[F::PLAN_NOT_AUTHORISED, F::PLAN_FORBIDDEN_FUNCTION, F::PLAN_HASH_MISMATCH],
         "Team: upload one step of the authorised plan (the same step for every robot of the roster); once every authorised step is uploaded, their hash (mib::team::plan_hash) must equal the authorisation's plan hash, else all are dropped",
     ),
+    tc(
+        service::SPACE_LINK,
+        1,
+        "LINK_SPI_SELECT",
+        &[
+            a("tm_spi", PType::U16, "", 17, 18, "TM SPI to send under from now on (crate::link::sdls::TM_SPIS)"),
+            a("tc_spis", PType::U8, "", 1, 3, "TC SPIs accepted from now on: bit 0 = SPI 1, bit 1 = SPI 2; the other is retired"),
+        ],
+        &[F::NO_KEY_FOR_SPI],
+        "Space link key change without downtime: TM under tm_spi, TC accepted under the SPIs of tc_spis only (stored on board before it takes effect; survives restarts). Refused with NO_KEY_FOR_SPI when the robot has no key for one of them",
+    )
+    .hazardous("a ground without the keys of the selected SPIs can no longer command the robot or read its TM"),
 ];
 
 impl TcDef {
@@ -1259,6 +1273,7 @@ mod tests {
                 "MODE_SET",
                 "ACCEPT_CONFIG",
                 "TEAM_AUTHORISE",
+                "LINK_SPI_SELECT",
             ]
         );
         for t in TCS {

@@ -205,6 +205,9 @@ impl Failure {
     pub fn plan_hash_mismatch(authorised: u32, uploaded: u32) -> Self {
         Failure(W::PlanHashMismatch { authorised, uploaded })
     }
+    pub fn no_key_for_spi(spi: u16) -> Self {
+        Failure(W::NoKeyForSpi { spi })
+    }
 
     /// The failure of an action the domain refused to start. `running` is the function
     /// of the running action (for BUSY), `mode` the robot's mode (for NOT_POWERED).
@@ -283,6 +286,7 @@ mod tests {
             Failure::plan_not_authorised(7, 5),
             Failure::plan_forbidden_function(3),
             Failure::plan_hash_mismatch(1, 2),
+            Failure::no_key_for_spi(18),
         ];
         for f in &all {
             assert_eq!(f.data().len(), f.code().data_len(), "{:?}", f.code());

@@ -18,6 +18,7 @@ use crate::modes::ModeTree;
 use crate::request::{Ctx, Request};
 use crate::services::function::Running;
 use crate::services::hk::Hk;
+use crate::services::link::{LinkKeys, LinkSelect};
 use crate::services::mode::{ModeCmd, Transition};
 use crate::services::modules::Modules;
 use crate::services::scheduling::Schedule;
@@ -149,6 +150,10 @@ pub struct Obsw<S: TmStore> {
     pub modules: Modules,
     /// Team coordination without the ground (service 211, `services::team`).
     pub team: Team,
+    /// Space link keys the platform holds (it sets them at start; `services::link`).
+    pub link_keys: LinkKeys,
+    /// An SPI selection (LINK_SPI_SELECT) for the platform to apply before its next input.
+    pub link_select: Option<LinkSelect>,
 }
 
 impl<S: TmStore> Obsw<S> {
@@ -175,6 +180,8 @@ impl<S: TmStore> Obsw<S> {
             out: TickOut::new(),
             modules: Modules::default(),
             team: Team::new(cfg.robot, OnboardTime::new(cfg.epoch_unix_ms)),
+            link_keys: LinkKeys::default(),
+            link_select: None,
         };
         o.apply_module_modes();
         o
@@ -432,6 +439,7 @@ impl<S: TmStore> Obsw<S> {
             Request::Mode(r) => return self.mode_request(now, r, sink),
             Request::Modules(r) => self.modules_request(now, r, sink)?,
             Request::Team(r) => self.team_request(now, r, sink)?,
+            Request::Link(r) => self.link_request(now, r, sink)?,
         }
         Ok(Exec::Done)
     }

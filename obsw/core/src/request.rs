@@ -9,7 +9,8 @@ use mib::tc::service;
 use crate::accept::Tc;
 use crate::failure::Failure;
 use crate::services::{
-    event, event_action, function, hk, mode, modules, monitoring, parameter, scheduling, storage, team, test, time,
+    event, event_action, function, hk, link, mode, modules, monitoring, parameter, scheduling, storage, team, test,
+    time,
 };
 use crate::time::OnboardTime;
 
@@ -40,6 +41,7 @@ pub enum Request<'a> {
     Mode(mode::Request),
     Modules(modules::Request),
     Team(team::Request),
+    Link(link::Request),
 }
 
 impl<'a> Request<'a> {
@@ -58,6 +60,7 @@ impl<'a> Request<'a> {
             service::MODE => Request::Mode(mode::Request::parse(tc)?),
             service::MODULES => Request::Modules(modules::Request::parse(tc)?),
             service::TEAM => Request::Team(team::Request::parse(tc)?),
+            service::SPACE_LINK => Request::Link(link::Request::parse(tc)?),
             // `accept` only lets services of the MIB through; a service added to the
             // MIB without a handler here is refused, never run by another one.
             other => return Err(Failure::unknown_service(other)),

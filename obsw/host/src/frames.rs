@@ -34,6 +34,7 @@ use mmic_link::rx::{RxCounters, RxOutcome, TcReceiver};
 use mmic_link::sdls::{Key, RxSa, RxSas, TxSa};
 use mmic_link::tc::ControlCommand;
 use obsw_core::obsw::SPACE_LINK_PARAMS;
+use obsw_core::services::link::{LinkKeys, LinkSelect};
 
 /// Longest time without a TM frame: then an idle frame carries the CLCW.
 pub const IDLE_INTERVAL: Duration = Duration::from_millis(100);
@@ -68,7 +69,6 @@ pub enum FrameInput {
 }
 
 /// Why a key change ([`FrameEndpoint::select_spis`]) was refused. Nothing changed.
-#[cfg_attr(not(test), allow(dead_code))]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SpiError {
     /// No key loaded for this SPI (or not an SPI of that direction).
@@ -123,6 +123,25 @@ fn rx_sas(tc_keys: &[(u16, Key)], retired: u8, store: &FileIvStore) -> RxSas<2> 
     sas
 }
 
+/// Applies a LINK_SPI_SELECT the core executed (`Obsw::link_select`), before the next
+/// input. The core checked the keys ([`FrameEndpoint::link_keys`]); what can still fail
+/// here is the state file write: logged, the selection not applied (HK and the CLCW show
+/// the SPIs in use).
+pub fn apply_select(sel: &mut Option<LinkSelect>, ep: Option<&mut FrameEndpoint>) {
+    let Some(s) = sel.take() else { return };
+    let Some(ep) = ep else {
+        log::error!("space link: LINK_SPI_SELECT without a frame link (not applied)");
+        return;
+    };
+    if let Err(e) = ep.select_spis(s.tm_spi, &s.tc_spi_list()) {
+        log::error!(
+            "space link: LINK_SPI_SELECT TM {} TC mask {:#04b} not applied: {e}",
+            s.tm_spi,
+            s.tc_spis
+        );
+    }
+}
+
 /// Index of a TM virtual channel in [`FrameEndpoint`]'s pending flags.
 const fn vc_index(vc: TmVc) -> usize {
     match vc {
@@ -141,7 +160,6 @@ pub struct FrameEndpoint {
     tm_sas: Vec<TxSa>,
     tm_active: usize,
     /// TC keys loaded (SPI, key); which are retired is in the state file.
-    #[cfg_attr(not(test), allow(dead_code))]
     tc_keys: Vec<(u16, Key)>,
     store: FileIvStore,
     /// Virtual channels holding packet bytes not yet sent in a frame (realtime, replay).
@@ -263,9 +281,6 @@ impl FrameEndpoint {
     /// SPIs of `tc_active` only (the others retired: refused as unknown SPI until activated
     /// again). Stored in the state file before it takes effect, so it survives restarts.
     /// Refused, changing nothing, for an SPI without a loaded key or an empty TC set.
-    // Called by the tests only until the key-change TC is routed to the host (see
-    // docs/space-link.md, "Key change without downtime").
-    #[cfg_attr(not(test), allow(dead_code))]
     pub fn select_spis(&mut self, tm_spi: u16, tc_active: &[u16]) -> Result<(), SpiError> {
         let tm_active = self
             .tm_sas
@@ -307,8 +322,22 @@ impl FrameEndpoint {
         Ok(())
     }
 
+    /// The keys loaded, for the core's LINK_SPI_SELECT check (`Obsw::link_keys`).
+    pub fn link_keys(&self) -> LinkKeys {
+        let mask = |spis: &[u16], has: &dyn Fn(u16) -> bool| {
+            spis.iter()
+                .enumerate()
+                .filter(|(_, s)| has(**s))
+                .fold(0u8, |m, (i, _)| m | 1 << i)
+        };
+        LinkKeys {
+            tm: mask(&TM_SPIS, &|s| self.tm_sas.iter().any(|sa| sa.spi() == s)),
+            tc: mask(&TC_SPIS, &|s| self.tc_keys.iter().any(|(k, _)| *k == s)),
+        }
+    }
+
     /// The TM SPI in use and the TC SPIs accepted.
-    #[cfg_attr(not(test), allow(dead_code))]
+    #[cfg(test)]
     pub fn spis(&self) -> (u16, Vec<u16>) {
         let tc = TC_SPIS
             .iter()

@@ -478,6 +478,9 @@ fn run(args: Args) -> Result<()> {
         },
         HostStore::default(),
     );
+    if let Some(f) = down.frames.as_ref() {
+        obsw.link_keys = f.link_keys();
+    }
     let mut team_link = match &s.team {
         Some(t) => {
             let (link, loaded) =
@@ -587,6 +590,8 @@ fn run(args: Args) -> Result<()> {
         // cannot hold back the control period (and a late period cannot starve TCs).
         let mut handled = 0;
         while handled < config::HOST_INPUT_BATCH {
+            // A LINK_SPI_SELECT just executed takes effect before the next input.
+            frames::apply_select(&mut obsw.link_select, down.frames.as_mut());
             let mut any = false;
             if let Some(fi) = down.frames.as_mut().and_then(frames::FrameEndpoint::next) {
                 // HK reports the counters including this frame (an HK request it carries too).

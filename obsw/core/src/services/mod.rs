@@ -5,6 +5,7 @@ pub mod event;
 pub mod event_action;
 pub mod function;
 pub mod hk;
+pub mod link;
 pub mod mode;
 pub mod modules;
 pub mod monitoring;

@@ -1,0 +1,121 @@
+//! Space link management (mission service 212, issue 22): key change without downtime.
+//! LINK_SPI_SELECT chooses the TM SPI and the TC SPIs accepted. The core checks the
+//! selection against the keys the platform reported ([`LinkKeys`]), answers PUS 1, raises
+//! LINK_SPI_SELECTED and leaves the selection in [`Obsw::link_select`] for the platform's
+//! frame endpoint to apply (and store) before it handles the next input.
+
+use mib::events::eid;
+use mib::link::sdls::{TC_SPIS, TM_SPIS};
+
+use crate::accept::Tc;
+use crate::failure::Failure;
+use crate::obsw::Obsw;
+use crate::request::{u16_arg, unknown};
+use crate::tm::{TmSink, TmStore};
+
+/// Keys the platform holds: bit i of `tm` = `TM_SPIS[i]`, of `tc` = `TC_SPIS[i]`.
+/// Zero (the default): no space link, every selection is refused with NO_KEY_FOR_SPI.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LinkKeys {
+    pub tm: u8,
+    pub tc: u8,
+}
+
+/// A selection for the platform: TM under `tm_spi`, TC accepted under the SPIs of the
+/// `tc_spis` mask (bit i = `TC_SPIS[i]`), the others retired.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LinkSelect {
+    pub tm_spi: u16,
+    pub tc_spis: u8,
+}
+
+impl LinkSelect {
+    /// The TC SPIs of the mask.
+    pub fn tc_spi_list(&self) -> heapless::Vec<u16, 8> {
+        TC_SPIS
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| self.tc_spis & (1 << i) != 0)
+            .map(|(_, s)| *s)
+            .collect()
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Request {
+    /// TC[212,1] LINK_SPI_SELECT (arguments range-checked by `accept`).
+    Select(LinkSelect),
+}
+
+impl Request {
+    pub fn parse(tc: &Tc) -> Result<Self, Failure> {
+        match tc.subservice {
+            1 => Ok(Request::Select(LinkSelect {
+                tm_spi: u16_arg(tc, 0),
+                tc_spis: tc.args[1] as u8,
+            })),
+            _ => Err(unknown(tc)),
+        }
+    }
+}
+
+impl<S: TmStore> Obsw<S> {
+    pub(crate) fn link_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) -> Result<(), Failure> {
+        let Request::Select(sel) = r;
+        let has = |spis: &[u16], mask: u8, spi: u16| {
+            spis.iter()
+                .position(|s| *s == spi)
+                .is_some_and(|i| mask & (1 << i) != 0)
+        };
+        if !has(&TM_SPIS, self.link_keys.tm, sel.tm_spi) {
+            return Err(Failure::no_key_for_spi(sel.tm_spi));
+        }
+        if let Some(s) = sel
+            .tc_spi_list()
+            .iter()
+            .find(|s| !has(&TC_SPIS, self.link_keys.tc, **s))
+        {
+            return Err(Failure::no_key_for_spi(*s));
+        }
+        self.link_select = Some(sel);
+        self.event(
+            now,
+            eid::LINK_SPI_SELECTED,
+            &[i64::from(sel.tm_spi), i64::from(sel.tc_spis)],
+            sink,
+        );
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::obsw::tests::{failure, obsw, of, send};
+
+    // verifies: LINK-KEYCHG-02
+    #[test]
+    fn a_selection_is_refused_without_the_key_and_handed_to_the_platform_with_it() {
+        let mut o = obsw();
+        // No space link: refused at start (TM[1,4]), nothing handed on.
+        let p = send(&mut o, 10, 1, 212, 1, &[0, 18, 2]);
+        let f = of(&p, 1, 4);
+        assert_eq!(f.len(), 1, "{p:?}");
+        assert_eq!(failure(&f[0]), (53, vec![0, 18]));
+        assert_eq!(o.link_select, None);
+        // Keys for TM 17 and 18, TC 2 only: selecting TC 1 and 2 is refused naming SPI 1.
+        o.link_keys = LinkKeys { tm: 0b11, tc: 0b10 };
+        let p = send(&mut o, 20, 2, 212, 1, &[0, 18, 3]);
+        assert_eq!(failure(&of(&p, 1, 4)[0]), (53, vec![0, 1]));
+        // TM 18, TC 2: completed, evented, handed to the platform.
+        let p = send(&mut o, 30, 3, 212, 1, &[0, 18, 2]);
+        assert_eq!(of(&p, 1, 7).len(), 1, "{p:?}");
+        assert_eq!(of(&p, 5, 3).len(), 1, "LINK_SPI_SELECTED (medium severity)");
+        let sel = o.link_select.take().unwrap();
+        assert_eq!((sel.tm_spi, sel.tc_spi_list().as_slice()), (18, &[2u16][..]));
+        // Out of range (TM SPI 19, empty TC set): refused at acceptance.
+        assert_eq!(of(&send(&mut o, 40, 4, 212, 1, &[0, 19, 1]), 1, 2).len(), 1);
+        assert_eq!(of(&send(&mut o, 50, 5, 212, 1, &[0, 17, 0]), 1, 2).len(), 1);
+        assert_eq!(o.link_select, None);
+    }
+}
