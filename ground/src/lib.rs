@@ -10,4 +10,5 @@ pub mod link;
 pub mod link_choice;
 pub mod ops;
 pub mod plan;
+pub mod robot_lock;
 pub mod pus;

@@ -136,6 +136,8 @@ pub struct Link {
     /// Set by the reader when a TCP connection ends (EOF or error).
     closed: Arc<AtomicBool>,
     reader: Option<JoinHandle<()>>,
+    /// This process commands the robot (see [`crate::robot_lock`]).
+    _lock: crate::robot_lock::RobotLock,
 }
 
 /// Splits a buffer of concatenated space packets (a UDP datagram or a COBS frame).
@@ -209,11 +211,13 @@ impl Link {
         frames: Option<&FrameOptions>,
         tx: Sender<Incoming>,
     ) -> io::Result<Link> {
+        // One commanding process per robot on this host, held as long as the link.
+        let lock = crate::robot_lock::RobotLock::acquire(robot, addr)?;
         let stop = Arc::new(AtomicBool::new(false));
         let closed = Arc::new(AtomicBool::new(false));
         if transport == Transport::Frames {
             let opts = frames.ok_or_else(|| io::Error::other("the frame link needs a key directory (--keys DIR)"))?;
-            return open_frames(robot, addr, opts, tx, stop, closed);
+            return open_frames(robot, addr, opts, tx, stop, closed, lock);
         }
         let io = match transport {
             Transport::Frames => unreachable_frames()?,
@@ -262,6 +266,7 @@ impl Link {
             stop,
             closed,
             reader: Some(reader),
+            _lock: lock,
         })
     }
 
@@ -416,6 +421,7 @@ fn open_frames(
     tx: Sender<Incoming>,
     stop: Arc<AtomicBool>,
     closed: Arc<AtomicBool>,
+    lock: crate::robot_lock::RobotLock,
 ) -> io::Result<Link> {
     let dir = crate::keys::robot_dir(&opts.keys, robot);
     let listen = opts.listen(robot, addr);
@@ -464,6 +470,7 @@ fn open_frames(
         stop,
         closed,
         reader: Some(reader),
+        _lock: lock,
     })
 }
 

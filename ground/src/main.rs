@@ -224,10 +224,6 @@ fn run(cli: Cli) -> Result<u8> {
     }
 }
 
-/// Sequence counts skipped at the start of a frame-link session: more than the TCs a
-/// killed ground can have sent without archiving them.
-const SEQ_SKIP_AFTER_RESTART: u16 = 256;
-
 /// Opens the archive (if wanted) and a session to the given robots.
 pub fn open_session(
     links: &[(u8, SocketAddr)],
@@ -242,23 +238,18 @@ pub fn open_session(
         .map(|p| Archive::open(p).with_context(|| format!("opening archive {}", p.display())))
         .transpose()?;
     let path = archive_path.map(Path::to_path_buf);
-    // Over frames a ground killed with SIGKILL may not have archived its last TCs (the
-    // archive writes behind): starting right after the archived count could reuse a
-    // request ID the robot has already seen. The robot would still execute it (COP-1
-    // delivers once; frame TCs bypass its duplicate window), but that TC's old reports,
-    // replayed from the store, would be taken for the new one's. Skip ahead. (On the
-    // bare-packet lab link the duplicate window's CRC check tells the two apart.)
-    let skip = if transport == Transport::Frames {
-        SEQ_SKIP_AFTER_RESTART
-    } else {
-        0
-    };
     let session = Session::connect_with(links, transport, frames, archive.as_ref().map(|a| a.sender()), |apid| {
-        path.as_deref()
-            .and_then(|p| archive::next_seq(p, apid))
-            .map(|s| s.wrapping_add(skip) & 0x3FFF)
+        Some(ground::ops::first_tc_seq(
+            path.as_deref().and_then(|p| archive::next_seq(p, apid)),
+        ))
     })
-    .map_err(|e| coded(exit::NO_ANSWER, e.to_string()))?;
+    .map_err(|e| match &e {
+        // Another ground process commands the robot (ground::robot_lock): refused.
+        ground::ops::OpsError::Connect { err, .. } if err.kind() == std::io::ErrorKind::AddrInUse => {
+            coded(exit::INVALID, e.to_string())
+        }
+        _ => coded(exit::NO_ANSWER, e.to_string()),
+    })?;
     Ok((session, archive))
 }
 

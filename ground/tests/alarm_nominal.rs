@@ -1,6 +1,6 @@
 //! Nominal plans raise no alarm (issue 26 point 3): the shipped demo and checkout plans
-//! run with `ground run` against healthy simulated robots (the real `obsw`) while
-//! `ground collect` follows the same robots; the collector's archive must then hold no
+//! run in `ground collect` (started through its API, as the page starts them) against
+//! healthy simulated robots (the real `obsw`); the collector's archive must then hold no
 //! alarm at all. Each test also checks that the plan did what makes the check
 //! meaningful: the hip deviation went far beyond its limits while a primitive turned
 //! the hip (the corner turn that raised `HIP_DEVIATION = -55.050 deg` HIGH before the
@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
 mod common;
-use common::{free_port, ground, obsw_bin, text, Proc, GROUND};
+use common::{free_port, ground, http, obsw_bin, text, wait_for, Proc, GROUND};
 
 /// Simulated seconds per wall-clock second: HK persistence counts samples, so a faster
 /// simulation checks the same samples in less time.
@@ -46,20 +46,51 @@ fn robot(robot: u8, initial: &str) -> (Proc, SocketAddr) {
     (Proc(child), addr)
 }
 
-fn collector(dir: &Path, robots: &[(u8, SocketAddr)]) -> Proc {
-    let mut c = Command::new(GROUND);
-    c.current_dir(dir)
-        .args(["--archive", "collect.db", "collect", "--lab-udp", "--plain"]);
+/// `ground collect --http` following `robots`, offering plan `name`; returns it and its
+/// web address once every robot's link is up.
+fn collector(dir: &Path, robots: &[(u8, SocketAddr)], name: &str) -> (Proc, SocketAddr) {
+    // The bare-packet lab link (robots on loopback): this test is about alarms.
+    let mut config = format!(
+        "transport = \"lab-udp\"\nplans = [{:?}]\n",
+        plan(name).display().to_string()
+    );
     for (n, a) in robots {
-        c.args(["--robot", &format!("{n}={a}")]);
+        config.push_str(&format!("[[robot]]\nnumber = {n}\naddr = \"{a}\"\n"));
     }
+    std::fs::write(dir.join("collect.toml"), config).unwrap();
+    let web: SocketAddr = ([127, 0, 0, 1], free_port()).into();
     let log = std::fs::File::create(dir.join("collect.log")).unwrap();
-    Proc(
-        c.stdout(Stdio::null())
+    let c = Proc(
+        Command::new(GROUND)
+            .current_dir(dir)
+            .args([
+                "--archive",
+                "collect.db",
+                "collect",
+                "--plain",
+                "--config",
+                "collect.toml",
+            ])
+            .args(["--http", &web.to_string()])
+            .stdout(Stdio::null())
             .stderr(Stdio::from(log))
             .spawn()
             .expect("starting ground collect"),
-    )
+    );
+    // The collector's links are up before the plan starts (it archives from the start).
+    wait_for(30, "collector links up", || {
+        let s = std::panic::catch_unwind(|| http(web, "GET", "/api/snapshot", None).1).ok()?;
+        let r = s["robots"].as_array()?;
+        (r.len() == robots.len() && r.iter().all(|r| r["link"] == "up")).then_some(())
+    });
+    (c, web)
+}
+
+/// The `name` a plan file gives itself (what the collector's API starts it by).
+fn plan_file_name(file: &str) -> String {
+    let text = std::fs::read_to_string(plan(file)).unwrap();
+    let v: toml::Value = toml::from_str(&text).unwrap();
+    v["name"].as_str().unwrap().to_string()
 }
 
 fn plan(name: &str) -> PathBuf {
@@ -74,22 +105,28 @@ fn run_with_collector(name: &str, robots: &[(u8, &str)], hip_robot: u8) -> (Vec<
     let dir = common::tmpdir("alarm-nominal", name);
     let started: Vec<(Proc, SocketAddr)> = robots.iter().map(|(n, s)| robot(*n, s)).collect();
     let links: Vec<(u8, SocketAddr)> = robots.iter().zip(&started).map(|((n, _), (_, a))| (*n, *a)).collect();
-    let mut c = collector(&dir, &links);
-    // The collector's links are up before the plan starts (it archives from the start).
-    common::wait_for(30, "collector links up", || {
-        let log = std::fs::read_to_string(dir.join("collect.log")).unwrap_or_default();
-        (robots.iter().all(|(n, _)| log.contains(&format!("robot {n}: link up")))).then_some(())
+    // One ground per robot (issue 21): the plan runs in the collector that follows the
+    // robots, started through its API as the page starts it.
+    let (mut c, web) = collector(&dir, &links, name);
+    let plan_name = plan_file_name(name);
+    let (st, r) = http(
+        web,
+        "POST",
+        "/api/plans",
+        Some(serde_json::json!({"name": plan_name, "confirm": true})),
+    );
+    assert_eq!(st, 200, "starting plan {plan_name}: {r}");
+    let run = r["run_id"].as_str().unwrap().to_string();
+    let end = wait_for(240, "the plan's end", || {
+        let s = http(web, "GET", "/api/snapshot", None).1;
+        let p = s["plans"]
+            .as_array()?
+            .iter()
+            .find(|p| p["run_id"] == run.as_str())?
+            .clone();
+        (p["state"] != "running").then_some(p)
     });
-    let mut args: Vec<String> = vec!["--archive".into(), "run.db".into(), "run".into(), "--plain".into()];
-    for (n, a) in &links {
-        args.extend(["--robot".into(), format!("{n}={a}")]);
-    }
-    args.push(plan(name).display().to_string());
-    let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    let out = ground(&dir, &args);
-    let t = text(&out);
-    assert_eq!(out.status.code(), Some(0), "ground run {name}: {t}");
-    assert!(t.contains("faults: none"), "{t}");
+    assert_eq!(end["state"], "done", "plan {name}: {end:#}");
     // Two more FDIR reports (5 s each, simulated) after the end: a late alarm shows too.
     std::thread::sleep(std::time::Duration::from_millis(3_000));
     let _ = c.0.kill();

@@ -199,6 +199,22 @@ fn kill_and_restart(dir: &Path, arch: &str) {
     assert_eq!(first, 0, "from the obsw's first packet (BOOT)");
     assert!(last - first > 20, "{seqs:?}");
 
+    // The collector's own TCs are archived, and its restart after kill -9 numbers on
+    // after them (ops::first_tc_seq, the rule of every front end): no count reused.
+    let out = ground(dir, &["--archive", arch, "archive", "query", "--type", "tc", "--json"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    let mut tcs: Vec<i64> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .filter(|v| v["apid"] == 0x101 && v["step"].as_str().is_some_and(|s| s.starts_with("collect:")))
+        .map(|v| v["seq"].as_i64().unwrap())
+        .collect();
+    let n = tcs.len();
+    assert!(n >= 4, "the collector's subscriptions archived: {tcs:?}");
+    tcs.sort_unstable();
+    tcs.dedup();
+    assert_eq!(tcs.len(), n, "a sequence count used twice: {tcs:?}");
+
     // Alarms: the sagging battery (soft limit 10.5 V) and the robot that never answered.
     let out = ground(dir, &["--archive", arch, "alarms", "list", "--json"]);
     let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
@@ -432,4 +448,33 @@ fn dashboard_under_collect_uses_the_collectors_link_alarms_and_archive() {
     let cols = series.decimate(1, "V_BAT_A", now - 600_000, now + 60_000, 50);
     assert!(!cols.is_empty(), "no archived V_BAT_A columns");
     assert!(cols.iter().any(|c| c.1 < 10.5), "the sag is in the archive: {cols:?}");
+}
+
+// verifies: OPS-TWO-01
+#[test]
+fn ground_send_beside_ground_collect_on_one_robot_is_refused_naming_the_collector() {
+    let dir = tmpdir("two-grounds");
+    let (_o, addr, _ctl) = start_obsw(1);
+    let r = format!("1={addr}");
+    let mut c = collector(&dir, "a.db", std::slice::from_ref(&r));
+    // The collector holds the robot once its link is open (a second after its start).
+    let o = wait_for(15, "the collector holding robot 1", || {
+        let o = ground(&dir, &["--archive", "b.db", "send", "--lab-udp", "--robot", &r, "PING"]);
+        (o.status.code() != Some(0)).then_some(o)
+    });
+    let t = text(&o);
+    assert_eq!(o.status.code(), Some(3), "{t}");
+    assert!(
+        t.contains(&format!("robot 1 at {addr} is already commanded by pid {}", c.0.id())),
+        "{t}"
+    );
+    assert!(t.contains("collect"), "the holder's command line: {t}");
+    // Watching is commanding too (it keeps the downlink with PINGs): refused the same way.
+    let o = ground(&dir, &["--archive", "b.db", "watch", "--lab-udp", "--robot", &r, "--duration", "1"]);
+    assert_eq!(o.status.code(), Some(3), "{}", text(&o));
+    // The collector killed with SIGKILL: the operating system frees the robot at once.
+    signal(&c, "-KILL");
+    let _ = wait_exit(&mut c, Duration::from_secs(5));
+    let o = ground(&dir, &["--archive", "b.db", "send", "--lab-udp", "--robot", &r, "PING"]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
 }

@@ -289,8 +289,11 @@ pub fn run_with(
             ..Default::default()
         }));
         statuses.push(status.clone());
-        let mut w =
-            Worker::new(r.clone(), global.clone(), sink_tx.clone(), status, stop.clone(), h).with_config_hash(hash);
+        let first_seq =
+            crate::ops::first_tc_seq(onboard::apid(r.number).and_then(|apid| crate::archive::next_seq(archive, apid)));
+        let mut w = Worker::new(r.clone(), global.clone(), sink_tx.clone(), status, stop.clone(), h)
+            .with_config_hash(hash)
+            .with_first_seq(first_seq);
         if let Some(hub) = &hub {
             let (tx, rx) = crossbeam_channel::bounded(64);
             dash_tx.insert(r.number, tx);

@@ -109,6 +109,8 @@ pub struct Worker {
     limits: LimitChecker,
     tc_seq: u16,
     link: Option<Link>,
+    /// Another ground process holds the robot (said once until the link opens).
+    held_elsewhere: bool,
     tx: Sender<Incoming>,
     rx: Receiver<Incoming>,
     state: LinkState,
@@ -185,8 +187,9 @@ impl Worker {
             apid,
             trackers,
             limits: LimitChecker::new(),
-            tc_seq: ((now / 500) % 16384) as u16,
+            tc_seq: crate::ops::first_tc_seq(None),
             link: None,
+            held_elsewhere: false,
             tx,
             rx,
             state: LinkState::Connecting,
@@ -222,6 +225,13 @@ impl Worker {
 
     /// Starts from the configuration hash last archived for this robot: a robot that
     /// comes back with another one raises CONFIG_CHANGED even across a collector restart.
+    /// Numbers this robot's TCs from `seq` on ([`crate::ops::first_tc_seq`] of the
+    /// collector's archive: the rule of every front end).
+    pub fn with_first_seq(mut self, seq: u16) -> Worker {
+        self.tc_seq = seq;
+        self
+    }
+
     pub fn with_config_hash(mut self, hash: Option<u32>) -> Worker {
         self.modules = ConfigTracker::new(hash);
         self
@@ -285,6 +295,21 @@ impl Worker {
         }
     }
 
+    /// Sends a new TC and archives it (`label`: what sent it, the archive's step column).
+    pub(super) fn send_tc(&mut self, tc: &crate::pus::BuiltTc, label: &str) {
+        self.send(&tc.bytes);
+        self.archive_tc(tc, label);
+    }
+
+    /// Archives a TC this thread numbered.
+    pub(super) fn archive_tc(&self, tc: &crate::pus::BuiltTc, label: &str) {
+        let _ = self.sink.send(SinkMsg::Tc {
+            t_ms: now_ms(),
+            tc: tc.clone(),
+            label: Some(format!("collect:{label}")),
+        });
+    }
+
     fn ensure_link(&mut self) {
         let tcp_dead = self.cfg.transport == Transport::Tcp && self.state != LinkState::Up;
         if self.link.is_some() && !tcp_dead {
@@ -302,7 +327,16 @@ impl Worker {
             self.cfg.frames.as_ref(),
             self.tx.clone(),
         ) {
-            Ok(l) => self.link = Some(l),
+            Ok(l) => {
+                self.link = Some(l);
+                self.held_elsewhere = false;
+            }
+            // Another ground process commands the robot (ground::robot_lock): said once.
+            Err(e) if e.kind() == std::io::ErrorKind::AddrInUse => {
+                if !std::mem::replace(&mut self.held_elsewhere, true) {
+                    tracing::warn!(robot = self.robot(), "{e}");
+                }
+            }
             Err(e) => tracing::debug!(robot = self.robot(), "connect {}: {e}", self.cfg.addr),
         }
     }

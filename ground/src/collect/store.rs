@@ -59,6 +59,13 @@ pub enum SinkMsg {
         t_ms: i64,
     },
     Health(Health),
+    /// A TC the collector sent (its page's, its plan runs', its own subscriptions and
+    /// store requests): archived like `ground send`'s.
+    Tc {
+        t_ms: i64,
+        tc: crate::pus::BuiltTc,
+        label: Option<String>,
+    },
     /// Answered once everything before it is committed (or kept for later).
     Flush(Sender<()>),
 }
@@ -70,6 +77,10 @@ pub struct SinkStats {
     pub tm_skipped_present: u64,
     pub pending: usize,
     pub dropped_unwritable: u64,
+    /// TCs handed to the archive writer.
+    pub tc_written: u64,
+    /// TCs not archived because the archive writer had stopped.
+    pub tc_dropped: u64,
     pub write_failures: u64,
     pub pruned_rows: u64,
 }
@@ -185,6 +196,21 @@ impl Sink {
             }
             SinkMsg::Health(h) => {
                 self.health.insert(h.robot, h);
+            }
+            SinkMsg::Tc { t_ms, tc, label } => {
+                let rec = Record::Tc {
+                    t_ms,
+                    tc,
+                    step: label,
+                    attempt: 1,
+                };
+                match &self.sender {
+                    Some(snd) if snd.send(rec) => self.stats.tc_written += 1,
+                    Some(_) | None => {
+                        self.stats.tc_dropped += 1;
+                        tracing::warn!("archive: a TC could not be archived (writer stopped)");
+                    }
+                }
             }
             other => {
                 if self.write_own(&other).is_err() {
@@ -390,7 +416,7 @@ impl Sink {
                     })?;
                 }
             }
-            SinkMsg::Tm { .. } | SinkMsg::Flush(_) | SinkMsg::Health(_) => {}
+            SinkMsg::Tm { .. } | SinkMsg::Flush(_) | SinkMsg::Health(_) | SinkMsg::Tc { .. } => {}
         }
         Ok(())
     }

@@ -17,6 +17,30 @@ use crate::pus::{self, BuiltTc, DecodeError, Event, Hk, SeqCounters, Stage, Tm, 
 
 use super::*;
 
+/// Sequence counts skipped after the archived ones when a ground process starts: more
+/// than the TCs a ground killed with SIGKILL can have sent without archiving them (the
+/// archive writes behind). Over frames the robot would still execute a reused count
+/// (COP-1 delivers once; frame TCs bypass its duplicate window), but that TC's old
+/// reports, replayed from the store, would be taken for the new one's; on the lab links
+/// a reused count with the same bytes (a PING) would be answered as a duplicate.
+pub const SEQ_SKIP_AFTER_RESTART: u16 = 256;
+
+/// The first TC sequence count a ground process uses on a robot's APID — one rule for
+/// every front end (CLI verbs, demo, the collector and its page) and every link: after
+/// the last one its archive holds (`archived_next`, [`crate::archive::next_seq`]),
+/// [`SEQ_SKIP_AFTER_RESTART`] further; with no archive, from the clock.
+pub fn first_tc_seq(archived_next: Option<u16>) -> u16 {
+    match archived_next {
+        Some(n) => n.wrapping_add(SEQ_SKIP_AFTER_RESTART) % SEQ_MOD,
+        None => {
+            let n = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.subsec_nanos() ^ d.as_secs() as u32);
+            (n % u32::from(SEQ_MOD)) as u16
+        }
+    }
+}
+
 /// A TC waiting for verification.
 #[derive(Clone, Debug)]
 pub struct Pending {
@@ -183,13 +207,7 @@ impl Session {
                 .map_err(|err| OpsError::Connect { robot, addr, err })?;
             links.insert(robot, link);
             status.insert(robot, RobotStatus::new(robot, addr));
-            let start = first_seq(apid).unwrap_or_else(|| {
-                let n = std::time::SystemTime::now()
-                    .duration_since(std::time::UNIX_EPOCH)
-                    .map_or(0, |d| d.subsec_nanos() ^ d.as_secs() as u32);
-                (n % 0x4000) as u16
-            });
-            seq.set(apid, start);
+            seq.set(apid, first_seq(apid).unwrap_or_else(|| first_tc_seq(None)));
         }
         Ok(Session {
             links,

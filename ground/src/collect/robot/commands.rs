@@ -70,6 +70,7 @@ impl Worker {
                 .map_err(|e| format!("sending to robot {}: {e}", self.robot()))?,
             None => return Err(format!("robot {}: no link", self.robot())),
         }
+        self.archive_tc(&tc, origin);
         Ok(tc)
     }
 

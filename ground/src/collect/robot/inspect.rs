@@ -22,14 +22,14 @@ impl Worker {
         {
             self.modules_asked_ms = now;
             if let Some(tc) = onboard::report_modules_tc(self.robot(), self.next_seq()) {
-                self.send(&tc.bytes);
+                self.send_tc(&tc, "modules");
             }
         }
         if self.team_due && now - self.team_asked_ms >= ASK_AGAIN_MS {
             self.team_due = false;
             self.team_asked_ms = now;
             if let Some(tc) = onboard::team_status_tc(self.robot(), self.next_seq()) {
-                self.send(&tc.bytes);
+                self.send_tc(&tc, "team");
             }
         }
     }

@@ -67,7 +67,7 @@ impl Worker {
         if now >= self.next_send_ms {
             self.ensure_link();
             if let Some(tc) = onboard::subscribe_tc(self.robot(), self.next_seq()) {
-                self.send(&tc.bytes);
+                self.send_tc(&tc, "subscribe");
             }
             if !self.hk_confirmed && self.state == LinkState::Up {
                 let tries = self.hk_set.map_or(0, |(_, n)| n);
@@ -78,14 +78,14 @@ impl Worker {
                         mib::hk::sid::ROBOT_STATUS,
                         self.hk_interval_ms,
                     ) {
-                        self.send(&tc.bytes);
+                        self.send_tc(&tc, "hk-interval");
                         self.hk_set = Some((tc.request_id(), tries + 1));
                     }
                 }
             }
             if self.dash.is_some() && !self.modes_known && self.state == LinkState::Up {
                 if let Some(tc) = onboard::mode_announce_tc(self.robot(), self.next_seq()) {
-                    self.send(&tc.bytes);
+                    self.send_tc(&tc, "modes");
                 }
             }
             if self.state == LinkState::Up && !self.team_known {
@@ -128,7 +128,7 @@ impl Worker {
                 }
                 whole_sent |= !ranged;
                 tracing::debug!(robot = self.robot(), "store request {first}..={last}");
-                self.send(&tc.bytes);
+                self.send_tc(&tc, "store-request");
                 self.st.store_requests += 1;
             }
         }
