@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 use ground_link::{create_key_file, Config, Event, FrameLink};
 use mib::params::pid;
 use mmic_link::fop::{FopConfig, FopState};
-use mmic_link::test_keys::{TEST_KEY_TC_A, TEST_KEY_TM_A};
+use mmic_link::test_keys::{TEST_KEY_TC_A, TEST_KEY_TC_B, TEST_KEY_TM_A, TEST_KEY_TM_B};
 
 const APID: u16 = 0x101;
 
@@ -48,21 +48,31 @@ struct Obsw(Child);
 
 impl Obsw {
     fn start(frame: SocketAddr, ground: SocketAddr, dir: &Path) -> Obsw {
+        Self::start_with(frame, ground, dir, "tc-spi1.key", "tm-spi17.key")
+    }
+
+    fn start_with(frame: SocketAddr, ground: SocketAddr, dir: &Path, tc_key: &str, tm_key: &str) -> Obsw {
         let s = |n: &str| dir.join(n).display().to_string();
         let mut child = Command::new(env!("CARGO_BIN_EXE_obsw"))
             .args(["--robot", "1", "--sim-ctl", "127.0.0.1:0"])
+            // Off (frame link only), but bound: free ports, so tests run side by side.
+            .args(["--udp", "127.0.0.1:0", "--tcp", "127.0.0.1:0"])
             .args(["--frame-udp", &frame.to_string(), "--frame-tm-to", &ground.to_string()])
-            .args(["--tc-key", &s("tc.key"), "--tm-key", &s("tm.key")])
+            .args(["--tc-key", &s(tc_key), "--tm-key", &s(tm_key)])
             .args(["--link-state", &s("obsw.state")])
             .stdout(Stdio::piped())
-            .stderr(Stdio::null())
+            .stderr(std::fs::File::create(dir.join("obsw.stderr")).unwrap())
             .spawn()
             .expect("start obsw");
         let mut line = String::new();
         BufReader::new(child.stdout.take().unwrap())
             .read_line(&mut line)
             .unwrap();
-        assert!(line.starts_with("READY"), "{line:?}");
+        assert!(
+            line.starts_with("READY"),
+            "{line:?}: {}",
+            std::fs::read_to_string(dir.join("obsw.stderr")).unwrap_or_default()
+        );
         Obsw(child)
     }
 
@@ -104,8 +114,8 @@ fn ping(g: &mut FrameLink, events: &mut Vec<Event>, seq: u16) {
     );
 }
 
-fn tmp_dir() -> PathBuf {
-    let d = std::env::temp_dir().join(format!("obsw-frames-restart-{}", std::process::id()));
+fn tmp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("obsw-frames-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
@@ -114,7 +124,8 @@ fn tmp_dir() -> PathBuf {
 // verifies: LINK-PERSIST-02, LINK-PERSIST-03
 #[test]
 fn after_kill_9_a_captured_frame_is_a_replay_and_the_ground_continues_without_reinitialising() {
-    let dir = tmp_dir();
+    let dir = tmp_dir("restart");
+    // Names other than the key folder's: no spare keys are looked for.
     create_key_file(&dir.join("tc.key"), &TEST_KEY_TC_A).unwrap();
     create_key_file(&dir.join("tm.key"), &TEST_KEY_TM_A).unwrap();
     let frame = UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap();
@@ -132,7 +143,7 @@ fn after_kill_9_a_captured_frame_is_a_replay_and_the_ground_continues_without_re
     };
     let mut g = FrameLink::open(cfg).unwrap();
     let ground = g.local_addr().unwrap();
-    let mut obsw = Obsw::start(frame, ground, &dir);
+    let mut obsw = Obsw::start_with(frame, ground, &dir, "tc.key", "tm.key");
     let mut events = Vec::new();
     let t0 = Instant::now();
     while g.fop_state() != FopState::Active {
@@ -156,7 +167,7 @@ fn after_kill_9_a_captured_frame_is_a_replay_and_the_ground_continues_without_re
 
     obsw.kill9();
     events.clear();
-    let _obsw = Obsw::start(frame, ground, &dir);
+    let _obsw = Obsw::start_with(frame, ground, &dir, "tc.key", "tm.key");
     // The captured frames, replayed by anyone on the path.
     let attacker = UdpSocket::bind("127.0.0.1:0").unwrap();
     for f in &captured {
@@ -196,5 +207,129 @@ fn after_kill_9_a_captured_frame_is_a_replay_and_the_ground_continues_without_re
         "the ground continued without re-initialising: {events:?}"
     );
     assert_eq!(g.counters.alerts, 0);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Sends a TC and waits for its completion (`Ok`) or a failure report (`Err(code)`).
+fn command(g: &mut FrameLink, events: &mut Vec<Event>, raw: &[u8]) -> Result<(), u16> {
+    g.send_packet(raw).unwrap();
+    let mut out = None;
+    until(g, events, Duration::from_secs(15), |t| {
+        if let Some((1, sub, d)) = tm(t) {
+            if d.len() >= 4 && d[..4] == raw[..4] {
+                match sub {
+                    7 => out = Some(Ok(())),
+                    2 | 4 | 6 | 8 if d.len() >= 6 => out = Some(Err(u16::from_be_bytes([d[4], d[5]]))),
+                    _ => {}
+                }
+            }
+        }
+        out.is_some()
+    });
+    out.unwrap()
+}
+
+// verifies: LINK-KEYCHG-01, LINK-KEYCHG-02
+#[test]
+fn link_spi_select_moves_the_real_obsw_to_tc_spi_2_and_tm_spi_18_without_a_tc_lost() {
+    let dir = tmp_dir("spi");
+    create_key_file(&dir.join("tc-spi1.key"), &TEST_KEY_TC_A).unwrap();
+    create_key_file(&dir.join("tm-spi17.key"), &TEST_KEY_TM_A).unwrap();
+    let frame = UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap();
+    let open = |tc_spi: u16| {
+        let mut cfg = Config::from_key_dir(
+            frame,
+            SocketAddr::from(([127, 0, 0, 1], 0)),
+            &dir,
+            &dir.join("ground.state"),
+            tc_spi,
+        )
+        .unwrap();
+        cfg.fop.t1_ms = 500;
+        cfg
+    };
+    let mut g = FrameLink::open(open(1)).unwrap();
+    let ground = g.local_addr().unwrap();
+    let mut events = Vec::new();
+    let active = |g: &mut FrameLink, events: &mut Vec<Event>| {
+        let t0 = Instant::now();
+        while g.fop_state() != FopState::Active {
+            g.recv(Duration::from_millis(20)).unwrap();
+            events.extend(g.take_events());
+            assert!(t0.elapsed() < Duration::from_secs(15), "COP-1 initialised: {events:?}");
+        }
+    };
+    // Without the spare keys on board: refused with NO_KEY_FOR_SPI (53).
+    let mut obsw = Obsw::start(frame, ground, &dir);
+    active(&mut g, &mut events);
+    assert_eq!(command(&mut g, &mut events, &tc(1, 212, 1, &[0, 18, 2])), Err(53));
+    assert_eq!(
+        command(&mut g, &mut events, &tc(2, 17, 1, &[])),
+        Ok(()),
+        "nothing changed"
+    );
+
+    // The spare keys installed on both ends (here: the robot restarted to load them).
+    create_key_file(&dir.join("tc-spi2.key"), &TEST_KEY_TC_B).unwrap();
+    create_key_file(&dir.join("tm-spi18.key"), &TEST_KEY_TM_B).unwrap();
+    obsw.kill9();
+    drop(g);
+    // The same ground address (the obsw sends TM frames to it).
+    let mut g = FrameLink::open(Config {
+        listen: ground,
+        ..open(1)
+    })
+    .unwrap();
+    let _obsw = Obsw::start(frame, ground, &dir);
+    active(&mut g, &mut events);
+    // The ground moves to TC SPI 2 with pings outstanding: both SPIs are accepted.
+    for seq in 3..6 {
+        g.send_packet(&tc(seq, 17, 1, &[])).unwrap();
+    }
+    g.poll(g.now_ms()).unwrap();
+    g.switch_tc_spi(2, &TEST_KEY_TC_B).unwrap();
+    let tm18 = g.tm_last_iv(18);
+    // Then TC SPI 1 retired, TM under SPI 18.
+    assert_eq!(command(&mut g, &mut events, &tc(6, 212, 1, &[0, 18, 2])), Ok(()));
+    assert_eq!(command(&mut g, &mut events, &tc(7, 17, 1, &[])), Ok(()));
+    assert_ne!(g.tm_last_iv(18), tm18, "TM under SPI 18 read by the ground");
+    // A frame under the retired SPI 1 (authentic, fresh IV) is refused; HK counts it.
+    let repr = mmic_link::tc::TcRepr {
+        frame_type: mmic_link::tc::FrameType::Ad,
+        scid: mib::link::SCID,
+        vcid: mib::link::tc_vc::COMMAND,
+        seq: 0,
+        data_len: 0,
+    };
+    let mut sa = mmic_link::sdls::TxSa::resume(1, &TEST_KEY_TC_A, 1 << 40);
+    let mut buf = [0u8; 128];
+    let n = mmic_link::sdls::build_tc(
+        &mut sa,
+        &mut mmic_link::sdls::MemoryIvStore::default(),
+        repr,
+        &tc(8, 17, 1, &[]),
+        &mut buf,
+    )
+    .unwrap();
+    UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .send_to(&buf[..n], frame)
+        .unwrap();
+    let sid = mib::hk::sid::SPACE_LINK.to_be_bytes();
+    let hk_req = tc(9, 3, 27, &[sid[0], sid[1]]);
+    g.send_packet(&hk_req).unwrap();
+    let mut unknown_spi = None;
+    until(&mut g, &mut events, Duration::from_secs(15), |t| {
+        if let Some((3, 25, d)) = tm(t) {
+            if d[..2] == sid {
+                unknown_spi = mib::codec::decode_hk(d)
+                    .ok()
+                    .and_then(|r| r.get(pid::LINK_REJ_UNKNOWN_SPI));
+            }
+        }
+        unknown_spi.is_some()
+    });
+    assert_eq!(unknown_spi, Some(1), "the frame under the retired SPI 1 refused");
+    assert_eq!(g.counters.alerts, 0, "{events:?}");
     let _ = std::fs::remove_dir_all(&dir);
 }
