@@ -28,6 +28,7 @@ use mmic_link::rx::{RxCounters, RxOutcome, TcReceiver};
 use mmic_link::sdls::{IvStore, Key, RxSa, RxSas, TxSa};
 use mmic_link::tc::ControlCommand;
 use obsw_core::obsw::{LinkEvent, Obsw, SPACE_LINK_PARAMS};
+use obsw_core::services::link::LinkKeys;
 use obsw_core::tm::TmStore;
 
 use crate::cycle::GroundSink;
@@ -122,6 +123,8 @@ pub struct FrameLink<St> {
     control_window: (u64, u32),
     control_rate_limited: u32,
     reported_rate_limited: u32,
+    /// The SPIs with a provisioned key, for the OBSW's LINK_SPI_SELECT check.
+    keys: LinkKeys,
 }
 
 /// Whether a frame's header says BC frame (version 00, bypass 1, control 1).
@@ -136,6 +139,11 @@ impl<St: IvStore> FrameLink<St> {
     pub fn new(keys: Option<&Keys>, resume: Resume, store: St) -> Self {
         let mut sas = RxSas::default();
         let mut sa = None;
+        let bit = |spis: &[u16], spi: u16| spis.iter().position(|s| *s == spi).map_or(0, |i| 1u8 << i);
+        let link_keys = keys.map_or(LinkKeys::default(), |k| LinkKeys {
+            tm: bit(&mib::link::sdls::TM_SPIS, k.tm_spi),
+            tc: bit(&mib::link::sdls::TC_SPIS, k.tc_spi),
+        });
         if let Some(k) = keys {
             let rx_sa = match resume.tc_last {
                 Some(last) => RxSa::resume(k.tc_spi, &k.tc_key, ANTI_REPLAY_WINDOW, last),
@@ -169,6 +177,7 @@ impl<St: IvStore> FrameLink<St> {
             control_window: (0, 0),
             control_rate_limited: 0,
             reported_rate_limited: 0,
+            keys: link_keys,
         }
     }
 
@@ -295,6 +304,10 @@ impl<St: IvStore> FrameLink<St> {
             b
         };
         obsw.space_link = hk;
+        // The board holds one key per direction: the only selection LINK_SPI_SELECT can
+        // accept is the one in use, so there is nothing to apply.
+        obsw.link_keys = self.keys;
+        obsw.link_select = None;
         let last_control = self.last_control;
         let mut sink = GroundSink {
             link: &mut *self,

@@ -298,6 +298,11 @@ fn framelink_authenticated_tc_executes_once_replay_and_wrong_mac_refused() -> Te
     check_eq!(g.clcw_nr, Some(1), "CLCW N(R) after one AD frame");
     check_eq!(g.rejected, 0);
     check_eq!(obsw.space_link[0], 1, "LINK_AD_ACCEPTED");
+    check_eq!(
+        (obsw.link_keys.tm, obsw.link_keys.tc),
+        (1, 1),
+        "keys of TM SPI 17, TC SPI 1"
+    );
     // The receive IV and FARM-1's V(R) are in flash before the ping ran.
     let r = FlashIvStore::open(fl.store().flash().clone(), 0).resume(1, 17);
     check_eq!(r.tc_last, Some(0));
