@@ -42,6 +42,7 @@ use std::time::{Duration, Instant};
 use mib::link::sdls::{ANTI_REPLAY_WINDOW, TC_SPIS, TM_SPIS};
 use mib::link::tc_frame::{MAX_LEN as TC_MAX_LEN, MAX_PACKET_LEN};
 use mmic_link::clcw::Clcw;
+pub use mmic_link::downlink::TmSecurity;
 use mmic_link::downlink::{TmReceiver, TmRxCounters};
 use mmic_link::fop::{AlertReason, Fop, FopConfig, FopEffect, FopInput, FopState};
 use mmic_link::persist::{Dir, FileIvStore, PersistError};
@@ -141,6 +142,8 @@ pub struct Config {
     /// The key of the spare TM SPI 18 (`TM_SPIS[1]`), when there is one: TM frames under
     /// either SPI are accepted, so the robot can switch its TM SPI without a frame lost.
     pub tm_spare_key: Option<Key>,
+    /// SDLS on the robot's VC0/VC1 TM frames (its `--tm-sdls`): both ends must agree.
+    pub tm_security: TmSecurity,
     /// The ground's SDLS counter state file.
     pub state: PathBuf,
     pub fop: FopConfig,
@@ -170,6 +173,7 @@ impl Config {
             tc_key: read_key(tc_key)?,
             tm_key: read_key(tm_key)?,
             tm_spare_key: None,
+            tm_security: TmSecurity::Encrypt,
             state: state.into(),
             fop: FopConfig::mission(),
             settle_ms: RESYNC_SETTLE_MS,
@@ -301,7 +305,7 @@ impl FrameLink {
             robot: cfg.robot,
             fop: Fop::new(mib::link::tc_vc::COMMAND, cfg.fop),
             tc_sa,
-            tm: TmReceiver::new(mib::link::SCID, sas),
+            tm: TmReceiver::with_security(mib::link::SCID, cfg.tm_security, sas),
             tm_keys: std::iter::once(cfg.tm_key).chain(cfg.tm_spare_key).collect(),
             store,
             queue: VecDeque::new(),

@@ -109,6 +109,7 @@ fn link(robot: SocketAddr, listen: SocketAddr, state: &Path) -> FrameLink {
         tc_key: TEST_KEY_TC_A,
         tm_key: TEST_KEY_TM_A,
         tm_spare_key: None,
+        tm_security: TmSecurity::Encrypt,
         state: state.into(),
         fop: FopConfig {
             t1_ms: 40,
@@ -238,6 +239,7 @@ fn bad_packets_and_shared_keys_are_refused() {
         tc_key: TEST_KEY_TC_A,
         tm_key: TEST_KEY_TC_A,
         tm_spare_key: None,
+        tm_security: TmSecurity::Encrypt,
         state: st.clone(),
         fop: FopConfig::mission(),
         settle_ms: RESYNC_SETTLE_MS,
@@ -252,6 +254,7 @@ fn bad_packets_and_shared_keys_are_refused() {
         tc_key: TEST_KEY_TC_A,
         tm_key: TEST_KEY_TM_A,
         tm_spare_key: Some(TEST_KEY_TC_A),
+        tm_security: TmSecurity::Encrypt,
         state: st.clone(),
         fop: FopConfig::mission(),
         settle_ms: RESYNC_SETTLE_MS,

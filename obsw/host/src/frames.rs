@@ -27,7 +27,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use mib::link::sdls::{ANTI_REPLAY_WINDOW, TC_SPIS, TM_SPIS};
 use mib::link::tm_frame::LEN as TM_LEN;
-use mmic_link::downlink::{Downlink as Framer, TmVc};
+use mmic_link::downlink::{Downlink as Framer, TmSecurity, TmVc};
 use mmic_link::farm::Farm;
 use mmic_link::persist::{read_key, Dir, FileIvStore};
 use mmic_link::rx::{RxCounters, RxOutcome, TcReceiver};
@@ -49,6 +49,26 @@ fn is_control_frame(d: &[u8]) -> bool {
     d.first().is_some_and(|b| b & 0xF0 == 0x30)
 }
 
+/// SDLS on the TM frames of VC0/VC1 (`--tm-sdls`, TOML `tm_sdls`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum TmSdls {
+    /// AES-256-GCM authenticated encryption under the TM SPI (17/18).
+    #[default]
+    Encrypt,
+    /// No SDLS on TM (1012-byte packet zone): for grounds without it.
+    Clear,
+}
+
+impl TmSdls {
+    pub fn security(self) -> TmSecurity {
+        match self {
+            TmSdls::Encrypt => TmSecurity::Encrypt,
+            TmSdls::Clear => TmSecurity::Clear,
+        }
+    }
+}
+
 /// What the command line gives the endpoint.
 #[derive(Clone, Debug)]
 pub struct FrameConfig {
@@ -57,6 +77,7 @@ pub struct FrameConfig {
     pub tc_key: PathBuf,
     pub tm_key: PathBuf,
     pub state: PathBuf,
+    pub tm_sdls: TmSdls,
 }
 
 /// A TC frame's outcome, for the main loop.
@@ -259,7 +280,7 @@ impl FrameEndpoint {
             sock,
             tm_to: cfg.tm_to,
             rx: TcReceiver::new(mib::link::SCID, mib::link::tc_vc::COMMAND, farm, sas),
-            framer: Framer::mission(),
+            framer: Framer::with_security(mib::link::SCID, cfg.tm_sdls.security()),
             tm_sas,
             tm_active,
             tc_keys,
@@ -610,6 +631,7 @@ mod tests {
             tc_key: dir.join("tc-spi1.key"),
             tm_key: dir.join("tm-spi17.key"),
             state: dir.join("obsw.state"),
+            tm_sdls: TmSdls::Encrypt,
         };
         let mut ep = FrameEndpoint::open(&fc).unwrap();
         assert_eq!(ep.spis(), (17, vec![1, 2]), "both TC keys loaded");

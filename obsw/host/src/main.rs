@@ -104,6 +104,11 @@ struct Args {
     /// Space link: file with the raw 32-byte AES-256 key of TM SPI 17 (robot → ground).
     #[arg(long)]
     tm_key: Option<PathBuf>,
+    /// Space link: SDLS on the TM frames of VC0/VC1 — `encrypt` (AES-256-GCM under the TM
+    /// SPI, the default) or `clear` (no SDLS on TM, for grounds without it: TM readable and
+    /// forgeable on the path; TC frames stay authenticated). The ground must match.
+    #[arg(long, value_enum)]
+    tm_sdls: Option<frames::TmSdls>,
     /// Lab mode: the bare-packet link (unauthenticated space packets on --udp/--tcp, TM
     /// to their senders and to --tm-dest), alone or beside the frame link; loopback
     /// addresses only. Without it and without --frame-udp the obsw refuses to start.
@@ -230,6 +235,7 @@ struct FileConfig {
     keys: Option<PathBuf>,
     tc_key: Option<PathBuf>,
     tm_key: Option<PathBuf>,
+    tm_sdls: Option<frames::TmSdls>,
     link_state: Option<PathBuf>,
     tm_dest: Option<Vec<SocketAddr>>,
     lab_bare_packets: Option<bool>,
@@ -339,6 +345,7 @@ fn settings(a: Args) -> Result<Settings> {
             tc_key,
             tm_key,
             state,
+            tm_sdls: a.tm_sdls.or(f.tm_sdls).unwrap_or_default(),
         }),
         _ => bail!("the frame link needs all of --frame-udp, --frame-tm-to, --tc-key, --tm-key and --link-state"),
     };
@@ -465,6 +472,9 @@ fn run(args: Args) -> Result<()> {
             mib::link::sdls::TM_SPIS[0],
             fc.state.display()
         );
+        if fc.tm_sdls == frames::TmSdls::Clear {
+            eprintln!("obsw: TM frames without SDLS (--tm-sdls clear): readable and forgeable on the path");
+        }
         down.frames = Some(ep);
     }
     let epoch = SystemTime::now()

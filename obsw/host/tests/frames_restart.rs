@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use ground_link::{create_key_file, Config, Event, FrameLink};
+use ground_link::{create_key_file, Config, Event, FrameLink, TmSecurity};
 use mib::params::pid;
 use mmic_link::fop::{FopConfig, FopState};
 use mmic_link::test_keys::{TEST_KEY_TC_A, TEST_KEY_TC_B, TEST_KEY_TM_A, TEST_KEY_TM_B};
@@ -52,6 +52,17 @@ impl Obsw {
     }
 
     fn start_with(frame: SocketAddr, ground: SocketAddr, dir: &Path, tc_key: &str, tm_key: &str) -> Obsw {
+        Self::start_args(frame, ground, dir, tc_key, tm_key, &[])
+    }
+
+    fn start_args(
+        frame: SocketAddr,
+        ground: SocketAddr,
+        dir: &Path,
+        tc_key: &str,
+        tm_key: &str,
+        extra: &[&str],
+    ) -> Obsw {
         let s = |n: &str| dir.join(n).display().to_string();
         let mut child = Command::new(env!("CARGO_BIN_EXE_obsw"))
             .args(["--robot", "1", "--sim-ctl", "127.0.0.1:0"])
@@ -60,6 +71,7 @@ impl Obsw {
             .args(["--frame-udp", &frame.to_string(), "--frame-tm-to", &ground.to_string()])
             .args(["--tc-key", &s(tc_key), "--tm-key", &s(tm_key)])
             .args(["--link-state", &s("obsw.state")])
+            .args(extra)
             .stdout(Stdio::piped())
             .stderr(std::fs::File::create(dir.join("obsw.stderr")).unwrap())
             .spawn()
@@ -331,5 +343,88 @@ fn link_spi_select_moves_the_real_obsw_to_tc_spi_2_and_tm_spi_18_without_a_tc_lo
     });
     assert_eq!(unknown_spi, Some(1), "the frame under the retired SPI 1 refused");
     assert_eq!(g.counters.alerts, 0, "{events:?}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+// verifies: LINK-TM-04
+#[test]
+fn with_tm_sdls_clear_the_tm_frames_carry_packets_in_clear_and_only_a_clear_ground_reads_them() {
+    let dir = tmp_dir("tm-clear");
+    create_key_file(&dir.join("tc-spi1.key"), &TEST_KEY_TC_A).unwrap();
+    create_key_file(&dir.join("tm-spi17.key"), &TEST_KEY_TM_A).unwrap();
+    let frame = UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap();
+    let mut cfg = Config::from_key_dir(
+        frame,
+        SocketAddr::from(([127, 0, 0, 1], 0)),
+        &dir,
+        &dir.join("ground.state"),
+        1,
+    )
+    .unwrap();
+    cfg.fop.t1_ms = 500;
+    cfg.tm_security = TmSecurity::Clear;
+    let mut g = FrameLink::open(cfg.clone()).unwrap();
+    let ground = g.local_addr().unwrap();
+    let _obsw = Obsw::start_args(
+        frame,
+        ground,
+        &dir,
+        "tc-spi1.key",
+        "tm-spi17.key",
+        &["--tm-sdls", "clear"],
+    );
+    let mut events = Vec::new();
+    let t0 = Instant::now();
+    while g.fop_state() != FopState::Active {
+        g.recv(Duration::from_millis(20)).unwrap();
+        events.extend(g.take_events());
+        assert!(t0.elapsed() < Duration::from_secs(15), "COP-1 initialised: {events:?}");
+    }
+    g.capture(true);
+    ping(&mut g, &mut events, 1);
+    assert_eq!(g.counters.tm.sdls_rejected, 0);
+    assert_eq!(
+        g.tm_last_iv(17),
+        Some((1u128 << 96) - 1),
+        "no TM IV ever accepted: no SDLS on TM"
+    );
+    drop(g);
+    // On the wire: a ping sent as the next AD frame (N(S) = 1, an IV above the ground's),
+    // its reports stand in clear right after the frame header of a VC0 frame.
+    let wire = UdpSocket::bind(ground).unwrap();
+    wire.set_read_timeout(Some(Duration::from_millis(200))).unwrap();
+    let p = tc(2, 17, 1, &[]);
+    let repr = mmic_link::tc::TcRepr {
+        frame_type: mmic_link::tc::FrameType::Ad,
+        scid: mib::link::SCID,
+        vcid: mib::link::tc_vc::COMMAND,
+        seq: 1,
+        data_len: 0,
+    };
+    let mut sa = mmic_link::sdls::TxSa::resume(1, &TEST_KEY_TC_A, 1 << 40);
+    let mut buf = [0u8; 128];
+    let n = mmic_link::sdls::build_tc(
+        &mut sa,
+        &mut mmic_link::sdls::MemoryIvStore::default(),
+        repr,
+        &p,
+        &mut buf,
+    )
+    .unwrap();
+    wire.send_to(&buf[..n], frame).unwrap();
+    let t0 = Instant::now();
+    let mut seen_clear_vc0 = false;
+    let mut b = [0u8; 2048];
+    while !seen_clear_vc0 && t0.elapsed() < Duration::from_secs(10) {
+        if let Ok(n) = wire.recv(&mut b) {
+            let vc = (b[1] >> 1) & 7;
+            if n == 1024 && vc == 0 {
+                // A space packet of robot 1 at the start of the data field, never SPI 17.
+                assert_eq!(u16::from_be_bytes([b[6], b[7]]) & 0x7FF, APID, "{:02x?}", &b[6..12]);
+                seen_clear_vc0 = true;
+            }
+        }
+    }
+    assert!(seen_clear_vc0, "a VC0 frame came down");
     let _ = std::fs::remove_dir_all(&dir);
 }

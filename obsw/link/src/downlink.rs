@@ -2,20 +2,43 @@
 //! ([`TmReceiver`]).
 //!
 //! Virtual channels (`mib::link::tm_vc`): VC0 realtime and VC1 store replay carry packets,
-//! SDLS-protected with the TM SA; VC7 carries idle frames in clear (only idle data, first
-//! header pointer 0x7FE). Every frame carries the CLCW in its OCF — outside the SDLS MAC, as
-//! 355.0-B-2 and Yamcs place it — and a FECF. The master channel frame count runs over all
-//! VCs, each VC has its own count.
+//! SDLS-protected with the TM SA ([`TmSecurity::Encrypt`], the default) or in clear
+//! ([`TmSecurity::Clear`]: no security header or trailer, a 1012-byte packet zone — a
+//! configuration for grounds without SDLS on TM); VC7 carries idle frames in clear (only
+//! idle data, first header pointer 0x7FE). Every frame carries the CLCW in its OCF —
+//! outside the SDLS MAC, as 355.0-B-2 and Yamcs place it — and a FECF. The master channel
+//! frame count runs over all VCs, each VC has its own count.
 
 use core::fmt;
 
-use mib::link::tm_frame::{HEADER_LEN, LEN, SECURE_DATA_LEN};
+use mib::link::tm_frame::{CLEAR_DATA_LEN, HEADER_LEN, LEN, SECURE_DATA_LEN};
 use mib::link::tm_vc;
 
 use crate::clcw::{Clcw, ClcwError};
 use crate::mux::{DemuxCounters, MuxError, PacketDemux, PacketMux, Zone};
 use crate::sdls::{IvStore, RxSas, SdlsError, TxSa};
 use crate::tm::{FirstHeaderPointer, TmError, TmFrame, TmRepr};
+
+/// How the packet-carrying TM frames (VC0, VC1) are protected. Both ends must agree.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TmSecurity {
+    /// SDLS authenticated encryption (AES-256-GCM, the TM SA): 982-byte packet zone.
+    #[default]
+    Encrypt,
+    /// No SDLS: the data field is the 1012-byte packet zone. TM is then readable and
+    /// forgeable on the path (TC frames stay authenticated).
+    Clear,
+}
+
+impl TmSecurity {
+    /// The packet zone of a VC0/VC1 frame.
+    pub fn zone_len(self) -> usize {
+        match self {
+            TmSecurity::Encrypt => SECURE_DATA_LEN,
+            TmSecurity::Clear => CLEAR_DATA_LEN,
+        }
+    }
+}
 
 /// The packet-carrying TM virtual channels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -64,10 +87,11 @@ pub struct TxCounters {
 #[derive(Debug)]
 pub struct Downlink {
     scid: u16,
+    security: TmSecurity,
     mc: u8,
     vc: [u8; 8],
-    rt: PacketMux<SECURE_DATA_LEN>,
-    replay: PacketMux<SECURE_DATA_LEN>,
+    rt: PacketMux<CLEAR_DATA_LEN>,
+    replay: PacketMux<CLEAR_DATA_LEN>,
     pub counters: TxCounters,
 }
 
@@ -77,6 +101,7 @@ struct FrameCtx<'a, S: IvStore, O: FnMut(&[u8])> {
     vc: &'a mut [u8; 8],
     counters: &'a mut TxCounters,
     clcw: u32,
+    security: TmSecurity,
     sa: &'a mut TxSa,
     store: &'a mut S,
     out: O,
@@ -95,12 +120,17 @@ impl<S: IvStore, O: FnMut(&[u8])> FrameCtx<'_, S, O> {
         };
         let mut f = TmFrame::new_unchecked(&mut buf[..]);
         repr.emit(&mut f);
-        let p = HEADER_LEN + mib::link::sdls::HEADER_LEN;
-        buf[p..p + SECURE_DATA_LEN].copy_from_slice(z.data);
-        if let Err(e) = self.sa.apply_tm(self.store, &mut buf) {
-            self.counters.sdls_failed = self.counters.sdls_failed.saturating_add(1);
-            self.err = Some(e);
-            return;
+        match self.security {
+            TmSecurity::Encrypt => {
+                let p = HEADER_LEN + mib::link::sdls::HEADER_LEN;
+                buf[p..p + SECURE_DATA_LEN].copy_from_slice(z.data);
+                if let Err(e) = self.sa.apply_tm(self.store, &mut buf) {
+                    self.counters.sdls_failed = self.counters.sdls_failed.saturating_add(1);
+                    self.err = Some(e);
+                    return;
+                }
+            }
+            TmSecurity::Clear => buf[HEADER_LEN..HEADER_LEN + CLEAR_DATA_LEN].copy_from_slice(z.data),
         }
         let mut f = TmFrame::new_unchecked(&mut buf[..]);
         f.set_ocf(self.clcw);
@@ -114,13 +144,19 @@ impl<S: IvStore, O: FnMut(&[u8])> FrameCtx<'_, S, O> {
 }
 
 impl Downlink {
+    /// A framer with SDLS on VC0/VC1 ([`TmSecurity::Encrypt`]).
     pub fn new(scid: u16) -> Downlink {
+        Downlink::with_security(scid, TmSecurity::Encrypt)
+    }
+
+    pub fn with_security(scid: u16, security: TmSecurity) -> Downlink {
         Downlink {
             scid,
+            security,
             mc: 0,
             vc: [0; 8],
-            rt: PacketMux::default(),
-            replay: PacketMux::default(),
+            rt: PacketMux::with_len(security.zone_len()),
+            replay: PacketMux::with_len(security.zone_len()),
             counters: TxCounters::default(),
         }
     }
@@ -129,7 +165,12 @@ impl Downlink {
         Downlink::new(mib::link::SCID)
     }
 
-    /// Queues a packet on `vc`; `out` receives every frame that fills up.
+    pub fn security(&self) -> TmSecurity {
+        self.security
+    }
+
+    /// Queues a packet on `vc`; `out` receives every frame that fills up. `sa` and `store`
+    /// are not used in [`TmSecurity::Clear`].
     pub fn send(
         &mut self,
         vc: TmVc,
@@ -165,7 +206,7 @@ impl Downlink {
         sa: &mut TxSa,
         store: &mut S,
         out: O,
-        op: impl FnOnce(&mut PacketMux<SECURE_DATA_LEN>, &mut dyn FnMut(Zone<'_>)) -> R,
+        op: impl FnOnce(&mut PacketMux<CLEAR_DATA_LEN>, &mut dyn FnMut(Zone<'_>)) -> R,
     ) -> Result<R, DownlinkError> {
         let mux = match vc {
             TmVc::Realtime => &mut self.rt,
@@ -177,6 +218,7 @@ impl Downlink {
             vc: &mut self.vc,
             counters: &mut self.counters,
             clcw: clcw.emit(),
+            security: self.security,
             sa,
             store,
             out,
@@ -253,15 +295,23 @@ pub struct TmRxCounters {
 #[derive(Debug)]
 pub struct TmReceiver<const N: usize> {
     scid: u16,
+    security: TmSecurity,
     pub sas: RxSas<N>,
     pub demux: [PacketDemux; 2],
     pub counters: TmRxCounters,
 }
 
 impl<const N: usize> TmReceiver<N> {
+    /// A receiver of SDLS-protected TM ([`TmSecurity::Encrypt`]).
     pub fn new(scid: u16, sas: RxSas<N>) -> Self {
+        Self::with_security(scid, TmSecurity::Encrypt, sas)
+    }
+
+    /// A receiver for TM protected as `security` says (the robot's setting).
+    pub fn with_security(scid: u16, security: TmSecurity, sas: RxSas<N>) -> Self {
         TmReceiver {
             scid,
+            security,
             sas,
             demux: [PacketDemux::default(), PacketDemux::default()],
             counters: TmRxCounters::default(),
@@ -328,7 +378,10 @@ impl<const N: usize> TmReceiver<N> {
                 if repr.fhp == FirstHeaderPointer::IdleOnly {
                     return Err(TmRxError::BadFirstHeaderPointer);
                 }
-                let pt = self.sas.process_tm(store, frame).map_err(TmRxError::Sdls)?;
+                let pt = match self.security {
+                    TmSecurity::Encrypt => self.sas.process_tm(store, frame).map_err(TmRxError::Sdls)?,
+                    TmSecurity::Clear => HEADER_LEN..HEADER_LEN + CLEAR_DATA_LEN,
+                };
                 let vc = repr.vcid;
                 self.demux[usize::from(vc & 1)].feed(repr.vc_count, repr.fhp, &frame[pt], |p| out(vc, p));
                 self.counters.frames = self.counters.frames.saturating_add(1);
@@ -363,6 +416,63 @@ mod tests {
         let mut sas = RxSas::default();
         sas.insert(RxSa::new(17, &TEST_KEY_TM_A, 64)).unwrap();
         TmReceiver::new(mib::link::SCID, sas)
+    }
+
+    // verifies: LINK-TM-04
+    #[test]
+    fn clear_tm_frames_carry_packets_in_a_1012_byte_zone_and_each_end_needs_the_same_setting() {
+        let mut dl = Downlink::with_security(mib::link::SCID, TmSecurity::Clear);
+        assert_eq!(dl.security(), TmSecurity::Clear);
+        let mut sa = TxSa::resume(17, &TEST_KEY_TM_A, 0);
+        let mut st = MemoryIvStore::default();
+        let clcw = Farm::mission().clcw();
+        let mut frames: Vec<Vec<u8>> = vec![];
+        let ps: Vec<_> = (0..4).map(|i| packet(100, i, 400)).collect();
+        for p in &ps {
+            dl.send(TmVc::Realtime, p, clcw, &mut sa, &mut st, |f| frames.push(f.to_vec()))
+                .unwrap();
+        }
+        dl.flush(TmVc::Realtime, clcw, &mut sa, &mut st, |f| frames.push(f.to_vec()))
+            .unwrap();
+        // 1600 bytes: one full 1012-byte zone and one flushed; no IV used, nothing stored.
+        assert_eq!(frames.len(), 2);
+        assert_eq!((st.writes, sa.next_iv()), (0, 0));
+        // The first packet starts the data field, in clear, right after the header.
+        assert_eq!(&frames[0][6..6 + 400], &ps[0][..]);
+        let v = TmFrame::new_checked(&frames[0][..]).unwrap();
+        assert!(v.check_fecf());
+        assert_eq!(v.ocf(), clcw.emit());
+        let mut g = TmReceiver::<2>::with_security(mib::link::SCID, TmSecurity::Clear, RxSas::default());
+        let mut got = vec![];
+        for f in &frames {
+            let c = g
+                .receive(&mut MemoryIvStore::default(), &mut f.clone(), |_, p| {
+                    got.push(p.to_vec())
+                })
+                .unwrap();
+            assert_eq!(c, clcw);
+        }
+        assert_eq!(got, ps);
+        // A ground expecting SDLS refuses clear frames (and vice versa reads no packets).
+        let mut g = ground();
+        for f in &frames {
+            assert!(g
+                .receive(&mut MemoryIvStore::default(), &mut f.clone(), |_, _| panic!())
+                .is_err());
+        }
+        assert_eq!(g.counters.sdls_rejected, 2);
+        let mut enc = Downlink::mission();
+        let mut secured = vec![];
+        enc.send(TmVc::Realtime, &ps[0], clcw, &mut sa, &mut st, |_| {})
+            .unwrap();
+        enc.flush(TmVc::Realtime, clcw, &mut sa, &mut st, |f| secured.push(f.to_vec()))
+            .unwrap();
+        let mut g = TmReceiver::<2>::with_security(mib::link::SCID, TmSecurity::Clear, RxSas::default());
+        let mut got = vec![];
+        let _ = g.receive(&mut MemoryIvStore::default(), &mut secured[0].clone(), |_, p| {
+            got.push(p.to_vec())
+        });
+        assert!(!got.contains(&ps[0]), "an encrypted packet never comes out in clear");
     }
 
     // verifies: LINK-TM-01, LINK-TM-02, LINK-SDLS-03

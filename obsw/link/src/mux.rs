@@ -50,10 +50,13 @@ pub enum MuxError {
     NotAPacket,
 }
 
-/// One virtual channel's multiplexer with a packet zone of `Z` bytes.
+/// One virtual channel's multiplexer with a packet zone of `Z` bytes (or fewer, chosen at
+/// run time with [`PacketMux::with_len`]).
 #[derive(Debug)]
 pub struct PacketMux<const Z: usize> {
     zone: [u8; Z],
+    /// The zone length in use (≤ Z).
+    len: usize,
     fill: usize,
     /// Offset of the first packet header in this zone, if any.
     first: Option<usize>,
@@ -63,6 +66,7 @@ impl<const Z: usize> Default for PacketMux<Z> {
     fn default() -> Self {
         PacketMux {
             zone: [0; Z],
+            len: Z,
             fill: 0,
             first: None,
         }
@@ -76,6 +80,19 @@ pub struct Zone<'a> {
 }
 
 impl<const Z: usize> PacketMux<Z> {
+    /// A multiplexer with a packet zone of `len` bytes (at most Z; 1 at least).
+    pub fn with_len(len: usize) -> Self {
+        PacketMux {
+            len: len.clamp(1, Z),
+            ..PacketMux::default()
+        }
+    }
+
+    /// The packet zone length.
+    pub fn zone_len(&self) -> usize {
+        self.len
+    }
+
     /// Appends `packet`; calls `emit` with each zone that fills up (a packet can fill several).
     pub fn push(&mut self, packet: &[u8], mut emit: impl FnMut(Zone<'_>)) -> Result<(), MuxError> {
         if packet_len(packet) != Some(packet.len()) {
@@ -86,11 +103,11 @@ impl<const Z: usize> PacketMux<Z> {
         }
         let mut rest = packet;
         while !rest.is_empty() {
-            let n = rest.len().min(Z - self.fill);
+            let n = rest.len().min(self.len - self.fill);
             self.zone[self.fill..self.fill + n].copy_from_slice(&rest[..n]);
             self.fill += n;
             rest = &rest[n..];
-            if self.fill == Z {
+            if self.fill == self.len {
                 self.emit_zone(&mut emit);
             }
         }
@@ -107,7 +124,7 @@ impl<const Z: usize> PacketMux<Z> {
         if self.fill == 0 {
             return;
         }
-        idle_fill(&mut self.zone[self.fill..]);
+        idle_fill(&mut self.zone[self.fill..self.len]);
         self.emit_zone(&mut emit);
     }
 
@@ -117,7 +134,10 @@ impl<const Z: usize> PacketMux<Z> {
             Some(o) => F::Offset(o as u16),
             None => F::NoPacketStart,
         };
-        emit(Zone { data: &self.zone, fhp });
+        emit(Zone {
+            data: &self.zone[..self.len],
+            fhp,
+        });
         self.fill = 0;
         self.first = None;
     }
