@@ -57,7 +57,7 @@ pub mod tm_frame {
     /// Data field of an SDLS-protected frame (VC0, VC1): 1024 − 6 − 14 − 16 − 4 − 2 = 982.
     pub const SECURE_DATA_LEN: usize =
         LEN - HEADER_LEN - super::sdls::HEADER_LEN - super::sdls::MAC_LEN - OCF_LEN - FECF_LEN;
-    /// Data field of a clear frame (the idle VC): 1024 − 6 − 4 − 2 = 1012.
+    /// Data field of a clear frame (the idle VC; VC0/VC1 with `obsw --tm-sdls clear`): 1024 − 6 − 4 − 2 = 1012.
     pub const CLEAR_DATA_LEN: usize = LEN - HEADER_LEN - OCF_LEN - FECF_LEN;
 }
 
