@@ -270,3 +270,32 @@ fn bad_packets_and_shared_keys_are_refused() {
     assert!(!e.to_string().contains("MMIC"), "never the key");
     let _ = std::fs::remove_file(&st);
 }
+
+// verifies: LINK-GND-01, LINK-PERSIST-02
+#[test]
+fn a_robot_whose_farm_restarts_at_zero_is_followed_after_an_alert() {
+    // A robot that does not persist FARM-1 (V(R) back to 0 after its restart; SDLS
+    // counters kept): the ground's next frames are out of its window; FOP-1 raises an
+    // alert, the link re-initialises from the CLCW and the new packets are delivered once.
+    let st = state("robot-restart");
+    let gsock = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let gaddr = gsock.local_addr().unwrap();
+    drop(gsock);
+    let mut r = Robot::new(gaddr, 0.0, 3);
+    let mut g = link(r.sock.local_addr().unwrap(), gaddr, &st);
+    for i in 0..5 {
+        g.send_packet(&packet(i)).unwrap();
+    }
+    run(&mut g, &mut r, |g, _| g.pending() == 0);
+    assert_eq!(r.executed.len(), 5);
+    r.rx.farm = mmic_link::farm::Farm::mission();
+    for i in 5..10 {
+        g.send_packet(&packet(i)).unwrap();
+    }
+    run(&mut g, &mut r, |g, _| g.pending() == 0);
+    let ev = g.take_events();
+    assert_eq!(g.pending(), 0, "{:?} {:?} {ev:?}", g.counters, g.fop_state());
+    assert_eq!(r.executed, (0..10).map(packet).collect::<Vec<_>>());
+    assert!(g.counters.alerts >= 1);
+    let _ = std::fs::remove_file(&st);
+}
