@@ -222,6 +222,10 @@ params! {
     TEAM_DIR_REFUSED = 174, U32, "", ID, None, "Team: leader directives refused since boot (stale term, ground present, outside the authorisation)";
     TEAM_PERSIST_FAILED = 175, U32, "", ID, None, "Team: writes of the team state (term, vote, roster, authorisation) that failed (each treated as a reset of the node)";
     TEAM_STEPS_EXECUTED = 176, U16, "", ID, None, "Team: authorised plan steps executed on CONTINUE since the authorisation was uploaded";
+    LINK_TM_SPI = 180, U16, "", ID, None, "Space link: the TM SPI in use (17 or 18; LINK_SPI_SELECT; 0 without a frame link)";
+    LINK_TC_SPIS = 181, U8, "", ID, None, "Space link: TC SPIs accepted (bit 0 SPI 1, bit 1 SPI 2: a key loaded and not retired)";
+    LINK_STATE_WRITES = 182, U32, "", ID, None, "Space link: durable writes of the link state record since boot (receive IV and FARM-1 per authentic TC frame, TM IV blocks, SPI selections)";
+    LINK_STATE_BAD_SLOT = 183, U8, "", ID, None, "Space link: at start, the link state slot found torn or corrupt (0 none, 1 slot 0, 2 slot 1); the other slot, one write older, was used";
 }
 
 /// Root modes in which the limits of parameter `id` apply: the regulated servo supply

@@ -43,6 +43,8 @@ pub enum LinkEvent {
 
 /// Number of space-link HK parameters (`pid::LINK_AD_ACCEPTED..=pid::LINK_REJ_CONTROL_RATE`).
 pub const SPACE_LINK_PARAMS: usize = (pid::LINK_REJ_CONTROL_RATE - pid::LINK_AD_ACCEPTED + 1) as usize;
+/// Number of space-link state HK parameters (`pid::LINK_TM_SPI..=pid::LINK_STATE_BAD_SLOT`).
+pub const SPACE_LINK_STATE_PARAMS: usize = (pid::LINK_STATE_BAD_SLOT - pid::LINK_TM_SPI + 1) as usize;
 
 /// Start-up configuration of one robot's OBSW.
 #[derive(Clone, Copy, Debug)]
@@ -144,6 +146,9 @@ pub struct Obsw<S: TmStore> {
     /// Space-link counters kept by the platform (the host's frame endpoint), reported in HK
     /// structure SPACE_LINK: entry `i` is parameter `pid::LINK_AD_ACCEPTED + i`.
     pub space_link: [u32; SPACE_LINK_PARAMS],
+    /// The platform's link state for HK (SPACE_LINK): entry `i` is parameter
+    /// `pid::LINK_TM_SPI + i` (TM SPI, TC SPI mask, state writes, bad slot at start).
+    pub space_link_state: [u32; SPACE_LINK_STATE_PARAMS],
     pub(crate) last_now: u64,
     out: TickOut,
     /// The module set found at boot (issue 24; `services::modules`).
@@ -176,6 +181,7 @@ impl<S: TmStore> Obsw<S> {
             counters: Counters::default(),
             io: IoCounters::default(),
             space_link: [0; SPACE_LINK_PARAMS],
+            space_link_state: [0; SPACE_LINK_STATE_PARAMS],
             last_now: 0,
             out: TickOut::new(),
             modules: Modules::default(),
@@ -300,6 +306,9 @@ impl<S: TmStore> Obsw<S> {
             pid::IO_AB_BYTES_DROPPED => self.io.ab_bytes_dropped as i64,
             pid::LINK_AD_ACCEPTED..=pid::LINK_REJ_CONTROL_RATE => {
                 self.space_link[usize::from(id - pid::LINK_AD_ACCEPTED)] as i64
+            }
+            pid::LINK_TM_SPI..=pid::LINK_STATE_BAD_SLOT => {
+                self.space_link_state[usize::from(id - pid::LINK_TM_SPI)] as i64
             }
             pid::CONFIG_HASH..=pid::MODULES_PRESENT => return self.modules_param(id),
             pid::TEAM_TERM..=pid::TEAM_STEPS_EXECUTED => return self.team_param(id),

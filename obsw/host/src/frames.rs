@@ -33,7 +33,7 @@ use mmic_link::persist::{read_key, Dir, FileIvStore};
 use mmic_link::rx::{RxCounters, RxOutcome, TcReceiver};
 use mmic_link::sdls::{Key, RxSa, RxSas, TxSa};
 use mmic_link::tc::ControlCommand;
-use obsw_core::obsw::SPACE_LINK_PARAMS;
+use obsw_core::obsw::{SPACE_LINK_PARAMS, SPACE_LINK_STATE_PARAMS};
 use obsw_core::services::link::{LinkKeys, LinkSelect};
 
 /// Longest time without a TM frame: then an idle frame carries the CLCW.
@@ -516,6 +516,22 @@ impl FrameEndpoint {
             t.idle_frames,
             t.sdls_failed,
             self.control_rate_limited,
+        ]
+    }
+
+    /// The link state HK values, in MIB order (`pid::LINK_TM_SPI + i`): TM SPI in use, TC
+    /// SPIs accepted (mask), state writes since boot, the slot found bad at start.
+    pub fn hk_state(&self) -> [u32; SPACE_LINK_STATE_PARAMS] {
+        let tc = TC_SPIS
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| self.rx.sas.get(**s).is_some())
+            .fold(0u32, |m, (i, _)| m | 1 << i);
+        [
+            u32::from(self.tm_sas[self.tm_active].spi()),
+            tc,
+            self.store.writes.min(u64::from(u32::MAX)) as u32,
+            self.store.bad_slot().map_or(0, |(slot, _)| slot as u32 + 1),
         ]
     }
 

@@ -607,6 +607,7 @@ fn run(args: Args) -> Result<()> {
                 // HK reports the counters including this frame (an HK request it carries too).
                 if let Some(f) = down.frames.as_ref() {
                     obsw.space_link = f.hk();
+                    obsw.space_link_state = f.hk_state();
                 }
                 if let frames::FrameInput::Packets(packets) = fi {
                     // COP-1 and SDLS deliver each frame once: no packet duplicate window.
@@ -655,6 +656,7 @@ fn run(args: Args) -> Result<()> {
         report_link_events(&mut obsw, sim_ms, &mut reported, &mut down);
         if let Some(f) = down.frames.as_mut() {
             obsw.space_link = f.hk();
+            obsw.space_link_state = f.hk_state();
             obsw.io.tm_dropped = obsw.io.tm_dropped.wrapping_add(f.send_failures);
             let events = f.events();
             for ev in events {

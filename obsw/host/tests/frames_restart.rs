@@ -133,7 +133,7 @@ fn tmp_dir(name: &str) -> PathBuf {
     d
 }
 
-// verifies: LINK-PERSIST-02, LINK-PERSIST-03
+// verifies: LINK-PERSIST-02, LINK-PERSIST-03, LINK-HK-01
 #[test]
 fn after_kill_9_a_captured_frame_is_a_replay_and_the_ground_continues_without_reinitialising() {
     let dir = tmp_dir("restart");
@@ -201,13 +201,16 @@ fn after_kill_9_a_captured_frame_is_a_replay_and_the_ground_continues_without_re
                         r.get(pid::LINK_REJ_REPLAY),
                         r.get(pid::LINK_AD_ACCEPTED),
                         r.get(pid::LINK_FARM_DISCARDED),
+                        r.get(pid::LINK_STATE_WRITES),
                     )
                 });
             }
         }
         hk.is_some()
     });
-    let (replay, accepted, discarded) = hk.unwrap();
+    let (replay, accepted, discarded, writes) = hk.unwrap();
+    // One state write per accepted frame (and the TM IV block reserved at boot).
+    assert!(writes.is_some_and(|w| w >= 4), "{writes:?}");
     assert_eq!(replay, Some(3), "each captured frame refused as a replay");
     // The restarted obsw accepted the three new pings and the HK request (its counters
     // start at boot), nothing else; FARM-1 never saw the replays.
@@ -241,7 +244,7 @@ fn command(g: &mut FrameLink, events: &mut Vec<Event>, raw: &[u8]) -> Result<(),
     out.unwrap()
 }
 
-// verifies: LINK-KEYCHG-01, LINK-KEYCHG-02
+// verifies: LINK-KEYCHG-01, LINK-KEYCHG-02, LINK-HK-01
 #[test]
 fn link_spi_select_moves_the_real_obsw_to_tc_spi_2_and_tm_spi_18_without_a_tc_lost() {
     let dir = tmp_dir("spi");
@@ -330,18 +333,30 @@ fn link_spi_select_moves_the_real_obsw_to_tc_spi_2_and_tm_spi_18_without_a_tc_lo
     let sid = mib::hk::sid::SPACE_LINK.to_be_bytes();
     let hk_req = tc(9, 3, 27, &[sid[0], sid[1]]);
     g.send_packet(&hk_req).unwrap();
-    let mut unknown_spi = None;
+    let mut hk = None;
     until(&mut g, &mut events, Duration::from_secs(15), |t| {
         if let Some((3, 25, d)) = tm(t) {
             if d[..2] == sid {
-                unknown_spi = mib::codec::decode_hk(d)
-                    .ok()
-                    .and_then(|r| r.get(pid::LINK_REJ_UNKNOWN_SPI));
+                hk = mib::codec::decode_hk(d).ok().map(|r| {
+                    [
+                        pid::LINK_REJ_UNKNOWN_SPI,
+                        pid::LINK_TM_SPI,
+                        pid::LINK_TC_SPIS,
+                        pid::LINK_STATE_BAD_SLOT,
+                    ]
+                    .map(|p| r.get(p))
+                });
             }
         }
-        unknown_spi.is_some()
+        hk.is_some()
     });
+    let [unknown_spi, tm_spi, tc_spis, bad_slot] = hk.unwrap();
     assert_eq!(unknown_spi, Some(1), "the frame under the retired SPI 1 refused");
+    assert_eq!(
+        (tm_spi, tc_spis, bad_slot),
+        (Some(18), Some(0b10), Some(0)),
+        "HK shows the SPIs in use"
+    );
     assert_eq!(g.counters.alerts, 0, "{events:?}");
     let _ = std::fs::remove_dir_all(&dir);
 }
