@@ -27,6 +27,7 @@ pub const TESTS: &[Test] = tests![
     framelink_key_record_round_trip_and_refusals,
     framelink_counter_log_rolls_over_and_survives_restart,
     framelink_authenticated_tc_executes_once_replay_and_wrong_mac_refused,
+    framelink_bare_packets_control_frames_and_idle_frames,
 ];
 
 /// RAM-backed NOR flash with NOR semantics (a write only clears bits; erase sets 0xFF).
@@ -375,5 +376,77 @@ fn framelink_authenticated_tc_executes_once_replay_and_wrong_mac_refused() -> Te
     );
     check!(small_frame > 1000, "instruction counter not running");
     check!(big_frame < BUDGET, "largest TC frame takes {} instructions", big_frame);
+    Ok(())
+}
+
+// verifies: FW-LINK-02, FW-LINK-05
+fn framelink_bare_packets_control_frames_and_idle_frames() -> TestResult {
+    static TCS: TcChannel = TcChannel::new();
+    static UP: Counters = Counters::new();
+    static TM: ByteQueue<{ 4 * config::GROUND_FRAME_MAX }> = ByteQueue::new();
+    static DOWN: Counters = Counters::new();
+    let store = FlashIvStore::open(MockFlash::erased(), 0);
+    let mut fl = FrameLink::new(Some(&test_keys()), Default::default(), store);
+    let mut obsw = Obsw::new(
+        Config {
+            robot: 1,
+            epoch_unix_ms: 0,
+        },
+        RingStore::<8192>::default(),
+    );
+    let mut tm_sas: RxSas<1> = RxSas::default();
+    check!(tm_sas.insert(RxSa::new(17, &TEST_KEY_TM_A, 4096)).is_ok());
+    let mut tm_rx = TmReceiver::new(mib::link::SCID, tm_sas);
+    let mut tm_store = MemoryIvStore::default();
+    let mut g = Ground::default();
+    let off = |p: u16| (p - pid::LINK_AD_ACCEPTED) as usize;
+
+    // A bare PUS TC (the old link's format) on the frame link: refused, counted, evented,
+    // not executed.
+    let mut pkt = [0u8; 32];
+    let n = ok!(ping(9, &mut pkt));
+    uplink(&pkt[..n], &TCS, &UP);
+    fl.receive(10, &mut obsw, &TCS, &TM, &DOWN);
+    fl.end_period(10, &mut obsw, &TM, &DOWN);
+    downlink(&TM, &mut tm_rx, &mut tm_store, &mut g);
+    check_eq!(obsw.space_link[off(pid::LINK_REJ_BARE_PACKET)], 1);
+    check_eq!(count(&g, 17, 2), 0);
+    check_eq!(count(&g, 5, 2), 1);
+
+    // Seven Set V(R) = 9 control frames (in clear) within one second: five taken, two
+    // dropped by the rate limit; one LINK_CONTROL_FRAME event per period.
+    let mut bc = [0u8; 16];
+    let repr = TcRepr {
+        frame_type: FrameType::Bc,
+        scid: mib::link::SCID,
+        vcid: mib::link::tc_vc::COMMAND,
+        seq: 0,
+        data_len: 3,
+    };
+    let len = repr.buffer_len();
+    repr.emit(&mut mmic_link::tc::TcFrame::new_unchecked(&mut bc[..len]));
+    bc[5..8].copy_from_slice(&[0x82, 0x00, 9]);
+    mmic_link::fecf::seal(&mut bc[..len]);
+    for i in 0..7u64 {
+        uplink(&bc[..len], &TCS, &UP);
+        fl.receive(100 + 10 * i, &mut obsw, &TCS, &TM, &DOWN);
+        fl.end_period(100 + 10 * i, &mut obsw, &TM, &DOWN);
+    }
+    downlink(&TM, &mut tm_rx, &mut tm_store, &mut g);
+    check_eq!(obsw.space_link[off(pid::LINK_CONTROL_FRAMES)], 5);
+    check_eq!(obsw.space_link[off(pid::LINK_REJ_CONTROL_RATE)], 2);
+    check_eq!(fl.rx.farm.vr(), 9);
+    check_eq!(g.clcw_nr, Some(9), "the CLCW goes out after each control frame");
+
+    // Nothing to send: an idle frame with the CLCW once 100 ms passed without a frame.
+    let frames = g.frames;
+    let idle = tm_rx.counters.idle_frames;
+    fl.end_period(200, &mut obsw, &TM, &DOWN);
+    downlink(&TM, &mut tm_rx, &mut tm_store, &mut g);
+    check_eq!(g.frames, frames, "no idle frame within 100 ms");
+    fl.end_period(260, &mut obsw, &TM, &DOWN);
+    downlink(&TM, &mut tm_rx, &mut tm_store, &mut g);
+    check_eq!(tm_rx.counters.idle_frames, idle + 1);
+    check_eq!(g.clcw_nr, Some(9));
     Ok(())
 }
