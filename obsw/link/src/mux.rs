@@ -124,6 +124,11 @@ impl<const Z: usize> PacketMux<Z> {
         if self.fill == 0 {
             return;
         }
+        // The idle packet is a packet: when no other starts in this zone, the first header
+        // pointer locates it (132.0-B-3 §4.1.2.7; 0xFF fill of 1..=6 bytes is no packet).
+        if self.first.is_none() && self.len - self.fill >= 7 {
+            self.first = Some(self.fill);
+        }
         idle_fill(&mut self.zone[self.fill..self.len]);
         self.emit_zone(&mut emit);
     }

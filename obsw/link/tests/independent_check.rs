@@ -234,3 +234,52 @@ fn python_verifies_tm_frames_clcw_and_rejects_altered_ones() {
     assert_eq!(r["y_flipped.tm"], "BAD mac");
     assert_eq!(r["z_nocrc.tm"], "BAD crc");
 }
+
+// verifies: LINK-IND-01, LINK-TM-04
+#[test]
+fn python_reads_clear_tm_frames_packets_in_a_1012_byte_zone() {
+    use mmic_link::downlink::TmSecurity;
+    let mut st = MemoryIvStore::default();
+    let mut sa = TxSa::resume(17, &TEST_KEY_TM_A, 0);
+    let clcw = Farm::mission().clcw();
+    let mut dl = Downlink::with_security(mib::link::SCID, TmSecurity::Clear);
+    let mut frames: Vec<Vec<u8>> = vec![];
+    let packets: Vec<_> = (0..3)
+        .map(|i| {
+            let mut p = space_packet(0x30, i, 500);
+            p[0] &= 0xEF;
+            p
+        })
+        .collect();
+    for p in &packets {
+        dl.send(TmVc::Realtime, p, clcw, &mut sa, &mut st, |f| frames.push(f.to_vec()))
+            .unwrap();
+    }
+    dl.flush(TmVc::Realtime, clcw, &mut sa, &mut st, |f| frames.push(f.to_vec()))
+        .unwrap();
+    assert_eq!(frames.len(), 2);
+    let mut named: Vec<(String, Vec<u8>)> = frames
+        .iter()
+        .enumerate()
+        .map(|(i, f)| (format!("c{i}.tmclear"), f.clone()))
+        .collect();
+    // The same bytes read as SDLS frames: refused (no SPI 17 there).
+    named.push(("s0.tm".to_string(), frames[0].clone()));
+    let r = run_python(&named);
+    let mut stream = String::new();
+    for i in 0..2 {
+        let l = &r[&format!("c{i}.tmclear")];
+        assert!(l.starts_with("OK "), "{l}");
+        assert_eq!(field(l, "sdls"), "none");
+        assert_eq!(field(l, "vc"), "0");
+        assert_eq!(field(l, "data").len(), 2 * mib::link::tm_frame::CLEAR_DATA_LEN);
+        stream.push_str(field(l, "data"));
+    }
+    assert_eq!(field(&r["c0.tmclear"], "fhp"), "0x000");
+    // The third packet starts at 1000 in the first zone and ends 488 bytes into the second;
+    // the idle packet of the flush starts there, and the first header pointer says so.
+    assert_eq!(field(&r["c1.tmclear"], "fhp"), format!("{:#05x}", 1500 - 1012));
+    let want: String = packets.iter().map(hex::encode).collect();
+    assert!(stream.starts_with(&want), "Python's packet stream differs");
+    assert!(r["s0.tm"].starts_with("BAD "), "{}", r["s0.tm"]);
+}

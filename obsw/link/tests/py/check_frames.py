@@ -10,7 +10,8 @@ Rust code:
   default mask (TC: 00 00 FC 00 00 | FF FF | 12 x 00; TM: 00 0E 00 00 00 00 | FF FF | 12 x 00).
 
 Usage: check_frames.py DIR --key SPI=HEX [--key SPI=HEX ...]
-Reads DIR/*.tc and DIR/*.tm (one frame per file), prints one line per file:
+Reads DIR/*.tc and DIR/*.tm (one frame per file; DIR/*.tmclear: TM frames without SDLS,
+the whole data field is the packet zone), prints one line per file:
     <name> OK <fields...> data=<hex>
     <name> BAD <reason>
 Exit status 0 when every file was examined (BAD lines are results, not failures).
@@ -104,7 +105,7 @@ def clcw_text(word: int) -> str:
     )
 
 
-def check_tm(keys, frame: bytes) -> str:
+def check_tm(keys, frame: bytes, clear: bool = False) -> str:
     if len(frame) < 12:
         return "BAD short"
     if crc16_ccitt_false(frame[:-2]) != int.from_bytes(frame[-2:], "big"):
@@ -125,10 +126,13 @@ def check_tm(keys, frame: bytes) -> str:
     data_end = len(frame) - 6
     if fhp == 0x7FE:
         return f"OK {head} idle=1"
-    try:
-        spi, iv, pt = open_sdls(keys, frame, 6, data_end, TM_MASK)
-    except ValueError as e:
-        return f"BAD {e}"
+    if clear:
+        spi, iv, pt = None, None, frame[6:data_end]
+    else:
+        try:
+            spi, iv, pt = open_sdls(keys, frame, 6, data_end, TM_MASK)
+        except ValueError as e:
+            return f"BAD {e}"
     # The first packet starting in this frame, from the first header pointer.
     first = ""
     if fhp != 0x7FF and fhp + 6 <= len(pt):
@@ -136,7 +140,8 @@ def check_tm(keys, frame: bytes) -> str:
         apid = int.from_bytes(ph[0:2], "big") & 0x7FF
         plen = int.from_bytes(ph[4:6], "big") + 7
         first = f" first_apid={apid} first_len={plen}"
-    return f"OK {head} spi={spi} iv={iv}{first} data={pt.hex()}"
+    sec = "sdls=none" if clear else f"spi={spi} iv={iv}"
+    return f"OK {head} {sec}{first} data={pt.hex()}"
 
 
 def main(argv) -> int:
@@ -160,6 +165,8 @@ def main(argv) -> int:
             print(f"{path.name} {check_tc(keys, frame)}")
         elif path.suffix == ".tm":
             print(f"{path.name} {check_tm(keys, frame)}")
+        elif path.suffix == ".tmclear":
+            print(f"{path.name} {check_tm(keys, frame, clear=True)}")
     return 0
 
 
