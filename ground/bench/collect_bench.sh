@@ -38,7 +38,7 @@ if "$BIN/obsw" --help | grep -q -- --tm-log; then TMLOG=1; fi
 
 CFG="$WORK/collector.toml"
 {
-    echo 'transport = "udp"'
+    echo 'transport = "lab-udp"'   # the bare-packet lab link: the collector's own cost
     for r in $(seq 1 "$N"); do
         printf '[[robot]]\nnumber = %d\naddr = "127.0.0.1:%d"\nhk_interval_ms = 100\n' "$r" "$((BASE + r))"
     done
@@ -48,7 +48,7 @@ CFG="$WORK/collector.toml"
 for r in $(seq 1 "$N"); do
     EXTRA=()
     [ "$TMLOG" = 1 ] && EXTRA=(--tm-log "$WORK/tm-$r.hex")
-    "$BIN/obsw" --robot "$r" --udp "127.0.0.1:$((BASE + r))" --sim-ctl "127.0.0.1:$((BASE + 1000 + r))" \
+    "$BIN/obsw" --robot "$r" --lab-bare-packets --udp "127.0.0.1:$((BASE + r))" --sim-ctl "127.0.0.1:$((BASE + 1000 + r))" \
         "${EXTRA[@]}" >/dev/null 2>"$WORK/obsw-$r.log" &
     PIDS+=($!)
 done

@@ -36,9 +36,9 @@ NOW_MS=$(($(date +%s%3N)))
 "$BIN/ground" --archive "$WORK/a.db" archive import "$WORK/day.bin" --robot 1 > /dev/null
 
 INTERVAL=$((1000 / HZ))
-: > "$WORK/collect.toml"
+echo 'transport = "lab-udp"' > "$WORK/collect.toml"   # the bare-packet lab link
 for n in $(seq 1 "$N"); do
-    "$BIN/obsw" --robot "$n" --udp "127.0.0.1:$((BASE + 2 * n))" --sim-ctl "127.0.0.1:$((BASE + 2 * n + 1))" \
+    "$BIN/obsw" --robot "$n" --lab-bare-packets --udp "127.0.0.1:$((BASE + 2 * n))" --sim-ctl "127.0.0.1:$((BASE + 2 * n + 1))" \
         --seed "$n" > /dev/null 2>&1 &
     PIDS+=($!)
     printf '[[robot]]\nnumber = %d\naddr = "127.0.0.1:%d"\nhk_interval_ms = %d\n' "$n" $((BASE + 2 * n)) "$INTERVAL" \

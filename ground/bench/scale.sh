@@ -20,7 +20,7 @@ trap cleanup EXIT
 
 # One OBSW per robot.
 for r in $(seq 1 "$N"); do
-    "$BIN/obsw" --robot "$r" --udp "127.0.0.1:$((BASE + r))" --sim-ctl "127.0.0.1:$((BASE + 1000 + r))" \
+    "$BIN/obsw" --robot "$r" --lab-bare-packets --udp "127.0.0.1:$((BASE + r))" --sim-ctl "127.0.0.1:$((BASE + 1000 + r))" \
         >/dev/null 2>"$WORK/obsw-$r.log" &
     PIDS+=($!)
 done
@@ -41,7 +41,7 @@ for r in $(seq 1 "$N"); do ROBOTS+=(--robot "$r=127.0.0.1:$((BASE + r))"); done
 
 DB="$WORK/scale.db"
 /usr/bin/time -f "%U %S %e %M" -o "$WORK/time" \
-    "$BIN/ground" --archive "$DB" run "$PLAN" --plain "${ROBOTS[@]}" > "$WORK/run.out" 2> "$WORK/run.err" || {
+    "$BIN/ground" --archive "$DB" run "$PLAN" --plain --lab-udp "${ROBOTS[@]}" > "$WORK/run.out" 2> "$WORK/run.err" || {
     tail -20 "$WORK/run.out" "$WORK/run.err"; exit 1; }
 tail -n 3 "$WORK/run.out" | head -n 2 || true
 read -r USR SYS WALL MAXKB < "$WORK/time"

@@ -5,6 +5,7 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::io::BufRead;
+use std::net::SocketAddr;
 use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -349,7 +350,7 @@ fn count_before(line: &str, label: &str) -> u64 {
         .unwrap()
 }
 
-// verifies: LINK-GND-02
+// verifies: LINK-GND-02, OPS-LINK-DEFAULT-01, OPS-ENGINE-01
 #[test]
 fn the_collector_follows_a_robot_over_frames_and_archives_each_tm_once() {
     let dir = tmpdir("frames", "collect");
@@ -368,7 +369,10 @@ fn the_collector_follows_a_robot_over_frames_and_archives_each_tm_once() {
     assert_eq!(out.status.code(), Some(3), "{}", text(&out));
     assert!(text(&out).contains("keys = \"DIR\""), "{}", text(&out));
 
-    let mut args: Vec<String> = vec!["collect".into(), "--plain".into()];
+    // The collector with its page, over frames (the default link): the page's TCs go
+    // through the collector's link, FOP-1 and SDLS.
+    let web: SocketAddr = ([127, 0, 0, 1], common::free_port()).into();
+    let mut args: Vec<String> = vec!["collect".into(), "--plain".into(), "--http".into(), web.to_string()];
     args.extend(o.frame_args(1, &keys));
     let mut c = Command::new(GROUND)
         .current_dir(&dir)
@@ -377,7 +381,36 @@ fn the_collector_follows_a_robot_over_frames_and_archives_each_tm_once() {
         .stderr(Stdio::null())
         .spawn()
         .unwrap();
-    std::thread::sleep(Duration::from_secs(8));
+    common::wait_for(30, "the robot up on the page", || {
+        let s = std::panic::catch_unwind(|| common::http(web, "GET", "/api/snapshot", None).1).ok()?;
+        (s["robots"][0]["link"] == "up").then_some(())
+    });
+    let stages_of = |id: &str| {
+        common::wait_for(30, "the page's TC completed", || {
+            let (_, c) = common::http(web, "GET", &format!("/api/tc/{id}"), None);
+            let s = c["stages"].as_array().cloned().unwrap_or_default();
+            s.iter().any(|x| x["stage"] == "completion").then_some(s)
+        })
+    };
+    let (st, r) = common::http(
+        web,
+        "POST",
+        "/api/tc",
+        Some(serde_json::json!({"robot": 1, "name": "PING", "args": {}})),
+    );
+    assert_eq!(st, 200, "{r}");
+    let stages = stages_of(r["request_id"].as_str().unwrap());
+    assert!(stages.iter().all(|s| s["success"] == true), "{stages:?}");
+    let mode = serde_json::json!({"robot": 1, "name": "MODE_SET", "confirm": true,
+        "args": {"node": "ROBOT", "mode": "OPERATIONAL", "submode": 0}});
+    let (st, r) = common::http(web, "POST", "/api/tc", Some(mode));
+    assert_eq!(st, 200, "{r}");
+    let stages = stages_of(r["request_id"].as_str().unwrap());
+    assert!(
+        stages.iter().all(|s| s["success"] == true),
+        "MODE_SET from the page over frames: {stages:?}"
+    );
+    std::thread::sleep(Duration::from_secs(2));
     Command::new("kill")
         .args(["-TERM", &c.id().to_string()])
         .status()
@@ -399,6 +432,15 @@ fn the_collector_follows_a_robot_over_frames_and_archives_each_tm_once() {
         }
     }
     assert!(seqs.len() >= 10, "TM over frames archived: {seqs:?}");
+    // The page's TCs are archived by the collector, once each.
+    let out = ground(&dir, &["archive", "query", "--type", "tc", "--json"]);
+    let page: Vec<String> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .filter(|v| v["step"] == "collect:page")
+        .map(|v| v["name"].as_str().unwrap_or("").to_string())
+        .collect();
+    assert_eq!(page, ["PING", "MODE_SET"], "the page's TCs archived");
     assert!(seqs.values().all(|&n| n == 1), "each TM once: {seqs:?}");
     let (lo, hi) = (*seqs.keys().next().unwrap(), *seqs.keys().last().unwrap());
     assert_eq!(seqs.len() as i64, hi - lo + 1, "no gap: {seqs:?}");

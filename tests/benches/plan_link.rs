@@ -23,7 +23,7 @@ fn run(faults: Faults, seed: u64) -> (f64, bool) {
     let status = Command::new(bin("ground"))
         .args(["--no-archive", "run"])
         .arg(&plan)
-        .args(["--robot", &format!("1={}", relay.udp), "--plain"])
+        .args(["--lab-udp", "--robot", &format!("1={}", relay.udp), "--plain"])
         .stdout(Stdio::null())
         .stderr(Stdio::null())
         .status()

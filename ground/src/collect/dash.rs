@@ -44,7 +44,9 @@ pub enum DashCmd {
         def: &'static mib::tc::TcDef,
         args: Vec<i64>,
         origin: String,
-        reply: Sender<Result<crate::pus::BuiltTc, String>>,
+        /// The TC sent, and whether the link is a lab link (packet resends; false over
+        /// frames, where COP-1 retransmits).
+        reply: Sender<Result<(crate::pus::BuiltTc, bool), String>>,
     },
     /// Send these bytes again: a plan TC resent unchanged.
     Resend { bytes: Vec<u8> },

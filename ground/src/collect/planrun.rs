@@ -5,10 +5,11 @@
 //! ([`DashCmd::PlanTc`]): its link and its TC sequence counter, the same as the page's
 //! single TCs, so a request ID is never used twice on an APID. That thread hands the
 //! run every verification report and event it receives and tells it when the link is
-//! lost ([`PlanInput`]). [`Resender`] resends a TC with identical bytes on the MIB's
-//! retry schedule until its outcome arrives, as `ground run`'s session does; the
-//! collector's thread already renews the downlink lease, watches the link and asks the
-//! on-board store for every hole, so the run sends no heartbeats of its own. Every
+//! lost ([`PlanInput`]). The run awaits its TCs in an [`crate::ops::TcBook`], the book
+//! `ground run`'s session uses: the same resend, acceptance, damaged-copy and give-up
+//! rules (no packet resend over frames, none after acceptance). The collector's thread
+//! already renews the downlink lease, watches the link and asks the on-board store for
+//! every hole, so the run sends no heartbeats of its own. Every
 //! change of the run is published to the hub ([`Hub::plan`]), which streams it to the
 //! page.
 //!
@@ -16,7 +17,6 @@
 //! (`plans = [...]`, `config::PlanCfg`), which robots are busy, and the start checks
 //! (unknown plan, robot not followed, hazardous TCs not confirmed, robot busy).
 
-mod resender;
 mod run;
 
 #[cfg(test)]
@@ -35,7 +35,6 @@ use crate::pus::Tm;
 use super::config::PlanCfg;
 use super::dash::DashCmd;
 
-pub use resender::{Resend, Resender};
 use run::Run;
 pub use run::{outcome, view};
 
@@ -189,7 +188,8 @@ impl PlanBook {
             hub: self.hub.clone(),
             robots,
             input,
-            resender: Resender::default(),
+            book: crate::ops::TcBook::default(),
+            lab: BTreeMap::new(),
             lost: None,
         };
         tracing::info!("plan run {run_id}: started from the dashboard");

@@ -111,6 +111,9 @@ pub struct Worker {
     link: Option<Link>,
     /// Another ground process holds the robot (said once until the link opens).
     held_elsewhere: bool,
+    /// The page's single TCs awaited: the one set of commanding rules (`ops::book`):
+    /// resent until accepted on a lab link, never after; over frames COP-1 delivers.
+    page_tcs: crate::ops::TcBook,
     tx: Sender<Incoming>,
     rx: Receiver<Incoming>,
     state: LinkState,
@@ -190,6 +193,7 @@ impl Worker {
             tc_seq: crate::ops::first_tc_seq(None),
             link: None,
             held_elsewhere: false,
+            page_tcs: crate::ops::TcBook::default(),
             tx,
             rx,
             state: LinkState::Connecting,

@@ -6,7 +6,7 @@ use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
 use crossbeam_channel::Receiver;
-use mib::config::{tc_retry_wait_ms, LINK_LOSS_MS, TC_RETRY_INITIAL_MS, TC_RETRY_MAX};
+use mib::config::{LINK_LOSS_MS, TC_RETRY_INITIAL_MS, TC_RETRY_MAX};
 use mib::events::eid;
 use mib::params::pid;
 use mib::tc::TcDef;
@@ -15,6 +15,7 @@ use crate::archive::{now_ms, ArchiveSender, Record};
 use crate::link::{FrameOptions, FrameStats, Incoming, Link, Transport};
 use crate::pus::{self, BuiltTc, DecodeError, Event, Hk, SeqCounters, Stage, Tm, TmBody, Verification};
 
+use super::book::{Due, Pending, TcBook, Verdict};
 use super::*;
 
 /// Sequence counts skipped after the archived ones when a ground process starts: more
@@ -38,38 +39,6 @@ pub fn first_tc_seq(archived_next: Option<u16>) -> u16 {
                 .map_or(0, |d| d.subsec_nanos() ^ d.as_secs() as u32);
             (n % u32::from(SEQ_MOD)) as u16
         }
-    }
-}
-
-/// A TC waiting for verification.
-#[derive(Clone, Debug)]
-pub struct Pending {
-    pub robot: u8,
-    pub tc: BuiltTc,
-    pub tag: Option<usize>,
-    pub label: Option<String>,
-    pub first_sent: Instant,
-    pub last_sent: Instant,
-    pub sends: u32,
-    pub accepted: bool,
-    /// Most sends of this TC (1 for a connection test).
-    pub max_sends: u32,
-    /// Never resent (a TC adopted from an interrupted run: its outcome is asked of the
-    /// on-board store).
-    pub exhausted: bool,
-    /// Over frames: `sends` counts waits, the packet went to the link once.
-    pub waits_only: bool,
-    /// The robot's newest TM sequence count when the TC went out: its reports come after
-    /// it, so a gap after it is asked of the store first.
-    pub tm_seq_at_send: Option<u16>,
-}
-
-impl Pending {
-    /// Resent while it waits for acceptance. After acceptance it is never resent: its
-    /// completion is awaited on the step's own timeout, and a completion report lost on
-    /// the way is a TM gap, filled from the on-board store.
-    fn resendable(&self) -> bool {
-        !self.exhausted && !self.accepted
     }
 }
 
@@ -159,7 +128,8 @@ pub struct Session {
     links: BTreeMap<u8, Link>,
     rx: Receiver<Incoming>,
     seq: SeqCounters,
-    pending: HashMap<(u16, u16), Pending>,
+    /// The TCs awaited, with the one set of commanding rules ([`TcBook`]).
+    book: TcBook,
     archive: Option<ArchiveSender>,
     pub robots: BTreeMap<u8, RobotStatus>,
     /// First wait for a report before resending (later waits grow, see
@@ -213,7 +183,7 @@ impl Session {
             links,
             rx,
             seq,
-            pending: HashMap::new(),
+            book: TcBook::default(),
             archive,
             robots: status,
             ack_timeout: Duration::from_millis(TC_RETRY_INITIAL_MS as u64),
@@ -268,24 +238,10 @@ impl Session {
                 attempt: 1,
             });
         }
-        let now = Instant::now();
-        self.pending.insert(
-            (tc.apid, tc.seq),
-            Pending {
-                robot,
-                tc: tc.clone(),
-                tag,
-                label,
-                first_sent: now,
-                last_sent: now,
-                sends: 1,
-                accepted: false,
-                max_sends: max_sends.unwrap_or(self.max_resends + 1),
-                exhausted: false,
-                waits_only: false,
-                tm_seq_at_send,
-            },
-        );
+        let mut p = Pending::sent(robot, tc.clone(), tag, label, Instant::now());
+        p.max_sends = max_sends.unwrap_or(self.max_resends + 1);
+        p.tm_seq_at_send = tm_seq_at_send;
+        self.book.insert(p);
         Ok(tc)
     }
 
@@ -293,36 +249,23 @@ impl Session {
     /// request ID), without sending it again: its reports, live or replayed from the
     /// on-board store, come back through [`Session::poll`] with `tag`. It is never resent.
     pub fn adopt(&mut self, robot: u8, tc: BuiltTc, tag: Option<usize>, label: Option<String>, accepted: bool) {
-        let now = Instant::now();
-        // Sent by an earlier session: its reports may be anywhere in the store.
-        let tm_seq_at_send = None;
-        self.pending.insert(
-            (tc.apid, tc.seq),
-            Pending {
-                robot,
-                tc,
-                tag,
-                label,
-                first_sent: now,
-                last_sent: now,
-                sends: 1,
-                accepted,
-                max_sends: 1,
-                exhausted: true,
-                waits_only: false,
-                tm_seq_at_send,
-            },
-        );
+        // Sent by an earlier session: its reports may be anywhere in the store
+        // (`tm_seq_at_send` unknown); never resent.
+        let mut p = Pending::sent(robot, tc, tag, label, Instant::now());
+        p.accepted = accepted;
+        p.max_sends = 1;
+        p.exhausted = true;
+        self.book.insert(p);
     }
 
     /// True if the TC with this request ID is still waiting for its outcome.
     pub fn is_pending(&self, tc: &BuiltTc) -> bool {
-        self.pending.contains_key(&(tc.apid, tc.seq))
+        self.book.contains(tc)
     }
 
     /// Whether the TC with this request ID was accepted (`None`: not tracked).
     pub fn accepted(&self, tc: &BuiltTc) -> Option<bool> {
-        self.pending.get(&(tc.apid, tc.seq)).map(|p| p.accepted)
+        self.book.get(tc.apid, tc.seq).map(|p| p.accepted)
     }
 
     /// True if a CLCW acknowledged the TC's frame (frame links only): COP-1 delivered it.
@@ -332,25 +275,17 @@ impl Session {
 
     /// True if a TC of `robot` is still waiting for acceptance or completion.
     pub fn busy(&self, robot: u8) -> bool {
-        self.pending.values().any(|p| p.robot == robot)
+        self.book.values().any(|p| p.robot == robot)
     }
 
     /// True if a TC of `robot` other than a heartbeat is waiting for its outcome.
     pub fn commanding(&self, robot: u8) -> bool {
-        self.pending.values().any(|p| p.robot == robot && p.max_sends > 1)
-    }
-
-    /// Waits with when the wait after send `sends` of `p` ends.
-    fn resend_due(&self, p: &Pending) -> Instant {
-        let first = self.ack_timeout.as_millis() as u64;
-        // The MIB's schedule, scaled to this session's first wait.
-        let ms = tc_retry_wait_ms(p.sends.saturating_sub(1)) as u64 * first / TC_RETRY_INITIAL_MS.max(1) as u64;
-        p.last_sent + Duration::from_millis(ms)
+        self.book.values().any(|p| p.robot == robot && p.max_sends > 1)
     }
 
     /// Forgets a pending TC (e.g. after its step timed out).
     pub fn forget(&mut self, tc: &BuiltTc) {
-        self.pending.remove(&(tc.apid, tc.seq));
+        self.book.forget(tc);
     }
 
     /// Waits up to `max_wait` for traffic; handles resends. Returns what happened.
@@ -359,12 +294,8 @@ impl Session {
         let deadline = Instant::now() + max_wait;
         loop {
             let now = Instant::now();
-            let next_resend = self
-                .pending
-                .values()
-                .filter(|p| p.resendable())
-                .map(|p| self.resend_due(p))
-                .min();
+            self.book.first_wait = self.ack_timeout;
+            let next_resend = self.book.next_due();
             let until = next_resend.map_or(deadline, |r| r.min(deadline));
             let until = until.min(now + Duration::from_millis(100));
             let wait = until.saturating_duration_since(now);
@@ -412,7 +343,7 @@ impl Session {
         }
         // Nothing more is resent to a robot that does not answer; its steps end with the
         // link loss.
-        self.pending.retain(|_, p| !lost.contains(&p.robot));
+        self.book.retain(|p| !lost.contains(&p.robot));
     }
 
     /// What COP-1 did on `robot`'s frame link (`None`: a bare-packet link).
@@ -436,7 +367,7 @@ impl Session {
     /// hold the next back).
     pub fn retrieving(&self, robot: u8) -> bool {
         let wait = self.ack_timeout * RETRIEVAL_WAITS;
-        self.pending
+        self.book
             .values()
             .any(|p| p.robot == robot && p.label.as_deref() == Some(GAP_LABEL) && p.first_sent.elapsed() < wait)
     }
@@ -457,7 +388,7 @@ impl Session {
     /// its reports are), oldest first; empty if none waits or nothing is missing.
     pub fn awaited_gaps(&self, robot: u8) -> Vec<(u16, u16)> {
         let since = self
-            .pending
+            .book
             .values()
             .filter(|p| p.robot == robot && p.label.as_deref() != Some(GAP_LABEL))
             .filter_map(|p| p.tm_seq_at_send.map(|s| (p.first_sent, s)))
@@ -512,72 +443,63 @@ impl Session {
 
     fn check_resends(&mut self, out: &mut Vec<Update>) {
         let now = Instant::now();
-        self.pending.retain(|_, p| {
+        // An untagged accepted TC (`send`, a heartbeat) is awaited a little, not forever.
+        self.book.retain(|p| {
             p.tag.is_some() || !p.accepted || now.saturating_duration_since(p.last_sent) < UNTAGGED_COMPLETION_WAIT
         });
-        let mut gave_up = Vec::new();
-        let due: Vec<((u16, u16), Instant)> = self
-            .pending
-            .iter()
-            .filter(|(_, p)| p.resendable())
-            .map(|(k, p)| (*k, self.resend_due(p)))
-            .collect();
-        for (key, at) in due {
-            let Some(p) = self.pending.get_mut(&key) else { continue };
-            if now < at {
-                continue;
-            }
-            if let Some(r) = self.robots.get_mut(&p.robot) {
+        self.book.first_wait = self.ack_timeout;
+        let links = &self.links;
+        let due = self
+            .book
+            .on_tick(now, |robot| links.get(&robot).is_some_and(Link::resends_packets));
+        for d in due {
+            if let Some(r) = self.robots.get_mut(&d.robot()) {
                 r.exchange(false);
             }
-            if p.sends >= p.max_sends {
-                gave_up.push(key);
-                continue;
-            }
-            if self.links.get(&p.robot).is_some_and(|l| !l.resends_packets()) {
-                // Over frames COP-1 retransmits: the packet is not sent again, the wait
-                // runs on the same schedule (and ends the same way) without a resend.
-                p.sends += 1;
-                p.last_sent = now;
-                p.waits_only = true;
-                continue;
-            }
-            if let Some(link) = self.links.get(&p.robot) {
-                // A failing send is the same as a lost packet: the next timeout retries.
-                let _ = link.send(&p.tc.bytes);
-            }
-            p.sends += 1;
-            p.last_sent = now;
-            if let Some(a) = &self.archive {
-                a.send(Record::Tc {
-                    t_ms: now_ms(),
-                    tc: p.tc.clone(),
-                    step: runs::archived_label(p.label.as_deref(), self.run_id.as_deref()),
-                    attempt: p.sends,
-                });
-            }
-            out.push(Update::Resent {
-                robot: p.robot,
-                tag: p.tag,
-                tc: p.tc.def.name,
-                send: p.sends,
-            });
-        }
-        for k in gave_up {
-            if let Some(p) = self.pending.remove(&k) {
-                // Over frames a TC whose frame a CLCW acknowledged reached the on-board
-                // software: like an accepted one, its outcome is asked of the store.
-                let delivered = self
-                    .links
-                    .get(&p.robot)
-                    .is_some_and(|l| l.delivered(p.tc.apid, p.tc.seq));
-                out.push(Update::GaveUp {
-                    robot: p.robot,
-                    tag: p.tag,
-                    tc: p.tc.def.name,
-                    sends: if p.waits_only { 1 } else { p.sends },
-                    accepted: p.accepted || delivered,
-                });
+            match d {
+                Due::Resend {
+                    robot,
+                    tag,
+                    tc,
+                    label,
+                    send,
+                } => {
+                    if let Some(link) = self.links.get(&robot) {
+                        // A failing send is the same as a lost packet: the next wait retries.
+                        let _ = link.send(&tc.bytes);
+                    }
+                    let name = tc.def.name;
+                    if let Some(a) = &self.archive {
+                        a.send(Record::Tc {
+                            t_ms: now_ms(),
+                            tc,
+                            step: runs::archived_label(label.as_deref(), self.run_id.as_deref()),
+                            attempt: send,
+                        });
+                    }
+                    out.push(Update::Resent {
+                        robot,
+                        tag,
+                        tc: name,
+                        send,
+                    });
+                }
+                Due::Waited { .. } => {}
+                Due::GaveUp(p) => {
+                    // Over frames a TC whose frame a CLCW acknowledged reached the on-board
+                    // software: like an accepted one, its outcome is asked of the store.
+                    let delivered = self
+                        .links
+                        .get(&p.robot)
+                        .is_some_and(|l| l.delivered(p.tc.apid, p.tc.seq));
+                    out.push(Update::GaveUp {
+                        robot: p.robot,
+                        tag: p.tag,
+                        tc: p.tc.def.name,
+                        sends: if p.waits_only { 1 } else { p.sends },
+                        accepted: p.accepted || delivered,
+                    });
+                }
             }
         }
     }
@@ -635,44 +557,9 @@ impl Session {
         }
         match tm.body {
             TmBody::Verification(v) => {
-                let key = (v.request.apid(), v.request.seq());
-                let mut tag = None;
-                let mut name = None;
-                let mut after = None;
-                let mut finished = false;
-                // The ground builds every TC from the MIB and checks it as the OBSW's
-                // acceptance does (CRC, length, version, APID, service, argument lengths and
-                // ranges): a TM[1,2] with one of those codes is about a copy damaged on the
-                // way (the order of the on-board checks lets a flipped header bit show as
-                // any of them), not about the TC.
-                let damaged = !v.success
-                    && v.stage == Stage::Acceptance
-                    && v.failure
-                        .as_ref()
-                        .is_some_and(|f| mib::tc::ACCEPTANCE_FAILURES.iter().any(|c| c.code() == f.code));
-                let frames = self.links.get(&robot).is_some_and(|l| !l.resends_packets());
-                if damaged && !frames {
-                    if let Some(p) = self.pending.get_mut(&key) {
-                        // Resend at once (same bytes); it counts as a send, so a TC that
-                        // only ever gets such answers ends after its sends.
-                        if p.sends < p.max_sends {
-                            if let Some(link) = self.links.get(&p.robot) {
-                                let _ = link.send(&p.tc.bytes);
-                            }
-                            p.sends += 1;
-                        }
-                        p.last_sent = Instant::now();
-                        out.push(Update::DamagedCopy {
-                            robot,
-                            tag: p.tag,
-                            tc: p.tc.def.name,
-                        });
-                    }
-                    return;
-                }
                 if let Some(p) = self
-                    .pending
-                    .get(&key)
+                    .book
+                    .get(v.request.apid(), v.request.seq())
                     .filter(|p| p.label.as_deref() == Some(START_LABEL))
                 {
                     // A start marker's reports follow each other on board: TM[1,1] has
@@ -686,33 +573,43 @@ impl Session {
                         s.run_first_seq.get_or_insert(f);
                     }
                 }
-                if let Some(p) = self.pending.get_mut(&key) {
-                    tag = p.tag;
-                    name = Some(p.tc.def.name);
-                    after = Some(p.first_sent.elapsed());
-                    if v.stage == Stage::Acceptance && !p.accepted {
-                        p.accepted = true;
-                        if let Some(s) = self.robots.get_mut(&p.robot) {
-                            s.exchange(true);
+                let lab = self.links.get(&robot).is_some_and(Link::resends_packets);
+                match self.book.on_verification(robot, &v, Instant::now(), lab) {
+                    Verdict::DamagedCopy { robot, tag, tc, resend } => {
+                        if let (Some(bytes), Some(link)) = (resend, self.links.get(&robot)) {
+                            let _ = link.send(&bytes);
                         }
+                        out.push(Update::DamagedCopy { robot, tag, tc });
                     }
-                    // A TC is finished by its completion report or any failure; TCs
-                    // that do not ask for completion finish with acceptance.
-                    let wants_completion = p.tc.bytes.get(6).is_some_and(|b| b & 0x01 != 0);
-                    finished = !v.success
-                        || v.stage == Stage::Completion
-                        || (!wants_completion && v.stage == Stage::Acceptance);
+                    Verdict::Report {
+                        robot: r,
+                        tag,
+                        tc,
+                        after,
+                        newly_accepted,
+                        finished: _,
+                    } => {
+                        if newly_accepted {
+                            if let Some(s) = self.robots.get_mut(&r) {
+                                s.exchange(true);
+                            }
+                        }
+                        out.push(Update::Verification {
+                            robot,
+                            tag,
+                            tc: Some(tc),
+                            v,
+                            after: Some(after),
+                        });
+                    }
+                    Verdict::Unknown => out.push(Update::Verification {
+                        robot,
+                        tag: None,
+                        tc: None,
+                        v,
+                        after: None,
+                    }),
                 }
-                if finished {
-                    self.pending.remove(&key);
-                }
-                out.push(Update::Verification {
-                    robot,
-                    tag,
-                    tc: name,
-                    v,
-                    after,
-                });
             }
             TmBody::StoreDownlinkDone {
                 oldest_seq,

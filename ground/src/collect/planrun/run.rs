@@ -8,11 +8,12 @@ use crossbeam_channel::{Receiver, RecvTimeoutError, Sender};
 
 use crate::collect::dash::DashCmd;
 use crate::dashboard::{request_id, Hub, PlanRun};
+use crate::ops::book::{Due, Pending, TcBook, Verdict};
 use crate::ops::{Effect, Executor, RunOptions, StepState, Update};
 use crate::plan::Plan;
 use crate::pus::{BuiltTc, TmBody};
 
-use super::{PlanInput, Resend, Resender};
+use super::PlanInput;
 
 /// How long a run waits for a robot's thread to take a TC.
 const SEND_TIMEOUT: Duration = Duration::from_secs(2);
@@ -57,7 +58,11 @@ pub(super) struct Run {
     pub(super) hub: Hub,
     pub(super) robots: BTreeMap<u8, Sender<DashCmd>>,
     pub(super) input: Receiver<PlanInput>,
-    pub(super) resender: Resender,
+    /// The run's TCs awaited: the one set of commanding rules (`ops::book`), as in
+    /// `ground run`.
+    pub(super) book: TcBook,
+    /// Robots whose link is a lab link (packet resends), learned as TCs go out.
+    pub(super) lab: BTreeMap<u8, bool>,
     pub(super) lost: Option<String>,
 }
 
@@ -75,9 +80,7 @@ impl Run {
         loop {
             let fx = exec.on_tick(Instant::now());
             self.apply(&mut exec, fx);
-            let (updates, resends) = self.resender.on_tick(Instant::now());
-            self.resend(resends);
-            for u in updates {
+            for u in self.tick(Instant::now()) {
                 let fx = exec.on_update(Instant::now(), u);
                 self.apply(&mut exec, fx);
             }
@@ -127,9 +130,24 @@ impl Run {
             }
             PlanInput::Tm { robot, tm } => match tm.body {
                 TmBody::Verification(v) => {
-                    let (u, resends) = self.resender.on_verification(robot, v, now);
-                    self.resend(resends);
-                    u
+                    let lab = self.lab.get(&robot).copied().unwrap_or(false);
+                    match self.book.on_verification(robot, &v, now, lab) {
+                        // Not a plan TC (the page's own, the collector's subscriptions).
+                        Verdict::Unknown => None,
+                        Verdict::DamagedCopy { robot, tag, tc, resend } => {
+                            if let Some(bytes) = resend {
+                                self.resend(robot, bytes);
+                            }
+                            Some(Update::DamagedCopy { robot, tag, tc })
+                        }
+                        Verdict::Report { tag, tc, after, .. } => Some(Update::Verification {
+                            robot,
+                            tag,
+                            tc: Some(tc),
+                            v,
+                            after: Some(after),
+                        }),
+                    }
                 }
                 TmBody::Event(event) => Some(Update::Event { robot, event }),
                 _ => None,
@@ -141,13 +159,43 @@ impl Run {
         }
     }
 
-    fn resend(&self, resends: Vec<Resend>) {
-        for Resend::Bytes { robot, bytes } in resends {
-            if let Some(tx) = self.robots.get(&robot) {
-                // A resend that cannot be handed over is a lost packet: the next one
-                // follows on the schedule.
-                let _ = tx.try_send(DashCmd::Resend { bytes });
+    /// The waits that ended: resends (lab links), TCs given up.
+    fn tick(&mut self, now: Instant) -> Vec<Update> {
+        let lab = &self.lab;
+        let due = self.book.on_tick(now, |r| lab.get(&r).copied().unwrap_or(false));
+        let mut out = Vec::new();
+        for d in due {
+            match d {
+                Due::Resend {
+                    robot, tag, tc, send, ..
+                } => {
+                    let name = tc.def.name;
+                    self.resend(robot, tc.bytes);
+                    out.push(Update::Resent {
+                        robot,
+                        tag,
+                        tc: name,
+                        send,
+                    });
+                }
+                Due::Waited { .. } => {}
+                Due::GaveUp(p) => out.push(Update::GaveUp {
+                    robot: p.robot,
+                    tag: p.tag,
+                    tc: p.tc.def.name,
+                    sends: if p.waits_only { 1 } else { p.sends },
+                    accepted: p.accepted,
+                }),
             }
+        }
+        out
+    }
+
+    fn resend(&self, robot: u8, bytes: Vec<u8>) {
+        if let Some(tx) = self.robots.get(&robot) {
+            // A resend that cannot be handed over is a lost packet: the next one
+            // follows on the schedule.
+            let _ = tx.try_send(DashCmd::Resend { bytes });
         }
     }
 
@@ -156,16 +204,21 @@ impl Run {
         while let Some(e) = queue.pop_front() {
             match e {
                 Effect::Send { step, robot, def, args } => {
-                    let sent = self.send(robot, def, args);
-                    if let Ok(tc) = &sent {
-                        self.resender.sent(step, robot, tc.clone(), Instant::now());
+                    let sent = self.send(robot, def, args).map(|(tc, lab)| {
+                        self.lab.insert(robot, lab);
+                        let label = Some(format!("plan {}", self.run.plan));
+                        self.book
+                            .insert(Pending::sent(robot, tc.clone(), Some(step), label, Instant::now()));
                         if let Some(s) = self.run.steps.get_mut(step) {
                             s.request_id = Some(request_id(robot, tc.apid, tc.seq));
                         }
-                    }
+                        tc
+                    });
                     queue.extend(exec.on_sent(step, sent, Instant::now()));
                 }
-                Effect::Forget(tc) => self.resender.forget(&tc),
+                Effect::Forget(tc) => {
+                    self.book.forget(&tc);
+                }
                 // Not asked for (no ping period): the collector's thread renews the lease.
                 Effect::Heartbeat(_) => {}
                 // The collector's thread asks the on-board store for every hole itself,
@@ -177,7 +230,7 @@ impl Run {
         }
     }
 
-    fn send(&self, robot: u8, def: &'static mib::tc::TcDef, args: Vec<i64>) -> Result<BuiltTc, String> {
+    fn send(&self, robot: u8, def: &'static mib::tc::TcDef, args: Vec<i64>) -> Result<(BuiltTc, bool), String> {
         let tx = self
             .robots
             .get(&robot)

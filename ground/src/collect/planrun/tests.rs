@@ -3,6 +3,7 @@ use std::time::{Duration, Instant};
 
 use mib::config::{tc_retry_wait_ms, TC_RETRY_MAX};
 
+use crate::ops::book::{Due, Pending, TcBook, Verdict};
 use crate::ops::{Effect, Executor, RunOptions, Update};
 use crate::pus::{build_tm, CdsShort};
 use crate::pus::{BuiltTc, TmBody, Verification};
@@ -29,88 +30,111 @@ fn report(tc: &BuiltTc, subservice: u8, code: FailureCode) -> Verification {
     }
 }
 
-// verifies: GND-19
+/// The bytes the book asks to resend at `now` (a lab link).
+fn resends(b: &mut TcBook, now: Instant) -> Vec<(Option<usize>, Vec<u8>, u32)> {
+    b.on_tick(now, |_| true)
+        .into_iter()
+        .filter_map(|d| match d {
+            Due::Resend { tag, tc, send, .. } => Some((tag, tc.bytes, send)),
+            Due::Waited { .. } | Due::GaveUp(_) => None,
+        })
+        .collect()
+}
+
+// verifies: GND-19, OPS-ENGINE-01
 #[test]
 fn resends_identical_bytes_on_the_mib_schedule_until_accepted_then_waits_for_the_outcome() {
+    // The run's TCs are awaited in the book `ground run` uses (ops::book).
     let t0 = Instant::now();
-    let mut r = Resender::default();
+    let mut b = TcBook::default();
     let tc = ping(42);
-    r.sent(3, 1, tc.clone(), t0);
+    b.insert(Pending::sent(1, tc.clone(), Some(3), None, t0));
     let first = Duration::from_millis(tc_retry_wait_ms(0) as u64);
-    assert_eq!(r.on_tick(t0 + first - Duration::from_millis(1)).1, vec![]);
-    let (u, re) = r.on_tick(t0 + first);
-    assert_eq!(
-        re,
-        vec![Resend::Bytes {
-            robot: 1,
-            bytes: tc.bytes.clone()
-        }]
-    );
-    assert!(matches!(
-        u[..],
-        [Update::Resent {
-            tag: Some(3),
-            send: 2,
-            ..
-        }]
-    ));
+    assert!(resends(&mut b, t0 + first - Duration::from_millis(1)).is_empty());
+    assert_eq!(resends(&mut b, t0 + first), vec![(Some(3), tc.bytes.clone(), 2)]);
     // The next wait is the MIB's second one, counted from the resend.
     let second = Duration::from_millis(tc_retry_wait_ms(1) as u64);
     assert!(second > first);
-    assert!(r.on_tick(t0 + first + second - Duration::from_millis(1)).1.is_empty());
-    assert_eq!(r.on_tick(t0 + first + second).1.len(), 1);
+    assert!(resends(&mut b, t0 + first + second - Duration::from_millis(1)).is_empty());
+    assert_eq!(resends(&mut b, t0 + first + second).len(), 1);
 
-    // Accepted: the executor gets the report with its step; completion ends it.
-    let (u, re) = r.on_verification(1, report(&tc, 1, FailureCode::CRC_MISMATCH), t0 + first * 3);
-    assert!(re.is_empty());
-    assert!(matches!(u, Some(Update::Verification { tag: Some(3), .. })));
-    assert_eq!(r.len(), 1);
-    let (u, _) = r.on_verification(1, report(&tc, 7, FailureCode::CRC_MISMATCH), t0 + first * 4);
-    assert!(matches!(u, Some(Update::Verification { tag: Some(3), .. })));
-    assert!(r.is_empty());
+    // Accepted: the report goes to the step; no resend after it; completion ends it.
+    let v = b.on_verification(1, &report(&tc, 1, FailureCode::CRC_MISMATCH), t0 + first * 3, true);
+    assert!(
+        matches!(
+            v,
+            Verdict::Report {
+                tag: Some(3),
+                finished: false,
+                ..
+            }
+        ),
+        "{v:?}"
+    );
+    assert!(
+        resends(&mut b, t0 + first * 60).is_empty(),
+        "never resent once accepted"
+    );
+    assert_eq!(b.len(), 1);
+    let v = b.on_verification(1, &report(&tc, 7, FailureCode::CRC_MISMATCH), t0 + first * 61, true);
+    assert!(
+        matches!(
+            v,
+            Verdict::Report {
+                tag: Some(3),
+                finished: true,
+                ..
+            }
+        ),
+        "{v:?}"
+    );
+    assert!(b.is_empty());
     // Reports of other TCs (the page's, the collector's) are not the run's.
-    assert!(r
-        .on_verification(1, report(&ping(7), 1, FailureCode::CRC_MISMATCH), t0)
-        .0
-        .is_none());
+    let other = b.on_verification(1, &report(&ping(7), 1, FailureCode::CRC_MISMATCH), t0, true);
+    assert_eq!(other, Verdict::Unknown);
 }
 
-// verifies: GND-19
+// verifies: GND-19, OPS-ENGINE-01
 #[test]
 fn a_damaged_copy_is_resent_at_once_and_a_silent_tc_is_given_up_after_its_sends() {
     let t0 = Instant::now();
-    let mut r = Resender::default();
+    let mut b = TcBook::default();
     let tc = ping(9);
-    r.sent(0, 1, tc.clone(), t0);
-    let (u, re) = r.on_verification(1, report(&tc, 2, FailureCode::CRC_MISMATCH), t0);
-    assert!(matches!(u, Some(Update::DamagedCopy { tag: Some(0), .. })));
-    assert_eq!(re.len(), 1);
+    b.insert(Pending::sent(1, tc.clone(), Some(0), None, t0));
+    let v = b.on_verification(1, &report(&tc, 2, FailureCode::CRC_MISMATCH), t0, true);
+    assert!(
+        matches!(&v, Verdict::DamagedCopy { tag: Some(0), resend: Some(bytes), .. } if *bytes == tc.bytes),
+        "{v:?}"
+    );
     // Never answered: every send is made, then the TC is given up (not accepted).
     let mut t = t0;
     let mut sends = 2;
-    let mut gave_up = false;
+    let mut gave_up = None;
     for _ in 0..100 {
         t += Duration::from_millis(mib::config::TC_RETRY_CAP_MS as u64);
-        let (u, re) = r.on_tick(t);
-        sends += re.len() as u32;
-        if let Some(Update::GaveUp { accepted, sends: k, .. }) = u.last() {
-            assert!(!accepted);
-            assert_eq!(*k, TC_RETRY_MAX + 1);
-            gave_up = true;
+        for d in b.on_tick(t, |_| true) {
+            match d {
+                Due::Resend { .. } => sends += 1,
+                Due::GaveUp(p) => gave_up = Some(p),
+                Due::Waited { .. } => panic!("a lab link resends"),
+            }
+        }
+        if gave_up.is_some() {
             break;
         }
     }
-    assert!(gave_up);
+    let p = gave_up.expect("given up");
+    assert!(!p.accepted);
+    assert_eq!(p.sends, TC_RETRY_MAX + 1);
     assert_eq!(sends, TC_RETRY_MAX + 1);
-    assert!(r.is_empty());
+    assert!(b.is_empty());
 
     // A failure that is the TC's verdict ends it and reaches the executor.
     let tc = ping(10);
-    r.sent(1, 1, tc.clone(), t0);
-    let (u, re) = r.on_verification(1, report(&tc, 4, FailureCode::NOT_ALLOWED_IN_MODE), t0);
-    assert!(re.is_empty());
-    assert!(matches!(u, Some(Update::Verification { v, .. }) if !v.success));
-    assert!(r.is_empty());
+    b.insert(Pending::sent(1, tc.clone(), Some(1), None, t0));
+    let v = b.on_verification(1, &report(&tc, 4, FailureCode::NOT_ALLOWED_IN_MODE), t0, true);
+    assert!(matches!(v, Verdict::Report { finished: true, .. }), "{v:?}");
+    assert!(b.is_empty());
 }
 
 // verifies: GND-19, GND-18

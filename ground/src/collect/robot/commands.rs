@@ -1,9 +1,12 @@
 //! The page's and the plan runs' TCs, numbered with this thread's sequence counter and
 //! sent on its link; what the following plan run and the dashboard are told.
 
+use std::time::Instant;
+
 use crate::archive::now_ms;
 use crate::collect::dash::DashCmd;
 use crate::collect::planrun::PlanInput;
+use crate::ops::book::{Due, Pending, Verdict};
 use crate::pus::{self, BuiltTc};
 
 use super::{LinkState, Worker};
@@ -20,7 +23,12 @@ impl Worker {
                     let r = mib::tc::by_name(&name)
                         .ok_or_else(|| format!("no TC named {name}"))
                         .and_then(|def| self.dash_tc(def, &args, "page"))
-                        .map(|tc| crate::dashboard::request_id(self.robot(), tc.apid, tc.seq));
+                        .map(|tc| {
+                            let id = crate::dashboard::request_id(self.robot(), tc.apid, tc.seq);
+                            let p = Pending::sent(self.robot(), tc, None, Some("page".into()), Instant::now());
+                            self.page_tcs.insert(p);
+                            id
+                        });
                     let _ = reply.send(r);
                 }
                 DashCmd::PlanTc {
@@ -29,7 +37,8 @@ impl Worker {
                     origin,
                     reply,
                 } => {
-                    let r = self.dash_tc(def, &args, &origin);
+                    let lab = self.link.as_ref().is_some_and(crate::link::Link::resends_packets);
+                    let r = self.dash_tc(def, &args, &origin).map(|tc| (tc, lab));
                     let _ = reply.send(r);
                 }
                 DashCmd::Resend { bytes } => self.send(&bytes),
@@ -72,6 +81,44 @@ impl Worker {
         }
         self.archive_tc(&tc, origin);
         Ok(tc)
+    }
+
+    /// The page's TCs: a verification report about one of them (a damaged copy is sent
+    /// again at once on a lab link).
+    pub(super) fn page_verification(&mut self, v: &crate::pus::Verification) {
+        let lab = self.link.as_ref().is_some_and(crate::link::Link::resends_packets);
+        let robot = self.robot();
+        match self.page_tcs.on_verification(robot, v, Instant::now(), lab) {
+            Verdict::DamagedCopy {
+                resend: Some(bytes), ..
+            } => self.send(&bytes),
+            Verdict::DamagedCopy { resend: None, .. } | Verdict::Report { .. } | Verdict::Unknown => {}
+        }
+    }
+
+    /// The page's TCs whose wait ended: resent (lab link, until accepted), or given up.
+    pub(super) fn page_tick(&mut self) {
+        // Once accepted a page TC is never resent, and its later reports reach the page
+        // through the hub whether or not it is still in the book.
+        self.page_tcs.retain(|p| !p.accepted);
+        let lab = self.link.as_ref().is_some_and(crate::link::Link::resends_packets);
+        for d in self.page_tcs.on_tick(Instant::now(), |_| lab) {
+            match d {
+                Due::Resend { tc, send, .. } => {
+                    tracing::info!(robot = self.robot(), "page TC {} resent (send {send})", tc.def.name);
+                    self.send(&tc.bytes);
+                }
+                Due::Waited { .. } => {}
+                Due::GaveUp(p) => tracing::warn!(
+                    robot = self.robot(),
+                    "page TC {} (seq {}): no {} after {} waits; its outcome is asked of the on-board store with every hole",
+                    p.tc.def.name,
+                    p.tc.seq,
+                    if p.accepted { "completion" } else { "acceptance" },
+                    p.sends
+                ),
+            }
+        }
     }
 
     /// Hands the following plan run `msg`; a run that ended stops being followed.

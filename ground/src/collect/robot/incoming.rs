@@ -72,6 +72,9 @@ impl Worker {
         }
         // Replayed reports too (a plan TC's outcome may come from the on-board store);
         // events live only (an old fault replayed must not stop a plan started since).
+        if let TmBody::Verification(v) = &tm.body {
+            self.page_verification(v);
+        }
         let for_plan = match tm.body {
             TmBody::Verification(_) => true,
             TmBody::Event(_) => live,

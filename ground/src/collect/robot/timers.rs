@@ -13,6 +13,7 @@ use super::{
 
 impl Worker {
     pub(super) fn timers(&mut self, now: i64) {
+        self.page_tick();
         // Link loss: no TM for max(3 HK intervals, 3 s).
         let loss_ms = self.global.loss_ms(self.hk_interval_ms);
         let silent_since = self.last_rx_ms.unwrap_or(self.started_ms);
