@@ -11,4 +11,4 @@ pub mod link_choice;
 pub mod ops;
 pub mod plan;
 pub mod robot_lock;
-pub mod pus;
+pub use ground_pus as pus;
