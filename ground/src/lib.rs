@@ -2,7 +2,7 @@
 //! operations. The `ground` binary is a thin CLI over these modules.
 
 pub mod alarms;
-pub mod archive;
+pub use ground_archive as archive;
 pub mod collect;
 pub mod dashboard;
 pub mod keys;

@@ -2,7 +2,7 @@
 //! the archive works on [`Content`] and on raw packets, so a change of the decoder
 //! touches only this file.
 
-use crate::pus::{Tm, TmBody};
+use ground_pus::{Tm, TmBody};
 
 /// What the archive keeps of a decoded TM packet besides its raw bytes.
 #[derive(Clone, Debug, PartialEq)]

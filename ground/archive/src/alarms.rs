@@ -2,13 +2,13 @@
 //! (the collector's limit checks, events, link loss, stale data, the archive itself) and
 //! everything that reads or answers them (`ground alarms`, `archive query --type alarm`,
 //! the dashboard). Every transition goes through the ISA-18.2 state machine
-//! [`crate::alarms::AlarmState`], read and written back in one transaction.
+//! [`crate::alarm_model::AlarmState`], read and written back in one transaction.
 
 use serde::Serialize;
 
 use super::db::{collect, Db, Dialect, Val};
 use super::{ArchiveError, Store};
-use crate::alarms::{AlarmState, Input, Severity, Source, State};
+use crate::alarm_model::{AlarmState, Input, Severity, Source, State};
 
 /// One alarm.
 #[derive(Clone, Debug, PartialEq, Serialize)]

@@ -11,7 +11,7 @@ use super::db::{collect, Db, Val};
 use super::ingest::Ingest;
 use super::schema::ddl;
 use super::{ArchiveError, Record};
-use crate::pus::decode_tm;
+use ground_pus::decode_tm;
 
 const PAGE: i64 = 10_000;
 

@@ -7,7 +7,7 @@ use std::path::Path;
 use serde::Serialize;
 
 use super::{now_ms, Archive, ArchiveError, ArchiveStats, Record};
-use crate::pus::{self, Packet, StreamItem};
+use ground_pus::{self as pus, Packet, StreamItem};
 
 /// What an import did.
 #[derive(Clone, Debug, Default, Serialize)]

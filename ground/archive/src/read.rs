@@ -9,7 +9,7 @@ use super::codec;
 use super::db::{collect, scalar, Db, Val};
 use super::schema::{CHUNKS, CHUNK_SPAN_MS};
 use super::{connect, ArchiveError, Filter, Kind, RobotSeries, Rows};
-use crate::pus::{self, decode_tm};
+use ground_pus::{self as pus, decode_tm};
 
 /// A connection for reading (and for the small updates of alarms, gap notes).
 pub struct Store {

@@ -10,7 +10,7 @@ use super::codec;
 use super::db::{Db, Dialect, Val};
 use super::schema::{chunk_columns, CHUNK_MAX, CHUNK_SPAN_MS};
 use super::{ArchiveError, ArchiveStats, Record};
-use crate::pus::BuiltTc;
+use ground_pus::BuiltTc;
 
 /// Packets per multi-row INSERT on PostgreSQL (7 parameters each, well under its 65,535).
 /// A batch is cut into statements of these sizes, largest first, so that only these few

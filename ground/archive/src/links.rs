@@ -7,7 +7,7 @@ use serde::Serialize;
 
 use super::db::{collect, Db, Val};
 use super::{ArchiveError, Store};
-use crate::pus;
+use ground_pus as pus;
 
 /// A robot's link, as the collector last wrote it.
 #[derive(Clone, Debug, Default, Serialize, PartialEq)]

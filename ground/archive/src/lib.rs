@@ -15,8 +15,17 @@
 //! never block on the disk and nothing is dropped (the queue's high-water mark is
 //! reported). The writer commits in batches (what arrives within [`BATCH_LINGER`] of the
 //! first record, at most [`BATCH_MAX`] records, one transaction each).
+//!
+//! A crate of its own (`ground-archive`, issue 21): it depends on `ground-pus` and the MIB,
+//! never on the collector, the web page or an async runtime. PostgreSQL (whose client
+//! runs on tokio) is the optional feature `postgres`, and `clap::ValueEnum` on [`Kind`]
+//! the optional feature `clap`; the `ground` crate turns both on and re-exports this
+//! crate as `ground::archive` (and [`alarm_model`] as `ground::alarms`' model).
+
+#![deny(unsafe_code)]
 
 pub mod adapter;
+pub mod alarm_model;
 pub mod alarms;
 pub mod codec;
 pub mod db;
@@ -25,19 +34,19 @@ pub mod import;
 mod ingest;
 pub mod links;
 mod migrate;
+#[cfg(feature = "postgres")]
 pub mod postgres;
 pub mod read;
 pub mod schema;
 pub mod sqlite;
 
-use std::fmt;
 use std::path::{Path, PathBuf};
 use std::thread::JoinHandle;
 
 use crossbeam_channel::{Receiver, Sender};
 use serde::Serialize;
 
-use crate::pus::{BuiltTc, DecodeError, Tm};
+use ground_pus::{BuiltTc, DecodeError, Tm};
 
 pub use alarms::{Alarm, AlarmUpdate};
 pub use db::{Db, DbError, Val};
@@ -95,47 +104,28 @@ pub struct ArchiveStats {
     pub checkpoint_error: Option<String>,
 }
 
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum ArchiveError {
-    Db(DbError),
+    #[error("archive database: {0}")]
+    Db(#[from] DbError),
     /// The schema is not one this build can use; the text says what to do.
+    #[error("archive schema: {0}")]
     Schema(String),
     /// A chunk or row that does not read back (a damaged archive).
+    #[error("archive damaged: {0}")]
     Damaged(String),
     /// The writer thread stopped (its error is returned by `close`).
+    #[error("archive writer thread stopped")]
     WriterGone,
-    Io(std::io::Error),
+    #[error("archive I/O: {0}")]
+    Io(#[from] std::io::Error),
     /// Something asked of the archive that it does not have.
+    #[error("{0}")]
     NotFound(String),
     /// An operator input the alarm's state does not allow (the text says why).
+    #[error("{0}")]
     Refused(String),
-}
-
-impl fmt::Display for ArchiveError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            ArchiveError::Db(e) => write!(f, "archive database: {e}"),
-            ArchiveError::Schema(s) => write!(f, "archive schema: {s}"),
-            ArchiveError::Damaged(s) => write!(f, "archive damaged: {s}"),
-            ArchiveError::WriterGone => write!(f, "archive writer thread stopped"),
-            ArchiveError::Io(e) => write!(f, "archive I/O: {e}"),
-            ArchiveError::NotFound(s) | ArchiveError::Refused(s) => write!(f, "{s}"),
-        }
-    }
-}
-
-impl std::error::Error for ArchiveError {}
-
-impl From<DbError> for ArchiveError {
-    fn from(e: DbError) -> Self {
-        ArchiveError::Db(e)
-    }
-}
-
-impl From<std::io::Error> for ArchiveError {
-    fn from(e: std::io::Error) -> Self {
-        ArchiveError::Io(e)
-    }
 }
 
 /// Whether `--archive` names a PostgreSQL server rather than a file.
@@ -147,12 +137,27 @@ pub fn is_url(loc: &str) -> bool {
 /// schema to the current version (creating it if new).
 pub fn connect(loc: &str) -> Result<Box<dyn Db>, ArchiveError> {
     let mut db: Box<dyn Db> = if is_url(loc) {
-        Box::new(postgres::Postgres::connect(loc)?)
+        connect_postgres(loc)?
     } else {
         Box::new(sqlite::Sqlite::open(Path::new(loc))?)
     };
     schema::prepare(db.as_mut())?;
     Ok(db)
+}
+
+#[cfg(feature = "postgres")]
+fn connect_postgres(loc: &str) -> Result<Box<dyn Db>, ArchiveError> {
+    Ok(Box::new(postgres::Postgres::connect(loc)?))
+}
+
+/// Without the feature `postgres` a server URL is refused, saying why.
+#[cfg(not(feature = "postgres"))]
+fn connect_postgres(_loc: &str) -> Result<Box<dyn Db>, ArchiveError> {
+    Err(ArchiveError::Db(DbError {
+        backend: "postgresql",
+        message: "this build has no PostgreSQL support (ground-archive's feature `postgres`)".into(),
+        retryable: false,
+    }))
 }
 
 /// Whether an archive exists at `loc` (a server URL always counts: it is asked).
@@ -272,7 +277,8 @@ fn writer(mut db: Box<dyn Db>, rx: Receiver<Record>) -> Result<ArchiveStats, Arc
 // Query types
 
 /// What `archive query` / `export` select.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Kind {
     Tc,
     Tm,
