@@ -101,6 +101,17 @@ fn a_command_board_b_never_acknowledges_fails() {
     assert_eq!(t.failure_code(), Some(F::BOARD_B_NO_ACK.code()), "{}", c.summary());
 }
 
+// verifies: LINK-KEYCHG-02
+#[test]
+fn a_key_change_to_an_spi_the_robot_has_no_key_for_is_refused() {
+    // The lab link: the robot holds no space-link key at all, so no SPI can be selected.
+    let o = Obsw::start(&[]);
+    let mut c = Client::udp(&o);
+    let raw = c.send("LINK_SPI_SELECT", &[18, 2]);
+    let t = c.wait_done(&raw, T).unwrap();
+    assert_eq!(t.failure_code(), Some(F::NO_KEY_FOR_SPI.code()), "{}", c.summary());
+}
+
 /// Codes that a packet cannot provoke with this MIB, and why.
 const UNREACHABLE: &[(F, &str)] = &[(F::UNREACHABLE_STATE, "every state pair is within 3 primitives")];
 
