@@ -156,6 +156,11 @@ pub struct FlashIvStore<F> {
     seq: u32,
     /// Writes that failed (each refused its frame or TM block).
     pub failures: u32,
+    /// Records written since boot (HK LINK_STATE_WRITES).
+    pub writes: u32,
+    /// A counter sector held a torn or corrupted record at boot (HK LINK_STATE_BAD_SLOT:
+    /// 0 none, 1 the sector at 0xA000, 2 the sector at 0xB000; the last one found).
+    pub bad_sector: u8,
 }
 
 impl<F: NorFlash> FlashIvStore<F> {
@@ -171,6 +176,8 @@ impl<F: NorFlash> FlashIvStore<F> {
             farm: None,
             seq: 0,
             failures: 0,
+            writes: 0,
+            bad_sector: 0,
         };
         let mut best: Option<(u32, u32, u32)> = None; // (valid records, sector, free slot)
         for sector in 0..2 {
@@ -184,6 +191,8 @@ impl<F: NorFlash> FlashIvStore<F> {
                 if let Some(rec) = parse_record(&r) {
                     valid += 1;
                     s.note(&rec);
+                } else if r[0] == RECORD_MAGIC {
+                    s.bad_sector = sector as u8 + 1;
                 } else if free.is_none() && r.iter().all(|b| *b == 0xFF) {
                     free = Some(slot);
                 }
@@ -274,6 +283,7 @@ impl<F: NorFlash> FlashIvStore<F> {
         };
         self.next += 1;
         self.flash.write(off, &record(&rec)).map_err(|_| StoreError)?;
+        self.writes = self.writes.saturating_add(1);
         self.note(&rec);
         Ok(())
     }

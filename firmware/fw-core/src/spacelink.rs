@@ -62,6 +62,33 @@ pub struct Resume {
     pub farm: Option<mmic_link::farm::FarmRecord>,
 }
 
+/// What the counter store reports in HK SPACE_LINK (LINK_STATE_WRITES,
+/// LINK_STATE_BAD_SLOT).
+pub trait StoreStats {
+    /// Durable writes since boot.
+    fn writes(&self) -> u32;
+    /// 0, or which part of the store held a torn or corrupted record at boot.
+    fn bad_slot(&self) -> u8;
+}
+
+impl<F: embedded_storage::nor_flash::NorFlash> StoreStats for crate::link_store::FlashIvStore<F> {
+    fn writes(&self) -> u32 {
+        self.writes
+    }
+    fn bad_slot(&self) -> u8 {
+        self.bad_sector
+    }
+}
+
+impl StoreStats for mmic_link::sdls::MemoryIvStore {
+    fn writes(&self) -> u32 {
+        self.writes
+    }
+    fn bad_slot(&self) -> u8 {
+        0
+    }
+}
+
 /// The transmit half: TM framer, TM SA, counter store.
 struct Tx<St> {
     framer: Downlink,
@@ -132,7 +159,7 @@ fn is_control_frame(d: &[u8]) -> bool {
     d.first().is_some_and(|b| b & 0xF0 == 0x30)
 }
 
-impl<St: IvStore> FrameLink<St> {
+impl<St: IvStore + StoreStats> FrameLink<St> {
     /// The link with the provisioned keys (`None`: not provisioned — every AD/BD frame
     /// is refused as an unknown SPI and only idle frames go down) and the counters the
     /// store held at boot.
@@ -342,5 +369,13 @@ impl<St: IvStore> FrameLink<St> {
         self.reported_rate_limited = self.control_rate_limited;
         let clcw = self.rx.farm.clcw();
         self.tx.end_period(now, clcw, tm, tm_stats);
+        // The link state for HK (after the flush, whose first frame may reserve TM IVs).
+        let tm_spi = self.tx.sa.as_ref().map_or(0, |sa| sa.spi());
+        obsw.space_link_state = [
+            u32::from(tm_spi),
+            u32::from(self.keys.tc),
+            self.tx.store.writes(),
+            u32::from(self.tx.store.bad_slot()),
+        ];
     }
 }

@@ -166,8 +166,10 @@ fn framelink_counter_log_rolls_over_and_survives_restart() -> TestResult {
         ok!((0..torn.mem.len() / 32)
             .find(|i| torn.mem[i * 32] == 0xC5 && torn.mem[i * 32 + 4..i * 32 + 16] == want[4..]));
     torn.mem[last * 32 + 28] ^= 0xFF;
-    let r = FlashIvStore::open(torn, 0).resume(1, 17);
-    check_eq!(r.tc_last, Some(n - 1));
+    let opened = FlashIvStore::open(torn, 0);
+    check_eq!(opened.resume(1, 17).tc_last, Some(n - 1));
+    // Reported in HK (LINK_STATE_BAD_SLOT): the sector of the cut record.
+    check_eq!(opened.bad_sector, if last * 32 < 2 * SECTOR as usize { 1 } else { 2 });
     // A failing flash refuses (the frame is then refused, never used unrecorded).
     let mut full = FlashIvStore::open(MockFlash::erased(), 2 * SECTOR);
     check!(full.record_rx(1, 0).is_err());
@@ -304,6 +306,9 @@ fn framelink_authenticated_tc_executes_once_replay_and_wrong_mac_refused() -> Te
         (1, 1),
         "keys of TM SPI 17, TC SPI 1"
     );
+    // LINK_TM_SPI, LINK_TC_SPIS, LINK_STATE_WRITES (the frame's IV + FARM-1 record and the
+    // first TM IV block), LINK_STATE_BAD_SLOT.
+    check_eq!(obsw.space_link_state, [17, 1, 2, 0]);
     // The receive IV and FARM-1's V(R) are in flash before the ping ran.
     let r = FlashIvStore::open(fl.store().flash().clone(), 0).resume(1, 17);
     check_eq!(r.tc_last, Some(0));
