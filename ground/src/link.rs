@@ -52,6 +52,23 @@ pub struct FrameOptions {
     /// Robot N's TM frames arrive at this local address (the obsw's `--frame-tm-to`);
     /// default [`default_tm_listen`].
     pub tm_listen: BTreeMap<u8, SocketAddr>,
+    /// The TC SPI the ground sends under (1, or the spare 2 after a key change,
+    /// `mib::link::sdls::TC_SPIS`).
+    pub tc_spi: u16,
+    /// SDLS on the robot's TM frames (its `--tm-sdls`): both ends must agree.
+    pub tm_security: ground_link::TmSecurity,
+}
+
+impl FrameOptions {
+    /// Keys in `keys`, TM on the default addresses, TC SPI 1, encrypted TM.
+    pub fn new(keys: PathBuf) -> FrameOptions {
+        FrameOptions {
+            keys,
+            tm_listen: BTreeMap::new(),
+            tc_spi: mib::link::sdls::TC_SPIS[0],
+            tm_security: ground_link::TmSecurity::Encrypt,
+        }
+    }
 }
 
 impl FrameOptions {
@@ -425,14 +442,17 @@ fn open_frames(
 ) -> io::Result<Link> {
     let dir = crate::keys::robot_dir(&opts.keys, robot);
     let listen = opts.listen(robot, addr);
-    let cfg = ground_link::Config::from_key_files(
+    // The key folder's layout (`ground keys create`): the TC key of the chosen SPI, the TM
+    // key of SPI 17 and, when there, the spare TM key of SPI 18 (accepted as well).
+    let mut cfg = ground_link::Config::from_key_dir(
         addr,
         listen,
-        &crate::keys::tc_key_path(&dir),
-        &crate::keys::tm_key_path(&dir),
+        &dir,
         &crate::keys::ground_state_path(&dir),
+        opts.tc_spi,
     )
     .map_err(|e| io::Error::other(format!("robot {robot}'s keys in {}: {e}", dir.display())))?;
+    cfg.tm_security = opts.tm_security;
     let mut fl = ground_link::FrameLink::open(cfg)
         .map_err(|e| io::Error::other(format!("frame link of robot {robot} (TM frames on {listen}): {e}")))?;
     let (to_link, from_ground) = crossbeam_channel::unbounded::<Vec<u8>>();

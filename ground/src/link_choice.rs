@@ -12,7 +12,7 @@ use crate::link::{FrameOptions, Transport};
 pub const KEYS_ENV: &str = "MMIC_KEYS";
 
 /// The link flags shared by every verb that talks to robots.
-#[derive(clap::Args, Debug, Clone, Default)]
+#[derive(clap::Args, Debug, Clone)]
 pub struct LinkFlags {
     /// Key directory of the space link (`ground keys create DIR`): robot N uses
     /// DIR/robot-N/. Needed unless a lab link is chosen.
@@ -22,6 +22,13 @@ pub struct LinkFlags {
     /// --frame-tm-to); default 127.0.0.1:7400+N (0.0.0.0 for a remote robot). Repeat per robot.
     #[arg(long = "tm-listen", value_parser = crate::collect::parse_robot, value_name = "N=HOST:PORT")]
     pub tm_listen: Vec<(u8, SocketAddr)>,
+    /// The space link's TC SPI: 1, or 2 after a key change (`LINK_SPI_SELECT`; the
+    /// key folder holds both keys).
+    #[arg(long, value_name = "1|2", default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..=2))]
+    pub spi: u16,
+    /// SDLS on the robot's TM frames, as its `--tm-sdls`: encrypt (the default) or clear.
+    #[arg(long, value_name = "encrypt|clear", default_value = "encrypt", value_parser = parse_tm_sdls)]
+    pub tm_sdls: ground_link::TmSecurity,
     /// Lab mode: bare (unauthenticated) space packets, one per UDP datagram, instead of
     /// the space link; robots on loopback addresses only (obsw --lab-bare-packets).
     #[arg(long, conflicts_with = "lab_tcp")]
@@ -49,6 +56,29 @@ pub enum LinkChoiceError {
     },
     #[error("--tm-listen is an option of the space link; it does not go with --{flag}")]
     TmListenWithLab { flag: &'static str },
+}
+
+impl Default for LinkFlags {
+    /// The command line's defaults: the space link, keys from nowhere yet, TC SPI 1,
+    /// encrypted TM.
+    fn default() -> LinkFlags {
+        LinkFlags {
+            keys: None,
+            tm_listen: Vec::new(),
+            spi: 1,
+            tm_sdls: ground_link::TmSecurity::Encrypt,
+            lab_udp: false,
+            lab_tcp: false,
+        }
+    }
+}
+
+fn parse_tm_sdls(s: &str) -> Result<ground_link::TmSecurity, String> {
+    match s {
+        "encrypt" => Ok(ground_link::TmSecurity::Encrypt),
+        "clear" => Ok(ground_link::TmSecurity::Clear),
+        other => Err(format!("\"{other}\": encrypt or clear")),
+    }
 }
 
 impl LinkFlags {
@@ -86,8 +116,10 @@ impl LinkFlags {
                 Ok((
                     Transport::Frames,
                     Some(FrameOptions {
-                        keys,
                         tm_listen: self.tm_listen.iter().copied().collect(),
+                        tc_spi: self.spi,
+                        tm_security: self.tm_sdls,
+                        ..FrameOptions::new(keys)
                     }),
                 ))
             }

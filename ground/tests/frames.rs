@@ -619,3 +619,68 @@ fn ground_keys_create_team_makes_the_key_the_obsw_team_link_takes() {
     );
     drop(o);
 }
+
+/// Key change without downtime from the command line (issue 22 item 3): LINK_SPI_SELECT
+/// sent over SPI 1 (hazardous: confirmed), then the same key folder's spare keys with
+/// `--spi 2`; the robot's TM comes under SPI 18 from then on and the ground reads it
+/// with the spare TM key. Judged from the obsw's own TM: the selection event, and the
+/// PING under SPI 2 answered.
+// verifies: LINK-KEYCHG-01, OPS-LINK-DEFAULT-01
+#[test]
+fn a_key_change_from_the_command_line_moves_the_robot_to_spi_2_and_18() {
+    let dir = tmpdir("frames", "spi-change");
+    let keys = frame_keys(&dir, &[1]);
+    let tm = dir.join("tm.log");
+    let o = Obsw::start_frames(1, &keys, &["--tm-log", tm.to_str().unwrap()]);
+    let links = o.frame_args(1, &keys);
+    // Hazardous: refused without confirmation, before anything is sent.
+    let (code, t) = run(
+        &dir,
+        &["--no-archive", "send"],
+        &links,
+        &["LINK_SPI_SELECT", "tm_spi=18", "tc_spis=2"],
+    );
+    assert_eq!(code, Some(3), "{t}");
+    let (code, t) = run(
+        &dir,
+        &["--no-archive", "send"],
+        &links,
+        &["LINK_SPI_SELECT", "tm_spi=18", "tc_spis=2", "--confirm"],
+    );
+    assert_eq!(code, Some(0), "{t}");
+    assert!(t.contains("completion ok") && t.contains("LINK_SPI_SELECTED"), "{t}");
+    let (code, t) = run(&dir, &["--no-archive", "send", "--spi", "2"], &links, &["PING"]);
+    assert_eq!(code, Some(0), "PING under SPI 2, its reports under SPI 18: {t}");
+    assert!(t.contains("completion ok"), "{t}");
+    drop(o);
+    let log = tm_log(&tm);
+    let selected: Vec<(Option<i64>, Option<i64>)> = log
+        .iter()
+        .filter_map(|p| match &p.body {
+            TmBody::Event(e) if e.name == "LINK_SPI_SELECTED" => Some((e.param("tm_spi"), e.param("tc_spis"))),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(selected, [(Some(18), Some(2))], "the robot's selection event");
+    let pings = log.iter().filter(|p| (p.service, p.subservice) == (17, 2)).count();
+    assert_eq!(pings, 1, "the PING under SPI 2 answered once");
+}
+
+/// SDLS on TM as a configuration: a robot started with `--tm-sdls clear` and a ground
+/// with the same setting (TC frames stay authenticated).
+// verifies: LINK-TM-04, OPS-LINK-DEFAULT-01
+#[test]
+fn clear_tm_frames_are_a_configuration_both_ends_name() {
+    let dir = tmpdir("frames", "tm-clear");
+    let keys = frame_keys(&dir, &[1]);
+    let o = Obsw::start_frames(1, &keys, &["--tm-sdls", "clear"]);
+    let links = o.frame_args(1, &keys);
+    let (code, t) = run(
+        &dir,
+        &["--no-archive", "ping", "--tm-sdls", "clear"],
+        &links,
+        &["-c", "2"],
+    );
+    assert_eq!(code, Some(0), "{t}");
+    assert!(t.contains("reply in"), "{t}");
+}

@@ -530,8 +530,8 @@ pub fn parse(file: &str, src: &str) -> Result<Config, CfgErrors> {
             };
             let keys = Path::new(file).parent().unwrap_or(Path::new("")).join(k.get_ref());
             Some(FrameOptions {
-                keys,
                 tm_listen: tm_listen.map(|a| (number, a)).into_iter().collect(),
+                ..FrameOptions::new(keys)
             })
         } else {
             None
