@@ -470,7 +470,10 @@ try {
 
   await step('bound beyond localhost: the page needs the token, and commands with it', async () => {
     const dir2 = mkdtempSync(join(tmpdir(), 'dash-e2e-tok-'));
-    const c2 = await startCollector(dir2, [robots[0]], `0.0.0.0:${await freePort()}`, ['--http-token', 'e2e-secret']);
+    // Its own robot: the first collector holds robots[0], and a second ground process on
+    // one robot is refused (one commanding ground per robot, ground::robot_lock).
+    const own = await startObsw(1);
+    const c2 = await startCollector(dir2, [own], `0.0.0.0:${await freePort()}`, ['--http-token', 'e2e-secret']);
     try {
       const i2 = { url: c2.url + '?token=e2e-secret' };
       const url = new URL(i2.url);
