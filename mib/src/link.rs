@@ -68,8 +68,17 @@ pub mod cop1 {
     /// FOP-1 sliding window width K (Yamcs `slidingWindowWidth`). K ≤ W/2 so the ground can
     /// never push the FARM into lockout with frames it has not seen acknowledged.
     pub const FOP_SLIDING_WINDOW: u8 = 10;
-    /// FOP-1 timer T1 initial value in milliseconds (Yamcs `cop1T1`, seconds there).
+    /// FOP-1 timer T1 initial value in milliseconds (Yamcs `cop1T1`, seconds there). The
+    /// ground's own FOP-1 adapts T1 to the measured round trip (srtt + 4·rttvar, Karn's rule)
+    /// and uses this as its upper bound and its value before the first sample.
     pub const FOP_T1_MS: u64 = 2_000;
+    /// Longest time the robot goes without sending a CLCW (an idle frame when nothing else
+    /// is to send); after an authentic TC frame the CLCW goes out at once.
+    pub const CLCW_REPORT_INTERVAL_MS: u64 = 100;
+    /// Lower bound of the ground's adaptive T1: three CLCW report intervals, so a frame
+    /// received on board is retransmitted early only when its immediate CLCW and the next
+    /// two idle-frame CLCWs are all lost.
+    pub const FOP_T1_MIN_MS: u64 = 3 * CLCW_REPORT_INTERVAL_MS;
     /// FOP-1 transmission limit (Yamcs `cop1TxLimit`): first transmission included.
     pub const FOP_TX_LIMIT: u8 = 5;
     /// FOP-1 timeout type (0: alert on the last expiry, 1: suspend).
@@ -112,6 +121,8 @@ const _: () = {
     assert!(cop1::FARM_WINDOW_WIDTH.is_multiple_of(2));
     // K <= W/2: the ground can never push the FARM into lockout.
     assert!(cop1::FOP_SLIDING_WINDOW <= cop1::FARM_WINDOW_WIDTH / 2);
+    // The adaptive T1 has room to adapt, above the CLCW report interval.
+    assert!(cop1::CLCW_REPORT_INTERVAL_MS < cop1::FOP_T1_MIN_MS && cop1::FOP_T1_MIN_MS < cop1::FOP_T1_MS);
     assert!(SCID < 1024);
     assert!(tm_vc::IDLE < 8 && tm_vc::REPLAY < 8);
     // A sender that restarts jumps at most one reserve block ahead.

@@ -11,6 +11,11 @@
 //!
 //! "Sent" means acknowledged: [`FopEffect::Acknowledged`] is emitted only when a CLCW's
 //! N(R) passes the frame; [`FopEffect::NotDelivered`] when an alert or termination purges it.
+//!
+//! **Timer T1.** 232.1-B-2 leaves T1's value to management. With
+//! [`FopConfig::t1_min_ms`] below [`FopConfig::t1_ms`] it adapts to the measured round trip
+//! ([`T1Estimator`]: TCP's RTO rule, RFC 6298, with Karn's rule), between those two bounds;
+//! otherwise it is the fixed `t1_ms`. `docs/space-link.md` (§ "Timer T1") gives the rule.
 
 use crate::clcw::{Clcw, CopInEffect};
 use crate::tc::ControlCommand;
@@ -55,7 +60,11 @@ impl FopState {
 pub struct FopConfig {
     /// K, 1..=MAX_WINDOW.
     pub sliding_window: u8,
+    /// T1 in milliseconds; with an adaptive T1 its upper bound and its value before the
+    /// first round-trip sample.
     pub t1_ms: u64,
+    /// Lower bound of the adaptive T1; `t1_min_ms >= t1_ms` means a fixed T1 of `t1_ms`.
+    pub t1_min_ms: u64,
     /// Transmissions per frame, first one included (≥ 1).
     pub tx_limit: u8,
     /// 0: alert when the limit is reached; 1: suspend.
@@ -69,9 +78,102 @@ impl FopConfig {
         FopConfig {
             sliding_window: FOP_SLIDING_WINDOW,
             t1_ms: FOP_T1_MS,
+            t1_min_ms: FOP_T1_MIN_MS,
             tx_limit: FOP_TX_LIMIT,
             timeout_type: FOP_TIMEOUT_TYPE,
         }
+    }
+}
+
+/// Adaptive T1 from the measured round trip (RFC 6298's retransmission timer, integer form
+/// of Jacobson's estimator): the round trip of an AD frame is the time from its first
+/// transmission to the first CLCW whose N(R) passes it; a Set V(R)/Unlock BC frame's, to
+/// the CLCW that completes the initialisation. **Karn's rule**: a frame transmitted more
+/// than once gives no sample (which transmission did the CLCW answer?). On T1's expiry the
+/// value doubles (up to the upper bound) until the next valid sample.
+///
+/// `srtt8` is 8 × SRTT and `rttvar4` 4 × RTTVAR (milliseconds), so gains of 1/8 and 1/4 keep
+/// their fractions: T1 = SRTT + 4 × RTTVAR = `srtt8 / 8 + rttvar4`, clamped to
+/// [`min_ms`, `max_ms`]. Before the first sample T1 is `max_ms`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct T1Estimator {
+    srtt8: u64,
+    rttvar4: u64,
+    samples: u32,
+    backoff: u8,
+    min_ms: u64,
+    max_ms: u64,
+}
+
+impl T1Estimator {
+    /// Most doublings remembered (the result is clamped to the upper bound anyway).
+    const MAX_BACKOFF: u8 = 16;
+
+    /// An estimator with no sample yet; `min_ms >= max_ms` gives a fixed T1 of `max_ms`.
+    pub const fn new(min_ms: u64, max_ms: u64) -> T1Estimator {
+        T1Estimator {
+            srtt8: 0,
+            rttvar4: 0,
+            samples: 0,
+            backoff: 0,
+            min_ms,
+            max_ms,
+        }
+    }
+
+    /// Whether T1 adapts (the lower bound is below the upper one).
+    pub fn adaptive(&self) -> bool {
+        self.min_ms < self.max_ms
+    }
+
+    /// New bounds (management's Set T1 changes the upper one); the samples are kept.
+    pub fn set_bounds(&mut self, min_ms: u64, max_ms: u64) {
+        self.min_ms = min_ms;
+        self.max_ms = max_ms;
+    }
+
+    /// One round-trip sample in milliseconds (of a frame transmitted once only: Karn's
+    /// rule is the caller's). Ends a backoff.
+    pub fn sample(&mut self, rtt_ms: u64) {
+        // Bounded so the scaled sums cannot overflow (an hour is far beyond any T1).
+        let r = rtt_ms.min(3_600_000);
+        if self.samples == 0 {
+            self.srtt8 = r * 8;
+            self.rttvar4 = r * 2;
+        } else {
+            let srtt = self.srtt8 / 8;
+            let err = srtt.abs_diff(r);
+            self.rttvar4 = self.rttvar4 - self.rttvar4 / 4 + err;
+            self.srtt8 = self.srtt8 - self.srtt8 / 8 + r;
+        }
+        self.samples = self.samples.saturating_add(1);
+        self.backoff = 0;
+    }
+
+    /// T1 expired: the next T1 is twice the current one (at most the upper bound).
+    pub fn expired(&mut self) {
+        if self.adaptive() && self.t1_ms() < self.max_ms {
+            self.backoff = (self.backoff + 1).min(Self::MAX_BACKOFF);
+        }
+    }
+
+    /// Round-trip samples taken.
+    pub fn samples(&self) -> u32 {
+        self.samples
+    }
+
+    /// The smoothed round trip (ms), once there is a sample.
+    pub fn srtt_ms(&self) -> Option<u64> {
+        (self.samples > 0).then_some(self.srtt8 / 8)
+    }
+
+    /// T1 now, in milliseconds.
+    pub fn t1_ms(&self) -> u64 {
+        if !self.adaptive() || self.samples == 0 {
+            return self.max_ms;
+        }
+        let base = (self.srtt8 / 8 + self.rttvar4).clamp(self.min_ms, self.max_ms);
+        base.saturating_mul(1u64 << self.backoff).min(self.max_ms)
     }
 }
 
@@ -214,7 +316,11 @@ pub type Effects<T> = heapless::Vec<FopEffect<T>, MAX_EFFECTS>;
 struct Sent<T> {
     ns: u8,
     fdu: T,
+    /// Marked for retransmission.
     retransmit: bool,
+    /// First transmission (ms) and whether it was ever retransmitted (Karn's rule).
+    first_tx_ms: u64,
+    retransmitted: bool,
 }
 
 /// FOP-1 for one virtual channel.
@@ -230,6 +336,9 @@ pub struct Fop<T: Clone> {
     tx_count: u8,
     suspend_state: u8,
     pending_bc: Option<ControlCommand>,
+    /// When the pending BC frame was sent, while it has been sent once only.
+    bc_tx_ms: Option<u64>,
+    rtt: T1Estimator,
     config: FopConfig,
 }
 
@@ -254,8 +363,20 @@ impl<T: Clone> Fop<T> {
             tx_count: 1,
             suspend_state: 0,
             pending_bc: None,
+            bc_tx_ms: None,
+            rtt: T1Estimator::new(config.t1_min_ms, config.t1_ms),
             config,
         }
+    }
+
+    /// T1 as it is now (the fixed value, or the adaptive one).
+    pub fn t1_ms(&self) -> u64 {
+        self.rtt.t1_ms()
+    }
+
+    /// The round-trip estimator behind an adaptive T1.
+    pub fn t1_estimator(&self) -> &T1Estimator {
+        &self.rtt
     }
 
     pub fn state(&self) -> FopState {
@@ -339,7 +460,7 @@ impl<T: Clone> Fop<T> {
                     Some((ev, st)) => {
                         push(&mut fx, FopEffect::Event(ev));
                         push(&mut fx, FopEffect::DirectiveAccepted);
-                        self.timer = Some(now + self.config.t1_ms);
+                        self.timer = Some(now.saturating_add(self.rtt.t1_ms()));
                         self.suspend_state = 0;
                         self.state = st;
                     }
@@ -367,7 +488,13 @@ impl<T: Clone> Fop<T> {
             }
             FopInput::SetT1(ms) => {
                 push(&mut fx, FopEffect::Event(FopEvent::E37));
+                // A fixed T1 stays fixed (at the new value); an adaptive one gets a new
+                // upper bound.
+                if !self.rtt.adaptive() {
+                    self.config.t1_min_ms = ms;
+                }
                 self.config.t1_ms = ms;
+                self.rtt.set_bounds(self.config.t1_min_ms, ms);
                 push(&mut fx, FopEffect::DirectiveAccepted);
             }
             FopInput::SetTxLimit(n) => {
@@ -411,12 +538,13 @@ impl<T: Clone> Fop<T> {
                     self.nnr = v;
                 }
                 self.pending_bc = Some(cmd);
+                self.bc_tx_ms = Some(now);
                 push(fx, FopEffect::TransmitBc(cmd));
-                self.timer = Some(now + self.config.t1_ms);
+                self.timer = Some(now.saturating_add(self.rtt.t1_ms()));
                 self.state = FopState::InitialisingWithBc;
             }
             (_, None) => {
-                self.timer = Some(now + self.config.t1_ms);
+                self.timer = Some(now.saturating_add(self.rtt.t1_ms()));
                 self.state = FopState::InitialisingWithoutBc;
             }
         }
@@ -432,6 +560,7 @@ impl<T: Clone> Fop<T> {
         }
         self.timer = None;
         self.pending_bc = None;
+        self.bc_tx_ms = None;
     }
 
     fn alert(&mut self, reason: AlertReason, fx: &mut Effects<T>) {
@@ -451,9 +580,16 @@ impl<T: Clone> Fop<T> {
     /// Removes frames with N(S) < N(R) from the sent queue: they are acknowledged.
     fn remove_acknowledged(&mut self, now: u64, nr: u8, fx: &mut Effects<T>) {
         let mut removed = false;
+        // One sample per CLCW: the newest frame it acknowledges that went out once only.
+        let mut rtt = None;
         while self.nnr != nr {
             match self.sent.pop_front() {
                 Some(s) => {
+                    rtt = if s.retransmitted {
+                        None
+                    } else {
+                        Some(now.saturating_sub(s.first_tx_ms))
+                    };
                     push(fx, FopEffect::Acknowledged { ns: s.ns, fdu: s.fdu });
                     removed = true;
                 }
@@ -461,13 +597,16 @@ impl<T: Clone> Fop<T> {
             }
             self.nnr = self.nnr.wrapping_add(1);
         }
+        if let Some(r) = rtt {
+            self.rtt.sample(r);
+        }
         self.nnr = nr;
         if removed {
             self.tx_count = 1;
             self.timer = if self.sent.is_empty() {
                 None
             } else {
-                Some(now + self.config.t1_ms)
+                Some(now.saturating_add(self.rtt.t1_ms()))
             };
         }
     }
@@ -476,8 +615,9 @@ impl<T: Clone> Fop<T> {
         self.tx_count = self.tx_count.saturating_add(1);
         for s in self.sent.iter_mut() {
             s.retransmit = true;
+            s.retransmitted = true;
         }
-        self.timer = Some(now + self.config.t1_ms);
+        self.timer = Some(now.saturating_add(self.rtt.t1_ms()));
     }
 
     /// Sends what is marked for retransmission, then new frames while the window allows.
@@ -518,12 +658,14 @@ impl<T: Clone> Fop<T> {
                     ns,
                     fdu,
                     retransmit: false,
+                    first_tx_ms: now,
+                    retransmitted: false,
                 });
                 sent_any = true;
             }
         }
         if sent_any {
-            self.timer = Some(now + self.config.t1_ms);
+            self.timer = Some(now.saturating_add(self.rtt.t1_ms()));
         }
     }
 
@@ -555,6 +697,9 @@ impl<T: Clone> Fop<T> {
                 (false, false) => {
                     if s == InitialisingWithoutBc || s == InitialisingWithBc {
                         push(fx, FopEffect::Event(E1));
+                        if let Some(t) = self.bc_tx_ms.take() {
+                            self.rtt.sample(now.saturating_sub(t));
+                        }
                         self.timer = None;
                         self.pending_bc = None;
                         self.state = Active;
@@ -687,6 +832,7 @@ impl<T: Clone> Fop<T> {
             return;
         }
         self.timer = None;
+        self.rtt.expired();
         let s = self.state;
         if self.tx_count < self.config.tx_limit {
             push(
@@ -708,10 +854,11 @@ impl<T: Clone> Fop<T> {
                 }
                 InitialisingWithBc => {
                     self.tx_count = self.tx_count.saturating_add(1);
+                    self.bc_tx_ms = None;
                     if let Some(cmd) = self.pending_bc {
                         push(fx, FopEffect::TransmitBc(cmd));
                     }
-                    self.timer = Some(now + self.config.t1_ms);
+                    self.timer = Some(now.saturating_add(self.rtt.t1_ms()));
                 }
             }
         } else if self.config.timeout_type == 0 {
@@ -743,6 +890,7 @@ mod tests {
         FopConfig {
             sliding_window: 4,
             t1_ms: T1,
+            t1_min_ms: T1,
             tx_limit: 3,
             timeout_type: 0,
         }
@@ -1154,6 +1302,7 @@ mod tests {
             FopConfig {
                 sliding_window: 16,
                 t1_ms: 5,
+                t1_min_ms: 5,
                 tx_limit: 1,
                 timeout_type: 1
             }
@@ -1173,5 +1322,174 @@ mod tests {
         c.report_value = 1;
         assert_eq!(ev(&f.on_event(0, FopInput::Clcw(c))), ClcwIgnored);
         assert_eq!(f.outstanding(), 1);
+    }
+
+    fn adaptive(min: u64, max: u64) -> FopConfig {
+        FopConfig {
+            t1_ms: max,
+            t1_min_ms: min,
+            ..cfg()
+        }
+    }
+
+    // verifies: LINK-FOP-T1-01
+    #[test]
+    fn t1_estimator_uses_the_upper_bound_before_the_first_sample() {
+        let e = T1Estimator::new(300, 2000);
+        assert!(e.adaptive());
+        assert_eq!(e.t1_ms(), 2000);
+        assert_eq!(e.srtt_ms(), None);
+    }
+
+    // verifies: LINK-FOP-T1-01
+    #[test]
+    fn t1_estimator_is_srtt_plus_four_rttvar_as_rfc_6298() {
+        let mut e = T1Estimator::new(10, 5000);
+        // First sample R: SRTT = R, RTTVAR = R/2, T1 = R + 4·R/2 = 3R.
+        e.sample(400);
+        assert_eq!(e.srtt_ms(), Some(400));
+        assert_eq!(e.t1_ms(), 1200);
+        // Same again: RTTVAR = 3/4 · 200 + 1/4 · 0 = 150; SRTT stays 400; T1 = 1000.
+        e.sample(400);
+        assert_eq!(e.t1_ms(), 1000);
+        // 800: RTTVAR = 3/4 · 150 + 1/4 · 400 = 212.5; SRTT = 7/8 · 400 + 1/8 · 800 = 450.
+        e.sample(800);
+        assert_eq!(e.srtt_ms(), Some(450));
+        assert_eq!(e.t1_ms(), 450 + 850);
+        assert_eq!(e.samples(), 3);
+    }
+
+    // verifies: LINK-FOP-T1-01
+    #[test]
+    fn t1_estimator_is_clamped_to_the_mib_bounds() {
+        use mib::link::cop1::{FOP_T1_MIN_MS, FOP_T1_MS};
+        let mut e = T1Estimator::new(FOP_T1_MIN_MS, FOP_T1_MS);
+        for _ in 0..20 {
+            e.sample(3);
+        }
+        assert_eq!(e.t1_ms(), FOP_T1_MIN_MS, "a loopback round trip of 3 ms");
+        let mut e = T1Estimator::new(FOP_T1_MIN_MS, FOP_T1_MS);
+        e.sample(10_000);
+        assert_eq!(e.t1_ms(), FOP_T1_MS, "a round trip longer than the upper bound");
+        // Huge samples neither overflow nor escape the bound.
+        e.sample(u64::MAX);
+        assert_eq!(e.t1_ms(), FOP_T1_MS);
+    }
+
+    // verifies: LINK-FOP-T1-01
+    #[test]
+    fn t1_estimator_doubles_on_expiry_up_to_the_upper_bound_until_the_next_sample() {
+        let mut e = T1Estimator::new(300, 2000);
+        for _ in 0..20 {
+            e.sample(5);
+        }
+        assert_eq!(e.t1_ms(), 300);
+        e.expired();
+        assert_eq!(e.t1_ms(), 600);
+        e.expired();
+        assert_eq!(e.t1_ms(), 1200);
+        e.expired();
+        assert_eq!(e.t1_ms(), 2000);
+        for _ in 0..40 {
+            e.expired();
+        }
+        assert_eq!(e.t1_ms(), 2000);
+        e.sample(5);
+        assert_eq!(e.t1_ms(), 300, "a valid sample ends the backoff");
+    }
+
+    // verifies: LINK-FOP-T1-01
+    #[test]
+    fn t1_estimator_is_fixed_when_the_lower_bound_is_not_below_the_upper() {
+        let mut e = T1Estimator::new(T1, T1);
+        assert!(!e.adaptive());
+        e.sample(3);
+        e.expired();
+        assert_eq!(e.t1_ms(), T1);
+    }
+
+    // verifies: LINK-FOP-T1-01
+    #[test]
+    fn fop_adaptive_t1_samples_a_frame_sent_once_and_times_the_next_frame_by_it() {
+        let mut f = Fop::new(0, adaptive(100, 1000));
+        f.on_event(0, FopInput::InitiateAdWithoutClcw);
+        f.on_event(0, FopInput::TransmitAd(1));
+        assert_eq!(f.next_deadline(), Some(1000), "no sample yet: the upper bound");
+        // Acknowledged 20 ms later: SRTT 20, RTTVAR 10, T1 = 60, clamped to 100.
+        assert_eq!(acked(&f.on_event(20, ok(1))), vec![0]);
+        assert_eq!(f.t1_estimator().srtt_ms(), Some(20));
+        assert_eq!(f.t1_ms(), 100);
+        f.on_event(50, FopInput::TransmitAd(2));
+        assert_eq!(f.next_deadline(), Some(150));
+        assert_eq!(ev(&f.on_event(149, FopInput::Tick)), NoTimeout);
+        let fx = f.on_event(150, FopInput::Tick);
+        assert_eq!(ev(&fx), E16);
+        assert_eq!(sent(&fx), vec![(1, 2, true)]);
+        // Backed off: the retransmission waits 200 ms.
+        assert_eq!(f.next_deadline(), Some(350));
+    }
+
+    // verifies: LINK-FOP-T1-01
+    #[test]
+    fn fop_karn_rule_takes_no_sample_from_a_retransmitted_frame() {
+        let mut f = Fop::new(0, adaptive(100, 1000));
+        f.on_event(0, FopInput::InitiateAdWithoutClcw);
+        f.on_event(0, FopInput::TransmitAd(1));
+        // T1 expires, the frame goes again and is acknowledged 5 ms after the
+        // retransmission: which transmission the CLCW answers is unknown, no sample.
+        assert_eq!(ev(&f.on_event(1000, FopInput::Tick)), E16);
+        assert_eq!(acked(&f.on_event(1005, ok(1))), vec![0]);
+        assert_eq!(f.t1_estimator().samples(), 0);
+        assert_eq!(f.t1_ms(), 1000);
+        // A gap reported by the FARM (retransmit flag) marks the window retransmitted too.
+        f.on_event(2000, FopInput::TransmitAd(2));
+        f.on_event(2000, FopInput::TransmitAd(3));
+        let fx = f.on_event(2010, clcw(1, true, false, false));
+        assert_eq!(ev(&fx), E10);
+        assert_eq!(acked(&f.on_event(2015, ok(3))), vec![1, 2]);
+        assert_eq!(f.t1_estimator().samples(), 0);
+        // A frame sent once gives its sample.
+        f.on_event(3000, FopInput::TransmitAd(4));
+        f.on_event(3030, ok(4));
+        assert_eq!(f.t1_estimator().srtt_ms(), Some(30));
+    }
+
+    // verifies: LINK-FOP-T1-01, LINK-FOP-02
+    #[test]
+    fn fop_adaptive_t1_samples_the_set_vr_round_trip_unless_the_bc_frame_was_repeated() {
+        let mut f = Fop::<u32>::new(0, adaptive(100, 1000));
+        f.on_event(0, FopInput::InitiateAdWithSetVr(5));
+        assert_eq!(ev(&f.on_event(40, ok(5))), E1);
+        assert_eq!(f.state(), Active);
+        assert_eq!(f.t1_estimator().srtt_ms(), Some(40));
+        let mut f = Fop::<u32>::new(0, adaptive(100, 1000));
+        f.on_event(0, FopInput::InitiateAdWithSetVr(5));
+        let fx = f.on_event(1000, FopInput::Tick);
+        assert!(fx.contains(&F::TransmitBc(ControlCommand::SetVr(5))));
+        f.on_event(1010, ok(5));
+        assert_eq!(f.state(), Active);
+        assert_eq!(f.t1_estimator().samples(), 0);
+    }
+
+    // verifies: LINK-FOP-T1-01, LINK-FOP-01
+    #[test]
+    fn fop_e37_set_t1_keeps_a_fixed_t1_fixed_and_bounds_an_adaptive_one() {
+        let mut f = active(0, 0);
+        f.on_event(0, FopInput::SetT1(5000));
+        assert!(!f.t1_estimator().adaptive());
+        assert_eq!(f.t1_ms(), 5000);
+        let mut f = Fop::<u32>::new(0, adaptive(100, 1000));
+        f.on_event(0, FopInput::SetT1(500));
+        assert!(f.t1_estimator().adaptive());
+        assert_eq!(f.t1_ms(), 500);
+    }
+
+    // verifies: LINK-FOP-T1-01
+    #[test]
+    fn fop_mission_config_has_an_adaptive_t1_within_the_mib_bounds() {
+        use mib::link::cop1::{FOP_T1_MIN_MS, FOP_T1_MS};
+        let c = FopConfig::mission();
+        assert_eq!((c.t1_min_ms, c.t1_ms), (FOP_T1_MIN_MS, FOP_T1_MS));
+        assert!(Fop::<u32>::new(0, c).t1_estimator().adaptive());
     }
 }

@@ -102,6 +102,7 @@ fn config() -> FopConfig {
     FopConfig {
         sliding_window: 10,
         t1_ms: 100,
+        t1_min_ms: 100,
         tx_limit: 20,
         timeout_type: 0,
     }
