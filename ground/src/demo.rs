@@ -242,8 +242,7 @@ pub fn demo(a: &DemoArgs, archive_path: Option<&Path>) -> Result<u8> {
     } else {
         Transport::Frames
     };
-    let mut frames =
-        (transport == Transport::Frames).then(|| FrameOptions::new(logdir.join("TEST-KEYS-demo-only")));
+    let mut frames = (transport == Transport::Frames).then(|| FrameOptions::new(logdir.join("TEST-KEYS-demo-only")));
     if let Some(f) = &mut frames {
         for r in &pl.robots {
             ground::keys::create_robot_keys(&f.keys, r.number).map_err(|e| anyhow!("demo test keys: {e}"))?;

@@ -23,7 +23,7 @@ use crate::pus;
 /// Poll interval of the reader threads (how fast they notice a stop).
 const READ_POLL: Duration = Duration::from_millis(100);
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Transport {
     /// Bare space packets, one per UDP datagram (lab mode).
     Udp,
@@ -444,14 +444,9 @@ fn open_frames(
     let listen = opts.listen(robot, addr);
     // The key folder's layout (`ground keys create`): the TC key of the chosen SPI, the TM
     // key of SPI 17 and, when there, the spare TM key of SPI 18 (accepted as well).
-    let mut cfg = ground_link::Config::from_key_dir(
-        addr,
-        listen,
-        &dir,
-        &crate::keys::ground_state_path(&dir),
-        opts.tc_spi,
-    )
-    .map_err(|e| io::Error::other(format!("robot {robot}'s keys in {}: {e}", dir.display())))?;
+    let mut cfg =
+        ground_link::Config::from_key_dir(addr, listen, &dir, &crate::keys::ground_state_path(&dir), opts.tc_spi)
+            .map_err(|e| io::Error::other(format!("robot {robot}'s keys in {}: {e}", dir.display())))?;
     cfg.tm_security = opts.tm_security;
     let mut fl = ground_link::FrameLink::open(cfg)
         .map_err(|e| io::Error::other(format!("frame link of robot {robot} (TM frames on {listen}): {e}")))?;

@@ -11,31 +11,24 @@ use crate::link::{FrameOptions, Transport};
 /// Environment variable naming the key directory when `--keys` is not given.
 pub const KEYS_ENV: &str = "MMIC_KEYS";
 
-/// The link flags shared by every verb that talks to robots.
-#[derive(clap::Args, Debug, Clone)]
-pub struct LinkFlags {
-    /// Key directory of the space link (`ground keys create DIR`): robot N uses
-    /// DIR/robot-N/. Needed unless a lab link is chosen.
-    #[arg(long, value_name = "DIR", env = KEYS_ENV)]
+/// How the robots are reached, as the binary's link flags (`--keys`, `--tm-listen`,
+/// `--spi`, `--tm-sdls`, `--lab-udp`, `--lab-tcp`) give it; [`LinkChoice::resolve`]
+/// turns it into a transport and its frame options.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct LinkChoice {
+    /// Key directory of the space link: robot N uses `keys/robot-N/`. Needed unless a lab
+    /// link is chosen.
     pub keys: Option<PathBuf>,
-    /// Local address robot N's TM frames arrive at, `N=HOST:PORT` (the obsw's
-    /// --frame-tm-to); default 127.0.0.1:7400+N (0.0.0.0 for a remote robot). Repeat per robot.
-    #[arg(long = "tm-listen", value_parser = crate::collect::parse_robot, value_name = "N=HOST:PORT")]
+    /// Local address robot N's TM frames arrive at, per robot (the obsw's
+    /// `--frame-tm-to`); default [`crate::link::default_tm_listen`].
     pub tm_listen: Vec<(u8, SocketAddr)>,
-    /// The space link's TC SPI: 1, or 2 after a key change (`LINK_SPI_SELECT`; the
-    /// key folder holds both keys).
-    #[arg(long, value_name = "1|2", default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..=2))]
+    /// The space link's TC SPI: 1, or 2 after a key change.
     pub spi: u16,
-    /// SDLS on the robot's TM frames, as its `--tm-sdls`: encrypt (the default) or clear.
-    #[arg(long, value_name = "encrypt|clear", default_value = "encrypt", value_parser = parse_tm_sdls)]
+    /// SDLS on the robot's TM frames (the robot's `--tm-sdls`).
     pub tm_sdls: ground_link::TmSecurity,
-    /// Lab mode: bare (unauthenticated) space packets, one per UDP datagram, instead of
-    /// the space link; robots on loopback addresses only (obsw --lab-bare-packets).
-    #[arg(long, conflicts_with = "lab_tcp")]
+    /// Lab mode: bare space packets, one per UDP datagram (robots on loopback only).
     pub lab_udp: bool,
-    /// Lab mode: bare (unauthenticated) space packets over TCP with COBS framing;
-    /// robots on loopback addresses only (obsw --lab-bare-packets).
-    #[arg(long)]
+    /// Lab mode: bare space packets over TCP with COBS framing (robots on loopback only).
     pub lab_tcp: bool,
 }
 
@@ -58,11 +51,11 @@ pub enum LinkChoiceError {
     TmListenWithLab { flag: &'static str },
 }
 
-impl Default for LinkFlags {
+impl Default for LinkChoice {
     /// The command line's defaults: the space link, keys from nowhere yet, TC SPI 1,
     /// encrypted TM.
-    fn default() -> LinkFlags {
-        LinkFlags {
+    fn default() -> LinkChoice {
+        LinkChoice {
             keys: None,
             tm_listen: Vec::new(),
             spi: 1,
@@ -73,15 +66,7 @@ impl Default for LinkFlags {
     }
 }
 
-fn parse_tm_sdls(s: &str) -> Result<ground_link::TmSecurity, String> {
-    match s {
-        "encrypt" => Ok(ground_link::TmSecurity::Encrypt),
-        "clear" => Ok(ground_link::TmSecurity::Clear),
-        other => Err(format!("\"{other}\": encrypt or clear")),
-    }
-}
-
-impl LinkFlags {
+impl LinkChoice {
     /// Robot `n`'s address when `--robot N` gives none: on loopback, its space-link port
     /// (`mib::config::frame_port`, obsw --frame-udp's default), or with a lab flag its
     /// bare-packet port (`mib::config::robot_port`, obsw --udp's default).
@@ -138,14 +123,14 @@ mod tests {
     // verifies: OPS-LINK-DEFAULT-01
     #[test]
     fn frames_are_the_default_and_need_keys() {
-        let none = LinkFlags::default();
+        let none = LinkChoice::default();
         assert_eq!(none.resolve(&[(1, local(7301))]), Err(LinkChoiceError::NoKeys));
         assert!(LinkChoiceError::NoKeys.to_string().contains("--keys DIR"));
         assert_eq!(none.default_addr(2), local(7502));
-        let keyed = LinkFlags {
+        let keyed = LinkChoice {
             keys: Some("k".into()),
             tm_listen: vec![(1, local(9401))],
-            ..LinkFlags::default()
+            ..LinkChoice::default()
         };
         let (t, f) = keyed.resolve(&[(1, local(7301))]).unwrap();
         assert_eq!(t, Transport::Frames);
@@ -157,16 +142,16 @@ mod tests {
     // verifies: OPS-LINK-DEFAULT-01
     #[test]
     fn the_lab_links_are_explicit_and_loopback_only() {
-        let udp = LinkFlags {
+        let udp = LinkChoice {
             lab_udp: true,
-            ..LinkFlags::default()
+            ..LinkChoice::default()
         };
         assert_eq!(udp.resolve(&[(1, local(7301))]), Ok((Transport::Udp, None)));
         assert_eq!(udp.default_addr(2), local(7302));
-        let tcp = LinkFlags {
+        let tcp = LinkChoice {
             lab_tcp: true,
             keys: Some("ignored".into()),
-            ..LinkFlags::default()
+            ..LinkChoice::default()
         };
         assert_eq!(tcp.resolve(&[(2, local(7302))]), Ok((Transport::Tcp, None)));
         let remote: SocketAddr = "10.0.0.7:7301".parse().unwrap();
@@ -180,10 +165,10 @@ mod tests {
             }
         );
         assert!(e.to_string().contains("robot 3 at 10.0.0.7:7301"));
-        let with_listen = LinkFlags {
+        let with_listen = LinkChoice {
             lab_udp: true,
             tm_listen: vec![(1, local(9401))],
-            ..LinkFlags::default()
+            ..LinkChoice::default()
         };
         assert!(matches!(
             with_listen.resolve(&[(1, local(7301))]),

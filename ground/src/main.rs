@@ -18,12 +18,13 @@ use clap::{Args, Parser, Subcommand};
 use ground::archive::{self, Archive};
 use ground::collect::parse_robot_arg;
 use ground::link::{FrameOptions, Transport};
-use ground::link_choice::LinkFlags;
+use ground::link_choice::{LinkChoice, KEYS_ENV};
 use ground::ops::Session;
 
 mod demo;
 mod plot;
 mod verb_archive;
+mod verb_collect;
 mod verb_decode;
 mod verb_keys;
 mod verb_live;
@@ -117,10 +118,10 @@ enum Cmd {
     /// Start two simulated robots, run the demo plan and summarise.
     Demo(demo::DemoArgs),
     /// Follow robots unattended: archive everything, fill gaps, raise alarms.
-    Collect(ground::collect::CollectArgs),
+    Collect(verb_collect::CollectArgs),
     /// List, acknowledge or shelve the collector's alarms.
     #[command(subcommand)]
-    Alarms(ground::collect::AlarmsCmd),
+    Alarms(verb_collect::AlarmsCmd),
     /// Create or show the space link's key files (never prints a key).
     #[command(subcommand)]
     Keys(verb_keys::KeysCmd),
@@ -140,10 +141,68 @@ struct Links {
     link: LinkFlags,
 }
 
+/// The link flags shared by every verb that talks to robots ([`LinkChoice`]).
+#[derive(Args, Debug, Clone)]
+pub(crate) struct LinkFlags {
+    /// Key directory of the space link (`ground keys create DIR`): robot N uses
+    /// DIR/robot-N/. Needed unless a lab link is chosen.
+    #[arg(long, value_name = "DIR", env = KEYS_ENV)]
+    keys: Option<PathBuf>,
+    /// Local address robot N's TM frames arrive at, `N=HOST:PORT` (the obsw's
+    /// --frame-tm-to); default 127.0.0.1:7400+N (0.0.0.0 for a remote robot). Repeat per robot.
+    #[arg(long = "tm-listen", value_parser = ground::collect::parse_robot, value_name = "N=HOST:PORT")]
+    tm_listen: Vec<(u8, SocketAddr)>,
+    /// The space link's TC SPI: 1, or 2 after a key change (`LINK_SPI_SELECT`; the
+    /// key folder holds both keys).
+    #[arg(long, value_name = "1|2", default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..=2))]
+    spi: u16,
+    /// SDLS on the robot's TM frames, as its `--tm-sdls`: encrypt (the default) or clear.
+    #[arg(long, value_name = "encrypt|clear", default_value = "encrypt", value_parser = parse_tm_sdls)]
+    tm_sdls: ground_link::TmSecurity,
+    /// Lab mode: bare (unauthenticated) space packets, one per UDP datagram, instead of
+    /// the space link; robots on loopback addresses only (obsw --lab-bare-packets).
+    #[arg(long, conflicts_with = "lab_tcp")]
+    lab_udp: bool,
+    /// Lab mode: bare (unauthenticated) space packets over TCP with COBS framing;
+    /// robots on loopback addresses only (obsw --lab-bare-packets).
+    #[arg(long)]
+    lab_tcp: bool,
+}
+
+fn parse_tm_sdls(s: &str) -> Result<ground_link::TmSecurity, String> {
+    match s {
+        "encrypt" => Ok(ground_link::TmSecurity::Encrypt),
+        "clear" => Ok(ground_link::TmSecurity::Clear),
+        other => Err(format!("\"{other}\": encrypt or clear")),
+    }
+}
+
+impl LinkFlags {
+    /// The library's link choice these flags make.
+    pub(crate) fn choice(&self) -> LinkChoice {
+        LinkChoice {
+            keys: self.keys.clone(),
+            tm_listen: self.tm_listen.clone(),
+            spi: self.spi,
+            tm_sdls: self.tm_sdls,
+            lab_udp: self.lab_udp,
+            lab_tcp: self.lab_tcp,
+        }
+    }
+
+    /// Robot `n`'s address when `--robot N` gives none ([`LinkChoice::default_addr`]).
+    pub(crate) fn default_addr(&self, n: u8) -> SocketAddr {
+        self.choice().default_addr(n)
+    }
+}
+
 impl Links {
     /// The transport and frame options for these robots (usage errors exit 2).
     fn choice(&self, robots: &[(u8, SocketAddr)]) -> Result<(Transport, Option<FrameOptions>)> {
-        self.link.resolve(robots).map_err(|e| coded(exit::USAGE, e.to_string()))
+        self.link
+            .choice()
+            .resolve(robots)
+            .map_err(|e| coded(exit::USAGE, e.to_string()))
     }
 
     /// Says which robots the verb talks to and how, then opens the archive (if wanted)
@@ -218,8 +277,8 @@ fn run(cli: Cli) -> Result<u8> {
         Cmd::Mib(MibCmd::Export { format, out: dir }) => mib_export(&format, &dir),
         Cmd::Model(a) => model(&a, archive_path.as_deref()),
         Cmd::Demo(a) => demo::demo(&a, archive_path.as_deref()),
-        Cmd::Collect(a) => ground::collect::collect_cli(&cli.archive, a),
-        Cmd::Alarms(a) => ground::collect::alarms_cli(&cli.archive, a),
+        Cmd::Collect(a) => verb_collect::collect(&cli.archive, a),
+        Cmd::Alarms(a) => verb_collect::alarms(&cli.archive, a),
         Cmd::Keys(a) => verb_keys::keys(&a),
     }
 }

@@ -25,11 +25,11 @@ mod summary;
 #[cfg(test)]
 mod tests;
 
+pub use book::{Pending, TcBook};
 pub use executor::{Effect, Executor, RunOptions, StepState, INTERRUPT_GRACE};
 pub use run::{run_plan, InFlight, Resume};
 pub(crate) use seq::SEQ_MOD;
 pub use seq::{SeqKind, SeqTrack, SEQ_TRACK_WINDOW};
-pub use book::{Pending, TcBook};
 pub use session::{failure_words, first_tc_seq, OpsError, Session, Update, SEQ_SKIP_AFTER_RESTART};
 pub use status::{NoAnswer, RobotStatus};
 pub use summary::{BoltStats, LinkSummary, RunSummary, StepOutcome, TmCompleteness};

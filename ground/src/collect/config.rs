@@ -555,9 +555,23 @@ pub fn parse(file: &str, src: &str) -> Result<Config, CfgErrors> {
     }
 }
 
+/// Why a configuration file could not be used.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum LoadError {
+    #[error("cannot read {}: {err}", path.display())]
+    Read { path: PathBuf, err: std::io::Error },
+    /// Every error of the file, located as file:line:column.
+    #[error(transparent)]
+    Invalid(#[from] CfgErrors),
+}
+
 /// Reads and parses a configuration file.
-pub fn load(path: &Path) -> anyhow::Result<Config> {
-    let src = std::fs::read_to_string(path).map_err(|e| anyhow::anyhow!("cannot read {}: {e}", path.display()))?;
+pub fn load(path: &Path) -> Result<Config, LoadError> {
+    let src = std::fs::read_to_string(path).map_err(|err| LoadError::Read {
+        path: path.to_path_buf(),
+        err,
+    })?;
     Ok(parse(&path.display().to_string(), &src)?)
 }
 

@@ -139,6 +139,29 @@ fn alarm_record(r: &Alarm) -> AlarmRecord {
     }
 }
 
+/// Why [`AlarmSync::sync`] could not read the archive's alarms.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum AlarmSyncError {
+    /// A thread panicked while it held the sync's state.
+    #[error("alarm sync lock poisoned")]
+    Poisoned,
+    #[error(transparent)]
+    Archive(#[from] crate::archive::ArchiveError),
+}
+
+/// An error and its sources, `: `-separated (as the log and the page show it).
+fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut text = e.to_string();
+    let mut source = e.source();
+    while let Some(s) = source {
+        text.push_str(": ");
+        text.push_str(&s.to_string());
+        source = s.source();
+    }
+    text
+}
+
 /// Keeps the hub's alarms equal to the open alarms of the archive's alarm table.
 pub struct AlarmSync {
     archive: PathBuf,
@@ -159,9 +182,9 @@ impl AlarmSync {
 
     /// Reads the open alarms once and publishes what changed; alarms that closed since
     /// are shown cleared.
-    pub fn sync(&self) -> anyhow::Result<()> {
+    pub fn sync(&self) -> Result<(), AlarmSyncError> {
         let Ok(mut guard) = self.state.lock() else {
-            anyhow::bail!("alarm sync lock poisoned")
+            return Err(AlarmSyncError::Poisoned);
         };
         let (shown, conn) = &mut *guard;
         if conn.is_none() {
@@ -205,7 +228,7 @@ impl AlarmSync {
                     match self.sync() {
                         Ok(()) => logged = false,
                         Err(e) if !logged => {
-                            tracing::debug!("dashboard alarms: {e:#}");
+                            tracing::debug!("dashboard alarms: {}", error_chain(&e));
                             logged = true;
                         }
                         Err(_) => {}
@@ -245,7 +268,7 @@ impl CollectCommander {
         let mut c = Store::open_existing(&self.archive.to_string_lossy()).map_err(|e| CommandError(e.to_string()))?;
         c.alarm_input(id as i64, input, now_ms())
             .map_err(|e| CommandError(e.to_string()))?;
-        self.alarms.sync().map_err(|e| CommandError(format!("{e:#}")))
+        self.alarms.sync().map_err(|e| CommandError(error_chain(&e)))
     }
 }
 

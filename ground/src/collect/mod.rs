@@ -22,10 +22,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use anyhow::{Context, Result};
-use clap::{Args, Subcommand};
-
-use crate::alarms::{Input, State};
 use crate::archive::{now_ms, Store};
 
 use config::{Config, RobotCfg};
@@ -42,71 +38,65 @@ pub const RESUME_WINDOW: usize = mib::config::TM_STORE_CAPACITY;
 /// Gap notes `--status` lists (newest first).
 const STATUS_NOTES: usize = 10;
 
-/// `ground collect` options.
-#[derive(Args, Debug, Clone)]
-pub struct CollectArgs {
-    /// Robot link `N=HOST:PORT` (or `N` for 127.0.0.1:7300+N); repeat per robot. Adds to
-    /// (or overrides) the robots of --config.
-    #[arg(long = "robot", short = 'r', value_parser = parse_robot_arg)]
+/// What `ground collect` was asked to do (the binary fills it from its flags).
+#[derive(Debug, Clone, Default)]
+pub struct CollectOptions {
+    /// Robot links `(N, address)`; no address: the default of the link chosen
+    /// ([`crate::link_choice::LinkChoice::default_addr`]). Added to (or overriding) the
+    /// robots of `config`.
     pub robots: Vec<(u8, Option<SocketAddr>)>,
-    /// How the --robot links are reached: the space link (needs --keys) unless a lab flag.
-    #[command(flatten)]
-    pub link: crate::link_choice::LinkFlags,
+    /// How the robots of `robots` are reached.
+    pub link: crate::link_choice::LinkChoice,
     /// TOML configuration (robots, links, retention, alarm settings).
-    #[arg(long)]
     pub config: Option<PathBuf>,
-    /// Check a configuration file and exit (errors as file:line:column).
-    #[arg(long, value_name = "FILE")]
+    /// Check this configuration file and return (errors as file:line:column).
     pub check_config: Option<PathBuf>,
-    /// Print when each robot was last heard (from the archive) and exit.
-    #[arg(long)]
+    /// Print when each robot was last heard (from the archive) and return.
     pub status: bool,
-    /// With --status: JSON.
-    #[arg(long)]
+    /// With `status`: JSON.
     pub json: bool,
     /// Delete archived data older than this, e.g. 30d (overrides the config's `retain`).
-    #[arg(long)]
     pub retain: Option<String>,
     /// Plain log lines even on a terminal (no live table).
-    #[arg(long)]
     pub plain: bool,
-    /// Debug log lines (every store request, every corrupt packet).
-    #[arg(long, short = 'v')]
+    /// Debug log lines.
     pub verbose: bool,
-    /// Also serve the operators' dashboard on this address (docs/dashboard.md).
-    #[arg(long, value_name = "ADDR")]
+    /// Also serve the operators' dashboard on this address.
     pub http: Option<SocketAddr>,
-    /// Access token of the dashboard (required when --http is not a loopback address).
-    #[arg(long, value_name = "TOKEN")]
+    /// Access token of the dashboard (required when `http` is not a loopback address).
     pub http_token: Option<String>,
 }
 
-/// `ground alarms` subcommands.
-#[derive(Subcommand, Debug, Clone)]
-pub enum AlarmsCmd {
-    /// List alarms that are not closed (with --all, closed ones too).
-    List {
-        #[arg(long)]
-        robot: Option<u8>,
-        #[arg(long)]
-        all: bool,
-        #[arg(long)]
-        json: bool,
+/// Why the collector (or its `--status`) stopped with an error. Invalid input (a bad
+/// configuration, link flags or duration) is not an error: it is reported on standard
+/// error and returned as exit code [`EXIT_INVALID`] (or 2).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum CollectError {
+    /// SIGINT/SIGTERM could not be caught.
+    #[error("installing the signal handler")]
+    Signal(#[source] ctrlc::Error),
+    /// The archive could not be opened at start.
+    #[error("archive {loc}")]
+    OpenArchive {
+        loc: String,
+        #[source]
+        source: crate::archive::ArchiveError,
     },
-    /// Acknowledge an alarm.
-    Ack { id: i64 },
-    /// Shelve an alarm for a while, e.g. `--for 2h`.
-    Shelve {
-        id: i64,
-        #[arg(long = "for", value_name = "DURATION")]
-        duration: String,
-    },
-    /// End a shelve.
-    Unshelve { id: i64 },
+    #[error(transparent)]
+    Archive(#[from] crate::archive::ArchiveError),
+    #[error(transparent)]
+    Db(#[from] crate::archive::db::DbError),
+    /// The dashboard could not start.
+    #[error(transparent)]
+    Dashboard(#[from] crate::dashboard::ServeError),
+    /// A thread could not start, or standard output could not be written.
+    #[error(transparent)]
+    Io(#[from] std::io::Error),
 }
 
 /// `N` or `N=HOST:PORT` (robot number in the MIB's range; no address: the default of
-/// the link chosen, [`crate::link_choice::LinkFlags::default_addr`]), as `--robot` takes it.
+/// the link chosen, [`crate::link_choice::LinkChoice::default_addr`]), as `--robot` takes it.
 pub fn parse_robot_arg(s: &str) -> Result<(u8, Option<SocketAddr>), String> {
     let (n, addr) = match s.split_once('=') {
         Some((n, a)) => (n, Some(a)),
@@ -143,6 +133,8 @@ pub fn parse_robot(s: &str) -> Result<(u8, SocketAddr), String> {
     }
 }
 
+type Result<T, E = CollectError> = std::result::Result<T, E>;
+
 fn emit(line: &str) -> Result<()> {
     let mut o = std::io::stdout().lock();
     writeln!(o, "{line}")?;
@@ -150,7 +142,7 @@ fn emit(line: &str) -> Result<()> {
 }
 
 /// Entry of `ground collect`.
-pub fn collect_cli(archive: &Path, a: CollectArgs) -> Result<u8> {
+pub fn collect_cli(archive: &Path, a: CollectOptions) -> Result<u8> {
     if let Some(f) = &a.check_config {
         return match config::load(f) {
             Ok(c) => {
@@ -240,11 +232,14 @@ pub fn run_with(
     ignore_file_size_signal();
     {
         let stop = stop.clone();
-        ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
+        ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)).map_err(CollectError::Signal)?;
     }
     // Read where each robot was before the collector (re)started.
     let loc = archive.to_string_lossy();
-    let mut st = Store::open(&loc).with_context(|| format!("archive {loc}"))?;
+    let mut st = Store::open(&loc).map_err(|source| CollectError::OpenArchive {
+        loc: loc.to_string(),
+        source,
+    })?;
     let mut histories = Vec::new();
     let mut hashes = Vec::new();
     for r in &cfg.robots {
@@ -538,7 +533,8 @@ fn draw(statuses: &[Arc<Mutex<RobotStatus>>], ring: &LogRing, started: Instant) 
 // ---------------------------------------------------------------------------
 // --status and `ground alarms`
 
-fn utc(ms: i64) -> String {
+/// A UTC time as `--status` and `ground alarms list` show it (`2026-01-31 12:00:00`).
+pub fn utc(ms: i64) -> String {
     chrono::DateTime::from_timestamp_millis(ms)
         .map(|t| t.format("%Y-%m-%d %H:%M:%S").to_string())
         .unwrap_or_else(|| ms.to_string())
@@ -606,69 +602,4 @@ fn status(archive: &Path, json: bool) -> Result<u8> {
         }
     }
     Ok(0)
-}
-
-/// Entry of `ground alarms`.
-pub fn alarms_cli(archive: &Path, cmd: AlarmsCmd) -> Result<u8> {
-    let mut c = Store::open_existing(&archive.to_string_lossy())?;
-    let now = now_ms();
-    match cmd {
-        AlarmsCmd::List { robot, all, json } => {
-            let rows = c.alarms(robot, all)?;
-            if json {
-                for r in &rows {
-                    emit(&serde_json::to_string(r)?)?;
-                }
-                return Ok(0);
-            }
-            emit(&format!(
-                "{:>5} {:>5}  {:<24} {:<7} {:<13} {:<19} {:<19} {:>5}  {}",
-                "id", "robot", "source", "sev", "state", "first (UTC)", "last (UTC)", "count", "message"
-            ))?;
-            for r in &rows {
-                let state = match r.shelved_until_ms {
-                    Some(u) if r.state == State::Shelved => format!("shelved<{}", utc(u).get(11..16).unwrap_or("")),
-                    _ => r.state.name().to_string(),
-                };
-                emit(&format!(
-                    "{:>5} {:>5}  {:<24} {:<7} {:<13} {:<19} {:<19} {:>5}  {}",
-                    r.id,
-                    if r.robot == 0 { "-".into() } else { r.robot.to_string() },
-                    r.source,
-                    r.severity,
-                    state,
-                    utc(r.first_ms),
-                    utc(r.last_ms),
-                    r.count,
-                    r.message
-                ))?;
-            }
-            if rows.is_empty() {
-                emit(if all { "no alarms" } else { "no open alarms" })?;
-            }
-            Ok(0)
-        }
-        AlarmsCmd::Ack { id } => one_input(&mut c, id, Input::Ack, now),
-        AlarmsCmd::Unshelve { id } => one_input(&mut c, id, Input::Unshelve, now),
-        AlarmsCmd::Shelve { id, duration } => match config::parse_duration_ms(&duration) {
-            Some(ms) => one_input(&mut c, id, Input::Shelve { until_ms: now + ms }, now),
-            None => {
-                eprintln!("ground: error: --for {duration}: a duration like 30m, 2h, 1d");
-                Ok(EXIT_INVALID)
-            }
-        },
-    }
-}
-
-fn one_input(c: &mut Store, id: i64, input: Input, now: i64) -> Result<u8> {
-    match c.alarm_input(id, input, now) {
-        Ok(s) => {
-            emit(&format!("alarm {id}: {}", s.name()))?;
-            Ok(0)
-        }
-        Err(e) => {
-            eprintln!("ground: error: {e}");
-            Ok(EXIT_INVALID)
-        }
-    }
 }
