@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
-use ground::archive::{self, Filter, Kind};
+use ground::archive::{self, Filter};
 
 use crate::{coded, err_line, exit, out, plot};
 
@@ -96,13 +96,41 @@ pub(crate) fn parse_time(s: &str) -> Result<i64> {
     Err(coded(exit::INVALID, format!("cannot read time \"{s}\"")))
 }
 
+/// `--type` of `archive query` / `export`: the archive's [`archive::Kind`], parsed here so
+/// that the archive library needs no clap.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum KindArg {
+    Tc,
+    Tm,
+    Verification,
+    Event,
+    Hk,
+    Alarm,
+    /// TM that did not decode when it arrived.
+    Corrupt,
+}
+
+impl From<KindArg> for archive::Kind {
+    fn from(k: KindArg) -> archive::Kind {
+        match k {
+            KindArg::Tc => archive::Kind::Tc,
+            KindArg::Tm => archive::Kind::Tm,
+            KindArg::Verification => archive::Kind::Verification,
+            KindArg::Event => archive::Kind::Event,
+            KindArg::Hk => archive::Kind::Hk,
+            KindArg::Alarm => archive::Kind::Alarm,
+            KindArg::Corrupt => archive::Kind::Corrupt,
+        }
+    }
+}
+
 #[derive(Subcommand, Debug)]
 pub(crate) enum ArchiveCmd {
     /// Print archived records.
     Query {
         /// What to list.
         #[arg(long = "type", value_enum, default_value = "tm")]
-        kind: Kind,
+        kind: KindArg,
         #[command(flatten)]
         filter: FilterArgs,
         #[arg(long)]
@@ -114,7 +142,7 @@ pub(crate) enum ArchiveCmd {
         #[arg(long, required = true)]
         csv: bool,
         #[arg(long = "type", value_enum, default_value = "hk")]
-        kind: Kind,
+        kind: KindArg,
         #[command(flatten)]
         filter: FilterArgs,
         /// Output file (default: standard output).
@@ -185,7 +213,7 @@ pub(crate) fn archive_cmd(a: ArchiveCmd, path: &Path) -> Result<u8> {
     let mut store = archive::Store::open(&loc).with_context(|| format!("opening archive {loc}"))?;
     match a {
         ArchiveCmd::Query { kind, filter, json } => {
-            let rows = store.query(kind, &filter.filter()?)?;
+            let rows = store.query(kind.into(), &filter.filter()?)?;
             if json {
                 for r in &rows.rows {
                     let obj: serde_json::Map<String, serde_json::Value> =
@@ -221,6 +249,7 @@ pub(crate) fn archive_cmd(a: ArchiveCmd, path: &Path) -> Result<u8> {
             ..
         } => {
             let f = filter.filter()?;
+            let kind = archive::Kind::from(kind);
             match file {
                 Some(p) => {
                     let mut o = std::fs::File::create(&p).with_context(|| format!("writing {}", p.display()))?;
