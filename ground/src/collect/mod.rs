@@ -603,3 +603,57 @@ fn status(archive: &Path, json: bool) -> Result<u8> {
     }
     Ok(0)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("ground-collect-unit-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    // verifies: GND-11
+    #[test]
+    fn an_unreadable_or_invalid_configuration_is_a_typed_error_naming_the_file() {
+        let dir = scratch("cfg");
+        let missing = dir.join("none.toml");
+        let e = config::load(&missing).unwrap_err();
+        assert!(
+            matches!(&e, config::LoadError::Read { path, .. } if *path == missing),
+            "{e:?}"
+        );
+        assert!(
+            e.to_string()
+                .starts_with(&format!("cannot read {}: ", missing.display())),
+            "{e}"
+        );
+        let bad = dir.join("bad.toml");
+        std::fs::write(&bad, "x = \n").unwrap();
+        let e = config::load(&bad).unwrap_err();
+        assert!(matches!(e, config::LoadError::Invalid(_)), "{e:?}");
+        assert!(e.to_string().starts_with(&format!("{}:1:5: ", bad.display())), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    // verifies: GND-10
+    #[test]
+    fn status_of_a_missing_archive_is_an_archive_error() {
+        let dir = scratch("status");
+        let archive = dir.join("none.db");
+        let opts = CollectOptions {
+            status: true,
+            ..CollectOptions::default()
+        };
+        let e = collect_cli(&archive, opts).unwrap_err();
+        assert!(
+            matches!(e, CollectError::Archive(crate::archive::ArchiveError::NotFound(_))),
+            "{e:?}"
+        );
+        assert_eq!(e.to_string(), format!("archive {} does not exist", archive.display()));
+        assert!(!archive.exists(), "--status never creates an archive");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
