@@ -470,7 +470,19 @@ fn ground_send_beside_ground_collect_on_one_robot_is_refused_naming_the_collecto
     );
     assert!(t.contains("collect"), "the holder's command line: {t}");
     // Watching is commanding too (it keeps the downlink with PINGs): refused the same way.
-    let o = ground(&dir, &["--archive", "b.db", "watch", "--lab-udp", "--robot", &r, "--duration", "1"]);
+    let o = ground(
+        &dir,
+        &[
+            "--archive",
+            "b.db",
+            "watch",
+            "--lab-udp",
+            "--robot",
+            &r,
+            "--duration",
+            "1",
+        ],
+    );
     assert_eq!(o.status.code(), Some(3), "{}", text(&o));
     // The collector killed with SIGKILL: the operating system frees the robot at once.
     signal(&c, "-KILL");
