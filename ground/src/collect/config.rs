@@ -21,6 +21,10 @@ struct FileCfg {
     /// Key directory of the frame link (`ground keys create`), relative to this file's
     /// folder; robot N uses KEYS/robot-N/.
     keys: Option<toml::Spanned<String>>,
+    /// The space link's TC SPI, 1 or 2 (after a key change, `LINK_SPI_SELECT`).
+    tc_spi: Option<toml::Spanned<u16>>,
+    /// SDLS on the robots' TM frames: "encrypt" (the default) or "clear" (their `--tm-sdls`).
+    tm_sdls: Option<toml::Spanned<String>>,
     /// Delete archived data older than this ("30d", "12h", "90m", "45s").
     retain: Option<toml::Spanned<String>>,
     /// Plan files the dashboard offers (relative to this file's folder).
@@ -340,6 +344,22 @@ pub fn parse(file: &str, src: &str) -> Result<Config, CfgErrors> {
         }),
         None => Transport::Frames,
     };
+    let tc_spi = match &f.tc_spi {
+        None => mib::link::sdls::TC_SPIS[0],
+        Some(v) if mib::link::sdls::TC_SPIS.contains(v.get_ref()) => *v.get_ref(),
+        Some(v) => {
+            cx.err(v.span(), format!("tc_spi = {}: the TC SPIs are 1 and 2", v.get_ref()));
+            mib::link::sdls::TC_SPIS[0]
+        }
+    };
+    let tm_security = match f.tm_sdls.as_ref().map(|t| (t, t.get_ref().as_str())) {
+        None | Some((_, "encrypt")) => ground_link::TmSecurity::Encrypt,
+        Some((_, "clear")) => ground_link::TmSecurity::Clear,
+        Some((t, other)) => {
+            cx.err(t.span(), format!("tm_sdls = \"{other}\": \"encrypt\" or \"clear\""));
+            ground_link::TmSecurity::Encrypt
+        }
+    };
     if let Some(r) = &f.retain {
         match parse_duration_ms(r.get_ref()) {
             Some(ms) => c.retain_ms = Some(ms),
@@ -531,6 +551,8 @@ pub fn parse(file: &str, src: &str) -> Result<Config, CfgErrors> {
             let keys = Path::new(file).parent().unwrap_or(Path::new("")).join(k.get_ref());
             Some(FrameOptions {
                 tm_listen: tm_listen.map(|a| (number, a)).into_iter().collect(),
+                tc_spi,
+                tm_security,
                 ..FrameOptions::new(keys)
             })
         } else {
@@ -624,6 +646,22 @@ transport = "lab-tcp"
         assert!(e.contains("robot 1 over frames: the file needs keys"), "{e}");
         let c = parse("c.toml", "keys = \"k\"\n[[robot]]\nnumber = 1\n").unwrap();
         assert_eq!(c.robots[0].transport, Transport::Frames);
+        let f = c.robots[0].frames.as_ref().unwrap();
+        assert_eq!((f.tc_spi, f.tm_security), (1, ground_link::TmSecurity::Encrypt));
+        let c = parse(
+            "c.toml",
+            "keys = \"k\"\ntc_spi = 2\ntm_sdls = \"clear\"\n[[robot]]\nnumber = 1\n",
+        )
+        .unwrap();
+        let f = c.robots[0].frames.as_ref().unwrap();
+        assert_eq!((f.tc_spi, f.tm_security), (2, ground_link::TmSecurity::Clear));
+        let e = parse("c.toml", "keys = \"k\"\ntc_spi = 3\ntm_sdls = \"open\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("c.toml:2:10: tc_spi = 3") && e.contains("c.toml:3:11: tm_sdls"),
+            "{e}"
+        );
         let e = parse("c.toml", "transport = \"udp\"\n").unwrap_err().to_string();
         assert!(e.contains("\"lab-udp\""), "{e}");
         let e = parse(
