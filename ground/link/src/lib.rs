@@ -21,6 +21,11 @@
 //! 0 — is the fate unknown: those packets are reported as [`Event::Unknown`] and not
 //! resent (the caller checks their PUS 1 reports).
 //!
+//! **Timer T1.** With [`FopConfig::mission`] T1 follows the measured round trip
+//! (SRTT + 4·RTTVAR, Karn's rule, doubled on expiry) between 300 ms and 2 s: a lone lost
+//! frame costs a few hundred milliseconds, not 2 s ([`FrameLink::fop_t1_ms`],
+//! `docs/space-link.md` § Timer T1).
+//!
 //! **Start and restart.** A new `FrameLink` has no COP-1 state: it waits until the CLCW's
 //! N(R) has not changed for [`Config::settle_ms`] (idle frames carry the CLCW at least
 //! every 100 ms; a dead ground's frames still in flight or queued on board land first —
@@ -361,6 +366,19 @@ impl FrameLink {
 
     pub fn fop_state(&self) -> FopState {
         self.fop.state()
+    }
+
+    /// FOP-1's timer T1 now (ms): with the mission's configuration adapted to the measured
+    /// round trip between `mib::link::cop1::FOP_T1_MIN_MS` and `FOP_T1_MS`
+    /// (`mmic_link::fop::T1Estimator`).
+    pub fn fop_t1_ms(&self) -> u64 {
+        self.fop.t1_ms()
+    }
+
+    /// The smoothed round trip of AD frames to the CLCW acknowledging them (ms), once
+    /// measured (frames sent once only: Karn's rule).
+    pub fn srtt_ms(&self) -> Option<u64> {
+        self.fop.t1_estimator().srtt_ms()
     }
 
     /// The IV (anti-replay counter) the next TC frame will carry.

@@ -172,6 +172,41 @@ fn lossy_link_delivers_each_packet_exactly_once_and_in_order() {
     let _ = std::fs::remove_file(&st);
 }
 
+// verifies: LINK-FOP-T1-01, LINK-GND-01
+#[test]
+fn mission_t1_adapts_to_the_loopback_round_trip_and_the_lossy_link_still_delivers_once() {
+    use mib::link::cop1::{FOP_T1_MIN_MS, FOP_T1_MS};
+    let st = state("adaptive-t1");
+    let gsock = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let gaddr = gsock.local_addr().unwrap();
+    drop(gsock);
+    let mut r = Robot::new(gaddr, 0.0, 5);
+    let mut g = link(r.sock.local_addr().unwrap(), gaddr, &st);
+    // The link() helper's fixed 40 ms T1 replaced by the mission's adaptive one.
+    g.fop = Fop::new(mib::link::tc_vc::COMMAND, FopConfig::mission());
+    assert_eq!(g.fop_t1_ms(), FOP_T1_MS, "no sample yet: the upper bound");
+    let want: Vec<Vec<u8>> = (0..40).map(packet).collect();
+    for p in &want[..10] {
+        g.send_packet(p).unwrap();
+    }
+    run(&mut g, &mut r, |g, _| g.pending() == 0);
+    assert_eq!(g.pending(), 0, "{:?}", g.counters);
+    let srtt = g.srtt_ms().expect("round trips measured");
+    assert!(srtt < FOP_T1_MIN_MS, "a loopback round trip: {srtt} ms");
+    assert_eq!(g.fop_t1_ms(), FOP_T1_MIN_MS, "clamped to the lower bound");
+    // 20 % loss both ways: every packet still once and in order, T1 within its bounds.
+    r.loss = 0.2;
+    for p in &want[10..] {
+        g.send_packet(p).unwrap();
+    }
+    run(&mut g, &mut r, |g, _| g.pending() == 0);
+    assert_eq!(g.pending(), 0, "{:?} {:?}", g.counters, g.fop_state());
+    assert_eq!(r.executed, want, "each executed once, in order");
+    assert!(g.counters.retransmissions > 0, "the loss made COP-1 work");
+    assert!((FOP_T1_MIN_MS..=FOP_T1_MS).contains(&g.fop_t1_ms()));
+    let _ = std::fs::remove_file(&st);
+}
+
 // verifies: LINK-GND-01, LINK-FOP-02
 #[test]
 fn a_restarted_ground_resynchronises_without_repeat_or_skip() {
