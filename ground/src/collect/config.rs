@@ -218,15 +218,8 @@ fn transport_of(s: &str) -> Option<Transport> {
     }
 }
 
-/// Default address of robot `n` over `transport`: its space-link port, or its
-/// bare-packet port on a lab link (loopback either way).
-pub fn default_addr(n: u8, transport: Transport) -> SocketAddr {
-    let port = match transport {
-        Transport::Frames => mib::config::frame_port(n),
-        Transport::Udp | Transport::Tcp => mib::config::robot_port(n),
-    };
-    (std::net::Ipv4Addr::LOCALHOST, port).into()
-}
+/// Default address of robot `n` over a transport (defined with the links, in ground-ops).
+pub use crate::link::default_addr;
 
 struct Cx<'a> {
     src: &'a str,

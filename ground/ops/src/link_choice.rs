@@ -76,7 +76,7 @@ impl LinkChoice {
             (false, true) => Transport::Tcp,
             (false, false) => Transport::Frames,
         };
-        crate::collect::config::default_addr(n, transport)
+        crate::link::default_addr(n, transport)
     }
 
     /// The transport and, over frames, its keys and TM addresses, for these robots.
