@@ -104,6 +104,20 @@ pub enum Update {
     },
 }
 
+impl Update {
+    /// A TC given up after its last wait ([`super::book::Due::GaveUp`]); `delivered`: a CLCW
+    /// acknowledged its frame (over frames), so it reached the robot like an accepted one.
+    pub fn gave_up(p: &Pending, delivered: bool) -> Update {
+        Update::GaveUp {
+            robot: p.robot,
+            tag: p.tag,
+            tc: p.tc.def.name,
+            sends: if p.waits_only { 1 } else { p.sends },
+            accepted: p.accepted || delivered,
+        }
+    }
+}
+
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum OpsError {
@@ -492,13 +506,7 @@ impl Session {
                         .links
                         .get(&p.robot)
                         .is_some_and(|l| l.delivered(p.tc.apid, p.tc.seq));
-                    out.push(Update::GaveUp {
-                        robot: p.robot,
-                        tag: p.tag,
-                        tc: p.tc.def.name,
-                        sends: if p.waits_only { 1 } else { p.sends },
-                        accepted: p.accepted || delivered,
-                    });
+                    out.push(Update::gave_up(&p, delivered));
                 }
             }
         }

@@ -179,13 +179,7 @@ impl Run {
                     });
                 }
                 Due::Waited { .. } => {}
-                Due::GaveUp(p) => out.push(Update::GaveUp {
-                    robot: p.robot,
-                    tag: p.tag,
-                    tc: p.tc.def.name,
-                    sends: if p.waits_only { 1 } else { p.sends },
-                    accepted: p.accepted,
-                }),
+                Due::GaveUp(p) => out.push(Update::gave_up(&p, false)),
             }
         }
         out
