@@ -33,8 +33,9 @@ use obsw_core::tm::TmStore;
 
 use crate::cycle::GroundSink;
 
-/// Longest time without a TM frame: then an idle frame carries the CLCW (as the host).
-pub const IDLE_INTERVAL_MS: u64 = 100;
+/// Longest time without a TM frame: then an idle frame carries the CLCW (the MIB's report
+/// interval, as the host).
+pub const IDLE_INTERVAL_MS: u64 = mib::link::cop1::CLCW_REPORT_INTERVAL_MS;
 /// BC control frames taken per second (as the host); more are dropped and counted.
 pub const CONTROL_FRAMES_PER_S: u32 = 5;
 /// TC frames taken from the uplink queue per control period: bounds the period's

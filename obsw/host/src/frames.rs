@@ -37,7 +37,7 @@ use obsw_core::obsw::{SPACE_LINK_PARAMS, SPACE_LINK_STATE_PARAMS};
 use obsw_core::services::link::{LinkKeys, LinkSelect};
 
 /// Longest time without a TM frame: then an idle frame carries the CLCW.
-pub const IDLE_INTERVAL: Duration = Duration::from_millis(100);
+pub const IDLE_INTERVAL: Duration = Duration::from_millis(mib::link::cop1::CLCW_REPORT_INTERVAL_MS);
 
 /// BC control frames (Unlock, Set V(R): in clear, anyone can send them) taken per second;
 /// more are dropped and counted (`LINK_REJ_CONTROL_RATE`). The ground's FOP-1 sends one
