@@ -149,7 +149,7 @@ pub(crate) struct LinkFlags {
     #[arg(long, value_name = "DIR", env = KEYS_ENV)]
     keys: Option<PathBuf>,
     /// Local address robot N's TM frames arrive at, `N=HOST:PORT` (the obsw's
-    /// --frame-tm-to); default 127.0.0.1:7400+N (0.0.0.0 for a remote robot). Repeat per robot.
+    /// --frame-tm-to); default 127.0.0.1:7600+N (0.0.0.0 for a remote robot). Repeat per robot.
     #[arg(long = "tm-listen", value_parser = ground::collect::parse_robot, value_name = "N=HOST:PORT")]
     tm_listen: Vec<(u8, SocketAddr)>,
     /// The space link's TC SPI: 1, or 2 after a key change (`LINK_SPI_SELECT`; the
