@@ -154,7 +154,7 @@ pub(crate) struct LinkFlags {
     tm_listen: Vec<(u8, SocketAddr)>,
     /// The space link's TC SPI: 1, or 2 after a key change (`LINK_SPI_SELECT`; the
     /// key folder holds both keys).
-    #[arg(long, value_name = "1|2", default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..=2))]
+    #[arg(long, value_name = "1|2", default_value_t = mib::link::sdls::TC_SPIS[0], value_parser = parse_tc_spi)]
     spi: u16,
     /// SDLS on the robot's TM frames, as its `--tm-sdls`: encrypt (the default) or clear.
     #[arg(long, value_name = "encrypt|clear", default_value = "encrypt", value_parser = parse_tm_sdls)]
@@ -169,12 +169,16 @@ pub(crate) struct LinkFlags {
     lab_tcp: bool,
 }
 
+fn parse_tc_spi(s: &str) -> Result<u16, String> {
+    let spis = mib::link::sdls::TC_SPIS;
+    s.parse()
+        .ok()
+        .filter(|n| spis.contains(n))
+        .ok_or_else(|| format!("\"{s}\": the TC SPIs are {spis:?}"))
+}
+
 fn parse_tm_sdls(s: &str) -> Result<ground_link::TmSecurity, String> {
-    match s {
-        "encrypt" => Ok(ground_link::TmSecurity::Encrypt),
-        "clear" => Ok(ground_link::TmSecurity::Clear),
-        other => Err(format!("\"{other}\": encrypt or clear")),
-    }
+    ground_link::TmSecurity::from_name(s).ok_or_else(|| format!("\"{s}\": encrypt or clear"))
 }
 
 impl LinkFlags {

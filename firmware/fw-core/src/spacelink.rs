@@ -24,6 +24,7 @@ use mib::link::sdls::ANTI_REPLAY_WINDOW;
 use mib::link::tm_frame::LEN as TM_LEN;
 use mmic_link::clcw::Clcw;
 use mmic_link::downlink::{Downlink, TmVc};
+use mmic_link::hk::LinkChange;
 use mmic_link::rx::{RxCounters, RxOutcome, TcReceiver};
 use mmic_link::sdls::{IvStore, Key, RxSa, RxSas, TxSa};
 use mmic_link::tc::ControlCommand;
@@ -279,36 +280,14 @@ impl<St: IvStore + StoreStats> FrameLink<St> {
         self.tx.send(packet, clcw, tm, tm_stats);
     }
 
-    /// The SPACE_LINK HK values, in MIB order (`pid::LINK_AD_ACCEPTED + i`).
+    /// The SPACE_LINK HK values, in MIB order (`mmic_link::hk`, as the host).
     pub fn hk(&self) -> [u32; SPACE_LINK_PARAMS] {
-        let c = &self.rx.counters;
-        let t = &self.tx.framer.counters;
-        let s = |v: &[u32]| v.iter().fold(0u32, |a, b| a.saturating_add(*b));
-        [
-            c.ad_accepted,
-            c.bd_accepted,
-            s(&[c.unlock, c.set_vr]),
-            c.packets,
-            c.bare_packet,
-            c.bad_crc,
-            c.bad_length,
-            c.bad_header,
-            c.wrong_scid,
-            c.unknown_vc,
-            c.sdls_too_short,
-            c.unknown_spi,
-            c.replay,
-            c.bad_mac,
-            c.counter_store_failed,
-            c.unknown_control,
-            c.not_packets,
-            s(&[c.farm_e2, c.farm_e3, c.farm_e4, c.farm_e5]),
-            self.rx.farm.clcw().emit(),
-            t.frames,
-            t.idle_frames,
-            t.sdls_failed.saturating_add(self.tx.unkeyed),
-            self.control_rate_limited,
-        ]
+        self.hk_of(&self.rx.counters, self.control_rate_limited)
+    }
+
+    fn hk_of(&self, rx: &RxCounters, rate_limited: u32) -> [u32; SPACE_LINK_PARAMS] {
+        let clcw = self.rx.farm.clcw();
+        mmic_link::hk::space_link_values(rx, clcw, &self.tx.framer.counters, self.tx.unkeyed, rate_limited)
     }
 
     /// End of a control period: SPACE_LINK values into the OBSW, one event per refusal
@@ -322,15 +301,7 @@ impl<St: IvStore + StoreStats> FrameLink<St> {
         tm_stats: &Counters,
     ) {
         let hk = self.hk();
-        let before = {
-            let saved = core::mem::replace(&mut self.rx.counters, self.reported);
-            let rl = self.control_rate_limited;
-            self.control_rate_limited = self.reported_rate_limited;
-            let b = self.hk();
-            self.rx.counters = saved;
-            self.control_rate_limited = rl;
-            b
-        };
+        let before = self.hk_of(&self.reported, self.reported_rate_limited);
         obsw.space_link = hk;
         // The board holds one key per direction: the only selection LINK_SPI_SELECT can
         // accept is the one in use, so there is nothing to apply.
@@ -342,29 +313,15 @@ impl<St: IvStore + StoreStats> FrameLink<St> {
             queue: tm,
             counters: tm_stats,
         };
-        for reason in (4..=16usize).chain([22]) {
-            if hk[reason] != before[reason] {
-                let ev = LinkEvent::FrameRejected {
-                    reason: reason as u8,
-                    total: hk[reason],
-                };
-                obsw.link_event(now, ev, &mut sink);
-            }
-        }
-        if hk[2] != before[2] {
-            let (command, vr) = match last_control {
-                Some(ControlCommand::SetVr(v)) => (1, v),
-                Some(ControlCommand::Unlock) | None => (0, 0),
+        for change in mmic_link::hk::changes(&hk, &before) {
+            let ev = match change {
+                LinkChange::Rejected { reason, total } => LinkEvent::FrameRejected { reason, total },
+                LinkChange::ControlFrames { total } => {
+                    let (command, vr) = mmic_link::hk::control_event_fields(last_control);
+                    LinkEvent::ControlFrame { command, vr, total }
+                }
             };
-            obsw.link_event(
-                now,
-                LinkEvent::ControlFrame {
-                    command,
-                    vr,
-                    total: hk[2],
-                },
-                &mut sink,
-            );
+            obsw.link_event(now, ev, &mut sink);
         }
         self.reported = self.rx.counters;
         self.reported_rate_limited = self.control_rate_limited;

@@ -345,13 +345,15 @@ pub fn parse(file: &str, src: &str) -> Result<Config, CfgErrors> {
             mib::link::sdls::TC_SPIS[0]
         }
     };
-    let tm_security = match f.tm_sdls.as_ref().map(|t| (t, t.get_ref().as_str())) {
-        None | Some((_, "encrypt")) => ground_link::TmSecurity::Encrypt,
-        Some((_, "clear")) => ground_link::TmSecurity::Clear,
-        Some((t, other)) => {
-            cx.err(t.span(), format!("tm_sdls = \"{other}\": \"encrypt\" or \"clear\""));
+    let tm_security = match &f.tm_sdls {
+        None => ground_link::TmSecurity::Encrypt,
+        Some(t) => ground_link::TmSecurity::from_name(t.get_ref()).unwrap_or_else(|| {
+            cx.err(
+                t.span(),
+                format!("tm_sdls = \"{}\": \"encrypt\" or \"clear\"", t.get_ref()),
+            );
             ground_link::TmSecurity::Encrypt
-        }
+        }),
     };
     if let Some(r) = &f.retain {
         match parse_duration_ms(r.get_ref()) {

@@ -49,24 +49,9 @@ fn is_control_frame(d: &[u8]) -> bool {
     d.first().is_some_and(|b| b & 0xF0 == 0x30)
 }
 
-/// SDLS on the TM frames of VC0/VC1 (`--tm-sdls`, TOML `tm_sdls`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum TmSdls {
-    /// AES-256-GCM authenticated encryption under the TM SPI (17/18).
-    #[default]
-    Encrypt,
-    /// No SDLS on TM (1012-byte packet zone): for grounds without it.
-    Clear,
-}
-
-impl TmSdls {
-    pub fn security(self) -> TmSecurity {
-        match self {
-            TmSdls::Encrypt => TmSecurity::Encrypt,
-            TmSdls::Clear => TmSecurity::Clear,
-        }
-    }
+/// Reads a `--tm-sdls` / TOML `tm_sdls` value (`TmSecurity::NAMES`).
+pub fn parse_tm_sdls(s: &str) -> Result<TmSecurity, String> {
+    TmSecurity::from_name(s).ok_or_else(|| format!("\"{s}\": encrypt or clear"))
 }
 
 /// What the command line gives the endpoint.
@@ -77,7 +62,7 @@ pub struct FrameConfig {
     pub tc_key: PathBuf,
     pub tm_key: PathBuf,
     pub state: PathBuf,
-    pub tm_sdls: TmSdls,
+    pub tm_sdls: TmSecurity,
 }
 
 /// A TC frame's outcome, for the main loop.
@@ -280,7 +265,7 @@ impl FrameEndpoint {
             sock,
             tm_to: cfg.tm_to,
             rx: TcReceiver::new(mib::link::SCID, mib::link::tc_vc::COMMAND, farm, sas),
-            framer: Framer::with_security(mib::link::SCID, cfg.tm_sdls.security()),
+            framer: Framer::with_security(mib::link::SCID, cfg.tm_sdls),
             tm_sas,
             tm_active,
             tc_keys,
@@ -487,36 +472,13 @@ impl FrameEndpoint {
         }
     }
 
-    /// The SPACE_LINK HK values, in MIB order (`pid::LINK_AD_ACCEPTED + i`).
+    /// The SPACE_LINK HK values, in MIB order (`mmic_link::hk`).
     pub fn hk(&self) -> [u32; SPACE_LINK_PARAMS] {
-        let c = &self.rx.counters;
-        let t = &self.framer.counters;
-        let s = |v: &[u32]| v.iter().fold(0u32, |a, b| a.saturating_add(*b));
-        [
-            c.ad_accepted,
-            c.bd_accepted,
-            s(&[c.unlock, c.set_vr]),
-            c.packets,
-            c.bare_packet,
-            c.bad_crc,
-            c.bad_length,
-            c.bad_header,
-            c.wrong_scid,
-            c.unknown_vc,
-            c.sdls_too_short,
-            c.unknown_spi,
-            c.replay,
-            c.bad_mac,
-            c.counter_store_failed,
-            c.unknown_control,
-            c.not_packets,
-            s(&[c.farm_e2, c.farm_e3, c.farm_e4, c.farm_e5]),
-            self.rx.farm.clcw().emit(),
-            t.frames,
-            t.idle_frames,
-            t.sdls_failed,
-            self.control_rate_limited,
-        ]
+        self.hk_of(&self.rx.counters, self.control_rate_limited)
+    }
+
+    fn hk_of(&self, rx: &mmic_link::rx::RxCounters, rate_limited: u32) -> [u32; SPACE_LINK_PARAMS] {
+        mmic_link::hk::space_link_values(rx, self.rx.farm.clcw(), &self.framer.counters, 0, rate_limited)
     }
 
     /// The link state HK values, in MIB order (`pid::LINK_TM_SPI + i`): TM SPI in use, TC
@@ -538,40 +500,19 @@ impl FrameEndpoint {
     /// What changed since the last call, as link events: one per refusal reason (code =
     /// HK parameter offset, see `LINK_FRAME_REJECTED`) and one for control frames.
     pub fn events(&mut self) -> Vec<obsw_core::obsw::LinkEvent> {
+        use mmic_link::hk::{changes, LinkChange};
         use obsw_core::obsw::LinkEvent;
         let now = self.hk();
-        let before = {
-            let saved = std::mem::replace(&mut self.rx.counters, self.reported);
-            let b = self.hk();
-            self.rx.counters = saved;
-            b
-        };
-        let mut out = Vec::new();
-        // Refusal reasons: the parameter offsets of the LINK_REJ_ counters.
-        for reason in (4..=16usize).chain([22]) {
-            let before = if reason == 22 {
-                self.reported_rate_limited
-            } else {
-                before[reason]
-            };
-            if now[reason] != before {
-                out.push(LinkEvent::FrameRejected {
-                    reason: reason as u8,
-                    total: now[reason],
-                });
-            }
-        }
-        if now[2] != before[2] {
-            let (command, vr) = match self.last_control {
-                Some(ControlCommand::SetVr(v)) => (1, v),
-                Some(ControlCommand::Unlock) | None => (0, 0),
-            };
-            out.push(LinkEvent::ControlFrame {
-                command,
-                vr,
-                total: now[2],
-            });
-        }
+        let before = self.hk_of(&self.reported, self.reported_rate_limited);
+        let out = changes(&now, &before)
+            .map(|c| match c {
+                LinkChange::Rejected { reason, total } => LinkEvent::FrameRejected { reason, total },
+                LinkChange::ControlFrames { total } => {
+                    let (command, vr) = mmic_link::hk::control_event_fields(self.last_control);
+                    LinkEvent::ControlFrame { command, vr, total }
+                }
+            })
+            .collect();
         self.reported = self.rx.counters;
         self.reported_rate_limited = self.control_rate_limited;
         out
@@ -647,7 +588,7 @@ mod tests {
             tc_key: dir.join("tc-spi1.key"),
             tm_key: dir.join("tm-spi17.key"),
             state: dir.join("obsw.state"),
-            tm_sdls: TmSdls::Encrypt,
+            tm_sdls: TmSecurity::Encrypt,
         };
         let mut ep = FrameEndpoint::open(&fc).unwrap();
         assert_eq!(ep.spis(), (17, vec![1, 2]), "both TC keys loaded");

@@ -107,8 +107,8 @@ struct Args {
     /// Space link: SDLS on the TM frames of VC0/VC1 — `encrypt` (AES-256-GCM under the TM
     /// SPI, the default) or `clear` (no SDLS on TM, for grounds without it: TM readable and
     /// forgeable on the path; TC frames stay authenticated). The ground must match.
-    #[arg(long, value_enum)]
-    tm_sdls: Option<frames::TmSdls>,
+    #[arg(long, value_name = "encrypt|clear", value_parser = frames::parse_tm_sdls)]
+    tm_sdls: Option<mmic_link::downlink::TmSecurity>,
     /// Lab mode: the bare-packet link (unauthenticated space packets on --udp/--tcp, TM
     /// to their senders and to --tm-dest), alone or beside the frame link; loopback
     /// addresses only. Without it and without --frame-udp the obsw refuses to start.
@@ -235,7 +235,7 @@ struct FileConfig {
     keys: Option<PathBuf>,
     tc_key: Option<PathBuf>,
     tm_key: Option<PathBuf>,
-    tm_sdls: Option<frames::TmSdls>,
+    tm_sdls: Option<String>,
     link_state: Option<PathBuf>,
     tm_dest: Option<Vec<SocketAddr>>,
     lab_bare_packets: Option<bool>,
@@ -327,6 +327,12 @@ fn settings(a: Args) -> Result<Settings> {
     // and ports.
     let keys = a.keys.or(f.keys).map(|d| d.join(format!("robot-{robot}")));
     let from_keys = |file: &str| keys.as_ref().map(|d| d.join(file));
+    let file_tm_sdls = f
+        .tm_sdls
+        .as_deref()
+        .map(|t| frames::parse_tm_sdls(t).map_err(|e| anyhow::anyhow!("tm_sdls in the --config file: {e}")))
+        .transpose()?;
+    let tm_sdls = a.tm_sdls.or(file_tm_sdls).unwrap_or_default();
     let frames = match (
         a.frame_udp
             .or(f.frame_udp)
@@ -345,7 +351,7 @@ fn settings(a: Args) -> Result<Settings> {
             tc_key,
             tm_key,
             state,
-            tm_sdls: a.tm_sdls.or(f.tm_sdls).unwrap_or_default(),
+            tm_sdls,
         }),
         _ => bail!("the frame link needs all of --frame-udp, --frame-tm-to, --tc-key, --tm-key and --link-state"),
     };
@@ -472,7 +478,7 @@ fn run(args: Args) -> Result<()> {
             mib::link::sdls::TM_SPIS[0],
             fc.state.display()
         );
-        if fc.tm_sdls == frames::TmSdls::Clear {
+        if fc.tm_sdls == mmic_link::downlink::TmSecurity::Clear {
             eprintln!("obsw: TM frames without SDLS (--tm-sdls clear): readable and forgeable on the path");
         }
         down.frames = Some(ep);

@@ -31,6 +31,14 @@ pub enum TmSecurity {
 }
 
 impl TmSecurity {
+    /// The configuration names (`--tm-sdls`, TOML `tm_sdls`), one per setting.
+    pub const NAMES: [(&'static str, TmSecurity); 2] = [("encrypt", TmSecurity::Encrypt), ("clear", TmSecurity::Clear)];
+
+    /// The setting named `name` ([`TmSecurity::NAMES`]).
+    pub fn from_name(name: &str) -> Option<TmSecurity> {
+        Self::NAMES.iter().find(|(n, _)| *n == name).map(|(_, s)| *s)
+    }
+
     /// The packet zone of a VC0/VC1 frame.
     pub fn zone_len(self) -> usize {
         match self {

@@ -24,6 +24,7 @@ pub mod downlink;
 pub mod farm;
 pub mod fecf;
 pub mod fop;
+pub mod hk;
 pub mod mux;
 pub mod persist;
 pub mod rx;
