@@ -43,6 +43,12 @@ pub const TM_WRITE_TIMEOUT_MS: u32 = 100;
 /// Simulator control port of robot N is `SIM_CTL_BASE_PORT + N` (host simulator only).
 pub const SIM_CTL_BASE_PORT: u16 = 7400;
 
+/// Ground: TC sequence counts skipped after the archived ones when a ground process
+/// starts: more than the TCs a ground killed with SIGKILL can have sent without archiving
+/// them (its archive writes behind), so a restarted ground never reuses a request ID the
+/// robot has seen.
+pub const SEQ_SKIP_AFTER_RESTART: u16 = 256;
+
 /// Bare-packet lab port of robot `n` (UDP and TCP; obsw --udp/--tcp).
 pub const fn robot_port(n: u8) -> u16 {
     DEFAULT_PORT - 1 + n as u16

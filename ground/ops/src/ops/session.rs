@@ -18,13 +18,11 @@ use crate::pus::{self, BuiltTc, DecodeError, Event, Hk, SeqCounters, Stage, Tm, 
 use super::book::{Due, Pending, TcBook, Verdict};
 use super::*;
 
-/// Sequence counts skipped after the archived ones when a ground process starts: more
-/// than the TCs a ground killed with SIGKILL can have sent without archiving them (the
-/// archive writes behind). Over frames the robot would still execute a reused count
-/// (COP-1 delivers once; frame TCs bypass its duplicate window), but that TC's old
-/// reports, replayed from the store, would be taken for the new one's; on the lab links
+/// [`mib::config::SEQ_SKIP_AFTER_RESTART`]. Over frames the robot would still execute a
+/// reused count (COP-1 delivers once; frame TCs bypass its duplicate window), but that TC's
+/// old reports, replayed from the store, would be taken for the new one's; on the lab links
 /// a reused count with the same bytes (a PING) would be answered as a duplicate.
-pub const SEQ_SKIP_AFTER_RESTART: u16 = 256;
+pub use mib::config::SEQ_SKIP_AFTER_RESTART;
 
 /// The first TC sequence count a ground process uses on a robot's APID — one rule for
 /// every front end (CLI verbs, demo, the collector and its page) and every link: after
