@@ -242,7 +242,11 @@ pub fn run_with(
     })?;
     let mut histories = Vec::new();
     let mut hashes = Vec::new();
+    let mut first_seqs = Vec::new();
     for r in &cfg.robots {
+        // Its TCs numbered on after the last one archived (the rule of every front end).
+        let archived = onboard::apid(r.number).and_then(|apid| st.next_tc_seq(apid).ok().flatten());
+        first_seqs.push(crate::ops::first_tc_seq(archived));
         // The configuration hash last archived: a change while the collector was down
         // is a change too.
         hashes.push(last_config_hash(&mut st, r.number)?);
@@ -277,15 +281,13 @@ pub fn run_with(
     let mut dash_tx = std::collections::BTreeMap::new();
     let mut workers = Vec::new();
     let mut statuses = Vec::new();
-    for ((r, h), hash) in cfg.robots.iter().zip(histories).zip(hashes) {
+    for (((r, h), hash), first_seq) in cfg.robots.iter().zip(histories).zip(hashes).zip(first_seqs) {
         let status = Arc::new(Mutex::new(RobotStatus {
             robot: r.number,
             addr: r.addr.to_string(),
             ..Default::default()
         }));
         statuses.push(status.clone());
-        let first_seq =
-            crate::ops::first_tc_seq(onboard::apid(r.number).and_then(|apid| crate::archive::next_seq(archive, apid)));
         let mut w = Worker::new(r.clone(), global.clone(), sink_tx.clone(), status, stop.clone(), h)
             .with_config_hash(hash)
             .with_first_seq(first_seq);
