@@ -201,6 +201,15 @@ impl LinkFlags {
 }
 
 impl Links {
+    /// The robots given with `--robot`, at their default addresses (for the link chosen)
+    /// where none is given.
+    fn addresses(&self) -> Vec<(u8, SocketAddr)> {
+        self.robots
+            .iter()
+            .map(|&(n, addr)| (n, addr.unwrap_or_else(|| self.link.default_addr(n))))
+            .collect()
+    }
+
     /// The transport and frame options for these robots (usage errors exit 2).
     fn choice(&self, robots: &[(u8, SocketAddr)]) -> Result<(Transport, Option<FrameOptions>)> {
         self.link

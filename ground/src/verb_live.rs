@@ -37,7 +37,7 @@ pub(crate) fn ping(a: &PingArgs, archive_path: Option<&Path>) -> Result<u8> {
             let t0 = Instant::now();
             let mut got = None;
             let mut foreign = false;
-            while t0.elapsed() < s.ack_timeout * 2 && got.is_none() && !foreign {
+            while t0.elapsed() < s.ack_timeout() * 2 && got.is_none() && !foreign {
                 for u in s.poll(Duration::from_millis(50)) {
                     match u {
                         Update::Tm { robot, tm } if robot == r && tm.body == TmBody::PingReply => {
@@ -66,7 +66,7 @@ pub(crate) fn ping(a: &PingArgs, archive_path: Option<&Path>) -> Result<u8> {
                     out(&format!(
                         "robot {r} ({addr}) seq {}: no reply within {} ms",
                         tc.seq,
-                        (s.ack_timeout * 2).as_millis()
+                        (s.ack_timeout() * 2).as_millis()
                     ))?;
                     if e.0 == 0 {
                         silent.push(r);
@@ -204,7 +204,7 @@ pub(crate) fn robots_given(l: &Links) -> Result<Vec<(u8, SocketAddr)>> {
             "give --robot N (robot N at its default port on 127.0.0.1) or --robot N=HOST:PORT",
         ));
     }
-    Ok(crate::verb_run::robots_given_or_none(l))
+    Ok(l.addresses())
 }
 
 /// The one robot of `l`, announced, with a session to it (and the archive, if any).

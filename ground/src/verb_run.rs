@@ -20,7 +20,7 @@ pub(crate) fn run_plan(a: &RunArgs, archive_path: Option<&Path>) -> Result<u8> {
     let pl = load_plan(&a.plan)?;
     // A --robot the plan does not use is a mistake in the command, not a robot to wait
     // for: refused before anything is sent.
-    for (n, addr) in &robots_given_or_none(&a.links) {
+    for (n, addr) in &a.links.addresses() {
         if !pl.robots.iter().any(|r| r.number == *n) {
             let theirs: Vec<String> = pl.robots.iter().map(|r| r.number.to_string()).collect();
             return Err(coded(
@@ -34,7 +34,7 @@ pub(crate) fn run_plan(a: &RunArgs, archive_path: Option<&Path>) -> Result<u8> {
         }
     }
     plan_policy(&a.plan.display().to_string(), &pl)?;
-    let mut links = robots_given_or_none(&a.links);
+    let mut links = a.links.addresses();
     for r in &pl.robots {
         if !links.iter().any(|(n, _)| *n == r.number) {
             links.push((r.number, a.links.link.default_addr(r.number)));
@@ -227,13 +227,4 @@ pub(crate) struct RunArgs {
     /// After a first Ctrl-C, longest wait (seconds) for the steps in flight.
     #[arg(long, default_value_t = ground::ops::INTERRUPT_GRACE.as_secs_f64())]
     grace: f64,
-}
-
-/// The robots given with `--robot`, at their default addresses where none is given
-/// (none given is fine for `run`: the plan names its robots).
-pub(crate) fn robots_given_or_none(l: &Links) -> Vec<(u8, std::net::SocketAddr)> {
-    l.robots
-        .iter()
-        .map(|&(n, addr)| (n, addr.unwrap_or_else(|| l.link.default_addr(n))))
-        .collect()
 }

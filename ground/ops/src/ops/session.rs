@@ -6,7 +6,7 @@ use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
 use crossbeam_channel::Receiver;
-use mib::config::{LINK_LOSS_MS, TC_RETRY_INITIAL_MS, TC_RETRY_MAX};
+use mib::config::{LINK_LOSS_MS, TC_RETRY_MAX};
 use mib::events::eid;
 use mib::params::pid;
 use mib::tc::TcDef;
@@ -144,9 +144,6 @@ pub struct Session {
     book: TcBook,
     archive: Option<ArchiveSender>,
     pub robots: BTreeMap<u8, RobotStatus>,
-    /// First wait for a report before resending (later waits grow, see
-    /// `mib::config::tc_retry_wait_ms`).
-    pub ack_timeout: Duration,
     /// Resends of a TC after the first send.
     pub max_resends: u32,
     /// Report a robot's link as lost after this long without TM (`None`: never).
@@ -198,12 +195,22 @@ impl Session {
             book: TcBook::default(),
             archive,
             robots: status,
-            ack_timeout: Duration::from_millis(TC_RETRY_INITIAL_MS as u64),
             max_resends: TC_RETRY_MAX,
             link_loss: None,
             last_new_tc: HashMap::new(),
             run_id: None,
         })
+    }
+
+    /// First wait for a report before a TC is resent (later waits grow, see
+    /// `mib::config::tc_retry_wait_ms`): the commanding book's.
+    pub fn ack_timeout(&self) -> Duration {
+        self.book.first_wait
+    }
+
+    /// Sets [`Session::ack_timeout`].
+    pub fn set_ack_timeout(&mut self, wait: Duration) {
+        self.book.first_wait = wait;
     }
 
     /// Builds and sends a TC; verification reports come back through [`Session::poll`]
@@ -306,7 +313,6 @@ impl Session {
         let deadline = Instant::now() + max_wait;
         loop {
             let now = Instant::now();
-            self.book.first_wait = self.ack_timeout;
             let next_resend = self.book.next_due();
             let until = next_resend.map_or(deadline, |r| r.min(deadline));
             let until = until.min(now + Duration::from_millis(100));
@@ -378,7 +384,7 @@ impl Session {
     /// [`RETRIEVAL_WAITS`] first waits (its reports can be lost too: an older one does not
     /// hold the next back).
     pub fn retrieving(&self, robot: u8) -> bool {
-        let wait = self.ack_timeout * RETRIEVAL_WAITS;
+        let wait = self.ack_timeout() * RETRIEVAL_WAITS;
         self.book
             .values()
             .any(|p| p.robot == robot && p.label.as_deref() == Some(GAP_LABEL) && p.first_sent.elapsed() < wait)
@@ -459,7 +465,6 @@ impl Session {
         self.book.retain(|p| {
             p.tag.is_some() || !p.accepted || now.saturating_duration_since(p.last_sent) < UNTAGGED_COMPLETION_WAIT
         });
-        self.book.first_wait = self.ack_timeout;
         let links = &self.links;
         let due = self
             .book

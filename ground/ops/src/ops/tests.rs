@@ -45,7 +45,7 @@ fn fake_obsw(drop: usize) -> (SocketAddr, std::thread::JoinHandle<Vec<(u16, u16)
 fn session_resends_with_the_same_count_and_skips_foreign_apids() {
     let (addr, fake) = fake_obsw(1);
     let mut s = Session::connect(&[(1, addr)], Transport::Udp, None, |_| Some(100)).unwrap();
-    s.ack_timeout = Duration::from_millis(150);
+    s.set_ack_timeout(Duration::from_millis(150));
     let tc = s
         .send(1, mib::tc::by_name("PING").unwrap(), &[], Some(7), None)
         .unwrap();
@@ -365,7 +365,7 @@ fn lossy_obsw(corrupt: usize, lose: usize) -> (SocketAddr, std::thread::JoinHand
 fn a_tc_is_resent_identically_until_its_acceptance_and_a_damaged_copy_is_no_verdict() {
     let (addr, fake) = lossy_obsw(1, 2);
     let mut s = Session::connect(&[(1, addr)], Transport::Udp, None, |_| Some(200)).unwrap();
-    s.ack_timeout = Duration::from_millis(60);
+    s.set_ack_timeout(Duration::from_millis(60));
     let tc = s
         .send(1, mib::tc::by_name("PING").unwrap(), &[], Some(3), None)
         .unwrap();
@@ -427,7 +427,7 @@ fn an_accepted_tc_is_not_resent_while_its_completion_is_awaited() {
         copies
     });
     let mut s = Session::connect(&[(1, addr)], Transport::Udp, None, |_| Some(300)).unwrap();
-    s.ack_timeout = Duration::from_millis(60);
+    s.set_ack_timeout(Duration::from_millis(60));
     s.send(1, mib::tc::by_name("PING").unwrap(), &[], Some(1), None)
         .unwrap();
     let (mut done, mut resent) = (false, 0);
