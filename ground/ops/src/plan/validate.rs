@@ -84,7 +84,7 @@ pub(super) fn walk_robots(cx: &mut Cx, raw: &mut [RawStep], robots: &[RobotDecl]
         let st = state.entry(r).or_insert(None);
         let what = s.id.as_deref().unwrap_or("?");
         if let Some((def, args)) = action.tc() {
-            if !def.modes.contains(*m) && !matches!(action, Action::Reconfigure { .. } if false) {
+            if !def.modes.contains(*m) {
                 cx.err(
                     s.action_span.clone(),
                     format!(

@@ -189,6 +189,5 @@ impl Worker {
                 }
             }
         }
-        let _ = now;
     }
 }
