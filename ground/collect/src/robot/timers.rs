@@ -3,8 +3,8 @@
 //! the on-board store asked for every hole.
 
 use crate::alarms::{Severity, Source};
-use crate::collect::onboard;
-use crate::collect::planrun::PlanInput;
+use crate::onboard;
+use crate::planrun::PlanInput;
 
 use super::{
     LinkState, Worker, BACKOFF_START_MS, HK_SET_TRIES, MAX_RUNS_PER_REQUEST, MERGE_GAP, STORE_REQUEST_MIN_GAP_MS,

@@ -4,9 +4,9 @@
 use std::time::Instant;
 
 use crate::archive::now_ms;
-use crate::collect::dash::DashCmd;
-use crate::collect::planrun::PlanInput;
+use crate::dash::DashCmd;
 use crate::ops::book::{Due, Pending, Verdict};
+use crate::planrun::PlanInput;
 use crate::pus::{self, BuiltTc};
 
 use super::{LinkState, Worker};
@@ -24,7 +24,7 @@ impl Worker {
                         .ok_or_else(|| format!("no TC named {name}"))
                         .and_then(|def| self.dash_tc(def, &args, "page"))
                         .map(|tc| {
-                            let id = crate::dashboard::request_id(self.robot(), tc.apid, tc.seq);
+                            let id = ground_dashboard::request_id(self.robot(), tc.apid, tc.seq);
                             let p = Pending::sent(self.robot(), tc, None, Some("page".into()), Instant::now());
                             self.page_tcs.insert(p);
                             id
@@ -70,7 +70,7 @@ impl Worker {
         let seq = self.next_seq();
         let tc = pus::build_tc(self.robot(), seq, def, args).map_err(|e| e.to_string())?;
         match &self.dash {
-            Some(d) => crate::dashboard::tc_sent(&d.hub, self.robot(), &tc, def, args, origin),
+            Some(d) => ground_dashboard::tc_sent(&d.hub, self.robot(), &tc, def, args, origin),
             None => return Err("no dashboard".into()),
         };
         match &self.link {
@@ -135,9 +135,9 @@ impl Worker {
             d.hub.link(
                 self.cfg.number,
                 match self.state {
-                    LinkState::Connecting => crate::dashboard::LinkState::Connecting,
-                    LinkState::Up => crate::dashboard::LinkState::Up,
-                    LinkState::Lost => crate::dashboard::LinkState::Lost,
+                    LinkState::Connecting => ground_dashboard::LinkState::Connecting,
+                    LinkState::Up => ground_dashboard::LinkState::Up,
+                    LinkState::Lost => ground_dashboard::LinkState::Lost,
                 },
             );
         }

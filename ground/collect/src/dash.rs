@@ -19,11 +19,11 @@ use crossbeam_channel::{Receiver, Sender};
 
 use crate::alarms::Input;
 use crate::archive::{now_ms, Alarm, Store};
-use crate::dashboard::{
+use crate::pus::{Tm, TmBody};
+use ground_dashboard::{
     node_mode, request_id, AlarmRecord, AlarmState, CommandError, Commander, ConfigState, EventRecord, Hub, PlanInfo,
     PlanStartError, Series, StageReport,
 };
-use crate::pus::{Tm, TmBody};
 
 /// How long the page waits for the robot's thread to take a TC.
 const SEND_TIMEOUT: Duration = Duration::from_secs(2);

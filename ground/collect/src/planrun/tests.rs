@@ -164,7 +164,7 @@ fn starts_are_checked_unknown_hazard_link_and_one_plan_per_robot() {
     );
     assert!(matches!(book.start("nope", true), Err(PlanStartError::Unknown(m)) if m.contains("ping, clear")));
     assert!(matches!(book.start("ping", false), Err(PlanStartError::Refused(m)) if m.contains("not up yet")));
-    hub.link(1, crate::dashboard::LinkState::Up);
+    hub.link(1, ground_dashboard::LinkState::Up);
     let hazards = &book.list()[1].hazards;
     assert_eq!(hazards.len(), 1, "{hazards:?}");
     assert!(matches!(

@@ -5,6 +5,7 @@
 //! live table on a terminal. Touch points with the rest of the ground tool are kept in
 //! two files: [`onboard`] (the obsw's protocol) and [`store`] (the archive).
 
+pub mod alarms;
 pub mod config;
 pub mod dash;
 pub mod onboard;
@@ -21,6 +22,10 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
+
+use ground_archive as archive;
+use ground_ops::{link, link_choice, ops, plan};
+use ground_pus as pus;
 
 use crate::archive::{now_ms, Store};
 
@@ -89,7 +94,7 @@ pub enum CollectError {
     Db(#[from] crate::archive::db::DbError),
     /// The dashboard could not start.
     #[error(transparent)]
-    Dashboard(#[from] crate::dashboard::ServeError),
+    Dashboard(#[from] ground_dashboard::ServeError),
     /// A thread could not start, or standard output could not be written.
     #[error(transparent)]
     Io(#[from] std::io::Error),
@@ -277,7 +282,7 @@ pub fn run_with(
         .name("collect-sink".into())
         .spawn(move || store::run_sink(sink_cfg, sink_rx))?;
     let global = Arc::new(cfg.clone());
-    let hub = http.as_ref().map(|_| crate::dashboard::Hub::new());
+    let hub = http.as_ref().map(|_| ground_dashboard::Hub::new());
     let mut dash_tx = std::collections::BTreeMap::new();
     let mut workers = Vec::new();
     let mut statuses = Vec::new();
@@ -314,7 +319,7 @@ pub fn run_with(
             let commander = dash::CollectCommander::new(dash_tx, archive.to_path_buf(), alarms)
                 .with_plans(cfg.plans.clone(), hub.clone());
             let series = dash::ArchiveSeries::new(archive.to_path_buf());
-            let running = crate::dashboard::spawn(addr, token, hub, Arc::new(commander), Arc::new(series))?;
+            let running = ground_dashboard::spawn(addr, token, hub, Arc::new(commander), Arc::new(series))?;
             tracing::info!("dashboard at http://{}/", running.local_addr());
             Some(running)
         }

@@ -22,6 +22,10 @@ mod hub;
 pub mod mibinfo;
 mod server;
 
+use ground_archive as archive;
+use ground_ops::plan;
+use ground_pus as pus;
+
 pub use hub::{Hub, HubStats, DEFAULT_LIVE_SAMPLES, DEFAULT_REPLAY};
 pub use server::{serve, spawn, Running, ServeError};
 

@@ -15,8 +15,8 @@ use mib::layout::{CONFIG_ID_NAMES, CONFIG_STATUS_NAMES, MODULE_REASON_NAMES, REP
 use mib::modules::report::{ModuleReport, ReportError, NO_SLOT};
 use mib::modules::{ModuleSet, SLOTS};
 
-use crate::dashboard::{ModuleView, SlotView, TeamView};
 use crate::pus::TmBody;
+use ground_dashboard::{ModuleView, SlotView, TeamView};
 
 /// CONFIG_STATUS codes (`mib::layout::CONFIG_STATUS_NAMES`).
 const STATUS_ACCEPTED: i64 = 1;

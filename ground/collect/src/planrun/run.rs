@@ -6,12 +6,12 @@ use std::time::{Duration, Instant};
 
 use crossbeam_channel::{Receiver, RecvTimeoutError, Sender};
 
-use crate::collect::dash::DashCmd;
-use crate::dashboard::{request_id, Hub, PlanRun};
+use crate::dash::DashCmd;
 use crate::ops::book::{Due, Pending, TcBook, Verdict};
 use crate::ops::{Effect, Executor, RunOptions, StepState, Update};
 use crate::plan::Plan;
 use crate::pus::{BuiltTc, TmBody};
+use ground_dashboard::{request_id, Hub, PlanRun};
 
 use super::PlanInput;
 

@@ -28,9 +28,9 @@ use std::sync::{Arc, Mutex};
 
 use crossbeam_channel::Sender;
 
-use crate::dashboard::{Hub, PlanInfo, PlanRun, PlanStartError, PlanStep};
 use crate::plan::Plan;
 use crate::pus::Tm;
+use ground_dashboard::{Hub, PlanInfo, PlanRun, PlanStartError, PlanStep};
 
 use super::config::PlanCfg;
 use super::dash::DashCmd;
@@ -107,12 +107,12 @@ impl PlanBook {
             .robots
             .iter()
             .map(|r| (r.number, self.hub.link_state(r.number)))
-            .find(|(_, st)| *st != Some(crate::dashboard::LinkState::Up))
+            .find(|(_, st)| *st != Some(ground_dashboard::LinkState::Up))
         {
             let st = match st {
-                Some(crate::dashboard::LinkState::Lost) => "lost",
-                Some(crate::dashboard::LinkState::Connecting) | None => "not up yet",
-                Some(crate::dashboard::LinkState::Up) => "up",
+                Some(ground_dashboard::LinkState::Lost) => "lost",
+                Some(ground_dashboard::LinkState::Connecting) | None => "not up yet",
+                Some(ground_dashboard::LinkState::Up) => "up",
             };
             return Err(PlanStartError::Refused(format!(
                 "plan {name} not started: robot {r}'s link is {st}"

@@ -3,9 +3,9 @@
 //! HK interval confirmed, the store's end report.
 
 use crate::alarms::{Level, Severity, Source};
-use crate::collect::onboard;
-use crate::collect::robotcfg::{self, ModulesHk, ReportOutcome};
+use crate::onboard;
 use crate::pus::{Stage, Tm, TmBody};
+use crate::robotcfg::{self, ModulesHk, ReportOutcome};
 
 use super::{LinkState, Worker, ASK_AGAIN_MS};
 

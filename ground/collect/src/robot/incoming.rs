@@ -2,13 +2,13 @@
 //! noticed), inspected, handed to the dashboard and the following plan run, archived.
 
 use crate::alarms::{LimitChecker, Severity, Source};
-use crate::collect::dash;
-use crate::collect::onboard;
-use crate::collect::planrun::PlanInput;
-use crate::collect::store::SinkMsg;
-use crate::collect::tracker::{Pos, Verdict};
+use crate::dash;
 use crate::link::Incoming;
+use crate::onboard;
+use crate::planrun::PlanInput;
 use crate::pus::{self, TmBody};
+use crate::store::SinkMsg;
+use crate::tracker::{Pos, Verdict};
 
 use super::{LinkState, Worker, BACKOFF_START_MS};
 

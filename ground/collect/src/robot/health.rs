@@ -2,7 +2,7 @@
 //! its counters to the display and, every [`HEALTH_MS`], to the archive.
 
 use crate::alarms::{Input, Severity, Source};
-use crate::collect::store::{Health, SinkMsg};
+use crate::store::{Health, SinkMsg};
 
 use super::{Worker, HEALTH_MS};
 
