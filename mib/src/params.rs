@@ -17,7 +17,9 @@ pub struct ParamDef {
     /// Engineering unit after calibration ("" for none).
     pub unit: &'static str,
     pub calib: Calib,
-    pub limits: Option<Limits>,
+    /// By reference: most parameters have none, and a `Limits` inline (four `f64`) in
+    /// every entry cost board A 4.5 KB of flash (docs/firmware.md).
+    pub limits: Option<&'static Limits>,
     /// Root modes in which `limits` apply. A value outside them in another mode is no
     /// anomaly: the regulated servo voltage is 0 V in standby, where the regulator is off
     /// (paper Table 7). Use [`limits_apply`].
@@ -70,20 +72,23 @@ pub const HIP_CONTRACTED_TOL_DEG: f64 = 5.0;
 /// Board B heartbeat age that counts as internal communication loss.
 pub const B_HEARTBEAT_TIMEOUT_MS: f64 = 500.0;
 
-const fn lim(soft_lo: f64, soft_hi: f64, hard_lo: f64, hard_hi: f64) -> Option<Limits> {
-    Some(Limits {
-        soft_lo,
-        soft_hi,
-        hard_lo,
-        hard_hi,
-    })
+/// `Some(&Limits { .. })`: a promoted constant, referenced by the parameters that use it.
+macro_rules! lim {
+    ($soft_lo:expr, $soft_hi:expr, $hard_lo:expr, $hard_hi:expr) => {
+        Some(&Limits {
+            soft_lo: $soft_lo,
+            soft_hi: $soft_hi,
+            hard_lo: $hard_lo,
+            hard_hi: $hard_hi,
+        })
+    };
 }
-const V_BAT_LIM: Option<Limits> = lim(10.5, V_BAT_FULL, V_BAT_EMPTY, 13.0);
-const V_REG_LIM: Option<Limits> = lim(7.0, 7.8, 6.5, 8.2);
-const I_LOC_LIM: Option<Limits> = lim(0.0, 2.5, -0.1, I_LOC_MAX);
-const I_GRIP_LIM: Option<Limits> = lim(0.0, 1.2, -0.1, I_GRIP_MAX);
-const I_BO_LIM: Option<Limits> = lim(0.0, 2.0, -0.1, I_BO_MAX);
-const I_BAT_LIM: Option<Limits> = lim(0.0, 5.0, -0.1, 7.0);
+const V_BAT_LIM: Option<&Limits> = lim!(10.5, V_BAT_FULL, V_BAT_EMPTY, 13.0);
+const V_REG_LIM: Option<&Limits> = lim!(7.0, 7.8, 6.5, 8.2);
+const I_LOC_LIM: Option<&Limits> = lim!(0.0, 2.5, -0.1, I_LOC_MAX);
+const I_GRIP_LIM: Option<&Limits> = lim!(0.0, 1.2, -0.1, I_GRIP_MAX);
+const I_BO_LIM: Option<&Limits> = lim!(0.0, 2.0, -0.1, I_BO_MAX);
+const I_BAT_LIM: Option<&Limits> = lim!(0.0, 5.0, -0.1, 7.0);
 
 macro_rules! params {
     ($( $name:ident = $id:literal, $t:ident, $unit:literal, $cal:expr, $lim:expr, $desc:literal; )*) => {
@@ -141,7 +146,7 @@ params! {
     BOLTER_B_STATE = 38, U8, "", ID, None, "Board B bolter state machine state (sync flags)";
     // --- board B link ---
     B_LINK_OK = 50, Bool, "", ID, None, "Board B heartbeat current and commands acknowledged";
-    B_HB_AGE_MS = 51, U16, "ms", ID, lim(0.0, 200.0, 0.0, B_HEARTBEAT_TIMEOUT_MS), "Age of the last board B heartbeat";
+    B_HB_AGE_MS = 51, U16, "ms", ID, lim!(0.0, 200.0, 0.0, B_HEARTBEAT_TIMEOUT_MS), "Age of the last board B heartbeat";
     B_HB_RX = 52, U32, "", ID, None, "Board B heartbeats received";
     B_FRAME_ERRORS = 53, U32, "", ID, None, "A-B frames dropped for bad checksum or framing";
     B_RETRIES = 54, U32, "", ID, None, "Commands to board B resent for lack of acknowledgement";
@@ -151,7 +156,7 @@ params! {
     FAULT_COUNT = 61, U32, "", ID, None, "Faults detected since boot";
     MON_ENABLED = 62, U32, "", ID, None, "Enabled PUS 12 monitors (bit n = monitor n)";
     LAST_FAULT_EVENT = 63, U16, "", ID, None, "Event ID of the last fault (0 = none)";
-    HIP_DEVIATION = 65, I16, "deg", CAL_CDEG, lim(-3.0, 3.0, -HIP_CONTRACTED_TOL_DEG, HIP_CONTRACTED_TOL_DEG), "Hip encoder minus the hip angle implied by the IMU-derived state (0 deg when the state is unknown)";
+    HIP_DEVIATION = 65, I16, "deg", CAL_CDEG, lim!(-3.0, 3.0, -HIP_CONTRACTED_TOL_DEG, HIP_CONTRACTED_TOL_DEG), "Hip encoder minus the hip angle implied by the IMU-derived state (0 deg when the state is unknown)";
     EVENTS_DROPPED = 66, U16, "", ID, None, "PUS 5 event reports dropped because the event queue was full (saturates at 65535)";
     PENDING_MODE = 64, U8, "", ID, None, "Mode to enter when the running motion completes (255 = none)";
     // --- OBSW ---

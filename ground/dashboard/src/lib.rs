@@ -167,7 +167,7 @@ impl LimitState {
     /// collector's alarms and the on-board monitors (`mib::params::limits_apply`).
     pub fn of(p: &mib::params::ParamDef, value: f64, ctx: impl Fn(u16) -> Option<i64>) -> LimitState {
         let applies = mib::params::limits_apply(p, ctx);
-        match p.limits.as_ref() {
+        match p.limits {
             Some(_) if !applies => LimitState::Off,
             l => Self::check(l, value),
         }
@@ -575,7 +575,7 @@ mod tests {
     #[test]
     fn limit_state_follows_the_mib_bands() {
         let p = mib::params::by_name("V_BAT_A").unwrap();
-        let l = p.limits.as_ref();
+        let l = p.limits;
         assert_eq!(LimitState::check(l, 12.0), LimitState::Ok);
         assert_eq!(LimitState::check(l, 10.2), LimitState::Soft);
         assert_eq!(LimitState::check(l, 9.5), LimitState::Hard);

@@ -24,7 +24,7 @@ fn fields(f: &[Field]) -> Value {
     )
 }
 
-fn limits(l: &Option<Limits>) -> Value {
+fn limits(l: &Option<&Limits>) -> Value {
     match l {
         Some(l) => json!({"soft_lo": l.soft_lo, "soft_hi": l.soft_hi, "hard_lo": l.hard_lo, "hard_hi": l.hard_hi}),
         None => Value::Null,
