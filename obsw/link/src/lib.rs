@@ -29,6 +29,7 @@ pub mod mux;
 pub mod persist;
 pub mod rx;
 pub mod sdls;
+pub mod stream;
 pub mod tc;
 pub mod test_keys;
 pub mod tm;
