@@ -4,6 +4,13 @@
 //! (132.0-B-3) in, space packets and CLCWs out. Everything below the socket is
 //! `mmic-link`, the code the robot runs.
 //!
+//! **Transports.** One frame per UDP datagram ([`FrameLink::open`], what Yamcs uses), or
+//! over a byte stream — board A's serial ground link (USB CDC-ACM), a pty, QEMU's
+//! `-serial unix:` socket — one COBS frame per transfer frame ([`FrameLink::open_serial`],
+//! `mmic_link::stream`, the framing board A runs). The same FOP-1, SDLS and TM receiver
+//! run over either; only how a frame is sent and received differs. Framing errors on the
+//! stream are counted in [`Counters::stream`].
+//!
 //! ```text
 //! send_packet(pkt) ─▶ queue ─▶ FOP-1 (window K, T1, transmission limit) ─▶ AD frame, SDLS ─▶ UDP
 //! poll(now)        ◀─ packets ◀─ TmReceiver (CRC, SDLS, demux) ◀─ TM frames ◀──────────── UDP
@@ -52,6 +59,8 @@ use mmic_link::downlink::{TmReceiver, TmRxCounters};
 use mmic_link::fop::{AlertReason, Fop, FopConfig, FopEffect, FopInput, FopState};
 use mmic_link::persist::{Dir, FileIvStore, PersistError};
 use mmic_link::sdls::{build_tc, RxSa, RxSas, SdlsError, TxSa};
+use mmic_link::stream::port::Port;
+use mmic_link::stream::{Deframer, StreamCounters};
 use mmic_link::tc::{FrameType, TcRepr};
 
 pub use mmic_link::persist::{create_key_file, read_key};
@@ -232,14 +241,38 @@ pub struct Counters {
     pub alerts: u64,
     /// TM frames refused, by the receiver's reasons.
     pub tm: TmRxCounters,
-    /// Datagrams that are not TM frames of our length.
+    /// Datagrams (or stream frames) that are not TM frames of our length.
     pub odd_datagrams: u64,
+    /// Serial/stream transport: frames received, frames dropped by the framing (oversize,
+    /// corrupt COBS) and their bytes.
+    pub stream: StreamCounters,
+    /// Serial/stream transport: TC frames not sent because the line's send queue was full
+    /// (lost like on a radio link; COP-1 retransmits).
+    pub stream_send_dropped: u64,
+}
+
+/// How frames travel (see the crate documentation).
+enum Wire {
+    /// One frame per datagram to and from the robot's frame port.
+    Udp {
+        sock: UdpSocket,
+        robot: SocketAddr,
+        /// The socket's mode and read timeout as last set (changed only when needed:
+        /// system calls saved on every blocking wait).
+        nonblocking: bool,
+        read_timeout: Option<Duration>,
+    },
+    /// One COBS frame per transfer frame on a byte stream.
+    Stream {
+        port: Port,
+        deframer: Box<Deframer<{ mib::link::tm_frame::LEN }>>,
+        rbuf: Vec<u8>,
+    },
 }
 
 /// The frame link (see the crate documentation).
 pub struct FrameLink {
-    sock: UdpSocket,
-    robot: SocketAddr,
+    wire: Wire,
     fop: Fop<PacketId>,
     tc_sa: TxSa,
     tm: TmReceiver<2>,
@@ -265,16 +298,16 @@ pub struct FrameLink {
     pub counters: Counters,
     epoch: Instant,
     buf: Vec<u8>,
-    /// The socket's mode and read timeout as last set (changed only when needed: system
-    /// calls saved on every blocking wait).
-    nonblocking: bool,
-    read_timeout: Option<Duration>,
 }
 
 impl fmt::Debug for FrameLink {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let wire = match &self.wire {
+            Wire::Udp { robot, .. } => robot.to_string(),
+            Wire::Stream { port, .. } => port.describe.clone(),
+        };
         f.debug_struct("FrameLink")
-            .field("robot", &self.robot)
+            .field("robot", &wire)
             .field("fop", &self.fop.state())
             .field("queued", &self.queue.len())
             .finish_non_exhaustive()
@@ -285,6 +318,37 @@ impl FrameLink {
     /// Binds the socket and opens the counter state file. COP-1 initialises from the first
     /// CLCW that arrives.
     pub fn open(cfg: Config) -> Result<FrameLink, LinkError> {
+        let sock = UdpSocket::bind(cfg.listen)?;
+        sock.set_nonblocking(true)?;
+        let wire = Wire::Udp {
+            sock,
+            robot: cfg.robot,
+            nonblocking: true,
+            read_timeout: None,
+        };
+        FrameLink::open_on(cfg, wire)
+    }
+
+    /// The link over a serial device or a Unix socket at `path`
+    /// (`mmic_link::stream::port::open`: a tty in raw mode, its stale input discarded):
+    /// one COBS frame per transfer frame, as board A's ground link. `cfg.robot` and
+    /// `cfg.listen` are not used.
+    pub fn open_serial(cfg: Config, path: &Path) -> Result<FrameLink, LinkError> {
+        let port = mmic_link::stream::port::open(path)?;
+        FrameLink::open_port(cfg, port)
+    }
+
+    /// The link over an open stream port (e.g. one end of a socket pair).
+    pub fn open_port(cfg: Config, port: Port) -> Result<FrameLink, LinkError> {
+        let wire = Wire::Stream {
+            port,
+            deframer: Box::default(),
+            rbuf: vec![0u8; 4096],
+        };
+        FrameLink::open_on(cfg, wire)
+    }
+
+    fn open_on(cfg: Config, wire: Wire) -> Result<FrameLink, LinkError> {
         if cfg.shares_a_key() {
             return Err(LinkError::SameKey);
         }
@@ -303,11 +367,8 @@ impl FrameLink {
         if let Some(k) = cfg.tm_spare_key {
             let _ = sas.insert(rx_sa(TM_SPIS[1], &k));
         }
-        let sock = UdpSocket::bind(cfg.listen)?;
-        sock.set_nonblocking(true)?;
         Ok(FrameLink {
-            sock,
-            robot: cfg.robot,
+            wire,
             fop: Fop::new(mib::link::tc_vc::COMMAND, cfg.fop),
             tc_sa,
             tm: TmReceiver::with_security(mib::link::SCID, cfg.tm_security, sas),
@@ -328,14 +389,18 @@ impl FrameLink {
             counters: Counters::default(),
             epoch: Instant::now(),
             buf: vec![0u8; 65_536],
-            nonblocking: true,
-            read_timeout: None,
         })
     }
 
-    /// The local address (TM frames arrive here).
+    /// The local address (TM frames arrive here); an error on a stream link.
     pub fn local_addr(&self) -> Result<SocketAddr, LinkError> {
-        Ok(self.sock.local_addr()?)
+        match &self.wire {
+            Wire::Udp { sock, .. } => Ok(sock.local_addr()?),
+            Wire::Stream { port, .. } => Err(LinkError::Io(std::io::Error::other(format!(
+                "the frame link runs on {}, not UDP",
+                port.describe
+            )))),
+        }
     }
 
     /// Milliseconds since the link was opened (the clock `poll` is usually given).
@@ -437,17 +502,7 @@ impl FrameLink {
     pub fn poll(&mut self, now_ms: u64) -> Result<Vec<Vec<u8>>, LinkError> {
         self.set_mode(None)?;
         let mut out = Vec::new();
-        loop {
-            let n = match self.sock.recv_from(&mut self.buf) {
-                Ok((n, _)) => n,
-                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => break,
-                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
-                // ICMP errors of earlier sends (robot not up yet): nothing to read.
-                Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => continue,
-                Err(e) => return Err(e.into()),
-            };
-            self.datagram(n, now_ms, &mut out)?;
-        }
+        self.receive_all(now_ms, &mut out)?;
         let fx = self.fop.on_event(now_ms, FopInput::Tick);
         self.apply(now_ms, fx)?;
         self.maybe_initiate(now_ms)?;
@@ -459,6 +514,52 @@ impl FrameLink {
             self.apply(now_ms, fx)?;
         }
         Ok(out)
+    }
+
+    /// Reads every frame waiting on the wire (never blocks).
+    fn receive_all(&mut self, now_ms: u64, out: &mut Vec<Vec<u8>>) -> Result<(), LinkError> {
+        if matches!(self.wire, Wire::Udp { .. }) {
+            loop {
+                let Wire::Udp { sock, .. } = &self.wire else {
+                    return Ok(());
+                };
+                let n = match sock.recv_from(&mut self.buf) {
+                    Ok((n, _)) => n,
+                    Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => return Ok(()),
+                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                    // ICMP errors of earlier sends (robot not up yet): nothing to read.
+                    Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => continue,
+                    Err(e) => return Err(e.into()),
+                };
+                self.datagram(n, now_ms, out)?;
+            }
+        }
+        match &mut self.wire {
+            Wire::Udp { .. } => Ok(()),
+            Wire::Stream { port, deframer, rbuf } => {
+                port.flush()?;
+                let mut frames = Vec::new();
+                loop {
+                    let n = port.read(rbuf)?;
+                    if n == 0 {
+                        break;
+                    }
+                    deframer.feed(&rbuf[..n], |r| {
+                        if let Ok(f) = r {
+                            frames.push(f.to_vec());
+                        }
+                    });
+                }
+                self.counters.stream = deframer.counters;
+                self.counters.stream_send_dropped = port.send_dropped;
+                for f in frames {
+                    let n = f.len();
+                    self.buf[..n].copy_from_slice(&f);
+                    self.datagram(n, now_ms, out)?;
+                }
+                Ok(())
+            }
+        }
     }
 
     /// One received datagram (in `self.buf[..n]`): a TM frame's packets to `out`, its CLCW
@@ -493,9 +594,17 @@ impl FrameLink {
             if !got.is_empty() || left.is_zero() {
                 return Ok(got);
             }
-            self.set_mode(Some(left.min(Duration::from_millis(20)).max(Duration::from_millis(1))))?;
-            let r = self.sock.recv_from(&mut self.buf);
-            if let Ok((n, _)) = r {
+            let wait = left.min(Duration::from_millis(20)).max(Duration::from_millis(1));
+            self.set_mode(Some(wait))?;
+            let r = match &self.wire {
+                Wire::Udp { sock, .. } => sock.recv_from(&mut self.buf).map(|(n, _)| n),
+                Wire::Stream { port, .. } => {
+                    // Readable (or writable with bytes queued): the next poll takes it.
+                    port.wait(wait)?;
+                    continue;
+                }
+            };
+            if let Ok(n) = r {
                 let mut out = Vec::new();
                 self.datagram(n, self.now_ms(), &mut out)?;
                 out.extend(self.poll(self.now_ms())?);
@@ -509,14 +618,23 @@ impl FrameLink {
     /// Puts the socket in non-blocking mode (`None`) or blocking with a read timeout, with
     /// system calls only for what changes.
     fn set_mode(&mut self, mode: Option<Duration>) -> Result<(), LinkError> {
-        if self.nonblocking != mode.is_none() {
-            self.sock.set_nonblocking(mode.is_none())?;
-            self.nonblocking = mode.is_none();
+        let Wire::Udp {
+            sock,
+            nonblocking,
+            read_timeout,
+            ..
+        } = &mut self.wire
+        else {
+            return Ok(());
+        };
+        if *nonblocking != mode.is_none() {
+            sock.set_nonblocking(mode.is_none())?;
+            *nonblocking = mode.is_none();
         }
         if let Some(t) = mode {
-            if self.read_timeout != Some(t) {
-                self.sock.set_read_timeout(Some(t))?;
-                self.read_timeout = Some(t);
+            if *read_timeout != Some(t) {
+                sock.set_read_timeout(Some(t))?;
+                *read_timeout = Some(t);
             }
         }
         Ok(())
@@ -584,7 +702,19 @@ impl FrameLink {
         if let Some(c) = self.capture.as_mut() {
             c.push(frame.to_vec());
         }
-        match self.sock.send_to(frame, self.robot) {
+        let (sock, robot) = match &mut self.wire {
+            Wire::Udp { sock, robot, .. } => (sock, *robot),
+            Wire::Stream { port, .. } => {
+                let mut enc = [0u8; mmic_link::stream::encoded_len(TC_MAX_LEN)];
+                let n = mmic_link::stream::encode(frame, &mut enc)
+                    .map_err(|e| LinkError::Io(std::io::Error::other(e.to_string())))?;
+                // A full send queue drops the frame whole (counted): COP-1 retransmits.
+                port.send(&enc[..n])?;
+                self.counters.stream_send_dropped = port.send_dropped;
+                return Ok(());
+            }
+        };
+        match sock.send_to(frame, robot) {
             Ok(_) => Ok(()),
             // The robot's port not (yet) open, a full buffer: the frame is lost like on
             // a radio link; COP-1 retransmits.
@@ -669,5 +799,7 @@ impl FrameLink {
     }
 }
 
+#[cfg(test)]
+mod stream_tests;
 #[cfg(test)]
 mod tests;
