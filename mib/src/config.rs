@@ -200,6 +200,71 @@ pub const GROUND_HEARTBEAT_MS: u32 = 1000;
 pub const LINK_LOSS_MS: u32 = 2500;
 const _: () =
     assert!(GROUND_HEARTBEAT_MS * 2 < LINK_LOSS_MS && (LINK_LOSS_MS as usize) < SUBSCRIPTION_LEASE_MS as usize);
+/// Ground: the link is lost after this many tenths of the robot's status-HK interval
+/// without TM (2.5 intervals), never sooner than [`LINK_LOSS_MS`]. HK is the TM a robot
+/// sends on its own, whatever happens to the uplink (the answers to the ground's TCs need
+/// the uplink too): one lost HK report leaves a silence of just under two intervals,
+/// which must not count as a loss; the half interval over two is room for scheduling
+/// jitter. Every front end (CLI, collector, page) applies [`link_loss_ms`].
+pub const LINK_LOSS_HK_TENTHS: u32 = 25;
+
+/// Ground: the one link-loss rule — no TM for this long (ms) with the robot's status HK
+/// at `hk_interval_ms` means the link is lost: max([`LINK_LOSS_MS`],
+/// [`LINK_LOSS_HK_TENTHS`]/10 × the interval). At the MIB's default interval (1 s) it is
+/// [`LINK_LOSS_MS`].
+pub const fn link_loss_ms(hk_interval_ms: u32) -> u32 {
+    let by_hk = hk_interval_ms as u64 * LINK_LOSS_HK_TENTHS as u64 / 10;
+    if by_hk > u32::MAX as u64 {
+        u32::MAX
+    } else if by_hk > LINK_LOSS_MS as u64 {
+        by_hk as u32
+    } else {
+        LINK_LOSS_MS
+    }
+}
+
+// --- Ground: TM gaps retrieved from the on-board store (PUS 15) ---
+
+/// Ground: gaps in a robot's TM closer than this (sequence counts) are asked for as one
+/// range; the packets between come again and are dropped as duplicates. 16 bounds that
+/// waste to ~16 repeated packets per merge, about what one more TC[15,128] costs with
+/// its reports on a lossy link (the request and up to three reports, each of which can
+/// be lost and become a gap of its own); a larger distance replays mostly packets the
+/// ground already has.
+pub const GAP_MERGE_DISTANCE: u16 = 16;
+/// Ground: most sequence counts asked for in one range: the replay of one request stays
+/// a short burst however long the outage was (the rest is asked for in the next round):
+/// 256 packets of ~100 B are ~25 kB, a fraction of a second on the lab links, and a
+/// sixteenth of the on-board store ([`TM_STORE_CAPACITY`]).
+pub const GAP_RANGE_MAX: u16 = 256;
+/// Ground: most ranges asked of one robot's store in one round. Each is a TC the robot
+/// remembers in its duplicate window ([`DUPLICATE_WINDOW`], 128) beside the heartbeats:
+/// 16 leaves that window room for every plan TC in a retry span.
+pub const GAP_REQUESTS_MAX: usize = 16;
+const _: () = assert!(GAP_REQUESTS_MAX * 4 < DUPLICATE_WINDOW);
+/// Ground: a store request whose end report (TM[15,19]) did not come is given up after
+/// this long (its reports were lost; the holes are asked for again). Two first waits of
+/// a TC ([`TC_RETRY_INITIAL_MS`]) plus margin: the store answers within one.
+pub const STORE_REQUEST_TIMEOUT_MS: u32 = 2_000;
+/// Ground: least time between two rounds of store requests to one robot: the requests'
+/// own reports can be lost and make new gaps, so their rate is bounded (two rounds per
+/// second, below the 1 s heartbeat's TM).
+pub const STORE_REQUEST_MIN_GAP_MS: u32 = 500;
+/// Ground: how long an accepted TC that no step waits for (a marker, a store retrieval,
+/// `ground send` without waiting) is tracked for its completion: it is never resent, and
+/// a lost completion report is recovered as a TM gap; after this it is forgotten. Longer
+/// than the longest ground-side completion of such a TC on the lab links (a store replay
+/// of [`GAP_RANGE_MAX`] packets), short enough not to hold a session's exit.
+pub const UNTAGGED_COMPLETION_WAIT_MS: u32 = 5_000;
+/// Ground (collector): the subscription and the HK-interval TC are sent this many times
+/// per link-up before the collector waits for the next renewal: at one try per lease
+/// renewal ([`GROUND_HEARTBEAT_MS`]) that is 10 s of trying, longer than any lab outage
+/// the lossy-relay test makes, short enough not to flood a robot that refuses them.
+pub const HK_SET_TRIES: u32 = 10;
+/// Ground (collector): least time between two requests for the module report or the team
+/// status: the answer of the first one (a TC executes within a control period or two) is
+/// there by then; a lost one is asked again instead of waiting for the next lease renewal.
+pub const GROUND_ASK_AGAIN_MS: u32 = 500;
 
 /// OBSW: most TCP clients at once; a further connection is closed at once (counted).
 pub const TCP_MAX_CONNECTIONS: usize = 8;

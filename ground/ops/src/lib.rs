@@ -1,6 +1,7 @@
 //! MMIC-I ground operations: the per-robot commanding engine ([`ops::Session`], the
 //! commanding book, the plan executor and its runs), the plans it executes ([`plan`]),
-//! the links it commands over ([`link`]: the space link through `ground-link`, or a
+//! the live link of every front end ([`live`]: link state, sequence tracking, gap
+//! retrieval), the links it commands over ([`link`]: the space link through `ground-link`, or a
 //! bare-packet lab link; [`link_choice`]), one commanding ground per robot
 //! ([`robot_lock`]) and the space link's key files ([`keys`]).
 //!
@@ -11,6 +12,7 @@
 pub mod keys;
 pub mod link;
 pub mod link_choice;
+pub mod live;
 pub mod ops;
 pub mod plan;
 pub mod robot_lock;

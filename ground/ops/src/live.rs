@@ -1,0 +1,23 @@
+//! The live link of one robot, the same for every front end (the CLI's
+//! [`crate::ops::Session`], the collector's per-robot worker and the page it feeds):
+//! - [`LinkWatch`] (`watch.rs`): is the link up? One link-loss rule
+//!   ([`mib::config::link_loss_ms`]: no TM for 2.5 status-HK intervals, at least
+//!   [`mib::config::LINK_LOSS_MS`]);
+//! - [`ApidTracker`] (`track.rs`): is the TM complete? Sequence counts of one APID:
+//!   new, filled, duplicate, restart; the holes to retrieve and the ones that can no
+//!   longer be had;
+//! - [`GapPlan`] (`gaps.rs`): which store retrievals to send for the holes — one merge
+//!   distance and one set of request limits, all from the MIB.
+//!
+//! Pure: no I/O, times passed in (ms).
+
+mod gaps;
+mod track;
+mod watch;
+
+pub use gaps::GapPlan;
+pub use track::{ApidTracker, Lost, LostRun, Pos, Verdict, MAX_MISSING, SEQ_MOD};
+pub use watch::{LinkLoss, LinkState, LinkWatch};
+
+#[cfg(test)]
+mod tests;
