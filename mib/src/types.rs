@@ -57,12 +57,16 @@ impl PType {
             PType::I32 => i32::MAX as i64,
         }
     }
-    /// Writes `raw` (saturated to the type's range) into `buf[..size]`.
+    /// Writes `raw` (saturated to the type's range; a boolean is `raw != 0`, as the
+    /// wire crate's typed `from_values`) into `buf[..size]`.
     /// Returns `None` if `buf` is too short.
     pub fn encode(self, raw: i64, buf: &mut [u8]) -> Option<usize> {
         let n = self.size();
         let out = buf.get_mut(..n)?;
-        let v = raw.clamp(self.min(), self.max());
+        let v = match self {
+            PType::Bool => (raw != 0) as i64,
+            _ => raw.clamp(self.min(), self.max()),
+        };
         match self {
             PType::Bool | PType::U8 => out[0] = v as u8,
             PType::U16 => out.copy_from_slice(&(v as u16).to_be_bytes()),

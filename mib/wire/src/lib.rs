@@ -8,11 +8,12 @@
 //! writes the code from the MIB; nothing here lays a body out by hand.
 //!
 //! `parse` checks structure (lengths, counts, known codes, booleans 0/1); argument ranges
-//! are the acceptance check's job (`mib::codec::decode_args`). For every body that parses,
+//! are the acceptance check's job ([`codec::decode_args`], ranges from the MIB). For every body that parses,
 //! `emit` writes back exactly the bytes it came from.
 #![cfg_attr(not(test), no_std)]
 #![deny(unsafe_code)]
 
+pub mod codec;
 pub mod header;
 
 pub use header::{CRC_LEN, MIN_TC_LEN, MIN_TM_LEN, PRIMARY_HEADER_LEN, TC_SEC_HEADER_LEN, TM_SEC_HEADER_LEN};

@@ -2,9 +2,9 @@
 //! yields a checked [`Tc`] view or a [`Rejection`] naming the MIB failure code and its
 //! data. Nothing here can panic on input.
 
-use mib::codec::{self, ArgError, MAX_ARGS};
 use mib::tc::{self, service, TcDef};
 use mib::FailureCode;
+use mib_wire::codec::{self, ArgError, MAX_ARGS};
 
 use crate::failure::Failure;
 use satrs::spacepackets::crc::CRC_CCITT_FALSE;

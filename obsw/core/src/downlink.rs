@@ -248,7 +248,7 @@ impl<S: TmStore> Downlink<S> {
         }
         let def = &EVENTS[e.0];
         let mut buf = [0u8; 64];
-        if let Ok(n) = mib::codec::encode_event(def, args, &mut buf) {
+        if let Ok(n) = mib_wire::codec::encode_event(def, args, &mut buf) {
             self.emit(now, service::EVENT, def.severity.subservice(), &buf[..n], sink);
         }
     }

@@ -1604,7 +1604,7 @@ mod tests {
         fn send(&mut self, name: &str, args: &[i64]) {
             let def = mib::tc::by_name(name).unwrap();
             let mut app = [0u8; 64];
-            let n = mib::codec::encode_args(def, args, &mut app).unwrap();
+            let n = mib_wire::codec::encode_args(def, args, &mut app).unwrap();
             self.seq += 1;
             let apid = self.o.apid();
             let raw = tc_bytes(apid, self.seq, def.service, def.subservice, &app[..n]);
