@@ -167,6 +167,11 @@ pub(crate) struct LinkFlags {
     /// robots on loopback addresses only (obsw --lab-bare-packets).
     #[arg(long)]
     lab_tcp: bool,
+    /// The space link over a serial device (raw mode; board A's USB ground link, e.g.
+    /// /dev/ttyACM0) or a Unix socket (QEMU -serial unix:), one COBS frame per transfer
+    /// frame, instead of UDP: `N=PATH`, or `PATH` with one robot. Repeat per robot.
+    #[arg(long, value_name = "[N=]PATH", value_parser = ground_ops::link_choice::parse_serial)]
+    serial: Vec<(Option<u8>, PathBuf)>,
 }
 
 fn parse_tc_spi(s: &str) -> Result<u16, String> {
@@ -189,6 +194,7 @@ impl LinkFlags {
             tm_listen: self.tm_listen.clone(),
             spi: self.spi,
             tm_sdls: self.tm_sdls,
+            serial: self.serial.clone(),
             lab_udp: self.lab_udp,
             lab_tcp: self.lab_tcp,
         }

@@ -3,6 +3,11 @@
 //! TCP (COBS frames delimited by 0x00, as sat-rs's TCP server frames them). Each link has
 //! a thread that pushes every received packet, with its arrival time, into one channel.
 //!
+//! The space link runs over UDP (one frame per datagram) or, for a robot given in
+//! [`FrameOptions::serial`], over a serial device or Unix socket (board A's ground link:
+//! one COBS frame per transfer frame, `ground_link::FrameLink::open_serial`); the same
+//! FOP-1 and SDLS either way.
+//!
 //! Over frames, [`Link::send`] hands the packet to FOP-1 (queued, never lost: COP-1
 //! retransmits its frame until a CLCW acknowledges it); the ground's own packet resends are
 //! not used ([`Link::resends_packets`]). [`Link::frame_stats`] counts what COP-1 did.
@@ -57,16 +62,20 @@ pub struct FrameOptions {
     pub tc_spi: u16,
     /// SDLS on the robot's TM frames (its `--tm-sdls`): both ends must agree.
     pub tm_security: ground_link::TmSecurity,
+    /// Robot N's frames over this serial device (raw mode) or Unix socket instead of UDP
+    /// (`--serial N=PATH`): TC and TM frames as COBS frames on the byte stream.
+    pub serial: BTreeMap<u8, PathBuf>,
 }
 
 impl FrameOptions {
-    /// Keys in `keys`, TM on the default addresses, TC SPI 1, encrypted TM.
+    /// Keys in `keys`, TM on the default addresses, TC SPI 1, encrypted TM, UDP.
     pub fn new(keys: PathBuf) -> FrameOptions {
         FrameOptions {
             keys,
             tm_listen: BTreeMap::new(),
             tc_spi: mib::link::sdls::TC_SPIS[0],
             tm_security: ground_link::TmSecurity::Encrypt,
+            serial: BTreeMap::new(),
         }
     }
 }
@@ -120,7 +129,8 @@ pub struct FrameStats {
     pub alerts: u64,
     /// Initialisations of the AD service (Set V(R) or Unlock).
     pub initialisations: u64,
-    /// TM frames refused (CRC, SDLS, header).
+    /// TM frames refused (CRC, SDLS, header; on a serial link also the frames its COBS
+    /// framing dropped).
     pub tm_refused: u64,
     /// Packets waiting in the link (queued or not yet acknowledged).
     pub pending: u64,
@@ -459,8 +469,16 @@ fn open_frames(
         ground_link::Config::from_key_dir(addr, listen, &dir, &crate::keys::ground_state_path(&dir), opts.tc_spi)
             .map_err(|e| io::Error::other(format!("robot {robot}'s keys in {}: {e}", dir.display())))?;
     cfg.tm_security = opts.tm_security;
-    let mut fl = ground_link::FrameLink::open(cfg)
-        .map_err(|e| io::Error::other(format!("frame link of robot {robot} (TM frames on {listen}): {e}")))?;
+    let mut fl = match opts.serial.get(&robot) {
+        Some(path) => ground_link::FrameLink::open_serial(cfg, path).map_err(|e| {
+            io::Error::other(format!(
+                "frame link of robot {robot} over serial {}: {e}",
+                path.display()
+            ))
+        })?,
+        None => ground_link::FrameLink::open(cfg)
+            .map_err(|e| io::Error::other(format!("frame link of robot {robot} (TM frames on {listen}): {e}")))?,
+    };
     let (to_link, from_ground) = crossbeam_channel::unbounded::<Vec<u8>>();
     let stats = Arc::new(Mutex::new(FrameStats::default()));
     let failed = Arc::new(Mutex::new(None));
@@ -584,7 +602,8 @@ fn frame_loop(
         .iter()
         .map(|&n| u64::from(n))
         .sum::<u64>()
-            + c.odd_datagrams;
+            + c.odd_datagrams
+            + u64::from(c.stream.dropped());
         st.pending = fl.pending() as u64;
         st.nr = fl.clcw().map(|c| c.report_value);
         if let Ok(mut s) = shared.stats.lock() {

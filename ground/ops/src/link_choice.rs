@@ -3,6 +3,7 @@
 //! SDLS) by default; the bare-packet links only as a lab mode named so on the command
 //! line, and only to robots on loopback addresses.
 
+use std::collections::BTreeMap;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 
@@ -12,7 +13,7 @@ use crate::link::{FrameOptions, Transport};
 pub const KEYS_ENV: &str = "MMIC_KEYS";
 
 /// How the robots are reached, as the binary's link flags (`--keys`, `--tm-listen`,
-/// `--spi`, `--tm-sdls`, `--lab-udp`, `--lab-tcp`) give it; [`LinkChoice::resolve`]
+/// `--spi`, `--tm-sdls`, `--serial`, `--lab-udp`, `--lab-tcp`) give it; [`LinkChoice::resolve`]
 /// turns it into a transport and its frame options.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct LinkChoice {
@@ -26,6 +27,10 @@ pub struct LinkChoice {
     pub spi: u16,
     /// SDLS on the robot's TM frames (the robot's `--tm-sdls`).
     pub tm_sdls: ground_link::TmSecurity,
+    /// The space link over a serial device or Unix socket (`--serial [N=]PATH`, see
+    /// [`parse_serial`]): robot N's TC and TM frames as COBS frames on that byte stream
+    /// (board A's ground link) instead of UDP. Without N: the one robot given.
+    pub serial: Vec<(Option<u8>, PathBuf)>,
     /// Lab mode: bare space packets, one per UDP datagram (robots on loopback only).
     pub lab_udp: bool,
     /// Lab mode: bare space packets over TCP with COBS framing (robots on loopback only).
@@ -49,6 +54,37 @@ pub enum LinkChoiceError {
     },
     #[error("--tm-listen is an option of the space link; it does not go with --{flag}")]
     TmListenWithLab { flag: &'static str },
+    #[error("--serial is the space link over a serial line; it does not go with --{flag}")]
+    SerialWithLab { flag: &'static str },
+    #[error("--serial {path}: with several robots say which one, --serial N=PATH")]
+    SerialWhichRobot { path: String },
+    #[error("--serial {robot}=...: robot {robot} is not one of the robots given")]
+    SerialUnknownRobot { robot: u8 },
+    #[error("--serial: robot {robot} is given two serial ports")]
+    SerialTwice { robot: u8 },
+}
+
+/// Reads a `--serial` value: `N=PATH` (robot N) or `PATH` (the one robot given).
+pub fn parse_serial(s: &str) -> Result<(Option<u8>, PathBuf), String> {
+    if let Some((n, path)) = s.split_once('=') {
+        if let Ok(n) = n.parse::<u8>() {
+            if mib::apid::robot_apid(n).is_none() {
+                return Err(format!(
+                    "\"{s}\": robot numbers are {}..={}",
+                    mib::apid::ROBOT_MIN,
+                    mib::apid::ROBOT_MAX
+                ));
+            }
+            if path.is_empty() {
+                return Err(format!("\"{s}\": the path of the serial device is missing"));
+            }
+            return Ok((Some(n), PathBuf::from(path)));
+        }
+    }
+    if s.is_empty() {
+        return Err("the path of the serial device is missing".into());
+    }
+    Ok((None, PathBuf::from(s)))
 }
 
 impl Default for LinkChoice {
@@ -60,6 +96,7 @@ impl Default for LinkChoice {
             tm_listen: Vec::new(),
             spi: 1,
             tm_sdls: ground_link::TmSecurity::Encrypt,
+            serial: Vec::new(),
             lab_udp: false,
             lab_tcp: false,
         }
@@ -91,6 +128,9 @@ impl LinkChoice {
                 if !self.tm_listen.is_empty() {
                     return Err(LinkChoiceError::TmListenWithLab { flag });
                 }
+                if !self.serial.is_empty() {
+                    return Err(LinkChoiceError::SerialWithLab { flag });
+                }
                 if let Some(&(robot, addr)) = robots.iter().find(|(_, a)| !a.ip().is_loopback()) {
                     return Err(LinkChoiceError::LabNotLoopback { flag, robot, addr });
                 }
@@ -98,12 +138,29 @@ impl LinkChoice {
             }
             None => {
                 let keys = self.keys.clone().ok_or(LinkChoiceError::NoKeys)?;
+                let mut serial = BTreeMap::new();
+                for (robot, path) in &self.serial {
+                    let robot = match (robot, robots) {
+                        (Some(n), _) if robots.iter().any(|(r, _)| r == n) => *n,
+                        (Some(n), _) => return Err(LinkChoiceError::SerialUnknownRobot { robot: *n }),
+                        (None, [(n, _)]) => *n,
+                        (None, _) => {
+                            return Err(LinkChoiceError::SerialWhichRobot {
+                                path: path.display().to_string(),
+                            })
+                        }
+                    };
+                    if serial.insert(robot, path.clone()).is_some() {
+                        return Err(LinkChoiceError::SerialTwice { robot });
+                    }
+                }
                 Ok((
                     Transport::Frames,
                     Some(FrameOptions {
                         tm_listen: self.tm_listen.iter().copied().collect(),
                         tc_spi: self.spi,
                         tm_security: self.tm_sdls,
+                        serial,
                         ..FrameOptions::new(keys)
                     }),
                 ))
@@ -174,5 +231,63 @@ mod tests {
             with_listen.resolve(&[(1, local(7301))]),
             Err(LinkChoiceError::TmListenWithLab { .. })
         ));
+    }
+
+    // verifies: LINK-STREAM-04
+    #[test]
+    fn serial_ports_are_named_per_robot_and_only_on_the_space_link() {
+        assert_eq!(parse_serial("/dev/ttyACM0"), Ok((None, PathBuf::from("/dev/ttyACM0"))));
+        assert_eq!(
+            parse_serial("2=/dev/ttyACM1"),
+            Ok((Some(2), PathBuf::from("/dev/ttyACM1")))
+        );
+        assert_eq!(
+            parse_serial("./a=b"),
+            Ok((None, PathBuf::from("./a=b"))),
+            "not a robot number: a path"
+        );
+        assert!(parse_serial("0=/dev/x").is_err() && parse_serial("3=").is_err() && parse_serial("").is_err());
+        let one = LinkChoice {
+            keys: Some("k".into()),
+            serial: vec![(None, "/dev/ttyACM0".into())],
+            ..LinkChoice::default()
+        };
+        let (t, f) = one.resolve(&[(1, local(7501))]).unwrap();
+        assert_eq!(t, Transport::Frames);
+        assert_eq!(f.unwrap().serial.get(&1), Some(&PathBuf::from("/dev/ttyACM0")));
+        assert_eq!(
+            one.resolve(&[(1, local(7501)), (2, local(7502))]),
+            Err(LinkChoiceError::SerialWhichRobot {
+                path: "/dev/ttyACM0".into()
+            })
+        );
+        let two = LinkChoice {
+            serial: vec![(Some(2), "/dev/ttyACM1".into())],
+            ..one.clone()
+        };
+        let f = two.resolve(&[(1, local(7501)), (2, local(7502))]).unwrap().1.unwrap();
+        assert_eq!(f.serial.len(), 1, "robot 1 stays on UDP");
+        assert_eq!(
+            two.resolve(&[(1, local(7501))]),
+            Err(LinkChoiceError::SerialUnknownRobot { robot: 2 })
+        );
+        let twice = LinkChoice {
+            serial: vec![(Some(1), "a".into()), (None, "b".into())],
+            ..one.clone()
+        };
+        assert_eq!(
+            twice.resolve(&[(1, local(7501))]),
+            Err(LinkChoiceError::SerialTwice { robot: 1 })
+        );
+        let lab = LinkChoice {
+            lab_tcp: true,
+            ..one.clone()
+        };
+        assert_eq!(
+            lab.resolve(&[(1, local(7301))]),
+            Err(LinkChoiceError::SerialWithLab { flag: "lab-tcp" })
+        );
+        let no_keys = LinkChoice { keys: None, ..one };
+        assert_eq!(no_keys.resolve(&[(1, local(7501))]), Err(LinkChoiceError::NoKeys));
     }
 }
