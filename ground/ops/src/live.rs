@@ -12,11 +12,13 @@
 //! Pure: no I/O, times passed in (ms).
 
 mod gaps;
+mod tm;
 mod track;
 mod watch;
 
 pub use gaps::GapPlan;
-pub use track::{ApidTracker, Lost, LostRun, Pos, Verdict, MAX_MISSING, SEQ_MOD};
+pub use tm::{is_boot, position, store_done, StoreDone};
+pub use track::{ApidTracker, Lost, LostRun, Pos, Verdict, MAX_MISSING, RECENT_WINDOW, SEQ_MOD};
 pub use watch::{LinkLoss, LinkState, LinkWatch};
 
 #[cfg(test)]

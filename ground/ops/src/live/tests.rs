@@ -3,6 +3,7 @@
 use mib::config::{GAP_MERGE_DISTANCE, GAP_RANGE_MAX, GAP_REQUESTS_MAX, LINK_LOSS_MS};
 
 use super::*;
+use crate::pus::{Tm, TmBody};
 
 fn plan(merge: u16) -> GapPlan {
     GapPlan {
@@ -303,4 +304,39 @@ fn a_stale_copy_from_before_a_reboot_is_a_duplicate() {
     // An old-boot packet with count 11 but a time outside the hole's span.
     assert_eq!(t.on_packet(p(11, 10_000), false, 0), Verdict::Duplicate);
     assert_eq!(t.on_packet(p(11, 50_100), false, 0), Verdict::Filled);
+}
+
+// verifies: OPS-LIVE-SEQ-01, GND-12, PUS-15-01
+#[test]
+fn store_end_report_gives_the_oldest_stored_packet() {
+    let t = crate::pus::CdsShort::from_unix_ms(1_000_000);
+    let tm = Tm {
+        apid: 0x101,
+        robot: Some(1),
+        seq: 9,
+        service: 15,
+        subservice: 19,
+        name: "STORE_DOWNLINK_DONE",
+        msg_counter: 0,
+        time: t,
+        len: 0,
+        body: TmBody::StoreDownlinkDone {
+            packets: 7,
+            oldest_time: t,
+            oldest_seq: 42,
+            overwritten: 3,
+        },
+    };
+    let d = store_done(&tm).unwrap();
+    assert_eq!(
+        d,
+        StoreDone {
+            packets: 7,
+            oldest: Some(Pos {
+                seq: 42,
+                obt_ms: 1_000_000
+            }),
+            overwritten: 3
+        }
+    );
 }

@@ -320,7 +320,7 @@ fn resolve_in_flight(
     };
     let expired0: HashMap<u8, u64> = robots
         .iter()
-        .map(|&r| (r, session.robots.get(&r).map_or(0, |s| s.seq.expired)))
+        .map(|&r| (r, session.robots.get(&r).map_or(0, |s| s.seq.lost_packets)))
         .collect();
     let t0 = Instant::now();
     let limit = Duration::from_millis(mib::config::TC_RETRY_SPAN_MS as u64);
@@ -333,7 +333,7 @@ fn resolve_in_flight(
                 session
                     .robots
                     .get(&r)
-                    .is_some_and(|s| s.lost.is_none() && !s.seq.missing.is_empty())
+                    .is_some_and(|s| s.lost.is_none() && s.seq.holes() > 0)
                     && in_flight.iter().any(|f| session.is_pending(&f.tc))
             })
             .collect();
@@ -342,7 +342,7 @@ fn resolve_in_flight(
         }
         let before: usize = open
             .iter()
-            .map(|r| session.robots.get(r).map_or(0, |s| s.seq.missing.len()))
+            .map(|r| session.robots.get(r).map_or(0, |s| s.seq.holes()))
             .sum();
         for &r in &open {
             if !session.retrieving(r) {
@@ -363,7 +363,7 @@ fn resolve_in_flight(
         }
         let after: usize = open
             .iter()
-            .map(|r| session.robots.get(r).map_or(0, |s| s.seq.missing.len()))
+            .map(|r| session.robots.get(r).map_or(0, |s| s.seq.holes()))
             .sum();
         idle_rounds = if after < before { 0 } else { idle_rounds + 1 };
     }
@@ -381,14 +381,14 @@ fn resolve_in_flight(
         let last = resume.last_seq.iter().find(|(x, _)| *x == r).map(|(_, q)| *q);
         let complete = session.robots.get(&r).is_some_and(|s| {
             let ahead = match (s.seq.newest(), last) {
-                (Some(n), Some(l)) => (1..SEQ_TRACK_WINDOW).contains(&(n.wrapping_sub(l) % SEQ_MOD)),
+                (Some(n), Some(l)) => (1..crate::live::RECENT_WINDOW as u16).contains(&(n.wrapping_sub(l) % SEQ_MOD)),
                 (Some(_), None) => true,
                 (None, _) => false,
             };
             s.lost.is_none()
                 && ahead
-                && s.seq.missing.is_empty()
-                && s.seq.expired == expired0.get(&r).copied().unwrap_or(0)
+                && s.seq.holes() == 0
+                && s.seq.lost_packets == expired0.get(&r).copied().unwrap_or(0)
         });
         match (complete, session.accepted(&f.tc).unwrap_or(f.accepted)) {
             (true, true) => fx.push(Effect::Log(format!(
@@ -486,7 +486,7 @@ fn complete_tm(session: &mut Session, robots: &[u8], disp: &Display, stop: &dyn 
                 .get(&r)
                 .map(|s| s.seq.missing_upto(cut))
                 .unwrap_or_default();
-            let count = session.robots.get(&r).map_or(0, |s| s.seq.missing.len());
+            let count = session.robots.get(&r).map_or(0, |s| s.seq.holes());
             if count >= before {
                 idle_rounds += 1;
             } else {
@@ -515,7 +515,7 @@ fn complete_tm(session: &mut Session, robots: &[u8], disp: &Display, stop: &dyn 
             // Until the ranges asked for are filled or their retrievals ended.
             let filled = |session: &Session| {
                 session.robots.get(&r).is_some_and(|s| {
-                    !s.seq.missing.iter().any(|&m| {
+                    !s.seq.missing().any(|m| {
                         asked
                             .iter()
                             .any(|&(x, y)| m.wrapping_sub(x) % SEQ_MOD <= y.wrapping_sub(x) % SEQ_MOD)

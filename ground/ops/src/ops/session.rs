@@ -6,13 +6,14 @@ use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
 use crossbeam_channel::Receiver;
-use mib::config::{LINK_LOSS_MS, TC_RETRY_MAX};
+use mib::config::TC_RETRY_MAX;
 use mib::events::eid;
 use mib::params::pid;
 use mib::tc::TcDef;
 
 use crate::archive::{now_ms, ArchiveSender, Record};
 use crate::link::{FrameOptions, FrameStats, Incoming, Link, Transport};
+use crate::live::{self, GapPlan, Verdict as SeqVerdict};
 use crate::pus::{self, BuiltTc, DecodeError, Event, Hk, SeqCounters, Stage, Tm, TmBody, Verification};
 
 use super::book::{Due, Pending, TcBook, Verdict};
@@ -84,7 +85,8 @@ pub enum Update {
         tag: Option<usize>,
         tc: &'static str,
     },
-    /// No TM from the robot for `LINK_LOSS_MS`, or its TCP connection closed.
+    /// No TM from the robot for the link-loss time ([`crate::live::LinkWatch`]), or its
+    /// TCP connection closed.
     LinkLost {
         robot: u8,
         why: String,
@@ -146,8 +148,9 @@ pub struct Session {
     pub robots: BTreeMap<u8, RobotStatus>,
     /// Resends of a TC after the first send.
     pub max_resends: u32,
-    /// Report a robot's link as lost after this long without TM (`None`: never).
-    pub link_loss: Option<Duration>,
+    /// Robots' links are watched for loss ([`Session::watch_links`]; the rule is
+    /// [`crate::live::LinkWatch`]'s).
+    watching: bool,
     /// When each robot last got a new TC (not a resend).
     last_new_tc: HashMap<u8, Instant>,
     /// The run this session's TCs belong to (`ground run`): archived with every TC as
@@ -196,7 +199,7 @@ impl Session {
             archive,
             robots: status,
             max_resends: TC_RETRY_MAX,
-            link_loss: None,
+            watching: false,
             last_new_tc: HashMap::new(),
             run_id: None,
         })
@@ -338,22 +341,26 @@ impl Session {
         }
     }
 
-    /// Link loss: a closed TCP connection, or no TM for `link_loss`.
+    /// Link loss: a closed TCP connection, or no TM for the link-loss time
+    /// ([`crate::live::LinkWatch`], the rule of every front end).
     fn check_links(&mut self, out: &mut Vec<Update>) {
-        let Some(limit) = self.link_loss else { return };
+        if !self.watching {
+            return;
+        }
+        let now = now_ms();
         let mut lost = Vec::new();
         for (robot, s) in self.robots.iter_mut() {
             if s.lost.is_some() {
                 continue;
             }
             let closed = self.links.get(robot).is_some_and(|l| l.closed());
-            let silent = s.last_tm.map_or(s.since.elapsed(), |t| t.elapsed());
             // Replies with another APID and none with ours: the wrong robot, said at once.
-            let wrong = s.last_tm.is_none() && s.foreign_apid.is_some();
-            if !closed && !wrong && silent < limit {
-                continue;
-            }
-            let (kind, why) = s.no_answer(closed);
+            let wrong = s.link.last_tm_ms().is_none() && s.foreign_apid.is_some();
+            let loss = match s.link.tick(now, closed || wrong) {
+                Some(loss) => loss,
+                None => continue,
+            };
+            let (kind, why) = s.no_answer_after(live::LinkLoss { closed, ..loss });
             s.lost_kind = Some(kind);
             s.lost = Some(why.clone());
             out.push(Update::LinkLost { robot: *robot, why });
@@ -432,13 +439,11 @@ impl Session {
         self.send_retrievals(robot, ranges, max_ranges)
     }
 
-    /// Close gaps merged ([`merge_close`]), at most `max_ranges` of them: one TC[15,128]
-    /// each for `robot`'s own APID. Returns the ranges asked for.
+    /// The retrievals [`GapPlan`] plans for these gaps (merged, cut, at most
+    /// `max_ranges`): one TC[15,128] each for `robot`'s own APID. Returns the ranges asked
+    /// for.
     fn send_retrievals(&mut self, robot: u8, ranges: Vec<(u16, u16)>, max_ranges: usize) -> Vec<(u16, u16)> {
-        let ranges: Vec<(u16, u16)> = merge_close(ranges)
-            .into_iter()
-            .take(max_ranges.min(GAP_REQUESTS_MAX))
-            .collect();
+        let ranges = GapPlan::default().round(&ranges, max_ranges);
         let Some(def) = mib::tc::by_name("STORE_DOWNLINK_SEQ") else {
             return Vec::new();
         };
@@ -451,11 +456,13 @@ impl Session {
         ranges
     }
 
-    /// Starts watching every robot's link for loss (`LINK_LOSS_MS` without TM).
+    /// Starts watching every robot's link for loss ([`crate::live::LinkWatch`]: no TM
+    /// for [`mib::config::link_loss_ms`] of the robot's status-HK interval).
     pub fn watch_links(&mut self) {
-        self.link_loss = Some(Duration::from_millis(LINK_LOSS_MS as u64));
+        self.watching = true;
+        let now = now_ms();
         for s in self.robots.values_mut() {
-            s.since = Instant::now();
+            s.link.restart(now);
         }
     }
 
@@ -521,8 +528,8 @@ impl Session {
         // counted, neither archived nor acted on twice.
         if let (Ok(tm), Some(s)) = (&decoded, self.robots.get_mut(&inc.robot)) {
             if tm.robot == Some(inc.robot) {
-                let stamp = tm.time.to_bytes().iter().fold(0u64, |a, b| (a << 8) | *b as u64);
-                if s.seq.on_seq(tm.seq, stamp) == SeqKind::Duplicate {
+                s.link.on_tm(now_ms());
+                if s.seq.on_packet(live::position(tm), live::is_boot(tm), now_ms()) == SeqVerdict::Duplicate {
                     s.duplicates += 1;
                     s.last_tm = Some(Instant::now());
                     return;
@@ -630,6 +637,11 @@ impl Session {
                 if let Some(s) = self.robots.get_mut(&robot) {
                     s.store_oldest = Some(oldest_seq);
                     s.store_overwritten = overwritten;
+                    // Holes older than what the store holds are gone (the rule of every
+                    // front end).
+                    if let Some(oldest) = live::store_done(&tm).and_then(|d| d.oldest) {
+                        s.seq.store_oldest(oldest);
+                    }
                 }
                 out.push(Update::Tm {
                     robot,
@@ -687,19 +699,6 @@ impl Session {
 }
 
 /// Words for a verification failure.
-/// Gaps closer than [`GAP_MERGE_DISTANCE`] become one range (the packets between come
-/// again and are dropped as duplicates): fewer requests on a link that loses many packets.
-fn merge_close(ranges: Vec<(u16, u16)>) -> Vec<(u16, u16)> {
-    let mut merged: Vec<(u16, u16)> = Vec::new();
-    for (a, b) in ranges {
-        match merged.last_mut() {
-            Some((_, last)) if a.wrapping_sub(*last) % SEQ_MOD <= GAP_MERGE_DISTANCE => *last = b,
-            _ => merged.push((a, b)),
-        }
-    }
-    merged
-}
-
 pub fn failure_words(v: &Verification) -> String {
     match &v.failure {
         Some(f) => format!("{} failed: {f}", v.stage.name()),

@@ -7,10 +7,9 @@ use std::time::Instant;
 use mib::config::LINK_QUALITY_WINDOW;
 use serde::Serialize;
 
+use crate::live::{ApidTracker, LinkLoss, LinkWatch};
 use crate::plan::state_name;
 use crate::pus;
-
-use super::*;
 
 /// What one robot looks like from the ground.
 #[derive(Clone, Debug)]
@@ -28,19 +27,21 @@ pub struct RobotStatus {
     pub foreign: u64,
     /// Outcome of the last exchanges (TC sent → acceptance within the timeout).
     pub quality: VecDeque<bool>,
+    /// When the last TM with this robot's APID came (shown; the link's state is
+    /// [`RobotStatus::link`]'s).
     pub last_tm: Option<Instant>,
     /// APID of the last TM with another robot's APID on this link.
     pub foreign_apid: Option<u16>,
     /// TM packets received again (same APID and sequence count): dropped, counted.
     pub duplicates: u64,
-    /// Sequence-count tracking of this robot's APID.
-    pub seq: SeqTrack,
+    /// Sequence-count tracking of this robot's APID: the tracker of every front end.
+    pub seq: ApidTracker,
+    /// Is the link up? The link-loss rule of every front end.
+    pub link: LinkWatch,
     /// Why the link counts as lost (latched).
     pub lost: Option<String>,
     /// Which of the "robot does not answer" cases it was (latched with `lost`).
     pub lost_kind: Option<NoAnswer>,
-    /// Since when the link is watched (for link loss before any TM).
-    pub since: Instant,
     /// First TM sequence count of the run (from the start marker's reports).
     pub run_first_seq: Option<u16>,
     /// Sequence count of the oldest packet in the on-board store (last TM[15,19]).
@@ -65,10 +66,10 @@ impl RobotStatus {
             last_tm: None,
             foreign_apid: None,
             duplicates: 0,
-            seq: SeqTrack::default(),
+            seq: ApidTracker::new(),
+            link: LinkWatch::at_mib_interval(crate::archive::now_ms()),
             lost: None,
             lost_kind: None,
-            since: Instant::now(),
             run_first_seq: None,
             store_oldest: None,
             store_overwritten: 0,
@@ -102,38 +103,46 @@ impl RobotStatus {
     /// Which "does not answer" case a robot that stopped answering is in, with the
     /// operator's message. `closed`: its TCP connection closed.
     pub fn no_answer(&self, closed: bool) -> (NoAnswer, String) {
+        let now = crate::archive::now_ms();
+        let silent_ms = now - self.link.last_tm_ms().unwrap_or(self.link.since_ms());
+        self.no_answer_after(LinkLoss {
+            silent_ms,
+            never_heard: self.link.last_tm_ms().is_none(),
+            closed,
+        })
+    }
+
+    /// [`RobotStatus::no_answer`] for a loss [`LinkWatch::tick`] found.
+    pub fn no_answer_after(&self, loss: LinkLoss) -> (NoAnswer, String) {
         let robot = self.robot;
         let apid = mib::apid::robot_apid(robot).unwrap_or(0);
         let addr = self.addr;
-        match (self.last_tm, self.foreign_apid) {
-            (None, Some(f)) => (
+        let secs = loss.silent_ms as f64 / 1000.0;
+        match (loss.never_heard, self.foreign_apid) {
+            (true, Some(f)) => (
                 NoAnswer::OtherApid(f),
                 format!(
                     "robot {robot}: the replies from {addr} carry APID 0x{f:03X}{}, not robot {robot}'s 0x{apid:03X}: another robot answers at this address",
                     mib::apid::apid_robot(f).map_or(String::new(), |r| format!(" (robot {r})"))
                 ),
             ),
-            (None, None) if closed => (
+            (true, None) if loss.closed => (
                 NoAnswer::NothingHeard,
                 format!("robot {robot}: nothing heard from {addr}: the TCP connection closed before any TM (no OBSW there?)"),
             ),
-            (None, None) => (
+            (true, None) => (
                 NoAnswer::NothingHeard,
                 format!(
-                    "robot {robot}: nothing heard from {addr} in {:.1} s (no OBSW running there, wrong address, or link down)",
-                    self.since.elapsed().as_secs_f64()
+                    "robot {robot}: nothing heard from {addr} in {secs:.1} s (no OBSW running there, wrong address, or link down)"
                 ),
             ),
-            (Some(_), _) if closed => (
+            (false, _) if loss.closed => (
                 NoAnswer::Lost,
                 format!("robot {robot}: heard, then lost: the OBSW at {addr} closed the TCP connection"),
             ),
-            (Some(t), _) => (
+            (false, _) => (
                 NoAnswer::Lost,
-                format!(
-                    "robot {robot}: heard, then lost: no TM from {addr} for {:.1} s (link down or OBSW stopped)",
-                    t.elapsed().as_secs_f64()
-                ),
+                format!("robot {robot}: heard, then lost: no TM from {addr} for {secs:.1} s (link down or OBSW stopped)"),
             ),
         }
     }
@@ -158,12 +167,13 @@ impl RobotStatus {
 /// then lost (the link-loss code), 7 another APID, 8 nothing heard.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub enum NoAnswer {
-    /// Nothing at all heard from the robot's address within `LINK_LOSS_MS`.
+    /// Nothing at all heard from the robot's address within the link-loss time
+    /// ([`mib::config::link_loss_ms`]).
     NothingHeard,
     /// Replies came, but only with another APID (another robot at that address):
     /// reported at the first such reply.
     OtherApid(u16),
-    /// Heard, then no TM for `LINK_LOSS_MS` (or its TCP connection closed).
+    /// Heard, then no TM for the link-loss time (or its TCP connection closed).
     Lost,
 }
 

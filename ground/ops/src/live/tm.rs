@@ -1,0 +1,52 @@
+//! What the tracker reads from TM: a packet's place, a restart, the store's end report.
+
+use crate::pus::{Tm, TmBody};
+
+use super::track::Pos;
+
+/// A decoded TM's place in its APID's sequence: count and on-board time.
+pub fn position(tm: &Tm) -> Pos {
+    Pos {
+        seq: tm.seq,
+        obt_ms: tm.time.unix_ms(),
+    }
+}
+
+/// The obsw's BOOT event: its sequence counts start again.
+pub fn is_boot(tm: &Tm) -> bool {
+    matches!(&tm.body, TmBody::Event(e) if e.id == mib::events::eid::BOOT)
+}
+
+/// The store's end report TM[15,19].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StoreDone {
+    pub packets: u32,
+    /// The oldest packet still in the store (`None` when the store is empty).
+    pub oldest: Option<Pos>,
+    /// Stored packets overwritten since boot.
+    pub overwritten: u32,
+}
+
+/// The CCSDS epoch (1958-01-01) in Unix ms.
+const CCSDS_EPOCH_UNIX_MS: i64 = -4383 * 86_400_000;
+
+/// Reads a TM[15,19] (`None` for other TM).
+pub fn store_done(tm: &Tm) -> Option<StoreDone> {
+    match &tm.body {
+        TmBody::StoreDownlinkDone {
+            packets,
+            oldest_time,
+            oldest_seq,
+            overwritten,
+        } => Some(StoreDone {
+            packets: *packets,
+            // An empty store reports day 0, ms 0 (the CCSDS epoch) and count 0.
+            oldest: (oldest_time.unix_ms() != CCSDS_EPOCH_UNIX_MS || *oldest_seq > 0).then_some(Pos {
+                seq: *oldest_seq & 0x3FFF,
+                obt_ms: oldest_time.unix_ms(),
+            }),
+            overwritten: *overwritten,
+        }),
+        _ => None,
+    }
+}
