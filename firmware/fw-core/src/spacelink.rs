@@ -93,7 +93,7 @@ impl StoreStats for mmic_link::sdls::MemoryIvStore {
 
 /// The transmit half: TM framer, TM SA, counter store.
 struct Tx<St> {
-    framer: Downlink,
+    framer: Downlink<1>,
     sa: Option<TxSa>,
     store: St,
     /// Packet bytes waiting in a partly filled frame.
@@ -193,7 +193,7 @@ impl<St: IvStore + StoreStats> FrameLink<St> {
                 None => TcReceiver::mission(sas),
             },
             tx: Tx {
-                framer: Downlink::mission(),
+                framer: Downlink::mission_realtime_only(),
                 sa,
                 store,
                 pending: false,

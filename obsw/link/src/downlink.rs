@@ -91,15 +91,20 @@ pub struct TxCounters {
     pub sdls_failed: u32,
 }
 
-/// The on-board TM framer: master and VC counters, two packet multiplexers.
+/// The on-board TM framer: master and VC counters and `ZONES` packet multiplexers.
+///
+/// `ZONES = 2` (the default, the host): one packet zone per packet-carrying VC, realtime
+/// on VC0 and store replays on VC1. `ZONES = 1` (board A, whose PUS 15 replays go on VC0,
+/// `TmSink::send_replay`'s default): only VC0's zone exists — a packet sent on
+/// [`TmVc::Replay`] goes into the VC0 zone and out on VC0 — and the framer is one packet
+/// zone (1012 bytes) smaller.
 #[derive(Debug)]
-pub struct Downlink {
+pub struct Downlink<const ZONES: usize = 2> {
     scid: u16,
     security: TmSecurity,
     mc: u8,
     vc: [u8; 8],
-    rt: PacketMux<CLEAR_DATA_LEN>,
-    replay: PacketMux<CLEAR_DATA_LEN>,
+    zones: [PacketMux<CLEAR_DATA_LEN>; ZONES],
     pub counters: TxCounters,
 }
 
@@ -158,19 +163,34 @@ impl Downlink {
     }
 
     pub fn with_security(scid: u16, security: TmSecurity) -> Downlink {
+        Downlink::with_zones(scid, security)
+    }
+
+    pub fn mission() -> Downlink {
+        Downlink::new(mib::link::SCID)
+    }
+}
+
+impl Downlink<1> {
+    /// The mission's framer with SDLS and only VC0's packet zone (board A: replays go on
+    /// VC0 as well).
+    pub fn mission_realtime_only() -> Downlink<1> {
+        Downlink::with_zones(mib::link::SCID, TmSecurity::Encrypt)
+    }
+}
+
+impl<const ZONES: usize> Downlink<ZONES> {
+    /// A framer with `ZONES` packet zones (1: VC0 only, 2: VC0 and VC1).
+    pub fn with_zones(scid: u16, security: TmSecurity) -> Downlink<ZONES> {
+        const { assert!(ZONES == 1 || ZONES == 2, "a TM framer has 1 or 2 packet zones") };
         Downlink {
             scid,
             security,
             mc: 0,
             vc: [0; 8],
-            rt: PacketMux::with_len(security.zone_len()),
-            replay: PacketMux::with_len(security.zone_len()),
+            zones: core::array::from_fn(|_| PacketMux::with_len(security.zone_len())),
             counters: TxCounters::default(),
         }
-    }
-
-    pub fn mission() -> Downlink {
-        Downlink::new(mib::link::SCID)
     }
 
     pub fn security(&self) -> TmSecurity {
@@ -216,10 +236,12 @@ impl Downlink {
         out: O,
         op: impl FnOnce(&mut PacketMux<CLEAR_DATA_LEN>, &mut dyn FnMut(Zone<'_>)) -> R,
     ) -> Result<R, DownlinkError> {
-        let mux = match vc {
-            TmVc::Realtime => &mut self.rt,
-            TmVc::Replay => &mut self.replay,
+        // Without a replay zone (ZONES = 1) a replay packet goes on VC0.
+        let (i, vc) = match vc {
+            TmVc::Replay if ZONES >= 2 => (1, TmVc::Replay),
+            TmVc::Realtime | TmVc::Replay => (0, TmVc::Realtime),
         };
+        let mux = &mut self.zones[i];
         let mut c = FrameCtx {
             scid: self.scid,
             mc: &mut self.mc,
@@ -548,6 +570,38 @@ mod tests {
             g.receive(&mut gst, &mut f, |_, _| {}),
             Err(TmRxError::Frame(TmError::BadCrc))
         );
+    }
+
+    // verifies: LINK-TM-02
+    #[test]
+    fn a_framer_with_one_zone_sends_replays_on_vc0_and_is_one_zone_smaller() {
+        let mut dl = Downlink::mission_realtime_only();
+        let mut sa = TxSa::resume(17, &TEST_KEY_TM_A, 0);
+        let (mut st, mut gst) = (MemoryIvStore::default(), MemoryIvStore::default());
+        let clcw = Farm::mission().clcw();
+        let mut frames: Vec<Vec<u8>> = vec![];
+        let (rt, replay) = (packet(100, 0, 300), packet(101, 0, 50));
+        dl.send(TmVc::Realtime, &rt, clcw, &mut sa, &mut st, |f| frames.push(f.to_vec()))
+            .unwrap();
+        dl.send(TmVc::Replay, &replay, clcw, &mut sa, &mut st, |f| {
+            frames.push(f.to_vec())
+        })
+        .unwrap();
+        // Both packets wait in the one zone: flushing "the replay VC" sends them together.
+        assert!(frames.is_empty());
+        dl.flush(TmVc::Replay, clcw, &mut sa, &mut st, |f| frames.push(f.to_vec()))
+            .unwrap();
+        dl.flush(TmVc::Realtime, clcw, &mut sa, &mut st, |f| frames.push(f.to_vec()))
+            .unwrap();
+        assert_eq!(frames.len(), 1);
+        let v = TmFrame::new_checked(&frames[0][..]).unwrap();
+        assert_eq!((v.vcid(), v.vc_count()), (tm_vc::REALTIME, 0));
+        let mut got = vec![];
+        ground()
+            .receive(&mut gst, &mut frames[0].clone(), |vc, p| got.push((vc, p.to_vec())))
+            .unwrap();
+        assert_eq!(got, vec![(0u8, rt), (0u8, replay)]);
+        assert!(core::mem::size_of::<Downlink<1>>() + CLEAR_DATA_LEN <= core::mem::size_of::<Downlink>());
     }
 
     proptest! {
