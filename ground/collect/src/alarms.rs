@@ -114,7 +114,7 @@ impl LimitChecker {
         let (_, t) = self.tracks.iter_mut().find(|(i, _)| *i == id)?;
         let applies = mib::params::limits_apply(p, ctx);
         let raw_level = if applies && eng.is_finite() {
-            level_of(eng, &l, t.level, mib::params::limit_hysteresis(&l))
+            level_of(eng, l, t.level, mib::params::limit_hysteresis(l))
         } else if applies {
             Level::Hard
         } else {

@@ -121,7 +121,7 @@ impl Default for Config {
             robots: Vec::new(),
             plans: Vec::new(),
             retain_ms: None,
-            loss_timeout_ms: 3_000,
+            loss_timeout_ms: mib::config::LINK_LOSS_MS as u64,
             max_backoff_ms: MAX_BACKOFF_CAP_MS,
             lease_renew_ms: super::onboard::LEASE_RENEW_MS as u64,
             gap_settle_ms: 300,
@@ -131,14 +131,6 @@ impl Default for Config {
             event_min_severity: mib::events::Severity::Medium,
             limits: true,
         }
-    }
-}
-
-impl Config {
-    /// The link-loss timeout of a robot: no TM for max(3 HK intervals, the configured
-    /// minimum, 3 s).
-    pub fn loss_ms(&self, hk_interval_ms: u32) -> i64 {
-        (3 * hk_interval_ms as u64).max(self.loss_timeout_ms).max(3_000) as i64
     }
 }
 
@@ -630,8 +622,14 @@ transport = "lab-tcp"
         assert_eq!(c.retain_ms, Some(30 * 86_400_000));
         assert_eq!(c.max_backoff_ms, 2000);
         assert_eq!(c.event_min_severity, mib::events::Severity::High);
-        assert_eq!(c.loss_ms(1000), 4000);
-        assert_eq!(c.loss_ms(2000), 6000);
+        // The link-loss rule of every front end, with the configured floor.
+        let loss = |hk| {
+            crate::tracker::LinkWatch::new(hk, 0)
+                .with_floor(c.loss_timeout_ms)
+                .loss_after_ms()
+        };
+        assert_eq!(loss(1000), 4000);
+        assert_eq!(loss(2000), 5000);
     }
 
     // verifies: OPS-LINK-DEFAULT-01

@@ -13,7 +13,8 @@ pub mod planrun;
 pub mod robot;
 pub mod robotcfg;
 pub mod store;
-pub mod tracker;
+/// The sequence tracker is the one of every front end ([`ground_ops::live`]).
+pub use ground_ops::live as tracker;
 
 use std::collections::VecDeque;
 use std::io::{IsTerminal, Write};

@@ -90,44 +90,8 @@ pub fn intact_position(raw: &[u8]) -> Option<(u16, Pos)> {
     Some((apid, Pos { seq, obt_ms }))
 }
 
-/// Whether this TM is the obsw's BOOT event (its sequence counts restart).
-pub fn is_boot(tm: &Tm) -> bool {
-    matches!(&tm.body, TmBody::Event(e) if e.id == mib::events::eid::BOOT)
-}
-
-/// The store's end report TM[15,19].
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct StoreDone {
-    pub packets: u32,
-    /// The oldest packet still in the store (`None` when the store is empty).
-    pub oldest: Option<Pos>,
-    /// Stored packets overwritten since boot.
-    pub overwritten: u32,
-}
-
-/// The CCSDS epoch (1958-01-01) in Unix ms.
-const CCSDS_EPOCH_UNIX_MS: i64 = -4383 * 86_400_000;
-
-/// Reads a TM[15,19] (`None` for other TM).
-pub fn store_done(tm: &Tm) -> Option<StoreDone> {
-    match &tm.body {
-        TmBody::StoreDownlinkDone {
-            packets,
-            oldest_time,
-            oldest_seq,
-            overwritten,
-        } => Some(StoreDone {
-            packets: *packets,
-            // An empty store reports day 0, ms 0 (the CCSDS epoch) and count 0.
-            oldest: (oldest_time.unix_ms() != CCSDS_EPOCH_UNIX_MS || *oldest_seq > 0).then_some(Pos {
-                seq: *oldest_seq & 0x3FFF,
-                obt_ms: oldest_time.unix_ms(),
-            }),
-            overwritten: *overwritten,
-        }),
-        _ => None,
-    }
-}
+/// The restart, store-end and position readings are the tracker's ([`ground_ops::live`]).
+pub use ground_ops::live::{is_boot, store_done, StoreDone};
 
 #[cfg(test)]
 mod tests {
@@ -142,40 +106,5 @@ mod tests {
         assert_eq!(t.def.service, 15);
         let h = hk_interval_tc(2, 7, 1, 100).unwrap();
         assert_eq!(h.args, vec![1, 100]);
-    }
-
-    // verifies: GND-12, PUS-15-01
-    #[test]
-    fn store_end_report_gives_the_oldest_stored_packet() {
-        let t = pus::CdsShort::from_unix_ms(1_000_000);
-        let tm = Tm {
-            apid: 0x101,
-            robot: Some(1),
-            seq: 9,
-            service: 15,
-            subservice: 19,
-            name: "STORE_DOWNLINK_DONE",
-            msg_counter: 0,
-            time: t,
-            len: 0,
-            body: TmBody::StoreDownlinkDone {
-                packets: 7,
-                oldest_time: t,
-                oldest_seq: 42,
-                overwritten: 3,
-            },
-        };
-        let d = store_done(&tm).unwrap();
-        assert_eq!(
-            d,
-            StoreDone {
-                packets: 7,
-                oldest: Some(Pos {
-                    seq: 42,
-                    obt_ms: 1_000_000
-                }),
-                overwritten: 3
-            }
-        );
     }
 }

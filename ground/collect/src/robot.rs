@@ -32,7 +32,7 @@ use super::onboard;
 use super::planrun::PlanInput;
 use super::robotcfg::ConfigTracker;
 use super::store::SinkMsg;
-use super::tracker::{ApidTracker, Pos};
+use super::tracker::{ApidTracker, GapPlan, LinkWatch, Pos};
 
 /// First pause between reconnection attempts; doubles up to the configured cap.
 const BACKOFF_START_MS: i64 = 250;
@@ -41,41 +41,17 @@ const HEALTH_MS: i64 = 2_000;
 /// Store-range requests sent per round; the next round waits for the store's end report
 /// (TM[15,19]) or [`STORE_REQUEST_TIMEOUT_MS`], so one robot has one replay in flight.
 const MAX_RUNS_PER_REQUEST: usize = 1;
-/// A store request whose end report did not come is given up after this long.
-const STORE_REQUEST_TIMEOUT_MS: i64 = 2_000;
-/// Least time between two rounds of store requests of one robot: the collector's own
-/// requests produce TM whose loss makes holes, so their rate is bounded.
-const STORE_REQUEST_MIN_GAP_MS: i64 = 500;
-/// Holes closer than this (in sequence counts) are asked for in one range; the packets
-/// between them come back as duplicates, which costs less than another request.
-const MERGE_GAP: u32 = 64;
-/// Subscription and HK-interval commands tried this many times per link-up before
-/// waiting for the next renewal.
-const HK_SET_TRIES: u32 = 10;
-/// Least time between two requests for the module report or the team status.
-const ASK_AGAIN_MS: i64 = 500;
+/// [`mib::config::STORE_REQUEST_TIMEOUT_MS`].
+const STORE_REQUEST_TIMEOUT_MS: i64 = mib::config::STORE_REQUEST_TIMEOUT_MS as i64;
+/// [`mib::config::STORE_REQUEST_MIN_GAP_MS`].
+const STORE_REQUEST_MIN_GAP_MS: i64 = mib::config::STORE_REQUEST_MIN_GAP_MS as i64;
+/// [`mib::config::HK_SET_TRIES`].
+const HK_SET_TRIES: u32 = mib::config::HK_SET_TRIES;
+/// [`mib::config::GROUND_ASK_AGAIN_MS`].
+const ASK_AGAIN_MS: i64 = mib::config::GROUND_ASK_AGAIN_MS as i64;
 
-/// Link state shown to operators.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Default)]
-#[serde(rename_all = "snake_case")]
-pub enum LinkState {
-    /// Not heard since the collector started.
-    #[default]
-    Connecting,
-    Up,
-    /// Lost: no TM for the loss timeout.
-    Lost,
-}
-
-impl LinkState {
-    pub fn name(self) -> &'static str {
-        match self {
-            LinkState::Connecting => "connecting",
-            LinkState::Up => "up",
-            LinkState::Lost => "LOST",
-        }
-    }
-}
+/// Link state shown to operators: the one of every front end ([`LinkWatch`]).
+pub use ground_ops::live::LinkState;
 
 /// Live counters of one robot (shared with the display).
 #[derive(Clone, Debug, Default, Serialize)]
@@ -116,9 +92,12 @@ pub struct Worker {
     page_tcs: crate::ops::TcBook,
     tx: Sender<Incoming>,
     rx: Receiver<Incoming>,
-    state: LinkState,
+    /// Is the link up? The link-loss rule of every front end, at this robot's HK
+    /// interval (never sooner than the configured `loss_timeout_ms`).
+    watch: LinkWatch,
+    /// Which store retrievals the holes need: the planner of every front end.
+    gaps: GapPlan,
     started_ms: i64,
-    last_rx_ms: Option<i64>,
     last_hk_ms: Option<i64>,
     /// When the link last came up: housekeeping is expected from then on.
     up_since_ms: i64,
@@ -196,9 +175,9 @@ impl Worker {
             page_tcs: crate::ops::TcBook::default(),
             tx,
             rx,
-            state: LinkState::Connecting,
+            watch: LinkWatch::new(hk_interval_ms, now).with_floor(global.loss_timeout_ms),
+            gaps: GapPlan::default(),
             started_ms: now,
-            last_rx_ms: None,
             last_hk_ms: None,
             up_since_ms: now,
             backoff_ms: BACKOFF_START_MS,
@@ -315,7 +294,7 @@ impl Worker {
     }
 
     fn ensure_link(&mut self) {
-        let tcp_dead = self.cfg.transport == Transport::Tcp && self.state != LinkState::Up;
+        let tcp_dead = self.cfg.transport == Transport::Tcp && self.watch.state() != LinkState::Up;
         if self.link.is_some() && !tcp_dead {
             return;
         }

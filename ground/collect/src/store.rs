@@ -399,7 +399,7 @@ impl Sink {
                         robot: *robot,
                         apid: *apid,
                         after_obt_ms: run.after_obt_ms,
-                        after_seq: ((run.first as u32 + SEQ_MOD - 1) % SEQ_MOD) as u16,
+                        after_seq: run.first.wrapping_add(SEQ_MOD - 1) % SEQ_MOD,
                         reason: match run.why {
                             Lost::Rebooted => GapReason::Rebooted,
                             Lost::Overwritten => GapReason::StoreOverwritten,

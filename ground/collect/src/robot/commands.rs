@@ -134,7 +134,7 @@ impl Worker {
         if let Some(d) = &self.dash {
             d.hub.link(
                 self.cfg.number,
-                match self.state {
+                match self.watch.state() {
                     LinkState::Connecting => ground_dashboard::LinkState::Connecting,
                     LinkState::Up => ground_dashboard::LinkState::Up,
                     LinkState::Lost => ground_dashboard::LinkState::Lost,

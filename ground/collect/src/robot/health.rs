@@ -31,8 +31,8 @@ impl Worker {
 
     pub(super) fn publish(&mut self, now: i64, force: bool) {
         let mut st = self.st.clone();
-        st.link = self.state;
-        st.last_rx_ms = self.last_rx_ms;
+        st.link = self.watch.state();
+        st.last_rx_ms = self.watch.last_tm_ms();
         st.last_hk_ms = self.last_hk_ms;
         st.holes = self.trackers.values().map(|t| t.holes()).sum();
         st.packets = self.trackers.values().map(|t| t.new + t.filled).sum();

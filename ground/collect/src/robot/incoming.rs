@@ -8,7 +8,7 @@ use crate::onboard;
 use crate::planrun::PlanInput;
 use crate::pus::{self, TmBody};
 use crate::store::SinkMsg;
-use crate::tracker::{Pos, Verdict};
+use crate::tracker::{ApidTracker, Pos, Verdict};
 
 use super::{LinkState, Worker, BACKOFF_START_MS};
 
@@ -23,7 +23,11 @@ impl Worker {
                 if let Some((apid, pos)) = onboard::intact_position(&m.bytes) {
                     self.heard(now);
                     tracing::warn!(robot = self.robot(), "undecodable TM kept as raw: {e}");
-                    let v = self.trackers.entry(apid).or_default().on_packet(pos, false, now);
+                    let v = self
+                        .trackers
+                        .entry(apid)
+                        .or_insert_with(ApidTracker::following_boot)
+                        .on_packet(pos, false, now);
                     if v != Verdict::Duplicate {
                         let _ = self.sink.send(SinkMsg::Tm {
                             t_ms: now,
@@ -44,7 +48,11 @@ impl Worker {
             obt_ms: tm.time.unix_ms(),
         };
         let boot = onboard::is_boot(&tm);
-        let verdict = self.trackers.entry(tm.apid).or_default().on_packet(pos, boot, now);
+        let verdict = self
+            .trackers
+            .entry(tm.apid)
+            .or_insert_with(ApidTracker::following_boot)
+            .on_packet(pos, boot, now);
         match verdict {
             Verdict::Duplicate => return,
             Verdict::Reboot => {
@@ -92,13 +100,11 @@ impl Worker {
     }
 
     pub(super) fn heard(&mut self, now: i64) {
-        self.last_rx_ms = Some(now);
+        let came_up = self.watch.on_tm(now);
         if let Some(d) = &self.dash {
             d.hub.heard(self.cfg.number, now);
         }
-        if self.state != LinkState::Up {
-            let was = self.state;
-            self.state = LinkState::Up;
+        if let Some(was) = came_up {
             self.up_since_ms = now;
             self.backoff_ms = BACKOFF_START_MS;
             self.next_send_ms = now;

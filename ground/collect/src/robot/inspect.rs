@@ -14,7 +14,7 @@ impl Worker {
     /// team status at link-up, after a reboot and on every team event (at most one
     /// request each per [`ASK_AGAIN_MS`]).
     pub(super) fn ask_config(&mut self, now: i64) {
-        if self.state != LinkState::Up || self.link.is_none() {
+        if self.watch.state() != LinkState::Up || self.link.is_none() {
             return;
         }
         if !self.modules.report_current()

@@ -7,19 +7,17 @@ use crate::onboard;
 use crate::planrun::PlanInput;
 
 use super::{
-    LinkState, Worker, BACKOFF_START_MS, HK_SET_TRIES, MAX_RUNS_PER_REQUEST, MERGE_GAP, STORE_REQUEST_MIN_GAP_MS,
+    LinkState, Worker, BACKOFF_START_MS, HK_SET_TRIES, MAX_RUNS_PER_REQUEST, STORE_REQUEST_MIN_GAP_MS,
     STORE_REQUEST_TIMEOUT_MS,
 };
 
 impl Worker {
     pub(super) fn timers(&mut self, now: i64) {
         self.page_tick();
-        // Link loss: no TM for max(3 HK intervals, 3 s).
-        let loss_ms = self.global.loss_ms(self.hk_interval_ms);
-        let silent_since = self.last_rx_ms.unwrap_or(self.started_ms);
-        if self.state != LinkState::Lost && now - silent_since > loss_ms {
-            let was = self.state;
-            self.state = LinkState::Lost;
+        // Link loss: the rule of every front end (`ground_ops::live::LinkWatch`).
+        let closed = self.link.as_ref().is_some_and(|l| l.closed());
+        if let Some(loss) = self.watch.tick(now, closed) {
+            let silent = loss.silent_ms;
             self.dash_link();
             self.backoff_ms = BACKOFF_START_MS;
             self.next_send_ms = now;
@@ -27,12 +25,8 @@ impl Worker {
                 robot = self.robot(),
                 "robot {}: link lost (no TM for {} ms{})",
                 self.robot(),
-                now - silent_since,
-                if was == LinkState::Connecting {
-                    ", never heard"
-                } else {
-                    ""
-                }
+                silent,
+                if loss.never_heard { ", never heard" } else { "" }
             );
             self.condition(
                 Source::LinkLoss,
@@ -40,9 +34,9 @@ impl Worker {
                 true,
                 now,
                 None,
-                format!("no TM for {} ms", now - silent_since),
+                format!("no TM for {silent} ms"),
             );
-            let why = format!("robot {}: no TM for {} ms", self.robot(), now - silent_since);
+            let why = format!("robot {}: no TM for {silent} ms", self.robot());
             self.tell_plan(PlanInput::LinkLost {
                 robot: self.robot(),
                 why,
@@ -50,7 +44,8 @@ impl Worker {
             self.condition(Source::StaleData, Severity::Medium, false, now, None, String::new());
         }
         // Stale: TM flows but no HK.
-        if self.state == LinkState::Up {
+        let up = self.watch.state() == LinkState::Up;
+        if up {
             let hk_since = self.last_hk_ms.unwrap_or(self.started_ms).max(self.up_since_ms);
             let stale_ms = self.global.stale_hk_intervals as i64 * self.hk_interval_ms as i64;
             if now - hk_since > stale_ms.max(1000) {
@@ -70,7 +65,7 @@ impl Worker {
             if let Some(tc) = onboard::subscribe_tc(self.robot(), self.next_seq()) {
                 self.send_tc(&tc, "subscribe");
             }
-            if !self.hk_confirmed && self.state == LinkState::Up {
+            if !self.hk_confirmed && up {
                 let tries = self.hk_set.map_or(0, |(_, n)| n);
                 if tries < HK_SET_TRIES {
                     if let Some(tc) = onboard::hk_interval_tc(
@@ -84,15 +79,15 @@ impl Worker {
                     }
                 }
             }
-            if self.dash.is_some() && !self.modes_known && self.state == LinkState::Up {
+            if self.dash.is_some() && !self.modes_known && up {
                 if let Some(tc) = onboard::mode_announce_tc(self.robot(), self.next_seq()) {
                     self.send_tc(&tc, "modes");
                 }
             }
-            if self.state == LinkState::Up && !self.team_known {
+            if up && !self.team_known {
                 self.team_due = true;
             }
-            if self.state == LinkState::Up {
+            if up {
                 self.next_send_ms = now + self.global.lease_renew_ms as i64;
             } else {
                 self.next_send_ms = now + self.backoff_ms;
@@ -104,15 +99,12 @@ impl Worker {
         if self.store_in_flight && now - self.last_store_request_ms >= STORE_REQUEST_TIMEOUT_MS {
             self.store_in_flight = false;
         }
-        if self.state == LinkState::Up
-            && !self.store_in_flight
-            && now - self.last_store_request_ms >= STORE_REQUEST_MIN_GAP_MS
-        {
+        if up && !self.store_in_flight && now - self.last_store_request_ms >= STORE_REQUEST_MIN_GAP_MS {
             let g = &self.global;
             let (settle, retry, tries) = (g.gap_settle_ms as i64, g.gap_retry_ms as i64, g.gap_max_tries);
             let mut requests = Vec::new();
             if let Some(t) = self.trackers.get_mut(&self.apid) {
-                requests = t.due(now, settle, retry, tries, MAX_RUNS_PER_REQUEST, MERGE_GAP);
+                requests = t.due(now, settle, retry, tries, &self.gaps, MAX_RUNS_PER_REQUEST);
             }
             if !requests.is_empty() {
                 self.last_store_request_ms = now;

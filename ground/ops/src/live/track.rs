@@ -30,7 +30,6 @@ pub struct Pos {
 
 /// Why a hole can no longer be filled.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[non_exhaustive]
 pub enum Lost {
     /// The robot rebooted: its store (in RAM) started empty.
     Rebooted,
@@ -55,7 +54,6 @@ impl Lost {
 
 /// What a packet is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[non_exhaustive]
 pub enum Verdict {
     /// Next or ahead of the last one (holes before it, if any, are now followed).
     New,

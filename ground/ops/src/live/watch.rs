@@ -5,7 +5,6 @@ use serde::Serialize;
 /// Link state shown to operators.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Default)]
 #[serde(rename_all = "snake_case")]
-#[non_exhaustive]
 pub enum LinkState {
     /// Not heard since watching started.
     #[default]
