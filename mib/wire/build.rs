@@ -611,6 +611,97 @@ fn main() {
     }
     let _ = writeln!(o, "        Event::Unknown {{ .. }} => None,\n    }} }}\n}}\n");
 
+    // Typed event parameters: one struct per event, named fields of the MIB's types, whose
+    // `values()` gives them in MIB order for the table codec (`codec::encode_event`). A
+    // caller names every field, so a reordered MIB list cannot swap values.
+    let _ = writeln!(
+        g.out,
+        "/// Typed parameters of every event, for raising it through the table codec ([`EventArgs`]).\npub mod ev {{\n    use super::*;\n"
+    );
+    for e in mib::events::EVENTS {
+        let ty = camel(e.name);
+        let o = &mut g.out;
+        let _ = writeln!(o, "#[doc = {:?}]", e.desc);
+        let _ = writeln!(o, "#[derive(Clone, Copy, Debug, PartialEq, Eq)]");
+        if e.params.is_empty() {
+            let _ = writeln!(o, "pub struct {ty};");
+        } else {
+            let _ = writeln!(o, "pub struct {ty} {{");
+            for f in e.params {
+                let _ = writeln!(o, "    pub {}: {},", ident(f.name), rust_type(f));
+            }
+            let _ = writeln!(o, "}}");
+        }
+        let vals: Vec<String> = e
+            .params
+            .iter()
+            .map(|f| format!("self.{} as i64", ident(f.name)))
+            .collect();
+        let _ = writeln!(
+            o,
+            "impl EventArgs for {ty} {{\n    const ID: u16 = {};\n    type Values = [i64; {}];\n    #[inline]\n    fn values(&self) -> [i64; {}] {{ [{}] }}\n}}\n",
+            e.id,
+            e.params.len(),
+            e.params.len(),
+            vals.join(", ")
+        );
+    }
+    let _ = writeln!(g.out, "}}\n");
+
+    // Typed TC arguments: one struct per TC with fixed arguments, built from the values
+    // `codec::decode_args` range-checked (so every cast is exact), by name.
+    let _ = writeln!(
+        g.out,
+        "/// Typed fixed arguments of every TC that has some, from the values [`codec::decode_args`] checked.\npub mod args {{\n    use super::*;\n"
+    );
+    let mut args_kinds = Vec::new();
+    for t in mib::tc::TCS {
+        if t.args.is_empty() {
+            continue;
+        }
+        let ty = camel(t.name);
+        let o = &mut g.out;
+        let _ = writeln!(o, "#[doc = {:?}]", t.desc);
+        let _ = writeln!(o, "#[derive(Clone, Copy, Debug, PartialEq, Eq)]\npub struct {ty} {{");
+        for f in t.args {
+            let _ = writeln!(o, "    #[doc = {:?}]", field_doc(f));
+            let _ = writeln!(o, "    pub {}: {},", ident(f.name), rust_type(f));
+        }
+        let _ = writeln!(o, "}}");
+        let fs: Vec<String> = t
+            .args
+            .iter()
+            .enumerate()
+            .map(|(i, f)| {
+                let v = match f.ptype {
+                    PType::Bool => format!("a[{i}] != 0"),
+                    _ => format!("a[{i}] as {}", rust_type(f)),
+                };
+                format!("{}: {v}", ident(f.name))
+            })
+            .collect();
+        let by_name: Vec<String> = t
+            .args
+            .iter()
+            .map(|f| format!("{:?} => self.{} as i64", f.name, ident(f.name)))
+            .collect();
+        let _ = writeln!(
+            o,
+            "impl {ty} {{\n    /// The arguments of an accepted TC of this kind (values range-checked against the MIB).\n    #[inline]\n    pub fn of(a: &[i64; codec::MAX_ARGS]) -> Self {{ {ty} {{ {} }} }}\n    /// The value of the argument the MIB names `name`.\n    pub fn field(&self, name: &str) -> Option<i64> {{ Some(match name {{ {}, _ => return None }}) }}\n}}\n",
+            fs.join(", "),
+            by_name.join(", ")
+        );
+        args_kinds.push((t.name, ty));
+    }
+    let _ = writeln!(
+        g.out,
+        "/// Argument `field` of TC `tc` (MIB names) taken from decoded values `a` through the typed struct.\npub fn field_of(tc: &str, a: &[i64; codec::MAX_ARGS], field: &str) -> Option<i64> {{ match tc {{"
+    );
+    for (name, ty) in &args_kinds {
+        let _ = writeln!(g.out, "    {name:?} => {ty}::of(a).field(field),");
+    }
+    let _ = writeln!(g.out, "    _ => None,\n}} }}\n}}\n");
+
     // Housekeeping structures.
     let _ = writeln!(
         g.out,

@@ -72,6 +72,14 @@ impl core::fmt::Display for Error {
 
 impl core::error::Error for Error {}
 
+/// An event's typed parameters (generated per event in [`ev`]): its ID and its values in
+/// the MIB's order, for the table codec (`codec::encode_event`).
+pub trait EventArgs {
+    const ID: u16;
+    type Values: AsRef<[i64]>;
+    fn values(&self) -> Self::Values;
+}
+
 /// Bytes kept of the failure data or event parameters of a code this MIB does not know.
 pub const MAX_UNKNOWN_DATA: usize = 32;
 

@@ -54,3 +54,34 @@ proptest! {
         }
     }
 }
+
+// verifies: CODEC-ONE-02
+#[test]
+fn typed_tc_arguments_take_each_value_by_its_mib_name() {
+    let mut checked = 0;
+    for t in mib::tc::TCS.iter().filter(|t| !t.args.is_empty()) {
+        // Distinct values in range, encoded in MIB order by the table codec (the ground's
+        // path) and decoded by the one checked parse (the obsw's acceptance).
+        let vals: Vec<i64> = t
+            .args
+            .iter()
+            .enumerate()
+            .map(|(i, a)| (a.min + 1 + i as i64).min(a.max))
+            .collect();
+        let mut buf = [0u8; 64];
+        let n = codec::encode_args(t, &vals, &mut buf).unwrap();
+        let skip = if t.service == mib::tc::service::FUNCTION { 2 } else { 0 };
+        let (decoded, _) = codec::decode_args(t, &buf[skip..n]).unwrap();
+        for (a, v) in t.args.iter().zip(&vals) {
+            assert_eq!(
+                mib_wire::args::field_of(t.name, &decoded, a.name),
+                Some(*v),
+                "{}.{}",
+                t.name,
+                a.name
+            );
+        }
+        checked += 1;
+    }
+    assert!(checked > 30, "{checked} TCs with arguments");
+}

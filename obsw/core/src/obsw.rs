@@ -3,9 +3,9 @@
 //! cycle (`tick`). The services live in their own files; this file only routes.
 
 use mib::config;
-use mib::events::eid;
 use mib::params::pid;
 use mib::robot::STATE_UNKNOWN;
+use mib_wire::{ev, EventArgs};
 
 use mmic_domain::controller::{Controller, TickOut};
 use mmic_domain::SensorsA;
@@ -117,7 +117,7 @@ pub(crate) enum Exec {
 /// was reported (an initial-state mismatch is both).
 pub(crate) struct Refused {
     pub failure: Failure,
-    pub fault: Option<(u16, [i64; 2])>,
+    pub fault: Option<ev::InitialStateMismatch>,
 }
 
 impl From<Failure> for Refused {
@@ -199,7 +199,7 @@ impl<S: TmStore> Obsw<S> {
 
     /// Announces the boot (event BOOT, `mib::config::reset_cause`).
     pub fn boot(&mut self, now: u64, reset_cause: u8, sink: &mut impl TmSink) {
-        self.event(now, eid::BOOT, &[reset_cause as i64], sink);
+        self.raise(now, ev::Boot { reset_cause }, sink);
     }
 
     /// Reports a panic recorded by the previous run (event PREVIOUS_PANIC).
@@ -211,10 +211,13 @@ impl<S: TmStore> Obsw<S> {
         file_crc: u32,
         sink: &mut impl TmSink,
     ) {
-        self.event(
+        self.raise(
             now,
-            eid::PREVIOUS_PANIC,
-            &[reset_cause as i64, line as i64, file_crc as i64],
+            ev::PreviousPanic {
+                reset_cause,
+                line,
+                file_crc,
+            },
             sink,
         );
     }
@@ -223,17 +226,14 @@ impl<S: TmStore> Obsw<S> {
     /// `TCP_CONNECTION_REFUSED` / `TCP_CLIENT_DROPPED` with the totals since boot.
     pub fn link_event(&mut self, now: u64, ev: LinkEvent, sink: &mut impl TmSink) {
         match ev {
-            LinkEvent::TcpRefused { total } => self.event(now, eid::TCP_CONNECTION_REFUSED, &[total as i64], sink),
-            LinkEvent::TcpClientDropped { total } => self.event(now, eid::TCP_CLIENT_DROPPED, &[total as i64], sink),
+            LinkEvent::TcpRefused { total } => self.raise(now, ev::TcpConnectionRefused { refused: total }, sink),
+            LinkEvent::TcpClientDropped { total } => self.raise(now, ev::TcpClientDropped { dropped: total }, sink),
             LinkEvent::FrameRejected { reason, total } => {
-                self.event(now, eid::LINK_FRAME_REJECTED, &[reason as i64, total as i64], sink)
+                self.raise(now, ev::LinkFrameRejected { reason, total }, sink)
             }
-            LinkEvent::ControlFrame { command, vr, total } => self.event(
-                now,
-                eid::LINK_CONTROL_FRAME,
-                &[command as i64, vr as i64, total as i64],
-                sink,
-            ),
+            LinkEvent::ControlFrame { command, vr, total } => {
+                self.raise(now, ev::LinkControlFrame { command, vr, total }, sink)
+            }
         }
     }
 
@@ -265,7 +265,16 @@ impl<S: TmStore> Obsw<S> {
         self.dl.emit_tm(now, &report, sink);
     }
 
-    /// Emits an event report unless the event is disabled or throttled.
+    /// Emits an event report unless the event is disabled or throttled: the event's
+    /// typed parameters (`mib_wire::ev`, named fields of the MIB's types) through the
+    /// table codec. A reordered MIB parameter list cannot swap values: every field is
+    /// named at the call.
+    pub(crate) fn raise<E: EventArgs>(&mut self, now: u64, e: E, sink: &mut impl TmSink) {
+        self.event(now, E::ID, e.values().as_ref(), sink);
+    }
+
+    /// An event by ID with its values in MIB order, for the table-driven paths whose event
+    /// ID is data (FDIR's table, event-action). Code that names an event uses [`Self::raise`].
     pub(crate) fn event(&mut self, now: u64, id: u16, args: &[i64], sink: &mut impl TmSink) {
         self.dl.event(now, id, args, sink);
     }
@@ -425,8 +434,8 @@ impl<S: TmStore> Obsw<S> {
             Err(Refused { failure, fault }) => {
                 self.dl.fail_start(now, token, &failure, sink);
                 self.refused(now, tc, Stage::Start, failure, sink);
-                if let Some((event, args)) = fault {
-                    self.fault(now, event, &args, sink);
+                if let Some(e) = fault {
+                    self.raise_fault(now, e, sink);
                 }
             }
         }
@@ -460,12 +469,12 @@ impl<S: TmStore> Obsw<S> {
     }
 
     pub(crate) fn tc_rejected_event(&mut self, now: u64, (svc, sub): (u8, u8), f: &Failure, sink: &mut impl TmSink) {
-        self.event(
-            now,
-            eid::TC_REJECTED,
-            &[svc as i64, sub as i64, f.code().code() as i64],
-            sink,
-        );
+        let e = ev::TcRejected {
+            service: svc,
+            subservice: sub,
+            code: f.code().code(),
+        };
+        self.raise(now, e, sink);
     }
 
     // ------------------------------------------------------------------ duplicates
@@ -513,7 +522,8 @@ impl<S: TmStore> Obsw<S> {
         if c.overflow_unreported > 0 && now >= c.overflow_next {
             let n = core::mem::take(&mut c.overflow_unreported);
             c.overflow_next = now + config::EVENT_THROTTLE_WINDOW_MS as u64;
-            self.event(now, eid::EVENT_QUEUE_OVERFLOW, &[n.min(u16::MAX as u32) as i64], sink);
+            let dropped = u16::try_from(n).unwrap_or(u16::MAX);
+            self.raise(now, ev::EventQueueOverflow { dropped }, sink);
         }
     }
 
@@ -565,6 +575,7 @@ pub(crate) mod tests {
     use super::*;
     use crate::accept::tests::tc_bytes;
     use crate::tm::RingStore;
+    use mib::events::eid;
 
     pub type TestObsw = Obsw<RingStore<8192>>;
     pub const APID: u16 = 0x101;

@@ -2,7 +2,6 @@
 //! after the running motion). This file raises faults and applies their links; the
 //! links can be disabled, enabled and reported (TM[19,9]).
 
-use mib::events::eid;
 use mib::fdir::FAULTS;
 use mib::modes::robot_mode;
 use mib_wire::tm;
@@ -74,7 +73,13 @@ impl<S: TmStore> Obsw<S> {
         self.emit_tm(now, r, sink);
     }
 
-    /// Raises a fault event and applies its event-action link.
+    /// Raises a fault event from its typed parameters and applies its event-action link.
+    pub(crate) fn raise_fault<E: mib_wire::EventArgs>(&mut self, now: u64, e: E, sink: &mut impl TmSink) {
+        self.fault(now, E::ID, e.values().as_ref(), sink);
+    }
+
+    /// Raises a fault event (by ID, values in MIB order: FDIR's table) and applies its
+    /// event-action link.
     pub(crate) fn fault(&mut self, now: u64, event: u16, args: &[i64], sink: &mut impl TmSink) {
         self.fault_inner(now, event, args, false, sink);
     }
@@ -115,7 +120,7 @@ impl<S: TmStore> Obsw<S> {
         if let Some(f) = mib::fdir::fault_by_event(event) {
             if self.faults.oneshot & (1 << f.bit) != 0 {
                 self.faults.oneshot &= !(1 << f.bit);
-                self.event(now, eid::FAULT_CLEARED, &[event as i64], sink);
+                self.raise(now, mib_wire::ev::FaultCleared { event_id: event }, sink);
             }
         }
     }

@@ -2,10 +2,10 @@
 //! single-module moves), STOP and the commanded assembly-system fault. An action runs
 //! in the domain controller; its progress and completion come back through `tick`.
 
-use mib::events::eid;
 use mib::modes::submode;
 use mib::robot::Side;
 use mib::tc::function;
+use mib_wire::ev;
 
 use mmic_domain::controller::{Action, ActionReport, DomainEvent, StartError};
 
@@ -18,7 +18,7 @@ use crate::tm::{TmSink, TmStore};
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Request {
     /// ASSEMBLY_FAULT: the externally commanded "assembly system operation" fault.
-    AssemblyFault(i64),
+    AssemblyFault(ev::AssemblySystemFault),
     /// STOP: abort the running action; actuators hold.
     Stop,
     /// Any other function: an action of the domain controller.
@@ -26,43 +26,70 @@ pub enum Request {
 }
 
 impl Request {
+    /// The typed arguments of the TC's kind (`mib_wire::args`, fields by their MIB name,
+    /// values range-checked by `accept`) become the domain's action.
     pub fn parse(tc: &Tc) -> Result<Self, Failure> {
-        let a = tc.args;
-        // Side arguments are range-checked (0..=1) by `accept`.
-        let side = |i: usize| Side::from_u8(a[i] as u8).ok_or(Failure::arg_out_of_range(i as u8, a[i] as i32));
+        use mib_wire::args as arg;
+        let a = &tc.args;
+        // Side arguments are range-checked (0..=1) by `accept`; argument 0 of every TC
+        // that has one.
+        let side = |v: u8| Side::from_u8(v).ok_or(Failure::arg_out_of_range(0, i32::from(v)));
         Ok(Request::Start(match tc.def.function {
-            function::ASSEMBLY_FAULT => return Ok(Request::AssemblyFault(a[0])),
+            function::ASSEMBLY_FAULT => {
+                let x = arg::AssemblyFault::of(a);
+                return Ok(Request::AssemblyFault(ev::AssemblySystemFault { reason: x.reason }));
+            }
             function::STOP => return Ok(Request::Stop),
-            function::RECONFIGURE => Action::Reconfigure {
-                from: a[0] as u8,
-                to: a[1] as u8,
-            },
-            function::BOLT_FACE => Action::BoltFace {
-                side: side(0)?,
-                pairs: a[1] as u8,
-            },
-            function::UNBOLT_FACE => Action::UnboltFace {
-                side: side(0)?,
-                pairs: a[1] as u8,
-            },
+            function::RECONFIGURE => {
+                let x = arg::Reconfigure::of(a);
+                Action::Reconfigure { from: x.from, to: x.to }
+            }
+            function::BOLT_FACE => {
+                let x = arg::BoltFace::of(a);
+                Action::BoltFace {
+                    side: side(x.side)?,
+                    pairs: x.pairs,
+                }
+            }
+            function::UNBOLT_FACE => {
+                let x = arg::UnboltFace::of(a);
+                Action::UnboltFace {
+                    side: side(x.side)?,
+                    pairs: x.pairs,
+                }
+            }
             function::HOME => Action::Home,
-            function::MOVE_ARM => Action::MoveArm {
-                side: side(0)?,
-                pwm: a[1] as u16,
+            function::MOVE_ARM => {
+                let x = arg::MoveArm::of(a);
+                Action::MoveArm {
+                    side: side(x.side)?,
+                    pwm: x.pwm,
+                }
+            }
+            function::MOVE_GRIPPER => {
+                let x = arg::MoveGripper::of(a);
+                Action::MoveGripper {
+                    side: side(x.side)?,
+                    pwm: x.pwm,
+                }
+            }
+            function::ROTATE_HIP => Action::RotateHip {
+                cdeg: arg::RotateHip::of(a).angle,
             },
-            function::MOVE_GRIPPER => Action::MoveGripper {
-                side: side(0)?,
-                pwm: a[1] as u16,
-            },
-            function::ROTATE_HIP => Action::RotateHip { cdeg: a[0] as i16 },
-            function::BOLT_PAIR => Action::BoltPair {
-                side: side(0)?,
-                pair: a[1] as u8,
-            },
-            function::UNBOLT_PAIR => Action::UnboltPair {
-                side: side(0)?,
-                pair: a[1] as u8,
-            },
+            function::BOLT_PAIR => {
+                let x = arg::BoltPair::of(a);
+                Action::BoltPair {
+                    side: side(x.side)?,
+                    pair: x.pair,
+                }
+            }
+            function::UNBOLT_PAIR => {
+                let x = arg::UnboltPair::of(a);
+                Action::UnboltPair {
+                    side: side(x.side)?,
+                    pair: x.pair,
+                }
+            }
             other => return Err(Failure::unknown_function(other)),
         }))
     }
@@ -90,8 +117,8 @@ impl Running<()> {
 impl<S: TmStore> Obsw<S> {
     pub(crate) fn function_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) -> Result<Exec, Refused> {
         let action = match r {
-            Request::AssemblyFault(arg) => {
-                self.fault(now, eid::ASSEMBLY_SYSTEM_FAULT, &[arg], sink);
+            Request::AssemblyFault(e) => {
+                self.raise_fault(now, e, sink);
                 return Ok(Exec::Done);
             }
             Request::Stop => {
@@ -131,7 +158,7 @@ impl<S: TmStore> Obsw<S> {
             // Report the refusal first, then let FDIR act on the fault.
             Err(StartError::InitialStateMismatch { believed, computed }) => Err(Refused {
                 failure: Failure::initial_state_mismatch(believed, computed),
-                fault: Some((eid::INITIAL_STATE_MISMATCH, [believed as i64, computed as i64])),
+                fault: Some(ev::InitialStateMismatch { believed, computed }),
             }),
             Err(e) => Err(Failure::from_start(e, f, self.modes.root()).into()),
         }
@@ -205,45 +232,47 @@ impl<S: TmStore> Obsw<S> {
 
     /// Domain events become PUS 5 events; fault events go through event-action.
     pub(crate) fn on_domain_event(&mut self, now: u64, e: &DomainEvent, sink: &mut impl TmSink) {
-        let s = |v: Side| v as i64;
+        let s = |v: Side| v as u8;
         match *e {
             DomainEvent::PrimitiveDone { primitive, state } => {
-                self.event(now, eid::PRIMITIVE_DONE, &[primitive as i64, state as i64], sink)
+                self.raise(now, ev::PrimitiveDone { primitive, state }, sink)
             }
-            DomainEvent::StateReached { state } => self.event(now, eid::STATE_REACHED, &[state as i64], sink),
+            DomainEvent::StateReached { state } => self.raise(now, ev::StateReached { state }, sink),
             DomainEvent::BoltPairDone { side, pair, attempts } => {
-                self.event(now, eid::BOLT_PAIR_DONE, &[s(side), pair as i64, attempts as i64], sink)
+                let side = s(side);
+                self.raise(now, ev::BoltPairDone { side, pair, attempts }, sink)
             }
-            DomainEvent::BoltAttemptFailed { side, pair, attempt } => self.event(
-                now,
-                eid::BOLT_ATTEMPT_FAILED,
-                &[s(side), pair as i64, attempt as i64],
-                sink,
-            ),
-            DomainEvent::UnboltPairDone { side, pair, attempts } => self.event(
-                now,
-                eid::UNBOLT_PAIR_DONE,
-                &[s(side), pair as i64, attempts as i64],
-                sink,
-            ),
+            DomainEvent::BoltAttemptFailed { side, pair, attempt } => {
+                let side = s(side);
+                self.raise(now, ev::BoltAttemptFailed { side, pair, attempt }, sink)
+            }
+            DomainEvent::UnboltPairDone { side, pair, attempts } => {
+                let side = s(side);
+                self.raise(now, ev::UnboltPairDone { side, pair, attempts }, sink)
+            }
             DomainEvent::BoltFailure { side, pair, attempts } => {
-                self.fault(now, eid::BOLT_FAILURE, &[s(side), pair as i64, attempts as i64], sink)
+                let side = s(side);
+                self.raise_fault(now, ev::BoltFailure { side, pair, attempts }, sink)
             }
             DomainEvent::UnboltFailure { side, pair, attempts } => {
-                self.fault(now, eid::UNBOLT_FAILURE, &[s(side), pair as i64, attempts as i64], sink)
+                let side = s(side);
+                self.raise_fault(now, ev::UnboltFailure { side, pair, attempts }, sink)
             }
-            DomainEvent::ArmNotContracted { side } => self.fault(now, eid::ARM_NOT_CONTRACTED, &[s(side)], sink),
+            DomainEvent::ArmNotContracted { side } => {
+                self.raise_fault(now, ev::ArmNotContracted { side: s(side) }, sink)
+            }
             DomainEvent::CommLossNoAck { command, retries } => {
-                self.fault(now, eid::COMM_LOSS_NO_ACK, &[command as i64, retries as i64], sink)
+                self.raise_fault(now, ev::CommLossNoAck { command, retries }, sink)
             }
             // The state computed after a primitive is not the one planned: the robot is
             // not where the ground believes, the same hazard as an initial-state mismatch.
-            DomainEvent::StateMismatch { expected, computed } => self.fault(
-                now,
-                eid::INITIAL_STATE_MISMATCH,
-                &[expected as i64, computed as i64],
-                sink,
-            ),
+            DomainEvent::StateMismatch { expected, computed } => {
+                let e = ev::InitialStateMismatch {
+                    believed: expected,
+                    computed,
+                };
+                self.raise_fault(now, e, sink)
+            }
         }
     }
 }

@@ -46,7 +46,10 @@ impl Request {
             6 => Request::Disable(sid()?),
             27 => Request::OneShot(sid()?),
             // Range-checked against the MIB's interval limits by `accept`.
-            31 => Request::SetInterval(sid()?, tc.args[1] as u32),
+            31 => {
+                let x = mib_wire::args::HkSetInterval::of(&tc.args);
+                Request::SetInterval(HkIndex::of(x.sid)?, x.interval_ms)
+            }
             _ => return Err(unknown(tc)),
         })
     }

@@ -4,13 +4,12 @@
 //! LINK_SPI_SELECTED and leaves the selection in [`Obsw::link_select`] for the platform's
 //! frame endpoint to apply (and store) before it handles the next input.
 
-use mib::events::eid;
 use mib::link::sdls::{TC_SPIS, TM_SPIS};
 
 use crate::accept::Tc;
 use crate::failure::Failure;
 use crate::obsw::Obsw;
-use crate::request::{u16_arg, unknown};
+use crate::request::unknown;
 use crate::tm::{TmSink, TmStore};
 
 /// Keys the platform holds: bit i of `tm` = `TM_SPIS[i]`, of `tc` = `TC_SPIS[i]`.
@@ -50,10 +49,13 @@ pub enum Request {
 impl Request {
     pub fn parse(tc: &Tc) -> Result<Self, Failure> {
         match tc.subservice {
-            1 => Ok(Request::Select(LinkSelect {
-                tm_spi: u16_arg(tc, 0),
-                tc_spis: tc.args[1] as u8,
-            })),
+            1 => {
+                let x = mib_wire::args::LinkSpiSelect::of(&tc.args);
+                Ok(Request::Select(LinkSelect {
+                    tm_spi: x.tm_spi,
+                    tc_spis: x.tc_spis,
+                }))
+            }
             _ => Err(unknown(tc)),
         }
     }
@@ -78,12 +80,11 @@ impl<S: TmStore> Obsw<S> {
             return Err(Failure::no_key_for_spi(*s));
         }
         self.link_select = Some(sel);
-        self.event(
-            now,
-            eid::LINK_SPI_SELECTED,
-            &[i64::from(sel.tm_spi), i64::from(sel.tc_spis)],
-            sink,
-        );
+        let e = mib_wire::ev::LinkSpiSelected {
+            tm_spi: sel.tm_spi,
+            tc_spis: sel.tc_spis,
+        };
+        self.raise(now, e, sink);
         Ok(())
     }
 }

@@ -4,7 +4,6 @@
 //! check and homing). Mode reports (TM[200,6]) on request and on every change.
 
 use mib::config;
-use mib::events::eid;
 use mib::fdir::Phase;
 use mib::modes::{module_mode, node, robot_mode, NodeKind};
 use mib::params::{self, pid};
@@ -50,7 +49,7 @@ impl Request {
         let n = Node::of(tc.args[0] as u32)?;
         Ok(match tc.subservice {
             1 => {
-                let mode = tc.args[1] as u32;
+                let mode = mib_wire::args::ModeSet::of(&tc.args).mode;
                 if n.0 != node::ROBOT || !mib::modes::is_commandable_root_mode(mode) {
                     return Err(Failure::invalid_mode(n.0, mode));
                 }
@@ -243,12 +242,13 @@ impl<S: TmStore> Obsw<S> {
             );
         }
         for c in &changes {
-            self.event(
-                now,
-                eid::MODE_CHANGED,
-                &[c.node as i64, c.from as i64, c.to as i64, t.cause as i64],
-                sink,
-            );
+            let e = mib_wire::ev::ModeChanged {
+                node: c.node,
+                from: c.from,
+                to: c.to,
+                cause: t.cause,
+            };
+            self.raise(now, e, sink);
         }
         if t.target == robot_mode::OPERATIONAL && t.entering == Entering::Powering {
             let children_done = mib::modes::NODES
@@ -337,12 +337,12 @@ impl<S: TmStore> Obsw<S> {
             reason: reason.code(),
         };
         self.emit_tm(now, r, sink);
-        self.event(
-            now,
-            eid::MODE_CHANGE_FAILED,
-            &[node::ROBOT as i64, t.target as i64, reason.code() as i64],
-            sink,
-        );
+        let e = mib_wire::ev::ModeChangeFailed {
+            node: node::ROBOT,
+            mode: t.target,
+            reason: reason.code(),
+        };
+        self.raise(now, e, sink);
         if let Some(c) = self.mode_cmd.take() {
             self.fail_mode_cmd(now, c, reason, event, sink);
         }

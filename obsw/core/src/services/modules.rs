@@ -15,7 +15,6 @@
 //! (`mmic_domain::calib::RobotCal::from_set`): the controller's servo set points, hip home,
 //! encoder zero and bolter thresholds, and the high limits of the current monitors.
 
-use mib::events::eid;
 use mib::modes::robot_mode;
 use mib::modules::descriptor::MAX_TABLE_LEN;
 use mib::modules::report::{MAX_REPORT_LEN, NO_SLOT};
@@ -361,13 +360,21 @@ impl<S: TmStore> Obsw<S> {
         );
         match (d.outcome, r) {
             (Err(why), _) => {
-                let args = [why.code() as i64, why.slot().unwrap_or(NO_SLOT) as i64, d.hash as i64];
-                self.event(now, eid::CONFIG_INVALID, &args, sink);
+                let e = mib_wire::ev::ConfigInvalid {
+                    reason: why.code(),
+                    slot: why.slot().unwrap_or(NO_SLOT),
+                    hash: d.hash,
+                };
+                self.raise(now, e, sink);
             }
             (Ok(_), Replacement::Changed { slot }) => {
                 let old = self.modules.accepted.map_or(0, |x| x.hash);
-                let args = [slot.unwrap_or(NO_SLOT) as i64, old as i64, d.hash as i64];
-                self.event(now, eid::MODULE_REPLACED, &args, sink);
+                let e = mib_wire::ev::ModuleReplaced {
+                    slot: slot.unwrap_or(NO_SLOT),
+                    accepted_hash: old,
+                    hash: d.hash,
+                };
+                self.raise(now, e, sink);
             }
             (Ok(_), Replacement::Same | Replacement::NoneAccepted) => {}
         }
@@ -402,7 +409,7 @@ impl<S: TmStore> Obsw<S> {
     /// acceptance could not be written.
     pub fn config_state_lost(&mut self, now: u64, why: StateLost, sink: &mut impl TmSink) {
         self.last_now = self.last_now.max(now);
-        self.event(now, eid::CONFIG_STATE_LOST, &[why.code() as i64], sink);
+        self.raise(now, mib_wire::ev::ConfigStateLost { reason: why.code() }, sink);
     }
 
     /// Why OPERATIONAL is refused by the module set (`None`: allowed, or no discovery
@@ -536,6 +543,7 @@ pub const STAYS_IN: u32 = robot_mode::STANDBY;
 mod tests {
     use super::*;
     use crate::obsw::tests::{failure, kind, obsw, of, send, TestObsw};
+    use mib::events::eid;
     use mib::modules::descriptor::{emit_table, MAX_TABLE_LEN};
     use mib::modules::report::ModuleReport;
     use mib::modules::{default_set, slot, Board, ModuleSet, NUM_SLOTS, SLOTS};

@@ -60,16 +60,16 @@ impl Request {
             1 => Request::Enable(mon()?),
             2 => Request::Disable(mon()?),
             7 => {
-                let m = mon()?;
-                let (low, high) = (tc.args[1] as i32, tc.args[2] as i32);
-                if low > high {
-                    return Err(Failure::param_out_of_range(MONITORS[m.0].param, low));
+                let x = mib_wire::args::MonModify::of(&tc.args);
+                let m = MonitorIndex::of(x.monitor_id)?;
+                if x.low > x.high {
+                    return Err(Failure::param_out_of_range(MONITORS[m.0].param, x.low));
                 }
                 Request::Modify {
                     mon: m,
-                    low,
-                    high,
-                    persistence: tc.args[3] as u16,
+                    low: x.low,
+                    high: x.high,
+                    persistence: x.persistence,
                 }
             }
             8 => Request::Report,
@@ -182,7 +182,7 @@ impl<S: TmStore> Obsw<S> {
             } else if continuous
                 && self.faults.monitored & mib::fdir::fault_by_event(t.event).map_or(0, |f| 1 << f.bit) == 0
             {
-                self.event(now, eid::FAULT_CLEARED, &[t.event as i64], sink);
+                self.raise(now, mib_wire::ev::FaultCleared { event_id: t.event }, sink);
             }
         }
         raised

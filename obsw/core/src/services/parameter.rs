@@ -25,7 +25,7 @@ impl Request {
         Ok(match tc.subservice {
             1 => Request::Report(t),
             3 => {
-                let v = tc.args[1];
+                let v = i64::from(mib_wire::args::ParamSet::of(&tc.args).value);
                 if v < t.min as i64 || v > t.max as i64 {
                     return Err(Failure::param_out_of_range(t.id, v as i32));
                 }

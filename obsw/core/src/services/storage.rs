@@ -11,7 +11,7 @@ use mib_wire::tm;
 use crate::accept::Tc;
 use crate::failure::Failure;
 use crate::obsw::Obsw;
-use crate::request::{u16_arg, unknown};
+use crate::request::unknown;
 use crate::tm::{TmSink, TmStore};
 
 /// A CDS short time (days since 1958, ms of day), ordered.
@@ -44,26 +44,32 @@ pub enum Request {
 
 impl Request {
     pub fn parse(tc: &Tc) -> Result<Self, Failure> {
-        let a = tc.args;
+        use mib_wire::args::{StoreDownlinkSeq, StoreDownlinkTime};
         Ok(match tc.subservice {
             1 => Request::Enable,
             2 => Request::Disable,
-            9 => Request::Downlink(Range::Time {
-                start: Cds {
-                    days: a[0] as u16,
-                    ms: a[1] as u32,
-                },
-                end: Cds {
-                    days: a[2] as u16,
-                    ms: a[3] as u32,
-                },
-            }),
+            9 => {
+                let x = StoreDownlinkTime::of(&tc.args);
+                Request::Downlink(Range::Time {
+                    start: Cds {
+                        days: x.start_days,
+                        ms: x.start_ms,
+                    },
+                    end: Cds {
+                        days: x.end_days,
+                        ms: x.end_ms,
+                    },
+                })
+            }
             11 => Request::Delete,
-            128 => Request::Downlink(Range::Seq {
-                apid: u16_arg(tc, 0),
-                first: u16_arg(tc, 1),
-                last: u16_arg(tc, 2),
-            }),
+            128 => {
+                let x = StoreDownlinkSeq::of(&tc.args);
+                Request::Downlink(Range::Seq {
+                    apid: x.apid,
+                    first: x.first_seq,
+                    last: x.last_seq,
+                })
+            }
             _ => return Err(unknown(tc)),
         })
     }

@@ -29,7 +29,7 @@ use mib::team::{
     PlanStep, MAX_AUTHORISED_STEPS, ROSTER_MAX, STATUS_PERIOD_MS, TEAM_APID, TEAM_SERVICE, TEAM_SUBSERVICE_MESSAGE,
     TEAM_SUBSERVICE_PLAN_STEP,
 };
-use mib_wire::tm;
+use mib_wire::{ev, tm};
 use mmic_domain::controller::Action as DomainAction;
 use mmic_team::node::{RefuseReason, StepDownReason};
 use mmic_team::wire::MAX_LEN;
@@ -246,35 +246,41 @@ pub enum Request {
 impl Request {
     pub fn parse(tc: &Tc) -> Result<Self, Failure> {
         match tc.subservice {
-            3 => Ok(Request::Authorise(
-                Authorisation {
-                    plan: PlanRef {
-                        id: tc.args[0] as u16,
-                        hash: tc.args[1] as u32,
+            3 => {
+                let x = mib_wire::args::TeamAuthorise::of(&tc.args);
+                Ok(Request::Authorise(
+                    Authorisation {
+                        plan: PlanRef {
+                            id: x.plan_id,
+                            hash: x.plan_hash,
+                        },
+                        first_step: x.first_step,
+                        max_steps: x.max_steps,
+                        expires_at: 0,
                     },
-                    first_step: tc.args[2] as u16,
-                    max_steps: tc.args[3] as u8,
-                    expires_at: 0,
-                },
-                tc.args[4] as u32,
-            )),
+                    x.validity_s,
+                ))
+            }
             4 => {
-                let mut r = [0u8; ROSTER_MAX];
-                for (i, slot) in r.iter_mut().enumerate() {
-                    *slot = tc.args[i] as u8;
-                }
+                let x = mib_wire::args::TeamRoster::of(&tc.args);
+                let r: [u8; ROSTER_MAX] = [
+                    x.robot_1, x.robot_2, x.robot_3, x.robot_4, x.robot_5, x.robot_6, x.robot_7, x.robot_8,
+                ];
                 Ok(Request::Roster(r))
             }
             5 => Ok(Request::Status),
-            TEAM_SUBSERVICE_PLAN_STEP => Ok(Request::PlanStep(
-                tc.args[0] as u16,
-                PlanStep {
-                    step: tc.args[1] as u16,
-                    function: tc.args[2] as u16,
-                    args: [tc.args[3] as i32, tc.args[4] as i32],
-                    initial_state: tc.args[5] as u8,
-                },
-            )),
+            TEAM_SUBSERVICE_PLAN_STEP => {
+                let x = mib_wire::args::TeamPlanStep::of(&tc.args);
+                Ok(Request::PlanStep(
+                    x.plan_id,
+                    PlanStep {
+                        step: x.step,
+                        function: x.function,
+                        args: [x.arg0, x.arg1],
+                        initial_state: x.initial_state,
+                    },
+                ))
+            }
             _ => Err(unknown(tc)),
         }
     }
@@ -424,7 +430,7 @@ impl Team {
     }
 }
 
-fn step_down_code(r: StepDownReason) -> i64 {
+fn step_down_code(r: StepDownReason) -> u8 {
     match r {
         StepDownReason::GroundRegained => 0,
         StepDownReason::HigherTerm => 1,
@@ -432,7 +438,7 @@ fn step_down_code(r: StepDownReason) -> i64 {
     }
 }
 
-fn refuse_code(r: RefuseReason) -> i64 {
+fn refuse_code(r: RefuseReason) -> u8 {
     match r {
         RefuseReason::StaleTerm => 0,
         RefuseReason::GroundPresent => 1,
@@ -443,10 +449,10 @@ fn refuse_code(r: RefuseReason) -> i64 {
     }
 }
 
-fn directive_args(d: Directive) -> (i64, i64) {
+fn directive_args(d: Directive) -> (u8, u16) {
     match d {
         Directive::Hold => (1, 0),
-        Directive::Continue { step, .. } => (2, i64::from(step)),
+        Directive::Continue { step, .. } => (2, step),
     }
 }
 
@@ -486,17 +492,13 @@ impl<S: TmStore> Obsw<S> {
         };
         let plan = self.team.auth.map_or(0, |a| a.plan.id);
         self.team.dirty = false;
-        self.event(
-            now,
-            eid::TEAM_STATE_LOADED,
-            &[
-                i64::from(status.code()),
-                i64::from(self.team.durable.term),
-                roster as i64,
-                i64::from(plan),
-            ],
-            sink,
-        );
+        let e = ev::TeamStateLoaded {
+            status: status.code(),
+            term: self.team.durable.term,
+            roster: u8::try_from(roster).unwrap_or(u8::MAX),
+            plan,
+        };
+        self.raise(now, e, sink);
     }
 
     /// An inter-robot packet refused before the node saw it (by the platform's
@@ -512,12 +514,12 @@ impl<S: TmStore> Obsw<S> {
             return;
         }
         self.team.reject_reported[i] = Some(now);
-        self.event(
-            now,
-            eid::TEAM_PACKET_REJECTED,
-            &[i64::from(reason.code()), i64::from(sender), i64::from(total)],
-            sink,
-        );
+        let e = ev::TeamPacketRejected {
+            reason: reason.code(),
+            sender,
+            total,
+        };
+        self.raise(now, e, sink);
     }
 
     /// Value of a TEAM HK parameter (`pid::TEAM_TERM..=pid::TEAM_STEPS_EXECUTED`).
@@ -754,12 +756,12 @@ impl<S: TmStore> Obsw<S> {
     fn step_refused(&mut self, now: u64, plan: u16, step: u16, why: StepRefusal, sink: &mut impl TmSink) {
         let c = &mut self.team.counters;
         c.continue_not_executed = c.continue_not_executed.wrapping_add(1);
-        self.event(
-            now,
-            eid::PLAN_STEP_REFUSED,
-            &[i64::from(plan), i64::from(step), i64::from(why.code())],
-            sink,
-        );
+        let e = ev::PlanStepRefused {
+            plan,
+            step,
+            reason: why.code(),
+        };
+        self.raise(now, e, sink);
     }
 
     /// A CONTINUE of the node (the leader's, checked by the node against this robot's
@@ -829,23 +831,19 @@ impl<S: TmStore> Obsw<S> {
                 self.running = Some(r.with_token(None));
                 self.team.step_running = Some((s.step, self.faults.count));
                 let leader = self.team.node.as_ref().and_then(Node::leader).unwrap_or(0);
-                self.event(
-                    now,
-                    eid::PLAN_STEP_EXECUTED,
-                    &[
-                        i64::from(plan),
-                        i64::from(s.step),
-                        i64::from(s.function),
-                        i64::from(leader),
-                    ],
-                    sink,
-                );
+                let e = ev::PlanStepExecuted {
+                    plan,
+                    step: s.step,
+                    function: s.function,
+                    leader,
+                };
+                self.raise(now, e, sink);
                 Ok(())
             }
             Ok(_) => Err(StepRefusal::Refused),
             Err(refused) => {
-                if let Some((ev, args)) = refused.fault {
-                    self.fault(now, ev, &args, sink);
+                if let Some(e) = refused.fault {
+                    self.raise_fault(now, e, sink);
                 }
                 Err(StepRefusal::Refused)
             }
@@ -926,43 +924,48 @@ impl<S: TmStore> Obsw<S> {
     }
 
     fn team_event(&mut self, now: u64, ev: TeamEvent, sink: &mut impl TmSink) {
-        let term = |t: u32| i64::from(t);
         match ev {
             TeamEvent::GroundLost => {
-                let t = self.team.node.as_ref().map_or(0, |n| n.term());
-                self.event(now, eid::GROUND_LOST, &[term(t)], sink)
+                let term = self.team.node.as_ref().map_or(0, |n| n.term());
+                self.raise(now, ev::GroundLost { term }, sink)
             }
-            TeamEvent::ElectionStarted { term: t } => {
+            TeamEvent::ElectionStarted { term } => {
                 self.team.counters.elections = self.team.counters.elections.wrapping_add(1);
-                self.event(now, eid::ELECTION_STARTED, &[term(t)], sink)
+                self.raise(now, ev::ElectionStarted { term }, sink)
             }
-            TeamEvent::LeaderElected { term: t, leader } => {
-                self.event(now, eid::LEADER_ELECTED, &[term(t), i64::from(leader)], sink)
+            TeamEvent::LeaderElected { term, leader } => self.raise(now, ev::LeaderElected { term, leader }, sink),
+            TeamEvent::SteppedDown { term, reason } => {
+                let reason = step_down_code(reason);
+                self.raise(now, ev::SteppedDown { term, reason }, sink)
             }
-            TeamEvent::SteppedDown { term: t, reason } => {
-                self.event(now, eid::STEPPED_DOWN, &[term(t), step_down_code(reason)], sink)
-            }
-            TeamEvent::GroundRegained { term: t } => self.event(now, eid::GROUND_REGAINED, &[term(t)], sink),
+            TeamEvent::GroundRegained { term } => self.raise(now, ev::GroundRegained { term }, sink),
             TeamEvent::DirectiveExecuted {
-                term: t,
+                term,
                 leader,
-                directive,
+                directive: d,
             } => {
                 self.team.counters.dir_executed = self.team.counters.dir_executed.wrapping_add(1);
-                let (d, step) = directive_args(directive);
-                self.event(
+                let (directive, step) = directive_args(d);
+                let e = ev::DirectiveExecuted {
+                    term,
+                    leader,
+                    directive,
+                    step,
+                };
+                self.raise(now, e, sink)
+            }
+            TeamEvent::DirectiveRefused { term, from, reason } => {
+                let reason = refuse_code(reason);
+                self.raise(
                     now,
-                    eid::DIRECTIVE_EXECUTED,
-                    &[term(t), i64::from(leader), d, step],
+                    ev::DirectiveRefused {
+                        term,
+                        sender: from,
+                        reason,
+                    },
                     sink,
                 )
             }
-            TeamEvent::DirectiveRefused { term: t, from, reason } => self.event(
-                now,
-                eid::DIRECTIVE_REFUSED,
-                &[term(t), i64::from(from), refuse_code(reason)],
-                sink,
-            ),
         }
     }
 
@@ -1041,17 +1044,13 @@ impl<S: TmStore> Obsw<S> {
             self.team.plan = Some(StoredPlan { id, steps, done: 0 });
             self.team.dirty = true;
             self.team.progress_dirty = true;
-            self.event(
-                now,
-                eid::PLAN_UPLOADED,
-                &[
-                    i64::from(id),
-                    i64::from(a.first_step),
-                    i64::from(a.max_steps),
-                    i64::from(hash),
-                ],
-                sink,
-            );
+            let e = ev::PlanUploaded {
+                plan: id,
+                first_step: a.first_step,
+                steps: a.max_steps,
+                hash,
+            };
+            self.raise(now, e, sink);
         }
         Ok(())
     }
