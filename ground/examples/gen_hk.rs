@@ -35,7 +35,7 @@ fn main() -> anyhow::Result<()> {
     };
     let t0 = ground::pus::CdsShort::from_unix_ms(start_ms);
     for i in 0..n {
-        let len = mib::codec::encode_hk(def, |id| value(id, i), &mut src)?;
+        let len = mib_wire::codec::encode_hk(def, |id| value(id, i), &mut src)?;
         let t = ground::pus::CdsShort::from_unix_ms(t0.unix_ms() + i as i64 * 100).to_bytes();
         let p = ground::pus::build_tm(apid, (i & 0x3FFF) as u16, 3, 25, i as u16, &t, &src[..len]);
         out.write_all(&p)?;

@@ -709,7 +709,7 @@ fn archive_examples_run_on_sqlite_and_postgresql() {
     let mut stream = Vec::new();
     for i in 0..20u16 {
         let mut src = [0u8; 512];
-        let n = mib::codec::encode_hk(def, |id| i64::from(id) + i64::from(i), &mut src).unwrap();
+        let n = mib_wire::codec::encode_hk(def, |id| i64::from(id) + i64::from(i), &mut src).unwrap();
         let t = 1_767_225_600_000 + i64::from(i) * 1000;
         let cds = ground::pus::CdsShort::from_unix_ms(t).to_bytes();
         stream.extend(ground::pus::build_tm(0x101, i, 3, 25, 0, &cds, &src[..n]));

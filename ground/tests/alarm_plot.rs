@@ -17,7 +17,7 @@ fn hk(seq: u16, t_ms: i64, v: f64, i: f64) -> Vec<u8> {
     let def = mib::hk::by_sid(mib::hk::sid::ROBOT_STATUS).unwrap();
     let raw = |id: u16, eng: f64| by_id(id).unwrap().calib.raw(eng);
     let mut src = [0u8; 512];
-    let n = mib::codec::encode_hk(
+    let n = mib_wire::codec::encode_hk(
         def,
         |id| match id {
             pid::V_BAT_A => raw(id, v),

@@ -48,7 +48,7 @@ fn both(name: &str, f: impl Fn(&str, &str)) {
 fn hk_packet(robot: u8, seq: u16, t_ms: i64, i: i64) -> Vec<u8> {
     let def = mib::hk::by_sid(mib::hk::sid::ROBOT_STATUS).unwrap();
     let mut src = [0u8; 512];
-    let n = mib::codec::encode_hk(def, |id| (id as i64 * 131 + i * 7) % 4000, &mut src).unwrap();
+    let n = mib_wire::codec::encode_hk(def, |id| (id as i64 * 131 + i * 7) % 4000, &mut src).unwrap();
     let apid = mib::apid::robot_apid(robot).unwrap();
     build_tm(apid, seq, 3, 25, 0, &CdsShort::from_unix_ms(t_ms).to_bytes(), &src[..n])
 }
@@ -56,7 +56,7 @@ fn hk_packet(robot: u8, seq: u16, t_ms: i64, i: i64) -> Vec<u8> {
 fn event_packet(robot: u8, seq: u16, t_ms: i64, id: u16, args: &[i64]) -> Vec<u8> {
     let ev = mib::events::by_id(id).unwrap();
     let mut src = [0u8; 256];
-    let n = mib::codec::encode_event(ev, args, &mut src).unwrap();
+    let n = mib_wire::codec::encode_event(ev, args, &mut src).unwrap();
     let apid = mib::apid::robot_apid(robot).unwrap();
     build_tm(
         apid,

@@ -5,7 +5,7 @@ use std::collections::HashMap;
 use std::fmt;
 
 use arbitrary_int::{u11, u14};
-use mib::codec;
+use mib_wire::codec;
 use mib::config::{GROUND_ID, MAX_PACKET_LEN, TIMESTAMP_LEN};
 use mib::tc::TcDef;
 use satrs::spacepackets::ecss::tc::{AckFlags, ACK_ALL};

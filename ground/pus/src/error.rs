@@ -2,7 +2,7 @@
 
 use std::fmt;
 
-use mib::codec::ArgError;
+use mib_wire::codec::ArgError;
 use mib::config::MAX_PACKET_LEN;
 use mib_wire::header::HeaderError;
 

@@ -1,6 +1,6 @@
 use super::*;
 use arbitrary_int::{u11, u14};
-use mib::codec;
+use mib_wire::codec;
 use mib::config::{GROUND_ID, MAX_PACKET_LEN};
 use mib::events::eid;
 use mib::params::pid;
