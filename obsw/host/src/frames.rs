@@ -19,8 +19,16 @@
 //! frame (accepted, discarded or a control frame) the CLCW goes out at once, so the
 //! ground's FOP-1 learns of it without waiting. Store replay (PUS 15) packets go on VC1
 //! (`TmSink::send_replay`), each channel with its own partial frame.
+//!
+//! Transport: one frame per UDP datagram (`--frame-udp`, TM to `--frame-tm-to`), or a
+//! byte stream (`--frame-serial PATH`: a serial device in raw mode, a pty, or a Unix
+//! socket), one COBS frame per transfer frame with `mmic_link::stream` — the framing of
+//! board A's serial ground link. The stream's framing drops (oversize, corrupt COBS) are
+//! counted ([`FrameEndpoint::stream_counters`]) and reported in `IO_TC_DROPPED`; bytes
+//! that decode to a frame go through the same receive pipeline and its counters.
 
 use std::net::{SocketAddr, UdpSocket};
+use std::os::fd::{AsRawFd, RawFd};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -32,6 +40,8 @@ use mmic_link::farm::Farm;
 use mmic_link::persist::{read_key, Dir, FileIvStore};
 use mmic_link::rx::{RxCounters, RxOutcome, TcReceiver};
 use mmic_link::sdls::{Key, RxSa, RxSas, TxSa};
+use mmic_link::stream::port::Port;
+use mmic_link::stream::{Deframer, StreamCounters};
 use mmic_link::tc::ControlCommand;
 use obsw_core::obsw::{SPACE_LINK_PARAMS, SPACE_LINK_STATE_PARAMS};
 use obsw_core::services::link::{LinkKeys, LinkSelect};
@@ -54,11 +64,19 @@ pub fn parse_tm_sdls(s: &str) -> Result<TmSecurity, String> {
     TmSecurity::from_name(s).ok_or_else(|| format!("\"{s}\": encrypt or clear"))
 }
 
+/// Where the frames travel.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum FrameWire {
+    /// TC frames on `listen`, one per datagram; TM frames to `tm_to`.
+    Udp { listen: SocketAddr, tm_to: SocketAddr },
+    /// Both ways on this serial device, pty or Unix socket, one COBS frame each.
+    Serial(PathBuf),
+}
+
 /// What the command line gives the endpoint.
 #[derive(Clone, Debug)]
 pub struct FrameConfig {
-    pub listen: SocketAddr,
-    pub tm_to: SocketAddr,
+    pub wire: FrameWire,
     pub tc_key: PathBuf,
     pub tm_key: PathBuf,
     pub state: PathBuf,
@@ -156,10 +174,43 @@ const fn vc_index(vc: TmVc) -> usize {
     }
 }
 
+/// The endpoint's transport.
+enum Wire {
+    Udp {
+        sock: UdpSocket,
+        tm_to: SocketAddr,
+    },
+    Stream {
+        port: Port,
+        de: Box<Deframer<{ mib::link::tc_frame::MAX_LEN }>>,
+        /// Bytes read and not yet fed to the deframer: `inbuf[at..len]`.
+        inbuf: Vec<u8>,
+        at: usize,
+        len: usize,
+        /// The read error last logged (logged once).
+        failed: bool,
+    },
+}
+
+impl Wire {
+    /// Sends one TM frame; false when it could not go (counted by the caller).
+    fn send(&mut self, f: &[u8]) -> bool {
+        match self {
+            Wire::Udp { sock, tm_to } => crate::net::send_udp(sock, f, *tm_to),
+            Wire::Stream { port, .. } => {
+                let mut enc = [0u8; mmic_link::stream::encoded_len(TM_LEN)];
+                match mmic_link::stream::encode(f, &mut enc) {
+                    Ok(n) => matches!(port.send(&enc[..n]), Ok(true)),
+                    Err(_) => false,
+                }
+            }
+        }
+    }
+}
+
 /// The frame endpoint (see the module documentation).
 pub struct FrameEndpoint {
-    sock: UdpSocket,
-    tm_to: SocketAddr,
+    port: Wire,
     rx: TcReceiver<2>,
     framer: Framer,
     /// TM SAs of the SPIs with a key (`TM_SPIS` order) and the one in use.
@@ -259,11 +310,24 @@ impl FrameEndpoint {
                 .filter(|s| sas.get(*s).is_some())
                 .collect::<Vec<_>>()
         );
-        let sock = UdpSocket::bind(cfg.listen).with_context(|| format!("cannot bind --frame-udp {}", cfg.listen))?;
-        sock.set_nonblocking(true)?;
+        let port = match &cfg.wire {
+            FrameWire::Udp { listen, tm_to } => {
+                let sock = UdpSocket::bind(listen).with_context(|| format!("cannot bind --frame-udp {listen}"))?;
+                sock.set_nonblocking(true)?;
+                Wire::Udp { sock, tm_to: *tm_to }
+            }
+            FrameWire::Serial(path) => Wire::Stream {
+                port: mmic_link::stream::port::open(path)
+                    .with_context(|| format!("cannot open --frame-serial {}", path.display()))?,
+                de: Box::default(),
+                inbuf: vec![0u8; 4096],
+                at: 0,
+                len: 0,
+                failed: false,
+            },
+        };
         Ok(FrameEndpoint {
-            sock,
-            tm_to: cfg.tm_to,
+            port,
             rx: TcReceiver::new(mib::link::SCID, mib::link::tc_vc::COMMAND, farm, sas),
             framer: Framer::with_security(mib::link::SCID, cfg.tm_sdls),
             tm_sas,
@@ -353,25 +417,78 @@ impl FrameEndpoint {
         (self.tm_sas[self.tm_active].spi(), tc)
     }
 
-    pub fn local_addr(&self) -> std::io::Result<SocketAddr> {
-        self.sock.local_addr()
+    /// The UDP address TC frames arrive at (`None` on a serial link).
+    pub fn local_addr(&self) -> std::io::Result<Option<SocketAddr>> {
+        match &self.port {
+            Wire::Udp { sock, .. } => sock.local_addr().map(Some),
+            Wire::Stream { .. } => Ok(None),
+        }
     }
 
-    pub fn socket(&self) -> &UdpSocket {
-        &self.sock
+    /// The descriptor the main loop waits on (readable when a frame may be waiting).
+    pub fn raw_fd(&self) -> RawFd {
+        match &self.port {
+            Wire::Udp { sock, .. } => sock.as_raw_fd(),
+            Wire::Stream { port, .. } => port.raw_fd(),
+        }
     }
 
-    /// The next waiting datagram through the receive pipeline, if any (never blocks).
+    /// What the stream's framing saw (zero on UDP).
+    pub fn stream_counters(&self) -> StreamCounters {
+        match &self.port {
+            Wire::Udp { .. } => StreamCounters::default(),
+            Wire::Stream { de, .. } => de.counters,
+        }
+    }
+
+    /// The next frame waiting, into `self.buf`: its length (never blocks).
+    fn receive(&mut self) -> Option<usize> {
+        match &mut self.port {
+            Wire::Udp { sock, .. } => loop {
+                match sock.recv_from(&mut self.buf) {
+                    Ok((n, _from)) => return Some(n),
+                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                    Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => return None,
+                    // An ICMP error from an earlier send: not fatal, nothing to read.
+                    Err(_) => return None,
+                }
+            },
+            Wire::Stream {
+                port,
+                de,
+                inbuf,
+                at,
+                len,
+                failed,
+            } => loop {
+                while *at < *len {
+                    let b = inbuf[*at];
+                    *at += 1;
+                    // A dropped frame is counted by the deframer (HK IO_TC_DROPPED).
+                    if let Some(Ok(f)) = de.push(b) {
+                        self.buf[..f.len()].copy_from_slice(f);
+                        return Some(f.len());
+                    }
+                }
+                match port.read(inbuf) {
+                    Ok(0) => return None,
+                    Ok(n) => {
+                        (*at, *len) = (0, n);
+                    }
+                    Err(e) => {
+                        if !std::mem::replace(failed, true) {
+                            log::error!("space link: reading {}: {e}", port.describe);
+                        }
+                        return None;
+                    }
+                }
+            },
+        }
+    }
+
+    /// The next waiting frame through the receive pipeline, if any (never blocks).
     pub fn next(&mut self) -> Option<FrameInput> {
-        let n = loop {
-            match self.sock.recv_from(&mut self.buf) {
-                Ok((n, _from)) => break n,
-                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
-                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => return None,
-                // An ICMP error from an earlier send: not fatal, nothing to read.
-                Err(_) => return None,
-            }
-        };
+        let n = self.receive()?;
         let dgram = &mut self.buf[..n];
         if is_control_frame(dgram) {
             let now = Instant::now();
@@ -411,7 +528,7 @@ impl FrameEndpoint {
     /// at once.
     pub fn send_packet(&mut self, packet: &[u8], vc: TmVc) {
         let clcw = self.rx.farm.clcw();
-        let (sock, to, fails) = (&self.sock, self.tm_to, &mut self.send_failures);
+        let (port, fails) = (&mut self.port, &mut self.send_failures);
         let mut sent = false;
         let r = self.framer.send(
             vc,
@@ -421,7 +538,7 @@ impl FrameEndpoint {
             &mut self.store,
             |f| {
                 sent = true;
-                if !crate::net::send_udp(sock, f, to) {
+                if !port.send(f) {
                     *fails = fails.saturating_add(1);
                 }
             },
@@ -439,17 +556,23 @@ impl FrameEndpoint {
     /// Sends the partly filled frames of VC0 and VC1, or an idle frame when the CLCW is
     /// due.
     pub fn flush(&mut self, now: Instant) {
+        if let Wire::Stream { port, .. } = &mut self.port {
+            // Bytes the line did not take yet (a slow or full line).
+            if let Err(e) = port.flush() {
+                log::debug!("space link: writing {}: {e}", port.describe);
+            }
+        }
         let clcw = self.rx.farm.clcw();
         if self.pending.iter().any(|&p| p) {
             for vc in [TmVc::Realtime, TmVc::Replay] {
                 if !std::mem::take(&mut self.pending[vc_index(vc)]) {
                     continue;
                 }
-                let (sock, to, fails) = (&self.sock, self.tm_to, &mut self.send_failures);
+                let (port, fails) = (&mut self.port, &mut self.send_failures);
                 let r = self
                     .framer
                     .flush(vc, clcw, &mut self.tm_sas[self.tm_active], &mut self.store, |f| {
-                        if !crate::net::send_udp(sock, f, to) {
+                        if !port.send(f) {
                             *fails = fails.saturating_add(1);
                         }
                     });
@@ -464,7 +587,7 @@ impl FrameEndpoint {
         if self.clcw_due || now.duration_since(self.last_tx) >= IDLE_INTERVAL {
             let mut f = [0u8; TM_LEN];
             self.framer.idle(clcw, &mut f);
-            if !crate::net::send_udp(&self.sock, &f, self.tm_to) {
+            if !self.port.send(&f) {
                 self.send_failures = self.send_failures.saturating_add(1);
             }
             self.last_tx = now;
@@ -583,8 +706,10 @@ mod tests {
         let ground_addr = ground_sock.local_addr().unwrap();
         drop(ground_sock);
         let fc = FrameConfig {
-            listen: "127.0.0.1:0".parse().unwrap(),
-            tm_to: ground_addr,
+            wire: FrameWire::Udp {
+                listen: "127.0.0.1:0".parse().unwrap(),
+                tm_to: ground_addr,
+            },
             tc_key: dir.join("tc-spi1.key"),
             tm_key: dir.join("tm-spi17.key"),
             state: dir.join("obsw.state"),
@@ -592,7 +717,7 @@ mod tests {
         };
         let mut ep = FrameEndpoint::open(&fc).unwrap();
         assert_eq!(ep.spis(), (17, vec![1, 2]), "both TC keys loaded");
-        let robot = ep.local_addr().unwrap();
+        let robot = ep.local_addr().unwrap().unwrap();
         let mut cfg = Config::from_key_dir(robot, ground_addr, &dir, &dir.join("ground.state"), 1).unwrap();
         cfg.fop.t1_ms = 300;
         let mut g = FrameLink::open(cfg).unwrap();
@@ -661,7 +786,14 @@ mod tests {
 
         // The choice survives a restart of the robot.
         drop(ep);
-        let mut ep = FrameEndpoint::open(&FrameConfig { listen: robot, ..fc }).unwrap();
+        let mut ep = FrameEndpoint::open(&FrameConfig {
+            wire: FrameWire::Udp {
+                listen: robot,
+                tm_to: ground_addr,
+            },
+            ..fc
+        })
+        .unwrap();
         assert_eq!(ep.spis(), (18, vec![2]));
         g.send_packet(&packet(10)).unwrap();
         run(&mut ep, &mut got, &mut g, &mut echoes, |g, got, _| {

@@ -98,6 +98,11 @@ struct Args {
     /// subscribe on the frame link).
     #[arg(long)]
     frame_tm_to: Option<SocketAddr>,
+    /// Space link over a byte stream instead of UDP, as board A's serial ground link: TC
+    /// and TM frames, one COBS frame each, on this serial device (put in raw mode), pty or
+    /// Unix socket (connected to). Replaces --frame-udp and --frame-tm-to.
+    #[arg(long, value_name = "PATH", conflicts_with_all = ["frame_udp", "frame_tm_to"])]
+    frame_serial: Option<PathBuf>,
     /// Space link: file with the raw 32-byte AES-256 key of TC SPI 1 (ground → robot).
     #[arg(long)]
     tc_key: Option<PathBuf>,
@@ -232,6 +237,7 @@ struct FileConfig {
     duration: Option<f64>,
     frame_udp: Option<SocketAddr>,
     frame_tm_to: Option<SocketAddr>,
+    frame_serial: Option<PathBuf>,
     keys: Option<PathBuf>,
     tc_key: Option<PathBuf>,
     tm_key: Option<PathBuf>,
@@ -333,27 +339,41 @@ fn settings(a: Args) -> Result<Settings> {
         .map(|t| frames::parse_tm_sdls(t).map_err(|e| anyhow::anyhow!("tm_sdls in the --config file: {e}")))
         .transpose()?;
     let tm_sdls = a.tm_sdls.or(file_tm_sdls).unwrap_or_default();
+    let serial = a.frame_serial.or(f.frame_serial);
+    let (frame_udp, frame_tm_to) = (a.frame_udp.or(f.frame_udp), a.frame_tm_to.or(f.frame_tm_to));
+    if serial.is_some() && (frame_udp.is_some() || frame_tm_to.is_some()) {
+        bail!("--frame-serial replaces --frame-udp and --frame-tm-to: give one transport");
+    }
+    // The UDP addresses by default from --keys; none with --frame-serial.
+    let udp_defaults = serial.is_none();
+    let udp_default = |port: u16| keys.as_ref().filter(|_| udp_defaults).map(|_| local(port));
+    let wire = match (
+        serial,
+        frame_udp.or_else(|| udp_default(config::frame_port(robot))),
+        frame_tm_to.or_else(|| udp_default(config::tm_frame_port(robot))),
+    ) {
+        (Some(path), _, _) => Some(frames::FrameWire::Serial(path)),
+        (None, Some(listen), Some(tm_to)) => Some(frames::FrameWire::Udp { listen, tm_to }),
+        (None, None, None) => None,
+        (None, _, _) => bail!("the frame link over UDP needs both --frame-udp and --frame-tm-to"),
+    };
     let frames = match (
-        a.frame_udp
-            .or(f.frame_udp)
-            .or_else(|| keys.as_ref().map(|_| local(config::frame_port(robot)))),
-        a.frame_tm_to
-            .or(f.frame_tm_to)
-            .or_else(|| keys.as_ref().map(|_| local(config::tm_frame_port(robot)))),
+        wire,
         a.tc_key.or(f.tc_key).or_else(|| from_keys("tc-spi1.key")),
         a.tm_key.or(f.tm_key).or_else(|| from_keys("tm-spi17.key")),
         a.link_state.or(f.link_state).or_else(|| from_keys("obsw-link.state")),
     ) {
-        (None, None, None, None, None) => None,
-        (Some(listen), Some(tm_to), Some(tc_key), Some(tm_key), Some(state)) => Some(frames::FrameConfig {
-            listen,
-            tm_to,
+        (None, None, None, None) => None,
+        (Some(wire), Some(tc_key), Some(tm_key), Some(state)) => Some(frames::FrameConfig {
+            wire,
             tc_key,
             tm_key,
             state,
             tm_sdls,
         }),
-        _ => bail!("the frame link needs all of --frame-udp, --frame-tm-to, --tc-key, --tm-key and --link-state"),
+        _ => bail!(
+            "the frame link needs all of --frame-udp and --frame-tm-to (or --frame-serial), --tc-key, --tm-key and --link-state"
+        ),
     };
     let tm_dest = if a.tm_dest.is_empty() {
         f.tm_dest.clone().unwrap_or_default()
@@ -468,13 +488,24 @@ fn run(args: Args) -> Result<()> {
     let mut frame_note = String::new();
     if let Some(fc) = &s.frames {
         let ep = frames::FrameEndpoint::open(fc)?;
-        inputs.register_frames(ep.socket())?;
-        let addr = ep.local_addr()?;
-        frame_note = format!(" frame_udp={addr} frame_tm_to={}", fc.tm_to);
+        inputs.register_frames(ep.raw_fd())?;
+        let (on, to) = match (&fc.wire, ep.local_addr()?) {
+            (frames::FrameWire::Udp { tm_to, .. }, Some(addr)) => {
+                frame_note = format!(" frame_udp={addr} frame_tm_to={tm_to}");
+                (addr.to_string(), format!("to {tm_to}"))
+            }
+            (frames::FrameWire::Udp { listen, tm_to }, None) => (listen.to_string(), format!("to {tm_to}")),
+            (frames::FrameWire::Serial(path), _) => {
+                frame_note = format!(" frame_serial={}", path.display());
+                (
+                    format!("{} (one COBS frame per frame)", path.display()),
+                    "back on it".to_string(),
+                )
+            }
+        };
         eprintln!(
-            "obsw: space link on {addr}: TC frames (COP-1, SDLS SPI {}), TM frames to {} (SDLS SPI {}), counters in {}",
+            "obsw: space link on {on}: TC frames (COP-1, SDLS SPI {}), TM frames {to} (SDLS SPI {}), counters in {}",
             mib::link::sdls::TC_SPIS[0],
-            fc.tm_to,
             mib::link::sdls::TM_SPIS[0],
             fc.state.display()
         );
@@ -585,6 +616,8 @@ fn run(args: Args) -> Result<()> {
     let mut sim_ms: u64 = 0;
     let mut link_rx: Vec<u8> = Vec::new();
     let mut bad_frames: u32 = 0;
+    // Frames the serial link's COBS framing dropped, already in `bad_frames`.
+    let mut stream_dropped: u32 = 0;
     // Link counters already reported as events.
     let mut reported = down.counters;
     // SIGTERM or SIGINT: stop at the next control period and exit 0 (the TM log is
@@ -664,6 +697,14 @@ fn run(args: Args) -> Result<()> {
             obsw.space_link = f.hk();
             obsw.space_link_state = f.hk_state();
             obsw.io.tm_dropped = obsw.io.tm_dropped.wrapping_add(f.send_failures);
+            // Frames the serial line's framing dropped (oversize, corrupt COBS) count as
+            // uplink frames dropped before the OBSW saw them, as on board A.
+            let dropped = f.stream_counters().dropped();
+            if dropped != stream_dropped {
+                bad_frames = bad_frames.wrapping_add(dropped.wrapping_sub(stream_dropped));
+                stream_dropped = dropped;
+                obsw.io.tc_dropped = bad_frames;
+            }
             let events = f.events();
             for ev in events {
                 obsw.link_event(sim_ms, ev, &mut down);
@@ -910,7 +951,20 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
-    // verifies: LINK-HOST-01, OPS-LINK-DEFAULT-02
+    /// A `--config` file with `text`, its path.
+    fn toml_file(text: &str) -> String {
+        use std::sync::atomic::{AtomicU32, Ordering};
+        static N: AtomicU32 = AtomicU32::new(0);
+        let p = std::env::temp_dir().join(format!(
+            "obsw-cfg-{}-{}.toml",
+            std::process::id(),
+            N.fetch_add(1, Ordering::Relaxed)
+        ));
+        std::fs::write(&p, text).unwrap();
+        p.display().to_string()
+    }
+
+    // verifies: LINK-HOST-01, OPS-LINK-DEFAULT-02, LINK-STREAM-05
     #[test]
     fn the_frame_link_needs_all_its_options_and_the_lab_mode_is_explicit_and_local() {
         // No link chosen: refused, naming both choices.
@@ -920,13 +974,50 @@ mod tests {
         let s = parse_raw(&["--robot", "3", "--keys", "k"]).unwrap();
         let fc = s.frames.expect("frames from --keys");
         assert!(!s.bare);
-        assert_eq!(fc.listen, "127.0.0.1:7503".parse().unwrap());
-        assert_eq!(fc.tm_to, "127.0.0.1:7603".parse().unwrap());
+        assert_eq!(
+            fc.wire,
+            frames::FrameWire::Udp {
+                listen: "127.0.0.1:7503".parse().unwrap(),
+                tm_to: "127.0.0.1:7603".parse().unwrap()
+            }
+        );
         assert_eq!(fc.tc_key, PathBuf::from("k/robot-3/tc-spi1.key"));
         assert_eq!(fc.tm_key, PathBuf::from("k/robot-3/tm-spi17.key"));
         assert_eq!(fc.state, PathBuf::from("k/robot-3/obsw-link.state"));
         let s = parse_raw(&["--keys", "k", "--frame-udp", "127.0.0.1:9000"]).unwrap();
-        assert_eq!(s.frames.unwrap().listen, "127.0.0.1:9000".parse().unwrap());
+        assert!(matches!(s.frames.unwrap().wire,
+            frames::FrameWire::Udp { listen, .. } if listen == "127.0.0.1:9000".parse().unwrap()));
+        // --frame-serial: the keys' files, no UDP addresses; not with --frame-udp.
+        let s = parse_raw(&["--keys", "k", "--frame-serial", "/dev/ttyACM0"]).unwrap();
+        let fc = s.frames.expect("frames over the serial line");
+        assert_eq!(fc.wire, frames::FrameWire::Serial(PathBuf::from("/dev/ttyACM0")));
+        assert_eq!(fc.tc_key, PathBuf::from("k/robot-1/tc-spi1.key"));
+        assert!(!s.bare);
+        assert!(Args::try_parse_from([
+            "obsw",
+            "--keys",
+            "k",
+            "--frame-serial",
+            "/dev/x",
+            "--frame-udp",
+            "127.0.0.1:9"
+        ])
+        .is_err());
+        let f = toml_file("frame_serial = \"/dev/x\"\nframe_tm_to = \"127.0.0.1:9\"\nkeys = \"k\"\n");
+        assert!(
+            parse_raw(&["--config", &f]).is_err(),
+            "two transports in the file: refused"
+        );
+        let f = toml_file("frame_serial = \"/dev/x\"\nkeys = \"k\"\n");
+        assert!(matches!(
+            parse_raw(&["--config", &f]).unwrap().frames.unwrap().wire,
+            frames::FrameWire::Serial(_)
+        ));
+        let ser = parse_raw(&["--frame-serial", "/dev/x"])
+            .err()
+            .expect("no keys")
+            .to_string();
+        assert!(ser.contains("--tc-key"), "{ser}");
         // The lab link alone, on loopback.
         let s = parse_raw(&["--lab-bare-packets"]).unwrap();
         assert!(s.bare && s.frames.is_none());

@@ -544,11 +544,11 @@ impl Inputs {
         }
     }
 
-    /// Wakes the poll when the frame endpoint's socket has a datagram.
-    pub fn register_frames(&mut self, sock: &UdpSocket) -> std::io::Result<()> {
+    /// Wakes the poll when the frame endpoint's socket or serial line has input.
+    pub fn register_frames(&mut self, fd: std::os::fd::RawFd) -> std::io::Result<()> {
         self.poll
             .registry()
-            .register(&mut SourceFd(&sock.as_raw_fd()), FRAMES, Interest::READABLE)
+            .register(&mut SourceFd(&fd), FRAMES, Interest::READABLE)
     }
 
     /// Answers a simulator-control line.
