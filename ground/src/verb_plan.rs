@@ -28,9 +28,9 @@ pub(crate) enum PlanCmd {
 }
 
 pub(crate) fn load_plan(path: &Path) -> Result<plan::Plan> {
-    plan::load(path).map_err(|e| match e {
-        plan::LoadError::Io(..) => anyhow!(e),
-        plan::LoadError::Invalid(_) => coded(exit::INVALID, e.to_string()),
+    plan::load(path).map_err(|e| match e.diagnostics() {
+        Some(_) => coded(exit::INVALID, e.to_string()),
+        None => anyhow!(e),
     })
 }
 

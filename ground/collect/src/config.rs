@@ -433,21 +433,24 @@ pub fn parse(file: &str, src: &str) -> Result<Config, CfgErrors> {
                     c.plans.push(PlanCfg { name: plan.name, path });
                 }
             }
-            Err(crate::plan::LoadError::Io(_, e)) => {
-                cx.err(p.span(), format!("plan {}: cannot read it: {e}", path.display()))
-            }
-            Err(crate::plan::LoadError::Invalid(d)) => {
-                let lines: Vec<String> = d.iter().map(|x| x.to_string()).collect();
-                cx.err(
-                    p.span(),
-                    format!(
-                        "plan {} has {} error(s):\n{}",
-                        path.display(),
-                        d.len(),
-                        lines.join("\n")
-                    ),
-                )
-            }
+            Err(e) => match e.diagnostics() {
+                Some(d) => {
+                    let lines: Vec<String> = d.iter().map(|x| x.to_string()).collect();
+                    cx.err(
+                        p.span(),
+                        format!(
+                            "plan {} has {} error(s):\n{}",
+                            path.display(),
+                            d.len(),
+                            lines.join("\n")
+                        ),
+                    )
+                }
+                None => {
+                    let why = e.io_error().map_or_else(|| e.to_string(), |io| io.to_string());
+                    cx.err(p.span(), format!("plan {}: cannot read it: {why}", path.display()))
+                }
+            },
         }
     }
     let mut seen: BTreeMap<u8, ()> = BTreeMap::new();

@@ -46,7 +46,7 @@ pub enum DashCmd {
         origin: String,
         /// The TC sent, and whether the link is a lab link (packet resends; false over
         /// frames, where COP-1 retransmits).
-        reply: Sender<Result<(crate::pus::BuiltTc, bool), String>>,
+        reply: Sender<Result<(crate::pus::BuiltTc, bool), crate::ops::SendError>>,
     },
     /// Send these bytes again: a plan TC resent unchanged.
     Resend { bytes: Vec<u8> },

@@ -27,7 +27,7 @@ mod tests;
 
 pub(crate) use crate::live::SEQ_MOD;
 pub use book::{Pending, TcBook};
-pub use executor::{Effect, Executor, RunOptions, StepState, INTERRUPT_GRACE};
+pub use executor::{Effect, Executor, RunOptions, SendError, StepState, INTERRUPT_GRACE};
 pub use run::{run_plan, InFlight, Resume};
 pub use session::{failure_words, first_tc_seq, OpsError, Session, Update, SEQ_SKIP_AFTER_RESTART};
 pub use status::{NoAnswer, RobotStatus};

@@ -124,10 +124,33 @@ pub fn load(path: &std::path::Path) -> Result<Plan, LoadError> {
     parse(&src).map_err(|errs| LoadError::Invalid(diagnostics(&path.display().to_string(), &src, &errs)))
 }
 
+/// Why a plan file cannot be loaded. Callers tell the cases apart by
+/// [`LoadError::diagnostics`] and [`LoadError::io_error`] (it may grow).
 #[derive(Debug)]
+#[non_exhaustive]
 pub enum LoadError {
+    /// The file cannot be read (its path, the error).
     Io(String, std::io::Error),
+    /// The file is not a valid plan.
     Invalid(Vec<Diagnostic>),
+}
+
+impl LoadError {
+    /// What is wrong with the plan, when it was read but is not valid.
+    pub fn diagnostics(&self) -> Option<&[Diagnostic]> {
+        match self {
+            LoadError::Invalid(d) => Some(d),
+            LoadError::Io(..) => None,
+        }
+    }
+
+    /// Why the file could not be read, when it could not.
+    pub fn io_error(&self) -> Option<&std::io::Error> {
+        match self {
+            LoadError::Io(_, e) => Some(e),
+            LoadError::Invalid(_) => None,
+        }
+    }
 }
 
 impl fmt::Display for LoadError {

@@ -8,7 +8,7 @@ use crossbeam_channel::{Receiver, RecvTimeoutError, Sender};
 
 use crate::dash::DashCmd;
 use crate::ops::book::{Due, Pending, TcBook, Verdict};
-use crate::ops::{Effect, Executor, RunOptions, StepState, Update};
+use crate::ops::{Effect, Executor, RunOptions, SendError, StepState, Update};
 use crate::plan::Plan;
 use crate::pus::{BuiltTc, TmBody};
 use ground_dashboard::{request_id, Hub, PlanRun};
@@ -224,11 +224,8 @@ impl Run {
         }
     }
 
-    fn send(&self, robot: u8, def: &'static mib::tc::TcDef, args: Vec<i64>) -> Result<(BuiltTc, bool), String> {
-        let tx = self
-            .robots
-            .get(&robot)
-            .ok_or_else(|| format!("robot {robot} is not followed by this collector"))?;
+    fn send(&self, robot: u8, def: &'static mib::tc::TcDef, args: Vec<i64>) -> Result<(BuiltTc, bool), SendError> {
+        let tx = self.robots.get(&robot).ok_or(SendError::NotFollowed(robot))?;
         let (reply, answer) = crossbeam_channel::bounded(1);
         tx.send(DashCmd::PlanTc {
             def,
@@ -236,10 +233,10 @@ impl Run {
             origin: format!("plan {}", self.run.plan),
             reply,
         })
-        .map_err(|_| format!("robot {robot}: the collector's thread has stopped"))?;
+        .map_err(|_| SendError::WorkerStopped(robot))?;
         answer
             .recv_timeout(SEND_TIMEOUT)
-            .map_err(|_| format!("robot {robot}: the collector did not take the TC"))?
+            .map_err(|_| SendError::NotTaken(robot))?
     }
 
     fn publish(&mut self, exec: &Executor) {

@@ -277,7 +277,7 @@ fn the_page_sees_each_steps_stage_and_progress() {
     );
     view(&mut r, &exec);
     assert_eq!(r.steps[0].detail, "progress 2");
-    exec.on_sent(0, Err("no link".into()), t0);
+    exec.on_sent(0, Err(crate::ops::SendError::NoLink(1)), t0);
     view(&mut r, &exec);
     assert_eq!(r.steps[0].state, "failed");
     assert!(r.steps[0].detail.contains("no link"), "{}", r.steps[0].detail);

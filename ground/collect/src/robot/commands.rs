@@ -6,6 +6,7 @@ use std::time::Instant;
 use crate::archive::now_ms;
 use crate::dash::DashCmd;
 use crate::ops::book::{Due, Pending, Verdict};
+use crate::ops::SendError;
 use crate::planrun::PlanInput;
 use crate::pus::{self, BuiltTc};
 
@@ -22,7 +23,7 @@ impl Worker {
                 DashCmd::Tc { name, args, reply } => {
                     let r = mib::tc::by_name(&name)
                         .ok_or_else(|| format!("no TC named {name}"))
-                        .and_then(|def| self.dash_tc(def, &args, "page"))
+                        .and_then(|def| self.dash_tc(def, &args, "page").map_err(|e| e.to_string()))
                         .map(|tc| {
                             let id = ground_dashboard::request_id(self.robot(), tc.apid, tc.seq);
                             let p = Pending::sent(self.robot(), tc, None, Some("page".into()), Instant::now());
@@ -54,12 +55,12 @@ impl Worker {
         def: &'static mib::tc::TcDef,
         args: &[i64],
         origin: &str,
-    ) -> Result<BuiltTc, String> {
+    ) -> Result<BuiltTc, SendError> {
         if self.link.is_none() {
-            return Err(format!("robot {}: no link (reconnecting)", self.robot()));
+            return Err(SendError::NoLink(self.robot()));
         }
         // Check the arguments before using up a sequence count.
-        pus::build_tc(self.robot(), 0, def, args).map_err(|e| e.to_string())?;
+        pus::build_tc(self.robot(), 0, def, args)?;
         if def.name == "ACCEPT_CONFIG" {
             // The robot's configuration state changes: its module report is asked for
             // again (after ASK_AGAIN_MS, the TC executed by then) instead of waiting up to
@@ -68,16 +69,17 @@ impl Worker {
             self.modules_asked_ms = now_ms();
         }
         let seq = self.next_seq();
-        let tc = pus::build_tc(self.robot(), seq, def, args).map_err(|e| e.to_string())?;
+        let tc = pus::build_tc(self.robot(), seq, def, args)?;
         match &self.dash {
             Some(d) => ground_dashboard::tc_sent(&d.hub, self.robot(), &tc, def, args, origin),
-            None => return Err("no dashboard".into()),
+            None => return Err(SendError::NoPage),
         };
         match &self.link {
-            Some(l) => l
-                .send(&tc.bytes)
-                .map_err(|e| format!("sending to robot {}: {e}", self.robot()))?,
-            None => return Err(format!("robot {}: no link", self.robot())),
+            Some(l) => l.send(&tc.bytes).map_err(|error| SendError::Io {
+                robot: self.robot(),
+                error,
+            })?,
+            None => return Err(SendError::NoLink(self.robot())),
         }
         self.archive_tc(&tc, origin);
         Ok(tc)

@@ -71,6 +71,37 @@ impl Default for RunOptions {
     }
 }
 
+/// Why a step's TC was not sent ([`Executor::on_sent`]): by the CLI's [`Session`] or by
+/// the thread of the collector that follows the robot.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum SendError {
+    /// The session's (no link, arguments, I/O).
+    #[error(transparent)]
+    Session(#[from] super::OpsError),
+    /// The TC cannot be built from these arguments.
+    #[error(transparent)]
+    Build(#[from] crate::pus::BuildError),
+    /// The robot's link is not open (reconnecting).
+    #[error("robot {0}: no link (reconnecting)")]
+    NoLink(u8),
+    /// The link refused the bytes.
+    #[error("sending to robot {robot}: {error}")]
+    Io { robot: u8, error: std::io::Error },
+    /// No page to show the TC in (a collector without `--http`).
+    #[error("no dashboard")]
+    NoPage,
+    /// The collector running the plan does not follow this robot.
+    #[error("robot {0} is not followed by this collector")]
+    NotFollowed(u8),
+    /// The collector's thread of this robot has stopped.
+    #[error("robot {0}: the collector's thread has stopped")]
+    WorkerStopped(u8),
+    /// The collector's thread of this robot did not take the TC in time.
+    #[error("robot {0}: the collector did not take the TC")]
+    NotTaken(u8),
+}
+
 /// What the executor asks its driver to do.
 #[derive(Clone, Debug)]
 pub enum Effect {
@@ -303,7 +334,7 @@ impl<'p> Executor<'p> {
     }
 
     /// The result of an [`Effect::Send`].
-    pub fn on_sent(&mut self, step: usize, sent: Result<BuiltTc, String>, now: Instant) -> Vec<Effect> {
+    pub fn on_sent(&mut self, step: usize, sent: Result<BuiltTc, SendError>, now: Instant) -> Vec<Effect> {
         let mut fx = Vec::new();
         let Some(s) = self.plan.steps.get(step) else { return fx };
         match sent {

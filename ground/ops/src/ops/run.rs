@@ -135,7 +135,7 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
                     let label = Some(plan.steps[step].id.clone());
                     let sent = session
                         .send(robot, def, &args, Some(step), label)
-                        .map_err(|e| e.to_string());
+                        .map_err(SendError::from);
                     queue.extend(exec.on_sent(step, sent, Instant::now()));
                 }
                 Effect::Forget(tc) => session.forget(&tc),

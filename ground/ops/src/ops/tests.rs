@@ -427,3 +427,47 @@ fn link_quality_is_over_the_last_window_of_exchanges() {
     assert_eq!(r.quality.len(), LINK_QUALITY_WINDOW);
     assert_eq!(r.link_quality(), Some(0.5));
 }
+
+// verifies: OPS-ERR-01
+#[test]
+fn a_step_whose_tc_cannot_be_sent_fails_with_the_typed_reason() {
+    let pl = plan(TWO_STEPS);
+    let opts = RunOptions::default();
+    let t0 = Instant::now();
+    let mut ex = Executor::new(&pl, &opts, &[], t0);
+    assert_eq!(sends(&ex.on_tick(t0)), vec![0]);
+    let fx = ex.on_sent(0, Err(SendError::NotFollowed(1)), t0);
+    let said: Vec<&String> = fx
+        .iter()
+        .filter_map(|e| match e {
+            Effect::Log(l) => Some(l),
+            _ => None,
+        })
+        .collect();
+    assert!(
+        said.iter()
+            .any(|l| l.contains("could not be sent: robot 1 is not followed by this collector")),
+        "{said:?}"
+    );
+    assert!(matches!(ex.state[0], StepState::Failed { .. }), "{:?}", ex.state[0]);
+    // A session's error keeps its own words.
+    let e = SendError::from(OpsError::NoLink(3));
+    assert_eq!(e.to_string(), "robot 3 has no link (give --robot 3=HOST:PORT)");
+}
+
+// verifies: OPS-ERR-01
+#[test]
+fn a_plan_load_error_says_whether_the_file_was_unreadable_or_invalid() {
+    let dir = std::env::temp_dir().join(format!("ops-load-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let missing = crate::plan::load(&dir.join("none.toml")).unwrap_err();
+    assert!(missing.io_error().is_some() && missing.diagnostics().is_none());
+    assert!(missing.to_string().starts_with("cannot read"), "{missing}");
+    let bad = dir.join("bad.toml");
+    std::fs::write(&bad, "[[step]]\nid = 1\n").unwrap();
+    let invalid = crate::plan::load(&bad).unwrap_err();
+    assert!(invalid.io_error().is_none());
+    assert!(!invalid.diagnostics().unwrap_or_default().is_empty(), "{invalid}");
+    assert!(invalid.to_string().contains("error(s) in the plan"), "{invalid}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
