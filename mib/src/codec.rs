@@ -1,6 +1,10 @@
 //! Encoding and decoding of MIB-described data blocks: housekeeping reports, event
-//! reports and TC arguments. No allocation; the OBSW, the firmware and the ground tool
-//! all use these functions, so the layout is written once.
+//! reports and TC arguments. No allocation.
+//!
+//! This is the implementation of `mib_wire::codec` (which re-exports it): the one
+//! table-driven codec of flight code, host, ground and tests. Name it as
+//! `mib_wire::codec`; the file moves into the wire crate once the last users of this path
+//! are migrated (listed in mib/wire/README.md, "One codec").
 
 use crate::events::{self, EventDef};
 use crate::failure::FailureCode;

@@ -64,7 +64,7 @@ fn write_stmt(f: &Field, expr: &str) -> String {
     }
 }
 
-/// Saturating conversion from a raw i64 (what `mib::codec` and the OBSW's parameter
+/// Saturating conversion from a raw i64 (what `codec` and the OBSW's parameter
 /// functions produce) to the field's type.
 fn from_i64(f: &Field, v: &str) -> String {
     // One out-of-line saturation per type (crate::sat): the clamp of an i64 is some ten
