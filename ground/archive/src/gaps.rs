@@ -2,21 +2,20 @@
 //! about holes it could not fill.
 //!
 //! Packets are followed in on-board time order. Between two stored packets of one APID
-//! the next sequence count is expected (modulo 2^14). A restart of the on-board software
-//! restarts the counts: it is recognised by a BOOT event, or by a count that went back
-//! (not a plausible wrap), and reported as a reboot with the packets of the new boot
-//! that are missing — never as a 16k-packet gap, and never as duplicates (the key holds
-//! the on-board time, so equal counts of two boots are two packets).
+//! the next sequence count is expected (modulo 2^14); each step is judged by the one rule
+//! the live grounds use too (`ground_pus::seq::step`): a count ahead (less than half the
+//! 14-bit circle) is a gap of the counts between; a restart of the on-board software —
+//! a BOOT event, or a count not ahead with a later on-board time — is reported as a
+//! reboot with the packets of the new boot that are missing, never as a 16k-packet gap,
+//! and never as duplicates (the key holds the on-board time, so equal counts of two boots
+//! are two packets).
 
 use serde::Serialize;
 
+use ground_pus::seq::{step, Pos, Step};
+
 use super::db::{collect, Val};
 use super::{ArchiveError, Store};
-
-const SEQ_MOD: i64 = 1 << 14;
-/// A count that goes back from above `SEQ_MOD - WRAP_WINDOW` to below `WRAP_WINDOW` is
-/// taken for a wrap with lost packets, not a reboot (unless a BOOT event says so).
-const WRAP_WINDOW: i64 = 1024;
 
 /// Why packets are missing.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -96,22 +95,16 @@ pub struct Position {
     pub duplicates: i64,
 }
 
-/// Classifies the step from `(s1)` to `(s2)`: `None` if contiguous, else
-/// `(missing, reason)`.
-pub fn classify(s1: u16, s2: u16, boot_at_s2: bool) -> Option<(u32, GapReason)> {
-    let (a, b) = (s1 as i64, s2 as i64);
-    if boot_at_s2 {
-        return Some((b as u32, GapReason::Rebooted));
+/// The step from the archived packet `(obt_ms, seq)` `prev` to `cur`: `None` if
+/// contiguous (or not ahead), else `(missing, reason)` — the rule of
+/// [`ground_pus::seq::step`].
+pub fn classify(prev: (i64, u16), cur: (i64, u16), boot_at_cur: bool) -> Option<(u32, GapReason)> {
+    let pos = |(obt_ms, seq): (i64, u16)| Pos { seq, obt_ms };
+    match step(pos(prev), pos(cur), boot_at_cur) {
+        Step::Next | Step::Behind => None,
+        Step::Gap(n) => Some((n, GapReason::Lost)),
+        Step::Restart(n) => Some((n, GapReason::Rebooted)),
     }
-    let forward = (b - a).rem_euclid(SEQ_MOD);
-    if forward == 1 {
-        return None;
-    }
-    let wrap = a >= SEQ_MOD - WRAP_WINDOW && b < WRAP_WINDOW;
-    if b <= a && !wrap {
-        return Some((b as u32, GapReason::Rebooted));
-    }
-    Some(((forward - 1) as u32, GapReason::Lost))
 }
 
 impl Store {
@@ -172,7 +165,8 @@ impl Store {
                     let cur = (r[0].int().unwrap_or(0), r[1].int().unwrap_or(0));
                     if let Some(pv) = prev {
                         let boot = boots.contains(&cur);
-                        if let Some((missing, mut reason)) = classify(pv.1 as u16, cur.1 as u16, boot) {
+                        if let Some((missing, mut reason)) = classify((pv.0, pv.1 as u16), (cur.0, cur.1 as u16), boot)
+                        {
                             let note = notes.get(&pv).map(|(why, n)| {
                                 if let Some(r) = GapReason::parse(why) {
                                     reason = r;
@@ -290,16 +284,24 @@ impl Store {
 mod tests {
     use super::*;
 
-    // verifies: GND-02
+    // verifies: GND-02, OPS-LIVE-SEQ-01
     #[test]
-    fn steps_are_classified() {
-        assert_eq!(classify(5, 6, false), None);
-        assert_eq!(classify(16383, 0, false), None);
-        assert_eq!(classify(5, 9, false), Some((3, GapReason::Lost)));
-        assert_eq!(classify(16380, 3, false), Some((6, GapReason::Lost)));
+    fn steps_are_classified_by_the_rule_of_the_live_trackers() {
+        // Each step one second later on board.
+        let c = |a: u16, b: u16, boot| classify((0, a), (1000, b), boot);
+        assert_eq!(c(5, 6, false), None);
+        assert_eq!(c(16383, 0, false), None);
+        assert_eq!(c(5, 9, false), Some((3, GapReason::Lost)));
+        assert_eq!(c(16380, 3, false), Some((6, GapReason::Lost)));
         // A restart: the count goes back; not 16k lost.
-        assert_eq!(classify(500, 0, false), Some((0, GapReason::Rebooted)));
-        assert_eq!(classify(500, 4, false), Some((4, GapReason::Rebooted)));
-        assert_eq!(classify(16000, 2, true), Some((2, GapReason::Rebooted)));
+        assert_eq!(c(500, 0, false), Some((0, GapReason::Rebooted)));
+        assert_eq!(c(500, 4, false), Some((4, GapReason::Rebooted)));
+        assert_eq!(c(16000, 2, true), Some((2, GapReason::Rebooted)));
+        // Ahead by less than half the circle is a gap (across the wrap too), more than
+        // half with a later time a restart: the live trackers' rule.
+        assert_eq!(c(12_000, 3_000, false), Some((7_383, GapReason::Lost)));
+        assert_eq!(c(100, 9_000, false), Some((9_000, GapReason::Rebooted)));
+        // The same count at the same on-board time: not a gap.
+        assert_eq!(classify((5, 7), (5, 7), false), None);
     }
 }

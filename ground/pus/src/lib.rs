@@ -9,6 +9,8 @@
 //! - `build`: TCs (from the MIB, or raw), TMs, request IDs, sequence counters;
 //! - `decode`: packets into [`Packet`] / [`Tm`] / [`Tc`] (`packet`, with `fields` for
 //!   named failure data and event parameters, `time` for the CDS time stamp);
+//! - [`seq`]: a packet's place in its APID's sequence and the one rule for the next
+//!   step (next, gap, restart, behind);
 //! - `stream`: splitting a byte stream of packets; `describe`: a line of text each;
 //! - [`out`]: the fast JSON/text decode output that writes straight into a buffer;
 //! - `error`: [`DecodeError`] and [`BuildError`].
@@ -26,6 +28,7 @@ mod error;
 mod fields;
 pub mod out;
 mod packet;
+pub mod seq;
 mod stream;
 mod time;
 

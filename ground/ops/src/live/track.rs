@@ -6,13 +6,12 @@
 
 use std::collections::{BTreeMap, HashSet, VecDeque};
 
+use crate::pus::seq::{seq_ahead as ahead, step, Step, SEQ_AHEAD as AHEAD};
+pub use crate::pus::seq::{Pos, SEQ_MOD};
+
 use super::gaps::GapPlan;
 
-/// Sequence counts are 14 bits.
-pub const SEQ_MOD: u16 = 1 << 14;
 const MOD: u32 = SEQ_MOD as u32;
-/// A count at most this far ahead of the last one is "ahead"; further is "behind".
-const AHEAD: u32 = MOD / 2;
 /// Most holes followed at once per APID. More than the host store holds cannot be
 /// retrieved anyway; the excess is reported unrecoverable at once.
 pub const MAX_MISSING: usize = 2 * mib::config::TM_STORE_CAPACITY;
@@ -20,13 +19,6 @@ pub const MAX_MISSING: usize = 2 * mib::config::TM_STORE_CAPACITY;
 /// a range is expected after the fact, [`ApidTracker::expect_from`]): what the on-board
 /// store can still give.
 pub const RECENT_WINDOW: usize = mib::config::TM_STORE_CAPACITY;
-
-/// A packet's place: sequence count and on-board time.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Pos {
-    pub seq: u16,
-    pub obt_ms: i64,
-}
 
 /// Why a hole can no longer be filled.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -106,10 +98,6 @@ pub struct ApidTracker {
     pub duplicates: u64,
     pub reboots: u64,
     pub lost_packets: u64,
-}
-
-fn ahead(from: u16, to: u16) -> u32 {
-    (to as u32 + MOD - from as u32) % MOD
 }
 
 impl ApidTracker {
@@ -279,37 +267,33 @@ impl ApidTracker {
                 Verdict::New
             };
         };
-        let d = ahead(last.seq, p.seq);
-        if boot && p.obt_ms > last.obt_ms {
-            return self.reboot(p, now_ms);
-        }
-        if d == 0 {
-            if p.obt_ms > last.obt_ms {
-                return self.reboot(p, now_ms);
-            }
-            self.duplicates += 1;
-            return Verdict::Duplicate;
-        }
-        if d < AHEAD && p.obt_ms >= last.obt_ms {
-            self.add_holes(last, p, now_ms);
-            self.remember(p.seq);
-            self.last = Some(p);
-            self.new += 1;
-            return Verdict::New;
-        }
-        if let Some(h) = self.holes.get(&p.seq) {
-            if p.obt_ms >= h.after_obt_ms && p.obt_ms <= h.before_obt_ms {
-                self.holes.remove(&p.seq);
+        // The one rule of the step (`ground_pus::seq::step`, the archive's too); holes
+        // are this tracker's.
+        match step(last, p, boot) {
+            Step::Restart(_) => self.reboot(p, now_ms),
+            Step::Next | Step::Gap(_) => {
+                self.add_holes(last, p, now_ms);
                 self.remember(p.seq);
-                self.filled += 1;
-                return Verdict::Filled;
+                self.last = Some(p);
+                self.new += 1;
+                Verdict::New
+            }
+            Step::Behind => {
+                let fills = self
+                    .holes
+                    .get(&p.seq)
+                    .is_some_and(|h| p.obt_ms >= h.after_obt_ms && p.obt_ms <= h.before_obt_ms);
+                if fills {
+                    self.holes.remove(&p.seq);
+                    self.remember(p.seq);
+                    self.filled += 1;
+                    Verdict::Filled
+                } else {
+                    self.duplicates += 1;
+                    Verdict::Duplicate
+                }
             }
         }
-        if p.obt_ms > last.obt_ms {
-            return self.reboot(p, now_ms);
-        }
-        self.duplicates += 1;
-        Verdict::Duplicate
     }
 
     fn reboot(&mut self, p: Pos, now_ms: i64) -> Verdict {
