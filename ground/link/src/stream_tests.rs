@@ -201,3 +201,67 @@ fn junk_and_bit_errors_on_the_stream_are_counted_and_cop1_still_delivers_exactly
         r.de.counters
     );
 }
+
+/// Reads from `port` until `n` bytes came or 5 s passed.
+fn read_n(port: &mut Port, n: usize) -> Vec<u8> {
+    let mut got = Vec::new();
+    let mut buf = [0u8; 4096];
+    let t0 = Instant::now();
+    while got.len() < n && t0.elapsed() < Duration::from_secs(5) {
+        let k = port.read(&mut buf).unwrap();
+        got.extend_from_slice(&buf[..k]);
+        if k == 0 {
+            port.wait(Duration::from_millis(10)).unwrap();
+        }
+    }
+    got
+}
+
+// verifies: LINK-STREAM-03
+#[test]
+fn a_tty_opened_as_a_port_is_raw_both_ways_and_a_unix_socket_path_is_connected() {
+    use std::os::fd::AsRawFd;
+    // A fresh pty is cooked (echo, CR/NL translation, ^C, ^S/^Q): every byte value
+    // must still cross unchanged in both directions once `port::open` has it.
+    let pty = nix::pty::openpty(None, None).unwrap();
+    let path = std::fs::read_link(format!("/proc/self/fd/{}", pty.slave.as_raw_fd())).unwrap();
+    drop(pty.slave);
+    let mut port = mmic_link::stream::port::open(&path).unwrap();
+    let mut master = std::fs::File::from(pty.master);
+    let all: Vec<u8> = (0..=255u8).cycle().take(1024).collect();
+    master.write_all(&all).unwrap();
+    assert_eq!(read_n(&mut port, all.len()), all, "robot to ground: raw, no echo");
+    assert!(port.send(&all).unwrap());
+    let t0 = Instant::now();
+    while port.queued() > 0 && t0.elapsed() < Duration::from_secs(5) {
+        port.flush().unwrap();
+    }
+    let mut got = vec![0u8; all.len()];
+    master.read_exact(&mut got).unwrap();
+    assert_eq!(got, all, "ground to robot: raw");
+
+    // A Unix socket (QEMU's -serial unix:PATH,server) is connected to.
+    let sock = std::env::temp_dir().join(format!("ground-link-port-{}.sock", std::process::id()));
+    let _ = std::fs::remove_file(&sock);
+    let listener = std::os::unix::net::UnixListener::bind(&sock).unwrap();
+    let mut port = mmic_link::stream::port::open(&sock).unwrap();
+    let (mut peer, _) = listener.accept().unwrap();
+    peer.write_all(&all).unwrap();
+    assert_eq!(read_n(&mut port, all.len()), all);
+    assert!(port.describe.starts_with("unix socket"));
+    // The other side closing is an error on a socket (the link stops), not silence.
+    drop(peer);
+    let mut buf = [0u8; 16];
+    let t0 = Instant::now();
+    let r = loop {
+        match port.read(&mut buf) {
+            Ok(0) if t0.elapsed() < Duration::from_secs(5) => std::thread::sleep(Duration::from_millis(5)),
+            r => break r,
+        }
+    };
+    assert!(r.is_err(), "{r:?}");
+    let _ = std::fs::remove_file(&sock);
+    // Neither a tty nor a socket: refused with the system's reason.
+    assert!(mmic_link::stream::port::open(Path::new("/dev/null")).is_err());
+    assert!(mmic_link::stream::port::open(Path::new("/nonexistent/tty")).is_err());
+}
