@@ -1,7 +1,10 @@
 //! Space-link benchmark (issue 22): PUS 17 ping round trip through TC/TM frames, COP-1 and
 //! SDLS (the `ground-link` library against the real `obsw --frame-udp`) side by side with
-//! the same ping as a bare UDP packet to the same obsw and a bare UDP echo, alternating in
-//! one run. Run: `cargo bench -p e2e-tests --bench spacelink` (release build of the obsw).
+//! the same ping as a bare UDP packet to a second obsw on the lab link
+//! (`--lab-bare-packets`) and a bare UDP echo, alternating in one run. Each obsw runs one
+//! link only, as deployed: an obsw with both links sends every TM on both, so each
+//! ping would also pay for the other link's sends. Run: `cargo bench -p e2e-tests --bench
+//! spacelink` (release build of the obsw).
 //!
 //! Both ends persist SDLS counters in state files on the temp directory's file system:
 //! the receive counter of every frame is written and `fdatasync`ed before the frame is
@@ -26,8 +29,7 @@ fn stats(name: &str, mut v: Vec<f64>) -> f64 {
 }
 
 /// A ping asking only for the completion report: TM[17,2] and TM[1,7], the latter
-/// carrying the request ID (the obsw sends all TM on both links, so the ID tells whose
-/// reply it is).
+/// carrying the request ID (so a late reply to an earlier ping is not taken for this one).
 fn ping(apid: u16, seq: u16) -> Vec<u8> {
     let mut raw = tc(apid, seq & 0x3FFF, 17, 1, &[]);
     raw[6] = (raw[6] & 0xF0) | 0x01;
@@ -94,15 +96,14 @@ fn main() {
         &s(&tmk),
         "--link-state",
         &s(&dir.join("obsw.state")),
-        // The bare-packet link beside the frame link, for the comparison.
-        "--lab-bare-packets",
     ]);
+    // The bare-packet lab link, in an obsw of its own.
+    let o_bare = Obsw::start(&[]);
     let until = Instant::now() + Duration::from_secs(10);
     while g.fop_state() != FopState::Active && Instant::now() < until {
         g.recv(Duration::from_millis(20)).unwrap();
     }
     assert_eq!(g.fop_state(), FopState::Active, "COP-1 initialised");
-    // Separate sockets: the obsw's bare link sends HK to its subscriber as well.
     let cli = UdpSocket::bind("127.0.0.1:0").unwrap();
     cli.set_read_timeout(Some(Duration::from_secs(2))).unwrap();
     let bare_sock = UdpSocket::bind("127.0.0.1:0").unwrap();
@@ -110,14 +111,14 @@ fn main() {
     let mut b = [0u8; 2048];
     let (mut echo, mut bare, mut framed) = (Vec::new(), Vec::new(), Vec::new());
     for i in 0..n {
-        let p = ping(o.apid, i as u16);
+        let p = ping(o_bare.apid, i as u16);
         let t = Instant::now();
         cli.send_to(&p, echo_addr).unwrap();
         cli.recv(&mut b).unwrap();
         echo.push(t.elapsed().as_secs_f64() * 1e6);
 
         let t = Instant::now();
-        bare_sock.send_to(&p, o.udp).unwrap();
+        bare_sock.send_to(&p, o_bare.udp).unwrap();
         loop {
             let k = bare_sock.recv(&mut b).expect("bare ping reply");
             if Tm::parse(&b[..k]).is_some_and(|t| t.subservice == 7 && t.request() == Some(request_of(&p))) {
@@ -126,8 +127,7 @@ fn main() {
         }
         bare.push(t.elapsed().as_secs_f64() * 1e6);
 
-        // Distinct bytes (sequence count), so the on-board duplicate window never answers.
-        let p = ping(o.apid, (i + 8192) as u16);
+        let p = ping(o.apid, i as u16);
         let t = Instant::now();
         g.send_packet(&p).unwrap();
         'wait: loop {
@@ -150,6 +150,7 @@ fn main() {
         g.counters.ad_frames_sent, g.counters.retransmissions
     );
     drop(o);
+    drop(o_bare);
     let _ = echo_proc.kill();
     let _ = echo_proc.wait();
     let _ = std::fs::remove_dir_all(&dir);
