@@ -194,9 +194,10 @@ pub const SUBSCRIPTION_LEASE_MS: u32 = 30_000;
 /// Ground: a running ground sends a TC[17,1] at least this often (keeps the lease and
 /// checks the link).
 pub const GROUND_HEARTBEAT_MS: u32 = 1000;
-/// Ground: no TM at all for this long while a step runs means the link or the obsw is
-/// lost. 2.5 s (2.5 heartbeats) so that a dead link is reported within 3 s, the ground's
-/// promise, including the poll and process exit.
+/// Ground: the floor of the link-loss rule ([`link_loss_ms`]): no TM at all for this long
+/// means the link or the obsw is lost, however fast the robot's HK. 2.5 s (2.5
+/// heartbeats) so that a dead link is reported within 3 s, the ground's promise,
+/// including the poll and process exit, at the MIB's default HK interval (1 s).
 pub const LINK_LOSS_MS: u32 = 2500;
 const _: () =
     assert!(GROUND_HEARTBEAT_MS * 2 < LINK_LOSS_MS && (LINK_LOSS_MS as usize) < SUBSCRIPTION_LEASE_MS as usize);
