@@ -47,7 +47,7 @@ use satrs::spacepackets::ecss::{EcssEnumU16, EcssEnumU8};
 use satrs::spacepackets::ByteConversionError;
 
 use crate::accept::{Ack, RequestId};
-use crate::failure::Failure;
+use crate::failure::{Failure, SentFailure};
 use crate::time::OnboardTime;
 use crate::tm::{TmSink, TmStore, TmWriter};
 
@@ -295,7 +295,7 @@ impl<S: TmStore> Downlink<S> {
 
     /// TM[1,2]: the request is refused (always reported).
     pub fn reject(&mut self, now: u64, t: New, f: &Failure, sink: &mut impl TmSink) {
-        self.fail(now, t.tok.request_id(), Stage::Acceptance, f, sink);
+        self.fail(now, t.tok.request_id(), Stage::Acceptance, f.into(), sink);
     }
 
     /// TM[1,3] (if asked for): execution started.
@@ -313,7 +313,7 @@ impl<S: TmStore> Downlink<S> {
 
     /// TM[1,4]: execution could not start (always reported).
     pub fn fail_start(&mut self, now: u64, t: Accepted, f: &Failure, sink: &mut impl TmSink) {
-        self.fail(now, t.tok.request_id(), Stage::Start, f, sink);
+        self.fail(now, t.tok.request_id(), Stage::Start, f.into(), sink);
     }
 
     /// TM[1,5] (if asked for): progress step `n` done.
@@ -346,7 +346,7 @@ impl<S: TmStore> Downlink<S> {
 
     /// TM[1,8]: the request failed (always reported).
     pub fn fail_completion(&mut self, now: u64, t: Started, f: &Failure, sink: &mut impl TmSink) {
-        self.fail(now, t.tok.request_id(), Stage::Completion, f, sink);
+        self.fail(now, t.tok.request_id(), Stage::Completion, f.into(), sink);
     }
 
     /// Repeats TM[1,7] for a duplicate of a request that completed.
@@ -372,14 +372,14 @@ impl<S: TmStore> Downlink<S> {
         now: u64,
         rid: impl Into<SatrsRequestId>,
         stage: Stage,
-        f: &Failure,
+        f: SentFailure,
         sink: &mut impl TmSink,
     ) {
         let rid = rid.into();
-        let code = EcssEnumU16::new(f.code().code());
+        let code = EcssEnumU16::new(f.code());
         let data = f.data();
         self.report(now, sink, |v, s, seq, msg, st| {
-            let p = FailParams::new(st, &code, &data);
+            let p = FailParams::new(st, &code, data);
             match stage {
                 Stage::Acceptance => v.acceptance_failure(s, &rid, seq, msg, p),
                 Stage::Start => v.start_failure(s, &rid, seq, msg, p),

@@ -21,6 +21,40 @@ fn sat32(v: u64) -> u32 {
     v.min(u32::MAX as u64) as u32
 }
 
+/// A failure as it was sent: its code and data bytes (16 bytes). The duplicate window
+/// keeps one per remembered TC to repeat the report (128 on board A), where the typed
+/// [`Failure`] takes 44 bytes on the 32-bit target (its `Unknown` variant's buffer): 4 KB
+/// of static RAM.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SentFailure {
+    code: u16,
+    len: u8,
+    data: [u8; MAX_FAILURE_DATA],
+}
+
+impl SentFailure {
+    pub fn code(&self) -> u16 {
+        self.code
+    }
+    /// The failure data as sent after the code.
+    pub fn data(&self) -> &[u8] {
+        self.data.get(..self.len as usize).unwrap_or(&[])
+    }
+}
+
+impl From<&Failure> for SentFailure {
+    fn from(f: &Failure) -> Self {
+        let d = f.data();
+        let mut data = [0u8; MAX_FAILURE_DATA];
+        data[..d.len()].copy_from_slice(&d);
+        SentFailure {
+            code: f.code().code(),
+            len: d.len() as u8,
+            data,
+        }
+    }
+}
+
 impl Failure {
     pub fn code(&self) -> FailureCode {
         FailureCode::from_code(self.0.code())
@@ -291,7 +325,11 @@ mod tests {
         for f in &all {
             assert_eq!(f.data().len(), f.code().data_len(), "{:?}", f.code());
             assert!(f.data().len() <= MAX_FAILURE_DATA);
+            // What the duplicate window keeps repeats exactly what was sent.
+            let sent = SentFailure::from(f);
+            assert_eq!((sent.code(), sent.data()), (f.code().code(), &f.data()[..]));
         }
+        assert!(core::mem::size_of::<SentFailure>() <= 16, "kept 128 times on board A");
         // Every code of the MIB has a constructor.
         for c in FailureCode::ALL {
             assert!(all.iter().any(|f| f.code() == *c), "{c:?} has no constructor");

@@ -12,7 +12,7 @@ use mmic_domain::SensorsA;
 
 use crate::accept::{accept, RequestId, Tc};
 use crate::downlink::{Accepted, Downlink, New, Stage, Started};
-use crate::failure::Failure;
+use crate::failure::{Failure, SentFailure};
 use crate::fdir::{self, Faults, Monitoring};
 use crate::modes::ModeTree;
 use crate::request::{Ctx, Request};
@@ -85,7 +85,8 @@ pub struct Counters {
 pub(crate) enum Outcome {
     Pending,
     Done,
-    Failed(Stage, Failure),
+    /// The failure as sent (compact: the window keeps up to `DUPLICATE_WINDOW`).
+    Failed(Stage, SentFailure),
 }
 
 // The duplicate window must recognise every resend of a TC: the ground resends the same
@@ -349,7 +350,7 @@ impl<S: TmStore> Obsw<S> {
             Err(rej) => {
                 self.counters.tc_rejected = self.counters.tc_rejected.wrapping_add(1);
                 if let Some(req) = rej.req {
-                    self.dl.fail(now, req, Stage::Acceptance, &rej.failure, sink);
+                    self.dl.fail(now, req, Stage::Acceptance, (&rej.failure).into(), sink);
                 }
                 self.tc_rejected_event(now, (rej.service, rej.subservice), &rej.failure, sink);
                 return;
@@ -396,7 +397,7 @@ impl<S: TmStore> Obsw<S> {
                     packet_id: u16::from_be_bytes([*h0, *h1]),
                     psc: u16::from_be_bytes([*h2, *h3]),
                 };
-                self.dl.fail(now, req, Stage::Acceptance, &f, sink);
+                self.dl.fail(now, req, Stage::Acceptance, (&f).into(), sink);
                 // Service and subservice, if the secondary header was kept.
                 match rest {
                     [_, _, _, svc, sub, ..] => (*svc, *sub),
@@ -465,7 +466,7 @@ impl<S: TmStore> Obsw<S> {
     /// Records a failed request and raises TC_REJECTED.
     fn refused(&mut self, now: u64, tc: &Tc, stage: Stage, f: Failure, sink: &mut impl TmSink) {
         self.tc_rejected_event(now, (tc.service, tc.subservice), &f, sink);
-        self.set_outcome(tc.req, Outcome::Failed(stage, f));
+        self.set_outcome(tc.req, Outcome::Failed(stage, (&f).into()));
     }
 
     pub(crate) fn tc_rejected_event(&mut self, now: u64, (svc, sub): (u8, u8), f: &Failure, sink: &mut impl TmSink) {
@@ -489,7 +490,7 @@ impl<S: TmStore> Obsw<S> {
         match prev {
             Outcome::Done if tc.ack.completion() => self.dl.repeat_completion(now, tc.req, sink),
             Outcome::Done | Outcome::Pending => {}
-            Outcome::Failed(stage, f) => self.dl.fail(now, tc.req, stage, &f, sink),
+            Outcome::Failed(stage, f) => self.dl.fail(now, tc.req, stage, f, sink),
         }
     }
 

@@ -182,7 +182,7 @@ impl<S: TmStore> Obsw<S> {
                 }
                 Some(f) => {
                     self.dl.fail_completion(now, token, &f, sink);
-                    self.set_outcome(req, Outcome::Failed(Stage::Completion, f));
+                    self.set_outcome(req, Outcome::Failed(Stage::Completion, (&f).into()));
                 }
             }
         } else if let Some(t) = self

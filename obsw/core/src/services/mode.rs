@@ -324,7 +324,7 @@ impl<S: TmStore> Obsw<S> {
         let f = Failure::mode_change_failed(node::ROBOT, c.target, reason, event);
         let req = c.token.req;
         self.dl.fail_completion(now, c.token, &f, sink);
-        self.set_outcome(req, Outcome::Failed(Stage::Completion, f));
+        self.set_outcome(req, Outcome::Failed(Stage::Completion, (&f).into()));
     }
 
     /// A transition that cannot complete: report it and fall back to standby.
