@@ -228,7 +228,7 @@ impl Links {
     /// and a session to them.
     fn open(&self, robots: &[(u8, SocketAddr)], archive_path: Option<&Path>) -> Result<(Session, Option<Archive>)> {
         let (transport, frames) = self.choice(robots)?;
-        verb_live::say_links(robots, transport);
+        verb_live::say_links(robots, transport, frames.as_ref());
         open_session(robots, transport, frames.as_ref(), archive_path)
     }
 }

@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
 use ground::archive::{self, Archive};
-use ground::link::Transport;
+use ground::link::{FrameOptions, Transport};
 use ground::ops::{self, Session, Update};
 use ground::pus::{self, Packet, Stage, TmBody};
 
@@ -16,8 +16,14 @@ use crate::{close_archive, coded, err_line, exit, out};
 use clap::Args;
 
 /// Says which robots a verb talks to, and how.
-pub(crate) fn say_links(links: &[(u8, SocketAddr)], transport: Transport) {
-    let l: Vec<String> = links.iter().map(|(r, a)| format!("robot {r} at {a}")).collect();
+pub(crate) fn say_links(links: &[(u8, SocketAddr)], transport: Transport, frames: Option<&FrameOptions>) {
+    let l: Vec<String> = links
+        .iter()
+        .map(|(r, a)| match frames.and_then(|f| f.serial.get(r)) {
+            Some(path) => format!("robot {r} on serial {}", path.display()),
+            None => format!("robot {r} at {a}"),
+        })
+        .collect();
     err_line!("talking to {} ({})", l.join(", "), transport.name());
 }
 
