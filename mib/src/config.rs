@@ -243,6 +243,12 @@ pub const GAP_RANGE_MAX: u16 = 256;
 /// 16 leaves that window room for every plan TC in a retry span.
 pub const GAP_REQUESTS_MAX: usize = 16;
 const _: () = assert!(GAP_REQUESTS_MAX * 4 < DUPLICATE_WINDOW);
+/// Ground: ranges asked per round while TM is live (a plan running, a collector
+/// following a robot): one, and the next round waits for its end report or
+/// [`STORE_REQUEST_TIMEOUT_MS`], so one replay is in flight per robot and the ground's
+/// own requests — whose reports can be lost and make new gaps — cannot snowball. The
+/// rest is asked for at the end of a run ([`GAP_REQUESTS_MAX`] per round).
+pub const GAP_REQUESTS_LIVE: usize = 1;
 /// Ground: a store request whose end report (TM[15,19]) did not come is given up after
 /// this long (its reports were lost; the holes are asked for again). Two first waits of
 /// a TC ([`TC_RETRY_INITIAL_MS`]) plus margin: the store answers within one.

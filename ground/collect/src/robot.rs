@@ -38,9 +38,8 @@ use super::tracker::{ApidTracker, GapPlan, LinkWatch, Pos};
 const BACKOFF_START_MS: i64 = 250;
 /// Health written to the archive this often.
 const HEALTH_MS: i64 = 2_000;
-/// Store-range requests sent per round; the next round waits for the store's end report
-/// (TM[15,19]) or [`STORE_REQUEST_TIMEOUT_MS`], so one robot has one replay in flight.
-const MAX_RUNS_PER_REQUEST: usize = 1;
+/// [`mib::config::GAP_REQUESTS_LIVE`]: one replay in flight per robot.
+const MAX_RUNS_PER_REQUEST: usize = mib::config::GAP_REQUESTS_LIVE;
 /// [`mib::config::STORE_REQUEST_TIMEOUT_MS`].
 const STORE_REQUEST_TIMEOUT_MS: i64 = mib::config::STORE_REQUEST_TIMEOUT_MS as i64;
 /// [`mib::config::STORE_REQUEST_MIN_GAP_MS`].

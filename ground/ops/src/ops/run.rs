@@ -151,7 +151,7 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
                 }
                 Effect::Retrieve(r) => {
                     if !session.retrieving(r) {
-                        session.request_missing_reports(r, 1);
+                        session.request_missing_reports(r, mib::config::GAP_REQUESTS_LIVE);
                     }
                 }
                 Effect::Log(line) => disp.log(line),
@@ -205,7 +205,7 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
                     // (the duplicate window holds a bounded number of TCs), over frames
                     // retrievals queued in FOP-1 would hold the plan's next TC back. The
                     // rest at the end.
-                    session.request_missing_reports(r, 1);
+                    session.request_missing_reports(r, mib::config::GAP_REQUESTS_LIVE);
                 }
             }
         }
