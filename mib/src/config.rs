@@ -226,12 +226,13 @@ pub const fn link_loss_ms(hk_interval_ms: u32) -> u32 {
 
 // --- Ground: TM gaps retrieved from the on-board store (PUS 15) ---
 
-/// Ground: gaps in a robot's TM closer than this (sequence counts) are asked for as one
-/// range; the packets between come again and are dropped as duplicates. 16 bounds that
-/// waste to ~16 repeated packets per merge, about what one more TC[15,128] costs with
-/// its reports on a lossy link (the request and up to three reports, each of which can
-/// be lost and become a gap of its own); a larger distance replays mostly packets the
-/// ground already has.
+/// Ground: gaps in a robot's TM at most this many sequence counts apart are asked for as
+/// one range; the packets between come again and are dropped as duplicates. Merging two
+/// gaps `d` apart replays `d` packets the ground already has to save one request and its
+/// reports (acceptance, TM[15,19], completion — each of which can be lost and become a
+/// gap of its own). 16 bounds that waste per merge while still joining the many short
+/// gaps of a lossy link into few ranges; the collector's 64 replayed up to four times as
+/// much (both front ends now use this one number).
 pub const GAP_MERGE_DISTANCE: u16 = 16;
 /// Ground: most sequence counts asked for in one range: the replay of one request stays
 /// a short burst however long the outage was (the rest is asked for in the next round):
@@ -239,10 +240,10 @@ pub const GAP_MERGE_DISTANCE: u16 = 16;
 /// sixteenth of the on-board store ([`TM_STORE_CAPACITY`]).
 pub const GAP_RANGE_MAX: u16 = 256;
 /// Ground: most ranges asked of one robot's store in one round. Each is a TC the robot
-/// remembers in its duplicate window ([`DUPLICATE_WINDOW`], 128) beside the heartbeats:
-/// 16 leaves that window room for every plan TC in a retry span.
+/// remembers in its duplicate window ([`DUPLICATE_WINDOW`]) beside the heartbeats of one
+/// retry span (~38): together under half the window, the rest is for plan TCs.
 pub const GAP_REQUESTS_MAX: usize = 16;
-const _: () = assert!(GAP_REQUESTS_MAX * 4 < DUPLICATE_WINDOW);
+const _: () = assert!(GAP_REQUESTS_MAX + (TC_RETRY_SPAN_MS / GROUND_HEARTBEAT_MS) as usize <= DUPLICATE_WINDOW / 2);
 /// Ground: ranges asked per round while TM is live (a plan running, a collector
 /// following a robot): one, and the next round waits for its end report or
 /// [`STORE_REQUEST_TIMEOUT_MS`], so one replay is in flight per robot and the ground's
@@ -250,8 +251,9 @@ const _: () = assert!(GAP_REQUESTS_MAX * 4 < DUPLICATE_WINDOW);
 /// rest is asked for at the end of a run ([`GAP_REQUESTS_MAX`] per round).
 pub const GAP_REQUESTS_LIVE: usize = 1;
 /// Ground: a store request whose end report (TM[15,19]) did not come is given up after
-/// this long (its reports were lost; the holes are asked for again). Two first waits of
-/// a TC ([`TC_RETRY_INITIAL_MS`]) plus margin: the store answers within one.
+/// this long (its reports were lost; the holes are asked for again): more than
+/// [`RETRIEVAL_WAITS`] first waits of a TC ([`TC_RETRY_INITIAL_MS`]), after which a CLI
+/// run no longer holds its next retrieval back either.
 pub const STORE_REQUEST_TIMEOUT_MS: u32 = 2_000;
 /// Ground: least time between two rounds of store requests to one robot: the requests'
 /// own reports can be lost and make new gaps, so their rate is bounded (two rounds per
@@ -259,14 +261,15 @@ pub const STORE_REQUEST_TIMEOUT_MS: u32 = 2_000;
 pub const STORE_REQUEST_MIN_GAP_MS: u32 = 500;
 /// Ground: how long an accepted TC that no step waits for (a marker, a store retrieval,
 /// `ground send` without waiting) is tracked for its completion: it is never resent, and
-/// a lost completion report is recovered as a TM gap; after this it is forgotten. Longer
-/// than the longest ground-side completion of such a TC on the lab links (a store replay
-/// of [`GAP_RANGE_MAX`] packets), short enough not to hold a session's exit.
+/// a lost completion report is recovered as a TM gap; after this it is forgotten. Seven
+/// first waits ([`TC_RETRY_INITIAL_MS`]) for a report that on board follows acceptance
+/// within a control period or two (a store replay: [`GAP_RANGE_MAX`] packets at most),
+/// short enough not to hold a session's exit for long.
 pub const UNTAGGED_COMPLETION_WAIT_MS: u32 = 5_000;
-/// Ground (collector): the subscription and the HK-interval TC are sent this many times
-/// per link-up before the collector waits for the next renewal: at one try per lease
-/// renewal ([`GROUND_HEARTBEAT_MS`]) that is 10 s of trying, longer than any lab outage
-/// the lossy-relay test makes, short enough not to flood a robot that refuses them.
+/// Ground (collector): the HK-interval TC is sent this many times per link-up (once per
+/// lease renewal, [`GROUND_HEARTBEAT_MS`]: 10 s of trying) until its completion is seen;
+/// then the collector waits for the next link-up or reboot, so a robot that refuses it is
+/// not sent it forever.
 pub const HK_SET_TRIES: u32 = 10;
 /// Ground (collector): least time between two requests for the module report or the team
 /// status: the answer of the first one (a TC executes within a control period or two) is
