@@ -281,7 +281,7 @@ mod tests {
             assert_eq!(rep.def.sid, def.sid);
             let mut count = 0;
             for (p, v) in rep.values() {
-                let expect = ((p.id as i64 * 37) % 200).clamp(p.ptype.min(), p.ptype.max());
+                let expect = p.ptype.saturate((p.id as i64 * 37) % 200);
                 assert_eq!(v, expect, "{}", p.name);
                 count += 1;
             }

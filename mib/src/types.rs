@@ -57,16 +57,28 @@ impl PType {
             PType::I32 => i32::MAX as i64,
         }
     }
-    /// Writes `raw` (saturated to the type's range; a boolean is `raw != 0`, as the
-    /// wire crate's typed `from_values`) into `buf[..size]`.
+    /// The value `raw` is sent as: saturated to the type's range, a boolean `raw != 0`
+    /// (the wire crate's typed `from_values` does the same).
+    pub const fn saturate(self, raw: i64) -> i64 {
+        match self {
+            PType::Bool => (raw != 0) as i64,
+            _ => {
+                if raw < self.min() {
+                    self.min()
+                } else if raw > self.max() {
+                    self.max()
+                } else {
+                    raw
+                }
+            }
+        }
+    }
+    /// Writes `raw` ([`Self::saturate`]d) into `buf[..size]`.
     /// Returns `None` if `buf` is too short.
     pub fn encode(self, raw: i64, buf: &mut [u8]) -> Option<usize> {
         let n = self.size();
         let out = buf.get_mut(..n)?;
-        let v = match self {
-            PType::Bool => (raw != 0) as i64,
-            _ => raw.clamp(self.min(), self.max()),
-        };
+        let v = self.saturate(raw);
         match self {
             PType::Bool | PType::U8 => out[0] = v as u8,
             PType::U16 => out.copy_from_slice(&(v as u16).to_be_bytes()),

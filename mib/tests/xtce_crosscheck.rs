@@ -200,7 +200,7 @@ fn packets() -> Vec<(Vec<u8>, Expected)> {
             let mut exp = Vec::new();
             for ((p, raw), (id, put)) in rep.values().zip(&vals) {
                 assert_eq!(p.id, *id);
-                assert_eq!(raw, (*put).clamp(p.ptype.min(), p.ptype.max()), "{}", p.name);
+                assert_eq!(raw, p.ptype.saturate(*put), "{}", p.name);
                 exp.push((p.name.to_string(), raw, eng_of(p, raw)));
             }
             assert_eq!(exp.len(), h.params.len());
