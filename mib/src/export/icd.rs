@@ -146,7 +146,7 @@ fn param_row(o: &mut String, p: &ParamDef) {
         p.name,
         p.ptype.name(),
         if p.unit.is_empty() { "—" } else { p.unit },
-        calib_text(&p.calib),
+        calib_text(p.calib),
         s,
         h,
         applies_text(p),

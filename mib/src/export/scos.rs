@@ -546,10 +546,10 @@ fn calibrations() -> Vec<(String, Calib, PType, &'static str)> {
     for p in PARAMS.iter().filter(|p| !p.calib.is_identity()) {
         let known = out
             .iter()
-            .any(|(_, c, t, u)| *c == p.calib && *t == p.ptype && *u == p.unit);
+            .any(|(_, c, t, u)| *c == *p.calib && *t == p.ptype && *u == p.unit);
         if !known {
             let name = format!("MMCAL{:03}", out.len() + 1);
-            out.push((name, p.calib, p.ptype, p.unit));
+            out.push((name, *p.calib, p.ptype, p.unit));
         }
     }
     out
@@ -705,7 +705,7 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
     for p in PARAMS {
         let curtx = cals
             .iter()
-            .find(|(_, c, t, u)| !p.calib.is_identity() && *c == p.calib && *t == p.ptype && *u == p.unit)
+            .find(|(_, c, t, u)| !p.calib.is_identity() && *c == *p.calib && *t == p.ptype && *u == p.unit)
             .map(|(n, ..)| n.clone())
             .unwrap_or_default();
         pcf_row(
