@@ -348,9 +348,22 @@ pub enum FrameError {
     Overflow,
 }
 
+// Static text and numbers, not the `Debug` impl: a `Display` that formats through
+// `Debug` would link the derived `Debug` code into every image that prints the error.
 impl core::fmt::Display for FrameError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        write!(f, "{self:?}")
+        match self {
+            FrameError::Cobs => f.write_str("COBS decoding failed"),
+            FrameError::TooShort => f.write_str("frame too short"),
+            FrameError::Crc { received, computed } => {
+                write!(f, "CRC mismatch: received 0x{received:04X}, computed 0x{computed:04X}")
+            }
+            FrameError::UnknownKind(k) => write!(f, "unknown frame kind 0x{k:02X}"),
+            FrameError::UnknownCommand(c) => write!(f, "unknown command 0x{c:02X}"),
+            FrameError::BadLength => f.write_str("bad length"),
+            FrameError::BadValue => f.write_str("bad value"),
+            FrameError::Overflow => f.write_str("frame longer than LINK_MAX_FRAME"),
+        }
     }
 }
 
