@@ -72,8 +72,3 @@ impl<'a> Request<'a> {
 pub(crate) fn unknown(tc: &Tc) -> Failure {
     Failure::unknown_subservice(tc.service, tc.subservice)
 }
-
-/// Argument `i` of a TC as an unsigned 16-bit value (range-checked by `accept`).
-pub(crate) fn u16_arg(tc: &Tc, i: usize) -> u16 {
-    tc.args[i] as u16
-}

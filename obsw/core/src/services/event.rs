@@ -8,8 +8,9 @@ use crate::accept::Tc;
 use crate::downlink::EventIndex;
 use crate::failure::Failure;
 use crate::obsw::Obsw;
-use crate::request::{u16_arg, unknown};
+use crate::request::unknown;
 use crate::tm::{TmSink, TmStore};
+use mib_wire::args;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Request {
@@ -23,13 +24,10 @@ pub enum Request {
 
 impl Request {
     pub fn parse(tc: &Tc) -> Result<Self, Failure> {
-        let ev = || {
-            let id = u16_arg(tc, 0);
-            EventIndex::of(id).ok_or(Failure::unknown_event(id))
-        };
+        let ev = |id: u16| EventIndex::of(id).ok_or(Failure::unknown_event(id));
         Ok(match tc.subservice {
-            5 => Request::Enable(ev()?),
-            6 => Request::Disable(ev()?),
+            5 => Request::Enable(ev(args::EventEnable::of(&tc.args).event_id)?),
+            6 => Request::Disable(ev(args::EventDisable::of(&tc.args).event_id)?),
             7 => Request::ReportDisabled,
             _ => return Err(unknown(tc)),
         })

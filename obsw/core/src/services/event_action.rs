@@ -10,8 +10,9 @@ use crate::accept::Tc;
 use crate::failure::Failure;
 use crate::fdir::Response;
 use crate::obsw::Obsw;
-use crate::request::{u16_arg, unknown};
+use crate::request::unknown;
 use crate::tm::{TmSink, TmStore};
+use mib_wire::args;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Request {
@@ -25,15 +26,14 @@ pub enum Request {
 
 impl Request {
     pub fn parse(tc: &Tc) -> Result<Self, Failure> {
-        let link = || {
-            let ev = u16_arg(tc, 0);
+        let link = |ev: u16| {
             mib::fdir::fault_by_event(ev)
                 .map(|f| f.event)
                 .ok_or(Failure::unknown_action_link(ev))
         };
         Ok(match tc.subservice {
-            4 => Request::Enable(link()?),
-            5 => Request::Disable(link()?),
+            4 => Request::Enable(link(args::EaEnable::of(&tc.args).event_id)?),
+            5 => Request::Disable(link(args::EaDisable::of(&tc.args).event_id)?),
             8 => Request::Report,
             _ => return Err(unknown(tc)),
         })

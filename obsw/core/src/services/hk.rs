@@ -7,7 +7,7 @@ use mib_wire::tm;
 use crate::accept::Tc;
 use crate::failure::Failure;
 use crate::obsw::Obsw;
-use crate::request::{u16_arg, unknown};
+use crate::request::unknown;
 use crate::tm::{TmSink, TmStore};
 
 const N_HK: usize = HK_STRUCTS.len();
@@ -40,11 +40,11 @@ pub enum Request {
 
 impl Request {
     pub fn parse(tc: &Tc) -> Result<Self, Failure> {
-        let sid = || HkIndex::of(u16_arg(tc, 0));
+        use mib_wire::args;
         Ok(match tc.subservice {
-            5 => Request::Enable(sid()?),
-            6 => Request::Disable(sid()?),
-            27 => Request::OneShot(sid()?),
+            5 => Request::Enable(HkIndex::of(args::HkEnable::of(&tc.args).sid)?),
+            6 => Request::Disable(HkIndex::of(args::HkDisable::of(&tc.args).sid)?),
+            27 => Request::OneShot(HkIndex::of(args::HkOneShot::of(&tc.args).sid)?),
             // Range-checked against the MIB's interval limits by `accept`.
             31 => {
                 let x = mib_wire::args::HkSetInterval::of(&tc.args);

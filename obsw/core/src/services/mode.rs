@@ -46,17 +46,18 @@ pub enum Request {
 
 impl Request {
     pub fn parse(tc: &Tc) -> Result<Self, Failure> {
-        let n = Node::of(tc.args[0] as u32)?;
+        use mib_wire::args::{ModeAnnounce, ModeRead, ModeSet};
         Ok(match tc.subservice {
             1 => {
-                let mode = mib_wire::args::ModeSet::of(&tc.args).mode;
+                let x = ModeSet::of(&tc.args);
+                let (n, mode) = (Node::of(x.node)?, x.mode);
                 if n.0 != node::ROBOT || !mib::modes::is_commandable_root_mode(mode) {
                     return Err(Failure::invalid_mode(n.0, mode));
                 }
                 Request::Set { mode }
             }
-            3 => Request::Read(n),
-            5 => Request::Announce(n),
+            3 => Request::Read(Node::of(ModeRead::of(&tc.args).node)?),
+            5 => Request::Announce(Node::of(ModeAnnounce::of(&tc.args).node)?),
             _ => return Err(unknown(tc)),
         })
     }

@@ -227,8 +227,7 @@ impl Request {
     pub fn parse(tc: &Tc) -> Result<Self, Failure> {
         Ok(match tc.subservice {
             1 => Request::Report,
-            // Range-checked (whole u32) by `accept`.
-            2 => Request::Accept(tc.args[0] as u32),
+            2 => Request::Accept(mib_wire::args::AcceptConfig::of(&tc.args).hash),
             _ => return Err(unknown(tc)),
         })
     }

@@ -12,7 +12,7 @@ use crate::accept::Tc;
 use crate::failure::Failure;
 use crate::fdir::{self, Monitor, Monitoring, N_MONITORS};
 use crate::obsw::Obsw;
-use crate::request::{u16_arg, unknown};
+use crate::request::unknown;
 use crate::tm::{TmSink, TmStore};
 
 /// Index of a monitor in `mib::fdir::MONITORS` (and `Monitoring::mons`, built from it
@@ -55,10 +55,10 @@ pub enum Request {
 
 impl Request {
     pub fn parse(tc: &Tc) -> Result<Self, Failure> {
-        let mon = || MonitorIndex::of(u16_arg(tc, 0));
+        use mib_wire::args;
         Ok(match tc.subservice {
-            1 => Request::Enable(mon()?),
-            2 => Request::Disable(mon()?),
+            1 => Request::Enable(MonitorIndex::of(args::MonEnable::of(&tc.args).monitor_id)?),
+            2 => Request::Disable(MonitorIndex::of(args::MonDisable::of(&tc.args).monitor_id)?),
             7 => {
                 let x = mib_wire::args::MonModify::of(&tc.args);
                 let m = MonitorIndex::of(x.monitor_id)?;

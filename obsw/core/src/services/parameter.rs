@@ -7,7 +7,7 @@ use mib_wire::tm;
 use crate::accept::Tc;
 use crate::failure::Failure;
 use crate::obsw::Obsw;
-use crate::request::{u16_arg, unknown};
+use crate::request::unknown;
 use crate::tm::{TmSink, TmStore};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -20,12 +20,14 @@ pub enum Request {
 
 impl Request {
     pub fn parse(tc: &Tc) -> Result<Self, Failure> {
-        let id = u16_arg(tc, 0);
-        let t = mib::tunables::by_id(id).ok_or(Failure::unknown_parameter(id))?;
+        use mib_wire::args::{ParamReport, ParamSet};
+        let tunable = |id: u16| mib::tunables::by_id(id).ok_or(Failure::unknown_parameter(id));
         Ok(match tc.subservice {
-            1 => Request::Report(t),
+            1 => Request::Report(tunable(ParamReport::of(&tc.args).param_id)?),
             3 => {
-                let v = i64::from(mib_wire::args::ParamSet::of(&tc.args).value);
+                let x = ParamSet::of(&tc.args);
+                let t = tunable(x.param_id)?;
+                let v = i64::from(x.value);
                 if v < t.min as i64 || v > t.max as i64 {
                     return Err(Failure::param_out_of_range(t.id, v as i32));
                 }

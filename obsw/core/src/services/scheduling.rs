@@ -95,7 +95,7 @@ impl<'a> Request<'a> {
 /// Which form a TC[11,4] has, its N and its activities. The MIB's first argument is N in
 /// the CDS form and the sub-schedule ID in Yamcs' form; the second octet tells them apart.
 fn insert_form<'a>(tc: &Tc<'a>) -> Result<(Form, u8, &'a [u8]), Failure> {
-    let first = tc.args[0] as u8;
+    let first = mib_wire::args::SchedInsert::of(&tc.args).count;
     match tc.rest.split_first() {
         Some((&mark, _)) if mark == sched_cuc::CDS_FORM_MARK => Ok((Form::Cds, first, tc.rest)),
         Some((&n, activities)) => {

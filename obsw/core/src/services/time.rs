@@ -21,7 +21,7 @@ pub enum Request {
 impl Request {
     pub fn parse(tc: &Tc) -> Result<Self, Failure> {
         Ok(match tc.subservice {
-            1 => Request::SetRate(tc.args[0] as u8),
+            1 => Request::SetRate(mib_wire::args::TimeSetRate::of(&tc.args).rate_exp),
             128 => Request::ReportNow,
             _ => return Err(unknown(tc)),
         })
