@@ -5,6 +5,7 @@
 
 pub mod bus;
 pub mod clock;
+pub mod defmt_sink;
 pub mod gpio;
 pub mod panic;
 pub mod servos;
