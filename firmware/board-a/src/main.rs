@@ -94,6 +94,19 @@ type Io = PeripheralsA<
     ActiveLowEnable<Output<'static>>,
 >;
 
+/// `Ok` value of a start-up step, or a panic with a static message. Not `expect`: that
+/// formats the error with `Debug`, which keeps the error type's `Debug` impl and the
+/// formatting under it in the image. The panic record keeps this line (board A's
+/// PREVIOUS_PANIC after the reset), which names the step.
+macro_rules! must {
+    ($r:expr, $what:literal) => {
+        match $r {
+            Ok(v) => v,
+            Err(_) => panic!($what),
+        }
+    };
+}
+
 #[embassy_executor::task]
 async fn uplink(rx: UsbSerialJtagRx<'static, Async>) {
     link::uplink_task(rx, &TCS, &UPLINK_STATS).await
@@ -184,19 +197,23 @@ async fn main(spawner: Spawner) {
     let (usb_rx, usb_tx) = UsbSerialJtag::new(p.USB_DEVICE).into_async().split();
 
     // A↔B link on UART1: TX GPIO21, RX GPIO20 (crossed to board B).
-    let uart = Uart::new(p.UART1, UartConfig::default().with_baudrate(cfg::AB_LINK_BAUD))
-        .expect("UART1 config")
-        .with_tx(p.GPIO21)
-        .with_rx(p.GPIO20)
-        .into_async();
+    let uart = must!(
+        Uart::new(p.UART1, UartConfig::default().with_baudrate(cfg::AB_LINK_BAUD)),
+        "UART1 config"
+    )
+    .with_tx(p.GPIO21)
+    .with_rx(p.GPIO20)
+    .into_async();
     let (uart_rx, uart_tx) = uart.split();
 
     // Sensor bus: I2C0, SDA GPIO4, SCL GPIO5, 400 kHz.
-    let i2c = I2c::new(
-        p.I2C0,
-        I2cConfig::default().with_frequency(Rate::from_khz(cfg::I2C_FREQ_KHZ)),
+    let i2c = must!(
+        I2c::new(
+            p.I2C0,
+            I2cConfig::default().with_frequency(Rate::from_khz(cfg::I2C_FREQ_KHZ)),
+        ),
+        "I2C0 config"
     )
-    .expect("I2C0 config")
     .with_sda(p.GPIO4)
     .with_scl(p.GPIO5);
     let bus = bus::share(i2c);
@@ -217,13 +234,13 @@ async fn main(spawner: Spawner) {
 
     // Servos on LEDC: arm GPIO0, gripper GPIO1, hip GPIO3, bolter translate GPIO6,
     // bolter rotate GPIO7.
-    let bank = ServoBank::new(Ledc::new(p.LEDC)).expect("LEDC timer");
+    let bank = must!(ServoBank::new(Ledc::new(p.LEDC)), "LEDC timer");
     let side = SideOutputs {
-        arm: bank.servo(Ch::Channel0, p.GPIO0).expect("arm servo"),
-        grip: bank.servo(Ch::Channel1, p.GPIO1).expect("gripper servo"),
+        arm: must!(bank.servo(Ch::Channel0, p.GPIO0), "arm servo"),
+        grip: must!(bank.servo(Ch::Channel1, p.GPIO1), "gripper servo"),
         bolter: BolterServos {
-            translate: bank.servo(Ch::Channel3, p.GPIO6).expect("bolter translate"),
-            rotate: bank.servo(Ch::Channel4, p.GPIO7).expect("bolter rotate"),
+            translate: must!(bank.servo(Ch::Channel3, p.GPIO6), "bolter translate"),
+            rotate: must!(bank.servo(Ch::Channel4, p.GPIO7), "bolter rotate"),
         },
         // Bolter multiplexer A0 GPIO8, A1 GPIO2 (strapping pins, pulled up on the board).
         mux: BolterMux::new(
@@ -231,7 +248,7 @@ async fn main(spawner: Spawner) {
             Output::new(p.GPIO2, Level::High, OutputConfig::default()),
         ),
     };
-    let hip = bank.servo(Ch::Channel2, p.GPIO3).expect("hip servo");
+    let hip = must!(bank.servo(Ch::Channel2, p.GPIO3), "hip servo");
     let arm_switch = ActiveLowSwitch(arm_line);
 
     let obsw = OBSW.init(Obsw::new(
@@ -259,10 +276,10 @@ async fn main(spawner: Spawner) {
     #[cfg(not(feature = "frame-link"))]
     let ground = LINK.init(fw_core::link::BarePackets);
 
-    spawner.spawn(uplink(usb_rx).expect("uplink task"));
-    spawner.spawn(downlink(usb_tx).expect("downlink task"));
-    spawner.spawn(ab_rx(uart_rx).expect("ab_rx task"));
-    spawner.spawn(ab_tx(uart_tx).expect("ab_tx task"));
+    spawner.spawn(must!(uplink(usb_rx), "uplink task"));
+    spawner.spawn(must!(downlink(usb_tx), "downlink task"));
+    spawner.spawn(must!(ab_rx(uart_rx), "ab_rx task"));
+    spawner.spawn(must!(ab_tx(uart_tx), "ab_tx task"));
     let io = Io {
         adc,
         imu,
@@ -272,5 +289,5 @@ async fn main(spawner: Spawner) {
         hip,
         regulator,
     };
-    spawner.spawn(control(io, watchdog, obsw, ground, raw_reset).expect("control task"));
+    spawner.spawn(must!(control(io, watchdog, obsw, ground, raw_reset), "control task"));
 }
