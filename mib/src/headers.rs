@@ -90,6 +90,12 @@ pub const TC_SEC_HEADER: &[Field] = &[
     f("TC_SOURCE_ID", 16, None, "source ID (ground = 0)"),
 ];
 
+/// The one CRC-16 of the project: CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, no
+/// reflection; the `crc` catalogue's `CRC_16_IBM_3740`) — the packets' error control
+/// ([`PEC`]), checked by obsw-core's acceptance and written by `mib_wire::header`, and the
+/// A–B link frames (`mmic_domain::ablink`).
+pub const PEC_CRC: crc::Crc<u16> = crc::Crc::<u16>::new(&crc::CRC_16_IBM_3740);
+
 /// Packet error control: CRC-16/CCITT-FALSE over the whole packet before it.
 pub const PEC: Field = f(
     "PEC",

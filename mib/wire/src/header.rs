@@ -18,51 +18,10 @@ pub const PUS_C: u8 = mib::headers::PUS_C_VERSION as u8;
 /// P-field of our CDS short time stamps (16-bit days, no sub-milliseconds).
 pub const CDS_PFIELD: u8 = mib::headers::CDS_SHORT_PFIELD as u8;
 
-/// CRC tables for four bytes per step: `T[0]` the byte-wise table of poly 0x1021,
-/// `T[k][i]` the register after byte `i` followed by `k` zero bytes (the CRC is linear, so
-/// four table look-ups XOR to the register after four bytes).
-const fn crc_tables() -> [[u16; 256]; 4] {
-    let mut t = [[0u16; 256]; 4];
-    let mut i = 0;
-    while i < 256 {
-        let mut c = (i as u16) << 8;
-        let mut k = 0;
-        while k < 8 {
-            c = if c & 0x8000 != 0 { (c << 1) ^ 0x1021 } else { c << 1 };
-            k += 1;
-        }
-        t[0][i] = c;
-        i += 1;
-    }
-    let mut k = 1;
-    while k < 4 {
-        let mut i = 0;
-        while i < 256 {
-            let p = t[k - 1][i];
-            t[k][i] = (p << 8) ^ t[0][(p >> 8) as usize];
-            i += 1;
-        }
-        k += 1;
-    }
-    t
-}
-const CRC_TABLES: [[u16; 256]; 4] = crc_tables();
-
-/// CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF), the PUS packet error control.
+/// CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF), the PUS packet error control: the MIB's
+/// one CRC-16 (`mib::headers::PEC_CRC`, the `crc` crate).
 pub fn crc16(data: &[u8]) -> u16 {
-    let t = &CRC_TABLES;
-    let mut c: u16 = 0xFFFF;
-    let mut chunks = data.chunks_exact(4);
-    for b in &mut chunks {
-        c = t[3][((c >> 8) as u8 ^ b[0]) as usize]
-            ^ t[2][(c as u8 ^ b[1]) as usize]
-            ^ t[1][b[2] as usize]
-            ^ t[0][b[3] as usize];
-    }
-    for b in chunks.remainder() {
-        c = (c << 8) ^ t[0][((c >> 8) as u8 ^ b) as usize];
-    }
-    c
+    mib::headers::PEC_CRC.checksum(data)
 }
 
 impl CdsTime {

@@ -7,7 +7,6 @@ use mib::FailureCode;
 use mib_wire::codec::{self, ArgError, MAX_ARGS};
 
 use crate::failure::Failure;
-use satrs::spacepackets::crc::CRC_CCITT_FALSE;
 
 /// CCSDS primary header length.
 pub const PRIMARY_LEN: usize = 6;
@@ -139,7 +138,7 @@ pub fn accept(raw: &[u8], apid: u16) -> Result<Tc<'_>, Rejection> {
         return Err(Rejection::new(r, Failure::malformed_packet(raw.len(), expected)));
     }
     let crc_rx = u16::from_be_bytes([raw[total - 2], raw[total - 1]]);
-    let crc_calc = CRC_CCITT_FALSE.checksum(&raw[..total - 2]);
+    let crc_calc = mib::headers::PEC_CRC.checksum(&raw[..total - 2]);
     if crc_rx != crc_calc {
         return Err(Rejection::new(r, Failure::crc_mismatch(crc_rx, crc_calc)));
     }

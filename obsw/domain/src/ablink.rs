@@ -21,8 +21,8 @@ use crate::consts::{LINK_MAX_FRAME, LINK_QUEUE_DEPTH};
 use crate::types::BolterDrive;
 use heapless::{Deque, Vec};
 
-/// CRC-16/CCITT-FALSE.
-pub const CRC16: crc::Crc<u16> = crc::Crc::<u16>::new(&crc::CRC_16_IBM_3740);
+/// CRC-16/CCITT-FALSE: the MIB's one CRC-16 (`mib::headers::PEC_CRC`).
+pub const CRC16: crc::Crc<u16> = mib::headers::PEC_CRC;
 
 pub const KIND_COMMAND: u8 = 0x01;
 pub const KIND_ACK: u8 = 0x81;
