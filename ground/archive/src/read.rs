@@ -134,6 +134,19 @@ impl Store {
         Ok(v.and_then(|v| v.int()).map(|s| ((s + 1) & 0x3FFF) as u16))
     }
 
+    /// Sequence count of the TM of `robot`'s `apid` received last (by ground time; the
+    /// newest on-board time among those received at that time): where a ground that
+    /// stopped left the robot's TM, even when the archive holds TM of an earlier boot or
+    /// process with a later on-board clock (which [`Store::positions`] would give).
+    pub fn last_received_seq(&mut self, robot: u8, apid: u16) -> Result<Option<u16>, ArchiveError> {
+        let v = scalar(
+            self.db.as_mut(),
+            "SELECT seq FROM packet WHERE robot = ?1 AND apid = ?2 ORDER BY t_ms DESC, obt_ms DESC LIMIT 1",
+            &[Val::Int(robot as i64), Val::Int(apid as i64)],
+        )?;
+        Ok(v.and_then(|v| v.int()).map(|s| (s & 0x3FFF) as u16))
+    }
+
     /// Robots with TM in the archive.
     pub fn robots(&mut self) -> Result<Vec<u8>, ArchiveError> {
         let rows = collect(self.db.as_mut(), "SELECT robot FROM health ORDER BY robot", &[])?;

@@ -237,15 +237,11 @@ fn outcome(store: &mut Store, tc: &StepTc) -> Result<Outcome, ArchiveError> {
     Ok(if accepted { Outcome::Accepted } else { Outcome::NoReport })
 }
 
-/// Last TM sequence count archived from `robot`'s own APID (where its store replay of
-/// a resumed run starts), if any.
+/// Last TM sequence count received from `robot`'s own APID (by ground time,
+/// [`Store::last_received_seq`]: where its store replay of a resumed run starts), if any.
 pub fn last_tm_seq(store: &mut Store, robot: u8) -> Result<Option<u16>, ArchiveError> {
     let apid = mib::apid::robot_apid(robot).unwrap_or(0);
-    Ok(store
-        .positions(Some(robot))?
-        .into_iter()
-        .find(|p| p.apid == apid)
-        .map(|p| p.seq))
+    store.last_received_seq(robot, apid)
 }
 
 #[cfg(test)]
