@@ -10,11 +10,11 @@
 //! | `ab_rx`     | UART1 receiver from board B                       | → `AB_RX` (byte queue)           |
 //! | `ab_tx`     | UART1 transmitter to board B                      | `AB_TX` → UART1                  |
 //!
-//! With the feature `frame-link` the ground link carries CCSDS TC and TM transfer frames
-//! with SDLS and COP-1 (`fw_core::spacelink`, the host's `mmic-link` code), keys and
-//! counters in the flash area of `fw_core::link_store`. Without it (the default until
-//! board A's flash has room for it inside the 30 % margin, REV-ANOM-12) the link still
-//! carries bare COBS-framed space packets (`fw_core::link::BarePackets`).
+//! The ground link carries CCSDS TC and TM transfer frames with SDLS and COP-1
+//! (`fw_core::spacelink`, the host's `mmic-link` code), keys and counters in the flash
+//! area of `fw_core::link_store`. No bare space packet is taken or sent (issue 22: the
+//! bare-packet link never in firmware; `fw_core::link::BarePackets` exists only for test
+//! harnesses, and this image refuses to build with it).
 //!
 //! The paper's rx/tx queues between the ESP32's two cores become these bounded
 //! embassy-sync queues between tasks of one executor on the single-core ESP32-C3.
@@ -35,18 +35,15 @@ use esp_hal::timer::timg::{MwdtStage, TimerGroup, Wdt};
 use esp_hal::uart::{Config as UartConfig, Uart, UartRx, UartTx};
 use esp_hal::usb::usb_serial_jtag::{UsbSerialJtag, UsbSerialJtagRx, UsbSerialJtagTx};
 use esp_hal::Async;
-#[cfg(feature = "frame-link")]
 use esp_storage::FlashStorage;
 use fw_core::config::{self as cfg, i2c_addr};
 use fw_core::cycle::{CycleA, GroundSink, LinksA, PeripheralsA};
 use fw_core::link::{self, ByteQueue, Counters, TcChannel};
-#[cfg(feature = "frame-link")]
 use fw_core::link_store::{self, FlashIvStore};
 use fw_core::periph::ads7828::PowerMode;
 use fw_core::periph::{
     ActiveLowEnable, ActiveLowSwitch, Ads7828, As5600, BolterMux, BolterServos, Mpu6000, SideOutputs,
 };
-#[cfg(feature = "frame-link")]
 use fw_core::spacelink::FrameLink;
 use fw_esp::bus::{self, SensorDevice};
 use fw_esp::servos::{Servo, ServoBank};
@@ -73,10 +70,12 @@ type Store = RingStore<{ cfg::TM_STORE_BYTES }>;
 /// The OBSW lives in a static (it holds the TM store and the schedule: tens of KiB),
 /// owned by the control task.
 static OBSW: StaticCell<Obsw<Store>> = StaticCell::new();
-#[cfg(feature = "frame-link")]
 type Link = FrameLink<FlashIvStore<FlashStorage<'static>>>;
-#[cfg(not(feature = "frame-link"))]
-type Link = fw_core::link::BarePackets;
+// Issue 22: the bare-packet ground link is never in firmware (test harnesses only).
+const _: () = assert!(
+    !fw_core::link::BARE_LINK_BUILT,
+    "fw-core's test-only bare-packet link (feature bare-link) in board A's image"
+);
 /// The ground link (TC receiver with its SDLS keys, TM framer), owned by the control task.
 static LINK: StaticCell<Link> = StaticCell::new();
 
@@ -265,7 +264,6 @@ async fn main(spawner: Spawner) {
 
     // Space link: keys from the provisioning area in flash (none: no TC frame is
     // accepted), SDLS counters and FARM-1 state from the counter log next to it.
-    #[cfg(feature = "frame-link")]
     let ground = {
         let mut flash = FlashStorage::new(p.FLASH);
         let keys = link_store::read_keys(&mut flash, link_store::AREA_OFFSET);
@@ -273,8 +271,6 @@ async fn main(spawner: Spawner) {
         let resume = keys.map(|k| store.resume(k.tc_spi, k.tm_spi)).unwrap_or_default();
         LINK.init(FrameLink::new(keys.as_ref(), resume, store))
     };
-    #[cfg(not(feature = "frame-link"))]
-    let ground = LINK.init(fw_core::link::BarePackets);
 
     spawner.spawn(must!(uplink(usb_rx), "uplink task"));
     spawner.spawn(must!(downlink(usb_tx), "downlink task"));

@@ -200,13 +200,21 @@ pub async fn queue_to_writer<W: embedded_io_async::Write, const N: usize>(
     }
 }
 
-/// The bare-packet ground link of the images before the space link (one space packet per
-/// COBS frame each way, no authentication): the default image's link until board A's
-/// flash has room for [`crate::spacelink::FrameLink`] (docs/firmware.md, REV-ANOM-12),
-/// and the link of the control-period tests that are not about the link.
+/// Whether this build of fw-core holds [`BarePackets`] (feature `bare-link`); board A's
+/// image refuses to build when it does.
+pub const BARE_LINK_BUILT: bool = cfg!(feature = "bare-link");
+
+/// A bare-packet ground link for test harnesses only (feature `bare-link`, enabled by the
+/// QEMU tests and fw-core's host tests, never by an image): one space packet per COBS
+/// frame each way, no authentication. The control-period and OBSW tests that are not
+/// about the link use it to reach `Obsw::handle_tc` without building transfer frames.
+/// Issue 22: the bare-packet link is never in firmware; the images run
+/// [`crate::spacelink::FrameLink`].
+#[cfg(feature = "bare-link")]
 #[derive(Clone, Copy, Debug, Default)]
 pub struct BarePackets;
 
+#[cfg(feature = "bare-link")]
 impl crate::cycle::GroundLink for BarePackets {
     fn receive<S: obsw_core::tm::TmStore, const N: usize>(
         &mut self,
