@@ -117,6 +117,61 @@ pub const fn fields_len(fields: &[Field]) -> usize {
 
 /// Length of the CCSDS primary header (6).
 pub const PRIMARY_HEADER_LEN: usize = fields_len(PRIMARY_HEADER);
+
+/// Width of the packet sequence count (the primary header's `SRC_SEQ_CTR`).
+const SEQ_COUNT_BITS: u32 = {
+    const fn eq(a: &str, b: &str) -> bool {
+        let (a, b) = (a.as_bytes(), b.as_bytes());
+        if a.len() != b.len() {
+            return false;
+        }
+        let mut i = 0;
+        while i < a.len() {
+            if a[i] != b[i] {
+                return false;
+            }
+            i += 1;
+        }
+        true
+    }
+    let mut i = 0;
+    let mut bits = 0;
+    while i < PRIMARY_HEADER.len() {
+        if eq(PRIMARY_HEADER[i].name, "SRC_SEQ_CTR") {
+            bits = PRIMARY_HEADER[i].bits;
+        }
+        i += 1;
+    }
+    bits
+};
+const _: () = assert!(SEQ_COUNT_BITS == 14, "CCSDS 133.0-B-2: a 14-bit sequence count");
+
+/// A packet sequence count: 14 bits, wrapping (per APID). The one type for the counter the
+/// obsw stamps on TM, the ground on TCs, and for every distance between two counts.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct SeqCount(u16);
+
+impl SeqCount {
+    /// Number of distinct counts (16384).
+    pub const MODULUS: u16 = 1 << SEQ_COUNT_BITS;
+    /// Mask of the count's bits in the packet sequence control word.
+    pub const MASK: u16 = Self::MODULUS - 1;
+    /// The count of `raw` (its low 14 bits: the packet sequence control's count).
+    pub const fn new(raw: u16) -> Self {
+        SeqCount(raw & Self::MASK)
+    }
+    pub const fn get(self) -> u16 {
+        self.0
+    }
+    /// The count after this one (16383 is followed by 0).
+    pub const fn next(self) -> Self {
+        SeqCount((self.0 + 1) & Self::MASK)
+    }
+    /// How many counts `self` is after `earlier`, modulo 16384.
+    pub const fn since(self, earlier: SeqCount) -> u16 {
+        self.0.wrapping_sub(earlier.0) & Self::MASK
+    }
+}
 /// Length of the PUS-C TC secondary header (5: version/ack, service, subservice, source ID).
 pub const TC_SEC_HEADER_LEN: usize = fields_len(TC_SEC_HEADER);
 /// Length of the PUS-C TM secondary header without the time stamp (7: version/time ref,
@@ -136,3 +191,21 @@ const _: () = {
     let bits = TM_SEC_HEADER[n - 3].bits + TM_SEC_HEADER[n - 2].bits + TM_SEC_HEADER[n - 1].bits;
     assert!(bits as usize == TIMESTAMP_LEN * 8);
 };
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // verifies: CODEC-SEQ-01
+    #[test]
+    fn the_sequence_count_is_the_primary_headers_14_bits_and_wraps() {
+        assert_eq!((SeqCount::MODULUS, SeqCount::MASK), (16384, 0x3FFF));
+        assert_eq!(SeqCount::new(0xC000 | 5).get(), 5, "sequence flags are not the count");
+        assert_eq!(SeqCount::new(16383).next(), SeqCount::new(0));
+        assert_eq!(SeqCount::new(2).since(SeqCount::new(16382)), 4);
+        assert_eq!(SeqCount::new(7).since(SeqCount::new(7)), 0);
+        // The field the MIB describes is what the type masks.
+        let f = PRIMARY_HEADER.iter().find(|f| f.name == "SRC_SEQ_CTR").unwrap();
+        assert_eq!(1u32 << f.bits, u32::from(SeqCount::MODULUS));
+    }
+}

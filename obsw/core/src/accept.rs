@@ -30,7 +30,7 @@ impl RequestId {
         self.packet_id & 0x7FF
     }
     pub fn seq_count(&self) -> u16 {
-        self.psc & 0x3FFF
+        mib::headers::SeqCount::new(self.psc).get()
     }
     pub fn to_bytes(&self) -> [u8; 4] {
         let r = self.raw().to_be_bytes();

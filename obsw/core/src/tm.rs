@@ -9,6 +9,7 @@ use satrs::spacepackets::SpHeader;
 
 use crate::time::OnboardTime;
 use mib::config::MAX_PACKET_LEN;
+use mib::headers::SeqCount;
 
 /// Where finished TM packets go (sockets on the host, the UART on the firmware).
 pub trait TmSink {
@@ -138,7 +139,7 @@ impl<const N: usize> TmStore for RingStore<N> {
 /// Stamps and serialises TM. One instance per APID keeps the sequence count continuous.
 pub struct TmWriter {
     apid: u16,
-    seq: u16,
+    seq: SeqCount,
     msg_counters: [u16; 256],
     pub time: OnboardTime,
     pub sent: u32,
@@ -148,7 +149,7 @@ impl TmWriter {
     pub fn new(apid: u16, time: OnboardTime) -> Self {
         TmWriter {
             apid,
-            seq: 0,
+            seq: SeqCount::default(),
             msg_counters: [0; 256],
             time,
             sent: 0,
@@ -160,8 +161,8 @@ impl TmWriter {
     /// Next sequence count (14 bit, wraps) and advances it.
     pub fn next_seq(&mut self) -> u16 {
         let s = self.seq;
-        self.seq = (self.seq + 1) & 0x3FFF;
-        s
+        self.seq = s.next();
+        s.get()
     }
     /// Next message-type counter of a service (PUS-C), advancing it.
     pub fn next_msg_count(&mut self, service: u8) -> u16 {
@@ -174,7 +175,7 @@ impl TmWriter {
         u11::new(self.apid & 0x7FF)
     }
     pub fn seq_u14(seq: u16) -> u14 {
-        u14::new(seq & 0x3FFF)
+        u14::new(SeqCount::new(seq).get())
     }
 
     /// Builds a TM packet into `out` and returns its length.
