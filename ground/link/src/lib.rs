@@ -254,14 +254,9 @@ pub struct Counters {
 /// How frames travel (see the crate documentation).
 enum Wire {
     /// One frame per datagram to and from the robot's frame port.
-    Udp {
-        sock: UdpSocket,
-        robot: SocketAddr,
-        /// The socket's mode and read timeout as last set (changed only when needed:
-        /// system calls saved on every blocking wait).
-        nonblocking: bool,
-        read_timeout: Option<Duration>,
-    },
+    /// The socket stays non-blocking: a wait for a frame is one `poll` of its descriptor
+    /// (no mode switches around it).
+    Udp { sock: UdpSocket, robot: SocketAddr },
     /// One COBS frame per transfer frame on a byte stream.
     Stream {
         port: Port,
@@ -320,12 +315,7 @@ impl FrameLink {
     pub fn open(cfg: Config) -> Result<FrameLink, LinkError> {
         let sock = UdpSocket::bind(cfg.listen)?;
         sock.set_nonblocking(true)?;
-        let wire = Wire::Udp {
-            sock,
-            robot: cfg.robot,
-            nonblocking: true,
-            read_timeout: None,
-        };
+        let wire = Wire::Udp { sock, robot: cfg.robot };
         FrameLink::open_on(cfg, wire)
     }
 
@@ -500,9 +490,15 @@ impl FrameLink {
     /// CLCWs and the timer to FOP-1, (re)initialises when needed, sends what FOP-1 says.
     /// Returns the space packets received.
     pub fn poll(&mut self, now_ms: u64) -> Result<Vec<Vec<u8>>, LinkError> {
-        self.set_mode(None)?;
         let mut out = Vec::new();
         self.receive_all(now_ms, &mut out)?;
+        self.advance(now_ms)?;
+        Ok(out)
+    }
+
+    /// The part of [`FrameLink::poll`] after the frames are read: FOP-1's timer,
+    /// (re)initialisation, the queued packets FOP-1 takes now.
+    fn advance(&mut self, now_ms: u64) -> Result<(), LinkError> {
         let fx = self.fop.on_event(now_ms, FopInput::Tick);
         self.apply(now_ms, fx)?;
         self.maybe_initiate(now_ms)?;
@@ -513,7 +509,7 @@ impl FrameLink {
             let fx = self.fop.on_event(now_ms, FopInput::TransmitAd(id));
             self.apply(now_ms, fx)?;
         }
-        Ok(out)
+        Ok(())
     }
 
     /// Reads every frame waiting on the wire (never blocks).
@@ -523,13 +519,8 @@ impl FrameLink {
                 let Wire::Udp { sock, .. } = &self.wire else {
                     return Ok(());
                 };
-                let n = match sock.recv_from(&mut self.buf) {
-                    Ok((n, _)) => n,
-                    Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => return Ok(()),
-                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
-                    // ICMP errors of earlier sends (robot not up yet): nothing to read.
-                    Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => continue,
-                    Err(e) => return Err(e.into()),
+                let Some(n) = recv_nonblocking(sock, &mut self.buf)? else {
+                    return Ok(());
                 };
                 self.datagram(n, now_ms, out)?;
             }
@@ -595,49 +586,32 @@ impl FrameLink {
                 return Ok(got);
             }
             let wait = left.min(Duration::from_millis(20)).max(Duration::from_millis(1));
-            self.set_mode(Some(wait))?;
             let r = match &self.wire {
-                Wire::Udp { sock, .. } => sock.recv_from(&mut self.buf).map(|(n, _)| n),
+                Wire::Udp { sock, .. } => wait_readable(sock, wait).and_then(|ready| {
+                    if ready {
+                        recv_nonblocking(sock, &mut self.buf)
+                    } else {
+                        Ok(None)
+                    }
+                })?,
                 Wire::Stream { port, .. } => {
                     // Readable (or writable with bytes queued): the next poll takes it.
                     port.wait(wait)?;
                     continue;
                 }
             };
-            if let Ok(n) = r {
+            if let Some(n) = r {
+                // The frame the wait was for, at once: its packets go back without another
+                // read of the (most likely empty) socket; the next call reads what follows.
+                let now = self.now_ms();
                 let mut out = Vec::new();
-                self.datagram(n, self.now_ms(), &mut out)?;
-                out.extend(self.poll(self.now_ms())?);
+                self.datagram(n, now, &mut out)?;
+                self.advance(now)?;
                 if !out.is_empty() {
                     return Ok(out);
                 }
             }
         }
-    }
-
-    /// Puts the socket in non-blocking mode (`None`) or blocking with a read timeout, with
-    /// system calls only for what changes.
-    fn set_mode(&mut self, mode: Option<Duration>) -> Result<(), LinkError> {
-        let Wire::Udp {
-            sock,
-            nonblocking,
-            read_timeout,
-            ..
-        } = &mut self.wire
-        else {
-            return Ok(());
-        };
-        if *nonblocking != mode.is_none() {
-            sock.set_nonblocking(mode.is_none())?;
-            *nonblocking = mode.is_none();
-        }
-        if let Some(t) = mode {
-            if *read_timeout != Some(t) {
-                sock.set_read_timeout(Some(t))?;
-                *read_timeout = Some(t);
-            }
-        }
-        Ok(())
     }
 
     /// In S6 with a CLCW newer than the alert: decide the purged frames' fate from N(R),
@@ -796,6 +770,34 @@ impl FrameLink {
             }
         }
         Ok(())
+    }
+}
+
+/// One datagram from the non-blocking socket into `buf`: its length, or `None` when
+/// nothing is waiting. ICMP errors of earlier sends (robot not up yet) are passed over.
+fn recv_nonblocking(sock: &UdpSocket, buf: &mut [u8]) -> Result<Option<usize>, LinkError> {
+    loop {
+        match sock.recv_from(buf) {
+            Ok((n, _)) => return Ok(Some(n)),
+            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => return Ok(None),
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => continue,
+            Err(e) => return Err(e.into()),
+        }
+    }
+}
+
+/// Waits up to `timeout` (rounded up to whole milliseconds) until `sock` is readable:
+/// whether it is (an interrupted wait reports false; the caller polls again).
+fn wait_readable(sock: &UdpSocket, timeout: Duration) -> Result<bool, LinkError> {
+    use nix::poll::{PollFd, PollFlags, PollTimeout};
+    use std::os::fd::AsFd;
+    let ms = u16::try_from(timeout.as_micros().div_ceil(1000)).unwrap_or(u16::MAX);
+    let mut fds = [PollFd::new(sock.as_fd(), PollFlags::POLLIN)];
+    match nix::poll::poll(&mut fds, PollTimeout::from(ms)) {
+        Ok(n) => Ok(n > 0),
+        Err(nix::errno::Errno::EINTR) => Ok(false),
+        Err(e) => Err(LinkError::Io(e.into())),
     }
 }
 

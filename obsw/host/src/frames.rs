@@ -235,6 +235,10 @@ pub struct FrameEndpoint {
     /// Control frames dropped by the rate limit.
     control_rate_limited: u32,
     reported_rate_limited: u32,
+    /// UDP with [`FrameEndpoint::track_readiness`]: whether a datagram may be waiting (set
+    /// by the main loop's poll, cleared when a read would block), so that a drained socket
+    /// costs no system call per wake-up. `None`: every [`FrameEndpoint::next`] reads.
+    readable: Option<bool>,
 }
 
 impl FrameEndpoint {
@@ -344,6 +348,7 @@ impl FrameEndpoint {
             control_window: (Instant::now(), 0),
             control_rate_limited: 0,
             reported_rate_limited: 0,
+            readable: None,
         })
     }
 
@@ -433,6 +438,22 @@ impl FrameEndpoint {
         }
     }
 
+    /// From now on the UDP socket is read only after [`FrameEndpoint::set_readable`] (the
+    /// caller's edge-triggered poll watches [`FrameEndpoint::raw_fd`]) until a read would
+    /// block. No effect on a stream, which is read at every call.
+    pub fn track_readiness(&mut self) {
+        if matches!(self.port, Wire::Udp { .. }) {
+            self.readable = Some(true);
+        }
+    }
+
+    /// The poll reported the descriptor readable.
+    pub fn set_readable(&mut self) {
+        if let Some(r) = self.readable.as_mut() {
+            *r = true;
+        }
+    }
+
     /// What the stream's framing saw (zero on UDP).
     pub fn stream_counters(&self) -> StreamCounters {
         match &self.port {
@@ -445,10 +466,18 @@ impl FrameEndpoint {
     fn receive(&mut self) -> Option<usize> {
         match &mut self.port {
             Wire::Udp { sock, .. } => loop {
+                if self.readable == Some(false) {
+                    return None;
+                }
                 match sock.recv_from(&mut self.buf) {
                     Ok((n, _from)) => return Some(n),
                     Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
-                    Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => return None,
+                    Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
+                        if let Some(r) = self.readable.as_mut() {
+                            *r = false;
+                        }
+                        return None;
+                    }
                     // An ICMP error from an earlier send: not fatal, nothing to read.
                     Err(_) => return None,
                 }

@@ -488,8 +488,10 @@ fn run(args: Args) -> Result<()> {
     }
     let mut frame_note = String::new();
     if let Some(fc) = &s.frames {
-        let ep = frames::FrameEndpoint::open(fc)?;
+        let mut ep = frames::FrameEndpoint::open(fc)?;
         inputs.register_frames(ep.raw_fd())?;
+        // The poll tells when the frame socket has datagrams (set in `Inputs::wait_until`).
+        ep.track_readiness();
         let (on, to) = match (&fc.wire, ep.local_addr()?) {
             (frames::FrameWire::Udp { tm_to, .. }, Some(addr)) => {
                 frame_note = format!(" frame_udp={addr} frame_tm_to={tm_to}");
@@ -639,11 +641,22 @@ fn run(args: Args) -> Result<()> {
         // Inputs already waiting first, but a bounded batch, so that a flood of TCs
         // cannot hold back the control period (and a late period cannot starve TCs).
         let mut handled = 0;
+        // TC frames handled whose TM has not been flushed yet.
+        let mut frames_unflushed = false;
         while handled < config::HOST_INPUT_BATCH {
             // A LINK_SPI_SELECT just executed takes effect before the next input.
             frames::apply_select(&mut obsw.link_select, down.frames.as_mut());
             let mut any = false;
-            if let Some(fi) = down.frames.as_mut().and_then(frames::FrameEndpoint::next) {
+            let fi = down.frames.as_mut().and_then(frames::FrameEndpoint::next);
+            if fi.is_none() && std::mem::take(&mut frames_unflushed) {
+                // No further TC frame waiting: the reports of those handled go out now, in
+                // as few TM frames as they fill, before the other inputs are looked at.
+                if let Some(f) = down.frames.as_mut() {
+                    f.flush(Instant::now());
+                }
+            }
+            if let Some(fi) = fi {
+                frames_unflushed = true;
                 // HK reports the counters including this frame (an HK request it carries too).
                 if let Some(f) = down.frames.as_ref() {
                     obsw.space_link = f.hk();
@@ -681,10 +694,9 @@ fn run(args: Args) -> Result<()> {
             f.flush(Instant::now());
         }
         let due = wall_of(sim_ms + period);
-        let wait = due.saturating_duration_since(Instant::now());
-        if !wait.is_zero() {
+        if Instant::now() < due {
             if handled < config::HOST_INPUT_BATCH {
-                inputs.wait(wait, &mut down);
+                inputs.wait_until(due, &mut down);
             }
             continue;
         }

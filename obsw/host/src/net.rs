@@ -333,6 +333,15 @@ pub struct Inputs {
     /// epoll's timeout has millisecond resolution; a timerfd wakes the poll at the
     /// control period's deadline to the microsecond.
     timer: TimerFd,
+    /// The deadline the timer is armed for and has not yet been seen to expire: a wait
+    /// for the same deadline does not re-arm it (one `timerfd_settime` per control period,
+    /// not per wake-up).
+    timer_armed: Option<Instant>,
+    /// The UDP TC socket and the simulator-control socket may have datagrams waiting: set
+    /// by the poll's (edge-triggered) readiness, cleared when a read would block. An idle
+    /// socket costs no system call per wake-up.
+    udp_ready: bool,
+    sim_ctl_ready: bool,
 }
 
 /// Addresses actually bound (ports may have been 0).
@@ -405,6 +414,9 @@ fn start_with_lease(
         buf: vec![0u8; 65_536],
         next_source: 0,
         timer,
+        timer_armed: None,
+        udp_ready: true,
+        sim_ctl_ready: true,
     };
     Ok((inputs, down, bound))
 }
@@ -431,16 +443,17 @@ impl Inputs {
     }
 
     fn next_udp(&mut self) -> Option<Input> {
-        loop {
+        while self.udp_ready {
             match self.udp.recv_from(&mut self.buf) {
                 Ok((n, from)) => return Some(Input::Tc(self.buf[..n].to_vec(), Origin::Udp(from))),
                 Err(e) if e.kind() == ErrorKind::Interrupted => continue,
-                // WouldBlock: nothing waiting. Other errors (an ICMP port-unreachable
-                // from an old peer on some systems) are not fatal either.
-                Err(e) if e.kind() == ErrorKind::WouldBlock => return None,
+                // WouldBlock: nothing waiting until the poll says so. Other errors (an ICMP
+                // port-unreachable from an old peer on some systems) are not fatal either.
+                Err(e) if e.kind() == ErrorKind::WouldBlock => self.udp_ready = false,
                 Err(_) => continue,
             }
         }
+        None
     }
 
     fn next_tcp(&mut self, down: &mut Downlink, i: usize) -> Option<Input> {
@@ -453,8 +466,21 @@ impl Inputs {
     }
 
     fn next_sim_ctl(&mut self) -> Option<Input> {
+        if !self.sim_ctl_ready {
+            return None;
+        }
         let mut line = [0u8; SIM_CTL_MAX_LINE + 1];
-        let (n, from) = self.sim_ctl.recv_from(&mut line).ok()?;
+        let (n, from) = match self.sim_ctl.recv_from(&mut line) {
+            Ok(r) => r,
+            Err(e) => {
+                // Would block: nothing until the poll says so. Other errors (an ICMP error
+                // of an earlier reply): tried again at the next call.
+                if e.kind() == ErrorKind::WouldBlock {
+                    self.sim_ctl_ready = false;
+                }
+                return None;
+            }
+        };
         match std::str::from_utf8(&line[..n]) {
             Ok(text) if n <= SIM_CTL_MAX_LINE => Some(Input::SimCtl(text.trim().to_string(), from)),
             _ => Some(Input::BadSimCtl(n, from)),
@@ -513,20 +539,41 @@ impl Inputs {
     }
 
     /// Waits until an input may be waiting or `timeout` passes.
+    #[cfg(test)]
     pub fn wait(&mut self, timeout: Duration, down: &mut Downlink) {
+        self.wait_until(Instant::now() + timeout, down);
+    }
+
+    /// Waits until an input may be waiting or `due` comes. The timer is armed only when
+    /// `due` differs from the deadline it already runs for, and read only when it expired.
+    pub fn wait_until(&mut self, due: Instant, down: &mut Downlink) {
+        let timeout = due.saturating_duration_since(Instant::now());
         if timeout.is_zero() {
             return;
         }
-        self.timer
-            .set_state(TimerState::Oneshot(timeout), SetTimeFlags::Default);
+        if self.timer_armed != Some(due) {
+            self.timer
+                .set_state(TimerState::Oneshot(timeout), SetTimeFlags::Default);
+            self.timer_armed = Some(due);
+        }
         // The timer ends the wait; the poll timeout is only a backstop. Interrupted or
         // failed waits just return: the caller drains and waits again.
         let _ = self
             .poll
             .poll(&mut self.events, Some(timeout + Duration::from_millis(2)));
-        self.timer.read();
         for ev in self.events.iter() {
             match ev.token() {
+                TIMER => {
+                    self.timer.read();
+                    self.timer_armed = None;
+                }
+                UDP => self.udp_ready = true,
+                SIM_CTL => self.sim_ctl_ready = true,
+                FRAMES => {
+                    if let Some(f) = down.frames.as_mut() {
+                        f.set_readable();
+                    }
+                }
                 LISTENER => self.accept_ready = true,
                 Token(t) if t >= CONN0 && t - CONN0 < down.conns.len() => {
                     let i = t - CONN0;
