@@ -235,7 +235,7 @@ pub fn icd_markdown() -> String {
         &mut o,
         "2.2 PUS-C TM secondary header with CDS short time stamp",
         layout::TM_SEC_HEADER,
-        "As `satrs::spacepackets` 0.17 writes it (`PusTmCreator` with a `CdsTime` stamp).",
+        "As `mib_wire::header::emit_tm` writes it for the obsw and the ground (the layout of sat-rs `spacepackets` 0.17's `PusTmCreator` with a `CdsTime` stamp, which reads it back in the tests).",
     );
     header_table(&mut o, "2.3 PUS-C TC secondary header", layout::TC_SEC_HEADER, "");
     header_table(

@@ -1,6 +1,6 @@
 //! Everything that leaves the OBSW goes through [`Downlink`]: service reports (stamped
-//! by the [`TmWriter`]), PUS 1 verification reports (through sat-rs's
-//! `VerificationReportCreator`, driven by typestate tokens), PUS 5 events (enable mask
+//! by the [`TmWriter`]), PUS 1 verification reports (request ID, step, failure code and
+//! data, through the same TM writer; driven by typestate tokens), PUS 5 events (enable mask
 //! and throttling) and the copy kept in the on-board store.
 //!
 //! Verification follows the request's life: [`Downlink::accept`] turns a fresh token
@@ -39,12 +39,8 @@ use mib::config;
 use mib::events::{self, EVENTS};
 use mib::tc::service;
 use satrs::pus::verification::{
-    FailParams, FailParamsWithStep, RequestId as SatrsRequestId, TcStateAccepted, TcStateNone, TcStateStarted,
-    VerificationReportCreator, VerificationToken,
+    RequestId as SatrsRequestId, TcStateAccepted, TcStateNone, TcStateStarted, VerificationToken,
 };
-use satrs::spacepackets::ecss::tm::PusTmCreator;
-use satrs::spacepackets::ecss::{EcssEnumU16, EcssEnumU8};
-use satrs::spacepackets::ByteConversionError;
 
 use crate::accept::{Ack, RequestId};
 use crate::failure::{Failure, SentFailure};
@@ -192,7 +188,6 @@ impl Events {
 /// The TM path of one robot.
 pub struct Downlink<S: TmStore> {
     pub tmw: TmWriter,
-    verif: VerificationReportCreator,
     pub store: S,
     pub store_enabled: bool,
     pub store_dropped: u32,
@@ -202,10 +197,8 @@ pub struct Downlink<S: TmStore> {
 impl<S: TmStore> Downlink<S> {
     pub fn new(apid: u16, time: OnboardTime, store: S) -> Self {
         let tmw = TmWriter::new(apid, time);
-        let verif = VerificationReportCreator::new(tmw.apid_u11());
         Downlink {
             tmw,
-            verif,
             store,
             store_enabled: true,
             store_dropped: 0,
@@ -255,25 +248,31 @@ impl<S: TmStore> Downlink<S> {
 
     // ------------------------------------------------------------ verification
 
+    /// A PUS 1 report, TM[1,`sub`]: the request ID, the step (progress reports), the
+    /// failure code and data (failure reports), through the TM writer's header code.
     fn report(
         &mut self,
         now: u64,
+        sub: u8,
+        req: RequestId,
+        step: Option<u8>,
+        fail: Option<SentFailure>,
         sink: &mut impl TmSink,
-        make: impl for<'s> FnOnce(
-            &VerificationReportCreator,
-            &'s mut [u8],
-            arbitrary_int::u14,
-            u16,
-            &'s [u8],
-        ) -> Result<PusTmCreator<'s, 's>, ByteConversionError>,
     ) {
-        let stamp = self.tmw.time.cds(now);
-        let seq = TmWriter::seq_u14(self.tmw.next_seq());
-        let msg = self.tmw.next_msg_count(service::VERIFICATION);
-        let mut src = [0u8; 64];
         let mut out = [0u8; config::MAX_PACKET_LEN];
-        let n = make(&self.verif, &mut src, seq, msg, &stamp).and_then(|t| t.write_to_bytes(&mut out));
-        if let Ok(n) = n {
+        let n = self.tmw.build_with(now, service::VERIFICATION, sub, &mut out, |d| {
+            let mut w = mib_wire::Writer::new(d);
+            w.bytes(&req.to_bytes())?;
+            if let Some(n) = step {
+                w.uint(8, n.into())?;
+            }
+            if let Some(f) = fail {
+                w.uint(16, f.code().into())?;
+                w.bytes(f.data())?;
+            }
+            Ok(w.len())
+        });
+        if let Some(n) = n {
             self.send_raw(&out[..n], sink);
         }
     }
@@ -282,9 +281,7 @@ impl<S: TmStore> Downlink<S> {
     pub fn accept(&mut self, now: u64, t: New, sink: &mut impl TmSink) -> Accepted {
         let rid = t.tok.request_id();
         if t.ack.acceptance() {
-            self.report(now, sink, |v, s, seq, msg, st| {
-                v.acceptance_success(s, &rid, seq, msg, st)
-            });
+            self.report(now, 1, t.req, None, None, sink);
         }
         Token {
             tok: VerificationToken::new_accepted_state(rid),
@@ -295,14 +292,14 @@ impl<S: TmStore> Downlink<S> {
 
     /// TM[1,2]: the request is refused (always reported).
     pub fn reject(&mut self, now: u64, t: New, f: &Failure, sink: &mut impl TmSink) {
-        self.fail(now, t.tok.request_id(), Stage::Acceptance, f.into(), sink);
+        self.fail(now, t.req, Stage::Acceptance, f.into(), sink);
     }
 
     /// TM[1,3] (if asked for): execution started.
     pub fn start(&mut self, now: u64, t: Accepted, sink: &mut impl TmSink) -> Started {
         let rid = t.tok.request_id();
         if t.ack.start() {
-            self.report(now, sink, |v, s, seq, msg, st| v.start_success(s, &rid, seq, msg, st));
+            self.report(now, 3, t.req, None, None, sink);
         }
         Token {
             tok: VerificationToken::new_started_state(rid),
@@ -313,7 +310,7 @@ impl<S: TmStore> Downlink<S> {
 
     /// TM[1,4]: execution could not start (always reported).
     pub fn fail_start(&mut self, now: u64, t: Accepted, f: &Failure, sink: &mut impl TmSink) {
-        self.fail(now, t.tok.request_id(), Stage::Start, f.into(), sink);
+        self.fail(now, t.req, Stage::Start, f.into(), sink);
     }
 
     /// TM[1,5] (if asked for): progress step `n` done.
@@ -321,20 +318,12 @@ impl<S: TmStore> Downlink<S> {
         if !t.ack.progress() {
             return;
         }
-        let rid = t.tok.request_id();
-        self.report(now, sink, |v, s, seq, msg, st| {
-            v.step_success(s, &rid, seq, msg, st, EcssEnumU8::new(n))
-        });
+        self.report(now, 5, t.req, Some(n), None, sink);
     }
 
     /// TM[1,6]: progress step `n` failed; the request ends (always reported).
     pub fn fail_step(&mut self, now: u64, t: Started, n: u8, f: &Failure, sink: &mut impl TmSink) {
-        let code = EcssEnumU16::new(f.code().code());
-        let data = f.data();
-        let step = EcssEnumU8::new(n);
-        self.report(now, sink, |v, s, seq, msg, st| {
-            v.step_failure(s, t.tok, seq, msg, FailParamsWithStep::new(st, &step, &code, &data))
-        });
+        self.report(now, 6, t.req, Some(n), Some(f.into()), sink);
     }
 
     /// TM[1,7] (if asked for): the request completed.
@@ -346,46 +335,28 @@ impl<S: TmStore> Downlink<S> {
 
     /// TM[1,8]: the request failed (always reported).
     pub fn fail_completion(&mut self, now: u64, t: Started, f: &Failure, sink: &mut impl TmSink) {
-        self.fail(now, t.tok.request_id(), Stage::Completion, f.into(), sink);
+        self.fail(now, t.req, Stage::Completion, f.into(), sink);
     }
 
     /// Repeats TM[1,7] for a duplicate of a request that completed.
     pub fn repeat_completion(&mut self, now: u64, req: RequestId, sink: &mut impl TmSink) {
-        let rid = SatrsRequestId::from(req.raw());
-        self.report(now, sink, |v, s, seq, msg, st| {
-            v.completion_success(s, &rid, seq, msg, st)
-        });
+        self.report(now, 7, req, None, None, sink);
     }
 
     /// Repeats TM[1,1] for a duplicate of an accepted request.
     pub fn repeat_acceptance(&mut self, now: u64, req: RequestId, sink: &mut impl TmSink) {
-        let rid = SatrsRequestId::from(req.raw());
-        self.report(now, sink, |v, s, seq, msg, st| {
-            v.acceptance_success(s, &rid, seq, msg, st)
-        });
+        self.report(now, 1, req, None, None, sink);
     }
 
     /// A failure report at `stage`; used for the first report (through the token
     /// methods above) and to repeat it for a duplicate.
-    pub fn fail(
-        &mut self,
-        now: u64,
-        rid: impl Into<SatrsRequestId>,
-        stage: Stage,
-        f: SentFailure,
-        sink: &mut impl TmSink,
-    ) {
-        let rid = rid.into();
-        let code = EcssEnumU16::new(f.code());
-        let data = f.data();
-        self.report(now, sink, |v, s, seq, msg, st| {
-            let p = FailParams::new(st, &code, data);
-            match stage {
-                Stage::Acceptance => v.acceptance_failure(s, &rid, seq, msg, p),
-                Stage::Start => v.start_failure(s, &rid, seq, msg, p),
-                Stage::Completion => v.completion_failure(s, &rid, seq, msg, p),
-            }
-        });
+    pub fn fail(&mut self, now: u64, req: RequestId, stage: Stage, f: SentFailure, sink: &mut impl TmSink) {
+        let sub = match stage {
+            Stage::Acceptance => 2,
+            Stage::Start => 4,
+            Stage::Completion => 8,
+        };
+        self.report(now, sub, req, None, Some(f), sink);
     }
 }
 

@@ -3,9 +3,7 @@
 //! the per-service message counter and the CDS time.
 
 use arbitrary_int::{u11, u14};
-use satrs::spacepackets::ecss::tm::{PusTmCreator, PusTmSecondaryHeader};
-use satrs::spacepackets::ecss::{CreatorConfig, MessageTypeId};
-use satrs::spacepackets::SpHeader;
+use mib_wire::header::{emit_tm, TmHeader};
 
 use crate::time::OnboardTime;
 use mib::config::MAX_PACKET_LEN;
@@ -187,18 +185,38 @@ impl TmWriter {
         data: &[u8],
         out: &mut [u8; MAX_PACKET_LEN],
     ) -> Option<usize> {
-        let stamp = self.time.cds(now_ms);
-        let seq = self.next_seq();
-        let msg = self.next_msg_count(service);
-        let sp = SpHeader::new_for_unseg_tm(self.apid_u11(), Self::seq_u14(seq), 0);
-        let sec = PusTmSecondaryHeader::new(
-            MessageTypeId::new(service, subservice),
-            msg,
-            mib::config::GROUND_ID,
-            &stamp,
-        );
-        let tm = PusTmCreator::new(sp, sec, data, CreatorConfig::default());
-        tm.write_to_bytes(out).ok()
+        self.build_with(now_ms, service, subservice, out, |d| {
+            let n = data.len();
+            let have = d.len();
+            d.get_mut(..n)
+                .ok_or(mib_wire::Error::BufferTooShort { need: n, have })?
+                .copy_from_slice(data);
+            Ok(n)
+        })
+    }
+
+    /// Builds a TM packet whose source data `body` writes, through the wire crate's header
+    /// code (`mib_wire::header::emit_tm`: the same headers and CRC the ground reads), and
+    /// returns its length.
+    pub fn build_with(
+        &mut self,
+        now_ms: u64,
+        service: u8,
+        subservice: u8,
+        out: &mut [u8],
+        body: impl FnOnce(&mut [u8]) -> Result<usize, mib_wire::Error>,
+    ) -> Option<usize> {
+        let time = self.time.cds_time(now_ms);
+        let h = TmHeader {
+            apid: self.apid,
+            seq_count: self.next_seq(),
+            service,
+            subservice,
+            msg_counter: self.next_msg_count(service),
+            dest_id: mib::config::GROUND_ID,
+            time,
+        };
+        emit_tm(&h, out, body).ok()
     }
 }
 
