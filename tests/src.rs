@@ -233,7 +233,7 @@ impl Tm {
     }
     /// A raw HK parameter value.
     pub fn hk(&self, param: u16) -> Option<i64> {
-        mib::codec::decode_hk(&self.data).ok()?.get(param)
+        mib_wire::codec::decode_hk(&self.data).ok()?.get(param)
     }
 }
 
@@ -253,7 +253,7 @@ pub fn tc(apid: u16, seq: u16, service: u8, subservice: u8, app: &[u8]) -> Vec<u
 pub fn tc_named(apid: u16, seq: u16, name: &str, args: &[i64]) -> Vec<u8> {
     let def = mib::tc::by_name(name).unwrap_or_else(|| panic!("no TC {name}"));
     let mut app = vec![0u8; 64];
-    let n = mib::codec::encode_args(def, args, &mut app).expect("args");
+    let n = mib_wire::codec::encode_args(def, args, &mut app).expect("args");
     tc(apid, seq, def.service, def.subservice, &app[..n])
 }
 

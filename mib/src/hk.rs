@@ -1,6 +1,6 @@
 //! Housekeeping structures (PUS 3). A TM[3,25] report's source data is the structure ID
 //! (u16, big-endian) followed by each parameter of the structure, in order, packed with
-//! its wire type (see [`crate::codec`]).
+//! its wire type (see `mib_wire::codec`).
 
 use crate::params::pid;
 

@@ -11,7 +11,6 @@
 #![deny(unsafe_code)]
 
 pub mod apid;
-pub mod codec;
 pub mod config;
 pub mod events;
 #[cfg(feature = "std")]

@@ -1,11 +1,11 @@
 //! Cross-check of the XTCE export with an independent decoder.
 //!
 //! Builds TM packets with the real encoder (`satrs::spacepackets::PusTmCreator`, a CDS
-//! short time stamp and `mib::codec`): TM[3,25] for every SID with extreme, negative and
+//! short time stamp and `mib_wire::codec`): TM[3,25] for every SID with extreme, negative and
 //! pseudo-random values, every event report, and a few other TM. The packets and the
 //! XTCE document go to `scripts/xtce_decode.py`, which decodes them with
 //! space-packet-parser (installed in `.venv` by `scripts/python-env.sh`); every decoded
-//! parameter — raw and calibrated — must equal what our own decoder (`mib::codec`) reads
+//! parameter — raw and calibrated — must equal what our own decoder (`mib_wire::codec`) reads
 //! from the same bytes, and every header field must equal what was encoded.
 //!
 //! A third test decodes a stream of every report kind (successes, failures of several
@@ -15,16 +15,16 @@
 //!
 //! Two more checks tie the descriptions to the real encoders: the header layout tables
 //! against sat-rs TC and TM packets, and every XTCE MetaCommand (encoded by a small
-//! walker over the XML) against `PusTcCreator` + `mib::codec::encode_args`.
+//! walker over the XML) against `PusTcCreator` + `mib_wire::codec::encode_args`.
 #![cfg(feature = "std")]
 
 use arbitrary_int::{u11, u14};
-use mib::codec;
 use mib::events::EVENTS;
 use mib::export;
 use mib::hk::HK_STRUCTS;
 use mib::params::{self, ParamDef};
 use mib::types::PType;
+use mib_wire::codec;
 use satrs::spacepackets::ecss::tm::{PusTmCreator, PusTmSecondaryHeader};
 use satrs::spacepackets::ecss::{CreatorConfig, MessageTypeId, WritablePusPacket};
 use satrs::spacepackets::time::cds::CdsTime;

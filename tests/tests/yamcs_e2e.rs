@@ -413,7 +413,7 @@ fn yamcs_operates_the_robot_over_frames_with_sdls_and_cop1() {
             .get(&seq)
             .unwrap_or_else(|| panic!("Yamcs has HK seq {seq} the obsw did not log"));
         let tm = Tm::parse(raw).unwrap();
-        let ours = mib::codec::decode_hk(&tm.data).unwrap();
+        let ours = mib_wire::codec::decode_hk(&tm.data).unwrap();
         let p = &h["params"];
         let def_sid = tm.sid().unwrap();
         assert_eq!(h["sid"].as_str(), by_sid(def_sid).map(|d| d.name), "SID of seq {seq}");

@@ -302,7 +302,7 @@ impl Rig {
         self.tm
             .iter()
             .filter(|(_, s, _, _)| *s == 5)
-            .filter_map(|(_, _, _, d)| mib::codec::decode_event(d).ok())
+            .filter_map(|(_, _, _, d)| mib_wire::codec::decode_event(d).ok())
             .filter(|e| e.def.fault)
             .map(|e| e.def.id)
             .collect()
@@ -349,7 +349,7 @@ fn firmware_cycle_reconfigures_the_simulated_robot_xneg_to_xpos() {
         .tm
         .iter()
         .filter(|(_, s, _, _)| *s == 5)
-        .filter_map(|(_, _, _, d)| mib::codec::decode_event(d).ok().map(|e| e.def.id))
+        .filter_map(|(_, _, _, d)| mib_wire::codec::decode_event(d).ok().map(|e| e.def.id))
         .collect();
     assert_eq!(events.iter().filter(|&&e| e == eid::PRIMITIVE_DONE).count(), 2);
     assert!(events.contains(&eid::STATE_REACHED));

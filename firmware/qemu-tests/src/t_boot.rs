@@ -118,7 +118,7 @@ fn boot_reports_the_previous_panic_once_with_line_and_file_crc() -> TestResult {
     want[3..7].copy_from_slice(&here.1.to_be_bytes());
     want[7..].copy_from_slice(&crc32_bitwise(here.0.as_bytes()).to_be_bytes());
     check_eq!(&data[..], &want[..]);
-    let d = ok!(mib::codec::decode_event(data));
+    let d = ok!(mib_wire::codec::decode_event(data));
     check_eq!(d.def.id, eid::PREVIOUS_PANIC);
     check_eq!(d.param("line"), Some(here.1 as i64));
 

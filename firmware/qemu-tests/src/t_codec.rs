@@ -1,14 +1,14 @@
-//! mib::codec and the MIB tables on the target: byte layouts checked against frames
+//! mib_wire::codec and the MIB tables on the target: byte layouts checked against frames
 //! written out by hand from the ICD, and round trips.
 
 use crate::harness::{Test, TestResult};
 use crate::tests;
 use crate::{check, check_eq, ok};
-use mib::codec::{self, ArgError, CodecError};
 use mib::events::eid;
 use mib::hk::{self, sid};
 use mib::params::pid;
 use mib::tc::{self, function};
+use mib_wire::codec::{self, ArgError, CodecError};
 
 pub const TESTS: &[Test] = tests![
     codec_b_link_hk_matches_hand_layout,

@@ -190,7 +190,7 @@ fn boards_a_and_b_cycles_go_operational_on_a_ground_command() -> TestResult {
             match (PusPacket::service_type_id(&r), PusPacket::message_subtype_id(&r)) {
                 (1, 7) => completed = completed.or(Some(t)),
                 (5, 1) => {
-                    if let Ok(ev) = mib::codec::decode_event(r.user_data()) {
+                    if let Ok(ev) = mib_wire::codec::decode_event(r.user_data()) {
                         if ev.def.id == eid::MODE_CHANGED && ev.param("node") == Some(node::ROBOT as i64) {
                             root_changed = Some((t, ev.param("to")));
                         }
@@ -379,7 +379,7 @@ fn cycle_a_reports_platform_io_counters_in_hk_structure_5() -> TestResult {
         }
     }
     let data = ok!(report);
-    let hk = ok!(mib::codec::decode_hk(&data));
+    let hk = ok!(mib_wire::codec::decode_hk(&data));
     check_eq!(hk.def.sid, mib::hk::sid::PLATFORM_IO);
     // The values as the ground reads them: u32 each after the SID (ICD section 5).
     let want = [3u32, produced, 18, 2, 88];

@@ -194,7 +194,7 @@ fn boot(fit: Fit) -> Result<Seen, crate::harness::Failure> {
             let r = ok!(PusTmReader::new(ok!(frame), mib::config::TIMESTAMP_LEN));
             match (PusPacket::service_type_id(&r), PusPacket::message_subtype_id(&r)) {
                 (5, _) => {
-                    if let Ok(ev) = mib::codec::decode_event(r.user_data()) {
+                    if let Ok(ev) = mib_wire::codec::decode_event(r.user_data()) {
                         if ev.def.id == eid::CONFIG_INVALID {
                             let _ = invalid.push((ok!(ev.param("reason")), ok!(ev.param("slot"))));
                         } else if ev.def.id == eid::MODULE_REPLACED {

@@ -161,16 +161,16 @@ fn obsw_recorded_tc_stream_gives_the_expected_tm_sequence() -> TestResult {
         check_eq!(&v.data[..4], tc_of(o), "report {}.{} of TC {}", v.svc, v.sub, o);
     }
     // BOOT carries the reset cause given at boot.
-    let boot = ok!(mib::codec::decode_event(&tms[0].data));
+    let boot = ok!(mib_wire::codec::decode_event(&tms[0].data));
     check_eq!((boot.def.id, boot.param("reset_cause")), (eid::BOOT, Some(1)));
     // HK ROBOT_STATUS: mode standby, no state target.
-    let hk = ok!(mib::codec::decode_hk(&tms[6].data));
+    let hk = ok!(mib_wire::codec::decode_hk(&tms[6].data));
     check_eq!(hk.get(pid::MODE), Some(0));
     check_eq!(hk.get(pid::TARGET_STATE), Some(mib::robot::STATE_UNKNOWN as i64));
     // HOME refused: NOT_ALLOWED_IN_MODE with the mode (standby) as data.
     let f = &tms[10].data;
     check_eq!(&f[4..], &[0x00, FailureCode::NOT_ALLOWED_IN_MODE.code() as u8, 0][..]);
-    let ev = ok!(mib::codec::decode_event(&tms[11].data));
+    let ev = ok!(mib_wire::codec::decode_event(&tms[11].data));
     check_eq!(
         (ev.param("service"), ev.param("subservice"), ev.param("code")),
         (Some(8), Some(1), Some(FailureCode::NOT_ALLOWED_IN_MODE.code() as i64))
@@ -225,7 +225,7 @@ impl TmSink for FdirLog {
                 let _ = self.mon.push((self.now, tm.data[12]));
             }
             (5, _) => {
-                if let Ok(ev) = mib::codec::decode_event(&tm.data) {
+                if let Ok(ev) = mib_wire::codec::decode_event(&tm.data) {
                     if ev.def.id == eid::LOW_BATTERY || ev.def.id == eid::FAULT_CLEARED {
                         let mut a = [0i64; 3];
                         for (slot, (_, v)) in a.iter_mut().zip(ev.params()) {
@@ -380,7 +380,7 @@ impl TmSink for ModeLog {
                 let _ = self.verif.push((self.now, tm.sub));
             }
             5 => {
-                if let Ok(ev) = mib::codec::decode_event(&tm.data) {
+                if let Ok(ev) = mib_wire::codec::decode_event(&tm.data) {
                     if ev.def.id == eid::MODE_CHANGED {
                         let p = |n| ev.param(n).unwrap_or(-1);
                         let _ = self.changes.push((self.now, p("node"), p("from"), p("to"), p("cause")));
@@ -614,7 +614,7 @@ impl TmSink for AllEvents {
                 let _ = self.mon.push((self.now, id, tm.data[12]));
             }
             (5, _) => {
-                if let Ok(ev) = mib::codec::decode_event(&tm.data) {
+                if let Ok(ev) = mib_wire::codec::decode_event(&tm.data) {
                     let first = ev.params().next().map_or(0, |(_, v)| v);
                     let _ = self.events.push((self.now, ev.def.id, first));
                 }

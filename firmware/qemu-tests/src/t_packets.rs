@@ -82,7 +82,7 @@ fn pus_tc_ping_bytes_match_hand_layout() -> TestResult {
 fn pus_tc_reconfigure_round_trip_and_crc_error() -> TestResult {
     let def = ok!(mib::tc::lookup(8, 1, Some(mib::tc::function::RECONFIGURE)));
     let mut app = [0u8; 8];
-    let na = ok!(mib::codec::encode_args(def, &[0, 1], &mut app));
+    let na = ok!(mib_wire::codec::encode_args(def, &[0, 1], &mut app));
     let mut buf = [0u8; 64];
     let n = ok!(tc(&mut buf, 0x3FFF, 8, 1, &app[..na]));
     check_eq!(n, 6 + 5 + 4 + 2);

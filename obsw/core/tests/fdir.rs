@@ -63,7 +63,7 @@ impl Tm {
         (self.service == 3 && self.subservice == 25).then(|| u16::from_be_bytes([self.data[0], self.data[1]]))
     }
     fn hk(&self, param: u16) -> Option<i64> {
-        mib::codec::decode_hk(&self.data).ok()?.get(param)
+        mib_wire::codec::decode_hk(&self.data).ok()?.get(param)
     }
 }
 
@@ -131,7 +131,7 @@ impl Rig {
     fn send(&mut self, name: &str, args: &[i64]) -> Vec<u8> {
         let def = mib::tc::by_name(name).unwrap_or_else(|| panic!("no TC {name}"));
         let mut app = [0u8; 64];
-        let n = mib::codec::encode_args(def, args, &mut app).expect("args");
+        let n = mib_wire::codec::encode_args(def, args, &mut app).expect("args");
         self.seq += 1;
         let sp = SpHeader::new_for_unseg_tc(u11::new(self.obsw.apid()), u14::new(self.seq), 0);
         let sec = PusTcSecondaryHeader::new(MessageTypeId::new(def.service, def.subservice), AckFlags::ALL, 0);

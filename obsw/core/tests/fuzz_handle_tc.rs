@@ -41,7 +41,7 @@ fn corpus() -> Vec<Vec<u8>> {
         .map(|(i, d)| {
             let args: Vec<i64> = d.args.iter().map(|a| a.min).collect();
             let mut app = vec![0u8; 64];
-            let n = mib::codec::encode_args(d, &args, &mut app).unwrap();
+            let n = mib_wire::codec::encode_args(d, &args, &mut app).unwrap();
             tc(i as u16, d.service, d.subservice, &app[..n])
         })
         .collect()

@@ -75,7 +75,7 @@ impl Rig {
     /// Sends a TC; returns the number of distinct live acceptance verdicts it got.
     fn send(&mut self, def: &mib::tc::TcDef, args: &[i64], extra: &[u8]) -> usize {
         let mut app = vec![0u8; 600];
-        let n = mib::codec::encode_args(def, args, &mut app).expect("arguments in range");
+        let n = mib_wire::codec::encode_args(def, args, &mut app).expect("arguments in range");
         app.truncate(n);
         app.extend_from_slice(extra);
         let raw = self.raw_tc(def.service, def.subservice, &app);
@@ -366,7 +366,7 @@ fn boot_reports_the_cause_and_a_previous_panic_and_the_state_is_computed() {
 fn verdicts(r: &mut Rig, name: &str, args: &[i64]) -> Vec<u8> {
     let def = mib::tc::by_name(name).expect("MIB TC");
     let mut app = vec![0u8; 64];
-    let n = mib::codec::encode_args(def, args, &mut app).expect("arguments in range");
+    let n = mib_wire::codec::encode_args(def, args, &mut app).expect("arguments in range");
     let raw = r.raw_tc(def.service, def.subservice, &app[..n]);
     r.send_raw(&raw)
 }

@@ -196,7 +196,7 @@ fn after_kill_9_a_captured_frame_is_a_replay_and_the_ground_continues_without_re
     until(&mut g, &mut events, Duration::from_secs(15), |t| {
         if let Some((3, 25, d)) = tm(t) {
             if d[..2] == sid {
-                hk = mib::codec::decode_hk(d).ok().map(|r| {
+                hk = mib_wire::codec::decode_hk(d).ok().map(|r| {
                     (
                         r.get(pid::LINK_REJ_REPLAY),
                         r.get(pid::LINK_AD_ACCEPTED),
@@ -337,7 +337,7 @@ fn link_spi_select_moves_the_real_obsw_to_tc_spi_2_and_tm_spi_18_without_a_tc_lo
     until(&mut g, &mut events, Duration::from_secs(15), |t| {
         if let Some((3, 25, d)) = tm(t) {
             if d[..2] == sid {
-                hk = mib::codec::decode_hk(d).ok().map(|r| {
+                hk = mib_wire::codec::decode_hk(d).ok().map(|r| {
                     [
                         pid::LINK_REJ_UNKNOWN_SPI,
                         pid::LINK_TM_SPI,

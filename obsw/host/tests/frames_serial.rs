@@ -204,7 +204,7 @@ fn last_hk(tms: &[(u8, u8, Vec<u8>)], sid: u16, param: u16) -> Option<i64> {
     tms.iter()
         .rev()
         .filter(|(s, ss, d)| (*s, *ss) == (3, 25) && d.len() >= 2 && d[..2] == sid.to_be_bytes())
-        .find_map(|(_, _, d)| mib::codec::decode_hk(d).ok().and_then(|r| r.get(param)))
+        .find_map(|(_, _, d)| mib_wire::codec::decode_hk(d).ok().and_then(|r| r.get(param)))
 }
 
 fn wait_for(limit: Duration, what: &str, mut f: impl FnMut() -> bool) {

@@ -96,7 +96,7 @@ pub(super) fn walk_robots(cx: &mut Cx, raw: &mut [RawStep], robots: &[RobotDecl]
                 );
             }
             if !matches!(action, Action::Reconfigure { .. }) {
-                if let Err(e) = mib::codec::encode_args(def, &args, &mut [0u8; mib::config::MAX_TC_APP_DATA]) {
+                if let Err(e) = mib_wire::codec::encode_args(def, &args, &mut [0u8; mib::config::MAX_TC_APP_DATA]) {
                     cx.err(
                         s.action_span.clone(),
                         pus::BuildError::Args { tc: def.name, err: e }.to_string(),
