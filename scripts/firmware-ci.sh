@@ -29,21 +29,15 @@ step "format and lints (firmware workspace and on-target tests)"
 (cd "$FW" && cargo fmt --check)
 (cd "$FW/qemu-tests" && cargo fmt --check)
 (cd "$FW" && cargo clippy --release -p board-a -p board-b -p fw-core -p fw-esp -- -D warnings)
-(cd "$FW" && cargo clippy --release -p board-a --features frame-link -- -D warnings)
 (cd "$FW/qemu-tests" && CARGO_TARGET_DIR="$CARGO_TARGET_DIR/qemu-tests" cargo clippy -- -D warnings)
 
 step "build board images (release)"
 (cd "$FW" && cargo build --release -p board-a -p board-b)
 
-step "build board A with the space link (feature frame-link, release)"
-(cd "$FW" && cargo build --release -p board-a --features frame-link --target-dir "$CARGO_TARGET_DIR/frame-link")
-cp "$CARGO_TARGET_DIR/frame-link/$TARGET/release/board-a" "$CARGO_TARGET_DIR/frame-link/board-a-frames"
-
 step "size report"
 "$FW/tools/size-report.sh" \
   "$CARGO_TARGET_DIR/$TARGET/release/board-a" \
-  "$CARGO_TARGET_DIR/$TARGET/release/board-b" \
-  "$CARGO_TARGET_DIR/frame-link/board-a-frames"
+  "$CARGO_TARGET_DIR/$TARGET/release/board-b"
 
 step "panic file lookup (PREVIOUS_PANIC file_crc -> path, in board A's image)"
 # 0x231DC4FE = CRC-32/ISO-HDLC of "board-a/src/main.rs", a panic location in the image.
