@@ -145,6 +145,8 @@ fn main() {
     let f = stats("pus17_frames_sdls_rtt", framed);
     println!("frames_vs_bare_pus_ratio: {:.2}", f / b);
     println!("frames_vs_udp_echo_ratio: {:.2}", f / e);
+    // The floor of any ping through the obsw: the bare ping over the same echo.
+    println!("bare_vs_udp_echo_ratio: {:.2}", b / e);
     println!(
         "ground: {} AD frames, {} retransmissions",
         g.counters.ad_frames_sent, g.counters.retransmissions
