@@ -276,6 +276,76 @@ pub const HK_SET_TRIES: u32 = 10;
 /// there by then; a lost one is asked again instead of waiting for the next lease renewal.
 pub const GROUND_ASK_AGAIN_MS: u32 = 500;
 
+// --- Ground: the collector's link and archive timing, `ground run`'s end of run ---
+
+/// Ground (collector): first pause before trying a lost robot again (a ping; over TCP a
+/// new connection first); each further pause doubles up to the configured cap
+/// ([`GROUND_RECONNECT_CAP_MS`]). A quarter of the heartbeat ([`GROUND_HEARTBEAT_MS`]):
+/// an obsw restarted at once is found again within half a second, and a try costs one
+/// small TC.
+pub const GROUND_RECONNECT_FIRST_MS: u32 = 250;
+/// Ground (collector): longest pause between two reconnection tries, and the largest the
+/// configuration (`[link] max_backoff_ms`) may set: a robot back after an outage is seen
+/// within 5 s (two link-loss floors, [`LINK_LOSS_MS`]), while a dead robot costs one TC
+/// every 5 s.
+pub const GROUND_RECONNECT_CAP_MS: u32 = 5_000;
+const _: () =
+    assert!(GROUND_RECONNECT_FIRST_MS < GROUND_HEARTBEAT_MS && GROUND_RECONNECT_FIRST_MS < GROUND_RECONNECT_CAP_MS);
+/// Ground (collector): a robot's link health (link state, quality, counters) is written to
+/// the archive this often: within one link-loss floor ([`LINK_LOSS_MS`]) of a change, at
+/// one row per robot per 2 s (43,200 rows a day) however fast the TM.
+pub const COLLECTOR_HEALTH_MS: u32 = 2_000;
+const _: () = assert!(COLLECTOR_HEALTH_MS < LINK_LOSS_MS);
+/// Ground: packets still on their way after a hole was seen, or after a store replay
+/// ended, arrive within this (the lab links and the frame link deliver within a few
+/// control periods; a count that comes later is a hole): the collector asks the store for
+/// a new hole only after it (`[gaps] settle_ms`), and `ground run` waits it after each
+/// retrieval round before counting the holes. Below [`STORE_REQUEST_MIN_GAP_MS`], so it
+/// never slows the retrieval rate.
+pub const GAP_SETTLE_MS: u32 = 300;
+const _: () = assert!(GAP_SETTLE_MS < STORE_REQUEST_MIN_GAP_MS);
+/// Ground (collector): a hole still there this long after it was last asked for is asked
+/// for again (`[gaps] retry_ms`): longer than [`STORE_REQUEST_TIMEOUT_MS`], so the request
+/// before it has ended or been given up and one replay is in flight per robot.
+pub const GAP_RETRY_MS: u32 = 3_000;
+const _: () = assert!(GAP_RETRY_MS > STORE_REQUEST_TIMEOUT_MS);
+/// Ground (collector): requests per hole before it is declared not delivered
+/// (`[gaps] max_tries`): the hole is lost only when all its replays are lost (at 20 %
+/// packet loss 0.2^5 = 0.03 % of the counts), and a hole the store no longer holds is
+/// reported within [`GAP_MAX_TRIES`] × [`GAP_RETRY_MS`] = 15 s.
+pub const GAP_MAX_TRIES: u32 = 5;
+/// Ground (collector): `STALE_DATA` when TM flows but no status HK came for this many HK
+/// intervals (`[alarms] stale_hk_intervals`): more than the link-loss rule's 2.5
+/// intervals ([`LINK_LOSS_HK_TENTHS`]), so one lost HK report is not an alarm.
+pub const STALE_HK_INTERVALS: u32 = 3;
+const _: () = assert!(STALE_HK_INTERVALS * 10 > LINK_LOSS_HK_TENTHS);
+/// Ground (collector): the stale-HK silence is never shorter than this, whatever the HK
+/// interval: one heartbeat ([`GROUND_HEARTBEAT_MS`]), so a fast HK (down to 10 ms) does
+/// not raise `STALE_DATA` on a pause of the ground's own scheduling.
+pub const STALE_HK_MIN_MS: u32 = 1_000;
+/// Ground (`ground run`, over frames): ranges asked at once where an awaited TC's reports
+/// are missing: its acceptance and its completion report may fall in two separate holes.
+pub const GAP_REQUESTS_AWAITED: usize = 2;
+/// Ground (`ground run`, end of a run): one retrieval round waits at most this long for its
+/// requests to end: more than [`STORE_REQUEST_TIMEOUT_MS`], after which a request whose
+/// end report was lost no longer counts as open (the round ends sooner when none is).
+pub const GAP_ROUND_WAIT_MS: u32 = 3_000;
+const _: () = assert!(GAP_ROUND_WAIT_MS > STORE_REQUEST_TIMEOUT_MS);
+/// Ground (`ground run`, end of a run): retrieval rounds in a row that fill no hole before
+/// the rest counts as not recovered. A round fills nothing only when every replay it asked
+/// for was lost; eight in a row end a run on a link that delivers nothing, after at most
+/// 8 × ([`TC_RETRY_SPAN_MS`] or [`GAP_ROUND_WAIT_MS`] + [`GAP_SETTLE_MS`]).
+pub const GAP_ROUNDS_IDLE_MAX: u32 = 8;
+/// Ground (`ground run`, end of a run): most retrieval rounds: 40 × [`GAP_REQUESTS_MAX`]
+/// ranges of up to [`GAP_RANGE_MAX`] counts cover the whole on-board store
+/// ([`TM_STORE_CAPACITY`]) many times over, so the bound only ends a run whose holes keep
+/// coming back (each round's own reports lost).
+pub const GAP_ROUNDS_MAX: u32 = 40;
+const _: () = assert!(
+    GAP_ROUNDS_IDLE_MAX < GAP_ROUNDS_MAX
+        && GAP_ROUNDS_MAX as usize * GAP_REQUESTS_MAX * GAP_RANGE_MAX as usize >= TM_STORE_CAPACITY
+);
+
 /// OBSW: most TCP clients at once; a further connection is closed at once (counted).
 pub const TCP_MAX_CONNECTIONS: usize = 8;
 /// OBSW: decoded TCs waiting per TCP connection; when full, the obsw stops reading that

@@ -34,10 +34,11 @@ use super::robotcfg::ConfigTracker;
 use super::store::SinkMsg;
 use super::tracker::{ApidTracker, GapPlan, LinkWatch, Pos};
 
-/// First pause between reconnection attempts; doubles up to the configured cap.
-const BACKOFF_START_MS: i64 = 250;
-/// Health written to the archive this often.
-const HEALTH_MS: i64 = 2_000;
+/// [`mib::config::GROUND_RECONNECT_FIRST_MS`]: first pause between reconnection attempts;
+/// doubles up to the configured cap.
+const BACKOFF_START_MS: i64 = mib::config::GROUND_RECONNECT_FIRST_MS as i64;
+/// [`mib::config::COLLECTOR_HEALTH_MS`]: health written to the archive this often.
+const HEALTH_MS: i64 = mib::config::COLLECTOR_HEALTH_MS as i64;
 /// [`mib::config::GAP_REQUESTS_LIVE`]: one replay in flight per robot.
 const MAX_RUNS_PER_REQUEST: usize = mib::config::GAP_REQUESTS_LIVE;
 /// [`mib::config::STORE_REQUEST_TIMEOUT_MS`].

@@ -187,7 +187,7 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
         if session.over_frames() {
             for &r in &robots {
                 if !session.retrieving(r) && !session.awaited_gaps(r).is_empty() {
-                    session.request_missing_reports(r, 2);
+                    session.request_missing_reports(r, mib::config::GAP_REQUESTS_AWAITED);
                 }
             }
         }
@@ -350,13 +350,13 @@ fn resolve_in_flight(
             }
         }
         let round = Instant::now();
-        while round.elapsed() < Duration::from_secs(3) && open.iter().any(|&r| session.retrieving(r)) {
+        while round.elapsed() < GAP_ROUND_WAIT && open.iter().any(|&r| session.retrieving(r)) {
             for u in session.poll(Duration::from_millis(50)) {
                 fx.extend(exec.on_update(Instant::now(), u));
             }
         }
         let settle = Instant::now();
-        while settle.elapsed() < Duration::from_millis(300) {
+        while settle.elapsed() < GAP_SETTLE {
             for u in session.poll(Duration::from_millis(50)) {
                 fx.extend(exec.on_update(Instant::now(), u));
             }
@@ -423,11 +423,15 @@ const GAP_CHECK_PERIOD: Duration = Duration::from_millis(mib::config::GAP_CHECK_
 const GAP_CHECK_PERIOD_FRAMES: Duration = Duration::from_millis(mib::config::GAP_CHECK_PERIOD_FRAMES_MS as u64);
 const FIRST_TM_WAIT: Duration = Duration::from_millis(mib::config::FIRST_TM_WAIT_MS as u64);
 const MARKER_SETTLE: Duration = Duration::from_millis(mib::config::MARKER_SETTLE_MS as u64);
-/// Retrieval rounds at the end of a run that bring nothing back before the rest counts
-/// as not recovered.
-const GAP_ROUNDS_IDLE_MAX: u32 = 8;
-/// Retrieval rounds at the end of a run at most.
-const GAP_ROUNDS_MAX: u32 = 40;
+/// [`mib::config::GAP_ROUNDS_IDLE_MAX`]: retrieval rounds at the end of a run that bring
+/// nothing back before the rest counts as not recovered.
+const GAP_ROUNDS_IDLE_MAX: u32 = mib::config::GAP_ROUNDS_IDLE_MAX;
+/// [`mib::config::GAP_ROUNDS_MAX`]: retrieval rounds at the end of a run at most.
+const GAP_ROUNDS_MAX: u32 = mib::config::GAP_ROUNDS_MAX;
+/// [`mib::config::GAP_ROUND_WAIT_MS`]: longest wait for one round's requests to end.
+const GAP_ROUND_WAIT: Duration = Duration::from_millis(mib::config::GAP_ROUND_WAIT_MS as u64);
+/// [`mib::config::GAP_SETTLE_MS`]: replays still on their way after a round.
+const GAP_SETTLE: Duration = Duration::from_millis(mib::config::GAP_SETTLE_MS as u64);
 
 /// Ends a run's TM: an end marker (a connection test, resent until answered) fixes how
 /// far the TM must be complete; then every gap up to it is asked of the on-board store
@@ -527,7 +531,7 @@ fn complete_tm(session: &mut Session, robots: &[u8], disp: &Display, stop: &dyn 
             }
             // Replays still on their way.
             let settle = Instant::now();
-            while settle.elapsed() < Duration::from_millis(300) {
+            while settle.elapsed() < GAP_SETTLE {
                 session.poll(Duration::from_millis(50));
             }
         }
