@@ -328,9 +328,38 @@ impl ParamDef {
     }
 }
 
+/// Highest parameter ID of the MIB.
+const MAX_PID: usize = {
+    let (mut m, mut i) = (0, 0);
+    while i < PARAMS.len() {
+        if PARAMS[i].id as usize > m {
+            m = PARAMS[i].id as usize;
+        }
+        i += 1;
+    }
+    m
+};
+
+/// `PARAMS` index of every parameter ID (`u8::MAX`: no such parameter), built at compile
+/// time: [`by_id`] is one table read instead of a scan of `PARAMS`. Every HK report
+/// looks up each of its parameters (its length and each value's type), so a scan made
+/// the on-board tick grow with (HK size × number of parameters); this table is
+/// `MAX_PID + 1` bytes of flash.
+const INDEX: [u8; MAX_PID + 1] = {
+    assert!(PARAMS.len() < u8::MAX as usize, "PARAMS index must fit a u8");
+    let mut t = [u8::MAX; MAX_PID + 1];
+    let mut i = 0;
+    while i < PARAMS.len() {
+        assert!(t[PARAMS[i].id as usize] == u8::MAX, "parameter ID defined twice");
+        t[PARAMS[i].id as usize] = i as u8;
+        i += 1;
+    }
+    t
+};
+
 /// Looks a parameter up by ID.
 pub fn by_id(id: u16) -> Option<&'static ParamDef> {
-    PARAMS.iter().find(|p| p.id == id)
+    INDEX.get(usize::from(id)).and_then(|&i| PARAMS.get(usize::from(i)))
 }
 
 /// Looks a parameter up by mnemonic (case-insensitive).
@@ -351,6 +380,20 @@ mod tests {
             }
         }
     }
+    // verifies: ICD-05
+    #[test]
+    fn by_id_finds_every_parameter_and_nothing_else() {
+        for p in PARAMS {
+            assert_eq!(by_id(p.id).map(|q| q.name), Some(p.name));
+        }
+        for id in 0..=u16::MAX {
+            assert_eq!(
+                by_id(id).map(|p| p.id),
+                PARAMS.iter().find(|p| p.id == id).map(|p| p.id)
+            );
+        }
+    }
+
     fn state(mode: Option<i64>, primitive: Option<i64>) -> impl Fn(u16) -> Option<i64> {
         move |id| match id {
             pid::MODE => mode,
