@@ -72,6 +72,9 @@ struct RobotFile {
     transport: Option<toml::Spanned<String>>,
     /// Over frames: the local address this robot's TM frames arrive at.
     tm_listen: Option<toml::Spanned<String>>,
+    /// The space link over this serial device or Unix socket instead of UDP (the CLI's
+    /// `--serial N=PATH`), relative to this file's folder.
+    serial: Option<toml::Spanned<String>>,
     hk_interval_ms: Option<toml::Spanned<u32>>,
     name: Option<String>,
 }
@@ -523,6 +526,29 @@ pub fn parse(file: &str, src: &str) -> Result<Config, CfgErrors> {
                 }
             },
         };
+        if let Some(p) = &r.serial {
+            if transport != Transport::Frames {
+                cx.err(
+                    p.span(),
+                    format!("robot {number}: serial is the space link over a serial line; it does not go with a lab transport"),
+                );
+                continue;
+            }
+            if r.tm_listen.is_some() {
+                cx.err(
+                    p.span(),
+                    format!("robot {number}: serial carries its TM frames too; it does not go with tm_listen"),
+                );
+                continue;
+            }
+            if p.get_ref().is_empty() {
+                cx.err(
+                    p.span(),
+                    format!("robot {number}: the path of the serial device is missing"),
+                );
+                continue;
+            }
+        }
         if transport != Transport::Frames && !addr.ip().is_loopback() {
             cx.err(
                 r.number.span(),
@@ -538,9 +564,16 @@ pub fn parse(file: &str, src: &str) -> Result<Config, CfgErrors> {
                 );
                 continue;
             };
-            let keys = Path::new(file).parent().unwrap_or(Path::new("")).join(k.get_ref());
+            let folder = Path::new(file).parent().unwrap_or(Path::new(""));
+            let keys = folder.join(k.get_ref());
             Some(FrameOptions {
                 tm_listen: tm_listen.map(|a| (number, a)).into_iter().collect(),
+                serial: r
+                    .serial
+                    .as_ref()
+                    .map(|p| (number, folder.join(p.get_ref())))
+                    .into_iter()
+                    .collect(),
                 tc_spi,
                 tm_security,
                 ..FrameOptions::new(keys)
@@ -667,6 +700,45 @@ transport = "lab-tcp"
         .unwrap_err()
         .to_string();
         assert!(e.contains("c.toml:3:10: robot 1 at 10.1.2.3:7301: a lab link"), "{e}");
+    }
+
+    // verifies: LINK-STREAM-04, GND-11
+    #[test]
+    fn a_robot_takes_the_space_link_over_a_serial_line_only_over_frames() {
+        let c = parse(
+            "cfg/c.toml",
+            "keys = \"k\"\n[[robot]]\nnumber = 1\nserial = \"/dev/ttyACM0\"\n[[robot]]\nnumber = 2\nserial = \"sock\"\n[[robot]]\nnumber = 3\n",
+        )
+        .unwrap();
+        let serial = |i: usize| {
+            c.robots[i]
+                .frames
+                .as_ref()
+                .map(|f| f.serial.clone())
+                .unwrap_or_default()
+        };
+        assert_eq!(serial(0).get(&1), Some(&PathBuf::from("/dev/ttyACM0")));
+        assert_eq!(serial(0).len(), 1);
+        // Relative to the file's folder, like keys.
+        assert_eq!(serial(1).get(&2), Some(&PathBuf::from("cfg/sock")));
+        assert!(serial(2).is_empty(), "robot 3 stays on UDP");
+        let e = parse(
+            "c.toml",
+            "keys = \"k\"\n[[robot]]\nnumber = 1\ntransport = \"lab-udp\"\nserial = \"/dev/a\"\n\
+             [[robot]]\nnumber = 2\ntm_listen = \"127.0.0.1:9000\"\nserial = \"/dev/b\"\n[[robot]]\nnumber = 3\nserial = \"\"\n",
+        )
+        .unwrap_err();
+        let text = e.to_string();
+        assert!(text.contains("c.toml:5:10: robot 1: serial is the space link over a serial line; it does not go with a lab transport"), "{text}");
+        assert!(
+            text.contains("c.toml:9:10: robot 2: serial carries its TM frames too; it does not go with tm_listen"),
+            "{text}"
+        );
+        assert!(
+            text.contains("c.toml:12:10: robot 3: the path of the serial device is missing"),
+            "{text}"
+        );
+        assert_eq!(e.errors.len(), 3, "{text}");
     }
 
     // verifies: GND-11
