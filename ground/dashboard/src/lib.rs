@@ -31,17 +31,10 @@ pub use server::{serve, spawn, Running, ServeError};
 
 use serde::Serialize;
 
-/// Link state of one robot as the collector sees it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum LinkState {
-    /// Not yet connected, or reconnecting after a loss.
-    Connecting,
-    /// TM arrives.
-    Up,
-    /// No TM for longer than the loss timeout.
-    Lost,
-}
+/// Link state of one robot: the one enum of every front end (`ground_ops::live`, the rule
+/// of [`ground_ops::live::LinkWatch`]). The page reads it as `"connecting"`, `"up"` or
+/// `"lost"` (`ground/web/src/app.js`).
+pub use ground_ops::live::LinkState;
 
 /// Configuration state of a robot: the MIB state and the faces its two sides grip.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize)]
@@ -535,6 +528,18 @@ pub fn node_mode(hub: &Hub, robot: u8, node: u32, mode: u32) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    // verifies: OPS-LIVE-LINK-01
+    #[test]
+    fn the_page_reads_the_one_link_state_as_lowercase_words() {
+        let json = |s: LinkState| serde_json::to_string(&s).unwrap();
+        assert_eq!(json(LinkState::Connecting), "\"connecting\"");
+        assert_eq!(json(LinkState::Up), "\"up\"");
+        assert_eq!(json(LinkState::Lost), "\"lost\"");
+        // The collector's watch and the page hold the same type.
+        let from_watch: LinkState = ground_ops::live::LinkWatch::new(1000, 0).state();
+        assert_eq!(json(from_watch), "\"connecting\"");
+    }
 
     // verifies: GND-17
     #[test]

@@ -10,7 +10,7 @@ use crate::ops::SendError;
 use crate::planrun::PlanInput;
 use crate::pus::{self, BuiltTc};
 
-use super::{LinkState, Worker};
+use super::Worker;
 
 impl Worker {
     /// Sends the page's TCs, numbered with this thread's own sequence counter.
@@ -134,14 +134,8 @@ impl Worker {
 
     pub(super) fn dash_link(&self) {
         if let Some(d) = &self.dash {
-            d.hub.link(
-                self.cfg.number,
-                match self.watch.state() {
-                    LinkState::Connecting => ground_dashboard::LinkState::Connecting,
-                    LinkState::Up => ground_dashboard::LinkState::Up,
-                    LinkState::Lost => ground_dashboard::LinkState::Lost,
-                },
-            );
+            // One enum: the page's state is the watch's (ground_dashboard re-exports it).
+            d.hub.link(self.cfg.number, self.watch.state());
         }
     }
 }
