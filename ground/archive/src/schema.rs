@@ -6,7 +6,7 @@ use super::db::{scalar, Db, Dialect, Val};
 use super::ArchiveError;
 
 /// The schema this build writes.
-pub const VERSION: i64 = 4;
+pub const VERSION: i64 = 5;
 
 /// Longest time span of one parameter chunk (ms); range queries rely on it.
 pub const CHUNK_SPAN_MS: i64 = 3_600_000;
@@ -37,8 +37,11 @@ const CHUNK_TABLE: &str = "(
     t1 {int} NOT NULL, n {int} NOT NULL, data {blob} NOT NULL,
     PRIMARY KEY (robot, param, t0, cid)){norowid}";
 
-/// Tables of version 4. `{chunk_table}`, then `{int}`, `{real}`, `{blob}`, `{id}` and
-/// `{norowid}` are filled per dialect. Version 4 (over 3): chunks being filled live in `hk_open` and move to
+/// Tables of version 5. `{chunk_table}`, then `{int}`, `{real}`, `{blob}`, `{id}` and
+/// `{norowid}` are filled per dialect. Version 5 (over 4): the index `packet_received`
+/// on a robot's packets by ground receive time, which `Store::last_received_seq` (where a
+/// resumed run's replay starts) sorts by — without it every packet of the robot's APID was
+/// read and sorted. Version 4 (over 3): chunks being filled live in `hk_open` and move to
 /// `hk_chunk` when closed, so that rewriting them after every batch touches a small table
 /// instead of pages spread over the whole history. Version 3 (over 2): the alarm table
 /// holds the ISA-18.2 state of every alarm (`condition`, `acked`, `kind`, `message`, a
@@ -51,6 +54,7 @@ CREATE TABLE IF NOT EXISTS packet (
     robot {int} NOT NULL, apid {int} NOT NULL, obt_ms {int} NOT NULL, seq {int} NOT NULL,
     t_ms {int} NOT NULL, link_robot {int}, raw {blob} NOT NULL,
     PRIMARY KEY (robot, apid, obt_ms, seq)){norowid};
+CREATE INDEX IF NOT EXISTS packet_received ON packet (robot, apid, t_ms, obt_ms);
 CREATE TABLE IF NOT EXISTS hk_chunk {chunk_table};
 CREATE TABLE IF NOT EXISTS hk_open {chunk_table};
 CREATE TABLE IF NOT EXISTS event (
@@ -175,6 +179,11 @@ fn prepare_locked(db: &mut dyn Db) -> Result<Prepared, ArchiveError> {
         Some(3) => {
             set_version(db)?;
             Ok(Prepared::Migrated(3))
+        }
+        // Version 5 only adds the index `packet_received` (created by `set_version`).
+        Some(4) => {
+            set_version(db)?;
+            Ok(Prepared::Migrated(4))
         }
         Some(v) => Err(ArchiveError::Schema(format!(
             "archive {} has schema version {v}, which no migration of this ground tool ({VERSION}) \
