@@ -65,6 +65,9 @@ use mmic_link::tc::{FrameType, TcRepr};
 
 pub use mmic_link::persist::{create_key_file, read_key};
 pub use mmic_link::sdls::Key;
+/// The one COBS stream framing (`0x00, COBS(frame), 0x00`) and its counting deframer,
+/// re-exported for the ground's lab TCP link.
+pub use mmic_link::stream;
 
 /// Handle of a packet given to [`FrameLink::send_packet`].
 pub type PacketId = u64;

@@ -22,6 +22,7 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use crossbeam_channel::Sender;
+use ground_link::stream;
 
 use crate::pus;
 
@@ -196,42 +197,44 @@ pub fn split_packets(mut b: &[u8], mut out: impl FnMut(&[u8])) {
     }
 }
 
-/// COBS-encodes a packet with a 0x00 sentinel before and after (sat-rs framing).
+/// COBS-encodes a packet with a 0x00 sentinel before and after (sat-rs framing), with
+/// the one encoder, `mmic_link::stream::encode`.
 pub fn cobs_frame(packet: &[u8]) -> Vec<u8> {
-    let mut buf = vec![0u8; cobs::max_encoding_length(packet.len()) + 2];
-    let n = cobs::encode_including_sentinels(packet, &mut buf);
+    let mut buf = vec![0u8; stream::encoded_len(packet.len())];
+    // The buffer is `encoded_len` long, so `encode` cannot fail; an empty frame if it did.
+    let n = stream::encode(packet, &mut buf).unwrap_or(0);
     buf.truncate(n);
     buf
 }
 
-/// Feeds TCP bytes; calls `out` with each decoded frame. Keeps a partial frame.
-#[derive(Default)]
+/// Largest decoded lab-TCP frame: a frame may hold several packets (the robot's writer
+/// batches them), as the old splitter's bound of two packets.
+pub const TCP_FRAME_MAX: usize = 2 * mib::config::MAX_PACKET_LEN;
+
+/// Feeds TCP bytes; calls `out` with each decoded frame. The one COBS deframer,
+/// `mmic_link::stream::Deframer` (keeps a partial frame; counts oversize, corrupt and
+/// garbage bytes in [`CobsSplitter::counters`]); every dropped frame is also handed to
+/// `out` as `Err(())` so the reader counts it as one undecodable packet.
 pub struct CobsSplitter {
-    acc: Vec<u8>,
+    deframer: Box<stream::Deframer<TCP_FRAME_MAX>>,
+}
+
+impl Default for CobsSplitter {
+    fn default() -> Self {
+        Self {
+            deframer: Box::new(stream::Deframer::new()),
+        }
+    }
 }
 
 impl CobsSplitter {
-    pub fn push(&mut self, data: &[u8], mut out: impl FnMut(Result<Vec<u8>, Vec<u8>>)) {
-        for &b in data {
-            if b == 0 {
-                if !self.acc.is_empty() {
-                    let mut dec = vec![0u8; self.acc.len()];
-                    match cobs::decode(&self.acc, &mut dec) {
-                        Ok(rep) => {
-                            dec.truncate(rep.frame_size());
-                            out(Ok(dec));
-                        }
-                        Err(_) => out(Err(std::mem::take(&mut self.acc))),
-                    }
-                    self.acc.clear();
-                }
-            } else if self.acc.len() < 2 * mib::config::MAX_PACKET_LEN {
-                self.acc.push(b);
-            } else {
-                // A frame longer than any packet: give it up as corrupt.
-                out(Err(std::mem::take(&mut self.acc)));
-            }
-        }
+    pub fn push(&mut self, data: &[u8], out: impl FnMut(Result<&[u8], stream::StreamError>)) {
+        self.deframer.feed(data, out);
+    }
+
+    /// What the deframer delivered and dropped so far.
+    pub fn counters(&self) -> stream::StreamCounters {
+        self.deframer.counters
     }
 }
 
@@ -431,8 +434,10 @@ fn reader_loop(robot: u8, io: &Io, tcp: Option<TcpStream>, stop: &AtomicBool, tx
                 match s.read(&mut buf) {
                     Ok(0) => return,
                     Ok(n) => split.push(&buf[..n], |f| match f {
-                        Ok(frame) => split_packets(&frame, emit),
-                        Err(bad) => emit(&bad),
+                        Ok(frame) => split_packets(frame, emit),
+                        // A dropped frame (counted by the deframer) reaches the reader as
+                        // an empty, undecodable packet: counted there as well.
+                        Err(_) => emit(&[]),
                     }),
                     Err(e)
                         if matches!(
@@ -630,9 +635,30 @@ mod tests {
         let mut sp = CobsSplitter::default();
         let mut got = Vec::new();
         for chunk in stream.chunks(3) {
-            sp.push(chunk, |f| got.push(f.unwrap()));
+            sp.push(chunk, |f| got.push(f.unwrap().to_vec()));
         }
         assert_eq!(got, vec![p1, p2]);
+        assert_eq!(sp.counters().frames, 2);
+    }
+
+    // verifies: DD-LINK-01
+    #[test]
+    fn a_corrupt_or_oversize_tcp_frame_is_counted_not_lost() {
+        let mut sp = CobsSplitter::default();
+        let mut errs = 0;
+        let mut ok = Vec::new();
+        // A block announcing 5 bytes cut by a delimiter, then an oversize frame, then a good one.
+        let mut stream = vec![0, 5, 1, 2, 0];
+        stream.extend(cobs_frame(&vec![7u8; TCP_FRAME_MAX + 1]));
+        stream.extend(cobs_frame(&[1, 2, 3]));
+        sp.push(&stream, |f| match f {
+            Ok(p) => ok.push(p.to_vec()),
+            Err(_) => errs += 1,
+        });
+        assert_eq!(ok, vec![vec![1, 2, 3]]);
+        assert_eq!(errs, 2);
+        let c = sp.counters();
+        assert_eq!((c.corrupt, c.oversize, c.frames), (1, 1, 1));
     }
 
     // verifies: DD-LINK-01
