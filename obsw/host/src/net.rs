@@ -29,6 +29,7 @@ use mio::net::{TcpListener, TcpStream};
 use mio::unix::SourceFd;
 use mio::{Events, Interest, Poll, Token};
 use mmic_link::downlink::TmVc;
+use mmic_link::stream::{Deframer, StreamError};
 use timerfd::{ClockId, SetTimeFlags, TimerFd, TimerState};
 
 /// Something for the main loop.
@@ -63,8 +64,8 @@ const FRAMES: Token = Token(5);
 /// Connection `i` has token `CONN0 + i`.
 const CONN0: usize = 16;
 
-/// Longest frame kept while reading (a COBS-encoded packet of `MAX_PACKET_LEN`).
-const MAX_FRAME: usize = MAX_PACKET_LEN + MAX_PACKET_LEN / 254 + 2;
+/// Decoded bytes of an oversize frame kept to answer it (its request ID is in the first 6).
+const OVERSIZE_HEAD: usize = 10;
 
 /// Link counters (reported in HK through `IoCounters` and on stderr).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -82,12 +83,9 @@ pub struct LinkCounters {
 /// One TCP client.
 struct Conn {
     stream: TcpStream,
-    /// Bytes of the frame being read (bounded by `MAX_FRAME`).
-    frame: Vec<u8>,
-    /// Length of a frame that passed `MAX_FRAME` (0: none).
-    overflow: usize,
-    /// First decoded bytes of that frame.
-    overflow_head: Vec<u8>,
+    /// The one COBS deframer (`mmic_link::stream`), at most one packet decoded; counts
+    /// what it drops (each drop is also an [`Input`], counted by the main loop).
+    de: Box<Deframer<MAX_PACKET_LEN>>,
     /// Decoded inputs waiting for the main loop (bounded by `TCP_INPUT_QUEUE`).
     queue: VecDeque<Input>,
     /// TM frames not yet written (bounded by `TCP_TM_BACKLOG` bytes).
@@ -512,9 +510,7 @@ impl Inputs {
                     }
                     down.conns[i] = Some(Conn {
                         stream,
-                        frame: Vec::with_capacity(MAX_FRAME),
-                        overflow: 0,
-                        overflow_head: Vec::new(),
+                        de: Box::new(Deframer::new()),
                         queue: VecDeque::with_capacity(TCP_INPUT_QUEUE),
                         backlog: VecDeque::new(),
                         readable: true,
@@ -631,40 +627,21 @@ fn read_conn(c: &mut Conn, buf: &mut [u8]) {
     }
 }
 
-/// Feeds one byte of a COBS stream.
+/// Feeds one byte of a COBS stream to the connection's deframer; a frame completed or
+/// dropped becomes an [`Input`].
 fn frame_byte(c: &mut Conn, b: u8) {
-    if b != 0 {
-        if c.overflow > 0 {
-            c.overflow = c.overflow.saturating_add(1);
-        } else if c.frame.len() < MAX_FRAME {
-            c.frame.push(b);
-        } else {
-            c.overflow = c.frame.len() + 1;
-            // COBS: the first byte k says k-1 data bytes without a zero follow.
-            let k = c.frame.first().map_or(0, |&k| k as usize).min(c.frame.len());
-            c.overflow_head = c.frame.get(1..k.min(10)).map(<[u8]>::to_vec).unwrap_or_default();
-            c.frame.clear();
+    let garbage = c.de.counters.garbage_bytes;
+    let input = match c.de.push(b) {
+        None => return,
+        Some(Ok(frame)) => Input::Tc(frame.to_vec(), Origin::Tcp),
+        Some(Err(StreamError::Oversize)) => {
+            // Its encoded length (the deframer counted it as garbage) and decoded head.
+            let len = c.de.counters.garbage_bytes.saturating_sub(garbage) as usize;
+            let head = c.de.oversize_head();
+            Input::OversizeFrame(len, head[..head.len().min(OVERSIZE_HEAD)].to_vec())
         }
-        return;
-    }
-    if c.overflow > 0 {
-        c.queue
-            .push_back(Input::OversizeFrame(c.overflow, std::mem::take(&mut c.overflow_head)));
-        c.overflow = 0;
-        return;
-    }
-    if c.frame.is_empty() {
-        return;
-    }
-    let mut out = vec![0u8; c.frame.len()];
-    let input = match cobs::decode(&c.frame, &mut out) {
-        Ok(r) => {
-            out.truncate(r.frame_size());
-            Input::Tc(out, Origin::Tcp)
-        }
-        Err(_) => Input::BadFrame,
+        Some(Err(StreamError::Corrupt | StreamError::BufferTooSmall)) => Input::BadFrame,
     };
-    c.frame.clear();
     c.queue.push_back(input);
 }
 
@@ -768,8 +745,9 @@ mod tests {
         assert_eq!(down.counters.tcp_refused, 3);
         // An oversize frame, a malformed one and a good one, in that order.
         let c = &mut clients[0];
-        let mut big = vec![0x55u8; 3 * MAX_PACKET_LEN];
-        big.push(0);
+        let mut big = vec![0u8; cobs::max_encoding_length(3 * MAX_PACKET_LEN) + 1];
+        let big_len = cobs::encode(&vec![0x55u8; 3 * MAX_PACKET_LEN], &mut big);
+        big.truncate(big_len + 1);
         c.write_all(&big).unwrap();
         c.write_all(&[0x05, 1, 0]).unwrap();
         let mut f = [0u8; 8];
@@ -778,7 +756,7 @@ mod tests {
         c.write_all(&f[..=n]).unwrap();
         let got = drain(&mut inputs, &mut down, Instant::now() + Duration::from_millis(300));
         assert!(
-            matches!(got[0], Input::OversizeFrame(n, _) if n == 3 * MAX_PACKET_LEN),
+            matches!(&got[0], Input::OversizeFrame(n, h) if *n == big_len && h == &[0x55; OVERSIZE_HEAD]),
             "{got:?}"
         );
         assert!(matches!(got[1], Input::BadFrame), "{got:?}");

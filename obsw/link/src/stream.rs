@@ -173,6 +173,13 @@ impl<const N: usize> Deframer<N> {
         }
     }
 
+    /// The first `N` decoded bytes of the frame just dropped as [`StreamError::Oversize`]
+    /// (its header, e.g. to answer it with its request ID); valid until the next byte is
+    /// pushed. Meaningless after any other result.
+    pub fn oversize_head(&self) -> &[u8] {
+        &self.buf
+    }
+
     /// Bytes of a frame in progress (received since its start, not yet delimited).
     pub fn in_progress(&self) -> u32 {
         self.wire
@@ -445,6 +452,21 @@ mod tests {
         assert_eq!(d.counters.oversize, 1);
         assert_eq!(d.counters.garbage_bytes, 18, "17 data bytes + 1 COBS code byte");
         assert_eq!(d.counters.frames, 1);
+    }
+
+    // verifies: LINK-STREAM-02
+    #[test]
+    fn an_oversize_frame_keeps_its_head_until_the_next_byte() {
+        let mut d = Deframer::<4>::new();
+        let big: Vec<u8> = (1..=9).collect();
+        let w = wire(&[big]);
+        let mut head = None;
+        for &b in &w {
+            if let Some(Err(StreamError::Oversize)) = d.push(b) {
+                head = Some(d.oversize_head().to_vec());
+            }
+        }
+        assert_eq!(head, Some(vec![1, 2, 3, 4]));
     }
 
     // verifies: LINK-STREAM-02
