@@ -297,7 +297,7 @@ impl Client {
         }
     }
     pub fn next_seq(&mut self) -> u16 {
-        self.seq = (self.seq + 1) & 0x3FFF;
+        self.seq = mib::headers::SeqCount::new(self.seq).next().get();
         self.seq
     }
     pub fn send_raw(&mut self, raw: &[u8]) {
@@ -408,7 +408,7 @@ impl Client {
                 (1, _, Some(r)) => format!(
                     "TM[1,{}] seq {} code {:?}",
                     t.subservice,
-                    r.1 & 0x3FFF,
+                    mib::headers::SeqCount::new(r.1).get(),
                     t.failure_code()
                 ),
                 _ => format!(

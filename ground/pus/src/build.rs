@@ -5,9 +5,10 @@ use std::collections::HashMap;
 use std::fmt;
 
 use arbitrary_int::{u11, u14};
-use mib_wire::codec;
 use mib::config::{GROUND_ID, MAX_PACKET_LEN, TIMESTAMP_LEN};
+use mib::headers::SeqCount;
 use mib::tc::TcDef;
+use mib_wire::codec;
 use satrs::spacepackets::ecss::tc::{AckFlags, ACK_ALL};
 use satrs::spacepackets::ecss::tm::{PusTmCreator, PusTmSecondaryHeader};
 use satrs::spacepackets::ecss::{CreatorConfig, MessageTypeId, WritablePusPacket};
@@ -28,7 +29,7 @@ impl RequestId {
         self.packet_id & 0x7FF
     }
     pub fn seq(self) -> u16 {
-        self.psc & 0x3FFF
+        SeqCount::new(self.psc).get()
     }
     pub(super) fn from_wire(r: &mib_wire::RequestId) -> RequestId {
         RequestId {
@@ -58,13 +59,13 @@ impl SeqCounters {
     pub fn next(&mut self, apid: u16) -> u16 {
         let c = self.next.entry(apid).or_insert(0);
         let v = *c;
-        *c = (v + 1) & 0x3FFF;
+        *c = SeqCount::new(v).next().get();
         v
     }
     /// Starts the counter of `apid` at `start` (e.g. a random offset so that a new
     /// ground session is not taken for duplicates of an earlier one).
     pub fn set(&mut self, apid: u16, start: u16) {
-        self.next.insert(apid, start & 0x3FFF);
+        self.next.insert(apid, SeqCount::new(start).get());
     }
 }
 
@@ -110,7 +111,7 @@ pub fn build_tc(robot: u8, seq: u16, def: &'static TcDef, args: &[i64]) -> Resul
         def,
         args: args.to_vec(),
         apid,
-        seq: seq & 0x3FFF,
+        seq: SeqCount::new(seq).get(),
         bytes,
     })
 }
@@ -130,7 +131,7 @@ pub fn build_raw_tc(
     }
     let h = mib_wire::header::TcHeader {
         apid: apid & 0x7FF,
-        seq_count: seq & 0x3FFF,
+        seq_count: SeqCount::new(seq).get(),
         ack: ack.raw_value().value(),
         service,
         subservice,
@@ -157,7 +158,7 @@ pub fn build_tm(
     time: &[u8; TIMESTAMP_LEN],
     source: &[u8],
 ) -> Vec<u8> {
-    let sp = SpHeader::new_for_unseg_tm(u11::new(apid & 0x7FF), u14::new(seq & 0x3FFF), 0);
+    let sp = SpHeader::new_for_unseg_tm(u11::new(apid & 0x7FF), u14::new(SeqCount::new(seq).get()), 0);
     let sec = PusTmSecondaryHeader::new(MessageTypeId::new(service, subservice), msg_counter, GROUND_ID, time);
     let tm = PusTmCreator::new(sp, sec, source, CreatorConfig::default());
     let mut v = Vec::with_capacity(tm.len_written());

@@ -1,9 +1,9 @@
 //! Decoding packets: headers and CRC checked through `mib_wire`, then the body against
 //! the MIB, into the owned values of [`super::Packet`].
 
-use mib_wire::codec;
 use mib::events::Severity;
 use mib::tc::service;
+use mib_wire::codec;
 use mib_wire::header::{TcPacket, TmPacket};
 
 use super::error::{data_err, header_err};

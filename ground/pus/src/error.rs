@@ -2,8 +2,8 @@
 
 use std::fmt;
 
-use mib_wire::codec::ArgError;
 use mib::config::MAX_PACKET_LEN;
+use mib_wire::codec::ArgError;
 use mib_wire::header::HeaderError;
 
 /// Why a packet could not be decoded.

@@ -4,8 +4,10 @@
 //! archive's gap report (`ground_archive`'s `gaps`) decide with [`step`], so a live
 //! ground and its archive never disagree on what is missing.
 
-/// Sequence counts are 14 bits.
-pub const SEQ_MOD: u16 = 1 << 14;
+use mib::headers::SeqCount;
+
+/// Sequence counts are 14 bits: the one type's modulus, `mib::headers::SeqCount::MODULUS`.
+pub const SEQ_MOD: u16 = SeqCount::MODULUS;
 
 /// A count at most this far ahead of the last one is "ahead"; further is "behind".
 pub const SEQ_AHEAD: u32 = SEQ_MOD as u32 / 2;
@@ -35,7 +37,7 @@ pub enum Step {
 
 /// Counts from `from` forward to `to` (mod 2^14).
 pub fn seq_ahead(from: u16, to: u16) -> u32 {
-    (u32::from(to) + u32::from(SEQ_MOD) - u32::from(from) % u32::from(SEQ_MOD)) % u32::from(SEQ_MOD)
+    u32::from(SeqCount::new(to).since(SeqCount::new(from)))
 }
 
 /// The step from `last` to `next`; `boot`: `next` is the obsw's BOOT event.
@@ -43,13 +45,13 @@ pub fn step(last: Pos, next: Pos, boot: bool) -> Step {
     let later = next.obt_ms > last.obt_ms;
     let d = seq_ahead(last.seq, next.seq);
     if boot && later {
-        return Step::Restart(u32::from(next.seq % SEQ_MOD));
+        return Step::Restart(u32::from(SeqCount::new(next.seq).get()));
     }
     if d > 0 && d < SEQ_AHEAD && next.obt_ms >= last.obt_ms {
         return if d == 1 { Step::Next } else { Step::Gap(d - 1) };
     }
     if later {
-        return Step::Restart(u32::from(next.seq % SEQ_MOD));
+        return Step::Restart(u32::from(SeqCount::new(next.seq).get()));
     }
     Step::Behind
 }

@@ -1,11 +1,12 @@
 use super::*;
 use arbitrary_int::{u11, u14};
-use mib_wire::codec;
 use mib::config::{GROUND_ID, MAX_PACKET_LEN};
 use mib::events::eid;
+use mib::headers::SeqCount;
 use mib::params::pid;
 use mib::tc::function;
 use mib::FailureCode;
+use mib_wire::codec;
 use satrs::spacepackets::ecss::tc::ACK_ALL;
 use satrs::spacepackets::ecss::{CreatorConfig, MessageTypeId};
 use satrs::spacepackets::SpHeader;
@@ -44,7 +45,7 @@ fn raw_tc_bytes_equal_the_sat_rs_encoder() {
     let data: Vec<u8> = (0..=255u8).collect();
     for (apid, seq, svc, sub, n) in [
         (0x101u16, 0u16, 17u8, 1u8, 0usize),
-        (0x7FF, 0x3FFF, 8, 1, 6),
+        (0x7FF, SeqCount::MASK, 8, 1, 6),
         (0x10A, 1234, 200, 1, 10),
         (0x102, 99, 11, 4, 255),
     ] {
@@ -121,8 +122,8 @@ fn sequence_counts_are_per_apid_and_wrap_at_14_bits() {
     assert_eq!(s.next(0x101), 0);
     assert_eq!(s.next(0x101), 1);
     assert_eq!(s.next(0x102), 0);
-    s.set(0x103, 0x3FFF);
-    assert_eq!(s.next(0x103), 0x3FFF);
+    s.set(0x103, SeqCount::MASK);
+    assert_eq!(s.next(0x103), SeqCount::MASK);
     assert_eq!(s.next(0x103), 0);
 }
 
