@@ -305,7 +305,7 @@ impl RequestId {
             sec_hdr: ((packet_id >> 11) & 1) as u8,
             apid: packet_id & 0x7FF,
             seq_flags: (psc >> 14) as u8,
-            seq_count: psc & 0x3FFF,
+            seq_count: mib::headers::SeqCount::new(psc).get(),
         }
     }
 }
