@@ -433,7 +433,7 @@ mod tests {
     fn packet(apid: u16, seq: u16, len: usize) -> Vec<u8> {
         let mut p = vec![0u8; len.max(7)];
         p[0..2].copy_from_slice(&(0x0800 | apid).to_be_bytes());
-        p[2..4].copy_from_slice(&(0xC000 | (seq & 0x3FFF)).to_be_bytes());
+        p[2..4].copy_from_slice(&(0xC000 | mib::headers::SeqCount::new(seq).get()).to_be_bytes());
         let n = p.len();
         p[4..6].copy_from_slice(&((n - 7) as u16).to_be_bytes());
         for (i, b) in p[6..].iter_mut().enumerate() {
