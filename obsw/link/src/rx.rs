@@ -649,12 +649,14 @@ mod tests {
             let l = f.len() - cut.min(f.len());
             f.truncate(l);
             if reseal { fecf::seal(&mut f); }
+            // A flip inside the FECF that the reseal overwrote gives the genuine frame back.
+            let genuine = f == good;
             let o = rx.receive(&mut st, &mut f, true);
             // Yamcs' default mask leaves the bypass flag and N(S) unauthenticated: an attacker
             // can turn an AD frame into a BD frame (executed once, bypassing the sequence —
             // the IV still stops a replay). Whatever is accepted carries the genuine packet.
             if let RxOutcome::Accepted { packets, .. } = o {
-                prop_assert!(i <= 4, "altered byte {} accepted", i);
+                prop_assert!(i <= 4 || genuine, "altered byte {} accepted", i);
                 let got: Vec<Vec<u8>> = packets.map(|p| p.to_vec()).collect();
                 prop_assert_eq!(got, vec![tc_packet(1, 40)]);
             }
