@@ -265,7 +265,23 @@ pub fn request_of(tc: &[u8]) -> (u16, u16) {
 /// A ground link over UDP or TCP.
 pub enum Link {
     Udp(UdpSocket, SocketAddr),
-    Tcp(TcpStream, Vec<u8>),
+    Tcp(TcpStream, Box<TcpRx>),
+}
+
+/// The TCP receive side: the one COBS deframer (`mmic_link::stream::Deframer`, whose
+/// counters keep what it dropped) and the frames it completed, not yet read.
+pub struct TcpRx {
+    pub deframer: mmic_link::stream::Deframer<{ mib::config::MAX_PACKET_LEN }>,
+    pub frames: std::collections::VecDeque<Vec<u8>>,
+}
+
+impl TcpRx {
+    fn new() -> Box<Self> {
+        Box::new(TcpRx {
+            deframer: mmic_link::stream::Deframer::new(),
+            frames: std::collections::VecDeque::new(),
+        })
+    }
 }
 
 pub struct Client {
@@ -290,7 +306,7 @@ impl Client {
         let s = TcpStream::connect(o.tcp).unwrap();
         s.set_nodelay(true).unwrap();
         Client {
-            link: Link::Tcp(s, Vec::new()),
+            link: Link::Tcp(s, TcpRx::new()),
             apid: o.apid,
             seq: 0,
             log: Vec::new(),
@@ -353,15 +369,11 @@ impl Client {
                         }
                     }
                 }
-                Link::Tcp(s, pending) => {
-                    if let Some(pos) = pending.iter().position(|b| *b == 0) {
-                        let frame: Vec<u8> = pending.drain(..=pos).collect();
-                        let mut out = vec![0u8; frame.len()];
-                        if let Ok(r) = cobs::decode(&frame[..frame.len() - 1], &mut out) {
-                            if let Some(t) = Tm::parse(&out[..r.frame_size()]) {
-                                self.log.push(t.clone());
-                                return Some(t);
-                            }
+                Link::Tcp(s, rx) => {
+                    if let Some(frame) = rx.frames.pop_front() {
+                        if let Some(t) = Tm::parse(&frame) {
+                            self.log.push(t.clone());
+                            return Some(t);
                         }
                         continue;
                     }
@@ -370,7 +382,13 @@ impl Client {
                         if n == 0 {
                             return None;
                         }
-                        pending.extend_from_slice(&buf[..n]);
+                        let TcpRx { deframer, frames } = &mut **rx;
+                        // A dropped frame stays counted in `deframer.counters`.
+                        deframer.feed(&buf[..n], |f| {
+                            if let Ok(f) = f {
+                                frames.push_back(f.to_vec());
+                            }
+                        });
                     }
                 }
             }
