@@ -211,32 +211,9 @@ pub fn cobs_frame(packet: &[u8]) -> Vec<u8> {
 /// batches them), as the old splitter's bound of two packets.
 pub const TCP_FRAME_MAX: usize = 2 * mib::config::MAX_PACKET_LEN;
 
-/// Feeds TCP bytes; calls `out` with each decoded frame. The one COBS deframer,
-/// `mmic_link::stream::Deframer` (keeps a partial frame; counts oversize, corrupt and
-/// garbage bytes in [`CobsSplitter::counters`]); every dropped frame is also handed to
-/// `out` as `Err(())` so the reader counts it as one undecodable packet.
-pub struct CobsSplitter {
-    deframer: Box<stream::Deframer<TCP_FRAME_MAX>>,
-}
-
-impl Default for CobsSplitter {
-    fn default() -> Self {
-        Self {
-            deframer: Box::new(stream::Deframer::new()),
-        }
-    }
-}
-
-impl CobsSplitter {
-    pub fn push(&mut self, data: &[u8], out: impl FnMut(Result<&[u8], stream::StreamError>)) {
-        self.deframer.feed(data, out);
-    }
-
-    /// What the deframer delivered and dropped so far.
-    pub fn counters(&self) -> stream::StreamCounters {
-        self.deframer.counters
-    }
-}
+/// The lab TCP link's deframer: the one COBS deframer, `mmic_link::stream::Deframer`
+/// (keeps a partial frame; counts oversize, corrupt and garbage bytes in its `counters`).
+pub type TcpDeframer = stream::Deframer<TCP_FRAME_MAX>;
 
 impl Link {
     /// Opens a bare-packet link (UDP or TCP); frames need [`Link::open_with`].
@@ -429,11 +406,11 @@ fn reader_loop(robot: u8, io: &Io, tcp: Option<TcpStream>, stop: &AtomicBool, tx
             }
         }
         (Io::Tcp(_), Some(mut s)) => {
-            let mut split = CobsSplitter::default();
+            let mut split = Box::new(TcpDeframer::new());
             while !stop.load(Ordering::Relaxed) {
                 match s.read(&mut buf) {
                     Ok(0) => return,
-                    Ok(n) => split.push(&buf[..n], |f| match f {
+                    Ok(n) => split.feed(&buf[..n], |f| match f {
                         Ok(frame) => split_packets(frame, emit),
                         // A dropped frame (counted by the deframer) reaches the reader as
                         // an empty, undecodable packet: counted there as well.
@@ -632,32 +609,32 @@ mod tests {
         let f1 = cobs_frame(&p1);
         assert_eq!((f1[0], f1[f1.len() - 1]), (0, 0));
         assert!(!f1[1..f1.len() - 1].contains(&0));
-        let mut sp = CobsSplitter::default();
+        let mut sp = Box::new(TcpDeframer::new());
         let mut got = Vec::new();
         for chunk in stream.chunks(3) {
-            sp.push(chunk, |f| got.push(f.unwrap().to_vec()));
+            sp.feed(chunk, |f| got.push(f.unwrap().to_vec()));
         }
         assert_eq!(got, vec![p1, p2]);
-        assert_eq!(sp.counters().frames, 2);
+        assert_eq!(sp.counters.frames, 2);
     }
 
     // verifies: DD-LINK-01
     #[test]
     fn a_corrupt_or_oversize_tcp_frame_is_counted_not_lost() {
-        let mut sp = CobsSplitter::default();
+        let mut sp = Box::new(TcpDeframer::new());
         let mut errs = 0;
         let mut ok = Vec::new();
         // A block announcing 5 bytes cut by a delimiter, then an oversize frame, then a good one.
         let mut stream = vec![0, 5, 1, 2, 0];
         stream.extend(cobs_frame(&vec![7u8; TCP_FRAME_MAX + 1]));
         stream.extend(cobs_frame(&[1, 2, 3]));
-        sp.push(&stream, |f| match f {
+        sp.feed(&stream, |f| match f {
             Ok(p) => ok.push(p.to_vec()),
             Err(_) => errs += 1,
         });
         assert_eq!(ok, vec![vec![1, 2, 3]]);
         assert_eq!(errs, 2);
-        let c = sp.counters();
+        let c = sp.counters;
         assert_eq!((c.corrupt, c.oversize, c.frames), (1, 1, 1));
     }
 
