@@ -39,20 +39,6 @@ impl RequestId {
     }
 }
 
-/// The one public request ID is `mib_wire::RequestId`; this is its ground form (two
-/// words, serialisable); lossless both ways.
-impl From<mib_wire::RequestId> for RequestId {
-    fn from(r: mib_wire::RequestId) -> Self {
-        RequestId::from_wire(&r)
-    }
-}
-
-impl From<RequestId> for mib_wire::RequestId {
-    fn from(r: RequestId) -> Self {
-        mib_wire::RequestId::from_words(r.packet_id, r.psc)
-    }
-}
-
 impl fmt::Display for RequestId {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "apid 0x{:03X} seq {}", self.apid(), self.seq())

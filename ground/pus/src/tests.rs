@@ -379,15 +379,3 @@ mod fuzz {
         }
     }
 }
-
-// verifies: PUS-PKT-01
-#[test]
-fn the_ground_request_id_and_the_wire_one_convert_losslessly() {
-    for (pid, psc) in [(0x1801u16, 0xC000u16), (0x1FFF, 0xFFFF), (0x1805, 0xC123)] {
-        let g = RequestId { packet_id: pid, psc };
-        let w = mib_wire::RequestId::from(g);
-        assert_eq!((w.packet_id(), w.psc()), (pid, psc));
-        assert_eq!((w.apid, w.seq_count), (g.apid(), g.seq()));
-        assert_eq!(RequestId::from(w), g);
-    }
-}

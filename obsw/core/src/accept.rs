@@ -38,23 +38,6 @@ impl RequestId {
     }
 }
 
-/// The one public request ID is `mib_wire::RequestId` (six header fields); this 4-byte form
-/// is the on-board duplicate window's key (board A's RAM). Lossless both ways.
-impl From<RequestId> for mib_wire::RequestId {
-    fn from(r: RequestId) -> Self {
-        mib_wire::RequestId::from_words(r.packet_id, r.psc)
-    }
-}
-
-impl From<mib_wire::RequestId> for RequestId {
-    fn from(r: mib_wire::RequestId) -> Self {
-        RequestId {
-            packet_id: r.packet_id(),
-            psc: r.psc(),
-        }
-    }
-}
-
 /// PUS-C acknowledgement flags of a TC.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Ack(pub u8);
@@ -227,18 +210,6 @@ pub(crate) mod tests {
 
     fn code(raw: &[u8]) -> FailureCode {
         accept(raw, 0x101).unwrap_err().code()
-    }
-
-    // verifies: PUS-1-01
-    #[test]
-    fn the_window_key_and_the_wire_request_id_convert_losslessly() {
-        for (pid, psc) in [(0x1801u16, 0xC000u16), (0x1FFF, 0xFFFF), (0x1805, 0xC123)] {
-            let k = RequestId { packet_id: pid, psc };
-            let w = mib_wire::RequestId::from(k);
-            assert_eq!((w.packet_id(), w.psc()), (pid, psc));
-            assert_eq!(w.seq_count, k.seq_count());
-            assert_eq!(RequestId::from(w), k);
-        }
     }
 
     // verifies: PUS-1-01
