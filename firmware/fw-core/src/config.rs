@@ -15,8 +15,8 @@ pub const MAX_PACKET_LEN: usize = mc::MAX_PACKET_LEN;
 
 /// Longest COBS encoding of `n` payload bytes, both 0x00 delimiters included.
 pub const fn cobs_frame_len(n: usize) -> usize {
-    // one overhead byte per started block of 254 bytes, plus the two sentinels
-    n + n / 254 + 1 + 2
+    // The one rule of the stream framing (the `cobs` crate's bound plus the two sentinels).
+    mmic_link::stream::encoded_len(n)
 }
 
 /// Ground link: longest encoded frame on the wire.
