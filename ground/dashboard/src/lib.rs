@@ -221,15 +221,9 @@ pub struct AlarmRecord {
     pub shelved_until_ms: Option<i64>,
 }
 
-/// PUS 1 verification stage.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Stage {
-    Acceptance,
-    Start,
-    Progress,
-    Completion,
-}
+/// PUS 1 verification stage: the decoder's (`ground_pus::Stage`, serialised in lowercase,
+/// as the page reads it).
+pub use ground_pus::Stage;
 
 /// A PUS 1 failure: code name and decoded data.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -258,12 +252,6 @@ pub struct StageReport {
 impl StageReport {
     /// The dashboard's view of a decoded PUS 1 report received at on-board time `t_ms`.
     pub fn from_verification(v: &crate::pus::Verification, t_ms: i64) -> StageReport {
-        let stage = match v.stage {
-            crate::pus::Stage::Acceptance => Stage::Acceptance,
-            crate::pus::Stage::Start => Stage::Start,
-            crate::pus::Stage::Progress => Stage::Progress,
-            crate::pus::Stage::Completion => Stage::Completion,
-        };
         let failure = v.failure.as_ref().map(|f| FailureInfo {
             code: f.code,
             name: f.name.to_string(),
@@ -272,7 +260,7 @@ impl StageReport {
             data_hex: crate::pus::hex(&f.data),
         });
         StageReport {
-            stage,
+            stage: v.stage,
             step: v.step,
             t_ms,
             success: v.success,
