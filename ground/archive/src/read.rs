@@ -2,6 +2,7 @@
 
 use std::io::Write;
 
+use mib::headers::SeqCount;
 use serde::Serialize;
 
 use super::adapter;
@@ -131,7 +132,7 @@ impl Store {
             "SELECT seq FROM tc WHERE apid = ?1 ORDER BY id DESC LIMIT 1",
             &[Val::Int(apid as i64)],
         )?;
-        Ok(v.and_then(|v| v.int()).map(|s| ((s + 1) & 0x3FFF) as u16))
+        Ok(v.and_then(|v| v.int()).map(|s| SeqCount::new(s as u16).next().get()))
     }
 
     /// Sequence count of the TM of `robot`'s `apid` received last (by ground time; the
@@ -144,7 +145,7 @@ impl Store {
             "SELECT seq FROM packet WHERE robot = ?1 AND apid = ?2 ORDER BY t_ms DESC, obt_ms DESC LIMIT 1",
             &[Val::Int(robot as i64), Val::Int(apid as i64)],
         )?;
-        Ok(v.and_then(|v| v.int()).map(|s| (s & 0x3FFF) as u16))
+        Ok(v.and_then(|v| v.int()).map(|s| SeqCount::new(s as u16).get()))
     }
 
     /// Robots with TM in the archive.

@@ -16,6 +16,8 @@ mod timers;
 use std::collections::{BTreeMap, BTreeSet};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
+
+use mib::headers::SeqCount;
 use std::time::Duration;
 
 use crossbeam_channel::{Receiver, Sender};
@@ -266,7 +268,7 @@ impl Worker {
 
     fn next_seq(&mut self) -> u16 {
         let s = self.tc_seq;
-        self.tc_seq = (self.tc_seq + 1) & 0x3FFF;
+        self.tc_seq = SeqCount::new(self.tc_seq).next().get();
         s
     }
 

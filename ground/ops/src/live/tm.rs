@@ -3,6 +3,7 @@
 use crate::pus::{Tm, TmBody};
 
 use super::track::Pos;
+use mib::headers::SeqCount;
 
 /// A decoded TM's place in its APID's sequence: count and on-board time.
 pub fn position(tm: &Tm) -> Pos {
@@ -42,7 +43,7 @@ pub fn store_done(tm: &Tm) -> Option<StoreDone> {
             packets: *packets,
             // An empty store reports day 0, ms 0 (the CCSDS epoch) and count 0.
             oldest: (oldest_time.unix_ms() != CCSDS_EPOCH_UNIX_MS || *oldest_seq > 0).then_some(Pos {
-                seq: *oldest_seq & 0x3FFF,
+                seq: SeqCount::new(*oldest_seq).get(),
                 obt_ms: oldest_time.unix_ms(),
             }),
             overwritten: *overwritten,

@@ -1,5 +1,6 @@
 //! What a run reports at its end.
 
+use mib::headers::SeqCount;
 use serde::Serialize;
 
 /// Fastener pairs by the attempt that locked them (paper statistics).
@@ -192,7 +193,11 @@ impl TmCompleteness {
     }
     /// One line for the summary.
     pub fn line(&self) -> String {
-        let count = |v: &[(u16, u16)]| -> u32 { v.iter().map(|(a, b)| (b.wrapping_sub(*a) & 0x3FFF) as u32 + 1).sum() };
+        let count = |v: &[(u16, u16)]| -> u32 {
+            v.iter()
+                .map(|(a, b)| u32::from(SeqCount::new(*b).since(SeqCount::new(*a))) + 1)
+                .sum()
+        };
         let list = |v: &[(u16, u16)]| -> String {
             let mut l: Vec<String> = v
                 .iter()
