@@ -284,11 +284,40 @@ mod generated {
 }
 pub use generated::*;
 
+/// The one PUS 1 request ID of the project (issue 21 item 5): the obsw's acceptance,
+/// verification reports and duplicate window, the ground's TC builder, decoder and JSON
+/// output, and the tests all use this type (CODEC-RID-01).
 impl RequestId {
     /// The request ID of a TC: the first four bytes of its primary header.
     pub fn of_tc(tc: &[u8]) -> Result<RequestId, Error> {
         let mut r = Reader::new(tc);
         RequestId::read(&mut r)
+    }
+    /// The request ID of the four bytes of a primary header's packet ID and sequence
+    /// control (every value of the four bytes is a request ID).
+    pub const fn from_bytes(b: [u8; 4]) -> RequestId {
+        RequestId::from_words(u16::from_be_bytes([b[0], b[1]]), u16::from_be_bytes([b[2], b[3]]))
+    }
+    /// The four bytes on the wire (packet ID, then packet sequence control, big-endian).
+    pub const fn to_bytes(&self) -> [u8; 4] {
+        self.raw().to_be_bytes()
+    }
+    /// Packet ID in the upper and sequence control in the lower 16 bits: the 32-bit key
+    /// (sat-rs's `verification::RequestId::from(u32)`, the obsw's duplicate window).
+    pub const fn raw(&self) -> u32 {
+        ((self.packet_id() as u32) << 16) | self.psc() as u32
+    }
+    /// The request ID of a 32-bit key made by [`RequestId::raw`].
+    pub const fn from_raw(raw: u32) -> RequestId {
+        RequestId::from_words((raw >> 16) as u16, raw as u16)
+    }
+    /// APID of the TC (the field, as a method for the callers that read it so).
+    pub const fn apid(&self) -> u16 {
+        self.apid
+    }
+    /// Packet sequence count of the TC (the `seq_count` field).
+    pub const fn seq(&self) -> u16 {
+        self.seq_count
     }
     /// Packet ID (first 16 bits of the primary header).
     pub const fn packet_id(&self) -> u16 {
@@ -298,6 +327,7 @@ impl RequestId {
     pub const fn psc(&self) -> u16 {
         ((self.seq_flags as u16) << 14) | self.seq_count
     }
+    /// The request ID of a packet ID word and a packet sequence control word.
     pub const fn from_words(packet_id: u16, psc: u16) -> RequestId {
         RequestId {
             version: (packet_id >> 13) as u8,
@@ -307,5 +337,12 @@ impl RequestId {
             seq_flags: (psc >> 14) as u8,
             seq_count: mib::headers::SeqCount::new(psc).get(),
         }
+    }
+}
+
+/// "apid 0x101 seq 5", as the ground prints a request.
+impl core::fmt::Display for RequestId {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "apid 0x{:03X} seq {}", self.apid, self.seq_count)
     }
 }
