@@ -13,9 +13,10 @@
 //! | `0x82` Heartbeat | B→A | [`Heartbeat`], 28 bytes (`seq` counts heartbeats); its `last_seq` also acknowledges |
 //! | `0x83` Modules | B→A | [`ModulesChunk`], 32 bytes: B's probe results and one entry of its descriptor table (issue 24) |
 //!
-//! Untrusted bytes go through [`FrameDecoder`], which never panics: a bad COBS code,
-//! CRC, kind, length or value is an error value, and a frame longer than the buffer is
-//! dropped up to the next delimiter.
+//! The framing is the project's one byte-stream codec, `mmic_stream` ([`Message::encode`]
+//! uses its encoder, [`FrameDecoder`] its deframer). Untrusted bytes go through
+//! [`FrameDecoder`], which never panics: a bad COBS code, CRC, kind, length or value is an
+//! error value, and a frame longer than the buffer is dropped up to the next delimiter.
 
 use crate::consts::{LINK_MAX_FRAME, LINK_QUEUE_DEPTH};
 use crate::types::BolterDrive;
@@ -30,7 +31,7 @@ pub const KIND_HEARTBEAT: u8 = 0x82;
 pub const KIND_MODULES: u8 = 0x83;
 
 /// Largest encoded frame on the wire (delimiters included).
-pub const MAX_WIRE_FRAME: usize = cobs::max_encoding_length(LINK_MAX_FRAME) + 2;
+pub const MAX_WIRE_FRAME: usize = mmic_stream::encoded_len(LINK_MAX_FRAME);
 
 /// A module command from A to B (side B's modules).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -332,7 +333,7 @@ pub enum Message {
 /// Why a frame was dropped.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FrameError {
-    /// COBS decoding failed.
+    /// COBS decoding failed (a delimiter inside a COBS block).
     Cobs,
     /// Shorter than kind + seq + CRC.
     TooShort,
@@ -344,8 +345,18 @@ pub enum FrameError {
     UnknownCommand(u8),
     BadLength,
     BadValue,
-    /// Longer than `LINK_MAX_FRAME`: dropped up to the next delimiter.
+    /// Longer than `LINK_MAX_FRAME` once decoded: dropped up to the next delimiter.
     Overflow,
+}
+
+impl From<mmic_stream::StreamError> for FrameError {
+    fn from(e: mmic_stream::StreamError) -> Self {
+        match e {
+            mmic_stream::StreamError::Oversize => FrameError::Overflow,
+            // `BufferTooSmall` is the encoder's error; the deframer never returns it.
+            mmic_stream::StreamError::Corrupt | mmic_stream::StreamError::BufferTooSmall => FrameError::Cobs,
+        }
+    }
 }
 
 // Static text and numbers, not the `Debug` impl: a `Display` that formats through
@@ -443,57 +454,41 @@ impl Message {
         let crc = CRC16.checksum(&payload[..n]);
         payload[n..n + 2].copy_from_slice(&crc.to_be_bytes());
         let mut enc = [0u8; MAX_WIRE_FRAME];
-        let m = cobs::try_encode(&payload[..n + 2], &mut enc).map_err(|_| TxFull)?;
-        if out.capacity() - out.len() < m + 2 {
-            return Err(TxFull);
-        }
-        // capacity checked above
-        let _ = out.push(0);
-        let _ = out.extend_from_slice(&enc[..m]);
-        let _ = out.push(0);
-        Ok(())
+        let m = mmic_stream::encode(&payload[..n + 2], &mut enc).map_err(|_| TxFull)?;
+        // heapless checks the room first: `out` is unchanged when the frame does not fit.
+        out.extend_from_slice(&enc[..m]).map_err(|_| TxFull)
     }
 }
 
-/// Byte-stream receiver: accumulates bytes up to a zero delimiter and decodes.
+/// Byte-stream receiver: the one deframer (`mmic_stream::Deframer`, decoded buffer of
+/// the largest payload + CRC), then [`Message::parse`].
 #[derive(Clone, Debug, Default)]
 pub struct FrameDecoder {
-    buf: Vec<u8, MAX_WIRE_FRAME>,
-    overflow: bool,
+    de: mmic_stream::Deframer<LINK_MAX_FRAME>,
 }
 
 impl FrameDecoder {
     pub const fn new() -> Self {
         FrameDecoder {
-            buf: Vec::new(),
-            overflow: false,
+            de: mmic_stream::Deframer::new(),
         }
     }
-    /// Feeds one byte; returns a frame (or an error) when a delimiter ends one.
+    /// Feeds one byte; returns a frame (or an error) when a delimiter ends one. A frame
+    /// longer than `LINK_MAX_FRAME` is [`FrameError::Overflow`], a broken COBS encoding
+    /// [`FrameError::Cobs`], an empty COBS frame (`0x01 0x00`) [`FrameError::TooShort`];
+    /// delimiters alone are nothing.
     pub fn push(&mut self, byte: u8) -> Option<Result<Message, FrameError>> {
-        if byte != 0 {
-            if self.buf.push(byte).is_err() {
-                self.overflow = true;
-            }
-            return None;
+        let garbage = self.de.counters.garbage_bytes;
+        if let Some(r) = self.de.push(byte) {
+            return Some(r.map_err(FrameError::from).and_then(Message::parse));
         }
-        if self.overflow {
-            self.overflow = false;
-            self.buf.clear();
-            return Some(Err(FrameError::Overflow));
-        }
-        if self.buf.is_empty() {
-            return None;
-        }
-        let r = match cobs::decode_in_place(&mut self.buf) {
-            Ok(n) => match self.buf.get(..n) {
-                Some(p) => Message::parse(p),
-                None => Err(FrameError::Cobs),
-            },
-            Err(_) => Err(FrameError::Cobs),
-        };
-        self.buf.clear();
-        Some(r)
+        // The deframer ignores an empty frame, counting its code byte as garbage; the A–B
+        // link counts it as a bad frame, as a frame too short to parse.
+        (self.de.counters.garbage_bytes != garbage).then_some(Err(FrameError::TooShort))
+    }
+    /// What the deframer saw (frames, dropped frames, garbage bytes).
+    pub fn stream_counters(&self) -> mmic_stream::StreamCounters {
+        self.de.counters
     }
 }
 
@@ -857,14 +852,42 @@ mod tests {
     // verifies: MMIC-AB-04
     #[test]
     fn ab_decoder_drops_overlong_frames() {
-        let mut stream = std::vec![0x55u8; 300];
+        // A well-formed COBS frame of 300 bytes (longer than LINK_MAX_FRAME decoded), then
+        // 300 bytes of junk cut by a delimiter (a broken COBS block), then a good frame.
+        let mut big = [0u8; mmic_stream::encoded_len(300)];
+        let n = mmic_stream::encode(&[0x55; 300], &mut big).unwrap();
+        let mut stream = big[..n].to_vec();
+        stream.extend_from_slice(&[0x55u8; 300]);
         stream.push(0);
         let mut wire: Vec<u8, 64> = Vec::new();
         Message::Ack { seq: 1 }.encode(&mut wire).unwrap();
         stream.extend_from_slice(&wire);
         let got = decode_all(&stream);
-        assert_eq!(got[0], Err(FrameError::Overflow));
-        assert_eq!(got[1], Ok(Message::Ack { seq: 1 }));
+        assert_eq!(
+            got,
+            [
+                Err(FrameError::Overflow),
+                Err(FrameError::Cobs),
+                Ok(Message::Ack { seq: 1 })
+            ]
+        );
+    }
+
+    // verifies: MMIC-AB-04
+    #[test]
+    fn ab_decoder_counts_an_empty_frame_but_not_lone_delimiters() {
+        let mut wire: Vec<u8, 64> = Vec::new();
+        Message::Ack { seq: 3 }.encode(&mut wire).unwrap();
+        let mut stream = std::vec![0u8, 0, 0x01, 0, 0];
+        stream.extend_from_slice(&wire);
+        let got = decode_all(&stream);
+        assert_eq!(got, [Err(FrameError::TooShort), Ok(Message::Ack { seq: 3 })]);
+        let mut d = FrameDecoder::new();
+        stream.iter().for_each(|&b| {
+            let _ = d.push(b);
+        });
+        assert_eq!(d.stream_counters().frames, 1);
+        assert_eq!(d.stream_counters().garbage_bytes, 1);
     }
 
     /// Simulated loop-back: B acks every command it receives, unless `drop` says the
