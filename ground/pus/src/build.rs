@@ -2,48 +2,18 @@
 //! request IDs and the per-APID sequence counters.
 
 use std::collections::HashMap;
-use std::fmt;
 
 use arbitrary_int::{u11, u14};
 use mib::config::{GROUND_ID, MAX_PACKET_LEN, TIMESTAMP_LEN};
 use mib::headers::SeqCount;
 use mib::tc::TcDef;
-use mib_wire::codec;
+use mib_wire::{codec, RequestId};
 use satrs::spacepackets::ecss::tc::{AckFlags, ACK_ALL};
 use satrs::spacepackets::ecss::tm::{PusTmCreator, PusTmSecondaryHeader};
 use satrs::spacepackets::ecss::{CreatorConfig, MessageTypeId, WritablePusPacket};
 use satrs::spacepackets::SpHeader;
-use serde::Serialize;
 
 use super::{BuildError, MIN_TC_LEN};
-
-/// The request ID of PUS 1: packet ID and packet sequence control of the TC.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
-pub struct RequestId {
-    pub packet_id: u16,
-    pub psc: u16,
-}
-
-impl RequestId {
-    pub fn apid(self) -> u16 {
-        self.packet_id & 0x7FF
-    }
-    pub fn seq(self) -> u16 {
-        SeqCount::new(self.psc).get()
-    }
-    pub(super) fn from_wire(r: &mib_wire::RequestId) -> RequestId {
-        RequestId {
-            packet_id: r.packet_id(),
-            psc: r.psc(),
-        }
-    }
-}
-
-impl fmt::Display for RequestId {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "apid 0x{:03X} seq {}", self.apid(), self.seq())
-    }
-}
 
 /// Per-APID 14-bit sequence counters for outgoing TCs.
 #[derive(Clone, Debug, Default)]
@@ -97,7 +67,7 @@ pub struct BuiltTc {
 impl BuiltTc {
     pub fn request_id(&self) -> RequestId {
         // A built TC always has its primary header.
-        mib_wire::RequestId::of_tc(&self.bytes).map_or(RequestId { packet_id: 0, psc: 0 }, |r| RequestId::from_wire(&r))
+        RequestId::of_tc(&self.bytes).unwrap_or(RequestId::from_words(0, 0))
     }
 }
 

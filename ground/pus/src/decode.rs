@@ -9,7 +9,7 @@ use mib_wire::header::{TcPacket, TmPacket};
 use super::error::{data_err, header_err};
 use super::{
     decode_fields, BuildError, CdsShort, DecodeError, EaDefinition, Event, Failure, Field, Hk, HkValue, MonDefinition,
-    Packet, RequestId, Stage, Tc, Tm, TmBody, Verification,
+    Packet, Stage, Tc, Tm, TmBody, Verification,
 };
 
 /// Length of the packet at the start of `b`, if its header is plausible.
@@ -68,7 +68,7 @@ fn decode_tm_source(service: u8, subservice: u8, d: &[u8]) -> Result<TmBody, Dec
         Verification {
             stage,
             success,
-            request: RequestId::from_wire(rid),
+            request: *rid,
             step,
             // The failure data is the tail of the source data.
             failure: f.map(|f| Failure::from_code(f.code(), &d[d.len() - f.buffer_len()..])),

@@ -6,7 +6,8 @@
 //! bytes are checked here before they reach the `spacepackets` readers, so a corrupt
 //! packet is an error value and never a panic.
 //!
-//! - `build`: TCs (from the MIB, or raw), TMs, request IDs, sequence counters;
+//! - `build`: TCs (from the MIB, or raw), TMs, sequence counters; the request ID is
+//!   [`RequestId`], `mib_wire`'s one type;
 //! - `decode`: packets into [`Packet`] / [`Tm`] / [`Tc`] (`packet`, with `fields` for
 //!   named failure data and event parameters, `time` for the CDS time stamp);
 //! - [`seq`]: a packet's place in its APID's sequence and the one rule for the next
@@ -35,7 +36,7 @@ mod time;
 #[cfg(test)]
 mod tests;
 
-pub use build::{ack_flags_for, build_raw_tc, build_tc, build_tm, BuiltTc, RequestId, SeqCounters};
+pub use build::{ack_flags_for, build_raw_tc, build_tc, build_tm, BuiltTc, SeqCounters};
 pub use decode::{decode_hk, decode_packet, decode_tc, decode_tm, intact_position, packet_len};
 pub use describe::{describe, describe_body, mode_name, node_name};
 pub use error::{BuildError, DecodeError};
@@ -43,6 +44,8 @@ pub use fields::{decode_fields, hex, raw_value, Failure, Field};
 pub use mib_wire::header::{
     CDS_PFIELD, CRC_LEN, MIN_TC_LEN, MIN_TM_LEN, PRIMARY_HEADER_LEN, TC_SEC_HEADER_LEN, TM_SEC_HEADER_LEN,
 };
+/// The PUS 1 request ID: the one type of the project, from the MIB's layout (CODEC-RID-01).
+pub use mib_wire::RequestId;
 pub use packet::{EaDefinition, Event, Hk, HkValue, MonDefinition, Packet, Stage, Tc, Tm, TmBody, Verification};
 pub use stream::{StreamDecoder, StreamItem, StreamStats};
 pub use time::CdsShort;

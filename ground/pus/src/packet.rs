@@ -4,6 +4,7 @@
 
 use std::fmt;
 
+use serde::ser::{SerializeStruct, Serializer};
 use serde::Serialize;
 
 use super::fields::{named, ser_hex};
@@ -35,10 +36,20 @@ impl Stage {
 pub struct Verification {
     pub stage: Stage,
     pub success: bool,
+    /// Written as `{"packet_id": .., "psc": ..}` (the two words), as before the one type.
+    #[serde(serialize_with = "ser_request")]
     pub request: RequestId,
     /// Step number of TM[1,5] / TM[1,6].
     pub step: Option<u8>,
     pub failure: Option<Failure>,
+}
+
+/// A request ID in JSON: `{"packet_id": .., "psc": ..}`.
+fn ser_request<S: Serializer>(r: &RequestId, s: S) -> Result<S::Ok, S::Error> {
+    let mut st = s.serialize_struct("RequestId", 2)?;
+    st.serialize_field("packet_id", &r.packet_id())?;
+    st.serialize_field("psc", &r.psc())?;
+    st.end()
 }
 
 /// One decoded HK parameter.

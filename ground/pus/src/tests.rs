@@ -76,13 +76,7 @@ fn ping_tc_bytes_match_ccsds_and_pus_c_layout() {
     assert_eq!(&tc.bytes[6..11], &[0x29, 17, 1, 0, 0]);
     let crc = satrs::spacepackets::crc::CRC_CCITT_FALSE.checksum(&tc.bytes[..11]);
     assert_eq!(&tc.bytes[11..], &crc.to_be_bytes());
-    assert_eq!(
-        tc.request_id(),
-        RequestId {
-            packet_id: 0x1901,
-            psc: 0xC005
-        }
-    );
+    assert_eq!(tc.request_id(), RequestId::from_words(0x1901, 0xC005));
 }
 
 // verifies: PUS-1-03
@@ -157,6 +151,20 @@ fn acceptance_success_from_static_bytes() {
     assert!(v.success);
     assert_eq!(v.request.apid(), 0x101);
     assert_eq!(v.request.seq(), 5);
+}
+
+// verifies: CODEC-RID-01
+#[test]
+fn a_verification_report_serialises_its_request_as_packet_id_and_psc() {
+    // The JSON of the ground's outputs (`ground live`, the collector) keeps the request as
+    // the two words, whichever type carries it.
+    let t = decode_tm(&tm(1, 1, &[0x19, 0x01, 0xC0, 0x05])).unwrap();
+    let TmBody::Verification(v) = t.body else { panic!() };
+    assert_eq!(
+        serde_json::to_string(&v).unwrap(),
+        r#"{"stage":"acceptance","success":true,"request":{"packet_id":6401,"psc":49157},"step":null,"failure":null}"#
+    );
+    assert_eq!(v.request.to_string(), "apid 0x101 seq 5");
 }
 
 // verifies: PUS-1-03
