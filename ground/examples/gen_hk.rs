@@ -37,7 +37,15 @@ fn main() -> anyhow::Result<()> {
     for i in 0..n {
         let len = mib_wire::codec::encode_hk(def, |id| value(id, i), &mut src)?;
         let t = ground::pus::CdsShort::from_unix_ms(t0.unix_ms() + i as i64 * 100).to_bytes();
-        let p = ground::pus::build_tm(apid, (i & 0x3FFF) as u16, 3, 25, i as u16, &t, &src[..len]);
+        let p = ground::pus::build_tm(
+            apid,
+            mib::headers::SeqCount::new(i as u16).get(),
+            3,
+            25,
+            i as u16,
+            &t,
+            &src[..len],
+        );
         out.write_all(&p)?;
     }
     out.flush()?;

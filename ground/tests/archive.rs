@@ -74,7 +74,12 @@ fn hk_file(name: &str, robot: u8, n: usize) -> PathBuf {
     let p = tmp(name);
     let mut buf = Vec::new();
     for i in 0..n {
-        buf.extend(hk_packet(robot, (i & 0x3FFF) as u16, T0 + i as i64 * 100, i as i64));
+        buf.extend(hk_packet(
+            robot,
+            mib::headers::SeqCount::new(i as u16).get(),
+            T0 + i as i64 * 100,
+            i as i64,
+        ));
     }
     std::fs::write(&p, buf).unwrap();
     p

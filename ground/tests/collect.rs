@@ -78,7 +78,9 @@ fn archived_seqs(dir: &Path, arch: &str) -> BTreeMap<i64, u32> {
         let raw = v["raw"].as_str().unwrap_or("");
         let from_raw = |i: usize| u16::from_str_radix(raw.get(i..i + 4).unwrap_or(""), 16).ok();
         let apid = v["apid"].as_i64().or(from_raw(0).map(|a| (a & 0x7FF) as i64));
-        let seq = v["seq"].as_i64().or(from_raw(4).map(|s| (s & 0x3FFF) as i64));
+        let seq = v["seq"]
+            .as_i64()
+            .or(from_raw(4).map(|s| i64::from(mib::headers::SeqCount::new(s).get())));
         if let (Some(0x101), Some(seq)) = (apid, seq) {
             *m.entry(seq).or_insert(0) += 1;
         }

@@ -171,6 +171,14 @@ impl SeqCount {
     pub const fn since(self, earlier: SeqCount) -> u16 {
         self.0.wrapping_sub(earlier.0) & Self::MASK
     }
+    /// The count before this one (0 is preceded by 16383).
+    pub const fn prev(self) -> Self {
+        SeqCount(self.0.wrapping_sub(1) & Self::MASK)
+    }
+    /// The count `n` after this one, modulo 16384 (`n` may exceed the modulus).
+    pub const fn add(self, n: u16) -> Self {
+        SeqCount(self.0.wrapping_add(n) & Self::MASK)
+    }
 }
 /// Length of the PUS-C TC secondary header (5: version/ack, service, subservice, source ID).
 pub const TC_SEC_HEADER_LEN: usize = fields_len(TC_SEC_HEADER);
@@ -207,5 +215,23 @@ mod tests {
         // The field the MIB describes is what the type masks.
         let f = PRIMARY_HEADER.iter().find(|f| f.name == "SRC_SEQ_CTR").unwrap();
         assert_eq!(1u32 << f.bits, u32::from(SeqCount::MODULUS));
+    }
+
+    // verifies: CODEC-SEQ-01
+    #[test]
+    fn prev_and_add_wrap_like_next_and_since() {
+        assert_eq!(SeqCount::new(0).prev(), SeqCount::new(16383));
+        assert_eq!(SeqCount::new(9).prev(), SeqCount::new(8));
+        assert_eq!(SeqCount::new(16380).add(6), SeqCount::new(2));
+        assert_eq!(SeqCount::new(5).add(u16::MAX), SeqCount::new(4), "n beyond the modulus");
+        for raw in [0u16, 1, 100, 16383] {
+            let s = SeqCount::new(raw);
+            assert_eq!(s.next().prev(), s);
+            assert_eq!(s.add(1), s.next());
+            assert_eq!(s.add(0), s);
+            for n in [0u16, 1, 7, 8191, 16383] {
+                assert_eq!(s.add(n).since(s), n, "since undoes add");
+            }
+        }
     }
 }

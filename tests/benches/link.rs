@@ -81,7 +81,7 @@ fn main() {
         echo_rtt.push(t.elapsed().as_secs_f64() * 1e6);
 
         // The benchmark TC asks for no verification reports: TM[17,2] is the only reply.
-        let mut raw = tc(o.apid, (i & 0x3FFF) as u16, 17, 1, &[]);
+        let mut raw = tc(o.apid, mib::headers::SeqCount::new(i as u16).get(), 17, 1, &[]);
         raw[6] &= 0xF0;
         let crc = satrs::spacepackets::crc::CRC_CCITT_FALSE.checksum(&raw[..raw.len() - 2]);
         let l = raw.len();
@@ -109,7 +109,7 @@ fn main() {
     sock.set_read_timeout(Some(Duration::from_millis(50))).unwrap();
     while done + lost < total && start.elapsed() < Duration::from_secs(60) {
         while sent < total && sent - done - lost < window {
-            let raw = tc(o.apid, (sent & 0x3FFF) as u16, 17, 1, &[]);
+            let raw = tc(o.apid, mib::headers::SeqCount::new(sent as u16).get(), 17, 1, &[]);
             sock.send_to(&raw, o.udp).unwrap();
             sent += 1;
         }

@@ -31,7 +31,7 @@ fn stats(name: &str, mut v: Vec<f64>) -> f64 {
 /// A ping asking only for the completion report: TM[17,2] and TM[1,7], the latter
 /// carrying the request ID (so a late reply to an earlier ping is not taken for this one).
 fn ping(apid: u16, seq: u16) -> Vec<u8> {
-    let mut raw = tc(apid, seq & 0x3FFF, 17, 1, &[]);
+    let mut raw = tc(apid, mib::headers::SeqCount::new(seq).get(), 17, 1, &[]);
     raw[6] = (raw[6] & 0xF0) | 0x01;
     let crc = satrs::spacepackets::crc::CRC_CCITT_FALSE.checksum(&raw[..raw.len() - 2]);
     let l = raw.len();

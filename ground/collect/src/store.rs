@@ -14,13 +14,14 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use crossbeam_channel::{Receiver, RecvTimeoutError, Sender};
+use mib::headers::SeqCount;
 use serde::Serialize;
 
 use crate::alarms::{Input, Severity, Source};
 use crate::archive::{self, AlarmUpdate, Archive, ArchiveSender, GapNote, GapReason, Handed, Record, Store};
 use crate::pus;
 
-use super::tracker::{Lost, LostRun, SEQ_MOD};
+use super::tracker::{Lost, LostRun};
 
 /// A robot's link health as the collector writes it (the archive's `link` table).
 pub use crate::archive::LinkHealth as Health;
@@ -399,7 +400,7 @@ impl Sink {
                         robot: *robot,
                         apid: *apid,
                         after_obt_ms: run.after_obt_ms,
-                        after_seq: run.first.wrapping_add(SEQ_MOD - 1) % SEQ_MOD,
+                        after_seq: SeqCount::new(run.first).prev().get(),
                         reason: match run.why {
                             Lost::Rebooted => GapReason::Rebooted,
                             Lost::Overwritten => GapReason::StoreOverwritten,

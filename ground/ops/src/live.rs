@@ -18,7 +18,7 @@ mod watch;
 
 pub use gaps::GapPlan;
 pub use tm::{is_boot, position, store_done, StoreDone};
-pub use track::{ApidTracker, Lost, LostRun, Pos, Verdict, MAX_MISSING, RECENT_WINDOW, SEQ_MOD};
+pub use track::{ApidTracker, Lost, LostRun, Pos, Verdict, MAX_MISSING, RECENT_WINDOW};
 pub use watch::{LinkLoss, LinkState, LinkWatch};
 
 #[cfg(test)]

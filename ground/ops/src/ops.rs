@@ -25,7 +25,6 @@ mod summary;
 #[cfg(test)]
 mod tests;
 
-pub(crate) use crate::live::SEQ_MOD;
 pub use book::{Pending, TcBook};
 pub use executor::{Effect, Executor, RunOptions, SendError, StepState, INTERRUPT_GRACE};
 pub use run::{run_plan, InFlight, Resume};

@@ -2,8 +2,7 @@
 //! request limits for every front end, from the MIB.
 
 use mib::config::{GAP_MERGE_DISTANCE, GAP_RANGE_MAX, GAP_REQUESTS_MAX};
-
-use super::track::SEQ_MOD;
+use mib::headers::SeqCount;
 
 /// Turns missing sequence ranges (inclusive, oldest first) into store retrievals
 /// (TC[15,128] ranges): gaps at most [`GapPlan::merge_distance`] counts apart become one
@@ -30,7 +29,7 @@ impl Default for GapPlan {
 
 /// Counts from `from` forward to `to` (mod 2^14).
 fn ahead(from: u16, to: u16) -> u16 {
-    to.wrapping_sub(from) % SEQ_MOD
+    SeqCount::new(to).since(SeqCount::new(from))
 }
 
 impl GapPlan {
@@ -56,7 +55,7 @@ impl GapPlan {
             .map(|(a, b)| {
                 let most = self.range_max.max(1);
                 if ahead(a, b) >= most {
-                    (a, a.wrapping_add(most - 1) % SEQ_MOD)
+                    (a, SeqCount::new(a).add(most - 1).get())
                 } else {
                     (a, b)
                 }

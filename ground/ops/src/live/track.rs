@@ -6,12 +6,15 @@
 
 use std::collections::{BTreeMap, HashSet, VecDeque};
 
+use mib::headers::SeqCount;
+
+pub use crate::pus::seq::Pos;
 use crate::pus::seq::{seq_ahead as ahead, step, Step, SEQ_AHEAD as AHEAD};
-pub use crate::pus::seq::{Pos, SEQ_MOD};
 
 use super::gaps::GapPlan;
 
-const MOD: u32 = SEQ_MOD as u32;
+/// The count before a boot's first (0): 16383, where the 14-bit circle wraps.
+const BEFORE_ZERO: u16 = SeqCount::new(0).prev().get();
 /// Most holes followed at once per APID. More than the host store holds cannot be
 /// retrieved anyway; the excess is reported unrecoverable at once.
 pub const MAX_MISSING: usize = 2 * mib::config::TM_STORE_CAPACITY;
@@ -157,17 +160,17 @@ impl ApidTracker {
     /// not received (as far as [`RECENT_WINDOW`] remembers) become holes; with nothing
     /// heard yet, the first packet makes holes of the counts from `first` before it.
     pub fn expect_from(&mut self, first: u16) {
-        let first = first % SEQ_MOD;
+        let first = SeqCount::new(first);
         let Some(last) = self.last else {
-            self.expect = Some(first);
+            self.expect = Some(first.get());
             return;
         };
-        let behind = ahead(first, last.seq);
+        let behind = SeqCount::new(last.seq).since(first);
         if behind as usize >= RECENT_WINDOW {
             return;
         }
         for k in 0..=behind {
-            let seq = ((first as u32 + k) % MOD) as u16;
+            let seq = first.add(k).get();
             if !self.recent_set.contains(&seq) && !self.holes.contains_key(&seq) && self.holes.len() < MAX_MISSING {
                 self.holes.insert(
                     seq,
@@ -250,9 +253,9 @@ impl ApidTracker {
             // packet heard is asked of the store too when the whole boot is wanted (what
             // it no longer holds is reported overwritten), else what was expected.
             let before = match self.expect.take() {
-                Some(first) if ahead(first, p.seq) < AHEAD => Some(((first as u32 + MOD - 1) % MOD) as u16),
+                Some(first) if ahead(first, p.seq) < AHEAD => Some(SeqCount::new(first).prev().get()),
                 Some(_) => None,
-                None => (self.from_boot && !boot && p.seq > 0).then_some(SEQ_MOD - 1),
+                None => (self.from_boot && !boot && p.seq > 0).then_some(BEFORE_ZERO),
             };
             if let Some(seq) = before {
                 self.add_holes(Pos { seq, obt_ms: i64::MIN }, p, now_ms);
@@ -307,7 +310,7 @@ impl ApidTracker {
         let start_obt_ms = self.last.map_or(p.obt_ms, |l| l.obt_ms);
         if p.seq > 0 {
             let before = Pos {
-                seq: SEQ_MOD - 1,
+                seq: BEFORE_ZERO,
                 obt_ms: start_obt_ms,
             };
             self.add_holes(before, p, now_ms);
@@ -318,10 +321,11 @@ impl ApidTracker {
     }
 
     fn add_holes(&mut self, after: Pos, before: Pos, now_ms: i64) {
-        let n = ahead(after.seq, before.seq).saturating_sub(1);
+        let after_seq = SeqCount::new(after.seq);
+        let n = SeqCount::new(before.seq).since(after_seq).saturating_sub(1);
         let mut too_many = Vec::new();
         for k in 1..=n {
-            let seq = ((after.seq as u32 + k) % MOD) as u16;
+            let seq = after_seq.add(k).get();
             if self.holes.len() >= MAX_MISSING {
                 too_many.push(seq);
                 continue;
@@ -410,7 +414,7 @@ impl ApidTracker {
                 if s == last {
                     break;
                 }
-                s = ((s as u32 + 1) % MOD) as u16;
+                s = SeqCount::new(s).next().get();
             }
         }
         out
@@ -447,7 +451,7 @@ fn runs(seqs: &[u16]) -> Vec<(u16, u16, u32)> {
     if out.len() >= 2 {
         let (f0, _, _) = out[0];
         let (_, ll, _) = out[out.len() - 1];
-        if f0 == 0 && ll == SEQ_MOD - 1 {
+        if f0 == 0 && ll == BEFORE_ZERO {
             let (_, l0, n0) = out.remove(0);
             if let Some(last) = out.last_mut() {
                 last.1 = l0;
@@ -463,7 +467,7 @@ fn ranges_of(ms: &[u16]) -> Vec<(u16, u16)> {
     let mut out: Vec<(u16, u16)> = Vec::new();
     for &m in ms {
         match out.last_mut() {
-            Some((_, last)) if (*last + 1) % SEQ_MOD == m => *last = m,
+            Some((_, last)) if SeqCount::new(*last).next().get() == m => *last = m,
             _ => out.push((m, m)),
         }
     }

@@ -5,6 +5,8 @@ use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
+use mib::headers::SeqCount;
+
 use crate::plan::Plan;
 use crate::pus::BuiltTc;
 
@@ -115,7 +117,7 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
         if let Some((_, last)) = resume.last_seq.iter().find(|(r, _)| *r == st.robot) {
             if let Some(s) = session.robots.get_mut(&st.robot) {
                 if s.seq.newest().is_none() {
-                    s.seq.expect_from(last.wrapping_add(1) % SEQ_MOD);
+                    s.seq.expect_from(SeqCount::new(*last).next().get());
                 }
             }
         }
@@ -284,7 +286,7 @@ fn start_markers(session: &mut Session, robots: &[u8], wait: bool, stop: &dyn Fn
     for (r, _, before) in markers {
         if let Some(s) = session.robots.get_mut(&r) {
             if s.run_first_seq.is_none() && delivered_at.contains_key(&r) {
-                s.run_first_seq = before.map(|b| (b + 1) % SEQ_MOD);
+                s.run_first_seq = before.map(|b| SeqCount::new(b).next().get());
             }
             if let Some(f) = s.run_first_seq {
                 s.seq.expect_from(f);
@@ -381,7 +383,9 @@ fn resolve_in_flight(
         let last = resume.last_seq.iter().find(|(x, _)| *x == r).map(|(_, q)| *q);
         let complete = session.robots.get(&r).is_some_and(|s| {
             let ahead = match (s.seq.newest(), last) {
-                (Some(n), Some(l)) => (1..crate::live::RECENT_WINDOW as u16).contains(&(n.wrapping_sub(l) % SEQ_MOD)),
+                (Some(n), Some(l)) => {
+                    (1..crate::live::RECENT_WINDOW as u16).contains(&SeqCount::new(n).since(SeqCount::new(l)))
+                }
                 (Some(_), None) => true,
                 (None, _) => false,
             };
@@ -520,9 +524,11 @@ fn complete_tm(session: &mut Session, robots: &[u8], disp: &Display, stop: &dyn 
             let filled = |session: &Session| {
                 session.robots.get(&r).is_some_and(|s| {
                     !s.seq.missing().any(|m| {
-                        asked
-                            .iter()
-                            .any(|&(x, y)| m.wrapping_sub(x) % SEQ_MOD <= y.wrapping_sub(x) % SEQ_MOD)
+                        let m = SeqCount::new(m);
+                        asked.iter().any(|&(x, y)| {
+                            let x = SeqCount::new(x);
+                            m.since(x) <= SeqCount::new(y).since(x)
+                        })
                     })
                 })
             };
@@ -540,7 +546,7 @@ fn complete_tm(session: &mut Session, robots: &[u8], disp: &Display, stop: &dyn 
                 // Older than the oldest packet still stored: overwritten on board.
                 let gone = s
                     .store_oldest
-                    .is_some_and(|o| o != b && o.wrapping_sub(b) % SEQ_MOD < SEQ_MOD / 2);
+                    .is_some_and(|o| o != b && SeqCount::new(o).since(SeqCount::new(b)) < SeqCount::MODULUS / 2);
                 if gone {
                     c.overwritten.push((a, b));
                 } else {

@@ -8,6 +8,7 @@ use std::time::{Duration, Instant};
 use crossbeam_channel::Receiver;
 use mib::config::TC_RETRY_MAX;
 use mib::events::eid;
+use mib::headers::SeqCount;
 use mib::params::pid;
 use mib::tc::TcDef;
 
@@ -31,12 +32,13 @@ pub use mib::config::SEQ_SKIP_AFTER_RESTART;
 /// [`SEQ_SKIP_AFTER_RESTART`] further; with no archive, from the clock.
 pub fn first_tc_seq(archived_next: Option<u16>) -> u16 {
     match archived_next {
-        Some(n) => n.wrapping_add(SEQ_SKIP_AFTER_RESTART) % SEQ_MOD,
+        Some(n) => SeqCount::new(n).add(SEQ_SKIP_AFTER_RESTART).get(),
         None => {
             let n = std::time::SystemTime::now()
                 .duration_since(std::time::UNIX_EPOCH)
                 .map_or(0, |d| d.subsec_nanos() ^ d.as_secs() as u32);
-            (n % u32::from(SEQ_MOD)) as u16
+            // The low 14 bits of the clock's mix.
+            SeqCount::new(n as u16).get()
         }
     }
 }
@@ -584,7 +586,7 @@ impl Session {
                     // the first count of the run, TM[1,7] two more (TM[17,2] between).
                     let first = match v.stage {
                         Stage::Acceptance => Some(tm.seq),
-                        Stage::Completion => Some(tm.seq.wrapping_sub(2) % SEQ_MOD),
+                        Stage::Completion => Some(SeqCount::new(tm.seq).prev().prev().get()),
                         Stage::Start | Stage::Progress => None,
                     };
                     if let (Some(f), Some(s)) = (first, self.robots.get_mut(&p.robot)) {
