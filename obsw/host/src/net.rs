@@ -1,5 +1,7 @@
 //! Ground link of the host OBSW: TCs arrive on UDP datagrams and on TCP streams framed
-//! with COBS (a 0x00 after each frame).
+//! with the one stream framing, `mmic_link::stream` (`0x00, COBS(packet), 0x00`; a
+//! receiver also takes frames with only the trailing 0x00), and TM goes out framed the
+//! same way.
 //!
 //! TM goes to every connected TCP client and to every UDP *subscriber*: a UDP ground
 //! subscribes by sending a TC that passes acceptance, and each accepted TC renews its
@@ -29,7 +31,7 @@ use mio::net::{TcpListener, TcpStream};
 use mio::unix::SourceFd;
 use mio::{Events, Interest, Poll, Token};
 use mmic_link::downlink::TmVc;
-use mmic_link::stream::{Deframer, StreamError};
+use mmic_link::stream::{encode, encoded_len, Deframer, StreamError};
 use timerfd::{ClockId, SetTimeFlags, TimerFd, TimerState};
 
 /// Something for the main loop.
@@ -276,15 +278,19 @@ impl Downlink {
         if self.conn_count() == 0 {
             return;
         }
-        self.frame.resize(cobs::max_encoding_length(packet.len()) + 1, 0);
-        let n = cobs::encode(packet, &mut self.frame);
-        self.frame[n] = 0;
+        // The one stream framing: `0x00, COBS(packet), 0x00`.
+        self.frame.resize(encoded_len(packet.len()), 0);
+        let Ok(n) = encode(packet, &mut self.frame) else {
+            // Unreachable (the buffer has just been sized for the packet); counted anyway.
+            self.counters.tm_dropped = self.counters.tm_dropped.wrapping_add(1);
+            return;
+        };
         for i in 0..self.conns.len() {
             let Some(c) = self.conns[i].as_mut() else { continue };
             if c.closed {
                 continue;
             }
-            if c.backlog.len() + n + 1 > TCP_TM_BACKLOG {
+            if c.backlog.len() + n > TCP_TM_BACKLOG {
                 // Disconnected at the next poll round (the main loop owns the poll).
                 c.closed = true;
                 c.backlog.clear();
@@ -293,7 +299,7 @@ impl Downlink {
                 log::warn!("TCP client {i}: TM backlog over {TCP_TM_BACKLOG} bytes, disconnecting it");
                 continue;
             }
-            c.backlog.extend(&self.frame[..=n]);
+            c.backlog.extend(&self.frame[..n]);
             self.flush(i);
         }
     }
@@ -745,18 +751,18 @@ mod tests {
         assert_eq!(down.counters.tcp_refused, 3);
         // An oversize frame, a malformed one and a good one, in that order.
         let c = &mut clients[0];
-        let mut big = vec![0u8; cobs::max_encoding_length(3 * MAX_PACKET_LEN) + 1];
-        let big_len = cobs::encode(&vec![0x55u8; 3 * MAX_PACKET_LEN], &mut big);
-        big.truncate(big_len + 1);
+        let mut big = vec![0u8; encoded_len(3 * MAX_PACKET_LEN)];
+        let big_len = encode(&vec![0x55u8; 3 * MAX_PACKET_LEN], &mut big).unwrap();
+        big.truncate(big_len);
+        // OversizeFrame carries the COBS bytes of the frame, its two delimiters excluded.
         c.write_all(&big).unwrap();
         c.write_all(&[0x05, 1, 0]).unwrap();
         let mut f = [0u8; 8];
-        let n = cobs::encode(&[9, 8, 7], &mut f);
-        f[n] = 0;
-        c.write_all(&f[..=n]).unwrap();
+        let n = encode(&[9, 8, 7], &mut f).unwrap();
+        c.write_all(&f[..n]).unwrap();
         let got = drain(&mut inputs, &mut down, Instant::now() + Duration::from_millis(300));
         assert!(
-            matches!(&got[0], Input::OversizeFrame(n, h) if *n == big_len && h == &[0x55; OVERSIZE_HEAD]),
+            matches!(&got[0], Input::OversizeFrame(n, h) if *n == big_len - 2 && h == &[0x55; OVERSIZE_HEAD]),
             "{got:?}"
         );
         assert!(matches!(got[1], Input::BadFrame), "{got:?}");
