@@ -5,6 +5,7 @@
 use mib::tc::{self, service, TcDef};
 use mib::FailureCode;
 use mib_wire::codec::{self, ArgError, MAX_ARGS};
+use mib_wire::RequestId;
 
 use crate::failure::Failure;
 
@@ -14,29 +15,6 @@ const SEC_LEN: usize = 5;
 const CRC_LEN: usize = 2;
 /// Shortest PUS-C TC: primary header, secondary header, CRC.
 pub const MIN_TC_LEN: usize = PRIMARY_LEN + SEC_LEN + CRC_LEN;
-
-/// PUS request ID: packet ID (u16) and packet sequence control (u16) of the TC.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct RequestId {
-    pub packet_id: u16,
-    pub psc: u16,
-}
-
-impl RequestId {
-    pub fn raw(&self) -> u32 {
-        ((self.packet_id as u32) << 16) | self.psc as u32
-    }
-    pub fn apid(&self) -> u16 {
-        self.packet_id & 0x7FF
-    }
-    pub fn seq_count(&self) -> u16 {
-        mib::headers::SeqCount::new(self.psc).get()
-    }
-    pub fn to_bytes(&self) -> [u8; 4] {
-        let r = self.raw().to_be_bytes();
-        [r[0], r[1], r[2], r[3]]
-    }
-}
 
 /// PUS-C acknowledgement flags of a TC.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -118,10 +96,7 @@ pub fn accept(raw: &[u8], apid: u16) -> Result<Tc<'_>, Rejection> {
     if raw.len() < 4 {
         return Err(Rejection::new(None, Failure::malformed_packet(raw.len(), MIN_TC_LEN)));
     }
-    let req = RequestId {
-        packet_id: u16::from_be_bytes([raw[0], raw[1]]),
-        psc: u16::from_be_bytes([raw[2], raw[3]]),
-    };
+    let req = RequestId::from_bytes([raw[0], raw[1], raw[2], raw[3]]);
     let r = Some(req);
     if raw.len() < PRIMARY_LEN {
         return Err(Rejection::new(r, Failure::malformed_packet(raw.len(), MIN_TC_LEN)));
@@ -217,7 +192,7 @@ pub(crate) mod tests {
     fn a_valid_ping_is_accepted() {
         let raw = tc_bytes(0x101, 7, 17, 1, &[]);
         let t = accept(&raw, 0x101).unwrap();
-        assert_eq!((t.service, t.subservice, t.req.seq_count()), (17, 1, 7));
+        assert_eq!((t.service, t.subservice, t.req.seq()), (17, 1, 7));
         assert!(t.ack.acceptance() && t.ack.completion());
     }
 

@@ -38,11 +38,12 @@
 use mib::config;
 use mib::events::{self, EVENTS};
 use mib::tc::service;
+use mib_wire::RequestId;
 use satrs::pus::verification::{
     RequestId as SatrsRequestId, TcStateAccepted, TcStateNone, TcStateStarted, VerificationToken,
 };
 
-use crate::accept::{Ack, RequestId};
+use crate::accept::Ack;
 use crate::failure::{Failure, SentFailure};
 use crate::time::OnboardTime;
 use crate::tm::{TmSink, TmStore, TmWriter};
@@ -104,6 +105,8 @@ impl New {
     /// The token of a TC that has just arrived.
     pub fn new(req: RequestId, ack: Ack) -> Self {
         Token {
+            // The one conversion to sat-rs's request ID, whose verification tokens
+            // order the stages; both are the same 32 bits (packet ID, sequence control).
             tok: VerificationToken::<TcStateNone>::new(SatrsRequestId::from(req.raw())),
             ack,
             req,
@@ -357,11 +360,5 @@ impl<S: TmStore> Downlink<S> {
             Stage::Completion => 8,
         };
         self.report(now, sub, req, None, Some(f), sink);
-    }
-}
-
-impl From<RequestId> for SatrsRequestId {
-    fn from(r: RequestId) -> Self {
-        SatrsRequestId::from(r.raw())
     }
 }

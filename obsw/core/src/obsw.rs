@@ -10,7 +10,7 @@ use mib_wire::{ev, EventArgs};
 use mmic_domain::controller::{Controller, TickOut};
 use mmic_domain::SensorsA;
 
-use crate::accept::{accept, RequestId, Tc};
+use crate::accept::{accept, Tc};
 use crate::downlink::{Accepted, Downlink, New, Stage, Started};
 use crate::failure::{Failure, SentFailure};
 use crate::fdir::{self, Faults, Monitoring};
@@ -26,6 +26,7 @@ use crate::services::team::Team;
 use crate::services::time::TimeReports;
 use crate::time::OnboardTime;
 use crate::tm::{TmSink, TmStore};
+use mib_wire::RequestId;
 
 /// Something the platform's ground link did on its own, for [`Obsw::link_event`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -98,7 +99,9 @@ const _: () = assert!(config::DUPLICATE_WINDOW as u32 > config::TC_RETRY_SPAN_MS
 
 #[derive(Clone, Debug)]
 struct Seen {
-    req: RequestId,
+    /// The request ID as its 32-bit key (`RequestId::raw`): 4 bytes per entry in the
+    /// firmware's static RAM instead of the 8 of the unpacked `RequestId`.
+    key: u32,
     crc: u16,
     at: u64,
     outcome: Outcome,
@@ -393,10 +396,7 @@ impl<S: TmStore> Obsw<S> {
         let f = Failure::frame_too_long(frame_len, config::MAX_PACKET_LEN);
         let ty = match head {
             [h0, h1, h2, h3, rest @ ..] => {
-                let req = RequestId {
-                    packet_id: u16::from_be_bytes([*h0, *h1]),
-                    psc: u16::from_be_bytes([*h2, *h3]),
-                };
+                let req = RequestId::from_bytes([*h0, *h1, *h2, *h3]);
                 self.dl.fail(now, req, Stage::Acceptance, (&f).into(), sink);
                 // Service and subservice, if the secondary header was kept.
                 match rest {
@@ -497,7 +497,9 @@ impl<S: TmStore> Obsw<S> {
     fn find_seen(&self, req: RequestId, crc: u16, now: u64) -> Option<Outcome> {
         self.seen
             .iter()
-            .find(|s| s.req == req && s.crc == crc && now.saturating_sub(s.at) <= config::DUPLICATE_MAX_AGE_MS as u64)
+            .find(|s| {
+                s.key == req.raw() && s.crc == crc && now.saturating_sub(s.at) <= config::DUPLICATE_MAX_AGE_MS as u64
+            })
             .map(|s| s.outcome.clone())
     }
 
@@ -507,7 +509,7 @@ impl<S: TmStore> Obsw<S> {
         }
         // Space was made above.
         let _ = self.seen.push_back(Seen {
-            req,
+            key: req.raw(),
             crc,
             at: now,
             outcome: Outcome::Pending,
@@ -529,7 +531,7 @@ impl<S: TmStore> Obsw<S> {
     }
 
     pub(crate) fn set_outcome(&mut self, req: RequestId, outcome: Outcome) {
-        if let Some(s) = self.seen.iter_mut().rev().find(|s| s.req == req) {
+        if let Some(s) = self.seen.iter_mut().rev().find(|s| s.key == req.raw()) {
             s.outcome = outcome;
         }
     }
