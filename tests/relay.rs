@@ -3,8 +3,8 @@
 //! It listens on one UDP and one TCP address and forwards everything to the obsw's UDP and
 //! TCP addresses. Each direction (up: ground → obsw, down: obsw → ground) has its own
 //! probabilities of dropping, duplicating and corrupting a packet (a UDP datagram, or a
-//! COBS frame on TCP: a corrupted frame is re-encoded, so it still frames but fails the
-//! packet CRC). The random numbers are seeded, so a seed replays the same decisions for
+//! COBS frame on TCP, `mmic_link::stream`'s framing: a corrupted frame is re-encoded, so
+//! it still frames but fails the packet CRC). The random numbers are seeded, so a seed replays the same decisions for
 //! the same traffic. The relay is bounded (at most [`MAX_PEERS`] UDP grounds and TCP
 //! connections), stops by itself after `lifetime` or after `idle` with no traffic, and
 //! counts what it did per direction.
@@ -26,6 +26,8 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
+
+use mmic_link::stream::{encode, encoded_len, Deframer};
 
 /// Most UDP grounds and TCP connections relayed at once; more are ignored (counted).
 pub const MAX_PEERS: usize = 16;
@@ -458,9 +460,11 @@ fn tcp_pump(mut from: TcpStream, mut to: TcpStream, up: bool, s: Arc<Shared>, in
     };
     let mut rng = s.rng(if up { 3 } else { 4 }, index);
     let mut chunk = [0u8; 4096];
-    let mut frame: Vec<u8> = Vec::new();
-    let mut decoded = vec![0u8; MAX_DATAGRAM];
-    let mut encoded = vec![0u8; MAX_DATAGRAM + MAX_DATAGRAM / 200 + 2];
+    // The one deframer (mmic_link::stream), and the encoded bytes of the frame in
+    // progress, to pass on a frame it drops.
+    let mut de = Box::new(Deframer::<MAX_DATAGRAM>::new());
+    let mut raw: Vec<u8> = Vec::new();
+    let mut encoded = Vec::new();
     'outer: while s.running() {
         let n = match from.read(&mut chunk) {
             Ok(0) => break,
@@ -477,27 +481,32 @@ fn tcp_pump(mut from: TcpStream, mut to: TcpStream, up: bool, s: Arc<Shared>, in
         };
         s.touch();
         for &b in &chunk[..n] {
-            if b != 0 {
-                if frame.len() < MAX_DATAGRAM {
-                    frame.push(b);
-                }
-                continue;
+            if b != 0 && raw.len() < MAX_DATAGRAM {
+                raw.push(b);
             }
-            // A frame that does not decode is passed on as it is (the obsw judges it).
-            let packet: &[u8] = match cobs::decode(&frame, &mut decoded) {
-                Ok(r) => &decoded[..r.frame_size()],
-                Err(_) => &frame,
+            let packet: &[u8] = match de.push(b) {
+                None => {
+                    if b == 0 {
+                        // Delimiters, or an empty frame: nothing to relay.
+                        raw.clear();
+                    }
+                    continue;
+                }
+                Some(Ok(p)) => p,
+                // A frame that does not decode (or is longer than MAX_DATAGRAM) is passed
+                // on as it is, its COBS bytes as the packet (the obsw judges it).
+                Some(Err(_)) => &raw,
             };
             if let Fate::Send(copies) = decide(&mut rng, &faults, packet, counts) {
                 for c in copies {
-                    let k = cobs::encode(&c, &mut encoded);
-                    encoded[k] = 0;
-                    if to.write_all(&encoded[..=k]).is_err() {
+                    encoded.resize(encoded_len(c.len()), 0);
+                    let k = encode(&c, &mut encoded).expect("buffer sized by encoded_len");
+                    if to.write_all(&encoded[..k]).is_err() {
                         break 'outer;
                     }
                 }
             }
-            frame.clear();
+            raw.clear();
         }
     }
     let _ = to.shutdown(Shutdown::Write);
@@ -578,15 +587,15 @@ mod tests {
         let mut t = TcpStream::connect(relay.tcp).unwrap();
         t.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
         let mut f = [0u8; 16];
-        let k = cobs::encode(b"abc", &mut f);
-        t.write_all(&f[..=k]).unwrap();
+        let k = encode(b"abc", &mut f).unwrap();
+        t.write_all(&f[..k]).unwrap();
         let mut got = Vec::new();
-        while got.iter().filter(|b| **b == 0).count() < 2 {
+        while got.iter().filter(|b| **b == 0).count() < 4 {
             let n = t.read(&mut b).unwrap();
             assert!(n > 0);
             got.extend_from_slice(&b[..n]);
         }
-        let two: Vec<u8> = [&f[..=k], &f[..=k]].concat();
+        let two: Vec<u8> = [&f[..k], &f[..k]].concat();
         assert_eq!(got, two, "frame duplicated on the way up, echoed twice");
         relay.stop();
         let up = relay.counts.up.snapshot();

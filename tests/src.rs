@@ -322,10 +322,9 @@ impl Client {
                 s.send_to(raw, *to).unwrap();
             }
             Link::Tcp(s, _) => {
-                let mut f = vec![0u8; cobs::max_encoding_length(raw.len()) + 1];
-                let n = cobs::encode(raw, &mut f);
-                f[n] = 0;
-                s.write_all(&f[..=n]).unwrap();
+                let mut f = vec![0u8; mmic_link::stream::encoded_len(raw.len())];
+                let n = mmic_link::stream::encode(raw, &mut f).unwrap();
+                s.write_all(&f[..n]).unwrap();
             }
         }
     }
