@@ -12,6 +12,7 @@ use mib::events::eid;
 use mib::modes::{node, robot_mode};
 use mib::params::pid;
 use mib::FailureCode as F;
+use mib_wire::RequestId;
 use mmic_sim::{Sim, SimCommand, SimConfig};
 use obsw_core::obsw::{Config, Obsw};
 use obsw_core::tm::{RingStore, TmSink};
@@ -42,13 +43,8 @@ impl Tm {
             data: tm.source_data().to_vec(),
         }
     }
-    fn request(&self) -> Option<(u16, u16)> {
-        (self.service == 1 && self.data.len() >= 4).then(|| {
-            (
-                u16::from_be_bytes([self.data[0], self.data[1]]),
-                u16::from_be_bytes([self.data[2], self.data[3]]),
-            )
-        })
+    fn request(&self) -> Option<RequestId> {
+        (self.service == 1).then(|| RequestId::of_tc(&self.data).ok()).flatten()
     }
     fn failure_code(&self) -> Option<u16> {
         let off = if self.subservice == 6 { 5 } else { 4 };
@@ -75,8 +71,8 @@ impl TmSink for Log {
     }
 }
 
-fn request_of(tc: &[u8]) -> (u16, u16) {
-    (u16::from_be_bytes([tc[0], tc[1]]), u16::from_be_bytes([tc[2], tc[3]]))
+fn request_of(tc: &[u8]) -> RequestId {
+    RequestId::of_tc(tc).expect("a TC has a request ID")
 }
 
 /// The OBSW of robot 1 and the simulated robot, one control period at a time.
