@@ -143,9 +143,6 @@ pub const FIRST_TM_WAIT_MS: u32 = 1000;
 /// Ground, over frames: how long after a CLCW acknowledged a start or end marker the TM
 /// received is taken to cover it when its acceptance report was lost.
 pub const MARKER_SETTLE_MS: u32 = 1000;
-/// Ground: a store retrieval older than this many first waits no longer holds the next
-/// one back (its own reports may have been lost).
-pub const RETRIEVAL_WAITS: u32 = 2;
 
 /// Ground: first wait for a TC's completion (or failure) report before sending the same
 /// bytes again.
@@ -245,19 +242,21 @@ pub const GAP_RANGE_MAX: u16 = 256;
 pub const GAP_REQUESTS_MAX: usize = 16;
 const _: () = assert!(GAP_REQUESTS_MAX + (TC_RETRY_SPAN_MS / GROUND_HEARTBEAT_MS) as usize <= DUPLICATE_WINDOW / 2);
 /// Ground: ranges asked per round while TM is live (a plan running, a collector
-/// following a robot): one, and the next round waits for its end report or
-/// [`STORE_REQUEST_TIMEOUT_MS`], so one replay is in flight per robot and the ground's
-/// own requests — whose reports can be lost and make new gaps — cannot snowball. The
-/// rest is asked for at the end of a run ([`GAP_REQUESTS_MAX`] per round).
+/// following a robot): one, and the next round waits for the pacing rule
+/// ([`STORE_REQUEST_TIMEOUT_MS`], [`STORE_REQUEST_MIN_GAP_MS`]), so one replay is in
+/// flight per robot and the ground's own requests — whose reports can be lost and make
+/// new gaps — cannot snowball. The rest is asked for at the end of a run
+/// ([`GAP_REQUESTS_MAX`] per round).
 pub const GAP_REQUESTS_LIVE: usize = 1;
-/// Ground: a store request whose end report (TM[15,19]) did not come is given up after
-/// this long (its reports were lost; the holes are asked for again): more than
-/// [`RETRIEVAL_WAITS`] first waits of a TC ([`TC_RETRY_INITIAL_MS`]), after which a CLI
-/// run no longer holds its next retrieval back either.
+/// Ground, every front end (`ground_ops::live::RetrievalPacer`): a store retrieval is in
+/// flight until its end report (TM[15,19]) or its TC's completion or failure report, at
+/// most this long (its reports were lost; the holes are asked for again): nearly three
+/// first waits of a TC ([`TC_RETRY_INITIAL_MS`]).
 pub const STORE_REQUEST_TIMEOUT_MS: u32 = 2_000;
-/// Ground: least time between two rounds of store requests to one robot: the requests'
-/// own reports can be lost and make new gaps, so their rate is bounded (two rounds per
-/// second, below the 1 s heartbeat's TM).
+/// Ground, every front end (`ground_ops::live::RetrievalPacer`): least time between two
+/// store retrievals (rounds of requests) to one robot, however early the last ended: the
+/// requests' own reports can be lost and make new gaps, so their rate is bounded (two
+/// rounds per second, below the 1 s heartbeat's TM).
 pub const STORE_REQUEST_MIN_GAP_MS: u32 = 500;
 /// Ground: how long an accepted TC that no step waits for (a marker, a store retrieval,
 /// `ground send` without waiting) is tracked for its completion: it is never resent, and

@@ -34,7 +34,7 @@ use super::onboard;
 use super::planrun::PlanInput;
 use super::robotcfg::ConfigTracker;
 use super::store::SinkMsg;
-use super::tracker::{ApidTracker, GapPlan, LinkWatch, Pos};
+use super::tracker::{ApidTracker, GapPlan, LinkWatch, Pos, RetrievalPacer};
 
 /// [`mib::config::GROUND_RECONNECT_FIRST_MS`]: first pause between reconnection attempts;
 /// doubles up to the configured cap.
@@ -43,10 +43,6 @@ const BACKOFF_START_MS: i64 = mib::config::GROUND_RECONNECT_FIRST_MS as i64;
 const HEALTH_MS: i64 = mib::config::COLLECTOR_HEALTH_MS as i64;
 /// [`mib::config::GAP_REQUESTS_LIVE`]: one replay in flight per robot.
 const MAX_RUNS_PER_REQUEST: usize = mib::config::GAP_REQUESTS_LIVE;
-/// [`mib::config::STORE_REQUEST_TIMEOUT_MS`].
-const STORE_REQUEST_TIMEOUT_MS: i64 = mib::config::STORE_REQUEST_TIMEOUT_MS as i64;
-/// [`mib::config::STORE_REQUEST_MIN_GAP_MS`].
-const STORE_REQUEST_MIN_GAP_MS: i64 = mib::config::STORE_REQUEST_MIN_GAP_MS as i64;
 /// [`mib::config::HK_SET_TRIES`].
 const HK_SET_TRIES: u32 = mib::config::HK_SET_TRIES;
 /// [`mib::config::GROUND_ASK_AGAIN_MS`].
@@ -111,9 +107,9 @@ pub struct Worker {
     /// A mode report has arrived since start or the last reboot (the dashboard's mode
     /// tree is asked for with MODE_ANNOUNCE until then).
     modes_known: bool,
-    last_store_request_ms: i64,
-    /// A store request whose end report has not come yet.
-    store_in_flight: bool,
+    /// Is a store retrieval in flight, may the next go? The pacing rule of every front
+    /// end.
+    pacer: RetrievalPacer,
     conditions: BTreeSet<Source>,
     last_health_ms: i64,
     st: RobotStatus,
@@ -188,8 +184,7 @@ impl Worker {
             hk_set: None,
             hk_confirmed: cfg.hk_interval_ms.is_none(),
             modes_known: false,
-            last_store_request_ms: i64::MIN / 2,
-            store_in_flight: false,
+            pacer: RetrievalPacer::default(),
             conditions: BTreeSet::new(),
             last_health_ms: 0,
             st,

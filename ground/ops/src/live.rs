@@ -7,16 +7,22 @@
 //!   new, filled, duplicate, restart; the holes to retrieve and the ones that can no
 //!   longer be had;
 //! - [`GapPlan`] (`gaps.rs`): which store retrievals to send for the holes — one merge
-//!   distance and one set of request limits, all from the MIB.
+//!   distance and one set of request limits, all from the MIB;
+//! - [`RetrievalPacer`] (`pace.rs`): when a store retrieval is in flight and when the next
+//!   may go — one in flight per robot, ended by its end report, its TC's outcome or
+//!   [`mib::config::STORE_REQUEST_TIMEOUT_MS`], spaced by
+//!   [`mib::config::STORE_REQUEST_MIN_GAP_MS`].
 //!
 //! Pure: no I/O, times passed in (ms).
 
 mod gaps;
+mod pace;
 mod tm;
 mod track;
 mod watch;
 
 pub use gaps::GapPlan;
+pub use pace::RetrievalPacer;
 pub use tm::{is_boot, position, store_done, StoreDone};
 pub use track::{ApidTracker, Lost, LostRun, Pos, Verdict, MAX_MISSING, RECENT_WINDOW};
 pub use watch::{LinkLoss, LinkState, LinkWatch};

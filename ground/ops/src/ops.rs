@@ -37,7 +37,7 @@ pub const START_LABEL: &str = "start marker";
 
 /// Label of the store retrievals a session sends for TM gaps.
 pub const GAP_LABEL: &str = "gap retrieval";
-pub use mib::config::{GAP_MERGE_DISTANCE, GAP_REQUESTS_MAX, RETRIEVAL_WAITS};
+pub use mib::config::{GAP_MERGE_DISTANCE, GAP_REQUESTS_MAX};
 
 /// [`mib::config::UNTAGGED_COMPLETION_WAIT_MS`]: how long an accepted TC that no step
 /// waits for (a marker, a store retrieval) is tracked for its completion.

@@ -74,6 +74,10 @@ impl Worker {
             Verdict::New | Verdict::Filled => {}
         }
         let live = verdict != Verdict::Filled;
+        if tm.apid == self.apid {
+            // The pacing rule's ends of a store retrieval (a replayed end report is not one).
+            self.pacer.on_tm(&tm, live);
+        }
         self.inspect(&tm, live, now);
         if let (true, Some(d)) = (live, &self.dash) {
             dash::to_hub(&d.hub, self.cfg.number, &tm);

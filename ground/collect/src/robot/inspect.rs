@@ -182,7 +182,6 @@ impl Worker {
             }
             _ => {
                 if let Some(done) = onboard::store_done(tm) {
-                    self.store_in_flight = false;
                     if let (Some(oldest), Some(t)) = (done.oldest, self.trackers.get_mut(&self.apid)) {
                         t.store_oldest(oldest);
                     }

@@ -6,10 +6,7 @@ use crate::alarms::{Severity, Source};
 use crate::onboard;
 use crate::planrun::PlanInput;
 
-use super::{
-    LinkState, Worker, BACKOFF_START_MS, HK_SET_TRIES, MAX_RUNS_PER_REQUEST, STORE_REQUEST_MIN_GAP_MS,
-    STORE_REQUEST_TIMEOUT_MS,
-};
+use super::{LinkState, Worker, BACKOFF_START_MS, HK_SET_TRIES, MAX_RUNS_PER_REQUEST};
 
 impl Worker {
     pub(super) fn timers(&mut self, now: i64) {
@@ -95,21 +92,17 @@ impl Worker {
             }
         }
         self.ask_config(now);
-        // Holes → store requests (only while the link is up).
-        if self.store_in_flight && now - self.last_store_request_ms >= STORE_REQUEST_TIMEOUT_MS {
-            self.store_in_flight = false;
-        }
-        if up && !self.store_in_flight && now - self.last_store_request_ms >= STORE_REQUEST_MIN_GAP_MS {
+        // Holes → store requests (only while the link is up), when the pacing rule of
+        // every front end lets one go (`ground_ops::live::RetrievalPacer`).
+        if up && self.pacer.may_send(now) {
             let g = &self.global;
             let (settle, retry, tries) = (g.gap_settle_ms as i64, g.gap_retry_ms as i64, g.gap_max_tries);
             let mut requests = Vec::new();
             if let Some(t) = self.trackers.get_mut(&self.apid) {
                 requests = t.due(now, settle, retry, tries, &self.gaps, MAX_RUNS_PER_REQUEST);
             }
-            if !requests.is_empty() {
-                self.last_store_request_ms = now;
-                self.store_in_flight = true;
-            }
+            let asked = !requests.is_empty();
+            let mut sent = Vec::new();
             let mut whole_sent = false;
             for (first, last) in requests {
                 let seq = self.next_seq();
@@ -122,7 +115,11 @@ impl Worker {
                 whole_sent |= !ranged;
                 tracing::debug!(robot = self.robot(), "store request {first}..={last}");
                 self.send_tc(&tc, "store-request");
+                sent.push((tc.apid, tc.seq));
                 self.st.store_requests += 1;
+            }
+            if asked {
+                self.pacer.on_sent(now, sent);
             }
         }
         self.report_lost(now);

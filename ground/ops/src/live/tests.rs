@@ -340,3 +340,107 @@ fn store_end_report_gives_the_oldest_stored_packet() {
         }
     );
 }
+
+// ---- retrieval pacing -------------------------------------------------------------------
+
+/// A report of robot 1 on the TC with sequence count `tc_seq`: TM[1,7] (`sub` 7) or a
+/// TM[1,2] acceptance failure (`sub` 2).
+fn report(sub: u8, tc_seq: u16) -> Tm {
+    let t = crate::pus::CdsShort::from_unix_ms(1_000_000).to_bytes();
+    let psc = (0xC000 | tc_seq).to_be_bytes();
+    let mut src = vec![0x19, 0x01, psc[0], psc[1]];
+    if sub == 2 {
+        src.extend_from_slice(&mib::failure::FailureCode::NOT_ALLOWED_IN_MODE.code().to_be_bytes());
+        src.push(0);
+    }
+    crate::pus::decode_tm(&crate::pus::build_tm(0x101, 3, 1, sub, 0, &t, &src)).expect("a verification report")
+}
+
+/// The store's end report TM[15,19] of robot 1.
+fn end_report() -> Tm {
+    let t = crate::pus::CdsShort::from_unix_ms(1_000_000);
+    Tm {
+        apid: 0x101,
+        robot: Some(1),
+        seq: 4,
+        service: 15,
+        subservice: 19,
+        name: "STORE_DOWNLINK_DONE",
+        msg_counter: 0,
+        time: t,
+        len: 0,
+        body: TmBody::StoreDownlinkDone {
+            packets: 3,
+            oldest_time: t,
+            oldest_seq: 0,
+            overwritten: 0,
+        },
+    }
+}
+
+const TIMEOUT: i64 = mib::config::STORE_REQUEST_TIMEOUT_MS as i64;
+const MIN_GAP: i64 = mib::config::STORE_REQUEST_MIN_GAP_MS as i64;
+
+// verifies: OPS-PACE-01
+#[test]
+fn a_retrieval_is_in_flight_until_its_end_report_and_the_next_waits_the_least_gap() {
+    let mut p = RetrievalPacer::default();
+    assert!(p.may_send(0) && !p.in_flight(0), "nothing sent yet");
+    p.on_sent(1_000, [(0x101, 5)]);
+    assert!(p.in_flight(1_010) && !p.may_send(1_010));
+    // A replayed (old) end report ends nothing; the live one ends it.
+    p.on_tm(&end_report(), false);
+    assert!(p.in_flight(1_020));
+    p.on_tm(&end_report(), true);
+    assert!(!p.in_flight(1_020));
+    // Ended early, the next still waits the least gap after the last one went out.
+    assert!(!p.may_send(1_000 + MIN_GAP - 1));
+    assert!(p.may_send(1_000 + MIN_GAP));
+    assert_eq!((p.sent, p.timed_out), (1, 0));
+}
+
+// verifies: OPS-PACE-01
+#[test]
+fn a_retrieval_ends_with_its_tcs_completion_or_failure_not_another_tcs() {
+    let mut p = RetrievalPacer::default();
+    p.on_sent(0, [(0x101, 5)]);
+    p.on_tm(&report(7, 6), true);
+    assert!(p.in_flight(10), "another TC's completion");
+    p.on_tm(&report(7, 5), false);
+    assert!(!p.in_flight(10), "its own completion, even replayed from the store");
+    p.on_sent(MIN_GAP, [(0x101, 8)]);
+    p.on_tm(&report(2, 8), true);
+    assert!(!p.in_flight(MIN_GAP + 10), "its acceptance failure");
+    assert!(p.may_send(2 * MIN_GAP));
+}
+
+// verifies: OPS-PACE-01
+#[test]
+fn a_retrieval_whose_reports_are_lost_ends_at_the_timeout_counted() {
+    let mut p = RetrievalPacer::default();
+    p.on_sent(0, [(0x101, 5)]);
+    assert!(p.in_flight(TIMEOUT - 1) && !p.may_send(TIMEOUT - 1));
+    assert!(!p.in_flight(TIMEOUT) && p.may_send(TIMEOUT));
+    p.on_sent(TIMEOUT, [(0x101, 6)]);
+    assert_eq!((p.sent, p.timed_out), (2, 1));
+    // A send that failed (no TC went) still spaces the next one.
+    p.on_sent(2 * TIMEOUT, []);
+    assert!(!p.in_flight(2 * TIMEOUT) && !p.may_send(2 * TIMEOUT + MIN_GAP - 1));
+    assert_eq!(p.timed_out, 2);
+}
+
+// verifies: OPS-PACE-01
+#[test]
+fn a_round_of_several_ranges_is_one_retrieval_in_flight_until_each_ended() {
+    let mut p = RetrievalPacer::new(2_000, 500);
+    p.on_sent(0, [(0x101, 5), (0x101, 6)]);
+    // The store answers in order: the first end report is the oldest TC's.
+    p.on_tm(&end_report(), true);
+    assert!(p.in_flight(100), "the second range is still being replayed");
+    // The first TC's completion, after its end report, changes nothing.
+    p.on_tm(&report(7, 5), true);
+    assert!(p.in_flight(100));
+    p.on_tm(&report(7, 6), true);
+    assert!(!p.in_flight(100));
+    assert!(!p.may_send(499) && p.may_send(500));
+}

@@ -1,7 +1,7 @@
 //! [`run_plan`]: drives the [`Executor`] with a [`Session`]: start markers, resolution
 //! of a resumed run's unknown TCs, interruption, gap retrieval, the live display.
 
-use std::collections::{BTreeMap, HashMap, VecDeque};
+use std::collections::{BTreeMap, BTreeSet, HashMap, VecDeque};
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
@@ -92,6 +92,8 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
     let disp = Display::new(plan, &robots, opts.display);
     let mut exec = Executor::new(plan, opts, &resume.done, Instant::now());
     let mut last_gap_check = Instant::now();
+    // Robots whose periodic gap check waits for the pacing rule to let a retrieval go.
+    let mut gap_check_due: BTreeSet<u8> = BTreeSet::new();
     disp.total.inc(exec.resumed as u64);
     if exec.resumed > 0 {
         disp.log(format!(
@@ -151,10 +153,9 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
                         let _ = session.send_heartbeat(r);
                     }
                 }
+                // Sent when the pacing rule lets one go (`Session::may_retrieve`).
                 Effect::Retrieve(r) => {
-                    if !session.retrieving(r) {
-                        session.request_missing_reports(r, mib::config::GAP_REQUESTS_LIVE);
-                    }
+                    session.request_missing_reports(r, mib::config::GAP_REQUESTS_LIVE);
                 }
                 Effect::Log(line) => disp.log(line),
                 Effect::Finished => disp.total.inc(1),
@@ -188,7 +189,7 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
         // Over frames a gap where an awaited TC's reports are is asked for at once.
         if session.over_frames() {
             for &r in &robots {
-                if !session.retrieving(r) && !session.awaited_gaps(r).is_empty() {
+                if session.may_retrieve(r) && !session.awaited_gaps(r).is_empty() {
                     session.request_missing_reports(r, mib::config::GAP_REQUESTS_AWAITED);
                 }
             }
@@ -200,17 +201,23 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
         };
         if last_gap_check.elapsed() >= period {
             last_gap_check = Instant::now();
-            for &r in &robots {
-                let lost = session.robots.get(&r).is_some_and(|s| s.lost.is_some());
-                if !lost && !session.retrieving(r) {
-                    // One range per period: over bare packets plan TCs may still be resent
-                    // (the duplicate window holds a bounded number of TCs), over frames
-                    // retrievals queued in FOP-1 would hold the plan's next TC back. The
-                    // rest at the end.
-                    session.request_missing_reports(r, mib::config::GAP_REQUESTS_LIVE);
-                }
-            }
+            gap_check_due.extend(&robots);
         }
+        // A check is done when the pacing rule lets its retrieval go (at once, unless one
+        // is in flight or went out less than the least gap ago).
+        gap_check_due.retain(|&r| {
+            if session.robots.get(&r).is_none_or(|s| s.lost.is_some()) {
+                return false;
+            }
+            if !session.may_retrieve(r) {
+                return true;
+            }
+            // One range per period: over bare packets plan TCs may still be resent (the
+            // duplicate window holds a bounded number of TCs), over frames retrievals
+            // queued in FOP-1 would hold the plan's next TC back. The rest at the end.
+            session.request_missing_reports(r, mib::config::GAP_REQUESTS_LIVE);
+            false
+        });
         for (&r, bar) in &disp.robots {
             let st = session.robots.get(&r).map(|s| s.line()).unwrap_or_default();
             bar.set_message(format!("{} | {st}", exec.robot_line(r)));
@@ -346,10 +353,15 @@ fn resolve_in_flight(
             .iter()
             .map(|r| session.robots.get(r).map_or(0, |s| s.seq.holes()))
             .sum();
-        for &r in &open {
-            if !session.retrieving(r) {
-                session.request_gaps(r, None, GAP_REQUESTS_MAX);
+        // The pacing rule: the last retrieval ended and the least gap since it.
+        let wait = Instant::now();
+        while wait.elapsed() < GAP_ROUND_WAIT && !open.iter().all(|&r| session.may_retrieve(r)) && !stop() {
+            for u in session.poll(Duration::from_millis(50)) {
+                fx.extend(exec.on_update(Instant::now(), u));
             }
+        }
+        for &r in &open {
+            session.request_gaps(r, None, GAP_REQUESTS_MAX);
         }
         let round = Instant::now();
         while round.elapsed() < GAP_ROUND_WAIT && open.iter().any(|&r| session.retrieving(r)) {
@@ -505,8 +517,9 @@ fn complete_tm(session: &mut Session, robots: &[u8], disp: &Display, stop: &dyn 
             if missing.is_empty() || rounds >= GAP_ROUNDS_MAX || idle_rounds >= GAP_ROUNDS_IDLE_MAX || stop() {
                 break;
             }
+            // The pacing rule: the last retrieval ended and the least gap since it.
             let t0 = Instant::now();
-            while t0.elapsed() < limit && session.retrieving(r) && !stop() {
+            while t0.elapsed() < limit && !session.may_retrieve(r) && !stop() {
                 session.poll(Duration::from_millis(50));
             }
             let asked = session.request_gaps(r, Some(cut), GAP_REQUESTS_MAX);

@@ -389,20 +389,24 @@ impl Session {
         self.last_new_tc.get(&robot).is_some_and(|t| t.elapsed() < period)
     }
 
-    /// True while a store retrieval of `robot` waits for its outcome, for at most
-    /// [`RETRIEVAL_WAITS`] first waits (its reports can be lost too: an older one does not
-    /// hold the next back).
+    /// True while a store retrieval of `robot` is in flight: the pacing rule of every
+    /// front end ([`crate::live::RetrievalPacer`]: until its end report, its TC's outcome
+    /// or [`mib::config::STORE_REQUEST_TIMEOUT_MS`]).
     pub fn retrieving(&self, robot: u8) -> bool {
-        let wait = self.ack_timeout() * RETRIEVAL_WAITS;
-        self.book
-            .values()
-            .any(|p| p.robot == robot && p.label.as_deref() == Some(GAP_LABEL) && p.first_sent.elapsed() < wait)
+        self.robots.get(&robot).is_some_and(|s| s.pacer.in_flight(now_ms()))
+    }
+
+    /// True if a store retrieval of `robot` may go now ([`crate::live::RetrievalPacer`]:
+    /// none in flight, the last at least [`mib::config::STORE_REQUEST_MIN_GAP_MS`] ago).
+    pub fn may_retrieve(&self, robot: u8) -> bool {
+        self.robots.get(&robot).is_some_and(|s| s.pacer.may_send(now_ms()))
     }
 
     /// Asks `robot`'s on-board store first for the TM missing since its oldest TC still
     /// waiting for an outcome went out (that TC's reports are among it), at most
     /// `max_ranges` ranges; with no such TC or no such gap, for the oldest missing TM
-    /// ([`Session::request_gaps`]). Returns the ranges asked for.
+    /// ([`Session::request_gaps`]). Nothing while the pacing rule holds the next retrieval
+    /// back ([`Session::may_retrieve`]). Returns the ranges asked for.
     pub fn request_missing_reports(&mut self, robot: u8, max_ranges: usize) -> Vec<(u16, u16)> {
         let ranges = self.awaited_gaps(robot);
         if ranges.is_empty() {
@@ -442,18 +446,28 @@ impl Session {
     }
 
     /// The retrievals [`GapPlan`] plans for these gaps (merged, cut, at most
-    /// `max_ranges`): one TC[15,128] each for `robot`'s own APID. Returns the ranges asked
-    /// for.
+    /// `max_ranges`): one TC[15,128] each for `robot`'s own APID, together one retrieval
+    /// of the pacing rule, sent only when it lets one go ([`Session::may_retrieve`]).
+    /// Returns the ranges asked for.
     fn send_retrievals(&mut self, robot: u8, ranges: Vec<(u16, u16)>, max_ranges: usize) -> Vec<(u16, u16)> {
         let ranges = GapPlan::default().round(&ranges, max_ranges);
         let Some(def) = mib::tc::by_name("STORE_DOWNLINK_SEQ") else {
             return Vec::new();
         };
+        if ranges.is_empty() || !self.may_retrieve(robot) {
+            return Vec::new();
+        }
         let apid = mib::apid::robot_apid(robot).unwrap_or(0);
+        let mut sent = Vec::new();
         for &(a, b) in &ranges {
             let args = [apid as i64, a as i64, b as i64];
             // A failed send shows as a retrieval without result: asked again later.
-            let _ = self.send(robot, def, &args, None, Some(GAP_LABEL.into()));
+            if let Ok(tc) = self.send(robot, def, &args, None, Some(GAP_LABEL.into())) {
+                sent.push((tc.apid, tc.seq));
+            }
+        }
+        if let Some(s) = self.robots.get_mut(&robot) {
+            s.pacer.on_sent(now_ms(), sent);
         }
         ranges
     }
@@ -531,11 +545,14 @@ impl Session {
         if let (Ok(tm), Some(s)) = (&decoded, self.robots.get_mut(&inc.robot)) {
             if tm.robot == Some(inc.robot) {
                 s.link.on_tm(now_ms());
-                if s.seq.on_packet(live::position(tm), live::is_boot(tm), now_ms()) == SeqVerdict::Duplicate {
+                let verdict = s.seq.on_packet(live::position(tm), live::is_boot(tm), now_ms());
+                if verdict == SeqVerdict::Duplicate {
                     s.duplicates += 1;
                     s.last_tm = Some(Instant::now());
                     return;
                 }
+                // The pacing rule's ends of a retrieval (a replayed end report is not one).
+                s.pacer.on_tm(tm, verdict != SeqVerdict::Filled);
             }
         }
         if let Some(a) = &self.archive {

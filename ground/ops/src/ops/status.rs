@@ -7,7 +7,7 @@ use std::time::Instant;
 use mib::config::LINK_QUALITY_WINDOW;
 use serde::Serialize;
 
-use crate::live::{ApidTracker, LinkLoss, LinkWatch};
+use crate::live::{ApidTracker, LinkLoss, LinkWatch, RetrievalPacer};
 use crate::plan::state_name;
 use crate::pus;
 
@@ -38,6 +38,8 @@ pub struct RobotStatus {
     pub seq: ApidTracker,
     /// Is the link up? The link-loss rule of every front end.
     pub link: LinkWatch,
+    /// Is a store retrieval in flight, may the next go? The pacing rule of every front end.
+    pub pacer: RetrievalPacer,
     /// Why the link counts as lost (latched).
     pub lost: Option<String>,
     /// Which of the "robot does not answer" cases it was (latched with `lost`).
@@ -68,6 +70,7 @@ impl RobotStatus {
             duplicates: 0,
             seq: ApidTracker::new(),
             link: LinkWatch::at_mib_interval(crate::archive::now_ms()),
+            pacer: RetrievalPacer::default(),
             lost: None,
             lost_kind: None,
             run_first_seq: None,
