@@ -16,7 +16,7 @@ pub const MAX_PACKET_LEN: usize = mc::MAX_PACKET_LEN;
 /// Longest COBS encoding of `n` payload bytes, both 0x00 delimiters included.
 pub const fn cobs_frame_len(n: usize) -> usize {
     // The one rule of the stream framing (the `cobs` crate's bound plus the two sentinels).
-    mmic_link::stream::encoded_len(n)
+    mmic_stream::encoded_len(n)
 }
 
 /// Ground link: longest encoded frame on the wire.

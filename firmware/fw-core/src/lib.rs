@@ -4,7 +4,6 @@
 //! boards, on the host and in the QEMU test binary:
 //! - [`config`]: every firmware buffer, queue depth and period, derived from
 //!   `mib::config` (the single place where firmware capacities are set);
-//! - [`framing`]: COBS framing of space packets and A–B frames on a byte stream;
 //! - [`periph`]: the small traits the boards' peripherals sit behind, and the drivers
 //!   for the ADS7828 ADC, the MPU-6000 IMU, the AS5600 hip encoder, the LEDC servo
 //!   outputs and the bolter multiplexer, written against `embedded-hal` 1.0;
@@ -25,7 +24,6 @@
 pub mod boot;
 pub mod config;
 pub mod cycle;
-pub mod framing;
 pub mod link;
 pub mod link_store;
 pub mod modules;

@@ -12,12 +12,12 @@
 //! bytes, which the A–B protocol detects (bad frame) and recovers (resend).
 
 use crate::config;
-use crate::framing::{encode_frame, Deframer};
 use core::cell::Cell;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::channel::Channel;
 use embassy_sync::pipe::Pipe;
+use mmic_stream::{encode, Deframer};
 
 /// One uplinked TC (a whole space packet).
 pub type TcPacket = heapless::Vec<u8, { config::GROUND_RX_BUF }>;
@@ -100,7 +100,7 @@ pub fn uplink_bytes<const N: usize>(deframer: &mut Deframer<N>, bytes: &[u8], tc
 /// frame and the caller can keep the packet for later.
 pub fn downlink_packet<const N: usize>(queue: &ByteQueue<N>, packet: &[u8], counters: &Counters) -> bool {
     let mut frame = [0u8; config::GROUND_FRAME_MAX];
-    let Some(n) = encode_frame(packet, &mut frame) else {
+    let Ok(n) = encode(packet, &mut frame) else {
         counters.update(|s| s.frame_errors = s.frame_errors.wrapping_add(1));
         return false;
     };

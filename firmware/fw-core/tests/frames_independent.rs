@@ -8,13 +8,13 @@ use std::path::PathBuf;
 use std::process::Command;
 
 use fw_core::config;
-use fw_core::framing::{encode_frame, Deframer};
 use fw_core::link::{self, ByteQueue, Counters, TcChannel};
 use fw_core::spacelink::{FrameLink, Keys};
 use mmic_link::downlink::TmReceiver;
 use mmic_link::sdls::{build_tc, MemoryIvStore, RxSa, RxSas, TxSa};
 use mmic_link::tc::{FrameType, TcRepr};
 use mmic_link::test_keys::{TEST_KEY_TC_A, TEST_KEY_TM_A};
+use mmic_stream::{encode, Deframer};
 use obsw_core::obsw::{Config, Obsw};
 use obsw_core::tm::RingStore;
 
@@ -99,7 +99,7 @@ fn board_frames_verify_with_the_independent_python_decoder() {
     let n = build_tc(&mut sa, &mut gs, header, &ping_tc(3), &mut buf).unwrap();
     let tc_frame = buf[..n].to_vec();
     let mut cobs = [0u8; config::GROUND_FRAME_MAX];
-    let m = encode_frame(&tc_frame, &mut cobs).unwrap();
+    let m = encode(&tc_frame, &mut cobs).unwrap();
     let mut deframer: Deframer<{ config::GROUND_RX_BUF }> = Deframer::new();
     link::uplink_bytes(&mut deframer, &cobs[..m], &TCS, &UP);
 

@@ -12,7 +12,6 @@ use std::rc::Rc;
 use arbitrary_int::{u11, u14};
 use fw_core::config::{self, adc_channel as ch};
 use fw_core::cycle::{CycleA, LinksA, PeripheralsA};
-use fw_core::framing::{encode_frame, Deframer};
 use fw_core::link::{self, BarePackets, ByteQueue, Counters, TcChannel};
 use fw_core::periph::side::bolter_pulses;
 use fw_core::periph::{
@@ -24,6 +23,7 @@ use mib::modes::{node, robot_mode};
 use mib::tc::function;
 use mmic_domain::{ActuatorsA, BolterDrive, SensorsA, SideActuators};
 use mmic_sim::{Sim, SimConfig};
+use mmic_stream::{encode, Deframer};
 use obsw_core::obsw::{Config, Obsw};
 use obsw_core::tm::RingStore;
 use satrs::spacepackets::ecss::tc::{AckFlags, PusTcCreator, PusTcSecondaryHeader};
@@ -168,7 +168,7 @@ fn tc_frame(seq: u16, svc: u8, sub: u8, app: &[u8]) -> Vec<u8> {
         .write_to_bytes(&mut tc)
         .unwrap();
     let mut frame = vec![0u8; config::cobs_frame_len(n)];
-    let m = encode_frame(&tc[..n], &mut frame).unwrap();
+    let m = encode(&tc[..n], &mut frame).unwrap();
     frame.truncate(m);
     frame
 }

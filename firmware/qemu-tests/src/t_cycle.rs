@@ -8,7 +8,6 @@ use crate::tests;
 use crate::{check, check_eq, ok};
 use fw_core::config::{self, i2c_addr};
 use fw_core::cycle::{CycleA, CycleB, LinksA, LinksB, PeripheralsA, PeripheralsB};
-use fw_core::framing::{encode_frame, Deframer};
 use fw_core::link::{self, BarePackets, ByteQueue, Counters, TcChannel};
 use fw_core::periph::ads7828::PowerMode;
 use fw_core::periph::{
@@ -18,6 +17,7 @@ use fw_core::periph::{
 use mib::events::eid;
 use mib::modes::{node, robot_mode};
 use mib::robot::servo;
+use mmic_stream::{encode, Deframer};
 use obsw_core::obsw::{Config, IoCounters, Obsw};
 use obsw_core::tm::RingStore;
 use satrs::spacepackets::ecss::tm::PusTmReader;
@@ -171,7 +171,7 @@ fn boards_a_and_b_cycles_go_operational_on_a_ground_command() -> TestResult {
             let mut tc = [0u8; 32];
             let n = ok!(crate::t_packets::build(1, 200, 1, &app, &mut tc));
             let mut frame = [0u8; 48];
-            let m = ok!(encode_frame(&tc[..n], &mut frame));
+            let m = ok!(encode(&tc[..n], &mut frame));
             link::uplink_bytes(&mut uplink, &frame[..m], &TCS, &STATS[3]);
         }
         act = a.run(t, &mut obsw, &mut BarePackets, &mut io_a, &links_a);
@@ -328,7 +328,7 @@ fn cycle_a_reports_platform_io_counters_in_hk_structure_5() -> TestResult {
     let mut frame = [0u8; 48];
     for seq in 0..6u16 {
         let n = ok!(crate::t_packets::build(seq, 17, 1, &[], &mut tc));
-        let m = ok!(encode_frame(&tc[..n], &mut frame));
+        let m = ok!(encode(&tc[..n], &mut frame));
         link::uplink_bytes(&mut uplink, &frame[..m], &TCS, &STATS[0]);
     }
     link::uplink_bytes(&mut uplink, &[0x00, 0x05, 0x01, 0x00], &TCS, &STATS[0]);
@@ -345,7 +345,7 @@ fn cycle_a_reports_platform_io_counters_in_hk_structure_5() -> TestResult {
     link::push_bytes(&TM, &junk, &STATS[1]);
     let stored_before = obsw.param(pid::TM_STORED);
     let n = ok!(crate::t_packets::build(6, 17, 1, &[], &mut tc));
-    let m = ok!(encode_frame(&tc[..n], &mut frame));
+    let m = ok!(encode(&tc[..n], &mut frame));
     link::uplink_bytes(&mut uplink, &frame[..m], &TCS, &STATS[0]);
     step(&mut cycle, &mut obsw, &mut io);
     let produced = (obsw.param(pid::TM_STORED) - stored_before) as u32;
@@ -363,7 +363,7 @@ fn cycle_a_reports_platform_io_counters_in_hk_structure_5() -> TestResult {
         &mib::hk::sid::PLATFORM_IO.to_be_bytes(),
         &mut tc
     ));
-    let m = ok!(encode_frame(&tc[..n], &mut frame));
+    let m = ok!(encode(&tc[..n], &mut frame));
     link::uplink_bytes(&mut uplink, &frame[..m], &TCS, &STATS[0]);
     step(&mut cycle, &mut obsw, &mut io);
     let n = link::drain(&TM, &mut tm_bytes);

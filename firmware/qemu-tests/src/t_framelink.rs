@@ -11,7 +11,6 @@ use crate::tests;
 use crate::{check, check_eq, ok};
 use embedded_storage::nor_flash::{ErrorType, NorFlash, NorFlashErrorKind, ReadNorFlash};
 use fw_core::config;
-use fw_core::framing::{encode_frame, Deframer};
 use fw_core::link::{self, ByteQueue, Counters, TcChannel};
 use fw_core::link_store::{self, FlashIvStore, KEY_RECORD_LEN, RECORDS_PER_SECTOR, SECTOR};
 use fw_core::spacelink::{FrameLink, Keys};
@@ -20,6 +19,7 @@ use mmic_link::downlink::TmReceiver;
 use mmic_link::sdls::{build_tc, IvStore, MemoryIvStore, RxSa, RxSas, TxSa};
 use mmic_link::tc::{FrameType, TcRepr};
 use mmic_link::test_keys::{TEST_KEY_TC_A, TEST_KEY_TC_B, TEST_KEY_TM_A};
+use mmic_stream::{encode, Deframer};
 use obsw_core::obsw::{Config, Obsw};
 use obsw_core::tm::RingStore;
 
@@ -185,7 +185,7 @@ fn ping(seq: u16, buf: &mut [u8]) -> Option<usize> {
 /// COBS-frames `frame` into the uplink queue through the uplink path the task runs.
 fn uplink(frame: &[u8], tcs: &TcChannel, stats: &Counters) {
     let mut cobs = [0u8; config::GROUND_FRAME_MAX];
-    let n = encode_frame(frame, &mut cobs).unwrap_or(0);
+    let n = encode(frame, &mut cobs).unwrap_or(0);
     let mut deframer: Deframer<{ config::GROUND_RX_BUF }> = Deframer::new();
     // In 64-byte pieces, as the USB driver delivers them.
     for chunk in cobs[..n].chunks(config::UART_READ_CHUNK) {

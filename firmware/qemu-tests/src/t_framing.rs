@@ -1,9 +1,9 @@
-//! COBS framing of the ground and A–B links (fw-core::framing).
+//! COBS framing of the ground and A–B links (`mmic_stream`, the one codec of the project).
 
 use crate::harness::{Test, TestResult};
 use crate::tests;
 use crate::{check, check_eq, ok};
-use fw_core::framing::{encode_frame, Deframer, FrameError};
+use mmic_stream::{encode, Deframer, StreamError};
 
 pub const TESTS: &[Test] = tests![
     cobs_encodes_reference_vectors,
@@ -13,7 +13,7 @@ pub const TESTS: &[Test] = tests![
     encode_refuses_short_output_buffer,
 ];
 
-/// Known COBS encodings (Cheshire & Baker; delimiters added by `encode_frame`).
+/// Known COBS encodings (Cheshire & Baker; delimiters added by `encode`).
 fn cobs_encodes_reference_vectors() -> TestResult {
     let cases: [(&[u8], &[u8]); 5] = [
         (&[0x00], &[0x01, 0x01]),
@@ -24,7 +24,7 @@ fn cobs_encodes_reference_vectors() -> TestResult {
     ];
     for (payload, enc) in cases {
         let mut out = [0u8; 16];
-        let n = ok!(encode_frame(payload, &mut out));
+        let n = ok!(encode(payload, &mut out));
         check_eq!(n, enc.len() + 2);
         check_eq!(out[0], 0);
         check_eq!(out[n - 1], 0);
@@ -50,7 +50,7 @@ fn cobs_254_byte_block_gets_no_extra_zero() -> TestResult {
         *b = i as u8 + 1; // 0x01..=0xFE
     }
     let mut out = [0u8; 300];
-    let n = ok!(encode_frame(&payload, &mut out));
+    let n = ok!(encode(&payload, &mut out));
     // 0x00, 0xFF, 254 data bytes, 0x00
     check_eq!(n, 257);
     check_eq!(out[1], 0xFF);
@@ -78,14 +78,14 @@ fn deframer_splits_a_stream_and_resyncs() -> TestResult {
         n += 1;
     }
     for f in frames {
-        n += ok!(encode_frame(f, &mut wire[n..]));
+        n += ok!(encode(f, &mut wire[n..]));
     }
     // A frame cut by a delimiter inside a block, then a good one.
     for b in [0x00, 0x05, 0x11, 0x00] {
         wire[n] = b;
         n += 1;
     }
-    n += ok!(encode_frame(&[9, 8, 7], &mut wire[n..]));
+    n += ok!(encode(&[9, 8, 7], &mut wire[n..]));
 
     let mut d: Deframer<64> = Deframer::new();
     let mut ok_frames = 0;
@@ -99,7 +99,7 @@ fn deframer_splits_a_stream_and_resyncs() -> TestResult {
                 ok_frames += 1;
             }
             Some(Err(e)) => {
-                check_eq!(e, FrameError::Corrupt);
+                check_eq!(e, StreamError::Corrupt);
                 errors += 1;
             }
             None => {}
@@ -113,22 +113,22 @@ fn deframer_splits_a_stream_and_resyncs() -> TestResult {
 
 fn deframer_drops_frames_longer_than_its_buffer() -> TestResult {
     let mut out = [0u8; 64];
-    let n = ok!(encode_frame(&[0xAB; 20], &mut out));
-    let m = ok!(encode_frame(&[1, 2], &mut out[n..]));
+    let n = ok!(encode(&[0xAB; 20], &mut out));
+    let m = ok!(encode(&[1, 2], &mut out[n..]));
     let mut d: Deframer<8> = Deframer::new();
-    let mut results: heapless::Vec<Result<usize, FrameError>, 4> = heapless::Vec::new();
+    let mut results: heapless::Vec<Result<usize, StreamError>, 4> = heapless::Vec::new();
     for &b in &out[..n + m] {
         if let Some(r) = d.push(b) {
             let _ = results.push(r.map(|p| p.len()));
         }
     }
-    check_eq!(&results[..], &[Err(FrameError::TooLong), Ok(2)][..]);
+    check_eq!(&results[..], &[Err(StreamError::Oversize), Ok(2)][..]);
     Ok(())
 }
 
 fn encode_refuses_short_output_buffer() -> TestResult {
     let mut out = [0u8; 5];
-    check!(encode_frame(&[1, 2, 3], &mut out).is_none());
+    check_eq!(encode(&[1, 2, 3], &mut out), Err(StreamError::BufferTooSmall));
     check_eq!(fw_core::config::cobs_frame_len(1024), 1031);
     Ok(())
 }

@@ -6,7 +6,6 @@ use crate::mock::{MockI2c, MockPin, MockPwm};
 use crate::tests;
 use crate::{check, check_eq, ok};
 use fw_core::config;
-use fw_core::framing::{encode_frame, Deframer};
 use fw_core::link::{self, ByteQueue, Counters, TcChannel};
 use fw_core::periph::ads7828::PowerMode;
 use fw_core::periph::servo::hip_pulse;
@@ -16,6 +15,7 @@ use fw_core::periph::{
 };
 use fw_core::sampling::{sample_a, SensorErrors};
 use mmic_domain::{BolterDrive, SensorsA, SideActuators};
+use mmic_stream::{encode, Deframer};
 
 pub const TESTS: &[Test] = tests![
     uplink_delivers_each_tc_and_counts_drops,
@@ -34,7 +34,7 @@ fn uplink_delivers_each_tc_and_counts_drops() -> TestResult {
     let mut wire = [0u8; 512];
     let mut n = 0;
     for i in 0..(config::TC_QUEUE_DEPTH as u8 + 2) {
-        n += ok!(encode_frame(&[0x18, 0x01, i, 0x00, 0x00], &mut wire[n..]));
+        n += ok!(encode(&[0x18, 0x01, i, 0x00, 0x00], &mut wire[n..]));
     }
     wire[n..n + 3].copy_from_slice(&[0x04, 0x11, 0x00]); // cut frame
     n += 3;
