@@ -51,7 +51,7 @@ use ground_pus::{BuiltTc, DecodeError, Tm};
 pub use alarms::{Alarm, AlarmUpdate};
 pub use db::{Db, DbError, Val};
 pub use gaps::{Gap, GapNote, GapReason, Position};
-pub use links::{Handed, LinkHealth};
+pub use links::{Handed, LinkHealth, TmCounts};
 pub use read::{CheckReport, Column, Health, Latest, Store};
 
 /// Most records committed in one transaction.

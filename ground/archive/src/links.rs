@@ -9,6 +9,21 @@ use super::db::{collect, Db, Val};
 use super::{ArchiveError, Store};
 use ground_pus as pus;
 
+/// A robot's TM counts as a collector's sequence trackers sum them: its live status shows
+/// them, its link row ([`LinkHealth`]) keeps them.
+#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq, Eq)]
+pub struct TmCounts {
+    /// Packets received (new and filled).
+    pub packets: u64,
+    /// Holes filled (from the on-board store or late).
+    pub filled: u64,
+    /// Packets declared unrecoverable.
+    pub lost: u64,
+    pub duplicates: u64,
+    pub corrupt: u64,
+    pub reboots: u64,
+}
+
 /// A robot's link, as the collector last wrote it.
 #[derive(Clone, Debug, Default, Serialize, PartialEq)]
 pub struct LinkHealth {
@@ -18,12 +33,8 @@ pub struct LinkHealth {
     pub link: String,
     pub last_heard_ms: Option<i64>,
     pub last_hk_ms: Option<i64>,
-    pub packets: u64,
-    pub filled: u64,
-    pub lost: u64,
-    pub duplicates: u64,
-    pub corrupt: u64,
-    pub reboots: u64,
+    #[serde(flatten)]
+    pub tm: TmCounts,
     pub updated_ms: i64,
 }
 
@@ -52,12 +63,12 @@ impl Store {
                         h.link.as_str().into(),
                         h.last_heard_ms.into(),
                         h.last_hk_ms.into(),
-                        Val::Int(h.packets as i64),
-                        Val::Int(h.filled as i64),
-                        Val::Int(h.lost as i64),
-                        Val::Int(h.duplicates as i64),
-                        Val::Int(h.corrupt as i64),
-                        Val::Int(h.reboots as i64),
+                        Val::Int(h.tm.packets as i64),
+                        Val::Int(h.tm.filled as i64),
+                        Val::Int(h.tm.lost as i64),
+                        Val::Int(h.tm.duplicates as i64),
+                        Val::Int(h.tm.corrupt as i64),
+                        Val::Int(h.tm.reboots as i64),
                         Val::Int(now_ms),
                     ],
                 )?;
@@ -82,12 +93,14 @@ impl Store {
             link: r[2].text().unwrap_or("").to_string(),
             last_heard_ms: r[3].int(),
             last_hk_ms: r[4].int(),
-            packets: n(&r[5]),
-            filled: n(&r[6]),
-            lost: n(&r[7]),
-            duplicates: n(&r[8]),
-            corrupt: n(&r[9]),
-            reboots: n(&r[10]),
+            tm: TmCounts {
+                packets: n(&r[5]),
+                filled: n(&r[6]),
+                lost: n(&r[7]),
+                duplicates: n(&r[8]),
+                corrupt: n(&r[9]),
+                reboots: n(&r[10]),
+            },
             updated_ms: r[11].int().unwrap_or(0),
         })
         .collect())

@@ -513,11 +513,11 @@ fn draw(statuses: &[Arc<Mutex<RobotStatus>>], ring: &LogRing, started: Instant) 
             s.robot,
             s.addr,
             s.link.name(),
-            s.packets,
-            s.filled,
-            s.lost,
+            s.tm.packets,
+            s.tm.filled,
+            s.tm.lost,
             s.holes,
-            s.duplicates,
+            s.tm.duplicates,
             age(now, s.last_hk_ms),
             if s.conditions.is_empty() {
                 "-".to_string()
@@ -575,9 +575,9 @@ fn status(archive: &Path, json: bool) -> Result<u8> {
             h.link,
             h.last_heard_ms.map_or("never".into(), utc),
             age(now, h.last_heard_ms),
-            h.packets,
-            h.filled,
-            h.lost,
+            h.tm.packets,
+            h.tm.filled,
+            h.tm.lost,
             n_alarms
         ))?;
     }

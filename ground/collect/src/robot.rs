@@ -57,12 +57,9 @@ pub struct RobotStatus {
     pub robot: u8,
     pub addr: String,
     pub link: LinkState,
-    pub packets: u64,
-    pub filled: u64,
-    pub lost: u64,
-    pub duplicates: u64,
-    pub corrupt: u64,
-    pub reboots: u64,
+    /// The counts its link row in the archive keeps too.
+    #[serde(flatten)]
+    pub tm: crate::archive::TmCounts,
     pub holes: usize,
     pub store_requests: u64,
     pub reconnects: u64,

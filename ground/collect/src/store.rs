@@ -518,7 +518,10 @@ mod tests {
             addr: "127.0.0.1:9".into(),
             link: "lost".into(),
             last_heard_ms: Some(9_500),
-            packets: 42,
+            tm: crate::archive::TmCounts {
+                packets: 42,
+                ..Default::default()
+            },
             ..Default::default()
         }))
         .unwrap();
@@ -557,7 +560,7 @@ mod tests {
         );
         let links = st.links().unwrap();
         assert_eq!(links.len(), 1);
-        assert_eq!((links[0].link.as_str(), links[0].packets), ("lost", 42));
+        assert_eq!((links[0].link.as_str(), links[0].tm.packets), ("lost", 42));
         let _ = std::fs::remove_file(&path);
     }
 }

@@ -165,21 +165,9 @@ impl Run {
         let due = self.book.on_tick(now, |r| lab.get(&r).copied().unwrap_or(false));
         let mut out = Vec::new();
         for d in due {
-            match d {
-                Due::Resend {
-                    robot, tag, tc, send, ..
-                } => {
-                    let name = tc.def.name;
-                    self.resend(robot, tc.bytes);
-                    out.push(Update::Resent {
-                        robot,
-                        tag,
-                        tc: name,
-                        send,
-                    });
-                }
-                Due::Waited { .. } => {}
-                Due::GaveUp(p) => out.push(Update::gave_up(&p, false)),
+            out.extend(Update::of_due(&d, false));
+            if let Due::Resend { robot, tc, .. } = d {
+                self.resend(robot, tc.bytes);
             }
         }
         out

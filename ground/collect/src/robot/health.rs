@@ -35,11 +35,11 @@ impl Worker {
         st.last_rx_ms = self.watch.last_tm_ms();
         st.last_hk_ms = self.last_hk_ms;
         st.holes = self.trackers.values().map(|t| t.holes()).sum();
-        st.packets = self.trackers.values().map(|t| t.new + t.filled).sum();
-        st.filled = self.trackers.values().map(|t| t.filled).sum();
-        st.lost = self.trackers.values().map(|t| t.lost_packets).sum();
-        st.duplicates = self.trackers.values().map(|t| t.duplicates).sum();
-        st.reboots = self.trackers.values().map(|t| t.reboots).sum();
+        st.tm.packets = self.trackers.values().map(|t| t.new + t.filled).sum();
+        st.tm.filled = self.trackers.values().map(|t| t.filled).sum();
+        st.tm.lost = self.trackers.values().map(|t| t.lost_packets).sum();
+        st.tm.duplicates = self.trackers.values().map(|t| t.duplicates).sum();
+        st.tm.reboots = self.trackers.values().map(|t| t.reboots).sum();
         st.conditions = self.conditions.iter().map(|s| s.name().to_string()).collect();
         if force || now - self.last_health_ms >= HEALTH_MS {
             self.last_health_ms = now;
@@ -49,12 +49,7 @@ impl Worker {
                 link: st.link.name().to_string(),
                 last_heard_ms: st.last_rx_ms,
                 last_hk_ms: st.last_hk_ms,
-                packets: st.packets,
-                filled: st.filled,
-                lost: st.lost,
-                duplicates: st.duplicates,
-                corrupt: st.corrupt,
-                reboots: st.reboots,
+                tm: st.tm,
                 updated_ms: now,
             }));
         }

@@ -36,7 +36,7 @@ impl Worker {
                         });
                     }
                 } else {
-                    self.st.corrupt += 1;
+                    self.st.tm.corrupt += 1;
                     tracing::debug!(robot = self.robot(), "corrupt TM ({e})");
                 }
                 return;

@@ -118,6 +118,24 @@ impl Update {
             accepted: p.accepted || delivered,
         }
     }
+
+    /// What a wait that ended ([`Due`]) tells the front end: a resend (the caller sends
+    /// the bytes), a TC given up ([`Update::gave_up`]; `delivered` as there), or nothing
+    /// (a wait over frames). The one reading of the commanding book's ticks.
+    pub fn of_due(d: &Due, delivered: bool) -> Option<Update> {
+        match d {
+            Due::Resend {
+                robot, tag, tc, send, ..
+            } => Some(Update::Resent {
+                robot: *robot,
+                tag: *tag,
+                tc: tc.def.name,
+                send: *send,
+            }),
+            Due::Waited { .. } => None,
+            Due::GaveUp(p) => Some(Update::gave_up(p, delivered)),
+        }
+    }
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -496,43 +514,31 @@ impl Session {
             if let Some(r) = self.robots.get_mut(&d.robot()) {
                 r.exchange(false);
             }
-            match d {
-                Due::Resend {
-                    robot,
-                    tag,
-                    tc,
-                    label,
-                    send,
-                } => {
-                    if let Some(link) = self.links.get(&robot) {
-                        // A failing send is the same as a lost packet: the next wait retries.
-                        let _ = link.send(&tc.bytes);
-                    }
-                    let name = tc.def.name;
-                    if let Some(a) = &self.archive {
-                        a.send(Record::Tc {
-                            t_ms: now_ms(),
-                            tc,
-                            step: runs::archived_label(label.as_deref(), self.run_id.as_deref()),
-                            attempt: send,
-                        });
-                    }
-                    out.push(Update::Resent {
-                        robot,
-                        tag,
-                        tc: name,
-                        send,
-                    });
+            // Over frames a TC whose frame a CLCW acknowledged reached the on-board
+            // software: given up, like an accepted one, its outcome is asked of the store.
+            let delivered = match &d {
+                Due::GaveUp(p) => self
+                    .links
+                    .get(&p.robot)
+                    .is_some_and(|l| l.delivered(p.tc.apid, p.tc.seq)),
+                Due::Resend { .. } | Due::Waited { .. } => false,
+            };
+            out.extend(Update::of_due(&d, delivered));
+            if let Due::Resend {
+                robot, tc, label, send, ..
+            } = d
+            {
+                if let Some(link) = self.links.get(&robot) {
+                    // A failing send is the same as a lost packet: the next wait retries.
+                    let _ = link.send(&tc.bytes);
                 }
-                Due::Waited { .. } => {}
-                Due::GaveUp(p) => {
-                    // Over frames a TC whose frame a CLCW acknowledged reached the on-board
-                    // software: like an accepted one, its outcome is asked of the store.
-                    let delivered = self
-                        .links
-                        .get(&p.robot)
-                        .is_some_and(|l| l.delivered(p.tc.apid, p.tc.seq));
-                    out.push(Update::gave_up(&p, delivered));
+                if let Some(a) = &self.archive {
+                    a.send(Record::Tc {
+                        t_ms: now_ms(),
+                        tc,
+                        step: runs::archived_label(label.as_deref(), self.run_id.as_deref()),
+                        attempt: send,
+                    });
                 }
             }
         }
