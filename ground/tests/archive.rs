@@ -875,7 +875,7 @@ fn a_version_2_archive_with_collector_tables_is_migrated() {
     );
     let links = s.links().unwrap();
     assert_eq!(
-        (links[0].robot, links[0].link.as_str(), links[0].packets),
+        (links[0].robot, links[0].link.as_str(), links[0].tm.packets),
         (2, "lost", 77)
     );
 }
