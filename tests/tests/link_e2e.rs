@@ -300,10 +300,9 @@ fn a_tcp_flood_keeps_the_obsw_bounded_and_answering() {
         let mut chunk = Vec::new();
         for k in 0..200u16 {
             let raw = tc_named(apid, k, "PING", &[]);
-            let mut f = vec![0u8; raw.len() + 4];
-            let n = cobs::encode(&raw, &mut f);
+            let mut f = vec![0u8; mmic_link::stream::encoded_len(raw.len())];
+            let n = mmic_link::stream::encode(&raw, &mut f).expect("buffer of encoded_len");
             chunk.extend_from_slice(&f[..n]);
-            chunk.push(0);
         }
         let t0 = Instant::now();
         let mut sent = 0usize;
