@@ -471,3 +471,66 @@ fn a_plan_load_error_says_whether_the_file_was_unreadable_or_invalid() {
     assert!(invalid.to_string().contains("error(s) in the plan"), "{invalid}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+// verifies: OPS-PACE-01
+#[test]
+fn a_session_sends_one_store_retrieval_at_a_time_paced_by_the_one_rule() {
+    // A fake robot: its reports to the first TC (a PING) leave counts 11..=13 missing;
+    // the second TC (the retrieval) gets its completion report; the rest is counted.
+    let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
+    sock.set_read_timeout(Some(Duration::from_millis(1000))).unwrap();
+    let addr = sock.local_addr().unwrap();
+    let fake = std::thread::spawn(move || {
+        let t = CdsShort::now().to_bytes();
+        let mut buf = [0u8; 2048];
+        let mut tcs = Vec::new();
+        while let Ok((n, f)) = sock.recv_from(&mut buf) {
+            let Ok(tc) = pus::decode_tc(&buf[..n]) else { continue };
+            tcs.push((tc.service, tc.subservice));
+            let rid = [buf[0], buf[1], buf[2], buf[3]];
+            let reports: &[(u16, u8)] = match tcs.len() {
+                1 => &[(10, 1), (14, 7)],
+                2 => &[(15, 1), (16, 7)],
+                _ => &[],
+            };
+            for &(seq, sub) in reports {
+                sock.send_to(&build_tm(0x101, seq, 1, sub, 0, &t, &rid), f).unwrap();
+            }
+        }
+        tcs
+    });
+    let mut s = Session::connect(&[(1, addr)], Transport::Udp, None, |_| Some(500)).unwrap();
+    s.send(1, mib::tc::by_name("PING").unwrap(), &[], None, None).unwrap();
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_secs(2) && s.robots[&1].seq.newest() != Some(14) {
+        s.poll(Duration::from_millis(20));
+    }
+    assert_eq!(s.robots[&1].seq.missing_ranges(), vec![(11, 13)]);
+    assert!(s.may_retrieve(1) && !s.retrieving(1), "nothing retrieved yet");
+    let sent = Instant::now();
+    assert_eq!(s.request_gaps(1, None, GAP_REQUESTS_MAX), vec![(11, 13)]);
+    // In flight: nothing more goes, however it is asked for.
+    assert!(s.retrieving(1) && !s.may_retrieve(1));
+    assert!(s.request_gaps(1, None, GAP_REQUESTS_MAX).is_empty());
+    assert!(s.request_missing_reports(1, 1).is_empty());
+    // Its completion report ends it; the next waits the least gap after it went out.
+    while t0.elapsed() < Duration::from_secs(4) && s.retrieving(1) {
+        s.poll(Duration::from_millis(20));
+    }
+    assert!(!s.retrieving(1), "ended by its completion report");
+    let min_gap = Duration::from_millis(u64::from(mib::config::STORE_REQUEST_MIN_GAP_MS));
+    while !s.may_retrieve(1) && sent.elapsed() < min_gap * 4 {
+        s.poll(Duration::from_millis(10));
+    }
+    // The session's clock is the wall clock in ms: allow its rounding.
+    assert!(
+        sent.elapsed() + Duration::from_millis(2) >= min_gap,
+        "{:?}",
+        sent.elapsed()
+    );
+    assert!(s.may_retrieve(1));
+    assert_eq!(s.robots[&1].pacer.sent, 1);
+    drop(s);
+    let tcs = fake.join().unwrap();
+    assert_eq!(tcs, vec![(17, 1), (15, 128)], "one PING, one retrieval");
+}
