@@ -57,8 +57,8 @@ use mmic_link::clcw::Clcw;
 pub use mmic_link::downlink::TmSecurity;
 use mmic_link::downlink::{TmReceiver, TmRxCounters};
 use mmic_link::fop::{AlertReason, Fop, FopConfig, FopEffect, FopInput, FopState};
-use mmic_link::persist::{Dir, FileIvStore, PersistError};
-use mmic_link::sdls::{build_tc, RxSa, RxSas, SdlsError, TxSa};
+use mmic_link::persist::{Dir, FileIvStore};
+use mmic_link::sdls::{build_tc, RxSa, RxSas, TxSa};
 use mmic_link::stream::port::Port;
 use mmic_link::stream::{Deframer, StreamCounters};
 use mmic_link::tc::{FrameType, TcRepr};
@@ -69,63 +69,11 @@ pub use mmic_link::sdls::Key;
 /// re-exported for the ground's lab TCP link.
 pub use mmic_link::stream;
 
+mod error;
+pub use error::LinkError;
+
 /// Handle of a packet given to [`FrameLink::send_packet`].
 pub type PacketId = u64;
-
-/// What went wrong.
-#[derive(Debug)]
-#[non_exhaustive]
-pub enum LinkError {
-    /// Socket error.
-    Io(std::io::Error),
-    /// Key or state file.
-    Persist(PersistError),
-    /// A packet longer than a TC frame carries (or shorter than a packet header).
-    PacketLength { len: usize, max: usize },
-    /// SDLS refused to protect a frame (counter store failed or exhausted).
-    Sdls(SdlsError),
-    /// The same key for both directions (GCM nonces would repeat).
-    SameKey,
-    /// Not a TC SPI of the mission (`mib::link::sdls::TC_SPIS`).
-    NotTcSpi(u16),
-}
-
-impl fmt::Display for LinkError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            LinkError::Io(e) => write!(f, "frame link socket: {e}"),
-            LinkError::Persist(e) => write!(f, "{e}"),
-            LinkError::PacketLength { len, max } => {
-                write!(f, "a packet of {len} bytes does not fit a TC frame (7..={max} bytes)")
-            }
-            LinkError::Sdls(e) => write!(f, "SDLS: {e}"),
-            LinkError::SameKey => write!(f, "the TC and TM keys are the same: each direction needs its own"),
-            LinkError::NotTcSpi(s) => write!(f, "SPI {s} is not a TC SPI (the mission's are {TC_SPIS:?})"),
-        }
-    }
-}
-
-impl std::error::Error for LinkError {
-    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        match self {
-            LinkError::Io(e) => Some(e),
-            LinkError::Persist(e) => Some(e),
-            LinkError::PacketLength { .. } | LinkError::Sdls(_) | LinkError::SameKey | LinkError::NotTcSpi(_) => None,
-        }
-    }
-}
-
-impl From<std::io::Error> for LinkError {
-    fn from(e: std::io::Error) -> Self {
-        LinkError::Io(e)
-    }
-}
-
-impl From<PersistError> for LinkError {
-    fn from(e: PersistError) -> Self {
-        LinkError::Persist(e)
-    }
-}
 
 /// What the link reports besides packets.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
