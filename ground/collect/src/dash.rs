@@ -44,9 +44,9 @@ pub enum DashCmd {
         def: &'static mib::tc::TcDef,
         args: Vec<i64>,
         origin: String,
-        /// The TC sent, and whether the link is a lab link (packet resends; false over
-        /// frames, where COP-1 retransmits).
-        reply: Sender<Result<(crate::pus::BuiltTc, bool), crate::ops::SendError>>,
+        /// The TC sent, and the kind of link it went out on (packet resends on a lab
+        /// link; over frames COP-1 retransmits and says which TCs it delivered).
+        reply: Sender<Result<(crate::pus::BuiltTc, crate::link::LinkKind), crate::ops::SendError>>,
     },
     /// Send these bytes again: a plan TC resent unchanged.
     Resend { bytes: Vec<u8> },

@@ -189,7 +189,7 @@ impl PlanBook {
             robots,
             input,
             book: crate::ops::TcBook::default(),
-            lab: BTreeMap::new(),
+            links: BTreeMap::new(),
             lost: None,
         };
         tracing::info!("plan run {run_id}: started from the dashboard");

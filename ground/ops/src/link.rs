@@ -166,6 +166,37 @@ enum Io {
 /// Acknowledged request IDs a frame link remembers (far more than TCs in flight).
 const DELIVERED_REMEMBERED: usize = 4096;
 
+/// Whether a CLCW acknowledged the frame of the packet (APID, sequence count).
+fn acknowledged(delivered: &Mutex<VecDeque<(u16, u16)>>, apid: u16, seq: u16) -> bool {
+    delivered.lock().is_ok_and(|d| d.contains(&(apid, seq)))
+}
+
+/// What kind of link a TC went out on, for a front end that does not own the link (the
+/// collector's plan runner hands its TCs to the robot's thread): the same two facts the
+/// commanding rules take from a [`Link`] that `ops::Session` owns. Holds no socket.
+#[derive(Clone, Debug)]
+pub enum LinkKind {
+    /// A bare-packet lab link: the ground resends a packet until it is accepted.
+    Packets,
+    /// A frame link: COP-1 retransmits; `delivered` are the request IDs whose frames a
+    /// CLCW acknowledged (shared with the link's thread).
+    Frames { delivered: Arc<Mutex<VecDeque<(u16, u16)>>> },
+}
+
+impl LinkKind {
+    /// As [`Link::resends_packets`].
+    pub fn resends_packets(&self) -> bool {
+        matches!(self, LinkKind::Packets)
+    }
+    /// As [`Link::delivered`].
+    pub fn delivered(&self, apid: u16, seq: u16) -> bool {
+        match self {
+            LinkKind::Frames { delivered } => acknowledged(delivered, apid, seq),
+            LinkKind::Packets => false,
+        }
+    }
+}
+
 /// An open link to one robot's OBSW.
 pub struct Link {
     pub robot: u8,
@@ -298,6 +329,17 @@ impl Link {
         !matches!(&*self.io, Io::Frames { .. })
     }
 
+    /// What a front end that commands through this link from another thread needs of it
+    /// (the collector's plan runner): see [`LinkKind`].
+    pub fn kind(&self) -> LinkKind {
+        match &*self.io {
+            Io::Frames { delivered, .. } => LinkKind::Frames {
+                delivered: Arc::clone(delivered),
+            },
+            Io::Udp(_) | Io::Tcp(_) => LinkKind::Packets,
+        }
+    }
+
     /// What COP-1 did (frame links only).
     pub fn frame_stats(&self) -> Option<FrameStats> {
         match &*self.io {
@@ -311,7 +353,7 @@ impl Link {
     /// links only; a bare-packet link never knows).
     pub fn delivered(&self, apid: u16, seq: u16) -> bool {
         match &*self.io {
-            Io::Frames { delivered, .. } => delivered.lock().is_ok_and(|d| d.contains(&(apid, seq))),
+            Io::Frames { delivered, .. } => acknowledged(delivered, apid, seq),
             Io::Udp(_) | Io::Tcp(_) => false,
         }
     }

@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 use crossbeam_channel::{Receiver, RecvTimeoutError, Sender};
 
 use crate::dash::DashCmd;
+use crate::link::LinkKind;
 use crate::ops::book::{Due, Pending, TcBook, Verdict};
 use crate::ops::{Effect, Executor, RunOptions, SendError, StepState, Update};
 use crate::plan::Plan;
@@ -61,8 +62,9 @@ pub(super) struct Run {
     /// The run's TCs awaited: the one set of commanding rules (`ops::book`), as in
     /// `ground run`.
     pub(super) book: TcBook,
-    /// Robots whose link is a lab link (packet resends), learned as TCs go out.
-    pub(super) lab: BTreeMap<u8, bool>,
+    /// The kind of each robot's link (lab link: packet resends; frames: what COP-1
+    /// delivered), learned as TCs go out.
+    pub(super) links: BTreeMap<u8, LinkKind>,
     pub(super) lost: Option<String>,
 }
 
@@ -130,7 +132,7 @@ impl Run {
             }
             PlanInput::Tm { robot, tm } => match tm.body {
                 TmBody::Verification(v) => {
-                    let lab = self.lab.get(&robot).copied().unwrap_or(false);
+                    let lab = self.links.get(&robot).is_some_and(LinkKind::resends_packets);
                     match self.book.on_verification(robot, &v, now, lab) {
                         // Not a plan TC (the page's own, the collector's subscriptions).
                         Verdict::Unknown => None,
@@ -160,12 +162,23 @@ impl Run {
     }
 
     /// The waits that ended: resends (lab links), TCs given up.
-    fn tick(&mut self, now: Instant) -> Vec<Update> {
-        let lab = &self.lab;
-        let due = self.book.on_tick(now, |r| lab.get(&r).copied().unwrap_or(false));
+    pub(super) fn tick(&mut self, now: Instant) -> Vec<Update> {
+        let links = &self.links;
+        let due = self
+            .book
+            .on_tick(now, |r| links.get(&r).is_some_and(LinkKind::resends_packets));
         let mut out = Vec::new();
         for d in due {
-            out.extend(Update::of_due(&d, false));
+            // As ops::Session: over frames a TC whose frame a CLCW acknowledged reached
+            // the on-board software; given up, its outcome is asked of the store.
+            let delivered = match &d {
+                Due::GaveUp(p) => self
+                    .links
+                    .get(&p.robot)
+                    .is_some_and(|k| k.delivered(p.tc.apid, p.tc.seq)),
+                Due::Resend { .. } | Due::Waited { .. } => false,
+            };
+            out.extend(Update::of_due(&d, delivered));
             if let Due::Resend { robot, tc, .. } = d {
                 self.resend(robot, tc.bytes);
             }
@@ -186,8 +199,8 @@ impl Run {
         while let Some(e) = queue.pop_front() {
             match e {
                 Effect::Send { step, robot, def, args } => {
-                    let sent = self.send(robot, def, args).map(|(tc, lab)| {
-                        self.lab.insert(robot, lab);
+                    let sent = self.send(robot, def, args).map(|(tc, kind)| {
+                        self.links.insert(robot, kind);
                         let label = Some(format!("plan {}", self.run.plan));
                         self.book
                             .insert(Pending::sent(robot, tc.clone(), Some(step), label, Instant::now()));
@@ -212,7 +225,7 @@ impl Run {
         }
     }
 
-    fn send(&self, robot: u8, def: &'static mib::tc::TcDef, args: Vec<i64>) -> Result<(BuiltTc, bool), SendError> {
+    fn send(&self, robot: u8, def: &'static mib::tc::TcDef, args: Vec<i64>) -> Result<(BuiltTc, LinkKind), SendError> {
         let tx = self.robots.get(&robot).ok_or(SendError::NotFollowed(robot))?;
         let (reply, answer) = crossbeam_channel::bounded(1);
         tx.send(DashCmd::PlanTc {

@@ -283,3 +283,69 @@ fn the_page_sees_each_steps_stage_and_progress() {
     assert!(r.steps[0].detail.contains("no link"), "{}", r.steps[0].detail);
     assert_eq!(r.steps[1].state, "blocked");
 }
+
+/// A plan run whose one TC (`tc`, robot 1) went out on a link of `kind`.
+fn run_with(tc: &BuiltTc, kind: crate::link::LinkKind, t0: Instant) -> Run {
+    let plan = crate::plan::parse(
+        "name = \"p\"\n[[robot]]\nnumber = 1\n[[step]]\nid = \"a\"\nrobot = 1\naction = \"command\"\ntc = \"PING\"\n",
+    )
+    .unwrap();
+    let (_tx, input) = crossbeam_channel::bounded(1);
+    let mut book = TcBook::default();
+    book.insert(Pending::sent(1, tc.clone(), Some(0), None, t0));
+    Run {
+        plan,
+        run: run(&["running"], &[""]),
+        hub: Hub::new(),
+        robots: BTreeMap::new(),
+        input,
+        book,
+        links: BTreeMap::from([(1, kind)]),
+        lost: None,
+    }
+}
+
+/// What the run reports when its TC's waits run out, ticking once a second.
+fn given_up(r: &mut Run, t0: Instant) -> Update {
+    for s in 1..3600 {
+        if let Some(u) = r
+            .tick(t0 + Duration::from_secs(s))
+            .into_iter()
+            .find(|u| matches!(u, Update::GaveUp { .. }))
+        {
+            return u;
+        }
+    }
+    panic!("never given up");
+}
+
+// verifies: GND-19
+#[test]
+fn a_plan_tc_cop1_delivered_is_given_up_as_accepted_like_ground_run() {
+    use std::collections::VecDeque;
+    use std::sync::{Arc, Mutex};
+    let t0 = Instant::now();
+    let tc = ping(42);
+    // Over frames, a CLCW acknowledged the TC's frame: it reached the robot, its outcome
+    // is asked of the store (as ops::Session does), not reported as never accepted.
+    let delivered = Arc::new(Mutex::new(VecDeque::from([(tc.apid, tc.seq)])));
+    let mut r = run_with(&tc, crate::link::LinkKind::Frames { delivered }, t0);
+    assert!(
+        matches!(
+            given_up(&mut r, t0),
+            Update::GaveUp {
+                accepted: true,
+                sends: 1,
+                ..
+            }
+        ),
+        "delivered"
+    );
+    // Not acknowledged: given up as never accepted.
+    let none = Arc::new(Mutex::new(VecDeque::from([(tc.apid, tc.seq.wrapping_add(1))])));
+    let mut r = run_with(&tc, crate::link::LinkKind::Frames { delivered: none }, t0);
+    assert!(
+        matches!(given_up(&mut r, t0), Update::GaveUp { accepted: false, .. }),
+        "not delivered"
+    );
+}

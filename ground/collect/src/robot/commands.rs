@@ -38,8 +38,11 @@ impl Worker {
                     origin,
                     reply,
                 } => {
-                    let lab = self.link.as_ref().is_some_and(crate::link::Link::resends_packets);
-                    let r = self.dash_tc(def, &args, &origin).map(|tc| (tc, lab));
+                    let kind = self.link.as_ref().map(crate::link::Link::kind);
+                    let r = self.dash_tc(def, &args, &origin).and_then(|tc| {
+                        // dash_tc refuses without a link, so there is a kind here.
+                        kind.map(|k| (tc, k)).ok_or(SendError::NoLink(self.robot()))
+                    });
                     let _ = reply.send(r);
                 }
                 DashCmd::Resend { bytes } => self.send(&bytes),
