@@ -180,7 +180,9 @@ pub enum LinkKind {
     Packets,
     /// A frame link: COP-1 retransmits; `delivered` are the request IDs whose frames a
     /// CLCW acknowledged (shared with the link's thread).
-    Frames { delivered: Arc<Mutex<VecDeque<(u16, u16)>>> },
+    Frames {
+        delivered: Arc<Mutex<VecDeque<(u16, u16)>>>,
+    },
 }
 
 impl LinkKind {

@@ -169,16 +169,9 @@ impl Run {
             .on_tick(now, |r| links.get(&r).is_some_and(LinkKind::resends_packets));
         let mut out = Vec::new();
         for d in due {
-            // As ops::Session: over frames a TC whose frame a CLCW acknowledged reached
-            // the on-board software; given up, its outcome is asked of the store.
-            let delivered = match &d {
-                Due::GaveUp(p) => self
-                    .links
-                    .get(&p.robot)
-                    .is_some_and(|k| k.delivered(p.tc.apid, p.tc.seq)),
-                Due::Resend { .. } | Due::Waited { .. } => false,
-            };
-            out.extend(Update::of_due(&d, delivered));
+            out.extend(Update::of_due(&d, |r, apid, seq| {
+                links.get(&r).is_some_and(|k| k.delivered(apid, seq))
+            }));
             if let Due::Resend { robot, tc, .. } = d {
                 self.resend(robot, tc.bytes);
             }

@@ -120,9 +120,12 @@ impl Update {
     }
 
     /// What a wait that ended ([`Due`]) tells the front end: a resend (the caller sends
-    /// the bytes), a TC given up ([`Update::gave_up`]; `delivered` as there), or nothing
-    /// (a wait over frames). The one reading of the commanding book's ticks.
-    pub fn of_due(d: &Due, delivered: bool) -> Option<Update> {
+    /// the bytes), a TC given up ([`Update::gave_up`]), or nothing (a wait over frames).
+    /// The one reading of the commanding book's ticks. `delivered(apid, seq)`: a CLCW
+    /// acknowledged the TC's frame (the robot's link, [`crate::link::Link::delivered`] or
+    /// [`crate::link::LinkKind::delivered`]): over frames it reached the on-board
+    /// software, so given up, like an accepted one, its outcome is asked of the store.
+    pub fn of_due(d: &Due, delivered: impl FnOnce(u8, u16, u16) -> bool) -> Option<Update> {
         match d {
             Due::Resend {
                 robot, tag, tc, send, ..
@@ -133,7 +136,7 @@ impl Update {
                 send: *send,
             }),
             Due::Waited { .. } => None,
-            Due::GaveUp(p) => Some(Update::gave_up(p, delivered)),
+            Due::GaveUp(p) => Some(Update::gave_up(p, delivered(p.robot, p.tc.apid, p.tc.seq))),
         }
     }
 }
@@ -514,16 +517,9 @@ impl Session {
             if let Some(r) = self.robots.get_mut(&d.robot()) {
                 r.exchange(false);
             }
-            // Over frames a TC whose frame a CLCW acknowledged reached the on-board
-            // software: given up, like an accepted one, its outcome is asked of the store.
-            let delivered = match &d {
-                Due::GaveUp(p) => self
-                    .links
-                    .get(&p.robot)
-                    .is_some_and(|l| l.delivered(p.tc.apid, p.tc.seq)),
-                Due::Resend { .. } | Due::Waited { .. } => false,
-            };
-            out.extend(Update::of_due(&d, delivered));
+            out.extend(Update::of_due(&d, |r, apid, seq| {
+                links.get(&r).is_some_and(|l| l.delivered(apid, seq))
+            }));
             if let Due::Resend {
                 robot, tc, label, send, ..
             } = d
