@@ -31,7 +31,7 @@ fn key_of(raw: &[u8]) -> Option<Key> {
         return None;
     }
     let apid = u16::from_be_bytes([raw[0], raw[1]]) & 0x7FF;
-    let seq = u16::from_be_bytes([raw[2], raw[3]]) & 0x3FFF;
+    let seq = mib::headers::SeqCount::new(u16::from_be_bytes([raw[2], raw[3]])).get();
     let days = u16::from_be_bytes([raw[14], raw[15]]) as i64;
     let ms = u32::from_be_bytes([raw[16], raw[17], raw[18], raw[19]]) as i64;
     Some((apid as i64, seq as i64, (days - CCSDS_TO_UNIX_DAYS) * 86_400_000 + ms))

@@ -23,7 +23,11 @@ impl TmSink for Count {
 fn pings(n: usize) -> Vec<Vec<u8>> {
     (0..n)
         .map(|i| {
-            let sp = SpHeader::new_for_unseg_tc(u11::new(0x101), u14::new((i & 0x3FFF) as u16), 0);
+            let sp = SpHeader::new_for_unseg_tc(
+                u11::new(0x101),
+                u14::new(mib::headers::SeqCount::new(i as u16).get()),
+                0,
+            );
             let sec = PusTcSecondaryHeader::new(MessageTypeId::new(17, 1), AckFlags::ALL, 0);
             let mut buf = vec![0u8; 64];
             let k = PusTcCreator::new(sp, sec, &[], CreatorConfig::default())

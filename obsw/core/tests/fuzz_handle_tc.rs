@@ -23,7 +23,7 @@ impl TmSink for Sink {
 }
 
 fn tc(seq: u16, svc: u8, sub: u8, app: &[u8]) -> Vec<u8> {
-    let sp = SpHeader::new_for_unseg_tc(u11::new(0x101), u14::new(seq & 0x3FFF), 0);
+    let sp = SpHeader::new_for_unseg_tc(u11::new(0x101), u14::new(mib::headers::SeqCount::new(seq).get()), 0);
     let sec = PusTcSecondaryHeader::new(MessageTypeId::new(svc, sub), AckFlags::ALL, 0);
     let mut buf = vec![0u8; 1100];
     let n = PusTcCreator::new(sp, sec, app, CreatorConfig::default())
@@ -48,7 +48,7 @@ fn corpus() -> Vec<Vec<u8>> {
 }
 
 fn seq(p: &[u8]) -> u16 {
-    u16::from_be_bytes([p[2], p[3]]) & 0x3FFF
+    mib::headers::SeqCount::new(u16::from_be_bytes([p[2], p[3]])).get()
 }
 
 /// Acceptance reports for a request emitted live by this call: a store downlink (PUS
@@ -166,7 +166,7 @@ proptest! {
             }
         }
         sink.0.clear();
-        let ping = tc(0x3FFF, 17, 1, &[]);
+        let ping = tc(mib::headers::SeqCount::MASK, 17, 1, &[]);
         o.handle_tc(now + 1, &ping, &mut sink);
         prop_assert!(sink.0.iter().any(|p| p.len() > 8 && p[7] == 17 && p[8] == 2), "still answers a ping");
     }

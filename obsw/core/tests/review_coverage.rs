@@ -36,7 +36,7 @@ struct Rig {
 }
 
 fn tm_seq(p: &[u8]) -> u16 {
-    u16::from_be_bytes([p[2], p[3]]) & 0x3FFF
+    mib::headers::SeqCount::new(u16::from_be_bytes([p[2], p[3]])).get()
 }
 
 impl Rig {
@@ -61,7 +61,7 @@ impl Rig {
     }
 
     fn raw_tc(&mut self, svc: u8, sub: u8, app: &[u8]) -> Vec<u8> {
-        self.seq = (self.seq + 1) & 0x3FFF;
+        self.seq = mib::headers::SeqCount::new(self.seq).next().get();
         let sp = SpHeader::new_for_unseg_tc(u11::new(0x101), u14::new(self.seq), 0);
         let sec = PusTcSecondaryHeader::new(MessageTypeId::new(svc, sub), AckFlags::ALL, 0);
         let mut buf = vec![0u8; 1100];

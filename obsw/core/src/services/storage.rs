@@ -170,7 +170,7 @@ mod tests {
     }
 
     fn seq(p: &[u8]) -> u16 {
-        u16::from_be_bytes([p[2], p[3]]) & 0x3FFF
+        mib::headers::SeqCount::new(u16::from_be_bytes([p[2], p[3]])).get()
     }
 
     fn by_seq(o: &mut TestObsw, now: u64, tc_seq: u16, first: u16, last: u16) -> Vec<Vec<u8>> {
