@@ -18,9 +18,9 @@
 //!
 //! A crate of its own (`ground-archive`, issue 21): it depends on `ground-pus` and the MIB,
 //! never on the collector, the web page or an async runtime. PostgreSQL (whose client
-//! runs on tokio) is the optional feature `postgres`, and `clap::ValueEnum` on [`Kind`]
-//! the optional feature `clap`; the `ground` crate turns both on and re-exports this
-//! crate as `ground::archive` (and [`alarm_model`] as `ground::alarms`' model).
+//! runs on tokio) is the optional feature `postgres`; there is no clap here (the binary
+//! parses `--type` into [`Kind`] itself). The `ground` crate turns `postgres` on and
+//! re-exports this crate as `ground::archive` (and [`alarm_model`] as `ground::alarms`' model).
 
 #![deny(unsafe_code)]
 
@@ -278,7 +278,6 @@ fn writer(mut db: Box<dyn Db>, rx: Receiver<Record>) -> Result<ArchiveStats, Arc
 
 /// What `archive query` / `export` select.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Kind {
     Tc,
     Tm,
