@@ -722,6 +722,10 @@ const STAGES: [(&str, &str, u8, u32); 3] = [
     ("Complete", "Completion", 7, COMPLETION_WINDOW_S),
 ];
 
+/// A parameter of the TM header that every TM packet sets: an input of every command
+/// verifier, so that each is judged again on every packet (REV-ANOM-16).
+pub const EVERY_TM_TRIGGER: &str = "TM_SERVICE";
+
 /// A parameter of stage `stage`'s own request-ID container (`VERIFICATION_ACCEPTANCE_apid`).
 pub fn stage_param(stage: &str, field: &str) -> String {
     format!("{VERIFICATION}_{}_{field}", stage.to_ascii_uppercase())
@@ -771,6 +775,9 @@ pub(super) fn verifiers(x: &mut Xml) {
             (seq.as_str(), "rcvdSeq"),
             (subtype.as_str(), "subtype"),
             (code.as_str(), "code"),
+            // Read by no one: an input set by every TM packet, so that the verifier is
+            // judged again on the next packet (REV-ANOM-16, see below).
+            (EVERY_TM_TRIGGER, "everyTm"),
         ] {
             x.line(&format!(
                 "<xtce:InputParameterInstanceRef parameterRef=\"{p}\" inputName=\"{n}\"/>"
@@ -778,9 +785,18 @@ pub(super) fn verifiers(x: &mut Xml) {
         }
         x.close("</xtce:InputSet>");
         // No trigger set: a verifier runs when one of its inputs changes, i.e. on a
-        // report of its stage (request ID, subtype and code all from that report) or when
+        // report of its stage (request ID, subtype and code all from that report), when
         // the sent sequence count reaches the command history (the stage's last report,
-        // if it came first, is then judged).
+        // if it came first, is then judged), and on every TM packet (`everyTm`). The last
+        // is for a race in Yamcs 5.12.8 (REV-ANOM-16): any command-history update of the
+        // command (COP-1's acknowledgement of the TC frame, on its own thread, comes with
+        // the CLCW of the TM frame that carries the TM[1,1]) refreshes the verifier's
+        // inputs from the processor's last-value cache, which Yamcs updates only after the
+        // whole packet has been processed; landing between the TM thread's input update
+        // and its run of the algorithm, it puts the previous report's request ID back and
+        // the report is not recognised. Nothing of that stage follows, so the stage stayed
+        // pending until the completion cancelled it. On the next packet the cache holds
+        // the report and the verifier judges it.
         x.close("</xtce:CustomAlgorithm>");
         x.line(&format!(
             "<xtce:CheckWindow timeToStopChecking=\"PT{window}S\" timeWindowIsRelativeTo=\"commandRelease\"/>"
@@ -1167,6 +1183,37 @@ mod tests {
                     "{v}"
                 );
             }
+        }
+    }
+
+    // verifies: YAMCS-VER-01
+    #[test]
+    fn every_verifier_is_judged_again_on_every_tm_packet() {
+        let x = yamcs_xtce(1);
+        // The trigger is a parameter of the TM header, i.e. of the abstract PUS_TM.
+        let tm = x.find("<xtce:SequenceContainer name=\"PUS_TM\"").expect("PUS_TM");
+        let tm = &x[tm..tm + x[tm..].find("</xtce:SequenceContainer>").unwrap()];
+        assert!(tm.contains(&format!("parameterRef=\"{EVERY_TM_TRIGGER}\"")), "{tm}");
+        for (_, stage, _, _) in STAGES {
+            let start = x.find(&format!("Verifier name=\"{stage}\"")).unwrap();
+            let v = &x[start..start + x[start..].find("</xtce:CustomAlgorithm>").unwrap()];
+            // Pus1Verifier reads its first five inputs in this order; more are allowed.
+            let inputs: Vec<&str> = v
+                .split("inputName=\"")
+                .skip(1)
+                .map(|s| &s[..s.find('"').unwrap()])
+                .collect();
+            assert_eq!(
+                inputs[..5],
+                ["sentApid", "sentSeq", "rcvdApid", "rcvdSeq", "subtype"],
+                "{v}"
+            );
+            assert!(
+                v.contains(&format!("parameterRef=\"{EVERY_TM_TRIGGER}\" inputName=\"everyTm\"")),
+                "{stage}: {v}"
+            );
+            // No trigger set narrows it again (a verifier runs when any input changes).
+            assert!(!v.contains("TriggerSet"), "{v}");
         }
     }
 }
