@@ -202,14 +202,12 @@ impl Tm {
             at: Instant::now(),
         })
     }
-    /// Request ID (packet ID, PSC) of a TM[1,x].
-    pub fn request(&self) -> Option<(u16, u16)> {
-        (self.service == 1 && self.data.len() >= 4).then(|| {
-            (
-                u16::from_be_bytes([self.data[0], self.data[1]]),
-                u16::from_be_bytes([self.data[2], self.data[3]]),
-            )
-        })
+    /// Request ID of a TM[1,x] (the one type, `mib_wire::RequestId`).
+    pub fn request(&self) -> Option<mib_wire::RequestId> {
+        if self.service != 1 {
+            return None;
+        }
+        mib_wire::RequestId::of_tc(&self.data).ok()
     }
     /// Failure code of a TM[1,2/4/6/8].
     pub fn failure_code(&self) -> Option<u16> {
@@ -258,8 +256,8 @@ pub fn tc_named(apid: u16, seq: u16, name: &str, args: &[i64]) -> Vec<u8> {
 }
 
 /// The request ID fields of a TC as they appear in TM[1,x].
-pub fn request_of(tc: &[u8]) -> (u16, u16) {
-    (u16::from_be_bytes([tc[0], tc[1]]), u16::from_be_bytes([tc[2], tc[3]]))
+pub fn request_of(tc: &[u8]) -> mib_wire::RequestId {
+    mib_wire::RequestId::of_tc(tc).expect("a TC of at least 4 bytes")
 }
 
 /// A ground link over UDP or TCP.
@@ -422,12 +420,7 @@ impl Client {
                     let name = mib::events::by_id(id).map_or("?", |e| e.name);
                     format!("EV {name} {:02x?}", &t.data[2..])
                 }
-                (1, _, Some(r)) => format!(
-                    "TM[1,{}] seq {} code {:?}",
-                    t.subservice,
-                    mib::headers::SeqCount::new(r.1).get(),
-                    t.failure_code()
-                ),
+                (1, _, Some(r)) => format!("TM[1,{}] seq {} code {:?}", t.subservice, r.seq(), t.failure_code()),
                 _ => format!(
                     "TM[{},{}] {:02x?}",
                     t.service,

@@ -679,10 +679,7 @@ fn tagged<'a>(r: &'a Value, tag: &str) -> &'a Value {
 fn reports_for(sent: &[Vec<u8>], apid: u16, seq: u16) -> Vec<(u8, i64, Option<u16>)> {
     sent.iter()
         .filter_map(|raw| Tm::parse(raw).map(|t| (t, raw)))
-        .filter(|(t, _)| {
-            t.request()
-                .is_some_and(|(p, s)| p & 0x7FF == apid && mib::headers::SeqCount::new(s).get() == seq)
-        })
+        .filter(|(t, _)| t.request().is_some_and(|r| r.apid() == apid && r.seq() == seq))
         .map(|(t, raw)| (t.subservice, onboard_unix_ms(raw), t.failure_code()))
         .collect()
 }
