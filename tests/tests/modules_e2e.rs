@@ -61,6 +61,8 @@ fn stored(c: &mut Client) -> Vec<Tm> {
 
 struct Boot {
     report: ModuleReport,
+    /// The BOOT event's on-board time (ms).
+    boot_ms: u64,
     /// BOOT event to MODULE_REPORT, on-board time (ms).
     discovery_ms: u64,
     /// Event reports raised at boot (ID, severity subservice, parameters).
@@ -96,6 +98,7 @@ fn boot(c: &mut Client) -> Boot {
         .collect();
     Boot {
         report,
+        boot_ms: onboard_ms(&s[b]),
         discovery_ms: onboard_ms(&s[r]) - onboard_ms(&s[b]),
         events,
     }
@@ -269,6 +272,41 @@ fn swapped_gripper_revision_blocks_operational_until_the_current_hash_is_accepte
         7,
         "{}",
         c.summary()
+    );
+}
+
+// verifies: MOD-CAL-03
+#[test]
+fn rev_2_gripper_b_powered_within_half_a_second_of_boot_holds_without_overcurrent() {
+    // REV-ANOM-17: board B boots with its gripper set point at revision 1's closed width
+    // (1100 µs) and was told its own only by board A's position recovery, about 500 ms
+    // after boot. A revision 2 gripper (end stop 1120 µs) powered before that stalled
+    // against its stop: OPERATIONAL_OVERCURRENT on I_GRIP_B. At --speed 1 the ground's
+    // ACCEPT_CONFIG and MODE_SET arrive inside that half second.
+    let o = Obsw::start(&["--modules", &plan("gripper-rev-b.toml"), "--speed", "1"]);
+    let mut c = Client::udp(&o);
+    c.subscribe();
+    let b = boot(&mut c);
+    assert_eq!(accept(&mut c, b.report.hash).subservice, 7, "{}", c.summary());
+    let from = c.log.len();
+    let t = set_mode(&mut c, robot_mode::OPERATIONAL);
+    let accepted = c.log[from..]
+        .iter()
+        .find(|t| (t.service, t.subservice) == (1, 3) || (t.service, t.subservice) == (1, 1))
+        .map(onboard_ms)
+        .expect("MODE_SET accepted");
+    eprintln!("MODE_SET accepted {} ms after BOOT", accepted - b.boot_ms);
+    assert_eq!(t.subservice, 7, "{}", c.summary());
+    assert!(
+        !c.log.iter().any(|t| t.event_id() == Some(eid::OPERATIONAL_OVERCURRENT)),
+        "{}",
+        c.summary()
+    );
+    // The test means the window: the mode was commanded before position recovery.
+    assert!(
+        accepted - b.boot_ms < 450,
+        "MODE_SET only {} ms after BOOT: too late to test the first half second",
+        accepted - b.boot_ms
     );
 }
 

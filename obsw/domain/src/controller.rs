@@ -502,6 +502,17 @@ impl Controller {
             // IMU-derived state tells where the arms are (`recover_positions`).
             self.arm_a.reset_to(cal.of(Side::A).arm_home_us);
             self.grip_a.reset_to(cal.of(Side::A).grip_home_us);
+            // Board B boots at the compiled widths (`BoardB::new`). Other home widths go
+            // to it now, queued ahead of any `Power` (the link keeps the order): a
+            // gripper powered before `recover_positions` must not be driven to a width
+            // beyond its revision's end stop (REV-ANOM-17).
+            let (b, boot) = (cal.of(Side::B), RobotCal::COMPILED.of(Side::B));
+            if (b.arm_home_us, b.grip_home_us) != (boot.arm_home_us, boot.grip_home_us) {
+                self.link.send(ModuleCmd::Assume {
+                    arm: b.arm_home_us,
+                    grip: b.grip_home_us,
+                });
+            }
         }
     }
 

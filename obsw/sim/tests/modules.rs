@@ -362,3 +362,50 @@ fn the_simulator_models_each_grippers_end_stops_and_the_encoders_own_zero() {
     assert_eq!(cal.hip_from_reading(reading), 0);
     assert_eq!((cal.encoder_zero, cal.encoder_dir), (2248, -1));
 }
+
+// verifies: MOD-CAL-03
+#[test]
+fn grippers_powered_at_any_time_after_boot_hold_at_their_own_closed_width() {
+    // REV-ANOM-17: board B boots with its servos at the compiled widths (gripper closed
+    // at revision 1's 1100 µs) and learned where they are only from board A's position
+    // recovery (`Assume`, once the IMU filters are full, about 500 ms after boot). A
+    // revision 2 gripper B powered before that was driven into its 1120 µs end stop and
+    // stalled (1800 mA, above its 1600 mA operational limit). The host paces simulated
+    // time against the wall clock, so on a busy machine the ground's MODE_SET came
+    // that early. Every power-on time must give the same, quiet gripper.
+    use mib::modes::module_mode::ON;
+    use mib::robot::Side;
+    use mmic_domain::calib::RobotCal;
+    use mmic_domain::controller::ModuleModes;
+    use mmic_sim::harness::Harness;
+    use mmic_sim::{model::GRIP_STALL_MA, SimConfig};
+    let spec = load("gripper-rev-b.toml");
+    let cal = RobotCal::from_set(&spec.discovery_input().discover().set);
+    assert_eq!(cal.of(Side::B).grip_home_us, 1150, "revision 2's home width");
+    let mut peaks = Vec::new();
+    for power_at_ms in (0..=1000).step_by(50) {
+        let mut h = Harness::new(SimConfig::default());
+        h.sim.set_modules(&spec);
+        // Discovery's outcome, as the core applies it when board B's half is in.
+        h.ctrl.set_calibration(cal);
+        h.advance(power_at_ms);
+        h.ctrl.set_module_modes(ModuleModes::all(ON));
+        let mut peak = [0.0f64; 2];
+        for _ in 0..100 {
+            h.tick();
+            for (p, s) in peak.iter_mut().zip([Side::A, Side::B]) {
+                *p = p.max(h.sim.side(s).i_grip_ma);
+            }
+        }
+        peaks.push((power_at_ms, peak, h.sim.truth().grip_us));
+    }
+    let stalled: Vec<_> = peaks
+        .iter()
+        .filter(|(_, p, at)| p.iter().any(|&i| i >= GRIP_STALL_MA) || *at != [1150.0, 1150.0])
+        .collect();
+    assert!(
+        stalled.is_empty(),
+        "gripper stalled or off its closed width when powered at (ms, peak mA A/B, µs A/B): {stalled:?}"
+    );
+    assert_eq!(peaks.len(), 21);
+}
