@@ -40,7 +40,7 @@ use net::{Input, Origin};
     name = "obsw",
     version,
     about = "MMIC-I on-board software (host build) with its simulator",
-    long_about = "MMIC-I on-board software (host build) running against the MMIC-I simulator.\n\nTCs: CCSDS space packets with a PUS-C secondary header and CRC, as UDP datagrams or over TCP framed with COBS (0x00, COBS(packet), 0x00; a receiver takes a frame without the leading 0x00 too). TM: to every connected TCP client, to every UDP ground subscribed by an accepted TC (a lease renewed by each accepted TC; rejected or malformed datagrams never change who gets TM) and to every fixed --tm-dest (e.g. Yamcs' TM link). Space link (issue 22): with --frame-udp, one TC transfer frame per datagram (CRC, SDLS AES-256-GCM with --tc-key, FARM-1) and fixed-length TM frames (SDLS with --tm-key, CLCW, idle frames) to --frame-tm-to, counters in --link-state; or the same frames over a serial line with --frame-serial PATH (one COBS frame per frame, as board A's ground link); the bare-packet link is on only with --lab-bare-packets (loopback only); one of the two links must be chosen. The robot boots in STANDBY.\n\nOn start, one line `READY robot=N apid=0x... udp=ADDR tcp=ADDR sim_ctl=ADDR` is printed on stdout.\n\nSimulator control (fault injection; not the flight TC path): UDP text lines to --sim-ctl: `stuck-arm a|b`, `obstacle a|b`, `battery-sag VOLTS`, `dead-hip-encoder`, `cut-cable`, `misplaced-voxel`, `fastener-jam`, `clear [FAULT]`, `link-loss P`, `link-corrupt P`, `status`. Each gets one reply line starting with `ok` or `error`."
+    long_about = "MMIC-I on-board software (host build) running against the MMIC-I simulator.\n\nTCs: CCSDS space packets with a PUS-C secondary header and CRC, as UDP datagrams or over TCP framed with COBS (0x00, COBS(packet), 0x00; a receiver takes a frame without the leading 0x00 too). TM: to every connected TCP client, to every UDP ground subscribed by an accepted TC (a lease renewed by each accepted TC; rejected or malformed datagrams never change who gets TM) and to every fixed --tm-dest (e.g. Yamcs' TM link). Space link (issue 22): with --frame-udp, one TC transfer frame per datagram (CRC, SDLS AES-256-GCM with --tc-key, FARM-1) and fixed-length TM frames (SDLS with --tm-key, CLCW, idle frames) to --frame-tm-to, counters in --link-state; or the same frames over a serial line with --frame-serial PATH (one COBS frame per frame, as board A's ground link); the bare-packet link is on only with --lab-bare-packets (loopback only); one of the two links must be chosen. The robot boots in STANDBY.\n\nOnce module discovery is done (board B's half in, or after its wait: at most 1 s of simulated time after boot; OPERATIONAL is refused before), one line `READY robot=N apid=0x... udp=ADDR tcp=ADDR sim_ctl=ADDR` is printed on stdout.\n\nSimulator control (fault injection; not the flight TC path): UDP text lines to --sim-ctl: `stuck-arm a|b`, `obstacle a|b`, `battery-sag VOLTS`, `dead-hip-encoder`, `cut-cable`, `misplaced-voxel`, `fastener-jam`, `clear [FAULT]`, `link-loss P`, `link-corrupt P`, `status`. Each gets one reply line starting with `ok` or `error`."
 )]
 struct Args {
     /// Robot number 1..=254; the APID is 0x100 + N and the default ports follow from it.
@@ -595,13 +595,16 @@ fn run(args: Args) -> Result<()> {
             None
         }
     };
-    println!(
+    // Printed once module discovery is done (below): until then OPERATIONAL is refused
+    // (CONFIG_NOT_ACCEPTED, hash 0), so a ground that starts on READY finds the robot's
+    // module set known.
+    let mut ready = Some(format!(
         "READY robot={} apid=0x{:03X} udp={udp} tcp={tcp} sim_ctl={ctl_addr} speed={}{}{frame_note}",
         s.robot,
         obsw.apid(),
         s.speed,
         s.tm_dest.iter().map(|d| format!(" tm_dest={d}")).collect::<String>()
-    );
+    ));
     eprintln!(
         "obsw: robot {} (APID 0x{:03X}) TC/TM on udp={udp} tcp={tcp}, simulator control on {ctl_addr}, speed x{}",
         s.robot,
@@ -638,6 +641,11 @@ fn run(args: Args) -> Result<()> {
     // control cycle runs discovery (issue 24).
     obsw.start_discovery(0, &sim.modules().table_a, sim.modules().probes_a);
     loop {
+        if !obsw.discovery_pending() {
+            if let Some(line) = ready.take() {
+                println!("{line}");
+            }
+        }
         // Inputs already waiting first, but a bounded batch, so that a flood of TCs
         // cannot hold back the control period (and a late period cannot starve TCs).
         let mut handled = 0;

@@ -305,6 +305,12 @@ impl<S: TmStore> Obsw<S> {
         });
     }
 
+    /// True while discovery waits for board B's half ([`Obsw::start_discovery`]):
+    /// OPERATIONAL is refused until it is done.
+    pub fn discovery_pending(&self) -> bool {
+        self.modules.pending.is_some()
+    }
+
     /// Runs a pending discovery when board B's half is in, or the wait is over.
     pub(crate) fn modules_tick(&mut self, now: u64, sink: &mut impl TmSink) {
         let Some(p) = self.modules.pending.as_ref() else { return };
@@ -412,8 +418,13 @@ impl<S: TmStore> Obsw<S> {
     }
 
     /// Why OPERATIONAL is refused by the module set (`None`: allowed, or no discovery
-    /// ran on this platform).
+    /// ran on this platform). While discovery waits for board B's half the module set is
+    /// not known — nor board B's servo widths, which come with its calibration — so
+    /// OPERATIONAL is refused with CONFIG_NOT_ACCEPTED and hash 0 (REV-ANOM-17).
     pub(crate) fn modules_block_operational(&self) -> Option<Failure> {
+        if self.discovery_pending() {
+            return Some(Failure::config_not_accepted(0));
+        }
         let d = self.modules.discovery.as_ref()?;
         let r = self.modules.replacement.unwrap_or(Replacement::NoneAccepted);
         match operational_allowed(d, r) {
@@ -880,7 +891,7 @@ mod tests {
         t[..n].to_vec()
     }
 
-    // verifies: MOD-OBSW-01, MOD-OBSW-07
+    // verifies: MOD-OBSW-01, MOD-OBSW-07, MOD-OBSW-08
     #[test]
     fn board_b_half_over_the_link_completes_discovery_within_a_few_periods() {
         use mmic_domain::board_b::{BoardB, BoardBOut};
@@ -894,6 +905,13 @@ mod tests {
         let mut sink: Vec<Vec<u8>> = Vec::new();
         let mut rx: Vec<u8> = Vec::new();
         let mut done_at = None;
+        // Until discovery is done the module set is unknown: OPERATIONAL is refused
+        // with CONFIG_NOT_ACCEPTED, hash 0 (not known yet), and nothing is powered.
+        let f = of(&operational(&mut o, 1), 1, 4);
+        assert_eq!(
+            failure(&f[0]),
+            (FailureCode::CONFIG_NOT_ACCEPTED.code(), 0u32.to_be_bytes().to_vec())
+        );
         for t in (10..2000u64).step_by(10) {
             o.tick(t, &mmic_domain::SensorsA::default(), &rx, &mut sink);
             b.tick(t, &mmic_domain::SensorsB::default(), &[], &mut out);
@@ -907,6 +925,7 @@ mod tests {
             done_at <= 100,
             "B's 6 entries arrive one per period: done at {done_at} ms"
         );
+        assert!(o.modules_block_operational().is_none(), "the accepted set, found");
         let r = ModuleReport::parse(kind(&of(&sink, 210, 3)[0]).2).unwrap();
         assert_eq!((r.config, r.replacement), (1, 1));
         assert_eq!(of(&sink, 210, 3).len(), 1, "discovery runs once");
