@@ -277,7 +277,12 @@ pub fn http(addr: SocketAddr, method: &str, path: &str, body: Option<serde_json:
     }
     req.push_str("\r\n");
     req.push_str(&body);
-    s.write_all(req.as_bytes()).unwrap();
+    // Reset while writing: not the server we want yet (the port `free_port` chose was
+    // taken for a moment by another test's listener) — the same as not listening yet;
+    // the caller's `wait_for` asks again.
+    if s.write_all(req.as_bytes()).is_err() {
+        return (0, serde_json::Value::Null);
+    }
     let mut out = String::new();
     let _ = s.read_to_string(&mut out);
     let status = out.get(9..12).and_then(|x| x.parse().ok()).unwrap_or(0);
