@@ -35,8 +35,9 @@ pub const TABLE_HEADER_LEN: usize = 4;
 /// Largest encoded table.
 pub const MAX_TABLE_LEN: usize = TABLE_HEADER_LEN + MAX_TABLE_ENTRIES * DESCRIPTOR_LEN;
 
-/// The descriptor CRC (CRC-16/CCITT-FALSE, as the PUS packets and the A–B link).
-pub const DESCRIPTOR_CRC: crc::Crc<u16> = crc::Crc::<u16>::new(&crc::CRC_16_IBM_3740);
+/// The descriptor CRC: the project's one CRC-16 (`headers::PEC_CRC`, CRC-16/CCITT-FALSE), as
+/// the PUS packets, the A–B link and the transfer frames.
+pub const DESCRIPTOR_CRC: crc::Crc<u16> = crate::headers::PEC_CRC;
 
 /// Calibration words of a module (meaning per type, see [`ModuleType::cal_names`]).
 /// A word equal to [`CAL_DEFAULT`] means "the database default of this revision"

@@ -1,16 +1,17 @@
 //! Frame error control field: CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, no reflection,
-//! no final XOR), the code 232.0-B-4 §4.1.4.2 and 132.0-B-3 §4.1.6 specify. The `crc` crate
-//! calls it `CRC_16_IBM_3740`.
+//! no final XOR), the code 232.0-B-4 §4.1.4.2 and 132.0-B-3 §4.1.6 specify — the project's
+//! one CRC-16, `mib::headers::PEC_CRC` (the `crc` crate's `CRC_16_IBM_3740`).
 
-use crc::{Crc, CRC_16_IBM_3740};
+use crc::Crc;
+use mib::headers::PEC_CRC;
 
-/// Firmware: the byte-wise table (512 bytes of flash).
+/// Firmware: the one CRC itself, byte-wise table (512 bytes of flash).
 #[cfg(not(feature = "std"))]
-const CRC16: Crc<u16> = Crc::<u16>::new(&CRC_16_IBM_3740);
-/// Host (`std`): slice-by-16 (8 KiB of tables), several times faster over a 1024-byte frame;
-/// the same CRC.
+const CRC16: Crc<u16> = PEC_CRC;
+/// Host (`std`): the same algorithm with slice-by-16 tables (8 KiB), several times faster
+/// over a 1024-byte frame.
 #[cfg(feature = "std")]
-const CRC16: Crc<u16, crc::Table<16>> = Crc::<u16, crc::Table<16>>::new(&CRC_16_IBM_3740);
+const CRC16: Crc<u16, crc::Table<16>> = Crc::<u16, crc::Table<16>>::new(PEC_CRC.algorithm);
 
 /// The FECF over `bytes`.
 pub fn crc16(bytes: &[u8]) -> u16 {
