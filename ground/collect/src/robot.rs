@@ -62,6 +62,9 @@ pub struct RobotStatus {
     pub tm: crate::archive::TmCounts,
     pub holes: usize,
     pub store_requests: u64,
+    /// Store retrievals ended by the pacing rule's timeout (`RetrievalPacer::timed_out`:
+    /// neither their end report nor their outcome came).
+    pub store_timeouts: u64,
     pub reconnects: u64,
     pub last_rx_ms: Option<i64>,
     pub last_hk_ms: Option<i64>,

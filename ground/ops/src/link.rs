@@ -166,11 +166,6 @@ enum Io {
 /// Acknowledged request IDs a frame link remembers (far more than TCs in flight).
 const DELIVERED_REMEMBERED: usize = 4096;
 
-/// Whether a CLCW acknowledged the frame of the packet (APID, sequence count).
-fn acknowledged(delivered: &Mutex<VecDeque<(u16, u16)>>, apid: u16, seq: u16) -> bool {
-    delivered.lock().is_ok_and(|d| d.contains(&(apid, seq)))
-}
-
 /// What kind of link a TC went out on, for a front end that does not own the link (the
 /// collector's plan runner hands its TCs to the robot's thread): the same two facts the
 /// commanding rules take from a [`Link`] that `ops::Session` owns. Holds no socket.
@@ -193,7 +188,7 @@ impl LinkKind {
     /// As [`Link::delivered`].
     pub fn delivered(&self, apid: u16, seq: u16) -> bool {
         match self {
-            LinkKind::Frames { delivered } => acknowledged(delivered, apid, seq),
+            LinkKind::Frames { delivered } => delivered.lock().is_ok_and(|d| d.contains(&(apid, seq))),
             LinkKind::Packets => false,
         }
     }
@@ -328,7 +323,7 @@ impl Link {
 
     /// False over frames: COP-1 retransmits, the ground never resends a packet itself.
     pub fn resends_packets(&self) -> bool {
-        !matches!(&*self.io, Io::Frames { .. })
+        self.kind().resends_packets()
     }
 
     /// What a front end that commands through this link from another thread needs of it
@@ -354,10 +349,7 @@ impl Link {
     /// delivered it to the robot's FARM-1, so it reached the on-board software (frame
     /// links only; a bare-packet link never knows).
     pub fn delivered(&self, apid: u16, seq: u16) -> bool {
-        match &*self.io {
-            Io::Frames { delivered, .. } => acknowledged(delivered, apid, seq),
-            Io::Udp(_) | Io::Tcp(_) => false,
-        }
+        self.kind().delivered(apid, seq)
     }
 
     /// Why the frame link stopped, if it did.

@@ -115,11 +115,12 @@ impl Worker {
                 whole_sent |= !ranged;
                 tracing::debug!(robot = self.robot(), "store request {first}..={last}");
                 self.send_tc(&tc, "store-request");
-                sent.push((tc.apid, tc.seq));
+                sent.push(tc.request_id());
                 self.st.store_requests += 1;
             }
             if asked {
                 self.pacer.on_sent(now, sent);
+                self.st.store_timeouts = self.pacer.timed_out;
             }
         }
         self.report_lost(now);

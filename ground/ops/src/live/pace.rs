@@ -4,7 +4,7 @@ use std::collections::VecDeque;
 
 use mib::config::{STORE_REQUEST_MIN_GAP_MS, STORE_REQUEST_TIMEOUT_MS};
 
-use crate::pus::{Stage, Tm, TmBody};
+use crate::pus::{RequestId, Stage, Tm, TmBody};
 
 /// One robot's store retrievals (a retrieval: the TC[15,128] ranges of one round, sent
 /// together). At most one is in flight; it is in flight until each of its TCs has ended —
@@ -22,9 +22,8 @@ pub struct RetrievalPacer {
     min_gap_ms: i64,
     /// When the last retrieval went out.
     last_sent_ms: Option<i64>,
-    /// Request IDs (APID, sequence count) of the last retrieval's TCs not ended yet,
-    /// oldest first.
-    open: VecDeque<(u16, u16)>,
+    /// Request IDs of the last retrieval's TCs not ended yet, oldest first.
+    open: VecDeque<RequestId>,
     /// Retrievals sent.
     pub sent: u64,
     /// Retrievals that ended by the timeout (an end report or outcome was lost).
@@ -62,9 +61,9 @@ impl RetrievalPacer {
         !self.in_flight(now_ms) && self.last_sent_ms.is_none_or(|t| now_ms - t >= self.min_gap_ms)
     }
 
-    /// A retrieval went out at `now_ms` with these TCs (request IDs: APID, sequence
-    /// count; a TC that could not be sent is not among them, the time counts anyway).
-    pub fn on_sent(&mut self, now_ms: i64, requests: impl IntoIterator<Item = (u16, u16)>) {
+    /// A retrieval went out at `now_ms` with these TCs (their request IDs; a TC that
+    /// could not be sent is not among them, the time counts anyway).
+    pub fn on_sent(&mut self, now_ms: i64, requests: impl IntoIterator<Item = RequestId>) {
         if !self.open.is_empty() {
             self.timed_out += 1;
         }
@@ -78,8 +77,7 @@ impl RetrievalPacer {
     pub fn on_tm(&mut self, tm: &Tm, live: bool) {
         if let TmBody::Verification(v) = &tm.body {
             if v.stage == Stage::Completion || !v.success {
-                let id = (v.request.apid(), v.request.seq());
-                self.open.retain(|&r| r != id);
+                self.open.retain(|r| *r != v.request);
             }
         } else if live && matches!(tm.body, TmBody::StoreDownlinkDone { .. }) {
             self.open.pop_front();

@@ -378,6 +378,11 @@ fn end_report() -> Tm {
     }
 }
 
+/// The request ID of robot 1's TC with sequence count `seq` (what [`report`] answers).
+fn rid(seq: u16) -> crate::pus::RequestId {
+    crate::pus::RequestId::from_words(0x1901, 0xC000 | seq)
+}
+
 const TIMEOUT: i64 = mib::config::STORE_REQUEST_TIMEOUT_MS as i64;
 const MIN_GAP: i64 = mib::config::STORE_REQUEST_MIN_GAP_MS as i64;
 
@@ -386,7 +391,7 @@ const MIN_GAP: i64 = mib::config::STORE_REQUEST_MIN_GAP_MS as i64;
 fn a_retrieval_is_in_flight_until_its_end_report_and_the_next_waits_the_least_gap() {
     let mut p = RetrievalPacer::default();
     assert!(p.may_send(0) && !p.in_flight(0), "nothing sent yet");
-    p.on_sent(1_000, [(0x101, 5)]);
+    p.on_sent(1_000, [rid(5)]);
     assert!(p.in_flight(1_010) && !p.may_send(1_010));
     // A replayed (old) end report ends nothing; the live one ends it.
     p.on_tm(&end_report(), false);
@@ -403,12 +408,12 @@ fn a_retrieval_is_in_flight_until_its_end_report_and_the_next_waits_the_least_ga
 #[test]
 fn a_retrieval_ends_with_its_tcs_completion_or_failure_not_another_tcs() {
     let mut p = RetrievalPacer::default();
-    p.on_sent(0, [(0x101, 5)]);
+    p.on_sent(0, [rid(5)]);
     p.on_tm(&report(7, 6), true);
     assert!(p.in_flight(10), "another TC's completion");
     p.on_tm(&report(7, 5), false);
     assert!(!p.in_flight(10), "its own completion, even replayed from the store");
-    p.on_sent(MIN_GAP, [(0x101, 8)]);
+    p.on_sent(MIN_GAP, [rid(8)]);
     p.on_tm(&report(2, 8), true);
     assert!(!p.in_flight(MIN_GAP + 10), "its acceptance failure");
     assert!(p.may_send(2 * MIN_GAP));
@@ -418,10 +423,10 @@ fn a_retrieval_ends_with_its_tcs_completion_or_failure_not_another_tcs() {
 #[test]
 fn a_retrieval_whose_reports_are_lost_ends_at_the_timeout_counted() {
     let mut p = RetrievalPacer::default();
-    p.on_sent(0, [(0x101, 5)]);
+    p.on_sent(0, [rid(5)]);
     assert!(p.in_flight(TIMEOUT - 1) && !p.may_send(TIMEOUT - 1));
     assert!(!p.in_flight(TIMEOUT) && p.may_send(TIMEOUT));
-    p.on_sent(TIMEOUT, [(0x101, 6)]);
+    p.on_sent(TIMEOUT, [rid(6)]);
     assert_eq!((p.sent, p.timed_out), (2, 1));
     // A send that failed (no TC went) still spaces the next one.
     p.on_sent(2 * TIMEOUT, []);
@@ -433,7 +438,7 @@ fn a_retrieval_whose_reports_are_lost_ends_at_the_timeout_counted() {
 #[test]
 fn a_round_of_several_ranges_is_one_retrieval_in_flight_until_each_ended() {
     let mut p = RetrievalPacer::new(2_000, 500);
-    p.on_sent(0, [(0x101, 5), (0x101, 6)]);
+    p.on_sent(0, [rid(5), rid(6)]);
     // The store answers in order: the first end report is the oldest TC's.
     p.on_tm(&end_report(), true);
     assert!(p.in_flight(100), "the second range is still being replayed");

@@ -484,7 +484,7 @@ impl Session {
             let args = [apid as i64, a as i64, b as i64];
             // A failed send shows as a retrieval without result: asked again later.
             if let Ok(tc) = self.send(robot, def, &args, None, Some(GAP_LABEL.into())) {
-                sent.push((tc.apid, tc.seq));
+                sent.push(tc.request_id());
             }
         }
         if let Some(s) = self.robots.get_mut(&robot) {
