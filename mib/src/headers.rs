@@ -48,6 +48,11 @@ pub const PRIMARY_HEADER: &[Field] = &[
     ),
 ];
 
+/// The TM secondary header's service field: its name is the parameter the XTCE and Yamcs
+/// exports match TM containers on (and the input that has every verifier judged on each
+/// TM packet).
+pub const TM_SERVICE: &str = "TM_SERVICE";
+
 /// PUS-C TM secondary header with the CDS short time stamp (14 bytes).
 pub const TM_SEC_HEADER: &[Field] = &[
     f(
@@ -57,7 +62,7 @@ pub const TM_SEC_HEADER: &[Field] = &[
         "PUS version number (2 = PUS-C)",
     ),
     f("TM_TIME_REF", 4, None, "spacecraft time reference status"),
-    f("TM_SERVICE", 8, None, "service type ID"),
+    f(TM_SERVICE, 8, None, "service type ID"),
     f("TM_SUBSERVICE", 8, None, "message subtype ID"),
     f("TM_MSG_COUNTER", 16, None, "message type counter"),
     f("TM_DEST_ID", 16, None, "destination ID (ground = 0)"),

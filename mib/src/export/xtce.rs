@@ -529,7 +529,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
         Some((
             "PUS_TM",
             &[
-                ("TM_SERVICE", tc::service::HOUSEKEEPING.to_string()),
+                (crate::headers::TM_SERVICE, tc::service::HOUSEKEEPING.to_string()),
                 ("TM_SUBSERVICE", "25".to_string()),
             ],
         )),
@@ -562,7 +562,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
             Some((
                 "PUS_TM",
                 &[
-                    ("TM_SERVICE", tc::service::EVENT.to_string()),
+                    (crate::headers::TM_SERVICE, tc::service::EVENT.to_string()),
                     ("TM_SUBSERVICE", s.subservice().to_string()),
                 ],
             )),
@@ -852,7 +852,7 @@ impl BodyXtce {
     fn tm(&mut self, t: &crate::tc::TmDef) {
         use crate::layout::{Item, Tail};
         let base_crit = [
-            ("TM_SERVICE", t.service.to_string()),
+            (crate::headers::TM_SERVICE, t.service.to_string()),
             ("TM_SUBSERVICE", t.subservice.to_string()),
         ];
         let cname = format!("TM_{}", t.name);

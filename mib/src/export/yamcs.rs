@@ -661,7 +661,8 @@ pub(super) fn extra_containers(x: &mut Xml) {
     x.open("<xtce:RestrictionCriteria>");
     x.open("<xtce:ComparisonList>");
     x.line(&format!(
-        "<xtce:Comparison parameterRef=\"TM_SERVICE\" value=\"{}\" useCalibratedValue=\"false\"/>",
+        "<xtce:Comparison parameterRef=\"{}\" value=\"{}\" useCalibratedValue=\"false\"/>",
+        crate::headers::TM_SERVICE,
         crate::tc::service::VERIFICATION
     ));
     x.close("</xtce:ComparisonList>");
@@ -700,7 +701,8 @@ pub(super) fn extra_containers(x: &mut Xml) {
             x.open("<xtce:RestrictionCriteria>");
             x.open("<xtce:ComparisonList>");
             x.line(&format!(
-                "<xtce:Comparison parameterRef=\"TM_SERVICE\" value=\"{}\" useCalibratedValue=\"false\"/>",
+                "<xtce:Comparison parameterRef=\"{}\" value=\"{}\" useCalibratedValue=\"false\"/>",
+                crate::headers::TM_SERVICE,
                 crate::tc::service::VERIFICATION
             ));
             x.line(&format!(
@@ -724,7 +726,7 @@ const STAGES: [(&str, &str, u8, u32); 3] = [
 
 /// A parameter of the TM header that every TM packet sets: an input of every command
 /// verifier, so that each is judged again on every packet (REV-ANOM-16).
-pub const EVERY_TM_TRIGGER: &str = "TM_SERVICE";
+pub const EVERY_TM_TRIGGER: &str = crate::headers::TM_SERVICE;
 
 /// A parameter of stage `stage`'s own request-ID container (`VERIFICATION_ACCEPTANCE_apid`).
 pub fn stage_param(stage: &str, field: &str) -> String {
@@ -957,7 +959,7 @@ pub(super) fn mode_tm(t: &TmDef, types: &mut Xml, params: &mut Xml, containers: 
         Some((
             "PUS_TM",
             &[
-                ("TM_SERVICE", t.service.to_string()),
+                (crate::headers::TM_SERVICE, t.service.to_string()),
                 ("TM_SUBSERVICE", t.subservice.to_string()),
             ],
         )),
