@@ -106,7 +106,8 @@ fn report_of_robot(a: &ModelArgs, archive_path: Option<&Path>) -> Result<Vec<u8>
                         // A robot that has just booted reports before its discovery has
                         // finished (hash 0, CONFIG_HASH's "not discovered"): its boot report
                         // follows within the discovery budget; ask again meanwhile.
-                        if data.get(..4).is_some_and(|h| h != [0, 0, 0, 0]) {
+                        let not_discovered = mib::modules::config::HASH_NOT_DISCOVERED.to_be_bytes();
+                        if data.get(..4).is_some_and(|h| h != not_discovered) {
                             found = Some(data);
                             break 'wait;
                         }

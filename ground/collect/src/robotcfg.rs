@@ -151,7 +151,8 @@ impl ConfigTracker {
 
     /// A module report's body (TM[210,3]) at on-board time `t_ms`.
     pub fn on_report(&mut self, body: &[u8], t_ms: i64) -> Result<ReportOutcome, ReportError> {
-        if body.get(..4).is_some_and(|h| h == [0, 0, 0, 0]) {
+        let not_discovered = mib::modules::config::HASH_NOT_DISCOVERED.to_be_bytes();
+        if body.get(..4).is_some_and(|h| h == not_discovered) {
             return Ok(ReportOutcome::NotDiscovered);
         }
         let r = ModuleReport::parse(body)?;
@@ -190,7 +191,7 @@ impl ConfigTracker {
     pub fn on_hk(&mut self, hk: ModulesHk, t_ms: i64) -> Option<Change> {
         self.view.status = name(CONFIG_STATUS_NAMES, hk.status);
         self.view.hk_t_ms = Some(t_ms);
-        if hk.hash == 0 {
+        if hk.hash == mib::modules::config::HASH_NOT_DISCOVERED {
             return None;
         }
         let change = self.seen(hk.hash);

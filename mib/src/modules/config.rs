@@ -132,6 +132,10 @@ pub const fn core_slots() -> SlotSet {
 /// The configuration hash algorithm: CRC-32/ISO-HDLC (the zlib/Ethernet CRC).
 pub const HASH_CRC: crc::Crc<u32, crc::NoTable> = crc::Crc::<u32, crc::NoTable>::new(&crc::CRC_32_ISO_HDLC);
 
+/// The configuration hash before discovery has finished (CONFIG_HASH's "not discovered";
+/// OPERATIONAL is refused with CONFIG_NOT_ACCEPTED and this hash meanwhile).
+pub const HASH_NOT_DISCOVERED: u32 = 0;
+
 /// Configuration hash over a descriptor set indexed by slot: CRC-32/ISO-HDLC over, for
 /// each present slot in ascending order, the slot number followed by the descriptor's
 /// 26 bytes before its CRC (layout version, type, variant, revision, serial, side,

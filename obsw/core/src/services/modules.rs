@@ -423,7 +423,7 @@ impl<S: TmStore> Obsw<S> {
     /// OPERATIONAL is refused with CONFIG_NOT_ACCEPTED and hash 0 (REV-ANOM-17).
     pub(crate) fn modules_block_operational(&self) -> Option<Failure> {
         if self.discovery_pending() {
-            return Some(Failure::config_not_accepted(0));
+            return Some(Failure::config_not_accepted(mib::modules::config::HASH_NOT_DISCOVERED));
         }
         let d = self.modules.discovery.as_ref()?;
         let r = self.modules.replacement.unwrap_or(Replacement::NoneAccepted);
@@ -457,7 +457,7 @@ impl<S: TmStore> Obsw<S> {
     pub(crate) fn modules_param(&self, id: u16) -> Option<i64> {
         let d = self.modules.discovery.as_ref();
         Some(match id {
-            pid::CONFIG_HASH => d.map_or(0, |d| d.hash) as i64,
+            pid::CONFIG_HASH => d.map_or(mib::modules::config::HASH_NOT_DISCOVERED, |d| d.hash) as i64,
             pid::CONFIG_ID => d.and_then(|d| d.outcome.ok()).map_or(0, |c| c.code()) as i64,
             pid::CONFIG_STATUS => {
                 (match (d, self.modules_block_operational()) {
