@@ -115,7 +115,7 @@ pub fn run(data: &[u8]) {
                     joined.extend_from_slice(p);
                 }
                 assert!(
-                    sealed.iter().any(|s| *s == joined),
+                    sealed.contains(&joined),
                     "accepted packets that no key sealed (raw datagram: {raw}): {joined:02x?}"
                 );
             }
