@@ -40,6 +40,6 @@ for t in $($FUZZ list --fuzz-dir tests/fuzz); do
         echo "fuzz-ci: $t failed; the input is in tests/fuzz/artifacts/$t/"
         exit 1
     fi
-    grep -E '^#[0-9]+ +(INITED|DONE)|^stat::number_of_executed_units' "$log" || true
+    grep -E '^#[0-9]+[[:space:]]+(INITED|DONE)|^stat::number_of_executed_units' "$log" || true
 done
 echo "== fuzz: every target ran ${SECONDS_PER_TARGET} s without a finding"
