@@ -679,7 +679,7 @@ pub fn static_checks(root: &Path, _pkgs: &[Package]) -> Vec<Check> {
                 d.push(format!("cargo deny exited with {}", o.status));
             }
             checks.push(Check {
-                name: "cargo-deny (offline): licences, sources, bans (deny.toml); advisories need the network and are not checked".into(),
+                name: "cargo-deny (offline): licences, sources, bans (deny.toml)".into(),
                 findings: errors + usize::from(!o.status.success() && errors == 0),
                 details: d,
             });
@@ -690,7 +690,49 @@ pub fn static_checks(root: &Path, _pkgs: &[Package]) -> Vec<Check> {
             details: vec![format!("not installed (scripts/review-setup.sh): {e}")],
         }),
     }
+    checks.push(advisories(root));
     checks
+}
+
+/// Name of the advisory check: the full review fails on its findings.
+pub const ADVISORIES: &str = "advisories (scripts/advisories.sh: cargo-deny against the RustSec snapshot, offline; advisories after the snapshot's date not covered)";
+
+/// Known-vulnerable, unsound, yanked or unmaintained dependencies of both lock files,
+/// against the RustSec snapshot (deny.toml's [advisories] records what stays and why).
+fn advisories(root: &Path) -> Check {
+    eprintln!("== review: bash scripts/advisories.sh");
+    let out = Command::new("bash")
+        .arg("scripts/advisories.sh")
+        .current_dir(root)
+        .output();
+    let (findings, details) = match out {
+        Ok(o) => {
+            let text = format!(
+                "{}{}",
+                String::from_utf8_lossy(&o.stdout),
+                String::from_utf8_lossy(&o.stderr)
+            );
+            let mut d: Vec<String> = text
+                .lines()
+                .filter(|l| {
+                    l.starts_with("error[") || l.starts_with("advisories:") || l.trim_start().starts_with("├ ID:")
+                })
+                .map(|l| l.trim().to_string())
+                .collect();
+            let errors = text.lines().filter(|l| l.starts_with("error[")).count();
+            let failed = !o.status.success();
+            if failed && errors == 0 {
+                d.push(format!("scripts/advisories.sh exited with {}", o.status));
+            }
+            (errors + usize::from(failed && errors == 0), d)
+        }
+        Err(e) => (1, vec![format!("could not run scripts/advisories.sh: {e}")]),
+    };
+    Check {
+        name: ADVISORIES.into(),
+        findings,
+        details,
+    }
 }
 
 fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {

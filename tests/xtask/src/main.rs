@@ -363,6 +363,15 @@ fn run(args: &Args) -> Result<bool> {
     eprintln!("   package: {}", rel(&root, &out_dir.join("index.html")));
     let ok = failed.is_empty() && run.exit_ok && trace_findings.is_empty() && s.doc_tests_failed == 0;
     let ok = ok && (args.fast || pkg.summary.verified == pkg.summary.requirements);
+    // A known advisory against a dependency is a finding of its own (full form).
+    let advisories = pkg.checks.iter().find(|c| c.name == extras::ADVISORIES);
+    for d in advisories
+        .filter(|c| c.findings > 0)
+        .map_or(&[][..], |c| &c.details[..])
+    {
+        eprintln!("   ADVISORY: {d}");
+    }
+    let ok = ok && advisories.is_none_or(|c| c.findings == 0);
     if !run.exit_ok && failed.is_empty() {
         eprintln!(
             "   cargo test exited with failure (see {})",
