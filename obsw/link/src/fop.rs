@@ -621,8 +621,21 @@ impl<T: Clone> Fop<T> {
     }
 
     /// Sends what is marked for retransmission, then new frames while the window allows.
+    ///
+    /// **T1 times the oldest unacknowledged frame.** 232.1-B-2's "Transmit Type-AD Frame"
+    /// action restarts T1 on every transmission, and E10 (a CLCW asking for retransmission
+    /// without new acknowledgement) is ignored in S2. Together they let a steady trickle of
+    /// new frames (heartbeats, store requests) hold T1 off forever while the frames the
+    /// CLCW asks for are never sent again: FARM-1 discards every frame after the gap, so
+    /// the link stops. Here T1 restarts when something is retransmitted (the frames the
+    /// CLCW asks for went out again), when the acknowledgement moves on (removing frames
+    /// from the sent queue) and when a new frame finds it stopped (the sent queue was
+    /// empty); a new frame behind outstanding ones leaves it running. So T1 expires at most
+    /// T1 after the last transmission of the oldest outstanding frame, however many new
+    /// frames follow (RFC 6298's rule 5.1 for TCP, the same reading).
     fn look_for_fdu(&mut self, now: u64, fx: &mut Effects<T>) {
-        let mut sent_any = false;
+        let mut retransmitted = false;
+        let mut sent_new = false;
         for s in self.sent.iter_mut() {
             if s.retransmit {
                 s.retransmit = false;
@@ -634,7 +647,7 @@ impl<T: Clone> Fop<T> {
                         retransmission: true,
                     },
                 );
-                sent_any = true;
+                retransmitted = true;
             }
         }
         if self.sent.len() < usize::from(self.config.sliding_window) {
@@ -661,10 +674,10 @@ impl<T: Clone> Fop<T> {
                     first_tx_ms: now,
                     retransmitted: false,
                 });
-                sent_any = true;
+                sent_new = true;
             }
         }
-        if sent_any {
+        if retransmitted || (sent_new && self.timer.is_none()) {
             self.timer = Some(now.saturating_add(self.rtt.t1_ms()));
         }
     }
@@ -1171,6 +1184,83 @@ mod tests {
         assert!(fx.contains(&F::Alert(AlertReason::T1)));
         assert_eq!(fx.iter().filter(|e| matches!(e, F::NotDelivered { .. })).count(), 2);
         assert_eq!(f.state(), Initial);
+    }
+
+    // verifies: LINK-FOP-03
+    #[test]
+    fn fop_resends_what_the_clcw_asks_for_however_many_new_frames_follow() {
+        // The failing sequence seen through a lossy relay: the CLCW's N(R) stuck at 52 with
+        // the retransmit flag set while new frames 54, 55, ... keep going out.
+        let mut f = Fop::new(
+            0,
+            FopConfig {
+                sliding_window: 10,
+                ..cfg()
+            },
+        );
+        f.on_event(0, FopInput::SetVs(50));
+        f.on_event(0, FopInput::InitiateAdWithoutClcw);
+        for fdu in 50..54 {
+            f.on_event(0, FopInput::TransmitAd(fdu));
+        }
+        // 50 and 51 arrive, 52 is lost: E8 acknowledges two and resends 52 and 53 (both
+        // lost again).
+        let fx = f.on_event(100, clcw(52, true, false, false));
+        assert_eq!(ev(&fx), E8);
+        assert_eq!(sent(&fx), vec![(52, 52, true), (53, 53, true)]);
+        let resent_at = 100;
+        // A CLCW every 100 ms, all alike (E10, ignored in S2), and a new frame every 250 ms
+        // (a heartbeat's, a store request's) until the window is full: FARM-1 discards
+        // them all (they follow the gap).
+        let mut next_fdu = 54;
+        let mut resends = Vec::new();
+        for t in (200..=3000u64).step_by(50) {
+            if t % 250 == 0 && f.ready() {
+                let fx = f.on_event(t, FopInput::TransmitAd(next_fdu));
+                assert_eq!(sent(&fx), vec![(next_fdu as u8, next_fdu, false)]);
+                next_fdu += 1;
+            }
+            if t % 100 == 0 {
+                let fx = f.on_event(t, clcw(52, true, false, false));
+                // E10 (E12 at the transmission limit) in S2: ignored.
+                assert!(sent(&fx).is_empty(), "{t}: {:?}", ev(&fx));
+            }
+            let fx = f.on_event(t, FopInput::Tick);
+            resends.extend(sent(&fx).into_iter().map(|(ns, _, r)| (t, ns, r)));
+        }
+        assert!(next_fdu >= 58, "new frames 54-57 went out: {next_fdu}");
+        // T1 after their last transmission, 52 and 53 go out again (with everything
+        // after them), whatever the new frames did meanwhile.
+        let first: Vec<u8> = resends
+            .iter()
+            .filter(|&&(t, _, _)| t == resent_at + T1)
+            .map(|&(_, ns, _)| ns)
+            .collect();
+        assert_eq!(first[..2], [52, 53], "{resends:?}");
+        assert!(resends.iter().all(|&(_, _, r)| r), "{resends:?}");
+        assert!(resends.iter().all(|&(t, _, _)| t >= resent_at + T1), "{resends:?}");
+        // Lost once more, T1 later the transmission limit (3) is reached: the alert, after
+        // which the ground's link re-initialises from N(R) (never a silent stop).
+        assert_eq!(resends.iter().filter(|&&(_, ns, _)| ns == 52).count(), 1);
+        assert_eq!(f.state(), Initial);
+    }
+
+    // verifies: LINK-FOP-03
+    #[test]
+    fn fop_new_frame_starts_t1_only_when_it_is_stopped() {
+        let mut f = active(0, 1);
+        assert_eq!(f.next_deadline(), Some(T1));
+        // A second frame 400 ms later leaves T1 where the first set it.
+        f.on_event(400, FopInput::TransmitAd(1));
+        assert_eq!(f.next_deadline(), Some(T1));
+        // Acknowledgement of the first restarts it for the second.
+        f.on_event(500, ok(1));
+        assert_eq!(f.next_deadline(), Some(500 + T1));
+        // All acknowledged: stopped; the next new frame starts it.
+        f.on_event(600, ok(2));
+        assert_eq!(f.next_deadline(), None);
+        f.on_event(700, FopInput::TransmitAd(2));
+        assert_eq!(f.next_deadline(), Some(700 + T1));
     }
 
     // verifies: LINK-FOP-01
