@@ -3,6 +3,19 @@
 
 /// Period of the on-board control loop (sensor sampling, controllers, monitoring).
 pub const CONTROL_PERIOD_MS: u32 = 10;
+/// Clock of the boards' CPU (ESP32-C3, RV32IMC).
+pub const CPU_HZ: u32 = 160_000_000;
+/// Cycles per instruction the CPU budget assumes: flash wait states and cache misses make
+/// the real figure larger than 1; 2 until a board's cycle counter measures it.
+pub const ASSUMED_CYCLES_PER_INSTRUCTION: u32 = 2;
+/// Instructions one control period holds at [`ASSUMED_CYCLES_PER_INSTRUCTION`].
+pub const PERIOD_INSTRUCTIONS: u32 = CPU_HZ / ASSUMED_CYCLES_PER_INSTRUCTION / 1000 * CONTROL_PERIOD_MS;
+/// Share of a control period (in %) everything the period does may take: the worst tick,
+/// the worst TC frame, housekeeping, TM framing and store writes together. The other half
+/// is margin while the cycles per instruction are assumed.
+pub const PERIOD_CPU_BUDGET_PCT: u32 = 50;
+/// Instructions a whole control period may take.
+pub const PERIOD_INSTRUCTION_BUDGET: u32 = PERIOD_INSTRUCTIONS / 100 * PERIOD_CPU_BUDGET_PCT;
 /// Moving-average window applied to every raw sensor channel (paper: 50 samples).
 pub const MOVING_AVERAGE_WINDOW: usize = 50;
 /// Period of board B's heartbeat to board A.

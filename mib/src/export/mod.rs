@@ -4,6 +4,8 @@
 //! - [`xtce_document`]: XTCE 1.2 XML (telemetry containers and telecommands);
 //! - [`json_document`]: the whole MIB as JSON;
 //! - [`icd_markdown`]: the interface control document (`docs/ICD.md`);
+//! - [`memory::partitions_csv`], [`memory::memory_map_txt`]: the boards' partition table
+//!   and the memory map the size report reads;
 //! - [`yamcs_instance`]: a complete Yamcs instance (configuration, MDB, event templates)
 //!   for a set of robots.
 //!
@@ -19,6 +21,7 @@ use std::str::FromStr;
 mod icd;
 mod json;
 pub mod layout;
+pub mod memory;
 mod scos;
 pub mod urdf;
 mod xtce;

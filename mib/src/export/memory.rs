@@ -1,0 +1,107 @@
+//! The boards' memory map ([`crate::memory`]) as the files the firmware tools read:
+//! `firmware/partitions.csv` (ESP-IDF partition table, for `espflash --partition-table`)
+//! and `firmware/memory-map.txt` (the regions and budgets the size report checks).
+
+use crate::memory::{self, IdfSubtype, IdfType};
+use std::fmt::Write;
+
+/// The ESP-IDF partition table of the boards (CSV: name, type, subtype, offset, size,
+/// flags), every partition of [`memory::FLASH_MAP`] that the table lists.
+pub fn partitions_csv() -> String {
+    let mut s = String::new();
+    s.push_str("# ESP-IDF partition table of the MMIC-I boards (ESP32-C3, 4 MB flash).\n");
+    s.push_str("# Generated from the MIB (mib::memory): UPDATE_MEMORY_MAP=1 cargo test -p mib --test memory\n");
+    s.push_str("# Name, Type, SubType, Offset, Size, Flags\n");
+    for r in memory::FLASH_MAP {
+        let Some((ty, sub)) = r.usage.idf_type() else {
+            continue;
+        };
+        let ty = match ty {
+            IdfType::App => "app".to_string(),
+            IdfType::Data => "data".to_string(),
+            IdfType::Number(n) => format!("{n:#04x}"),
+        };
+        let sub = match sub {
+            IdfSubtype::Named(n) => n.to_string(),
+            IdfSubtype::Ota(n) => format!("ota_{n}"),
+            IdfSubtype::Number(n) => format!("{n:#04x}"),
+        };
+        let _ = writeln!(s, "{}, {}, {}, {:#x}, {:#x},", r.name, ty, sub, r.offset, r.size);
+    }
+    s
+}
+
+/// The regions and budgets for `firmware/tools/size-report.sh`, one `key value...` line
+/// each (`#` starts a comment):
+/// - `margin PCT`: the flight margin;
+/// - `flash NAME OFFSET SIZE`: a region of the flash, in address order;
+/// - `sram NAME START SIZE usable|reserved`: a region of the SRAM;
+/// - `slot NAME SIZE`: an application slot (the image's budget is 70 % of the smallest);
+/// - `used NAME BYTES`: what a region other than a slot or the SRAM holds, fixed by design;
+/// - `sram_usable BYTES`: SRAM for static data and the stack.
+pub fn memory_map_txt() -> String {
+    let mut s = String::new();
+    s.push_str("# Memory map of the MMIC-I boards, read by firmware/tools/size-report.sh.\n");
+    s.push_str("# Generated from the MIB (mib::memory): UPDATE_MEMORY_MAP=1 cargo test -p mib --test memory\n");
+    let _ = writeln!(s, "margin {}", memory::FLIGHT_MARGIN_PCT);
+    for r in memory::FLASH_MAP {
+        let _ = writeln!(s, "flash {} {:#x} {:#x}", r.name, r.offset, r.size);
+    }
+    for r in memory::SRAM_MAP {
+        let kind = if r.usable { "usable" } else { "reserved" };
+        let _ = writeln!(s, "sram {} {:#x} {:#x} {}", r.name, r.start, r.size, kind);
+    }
+    for r in memory::APP_SLOTS {
+        let _ = writeln!(s, "slot {} {:#x}", r.name, r.size);
+    }
+    let _ = writeln!(
+        s,
+        "used {} {:#x}",
+        memory::LINK_STATE.name,
+        memory::LINK_STATE_SECTORS_USED * memory::FLASH_SECTOR
+    );
+    let _ = writeln!(
+        s,
+        "used {} {:#x}",
+        memory::PARTITION_TABLE.name,
+        partition_table_bytes()
+    );
+    let _ = writeln!(s, "sram_usable {:#x}", memory::SRAM_USABLE);
+    let _ = writeln!(
+        s,
+        "# the TM store's outage: {} s of the default housekeeping, packets without the store's per-record overhead",
+        memory::TM_STORE_OUTAGE_S
+    );
+    let _ = writeln!(
+        s,
+        "used {} {:#x}",
+        memory::TM_STORE.name,
+        hk_bytes_for(memory::TM_STORE_OUTAGE_S)
+    );
+    s
+}
+
+/// Bytes of the periodic housekeeping the MIB enables by default over `secs` seconds
+/// (whole packets: primary and secondary header, time stamp, data, PEC).
+pub fn hk_bytes_for(secs: u32) -> u32 {
+    use crate::headers::{PRIMARY_HEADER_LEN, TM_SEC_HEADER_LEN};
+    let per_packet = PRIMARY_HEADER_LEN + TM_SEC_HEADER_LEN + crate::config::TIMESTAMP_LEN + 2;
+    crate::hk::HK_STRUCTS
+        .iter()
+        .filter(|h| h.default_enabled)
+        .map(|h| {
+            let packets = secs as u64 * 1000 / h.default_interval_ms as u64;
+            packets * (per_packet + h.data_len()) as u64
+        })
+        .sum::<u64>() as u32
+}
+
+/// Bytes of the binary partition table: one 32-byte entry per partition, the MD5 entry
+/// and the 0xFF end marker entry ESP-IDF's tools write.
+pub fn partition_table_bytes() -> u32 {
+    let entries = memory::FLASH_MAP
+        .iter()
+        .filter(|r| r.usage.idf_type().is_some())
+        .count() as u32;
+    32 * (entries + 2)
+}

@@ -1,0 +1,325 @@
+//! Memory map of the robot's boards: an ESP32-C3 module with 4 MB of flash (ESP32-C3-MINI-1,
+//! -WROOM-02) and the chip's 400 KB of SRAM. The partition table the boards are flashed
+//! with (`firmware/partitions.csv`, ESP-IDF format) is generated from [`PARTITIONS`]; the
+//! size report (`firmware/tools/size-report.sh`) reads the budgets below through
+//! `firmware/memory-map.txt`, generated from this module too, and fails CI when a region
+//! leaves the flight margin.
+//!
+//! Budgets (GSFC-STD-1000 at flight, [`FLIGHT_MARGIN_PCT`]): an image uses at most 70 % of
+//! its application slot; static RAM plus the measured stack high-water mark at most 70 %
+//! of [`SRAM_USABLE`]; the TM store holds its outage at most 70 % full.
+
+/// Margin every budgeted resource keeps at flight (GSFC-STD-1000): used ≤ 100 − this %.
+pub const FLIGHT_MARGIN_PCT: u32 = 30;
+
+/// `true` when `used` leaves at least [`FLIGHT_MARGIN_PCT`] of `available` (in whole
+/// units, no rounding: 70.001 % is out).
+pub const fn within_margin(used: u64, available: u64) -> bool {
+    used * 100 <= available * (100 - FLIGHT_MARGIN_PCT as u64)
+}
+
+/// The most of `available` a resource may use and keep the flight margin.
+pub const fn budget(available: u32) -> u32 {
+    (available as u64 * (100 - FLIGHT_MARGIN_PCT as u64) / 100) as u32
+}
+
+/// Size of the module's flash.
+pub const FLASH_BYTES: u32 = 4 * 1024 * 1024;
+/// Erase unit of the NOR flash (a write only clears bits; a sector erase sets them).
+pub const FLASH_SECTOR: u32 = 4096;
+/// Application partitions start on a 64 KiB boundary (the flash cache maps 64 KiB pages).
+pub const APP_ALIGN: u32 = 0x1_0000;
+
+/// What a flash region holds, with its ESP-IDF partition type and subtype.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FlashUse {
+    /// The ESP-IDF second-stage bootloader the ROM loads (written by `espflash`; not in
+    /// the partition table).
+    Bootloader,
+    /// The partition table itself (not an entry of it).
+    PartitionTable,
+    /// Application slot `n` (`app`, `ota_n`): the boot loader starts the slot `otadata`
+    /// selects, the first one while `otadata` is erased.
+    AppSlot(u8),
+    /// `data`, `ota`: which slot boots (two sectors, written alternately).
+    OtaData,
+    /// `data`, `littlefs`: a littlefs file system.
+    LittleFs,
+    /// Partition type [`OWN_TYPE`] with this subtype: a layout of our own.
+    Own(u8),
+}
+
+/// ESP-IDF partition type of the layouts of our own (application-defined types are
+/// 0x40..=0xFE; a numeric subtype is allowed under them, not under `data`).
+pub const OWN_TYPE: u8 = 0x40;
+
+impl FlashUse {
+    /// ESP-IDF partition type and subtype, as `partitions.csv` writes them; `None` for the
+    /// two regions outside the table.
+    pub const fn idf_type(self) -> Option<(IdfType, IdfSubtype)> {
+        match self {
+            FlashUse::Bootloader | FlashUse::PartitionTable => None,
+            FlashUse::AppSlot(n) => Some((IdfType::App, IdfSubtype::Ota(n))),
+            FlashUse::OtaData => Some((IdfType::Data, IdfSubtype::Named("ota"))),
+            FlashUse::LittleFs => Some((IdfType::Data, IdfSubtype::Named("littlefs"))),
+            FlashUse::Own(s) => Some((IdfType::Number(OWN_TYPE), IdfSubtype::Number(s))),
+        }
+    }
+}
+
+/// The type column of an ESP-IDF partition table.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum IdfType {
+    App,
+    Data,
+    Number(u8),
+}
+
+/// The subtype column of an ESP-IDF partition table.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum IdfSubtype {
+    Named(&'static str),
+    Ota(u8),
+    Number(u8),
+}
+
+/// One region of the flash.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FlashRegion {
+    /// Partition name (at most 15 characters: the table stores 16 bytes with the NUL).
+    pub name: &'static str,
+    pub offset: u32,
+    pub size: u32,
+    pub usage: FlashUse,
+    pub text: crate::types::Text,
+}
+
+impl FlashRegion {
+    /// First byte after the region.
+    pub const fn end(&self) -> u32 {
+        self.offset + self.size
+    }
+}
+
+const fn region(name: &'static str, offset: u32, size: u32, usage: FlashUse, text: &'static str) -> FlashRegion {
+    FlashRegion {
+        name,
+        offset,
+        size,
+        usage,
+        text: crate::types::text(text),
+    }
+}
+
+/// ROM loads the second-stage bootloader from offset 0 on the ESP32-C3.
+pub const BOOTLOADER: FlashRegion = region(
+    "bootloader",
+    0,
+    0x8000,
+    FlashUse::Bootloader,
+    "ESP-IDF second-stage bootloader (espflash's build): reads the partition table and \
+     otadata, boots an application slot",
+);
+/// ESP-IDF's fixed place for the partition table.
+pub const PARTITION_TABLE: FlashRegion = region(
+    "partition_table",
+    0x8000,
+    0x1000,
+    FlashUse::PartitionTable,
+    "partition table (32-byte entries and an MD5 entry, at most 0xC00 bytes)",
+);
+/// Board A's space-link keys and SDLS/FARM-1 counter log (`fw_core::link_store`: a key
+/// sector and two log sectors); the rest of the partition is headroom.
+pub const LINK_STATE: FlashRegion = region(
+    "link",
+    0x9000,
+    0x5000,
+    FlashUse::Own(0x00),
+    "space-link keys (provisioned, tools/provision-keys.sh) and the SDLS IV / FARM-1 \
+     counter log (fw_core::link_store): three 4 KiB sectors used",
+);
+/// Sectors of [`LINK_STATE`] that `fw_core::link_store` uses: the key record and the two
+/// sectors of the counter log.
+pub const LINK_STATE_SECTORS_USED: u32 = 3;
+const _: () = assert!(LINK_STATE_SECTORS_USED * FLASH_SECTOR <= LINK_STATE.size);
+/// Which application slot boots.
+pub const OTADATA: FlashRegion = region(
+    "otadata",
+    0xE000,
+    0x2000,
+    FlashUse::OtaData,
+    "which application slot boots (two sectors, written alternately)",
+);
+/// Application slot 0: the image `espflash` writes (the first application partition).
+pub const OTA_0: FlashRegion = region(
+    "ota_0",
+    0x1_0000,
+    0xE_0000,
+    FlashUse::AppSlot(0),
+    "application slot 0 (the image espflash writes)",
+);
+/// Application slot 1: a software update is written here while slot 0 runs (and the
+/// other way round), then `otadata` switches.
+pub const OTA_1: FlashRegion = region(
+    "ota_1",
+    0xF_0000,
+    0xE_0000,
+    FlashUse::AppSlot(1),
+    "application slot 1 (software update written while the other slot runs)",
+);
+/// Board A's PUS 15 packet store: TM kept across link outages and resets.
+pub const TM_STORE: FlashRegion = region(
+    "tm_store",
+    0x1D_0000,
+    0x20_0000,
+    FlashUse::Own(0x01),
+    "PUS 15 packet store (TM kept across link outages and resets)",
+);
+/// File store for CFDP transfers (plans, configuration, logs).
+pub const FILE_STORE: FlashRegion = region(
+    "files",
+    0x3D_0000,
+    0x3_0000,
+    FlashUse::LittleFs,
+    "file store for CFDP transfers (plans, configuration, logs): littlefs",
+);
+
+/// The whole flash, in address order, without gaps.
+pub const FLASH_MAP: [FlashRegion; 8] = [
+    BOOTLOADER,
+    PARTITION_TABLE,
+    LINK_STATE,
+    OTADATA,
+    OTA_0,
+    OTA_1,
+    TM_STORE,
+    FILE_STORE,
+];
+
+/// Every application slot (an image must fit the smallest).
+pub const APP_SLOTS: [FlashRegion; 2] = [OTA_0, OTA_1];
+
+/// Flash an image may take: 70 % of its slot.
+pub const IMAGE_BUDGET: u32 = budget(OTA_0.size);
+
+/// Bytes the TM store must hold, from the longest link outage it bridges
+/// ([`TM_STORE_OUTAGE_S`]) at the default housekeeping rates: checked by the MIB's tests
+/// against the HK table and by the review package.
+pub const TM_STORE_OUTAGE_S: u32 = 2 * 3600;
+
+/// One region of the SRAM (addresses on the data bus, 0x3FC8_0000..0x3FCE_0000 for the
+/// 384 KB of SRAM1; SRAM0 is instruction bus only).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SramRegion {
+    pub name: &'static str,
+    pub start: u32,
+    pub size: u32,
+    /// Usable by the image (static data, IRAM code, the stack).
+    pub usable: bool,
+    pub text: crate::types::Text,
+}
+
+const fn sram(name: &'static str, start: u32, size: u32, usable: bool, text: &'static str) -> SramRegion {
+    SramRegion {
+        name,
+        start,
+        size,
+        usable,
+        text: crate::types::text(text),
+    }
+}
+
+/// SRAM0, 16 KB at 0x4037_C000 (instruction bus): the flash cache.
+pub const SRAM_CACHE: SramRegion = sram(
+    "icache",
+    0x4037_C000,
+    0x4000,
+    false,
+    "SRAM0 16 KB: instruction cache of the flash (code and read-only data run from flash \
+     through it)",
+);
+/// The image's SRAM (esp-hal's linker script: 313 KiB from 0x3FC8_0000): code copied to
+/// IRAM (`.rwtext`, `.trap`), `.data`, `.bss` and, in what is left, the one stack.
+pub const SRAM_IMAGE: SramRegion = sram(
+    "image",
+    0x3FC8_0000,
+    313 * 1024,
+    true,
+    "IRAM code, static data (.data, .bss: every queue, the OBSW, the tasks' futures) and \
+     the one stack (esp-rtos runs every embassy task and interrupt on it)",
+);
+/// Used by the second-stage bootloader while it loads the image; free after boot (the
+/// images leave it unused: no heap).
+pub const SRAM_BOOTLOADER: SramRegion = sram(
+    "bootloader",
+    0x3FCC_E400,
+    0x3FCD_E710 - 0x3FCC_E400,
+    false,
+    "the second-stage bootloader's memory while it loads the image; unused after boot \
+     (no heap in the images): reserve",
+);
+/// The mask ROM's own data (its functions' `.data`/`.bss`, used at run time).
+pub const SRAM_ROM: SramRegion = sram(
+    "rom_data",
+    0x3FCD_E710,
+    0x3FCE_0000 - 0x3FCD_E710,
+    false,
+    "the mask ROM's data (ROM functions' .data and .bss at run time)",
+);
+/// The SRAM in address order (SRAM0 first, then SRAM1 on the data bus).
+pub const SRAM_MAP: [SramRegion; 4] = [SRAM_CACHE, SRAM_IMAGE, SRAM_BOOTLOADER, SRAM_ROM];
+/// SRAM an image may fill with static data and stack.
+pub const SRAM_USABLE: u32 = SRAM_IMAGE.size;
+/// RTC fast memory (8 KB at 0x5000_0000, kept across a reset): the panic record.
+pub const RTC_FAST_BYTES: u32 = 8 * 1024;
+/// Static RAM plus the stack's high-water mark may take at most this.
+pub const SRAM_BUDGET: u32 = budget(SRAM_USABLE);
+
+/// Byte the images paint their stack with at start-up: the lowest address that no longer
+/// holds it is the stack's high-water mark.
+pub const STACK_PAINT: u8 = 0xA5;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // verifies: FW-MEM-01
+    #[test]
+    fn flash_map_covers_the_flash_in_order_without_overlap() {
+        let mut at = 0;
+        for r in FLASH_MAP {
+            assert_eq!(r.offset, at, "{} starts where the previous region ends", r.name);
+            assert!(r.size > 0 && r.size % FLASH_SECTOR == 0, "{}: whole sectors", r.name);
+            assert!(r.name.len() <= 15, "{}: name fits the table's 16 bytes", r.name);
+            at = r.end();
+        }
+        assert_eq!(at, FLASH_BYTES);
+        for s in APP_SLOTS {
+            assert_eq!(s.offset % APP_ALIGN, 0, "{} on a 64 KiB boundary", s.name);
+        }
+    }
+
+    // verifies: FW-MEM-01
+    #[test]
+    fn sram_map_covers_sram1_in_order() {
+        let mut at = SRAM_IMAGE.start;
+        for r in &SRAM_MAP[1..] {
+            assert_eq!(r.start, at, "{}", r.name);
+            at = r.start + r.size;
+        }
+        // SRAM1: 384 KB on the data bus; with SRAM0 the chip's 400 KB.
+        assert_eq!(at, 0x3FCE_0000);
+        assert_eq!(SRAM_MAP.iter().map(|r| r.size).sum::<u32>(), 400 * 1024);
+    }
+
+    // verifies: FW-MEM-02
+    #[test]
+    fn margin_is_checked_in_bytes() {
+        assert!(within_margin(70, 100));
+        assert!(!within_margin(71, 100));
+        assert!(within_margin(IMAGE_BUDGET as u64, OTA_0.size as u64));
+        assert!(!within_margin(IMAGE_BUDGET as u64 + 1, OTA_0.size as u64));
+        assert!(within_margin(SRAM_BUDGET as u64, SRAM_USABLE as u64));
+        assert!(!within_margin(SRAM_BUDGET as u64 + 1, SRAM_USABLE as u64));
+    }
+}
