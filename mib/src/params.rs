@@ -92,8 +92,78 @@ const I_GRIP_LIM: Option<&Limits> = lim!(0.0, 1.2, -0.1, I_GRIP_MAX);
 const I_BO_LIM: Option<&Limits> = lim!(0.0, 2.0, -0.1, I_BO_MAX);
 const I_BAT_LIM: Option<&Limits> = lim!(0.0, 5.0, -0.1, 7.0);
 
+/// The on-board component that supplies a telemetry parameter's value: each parameter
+/// row names exactly one, and the OBSW asks that component and no other (`Obsw::param`).
+/// A component asked for a parameter it does not supply answers [`NotSupplied`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Source {
+    /// The mode tree (robot mode).
+    Modes,
+    /// FDIR: fault flags, counts and the mode it waits to enter.
+    Faults,
+    /// PUS 12 on-board monitoring.
+    Monitoring,
+    /// The OBSW's request and event-queue counters.
+    Counters,
+    /// The downlink: TM writer, on-board store, event throttling.
+    Downlink,
+    /// PUS 11 time-based schedule.
+    Scheduler,
+    /// The OBSW's clock (time since boot).
+    Clock,
+    /// The platform's I/O counters (host binary or firmware).
+    Io,
+    /// The platform's space-link endpoint (frames, COP-1, SDLS).
+    SpaceLink,
+    /// Module discovery and the configuration the ground accepted.
+    Modules,
+    /// Team coordination (service 211, leader selection).
+    Team,
+    /// Board A's robot logic (the domain controller): its own sensors, actuators, state
+    /// estimate, A–B link counters and calibration.
+    BoardA,
+    /// Board B's heartbeat as board A last received it (no value before the first one).
+    BoardB,
+}
+
+impl Source {
+    /// Every source, for checks that ask each component in turn.
+    pub const ALL: [Source; 13] = [
+        Source::Modes,
+        Source::Faults,
+        Source::Monitoring,
+        Source::Counters,
+        Source::Downlink,
+        Source::Scheduler,
+        Source::Clock,
+        Source::Io,
+        Source::SpaceLink,
+        Source::Modules,
+        Source::Team,
+        Source::BoardA,
+        Source::BoardB,
+    ];
+}
+
+/// A component was asked for a parameter the MIB does not name it the source of (or a
+/// parameter ID the MIB does not define): an error, never a value of 0.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct NotSupplied(pub u16);
+
+impl core::fmt::Display for NotSupplied {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "parameter {} is not supplied here", self.0)
+    }
+}
+
+impl core::error::Error for NotSupplied {}
+
+/// A component's answer for a parameter it was asked for: `Ok(None)` when the parameter
+/// has no valid value now (board B not heard yet, its module absent).
+pub type Supplied = Result<Option<i64>, NotSupplied>;
+
 macro_rules! params {
-    ($( $name:ident = $id:literal, $t:ident, $unit:literal, $cal:expr, $lim:expr, $desc:literal; )*) => {
+    ($( $name:ident = $id:literal, $src:ident, $t:ident, $unit:literal, $cal:expr, $lim:expr, $desc:literal; )*) => {
         /// Parameter IDs by mnemonic.
         pub mod pid {
             $( #[doc = $desc] pub const $name: u16 = $id; )*
@@ -103,136 +173,140 @@ macro_rules! params {
             id: $id, name: stringify!($name), ptype: PType::$t, unit: $unit,
             calib: &$cal, limits: $lim, limits_in: limits_in($id), limits_if: limits_if($id), desc: $crate::types::text($desc),
         }, )* ];
+        /// The source of each parameter, in the order of `PARAMS` (beside the table rather
+        /// than a field of `ParamDef`: one byte per parameter in board A's flash instead of
+        /// four with the field's padding).
+        const SOURCES: [Source; PARAMS.len()] = [ $( Source::$src, )* ];
     };
 }
 
 params! {
     // --- robot status (paper heartbeat, Table 3) ---
-    MODE = 1, U8, "", ID, None, "Robot mode: 0 standby, 1 operational, 2 safed";
-    CONFIG_STATE = 2, U8, "", ID, None, "Configuration state computed from IMUs, hip encoder and arm PWM (255 = unknown)";
-    TARGET_STATE = 3, U8, "", ID, None, "Last commanded target state (255 = none)";
-    CMD_COMPLETE = 4, Bool, "", ID, None, "Last robot command complete";
-    ACTIVE_PRIMITIVE = 5, U8, "", ID, None, "Motion primitive being executed (0 = none)";
-    BOLT_SIDE = 6, U8, "", ID, None, "Side whose face is being (un)bolted: 0 A, 1 B";
-    BOLT_PAIR = 7, U8, "", ID, None, "Active bolter pair 1..4 (0 = none)";
-    BOLT_ATTEMPT = 8, U8, "", ID, None, "Attempt number on the active pair (1..3)";
-    FAULT_FLAGS = 9, U32, "", ID, None, "Active fault bits (bit n = fault n of the FDIR table)";
-    ARM_A_TARGET = 10, U16, "us", ID, None, "Arm A target PWM pulse width";
-    ARM_A_PWM = 11, U16, "us", ID, None, "Arm A last interpolated PWM pulse width";
-    ARM_B_TARGET = 12, U16, "us", ID, None, "Arm B target PWM pulse width";
-    ARM_B_PWM = 13, U16, "us", ID, None, "Arm B last interpolated PWM pulse width";
-    GRIP_A_TARGET = 14, U16, "us", ID, None, "Gripper A target PWM pulse width";
-    GRIP_A_PWM = 15, U16, "us", ID, None, "Gripper A last interpolated PWM pulse width";
-    GRIP_B_TARGET = 16, U16, "us", ID, None, "Gripper B target PWM pulse width";
-    GRIP_B_PWM = 17, U16, "us", ID, None, "Gripper B last interpolated PWM pulse width";
-    HIP_TARGET = 18, I16, "deg", CAL_CDEG, None, "Hip target angle";
-    HIP_ANGLE = 19, I16, "deg", CAL_CDEG, None, "Hip angle from the magnetic absolute encoder";
-    V_BAT_A = 20, U16, "V", CAL_VOLT, V_BAT_LIM, "Battery voltage seen by board A (moving average)";
-    V_BAT_B = 21, U16, "V", CAL_VOLT, V_BAT_LIM, "Battery voltage seen by board B (moving average)";
-    I_BAT = 22, U16, "A", CAL_AMP, I_BAT_LIM, "Battery current draw";
-    V_REG = 23, U16, "V", CAL_VOLT, V_REG_LIM, "Regulated servo voltage (0 when the regulator is off)";
-    I_LOC_A = 24, U16, "A", CAL_AMP, I_LOC_LIM, "Locomotion current side A (arm A + hip)";
-    I_LOC_B = 25, U16, "A", CAL_AMP, I_LOC_LIM, "Locomotion current side B (arm B)";
-    I_GRIP_A = 26, U16, "A", CAL_AMP, I_GRIP_LIM, "Gripper A current";
-    I_GRIP_B = 27, U16, "A", CAL_AMP, I_GRIP_LIM, "Gripper B current";
-    I_BO_A = 28, U16, "A", CAL_AMP, I_BO_LIM, "Bolter A current";
-    I_BO_B = 29, U16, "A", CAL_AMP, I_BO_LIM, "Bolter B current";
-    ARM_SW_A = 30, Bool, "", ID, None, "Arm A contracted switch pushed";
-    ARM_SW_B = 31, Bool, "", ID, None, "Arm B contracted switch pushed";
-    GRAV_A_X = 32, I16, "g", CAL_MG, None, "Gravity vector in board A frame, x";
-    GRAV_A_Y = 33, I16, "g", CAL_MG, None, "Gravity vector in board A frame, y";
-    GRAV_A_Z = 34, I16, "g", CAL_MG, None, "Gravity vector in board A frame, z";
-    GRAV_B_X = 35, I16, "g", CAL_MG, None, "Gravity vector in board B frame, x";
-    GRAV_B_Y = 36, I16, "g", CAL_MG, None, "Gravity vector in board B frame, y";
-    GRAV_B_Z = 37, I16, "g", CAL_MG, None, "Gravity vector in board B frame, z";
-    BOLTER_B_STATE = 38, U8, "", ID, None, "Board B bolter state machine state (sync flags)";
+    MODE = 1, Modes, U8, "", ID, None, "Robot mode: 0 standby, 1 operational, 2 safed";
+    CONFIG_STATE = 2, BoardA, U8, "", ID, None, "Configuration state computed from IMUs, hip encoder and arm PWM (255 = unknown)";
+    TARGET_STATE = 3, BoardA, U8, "", ID, None, "Last commanded target state (255 = none)";
+    CMD_COMPLETE = 4, BoardA, Bool, "", ID, None, "Last robot command complete";
+    ACTIVE_PRIMITIVE = 5, BoardA, U8, "", ID, None, "Motion primitive being executed (0 = none)";
+    BOLT_SIDE = 6, BoardA, U8, "", ID, None, "Side whose face is being (un)bolted: 0 A, 1 B";
+    BOLT_PAIR = 7, BoardA, U8, "", ID, None, "Active bolter pair 1..4 (0 = none)";
+    BOLT_ATTEMPT = 8, BoardA, U8, "", ID, None, "Attempt number on the active pair (1..3)";
+    FAULT_FLAGS = 9, Faults, U32, "", ID, None, "Active fault bits (bit n = fault n of the FDIR table)";
+    ARM_A_TARGET = 10, BoardA, U16, "us", ID, None, "Arm A target PWM pulse width";
+    ARM_A_PWM = 11, BoardA, U16, "us", ID, None, "Arm A last interpolated PWM pulse width";
+    ARM_B_TARGET = 12, BoardB, U16, "us", ID, None, "Arm B target PWM pulse width";
+    ARM_B_PWM = 13, BoardB, U16, "us", ID, None, "Arm B last interpolated PWM pulse width";
+    GRIP_A_TARGET = 14, BoardA, U16, "us", ID, None, "Gripper A target PWM pulse width";
+    GRIP_A_PWM = 15, BoardA, U16, "us", ID, None, "Gripper A last interpolated PWM pulse width";
+    GRIP_B_TARGET = 16, BoardB, U16, "us", ID, None, "Gripper B target PWM pulse width";
+    GRIP_B_PWM = 17, BoardB, U16, "us", ID, None, "Gripper B last interpolated PWM pulse width";
+    HIP_TARGET = 18, BoardA, I16, "deg", CAL_CDEG, None, "Hip target angle";
+    HIP_ANGLE = 19, BoardA, I16, "deg", CAL_CDEG, None, "Hip angle from the magnetic absolute encoder";
+    V_BAT_A = 20, BoardA, U16, "V", CAL_VOLT, V_BAT_LIM, "Battery voltage seen by board A (moving average)";
+    V_BAT_B = 21, BoardB, U16, "V", CAL_VOLT, V_BAT_LIM, "Battery voltage seen by board B (moving average)";
+    I_BAT = 22, BoardA, U16, "A", CAL_AMP, I_BAT_LIM, "Battery current draw";
+    V_REG = 23, BoardA, U16, "V", CAL_VOLT, V_REG_LIM, "Regulated servo voltage (0 when the regulator is off)";
+    I_LOC_A = 24, BoardA, U16, "A", CAL_AMP, I_LOC_LIM, "Locomotion current side A (arm A + hip)";
+    I_LOC_B = 25, BoardB, U16, "A", CAL_AMP, I_LOC_LIM, "Locomotion current side B (arm B)";
+    I_GRIP_A = 26, BoardA, U16, "A", CAL_AMP, I_GRIP_LIM, "Gripper A current";
+    I_GRIP_B = 27, BoardB, U16, "A", CAL_AMP, I_GRIP_LIM, "Gripper B current";
+    I_BO_A = 28, BoardA, U16, "A", CAL_AMP, I_BO_LIM, "Bolter A current";
+    I_BO_B = 29, BoardB, U16, "A", CAL_AMP, I_BO_LIM, "Bolter B current";
+    ARM_SW_A = 30, BoardA, Bool, "", ID, None, "Arm A contracted switch pushed";
+    ARM_SW_B = 31, BoardB, Bool, "", ID, None, "Arm B contracted switch pushed";
+    GRAV_A_X = 32, BoardA, I16, "g", CAL_MG, None, "Gravity vector in board A frame, x";
+    GRAV_A_Y = 33, BoardA, I16, "g", CAL_MG, None, "Gravity vector in board A frame, y";
+    GRAV_A_Z = 34, BoardA, I16, "g", CAL_MG, None, "Gravity vector in board A frame, z";
+    GRAV_B_X = 35, BoardB, I16, "g", CAL_MG, None, "Gravity vector in board B frame, x";
+    GRAV_B_Y = 36, BoardB, I16, "g", CAL_MG, None, "Gravity vector in board B frame, y";
+    GRAV_B_Z = 37, BoardB, I16, "g", CAL_MG, None, "Gravity vector in board B frame, z";
+    BOLTER_B_STATE = 38, BoardB, U8, "", ID, None, "Board B bolter state machine state (sync flags)";
     // --- board B link ---
-    B_LINK_OK = 50, Bool, "", ID, None, "Board B heartbeat current and commands acknowledged";
-    B_HB_AGE_MS = 51, U16, "ms", ID, lim!(0.0, 200.0, 0.0, B_HEARTBEAT_TIMEOUT_MS), "Age of the last board B heartbeat";
-    B_HB_RX = 52, U32, "", ID, None, "Board B heartbeats received";
-    B_FRAME_ERRORS = 53, U32, "", ID, None, "A-B frames dropped for bad checksum or framing";
-    B_RETRIES = 54, U32, "", ID, None, "Commands to board B resent for lack of acknowledgement";
-    B_ACK_MISSED = 55, U32, "", ID, None, "Commands to board B never acknowledged";
+    B_LINK_OK = 50, BoardA, Bool, "", ID, None, "Board B heartbeat current and commands acknowledged";
+    B_HB_AGE_MS = 51, BoardA, U16, "ms", ID, lim!(0.0, 200.0, 0.0, B_HEARTBEAT_TIMEOUT_MS), "Age of the last board B heartbeat";
+    B_HB_RX = 52, BoardA, U32, "", ID, None, "Board B heartbeats received";
+    B_FRAME_ERRORS = 53, BoardA, U32, "", ID, None, "A-B frames dropped for bad checksum or framing";
+    B_RETRIES = 54, BoardA, U32, "", ID, None, "Commands to board B resent for lack of acknowledgement";
+    B_ACK_MISSED = 55, BoardA, U32, "", ID, None, "Commands to board B never acknowledged";
     // --- FDIR ---
-    FAULT_LATCHED = 60, U32, "", ID, None, "Latched fault bits (cleared by a successful recovery)";
-    FAULT_COUNT = 61, U32, "", ID, None, "Faults detected since boot";
-    MON_ENABLED = 62, U32, "", ID, None, "Enabled PUS 12 monitors (bit n = monitor n)";
-    LAST_FAULT_EVENT = 63, U16, "", ID, None, "Event ID of the last fault (0 = none)";
-    HIP_DEVIATION = 65, I16, "deg", CAL_CDEG, lim!(-3.0, 3.0, -HIP_CONTRACTED_TOL_DEG, HIP_CONTRACTED_TOL_DEG), "Hip encoder minus the hip angle implied by the IMU-derived state (0 deg when the state is unknown)";
-    EVENTS_DROPPED = 66, U16, "", ID, None, "PUS 5 event reports dropped because the event queue was full (saturates at 65535)";
-    PENDING_MODE = 64, U8, "", ID, None, "Mode to enter when the running motion completes (255 = none)";
+    FAULT_LATCHED = 60, Faults, U32, "", ID, None, "Latched fault bits (cleared by a successful recovery)";
+    FAULT_COUNT = 61, Faults, U32, "", ID, None, "Faults detected since boot";
+    MON_ENABLED = 62, Monitoring, U32, "", ID, None, "Enabled PUS 12 monitors (bit n = monitor n)";
+    LAST_FAULT_EVENT = 63, Faults, U16, "", ID, None, "Event ID of the last fault (0 = none)";
+    HIP_DEVIATION = 65, BoardA, I16, "deg", CAL_CDEG, lim!(-3.0, 3.0, -HIP_CONTRACTED_TOL_DEG, HIP_CONTRACTED_TOL_DEG), "Hip encoder minus the hip angle implied by the IMU-derived state (0 deg when the state is unknown)";
+    EVENTS_DROPPED = 66, Counters, U16, "", ID, None, "PUS 5 event reports dropped because the event queue was full (saturates at 65535)";
+    PENDING_MODE = 64, Faults, U8, "", ID, None, "Mode to enter when the running motion completes (255 = none)";
     // --- OBSW ---
-    TC_ACCEPTED = 70, U32, "", ID, None, "Telecommands accepted";
-    TC_REJECTED = 71, U32, "", ID, None, "Telecommands rejected";
-    TC_DUPLICATE = 72, U32, "", ID, None, "Duplicate telecommands acknowledged but not executed";
-    TM_SENT = 73, U32, "", ID, None, "Telemetry packets sent";
-    TM_STORED = 74, U16, "", ID, None, "Packets held in the on-board store";
-    TM_STORE_DROPPED = 75, U32, "", ID, None, "Stored packets overwritten because the store was full";
-    SCHED_COUNT = 76, U16, "", ID, None, "Activities in the time-based schedule";
-    SCHED_ENABLED = 77, Bool, "", ID, None, "Time-based schedule enabled";
-    UPTIME_S = 78, U32, "s", ID, None, "Seconds since boot";
-    EVENTS_THROTTLED = 79, U32, "", ID, None, "Event reports dropped by throttling";
+    TC_ACCEPTED = 70, Counters, U32, "", ID, None, "Telecommands accepted";
+    TC_REJECTED = 71, Counters, U32, "", ID, None, "Telecommands rejected";
+    TC_DUPLICATE = 72, Counters, U32, "", ID, None, "Duplicate telecommands acknowledged but not executed";
+    TM_SENT = 73, Downlink, U32, "", ID, None, "Telemetry packets sent";
+    TM_STORED = 74, Downlink, U16, "", ID, None, "Packets held in the on-board store";
+    TM_STORE_DROPPED = 75, Downlink, U32, "", ID, None, "Stored packets overwritten because the store was full";
+    SCHED_COUNT = 76, Scheduler, U16, "", ID, None, "Activities in the time-based schedule";
+    SCHED_ENABLED = 77, Scheduler, Bool, "", ID, None, "Time-based schedule enabled";
+    UPTIME_S = 78, Clock, U32, "s", ID, None, "Seconds since boot";
+    EVENTS_THROTTLED = 79, Downlink, U32, "", ID, None, "Event reports dropped by throttling";
     // --- platform I/O (board A firmware or host binary) ---
-    IO_TC_DROPPED = 80, U32, "", ID, None, "Uplink frames dropped before the OBSW saw them (queue full, framing error)";
-    IO_TM_DROPPED = 81, U32, "", ID, None, "Live TM packets the ground link could not send (kept in the store)";
-    IO_SENSOR_ERRORS = 82, U32, "", ID, None, "Sensor reads that failed (I2C errors on the ADC, IMU or hip encoder)";
-    IO_OUTPUT_ERRORS = 83, U32, "", ID, None, "Actuator writes that failed (PWM, GPIO)";
-    IO_AB_BYTES_DROPPED = 84, U32, "", ID, None, "A-B serial bytes dropped by board A's receive or transmit queue";
+    IO_TC_DROPPED = 80, Io, U32, "", ID, None, "Uplink frames dropped before the OBSW saw them (queue full, framing error)";
+    IO_TM_DROPPED = 81, Io, U32, "", ID, None, "Live TM packets the ground link could not send (kept in the store)";
+    IO_SENSOR_ERRORS = 82, Io, U32, "", ID, None, "Sensor reads that failed (I2C errors on the ADC, IMU or hip encoder)";
+    IO_OUTPUT_ERRORS = 83, Io, U32, "", ID, None, "Actuator writes that failed (PWM, GPIO)";
+    IO_AB_BYTES_DROPPED = 84, Io, U32, "", ID, None, "A-B serial bytes dropped by board A's receive or transmit queue";
     // --- space link (host frame endpoint; issue 22) ---
-    LINK_AD_ACCEPTED = 120, U32, "", ID, None, "Space link: AD (sequence-controlled) TC frames accepted by FARM-1";
-    LINK_BD_ACCEPTED = 121, U32, "", ID, None, "Space link: BD (bypass) TC frames accepted";
-    LINK_CONTROL_FRAMES = 122, U32, "", ID, None, "Space link: BC control frames (Unlock, Set V(R), in clear) executed by FARM-1";
-    LINK_PACKETS = 123, U32, "", ID, None, "Space link: TC packets extracted from accepted frames";
-    LINK_REJ_BARE_PACKET = 124, U32, "", ID, None, "Space link: bare space packets refused on the frame port";
-    LINK_REJ_BAD_CRC = 125, U32, "", ID, None, "Space link: TC frames refused for a frame CRC mismatch";
-    LINK_REJ_BAD_LENGTH = 126, U32, "", ID, None, "Space link: TC frames refused for a length (too short, too long, header length not the datagram's)";
-    LINK_REJ_BAD_HEADER = 127, U32, "", ID, None, "Space link: TC frames refused for a header field (version, frame type flags)";
-    LINK_REJ_WRONG_SCID = 128, U32, "", ID, None, "Space link: TC frames for another spacecraft";
-    LINK_REJ_UNKNOWN_VC = 129, U32, "", ID, None, "Space link: TC frames on an unknown virtual channel";
-    LINK_REJ_SDLS_SHORT = 130, U32, "", ID, None, "Space link: TC frames too short for the SDLS header and trailer";
-    LINK_REJ_UNKNOWN_SPI = 131, U32, "", ID, None, "Space link: TC frames with an unknown SPI";
-    LINK_REJ_REPLAY = 132, U32, "", ID, None, "Space link: TC frames whose IV is outside the anti-replay window (replays)";
-    LINK_REJ_BAD_MAC = 133, U32, "", ID, None, "Space link: TC frames failing the SDLS MAC (wrong key, altered, forged)";
-    LINK_REJ_STORE_FAILED = 134, U32, "", ID, None, "Space link: TC frames refused because the counter state file could not be written";
-    LINK_REJ_UNKNOWN_CONTROL = 135, U32, "", ID, None, "Space link: BC frames with an unknown control command";
-    LINK_REJ_NOT_PACKETS = 136, U32, "", ID, None, "Space link: authentic TC frames whose data is not whole space packets";
-    LINK_FARM_DISCARDED = 137, U32, "", ID, None, "Space link: authentic AD frames discarded by FARM-1 (E2-E5: no buffer, gap, duplicate, lockout area)";
-    LINK_CLCW = 138, U32, "", ID, None, "Space link: the current CLCW (raw 32-bit word: FARM state, flags, N(R))";
-    LINK_TM_FRAMES = 139, U32, "", ID, None, "Space link: TM frames sent on VC0/VC1";
-    LINK_TM_IDLE_FRAMES = 140, U32, "", ID, None, "Space link: idle TM frames sent on VC7";
-    LINK_TM_SDLS_FAILED = 141, U32, "", ID, None, "Space link: TM frames not sent because SDLS failed (counter state file)";
-    LINK_REJ_CONTROL_RATE = 142, U32, "", ID, None, "Space link: BC control frames (in clear) dropped beyond the rate limit of the host's frame endpoint";
-    CONFIG_HASH = 146, U32, "", ID, None, "Module configuration hash (CRC-32 over the present slots' descriptors, mib::modules::config::config_hash; 0 before discovery)";
-    CONFIG_ID = 147, U8, "", ID, None, "Supported module configuration found at boot: 0 none (invalid set), 1 FULL, 2 LOCOMOTION_ONLY";
-    CONFIG_STATUS = 148, U8, "", ID, None, "Module configuration state: 0 not discovered, 1 accepted by the ground, 2 not accepted (MODULE_REPLACED: OPERATIONAL refused until ACCEPT_CONFIG), 3 invalid (STANDBY only)";
-    MODULES_PRESENT = 149, U16, "", ID, None, "Present module slots (bit n = slot n of mib::modules::SLOTS)";
-    CAL_GRIP_A_CLOSED = 150, U16, "us", ID, None, "Calibration in use (issue 24): gripper A closed pulse width (its descriptor, or the database default of its revision; the MIB constant before discovery)";
-    CAL_GRIP_A_OPEN = 151, U16, "us", ID, None, "Calibration in use (issue 24): gripper A open pulse width";
-    CAL_GRIP_B_CLOSED = 152, U16, "us", ID, None, "Calibration in use (issue 24): gripper B closed pulse width";
-    CAL_GRIP_B_OPEN = 153, U16, "us", ID, None, "Calibration in use (issue 24): gripper B open pulse width";
-    CAL_ENC_ZERO = 154, U16, "", ID, None, "Calibration in use (issue 24): hip encoder (AS5600) reading at the hip zero, counts (2048 nominal)";
-    CAL_FROM_DESCRIPTORS = 155, U16, "", ID, None, "Calibration in use (issue 24): slots whose calibration came from their descriptor (bit n = slot n; 0 = compiled constants, before discovery)";
-    TEAM_TERM = 160, U32, "", ID, None, "Team (issue 25): current term of the robot's leader-selection node (0 without a roster)";
-    TEAM_ROLE = 161, U8, "", ID, None, "Team: role 0 follower, 1 candidate, 2 leader";
-    TEAM_LEADER = 162, U8, "", ID, None, "Team: robot number of the known leader of the current term (0 = none)";
-    TEAM_GROUND_SEEN = 163, U8, "", ID, None, "Team: 1 while the ground is seen (a valid ground TC within GROUND_LOSS_TIMEOUT_MS), 0 after GROUND_LOST";
-    TEAM_PKT_SENT = 164, U32, "", ID, None, "Team: inter-robot packets sent (one per destination robot)";
-    TEAM_PKT_RECEIVED = 165, U32, "", ID, None, "Team: inter-robot packets accepted (authentic, in the replay window, valid team message)";
-    TEAM_REJ_MALFORMED = 166, U32, "", ID, None, "Team: inter-robot packets refused: authentic but not a TM[211,1] of APID 0x0E0 carrying a valid team message, or no roster set";
-    TEAM_REJ_TRUNCATED = 167, U32, "", ID, None, "Team: inter-robot packets refused: too short for the security header and MAC";
-    TEAM_REJ_UNKNOWN_SENDER = 168, U32, "", ID, None, "Team: inter-robot packets refused: sender not a peer of this robot, or a team message from a robot outside the roster";
-    TEAM_REJ_BAD_MAC = 169, U32, "", ID, None, "Team: inter-robot packets refused: AES-256-GCM tag mismatch (forged, altered, wrong team key)";
-    TEAM_REJ_REPLAY = 170, U32, "", ID, None, "Team: inter-robot packets refused: counter not above the sender's last accepted one (replayed)";
-    TEAM_REJ_STORE_FAILED = 171, U32, "", ID, None, "Team: inter-robot packets refused or not sent because the team counter state file could not be written";
-    TEAM_ELECTIONS = 172, U32, "", ID, None, "Team: elections this robot stood in (ELECTION_STARTED) since boot";
-    TEAM_DIR_EXECUTED = 173, U32, "", ID, None, "Team: leader directives executed since boot (DIRECTIVE_EXECUTED)";
-    TEAM_DIR_REFUSED = 174, U32, "", ID, None, "Team: leader directives refused since boot (stale term, ground present, outside the authorisation)";
-    TEAM_PERSIST_FAILED = 175, U32, "", ID, None, "Team: writes of the team state (term, vote, roster, authorisation) that failed (each treated as a reset of the node)";
-    TEAM_STEPS_EXECUTED = 176, U16, "", ID, None, "Team: authorised plan steps executed on CONTINUE since the authorisation was uploaded";
-    LINK_TM_SPI = 180, U16, "", ID, None, "Space link: the TM SPI in use (17 or 18; LINK_SPI_SELECT; 0 without a frame link)";
-    LINK_TC_SPIS = 181, U8, "", ID, None, "Space link: TC SPIs accepted (bit 0 SPI 1, bit 1 SPI 2: a key loaded and not retired)";
-    LINK_STATE_WRITES = 182, U32, "", ID, None, "Space link: durable writes of the link state record since boot (receive IV and FARM-1 per authentic TC frame, TM IV blocks, SPI selections)";
-    LINK_STATE_BAD_SLOT = 183, U8, "", ID, None, "Space link: at start, the link state slot found torn or corrupt (0 none, 1 slot 0, 2 slot 1); the other slot, one write older, was used";
+    LINK_AD_ACCEPTED = 120, SpaceLink, U32, "", ID, None, "Space link: AD (sequence-controlled) TC frames accepted by FARM-1";
+    LINK_BD_ACCEPTED = 121, SpaceLink, U32, "", ID, None, "Space link: BD (bypass) TC frames accepted";
+    LINK_CONTROL_FRAMES = 122, SpaceLink, U32, "", ID, None, "Space link: BC control frames (Unlock, Set V(R), in clear) executed by FARM-1";
+    LINK_PACKETS = 123, SpaceLink, U32, "", ID, None, "Space link: TC packets extracted from accepted frames";
+    LINK_REJ_BARE_PACKET = 124, SpaceLink, U32, "", ID, None, "Space link: bare space packets refused on the frame port";
+    LINK_REJ_BAD_CRC = 125, SpaceLink, U32, "", ID, None, "Space link: TC frames refused for a frame CRC mismatch";
+    LINK_REJ_BAD_LENGTH = 126, SpaceLink, U32, "", ID, None, "Space link: TC frames refused for a length (too short, too long, header length not the datagram's)";
+    LINK_REJ_BAD_HEADER = 127, SpaceLink, U32, "", ID, None, "Space link: TC frames refused for a header field (version, frame type flags)";
+    LINK_REJ_WRONG_SCID = 128, SpaceLink, U32, "", ID, None, "Space link: TC frames for another spacecraft";
+    LINK_REJ_UNKNOWN_VC = 129, SpaceLink, U32, "", ID, None, "Space link: TC frames on an unknown virtual channel";
+    LINK_REJ_SDLS_SHORT = 130, SpaceLink, U32, "", ID, None, "Space link: TC frames too short for the SDLS header and trailer";
+    LINK_REJ_UNKNOWN_SPI = 131, SpaceLink, U32, "", ID, None, "Space link: TC frames with an unknown SPI";
+    LINK_REJ_REPLAY = 132, SpaceLink, U32, "", ID, None, "Space link: TC frames whose IV is outside the anti-replay window (replays)";
+    LINK_REJ_BAD_MAC = 133, SpaceLink, U32, "", ID, None, "Space link: TC frames failing the SDLS MAC (wrong key, altered, forged)";
+    LINK_REJ_STORE_FAILED = 134, SpaceLink, U32, "", ID, None, "Space link: TC frames refused because the counter state file could not be written";
+    LINK_REJ_UNKNOWN_CONTROL = 135, SpaceLink, U32, "", ID, None, "Space link: BC frames with an unknown control command";
+    LINK_REJ_NOT_PACKETS = 136, SpaceLink, U32, "", ID, None, "Space link: authentic TC frames whose data is not whole space packets";
+    LINK_FARM_DISCARDED = 137, SpaceLink, U32, "", ID, None, "Space link: authentic AD frames discarded by FARM-1 (E2-E5: no buffer, gap, duplicate, lockout area)";
+    LINK_CLCW = 138, SpaceLink, U32, "", ID, None, "Space link: the current CLCW (raw 32-bit word: FARM state, flags, N(R))";
+    LINK_TM_FRAMES = 139, SpaceLink, U32, "", ID, None, "Space link: TM frames sent on VC0/VC1";
+    LINK_TM_IDLE_FRAMES = 140, SpaceLink, U32, "", ID, None, "Space link: idle TM frames sent on VC7";
+    LINK_TM_SDLS_FAILED = 141, SpaceLink, U32, "", ID, None, "Space link: TM frames not sent because SDLS failed (counter state file)";
+    LINK_REJ_CONTROL_RATE = 142, SpaceLink, U32, "", ID, None, "Space link: BC control frames (in clear) dropped beyond the rate limit of the host's frame endpoint";
+    CONFIG_HASH = 146, Modules, U32, "", ID, None, "Module configuration hash (CRC-32 over the present slots' descriptors, mib::modules::config::config_hash; 0 before discovery)";
+    CONFIG_ID = 147, Modules, U8, "", ID, None, "Supported module configuration found at boot: 0 none (invalid set), 1 FULL, 2 LOCOMOTION_ONLY";
+    CONFIG_STATUS = 148, Modules, U8, "", ID, None, "Module configuration state: 0 not discovered, 1 accepted by the ground, 2 not accepted (MODULE_REPLACED: OPERATIONAL refused until ACCEPT_CONFIG), 3 invalid (STANDBY only)";
+    MODULES_PRESENT = 149, Modules, U16, "", ID, None, "Present module slots (bit n = slot n of mib::modules::SLOTS)";
+    CAL_GRIP_A_CLOSED = 150, BoardA, U16, "us", ID, None, "Calibration in use (issue 24): gripper A closed pulse width (its descriptor, or the database default of its revision; the MIB constant before discovery)";
+    CAL_GRIP_A_OPEN = 151, BoardA, U16, "us", ID, None, "Calibration in use (issue 24): gripper A open pulse width";
+    CAL_GRIP_B_CLOSED = 152, BoardA, U16, "us", ID, None, "Calibration in use (issue 24): gripper B closed pulse width";
+    CAL_GRIP_B_OPEN = 153, BoardA, U16, "us", ID, None, "Calibration in use (issue 24): gripper B open pulse width";
+    CAL_ENC_ZERO = 154, BoardA, U16, "", ID, None, "Calibration in use (issue 24): hip encoder (AS5600) reading at the hip zero, counts (2048 nominal)";
+    CAL_FROM_DESCRIPTORS = 155, BoardA, U16, "", ID, None, "Calibration in use (issue 24): slots whose calibration came from their descriptor (bit n = slot n; 0 = compiled constants, before discovery)";
+    TEAM_TERM = 160, Team, U32, "", ID, None, "Team (issue 25): current term of the robot's leader-selection node (0 without a roster)";
+    TEAM_ROLE = 161, Team, U8, "", ID, None, "Team: role 0 follower, 1 candidate, 2 leader";
+    TEAM_LEADER = 162, Team, U8, "", ID, None, "Team: robot number of the known leader of the current term (0 = none)";
+    TEAM_GROUND_SEEN = 163, Team, U8, "", ID, None, "Team: 1 while the ground is seen (a valid ground TC within GROUND_LOSS_TIMEOUT_MS), 0 after GROUND_LOST";
+    TEAM_PKT_SENT = 164, Team, U32, "", ID, None, "Team: inter-robot packets sent (one per destination robot)";
+    TEAM_PKT_RECEIVED = 165, Team, U32, "", ID, None, "Team: inter-robot packets accepted (authentic, in the replay window, valid team message)";
+    TEAM_REJ_MALFORMED = 166, Team, U32, "", ID, None, "Team: inter-robot packets refused: authentic but not a TM[211,1] of APID 0x0E0 carrying a valid team message, or no roster set";
+    TEAM_REJ_TRUNCATED = 167, Team, U32, "", ID, None, "Team: inter-robot packets refused: too short for the security header and MAC";
+    TEAM_REJ_UNKNOWN_SENDER = 168, Team, U32, "", ID, None, "Team: inter-robot packets refused: sender not a peer of this robot, or a team message from a robot outside the roster";
+    TEAM_REJ_BAD_MAC = 169, Team, U32, "", ID, None, "Team: inter-robot packets refused: AES-256-GCM tag mismatch (forged, altered, wrong team key)";
+    TEAM_REJ_REPLAY = 170, Team, U32, "", ID, None, "Team: inter-robot packets refused: counter not above the sender's last accepted one (replayed)";
+    TEAM_REJ_STORE_FAILED = 171, Team, U32, "", ID, None, "Team: inter-robot packets refused or not sent because the team counter state file could not be written";
+    TEAM_ELECTIONS = 172, Team, U32, "", ID, None, "Team: elections this robot stood in (ELECTION_STARTED) since boot";
+    TEAM_DIR_EXECUTED = 173, Team, U32, "", ID, None, "Team: leader directives executed since boot (DIRECTIVE_EXECUTED)";
+    TEAM_DIR_REFUSED = 174, Team, U32, "", ID, None, "Team: leader directives refused since boot (stale term, ground present, outside the authorisation)";
+    TEAM_PERSIST_FAILED = 175, Team, U32, "", ID, None, "Team: writes of the team state (term, vote, roster, authorisation) that failed (each treated as a reset of the node)";
+    TEAM_STEPS_EXECUTED = 176, Team, U16, "", ID, None, "Team: authorised plan steps executed on CONTINUE since the authorisation was uploaded";
+    LINK_TM_SPI = 180, SpaceLink, U16, "", ID, None, "Space link: the TM SPI in use (17 or 18; LINK_SPI_SELECT; 0 without a frame link)";
+    LINK_TC_SPIS = 181, SpaceLink, U8, "", ID, None, "Space link: TC SPIs accepted (bit 0 SPI 1, bit 1 SPI 2: a key loaded and not retired)";
+    LINK_STATE_WRITES = 182, SpaceLink, U32, "", ID, None, "Space link: durable writes of the link state record since boot (receive IV and FARM-1 per authentic TC frame, TM IV blocks, SPI selections)";
+    LINK_STATE_BAD_SLOT = 183, SpaceLink, U8, "", ID, None, "Space link: at start, the link state slot found torn or corrupt (0 none, 1 slot 0, 2 slot 1); the other slot, one write older, was used";
 }
 
 /// Root modes in which the limits of parameter `id` apply: the regulated servo supply
@@ -302,6 +376,10 @@ pub fn limit_hysteresis(l: &crate::types::Limits) -> f64 {
 }
 
 impl ParamDef {
+    /// The module slot whose module the parameter measures ([`module_of`]).
+    pub const fn module(&self) -> Option<u8> {
+        module_of(self.id)
+    }
     /// How the parameter's raw values are named (enumerated parameters).
     pub const fn names(&self) -> Names {
         match self.id {
@@ -360,6 +438,28 @@ const INDEX: [u8; MAX_PID + 1] = {
 /// Looks a parameter up by ID.
 pub fn by_id(id: u16) -> Option<&'static ParamDef> {
     INDEX.get(usize::from(id)).and_then(|&i| PARAMS.get(usize::from(i)))
+}
+
+/// The module slot (`crate::modules::slot`) whose module parameter `id` measures, for
+/// parameters that have no valid value when discovery found that module absent (so
+/// housekeeping carries no reading and PUS 12 does not judge one).
+pub const fn module_of(id: u16) -> Option<u8> {
+    use crate::modules::slot;
+    match id {
+        pid::I_BO_A => Some(slot::BOLTER_A),
+        pid::I_BO_B | pid::BOLTER_B_STATE => Some(slot::BOLTER_B),
+        pid::I_GRIP_A => Some(slot::GRIPPER_A),
+        pid::I_GRIP_B => Some(slot::GRIPPER_B),
+        _ => None,
+    }
+}
+
+/// The component that supplies parameter `id` (`None`: no such parameter).
+pub fn source(id: u16) -> Option<Source> {
+    INDEX
+        .get(usize::from(id))
+        .and_then(|&i| SOURCES.get(usize::from(i)))
+        .copied()
 }
 
 /// Looks a parameter up by mnemonic (case-insensitive).

@@ -37,6 +37,7 @@
 
 use mib::config;
 use mib::events::{self, EVENTS};
+use mib::params::{pid, NotSupplied, Supplied};
 use mib::tc::service;
 use mib_wire::RequestId;
 use satrs::pus::verification::{
@@ -207,6 +208,17 @@ impl<S: TmStore> Downlink<S> {
             store_dropped: 0,
             events: Events::default(),
         }
+    }
+
+    /// The parameters the MIB names the downlink the source of.
+    pub fn param(&self, id: u16) -> Supplied {
+        Ok(Some(match id {
+            pid::TM_SENT => i64::from(self.tmw.sent),
+            pid::TM_STORED => self.store.len() as i64,
+            pid::TM_STORE_DROPPED => i64::from(self.store_dropped),
+            pid::EVENTS_THROTTLED => i64::from(self.events.throttled),
+            _ => return Err(NotSupplied(id)),
+        }))
     }
 
     /// Stamps and sends a service report.

@@ -3,6 +3,7 @@
 //! returned transitions into TM and mode commands.
 
 use mib::fdir::{self, MonitorDef, Phase, Timing, FAULTS, MONITORS};
+use mib::params::{pid, NotSupplied, Supplied};
 
 pub const N_MONITORS: usize = MONITORS.len();
 pub const N_FAULTS: usize = FAULTS.len();
@@ -65,6 +66,14 @@ impl Monitoring {
 
     pub fn get_mut(&mut self, id: u16) -> Option<&mut Monitor> {
         self.mons.iter_mut().find(|m| m.def.id == id)
+    }
+
+    /// The parameters the MIB names PUS 12 monitoring the source of.
+    pub fn param(&self, id: u16) -> Supplied {
+        match id {
+            pid::MON_ENABLED => Ok(Some(i64::from(self.enabled_mask()))),
+            _ => Err(NotSupplied(id)),
+        }
     }
 
     /// Bit mask of enabled monitors (bit n-1 = monitor n).
@@ -192,6 +201,18 @@ pub enum Response {
 impl Faults {
     pub fn active(&self) -> u32 {
         self.oneshot | self.monitored
+    }
+
+    /// The parameters the MIB names FDIR the source of.
+    pub fn param(&self, id: u16) -> Supplied {
+        Ok(Some(match id {
+            pid::FAULT_FLAGS => i64::from(self.active()),
+            pid::FAULT_LATCHED => i64::from(self.latched),
+            pid::FAULT_COUNT => i64::from(self.count),
+            pid::LAST_FAULT_EVENT => i64::from(self.last_event),
+            pid::PENDING_MODE => self.pending_mode.map_or(255, i64::from),
+            _ => return Err(NotSupplied(id)),
+        }))
     }
 
     /// Records a fault event and returns the recovery the event-action table asks for.

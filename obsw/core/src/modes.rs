@@ -8,6 +8,7 @@
 //! MIB's node table instead.
 
 use mib::modes::{child_mode, module_mode, robot_mode, NodeDef, NodeKind, NODES};
+use mib::params::{pid, NotSupplied, Supplied};
 use satrs::mode::ModeAndSubmode;
 
 pub const N_NODES: usize = NODES.len();
@@ -82,6 +83,16 @@ impl ModeTree {
     /// Actual mode of the robot node.
     pub fn root(&self) -> u32 {
         self.nodes[0].actual
+    }
+
+    /// The parameters the MIB names the mode tree the source of ([`Source::Modes`]).
+    ///
+    /// [`Source::Modes`]: mib::params::Source::Modes
+    pub fn param(&self, id: u16) -> Supplied {
+        match id {
+            pid::MODE => Ok(Some(i64::from(self.root()))),
+            _ => Err(NotSupplied(id)),
+        }
     }
 
     /// Commanded mode of the robot node.

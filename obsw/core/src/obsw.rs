@@ -3,7 +3,7 @@
 //! cycle (`tick`). The services live in their own files; this file only routes.
 
 use mib::config;
-use mib::params::pid;
+use mib::params::{pid, NotSupplied, Source, Supplied};
 use mib::robot::STATE_UNKNOWN;
 use mib_wire::{ev, EventArgs};
 
@@ -67,6 +67,20 @@ pub struct IoCounters {
     pub ab_bytes_dropped: u32,
 }
 
+impl IoCounters {
+    /// The parameters the MIB names the platform's I/O the source of.
+    pub fn param(&self, id: u16) -> Supplied {
+        Ok(Some(i64::from(match id {
+            pid::IO_TC_DROPPED => self.tc_dropped,
+            pid::IO_TM_DROPPED => self.tm_dropped,
+            pid::IO_SENSOR_ERRORS => self.sensor_errors,
+            pid::IO_OUTPUT_ERRORS => self.output_errors,
+            pid::IO_AB_BYTES_DROPPED => self.ab_bytes_dropped,
+            _ => return Err(NotSupplied(id)),
+        })))
+    }
+}
+
 /// Counters reported in the OBSW housekeeping structure.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Counters {
@@ -79,6 +93,19 @@ pub struct Counters {
     overflow_unreported: u32,
     /// Earliest time of the next EVENT_QUEUE_OVERFLOW event.
     overflow_next: u64,
+}
+
+impl Counters {
+    /// The parameters the MIB names the OBSW's counters the source of.
+    pub fn param(&self, id: u16) -> Supplied {
+        Ok(Some(i64::from(match id {
+            pid::TC_ACCEPTED => self.tc_accepted,
+            pid::TC_REJECTED => self.tc_rejected,
+            pid::TC_DUPLICATE => self.tc_duplicate,
+            pid::EVENTS_DROPPED => self.events_dropped.min(u32::from(u16::MAX)),
+            _ => return Err(NotSupplied(id)),
+        })))
+    }
 }
 
 /// What became of a request (kept for duplicate TCs).
@@ -283,50 +310,66 @@ impl<S: TmStore> Obsw<S> {
         self.dl.event(now, id, args, sink);
     }
 
-    /// Raw value of any MIB telemetry parameter (0 when it has no valid value).
+    /// Raw value of a MIB telemetry parameter, for tests and inspection: 0 when it has no
+    /// valid value now (as housekeeping carries it). Panics for an ID that no component
+    /// supplies (a caller's bug: no flight code path asks for one; housekeeping and PUS 12
+    /// use [`Self::param_value`]).
+    #[track_caller]
     pub fn param(&self, id: u16) -> i64 {
-        self.param_opt(id).unwrap_or(0)
+        match self.param_value(id) {
+            Ok(v) => v.unwrap_or(0),
+            Err(e) => panic!("{e}"),
+        }
     }
 
-    /// Raw value of any MIB telemetry parameter; `None` when it has no valid value.
+    /// Raw value of a MIB telemetry parameter; `None` when it has no valid value now or no
+    /// component supplies it.
     pub fn param_opt(&self, id: u16) -> Option<i64> {
-        if self.param_of_absent_module(id) {
-            return None;
+        self.param_value(id).ok().flatten()
+    }
+
+    /// Raw value of a MIB telemetry parameter from the one component its MIB row names
+    /// (`mib::params::source`): `Ok(None)` when it has no valid value now (board B not
+    /// heard yet, the module it measures absent); `Err` for an ID the MIB does not define.
+    pub fn param_value(&self, id: u16) -> Supplied {
+        let src = mib::params::source(id).ok_or(NotSupplied(id))?;
+        let v = self.param_from(src, id)?;
+        let absent = mib::params::module_of(id).is_some_and(|slot| self.modules.absent(slot));
+        Ok(v.filter(|_| !absent))
+    }
+
+    /// Asks the component `src` for parameter `id`: `Err` unless the MIB names `src` the
+    /// parameter's source (checked for every parameter by a test).
+    pub fn param_from(&self, src: Source, id: u16) -> Supplied {
+        match src {
+            Source::Modes => self.modes.param(id),
+            Source::Faults => self.faults.param(id),
+            Source::Monitoring => self.monitoring.param(id),
+            Source::Counters => self.counters.param(id),
+            Source::Downlink => self.dl.param(id),
+            Source::Scheduler => self.sched.param(id),
+            Source::Clock => match id {
+                pid::UPTIME_S => Ok(Some((self.last_now / 1000) as i64)),
+                _ => Err(NotSupplied(id)),
+            },
+            Source::Io => self.io.param(id),
+            Source::SpaceLink => self.space_link_param(id),
+            Source::Modules => self.modules.param(id),
+            Source::Team => self.team.param(id),
+            Source::BoardA => self.ctrl.board_a_param(id),
+            Source::BoardB => self.ctrl.board_b_param(id),
         }
-        Some(match id {
-            pid::MODE => self.modes.root() as i64,
-            pid::FAULT_FLAGS => self.faults.active() as i64,
-            pid::FAULT_LATCHED => self.faults.latched as i64,
-            pid::FAULT_COUNT => self.faults.count as i64,
-            pid::MON_ENABLED => self.monitoring.enabled_mask() as i64,
-            pid::LAST_FAULT_EVENT => self.faults.last_event as i64,
-            pid::PENDING_MODE => self.faults.pending_mode.map_or(255, |m| m as i64),
-            pid::TC_ACCEPTED => self.counters.tc_accepted as i64,
-            pid::TC_REJECTED => self.counters.tc_rejected as i64,
-            pid::TC_DUPLICATE => self.counters.tc_duplicate as i64,
-            pid::TM_SENT => self.dl.tmw.sent as i64,
-            pid::TM_STORED => self.dl.store.len() as i64,
-            pid::TM_STORE_DROPPED => self.dl.store_dropped as i64,
-            pid::SCHED_COUNT => self.sched.len() as i64,
-            pid::SCHED_ENABLED => self.sched.enabled as i64,
-            pid::UPTIME_S => (self.last_now / 1000) as i64,
-            pid::EVENTS_THROTTLED => self.dl.events.throttled as i64,
-            pid::EVENTS_DROPPED => self.counters.events_dropped.min(u16::MAX as u32) as i64,
-            pid::IO_TC_DROPPED => self.io.tc_dropped as i64,
-            pid::IO_TM_DROPPED => self.io.tm_dropped as i64,
-            pid::IO_SENSOR_ERRORS => self.io.sensor_errors as i64,
-            pid::IO_OUTPUT_ERRORS => self.io.output_errors as i64,
-            pid::IO_AB_BYTES_DROPPED => self.io.ab_bytes_dropped as i64,
-            pid::LINK_AD_ACCEPTED..=pid::LINK_REJ_CONTROL_RATE => {
-                self.space_link[usize::from(id - pid::LINK_AD_ACCEPTED)] as i64
-            }
-            pid::LINK_TM_SPI..=pid::LINK_STATE_BAD_SLOT => {
-                self.space_link_state[usize::from(id - pid::LINK_TM_SPI)] as i64
-            }
-            pid::CONFIG_HASH..=pid::MODULES_PRESENT => return self.modules_param(id),
-            pid::TEAM_TERM..=pid::TEAM_STEPS_EXECUTED => return self.team_param(id),
-            _ => return self.ctrl.param(id),
-        })
+    }
+
+    /// The space-link parameters: the platform's counters and link state, each array
+    /// laid out in parameter-ID order from its first parameter.
+    fn space_link_param(&self, id: u16) -> Supplied {
+        let counter = usize::from(id.wrapping_sub(pid::LINK_AD_ACCEPTED));
+        let state = usize::from(id.wrapping_sub(pid::LINK_TM_SPI));
+        (self.space_link.get(counter))
+            .or_else(|| self.space_link_state.get(state))
+            .map(|&v| Some(i64::from(v)))
+            .ok_or(NotSupplied(id))
     }
 
     // ------------------------------------------------------------------ TC path
@@ -710,6 +753,42 @@ pub(crate) mod tests {
         o.count_dropped(100 + config::EVENT_THROTTLE_WINDOW_MS as u64, 0, &mut sink);
         assert_eq!(ev(&sink), [3, 2], "the rest once the window passed");
         assert_eq!(o.param(pid::EVENTS_DROPPED), 5);
+    }
+
+    /// The components that answer parameter `id` (rather than refusing it).
+    fn suppliers(o: &TestObsw, id: u16) -> Vec<Source> {
+        Source::ALL
+            .into_iter()
+            .filter(|&s| o.param_from(s, id).is_ok())
+            .collect()
+    }
+
+    // verifies: PUS-3-05
+    #[test]
+    fn every_hk_parameter_has_exactly_one_source_and_only_it_supplies_the_parameter() {
+        let o = obsw();
+        for h in mib::hk::HK_STRUCTS {
+            for &id in h.params {
+                let src = mib::params::source(id);
+                assert!(src.is_some(), "SID {}: parameter {id} has no source", h.sid);
+                assert_eq!(suppliers(&o, id), Vec::from_iter(src), "SID {}: parameter {id}", h.sid);
+            }
+        }
+        // The other telemetry parameters (monitored, or in events) too.
+        for p in mib::params::PARAMS {
+            assert_eq!(
+                suppliers(&o, p.id),
+                Vec::from_iter(mib::params::source(p.id)),
+                "{}",
+                p.name
+            );
+        }
+        // What is no parameter: an error from every component and from the OBSW, not 0.
+        let unknown = (0..=u16::MAX).find(|&id| mib::params::by_id(id).is_none()).unwrap();
+        assert_eq!(suppliers(&o, unknown), []);
+        assert_eq!(o.param_value(unknown), Err(NotSupplied(unknown)));
+        assert_eq!(o.param_opt(unknown), None);
+        assert!(std::panic::catch_unwind(|| o.param(unknown)).is_err(), "no silent 0");
     }
 
     // verifies: PUS-1-02, MMIC-MODE-01

@@ -16,7 +16,7 @@ use heapless::Vec;
 use mib::config::CONTROL_PERIOD_MS;
 use mib::events::eid;
 use mib::modes::module_mode::{HOLD, OFF, ON};
-use mib::params::{pid, B_HEARTBEAT_TIMEOUT_MS};
+use mib::params::{pid, NotSupplied, Source, Supplied, B_HEARTBEAT_TIMEOUT_MS};
 use mib::robot::{primitive, servo, Motion, Side, StateKind, NUM_STATES, STATES, STATE_UNKNOWN};
 use mib::tunables::tid;
 
@@ -372,23 +372,6 @@ struct FiltersA {
     grav: [Ma; 3],
     hip: Ma,
 }
-
-/// Parameters whose value comes from board B's heartbeat.
-const B_SOURCED: &[u16] = &[
-    pid::ARM_B_TARGET,
-    pid::ARM_B_PWM,
-    pid::GRIP_B_TARGET,
-    pid::GRIP_B_PWM,
-    pid::V_BAT_B,
-    pid::I_LOC_B,
-    pid::I_GRIP_B,
-    pid::I_BO_B,
-    pid::ARM_SW_B,
-    pid::GRAV_B_X,
-    pid::GRAV_B_Y,
-    pid::GRAV_B_Z,
-    pid::BOLTER_B_STATE,
-];
 
 /// Board A's robot logic.
 #[derive(Clone, Debug)]
@@ -1266,18 +1249,23 @@ impl Controller {
 
     // ---------------------------------------------------------------- parameters
 
-    /// Raw value of a MIB parameter the domain owns (`None` for the others).
+    /// Raw value of a MIB parameter the domain supplies ([`Source::BoardA`] or
+    /// [`Source::BoardB`]); `None` when it has no valid value, or is not the domain's.
     pub fn param(&self, id: u16) -> Option<i64> {
-        let hb = self.link.heartbeat();
-        // Side B's readings only exist once board B has been heard: until then they
-        // have no value (rather than a misleading 0 that would trip a monitor).
-        if hb.is_none() && B_SOURCED.contains(&id) {
-            return None;
+        match mib::params::source(id) {
+            Some(Source::BoardA) => self.board_a_param(id),
+            Some(Source::BoardB) => self.board_b_param(id),
+            _ => Err(NotSupplied(id)),
         }
-        let hbv = |f: fn(&crate::ablink::Heartbeat) -> i64| hb.map(f).unwrap_or(0);
+        .ok()
+        .flatten()
+    }
+
+    /// The parameters the MIB names board A's robot logic the source of.
+    pub fn board_a_param(&self, id: u16) -> Supplied {
         let b = |v: bool| v as i64;
         let ga = self.grav_a();
-        Some(match id {
+        Ok(Some(match id {
             pid::CONFIG_STATE => self.computed.unwrap_or(STATE_UNKNOWN) as i64,
             pid::TARGET_STATE => self.target_state as i64,
             pid::CMD_COMPLETE => b(self.cmd_complete),
@@ -1299,12 +1287,8 @@ impl Controller {
             }
             pid::ARM_A_TARGET => self.arm_a.target() as i64,
             pid::ARM_A_PWM => self.arm_a.current() as i64,
-            pid::ARM_B_TARGET => hbv(|h| h.arm_target as i64),
-            pid::ARM_B_PWM => hbv(|h| h.arm_pwm as i64),
             pid::GRIP_A_TARGET => self.grip_a.target() as i64,
             pid::GRIP_A_PWM => self.grip_a.current() as i64,
-            pid::GRIP_B_TARGET => hbv(|h| h.grip_target as i64),
-            pid::GRIP_B_PWM => hbv(|h| h.grip_pwm as i64),
             pid::HIP_TARGET => self.hip.target() as i64,
             pid::HIP_ANGLE => self.hip_angle() as i64,
             pid::HIP_DEVIATION => match self.link.heartbeat().and_then(|h| state_from_imus(ga, h.grav)) {
@@ -1315,24 +1299,15 @@ impl Controller {
                 None => 0,
             },
             pid::V_BAT_A => self.f.v_bat.value() as i64,
-            pid::V_BAT_B => hbv(|h| h.v_bat as i64),
             pid::I_BAT => self.f.i_bat.value() as i64,
             pid::V_REG => self.f.v_reg.value() as i64,
             pid::I_LOC_A => self.f.i_loc.value() as i64,
-            pid::I_LOC_B => hbv(|h| h.i_loc as i64),
             pid::I_GRIP_A => self.f.i_grip.value() as i64,
-            pid::I_GRIP_B => hbv(|h| h.i_grip as i64),
             pid::I_BO_A => self.f.i_bo.value() as i64,
-            pid::I_BO_B => hbv(|h| h.i_bo as i64),
             pid::ARM_SW_A => b(self.raw.arm_switch),
-            pid::ARM_SW_B => hbv(|h| h.arm_switch() as i64),
             pid::GRAV_A_X => ga[0] as i64,
             pid::GRAV_A_Y => ga[1] as i64,
             pid::GRAV_A_Z => ga[2] as i64,
-            pid::GRAV_B_X => hbv(|h| h.grav[0] as i64),
-            pid::GRAV_B_Y => hbv(|h| h.grav[1] as i64),
-            pid::GRAV_B_Z => hbv(|h| h.grav[2] as i64),
-            pid::BOLTER_B_STATE => hbv(|h| h.bolter_state() as i64),
             pid::B_LINK_OK => b(self.link.link_ok(self.now, B_HEARTBEAT_TIMEOUT_MS as u64)),
             pid::B_HB_AGE_MS => self.link.hb_age_ms(self.now).min(u16::MAX as u64) as i64,
             pid::B_HB_RX => self.link.counters().hb_rx as i64,
@@ -1345,8 +1320,32 @@ impl Controller {
             pid::CAL_GRIP_B_OPEN => self.cal.side[1].grip_open_us as i64,
             pid::CAL_ENC_ZERO => self.cal.encoder_zero as i64,
             pid::CAL_FROM_DESCRIPTORS => self.cal.from_descriptors as i64,
-            _ => return None,
-        })
+            _ => return Err(NotSupplied(id)),
+        }))
+    }
+
+    /// The parameters the MIB names board B's heartbeat the source of. Side B's readings
+    /// only exist once board B has been heard: until then they have no value (rather than
+    /// a misleading 0 that would trip a monitor).
+    pub fn board_b_param(&self, id: u16) -> Supplied {
+        let hb = self.link.heartbeat();
+        let v = |f: fn(&crate::ablink::Heartbeat) -> i64| Ok(hb.map(f));
+        match id {
+            pid::ARM_B_TARGET => v(|h| h.arm_target as i64),
+            pid::ARM_B_PWM => v(|h| h.arm_pwm as i64),
+            pid::GRIP_B_TARGET => v(|h| h.grip_target as i64),
+            pid::GRIP_B_PWM => v(|h| h.grip_pwm as i64),
+            pid::V_BAT_B => v(|h| h.v_bat as i64),
+            pid::I_LOC_B => v(|h| h.i_loc as i64),
+            pid::I_GRIP_B => v(|h| h.i_grip as i64),
+            pid::I_BO_B => v(|h| h.i_bo as i64),
+            pid::ARM_SW_B => v(|h| h.arm_switch() as i64),
+            pid::GRAV_B_X => v(|h| h.grav[0] as i64),
+            pid::GRAV_B_Y => v(|h| h.grav[1] as i64),
+            pid::GRAV_B_Z => v(|h| h.grav[2] as i64),
+            pid::BOLTER_B_STATE => v(|h| h.bolter_state() as i64),
+            _ => Err(NotSupplied(id)),
+        }
     }
 
     /// Asks board B to send its descriptor table again (module discovery).
@@ -1367,59 +1366,6 @@ impl Controller {
         self.hip_cmd
     }
 }
-
-/// Every parameter ID [`Controller::param`] answers.
-pub const DOMAIN_PARAMS: &[u16] = &[
-    pid::CONFIG_STATE,
-    pid::TARGET_STATE,
-    pid::CMD_COMPLETE,
-    pid::ACTIVE_PRIMITIVE,
-    pid::BOLT_SIDE,
-    pid::BOLT_PAIR,
-    pid::BOLT_ATTEMPT,
-    pid::ARM_A_TARGET,
-    pid::ARM_A_PWM,
-    pid::ARM_B_TARGET,
-    pid::ARM_B_PWM,
-    pid::GRIP_A_TARGET,
-    pid::GRIP_A_PWM,
-    pid::GRIP_B_TARGET,
-    pid::GRIP_B_PWM,
-    pid::HIP_TARGET,
-    pid::HIP_ANGLE,
-    pid::HIP_DEVIATION,
-    pid::V_BAT_A,
-    pid::V_BAT_B,
-    pid::I_BAT,
-    pid::V_REG,
-    pid::I_LOC_A,
-    pid::I_LOC_B,
-    pid::I_GRIP_A,
-    pid::I_GRIP_B,
-    pid::I_BO_A,
-    pid::I_BO_B,
-    pid::ARM_SW_A,
-    pid::ARM_SW_B,
-    pid::GRAV_A_X,
-    pid::GRAV_A_Y,
-    pid::GRAV_A_Z,
-    pid::GRAV_B_X,
-    pid::GRAV_B_Y,
-    pid::GRAV_B_Z,
-    pid::BOLTER_B_STATE,
-    pid::B_LINK_OK,
-    pid::B_HB_AGE_MS,
-    pid::B_HB_RX,
-    pid::B_FRAME_ERRORS,
-    pid::B_RETRIES,
-    pid::B_ACK_MISSED,
-    pid::CAL_GRIP_A_CLOSED,
-    pid::CAL_GRIP_A_OPEN,
-    pid::CAL_GRIP_B_CLOSED,
-    pid::CAL_GRIP_B_OPEN,
-    pid::CAL_ENC_ZERO,
-    pid::CAL_FROM_DESCRIPTORS,
-];
 
 /// Module moves of primitive `prim` from state `from` to `to`: release the moving
 /// side's gripper; move the arms to the target state's length and the hip to its angle
@@ -1645,10 +1591,23 @@ mod tests {
     #[test]
     fn controller_answers_every_domain_parameter() {
         let c = Controller::new();
-        for &p in DOMAIN_PARAMS {
-            // Before board B's first heartbeat its readings have no value.
-            assert_eq!(c.param(p).is_some(), !B_SOURCED.contains(&p), "param {p}");
-            assert!(mib::params::by_id(p).is_some());
+        for p in mib::params::PARAMS {
+            let (a, b) = (c.board_a_param(p.id), c.board_b_param(p.id));
+            match mib::params::source(p.id) {
+                Some(Source::BoardA) => {
+                    assert!(matches!(a, Ok(Some(_))), "{}", p.name);
+                    assert_eq!(b, Err(NotSupplied(p.id)), "{}", p.name);
+                }
+                Some(Source::BoardB) => {
+                    // Before board B's first heartbeat its readings have no value.
+                    assert_eq!(b, Ok(None), "{}", p.name);
+                    assert_eq!(a, Err(NotSupplied(p.id)), "{}", p.name);
+                }
+                _ => {
+                    assert_eq!((a, b), (Err(NotSupplied(p.id)), Err(NotSupplied(p.id))), "{}", p.name);
+                    assert_eq!(c.param(p.id), None, "{}", p.name);
+                }
+            }
         }
         assert_eq!(c.param(pid::MODE), None);
         assert_eq!(c.param(pid::CONFIG_STATE), Some(255));

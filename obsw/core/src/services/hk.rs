@@ -107,10 +107,24 @@ impl<S: TmStore> Obsw<S> {
         // One table-driven loop over the structure's parameters for every SID (the wire
         // crate's codec), not the typed `mib_wire::Hk` per structure: 4.5 KB of flash on
         // board A (mib/wire/README.md, "One codec").
+        // A parameter without a valid value now travels as 0. One that no component
+        // supplies cannot be in a structure (a test asks every component for every HK
+        // parameter); were one there, the report would not be sent rather than carry a 0
+        // nobody measured.
         let mut body = [0u8; mib::config::MAX_PACKET_LEN];
-        if let Ok(n) = mib_wire::codec::encode_hk(&HK_STRUCTS[index], |p| self.param(p), &mut body) {
-            self.dl
-                .emit(now, tm::HkReport::SERVICE, tm::HkReport::SUBSERVICE, &body[..n], sink);
+        let mut supplied = true;
+        let value = |p| match self.param_value(p) {
+            Ok(v) => v.unwrap_or(0),
+            Err(_) => {
+                supplied = false;
+                0
+            }
+        };
+        if let Ok(n) = mib_wire::codec::encode_hk(&HK_STRUCTS[index], value, &mut body) {
+            if supplied {
+                self.dl
+                    .emit(now, tm::HkReport::SERVICE, tm::HkReport::SUBSERVICE, &body[..n], sink);
+            }
         }
     }
 

@@ -216,14 +216,14 @@ impl<S: TmStore> Obsw<S> {
         let v_reg_min = params::by_id(pid::V_REG)
             .and_then(|p| p.limits)
             .map_or(0, |l| params::CAL_VOLT.raw(l.hard_lo));
-        let powered = self.ctrl.param(pid::V_REG).is_some_and(|v| v >= v_reg_min);
+        let powered = self.param_opt(pid::V_REG).is_some_and(|v| v >= v_reg_min);
         if n.parent != Some(node::SIDE_B) {
             return powered;
         }
         // Board B keeps driving its servos at their last set point when A's commands
         // stop, so side B holds position even with the A-B link down (what safed after
         // a communication loss needs); anything else needs B's acknowledgement.
-        mode == module_mode::HOLD || self.ctrl.param(pid::B_LINK_OK) == Some(1)
+        mode == module_mode::HOLD || self.param_opt(pid::B_LINK_OK) == Some(1)
     }
 
     pub(crate) fn progress_transition(&mut self, now: u64, sink: &mut impl TmSink) {

@@ -19,7 +19,7 @@ use mib::modes::robot_mode;
 use mib::modules::descriptor::MAX_TABLE_LEN;
 use mib::modules::report::{MAX_REPORT_LEN, NO_SLOT};
 use mib::modules::NUM_SLOTS;
-use mib::params::pid;
+use mib::params::{pid, NotSupplied, Supplied};
 use mib_wire::tm;
 
 use mmic_domain::calib::RobotCal;
@@ -261,16 +261,46 @@ fn side_of(a: &Action) -> Option<u8> {
     }
 }
 
-/// The slot whose module a telemetry parameter measures, for parameters that have no
-/// valid value when that module is absent (so PUS 12 does not monitor them).
-const fn param_slot(id: u16) -> Option<u8> {
-    use mib::modules::slot;
-    match id {
-        pid::I_BO_A => Some(slot::BOLTER_A),
-        pid::I_BO_B | pid::BOLTER_B_STATE => Some(slot::BOLTER_B),
-        pid::I_GRIP_A => Some(slot::GRIPPER_A),
-        pid::I_GRIP_B => Some(slot::GRIPPER_B),
-        _ => None,
+impl Modules {
+    /// Why OPERATIONAL is refused by the module set (`None`: allowed, or no discovery
+    /// ran on this platform). While discovery waits for board B's half the module set is
+    /// not known — nor board B's servo widths, which come with its calibration — so
+    /// OPERATIONAL is refused with CONFIG_NOT_ACCEPTED and hash 0 (REV-ANOM-17).
+    pub(crate) fn block_operational(&self) -> Option<Failure> {
+        if self.pending.is_some() {
+            return Some(Failure::config_not_accepted(mib::modules::config::HASH_NOT_DISCOVERED));
+        }
+        let d = self.discovery.as_ref()?;
+        let r = self.replacement.unwrap_or(Replacement::NoneAccepted);
+        match operational_allowed(d, r) {
+            Ok(_) => None,
+            Err(Blocked::Invalid(why)) => Some(Failure::config_invalid(why.code(), why.slot().unwrap_or(NO_SLOT))),
+            Err(Blocked::NotAccepted { hash }) => Some(Failure::config_not_accepted(hash)),
+        }
+    }
+
+    /// True when discovery found the module of `slot` absent.
+    pub fn absent(&self, slot: u8) -> bool {
+        self.discovery.as_ref().is_some_and(|d| !d.present.contains(slot))
+    }
+
+    /// The parameters the MIB names module discovery the source of.
+    pub fn param(&self, id: u16) -> Supplied {
+        let d = self.discovery.as_ref();
+        Ok(Some(match id {
+            pid::CONFIG_HASH => d.map_or(mib::modules::config::HASH_NOT_DISCOVERED, |d| d.hash) as i64,
+            pid::CONFIG_ID => d.and_then(|d| d.outcome.ok()).map_or(0, |c| c.code()) as i64,
+            pid::CONFIG_STATUS => {
+                (match (d, self.block_operational()) {
+                    (None, _) => status::NOT_DISCOVERED,
+                    (Some(d), _) if d.outcome.is_err() => status::INVALID,
+                    (Some(_), Some(_)) => status::NOT_ACCEPTED,
+                    (Some(_), None) => status::ACCEPTED,
+                }) as i64
+            }
+            pid::MODULES_PRESENT => d.map_or(0, |d| d.present.0) as i64,
+            _ => return Err(NotSupplied(id)),
+        }))
     }
 }
 
@@ -422,16 +452,7 @@ impl<S: TmStore> Obsw<S> {
     /// not known — nor board B's servo widths, which come with its calibration — so
     /// OPERATIONAL is refused with CONFIG_NOT_ACCEPTED and hash 0 (REV-ANOM-17).
     pub(crate) fn modules_block_operational(&self) -> Option<Failure> {
-        if self.discovery_pending() {
-            return Some(Failure::config_not_accepted(mib::modules::config::HASH_NOT_DISCOVERED));
-        }
-        let d = self.modules.discovery.as_ref()?;
-        let r = self.modules.replacement.unwrap_or(Replacement::NoneAccepted);
-        match operational_allowed(d, r) {
-            Ok(_) => None,
-            Err(Blocked::Invalid(why)) => Some(Failure::config_invalid(why.code(), why.slot().unwrap_or(NO_SLOT))),
-            Err(Blocked::NotAccepted { hash }) => Some(Failure::config_not_accepted(hash)),
-        }
+        self.modules.block_operational()
     }
 
     /// MODULE_ABSENT for an action that needs a module this robot does not have.
@@ -442,34 +463,7 @@ impl<S: TmStore> Obsw<S> {
 
     /// True when discovery found the module of `slot` absent.
     pub(crate) fn module_absent(&self, slot: u8) -> bool {
-        self.modules
-            .discovery
-            .as_ref()
-            .is_some_and(|d| !d.present.contains(slot))
-    }
-
-    /// `None` for a parameter whose module is absent (no valid value: not monitored).
-    pub(crate) fn param_of_absent_module(&self, id: u16) -> bool {
-        param_slot(id).is_some_and(|s| self.module_absent(s))
-    }
-
-    /// The module HK parameters.
-    pub(crate) fn modules_param(&self, id: u16) -> Option<i64> {
-        let d = self.modules.discovery.as_ref();
-        Some(match id {
-            pid::CONFIG_HASH => d.map_or(mib::modules::config::HASH_NOT_DISCOVERED, |d| d.hash) as i64,
-            pid::CONFIG_ID => d.and_then(|d| d.outcome.ok()).map_or(0, |c| c.code()) as i64,
-            pid::CONFIG_STATUS => {
-                (match (d, self.modules_block_operational()) {
-                    (None, _) => status::NOT_DISCOVERED,
-                    (Some(d), _) if d.outcome.is_err() => status::INVALID,
-                    (Some(_), Some(_)) => status::NOT_ACCEPTED,
-                    (Some(_), None) => status::ACCEPTED,
-                }) as i64
-            }
-            pid::MODULES_PRESENT => d.map_or(0, |d| d.present.0) as i64,
-            _ => return None,
-        })
+        self.modules.absent(slot)
     }
 
     pub(crate) fn modules_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) -> Result<(), Failure> {

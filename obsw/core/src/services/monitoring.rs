@@ -173,7 +173,9 @@ impl<S: TmStore> Obsw<S> {
             let continuous = mib::fdir::monitor_by_id(t.monitor).is_some_and(|m| fdir::is_continuous(m.phase));
             if t.state != fdir::check::OK {
                 let args: [i64; 3] = if t.event == eid::HIP_MISMATCH {
-                    [self.param(pid::HIP_ANGLE), self.param(pid::HIP_ANGLE) - t.value, 0]
+                    // Board A's encoder: always a value.
+                    let hip = self.param_opt(pid::HIP_ANGLE).unwrap_or(0);
+                    [hip, hip - t.value, 0]
                 } else {
                     [t.param as i64, t.value, t.limit as i64]
                 };

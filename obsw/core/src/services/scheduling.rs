@@ -2,6 +2,7 @@
 //! board when their time comes, through the same path as uplinked TCs.
 
 use mib::config;
+use mib::params::{pid, NotSupplied, Supplied};
 use mib::tc::{sched_cuc, service};
 use mib::FailureCode;
 
@@ -195,6 +196,14 @@ impl Schedule {
         self.enabled
             .then(|| self.items.iter().map(|s| s.release).min())
             .flatten()
+    }
+    /// The parameters the MIB names the schedule the source of.
+    pub fn param(&self, id: u16) -> Supplied {
+        Ok(Some(match id {
+            pid::SCHED_COUNT => self.len() as i64,
+            pid::SCHED_ENABLED => i64::from(self.enabled),
+            _ => return Err(NotSupplied(id)),
+        }))
     }
 }
 

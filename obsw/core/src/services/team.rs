@@ -24,6 +24,7 @@
 
 use mib::events::eid;
 use mib::modes::robot_mode;
+use mib::params::{pid, NotSupplied, Supplied};
 use mib::robot::Side;
 use mib::team::{
     PlanStep, MAX_AUTHORISED_STEPS, ROSTER_MAX, STATUS_PERIOD_MS, TEAM_APID, TEAM_SERVICE, TEAM_SUBSERVICE_MESSAGE,
@@ -349,6 +350,36 @@ pub struct Team {
 }
 
 impl Team {
+    /// The parameters the MIB names the team the source of.
+    pub fn param(&self, id: u16) -> Supplied {
+        let c = &self.counters;
+        let node = self.node.as_ref();
+        let nc = node.map(Node::counters).unwrap_or_default();
+        let rej = |r: TeamReject| i64::from(c.rejected[usize::from(r.code())]);
+        Ok(Some(match id {
+            pid::TEAM_TERM => i64::from(node.map_or(self.durable.term, Node::term)),
+            pid::TEAM_ROLE => i64::from(node.map_or(0, |n| n.role().code())),
+            pid::TEAM_LEADER => i64::from(node.and_then(Node::leader).unwrap_or(0)),
+            pid::TEAM_GROUND_SEEN => i64::from(node.is_none_or(Node::ground_seen)),
+            pid::TEAM_PKT_SENT => i64::from(c.pkt_sent),
+            pid::TEAM_PKT_RECEIVED => i64::from(c.pkt_received),
+            pid::TEAM_REJ_MALFORMED => i64::from(c.bad_packets).wrapping_add(rej(TeamReject::Malformed)),
+            pid::TEAM_REJ_TRUNCATED => rej(TeamReject::Truncated),
+            pid::TEAM_REJ_UNKNOWN_SENDER => {
+                rej(TeamReject::UnknownSender) + i64::from(c.foreign_before.wrapping_add(nc.foreign))
+            }
+            pid::TEAM_REJ_BAD_MAC => rej(TeamReject::BadMac),
+            pid::TEAM_REJ_REPLAY => rej(TeamReject::Replay),
+            pid::TEAM_REJ_STORE_FAILED => rej(TeamReject::StoreFailed),
+            pid::TEAM_ELECTIONS => i64::from(c.elections),
+            pid::TEAM_DIR_EXECUTED => i64::from(c.dir_executed),
+            pid::TEAM_DIR_REFUSED => i64::from(c.refused_before.wrapping_add(nc.refused)),
+            pid::TEAM_PERSIST_FAILED => i64::from(c.persist_failed),
+            pid::TEAM_STEPS_EXECUTED => i64::from(self.plan.as_ref().map_or(0, |p| p.done)),
+            _ => return Err(NotSupplied(id)),
+        }))
+    }
+
     pub fn new(me: u8, time: OnboardTime) -> Self {
         Team {
             me,
@@ -520,38 +551,6 @@ impl<S: TmStore> Obsw<S> {
             total,
         };
         self.raise(now, e, sink);
-    }
-
-    /// Value of a TEAM HK parameter (`pid::TEAM_TERM..=pid::TEAM_STEPS_EXECUTED`).
-    pub(crate) fn team_param(&self, id: u16) -> Option<i64> {
-        use mib::params::pid;
-        let t = &self.team;
-        let c = &t.counters;
-        let node = t.node.as_ref();
-        let nc = node.map(Node::counters).unwrap_or_default();
-        let rej = |r: TeamReject| i64::from(c.rejected[usize::from(r.code())]);
-        Some(match id {
-            pid::TEAM_TERM => i64::from(node.map_or(t.durable.term, Node::term)),
-            pid::TEAM_ROLE => i64::from(node.map_or(0, |n| n.role().code())),
-            pid::TEAM_LEADER => i64::from(node.and_then(Node::leader).unwrap_or(0)),
-            pid::TEAM_GROUND_SEEN => i64::from(node.is_none_or(Node::ground_seen)),
-            pid::TEAM_PKT_SENT => i64::from(c.pkt_sent),
-            pid::TEAM_PKT_RECEIVED => i64::from(c.pkt_received),
-            pid::TEAM_REJ_MALFORMED => i64::from(c.bad_packets).wrapping_add(rej(TeamReject::Malformed)),
-            pid::TEAM_REJ_TRUNCATED => rej(TeamReject::Truncated),
-            pid::TEAM_REJ_UNKNOWN_SENDER => {
-                rej(TeamReject::UnknownSender) + i64::from(c.foreign_before.wrapping_add(nc.foreign))
-            }
-            pid::TEAM_REJ_BAD_MAC => rej(TeamReject::BadMac),
-            pid::TEAM_REJ_REPLAY => rej(TeamReject::Replay),
-            pid::TEAM_REJ_STORE_FAILED => rej(TeamReject::StoreFailed),
-            pid::TEAM_ELECTIONS => i64::from(c.elections),
-            pid::TEAM_DIR_EXECUTED => i64::from(c.dir_executed),
-            pid::TEAM_DIR_REFUSED => i64::from(c.refused_before.wrapping_add(nc.refused)),
-            pid::TEAM_PERSIST_FAILED => i64::from(c.persist_failed),
-            pid::TEAM_STEPS_EXECUTED => i64::from(t.plan.as_ref().map_or(0, |p| p.done)),
-            _ => return None,
-        })
     }
 
     /// Sets the team roster (ground TC TEAM_ROSTER, or the platform's configuration).
