@@ -21,6 +21,7 @@ pub mod headers;
 pub mod hk;
 pub mod layout;
 pub mod link;
+pub mod memory;
 pub mod modes;
 pub mod modules;
 pub mod params;
