@@ -275,6 +275,45 @@ pub const RTC_FAST_BYTES: u32 = 8 * 1024;
 /// Static RAM plus the stack's high-water mark may take at most this.
 pub const SRAM_BUDGET: u32 = budget(SRAM_USABLE);
 
+/// Program unit of the flash (ESP32-C3: a 32-bit word); the TM store's layout aligns to it.
+pub const FLASH_WORD: u32 = 4;
+
+/// The PUS 15 on-board TM store inside [`TM_STORE`]: two areas, each a power-fail safe
+/// queue of whole TM packets (`sequential-storage`). Periodic housekeeping (TM[3,25]) goes
+/// to the HK area, everything else (events, verification, other reports) to the report
+/// area. A full area overwrites its own oldest sector; the HK area is the one that fills
+/// (see [`store::MIN_DURATION_S`] and [`store::REPORTS_PER_HOUR`]), so periodic HK is
+/// overwritten first and events and verification reports are kept longer. The host obsw
+/// keeps the same partition in a file of [`store::SIZE`] bytes.
+pub mod store {
+    use super::{FLASH_SECTOR, FLASH_WORD, TM_STORE, TM_STORE_OUTAGE_S};
+
+    /// The program unit as a length.
+    pub const WORD_USIZE: usize = FLASH_WORD as usize;
+    /// Start of the partition in board A's flash.
+    pub const OFFSET: u32 = TM_STORE.offset;
+    /// Events, verification and every other report.
+    pub const REPORT_SIZE: u32 = 512 * 1024;
+    /// Periodic housekeeping area: the rest of the partition.
+    pub const HK_SIZE: u32 = TM_STORE.size - REPORT_SIZE;
+    /// The whole partition (the host's store file has this size).
+    pub const SIZE: u32 = TM_STORE.size;
+    pub const HK_SECTORS: usize = (HK_SIZE / FLASH_SECTOR) as usize;
+    pub const REPORT_SECTORS: usize = (REPORT_SIZE / FLASH_SECTOR) as usize;
+    /// The store keeps at least this long of the MIB's default housekeeping (every
+    /// structure at its `default_interval_ms`), checked by the store's sizing test.
+    pub const MIN_DURATION_S: u32 = TM_STORE_OUTAGE_S;
+    /// Events and verification reports the report area is sized for, per hour, over
+    /// [`MIN_DURATION_S`]: an outage sees no ground TC, so this is on-board activity
+    /// (events, scheduled and plan steps' verification) at one report every 2 s.
+    pub const REPORTS_PER_HOUR: u32 = 1_800;
+
+    const _: () = assert!(HK_SIZE.is_multiple_of(FLASH_SECTOR) && REPORT_SIZE.is_multiple_of(FLASH_SECTOR));
+    // Each area needs two sectors at least: the queue erases its oldest while the
+    // youngest is still being written.
+    const _: () = assert!(HK_SECTORS >= 2 && REPORT_SECTORS >= 2);
+}
+
 /// Byte the images paint their stack with at start-up: the lowest address that no longer
 /// holds it is the stack's high-water mark.
 pub const STACK_PAINT: u8 = 0xA5;

@@ -199,8 +199,22 @@ pub struct Downlink<S: TmStore> {
 }
 
 impl<S: TmStore> Downlink<S> {
-    pub fn new(apid: u16, time: OnboardTime, store: S) -> Self {
-        let tmw = TmWriter::new(apid, time);
+    /// The sequence count goes on from the newest packet of `apid` in the store (kept
+    /// across a reset): a restart leaves a gap of counts the ground can ask for, never a
+    /// second packet with a count the store still holds.
+    pub fn new(apid: u16, time: OnboardTime, mut store: S) -> Self {
+        let mut tmw = TmWriter::new(apid, time);
+        let mut newest = None;
+        store.visit(&mut |p| {
+            if let Ok(h) = mib_wire::header::Primary::parse(p) {
+                if h.apid == apid {
+                    newest = Some(h.seq_count);
+                }
+            }
+        });
+        if let Some(seq) = newest {
+            tmw.continue_after(seq);
+        }
         Downlink {
             tmw,
             store,
@@ -243,8 +257,8 @@ impl<S: TmStore> Downlink<S> {
     pub fn send_raw(&mut self, pkt: &[u8], sink: &mut impl TmSink) {
         sink.send_tm(pkt);
         self.tmw.sent = self.tmw.sent.wrapping_add(1);
-        if self.store_enabled && self.store.push(pkt) {
-            self.store_dropped = self.store_dropped.wrapping_add(1);
+        if self.store_enabled {
+            self.store_dropped = self.store_dropped.wrapping_add(self.store.push(pkt));
         }
     }
 

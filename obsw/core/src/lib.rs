@@ -12,6 +12,7 @@ pub mod accept;
 pub mod downlink;
 pub mod failure;
 pub mod fdir;
+pub mod flash_store;
 pub mod modes;
 pub mod obsw;
 pub mod request;

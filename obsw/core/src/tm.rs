@@ -31,13 +31,12 @@ impl TmSink for std::vec::Vec<std::vec::Vec<u8>> {
 
 /// The on-board TM store (PUS 15): keeps packets while nobody downlinks them.
 pub trait TmStore {
-    /// Stores a packet; returns true if an older packet had to be overwritten.
-    fn push(&mut self, packet: &[u8]) -> bool;
-    /// Removes the oldest packet into `buf`; returns its length.
-    fn pop(&mut self, buf: &mut [u8]) -> Option<usize>;
-    /// Calls `f` with every stored packet, oldest first, leaving the store unchanged
-    /// (PUS 15 downlinks by range read the store; nothing is removed).
-    fn visit(&self, f: &mut dyn FnMut(&[u8]));
+    /// Stores a packet; returns how many packets are lost for it: older packets
+    /// overwritten to make room, or 1 if this one could not be stored.
+    fn push(&mut self, packet: &[u8]) -> u32;
+    /// Calls `f` with every stored packet, oldest first, leaving the store's content
+    /// unchanged (PUS 15 downlinks by range read the store; nothing is removed).
+    fn visit(&mut self, f: &mut dyn FnMut(&[u8]));
     fn len(&self) -> usize;
     fn is_empty(&self) -> bool {
         self.len() == 0
@@ -74,39 +73,24 @@ impl<const N: usize> RingStore<N> {
 }
 
 impl<const N: usize> TmStore for RingStore<N> {
-    fn push(&mut self, packet: &[u8]) -> bool {
+    fn push(&mut self, packet: &[u8]) -> u32 {
         let need = packet.len() + 2;
         if need > N || packet.len() > u16::MAX as usize {
-            return true;
+            return 1;
         }
-        let mut overwrote = false;
+        let mut overwritten = 0;
         while N - self.buf.len() < need {
             self.drop_oldest();
-            overwrote = true;
+            overwritten += 1;
         }
         for b in (packet.len() as u16).to_be_bytes().iter().chain(packet) {
             // Space was made above, so this cannot fail.
             let _ = self.buf.push_back(*b);
         }
         self.count += 1;
-        overwrote
+        overwritten
     }
-    fn pop(&mut self, out: &mut [u8]) -> Option<usize> {
-        let hi = *self.buf.front()?;
-        let lo = *self.buf.iter().nth(1)?;
-        let len = u16::from_be_bytes([hi, lo]) as usize;
-        if out.len() < len {
-            return None;
-        }
-        self.buf.pop_front();
-        self.buf.pop_front();
-        for slot in out.iter_mut().take(len) {
-            *slot = self.buf.pop_front().unwrap_or(0);
-        }
-        self.count -= 1;
-        Some(len)
-    }
-    fn visit(&self, f: &mut dyn FnMut(&[u8])) {
+    fn visit(&mut self, f: &mut dyn FnMut(&[u8])) {
         let mut it = self.buf.iter().copied();
         let mut pkt = [0u8; MAX_PACKET_LEN];
         while let (Some(hi), Some(lo)) = (it.next(), it.next()) {
@@ -155,6 +139,10 @@ impl TmWriter {
     }
     pub fn apid(&self) -> u16 {
         self.apid
+    }
+    /// The next packet takes the sequence count after `seq`.
+    pub fn continue_after(&mut self, seq: u16) {
+        self.seq = SeqCount::new(seq).next();
     }
     /// Next sequence count (14 bit, wraps) and advances it.
     pub fn next_seq(&mut self) -> u16 {
@@ -244,24 +232,17 @@ mod tests {
     #[test]
     fn ring_store_keeps_order_and_overwrites_oldest_when_full() {
         let mut s: RingStore<64> = RingStore::default();
-        assert!(!s.push(&[1; 20]));
-        assert!(!s.push(&[2; 20]));
-        assert!(!s.push(&[3; 18]));
+        assert_eq!(s.push(&[1; 20]), 0);
+        assert_eq!(s.push(&[2; 20]), 0);
+        assert_eq!(s.push(&[3; 18]), 0);
         assert_eq!(s.len(), 3);
         // 22 + 22 + 20 = 64: full; the next push drops the oldest.
-        assert!(s.push(&[4; 10]));
+        assert_eq!(s.push(&[4; 10]), 1);
         assert_eq!(s.len(), 3);
         let mut seen = Vec::new();
         s.visit(&mut |p| seen.push((p[0], p.len())));
         assert_eq!(seen, [(2, 20), (3, 18), (4, 10)], "oldest first, store unchanged");
         assert_eq!(s.len(), 3);
-        let mut out = [0u8; 64];
-        assert_eq!(s.pop(&mut out), Some(20));
-        assert_eq!(out[0], 2);
-        assert_eq!(s.pop(&mut out), Some(18));
-        assert_eq!(s.pop(&mut out), Some(10));
-        assert_eq!(out[0], 4);
-        assert_eq!(s.pop(&mut out), None);
-        assert!(s.push(&[9; 100]), "a packet larger than the store is refused");
+        assert_eq!(s.push(&[9; 100]), 1, "a packet larger than the store is refused");
     }
 }

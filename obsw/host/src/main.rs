@@ -13,6 +13,7 @@ mod config_state;
 mod durable;
 mod frames;
 mod net;
+mod store_file;
 mod team;
 
 use std::net::SocketAddr;
@@ -27,9 +28,10 @@ use serde::Deserialize;
 
 use mib::config;
 use mmic_sim::{Sim, SimCommand, SimConfig};
+use obsw_core::flash_store::MibFlashStore;
 use obsw_core::obsw::{Config, LinkEvent, Obsw};
 use obsw_core::services::modules::AcceptedConfig;
-use obsw_core::tm::TmStore;
+use store_file::HostFlash;
 
 use net::{Input, Origin};
 
@@ -82,6 +84,12 @@ struct Args {
     /// (the full robot) is accepted at start and an ACCEPT_CONFIG holds until the process ends.
     #[arg(long)]
     config_state: Option<PathBuf>,
+    /// File of the on-board TM store (PUS 15), kept across restarts: a NOR flash image of
+    /// `mib::memory::store::SIZE` bytes, created erased if missing [default: DIR/robot-N/
+    /// tm-store.bin with --keys DIR, else tm-store.bin beside --link-state; neither: the
+    /// store is in memory and lost at exit].
+    #[arg(long, value_name = "PATH")]
+    tm_store: Option<PathBuf>,
     /// Test aid: write every TM packet the obsw sends to this file, one line of hex each.
     #[arg(long)]
     tm_log: Option<PathBuf>,
@@ -248,6 +256,7 @@ struct FileConfig {
     lab_bare_packets: Option<bool>,
     modules: Option<PathBuf>,
     config_state: Option<PathBuf>,
+    tm_store: Option<PathBuf>,
     team_udp: Option<SocketAddr>,
     peer: Option<Vec<String>>,
     team_state: Option<PathBuf>,
@@ -268,6 +277,8 @@ struct Settings {
     link_corrupt: f64,
     duration: Option<f64>,
     tm_log: Option<PathBuf>,
+    /// The store file (`--tm-store` or its default); `None`: in memory.
+    tm_store: Option<PathBuf>,
     frames: Option<frames::FrameConfig>,
     tm_dest: Vec<SocketAddr>,
     /// The bare-packet link is on (lab mode, --lab-bare-packets).
@@ -399,6 +410,11 @@ fn settings(a: Args) -> Result<Settings> {
         Some(p) => mmic_sim::modules::ModuleSetSpec::load(&p).map_err(|e| anyhow::anyhow!("--modules: {e}"))?,
         None => mmic_sim::modules::ModuleSetSpec::full(),
     };
+    let tm_store = a
+        .tm_store
+        .or(f.tm_store)
+        .or_else(|| from_keys("tm-store.bin"))
+        .or_else(|| frames.as_ref().map(|fc| fc.state.with_file_name("tm-store.bin")));
     Ok(Settings {
         robot,
         udp,
@@ -411,6 +427,7 @@ fn settings(a: Args) -> Result<Settings> {
         link_corrupt,
         duration,
         tm_log: a.tm_log,
+        tm_store,
         frames,
         tm_dest,
         bare,
@@ -420,36 +437,17 @@ fn settings(a: Args) -> Result<Settings> {
     })
 }
 
-/// TM store of the host build: `TM_STORE_CAPACITY` packets.
-#[derive(Default)]
-struct HostStore(std::collections::VecDeque<Vec<u8>>);
+/// The host's PUS 15 store: the flight store code over a file (or memory).
+type HostStore = MibFlashStore<'static, HostFlash>;
 
-impl TmStore for HostStore {
-    fn push(&mut self, packet: &[u8]) -> bool {
-        let full = self.0.len() >= config::TM_STORE_CAPACITY;
-        if full {
-            self.0.pop_front();
-        }
-        self.0.push_back(packet.to_vec());
-        full
-    }
-    fn pop(&mut self, buf: &mut [u8]) -> Option<usize> {
-        let p = self.0.front()?;
-        if p.len() > buf.len() {
-            return None;
-        }
-        buf[..p.len()].copy_from_slice(p);
-        self.0.pop_front().map(|p| p.len())
-    }
-    fn len(&self) -> usize {
-        self.0.len()
-    }
-    fn clear(&mut self) {
-        self.0.clear();
-    }
-    fn visit(&self, f: &mut dyn FnMut(&[u8])) {
-        self.0.iter().for_each(|p| f(p));
-    }
+/// Opens the store of `path` (or one in memory) for the rest of the process.
+fn open_store(path: Option<&std::path::Path>) -> Result<HostStore> {
+    let flash = match path {
+        Some(p) => HostFlash::open(p)?,
+        None => HostFlash::memory(),
+    };
+    let flash: &'static std::cell::RefCell<HostFlash> = Box::leak(Box::new(std::cell::RefCell::new(flash)));
+    HostStore::open(flash, 0).map_err(|e| anyhow::anyhow!("TM store: {e:?}"))
 }
 
 fn main() {
@@ -526,7 +524,7 @@ fn run(args: Args) -> Result<()> {
             robot: s.robot,
             epoch_unix_ms: epoch,
         },
-        HostStore::default(),
+        open_store(s.tm_store.as_deref())?,
     );
     if let Some(f) = down.frames.as_ref() {
         obsw.link_keys = f.link_keys();

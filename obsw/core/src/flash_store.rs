@@ -1,0 +1,712 @@
+//! The PUS 15 store in NOR flash, the same code on board A (its flash partition) and on
+//! the host (a file of the same size): the store survives a reset, and a reset in the
+//! middle of a write loses at most the packet being written.
+//!
+//! The layout is `sequential-storage`'s queue (item and data CRCs, page states, repair
+//! after a cut write, pages used in turn so that erases spread over the area): two
+//! queues, one per area of `mib::memory::store`. Periodic housekeeping (TM[3,25]) goes
+//! to the HK area, every other packet to the report area. An area that is full gives up
+//! its oldest packets, one by one and counted, until its oldest sector is free; the HK
+//! area fills first, so periodic HK is overwritten before events and verification.
+//!
+//! `sequential-storage` is async; the flashes here are blocking, so every future is
+//! ready when first polled and `embassy_futures::block_on` drives it.
+
+use core::cell::RefCell;
+
+use embassy_futures::block_on;
+use embedded_storage::nor_flash::{ErrorType, MultiwriteNorFlash, NorFlash, NorFlashError, NorFlashErrorKind};
+use mib::config::MAX_PACKET_LEN;
+use mib_wire::header::TmPacket;
+use sequential_storage::cache::page_pointers::ArrayPagePointers;
+use sequential_storage::cache::page_states::ArrayPageStates;
+use sequential_storage::cache::{Cache, Uncached};
+use sequential_storage::queue::{QueueConfig, QueueConfigError, QueueStorage};
+
+use crate::tm::TmStore;
+
+/// The store with the MIB's area sizes (board A and the host).
+pub type MibFlashStore<'a, F> =
+    FlashStore<'a, F, { mib::memory::store::HK_SECTORS }, { mib::memory::store::REPORT_SECTORS }>;
+
+/// One blocking flash shared by the store's two queues. Each call borrows the flash for
+/// its own length only, and calls never overlap (every future completes when polled).
+pub struct Shared<'a, F>(&'a RefCell<F>);
+
+/// A flash error, or the flash already borrowed (cannot happen: calls never overlap).
+#[derive(Debug)]
+pub enum SharedError<E> {
+    Flash(E),
+    Busy,
+}
+
+impl<E: NorFlashError> NorFlashError for SharedError<E> {
+    fn kind(&self) -> NorFlashErrorKind {
+        match self {
+            SharedError::Flash(e) => e.kind(),
+            SharedError::Busy => NorFlashErrorKind::Other,
+        }
+    }
+}
+
+impl<F: ErrorType> ErrorType for Shared<'_, F> {
+    type Error = SharedError<F::Error>;
+}
+
+impl<F: NorFlash> Shared<'_, F> {
+    fn with<T>(&self, f: impl FnOnce(&mut F) -> Result<T, F::Error>) -> Result<T, SharedError<F::Error>> {
+        let mut flash = self.0.try_borrow_mut().map_err(|_| SharedError::Busy)?;
+        f(&mut flash).map_err(SharedError::Flash)
+    }
+}
+
+impl<F: NorFlash> embedded_storage_async::nor_flash::ReadNorFlash for Shared<'_, F> {
+    const READ_SIZE: usize = F::READ_SIZE;
+    async fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+        self.with(|f| f.read(offset, bytes))
+    }
+    fn capacity(&self) -> usize {
+        self.0.try_borrow().map_or(0, |f| f.capacity())
+    }
+}
+
+impl<F: NorFlash> embedded_storage_async::nor_flash::NorFlash for Shared<'_, F> {
+    const WRITE_SIZE: usize = F::WRITE_SIZE;
+    const ERASE_SIZE: usize = F::ERASE_SIZE;
+    async fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
+        self.with(|f| f.erase(from, to))
+    }
+    async fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+        self.with(|f| f.write(offset, bytes))
+    }
+}
+
+impl<F: MultiwriteNorFlash> embedded_storage_async::nor_flash::MultiwriteNorFlash for Shared<'_, F> {}
+
+type AreaCache<const P: usize> = Cache<ArrayPageStates<P>, ArrayPagePointers<P>, Uncached>;
+type Queue<'a, F, const P: usize> = QueueStorage<Shared<'a, F>, AreaCache<P>>;
+
+/// Which area a packet goes to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Area {
+    /// Periodic housekeeping, TM[3,25]: overwritten first.
+    Hk,
+    /// Events, verification and every other report.
+    Report,
+}
+
+impl Area {
+    /// The area of a well-formed TM packet; `None` for anything else (never stored).
+    pub fn of(packet: &[u8]) -> Option<Area> {
+        use mib_wire::tm::HkReport;
+        let p = TmPacket::parse(packet).ok()?;
+        Some(
+            if (p.service, p.subservice) == (HkReport::SERVICE, HkReport::SUBSERVICE) {
+                Area::Hk
+            } else {
+                Area::Report
+            },
+        )
+    }
+}
+
+/// What the store has counted since it was opened.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Counts {
+    /// Stored packets overwritten to make room, per area.
+    pub hk_overwritten: u32,
+    pub report_overwritten: u32,
+    /// Packets not stored: not a well-formed TM packet, or the flash refused the write.
+    pub not_stored: u32,
+    /// Stored items skipped on reading: not a well-formed TM packet, or the flash
+    /// refused the read.
+    pub unreadable: u32,
+}
+
+/// The PUS 15 store over a NOR flash: `H` sectors of HK area from `base`, then `R`
+/// sectors of report area.
+pub struct FlashStore<'a, F: NorFlash, const H: usize, const R: usize> {
+    hk: Queue<'a, F, H>,
+    reports: Queue<'a, F, R>,
+    hk_len: usize,
+    report_len: usize,
+    counts: Counts,
+}
+
+/// Why a store could not be opened.
+#[derive(Debug, PartialEq, Eq)]
+pub enum OpenError {
+    /// The areas do not fit the flash's sectors.
+    Layout(QueueConfigError),
+    /// The flash is smaller than the two areas.
+    TooSmall,
+}
+
+impl<'a, F: MultiwriteNorFlash, const H: usize, const R: usize> FlashStore<'a, F, H, R> {
+    /// Opens the store at `base` of `flash`, keeping what it holds (a cut write is
+    /// repaired by the queue on its first use).
+    pub fn open(flash: &'a RefCell<F>, base: u32) -> Result<Self, OpenError> {
+        let sector = F::ERASE_SIZE as u32;
+        let hk_end = base + H as u32 * sector;
+        let end = hk_end + R as u32 * sector;
+        if flash.try_borrow().map_or(0, |f| f.capacity()) < end as usize {
+            return Err(OpenError::TooSmall);
+        }
+        let hk_cfg = QueueConfig::try_new(base..hk_end).map_err(OpenError::Layout)?;
+        let report_cfg = QueueConfig::try_new(hk_end..end).map_err(OpenError::Layout)?;
+        let mut s = FlashStore {
+            hk: QueueStorage::new(
+                Shared(flash),
+                hk_cfg,
+                Cache::new(ArrayPageStates::new(), ArrayPagePointers::new(), Uncached),
+            ),
+            reports: QueueStorage::new(
+                Shared(flash),
+                report_cfg,
+                Cache::new(ArrayPageStates::new(), ArrayPagePointers::new(), Uncached),
+            ),
+            hk_len: 0,
+            report_len: 0,
+            counts: Counts::default(),
+        };
+        s.hk_len = count(&mut s.hk);
+        s.report_len = count(&mut s.reports);
+        Ok(s)
+    }
+
+    pub fn counts(&self) -> Counts {
+        self.counts
+    }
+
+    /// Packets held per area.
+    pub fn lens(&self) -> (usize, usize) {
+        (self.hk_len, self.report_len)
+    }
+
+    /// Packets of the largest TM one area of `sectors` sectors holds at least (a sector
+    /// loses what does not fit at its end; the oldest sector is freed before reuse).
+    pub fn min_packets(sectors: usize, packet_len: usize) -> usize {
+        let word = F::WRITE_SIZE.max(F::READ_SIZE);
+        let item = Queue::<F, 1>::item_overhead_size() as usize + packet_len.next_multiple_of(word);
+        let per_sector = (F::ERASE_SIZE - 2 * word) / item;
+        per_sector * (sectors - 1)
+    }
+}
+
+/// Counts the packets of one queue (at opening).
+fn count<F: MultiwriteNorFlash, const P: usize>(q: &mut Queue<'_, F, P>) -> usize {
+    let mut n = 0;
+    let mut buf = [0u8; MAX_PACKET_LEN];
+    if let Ok(mut it) = block_on(q.iter()) {
+        while let Ok(Some(_)) = block_on(it.next(&mut buf)) {
+            n += 1;
+        }
+    }
+    n
+}
+
+/// Stores `packet` in `q`, giving up the oldest packets until it fits; returns how many
+/// were given up, or `None` if the packet could not be stored.
+fn push<F: MultiwriteNorFlash, const P: usize>(q: &mut Queue<'_, F, P>, len: &mut usize, packet: &[u8]) -> Option<u32> {
+    let mut dropped = 0u32;
+    // A sector holds at most this many packets; more pops than that means the flash
+    // refuses to free one, and the write is given up.
+    let bound = F::ERASE_SIZE as u32 / Queue::<F, P>::item_overhead_size() + 1;
+    loop {
+        match block_on(q.push(packet, false)) {
+            Ok(()) => {
+                *len += 1;
+                return Some(dropped);
+            }
+            Err(sequential_storage::Error::FullStorage) if dropped <= bound => {
+                let mut buf = [0u8; MAX_PACKET_LEN];
+                match block_on(q.pop(&mut buf)) {
+                    Ok(Some(_)) => {
+                        dropped += 1;
+                        *len = len.saturating_sub(1);
+                    }
+                    Ok(None) | Err(_) => return None,
+                }
+            }
+            Err(_) => return None,
+        }
+    }
+}
+
+/// The next well-formed packet of an iteration into `buf`; its length, or `None` at
+/// the end (a read error ends the iteration, counted).
+fn next_packet<F: MultiwriteNorFlash, const P: usize>(
+    it: &mut sequential_storage::queue::QueueIterator<'_, Shared<'_, F>, AreaCache<P>>,
+    buf: &mut [u8; MAX_PACKET_LEN],
+    unreadable: &mut u32,
+) -> Option<usize> {
+    loop {
+        match block_on(it.next(buf)) {
+            Ok(Some(e)) => {
+                let n = e.into_buf().len();
+                if Area::of(&buf[..n]).is_some() {
+                    return Some(n);
+                }
+                *unreadable = unreadable.wrapping_add(1);
+            }
+            Ok(None) => return None,
+            Err(_) => {
+                *unreadable = unreadable.wrapping_add(1);
+                return None;
+            }
+        }
+    }
+}
+
+/// The time stamp of a well-formed TM packet (ordering the two areas on reading).
+fn stamp(p: &[u8]) -> (u16, u32) {
+    TmPacket::parse(p).map_or((0, 0), |t| (t.time.days, t.time.ms_of_day))
+}
+
+impl<F: MultiwriteNorFlash, const H: usize, const R: usize> TmStore for FlashStore<'_, F, H, R> {
+    fn push(&mut self, packet: &[u8]) -> u32 {
+        let stored = match Area::of(packet) {
+            Some(Area::Hk) => push(&mut self.hk, &mut self.hk_len, packet).map(|n| (n, 0)),
+            Some(Area::Report) => push(&mut self.reports, &mut self.report_len, packet).map(|n| (0, n)),
+            None => None,
+        };
+        match stored {
+            Some((hk, report)) => {
+                self.counts.hk_overwritten = self.counts.hk_overwritten.wrapping_add(hk);
+                self.counts.report_overwritten = self.counts.report_overwritten.wrapping_add(report);
+                hk + report
+            }
+            None => {
+                self.counts.not_stored = self.counts.not_stored.wrapping_add(1);
+                1
+            }
+        }
+    }
+
+    /// Both areas merged by time stamp, oldest first.
+    fn visit(&mut self, f: &mut dyn FnMut(&[u8])) {
+        let mut unreadable = 0;
+        let (mut ha, mut ra) = ([0u8; MAX_PACKET_LEN], [0u8; MAX_PACKET_LEN]);
+        let mut hk_it = block_on(self.hk.iter()).ok();
+        let mut report_it = block_on(self.reports.iter()).ok();
+        let mut h = hk_it.as_mut().and_then(|i| next_packet(i, &mut ha, &mut unreadable));
+        let mut r = report_it
+            .as_mut()
+            .and_then(|i| next_packet(i, &mut ra, &mut unreadable));
+        loop {
+            let hk_first = match (h, r) {
+                (None, None) => break,
+                (Some(_), None) => true,
+                (None, Some(_)) => false,
+                (Some(hn), Some(rn)) => stamp(&ha[..hn]) <= stamp(&ra[..rn]),
+            };
+            if hk_first {
+                if let Some(n) = h {
+                    f(&ha[..n]);
+                }
+                h = hk_it.as_mut().and_then(|i| next_packet(i, &mut ha, &mut unreadable));
+            } else {
+                if let Some(n) = r {
+                    f(&ra[..n]);
+                }
+                r = report_it
+                    .as_mut()
+                    .and_then(|i| next_packet(i, &mut ra, &mut unreadable));
+            }
+        }
+        self.counts.unreadable = self.counts.unreadable.wrapping_add(unreadable);
+    }
+
+    fn len(&self) -> usize {
+        self.hk_len + self.report_len
+    }
+
+    fn clear(&mut self) {
+        let hk = block_on(self.hk.erase_all());
+        let reports = block_on(self.reports.erase_all());
+        self.hk_len = if hk.is_ok() { 0 } else { count(&mut self.hk) };
+        self.report_len = if reports.is_ok() { 0 } else { count(&mut self.reports) };
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use crate::time::OnboardTime;
+    use crate::tm::TmWriter;
+    use embedded_storage::nor_flash::{ErrorType, ReadNorFlash};
+    use mib::memory::store;
+
+    /// A NOR flash in RAM: erase sets 0xFF, a write only clears bits (a write that
+    /// would set one is refused and counted), erases are counted per sector, and a power
+    /// cut after a budget of written bytes stops everything there.
+    #[derive(Clone)]
+    pub struct TestFlash {
+        pub mem: Vec<u8>,
+        pub erases: Vec<u32>,
+        /// Bytes (and erases) still allowed before the power goes; `None`: no cut.
+        pub budget: Option<usize>,
+        pub cut: bool,
+        pub bit_sets: u32,
+    }
+
+    #[derive(Debug)]
+    pub enum TestError {
+        PowerCut,
+        SetsBits,
+        Range,
+    }
+
+    impl NorFlashError for TestError {
+        fn kind(&self) -> NorFlashErrorKind {
+            match self {
+                TestError::Range => NorFlashErrorKind::OutOfBounds,
+                TestError::PowerCut | TestError::SetsBits => NorFlashErrorKind::Other,
+            }
+        }
+    }
+
+    impl TestFlash {
+        pub fn new(sectors: usize) -> Self {
+            TestFlash {
+                mem: vec![0xFF; sectors * 4096],
+                erases: vec![0; sectors],
+                budget: None,
+                cut: false,
+                bit_sets: 0,
+            }
+        }
+        /// Takes one unit of the budget; false once the power is cut.
+        fn spend(&mut self) -> bool {
+            match self.budget.as_mut() {
+                _ if self.cut => false,
+                Some(0) => {
+                    self.cut = true;
+                    false
+                }
+                Some(b) => {
+                    *b -= 1;
+                    true
+                }
+                None => true,
+            }
+        }
+    }
+
+    impl ErrorType for TestFlash {
+        type Error = TestError;
+    }
+
+    impl ReadNorFlash for TestFlash {
+        const READ_SIZE: usize = 1;
+        fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), TestError> {
+            if self.cut {
+                return Err(TestError::PowerCut);
+            }
+            let at = offset as usize;
+            bytes.copy_from_slice(self.mem.get(at..at + bytes.len()).ok_or(TestError::Range)?);
+            Ok(())
+        }
+        fn capacity(&self) -> usize {
+            self.mem.len()
+        }
+    }
+
+    impl NorFlash for TestFlash {
+        const WRITE_SIZE: usize = store::WORD_USIZE;
+        const ERASE_SIZE: usize = 4096;
+        fn erase(&mut self, from: u32, to: u32) -> Result<(), TestError> {
+            for s in from / 4096..to / 4096 {
+                if !self.spend() {
+                    return Err(TestError::PowerCut);
+                }
+                let s = s as usize;
+                self.mem
+                    .get_mut(s * 4096..(s + 1) * 4096)
+                    .ok_or(TestError::Range)?
+                    .fill(0xFF);
+                self.erases[s] += 1;
+            }
+            Ok(())
+        }
+        fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), TestError> {
+            let at = offset as usize;
+            if self.mem.get(at..at + bytes.len()).is_none() {
+                return Err(TestError::Range);
+            }
+            for (i, b) in bytes.iter().enumerate() {
+                if !self.spend() {
+                    return Err(TestError::PowerCut);
+                }
+                let cell = &mut self.mem[at + i];
+                if *b & !*cell != 0 {
+                    self.bit_sets += 1;
+                    return Err(TestError::SetsBits);
+                }
+                *cell &= *b;
+            }
+            Ok(())
+        }
+    }
+
+    impl MultiwriteNorFlash for TestFlash {}
+
+    /// 3 HK sectors and 2 report sectors.
+    type Small<'a> = FlashStore<'a, TestFlash, 3, 2>;
+
+    fn open(f: &RefCell<TestFlash>) -> Small<'_> {
+        Small::open(f, 0).expect("layout fits")
+    }
+
+    /// `n` TM packets: every third an event, the rest periodic HK of `hk_len` bytes of data.
+    fn packets(n: usize, hk_len: usize) -> Vec<Vec<u8>> {
+        packets_every(n, hk_len, 3)
+    }
+
+    /// `n` TM packets: every `every`th an event, the rest periodic HK.
+    fn packets_every(n: usize, hk_len: usize, every: usize) -> Vec<Vec<u8>> {
+        let mut w = TmWriter::new(0x101, OnboardTime::new(1_790_000_000_000));
+        let mut buf = [0u8; MAX_PACKET_LEN];
+        (0..n)
+            .map(|i| {
+                let event = i % every == every - 1;
+                let data = vec![i as u8; if event { 12 } else { hk_len }];
+                let (svc, sub) = if event { (5, 1) } else { (3, 25) };
+                let len = w.build(1000 * i as u64, svc, sub, &data, &mut buf).expect("fits");
+                buf[..len].to_vec()
+            })
+            .collect()
+    }
+
+    fn content(s: &mut Small<'_>) -> Vec<Vec<u8>> {
+        let mut out = Vec::new();
+        s.visit(&mut |p| out.push(p.to_vec()));
+        out
+    }
+
+    // verifies: PUS-15-03
+    #[test]
+    fn the_store_keeps_its_packets_across_a_reopen_in_time_order() {
+        let f = RefCell::new(TestFlash::new(5));
+        let pkts = packets(60, 40);
+        let mut s = open(&f);
+        for p in &pkts {
+            assert_eq!(s.push(p), 0);
+        }
+        assert_eq!(content(&mut s), pkts, "HK and events merged back in time order");
+        // A reset: a new store over the same flash.
+        let mut s = open(&f);
+        assert_eq!(s.len(), 60);
+        assert_eq!(content(&mut s), pkts, "the same after a reset");
+        s.clear();
+        assert_eq!((s.len(), content(&mut s).len()), (0, 0));
+        assert_eq!(f.borrow().bit_sets, 0, "the layout never sets a bit without an erase");
+    }
+
+    // verifies: PUS-15-04
+    #[test]
+    fn a_full_store_overwrites_periodic_hk_first_and_counts_each_packet() {
+        let f = RefCell::new(TestFlash::new(5));
+        let mut s = open(&f);
+        let pkts = packets_every(600, 60, 10);
+        let mut lost = 0;
+        for p in &pkts {
+            lost += s.push(p);
+        }
+        let kept = content(&mut s);
+        let events: Vec<_> = pkts
+            .iter()
+            .filter(|p| Area::of(p) == Some(Area::Report))
+            .cloned()
+            .collect();
+        let hk_kept = kept.iter().filter(|p| Area::of(p) == Some(Area::Hk)).count();
+        // 60 events of 34 bytes fit the report area; 540 HK of 82 bytes do not fit 3 sectors.
+        assert!(
+            kept.iter()
+                .filter(|p| Area::of(p) == Some(Area::Report))
+                .eq(events.iter()),
+            "every event kept"
+        );
+        assert!(hk_kept < 540 && hk_kept > 80, "HK kept: {hk_kept}");
+        let c = s.counts();
+        assert_eq!(
+            c.hk_overwritten as usize,
+            540 - hk_kept,
+            "each overwritten HK packet counted"
+        );
+        assert_eq!((c.report_overwritten, c.not_stored), (0, 0));
+        assert_eq!(lost, c.hk_overwritten);
+        assert_eq!(s.len(), kept.len());
+        // What is kept is the newest HK, in order.
+        let hk: Vec<_> = pkts.iter().filter(|p| Area::of(p) == Some(Area::Hk)).cloned().collect();
+        let hk_kept_pkts: Vec<_> = kept.iter().filter(|p| Area::of(p) == Some(Area::Hk)).cloned().collect();
+        assert_eq!(hk_kept_pkts, hk[540 - hk_kept..]);
+    }
+
+    // verifies: PUS-15-05
+    #[test]
+    fn a_power_cut_at_any_byte_of_a_write_loses_at_most_that_packet() {
+        // Start from a store whose HK area is one packet from full, so that the writes
+        // under test also free and erase a sector (the overwrite path).
+        let pkts = packets(220, 60);
+        let base = RefCell::new(TestFlash::new(5));
+        let (mut pre, mut next) = (Vec::new(), 0);
+        {
+            let mut s = open(&base);
+            while next < pkts.len() - 12 {
+                if s.push(&pkts[next]) > 0 {
+                    break;
+                }
+                pre.push(next);
+                next += 1;
+            }
+        }
+        // Restart from just before the first overwrite.
+        let base = RefCell::new(TestFlash::new(5));
+        {
+            let mut s = open(&base);
+            for &i in pre.iter().take(pre.len().saturating_sub(3)) {
+                s.push(&pkts[i]);
+            }
+        }
+        let first = pre.len().saturating_sub(3);
+        let writes: Vec<usize> = (first..first + 8).collect();
+        // The uncut reference: the content after each write.
+        let mut after = Vec::new();
+        let reference = RefCell::new(base.borrow().clone());
+        {
+            let mut s = open(&reference);
+            after.push(content(&mut s));
+            for &i in &writes {
+                s.push(&pkts[i]);
+                after.push(content(&mut s));
+            }
+        }
+        let total = {
+            let mut f = base.borrow().clone();
+            f.budget = Some(usize::MAX);
+            let f = RefCell::new(f);
+            let mut s = open(&f);
+            for &i in &writes {
+                s.push(&pkts[i]);
+            }
+            let left = f.borrow().budget.expect("armed");
+            usize::MAX - left
+        };
+        assert!(total > 8 * 60, "the writes program {total} bytes");
+        let mut overwrites_cut = 0;
+        for cut in 0..=total {
+            let mut f = base.borrow().clone();
+            f.budget = Some(cut);
+            let f = RefCell::new(f);
+            // The write in progress when the power went.
+            let mut in_progress = None;
+            {
+                let mut s = open(&f);
+                for (k, &i) in writes.iter().enumerate() {
+                    s.push(&pkts[i]);
+                    if f.borrow().cut {
+                        in_progress = Some(k);
+                        break;
+                    }
+                }
+            }
+            f.borrow_mut().budget = None;
+            f.borrow_mut().cut = false;
+            let mut s = open(&f);
+            let got = content(&mut s);
+            let Some(k) = in_progress else {
+                assert_eq!(got, after[writes.len()], "cut {cut}: not reached");
+                continue;
+            };
+            let (before, done) = (&after[k], &after[k + 1]);
+            if before.len() + 1 != done.len() {
+                overwrites_cut += 1;
+            }
+            let packet = &pkts[writes[k]];
+            // Nothing corrupt, nothing that was not written, nothing out of order.
+            let allowed: Vec<&Vec<u8>> = before.iter().chain(std::iter::once(packet)).collect();
+            let mut at = 0;
+            for p in &got {
+                let found = allowed[at..].iter().position(|q| *q == p);
+                assert!(found.is_some(), "cut {cut}: unknown or reordered packet");
+                at += found.unwrap_or(0) + 1;
+            }
+            // Everything the finished write keeps is there, but for the packet itself.
+            for p in done.iter().filter(|p| *p != packet) {
+                assert!(
+                    got.contains(p),
+                    "cut {cut} in write {k}: lost a packet other than the one written"
+                );
+            }
+            assert_eq!(s.len(), got.len(), "cut {cut}: count after reopening");
+            // The store goes on working.
+            s.push(&pkts[219]);
+            assert_eq!(s.counts().not_stored, 0, "cut {cut}: a write after the reset");
+            assert_eq!(content(&mut s).last(), Some(&pkts[219]));
+            assert_eq!(f.borrow().bit_sets, 0, "cut {cut}: a bit set without an erase");
+        }
+        assert!(overwrites_cut > 0, "some cuts hit a write that overwrote");
+    }
+
+    // verifies: PUS-15-05
+    #[test]
+    fn erases_spread_evenly_over_the_area() {
+        let f = RefCell::new(TestFlash::new(5));
+        let mut s = open(&f);
+        // About ten times through each area.
+        for p in packets(6000, 60).iter().cycle().take(6000) {
+            s.push(p);
+        }
+        let e = &f.borrow().erases;
+        let (hk, rep) = (&e[..3], &e[3..]);
+        for area in [hk, rep] {
+            let (lo, hi) = (
+                area.iter().min().copied().unwrap_or(0),
+                area.iter().max().copied().unwrap_or(0),
+            );
+            assert!(lo >= 5 && hi - lo <= 1, "erase counts {area:?}");
+        }
+    }
+
+    /// Bytes of one stored packet of `len` bytes in the area (item header, word padding).
+    fn item(len: usize) -> usize {
+        Queue::<TestFlash, 1>::item_overhead_size() as usize + len.next_multiple_of(store::WORD_USIZE)
+    }
+
+    /// Bytes an area of `sectors` sectors holds for items of at most `largest` bytes: the
+    /// oldest sector is freed before reuse, a sector keeps its two state words, and loses
+    /// at most one item's bytes at its end.
+    fn usable(sectors: usize, largest: usize) -> usize {
+        (sectors - 1) * (4096 - 2 * store::WORD_USIZE - (largest - 1))
+    }
+
+    // verifies: PUS-15-06
+    #[test]
+    fn the_store_holds_two_hours_of_default_housekeeping_events_and_verification() {
+        use mib_wire::header::MIN_TM_LEN;
+        let secs = store::MIN_DURATION_S as usize;
+        let mut hk_bytes = 0;
+        let mut largest = 0;
+        for h in mib::hk::HK_STRUCTS.iter().filter(|h| h.default_enabled) {
+            let len = item(MIN_TM_LEN + h.data_len());
+            largest = largest.max(len);
+            hk_bytes += secs * 1000 / h.default_interval_ms as usize * len;
+        }
+        let hk_room = usable(store::HK_SECTORS, largest);
+        // Events carry at most 64 bytes of data (the core's event buffer); verification
+        // reports are smaller.
+        let report = item(MIN_TM_LEN + 64);
+        let report_bytes = store::REPORTS_PER_HOUR as usize * secs / 3600 * report;
+        let report_room = usable(store::REPORT_SECTORS, report);
+        println!(
+            "HK {hk_bytes} of {hk_room} B ({:.2} h), reports {report_bytes} of {report_room} B ({:.2} h)",
+            hk_room as f64 / hk_bytes as f64 * secs as f64 / 3600.0,
+            report_room as f64 / report_bytes as f64 * secs as f64 / 3600.0
+        );
+        assert!(hk_bytes <= hk_room && report_bytes <= report_room);
+        // The report area outlasts the HK area: HK is overwritten first.
+        assert!(report_room * hk_bytes > hk_room * report_bytes);
+        assert_eq!(store::SIZE, (store::HK_SECTORS + store::REPORT_SECTORS) as u32 * 4096);
+    }
+}
