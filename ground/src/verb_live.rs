@@ -52,8 +52,12 @@ pub(crate) fn ping(a: &PingArgs, archive_path: Option<&Path>) -> Result<u8> {
                 // a reply lost on the way is asked of the on-board store (its reply or
                 // completion report), while the robot is heard, for at most a store
                 // request's time more.
-                let fetch = s.over_frames() && s.delivered(r, &tc) && s.heard_recently(r);
-                let limit = if fetch { live_wait + STORE_WAIT } else { live_wait };
+                // On any link a robot still heard after the live wait is waited for until
+                // it is silent for the loss time (then it is lost, said with that silence)
+                // or the store wait ends (then it answers, but not this PING: exit 4).
+                let heard = waited >= live_wait && s.heard_recently(r);
+                let fetch = heard && s.over_frames() && s.delivered(r, &tc);
+                let limit = if heard { live_wait + STORE_WAIT } else { live_wait };
                 if got.is_some() || foreign || waited >= limit {
                     break;
                 }
@@ -177,8 +181,9 @@ pub(crate) fn policy_error(e: ops::policy::PolicyError) -> anyhow::Error {
 /// gap-check periods).
 const GAP_CHECK_PERIOD: Duration = Duration::from_millis(mib::config::GAP_CHECK_PERIOD_MS as u64);
 const GAP_CHECK_PERIOD_FRAMES: Duration = Duration::from_millis(mib::config::GAP_CHECK_PERIOD_FRAMES_MS as u64);
-/// `ping` over frames: how much longer it waits for a lost reply asked of the store (two
-/// store requests' time, `mib::config::STORE_REQUEST_TIMEOUT_MS`).
+/// `ping`: how much longer it waits, while the robot is heard, for a reply that did not
+/// come in the live wait (over frames asked of the store): two store requests' time,
+/// `mib::config::STORE_REQUEST_TIMEOUT_MS`.
 const STORE_WAIT: Duration = Duration::from_millis(2 * mib::config::STORE_REQUEST_TIMEOUT_MS as u64);
 
 /// Sends one TC and reports its verification until completion or failure.
