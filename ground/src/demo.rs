@@ -285,6 +285,8 @@ pub fn demo(a: &DemoArgs, archive_path: Option<&Path>) -> Result<u8> {
     let opts = RunOptions {
         display: !a.plain && std::io::IsTerminal::is_terminal(&std::io::stderr()),
         stop: Some(crate::interrupt_flag()),
+        // The demo booted the robots: their TM is complete from their first packet.
+        tm_from_boot: true,
         ..RunOptions::default()
     };
     let summary = ops::run_plan(&pl, &mut session, &opts, &ops::Resume::default());

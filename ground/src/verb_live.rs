@@ -42,11 +42,46 @@ pub(crate) fn ping(a: &PingArgs, archive_path: Option<&Path>) -> Result<u8> {
             let tc = s.send(r, def, &[], Some(r as usize), None)?;
             let t0 = Instant::now();
             let mut got = None;
+            let mut from_store = false;
             let mut foreign = false;
-            while t0.elapsed() < s.ack_timeout() * 2 && got.is_none() && !foreign {
+            let live_wait = s.ack_timeout() * 2;
+            let mut last_ask = Instant::now();
+            loop {
+                let waited = t0.elapsed();
+                // Over frames, a PING whose frame a CLCW acknowledged reached the robot:
+                // a reply lost on the way is asked of the on-board store (its reply or
+                // completion report), while the robot is heard, for at most a store
+                // request's time more.
+                // On any link a robot still heard after the live wait is waited for until
+                // it is silent for the loss time (then it is lost, said with that silence)
+                // or the store wait ends (then it answers, but not this PING: exit 4).
+                let heard = waited >= live_wait && s.heard_recently(r);
+                let fetch = heard && s.over_frames() && s.delivered(r, &tc);
+                let limit = if heard { live_wait + STORE_WAIT } else { live_wait };
+                if got.is_some() || foreign || waited >= limit {
+                    break;
+                }
+                if fetch && waited >= live_wait && last_ask.elapsed() >= GAP_CHECK_PERIOD_FRAMES && s.may_retrieve(r) {
+                    last_ask = Instant::now();
+                    s.request_missing_reports(r, 1);
+                }
                 for u in s.poll(Duration::from_millis(50)) {
                     match u {
                         Update::Tm { robot, tm } if robot == r && tm.body == TmBody::PingReply => {
+                            // After the live wait it came from the store.
+                            from_store = t0.elapsed() >= live_wait;
+                            got = Some(t0.elapsed());
+                        }
+                        // Its completion (live or from the store): the reply was sent and
+                        // lost on the way.
+                        Update::Verification { robot, v, .. }
+                            if robot == r
+                                && v.request.seq() == tc.seq
+                                && v.request.apid() == tc.apid
+                                && v.stage == Stage::Completion
+                                && v.success =>
+                        {
+                            from_store = true;
                             got = Some(t0.elapsed());
                         }
                         Update::Foreign { robot, .. } if robot == r => {
@@ -60,6 +95,14 @@ pub(crate) fn ping(a: &PingArgs, archive_path: Option<&Path>) -> Result<u8> {
             let e = answered.entry(r).or_insert((0, false));
             e.1 = got.is_some();
             match got {
+                Some(rtt) if from_store => {
+                    e.0 += 1;
+                    out(&format!(
+                        "robot {r} ({addr}) seq {}: answered after {:.1} ms (the live reply was lost; its report came from the on-board store or the completion report)",
+                        tc.seq,
+                        rtt.as_secs_f64() * 1000.0
+                    ))?
+                }
                 Some(rtt) => {
                     e.0 += 1;
                     out(&format!(
@@ -87,14 +130,25 @@ pub(crate) fn ping(a: &PingArgs, archive_path: Option<&Path>) -> Result<u8> {
     for st in s.robots.values() {
         out(&format!("robot {}: {}", st.robot, st.line()))?;
     }
-    // The verdict: the same three cases as every verb.
+    // The verdict: the same three cases as every verb; a robot heard within the loss
+    // time (TM, or over frames a valid frame) answers, its missing reply is a timeout.
     let mut code = exit::OK;
-    for st in s.robots.values() {
-        let (replies, last) = answered.get(&st.robot).copied().unwrap_or((0, false));
+    let robots: Vec<u8> = s.robots.keys().copied().collect();
+    for r in robots {
+        let (replies, last) = answered.get(&r).copied().unwrap_or((0, false));
         if replies == 0 || !last {
-            let (kind, why) = st.no_answer(false);
-            err_line!("ground: {why}");
-            code = code.max(kind.exit_code());
+            s.heard_recently(r);
+            let Some(st) = s.robots.get(&r) else { continue };
+            match st.no_answer(false) {
+                Some((kind, why)) => {
+                    err_line!("ground: {why}");
+                    code = code.max(kind.exit_code());
+                }
+                None => {
+                    err_line!("ground: {}", st.no_report("no reply to the last PING"));
+                    code = code.max(exit::FAILED);
+                }
+            }
         }
     }
     drop(s);
@@ -104,15 +158,17 @@ pub(crate) fn ping(a: &PingArgs, archive_path: Option<&Path>) -> Result<u8> {
 
 /// A "robot does not answer" error for `robot` of session `s` (one of the three cases,
 /// with its exit code).
-pub(crate) fn no_answer_error(s: &Session, robot: u8) -> anyhow::Error {
+/// `what`: the report awaited, said when the robot still answers (then a timeout, exit 4).
+pub(crate) fn no_answer_error(s: &mut Session, robot: u8, what: &str) -> anyhow::Error {
+    s.heard_recently(robot);
     match s.robots.get(&robot) {
-        Some(st) => {
-            let (kind, why) = match (&st.lost, st.lost_kind) {
-                (Some(w), Some(k)) => (k, w.clone()),
-                _ => st.no_answer(false),
-            };
-            coded(kind.exit_code(), why)
-        }
+        Some(st) => match (&st.lost, st.lost_kind) {
+            (Some(w), Some(k)) => coded(k.exit_code(), w.clone()),
+            _ => match st.no_answer(false) {
+                Some((kind, why)) => coded(kind.exit_code(), why),
+                None => coded(exit::FAILED, st.no_report(what)),
+            },
+        },
         None => coded(exit::NO_ANSWER, format!("robot {robot}: no link")),
     }
 }
@@ -120,6 +176,15 @@ pub(crate) fn no_answer_error(s: &Session, robot: u8) -> anyhow::Error {
 pub(crate) fn policy_error(e: ops::policy::PolicyError) -> anyhow::Error {
     coded(exit::INVALID, e.to_string())
 }
+
+/// How often `send`/`mode` ask the on-board store for the reports they miss (the MIB's
+/// gap-check periods).
+const GAP_CHECK_PERIOD: Duration = Duration::from_millis(mib::config::GAP_CHECK_PERIOD_MS as u64);
+const GAP_CHECK_PERIOD_FRAMES: Duration = Duration::from_millis(mib::config::GAP_CHECK_PERIOD_FRAMES_MS as u64);
+/// `ping`: how much longer it waits, while the robot is heard, for a reply that did not
+/// come in the live wait (over frames asked of the store): two store requests' time,
+/// `mib::config::STORE_REQUEST_TIMEOUT_MS`.
+const STORE_WAIT: Duration = Duration::from_millis(2 * mib::config::STORE_REQUEST_TIMEOUT_MS as u64);
 
 /// Sends one TC and reports its verification until completion or failure.
 pub(crate) fn send_and_follow(
@@ -145,9 +210,9 @@ pub(crate) fn send_and_follow(
     while t0.elapsed() < timeout {
         for u in s.poll(Duration::from_millis(100)) {
             match u {
-                Update::Verification {
-                    tag: Some(0), v, after, ..
-                } if v.request.seq() == tc.seq => {
+                // By request ID: a report replayed from the store after the book gave the
+                // TC up comes without its tag.
+                Update::Verification { v, after, .. } if v.request.seq() == tc.seq && v.request.apid() == tc.apid => {
                     out(&format!(
                         "robot {robot}: {} {}{}{} after {:.0} ms",
                         v.stage.name(),
@@ -175,22 +240,44 @@ pub(crate) fn send_and_follow(
                 Update::DamagedCopy { .. } => out(&format!(
                     "robot {robot}: a copy arrived damaged (TM[1,2] CRC), resent the same bytes"
                 ))?,
-                Update::GaveUp { .. } | Update::LinkLost { .. } => return Err(no_answer_error(s, robot)),
+                Update::LinkLost { .. } => return Err(no_answer_error(s, robot, "")),
+                // Over frames a TC whose frame a CLCW acknowledged reached the robot: its
+                // reports are in the on-board store, asked for below until --timeout.
+                Update::GaveUp { tag: Some(0), .. } if s.delivered(robot, &tc) => {}
+                Update::GaveUp { tag: Some(0), .. } => {
+                    return Err(no_answer_error(
+                        s,
+                        robot,
+                        &format!("{} seq {}: no report after every send", def.name, tc.seq),
+                    ))
+                }
                 Update::Event { robot: r, event } if r == robot => out(&format!("robot {robot}: event {event}"))?,
                 _ => {}
             }
         }
         // An accepted TC is not resent: a completion report lost on the way is a TM gap,
-        // asked of the on-board store.
-        if accepted && last_gap_check.elapsed() >= Duration::from_secs(2) {
+        // asked of the on-board store. Over frames the same once a CLCW acknowledged the
+        // TC's frame (it reached the robot; its acceptance may be the report lost).
+        let (period, delivered) = if s.over_frames() {
+            (GAP_CHECK_PERIOD_FRAMES, s.delivered(robot, &tc))
+        } else {
+            (GAP_CHECK_PERIOD, false)
+        };
+        if (accepted || delivered) && last_gap_check.elapsed() >= period {
             last_gap_check = Instant::now();
-            if !s.retrieving(robot) {
-                s.request_gaps(robot, None, 1);
+            if s.may_retrieve(robot) {
+                s.request_missing_reports(robot, 1);
             }
         }
     }
     if !accepted {
-        return Err(no_answer_error(s, robot));
+        let what = format!(
+            "{} seq {}: no acceptance within {:.0} s (--timeout)",
+            def.name,
+            tc.seq,
+            timeout.as_secs_f64()
+        );
+        return Err(no_answer_error(s, robot, &what));
     }
     Err(coded(
         exit::FAILED,
@@ -343,7 +430,7 @@ pub(crate) fn watch(a: &WatchArgs, archive_path: Option<&Path>) -> Result<u8> {
                         format!("CORRUPT {error}"),
                         serde_json::json!({"corrupt": error.to_string()}),
                     ),
-                    Update::LinkLost { robot, .. } => return Err(no_answer_error(&s, *robot)),
+                    Update::LinkLost { robot, .. } => return Err(no_answer_error(&mut s, *robot, "")),
                     Update::Foreign {
                         robot,
                         apid,

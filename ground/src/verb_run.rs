@@ -61,6 +61,7 @@ pub(crate) fn run_plan(a: &RunArgs, archive_path: Option<&Path>) -> Result<u8> {
         display: !a.plain && std::io::IsTerminal::is_terminal(&std::io::stderr()),
         stop: Some(interrupt_flag()),
         grace: Duration::from_secs_f64(a.grace.max(0.0)),
+        tm_from_boot: false,
     };
     let summary = ops::run_plan(&pl, &mut session, &opts, &resume);
     // The case of a link lost while the plan ran (not one noticed in the final gap

@@ -155,7 +155,10 @@ to = "Xpos"
         let out = child.wait_with_output().unwrap();
         let t = text(&out);
         assert_eq!(out.status.code(), Some(5), "{a:?}: {t}");
-        assert!(t.contains("robot 1: heard, then lost: no TM from"), "{a:?}: {t}");
+        assert!(
+            t.contains("robot 1: heard, then lost: nothing heard from"),
+            "{a:?}: {t}"
+        );
         assert!(t0.elapsed() < Duration::from_secs(6), "{a:?}: {:?}", t0.elapsed());
     }
 }

@@ -56,7 +56,14 @@ struct RobotView {
     modules: Option<ModuleView>,
     /// Team status (None until a TEAM_STATUS report arrived).
     team: Option<TeamView>,
+    /// `last_heard_ms` as last published to the page.
+    #[serde(skip)]
+    published_heard_ms: Option<i64>,
 }
+
+/// The page learns that a robot is still heard at least this often (ms) while only frames
+/// (no HK message, which carries its own time) prove it: its "heard … s ago" stays true.
+const HEARD_PUBLISH_MS: i64 = 1000;
 
 impl RobotView {
     fn new(robot: u8) -> RobotView {
@@ -71,6 +78,7 @@ impl RobotView {
             hk_t_ms: None,
             modules: None,
             team: None,
+            published_heard_ms: None,
         }
     }
 }
@@ -181,7 +189,8 @@ impl Hub {
     }
 
     fn publish_robot(&self, st: &mut State, robot: u8) {
-        let Some(r) = st.robots.get(&robot) else { return };
+        let Some(r) = st.robots.get_mut(&robot) else { return };
+        r.published_heard_ms = r.last_heard_ms;
         let msg = json!({"type": "robot", "robot": robot, "link": r.link, "last_heard_ms": r.last_heard_ms,
             "mode": r.mode, "modes": r.modes, "config": r.config});
         self.publish(st, msg);
@@ -206,14 +215,17 @@ impl Hub {
         }
     }
 
-    /// TM arrived from a robot at `t_ms` (marks the link up). Publishes only when the
-    /// link state changes: the page ages `last_heard_ms` itself and every HK message
-    /// carries its time.
+    /// A robot was heard at `t_ms` (a TM, or over the space link a valid frame; marks the
+    /// link up). Publishes when the link state changes, and at least every
+    /// [`HEARD_PUBLISH_MS`] while heard: the page ages `last_heard_ms` itself and every HK
+    /// message carries its time, but on a lossy link frames may be all that is heard.
     pub fn heard(&self, robot: u8, t_ms: i64) {
         let mut st = self.lock();
         let r = Self::robot(&mut st, robot);
-        r.last_heard_ms = Some(r.last_heard_ms.map_or(t_ms, |t| t.max(t_ms)));
-        if r.link != LinkState::Up {
+        let heard = r.last_heard_ms.map_or(t_ms, |t| t.max(t_ms));
+        r.last_heard_ms = Some(heard);
+        let stale = r.published_heard_ms.is_none_or(|p| heard - p >= HEARD_PUBLISH_MS);
+        if r.link != LinkState::Up || stale {
             r.link = LinkState::Up;
             self.publish_robot(&mut st, robot);
         }

@@ -236,6 +236,9 @@ pub struct FrameLink {
     clcws: u64,
     init_after: u64,
     last_clcw: Option<Clcw>,
+    /// When (link ms) the last valid TM frame arrived: right length, CRC, SCID, SDLS
+    /// authentication — idle frames included. The robot is heard while these come.
+    last_frame_ms: Option<u64>,
     /// N(R) of the CLCWs and since when (ms) it has not changed.
     stable_nr: Option<(u8, u64)>,
     settle_ms: u64,
@@ -323,6 +326,7 @@ impl FrameLink {
             clcws: 0,
             init_after: 0,
             last_clcw: None,
+            last_frame_ms: None,
             stable_nr: None,
             settle_ms: cfg.settle_ms,
             events: Vec::new(),
@@ -422,6 +426,14 @@ impl FrameLink {
         self.last_clcw
     }
 
+    /// When (in [`FrameLink::now_ms`]'s clock, as given to `poll`) the last valid TM
+    /// frame arrived — any frame that passed the receiver's checks (length, CRC, SCID,
+    /// SDLS authentication), idle frames with only a CLCW included: proof that the robot
+    /// is there even when no packet gets through. `None` before the first.
+    pub fn last_frame_ms(&self) -> Option<u64> {
+        self.last_frame_ms
+    }
+
     /// Events since the last call.
     pub fn take_events(&mut self) -> Vec<Event> {
         std::mem::take(&mut self.events)
@@ -515,6 +527,7 @@ impl FrameLink {
         let r = self.tm.receive(&mut self.store, frame, |_vc, p| out.push(p.to_vec()));
         self.counters.tm = self.tm.counters;
         if let Ok(clcw) = r {
+            self.last_frame_ms = Some(now_ms);
             self.clcws += 1;
             self.last_clcw = Some(clcw);
             if self.stable_nr.map(|s| s.0) != Some(clcw.report_value) {

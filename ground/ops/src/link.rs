@@ -16,7 +16,7 @@ use std::collections::{BTreeMap, VecDeque};
 use std::io::{self, Read, Write};
 use std::net::{SocketAddr, TcpStream, UdpSocket};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicI64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::Duration;
@@ -160,8 +160,14 @@ enum Io {
         /// Request IDs (APID, sequence count) of the packets whose frames a CLCW
         /// acknowledged, newest last, at most [`DELIVERED_REMEMBERED`].
         delivered: Arc<Mutex<VecDeque<(u16, u16)>>>,
+        /// When (archive clock, ms) the last valid TM frame arrived ([`NOT_HEARD`]:
+        /// none yet); see [`Link::last_heard_ms`].
+        heard: Arc<AtomicI64>,
     },
 }
+
+/// [`Io::Frames`]'s `heard` before the first valid frame.
+const NOT_HEARD: i64 = i64::MIN;
 
 /// Acknowledged request IDs a frame link remembers (far more than TCs in flight).
 const DELIVERED_REMEMBERED: usize = 4096;
@@ -352,6 +358,20 @@ impl Link {
         self.kind().delivered(apid, seq)
     }
 
+    /// When (archive clock, [`crate::archive::now_ms`]) the link last proved the robot is
+    /// there without a packet: over frames, the last valid TM frame (CRC, SCID and SDLS
+    /// checked; idle frames with only a CLCW included), which the robot sends at least every
+    /// `mib::link::cop1::CLCW_REPORT_INTERVAL_MS`. `None` on a bare-packet link (there
+    /// only packets prove it) or before the first frame. Every front end feeds it to its
+    /// [`crate::live::LinkWatch`] so that a robot is heard while its frames come, whatever
+    /// happens to its packets.
+    pub fn last_heard_ms(&self) -> Option<i64> {
+        match &*self.io {
+            Io::Frames { heard, .. } => Some(heard.load(Ordering::Relaxed)).filter(|&t| t != NOT_HEARD),
+            Io::Udp(_) | Io::Tcp(_) => None,
+        }
+    }
+
     /// Why the frame link stopped, if it did.
     pub fn failure(&self) -> Option<String> {
         match &*self.io {
@@ -501,15 +521,18 @@ fn open_frames(
     let stats = Arc::new(Mutex::new(FrameStats::default()));
     let failed = Arc::new(Mutex::new(None));
     let delivered = Arc::new(Mutex::new(VecDeque::new()));
+    let heard = Arc::new(AtomicI64::new(NOT_HEARD));
     let reader = {
         let (stop, closed, stats, failed) = (stop.clone(), closed.clone(), stats.clone(), failed.clone());
         let delivered = delivered.clone();
+        let heard = heard.clone();
         std::thread::Builder::new()
             .name(format!("frames-{robot}"))
             .spawn(move || {
                 let shared = FrameShared {
                     stats: &stats,
                     delivered: &delivered,
+                    heard: &heard,
                 };
                 if let Err(e) = frame_loop(robot, &mut fl, &from_ground, &stop, &tx, shared) {
                     if let Ok(mut f) = failed.lock() {
@@ -528,6 +551,7 @@ fn open_frames(
             failed,
             submitted: Default::default(),
             delivered,
+            heard,
         }),
         stop,
         closed,
@@ -544,6 +568,7 @@ const FRAME_ROUND: Duration = Duration::from_millis(5);
 struct FrameShared<'a> {
     stats: &'a Mutex<FrameStats>,
     delivered: &'a Mutex<VecDeque<(u16, u16)>>,
+    heard: &'a AtomicI64,
 }
 
 /// A space packet's request ID: APID and sequence count from its primary header.
@@ -564,6 +589,7 @@ fn frame_loop(
     let mut st = FrameStats::default();
     // Packets handed to FOP-1 and not yet acknowledged (or given up as unknown).
     let mut in_flight: std::collections::HashMap<ground_link::PacketId, (u16, u16)> = Default::default();
+    let mut last_frame = None;
     while !stop.load(Ordering::Relaxed) {
         while let Ok(p) = from_ground.try_recv() {
             let id = fl.send_packet(&p)?;
@@ -574,6 +600,11 @@ fn frame_loop(
         }
         let packets = fl.recv(FRAME_ROUND)?;
         let t_ms = crate::archive::now_ms();
+        // A valid frame came in this round (at most FRAME_ROUND ago): the robot is heard.
+        if fl.last_frame_ms() != last_frame {
+            last_frame = fl.last_frame_ms();
+            shared.heard.store(t_ms, Ordering::Relaxed);
+        }
         for p in packets {
             let _ = tx.send(Incoming { robot, t_ms, bytes: p });
         }

@@ -24,7 +24,7 @@ mod watch;
 pub use gaps::GapPlan;
 pub use pace::RetrievalPacer;
 pub use tm::{is_boot, position, store_done, StoreDone};
-pub use track::{ApidTracker, Lost, LostRun, Pos, Verdict, MAX_MISSING, RECENT_WINDOW};
+pub use track::{ApidTracker, Lost, LostRun, Pos, Verdict, BOOT_FIRST_SEQ, MAX_MISSING, RECENT_WINDOW};
 pub use watch::{LinkLoss, LinkState, LinkWatch};
 
 #[cfg(test)]

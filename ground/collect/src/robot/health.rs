@@ -32,7 +32,7 @@ impl Worker {
     pub(super) fn publish(&mut self, now: i64, force: bool) {
         let mut st = self.st.clone();
         st.link = self.watch.state();
-        st.last_rx_ms = self.watch.last_tm_ms();
+        st.last_rx_ms = self.watch.last_heard_ms();
         st.last_hk_ms = self.last_hk_ms;
         st.holes = self.trackers.values().map(|t| t.holes()).sum();
         st.tm.packets = self.trackers.values().map(|t| t.new + t.filled).sum();

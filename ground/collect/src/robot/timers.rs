@@ -11,6 +11,13 @@ use super::{LinkState, Worker, BACKOFF_START_MS, HK_SET_TRIES, MAX_RUNS_PER_REQU
 impl Worker {
     pub(super) fn timers(&mut self, now: i64) {
         self.page_tick();
+        // Over frames the robot is heard while its valid frames arrive (idle frames with
+        // the CLCW included), whatever happens to its packets.
+        if let Some(t) = self.link.as_ref().and_then(|l| l.last_heard_ms()) {
+            if self.watch.last_heard_ms().is_none_or(|l| t > l) {
+                self.heard(t);
+            }
+        }
         // Link loss: the rule of every front end (`ground_ops::live::LinkWatch`).
         let closed = self.link.as_ref().is_some_and(|l| l.closed());
         if let Some(loss) = self.watch.tick(now, closed) {
@@ -20,7 +27,7 @@ impl Worker {
             self.next_send_ms = now;
             tracing::warn!(
                 robot = self.robot(),
-                "robot {}: link lost (no TM for {} ms{})",
+                "robot {}: link lost (nothing heard for {} ms{})",
                 self.robot(),
                 silent,
                 if loss.never_heard { ", never heard" } else { "" }
@@ -31,9 +38,9 @@ impl Worker {
                 true,
                 now,
                 None,
-                format!("no TM for {silent} ms"),
+                format!("nothing heard (no TM, no valid frame) for {silent} ms"),
             );
-            let why = format!("robot {}: no TM for {silent} ms", self.robot());
+            let why = format!("robot {}: nothing heard for {silent} ms", self.robot());
             self.tell_plan(PlanInput::LinkLost {
                 robot: self.robot(),
                 why,

@@ -79,6 +79,33 @@ fn a_link_never_heard_is_lost_counted_from_when_watching_restarted() {
     );
 }
 
+// verifies: OPS-LIVE-LINK-02
+#[test]
+fn frames_keep_a_robot_heard_while_no_tm_packet_arrives() {
+    let mut w = LinkWatch::at_mib_interval(0);
+    assert_eq!(w.on_tm(0), Some(LinkState::Connecting));
+    // No packet for 10 s (every HK report lost), but a valid frame every 100 ms.
+    for t in (100..=10_000).step_by(100) {
+        w.on_heard(t);
+        assert_eq!(w.tick(t + 50, false), None, "heard at {t}");
+        assert!(w.heard_within_loss_time(t + 50));
+    }
+    assert_eq!(w.last_heard_ms(), Some(10_000));
+    // A frame older than the last TM changes nothing.
+    w.on_tm(10_050);
+    assert_eq!(w.on_heard(10_000), None);
+    assert_eq!(w.last_heard_ms(), Some(10_050));
+    // Then nothing at all: lost once the silence exceeds the loss time, and the loss
+    // states that silence, not a shorter one.
+    assert_eq!(w.tick(10_050 + i64::from(LINK_LOSS_MS), false), None);
+    assert!(!w.heard_within_loss_time(10_051 + i64::from(LINK_LOSS_MS)));
+    let loss = w.tick(10_051 + i64::from(LINK_LOSS_MS), false).expect("lost");
+    assert_eq!(loss.silent_ms, i64::from(LINK_LOSS_MS) + 1);
+    assert!(!loss.never_heard);
+    // A frame again restores it.
+    assert_eq!(w.on_heard(20_000), Some(LinkState::Lost));
+}
+
 // ---- gap retrieval ----------------------------------------------------------------------
 
 // verifies: OPS-LIVE-GAP-01

@@ -13,8 +13,10 @@ use crate::pus::seq::{seq_ahead as ahead, step, Step, SEQ_AHEAD as AHEAD};
 
 use super::gaps::GapPlan;
 
+/// The first TM sequence count of an obsw after boot: every APID counts from 0.
+pub const BOOT_FIRST_SEQ: u16 = 0;
 /// The count before a boot's first (0): 16383, where the 14-bit circle wraps.
-const BEFORE_ZERO: u16 = SeqCount::new(0).prev().get();
+const BEFORE_ZERO: u16 = SeqCount::new(BOOT_FIRST_SEQ).prev().get();
 /// Most holes followed at once per APID. More than the host store holds cannot be
 /// retrieved anyway; the excess is reported unrecoverable at once.
 pub const MAX_MISSING: usize = 2 * mib::config::TM_STORE_CAPACITY;

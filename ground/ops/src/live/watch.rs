@@ -1,4 +1,12 @@
 //! Is the link up? The one link-loss rule of every front end.
+//!
+//! A robot is **heard** when a TM packet of its APID arrives or, over the space link, a
+//! valid TM frame (CRC, SCID and SDLS checked; idle frames with only a CLCW included:
+//! [`crate::link::Link::last_heard_ms`]). The robot sends a frame at least every
+//! `mib::link::cop1::CLCW_REPORT_INTERVAL_MS` (100 ms), so on a lossy link the frames
+//! prove it is there long after its packets stop getting through; judging by packets alone
+//! (HK at 1 Hz) called a live robot lost whenever two or three HK reports in a row were
+//! lost. Lost means nothing heard for the loss time, and the loss states that silence.
 
 use serde::Serialize;
 
@@ -10,8 +18,8 @@ pub enum LinkState {
     #[default]
     Connecting,
     Up,
-    /// Lost: no TM for the loss time ([`LinkWatch::loss_after_ms`]), or the connection
-    /// closed.
+    /// Lost: nothing heard (no TM, no valid frame) for the loss time
+    /// ([`LinkWatch::loss_after_ms`]), or the connection closed.
     Lost,
 }
 
@@ -28,7 +36,8 @@ impl LinkState {
 /// A link found lost by [`LinkWatch::tick`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LinkLoss {
-    /// Time without TM (ms): since the last TM, or since watching started.
+    /// Time with nothing heard (ms): since the last TM or valid frame, or since watching
+    /// started.
     pub silent_ms: i64,
     /// Nothing was heard since watching started.
     pub never_heard: bool,
@@ -36,16 +45,17 @@ pub struct LinkLoss {
     pub closed: bool,
 }
 
-/// One robot's link: up while TM comes, lost after [`mib::config::link_loss_ms`] of the
-/// robot's status-HK interval without any TM (or when its connection closes). Pure: the
-/// caller passes the time (ms, any clock that does not go back).
+/// One robot's link: up while it is heard (TM, or valid frames over the space link), lost
+/// after [`mib::config::link_loss_ms`] of the robot's status-HK interval with nothing
+/// heard (or when its connection closes). Pure: the caller passes the time (ms, any clock
+/// that does not go back).
 #[derive(Clone, Debug)]
 pub struct LinkWatch {
     state: LinkState,
     loss_after_ms: i64,
     /// When watching (re)started: the silence of a link never heard counts from here.
     since_ms: i64,
-    last_tm_ms: Option<i64>,
+    last_heard_ms: Option<i64>,
 }
 
 impl LinkWatch {
@@ -55,7 +65,7 @@ impl LinkWatch {
             state: LinkState::Connecting,
             loss_after_ms: i64::from(mib::config::link_loss_ms(hk_interval_ms)),
             since_ms: now_ms,
-            last_tm_ms: None,
+            last_heard_ms: None,
         }
     }
 
@@ -72,7 +82,7 @@ impl LinkWatch {
         self
     }
 
-    /// No TM for this long (ms) is a loss.
+    /// Nothing heard for longer than this (ms) is a loss.
     pub fn loss_after_ms(&self) -> i64 {
         self.loss_after_ms
     }
@@ -81,9 +91,10 @@ impl LinkWatch {
         self.state
     }
 
-    /// When the last TM came (`None`: never since watching started).
-    pub fn last_tm_ms(&self) -> Option<i64> {
-        self.last_tm_ms
+    /// When the robot was last heard: TM or valid frame (`None`: never since watching
+    /// started).
+    pub fn last_heard_ms(&self) -> Option<i64> {
+        self.last_heard_ms
     }
 
     /// When watching started.
@@ -94,10 +105,30 @@ impl LinkWatch {
     /// A TM of this robot arrived. Returns the state it left when the link came up
     /// (`Some(Connecting)` or `Some(Lost)`), `None` if it was up.
     pub fn on_tm(&mut self, now_ms: i64) -> Option<LinkState> {
-        self.last_tm_ms = Some(now_ms);
+        self.last_heard_ms = Some(now_ms);
         let was = self.state;
         self.state = LinkState::Up;
         (was != LinkState::Up).then_some(was)
+    }
+
+    /// The link says the robot was heard at `t_ms` (over frames: its last valid TM frame,
+    /// [`crate::link::Link::last_heard_ms`]; may be earlier than the last TM). As
+    /// [`LinkWatch::on_tm`] when it is newer than anything heard, else nothing.
+    pub fn on_heard(&mut self, t_ms: i64) -> Option<LinkState> {
+        if self.last_heard_ms.is_some_and(|l| l >= t_ms) {
+            return None;
+        }
+        self.on_tm(t_ms)
+    }
+
+    /// Nothing heard for this long at `now_ms` (since watching started if never heard).
+    pub fn silence_ms(&self, now_ms: i64) -> i64 {
+        now_ms - self.last_heard_ms.unwrap_or(self.since_ms)
+    }
+
+    /// Whether the silence at `now_ms` is shorter than the loss time (the robot answers).
+    pub fn heard_within_loss_time(&self, now_ms: i64) -> bool {
+        self.last_heard_ms.is_some() && self.silence_ms(now_ms) <= self.loss_after_ms
     }
 
     /// Checks the silence at `now_ms`; `closed`: the transport says the connection
@@ -107,14 +138,14 @@ impl LinkWatch {
         if self.state == LinkState::Lost {
             return None;
         }
-        let silent_ms = now_ms - self.last_tm_ms.unwrap_or(self.since_ms);
+        let silent_ms = self.silence_ms(now_ms);
         if !closed && silent_ms <= self.loss_after_ms {
             return None;
         }
         self.state = LinkState::Lost;
         Some(LinkLoss {
             silent_ms,
-            never_heard: self.last_tm_ms.is_none(),
+            never_heard: self.last_heard_ms.is_none(),
             closed,
         })
     }

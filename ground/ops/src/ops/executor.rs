@@ -54,6 +54,10 @@ pub struct RunOptions {
     pub stop: Option<Arc<AtomicBool>>,
     /// Longest wait for the steps in flight after `stop`.
     pub grace: Duration,
+    /// The robots were started (booted) for this run (`ground demo`): their TM is
+    /// accounted from their first packet after boot, and what went out before the ground
+    /// listened is fetched from the on-board store, instead of from the start marker.
+    pub tm_from_boot: bool,
 }
 
 /// How long an interrupted run waits for the steps in flight by default.
@@ -67,6 +71,7 @@ impl Default for RunOptions {
             display: true,
             stop: None,
             grace: INTERRUPT_GRACE,
+            tm_from_boot: false,
         }
     }
 }

@@ -131,6 +131,16 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
         session.watch_links();
     }
     let early = start_markers(session, &robots, watch, &stop_asked);
+    if opts.tm_from_boot {
+        // Robots booted for this run: everything from their first packet is the run's
+        // TM; what they sent before the ground listened is asked of their store.
+        for &r in &robots {
+            if let Some(s) = session.robots.get_mut(&r) {
+                s.run_first_seq = Some(crate::live::BOOT_FIRST_SEQ);
+                s.seq.expect_from(crate::live::BOOT_FIRST_SEQ);
+            }
+        }
+    }
     let apply = |fx: Vec<Effect>, exec: &mut Executor, session: &mut Session| {
         let mut queue: VecDeque<Effect> = fx.into();
         while let Some(e) = queue.pop_front() {
@@ -261,43 +271,59 @@ fn start_markers(session: &mut Session, robots: &[u8], wait: bool, stop: &dyn Fn
     {
         seen.extend(session.poll(Duration::from_millis(50)));
     }
-    let mut markers = Vec::new();
-    for &r in robots {
-        // The newest count before the marker: over frames, a marker whose reports are
-        // lost still bounds the run's TM from below by the one after it.
-        let before = session.robots.get(&r).and_then(|s| s.seq.newest());
-        if let Ok(m) = session.send(r, ping, &[], None, Some(START_LABEL.into())) {
-            markers.push((r, m, before));
-        }
-    }
-    let t0 = Instant::now();
-    let limit = Duration::from_millis(mib::config::TC_RETRY_SPAN_MS as u64);
-    let mut delivered_at: HashMap<u8, Instant> = HashMap::new();
-    while wait
-        && t0.elapsed() < limit
-        && !stop()
-        && markers.iter().any(|(r, m, _)| {
-            // Answered once accepted: its first report gives the run's first count. Over
-            // frames, delivered (CLCW) and settled is enough.
-            let settled = delivered_at.get(r).is_some_and(|t| t.elapsed() >= MARKER_SETTLE);
-            !settled && session.accepted(m) == Some(false) && session.robots.get(r).is_some_and(|s| s.lost.is_none())
-        })
-    {
-        seen.extend(session.poll(Duration::from_millis(50)));
-        for (r, m, _) in &markers {
-            if session.delivered(*r, m) {
-                delivered_at.entry(*r).or_insert_with(Instant::now);
+    // Over frames a marker is delivered once (COP-1), not resent like on the lab links;
+    // when all its reports are lost and no TM came before it, nothing fixes the run's
+    // first count. Then another marker goes out (the TM heard meanwhile bounds its count
+    // from below), up to the MIB's number of sends: the frame link's way of what the lab
+    // link's resend of the marker did.
+    let mut pending: Vec<u8> = robots.to_vec();
+    for _ in 0..=mib::config::TC_RETRY_MAX {
+        let mut markers = Vec::new();
+        for &r in &pending {
+            // The newest count before the marker: over frames, a marker whose reports are
+            // lost still bounds the run's TM from below by the one after it.
+            let before = session.robots.get(&r).and_then(|s| s.seq.newest());
+            if let Ok(m) = session.send(r, ping, &[], None, Some(START_LABEL.into())) {
+                markers.push((r, m, before));
             }
         }
-    }
-    for (r, _, before) in markers {
-        if let Some(s) = session.robots.get_mut(&r) {
-            if s.run_first_seq.is_none() && delivered_at.contains_key(&r) {
-                s.run_first_seq = before.map(|b| SeqCount::new(b).next().get());
+        let t0 = Instant::now();
+        let limit = Duration::from_millis(mib::config::TC_RETRY_SPAN_MS as u64);
+        let mut delivered_at: HashMap<u8, Instant> = HashMap::new();
+        while wait
+            && t0.elapsed() < limit
+            && !stop()
+            && markers.iter().any(|(r, m, _)| {
+                // Answered once accepted: its first report gives the run's first count.
+                // Over frames, delivered (CLCW) and settled is enough.
+                let settled = delivered_at.get(r).is_some_and(|t| t.elapsed() >= MARKER_SETTLE);
+                !settled
+                    && session.accepted(m) == Some(false)
+                    && session.robots.get(r).is_some_and(|s| s.lost.is_none())
+            })
+        {
+            seen.extend(session.poll(Duration::from_millis(50)));
+            for (r, m, _) in &markers {
+                if session.delivered(*r, m) {
+                    delivered_at.entry(*r).or_insert_with(Instant::now);
+                }
             }
-            if let Some(f) = s.run_first_seq {
-                s.seq.expect_from(f);
+        }
+        pending.clear();
+        for (r, _, before) in markers {
+            if let Some(s) = session.robots.get_mut(&r) {
+                if s.run_first_seq.is_none() && delivered_at.contains_key(&r) {
+                    s.run_first_seq = before.map(|b| SeqCount::new(b).next().get());
+                }
+                if let Some(f) = s.run_first_seq {
+                    s.seq.expect_from(f);
+                } else if wait && delivered_at.contains_key(&r) && s.lost.is_none() && !stop() {
+                    pending.push(r);
+                }
             }
+        }
+        if pending.is_empty() {
+            break;
         }
     }
     seen

@@ -364,9 +364,11 @@ impl Session {
         }
     }
 
-    /// Link loss: a closed TCP connection, or no TM for the link-loss time
-    /// ([`crate::live::LinkWatch`], the rule of every front end).
+    /// Link loss: a closed TCP connection, or nothing heard (no TM, over frames no valid
+    /// frame) for the link-loss time ([`crate::live::LinkWatch`], the rule of every front
+    /// end).
     fn check_links(&mut self, out: &mut Vec<Update>) {
+        self.hear_frames();
         if !self.watching {
             return;
         }
@@ -378,7 +380,7 @@ impl Session {
             }
             let closed = self.links.get(robot).is_some_and(|l| l.closed());
             // Replies with another APID and none with ours: the wrong robot, said at once.
-            let wrong = s.link.last_tm_ms().is_none() && s.foreign_apid.is_some();
+            let wrong = s.link.last_heard_ms().is_none() && s.foreign_apid.is_some();
             let loss = match s.link.tick(now, closed || wrong) {
                 Some(loss) => loss,
                 None => continue,
@@ -392,6 +394,25 @@ impl Session {
         // Nothing more is resent to a robot that does not answer; its steps end with the
         // link loss.
         self.book.retain(|p| !lost.contains(&p.robot));
+    }
+
+    /// Over frames, the robots are heard while their valid TM frames arrive
+    /// ([`Link::last_heard_ms`]), whatever happens to their packets.
+    fn hear_frames(&mut self) {
+        for (robot, s) in self.robots.iter_mut() {
+            if let Some(t) = self.links.get(robot).and_then(Link::last_heard_ms) {
+                s.link.on_heard(t);
+            }
+        }
+    }
+
+    /// Whether `robot` was heard (TM, or over frames a valid frame) within the link-loss
+    /// time: it answers, whatever became of a TC's reports.
+    pub fn heard_recently(&mut self, robot: u8) -> bool {
+        self.hear_frames();
+        self.robots
+            .get(&robot)
+            .is_some_and(|s| s.link.heard_within_loss_time(now_ms()))
     }
 
     /// What COP-1 did on `robot`'s frame link (`None`: a bare-packet link).

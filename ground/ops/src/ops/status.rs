@@ -104,15 +104,31 @@ impl RobotStatus {
         }
     }
     /// Which "does not answer" case a robot that stopped answering is in, with the
-    /// operator's message. `closed`: its TCP connection closed.
-    pub fn no_answer(&self, closed: bool) -> (NoAnswer, String) {
+    /// operator's message and the silence measured now. `closed`: its TCP connection
+    /// closed. `None` while the robot was heard (TM, or over frames a valid frame) within
+    /// the link-loss time: it answers, so it is not lost (a TC without reports is then a
+    /// timeout, [`RobotStatus::no_report`]).
+    pub fn no_answer(&self, closed: bool) -> Option<(NoAnswer, String)> {
         let now = crate::archive::now_ms();
-        let silent_ms = now - self.link.last_tm_ms().unwrap_or(self.link.since_ms());
-        self.no_answer_after(LinkLoss {
-            silent_ms,
-            never_heard: self.link.last_tm_ms().is_none(),
+        if !closed && self.link.heard_within_loss_time(now) {
+            return None;
+        }
+        Some(self.no_answer_after(LinkLoss {
+            silent_ms: self.link.silence_ms(now),
+            never_heard: self.link.last_heard_ms().is_none(),
             closed,
-        })
+        }))
+    }
+
+    /// A TC (`what`) without the report awaited while the robot answers (heard within the
+    /// link-loss time): the operator's message, with when it was last heard.
+    pub fn no_report(&self, what: &str) -> String {
+        let now = crate::archive::now_ms();
+        format!(
+            "robot {}: {what}, though the robot answers (last heard {:.1} s ago: link up)",
+            self.robot,
+            self.link.silence_ms(now).max(0) as f64 / 1000.0
+        )
     }
 
     /// [`RobotStatus::no_answer`] for a loss [`LinkWatch::tick`] found.
@@ -145,7 +161,7 @@ impl RobotStatus {
             ),
             (false, _) => (
                 NoAnswer::Lost,
-                format!("robot {robot}: heard, then lost: no TM from {addr} for {secs:.1} s (link down or OBSW stopped)"),
+                format!("robot {robot}: heard, then lost: nothing heard from {addr} for {secs:.1} s (no TM, no valid frame: link down or OBSW stopped)"),
             ),
         }
     }

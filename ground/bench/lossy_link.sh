@@ -1,0 +1,119 @@
+#!/usr/bin/env bash
+# The ground CLI over the space link through the project's lossy relay (tests/bin/relay.rs:
+# 20 % drop, 5 % duplicate, 5 % corrupt, both directions, seeded), against a fresh obsw per
+# run: how often each verb ends with the exit code its case should give, how long it took,
+# and whether a live robot was ever called lost. Also: a robot that really goes silent
+# (kill -STOP of the obsw under `ground watch`) and how long the ground took to say so.
+#
+#   cargo build -p obsw -p ground -p e2e-tests --bin relay
+#   ground/bench/lossy_link.sh CASE RUNS [FIRST_SEED]
+#
+# CASE: checkout (plans/checkout.toml), plan3 (a three-step plan), ping, send, mode,
+# silent. One line per run (case, seed, exit code, seconds, the last stderr line), then
+# a tally of exit codes and the median time. Binaries from target/debug unless BIN=DIR.
+# Expected: checkout, plan3, send, mode exit 0; ping exit 0; silent exit 5 within
+# LINK_LOSS_MS (2.5 s) plus the poll (stated in the message). "lost" (exit 5) with a live
+# robot is a false loss and is counted as such.
+set -u
+ROOT=$(cd "$(dirname "$0")/../.." && pwd)
+BIN=${BIN:-$ROOT/target/debug}
+CASE=${1:?case: checkout plan3 ping send mode silent}
+RUNS=${2:-5}
+SEED0=${3:-1}
+WORK=$(mktemp -d "${TMPDIR:-/tmp}/lossy-link-$CASE.XXXXXX")
+trap 'kill $(jobs -p) 2>/dev/null; rm -rf "$WORK"' EXIT
+"$BIN/ground" --no-archive keys create "$WORK/keys" --robot 1 >/dev/null 2>&1
+
+free_port() { python3 -c 'import socket; s=socket.socket(socket.AF_INET, socket.SOCK_DGRAM); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])'; }
+
+cat >"$WORK/plan3.toml" <<'EOF'
+name = "three-steps"
+description = "Three TCs in a row: HK rate, OPERATIONAL, STANDBY"
+
+[[robot]]
+number = 1
+initial_state = "Xneg"
+
+[[step]]
+id = "hk"
+robot = 1
+action = "command"
+tc = "HK_SET_INTERVAL"
+args = { sid = 1, interval_ms = 1000 }
+
+[[step]]
+id = "operational"
+robot = 1
+action = "mode"
+confirm = true
+mode = "operational"
+after = ["hk"]
+
+[[step]]
+id = "standby"
+robot = 1
+action = "mode"
+confirm = true
+mode = "standby"
+after = ["operational"]
+EOF
+
+declare -A TALLY
+TIMES=()
+FALSE_LOST=0
+for ((i = 0; i < RUNS; i++)); do
+    seed=$((SEED0 + i))
+    frame=$(free_port)
+    tmport=$(free_port)
+    # The relay: TC frames to the obsw's frame port, TM frames to the ground's address.
+    coproc RELAY { "$BIN/relay" --to-udp "127.0.0.1:$frame" --drop 0.20 --duplicate 0.05 --corrupt 0.05 \
+        --seed "$seed" --tm-frames-to "127.0.0.1:$tmport" --idle 60 --lifetime 900 2>/dev/null; }
+    read -r line <&"${RELAY[0]}"
+    relay_udp=$(sed -n 's/.*udp=\([^ ]*\).*/\1/p' <<<"$line")
+    relay_tm=$(sed -n 's/.*tm_frames=\([^ ]*\).*/\1/p' <<<"$line")
+    "$BIN/obsw" --robot 1 --udp "127.0.0.1:$(free_port)" --tcp "127.0.0.1:$(free_port)" \
+        --sim-ctl "127.0.0.1:$(free_port)" --seed "$seed" \
+        --frame-udp "127.0.0.1:$frame" --frame-tm-to "$relay_tm" \
+        --tc-key "$WORK/keys/robot-1/tc-spi1.key" --tm-key "$WORK/keys/robot-1/tm-spi17.key" \
+        --link-state "$WORK/obsw-link.state" >"$WORK/obsw.out" 2>"$WORK/obsw.err" &
+    obsw=$!
+    for _ in $(seq 100); do grep -q READY "$WORK/obsw.out" 2>/dev/null && break; sleep 0.1; done
+    link=(--keys "$WORK/keys" --robot "1=$relay_udp" --tm-listen "1=127.0.0.1:$tmport")
+    arch=(--archive "$WORK/a-$seed.db")
+    t0=$(date +%s.%N)
+    case $CASE in
+    checkout) "$BIN/ground" "${arch[@]}" run "$ROOT/plans/checkout.toml" "${link[@]}" --plain >"$WORK/out" 2>"$WORK/err" ;;
+    plan3) "$BIN/ground" "${arch[@]}" run "$WORK/plan3.toml" "${link[@]}" --plain >"$WORK/out" 2>"$WORK/err" ;;
+    ping) "$BIN/ground" "${arch[@]}" ping "${link[@]}" -c 1 >"$WORK/out" 2>"$WORK/err" ;;
+    send) "$BIN/ground" "${arch[@]}" send "${link[@]}" HK_SET_INTERVAL sid=1 interval_ms=1000 >"$WORK/out" 2>"$WORK/err" ;;
+    mode) "$BIN/ground" "${arch[@]}" mode "${link[@]}" operational --confirm >"$WORK/out" 2>"$WORK/err" ;;
+    silent)
+        "$BIN/ground" "${arch[@]}" watch "${link[@]}" >"$WORK/out" 2>"$WORK/err" &
+        g=$!
+        sleep 5
+        kill -STOP "$obsw"
+        t0=$(date +%s.%N)
+        wait "$g"
+        ;;
+    *) echo "unknown case $CASE" >&2; exit 2 ;;
+    esac
+    rc=$?
+    t1=$(date +%s.%N)
+    kill -CONT "$obsw" 2>/dev/null
+    kill "$obsw" 2>/dev/null
+    wait "$obsw" 2>/dev/null
+    kill "$RELAY_PID" 2>/dev/null
+    wait "$RELAY_PID" 2>/dev/null
+    secs=$(python3 -c "print(f'{$t1 - $t0:.1f}')")
+    TIMES+=("$secs")
+    TALLY[$rc]=$((${TALLY[$rc]:-0} + 1))
+    if [[ $CASE != silent && $rc == 5 ]]; then FALSE_LOST=$((FALSE_LOST + 1)); fi
+    last=$(grep -v '^\s*$' "$WORK/err" | tail -1)
+    tm=$(grep -h "^TM robot" "$WORK/out" "$WORK/err" 2>/dev/null | tail -1)
+    echo "$CASE seed $seed: exit $rc in $secs s | ${tm:+$tm | }$last"
+    [[ $rc != 0 ]] && cp "$WORK/out" "${TMPDIR:-/tmp}/lossy-$CASE-$seed.out" && cp "$WORK/err" "${TMPDIR:-/tmp}/lossy-$CASE-$seed.err"
+done
+median=$(printf '%s\n' "${TIMES[@]}" | sort -n | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}')
+echo -n "$CASE: $RUNS runs, exit codes:"
+for k in "${!TALLY[@]}"; do echo -n " $k×${TALLY[$k]}"; done
+echo "; median $median s; false 'lost' (exit 5 with a live robot): $FALSE_LOST"
