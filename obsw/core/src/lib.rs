@@ -3,13 +3,14 @@
 //! sensor readings and the time, and it returns TM and actuator commands.
 //!
 //! A TC goes `accept` (header, CRC, MIB arguments) → `request` (a typed request of one
-//! service, every MIB look-up done) → `obsw` (duplicates, verification, routing) → the
+//! service, every MIB look-up done) → `obsw` (`duplicates`, verification, routing) → the
 //! service's file under `services/`. Everything sent goes through `downlink`.
 #![cfg_attr(not(test), no_std)]
 #![deny(unsafe_code)]
 
 pub mod accept;
 pub mod downlink;
+mod duplicates;
 pub mod failure;
 pub mod fdir;
 pub mod flash_store;

@@ -12,7 +12,9 @@ use mmic_domain::SensorsA;
 
 use crate::accept::{accept, Tc};
 use crate::downlink::{Accepted, Downlink, New, Stage, Started};
-use crate::failure::{Failure, SentFailure};
+use crate::duplicates::Duplicates;
+pub(crate) use crate::duplicates::Outcome;
+use crate::failure::Failure;
 use crate::fdir::{self, Faults, Monitoring};
 use crate::modes::ModeTree;
 use crate::request::{Ctx, Request};
@@ -96,6 +98,25 @@ pub struct Counters {
 }
 
 impl Counters {
+    /// A TC refused (at acceptance, as too long, or by its service's checks).
+    fn rejected(&mut self) {
+        self.tc_rejected = self.tc_rejected.wrapping_add(1);
+    }
+
+    /// Counts `dropped` events and reports lost to a full queue; returns the number to
+    /// report in an EVENT_QUEUE_OVERFLOW now (those lost since the last one), at most
+    /// once per throttle window.
+    fn dropped(&mut self, now: u64, dropped: u32) -> Option<u16> {
+        self.events_dropped = self.events_dropped.saturating_add(dropped);
+        self.overflow_unreported = self.overflow_unreported.saturating_add(dropped);
+        if self.overflow_unreported == 0 || now < self.overflow_next {
+            return None;
+        }
+        let n = core::mem::take(&mut self.overflow_unreported);
+        self.overflow_next = now + config::EVENT_THROTTLE_WINDOW_MS as u64;
+        Some(u16::try_from(n).unwrap_or(u16::MAX))
+    }
+
     /// The parameters the MIB names the OBSW's counters the source of.
     pub fn param(&self, id: u16) -> Supplied {
         Ok(Some(i64::from(match id {
@@ -106,32 +127,6 @@ impl Counters {
             _ => return Err(NotSupplied(id)),
         })))
     }
-}
-
-/// What became of a request (kept for duplicate TCs).
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub(crate) enum Outcome {
-    Pending,
-    Done,
-    /// The failure as sent (compact: the window keeps up to `DUPLICATE_WINDOW`).
-    Failed(Stage, SentFailure),
-}
-
-// The duplicate window must recognise every resend of a TC: the ground resends the same
-// bytes for at most `TC_RETRY_SPAN_MS` (its retry schedule), so a TC is remembered at
-// least that long, and the window holds more entries than the heartbeat pings the
-// ground sends in that span (the rest is for other TCs: see docs/architecture.md).
-const _: () = assert!(config::DUPLICATE_MAX_AGE_MS >= config::TC_RETRY_SPAN_MS);
-const _: () = assert!(config::DUPLICATE_WINDOW as u32 > config::TC_RETRY_SPAN_MS / config::GROUND_HEARTBEAT_MS);
-
-#[derive(Clone, Debug)]
-struct Seen {
-    /// The request ID as its 32-bit key (`RequestId::raw`): 4 bytes per entry in the
-    /// firmware's static RAM instead of the 8 of the unpacked `RequestId`.
-    key: u32,
-    crc: u16,
-    at: u64,
-    outcome: Outcome,
 }
 
 /// What executing a request led to.
@@ -161,7 +156,7 @@ pub struct Obsw<S: TmStore> {
     apid: u16,
     pub(crate) dl: Downlink<S>,
     pub ctrl: Controller,
-    seen: heapless::Deque<Seen, { config::DUPLICATE_WINDOW }>,
+    seen: Duplicates,
     pub(crate) hk: Hk,
     pub(crate) time_reports: TimeReports,
     pub(crate) sched: Schedule,
@@ -199,7 +194,7 @@ impl<S: TmStore> Obsw<S> {
             apid,
             dl: Downlink::new(apid, OnboardTime::new(cfg.epoch_unix_ms), store),
             ctrl: Controller::new(),
-            seen: heapless::Deque::new(),
+            seen: Duplicates::default(),
             hk: Hk::new(),
             time_reports: TimeReports::new(),
             sched: Schedule::new(),
@@ -394,7 +389,7 @@ impl<S: TmStore> Obsw<S> {
         let tc = match accept(raw, self.apid) {
             Ok(tc) => tc,
             Err(rej) => {
-                self.counters.tc_rejected = self.counters.tc_rejected.wrapping_add(1);
+                self.counters.rejected();
                 if let Some(req) = rej.req {
                     self.dl.fail(now, req, Stage::Acceptance, (&rej.failure).into(), sink);
                 }
@@ -405,10 +400,10 @@ impl<S: TmStore> Obsw<S> {
         // Every valid ground TC is ground contact for the team logic.
         self.team_ground_tc();
         let crc = tc.crc();
-        if let Some(prev) = self.find_seen(tc.req, crc, now).filter(|_| duplicate_check) {
+        if let Some(prev) = self.seen.find(tc.req, crc, now).filter(|_| duplicate_check) {
             return self.repeat(now, &tc, prev, sink);
         }
-        self.remember(tc.req, crc, now);
+        self.seen.remember(tc.req, crc, now);
         let token = New::new(tc.req, tc.ack);
         let ctx = Ctx {
             apid: self.apid,
@@ -419,7 +414,7 @@ impl<S: TmStore> Obsw<S> {
         let request = match Request::parse(&tc, &ctx) {
             Ok(r) => r,
             Err(f) => {
-                self.counters.tc_rejected = self.counters.tc_rejected.wrapping_add(1);
+                self.counters.rejected();
                 self.dl.reject(now, token, &f, sink);
                 return self.refused(now, &tc, Stage::Acceptance, f, sink);
             }
@@ -435,7 +430,7 @@ impl<S: TmStore> Obsw<S> {
     /// in a TM[1,2] FRAME_TOO_LONG; the TC_REJECTED event and the counter always.
     pub fn reject_frame(&mut self, now: u64, frame_len: usize, head: &[u8], sink: &mut impl TmSink) {
         self.last_now = self.last_now.max(now);
-        self.counters.tc_rejected = self.counters.tc_rejected.wrapping_add(1);
+        self.counters.rejected();
         let f = Failure::frame_too_long(frame_len, config::MAX_PACKET_LEN);
         let ty = match head {
             [h0, h1, h2, h3, rest @ ..] => {
@@ -537,46 +532,16 @@ impl<S: TmStore> Obsw<S> {
         }
     }
 
-    fn find_seen(&self, req: RequestId, crc: u16, now: u64) -> Option<Outcome> {
-        self.seen
-            .iter()
-            .find(|s| {
-                s.key == req.raw() && s.crc == crc && now.saturating_sub(s.at) <= config::DUPLICATE_MAX_AGE_MS as u64
-            })
-            .map(|s| s.outcome.clone())
-    }
-
-    fn remember(&mut self, req: RequestId, crc: u16, now: u64) {
-        if self.seen.is_full() {
-            self.seen.pop_front();
-        }
-        // Space was made above.
-        let _ = self.seen.push_back(Seen {
-            key: req.raw(),
-            crc,
-            at: now,
-            outcome: Outcome::Pending,
-        });
-    }
-
     /// Counts events and reports a full queue dropped, and raises EVENT_QUEUE_OVERFLOW
     /// (with the count since the last one) at most once per throttle window.
     fn count_dropped(&mut self, now: u64, dropped: u32, sink: &mut impl TmSink) {
-        let c = &mut self.counters;
-        c.events_dropped = c.events_dropped.saturating_add(dropped);
-        c.overflow_unreported = c.overflow_unreported.saturating_add(dropped);
-        if c.overflow_unreported > 0 && now >= c.overflow_next {
-            let n = core::mem::take(&mut c.overflow_unreported);
-            c.overflow_next = now + config::EVENT_THROTTLE_WINDOW_MS as u64;
-            let dropped = u16::try_from(n).unwrap_or(u16::MAX);
+        if let Some(dropped) = self.counters.dropped(now, dropped) {
             self.raise(now, ev::EventQueueOverflow { dropped }, sink);
         }
     }
 
     pub(crate) fn set_outcome(&mut self, req: RequestId, outcome: Outcome) {
-        if let Some(s) = self.seen.iter_mut().rev().find(|s| s.key == req.raw()) {
-            s.outcome = outcome;
-        }
+        self.seen.set_outcome(req, outcome);
     }
 
     // ------------------------------------------------------------------ periodic
