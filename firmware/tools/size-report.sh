@@ -1,84 +1,152 @@
 #!/usr/bin/env bash
-# Flash and static-RAM use of ESP32-C3 images, from `riscv64-unknown-elf-size -A`.
+# Flash and SRAM use of ESP32-C3 images against the boards' memory map, from
+# `riscv64-unknown-elf-size -A` and firmware/memory-map.txt (generated from the MIB,
+# mib::memory).
 #
-#   size-report.sh [--flash-budget BYTES] [--ram-budget BYTES] [--margin PCT] ELF...
+#   size-report.sh [--map FILE] [--stack IMAGE=BYTES[@SOURCE]]... ELF...
 #
-# Besides the budget (exceeding it fails), each image's use is shown in % of the budget
-# against the flight margin (default 30 %, GSFC-STD-1000): "margin ok" at or below
-# 100 - PCT % of the budget in bytes (flash <= 183 500 B and static RAM <= 91 750 B for
-# the defaults), "BELOW MARGIN" above it. The margin is ENFORCED (exit status 1) for the
-# flight images, the ELF files named `board-a` and `board-b` (the default images CI
-# builds); any other image (an experiment such as CI's `board-a-frames`) is reported only.
-# MARGIN_ENFORCED="name ..." replaces that list of file names.
-#
-# Flash (bytes stored in the image): .text, .rodata*, .trap, .rwtext*, .data* (initial
-#   values), .flash.appdesc, .rtc_fast.text, .rtc_fast.data.
-# Static RAM (reserved at link time, stack excluded): .trap and .rwtext* (code copied
-#   into IRAM, same physical SRAM as DRAM on the C3), .data*, .bss*, .noinit, and the
-#   RTC fast RAM sections.
+# Prints every region of the memory map with its use and margin, then each image:
+#   flash        = .text, .rodata*, .trap, .rwtext*, .data* (initial values),
+#                  .flash.appdesc, .rtc_fast.text/.data: against the smallest
+#                  application slot;
+#   static RAM   = .trap, .rwtext* (code copied into IRAM, the same physical SRAM as
+#                  DRAM on the C3), .data*, .bss*, .noinit: against the usable SRAM, with
+#                  the stack's measured high-water mark (--stack) added when given;
+#   RTC fast RAM = .rtc_fast.*: against the 8 KB of RTC fast memory.
 # Not counted: the address-space placeholders *_dummy, .stack (everything left over),
-#   and sections not loaded at all (address 0: debug info, .comment, attributes).
-# An allocated section this script does not know is counted in BOTH totals and named,
-# so the budget check can only err on the safe side.
-# Exit status: 0 within budget (and margin where enforced), 1 over budget or a flight
-# image below the margin, 2 usage or tool error.
+# sections not loaded (address 0). An allocated section this script does not know is
+# counted in flash AND static RAM and named, so the check can only err on the safe side.
+#
+# The flight margin (memory-map.txt, GSFC-STD-1000: 30 %) is compared in bytes and
+# ENFORCED for every region with a use and for the flight images `board-a` and `board-b`
+# (MARGIN_ENFORCED="name ..." replaces that list); other images are reported only.
+# The last line starts with "budget:". Exit status: 0 every enforced region inside the
+# margin, 1 one outside it, 2 usage or tool error.
 set -euo pipefail
 
-FLASH_BUDGET=$((256 * 1024))
-RAM_BUDGET=$((128 * 1024))
-MARGIN=30
+HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+MAP="$HERE/../memory-map.txt"
 MARGIN_ENFORCED=${MARGIN_ENFORCED:-board-a board-b}
 SIZE=${SIZE:-riscv64-unknown-elf-size}
 elfs=()
+declare -A stack=() stack_src=()
 while [ $# -gt 0 ]; do
   case "$1" in
-    --flash-budget) FLASH_BUDGET=$2; shift 2 ;;
-    --ram-budget) RAM_BUDGET=$2; shift 2 ;;
-    --margin) MARGIN=$2; shift 2 ;;
-    -h|--help) sed -n '2,25p' "$0"; exit 0 ;;
+    --map) MAP=$2; shift 2 ;;
+    --stack)
+      spec=${2%%@*}; stack[${spec%%=*}]=${spec#*=}
+      [[ "$2" == *@* ]] && stack_src[${spec%%=*}]=${2#*@}
+      shift 2 ;;
+    -h|--help) sed -n '2,26p' "$0"; exit 0 ;;
     *) elfs+=("$1"); shift ;;
   esac
 done
-[ ${#elfs[@]} -gt 0 ] || { echo "usage: $0 [--flash-budget B] [--ram-budget B] ELF..." >&2; exit 2; }
+[ ${#elfs[@]} -gt 0 ] || { echo "usage: $0 [--map FILE] [--stack IMAGE=BYTES] ELF..." >&2; exit 2; }
+[ -f "$MAP" ] || { echo "error: no memory map $MAP" >&2; exit 2; }
 command -v "$SIZE" >/dev/null || { echo "error: $SIZE not found (Debian: binutils-riscv64-unknown-elf)" >&2; exit 2; }
 
+# The map: margin, regions, slots, fixed uses.
+MARGIN=$(awk '$1 == "margin" { print $2 }' "$MAP")
+SRAM_USABLE=$(( $(awk '$1 == "sram_usable" { print $2 }' "$MAP") ))
+RTC_FAST=$(( $(awk '$1 == "rtc_fast" { print $2 }' "$MAP") ))
+SLOT=
+while read -r _ _ v; do
+  if [ -z "$SLOT" ] || [ $((v)) -lt "$SLOT" ]; then SLOT=$((v)); fi
+done < <(grep '^slot ' "$MAP")
+[ -n "$MARGIN" ] && [ "$SRAM_USABLE" -gt 0 ] && [ -n "$SLOT" ] || { echo "error: incomplete memory map $MAP" >&2; exit 2; }
+
 status=0
-printf '%-10s %10s %10s %10s %10s %10s %10s  %s\n' image text rodata "data(init)" bss "flash" "static RAM" verdict
-margins=()
+# within USED AVAILABLE: the flight margin kept, in bytes (70.001 % is out).
+within() { [ $(( 100 * $1 )) -le $(( (100 - MARGIN) * $2 )) ]; }
+pct() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.1f", 100 * a / b }'; }
+line() { # name kind size used note enforced
+  local name=$1 kind=$2 size=$3 used=$4 note=$5 enf=$6 v
+  if [ "$used" = "-" ]; then
+    printf '  %-16s %-6s %9d  %9s  %6s  %-13s %s\n' "$name" "$kind" "$size" "-" "-" "-" "$note"
+    return
+  fi
+  if within "$used" "$size"; then v="margin ok"; else v="BELOW MARGIN"; [ "$enf" = yes ] && status=1; fi
+  printf '  %-16s %-6s %9d  %9d  %5s%%  %-13s %s\n' "$name" "$kind" "$size" "$used" "$(pct "$used" "$size")" "$v" "$note"
+}
+
+declare -A img_flash=() img_ram=() img_rtc=()
+table=()
 for elf in "${elfs[@]}"; do
   [ -f "$elf" ] || { echo "error: no such file: $elf" >&2; exit 2; }
   name=$(basename "$elf")
-  read -r text rodata data bss flash ram unknown < <("$SIZE" -A "$elf" | awk '
+  read -r text rodata data bss flash ram rtc unknown < <("$SIZE" -A "$elf" | awk '
     NR > 2 && NF == 3 && $3 ~ /^[0-9]+$/ {
       s = $1; n = $2 + 0; a = $3 + 0
       if (a == 0 || n == 0) next                       # not loaded / empty
       if (s ~ /_dummy$/ || s == ".stack") next         # placeholders, stack
       if (s ~ /^\.text/ || s ~ /^\.rotext/) { text += n; flash += n; next }
       if (s ~ /^\.rodata/ || s == ".flash.appdesc") { rodata += n; flash += n; next }
-      if (s == ".trap" || s ~ /^\.rwtext/ || s == ".rtc_fast.text") { text += n; flash += n; ram += n; next }
-      if (s ~ /^\.data/ || s == ".rtc_fast.data") { data += n; flash += n; ram += n; next }
-      if (s ~ /^\.bss/ || s == ".noinit" || s == ".rtc_fast.bss" || s == ".rtc_fast.persistent") { bss += n; ram += n; next }
+      if (s == ".rtc_fast.text") { text += n; flash += n; rtc += n; next }
+      if (s == ".rtc_fast.data") { data += n; flash += n; rtc += n; next }
+      if (s == ".rtc_fast.bss" || s == ".rtc_fast.persistent") { bss += n; rtc += n; next }
+      if (s == ".trap" || s ~ /^\.rwtext/) { text += n; flash += n; ram += n; next }
+      if (s ~ /^\.data/) { data += n; flash += n; ram += n; next }
+      if (s ~ /^\.bss/ || s == ".noinit") { bss += n; ram += n; next }
       flash += n; ram += n; unknown = unknown s "(" n ") "
     }
-    END { printf "%d %d %d %d %d %d %s\n", text, rodata, data, bss, flash, ram, (unknown == "" ? "-" : unknown) }')
-  verdict=ok
-  if [ "$flash" -gt "$FLASH_BUDGET" ]; then verdict="FLASH OVER BUDGET"; status=1; fi
-  if [ "$ram" -gt "$RAM_BUDGET" ]; then verdict="${verdict/ok/}RAM OVER BUDGET"; status=1; fi
-  printf '%-10s %10d %10d %10d %10d %10d %10d  %s\n' "$name" "$text" "$rodata" "$data" "$bss" "$flash" "$ram" "$verdict"
-  if [ "$unknown" != "-" ]; then echo "  note: unclassified sections counted as flash and RAM: $unknown"; fi
-  fpct=$(awk -v a="$flash" -v b="$FLASH_BUDGET" 'BEGIN { printf "%.1f", 100 * a / b }')
-  rpct=$(awk -v a="$ram" -v b="$RAM_BUDGET" 'BEGIN { printf "%.1f", 100 * a / b }')
-  # In bytes, not the rounded percentages: 183 501 B is 70.0 % rounded but over.
-  m=$(awk -v f="$flash" -v fb="$FLASH_BUDGET" -v r="$ram" -v rb="$RAM_BUDGET" -v m="$MARGIN" \
-    'BEGIN { print (100 * f <= (100 - m) * fb && 100 * r <= (100 - m) * rb) ? "margin ok" : "BELOW MARGIN" }')
-  enforced="reported only"
-  if [[ " $MARGIN_ENFORCED " == *" $name "* ]]; then
-    enforced="enforced"
-    if [ "$m" != "margin ok" ]; then status=1; fi
-  fi
-  margins+=("$(printf '%-10s flash %5s %%, static RAM %5s %% of budget: %s (flight margin %s %%, %s)' "$name" "$fpct" "$rpct" "$m" "$MARGIN" "$enforced")")
+    END { printf "%d %d %d %d %d %d %d %s\n", text, rodata, data, bss, flash, ram, rtc, (unknown == "" ? "-" : unknown) }')
+  img_flash[$name]=$flash; img_ram[$name]=$ram; img_rtc[$name]=$rtc
+  table+=("$(printf '%-10s %10d %10d %10d %10d %10d %10d' "$name" "$text" "$rodata" "$data" "$bss" "$flash" "$ram")")
+  if [ "$unknown" != "-" ]; then table+=("  note: unclassified sections counted as flash and RAM: $unknown"); fi
 done
-for line in "${margins[@]}"; do echo "$line"; done
-printf 'budget: flash %d bytes (%d KiB), static RAM %d bytes (%d KiB)\n' \
-  "$FLASH_BUDGET" $((FLASH_BUDGET / 1024)) "$RAM_BUDGET" $((RAM_BUDGET / 1024))
+
+echo "memory map ($(basename "$MAP"), flight margin $MARGIN %: used <= $((100 - MARGIN)) % of the region, in bytes)"
+printf '  %-16s %-6s %9s  %9s  %6s  %-13s %s\n' region where bytes used use verdict "what"
+while read -r kind rname a b c; do
+  case "$kind" in
+    flash)
+      size=$((b))
+      if awk -v n="$rname" '$1 == "slot" && $2 == n { f = 1 } END { exit !f }' "$MAP"; then
+        # Each image must fit every slot (a software update goes to the other one).
+        for elf in "${elfs[@]}"; do
+          name=$(basename "$elf"); enf=no
+          [[ " $MARGIN_ENFORCED " == *" $name "* ]] && enf=yes
+          line "$rname" flash "$size" "${img_flash[$name]}" "image $name" "$enf"
+        done
+        continue
+      fi
+      used=$(awk -v n="$rname" '$1 == "used" && $2 == n { print $3 }' "$MAP")
+      [ -n "$used" ] && used=$((used))
+      case "$rname" in
+        bootloader) line "$rname" flash "$size" - "espflash's ESP-IDF bootloader: not built here" no ;;
+        otadata) line "$rname" flash "$size" - "two sectors, written alternately (fixed by ESP-IDF)" no ;;
+        files) line "$rname" flash "$size" 0 "CFDP file store: empty until CFDP" yes ;;
+        tm_store) line "$rname" flash "$size" "${used:-0}" "2 h of default HK (MIB), packets only" yes ;;
+        *) line "$rname" flash "$size" "${used:-0}" "fixed by its layout" yes ;;
+      esac ;;
+    sram)
+      size=$((b))
+      if [ "$c" = usable ]; then
+        for elf in "${elfs[@]}"; do
+          name=$(basename "$elf"); enf=no
+          [[ " $MARGIN_ENFORCED " == *" $name "* ]] && enf=yes
+          s=${stack[$name]:-}
+          if [ -n "$s" ]; then
+            line "$rname" sram "$size" $(( img_ram[$name] + s )) "image $name: static ${img_ram[$name]} + stack high-water $s (${stack_src[$name]:-measured})" "$enf"
+          else
+            line "$rname" sram "$size" "${img_ram[$name]}" "image $name: static RAM only, stack NOT MEASURED" "$enf"
+          fi
+        done
+      else
+        line "$rname" sram "$size" - "reserved (not usable by the images)" no
+      fi ;;
+  esac
+done < <(grep -E '^(flash|sram) ' "$MAP")
+for elf in "${elfs[@]}"; do
+  name=$(basename "$elf"); enf=no
+  [[ " $MARGIN_ENFORCED " == *" $name "* ]] && enf=yes
+  line rtc_fast rtc "$RTC_FAST" "${img_rtc[$name]}" "image $name: panic record" "$enf"
+done
+
+echo
+printf '%-10s %10s %10s %10s %10s %10s %10s\n' image text rodata "data(init)" bss "flash" "static RAM"
+for l in "${table[@]}"; do echo "$l"; done
+printf 'budget: flash %d bytes per image (70 %% of the %d-byte slot), SRAM %d bytes (70 %% of %d usable), flight margin %s %%: %s\n' \
+  $(( SLOT * (100 - MARGIN) / 100 )) "$SLOT" $(( SRAM_USABLE * (100 - MARGIN) / 100 )) "$SRAM_USABLE" "$MARGIN" \
+  "$([ $status -eq 0 ] && echo "every enforced region inside" || echo "A REGION OUTSIDE THE MARGIN")"
 exit $status

@@ -172,3 +172,44 @@ macro_rules! tests {
         &[$($crate::harness::Test { name: stringify!($f), run: $f }),*]
     };
 }
+
+/// The worst `Obsw::tick` of `t_obsw`'s run, for the control-period budget (`t_budget`).
+pub static WORST_TICK: portable_atomic::AtomicU64 = portable_atomic::AtomicU64::new(0);
+
+/// Bytes below the caller's frame that [`stack_depth`] paints.
+pub const STACK_PROBE_BYTES: usize = 96 * 1024;
+/// Word painted below the stack pointer (`mib::memory::STACK_PAINT` in every byte).
+const PAINT: u32 = u32::from_ne_bytes([mib::memory::STACK_PAINT; 4]);
+/// Words just below the caller's frame left unpainted: `paint`'s own frame lives there.
+const PAINT_GAP: usize = 256;
+
+/// Runs `f` and returns how deep it used the stack below this function's frame, in
+/// bytes: the stack is painted for [`STACK_PROBE_BYTES`] below the stack pointer, `f`
+/// runs, and the lowest word no longer holding the paint is its high-water mark (the
+/// method the images use at start-up, over their whole stack).
+#[inline(never)]
+pub fn stack_depth<R>(f: impl FnOnce() -> R) -> (R, usize) {
+    let sp: usize;
+    // SAFETY: reads the stack pointer register.
+    unsafe { core::arch::asm!("mv {}, sp", out(reg) sp) };
+    let low = sp - STACK_PROBE_BYTES;
+    paint(low, sp - PAINT_GAP);
+    let r = f();
+    let mut a = low;
+    // SAFETY: [low, sp − PAINT_GAP) is this stack's free space below the current frame
+    // (QEMU's RAM holds the stack far deeper than the probe), read word by word.
+    while a < sp - PAINT_GAP && unsafe { core::ptr::read_volatile(a as *const u32) } == PAINT {
+        a += 4;
+    }
+    (r, sp - a)
+}
+
+#[inline(never)]
+fn paint(from: usize, to: usize) {
+    let mut a = from;
+    while a < to {
+        // SAFETY: free stack below the caller's frame and above `paint`'s own (PAINT_GAP).
+        unsafe { core::ptr::write_volatile(a as *mut u32, PAINT) };
+        a += 4;
+    }
+}

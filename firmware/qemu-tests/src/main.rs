@@ -12,6 +12,7 @@
 mod harness;
 mod mock;
 mod t_boot;
+mod t_budget;
 mod t_codec;
 mod t_cycle;
 mod t_domain;
@@ -45,6 +46,7 @@ fn main() -> ! {
         t_framelink::TESTS,
         t_team::TESTS,
         t_modules::TESTS,
+        t_budget::TESTS,
     ]);
     semihosting::process::exit(code)
 }

@@ -94,7 +94,7 @@ impl NorFlash for MockFlash {
     }
 }
 
-fn test_keys() -> Keys {
+pub(crate) fn test_keys() -> Keys {
     Keys {
         tc_spi: 1,
         tc_key: TEST_KEY_TC_A,
@@ -183,7 +183,7 @@ fn ping(seq: u16, buf: &mut [u8]) -> Option<usize> {
 }
 
 /// COBS-frames `frame` into the uplink queue through the uplink path the task runs.
-fn uplink(frame: &[u8], tcs: &TcChannel, stats: &Counters) {
+pub(crate) fn uplink(frame: &[u8], tcs: &TcChannel, stats: &Counters) {
     let mut cobs = [0u8; config::GROUND_FRAME_MAX];
     let n = encode(frame, &mut cobs).unwrap_or(0);
     let mut deframer: Deframer<{ config::GROUND_RX_BUF }> = Deframer::new();

@@ -38,7 +38,8 @@ pub fn partitions_csv() -> String {
 /// - `sram NAME START SIZE usable|reserved`: a region of the SRAM;
 /// - `slot NAME SIZE`: an application slot (the image's budget is 70 % of the smallest);
 /// - `used NAME BYTES`: what a region other than a slot or the SRAM holds, fixed by design;
-/// - `sram_usable BYTES`: SRAM for static data and the stack.
+/// - `sram_usable BYTES`: SRAM for static data and the stack;
+/// - `rtc_fast BYTES`: RTC fast memory (the panic record).
 pub fn memory_map_txt() -> String {
     let mut s = String::new();
     s.push_str("# Memory map of the MMIC-I boards, read by firmware/tools/size-report.sh.\n");
@@ -67,6 +68,7 @@ pub fn memory_map_txt() -> String {
         partition_table_bytes()
     );
     let _ = writeln!(s, "sram_usable {:#x}", memory::SRAM_USABLE);
+    let _ = writeln!(s, "rtc_fast {:#x}", memory::RTC_FAST_BYTES);
     let _ = writeln!(
         s,
         "# the TM store's outage: {} s of the default housekeeping, packets without the store's per-record overhead",

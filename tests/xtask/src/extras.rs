@@ -307,6 +307,21 @@ pub fn firmware(root: &Path, out: &Path) -> FirmwareInfo {
             fw.worst_tick_instructions = nums.first().copied();
             fw.worst_handle_tc_instructions = nums.get(1).copied();
         }
+        if t.starts_with("control period, software AES (measured):") {
+            // "... = N instructions, ..." : the whole period's count.
+            fw.period_instructions = t
+                .split(" = ")
+                .nth(1)
+                .and_then(|r| r.split_whitespace().next())
+                .and_then(|n| n.parse().ok());
+        }
+        if let Some(rest) = t.strip_prefix("stack high-water of the TC frame and TM framing path") {
+            fw.frame_path_stack = rest
+                .rsplit(": ")
+                .next()
+                .and_then(|r| r.split_whitespace().next())
+                .and_then(|n| n.parse().ok());
+        }
         if t.ends_with(" failed") && t.contains(" passed, ") {
             fw.qemu_summary = t.to_string();
         }
@@ -390,21 +405,31 @@ pub fn budgets(fw: &FirmwareInfo) -> Vec<Budget> {
             .unwrap_or_default();
         let (flash, ram) = (nums.get(4).copied(), nums.get(5).copied());
         b.push(budget(
-            &format!("{img} flash"),
+            &format!("{img} flash (of its application slot, mib::memory)"),
             flash,
-            Some(256.0 * 1024.0),
+            Some(mib::memory::OTA_0.size as f64),
             "bytes",
             size_src,
         ));
         b.push(budget(
-            &format!("{img} static RAM"),
+            &format!("{img} static RAM (of the usable SRAM, mib::memory)"),
             ram,
-            Some(128.0 * 1024.0),
+            Some(mib::memory::SRAM_USABLE as f64),
             "bytes",
             size_src,
         ));
         if img == "board-a" {
-            stack_avail = ram.map(|r| 320.0 * 1024.0 - 7.0 * 1024.0 - r);
+            stack_avail = ram.map(|r| mib::memory::SRAM_USABLE as f64 - r);
+            b.push(budget(
+                "board-a static RAM + stack high-water of the TC frame path (QEMU, statics as in the image)",
+                match (ram, fw.frame_path_stack) {
+                    (Some(r), Some(s)) => Some(r + s as f64),
+                    _ => None,
+                },
+                Some(mib::memory::SRAM_USABLE as f64),
+                "bytes",
+                "size report + QEMU t_budget (painted stack); interrupts and the other tasks' depth not included",
+            ));
         }
     }
     // Stack: the usable SRAM of the ESP32-C3 (≈ 313 KiB) left after static RAM is the
@@ -423,7 +448,14 @@ pub fn budgets(fw: &FirmwareInfo) -> Vec<Budget> {
             format!("{}; available = board A's usable SRAM − static RAM", fw.stack_note)
         },
     ));
-    let period = 800_000.0; // 10 ms at 160 MHz, 2 cycles per instruction
+    let period = mib::config::PERIOD_INSTRUCTIONS as f64;
+    b.push(budget(
+        "control period CPU: worst tick + largest TC frame + TM framing (software AES)",
+        fw.period_instructions.map(|x| x as f64),
+        Some(period),
+        "instructions per 10 ms period",
+        "QEMU -icount minstret (t_budget), images' opt-level, 160 MHz at 2 cycles/instruction",
+    ));
     let (tick, tc) = (fw.worst_tick_instructions, fw.worst_handle_tc_instructions);
     b.push(budget(
         "control period CPU: worst Obsw::tick",

@@ -120,6 +120,10 @@ pub struct FirmwareInfo {
     pub qemu_tests: Vec<(String, bool)>,
     pub worst_tick_instructions: Option<u64>,
     pub worst_handle_tc_instructions: Option<u64>,
+    /// A whole control period under QEMU (t_budget): worst tick, largest TC frame, TM framing.
+    pub period_instructions: Option<u64>,
+    /// Stack high-water of the TC frame and TM framing path under QEMU (t_budget).
+    pub frame_path_stack: Option<u64>,
     /// Deepest stack use of the on-target tests under QEMU (bytes) and how it was measured.
     pub stack_high_water: Option<u64>,
     pub stack_note: String,
