@@ -50,7 +50,7 @@ pub(crate) fn model(a: &ModelArgs, archive_path: Option<&Path>) -> Result<u8> {
         (Some(_), false) => return Err(coded(exit::USAGE, "give --modules FILE or --robot, not both")),
         (None, true) => return Err(coded(exit::USAGE, "give --modules FILE or --robot N=HOST:PORT")),
     };
-    let urdf = mib::export::urdf::urdf_from_report(&report, root, &name)
+    let urdf = mib_export::urdf::urdf_from_report(&report, root, &name)
         .map_err(|e| coded(exit::INVALID, format!("module report: {e}")))?;
     match &a.out {
         Some(p) => {
