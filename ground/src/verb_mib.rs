@@ -5,7 +5,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use clap::Subcommand;
 
-use crate::{coded, exit, out};
+use crate::exit::{self, coded};
+use crate::output::out;
 
 #[derive(Subcommand, Debug)]
 pub(crate) enum MibCmd {

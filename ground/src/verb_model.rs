@@ -13,8 +13,9 @@ use ground::ops::Update;
 use ground::pus::TmBody;
 use mib::modules::Board;
 
-use crate::verb_live::{one_robot, open_one};
-use crate::{close_archive, coded, err_line, exit, out, Links};
+use crate::exit::{self, coded};
+use crate::links::{close_archive, one_robot, open_one, Links};
+use crate::output::{err_line, out};
 
 #[derive(Args, Debug)]
 pub(crate) struct ModelArgs {
