@@ -1,5 +1,5 @@
 //! SCOS-2000 MIB ASCII tables: one tab-separated `.dat` file per table, no header
-//! line, every column of the SCOS-2000 MIB ICD (issue 7) in its order.
+//! line, every column of the SCOS-2000 MIB ICD in its order.
 //!
 //! SCOS-2000 names are at most 8 characters, so parameters and commands get generated
 //! names ([`ScosNames`]); the MIB mnemonic is kept in the description columns.

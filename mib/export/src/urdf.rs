@@ -1,4 +1,4 @@
-//! URDF of a robot from its module set and the module database (issue 24 §4).
+//! URDF of a robot from its module set and the module database (`docs/modules.md`, "URDF").
 //!
 //! The kinematic tree, rooted at one side's gripper clamp frame (`G`, see
 //! [`mib::modules::geometry`]):

@@ -893,7 +893,7 @@ impl BodyXtce {
                         .collect();
                     // Failure data report what the robot received or found (an unknown
                     // function, SID, event, monitor or mode among them): integers, so an
-                    // independent decoder reads any value (issue 23 item 10); the ICD and
+                    // independent decoder reads any value; the ICD and
                     // `ground decode` name the values the MIB defines.
                     let mut e = self.fields(&list, true);
                     e.push(PEC_NAME.to_string());

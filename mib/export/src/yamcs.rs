@@ -53,7 +53,7 @@ pub const KEY_DIR: &str = "etc/keys";
 /// What the links of the instance carry.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Links {
-    /// The space link (issue 22): TC frames with COP-1 and TM frames, both SDLS-protected.
+    /// The space link: TC frames with COP-1 and TM frames, both SDLS-protected.
     #[default]
     Frames,
     /// Lab only: bare space packets over UDP, no authentication, no COP-1.
@@ -894,7 +894,7 @@ fn mode_tm_fields(t: &TmDef) -> Option<Vec<Field>> {
 /// Label of a value the MIB does not name, in an [`open_enumerated_type`].
 pub const UNNAMED_VALUE: &str = "UNNAMED_VALUE";
 
-/// An enumerated type that decodes whatever the value (issue item 10): the MIB's names,
+/// An enumerated type that decodes whatever the value: the MIB's names,
 /// and every other value of the field's width as [`UNNAMED_VALUE`] (one enumeration
 /// range; Yamcs looks the exact values up before the ranges). For fields that carry a
 /// failure code, which an operator reads by name but which may hold a code the MIB

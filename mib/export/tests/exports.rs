@@ -10,7 +10,7 @@ use mib::tc::{TCS, TMS};
 use mib_export::{self as export, Format, ScosNames};
 use std::collections::{BTreeMap, BTreeSet};
 
-/// Column counts of the SCOS-2000 MIB ICD (issue 7), written down independently of the
+/// Column counts of the SCOS-2000 MIB ICD, written down independently of the
 /// exporter's own column lists.
 const COLUMNS: &[(&str, usize)] = &[
     ("vdf.dat", 5),

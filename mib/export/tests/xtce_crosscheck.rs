@@ -773,8 +773,8 @@ fn space_packet_parser_decodes_every_report_kind_like_ground_decode_json() {
         (6, mib::FailureCode::BOLT_FAILED),
         (8, mib::FailureCode::MODE_CHANGE_FAILED),
         (8, mib::FailureCode::INITIAL_STATE_MISMATCH),
-        // Issue 23 item 10: failure data carrying a value the MIB does not define (a
-        // ground-sent function or SID that does not exist) must decode too.
+        // Failure data carrying a value the MIB does not define (a ground-sent function
+        // or SID that does not exist) must decode too: it reports what the robot received.
         (2, mib::FailureCode::UNKNOWN_FUNCTION),
         (4, mib::FailureCode::UNKNOWN_SID),
         (4, mib::FailureCode::UNKNOWN_EVENT),
