@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Creates (or completes) the Python virtual environment `.venv` at the repository root with
-# the independent XTCE decoder used by the MIB cross-check (mib/tests/xtce_crosscheck.rs)
+# the independent XTCE decoder used by the MIB cross-check (mib/export/tests/xtce_crosscheck.rs)
 # and the decode benchmark's Python peers (ground/bench/decode_bench.sh), Python `cryptography`
 # (the SDLS frames' independent AES-GCM check) and Pinocchio (`pin`, the URDF model check).
 # Idempotent: a second run only verifies the pinned version.

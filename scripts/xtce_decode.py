@@ -3,7 +3,7 @@
 
 Usage: xtce_decode.py [--no-validate] XTCE_FILE PACKET_FILE
 
-XTCE_FILE   the MIB's XTCE export (mib::export::xtce_document)
+XTCE_FILE   the MIB's XTCE export (mib_export::xtce_document)
 PACKET_FILE concatenated CCSDS space packets
 
 Prints one JSON document on stdout:

@@ -95,7 +95,7 @@ pub fn find_obsw(given: Option<&Path>) -> Result<PathBuf> {
             }
         }
     }
-    Err(crate::coded(
+    Err(crate::exit::coded(
         crate::exit::ERROR,
         "cannot find the obsw binary: build it (`cargo build --release`) or give --obsw PATH",
     ))
@@ -213,16 +213,16 @@ pub fn demo(a: &DemoArgs, archive_path: Option<&Path>) -> Result<u8> {
     let pl = plan::parse(&src).map_err(|errs| {
         let d = plan::diagnostics(&name, &src, &errs);
         let lines: Vec<String> = d.iter().map(|x| x.to_string()).collect();
-        crate::coded(crate::exit::INVALID, lines.join("\n"))
+        crate::exit::coded(crate::exit::INVALID, lines.join("\n"))
     })?;
-    crate::plan_policy(&name, &pl)?;
+    crate::verb_run::plan_policy(&name, &pl)?;
     let bin = find_obsw(a.obsw.as_deref())?;
     // The OBSWs' logs live as long as the demo (their last line is shown if one does not
     // start); nothing is left behind.
     let logdir = TempDir(std::env::temp_dir().join(format!("ground-demo-{}", std::process::id())));
     std::fs::create_dir_all(&logdir.0)?;
     let logdir = &logdir.0;
-    crate::err_line!(
+    crate::output::err_line!(
         "demo: plan \"{}\" ({} steps, robots {}); starting {} OBSW(s) from {} at speed x{}",
         pl.name,
         pl.steps.len(),
@@ -249,7 +249,7 @@ pub fn demo(a: &DemoArgs, archive_path: Option<&Path>) -> Result<u8> {
             f.tm_listen
                 .insert(r.number, SocketAddr::from(([127, 0, 0, 1], free_port()?)));
         }
-        crate::err_line!(
+        crate::output::err_line!(
             "demo: space link (TC/TM frames, COP-1, SDLS AES-256-GCM) with TEST KEYS made for this demo only in {} (random, deleted at the end)",
             f.keys.display()
         );
@@ -272,7 +272,7 @@ pub fn demo(a: &DemoArgs, archive_path: Option<&Path>) -> Result<u8> {
             &log,
             of.as_ref(),
         )?;
-        crate::err_line!(
+        crate::output::err_line!(
             "demo: robot {} OBSW, {} at {addr}",
             r.number,
             if of.is_some() { "frame port" } else { "bare-packet port" }
@@ -280,11 +280,11 @@ pub fn demo(a: &DemoArgs, archive_path: Option<&Path>) -> Result<u8> {
         procs.0.push((r.number, child));
         links.push((r.number, addr));
     }
-    let (mut session, arch) = crate::open_session(&links, transport, frames.as_ref(), archive_path)?;
+    let (mut session, arch) = crate::links::open_session(&links, transport, frames.as_ref(), archive_path)?;
     session.run_id = Some(ops::runs::new_run_id());
     let opts = RunOptions {
         display: !a.plain && std::io::IsTerminal::is_terminal(&std::io::stderr()),
-        stop: Some(crate::interrupt_flag()),
+        stop: Some(crate::verb_run::interrupt_flag()),
         // The demo booted the robots: their TM is complete from their first packet.
         tm_from_boot: true,
         ..RunOptions::default()
@@ -296,9 +296,9 @@ pub fn demo(a: &DemoArgs, archive_path: Option<&Path>) -> Result<u8> {
         Some(a) => Some(a.close().context("closing the archive")?),
         None => None,
     };
-    crate::out(summary.text().trim_end())?;
+    crate::output::out(summary.text().trim_end())?;
     match (archive_path, stats) {
-        (Some(p), Some(st)) => crate::out(&format!(
+        (Some(p), Some(st)) => crate::output::out(&format!(
             "archive: {} ({} TC, {} TM, {} events, {} verification reports)",
             std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf()).display(),
             st.tc,
@@ -306,7 +306,7 @@ pub fn demo(a: &DemoArgs, archive_path: Option<&Path>) -> Result<u8> {
             st.events,
             st.verification
         ))?,
-        _ => crate::out("archive: disabled (--no-archive)")?,
+        _ => crate::output::out("archive: disabled (--no-archive)")?,
     }
     Ok(if summary.interrupted {
         crate::exit::INTERRUPTED

@@ -136,7 +136,7 @@ pub fn plot(store: &mut Store, params: &[String], f: &Filter, out: &Path) -> Res
         }
     }
     if n == 0 {
-        return Err(crate::coded(
+        return Err(crate::exit::coded(
             crate::exit::INVALID,
             "no archived values for these parameters",
         ));
@@ -175,7 +175,7 @@ pub fn plot(store: &mut Store, params: &[String], f: &Filter, out: &Path) -> Res
             root.present().with_context(|| format!("writing {}", out.display()))?;
         }
         _ => {
-            return Err(crate::coded(
+            return Err(crate::exit::coded(
                 crate::exit::INVALID,
                 "the plot file must end in .svg or .png",
             ))

@@ -8,7 +8,9 @@ use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use ground::archive::{self, Filter};
 
-use crate::{coded, err_line, exit, out, plot};
+use crate::exit::{self, coded};
+use crate::output::{err_line, out};
+use crate::plot;
 
 #[derive(Args, Debug, Clone)]
 pub(crate) struct FilterArgs {

@@ -10,7 +10,8 @@ use ground::alarms::{Input, State};
 use ground::archive::{now_ms, Store};
 use ground::collect::{config, parse_robot_arg, utc, CollectError, CollectOptions, EXIT_INVALID};
 
-use crate::{out, LinkFlags};
+use crate::links::LinkFlags;
+use crate::output::out;
 
 /// `ground collect` options.
 #[derive(Args, Debug, Clone)]

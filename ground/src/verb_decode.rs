@@ -8,7 +8,8 @@ use anyhow::{Context, Result};
 use clap::Args;
 use ground::pus;
 
-use crate::{err_line, exit};
+use crate::exit;
+use crate::output::err_line;
 
 #[derive(Args, Debug)]
 pub(crate) struct DecodeArgs {

@@ -7,7 +7,8 @@ use anyhow::Result;
 use clap::Subcommand;
 use ground::keys::{self, Direction};
 
-use crate::{coded, exit, out};
+use crate::exit::{self, coded};
+use crate::output::out;
 
 #[derive(Subcommand, Debug)]
 pub(crate) enum KeysCmd {

@@ -1,31 +1,18 @@
 //! The verbs that talk to robots one TC at a time: `ping`, `send`, `mode`, `watch`.
 
 use std::collections::BTreeMap;
-use std::net::SocketAddr;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Result};
-use ground::archive::{self, Archive};
-use ground::link::{FrameOptions, Transport};
+use ground::archive;
 use ground::ops::{self, Session, Update};
 use ground::pus::{self, Packet, Stage, TmBody};
 
-use crate::Links;
-use crate::{close_archive, coded, err_line, exit, out};
+use crate::exit::{self, coded};
+use crate::links::{close_archive, open_one, robots_given, Links};
+use crate::output::{err_line, out};
 use clap::Args;
-
-/// Says which robots a verb talks to, and how.
-pub(crate) fn say_links(links: &[(u8, SocketAddr)], transport: Transport, frames: Option<&FrameOptions>) {
-    let l: Vec<String> = links
-        .iter()
-        .map(|(r, a)| match frames.and_then(|f| f.serial.get(r)) {
-            Some(path) => format!("robot {r} on serial {}", path.display()),
-            None => format!("robot {r} at {a}"),
-        })
-        .collect();
-    err_line!("talking to {} ({})", l.join(", "), transport.name());
-}
 
 pub(crate) fn ping(a: &PingArgs, archive_path: Option<&Path>) -> Result<u8> {
     let def = mib::tc::by_name("PING").ok_or_else(|| anyhow!("PING not in the MIB"))?;
@@ -287,31 +274,6 @@ pub(crate) fn send_and_follow(
             timeout.as_secs_f64()
         ),
     ))
-}
-
-/// The robots given with `--robot` (at least one: which robot is never guessed).
-pub(crate) fn robots_given(l: &Links) -> Result<Vec<(u8, SocketAddr)>> {
-    if l.robots.is_empty() {
-        return Err(coded(
-            exit::USAGE,
-            "give --robot N (robot N at its default port on 127.0.0.1) or --robot N=HOST:PORT",
-        ));
-    }
-    Ok(l.addresses())
-}
-
-/// The one robot of `l`, announced, with a session to it (and the archive, if any).
-pub(crate) fn open_one(l: &Links, archive_path: Option<&Path>) -> Result<(u8, Session, Option<Archive>)> {
-    let (robot, addr) = one_robot(l)?;
-    let (s, arch) = l.open(&[(robot, addr)], archive_path)?;
-    Ok((robot, s, arch))
-}
-
-pub(crate) fn one_robot(l: &Links) -> Result<(u8, SocketAddr)> {
-    match robots_given(l)?.as_slice() {
-        [one] => Ok(*one),
-        _ => Err(coded(exit::USAGE, "give exactly one --robot")),
-    }
 }
 
 pub(crate) fn send(a: &SendArgs, archive_path: Option<&Path>) -> Result<u8> {

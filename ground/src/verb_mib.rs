@@ -5,7 +5,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use clap::Subcommand;
 
-use crate::{coded, exit, out};
+use crate::exit::{self, coded};
+use crate::output::out;
 
 #[derive(Subcommand, Debug)]
 pub(crate) enum MibCmd {
@@ -20,10 +21,10 @@ pub(crate) enum MibCmd {
 }
 
 pub(crate) fn mib_export(format: &str, dir: &Path) -> Result<u8> {
-    let f: mib::export::Format = format
+    let f: mib_export::Format = format
         .parse()
-        .map_err(|e: mib::export::UnknownFormat| coded(exit::INVALID, e.to_string()))?;
-    let files = mib::export::write_all(f, dir).with_context(|| format!("writing {}", dir.display()))?;
+        .map_err(|e: mib_export::UnknownFormat| coded(exit::INVALID, e.to_string()))?;
+    let files = mib_export::write_all(f, dir).with_context(|| format!("writing {}", dir.display()))?;
     for p in files {
         out(&p.display().to_string())?;
     }

@@ -13,8 +13,9 @@ use ground::ops::Update;
 use ground::pus::TmBody;
 use mib::modules::Board;
 
-use crate::verb_live::{one_robot, open_one};
-use crate::{close_archive, coded, err_line, exit, out, Links};
+use crate::exit::{self, coded};
+use crate::links::{close_archive, one_robot, open_one, Links};
+use crate::output::{err_line, out};
 
 #[derive(Args, Debug)]
 pub(crate) struct ModelArgs {
@@ -50,7 +51,7 @@ pub(crate) fn model(a: &ModelArgs, archive_path: Option<&Path>) -> Result<u8> {
         (Some(_), false) => return Err(coded(exit::USAGE, "give --modules FILE or --robot, not both")),
         (None, true) => return Err(coded(exit::USAGE, "give --modules FILE or --robot N=HOST:PORT")),
     };
-    let urdf = mib::export::urdf::urdf_from_report(&report, root, &name)
+    let urdf = mib_export::urdf::urdf_from_report(&report, root, &name)
         .map_err(|e| coded(exit::INVALID, format!("module report: {e}")))?;
     match &a.out {
         Some(p) => {

@@ -7,7 +7,9 @@ use anyhow::{anyhow, Context, Result};
 use clap::Subcommand;
 use ground::plan;
 
-use crate::{coded, err_line, exit, out, unconfirmed};
+use crate::exit::{self, coded};
+use crate::output::{err_line, out};
+use crate::verb_run::unconfirmed;
 
 #[derive(Subcommand, Debug)]
 pub(crate) enum PlanCmd {

@@ -10,9 +10,11 @@ use ground::ops::{self, RunOptions};
 use ground::plan;
 use ground::pus;
 
+use crate::exit::{self, coded};
+use crate::links::{close_archive, Links};
+use crate::output::{err_line, out};
 use crate::verb_archive::fmt_ms;
 use crate::verb_plan::load_plan;
-use crate::{close_archive, coded, err_line, exit, out, Links};
 use clap::Args;
 use std::path::PathBuf;
 

@@ -6,7 +6,8 @@ use std::time::Duration;
 use anyhow::Result;
 use ground::ops;
 
-use crate::{coded, exit, out};
+use crate::exit::{self, coded};
+use crate::output::out;
 use clap::Args;
 
 /// Sends one line to a simulator control port and returns the reply.

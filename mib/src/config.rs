@@ -369,7 +369,7 @@ pub const TCP_TM_BACKLOG: usize = 256 * 1024;
 /// OBSW: longest simulator-control line.
 pub const SIM_CTL_MAX_LINE: usize = 256;
 
-/// OBSW: module discovery (issue 24) must be done this long after boot.
+/// OBSW: module discovery (`docs/modules.md`) must be done this long after boot.
 pub const MODULE_DISCOVERY_BUDGET_MS: u32 = 2000;
 /// OBSW: board A waits this long after it read its own table for board B's half (sent
 /// over the A-B link, one entry per B period, three passes); then it runs discovery

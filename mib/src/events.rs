@@ -105,7 +105,7 @@ events! {
     MODULE_REPLACED = 0x0233, Medium, false, ["slot": U8 @SLOT_NAMES, "accepted_hash": U32, "hash": U32], "Module discovery at boot: the module set differs from the configuration the ground last accepted (first slot whose presence, serial or revision differs, or NONE when only calibration changed); OPERATIONAL is refused with CONFIG_NOT_ACCEPTED until ACCEPT_CONFIG with the current hash";
     CONFIG_STATE_LOST = 0x0234, Medium, false, ["reason": U8 @crate::layout::CONFIG_STATE_LOST_NAMES], "The platform's store of the accepted module configuration gave nothing at start (1 missing, 2 unreadable, 3 corrupt: nothing is accepted, OPERATIONAL waits for ACCEPT_CONFIG) or an acceptance could not be written (4: it holds until the next restart only)";
     LINK_SPI_SELECTED = 0x0238, Medium, false, ["tm_spi": U16, "tc_spis": U8], "Space link: LINK_SPI_SELECT executed: TM now under tm_spi, TC accepted under the SPIs of the tc_spis mask (bit 0 = SPI 1, bit 1 = SPI 2), stored on board";
-    // --- team coordination without the ground (issue 25; mib::team) ---
+    // --- team coordination without the ground (mib::team) ---
     GROUND_LOST = 0x0301, Medium, false, ["term": U32], "Team: no valid ground TC for GROUND_LOSS_TIMEOUT_MS; the robot finishes its primitive and holds (STANDBY if both grippers hold, SAFED otherwise) and takes part in leader selection";
     ELECTION_STARTED = 0x0302, Info, false, ["term": U32], "Team: the robot stood as candidate in a new term";
     LEADER_ELECTED = 0x0303, Info, false, ["term": U32, "leader": U8], "Team: a leader is known for the term (the robot itself when leader = own number)";

@@ -194,7 +194,7 @@ pub const HK_STRUCTS: &[HkDef] = &[
         ],
         default_interval_ms: 10000,
         default_enabled: true,
-        desc: "Module configuration found at boot (issue 24): hash, supported configuration, state against the ground-accepted configuration, present slots; the calibration in use (gripper pulse widths, encoder zero, slots calibrated from their descriptors)",
+        desc: "Module configuration found at boot: hash, supported configuration, state against the ground-accepted configuration, present slots; the calibration in use (gripper pulse widths, encoder zero, slots calibrated from their descriptors)",
     },
     HkDef {
         sid: sid::TEAM,
@@ -220,7 +220,7 @@ pub const HK_STRUCTS: &[HkDef] = &[
         ],
         default_interval_ms: 5000,
         default_enabled: true,
-        desc: "Team coordination without the ground (issue 25): term, role, leader, ground seen, inter-robot packets sent/accepted/refused by reason, elections, directives executed/refused, failed state writes, plan steps executed",
+        desc: "Team coordination without the ground: term, role, leader, ground seen, inter-robot packets sent/accepted/refused by reason, elections, directives executed/refused, failed state writes, plan steps executed",
     },
 ];
 

@@ -5,16 +5,14 @@
 //! events, failure codes, modes, configuration states, motion primitives, the
 //! reconfiguration map, on-board monitors, event-action links and tunable parameters —
 //! is defined here, once. The OBSW, the simulator, the firmware and the ground tool
-//! read it; the exporters (feature `std`) turn it into SCOS-2000 tables, XTCE, JSON
-//! and the ICD.
+//! read it; the exporters (crate `mib-export`, beside this one) turn it into SCOS-2000
+//! tables, XTCE, JSON, a Yamcs instance and the ICD.
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
 #![deny(unsafe_code)]
 
 pub mod apid;
 pub mod config;
 pub mod events;
-#[cfg(feature = "std")]
-pub mod export;
 pub mod failure;
 pub mod fdir;
 pub mod headers;

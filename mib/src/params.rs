@@ -252,7 +252,7 @@ params! {
     IO_SENSOR_ERRORS = 82, Io, U32, "", ID, None, "Sensor reads that failed (I2C errors on the ADC, IMU or hip encoder)";
     IO_OUTPUT_ERRORS = 83, Io, U32, "", ID, None, "Actuator writes that failed (PWM, GPIO)";
     IO_AB_BYTES_DROPPED = 84, Io, U32, "", ID, None, "A-B serial bytes dropped by board A's receive or transmit queue";
-    // --- space link (host frame endpoint; issue 22) ---
+    // --- space link (host frame endpoint; docs/space-link.md) ---
     LINK_AD_ACCEPTED = 120, SpaceLink, U32, "", ID, None, "Space link: AD (sequence-controlled) TC frames accepted by FARM-1";
     LINK_BD_ACCEPTED = 121, SpaceLink, U32, "", ID, None, "Space link: BD (bypass) TC frames accepted";
     LINK_CONTROL_FRAMES = 122, SpaceLink, U32, "", ID, None, "Space link: BC control frames (Unlock, Set V(R), in clear) executed by FARM-1";
@@ -280,13 +280,13 @@ params! {
     CONFIG_ID = 147, Modules, U8, "", ID, None, "Supported module configuration found at boot: 0 none (invalid set), 1 FULL, 2 LOCOMOTION_ONLY";
     CONFIG_STATUS = 148, Modules, U8, "", ID, None, "Module configuration state: 0 not discovered, 1 accepted by the ground, 2 not accepted (MODULE_REPLACED: OPERATIONAL refused until ACCEPT_CONFIG), 3 invalid (STANDBY only)";
     MODULES_PRESENT = 149, Modules, U16, "", ID, None, "Present module slots (bit n = slot n of mib::modules::SLOTS)";
-    CAL_GRIP_A_CLOSED = 150, BoardA, U16, "us", ID, None, "Calibration in use (issue 24): gripper A closed pulse width (its descriptor, or the database default of its revision; the MIB constant before discovery)";
-    CAL_GRIP_A_OPEN = 151, BoardA, U16, "us", ID, None, "Calibration in use (issue 24): gripper A open pulse width";
-    CAL_GRIP_B_CLOSED = 152, BoardA, U16, "us", ID, None, "Calibration in use (issue 24): gripper B closed pulse width";
-    CAL_GRIP_B_OPEN = 153, BoardA, U16, "us", ID, None, "Calibration in use (issue 24): gripper B open pulse width";
-    CAL_ENC_ZERO = 154, BoardA, U16, "", ID, None, "Calibration in use (issue 24): hip encoder (AS5600) reading at the hip zero, counts (2048 nominal)";
-    CAL_FROM_DESCRIPTORS = 155, BoardA, U16, "", ID, None, "Calibration in use (issue 24): slots whose calibration came from their descriptor (bit n = slot n; 0 = compiled constants, before discovery)";
-    TEAM_TERM = 160, Team, U32, "", ID, None, "Team (issue 25): current term of the robot's leader-selection node (0 without a roster)";
+    CAL_GRIP_A_CLOSED = 150, BoardA, U16, "us", ID, None, "Calibration in use: gripper A closed pulse width (its descriptor, or the database default of its revision; the MIB constant before discovery)";
+    CAL_GRIP_A_OPEN = 151, BoardA, U16, "us", ID, None, "Calibration in use: gripper A open pulse width";
+    CAL_GRIP_B_CLOSED = 152, BoardA, U16, "us", ID, None, "Calibration in use: gripper B closed pulse width";
+    CAL_GRIP_B_OPEN = 153, BoardA, U16, "us", ID, None, "Calibration in use: gripper B open pulse width";
+    CAL_ENC_ZERO = 154, BoardA, U16, "", ID, None, "Calibration in use: hip encoder (AS5600) reading at the hip zero, counts (2048 nominal)";
+    CAL_FROM_DESCRIPTORS = 155, BoardA, U16, "", ID, None, "Calibration in use: slots whose calibration came from their descriptor (bit n = slot n; 0 = compiled constants, before discovery)";
+    TEAM_TERM = 160, Team, U32, "", ID, None, "Team: current term of the robot's leader-selection node (0 without a roster)";
     TEAM_ROLE = 161, Team, U8, "", ID, None, "Team: role 0 follower, 1 candidate, 2 leader";
     TEAM_LEADER = 162, Team, U8, "", ID, None, "Team: robot number of the known leader of the current term (0 = none)";
     TEAM_GROUND_SEEN = 163, Team, U8, "", ID, None, "Team: 1 while the ground is seen (a valid ground TC within GROUND_LOSS_TIMEOUT_MS), 0 after GROUND_LOST";

@@ -1,5 +1,5 @@
 //! End to end with a real Yamcs 5.12.8 over the space link: the instance generated from the
-//! MIB (`mib::export::yamcs_instance`, frame links) on free loopback ports with the test keys
+//! MIB (`mib_export::yamcs_instance`, frame links) on free loopback ports with the test keys
 //! written by `scripts/yamcs.sh test-keys`, the real `obsw` with its frame endpoint
 //! (`--frame-udp`, `--frame-tm-to`: TC frames with COP-1 and SDLS from Yamcs' FOP-1, TM
 //! frames with the CLCW and SDLS to Yamcs' TM frame link), and `yamcs-client` (Python,
@@ -18,11 +18,11 @@ use std::process::Command;
 use std::time::Instant;
 
 use e2e_tests::{Obsw, Tm};
-use mib::export::yamcs::{tc_key_file, tm_key_file, yamcs_instance, Links, YamcsRobot, YamcsSetup, INSTANCE};
 use mib::hk::{by_sid, sid};
 use mib::layout::Names;
 use mib::link::sdls::{TC_SPIS, TM_SPIS};
 use mib::FailureCode;
+use mib_export::yamcs::{tc_key_file, tm_key_file, yamcs_instance, Links, YamcsRobot, YamcsSetup, INSTANCE};
 use serde_json::{json, Value};
 
 /// How long TM is watched (HK flows all along; commands are issued in the first seconds).

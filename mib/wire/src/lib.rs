@@ -284,7 +284,7 @@ mod generated {
 }
 pub use generated::*;
 
-/// The one PUS 1 request ID of the project (issue 21 item 5): the obsw's acceptance,
+/// The one PUS 1 request ID of the project: the obsw's acceptance,
 /// verification reports and duplicate window, the ground's TC builder, decoder and JSON
 /// output, and the tests all use this type (CODEC-RID-01).
 impl RequestId {

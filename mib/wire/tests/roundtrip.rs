@@ -358,7 +358,7 @@ proptest! {
 // verifies: PUS-PKT-01, ICD-06
 #[test]
 fn header_lengths_agree_with_the_exporters_header_tables() {
-    use mib::export::layout as x;
+    use mib_export::headers as x;
     use mib_wire::header::*;
     assert_eq!(x::len(x::PRIMARY_HEADER), PRIMARY_HEADER_LEN);
     assert_eq!(x::len(x::TC_SEC_HEADER), TC_SEC_HEADER_LEN);

@@ -1,9 +1,9 @@
 //! Module-set files (plans/modules) through discovery: each example reaches its
 //! documented outcome; faults give the expected reasons; bad files give clear errors.
 
-use mib::export::urdf::urdf;
 use mib::modules::{slot, Board, NUM_SLOTS};
 use mib::tc::function;
+use mib_export::urdf::urdf;
 use mmic_domain::discovery::{compare, missing_for, operational_allowed, Blocked, ModuleIdentity, Replacement};
 use mmic_sim::modules::{outcome_key, ModuleSetSpec, SetError, SetFault};
 use std::path::{Path, PathBuf};
@@ -218,8 +218,8 @@ fn files_hash_to_the_documented_configuration_hashes() {
 // verifies: MOD-REP-01, MOD-URDF-01
 #[test]
 fn module_report_of_a_file_rebuilds_the_same_model_on_the_ground() {
-    use mib::export::urdf::urdf_from_report;
     use mib::modules::report::{ModuleReport, MAX_REPORT_LEN, NO_SLOT};
+    use mib_export::urdf::urdf_from_report;
     use mmic_domain::discovery::report;
     for (file, config, reason) in [
         ("full.toml", 1, 0),

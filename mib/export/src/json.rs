@@ -1,22 +1,22 @@
 //! The whole MIB as one JSON document (pretty-printed, keys in a stable order).
 
-use super::layout::{self, Field};
-use crate::events::EVENTS;
-use crate::failure::FailureCode;
-use crate::fdir::{self, Timing, FAULTS, MONITORS};
-use crate::hk::{self, HK_STRUCTS};
-use crate::modes::{self, NODES};
-use crate::params::PARAMS;
-use crate::robot::{self, PRIMITIVES, RECONFIG_MAP, STATES};
-use crate::tc::{TCS, TMS};
-use crate::tunables::TUNABLES;
-use crate::types::Limits;
-use crate::{apid, config};
+use super::headers::{self, Field};
+use mib::events::EVENTS;
+use mib::failure::FailureCode;
+use mib::fdir::{self, Timing, FAULTS, MONITORS};
+use mib::hk::{self, HK_STRUCTS};
+use mib::modes::{self, NODES};
+use mib::params::PARAMS;
+use mib::robot::{self, PRIMITIVES, RECONFIG_MAP, STATES};
+use mib::tc::{TCS, TMS};
+use mib::tunables::TUNABLES;
+use mib::types::Limits;
+use mib::{apid, config};
 use serde_json::{json, Value};
 
 fn fields(f: &[Field]) -> Value {
     Value::Array(
-        layout::offsets(f)
+        headers::offsets(f)
             .map(
                 |(off, f)| json!({"name": f.name, "bit_offset": off, "bits": f.bits, "fixed": f.fixed, "desc": f.desc}),
             )
@@ -32,7 +32,7 @@ fn limits(l: &Option<&Limits>) -> Value {
 }
 
 /// Named values of a TC argument within its range (`null` for a plain number).
-fn arg_names(a: &crate::tc::ArgDef) -> Value {
+fn arg_names(a: &mib::tc::ArgDef) -> Value {
     if a.names.is_none() {
         return Value::Null;
     }
@@ -92,12 +92,12 @@ pub fn json_document() -> String {
             "ground_max_resends": config::GROUND_MAX_RESENDS,
         },
         "packet_layout": {
-            "primary_header": fields(layout::PRIMARY_HEADER),
-            "tm_secondary_header": fields(layout::TM_SEC_HEADER),
-            "tc_secondary_header": fields(layout::TC_SEC_HEADER),
-            "pec": fields(&[layout::PEC]),
-            "tm_source_data_offset": layout::tm_source_data_offset(),
-            "tc_app_data_offset": layout::tc_app_data_offset(),
+            "primary_header": fields(headers::PRIMARY_HEADER),
+            "tm_secondary_header": fields(headers::TM_SEC_HEADER),
+            "tc_secondary_header": fields(headers::TC_SEC_HEADER),
+            "pec": fields(&[headers::PEC]),
+            "tm_source_data_offset": headers::tm_source_data_offset(),
+            "tc_app_data_offset": headers::tc_app_data_offset(),
         },
         "parameters": PARAMS.iter().map(|p| json!({
             "id": p.id, "name": p.name, "type": p.ptype.name(), "unit": p.unit,
@@ -105,10 +105,10 @@ pub fn json_document() -> String {
             "limits": limits(&p.limits),
             "limits_in": p.limits.map(|_| p.limits_in.names()), "limits_in_mask": p.limits.map(|_| p.limits_in.0),
             "limits_if": p.limits.and(p.limits_if).map(|c| json!({
-                "param": c.param, "param_name": crate::params::by_id(c.param).map(|q| q.name),
+                "param": c.param, "param_name": mib::params::by_id(c.param).map(|q| q.name),
                 "raw": c.raw, "desc": c.desc,
             })),
-            "limit_persistence": p.limits.map(|_| crate::params::GROUND_LIMIT_PERSISTENCE),
+            "limit_persistence": p.limits.map(|_| mib::params::GROUND_LIMIT_PERSISTENCE),
             "desc": p.desc,
         })).collect::<Vec<_>>(),
         "hk_structures": HK_STRUCTS.iter().map(|h| json!({
@@ -124,7 +124,7 @@ pub fn json_document() -> String {
             "data_len": e.data_len(), "desc": e.desc,
         })).collect::<Vec<_>>(),
         "failure_codes": FailureCode::ALL.iter().map(|c| json!({
-            "code": c.code(), "name": c.name(), "data": crate::layout::fields_summary(c.data()), "desc": c.description(),
+            "code": c.code(), "name": c.name(), "data": crate::text::fields_summary(c.data()), "desc": c.description(),
         })).collect::<Vec<_>>(),
         "telecommands": TCS.iter().map(|t| json!({
             "service": t.service, "subservice": t.subservice, "function": t.function,
@@ -138,9 +138,9 @@ pub fn json_document() -> String {
             "failures": t.failures.iter().map(|f| f.name()).collect::<Vec<_>>(),
             "fixed_len": t.fixed_len(), "desc": t.desc,
         })).collect::<Vec<_>>(),
-        "acceptance_failures": crate::tc::ACCEPTANCE_FAILURES.iter().map(|f| f.name()).collect::<Vec<_>>(),
+        "acceptance_failures": mib::tc::ACCEPTANCE_FAILURES.iter().map(|f| f.name()).collect::<Vec<_>>(),
         "telemetry": TMS.iter().map(|t| json!({
-            "service": t.service, "subservice": t.subservice, "name": t.name, "layout": crate::layout::summary(t.body), "desc": t.desc,
+            "service": t.service, "subservice": t.subservice, "name": t.name, "layout": crate::text::summary(t.body), "desc": t.desc,
         })).collect::<Vec<_>>(),
         "mode_tree": {
             "nodes": NODES.iter().map(|n| json!({

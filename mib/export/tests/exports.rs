@@ -2,16 +2,15 @@
 //! between tables, coverage of the MIB), XTCE (parses as XML, references resolve, every
 //! HK parameter, container and TC is there), JSON (round trip against the tables) and
 //! `write_all`.
-#![cfg(feature = "std")]
 
 use mib::events::EVENTS;
-use mib::export::{self, Format, ScosNames};
 use mib::hk::HK_STRUCTS;
 use mib::params::{ParamDef, PARAMS};
 use mib::tc::{TCS, TMS};
+use mib_export::{self as export, Format, ScosNames};
 use std::collections::{BTreeMap, BTreeSet};
 
-/// Column counts of the SCOS-2000 MIB ICD (issue 7), written down independently of the
+/// Column counts of the SCOS-2000 MIB ICD, written down independently of the
 /// exporter's own column lists.
 const COLUMNS: &[(&str, usize)] = &[
     ("vdf.dat", 5),
@@ -202,7 +201,7 @@ fn scos_references_between_tables_resolve() {
     // the MODE parameter or on the parameter of the MIB's condition, OCP_VALPAR its raw
     // value); every other limit always. Every check waits for the MIB's persistence.
     for p in PARAMS.iter().filter(|p| p.limits.is_some()) {
-        let n = mib::export::ScosNames::tm_param(p.id);
+        let n = mib_export::ScosNames::tm_param(p.id);
         let ocf = t["ocf.dat"].iter().find(|r| r[0] == n).unwrap();
         assert_eq!(
             ocf[col("ocf", "OCF_NBCHCK")],
@@ -216,13 +215,13 @@ fn scos_references_between_tables_resolve() {
             .map(|r| (r[col("ocp", "OCP_RLCHK")].clone(), r[col("ocp", "OCP_VALPAR")].clone()))
             .collect();
         got.dedup();
-        assert_eq!(got, want_states(p, mib::export::ScosNames::tm_param), "{}", p.name);
+        assert_eq!(got, want_states(p, mib_export::ScosNames::tm_param), "{}", p.name);
     }
     // A hazardous TC is critical.
     for tc in TCS {
         let r = t["ccf.dat"]
             .iter()
-            .find(|r| r[0] == mib::export::ScosNames::command(tc))
+            .find(|r| r[0] == mib_export::ScosNames::command(tc))
             .unwrap();
         let want = if tc.hazard.is_some() { "Y" } else { "N" };
         assert_eq!(r[col("ccf", "CCF_CRITICAL")], want, "{}", tc.name);
@@ -268,7 +267,7 @@ fn scos_tables_describe_every_packet_parameter_and_command_of_robot_one() {
         // Every parameter is placed at its offset; the last one ends where the PEC starts.
         let rows: Vec<&Vec<String>> = plf.iter().filter(|p| &p[1] == s).collect();
         assert_eq!(rows.len(), h.params.len() + 1);
-        let mut off = export::layout::tm_source_data_offset() + 2;
+        let mut off = export::headers::tm_source_data_offset() + 2;
         for (id, row) in h.params.iter().zip(&rows[1..]) {
             assert_eq!(row[0], ScosNames::tm_param(*id));
             assert_eq!(row[2], off.to_string());
@@ -276,7 +275,7 @@ fn scos_tables_describe_every_packet_parameter_and_command_of_robot_one() {
         }
         assert_eq!(tpcf_size[s], (off + 2).to_string());
         assert_eq!(rows[0][0], ScosNames::SID);
-        assert_eq!(rows[0][2], export::layout::tm_source_data_offset().to_string());
+        assert_eq!(rows[0][2], export::headers::tm_source_data_offset().to_string());
     }
     for e in EVENTS {
         let r = find(5, e.severity.subservice(), e.id).unwrap_or_else(|| panic!("no pid row for {}", e.name));

@@ -1,4 +1,5 @@
-//! Exporters of the MIB to the formats ground systems read (std only).
+//! Exporters of the MIB to the formats ground systems read: a std crate beside the flight
+//! MIB, which stays no_std and holds the tables only.
 //!
 //! - [`scos_tables`]: SCOS-2000 MIB ASCII tables (tab-separated `.dat` files);
 //! - [`xtce_document`]: XTCE 1.2 XML (telemetry containers and telecommands);
@@ -10,19 +11,20 @@
 //!   for a set of robots.
 //!
 //! The APID-dependent exports (SCOS-2000, XTCE) are generated for the default robot
-//! ([`crate::apid::DEFAULT_ROBOT`], APID 0x101); the `*_for` variants take another robot
+//! ([`mib::apid::DEFAULT_ROBOT`], APID 0x101); the `*_for` variants take another robot
 //! number. Everything is derived from the MIB tables; the only layout knowledge kept
-//! here is the byte layout of the CCSDS and PUS-C headers ([`layout`]), which is checked
+//! here is the byte layout of the CCSDS and PUS-C headers ([`headers`]), which is checked
 //! against the sat-rs encoder by the integration tests.
 
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
+pub mod headers;
 mod icd;
 mod json;
-pub mod layout;
 pub mod memory;
 mod scos;
+pub mod text;
 pub mod urdf;
 mod xtce;
 pub mod yamcs;
@@ -38,18 +40,18 @@ pub use yamcs::{yamcs_instance, RobotSet, YamcsRobot, YamcsSetup};
 /// `limits_in` (without `MODE` if the limits hold in every mode), each with the
 /// condition of `limits_if`. Empty when the limits always apply. XTCE turns each list
 /// into a context alarm, SCOS-2000 into checks made relevant by `OCP_RLCHK`/`OCP_VALPAR`.
-pub fn limit_contexts(p: &crate::params::ParamDef) -> Vec<Vec<(u16, i64)>> {
+pub fn limit_contexts(p: &mib::params::ParamDef) -> Vec<Vec<(u16, i64)>> {
     let cond: Vec<(u16, i64)> = p.limits_if.iter().map(|c| (c.param, c.raw)).collect();
     if p.limits.is_none() {
         return Vec::new();
     }
-    if p.limits_in == crate::modes::ModeSet::ALL {
+    if p.limits_in == mib::modes::ModeSet::ALL {
         return if cond.is_empty() { Vec::new() } else { vec![cond] };
     }
     p.limits_in
         .modes()
         .map(|m| {
-            let mut v = vec![(crate::params::pid::MODE, i64::from(m))];
+            let mut v = vec![(mib::params::pid::MODE, i64::from(m))];
             v.extend(cond.iter().copied());
             v
         })
@@ -77,8 +79,8 @@ impl Format {
         Format::Scos,
         Format::Xtce,
         Format::Json,
-        Format::Yamcs(RobotSet::one(crate::apid::DEFAULT_ROBOT)),
-        Format::YamcsLab(RobotSet::one(crate::apid::DEFAULT_ROBOT)),
+        Format::Yamcs(RobotSet::one(mib::apid::DEFAULT_ROBOT)),
+        Format::YamcsLab(RobotSet::one(mib::apid::DEFAULT_ROBOT)),
     ];
     pub const fn name(self) -> &'static str {
         match self {
@@ -120,8 +122,8 @@ impl FromStr for Format {
             "scos" | "scos2000" | "scos-2000" => Ok(Format::Scos),
             "xtce" | "xml" => Ok(Format::Xtce),
             "json" => Ok(Format::Json),
-            "yamcs" => Ok(Format::Yamcs(RobotSet::one(crate::apid::DEFAULT_ROBOT))),
-            "yamcs-lab" => Ok(Format::YamcsLab(RobotSet::one(crate::apid::DEFAULT_ROBOT))),
+            "yamcs" => Ok(Format::Yamcs(RobotSet::one(mib::apid::DEFAULT_ROBOT))),
+            "yamcs-lab" => Ok(Format::YamcsLab(RobotSet::one(mib::apid::DEFAULT_ROBOT))),
             other => {
                 let (robots, make): (&str, fn(RobotSet) -> Format) = if let Some(r) = other.strip_prefix("yamcs:") {
                     (r, Format::Yamcs)
@@ -237,7 +239,7 @@ mod tests {
 #[cfg(test)]
 mod limit_context_tests {
     use super::*;
-    use crate::params::{by_id, pid, PARAMS};
+    use mib::params::{by_id, pid, PARAMS};
 
     // verifies: ALM-COND-01
     #[test]

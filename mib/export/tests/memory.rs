@@ -1,12 +1,11 @@
 //! The boards' memory map as the firmware tools read it: `firmware/partitions.csv` and
-//! `firmware/memory-map.txt` must be exactly what `mib::export::memory` generates from
+//! `firmware/memory-map.txt` must be exactly what `mib_export::memory` generates from
 //! `mib::memory`, and the partition table must be one ESP-IDF's tools accept (esp-rs's
 //! `esp-idf-part`, the parser espflash writes tables with). Regenerate both files with
-//! `UPDATE_MEMORY_MAP=1 cargo test -p mib --test memory`.
-#![cfg(feature = "std")]
+//! `UPDATE_MEMORY_MAP=1 cargo test -p mib-export --test memory`.
 
 use esp_idf_part::{AppType, DataType, PartitionTable, SubType, Type};
-use mib::export::memory::{hk_bytes_for, memory_map_txt, partitions_csv};
+use mib_export::memory::{hk_bytes_for, memory_map_txt, partitions_csv};
 use mib::memory::{self, FlashUse};
 use std::path::Path;
 
@@ -19,7 +18,7 @@ fn check_generated(file: &str, want: &str) {
     let have = std::fs::read_to_string(&path).unwrap_or_default();
     assert!(
         have == want,
-        "{file} is stale; regenerate it with `UPDATE_MEMORY_MAP=1 cargo test -p mib --test memory` and commit it"
+        "{file} is stale; regenerate it with `UPDATE_MEMORY_MAP=1 cargo test -p mib-export --test memory` and commit it"
     );
 }
 

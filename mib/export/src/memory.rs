@@ -1,8 +1,8 @@
-//! The boards' memory map ([`crate::memory`]) as the files the firmware tools read:
+//! The boards' memory map ([`mib::memory`]) as the files the firmware tools read:
 //! `firmware/partitions.csv` (ESP-IDF partition table, for `espflash --partition-table`)
 //! and `firmware/memory-map.txt` (the regions and budgets the size report checks).
 
-use crate::memory::{self, IdfSubtype, IdfType};
+use mib::memory::{self, IdfSubtype, IdfType};
 use std::fmt::Write;
 
 /// The ESP-IDF partition table of the boards (CSV: name, type, subtype, offset, size,
@@ -86,9 +86,9 @@ pub fn memory_map_txt() -> String {
 /// Bytes of the periodic housekeeping the MIB enables by default over `secs` seconds
 /// (whole packets: primary and secondary header, time stamp, data, PEC).
 pub fn hk_bytes_for(secs: u32) -> u32 {
-    use crate::headers::{PRIMARY_HEADER_LEN, TM_SEC_HEADER_LEN};
-    let per_packet = PRIMARY_HEADER_LEN + TM_SEC_HEADER_LEN + crate::config::TIMESTAMP_LEN + 2;
-    crate::hk::HK_STRUCTS
+    use mib::headers::{PRIMARY_HEADER_LEN, TM_SEC_HEADER_LEN};
+    let per_packet = PRIMARY_HEADER_LEN + TM_SEC_HEADER_LEN + mib::config::TIMESTAMP_LEN + 2;
+    mib::hk::HK_STRUCTS
         .iter()
         .filter(|h| h.default_enabled)
         .map(|h| {

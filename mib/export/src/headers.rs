@@ -1,7 +1,7 @@
-//! Header tables for the exporters: the no_std definitions live in [`crate::headers`];
+//! Header tables for the exporters: the no_std definitions live in [`mib::headers`];
 //! this adds the offset helpers the exporters use.
 
-pub use crate::headers::*;
+pub use mib::headers::*;
 
 /// Length in octets of a list of fields.
 pub fn len(fields: &[Field]) -> usize {
@@ -51,7 +51,7 @@ pub fn offsets(fields: &[Field]) -> impl Iterator<Item = (u32, &Field)> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config;
+    use mib::config;
     // verifies: MMIC-FW-01
     #[test]
     fn header_lengths_match_ccsds_and_pus_c() {

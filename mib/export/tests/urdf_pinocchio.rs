@@ -6,10 +6,10 @@
 //! gives it the joint values and the expected faces from the MIB and asserts on its
 //! report. Deliberately wrong joint values and a broken inertia must be reported.
 
-use mib::export::urdf::{joint, state_joint_positions, urdf};
 use mib::modules::geometry::{state_pose, Approach, PITCH_M};
 use mib::modules::{default_set, slot, Board, ModuleSet};
 use mib::robot::{StateKind, NUM_STATES, STATES};
+use mib_export::urdf::{joint, state_joint_positions, urdf};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -18,7 +18,7 @@ const TOL_M: f64 = 0.0005;
 const TOL_DEG: f64 = 0.5;
 
 fn python() -> PathBuf {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../.venv/bin/python");
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../.venv/bin/python");
     assert!(
         p.exists(),
         "{} is missing: run `bash scripts/python-env.sh` (installs pin 4.1.0) first",

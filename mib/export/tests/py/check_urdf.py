@@ -3,7 +3,7 @@
 
 Usage: check_urdf.py CASES.json  -> JSON report on stdout.
 
-CASES.json (written by mib/tests/urdf_pinocchio.rs from the MIB):
+CASES.json (written by mib/export/tests/urdf_pinocchio.rs from the MIB):
   {"urdf": path, "root_link": "gripper_a", "pitch": 0.3048,
    "tol_m": 0.0005, "tol_deg": 0.5,
    "cases": [{"name": ..., "joints": {"hip_joint": rad, ...},

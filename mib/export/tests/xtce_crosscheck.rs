@@ -16,14 +16,13 @@
 //! Two more checks tie the descriptions to the real encoders: the header layout tables
 //! against sat-rs TC and TM packets, and every XTCE MetaCommand (encoded by a small
 //! walker over the XML) against `PusTcCreator` + `mib_wire::codec::encode_args`.
-#![cfg(feature = "std")]
 
 use arbitrary_int::{u11, u14};
 use mib::events::EVENTS;
-use mib::export;
 use mib::hk::HK_STRUCTS;
 use mib::params::{self, ParamDef};
 use mib::types::PType;
+use mib_export as export;
 use mib_wire::codec;
 use satrs::spacepackets::ecss::tm::{PusTmCreator, PusTmSecondaryHeader};
 use satrs::spacepackets::ecss::{CreatorConfig, MessageTypeId, WritablePusPacket};
@@ -38,8 +37,9 @@ const ROBOT: u8 = mib::apid::DEFAULT_ROBOT;
 
 fn repo_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .expect("mib/ has a parent")
+        .ancestors()
+        .nth(2)
+        .expect("mib/export/ is two levels below the repository")
         .to_path_buf()
 }
 
@@ -161,7 +161,7 @@ fn header_expect(h: &Header, pkt: &[u8]) -> Vec<(&'static str, i64)> {
 }
 
 fn packets() -> Vec<(Vec<u8>, Expected)> {
-    let sd = export::layout::tm_source_data_offset();
+    let sd = export::headers::tm_source_data_offset();
     let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
     let mut out = Vec::new();
     let mut seq = 0u16;
@@ -285,7 +285,7 @@ fn space_packet_parser_decodes_our_packets_like_our_decoder() {
     assert!(
         python.exists(),
         "{} is missing: run scripts/python-env.sh (creates .venv with space-packet-parser) \
-         before `cargo test -p mib`; this cross-check must not be skipped",
+         before `cargo test -p mib-export`; this cross-check must not be skipped",
         python.display()
     );
     let script = root.join("scripts/xtce_decode.py");
@@ -367,8 +367,8 @@ fn space_packet_parser_decodes_our_packets_like_our_decoder() {
 }
 
 /// Reads the fields of `fields` (MSB first) starting at octet `start` of `pkt`.
-fn read_fields(pkt: &[u8], start: usize, fields: &[export::layout::Field]) -> Vec<(&'static str, u64)> {
-    export::layout::offsets(fields)
+fn read_fields(pkt: &[u8], start: usize, fields: &[export::headers::Field]) -> Vec<(&'static str, u64)> {
+    export::headers::offsets(fields)
         .map(|(off, f)| {
             let mut v = 0u64;
             for b in 0..f.bits {
@@ -384,7 +384,7 @@ fn read_fields(pkt: &[u8], start: usize, fields: &[export::layout::Field]) -> Ve
 // verifies: MMIC-FW-01
 #[test]
 fn header_layout_tables_match_the_sat_rs_encoders() {
-    use export::layout::{self, PRIMARY_HEADER, TC_SEC_HEADER, TM_SEC_HEADER};
+    use export::headers::{self, PRIMARY_HEADER, TC_SEC_HEADER, TM_SEC_HEADER};
     use satrs::spacepackets::ecss::tc::{AckFlags, PusTcCreator, PusTcSecondaryHeader};
     let apid = mib::apid::robot_apid(ROBOT).unwrap();
 
@@ -403,11 +403,11 @@ fn header_layout_tables_match_the_sat_rs_encoders() {
     let tc = PusTcCreator::new(sp, sec, &app[..n], CreatorConfig::default())
         .to_vec()
         .unwrap();
-    let off = layout::tc_app_data_offset();
+    let off = headers::tc_app_data_offset();
     assert_eq!(tc.len(), off + n + 2);
     assert_eq!(&tc[off..off + n], &app[..n]);
     let mut got = read_fields(&tc, 0, PRIMARY_HEADER);
-    got.extend(read_fields(&tc, layout::len(PRIMARY_HEADER), TC_SEC_HEADER));
+    got.extend(read_fields(&tc, headers::len(PRIMARY_HEADER), TC_SEC_HEADER));
     let want: Vec<(&str, u64)> = vec![
         ("VERSION", 0),
         ("PKT_TYPE", 1),
@@ -447,9 +447,9 @@ fn header_layout_tables_match_the_sat_rs_encoders() {
         ms: 0x0102_0304,
     };
     let tm = build(&hdr, &data[..n]);
-    assert_eq!(tm.len(), layout::tm_packet_len(n));
-    assert_eq!(&tm[layout::tm_source_data_offset()..tm.len() - 2], &data[..n]);
-    let got = read_fields(&tm, layout::len(PRIMARY_HEADER), TM_SEC_HEADER);
+    assert_eq!(tm.len(), headers::tm_packet_len(n));
+    assert_eq!(&tm[headers::tm_source_data_offset()..tm.len() - 2], &data[..n]);
+    let got = read_fields(&tm, headers::len(PRIMARY_HEADER), TM_SEC_HEADER);
     let want: Vec<(&str, u64)> = vec![
         ("TM_PUS_VERSION", 2),
         ("TM_TIME_REF", 0),
@@ -457,12 +457,12 @@ fn header_layout_tables_match_the_sat_rs_encoders() {
         ("TM_SUBSERVICE", 25),
         ("TM_MSG_COUNTER", 0xBEEF),
         ("TM_DEST_ID", mib::config::GROUND_ID as u64),
-        ("TM_TIME_PFIELD", layout::CDS_SHORT_PFIELD as u64),
+        ("TM_TIME_PFIELD", headers::CDS_SHORT_PFIELD as u64),
         ("TM_TIME_DAYS", 0x1234),
         ("TM_TIME_MS", 0x0102_0304),
     ];
     assert_eq!(got, want);
-    assert_eq!(layout::tm_time_len(), mib::config::TIMESTAMP_LEN);
+    assert_eq!(headers::tm_time_len(), mib::config::TIMESTAMP_LEN);
 }
 
 /// Bit writer for the XTCE command encoder below.
@@ -773,8 +773,8 @@ fn space_packet_parser_decodes_every_report_kind_like_ground_decode_json() {
         (6, mib::FailureCode::BOLT_FAILED),
         (8, mib::FailureCode::MODE_CHANGE_FAILED),
         (8, mib::FailureCode::INITIAL_STATE_MISMATCH),
-        // Issue 23 item 10: failure data carrying a value the MIB does not define (a
-        // ground-sent function or SID that does not exist) must decode too.
+        // Failure data carrying a value the MIB does not define (a ground-sent function
+        // or SID that does not exist) must decode too: it reports what the robot received.
         (2, mib::FailureCode::UNKNOWN_FUNCTION),
         (4, mib::FailureCode::UNKNOWN_SID),
         (4, mib::FailureCode::UNKNOWN_EVENT),
@@ -911,9 +911,9 @@ fn space_packet_parser_decodes_every_report_kind_like_ground_decode_json() {
     assert_eq!(spp.len(), kinds.len());
     assert_eq!(ours.len(), kinds.len());
 
-    let header: Vec<&str> = export::layout::PRIMARY_HEADER
+    let header: Vec<&str> = export::headers::PRIMARY_HEADER
         .iter()
-        .chain(export::layout::TM_SEC_HEADER)
+        .chain(export::headers::TM_SEC_HEADER)
         .map(|f| f.name)
         .chain(["PEC"])
         .collect();

@@ -7,21 +7,21 @@
 //! the structure's parameters, the PEC); → `EVENT_<severity>` (TM[5,1..4], the event
 //! ID) → `EVT_<event>` (restricted on the event ID); parameters whose values the MIB names
 //! are enumerated (HK, event parameters, report fields); and one container per other TM
-//! type with its fields from the MIB's field list (`crate::layout`): failure reports with
+//! type with its fields from the MIB's field list (`mib::layout`): failure reports with
 //! one child container per failure code (its failure data integers, not enumerations:
 //! they may carry a value the MIB does not define, such as an unknown function), list
 //! reports with one per entry count. Limits become default or context alarms (on the
-//! parameters that decide when they apply, `crate::params::limits_apply`).
+//! parameters that decide when they apply, `mib::params::limits_apply`).
 //! Telecommands are MetaCommands deriving from the abstract `PUS_TC`.
 
-use super::layout::{self, Field};
+use super::headers::{self, Field};
 use super::num;
-use crate::events::{EventDef, Severity, EVENTS};
-use crate::hk::HK_STRUCTS;
-use crate::params::{ParamDef, PARAMS};
-use crate::tc::{self, TcDef, TCS, TMS};
-use crate::types::PType;
-use crate::{apid, config};
+use mib::events::{EventDef, Severity, EVENTS};
+use mib::hk::HK_STRUCTS;
+use mib::params::{ParamDef, PARAMS};
+use mib::tc::{self, TcDef, TCS, TMS};
+use mib::types::PType;
+use mib::{apid, config};
 
 /// XTCE 1.2 namespace.
 pub const XTCE_NS: &str = "http://www.omg.org/spec/XTCE/20180204";
@@ -128,13 +128,13 @@ fn header_type(x: &mut Xml, f: &Field) {
 }
 
 /// Enumerated parameter type of a field whose values the MIB names.
-pub(super) fn enumerated_type(x: &mut Xml, tname: &str, f: &crate::layout::Field) {
+pub(super) fn enumerated_type(x: &mut Xml, tname: &str, f: &mib::layout::Field) {
     enumerated(x, "EnumeratedParameterType", tname, f, None);
 }
 
 /// Enumerated type (`kind`: parameter or argument) of a field whose values the MIB names;
 /// only the values within `range` when given (an argument's valid range).
-fn enumerated(x: &mut Xml, kind: &str, tname: &str, f: &crate::layout::Field, range: Option<(i64, i64)>) {
+fn enumerated(x: &mut Xml, kind: &str, tname: &str, f: &mib::layout::Field, range: Option<(i64, i64)>) {
     x.open(&format!(
         "<xtce:{kind} name=\"{}\" shortDescription=\"{}\">",
         esc(tname),
@@ -220,7 +220,7 @@ fn param_type(x: &mut Xml, p: &ParamDef) {
             x.close("</xtce:StaticAlarmRanges>");
         };
         // Persistence: consecutive violating samples before the alarm (the collector's).
-        let min_violations = crate::params::GROUND_LIMIT_PERSISTENCE;
+        let min_violations = mib::params::GROUND_LIMIT_PERSISTENCE;
         let contexts = super::limit_contexts(p);
         if contexts.is_empty() {
             x.open(&format!("<xtce:DefaultAlarm minViolations=\"{min_violations}\">"));
@@ -240,7 +240,7 @@ fn param_type(x: &mut Xml, p: &ParamDef) {
                     x.open("<xtce:ComparisonList>");
                 }
                 for (param, raw) in context {
-                    let param = crate::params::by_id(param).map_or("?", |q| q.name);
+                    let param = mib::params::by_id(param).map_or("?", |q| q.name);
                     x.line(&format!(
                         "<xtce:Comparison parameterRef=\"{}\" useCalibratedValue=\"false\" comparisonOperator=\"==\" value=\"{raw}\"/>",
                         esc(param)
@@ -386,10 +386,10 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
     // ---------------- telemetry ----------------
     x.open("<xtce:TelemetryMetaData>");
     x.open("<xtce:ParameterTypeSet>");
-    for f in layout::PRIMARY_HEADER
+    for f in headers::PRIMARY_HEADER
         .iter()
-        .chain(layout::TM_SEC_HEADER)
-        .chain([&layout::PEC])
+        .chain(headers::TM_SEC_HEADER)
+        .chain([&headers::PEC])
     {
         if !(yamcs && super::yamcs::header_type(&mut x, f)) {
             header_type(&mut x, f);
@@ -456,10 +456,10 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
     x.close("</xtce:ParameterTypeSet>");
 
     x.open("<xtce:ParameterSet>");
-    for f in layout::PRIMARY_HEADER
+    for f in headers::PRIMARY_HEADER
         .iter()
-        .chain(layout::TM_SEC_HEADER)
-        .chain([&layout::PEC])
+        .chain(headers::TM_SEC_HEADER)
+        .chain([&headers::PEC])
     {
         parameter(&mut x, f.name, &format!("{}_Type", f.name), f.desc, &[]);
     }
@@ -501,7 +501,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
         "CCSDSPacket",
         "CCSDS space packet primary header",
         true,
-        &names(layout::PRIMARY_HEADER),
+        &names(headers::PRIMARY_HEADER),
         None,
     );
     container(
@@ -509,7 +509,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
         "PUS_TM",
         "PUS-C telemetry of this robot: TM secondary header with CDS short time",
         true,
-        &names(layout::TM_SEC_HEADER),
+        &names(headers::TM_SEC_HEADER),
         Some((
             "CCSDSPacket",
             &[
@@ -519,7 +519,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
             ],
         )),
     );
-    let pec = [layout::PEC.name.to_string()];
+    let pec = [headers::PEC.name.to_string()];
     container(
         &mut x,
         "HK_REPORT",
@@ -529,7 +529,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
         Some((
             "PUS_TM",
             &[
-                (crate::headers::TM_SERVICE, tc::service::HOUSEKEEPING.to_string()),
+                (mib::headers::TM_SERVICE, tc::service::HOUSEKEEPING.to_string()),
                 ("TM_SUBSERVICE", "25".to_string()),
             ],
         )),
@@ -538,7 +538,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
         let mut e: Vec<String> = h
             .params
             .iter()
-            .filter_map(|id| crate::params::by_id(*id))
+            .filter_map(|id| mib::params::by_id(*id))
             .map(|p| p.name.to_string())
             .collect();
         e.extend(pec.iter().cloned());
@@ -562,7 +562,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
             Some((
                 "PUS_TM",
                 &[
-                    (crate::headers::TM_SERVICE, tc::service::EVENT.to_string()),
+                    (mib::headers::TM_SERVICE, tc::service::EVENT.to_string()),
                     ("TM_SUBSERVICE", s.subservice().to_string()),
                 ],
             )),
@@ -593,9 +593,9 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
     // ---------------- telecommands ----------------
     x.open("<xtce:CommandMetaData>");
     x.open("<xtce:ArgumentTypeSet>");
-    let tc_header_args: Vec<&Field> = layout::PRIMARY_HEADER
+    let tc_header_args: Vec<&Field> = headers::PRIMARY_HEADER
         .iter()
-        .chain(layout::TC_SEC_HEADER)
+        .chain(headers::TC_SEC_HEADER)
         .filter(|f| f.fixed.is_none() && f.name != "PKT_TYPE" && f.name != "TC_SOURCE_ID")
         .filter(|f| !(yamcs && super::yamcs::tc_header_fixed(f).is_some()))
         .collect();
@@ -659,7 +659,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
     x.close("</xtce:ArgumentList>");
     x.open("<xtce:CommandContainer name=\"PUS_TC\">");
     x.open("<xtce:EntryList>");
-    for f in layout::PRIMARY_HEADER.iter().chain(layout::TC_SEC_HEADER) {
+    for f in headers::PRIMARY_HEADER.iter().chain(headers::TC_SEC_HEADER) {
         let fixed = match f.name {
             "PKT_TYPE" => Some(1),
             "TC_SOURCE_ID" => Some(config::GROUND_ID as u32),
@@ -776,7 +776,7 @@ fn meta_command(x: &mut Xml, t: &TcDef, apid: u16, flavor: Flavor) {
 }
 
 /// XTCE of the TM kinds that are not told apart by PI1 (all but HK and events), generated
-/// from their field lists (`crate::layout`): every field a parameter named
+/// from their field lists (`mib::layout`): every field a parameter named
 /// `<TM>_<path>`; a failure report an abstract container with one child per failure code
 /// (restricted on the code) holding that code's failure data; a list report one child per
 /// entry count (restricted on the count) holding that many entry containers.
@@ -788,8 +788,8 @@ struct BodyXtce {
 
 const PEC_NAME: &str = "PEC";
 
-fn items_fields(prefix: &str, items: &[crate::layout::Item], out: &mut Vec<(String, crate::layout::Field)>) {
-    use crate::layout::Item;
+fn items_fields(prefix: &str, items: &[mib::layout::Item], out: &mut Vec<(String, mib::layout::Field)>) {
+    use mib::layout::Item;
     for it in items {
         match it {
             Item::Field(f) => out.push((format!("{prefix}_{}", f.name), *f)),
@@ -818,7 +818,7 @@ impl BodyXtce {
 
     /// Type and parameter of one field (enumerated when the MIB names its values, unless
     /// `open`: the field may carry a value the MIB does not define).
-    fn field(&mut self, name: &str, f: &crate::layout::Field, desc: &str, open: bool) {
+    fn field(&mut self, name: &str, f: &mib::layout::Field, desc: &str, open: bool) {
         let x = &mut self.types;
         let tname = format!("{name}_Type");
         let enc = format!(
@@ -842,17 +842,17 @@ impl BodyXtce {
         parameter(&mut self.params, name, &tname, desc, &[]);
     }
 
-    fn fields(&mut self, list: &[(String, crate::layout::Field)], open: bool) -> Vec<String> {
+    fn fields(&mut self, list: &[(String, mib::layout::Field)], open: bool) -> Vec<String> {
         for (n, f) in list {
             self.field(n, f, f.desc, open);
         }
         list.iter().map(|(n, _)| n.clone()).collect()
     }
 
-    fn tm(&mut self, t: &crate::tc::TmDef) {
-        use crate::layout::{Item, Tail};
+    fn tm(&mut self, t: &mib::tc::TmDef) {
+        use mib::layout::{Item, Tail};
         let base_crit = [
-            (crate::headers::TM_SERVICE, t.service.to_string()),
+            (mib::headers::TM_SERVICE, t.service.to_string()),
             ("TM_SUBSERVICE", t.subservice.to_string()),
         ];
         let cname = format!("TM_{}", t.name);
@@ -885,15 +885,15 @@ impl BodyXtce {
                     Some(("PUS_TM", &base_crit)),
                 );
                 let code_param = format!("{}_failure_code", t.name);
-                for c in crate::FailureCode::ALL {
-                    let list: Vec<(String, crate::layout::Field)> = c
+                for c in mib::FailureCode::ALL {
+                    let list: Vec<(String, mib::layout::Field)> = c
                         .data()
                         .iter()
                         .map(|f| (format!("{}_{}_{}", t.name, c.name(), f.name), *f))
                         .collect();
                     // Failure data report what the robot received or found (an unknown
                     // function, SID, event, monitor or mode among them): integers, so an
-                    // independent decoder reads any value (issue 23 item 10); the ICD and
+                    // independent decoder reads any value; the ICD and
                     // `ground decode` name the values the MIB defines.
                     let mut e = self.fields(&list, true);
                     e.push(PEC_NAME.to_string());

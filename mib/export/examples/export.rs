@@ -1,5 +1,5 @@
-//! Writes one MIB export: `cargo run -p mib --example export -- <scos|xtce|json> <DIR>`.
-//! (The ground tool's `ground mib export` does the same through `mib::export::write_all`.)
+//! Writes one MIB export: `cargo run -p mib-export --example export -- <scos|xtce|json> <DIR>`.
+//! (The ground tool's `ground mib export` does the same through `mib_export::write_all`.)
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -9,14 +9,14 @@ fn main() -> ExitCode {
         eprintln!("usage: export <scos|xtce|json> <DIR>");
         return ExitCode::from(2);
     };
-    let format = match fmt.parse::<mib::export::Format>() {
+    let format = match fmt.parse::<mib_export::Format>() {
         Ok(f) => f,
         Err(e) => {
             eprintln!("{e}");
             return ExitCode::from(2);
         }
     };
-    match mib::export::write_all(format, &PathBuf::from(dir)) {
+    match mib_export::write_all(format, &PathBuf::from(dir)) {
         Ok(paths) => {
             for p in paths {
                 println!("{}", p.display());

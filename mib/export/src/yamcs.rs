@@ -3,7 +3,7 @@
 //! per robot, the PUS 5 event templates.
 //!
 //! Per robot N (APID 0x100 + N), by default over the authenticated space link ([`Links::Frames`],
-//! `crate::link`): a TC frame link `tc_robot_N` (Yamcs' `UdpTcFrameLink` to the obsw's
+//! `mib::link`): a TC frame link `tc_robot_N` (Yamcs' `UdpTcFrameLink` to the obsw's
 //! `--frame-udp` port, COP-1 with FOP-1 driven by the CLCW, SDLS AES-256-GCM with the uplink
 //! key) and a TM frame link `tm_robot_N` (`UdpTmFrameLink`, Yamcs listens; the obsw's
 //! `--frame-tm-to` points at it; SDLS with the downlink key, anti-replay on). The lab option
@@ -23,21 +23,21 @@
 //!   command and names the failure code;
 //! - TC header fields are no operator arguments: sequence count and packet length are
 //!   written by `PusCommandPostprocessor`, the acknowledgement flags come from the MIB
-//!   ([`crate::tc::TcDef::ack_flags`]).
+//!   ([`mib::tc::TcDef::ack_flags`]).
 
 use std::fmt::Write as _;
 use std::str::FromStr;
 
-use super::layout::Field as HeaderField;
+use super::headers::Field as HeaderField;
 use super::xtce::{self, enumerated_type, esc, parameter, Flavor, Xml};
-use crate::events::{EventDef, EVENTS};
-use crate::headers::{PRIMARY_HEADER as HEADER_PRIMARY, TM_SEC_HEADER as HEADER_TM_SEC};
-use crate::layout::Item;
-use crate::layout::{Field, Names, REQUEST_ID};
-use crate::modes::NodeKind;
-use crate::tc::{TmDef, TMS};
-use crate::types::PType;
-use crate::{apid, config};
+use mib::events::{EventDef, EVENTS};
+use mib::headers::{PRIMARY_HEADER as HEADER_PRIMARY, TM_SEC_HEADER as HEADER_TM_SEC};
+use mib::layout::Item;
+use mib::layout::{Field, Names, REQUEST_ID};
+use mib::modes::NodeKind;
+use mib::tc::{TmDef, TMS};
+use mib::types::PType;
+use mib::{apid, config};
 
 /// Name of the Yamcs instance.
 pub const INSTANCE: &str = "mmic";
@@ -46,14 +46,14 @@ pub const HTTP_PORT: u16 = 8090;
 /// Yamcs listens for robot N's TM (frames, or packets in the lab) on UDP port `TM_BASE_PORT + N`.
 pub const TM_BASE_PORT: u16 = 10_000;
 /// Yamcs sends robot N's TC frames to UDP port `FRAME_BASE_PORT + N` (`obsw --frame-udp`).
-pub use crate::config::FRAME_BASE_PORT;
+pub use mib::config::FRAME_BASE_PORT;
 /// Directory of the SDLS key files, relative to the instance directory (Yamcs runs there).
 pub const KEY_DIR: &str = "etc/keys";
 
 /// What the links of the instance carry.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Links {
-    /// The space link (issue 22): TC frames with COP-1 and TM frames, both SDLS-protected.
+    /// The space link: TC frames with COP-1 and TM frames, both SDLS-protected.
     #[default]
     Frames,
     /// Lab only: bare space packets over UDP, no authentication, no COP-1.
@@ -354,7 +354,7 @@ fn pus_postprocessor(indent: &str) -> String {
          {indent}  # TC[11,4] for \"Schedule Time\" (pus11ScheduleAt): mib::tc::sched_cuc\n\
          {indent}  pus11Crc: true\n{indent}  timeEncoding:\n{indent}    pfield: {pfield}\n\
          {indent}    implicitPfield: true\n",
-        pfield = crate::tc::sched_cuc::PFIELD,
+        pfield = mib::tc::sched_cuc::PFIELD,
     )
 }
 
@@ -385,9 +385,9 @@ fn sdls_sa(y: &mut String, spi: u16, key_file: &str, rx_args: &str) {
     );
 }
 
-/// The space link (`crate::link`): TC frames with COP-1 and TM frames, SDLS both ways.
+/// The space link (`mib::link`): TC frames with COP-1 and TM frames, SDLS both ways.
 fn frame_links(y: &mut String, r: &YamcsRobot) {
-    use crate::link::{cop1, sdls, tc_frame, tc_vc, tm_frame, tm_vc, SCID};
+    use mib::link::{cop1, sdls, tc_frame, tc_vc, tm_frame, tm_vc, SCID};
     let n = r.robot;
     let tc_spi = sdls::TC_SPIS[0];
     let tm_spi = sdls::TM_SPIS[0];
@@ -462,7 +462,7 @@ ArchiveRetrieval:\n  config:\n    subscribeContainerArchivePartitions: false\n  
 
 /// Template of event `e` for `PusEventDecoder`: the description, then every parameter
 /// (engineering value: names for enumerated ones).
-pub fn event_template(e: &crate::events::EventDef) -> String {
+pub fn event_template(e: &mib::events::EventDef) -> String {
     let mut t = e.desc.replace(['{', '}'], "");
     for p in e.params {
         let _ = write!(t, "; {}={{{}}}", p.name, xtce::event_param_name(e, p.name));
@@ -498,7 +498,7 @@ pub fn events_json(robots: &[u8]) -> String {
 // Additions to the XTCE (called by the XTCE exporter in the Yamcs flavour).
 
 /// Days from 1958-01-01 to 1970-01-01, in seconds (offset of `TM_TIME_DAYS`).
-const CDS_EPOCH_OFFSET_S: i64 = -crate::headers::CCSDS_TO_UNIX_DAYS * 86_400;
+const CDS_EPOCH_OFFSET_S: i64 = -mib::headers::CCSDS_TO_UNIX_DAYS * 86_400;
 
 /// Types of the TM header fields that differ in the Yamcs flavour; false if `f` is not one.
 pub(super) fn header_type(x: &mut Xml, f: &HeaderField) -> bool {
@@ -662,8 +662,8 @@ pub(super) fn extra_containers(x: &mut Xml) {
     x.open("<xtce:ComparisonList>");
     x.line(&format!(
         "<xtce:Comparison parameterRef=\"{}\" value=\"{}\" useCalibratedValue=\"false\"/>",
-        crate::headers::TM_SERVICE,
-        crate::tc::service::VERIFICATION
+        mib::headers::TM_SERVICE,
+        mib::tc::service::VERIFICATION
     ));
     x.close("</xtce:ComparisonList>");
     x.close("</xtce:RestrictionCriteria>");
@@ -702,8 +702,8 @@ pub(super) fn extra_containers(x: &mut Xml) {
             x.open("<xtce:ComparisonList>");
             x.line(&format!(
                 "<xtce:Comparison parameterRef=\"{}\" value=\"{}\" useCalibratedValue=\"false\"/>",
-                crate::headers::TM_SERVICE,
-                crate::tc::service::VERIFICATION
+                mib::headers::TM_SERVICE,
+                mib::tc::service::VERIFICATION
             ));
             x.line(&format!(
                 "<xtce:Comparison parameterRef=\"TM_SUBSERVICE\" value=\"{s}\" useCalibratedValue=\"false\"/>"
@@ -726,7 +726,7 @@ const STAGES: [(&str, &str, u8, u32); 3] = [
 
 /// A parameter of the TM header that every TM packet sets: an input of every command
 /// verifier, so that each is judged again on every packet (REV-ANOM-16).
-pub const EVERY_TM_TRIGGER: &str = crate::headers::TM_SERVICE;
+pub const EVERY_TM_TRIGGER: &str = mib::headers::TM_SERVICE;
 
 /// A parameter of stage `stage`'s own request-ID container (`VERIFICATION_ACCEPTANCE_apid`).
 pub fn stage_param(stage: &str, field: &str) -> String {
@@ -746,7 +746,7 @@ pub(super) fn tc_header_fixed(f: &HeaderField) -> Option<u32> {
 /// `<name>_failure_code`).
 fn failure_report(sub: u8) -> &'static str {
     TMS.iter()
-        .find(|t| t.service == crate::tc::service::VERIFICATION && t.subservice == sub + 1)
+        .find(|t| t.service == mib::tc::service::VERIFICATION && t.subservice == sub + 1)
         .map_or("?", |t| t.name)
 }
 
@@ -828,7 +828,7 @@ fn mode_enum_type(x: &mut Xml, tname: &str, f: &Field, kind: NodeKind) {
     ));
     x.open("<xtce:EnumerationList>");
     for m in 0..=u8::MAX as u32 {
-        if let Some(n) = crate::modes::mode_name(kind, m) {
+        if let Some(n) = mib::modes::mode_name(kind, m) {
             x.line(&format!("<xtce:Enumeration value=\"{m}\" label=\"{n}\"/>"));
         }
     }
@@ -894,7 +894,7 @@ fn mode_tm_fields(t: &TmDef) -> Option<Vec<Field>> {
 /// Label of a value the MIB does not name, in an [`open_enumerated_type`].
 pub const UNNAMED_VALUE: &str = "UNNAMED_VALUE";
 
-/// An enumerated type that decodes whatever the value (issue item 10): the MIB's names,
+/// An enumerated type that decodes whatever the value: the MIB's names,
 /// and every other value of the field's width as [`UNNAMED_VALUE`] (one enumeration
 /// range; Yamcs looks the exact values up before the ranges). For fields that carry a
 /// failure code, which an operator reads by name but which may hold a code the MIB
@@ -959,7 +959,7 @@ pub(super) fn mode_tm(t: &TmDef, types: &mut Xml, params: &mut Xml, containers: 
         Some((
             "PUS_TM",
             &[
-                (crate::headers::TM_SERVICE, t.service.to_string()),
+                (mib::headers::TM_SERVICE, t.service.to_string()),
                 ("TM_SUBSERVICE", t.subservice.to_string()),
             ],
         )),
@@ -1005,7 +1005,7 @@ fn node_children(x: &mut Xml, name: &str, node: &str, rest: &[(String, bool)], w
         x.line(&format!(
             "<xtce:Comparison parameterRef=\"{node}\" comparisonOperator=\"{}\" value=\"{}\" useCalibratedValue=\"false\"/>",
             esc(op),
-            crate::modes::node::ROBOT
+            mib::modes::node::ROBOT
         ));
         x.close("</xtce:ComparisonList>");
         x.close("</xtce:RestrictionCriteria>");
@@ -1099,7 +1099,7 @@ mod tests {
     // verifies: YAMCS-LINK-01
     #[test]
     fn default_instance_has_frame_links_with_cop1_and_sdls_from_the_mib_link() {
-        use crate::link::{cop1, sdls, tc_frame, tm_frame, SCID};
+        use mib::link::{cop1, sdls, tc_frame, tm_frame, SCID};
         let setup = YamcsSetup::for_robots("2,5".parse().unwrap());
         assert_eq!(setup.links, Links::Frames);
         let files = yamcs_instance(&setup);
@@ -1126,7 +1126,7 @@ mod tests {
             format!("seqNumWindow: {}", sdls::ANTI_REPLAY_WINDOW),
             "verifySeqNum: true".to_string(),
             "useCop1: true".to_string(),
-            format!("pfield: {}", crate::tc::sched_cuc::PFIELD),
+            format!("pfield: {}", mib::tc::sched_cuc::PFIELD),
             "implicitPfield: true".to_string(),
         ] {
             assert!(inst.contains(&want), "{want}");
@@ -1145,7 +1145,7 @@ mod tests {
             ty.contains(&format!("value=\"0\" maxValue=\"65535\" label=\"{UNNAMED_VALUE}\"")),
             "{ty}"
         );
-        for c in crate::FailureCode::ALL {
+        for c in mib::FailureCode::ALL {
             assert!(
                 ty.contains(&format!("value=\"{}\" label=\"{}\"", c.code(), c.name())),
                 "{c:?}"

@@ -1,18 +1,18 @@
 //! The interface control document (`docs/ICD.md`), generated from the MIB.
 
-use super::layout::{self, Field};
+use super::headers::{self, Field};
 use super::{num, ScosNames};
-use crate::events::EVENTS;
-use crate::failure::FailureCode;
-use crate::fdir::{self, Timing, FAULTS, MONITORS};
-use crate::hk::{self, HK_STRUCTS};
-use crate::modes::{self, NODES};
-use crate::params::{self, ParamDef, PARAMS};
-use crate::robot::{self, StateKind, NUM_STATES, PRIMITIVES, RECONFIG_MAP, STATES};
-use crate::tc::{self, ACCEPTANCE_FAILURES, TCS, TMS};
-use crate::tunables::TUNABLES;
-use crate::types::Calib;
-use crate::{apid, config, events};
+use mib::events::EVENTS;
+use mib::failure::FailureCode;
+use mib::fdir::{self, Timing, FAULTS, MONITORS};
+use mib::hk::{self, HK_STRUCTS};
+use mib::modes::{self, NODES};
+use mib::params::{self, ParamDef, PARAMS};
+use mib::robot::{self, StateKind, NUM_STATES, PRIMITIVES, RECONFIG_MAP, STATES};
+use mib::tc::{self, ACCEPTANCE_FAILURES, TCS, TMS};
+use mib::tunables::TUNABLES;
+use mib::types::Calib;
+use mib::{apid, config, events};
 use std::fmt::Write;
 
 /// Escapes table cell text.
@@ -48,7 +48,7 @@ fn header_table(o: &mut String, title: &str, fields: &[Field], note: &str) {
     }
     let _ = writeln!(o, "| bit offset | bits | field | value / meaning |");
     let _ = writeln!(o, "|---:|---:|---|---|");
-    for (off, f) in layout::offsets(fields) {
+    for (off, f) in headers::offsets(fields) {
         let v = match f.fixed {
             Some(v) => format!("**{v}** — {}", f.desc),
             None => f.desc.to_string(),
@@ -115,7 +115,7 @@ fn arg_desc(a: &tc::ArgDef) -> String {
 }
 
 /// When the limits of `p` apply: root modes, then the MIB's condition.
-fn applies_text(p: &crate::params::ParamDef) -> String {
+fn applies_text(p: &mib::params::ParamDef) -> String {
     if p.limits.is_none() {
         return "—".into();
     }
@@ -162,7 +162,7 @@ pub fn icd_markdown() -> String {
     let _ = writeln!(o, "# MMIC-I interface control document\n");
     let _ = writeln!(
         o,
-        "<!-- Generated from the MIB (crate `mib` {}) by `mib::export::icd_markdown()`. Do not edit by hand:\n     regenerate with `UPDATE_ICD=1 cargo test -p mib --test icd`. -->\n",
+        "<!-- Generated from the MIB (crate `mib` {}) by `mib_export::icd_markdown()`. Do not edit by hand:\n     regenerate with `UPDATE_ICD=1 cargo test -p mib-export --test icd`. -->\n",
         env!("CARGO_PKG_VERSION")
     );
     let _ = writeln!(
@@ -209,7 +209,7 @@ pub fn icd_markdown() -> String {
         robot1,
         apid::IDLE_APID,
         config::GROUND_ID,
-        layout::CDS_SHORT_PFIELD,
+        headers::CDS_SHORT_PFIELD,
         config::TIMESTAMP_LEN
     );
 
@@ -218,30 +218,30 @@ pub fn icd_markdown() -> String {
     let _ = writeln!(
         o,
         "Telemetry: primary header (6) + TM secondary header ({}) + source data + PEC (2): the source data\nstarts at octet **{}** of the packet. Telecommands: primary header (6) + TC secondary header ({}) +\napplication data + PEC (2): the application data starts at octet **{}**. A packet is at most {} octets;\na TC's application data at most {} octets.\n",
-        layout::len(layout::TM_SEC_HEADER),
-        layout::tm_source_data_offset(),
-        layout::len(layout::TC_SEC_HEADER),
-        layout::tc_app_data_offset(),
+        headers::len(headers::TM_SEC_HEADER),
+        headers::tm_source_data_offset(),
+        headers::len(headers::TC_SEC_HEADER),
+        headers::tc_app_data_offset(),
         config::MAX_PACKET_LEN,
         config::MAX_TC_APP_DATA
     );
     header_table(
         &mut o,
         "2.1 CCSDS primary header (6 octets)",
-        layout::PRIMARY_HEADER,
+        headers::PRIMARY_HEADER,
         "`PKT_TYPE` is 0 for TM and 1 for TC.",
     );
     header_table(
         &mut o,
         "2.2 PUS-C TM secondary header with CDS short time stamp",
-        layout::TM_SEC_HEADER,
+        headers::TM_SEC_HEADER,
         "As `mib_wire::header::emit_tm` writes it for the obsw and the ground (the layout of sat-rs `spacepackets` 0.17's `PusTmCreator` with a `CdsTime` stamp, which reads it back in the tests).",
     );
-    header_table(&mut o, "2.3 PUS-C TC secondary header", layout::TC_SEC_HEADER, "");
+    header_table(&mut o, "2.3 PUS-C TC secondary header", headers::TC_SEC_HEADER, "");
     header_table(
         &mut o,
         "2.4 Packet error control",
-        &[layout::PEC],
+        &[headers::PEC],
         "The last two octets of every TM and TC.",
     );
     let _ = writeln!(
@@ -367,14 +367,14 @@ pub fn icd_markdown() -> String {
             t.service,
             t.subservice,
             t.name,
-            c(&crate::layout::summary(t.body)),
+            c(&crate::text::summary(t.body)),
             c(t.desc)
         );
     }
     let _ = writeln!(
         o,
         "\nHousekeeping reports are told apart by their SID and event reports by their event ID: the first\nu16 of the source data (octet {} of the packet, the SCOS-2000 PI1).\n",
-        layout::tm_source_data_offset()
+        headers::tm_source_data_offset()
     );
     let _ = writeln!(
         o,
@@ -393,7 +393,7 @@ pub fn icd_markdown() -> String {
         hk::MIN_INTERVAL_MS,
         hk::MAX_INTERVAL_MS
     );
-    let sd = layout::tm_source_data_offset();
+    let sd = headers::tm_source_data_offset();
     for h in HK_STRUCTS {
         let _ = writeln!(
             o,
@@ -404,7 +404,7 @@ pub fn icd_markdown() -> String {
             h.default_interval_ms,
             if h.default_enabled { "enabled" } else { "disabled" },
             h.data_len(),
-            layout::tm_packet_len(h.data_len())
+            headers::tm_packet_len(h.data_len())
         );
         let _ = writeln!(o, "| offset | packet | parameter | ID | type | unit |");
         let _ = writeln!(o, "|---:|---:|---|---:|---|---|");
@@ -502,7 +502,7 @@ pub fn icd_markdown() -> String {
             if f.data().is_empty() {
                 "—".to_string()
             } else {
-                crate::layout::fields_summary(f.data())
+                crate::text::fields_summary(f.data())
             },
             c(f.description())
         );
@@ -921,8 +921,8 @@ pub fn icd_markdown() -> String {
     let _ = writeln!(o, "## 17. Ground-system exports\n");
     let _ = writeln!(
         o,
-        "`ground mib export --format scos|xtce|json --out DIR` writes (through `mib::export::write_all`):\n\n- **scos** — SCOS-2000 MIB ASCII tables (`vdf pid pic tpcf pcf plf caf cap ocf ocp tcp pcpc pcdf ccf cdf\n  cpc prf prv`.dat), tab-separated, no header line, every column of the SCOS-2000 MIB ICD in order.\n  TM packets are identified by APID, type, subtype and PI1 (the SID of TM[3,25], the event ID of\n  TM[5,x]) at octet {} (`pic`); `PLF_OFFBY` counts octets from the start of the packet, `CDF_BIT` bits\n  from the start of the application data. SCOS-2000 names have 8 characters: HK parameter *n* is\n  `MMT` + *n* (5 digits), event parameters `ME` + event ID (hex) + position, commands `MC` + service +\n  subservice (3 digits each) or `MF` + function ID (6 digits), command parameters `P` + the command\n  name's digits + position. The PUS 8 function ID is a fixed element (`MMFUNCID`) of every TC[8,1].\n  The other reports: their fixed fields are parameters `MR` + kind index (2 digits, order of §4) +\n  field index at their octet and bit offsets (`PLF_OFFBI`; bit fields of 1-3 bits PTC 2, 4-16 bits\n  PTC 3); failure reports are one packet per failure code (PI1 = the code), whose failure data\n  fields are `MD` + code (3 digits) + field index. List reports (TM[5,8], [12,9], [19,9]) carry\n  their count; their entries are described in the XTCE export.\n- **xtce** — XTCE 1.2 (`http://www.omg.org/spec/XTCE/20180204`): container tree `CCSDSPacket` →\n  `PUS_TM` → `HK_REPORT` → `HK_<structure>` (restricted on the SID) / `EVENT_<severity>` →\n  `EVT_<event>` (restricted on the event ID) / `TM_<name>` with the report's fields from §4\n  (parameters `<name>_<field path>`, enumerated with the MIB's names; failure reports one child\n  container `<name>_<code>` per failure code with its failure data; list reports one child\n  `<name>_N<count>` per entry count, entries as containers `<name>_<group>_<i>`); polynomial\n  calibrators and alarm ranges; every TC as a MetaCommand derived from the abstract `PUS_TC` with\n  argument valid ranges. `scripts/xtce_decode.py` decodes packets with it (space-packet-parser).\n- **json** — the whole MIB.\n\nThe exports are generated for robot {} (APID 0x{:03X}). Every robot is its own SCOS-2000/XTCE\nspacecraft: for robot *N* call `mib::export::scos_tables_for(N)` / `xtce_document_for(N)`, which change\nonly the APIDs (and the SCOS-2000 SPIDs, `N` × 10000 + index).\n",
-        layout::tm_source_data_offset(),
+        "`ground mib export --format scos|xtce|json --out DIR` writes (through `mib_export::write_all`):\n\n- **scos** — SCOS-2000 MIB ASCII tables (`vdf pid pic tpcf pcf plf caf cap ocf ocp tcp pcpc pcdf ccf cdf\n  cpc prf prv`.dat), tab-separated, no header line, every column of the SCOS-2000 MIB ICD in order.\n  TM packets are identified by APID, type, subtype and PI1 (the SID of TM[3,25], the event ID of\n  TM[5,x]) at octet {} (`pic`); `PLF_OFFBY` counts octets from the start of the packet, `CDF_BIT` bits\n  from the start of the application data. SCOS-2000 names have 8 characters: HK parameter *n* is\n  `MMT` + *n* (5 digits), event parameters `ME` + event ID (hex) + position, commands `MC` + service +\n  subservice (3 digits each) or `MF` + function ID (6 digits), command parameters `P` + the command\n  name's digits + position. The PUS 8 function ID is a fixed element (`MMFUNCID`) of every TC[8,1].\n  The other reports: their fixed fields are parameters `MR` + kind index (2 digits, order of §4) +\n  field index at their octet and bit offsets (`PLF_OFFBI`; bit fields of 1-3 bits PTC 2, 4-16 bits\n  PTC 3); failure reports are one packet per failure code (PI1 = the code), whose failure data\n  fields are `MD` + code (3 digits) + field index. List reports (TM[5,8], [12,9], [19,9]) carry\n  their count; their entries are described in the XTCE export.\n- **xtce** — XTCE 1.2 (`http://www.omg.org/spec/XTCE/20180204`): container tree `CCSDSPacket` →\n  `PUS_TM` → `HK_REPORT` → `HK_<structure>` (restricted on the SID) / `EVENT_<severity>` →\n  `EVT_<event>` (restricted on the event ID) / `TM_<name>` with the report's fields from §4\n  (parameters `<name>_<field path>`, enumerated with the MIB's names; failure reports one child\n  container `<name>_<code>` per failure code with its failure data; list reports one child\n  `<name>_N<count>` per entry count, entries as containers `<name>_<group>_<i>`); polynomial\n  calibrators and alarm ranges; every TC as a MetaCommand derived from the abstract `PUS_TC` with\n  argument valid ranges. `scripts/xtce_decode.py` decodes packets with it (space-packet-parser).\n- **json** — the whole MIB.\n\nThe exports are generated for robot {} (APID 0x{:03X}). Every robot is its own SCOS-2000/XTCE\nspacecraft: for robot *N* call `mib_export::scos_tables_for(N)` / `xtce_document_for(N)`, which change\nonly the APIDs (and the SCOS-2000 SPIDs, `N` × 10000 + index).\n",
+        headers::tm_source_data_offset(),
         apid::DEFAULT_ROBOT,
         robot1
     );
@@ -930,8 +930,9 @@ pub fn icd_markdown() -> String {
 }
 
 /// Markdown table of a body's fields (offset, name, type, unit, value names, description).
-fn body_table(o: &mut String, items: &[crate::layout::Item]) {
-    use crate::layout::{type_name, Field, Item, Names, Tail};
+fn body_table(o: &mut String, items: &[mib::layout::Item]) {
+    use crate::text::type_name;
+    use mib::layout::{Field, Item, Names, Tail};
     if items.is_empty() {
         let _ = writeln!(o, "No source data.\n");
         return;

@@ -1,14 +1,13 @@
-//! `docs/ICD.md` must be exactly what `mib::export::icd_markdown()` generates from the MIB.
-//! Regenerate it with `UPDATE_ICD=1 cargo test -p mib --test icd`.
-#![cfg(feature = "std")]
+//! `docs/ICD.md` must be exactly what `mib_export::icd_markdown()` generates from the MIB.
+//! Regenerate it with `UPDATE_ICD=1 cargo test -p mib-export --test icd`.
 
 use std::path::Path;
 
 // verifies: ICD-01
 #[test]
 fn docs_icd_md_is_generated_from_the_mib() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/ICD.md");
-    let want = mib::export::icd_markdown();
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/ICD.md");
+    let want = mib_export::icd_markdown();
     if std::env::var_os("UPDATE_ICD").is_some_and(|v| v == "1") {
         std::fs::write(&path, &want).expect("write docs/ICD.md");
         return;
@@ -23,7 +22,7 @@ fn docs_icd_md_is_generated_from_the_mib() {
             .unwrap_or(have.lines().count().min(want.lines().count()) + 1);
         panic!(
             "docs/ICD.md is stale (first difference at line {line}); regenerate it with \
-             `UPDATE_ICD=1 cargo test -p mib --test icd` and commit it"
+             `UPDATE_ICD=1 cargo test -p mib-export --test icd` and commit it"
         );
     }
 }
@@ -31,7 +30,7 @@ fn docs_icd_md_is_generated_from_the_mib() {
 // verifies: ICD-01
 #[test]
 fn icd_covers_every_table() {
-    let icd = mib::export::icd_markdown();
+    let icd = mib_export::icd_markdown();
     for t in mib::tc::TCS {
         assert!(icd.contains(&format!("### TC {}", t.name)), "TC {}", t.name);
     }

@@ -1,7 +1,7 @@
-//! URDF of a robot from its module set and the module database (issue 24 §4).
+//! URDF of a robot from its module set and the module database (`docs/modules.md`, "URDF").
 //!
 //! The kinematic tree, rooted at one side's gripper clamp frame (`G`, see
-//! [`crate::modules::geometry`]):
+//! [`mib::modules::geometry`]):
 //!
 //! ```text
 //! gripper_r ─┬─ gripper_r_jaw            (gripper's joint, as the database says)
@@ -15,14 +15,14 @@
 //! ```
 //!
 //! `r` is the root side, `f` the other. The hip joint turns the far side by the hip
-//! angle of [`crate::robot::StateDef::hip_cdeg`] (same sign for both roots: its axis is
+//! angle of [`mib::robot::StateDef::hip_cdeg`] (same sign for both roots: its axis is
 //! −y in the joint frame for root A, +y for root B). Absent modules (bolters, sensors)
 //! are left out; grippers, arms, the hip and the boards are needed for a model. Every
 //! link carries the inertial of its database entry.
 
-use crate::modules::db::{lookup, Frame, Inertial, JointKind, ModuleDef};
-use crate::modules::geometry::state_pose;
-use crate::modules::{slot, Board, Descriptor, ModuleSet, SLOTS};
+use mib::modules::db::{lookup, Frame, Inertial, JointKind, ModuleDef};
+use mib::modules::geometry::state_pose;
+use mib::modules::{slot, Board, Descriptor, ModuleSet, SLOTS};
 use std::fmt::Write;
 
 /// Why no URDF can be written for a module set.
@@ -277,7 +277,7 @@ fn end_body(out: &mut String, set: &ModuleSet, side: Board) -> Result<(), UrdfEr
 /// Why no model can be made from a module report.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ModelError {
-    Report(crate::modules::report::ReportError),
+    Report(mib::modules::report::ReportError),
     Urdf(UrdfError),
 }
 
@@ -295,7 +295,7 @@ impl std::error::Error for ModelError {}
 /// The URDF of the robot a module report body describes (what `ground model` does with a
 /// live or archived report): the report is checked (lengths, CRCs, slots, hash) first.
 pub fn urdf_from_report(report: &[u8], root: Board, robot_name: &str) -> Result<String, ModelError> {
-    let r = crate::modules::report::ModuleReport::parse(report).map_err(ModelError::Report)?;
+    let r = mib::modules::report::ModuleReport::parse(report).map_err(ModelError::Report)?;
     urdf(&r.set, root, robot_name).map_err(ModelError::Urdf)
 }
 
@@ -309,11 +309,11 @@ pub fn urdf(set: &ModuleSet, root: Board, robot_name: &str) -> Result<String, Ur
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "<?xml version=\"1.0\"?>\n<!-- MMIC-I model written by mib::export::urdf from the module set and the \
+        "<?xml version=\"1.0\"?>\n<!-- MMIC-I model written by mib_export::urdf from the module set and the \
          module database; rooted at gripper {} (clamp frame: origin on the face mid-plane, z toward the hip, \
          y = hip axis). Configuration hash {:#010x}. -->\n<robot name=\"{robot_name}\">",
         root.name().to_ascii_lowercase(),
-        crate::modules::config_hash(set)
+        mib::modules::config_hash(set)
     );
     end_body(&mut out, set, root)?;
     let g_r = SLOTS[rs.gripper as usize].name;
@@ -379,7 +379,7 @@ pub fn urdf(set: &ModuleSet, root: Board, robot_name: &str) -> Result<String, Ur
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::modules::{default_set, NUM_SLOTS};
+    use mib::modules::{default_set, NUM_SLOTS};
 
     fn count(s: &str, pat: &str) -> usize {
         s.matches(pat).count()

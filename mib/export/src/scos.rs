@@ -1,5 +1,5 @@
 //! SCOS-2000 MIB ASCII tables: one tab-separated `.dat` file per table, no header
-//! line, every column of the SCOS-2000 MIB ICD (issue 7) in its order.
+//! line, every column of the SCOS-2000 MIB ICD in its order.
 //!
 //! SCOS-2000 names are at most 8 characters, so parameters and commands get generated
 //! names ([`ScosNames`]); the MIB mnemonic is kept in the description columns.
@@ -8,19 +8,19 @@
 //! packet (primary header included); `CDF_BIT` counts bits from the first bit of the
 //! TC application data; `PCDF_BIT` from the first bit of the packet.
 
-use super::layout::{self, Field};
+use super::headers::{self, Field};
 use super::{num, trunc};
 
 /// ASCII text cut to a column width.
 fn fit(s: &str, n: usize) -> String {
     trunc(&sanitize(s), n)
 }
-use crate::events::{Severity, EVENTS};
-use crate::hk::HK_STRUCTS;
-use crate::params::PARAMS;
-use crate::tc::{self, TcDef, TCS, TMS};
-use crate::types::{Calib, PType};
-use crate::{apid, config};
+use mib::events::{Severity, EVENTS};
+use mib::hk::HK_STRUCTS;
+use mib::params::PARAMS;
+use mib::tc::{self, TcDef, TCS, TMS};
+use mib::types::{Calib, PType};
+use mib::{apid, config};
 
 /// Column names of every table written, in file order.
 const TABLES: &[(&str, &[&str])] = &[
@@ -374,8 +374,8 @@ fn failure_param(code: u16, field: usize) -> String {
 
 /// The fields of a report body at fixed offsets (up to the first variable part), with
 /// their bit offsets from the start of the source data.
-fn fixed_fields(items: &[crate::layout::Item]) -> Vec<(String, crate::layout::Field, usize)> {
-    use crate::layout::Item;
+fn fixed_fields(items: &[mib::layout::Item]) -> Vec<(String, mib::layout::Field, usize)> {
+    use mib::layout::Item;
     let mut out = Vec::new();
     let mut bit = 0;
     for it in items {
@@ -397,7 +397,7 @@ fn fixed_fields(items: &[crate::layout::Item]) -> Vec<(String, crate::layout::Fi
 }
 
 /// Monitoring parameters of the report bodies: (PCF name, description, field).
-fn report_pcf() -> Vec<(String, String, crate::layout::Field)> {
+fn report_pcf() -> Vec<(String, String, mib::layout::Field)> {
     let mut out = Vec::new();
     for (ti, t) in TMS.iter().enumerate() {
         if is_identified_by_pi1(t.service, t.subservice) {
@@ -407,7 +407,7 @@ fn report_pcf() -> Vec<(String, String, crate::layout::Field)> {
             out.push((report_param(ti, fi), format!("{}.{path}", t.name), f));
         }
     }
-    for c in crate::FailureCode::ALL {
+    for c in mib::FailureCode::ALL {
         for (fi, f) in c.data().iter().enumerate() {
             out.push((failure_param(c.code(), fi), format!("{}.{}", c.name(), f.name), *f));
         }
@@ -422,7 +422,7 @@ pub(crate) fn is_identified_by_pi1(service: u8, subservice: u8) -> bool {
 }
 
 fn tm_packets() -> Vec<TmPacket> {
-    let sd = layout::tm_source_data_offset();
+    let sd = headers::tm_source_data_offset();
     let mut out = Vec::new();
     for (ti, t) in TMS.iter().enumerate() {
         if is_identified_by_pi1(t.service, t.subservice) {
@@ -436,7 +436,7 @@ fn tm_packets() -> Vec<TmPacket> {
             .collect();
         let failure = t
             .body
-            .contains(&crate::layout::Item::Tail(crate::layout::Tail::FailureData));
+            .contains(&mib::layout::Item::Tail(mib::layout::Tail::FailureData));
         if failure {
             // One packet per failure code (PI1 = the code): the fixed part, then the code's
             // failure data.
@@ -446,7 +446,7 @@ fn tm_packets() -> Vec<TmPacket> {
                 .cloned()
                 .expect("a failure report has a failure_code field");
             let data_off = sd + code_bit / 8 + 2;
-            for c in crate::FailureCode::ALL {
+            for c in mib::FailureCode::ALL {
                 let mut ps = params.clone();
                 let mut bit = 0;
                 for (fi, f) in c.data().iter().enumerate() {
@@ -474,7 +474,7 @@ fn tm_packets() -> Vec<TmPacket> {
                 pi1: 0,
                 name: t.name.to_string(),
                 descr: format!("TM[{},{}] {}: {}", t.service, t.subservice, t.name, t.desc),
-                data_len: crate::layout::fixed_len(t.body),
+                data_len: mib::layout::fixed_len(t.body),
                 interval_ms: None,
                 event: "N",
                 evid: String::new(),
@@ -487,7 +487,7 @@ fn tm_packets() -> Vec<TmPacket> {
         let mut params = vec![(ScosNames::SID.to_string(), sd, 0)];
         let mut off = sd + 2;
         for id in h.params {
-            if let Some(p) = crate::params::by_id(*id) {
+            if let Some(p) = mib::params::by_id(*id) {
                 params.push((ScosNames::tm_param(p.id), off, 0));
                 off += p.ptype.size();
             }
@@ -587,7 +587,7 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
 
     // --- packets ---
     let packets = tm_packets();
-    let dfh = layout::tm_data_field_header_len().to_string();
+    let dfh = headers::tm_data_field_header_len().to_string();
     let mut pid = Table::new("pid");
     let mut tpcf = Table::new("tpcf");
     let mut plf = Table::new("plf");
@@ -617,7 +617,7 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
             &spid,
             &fit(&p.name, 12),
             &p.data_len
-                .map(|n| layout::tm_packet_len(n).to_string())
+                .map(|n| headers::tm_packet_len(n).to_string())
                 .unwrap_or_default(),
         ]);
         for (name, off, bit) in &p.params {
@@ -784,7 +784,7 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
                     .map(|&(id, raw)| (ScosNames::tm_param(id), raw.to_string()))
                     .collect(),
             };
-            let nbchck = crate::params::GROUND_LIMIT_PERSISTENCE.to_string();
+            let nbchck = mib::params::GROUND_LIMIT_PERSISTENCE.to_string();
             ocf.row([&n, &nbchck, &(2 * contexts.len()).to_string(), "C", "R"]);
             let mut pos = 0;
             for (rlchk, valpar) in &contexts {
@@ -803,12 +803,12 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
     tcp.row([ScosNames::TC_HEADER, "MMIC-I PUS-C TC header"]);
     let mut pcpc = Table::new("pcpc");
     let mut pcdf = Table::new("pcdf");
-    let tc_fields: Vec<Field> = layout::PRIMARY_HEADER
+    let tc_fields: Vec<Field> = headers::PRIMARY_HEADER
         .iter()
-        .chain(layout::TC_SEC_HEADER)
+        .chain(headers::TC_SEC_HEADER)
         .copied()
         .collect();
-    for (bit, f) in layout::offsets(&tc_fields) {
+    for (bit, f) in headers::offsets(&tc_fields) {
         let (ty, pname, value): (&str, &str, String) = match f.name {
             "PKT_TYPE" => ("F", "", "1".into()),
             "PKT_APID" => ("A", "MMTCAPID", format!("{apid:X}")),

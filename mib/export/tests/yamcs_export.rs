@@ -3,15 +3,14 @@
 //! acknowledgement flags and no header field as an operator argument, every event has a
 //! template over its own parameters, the ID fields are enumerations of the MIB's values,
 //! and mode fields are named per node kind.
-#![cfg(feature = "std")]
 
 use std::collections::BTreeSet;
 
 use mib::events::EVENTS;
-use mib::export::xtce_document_for;
-use mib::export::yamcs::{events_json, yamcs_instance, yamcs_xtce, YamcsSetup, MODULE_MODES};
 use mib::hk::HK_STRUCTS;
 use mib::tc::TCS;
+use mib_export::xtce_document_for;
+use mib_export::yamcs::{events_json, yamcs_instance, yamcs_xtce, YamcsSetup, MODULE_MODES};
 
 fn is(n: &roxmltree::Node, tag: &str) -> bool {
     n.is_element() && n.tag_name().name() == tag
@@ -153,7 +152,7 @@ fn ids_are_enumerated_and_every_event_has_a_template_over_its_parameters() {
         let refs: Vec<&str> = text.split('{').skip(1).filter_map(|s| s.split('}').next()).collect();
         assert_eq!(refs.len(), e.params.len(), "{text}");
         for (r, p) in refs.iter().zip(e.params) {
-            assert_eq!(*r, mib::export::yamcs::event_param(e, p.name), "{}", e.name);
+            assert_eq!(*r, mib_export::yamcs::event_param(e, p.name), "{}", e.name);
         }
     }
 }
