@@ -1138,6 +1138,7 @@ mod tests {
             method: "test".into(),
             criticality: "high".into(),
             fdir: vec!["LOW_BATTERY".into(), "MON:V_BAT_A_LOW".into()],
+            evidence: Vec::new(),
         };
         let row = ReqRow {
             id: "X-1".into(),
@@ -1145,6 +1146,7 @@ mod tests {
             source: String::new(),
             method: "test".into(),
             criticality: "high".into(),
+            evidence: Vec::new(),
             tests: vec![ReqTest {
                 package: "p".into(),
                 name: "t".into(),
