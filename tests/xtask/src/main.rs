@@ -411,6 +411,22 @@ fn run(args: &Args) -> Result<bool> {
         eprintln!("   ADVISORY: {d}");
     }
     let ok = ok && advisories.is_none_or(|c| c.findings == 0);
+    // A resource below the GSFC-STD-1000 flight margin (30 %) is a finding of its own.
+    let below: Vec<&Budget> = pkg
+        .budgets
+        .iter()
+        .filter(|b| b.margin_pct.is_some_and(|m| m < extras::FLIGHT_MARGIN_PCT))
+        .collect();
+    for b in &below {
+        eprintln!(
+            "   BUDGET below the {} % flight margin: {} — margin {:.1} % ({})",
+            extras::FLIGHT_MARGIN_PCT,
+            b.item,
+            b.margin_pct.unwrap_or_default(),
+            b.source
+        );
+    }
+    let ok = ok && below.is_empty();
     if !run.exit_ok && failed.is_empty() {
         eprintln!(
             "   cargo test exited with failure (see {})",
