@@ -260,6 +260,31 @@ pub fn request_of(tc: &[u8]) -> mib_wire::RequestId {
     mib_wire::RequestId::of_tc(tc).expect("a TC of at least 4 bytes")
 }
 
+/// The MIB definition of a well-formed TC (`None` for bytes that are no TC of the MIB:
+/// a damaged copy, an unknown service or function).
+pub fn tc_def(tc: &[u8]) -> Option<&'static mib::tc::TcDef> {
+    let p = mib_wire::header::TcPacket::parse(tc).ok()?;
+    let function = match p.app_data {
+        [hi, lo, ..] if p.service == mib::tc::service::FUNCTION => Some(u16::from_be_bytes([*hi, *lo])),
+        _ => None,
+    };
+    mib::tc::lookup(p.service, p.subservice, function)
+}
+
+/// Why a failure report breaks the MIB: its code is neither an acceptance failure nor in
+/// the failure list of the TC `def` it answers (what the ICD and Yamcs show operators).
+pub fn unlisted_failure(def: &mib::tc::TcDef, tm: &Tm) -> Option<String> {
+    let code = tm.failure_code()?;
+    (!def.may_fail_with(code)).then(|| {
+        format!(
+            "TM[1,{}] answers {} with failure {} ({code}), which is not in its MIB failure list",
+            tm.subservice,
+            def.name,
+            mib::FailureCode::from_code(code).name()
+        )
+    })
+}
+
 /// A ground link over UDP or TCP.
 pub enum Link {
     Udp(UdpSocket, SocketAddr),
@@ -288,6 +313,9 @@ pub struct Client {
     seq: u16,
     /// Every TM received so far, in order.
     pub log: Vec<Tm>,
+    /// The MIB definition of each TC sent, by request ID (the latest TC of an ID): every
+    /// failure report received for one is checked against its failure list.
+    sent: Vec<(mib_wire::RequestId, &'static mib::tc::TcDef)>,
 }
 
 impl Client {
@@ -298,6 +326,7 @@ impl Client {
             apid: o.apid,
             seq: 0,
             log: Vec::new(),
+            sent: Vec::new(),
         }
     }
     pub fn tcp(o: &Obsw) -> Client {
@@ -308,6 +337,7 @@ impl Client {
             apid: o.apid,
             seq: 0,
             log: Vec::new(),
+            sent: Vec::new(),
         }
     }
     pub fn next_seq(&mut self) -> u16 {
@@ -315,6 +345,12 @@ impl Client {
         self.seq
     }
     pub fn send_raw(&mut self, raw: &[u8]) {
+        if let Ok(r) = mib_wire::RequestId::of_tc(raw) {
+            self.sent.retain(|(s, _)| *s != r);
+            if let Some(def) = tc_def(raw) {
+                self.sent.push((r, def));
+            }
+        }
         match &mut self.link {
             Link::Udp(s, to) => {
                 s.send_to(raw, *to).unwrap();
@@ -361,7 +397,7 @@ impl Client {
                     s.set_read_timeout(Some(left.max(Duration::from_millis(1)))).unwrap();
                     if let Ok(n) = s.recv(&mut buf) {
                         if let Some(t) = Tm::parse(&buf[..n]) {
-                            self.log.push(t.clone());
+                            self.received(&t);
                             return Some(t);
                         }
                     }
@@ -369,7 +405,7 @@ impl Client {
                 Link::Tcp(s, rx) => {
                     if let Some(frame) = rx.frames.pop_front() {
                         if let Some(t) = Tm::parse(&frame) {
-                            self.log.push(t.clone());
+                            self.received(&t);
                             return Some(t);
                         }
                         continue;
@@ -390,6 +426,18 @@ impl Client {
                 }
             }
         }
+    }
+    /// Logs a TM; a failure report for a TC this client sent must carry a code of that
+    /// TC's MIB failure list (every end-to-end test checks what it observes).
+    fn received(&mut self, t: &Tm) {
+        let def = t
+            .request()
+            .and_then(|r| self.sent.iter().find(|(s, _)| *s == r))
+            .map(|(_, d)| *d);
+        if let Some(why) = def.and_then(|d| unlisted_failure(d, t)) {
+            panic!("{why}\n{}", self.summary());
+        }
+        self.log.push(t.clone());
     }
     /// Waits until a TM matching `pred` arrives (or the timeout passes).
     pub fn wait_for(&mut self, timeout: Duration, mut pred: impl FnMut(&Tm) -> bool) -> Option<Tm> {

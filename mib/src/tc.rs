@@ -104,10 +104,15 @@ pub struct TcDef {
     /// or weakens on-board protection. Ground tools ask for confirmation before sending
     /// it; the exports mark it critical (SCOS-2000 `CCF_CRITICAL`, XTCE significance).
     pub hazard: Option<crate::types::Text>,
+    /// The report the TC asks for besides its PUS 1 verification reports (`None`: none).
+    /// Descriptions name no report by hand: [`TcDef::description`] adds this one's
+    /// service, subservice and name, so the text cannot name the wrong one.
+    pub report: Option<&'static TmDef>,
     pub desc: crate::types::Text,
 }
 
-/// Failure codes any TC can receive at acceptance.
+/// Failure codes any TC can receive at acceptance (FRAME_TOO_LONG on a framed link, TCP
+/// or serial, when framing merged or garbled frames).
 pub const ACCEPTANCE_FAILURES: &[F] = &[
     F::CRC_MISMATCH,
     F::MALFORMED_PACKET,
@@ -117,7 +122,60 @@ pub const ACCEPTANCE_FAILURES: &[F] = &[
     F::UNKNOWN_SUBSERVICE,
     F::BAD_ARG_LENGTH,
     F::ARG_OUT_OF_RANGE,
+    F::FRAME_TOO_LONG,
 ];
+
+/// Every failure list is a set: no code twice in a TC's list or in [`ACCEPTANCE_FAILURES`]
+/// (checked when the MIB compiles).
+const fn no_code_twice(list: &[F]) -> bool {
+    let mut i = 0;
+    while i < list.len() {
+        let mut j = i + 1;
+        while j < list.len() {
+            if list[i].code() == list[j].code() {
+                return false;
+            }
+            j += 1;
+        }
+        i += 1;
+    }
+    true
+}
+
+const fn lists(list: &[F], code: F) -> bool {
+    let mut i = 0;
+    while i < list.len() {
+        if list[i].code() == code.code() {
+            return true;
+        }
+        i += 1;
+    }
+    false
+}
+
+/// The MIB's failure lists hold together: each a set, and a TC accepted in some modes
+/// only lists NOT_ALLOWED_IN_MODE (the OBSW refuses it in the others with that code).
+const fn failure_lists_hold() -> bool {
+    if !no_code_twice(ACCEPTANCE_FAILURES) {
+        return false;
+    }
+    let mut i = 0;
+    while i < TCS.len() {
+        let t = &TCS[i];
+        if !no_code_twice(t.failures) {
+            return false;
+        }
+        if t.modes.0 != ModeSet::ALL.0 && !lists(t.failures, F::NOT_ALLOWED_IN_MODE) {
+            return false;
+        }
+        i += 1;
+    }
+    true
+}
+const _: () = assert!(
+    failure_lists_hold(),
+    "a TC's failure list names a code twice or misses NOT_ALLOWED_IN_MODE"
+);
 
 const fn a(name: &'static str, ptype: PType, unit: &'static str, min: i64, max: i64, desc: &'static str) -> ArgDef {
     Field::new(name, ptype, desc).unit(unit).range(min, max)
@@ -143,6 +201,7 @@ const fn tc(
         long_running: false,
         failures,
         hazard: None,
+        report: None,
         desc: crate::types::text(desc),
     }
 }
@@ -168,6 +227,7 @@ const fn func(
         long_running,
         failures,
         hazard: None,
+        report: None,
         desc: crate::types::text(desc),
     }
 }
@@ -206,9 +266,24 @@ const PWM_ARM: ArgDef = a(
     servo::PWM_MAX_US as i64,
     "target PWM pulse width",
 );
+/// Every robot action: refused in a mode without its power, while another runs, without a
+/// module it needs (`modules::config::needs`); ended by a fault, STOP or a mode change, a
+/// board B that does not answer, or its time limit.
 const MOTION_FAIL: &[F] = &[
     F::NOT_ALLOWED_IN_MODE,
     F::BUSY,
+    F::MODULE_ABSENT,
+    F::ABORTED_BY_FAULT,
+    F::ABORTED_BY_COMMAND,
+    F::BOARD_B_NO_ACK,
+    F::TIMEOUT,
+];
+/// An action that turns the hip (ROTATE_HIP, HOME): also refused while both grippers hold.
+const HIP_FAIL: &[F] = &[
+    F::NOT_ALLOWED_IN_MODE,
+    F::BUSY,
+    F::MODULE_ABSENT,
+    F::BOTH_SIDES_GRIPPED,
     F::ABORTED_BY_FAULT,
     F::ABORTED_BY_COMMAND,
     F::BOARD_B_NO_ACK,
@@ -217,6 +292,7 @@ const MOTION_FAIL: &[F] = &[
 const BOLT_FAIL: &[F] = &[
     F::NOT_ALLOWED_IN_MODE,
     F::BUSY,
+    F::MODULE_ABSENT,
     F::ABORTED_BY_FAULT,
     F::ABORTED_BY_COMMAND,
     F::BOARD_B_NO_ACK,
@@ -226,6 +302,7 @@ const BOLT_FAIL: &[F] = &[
 const UNBOLT_FAIL: &[F] = &[
     F::NOT_ALLOWED_IN_MODE,
     F::BUSY,
+    F::MODULE_ABSENT,
     F::ABORTED_BY_FAULT,
     F::ABORTED_BY_COMMAND,
     F::BOARD_B_NO_ACK,
@@ -265,7 +342,8 @@ pub const TCS: &[TcDef] = &[
         &[SID],
         &[F::UNKNOWN_SID],
         "Generate one report of a housekeeping structure now",
-    ),
+    )
+    .reports("HK_REPORT"),
     tc(
         3,
         31,
@@ -308,8 +386,9 @@ pub const TCS: &[TcDef] = &[
         "EVENT_REPORT_DISABLED",
         &[],
         &[],
-        "Report the list of disabled events (TM[5,8])",
-    ),
+        "Report the list of disabled events",
+    )
+    .reports("DISABLED_EVENTS"),
     // --- 8 functions ---
     func(
         function::RECONFIGURE,
@@ -331,10 +410,10 @@ pub const TCS: &[TcDef] = &[
         &[
             F::NOT_ALLOWED_IN_MODE,
             F::BUSY,
+            F::MODULE_ABSENT,
             F::INITIAL_STATE_MISMATCH,
             F::UNREACHABLE_STATE,
             F::ABORTED_BY_FAULT,
-            F::ABORTED_BY_COMMAND,
             F::ABORTED_BY_COMMAND,
             F::BOARD_B_NO_ACK,
             F::TIMEOUT,
@@ -366,7 +445,7 @@ pub const TCS: &[TcDef] = &[
         &[],
         ModeSet::OPERATIONAL,
         true,
-        MOTION_FAIL,
+        HIP_FAIL,
         "Send all actuators to home: arms contracted, grippers closed, hip at 0",
     ),
     func(
@@ -402,7 +481,7 @@ pub const TCS: &[TcDef] = &[
         )],
         ModeSet::OPER_SAFED,
         true,
-        MOTION_FAIL,
+        HIP_FAIL,
         "Debug: rotate the hip to an angle",
     )
     .hazardous("direct actuator motion outside the reconfiguration planner"),
@@ -441,7 +520,7 @@ pub const TCS: &[TcDef] = &[
         &[],
         ModeSet::OPER_SAFED,
         false,
-        &[],
+        &[F::NOT_ALLOWED_IN_MODE],
         "Abort the running action; actuators hold position",
     ),
     // --- 9 time ---
@@ -459,8 +538,9 @@ pub const TCS: &[TcDef] = &[
         "TIME_REPORT_NOW",
         &[],
         &[],
-        "Generate one time report now (TM[9,2])",
-    ),
+        "Generate one time report now",
+    )
+    .reports("TIME_REPORT"),
     // --- 11 scheduling ---
     tc(11, 1, "SCHED_ENABLE", &[], &[], "Enable release of scheduled TCs"),
     tc(11, 2, "SCHED_DISABLE", &[], &[], "Disable release of scheduled TCs"),
@@ -494,7 +574,12 @@ pub const TCS: &[TcDef] = &[
                 crate::config::SCHEDULE_CAPACITY as i64,
                 "number of activities",
             )],
-            &[F::SCHEDULE_FULL, F::RELEASE_TIME_PASSED, F::SCHEDULED_TC_INVALID],
+            &[
+                F::SCHEDULE_FULL,
+                F::RELEASE_TIME_PASSED,
+                F::SCHEDULED_TC_INVALID,
+                F::NESTED_SCHEDULE,
+            ],
             "Insert activities: count, then per activity a CDS short release time and a complete TC (or Yamcs' form, sched_cuc: sub-schedule ID, count, CUC release times)",
         )
     },
@@ -557,8 +642,9 @@ pub const TCS: &[TcDef] = &[
         "MON_REPORT",
         &[],
         &[],
-        "Report all monitoring definitions (TM[12,9])",
-    ),
+        "Report all monitoring definitions",
+    )
+    .reports("MON_DEFINITIONS"),
     // --- 15 storage ---
     tc(
         15,
@@ -609,10 +695,11 @@ pub const TCS: &[TcDef] = &[
             ),
         ],
         &[F::STORE_DISABLED],
-        "ECSS TC[15,9] by time range: downlink (oldest first) every stored packet whose on-board \
-         time stamp (CDS short, as in every TM secondary header) lies in [start, end], then TM[15,19]. \
-         The whole store is the full span 0/0 .. 65535/4294967295",
-    ),
+        "ECSS TC[15,9] by time range (the whole store: 0/0 .. 65535/4294967295): downlink (oldest \
+         first) every stored packet whose on-board time stamp (CDS short, as in every TM secondary \
+         header) lies in [start, end], then the end report",
+    )
+    .reports("STORE_DOWNLINK_DONE"),
     tc(
         15,
         128,
@@ -632,12 +719,13 @@ pub const TCS: &[TcDef] = &[
         &[F::STORE_DISABLED],
         "Mission-specific: downlink the stored packets of one APID whose sequence count lies in \
          [first_seq, last_seq], counted modulo 2^14 (first_seq > last_seq wraps through 16383 -> 0), \
-         oldest first, then TM[15,19]",
-    ),
+         oldest first, then the end report",
+    )
+    .reports("STORE_DOWNLINK_DONE"),
     tc(15, 11, "STORE_DELETE", &[], &[], "Delete the store content")
         .hazardous("empties the on-board TM store: its packets are lost for good"),
     // --- 17 test ---
-    tc(17, 1, "PING", &[], &[], "Connection test: answered by TM[17,2]"),
+    tc(17, 1, "PING", &[], &[], "Connection test").reports("PING_REPLY"),
     // --- 19 event-action ---
     tc(
         19,
@@ -662,8 +750,9 @@ pub const TCS: &[TcDef] = &[
         "EA_REPORT",
         &[],
         &[],
-        "Report all event-action definitions (TM[19,9])",
-    ),
+        "Report all event-action definitions",
+    )
+    .reports("EA_DEFINITIONS"),
     // --- 20 parameters ---
     tc(
         20,
@@ -671,8 +760,9 @@ pub const TCS: &[TcDef] = &[
         "PARAM_REPORT",
         &[TUNABLE],
         &[F::UNKNOWN_PARAMETER],
-        "Report an on-board parameter value (TM[20,2])",
-    ),
+        "Report an on-board parameter value",
+    )
+    .reports("PARAM_VALUE"),
     tc(
         20,
         3,
@@ -698,6 +788,8 @@ pub const TCS: &[TcDef] = &[
         &[
             F::UNKNOWN_MODE_TARGET,
             F::INVALID_MODE,
+            F::CONFIG_NOT_ACCEPTED,
+            F::CONFIG_INVALID,
             F::MODE_CHANGE_FAILED,
             F::FAULT_NOT_CLEARED,
             F::BUSY,
@@ -711,16 +803,18 @@ pub const TCS: &[TcDef] = &[
         "MODE_READ",
         &[NODE],
         &[F::UNKNOWN_MODE_TARGET],
-        "Report the mode of a node (TM[200,6])",
-    ),
+        "Report the mode of a node",
+    )
+    .reports("MODE_REPLY"),
     tc(
         200,
         5,
         "MODE_ANNOUNCE",
         &[NODE],
         &[F::UNKNOWN_MODE_TARGET],
-        "Report the modes of a node and all its descendants",
-    ),
+        "Report the modes of a node and all its descendants, one report each",
+    )
+    .reports("MODE_REPLY"),
     // --- 210 modules (mission-specific) ---
     tc(
         service::MODULES,
@@ -728,8 +822,9 @@ pub const TCS: &[TcDef] = &[
         "REPORT_MODULES",
         &[],
         &[],
-        "Report the module set found at boot (TM[210,3] MODULE_REPORT)",
-    ),
+        "Report the module set found at boot",
+    )
+    .reports("MODULE_REPORT"),
     tc(
         service::MODULES,
         2,
@@ -785,8 +880,9 @@ pub const TCS: &[TcDef] = &[
         "TEAM_STATUS_REQUEST",
         &[],
         &[],
-        "Team: report the team status (TM[210,2])",
-    ),
+        "Team: report the team status",
+    )
+    .reports("TEAM_STATUS"),
     tc(
         service::TEAM,
         crate::team::TEAM_SUBSERVICE_PLAN_STEP,
@@ -817,6 +913,28 @@ pub const TCS: &[TcDef] = &[
 ];
 
 impl TcDef {
+    /// The same TC, answered by the report of the MIB named `tm` (in [`TMS`]; a name
+    /// that is not there does not compile).
+    pub const fn reports(self, tm: &'static str) -> TcDef {
+        TcDef {
+            report: Some(tm_by_name(tm)),
+            ..self
+        }
+    }
+    /// The description as the ICD and the exports show it: the MIB text, then the report
+    /// the TC asks for, named from [`TcDef::report`].
+    #[cfg(feature = "descriptions")]
+    pub fn description(&self) -> TcDescription<'_> {
+        TcDescription(self)
+    }
+    /// True when the MIB says the OBSW may send failure `code` for this TC: a code of
+    /// [`ACCEPTANCE_FAILURES`] or of the TC's own list.
+    pub fn may_fail_with(&self, code: u16) -> bool {
+        ACCEPTANCE_FAILURES
+            .iter()
+            .chain(self.failures)
+            .any(|f| f.code() == code)
+    }
     /// The same TC, marked hazardous for the reason `why`.
     pub const fn hazardous(self, why: &'static str) -> TcDef {
         TcDef {
@@ -840,6 +958,49 @@ impl TcDef {
         let f = if self.service == service::FUNCTION { 2 } else { 0 };
         f + self.args.iter().map(|a| a.ptype.size()).sum::<usize>()
     }
+}
+
+/// A TC's description with the report it asks for ([`TcDef::description`]).
+#[cfg(feature = "descriptions")]
+#[derive(Clone, Copy, Debug)]
+pub struct TcDescription<'a>(&'a TcDef);
+
+#[cfg(feature = "descriptions")]
+impl core::fmt::Display for TcDescription<'_> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.0.desc)?;
+        if let Some(r) = self.0.report {
+            write!(f, " (answered by TM[{},{}] {})", r.service, r.subservice, r.name)?;
+        }
+        Ok(())
+    }
+}
+
+/// The report of [`TMS`] named `name`, at compile time (a missing name fails the build).
+const fn tm_by_name(name: &str) -> &'static TmDef {
+    let mut i = 0;
+    while i < TMS.len() {
+        if const_str_eq(TMS[i].name, name) {
+            return &TMS[i];
+        }
+        i += 1;
+    }
+    panic!("no TM of that name in TMS")
+}
+
+const fn const_str_eq(a: &str, b: &str) -> bool {
+    let (a, b) = (a.as_bytes(), b.as_bytes());
+    if a.len() != b.len() {
+        return false;
+    }
+    let mut i = 0;
+    while i < a.len() {
+        if a[i] != b[i] {
+            return false;
+        }
+        i += 1;
+    }
+    true
 }
 
 /// Finds the TC definition for a service/subservice (and function ID for PUS 8).
@@ -1232,6 +1393,49 @@ pub fn tm_by_type(service: u8, subservice: u8) -> Option<&'static TmDef> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    // verifies: PUS-1-05
+    #[test]
+    fn failure_lists_are_sets_and_name_the_mode_refusal() {
+        // The compile-time check rests on these: a repeat and a missing mode refusal are seen.
+        assert!(!no_code_twice(&[F::BUSY, F::TIMEOUT, F::BUSY]));
+        assert!(no_code_twice(&[F::BUSY, F::TIMEOUT]));
+        assert!(lists(MOTION_FAIL, F::NOT_ALLOWED_IN_MODE) && !lists(&[F::BUSY], F::NOT_ALLOWED_IN_MODE));
+        assert!(failure_lists_hold());
+        // The codes the review of the lists found missing are there now.
+        let of = |n: &str| by_name(n).unwrap().failures;
+        assert!(lists(of("BOLT_FACE"), F::MODULE_ABSENT));
+        assert!(lists(of("MODE_SET"), F::CONFIG_NOT_ACCEPTED) && lists(of("MODE_SET"), F::CONFIG_INVALID));
+    }
+    // verifies: ICD-01
+    #[test]
+    fn a_tc_names_its_report_from_the_mib_not_by_hand() {
+        // No description types a TM kind: TcDef::report names it.
+        for t in TCS {
+            assert!(
+                !t.desc.contains("TM["),
+                "{}: name the report with .reports(), not in the text",
+                t.name
+            );
+            if let Some(r) = t.report {
+                assert!(TMS.iter().any(|m| core::ptr::eq(m, r)), "{}", t.name);
+                let d = t.description().to_string();
+                assert!(
+                    d.ends_with(&format!("(answered by TM[{},{}] {})", r.service, r.subservice, r.name)),
+                    "{d}"
+                );
+            }
+        }
+        let status = by_name("TEAM_STATUS_REQUEST").unwrap();
+        assert_eq!(
+            status.report.map(|r| (r.service, r.subservice, r.name)),
+            Some((service::TEAM, 2, "TEAM_STATUS"))
+        );
+        assert!(status.description().to_string().contains("TM[211,2] TEAM_STATUS"));
+        assert_eq!(
+            by_name("PING").unwrap().report.map(|r| (r.service, r.subservice)),
+            Some((17, 2))
+        );
+    }
     // verifies: MMIC-CMD-06
     #[test]
     fn tc_names_and_keys_unique() {

@@ -177,7 +177,7 @@ pub enum TmBody {
         submode: u16,
         reason: u16,
     },
-    /// TM[210,2]: team coordination without the ground (issue 25).
+    /// TM[211,2] TEAM_STATUS: team coordination without the ground.
     TeamStatus {
         term: u32,
         /// 0 follower, 1 candidate, 2 leader.

@@ -299,7 +299,7 @@ pub fn icd_markdown() -> String {
             } else {
                 String::new()
             },
-            c(t.desc),
+            c(&t.description().to_string()),
             t.modes.names(),
             ScosNames::command(t)
         );

@@ -136,7 +136,8 @@ pub fn json_document() -> String {
             "variable": t.variable, "modes": t.modes.names(), "mode_mask": t.modes.0,
             "long_running": t.long_running, "hazard": t.hazard,
             "failures": t.failures.iter().map(|f| f.name()).collect::<Vec<_>>(),
-            "fixed_len": t.fixed_len(), "desc": t.desc,
+            "fixed_len": t.fixed_len(), "desc": t.description().to_string(),
+            "report": t.report.map(|r| json!({"service": r.service, "subservice": r.subservice, "name": r.name})),
         })).collect::<Vec<_>>(),
         "acceptance_failures": mib::tc::ACCEPTANCE_FAILURES.iter().map(|f| f.name()).collect::<Vec<_>>(),
         "telemetry": TMS.iter().map(|t| json!({

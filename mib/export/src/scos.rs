@@ -930,7 +930,7 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
             bit += a.ptype.bits();
             npars += 1;
         }
-        let mut descr2 = t.desc.to_string();
+        let mut descr2 = t.description().to_string();
         if t.variable {
             descr2.push_str(" (variable data follows)");
         }

@@ -711,7 +711,7 @@ fn meta_command(x: &mut Xml, t: &TcDef, apid: u16, flavor: Flavor) {
         } else {
             String::new()
         },
-        t.desc,
+        t.description(),
         t.modes.names()
     );
     if t.variable {

@@ -601,11 +601,60 @@ pub(crate) mod tests {
         )
     }
 
-    /// Sends a TC and returns every packet it produced.
+    /// Sends a TC and returns every packet it produced. Every failure report for it must
+    /// carry a code of the TC's MIB failure list ([`failures_are_listed`]).
     pub fn send(o: &mut TestObsw, now: u64, seq: u16, svc: u8, sub: u8, app: &[u8]) -> Vec<Vec<u8>> {
         let mut sink: Vec<Vec<u8>> = Vec::new();
-        o.handle_tc(now, &tc_bytes(APID, seq, svc, sub, app), &mut sink);
+        let raw = tc_bytes(APID, seq, svc, sub, app);
+        o.handle_tc(now, &raw, &mut sink);
+        failures_are_listed(&raw, &sink);
         sink
+    }
+
+    /// Panics when a failure report among `pkts` answers the TC `raw` with a code that is
+    /// neither an acceptance failure nor in the TC's MIB failure list (what the ICD and
+    /// Yamcs show operators). Bytes that are no MIB TC are not checked.
+    pub fn failures_are_listed(raw: &[u8], pkts: &[Vec<u8>]) {
+        let Ok(tc) = mib_wire::header::TcPacket::parse(raw) else {
+            return;
+        };
+        let function = match tc.app_data {
+            [hi, lo, ..] if tc.service == mib::tc::service::FUNCTION => Some(u16::from_be_bytes([*hi, *lo])),
+            _ => None,
+        };
+        let Some(def) = mib::tc::lookup(tc.service, tc.subservice, function) else {
+            return;
+        };
+        for p in pkts {
+            let (svc, sub, data) = kind(p);
+            if svc == 1 && sub % 2 == 0 && data.get(..4) == raw.get(..4) {
+                // TM[1,6] carries the step before the code.
+                let code = if sub == 6 {
+                    u16::from_be_bytes([data[5], data[6]])
+                } else {
+                    failure(p).0
+                };
+                assert!(
+                    def.may_fail_with(code),
+                    "TM[1,{sub}] answers {} with {} ({code}), not in its MIB failure list",
+                    def.name,
+                    mib::FailureCode::from_code(code).name()
+                );
+            }
+        }
+    }
+
+    // verifies: PUS-1-05
+    #[test]
+    #[should_panic(expected = "answers PING with MODULE_ABSENT (40), not in its MIB failure list")]
+    fn a_failure_code_outside_the_tcs_list_is_caught_by_the_test_helper() {
+        // A PING answered with a code its list lacks (made by hand: the OBSW does not).
+        let mut o = obsw();
+        let raw = tc_bytes(APID, 1, 17, 1, &[]);
+        let mut sink: Vec<Vec<u8>> = Vec::new();
+        let token = crate::downlink::Token::new(mib_wire::RequestId::of_tc(&raw).unwrap(), crate::accept::Ack::ALL);
+        o.dl.reject(10, token, &crate::failure::Failure::module_absent(5), &mut sink);
+        failures_are_listed(&raw, &sink);
     }
 
     /// (service, subservice, source data) of a TM packet.

@@ -345,12 +345,15 @@ fn margin(used: f64, avail: f64) -> f64 {
     100.0 * (avail - used) / avail
 }
 
+/// GSFC-STD-1000's flight margin: the full review fails on a budget below it.
+pub const FLIGHT_MARGIN_PCT: f64 = 30.0;
+
 fn verdict(m: Option<f64>) -> String {
     match m {
         None => "not measured".into(),
         Some(m) if m >= 50.0 => "meets 50 % (SRR/PDR), 40 % (CDR) and 30 % (flight)".into(),
         Some(m) if m >= 40.0 => "meets CDR (40 %) and flight (30 %); below the PDR 50 %".into(),
-        Some(m) if m >= 30.0 => "meets flight (30 %) only; below CDR 40 %".into(),
+        Some(m) if m >= FLIGHT_MARGIN_PCT => "meets flight (30 %) only; below CDR 40 %".into(),
         Some(_) => "BELOW the 30 % flight margin".into(),
     }
 }
@@ -1170,6 +1173,7 @@ mod tests {
             method: "test".into(),
             criticality: "high".into(),
             fdir: vec!["LOW_BATTERY".into(), "MON:V_BAT_A_LOW".into()],
+            evidence: Vec::new(),
         };
         let row = ReqRow {
             id: "X-1".into(),
@@ -1177,6 +1181,7 @@ mod tests {
             source: String::new(),
             method: "test".into(),
             criticality: "high".into(),
+            evidence: Vec::new(),
             tests: vec![ReqTest {
                 package: "p".into(),
                 name: "t".into(),

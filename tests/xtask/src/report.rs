@@ -60,6 +60,9 @@ pub struct ReqRow {
     pub method: String,
     pub criticality: String,
     pub tests: Vec<ReqTest>,
+    /// Evidence of a requirement verified by demonstration, analysis or inspection, as
+    /// checked in this run (`crate::evidence`).
+    pub evidence: Vec<String>,
     pub status: String,
 }
 
@@ -292,6 +295,9 @@ pub fn html(p: &Package) -> String {
                 esc(&t.name),
                 outcome_cell(t.outcome)
             );
+        }
+        for e in &r.evidence {
+            let _ = write!(tests, "<div>evidence: {}</div>", esc(e));
         }
         let _ = write!(
             h,

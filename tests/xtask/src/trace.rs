@@ -18,6 +18,10 @@ pub struct Requirement {
     /// FDIR rows this requirement demonstrates: fault event names or `MON:<monitor name>`.
     #[serde(default)]
     pub fdir: Vec<String>,
+    /// What shows a requirement verified by demonstration, analysis or inspection
+    /// (`crate::evidence`).
+    #[serde(default)]
+    pub evidence: Vec<crate::evidence::Evidence>,
 }
 
 #[derive(Clone, Debug, Default, Deserialize, Serialize)]
