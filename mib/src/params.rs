@@ -26,11 +26,6 @@ pub struct ParamDef {
     /// anomaly: the regulated servo voltage is 0 V in standby, where the regulator is off
     /// (paper Table 7). Use [`limits_apply`].
     pub limits_in: ModeSet,
-    /// A condition on the robot's state under which `limits` apply, on top of
-    /// `limits_in` (`None`: always). The hip deviation, for example, is only an anomaly
-    /// while no motion primitive runs: a turning hip is legitimately away from the
-    /// angle of the last configuration state. Use [`limits_apply`].
-    pub limits_if: Option<&'static LimitCond>,
     pub desc: crate::types::Text,
 }
 
@@ -171,7 +166,7 @@ macro_rules! params {
         /// Every telemetry parameter, in ID order.
         pub const PARAMS: &[ParamDef] = &[ $( ParamDef {
             id: $id, name: stringify!($name), ptype: PType::$t, unit: $unit,
-            calib: &$cal, limits: $lim, limits_in: limits_in($id), limits_if: limits_if($id), desc: $crate::types::text($desc),
+            calib: &$cal, limits: $lim, limits_in: limits_in($id), desc: $crate::types::text($desc),
         }, )* ];
         /// The source of each parameter, in the order of `PARAMS` (beside the table rather
         /// than a field of `ParamDef`: one byte per parameter in board A's flash instead of
@@ -349,14 +344,14 @@ pub fn limits_apply(param: &ParamDef, value: impl Fn(u16) -> Option<i64>) -> boo
         || value(pid::MODE)
             .and_then(|m| u32::try_from(m).ok())
             .is_some_and(|m| param.limits_in.contains(m));
-    mode_ok && param.limits_if.is_none_or(|c| value(c.param) == Some(c.raw))
+    mode_ok && param.limits_if().is_none_or(|c| value(c.param) == Some(c.raw))
 }
 
 /// The parameters whose values decide whether the limits of `param` apply (`MODE` if
 /// they hold in some modes only, the parameter of `limits_if`).
 pub fn limit_context(param: &ParamDef) -> impl Iterator<Item = u16> {
     let mode = (param.limits.is_some() && param.limits_in.0 != ModeSet::ALL.0).then_some(pid::MODE);
-    let cond = param.limits.and(param.limits_if).map(|c| c.param);
+    let cond = param.limits.and(param.limits_if()).map(|c| c.param);
     mode.into_iter().chain(cond)
 }
 
@@ -376,6 +371,14 @@ pub fn limit_hysteresis(l: &crate::types::Limits) -> f64 {
 }
 
 impl ParamDef {
+    /// A condition on the robot's state under which `limits` apply, on top of
+    /// `limits_in` (`None`: always). The hip deviation, for example, is only an anomaly
+    /// while no motion primitive runs: a turning hip is legitimately away from the
+    /// angle of the last configuration state. Use [`limits_apply`]. Derived from the ID
+    /// rather than stored: a field would cost every row of board A's table 4 bytes.
+    pub const fn limits_if(&self) -> Option<&'static LimitCond> {
+        limits_if(self.id)
+    }
     /// The module slot whose module the parameter measures ([`module_of`]).
     pub const fn module(&self) -> Option<u8> {
         module_of(self.id)
@@ -544,7 +547,7 @@ mod tests {
                 for c in limit_context(p) {
                     assert!(h.params.contains(&c), "SID {} has {} without {}", h.sid, p.name, c);
                 }
-                if let Some(c) = p.limits_if {
+                if let Some(c) = p.limits_if() {
                     let cp = by_id(c.param).unwrap();
                     assert!(c.raw >= cp.ptype.min() && c.raw <= cp.ptype.max(), "{}", p.name);
                 }

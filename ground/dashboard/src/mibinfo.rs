@@ -84,7 +84,7 @@ fn applies(p: &mib::params::ParamDef) -> String {
     if p.limits_in != mib::modes::ModeSet::ALL {
         w.push(format!("in {}", p.limits_in.names()));
     }
-    if let Some(c) = p.limits_if {
+    if let Some(c) = p.limits_if() {
         w.push(format!("if {}", c.desc));
     }
     w.join(", ")

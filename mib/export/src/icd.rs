@@ -119,7 +119,7 @@ fn applies_text(p: &mib::params::ParamDef) -> String {
     if p.limits.is_none() {
         return "—".into();
     }
-    match p.limits_if {
+    match p.limits_if() {
         Some(c) => format!(
             "{} if `{} = {}` ({})",
             p.limits_in.names(),

@@ -104,7 +104,7 @@ pub fn json_document() -> String {
             "calibration": {"scale": p.calib.scale, "offset": p.calib.offset},
             "limits": limits(&p.limits),
             "limits_in": p.limits.map(|_| p.limits_in.names()), "limits_in_mask": p.limits.map(|_| p.limits_in.0),
-            "limits_if": p.limits.and(p.limits_if).map(|c| json!({
+            "limits_if": p.limits.and(p.limits_if()).map(|c| json!({
                 "param": c.param, "param_name": mib::params::by_id(c.param).map(|q| q.name),
                 "raw": c.raw, "desc": c.desc,
             })),

@@ -41,7 +41,7 @@ pub use yamcs::{yamcs_instance, RobotSet, YamcsRobot, YamcsSetup};
 /// condition of `limits_if`. Empty when the limits always apply. XTCE turns each list
 /// into a context alarm, SCOS-2000 into checks made relevant by `OCP_RLCHK`/`OCP_VALPAR`.
 pub fn limit_contexts(p: &mib::params::ParamDef) -> Vec<Vec<(u16, i64)>> {
-    let cond: Vec<(u16, i64)> = p.limits_if.iter().map(|c| (c.param, c.raw)).collect();
+    let cond: Vec<(u16, i64)> = p.limits_if().iter().map(|c| (c.param, c.raw)).collect();
     if p.limits.is_none() {
         return Vec::new();
     }

@@ -69,7 +69,7 @@ fn set(v: Vec<String>) -> BTreeSet<String> {
 /// exporters' helper): (relevance parameter named by `name`, raw value), one per root
 /// mode of `limits_in` or the condition of `limits_if`; ("", "") when always.
 fn want_states(p: &ParamDef, name: impl Fn(u16) -> String) -> Vec<(String, String)> {
-    match (p.limits_in == mib::modes::ModeSet::ALL, p.limits_if) {
+    match (p.limits_in == mib::modes::ModeSet::ALL, p.limits_if()) {
         (true, None) => vec![(String::new(), String::new())],
         (true, Some(c)) => vec![(name(c.param), c.raw.to_string())],
         (false, None) => p
