@@ -65,6 +65,8 @@ pub struct IoCounters {
     pub sensor_errors: u32,
     pub output_errors: u32,
     pub ab_bytes_dropped: u32,
+    /// Deepest stack use since boot in bytes (the firmware's painted stack; 0 on the host).
+    pub stack_high_water: u32,
 }
 
 /// Counters reported in the OBSW housekeeping structure.
@@ -317,6 +319,7 @@ impl<S: TmStore> Obsw<S> {
             pid::IO_SENSOR_ERRORS => self.io.sensor_errors as i64,
             pid::IO_OUTPUT_ERRORS => self.io.output_errors as i64,
             pid::IO_AB_BYTES_DROPPED => self.io.ab_bytes_dropped as i64,
+            pid::IO_STACK_HIGH_WATER => self.io.stack_high_water as i64,
             pid::LINK_AD_ACCEPTED..=pid::LINK_REJ_CONTROL_RATE => {
                 self.space_link[usize::from(id - pid::LINK_AD_ACCEPTED)] as i64
             }
