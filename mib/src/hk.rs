@@ -136,6 +136,7 @@ pub const HK_STRUCTS: &[HkDef] = &[
             IO_SENSOR_ERRORS,
             IO_OUTPUT_ERRORS,
             IO_AB_BYTES_DROPPED,
+            IO_STACK_HIGH_WATER,
         ],
         default_interval_ms: 10000,
         default_enabled: true,

@@ -247,6 +247,7 @@ params! {
     IO_SENSOR_ERRORS = 82, Io, U32, "", ID, None, "Sensor reads that failed (I2C errors on the ADC, IMU or hip encoder)";
     IO_OUTPUT_ERRORS = 83, Io, U32, "", ID, None, "Actuator writes that failed (PWM, GPIO)";
     IO_AB_BYTES_DROPPED = 84, Io, U32, "", ID, None, "A-B serial bytes dropped by board A's receive or transmit queue";
+    IO_STACK_HIGH_WATER = 85, Io, U32, "B", ID, None, "Deepest use of board A's stack since boot, from the paint of start-up (0 on the host and until the first sweep)";
     // --- space link (host frame endpoint; docs/space-link.md) ---
     LINK_AD_ACCEPTED = 120, SpaceLink, U32, "", ID, None, "Space link: AD (sequence-controlled) TC frames accepted by FARM-1";
     LINK_BD_ACCEPTED = 121, SpaceLink, U32, "", ID, None, "Space link: BD (bypass) TC frames accepted";

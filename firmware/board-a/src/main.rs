@@ -168,15 +168,21 @@ async fn control(
     // holds one) as PREVIOUS_PANIC, after which the record is marked reported.
     announce_boot(raw_reset, obsw, &mut sink);
     let mut ticker = Ticker::every(Duration::from_millis(cfg::CONTROL_PERIOD_MS as u64));
+    let (bottom, top) = fw_esp::stack::bounds();
+    let mut stack = fw_core::stack::StackWatch::new(bottom, top);
     loop {
         ticker.next().await;
         watchdog.feed();
         cycle.run(fw_esp::clock::now_ms(), obsw, ground, &mut io, &links);
+        // PLATFORM_IO's IO_STACK_HIGH_WATER: the painted stack, swept a little per period.
+        obsw.io.stack_high_water = stack.step(fw_core::stack::WORDS_PER_PERIOD, fw_esp::stack::word);
     }
 }
 
 #[esp_hal::main]
 async fn main(spawner: Spawner) {
+    // First: the free stack painted, for its high-water mark in housekeeping.
+    fw_esp::stack::paint();
     let p = esp_hal::init(esp_hal::Config::default());
     let timg0 = TimerGroup::new(p.TIMG0);
     esp_rtos::start(timg0.timer0, p.FROM_CPU_INTR0);

@@ -159,6 +159,7 @@ impl<const TM: usize, const RX: usize, const TX: usize> LinksA<'_, TM, RX, TX> {
             sensor_errors: 0,
             output_errors: 0,
             ab_bytes_dropped: rx.overflow.wrapping_add(tx.overflow),
+            stack_high_water: 0,
         }
     }
 }
@@ -246,7 +247,11 @@ impl CycleA {
         // The platform's I/O counters as of the start of this period, for housekeeping
         // PLATFORM_IO (a one-shot TC[3,27] below included; what fails during this
         // period is reported from the next one).
-        obsw.io = self.io_counters(links);
+        // The stack's high-water mark is the image's to set (fw_core::stack), kept here.
+        obsw.io = IoCounters {
+            stack_high_water: obsw.io.stack_high_water,
+            ..self.io_counters(links)
+        };
         // Telecommands first, so that a TC and the tick that starts it share `now`.
         ground.receive(now, obsw, links.tcs, links.tm, links.tm_stats);
         sample_a(

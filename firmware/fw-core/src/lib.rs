@@ -31,4 +31,5 @@ pub mod panic_record;
 pub mod periph;
 pub mod sampling;
 pub mod spacelink;
+pub mod stack;
 pub mod team;

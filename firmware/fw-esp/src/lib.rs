@@ -9,3 +9,4 @@ pub mod defmt_sink;
 pub mod gpio;
 pub mod panic;
 pub mod servos;
+pub mod stack;

@@ -10,7 +10,7 @@ use mib::memory::{self, FlashUse};
 use std::path::Path;
 
 fn check_generated(file: &str, want: &str) {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(file);
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").join(file);
     if std::env::var_os("UPDATE_MEMORY_MAP").is_some_and(|v| v == "1") {
         std::fs::write(&path, want).expect("write the generated file");
         return;

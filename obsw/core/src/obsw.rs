@@ -67,6 +67,8 @@ pub struct IoCounters {
     pub sensor_errors: u32,
     pub output_errors: u32,
     pub ab_bytes_dropped: u32,
+    /// Deepest stack use since boot in bytes (the firmware's painted stack; 0 on the host).
+    pub stack_high_water: u32,
 }
 
 impl IoCounters {
@@ -78,6 +80,7 @@ impl IoCounters {
             pid::IO_SENSOR_ERRORS => self.sensor_errors,
             pid::IO_OUTPUT_ERRORS => self.output_errors,
             pid::IO_AB_BYTES_DROPPED => self.ab_bytes_dropped,
+            pid::IO_STACK_HIGH_WATER => self.stack_high_water,
             _ => return Err(NotSupplied(id)),
         })))
     }
