@@ -102,7 +102,7 @@ pub fn classify(prev: (i64, u16), cur: (i64, u16), boot_at_cur: bool) -> Option<
     let pos = |(obt_ms, seq): (i64, u16)| Pos { seq, obt_ms };
     match step(pos(prev), pos(cur), boot_at_cur) {
         Step::Next | Step::Behind => None,
-        Step::Gap(n) => Some((n, GapReason::Lost)),
+        Step::Gap(n) | Step::Resumed(n) => Some((n, GapReason::Lost)),
         Step::Restart(n) => Some((n, GapReason::Rebooted)),
     }
 }
