@@ -102,7 +102,7 @@ pub fn classify(prev: (i64, u16), cur: (i64, u16), boot_at_cur: bool) -> Option<
     let pos = |(obt_ms, seq): (i64, u16)| Pos { seq, obt_ms };
     match step(pos(prev), pos(cur), boot_at_cur) {
         Step::Next | Step::Behind => None,
-        Step::Gap(n) => Some((n, GapReason::Lost)),
+        Step::Gap(n) | Step::Resumed(n) => Some((n, GapReason::Lost)),
         Step::Restart(n) => Some((n, GapReason::Rebooted)),
     }
 }
@@ -284,7 +284,7 @@ impl Store {
 mod tests {
     use super::*;
 
-    // verifies: GND-02, OPS-LIVE-SEQ-01
+    // verifies: GND-02, OPS-LIVE-SEQ-01, PUS-15-03
     #[test]
     fn steps_are_classified_by_the_rule_of_the_live_trackers() {
         // Each step one second later on board.
@@ -296,7 +296,10 @@ mod tests {
         // A restart: the count goes back; not 16k lost.
         assert_eq!(c(500, 0, false), Some((0, GapReason::Rebooted)));
         assert_eq!(c(500, 4, false), Some((4, GapReason::Rebooted)));
-        assert_eq!(c(16000, 2, true), Some((2, GapReason::Rebooted)));
+        assert_eq!(c(16000, 0, true), Some((0, GapReason::Rebooted)));
+        // A BOOT event ahead: the obsw went on from its kept store; the counts between
+        // are an ordinary gap.
+        assert_eq!(c(16000, 2, true), Some((385, GapReason::Lost)));
         // Ahead by less than half the circle is a gap (across the wrap too), more than
         // half with a later time a restart: the live trackers' rule.
         assert_eq!(c(12_000, 3_000, false), Some((7_383, GapReason::Lost)));

@@ -30,6 +30,10 @@ pub enum Step {
     /// The obsw restarted (a BOOT event, or a count not ahead with a later on-board
     /// time): its counts start at 0 again, so this many of the new boot are missing.
     Restart(u32),
+    /// The obsw restarted and went on from the counts its store (kept across the
+    /// restart) still holds: a BOOT event ahead of the last count, not at 0. This many
+    /// counts between are missing, and the store can still give them.
+    Resumed(u32),
     /// The same count or behind, not later on board: a duplicate, or a late packet (one
     /// that fills a gap).
     Behind,
@@ -45,7 +49,11 @@ pub fn step(last: Pos, next: Pos, boot: bool) -> Step {
     let later = next.obt_ms > last.obt_ms;
     let d = seq_ahead(last.seq, next.seq);
     if boot && later {
-        return Step::Restart(u32::from(SeqCount::new(next.seq).get()));
+        return if d > 0 && d < SEQ_AHEAD && next.seq != 0 {
+            Step::Resumed(d - 1)
+        } else {
+            Step::Restart(u32::from(SeqCount::new(next.seq).get()))
+        };
     }
     if d > 0 && d < SEQ_AHEAD && next.obt_ms >= last.obt_ms {
         return if d == 1 { Step::Next } else { Step::Gap(d - 1) };
@@ -74,7 +82,15 @@ mod tests {
         assert_eq!(step(p(7, 50), p(10, 5), false), Step::Behind);
         // The same count later on board, or a BOOT event: the obsw restarted.
         assert_eq!(step(p(7, 0), p(7, 9), false), Step::Restart(7));
-        assert_eq!(step(p(7, 0), p(8, 9), true), Step::Restart(8));
+        assert_eq!(step(p(7, 0), p(0, 9), true), Step::Restart(0));
+        assert_eq!(
+            step(p(9000, 0), p(0, 9), true),
+            Step::Restart(0),
+            "a store in RAM: its BOOT event is count 0"
+        );
+        // A BOOT event ahead: the obsw went on from its kept store's counts.
+        assert_eq!(step(p(7, 0), p(8, 9), true), Step::Resumed(0));
+        assert_eq!(step(p(7, 0), p(70, 9), true), Step::Resumed(62));
         // Behind and not later: a duplicate or a late packet.
         assert_eq!(step(p(7, 9), p(3, 2), false), Step::Behind);
         assert_eq!(step(p(7, 9), p(7, 9), false), Step::Behind);

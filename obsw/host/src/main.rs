@@ -86,8 +86,8 @@ struct Args {
     config_state: Option<PathBuf>,
     /// File of the on-board TM store (PUS 15), kept across restarts: a NOR flash image of
     /// `mib::memory::store::SIZE` bytes, created erased if missing [default: DIR/robot-N/
-    /// tm-store.bin with --keys DIR, else tm-store.bin beside --link-state; neither: the
-    /// store is in memory and lost at exit].
+    /// tm-store.bin with --keys DIR, else tm-store-robot-N.bin beside --link-state;
+    /// neither: the store is in memory and lost at exit].
     #[arg(long, value_name = "PATH")]
     tm_store: Option<PathBuf>,
     /// Test aid: write every TM packet the obsw sends to this file, one line of hex each.
@@ -414,7 +414,11 @@ fn settings(a: Args) -> Result<Settings> {
         .tm_store
         .or(f.tm_store)
         .or_else(|| from_keys("tm-store.bin"))
-        .or_else(|| frames.as_ref().map(|fc| fc.state.with_file_name("tm-store.bin")));
+        .or_else(|| {
+            frames
+                .as_ref()
+                .map(|fc| fc.state.with_file_name(format!("tm-store-robot-{robot}.bin")))
+        });
     Ok(Settings {
         robot,
         udp,
@@ -991,6 +995,8 @@ mod tests {
         assert!(e.contains("--frame-udp") && e.contains("--lab-bare-packets"), "{e}");
         // --keys DIR: robot N's files and the default ports.
         let s = parse_raw(&["--robot", "3", "--keys", "k"]).unwrap();
+        // The TM store file is the robot's too.
+        assert_eq!(s.tm_store.as_deref(), Some(std::path::Path::new("k/robot-3/tm-store.bin")));
         let fc = s.frames.expect("frames from --keys");
         assert!(!s.bare);
         assert_eq!(

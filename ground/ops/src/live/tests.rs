@@ -287,6 +287,20 @@ fn reboot_restarting_counts_is_neither_a_16k_gap_nor_duplicates() {
     assert_eq!(t.duplicates, 0);
 }
 
+// verifies: OPS-LIVE-SEQ-01, GND-12, PUS-15-03
+#[test]
+fn a_reboot_that_kept_its_store_leaves_the_outage_fillable() {
+    let mut t = ApidTracker::resume(Some(p(5000, 10_000)));
+    t.on_packet(p(5002, 10_200), false, 0);
+    // The obsw went on from its stored counts: its BOOT event is 5100.
+    assert_eq!(t.on_packet(p(5100, 20_000), true, 0), Verdict::Reboot);
+    assert!(t.take_lost().is_empty(), "nothing declared lost");
+    assert_eq!(t.holes(), 1 + 97);
+    assert_eq!(t.on_packet(p(5001, 10_100), false, 0), Verdict::Filled);
+    assert_eq!(t.on_packet(p(5050, 15_000), false, 0), Verdict::Filled);
+    assert_eq!(t.holes(), 96);
+}
+
 // verifies: OPS-LIVE-SEQ-01, GND-12
 #[test]
 fn reboot_seen_without_its_boot_event_leaves_the_first_counts_as_holes() {

@@ -28,7 +28,8 @@ pub const RECENT_WINDOW: usize = mib::config::TM_STORE_CAPACITY;
 /// Why a hole can no longer be filled.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Lost {
-    /// The robot rebooted: its store (in RAM) started empty.
+    /// The robot rebooted and its counts started again at 0 (a store in RAM, started
+    /// empty).
     Rebooted,
     /// Older than the oldest packet still in the on-board store.
     Overwritten,
@@ -276,6 +277,15 @@ impl ApidTracker {
         // are this tracker's.
         match step(last, p, boot) {
             Step::Restart(_) => self.reboot(p, now_ms),
+            // The store was kept: the holes before the restart can still be filled.
+            Step::Resumed(_) => {
+                self.add_holes(last, p, now_ms);
+                self.remember(p.seq);
+                self.last = Some(p);
+                self.new += 1;
+                self.reboots += 1;
+                Verdict::Reboot
+            }
             Step::Next | Step::Gap(_) => {
                 self.add_holes(last, p, now_ms);
                 self.remember(p.seq);
