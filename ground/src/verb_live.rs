@@ -30,11 +30,18 @@ pub(crate) fn ping(a: &PingArgs, archive_path: Option<&Path>) -> Result<u8> {
             let t0 = Instant::now();
             let mut got = None;
             let mut from_store = false;
+            let mut completed = None;
             let mut foreign = false;
             let live_wait = s.ack_timeout() * 2;
             let mut last_ask = Instant::now();
             loop {
                 let waited = t0.elapsed();
+                // The PING's completion report without its reply: answered, once the reply
+                // had its live wait.
+                if got.is_none() && waited >= live_wait && completed.is_some() {
+                    got = completed;
+                    from_store = true;
+                }
                 // Over frames, a PING whose frame a CLCW acknowledged reached the robot:
                 // a reply lost on the way is asked of the on-board store (its reply or
                 // completion report), while the robot is heard, for at most a store
@@ -68,8 +75,7 @@ pub(crate) fn ping(a: &PingArgs, archive_path: Option<&Path>) -> Result<u8> {
                                 && v.stage == Stage::Completion
                                 && v.success =>
                         {
-                            from_store = true;
-                            got = Some(t0.elapsed());
+                            completed.get_or_insert(t0.elapsed());
                         }
                         Update::Foreign { robot, .. } if robot == r => {
                             foreign = s.robots.get(&r).is_some_and(|st| st.last_tm.is_none());
@@ -256,6 +262,20 @@ pub(crate) fn send_and_follow(
                 s.request_missing_reports(robot, 1);
             }
         }
+    }
+    // Over frames, what COP-1 did for this robot (why no report came is often there).
+    if let Some(f) = s.frame_stats(robot) {
+        out(&format!(
+            "robot {robot}: frames: {} TC packets, {} acknowledged by CLCW, {} AD frames ({} retransmissions), {} initialisations, {} alerts, {} pending, last N(R) {}",
+            f.packets,
+            f.acknowledged,
+            f.ad_frames,
+            f.retransmissions,
+            f.initialisations,
+            f.alerts,
+            f.pending,
+            f.nr.map_or("-".into(), |n| n.to_string())
+        ))?;
     }
     if !accepted {
         let what = format!(

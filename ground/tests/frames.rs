@@ -309,7 +309,7 @@ fn ground_keys_creates_private_keys_and_never_prints_them() {
     assert!(!again.status.success(), "{}", text(&again));
 }
 
-// verifies: LINK-GND-04
+// verifies: LINK-GND-04, OPS-DEMO-TM-01
 #[test]
 fn demo_runs_over_frames_with_test_keys_and_no_resends() {
     let dir = tmpdir("frames", "demo");
@@ -337,6 +337,13 @@ fn demo_runs_over_frames_with_test_keys_and_no_resends() {
         assert!(packets > 0, "{fr}");
         assert_eq!(count_before(fr, " acknowledged by CLCW"), packets, "{fr}");
         assert_eq!(count_before(fr, " alerts"), 0, "{fr}");
+        // The robots were booted by the demo: their TM is complete from their first
+        // packet, what went out before the ground listened fetched from the store.
+        let tm = format!(
+            "TM robot {r}: complete from seq {} up to",
+            ground_ops::live::BOOT_FIRST_SEQ
+        );
+        assert!(t.contains(&tm), "{tm:?} in {t}");
     }
 }
 
