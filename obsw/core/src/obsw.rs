@@ -42,8 +42,8 @@ pub enum LinkEvent {
     ControlFrame { command: u8, vr: u8, total: u32 },
 }
 
-/// Number of space-link HK parameters (`pid::LINK_AD_ACCEPTED..=pid::LINK_REJ_CONTROL_RATE`).
-pub const SPACE_LINK_PARAMS: usize = (pid::LINK_REJ_CONTROL_RATE - pid::LINK_AD_ACCEPTED + 1) as usize;
+/// Number of space-link HK parameters (`pid::LINK_AD_ACCEPTED..=pid::LINK_REJ_CONTROL_STATE`).
+pub const SPACE_LINK_PARAMS: usize = (pid::LINK_REJ_CONTROL_STATE - pid::LINK_AD_ACCEPTED + 1) as usize;
 /// Number of space-link state HK parameters (`pid::LINK_TM_SPI..=pid::LINK_STATE_BAD_SLOT`).
 pub const SPACE_LINK_STATE_PARAMS: usize = (pid::LINK_STATE_BAD_SLOT - pid::LINK_TM_SPI + 1) as usize;
 
@@ -317,7 +317,7 @@ impl<S: TmStore> Obsw<S> {
             pid::IO_SENSOR_ERRORS => self.io.sensor_errors as i64,
             pid::IO_OUTPUT_ERRORS => self.io.output_errors as i64,
             pid::IO_AB_BYTES_DROPPED => self.io.ab_bytes_dropped as i64,
-            pid::LINK_AD_ACCEPTED..=pid::LINK_REJ_CONTROL_RATE => {
+            pid::LINK_AD_ACCEPTED..=pid::LINK_REJ_CONTROL_STATE => {
                 self.space_link[usize::from(id - pid::LINK_AD_ACCEPTED)] as i64
             }
             pid::LINK_TM_SPI..=pid::LINK_STATE_BAD_SLOT => {
