@@ -225,8 +225,9 @@ fn replayed_control_frames_and_control_looking_junk_neither_stop_the_ground_nor_
     // Under attack: the same plan again (a new ground process: it initialises COP-1 again).
     let stop = Arc::new(AtomicBool::new(false));
     let attacker = attack(frame, frames.clone(), stop.clone());
-    // The attack is under way before the ground starts.
-    std::thread::sleep(Duration::from_millis(200));
+    // The attack is under way (a full second: 100 replays, 1,000 junk datagrams) before the
+    // ground starts.
+    std::thread::sleep(Duration::from_millis(1000));
     let attacked = run_plan(&dir, &links, "attacked.txt");
     stop.store(true, Ordering::SeqCst);
     let sent = attacker.join().unwrap();
