@@ -168,7 +168,7 @@ pub const HK_STRUCTS: &[HkDef] = &[
             LINK_TM_FRAMES,
             LINK_TM_IDLE_FRAMES,
             LINK_TM_SDLS_FAILED,
-            LINK_REJ_CONTROL_RATE,
+            LINK_REJ_CONTROL_STATE,
             LINK_TM_SPI,
             LINK_TC_SPIS,
             LINK_STATE_WRITES,

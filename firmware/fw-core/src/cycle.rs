@@ -38,7 +38,7 @@ pub trait GroundLink {
     );
 }
 
-impl<St: mmic_link::sdls::IvStore + crate::spacelink::StoreStats> GroundLink for crate::spacelink::FrameLink<St> {
+impl<St: mmic_link::sdls::IvStore + mmic_link::endpoint::StoreStats> GroundLink for crate::spacelink::FrameLink<St> {
     fn receive<S: TmStore, const N: usize>(
         &mut self,
         now: u64,

@@ -364,13 +364,13 @@ fn framelink_authenticated_tc_executes_once_replay_and_wrong_mac_refused() -> Te
     // captured frame is still a replay.
     let resume = FlashIvStore::open(fl.store().flash().clone(), 0).resume(1, 17);
     let mut fl2 = FrameLink::new(Some(&keys), resume, FlashIvStore::open(fl.store().flash().clone(), 0));
-    check_eq!(fl2.rx.farm.vr(), 2);
+    check_eq!(fl2.ep.rx.farm.vr(), 2);
     let replay = captured;
     uplink(&replay[..len], &TCS, &UP);
     fl2.receive(50, &mut obsw, &TCS, &TM, &DOWN);
     fl2.end_period(50, &mut obsw, &TM, &DOWN);
-    check_eq!(fl2.rx.counters.replay, 1);
-    check_eq!(fl2.rx.counters.ad_accepted, 0);
+    check_eq!(fl2.ep.rx.counters.replay, 1);
+    check_eq!(fl2.ep.rx.counters.ad_accepted, 0);
     check_eq!(UP.get().overflow + UP.get().frame_errors, 0);
 
     semihosting::println!(
@@ -418,8 +418,9 @@ fn framelink_bare_packets_control_frames_and_idle_frames() -> TestResult {
     check_eq!(count(&g, 17, 2), 0);
     check_eq!(count(&g, 5, 2), 1);
 
-    // Seven Set V(R) = 9 control frames (in clear) within one second: five taken, two
-    // dropped by the rate limit; one LINK_CONTROL_FRAME event per period.
+    // Seven Set V(R) control frames (in clear): to 9, refused (they would move V(R) away
+    // from the ground's), then to 0, the present V(R), taken; one event per period. No
+    // durable write for any of them.
     let mut bc = [0u8; 16];
     let repr = TcRepr {
         frame_type: FrameType::Bc,
@@ -430,18 +431,20 @@ fn framelink_bare_packets_control_frames_and_idle_frames() -> TestResult {
     };
     let len = repr.buffer_len();
     repr.emit(&mut mmic_link::tc::TcFrame::new_unchecked(&mut bc[..len]));
-    bc[5..8].copy_from_slice(&[0x82, 0x00, 9]);
-    mmic_link::fecf::seal(&mut bc[..len]);
+    let writes = fl.store().writes;
     for i in 0..7u64 {
+        bc[5..8].copy_from_slice(&[0x82, 0x00, if i < 2 { 9 } else { 0 }]);
+        mmic_link::fecf::seal(&mut bc[..len]);
         uplink(&bc[..len], &TCS, &UP);
         fl.receive(100 + 10 * i, &mut obsw, &TCS, &TM, &DOWN);
         fl.end_period(100 + 10 * i, &mut obsw, &TM, &DOWN);
     }
     downlink(&TM, &mut tm_rx, &mut tm_store, &mut g);
     check_eq!(obsw.space_link[off(pid::LINK_CONTROL_FRAMES)], 5);
-    check_eq!(obsw.space_link[off(pid::LINK_REJ_CONTROL_RATE)], 2);
-    check_eq!(fl.rx.farm.vr(), 9);
-    check_eq!(g.clcw_nr, Some(9), "the CLCW goes out after each control frame");
+    check_eq!(obsw.space_link[off(pid::LINK_REJ_CONTROL_STATE)], 2);
+    check_eq!(fl.ep.rx.farm.vr(), 0);
+    check_eq!(fl.store().writes, writes);
+    check_eq!(g.clcw_nr, Some(0), "the CLCW goes out after each control frame");
 
     // Nothing to send: an idle frame with the CLCW once 100 ms passed without a frame.
     let frames = g.frames;
@@ -452,6 +455,6 @@ fn framelink_bare_packets_control_frames_and_idle_frames() -> TestResult {
     fl.end_period(260, &mut obsw, &TM, &DOWN);
     downlink(&TM, &mut tm_rx, &mut tm_store, &mut g);
     check_eq!(tm_rx.counters.idle_frames, idle + 1);
-    check_eq!(g.clcw_nr, Some(9));
+    check_eq!(g.clcw_nr, Some(0));
     Ok(())
 }

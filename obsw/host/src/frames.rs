@@ -1,23 +1,16 @@
-//! The space-link frame endpoint of the host obsw (issue 22, phase 2): one UDP socket
-//! taking one TC frame per datagram, and TM frames (fixed length, one per datagram) sent
-//! to a fixed ground address.
+//! The host obsw's transport of the space link: one UDP socket taking one TC frame per
+//! datagram and sending TM frames (fixed length, one per datagram) to a fixed ground
+//! address, or a serial line. The link itself — receive pipeline, control-frame gate,
+//! FARM-1, TM framer, idle frames, SPACE_LINK counters and link events — is
+//! `mmic_link::endpoint::Endpoint`, the same code board A runs; this module keeps the I/O,
+//! the key files and the state file (`mmic_link::persist`, each write `O_DSYNC`), and the
+//! key change (LINK_SPI_SELECT), which only the host can apply (board A holds one key per
+//! direction).
 //!
-//! Uplink: `mmic_link::rx::TcReceiver` runs CRC → lengths/header → SDLS (AES-256-GCM,
-//! anti-replay window) → packet lengths → FARM-1 → the receive IV and FARM-1's state in
-//! one in-place write of the state file, `fdatasync`ed (`mmic_link::persist`); only then
-//! do the packets of the frame go to `Obsw::handle_tc`. After a restart FARM-1 resumes at
-//! the persisted V(R) (and lockout), so the ground's FOP-1 continues. Every refusal is counted by
-//! reason (HK SPACE_LINK) and reported by a throttled event; a refused frame changes
-//! nothing (no TC, no COP-1 state, no TM destination: TM frames go to `--frame-tm-to`
-//! only, whoever sends frames). BC control frames, which come in clear, are taken at most
-//! [`CONTROL_FRAMES_PER_S`] per second; the rest are dropped and counted.
-//!
-//! Downlink: every TM packet the OBSW sends is multiplexed into VC0 frames (SDLS with the
-//! TM key); a partly filled frame is flushed at the end of each batch of inputs and each
-//! control period, so a reply never waits for a frame to fill. When no frame has gone out
-//! for [`IDLE_INTERVAL`], an idle frame on VC7 carries the CLCW; after an authentic TC
-//! frame (accepted, discarded or a control frame) the CLCW goes out at once, so the
-//! ground's FOP-1 learns of it without waiting. Store replay (PUS 15) packets go on VC1
+//! A refused frame changes nothing (no TC, no COP-1 state, no TM destination: TM frames
+//! go to `--frame-tm-to` only, whoever sends frames). The host flushes the partly filled
+//! frames at the end of each batch of inputs and each control period, so a reply never
+//! waits for a frame to fill; store replay (PUS 15) packets go on VC1
 //! (`TmSink::send_replay`), each channel with its own partial frame.
 //!
 //! Transport: one frame per UDP datagram (`--frame-udp`, TM to `--frame-tm-to`), or a
@@ -30,34 +23,21 @@
 use std::net::{SocketAddr, UdpSocket};
 use std::os::fd::{AsRawFd, RawFd};
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use anyhow::{Context, Result};
 use mib::link::sdls::{ANTI_REPLAY_WINDOW, TC_SPIS, TM_SPIS};
 use mib::link::tm_frame::LEN as TM_LEN;
 use mmic_link::downlink::{Downlink as Framer, TmSecurity, TmVc};
+use mmic_link::endpoint::{Endpoint, LinkReport};
 use mmic_link::farm::Farm;
 use mmic_link::persist::{read_key, Dir, FileIvStore};
-use mmic_link::rx::{RxCounters, RxOutcome, TcReceiver};
+use mmic_link::rx::TcReceiver;
 use mmic_link::sdls::{Key, RxSa, RxSas, TxSa};
 use mmic_link::stream::port::Port;
 use mmic_link::stream::{Deframer, StreamCounters};
-use mmic_link::tc::ControlCommand;
-use obsw_core::obsw::{SPACE_LINK_PARAMS, SPACE_LINK_STATE_PARAMS};
+use obsw_core::obsw::{LinkEvent, SPACE_LINK_PARAMS, SPACE_LINK_STATE_PARAMS};
 use obsw_core::services::link::{LinkKeys, LinkSelect};
-
-/// Longest time without a TM frame: then an idle frame carries the CLCW.
-pub const IDLE_INTERVAL: Duration = Duration::from_millis(mib::link::cop1::CLCW_REPORT_INTERVAL_MS);
-
-/// BC control frames (Unlock, Set V(R): in clear, anyone can send them) taken per second;
-/// more are dropped and counted (`LINK_REJ_CONTROL_RATE`). The ground's FOP-1 sends one
-/// per T1 (2 s) while it initialises, a few more after a restart.
-pub const CONTROL_FRAMES_PER_S: u32 = 5;
-
-/// Whether a datagram's header says BC frame (version 00, bypass 1, control 1).
-fn is_control_frame(d: &[u8]) -> bool {
-    d.first().is_some_and(|b| b & 0xF0 == 0x30)
-}
 
 /// Reads a `--tm-sdls` / TOML `tm_sdls` value (`TmSecurity::NAMES`).
 pub fn parse_tm_sdls(s: &str) -> Result<TmSecurity, String> {
@@ -126,6 +106,12 @@ fn spare_key(first: &Path, spi: u16) -> Result<Option<Key>> {
         .with_context(|| format!("spare key of SPI {spi}"))
 }
 
+/// The TM SA of `spi` at its stored high-water mark, if its key is loaded.
+fn tx_sa(tm_keys: &[(u16, Key)], spi: u16, store: &FileIvStore) -> Option<TxSa> {
+    let (_, key) = tm_keys.iter().find(|(s, _)| *s == spi)?;
+    Some(TxSa::resume(spi, key, store.get(Dir::Tx, spi).unwrap_or(0)))
+}
+
 fn rx_sa(spi: u16, key: &Key, store: &FileIvStore) -> RxSa {
     match store.get(Dir::Rx, spi) {
         Some(last) => RxSa::resume(spi, key, ANTI_REPLAY_WINDOW, last),
@@ -166,14 +152,6 @@ pub fn apply_select(sel: &mut Option<LinkSelect>, ep: Option<&mut FrameEndpoint>
     }
 }
 
-/// Index of a TM virtual channel in [`FrameEndpoint`]'s pending flags.
-const fn vc_index(vc: TmVc) -> usize {
-    match vc {
-        TmVc::Realtime => 0,
-        TmVc::Replay => 1,
-    }
-}
-
 /// The endpoint's transport.
 enum Wire {
     Udp {
@@ -211,30 +189,16 @@ impl Wire {
 /// The frame endpoint (see the module documentation).
 pub struct FrameEndpoint {
     port: Wire,
-    rx: TcReceiver<2>,
-    framer: Framer,
-    /// TM SAs of the SPIs with a key (`TM_SPIS` order) and the one in use.
-    tm_sas: Vec<TxSa>,
-    tm_active: usize,
+    ep: Endpoint<FileIvStore, 2, 2>,
+    /// Time 0 of the endpoint's clock (ms).
+    epoch: Instant,
+    /// TM keys loaded (SPI, key), `TM_SPIS` order.
+    tm_keys: Vec<(u16, Key)>,
     /// TC keys loaded (SPI, key); which are retired is in the state file.
     tc_keys: Vec<(u16, Key)>,
-    store: FileIvStore,
-    /// Virtual channels holding packet bytes not yet sent in a frame (realtime, replay).
-    pending: [bool; 2],
-    /// An authentic TC frame changed (or confirmed) the CLCW: send it at once.
-    clcw_due: bool,
-    last_tx: Instant,
     buf: Vec<u8>,
     /// TM frames the socket refused (counted into the platform's `tm_dropped`).
     pub send_failures: u32,
-    /// Counters already reported by events.
-    reported: RxCounters,
-    last_control: Option<ControlCommand>,
-    /// Control frames taken in the current one-second window, and its start.
-    control_window: (Instant, u32),
-    /// Control frames dropped by the rate limit.
-    control_rate_limited: u32,
-    reported_rate_limited: u32,
     /// UDP with [`FrameEndpoint::track_readiness`]: whether a datagram may be waiting (set
     /// by the main loop's poll, cleared when a read would block), so that a drained socket
     /// costs no system call per wake-up. `None`: every [`FrameEndpoint::next`] reads.
@@ -274,11 +238,7 @@ impl FrameEndpoint {
             );
         }
         let tm_spi = store.record().tm_spi.unwrap_or(TM_SPIS[0]);
-        let tm_sas: Vec<TxSa> = tm_keys
-            .iter()
-            .map(|(spi, k)| TxSa::resume(*spi, k, store.get(Dir::Tx, *spi).unwrap_or(0)))
-            .collect();
-        let tm_active = tm_sas.iter().position(|sa| sa.spi() == tm_spi).with_context(|| {
+        let tm_sa = tx_sa(&tm_keys, tm_spi, &store).with_context(|| {
             format!(
                 "{}: TM SPI {tm_spi} was selected, but its key file ({}) is missing",
                 cfg.state.display(),
@@ -330,24 +290,20 @@ impl FrameEndpoint {
                 failed: false,
             },
         };
+        let rx = TcReceiver::new(mib::link::SCID, mib::link::tc_vc::COMMAND, farm, sas);
         Ok(FrameEndpoint {
             port,
-            rx: TcReceiver::new(mib::link::SCID, mib::link::tc_vc::COMMAND, farm, sas),
-            framer: Framer::with_security(mib::link::SCID, cfg.tm_sdls),
-            tm_sas,
-            tm_active,
+            ep: Endpoint::new(
+                rx,
+                Framer::with_security(mib::link::SCID, cfg.tm_sdls),
+                Some(tm_sa),
+                store,
+            ),
+            epoch: Instant::now(),
+            tm_keys,
             tc_keys,
-            store,
-            pending: [false; 2],
-            clcw_due: true,
-            last_tx: Instant::now(),
             buf: vec![0u8; 65_536],
             send_failures: 0,
-            reported: RxCounters::default(),
-            last_control: None,
-            control_window: (Instant::now(), 0),
-            control_rate_limited: 0,
-            reported_rate_limited: 0,
             readable: None,
         })
     }
@@ -357,11 +313,7 @@ impl FrameEndpoint {
     /// again). Stored in the state file before it takes effect, so it survives restarts.
     /// Refused, changing nothing, for an SPI without a loaded key or an empty TC set.
     pub fn select_spis(&mut self, tm_spi: u16, tc_active: &[u16]) -> Result<(), SpiError> {
-        let tm_active = self
-            .tm_sas
-            .iter()
-            .position(|sa| sa.spi() == tm_spi)
-            .ok_or(SpiError::NoKey(tm_spi))?;
+        let tm_sa = tx_sa(&self.tm_keys, tm_spi, self.ep.store()).ok_or(SpiError::NoKey(tm_spi))?;
         if tc_active.is_empty() {
             return Err(SpiError::NoTcSpi);
         }
@@ -373,23 +325,28 @@ impl FrameEndpoint {
             .enumerate()
             .filter(|(_, s)| !tc_active.contains(s))
             .fold(0u8, |m, (i, _)| m | 1 << i);
-        self.store
+        self.ep
+            .store_mut()
             .put_selection(tm_spi, retired)
             .map_err(|_| SpiError::StoreFailed)?;
-        self.tm_active = tm_active;
+        // The SA in use keeps its counter; another resumes at its stored high-water mark.
+        if self.ep.tm_sa().map(TxSa::spi) != Some(tm_spi) {
+            self.ep.set_tm_sa(tm_sa);
+        }
         // SAs: the retired ones go, the activated ones come back at their stored counter.
-        let fresh = rx_sas(&self.tc_keys, retired, &self.store);
+        let fresh = rx_sas(&self.tc_keys, retired, self.ep.store());
         for &spi in TC_SPIS.iter() {
             match fresh.get(spi) {
-                Some(_) if self.rx.sas.get(spi).is_some() => {}
+                Some(_) if self.ep.rx.sas.get(spi).is_some() => {}
                 Some(_) => {
                     let key = self.tc_keys.iter().find(|(s, _)| *s == spi).map(|(_, k)| *k);
                     if let Some(k) = key {
-                        let _ = self.rx.sas.insert(rx_sa(spi, &k, &self.store));
+                        let sa = rx_sa(spi, &k, self.ep.store());
+                        let _ = self.ep.rx.sas.insert(sa);
                     }
                 }
                 None => {
-                    self.rx.sas.remove(spi);
+                    self.ep.rx.sas.remove(spi);
                 }
             }
         }
@@ -406,7 +363,7 @@ impl FrameEndpoint {
                 .fold(0u8, |m, (i, _)| m | 1 << i)
         };
         LinkKeys {
-            tm: mask(&TM_SPIS, &|s| self.tm_sas.iter().any(|sa| sa.spi() == s)),
+            tm: mask(&TM_SPIS, &|s| self.tm_keys.iter().any(|(k, _)| *k == s)),
             tc: mask(&TC_SPIS, &|s| self.tc_keys.iter().any(|(k, _)| *k == s)),
         }
     }
@@ -417,9 +374,9 @@ impl FrameEndpoint {
         let tc = TC_SPIS
             .iter()
             .copied()
-            .filter(|s| self.rx.sas.get(*s).is_some())
+            .filter(|s| self.ep.rx.sas.get(*s).is_some())
             .collect();
-        (self.tm_sas[self.tm_active].spi(), tc)
+        (self.ep.tm_sa().map_or(0, TxSa::spi), tc)
     }
 
     /// The UDP address TC frames arrive at (`None` on a serial link).
@@ -515,71 +472,29 @@ impl FrameEndpoint {
         }
     }
 
+    /// The endpoint's clock: ms since it was opened.
+    fn ms(&self, t: Instant) -> u64 {
+        t.saturating_duration_since(self.epoch).as_millis() as u64
+    }
+
     /// The next waiting frame through the receive pipeline, if any (never blocks).
     pub fn next(&mut self) -> Option<FrameInput> {
         let n = self.receive()?;
-        let dgram = &mut self.buf[..n];
-        if is_control_frame(dgram) {
-            let now = Instant::now();
-            if now.duration_since(self.control_window.0) >= Duration::from_secs(1) {
-                self.control_window = (now, 0);
-            }
-            if self.control_window.1 >= CONTROL_FRAMES_PER_S {
-                self.control_rate_limited = self.control_rate_limited.saturating_add(1);
-                return Some(FrameInput::Nothing);
-            }
-            self.control_window.1 += 1;
-        }
-        Some(match self.rx.receive(&mut self.store, dgram, true) {
-            RxOutcome::Accepted { packets, .. } => {
-                self.clcw_due = true;
-                FrameInput::Packets(packets.map(<[u8]>::to_vec).collect())
-            }
-            RxOutcome::Control(c) => {
-                self.clcw_due = true;
-                self.last_control = Some(c);
-                log::warn!("space link: control frame {c:?} executed (in clear)");
-                FrameInput::Nothing
-            }
-            RxOutcome::Discarded(ev) => {
-                self.clcw_due = true;
-                log::info!("space link: FARM-1 discarded an authentic frame ({ev:?})");
-                FrameInput::Nothing
-            }
-            RxOutcome::Rejected(e) => {
-                log::debug!("space link: frame refused: {e}");
-                FrameInput::Nothing
-            }
+        Some(match self.ep.receive(&mut self.buf[..n]) {
+            Some(packets) => FrameInput::Packets(packets.map(<[u8]>::to_vec).collect()),
+            None => FrameInput::Nothing,
         })
     }
 
     /// Queues one TM packet on `vc` (realtime VC0 or store replay VC1); full frames go out
     /// at once.
     pub fn send_packet(&mut self, packet: &[u8], vc: TmVc) {
-        let clcw = self.rx.farm.clcw();
         let (port, fails) = (&mut self.port, &mut self.send_failures);
-        let mut sent = false;
-        let r = self.framer.send(
-            vc,
-            packet,
-            clcw,
-            &mut self.tm_sas[self.tm_active],
-            &mut self.store,
-            |f| {
-                sent = true;
-                if !port.send(f) {
-                    *fails = fails.saturating_add(1);
-                }
-            },
-        );
-        if let Err(e) = r {
-            log::warn!("space link: TM packet not framed: {e}");
-        }
-        if sent {
-            self.last_tx = Instant::now();
-            self.clcw_due = false;
-        }
-        self.pending[vc_index(vc)] = true;
+        self.ep.send(vc, packet, |f| {
+            if !port.send(f) {
+                *fails = fails.saturating_add(1);
+            }
+        });
     }
 
     /// Sends the partly filled frames of VC0 and VC1, or an idle frame when the CLCW is
@@ -591,46 +506,18 @@ impl FrameEndpoint {
                 log::debug!("space link: writing {}: {e}", port.describe);
             }
         }
-        let clcw = self.rx.farm.clcw();
-        if self.pending.iter().any(|&p| p) {
-            for vc in [TmVc::Realtime, TmVc::Replay] {
-                if !std::mem::take(&mut self.pending[vc_index(vc)]) {
-                    continue;
-                }
-                let (port, fails) = (&mut self.port, &mut self.send_failures);
-                let r = self
-                    .framer
-                    .flush(vc, clcw, &mut self.tm_sas[self.tm_active], &mut self.store, |f| {
-                        if !port.send(f) {
-                            *fails = fails.saturating_add(1);
-                        }
-                    });
-                if let Err(e) = r {
-                    log::warn!("space link: TM frame not sent: {e}");
-                }
+        let now = self.ms(now);
+        let (port, fails) = (&mut self.port, &mut self.send_failures);
+        self.ep.flush(now, |f| {
+            if !port.send(f) {
+                *fails = fails.saturating_add(1);
             }
-            self.last_tx = now;
-            self.clcw_due = false;
-            return;
-        }
-        if self.clcw_due || now.duration_since(self.last_tx) >= IDLE_INTERVAL {
-            let mut f = [0u8; TM_LEN];
-            self.framer.idle(clcw, &mut f);
-            if !self.port.send(&f) {
-                self.send_failures = self.send_failures.saturating_add(1);
-            }
-            self.last_tx = now;
-            self.clcw_due = false;
-        }
+        });
     }
 
     /// The SPACE_LINK HK values, in MIB order (`mmic_link::hk`).
     pub fn hk(&self) -> [u32; SPACE_LINK_PARAMS] {
-        self.hk_of(&self.rx.counters, self.control_rate_limited)
-    }
-
-    fn hk_of(&self, rx: &mmic_link::rx::RxCounters, rate_limited: u32) -> [u32; SPACE_LINK_PARAMS] {
-        mmic_link::hk::space_link_values(rx, self.rx.farm.clcw(), &self.framer.counters, 0, rate_limited)
+        self.ep.hk()
     }
 
     /// The link state HK values, in MIB order (`pid::LINK_TM_SPI + i`): TM SPI in use, TC
@@ -639,35 +526,24 @@ impl FrameEndpoint {
         let tc = TC_SPIS
             .iter()
             .enumerate()
-            .filter(|(_, s)| self.rx.sas.get(**s).is_some())
-            .fold(0u32, |m, (i, _)| m | 1 << i);
-        [
-            u32::from(self.tm_sas[self.tm_active].spi()),
-            tc,
-            self.store.writes.min(u64::from(u32::MAX)) as u32,
-            self.store.bad_slot().map_or(0, |(slot, _)| slot as u32 + 1),
-        ]
+            .filter(|(_, s)| self.ep.rx.sas.get(**s).is_some())
+            .fold(0u8, |m, (i, _)| m | 1 << i);
+        self.ep.state_values(tc)
     }
 
-    /// What changed since the last call, as link events: one per refusal reason (code =
-    /// HK parameter offset, see `LINK_FRAME_REJECTED`) and one for control frames.
-    pub fn events(&mut self) -> Vec<obsw_core::obsw::LinkEvent> {
-        use mmic_link::hk::{changes, LinkChange};
-        use obsw_core::obsw::LinkEvent;
-        let now = self.hk();
-        let before = self.hk_of(&self.reported, self.reported_rate_limited);
-        let out = changes(&now, &before)
-            .map(|c| match c {
-                LinkChange::Rejected { reason, total } => LinkEvent::FrameRejected { reason, total },
-                LinkChange::ControlFrames { total } => {
-                    let (command, vr) = mmic_link::hk::control_event_fields(self.last_control);
-                    LinkEvent::ControlFrame { command, vr, total }
-                }
-            })
-            .collect();
-        self.reported = self.rx.counters;
-        self.reported_rate_limited = self.control_rate_limited;
+    /// What changed since the last call, as link events (`Endpoint::report`).
+    pub fn events(&mut self) -> Vec<LinkEvent> {
+        let mut out = Vec::new();
+        self.ep.report(|r| out.push(link_event(r)));
         out
+    }
+}
+
+/// The OBSW's event for a link report.
+pub fn link_event(r: LinkReport) -> LinkEvent {
+    match r {
+        LinkReport::Rejected { reason, total } => LinkEvent::FrameRejected { reason, total },
+        LinkReport::ControlFrame { command, vr, total } => LinkEvent::ControlFrame { command, vr, total },
     }
 }
 
@@ -677,6 +553,7 @@ mod tests {
     use ground_link::{create_key_file, Config, FrameLink};
     use mmic_link::fop::FopState;
     use mmic_link::test_keys::{TEST_KEY_TC_A, TEST_KEY_TC_B, TEST_KEY_TM_A, TEST_KEY_TM_B};
+    use std::time::Duration;
 
     /// A robot that echoes every TC packet it accepts as TM (the host loop's frame part).
     fn serve(ep: &mut FrameEndpoint, got: &mut Vec<Vec<u8>>) {
@@ -833,6 +710,6 @@ mod tests {
     }
 
     fn ep_unknown_spi(ep: &FrameEndpoint) -> u32 {
-        ep.rx.counters.unknown_spi
+        ep.ep.rx.counters.unknown_spi
     }
 }

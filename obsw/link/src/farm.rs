@@ -169,6 +169,21 @@ impl Farm {
         Farm::restore(mib::link::tc_vc::COMMAND, mib::link::cop1::FARM_WINDOW_WIDTH, rec)
     }
 
+    /// Whether a control command in clear is taken in the present state: only what
+    /// resynchronisation needs, where it helps. Unlock in Lockout (the only way out) and
+    /// in Wait; Set V(R) only to the present V(R), in Open or Wait (it clears the wait and
+    /// retransmit flags that the ground's Initiate-AD-with-Set-V(R) waits on). The
+    /// standard's table (E7, E8) also takes Unlock in Open and a Set V(R) that moves V(R);
+    /// in clear, those are what a forged or replayed frame would use to make FARM-1 drop
+    /// (or acknowledge) frames of the real ground, and neither ground needs them: FOP-1
+    /// initialising with a CLCW check takes V(S) from N(R). See docs/space-link.md.
+    pub fn takes(&self, cmd: ControlCommand) -> bool {
+        match cmd {
+            ControlCommand::Unlock => self.state != FarmState::Open,
+            ControlCommand::SetVr(v) => self.state != FarmState::Lockout && v == self.vr,
+        }
+    }
+
     pub fn on_event(&mut self, input: FarmInput) -> FarmEffect {
         use FarmAction::*;
         use FarmEvent::*;

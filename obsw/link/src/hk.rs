@@ -1,5 +1,5 @@
 //! The SPACE_LINK housekeeping values (HK SID 22, `LINK_AD_ACCEPTED` ..
-//! `LINK_REJ_CONTROL_RATE`) and the link events their changes raise: one layout for the
+//! `LINK_REJ_CONTROL_STATE`) and the link events their changes raise: one layout for the
 //! host obsw and board A, the parameter offsets taken from the MIB.
 
 use mib::params::pid;
@@ -9,7 +9,7 @@ use crate::downlink::TxCounters;
 use crate::rx::RxCounters;
 
 /// Number of SPACE_LINK counter parameters.
-pub const SPACE_LINK_PARAMS: usize = (pid::LINK_REJ_CONTROL_RATE - pid::LINK_AD_ACCEPTED + 1) as usize;
+pub const SPACE_LINK_PARAMS: usize = (pid::LINK_REJ_CONTROL_STATE - pid::LINK_AD_ACCEPTED + 1) as usize;
 
 /// Offset of parameter `id` in the SPACE_LINK values.
 const fn at(id: u16) -> usize {
@@ -31,7 +31,7 @@ const REFUSALS: [usize; 14] = [
     at(pid::LINK_REJ_STORE_FAILED),
     at(pid::LINK_REJ_UNKNOWN_CONTROL),
     at(pid::LINK_REJ_NOT_PACKETS),
-    at(pid::LINK_REJ_CONTROL_RATE),
+    at(pid::LINK_REJ_CONTROL_STATE),
 ];
 
 /// Offset of the control-frame counter (`LINK_CONTROL_FRAMES`).
@@ -44,7 +44,6 @@ pub fn space_link_values(
     clcw: Clcw,
     tx: &TxCounters,
     tm_sdls_failed: u32,
-    control_rate_limited: u32,
 ) -> [u32; SPACE_LINK_PARAMS] {
     let s = |v: &[u32]| v.iter().fold(0u32, |a, b| a.saturating_add(*b));
     let mut hk = [0u32; SPACE_LINK_PARAMS];
@@ -70,7 +69,7 @@ pub fn space_link_values(
     hk[at(pid::LINK_TM_FRAMES)] = tx.frames;
     hk[at(pid::LINK_TM_IDLE_FRAMES)] = tx.idle_frames;
     hk[at(pid::LINK_TM_SDLS_FAILED)] = tx.sdls_failed.saturating_add(tm_sdls_failed);
-    hk[at(pid::LINK_REJ_CONTROL_RATE)] = control_rate_limited;
+    hk[at(pid::LINK_REJ_CONTROL_STATE)] = rx.control_refused;
     hk
 }
 
@@ -121,10 +120,11 @@ mod tests {
         let mut rx = RxCounters::default();
         let tx = TxCounters::default();
         let clcw = crate::farm::Farm::new(0, mib::link::cop1::FARM_WINDOW_WIDTH).clcw();
-        let before = space_link_values(&rx, clcw, &tx, 0, 0);
+        let before = space_link_values(&rx, clcw, &tx, 0);
         rx.replay = 3;
         rx.set_vr = 1;
-        let now = space_link_values(&rx, clcw, &tx, 0, 2);
+        rx.control_refused = 2;
+        let now = space_link_values(&rx, clcw, &tx, 0);
         assert_eq!(now[at(pid::LINK_REJ_REPLAY)], 3);
         let got: heapless::Vec<LinkChange, 8> = changes(&now, &before).collect();
         assert_eq!(
@@ -135,7 +135,7 @@ mod tests {
                     total: 3
                 },
                 LinkChange::Rejected {
-                    reason: (pid::LINK_REJ_CONTROL_RATE - pid::LINK_AD_ACCEPTED) as u8,
+                    reason: (pid::LINK_REJ_CONTROL_STATE - pid::LINK_AD_ACCEPTED) as u8,
                     total: 2
                 },
                 LinkChange::ControlFrames { total: 1 },

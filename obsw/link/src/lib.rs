@@ -14,6 +14,9 @@
 //!   reception on the ground.
 //! - [`rx`]: the on-board TC receive pipeline CRC → lengths → SDLS → FARM → packet, with the
 //!   rejection counters the host puts in HK.
+//! - [`endpoint`]: the robot's whole space-link endpoint without I/O (receive pipeline, TM
+//!   framer, counter store, SPACE_LINK values and link events), time passed in: the one
+//!   the host obsw and board A drive from their own transports.
 //!
 //! Every number (SCID, VCIDs, lengths, windows, SPIs) comes from `mib::link`.
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
@@ -21,6 +24,7 @@
 
 pub mod clcw;
 pub mod downlink;
+pub mod endpoint;
 pub mod farm;
 pub mod fecf;
 pub mod fop;

@@ -572,6 +572,15 @@ mod host {
         }
     }
 
+    impl crate::endpoint::StoreStats for FileIvStore {
+        fn writes(&self) -> u32 {
+            self.writes.min(u64::from(u32::MAX)) as u32
+        }
+        fn bad_slot(&self) -> u32 {
+            self.bad_slot.as_ref().map_or(0, |(slot, _)| *slot as u32 + 1)
+        }
+    }
+
     impl IvStore for FileIvStore {
         fn reserve_tx(&mut self, spi: u16, high_water: u128) -> Result<(), StoreError> {
             self.put(Dir::Tx, spi, high_water).map_err(|_| StoreError)

@@ -11,8 +11,9 @@
 //!    failure refuses the frame and undoes the FARM-1 step;
 //! 6. **packet extraction**: the caller iterates the accepted packets.
 //!
-//! BC frames (Unlock, Set V(R)) arrive in clear, as Yamcs 5.12.8 sends them; they can deny
-//! service (reset V(R)) but never command. Every rejection has its own counter in
+//! BC frames (Unlock, Set V(R)) arrive in clear, as Yamcs 5.12.8 sends them: they never
+//! command, and FARM-1 takes one only where it helps resynchronise ([`Farm::takes`]), so
+//! that a forged or replayed one cannot move V(R) away from the ground's. Every rejection has its own counter in
 //! [`RxCounters`], which the host publishes in HK.
 
 use core::fmt;
@@ -35,6 +36,8 @@ pub enum RxError {
     UnknownVc(u8),
     Sdls(SdlsError),
     UnknownControl(UnknownControlCommand),
+    /// A control command FARM-1 does not take in its present state ([`Farm::takes`]).
+    ControlRefused(ControlCommand),
     /// The authenticated data field is not a whole number of space packets.
     NotPackets,
 }
@@ -49,6 +52,7 @@ impl fmt::Display for RxError {
             RxError::UnknownVc(v) => write!(f, "frame on unknown VC {v}"),
             RxError::Sdls(e) => write!(f, "{e}"),
             RxError::UnknownControl(e) => write!(f, "{e}"),
+            RxError::ControlRefused(c) => write!(f, "control command {c:?} not taken in this FARM-1 state"),
             RxError::NotPackets => write!(f, "frame data is not whole space packets"),
         }
     }
@@ -76,6 +80,8 @@ pub struct RxCounters {
     pub bad_mac: u32,
     pub counter_store_failed: u32,
     pub unknown_control: u32,
+    /// Control frames refused by FARM-1's state ([`Farm::takes`]).
+    pub control_refused: u32,
     pub not_packets: u32,
     /// FARM-1 discards by event: E2 (no buffer), E3 (gap), E4 (duplicate), E5 (lockout area).
     pub farm_e2: u32,
@@ -107,6 +113,7 @@ impl RxCounters {
             RxError::Sdls(SdlsError::BadMac) => inc(&mut self.bad_mac),
             RxError::Sdls(SdlsError::StoreFailed | SdlsError::CounterExhausted) => inc(&mut self.counter_store_failed),
             RxError::UnknownControl(_) => inc(&mut self.unknown_control),
+            RxError::ControlRefused(_) => inc(&mut self.control_refused),
             RxError::NotPackets => inc(&mut self.not_packets),
         }
     }
@@ -126,6 +133,7 @@ impl RxCounters {
             self.bad_mac,
             self.counter_store_failed,
             self.unknown_control,
+            self.control_refused,
             self.not_packets,
         ]
         .iter()
@@ -270,11 +278,19 @@ impl<const N: usize> TcReceiver<N> {
                 let f = TcFrame::new_unchecked(&*datagram);
                 ControlCommand::parse(f.data()).map_err(RxError::UnknownControl)?
             };
-            // FARM-1's new state is durable before the command counts as executed; a store
-            // failure leaves the FARM as it was.
+            // In clear, so anyone can send or replay it: FARM-1 takes only what
+            // resynchronisation needs, in the state where it helps.
+            if !self.farm.takes(cmd) {
+                return Err(RxError::ControlRefused(cmd));
+            }
+            // What must survive a restart (V(R), the lockout flag) is durable before the
+            // command counts as executed; a store failure leaves the FARM as it was. The
+            // FARM-B counter alone goes with the next write: a flood of control frames
+            // costs no durable write.
             let before = self.farm.clone();
             self.farm.on_event(FarmInput::Bc(cmd));
-            if store.record_farm(self.farm.record()).is_err() {
+            let (b, a) = (before.record(), self.farm.record());
+            if (b.vr, b.lockout) != (a.vr, a.lockout) && store.record_farm(a).is_err() {
                 self.farm = before;
                 return Err(RxError::Sdls(SdlsError::StoreFailed));
             }
@@ -587,21 +603,27 @@ mod tests {
             rx.receive(&mut st, &mut u[..n], true),
             RxOutcome::Control(ControlCommand::Unlock)
         ));
+        // Set V(R) to another value is refused; to the present V(R), taken.
         let n = ControlCommand::SetVr(100).build_frame(SCID, 0, &mut u).unwrap();
+        assert!(matches!(
+            rx.receive(&mut st, &mut u[..n], true),
+            RxOutcome::Rejected(RxError::ControlRefused(ControlCommand::SetVr(100)))
+        ));
+        let n = ControlCommand::SetVr(0).build_frame(SCID, 0, &mut u).unwrap();
         rx.receive(&mut st, &mut u[..n], true);
-        assert_eq!((rx.farm.state(), rx.farm.vr()), (FarmState::Open, 100));
-        let mut f = ad(&mut tx, &mut gst, 100, &tc_packet(1, 4));
+        assert_eq!((rx.farm.state(), rx.farm.vr()), (FarmState::Open, 0));
+        let mut f = ad(&mut tx, &mut gst, 0, &tc_packet(1, 4));
         assert_eq!(accepted(rx.receive(&mut st, &mut f, true)).len(), 1);
         // No buffer: E2, wait; release: E10.
-        let mut f = ad(&mut tx, &mut gst, 101, &tc_packet(1, 4));
+        let mut f = ad(&mut tx, &mut gst, 1, &tc_packet(1, 4));
         assert!(matches!(
             rx.receive(&mut st, &mut f, false),
             RxOutcome::Discarded(FarmEvent::E2)
         ));
         rx.buffer_released();
-        let mut f = ad(&mut tx, &mut gst, 101, &tc_packet(1, 4));
+        let mut f = ad(&mut tx, &mut gst, 1, &tc_packet(1, 4));
         assert_eq!(accepted(rx.receive(&mut st, &mut f, true)).len(), 1);
-        let mut f = ad(&mut tx, &mut gst, 101, &tc_packet(1, 4));
+        let mut f = ad(&mut tx, &mut gst, 1, &tc_packet(1, 4));
         assert!(matches!(
             rx.receive(&mut st, &mut f, true),
             RxOutcome::Discarded(FarmEvent::E4)
@@ -615,10 +637,87 @@ mod tests {
                 c.farm_e5,
                 c.unlock,
                 c.set_vr,
-                c.bd_accepted
+                c.bd_accepted,
+                c.control_refused
             ),
-            (1, 1, 1, 1, 1, 1, 1)
+            (1, 1, 1, 1, 1, 1, 1, 1)
         );
+    }
+
+    // verifies: LINK-CTRL-01
+    #[test]
+    fn a_forged_or_replayed_control_frame_never_moves_vr_nor_unlocks_open_and_costs_no_write() {
+        let mut rx = receiver();
+        let (mut tx, mut gst, mut st) = (
+            TxSa::resume(1, &TEST_KEY_TC_A, 0),
+            MemoryIvStore::default(),
+            MemoryIvStore::default(),
+        );
+        // The ground's Set V(R) = 0 at initialisation, captured; then three TCs.
+        let mut captured = [0u8; 16];
+        let n = ControlCommand::SetVr(0).build_frame(SCID, 0, &mut captured).unwrap();
+        let mut c = captured;
+        assert!(matches!(
+            rx.receive(&mut st, &mut c[..n], true),
+            RxOutcome::Control(ControlCommand::SetVr(0))
+        ));
+        for ns in 0..3 {
+            let mut f = ad(&mut tx, &mut gst, ns, &tc_packet(1, 4));
+            assert_eq!(accepted(rx.receive(&mut st, &mut f, true)).len(), 1);
+        }
+        let writes = st.writes;
+        // Replayed at any rate, with a forged Unlock and Set V(R)s: V(R) stays, Open stays,
+        // each refused and counted, no durable write.
+        let mut u = [0u8; 16];
+        let k = ControlCommand::Unlock.build_frame(SCID, 0, &mut u).unwrap();
+        for i in 0..1000u32 {
+            let mut c = captured;
+            assert!(matches!(
+                rx.receive(&mut st, &mut c[..n], true),
+                RxOutcome::Rejected(RxError::ControlRefused(_))
+            ));
+            let mut v = u;
+            assert!(matches!(
+                rx.receive(&mut st, &mut v[..k], true),
+                RxOutcome::Rejected(RxError::ControlRefused(_))
+            ));
+            let mut s = [0u8; 16];
+            let m = ControlCommand::SetVr(i as u8).build_frame(SCID, 0, &mut s).unwrap();
+            rx.receive(&mut st, &mut s[..m], true);
+        }
+        assert_eq!((rx.farm.state(), rx.farm.vr()), (FarmState::Open, 3));
+        // A forged Set V(R) to the present V(R) is taken: it changes nothing the store keeps.
+        assert_eq!(rx.counters.set_vr, 1 + 4);
+        assert_eq!(rx.counters.control_refused, 3000 - 4);
+        assert_eq!(st.writes, writes, "no durable write for any of them");
+        // The real ground carries on.
+        let mut f = ad(&mut tx, &mut gst, 3, &tc_packet(1, 4));
+        assert_eq!(accepted(rx.receive(&mut st, &mut f, true)).len(), 1);
+        // In Lockout only Unlock is taken, once, with one write; Set V(R) is refused there.
+        let mut f = ad(&mut tx, &mut gst, 100, &tc_packet(1, 4));
+        rx.receive(&mut st, &mut f, true);
+        assert_eq!(rx.farm.state(), FarmState::Lockout);
+        let mut c = captured;
+        assert!(matches!(
+            rx.receive(&mut st, &mut c[..n], true),
+            RxOutcome::Rejected(RxError::ControlRefused(ControlCommand::SetVr(0)))
+        ));
+        let writes = st.writes;
+        let mut v = u;
+        assert!(matches!(
+            rx.receive(&mut st, &mut v[..k], true),
+            RxOutcome::Control(ControlCommand::Unlock)
+        ));
+        assert_eq!(
+            (rx.farm.state(), rx.farm.vr(), st.writes),
+            (FarmState::Open, 4, writes + 1)
+        );
+        // Junk that looks like a control frame (first byte 0x3X) is a CRC failure.
+        let mut j = [0x30u8, 0x00, 0x00, 0x09, 0x00, 0x82, 0x00, 0x00, 0x12, 0x34];
+        assert!(matches!(
+            rx.receive(&mut st, &mut j, true),
+            RxOutcome::Rejected(RxError::BadCrc)
+        ));
     }
 
     proptest! {

@@ -1,0 +1,298 @@
+//! Control frames that cannot deny service, end to end: the real `ground` runs a plan of
+//! 20 TCs against the real `obsw` over UDP transfer frames, once undisturbed and once with
+//! an attacker on the path who replays the ground's captured control frames (and an
+//! Unlock, as Yamcs sends it) at 100 per second and sends control-looking junk (first
+//! byte 0x3X) at 1,000 per second to the obsw's frame port.
+
+use std::net::{SocketAddr, UdpSocket};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use e2e_tests::{bin, Obsw, Tm};
+use mib::params::pid;
+use mmic_link::tc::{ControlCommand, FrameType, TcFrame};
+
+const PINGS: usize = 20;
+
+fn tmpdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("control-frames-e2e-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn free_udp() -> SocketAddr {
+    UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap()
+}
+
+fn ground(dir: &Path, args: &[&str]) -> Output {
+    Command::new(bin("ground"))
+        .current_dir(dir)
+        .args(args)
+        .stdin(Stdio::null())
+        .output()
+        .expect("run ground")
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// Whether `d` is a well-formed BC frame (CRC included).
+fn is_bc(d: &[u8]) -> bool {
+    TcFrame::new_checked(d).is_ok_and(|f| f.frame_type() == FrameType::Bc && f.check_fecf())
+}
+
+/// The ground's path to the robot: forwards every TC frame, keeps a copy of each control
+/// frame (what an eavesdropper on the uplink captures) and counts them.
+struct Tap {
+    addr: SocketAddr,
+    captured: Arc<Mutex<Vec<Vec<u8>>>>,
+    control_sent: Arc<AtomicU32>,
+    stop: Arc<AtomicBool>,
+}
+
+impl Tap {
+    fn start(to: SocketAddr) -> Tap {
+        let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
+        sock.set_read_timeout(Some(Duration::from_millis(20))).unwrap();
+        let addr = sock.local_addr().unwrap();
+        let captured = Arc::new(Mutex::new(Vec::new()));
+        let control_sent = Arc::new(AtomicU32::new(0));
+        let stop = Arc::new(AtomicBool::new(false));
+        let (c, n, s) = (captured.clone(), control_sent.clone(), stop.clone());
+        std::thread::spawn(move || {
+            let mut buf = [0u8; 2048];
+            while !s.load(Ordering::SeqCst) {
+                let Ok((len, _)) = sock.recv_from(&mut buf) else {
+                    continue;
+                };
+                let d = &buf[..len];
+                if is_bc(d) {
+                    n.fetch_add(1, Ordering::SeqCst);
+                    c.lock().unwrap().push(d.to_vec());
+                }
+                let _ = sock.send_to(d, to);
+            }
+        });
+        Tap {
+            addr,
+            captured,
+            control_sent,
+            stop,
+        }
+    }
+}
+
+impl Drop for Tap {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+    }
+}
+
+/// What the attacker sent.
+#[derive(Debug, Default)]
+struct Sent {
+    replays: u32,
+    junk: u32,
+}
+
+/// Replays `frames` in turn at 100 per second and sends control-looking junk at 1,000 per
+/// second to `to` until `stop`.
+fn attack(to: SocketAddr, frames: Vec<Vec<u8>>, stop: Arc<AtomicBool>) -> std::thread::JoinHandle<Sent> {
+    std::thread::spawn(move || {
+        let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
+        let mut sent = Sent::default();
+        let mut x: u64 = 0x9E37_79B9_7F4A_7C15;
+        let t0 = Instant::now();
+        let mut tick: u64 = 0;
+        while !stop.load(Ordering::SeqCst) {
+            // One junk datagram per ms, one replay every 10 ms, on a fixed schedule.
+            tick += 1;
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let len = 1 + (x % 64) as usize;
+            let mut junk: Vec<u8> = (0..len).map(|i| (x >> (i % 56)) as u8 ^ (i as u8)).collect();
+            junk[0] = 0x30 | (junk[0] & 0x0F);
+            if sock.send_to(&junk, to).is_ok() {
+                sent.junk += 1;
+            }
+            if tick.is_multiple_of(10) {
+                let f = &frames[(tick / 10) as usize % frames.len()];
+                if sock.send_to(f, to).is_ok() {
+                    sent.replays += 1;
+                }
+            }
+            let due = t0 + Duration::from_millis(tick);
+            if let Some(wait) = due.checked_duration_since(Instant::now()) {
+                std::thread::sleep(wait);
+            }
+        }
+        sent
+    })
+}
+
+/// Runs the plan; its wall time.
+fn run_plan(dir: &Path, links: &[String], out: &str) -> Duration {
+    let mut args: Vec<&str> = vec!["--archive", "archive.db", "run", "pings.toml", "--plain"];
+    args.extend(links.iter().map(String::as_str));
+    let t0 = Instant::now();
+    let o = ground(dir, &args);
+    let took = t0.elapsed();
+    let t = text(&o);
+    std::fs::write(dir.join(out), &t).unwrap();
+    assert_eq!(o.status.code(), Some(0), "{out}: {t}");
+    assert!(t.contains(&format!("{PINGS} of {PINGS} steps done")), "{out}: {t}");
+    took
+}
+
+/// Every TM packet the obsw sent (its `--tm-log`, one packet in hex per line).
+fn tm_log(path: &Path) -> Vec<Tm> {
+    std::fs::read_to_string(path)
+        .unwrap_or_default()
+        .lines()
+        .filter_map(|l| {
+            let b: Option<Vec<u8>> = (0..l.len() / 2)
+                .map(|i| u8::from_str_radix(l.get(2 * i..2 * i + 2)?, 16).ok())
+                .collect();
+            Tm::parse(&b?)
+        })
+        .collect()
+}
+
+// verifies: LINK-CTRL-01, LINK-CTRL-02
+#[test]
+fn replayed_control_frames_and_control_looking_junk_neither_stop_the_ground_nor_count_as_control_frames() {
+    let dir = tmpdir("dos");
+    let keys = dir.join("TEST-KEYS");
+    let k = ground(&dir, &["keys", "create", keys.to_str().unwrap(), "--robot", "1"]);
+    assert!(k.status.success(), "{}", text(&k));
+    let rd = keys.join("robot-1");
+    let p = |f: &str| rd.join(f).to_str().unwrap().to_string();
+    let (frame, tm_to) = (free_udp(), free_udp());
+    let log = dir.join("tm.log");
+    let (fs, ts, ls) = (frame.to_string(), tm_to.to_string(), log.to_str().unwrap().to_string());
+    let (tc, tm, st) = (p("tc-spi1.key"), p("tm-spi17.key"), p("obsw-link.state"));
+    let _o = Obsw::start(&[
+        "--frame-udp",
+        &fs,
+        "--frame-tm-to",
+        &ts,
+        "--tc-key",
+        &tc,
+        "--tm-key",
+        &tm,
+        "--link-state",
+        &st,
+        "--tm-log",
+        &ls,
+    ]);
+    let tap = Tap::start(frame);
+    let mut plan = String::from("name = \"pings\"\n[[robot]]\nnumber = 1\n");
+    for i in 0..PINGS {
+        plan.push_str(&format!(
+            "[[step]]\nid = \"ping-{i}\"\nrobot = 1\naction = \"command\"\ntc = \"PING\"\n"
+        ));
+    }
+    std::fs::write(dir.join("pings.toml"), plan).unwrap();
+    let links: Vec<String> = vec![
+        "--keys".into(),
+        keys.to_str().unwrap().into(),
+        "--robot".into(),
+        format!("1={}", tap.addr),
+        "--tm-listen".into(),
+        format!("1={tm_to}"),
+    ];
+
+    // Undisturbed: the ground initialises COP-1 (a Set V(R) the tap captures) and runs.
+    let quiet = run_plan(&dir, &links, "quiet.txt");
+    let mut frames = tap.captured.lock().unwrap().clone();
+    assert!(!frames.is_empty(), "the ground's initialisation sent a control frame");
+    let mut unlock = [0u8; 16];
+    let n = ControlCommand::Unlock
+        .build_frame(mib::link::SCID, mib::link::tc_vc::COMMAND, &mut unlock)
+        .unwrap();
+    frames.push(unlock[..n].to_vec());
+
+    // Under attack: the same plan again (a new ground process: it initialises COP-1 again).
+    let stop = Arc::new(AtomicBool::new(false));
+    let attacker = attack(frame, frames.clone(), stop.clone());
+    // The attack is under way (a full second: 100 replays, 1,000 junk datagrams) before the
+    // ground starts.
+    std::thread::sleep(Duration::from_millis(1000));
+    let attacked = run_plan(&dir, &links, "attacked.txt");
+    stop.store(true, Ordering::SeqCst);
+    let sent = attacker.join().unwrap();
+    std::thread::sleep(Duration::from_millis(500));
+
+    // The obsw's own counters, in a SPACE_LINK report asked for afterwards.
+    let mut args: Vec<&str> = vec!["--archive", "archive.db", "send", "HK_ONE_SHOT", "sid=22"];
+    args.extend(links.iter().map(String::as_str));
+    let o = ground(&dir, &args);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    std::thread::sleep(Duration::from_millis(500));
+    let tms = tm_log(&log);
+    let hk = tms
+        .iter()
+        .rev()
+        .find(|t| t.sid() == Some(mib::hk::sid::SPACE_LINK))
+        .expect("a SPACE_LINK report");
+    let v = |p: u16| hk.hk(p).unwrap_or_else(|| panic!("parameter {p}"));
+    let ground_control = i64::from(tap.control_sent.load(Ordering::SeqCst));
+    let (executed, refused_state, unknown) = (
+        v(pid::LINK_CONTROL_FRAMES),
+        v(pid::LINK_REJ_CONTROL_STATE),
+        v(pid::LINK_REJ_UNKNOWN_CONTROL),
+    );
+    let junk_counted = v(pid::LINK_REJ_BAD_CRC) + v(pid::LINK_REJ_BAD_LENGTH) + v(pid::LINK_REJ_BAD_HEADER);
+    let (replays, junk) = (i64::from(sent.replays), i64::from(sent.junk));
+
+    eprintln!(
+        "control_frames_e2e: {PINGS} PINGs undisturbed {:.2} s, under attack {:.2} s ({:.2}x); attacker sent {replays} replays \
+         ({} distinct frames) and {junk} junk datagrams; on board: control frames executed {executed}, refused by state {refused_state}, \
+         unknown command {unknown}, junk refused by CRC/length/header {junk_counted}; the ground sent {ground_control} control frames",
+        quiet.as_secs_f64(),
+        attacked.as_secs_f64(),
+        attacked.as_secs_f64() / quiet.as_secs_f64(),
+        frames.len()
+    );
+    // Exactly once: one acceptance and one completion per PING of both runs.
+    let pings: Vec<&Tm> = tms.iter().filter(|t| t.service == 17 && t.subservice == 2).collect();
+    assert!(pings.len() >= 2 * PINGS, "PING replies: {}", pings.len());
+    let mut accepted = std::collections::BTreeMap::new();
+    for t in tms.iter().filter(|t| t.service == 1 && t.subservice == 1) {
+        *accepted.entry(t.request().map(|r| format!("{r:?}"))).or_insert(0) += 1;
+    }
+    assert!(accepted.values().all(|&n| n == 1), "a TC accepted twice: {accepted:?}");
+    assert!(
+        attacked <= 2 * quiet,
+        "under attack {attacked:?}, undisturbed {quiet:?}"
+    );
+    // No junk datagram counted as a control frame: every control-frame count comes from the
+    // replays and the ground's own frames (a loaded kernel may drop some datagrams: never
+    // more counted than sent, most of them seen).
+    assert!(replays >= 100, "the attack ran: {sent:?}");
+    assert!(
+        executed + refused_state + unknown <= replays + ground_control,
+        "control frames counted {} > replays {replays} + ground {ground_control}: junk counted as control frames",
+        executed + refused_state + unknown
+    );
+    assert!(
+        refused_state * 10 >= replays * 9,
+        "replays refused by FARM-1's state: {refused_state} of {replays}"
+    );
+    assert!(
+        junk_counted <= junk && junk_counted * 10 >= junk * 9,
+        "junk {junk_counted} of {junk}"
+    );
+    assert_eq!(unknown, 0);
+    let _ = std::fs::remove_dir_all(&dir);
+}
