@@ -197,7 +197,28 @@ pub fn icd_markdown() -> String {
     }
     let _ = writeln!(o);
 
-    // 1 ---------------------------------------------------------------
+    section_conventions_and_apids(&mut o, robot1);
+    section_packet_layouts(&mut o);
+    section_telecommands(&mut o);
+    section_telemetry_packets(&mut o);
+    section_housekeeping_structures(&mut o);
+    section_parameters(&mut o);
+    section_events(&mut o);
+    section_failure_codes(&mut o);
+    section_mode_tree(&mut o);
+    section_configuration_states(&mut o);
+    section_motion_primitives(&mut o);
+    section_reconfiguration_map(&mut o);
+    section_fdir(&mut o);
+    section_tunable_parameters(&mut o);
+    section_servo_and_bolter(&mut o);
+    section_system_constants(&mut o);
+    section_ground_system_exports(&mut o, robot1);
+    o
+}
+
+/// ICD §1. Conventions and APIDs
+fn section_conventions_and_apids(o: &mut String, robot1: u16) {
     let _ = writeln!(o, "## 1. Conventions and APIDs\n");
     let _ = writeln!(
         o,
@@ -212,8 +233,10 @@ pub fn icd_markdown() -> String {
         headers::CDS_SHORT_PFIELD,
         config::TIMESTAMP_LEN
     );
+}
 
-    // 2 ---------------------------------------------------------------
+/// ICD §2. Packet layouts
+fn section_packet_layouts(o: &mut String) {
     let _ = writeln!(o, "## 2. Packet layouts\n");
     let _ = writeln!(
         o,
@@ -226,20 +249,20 @@ pub fn icd_markdown() -> String {
         config::MAX_TC_APP_DATA
     );
     header_table(
-        &mut o,
+        o,
         "2.1 CCSDS primary header (6 octets)",
         headers::PRIMARY_HEADER,
         "`PKT_TYPE` is 0 for TM and 1 for TC.",
     );
     header_table(
-        &mut o,
+        o,
         "2.2 PUS-C TM secondary header with CDS short time stamp",
         headers::TM_SEC_HEADER,
         "As `mib_wire::header::emit_tm` writes it for the obsw and the ground (the layout of sat-rs `spacepackets` 0.17's `PusTmCreator` with a `CdsTime` stamp, which reads it back in the tests).",
     );
-    header_table(&mut o, "2.3 PUS-C TC secondary header", headers::TC_SEC_HEADER, "");
+    header_table(o, "2.3 PUS-C TC secondary header", headers::TC_SEC_HEADER, "");
     header_table(
-        &mut o,
+        o,
         "2.4 Packet error control",
         &[headers::PEC],
         "The last two octets of every TM and TC.",
@@ -248,8 +271,10 @@ pub fn icd_markdown() -> String {
         o,
         "### 2.5 Request ID\n\nPUS 1 reports identify the TC by its request ID: the TC's packet ID (version, type, secondary\nheader flag, APID: u16) followed by its packet sequence control (sequence flags, count: u16).\n"
     );
+}
 
-    // 3 ---------------------------------------------------------------
+/// ICD §3. Telecommands
+fn section_telecommands(o: &mut String) {
     let _ = writeln!(o, "## 3. Telecommands\n");
     let _ = writeln!(
         o,
@@ -355,8 +380,10 @@ pub fn icd_markdown() -> String {
             );
         }
     }
+}
 
-    // 4 ---------------------------------------------------------------
+/// ICD §4. Telemetry packets
+fn section_telemetry_packets(o: &mut String) {
     let _ = writeln!(o, "## 4. Telemetry packets\n");
     let _ = writeln!(o, "| service | subservice | name | source data | description |");
     let _ = writeln!(o, "|---:|---:|---|---|---|");
@@ -382,10 +409,12 @@ pub fn icd_markdown() -> String {
     );
     for t in TMS {
         let _ = writeln!(o, "### TM[{},{}] {}\n", t.service, t.subservice, t.name);
-        body_table(&mut o, t.body);
+        body_table(o, t.body);
     }
+}
 
-    // 5 ---------------------------------------------------------------
+/// ICD §5. Housekeeping structures
+fn section_housekeeping_structures(o: &mut String) {
     let _ = writeln!(o, "## 5. Housekeeping structures\n");
     let _ = writeln!(
         o,
@@ -426,8 +455,10 @@ pub fn icd_markdown() -> String {
         }
         let _ = writeln!(o);
     }
+}
 
-    // 6 ---------------------------------------------------------------
+/// ICD §6. Parameters
+fn section_parameters(o: &mut String) {
     let _ = writeln!(o, "## 6. Parameters\n");
     let _ = writeln!(
         o,
@@ -445,11 +476,13 @@ pub fn icd_markdown() -> String {
     );
     let _ = writeln!(o, "|---:|---|---|---|---|---|---|---|---|---|");
     for p in PARAMS {
-        param_row(&mut o, p);
+        param_row(o, p);
     }
     let _ = writeln!(o);
+}
 
-    // 7 ---------------------------------------------------------------
+/// ICD §7. Events
+fn section_events(o: &mut String) {
     let _ = writeln!(o, "## 7. Events\n");
     let _ = writeln!(
         o,
@@ -484,8 +517,10 @@ pub fn icd_markdown() -> String {
         );
     }
     let _ = writeln!(o);
+}
 
-    // 8 ---------------------------------------------------------------
+/// ICD §8. Failure codes
+fn section_failure_codes(o: &mut String) {
     let _ = writeln!(o, "## 8. Failure codes\n");
     let _ = writeln!(
         o,
@@ -508,8 +543,10 @@ pub fn icd_markdown() -> String {
         );
     }
     let _ = writeln!(o);
+}
 
-    // 9 ---------------------------------------------------------------
+/// ICD §9. Mode tree
+fn section_mode_tree(o: &mut String) {
     let _ = writeln!(o, "## 9. Mode tree\n");
     let _ = writeln!(
         o,
@@ -562,8 +599,10 @@ pub fn icd_markdown() -> String {
         o,
         "\nTC acceptance per root mode (paper Table 7): standby accepts mode changes (and the assembly-system\nfault); safed accepts hip and arm actuator commands, stop and mode changes; operational accepts all.\n"
     );
+}
 
-    // 10 --------------------------------------------------------------
+/// ICD §10. Configuration states
+fn section_configuration_states(o: &mut String) {
     let _ = writeln!(o, "## 10. Configuration states\n");
     let _ = writeln!(
         o,
@@ -591,8 +630,10 @@ pub fn icd_markdown() -> String {
         );
     }
     let _ = writeln!(o);
+}
 
-    // 11 --------------------------------------------------------------
+/// ICD §11. Motion primitives
+fn section_motion_primitives(o: &mut String) {
     let _ = writeln!(o, "## 11. Motion primitives\n");
     let _ = writeln!(
         o,
@@ -613,8 +654,10 @@ pub fn icd_markdown() -> String {
         let _ = writeln!(o, "| {} | {} | {} | {} |", p.id, p.name, p.moving.name(), m);
     }
     let _ = writeln!(o);
+}
 
-    // 12 --------------------------------------------------------------
+/// ICD §12. Reconfiguration map
+fn section_reconfiguration_map(o: &mut String) {
     let _ = writeln!(o, "## 12. Reconfiguration map\n");
     let _ = writeln!(
         o,
@@ -692,8 +735,10 @@ pub fn icd_markdown() -> String {
         }
     }
     let _ = writeln!(o, "```\n");
+}
 
-    // 13 --------------------------------------------------------------
+/// ICD §13. FDIR
+fn section_fdir(o: &mut String) {
     let _ = writeln!(o, "## 13. FDIR\n");
     let _ = writeln!(o, "### 13.1 Faults (paper Table 8)\n");
     let _ = writeln!(
@@ -774,8 +819,10 @@ pub fn icd_markdown() -> String {
         }
     }
     let _ = writeln!(o);
+}
 
-    // 14 --------------------------------------------------------------
+/// ICD §14. Tunable parameters
+fn section_tunable_parameters(o: &mut String) {
     let _ = writeln!(o, "## 14. Tunable parameters\n");
     let _ = writeln!(o, "Read with TC[20,1], set with TC[20,3] (value i32, range-checked).\n");
     let _ = writeln!(o, "| ID | name | unit | default | min | max | description |");
@@ -794,8 +841,10 @@ pub fn icd_markdown() -> String {
         );
     }
     let _ = writeln!(o);
+}
 
-    // 15 --------------------------------------------------------------
+/// ICD §15. Servo and bolter constants
+fn section_servo_and_bolter(o: &mut String) {
     let _ = writeln!(o, "## 15. Servo and bolter constants\n");
     let _ = writeln!(o, "| constant | value |");
     let _ = writeln!(o, "|---|---:|");
@@ -874,8 +923,10 @@ pub fn icd_markdown() -> String {
         let _ = writeln!(o, "| {n} | {v} |");
     }
     let _ = writeln!(o);
+}
 
-    // 16 --------------------------------------------------------------
+/// ICD §16. System constants
+fn section_system_constants(o: &mut String) {
     let _ = writeln!(o, "## 16. System constants\n");
     let _ = writeln!(o, "| constant | value |");
     let _ = writeln!(o, "|---|---:|");
@@ -916,8 +967,10 @@ pub fn icd_markdown() -> String {
         let _ = writeln!(o, "| {n} | {v} |");
     }
     let _ = writeln!(o);
+}
 
-    // 17 --------------------------------------------------------------
+/// ICD §17. Ground-system exports
+fn section_ground_system_exports(o: &mut String, robot1: u16) {
     let _ = writeln!(o, "## 17. Ground-system exports\n");
     let _ = writeln!(
         o,
@@ -926,7 +979,6 @@ pub fn icd_markdown() -> String {
         apid::DEFAULT_ROBOT,
         robot1
     );
-    o
 }
 
 /// Markdown table of a body's fields (offset, name, type, unit, value names, description).

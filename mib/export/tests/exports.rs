@@ -698,3 +698,76 @@ fn write_all_writes_each_format_into_the_directory() {
     std::fs::write(&blocker, b"x").unwrap();
     assert!(export::write_all(Format::Json, &blocker.join("sub")).is_err());
 }
+
+/// Names of the public numeric constants declared in the MIB's sources (`pub const NAME:
+/// u32 = …` and the other number types), read line by line — independently of the build
+/// script's parse — up to each file's tests.
+fn declared_constants() -> Vec<String> {
+    fn walk(dir: &std::path::Path, out: &mut Vec<std::path::PathBuf>) {
+        for e in std::fs::read_dir(dir).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                walk(&p, out);
+            } else if p.extension().is_some_and(|x| x == "rs") {
+                out.push(p);
+            }
+        }
+    }
+    let mut files = Vec::new();
+    walk(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../src"),
+        &mut files,
+    );
+    let types = [
+        "u8", "u16", "u32", "u64", "usize", "i8", "i16", "i32", "i64", "f32", "f64",
+    ];
+    let mut names = Vec::new();
+    for f in files {
+        let text = std::fs::read_to_string(&f).unwrap();
+        for line in text.lines().take_while(|l| l.trim() != "#[cfg(test)]") {
+            let Some(rest) = line.trim_start().strip_prefix("pub const ") else {
+                continue;
+            };
+            let Some((name, rest)) = rest.split_once(':') else {
+                continue;
+            };
+            let ty = rest
+                .trim_start()
+                .split(|c: char| !c.is_ascii_alphanumeric())
+                .next()
+                .unwrap_or("");
+            if types.contains(&ty)
+                && name
+                    .chars()
+                    .all(|c| c.is_ascii_uppercase() || c.is_ascii_digit() || c == '_')
+            {
+                names.push(name.to_string());
+            }
+        }
+    }
+    names.sort();
+    names
+}
+
+// verifies: ICD-07
+#[test]
+fn json_carries_every_number_the_mib_declares() {
+    let v: serde_json::Value = serde_json::from_str(&export::json_document()).unwrap();
+    let constants = v["constants"].as_object().expect("a constants section");
+    let mut exported: Vec<String> = constants
+        .values()
+        .flat_map(|m| m.as_object().unwrap().keys())
+        .map(|k| k.rsplit("::").next().unwrap_or(k).to_string()) // `SeqCount::MASK`
+        .collect();
+    exported.sort();
+    assert_eq!(exported, declared_constants());
+    assert!(exported.len() > 300, "{}", exported.len());
+    let c = |module: &str, name: &str| constants[module][name]["value"].clone();
+    assert_eq!(c("team", "GROUND_LOSS_TIMEOUT_MS"), mib::team::GROUND_LOSS_TIMEOUT_MS);
+    assert_eq!(c("config", "CONTROL_PERIOD_MS"), mib::config::CONTROL_PERIOD_MS);
+    assert!(c("link::sdls", "TC_SPIS").is_null(), "arrays are not numbers");
+    assert_eq!(c("modules::geometry", "PITCH_M"), mib::modules::geometry::PITCH_M);
+    assert_eq!(c("headers", "SeqCount::MODULUS"), mib::headers::SeqCount::MODULUS);
+    let desc = constants["team"]["GROUND_LOSS_TIMEOUT_MS"]["desc"].as_str().unwrap();
+    assert!(desc.starts_with("The ground is declared lost"), "{desc}");
+}
