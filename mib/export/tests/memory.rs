@@ -5,8 +5,8 @@
 //! `UPDATE_MEMORY_MAP=1 cargo test -p mib-export --test memory`.
 
 use esp_idf_part::{AppType, DataType, PartitionTable, SubType, Type};
-use mib_export::memory::{hk_bytes_for, memory_map_txt, partitions_csv};
 use mib::memory::{self, FlashUse};
+use mib_export::memory::{hk_bytes_for, memory_map_txt, partitions_csv};
 use std::path::Path;
 
 fn check_generated(file: &str, want: &str) {

@@ -996,7 +996,10 @@ mod tests {
         // --keys DIR: robot N's files and the default ports.
         let s = parse_raw(&["--robot", "3", "--keys", "k"]).unwrap();
         // The TM store file is the robot's too.
-        assert_eq!(s.tm_store.as_deref(), Some(std::path::Path::new("k/robot-3/tm-store.bin")));
+        assert_eq!(
+            s.tm_store.as_deref(),
+            Some(std::path::Path::new("k/robot-3/tm-store.bin"))
+        );
         let fc = s.frames.expect("frames from --keys");
         assert!(!s.bare);
         assert_eq!(
