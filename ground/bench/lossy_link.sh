@@ -68,6 +68,7 @@ for ((i = 0; i < RUNS; i++)); do
     # The relay: TC frames to the obsw's frame port, TM frames to the ground's address.
     coproc RELAY { "$BIN/relay" --to-udp "127.0.0.1:$frame" --drop 0.20 --duplicate 0.05 --corrupt 0.05 \
         --seed "$seed" --tm-frames-to "127.0.0.1:$tmport" --idle 60 --lifetime 900 2>/dev/null; }
+    rpid=$RELAY_PID
     read -r line <&"${RELAY[0]}"
     relay_udp=$(sed -n 's/.*udp=\([^ ]*\).*/\1/p' <<<"$line")
     relay_tm=$(sed -n 's/.*tm_frames=\([^ ]*\).*/\1/p' <<<"$line")
@@ -102,8 +103,8 @@ for ((i = 0; i < RUNS; i++)); do
     kill -CONT "$obsw" 2>/dev/null
     kill "$obsw" 2>/dev/null
     wait "$obsw" 2>/dev/null
-    kill "$RELAY_PID" 2>/dev/null
-    wait "$RELAY_PID" 2>/dev/null
+    kill "$rpid" 2>/dev/null
+    wait "$rpid" 2>/dev/null
     secs=$(python3 -c "print(f'{$t1 - $t0:.1f}')")
     TIMES+=("$secs")
     TALLY[$rc]=$((${TALLY[$rc]:-0} + 1))
