@@ -12,7 +12,7 @@
 //! Each UDP ground gets its own upstream socket, so the obsw sees one address per ground,
 //! as it would without the relay.
 //!
-//! Transfer frames (issue 22) go up the same UDP path (one TC frame per datagram to the
+//! Transfer frames (docs/space-link.md) go up the same UDP path (one TC frame per datagram to the
 //! obsw's `--frame-udp` port), but the obsw sends TM frames to a fixed ground address
 //! rather than back to the sender: [`Relay::add_downlink_route`] listens where the obsw
 //! sends them (`--frame-tm-to`) and forwards each datagram to the ground with the

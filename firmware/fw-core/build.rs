@@ -1,4 +1,4 @@
-//! The descriptor tables the board images carry in flash (issue 24): generated from the
+//! The descriptor tables the board images carry in flash (docs/modules.md): generated from the
 //! MIB's module database at build time, so the bytes in the image are exactly what
 //! `mib::modules::descriptor::emit_table` writes for the robot's module set.
 //!

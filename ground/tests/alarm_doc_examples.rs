@@ -1,5 +1,5 @@
 //! Every command example of docs/collector.md, docs/dashboard.md and docs/archive.md is
-//! run (issue 26 point 7), so an example cannot go stale.
+//! run, so an example cannot go stale.
 //!
 //! An *example* is a line of a fenced code block in those documents (blank lines and
 //! `#` comment lines aside), or an inline code span that is a whole command line

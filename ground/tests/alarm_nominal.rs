@@ -1,4 +1,4 @@
-//! Nominal plans raise no alarm (issue 26 point 3): the shipped demo and checkout plans
+//! Nominal plans raise no alarm: the shipped demo and checkout plans
 //! run in `ground collect` (started through its API, as the page starts them) against
 //! healthy simulated robots (the real `obsw`); the collector's archive must then hold no
 //! alarm at all. Each test also checks that the plan did what makes the check
@@ -105,7 +105,7 @@ fn run_with_collector(name: &str, robots: &[(u8, &str)], hip_robot: u8) -> (Vec<
     let dir = common::tmpdir("alarm-nominal", name);
     let started: Vec<(Proc, SocketAddr)> = robots.iter().map(|(n, s)| robot(*n, s)).collect();
     let links: Vec<(u8, SocketAddr)> = robots.iter().zip(&started).map(|((n, _), (_, a))| (*n, *a)).collect();
-    // One ground per robot (issue 21): the plan runs in the collector that follows the
+    // One ground per robot: the plan runs in the collector that follows the
     // robots, started through its API as the page starts it.
     let (mut c, web) = collector(&dir, &links, name);
     let plan_name = plan_file_name(name);

@@ -1,4 +1,4 @@
-//! `ground archive plot` tells the truth (issue 26 point 6): parameters of different
+//! `ground archive plot` tells the truth: parameters of different
 //! units get panels of their own, each with its own y axis labelled with its unit (volts
 //! and amperes on one axis labelled "V, A" flattened the voltage), and a hole in the data
 //! is drawn as a gap, not as a straight ramp across it. Checked on the SVG the real

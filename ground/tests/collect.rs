@@ -116,7 +116,7 @@ fn check_config_names_file_line_and_column() {
     .unwrap();
     let out = ground(&dir, &["collect", "--check-config", "good.toml"]);
     assert_eq!(out.status.code(), Some(0), "{}", text(&out));
-    // The retention period is shown in the unit it was given (issue 26: "3m" was
+    // The retention period is shown in the unit it was given ("3m" was
     // logged as "older than 0 days").
     std::fs::write(dir.join("short.toml"), "retain = \"3m\"\n").unwrap();
     let out = ground(&dir, &["collect", "--check-config", "short.toml"]);

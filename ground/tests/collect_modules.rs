@@ -1,4 +1,4 @@
-//! The collector follows each robot's module configuration (issue 24), end to end: a
+//! The collector follows each robot's module configuration (docs/modules.md), end to end: a
 //! real obsw built from a module-set file (`obsw --modules plans/modules/…`) under
 //! `ground collect --http`, restarted with another set at the same address. The
 //! collector asks for the module report (TM[210,3]) at link-up and after the reboot,

@@ -1,4 +1,4 @@
-//! The collector follows the team (issue 25), end to end: three real obsw processes
+//! The collector follows the team (docs/team.md), end to end: three real obsw processes
 //! with a team (`--team-udp`, `--peer`, `--team-state`) under `ground collect --http`,
 //! each behind a UDP relay that can silence the ground (drop every TC while TM still
 //! flows). The roster is uploaded from the page's API; the page's data

@@ -135,8 +135,8 @@ fn live_robot_ping_and_injected_fault_through_the_dashboard_api() {
         .cloned()
         .unwrap();
     assert_eq!(acked["state"], "acknowledged");
-    // Acknowledging again is refused, and the refusal names the alarm once (issue 26:
-    // "alarm 3: alarm 3: nothing to acknowledge").
+    // Acknowledging again is refused, and the refusal names the alarm once
+    // ("alarm 3: alarm 3: nothing to acknowledge").
     let (st, r) = http(a, "POST", &format!("/api/alarms/{aid}/ack"), None);
     assert_eq!(st, 400, "{r}");
     let msg = r["error"].as_str().unwrap_or_default();

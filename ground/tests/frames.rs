@@ -1,4 +1,4 @@
-//! The ground over the space link (issue 22 item 6): `ground keys`, and `ping`, `mode`,
+//! The ground over the space link (docs/space-link.md): `ground keys`, and `ping`, `mode`,
 //! `send`, `run` and `demo` over TC/TM transfer frames (FOP-1, SDLS) against the real
 //! `obsw` with its frame endpoint. What ran on board is judged from the obsw's own
 //! `--tm-log` (every TM packet it sent), not from the ground.
@@ -627,7 +627,7 @@ fn ground_keys_create_team_makes_the_key_the_obsw_team_link_takes() {
     drop(o);
 }
 
-/// Key change without downtime from the command line (issue 22 item 3): LINK_SPI_SELECT
+/// Key change without downtime from the command line (docs/space-link.md): LINK_SPI_SELECT
 /// sent over SPI 1 (hazardous: confirmed), then the same key folder's spare keys with
 /// `--spi 2`; the robot's TM comes under SPI 18 from then on and the ground reads it
 /// with the spare TM key. Judged from the obsw's own TM: the selection event, and the

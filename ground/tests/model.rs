@@ -1,4 +1,4 @@
-//! `ground model` (issue 24): the robot's URDF from a live robot's module report and from
+//! `ground model` (docs/modules.md): the robot's URDF from a live robot's module report and from
 //! a module-set file; the two agree for the same robot, and a robot the model cannot be
 //! built for (an arm missing) is refused with a clear error.
 

@@ -1,4 +1,4 @@
-//! One answer for "the robot does not answer" (issue 26 §4, §5): the same message and
+//! One answer for "the robot does not answer": the same message and
 //! exit code from `run`, `send`, `ping` and `watch`, fast; a `--robot` not in the plan
 //! and a verb without a robot are refused up front.
 

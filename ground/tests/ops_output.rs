@@ -1,4 +1,4 @@
-//! Output that tells the truth (issue 26 §6, issue 21 "a clean link looks clean"):
+//! Output that tells the truth ("a clean link looks clean"):
 //! `demo` on loopback, a closed pipe on every verb that prints, `sim`'s replies.
 
 use std::path::Path;

@@ -1,4 +1,4 @@
-//! One command policy on every CLI path (issue 21 item 3): a hazardous TC is refused
+//! One command policy on every CLI path: a hazardous TC is refused
 //! without explicit confirmation, before anything is sent; names are read by one
 //! function with a "did you mean".
 

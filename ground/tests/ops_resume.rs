@@ -1,4 +1,4 @@
-//! Runs have an identity; interruption is an operation (issue 26 §1, §2). Against real
+//! Runs have an identity; interruption is an operation. Against real
 //! `obsw` processes on loopback; what ran on board is judged from the obsw's own
 //! `--tm-log` (every TM packet it sent, one hex line each), not from the ground.
 

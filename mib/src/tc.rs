@@ -23,11 +23,11 @@ pub mod service {
     pub const EVENT_ACTION: u8 = 19;
     pub const PARAMETER: u8 = 20;
     pub const MODE: u8 = 200;
-    /// Mission-specific: the module set (issue 24).
+    /// Mission-specific: the module set (docs/modules.md).
     pub const MODULES: u8 = 210;
     /// Team coordination without the ground (`crate::team`).
     pub const TEAM: u8 = crate::team::TEAM_SERVICE;
-    /// Mission-specific: space link management (SDLS security associations, issue 22).
+    /// Mission-specific: space link management (SDLS security associations, docs/space-link.md).
     pub const SPACE_LINK: u8 = 212;
 }
 
@@ -841,7 +841,7 @@ pub const TCS: &[TcDef] = &[
         "Accept the module configuration found at boot by its hash: clears MODULE_REPLACED so that OPERATIONAL may be entered",
     )
     .hazardous("lets the robot operate with modules the ground has not seen before"),
-    // --- 211 team coordination without the ground (issue 25, crate::team) ---
+    // --- 211 team coordination without the ground (docs/team.md, crate::team) ---
     tc(
         service::TEAM,
         3,

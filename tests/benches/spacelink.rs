@@ -1,4 +1,4 @@
-//! Space-link benchmark (issue 22): PUS 17 ping round trip through TC/TM frames, COP-1 and
+//! Space-link benchmark (docs/space-link.md): PUS 17 ping round trip through TC/TM frames, COP-1 and
 //! SDLS (the `ground-link` library against the real `obsw --frame-udp`) side by side with
 //! the same ping as a bare UDP packet to a second obsw on the lab link
 //! (`--lab-bare-packets`) and a bare UDP echo, alternating in one run. Each obsw runs one

@@ -1,4 +1,4 @@
-//! End-to-end tests of issue 24 (plug-and-work), phase 2: the real `obsw` binary built
+//! End-to-end tests of plug-and-work modules (docs/modules.md): the real `obsw` binary built
 //! from the module-set files of `plans/modules/` (`--modules FILE`), judged from its TM
 //! only. What the robot said at boot is read back from its on-board store (TC[15,9] of
 //! the whole store replays the stored packets with their original time stamps), so the
@@ -17,7 +17,7 @@ use mib::params::pid;
 use mib::FailureCode as F;
 
 const T: Duration = Duration::from_secs(10);
-/// Discovery must be done within this long after BOOT (issue 24).
+/// Discovery must be done within this long after BOOT (docs/modules.md).
 const DISCOVERY_BUDGET_MS: u64 = 2000;
 
 fn plan(name: &str) -> String {

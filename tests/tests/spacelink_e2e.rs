@@ -1,4 +1,4 @@
-//! The space link end to end (issue 22, phase 2): the real `obsw` with its frame endpoint
+//! The space link end to end (docs/space-link.md): the real `obsw` with its frame endpoint
 //! (`--frame-udp`, COP-1, SDLS) and the `ground-link` library as the ground, over loopback
 //! UDP (and the lossy relay). Keys are the published TEST keys of `mmic_link::test_keys`,
 //! written to files named `TEST-KEY-…` in a temporary directory. What the obsw did is judged

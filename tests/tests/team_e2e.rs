@@ -1,4 +1,4 @@
-//! Team coordination without the ground (issue 25), end to end with three real obsw
+//! Team coordination without the ground (docs/team.md), end to end with three real obsw
 //! processes linked by UDP (`--team-udp`, `--peer`, `--team-state`). The roster is
 //! uploaded by the ground (TC TEAM_ROSTER to each robot); then the ground is silent.
 //! Everything is judged from the TM each obsw wrote to its `--tm-log` (every packet it

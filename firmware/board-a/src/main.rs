@@ -12,7 +12,7 @@
 //!
 //! The ground link carries CCSDS TC and TM transfer frames with SDLS and COP-1
 //! (`fw_core::spacelink`, the host's `mmic-link` code), keys and counters in the flash
-//! area of `fw_core::link_store`. No bare space packet is taken or sent (issue 22: the
+//! area of `fw_core::link_store`. No bare space packet is taken or sent (docs/space-link.md: the
 //! bare-packet link never in firmware; `fw_core::link::BarePackets` exists only for test
 //! harnesses, and this image refuses to build with it).
 //!
@@ -224,7 +224,7 @@ async fn main(spawner: Spawner) {
     let bus = bus::share(i2c);
     // Arm-contracted switch to ground on GPIO10 (run-time pull: up).
     let mut arm_line = Input::new(p.GPIO10, InputConfig::default().with_pull(Pull::Up));
-    // Module discovery (issue 24): probe side A's modules before the drivers take the bus
+    // Module discovery (docs/modules.md): probe side A's modules before the drivers take the bus
     // (MPU-6000 WHO_AM_I, ADS7828 and AS5600 acknowledge, arm-switch line under both
     // pulls); the OBSW completes discovery with board B's half from the A-B link.
     let probes = fw_core::modules::probe_a(

@@ -146,7 +146,7 @@ async fn main(spawner: Spawner) {
     let bus = bus::share(i2c);
     // Arm-contracted switch to ground on GPIO10 (run-time pull: up).
     let mut arm_line = Input::new(p.GPIO10, InputConfig::default().with_pull(Pull::Up));
-    // Module discovery (issue 24): side B's probes; the table and probes go to board A
+    // Module discovery (docs/modules.md): side B's probes; the table and probes go to board A
     // over the A-B link (BoardB::set_modules).
     let probes = fw_core::modules::probe_b(
         &mut bus::device(bus),

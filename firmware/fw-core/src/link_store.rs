@@ -1,4 +1,4 @@
-//! Board A's space-link provisioning and counter area in flash (issue 22): the keys
+//! Board A's space-link provisioning and counter area in flash (docs/space-link.md): the keys
 //! written by the provisioning step, and the SDLS counters (TC receive IV, TM transmit
 //! high-water mark) that must survive a restart so that no replayed TC frame is accepted
 //! and no TM nonce is used twice.

@@ -1,4 +1,4 @@
-//! Module discovery on the boards (issue 24): each board's descriptor table in flash and
+//! Module discovery on the boards (docs/modules.md): each board's descriptor table in flash and
 //! the probes that confirm it on the hardware.
 //!
 //! Board A reads [`TABLE_A`] and probes its side (MPU-6000 `WHO_AM_I`, ADS7828 and

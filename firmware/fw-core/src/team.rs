@@ -1,4 +1,4 @@
-//! Inter-robot team packets on the target (issue 25): the transport board A's leader
+//! Inter-robot team packets on the target (docs/team.md): the transport board A's leader
 //! selection talks through.
 //!
 //! The radio itself is future work; the firmware's team code only sees

@@ -1,4 +1,4 @@
-//! Module discovery on the target (issue 24): both boards' control periods
+//! Module discovery on the target (docs/modules.md): both boards' control periods
 //! (`fw_core::cycle`) on mock peripherals, booted as the images boot — board A probes
 //! its side (`fw_core::modules::probe_a`) and starts discovery with the descriptor table
 //! its image carries in flash (`fw_core::modules::TABLE_A`), board B probes its side and

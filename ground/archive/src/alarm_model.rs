@@ -8,7 +8,7 @@
 //!
 //! It lives in the archive's crate because the archive applies the state machine to
 //! the stored alarm in one transaction ([`crate::alarms`]); `ground::alarms` re-exports
-//! it beside the collector's limit checker (issue 21: the archive builds without the
+//! it beside the collector's limit checker (the archive builds without the
 //! collector).
 
 use std::fmt;

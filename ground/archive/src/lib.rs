@@ -16,7 +16,7 @@
 //! reported). The writer commits in batches (what arrives within [`BATCH_LINGER`] of the
 //! first record, at most [`BATCH_MAX`] records, one transaction each).
 //!
-//! A crate of its own (`ground-archive`, issue 21): it depends on `ground-pus` and the MIB,
+//! A crate of its own (`ground-archive`): it depends on `ground-pus` and the MIB,
 //! never on the collector, the web page or an async runtime. PostgreSQL (whose client
 //! runs on tokio) is the optional feature `postgres`; there is no clap here (the binary
 //! parses `--type` into [`Kind`] itself). The `ground` crate turns `postgres` on and

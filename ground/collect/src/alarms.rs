@@ -245,7 +245,7 @@ mod tests {
             pid::ACTIVE_PRIMITIVE => Some(4),
             _ => None,
         };
-        // The corner turn of issue 26: -55 deg while a primitive turns the hip.
+        // The corner turn: -55 deg while a primitive turns the hip.
         for _ in 0..5 {
             assert_eq!(c.check(pid::HIP_DEVIATION, -55.05, turning), None);
         }

@@ -118,11 +118,11 @@ pub struct Worker {
     /// The plan run following this robot (`collect::planrun`): it gets every
     /// verification report and event, and the link's loss.
     plan: Option<Sender<PlanInput>>,
-    /// The robot's module configuration (issue 24): hash, report, changes.
+    /// The robot's module configuration (docs/modules.md): hash, report, changes.
     modules: ConfigTracker,
     /// When the module report was last asked for (REPORT_MODULES).
     modules_asked_ms: i64,
-    /// A team status report arrived since link-up or the last reboot (issue 25).
+    /// A team status report arrived since link-up or the last reboot (docs/team.md).
     team_known: bool,
     /// A team event arrived: ask for the team status.
     team_due: bool,

@@ -70,7 +70,7 @@ impl ConfigState {
     }
 }
 
-/// A robot's module set and the state of its configuration (issue 24), as the collector
+/// A robot's module set and the state of its configuration (docs/modules.md), as the collector
 /// follows it: the module report TM[210,3] (slots, descriptors, why a set is invalid)
 /// and the MODULES housekeeping (SID 23: hash, configuration, state, present slots).
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
@@ -115,7 +115,7 @@ pub struct SlotView {
     pub state: String,
 }
 
-/// A robot's team status (issue 25): TEAM_STATUS TM[211,2].
+/// A robot's team status (docs/team.md): TEAM_STATUS TM[211,2].
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct TeamView {
     pub term: u32,
@@ -596,7 +596,7 @@ mod tests {
         assert_eq!(LimitState::of(p, 9.5, state(None, 0)), LimitState::Hard);
         let mode = mib::params::by_name("MODE").unwrap();
         assert_eq!(LimitState::of(mode, 1.0, state(Some(1), 0)), LimitState::None);
-        // The hip deviation is off while a primitive turns the hip (issue 26).
+        // The hip deviation is off while a primitive turns the hip.
         let hip = mib::params::by_name("HIP_DEVIATION").unwrap();
         assert_eq!(LimitState::of(hip, -55.0, state(Some(1), 4)), LimitState::Off);
         assert_eq!(LimitState::of(hip, -55.0, state(Some(1), 0)), LimitState::Hard);

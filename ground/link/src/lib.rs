@@ -1,4 +1,4 @@
-//! The ground's frame link to one robot (issue 22, phase 2): space packets in, TC transfer
+//! The ground's frame link to one robot (docs/space-link.md): space packets in, TC transfer
 //! frames (CCSDS 232.0-B-4) out through FOP-1 (232.1-B-2) and SDLS AES-256-GCM
 //! (355.0-B-2, Yamcs 5.12.8's layout), over one UDP socket; TM transfer frames
 //! (132.0-B-3) in, space packets and CLCWs out. Everything below the socket is

@@ -1,4 +1,4 @@
-//! One commanding ground process per robot on this host (issue 21 §4).
+//! One commanding ground process per robot on this host.
 //!
 //! Two grounds on one robot would each keep their own TC sequence count on its APID (so a
 //! command could be taken for a resend of another one) and, over frames, their own FOP-1

@@ -161,7 +161,7 @@ fn decode_tm_source(service: u8, subservice: u8, d: &[u8]) -> Result<TmBody, Dec
             submode: x.submode,
             reason: x.reason,
         },
-        // TM[210,3] (issue 24): checked, then kept as bytes until the ground has a module
+        // TM[210,3] (docs/modules.md): checked, then kept as bytes until the ground has a module
         // view (`mib::modules::report::ModuleReport::parse` rebuilds the set).
         W::ModuleReport(_) => TmBody::Unknown { data: d.to_vec() },
         W::TeamStatus(x) => TmBody::TeamStatus {

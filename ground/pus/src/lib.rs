@@ -16,7 +16,7 @@
 //! - [`out`]: the fast JSON/text decode output that writes straight into a buffer;
 //! - `error`: [`DecodeError`] and [`BuildError`].
 //!
-//! A crate of its own (`ground-pus`, issue 21) so that the decoder and the archive build
+//! A crate of its own (`ground-pus`) so that the decoder and the archive build
 //! and test without the collector's runtime: no tokio, axum or clap below this line. The
 //! `ground` crate re-exports it as `ground::pus`.
 

@@ -180,7 +180,7 @@ pub struct Obsw<S: TmStore> {
     pub space_link_state: [u32; SPACE_LINK_STATE_PARAMS],
     pub(crate) last_now: u64,
     out: TickOut,
-    /// The module set found at boot (issue 24; `services::modules`).
+    /// The module set found at boot (docs/modules.md; `services::modules`).
     pub modules: Modules,
     /// Team coordination without the ground (service 211, `services::team`).
     pub team: Team,
@@ -382,7 +382,7 @@ impl<S: TmStore> Obsw<S> {
     /// frames, SDLS refuses replayed frames), so the packet duplicate window is not asked.
     /// It would be wrong here: a restarted ground (Yamcs) numbers its TCs from 1 again, and
     /// a new TC identical to one sent before the restart would be taken for a resend and
-    /// not executed (issue 23 item 9). The TC is still remembered, for its outcome.
+    /// not executed. The TC is still remembered, for its outcome.
     pub fn handle_tc_delivered_once(&mut self, now: u64, raw: &[u8], sink: &mut impl TmSink) {
         self.handle_tc_from(now, raw, false, sink)
     }

@@ -1,4 +1,4 @@
-//! One request ID from ground to robot and back (issue 21 item 5): the ground builds a
+//! One request ID from ground to robot and back: the ground builds a
 //! TC, the obsw accepts (or refuses) it and reports in PUS 1, the ground decodes the
 //! reports — and every side holds the same `mib_wire::RequestId`, the one type.
 

@@ -11,7 +11,7 @@
 //! | `0x01` Command | A→B | `code u8` + arguments ([`ModuleCmd`]) |
 //! | `0x81` Ack | B→A | empty (`seq` = the command's sequence number) |
 //! | `0x82` Heartbeat | B→A | [`Heartbeat`], 28 bytes (`seq` counts heartbeats); its `last_seq` also acknowledges |
-//! | `0x83` Modules | B→A | [`ModulesChunk`], 32 bytes: B's probe results and one entry of its descriptor table (issue 24) |
+//! | `0x83` Modules | B→A | [`ModulesChunk`], 32 bytes: B's probe results and one entry of its descriptor table (docs/modules.md) |
 //!
 //! The framing is the project's one byte-stream codec, `mmic_stream` ([`Message::encode`]
 //! uses its encoder, [`FrameDecoder`] its deframer). Untrusted bytes go through
@@ -49,7 +49,7 @@ pub enum ModuleCmd {
     /// At boot, while B's modules are unpowered: the arm and gripper are known (from
     /// A's state estimate) to be at these pulse widths; B starts interpolating there.
     Assume { arm: u16, grip: u16 },
-    /// Send the descriptor table again (module discovery, issue 24): A asks when B's
+    /// Send the descriptor table again (module discovery, docs/modules.md): A asks when B's
     /// `Modules` frames did not all arrive.
     SendModules,
 }
@@ -255,7 +255,7 @@ impl Heartbeat {
     }
 }
 
-/// Board B's half of module discovery (issue 24), one table entry per frame: B's probe
+/// Board B's half of module discovery (docs/modules.md), one table entry per frame: B's probe
 /// results (2 bytes, [`ModulesChunk::probe_bytes`]) and a `TableAssembler` chunk
 /// (`index u8 | count u8 | descriptor`, [`crate::discovery::CHUNK_LEN`] bytes).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -536,7 +536,7 @@ pub struct LinkManager {
     start_ms: Option<u64>,
     counters: LinkCounters,
     failed: bool,
-    /// Board B's descriptor table, rebuilt from its `Modules` frames (issue 24).
+    /// Board B's descriptor table, rebuilt from its `Modules` frames (docs/modules.md).
     b_table: crate::discovery::TableAssembler,
     /// Board B's probe results (from its latest `Modules` frame).
     b_probes: Option<crate::discovery::BoardProbes>,

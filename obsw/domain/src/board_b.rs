@@ -59,7 +59,7 @@ pub struct BoardB {
     hb_seq: u8,
     last_tick: Option<u64>,
     counters: BoardBCounters,
-    /// Module discovery (issue 24): B's descriptor table (flash copy) and probe results.
+    /// Module discovery (docs/modules.md): B's descriptor table (flash copy) and probe results.
     modules: Option<BoardModules>,
 }
 

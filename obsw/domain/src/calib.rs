@@ -1,4 +1,4 @@
-//! The calibration the robot runs with (issue 24): servo pulse widths per side, hip home,
+//! The calibration the robot runs with (docs/modules.md): servo pulse widths per side, hip home,
 //! encoder zero and direction, current thresholds and bolter thresholds, taken from the
 //! accepted module set's descriptors (a "default" word = the database default of the
 //! module's revision, `mib::modules::db::resolve_calibration`). Before discovery, and for

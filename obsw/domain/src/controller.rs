@@ -405,7 +405,7 @@ pub struct Controller {
     positions_known: bool,
     b_assume_sent_ms: Option<u64>,
     /// The calibration in use (`RobotCal::COMPILED` until the platform sets the module
-    /// set's, issue 24).
+    /// set's, docs/modules.md).
     cal: RobotCal,
 }
 
@@ -463,7 +463,7 @@ impl Controller {
 
     // ---------------------------------------------------------------- calibration
 
-    /// Applies the module set's calibration (issue 24): servo set points per side, hip
+    /// Applies the module set's calibration (docs/modules.md): servo set points per side, hip
     /// home, encoder zero and direction from now on; the bolter thresholds become the
     /// tunables `BOLT_PUSH_THRESHOLD_MA` / `BOLT_LOCK_THRESHOLD_MA` (clamped to their
     /// ranges, which contain the database's), so the ground can still tune them. Arm and
@@ -907,7 +907,7 @@ impl Controller {
         self.last_tick = Some(now_ms);
         self.now = now_ms;
         self.raw = *sensors;
-        // The encoder's own zero and direction (issue 24).
+        // The encoder's own zero and direction (docs/modules.md).
         self.raw.hip_cdeg = self.cal.hip_from_reading(sensors.hip_cdeg);
         let corrected = self.raw;
         let sensors = &corrected;
@@ -1353,7 +1353,7 @@ impl Controller {
         self.link.send(ModuleCmd::SendModules);
     }
     /// Board B's half of module discovery, once its whole descriptor table arrived over
-    /// the link (issue 24).
+    /// the link (docs/modules.md).
     pub fn board_b_modules(&self) -> Option<(&[u8], crate::discovery::BoardProbes)> {
         self.link.board_b_modules()
     }

@@ -1,4 +1,4 @@
-//! Module discovery at boot (issue 24): which robot is this?
+//! Module discovery at boot (docs/modules.md): which robot is this?
 //!
 //! Input: board A's descriptor table (flash), board B's half (sent over the A–B link, or
 //! `None` when board B never answered) and each board's probe results (MPU-6000

@@ -1,4 +1,4 @@
-//! The host's store of the module configuration the ground accepted (issue 24):
+//! The host's store of the module configuration the ground accepted (docs/modules.md):
 //! `--config-state FILE` holds [`AcceptedConfig::to_bytes`] (116 bytes: magic, hash, the
 //! module identities by slot, CRC-32). Written like `--team-state`: a temporary file beside
 //! it, synced, renamed over the old one, the directory synced, so a crash leaves either

@@ -42,7 +42,7 @@ use net::{Input, Origin};
     name = "obsw",
     version,
     about = "MMIC-I on-board software (host build) with its simulator",
-    long_about = "MMIC-I on-board software (host build) running against the MMIC-I simulator.\n\nTCs: CCSDS space packets with a PUS-C secondary header and CRC, as UDP datagrams or over TCP framed with COBS (0x00, COBS(packet), 0x00; a receiver takes a frame without the leading 0x00 too). TM: to every connected TCP client, to every UDP ground subscribed by an accepted TC (a lease renewed by each accepted TC; rejected or malformed datagrams never change who gets TM) and to every fixed --tm-dest (e.g. Yamcs' TM link). Space link (issue 22): with --frame-udp, one TC transfer frame per datagram (CRC, SDLS AES-256-GCM with --tc-key, FARM-1) and fixed-length TM frames (SDLS with --tm-key, CLCW, idle frames) to --frame-tm-to, counters in --link-state; or the same frames over a serial line with --frame-serial PATH (one COBS frame per frame, as board A's ground link); the bare-packet link is on only with --lab-bare-packets (loopback only); one of the two links must be chosen. The robot boots in STANDBY.\n\nOnce module discovery is done (board B's half in, or after its wait: at most 1 s of simulated time after boot; OPERATIONAL is refused before), one line `READY robot=N apid=0x... udp=ADDR tcp=ADDR sim_ctl=ADDR` is printed on stdout.\n\nSimulator control (fault injection; not the flight TC path): UDP text lines to --sim-ctl: `stuck-arm a|b`, `obstacle a|b`, `battery-sag VOLTS`, `dead-hip-encoder`, `cut-cable`, `misplaced-voxel`, `fastener-jam`, `clear [FAULT]`, `link-loss P`, `link-corrupt P`, `status`. Each gets one reply line starting with `ok` or `error`."
+    long_about = "MMIC-I on-board software (host build) running against the MMIC-I simulator.\n\nTCs: CCSDS space packets with a PUS-C secondary header and CRC, as UDP datagrams or over TCP framed with COBS (0x00, COBS(packet), 0x00; a receiver takes a frame without the leading 0x00 too). TM: to every connected TCP client, to every UDP ground subscribed by an accepted TC (a lease renewed by each accepted TC; rejected or malformed datagrams never change who gets TM) and to every fixed --tm-dest (e.g. Yamcs' TM link). Space link (docs/space-link.md): with --frame-udp, one TC transfer frame per datagram (CRC, SDLS AES-256-GCM with --tc-key, FARM-1) and fixed-length TM frames (SDLS with --tm-key, CLCW, idle frames) to --frame-tm-to, counters in --link-state; or the same frames over a serial line with --frame-serial PATH (one COBS frame per frame, as board A's ground link); the bare-packet link is on only with --lab-bare-packets (loopback only); one of the two links must be chosen. The robot boots in STANDBY.\n\nOnce module discovery is done (board B's half in, or after its wait: at most 1 s of simulated time after boot; OPERATIONAL is refused before), one line `READY robot=N apid=0x... udp=ADDR tcp=ADDR sim_ctl=ADDR` is printed on stdout.\n\nSimulator control (fault injection; not the flight TC path): UDP text lines to --sim-ctl: `stuck-arm a|b`, `obstacle a|b`, `battery-sag VOLTS`, `dead-hip-encoder`, `cut-cable`, `misplaced-voxel`, `fastener-jam`, `clear [FAULT]`, `link-loss P`, `link-corrupt P`, `status`. Each gets one reply line starting with `ok` or `error`."
 )]
 struct Args {
     /// Robot number 1..=254; the APID is 0x100 + N and the default ports follow from it.
@@ -138,7 +138,7 @@ struct Args {
     /// without TCs. Lab and loopback use: the datagrams go out of the --udp socket.
     #[arg(long = "tm-dest", value_name = "ADDR")]
     tm_dest: Vec<SocketAddr>,
-    /// Team coordination without the ground (issue 25): UDP address of this robot's
+    /// Team coordination without the ground (docs/team.md): UDP address of this robot's
     /// inter-robot link (team packets, APID 0x0E0, TM[211,1]). Needs --team-state and
     /// --team-key (or --lab-team-bare); the other robots are given by --peer.
     #[arg(long)]
@@ -284,7 +284,7 @@ struct Settings {
     /// The bare-packet link is on (lab mode, --lab-bare-packets).
     bare: bool,
     modules: mmic_sim::modules::ModuleSetSpec,
-    /// `--config-state` (issue 24).
+    /// `--config-state` (docs/modules.md).
     config_state: Option<PathBuf>,
     team: Option<TeamSettings>,
 }
@@ -640,7 +640,7 @@ fn run(args: Args) -> Result<()> {
         obsw.config_state_lost(0, why, &mut down);
     }
     // Board A's table and probes now; board B's half arrives over the A-B link and the
-    // control cycle runs discovery (issue 24).
+    // control cycle runs discovery (docs/modules.md).
     obsw.start_discovery(0, &sim.modules().table_a, sim.modules().probes_a);
     loop {
         if !obsw.discovery_pending() {

@@ -1,4 +1,4 @@
-//! The host's inter-robot link and durable team state (issue 25).
+//! The host's inter-robot link and durable team state (docs/team.md).
 //!
 //! - Team packets travel as UDP datagrams between obsw processes (`--team-udp`,
 //!   `--peer N=ADDR`), **authenticated and encrypted** with AES-256-GCM under the team key

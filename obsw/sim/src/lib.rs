@@ -214,9 +214,9 @@ pub struct Sim {
     faults: Vec<Fault>,
     fasteners: HashMap<(Face, u8), FastenerPair>,
     fallen: bool,
-    /// What module discovery reads from this robot (issue 24): tables and probes.
+    /// What module discovery reads from this robot (docs/modules.md): tables and probes.
     modules: modules::DiscoveryInput,
-    /// What the fitted modules' calibration means physically (issue 24).
+    /// What the fitted modules' calibration means physically (docs/modules.md).
     phys: modules::ModulePhysics,
 }
 
@@ -419,7 +419,7 @@ impl Sim {
             DEAD_ENCODER_CDEG
         } else {
             // The platform converts counts with the nominal zero: this encoder's own zero
-            // and direction show as an offset and a sign (issue 24 calibration).
+            // and direction show as an offset and a sign (docs/modules.md).
             let read = self.phys.encoder_offset_cdeg + self.phys.encoder_dir * self.hip_cdeg;
             (read.round() as i32 + self.n(20, ENC_NOISE_CDEG)).clamp(i16::MIN as i32, i16::MAX as i32) as i16
         };

@@ -1,5 +1,5 @@
 //! What a TM means to the collector: limits and stale data from housekeeping, alarms
-//! from events, the module configuration (issue 24) and team status (issue 25), the
+//! from events, the module configuration (docs/modules.md) and team status (docs/team.md), the
 //! HK interval confirmed, the store's end report.
 
 use crate::alarms::{Level, Severity, Source};

@@ -1,4 +1,4 @@
-//! Space link management (mission service 212, issue 22): key change without downtime.
+//! Space link management (mission service 212, docs/space-link.md): key change without downtime.
 //! LINK_SPI_SELECT chooses the TM SPI and the TC SPIs accepted. The core checks the
 //! selection against the keys the platform reported ([`LinkKeys`]), answers PUS 1, raises
 //! LINK_SPI_SELECTED and leaves the selection in [`Obsw::link_select`] for the platform's

@@ -1,4 +1,4 @@
-//! Mission-specific service 210: the module set (issue 24). Discovery runs once at boot
+//! Mission-specific service 210: the module set (docs/modules.md). Discovery runs once at boot
 //! on what the platform read (board A's descriptor table and probes, board B's half from
 //! the A–B link); the result decides whether OPERATIONAL may be entered, which PUS 8
 //! functions can run (MODULE_ABSENT), what HK structure MODULES says and what the module

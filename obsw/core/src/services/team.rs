@@ -1,4 +1,4 @@
-//! Service 211, team coordination without the ground (issue 25): the obsw hosts a
+//! Service 211, team coordination without the ground (docs/team.md): the obsw hosts a
 //! `mmic_team::Node` (leader selection with terms, quorum and lease; limited authority).
 //!
 //! - Every valid ground TC counts as ground contact (`Input::GroundTc`, fed at the next

@@ -57,7 +57,7 @@ pub struct Scenario {
     /// must meet it; `None` for the fault scenario (reported, no target).
     pub target: Option<(u64, f64)>,
     /// Once a leader is agreed, kill it for good; the time reported is then from the kill
-    /// until the others agree on a new live leader (issue 25: within 6 s).
+    /// until the others agree on a new live leader (docs/team.md: within 6 s).
     pub kill_leader: bool,
 }
 
