@@ -16,6 +16,8 @@
 
 use super::headers::{self, Field};
 use super::num;
+use crate::flavour::Flavour;
+use crate::xml::{esc, Xml};
 use mib::events::{EventDef, Severity, EVENTS};
 use mib::hk::HK_STRUCTS;
 use mib::params::{ParamDef, PARAMS};
@@ -29,44 +31,6 @@ pub const XTCE_NS: &str = "http://www.omg.org/spec/XTCE/20180204";
 /// Name of the XTCE parameter of event parameter `p` of `e`.
 pub fn event_param_name(e: &EventDef, p: &str) -> String {
     format!("{}_{}", e.name, p)
-}
-
-pub(super) fn esc(s: &str) -> String {
-    let mut o = String::with_capacity(s.len());
-    for c in s.chars() {
-        match c {
-            '&' => o.push_str("&amp;"),
-            '<' => o.push_str("&lt;"),
-            '>' => o.push_str("&gt;"),
-            '"' => o.push_str("&quot;"),
-            '\'' => o.push_str("&apos;"),
-            _ => o.push(c),
-        }
-    }
-    o
-}
-
-pub(super) struct Xml {
-    pub(super) s: String,
-    pub(super) depth: usize,
-}
-
-impl Xml {
-    pub(super) fn line(&mut self, l: &str) {
-        for _ in 0..self.depth {
-            self.s.push_str("  ");
-        }
-        self.s.push_str(l);
-        self.s.push('\n');
-    }
-    pub(super) fn open(&mut self, l: &str) {
-        self.line(l);
-        self.depth += 1;
-    }
-    pub(super) fn close(&mut self, l: &str) {
-        self.depth = self.depth.saturating_sub(1);
-        self.line(l);
-    }
 }
 
 fn int_encoding(t: PType) -> String {
@@ -342,23 +306,11 @@ pub fn xtce_document() -> String {
 
 /// XTCE document for robot `robot` (1..=254; out-of-range numbers use the default robot).
 pub fn xtce_document_for(robot: u8) -> String {
-    document(robot, Flavor::Generic)
+    document(robot, &Flavour::GENERIC)
 }
 
-/// Which reader the XTCE is written for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum Flavor {
-    /// Plain XTCE 1.2 (any decoder, e.g. space-packet-parser).
-    Generic,
-    /// The MDB of a Yamcs instance: the additions of [`super::yamcs`] (enumerated event
-    /// and SID fields, on-board time as absolute times, shared request-ID container,
-    /// command verifiers, header fields fixed or assigned, not operator arguments).
-    Yamcs,
-}
-
-/// XTCE document for robot `robot` in `flavor`.
-pub(super) fn document(robot: u8, flavor: Flavor) -> String {
-    let yamcs = flavor == Flavor::Yamcs;
+/// XTCE document for robot `robot` in `flavour`.
+pub(crate) fn document(robot: u8, flavour: &Flavour) -> String {
     let (robot, apid) = match apid::robot_apid(robot) {
         Some(a) => (robot, a),
         None => (
@@ -391,12 +343,12 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
         .chain(headers::TM_SEC_HEADER)
         .chain([&headers::PEC])
     {
-        if !(yamcs && super::yamcs::header_type(&mut x, f)) {
+        if !(flavour.header_type)(&mut x, f) {
             header_type(&mut x, f);
         }
     }
-    if yamcs {
-        super::yamcs::id_types(&mut x);
+    if let Some(id_types) = flavour.id_types {
+        id_types(&mut x);
     } else {
         header_type(
             &mut x,
@@ -422,7 +374,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
         .iter()
         .filter(|t| !super::scos::is_identified_by_pi1(t.service, t.subservice))
     {
-        if yamcs && super::yamcs::mode_tm(t, &mut body.types, &mut body.params, &mut body.containers, robot) {
+        if (flavour.tm)(t, &mut body.types, &mut body.params, &mut body.containers, robot) {
             continue;
         }
         body.tm(t);
@@ -434,7 +386,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
     for e in EVENTS {
         for ep in e.params {
             let n = event_param_name(e, ep.name);
-            if yamcs && super::yamcs::robot_mode_type(&mut x, &format!("{n}_Type"), ep) {
+            if (flavour.event_param_type)(&mut x, &format!("{n}_Type"), ep) {
                 continue;
             }
             if ep.names.is_none() {
@@ -450,9 +402,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
             }
         }
     }
-    if yamcs {
-        super::yamcs::extra_types(&mut x);
-    }
+    (flavour.extra_types)(&mut x);
     x.close("</xtce:ParameterTypeSet>");
 
     x.open("<xtce:ParameterSet>");
@@ -490,9 +440,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
             );
         }
     }
-    if yamcs {
-        super::yamcs::extra_params(&mut x);
-    }
+    (flavour.extra_params)(&mut x);
     x.close("</xtce:ParameterSet>");
 
     x.open("<xtce:ContainerSet>");
@@ -569,7 +517,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
         );
     }
     for e in EVENTS {
-        if yamcs && super::yamcs::mode_event_containers(&mut x, e, &severity_container(e.severity), robot) {
+        if (flavour.event_containers)(&mut x, e, &severity_container(e.severity), robot) {
             continue;
         }
         let mut en: Vec<String> = e.params.iter().map(|p| event_param_name(e, p.name)).collect();
@@ -584,9 +532,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
         );
     }
     x.s.push_str(&body.containers.s);
-    if yamcs {
-        super::yamcs::extra_containers(&mut x);
-    }
+    (flavour.extra_containers)(&mut x);
     x.close("</xtce:ContainerSet>");
     x.close("</xtce:TelemetryMetaData>");
 
@@ -597,7 +543,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
         .iter()
         .chain(headers::TC_SEC_HEADER)
         .filter(|f| f.fixed.is_none() && f.name != "PKT_TYPE" && f.name != "TC_SOURCE_ID")
-        .filter(|f| !(yamcs && super::yamcs::tc_header_fixed(f).is_some()))
+        .filter(|f| (flavour.tc_header_fixed)(f).is_none())
         .collect();
     for f in &tc_header_args {
         x.open(&format!(
@@ -663,8 +609,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
         let fixed = match f.name {
             "PKT_TYPE" => Some(1),
             "TC_SOURCE_ID" => Some(config::GROUND_ID as u32),
-            _ if yamcs => super::yamcs::tc_header_fixed(f).or(f.fixed),
-            _ => f.fixed,
+            _ => (flavour.tc_header_fixed)(f).or(f.fixed),
         };
         match fixed {
             Some(v) => x.line(&format!(
@@ -678,19 +623,15 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
     }
     x.close("</xtce:EntryList>");
     x.close("</xtce:CommandContainer>");
-    if yamcs {
-        super::yamcs::verifiers(&mut x);
-    }
+    (flavour.verifiers)(&mut x);
     x.close("</xtce:MetaCommand>");
 
     for t in TCS {
-        meta_command(&mut x, t, apid, flavor);
+        meta_command(&mut x, t, apid, flavour);
     }
     x.close("</xtce:MetaCommandSet>");
     x.close("</xtce:CommandMetaData>");
-    if yamcs {
-        super::yamcs::module_modes_space_system(&mut x);
-    }
+    (flavour.space_systems)(&mut x);
     x.close("</xtce:SpaceSystem>");
     x.s
 }
@@ -701,7 +642,7 @@ fn hex_value(v: u64, bits: u32) -> String {
     format!("{:0width$X}", v, width = octets * 2)
 }
 
-fn meta_command(x: &mut Xml, t: &TcDef, apid: u16, flavor: Flavor) {
+fn meta_command(x: &mut Xml, t: &TcDef, apid: u16, flavour: &Flavour) {
     let mut desc = format!(
         "TC[{},{}]{}: {}; accepted in {}",
         t.service,
@@ -729,7 +670,7 @@ fn meta_command(x: &mut Xml, t: &TcDef, apid: u16, flavor: Flavor) {
         ("TC_SERVICE", t.service.to_string()),
         ("TC_SUBSERVICE", t.subservice.to_string()),
     ];
-    if flavor == Flavor::Yamcs {
+    if flavour.assign_ack_flags {
         assigned.push(("TC_ACK_FLAGS", t.ack_flags().to_string()));
     }
     for (n, v) in assigned {
