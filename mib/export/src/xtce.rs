@@ -318,10 +318,37 @@ pub(crate) fn document(robot: u8, flavour: &Flavour) -> String {
             apid::robot_apid(apid::DEFAULT_ROBOT).unwrap_or(apid::APID_BASE + 1),
         ),
     };
+    let d = Doc { flavour, robot, apid };
     let mut x = Xml {
         s: String::new(),
         depth: 0,
     };
+    space_system_header(&mut x, &d);
+    x.open("<xtce:TelemetryMetaData>");
+    let body = parameter_types(&mut x, &d);
+    parameters(&mut x, &d, &body);
+    containers(&mut x, &d, &body);
+    x.close("</xtce:TelemetryMetaData>");
+    x.open("<xtce:CommandMetaData>");
+    let tc_header_args = tc_header_args(flavour);
+    argument_types(&mut x, &tc_header_args);
+    meta_commands(&mut x, &d, &tc_header_args);
+    x.close("</xtce:CommandMetaData>");
+    (flavour.space_systems)(&mut x);
+    x.close("</xtce:SpaceSystem>");
+    x.s
+}
+
+/// What every section of one robot's XTCE document needs.
+struct Doc<'a> {
+    flavour: &'a Flavour,
+    robot: u8,
+    apid: u16,
+}
+
+/// The XML declaration, and the robot's space system opened with its description.
+fn space_system_header(x: &mut Xml, d: &Doc) {
+    let Doc { robot, apid, .. } = *d;
     x.line("<?xml version=\"1.0\" encoding=\"UTF-8\"?>");
     x.open(&format!(
         "<xtce:SpaceSystem xmlns:xtce=\"{XTCE_NS}\" xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\" xsi:schemaLocation=\"{XTCE_NS} https://www.omg.org/spec/XTCE/20180204/SpaceSystem.xsd\" name=\"MMIC_I_ROBOT_{robot}\" shortDescription=\"MMIC-I robot {robot}, APID 0x{apid:03X}\">"
@@ -334,24 +361,27 @@ pub(crate) fn document(robot: u8, flavour: &Flavour) -> String {
         "<xtce:Header version=\"{}\" validationStatus=\"Working\"/>",
         env!("CARGO_PKG_VERSION")
     ));
+}
 
-    // ---------------- telemetry ----------------
-    x.open("<xtce:TelemetryMetaData>");
+/// The TM parameter types; returns the TM kinds' own parameters and containers, written
+/// with their types.
+fn parameter_types(x: &mut Xml, d: &Doc) -> BodyXtce {
+    let Doc { flavour, robot, .. } = *d;
     x.open("<xtce:ParameterTypeSet>");
     for f in headers::PRIMARY_HEADER
         .iter()
         .chain(headers::TM_SEC_HEADER)
         .chain([&headers::PEC])
     {
-        if !(flavour.header_type)(&mut x, f) {
-            header_type(&mut x, f);
+        if !(flavour.header_type)(x, f) {
+            header_type(x, f);
         }
     }
     if let Some(id_types) = flavour.id_types {
-        id_types(&mut x);
+        id_types(x);
     } else {
         header_type(
-            &mut x,
+            x,
             &Field {
                 name: "HK_SID",
                 bits: 16,
@@ -360,7 +390,7 @@ pub(crate) fn document(robot: u8, flavour: &Flavour) -> String {
             },
         );
         header_type(
-            &mut x,
+            x,
             &Field {
                 name: "EVENT_ID",
                 bits: 16,
@@ -381,44 +411,48 @@ pub(crate) fn document(robot: u8, flavour: &Flavour) -> String {
     }
     x.s.push_str(&body.types.s);
     for p in PARAMS {
-        param_type(&mut x, p);
+        param_type(x, p);
     }
     for e in EVENTS {
         for ep in e.params {
             let n = event_param_name(e, ep.name);
-            if (flavour.event_param_type)(&mut x, &format!("{n}_Type"), ep) {
+            if (flavour.event_param_type)(x, &format!("{n}_Type"), ep) {
                 continue;
             }
             if ep.names.is_none() {
                 raw_type(
-                    &mut x,
+                    x,
                     &format!("{n}_Type"),
                     ep.ptype,
                     "",
                     &format!("{} of event {}", ep.name, e.name),
                 );
             } else {
-                enumerated_type(&mut x, &format!("{n}_Type"), ep);
+                enumerated_type(x, &format!("{n}_Type"), ep);
             }
         }
     }
-    (flavour.extra_types)(&mut x);
+    (flavour.extra_types)(x);
     x.close("</xtce:ParameterTypeSet>");
+    body
+}
 
+/// The TM parameters.
+fn parameters(x: &mut Xml, d: &Doc, body: &BodyXtce) {
     x.open("<xtce:ParameterSet>");
     for f in headers::PRIMARY_HEADER
         .iter()
         .chain(headers::TM_SEC_HEADER)
         .chain([&headers::PEC])
     {
-        parameter(&mut x, f.name, &format!("{}_Type", f.name), f.desc, &[]);
+        parameter(x, f.name, &format!("{}_Type", f.name), f.desc, &[]);
     }
-    parameter(&mut x, "HK_SID", "HK_SID_Type", "housekeeping structure ID", &[]);
-    parameter(&mut x, "EVENT_ID", "EVENT_ID_Type", "event ID", &[]);
+    parameter(x, "HK_SID", "HK_SID_Type", "housekeeping structure ID", &[]);
+    parameter(x, "EVENT_ID", "EVENT_ID_Type", "event ID", &[]);
     x.s.push_str(&body.params.s);
     for p in PARAMS {
         parameter(
-            &mut x,
+            x,
             p.name,
             &format!("{}_Type", p.name),
             p.desc,
@@ -432,7 +466,7 @@ pub(crate) fn document(robot: u8, flavour: &Flavour) -> String {
         for (i, ep) in e.params.iter().enumerate() {
             let n = event_param_name(e, ep.name);
             parameter(
-                &mut x,
+                x,
                 &n,
                 &format!("{n}_Type"),
                 &format!("parameter {} of event {}", ep.name, e.name),
@@ -440,12 +474,16 @@ pub(crate) fn document(robot: u8, flavour: &Flavour) -> String {
             );
         }
     }
-    (flavour.extra_params)(&mut x);
+    (d.flavour.extra_params)(x);
     x.close("</xtce:ParameterSet>");
+}
 
+/// The TM containers: headers, housekeeping, events, then the other TM kinds.
+fn containers(x: &mut Xml, d: &Doc, body: &BodyXtce) {
+    let Doc { flavour, robot, apid } = *d;
     x.open("<xtce:ContainerSet>");
     container(
-        &mut x,
+        x,
         "CCSDSPacket",
         "CCSDS space packet primary header",
         true,
@@ -453,7 +491,7 @@ pub(crate) fn document(robot: u8, flavour: &Flavour) -> String {
         None,
     );
     container(
-        &mut x,
+        x,
         "PUS_TM",
         "PUS-C telemetry of this robot: TM secondary header with CDS short time",
         true,
@@ -469,7 +507,7 @@ pub(crate) fn document(robot: u8, flavour: &Flavour) -> String {
     );
     let pec = [headers::PEC.name.to_string()];
     container(
-        &mut x,
+        x,
         "HK_REPORT",
         "TM[3,25] housekeeping parameter report",
         true,
@@ -491,7 +529,7 @@ pub(crate) fn document(robot: u8, flavour: &Flavour) -> String {
             .collect();
         e.extend(pec.iter().cloned());
         container(
-            &mut x,
+            x,
             &format!("HK_{}", h.name),
             &format!("SID {}: {}", h.sid, h.desc),
             false,
@@ -502,7 +540,7 @@ pub(crate) fn document(robot: u8, flavour: &Flavour) -> String {
     let sevs = [Severity::Info, Severity::Low, Severity::Medium, Severity::High];
     for s in sevs {
         container(
-            &mut x,
+            x,
             &severity_container(s),
             &format!("TM[5,{}] {} severity event report", s.subservice(), s.name()),
             true,
@@ -517,13 +555,13 @@ pub(crate) fn document(robot: u8, flavour: &Flavour) -> String {
         );
     }
     for e in EVENTS {
-        if (flavour.event_containers)(&mut x, e, &severity_container(e.severity), robot) {
+        if (flavour.event_containers)(x, e, &severity_container(e.severity), robot) {
             continue;
         }
         let mut en: Vec<String> = e.params.iter().map(|p| event_param_name(e, p.name)).collect();
         en.extend(pec.iter().cloned());
         container(
-            &mut x,
+            x,
             &format!("EVT_{}", e.name),
             &format!("event 0x{:04X}: {}", e.id, e.desc),
             false,
@@ -532,20 +570,24 @@ pub(crate) fn document(robot: u8, flavour: &Flavour) -> String {
         );
     }
     x.s.push_str(&body.containers.s);
-    (flavour.extra_containers)(&mut x);
+    (flavour.extra_containers)(x);
     x.close("</xtce:ContainerSet>");
-    x.close("</xtce:TelemetryMetaData>");
+}
 
-    // ---------------- telecommands ----------------
-    x.open("<xtce:CommandMetaData>");
-    x.open("<xtce:ArgumentTypeSet>");
-    let tc_header_args: Vec<&Field> = headers::PRIMARY_HEADER
+/// The TC header fields an operator (or the flavour's assignments) supplies.
+fn tc_header_args(flavour: &Flavour) -> Vec<&'static Field> {
+    headers::PRIMARY_HEADER
         .iter()
         .chain(headers::TC_SEC_HEADER)
         .filter(|f| f.fixed.is_none() && f.name != "PKT_TYPE" && f.name != "TC_SOURCE_ID")
         .filter(|f| (flavour.tc_header_fixed)(f).is_none())
-        .collect();
-    for f in &tc_header_args {
+        .collect()
+}
+
+/// The TC argument types: the free header fields, then every TC's arguments.
+fn argument_types(x: &mut Xml, tc_header_args: &[&Field]) {
+    x.open("<xtce:ArgumentTypeSet>");
+    for f in tc_header_args {
         x.open(&format!(
             "<xtce:IntegerArgumentType name=\"TC_{}_Type\" shortDescription=\"{}\" signed=\"false\" sizeInBits=\"32\">",
             f.name,
@@ -562,7 +604,7 @@ pub(crate) fn document(robot: u8, flavour: &Flavour) -> String {
         for a in t.args {
             if !a.names.is_none() {
                 let tname = format!("{}_{}_Type", t.name, a.name);
-                enumerated(&mut x, "EnumeratedArgumentType", &tname, a, Some((a.min, a.max)));
+                enumerated(x, "EnumeratedArgumentType", &tname, a, Some((a.min, a.max)));
                 continue;
             }
             x.open(&format!(
@@ -573,7 +615,7 @@ pub(crate) fn document(robot: u8, flavour: &Flavour) -> String {
                 a.ptype.signed(),
                 32.max(a.ptype.bits())
             ));
-            unit_set(&mut x, a.unit);
+            unit_set(x, a.unit);
             x.line(&format!("{}/>", int_encoding(a.ptype)));
             x.open("<xtce:ValidRangeSet>");
             x.line(&format!(
@@ -585,12 +627,15 @@ pub(crate) fn document(robot: u8, flavour: &Flavour) -> String {
         }
     }
     x.close("</xtce:ArgumentTypeSet>");
+}
 
+/// The abstract PUS TC with the headers, then one meta-command per TC.
+fn meta_commands(x: &mut Xml, d: &Doc, tc_header_args: &[&Field]) {
     x.open("<xtce:MetaCommandSet>");
     // Abstract PUS-C TC with the headers.
     x.open("<xtce:MetaCommand name=\"PUS_TC\" abstract=\"true\" shortDescription=\"PUS-C telecommand: CCSDS primary header and TC secondary header; a CRC-16/CCITT-FALSE PEC follows the application data\">");
     x.open("<xtce:ArgumentList>");
-    for f in &tc_header_args {
+    for f in tc_header_args {
         x.line(&format!(
             "<xtce:Argument name=\"{}\" argumentTypeRef=\"TC_{}_Type\"{}/>",
             f.name,
@@ -609,7 +654,7 @@ pub(crate) fn document(robot: u8, flavour: &Flavour) -> String {
         let fixed = match f.name {
             "PKT_TYPE" => Some(1),
             "TC_SOURCE_ID" => Some(config::GROUND_ID as u32),
-            _ => (flavour.tc_header_fixed)(f).or(f.fixed),
+            _ => (d.flavour.tc_header_fixed)(f).or(f.fixed),
         };
         match fixed {
             Some(v) => x.line(&format!(
@@ -623,17 +668,13 @@ pub(crate) fn document(robot: u8, flavour: &Flavour) -> String {
     }
     x.close("</xtce:EntryList>");
     x.close("</xtce:CommandContainer>");
-    (flavour.verifiers)(&mut x);
+    (d.flavour.verifiers)(x);
     x.close("</xtce:MetaCommand>");
 
     for t in TCS {
-        meta_command(&mut x, t, apid, flavour);
+        meta_command(x, t, d.apid, d.flavour);
     }
     x.close("</xtce:MetaCommandSet>");
-    x.close("</xtce:CommandMetaData>");
-    (flavour.space_systems)(&mut x);
-    x.close("</xtce:SpaceSystem>");
-    x.s
 }
 
 /// Hex string of `v` on `bits` bits (whole octets, as `binaryValue` wants).
