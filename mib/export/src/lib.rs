@@ -19,6 +19,7 @@
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
+mod flavour;
 pub mod headers;
 mod icd;
 mod json;
@@ -26,6 +27,7 @@ pub mod memory;
 mod scos;
 pub mod text;
 pub mod urdf;
+mod xml;
 mod xtce;
 pub mod yamcs;
 

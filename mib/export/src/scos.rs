@@ -541,8 +541,11 @@ fn tm_packets() -> Vec<TmPacket> {
 }
 
 /// Distinct calibration curves: (CAF name, calibration, signed raw, unit).
-fn calibrations() -> Vec<(String, Calib, PType, &'static str)> {
-    let mut out: Vec<(String, Calib, PType, &'static str)> = Vec::new();
+/// A calibration curve: its name, the curve, the raw type and the unit.
+type Calibration = (String, Calib, PType, &'static str);
+
+fn calibrations() -> Vec<Calibration> {
+    let mut out: Vec<Calibration> = Vec::new();
     for p in PARAMS.iter().filter(|p| !p.calib.is_identity()) {
         let known = out
             .iter()
@@ -572,9 +575,29 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
         ),
     };
     let apid_s = apid.to_string();
-    let mut tables: Vec<Table> = Vec::new();
+    let cals = calibrations();
+    let tables: Vec<Table> = [vdf(robot, apid)]
+        .into_iter()
+        .chain(packet_tables(robot, &apid_s))
+        .chain([pcf(&cals)])
+        .chain(calibration_tables(&cals))
+        .chain(limit_tables())
+        .chain(tc_header_tables(apid))
+        .chain(command_tables(&apid_s))
+        .collect();
 
-    // --- vdf ---
+    // Files in the order of TABLES.
+    let mut out = Vec::new();
+    for (name, _) in TABLES {
+        if let Some(t) = tables.iter().find(|t| t.name == *name) {
+            out.push((file_name(name), t.render()));
+        }
+    }
+    out
+}
+
+/// The robot's spacecraft database: its name and description.
+fn vdf(robot: u8, apid: u16) -> Table {
     let mut vdf = Table::new("vdf");
     vdf.row([
         &format!("MMICR{robot:03}"),
@@ -583,9 +606,12 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
         "0",
         "0",
     ]);
-    tables.push(vdf);
+    vdf
+}
 
-    // --- packets ---
+/// The TM packets: identification (`pid`), identification fields (`pic`), characteristics
+/// (`tpcf`) and the location of every parameter (`plf`).
+fn packet_tables(robot: u8, apid_s: &str) -> [Table; 4] {
     let packets = tm_packets();
     let dfh = headers::tm_data_field_header_len().to_string();
     let mut pid = Table::new("pid");
@@ -598,7 +624,7 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
         pid.row([
             &p.service.to_string(),
             &p.subservice.to_string(),
-            &apid_s,
+            apid_s,
             &p.pi1.to_string(),
             "0",
             &spid,
@@ -633,7 +659,7 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
                     "16",
                     "-1",
                     "0",
-                    &apid_s,
+                    apid_s,
                 ]);
             } else {
                 pic.row([
@@ -643,17 +669,17 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
                     "0",
                     "-1",
                     "0",
-                    &apid_s,
+                    apid_s,
                 ]);
             }
         }
     }
-    tables.push(pid);
-    tables.push(pic);
-    tables.push(tpcf);
+    [pid, pic, tpcf, plf]
+}
 
-    // --- monitoring parameters, calibrations, limits ---
-    let cals = calibrations();
+/// The monitoring parameters (`pcf`): the identification fields, HK parameters, event
+/// parameters, and the fields of the other reports.
+fn pcf(cals: &[Calibration]) -> Table {
     let mut pcf = Table::new("pcf");
     let mut pcf_row = |name: &str, descr: &str, obpid: &str, unit: &str, tf: (u8, u8), curtx: &str, descr2: &str| {
         let (ptc, pfc) = tf;
@@ -744,12 +770,14 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
         };
         pcf_row(&name, &path, "", f.unit, tf, "", f.desc);
     }
-    tables.push(pcf);
-    tables.push(plf);
+    pcf
+}
 
+/// The calibration curves (`caf`) and their points (`cap`).
+fn calibration_tables(cals: &[Calibration]) -> [Table; 2] {
     let mut caf = Table::new("caf");
     let mut cap = Table::new("cap");
-    for (name, c, t, unit) in &cals {
+    for (name, c, t, unit) in cals {
         caf.row([
             name,
             &fit(&format!("eng = raw * {} + {}", num(c.scale), num(c.offset)), 32),
@@ -764,9 +792,11 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
             cap.row([name, &raw.to_string(), &num(c.eng(raw))]);
         }
     }
-    tables.push(caf);
-    tables.push(cap);
+    [caf, cap]
+}
 
+/// The monitoring checks (`ocf`) and their limits (`ocp`).
+fn limit_tables() -> [Table; 2] {
     let mut ocf = Table::new("ocf");
     let mut ocp = Table::new("ocp");
     for p in PARAMS {
@@ -795,10 +825,11 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
             }
         }
     }
-    tables.push(ocf);
-    tables.push(ocp);
+    [ocf, ocp]
+}
 
-    // --- commands ---
+/// The TC header (`tcp`), its parameters (`pcpc`) and its fields (`pcdf`).
+fn tc_header_tables(apid: u16) -> [Table; 3] {
     let mut tcp = Table::new("tcp");
     tcp.row([ScosNames::TC_HEADER, "MMIC-I PUS-C TC header"]);
     let mut pcpc = Table::new("pcpc");
@@ -834,16 +865,29 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
             "H",
         ]);
     }
-    tables.push(tcp);
-    tables.push(pcpc);
-    tables.push(pcdf);
+    [tcp, pcpc, pcdf]
+}
 
-    let mut ccf = Table::new("ccf");
-    let mut cdf = Table::new("cdf");
-    let mut cpc = Table::new("cpc");
-    let mut prf = Table::new("prf");
-    let mut prv = Table::new("prv");
-    cpc.row([
+/// The commands' tables: commands (`ccf`), their elements (`cdf`) and parameters (`cpc`),
+/// and the parameters' ranges (`prf`, `prv`).
+struct CommandTables {
+    ccf: Table,
+    cdf: Table,
+    cpc: Table,
+    prf: Table,
+    prv: Table,
+}
+
+/// The commands' tables of every TC, and the PUS 8 function ID they share.
+fn command_tables(apid_s: &str) -> [Table; 5] {
+    let mut c = CommandTables {
+        ccf: Table::new("ccf"),
+        cdf: Table::new("cdf"),
+        cpc: Table::new("cpc"),
+        prf: Table::new("prf"),
+        prv: Table::new("prv"),
+    };
+    c.cpc.row([
         ScosNames::FUNCTION,
         "PUS 8 function ID",
         "3",
@@ -863,115 +907,114 @@ pub fn scos_tables_for(robot: u8) -> Vec<(&'static str, String)> {
         "B",
     ]);
     for t in TCS {
-        let cname = ScosNames::command(t);
-        let mut bit = 0usize;
-        let mut npars = 0usize;
-        if t.service == tc::service::FUNCTION {
-            cdf.row([
-                &cname,
-                "F",
-                "function ID",
-                "16",
-                "0",
-                "0",
-                ScosNames::FUNCTION,
-                "R",
-                &t.function.to_string(),
-                "",
-            ]);
-            bit += 16;
-            npars += 1;
-        }
-        for (i, a) in t.args.iter().enumerate() {
-            let pname = ScosNames::command_param(t, i);
-            let rname = ScosNames::range(t, i);
-            let (ptc, pfc) = ptc_pfc(a.ptype);
-            cdf.row([
-                &cname,
-                "E",
-                &fit(a.name, 24),
-                &a.ptype.bits().to_string(),
-                &bit.to_string(),
-                "0",
-                &pname,
-                "R",
-                "",
-                "",
-            ]);
-            cpc.row([
-                &pname,
-                &fit(a.name, 24),
-                &ptc.to_string(),
-                &pfc.to_string(),
-                fmt_letter(a.ptype),
-                "D",
-                &fit(a.unit, 4),
-                "N",
-                &rname,
-                "",
-                "",
-                "R",
-                &a.min.to_string(),
-                "Y",
-                "0",
-                &fit(&format!("{}: {}", t.name, a.desc), 256),
-                "B",
-            ]);
-            prf.row([
-                &rname,
-                &fit(&format!("{} {}", t.name, a.name), 24),
-                "R",
-                fmt_letter(a.ptype),
-                "D",
-                "1",
-                &fit(a.unit, 4),
-            ]);
-            prv.row([&rname, &a.min.to_string(), &a.max.to_string()]);
-            bit += a.ptype.bits();
-            npars += 1;
-        }
-        let mut descr2 = t.description().to_string();
-        if t.variable {
-            descr2.push_str(" (variable data follows)");
-        }
-        ccf.row([
+        command_rows(&mut c, t, apid_s);
+    }
+    let CommandTables {
+        ccf,
+        cdf,
+        cpc,
+        prf,
+        prv,
+    } = c;
+    [ccf, cdf, cpc, prf, prv]
+}
+
+/// The rows of command `t`.
+fn command_rows(c: &mut CommandTables, t: &TcDef, apid_s: &str) {
+    let cname = ScosNames::command(t);
+    let mut bit = 0usize;
+    let mut npars = 0usize;
+    if t.service == tc::service::FUNCTION {
+        c.cdf.row([
             &cname,
-            &fit(t.name, 24),
-            &fit(&descr2, 64),
+            "F",
+            "function ID",
+            "16",
+            "0",
+            "0",
+            ScosNames::FUNCTION,
+            "R",
+            &t.function.to_string(),
             "",
-            if t.hazard.is_some() { "Y" } else { "N" },
-            ScosNames::TC_HEADER,
-            &t.service.to_string(),
-            &t.subservice.to_string(),
-            &apid_s,
-            &npars.to_string(),
-            "N",
-            "Y",
-            "N",
-            "C",
-            "",
-            "N",
-            "",
-            "",
-            "",
+        ]);
+        bit += 16;
+        npars += 1;
+    }
+    for (i, a) in t.args.iter().enumerate() {
+        let pname = ScosNames::command_param(t, i);
+        let rname = ScosNames::range(t, i);
+        let (ptc, pfc) = ptc_pfc(a.ptype);
+        c.cdf.row([
+            &cname,
+            "E",
+            &fit(a.name, 24),
+            &a.ptype.bits().to_string(),
+            &bit.to_string(),
+            "0",
+            &pname,
+            "R",
             "",
             "",
         ]);
+        c.cpc.row([
+            &pname,
+            &fit(a.name, 24),
+            &ptc.to_string(),
+            &pfc.to_string(),
+            fmt_letter(a.ptype),
+            "D",
+            &fit(a.unit, 4),
+            "N",
+            &rname,
+            "",
+            "",
+            "R",
+            &a.min.to_string(),
+            "Y",
+            "0",
+            &fit(&format!("{}: {}", t.name, a.desc), 256),
+            "B",
+        ]);
+        c.prf.row([
+            &rname,
+            &fit(&format!("{} {}", t.name, a.name), 24),
+            "R",
+            fmt_letter(a.ptype),
+            "D",
+            "1",
+            &fit(a.unit, 4),
+        ]);
+        c.prv.row([&rname, &a.min.to_string(), &a.max.to_string()]);
+        bit += a.ptype.bits();
+        npars += 1;
     }
-    tables.push(ccf);
-    tables.push(cdf);
-    tables.push(cpc);
-    tables.push(prf);
-    tables.push(prv);
-
-    // Files in the order of TABLES.
-    let mut out = Vec::new();
-    for (name, _) in TABLES {
-        if let Some(t) = tables.iter().find(|t| t.name == *name) {
-            out.push((file_name(name), t.render()));
-        }
+    let mut descr2 = t.description().to_string();
+    if t.variable {
+        descr2.push_str(" (variable data follows)");
     }
-    out
+    c.ccf.row([
+        &cname,
+        &fit(t.name, 24),
+        &fit(&descr2, 64),
+        "",
+        if t.hazard.is_some() { "Y" } else { "N" },
+        ScosNames::TC_HEADER,
+        &t.service.to_string(),
+        &t.subservice.to_string(),
+        apid_s,
+        &npars.to_string(),
+        "N",
+        "Y",
+        "N",
+        "C",
+        "",
+        "N",
+        "",
+        "",
+        "",
+        "",
+        "",
+    ]);
 }
 
 fn file_name(table: &str) -> &'static str {

@@ -16,6 +16,8 @@
 
 use super::headers::{self, Field};
 use super::num;
+use crate::flavour::Flavour;
+use crate::xml::{esc, Xml};
 use mib::events::{EventDef, Severity, EVENTS};
 use mib::hk::HK_STRUCTS;
 use mib::params::{ParamDef, PARAMS};
@@ -29,44 +31,6 @@ pub const XTCE_NS: &str = "http://www.omg.org/spec/XTCE/20180204";
 /// Name of the XTCE parameter of event parameter `p` of `e`.
 pub fn event_param_name(e: &EventDef, p: &str) -> String {
     format!("{}_{}", e.name, p)
-}
-
-pub(super) fn esc(s: &str) -> String {
-    let mut o = String::with_capacity(s.len());
-    for c in s.chars() {
-        match c {
-            '&' => o.push_str("&amp;"),
-            '<' => o.push_str("&lt;"),
-            '>' => o.push_str("&gt;"),
-            '"' => o.push_str("&quot;"),
-            '\'' => o.push_str("&apos;"),
-            _ => o.push(c),
-        }
-    }
-    o
-}
-
-pub(super) struct Xml {
-    pub(super) s: String,
-    pub(super) depth: usize,
-}
-
-impl Xml {
-    pub(super) fn line(&mut self, l: &str) {
-        for _ in 0..self.depth {
-            self.s.push_str("  ");
-        }
-        self.s.push_str(l);
-        self.s.push('\n');
-    }
-    pub(super) fn open(&mut self, l: &str) {
-        self.line(l);
-        self.depth += 1;
-    }
-    pub(super) fn close(&mut self, l: &str) {
-        self.depth = self.depth.saturating_sub(1);
-        self.line(l);
-    }
 }
 
 fn int_encoding(t: PType) -> String {
@@ -342,23 +306,11 @@ pub fn xtce_document() -> String {
 
 /// XTCE document for robot `robot` (1..=254; out-of-range numbers use the default robot).
 pub fn xtce_document_for(robot: u8) -> String {
-    document(robot, Flavor::Generic)
+    document(robot, &Flavour::GENERIC)
 }
 
-/// Which reader the XTCE is written for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum Flavor {
-    /// Plain XTCE 1.2 (any decoder, e.g. space-packet-parser).
-    Generic,
-    /// The MDB of a Yamcs instance: the additions of [`super::yamcs`] (enumerated event
-    /// and SID fields, on-board time as absolute times, shared request-ID container,
-    /// command verifiers, header fields fixed or assigned, not operator arguments).
-    Yamcs,
-}
-
-/// XTCE document for robot `robot` in `flavor`.
-pub(super) fn document(robot: u8, flavor: Flavor) -> String {
-    let yamcs = flavor == Flavor::Yamcs;
+/// XTCE document for robot `robot` in `flavour`.
+pub(crate) fn document(robot: u8, flavour: &Flavour) -> String {
     let (robot, apid) = match apid::robot_apid(robot) {
         Some(a) => (robot, a),
         None => (
@@ -366,10 +318,37 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
             apid::robot_apid(apid::DEFAULT_ROBOT).unwrap_or(apid::APID_BASE + 1),
         ),
     };
+    let d = Doc { flavour, robot, apid };
     let mut x = Xml {
         s: String::new(),
         depth: 0,
     };
+    space_system_header(&mut x, &d);
+    x.open("<xtce:TelemetryMetaData>");
+    let body = parameter_types(&mut x, &d);
+    parameters(&mut x, &d, &body);
+    containers(&mut x, &d, &body);
+    x.close("</xtce:TelemetryMetaData>");
+    x.open("<xtce:CommandMetaData>");
+    let tc_header_args = tc_header_args(flavour);
+    argument_types(&mut x, &tc_header_args);
+    meta_commands(&mut x, &d, &tc_header_args);
+    x.close("</xtce:CommandMetaData>");
+    (flavour.space_systems)(&mut x);
+    x.close("</xtce:SpaceSystem>");
+    x.s
+}
+
+/// What every section of one robot's XTCE document needs.
+struct Doc<'a> {
+    flavour: &'a Flavour,
+    robot: u8,
+    apid: u16,
+}
+
+/// The XML declaration, and the robot's space system opened with its description.
+fn space_system_header(x: &mut Xml, d: &Doc) {
+    let Doc { robot, apid, .. } = *d;
     x.line("<?xml version=\"1.0\" encoding=\"UTF-8\"?>");
     x.open(&format!(
         "<xtce:SpaceSystem xmlns:xtce=\"{XTCE_NS}\" xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\" xsi:schemaLocation=\"{XTCE_NS} https://www.omg.org/spec/XTCE/20180204/SpaceSystem.xsd\" name=\"MMIC_I_ROBOT_{robot}\" shortDescription=\"MMIC-I robot {robot}, APID 0x{apid:03X}\">"
@@ -382,24 +361,27 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
         "<xtce:Header version=\"{}\" validationStatus=\"Working\"/>",
         env!("CARGO_PKG_VERSION")
     ));
+}
 
-    // ---------------- telemetry ----------------
-    x.open("<xtce:TelemetryMetaData>");
+/// The TM parameter types; returns the TM kinds' own parameters and containers, written
+/// with their types.
+fn parameter_types(x: &mut Xml, d: &Doc) -> BodyXtce {
+    let Doc { flavour, robot, .. } = *d;
     x.open("<xtce:ParameterTypeSet>");
     for f in headers::PRIMARY_HEADER
         .iter()
         .chain(headers::TM_SEC_HEADER)
         .chain([&headers::PEC])
     {
-        if !(yamcs && super::yamcs::header_type(&mut x, f)) {
-            header_type(&mut x, f);
+        if !(flavour.header_type)(x, f) {
+            header_type(x, f);
         }
     }
-    if yamcs {
-        super::yamcs::id_types(&mut x);
+    if let Some(id_types) = flavour.id_types {
+        id_types(x);
     } else {
         header_type(
-            &mut x,
+            x,
             &Field {
                 name: "HK_SID",
                 bits: 16,
@@ -408,7 +390,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
             },
         );
         header_type(
-            &mut x,
+            x,
             &Field {
                 name: "EVENT_ID",
                 bits: 16,
@@ -422,53 +404,55 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
         .iter()
         .filter(|t| !super::scos::is_identified_by_pi1(t.service, t.subservice))
     {
-        if yamcs && super::yamcs::mode_tm(t, &mut body.types, &mut body.params, &mut body.containers, robot) {
+        if (flavour.tm)(t, &mut body.types, &mut body.params, &mut body.containers, robot) {
             continue;
         }
         body.tm(t);
     }
     x.s.push_str(&body.types.s);
     for p in PARAMS {
-        param_type(&mut x, p);
+        param_type(x, p);
     }
     for e in EVENTS {
         for ep in e.params {
             let n = event_param_name(e, ep.name);
-            if yamcs && super::yamcs::robot_mode_type(&mut x, &format!("{n}_Type"), ep) {
+            if (flavour.event_param_type)(x, &format!("{n}_Type"), ep) {
                 continue;
             }
             if ep.names.is_none() {
                 raw_type(
-                    &mut x,
+                    x,
                     &format!("{n}_Type"),
                     ep.ptype,
                     "",
                     &format!("{} of event {}", ep.name, e.name),
                 );
             } else {
-                enumerated_type(&mut x, &format!("{n}_Type"), ep);
+                enumerated_type(x, &format!("{n}_Type"), ep);
             }
         }
     }
-    if yamcs {
-        super::yamcs::extra_types(&mut x);
-    }
+    (flavour.extra_types)(x);
     x.close("</xtce:ParameterTypeSet>");
+    body
+}
 
+/// The TM parameters.
+fn parameters(x: &mut Xml, d: &Doc, body: &BodyXtce) {
     x.open("<xtce:ParameterSet>");
     for f in headers::PRIMARY_HEADER
         .iter()
         .chain(headers::TM_SEC_HEADER)
         .chain([&headers::PEC])
     {
-        parameter(&mut x, f.name, &format!("{}_Type", f.name), f.desc, &[]);
+        parameter(x, f.name, &format!("{}_Type", f.name), f.desc, &[]);
     }
-    parameter(&mut x, "HK_SID", "HK_SID_Type", "housekeeping structure ID", &[]);
-    parameter(&mut x, "EVENT_ID", "EVENT_ID_Type", "event ID", &[]);
+    parameter(x, "HK_SID", "HK_SID_Type", "housekeeping structure ID", &[]);
+    parameter(x, "EVENT_ID", "EVENT_ID_Type", "event ID", &[]);
     x.s.push_str(&body.params.s);
     for p in PARAMS {
         parameter(
-            &mut x,
+            x,
             p.name,
             &format!("{}_Type", p.name),
             p.desc,
@@ -482,7 +466,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
         for (i, ep) in e.params.iter().enumerate() {
             let n = event_param_name(e, ep.name);
             parameter(
-                &mut x,
+                x,
                 &n,
                 &format!("{n}_Type"),
                 &format!("parameter {} of event {}", ep.name, e.name),
@@ -490,14 +474,16 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
             );
         }
     }
-    if yamcs {
-        super::yamcs::extra_params(&mut x);
-    }
+    (d.flavour.extra_params)(x);
     x.close("</xtce:ParameterSet>");
+}
 
+/// The TM containers: headers, housekeeping, events, then the other TM kinds.
+fn containers(x: &mut Xml, d: &Doc, body: &BodyXtce) {
+    let Doc { flavour, robot, apid } = *d;
     x.open("<xtce:ContainerSet>");
     container(
-        &mut x,
+        x,
         "CCSDSPacket",
         "CCSDS space packet primary header",
         true,
@@ -505,7 +491,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
         None,
     );
     container(
-        &mut x,
+        x,
         "PUS_TM",
         "PUS-C telemetry of this robot: TM secondary header with CDS short time",
         true,
@@ -521,7 +507,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
     );
     let pec = [headers::PEC.name.to_string()];
     container(
-        &mut x,
+        x,
         "HK_REPORT",
         "TM[3,25] housekeeping parameter report",
         true,
@@ -543,7 +529,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
             .collect();
         e.extend(pec.iter().cloned());
         container(
-            &mut x,
+            x,
             &format!("HK_{}", h.name),
             &format!("SID {}: {}", h.sid, h.desc),
             false,
@@ -554,7 +540,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
     let sevs = [Severity::Info, Severity::Low, Severity::Medium, Severity::High];
     for s in sevs {
         container(
-            &mut x,
+            x,
             &severity_container(s),
             &format!("TM[5,{}] {} severity event report", s.subservice(), s.name()),
             true,
@@ -569,13 +555,13 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
         );
     }
     for e in EVENTS {
-        if yamcs && super::yamcs::mode_event_containers(&mut x, e, &severity_container(e.severity), robot) {
+        if (flavour.event_containers)(x, e, &severity_container(e.severity), robot) {
             continue;
         }
         let mut en: Vec<String> = e.params.iter().map(|p| event_param_name(e, p.name)).collect();
         en.extend(pec.iter().cloned());
         container(
-            &mut x,
+            x,
             &format!("EVT_{}", e.name),
             &format!("event 0x{:04X}: {}", e.id, e.desc),
             false,
@@ -584,22 +570,24 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
         );
     }
     x.s.push_str(&body.containers.s);
-    if yamcs {
-        super::yamcs::extra_containers(&mut x);
-    }
+    (flavour.extra_containers)(x);
     x.close("</xtce:ContainerSet>");
-    x.close("</xtce:TelemetryMetaData>");
+}
 
-    // ---------------- telecommands ----------------
-    x.open("<xtce:CommandMetaData>");
-    x.open("<xtce:ArgumentTypeSet>");
-    let tc_header_args: Vec<&Field> = headers::PRIMARY_HEADER
+/// The TC header fields an operator (or the flavour's assignments) supplies.
+fn tc_header_args(flavour: &Flavour) -> Vec<&'static Field> {
+    headers::PRIMARY_HEADER
         .iter()
         .chain(headers::TC_SEC_HEADER)
         .filter(|f| f.fixed.is_none() && f.name != "PKT_TYPE" && f.name != "TC_SOURCE_ID")
-        .filter(|f| !(yamcs && super::yamcs::tc_header_fixed(f).is_some()))
-        .collect();
-    for f in &tc_header_args {
+        .filter(|f| (flavour.tc_header_fixed)(f).is_none())
+        .collect()
+}
+
+/// The TC argument types: the free header fields, then every TC's arguments.
+fn argument_types(x: &mut Xml, tc_header_args: &[&Field]) {
+    x.open("<xtce:ArgumentTypeSet>");
+    for f in tc_header_args {
         x.open(&format!(
             "<xtce:IntegerArgumentType name=\"TC_{}_Type\" shortDescription=\"{}\" signed=\"false\" sizeInBits=\"32\">",
             f.name,
@@ -616,7 +604,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
         for a in t.args {
             if !a.names.is_none() {
                 let tname = format!("{}_{}_Type", t.name, a.name);
-                enumerated(&mut x, "EnumeratedArgumentType", &tname, a, Some((a.min, a.max)));
+                enumerated(x, "EnumeratedArgumentType", &tname, a, Some((a.min, a.max)));
                 continue;
             }
             x.open(&format!(
@@ -627,7 +615,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
                 a.ptype.signed(),
                 32.max(a.ptype.bits())
             ));
-            unit_set(&mut x, a.unit);
+            unit_set(x, a.unit);
             x.line(&format!("{}/>", int_encoding(a.ptype)));
             x.open("<xtce:ValidRangeSet>");
             x.line(&format!(
@@ -639,12 +627,15 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
         }
     }
     x.close("</xtce:ArgumentTypeSet>");
+}
 
+/// The abstract PUS TC with the headers, then one meta-command per TC.
+fn meta_commands(x: &mut Xml, d: &Doc, tc_header_args: &[&Field]) {
     x.open("<xtce:MetaCommandSet>");
     // Abstract PUS-C TC with the headers.
     x.open("<xtce:MetaCommand name=\"PUS_TC\" abstract=\"true\" shortDescription=\"PUS-C telecommand: CCSDS primary header and TC secondary header; a CRC-16/CCITT-FALSE PEC follows the application data\">");
     x.open("<xtce:ArgumentList>");
-    for f in &tc_header_args {
+    for f in tc_header_args {
         x.line(&format!(
             "<xtce:Argument name=\"{}\" argumentTypeRef=\"TC_{}_Type\"{}/>",
             f.name,
@@ -663,8 +654,7 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
         let fixed = match f.name {
             "PKT_TYPE" => Some(1),
             "TC_SOURCE_ID" => Some(config::GROUND_ID as u32),
-            _ if yamcs => super::yamcs::tc_header_fixed(f).or(f.fixed),
-            _ => f.fixed,
+            _ => (d.flavour.tc_header_fixed)(f).or(f.fixed),
         };
         match fixed {
             Some(v) => x.line(&format!(
@@ -678,21 +668,13 @@ pub(super) fn document(robot: u8, flavor: Flavor) -> String {
     }
     x.close("</xtce:EntryList>");
     x.close("</xtce:CommandContainer>");
-    if yamcs {
-        super::yamcs::verifiers(&mut x);
-    }
+    (d.flavour.verifiers)(x);
     x.close("</xtce:MetaCommand>");
 
     for t in TCS {
-        meta_command(&mut x, t, apid, flavor);
+        meta_command(x, t, d.apid, d.flavour);
     }
     x.close("</xtce:MetaCommandSet>");
-    x.close("</xtce:CommandMetaData>");
-    if yamcs {
-        super::yamcs::module_modes_space_system(&mut x);
-    }
-    x.close("</xtce:SpaceSystem>");
-    x.s
 }
 
 /// Hex string of `v` on `bits` bits (whole octets, as `binaryValue` wants).
@@ -701,7 +683,7 @@ fn hex_value(v: u64, bits: u32) -> String {
     format!("{:0width$X}", v, width = octets * 2)
 }
 
-fn meta_command(x: &mut Xml, t: &TcDef, apid: u16, flavor: Flavor) {
+fn meta_command(x: &mut Xml, t: &TcDef, apid: u16, flavour: &Flavour) {
     let mut desc = format!(
         "TC[{},{}]{}: {}; accepted in {}",
         t.service,
@@ -729,7 +711,7 @@ fn meta_command(x: &mut Xml, t: &TcDef, apid: u16, flavor: Flavor) {
         ("TC_SERVICE", t.service.to_string()),
         ("TC_SUBSERVICE", t.subservice.to_string()),
     ];
-    if flavor == Flavor::Yamcs {
+    if flavour.assign_ack_flags {
         assigned.push(("TC_ACK_FLAGS", t.ack_flags().to_string()));
     }
     for (n, v) in assigned {

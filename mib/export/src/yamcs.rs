@@ -28,8 +28,10 @@
 use std::fmt::Write as _;
 use std::str::FromStr;
 
+use super::flavour::Flavour;
 use super::headers::Field as HeaderField;
-use super::xtce::{self, enumerated_type, esc, parameter, Flavor, Xml};
+use super::xml::{esc, Xml};
+use super::xtce::{self, enumerated_type, parameter};
 use mib::events::{EventDef, EVENTS};
 use mib::headers::{PRIMARY_HEADER as HEADER_PRIMARY, TM_SEC_HEADER as HEADER_TM_SEC};
 use mib::layout::Item;
@@ -243,8 +245,27 @@ pub fn yamcs_instance(setup: &YamcsSetup) -> Vec<(String, String)> {
 
 /// The XTCE of robot `n` as the Yamcs MDB.
 pub fn yamcs_xtce(n: u8) -> String {
-    xtce::document(n, Flavor::Yamcs)
+    xtce::document(n, &YAMCS)
 }
+
+/// The Yamcs MDB's XTCE: enumerated event and SID fields, on-board time as absolute times,
+/// a shared request-ID container, command verifiers, header fields fixed or assigned
+/// rather than operator arguments, and the modules' mode names in a space system of their
+/// own.
+const YAMCS: Flavour = Flavour {
+    header_type,
+    id_types: Some(id_types),
+    tm: mode_tm,
+    event_param_type: robot_mode_type,
+    event_containers: mode_event_containers,
+    extra_types,
+    extra_params,
+    extra_containers,
+    tc_header_fixed,
+    assign_ack_flags: true,
+    verifiers,
+    space_systems: module_modes_space_system,
+};
 
 fn server_yaml(s: &YamcsSetup) -> String {
     format!(
@@ -501,7 +522,7 @@ pub fn events_json(robots: &[u8]) -> String {
 const CDS_EPOCH_OFFSET_S: i64 = -mib::headers::CCSDS_TO_UNIX_DAYS * 86_400;
 
 /// Types of the TM header fields that differ in the Yamcs flavour; false if `f` is not one.
-pub(super) fn header_type(x: &mut Xml, f: &HeaderField) -> bool {
+fn header_type(x: &mut Xml, f: &HeaderField) -> bool {
     match f.name {
         "TM_TIME_DAYS" => {
             x.open(&format!(
@@ -544,7 +565,7 @@ pub(super) fn header_type(x: &mut Xml, f: &HeaderField) -> bool {
 }
 
 /// `HK_SID` and `EVENT_ID` as enumerations (`PusEventDecoder` needs an enumerated ID).
-pub(super) fn id_types(x: &mut Xml) {
+fn id_types(x: &mut Xml) {
     enumerated_type(
         x,
         "HK_SID_Type",
@@ -562,7 +583,7 @@ fn verification_param(f: &Field) -> String {
 }
 
 /// Types of the shared request-ID parameters.
-pub(super) fn extra_types(x: &mut Xml) {
+fn extra_types(x: &mut Xml) {
     for f in REQUEST_ID.fields {
         x.open(&format!(
             "<xtce:IntegerParameterType name=\"{}_Type\" shortDescription=\"{}\" signed=\"false\" sizeInBits=\"32\">",
@@ -584,7 +605,7 @@ pub(super) fn extra_types(x: &mut Xml) {
     x.close("</xtce:IntegerParameterType>");
 }
 
-pub(super) fn extra_params(x: &mut Xml) {
+fn extra_params(x: &mut Xml) {
     for f in REQUEST_ID.fields {
         let n = verification_param(f);
         parameter(x, &n, &format!("{n}_Type"), &format!("{} (every TM[1,x])", f.desc), &[]);
@@ -634,7 +655,7 @@ fn subservice_bit_offset() -> u32 {
 
 /// The container every TM[1,x] matches besides its own: the request ID under one set of
 /// names, for the verifiers.
-pub(super) fn extra_containers(x: &mut Xml) {
+fn extra_containers(x: &mut Xml) {
     x.open(&format!(
         "<xtce:SequenceContainer name=\"{VERIFICATION}_REPORT\" shortDescription=\"TM[1,x] request verification report: the request ID and the subtype, shared by every subtype (Yamcs command verifiers)\">"
     ));
@@ -735,7 +756,7 @@ pub fn stage_param(stage: &str, field: &str) -> String {
 
 /// Value of a TC header field that is no operator argument in the Yamcs flavour (written
 /// as 0, filled in by `PusCommandPostprocessor`).
-pub(super) fn tc_header_fixed(f: &HeaderField) -> Option<u32> {
+fn tc_header_fixed(f: &HeaderField) -> Option<u32> {
     match f.name {
         "SRC_SEQ_CTR" | "PKT_LEN" => Some(0),
         _ => None,
@@ -751,7 +772,7 @@ fn failure_report(sub: u8) -> &'static str {
 }
 
 /// Command verifiers of the abstract `PUS_TC` (inherited by every command).
-pub(super) fn verifiers(x: &mut Xml) {
+fn verifiers(x: &mut Xml) {
     x.open("<xtce:VerifierSet>");
     for (kind, stage, sub, window) in STAGES {
         let code = format!("{}_failure_code", failure_report(sub));
@@ -843,7 +864,7 @@ fn mode_split(e: &EventDef) -> bool {
 
 /// Type of an event's mode field in the robot's space system: the robot's mode names
 /// (the module-named variant is in [`MODULE_MODES`]); false for any other field.
-pub(super) fn robot_mode_type(x: &mut Xml, tname: &str, f: &Field) -> bool {
+fn robot_mode_type(x: &mut Xml, tname: &str, f: &Field) -> bool {
     if f.names != Names::Mode {
         return false;
     }
@@ -854,7 +875,7 @@ pub(super) fn robot_mode_type(x: &mut Xml, tname: &str, f: &Field) -> bool {
 /// Containers of an event with mode fields: the event container holds the node; one child
 /// for the robot node (robot mode names), one for every other node (module mode names).
 /// False for an event without mode fields.
-pub(super) fn mode_event_containers(x: &mut Xml, e: &EventDef, severity_container: &str, robot: u8) -> bool {
+fn mode_event_containers(x: &mut Xml, e: &EventDef, severity_container: &str, robot: u8) -> bool {
     if !mode_split(e) {
         return false;
     }
@@ -918,7 +939,7 @@ fn open_enumerated_type(x: &mut Xml, tname: &str, f: &Field) {
 
 /// Containers, types and parameters of a TM whose mode fields depend on its node (TM[200,6]
 /// and [200,7]), split like the events ([`mode_event_containers`]); false for any other TM.
-pub(super) fn mode_tm(t: &TmDef, types: &mut Xml, params: &mut Xml, containers: &mut Xml, robot: u8) -> bool {
+fn mode_tm(t: &TmDef, types: &mut Xml, params: &mut Xml, containers: &mut Xml, robot: u8) -> bool {
     let Some(fields) = mode_tm_fields(t) else {
         return false;
     };
@@ -1040,7 +1061,7 @@ fn module_mode_fields() -> Vec<(String, Field)> {
 }
 
 /// The [`MODULE_MODES`] space system (written last in the robot's space system).
-pub(super) fn module_modes_space_system(x: &mut Xml) {
+fn module_modes_space_system(x: &mut Xml) {
     x.open(&format!(
         "<xtce:SpaceSystem name=\"{MODULE_MODES}\" shortDescription=\"Mode fields of events and reports about module nodes, with the module mode names\">"
     ));
