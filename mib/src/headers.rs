@@ -123,26 +123,28 @@ pub const fn fields_len(fields: &[Field]) -> usize {
 /// Length of the CCSDS primary header (6).
 pub const PRIMARY_HEADER_LEN: usize = fields_len(PRIMARY_HEADER);
 
-/// Width of the packet sequence count (the primary header's `SRC_SEQ_CTR`).
-const SEQ_COUNT_BITS: u32 = {
-    const fn eq(a: &str, b: &str) -> bool {
-        let (a, b) = (a.as_bytes(), b.as_bytes());
-        if a.len() != b.len() {
+/// `a == b` in a `const` context (the MIB's compile-time lookups by name).
+pub(crate) const fn const_str_eq(a: &str, b: &str) -> bool {
+    let (a, b) = (a.as_bytes(), b.as_bytes());
+    if a.len() != b.len() {
+        return false;
+    }
+    let mut i = 0;
+    while i < a.len() {
+        if a[i] != b[i] {
             return false;
         }
-        let mut i = 0;
-        while i < a.len() {
-            if a[i] != b[i] {
-                return false;
-            }
-            i += 1;
-        }
-        true
+        i += 1;
     }
+    true
+}
+
+/// Width of the packet sequence count (the primary header's `SRC_SEQ_CTR`).
+const SEQ_COUNT_BITS: u32 = {
     let mut i = 0;
     let mut bits = 0;
     while i < PRIMARY_HEADER.len() {
-        if eq(PRIMARY_HEADER[i].name, "SRC_SEQ_CTR") {
+        if const_str_eq(PRIMARY_HEADER[i].name, "SRC_SEQ_CTR") {
             bits = PRIMARY_HEADER[i].bits;
         }
         i += 1;

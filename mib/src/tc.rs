@@ -988,20 +988,7 @@ const fn tm_by_name(name: &str) -> &'static TmDef {
     panic!("no TM of that name in TMS")
 }
 
-const fn const_str_eq(a: &str, b: &str) -> bool {
-    let (a, b) = (a.as_bytes(), b.as_bytes());
-    if a.len() != b.len() {
-        return false;
-    }
-    let mut i = 0;
-    while i < a.len() {
-        if a[i] != b[i] {
-            return false;
-        }
-        i += 1;
-    }
-    true
-}
+use crate::headers::const_str_eq;
 
 /// Finds the TC definition for a service/subservice (and function ID for PUS 8).
 pub fn lookup(service: u8, subservice: u8, function: Option<u16>) -> Option<&'static TcDef> {
