@@ -61,7 +61,9 @@ pub(crate) fn ping(a: &PingArgs, archive_path: Option<&Path>) -> Result<u8> {
                 }
                 for u in s.poll(Duration::from_millis(50)) {
                     match u {
-                        Update::Tm { robot, tm } if robot == r && tm.body == TmBody::PingReply => {
+                        Update::Tm { robot, tm }
+                            if robot == r && matches!(tm.body.report(), Some(mib_wire::Tm::PingReply(_))) =>
+                        {
                             // After the live wait it came from the store.
                             from_store = t0.elapsed() >= live_wait;
                             got = Some(t0.elapsed());

@@ -10,7 +10,6 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, Context, Result};
 use clap::Args;
 use ground::ops::Update;
-use ground::pus::TmBody;
 use mib::modules::Board;
 
 use crate::exit::{self, coded};
@@ -103,7 +102,7 @@ fn report_of_robot(a: &ModelArgs, archive_path: Option<&Path>) -> Result<Vec<u8>
                                 mib_wire::tm::ModuleReport::SUBSERVICE,
                             ) =>
                 {
-                    if let TmBody::Unknown { data } = tm.body {
+                    if let Some(data) = ground::collect::onboard::module_report(&tm) {
                         // A robot that has just booted reports before its discovery has
                         // finished (hash 0, CONFIG_HASH's "not discovered"): its boot report
                         // follows within the discovery budget; ask again meanwhile.

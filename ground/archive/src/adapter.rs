@@ -76,18 +76,7 @@ pub fn content(tm: &Tm) -> Content {
             code_name: v.failure.as_ref().map(|f| f.name.to_string()),
             failure: v.failure.as_ref().map(|f| f.to_string()),
         }),
-        TmBody::DisabledEvents { .. }
-        | TmBody::TimeReport { .. }
-        | TmBody::MonDefinitions { .. }
-        | TmBody::MonTransition { .. }
-        | TmBody::StoreDownlinkDone { .. }
-        | TmBody::PingReply
-        | TmBody::EaDefinitions { .. }
-        | TmBody::ParamValue { .. }
-        | TmBody::ModeReply { .. }
-        | TmBody::ModeCantReach { .. }
-        | TmBody::TeamStatus { .. }
-        | TmBody::Unknown { .. } => Content::Other,
+        TmBody::Report(_) | TmBody::Unknown { .. } => Content::Other,
     }
 }
 

@@ -95,7 +95,13 @@ pub fn to_hub(hub: &Hub, robot: u8, tm: &Tm) {
                 params: ev.params.iter().map(|f| (f.name.clone(), f.value)).collect(),
             });
         }
-        TmBody::ModeReply { node, mode, .. } => node_mode(hub, robot, *node, *mode),
+        TmBody::Report(r) => {
+            // The other reports are not on the page (the module set and the team status
+            // come through the robot's worker).
+            if let mib_wire::Tm::ModeReply(r) = r.as_ref() {
+                node_mode(hub, robot, r.node, r.mode)
+            }
+        }
         TmBody::Verification(v) => {
             let id = request_id(robot, v.request.apid(), v.request.seq());
             if hub.command(&id).is_none() {
@@ -103,17 +109,7 @@ pub fn to_hub(hub: &Hub, robot: u8, tm: &Tm) {
             }
             hub.tc_stage(robot, &id, StageReport::from_verification(v, t));
         }
-        TmBody::DisabledEvents { .. }
-        | TmBody::TimeReport { .. }
-        | TmBody::MonDefinitions { .. }
-        | TmBody::MonTransition { .. }
-        | TmBody::StoreDownlinkDone { .. }
-        | TmBody::PingReply
-        | TmBody::EaDefinitions { .. }
-        | TmBody::ParamValue { .. }
-        | TmBody::ModeCantReach { .. }
-        | TmBody::TeamStatus { .. }
-        | TmBody::Unknown { .. } => {}
+        TmBody::Unknown { .. } => {}
     }
 }
 

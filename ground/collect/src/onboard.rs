@@ -9,7 +9,7 @@
 
 use mib::tc::TcDef;
 
-use crate::pus::{self, BuiltTc, Tm, TmBody};
+use crate::pus::{self, BuiltTc, Tm};
 
 use super::tracker::Pos;
 
@@ -49,20 +49,16 @@ pub fn team_status_tc(robot: u8, seq: u16) -> Option<BuiltTc> {
     pus::build_tc(robot, seq, def("TEAM_STATUS_REQUEST")?, &[]).ok()
 }
 
-/// The body of a module report TM[210,3] (kept undecoded by the packet decoder).
-pub fn module_report(tm: &Tm) -> Option<&[u8]> {
-    match &tm.body {
-        TmBody::Unknown { data }
-            if (tm.service, tm.subservice)
-                == (
-                    mib_wire::tm::ModuleReport::SERVICE,
-                    mib_wire::tm::ModuleReport::SUBSERVICE,
-                ) =>
-        {
-            Some(data)
-        }
-        _ => None,
-    }
+/// The source data of a module report TM[210,3] (the set is rebuilt from it by
+/// `mib::modules::report`).
+pub fn module_report(tm: &Tm) -> Option<Vec<u8>> {
+    let Some(mib_wire::Tm::ModuleReport(r)) = tm.body.report() else {
+        return None;
+    };
+    let mut b = vec![0; r.buffer_len()];
+    let n = r.emit(&mut b).ok()?;
+    b.truncate(n);
+    Some(b)
 }
 
 /// Sets the collection interval of a housekeeping structure.

@@ -304,31 +304,19 @@ fn slot_base(slot: u8) -> SlotView {
 
 /// The dashboard's view of a TEAM_STATUS report at on-board time `t_ms`.
 pub fn team_view(body: &TmBody, t_ms: i64) -> Option<TeamView> {
-    let TmBody::TeamStatus {
-        term,
-        role,
-        leader,
-        ground_seen,
-        lease,
-        voted_for,
-        auth_steps,
-        refused,
-        roster,
-        ..
-    } = body
-    else {
+    let Some(mib_wire::Tm::TeamStatus(r)) = body.report() else {
         return None;
     };
     Some(TeamView {
-        term: *term,
-        role: name(mib::team::TEAM_ROLE_NAMES, i64::from(*role)),
-        leader: (*leader != 0).then_some(*leader),
-        ground_seen: *ground_seen,
-        lease: *lease,
-        voted_for: (*voted_for != 0).then_some(*voted_for),
-        roster: roster.clone(),
-        auth_steps: *auth_steps,
-        refused: *refused,
+        term: r.term,
+        role: name(mib::team::TEAM_ROLE_NAMES, i64::from(r.role)),
+        leader: (r.leader != 0).then_some(r.leader),
+        ground_seen: r.ground_seen != 0,
+        lease: r.lease != 0,
+        voted_for: (r.voted_for != 0).then_some(r.voted_for),
+        roster: r.roster.iter().map(|m| m.robot).collect(),
+        auth_steps: r.auth_steps,
+        refused: r.refused,
         t_ms,
     })
 }
@@ -483,12 +471,13 @@ mod tests {
     // verifies: ALM-TEAMVIEW-01
     #[test]
     fn team_status_becomes_the_page_view() {
-        let body = TmBody::TeamStatus {
+        use mib_wire::tm::{TeamStatus, TeamStatusRoster};
+        let body = TmBody::Report(Box::new(mib_wire::Tm::TeamStatus(TeamStatus {
             term: 4,
             role: 2,
             leader: 3,
-            ground_seen: false,
-            lease: true,
+            ground_seen: 0,
+            lease: 1,
             voted_for: 3,
             auth_plan: 0,
             auth_first_step: 0,
@@ -496,15 +485,19 @@ mod tests {
             auth_left_s: 0,
             refused: 1,
             foreign: 0,
-            roster: vec![1, 2, 3],
-        };
+            roster: [1, 2, 3].map(|robot| TeamStatusRoster { robot }).into_iter().collect(),
+        })));
         let v = team_view(&body, 99).unwrap();
         assert_eq!(
             (v.term, v.role.as_str(), v.leader, v.ground_seen),
             (4, "LEADER", Some(3), false)
         );
         assert_eq!(v.roster, vec![1, 2, 3]);
-        assert!(team_view(&TmBody::PingReply, 1).is_none());
+        assert!(team_view(
+            &TmBody::Report(Box::new(mib_wire::Tm::PingReply(mib_wire::tm::PingReply {}))),
+            1
+        )
+        .is_none());
         assert!(is_team_event(mib::events::eid::LEADER_ELECTED) && !is_team_event(mib::events::eid::BOOT));
     }
 }

@@ -2,7 +2,9 @@
 
 use mib::FailureCode;
 
-use super::{hex, Packet, TmBody};
+use super::out::{self, Format};
+use super::packet::report_bytes;
+use super::{hex, CdsShort, Packet, TmBody};
 
 /// One line of human-readable text for a packet.
 pub fn describe(p: &Packet) -> String {
@@ -24,16 +26,96 @@ pub fn describe(p: &Packet) -> String {
             }
             s
         }
-        Packet::Tm(t) => format!(
-            "TM  apid=0x{:03X} seq={:5} [{},{}] {} {} {}",
-            t.apid,
-            t.seq,
-            t.service,
-            t.subservice,
-            t.time,
-            t.name,
-            describe_body(&t.body)
+        Packet::Tm(t) => {
+            let mut s = format!(
+                "TM  apid=0x{:03X} seq={:5} [{},{}] {} {}",
+                t.apid, t.seq, t.service, t.subservice, t.time, t.name,
+            );
+            let body = describe_body(&t.body);
+            if !body.is_empty() {
+                s.push(' ');
+                s.push_str(&body);
+            }
+            s
+        }
+    }
+}
+
+/// The phrase of a report kind people read often; every other kind as its fields.
+fn describe_report(r: &mib_wire::Tm) -> String {
+    use mib_wire::Tm as W;
+    match r {
+        W::DisabledEvents(x) => {
+            let events: Vec<u16> = x.events.iter().map(|e| e.event_id).collect();
+            format!("disabled events {events:04X?}")
+        }
+        W::TimeReport(x) => format!("on-board time {} rate 2^{} s", CdsShort::from_wire(&x.time), x.rate_exp),
+        W::MonTransition(x) => format!(
+            "monitor {} param {} value {} limit {} state {}",
+            x.monitor_id,
+            mib::params::by_id(x.param).map_or("?", |p| p.name),
+            x.value,
+            x.limit,
+            match x.state {
+                0 => "ok",
+                1 => "below low",
+                2 => "above high",
+                _ => "?",
+            }
         ),
+        W::StoreDownlinkDone(x) => format!(
+            "store downlink done, {} packets; oldest stored: {} seq {}; {} overwritten since boot",
+            x.packets,
+            CdsShort::from_wire(&x.oldest_time),
+            x.oldest_seq,
+            x.overwritten
+        ),
+        W::PingReply(_) => "ping reply".to_string(),
+        W::ParamValue(x) => format!(
+            "parameter {} = {}",
+            mib::tunables::by_id(x.param_id).map_or("?", |t| t.name),
+            x.value
+        ),
+        W::ModeReply(x) => format!(
+            "node {} mode {} submode {}",
+            node_name(x.node),
+            mode_name(x.node, x.mode),
+            x.submode
+        ),
+        W::ModeCantReach(x) => format!(
+            "node {} cannot reach mode {} submode {}: reason {} ({})",
+            node_name(x.node),
+            mode_name(x.node, x.mode),
+            x.submode,
+            x.reason,
+            FailureCode::from_code(x.reason).name()
+        ),
+        W::TeamStatus(x) => {
+            let roster: Vec<u8> = x.roster.iter().map(|r| r.robot).collect();
+            format!(
+                "team term {} role {} leader {} ground {} roster {roster:?} authorised steps {}",
+                x.term,
+                mib::team::TEAM_ROLE_NAMES.name(i64::from(x.role)).unwrap_or("?"),
+                x.leader,
+                if x.ground_seen != 0 { "seen" } else { "lost" },
+                x.auth_steps
+            )
+        }
+        // A kind without a phrase of its own (a new TM kind of the MIB among them) is
+        // written in full from its field list: nothing of it is left out.
+        _ => report_text(r),
+    }
+}
+
+/// A report's fields as `name=value` pairs, as the decode output writes them (names from
+/// the MIB beside the values); empty for a report without fields.
+fn report_text(r: &mib_wire::Tm) -> String {
+    match report_bytes(r)
+        .map_err(|e| e.to_string())
+        .and_then(|b| out::report(Format::Text, r, &b).map_err(|e| e.0))
+    {
+        Ok(t) => String::from_utf8_lossy(&t).trim_start().to_string(),
+        Err(e) => format!("(not written: {e})"),
     }
 }
 
@@ -67,68 +149,7 @@ pub fn describe_body(b: &TmBody) -> String {
             s
         }
         TmBody::Event(e) => e.to_string(),
-        TmBody::DisabledEvents { events } => format!("disabled events {events:04X?}"),
-        TmBody::TimeReport { rate_exp, time } => format!("on-board time {time} rate 2^{rate_exp} s"),
-        TmBody::MonDefinitions { monitors } => format!("{} monitors {monitors:?}", monitors.len()),
-        TmBody::MonTransition {
-            monitor,
-            param,
-            value,
-            limit,
-            state,
-        } => format!(
-            "monitor {monitor} param {} value {value} limit {limit} state {}",
-            mib::params::by_id(*param).map_or("?", |p| p.name),
-            match state {
-                0 => "ok",
-                1 => "below low",
-                2 => "above high",
-                _ => "?",
-            }
-        ),
-        TmBody::StoreDownlinkDone {
-            packets,
-            oldest_time,
-            oldest_seq,
-            overwritten,
-        } => format!(
-            "store downlink done, {packets} packets; oldest stored: {oldest_time} seq {oldest_seq}; {overwritten} overwritten since boot"
-        ),
-        TmBody::PingReply => "ping reply".to_string(),
-        TmBody::EaDefinitions { links } => format!("{} links {links:?}", links.len()),
-        TmBody::ParamValue { param, value } => format!(
-            "parameter {} = {value}",
-            mib::tunables::by_id(*param).map_or("?", |t| t.name)
-        ),
-        TmBody::ModeReply { node, mode, submode } => format!(
-            "node {} mode {} submode {submode}",
-            node_name(*node),
-            mode_name(*node, *mode)
-        ),
-        TmBody::ModeCantReach {
-            node,
-            mode,
-            submode,
-            reason,
-        } => format!(
-            "node {} cannot reach mode {} submode {submode}: reason {reason} ({})",
-            node_name(*node),
-            mode_name(*node, *mode),
-            FailureCode::from_code(*reason).name()
-        ),
-        TmBody::TeamStatus {
-            term,
-            role,
-            leader,
-            ground_seen,
-            roster,
-            auth_steps,
-            ..
-        } => format!(
-            "team term {term} role {} leader {leader} ground {} roster {roster:?} authorised steps {auth_steps}",
-            mib::team::TEAM_ROLE_NAMES.name(i64::from(*role)).unwrap_or("?"),
-            if *ground_seen { "seen" } else { "lost" }
-        ),
+        TmBody::Report(r) => describe_report(r.as_ref()),
         TmBody::Unknown { data } => format!("undefined TM type, data {}", hex(data)),
     }
 }

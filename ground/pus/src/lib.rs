@@ -46,6 +46,6 @@ pub use mib_wire::header::{
 };
 /// The PUS 1 request ID: the one type of the project, from the MIB's layout (CODEC-RID-01).
 pub use mib_wire::RequestId;
-pub use packet::{EaDefinition, Event, Hk, HkValue, MonDefinition, Packet, Stage, Tc, Tm, TmBody, Verification};
+pub use packet::{Event, Hk, HkValue, Packet, Stage, Tc, Tm, TmBody, Verification};
 pub use stream::{StreamDecoder, StreamItem, StreamStats};
 pub use time::CdsShort;

@@ -72,6 +72,18 @@ fn tm_def(service: u8, subservice: u8) -> Option<&'static mib::tc::TmDef> {
     tables().tm[(service as usize) << 8 | subservice as usize]
 }
 
+/// The body of a report (`data`, its source data) written alone along its MIB field list:
+/// a JSON object, or the text's ` name=value` pairs. The ground's one rendering of the TM
+/// kinds it has no view of (`TmBody::Report`).
+pub(crate) fn report(fmt: Format, r: &mib_wire::Tm, data: &[u8]) -> Result<Vec<u8>, BodyError> {
+    let (service, subservice) = r.kind();
+    let def =
+        tm_def(service, subservice).ok_or_else(|| BodyError(format!("TM[{service},{subservice}] not in the MIB")))?;
+    let mut w = Writer::with_capacity(fmt, 64 + 2 * data.len());
+    w.body(def.body, &[], data)?;
+    Ok(w.out)
+}
+
 /// Writes decoded packets into a byte buffer (the caller flushes it to its writer).
 pub struct Writer {
     pub out: Vec<u8>,
@@ -86,8 +98,12 @@ pub struct Writer {
 
 impl Writer {
     pub fn new(fmt: Format) -> Self {
+        Writer::with_capacity(fmt, 1 << 16)
+    }
+
+    fn with_capacity(fmt: Format, capacity: usize) -> Self {
         Writer {
-            out: Vec::with_capacity(1 << 16),
+            out: Vec::with_capacity(capacity),
             fmt,
             ctx: Vec::with_capacity(16),
             comma: false,

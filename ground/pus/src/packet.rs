@@ -1,6 +1,6 @@
 //! Decoded packets as owned values: [`Packet`] (a [`Tc`] or a [`Tm`]) and the TM bodies
-//! ([`TmBody`]: verification reports, housekeeping, events, and the other TM types of
-//! the MIB).
+//! ([`TmBody`]: verification reports, housekeeping and events with their MIB names, every
+//! other TM kind as the generated `mib_wire` value).
 
 use std::fmt;
 
@@ -8,6 +8,7 @@ use serde::ser::{SerializeStruct, Serializer};
 use serde::Serialize;
 
 use super::fields::{named, ser_hex};
+use super::out::Format;
 use super::{CdsShort, Failure, Field, RequestId};
 
 /// PUS 1 stage.
@@ -106,100 +107,65 @@ impl fmt::Display for Event {
     }
 }
 
-#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
-pub struct MonDefinition {
-    pub id: u16,
-    pub param: u16,
-    pub enabled: bool,
-    pub low: i32,
-    pub high: i32,
-    pub persistence: u16,
-    pub event: u16,
-}
-
-#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
-pub struct EaDefinition {
-    pub event: u16,
-    pub enabled: bool,
-    pub mode: u32,
-    pub deferred: bool,
-}
-
 /// The source data of a TM packet, decoded per `mib::tc::TMS`.
+///
+/// One model per packet: every kind is the generated `mib_wire` value. The three report
+/// families the ground reads by name — verification, housekeeping and events — carry the
+/// MIB's names and calibrated values beside it (what the wire value does not hold); every
+/// other kind is [`TmBody::Report`], the wire value as it is, so a new TM kind of the MIB
+/// needs no change here.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum TmBody {
     Verification(Verification),
     Hk(Hk),
     Event(Event),
-    DisabledEvents {
-        events: Vec<u16>,
-    },
-    TimeReport {
-        rate_exp: u8,
-        time: CdsShort,
-    },
-    MonDefinitions {
-        monitors: Vec<MonDefinition>,
-    },
-    MonTransition {
-        monitor: u16,
-        param: u16,
-        value: i32,
-        limit: i32,
-        state: u8,
-    },
-    StoreDownlinkDone {
-        packets: u32,
-        /// On-board time of the oldest packet still in the store.
-        oldest_time: CdsShort,
-        /// Sequence count of the oldest packet still in the store.
-        oldest_seq: u16,
-        /// Stored packets overwritten since boot.
-        overwritten: u32,
-    },
-    PingReply,
-    EaDefinitions {
-        links: Vec<EaDefinition>,
-    },
-    ParamValue {
-        param: u16,
-        value: i32,
-    },
-    ModeReply {
-        node: u32,
-        mode: u32,
-        submode: u16,
-    },
-    ModeCantReach {
-        node: u32,
-        mode: u32,
-        submode: u16,
-        reason: u16,
-    },
-    /// TM[211,2] TEAM_STATUS: team coordination without the ground.
-    TeamStatus {
-        term: u32,
-        /// 0 follower, 1 candidate, 2 leader.
-        role: u8,
-        /// 0 = none known.
-        leader: u8,
-        ground_seen: bool,
-        lease: bool,
-        voted_for: u8,
-        auth_plan: u16,
-        auth_first_step: u16,
-        auth_steps: u8,
-        auth_left_s: u32,
-        refused: u32,
-        foreign: u32,
-        roster: Vec<u8>,
-    },
     /// A TM type the MIB does not define.
     Unknown {
         #[serde(serialize_with = "ser_hex")]
         data: Vec<u8>,
     },
+    /// Any other kind of the MIB (never a verification, housekeeping or event report: the
+    /// decoder gives those their own variant). In JSON: `{"kind": <MIB name in lower
+    /// case>, ...}` with the fields as `ground decode --json` writes them (names beside raw
+    /// values).
+    /// Boxed: the largest kinds (the module report) hold their repeated groups inline.
+    #[serde(untagged, serialize_with = "ser_report")]
+    Report(Box<mib_wire::Tm>),
+}
+
+impl TmBody {
+    /// The wire value of a [`TmBody::Report`] body.
+    pub fn report(&self) -> Option<&mib_wire::Tm> {
+        match self {
+            TmBody::Report(r) => Some(r.as_ref()),
+            TmBody::Verification(_) | TmBody::Hk(_) | TmBody::Event(_) | TmBody::Unknown { .. } => None,
+        }
+    }
+}
+
+/// A report's source data bytes (the wire value emits exactly the bytes it was parsed from).
+pub(super) fn report_bytes(r: &mib_wire::Tm) -> Result<Vec<u8>, mib_wire::Error> {
+    let mut buf = vec![0; r.buffer_len()];
+    let n = r.emit(&mut buf)?;
+    buf.truncate(n);
+    Ok(buf)
+}
+
+/// A report in JSON: its kind, then its fields as the decode output writes them.
+#[allow(clippy::borrowed_box)] // serde hands the field as it is
+fn ser_report<S: Serializer>(r: &Box<mib_wire::Tm>, s: S) -> Result<S::Ok, S::Error> {
+    use serde::ser::{Error, SerializeMap};
+    let json = report_bytes(r)
+        .map_err(S::Error::custom)
+        .and_then(|b| super::out::report(Format::Json, r, &b).map_err(|e| S::Error::custom(e.0)))?;
+    let fields: serde_json::Map<String, serde_json::Value> = serde_json::from_slice(&json).map_err(S::Error::custom)?;
+    let mut m = s.serialize_map(Some(fields.len() + 1))?;
+    m.serialize_entry("kind", &r.name().to_ascii_lowercase())?;
+    for (k, v) in &fields {
+        m.serialize_entry(k, v)?;
+    }
+    m.end()
 }
 
 /// A decoded TM packet.

@@ -232,70 +232,85 @@ fn event_report_must_match_its_severity() {
 // verifies: DD-DEC-01
 #[test]
 fn other_tm_types_decode_per_mib_layouts() {
-    assert_eq!(decode_tm(&tm(17, 2, &[])).unwrap().body, TmBody::PingReply);
+    use mib_wire::{tm as wtm, Tm as W};
+    let report = |b: TmBody| b.report().cloned().expect("a report");
+    assert_eq!(
+        report(decode_tm(&tm(17, 2, &[])).unwrap().body),
+        W::PingReply(wtm::PingReply {})
+    );
     let b = decode_tm(&tm(200, 6, &[0, 0, 0, 1, 0, 0, 0, 1, 0, 0])).unwrap().body;
     assert_eq!(
-        b,
-        TmBody::ModeReply {
+        report(b.clone()),
+        W::ModeReply(wtm::ModeReply {
             node: 1,
             mode: 1,
             submode: 0
-        }
+        })
     );
     assert_eq!(describe_body(&b), "node ROBOT mode OPERATIONAL submode 0");
-    let b = decode_tm(&tm(5, 8, &[0, 2, 1, 1, 2, 6])).unwrap().body;
+    let W::DisabledEvents(d) = report(decode_tm(&tm(5, 8, &[0, 2, 1, 1, 2, 6])).unwrap().body) else {
+        panic!()
+    };
     assert_eq!(
-        b,
-        TmBody::DisabledEvents {
-            events: vec![0x0101, 0x0206]
-        }
+        d.events.iter().map(|e| e.event_id).collect::<Vec<_>>(),
+        vec![0x0101, 0x0206]
     );
     let mut src = vec![3u8];
     src.extend_from_slice(&T0);
     assert!(matches!(
-        decode_tm(&tm(9, 2, &src)).unwrap().body,
-        TmBody::TimeReport { rate_exp: 3, .. }
+        report(decode_tm(&tm(9, 2, &src)).unwrap().body),
+        W::TimeReport(wtm::TimeReport { rate_exp: 3, .. })
     ));
     assert_eq!(
-        decode_tm(&tm(20, 2, &[0, 3, 0, 0, 0, 4])).unwrap().body,
-        TmBody::ParamValue { param: 3, value: 4 }
+        report(decode_tm(&tm(20, 2, &[0, 3, 0, 0, 0, 4])).unwrap().body),
+        W::ParamValue(wtm::ParamValue { param_id: 3, value: 4 })
     );
-    assert_eq!(
+    let W::StoreDownlinkDone(s) = report(
         decode_tm(&tm(
             15,
             19,
-            &[0, 0, 1, 0, CDS_PFIELD, 0x5A, 0, 0, 0, 0, 1, 0, 7, 0, 0, 0, 2]
+            &[0, 0, 1, 0, CDS_PFIELD, 0x5A, 0, 0, 0, 0, 1, 0, 7, 0, 0, 0, 2],
         ))
         .unwrap()
         .body,
-        TmBody::StoreDownlinkDone {
-            packets: 256,
-            oldest_time: CdsShort {
+    ) else {
+        panic!()
+    };
+    assert_eq!(
+        (
+            s.packets,
+            CdsShort::from_wire(&s.oldest_time),
+            s.oldest_seq,
+            s.overwritten
+        ),
+        (
+            256,
+            CdsShort {
                 days: 0x5A00,
                 ms_of_day: 1
             },
-            oldest_seq: 7,
-            overwritten: 2
-        }
+            7,
+            2
+        )
     );
     let mon = [
         0, 1, 0, 1, 0, 20, 1, 0, 0, 0x0A, 0xAA, 0x7F, 0xFF, 0xFF, 0xFF, 0, 50, 1, 4,
     ];
-    let TmBody::MonDefinitions { monitors } = decode_tm(&tm(12, 9, &mon)).unwrap().body else {
+    let W::MonDefinitions(m) = report(decode_tm(&tm(12, 9, &mon)).unwrap().body) else {
         panic!()
     };
-    assert_eq!(monitors[0].param, pid::V_BAT_A);
-    assert_eq!(monitors[0].event, eid::LOW_BATTERY);
+    assert_eq!(m.monitors[0].param, pid::V_BAT_A);
+    assert_eq!(m.monitors[0].event, eid::LOW_BATTERY);
     assert!(decode_tm(&tm(12, 9, &mon[..mon.len() - 1])).is_err());
     let ea = [0, 1, 1, 1, 1, 0, 0, 0, 0, 0];
-    let TmBody::EaDefinitions { links } = decode_tm(&tm(19, 9, &ea)).unwrap().body else {
+    let W::EaDefinitions(e) = report(decode_tm(&tm(19, 9, &ea)).unwrap().body) else {
         panic!()
     };
-    assert_eq!(links[0].event, eid::BOLT_FAILURE);
+    assert_eq!(e.links[0].event, eid::BOLT_FAILURE);
     let tr = [0, 1, 0, 20, 0, 0, 10, 0, 0, 0, 11, 0, 1];
     assert!(matches!(
-        decode_tm(&tm(12, 12, &tr)).unwrap().body,
-        TmBody::MonTransition { state: 1, .. }
+        report(decode_tm(&tm(12, 12, &tr)).unwrap().body),
+        W::MonTransition(wtm::MonTransition { state: 1, .. })
     ));
     assert!(matches!(
         decode_tm(&tm(99, 1, &[1, 2])).unwrap().body,
@@ -386,4 +401,32 @@ mod fuzz {
             let _ = decode_packet(&flipped);
         }
     }
+}
+
+// verifies: DD-DEC-01
+#[test]
+fn a_report_is_written_as_its_kind_and_its_mib_fields() {
+    // One model: a report of the MIB that the ground has no view of is the wire value, and
+    // its JSON and text are written from the MIB's field list (names beside raw values).
+    let t = decode_tm(&tm(200, 6, &[0, 0, 0, 1, 0, 0, 0, 1, 0, 0])).unwrap();
+    assert_eq!(
+        serde_json::to_value(&t.body).unwrap(),
+        serde_json::json!({
+            "kind": "mode_reply",
+            "node": {"raw": 1, "name": "ROBOT"},
+            "mode": {"raw": 1, "name": "OPERATIONAL"},
+            "submode": 0
+        })
+    );
+    let e = decode_tm(&tm(19, 9, &[0, 1, 1, 1, 1, 0, 0, 0, 0, 0])).unwrap();
+    assert_eq!(serde_json::to_value(&e.body).unwrap()["kind"], "ea_definitions");
+    let text = describe_body(&e.body);
+    assert!(
+        text.starts_with("count=1 links=") && text.contains("BOLT_FAILURE"),
+        "{text}"
+    );
+    assert_eq!(
+        serde_json::to_value(&TmBody::Unknown { data: vec![1, 0xAB] }).unwrap()["data"],
+        "01ab"
+    );
 }

@@ -90,7 +90,7 @@ impl Worker {
         let for_plan = match tm.body {
             TmBody::Verification(_) => true,
             TmBody::Event(_) => live,
-            _ => false,
+            TmBody::Hk(_) | TmBody::Report(_) | TmBody::Unknown { .. } => false,
         };
         if self.plan.is_some() && for_plan {
             let robot = self.robot();

@@ -134,19 +134,6 @@ impl Worker {
                     self.alarm_event(src, alarm_sev, t, None, &e.to_string());
                 }
             }
-            TmBody::ModeReply { .. } => {
-                if live && tm.apid == self.apid {
-                    self.modes_known = true;
-                }
-            }
-            TmBody::TeamStatus { .. } => {
-                if live && tm.apid == self.apid {
-                    self.team_known = true;
-                    if let (Some(v), Some(d)) = (robotcfg::team_view(&tm.body, tm.time.unix_ms()), &self.dash) {
-                        d.hub.team(self.cfg.number, v);
-                    }
-                }
-            }
             TmBody::Verification(v) => {
                 if let Some((rid, _)) = self.hk_set {
                     if v.request == rid && v.stage == Stage::Completion && v.success {
@@ -160,8 +147,26 @@ impl Worker {
                     }
                 }
             }
-            TmBody::Unknown { .. } if live && tm.apid == self.apid && onboard::module_report(tm).is_some() => {
-                let body = onboard::module_report(tm).unwrap_or_default().to_vec();
+            TmBody::Report(r) => self.inspect_report(tm, r, live),
+            TmBody::Unknown { .. } => {}
+        }
+    }
+
+    /// The reports the worker follows: the modes and the team status known, the module
+    /// report, the store's end report. The others change nothing here.
+    fn inspect_report(&mut self, tm: &Tm, r: &mib_wire::Tm, live: bool) {
+        use mib_wire::Tm as W;
+        let ours = live && tm.apid == self.apid;
+        match r {
+            W::ModeReply(_) if ours => self.modes_known = true,
+            W::TeamStatus(_) if ours => {
+                self.team_known = true;
+                if let (Some(v), Some(d)) = (robotcfg::team_view(&tm.body, tm.time.unix_ms()), &self.dash) {
+                    d.hub.team(self.cfg.number, v);
+                }
+            }
+            W::ModuleReport(_) if ours => {
+                let body = onboard::module_report(tm).unwrap_or_default();
                 let t = tm.time.unix_ms();
                 match self.modules.on_report(&body, t) {
                     Ok(ReportOutcome::NotDiscovered) => {}
@@ -180,13 +185,14 @@ impl Worker {
                 }
                 self.publish_modules();
             }
-            _ => {
+            W::StoreDownlinkDone(_) => {
                 if let Some(done) = onboard::store_done(tm) {
                     if let (Some(oldest), Some(t)) = (done.oldest, self.trackers.get_mut(&self.apid)) {
                         t.store_oldest(oldest);
                     }
                 }
             }
+            _ => {}
         }
     }
 }

@@ -79,7 +79,7 @@ impl RetrievalPacer {
             if v.stage == Stage::Completion || !v.success {
                 self.open.retain(|r| *r != v.request);
             }
-        } else if live && matches!(tm.body, TmBody::StoreDownlinkDone { .. }) {
+        } else if live && matches!(tm.body.report(), Some(mib_wire::Tm::StoreDownlinkDone(_))) {
             self.open.pop_front();
         }
     }

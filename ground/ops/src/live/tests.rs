@@ -361,12 +361,14 @@ fn store_end_report_gives_the_oldest_stored_packet() {
         msg_counter: 0,
         time: t,
         len: 0,
-        body: TmBody::StoreDownlinkDone {
-            packets: 7,
-            oldest_time: t,
-            oldest_seq: 42,
-            overwritten: 3,
-        },
+        body: TmBody::Report(Box::new(mib_wire::Tm::StoreDownlinkDone(
+            mib_wire::tm::StoreDownlinkDone {
+                packets: 7,
+                oldest_time: mib_wire::CdsTime::from_unix_ms(t.unix_ms()),
+                oldest_seq: 42,
+                overwritten: 3,
+            },
+        ))),
     };
     let d = store_done(&tm).unwrap();
     assert_eq!(
@@ -410,12 +412,14 @@ fn end_report() -> Tm {
         msg_counter: 0,
         time: t,
         len: 0,
-        body: TmBody::StoreDownlinkDone {
-            packets: 3,
-            oldest_time: t,
-            oldest_seq: 0,
-            overwritten: 0,
-        },
+        body: TmBody::Report(Box::new(mib_wire::Tm::StoreDownlinkDone(
+            mib_wire::tm::StoreDownlinkDone {
+                packets: 3,
+                oldest_time: mib_wire::CdsTime::from_unix_ms(t.unix_ms()),
+                oldest_seq: 0,
+                overwritten: 0,
+            },
+        ))),
     }
 }
 

@@ -33,21 +33,17 @@ const CCSDS_EPOCH_UNIX_MS: i64 = -4383 * 86_400_000;
 
 /// Reads a TM[15,19] (`None` for other TM).
 pub fn store_done(tm: &Tm) -> Option<StoreDone> {
-    match &tm.body {
-        TmBody::StoreDownlinkDone {
-            packets,
-            oldest_time,
-            oldest_seq,
-            overwritten,
-        } => Some(StoreDone {
-            packets: *packets,
-            // An empty store reports day 0, ms 0 (the CCSDS epoch) and count 0.
-            oldest: (oldest_time.unix_ms() != CCSDS_EPOCH_UNIX_MS || *oldest_seq > 0).then_some(Pos {
-                seq: SeqCount::new(*oldest_seq).get(),
-                obt_ms: oldest_time.unix_ms(),
-            }),
-            overwritten: *overwritten,
+    let Some(mib_wire::Tm::StoreDownlinkDone(d)) = tm.body.report() else {
+        return None;
+    };
+    let oldest_ms = d.oldest_time.unix_ms();
+    Some(StoreDone {
+        packets: d.packets,
+        // An empty store reports day 0, ms 0 (the CCSDS epoch) and count 0.
+        oldest: (oldest_ms != CCSDS_EPOCH_UNIX_MS || d.oldest_seq > 0).then_some(Pos {
+            seq: SeqCount::new(d.oldest_seq).get(),
+            obt_ms: oldest_ms,
         }),
-        _ => None,
-    }
+        overwritten: d.overwritten,
+    })
 }

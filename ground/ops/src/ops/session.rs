@@ -671,18 +671,21 @@ impl Session {
                     }),
                 }
             }
-            TmBody::StoreDownlinkDone {
-                oldest_seq,
-                overwritten,
-                ..
-            } => {
+            TmBody::Report(ref r) => {
                 if let Some(s) = self.robots.get_mut(&robot) {
-                    s.store_oldest = Some(oldest_seq);
-                    s.store_overwritten = overwritten;
-                    // Holes older than what the store holds are gone (the rule of every
-                    // front end).
-                    if let Some(oldest) = live::store_done(&tm).and_then(|d| d.oldest) {
-                        s.seq.store_oldest(oldest);
+                    match r.as_ref() {
+                        mib_wire::Tm::StoreDownlinkDone(d) => {
+                            s.store_oldest = Some(d.oldest_seq);
+                            s.store_overwritten = d.overwritten;
+                            // Holes older than what the store holds are gone (the rule of
+                            // every front end).
+                            if let Some(oldest) = live::store_done(&tm).and_then(|d| d.oldest) {
+                                s.seq.store_oldest(oldest);
+                            }
+                        }
+                        mib_wire::Tm::ModeReply(m) if m.node == mib::modes::node::ROBOT => s.mode = Some(m.mode),
+                        // The other reports change nothing the session follows.
+                        _ => {}
                     }
                 }
                 out.push(Update::Tm {
@@ -717,20 +720,6 @@ impl Session {
                     }
                 }
                 out.push(Update::Event { robot, event });
-            }
-            TmBody::ModeReply { node, mode, .. } => {
-                if node == mib::modes::node::ROBOT {
-                    if let Some(s) = self.robots.get_mut(&robot) {
-                        s.mode = Some(mode);
-                    }
-                }
-                out.push(Update::Tm {
-                    robot,
-                    tm: Tm {
-                        body: TmBody::ModeReply { node, mode, submode: 0 },
-                        ..tm
-                    },
-                });
             }
             body => out.push(Update::Tm {
                 robot,
