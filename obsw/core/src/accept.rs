@@ -5,16 +5,15 @@
 use mib::tc::{self, service, TcDef};
 use mib::FailureCode;
 use mib_wire::codec::{self, ArgError, MAX_ARGS};
+use mib_wire::header::{HeaderError, Primary, TcPacket};
 use mib_wire::RequestId;
 
 use crate::failure::Failure;
 
-/// CCSDS primary header length.
-pub const PRIMARY_LEN: usize = 6;
-const SEC_LEN: usize = 5;
-const CRC_LEN: usize = 2;
 /// Shortest PUS-C TC: primary header, secondary header, CRC.
-pub const MIN_TC_LEN: usize = PRIMARY_LEN + SEC_LEN + CRC_LEN;
+pub use mib_wire::header::MIN_TC_LEN;
+/// CCSDS primary header length.
+pub use mib_wire::header::PRIMARY_HEADER_LEN as PRIMARY_LEN;
 
 /// PUS-C acknowledgement flags of a TC.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -91,40 +90,42 @@ fn arg_failure(e: ArgError) -> Failure {
     }
 }
 
-/// Runs every acceptance check on `raw` for the robot with APID `apid`.
+/// The failure of a packet whose headers `mib_wire::header` refused: the TC type bits
+/// first (a TM or a packet without secondary header is "not a PUS TC" whatever else is
+/// wrong with it), then the CRC, then the length.
+fn header_failure(raw: &[u8], e: HeaderError) -> Failure {
+    let expected = |total: usize| if total < MIN_TC_LEN { MIN_TC_LEN } else { total };
+    let Ok(p) = Primary::parse(raw) else {
+        return Failure::malformed_packet(raw.len(), MIN_TC_LEN);
+    };
+    if p.version != 0 || !p.is_tc || !p.sec_hdr {
+        return Failure::not_a_pus_tc(p.version, p.is_tc, p.sec_hdr);
+    }
+    match e {
+        HeaderError::Crc { received, computed } => Failure::crc_mismatch(received, computed),
+        HeaderError::NotPus { .. } | HeaderError::WrongType { .. } => {
+            Failure::not_a_pus_tc(p.version, p.is_tc, p.sec_hdr)
+        }
+        // Truncated, too long, and whatever a later version of the header check refuses.
+        _ => Failure::malformed_packet(raw.len(), expected(p.len)),
+    }
+}
+
+/// Runs every acceptance check on `raw` for the robot with APID `apid`. The headers and
+/// the CRC are read once, by `mib_wire::header::TcPacket` (the ground's reader too).
 pub fn accept(raw: &[u8], apid: u16) -> Result<Tc<'_>, Rejection> {
-    if raw.len() < 4 {
+    let Ok(req) = RequestId::of_tc(raw) else {
         return Err(Rejection::new(None, Failure::malformed_packet(raw.len(), MIN_TC_LEN)));
-    }
-    let req = RequestId::from_bytes([raw[0], raw[1], raw[2], raw[3]]);
+    };
     let r = Some(req);
-    if raw.len() < PRIMARY_LEN {
-        return Err(Rejection::new(r, Failure::malformed_packet(raw.len(), MIN_TC_LEN)));
+    let p = TcPacket::parse(raw).map_err(|e| Rejection::new(r, header_failure(raw, e)))?;
+    // One packet per TC: no bytes after the length the header gives.
+    let total = p.primary.len;
+    if total != raw.len() {
+        return Err(Rejection::new(r, Failure::malformed_packet(raw.len(), total)));
     }
-    let version = raw[0] >> 5;
-    let is_tc = raw[0] & 0x10 != 0;
-    let sec_hdr = raw[0] & 0x08 != 0;
-    if version != 0 || !is_tc || !sec_hdr {
-        return Err(Rejection::new(r, Failure::not_a_pus_tc(version, is_tc, sec_hdr)));
-    }
-    let total = PRIMARY_LEN + u16::from_be_bytes([raw[4], raw[5]]) as usize + 1;
-    if total != raw.len() || !(MIN_TC_LEN..=mib::config::MAX_PACKET_LEN).contains(&total) {
-        let expected = if total < MIN_TC_LEN { MIN_TC_LEN } else { total };
-        return Err(Rejection::new(r, Failure::malformed_packet(raw.len(), expected)));
-    }
-    let crc_rx = u16::from_be_bytes([raw[total - 2], raw[total - 1]]);
-    let crc_calc = mib::headers::PEC_CRC.checksum(&raw[..total - 2]);
-    if crc_rx != crc_calc {
-        return Err(Rejection::new(r, Failure::crc_mismatch(crc_rx, crc_calc)));
-    }
-    let pus_version = raw[PRIMARY_LEN] >> 4;
-    if pus_version != 2 {
-        return Err(Rejection::new(r, Failure::not_a_pus_tc(version, is_tc, sec_hdr)));
-    }
-    let ack = Ack(raw[PRIMARY_LEN] & 0x0F);
-    let svc = raw[PRIMARY_LEN + 1];
-    let sub = raw[PRIMARY_LEN + 2];
-    let source_id = u16::from_be_bytes([raw[PRIMARY_LEN + 3], raw[PRIMARY_LEN + 4]]);
+    let ack = Ack(p.ack);
+    let (svc, sub, source_id) = (p.service, p.subservice, p.source_id);
     if req.apid() != apid {
         return Err(Rejection::new(r, Failure::wrong_apid(req.apid())).with_type(svc, sub));
     }
@@ -134,7 +135,7 @@ pub fn accept(raw: &[u8], apid: u16) -> Result<Tc<'_>, Rejection> {
     if !tc::subservice_known(svc, sub) {
         return Err(Rejection::new(r, Failure::unknown_subservice(svc, sub)).with_type(svc, sub));
     }
-    let app = &raw[PRIMARY_LEN + SEC_LEN..total - CRC_LEN];
+    let app = p.app_data;
     let (def, arg_bytes) = if svc == service::FUNCTION {
         if app.len() < 2 {
             return Err(Rejection::new(r, Failure::bad_arg_length(app.len(), 2)).with_type(svc, sub));
