@@ -9,7 +9,7 @@ use crate::config::TIMESTAMP_LEN;
 
 /// One header field, most significant bit first.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Field {
+pub struct HeaderField {
     /// Name (also the XTCE parameter name).
     pub name: &'static str,
     pub bits: u32,
@@ -18,8 +18,8 @@ pub struct Field {
     pub desc: crate::types::Text,
 }
 
-const fn f(name: &'static str, bits: u32, fixed: Option<u32>, desc: &'static str) -> Field {
-    Field {
+const fn f(name: &'static str, bits: u32, fixed: Option<u32>, desc: &'static str) -> HeaderField {
+    HeaderField {
         name,
         bits,
         fixed,
@@ -33,7 +33,7 @@ pub const PUS_C_VERSION: u32 = 2;
 pub const CDS_SHORT_PFIELD: u32 = 0x40;
 
 /// CCSDS space packet primary header (6 bytes).
-pub const PRIMARY_HEADER: &[Field] = &[
+pub const PRIMARY_HEADER: &[HeaderField] = &[
     f("VERSION", 3, Some(0), "packet version number (0)"),
     f("PKT_TYPE", 1, None, "packet type: 0 telemetry, 1 telecommand"),
     f("SEC_HDR_FLG", 1, Some(1), "secondary header flag (always 1)"),
@@ -54,7 +54,7 @@ pub const PRIMARY_HEADER: &[Field] = &[
 pub const TM_SERVICE: &str = "TM_SERVICE";
 
 /// PUS-C TM secondary header with the CDS short time stamp (14 bytes).
-pub const TM_SEC_HEADER: &[Field] = &[
+pub const TM_SEC_HEADER: &[HeaderField] = &[
     f(
         "TM_PUS_VERSION",
         4,
@@ -77,7 +77,7 @@ pub const TM_SEC_HEADER: &[Field] = &[
 ];
 
 /// PUS-C TC secondary header (5 bytes).
-pub const TC_SEC_HEADER: &[Field] = &[
+pub const TC_SEC_HEADER: &[HeaderField] = &[
     f(
         "TC_PUS_VERSION",
         4,
@@ -102,7 +102,7 @@ pub const TC_SEC_HEADER: &[Field] = &[
 pub const PEC_CRC: crc::Crc<u16> = crc::Crc::<u16>::new(&crc::CRC_16_IBM_3740);
 
 /// Packet error control: CRC-16/CCITT-FALSE over the whole packet before it.
-pub const PEC: Field = f(
+pub const PEC: HeaderField = f(
     "PEC",
     16,
     None,
@@ -110,7 +110,7 @@ pub const PEC: Field = f(
 );
 
 /// Length in octets of a list of header fields.
-pub const fn fields_len(fields: &[Field]) -> usize {
+pub const fn fields_len(fields: &[HeaderField]) -> usize {
     let mut bits = 0;
     let mut i = 0;
     while i < fields.len() {

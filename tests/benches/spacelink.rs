@@ -16,7 +16,7 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use e2e_tests::{request_of, tc, Obsw, Tm};
-use ground_link::{create_key_file, Config, FrameLink};
+use ground_link::{create_key_file, Config, GroundFrameLink};
 use mmic_link::fop::{FopConfig, FopState};
 use mmic_link::test_keys::{TEST_KEY_TC_A, TEST_KEY_TM_A};
 
@@ -83,7 +83,7 @@ fn main() {
     )
     .unwrap();
     cfg.fop = FopConfig::mission();
-    let mut g = FrameLink::open(cfg).unwrap();
+    let mut g = GroundFrameLink::open(cfg).unwrap();
     let s = |p: &PathBuf| p.display().to_string();
     let o = Obsw::start(&[
         "--frame-udp",

@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 use e2e_tests::relay::{Config as RelayConfig, Faults, Relay};
 use e2e_tests::{request_of, tc_named, Obsw, Tm};
-use ground_link::{create_key_file, Config, Event, FrameLink, PacketId};
+use ground_link::{create_key_file, Config, Event, GroundFrameLink, PacketId};
 use mib::events::eid;
 use mib::link::sdls::{TC_SPIS, TM_SPIS};
 use mib::params::pid;
@@ -87,7 +87,7 @@ fn obsw_with(d: &Dir, frame: SocketAddr, tm_to: SocketAddr, tm_log: &str, extra:
 
 /// The ground: a frame link and what it received.
 struct Ground {
-    link: FrameLink,
+    link: GroundFrameLink,
     log: Vec<Tm>,
     events: Vec<Event>,
 }
@@ -107,7 +107,7 @@ impl Ground {
         // just-freed port for a moment.
         let mut tries = 0;
         let link = loop {
-            match FrameLink::open(cfg.clone()) {
+            match GroundFrameLink::open(cfg.clone()) {
                 Ok(l) => break l,
                 Err(e) if tries < 100 => {
                     tries += 1;

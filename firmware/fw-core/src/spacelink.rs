@@ -18,7 +18,7 @@
 
 use crate::link::{downlink_packet, ByteQueue, Counters, TcChannel};
 use mib::link::sdls::ANTI_REPLAY_WINDOW;
-use mmic_link::downlink::{Downlink, TmVc};
+use mmic_link::downlink::{TmFramer, TmVc};
 use mmic_link::endpoint::{Endpoint, LinkReport, StoreStats};
 use mmic_link::rx::TcReceiver;
 use mmic_link::sdls::{IvStore, Key, RxSa, RxSas, TxSa};
@@ -100,7 +100,7 @@ impl<St: IvStore + StoreStats> FrameLink<St> {
             None => TcReceiver::mission(sas),
         };
         FrameLink {
-            ep: Endpoint::new(rx, Downlink::mission_realtime_only(), sa, store),
+            ep: Endpoint::new(rx, TmFramer::mission_realtime_only(), sa, store),
             keys: link_keys,
         }
     }

@@ -9,7 +9,7 @@ use crate::{check, check_eq, ok};
 use aes_gcm::aead::AeadInPlace;
 use aes_gcm::{Aes256Gcm, KeyInit, Nonce, Tag};
 use mmic_link::clcw::Clcw;
-use mmic_link::downlink::Downlink;
+use mmic_link::downlink::TmFramer;
 use mmic_link::farm::FarmState;
 use mmic_link::rx::{RxError, RxOutcome, TcReceiver};
 use mmic_link::sdls::{build_tc, MemoryIvStore, RxSa, RxSas, SdlsError, TxSa};
@@ -147,7 +147,7 @@ fn link_rx_accepts_authentic_frame_and_refuses_tampered_and_replayed() -> TestRe
 }
 
 fn link_idle_tm_frame_carries_the_clcw() -> TestResult {
-    let mut dl = Downlink::mission();
+    let mut dl = TmFramer::mission();
     let mut rx_sas: RxSas<1> = RxSas::default();
     check!(rx_sas.insert(RxSa::new(1, &TEST_KEY_TC_A, 64)).is_ok());
     let clcw: Clcw = TcReceiver::mission(rx_sas).farm.clcw();

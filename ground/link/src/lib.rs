@@ -4,9 +4,9 @@
 //! (132.0-B-3) in, space packets and CLCWs out. Everything below the socket is
 //! `mmic-link`, the code the robot runs.
 //!
-//! **Transports.** One frame per UDP datagram ([`FrameLink::open`], what Yamcs uses), or
+//! **Transports.** One frame per UDP datagram ([`GroundFrameLink::open`], what Yamcs uses), or
 //! over a byte stream — board A's serial ground link (USB CDC-ACM), a pty, QEMU's
-//! `-serial unix:` socket — one COBS frame per transfer frame ([`FrameLink::open_serial`],
+//! `-serial unix:` socket — one COBS frame per transfer frame ([`GroundFrameLink::open_serial`],
 //! `mmic_link::stream`, the framing board A runs). The same FOP-1, SDLS and TM receiver
 //! run over either; only how a frame is sent and received differs. Framing errors on the
 //! stream are counted in [`Counters::stream`].
@@ -30,10 +30,10 @@
 //!
 //! **Timer T1.** With [`FopConfig::mission`] T1 follows the measured round trip
 //! (SRTT + 4·RTTVAR, Karn's rule, doubled on expiry) between 300 ms and 2 s: a lone lost
-//! frame costs a few hundred milliseconds, not 2 s ([`FrameLink::fop_t1_ms`],
+//! frame costs a few hundred milliseconds, not 2 s ([`GroundFrameLink::fop_t1_ms`],
 //! `docs/space-link.md` § Timer T1).
 //!
-//! **Start and restart.** A new `FrameLink` has no COP-1 state: it waits until the CLCW's
+//! **Start and restart.** A new `GroundFrameLink` has no COP-1 state: it waits until the CLCW's
 //! N(R) has not changed for [`Config::settle_ms`] (idle frames carry the CLCW at least
 //! every 100 ms; a dead ground's frames still in flight or queued on board land first —
 //! without the wait, a Set V(R) from a stale CLCW would wind V(R) back over frames already
@@ -72,7 +72,7 @@ pub use mmic_link::stream;
 mod error;
 pub use error::LinkError;
 
-/// Handle of a packet given to [`FrameLink::send_packet`].
+/// Handle of a packet given to [`GroundFrameLink::send_packet`].
 pub type PacketId = u64;
 
 /// What the link reports besides packets.
@@ -149,7 +149,7 @@ impl Config {
     /// writes it: TC under `tc_spi` (key `tc-spi<tc_spi>.key`), TM under SPI 17
     /// (`tm-spi17.key`) and, when the file is there, SPI 18 (`tm-spi18.key`). A key change
     /// without downtime: the robot accepts both TC SPIs whose keys it has, so a ground
-    /// reopened (or switched with [`FrameLink::switch_tc_spi`]) with `tc_spi` 2 goes on
+    /// reopened (or switched with [`GroundFrameLink::switch_tc_spi`]) with `tc_spi` 2 goes on
     /// where the other left off.
     pub fn from_key_dir(
         robot: SocketAddr,
@@ -217,7 +217,7 @@ enum Wire {
 }
 
 /// The frame link (see the crate documentation).
-pub struct FrameLink {
+pub struct GroundFrameLink {
     wire: Wire,
     fop: Fop<PacketId>,
     tc_sa: TxSa,
@@ -249,13 +249,13 @@ pub struct FrameLink {
     buf: Vec<u8>,
 }
 
-impl fmt::Debug for FrameLink {
+impl fmt::Debug for GroundFrameLink {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let wire = match &self.wire {
             Wire::Udp { robot, .. } => robot.to_string(),
             Wire::Stream { port, .. } => port.describe.clone(),
         };
-        f.debug_struct("FrameLink")
+        f.debug_struct("GroundFrameLink")
             .field("robot", &wire)
             .field("fop", &self.fop.state())
             .field("queued", &self.queue.len())
@@ -263,36 +263,36 @@ impl fmt::Debug for FrameLink {
     }
 }
 
-impl FrameLink {
+impl GroundFrameLink {
     /// Binds the socket and opens the counter state file. COP-1 initialises from the first
     /// CLCW that arrives.
-    pub fn open(cfg: Config) -> Result<FrameLink, LinkError> {
+    pub fn open(cfg: Config) -> Result<GroundFrameLink, LinkError> {
         let sock = UdpSocket::bind(cfg.listen)?;
         sock.set_nonblocking(true)?;
         let wire = Wire::Udp { sock, robot: cfg.robot };
-        FrameLink::open_on(cfg, wire)
+        GroundFrameLink::open_on(cfg, wire)
     }
 
     /// The link over a serial device or a Unix socket at `path`
     /// (`mmic_link::stream::port::open`: a tty in raw mode, its stale input discarded):
     /// one COBS frame per transfer frame, as board A's ground link. `cfg.robot` and
     /// `cfg.listen` are not used.
-    pub fn open_serial(cfg: Config, path: &Path) -> Result<FrameLink, LinkError> {
+    pub fn open_serial(cfg: Config, path: &Path) -> Result<GroundFrameLink, LinkError> {
         let port = mmic_link::stream::port::open(path)?;
-        FrameLink::open_port(cfg, port)
+        GroundFrameLink::open_port(cfg, port)
     }
 
     /// The link over an open stream port (e.g. one end of a socket pair).
-    pub fn open_port(cfg: Config, port: Port) -> Result<FrameLink, LinkError> {
+    pub fn open_port(cfg: Config, port: Port) -> Result<GroundFrameLink, LinkError> {
         let wire = Wire::Stream {
             port,
             deframer: Box::default(),
             rbuf: vec![0u8; 4096],
         };
-        FrameLink::open_on(cfg, wire)
+        GroundFrameLink::open_on(cfg, wire)
     }
 
-    fn open_on(cfg: Config, wire: Wire) -> Result<FrameLink, LinkError> {
+    fn open_on(cfg: Config, wire: Wire) -> Result<GroundFrameLink, LinkError> {
         if cfg.shares_a_key() {
             return Err(LinkError::SameKey);
         }
@@ -311,7 +311,7 @@ impl FrameLink {
         if let Some(k) = cfg.tm_spare_key {
             let _ = sas.insert(rx_sa(TM_SPIS[1], &k));
         }
-        Ok(FrameLink {
+        Ok(GroundFrameLink {
             wire,
             fop: Fop::new(mib::link::tc_vc::COMMAND, cfg.fop),
             tc_sa,
@@ -426,7 +426,7 @@ impl FrameLink {
         self.last_clcw
     }
 
-    /// When (in [`FrameLink::now_ms`]'s clock, as given to `poll`) the last valid TM
+    /// When (in [`GroundFrameLink::now_ms`]'s clock, as given to `poll`) the last valid TM
     /// frame arrived — any frame that passed the receiver's checks (length, CRC, SCID,
     /// SDLS authentication), idle frames with only a CLCW included: proof that the robot
     /// is there even when no packet gets through. `None` before the first.
@@ -459,7 +459,7 @@ impl FrameLink {
         Ok(out)
     }
 
-    /// The part of [`FrameLink::poll`] after the frames are read: FOP-1's timer,
+    /// The part of [`GroundFrameLink::poll`] after the frames are read: FOP-1's timer,
     /// (re)initialisation, the queued packets FOP-1 takes now.
     fn advance(&mut self, now_ms: u64) -> Result<(), LinkError> {
         let fx = self.fop.on_event(now_ms, FopInput::Tick);

@@ -6,7 +6,7 @@ use std::io::{Read, Write};
 use std::os::unix::net::UnixStream;
 
 use super::*;
-use mmic_link::downlink::{Downlink, TmVc};
+use mmic_link::downlink::{TmFramer, TmVc};
 use mmic_link::rx::{RxOutcome, TcReceiver};
 use mmic_link::sdls::MemoryIvStore;
 use mmic_link::stream::{encode, encoded_len, Deframer};
@@ -16,7 +16,7 @@ struct StreamRobot {
     s: UnixStream,
     de: Box<Deframer<{ TC_MAX_LEN }>>,
     rx: TcReceiver<2>,
-    dl: Downlink,
+    dl: TmFramer,
     tm_sa: TxSa,
     store: MemoryIvStore,
     executed: Vec<Vec<u8>>,
@@ -103,7 +103,7 @@ impl StreamRobot {
     }
 }
 
-fn pair(junk_every: u64, flip_every: u64, seed: u64) -> (FrameLink, StreamRobot) {
+fn pair(junk_every: u64, flip_every: u64, seed: u64) -> (GroundFrameLink, StreamRobot) {
     let (a, b) = UnixStream::pair().unwrap();
     b.set_nonblocking(true).unwrap();
     let st = std::env::temp_dir().join(format!("ground-link-stream-{}-{seed}.state", std::process::id()));
@@ -124,7 +124,7 @@ fn pair(junk_every: u64, flip_every: u64, seed: u64) -> (FrameLink, StreamRobot)
         },
         settle_ms: 30,
     };
-    let g = FrameLink::open_port(cfg, Port::from_unix(a).unwrap()).unwrap();
+    let g = GroundFrameLink::open_port(cfg, Port::from_unix(a).unwrap()).unwrap();
     let mut sas = RxSas::default();
     sas.insert(RxSa::new(TC_SPIS[0], &TEST_KEY_TC_A, ANTI_REPLAY_WINDOW))
         .unwrap();
@@ -132,7 +132,7 @@ fn pair(junk_every: u64, flip_every: u64, seed: u64) -> (FrameLink, StreamRobot)
         s: b,
         de: Box::default(),
         rx: TcReceiver::mission(sas),
-        dl: Downlink::mission(),
+        dl: TmFramer::mission(),
         tm_sa: TxSa::resume(TM_SPIS[0], &TEST_KEY_TM_A, 0),
         store: MemoryIvStore::default(),
         executed: Vec::new(),
@@ -152,7 +152,7 @@ fn packet(i: u16) -> Vec<u8> {
     p
 }
 
-fn run(g: &mut FrameLink, r: &mut StreamRobot, n: usize) -> Vec<Vec<u8>> {
+fn run(g: &mut GroundFrameLink, r: &mut StreamRobot, n: usize) -> Vec<Vec<u8>> {
     let mut echoed = Vec::new();
     let until = Instant::now() + Duration::from_secs(20);
     while (g.pending() > 0 || echoed.len() < n) && Instant::now() < until {

@@ -2,7 +2,7 @@
 //! loopback UDP socket, with seeded loss in both directions).
 
 use super::*;
-use mmic_link::downlink::{Downlink, TmVc};
+use mmic_link::downlink::{TmFramer, TmVc};
 use mmic_link::rx::{RxOutcome, TcReceiver};
 use mmic_link::sdls::MemoryIvStore;
 use mmic_link::test_keys::{TEST_KEY_TC_A, TEST_KEY_TM_A};
@@ -11,7 +11,7 @@ struct Robot {
     sock: UdpSocket,
     ground: SocketAddr,
     rx: TcReceiver<2>,
-    dl: Downlink,
+    dl: TmFramer,
     tm_sa: TxSa,
     store: MemoryIvStore,
     /// Packets executed, in order.
@@ -31,7 +31,7 @@ impl Robot {
             sock,
             ground,
             rx: TcReceiver::mission(sas),
-            dl: Downlink::mission(),
+            dl: TmFramer::mission(),
             tm_sa: TxSa::resume(TM_SPIS[0], &TEST_KEY_TM_A, 0),
             store: MemoryIvStore::default(),
             executed: Vec::new(),
@@ -101,8 +101,8 @@ fn state(name: &str) -> PathBuf {
     p
 }
 
-fn link(robot: SocketAddr, listen: SocketAddr, state: &Path) -> FrameLink {
-    FrameLink::open(Config {
+fn link(robot: SocketAddr, listen: SocketAddr, state: &Path) -> GroundFrameLink {
+    GroundFrameLink::open(Config {
         robot,
         listen,
         tc_spi: 1,
@@ -130,7 +130,7 @@ fn packet(i: u16) -> Vec<u8> {
 }
 
 /// Runs ground and robot (time by the link's own clock) until `done` or 20 s.
-fn run(g: &mut FrameLink, r: &mut Robot, mut done: impl FnMut(&FrameLink, &Robot) -> bool) -> Vec<Vec<u8>> {
+fn run(g: &mut GroundFrameLink, r: &mut Robot, mut done: impl FnMut(&GroundFrameLink, &Robot) -> bool) -> Vec<Vec<u8>> {
     let mut got = Vec::new();
     let until = Instant::now() + Duration::from_secs(20);
     while !done(g, r) && Instant::now() < until {
@@ -267,7 +267,7 @@ fn bad_packets_and_shared_keys_are_refused() {
         Err(LinkError::PacketLength { .. })
     ));
     assert_eq!(g.pending(), 0);
-    let e = FrameLink::open(Config {
+    let e = GroundFrameLink::open(Config {
         robot: a,
         listen: a,
         tc_spi: 1,
@@ -294,8 +294,8 @@ fn bad_packets_and_shared_keys_are_refused() {
         fop: FopConfig::mission(),
         settle_ms: RESYNC_SETTLE_MS,
     };
-    assert!(matches!(FrameLink::open(cfg.clone()), Err(LinkError::SameKey)));
-    let e = FrameLink::open(Config {
+    assert!(matches!(GroundFrameLink::open(cfg.clone()), Err(LinkError::SameKey)));
+    let e = GroundFrameLink::open(Config {
         tc_spi: 17,
         tm_spare_key: None,
         ..cfg

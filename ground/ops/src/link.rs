@@ -5,7 +5,7 @@
 //!
 //! The space link runs over UDP (one frame per datagram) or, for a robot given in
 //! [`FrameOptions::serial`], over a serial device or Unix socket (board A's ground link:
-//! one COBS frame per transfer frame, `ground_link::FrameLink::open_serial`); the same
+//! one COBS frame per transfer frame, `ground_link::GroundFrameLink::open_serial`); the same
 //! FOP-1 and SDLS either way.
 //!
 //! Over frames, [`Link::send`] hands the packet to FOP-1 (queued, never lost: COP-1
@@ -489,7 +489,7 @@ fn unreachable_frames() -> io::Result<Io> {
     Err(io::Error::other("frame link opened as a bare-packet link"))
 }
 
-/// Opens robot `robot`'s frame link: its thread owns the `ground_link::FrameLink`.
+/// Opens robot `robot`'s frame link: its thread owns the `ground_link::GroundFrameLink`.
 fn open_frames(
     robot: u8,
     addr: SocketAddr,
@@ -508,13 +508,13 @@ fn open_frames(
             .map_err(|e| io::Error::other(format!("robot {robot}'s keys in {}: {e}", dir.display())))?;
     cfg.tm_security = opts.tm_security;
     let mut fl = match opts.serial.get(&robot) {
-        Some(path) => ground_link::FrameLink::open_serial(cfg, path).map_err(|e| {
+        Some(path) => ground_link::GroundFrameLink::open_serial(cfg, path).map_err(|e| {
             io::Error::other(format!(
                 "frame link of robot {robot} over serial {}: {e}",
                 path.display()
             ))
         })?,
-        None => ground_link::FrameLink::open(cfg)
+        None => ground_link::GroundFrameLink::open(cfg)
             .map_err(|e| io::Error::other(format!("frame link of robot {robot} (TM frames on {listen}): {e}")))?,
     };
     let (to_link, from_ground) = crossbeam_channel::unbounded::<Vec<u8>>();
@@ -580,7 +580,7 @@ fn request_id(packet: &[u8]) -> Option<(u16, u16)> {
 
 fn frame_loop(
     robot: u8,
-    fl: &mut ground_link::FrameLink,
+    fl: &mut ground_link::GroundFrameLink,
     from_ground: &crossbeam_channel::Receiver<Vec<u8>>,
     stop: &AtomicBool,
     tx: &Sender<Incoming>,

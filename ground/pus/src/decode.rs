@@ -8,7 +8,7 @@ use mib_wire::header::{TcPacket, TmPacket};
 
 use super::error::{data_err, header_err};
 use super::{
-    decode_fields, BuildError, CdsShort, DecodeError, Event, Failure, Field, Hk, HkValue, Packet, Stage, Tc, Tm,
+    decode_fields, BuildError, CdsShort, DecodeError, Event, Failure, Hk, HkValue, NamedValue, Packet, Stage, Tc, Tm,
     TmBody, Verification,
 };
 
@@ -179,7 +179,7 @@ pub fn decode_tc(b: &[u8]) -> Result<Tc, DecodeError> {
                     .args
                     .iter()
                     .zip(vals.iter())
-                    .map(|(a, v)| Field {
+                    .map(|(a, v)| NamedValue {
                         name: a.name.to_string(),
                         value: *v,
                     })

@@ -7,7 +7,7 @@ use serde::Serialize;
 
 /// One named field of failure data, decoded with the layout the MIB gives for the code.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize)]
-pub struct Field {
+pub struct NamedValue {
     pub name: String,
     pub value: i64,
 }
@@ -19,7 +19,7 @@ pub struct Failure {
     pub name: &'static str,
     pub description: &'static str,
     /// Failure data decoded per the MIB layout (empty if it does not fit).
-    pub fields: Vec<Field>,
+    pub fields: Vec<NamedValue>,
     /// Raw failure data.
     #[serde(serialize_with = "ser_hex")]
     pub data: Vec<u8>,
@@ -61,7 +61,7 @@ impl fmt::Display for Failure {
 
 /// The value of field `i` as a person reads it: the MIB's name for it (a mode named for
 /// the `node` field beside it) with the raw value, or the raw value alone.
-pub(super) fn named(defs: &[mib::layout::Field], values: &[Field], i: usize) -> String {
+pub(super) fn named(defs: &[mib::layout::Field], values: &[NamedValue], i: usize) -> String {
     let v = values[i].value;
     let Some(def) = defs.get(i) else {
         return v.to_string();
@@ -96,12 +96,12 @@ pub fn hex(v: &[u8]) -> String {
 }
 
 /// Decodes `data` with a MIB field list; returns the fields that fit.
-pub fn decode_fields(fields: &[mib::layout::Field], data: &[u8]) -> Vec<Field> {
+pub fn decode_fields(fields: &[mib::layout::Field], data: &[u8]) -> Vec<NamedValue> {
     let mut r = mib_wire::Reader::new(data);
     let mut out = Vec::with_capacity(fields.len());
     for f in fields {
         let Ok(u) = r.uint(f.bits, f.name) else { break };
-        out.push(Field {
+        out.push(NamedValue {
             name: f.name.to_string(),
             value: raw_value(f.ptype, u),
         });

@@ -40,7 +40,7 @@ pub use build::{ack_flags_for, build_raw_tc, build_tc, build_tm, BuiltTc, SeqCou
 pub use decode::{decode_hk, decode_packet, decode_tc, decode_tm, intact_position, packet_len};
 pub use describe::{describe, describe_body, mode_name, node_name};
 pub use error::{BuildError, DecodeError};
-pub use fields::{decode_fields, hex, raw_value, Failure, Field};
+pub use fields::{decode_fields, hex, raw_value, Failure, NamedValue};
 pub use mib_wire::header::{
     CDS_PFIELD, CRC_LEN, MIN_TC_LEN, MIN_TM_LEN, PRIMARY_HEADER_LEN, TC_SEC_HEADER_LEN, TM_SEC_HEADER_LEN,
 };

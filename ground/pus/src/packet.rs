@@ -9,7 +9,7 @@ use serde::Serialize;
 
 use super::fields::{named, ser_hex};
 use super::out::Format;
-use super::{CdsShort, Failure, Field, RequestId};
+use super::{CdsShort, Failure, NamedValue, RequestId};
 
 /// PUS 1 stage.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
@@ -87,7 +87,7 @@ pub struct Event {
     /// True for the faults of the FDIR table.
     pub fault: bool,
     pub description: &'static str,
-    pub params: Vec<Field>,
+    pub params: Vec<NamedValue>,
 }
 
 impl Event {
@@ -197,7 +197,7 @@ pub struct Tc {
     /// MIB name, `None` if the service/subservice/function is not in the MIB.
     pub name: Option<&'static str>,
     pub function: Option<u16>,
-    pub args: Vec<Field>,
+    pub args: Vec<NamedValue>,
     /// Why the application data does not match the MIB, if it does not.
     pub arg_error: Option<String>,
     pub len: usize,

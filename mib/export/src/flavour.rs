@@ -3,7 +3,7 @@
 //! additions (the Yamcs MDB, `yamcs::YAMCS`). [`crate::xtce`] writes the document from
 //! these choices, so a flavour depends on the XTCE writer and never the other way round.
 
-use crate::headers::Field as HeaderField;
+use crate::headers::HeaderField;
 use crate::xml::Xml;
 use mib::events::EventDef;
 use mib::layout::Field;

@@ -4,7 +4,7 @@
 pub use mib::headers::*;
 
 /// Length in octets of a list of fields.
-pub fn len(fields: &[Field]) -> usize {
+pub fn len(fields: &[HeaderField]) -> usize {
     fields_len(fields)
 }
 
@@ -39,7 +39,7 @@ pub fn tm_packet_len(n: usize) -> usize {
 }
 
 /// Bit offset of each field from the start of the list.
-pub fn offsets(fields: &[Field]) -> impl Iterator<Item = (u32, &Field)> {
+pub fn offsets(fields: &[HeaderField]) -> impl Iterator<Item = (u32, &HeaderField)> {
     let mut off = 0;
     fields.iter().map(move |f| {
         let o = off;

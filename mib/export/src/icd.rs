@@ -1,6 +1,6 @@
 //! The interface control document (`docs/ICD.md`), generated from the MIB.
 
-use super::headers::{self, Field};
+use super::headers::{self, HeaderField};
 use super::{num, ScosNames};
 use mib::events::EVENTS;
 use mib::failure::FailureCode;
@@ -41,7 +41,7 @@ fn timing_text(t: Timing) -> &'static str {
     }
 }
 
-fn header_table(o: &mut String, title: &str, fields: &[Field], note: &str) {
+fn header_table(o: &mut String, title: &str, fields: &[HeaderField], note: &str) {
     let _ = writeln!(o, "### {title}\n");
     if !note.is_empty() {
         let _ = writeln!(o, "{note}\n");

@@ -1,6 +1,6 @@
 //! The whole MIB as one JSON document (pretty-printed, keys in a stable order).
 
-use super::headers::{self, Field};
+use super::headers::{self, HeaderField};
 use mib::events::EVENTS;
 use mib::failure::FailureCode;
 use mib::fdir::{self, Timing, FAULTS, MONITORS};
@@ -14,7 +14,7 @@ use mib::types::Limits;
 use mib::{apid, config};
 use serde_json::{json, Value};
 
-fn fields(f: &[Field]) -> Value {
+fn fields(f: &[HeaderField]) -> Value {
     Value::Array(
         headers::offsets(f)
             .map(

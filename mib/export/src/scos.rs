@@ -8,7 +8,7 @@
 //! packet (primary header included); `CDF_BIT` counts bits from the first bit of the
 //! TC application data; `PCDF_BIT` from the first bit of the packet.
 
-use super::headers::{self, Field};
+use super::headers::{self, HeaderField};
 use super::{num, trunc};
 
 /// ASCII text cut to a column width.
@@ -834,7 +834,7 @@ fn tc_header_tables(apid: u16) -> [Table; 3] {
     tcp.row([ScosNames::TC_HEADER, "MMIC-I PUS-C TC header"]);
     let mut pcpc = Table::new("pcpc");
     let mut pcdf = Table::new("pcdf");
-    let tc_fields: Vec<Field> = headers::PRIMARY_HEADER
+    let tc_fields: Vec<HeaderField> = headers::PRIMARY_HEADER
         .iter()
         .chain(headers::TC_SEC_HEADER)
         .copied()

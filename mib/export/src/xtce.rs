@@ -14,7 +14,7 @@
 //! parameters that decide when they apply, `mib::params::limits_apply`).
 //! Telecommands are MetaCommands deriving from the abstract `PUS_TC`.
 
-use super::headers::{self, Field};
+use super::headers::{self, HeaderField};
 use super::num;
 use crate::flavour::Flavour;
 use crate::xml::{esc, Xml};
@@ -77,7 +77,7 @@ fn raw_type(x: &mut Xml, name: &str, t: PType, unit: &str, desc: &str) {
 }
 
 /// Parameter type of a field with `bits` bits (headers).
-fn header_type(x: &mut Xml, f: &Field) {
+fn header_type(x: &mut Xml, f: &HeaderField) {
     x.open(&format!(
         "<xtce:IntegerParameterType name=\"{}_Type\" shortDescription=\"{}\" signed=\"false\" sizeInBits=\"32\">",
         f.name,
@@ -291,7 +291,7 @@ pub(super) fn container(
     x.close("</xtce:SequenceContainer>");
 }
 
-fn names(fields: &[Field]) -> Vec<String> {
+fn names(fields: &[HeaderField]) -> Vec<String> {
     fields.iter().map(|f| f.name.to_string()).collect()
 }
 
@@ -382,7 +382,7 @@ fn parameter_types(x: &mut Xml, d: &Doc) -> BodyXtce {
     } else {
         header_type(
             x,
-            &Field {
+            &HeaderField {
                 name: "HK_SID",
                 bits: 16,
                 fixed: None,
@@ -391,7 +391,7 @@ fn parameter_types(x: &mut Xml, d: &Doc) -> BodyXtce {
         );
         header_type(
             x,
-            &Field {
+            &HeaderField {
                 name: "EVENT_ID",
                 bits: 16,
                 fixed: None,
@@ -575,7 +575,7 @@ fn containers(x: &mut Xml, d: &Doc, body: &BodyXtce) {
 }
 
 /// The TC header fields an operator (or the flavour's assignments) supplies.
-fn tc_header_args(flavour: &Flavour) -> Vec<&'static Field> {
+fn tc_header_args(flavour: &Flavour) -> Vec<&'static HeaderField> {
     headers::PRIMARY_HEADER
         .iter()
         .chain(headers::TC_SEC_HEADER)
@@ -585,7 +585,7 @@ fn tc_header_args(flavour: &Flavour) -> Vec<&'static Field> {
 }
 
 /// The TC argument types: the free header fields, then every TC's arguments.
-fn argument_types(x: &mut Xml, tc_header_args: &[&Field]) {
+fn argument_types(x: &mut Xml, tc_header_args: &[&HeaderField]) {
     x.open("<xtce:ArgumentTypeSet>");
     for f in tc_header_args {
         x.open(&format!(
@@ -630,7 +630,7 @@ fn argument_types(x: &mut Xml, tc_header_args: &[&Field]) {
 }
 
 /// The abstract PUS TC with the headers, then one meta-command per TC.
-fn meta_commands(x: &mut Xml, d: &Doc, tc_header_args: &[&Field]) {
+fn meta_commands(x: &mut Xml, d: &Doc, tc_header_args: &[&HeaderField]) {
     x.open("<xtce:MetaCommandSet>");
     // Abstract PUS-C TC with the headers.
     x.open("<xtce:MetaCommand name=\"PUS_TC\" abstract=\"true\" shortDescription=\"PUS-C telecommand: CCSDS primary header and TC secondary header; a CRC-16/CCITT-FALSE PEC follows the application data\">");

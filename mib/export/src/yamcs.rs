@@ -29,7 +29,7 @@ use std::fmt::Write as _;
 use std::str::FromStr;
 
 use super::flavour::Flavour;
-use super::headers::Field as HeaderField;
+use super::headers::HeaderField;
 use super::xml::{esc, Xml};
 use super::xtce::{self, enumerated_type, parameter};
 use mib::events::{EventDef, EVENTS};

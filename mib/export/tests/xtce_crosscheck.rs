@@ -367,7 +367,7 @@ fn space_packet_parser_decodes_our_packets_like_our_decoder() {
 }
 
 /// Reads the fields of `fields` (MSB first) starting at octet `start` of `pkt`.
-fn read_fields(pkt: &[u8], start: usize, fields: &[export::headers::Field]) -> Vec<(&'static str, u64)> {
+fn read_fields(pkt: &[u8], start: usize, fields: &[export::headers::HeaderField]) -> Vec<(&'static str, u64)> {
     export::headers::offsets(fields)
         .map(|(off, f)| {
             let mut v = 0u64;

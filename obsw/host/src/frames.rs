@@ -28,7 +28,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use mib::link::sdls::{ANTI_REPLAY_WINDOW, TC_SPIS, TM_SPIS};
 use mib::link::tm_frame::LEN as TM_LEN;
-use mmic_link::downlink::{Downlink as Framer, TmSecurity, TmVc};
+use mmic_link::downlink::{TmFramer as Framer, TmSecurity, TmVc};
 use mmic_link::endpoint::{Endpoint, LinkReport};
 use mmic_link::farm::Farm;
 use mmic_link::persist::{read_key, Dir, FileIvStore};
@@ -550,7 +550,7 @@ pub fn link_event(r: LinkReport) -> LinkEvent {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use ground_link::{create_key_file, Config, FrameLink};
+    use ground_link::{create_key_file, Config, GroundFrameLink};
     use mmic_link::fop::FopState;
     use mmic_link::test_keys::{TEST_KEY_TC_A, TEST_KEY_TC_B, TEST_KEY_TM_A, TEST_KEY_TM_B};
     use std::time::Duration;
@@ -576,9 +576,9 @@ mod tests {
     fn run(
         ep: &mut FrameEndpoint,
         got: &mut Vec<Vec<u8>>,
-        g: &mut FrameLink,
+        g: &mut GroundFrameLink,
         echoes: &mut Vec<Vec<u8>>,
-        mut done: impl FnMut(&FrameLink, &[Vec<u8>], &[Vec<u8>]) -> bool,
+        mut done: impl FnMut(&GroundFrameLink, &[Vec<u8>], &[Vec<u8>]) -> bool,
     ) {
         let t0 = Instant::now();
         while !done(g, got, echoes) {
@@ -626,7 +626,7 @@ mod tests {
         let robot = ep.local_addr().unwrap().unwrap();
         let mut cfg = Config::from_key_dir(robot, ground_addr, &dir, &dir.join("ground.state"), 1).unwrap();
         cfg.fop.t1_ms = 300;
-        let mut g = FrameLink::open(cfg).unwrap();
+        let mut g = GroundFrameLink::open(cfg).unwrap();
         let (mut got, mut echoes) = (Vec::new(), Vec::new());
         run(&mut ep, &mut got, &mut g, &mut echoes, |g, _, _| {
             g.fop_state() == FopState::Active

@@ -778,7 +778,7 @@ fn report_link_events(
     obsw: &mut Obsw<HostStore>,
     now: u64,
     reported: &mut net::LinkCounters,
-    down: &mut net::Downlink,
+    down: &mut net::TmDestinations,
 ) {
     let c = down.counters;
     if c.tcp_refused != reported.tcp_refused {
@@ -802,7 +802,7 @@ fn handle_input(
     now: u64,
     obsw: &mut Obsw<HostStore>,
     sim: &mut Sim,
-    down: &mut net::Downlink,
+    down: &mut net::TmDestinations,
     inputs: &net::Inputs,
     bad_frames: &mut u32,
 ) {

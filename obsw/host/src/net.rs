@@ -61,7 +61,7 @@ const UDP: Token = Token(0);
 const SIM_CTL: Token = Token(1);
 const TIMER: Token = Token(3);
 const LISTENER: Token = Token(4);
-/// The space-link frame socket (read by the main loop through `Downlink::frames`).
+/// The space-link frame socket (read by the main loop through `TmDestinations::frames`).
 const FRAMES: Token = Token(5);
 /// Connection `i` has token `CONN0 + i`.
 const CONN0: usize = 16;
@@ -106,7 +106,7 @@ struct Subscriber {
 }
 
 /// Where TM goes; also holds the TCP connections (their input and output sides).
-pub struct Downlink {
+pub struct TmDestinations {
     udp: UdpSocket,
     /// Fixed TM destinations (`--tm-dest`): always sent to, no lease.
     fixed: Vec<SocketAddr>,
@@ -129,7 +129,7 @@ pub struct Downlink {
     pub bare: bool,
 }
 
-impl Downlink {
+impl TmDestinations {
     /// Adds a fixed TM destination (`--tm-dest`), at most `MAX_SUBSCRIBERS` of them.
     pub fn add_fixed(&mut self, dest: SocketAddr) -> anyhow::Result<()> {
         if self.fixed.contains(&dest) {
@@ -222,7 +222,7 @@ impl Downlink {
     }
 }
 
-impl obsw_core::tm::TmSink for Downlink {
+impl obsw_core::tm::TmSink for TmDestinations {
     fn send_tm(&mut self, packet: &[u8]) {
         self.send_on(packet, TmVc::Realtime);
     }
@@ -232,7 +232,7 @@ impl obsw_core::tm::TmSink for Downlink {
     }
 }
 
-impl Downlink {
+impl TmDestinations {
     /// One TM packet to every destination: over the space link on virtual channel `vc`.
     fn send_on(&mut self, packet: &[u8], vc: TmVc) {
         if let Some(f) = self.tm_log.as_mut() {
@@ -360,7 +360,7 @@ pub fn start(
     udp_addr: SocketAddr,
     tcp_addr: SocketAddr,
     sim_ctl_addr: SocketAddr,
-) -> anyhow::Result<(Inputs, Downlink, Bound)> {
+) -> anyhow::Result<(Inputs, TmDestinations, Bound)> {
     start_with_lease(
         udp_addr,
         tcp_addr,
@@ -374,7 +374,7 @@ fn start_with_lease(
     tcp_addr: SocketAddr,
     sim_ctl_addr: SocketAddr,
     lease: Duration,
-) -> anyhow::Result<(Inputs, Downlink, Bound)> {
+) -> anyhow::Result<(Inputs, TmDestinations, Bound)> {
     let udp = UdpSocket::bind(udp_addr).map_err(|e| anyhow::anyhow!("cannot bind UDP {udp_addr}: {e}"))?;
     let mut listener = TcpListener::bind(tcp_addr).map_err(|e| anyhow::anyhow!("cannot bind TCP {tcp_addr}: {e}"))?;
     let sim_ctl = UdpSocket::bind(sim_ctl_addr)
@@ -395,7 +395,7 @@ fn start_with_lease(
     let timer = TimerFd::new_custom(ClockId::Monotonic, true, true)?;
     poll.registry()
         .register(&mut SourceFd(&timer.as_raw_fd()), TIMER, Interest::READABLE)?;
-    let down = Downlink {
+    let down = TmDestinations {
         udp: udp.try_clone()?,
         fixed: Vec::with_capacity(MAX_SUBSCRIBERS),
         subscribers: Vec::with_capacity(MAX_SUBSCRIBERS),
@@ -428,7 +428,7 @@ fn start_with_lease(
 impl Inputs {
     /// The next input that is already waiting, if any (never blocks). Sources take turns,
     /// so that no client can hold back the others.
-    pub fn next(&mut self, down: &mut Downlink) -> Option<Input> {
+    pub fn next(&mut self, down: &mut TmDestinations) -> Option<Input> {
         self.service(down);
         let sources = 1 + down.conns.len();
         for k in 0..sources {
@@ -460,7 +460,7 @@ impl Inputs {
         None
     }
 
-    fn next_tcp(&mut self, down: &mut Downlink, i: usize) -> Option<Input> {
+    fn next_tcp(&mut self, down: &mut TmDestinations, i: usize) -> Option<Input> {
         let c = down.conns[i].as_mut()?;
         let input = c.queue.pop_front();
         if c.queue.len() < TCP_INPUT_QUEUE && c.readable {
@@ -492,7 +492,7 @@ impl Inputs {
     }
 
     /// Accepts waiting connections and closes finished ones.
-    fn service(&mut self, down: &mut Downlink) {
+    fn service(&mut self, down: &mut TmDestinations) {
         while self.accept_ready {
             match self.listener.accept() {
                 Ok((mut stream, peer)) => {
@@ -542,13 +542,13 @@ impl Inputs {
 
     /// Waits until an input may be waiting or `timeout` passes.
     #[cfg(test)]
-    pub fn wait(&mut self, timeout: Duration, down: &mut Downlink) {
+    pub fn wait(&mut self, timeout: Duration, down: &mut TmDestinations) {
         self.wait_until(Instant::now() + timeout, down);
     }
 
     /// Waits until an input may be waiting or `due` comes. The timer is armed only when
     /// `due` differs from the deadline it already runs for, and read only when it expired.
-    pub fn wait_until(&mut self, due: Instant, down: &mut Downlink) {
+    pub fn wait_until(&mut self, due: Instant, down: &mut TmDestinations) {
         let timeout = due.saturating_duration_since(Instant::now());
         if timeout.is_zero() {
             return;
@@ -660,11 +660,11 @@ mod tests {
         SocketAddr::from(([127, 0, 0, 1], 0))
     }
 
-    fn net(lease: Duration) -> (Inputs, Downlink, Bound) {
+    fn net(lease: Duration) -> (Inputs, TmDestinations, Bound) {
         start_with_lease(local(), local(), local(), lease).unwrap()
     }
 
-    fn drain(inputs: &mut Inputs, down: &mut Downlink, until: Instant) -> Vec<Input> {
+    fn drain(inputs: &mut Inputs, down: &mut TmDestinations, until: Instant) -> Vec<Input> {
         let mut got = Vec::new();
         while Instant::now() < until {
             match inputs.next(down) {

@@ -1,5 +1,5 @@
 //! The real `obsw` binary over frames, killed with SIGKILL and restarted on the same state
-//! file, with the same ground `FrameLink` throughout: a TC frame captured before the crash
+//! file, with the same ground `GroundFrameLink` throughout: a TC frame captured before the crash
 //! is refused and counted as a replay, and the ground's FOP-1 continues (no
 //! re-initialisation, no alert) because FARM-1 resumes at the persisted V(R).
 
@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use ground_link::{create_key_file, Config, Event, FrameLink, TmSecurity};
+use ground_link::{create_key_file, Config, Event, GroundFrameLink, TmSecurity};
 use mib::params::pid;
 use mmic_link::fop::{FopConfig, FopState};
 use mmic_link::test_keys::{TEST_KEY_TC_A, TEST_KEY_TC_B, TEST_KEY_TM_A, TEST_KEY_TM_B};
@@ -102,7 +102,7 @@ impl Drop for Obsw {
 }
 
 /// Polls the link until `done` says so (or panics after `limit`), collecting events.
-fn until(g: &mut FrameLink, events: &mut Vec<Event>, limit: Duration, mut done: impl FnMut(&[u8]) -> bool) {
+fn until(g: &mut GroundFrameLink, events: &mut Vec<Event>, limit: Duration, mut done: impl FnMut(&[u8]) -> bool) {
     let t0 = Instant::now();
     loop {
         let pkts = g.recv(Duration::from_millis(20)).unwrap();
@@ -115,7 +115,7 @@ fn until(g: &mut FrameLink, events: &mut Vec<Event>, limit: Duration, mut done: 
 }
 
 /// Sends a ping and waits for its TM[1,7].
-fn ping(g: &mut FrameLink, events: &mut Vec<Event>, seq: u16) {
+fn ping(g: &mut GroundFrameLink, events: &mut Vec<Event>, seq: u16) {
     let p = tc(seq, 17, 1, &[]);
     g.send_packet(&p).unwrap();
     until(
@@ -153,7 +153,7 @@ fn after_kill_9_a_captured_frame_is_a_replay_and_the_ground_continues_without_re
         t1_ms: 500,
         ..FopConfig::mission()
     };
-    let mut g = FrameLink::open(cfg).unwrap();
+    let mut g = GroundFrameLink::open(cfg).unwrap();
     let ground = g.local_addr().unwrap();
     let mut obsw = Obsw::start_with(frame, ground, &dir, "tc.key", "tm.key");
     let mut events = Vec::new();
@@ -226,7 +226,7 @@ fn after_kill_9_a_captured_frame_is_a_replay_and_the_ground_continues_without_re
 }
 
 /// Sends a TC and waits for its completion (`Ok`) or a failure report (`Err(code)`).
-fn command(g: &mut FrameLink, events: &mut Vec<Event>, raw: &[u8]) -> Result<(), u16> {
+fn command(g: &mut GroundFrameLink, events: &mut Vec<Event>, raw: &[u8]) -> Result<(), u16> {
     g.send_packet(raw).unwrap();
     let mut out = None;
     until(g, events, Duration::from_secs(15), |t| {
@@ -263,10 +263,10 @@ fn link_spi_select_moves_the_real_obsw_to_tc_spi_2_and_tm_spi_18_without_a_tc_lo
         cfg.fop.t1_ms = 500;
         cfg
     };
-    let mut g = FrameLink::open(open(1)).unwrap();
+    let mut g = GroundFrameLink::open(open(1)).unwrap();
     let ground = g.local_addr().unwrap();
     let mut events = Vec::new();
-    let active = |g: &mut FrameLink, events: &mut Vec<Event>| {
+    let active = |g: &mut GroundFrameLink, events: &mut Vec<Event>| {
         let t0 = Instant::now();
         while g.fop_state() != FopState::Active {
             g.recv(Duration::from_millis(20)).unwrap();
@@ -290,7 +290,7 @@ fn link_spi_select_moves_the_real_obsw_to_tc_spi_2_and_tm_spi_18_without_a_tc_lo
     obsw.kill9();
     drop(g);
     // The same ground address (the obsw sends TM frames to it).
-    let mut g = FrameLink::open(Config {
+    let mut g = GroundFrameLink::open(Config {
         listen: ground,
         ..open(1)
     })
@@ -378,7 +378,7 @@ fn with_tm_sdls_clear_the_tm_frames_carry_packets_in_clear_and_only_a_clear_grou
     .unwrap();
     cfg.fop.t1_ms = 500;
     cfg.tm_security = TmSecurity::Clear;
-    let mut g = FrameLink::open(cfg.clone()).unwrap();
+    let mut g = GroundFrameLink::open(cfg.clone()).unwrap();
     let ground = g.local_addr().unwrap();
     let _obsw = Obsw::start_args(
         frame,

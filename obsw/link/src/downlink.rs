@@ -1,4 +1,4 @@
-//! The downlink: TM frames built on board ([`Downlink`]) and read on the ground
+//! The downlink: TM frames built on board ([`TmFramer`]) and read on the ground
 //! ([`TmReceiver`]).
 //!
 //! Virtual channels (`mib::link::tm_vc`): VC0 realtime and VC1 store replay carry packets,
@@ -99,7 +99,7 @@ pub struct TxCounters {
 /// [`TmVc::Replay`] goes into the VC0 zone and out on VC0 — and the framer is one packet
 /// zone (1012 bytes) smaller.
 #[derive(Debug)]
-pub struct Downlink<const ZONES: usize = 2> {
+pub struct TmFramer<const ZONES: usize = 2> {
     scid: u16,
     security: TmSecurity,
     mc: u8,
@@ -156,34 +156,34 @@ impl<S: IvStore, O: FnMut(&[u8])> FrameCtx<'_, S, O> {
     }
 }
 
-impl Downlink {
+impl TmFramer {
     /// A framer with SDLS on VC0/VC1 ([`TmSecurity::Encrypt`]).
-    pub fn new(scid: u16) -> Downlink {
-        Downlink::with_security(scid, TmSecurity::Encrypt)
+    pub fn new(scid: u16) -> TmFramer {
+        TmFramer::with_security(scid, TmSecurity::Encrypt)
     }
 
-    pub fn with_security(scid: u16, security: TmSecurity) -> Downlink {
-        Downlink::with_zones(scid, security)
+    pub fn with_security(scid: u16, security: TmSecurity) -> TmFramer {
+        TmFramer::with_zones(scid, security)
     }
 
-    pub fn mission() -> Downlink {
-        Downlink::new(mib::link::SCID)
+    pub fn mission() -> TmFramer {
+        TmFramer::new(mib::link::SCID)
     }
 }
 
-impl Downlink<1> {
+impl TmFramer<1> {
     /// The mission's framer with SDLS and only VC0's packet zone (board A: replays go on
     /// VC0 as well).
-    pub fn mission_realtime_only() -> Downlink<1> {
-        Downlink::with_zones(mib::link::SCID, TmSecurity::Encrypt)
+    pub fn mission_realtime_only() -> TmFramer<1> {
+        TmFramer::with_zones(mib::link::SCID, TmSecurity::Encrypt)
     }
 }
 
-impl<const ZONES: usize> Downlink<ZONES> {
+impl<const ZONES: usize> TmFramer<ZONES> {
     /// A framer with `ZONES` packet zones (1: VC0 only, 2: VC0 and VC1).
-    pub fn with_zones(scid: u16, security: TmSecurity) -> Downlink<ZONES> {
+    pub fn with_zones(scid: u16, security: TmSecurity) -> TmFramer<ZONES> {
         const { assert!(ZONES == 1 || ZONES == 2, "a TM framer has 1 or 2 packet zones") };
-        Downlink {
+        TmFramer {
             scid,
             security,
             mc: 0,
@@ -451,7 +451,7 @@ mod tests {
     // verifies: LINK-TM-04
     #[test]
     fn clear_tm_frames_carry_packets_in_a_1012_byte_zone_and_each_end_needs_the_same_setting() {
-        let mut dl = Downlink::with_security(mib::link::SCID, TmSecurity::Clear);
+        let mut dl = TmFramer::with_security(mib::link::SCID, TmSecurity::Clear);
         assert_eq!(dl.security(), TmSecurity::Clear);
         let mut sa = TxSa::resume(17, &TEST_KEY_TM_A, 0);
         let mut st = MemoryIvStore::default();
@@ -491,7 +491,7 @@ mod tests {
                 .is_err());
         }
         assert_eq!(g.counters.sdls_rejected, 2);
-        let mut enc = Downlink::mission();
+        let mut enc = TmFramer::mission();
         let mut secured = vec![];
         enc.send(TmVc::Realtime, &ps[0], clcw, &mut sa, &mut st, |_| {})
             .unwrap();
@@ -508,7 +508,7 @@ mod tests {
     // verifies: LINK-TM-01, LINK-TM-02, LINK-SDLS-03
     #[test]
     fn downlink_frames_carry_clcw_counters_and_packets() {
-        let mut dl = Downlink::mission();
+        let mut dl = TmFramer::mission();
         let mut sa = TxSa::resume(17, &TEST_KEY_TM_A, 0);
         let (mut st, mut gst) = (MemoryIvStore::default(), MemoryIvStore::default());
         let farm = Farm::mission();
@@ -575,7 +575,7 @@ mod tests {
     // verifies: LINK-TM-02
     #[test]
     fn a_framer_with_one_zone_sends_replays_on_vc0_and_is_one_zone_smaller() {
-        let mut dl = Downlink::mission_realtime_only();
+        let mut dl = TmFramer::mission_realtime_only();
         let mut sa = TxSa::resume(17, &TEST_KEY_TM_A, 0);
         let (mut st, mut gst) = (MemoryIvStore::default(), MemoryIvStore::default());
         let clcw = Farm::mission().clcw();
@@ -601,7 +601,7 @@ mod tests {
             .receive(&mut gst, &mut frames[0].clone(), |vc, p| got.push((vc, p.to_vec())))
             .unwrap();
         assert_eq!(got, vec![(0u8, rt), (0u8, replay)]);
-        assert!(core::mem::size_of::<Downlink<1>>() + CLEAR_DATA_LEN <= core::mem::size_of::<Downlink>());
+        assert!(core::mem::size_of::<TmFramer<1>>() + CLEAR_DATA_LEN <= core::mem::size_of::<TmFramer>());
     }
 
     proptest! {
@@ -621,7 +621,7 @@ mod tests {
             lens in proptest::collection::vec(7usize..2500, 1..30),
             drop in proptest::collection::vec(any::<bool>(), 64),
         ) {
-            let mut dl = Downlink::mission();
+            let mut dl = TmFramer::mission();
             let mut sa = TxSa::resume(17, &TEST_KEY_TM_A, 0);
             let (mut st, mut gst) = (MemoryIvStore::default(), MemoryIvStore::default());
             let clcw = Farm::mission().clcw();

@@ -1,5 +1,5 @@
 //! The robot's space-link endpoint without I/O: the TC receive pipeline ([`TcReceiver`]:
-//! CRC, lengths, SDLS, the control-frame gate, FARM-1), the TM framer ([`Downlink`], SDLS,
+//! CRC, lengths, SDLS, the control-frame gate, FARM-1), the TM framer ([`TmFramer`], SDLS,
 //! CLCW, idle frames), the counter store, the SPACE_LINK housekeeping values and the link
 //! events their changes raise. Time is passed in; frames come in as byte slices and go out
 //! through a closure.
@@ -11,7 +11,7 @@
 //! frames its line lost.
 
 use crate::clcw::Clcw;
-use crate::downlink::{Downlink, TmVc};
+use crate::downlink::{TmFramer, TmVc};
 use crate::hk::{changes, control_event_fields, space_link_values, LinkChange, SPACE_LINK_PARAMS};
 use crate::rx::{Packets, RxCounters, RxOutcome, TcReceiver};
 use crate::sdls::{IvStore, TxSa};
@@ -51,7 +51,7 @@ pub enum LinkReport {
 /// zones (2: realtime VC0 and replay VC1; 1: replays on VC0).
 pub struct Endpoint<St, const SAS: usize, const ZONES: usize> {
     pub rx: TcReceiver<SAS>,
-    framer: Downlink<ZONES>,
+    framer: TmFramer<ZONES>,
     /// The TM SA in use (`None`: no TM key, nothing but idle frames goes down).
     tm_sa: Option<TxSa>,
     store: St,
@@ -77,7 +77,7 @@ const fn vc_index(vc: TmVc) -> usize {
 
 impl<St: IvStore + StoreStats, const SAS: usize, const ZONES: usize> Endpoint<St, SAS, ZONES> {
     /// An endpoint whose first CLCW goes out at the first [`Endpoint::flush`].
-    pub fn new(rx: TcReceiver<SAS>, framer: Downlink<ZONES>, tm_sa: Option<TxSa>, store: St) -> Self {
+    pub fn new(rx: TcReceiver<SAS>, framer: TmFramer<ZONES>, tm_sa: Option<TxSa>, store: St) -> Self {
         Endpoint {
             rx,
             framer,
@@ -220,7 +220,7 @@ mod tests {
         sas.insert(RxSa::new(1, &TEST_KEY_TC_A, 64)).unwrap();
         Endpoint::new(
             TcReceiver::mission(sas),
-            Downlink::mission_realtime_only(),
+            TmFramer::mission_realtime_only(),
             Some(TxSa::resume(17, &TEST_KEY_TM_A, 0)),
             MemoryIvStore::default(),
         )

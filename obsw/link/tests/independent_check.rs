@@ -7,7 +7,7 @@ use std::collections::HashMap;
 use std::path::PathBuf;
 use std::process::Command;
 
-use mmic_link::downlink::{Downlink, TmVc};
+use mmic_link::downlink::{TmFramer, TmVc};
 use mmic_link::farm::{Farm, FarmInput};
 use mmic_link::fecf;
 use mmic_link::sdls::{build_tc, MemoryIvStore, TxSa};
@@ -166,7 +166,7 @@ fn python_verifies_tm_frames_clcw_and_rejects_altered_ones() {
         buffer_available: true,
     }); // a gap: retransmit
     let clcw = farm.clcw();
-    let mut dl = Downlink::mission();
+    let mut dl = TmFramer::mission();
     let mut frames: Vec<Vec<u8>> = vec![];
     let packets: Vec<_> = (0..5).map(|i| space_packet(0x30, i, 500)).collect();
     for p in &packets {
@@ -242,7 +242,7 @@ fn python_reads_clear_tm_frames_packets_in_a_1012_byte_zone() {
     let mut st = MemoryIvStore::default();
     let mut sa = TxSa::resume(17, &TEST_KEY_TM_A, 0);
     let clcw = Farm::mission().clcw();
-    let mut dl = Downlink::with_security(mib::link::SCID, TmSecurity::Clear);
+    let mut dl = TmFramer::with_security(mib::link::SCID, TmSecurity::Clear);
     let mut frames: Vec<Vec<u8>> = vec![];
     let packets: Vec<_> = (0..3)
         .map(|i| {

@@ -14,7 +14,7 @@ use mmic_domain::board_b::{BoardB, BoardBOut};
 use mmic_domain::types::SensorsB;
 use mmic_fuzz::{pus_tc::tc, push_record};
 use mmic_link::clcw::Clcw;
-use mmic_link::downlink::{Downlink, TmVc};
+use mmic_link::downlink::{TmFramer, TmVc};
 use mmic_link::sdls::{build_tc, MemoryIvStore, TxSa};
 use mmic_link::tc::{ControlCommand, FrameType, TcRepr};
 use mmic_link::test_keys::{TEST_KEY_TC_A, TEST_KEY_TC_B, TEST_KEY_TM_A, TEST_KEY_TM_B};
@@ -334,7 +334,7 @@ fn toml_files(dir: &str) -> Vec<PathBuf> {
 
 /// A TM frame of the robot's framer (for the COBS seeds).
 fn tm_frames(packets: &[Vec<u8>]) -> Vec<Vec<u8>> {
-    let mut dl = Downlink::mission();
+    let mut dl = TmFramer::mission();
     let (mut sa, mut st) = (TxSa::resume(17, &TEST_KEY_TM_A, 0), MemoryIvStore::default());
     let clcw = Clcw::parse(0x0100_0000).expect("CLCW");
     let mut frames = Vec::new();
@@ -363,7 +363,7 @@ fn ground_tm_frames(root: &Path, tm: &[Vec<u8>]) {
     push_record(&mut s, 2, &clcw1);
     c.put("idle_settle_then_tm", &s);
     // Frames of a robot with another TM key (refused at the MAC), COBS on the line.
-    let mut dl = Downlink::mission();
+    let mut dl = TmFramer::mission();
     let (mut sa, mut st) = (TxSa::resume(17, &TEST_KEY_TM_B, 0), MemoryIvStore::default());
     let clcw = Clcw::parse(0x0100_0000).expect("CLCW");
     let mut frames = Vec::new();

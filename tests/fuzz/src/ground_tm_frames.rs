@@ -1,4 +1,4 @@
-//! The ground's TM frame receiver (`ground_link::FrameLink` over a byte stream: COBS
+//! The ground's TM frame receiver (`ground_link::GroundFrameLink` over a byte stream: COBS
 //! deframing, TM frame checks, SDLS, packet demultiplexing, the CLCW into FOP-1), fed the
 //! bytes of board A's serial ground link through a socket pair, as `ground` runs against a
 //! board or QEMU. A ping TC is queued first, so FOP-1 has a frame to send once the link
@@ -6,7 +6,7 @@
 //!
 //! Records:
 //! - tag % 4 == 0: raw bytes on the line (an attacker's bytes, a replayed capture);
-//! - 1: the robot's framer (`mmic_link::downlink::Downlink`, TM test key) sends a packet:
+//! - 1: the robot's framer (`mmic_link::downlink::TmFramer`, TM test key) sends a packet:
 //!   body = CLCW word (4 bytes), flags, packet; flags bit 0: replay VC; bit 1: wrap the
 //!   packet in a TM space-packet header; the frames go on the line COBS-encoded;
 //! - 2: an idle frame carrying the CLCW word of the body's first 4 bytes;
@@ -20,9 +20,9 @@ use std::io::{Read, Write};
 use std::os::unix::net::UnixStream;
 use std::path::PathBuf;
 
-use ground_link::{Config, FrameLink, TmSecurity, RESYNC_SETTLE_MS};
+use ground_link::{Config, GroundFrameLink, TmSecurity, RESYNC_SETTLE_MS};
 use mmic_link::clcw::Clcw;
-use mmic_link::downlink::{Downlink, TmVc};
+use mmic_link::downlink::{TmFramer, TmVc};
 use mmic_link::fop::FopConfig;
 use mmic_link::sdls::{MemoryIvStore, TxSa};
 use mmic_link::stream::port::Port;
@@ -61,7 +61,7 @@ pub fn tm_packet(body: &[u8]) -> Vec<u8> {
 }
 
 struct Robot {
-    dl: Downlink,
+    dl: TmFramer,
     sa: TxSa,
     store: MemoryIvStore,
     line: UnixStream,
@@ -114,10 +114,10 @@ pub fn run(data: &[u8]) {
         fop: FopConfig::mission(),
         settle_ms: RESYNC_SETTLE_MS,
     };
-    let mut link = FrameLink::open_port(cfg, Port::from_unix(ground_end).expect("port")).expect("link opens");
+    let mut link = GroundFrameLink::open_port(cfg, Port::from_unix(ground_end).expect("port")).expect("link opens");
     let _ = link.send_packet(&crate::pus_tc::tc(1, 17, 1, &[]));
     let mut robot = Robot {
-        dl: Downlink::mission(),
+        dl: TmFramer::mission(),
         sa: TxSa::resume(mib::link::sdls::TM_SPIS[0], &TEST_KEY_TM_A, 0),
         store: MemoryIvStore::default(),
         line: robot_end,
