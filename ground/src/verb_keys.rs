@@ -51,8 +51,8 @@ pub(crate) fn keys(c: &KeysCmd) -> Result<u8> {
                 out(&format!(
                     "robot {r}: obsw --robot {r} --keys {d} (TC frames on 127.0.0.1:{fp}, TM frames to 127.0.0.1:{tp}); ground … --keys {d} --robot {r}",
                     d = dir.display(),
-                    fp = mib::config::frame_port(r),
-                    tp = mib::config::tm_frame_port(r),
+                    fp = mib::host_config::frame_port(r),
+                    tp = mib::host_config::tm_frame_port(r),
                 ))?;
             }
             if *team {

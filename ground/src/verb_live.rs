@@ -174,12 +174,12 @@ pub(crate) fn policy_error(e: ops::policy::PolicyError) -> anyhow::Error {
 
 /// How often `send`/`mode` ask the on-board store for the reports they miss (the MIB's
 /// gap-check periods).
-const GAP_CHECK_PERIOD: Duration = Duration::from_millis(mib::config::GAP_CHECK_PERIOD_MS as u64);
-const GAP_CHECK_PERIOD_FRAMES: Duration = Duration::from_millis(mib::config::GAP_CHECK_PERIOD_FRAMES_MS as u64);
+const GAP_CHECK_PERIOD: Duration = Duration::from_millis(mib::ground_config::GAP_CHECK_PERIOD_MS as u64);
+const GAP_CHECK_PERIOD_FRAMES: Duration = Duration::from_millis(mib::ground_config::GAP_CHECK_PERIOD_FRAMES_MS as u64);
 /// `ping`: how much longer it waits, while the robot is heard, for a reply that did not
 /// come in the live wait (over frames asked of the store): two store requests' time,
-/// `mib::config::STORE_REQUEST_TIMEOUT_MS`.
-const STORE_WAIT: Duration = Duration::from_millis(2 * mib::config::STORE_REQUEST_TIMEOUT_MS as u64);
+/// `mib::ground_config::STORE_REQUEST_TIMEOUT_MS`.
+const STORE_WAIT: Duration = Duration::from_millis(2 * mib::ground_config::STORE_REQUEST_TIMEOUT_MS as u64);
 
 /// Sends one TC and reports its verification until completion or failure.
 pub(crate) fn send_and_follow(
@@ -357,7 +357,7 @@ pub(crate) fn watch(a: &WatchArgs, archive_path: Option<&Path>) -> Result<u8> {
             s.send(r, ping, &[], None, Some("watch".into()))?;
         }
     }
-    let renew = Duration::from_millis(mib::config::SUBSCRIPTION_LEASE_MS as u64 / 3);
+    let renew = Duration::from_millis(mib::host_config::SUBSCRIPTION_LEASE_MS as u64 / 3);
     let mut renewed = Instant::now();
     let t0 = Instant::now();
     let mut n = 0u64;
@@ -372,7 +372,7 @@ pub(crate) fn watch(a: &WatchArgs, archive_path: Option<&Path>) -> Result<u8> {
             }
             // A quiet robot (slow HK) is asked once a heartbeat period, so the link-loss
             // watch tells silence from a dead link.
-            let beat = Duration::from_millis(mib::config::GROUND_HEARTBEAT_MS as u64);
+            let beat = Duration::from_millis(mib::ground_config::GROUND_HEARTBEAT_MS as u64);
             for &(r, _) in &links {
                 let quiet = s
                     .robots

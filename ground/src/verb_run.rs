@@ -59,7 +59,7 @@ pub(crate) fn run_plan(a: &RunArgs, archive_path: Option<&Path>) -> Result<u8> {
     );
     let opts = RunOptions {
         step_timeout: Duration::from_secs_f64(a.step_timeout),
-        ping_period: (!a.no_ping).then(|| Duration::from_millis(mib::config::GROUND_HEARTBEAT_MS as u64)),
+        ping_period: (!a.no_ping).then(|| Duration::from_millis(mib::ground_config::GROUND_HEARTBEAT_MS as u64)),
         display: !a.plain && std::io::IsTerminal::is_terminal(&std::io::stderr()),
         stop: Some(interrupt_flag()),
         grace: Duration::from_secs_f64(a.grace.max(0.0)),

@@ -35,7 +35,11 @@ pub(crate) fn sim_command(addr: SocketAddr, line: &str, timeout: Duration) -> Re
 
 /// Simulator control address of robot `n`.
 pub(crate) fn sim_addr(n: u8) -> SocketAddr {
-    (std::net::Ipv4Addr::LOCALHOST, mib::config::SIM_CTL_BASE_PORT + n as u16).into()
+    (
+        std::net::Ipv4Addr::LOCALHOST,
+        mib::host_config::SIM_CTL_BASE_PORT + n as u16,
+    )
+        .into()
 }
 
 pub(crate) fn sim(a: &SimArgs) -> Result<u8> {

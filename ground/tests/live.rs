@@ -277,7 +277,7 @@ fn a_lost_tc_is_resent_with_the_same_sequence_count() {
     let t = text(&out);
     assert_eq!(out.status.code(), Some(0), "{t}");
     assert!(t.contains("resent the same bytes (send 2)"), "{t}");
-    assert!(t0.elapsed() >= Duration::from_millis(mib::config::TC_RETRY_INITIAL_MS as u64));
+    assert!(t0.elapsed() >= Duration::from_millis(mib::ground_config::TC_RETRY_INITIAL_MS as u64));
     let out = ground(&dir, &["archive", "query", "--type", "tc", "--json"]);
     let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
         .lines()
@@ -312,7 +312,7 @@ fn an_unreachable_obsw_is_reported_within_the_link_loss_time() {
         "{t}"
     );
     // Reported within the MIB's link-loss time, not after every resend.
-    let expect = Duration::from_millis(mib::config::LINK_LOSS_MS as u64);
+    let expect = Duration::from_millis(mib::ground_config::LINK_LOSS_MS as u64);
     assert!(
         t0.elapsed() >= expect && t0.elapsed() < expect + Duration::from_secs(3),
         "{:?}",

@@ -66,7 +66,7 @@ fn nothing_heard_is_exit_8_from_every_verb_within_the_link_loss_time() {
     let dir = tmpdir("ops", "nothing");
     std::fs::write(dir.join("one.toml"), ONE_ROBOT_PLAN).unwrap();
     let robot = format!("1=127.0.0.1:{}", free_port());
-    let limit = Duration::from_millis(mib::config::LINK_LOSS_MS as u64) + Duration::from_secs(2);
+    let limit = Duration::from_millis(mib::ground_config::LINK_LOSS_MS as u64) + Duration::from_secs(2);
     check_all(&dir, &robot, 8, "robot 1: nothing heard from 127.0.0.1:", limit);
 }
 

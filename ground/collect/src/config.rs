@@ -10,8 +10,8 @@ use serde::Deserialize;
 
 use crate::link::{FrameOptions, Transport};
 
-/// Longest pause between reconnection attempts ([`mib::config::GROUND_RECONNECT_CAP_MS`]).
-pub const MAX_BACKOFF_CAP_MS: u64 = mib::config::GROUND_RECONNECT_CAP_MS as u64;
+/// Longest pause between reconnection attempts ([`mib::ground_config::GROUND_RECONNECT_CAP_MS`]).
+pub const MAX_BACKOFF_CAP_MS: u64 = mib::ground_config::GROUND_RECONNECT_CAP_MS as u64;
 
 #[derive(Deserialize, Debug, Default)]
 #[serde(deny_unknown_fields)]
@@ -124,13 +124,13 @@ impl Default for Config {
             robots: Vec::new(),
             plans: Vec::new(),
             retain_ms: None,
-            loss_timeout_ms: mib::config::LINK_LOSS_MS as u64,
+            loss_timeout_ms: mib::ground_config::LINK_LOSS_MS as u64,
             max_backoff_ms: MAX_BACKOFF_CAP_MS,
             lease_renew_ms: super::onboard::LEASE_RENEW_MS as u64,
-            gap_settle_ms: mib::config::GAP_SETTLE_MS as u64,
-            gap_retry_ms: mib::config::GAP_RETRY_MS as u64,
-            gap_max_tries: mib::config::GAP_MAX_TRIES,
-            stale_hk_intervals: mib::config::STALE_HK_INTERVALS,
+            gap_settle_ms: mib::ground_config::GAP_SETTLE_MS as u64,
+            gap_retry_ms: mib::ground_config::GAP_RETRY_MS as u64,
+            gap_max_tries: mib::ground_config::GAP_MAX_TRIES,
+            stale_hk_intervals: mib::ground_config::STALE_HK_INTERVALS,
             event_min_severity: mib::events::Severity::Medium,
             limits: true,
         }

@@ -16,8 +16,8 @@ use super::tracker::Pos;
 /// How often the lease of the downlink subscription is renewed (every accepted TC
 /// renews it; a ping is the cheapest): the MIB's ground heartbeat, well inside the
 /// obsw's `SUBSCRIPTION_LEASE_MS`.
-pub const LEASE_RENEW_MS: i64 = mib::config::GROUND_HEARTBEAT_MS as i64;
-const _: () = assert!(3 * LEASE_RENEW_MS < mib::config::SUBSCRIPTION_LEASE_MS as i64);
+pub const LEASE_RENEW_MS: i64 = mib::ground_config::GROUND_HEARTBEAT_MS as i64;
+const _: () = assert!(3 * LEASE_RENEW_MS < mib::host_config::SUBSCRIPTION_LEASE_MS as i64);
 
 /// On-board APID of a robot.
 pub fn apid(robot: u8) -> Option<u16> {

@@ -36,17 +36,17 @@ use super::robotcfg::ConfigTracker;
 use super::store::SinkMsg;
 use super::tracker::{ApidTracker, GapPlan, LinkWatch, Pos, RetrievalPacer};
 
-/// [`mib::config::GROUND_RECONNECT_FIRST_MS`]: first pause between reconnection attempts;
+/// [`mib::ground_config::GROUND_RECONNECT_FIRST_MS`]: first pause between reconnection attempts;
 /// doubles up to the configured cap.
-const BACKOFF_START_MS: i64 = mib::config::GROUND_RECONNECT_FIRST_MS as i64;
-/// [`mib::config::COLLECTOR_HEALTH_MS`]: health written to the archive this often.
-const HEALTH_MS: i64 = mib::config::COLLECTOR_HEALTH_MS as i64;
-/// [`mib::config::GAP_REQUESTS_LIVE`]: one replay in flight per robot.
-const MAX_RUNS_PER_REQUEST: usize = mib::config::GAP_REQUESTS_LIVE;
-/// [`mib::config::HK_SET_TRIES`].
-const HK_SET_TRIES: u32 = mib::config::HK_SET_TRIES;
-/// [`mib::config::GROUND_ASK_AGAIN_MS`].
-const ASK_AGAIN_MS: i64 = mib::config::GROUND_ASK_AGAIN_MS as i64;
+const BACKOFF_START_MS: i64 = mib::ground_config::GROUND_RECONNECT_FIRST_MS as i64;
+/// [`mib::ground_config::COLLECTOR_HEALTH_MS`]: health written to the archive this often.
+const HEALTH_MS: i64 = mib::ground_config::COLLECTOR_HEALTH_MS as i64;
+/// [`mib::ground_config::GAP_REQUESTS_LIVE`]: one replay in flight per robot.
+const MAX_RUNS_PER_REQUEST: usize = mib::ground_config::GAP_REQUESTS_LIVE;
+/// [`mib::ground_config::HK_SET_TRIES`].
+const HK_SET_TRIES: u32 = mib::ground_config::HK_SET_TRIES;
+/// [`mib::ground_config::GROUND_ASK_AGAIN_MS`].
+const ASK_AGAIN_MS: i64 = mib::ground_config::GROUND_ASK_AGAIN_MS as i64;
 
 /// Link state shown to operators: the one of every front end ([`LinkWatch`]).
 pub use ground_ops::live::LinkState;

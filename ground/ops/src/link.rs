@@ -92,20 +92,20 @@ impl FrameOptions {
 }
 
 /// Default address of robot `n` over `transport`: its space-link port
-/// (`mib::config::frame_port`, obsw --frame-udp's default), or its bare-packet port on a
-/// lab link (`mib::config::robot_port`, obsw --udp's default); loopback either way.
+/// (`mib::host_config::frame_port`, obsw --frame-udp's default), or its bare-packet port on a
+/// lab link (`mib::host_config::robot_port`, obsw --udp's default); loopback either way.
 pub fn default_addr(n: u8, transport: Transport) -> SocketAddr {
     let port = match transport {
-        Transport::Frames => mib::config::frame_port(n),
-        Transport::Udp | Transport::Tcp => mib::config::robot_port(n),
+        Transport::Frames => mib::host_config::frame_port(n),
+        Transport::Udp | Transport::Tcp => mib::host_config::robot_port(n),
     };
     (std::net::Ipv4Addr::LOCALHOST, port).into()
 }
 
-/// Robot N's TM frames by default: port `mib::config::tm_frame_port(N)` (7600 + N), on
+/// Robot N's TM frames by default: port `mib::host_config::tm_frame_port(N)` (7600 + N), on
 /// loopback when the robot is there.
 pub fn default_tm_listen(robot: u8, robot_addr: SocketAddr) -> SocketAddr {
-    let port = mib::config::tm_frame_port(robot);
+    let port = mib::host_config::tm_frame_port(robot);
     if robot_addr.ip().is_loopback() {
         (std::net::Ipv4Addr::LOCALHOST, port).into()
     } else {

@@ -105,8 +105,8 @@ impl Default for LinkChoice {
 
 impl LinkChoice {
     /// Robot `n`'s address when `--robot N` gives none: on loopback, its space-link port
-    /// (`mib::config::frame_port`, obsw --frame-udp's default), or with a lab flag its
-    /// bare-packet port (`mib::config::robot_port`, obsw --udp's default).
+    /// (`mib::host_config::frame_port`, obsw --frame-udp's default), or with a lab flag its
+    /// bare-packet port (`mib::host_config::robot_port`, obsw --udp's default).
     pub fn default_addr(&self, n: u8) -> SocketAddr {
         let transport = match (self.lab_udp, self.lab_tcp) {
             (true, _) => Transport::Udp,

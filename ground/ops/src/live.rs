@@ -1,8 +1,8 @@
 //! The live link of one robot, the same for every front end (the CLI's
 //! [`crate::ops::Session`], the collector's per-robot worker and the page it feeds):
 //! - [`LinkWatch`] (`watch.rs`): is the link up? One link-loss rule
-//!   ([`mib::config::link_loss_ms`]: no TM for 2.5 status-HK intervals, at least
-//!   [`mib::config::LINK_LOSS_MS`]);
+//!   ([`mib::ground_config::link_loss_ms`]: no TM for 2.5 status-HK intervals, at least
+//!   [`mib::ground_config::LINK_LOSS_MS`]);
 //! - [`ApidTracker`] (`track.rs`): is the TM complete? Sequence counts of one APID:
 //!   new, filled, duplicate, restart; the holes to retrieve and the ones that can no
 //!   longer be had;
@@ -10,8 +10,8 @@
 //!   distance and one set of request limits, all from the MIB;
 //! - [`RetrievalPacer`] (`pace.rs`): when a store retrieval is in flight and when the next
 //!   may go — one in flight per robot, ended by its end report, its TC's outcome or
-//!   [`mib::config::STORE_REQUEST_TIMEOUT_MS`], spaced by
-//!   [`mib::config::STORE_REQUEST_MIN_GAP_MS`].
+//!   [`mib::ground_config::STORE_REQUEST_TIMEOUT_MS`], spaced by
+//!   [`mib::ground_config::STORE_REQUEST_MIN_GAP_MS`].
 //!
 //! Pure: no I/O, times passed in (ms).
 

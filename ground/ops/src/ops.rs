@@ -37,8 +37,9 @@ pub const START_LABEL: &str = "start marker";
 
 /// Label of the store retrievals a session sends for TM gaps.
 pub const GAP_LABEL: &str = "gap retrieval";
-pub use mib::config::{GAP_MERGE_DISTANCE, GAP_REQUESTS_MAX};
+pub use mib::ground_config::{GAP_MERGE_DISTANCE, GAP_REQUESTS_MAX};
 
-/// [`mib::config::UNTAGGED_COMPLETION_WAIT_MS`]: how long an accepted TC that no step
+/// [`mib::ground_config::UNTAGGED_COMPLETION_WAIT_MS`]: how long an accepted TC that no step
 /// waits for (a marker, a store retrieval) is tracked for its completion.
-pub const UNTAGGED_COMPLETION_WAIT: Duration = Duration::from_millis(mib::config::UNTAGGED_COMPLETION_WAIT_MS as u64);
+pub const UNTAGGED_COMPLETION_WAIT: Duration =
+    Duration::from_millis(mib::ground_config::UNTAGGED_COMPLETION_WAIT_MS as u64);

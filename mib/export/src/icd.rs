@@ -941,7 +941,10 @@ fn section_system_constants(o: &mut String) {
             format!("{} ms", config::B_HEARTBEAT_PERIOD_MS),
         ),
         ("A–B link", format!("{} baud", config::AB_LINK_BAUD)),
-        ("default OBSW port (robot N: + N − 1)", config::DEFAULT_PORT.to_string()),
+        (
+            "default OBSW port (robot N: + N − 1)",
+            mib::host_config::DEFAULT_PORT.to_string(),
+        ),
         ("TM queue depth", format!("{} packets", config::TM_QUEUE_DEPTH)),
         ("TM store capacity", format!("{} packets", config::TM_STORE_CAPACITY)),
         ("schedule capacity", format!("{} activities", config::SCHEDULE_CAPACITY)),
@@ -952,17 +955,20 @@ fn section_system_constants(o: &mut String) {
         ("pending action queue", config::ACTION_QUEUE_DEPTH.to_string()),
         (
             "ground acknowledgement timeout",
-            format!("{} ms", config::GROUND_ACK_TIMEOUT_MS),
+            format!("{} ms", mib::ground_config::GROUND_ACK_TIMEOUT_MS),
         ),
         (
             "ground connection-test period",
-            format!("{} ms", config::GROUND_PING_PERIOD_MS),
+            format!("{} ms", mib::ground_config::GROUND_PING_PERIOD_MS),
         ),
         (
             "link-quality window",
-            format!("{} exchanges", config::LINK_QUALITY_WINDOW),
+            format!("{} exchanges", mib::ground_config::LINK_QUALITY_WINDOW),
         ),
-        ("ground resends per TC", config::GROUND_MAX_RESENDS.to_string()),
+        (
+            "ground resends per TC",
+            mib::ground_config::GROUND_MAX_RESENDS.to_string(),
+        ),
     ] {
         let _ = writeln!(o, "| {n} | {v} |");
     }

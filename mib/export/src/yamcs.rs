@@ -48,7 +48,7 @@ pub const HTTP_PORT: u16 = 8090;
 /// Yamcs listens for robot N's TM (frames, or packets in the lab) on UDP port `TM_BASE_PORT + N`.
 pub const TM_BASE_PORT: u16 = 10_000;
 /// Yamcs sends robot N's TC frames to UDP port `FRAME_BASE_PORT + N` (`obsw --frame-udp`).
-pub use mib::config::FRAME_BASE_PORT;
+pub use mib::host_config::FRAME_BASE_PORT;
 /// Directory of the SDLS key files, relative to the instance directory (Yamcs runs there).
 pub const KEY_DIR: &str = "etc/keys";
 
@@ -170,7 +170,7 @@ pub struct YamcsRobot {
 
 impl YamcsRobot {
     /// Robot `n` with the default ports on the loopback: TC frames to `FRAME_BASE_PORT + n`
-    /// (lab: packets to the obsw's default port [`config::robot_port`]), TM on
+    /// (lab: packets to the obsw's default port [`mib::host_config::robot_port`]), TM on
     /// `TM_BASE_PORT + n`.
     pub fn default_for(n: u8, links: Links) -> YamcsRobot {
         YamcsRobot {
@@ -178,7 +178,7 @@ impl YamcsRobot {
             tc_host: "127.0.0.1".into(),
             tc_port: match links {
                 Links::Frames => FRAME_BASE_PORT + n as u16,
-                Links::LabPackets => config::robot_port(n),
+                Links::LabPackets => mib::host_config::robot_port(n),
             },
             tm_port: TM_BASE_PORT + n as u16,
         }
@@ -1108,7 +1108,7 @@ mod tests {
         assert!(inst.contains("LAB ONLY"));
         for n in [2u8, 5] {
             assert!(inst.contains(&format!("port: {}", TM_BASE_PORT + n as u16)));
-            assert!(inst.contains(&format!("port: {}", config::robot_port(n))));
+            assert!(inst.contains(&format!("port: {}", mib::host_config::robot_port(n))));
             assert!(inst.contains(&format!("eventIdParameter: /MMIC_I_ROBOT_{n}/EVENT_ID")));
             assert!(get(&mdb_file(n)).contains(&format!("value=\"{}\"", 0x100 + n as u16)));
         }

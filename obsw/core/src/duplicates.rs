@@ -21,8 +21,10 @@ pub(crate) enum Outcome {
 // bytes for at most `TC_RETRY_SPAN_MS` (its retry schedule), so a TC is remembered at
 // least that long, and the window holds more entries than the heartbeat pings the
 // ground sends in that span (the rest is for other TCs: see docs/architecture.md).
-const _: () = assert!(config::DUPLICATE_MAX_AGE_MS >= config::TC_RETRY_SPAN_MS);
-const _: () = assert!(config::DUPLICATE_WINDOW as u32 > config::TC_RETRY_SPAN_MS / config::GROUND_HEARTBEAT_MS);
+const _: () = assert!(config::DUPLICATE_MAX_AGE_MS >= mib::ground_config::TC_RETRY_SPAN_MS);
+const _: () = assert!(
+    config::DUPLICATE_WINDOW as u32 > mib::ground_config::TC_RETRY_SPAN_MS / mib::ground_config::GROUND_HEARTBEAT_MS
+);
 
 #[derive(Clone, Debug)]
 struct Seen {

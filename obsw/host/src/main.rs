@@ -308,12 +308,12 @@ fn settings(a: Args) -> Result<Settings> {
         );
     }
     let local = |port: u16| SocketAddr::from(([127, 0, 0, 1], port));
-    let udp = a.udp.or(f.udp).unwrap_or(local(config::robot_port(robot)));
+    let udp = a.udp.or(f.udp).unwrap_or(local(mib::host_config::robot_port(robot)));
     let tcp = a.tcp.or(f.tcp).unwrap_or(udp);
     let sim_ctl = a
         .sim_ctl
         .or(f.sim_ctl)
-        .unwrap_or(local(config::SIM_CTL_BASE_PORT + robot as u16));
+        .unwrap_or(local(mib::host_config::SIM_CTL_BASE_PORT + robot as u16));
     let speed = a.speed.or(f.speed).unwrap_or(1.0);
     if !(speed.is_finite() && speed > 0.0 && speed <= 100_000.0) {
         bail!("--speed {speed}: must be a number in (0, 100000]");
@@ -361,8 +361,8 @@ fn settings(a: Args) -> Result<Settings> {
     let udp_default = |port: u16| keys.as_ref().filter(|_| udp_defaults).map(|_| local(port));
     let wire = match (
         serial,
-        frame_udp.or_else(|| udp_default(config::frame_port(robot))),
-        frame_tm_to.or_else(|| udp_default(config::tm_frame_port(robot))),
+        frame_udp.or_else(|| udp_default(mib::host_config::frame_port(robot))),
+        frame_tm_to.or_else(|| udp_default(mib::host_config::tm_frame_port(robot))),
     ) {
         (Some(path), _, _) => Some(frames::FrameWire::Serial(path)),
         (None, Some(listen), Some(tm_to)) => Some(frames::FrameWire::Udp { listen, tm_to }),
@@ -653,7 +653,7 @@ fn run(args: Args) -> Result<()> {
         let mut handled = 0;
         // TC frames handled whose TM has not been flushed yet.
         let mut frames_unflushed = false;
-        while handled < config::HOST_INPUT_BATCH {
+        while handled < mib::host_config::HOST_INPUT_BATCH {
             // A LINK_SPI_SELECT just executed takes effect before the next input.
             frames::apply_select(&mut obsw.link_select, down.frames.as_mut());
             let mut any = false;
@@ -705,7 +705,7 @@ fn run(args: Args) -> Result<()> {
         }
         let due = wall_of(sim_ms + period);
         if Instant::now() < due {
-            if handled < config::HOST_INPUT_BATCH {
+            if handled < mib::host_config::HOST_INPUT_BATCH {
                 inputs.wait_until(due, &mut down);
             }
             continue;
@@ -854,7 +854,7 @@ fn handle_input(
             from,
             &format!(
                 "error line of {len} bytes refused: at most {} bytes of UTF-8 text",
-                config::SIM_CTL_MAX_LINE
+                mib::host_config::SIM_CTL_MAX_LINE
             ),
         ),
         Input::SimCtl(line, from) => inputs.reply_sim_ctl(from, &sim_control(sim, &line)),

@@ -23,9 +23,9 @@ use std::net::{SocketAddr, UdpSocket};
 use std::os::fd::AsRawFd;
 use std::time::{Duration, Instant};
 
-use mib::config::{
-    MAX_PACKET_LEN, MAX_SUBSCRIBERS, SIM_CTL_MAX_LINE, SUBSCRIPTION_LEASE_MS, TCP_INPUT_QUEUE, TCP_MAX_CONNECTIONS,
-    TCP_TM_BACKLOG,
+use mib::config::MAX_PACKET_LEN;
+use mib::host_config::{
+    MAX_SUBSCRIBERS, SIM_CTL_MAX_LINE, SUBSCRIPTION_LEASE_MS, TCP_INPUT_QUEUE, TCP_MAX_CONNECTIONS, TCP_TM_BACKLOG,
 };
 use mio::net::{TcpListener, TcpStream};
 use mio::unix::SourceFd;
@@ -309,7 +309,7 @@ impl TmDestinations {
 /// slower than the OBSW writes) is waited out for up to `TM_WRITE_TIMEOUT_MS`, so a
 /// burst is paced rather than lost; an unreachable peer fails at once.
 pub(crate) fn send_udp(sock: &UdpSocket, packet: &[u8], peer: SocketAddr) -> bool {
-    let deadline = Instant::now() + Duration::from_millis(mib::config::TM_WRITE_TIMEOUT_MS as u64);
+    let deadline = Instant::now() + Duration::from_millis(mib::host_config::TM_WRITE_TIMEOUT_MS as u64);
     loop {
         match sock.send_to(packet, peer) {
             Ok(_) => return true,

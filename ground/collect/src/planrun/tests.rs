@@ -1,7 +1,7 @@
 use super::*;
 use std::time::{Duration, Instant};
 
-use mib::config::{tc_retry_wait_ms, TC_RETRY_MAX};
+use mib::ground_config::{tc_retry_wait_ms, TC_RETRY_MAX};
 
 use crate::ops::book::{Due, Pending, TcBook, Verdict};
 use crate::ops::{Effect, Executor, RunOptions, Update};
@@ -111,7 +111,7 @@ fn a_damaged_copy_is_resent_at_once_and_a_silent_tc_is_given_up_after_its_sends(
     let mut sends = 2;
     let mut gave_up = None;
     for _ in 0..100 {
-        t += Duration::from_millis(mib::config::TC_RETRY_CAP_MS as u64);
+        t += Duration::from_millis(mib::ground_config::TC_RETRY_CAP_MS as u64);
         for d in b.on_tick(t, |_| true) {
             match d {
                 Due::Resend { .. } => sends += 1,

@@ -52,7 +52,7 @@ impl Worker {
         if up {
             let hk_since = self.last_hk_ms.unwrap_or(self.started_ms).max(self.up_since_ms);
             let stale_ms = self.global.stale_hk_intervals as i64 * self.hk_interval_ms as i64;
-            if now - hk_since > stale_ms.max(i64::from(mib::config::STALE_HK_MIN_MS)) {
+            if now - hk_since > stale_ms.max(i64::from(mib::ground_config::STALE_HK_MIN_MS)) {
                 self.condition(
                     Source::StaleData,
                     Severity::Medium,

@@ -1,7 +1,7 @@
 //! Which store retrievals to send for a robot's TM gaps: one merge distance and one set of
 //! request limits for every front end, from the MIB.
 
-use mib::config::{GAP_MERGE_DISTANCE, GAP_RANGE_MAX, GAP_REQUESTS_MAX};
+use mib::ground_config::{GAP_MERGE_DISTANCE, GAP_RANGE_MAX, GAP_REQUESTS_MAX};
 use mib::headers::SeqCount;
 
 /// Turns missing sequence ranges (inclusive, oldest first) into store retrievals

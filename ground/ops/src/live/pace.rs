@@ -2,7 +2,7 @@
 
 use std::collections::VecDeque;
 
-use mib::config::{STORE_REQUEST_MIN_GAP_MS, STORE_REQUEST_TIMEOUT_MS};
+use mib::ground_config::{STORE_REQUEST_MIN_GAP_MS, STORE_REQUEST_TIMEOUT_MS};
 
 use crate::pus::{RequestId, Stage, Tm, TmBody};
 

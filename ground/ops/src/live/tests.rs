@@ -1,6 +1,6 @@
 //! The rule cases of the live link: link loss, sequence tracking, gap retrieval.
 
-use mib::config::{GAP_MERGE_DISTANCE, GAP_RANGE_MAX, GAP_REQUESTS_MAX, LINK_LOSS_MS};
+use mib::ground_config::{GAP_MERGE_DISTANCE, GAP_RANGE_MAX, GAP_REQUESTS_MAX, LINK_LOSS_MS};
 
 use super::*;
 use crate::pus::{Tm, TmBody};
@@ -428,8 +428,8 @@ fn rid(seq: u16) -> crate::pus::RequestId {
     crate::pus::RequestId::from_words(0x1901, 0xC000 | seq)
 }
 
-const TIMEOUT: i64 = mib::config::STORE_REQUEST_TIMEOUT_MS as i64;
-const MIN_GAP: i64 = mib::config::STORE_REQUEST_MIN_GAP_MS as i64;
+const TIMEOUT: i64 = mib::ground_config::STORE_REQUEST_TIMEOUT_MS as i64;
+const MIN_GAP: i64 = mib::ground_config::STORE_REQUEST_MIN_GAP_MS as i64;
 
 // verifies: OPS-PACE-01
 #[test]

@@ -46,7 +46,7 @@ pub struct LinkLoss {
 }
 
 /// One robot's link: up while it is heard (TM, or valid frames over the space link), lost
-/// after [`mib::config::link_loss_ms`] of the robot's status-HK interval with nothing
+/// after [`mib::ground_config::link_loss_ms`] of the robot's status-HK interval with nothing
 /// heard (or when its connection closes). Pure: the caller passes the time (ms, any clock
 /// that does not go back).
 #[derive(Clone, Debug)]
@@ -63,7 +63,7 @@ impl LinkWatch {
     pub fn new(hk_interval_ms: u32, now_ms: i64) -> LinkWatch {
         LinkWatch {
             state: LinkState::Connecting,
-            loss_after_ms: i64::from(mib::config::link_loss_ms(hk_interval_ms)),
+            loss_after_ms: i64::from(mib::ground_config::link_loss_ms(hk_interval_ms)),
             since_ms: now_ms,
             last_heard_ms: None,
         }

@@ -4,7 +4,7 @@
 //! rules cannot drift apart again. Pure: time comes in as `now`, the caller sends.
 //!
 //! The rules:
-//! - A TC waits for acceptance on the MIB's schedule (`mib::config::tc_retry_wait_ms`,
+//! - A TC waits for acceptance on the MIB's schedule (`mib::ground_config::tc_retry_wait_ms`,
 //!   scaled to the book's first wait). Until acceptance it is resent with the same bytes
 //!   and sequence count — on a lab link; over frames COP-1 retransmits the frame, so the
 //!   waits run on the same schedule without a packet resend.
@@ -20,7 +20,7 @@
 use std::collections::HashMap;
 use std::time::{Duration, Instant};
 
-use mib::config::{tc_retry_wait_ms, TC_RETRY_INITIAL_MS, TC_RETRY_MAX};
+use mib::ground_config::{tc_retry_wait_ms, TC_RETRY_INITIAL_MS, TC_RETRY_MAX};
 
 use crate::pus::{BuiltTc, Stage, Verification};
 

@@ -5,8 +5,8 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use mib::config::{GROUND_HEARTBEAT_MS, TC_RETRY_INITIAL_MS};
 use mib::events::eid;
+use mib::ground_config::{GROUND_HEARTBEAT_MS, TC_RETRY_INITIAL_MS};
 use mib::tc::TcDef;
 
 use crate::plan::{Action, Plan};

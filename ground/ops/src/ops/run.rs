@@ -165,7 +165,7 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
                 }
                 // Sent when the pacing rule lets one go (`Session::may_retrieve`).
                 Effect::Retrieve(r) => {
-                    session.request_missing_reports(r, mib::config::GAP_REQUESTS_LIVE);
+                    session.request_missing_reports(r, mib::ground_config::GAP_REQUESTS_LIVE);
                 }
                 Effect::Log(line) => disp.log(line),
                 Effect::Finished => disp.total.inc(1),
@@ -200,7 +200,7 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
         if session.over_frames() {
             for &r in &robots {
                 if session.may_retrieve(r) && !session.awaited_gaps(r).is_empty() {
-                    session.request_missing_reports(r, mib::config::GAP_REQUESTS_AWAITED);
+                    session.request_missing_reports(r, mib::ground_config::GAP_REQUESTS_AWAITED);
                 }
             }
         }
@@ -225,7 +225,7 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
             // One range per period: over bare packets plan TCs may still be resent (the
             // duplicate window holds a bounded number of TCs), over frames retrievals
             // queued in FOP-1 would hold the plan's next TC back. The rest at the end.
-            session.request_missing_reports(r, mib::config::GAP_REQUESTS_LIVE);
+            session.request_missing_reports(r, mib::ground_config::GAP_REQUESTS_LIVE);
             false
         });
         for (&r, bar) in &disp.robots {
@@ -277,7 +277,7 @@ fn start_markers(session: &mut Session, robots: &[u8], wait: bool, stop: &dyn Fn
     // from below), up to the MIB's number of sends: the frame link's way of what the lab
     // link's resend of the marker did.
     let mut pending: Vec<u8> = robots.to_vec();
-    for _ in 0..=mib::config::TC_RETRY_MAX {
+    for _ in 0..=mib::ground_config::TC_RETRY_MAX {
         let mut markers = Vec::new();
         for &r in &pending {
             // The newest count before the marker: over frames, a marker whose reports are
@@ -288,7 +288,7 @@ fn start_markers(session: &mut Session, robots: &[u8], wait: bool, stop: &dyn Fn
             }
         }
         let t0 = Instant::now();
-        let limit = Duration::from_millis(mib::config::TC_RETRY_SPAN_MS as u64);
+        let limit = Duration::from_millis(mib::ground_config::TC_RETRY_SPAN_MS as u64);
         let mut delivered_at: HashMap<u8, Instant> = HashMap::new();
         while wait
             && t0.elapsed() < limit
@@ -358,7 +358,7 @@ fn resolve_in_flight(
         .map(|&r| (r, session.robots.get(&r).map_or(0, |s| s.seq.lost_packets)))
         .collect();
     let t0 = Instant::now();
-    let limit = Duration::from_millis(mib::config::TC_RETRY_SPAN_MS as u64);
+    let limit = Duration::from_millis(mib::ground_config::TC_RETRY_SPAN_MS as u64);
     let mut idle_rounds = 0;
     loop {
         let open: Vec<u8> = robots
@@ -461,19 +461,19 @@ fn resolve_in_flight(
 }
 
 /// The MIB's ground timing (`mib::config`) as durations.
-const GAP_CHECK_PERIOD: Duration = Duration::from_millis(mib::config::GAP_CHECK_PERIOD_MS as u64);
-const GAP_CHECK_PERIOD_FRAMES: Duration = Duration::from_millis(mib::config::GAP_CHECK_PERIOD_FRAMES_MS as u64);
-const FIRST_TM_WAIT: Duration = Duration::from_millis(mib::config::FIRST_TM_WAIT_MS as u64);
-const MARKER_SETTLE: Duration = Duration::from_millis(mib::config::MARKER_SETTLE_MS as u64);
-/// [`mib::config::GAP_ROUNDS_IDLE_MAX`]: retrieval rounds at the end of a run that bring
+const GAP_CHECK_PERIOD: Duration = Duration::from_millis(mib::ground_config::GAP_CHECK_PERIOD_MS as u64);
+const GAP_CHECK_PERIOD_FRAMES: Duration = Duration::from_millis(mib::ground_config::GAP_CHECK_PERIOD_FRAMES_MS as u64);
+const FIRST_TM_WAIT: Duration = Duration::from_millis(mib::ground_config::FIRST_TM_WAIT_MS as u64);
+const MARKER_SETTLE: Duration = Duration::from_millis(mib::ground_config::MARKER_SETTLE_MS as u64);
+/// [`mib::ground_config::GAP_ROUNDS_IDLE_MAX`]: retrieval rounds at the end of a run that bring
 /// nothing back before the rest counts as not recovered.
-const GAP_ROUNDS_IDLE_MAX: u32 = mib::config::GAP_ROUNDS_IDLE_MAX;
-/// [`mib::config::GAP_ROUNDS_MAX`]: retrieval rounds at the end of a run at most.
-const GAP_ROUNDS_MAX: u32 = mib::config::GAP_ROUNDS_MAX;
-/// [`mib::config::GAP_ROUND_WAIT_MS`]: longest wait for one round's requests to end.
-const GAP_ROUND_WAIT: Duration = Duration::from_millis(mib::config::GAP_ROUND_WAIT_MS as u64);
-/// [`mib::config::GAP_SETTLE_MS`]: replays still on their way after a round.
-const GAP_SETTLE: Duration = Duration::from_millis(mib::config::GAP_SETTLE_MS as u64);
+const GAP_ROUNDS_IDLE_MAX: u32 = mib::ground_config::GAP_ROUNDS_IDLE_MAX;
+/// [`mib::ground_config::GAP_ROUNDS_MAX`]: retrieval rounds at the end of a run at most.
+const GAP_ROUNDS_MAX: u32 = mib::ground_config::GAP_ROUNDS_MAX;
+/// [`mib::ground_config::GAP_ROUND_WAIT_MS`]: longest wait for one round's requests to end.
+const GAP_ROUND_WAIT: Duration = Duration::from_millis(mib::ground_config::GAP_ROUND_WAIT_MS as u64);
+/// [`mib::ground_config::GAP_SETTLE_MS`]: replays still on their way after a round.
+const GAP_SETTLE: Duration = Duration::from_millis(mib::ground_config::GAP_SETTLE_MS as u64);
 
 /// Ends a run's TM: an end marker (a connection test, resent until answered) fixes how
 /// far the TM must be complete; then every gap up to it is asked of the on-board store
@@ -497,7 +497,7 @@ fn complete_tm(session: &mut Session, robots: &[u8], disp: &Display, stop: &dyn 
             continue;
         }
         let marker = session.send(r, ping, &[], None, Some("end marker".into()));
-        let limit = Duration::from_millis(mib::config::TC_RETRY_SPAN_MS as u64);
+        let limit = Duration::from_millis(mib::ground_config::TC_RETRY_SPAN_MS as u64);
         if let Ok(m) = &marker {
             let t0 = Instant::now();
             // Over frames a marker whose acceptance report was lost is known delivered

@@ -6,8 +6,8 @@ use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
 use crossbeam_channel::Receiver;
-use mib::config::TC_RETRY_MAX;
 use mib::events::eid;
+use mib::ground_config::TC_RETRY_MAX;
 use mib::headers::SeqCount;
 use mib::params::pid;
 use mib::tc::TcDef;
@@ -20,11 +20,11 @@ use crate::pus::{self, BuiltTc, DecodeError, Event, Hk, SeqCounters, Stage, Tm, 
 use super::book::{Due, Pending, TcBook, Verdict};
 use super::*;
 
-/// [`mib::config::SEQ_SKIP_AFTER_RESTART`]. Over frames the robot would still execute a
+/// [`mib::ground_config::SEQ_SKIP_AFTER_RESTART`]. Over frames the robot would still execute a
 /// reused count (COP-1 delivers once; frame TCs bypass its duplicate window), but that TC's
 /// old reports, replayed from the store, would be taken for the new one's; on the lab links
 /// a reused count with the same bytes (a PING) would be answered as a duplicate.
-pub use mib::config::SEQ_SKIP_AFTER_RESTART;
+pub use mib::ground_config::SEQ_SKIP_AFTER_RESTART;
 
 /// The first TC sequence count a ground process uses on a robot's APID — one rule for
 /// every front end (CLI verbs, demo, the collector and its page) and every link: after
@@ -229,7 +229,7 @@ impl Session {
     }
 
     /// First wait for a report before a TC is resent (later waits grow, see
-    /// `mib::config::tc_retry_wait_ms`): the commanding book's.
+    /// `mib::ground_config::tc_retry_wait_ms`): the commanding book's.
     pub fn ack_timeout(&self) -> Duration {
         self.book.first_wait
     }
@@ -433,13 +433,13 @@ impl Session {
 
     /// True while a store retrieval of `robot` is in flight: the pacing rule of every
     /// front end ([`crate::live::RetrievalPacer`]: until its end report, its TC's outcome
-    /// or [`mib::config::STORE_REQUEST_TIMEOUT_MS`]).
+    /// or [`mib::ground_config::STORE_REQUEST_TIMEOUT_MS`]).
     pub fn retrieving(&self, robot: u8) -> bool {
         self.robots.get(&robot).is_some_and(|s| s.pacer.in_flight(now_ms()))
     }
 
     /// True if a store retrieval of `robot` may go now ([`crate::live::RetrievalPacer`]:
-    /// none in flight, the last at least [`mib::config::STORE_REQUEST_MIN_GAP_MS`] ago).
+    /// none in flight, the last at least [`mib::ground_config::STORE_REQUEST_MIN_GAP_MS`] ago).
     pub fn may_retrieve(&self, robot: u8) -> bool {
         self.robots.get(&robot).is_some_and(|s| s.pacer.may_send(now_ms()))
     }
@@ -515,7 +515,7 @@ impl Session {
     }
 
     /// Starts watching every robot's link for loss ([`crate::live::LinkWatch`]: no TM
-    /// for [`mib::config::link_loss_ms`] of the robot's status-HK interval).
+    /// for [`mib::ground_config::link_loss_ms`] of the robot's status-HK interval).
     pub fn watch_links(&mut self) {
         self.watching = true;
         let now = now_ms();

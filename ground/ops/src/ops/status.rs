@@ -4,7 +4,7 @@ use std::collections::VecDeque;
 use std::net::SocketAddr;
 use std::time::Instant;
 
-use mib::config::LINK_QUALITY_WINDOW;
+use mib::ground_config::LINK_QUALITY_WINDOW;
 use serde::Serialize;
 
 use crate::live::{ApidTracker, LinkLoss, LinkWatch, RetrievalPacer};
@@ -187,7 +187,7 @@ impl RobotStatus {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub enum NoAnswer {
     /// Nothing at all heard from the robot's address within the link-loss time
-    /// ([`mib::config::link_loss_ms`]).
+    /// ([`mib::ground_config::link_loss_ms`]).
     NothingHeard,
     /// Replies came, but only with another APID (another robot at that address):
     /// reported at the first such reply.

@@ -1,7 +1,7 @@
 use std::net::{SocketAddr, UdpSocket};
 use std::time::{Duration, Instant};
 
-use mib::config::{tc_retry_wait_ms, LINK_QUALITY_WINDOW, TC_RETRY_MAX};
+use mib::ground_config::{tc_retry_wait_ms, LINK_QUALITY_WINDOW, TC_RETRY_MAX};
 
 use super::*;
 use crate::link::Transport;
@@ -410,10 +410,10 @@ fn an_accepted_tc_is_not_resent_while_its_completion_is_awaited() {
 #[test]
 fn the_retry_span_fits_in_the_obsw_duplicate_window() {
     let total: u32 = (0..=TC_RETRY_MAX).map(tc_retry_wait_ms).sum();
-    assert_eq!(total, mib::config::TC_RETRY_SPAN_MS);
-    const { assert!(mib::config::TC_RETRY_SPAN_MS <= mib::config::DUPLICATE_MAX_AGE_MS) };
+    assert_eq!(total, mib::ground_config::TC_RETRY_SPAN_MS);
+    const { assert!(mib::ground_config::TC_RETRY_SPAN_MS <= mib::config::DUPLICATE_MAX_AGE_MS) };
     assert!(tc_retry_wait_ms(1) > tc_retry_wait_ms(0), "backoff");
-    assert_eq!(tc_retry_wait_ms(100), mib::config::TC_RETRY_CAP_MS);
+    assert_eq!(tc_retry_wait_ms(100), mib::ground_config::TC_RETRY_CAP_MS);
 }
 
 // verifies: MMIC-VAL-02
@@ -518,7 +518,7 @@ fn a_session_sends_one_store_retrieval_at_a_time_paced_by_the_one_rule() {
         s.poll(Duration::from_millis(20));
     }
     assert!(!s.retrieving(1), "ended by its completion report");
-    let min_gap = Duration::from_millis(u64::from(mib::config::STORE_REQUEST_MIN_GAP_MS));
+    let min_gap = Duration::from_millis(u64::from(mib::ground_config::STORE_REQUEST_MIN_GAP_MS));
     while !s.may_retrieve(1) && sent.elapsed() < min_gap * 4 {
         s.poll(Duration::from_millis(10));
     }
