@@ -236,7 +236,7 @@ fn boards_a_and_b_cycles_go_operational_on_a_ground_command() -> TestResult {
     // Sensors arrived through the drivers: A's IMU, B's battery through the heartbeat.
     check_eq!(a.sensors.grav, [0, -1000, 0]);
     check_eq!(a.sensors.hip_cdeg, 0);
-    check_eq!(obsw.param(mib::params::pid::V_BAT_B), 3200);
+    check_eq!(obsw.param::<{ mib::params::pid::V_BAT_B }>(), 3200);
     check_eq!(
         (a.errors.total(), b.errors.total(), a.output_errors, b.output_errors),
         (0, 0, 0, 0)
@@ -343,12 +343,12 @@ fn cycle_a_reports_platform_io_counters_in_hk_structure_5() -> TestResult {
     let _ = link::drain(&TM, &mut tm_bytes);
     let junk = [0x11u8; config::TM_DOWNLINK_BYTES - 10];
     link::push_bytes(&TM, &junk, &STATS[1]);
-    let stored_before = obsw.param(pid::TM_STORED);
+    let stored_before = obsw.param::<{ pid::TM_STORED }>();
     let n = ok!(crate::t_packets::build(6, 17, 1, &[], &mut tc));
     let m = ok!(encode(&tc[..n], &mut frame));
     link::uplink_bytes(&mut uplink, &frame[..m], &TCS, &STATS[0]);
     step(&mut cycle, &mut obsw, &mut io);
-    let produced = (obsw.param(pid::TM_STORED) - stored_before) as u32;
+    let produced = (obsw.param::<{ pid::TM_STORED }>() - stored_before) as u32;
     check!(produced >= 4, "{} packets in the jammed period", produced);
     let _ = link::drain(&TM, &mut tm_bytes);
     // Two clean periods, then the one-shot report of SID 5.

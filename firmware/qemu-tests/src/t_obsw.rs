@@ -194,11 +194,11 @@ fn obsw_recorded_tc_stream_gives_the_expected_tm_sequence() -> TestResult {
         &tms[24].data[4..],
         &[0x00, FailureCode::UNKNOWN_SERVICE.code() as u8, 99][..]
     );
-    check_eq!(obsw.param(pid::TC_DUPLICATE), 1);
+    check_eq!(obsw.param::<{ pid::TC_DUPLICATE }>(), 1);
     // Refused at acceptance: bad CRC and unknown service; HOME was accepted and failed
     // at its start.
-    check_eq!(obsw.param(pid::TC_REJECTED), 2);
-    check_eq!(obsw.param(pid::TC_ACCEPTED), 5);
+    check_eq!(obsw.param::<{ pid::TC_REJECTED }>(), 2);
+    check_eq!(obsw.param::<{ pid::TC_ACCEPTED }>(), 5);
     Ok(())
 }
 
@@ -309,9 +309,9 @@ fn obsw_low_battery_persists_half_a_second_then_recovers() -> TestResult {
     check_eq!(lows.len(), 1);
     check_eq!((lows[0].0, lows[0].2), (t_mon, [pid::V_BAT_A as i64, 2000, limit]));
     let bit = 1i64 << ok!(mib::fdir::fault_by_event(eid::LOW_BATTERY)).bit;
-    check!(robot.a.param(pid::FAULT_FLAGS) & bit != 0, "fault bit not set");
+    check!(robot.a.param::<{ pid::FAULT_FLAGS }>() & bit != 0, "fault bit not set");
     // Board B's battery arrives through its heartbeat.
-    check_eq!(robot.a.param(pid::V_BAT_B), 3200);
+    check_eq!(robot.a.param::<{ pid::V_BAT_B }>(), 3200);
     // Event-action: low battery leads to standby (the robot is already there).
     check_eq!(robot.a.mode(), mib::modes::robot_mode::STANDBY);
 
@@ -342,7 +342,10 @@ fn obsw_low_battery_persists_half_a_second_then_recovers() -> TestResult {
         .collect();
     check_eq!(cleared.len(), 1);
     check_eq!((cleared[0].0, cleared[0].2[0]), (expect_clear, eid::LOW_BATTERY as i64));
-    check!(robot.a.param(pid::FAULT_FLAGS) & bit == 0, "fault bit still set");
+    check!(
+        robot.a.param::<{ pid::FAULT_FLAGS }>() & bit == 0,
+        "fault bit still set"
+    );
     check!(log.other > 0, "no housekeeping at all in 2.5 s");
     Ok(())
 }
@@ -464,11 +467,11 @@ fn obsw_mode_set_operational_powers_both_sides_and_homes() -> TestResult {
     // Operational: regulator on, side A homed (arm contracted, gripper closed), side B
     // powered and homed through the link.
     check!(regulator, "regulator off in operational");
-    check_eq!(robot.a.param(pid::ARM_A_PWM), servo::ARM_CONTRACTED_US as i64);
-    check_eq!(robot.a.param(pid::GRIP_A_PWM), servo::GRIP_CLOSED_US as i64);
+    check_eq!(robot.a.param::<{ pid::ARM_A_PWM }>(), servo::ARM_CONTRACTED_US as i64);
+    check_eq!(robot.a.param::<{ pid::GRIP_A_PWM }>(), servo::GRIP_CLOSED_US as i64);
     check_eq!(robot.b_out.side.arm_pwm, Some(servo::ARM_CONTRACTED_US));
     check_eq!(robot.b_out.side.grip_pwm, Some(servo::GRIP_CLOSED_US));
-    check_eq!(robot.a.param(pid::B_LINK_OK), 1);
+    check_eq!(robot.a.param::<{ pid::B_LINK_OK }>(), 1);
     Ok(())
 }
 
@@ -591,7 +594,7 @@ fn obsw_board_b_silence_is_comm_loss_and_safes_the_robot() -> TestResult {
     check!(act.regulator_on, "regulator off in safed");
     check_eq!(act.side.bolter, mmic_domain::BolterDrive::Off);
     check!(act.side.arm_pwm.is_some(), "arm A unpowered in safed");
-    check_eq!(robot.a.param(pid::B_LINK_OK), 0);
+    check_eq!(robot.a.param::<{ pid::B_LINK_OK }>(), 0);
     Ok(())
 }
 
@@ -653,7 +656,7 @@ fn obsw_standby_with_board_b_never_heard_raises_no_low_battery() -> TestResult {
         &log.mon[..]
     );
     let bit = 1i64 << ok!(mib::fdir::fault_by_event(eid::LOW_BATTERY)).bit;
-    check_eq!(robot.a.param(pid::FAULT_FLAGS) & bit, 0);
+    check_eq!(robot.a.param::<{ pid::FAULT_FLAGS }>() & bit, 0);
     // The faults B's absence raises: comm loss, and nothing else.
     let faults: heapless::Vec<u16, 32> = log
         .events
@@ -812,7 +815,7 @@ fn obsw_store_returns_every_packet_the_full_downlink_dropped() -> TestResult {
     let (sent, dropped) = (S1.get().delivered, S1.get().overflow);
     check_eq!(sent + dropped, 41);
     check!(dropped > 30, "only {} dropped", dropped);
-    check_eq!(obsw.param(pid::TM_STORED), 41);
+    check_eq!(obsw.param::<{ pid::TM_STORED }>(), 41);
 
     // Link back: downlink the store.
     let mut sink = GroundSink {

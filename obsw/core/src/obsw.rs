@@ -308,16 +308,25 @@ impl<S: TmStore> Obsw<S> {
         self.dl.event(now, id, args, sink);
     }
 
-    /// Raw value of a MIB telemetry parameter, for tests and inspection: 0 when it has no
-    /// valid value now (as housekeeping carries it). Panics for an ID that no component
-    /// supplies (a caller's bug: no flight code path asks for one; housekeeping and PUS 12
-    /// use [`Self::param_value`]).
-    #[track_caller]
-    pub fn param(&self, id: u16) -> i64 {
-        match self.param_value(id) {
-            Ok(v) => v.unwrap_or(0),
-            Err(e) => panic!("{e}"),
-        }
+    /// Raw value of MIB telemetry parameter `ID`, for tests and inspection: 0 when it has
+    /// no valid value now (as housekeeping carries it). `ID` is a constant checked against
+    /// the MIB's parameter table where the call is compiled, so a parameter the MIB does
+    /// not define cannot be asked for (housekeeping and PUS 12, whose IDs are data, use
+    /// [`Self::param_value`]); every parameter the MIB defines has exactly one source
+    /// (checked by a test).
+    ///
+    /// ```no_run
+    /// # use obsw_core::{obsw::Obsw, tm::RingStore};
+    /// let _read: fn(&Obsw<RingStore<64>>) -> i64 = |o| o.param::<{ mib::params::pid::MODE }>();
+    /// ```
+    ///
+    /// ```compile_fail,E0080
+    /// # use obsw_core::{obsw::Obsw, tm::RingStore};
+    /// let _read: fn(&Obsw<RingStore<64>>) -> i64 = |o| o.param::<{ u16::MAX }>();
+    /// ```
+    pub fn param<const ID: u16>(&self) -> i64 {
+        const { assert!(mib_defines(ID), "the MIB defines no parameter with this ID") };
+        self.param_value(ID).ok().flatten().unwrap_or(0)
     }
 
     /// Raw value of a MIB telemetry parameter; `None` when it has no valid value now or no
@@ -583,6 +592,19 @@ impl Tc<'_> {
     }
 }
 
+/// Whether the MIB's parameter table has `id` (a `const fn`, for [`Obsw::param`]'s check
+/// at compile time).
+const fn mib_defines(id: u16) -> bool {
+    let mut i = 0;
+    while i < mib::params::PARAMS.len() {
+        if mib::params::PARAMS[i].id == id {
+            return true;
+        }
+        i += 1;
+    }
+    false
+}
+
 #[cfg(test)]
 pub(crate) mod tests {
     //! Helpers for the services' unit tests: an OBSW, TCs and report look-ups.
@@ -769,7 +791,7 @@ pub(crate) mod tests {
         assert_eq!(ev(&sink), [3], "one event in the window, with the count so far");
         o.count_dropped(100 + config::EVENT_THROTTLE_WINDOW_MS as u64, 0, &mut sink);
         assert_eq!(ev(&sink), [3, 2], "the rest once the window passed");
-        assert_eq!(o.param(pid::EVENTS_DROPPED), 5);
+        assert_eq!(o.param::<{ pid::EVENTS_DROPPED }>(), 5);
     }
 
     /// The components that answer parameter `id` (rather than refusing it).
@@ -805,7 +827,8 @@ pub(crate) mod tests {
         assert_eq!(suppliers(&o, unknown), []);
         assert_eq!(o.param_value(unknown), Err(NotSupplied(unknown)));
         assert_eq!(o.param_opt(unknown), None);
-        assert!(std::panic::catch_unwind(|| o.param(unknown)).is_err(), "no silent 0");
+        // Obsw::param cannot be asked for it: its compile_fail example.
+        assert!(!mib_defines(unknown) && mib_defines(pid::MODE));
     }
 
     // verifies: PUS-1-02, MMIC-MODE-01

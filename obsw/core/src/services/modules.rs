@@ -625,11 +625,11 @@ mod tests {
         assert_eq!(r.set, default_set(1000));
         assert!(events(&pkts, eid::CONFIG_INVALID).is_empty() && events(&pkts, eid::MODULE_REPLACED).is_empty());
         assert_eq!(
-            o.param(pid::CONFIG_HASH),
+            o.param::<{ pid::CONFIG_HASH }>(),
             mib::modules::config::config_hash(&default_set(1000)) as i64
         );
-        assert_eq!(o.param(pid::CONFIG_ID), 1);
-        assert_eq!(o.param(pid::CONFIG_STATUS), status::ACCEPTED as i64);
+        assert_eq!(o.param::<{ pid::CONFIG_ID }>(), 1);
+        assert_eq!(o.param::<{ pid::CONFIG_STATUS }>(), status::ACCEPTED as i64);
         assert!(o.modules_block_operational().is_none());
         // On request, the same report again.
         let again = of(&send(&mut o, 20, 1, 210, 1, &[]), 210, 3);
@@ -654,10 +654,10 @@ mod tests {
             (FailureCode::CONFIG_INVALID.code(), vec![11, slot::ARM_B])
         );
         assert_eq!(o.mode(), STAYS_IN);
-        assert_eq!(o.param(pid::CONFIG_STATUS), status::INVALID as i64);
-        assert_eq!(o.param(pid::CONFIG_ID), 0);
+        assert_eq!(o.param::<{ pid::CONFIG_STATUS }>(), status::INVALID as i64);
+        assert_eq!(o.param::<{ pid::CONFIG_ID }>(), 0);
         // Nothing to accept.
-        let h = (o.param(pid::CONFIG_HASH) as u32).to_be_bytes();
+        let h = (o.param::<{ pid::CONFIG_HASH }>() as u32).to_be_bytes();
         let f = of(&send(&mut o, 20, 2, 210, 2, &h), 1, 4);
         assert_eq!(failure(&f[0]).0, FailureCode::CONFIG_INVALID.code());
     }
@@ -691,7 +691,7 @@ mod tests {
         assert_eq!(ev.len(), 1);
         assert_eq!(ev[0][0], slot::GRIPPER_B);
         assert_eq!(&ev[0][5..9], &hash.to_be_bytes());
-        assert_eq!(o.param(pid::CONFIG_STATUS), status::NOT_ACCEPTED as i64);
+        assert_eq!(o.param::<{ pid::CONFIG_STATUS }>(), status::NOT_ACCEPTED as i64);
         let f = of(&operational(&mut o, 1), 1, 4);
         assert_eq!(
             failure(&f[0]),
@@ -709,7 +709,7 @@ mod tests {
         assert_eq!(of(&ok, 1, 7).len(), 1);
         assert_eq!(o.take_accepted_update().map(|a| a.hash), Some(hash));
         assert!(o.modules_block_operational().is_none());
-        assert_eq!(o.param(pid::CONFIG_STATUS), status::ACCEPTED as i64);
+        assert_eq!(o.param::<{ pid::CONFIG_STATUS }>(), status::ACCEPTED as i64);
     }
 
     // verifies: MOD-CAL-03, MOD-CAL-04
@@ -758,12 +758,12 @@ mod tests {
         assert_eq!(limit(&o, "I_LOC_B_OPER"), 3000);
         assert_eq!(limit(&o, "I_LOC_A_IDLE"), 400);
         // HK structure MODULES reports the calibration in use.
-        assert_eq!(o.param(pid::CAL_GRIP_B_CLOSED), 1150);
-        assert_eq!(o.param(pid::CAL_GRIP_B_OPEN), 1850);
-        assert_eq!(o.param(pid::CAL_GRIP_A_CLOSED), 1100);
-        assert_eq!(o.param(pid::CAL_ENC_ZERO), 2048);
+        assert_eq!(o.param::<{ pid::CAL_GRIP_B_CLOSED }>(), 1150);
+        assert_eq!(o.param::<{ pid::CAL_GRIP_B_OPEN }>(), 1850);
+        assert_eq!(o.param::<{ pid::CAL_GRIP_A_CLOSED }>(), 1100);
+        assert_eq!(o.param::<{ pid::CAL_ENC_ZERO }>(), 2048);
         assert_eq!(
-            o.param(pid::CAL_FROM_DESCRIPTORS) & (1 << slot::GRIPPER_B),
+            o.param::<{ pid::CAL_FROM_DESCRIPTORS }>() & (1 << slot::GRIPPER_B),
             1 << slot::GRIPPER_B
         );
         assert!(mib::hk::HK_STRUCTS
@@ -818,7 +818,7 @@ mod tests {
         o.set_accepted_config(Some(AcceptedConfig::of(&set)));
         let pkts = boot(&mut o, &set, None);
         assert!(events(&pkts, eid::CONFIG_INVALID).is_empty());
-        assert_eq!(o.param(pid::CONFIG_ID), 2);
+        assert_eq!(o.param::<{ pid::CONFIG_ID }>(), 2);
         let bolt = Action::BoltFace {
             side: mib::robot::Side::A,
             pairs: 15,
