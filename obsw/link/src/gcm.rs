@@ -165,60 +165,71 @@ impl Gcm {
 
 impl Job {
     /// Advances the job over `buf` (the same `len` bytes at every step) by at most `work`
-    /// work blocks (at least one block of progress per call when `work` is 0).
+    /// work blocks (at least one block of progress per call when `work` is 0). A
+    /// decryption whose MAC verified goes on decrypting with the work left.
     pub fn step(&mut self, gcm: &Gcm, buf: &mut [u8], work: usize) -> Progress {
         if buf.len() != self.len {
             // A wrong buffer never yields a tag or plaintext.
             self.pass = Pass::Done;
             return Progress::Refused;
         }
-        let per_block = match self.pass {
-            Pass::Encrypt => 2,
-            Pass::Verify | Pass::Decrypt => 1,
-            Pass::Done => return Progress::Refused,
-        };
-        let blocks = (work / per_block).max(1);
-        let end = self.done.saturating_add(blocks.saturating_mul(BLOCK)).min(self.len);
-        let chunk = &mut buf[self.done..end];
-        let first = self.done / BLOCK;
-        match self.pass {
-            Pass::Encrypt => {
-                gcm.ctr(&self.nonce, first, chunk);
-                self.ghash.update_padded(chunk);
+        let mut left = work;
+        let mut first = true;
+        loop {
+            let per_block = match self.pass {
+                Pass::Encrypt => 2,
+                Pass::Verify | Pass::Decrypt => 1,
+                Pass::Done => return Progress::Refused,
+            };
+            let mut blocks = left / per_block;
+            if first {
+                blocks = blocks.max(1);
+                first = false;
             }
-            Pass::Verify => self.ghash.update_padded(chunk),
-            Pass::Decrypt => gcm.ctr(&self.nonce, first, chunk),
-            Pass::Done => {}
-        }
-        self.done = end;
-        if end < self.len {
-            return Progress::Pending;
-        }
-        match self.pass {
-            Pass::Encrypt => {
-                self.pass = Pass::Done;
-                Progress::Sealed(self.tag(gcm))
+            if blocks == 0 && self.len > 0 {
+                return Progress::Pending;
             }
-            Pass::Verify => {
-                let tag = self.tag(gcm);
-                if bool::from(tag.ct_eq(&self.expected)) {
-                    self.pass = Pass::Decrypt;
+            let end = self.done.saturating_add(blocks.saturating_mul(BLOCK)).min(self.len);
+            let chunk = &mut buf[self.done..end];
+            let index = self.done / BLOCK;
+            match self.pass {
+                Pass::Encrypt => {
+                    gcm.ctr(&self.nonce, index, chunk);
+                    self.ghash.update_padded(chunk);
+                }
+                Pass::Verify => self.ghash.update_padded(chunk),
+                Pass::Decrypt => gcm.ctr(&self.nonce, index, chunk),
+                Pass::Done => {}
+            }
+            left = left.saturating_sub(chunk.len().div_ceil(BLOCK) * per_block);
+            self.done = end;
+            if end < self.len {
+                return Progress::Pending;
+            }
+            match self.pass {
+                Pass::Encrypt => {
+                    self.pass = Pass::Done;
+                    return Progress::Sealed(self.tag(gcm));
+                }
+                Pass::Verify => {
+                    let tag = self.tag(gcm);
+                    if !bool::from(tag.ct_eq(&self.expected)) {
+                        self.pass = Pass::Done;
+                        return Progress::Refused;
+                    }
                     self.done = 0;
                     if self.len == 0 {
                         self.pass = Pass::Done;
                         return Progress::Opened;
                     }
-                    Progress::Pending
-                } else {
-                    self.pass = Pass::Done;
-                    Progress::Refused
+                    self.pass = Pass::Decrypt;
                 }
+                Pass::Decrypt => {
+                    self.pass = Pass::Done;
+                    return Progress::Opened;
+                }
+                Pass::Done => return Progress::Refused,
             }
-            Pass::Decrypt => {
-                self.pass = Pass::Done;
-                Progress::Opened
-            }
-            Pass::Done => Progress::Refused,
         }
     }
 
