@@ -254,6 +254,13 @@ impl<const ZONES: usize> Downlink<ZONES> {
         let Some(u) = self.unsealed.front_mut() else {
             return false;
         };
+        if u.sealing.spi() != sa.spi() {
+            // Begun under the SA in use before a key change: its IV and key are that
+            // SA's, so it cannot be finished; its packets are lost to the live downlink.
+            self.unsealed.pop_front();
+            self.counters.sdls_failed = self.counters.sdls_failed.saturating_add(1);
+            return true;
+        }
         if sa.seal(&mut u.sealing, &mut u.frame, work) {
             let mut f = TmFrame::new_unchecked(&mut u.frame[..]);
             f.set_ocf(clcw.emit());

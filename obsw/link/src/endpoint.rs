@@ -163,7 +163,7 @@ impl<St: IvStore + StoreStats, const SAS: usize, const ZONES: usize> Endpoint<St
     /// This period's TC work (scheduled mode): the frame's MAC check and decryption go on
     /// by the period's work blocks; once accepted, one packet per period is copied into
     /// `packet` (its length returned) for the OBSW to execute.
-    pub fn poll_tc(&mut self, packet: &mut [u8]) -> Option<usize> {
+    pub fn poll_tc(&mut self, packet: &mut [u8; mib::link::tc_frame::MAX_PACKET_LEN]) -> Option<usize> {
         let work = self.work?;
         let w = self.tc.as_mut()?;
         if let TcState::Open(o) = &mut w.state {
@@ -198,6 +198,7 @@ impl<St: IvStore + StoreStats, const SAS: usize, const ZONES: usize> Endpoint<St
         let n = p.map_or(0, <[u8]>::len);
         *next += n;
         let done = *next >= *end;
+        // A packet lies inside the frame's data field, which is at most MAX_PACKET_LEN.
         let r = match (p, packet.get_mut(..n)) {
             (Some(p), Some(dst)) => {
                 dst.copy_from_slice(p);
@@ -444,7 +445,7 @@ mod tests {
         replies: &[Vec<u8>],
     ) -> (Option<Vec<u8>>, Vec<Vec<u8>>) {
         let mut out = Vec::new();
-        let mut p = [0u8; 1024];
+        let mut p = [0u8; mib::link::tc_frame::MAX_PACKET_LEN];
         let packet = ep.poll_tc(&mut p).map(|n| p[..n].to_vec());
         if packet.is_some() {
             for r in replies {
@@ -537,5 +538,21 @@ mod tests {
             ep.send(TmVc::Realtime, &reply, |_| panic!("no frame at once"));
         }
         assert_eq!(ep.tx_counters().seal_queue_full, 1);
+    }
+
+    // verifies: LINK-EP-02
+    #[test]
+    fn a_tm_frame_waiting_for_encryption_across_a_key_change_is_dropped_and_counted() {
+        let mut ep = endpoint();
+        ep.schedule(8);
+        let reply = tc_packet(9, 90);
+        for _ in 0..11 {
+            ep.send(TmVc::Realtime, &reply, |_| panic!("no frame at once"));
+        }
+        ep.poll_tm(10, |_| panic!("8 work blocks do not finish a frame"));
+        assert_eq!(ep.framer.unsealed(), 1);
+        ep.set_tm_sa(TxSa::resume(18, &TEST_KEY_TC_B, 0));
+        ep.poll_tm(20, |_| panic!("no frame under a mixed key"));
+        assert_eq!((ep.framer.unsealed(), ep.tx_counters().sdls_failed), (0, 1));
     }
 }

@@ -252,15 +252,17 @@ impl TxSa {
         let data = hdr_end + HEADER_LEN..mac_start;
         Ok(Sealing {
             job: self.cipher.begin_encrypt(&ivb, &a, data.len()),
+            spi: self.spi,
             data,
             len: frame.len(),
         })
     }
 
     /// Continues [`TxSa::begin_tm`]'s encryption of `frame` by at most `work` GCM work
-    /// blocks ([`crate::gcm`]); true once the MAC is written.
+    /// blocks ([`crate::gcm`]); true once the MAC is written. The SA must be the one that
+    /// began it ([`Sealing::spi`]).
     pub fn seal(&self, s: &mut Sealing, frame: &mut [u8], work: usize) -> bool {
-        if frame.len() != s.len {
+        if frame.len() != s.len || s.spi != self.spi {
             return false;
         }
         match s.job.step(&self.cipher, &mut frame[s.data.clone()], work) {
@@ -321,10 +323,18 @@ impl TxSa {
 #[derive(Clone, Debug)]
 pub struct Sealing {
     job: Job,
+    spi: u16,
     /// The plaintext's range; the MAC follows it.
     data: Range<usize>,
     /// The frame's length.
     len: usize,
+}
+
+impl Sealing {
+    /// The SPI of the SA that began it.
+    pub fn spi(&self) -> u16 {
+        self.spi
+    }
 }
 
 /// A TC frame being verified and decrypted in steps ([`RxSas::open_tc`], [`RxSas::open`]).
