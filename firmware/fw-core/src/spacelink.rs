@@ -11,9 +11,11 @@
 //! - **CPU**: a period does at most [`SDLS_WORK_PER_PERIOD`] GCM work blocks, for the TC
 //!   frame or else for the oldest TM frame, and at most one TC packet: the bound
 //!   `t_budget` measures under QEMU (docs/firmware.md, The control period's CPU).
-//! - **Downlink**: every frame the endpoint emits is one COBS frame in the downlink queue
-//!   (`downlink_packet`, which counts what the queue cannot take). TM packets go on VC0
-//!   only (replays included: one packet zone).
+//! - **Downlink**: TM frames wait for their encryption (`mmic_link::downlink::SEAL_QUEUE`;
+//!   a frame beyond it is counted as downlink overflow, `IO_TM_DROPPED`); every frame the
+//!   endpoint emits is one COBS frame in the downlink queue (`downlink_packet`, which
+//!   counts what the queue cannot take). TM packets go on VC0 only (replays included: one
+//!   packet zone).
 //! - **Counters**: at the end of each period the SPACE_LINK values and the link state go
 //!   into the OBSW's housekeeping, and the link events for what changed.
 //! - **Keys**: one provisioned key per direction ([`Keys`]), the counters and FARM-1's
@@ -34,10 +36,10 @@ use obsw_core::tm::TmStore;
 use crate::cycle::GroundSink;
 
 /// GCM work blocks (a 16-byte block through AES or GHASH, `mmic_link::gcm`) per control
-/// period: a 1 024-byte TC frame's MAC check takes 2 periods and its decryption 2, a TM
-/// frame's encryption 3 (62 blocks through both), so a period's SDLS work is at most 48
-/// software AES blocks (≈ 138 000 instructions under QEMU). 64 left the busiest period
-/// 589 instructions over the budget (docs/firmware.md, The control period's CPU). Frames
+/// period: a 1 024-byte TC frame's MAC check and decryption (124 blocks) take 3 periods,
+/// a TM frame's encryption 3 (62 blocks through both), and a period's SDLS work is at most
+/// 48 software AES blocks (≈ 140 000 instructions under QEMU). With 64 the busiest period
+/// was over the budget (`t_budget`; docs/firmware.md, The control period's CPU). Frames
 /// waiting meanwhile stay in the uplink queue; when it is full the uplink drops and counts
 /// them and COP-1 retransmits.
 pub const SDLS_WORK_PER_PERIOD: usize = 48;
