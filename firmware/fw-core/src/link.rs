@@ -64,7 +64,7 @@ impl Counters {
     pub fn get(&self) -> LinkStats {
         self.inner.lock(|c| c.get())
     }
-    fn update(&self, f: impl FnOnce(&mut LinkStats)) {
+    pub(crate) fn update(&self, f: impl FnOnce(&mut LinkStats)) {
         self.inner.lock(|c| {
             let mut s = c.get();
             f(&mut s);

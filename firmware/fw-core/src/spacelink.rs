@@ -4,11 +4,18 @@
 //!
 //! - **Uplink**: one TC frame per COBS frame from the uplink queue (the COBS delimiters
 //!   delimit the frame; the frame's length field must equal the decoded length exactly, as
-//!   one frame per UDP datagram on the host), at most [`FRAMES_PER_PERIOD`] per control
-//!   period; the packets of an accepted frame go to `Obsw::handle_tc`.
-//! - **Downlink**: every frame the endpoint emits is one COBS frame in the downlink queue
-//!   (`downlink_packet`, which counts what the queue cannot take). TM packets go on VC0
-//!   only (replays included: one packet zone).
+//!   one frame per UDP datagram on the host). The SDLS work is spread over control periods
+//!   ([`SDLS_WORK_PER_PERIOD`], `Endpoint::schedule`): a frame is taken from the queue
+//!   when the one before is done, its MAC check and decryption run over as many periods as
+//!   they need, then its packets go to `Obsw::handle_tc`, one per period.
+//! - **CPU**: a period does at most [`SDLS_WORK_PER_PERIOD`] GCM work blocks, for the TC
+//!   frame or else for the oldest TM frame, and at most one TC packet: the bound
+//!   `t_budget` measures under QEMU (docs/firmware.md, The control period's CPU).
+//! - **Downlink**: TM frames wait for their encryption (`mmic_link::downlink::SEAL_QUEUE`;
+//!   a frame beyond it is counted as downlink overflow, `IO_TM_DROPPED`); every frame the
+//!   endpoint emits is one COBS frame in the downlink queue (`downlink_packet`, which
+//!   counts what the queue cannot take). TM packets go on VC0 only (replays included: one
+//!   packet zone).
 //! - **Counters**: at the end of each period the SPACE_LINK values and the link state go
 //!   into the OBSW's housekeeping, and the link events for what changed.
 //! - **Keys**: one provisioned key per direction ([`Keys`]), the counters and FARM-1's
@@ -28,10 +35,14 @@ use obsw_core::tm::TmStore;
 
 use crate::cycle::GroundSink;
 
-/// TC frames taken from the uplink queue per control period: bounds the period's
-/// decryption work (instruction budget, docs/firmware.md). Frames left wait in the
-/// queue; when it is full the uplink drops and counts them and COP-1 retransmits.
-pub const FRAMES_PER_PERIOD: usize = 1;
+/// GCM work blocks (a 16-byte block through AES or GHASH, `mmic_link::gcm`) per control
+/// period: a 1 024-byte TC frame's MAC check and decryption (124 blocks) take 3 periods,
+/// a TM frame's encryption 3 (62 blocks through both), and a period's SDLS work is at most
+/// 48 software AES blocks (≈ 140 000 instructions under QEMU). With 64 the busiest period
+/// was over the budget (`t_budget`; docs/firmware.md, The control period's CPU). Frames
+/// waiting meanwhile stay in the uplink queue; when it is full the uplink drops and counts
+/// them and COP-1 retransmits.
+pub const SDLS_WORK_PER_PERIOD: usize = 48;
 
 /// The provisioned keys (see [`crate::keys`]).
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -67,6 +78,9 @@ pub struct FrameLink<St> {
     pub ep: Endpoint<St, 1, 1>,
     /// The SPIs with a provisioned key, for the OBSW's LINK_SPI_SELECT check.
     keys: LinkKeys,
+    /// TM frames not built because frames waited for encryption, already counted as
+    /// downlink overflow (`IO_TM_DROPPED`).
+    seal_queue_full: u32,
 }
 
 impl<St: IvStore + StoreStats> FrameLink<St> {
@@ -99,9 +113,12 @@ impl<St: IvStore + StoreStats> FrameLink<St> {
             ),
             None => TcReceiver::mission(sas),
         };
+        let mut ep = Endpoint::new(rx, TmFramer::mission_realtime_only(), sa, store);
+        ep.schedule(SDLS_WORK_PER_PERIOD);
         FrameLink {
-            ep: Endpoint::new(rx, TmFramer::mission_realtime_only(), sa, store),
+            ep,
             keys: link_keys,
+            seal_queue_full: 0,
         }
     }
 
@@ -110,8 +127,8 @@ impl<St: IvStore + StoreStats> FrameLink<St> {
         self.ep.store()
     }
 
-    /// Takes up to [`FRAMES_PER_PERIOD`] TC frames from the uplink queue and executes the
-    /// packets of each accepted frame, in order.
+    /// This period's TC work: takes a TC frame from the uplink queue when none is in work,
+    /// continues its MAC check and decryption, and executes at most one of its packets.
     pub fn receive<S: TmStore, const N: usize>(
         &mut self,
         now: u64,
@@ -120,22 +137,13 @@ impl<St: IvStore + StoreStats> FrameLink<St> {
         tm: &ByteQueue<N>,
         tm_stats: &Counters,
     ) {
-        for _ in 0..FRAMES_PER_PERIOD {
-            let Ok(mut frame) = tcs.try_receive() else { break };
-            self.frame(now, obsw, &mut frame, tm, tm_stats);
+        if !self.ep.tc_busy() {
+            if let Ok(frame) = tcs.try_receive() {
+                self.ep.offer(&frame);
+            }
         }
-    }
-
-    /// One TC frame through the endpoint.
-    pub fn frame<S: TmStore, const N: usize>(
-        &mut self,
-        now: u64,
-        obsw: &mut Obsw<S>,
-        frame: &mut [u8],
-        tm: &ByteQueue<N>,
-        tm_stats: &Counters,
-    ) {
-        let Some(packets) = self.ep.receive(frame) else { return };
+        let mut packet = [0u8; mib::link::tc_frame::MAX_PACKET_LEN];
+        let Some(n) = self.ep.poll_tc(&mut packet) else { return };
         // One sink type for every OBSW call (tick, TCs, events): the OBSW's generic code is
         // compiled once.
         let mut sink = GroundSink {
@@ -143,9 +151,7 @@ impl<St: IvStore + StoreStats> FrameLink<St> {
             queue: tm,
             counters: tm_stats,
         };
-        for p in packets {
-            obsw.handle_tc(now, p, &mut sink);
-        }
+        obsw.handle_tc(now, &packet[..n], &mut sink);
     }
 
     /// Sends one TM packet.
@@ -189,6 +195,14 @@ impl<St: IvStore + StoreStats> FrameLink<St> {
         self.ep.flush(now, |f| {
             downlink_packet(tm, f, tm_stats);
         });
+        self.ep.poll_tm(now, |f| {
+            downlink_packet(tm, f, tm_stats);
+        });
+        let full = self.ep.tx_counters().seal_queue_full;
+        let new = full.wrapping_sub(core::mem::replace(&mut self.seal_queue_full, full));
+        if new > 0 {
+            tm_stats.update(|s| s.overflow = s.overflow.wrapping_add(new));
+        }
         // The link state for HK (after the flush, whose first frame may reserve TM IVs).
         obsw.space_link_state = self.ep.state_values(self.keys.tc);
     }

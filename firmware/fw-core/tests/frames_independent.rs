@@ -103,9 +103,15 @@ fn board_frames_verify_with_the_independent_python_decoder() {
     let mut deframer: Deframer<{ config::GROUND_RX_BUF }> = Deframer::new();
     link::uplink_bytes(&mut deframer, &cobs[..m], &TCS, &UP);
 
-    // Two periods: the frame and its replies, then (150 ms later) an idle frame.
-    fl.receive(10, &mut obsw, &TCS, &TM, &DOWN);
-    fl.end_period(10, &mut obsw, &TM, &DOWN);
+    // The frame and its replies (their encryption spread over periods 1 ms apart), then
+    // (150 ms later) an idle frame.
+    for t in 10..26 {
+        fl.receive(t, &mut obsw, &TCS, &TM, &DOWN);
+        fl.end_period(t, &mut obsw, &TM, &DOWN);
+        if !fl.ep.busy() {
+            break;
+        }
+    }
     fl.end_period(160, &mut obsw, &TM, &DOWN);
 
     // The serial downlink, COBS-deframed: TM frames.

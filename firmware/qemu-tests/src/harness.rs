@@ -175,6 +175,10 @@ macro_rules! tests {
 
 /// The worst `Obsw::tick` of `t_obsw`'s run, for the control-period budget (`t_budget`).
 pub static WORST_TICK: portable_atomic::AtomicU64 = portable_atomic::AtomicU64::new(0);
+/// The worst `Obsw::handle_tc` of `t_obsw`'s run (`t_budget`).
+pub static WORST_TC: portable_atomic::AtomicU64 = portable_atomic::AtomicU64::new(0);
+/// The most TM packets one `Obsw::tick` of `t_obsw`'s run sent (`t_budget`).
+pub static MOST_TICK_PACKETS: portable_atomic::AtomicU64 = portable_atomic::AtomicU64::new(0);
 
 /// Bytes below the caller's frame that [`stack_depth`] paints.
 pub const STACK_PROBE_BYTES: usize = 96 * 1024;

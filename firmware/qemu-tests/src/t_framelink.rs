@@ -290,10 +290,7 @@ fn framelink_authenticated_tc_executes_once_replay_and_wrong_mac_refused() -> Te
 
     // Period 1: the authentic frame.
     uplink(&frame[..len], &TCS, &UP);
-    let start = instret();
-    fl.receive(10, &mut obsw, &TCS, &TM, &DOWN);
-    let small_frame = instret() - start;
-    fl.end_period(10, &mut obsw, &TM, &DOWN);
+    let (small_frame, _) = settle(&mut fl, &mut obsw, 10, &TCS, &TM, &DOWN);
     downlink(&TM, &mut tm_rx, &mut tm_store, &mut g);
     check_eq!(count(&g, 17, 2), 1, "ping executed once");
     check_eq!(count(&g, 1, 1), 1);
@@ -318,8 +315,7 @@ fn framelink_authenticated_tc_executes_once_replay_and_wrong_mac_refused() -> Te
     let mut again = captured;
     uplink(&again[..len], &TCS, &UP);
     check_eq!(count(&g, 5, 2), 0);
-    fl.receive(20, &mut obsw, &TCS, &TM, &DOWN);
-    fl.end_period(20, &mut obsw, &TM, &DOWN);
+    settle(&mut fl, &mut obsw, 20, &TCS, &TM, &DOWN);
     downlink(&TM, &mut tm_rx, &mut tm_store, &mut g);
     check_eq!(count(&g, 17, 2), 1, "replay not executed");
     let rej_replay = (pid::LINK_REJ_REPLAY - pid::LINK_AD_ACCEPTED) as usize;
@@ -335,8 +331,7 @@ fn framelink_authenticated_tc_executes_once_replay_and_wrong_mac_refused() -> Te
     let n2 = ok!(ping(6, &mut pkt));
     let len2 = ok!(build_tc(&mut wrong_sa, &mut ground_store, ad(1), &pkt[..n2], &mut again).ok());
     uplink(&again[..len2], &TCS, &UP);
-    fl.receive(30, &mut obsw, &TCS, &TM, &DOWN);
-    fl.end_period(30, &mut obsw, &TM, &DOWN);
+    settle(&mut fl, &mut obsw, 30, &TCS, &TM, &DOWN);
     downlink(&TM, &mut tm_rx, &mut tm_store, &mut g);
     check_eq!(count(&g, 17, 2), 1, "wrong key not executed");
     let rej_mac = (pid::LINK_REJ_BAD_MAC - pid::LINK_AD_ACCEPTED) as usize;
@@ -352,10 +347,7 @@ fn framelink_authenticated_tc_executes_once_replay_and_wrong_mac_refused() -> Te
     let mut bigframe = [0u8; 1024];
     let lb = ok!(build_tc(&mut tc_sa, &mut ground_store, ad(1), &big[..nb], &mut bigframe).ok());
     uplink(&bigframe[..lb], &TCS, &UP);
-    let start = instret();
-    fl.receive(40, &mut obsw, &TCS, &TM, &DOWN);
-    let big_frame = instret() - start;
-    fl.end_period(40, &mut obsw, &TM, &DOWN);
+    let (big_frame, _) = settle(&mut fl, &mut obsw, 40, &TCS, &TM, &DOWN);
     downlink(&TM, &mut tm_rx, &mut tm_store, &mut g);
     check_eq!(obsw.space_link[0], 2, "LINK_AD_ACCEPTED");
     check_eq!(g.clcw_nr, Some(2));
@@ -367,8 +359,7 @@ fn framelink_authenticated_tc_executes_once_replay_and_wrong_mac_refused() -> Te
     check_eq!(fl2.ep.rx.farm.vr(), 2);
     let replay = captured;
     uplink(&replay[..len], &TCS, &UP);
-    fl2.receive(50, &mut obsw, &TCS, &TM, &DOWN);
-    fl2.end_period(50, &mut obsw, &TM, &DOWN);
+    settle(&mut fl2, &mut obsw, 50, &TCS, &TM, &DOWN);
     check_eq!(fl2.ep.rx.counters.replay, 1);
     check_eq!(fl2.ep.rx.counters.ad_accepted, 0);
     check_eq!(UP.get().overflow + UP.get().frame_errors, 0);
@@ -411,8 +402,7 @@ fn framelink_bare_packets_control_frames_and_idle_frames() -> TestResult {
     let mut pkt = [0u8; 32];
     let n = ok!(ping(9, &mut pkt));
     uplink(&pkt[..n], &TCS, &UP);
-    fl.receive(10, &mut obsw, &TCS, &TM, &DOWN);
-    fl.end_period(10, &mut obsw, &TM, &DOWN);
+    settle(&mut fl, &mut obsw, 10, &TCS, &TM, &DOWN);
     downlink(&TM, &mut tm_rx, &mut tm_store, &mut g);
     check_eq!(obsw.space_link[off(pid::LINK_REJ_BARE_PACKET)], 1);
     check_eq!(count(&g, 17, 2), 0);
@@ -446,15 +436,48 @@ fn framelink_bare_packets_control_frames_and_idle_frames() -> TestResult {
     check_eq!(fl.store().writes, writes);
     check_eq!(g.clcw_nr, Some(0), "the CLCW goes out after each control frame");
 
-    // Nothing to send: an idle frame with the CLCW once 100 ms passed without a frame.
+    // Nothing to send once the control frames' event reports went out (their encryption
+    // takes periods): an idle frame with the CLCW once 100 ms passed without a frame.
+    let (_, last) = settle(&mut fl, &mut obsw, 170, &TCS, &TM, &DOWN);
+    downlink(&TM, &mut tm_rx, &mut tm_store, &mut g);
     let frames = g.frames;
     let idle = tm_rx.counters.idle_frames;
-    fl.end_period(200, &mut obsw, &TM, &DOWN);
+    fl.end_period(last + 40, &mut obsw, &TM, &DOWN);
     downlink(&TM, &mut tm_rx, &mut tm_store, &mut g);
     check_eq!(g.frames, frames, "no idle frame within 100 ms");
-    fl.end_period(260, &mut obsw, &TM, &DOWN);
+    fl.end_period(last + 120, &mut obsw, &TM, &DOWN);
     downlink(&TM, &mut tm_rx, &mut tm_store, &mut g);
     check_eq!(tm_rx.counters.idle_frames, idle + 1);
     check_eq!(g.clcw_nr, Some(0));
     Ok(())
+}
+
+/// Control periods from `now` (1 ms apart) until the link has nothing left in work and
+/// the uplink queue is empty (at most 16): the TC frame path's instructions, summed, and
+/// the time of the last period.
+pub fn settle<St, S, const N: usize>(
+    fl: &mut FrameLink<St>,
+    obsw: &mut Obsw<S>,
+    now: u64,
+    tcs: &TcChannel,
+    tm: &ByteQueue<N>,
+    down: &Counters,
+) -> (u64, u64)
+where
+    St: mmic_link::sdls::IvStore + mmic_link::endpoint::StoreStats,
+    S: obsw_core::tm::TmStore,
+{
+    let mut receive = 0;
+    let mut last = now;
+    for t in now..now + 16 {
+        last = t;
+        let start = instret();
+        fl.receive(t, obsw, tcs, tm, down);
+        receive += instret() - start;
+        fl.end_period(t, obsw, tm, down);
+        if !fl.ep.busy() && tcs.is_empty() {
+            break;
+        }
+    }
+    (receive, last)
 }

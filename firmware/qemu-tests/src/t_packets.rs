@@ -21,7 +21,7 @@ pub const TESTS: &[Test] = tests![
 ];
 
 /// CRC-16/CCITT-FALSE, one bit at a time (poly 0x1021, init 0xFFFF, no reflection).
-fn crc16_reference(data: &[u8]) -> u16 {
+pub(crate) fn crc16_reference(data: &[u8]) -> u16 {
     let mut crc: u16 = 0xFFFF;
     for &b in data {
         crc ^= (b as u16) << 8;

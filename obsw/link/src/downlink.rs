@@ -16,7 +16,7 @@ use mib::link::tm_vc;
 
 use crate::clcw::{Clcw, ClcwError};
 use crate::mux::{DemuxCounters, MuxError, PacketDemux, PacketMux, Zone};
-use crate::sdls::{IvStore, RxSas, SdlsError, TxSa};
+use crate::sdls::{IvStore, RxSas, SdlsError, Sealing, TxSa};
 use crate::tm::{FirstHeaderPointer, TmError, TmFrame, TmRepr};
 
 /// How the packet-carrying TM frames (VC0, VC1) are protected. Both ends must agree.
@@ -89,6 +89,21 @@ pub struct TxCounters {
     pub idle_frames: u32,
     /// Frames not sent because SDLS failed (counter store): their packets are lost.
     pub sdls_failed: u32,
+    /// Frames not built because [`SEAL_QUEUE`] frames already waited for their
+    /// encryption (deferred sealing only): their packets are lost to the live downlink.
+    pub seal_queue_full: u32,
+}
+
+/// Frames that can wait for their encryption when sealing is deferred
+/// ([`TmFramer::defer_sealing`]); a frame that fills beyond them is not built, and counted.
+pub const SEAL_QUEUE: usize = 2;
+
+/// A TM frame built (header, security header, packet zone) whose encryption runs in
+/// [`TmFramer::seal`] steps.
+#[derive(Debug)]
+struct Unsealed {
+    frame: [u8; LEN],
+    sealing: Sealing,
 }
 
 /// The on-board TM framer: master and VC counters and `ZONES` packet multiplexers.
@@ -106,6 +121,9 @@ pub struct TmFramer<const ZONES: usize = 2> {
     vc: [u8; 8],
     zones: [PacketMux<CLEAR_DATA_LEN>; ZONES],
     pub counters: TxCounters,
+    /// Frames are encrypted in [`TmFramer::seal`] steps instead of when they fill.
+    deferred: bool,
+    unsealed: heapless::Deque<Unsealed, SEAL_QUEUE>,
 }
 
 struct FrameCtx<'a, S: IvStore, O: FnMut(&[u8])> {
@@ -119,10 +137,16 @@ struct FrameCtx<'a, S: IvStore, O: FnMut(&[u8])> {
     store: &'a mut S,
     out: O,
     err: Option<SdlsError>,
+    /// `Some`: the frame waits here for [`TmFramer::seal`].
+    defer: Option<&'a mut heapless::Deque<Unsealed, SEAL_QUEUE>>,
 }
 
 impl<S: IvStore, O: FnMut(&[u8])> FrameCtx<'_, S, O> {
     fn secure(&mut self, vcid: u8, z: Zone<'_>) {
+        if self.security == TmSecurity::Encrypt && self.defer.as_ref().is_some_and(|q| q.is_full()) {
+            self.counters.seal_queue_full = self.counters.seal_queue_full.saturating_add(1);
+            return;
+        }
         let mut buf = [0u8; LEN];
         let repr = TmRepr {
             scid: self.scid,
@@ -137,6 +161,22 @@ impl<S: IvStore, O: FnMut(&[u8])> FrameCtx<'_, S, O> {
             TmSecurity::Encrypt => {
                 let p = HEADER_LEN + mib::link::sdls::HEADER_LEN;
                 buf[p..p + SECURE_DATA_LEN].copy_from_slice(z.data);
+                if let Some(q) = self.defer.as_mut() {
+                    match self.sa.begin_tm(self.store, &mut buf) {
+                        Ok(sealing) => {
+                            // Room checked above.
+                            let _ = q.push_back(Unsealed { frame: buf, sealing });
+                            *self.mc = self.mc.wrapping_add(1);
+                            let c = &mut self.vc[usize::from(vcid & 7)];
+                            *c = c.wrapping_add(1);
+                        }
+                        Err(e) => {
+                            self.counters.sdls_failed = self.counters.sdls_failed.saturating_add(1);
+                            self.err = Some(e);
+                        }
+                    }
+                    return;
+                }
                 if let Err(e) = self.sa.apply_tm(self.store, &mut buf) {
                     self.counters.sdls_failed = self.counters.sdls_failed.saturating_add(1);
                     self.err = Some(e);
@@ -190,7 +230,46 @@ impl<const ZONES: usize> TmFramer<ZONES> {
             vc: [0; 8],
             zones: core::array::from_fn(|_| PacketMux::with_len(security.zone_len())),
             counters: TxCounters::default(),
+            deferred: false,
+            unsealed: heapless::Deque::new(),
         }
+    }
+
+    /// From now on a filled frame waits (at most [`SEAL_QUEUE`] of them) and is encrypted
+    /// in [`TmFramer::seal`] steps, so that the caller bounds the SDLS work per control
+    /// period. The frame counts are the frames' build order, which is their send order.
+    pub fn defer_sealing(&mut self) {
+        self.deferred = true;
+    }
+
+    /// Frames waiting for their encryption.
+    pub fn unsealed(&self) -> usize {
+        self.unsealed.len()
+    }
+
+    /// Continues the oldest waiting frame's encryption by at most `work` GCM work blocks
+    /// ([`crate::gcm`]); a frame finished gets the CLCW of now and its FECF and goes to
+    /// `out`. False when no frame waits.
+    pub fn seal(&mut self, work: usize, clcw: Clcw, sa: &TxSa, mut out: impl FnMut(&[u8])) -> bool {
+        let Some(u) = self.unsealed.front_mut() else {
+            return false;
+        };
+        if u.sealing.spi() != sa.spi() {
+            // Begun under the SA in use before a key change: its IV and key are that
+            // SA's, so it cannot be finished; its packets are lost to the live downlink.
+            self.unsealed.pop_front();
+            self.counters.sdls_failed = self.counters.sdls_failed.saturating_add(1);
+            return true;
+        }
+        if sa.seal(&mut u.sealing, &mut u.frame, work) {
+            let mut f = TmFrame::new_unchecked(&mut u.frame[..]);
+            f.set_ocf(clcw.emit());
+            f.fill_fecf();
+            self.counters.frames = self.counters.frames.saturating_add(1);
+            out(&u.frame);
+            self.unsealed.pop_front();
+        }
+        true
     }
 
     pub fn security(&self) -> TmSecurity {
@@ -253,6 +332,7 @@ impl<const ZONES: usize> TmFramer<ZONES> {
             store,
             out,
             err: None,
+            defer: self.deferred.then_some(&mut self.unsealed),
         };
         let r = op(mux, &mut |z| c.secure(vc.id(), z));
         c.err.map_or(Ok(r), |e| Err(DownlinkError::Sdls(e)))
@@ -539,7 +619,8 @@ mod tests {
             TxCounters {
                 frames: 5,
                 idle_frames: 1,
-                sdls_failed: 0
+                sdls_failed: 0,
+                seal_queue_full: 0
             }
         );
         let mut g = ground();

@@ -13,7 +13,7 @@
 use crate::clcw::Clcw;
 use crate::downlink::{TmFramer, TmVc};
 use crate::hk::{changes, control_event_fields, space_link_values, LinkChange, SPACE_LINK_PARAMS};
-use crate::rx::{Packets, RxCounters, RxOutcome, TcReceiver};
+use crate::rx::{Packets, RxCounters, RxOutcome, Start, TcOpening, TcReceiver};
 use crate::sdls::{IvStore, TxSa};
 use crate::tc::ControlCommand;
 
@@ -65,6 +65,26 @@ pub struct Endpoint<St, const SAS: usize, const ZONES: usize> {
     /// Counters already reported by events.
     reported: RxCounters,
     last_control: Option<ControlCommand>,
+    /// GCM work blocks per control period (`None`: every frame's SDLS work at once).
+    work: Option<usize>,
+    /// The TC frame in work between periods (scheduled mode).
+    tc: Option<TcWork>,
+    /// The TC frame used this period's SDLS work.
+    tc_worked: bool,
+}
+
+/// A TC frame whose SDLS work and packets are spread over control periods.
+struct TcWork {
+    buf: [u8; mib::link::tc_frame::MAX_LEN],
+    len: usize,
+    state: TcState,
+}
+
+enum TcState {
+    /// MAC check, then decryption.
+    Open(TcOpening),
+    /// Accepted: the packets in `buf[next..end]` wait for their periods.
+    Packets { next: usize, end: usize },
 }
 
 /// Index of a TM virtual channel in the pending flags.
@@ -89,6 +109,126 @@ impl<St: IvStore + StoreStats, const SAS: usize, const ZONES: usize> Endpoint<St
             unkeyed: 0,
             reported: RxCounters::default(),
             last_control: None,
+            work: None,
+            tc: None,
+            tc_worked: false,
+        }
+    }
+
+    /// Spreads the SDLS work over control periods (board A): each period does at most
+    /// `work` GCM work blocks ([`crate::gcm`]), for one direction only — a TC frame's MAC
+    /// check and decryption first ([`Endpoint::offer`], [`Endpoint::poll_tc`]), else the
+    /// oldest TM frame's encryption ([`Endpoint::poll_tm`]) — and executes at most one TC
+    /// packet. Without it (the host) every frame's work is done when the frame comes.
+    pub fn schedule(&mut self, work: usize) {
+        self.work = Some(work);
+        self.framer.defer_sealing();
+    }
+
+    /// Work is waiting for later periods: a TC frame, TM packets not yet in a sent
+    /// frame.
+    pub fn busy(&self) -> bool {
+        self.tc.is_some() || self.framer.unsealed() > 0 || self.pending.iter().any(|&p| p)
+    }
+
+    /// A TC frame is in work: the next waits in the caller's uplink queue.
+    pub fn tc_busy(&self) -> bool {
+        self.tc.is_some()
+    }
+
+    /// Takes a TC frame (scheduled mode): the checks before the MAC now (a refusal is
+    /// counted, a control frame executed), the MAC check and decryption in
+    /// [`Endpoint::poll_tc`]. Call only when not [`Endpoint::tc_busy`].
+    pub fn offer(&mut self, frame: &[u8]) {
+        match self.rx.start(&mut self.store, frame) {
+            Start::Control(c) => {
+                self.clcw_due = true;
+                self.last_control = Some(c);
+            }
+            Start::Rejected(_) => {}
+            Start::Open(o) => {
+                let mut buf = [0u8; mib::link::tc_frame::MAX_LEN];
+                // The frame checks refused anything longer.
+                let Some(dst) = buf.get_mut(..frame.len()) else { return };
+                dst.copy_from_slice(frame);
+                self.tc = Some(TcWork {
+                    buf,
+                    len: frame.len(),
+                    state: TcState::Open(o),
+                });
+            }
+        }
+    }
+
+    /// This period's TC work (scheduled mode): the frame's MAC check and decryption go on
+    /// by the period's work blocks; once accepted, one packet per period is copied into
+    /// `packet` (its length returned) for the OBSW to execute.
+    pub fn poll_tc(&mut self, packet: &mut [u8; mib::link::tc_frame::MAX_PACKET_LEN]) -> Option<usize> {
+        let work = self.work?;
+        let w = self.tc.as_mut()?;
+        if let TcState::Open(o) = &mut w.state {
+            self.tc_worked = true;
+            let buf = &mut w.buf[..w.len];
+            let base = buf.as_ptr() as usize;
+            match self.rx.resume(&mut self.store, buf, o, work, true)? {
+                RxOutcome::Accepted { packets, .. } => {
+                    self.clcw_due = true;
+                    let rest = packets.rest();
+                    let next = rest.as_ptr() as usize - base;
+                    w.state = TcState::Packets {
+                        next,
+                        end: next + rest.len(),
+                    };
+                }
+                RxOutcome::Discarded(_) | RxOutcome::Control(_) => {
+                    self.clcw_due = true;
+                    self.tc = None;
+                    return None;
+                }
+                RxOutcome::Rejected(_) => {
+                    self.tc = None;
+                    return None;
+                }
+            }
+        }
+        let TcState::Packets { next, end } = &mut w.state else {
+            return None;
+        };
+        let p = Packets::over(&w.buf[*next..*end]).next();
+        let n = p.map_or(0, <[u8]>::len);
+        *next += n;
+        let done = *next >= *end;
+        // A packet lies inside the frame's data field, which is at most MAX_PACKET_LEN.
+        let r = match (p, packet.get_mut(..n)) {
+            (Some(p), Some(dst)) => {
+                dst.copy_from_slice(p);
+                Some(n)
+            }
+            _ => None,
+        };
+        if done || r.is_none() {
+            self.tc = None;
+        }
+        r
+    }
+
+    /// This period's TM work (scheduled mode), after [`Endpoint::flush`]: the oldest TM
+    /// frame's encryption goes on by the period's work blocks unless a TC frame used them;
+    /// a finished frame (with the CLCW of now) goes to `out`.
+    pub fn poll_tm(&mut self, now: u64, mut out: impl FnMut(&[u8])) {
+        let Some(work) = self.work else { return };
+        if core::mem::take(&mut self.tc_worked) {
+            return;
+        }
+        let Some(sa) = self.tm_sa.as_ref() else { return };
+        let mut sent = false;
+        self.framer.seal(work, self.rx.farm.clcw(), sa, |f| {
+            sent = true;
+            out(f)
+        });
+        if sent {
+            self.last_tx_ms = now;
+            self.clcw_due = false;
         }
     }
 
@@ -148,8 +288,14 @@ impl<St: IvStore + StoreStats, const SAS: usize, const ZONES: usize> Endpoint<St
 
     /// Sends the partly filled frames, or an idle frame with the CLCW when one is due (an
     /// authentic TC frame since the last frame, or [`IDLE_INTERVAL_MS`] without one).
+    /// Scheduled ([`Endpoint::schedule`]): nothing while frames wait for their encryption.
     pub fn flush(&mut self, now: u64, mut out: impl FnMut(&[u8])) {
         let clcw: Clcw = self.rx.farm.clcw();
+        if self.work.is_some() && self.framer.unsealed() > 0 {
+            // Scheduled: while frames wait for their encryption, new packets gather in
+            // the open frame (one frame, not one per period); that frame follows them.
+            return;
+        }
         if self.pending.iter().any(|&p| p) {
             for vc in [TmVc::Realtime, TmVc::Replay] {
                 if !core::mem::take(&mut self.pending[vc_index(vc)]) {
@@ -159,7 +305,10 @@ impl<St: IvStore + StoreStats, const SAS: usize, const ZONES: usize> Endpoint<St
                     let _ = self.framer.flush(vc, clcw, sa, &mut self.store, &mut out);
                 }
             }
-        } else if self.clcw_due || now.saturating_sub(self.last_tx_ms) >= IDLE_INTERVAL_MS {
+        } else if self.framer.unsealed() == 0
+            && (self.clcw_due || now.saturating_sub(self.last_tx_ms) >= IDLE_INTERVAL_MS)
+        {
+            // (A frame waiting for its encryption carries the CLCW when it goes.)
             let mut f = [0u8; mib::link::tm_frame::LEN];
             self.framer.idle(clcw, &mut f);
             out(&f);
@@ -168,6 +317,11 @@ impl<St: IvStore + StoreStats, const SAS: usize, const ZONES: usize> Endpoint<St
         }
         self.last_tx_ms = now;
         self.clcw_due = false;
+    }
+
+    /// The TM framer's counters.
+    pub fn tx_counters(&self) -> crate::downlink::TxCounters {
+        self.framer.counters
     }
 
     /// The SPACE_LINK HK values, in MIB order ([`crate::hk`]).
@@ -212,7 +366,7 @@ mod tests {
     use super::*;
     use crate::rx::TcReceiver;
     use crate::sdls::{MemoryIvStore, RxSa, RxSas};
-    use crate::test_keys::{TEST_KEY_TC_A, TEST_KEY_TM_A};
+    use crate::test_keys::{TEST_KEY_TC_A, TEST_KEY_TC_B, TEST_KEY_TM_A};
     use mib::params::pid;
 
     fn endpoint() -> Endpoint<MemoryIvStore, 1, 1> {
@@ -259,5 +413,146 @@ mod tests {
         ep.report(|_| panic!("reported once"));
         // One durable write: the TM IV reservation of the first frame.
         assert_eq!(ep.state_values(1), [17, 1, 1, 0]);
+    }
+
+    fn tc_packet(seq: u16, len: usize) -> Vec<u8> {
+        let mut p = vec![0x18, 0x64, 0xC0 | (seq >> 8) as u8, seq as u8, 0, 0];
+        p.extend((0..len).map(|i| i as u8));
+        let n = (p.len() - 7) as u16;
+        p[4..6].copy_from_slice(&n.to_be_bytes());
+        p
+    }
+
+    fn tc_frame(seq: u8, payload: &[u8], key: &crate::sdls::Key) -> Vec<u8> {
+        let mut tx = TxSa::resume(1, key, u128::from(seq));
+        let mut buf = [0u8; 1024];
+        let h = crate::tc::TcRepr {
+            frame_type: crate::tc::FrameType::Ad,
+            scid: mib::link::SCID,
+            vcid: 0,
+            seq,
+            data_len: 0,
+        };
+        let n = crate::sdls::build_tc(&mut tx, &mut MemoryIvStore::default(), h, payload, &mut buf).unwrap();
+        buf[..n].to_vec()
+    }
+
+    /// One scheduled period: TC work, the OBSW's `replies` to a packet, the flush and the
+    /// TM work. The packet executed, and the frames sent.
+    fn period(
+        ep: &mut Endpoint<MemoryIvStore, 1, 1>,
+        now: u64,
+        replies: &[Vec<u8>],
+    ) -> (Option<Vec<u8>>, Vec<Vec<u8>>) {
+        let mut out = Vec::new();
+        let mut p = [0u8; mib::link::tc_frame::MAX_PACKET_LEN];
+        let packet = ep.poll_tc(&mut p).map(|n| p[..n].to_vec());
+        if packet.is_some() {
+            for r in replies {
+                ep.send(TmVc::Realtime, r, |f| out.push(f.to_vec()));
+            }
+        }
+        ep.flush(now, |f| out.push(f.to_vec()));
+        ep.poll_tm(now, |f| out.push(f.to_vec()));
+        (packet, out)
+    }
+
+    // verifies: LINK-EP-02
+    #[test]
+    fn scheduled_endpoint_spreads_a_frames_sdls_work_over_periods_one_direction_each() {
+        use crate::downlink::TmReceiver;
+        const WORK: usize = 48;
+        let mut ep = endpoint();
+        ep.schedule(WORK);
+        assert_eq!(frames(&mut ep, 0), 1, "the first CLCW (idle frame) at once");
+        // A 1024-byte frame of three packets, as the synchronous endpoint sees it.
+        let packets = [tc_packet(1, 400), tc_packet(2, 400), tc_packet(3, 169)];
+        let payload: Vec<u8> = packets.concat();
+        let frame = tc_frame(0, &payload, &TEST_KEY_TC_A);
+        assert_eq!(frame.len(), 1024);
+        let mut sync = endpoint();
+        let mut f = frame.clone();
+        let want: Vec<Vec<u8>> = sync.receive(&mut f).unwrap().map(<[u8]>::to_vec).collect();
+        assert_eq!(want, packets);
+        // TM waiting when the frame comes: one full frame's worth of replies.
+        let reply = tc_packet(9, 90);
+        let mut sent = Vec::new();
+        for _ in 0..10 {
+            ep.send(TmVc::Realtime, &reply, |f| sent.push(f.to_vec()));
+        }
+        assert!(sent.is_empty(), "no frame is encrypted when it fills");
+        ep.offer(&frame);
+        assert!(ep.tc_busy());
+        // 62 data blocks: the MAC check and the decryption (124 work blocks) take 3
+        // periods of 48; TM waits meanwhile, then its frames take 3 periods each.
+        let mut got = Vec::new();
+        let mut tm = Vec::new();
+        let mut log = Vec::new();
+        for t in 1..=20u64 {
+            let (p, out) = period(&mut ep, 10 * t, core::slice::from_ref(&reply));
+            log.push((p.is_some(), out.len()));
+            got.extend(p);
+            tm.extend(out);
+            if !ep.busy() {
+                break;
+            }
+        }
+        assert_eq!(got, want, "the packets, one per period, as the synchronous endpoint");
+        let first = log.iter().position(|(p, _)| *p).unwrap();
+        assert_eq!(first, 2, "accepted in the third period: {log:?}");
+        assert!(
+            log[..first].iter().all(|(_, n)| *n == 0),
+            "no TM encrypted while the TC frame used the periods"
+        );
+        assert_eq!(ep.rx.counters.ad_accepted, 1);
+        // The ground reads every TM packet: 10 waiting replies and one per TC packet.
+        let mut sas = RxSas::<1>::default();
+        sas.insert(RxSa::new(17, &TEST_KEY_TM_A, 64)).unwrap();
+        let mut ground = TmReceiver::new(mib::link::SCID, sas);
+        let mut n = 0;
+        for f in &tm {
+            let mut f = f.clone();
+            if ground
+                .receive(&mut MemoryIvStore::default(), &mut f, |_, p| {
+                    assert_eq!(p, &reply[..]);
+                    n += 1;
+                })
+                .is_err()
+            {
+                panic!("a TM frame the ground refused");
+            }
+        }
+        assert_eq!(n, 13);
+        // A forged frame: refused after the MAC check, counted, nothing executed.
+        let forged = tc_frame(1, &payload, &TEST_KEY_TC_B);
+        ep.offer(&forged);
+        for t in 30..40u64 {
+            assert!(period(&mut ep, 10 * t, &[]).0.is_none());
+        }
+        assert!(!ep.busy());
+        assert_eq!(ep.rx.counters.bad_mac, 1);
+        // More TM than the frames waiting for encryption can hold: 40 replies of 96 bytes
+        // fill three 982-byte packet zones; two frames wait, the third is not built and
+        // is counted.
+        for _ in 0..40 {
+            ep.send(TmVc::Realtime, &reply, |_| panic!("no frame at once"));
+        }
+        assert_eq!(ep.tx_counters().seal_queue_full, 1);
+    }
+
+    // verifies: LINK-EP-02
+    #[test]
+    fn a_tm_frame_waiting_for_encryption_across_a_key_change_is_dropped_and_counted() {
+        let mut ep = endpoint();
+        ep.schedule(8);
+        let reply = tc_packet(9, 90);
+        for _ in 0..11 {
+            ep.send(TmVc::Realtime, &reply, |_| panic!("no frame at once"));
+        }
+        ep.poll_tm(10, |_| panic!("8 work blocks do not finish a frame"));
+        assert_eq!(ep.framer.unsealed(), 1);
+        ep.set_tm_sa(TxSa::resume(18, &TEST_KEY_TC_B, 0));
+        ep.poll_tm(20, |_| panic!("no frame under a mixed key"));
+        assert_eq!((ep.framer.unsealed(), ep.tx_counters().sdls_failed), (0, 1));
     }
 }

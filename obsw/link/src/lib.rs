@@ -28,6 +28,7 @@ pub mod endpoint;
 pub mod farm;
 pub mod fecf;
 pub mod fop;
+pub mod gcm;
 pub mod hk;
 pub mod mux;
 pub mod persist;

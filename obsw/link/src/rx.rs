@@ -20,7 +20,7 @@ use core::fmt;
 
 use crate::farm::{Farm, FarmAction, FarmEvent, FarmInput};
 use crate::fecf;
-use crate::sdls::{IvStore, RxSas, SdlsError};
+use crate::sdls::{IvStore, Opening, RxSas, SdlsError, Verified};
 use crate::tc::{ControlCommand, FrameType, TcError, TcFrame, UnknownControlCommand};
 
 /// Why a datagram was refused. Each maps to one counter.
@@ -162,6 +162,18 @@ fn split_packets(data: &[u8]) -> Option<Packets<'_>> {
     (!data.is_empty()).then_some(Packets { rest: data })
 }
 
+impl<'a> Packets<'a> {
+    /// The packets of `data`, a part of an accepted frame's packets from a packet's start.
+    pub fn over(data: &'a [u8]) -> Packets<'a> {
+        Packets { rest: data }
+    }
+
+    /// The bytes not yet handed out.
+    pub fn rest(&self) -> &'a [u8] {
+        self.rest
+    }
+}
+
 impl<'a> Iterator for Packets<'a> {
     type Item = &'a [u8];
     fn next(&mut self) -> Option<&'a [u8]> {
@@ -252,6 +264,19 @@ impl<const N: usize> TcReceiver<N> {
         datagram: &'a mut [u8],
         buffer_available: bool,
     ) -> Result<RxOutcome<'a>, RxError> {
+        match self.front(store, datagram)? {
+            Front::Control(cmd) => Ok(RxOutcome::Control(cmd)),
+            Front::Secured { frame_type, seq } => {
+                // 3. SDLS: window, MAC, decryption. The IV is recorded with FARM-1's new
+                // state in one durable write (step 5).
+                let verified = self.sas.verify_tc(datagram).map_err(RxError::Sdls)?;
+                self.back(store, datagram, &verified, frame_type, seq, buffer_available)
+            }
+        }
+    }
+
+    /// Steps 0–2, and a control frame to its end.
+    fn front(&mut self, store: &mut impl IvStore, datagram: &[u8]) -> Result<Front, RxError> {
         // 0. A bare space packet: a TC packet's first byte (version 000, type 1) is an
         // illegal frame (bypass 0, control 1), and a PUS TC ends with the same CRC-16 as a
         // frame, so it is recognised before the CRC check, which it would pass.
@@ -264,7 +289,7 @@ impl<const N: usize> TcReceiver<N> {
         }
         // 2. Lengths and header.
         let (frame_type, seq) = {
-            let f = TcFrame::new_checked(&*datagram).map_err(RxError::Frame)?;
+            let f = TcFrame::new_checked(datagram).map_err(RxError::Frame)?;
             if f.scid() != self.scid {
                 return Err(RxError::WrongScid(f.scid()));
             }
@@ -275,7 +300,7 @@ impl<const N: usize> TcReceiver<N> {
         };
         if frame_type == FrameType::Bc {
             let cmd = {
-                let f = TcFrame::new_unchecked(&*datagram);
+                let f = TcFrame::new_unchecked(datagram);
                 ControlCommand::parse(f.data()).map_err(RxError::UnknownControl)?
             };
             // In clear, so anyone can send or replay it: FARM-1 takes only what
@@ -298,12 +323,20 @@ impl<const N: usize> TcReceiver<N> {
                 ControlCommand::Unlock => inc(&mut self.counters.unlock),
                 ControlCommand::SetVr(_) => inc(&mut self.counters.set_vr),
             }
-            return Ok(RxOutcome::Control(cmd));
+            return Ok(Front::Control(cmd));
         }
-        // 3. SDLS: window, MAC, decryption. The IV is recorded with FARM-1's new state in
-        // one durable write (step 5).
-        let verified = self.sas.verify_tc(datagram).map_err(RxError::Sdls)?;
-        let datagram: &'a [u8] = datagram;
+        Ok(Front::Secured { frame_type, seq })
+    }
+    /// Steps 4–6 of an authentic (decrypted) frame.
+    fn back<'a>(
+        &mut self,
+        store: &mut impl IvStore,
+        datagram: &'a [u8],
+        verified: &Verified,
+        frame_type: FrameType,
+        seq: u8,
+        buffer_available: bool,
+    ) -> Result<RxOutcome<'a>, RxError> {
         let data: &'a [u8] = &datagram[verified.data.clone()];
         // 4. Packet lengths, before COP-1 state changes.
         let packets = split_packets(data).ok_or(RxError::NotPackets)?;
@@ -328,7 +361,7 @@ impl<const N: usize> TcReceiver<N> {
             self.farm = before;
             return Err(RxError::Sdls(SdlsError::StoreFailed));
         }
-        self.sas.commit(&verified);
+        self.sas.commit(verified);
         match fx.action {
             FarmAction::Accept => {
                 match frame_type {
@@ -357,6 +390,75 @@ impl<const N: usize> TcReceiver<N> {
             }
         }
     }
+
+    /// The first part of [`TcReceiver::receive`] for a frame whose SDLS work is spread over
+    /// control periods: steps 0–2 (a control frame to its end), then the SPI and the
+    /// anti-replay window. An AD/BD frame comes back as a [`TcOpening`] for
+    /// [`TcReceiver::resume`]; a refusal is counted.
+    pub fn start(&mut self, store: &mut impl IvStore, datagram: &[u8]) -> Start {
+        let r = self.front(store, datagram).and_then(|f| match f {
+            Front::Control(cmd) => Ok(Start::Control(cmd)),
+            Front::Secured { frame_type, seq } => {
+                let opening = self.sas.open_tc(datagram).map_err(RxError::Sdls)?;
+                Ok(Start::Open(TcOpening {
+                    frame_type,
+                    seq,
+                    opening,
+                }))
+            }
+        });
+        r.unwrap_or_else(|e| {
+            self.counters.count(&e);
+            Start::Rejected(e)
+        })
+    }
+
+    /// Continues a [`TcReceiver::start`]ed frame by at most `work` GCM work blocks
+    /// ([`crate::gcm`]): `None` while the MAC check or decryption goes on, then the
+    /// outcome [`TcReceiver::receive`] would have given (`datagram` is the same frame,
+    /// decrypted in place once its MAC verified).
+    pub fn resume<'a>(
+        &mut self,
+        store: &mut impl IvStore,
+        datagram: &'a mut [u8],
+        o: &mut TcOpening,
+        work: usize,
+        buffer_available: bool,
+    ) -> Option<RxOutcome<'a>> {
+        let r = match self.sas.open(&mut o.opening, datagram, work)? {
+            Ok(v) => self.back(store, datagram, &v, o.frame_type, o.seq, buffer_available),
+            Err(e) => Err(RxError::Sdls(e)),
+        };
+        Some(r.unwrap_or_else(|e| {
+            self.counters.count(&e);
+            RxOutcome::Rejected(e)
+        }))
+    }
+}
+
+/// Steps 0–2's result.
+enum Front {
+    Control(ControlCommand),
+    Secured { frame_type: FrameType, seq: u8 },
+}
+
+/// [`TcReceiver::start`]'s result.
+#[derive(Debug)]
+pub enum Start {
+    /// A control command executed by FARM-1.
+    Control(ControlCommand),
+    /// Refused before the MAC check (counted by reason).
+    Rejected(RxError),
+    /// An AD/BD frame in the window of its SA: the MAC check and decryption follow.
+    Open(TcOpening),
+}
+
+/// An AD/BD frame between [`TcReceiver::start`] and the end of [`TcReceiver::resume`].
+#[derive(Clone, Debug)]
+pub struct TcOpening {
+    frame_type: FrameType,
+    seq: u8,
+    opening: Opening,
 }
 
 #[cfg(test)]

@@ -20,11 +20,10 @@
 use core::fmt;
 use core::ops::Range;
 
-use aes_gcm::aead::AeadInPlace;
-use aes_gcm::{Aes256Gcm, KeyInit, Nonce, Tag};
 use mib::link::sdls::{HEADER_LEN, IV_LEN, IV_RESERVE_BLOCK, KEY_LEN, MAC_LEN, SPI_LEN};
 
 use crate::farm::FarmRecord;
+use crate::gcm::{Gcm, Job, Progress};
 
 /// An AES-256 key.
 pub type Key = [u8; KEY_LEN];
@@ -178,7 +177,7 @@ fn aad<const N: usize>(header: &[u8], mask: &[u8; N]) -> [u8; N] {
 /// A transmit security association: the robot's TM SA, the ground's TC SA.
 pub struct TxSa {
     spi: u16,
-    cipher: Aes256Gcm,
+    cipher: Gcm,
     next: u128,
     reserved: u128,
 }
@@ -200,7 +199,7 @@ impl TxSa {
     pub fn resume(spi: u16, key: &Key, high_water: u128) -> TxSa {
         TxSa {
             spi,
-            cipher: Aes256Gcm::new(key.into()),
+            cipher: Gcm::new(key),
             next: high_water,
             reserved: high_water,
         }
@@ -229,18 +228,19 @@ impl TxSa {
         Ok(iv)
     }
 
-    /// Protects a frame in place. `frame[..hdr_end]` is the frame header (already written),
-    /// `frame[hdr_end..hdr_end + 14]` receives the security header,
-    /// `frame[hdr_end + 14..mac_start]` is the plaintext, `frame[mac_start..mac_start + 16]`
-    /// receives the MAC. `mask` is the authentication mask over header + security header.
-    fn apply<const M: usize>(
+    /// Starts protecting a frame in place. `frame[..hdr_end]` is the frame header (already
+    /// written), `frame[hdr_end..hdr_end + 14]` receives the security header (the IV is
+    /// taken now), `frame[hdr_end + 14..mac_start]` is the plaintext,
+    /// `frame[mac_start..mac_start + 16]` receives the MAC when [`TxSa::seal`] finishes.
+    /// `mask` is the authentication mask over header + security header.
+    fn begin<const M: usize>(
         &mut self,
         store: &mut impl IvStore,
         frame: &mut [u8],
         hdr_end: usize,
         mac_start: usize,
         mask: &[u8; M],
-    ) -> Result<(), SdlsError> {
+    ) -> Result<Sealing, SdlsError> {
         if mac_start < hdr_end + HEADER_LEN || mac_start + MAC_LEN > frame.len() || hdr_end + HEADER_LEN != M {
             return Err(SdlsError::TooShort(mac_start.saturating_sub(hdr_end)));
         }
@@ -249,12 +249,42 @@ impl TxSa {
         frame[hdr_end..hdr_end + SPI_LEN].copy_from_slice(&self.spi.to_be_bytes());
         frame[hdr_end + SPI_LEN..hdr_end + HEADER_LEN].copy_from_slice(&ivb);
         let a = aad(&frame[..M], mask);
-        let (head, rest) = frame.split_at_mut(mac_start);
-        let tag = self
-            .cipher
-            .encrypt_in_place_detached(Nonce::from_slice(&ivb), &a, &mut head[hdr_end + HEADER_LEN..])
-            .map_err(|_| SdlsError::TooShort(0))?;
-        rest[..MAC_LEN].copy_from_slice(&tag);
+        let data = hdr_end + HEADER_LEN..mac_start;
+        Ok(Sealing {
+            job: self.cipher.begin_encrypt(&ivb, &a, data.len()),
+            spi: self.spi,
+            data,
+            len: frame.len(),
+        })
+    }
+
+    /// Continues [`TxSa::begin_tm`]'s encryption of `frame` by at most `work` GCM work
+    /// blocks ([`crate::gcm`]); true once the MAC is written. The SA must be the one that
+    /// began it ([`Sealing::spi`]).
+    pub fn seal(&self, s: &mut Sealing, frame: &mut [u8], work: usize) -> bool {
+        if frame.len() != s.len || s.spi != self.spi {
+            return false;
+        }
+        match s.job.step(&self.cipher, &mut frame[s.data.clone()], work) {
+            Progress::Sealed(tag) => {
+                let m = s.data.end;
+                frame[m..m + MAC_LEN].copy_from_slice(&tag);
+                true
+            }
+            Progress::Pending | Progress::Opened | Progress::Refused => false,
+        }
+    }
+
+    fn apply<const M: usize>(
+        &mut self,
+        store: &mut impl IvStore,
+        frame: &mut [u8],
+        hdr_end: usize,
+        mac_start: usize,
+        mask: &[u8; M],
+    ) -> Result<(), SdlsError> {
+        let mut s = self.begin(store, frame, hdr_end, mac_start, mask)?;
+        while !self.seal(&mut s, frame, usize::MAX) {}
         Ok(())
     }
 
@@ -277,12 +307,50 @@ impl TxSa {
         };
         self.apply(store, frame, TH, mac_start, &TM_AUTH_MASK)
     }
+
+    /// Starts protecting a TM frame in place (as [`TxSa::apply_tm`], the IV taken now); the
+    /// encryption runs in [`TxSa::seal`] steps.
+    pub fn begin_tm(&mut self, store: &mut impl IvStore, frame: &mut [u8]) -> Result<Sealing, SdlsError> {
+        use mib::link::tm_frame::{FECF_LEN, HEADER_LEN as TH, OCF_LEN};
+        let Some(mac_start) = frame.len().checked_sub(MAC_LEN + OCF_LEN + FECF_LEN) else {
+            return Err(SdlsError::TooShort(frame.len()));
+        };
+        self.begin(store, frame, TH, mac_start, &TM_AUTH_MASK)
+    }
+}
+
+/// A frame being protected in steps ([`TxSa::begin_tm`], [`TxSa::seal`]).
+#[derive(Clone, Debug)]
+pub struct Sealing {
+    job: Job,
+    spi: u16,
+    /// The plaintext's range; the MAC follows it.
+    data: Range<usize>,
+    /// The frame's length.
+    len: usize,
+}
+
+impl Sealing {
+    /// The SPI of the SA that began it.
+    pub fn spi(&self) -> u16 {
+        self.spi
+    }
+}
+
+/// A TC frame being verified and decrypted in steps ([`RxSas::open_tc`], [`RxSas::open`]).
+#[derive(Clone, Debug)]
+pub struct Opening {
+    job: Job,
+    spi: u16,
+    iv: u128,
+    data: Range<usize>,
+    len: usize,
 }
 
 /// A receive security association: the robot's TC SA, the ground's TM SA.
 pub struct RxSa {
     spi: u16,
-    cipher: Aes256Gcm,
+    cipher: Gcm,
     last: u128,
     window: u64,
 }
@@ -301,7 +369,7 @@ impl RxSa {
     pub fn new(spi: u16, key: &Key, window: u64) -> RxSa {
         RxSa {
             spi,
-            cipher: Aes256Gcm::new(key.into()),
+            cipher: Gcm::new(key),
             last: IV_MODULUS - 1,
             window,
         }
@@ -312,7 +380,7 @@ impl RxSa {
     pub fn resume(spi: u16, key: &Key, window: u64, last: u128) -> RxSa {
         RxSa {
             spi,
-            cipher: Aes256Gcm::new(key.into()),
+            cipher: Gcm::new(key),
             last: last % IV_MODULUS,
             window,
         }
@@ -332,15 +400,15 @@ impl RxSa {
         d >= 1 && d <= u128::from(self.window)
     }
 
-    /// Window check, MAC and decryption in place; `last` does not move (see
-    /// [`RxSas::commit`]).
-    fn verify<const M: usize>(
-        &mut self,
-        frame: &mut [u8],
+    /// Window check, then the start of MAC check and decryption in place (steps:
+    /// [`RxSas::open`]); `last` does not move (see [`RxSas::commit`]).
+    fn begin<const M: usize>(
+        &self,
+        frame: &[u8],
         hdr_end: usize,
         mac_start: usize,
         mask: &[u8; M],
-    ) -> Result<Verified, SdlsError> {
+    ) -> Result<Opening, SdlsError> {
         let mut ivb = [0u8; IV_LEN];
         ivb.copy_from_slice(&frame[hdr_end + SPI_LEN..hdr_end + HEADER_LEN]);
         let iv = iv_value(&ivb);
@@ -349,15 +417,15 @@ impl RxSa {
             return Err(SdlsError::Replay);
         }
         let a = aad(&frame[..M], mask);
-        let tag = *Tag::from_slice(&frame[mac_start..mac_start + MAC_LEN]);
-        let pt = hdr_end + HEADER_LEN..mac_start;
-        self.cipher
-            .decrypt_in_place_detached(Nonce::from_slice(&ivb), &a, &mut frame[pt.clone()], &tag)
-            .map_err(|_| SdlsError::BadMac)?;
-        Ok(Verified {
+        let mut tag = [0u8; MAC_LEN];
+        tag.copy_from_slice(&frame[mac_start..mac_start + MAC_LEN]);
+        let data = hdr_end + HEADER_LEN..mac_start;
+        Ok(Opening {
+            job: self.cipher.begin_decrypt(&ivb, &a, data.len(), &tag),
             spi: self.spi,
             iv,
-            data: pt,
+            data,
+            len: frame.len(),
         })
     }
 }
@@ -418,12 +486,51 @@ impl<const N: usize> RxSas<N> {
         self.sas.is_empty()
     }
 
-    fn find(&mut self, frame: &[u8], hdr_end: usize) -> Result<&mut RxSa, SdlsError> {
+    fn find(&self, frame: &[u8], hdr_end: usize) -> Result<&RxSa, SdlsError> {
         let spi = u16::from_be_bytes([frame[hdr_end], frame[hdr_end + 1]]);
-        self.sas
-            .iter_mut()
-            .find(|s| s.spi == spi)
-            .ok_or(SdlsError::UnknownSpi(spi))
+        self.get(spi).ok_or(SdlsError::UnknownSpi(spi))
+    }
+
+    /// Continues an opening over `frame` by at most `work` GCM work blocks
+    /// ([`crate::gcm`]): `None` while pending, then the authentic frame (decrypted in
+    /// place) or why not. The ciphertext is decrypted only after its MAC matched.
+    pub fn open(&self, o: &mut Opening, frame: &mut [u8], work: usize) -> Option<Result<Verified, SdlsError>> {
+        let Some(sa) = self.get(o.spi) else {
+            // The SA went away meanwhile (key retired).
+            return Some(Err(SdlsError::UnknownSpi(o.spi)));
+        };
+        if frame.len() != o.len {
+            return Some(Err(SdlsError::BadMac));
+        }
+        match o.job.step(&sa.cipher, &mut frame[o.data.clone()], work) {
+            Progress::Pending => None,
+            Progress::Opened => Some(Ok(Verified {
+                spi: o.spi,
+                iv: o.iv,
+                data: o.data.clone(),
+            })),
+            Progress::Refused | Progress::Sealed(_) => Some(Err(SdlsError::BadMac)),
+        }
+    }
+
+    fn open_all(&self, mut o: Opening, frame: &mut [u8]) -> Result<Verified, SdlsError> {
+        loop {
+            if let Some(r) = self.open(&mut o, frame, usize::MAX) {
+                return r;
+            }
+        }
+    }
+
+    /// The start of [`RxSas::verify_tc`] (SDLS data field size, SPI, anti-replay window):
+    /// the MAC check and decryption then run in [`RxSas::open`] steps.
+    pub fn open_tc(&self, frame: &[u8]) -> Result<Opening, SdlsError> {
+        use mib::link::tc_frame::{FECF_LEN, HEADER_LEN as H};
+        let data_len = frame.len().saturating_sub(H + FECF_LEN);
+        if data_len < HEADER_LEN + MAC_LEN {
+            return Err(SdlsError::TooShort(data_len));
+        }
+        let mac_start = frame.len() - FECF_LEN - MAC_LEN;
+        self.find(frame, H)?.begin(frame, H, mac_start, &TC_AUTH_MASK)
     }
 
     /// Verifies and decrypts a TC frame in place (`frame` = whole frame, FECF included and
@@ -440,13 +547,8 @@ impl<const N: usize> RxSas<N> {
     /// stores it (with FARM-1's state, [`IvStore::record_rx_farm`]) and then calls
     /// [`RxSas::commit`]. Until then the SA's window is unchanged.
     pub fn verify_tc(&mut self, frame: &mut [u8]) -> Result<Verified, SdlsError> {
-        use mib::link::tc_frame::{FECF_LEN, HEADER_LEN as H};
-        let data_len = frame.len().saturating_sub(H + FECF_LEN);
-        if data_len < HEADER_LEN + MAC_LEN {
-            return Err(SdlsError::TooShort(data_len));
-        }
-        let mac_start = frame.len() - FECF_LEN - MAC_LEN;
-        self.find(frame, H)?.verify(frame, H, mac_start, &TC_AUTH_MASK)
+        let o = self.open_tc(frame)?;
+        self.open_all(o, frame)
     }
 
     /// The verified frame's IV becomes its SA's `last` (after the store has it).
@@ -464,7 +566,8 @@ impl<const N: usize> RxSas<N> {
             return Err(SdlsError::TooShort(data_len));
         }
         let mac_start = frame.len() - FECF_LEN - OCF_LEN - MAC_LEN;
-        let v = self.find(frame, H)?.verify(frame, H, mac_start, &TM_AUTH_MASK)?;
+        let o = self.find(frame, H)?.begin(frame, H, mac_start, &TM_AUTH_MASK)?;
+        let v = self.open_all(o, frame)?;
         store.record_rx(v.spi, v.iv).map_err(|_| SdlsError::StoreFailed)?;
         self.commit(&v);
         Ok(v.data)
@@ -503,8 +606,9 @@ mod tests {
     use crate::tc::FrameType;
     use crate::test_keys::{TEST_KEY_TC_A, TEST_KEY_TC_B};
     use aes_gcm::aead::generic_array::typenum::U8;
+    use aes_gcm::aead::AeadInPlace;
     use aes_gcm::aes::Aes256;
-    use aes_gcm::AesGcm;
+    use aes_gcm::{Aes256Gcm, AesGcm, KeyInit, Nonce, Tag};
 
     fn h(s: &str) -> Vec<u8> {
         hex::decode(s.replace([' ', '\n'], "")).unwrap()

@@ -453,7 +453,7 @@ pub fn budgets(fw: &FirmwareInfo) -> Vec<Budget> {
     ));
     let period = mib::config::PERIOD_INSTRUCTIONS as f64;
     b.push(budget(
-        "control period CPU: worst tick + largest TC frame + TM framing (software AES)",
+        "control period CPU: worst tick + its TM + worst TC packet + busiest link period (SDLS spread over periods, software AES)",
         fw.period_instructions.map(|x| x as f64),
         Some(period),
         "instructions per 10 ms period",
@@ -468,14 +468,14 @@ pub fn budgets(fw: &FirmwareInfo) -> Vec<Budget> {
         "QEMU -icount minstret (t_obsw), 160 MHz at 2 cycles/instruction",
     ));
     b.push(budget(
-        "control period CPU: worst tick + 4 queued TCs (TCS depth 4)",
+        "control period CPU: worst tick + one TC packet (board A executes one a period)",
         match (tick, tc) {
-            (Some(a), Some(c)) => Some((a + 4 * c) as f64),
+            (Some(a), Some(c)) => Some((a + c) as f64),
             _ => None,
         },
         Some(period),
         "instructions per 10 ms period",
-        "worst Obsw::tick + 4 × worst Obsw::handle_tc (QEMU -icount)",
+        "worst Obsw::tick + worst Obsw::handle_tc (QEMU -icount)",
     ));
     b.push(budget(
         "board-A PUS 15 store: 5 min link outage at default HK rates",
