@@ -14,6 +14,12 @@
 # Expected: checkout, plan3, send, mode exit 0; ping exit 0; silent exit 5 within
 # LINK_LOSS_MS (2.5 s) plus the poll (stated in the message). "lost" (exit 5) with a live
 # robot is a false loss and is counted as such.
+#
+# The archive, judged from the obsw's own TM log (`--tm-log`, ground/bench/archive_once.py):
+# for checkout and plan3, every packet the obsw sent with a count in the run's TM range
+# (the summary's "complete from seq FROM up to seq UPTO", FROM being the run's first packet)
+# is in the archive exactly once; for every case, each archived packet is one the obsw sent
+# and none is archived twice. A run whose check fails is counted in the tally's "archive".
 set -u
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 BIN=${BIN:-$ROOT/target/debug}
@@ -61,6 +67,7 @@ EOF
 declare -A TALLY
 TIMES=()
 FALSE_LOST=0
+ARCHIVE_BAD=0
 for ((i = 0; i < RUNS; i++)); do
     seed=$((SEED0 + i))
     frame=$(free_port)
@@ -76,7 +83,7 @@ for ((i = 0; i < RUNS; i++)); do
         --sim-ctl "127.0.0.1:$(free_port)" --seed "$seed" \
         --frame-udp "127.0.0.1:$frame" --frame-tm-to "$relay_tm" \
         --tc-key "$WORK/keys/robot-1/tc-spi1.key" --tm-key "$WORK/keys/robot-1/tm-spi17.key" \
-        --link-state "$WORK/obsw-link.state" >"$WORK/obsw.out" 2>"$WORK/obsw.err" &
+        --link-state "$WORK/obsw-link.state" --tm-log "$WORK/obsw-tm.log" >"$WORK/obsw.out" 2>"$WORK/obsw.err" &
     obsw=$!
     for _ in $(seq 100); do grep -q READY "$WORK/obsw.out" 2>/dev/null && break; sleep 0.1; done
     link=(--keys "$WORK/keys" --robot "1=$relay_udp" --tm-listen "1=127.0.0.1:$tmport")
@@ -99,6 +106,7 @@ for ((i = 0; i < RUNS; i++)); do
     *) echo "unknown case $CASE" >&2; exit 2 ;;
     esac
     rc=$?
+    rc_archive=0
     t1=$(date +%s.%N)
     kill -CONT "$obsw" 2>/dev/null
     kill "$obsw" 2>/dev/null
@@ -111,10 +119,27 @@ for ((i = 0; i < RUNS; i++)); do
     if [[ $CASE != silent && $rc == 5 ]]; then FALSE_LOST=$((FALSE_LOST + 1)); fi
     last=$(grep -v '^\s*$' "$WORK/err" | tail -1)
     tm=$(grep -h "^TM robot" "$WORK/out" "$WORK/err" 2>/dev/null | tail -1)
-    echo "$CASE seed $seed: exit $rc in $secs s | ${tm:+$tm | }$last"
-    [[ $rc != 0 ]] && cp "$WORK/out" "${TMPDIR:-/tmp}/lossy-$CASE-$seed.out" && cp "$WORK/err" "${TMPDIR:-/tmp}/lossy-$CASE-$seed.err"
+    range=()
+    case $CASE in
+    checkout | plan3)
+        # A run must state its TM complete from its first packet; no such line, no range,
+        # and the check fails on it.
+        read -r from upto < <(sed -n 's/^TM robot 1: complete from seq \([0-9]*\) up to seq \([0-9]*\).*/\1 \2/p' <<<"$tm")
+        range=("${from:-x}" "${upto:-x}")
+        ;;
+    esac
+    if [[ ${range[0]:-} == x ]]; then
+        archive="archive: no complete TM range in the summary"
+        ARCHIVE_BAD=$((ARCHIVE_BAD + 1))
+        rc_archive=1
+    elif ! archive=$(python3 "$ROOT/ground/bench/archive_once.py" "$WORK/obsw-tm.log" "$WORK/a-$seed.db" 1 "${range[@]}" 2>&1); then
+        ARCHIVE_BAD=$((ARCHIVE_BAD + 1))
+        rc_archive=1
+    fi
+    echo "$CASE seed $seed: exit $rc in $secs s | ${tm:+$tm | }$archive | $last"
+    [[ $rc != 0 || ${rc_archive:-0} != 0 ]] && cp "$WORK/obsw-tm.log" "${TMPDIR:-/tmp}/lossy-$CASE-$seed.tm.log" && cp "$WORK/a-$seed.db" "${TMPDIR:-/tmp}/lossy-$CASE-$seed.db" && cp "$WORK/out" "${TMPDIR:-/tmp}/lossy-$CASE-$seed.out" && cp "$WORK/err" "${TMPDIR:-/tmp}/lossy-$CASE-$seed.err"
 done
 median=$(printf '%s\n' "${TIMES[@]}" | sort -n | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}')
 echo -n "$CASE: $RUNS runs, exit codes:"
 for k in "${!TALLY[@]}"; do echo -n " $k×${TALLY[$k]}"; done
-echo "; median $median s; false 'lost' (exit 5 with a live robot): $FALSE_LOST"
+echo "; median $median s; false 'lost' (exit 5 with a live robot): $FALSE_LOST; archive not exactly once: $ARCHIVE_BAD"
