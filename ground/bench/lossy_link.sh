@@ -70,6 +70,9 @@ FALSE_LOST=0
 ARCHIVE_BAD=0
 for ((i = 0; i < RUNS; i++)); do
     seed=$((SEED0 + i))
+    # A shared machine's /tmp may be cleaned under a long batch: stop rather than count
+    # runs that never ran (TMPDIR=DIR puts the work folder elsewhere).
+    [[ -d $WORK/keys ]] || { echo "lossy_link: the work folder $WORK vanished; stopped before seed $seed" >&2; exit 3; }
     frame=$(free_port)
     tmport=$(free_port)
     # The relay: TC frames to the obsw's frame port, TM frames to the ground's address.
