@@ -27,7 +27,9 @@ CASE=${1:?case: checkout plan3 ping send mode silent}
 RUNS=${2:-5}
 SEED0=${3:-1}
 WORK=$(mktemp -d "${TMPDIR:-/tmp}/lossy-link-$CASE.XXXXXX")
-trap 'kill $(jobs -p) 2>/dev/null; rm -rf "$WORK"' EXIT
+# Only this shell cleans up: a background command's subshell killed before it execs would
+# otherwise run the trap too (and remove the work folder under the batch).
+trap '[[ $BASHPID == "$$" ]] && { kill $(jobs -p) 2>/dev/null; rm -rf "$WORK"; }' EXIT
 "$BIN/ground" --no-archive keys create "$WORK/keys" --robot 1 >/dev/null 2>&1
 
 free_port() { python3 -c 'import socket; s=socket.socket(socket.AF_INET, socket.SOCK_DGRAM); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])'; }
@@ -68,6 +70,7 @@ declare -A TALLY
 TIMES=()
 FALSE_LOST=0
 ARCHIVE_BAD=0
+NOSTART=0
 for ((i = 0; i < RUNS; i++)); do
     seed=$((SEED0 + i))
     # A shared machine's /tmp may be cleaned under a long batch: stop rather than count
@@ -82,13 +85,21 @@ for ((i = 0; i < RUNS; i++)); do
     read -r line <&"${RELAY[0]}"
     relay_udp=$(sed -n 's/.*udp=\([^ ]*\).*/\1/p' <<<"$line")
     relay_tm=$(sed -n 's/.*tm_frames=\([^ ]*\).*/\1/p' <<<"$line")
-    "$BIN/obsw" --robot 1 --udp "127.0.0.1:$(free_port)" --tcp "127.0.0.1:$(free_port)" \
-        --sim-ctl "127.0.0.1:$(free_port)" --seed "$seed" \
+    "$BIN/obsw" --robot 1 --udp 127.0.0.1:0 --tcp 127.0.0.1:0 --sim-ctl 127.0.0.1:0 --seed "$seed" \
         --frame-udp "127.0.0.1:$frame" --frame-tm-to "$relay_tm" \
         --tc-key "$WORK/keys/robot-1/tc-spi1.key" --tm-key "$WORK/keys/robot-1/tm-spi17.key" \
         --link-state "$WORK/obsw-link.state" --tm-log "$WORK/obsw-tm.log" >"$WORK/obsw.out" 2>"$WORK/obsw.err" &
     obsw=$!
-    for _ in $(seq 100); do grep -q READY "$WORK/obsw.out" 2>/dev/null && break; sleep 0.1; done
+    ready=0
+    for _ in $(seq 300); do grep -q READY "$WORK/obsw.out" 2>/dev/null && { ready=1; break; }; sleep 0.1; done
+    if ((!ready)); then
+        # Not a run: the ground would only meet an obsw still starting.
+        echo "$CASE seed $seed: obsw not READY within 30 s; not counted"
+        NOSTART=$((NOSTART + 1))
+        kill "$obsw" "$rpid" 2>/dev/null
+        wait "$obsw" "$rpid" 2>/dev/null
+        continue
+    fi
     link=(--keys "$WORK/keys" --robot "1=$relay_udp" --tm-listen "1=127.0.0.1:$tmport")
     arch=(--archive "$WORK/a-$seed.db")
     t0=$(date +%s.%N)
@@ -145,6 +156,6 @@ for ((i = 0; i < RUNS; i++)); do
     [[ $rc != 0 || ${rc_archive:-0} != 0 ]] && cp "$WORK/obsw-tm.log" "${TMPDIR:-/tmp}/lossy-$CASE-$seed.tm.log" && cp "$WORK/a-$seed.db" "${TMPDIR:-/tmp}/lossy-$CASE-$seed.db" && cp "$WORK/out" "${TMPDIR:-/tmp}/lossy-$CASE-$seed.out" && cp "$WORK/err" "${TMPDIR:-/tmp}/lossy-$CASE-$seed.err"
 done
 median=$(printf '%s\n' "${TIMES[@]}" | sort -n | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}')
-echo -n "$CASE: $RUNS runs, exit codes:"
+echo -n "$CASE: $((RUNS - NOSTART)) runs ($NOSTART more did not start), exit codes:"
 for k in "${!TALLY[@]}"; do echo -n " $k×${TALLY[$k]}"; done
 echo "; median $median s; false 'lost' (exit 5, 7 or 8 with a live robot): $FALSE_LOST; archive not exactly once: $ARCHIVE_BAD"
