@@ -79,7 +79,7 @@ for ((i = 0; i < RUNS; i++)); do
     frame=$(free_port)
     tmport=$(free_port)
     # The relay: TC frames to the obsw's frame port, TM frames to the ground's address.
-    coproc RELAY { "$BIN/relay" --to-udp "127.0.0.1:$frame" --drop 0.20 --duplicate 0.05 --corrupt 0.05 \
+    coproc RELAY { exec "$BIN/relay" --to-udp "127.0.0.1:$frame" --drop 0.20 --duplicate 0.05 --corrupt 0.05 \
         --seed "$seed" --tm-frames-to "127.0.0.1:$tmport" --idle 60 --lifetime 900 2>/dev/null; }
     rpid=$RELAY_PID
     read -r line <&"${RELAY[0]}"
