@@ -20,6 +20,10 @@
 # (the summary's "complete from seq FROM up to seq UPTO", FROM being the run's first packet)
 # is in the archive exactly once; for every case, each archived packet is one the obsw sent
 # and none is archived twice. A run whose check fails is counted in the tally's "archive".
+#
+# Figures (40 checkout, 50 each of plan3, ping, send, mode, 10 silent; seeds, exit codes,
+# medians, archive) and what the non-zero exits were: docs/space-link.md, "Liveness and the
+# run's start over frames".
 set -u
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 BIN=${BIN:-$ROOT/target/debug}
