@@ -49,9 +49,22 @@ pub(crate) fn ping(a: &PingArgs, archive_path: Option<&Path>) -> Result<u8> {
                 // On any link a robot still heard after the live wait is waited for until
                 // it is silent for the loss time (then it is lost, said with that silence)
                 // or the store wait ends (then it answers, but not this PING: exit 4).
+                // A robot not heard at all yet gets the loss time from the first TC
+                // before it is "nothing heard" (a slow start is not silence).
                 let heard = waited >= live_wait && s.heard_recently(r);
                 let fetch = heard && s.over_frames() && s.delivered(r, &tc);
-                let limit = if heard { live_wait + STORE_WAIT } else { live_wait };
+                let unheard_wait = s
+                    .robots
+                    .get(&r)
+                    .filter(|st| st.link.last_heard_ms().is_none())
+                    .map_or(Duration::ZERO, |st| {
+                        Duration::from_millis(u64::try_from(st.link.loss_after_ms()).unwrap_or(0))
+                    });
+                let limit = if heard {
+                    live_wait + STORE_WAIT
+                } else {
+                    live_wait.max(unheard_wait)
+                };
                 if got.is_some() || foreign || waited >= limit {
                     break;
                 }
