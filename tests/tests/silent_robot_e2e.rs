@@ -70,7 +70,7 @@ fn stated_silence(line: &str) -> Option<f64> {
 // verifies: OPS-LIVE-LINK-02, OPS-ANSWER-01
 #[test]
 fn a_robot_stopped_over_the_frame_link_is_reported_lost_within_the_loss_time_stating_the_silence_measured() {
-    let loss = Duration::from_millis(u64::from(mib::config::link_loss_ms(
+    let loss = Duration::from_millis(u64::from(mib::ground_config::link_loss_ms(
         mib::hk::by_sid(mib::hk::sid::ROBOT_STATUS)
             .expect("status HK in the MIB")
             .default_interval_ms,
