@@ -14,7 +14,9 @@
 //! - [`modules`]: the descriptor tables in flash and the probes of module discovery;
 //! - [`team`]: the transport of inter-robot team packets (the radio is future work);
 //! - [`spacelink`], [`link_store`]: board A's ground link over TC/TM transfer frames with
-//!   SDLS and COP-1 (`mmic-link`), and its key and counter area in flash.
+//!   SDLS and COP-1 (`mmic-link`), and its key and counter area in flash;
+//! - [`flash`]: one NOR flash shared by the layouts in its partitions (key and counter
+//!   area, PUS 15 store).
 //!
 //! The robot logic itself (filters, controllers, bolter, A–B protocol, PUS services)
 //! is `mmic-domain` and `obsw-core`, shared with the host.
@@ -24,6 +26,7 @@
 pub mod boot;
 pub mod config;
 pub mod cycle;
+pub mod flash;
 pub mod link;
 pub mod link_store;
 pub mod modules;
