@@ -268,11 +268,13 @@ async fn main(spawner: Spawner) {
     let flash: &'static Flash = FLASH.init(RefCell::new(FlashStorage::new(p.FLASH)));
     // The store keeps what it held before the reset (a write cut by it is repaired on
     // first use); the OBSW's sequence counts go on from its newest packet.
-    let store = must!(Store::open(flash, mib::memory::store::OFFSET), "TM store layout");
+    let mut store = must!(Store::open(flash, mib::memory::store::OFFSET), "TM store layout");
+    // No real-time clock: the on-board time goes on from the newest stored packet.
+    let epoch_unix_ms = fw_core::resume::epoch_after_store(&mut store);
     let obsw = OBSW.init(Obsw::new(
         Config {
             robot: cfg::ROBOT,
-            epoch_unix_ms: 0,
+            epoch_unix_ms,
         },
         store,
     ));

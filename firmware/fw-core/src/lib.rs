@@ -11,6 +11,7 @@
 //! - [`boot`]: board A's boot report (named reset cause, the previous run's panic);
 //! - [`cycle`]: one control period of each board, generic over the peripheral traits;
 //! - [`link`], [`sampling`]: the bounded queues between tasks, sensor sampling;
+//! - [`resume`]: the on-board time's epoch after a reset, from the newest stored packet;
 //! - [`modules`]: the descriptor tables in flash and the probes of module discovery;
 //! - [`team`]: the transport of inter-robot team packets (the radio is future work);
 //! - [`spacelink`], [`link_store`]: board A's ground link over TC/TM transfer frames with
@@ -32,6 +33,7 @@ pub mod link_store;
 pub mod modules;
 pub mod panic_record;
 pub mod periph;
+pub mod resume;
 pub mod sampling;
 pub mod spacelink;
 pub mod stack;

@@ -129,15 +129,18 @@ fn main() -> ! {
 
     // The PUS 15 store on its partition, as board A: what it held before the restart
     // stays, and the sequence counts go on from its newest packet.
-    let store: Store<'_> = match MibFlashStore::open(&flash, mib::memory::store::OFFSET) {
+    let mut store: Store<'_> = match MibFlashStore::open(&flash, mib::memory::store::OFFSET) {
         Ok(s) => s,
         Err(_) => fail("TM store layout"),
     };
     let held = store.len();
+    // No real-time clock here either: the on-board time goes on from the newest stored
+    // packet (board A's rule).
+    let epoch_unix_ms = fw_core::resume::epoch_after_store(&mut store);
     let mut obsw = Obsw::new(
         Config {
             robot: cfg::ROBOT,
-            epoch_unix_ms: 0,
+            epoch_unix_ms,
         },
         store,
     );
