@@ -3,6 +3,7 @@
 # both ESP32-C3 images with warnings denied, the panic-file lookup on board A's image, the
 # host tests of the firmware's control period against the simulator, the on-target tests
 # under QEMU (instruction counts of the control period, the stack of its deepest path),
+# the QEMU board end to end against the real ground binary (tests/tests/qemu_board_e2e.rs),
 # then the size report against the memory map (firmware/memory-map.txt, from the MIB:
 # every region with its margin, 30 % enforced).
 # Fails on the first failing step.
@@ -29,8 +30,10 @@ export CARGO_TERM_COLOR=never
 step "format and lints (firmware workspace and on-target tests)"
 (cd "$FW" && cargo fmt --check)
 (cd "$FW/qemu-tests" && cargo fmt --check)
+(cd "$FW/qemu-board" && cargo fmt --check)
 (cd "$FW" && cargo clippy --release -p board-a -p board-b -p fw-core -p fw-esp -- -D warnings)
 (cd "$FW/qemu-tests" && CARGO_TARGET_DIR="$CARGO_TARGET_DIR/qemu-tests" cargo clippy -- -D warnings)
+(cd "$FW/qemu-board" && CARGO_TARGET_DIR="$CARGO_TARGET_DIR/qemu-tests" cargo clippy --release -- -D warnings)
 
 step "build board images (release)"
 (cd "$FW" && cargo build --release -p board-a -p board-b)
@@ -51,6 +54,15 @@ qemu_log=$(mktemp)
 trap 'rm -f "$qemu_log"' EXIT
 (cd "$FW/qemu-tests" && timeout 600 cargo run) 2>&1 | tee "$qemu_log"
 [ "${PIPESTATUS[0]}" -eq 0 ] || exit 1
+
+step "QEMU board end to end (the real ground over the UART: plan, replay refused, SIGKILL mid-outage)"
+# The QEMU board image (firmware/qemu-board, with the QEMU tests' target directory: the
+# same dependencies), then the end-to-end test in the root workspace with its own target
+# directory and flags (the root CI's build: nothing rebuilt but the test).
+(cd "$FW/qemu-board" && cargo build --release)
+board_elf="$CARGO_TARGET_DIR/$TARGET/release/qemu-board"
+(cd "$ROOT" && env -u CARGO_TARGET_DIR -u RUSTFLAGS QEMU_BOARD_ELF="$board_elf" \
+  timeout 300 cargo test -p e2e-tests --test qemu_board_e2e -- --ignored --nocapture)
 
 step "size report (memory map from the MIB, flight margin enforced)"
 # The stack: the deepest path the QEMU run measured with the images' static layout

@@ -12,7 +12,9 @@
 //!
 //! The ground link carries CCSDS TC and TM transfer frames with SDLS and COP-1
 //! (`fw_core::spacelink`, the host's `mmic-link` code), keys and counters in the flash
-//! area of `fw_core::link_store`. No bare space packet is taken or sent (docs/space-link.md: the
+//! area of `fw_core::link_store`. The PUS 15 store is `obsw_core::flash_store` on the
+//! flash partition `mib::memory::TM_STORE` (the host obsw's store code, over esp-storage
+//! here): it survives a reset, and the sequence counts go on from its newest packet. No bare space packet is taken or sent (docs/space-link.md: the
 //! bare-packet link never in firmware; `fw_core::link::BarePackets` exists only for test
 //! harnesses, and this image refuses to build with it).
 //!
@@ -23,6 +25,7 @@
 #![no_main]
 #![deny(warnings)]
 
+use core::cell::RefCell;
 use embassy_executor::Spawner;
 use embassy_time::{Duration, Ticker};
 use esp_hal::gpio::{Input, InputConfig, Level, Output, OutputConfig, Pull};
@@ -38,6 +41,7 @@ use esp_hal::Async;
 use esp_storage::FlashStorage;
 use fw_core::config::{self as cfg, i2c_addr};
 use fw_core::cycle::{CycleA, GroundSink, LinksA, PeripheralsA};
+use fw_core::flash::SharedFlash;
 use fw_core::link::{self, ByteQueue, Counters, TcChannel};
 use fw_core::link_store::{self, FlashIvStore};
 use fw_core::periph::ads7828::PowerMode;
@@ -47,8 +51,8 @@ use fw_core::periph::{
 use fw_core::spacelink::FrameLink;
 use fw_esp::bus::{self, SensorDevice};
 use fw_esp::servos::{Servo, ServoBank};
+use obsw_core::flash_store::MibFlashStore;
 use obsw_core::obsw::{Config, Obsw};
-use obsw_core::tm::RingStore;
 use static_cell::StaticCell;
 
 esp_bootloader_esp_idf::esp_app_desc!();
@@ -66,11 +70,16 @@ static DOWNLINK_STATS: Counters = Counters::new();
 static AB_RX_STATS: Counters = Counters::new();
 static AB_TX_STATS: Counters = Counters::new();
 
-type Store = RingStore<{ cfg::TM_STORE_BYTES }>;
-/// The OBSW lives in a static (it holds the TM store and the schedule: tens of KiB),
-/// owned by the control task.
+/// The chip's flash, one driver for the layouts in its partitions: the key and counter
+/// area (`link_store`) and the PUS 15 store. Both are used by the control task only.
+static FLASH: StaticCell<RefCell<FlashStorage<'static>>> = StaticCell::new();
+type Flash = RefCell<FlashStorage<'static>>;
+/// The PUS 15 store on its partition (`mib::memory::store`).
+type Store = MibFlashStore<'static, FlashStorage<'static>>;
+/// The OBSW lives in a static (it holds the schedule and the plans: tens of KiB), owned
+/// by the control task.
 static OBSW: StaticCell<Obsw<Store>> = StaticCell::new();
-type Link = FrameLink<FlashIvStore<FlashStorage<'static>>>;
+type Link = FrameLink<FlashIvStore<SharedFlash<'static, FlashStorage<'static>>>>;
 // Issue 22: the bare-packet ground link is never in firmware (test harnesses only).
 const _: () = assert!(
     !fw_core::link::BARE_LINK_BUILT,
@@ -256,12 +265,18 @@ async fn main(spawner: Spawner) {
     let hip = must!(bank.servo(Ch::Channel2, p.GPIO3), "hip servo");
     let arm_switch = ActiveLowSwitch(arm_line);
 
+    let flash: &'static Flash = FLASH.init(RefCell::new(FlashStorage::new(p.FLASH)));
+    // The store keeps what it held before the reset (a write cut by it is repaired on
+    // first use); the OBSW's sequence counts go on from its newest packet.
+    let mut store = must!(Store::open(flash, mib::memory::store::OFFSET), "TM store layout");
+    // No real-time clock: the on-board time goes on from the newest stored packet.
+    let epoch_unix_ms = fw_core::resume::epoch_after_store(&mut store);
     let obsw = OBSW.init(Obsw::new(
         Config {
             robot: cfg::ROBOT,
-            epoch_unix_ms: 0,
+            epoch_unix_ms,
         },
-        Store::default(),
+        store,
     ));
     // Board A's descriptor table (flash) and probes; discovery runs in the control period
     // once board B's half is in (or its wait is over), then the module report goes out.
@@ -271,7 +286,7 @@ async fn main(spawner: Spawner) {
     // Space link: keys from the provisioning area in flash (none: no TC frame is
     // accepted), SDLS counters and FARM-1 state from the counter log next to it.
     let ground = {
-        let mut flash = FlashStorage::new(p.FLASH);
+        let mut flash = SharedFlash(flash);
         let keys = link_store::read_keys(&mut flash, link_store::AREA_OFFSET);
         let store = FlashIvStore::open(flash, link_store::AREA_OFFSET);
         let resume = keys.map(|k| store.resume(k.tc_spi, k.tm_spi)).unwrap_or_default();

@@ -123,10 +123,10 @@ const fn parse_robot(s: &str) -> u8 {
     v as u8
 }
 
-/// Bytes of the on-board TM store (PUS 15) on board A: packets are kept length-prefixed
-/// in a ring; the oldest is overwritten when full (counted in TM_STORE_DROPPED). The
-/// host OBSW keeps `mib::config::TM_STORE_CAPACITY` packets; the board keeps what fits
-/// in this many bytes (≈ 520 HK ROBOT_STATUS reports of 91 bytes).
+/// Bytes of the RAM TM store (`obsw_core::tm::RingStore`) of the test harnesses that run
+/// the control period without a flash (the host tests against the simulator, the QEMU
+/// tests): ≈ 520 HK ROBOT_STATUS reports of 91 bytes. Board A and the QEMU board keep
+/// their PUS 15 store in flash (`obsw_core::flash_store`, partition `mib::memory::TM_STORE`).
 pub const TM_STORE_BYTES: usize = 48 * 1024;
 
 /// Hip continuous servo: pulse width at standstill and the span that corresponds to

@@ -11,10 +11,13 @@
 //! - [`boot`]: board A's boot report (named reset cause, the previous run's panic);
 //! - [`cycle`]: one control period of each board, generic over the peripheral traits;
 //! - [`link`], [`sampling`]: the bounded queues between tasks, sensor sampling;
+//! - [`resume`]: the on-board time's epoch after a reset, from the newest stored packet;
 //! - [`modules`]: the descriptor tables in flash and the probes of module discovery;
 //! - [`team`]: the transport of inter-robot team packets (the radio is future work);
 //! - [`spacelink`], [`link_store`]: board A's ground link over TC/TM transfer frames with
-//!   SDLS and COP-1 (`mmic-link`), and its key and counter area in flash.
+//!   SDLS and COP-1 (`mmic-link`), and its key and counter area in flash;
+//! - [`flash`]: one NOR flash shared by the layouts in its partitions (key and counter
+//!   area, PUS 15 store).
 //!
 //! The robot logic itself (filters, controllers, bolter, A–B protocol, PUS services)
 //! is `mmic-domain` and `obsw-core`, shared with the host.
@@ -24,11 +27,13 @@
 pub mod boot;
 pub mod config;
 pub mod cycle;
+pub mod flash;
 pub mod link;
 pub mod link_store;
 pub mod modules;
 pub mod panic_record;
 pub mod periph;
+pub mod resume;
 pub mod sampling;
 pub mod spacelink;
 pub mod stack;
