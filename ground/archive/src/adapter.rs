@@ -87,6 +87,7 @@ pub fn content(tm: &Tm) -> Content {
         | TmBody::ModeReply { .. }
         | TmBody::ModeCantReach { .. }
         | TmBody::TeamStatus { .. }
+        | TmBody::PlanStatus { .. }
         | TmBody::Unknown { .. } => Content::Other,
     }
 }

@@ -113,6 +113,7 @@ pub fn to_hub(hub: &Hub, robot: u8, tm: &Tm) {
         | TmBody::ParamValue { .. }
         | TmBody::ModeCantReach { .. }
         | TmBody::TeamStatus { .. }
+        | TmBody::PlanStatus { .. }
         | TmBody::Unknown { .. } => {}
     }
 }

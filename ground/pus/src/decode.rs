@@ -164,6 +164,15 @@ fn decode_tm_source(service: u8, subservice: u8, d: &[u8]) -> Result<TmBody, Dec
         // TM[210,3] (docs/modules.md): checked, then kept as bytes until the ground has a module
         // view (`mib::modules::report::ModuleReport::parse` rebuilds the set).
         W::ModuleReport(_) => TmBody::Unknown { data: d.to_vec() },
+        W::PlanStatus(x) => TmBody::PlanStatus {
+            plan_id: x.plan_id,
+            state: x.state,
+            steps: x.steps,
+            next_step: x.next_step,
+            done: x.done,
+            wait_robot: x.wait_robot,
+            wait_step: x.wait_step,
+        },
         W::TeamStatus(x) => TmBody::TeamStatus {
             term: x.term,
             role: x.role,

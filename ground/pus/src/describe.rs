@@ -129,6 +129,23 @@ pub fn describe_body(b: &TmBody) -> String {
             mib::team::TEAM_ROLE_NAMES.name(i64::from(*role)).unwrap_or("?"),
             if *ground_seen { "seen" } else { "lost" }
         ),
+        TmBody::PlanStatus {
+            plan_id,
+            state,
+            steps,
+            next_step,
+            done,
+            wait_robot,
+            wait_step,
+        } => format!(
+            "plan {plan_id:#010x} {} step {next_step}/{steps} done {done}{}",
+            mib::plan::STATE_NAMES.name(i64::from(*state)).unwrap_or("?"),
+            if *wait_robot != 0 {
+                format!(" waiting for robot {wait_robot} step {wait_step}")
+            } else {
+                String::new()
+            }
+        ),
         TmBody::Unknown { data } => format!("undefined TM type, data {}", hex(data)),
     }
 }

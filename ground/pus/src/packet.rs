@@ -195,6 +195,18 @@ pub enum TmBody {
         foreign: u32,
         roster: Vec<u8>,
     },
+    /// TM[18,9] PLAN_STATUS: the on-board plan (fields of the generated MIB type).
+    PlanStatus {
+        plan_id: u32,
+        /// `mib::plan::state`.
+        state: u8,
+        steps: u8,
+        next_step: u8,
+        done: u8,
+        /// 0 = none.
+        wait_robot: u8,
+        wait_step: u8,
+    },
     /// A TM type the MIB does not define.
     Unknown {
         #[serde(serialize_with = "ser_hex")]
