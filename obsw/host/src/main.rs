@@ -753,6 +753,8 @@ fn run(args: Args) -> Result<()> {
             }
             let r = t.rand();
             obsw.team_poll(sim_ms, r, t, &mut down);
+            // The on-board plan's progress for the robots whose steps wait on this one's.
+            obsw.plan_team(sim_ms, t);
             for _ in 0..t.take_seal_errors() {
                 obsw.team_rejected(
                     sim_ms,
