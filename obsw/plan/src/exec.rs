@@ -20,7 +20,7 @@ use mib::plan::{cause, state, MAX_IMAGE_LEN, MAX_PEERS, PROGRESS_LEN, PROGRESS_P
 use crate::image::{Dep, Image, ImageError, StepKind, StepView};
 
 /// The plan's state (codes in `mib::plan::state`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum State {
     Empty,
     Loaded,
@@ -39,6 +39,18 @@ impl State {
             State::Suspended => state::SUSPENDED,
             State::Completed => state::COMPLETED,
             State::Aborted => state::ABORTED,
+        }
+    }
+    /// The state of a code (`None` for a code no state has).
+    pub const fn from_code(c: u8) -> Option<State> {
+        match c {
+            state::EMPTY => Some(State::Empty),
+            state::LOADED => Some(State::Loaded),
+            state::RUNNING => Some(State::Running),
+            state::SUSPENDED => Some(State::Suspended),
+            state::COMPLETED => Some(State::Completed),
+            state::ABORTED => Some(State::Aborted),
+            _ => None,
         }
     }
     /// A plan in these states holds the robot's staging buffer: no new load.
@@ -108,7 +120,7 @@ pub struct Loaded {
 
 /// What survives a reset: the image and how far it got (the platform stores it before a
 /// step starts, so a step never runs twice after a reset).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Progress {
     pub state: State,
     pub next: u8,
@@ -116,7 +128,7 @@ pub struct Progress {
 }
 
 /// Counters of HK PLAN.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct Counters {
     pub progress_sent: u32,
     pub progress_received: u32,
@@ -124,7 +136,7 @@ pub struct Counters {
 }
 
 /// A step in flight.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 enum Running {
     /// The TC with this request ID (first four bytes) runs; it must end by `deadline`.
     Tc { step: u8, req: u32, deadline: u64 },
@@ -132,7 +144,9 @@ enum Running {
     Wait { step: u8, until: u64 },
 }
 
-/// One robot's on-board plan.
+/// One robot's on-board plan. (Clone, Eq and Hash for the model checker, which explores
+/// copies of whole robots.)
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub struct Plan {
     me: u8,
     staging: [u8; MAX_IMAGE_LEN],

@@ -13,7 +13,7 @@ pub fn crc32(bytes: &[u8]) -> u32 {
 }
 
 /// A step waits for robot `robot`'s step `step` (0-based in that robot's image).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Dep {
     pub robot: u8,
     pub step: u8,

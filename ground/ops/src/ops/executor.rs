@@ -149,6 +149,9 @@ pub struct Executor<'p> {
     /// Steps the robots run from their on-board plan: their TCs (never sent by the
     /// ground), tracked from the moment the step may start as if the ground had sent it.
     on_board: HashMap<usize, BuiltTc>,
+    /// When each on-board step was accepted, by the robot's clock (Unix ms): its duration
+    /// in the summary is the robot's, whenever its reports reach the ground.
+    board_start: HashMap<usize, i64>,
 }
 
 impl<'p> Executor<'p> {
@@ -176,6 +179,7 @@ impl<'p> Executor<'p> {
             last_heartbeat: HashMap::new(),
             halted: None,
             on_board: HashMap::new(),
+            board_start: HashMap::new(),
         }
     }
 
@@ -405,8 +409,15 @@ impl<'p> Executor<'p> {
         let n = self.plan.steps.len();
         match u {
             Update::Verification {
-                tag: Some(i), v, after, ..
+                tag: Some(i),
+                v,
+                after,
+                at_ms,
+                ..
             } if i < n => {
+                if let Some(at) = at_ms.filter(|_| self.on_board.contains_key(&i) && v.stage == Stage::Acceptance) {
+                    self.board_start.insert(i, at);
+                }
                 if self.state[i] == StepState::Waiting && self.halted.is_none() {
                     self.start_on_board(i, now, &mut fx);
                 }
@@ -441,7 +452,10 @@ impl<'p> Executor<'p> {
                         *progress = v.step.unwrap_or(*progress + 1);
                     }
                     Stage::Completion => {
-                        let secs = now.saturating_duration_since(*since).as_secs_f64();
+                        let on_board = at_ms
+                            .zip(self.board_start.get(&i))
+                            .map(|(end, start)| (end - start) as f64 / 1000.0);
+                        let secs = on_board.unwrap_or_else(|| now.saturating_duration_since(*since).as_secs_f64());
                         fx.push(Effect::Log(format!(
                             "  done     {} robot {} in {secs:.1} s",
                             s.id, s.robot

@@ -130,6 +130,17 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
             }
         }
     }
+    // Reattached to a plan on board: what the robots sent while the ground was away (after
+    // the last TM the archive has) is asked of their stores, as for a resumed TC.
+    if resume.on_board.is_some() {
+        for (r, last) in &resume.last_seq {
+            if let Some(s) = session.robots.get_mut(r) {
+                if s.seq.newest().is_none() {
+                    s.seq.expect_from(SeqCount::new(*last).next().get());
+                }
+            }
+        }
+    }
     // Every session of a run starts with a start marker per robot: it names the run in
     // the archive (see `runs`) and, answered, starts the TM accounting.
     let watch = opts.ping_period.is_some() || !resume.in_flight.is_empty();
@@ -291,14 +302,6 @@ fn on_board(
             session.archive_tc(tc, &st.id);
         }
         exec.run_on_board(*i, tc.clone());
-    }
-    // Reattached: what the robots sent while the ground was away is asked of their stores.
-    for (r, last) in &resume.last_seq {
-        if let Some(s) = session.robots.get_mut(r) {
-            if s.seq.newest().is_none() {
-                s.seq.expect_from(SeqCount::new(*last).next().get());
-            }
-        }
     }
     if !ob.upload {
         disp.log(format!(

@@ -53,6 +53,8 @@ pub enum Update {
         v: Verification,
         /// Time from the first send of the TC.
         after: Option<Duration>,
+        /// The report's own time stamp (the robot's clock, Unix ms).
+        at_ms: Option<i64>,
     },
     Event {
         robot: u8,
@@ -715,6 +717,7 @@ impl Session {
                             tc: Some(tc),
                             v,
                             after: Some(after),
+                            at_ms: Some(tm.time.unix_ms()),
                         });
                     }
                     Verdict::Unknown => out.push(Update::Verification {
@@ -723,6 +726,7 @@ impl Session {
                         tc: None,
                         v,
                         after: None,
+                        at_ms: Some(tm.time.unix_ms()),
                     }),
                 }
             }

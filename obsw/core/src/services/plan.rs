@@ -300,6 +300,24 @@ impl<S: TmStore> Obsw<S> {
         }
     }
 
+    /// Restores a plan the platform stored (`Plan::take_record`) at start; reports the
+    /// state it comes back in. False when the record is no valid image of this robot.
+    pub fn plan_restore(
+        &mut self,
+        now: u64,
+        image: &[u8],
+        p: mmic_plan::exec::Progress,
+        sink: &mut impl TmSink,
+    ) -> bool {
+        match self.plan.plan.restore(image, p) {
+            Some(c) => {
+                self.plan_changed(now, c, sink);
+                true
+            }
+            None => false,
+        }
+    }
+
     /// Sends the plan's progress announcement to every robot of the team link when due
     /// (the platform calls it every control period it has a team link).
     pub fn plan_team(&mut self, now: u64, link: &mut impl TeamLink) {
@@ -445,7 +463,11 @@ mod tests {
         img.extend_from_slice(&crc);
         assert_eq!(code(&upload(&mut o, &img, &mut seq)), F::PLAN_CHECKSUM.code());
         assert_eq!(
-            code(&upload(&mut o, &image(2, std::slice::from_ref(&ping), false, &[]), &mut seq)),
+            code(&upload(
+                &mut o,
+                &image(2, std::slice::from_ref(&ping), false, &[]),
+                &mut seq
+            )),
             F::PLAN_WRONG_ROBOT.code()
         );
         let c = upload(
