@@ -52,6 +52,10 @@ pub(crate) fn run_plan(a: &RunArgs, archive_path: Option<&Path>) -> Result<u8> {
     };
     let (mut session, arch) = a.links.open(&links, archive_path)?;
     session.run_id = Some(run_id.clone());
+    let mut resume = resume;
+    if a.on_board {
+        on_board(a, &pl, &mut session, &mut resume)?;
+    }
     err_line!(
         "run {run_id}: plan \"{}\"{}",
         pl.name,
@@ -75,6 +79,14 @@ pub(crate) fn run_plan(a: &RunArgs, archive_path: Option<&Path>) -> Result<u8> {
         .find_map(|s| s.lost_kind);
     drop(session);
     close_archive(arch)?;
+    if a.detach && resume.on_board.as_ref().is_some_and(|o| o.upload) && summary.failed == 0 {
+        out(&format!(
+            "run {run_id}: plan \"{}\" runs on board; follow it with `ground run --on-board --resume {run_id} {}`",
+            pl.name,
+            a.plan.display()
+        ))?;
+        return Ok(exit::OK);
+    }
     if a.json {
         out(&serde_json::to_string_pretty(&summary)?)?;
     } else {
@@ -92,6 +104,40 @@ pub(crate) fn run_plan(a: &RunArgs, archive_path: Option<&Path>) -> Result<u8> {
     } else {
         exit::FAILED
     })
+}
+
+/// `--on-board`: the plan compiled for the robots (a new run: uploaded and started by
+/// `run_plan`), or, with `--resume`, the run's archived step TCs followed on board.
+fn on_board(a: &RunArgs, pl: &plan::Plan, session: &mut ops::Session, resume: &mut ops::Resume) -> Result<()> {
+    if a.resume.is_some() {
+        // The steps not completed are the robots' to run: never sent from here.
+        let tcs = resume.in_flight.drain(..).map(|f| (f.step, f.tc)).collect();
+        resume.on_board = Some(ops::OnBoard {
+            compiled: plan::onboard::Compiled {
+                plan_id: 0,
+                images: Vec::new(),
+                tcs,
+            },
+            upload: false,
+            detach: false,
+        });
+        return Ok(());
+    }
+    let compiled = plan::onboard::compile(pl, |r| session.next_seq(r)).map_err(|e| {
+        coded(
+            exit::INVALID,
+            e.iter()
+                .map(|l| format!("{}: {l}", a.plan.display()))
+                .collect::<Vec<_>>()
+                .join("\n"),
+        )
+    })?;
+    resume.on_board = Some(ops::OnBoard {
+        compiled,
+        upload: true,
+        detach: a.detach,
+    });
+    Ok(())
 }
 
 /// The steps of `pl` with a hazardous TC and no `confirm = true`.
@@ -161,10 +207,11 @@ pub(crate) fn resume_state(path: &Path, pl: &plan::Plan, wanted: Option<&str>) -
         let (Some((def, args)), Some(tc)) = (s.action.tc(), rec.steps.get(&s.id)) else {
             continue;
         };
-        match tc.outcome {
+        match &tc.outcome {
             ops::runs::Outcome::Completed => r.done.push(i),
-            // Failed: it did not complete; it runs again as a new TC.
-            ops::runs::Outcome::Failed(_) => {}
+            // Failed: it did not complete; it runs again as a new TC (on board: it stays
+            // failed, the robot's plan holds there).
+            ops::runs::Outcome::Failed(why) => r.failed.push((i, why.clone())),
             ops::runs::Outcome::Accepted | ops::runs::Outcome::NoReport => r.in_flight.push(ops::InFlight {
                 step: i,
                 tc: pus::BuiltTc {
@@ -227,6 +274,17 @@ pub(crate) struct RunArgs {
     /// from the robot's reports and on-board store before anything is sent.
     #[arg(long, value_name = "RUN_ID", num_args = 0..=1, default_missing_value = "")]
     resume: Option<String>,
+    /// The robots run the plan themselves: it is compiled to one checksummed image per
+    /// robot, uploaded (PLAN_LOAD, PLAN_COMMIT) and started (PLAN_START) once every robot
+    /// accepted its image; the run then follows each step's reports as if it had sent them.
+    /// With `--resume`, follows a plan already on board (what happened while the ground was
+    /// away is read from the robots' stores).
+    #[arg(long)]
+    on_board: bool,
+    /// With `--on-board`: exit once the robots have started (they carry on alone); follow
+    /// later with `--on-board --resume`.
+    #[arg(long, requires = "on_board")]
+    detach: bool,
     /// After a first Ctrl-C, longest wait (seconds) for the steps in flight.
     #[arg(long, default_value_t = ground::ops::INTERRUPT_GRACE.as_secs_f64())]
     grace: f64,

@@ -118,6 +118,10 @@ events! {
     PLAN_UPLOADED = 0x030A, Info, false, ["plan": U16, "first_step": U16, "steps": U8, "hash": U32], "Team: plan steps uploaded by the ground (TC[211,6]) and matching the authorisation's hash";
     PLAN_STEP_EXECUTED = 0x030B, Info, false, ["plan": U16, "step": U16, "function": U16, "leader": U8], "Team: an authorised plan step was started on a leader's CONTINUE (its initial-state check passed)";
     PLAN_STEP_REFUSED = 0x030C, Low, false, ["plan": U16, "step": U16, "reason": U8 @TEAM_PLAN_REFUSE_NAMES], "Team: a CONTINUE was not executed (no plan, step outside the authorisation or expired, initial-state check failed, robot busy); the robot holds";
+    PLAN_LOADED = 0x0401, Info, false, ["plan_id": U32, "steps": U8, "crc": U32], "Plan: an image passed PLAN_COMMIT's checks and is the loaded plan";
+    PLAN_STATE_CHANGED = 0x0402, Info, false, ["plan_id": U32, "state": U8 @crate::plan::STATE_NAMES, "step": U8, "cause": U8 @crate::plan::CAUSE_NAMES], "Plan: the plan changed state (step = its next step; cause: command, step failed or timed out, fault, done, restart)";
+    PLAN_STEP_STARTED = 0x0403, Info, false, ["plan_id": U32, "step": U8, "seq_count": U16], "Plan: a step's TC was handed to the TC path (its PUS 1 reports carry the request ID with this sequence count)";
+    PLAN_WAITING = 0x0404, Info, false, ["plan_id": U32, "step": U8, "robot": U8, "robot_step": U8], "Plan: the next step waits for another robot's step to be announced completed over the team link (raised once per wait)";
 }
 
 /// Events exempt from throttling (`config::EVENT_THROTTLE_MAX`): `MODE_CHANGED` is

@@ -87,6 +87,17 @@ failure_codes! {
     PLAN_FORBIDDEN_FUNCTION = 46, [f("function", PType::U16, "function of the step").names(Names::Function)], "TEAM_PLAN_STEP refused: the function cannot be a team step (UNBOLT_FACE, UNBOLT_PAIR, or not an action)";
     PLAN_HASH_MISMATCH = 47, [f("authorised", PType::U32, "plan hash of the authorisation"), f("uploaded", PType::U32, "hash of the uploaded steps")], "TEAM_PLAN_STEP refused: the uploaded steps do not hash to the authorised plan hash; every uploaded step of the plan is dropped";
     NO_KEY_FOR_SPI = 53, [f("spi", PType::U16, "SPI without a key on board")], "LINK_SPI_SELECT refused: the robot has no key loaded for this SPI (or has no space link); nothing changed";
+    PLAN_BUSY = 70, [f("state", PType::U8, "plan state").names(crate::plan::STATE_NAMES)], "Plan: refused while a plan runs or is suspended (abort it first); data: the plan state";
+    PLAN_TOO_LARGE = 71, [f("end", PType::U16, "end of the bytes in the image").unit("byte"), f("max", PType::U16, "largest image").unit("byte")], "PLAN_LOAD refused: the bytes end beyond the largest image the robot holds, or leave a gap after the staged bytes";
+    PLAN_CHECKSUM = 72, [f("expected", PType::U32, "CRC-32 in the TC"), f("computed", PType::U32, "CRC-32 of the staged bytes (0 when the length is wrong)"), f("staged", PType::U16, "bytes staged").unit("byte")], "PLAN_COMMIT refused: the staged image's length or CRC-32 differs from the TC's (a chunk lost or corrupted); nothing loaded";
+    PLAN_INVALID = 73, [f("reason", PType::U8, "why").names(crate::plan::INVALID_NAMES), f("offset", PType::U16, "offset in the image").unit("byte")], "PLAN_COMMIT refused: the image breaks the format or the MIB's plan limits (crate::plan)";
+    PLAN_WRONG_ROBOT = 74, [f("robot", PType::U8, "robot the image is for")], "PLAN_COMMIT refused: the image is another robot's";
+    PLAN_STEP_INVALID = 75, [f("step", PType::U8, "step (0-based)"), f("inner_code", PType::U16, "the code its TC would be refused with").names(Names::FailureCode)], "PLAN_COMMIT refused: a step's TC would be refused at acceptance (CRC, APID, service, arguments), or is no TC a plan may hold (PUS 18, PUS 11 insert)";
+    PLAN_UNREACHABLE = 76, [f("step", PType::U8, "step (0-based)"), f("from", PType::U8, "from").names(Names::State), f("to", PType::U8, "to").names(Names::State)], "PLAN_COMMIT refused: a reconfiguration of the plan is not possible in MAX_RECONFIG_PRIMITIVES primitives of the reconfiguration map";
+    PLAN_HAZARD_UNCONFIRMED = 77, [f("step", PType::U8, "step (0-based)")], "PLAN_COMMIT refused: a step's TC is hazardous and the operator's confirmation flag is not set in the image";
+    PLAN_NOT_LOADED = 78, [], "Plan: no plan is loaded, or the TC names another plan ID";
+    PLAN_BAD_STATE = 79, [f("state", PType::U8, "plan state").names(crate::plan::STATE_NAMES)], "Plan: the TC does not apply in the plan's state (resume of a plan not suspended, skip while running, ...)";
+    PLAN_STEP_MISMATCH = 80, [f("next", PType::U8, "the plan's next step"), f("given", PType::U8, "step in the TC")], "PLAN_SKIP refused: the step is not the suspended plan's next step";
 }
 
 #[cfg(test)]

@@ -26,6 +26,7 @@ pub mod sid {
     pub const SPACE_LINK: u16 = 22;
     pub const MODULES: u16 = 23;
     pub const TEAM: u16 = 24;
+    pub const PLAN: u16 = 27;
 }
 
 /// Shortest and longest collection interval accepted by TC[3,31].
@@ -222,6 +223,25 @@ pub const HK_STRUCTS: &[HkDef] = &[
         default_interval_ms: 5000,
         default_enabled: true,
         desc: "Team coordination without the ground: term, role, leader, ground seen, inter-robot packets sent/accepted/refused by reason, elections, directives executed/refused, failed state writes, plan steps executed",
+    },
+    HkDef {
+        sid: sid::PLAN,
+        name: "PLAN",
+        params: &[
+            PLAN_STATE,
+            PLAN_ID,
+            PLAN_STEPS,
+            PLAN_NEXT_STEP,
+            PLAN_DONE,
+            PLAN_WAIT_ROBOT,
+            PLAN_WAIT_STEP,
+            PLAN_PROGRESS_SENT,
+            PLAN_PROGRESS_RECEIVED,
+            PLAN_PROGRESS_IGNORED,
+        ],
+        default_interval_ms: 2000,
+        default_enabled: true,
+        desc: "On-board plan: state, plan ID, steps, next step, steps done, the dependency it waits for, progress announcements sent/accepted/ignored",
     },
 ];
 

@@ -25,6 +25,7 @@ pub mod memory;
 pub mod modes;
 pub mod modules;
 pub mod params;
+pub mod plan;
 pub mod robot;
 pub mod tc;
 pub mod team;

@@ -114,6 +114,8 @@ pub enum Source {
     Modules,
     /// Team coordination (service 211, leader selection).
     Team,
+    /// The on-board plan (service 18, `crate::plan`).
+    Plan,
     /// Board A's robot logic (the domain controller): its own sensors, actuators, state
     /// estimate, A–B link counters and calibration.
     BoardA,
@@ -123,7 +125,7 @@ pub enum Source {
 
 impl Source {
     /// Every source, for checks that ask each component in turn.
-    pub const ALL: [Source; 13] = [
+    pub const ALL: [Source; 14] = [
         Source::Modes,
         Source::Faults,
         Source::Monitoring,
@@ -135,6 +137,7 @@ impl Source {
         Source::SpaceLink,
         Source::Modules,
         Source::Team,
+        Source::Plan,
         Source::BoardA,
         Source::BoardB,
     ];
@@ -299,6 +302,16 @@ params! {
     TEAM_DIR_REFUSED = 174, Team, U32, "", ID, None, "Team: leader directives refused since boot (stale term, ground present, outside the authorisation)";
     TEAM_PERSIST_FAILED = 175, Team, U32, "", ID, None, "Team: writes of the team state (term, vote, roster, authorisation) that failed (each treated as a reset of the node)";
     TEAM_STEPS_EXECUTED = 176, Team, U16, "", ID, None, "Team: authorised plan steps executed on CONTINUE since the authorisation was uploaded";
+    PLAN_STATE = 200, Plan, U8, "", ID, None, "Plan: state 0 empty, 1 loaded, 2 running, 3 suspended, 4 completed, 5 aborted";
+    PLAN_ID = 201, Plan, U32, "", ID, None, "Plan: ID of the loaded plan (0 = none)";
+    PLAN_STEPS = 202, Plan, U8, "", ID, None, "Plan: steps in this robot's image";
+    PLAN_NEXT_STEP = 203, Plan, U8, "", ID, None, "Plan: the step running or to run next (0-based)";
+    PLAN_DONE = 204, Plan, U8, "", ID, None, "Plan: steps completed (skipped ones included)";
+    PLAN_WAIT_ROBOT = 205, Plan, U8, "", ID, None, "Plan: robot whose announced progress the next step waits for (0 = none)";
+    PLAN_WAIT_STEP = 206, Plan, U8, "", ID, None, "Plan: that robot's step (0-based) the next step waits for";
+    PLAN_PROGRESS_SENT = 207, Plan, U32, "", ID, None, "Plan: progress announcements sent to the team (one per destination robot)";
+    PLAN_PROGRESS_RECEIVED = 208, Plan, U32, "", ID, None, "Plan: progress announcements accepted from other robots (authentic, of the loaded plan)";
+    PLAN_PROGRESS_IGNORED = 209, Plan, U32, "", ID, None, "Plan: progress announcements ignored (another plan ID, a robot the plan does not wait for, malformed, or a sender other than the one authenticated)";
     LINK_TM_SPI = 180, SpaceLink, U16, "", ID, None, "Space link: the TM SPI in use (17 or 18; LINK_SPI_SELECT; 0 without a frame link)";
     LINK_TC_SPIS = 181, SpaceLink, U8, "", ID, None, "Space link: TC SPIs accepted (bit 0 SPI 1, bit 1 SPI 2: a key loaded and not retired)";
     LINK_STATE_WRITES = 182, SpaceLink, U32, "", ID, None, "Space link: durable writes of the link state record since boot (receive IV and FARM-1 per authentic TC frame, TM IV blocks, SPI selections)";
@@ -395,6 +408,7 @@ impl ParamDef {
             pid::CONFIG_ID => CONFIG_ID_NAMES,
             pid::CONFIG_STATUS => CONFIG_STATUS_NAMES,
             pid::TEAM_ROLE => crate::team::TEAM_ROLE_NAMES,
+            pid::PLAN_STATE => crate::plan::STATE_NAMES,
             _ => Names::None,
         }
     }

@@ -29,6 +29,8 @@ pub mod service {
     pub const TEAM: u8 = crate::team::TEAM_SERVICE;
     /// Mission-specific: space link management (SDLS security associations, docs/space-link.md).
     pub const SPACE_LINK: u8 = 212;
+    /// On-board operations procedures: plans the robot runs itself (`crate::plan`).
+    pub const PLAN: u8 = 18;
 }
 
 pub use crate::modes::ModeSet;
@@ -841,6 +843,98 @@ pub const TCS: &[TcDef] = &[
         "Accept the module configuration found at boot by its hash: clears MODULE_REPLACED so that OPERATIONAL may be entered",
     )
     .hazardous("lets the robot operate with modules the ground has not seen before"),
+    // --- 18 on-board plans (crate::plan, docs/plan-format.md) ---
+    TcDef {
+        variable: true,
+        rest: &[Item::Group {
+            name: "data",
+            count: "count",
+            max: crate::plan::MAX_CHUNK,
+            items: &[Item::Field(f("byte", PType::U8, "image byte"))],
+        }],
+        ..tc(
+            service::PLAN,
+            crate::plan::sub::LOAD,
+            "PLAN_LOAD",
+            &[
+                a("offset", PType::U16, "byte", 0, crate::plan::MAX_IMAGE_LEN as i64 - 1, "where the bytes go in the image"),
+                a("count", PType::U8, "byte", 1, crate::plan::MAX_CHUNK as i64, "number of image bytes that follow"),
+            ],
+            &[F::PLAN_BUSY, F::PLAN_TOO_LARGE],
+            "Plan: write bytes of a plan image into the staging buffer (a new load starts at offset 0 and clears it); refused while a plan runs or is suspended",
+        )
+    },
+    tc(
+        service::PLAN,
+        crate::plan::sub::COMMIT,
+        "PLAN_COMMIT",
+        &[
+            a("length", PType::U16, "byte", 1, crate::plan::MAX_IMAGE_LEN as i64, "image length"),
+            a("crc", PType::U32, "", 0, 4_294_967_295, "CRC-32 of the image's bytes before its own CRC (the image's trailer)"),
+        ],
+        &[
+            F::PLAN_BUSY,
+            F::PLAN_CHECKSUM,
+            F::PLAN_INVALID,
+            F::PLAN_WRONG_ROBOT,
+            F::PLAN_STEP_INVALID,
+            F::PLAN_UNREACHABLE,
+            F::PLAN_HAZARD_UNCONFIRMED,
+        ],
+        "Plan: check the staged image (length, CRC-32, format and limits, robot, every step's TC as its acceptance would, reconfigurations against the map, confirmation of every hazardous step) and keep it as the loaded plan; nothing moves",
+    ),
+    tc(
+        service::PLAN,
+        crate::plan::sub::START,
+        "PLAN_START",
+        &[a("plan_id", PType::U32, "", 0, 4_294_967_295, "ID of the loaded plan (a stale command for another plan is refused)")],
+        &[F::PLAN_NOT_LOADED, F::PLAN_BAD_STATE],
+        "Plan: start the loaded plan: its steps run on board in order, each through the checks of a ground TC, each reported in PUS 1 under its own request ID",
+    )
+    .hazardous("lets the robot move on its own, step after step, without the ground"),
+    tc(
+        service::PLAN,
+        crate::plan::sub::SUSPEND,
+        "PLAN_SUSPEND",
+        &[],
+        &[F::PLAN_BAD_STATE],
+        "Plan: suspend the running plan: the running step finishes, no further step starts",
+    ),
+    tc(
+        service::PLAN,
+        crate::plan::sub::RESUME,
+        "PLAN_RESUME",
+        &[],
+        &[F::PLAN_BAD_STATE],
+        "Plan: resume a suspended plan at the step where it stopped (a failed step runs again)",
+    )
+    .hazardous("lets the robot move on its own again"),
+    tc(
+        service::PLAN,
+        crate::plan::sub::ABORT,
+        "PLAN_ABORT",
+        &[],
+        &[F::PLAN_NOT_LOADED],
+        "Plan: abort the plan: no further step starts (a running action completes or is stopped as a ground STOP would); the plan stays for inspection until the next load",
+    ),
+    tc(
+        service::PLAN,
+        crate::plan::sub::SKIP,
+        "PLAN_SKIP",
+        &[a("step", PType::U8, "", 0, crate::plan::MAX_STEPS as i64 - 1, "the step to skip (0-based): must be the suspended plan's next step")],
+        &[F::PLAN_BAD_STATE, F::PLAN_STEP_MISMATCH],
+        "Plan: skip the next step of a suspended plan (counted as completed for the team's dependencies); resume with PLAN_RESUME",
+    )
+    .hazardous("later steps and other robots' dependencies treat the skipped step as done"),
+    tc(
+        service::PLAN,
+        crate::plan::sub::STATUS_REQUEST,
+        "PLAN_STATUS_REQUEST",
+        &[],
+        &[],
+        "Plan: report the plan status",
+    )
+    .reports("PLAN_STATUS"),
     // --- 211 team coordination without the ground (docs/team.md, crate::team) ---
     tc(
         service::TEAM,
@@ -1261,6 +1355,25 @@ pub const TMS: &[TmDef] = &[
          module set and its URDF from it)",
     ),
     tm(
+        service::PLAN,
+        crate::plan::sub::STATUS,
+        "PLAN_STATUS",
+        &[
+            Item::Field(f("plan_id", PType::U32, "ID of the plan (0 = none)")),
+            Item::Field(f("state", PType::U8, "plan state").names(crate::plan::STATE_NAMES)),
+            Item::Field(f("steps", PType::U8, "steps in this robot's image")),
+            Item::Field(f("next_step", PType::U8, "next step to run or running (0-based)")),
+            Item::Field(f("done", PType::U8, "steps completed")),
+            Item::Field(f(
+                "wait_robot",
+                PType::U8,
+                "robot whose step the next step waits for (0 = none)",
+            )),
+            Item::Field(f("wait_step", PType::U8, "that robot's step (0-based)")),
+        ],
+        "Plan status: what runs, where it is and what it waits for",
+    ),
+    tm(
         service::TEAM,
         2,
         "TEAM_STATUS",
@@ -1467,6 +1580,9 @@ mod tests {
                 "PARAM_SET",
                 "MODE_SET",
                 "ACCEPT_CONFIG",
+                "PLAN_START",
+                "PLAN_RESUME",
+                "PLAN_SKIP",
                 "TEAM_AUTHORISE",
                 "LINK_SPI_SELECT",
             ]

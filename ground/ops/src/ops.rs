@@ -16,6 +16,7 @@ use std::time::Duration;
 
 pub mod book;
 mod executor;
+mod onboard;
 pub mod policy;
 mod run;
 pub mod runs;
@@ -27,6 +28,7 @@ mod tests;
 
 pub use book::{Pending, TcBook};
 pub use executor::{Effect, Executor, RunOptions, SendError, StepState, INTERRUPT_GRACE};
+pub use onboard::{upload_and_start, OnBoard};
 pub use run::{run_plan, InFlight, Resume};
 pub use session::{failure_words, first_tc_seq, OpsError, Session, Update, SEQ_SKIP_AFTER_RESTART};
 pub use status::{NoAnswer, RobotStatus};

@@ -15,6 +15,7 @@
 mod action;
 mod diag;
 mod encode;
+pub mod onboard;
 mod parse;
 mod step;
 mod validate;

@@ -86,6 +86,7 @@ reports!(
     ModeCantReach,
     ModuleReport,
     TeamStatus,
+    PlanStatus,
 );
 
 /// A request's verification token with the acknowledgement flags the TC asked for.

@@ -23,6 +23,7 @@ use crate::services::hk::Hk;
 use crate::services::link::{LinkKeys, LinkSelect};
 use crate::services::mode::{ModeCmd, Transition};
 use crate::services::modules::Modules;
+use crate::services::plan::OnboardPlan;
 use crate::services::scheduling::Schedule;
 use crate::services::team::Team;
 use crate::services::time::TimeReports;
@@ -184,6 +185,8 @@ pub struct Obsw<S: TmStore> {
     pub modules: Modules,
     /// Team coordination without the ground (service 211, `services::team`).
     pub team: Team,
+    /// The on-board plan (service 18, `services::plan`).
+    pub plan: OnboardPlan,
     /// Space link keys the platform holds (it sets them at start; `services::link`).
     pub link_keys: LinkKeys,
     /// An SPI selection (LINK_SPI_SELECT) for the platform to apply before its next input.
@@ -215,6 +218,7 @@ impl<S: TmStore> Obsw<S> {
             out: TickOut::new(),
             modules: Modules::default(),
             team: Team::new(cfg.robot, OnboardTime::new(cfg.epoch_unix_ms)),
+            plan: OnboardPlan::new(cfg.robot),
             link_keys: LinkKeys::default(),
             link_select: None,
         };
@@ -363,6 +367,7 @@ impl<S: TmStore> Obsw<S> {
             Source::SpaceLink => self.space_link_param(id),
             Source::Modules => self.modules.param(id),
             Source::Team => self.team.param(id),
+            Source::Plan => self.plan.plan.param(id),
             Source::BoardA => self.ctrl.board_a_param(id),
             Source::BoardB => self.ctrl.board_b_param(id),
         }
@@ -383,7 +388,7 @@ impl<S: TmStore> Obsw<S> {
 
     /// Handles one uplinked TC (raw space packet). Never panics, whatever the bytes.
     pub fn handle_tc(&mut self, now: u64, raw: &[u8], sink: &mut impl TmSink) {
-        self.handle_tc_from(now, raw, true, sink)
+        self.handle_tc_from(now, raw, true, sink);
     }
 
     /// A TC that COP-1 delivered (the packet of an AD or BD frame accepted by FARM-1 after
@@ -393,10 +398,21 @@ impl<S: TmStore> Obsw<S> {
     /// a new TC identical to one sent before the restart would be taken for a resend and
     /// not executed. The TC is still remembered, for its outcome.
     pub fn handle_tc_delivered_once(&mut self, now: u64, raw: &[u8], sink: &mut impl TmSink) {
-        self.handle_tc_from(now, raw, false, sink)
+        self.handle_tc_from(now, raw, false, sink);
     }
 
-    fn handle_tc_from(&mut self, now: u64, raw: &[u8], duplicate_check: bool, sink: &mut impl TmSink) {
+    /// A step of the on-board plan: the TC path of a ground TC, without the duplicate
+    /// window (a plan run again after a new load must run its TCs again) and without
+    /// counting as ground contact. False when acceptance refused the packet itself.
+    pub(crate) fn handle_plan_tc(&mut self, now: u64, raw: &[u8], sink: &mut impl TmSink) -> bool {
+        let pending = self.team_ground_tc_pending();
+        let accepted = self.handle_tc_from(now, raw, false, sink);
+        self.team_restore_ground_tc(pending);
+        accepted
+    }
+
+    /// Returns false when acceptance refused the packet (before any request was made).
+    fn handle_tc_from(&mut self, now: u64, raw: &[u8], duplicate_check: bool, sink: &mut impl TmSink) -> bool {
         self.last_now = self.last_now.max(now);
         let tc = match accept(raw, self.apid) {
             Ok(tc) => tc,
@@ -406,14 +422,15 @@ impl<S: TmStore> Obsw<S> {
                     self.dl.fail(now, req, Stage::Acceptance, (&rej.failure).into(), sink);
                 }
                 self.tc_rejected_event(now, (rej.service, rej.subservice), &rej.failure, sink);
-                return;
+                return false;
             }
         };
         // Every valid ground TC is ground contact for the team logic.
         self.team_ground_tc();
         let crc = tc.crc();
         if let Some(prev) = self.seen.find(tc.req, crc, now).filter(|_| duplicate_check) {
-            return self.repeat(now, &tc, prev, sink);
+            self.repeat(now, &tc, prev, sink);
+            return true;
         }
         self.seen.remember(tc.req, crc, now);
         let token = New::new(tc.req, tc.ack);
@@ -428,12 +445,14 @@ impl<S: TmStore> Obsw<S> {
             Err(f) => {
                 self.counters.rejected();
                 self.dl.reject(now, token, &f, sink);
-                return self.refused(now, &tc, Stage::Acceptance, f, sink);
+                self.refused(now, &tc, Stage::Acceptance, f, sink);
+                return true;
             }
         };
         self.counters.tc_accepted = self.counters.tc_accepted.wrapping_add(1);
         let token = self.dl.accept(now, token, sink);
         self.execute(now, &tc, request, token, sink);
+        true
     }
 
     /// Refuses a frame longer than any packet (`config::MAX_PACKET_LEN`) that the
@@ -509,6 +528,7 @@ impl<S: TmStore> Obsw<S> {
             Request::Modules(r) => self.modules_request(now, r, sink)?,
             Request::Team(r) => self.team_request(now, r, sink)?,
             Request::Link(r) => self.link_request(now, r, sink)?,
+            Request::Plan(r) => self.plan_request(now, r, sink)?,
         }
         Ok(Exec::Done)
     }
@@ -552,7 +572,10 @@ impl<S: TmStore> Obsw<S> {
         }
     }
 
+    /// Records what became of request `req`: the duplicate window keeps it, and the
+    /// on-board plan learns the outcome of its step's TC here.
     pub(crate) fn set_outcome(&mut self, req: RequestId, outcome: Outcome) {
+        self.plan_outcome(req, &outcome);
         self.seen.set_outcome(req, outcome);
     }
 
@@ -579,6 +602,7 @@ impl<S: TmStore> Obsw<S> {
         self.hk_tick(now, sink);
         self.time_tick(now, sink);
         self.release_schedule(now, sink);
+        self.plan_tick(now, sink);
         self.out = out;
         &self.out
     }

@@ -9,8 +9,8 @@ use mib::tc::service;
 use crate::accept::Tc;
 use crate::failure::Failure;
 use crate::services::{
-    event, event_action, function, hk, link, mode, modules, monitoring, parameter, scheduling, storage, team, test,
-    time,
+    event, event_action, function, hk, link, mode, modules, monitoring, parameter, plan, scheduling, storage, team,
+    test, time,
 };
 use crate::time::OnboardTime;
 
@@ -42,6 +42,7 @@ pub enum Request<'a> {
     Modules(modules::Request),
     Team(team::Request),
     Link(link::Request),
+    Plan(plan::Request<'a>),
 }
 
 impl<'a> Request<'a> {
@@ -61,6 +62,7 @@ impl<'a> Request<'a> {
             service::MODULES => Request::Modules(modules::Request::parse(tc)?),
             service::TEAM => Request::Team(team::Request::parse(tc)?),
             service::SPACE_LINK => Request::Link(link::Request::parse(tc)?),
+            service::PLAN => Request::Plan(plan::Request::parse(tc)?),
             // `accept` only lets services of the MIB through; a service added to the
             // MIB without a handler here is refused, never run by another one.
             other => return Err(Failure::unknown_service(other)),

@@ -13,6 +13,7 @@ mod config_state;
 mod durable;
 mod frames;
 mod net;
+mod plan_state;
 mod store_file;
 mod team;
 
@@ -84,6 +85,11 @@ struct Args {
     /// (the full robot) is accepted at start and an ACCEPT_CONFIG holds until the process ends.
     #[arg(long)]
     config_state: Option<PathBuf>,
+    /// File holding the on-board plan (PUS 18) and how far it got, kept across restarts
+    /// (written like --team-state after every change). A plan running at a restart comes
+    /// back suspended: the ground resumes it (the step in flight runs again) or skips it.
+    #[arg(long, value_name = "PATH")]
+    plan_state: Option<PathBuf>,
     /// File of the on-board TM store (PUS 15), kept across restarts: a NOR flash image of
     /// `mib::memory::store::SIZE` bytes, created erased if missing [default: DIR/robot-N/
     /// tm-store.bin with --keys DIR, else tm-store-robot-N.bin beside --link-state;
@@ -256,6 +262,7 @@ struct FileConfig {
     lab_bare_packets: Option<bool>,
     modules: Option<PathBuf>,
     config_state: Option<PathBuf>,
+    plan_state: Option<PathBuf>,
     tm_store: Option<PathBuf>,
     team_udp: Option<SocketAddr>,
     peer: Option<Vec<String>>,
@@ -286,6 +293,8 @@ struct Settings {
     modules: mmic_sim::modules::ModuleSetSpec,
     /// `--config-state` (docs/modules.md).
     config_state: Option<PathBuf>,
+    /// `--plan-state` (docs/plan-format.md, "On board").
+    plan_state: Option<PathBuf>,
     team: Option<TeamSettings>,
 }
 
@@ -437,6 +446,7 @@ fn settings(a: Args) -> Result<Settings> {
         bare,
         modules,
         config_state: a.config_state.or(f.config_state),
+        plan_state: a.plan_state.or(f.plan_state),
         team,
     })
 }
@@ -636,6 +646,9 @@ fn run(args: Args) -> Result<()> {
         ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
     }
     obsw.boot(0, config::reset_cause::POWER_ON, &mut down);
+    if let Some(p) = &s.plan_state {
+        plan_state::restore(&mut obsw, p, &mut down);
+    }
     if let Some(why) = config_lost {
         obsw.config_state_lost(0, why, &mut down);
     }
@@ -696,6 +709,7 @@ fn run(args: Args) -> Result<()> {
             }
             // An ACCEPT_CONFIG just executed is stored before the next input.
             config_state::persist(&mut obsw, s.config_state.as_deref(), sim_ms, &mut down);
+            plan_state::persist(&mut obsw, s.plan_state.as_deref());
             if !any {
                 break;
             }
@@ -739,6 +753,8 @@ fn run(args: Args) -> Result<()> {
         sim.step(period as u32, &out.actuators, &out.link_tx, &mut link_rx);
         // ... or one released by the on-board schedule.
         config_state::persist(&mut obsw, s.config_state.as_deref(), sim_ms, &mut down);
+        // The plan's progress of this period, before the next period starts a step.
+        plan_state::persist(&mut obsw, s.plan_state.as_deref());
         if let Some(t) = team_link.as_mut() {
             let mut buf = [0u8; config::MAX_PACKET_LEN];
             while let Some(n) = t.recv(&mut buf) {
@@ -753,6 +769,8 @@ fn run(args: Args) -> Result<()> {
             }
             let r = t.rand();
             obsw.team_poll(sim_ms, r, t, &mut down);
+            // The on-board plan's progress for the robots whose steps wait on this one's.
+            obsw.plan_team(sim_ms, t);
             for _ in 0..t.take_seal_errors() {
                 obsw.team_rejected(
                     sim_ms,

@@ -148,6 +148,7 @@ impl Run {
                             tc: Some(tc),
                             v,
                             after: Some(after),
+                            at_ms: Some(tm.time.unix_ms()),
                         }),
                     }
                 }

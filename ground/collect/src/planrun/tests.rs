@@ -273,6 +273,7 @@ fn the_page_sees_each_steps_stage_and_progress() {
             tc: None,
             v,
             after: None,
+            at_ms: None,
         },
     );
     view(&mut r, &exec);

@@ -32,7 +32,7 @@ pub enum StepState {
 }
 
 impl StepState {
-    fn terminal(&self) -> bool {
+    pub fn terminal(&self) -> bool {
         matches!(
             self,
             StepState::Done { .. } | StepState::Failed(_) | StepState::Blocked(_)
@@ -146,6 +146,12 @@ pub struct Executor<'p> {
     last_heartbeat: HashMap<u8, Instant>,
     /// Interrupted: no new step starts; the steps in flight are awaited until then.
     halted: Option<Instant>,
+    /// Steps the robots run from their on-board plan: their TCs (never sent by the
+    /// ground), tracked from the moment the step may start as if the ground had sent it.
+    on_board: HashMap<usize, BuiltTc>,
+    /// When each on-board step was accepted, by the robot's clock (Unix ms): its duration
+    /// in the summary is the robot's, whenever its reports reach the ground.
+    board_start: HashMap<usize, i64>,
 }
 
 impl<'p> Executor<'p> {
@@ -172,7 +178,36 @@ impl<'p> Executor<'p> {
             start: now,
             last_heartbeat: HashMap::new(),
             halted: None,
+            on_board: HashMap::new(),
+            board_start: HashMap::new(),
         }
+    }
+
+    /// Step `step` runs on board with TC `tc` (in the robot's plan): the executor never
+    /// sends it; it runs from when its dependencies completed (or from its first report,
+    /// should that come earlier: the robot saw them complete first).
+    pub fn run_on_board(&mut self, step: usize, tc: BuiltTc) {
+        self.on_board.insert(step, tc);
+    }
+
+    fn start_on_board(&mut self, i: usize, now: Instant, fx: &mut Vec<Effect>) {
+        let (Some(tc), Some(s)) = (self.on_board.get(&i), self.plan.steps.get(i)) else {
+            return;
+        };
+        fx.push(Effect::Log(format!(
+            "  on board {} robot {}: {} (seq {})",
+            s.id,
+            s.robot,
+            s.action.describe(),
+            tc.seq
+        )));
+        self.state[i] = StepState::Running {
+            tc: Some(tc.clone()),
+            since: now,
+            stage: "on board",
+            progress: 0,
+        };
+        self.sends.insert(i, 1);
     }
 
     /// The operator interrupted the run at `now`: no new step starts; the steps in
@@ -277,6 +312,10 @@ impl<'p> Executor<'p> {
             if !s.deps.iter().all(|&d| matches!(self.state[d], StepState::Done { .. })) {
                 continue;
             }
+            if self.on_board.contains_key(&i) {
+                self.start_on_board(i, now, &mut fx);
+                continue;
+            }
             self.state[i] = StepState::Running {
                 tc: None,
                 since: now,
@@ -370,8 +409,18 @@ impl<'p> Executor<'p> {
         let n = self.plan.steps.len();
         match u {
             Update::Verification {
-                tag: Some(i), v, after, ..
+                tag: Some(i),
+                v,
+                after,
+                at_ms,
+                ..
             } if i < n => {
+                if let Some(at) = at_ms.filter(|_| self.on_board.contains_key(&i) && v.stage == Stage::Acceptance) {
+                    self.board_start.insert(i, at);
+                }
+                if self.state[i] == StepState::Waiting && self.halted.is_none() {
+                    self.start_on_board(i, now, &mut fx);
+                }
                 let StepState::Running {
                     since, stage, progress, ..
                 } = &mut self.state[i]
@@ -387,7 +436,9 @@ impl<'p> Executor<'p> {
                 match v.stage {
                     Stage::Acceptance => {
                         *stage = "accepted";
-                        if let Some(a) = after.filter(|a| a.as_millis() > TC_RETRY_INITIAL_MS as u128) {
+                        // (A step on board is accepted when the robot starts it, not when sent.)
+                        let late = after.filter(|a| a.as_millis() > TC_RETRY_INITIAL_MS as u128);
+                        if let Some(a) = late.filter(|_| !self.on_board.contains_key(&i)) {
                             fx.push(Effect::Log(format!(
                                 "  accepted {} after {:.2} s",
                                 s.id,
@@ -401,7 +452,10 @@ impl<'p> Executor<'p> {
                         *progress = v.step.unwrap_or(*progress + 1);
                     }
                     Stage::Completion => {
-                        let secs = now.saturating_duration_since(*since).as_secs_f64();
+                        let on_board = at_ms
+                            .zip(self.board_start.get(&i))
+                            .map(|(end, start)| (end - start) as f64 / 1000.0);
+                        let secs = on_board.unwrap_or_else(|| now.saturating_duration_since(*since).as_secs_f64());
                         fx.push(Effect::Log(format!(
                             "  done     {} robot {} in {secs:.1} s",
                             s.id, s.robot

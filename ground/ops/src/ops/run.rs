@@ -74,6 +74,12 @@ pub struct Resume {
     /// Per robot, the last TM sequence count of its APID in the archive: the on-board
     /// store is asked for everything after it before anything is sent.
     pub last_seq: Vec<(u8, u16)>,
+    /// The robots run the plan themselves (`--on-board`): its step TCs are tracked,
+    /// never sent by the ground.
+    pub on_board: Option<super::onboard::OnBoard>,
+    /// Steps whose TC failed earlier, with why: a ground-driven resume sends them again;
+    /// on board they are the robot's (its plan is suspended there), so they stay failed.
+    pub failed: Vec<(usize, String)>,
 }
 
 /// A step whose TC an earlier session sent, outcome unknown.
@@ -124,13 +130,25 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
             }
         }
     }
+    // Reattached to a plan on board: what the robots sent while the ground was away (after
+    // the last TM the archive has) is asked of their stores, as for a resumed TC.
+    if resume.on_board.is_some() {
+        for (r, last) in &resume.last_seq {
+            if let Some(s) = session.robots.get_mut(r) {
+                if s.seq.newest().is_none() {
+                    s.seq.expect_from(SeqCount::new(*last).next().get());
+                }
+            }
+        }
+    }
     // Every session of a run starts with a start marker per robot: it names the run in
     // the archive (see `runs`) and, answered, starts the TM accounting.
     let watch = opts.ping_period.is_some() || !resume.in_flight.is_empty();
     if watch {
         session.watch_links();
     }
-    let early = start_markers(session, &robots, watch, &stop_asked);
+    let mut early = start_markers(session, &robots, watch, &stop_asked);
+    let detach = on_board(plan, session, &mut exec, resume, &disp, &mut early);
     if opts.tm_from_boot {
         // Robots booted for this run: everything from their first packet is the run's
         // TM; what they sent before the ground listened is asked of their store.
@@ -181,6 +199,10 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
         apply(fx, &mut exec, session);
     }
     loop {
+        if detach {
+            // The robots carry on alone; `--on-board --resume` follows them later.
+            break;
+        }
         if stop_asked() {
             let fx = exec.interrupt(Instant::now(), opts.grace);
             apply(fx, &mut exec, session);
@@ -235,7 +257,7 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
         }
     }
     // An interrupted run ends at once: the TM it missed is filled by the next session.
-    let tm = if opts.ping_period.is_some() && !stop_asked() {
+    let tm = if opts.ping_period.is_some() && !stop_asked() && !detach {
         complete_tm(session, &robots, &disp, &stop_asked)
     } else {
         Vec::new()
@@ -248,6 +270,77 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
     let mut summary = exec.summary(session, Instant::now());
     summary.tm = tm;
     summary
+}
+
+/// A plan the robots run themselves: every step TC not completed yet is tracked under its
+/// request ID (never sent), the archive gets the TCs of a new upload (`--resume` finds
+/// them), the images are uploaded and started. A refusal fails every step: nothing moved.
+/// Returns true when the run detaches once the robots started.
+fn on_board(
+    plan: &Plan,
+    session: &mut Session,
+    exec: &mut Executor,
+    resume: &Resume,
+    disp: &Display,
+    early: &mut Vec<Update>,
+) -> bool {
+    let Some(ob) = &resume.on_board else { return false };
+    for (i, why) in &resume.failed {
+        for e in exec.fail_step(*i, format!("failed on board: {why}")) {
+            if let Effect::Log(l) = e {
+                disp.log(l);
+            }
+        }
+    }
+    for (i, tc) in &ob.compiled.tcs {
+        let Some(st) = plan.steps.get(*i) else { continue };
+        if matches!(exec.state[*i], StepState::Done { .. }) {
+            continue;
+        }
+        session.adopt(st.robot, tc.clone(), Some(*i), Some(st.id.clone()), false);
+        if ob.upload {
+            session.archive_tc(tc, &st.id);
+        }
+        exec.run_on_board(*i, tc.clone());
+    }
+    if !ob.upload {
+        disp.log(format!(
+            "  on board plan {:#010x}: following the robots' progress",
+            ob.compiled.plan_id
+        ));
+        return false;
+    }
+    let (seen, r) = super::onboard::upload_and_start(session, &ob.compiled);
+    early.extend(seen);
+    match r {
+        Ok(()) => {
+            let sizes: Vec<String> = ob
+                .compiled
+                .images
+                .iter()
+                .map(|i| format!("robot {}: {} bytes", i.robot, i.bytes.len()))
+                .collect();
+            disp.log(format!(
+                "  on board plan {:#010x} loaded and started ({})",
+                ob.compiled.plan_id,
+                sizes.join(", ")
+            ));
+            ob.detach
+        }
+        Err(why) => {
+            disp.log(format!("  REFUSED  on-board plan: {why}; nothing was started"));
+            for i in 0..plan.steps.len() {
+                if !exec.state[i].terminal() {
+                    for e in exec.fail_step(i, format!("not started on board: {why}")) {
+                        if let Effect::Log(l) = e {
+                            disp.log(l);
+                        }
+                    }
+                }
+            }
+            false
+        }
+    }
 }
 
 /// Starts every robot's TM accounting: a connection test (resent until answered) whose

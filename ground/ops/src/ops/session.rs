@@ -53,6 +53,8 @@ pub enum Update {
         v: Verification,
         /// Time from the first send of the TC.
         after: Option<Duration>,
+        /// The report's own time stamp (the robot's clock, Unix ms).
+        at_ms: Option<i64>,
     },
     Event {
         robot: u8,
@@ -250,6 +252,61 @@ impl Session {
         label: Option<String>,
     ) -> Result<BuiltTc, OpsError> {
         self.send_limited(robot, def, args, tag, label, None)
+    }
+
+    /// The next sequence count of `robot`'s APID, used up: for a TC the robot will run from
+    /// its on-board plan (the ground tracks its reports under that request ID).
+    pub fn next_seq(&mut self, robot: u8) -> Option<u16> {
+        mib::apid::robot_apid(robot).map(|apid| self.seq.next(apid))
+    }
+
+    /// Archives `tc` as sent for step `label` without sending it: a step TC that travels
+    /// inside an on-board plan (so that `--resume` finds the run's steps and outcomes).
+    pub fn archive_tc(&self, tc: &BuiltTc, label: &str) {
+        if let Some(a) = &self.archive {
+            a.send(Record::Tc {
+                t_ms: now_ms(),
+                tc: tc.clone(),
+                step: Some(label.to_string()),
+                attempt: 1,
+            });
+        }
+    }
+
+    /// Builds and sends a TC whose application data continues after its fixed arguments
+    /// with `tail` (a TC with variable data, such as PLAN_LOAD's image bytes); tracked and
+    /// resent like [`Session::send`].
+    pub fn send_with_tail(
+        &mut self,
+        robot: u8,
+        def: &'static TcDef,
+        args: &[i64],
+        tail: &[u8],
+        label: Option<String>,
+    ) -> Result<BuiltTc, OpsError> {
+        let link = self.links.get(&robot).ok_or(OpsError::NoLink(robot))?;
+        let apid = mib::apid::robot_apid(robot).ok_or(pus::BuildError::UnknownRobot(robot))?;
+        pus::build_tc(robot, 0, def, args)?;
+        let mut tc = pus::build_tc(robot, self.seq.next(apid), def, args)?;
+        // Fixed arguments as built (after the 6 + 5 header bytes, before the CRC), then the tail.
+        let mut app = tc.bytes[11..tc.bytes.len() - 2].to_vec();
+        app.extend_from_slice(tail);
+        tc.bytes = pus::build_raw_tc(apid, tc.seq, def.service, def.subservice, pus::ack_flags_for(def), &app)?;
+        link.send(&tc.bytes).map_err(|err| OpsError::Send { robot, err })?;
+        self.last_new_tc.insert(robot, Instant::now());
+        if let Some(a) = &self.archive {
+            a.send(Record::Tc {
+                t_ms: now_ms(),
+                tc: tc.clone(),
+                step: runs::archived_label(label.as_deref(), self.run_id.as_deref()),
+                attempt: 1,
+            });
+        }
+        let mut p = Pending::sent(robot, tc.clone(), None, label, Instant::now());
+        p.max_sends = self.max_resends + 1;
+        p.tm_seq_at_send = self.robots.get(&robot).and_then(|s| s.seq.newest());
+        self.book.insert(p);
+        Ok(tc)
     }
 
     /// Sends a connection test that is not resent (a heartbeat: the next one follows).
@@ -660,6 +717,7 @@ impl Session {
                             tc: Some(tc),
                             v,
                             after: Some(after),
+                            at_ms: Some(tm.time.unix_ms()),
                         });
                     }
                     Verdict::Unknown => out.push(Update::Verification {
@@ -668,6 +726,7 @@ impl Session {
                         tc: None,
                         v,
                         after: None,
+                        at_ms: Some(tm.time.unix_ms()),
                     }),
                 }
             }

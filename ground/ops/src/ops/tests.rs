@@ -115,6 +115,7 @@ fn verification(tc: &BuiltTc, step: usize, subservice: u8) -> Update {
         tc: Some(tc.def.name),
         v,
         after: None,
+        at_ms: None,
     }
 }
 

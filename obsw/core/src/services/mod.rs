@@ -10,6 +10,7 @@ pub mod mode;
 pub mod modules;
 pub mod monitoring;
 pub mod parameter;
+pub mod plan;
 pub mod scheduling;
 pub mod storage;
 pub mod team;

@@ -328,7 +328,7 @@ pub struct Team {
     ground_tc: bool,
     both_hold: Option<bool>,
     next_status: u64,
-    tmw: TmWriter,
+    pub(crate) tmw: TmWriter,
     pub counters: TeamCounters,
     /// Roster or authorisation changed and not yet durable (written at the next poll).
     dirty: bool,
@@ -633,6 +633,15 @@ impl<S: TmStore> Obsw<S> {
         link: &mut impl TeamLink,
         sink: &mut impl TmSink,
     ) {
+        // Plan progress announcements belong to the on-board plan, roster or not.
+        if let Ok(tm) = PusTmReader::new(packet, 7) {
+            if tm.apid().value() == TEAM_APID
+                && tm.message_type_id().type_id == TEAM_SERVICE
+                && tm.message_type_id().subtype_id == mib::plan::TEAM_SUBSERVICE_PROGRESS
+            {
+                return self.plan_progress(from, tm.user_data());
+            }
+        }
         let msg = match PusTmReader::new(packet, 7) {
             Ok(tm)
                 if tm.apid().value() == TEAM_APID
@@ -658,6 +667,15 @@ impl<S: TmStore> Obsw<S> {
     /// Records ground contact (every valid ground TC); fed to the node at the next poll.
     pub(crate) fn team_ground_tc(&mut self) {
         self.team.ground_tc = true;
+    }
+
+    /// Ground contact recorded and not yet fed to the node (kept across a TC the obsw
+    /// runs itself, which is no ground contact).
+    pub(crate) fn team_ground_tc_pending(&self) -> bool {
+        self.team.ground_tc
+    }
+    pub(crate) fn team_restore_ground_tc(&mut self, pending: bool) {
+        self.team.ground_tc = pending;
     }
 
     /// Runs a TC the obsw released itself (PUS 11 schedule): it is not ground contact.

@@ -1,0 +1,106 @@
+//! `ground run --on-board`: the plan's images uploaded (PLAN_LOAD chunks, PLAN_COMMIT),
+//! then started on every robot (PLAN_START) only once every robot has committed its
+//! image: a refusal anywhere means nothing moves. Each control TC is sent and awaited
+//! through the session like any other TC (resends, reports); the reports of the plan's
+//! own steps that arrive meanwhile are handed back for the executor.
+
+use std::time::{Duration, Instant};
+
+use crate::plan::onboard::Compiled;
+use crate::pus::BuiltTc;
+
+use super::{failure_words, Session, Update};
+
+/// Longest wait for one control TC's completion.
+const CONTROL_WAIT: Duration = Duration::from_secs(30);
+
+/// What was done for the plan on board.
+#[derive(Clone, Debug)]
+pub struct OnBoard {
+    pub compiled: Compiled,
+    /// Upload and start (false: a `--resume` of a plan already running on board).
+    pub upload: bool,
+    /// Stop following once every robot has started (the robots carry on alone).
+    pub detach: bool,
+}
+
+/// Sends `def(args) + tail` to `robot` and waits for its completion; the other updates
+/// are kept in `early`.
+fn control(
+    session: &mut Session,
+    robot: u8,
+    name: &str,
+    args: &[i64],
+    tail: &[u8],
+    early: &mut Vec<Update>,
+) -> Result<BuiltTc, String> {
+    let def = mib::tc::by_name(name).ok_or_else(|| format!("{name} is not a TC of the MIB"))?;
+    let tc = session
+        .send_with_tail(robot, def, args, tail, Some("on-board plan".into()))
+        .map_err(|e| format!("robot {robot}: {name}: {e}"))?;
+    let rid = tc.request_id();
+    let t0 = Instant::now();
+    while t0.elapsed() < CONTROL_WAIT {
+        for u in session.poll(Duration::from_millis(50)) {
+            match &u {
+                Update::Verification { v, .. } if v.request == rid => {
+                    if !v.success {
+                        return Err(format!("robot {robot}: {name} refused: {}", failure_words(v)));
+                    }
+                    if v.stage == crate::pus::Stage::Completion {
+                        return Ok(tc);
+                    }
+                }
+                Update::GaveUp { robot: r, tc: n, .. } if *r == robot && *n == def.name && !session.is_pending(&tc) => {
+                    return Err(format!("robot {robot}: {name}: no answer"));
+                }
+                _ => early.push(u),
+            }
+        }
+    }
+    Err(format!(
+        "robot {robot}: {name}: no completion within {} s",
+        CONTROL_WAIT.as_secs()
+    ))
+}
+
+/// Uploads and commits every image, then starts every robot. Returns the updates seen
+/// meanwhile, and the first refusal (nothing started then).
+pub fn upload_and_start(session: &mut Session, c: &Compiled) -> (Vec<Update>, Result<(), String>) {
+    let mut early = Vec::new();
+    let r = (|| {
+        for img in &c.images {
+            for (k, chunk) in img.bytes.chunks(mib::plan::MAX_CHUNK).enumerate() {
+                let offset = (k * mib::plan::MAX_CHUNK) as i64;
+                control(
+                    session,
+                    img.robot,
+                    "PLAN_LOAD",
+                    &[offset, chunk.len() as i64],
+                    chunk,
+                    &mut early,
+                )?;
+            }
+            control(
+                session,
+                img.robot,
+                "PLAN_COMMIT",
+                &[img.bytes.len() as i64, i64::from(img.crc())],
+                &[],
+                &mut early,
+            )?;
+        }
+        for img in &c.images {
+            control(
+                session,
+                img.robot,
+                "PLAN_START",
+                &[i64::from(c.plan_id)],
+                &[],
+                &mut early,
+            )?;
+        }
+        Ok(())
+    })();
+    (early, r)
+}
