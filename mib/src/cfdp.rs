@@ -36,6 +36,17 @@ const _: () = assert!(MAX_PACKET_LEN <= crate::link::tc_frame::MAX_PACKET_LEN);
 /// IDs, a sequence number) and the 4-byte segment offset.
 pub const MAX_SEGMENT_LEN: usize = MAX_PDU_LEN - 4 - 2 * ENTITY_ID_LEN - SEQ_NUM_LEN - 4;
 
+/// File checksum the entities send (SANA checksum identifier): 0, the modular checksum of
+/// 727.0-B-5 Annex F, the one every CFDP implementation has (Yamcs' CFDP service and Python
+/// `cfdp` compute no other). Each frame carrying the file is already authenticated by SDLS;
+/// the checksum guards the reassembly. Received files are checked with whatever checksum
+/// their sender chose (modular, CRC-32, CRC-32C or null).
+pub const CHECKSUM_TYPE: u8 = 0;
+/// PDUs are sent without the optional PDU CRC: every frame that carries them already has
+/// its frame CRC and SDLS MAC, and Python `cfdp` refuses PDUs with a CRC. PDUs that carry
+/// one are taken, their CRC checked.
+pub const PDU_CRC: bool = false;
+
 // ---------------------------------------------------------------------------------------
 // Timers and limits (727.0-B-5 § 4.6.3, 4.6.4, 4.7; ms of the entity's own clock)
 // ---------------------------------------------------------------------------------------

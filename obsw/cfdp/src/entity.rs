@@ -141,21 +141,28 @@ impl spacepackets::seq_count::SequenceCounter for Seq<'_> {
     }
 }
 
-/// Faults the handlers declared (727.0-B-5 § 4.8), counted.
-pub struct Faults<'a>(&'a Cell<u32>);
+/// Faults the handlers declared (727.0-B-5 § 4.8), counted, the last one's condition kept.
+pub struct Faults<'a>(&'a Cell<u32>, &'a Cell<Option<ConditionCode>>);
+
+impl Faults<'_> {
+    fn count(&mut self, f: FaultInfo) {
+        self.0.set(self.0.get().wrapping_add(1));
+        self.1.set(Some(f.condition_code()));
+    }
+}
 
 impl UserFaultHook for Faults<'_> {
-    fn notice_of_suspension_cb(&mut self, _f: FaultInfo) {
-        self.0.set(self.0.get().wrapping_add(1));
+    fn notice_of_suspension_cb(&mut self, f: FaultInfo) {
+        self.count(f);
     }
-    fn notice_of_cancellation_cb(&mut self, _f: FaultInfo) {
-        self.0.set(self.0.get().wrapping_add(1));
+    fn notice_of_cancellation_cb(&mut self, f: FaultInfo) {
+        self.count(f);
     }
-    fn abandoned_cb(&mut self, _f: FaultInfo) {
-        self.0.set(self.0.get().wrapping_add(1));
+    fn abandoned_cb(&mut self, f: FaultInfo) {
+        self.count(f);
     }
-    fn ignore_cb(&mut self, _f: FaultInfo) {
-        self.0.set(self.0.get().wrapping_add(1));
+    fn ignore_cb(&mut self, f: FaultInfo) {
+        self.count(f);
     }
 }
 
@@ -177,6 +184,7 @@ pub struct Parts<S> {
     pub store: Checked<S>,
     pub link: Link,
     faults: Cell<u32>,
+    last_fault: Cell<Option<ConditionCode>>,
     seq: Cell<u16>,
 }
 
@@ -186,8 +194,19 @@ impl<S: FlatStore> Parts<S> {
             store: Checked::new(store),
             link: Link::default(),
             faults: Cell::new(0),
+            last_fault: Cell::new(None),
             seq: Cell::new(0),
         }
+    }
+
+    /// The next transaction sequence number. Transaction IDs must not repeat: a platform
+    /// keeps this across restarts ([`Parts::set_next_seq`] at start-up).
+    pub fn next_seq(&self) -> u16 {
+        self.seq.get()
+    }
+
+    pub fn set_next_seq(&self, seq: u16) {
+        self.seq.set(seq);
     }
 }
 
@@ -250,6 +269,12 @@ pub struct Counters {
     pub before_metadata: u32,
     /// Segment requests dropped because the resend queue was full (asked for again).
     pub resend_dropped: u32,
+    /// Incoming transactions ended by the peer's next one before their Finished was
+    /// acknowledged.
+    pub superseded: u32,
+    /// PDUs of another transaction than the running one, or of one already finished
+    /// (late retransmissions, duplicates): dropped.
+    pub stray: u32,
 }
 
 /// A put this entity owes its peer (a proxy put or a directory listing), done when the
@@ -297,6 +322,8 @@ struct User {
     listing: Option<FileName>,
     completed: u32,
     failed: u32,
+    /// Finished indications of sent transactions (to see one cfdp-rs did not give).
+    sent_reports: u32,
 }
 
 fn id_u16(f: &UnsignedByteField) -> u16 {
@@ -304,6 +331,20 @@ fn id_u16(f: &UnsignedByteField) -> u16 {
 }
 
 impl User {
+    /// A transaction's end for the user, counted.
+    fn report(&mut self, f: Finished) {
+        if f.complete {
+            self.completed = self.completed.wrapping_add(1);
+        } else {
+            self.failed = self.failed.wrapping_add(1);
+        }
+        if self.finished.push_back(f).is_err() {
+            // Oldest report out: the counters keep the totals.
+            self.finished.pop_front();
+            let _ = self.finished.push_back(f);
+        }
+    }
+
     /// A message to user from the peer: a reserved message this entity acts on, or none.
     fn message(&mut self, v: &[u8]) {
         let owed = match msg::parse(v) {
@@ -335,6 +376,9 @@ impl CfdpUser for User {
     fn transaction_indication(&mut self, _id: &TransactionId) {}
     fn eof_sent_indication(&mut self, _id: &TransactionId) {}
     fn transaction_finished_indication(&mut self, p: &TransactionFinishedParams) {
+        if self.sending {
+            self.sent_reports = self.sent_reports.wrapping_add(1);
+        }
         let f = Finished {
             source: id_u16(p.id.source_id()),
             seq: id_u16(p.id.seq_num()),
@@ -343,16 +387,7 @@ impl CfdpUser for User {
             complete: p.condition_code == ConditionCode::NoError && p.delivery_code == DeliveryCode::Complete,
             retained: p.file_status == FileStatus::Retained,
         };
-        if f.complete {
-            self.completed = self.completed.wrapping_add(1);
-        } else {
-            self.failed = self.failed.wrapping_add(1);
-        }
-        if self.finished.push_back(f).is_err() {
-            // Oldest report out: the counters keep the totals.
-            self.finished.pop_front();
-            let _ = self.finished.push_back(f);
-        }
+        self.report(f);
     }
     fn metadata_recvd_indication(&mut self, _p: &MetadataReceivedParams) {
         self.progress = 0;
@@ -375,6 +410,7 @@ struct Put<'a> {
     src: Option<&'a str>,
     dest: Option<&'a str>,
     mode: TransmissionMode,
+    closure: bool,
     msgs: Option<&'a [Tlv<'a>]>,
     fs: Option<&'a [Tlv<'a>]>,
 }
@@ -393,7 +429,7 @@ impl ReadablePutRequest for Put<'_> {
         Some(self.mode)
     }
     fn closure_requested(&self) -> Option<bool> {
-        Some(true)
+        Some(self.closure)
     }
     fn seg_ctrl(&self) -> Option<spacepackets::cfdp::SegmentationControl> {
         None
@@ -427,6 +463,12 @@ pub struct Entity<'a, S: FlatStore> {
     last_user_tx: Option<(u16, u16)>,
     /// The last metadata NAK: transaction and time.
     metadata_nak: Option<((u16, u16), u32)>,
+    /// Class 1 puts ask for closure (a Finished PDU), so the sender learns the outcome.
+    class1_closure: bool,
+    /// Length of the file being sent (0: metadata only).
+    sending_len: u64,
+    /// The last incoming transactions that finished: their late PDUs are strays.
+    finished_rx: heapless::Deque<(u16, u16), 4>,
     /// Segment requests of the peer's NAKs not yet fed to the source handler, with the
     /// header and scope of the last NAK.
     resend: heapless::Deque<(u32, u32), { m::MAX_LOST_SEGMENTS }>,
@@ -440,9 +482,9 @@ pub fn remote_config(peer: u16) -> RemoteEntityConfig {
         UnsignedByteFieldU16::new(peer).into(),
         m::MAX_PDU_LEN,
         true,
-        true,
+        m::PDU_CRC,
         TransmissionMode::Acknowledged,
-        ChecksumType::Crc32,
+        ChecksumType::try_from(m::CHECKSUM_TYPE).unwrap_or(ChecksumType::Modular),
     );
     c.max_file_segment_len = Some(m::MAX_SEGMENT_LEN);
     c.positive_ack_timer_interval = Duration::from_millis(m::ACK_TIMER_MS);
@@ -453,11 +495,11 @@ pub fn remote_config(peer: u16) -> RemoteEntityConfig {
     c
 }
 
-fn local_config<'a>(id: u16, faults: &'a Cell<u32>) -> LocalEntityConfig<Faults<'a>> {
+fn local_config<S>(id: u16, parts: &Parts<S>) -> LocalEntityConfig<Faults<'_>> {
     LocalEntityConfig::new(
         UnsignedByteFieldU16::new(id).into(),
         IndicationConfig::default(),
-        Faults(faults),
+        Faults(&parts.faults, &parts.last_fault),
     )
 }
 
@@ -467,6 +509,11 @@ fn local_config<'a>(id: u16, faults: &'a Cell<u32>) -> LocalEntityConfig<Faults<
 pub fn well_formed(raw: &[u8]) -> Option<PduHeader> {
     let (h, hl) = PduHeader::from_bytes(raw).ok()?;
     if h.pdu_len() != raw.len() || hl >= raw.len() {
+        return None;
+    }
+    // Files here are far below 4 GiB (`MAX_FILE_LEN`); spacepackets 0.16's readers panic on
+    // a short PDU with the large-file flag (8-byte sizes read unchecked).
+    if h.common_pdu_conf().file_flag != spacepackets::cfdp::LargeFileFlag::Normal {
         return None;
     }
     let ok = match h.pdu_type() {
@@ -488,7 +535,7 @@ pub fn well_formed(raw: &[u8]) -> Option<PduHeader> {
 // transactions: each transaction gets a handler made anew (inline, no allocation).
 fn new_source<S: FlatStore>(id: u16, peer: u16, parts: &Parts<S>) -> Source<'_, S> {
     SourceHandler::new(
-        local_config(id, &parts.faults),
+        local_config(id, parts),
         Sender(&parts.link),
         &parts.store,
         remote_config(peer),
@@ -499,7 +546,7 @@ fn new_source<S: FlatStore>(id: u16, peer: u16, parts: &Parts<S>) -> Source<'_, 
 
 fn new_dest<S: FlatStore>(id: u16, peer: u16, parts: &Parts<S>) -> Dest<'_, S> {
     DestinationHandler::new(
-        local_config(id, &parts.faults),
+        local_config(id, parts),
         Sender(&parts.link),
         &parts.store,
         remote_config(peer),
@@ -522,10 +569,20 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             last_heard: 0,
             last_user_tx: None,
             metadata_nak: None,
+            class1_closure: true,
+            sending_len: 0,
+            finished_rx: heapless::Deque::new(),
             resend: heapless::Deque::new(),
             resend_header: None,
             resend_scope: (0, 0),
         }
+    }
+
+    /// Whether class 1 puts ask the receiver for a Finished PDU (on by default; a peer that
+    /// never answers one, like Python `cfdp` 0.2, makes every class 1 put end on the check
+    /// limit).
+    pub fn set_class1_closure(&mut self, on: bool) {
+        self.class1_closure = on;
     }
 
     pub fn id(&self) -> u16 {
@@ -574,9 +631,10 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         self.tick(now_ms);
         let s = self.parts.store.check(src).map_err(|_| PutError::BadName)?;
         self.parts.store.check(dest).map_err(|_| PutError::BadName)?;
-        if self.parts.store.len(&s).ok().flatten().is_none() {
+        let Some(len) = self.parts.store.len(&s).ok().flatten() else {
             return Err(PutError::NoFile);
-        }
+        };
+        self.sending_len = len;
         self.start_put(now_ms, Some(src), Some(dest), class, None, None)
     }
 
@@ -636,11 +694,15 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             return Err(PutError::Busy);
         }
         self.source = new_source(self.id, self.peer, self.parts);
+        if src.is_none() {
+            self.sending_len = 0;
+        }
         let req = Put {
             dest_id: UnsignedByteFieldU16::new(self.peer).into(),
             src,
             dest,
             mode: class.mode(),
+            closure: class == Class::Two || self.class1_closure,
             msgs,
             fs,
         };
@@ -653,16 +715,52 @@ impl<'a, S: FlatStore> Entity<'a, S> {
 
     fn run_source(&mut self, pdu: Option<&PduRawWithInfo>) {
         self.user.sending = true;
+        let busy = self.source.state() != State::Idle;
+        let reported = self.user.sent_reports;
         if self.source.state_machine(&mut self.user, pdu).is_err() {
             self.counters.handler_errors = self.counters.handler_errors.wrapping_add(1);
+        }
+        // A transaction cfdp-rs ended on a fault (a class 1 check limit, a cancellation)
+        // without a finished indication: the user learns it ended, not complete.
+        if busy && self.source.state() == State::Idle && self.user.sent_reports == reported {
+            let id = self.source.transaction_id();
+            let f = Finished {
+                source: self.id,
+                seq: id.map_or(0, |t| id_u16(t.seq_num())),
+                sent: true,
+                condition: self
+                    .parts
+                    .last_fault
+                    .get()
+                    .unwrap_or(ConditionCode::CancelRequestReceived),
+                complete: false,
+                retained: false,
+            };
+            self.user.report(f);
         }
         self.user.sending = false;
     }
 
     fn run_dest(&mut self, pdu: Option<&PduRawWithInfo>) {
         self.user.sending = false;
+        let tx = self
+            .dest
+            .transaction_id()
+            .map(|t| (id_u16(t.source_id()), id_u16(t.seq_num())));
         if self.dest.state_machine(&mut self.user, pdu).is_err() {
             self.counters.handler_errors = self.counters.handler_errors.wrapping_add(1);
+        }
+        let after = self
+            .dest
+            .transaction_id()
+            .map(|t| (id_u16(t.source_id()), id_u16(t.seq_num())));
+        if let Some(t) = tx.or(after) {
+            if self.dest.state() == State::Idle && !self.finished_rx.iter().any(|x| *x == t) {
+                if self.finished_rx.is_full() {
+                    self.finished_rx.pop_front();
+                }
+                let _ = self.finished_rx.push_back(t);
+            }
         }
     }
 
@@ -690,6 +788,28 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         };
         if !addressed {
             self.counters.refused = self.counters.refused.wrapping_add(1);
+            return;
+        }
+        // A PDU of another transaction than the handler's (a late retransmission, a
+        // duplicate of one already finished) is not the handler's business: cfdp-rs 0.3 does
+        // not compare transaction IDs on every path.
+        let tx = (id_u16(&src), id_u16(&h.common_pdu_conf().transaction_seq_num));
+        let is_metadata = pdu.file_directive_type() == Some(FileDirectiveType::MetadataPdu);
+        let current = match target {
+            PacketTarget::SourceEntity => self.source.transaction_id(),
+            PacketTarget::DestEntity => self.dest.transaction_id(),
+        }
+        .map(|t| (id_u16(t.source_id()), id_u16(t.seq_num())));
+        let busy = match target {
+            PacketTarget::SourceEntity => self.source.state() != State::Idle,
+            PacketTarget::DestEntity => self.dest.state() != State::Idle,
+        };
+        let stray = match target {
+            PacketTarget::SourceEntity => !busy || current != Some(tx),
+            PacketTarget::DestEntity => !is_metadata && busy && current != Some(tx),
+        };
+        if stray || (target == PacketTarget::DestEntity && self.finished_rx.iter().any(|t| *t == tx)) {
+            self.counters.stray = self.counters.stray.wrapping_add(1);
             return;
         }
         self.counters.received = self.counters.received.wrapping_add(1);
@@ -755,6 +875,11 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         self.resend_header = Some(*nak.pdu_header());
         self.resend_scope = (start as u32, end as u32);
         for (a, b) in nak.get_segment_requests_iterator().into_iter().flatten() {
+            // Never past the end of the file being sent (cfdp-rs would read beyond it).
+            let b = if a == 0 && b == 0 { 0 } else { b.min(self.sending_len) };
+            if b < a || (a == b && a != 0) {
+                continue;
+            }
             let mut at = a;
             loop {
                 // Metadata is asked for as 0-0.
@@ -837,7 +962,18 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         let Ok(pdu) = PduRawWithInfo::new(&buf[..len]) else {
             return;
         };
-        let was_idle = self.dest.state() == State::Idle;
+        // A new transaction while the last one waits for the ACK of its Finished PDU: the
+        // peer runs one transaction at a time, so it has ended the last one (that ACK was
+        // lost); the new one starts on a fresh handler.
+        let stale = self.dest.state() != State::Idle
+            && self
+                .dest
+                .transaction_id()
+                .is_some_and(|t| (id_u16(t.source_id()), id_u16(t.seq_num())) != tx);
+        if stale {
+            self.counters.superseded = self.counters.superseded.wrapping_add(1);
+        }
+        let was_idle = self.dest.state() == State::Idle || stale;
         if was_idle {
             self.dest = new_dest(self.id, self.peer, self.parts);
         }
