@@ -56,10 +56,14 @@ pub const PDU_CRC: bool = false;
 pub const ACK_TIMER_MS: u64 = 4_000;
 /// Expiries of the positive ACK timer before the fault "positive ACK limit reached".
 pub const ACK_LIMIT: u32 = 8;
-/// NAK timer: a NAK that brought nothing is sent again after this time.
-pub const NAK_TIMER_MS: u64 = 2_000;
-/// Expiries of the NAK timer before the fault "NAK limit reached".
-pub const NAK_LIMIT: u32 = 16;
+/// NAK timer: a NAK that brought nothing is sent again after this time. Above a round trip
+/// through COP-1 with one retransmission (2 × T1 max), like the ACK timer: a shorter one
+/// spends its expiries while the answer is still on its way.
+pub const NAK_TIMER_MS: u64 = 4_000;
+/// Expiries of the NAK timer before the fault "NAK limit reached". cfdp-rs counts every
+/// expiry of a transaction, progress or not: 32 × 4 s bounds a transfer's NAK phase at about
+/// two minutes of a bad link (16 × 2 s failed once through the 20/5/5 relay).
+pub const NAK_LIMIT: u32 = 32;
 /// Class 1 check timer: after an EOF with data missing, the receiver waits this long for
 /// late file data before it counts one check.
 pub const CHECK_TIMER_MS: u64 = 1_000;
