@@ -2,7 +2,8 @@
 # Creates (or completes) the Python virtual environment `.venv` at the repository root with
 # the independent XTCE decoder used by the MIB cross-check (mib/export/tests/xtce_crosscheck.rs)
 # and the decode benchmark's Python peers (ground/bench/decode_bench.sh), Python `cryptography`
-# (the SDLS frames' independent AES-GCM check) and Pinocchio (`pin`, the URDF model check).
+# (the SDLS frames' independent AES-GCM check), Pinocchio (`pin`, the URDF model check) and
+# Python `cfdp` (librecube's CFDP entity, the file transfers' outside judge).
 # Idempotent: a second run only verifies the pinned version.
 set -euo pipefail
 
@@ -10,6 +11,7 @@ SPP_VERSION="6.2.0"   # space-packet-parser, verified with the XTCE cross-check
 SPACEPACKETS_VERSION="0.32.0"   # spacepackets, the benchmark's header-unpacking reference
 CRYPTOGRAPHY_VERSION="50.0.2"   # cryptography, the independent AES-GCM check of SDLS frames
 PIN_VERSION="4.1.0"             # pin (Pinocchio), loads the generated URDF for the model check
+CFDP_VERSION="0.2.0"            # cfdp (librecube), the independent CFDP entity (obsw/cfdp/tests/interop.rs)
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 VENV="$ROOT/.venv"
@@ -37,6 +39,11 @@ fi
 have="$("$VENV/bin/python" -c 'import importlib.metadata as m; print(m.version("cryptography"))' 2>/dev/null || true)"
 if [ "$have" != "$CRYPTOGRAPHY_VERSION" ]; then
     "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check "cryptography==$CRYPTOGRAPHY_VERSION"
+fi
+
+have="$("$VENV/bin/python" -c 'import importlib.metadata as m; print(m.version("cfdp"))' 2>/dev/null || true)"
+if [ "$have" != "$CFDP_VERSION" ]; then
+    "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check "cfdp==$CFDP_VERSION"
 fi
 
 have="$("$VENV/bin/python" -c 'import importlib.metadata as m; print(m.version("pin"))' 2>/dev/null || true)"

@@ -22,6 +22,7 @@ mod plot;
 mod verb_archive;
 mod verb_collect;
 mod verb_decode;
+mod verb_file;
 mod verb_keys;
 mod verb_live;
 mod verb_mib;
@@ -93,6 +94,9 @@ enum Cmd {
     /// Create or show the space link's key files (never prints a key).
     #[command(subcommand)]
     Keys(verb_keys::KeysCmd),
+    /// Files to and from a robot's file store over CFDP: put, get, ls, rm, mv.
+    #[command(subcommand)]
+    File(verb_file::FileCmd),
 }
 
 fn main() -> ExitCode {
@@ -142,5 +146,6 @@ fn run(cli: Cli) -> Result<u8> {
         Cmd::Collect(a) => verb_collect::collect(&cli.archive, a),
         Cmd::Alarms(a) => verb_collect::alarms(&cli.archive, a),
         Cmd::Keys(a) => verb_keys::keys(&a),
+        Cmd::File(a) => verb_file::file(&a),
     }
 }

@@ -11,6 +11,7 @@
 #![deny(unsafe_code)]
 
 pub mod apid;
+pub mod cfdp;
 pub mod config;
 pub mod events;
 pub mod failure;

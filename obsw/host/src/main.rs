@@ -11,6 +11,7 @@
 
 mod config_state;
 mod durable;
+mod files;
 mod frames;
 mod net;
 mod plan_state;
@@ -99,6 +100,11 @@ struct Args {
     /// Test aid: write every TM packet the obsw sends to this file, one line of hex each.
     #[arg(long)]
     tm_log: Option<PathBuf>,
+    /// The file store (docs/files.md): files the ground puts and gets over CFDP on the
+    /// space link, in this directory (created if missing) [default: DIR/robot-N/files with
+    /// --keys DIR, else files-robot-N beside --link-state; neither: no file service].
+    #[arg(long, value_name = "DIR")]
+    files: Option<PathBuf>,
     /// Space link with the key folder of `ground keys create DIR`: the keys and state of
     /// robot N from DIR/robot-N/ (tc-spi1.key, tm-spi17.key, obsw-link.state), TC frames on
     /// 127.0.0.1:(7500 + N) and TM frames to 127.0.0.1:(7600 + N) unless the options below
@@ -264,6 +270,7 @@ struct FileConfig {
     config_state: Option<PathBuf>,
     plan_state: Option<PathBuf>,
     tm_store: Option<PathBuf>,
+    files: Option<PathBuf>,
     team_udp: Option<SocketAddr>,
     peer: Option<Vec<String>>,
     team_state: Option<PathBuf>,
@@ -286,6 +293,8 @@ struct Settings {
     tm_log: Option<PathBuf>,
     /// The store file (`--tm-store` or its default); `None`: in memory.
     tm_store: Option<PathBuf>,
+    /// The file store directory (`--files` or its default); `None`: no file service.
+    files: Option<PathBuf>,
     frames: Option<frames::FrameConfig>,
     tm_dest: Vec<SocketAddr>,
     /// The bare-packet link is on (lab mode, --lab-bare-packets).
@@ -428,6 +437,11 @@ fn settings(a: Args) -> Result<Settings> {
                 .as_ref()
                 .map(|fc| fc.state.with_file_name(format!("tm-store-robot-{robot}.bin")))
         });
+    let files = a.files.or(f.files).or_else(|| from_keys("files")).or_else(|| {
+        frames
+            .as_ref()
+            .map(|fc| fc.state.with_file_name(format!("files-robot-{robot}")))
+    });
     Ok(Settings {
         robot,
         udp,
@@ -441,6 +455,7 @@ fn settings(a: Args) -> Result<Settings> {
         duration,
         tm_log: a.tm_log,
         tm_store,
+        files,
         frames,
         tm_dest,
         bare,
@@ -645,6 +660,15 @@ fn run(args: Args) -> Result<()> {
         let stop = stop.clone();
         ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
     }
+    // The file service, on the space link only (docs/files.md).
+    let file_parts = match (&s.files, &s.frames) {
+        (Some(dir), Some(_)) => Some(files::parts(dir)?),
+        _ => None,
+    };
+    let mut file_service = match (&file_parts, &s.files) {
+        (Some(p), Some(dir)) => Some(files::Files::new(s.robot, dir, p)),
+        _ => None,
+    };
     obsw.boot(0, config::reset_cause::POWER_ON, &mut down);
     if let Some(p) = &s.plan_state {
         plan_state::restore(&mut obsw, p, &mut down);
@@ -688,6 +712,12 @@ fn run(args: Args) -> Result<()> {
                 if let frames::FrameInput::Packets(packets) = fi {
                     // COP-1 and SDLS deliver each frame once: no packet duplicate window.
                     for p in packets {
+                        if let Some(fs) = file_service.as_mut() {
+                            if fs.packet(arrival(sim_ms), &p) {
+                                fs.flush(&mut down);
+                                continue;
+                            }
+                        }
                         obsw.handle_tc_delivered_once(arrival(sim_ms), &p, &mut down);
                     }
                 }
@@ -746,6 +776,9 @@ fn run(args: Args) -> Result<()> {
             for ev in events {
                 obsw.link_event(sim_ms, ev, &mut down);
             }
+        }
+        if let Some(fs) = file_service.as_mut() {
+            fs.poll(sim_ms, &mut down);
         }
         let sensors = sim.sensors_a();
         let out = obsw.tick(sim_ms, &sensors, &link_rx, &mut down);

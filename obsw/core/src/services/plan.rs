@@ -419,7 +419,10 @@ mod tests {
         }
         assert_eq!(of(&out, 17, 2).len(), 1);
         assert_eq!(of(&out, 3, 25).len(), 1);
-        assert_eq!(o.param::<{ mib::params::pid::PLAN_STATE }>(), i64::from(state::COMPLETED));
+        assert_eq!(
+            o.param::<{ mib::params::pid::PLAN_STATE }>(),
+            i64::from(state::COMPLETED)
+        );
         assert_eq!(o.param::<{ mib::params::pid::PLAN_DONE }>(), 2);
     }
 
@@ -435,7 +438,10 @@ mod tests {
         let out = ticks(&mut o, 30, 3);
         let f = of(&out, 1, 4);
         assert_eq!(failure(&f[0]).0, F::NOT_ALLOWED_IN_MODE.code());
-        assert_eq!(o.param::<{ mib::params::pid::PLAN_STATE }>(), i64::from(state::SUSPENDED));
+        assert_eq!(
+            o.param::<{ mib::params::pid::PLAN_STATE }>(),
+            i64::from(state::SUSPENDED)
+        );
         assert!(of(&ticks(&mut o, 100, 5), 1, 4).is_empty(), "suspended: not sent again");
         assert_eq!(of(&send(&mut o, 200, 97, 18, 5, &[]), 1, 7).len(), 1);
         assert_eq!(
@@ -564,7 +570,10 @@ mod tests {
             r2.plan_team(20 + t * 10, &mut w2);
         }
         assert!(of(&sink, 17, 2).is_empty(), "robot 2 did not start");
-        assert_eq!(r2.param::<{ mib::params::pid::PLAN_STATE }>(), i64::from(state::RUNNING));
+        assert_eq!(
+            r2.param::<{ mib::params::pid::PLAN_STATE }>(),
+            i64::from(state::RUNNING)
+        );
         assert_eq!(r2.param::<{ mib::params::pid::PLAN_WAIT_ROBOT }>(), 1);
         // Robot 1 runs its step; its announcement reaches robot 2 (a forged sender does not).
         start(&mut r1, 50);
@@ -585,7 +594,10 @@ mod tests {
             r2.plan_tick(280 + t * 10, &mut sink);
         }
         assert_eq!(of(&sink, 17, 2).len(), 1, "robot 2 ran its step after robot 1's");
-        assert_eq!(r2.param::<{ mib::params::pid::PLAN_STATE }>(), i64::from(state::COMPLETED));
+        assert_eq!(
+            r2.param::<{ mib::params::pid::PLAN_STATE }>(),
+            i64::from(state::COMPLETED)
+        );
         assert_eq!(r2.param::<{ mib::params::pid::PLAN_PROGRESS_IGNORED }>(), 1);
     }
 }

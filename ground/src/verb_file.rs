@@ -1,0 +1,485 @@
+//! `ground file put|get|ls|rm|mv`: files to and from a robot's file store over CFDP
+//! (docs/files.md), on the space link only (SDLS and COP-1: nothing unauthenticated
+//! reaches the store). The ground runs the same CFDP entity as the robot (`mmic_cfdp`)
+//! over a directory: the local file's folder for `put`, a private staging folder for what
+//! comes down, so that a file is only renamed into place once CFDP says it arrived
+//! complete (checksum verified) — a failed transfer never leaves a file taken as good.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+use clap::{Args, Subcommand, ValueEnum};
+use ground::keys;
+use ground::link::Transport;
+use ground::robot_lock::RobotLock;
+use mmic_cfdp::dir::DirStore;
+use mmic_cfdp::packet::{self, Direction};
+use mmic_cfdp::{Class, Entity, FileName, Finished, Parts};
+
+use crate::exit::{self, coded};
+use crate::links::{one_robot, Links};
+use crate::output::err_line;
+
+#[derive(Subcommand, Debug)]
+pub(crate) enum FileCmd {
+    /// Send a local file to the robot's file store.
+    Put {
+        #[command(flatten)]
+        opts: FileOpts,
+        /// The local file (its name must be a valid store name unless REMOTE is given).
+        local: PathBuf,
+        /// Its name in the robot's store [default: the local file's name].
+        remote: Option<String>,
+    },
+    /// Fetch a file of the robot's store.
+    Get {
+        #[command(flatten)]
+        opts: FileOpts,
+        /// The name in the robot's store.
+        remote: String,
+        /// Where to write it [default: REMOTE in the current folder]; replaced only when
+        /// the file arrived complete.
+        local: Option<PathBuf>,
+    },
+    /// List the robot's store: name and length of each file, then the free bytes.
+    Ls {
+        #[command(flatten)]
+        opts: FileOpts,
+    },
+    /// Delete a file of the robot's store.
+    Rm {
+        #[command(flatten)]
+        opts: FileOpts,
+        name: String,
+    },
+    /// Rename a file of the robot's store (refused when TO exists).
+    Mv {
+        #[command(flatten)]
+        opts: FileOpts,
+        from: String,
+        to: String,
+    },
+}
+
+/// CFDP transmission class.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub(crate) enum ClassArg {
+    /// Unacknowledged: no retransmission; the checksum still decides.
+    #[value(name = "1")]
+    One,
+    /// Acknowledged: NAKs, retransmission, EOF and Finished acknowledged.
+    #[value(name = "2")]
+    Two,
+}
+
+#[derive(Args, Debug)]
+pub(crate) struct FileOpts {
+    #[command(flatten)]
+    links: Links,
+    /// CFDP class of the file transfer.
+    #[arg(long, value_enum, default_value = "2")]
+    class: ClassArg,
+    /// Give up after this many seconds.
+    #[arg(long, default_value_t = 600.0)]
+    timeout: f64,
+}
+
+impl FileOpts {
+    fn class(&self) -> Class {
+        match self.class {
+            ClassArg::One => Class::One,
+            ClassArg::Two => Class::Two,
+        }
+    }
+}
+
+/// A name for the robot's store, checked before anything is sent (exit 3 when bad).
+fn store_name(what: &str, s: &str) -> Result<FileName> {
+    FileName::new(s).map_err(|e| coded(exit::INVALID, format!("{what} {s:?}: {e}")))
+}
+
+/// The frame link to the one robot of `opts`, the lock that makes this process its only
+/// commander, the robot and the file keeping the ground's next CFDP transaction sequence
+/// number for it (transaction IDs must not repeat across ground runs).
+fn open_link(opts: &FileOpts) -> Result<(ground_link::GroundFrameLink, RobotLock, u8, PathBuf)> {
+    let (robot, addr) = one_robot(&opts.links)?;
+    let (transport, frames) = opts.links.choice(&[(robot, addr)])?;
+    let frames = match (transport, frames) {
+        (Transport::Frames, Some(f)) => f,
+        _ => {
+            return Err(coded(
+                exit::USAGE,
+                "files travel on the space link only (--keys DIR), not on a lab link",
+            ))
+        }
+    };
+    if opts.timeout.is_nan() || opts.timeout <= 0.0 {
+        return Err(coded(
+            exit::USAGE,
+            format!("--timeout {}: must be a positive number of seconds", opts.timeout),
+        ));
+    }
+    let lock = RobotLock::acquire(robot, addr).map_err(|e| coded(exit::INVALID, format!("robot {robot}: {e}")))?;
+    let dir = keys::robot_dir(&frames.keys, robot);
+    let listen = frames.listen(robot, addr);
+    let mut cfg = ground_link::Config::from_key_dir(addr, listen, &dir, &keys::ground_state_path(&dir), frames.tc_spi)
+        .map_err(|e| coded(exit::INVALID, format!("robot {robot}'s keys in {}: {e}", dir.display())))?;
+    cfg.tm_security = frames.tm_security;
+    let fl = match frames.serial.get(&robot) {
+        Some(path) => ground_link::GroundFrameLink::open_serial(cfg, path),
+        None => ground_link::GroundFrameLink::open(cfg),
+    }
+    .map_err(|e| coded(exit::ERROR, format!("frame link of robot {robot}: {e}")))?;
+    err_line!(
+        "robot {robot} at {addr} (space link, CFDP entity {})",
+        mib::cfdp::robot_entity_id(robot)
+    );
+    Ok((fl, lock, robot, dir.join("ground-cfdp.seq")))
+}
+
+/// The ground's entity on one frame link.
+struct Session<'a> {
+    fl: ground_link::GroundFrameLink,
+    entity: Entity<'a, DirStore>,
+    start: Instant,
+    deadline: Instant,
+    seq: u16,
+    /// Bytes received so far, last reported.
+    shown: u64,
+    parts: &'a Parts<DirStore>,
+    seq_file: PathBuf,
+}
+
+/// Longest wait at the end for FOP-1 to have the last PDUs acknowledged.
+const DRAIN: Duration = Duration::from_secs(5);
+
+impl Drop for Session<'_> {
+    /// The last PDUs (an ACK of the robot's Finished, say) reach the robot before the
+    /// process ends, and the sequence number is kept.
+    fn drop(&mut self) {
+        let until = Instant::now() + DRAIN;
+        while self.fl.pending() > 0 && Instant::now() < until {
+            if self.fl.recv(Duration::from_millis(5)).is_err() {
+                break;
+            }
+        }
+        if let Err(e) = std::fs::write(&self.seq_file, self.parts.next_seq().to_string()) {
+            err_line!(
+                "ground: {}: {e} (the next run may repeat a transaction ID)",
+                self.seq_file.display()
+            );
+        }
+    }
+}
+
+/// Packets of the CFDP APID FOP-1 may hold before the entity makes more: two windows.
+const LINK_BACKLOG: usize = 2 * mib::link::cop1::FOP_SLIDING_WINDOW as usize;
+
+impl<'a> Session<'a> {
+    fn new(
+        fl: ground_link::GroundFrameLink,
+        robot: u8,
+        seq_file: PathBuf,
+        parts: &'a Parts<DirStore>,
+        timeout: f64,
+    ) -> Self {
+        let start = Instant::now();
+        if let Some(seq) = std::fs::read_to_string(&seq_file)
+            .ok()
+            .and_then(|t| t.trim().parse().ok())
+        {
+            parts.set_next_seq(seq);
+        }
+        Session {
+            parts,
+            seq_file,
+            fl,
+            entity: Entity::new(mib::cfdp::GROUND_ENTITY_ID, mib::cfdp::robot_entity_id(robot), parts),
+            start,
+            deadline: start + Duration::from_secs_f64(timeout),
+            seq: 0,
+            shown: 0,
+        }
+    }
+
+    fn now(&self) -> u64 {
+        self.start.elapsed().as_millis() as u64
+    }
+
+    /// Runs the link and the entity until `done` says a finished transaction ends it.
+    fn until(&mut self, what: &str, mut done: impl FnMut(&Finished) -> bool) -> Result<Finished> {
+        let mut buf = [0u8; mib::cfdp::MAX_PACKET_LEN];
+        loop {
+            if Instant::now() > self.deadline {
+                return Err(coded(
+                    exit::NO_ANSWER,
+                    format!("{what}: no end of the transfer before --timeout"),
+                ));
+            }
+            let packets = self
+                .fl
+                .recv(Duration::from_millis(5))
+                .map_err(|e| coded(exit::NO_ANSWER, format!("{what}: {e}")))?;
+            let now = self.now();
+            for p in &packets {
+                if let Some(pdu) = packet::unwrap(Direction::Down, p) {
+                    self.entity.receive(now, pdu);
+                }
+            }
+            if self.fl.pending() < LINK_BACKLOG {
+                self.entity.poll(now);
+            }
+            while let Some(pdu) = self.entity.pop() {
+                if let Some(n) = packet::wrap(Direction::Up, self.seq, &pdu, &mut buf) {
+                    self.seq = self.seq.wrapping_add(1) & 0x3FFF;
+                    self.fl
+                        .send_packet(&buf[..n])
+                        .map_err(|e| coded(exit::NO_ANSWER, format!("{what}: {e}")))?;
+                }
+            }
+            let got = self.entity.progress();
+            if got >= self.shown + (256 << 10) {
+                err_line!("{what}: {} KiB received", got >> 10);
+                self.shown = got;
+            }
+            while let Some(f) = self.entity.take_finished() {
+                if done(&f) {
+                    return Ok(f);
+                }
+            }
+        }
+    }
+
+    /// Runs until our request transaction (sent) has finished; an error unless complete.
+    fn request_done(&mut self, what: &str) -> Result<()> {
+        let f = self.until(what, |f| f.sent)?;
+        if !f.complete {
+            return Err(coded(
+                exit::FAILED,
+                format!("{what}: the robot did not take the request ({:?})", f.condition),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Runs until a transaction from the robot has finished; an error unless complete.
+    fn incoming_done(&mut self, what: &str) -> Result<()> {
+        let f = self.until(what, |f| !f.sent)?;
+        if !f.complete {
+            return Err(coded(
+                exit::FAILED,
+                format!(
+                    "{what}: the file did not arrive complete ({:?}); nothing was kept",
+                    f.condition
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// A private folder beside `near` for what comes down, removed when dropped.
+struct Staging(PathBuf);
+
+impl Staging {
+    fn new(near: &Path) -> Result<Staging> {
+        let p = near.join(format!(".ground-file-{}", std::process::id()));
+        std::fs::create_dir_all(&p).with_context(|| format!("creating {}", p.display()))?;
+        Ok(Staging(p))
+    }
+}
+
+impl Drop for Staging {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn staging_parts(near: &Path) -> Result<(Staging, Parts<DirStore>)> {
+    let st = Staging::new(near)?;
+    let parts = Parts::new(DirStore::open(&st.0, u64::MAX).context("staging folder")?);
+    Ok((st, parts))
+}
+
+/// The robot's listing, fetched into the staging folder: (name, length) lines and the free
+/// bytes.
+fn listing(s: &mut Session, st: &Staging) -> Result<(Vec<(String, u64)>, u64)> {
+    let name = mib::cfdp::LISTING_NAME;
+    let _ = std::fs::remove_file(st.0.join(name));
+    s.entity
+        .list(s.now(), name)
+        .map_err(|e| coded(exit::INVALID, format!("ls: {e}")))?;
+    s.request_done("ls")?;
+    s.incoming_done("ls")?;
+    let text = std::fs::read_to_string(st.0.join(name)).context("reading the listing")?;
+    let mut files = Vec::new();
+    let mut free = None;
+    for line in text.lines() {
+        match line.split_once(' ') {
+            Some(("free", n)) => free = n.parse().ok(),
+            Some((f, n)) => files.push((f.to_string(), n.parse().unwrap_or(0))),
+            None => {}
+        }
+    }
+    let free = free.ok_or_else(|| coded(exit::ERROR, "the robot's listing has no free-space line"))?;
+    Ok((files, free))
+}
+
+pub(crate) fn file(cmd: &FileCmd) -> Result<u8> {
+    match cmd {
+        FileCmd::Put { opts, local, remote } => put(opts, local, remote.as_deref()),
+        FileCmd::Get { opts, remote, local } => get(opts, remote, local.as_deref()),
+        FileCmd::Ls { opts } => ls(opts),
+        FileCmd::Rm { opts, name } => rm_mv(opts, name, None),
+        FileCmd::Mv { opts, from, to } => rm_mv(opts, from, Some(to)),
+    }
+}
+
+fn put(opts: &FileOpts, local: &Path, remote: Option<&str>) -> Result<u8> {
+    let meta = std::fs::metadata(local).map_err(|e| coded(exit::INVALID, format!("{}: {e}", local.display())))?;
+    if !meta.is_file() {
+        return Err(coded(exit::INVALID, format!("{}: not a regular file", local.display())));
+    }
+    if meta.len() > mib::cfdp::MAX_FILE_LEN {
+        return Err(coded(
+            exit::INVALID,
+            format!(
+                "{}: {} bytes, the store takes files of at most {}",
+                local.display(),
+                meta.len(),
+                mib::cfdp::MAX_FILE_LEN
+            ),
+        ));
+    }
+    let local_name = local
+        .file_name()
+        .and_then(|n| n.to_str())
+        .ok_or_else(|| coded(exit::INVALID, format!("{}: no file name", local.display())))?;
+    // The ground's own store is the local file's folder: its name must pass the same checks.
+    let src = store_name("local file name (rename it, or copy it to a valid name)", local_name)?;
+    let dest = store_name("remote name", remote.unwrap_or(local_name))?;
+    let (fl, _lock, robot, seq_file) = open_link(opts)?;
+    let folder = local
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let parts = Parts::new(DirStore::open(folder, u64::MAX).context("the local folder")?);
+    let mut s = Session::new(fl, robot, seq_file, &parts, opts.timeout);
+    let t0 = Instant::now();
+    s.entity
+        .put(s.now(), src.as_str(), dest.as_str(), opts.class())
+        .map_err(|e| coded(exit::INVALID, format!("put: {e}")))?;
+    let f = s.until("put", |f| f.sent)?;
+    if !f.complete {
+        return Err(coded(
+            exit::FAILED,
+            format!("put {dest}: not delivered ({:?})", f.condition),
+        ));
+    }
+    println!(
+        "put {} -> robot {robot}:{dest}: {} bytes in {:.1} s, complete",
+        local.display(),
+        meta.len(),
+        t0.elapsed().as_secs_f64()
+    );
+    Ok(exit::OK)
+}
+
+fn get(opts: &FileOpts, remote: &str, local: Option<&Path>) -> Result<u8> {
+    let src = store_name("remote name", remote)?;
+    let target = local.map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from(remote));
+    if target.is_dir() {
+        return Err(coded(
+            exit::INVALID,
+            format!("{}: a folder; give the file's path", target.display()),
+        ));
+    }
+    let folder = target
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."))
+        .to_path_buf();
+    if !folder.is_dir() {
+        return Err(coded(exit::INVALID, format!("{}: no such folder", folder.display())));
+    }
+    let (fl, _lock, robot, seq_file) = open_link(opts)?;
+    let (st, parts) = staging_parts(&folder)?;
+    let mut s = Session::new(fl, robot, seq_file, &parts, opts.timeout);
+    let t0 = Instant::now();
+    s.entity
+        .get(s.now(), src.as_str(), src.as_str(), opts.class())
+        .map_err(|e| coded(exit::INVALID, format!("get: {e}")))?;
+    s.request_done("get")?;
+    s.incoming_done("get")?;
+    let got = st.0.join(src.as_str());
+    let len = std::fs::metadata(&got).map(|m| m.len()).unwrap_or(0);
+    std::fs::rename(&got, &target).with_context(|| format!("writing {}", target.display()))?;
+    println!(
+        "get robot {robot}:{src} -> {}: {len} bytes in {:.1} s, complete",
+        target.display(),
+        t0.elapsed().as_secs_f64()
+    );
+    Ok(exit::OK)
+}
+
+fn ls(opts: &FileOpts) -> Result<u8> {
+    let (fl, _lock, robot, seq_file) = open_link(opts)?;
+    let (st, parts) = staging_parts(&std::env::temp_dir())?;
+    let mut s = Session::new(fl, robot, seq_file, &parts, opts.timeout);
+    let (files, free) = listing(&mut s, &st)?;
+    for (n, l) in &files {
+        println!("{l:>10}  {n}");
+    }
+    println!("{} files, {free} bytes free", files.len());
+    Ok(exit::OK)
+}
+
+fn rm_mv(opts: &FileOpts, name: &str, to: Option<&str>) -> Result<u8> {
+    let name = store_name("remote name", name)?;
+    let to = to.map(|t| store_name("new name", t)).transpose()?;
+    let what = if to.is_some() { "mv" } else { "rm" };
+    let (fl, _lock, robot, seq_file) = open_link(opts)?;
+    let (st, parts) = staging_parts(&std::env::temp_dir())?;
+    let mut s = Session::new(fl, robot, seq_file, &parts, opts.timeout);
+    let (before, _) = listing(&mut s, &st)?;
+    let had = |n: &FileName| before.iter().any(|(f, _)| f == n.as_str());
+    if !had(&name) {
+        return Err(coded(
+            exit::FAILED,
+            format!("{what} {name}: robot {robot} has no such file"),
+        ));
+    }
+    if let Some(t) = to.as_ref().filter(|t| had(t)) {
+        return Err(coded(
+            exit::FAILED,
+            format!("mv {name} {t}: robot {robot} has a file {t} already"),
+        ));
+    }
+    s.entity
+        .filestore(s.now(), name.as_str(), to.as_ref().map(FileName::as_str))
+        .map_err(|e| coded(exit::INVALID, format!("{what}: {e}")))?;
+    s.request_done(what)?;
+    // CFDP's answer to a filestore request travels in the Finished PDU, which cfdp-rs 0.3
+    // does not fill: the listing tells what the store holds now.
+    let (files, _) = listing(&mut s, &st)?;
+    let has = |n: &FileName| files.iter().any(|(f, _)| f == n.as_str());
+    let ok = match &to {
+        None => !has(&name),
+        Some(t) => !has(&name) && has(t),
+    };
+    if !ok {
+        return Err(coded(
+            exit::FAILED,
+            match &to {
+                None => format!("rm {name}: refused by robot {robot}"),
+                Some(t) => format!("mv {name} {t}: refused by robot {robot}"),
+            },
+        ));
+    }
+    match &to {
+        None => println!("rm robot {robot}:{name}: removed"),
+        Some(t) => println!("mv robot {robot}:{name} -> {t}: renamed"),
+    }
+    Ok(exit::OK)
+}

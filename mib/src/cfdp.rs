@@ -1,0 +1,116 @@
+//! Files over the space link: the CCSDS File Delivery Protocol (727.0-B-5) between the
+//! ground's CFDP entity and each robot's, and the robot's file store. One place for the
+//! APID, entity IDs, PDU sizes, timers, limits and the file store's name rules that the
+//! on-board entity, the ground's and the documents share (`docs/files.md`).
+//!
+//! PDUs travel as the data field of space packets on [`APID`] (no PUS secondary header),
+//! uplink in TC frames through SDLS and COP-1, downlink in TM frames on the realtime VC.
+//! The uplink never loses a PDU (COP-1 retransmits); the downlink may, and class 2's NAKs
+//! recover it.
+
+/// APID of the space packets that carry CFDP PDUs, both directions (one entity per robot
+/// behind each space link; the entity IDs tell the robots apart).
+pub const APID: u16 = 0x0F0;
+
+/// CFDP entity ID of the ground (the source of puts up, the destination of files down).
+pub const GROUND_ENTITY_ID: u16 = 0;
+
+/// CFDP entity ID of robot `n`: the robot number.
+pub const fn robot_entity_id(n: u8) -> u16 {
+    n as u16
+}
+
+/// Bytes of the entity IDs in the PDU header (both ends use the same width).
+pub const ENTITY_ID_LEN: usize = 2;
+/// Bytes of the transaction sequence number in the PDU header.
+pub const SEQ_NUM_LEN: usize = 2;
+
+/// Longest PDU: its space packet (6 header bytes more) fits one TC frame's data field
+/// (`link::tc_frame::MAX_PACKET_LEN`) and spans at most one TM frame boundary.
+pub const MAX_PDU_LEN: usize = 960;
+/// Longest space packet carrying a PDU.
+pub const MAX_PACKET_LEN: usize = MAX_PDU_LEN + 6;
+const _: () = assert!(MAX_PACKET_LEN <= crate::link::tc_frame::MAX_PACKET_LEN);
+
+/// File data bytes in one file data PDU: the PDU less its header (4 fixed bytes, two entity
+/// IDs, a sequence number) and the 4-byte segment offset.
+pub const MAX_SEGMENT_LEN: usize = MAX_PDU_LEN - 4 - 2 * ENTITY_ID_LEN - SEQ_NUM_LEN - 4;
+
+/// File checksum the entities send (SANA checksum identifier): 0, the modular checksum of
+/// 727.0-B-5 Annex F, the one every CFDP implementation has (Yamcs' CFDP service and Python
+/// `cfdp` compute no other). Each frame carrying the file is already authenticated by SDLS;
+/// the checksum guards the reassembly. Received files are checked with whatever checksum
+/// their sender chose (modular, CRC-32, CRC-32C or null).
+pub const CHECKSUM_TYPE: u8 = 0;
+/// PDUs are sent without the optional PDU CRC: every frame that carries them already has
+/// its frame CRC and SDLS MAC, and Python `cfdp` refuses PDUs with a CRC. PDUs that carry
+/// one are taken, their CRC checked.
+pub const PDU_CRC: bool = false;
+
+// ---------------------------------------------------------------------------------------
+// Timers and limits (727.0-B-5 § 4.6.3, 4.6.4, 4.7; ms of the entity's own clock)
+// ---------------------------------------------------------------------------------------
+
+/// Positive ACK timer: an EOF or Finished PDU not acknowledged in this time is sent again.
+/// Above a round trip through COP-1 with one retransmission (2 × T1 max).
+pub const ACK_TIMER_MS: u64 = 4_000;
+/// Expiries of the positive ACK timer before the fault "positive ACK limit reached".
+pub const ACK_LIMIT: u32 = 8;
+/// NAK timer: a NAK that brought nothing is sent again after this time. Above a round trip
+/// through COP-1 with one retransmission (2 × T1 max), like the ACK timer: a shorter one
+/// spends its expiries while the answer is still on its way.
+pub const NAK_TIMER_MS: u64 = 4_000;
+/// Expiries of the NAK timer before the fault "NAK limit reached". cfdp-rs counts every
+/// expiry of a transaction, progress or not: 32 × 4 s bounds a transfer's NAK phase at about
+/// two minutes of a bad link (16 × 2 s failed once through the 20/5/5 relay).
+pub const NAK_LIMIT: u32 = 32;
+/// Class 1 check timer: after an EOF with data missing, the receiver waits this long for
+/// late file data before it counts one check.
+pub const CHECK_TIMER_MS: u64 = 1_000;
+/// Expiries of the check timer before the class 1 fault "check limit reached".
+pub const CHECK_LIMIT: u32 = 2;
+/// Inactivity: a transaction that heard no PDU for this long is abandoned (the fault
+/// "inactivity detected"), so a vanished peer never holds the entity for ever.
+pub const INACTIVITY_MS: u64 = 60_000;
+
+/// Lost segments one receiving transaction tracks (a NAK names at most this many ranges;
+/// more gaps than this are asked for again on the next NAK).
+pub const MAX_LOST_SEGMENTS: usize = 64;
+/// File data PDUs a source sends per call of the entity (per control period on board):
+/// bounds the TM a transfer takes from housekeeping and events.
+pub const SEGMENTS_PER_POLL: usize = 8;
+/// PDUs the entity holds for the link before it drops one (counted; class 2 recovers it).
+pub const OUTBOX_DEPTH: usize = 16;
+
+// ---------------------------------------------------------------------------------------
+// File store
+// ---------------------------------------------------------------------------------------
+
+/// Longest file name: ASCII letters, digits, '.', '_' and '-', not starting with '.',
+/// no directories (the store is flat: nothing can name a path outside it).
+pub const MAX_NAME_LEN: usize = 48;
+/// Largest file the store takes (the board's file store area is 192 KiB).
+pub const MAX_FILE_LEN: u64 = 1 << 20;
+/// Files the store holds at most.
+pub const MAX_FILES: usize = 64;
+/// Bytes of the board's file store area (the memory map's `files` region).
+pub const BOARD_STORE_BYTES: u32 = crate::memory::FILE_STORE.size;
+/// Name of the listing a directory listing request writes (then sent to the requester).
+pub const LISTING_NAME: &str = "dir.lst";
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // verifies: FILE-CFDP-01
+    #[test]
+    fn a_pdu_packet_fits_one_tc_frame_and_the_apid_is_no_robots() {
+        const { assert!(MAX_PACKET_LEN <= crate::link::tc_frame::MAX_PACKET_LEN) };
+        assert!(crate::apid::apid_robot(APID).is_none());
+        assert_ne!(APID, crate::apid::IDLE_APID);
+        assert_ne!(APID, crate::team::TEAM_APID);
+        assert_eq!(robot_entity_id(1), 1);
+        assert_ne!(robot_entity_id(crate::apid::ROBOT_MIN), GROUND_ENTITY_ID);
+        const { assert!(MAX_SEGMENT_LEN > 900) };
+    }
+}

@@ -1,0 +1,1125 @@
+//! One CFDP entity: cfdp-rs' source and destination handlers (one transaction each way at
+//! a time) over a checked file store, with the time passed in, PDUs in through
+//! [`Entity::receive`] and out through a bounded outbox ([`Entity::pop`]).
+//!
+//! What this layer adds to cfdp-rs:
+//! - **A gate for untrusted PDUs.** Every PDU is parsed whole with spacepackets' readers
+//!   (header, lengths, the directive's own fields) and must be addressed to this entity
+//!   before a handler sees it; a refusal is counted ([`Counters::refused`]).
+//! - **The user's side of the protocol** (727.0-B-5 § 6): a Proxy Put Request (a `get`
+//!   from the peer) and a Directory Listing Request carried as reserved messages to user
+//!   make this entity put a file back; filestore requests (delete, rename) in a metadata
+//!   PDU are executed on the checked store.
+//! - **Inactivity**: a transaction that hears no PDU for `mib::cfdp::INACTIVITY_MS` is
+//!   abandoned (cfdp-rs 0.3 has no inactivity timer).
+//! - **Timers and limits from the MIB** (`mib::cfdp`), one clock for both handlers.
+//!
+//! Memory: everything is inline (two handlers with 1 KiB buffers each, the outbox of
+//! `OUTBOX_DEPTH` PDUs, the lost-segment list); nothing is allocated.
+
+use core::cell::{Cell, RefCell};
+use core::time::Duration;
+
+use ::cfdp::dest::DestinationHandler;
+use ::cfdp::lost_segments::LostSegmentsListHeapless;
+use ::cfdp::request::ReadablePutRequest;
+use ::cfdp::source::SourceHandler;
+use ::cfdp::time::Countdown;
+use ::cfdp::user::{CfdpUser, FileSegmentRecvdParams, MetadataReceivedParams, TransactionFinishedParams};
+use ::cfdp::{
+    FaultInfo, GenericSendError, IndicationConfig, LocalEntityConfig, PacketTarget, PduProvider, PduRawWithInfo,
+    PduSender, RemoteEntityConfig, State, TimerContext, TimerCreator, TransactionId, UserFaultHook,
+};
+use mib::cfdp as m;
+use spacepackets::cfdp::pdu::ack::AckPdu;
+use spacepackets::cfdp::pdu::eof::EofPdu;
+use spacepackets::cfdp::pdu::file_data::FileDataPdu;
+use spacepackets::cfdp::pdu::finished::FinishedPduReader;
+use spacepackets::cfdp::pdu::finished::{DeliveryCode, FileStatus};
+use spacepackets::cfdp::pdu::metadata::{MetadataPduCreator, MetadataPduReader};
+use spacepackets::cfdp::pdu::nak::{NakPduCreator, NakPduReader};
+use spacepackets::cfdp::pdu::CfdpPdu;
+use spacepackets::cfdp::pdu::{FileDirectiveType, PduHeader};
+use spacepackets::cfdp::tlv::{
+    FilestoreActionCode, FilestoreRequestTlv, GenericTlv, ReadableTlv, Tlv, TlvType, WritableTlv,
+};
+use spacepackets::cfdp::{ChecksumType, ConditionCode, PduType, TransmissionMode};
+use spacepackets::util::{UnsignedByteField, UnsignedByteFieldU16, UnsignedEnum};
+
+use crate::msg::{self, ReservedMsg};
+use crate::store::{Checked, FileName, FlatStore};
+
+/// A PDU held for the link.
+pub type Pdu = heapless::Vec<u8, { m::MAX_PDU_LEN }>;
+
+/// The entity's clock (ms, wrapping at 2^32: timers are far shorter) and the outbox the
+/// handlers write to; shared by both handlers and their timers.
+pub struct Link {
+    now: Cell<u32>,
+    outbox: RefCell<heapless::Deque<Pdu, { m::OUTBOX_DEPTH }>>,
+    dropped: Cell<u32>,
+}
+
+impl Default for Link {
+    fn default() -> Self {
+        Link {
+            now: Cell::new(0),
+            outbox: RefCell::new(heapless::Deque::new()),
+            dropped: Cell::new(0),
+        }
+    }
+}
+
+/// A countdown on the entity's clock.
+#[derive(Debug)]
+pub struct Timer<'a> {
+    clock: &'a Cell<u32>,
+    start: u32,
+    period: u32,
+}
+
+impl Countdown for Timer<'_> {
+    fn has_expired(&self) -> bool {
+        self.clock.get().wrapping_sub(self.start) >= self.period
+    }
+    fn reset(&mut self) {
+        self.start = self.clock.get();
+    }
+}
+
+/// The handlers' timer factory: the check timer from the MIB, the others from the remote
+/// entity's configuration (itself from the MIB).
+pub struct Timers<'a>(&'a Cell<u32>);
+
+impl<'a> TimerCreator for Timers<'a> {
+    type Countdown = Timer<'a>;
+    fn create_countdown(&self, ctx: TimerContext) -> Timer<'a> {
+        let ms = match ctx {
+            TimerContext::CheckLimit { .. } => m::CHECK_TIMER_MS,
+            TimerContext::NakActivity { expiry_time } | TimerContext::PositiveAck { expiry_time } => {
+                expiry_time.as_millis() as u64
+            }
+        };
+        Timer {
+            clock: self.0,
+            start: self.0.get(),
+            period: ms.min(u32::MAX as u64) as u32,
+        }
+    }
+}
+
+/// The handlers' PDU sender: into the outbox; full → dropped and counted (class 2 asks
+/// again, class 1 has lost it like a lost frame).
+pub struct Sender<'a>(&'a Link);
+
+impl PduSender for Sender<'_> {
+    fn send_pdu(&self, _t: PduType, _d: Option<FileDirectiveType>, raw: &[u8]) -> Result<(), GenericSendError> {
+        let Ok(pdu) = Pdu::from_slice(raw) else {
+            self.0.dropped.set(self.0.dropped.get().wrapping_add(1));
+            return Err(GenericSendError::Other);
+        };
+        if self.0.outbox.borrow_mut().push_back(pdu).is_err() {
+            self.0.dropped.set(self.0.dropped.get().wrapping_add(1));
+            return Err(GenericSendError::QueueFull(None));
+        }
+        Ok(())
+    }
+}
+
+/// The transaction sequence numbers, kept outside the source handler (which is made anew
+/// for each transaction: see [`Entity::put`]).
+pub struct Seq<'a>(&'a Cell<u16>);
+
+impl spacepackets::seq_count::SequenceCounter for Seq<'_> {
+    type Raw = u16;
+    const MAX_BIT_WIDTH: usize = 16;
+    fn get(&self) -> u16 {
+        self.0.get()
+    }
+    fn increment(&self) {
+        self.0.set(self.0.get().wrapping_add(1));
+    }
+}
+
+/// Faults the handlers declared (727.0-B-5 § 4.8), counted, the last one's condition kept.
+pub struct Faults<'a>(&'a Cell<u32>, &'a Cell<Option<ConditionCode>>);
+
+impl Faults<'_> {
+    fn count(&mut self, f: FaultInfo) {
+        self.0.set(self.0.get().wrapping_add(1));
+        self.1.set(Some(f.condition_code()));
+    }
+}
+
+impl UserFaultHook for Faults<'_> {
+    fn notice_of_suspension_cb(&mut self, f: FaultInfo) {
+        self.count(f);
+    }
+    fn notice_of_cancellation_cb(&mut self, f: FaultInfo) {
+        self.count(f);
+    }
+    fn abandoned_cb(&mut self, f: FaultInfo) {
+        self.count(f);
+    }
+    fn ignore_cb(&mut self, f: FaultInfo) {
+        self.count(f);
+    }
+}
+
+type Source<'a, S> =
+    SourceHandler<Sender<'a>, Faults<'a>, &'a Checked<S>, RemoteEntityConfig, Timers<'a>, Timer<'a>, Seq<'a>>;
+type Dest<'a, S> = DestinationHandler<
+    Sender<'a>,
+    Faults<'a>,
+    &'a Checked<S>,
+    RemoteEntityConfig,
+    Timers<'a>,
+    Timer<'a>,
+    LostSegmentsListHeapless<{ m::MAX_LOST_SEGMENTS }, u32>,
+>;
+
+/// What the caller provides and the entity borrows: the store, the clock and outbox,
+/// the fault counter.
+pub struct Parts<S> {
+    pub store: Checked<S>,
+    pub link: Link,
+    faults: Cell<u32>,
+    last_fault: Cell<Option<ConditionCode>>,
+    seq: Cell<u16>,
+}
+
+impl<S: FlatStore> Parts<S> {
+    pub fn new(store: S) -> Self {
+        Parts {
+            store: Checked::new(store),
+            link: Link::default(),
+            faults: Cell::new(0),
+            last_fault: Cell::new(None),
+            seq: Cell::new(0),
+        }
+    }
+
+    /// The next transaction sequence number. Transaction IDs must not repeat: a platform
+    /// keeps this across restarts ([`Parts::set_next_seq`] at start-up).
+    pub fn next_seq(&self) -> u16 {
+        self.seq.get()
+    }
+
+    pub fn set_next_seq(&self, seq: u16) {
+        self.seq.set(seq);
+    }
+}
+
+/// Transfer class (727.0-B-5 § 2.3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Class {
+    /// Unacknowledged: nothing is sent again; the receiver checks the checksum.
+    One,
+    /// Acknowledged: NAKs for missing data, EOF and Finished acknowledged.
+    Two,
+}
+
+impl Class {
+    fn mode(self) -> TransmissionMode {
+        match self {
+            Class::One => TransmissionMode::Unacknowledged,
+            Class::Two => TransmissionMode::Acknowledged,
+        }
+    }
+}
+
+/// How a transaction ended, as the user sees it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Finished {
+    /// Source entity and sequence number.
+    pub source: u16,
+    pub seq: u16,
+    /// This entity sent the file (`true`) or received it.
+    pub sent: bool,
+    pub condition: ConditionCode,
+    /// The file arrived complete (receiver: checksum verified; sender: as the peer's
+    /// Finished PDU says, or `true` in class 1 without closure).
+    pub complete: bool,
+    /// Receiver: the file was kept in the store.
+    pub retained: bool,
+}
+
+/// Counters of the entity (file store housekeeping, events).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Counters {
+    /// PDUs taken (passed the gate).
+    pub received: u32,
+    /// PDUs refused at the gate (malformed, not for this entity, no transaction).
+    pub refused: u32,
+    /// PDUs a handler refused (wrong transaction, a second transaction while busy).
+    pub handler_errors: u32,
+    /// PDUs lost because the outbox was full.
+    pub outbox_dropped: u32,
+    /// Faults declared (checksum, limits, inactivity, filestore).
+    pub faults: u32,
+    /// Transactions finished complete / not.
+    pub completed: u32,
+    pub failed: u32,
+    /// Filestore requests executed / refused.
+    pub fs_done: u32,
+    pub fs_refused: u32,
+    /// Puts requested by the peer (get, listing) refused (busy, bad name, no file).
+    pub proxy_refused: u32,
+    /// File data and EOF PDUs of a transaction whose metadata had not arrived (dropped).
+    pub before_metadata: u32,
+    /// Segment requests dropped because the resend queue was full (asked for again).
+    pub resend_dropped: u32,
+    /// Incoming transactions ended by the peer's next one before their Finished was
+    /// acknowledged.
+    pub superseded: u32,
+    /// PDUs of another transaction than the running one, or of one already finished
+    /// (late retransmissions, duplicates): dropped.
+    pub stray: u32,
+}
+
+/// A put this entity owes its peer (a proxy put or a directory listing), done when the
+/// source handler is free.
+#[derive(Clone, Debug, PartialEq, Eq)]
+struct Owed {
+    src: FileName,
+    dest: FileName,
+    class: Class,
+}
+
+/// Why a put request was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PutError {
+    /// A transaction is already being sent.
+    Busy,
+    /// A name failed the store's checks, or the file is missing.
+    BadName,
+    NoFile,
+    /// cfdp-rs refused the request.
+    Refused,
+}
+
+impl core::fmt::Display for PutError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            PutError::Busy => "a file is already being sent",
+            PutError::BadName => "a file name failed the store's checks",
+            PutError::NoFile => "no such file in the store",
+            PutError::Refused => "the CFDP source handler refused the request",
+        })
+    }
+}
+
+/// The user indications, collected during one handler call.
+#[derive(Default)]
+struct User {
+    finished: heapless::Deque<Finished, 4>,
+    owed: heapless::Deque<Owed, 2>,
+    proxy_refused: u32,
+    /// Bytes of file data received in the running transaction (progress).
+    progress: u64,
+    sending: bool,
+    /// A listing to write before the put it owes.
+    listing: Option<FileName>,
+    completed: u32,
+    failed: u32,
+    /// Finished indications of sent transactions (to see one cfdp-rs did not give).
+    sent_reports: u32,
+}
+
+fn id_u16(f: &UnsignedByteField) -> u16 {
+    f.value() as u16
+}
+
+impl User {
+    /// A transaction's end for the user, counted.
+    fn report(&mut self, f: Finished) {
+        if f.complete {
+            self.completed = self.completed.wrapping_add(1);
+        } else {
+            self.failed = self.failed.wrapping_add(1);
+        }
+        if self.finished.push_back(f).is_err() {
+            // Oldest report out: the counters keep the totals.
+            self.finished.pop_front();
+            let _ = self.finished.push_back(f);
+        }
+    }
+
+    /// A message to user from the peer: a reserved message this entity acts on, or none.
+    fn message(&mut self, v: &[u8]) {
+        let owed = match msg::parse(v) {
+            Some(ReservedMsg::ProxyPut { src, dest, class, .. }) => match (FileName::new(src), FileName::new(dest)) {
+                (Ok(src), Ok(dest)) => Some(Owed { src, dest, class }),
+                _ => None,
+            },
+            Some(ReservedMsg::DirectoryListing { dest, .. }) => match FileName::new(dest) {
+                Ok(dest) => {
+                    self.listing = Some(dest.clone());
+                    Some(Owed {
+                        src: dest.clone(),
+                        dest,
+                        class: Class::Two,
+                    })
+                }
+                Err(_) => None,
+            },
+            None => return,
+        };
+        match owed.map(|o| self.owed.push_back(o)) {
+            Some(Ok(())) => {}
+            _ => self.proxy_refused = self.proxy_refused.wrapping_add(1),
+        }
+    }
+}
+
+impl CfdpUser for User {
+    fn transaction_indication(&mut self, _id: &TransactionId) {}
+    fn eof_sent_indication(&mut self, _id: &TransactionId) {}
+    fn transaction_finished_indication(&mut self, p: &TransactionFinishedParams) {
+        if self.sending {
+            self.sent_reports = self.sent_reports.wrapping_add(1);
+        }
+        let f = Finished {
+            source: id_u16(p.id.source_id()),
+            seq: id_u16(p.id.seq_num()),
+            sent: self.sending,
+            condition: p.condition_code,
+            complete: p.condition_code == ConditionCode::NoError && p.delivery_code == DeliveryCode::Complete,
+            retained: p.file_status == FileStatus::Retained,
+        };
+        self.report(f);
+    }
+    fn metadata_recvd_indication(&mut self, _p: &MetadataReceivedParams) {
+        self.progress = 0;
+    }
+    fn file_segment_recvd_indication(&mut self, p: &FileSegmentRecvdParams) {
+        self.progress = self.progress.wrapping_add(p.length as u64);
+    }
+    fn report_indication(&mut self, _id: &TransactionId) {}
+    fn suspended_indication(&mut self, _id: &TransactionId, _c: ConditionCode) {}
+    fn resumed_indication(&mut self, _id: &TransactionId, _p: u64) {}
+    fn fault_indication(&mut self, _id: &TransactionId, _c: ConditionCode, _p: u64) {}
+    fn abandoned_indication(&mut self, _id: &TransactionId, _c: ConditionCode, _p: u64) {}
+    fn eof_recvd_indication(&mut self, _id: &TransactionId) {}
+}
+
+/// A put request. cfdp-rs 0.3's own `PutRequest` returns its messages to user as its
+/// filestore requests (each message goes out twice, no filestore request at all).
+struct Put<'a> {
+    dest_id: UnsignedByteField,
+    src: Option<&'a str>,
+    dest: Option<&'a str>,
+    mode: TransmissionMode,
+    closure: bool,
+    msgs: Option<&'a [Tlv<'a>]>,
+    fs: Option<&'a [Tlv<'a>]>,
+}
+
+impl ReadablePutRequest for Put<'_> {
+    fn destination_id(&self) -> UnsignedByteField {
+        self.dest_id
+    }
+    fn source_file(&self) -> Option<&str> {
+        self.src
+    }
+    fn dest_file(&self) -> Option<&str> {
+        self.dest
+    }
+    fn trans_mode(&self) -> Option<TransmissionMode> {
+        Some(self.mode)
+    }
+    fn closure_requested(&self) -> Option<bool> {
+        Some(self.closure)
+    }
+    fn seg_ctrl(&self) -> Option<spacepackets::cfdp::SegmentationControl> {
+        None
+    }
+    fn msgs_to_user(&self) -> Option<impl Iterator<Item = Tlv<'_>>> {
+        self.msgs.map(|m| m.iter().copied())
+    }
+    fn fault_handler_overrides(&self) -> Option<impl Iterator<Item = Tlv<'_>>> {
+        None::<core::iter::Empty<Tlv<'_>>>
+    }
+    fn flow_label(&self) -> Option<Tlv<'_>> {
+        None
+    }
+    fn fs_requests(&self) -> Option<impl Iterator<Item = Tlv<'_>>> {
+        self.fs.map(|m| m.iter().copied())
+    }
+}
+
+/// The entity (see the module documentation).
+pub struct Entity<'a, S: FlatStore> {
+    id: u16,
+    peer: u16,
+    parts: &'a Parts<S>,
+    source: Source<'a, S>,
+    dest: Dest<'a, S>,
+    user: User,
+    counters: Counters,
+    /// Last time a PDU of the running transactions was heard (inactivity).
+    last_heard: u32,
+    /// The last transaction whose user requests were acted on (source entity, sequence).
+    last_user_tx: Option<(u16, u16)>,
+    /// The last metadata NAK: transaction and time.
+    metadata_nak: Option<((u16, u16), u32)>,
+    /// Class 1 puts ask for closure (a Finished PDU), so the sender learns the outcome.
+    class1_closure: bool,
+    /// Length of the file being sent (0: metadata only).
+    sending_len: u64,
+    /// The last incoming transactions that finished: their late PDUs are strays.
+    finished_rx: heapless::Deque<(u16, u16), 4>,
+    /// Segment requests of the peer's NAKs not yet fed to the source handler, with the
+    /// header and scope of the last NAK.
+    resend: heapless::Deque<(u32, u32), { m::MAX_LOST_SEGMENTS }>,
+    resend_header: Option<PduHeader>,
+    resend_scope: (u32, u32),
+}
+
+/// The peer's configuration: sizes, class defaults, timers and limits from the MIB.
+pub fn remote_config(peer: u16) -> RemoteEntityConfig {
+    let mut c = RemoteEntityConfig::new_with_default_values(
+        UnsignedByteFieldU16::new(peer).into(),
+        m::MAX_PDU_LEN,
+        true,
+        m::PDU_CRC,
+        TransmissionMode::Acknowledged,
+        ChecksumType::try_from(m::CHECKSUM_TYPE).unwrap_or(ChecksumType::Modular),
+    );
+    c.max_file_segment_len = Some(m::MAX_SEGMENT_LEN);
+    c.positive_ack_timer_interval = Duration::from_millis(m::ACK_TIMER_MS);
+    c.positive_ack_timer_expiration_limit = m::ACK_LIMIT;
+    c.nak_timer_interval = Duration::from_millis(m::NAK_TIMER_MS);
+    c.nak_timer_expiration_limit = m::NAK_LIMIT;
+    c.check_limit = m::CHECK_LIMIT;
+    c
+}
+
+fn local_config<S>(id: u16, parts: &Parts<S>) -> LocalEntityConfig<Faults<'_>> {
+    LocalEntityConfig::new(
+        UnsignedByteFieldU16::new(id).into(),
+        IndicationConfig::default(),
+        Faults(&parts.faults, &parts.last_fault),
+    )
+}
+
+/// Whether `raw` is one whole, well-formed PDU: the header's lengths match, and the
+/// directive parses with its own reader. cfdp-rs indexes into PDUs it routes; nothing
+/// reaches it unparsed.
+pub fn well_formed(raw: &[u8]) -> Option<PduHeader> {
+    let (h, hl) = PduHeader::from_bytes(raw).ok()?;
+    if h.pdu_len() != raw.len() || hl >= raw.len() {
+        return None;
+    }
+    // Files here are far below 4 GiB (`MAX_FILE_LEN`); spacepackets 0.16's readers panic on
+    // a short PDU with the large-file flag (8-byte sizes read unchecked).
+    if h.common_pdu_conf().file_flag != spacepackets::cfdp::LargeFileFlag::Normal {
+        return None;
+    }
+    let ok = match h.pdu_type() {
+        PduType::FileData => FileDataPdu::from_bytes(raw).is_ok(),
+        PduType::FileDirective => match FileDirectiveType::try_from(raw[hl]).ok()? {
+            FileDirectiveType::MetadataPdu => MetadataPduReader::from_bytes(raw).is_ok(),
+            FileDirectiveType::EofPdu => EofPdu::from_bytes(raw).is_ok(),
+            FileDirectiveType::FinishedPdu => FinishedPduReader::from_bytes(raw).is_ok(),
+            FileDirectiveType::AckPdu => AckPdu::from_bytes(raw).is_ok(),
+            FileDirectiveType::NakPdu => NakPduReader::from_bytes(raw).is_ok(),
+            // Prompt and keep-alive: cfdp-rs 0.3 has no procedure for them.
+            FileDirectiveType::PromptPdu | FileDirectiveType::KeepAlivePdu => false,
+        },
+    };
+    ok.then_some(h)
+}
+
+// cfdp-rs 0.3 keeps part of a transaction's state (the source's file progress) across
+// transactions: each transaction gets a handler made anew (inline, no allocation).
+fn new_source<S: FlatStore>(id: u16, peer: u16, parts: &Parts<S>) -> Source<'_, S> {
+    SourceHandler::new(
+        local_config(id, parts),
+        Sender(&parts.link),
+        &parts.store,
+        remote_config(peer),
+        Timers(&parts.link.now),
+        Seq(&parts.seq),
+    )
+}
+
+fn new_dest<S: FlatStore>(id: u16, peer: u16, parts: &Parts<S>) -> Dest<'_, S> {
+    DestinationHandler::new(
+        local_config(id, parts),
+        Sender(&parts.link),
+        &parts.store,
+        remote_config(peer),
+        Timers(&parts.link.now),
+        LostSegmentsListHeapless::new(),
+    )
+}
+
+impl<'a, S: FlatStore> Entity<'a, S> {
+    /// Entity `id` talking to entity `peer`.
+    pub fn new(id: u16, peer: u16, parts: &'a Parts<S>) -> Self {
+        Entity {
+            id,
+            peer,
+            parts,
+            source: new_source(id, peer, parts),
+            dest: new_dest(id, peer, parts),
+            user: User::default(),
+            counters: Counters::default(),
+            last_heard: 0,
+            last_user_tx: None,
+            metadata_nak: None,
+            class1_closure: true,
+            sending_len: 0,
+            finished_rx: heapless::Deque::new(),
+            resend: heapless::Deque::new(),
+            resend_header: None,
+            resend_scope: (0, 0),
+        }
+    }
+
+    /// Whether class 1 puts ask the receiver for a Finished PDU (on by default; a peer that
+    /// never answers one, like Python `cfdp` 0.2, makes every class 1 put end on the check
+    /// limit).
+    pub fn set_class1_closure(&mut self, on: bool) {
+        self.class1_closure = on;
+    }
+
+    pub fn id(&self) -> u16 {
+        self.id
+    }
+
+    pub fn store(&self) -> &'a Checked<S> {
+        &self.parts.store
+    }
+
+    pub fn counters(&self) -> Counters {
+        let mut c = self.counters;
+        c.outbox_dropped = self.parts.link.dropped.get();
+        c.faults = self.parts.faults.get();
+        c.completed = self.user.completed;
+        c.failed = self.user.failed.wrapping_add(self.counters.failed);
+        c
+    }
+
+    /// Neither handler has a transaction.
+    pub fn idle(&self) -> bool {
+        self.source.state() == State::Idle && self.dest.state() == State::Idle && self.user.owed.is_empty()
+    }
+
+    /// File data bytes received in the running (or last) incoming transaction.
+    pub fn progress(&self) -> u64 {
+        self.user.progress
+    }
+
+    /// The next PDU for the link.
+    pub fn pop(&mut self) -> Option<Pdu> {
+        self.parts.link.outbox.borrow_mut().pop_front()
+    }
+
+    /// The next finished transaction.
+    pub fn take_finished(&mut self) -> Option<Finished> {
+        self.user.finished.pop_front()
+    }
+
+    fn tick(&mut self, now_ms: u64) {
+        self.parts.link.now.set(now_ms as u32);
+    }
+
+    /// Starts sending `src` (a file of this entity's store) to the peer as `dest`.
+    pub fn put(&mut self, now_ms: u64, src: &str, dest: &str, class: Class) -> Result<(), PutError> {
+        self.tick(now_ms);
+        let s = self.parts.store.check(src).map_err(|_| PutError::BadName)?;
+        self.parts.store.check(dest).map_err(|_| PutError::BadName)?;
+        let Some(len) = self.parts.store.len(&s).ok().flatten() else {
+            return Err(PutError::NoFile);
+        };
+        self.sending_len = len;
+        self.start_put(now_ms, Some(src), Some(dest), class, None, None)
+    }
+
+    /// Asks the peer to send its file `src` here as `dest` (a Proxy Put Request in a
+    /// metadata-only transaction of `class`).
+    pub fn get(&mut self, now_ms: u64, src: &str, dest: &str, class: Class) -> Result<(), PutError> {
+        self.tick(now_ms);
+        self.parts.store.check(src).map_err(|_| PutError::BadName)?;
+        self.parts.store.check(dest).map_err(|_| PutError::BadName)?;
+        let mut buf = [0u8; 2 * m::MAX_NAME_LEN + 16];
+        let n = msg::proxy_put(&mut buf, self.id, src, dest, class).ok_or(PutError::BadName)?;
+        let tlv = Tlv::new(TlvType::MsgToUser, &buf[..n]).map_err(|_| PutError::BadName)?;
+        self.start_put(now_ms, None, None, class, Some(&[tlv]), None)
+    }
+
+    /// Asks the peer for its directory listing, sent here as `dest`.
+    pub fn list(&mut self, now_ms: u64, dest: &str) -> Result<(), PutError> {
+        self.tick(now_ms);
+        self.parts.store.check(dest).map_err(|_| PutError::BadName)?;
+        let mut buf = [0u8; m::MAX_NAME_LEN + 16];
+        let n = msg::directory_listing(&mut buf, "/", dest).ok_or(PutError::BadName)?;
+        let tlv = Tlv::new(TlvType::MsgToUser, &buf[..n]).map_err(|_| PutError::BadName)?;
+        self.start_put(now_ms, None, None, Class::Two, Some(&[tlv]), None)
+    }
+
+    /// Asks the peer to delete `name` (`to`: None) or rename it to `to` (a filestore
+    /// request in a metadata-only class 2 transaction).
+    pub fn filestore(&mut self, now_ms: u64, name: &str, to: Option<&str>) -> Result<(), PutError> {
+        self.tick(now_ms);
+        self.parts.store.check(name).map_err(|_| PutError::BadName)?;
+        let first = spacepackets::cfdp::lv::Lv::new_from_str(name).map_err(|_| PutError::BadName)?;
+        let req = match to {
+            None => FilestoreRequestTlv::new_delete_file(first),
+            Some(t) => {
+                self.parts.store.check(t).map_err(|_| PutError::BadName)?;
+                let second = spacepackets::cfdp::lv::Lv::new_from_str(t).map_err(|_| PutError::BadName)?;
+                FilestoreRequestTlv::new_rename_file(first, second)
+            }
+        }
+        .map_err(|_| PutError::BadName)?;
+        let mut buf = [0u8; 2 * m::MAX_NAME_LEN + 8];
+        let n = req.write_to_bytes(&mut buf).map_err(|_| PutError::BadName)?;
+        let tlv = Tlv::from_bytes(&buf[..n]).map_err(|_| PutError::BadName)?;
+        self.start_put(now_ms, None, None, Class::Two, None, Some(&[tlv]))
+    }
+
+    fn start_put(
+        &mut self,
+        now_ms: u64,
+        src: Option<&str>,
+        dest: Option<&str>,
+        class: Class,
+        msgs: Option<&[Tlv]>,
+        fs: Option<&[Tlv]>,
+    ) -> Result<(), PutError> {
+        if self.source.state() != State::Idle {
+            return Err(PutError::Busy);
+        }
+        self.source = new_source(self.id, self.peer, self.parts);
+        if src.is_none() {
+            self.sending_len = 0;
+        }
+        let req = Put {
+            dest_id: UnsignedByteFieldU16::new(self.peer).into(),
+            src,
+            dest,
+            mode: class.mode(),
+            closure: class == Class::Two || self.class1_closure,
+            msgs,
+            fs,
+        };
+        self.source.put_request(&req).map_err(|_| PutError::Refused)?;
+        self.last_heard = now_ms as u32;
+        self.user.sending = true;
+        self.run_source(None);
+        Ok(())
+    }
+
+    fn run_source(&mut self, pdu: Option<&PduRawWithInfo>) {
+        self.user.sending = true;
+        let busy = self.source.state() != State::Idle;
+        let reported = self.user.sent_reports;
+        if self.source.state_machine(&mut self.user, pdu).is_err() {
+            self.counters.handler_errors = self.counters.handler_errors.wrapping_add(1);
+        }
+        // A transaction cfdp-rs ended on a fault (a class 1 check limit, a cancellation)
+        // without a finished indication: the user learns it ended, not complete.
+        if busy && self.source.state() == State::Idle && self.user.sent_reports == reported {
+            let id = self.source.transaction_id();
+            let f = Finished {
+                source: self.id,
+                seq: id.map_or(0, |t| id_u16(t.seq_num())),
+                sent: true,
+                condition: self
+                    .parts
+                    .last_fault
+                    .get()
+                    .unwrap_or(ConditionCode::CancelRequestReceived),
+                complete: false,
+                retained: false,
+            };
+            self.user.report(f);
+        }
+        self.user.sending = false;
+    }
+
+    fn run_dest(&mut self, pdu: Option<&PduRawWithInfo>) {
+        self.user.sending = false;
+        let tx = self
+            .dest
+            .transaction_id()
+            .map(|t| (id_u16(t.source_id()), id_u16(t.seq_num())));
+        if self.dest.state_machine(&mut self.user, pdu).is_err() {
+            self.counters.handler_errors = self.counters.handler_errors.wrapping_add(1);
+        }
+        let after = self
+            .dest
+            .transaction_id()
+            .map(|t| (id_u16(t.source_id()), id_u16(t.seq_num())));
+        if let Some(t) = tx.or(after) {
+            if self.dest.state() == State::Idle && !self.finished_rx.iter().any(|x| *x == t) {
+                if self.finished_rx.is_full() {
+                    self.finished_rx.pop_front();
+                }
+                let _ = self.finished_rx.push_back(t);
+            }
+        }
+    }
+
+    /// One PDU from the link (untrusted).
+    pub fn receive(&mut self, now_ms: u64, raw: &[u8]) {
+        self.tick(now_ms);
+        let Some(h) = well_formed(raw) else {
+            self.counters.refused = self.counters.refused.wrapping_add(1);
+            return;
+        };
+        let (src, dst) = (h.common_pdu_conf().source_id(), h.common_pdu_conf().dest_id());
+        let Ok(pdu) = PduRawWithInfo::new(raw) else {
+            self.counters.refused = self.counters.refused.wrapping_add(1);
+            return;
+        };
+        let Ok(target) = pdu.packet_target() else {
+            self.counters.refused = self.counters.refused.wrapping_add(1);
+            return;
+        };
+        // Towards our destination handler the peer is the source; towards our source
+        // handler we are.
+        let addressed = match target {
+            PacketTarget::DestEntity => id_u16(&dst) == self.id && id_u16(&src) == self.peer,
+            PacketTarget::SourceEntity => id_u16(&src) == self.id && id_u16(&dst) == self.peer,
+        };
+        if !addressed {
+            self.counters.refused = self.counters.refused.wrapping_add(1);
+            return;
+        }
+        // A PDU of another transaction than the handler's (a late retransmission, a
+        // duplicate of one already finished) is not the handler's business: cfdp-rs 0.3 does
+        // not compare transaction IDs on every path.
+        let tx = (id_u16(&src), id_u16(&h.common_pdu_conf().transaction_seq_num));
+        let is_metadata = pdu.file_directive_type() == Some(FileDirectiveType::MetadataPdu);
+        let current = match target {
+            PacketTarget::SourceEntity => self.source.transaction_id(),
+            PacketTarget::DestEntity => self.dest.transaction_id(),
+        }
+        .map(|t| (id_u16(t.source_id()), id_u16(t.seq_num())));
+        let busy = match target {
+            PacketTarget::SourceEntity => self.source.state() != State::Idle,
+            PacketTarget::DestEntity => self.dest.state() != State::Idle,
+        };
+        let stray = match target {
+            PacketTarget::SourceEntity => !busy || current != Some(tx),
+            PacketTarget::DestEntity => !is_metadata && busy && current != Some(tx),
+        };
+        if stray || (target == PacketTarget::DestEntity && self.finished_rx.iter().any(|t| *t == tx)) {
+            self.counters.stray = self.counters.stray.wrapping_add(1);
+            return;
+        }
+        self.counters.received = self.counters.received.wrapping_add(1);
+        self.last_heard = now_ms as u32;
+        match target {
+            PacketTarget::SourceEntity if pdu.file_directive_type() == Some(FileDirectiveType::NakPdu) => {
+                self.nak_split(raw)
+            }
+            PacketTarget::SourceEntity => self.run_source(Some(&pdu)),
+            PacketTarget::DestEntity if pdu.file_directive_type() == Some(FileDirectiveType::MetadataPdu) => {
+                self.metadata(raw, (id_u16(&src), id_u16(&h.common_pdu_conf().transaction_seq_num)))
+            }
+            PacketTarget::DestEntity if self.dest.state() == State::Idle => self.before_metadata(now_ms, &h),
+            PacketTarget::DestEntity => self.run_dest(Some(&pdu)),
+        }
+        self.settle();
+    }
+
+    /// File data or an EOF of a transaction whose metadata was lost: cfdp-rs 0.3 would
+    /// write the data to a file without a name and fail the transaction. Dropped (counted);
+    /// in class 2 a NAK asks for the metadata (segment request 0-0), at most once per NAK
+    /// timer interval, and the data missing then is asked for after the EOF.
+    fn before_metadata(&mut self, now_ms: u64, h: &PduHeader) {
+        self.counters.before_metadata = self.counters.before_metadata.wrapping_add(1);
+        let mut conf = *h.common_pdu_conf();
+        if conf.trans_mode != TransmissionMode::Acknowledged {
+            return;
+        }
+        let tx = (id_u16(&conf.source_id()), id_u16(&conf.transaction_seq_num));
+        let now = now_ms as u32;
+        if let Some((t, at)) = self.metadata_nak {
+            if t == tx && (now.wrapping_sub(at) as u64) < m::NAK_TIMER_MS {
+                return;
+            }
+        }
+        self.metadata_nak = Some((tx, now));
+        conf.direction = spacepackets::cfdp::Direction::TowardsSender;
+        let Ok(nak) = NakPduCreator::new_normal_file_size(PduHeader::new_for_file_directive(conf, 0), 0, 0, &[(0, 0)])
+        else {
+            return;
+        };
+        let mut buf = [0u8; 64];
+        if let Ok(n) = nak.write_to_bytes(&mut buf) {
+            let _ =
+                Sender(&self.parts.link).send_pdu(PduType::FileDirective, Some(FileDirectiveType::NakPdu), &buf[..n]);
+        }
+    }
+
+    /// A NAK to the source handler, its segment requests cut to at most one file segment
+    /// each (cfdp-rs 0.3 resends only the first segment of a longer request) and queued,
+    /// then fed to the handler as the outbox has room ([`Entity::resend`]).
+    fn nak_split(&mut self, raw: &[u8]) {
+        let Ok(nak) = NakPduReader::from_bytes(raw) else { return };
+        let (start, end) = (nak.start_of_scope(), nak.end_of_scope());
+        if end > u32::MAX as u64 {
+            // A large file (beyond this entity's files): as it is.
+            if let Ok(p) = PduRawWithInfo::new(raw) {
+                self.run_source(Some(&p));
+            }
+            return;
+        }
+        let seg = m::MAX_SEGMENT_LEN as u64;
+        self.resend_header = Some(*nak.pdu_header());
+        self.resend_scope = (start as u32, end as u32);
+        for (a, b) in nak.get_segment_requests_iterator().into_iter().flatten() {
+            // Never past the end of the file being sent (cfdp-rs would read beyond it).
+            let b = if a == 0 && b == 0 { 0 } else { b.min(self.sending_len) };
+            if b < a || (a == b && a != 0) {
+                continue;
+            }
+            let mut at = a;
+            loop {
+                // Metadata is asked for as 0-0.
+                let to = if a == b { b } else { (at + seg).min(b) };
+                if to > u32::MAX as u64 || self.resend.iter().any(|r| *r == (at as u32, to as u32)) {
+                    break;
+                }
+                if self.resend.push_back((at as u32, to as u32)).is_err() {
+                    // Full: the rest is asked for again by the next NAK.
+                    self.counters.resend_dropped = self.counters.resend_dropped.wrapping_add(1);
+                    break;
+                }
+                at = to;
+                if at >= b {
+                    break;
+                }
+            }
+        }
+        self.resend();
+    }
+
+    /// Feeds queued segment requests to the source handler while the outbox has room.
+    fn resend(&mut self) {
+        let Some(header) = self.resend_header else { return };
+        let (start, end) = self.resend_scope;
+        let mut buf = [0u8; m::MAX_PDU_LEN];
+        while !self.resend.is_empty() && self.source.state() != State::Idle {
+            let room = m::OUTBOX_DEPTH.saturating_sub(self.parts.link.outbox.borrow().len() + 2);
+            if room == 0 {
+                return;
+            }
+            let mut pairs: heapless::Vec<(u32, u32), { m::OUTBOX_DEPTH }> = heapless::Vec::new();
+            while pairs.len() < room {
+                let Some(p) = self.resend.pop_front() else { break };
+                let _ = pairs.push(p);
+            }
+            let Ok(c) = NakPduCreator::new_normal_file_size(header, start, end, &pairs) else {
+                return;
+            };
+            let Ok(n) = c.write_to_bytes(&mut buf) else { return };
+            let Ok(p) = PduRawWithInfo::new(&buf[..n]) else { return };
+            self.run_source(Some(&p));
+        }
+        if self.source.state() == State::Idle {
+            self.resend.clear();
+        }
+    }
+
+    /// A metadata PDU: to the destination handler without its messages to user (cfdp-rs 0.3
+    /// panics on them: it copies each into a fixed buffer of another length), which this
+    /// entity acts on itself, with the filestore requests, once per transaction.
+    fn metadata(&mut self, raw: &[u8], tx: (u16, u16)) {
+        let Ok(md) = MetadataPduReader::from_bytes(raw) else {
+            return;
+        };
+        let mut opts = [0u8; m::MAX_PDU_LEN];
+        let mut n = 0;
+        if let Some(it) = md.options_iter() {
+            for tlv in it {
+                if tlv.tlv_type() == Some(TlvType::MsgToUser) {
+                    continue;
+                }
+                match tlv.write_to_bytes(&mut opts[n..]) {
+                    Ok(k) => n += k,
+                    Err(_) => return,
+                }
+            }
+        }
+        let stripped = MetadataPduCreator::new(
+            *md.pdu_header(),
+            *md.metadata_params(),
+            md.src_file_name(),
+            md.dest_file_name(),
+            &opts[..n],
+        );
+        let mut buf = [0u8; m::MAX_PDU_LEN];
+        let Ok(len) = stripped.write_to_bytes(&mut buf) else {
+            return;
+        };
+        let Ok(pdu) = PduRawWithInfo::new(&buf[..len]) else {
+            return;
+        };
+        // A new transaction while the last one waits for the ACK of its Finished PDU: the
+        // peer runs one transaction at a time, so it has ended the last one (that ACK was
+        // lost); the new one starts on a fresh handler.
+        let stale = self.dest.state() != State::Idle
+            && self
+                .dest
+                .transaction_id()
+                .is_some_and(|t| (id_u16(t.source_id()), id_u16(t.seq_num())) != tx);
+        if stale {
+            self.counters.superseded = self.counters.superseded.wrapping_add(1);
+        }
+        let was_idle = self.dest.state() == State::Idle || stale;
+        if was_idle {
+            self.dest = new_dest(self.id, self.peer, self.parts);
+        }
+        let errors = self.counters.handler_errors;
+        self.run_dest(Some(&pdu));
+        // A repeated metadata PDU (class 2 resends it; a link may duplicate it) acts once.
+        if was_idle && errors == self.counters.handler_errors && self.last_user_tx != Some(tx) {
+            self.last_user_tx = Some(tx);
+            self.user_requests(&md);
+        }
+    }
+
+    /// The messages to user and filestore requests of a metadata PDU the destination
+    /// handler took: delete and rename on the checked store (anything else is refused,
+    /// counted); proxy puts and directory listings owed to the peer.
+    fn user_requests(&mut self, md: &MetadataPduReader) {
+        let Some(opts) = md.options_iter() else { return };
+        for tlv in opts {
+            if tlv.tlv_type() == Some(TlvType::MsgToUser) {
+                self.user.message(tlv.value());
+                continue;
+            }
+            if tlv.tlv_type() != Some(TlvType::FilestoreRequest) {
+                continue;
+            }
+            let mut buf = [0u8; 260];
+            let ok = tlv
+                .write_to_bytes(&mut buf)
+                .ok()
+                .and_then(|n| FilestoreRequestTlv::from_bytes(&buf[..n]).ok())
+                .and_then(|r| self.filestore_request(&r));
+            match ok {
+                Some(()) => self.counters.fs_done = self.counters.fs_done.wrapping_add(1),
+                None => self.counters.fs_refused = self.counters.fs_refused.wrapping_add(1),
+            }
+        }
+    }
+
+    fn filestore_request(&self, r: &FilestoreRequestTlv) -> Option<()> {
+        let store = &self.parts.store;
+        let first = store.check(r.first_name().value_as_str()?.ok()?).ok()?;
+        match r.action_code() {
+            FilestoreActionCode::DeleteFile => store.remove(&first).ok(),
+            FilestoreActionCode::RenameFile => {
+                let second = store.check(r.second_name()?.value_as_str()?.ok()?).ok()?;
+                store.rename(&first, &second).ok()
+            }
+            FilestoreActionCode::CreateFile
+            | FilestoreActionCode::AppendFile
+            | FilestoreActionCode::ReplaceFile
+            | FilestoreActionCode::CreateDirectory
+            | FilestoreActionCode::RemoveDirectory
+            | FilestoreActionCode::DenyFile
+            | FilestoreActionCode::DenyDirectory => None,
+        }
+    }
+
+    /// Time passes: timers, the next file data, owed puts, inactivity. Call every control
+    /// period and after the outbox was emptied.
+    pub fn poll(&mut self, now_ms: u64) {
+        self.tick(now_ms);
+        self.resend();
+        for _ in 0..m::SEGMENTS_PER_POLL {
+            if self.parts.link.outbox.borrow().len() + 2 >= m::OUTBOX_DEPTH {
+                break;
+            }
+            let before = self.parts.link.outbox.borrow().len();
+            if self.source.state() != State::Idle {
+                self.run_source(None);
+            }
+            if self.dest.state() != State::Idle {
+                self.run_dest(None);
+            }
+            if self.parts.link.outbox.borrow().len() == before {
+                break;
+            }
+        }
+        self.settle();
+        if (self.source.state() != State::Idle || self.dest.state() != State::Idle)
+            && (now_ms as u32).wrapping_sub(self.last_heard) as u64 >= m::INACTIVITY_MS
+        {
+            self.abandon();
+        }
+    }
+
+    /// Counts finished transactions and starts an owed put when the source is free.
+    fn settle(&mut self) {
+        self.counters.proxy_refused = self
+            .counters
+            .proxy_refused
+            .wrapping_add(core::mem::take(&mut self.user.proxy_refused));
+        if self.source.state() != State::Idle {
+            return;
+        }
+        let Some(o) = self.user.owed.pop_front() else { return };
+
+        if self.user.listing.as_ref() == Some(&o.src) {
+            self.user.listing = None;
+            if self.write_listing(&o.src).is_none() {
+                self.counters.proxy_refused = self.counters.proxy_refused.wrapping_add(1);
+                return;
+            }
+        }
+        let now = self.parts.link.now.get() as u64;
+        let (src, dest) = (o.src.clone(), o.dest.clone());
+        if self.put(now, src.as_str(), dest.as_str(), o.class).is_err() {
+            self.counters.proxy_refused = self.counters.proxy_refused.wrapping_add(1);
+        }
+    }
+
+    /// Writes the store's listing into `name`: one `NAME LENGTH` line per file, then
+    /// `free BYTES`.
+    fn write_listing(&self, name: &FileName) -> Option<()> {
+        let store = &self.parts.store;
+        let mut text: heapless::String<{ m::MAX_FILES * (m::MAX_NAME_LEN + 12) + 32 }> = heapless::String::new();
+        let mut ok = true;
+        store
+            .list(&mut |n, len| {
+                if n != name {
+                    ok &= core::fmt::write(&mut text, format_args!("{n} {len}\n")).is_ok();
+                }
+            })
+            .ok()?;
+        let free = store.free().ok()?;
+        ok &= core::fmt::write(&mut text, format_args!("free {free}\n")).is_ok();
+        if !ok {
+            return None;
+        }
+        store.create(name).ok()?;
+        store.write(name, 0, text.as_bytes()).ok()
+    }
+
+    /// Ends the running transactions without a word to the peer (inactivity).
+    fn abandon(&mut self) {
+        self.parts.faults.set(self.parts.faults.get().wrapping_add(1));
+        if self.source.state() != State::Idle {
+            self.source.abandon_transaction();
+            self.counters.failed = self.counters.failed.wrapping_add(1);
+        }
+        if self.dest.state() != State::Idle {
+            if let Some(id) = self.dest.transaction_id() {
+                self.dest.cancel_request(&id);
+                self.run_dest(None);
+            }
+            self.dest.reset();
+            self.counters.failed = self.counters.failed.wrapping_add(1);
+        }
+    }
+}

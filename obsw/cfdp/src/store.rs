@@ -1,0 +1,577 @@
+//! The file store: a flat set of named files behind a checked interface.
+//!
+//! Every name that reaches a platform store is a [`FileName`]: at most
+//! `mib::cfdp::MAX_NAME_LEN` bytes of ASCII letters, digits, `.`, `_` and `-`, not starting
+//! with `.`. There are no directories, so no name can reach outside the store (no `/`, no
+//! `..`, no absolute path, no NUL). Every length is checked as well: a write beyond
+//! `mib::cfdp::MAX_FILE_LEN`, past the store's free space, or a file more than
+//! `mib::cfdp::MAX_FILES` is refused. [`Checked`] puts these checks in front of a platform's
+//! [`FlatStore`] (a host directory: `DirStore`; the board's littlefs area later) and gives
+//! cfdp-rs its `VirtualFilestore`; a refusal is counted ([`Checked::refused`]).
+
+use core::cell::Cell;
+
+use ::cfdp::filestore::{FilestoreError, VirtualFilestore};
+use mib::cfdp::{MAX_FILES, MAX_FILE_LEN, MAX_NAME_LEN};
+use spacepackets::cfdp::ChecksumType;
+
+/// Why a name was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NameError {
+    Empty,
+    TooLong(usize),
+    /// A byte outside `[A-Za-z0-9._-]` (a `/`, a NUL, a space, non-ASCII) at this index.
+    BadByte(usize),
+    /// Starts with `.` (hidden files, `.` and `..`).
+    LeadingDot,
+}
+
+impl core::fmt::Display for NameError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            NameError::Empty => write!(f, "empty file name"),
+            NameError::TooLong(n) => write!(f, "file name of {n} bytes (at most {MAX_NAME_LEN})"),
+            NameError::BadByte(i) => write!(
+                f,
+                "file names are letters, digits, '.', '_' and '-' (no directories); byte {i} is not"
+            ),
+            NameError::LeadingDot => write!(f, "file names do not start with '.'"),
+        }
+    }
+}
+
+impl core::error::Error for NameError {}
+
+/// A checked file name (see the module documentation).
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub struct FileName(heapless::String<MAX_NAME_LEN>);
+
+impl FileName {
+    pub fn new(s: &str) -> Result<FileName, NameError> {
+        let b = s.as_bytes();
+        if b.is_empty() {
+            return Err(NameError::Empty);
+        }
+        if b.len() > MAX_NAME_LEN {
+            return Err(NameError::TooLong(b.len()));
+        }
+        if let Some(i) = b
+            .iter()
+            .position(|c| !(c.is_ascii_alphanumeric() || matches!(c, b'.' | b'_' | b'-')))
+        {
+            return Err(NameError::BadByte(i));
+        }
+        if b[0] == b'.' {
+            return Err(NameError::LeadingDot);
+        }
+        let mut n = heapless::String::new();
+        // Checked above: at most MAX_NAME_LEN bytes.
+        n.push_str(s).map_err(|_| NameError::TooLong(b.len()))?;
+        Ok(FileName(n))
+    }
+
+    pub fn as_str(&self) -> &str {
+        &self.0
+    }
+}
+
+impl core::fmt::Display for FileName {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+/// What a platform store can fail with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StoreError {
+    /// No such file.
+    NotFound,
+    /// The file exists (rename onto an existing name).
+    Exists,
+    /// No room: the store's free space, `MAX_FILE_LEN` or `MAX_FILES`.
+    Full,
+    /// The medium failed (I/O error, corrupt file system).
+    Io,
+}
+
+impl core::fmt::Display for StoreError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            StoreError::NotFound => "no such file",
+            StoreError::Exists => "the file exists",
+            StoreError::Full => "no room in the file store",
+            StoreError::Io => "file store I/O error",
+        })
+    }
+}
+
+/// A platform's flat file store; every name is already checked. `&self`: the CFDP
+/// handlers share the store (interior mutability is the platform's).
+pub trait FlatStore {
+    /// Length of the file, `None` when there is none.
+    fn len(&self, name: &FileName) -> Result<Option<u64>, StoreError>;
+    /// Creates the file empty (truncates an existing one).
+    fn create(&self, name: &FileName) -> Result<(), StoreError>;
+    /// Reads exactly `buf.len()` bytes at `offset`.
+    fn read(&self, name: &FileName, offset: u64, buf: &mut [u8]) -> Result<(), StoreError>;
+    /// Writes `data` at `offset` (the file grows as needed).
+    fn write(&self, name: &FileName, offset: u64, data: &[u8]) -> Result<(), StoreError>;
+    fn remove(&self, name: &FileName) -> Result<(), StoreError>;
+    /// Renames `from` to `to`; `Exists` when `to` exists.
+    fn rename(&self, from: &FileName, to: &FileName) -> Result<(), StoreError>;
+    /// Calls `f` with each file's name and length, in name order.
+    fn list(&self, f: &mut dyn FnMut(&FileName, u64)) -> Result<(), StoreError>;
+    /// Bytes still free.
+    fn free(&self) -> Result<u64, StoreError>;
+}
+
+/// Counters of the checked store (file store housekeeping).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct StoreCounters {
+    /// Names refused ([`NameError`]), lengths refused (`Full`), failures of the medium.
+    pub bad_names: u32,
+    pub full: u32,
+    pub io_errors: u32,
+}
+
+/// The checks in front of a [`FlatStore`], and cfdp-rs' `VirtualFilestore` over them.
+pub struct Checked<S> {
+    inner: S,
+    counters: Cell<StoreCounters>,
+}
+
+fn name(path: &str, c: &Cell<StoreCounters>) -> Result<FileName, FilestoreError> {
+    FileName::new(path).map_err(|_| {
+        let mut k = c.get();
+        k.bad_names = k.bad_names.wrapping_add(1);
+        c.set(k);
+        FilestoreError::Permission
+    })
+}
+
+impl<S: FlatStore> Checked<S> {
+    pub fn new(inner: S) -> Self {
+        Checked {
+            inner,
+            counters: Cell::new(StoreCounters::default()),
+        }
+    }
+
+    pub fn inner(&self) -> &S {
+        &self.inner
+    }
+
+    pub fn counters(&self) -> StoreCounters {
+        self.counters.get()
+    }
+
+    fn count(&self, e: StoreError) -> StoreError {
+        let mut k = self.counters.get();
+        match e {
+            StoreError::Full => k.full = k.full.wrapping_add(1),
+            StoreError::Io => k.io_errors = k.io_errors.wrapping_add(1),
+            StoreError::NotFound | StoreError::Exists => {}
+        }
+        self.counters.set(k);
+        e
+    }
+
+    /// A name from outside, counted when refused.
+    pub fn check(&self, s: &str) -> Result<FileName, NameError> {
+        FileName::new(s).inspect_err(|_| {
+            let mut k = self.counters.get();
+            k.bad_names = k.bad_names.wrapping_add(1);
+            self.counters.set(k);
+        })
+    }
+
+    pub fn len(&self, n: &FileName) -> Result<Option<u64>, StoreError> {
+        self.inner.len(n).map_err(|e| self.count(e))
+    }
+
+    pub fn remove(&self, n: &FileName) -> Result<(), StoreError> {
+        self.inner.remove(n).map_err(|e| self.count(e))
+    }
+
+    pub fn rename(&self, from: &FileName, to: &FileName) -> Result<(), StoreError> {
+        self.inner.rename(from, to).map_err(|e| self.count(e))
+    }
+
+    pub fn free(&self) -> Result<u64, StoreError> {
+        self.inner.free().map_err(|e| self.count(e))
+    }
+
+    pub fn list(&self, f: &mut dyn FnMut(&FileName, u64)) -> Result<(), StoreError> {
+        self.inner.list(f).map_err(|e| self.count(e))
+    }
+
+    /// Files in the store.
+    pub fn count_files(&self) -> Result<usize, StoreError> {
+        let mut n = 0;
+        self.list(&mut |_, _| n += 1)?;
+        Ok(n)
+    }
+
+    /// Creates (truncates) `n`, refusing a new file past `MAX_FILES`.
+    pub fn create(&self, n: &FileName) -> Result<(), StoreError> {
+        if self.len(n)?.is_none() && self.count_files()? >= MAX_FILES {
+            return Err(self.count(StoreError::Full));
+        }
+        self.inner.create(n).map_err(|e| self.count(e))
+    }
+
+    /// Writes `data` at `offset`, refusing to grow the file past `MAX_FILE_LEN` or the
+    /// free space.
+    pub fn write(&self, n: &FileName, offset: u64, data: &[u8]) -> Result<(), StoreError> {
+        let end = offset.checked_add(data.len() as u64).ok_or(StoreError::Full)?;
+        if end > MAX_FILE_LEN {
+            return Err(self.count(StoreError::Full));
+        }
+        let now = self.len(n)?.ok_or(StoreError::NotFound)?;
+        if end > now && end - now > self.free()? {
+            return Err(self.count(StoreError::Full));
+        }
+        self.inner.write(n, offset, data).map_err(|e| self.count(e))
+    }
+
+    pub fn read(&self, n: &FileName, offset: u64, buf: &mut [u8]) -> Result<(), StoreError> {
+        let len = self.len(n)?.ok_or(StoreError::NotFound)?;
+        if offset.checked_add(buf.len() as u64).is_none_or(|end| end > len) {
+            return Err(StoreError::NotFound);
+        }
+        self.inner.read(n, offset, buf).map_err(|e| self.count(e))
+    }
+
+    /// The CFDP checksum of the first `len` bytes (`buf`: the read buffer).
+    pub fn checksum(&self, n: &FileName, kind: ChecksumType, len: u64, buf: &mut [u8]) -> Result<u32, FilestoreError> {
+        let mut sum = Checksum::new(kind).ok_or(FilestoreError::ChecksumTypeNotImplemented(kind))?;
+        let mut at = 0u64;
+        while at < len {
+            let k = (len - at).min(buf.len() as u64) as usize;
+            self.read(n, at, &mut buf[..k]).map_err(fs_err)?;
+            sum.update(at, &buf[..k]);
+            at += k as u64;
+        }
+        Ok(sum.value())
+    }
+}
+
+/// A CFDP file checksum, fed in order (727.0-B-5 § 4.2.2; the SANA checksum registry).
+pub enum Checksum {
+    /// Modular: the sum of the file's 32-bit big-endian words, aligned on file offsets.
+    Modular(u32),
+    Crc32(crc::Digest<'static, u32>),
+    Crc32c(crc::Digest<'static, u32>),
+    Null,
+}
+
+impl Checksum {
+    pub fn new(kind: ChecksumType) -> Option<Checksum> {
+        match kind {
+            ChecksumType::Modular => Some(Checksum::Modular(0)),
+            ChecksumType::Crc32 => Some(Checksum::Crc32(cfdp::CRC_32.digest())),
+            ChecksumType::Crc32C => Some(Checksum::Crc32c(cfdp::CRC_32C.digest())),
+            ChecksumType::NullChecksum => Some(Checksum::Null),
+            ChecksumType::Crc32Proximity1 => None,
+        }
+    }
+
+    /// The next bytes, which start at file offset `offset`.
+    pub fn update(&mut self, offset: u64, data: &[u8]) {
+        match self {
+            Checksum::Modular(s) => {
+                for (i, b) in data.iter().enumerate() {
+                    let shift = 24 - 8 * ((offset + i as u64) % 4) as u32;
+                    *s = s.wrapping_add((*b as u32) << shift);
+                }
+            }
+            Checksum::Crc32(d) | Checksum::Crc32c(d) => d.update(data),
+            Checksum::Null => {}
+        }
+    }
+
+    pub fn value(self) -> u32 {
+        match self {
+            Checksum::Modular(s) => s,
+            Checksum::Crc32(d) | Checksum::Crc32c(d) => d.finalize(),
+            Checksum::Null => 0,
+        }
+    }
+}
+
+fn fs_err(e: StoreError) -> FilestoreError {
+    match e {
+        StoreError::NotFound => FilestoreError::FileDoesNotExist,
+        StoreError::Exists => FilestoreError::FileAlreadyExists,
+        StoreError::Full | StoreError::Io => FilestoreError::Other,
+    }
+}
+
+/// The empty name is CFDP's "no file" of a metadata-only transaction; cfdp-rs 0.3 still
+/// creates, checks and sums it, so it names an empty nothing here, outside the store.
+const NO_FILE: &str = "";
+
+impl<S: FlatStore> VirtualFilestore for &Checked<S> {
+    fn create_file(&self, path: &str) -> Result<(), FilestoreError> {
+        if path == NO_FILE {
+            return Ok(());
+        }
+        let n = name(path, &self.counters)?;
+        if self.len(&n).map_err(fs_err)?.is_some() {
+            return Err(FilestoreError::FileAlreadyExists);
+        }
+        self.create(&n).map_err(fs_err)
+    }
+
+    fn remove_file(&self, path: &str) -> Result<(), FilestoreError> {
+        let n = name(path, &self.counters)?;
+        self.remove(&n).map_err(fs_err)
+    }
+
+    fn truncate_file(&self, path: &str) -> Result<(), FilestoreError> {
+        if path == NO_FILE {
+            return Ok(());
+        }
+        let n = name(path, &self.counters)?;
+        if self.len(&n).map_err(fs_err)?.is_none() {
+            return Err(FilestoreError::FileDoesNotExist);
+        }
+        self.create(&n).map_err(fs_err)
+    }
+
+    /// The store is flat: no directories to make or remove.
+    fn remove_dir(&self, _path: &str, _all: bool) -> Result<(), FilestoreError> {
+        Err(FilestoreError::IsNotDirectory)
+    }
+
+    fn create_dir(&self, _path: &str) -> Result<(), FilestoreError> {
+        Err(FilestoreError::Permission)
+    }
+
+    fn read_data(&self, path: &str, offset: u64, read_len: u64, buf: &mut [u8]) -> Result<(), FilestoreError> {
+        let n = name(path, &self.counters)?;
+        let buf = buf.get_mut(..read_len as usize).ok_or(FilestoreError::Other)?;
+        self.read(&n, offset, buf).map_err(fs_err)
+    }
+
+    fn write_data(&self, path: &str, offset: u64, buf: &[u8]) -> Result<(), FilestoreError> {
+        if path == NO_FILE {
+            return Err(FilestoreError::FileDoesNotExist);
+        }
+        let n = name(path, &self.counters)?;
+        self.write(&n, offset, buf).map_err(fs_err)
+    }
+
+    fn filename_from_full_path(path: &str) -> Option<&str> {
+        Some(path)
+    }
+
+    fn is_file(&self, path: &str) -> Result<bool, FilestoreError> {
+        self.exists(path)
+    }
+
+    fn is_dir(&self, _path: &str) -> Result<bool, FilestoreError> {
+        Ok(false)
+    }
+
+    fn exists(&self, path: &str) -> Result<bool, FilestoreError> {
+        if path == NO_FILE {
+            return Ok(false);
+        }
+        let n = name(path, &self.counters)?;
+        Ok(self.len(&n).map_err(fs_err)?.is_some())
+    }
+
+    fn file_name<'a>(&self, path: &'a str) -> Result<Option<&'a str>, FilestoreError> {
+        Ok(Some(path))
+    }
+
+    fn file_size(&self, path: &str) -> Result<u64, FilestoreError> {
+        if path == NO_FILE {
+            return Ok(0);
+        }
+        let n = name(path, &self.counters)?;
+        self.len(&n).map_err(fs_err)?.ok_or(FilestoreError::FileDoesNotExist)
+    }
+
+    fn calculate_checksum(
+        &self,
+        path: &str,
+        kind: ChecksumType,
+        size_to_verify: u64,
+        buf: &mut [u8],
+    ) -> Result<u32, FilestoreError> {
+        if path == NO_FILE {
+            return Checksum::new(kind)
+                .map(Checksum::value)
+                .ok_or(FilestoreError::ChecksumTypeNotImplemented(kind));
+        }
+        let n = name(path, &self.counters)?;
+        self.checksum(&n, kind, size_to_verify, buf)
+    }
+}
+
+/// A store in RAM for tests and the simulator: at most `N` files of at most `CAP` bytes each.
+pub struct MemStore<const N: usize, const CAP: usize> {
+    files: core::cell::RefCell<heapless::Vec<(FileName, heapless::Vec<u8, CAP>), N>>,
+    capacity: u64,
+}
+
+impl<const N: usize, const CAP: usize> MemStore<N, CAP> {
+    /// An empty store holding `capacity` bytes in all.
+    pub fn new(capacity: u64) -> Self {
+        MemStore {
+            files: core::cell::RefCell::new(heapless::Vec::new()),
+            capacity,
+        }
+    }
+}
+
+impl<const N: usize, const CAP: usize> FlatStore for MemStore<N, CAP> {
+    fn len(&self, name: &FileName) -> Result<Option<u64>, StoreError> {
+        Ok(self
+            .files
+            .borrow()
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, d)| d.len() as u64))
+    }
+
+    fn create(&self, name: &FileName) -> Result<(), StoreError> {
+        let mut files = self.files.borrow_mut();
+        match files.iter_mut().find(|(n, _)| n == name) {
+            Some((_, d)) => d.clear(),
+            None => files
+                .push((name.clone(), heapless::Vec::new()))
+                .map_err(|_| StoreError::Full)?,
+        }
+        Ok(())
+    }
+
+    fn read(&self, name: &FileName, offset: u64, buf: &mut [u8]) -> Result<(), StoreError> {
+        let files = self.files.borrow();
+        let (_, d) = files.iter().find(|(n, _)| n == name).ok_or(StoreError::NotFound)?;
+        let src = d
+            .get(offset as usize..offset as usize + buf.len())
+            .ok_or(StoreError::NotFound)?;
+        buf.copy_from_slice(src);
+        Ok(())
+    }
+
+    fn write(&self, name: &FileName, offset: u64, data: &[u8]) -> Result<(), StoreError> {
+        let mut files = self.files.borrow_mut();
+        let (_, d) = files.iter_mut().find(|(n, _)| n == name).ok_or(StoreError::NotFound)?;
+        let end = offset as usize + data.len();
+        if end > d.len() {
+            d.resize(end, 0).map_err(|_| StoreError::Full)?;
+        }
+        d[offset as usize..end].copy_from_slice(data);
+        Ok(())
+    }
+
+    fn remove(&self, name: &FileName) -> Result<(), StoreError> {
+        let mut files = self.files.borrow_mut();
+        let i = files.iter().position(|(n, _)| n == name).ok_or(StoreError::NotFound)?;
+        files.swap_remove(i);
+        Ok(())
+    }
+
+    fn rename(&self, from: &FileName, to: &FileName) -> Result<(), StoreError> {
+        let mut files = self.files.borrow_mut();
+        if files.iter().any(|(n, _)| n == to) {
+            return Err(StoreError::Exists);
+        }
+        let f = files.iter_mut().find(|(n, _)| n == from).ok_or(StoreError::NotFound)?;
+        f.0 = to.clone();
+        Ok(())
+    }
+
+    fn list(&self, f: &mut dyn FnMut(&FileName, u64)) -> Result<(), StoreError> {
+        let mut files = self.files.borrow_mut();
+        files.sort_unstable_by(|a, b| a.0.cmp(&b.0));
+        for (n, d) in files.iter() {
+            f(n, d.len() as u64);
+        }
+        Ok(())
+    }
+
+    fn free(&self) -> Result<u64, StoreError> {
+        let used: u64 = self.files.borrow().iter().map(|(_, d)| d.len() as u64).sum();
+        Ok(self.capacity.saturating_sub(used))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // verifies: FILE-STORE-01
+    #[test]
+    fn names_that_could_leave_the_store_are_refused_and_counted() {
+        for bad in [
+            "",
+            "..",
+            ".",
+            "../etc/passwd",
+            "/etc/passwd",
+            "a/b",
+            "a\\b",
+            "a\0b",
+            ".hidden",
+            "a b",
+            "é",
+        ] {
+            assert!(FileName::new(bad).is_err(), "{bad:?}");
+        }
+        assert_eq!(
+            FileName::new(&"x".repeat(MAX_NAME_LEN + 1)),
+            Err(NameError::TooLong(MAX_NAME_LEN + 1))
+        );
+        assert!(FileName::new(&"x".repeat(MAX_NAME_LEN)).is_ok());
+        assert!(FileName::new("plan-3_v2.toml").is_ok());
+        let s = Checked::new(MemStore::<4, 64>::new(1000));
+        assert!(matches!((&s).create_file("../x"), Err(FilestoreError::Permission)));
+        assert!(matches!(
+            (&s).write_data("/etc/passwd", 0, b"x"),
+            Err(FilestoreError::Permission)
+        ));
+        assert_eq!(s.counters().bad_names, 2);
+        assert!(s.inner().len(&FileName::new("x").unwrap()).unwrap().is_none());
+    }
+
+    // verifies: FILE-STORE-02
+    #[test]
+    fn lengths_are_checked_against_the_file_limit_and_the_free_space() {
+        let s = Checked::new(MemStore::<2, 64>::new(10));
+        let a = FileName::new("a").unwrap();
+        s.create(&a).unwrap();
+        s.write(&a, 0, b"0123456789").unwrap();
+        assert_eq!(s.write(&a, 10, b"x"), Err(StoreError::Full), "past the free space");
+        assert_eq!(s.write(&a, u64::MAX, b"x"), Err(StoreError::Full), "offset overflow");
+        let mut buf = [0u8; 4];
+        assert_eq!(s.read(&a, 8, &mut buf), Err(StoreError::NotFound), "read past the end");
+        s.read(&a, 6, &mut buf).unwrap();
+        assert_eq!(&buf, b"6789");
+        let b = FileName::new("b").unwrap();
+        s.create(&b).unwrap();
+        assert_eq!(s.rename(&a, &b), Err(StoreError::Exists));
+        s.remove(&b).unwrap();
+        s.rename(&a, &b).unwrap();
+        let mut names = std::vec::Vec::new();
+        s.list(&mut |n, l| names.push((n.as_str().to_string(), l))).unwrap();
+        assert_eq!(names, [("b".to_string(), 10)]);
+        assert_eq!(s.free().unwrap(), 0);
+    }
+
+    // verifies: FILE-CFDP-02
+    #[test]
+    fn the_modular_checksum_adds_big_endian_words_at_file_offsets() {
+        let mut c = Checksum::new(ChecksumType::Modular).unwrap();
+        c.update(0, &[1, 2]);
+        c.update(2, &[3, 4, 5]);
+        assert_eq!(c.value(), 0x0102_0304 + 0x0500_0000);
+        let mut c = Checksum::new(ChecksumType::Crc32).unwrap();
+        c.update(0, b"123456789");
+        assert_eq!(c.value(), 0xCBF4_3926);
+    }
+}
