@@ -488,11 +488,18 @@ impl Session {
     /// TM missing since `robot`'s oldest TC still waiting for an outcome went out (where
     /// its reports are), oldest first; empty if none waits or nothing is missing.
     pub fn awaited_gaps(&self, robot: u8) -> Vec<(u16, u16)> {
+        // A TC sent before anything was heard: its reports after the first TM heard are
+        // holes after it (those before it, [`Session::awaited_span`]).
+        let first = self.robots.get(&robot).and_then(|s| s.seq.first()).map(|p| p.seq);
+        let heard_at = self.first_heard.get(&robot).copied();
         let since = self
             .book
             .values()
             .filter(|p| p.robot == robot && p.label.as_deref() != Some(GAP_LABEL))
-            .filter_map(|p| p.tm_seq_at_send.map(|s| (p.first_sent, s)))
+            .filter_map(|p| {
+                let unheard = first.filter(|_| heard_at.is_some_and(|t| p.first_sent <= t));
+                p.tm_seq_at_send.or(unheard).map(|s| (p.first_sent, s))
+            })
             .min()
             .map(|(_, s)| s);
         match (since, self.robots.get(&robot)) {
