@@ -5,7 +5,8 @@
 # and whether a live robot was ever called lost. Also: a robot that really goes silent
 # (kill -STOP of the obsw under `ground watch`) and how long the ground took to say so.
 #
-#   cargo build -p obsw -p ground -p e2e-tests --bin relay
+#   cargo build -p obsw -p ground --bins && cargo build -p e2e-tests --bin relay
+#   (one command with --bin relay would build the relay only and leave the others stale)
 #   ground/bench/lossy_link.sh CASE RUNS [FIRST_SEED]
 #
 # CASE: checkout (plans/checkout.toml), plan3 (a three-step plan), ping, send, mode,

@@ -18,7 +18,13 @@ pub(crate) fn ping(a: &PingArgs, archive_path: Option<&Path>) -> Result<u8> {
     let def = mib::tc::by_name("PING").ok_or_else(|| anyhow!("PING not in the MIB"))?;
     let links = robots_given(&a.links)?;
     let (mut s, arch) = a.links.open(&links, archive_path)?;
-    s.max_resends = 0;
+    // A PING is not resent on the lab links (the next one follows). Over frames nothing
+    // is resent by packet anyway, and the PING stays awaited on the book's schedule: its
+    // reports, lost before the first TM heard, are asked of the store by time while it
+    // waits (`Session::awaited_span`).
+    if !s.over_frames() {
+        s.max_resends = 0;
+    }
     let mut answered: BTreeMap<u8, (u32, bool)> = BTreeMap::new(); // robot -> (replies, last answered)
     let mut silent: Vec<u8> = Vec::new(); // never answered: not pinged again
     for k in 0..a.count {

@@ -96,6 +96,11 @@ pub struct ApidTracker {
     /// Counts expected from here on before anything was heard
     /// ([`ApidTracker::expect_from`]).
     expect: Option<u16>,
+    /// The first packet heard.
+    first: Option<Pos>,
+    /// Counts before the first packet heard with an on-board time from here on are taken
+    /// when they come (from the store) ([`ApidTracker::accept_before_first`]).
+    before_first_from: Option<i64>,
     /// Counts received recently (at most [`RECENT_WINDOW`]).
     recent: VecDeque<u16>,
     recent_set: HashSet<u16>,
@@ -141,6 +146,30 @@ impl ApidTracker {
                     self.recent_set.remove(&old);
                 }
             }
+        }
+    }
+
+    /// The first packet heard (`None` before any).
+    pub fn first(&self) -> Option<Pos> {
+        self.first
+    }
+
+    /// Takes the packets before the first one heard whose on-board time is at or after
+    /// `obt_from_ms` (and not after the first one's) when they come, as filling: the
+    /// reports of a TC sent before anything was heard, asked of the store by time. They
+    /// are not holes: what the span held is not known before the store answers.
+    pub fn accept_before_first(&mut self, obt_from_ms: i64) {
+        self.before_first_from = Some(self.before_first_from.map_or(obt_from_ms, |f| f.min(obt_from_ms)));
+    }
+
+    fn before_first(&self, p: Pos) -> bool {
+        match (self.first, self.before_first_from) {
+            (Some(first), Some(from)) => {
+                (1..AHEAD).contains(&ahead(p.seq, first.seq))
+                    && (from..=first.obt_ms).contains(&p.obt_ms)
+                    && !self.recent_set.contains(&p.seq)
+            }
+            _ => false,
         }
     }
 
@@ -265,6 +294,7 @@ impl ApidTracker {
             }
             self.remember(p.seq);
             self.last = Some(p);
+            self.first = Some(p);
             self.new += 1;
             return if boot {
                 self.reboots += 1;
@@ -298,7 +328,7 @@ impl ApidTracker {
                     .holes
                     .get(&p.seq)
                     .is_some_and(|h| p.obt_ms >= h.after_obt_ms && p.obt_ms <= h.before_obt_ms);
-                if fills {
+                if fills || self.before_first(p) {
                     self.holes.remove(&p.seq);
                     self.remember(p.seq);
                     self.filled += 1;

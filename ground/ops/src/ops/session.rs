@@ -15,7 +15,7 @@ use mib::tc::TcDef;
 use crate::archive::{now_ms, ArchiveSender, Record};
 use crate::link::{FrameOptions, FrameStats, Incoming, Link, Transport};
 use crate::live::{self, GapPlan, Verdict as SeqVerdict};
-use crate::pus::{self, BuiltTc, DecodeError, Event, Hk, SeqCounters, Stage, Tm, TmBody, Verification};
+use crate::pus::{self, BuiltTc, CdsShort, DecodeError, Event, Hk, SeqCounters, Stage, Tm, TmBody, Verification};
 
 use super::book::{Due, Pending, TcBook, Verdict};
 use super::*;
@@ -178,6 +178,8 @@ pub struct Session {
     watching: bool,
     /// When each robot last got a new TC (not a resend).
     last_new_tc: HashMap<u8, Instant>,
+    /// When each robot's first TM packet was heard ([`Session::awaited_span`]).
+    first_heard: HashMap<u8, Instant>,
     /// The run this session's TCs belong to (`ground run`): archived with every TC as
     /// `LABEL@RUN_ID` in the TC's step column (see [`runs`]).
     pub run_id: Option<String>,
@@ -226,6 +228,7 @@ impl Session {
             max_resends: TC_RETRY_MAX,
             watching: false,
             last_new_tc: HashMap::new(),
+            first_heard: HashMap::new(),
             run_id: None,
         })
     }
@@ -502,26 +505,58 @@ impl Session {
     }
 
     /// Asks `robot`'s on-board store first for the TM missing since its oldest TC still
-    /// waiting for an outcome went out (that TC's reports are among it), at most
-    /// `max_ranges` ranges; with no such TC or no such gap, for the oldest missing TM
-    /// ([`Session::request_gaps`]). Nothing while the pacing rule holds the next retrieval
-    /// back ([`Session::may_retrieve`]). Returns the ranges asked for.
+    /// waiting for an outcome went out (that TC's reports are among it): by time for the
+    /// span before the first TM heard ([`Session::awaited_span`]), by count for the holes
+    /// after it, at most `max_ranges` ranges; with no such TC or no such gap, for the
+    /// oldest missing TM ([`Session::request_gaps`]). Nothing while the pacing rule holds
+    /// the next retrieval back ([`Session::may_retrieve`]). Returns the ranges asked for.
     pub fn request_missing_reports(&mut self, robot: u8, max_ranges: usize) -> Vec<(u16, u16)> {
+        let span = self.awaited_span(robot);
         let ranges = self.awaited_gaps(robot);
-        if ranges.is_empty() {
+        if ranges.is_empty() && span.is_none() {
             return self.request_gaps(robot, None, max_ranges);
         }
-        self.send_retrievals(robot, ranges, max_ranges)
+        self.send_retrievals(robot, span, ranges, max_ranges)
+    }
+
+    /// The on-board time span (Unix ms, inclusive) between `robot`'s oldest TC still
+    /// waiting for an outcome that went out before any of its TM was heard, and the first
+    /// TM heard: the TC's reports are there or after it. Nothing tells their counts (the
+    /// robot's count at the send is unknown), so the span is bounded by time: the robot
+    /// got the TC after it went out and sent the first packet heard before it arrived, so
+    /// on its clock the TC came at least the ground's time between the two before that
+    /// packet's time stamp. `None` if no such TC waits.
+    pub fn awaited_span(&self, robot: u8) -> Option<(i64, i64)> {
+        let heard_at = *self.first_heard.get(&robot)?;
+        let first = self.robots.get(&robot)?.seq.first()?;
+        let sent = self
+            .book
+            .values()
+            .filter(|p| p.robot == robot && p.label.as_deref() != Some(GAP_LABEL))
+            .filter(|p| p.tm_seq_at_send.is_none() && p.first_sent <= heard_at)
+            .map(|p| p.first_sent)
+            .min()?;
+        // Rounded up to whole ms, one more for the time stamp's truncation.
+        let before_ms =
+            i64::try_from(heard_at.saturating_duration_since(sent).as_micros().div_ceil(1000)).unwrap_or(i64::MAX / 4);
+        Some((first.obt_ms - before_ms - 1, first.obt_ms))
     }
 
     /// TM missing since `robot`'s oldest TC still waiting for an outcome went out (where
     /// its reports are), oldest first; empty if none waits or nothing is missing.
     pub fn awaited_gaps(&self, robot: u8) -> Vec<(u16, u16)> {
+        // A TC sent before anything was heard: its reports after the first TM heard are
+        // holes after it (those before it, [`Session::awaited_span`]).
+        let first = self.robots.get(&robot).and_then(|s| s.seq.first()).map(|p| p.seq);
+        let heard_at = self.first_heard.get(&robot).copied();
         let since = self
             .book
             .values()
             .filter(|p| p.robot == robot && p.label.as_deref() != Some(GAP_LABEL))
-            .filter_map(|p| p.tm_seq_at_send.map(|s| (p.first_sent, s)))
+            .filter_map(|p| {
+                let unheard = first.filter(|_| heard_at.is_some_and(|t| p.first_sent <= t));
+                p.tm_seq_at_send.or(unheard).map(|s| (p.first_sent, s))
+            })
             .min()
             .map(|(_, s)| s);
         match (since, self.robots.get(&robot)) {
@@ -541,23 +576,41 @@ impl Session {
             Some(c) => st.seq.missing_upto(c),
             None => Vec::new(),
         };
-        self.send_retrievals(robot, ranges, max_ranges)
+        self.send_retrievals(robot, None, ranges, max_ranges)
     }
 
     /// The retrievals [`GapPlan`] plans for these gaps (merged, cut, at most
-    /// `max_ranges`): one TC[15,128] each for `robot`'s own APID, together one retrieval
-    /// of the pacing rule, sent only when it lets one go ([`Session::may_retrieve`]).
-    /// Returns the ranges asked for.
-    fn send_retrievals(&mut self, robot: u8, ranges: Vec<(u16, u16)>, max_ranges: usize) -> Vec<(u16, u16)> {
+    /// `max_ranges`): one TC[15,128] each for `robot`'s own APID, and a TC[15,9] for the
+    /// on-board time `span` (its packets before the first TM heard are then taken,
+    /// [`crate::live::ApidTracker::accept_before_first`]), together one retrieval of the
+    /// pacing rule, sent only when it lets one go ([`Session::may_retrieve`]). Returns
+    /// the ranges asked for.
+    fn send_retrievals(
+        &mut self,
+        robot: u8,
+        span: Option<(i64, i64)>,
+        ranges: Vec<(u16, u16)>,
+        max_ranges: usize,
+    ) -> Vec<(u16, u16)> {
         let ranges = GapPlan::default().round(&ranges, max_ranges);
         let Some(def) = mib::tc::by_name("STORE_DOWNLINK_SEQ") else {
             return Vec::new();
         };
-        if ranges.is_empty() || !self.may_retrieve(robot) {
+        if (ranges.is_empty() && span.is_none()) || !self.may_retrieve(robot) {
             return Vec::new();
         }
         let apid = mib::apid::robot_apid(robot).unwrap_or(0);
         let mut sent = Vec::new();
+        if let (Some((from, to)), Some(by_time)) = (span, mib::tc::by_name("STORE_DOWNLINK_TIME")) {
+            if let Some(s) = self.robots.get_mut(&robot) {
+                s.seq.accept_before_first(from);
+            }
+            let (a, b) = (CdsShort::from_unix_ms(from), CdsShort::from_unix_ms(to));
+            let args = [a.days.into(), a.ms_of_day.into(), b.days.into(), b.ms_of_day.into()];
+            if let Ok(tc) = self.send(robot, by_time, &args, None, Some(GAP_LABEL.into())) {
+                sent.push(tc.request_id());
+            }
+        }
         for &(a, b) in &ranges {
             let args = [apid as i64, a as i64, b as i64];
             // A failed send shows as a retrieval without result: asked again later.
@@ -625,6 +678,9 @@ impl Session {
         if let (Ok(tm), Some(s)) = (&decoded, self.robots.get_mut(&inc.robot)) {
             if tm.robot == Some(inc.robot) {
                 s.link.on_tm(now_ms());
+                if s.seq.first().is_none() {
+                    self.first_heard.insert(inc.robot, Instant::now());
+                }
                 let verdict = s.seq.on_packet(live::position(tm), live::is_boot(tm), now_ms());
                 if verdict == SeqVerdict::Duplicate {
                     s.duplicates += 1;

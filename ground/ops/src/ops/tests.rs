@@ -535,3 +535,88 @@ fn a_session_sends_one_store_retrieval_at_a_time_paced_by_the_one_rule() {
     let tcs = fake.join().unwrap();
     assert_eq!(tcs, vec![(17, 1), (15, 128)], "one PING, one retrieval");
 }
+
+// verifies: OPS-LIVE-GAP-02
+#[test]
+fn reports_sent_before_the_first_tm_heard_are_asked_of_the_store_by_time() {
+    // A fake robot over frames' worst case: the TC's acceptance (16) and completion (17)
+    // are lost on the way and the first TM heard is the next one (18); its store answers
+    // a TC[15,9] with the packets whose time stamp lies in the span asked for.
+    let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
+    sock.set_read_timeout(Some(Duration::from_millis(1500))).unwrap();
+    let addr = sock.local_addr().unwrap();
+    let fake = std::thread::spawn(move || {
+        let mut buf = [0u8; 2048];
+        let mut store: Vec<(i64, Vec<u8>)> = Vec::new();
+        let mut tcs = Vec::new();
+        let mut seq = 18;
+        // Sent before the TC: outside any span the ground may ask for.
+        let old = CdsShort::from_unix_ms(CdsShort::now().unix_ms() - 5_000);
+        store.push((old.unix_ms(), build_tm(0x101, 15, 17, 2, 0, &old.to_bytes(), &[])));
+        while let Ok((n, f)) = sock.recv_from(&mut buf) {
+            let Ok(tc) = pus::decode_tc(&buf[..n]) else { continue };
+            tcs.push((tc.service, tc.subservice));
+            let rid = [buf[0], buf[1], buf[2], buf[3]];
+            let t = CdsShort::now();
+            match (tc.service, tc.subservice) {
+                (17, 1) => {
+                    for (k, sub) in [(16, 1), (17, 7)] {
+                        store.push((t.unix_ms(), build_tm(0x101, k, 1, sub, 0, &t.to_bytes(), &rid)));
+                    }
+                    std::thread::sleep(Duration::from_millis(30));
+                    let later = CdsShort::now().to_bytes();
+                    sock.send_to(&build_tm(0x101, seq, 17, 2, 0, &later, &[]), f).unwrap();
+                }
+                (15, 9) => {
+                    let arg = |i: usize| tc.args[i].value;
+                    let at = |d: i64, ms: i64| CdsShort {
+                        days: d as u16,
+                        ms_of_day: ms as u32,
+                    };
+                    let (a, b) = (at(arg(0), arg(1)).unix_ms(), at(arg(2), arg(3)).unix_ms());
+                    for (_, p) in store.iter().filter(|(ms, _)| (a..=b).contains(ms)) {
+                        sock.send_to(p, f).unwrap();
+                    }
+                    seq += 1;
+                    sock.send_to(&build_tm(0x101, seq, 1, 7, 0, &t.to_bytes(), &rid), f)
+                        .unwrap();
+                }
+                _ => {}
+            }
+        }
+        tcs
+    });
+    let mut s = Session::connect(&[(1, addr)], Transport::Udp, None, |_| Some(700)).unwrap();
+    // No resend: the robot executed the TC; only its reports were lost.
+    s.set_ack_timeout(Duration::from_secs(20));
+    s.send(1, mib::tc::by_name("PING").unwrap(), &[], Some(4), None)
+        .unwrap();
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_secs(2) && s.robots[&1].seq.newest() != Some(18) {
+        s.poll(Duration::from_millis(20));
+    }
+    assert_eq!(
+        s.robots[&1].seq.missing_ranges(),
+        vec![],
+        "no hole after the first TM heard"
+    );
+    assert!(s.awaited_gaps(1).is_empty());
+    s.request_missing_reports(1, 1);
+    let mut stages = Vec::new();
+    while t0.elapsed() < Duration::from_secs(4) && !stages.contains(&Stage::Completion) {
+        for u in s.poll(Duration::from_millis(20)) {
+            if let Update::Verification { tag: Some(4), v, .. } = u {
+                stages.push(v.stage);
+            }
+        }
+    }
+    assert_eq!(stages, vec![Stage::Acceptance, Stage::Completion]);
+    // The packet from before the TC was not asked for (outside the span).
+    assert_eq!(s.robots[&1].seq.filled, 2);
+    drop(s);
+    assert_eq!(
+        fake.join().unwrap(),
+        vec![(17, 1), (15, 9)],
+        "one PING, one retrieval by time"
+    );
+}
