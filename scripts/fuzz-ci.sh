@@ -23,6 +23,8 @@ command -v cargo-fuzz >/dev/null || cargo install --locked cargo-fuzz
 echo "== fuzz: format and lint"
 cargo +nightly fmt --manifest-path tests/fuzz/Cargo.toml -- --check
 cargo +nightly clippy --manifest-path tests/fuzz/Cargo.toml --all-targets -- -D warnings
+echo "== fuzz: the harnesses' own tests"
+cargo +nightly test --manifest-path tests/fuzz/Cargo.toml --lib
 
 echo "== fuzz: build"
 $FUZZ build "${FLAGS[@]}"

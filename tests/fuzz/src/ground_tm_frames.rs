@@ -219,7 +219,8 @@ pub fn run(data: &[u8]) {
 mod tests {
     use super::cobs_frame;
 
-    // verifies: LINK-RX-02
+    // The harness's own check (not a requirement's test: the fuzz crate is outside the
+    // workspace); scripts/fuzz-ci.sh runs it with `cargo +nightly test --lib`.
     #[test]
     fn the_harness_cobs_is_the_projects_at_every_block_boundary() {
         let mut cases: Vec<Vec<u8>> = vec![vec![], vec![0], vec![0, 0], vec![1, 0, 2]];
