@@ -1143,8 +1143,19 @@ impl<'a, S: FlatStore> Entity<'a, S> {
     fn abandon(&mut self) {
         self.parts.faults.set(self.parts.faults.get().wrapping_add(1));
         if self.source.state() != State::Idle {
+            let seq = self.source.transaction_id().map_or(0, |t| id_u16(t.seq_num()));
             self.source.abandon_transaction();
             self.counters.failed = self.counters.failed.wrapping_add(1);
+            // cfdp-rs reports nothing for an abandoned transaction: the user must still
+            // learn that its put ended.
+            self.user.report(Finished {
+                source: self.id,
+                seq,
+                sent: true,
+                condition: ConditionCode::InactivityDetected,
+                complete: false,
+                retained: false,
+            });
         }
         if self.dest.state() != State::Idle {
             if let Some(id) = self.dest.transaction_id() {

@@ -247,3 +247,34 @@ fn a_finished_pdu_that_overtakes_a_lost_eof_ack_ends_the_put_without_a_retry() {
         assert_eq!(g.counters().eof_ack_by_finished, 1, "{:?}", g.counters());
     });
 }
+
+// verifies: FILE-CFDP-05
+#[test]
+fn a_put_to_a_silent_peer_ends_reported_as_not_complete() {
+    big_stack(|| {
+        let gp = Parts::new(Mem::new(200_000));
+        let mut g = Entity::new(0, 1, &gp);
+        put_file(&gp, "up.bin", &file(3_000, 3));
+        let start = now();
+        g.put(start, "up.bin", "up.bin", Class::Two).unwrap();
+        let mut t = start;
+        let mut f = None;
+        while f.is_none() && t < start + 2 * mib::cfdp::INACTIVITY_MS {
+            t += 100;
+            g.poll(t);
+            while g.pop().is_some() {}
+            f = g.take_finished();
+        }
+        CLOCK.with(|c| c.set(t));
+        let f = f.expect("the put ended");
+        assert!(f.sent && !f.complete, "{f:?}");
+        assert!(
+            matches!(
+                f.condition,
+                spacepackets::cfdp::ConditionCode::InactivityDetected
+                    | spacepackets::cfdp::ConditionCode::PositiveAckLimitReached
+            ),
+            "{f:?}"
+        );
+    });
+}
