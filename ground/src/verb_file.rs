@@ -149,6 +149,10 @@ struct Session<'a> {
     shown: u64,
     parts: &'a Parts<DirStore>,
     seq_file: PathBuf,
+    /// Finished transactions not yet asked for: a `get`'s file may arrive complete before
+    /// the robot's Finished PDU of the request itself does (its EOF ACK lost), and that
+    /// report must still be there when [`Session::incoming_done`] looks for it.
+    reports: Vec<Finished>,
 }
 
 /// Longest wait at the end for FOP-1 to have the last PDUs acknowledged.
@@ -200,6 +204,7 @@ impl<'a> Session<'a> {
             deadline: start + Duration::from_secs_f64(timeout),
             seq: 0,
             shown: 0,
+            reports: Vec::new(),
         }
     }
 
@@ -211,6 +216,12 @@ impl<'a> Session<'a> {
     fn until(&mut self, what: &str, mut done: impl FnMut(&Finished) -> bool) -> Result<Finished> {
         let mut buf = [0u8; mib::cfdp::MAX_PACKET_LEN];
         loop {
+            while let Some(f) = self.entity.take_finished() {
+                self.reports.push(f);
+            }
+            if let Some(i) = self.reports.iter().position(&mut done) {
+                return Ok(self.reports.remove(i));
+            }
             if Instant::now() > self.deadline {
                 return Err(coded(
                     exit::NO_ANSWER,
@@ -242,11 +253,6 @@ impl<'a> Session<'a> {
             if got >= self.shown + (256 << 10) {
                 err_line!("{what}: {} KiB received", got >> 10);
                 self.shown = got;
-            }
-            while let Some(f) = self.entity.take_finished() {
-                if done(&f) {
-                    return Ok(f);
-                }
             }
         }
     }

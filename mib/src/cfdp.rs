@@ -52,17 +52,22 @@ pub const PDU_CRC: bool = false;
 // ---------------------------------------------------------------------------------------
 
 /// Positive ACK timer: an EOF or Finished PDU not acknowledged in this time is sent again.
-/// Above a round trip through COP-1 with one retransmission (2 × T1 max).
-pub const ACK_TIMER_MS: u64 = 4_000;
-/// Expiries of the positive ACK timer before the fault "positive ACK limit reached".
+/// Twice the ground's COP-1 T1 upper bound (`link::cop1::FOP_T1_MS`): an uplink PDU whose
+/// frame needs one COP-1 retransmission is still answered in time; the robot answers
+/// within a control period and the ground within its 5 ms poll, so the timer spends no
+/// expiry while an answer is on its way.
+pub const ACK_TIMER_MS: u64 = 2 * crate::link::cop1::FOP_T1_MS;
+/// Expiries of the positive ACK timer before the fault "positive ACK limit reached": the
+/// relay loses a downlink PDU with 25 % (drop and corrupt): eight lost answers in a
+/// row have a chance of 0.25⁸ ≈ 1.5 × 10⁻⁵; 32 s of a peer that never answers.
 pub const ACK_LIMIT: u32 = 8;
-/// NAK timer: a NAK that brought nothing is sent again after this time. Above a round trip
-/// through COP-1 with one retransmission (2 × T1 max), like the ACK timer: a shorter one
-/// spends its expiries while the answer is still on its way.
-pub const NAK_TIMER_MS: u64 = 4_000;
-/// Expiries of the NAK timer before the fault "NAK limit reached". cfdp-rs counts every
-/// expiry of a transaction, progress or not: 32 × 4 s bounds a transfer's NAK phase at about
-/// two minutes of a bad link (16 × 2 s failed once through the 20/5/5 relay).
+/// NAK timer: a NAK that brought nothing is sent again after this time; the same round trip
+/// as the positive ACK timer.
+pub const NAK_TIMER_MS: u64 = ACK_TIMER_MS;
+/// Expiries of the NAK timer without a single recovered segment (cfdp-rs restarts the count
+/// on each one, 727.0-B-5 § 4.6.4.7) before the fault "NAK limit reached": about two minutes
+/// of a peer that hears the NAKs but whose data never arrives. A peer that says nothing
+/// at all is caught sooner by [`INACTIVITY_MS`].
 pub const NAK_LIMIT: u32 = 32;
 /// Class 1 check timer: after an EOF with data missing, the receiver waits this long for
 /// late file data before it counts one check.
@@ -70,7 +75,9 @@ pub const CHECK_TIMER_MS: u64 = 1_000;
 /// Expiries of the check timer before the class 1 fault "check limit reached".
 pub const CHECK_LIMIT: u32 = 2;
 /// Inactivity: a transaction that heard no PDU for this long is abandoned (the fault
-/// "inactivity detected"), so a vanished peer never holds the entity for ever.
+/// "inactivity detected", reported with that condition), so a vanished peer never holds
+/// the entity for ever. Longer than the positive ACK limit (`ACK_LIMIT` × `ACK_TIMER_MS`)
+/// so a peer still retrying is never abandoned first.
 pub const INACTIVITY_MS: u64 = 60_000;
 
 /// Lost segments one receiving transaction tracks (a NAK names at most this many ranges;
@@ -101,6 +108,14 @@ pub const LISTING_NAME: &str = "dir.lst";
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    // verifies: FILE-CFDP-05
+    #[test]
+    fn inactivity_outlasts_the_positive_ack_retries_and_timers_cover_a_cop1_retransmission() {
+        const { assert!(INACTIVITY_MS > ACK_LIMIT as u64 * ACK_TIMER_MS) };
+        const { assert!(ACK_TIMER_MS >= 2 * crate::link::cop1::FOP_T1_MS) };
+        const { assert!(NAK_TIMER_MS >= 2 * crate::link::cop1::FOP_T1_MS) };
+    }
 
     // verifies: FILE-CFDP-01
     #[test]

@@ -23,7 +23,7 @@ use core::time::Duration;
 use ::cfdp::dest::DestinationHandler;
 use ::cfdp::lost_segments::LostSegmentsListHeapless;
 use ::cfdp::request::ReadablePutRequest;
-use ::cfdp::source::SourceHandler;
+use ::cfdp::source::{SourceHandler, TransactionStep as SourceStep};
 use ::cfdp::time::Countdown;
 use ::cfdp::user::{CfdpUser, FileSegmentRecvdParams, MetadataReceivedParams, TransactionFinishedParams};
 use ::cfdp::{
@@ -43,7 +43,7 @@ use spacepackets::cfdp::pdu::{FileDirectiveType, PduHeader};
 use spacepackets::cfdp::tlv::{
     FilestoreActionCode, FilestoreRequestTlv, GenericTlv, ReadableTlv, Tlv, TlvType, WritableTlv,
 };
-use spacepackets::cfdp::{ChecksumType, ConditionCode, PduType, TransmissionMode};
+use spacepackets::cfdp::{ChecksumType, ConditionCode, PduType, TransactionStatus, TransmissionMode};
 use spacepackets::util::{UnsignedByteField, UnsignedByteFieldU16, UnsignedEnum};
 
 use crate::msg::{self, ReservedMsg};
@@ -275,6 +275,9 @@ pub struct Counters {
     /// PDUs of another transaction than the running one, or of one already finished
     /// (late retransmissions, duplicates): dropped.
     pub stray: u32,
+    /// Finished PDUs that arrived before the ACK of our EOF (which was lost) and stood
+    /// for it.
+    pub eof_ack_by_finished: u32,
 }
 
 /// A put this entity owes its peer (a proxy put or a directory listing), done when the
@@ -520,7 +523,9 @@ pub fn well_formed(raw: &[u8]) -> Option<PduHeader> {
         PduType::FileData => FileDataPdu::from_bytes(raw).is_ok(),
         PduType::FileDirective => match FileDirectiveType::try_from(raw[hl]).ok()? {
             FileDirectiveType::MetadataPdu => MetadataPduReader::from_bytes(raw).is_ok(),
-            FileDirectiveType::EofPdu => EofPdu::from_bytes(raw).is_ok(),
+            // spacepackets 0.16 slices the checksum and file size unchecked: directive,
+            // condition, checksum (4) and size (4, normal files) must be there.
+            FileDirectiveType::EofPdu => raw.len() >= hl + 10 && EofPdu::from_bytes(raw).is_ok(),
             FileDirectiveType::FinishedPdu => FinishedPduReader::from_bytes(raw).is_ok(),
             FileDirectiveType::AckPdu => AckPdu::from_bytes(raw).is_ok(),
             FileDirectiveType::NakPdu => NakPduReader::from_bytes(raw).is_ok(),
@@ -818,7 +823,12 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             PacketTarget::SourceEntity if pdu.file_directive_type() == Some(FileDirectiveType::NakPdu) => {
                 self.nak_split(raw)
             }
-            PacketTarget::SourceEntity => self.run_source(Some(&pdu)),
+            PacketTarget::SourceEntity => {
+                if pdu.file_directive_type() == Some(FileDirectiveType::FinishedPdu) {
+                    self.eof_acked_by_finished(&h);
+                }
+                self.run_source(Some(&pdu))
+            }
             PacketTarget::DestEntity if pdu.file_directive_type() == Some(FileDirectiveType::MetadataPdu) => {
                 self.metadata(raw, (id_u16(&src), id_u16(&h.common_pdu_conf().transaction_seq_num)))
             }
@@ -826,6 +836,29 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             PacketTarget::DestEntity => self.run_dest(Some(&pdu)),
         }
         self.settle();
+    }
+
+    /// A Finished PDU while the source still waits for the ACK of its EOF: the receiver
+    /// sends its Finished only after it took the EOF, so the EOF's ACK was lost on the way.
+    /// cfdp-rs 0.3 refuses a Finished PDU in that step; the peer then needs our next EOF
+    /// and its own next Finished, one positive ACK period each, to end the transaction: a
+    /// `get` saw its file arrive before its request was done. The ACK the Finished implies
+    /// is given to the handler first.
+    fn eof_acked_by_finished(&mut self, h: &PduHeader) {
+        if self.source.step() != SourceStep::WaitingForEofAck {
+            return;
+        }
+        let ack = AckPdu::new_for_eof_pdu(
+            PduHeader::new_for_file_directive(*h.common_pdu_conf(), 0),
+            ConditionCode::NoError,
+            TransactionStatus::Active,
+        );
+        let mut buf = [0u8; 64];
+        let Ok(n) = ack.write_to_bytes(&mut buf) else { return };
+        if let Ok(p) = PduRawWithInfo::new(&buf[..n]) {
+            self.counters.eof_ack_by_finished = self.counters.eof_ack_by_finished.wrapping_add(1);
+            self.run_source(Some(&p));
+        }
     }
 
     /// File data or an EOF of a transaction whose metadata was lost: cfdp-rs 0.3 would
@@ -1110,13 +1143,29 @@ impl<'a, S: FlatStore> Entity<'a, S> {
     fn abandon(&mut self) {
         self.parts.faults.set(self.parts.faults.get().wrapping_add(1));
         if self.source.state() != State::Idle {
+            let seq = self.source.transaction_id().map_or(0, |t| id_u16(t.seq_num()));
             self.source.abandon_transaction();
             self.counters.failed = self.counters.failed.wrapping_add(1);
+            // cfdp-rs reports nothing for an abandoned transaction: the user must still
+            // learn that its put ended.
+            self.user.report(Finished {
+                source: self.id,
+                seq,
+                sent: true,
+                condition: ConditionCode::InactivityDetected,
+                complete: false,
+                retained: false,
+            });
         }
         if self.dest.state() != State::Idle {
             if let Some(id) = self.dest.transaction_id() {
+                // cfdp-rs 0.3 cancels only as on a user's request; the report says why.
+                let before = self.user.finished.len();
                 self.dest.cancel_request(&id);
                 self.run_dest(None);
+                for f in self.user.finished.iter_mut().skip(before) {
+                    f.condition = ConditionCode::InactivityDetected;
+                }
             }
             self.dest.reset();
             self.counters.failed = self.counters.failed.wrapping_add(1);

@@ -202,3 +202,79 @@ fn listing_delete_and_rename_act_on_the_peers_store() {
         assert_eq!(r.counters().fs_done, 2);
     });
 }
+
+/// Directive code of a file directive PDU (`None` for file data).
+fn directive(p: &[u8]) -> Option<u8> {
+    let (h, hl) = spacepackets::cfdp::pdu::PduHeader::from_bytes(p).ok()?;
+    (h.pdu_type() == spacepackets::cfdp::PduType::FileDirective).then(|| p[hl])
+}
+
+// verifies: FILE-CFDP-05
+#[test]
+fn a_finished_pdu_that_overtakes_a_lost_eof_ack_ends_the_put_without_a_retry() {
+    big_stack(|| {
+        const ACK: u8 = 0x06;
+        let (gp, rp) = (Parts::new(Mem::new(200_000)), Parts::new(Mem::new(200_000)));
+        let mut g = Entity::new(0, 1, &gp);
+        let mut r = Entity::new(1, 0, &rp);
+        let up = file(3_000, 9);
+        put_file(&gp, "up.bin", &up);
+        g.put(now(), "up.bin", "up.bin", Class::Two).unwrap();
+        let start = now();
+        let mut t = start;
+        let mut lost_acks = 0;
+        // Everything arrives but the robot's ACK of the EOF; no timer may expire.
+        while t < start + mib::cfdp::ACK_TIMER_MS / 2 && !(g.idle() && r.idle()) {
+            t += 10;
+            g.poll(t);
+            r.poll(t);
+            while let Some(p) = g.pop() {
+                r.receive(t, &p);
+            }
+            while let Some(p) = r.pop() {
+                if directive(&p) == Some(ACK) && g.counters().completed == 0 && lost_acks == 0 {
+                    lost_acks += 1;
+                    continue;
+                }
+                g.receive(t, &p);
+            }
+        }
+        CLOCK.with(|c| c.set(t));
+        assert_eq!(lost_acks, 1, "the EOF's ACK was dropped");
+        let f = g.take_finished().expect("the put ended before the positive ACK timer");
+        assert!(f.sent && f.complete, "{f:?}");
+        assert_eq!(read_file(&rp, "up.bin").as_deref(), Some(&up[..]));
+        assert_eq!(g.counters().eof_ack_by_finished, 1, "{:?}", g.counters());
+    });
+}
+
+// verifies: FILE-CFDP-05
+#[test]
+fn a_put_to_a_silent_peer_ends_reported_as_not_complete() {
+    big_stack(|| {
+        let gp = Parts::new(Mem::new(200_000));
+        let mut g = Entity::new(0, 1, &gp);
+        put_file(&gp, "up.bin", &file(3_000, 3));
+        let start = now();
+        g.put(start, "up.bin", "up.bin", Class::Two).unwrap();
+        let mut t = start;
+        let mut f = None;
+        while f.is_none() && t < start + 2 * mib::cfdp::INACTIVITY_MS {
+            t += 100;
+            g.poll(t);
+            while g.pop().is_some() {}
+            f = g.take_finished();
+        }
+        CLOCK.with(|c| c.set(t));
+        let f = f.expect("the put ended");
+        assert!(f.sent && !f.complete, "{f:?}");
+        assert!(
+            matches!(
+                f.condition,
+                spacepackets::cfdp::ConditionCode::InactivityDetected
+                    | spacepackets::cfdp::ConditionCode::PositiveAckLimitReached
+            ),
+            "{f:?}"
+        );
+    });
+}
