@@ -374,22 +374,26 @@ fn budget(item: &str, used: Option<f64>, avail: Option<f64>, unit: &str, source:
     }
 }
 
-/// Bytes the board-A PUS 15 store must hold (a 48 KiB ring: each packet + 2 length
-/// bytes) for `secs` of the default periodic housekeeping, from the MIB.
+/// Bytes board A's PUS 15 housekeeping area must hold for `secs` of the default periodic
+/// housekeeping, from the MIB: each packet is one `sequential-storage` queue item (an 8-byte
+/// item header, the packet padded to the flash word).
 fn store_bytes_for(secs: f64) -> f64 {
+    let word = mib::memory::store::WORD_USIZE;
     mib::hk::HK_STRUCTS
         .iter()
         .filter(|h| h.default_enabled)
         .map(|h| {
-            let pkt = 20 + h.data_len() + 2 + 2; // headers, data, PEC, ring length
+            let pkt = (20 + h.data_len() + 2).next_multiple_of(word) + 8; // headers, data, PEC; item header
             pkt as f64 * secs * 1000.0 / h.default_interval_ms as f64
         })
         .sum()
 }
 
-/// Design assumption for the store budget (docs/review.md): a link outage of 5 minutes.
-pub const STORE_OUTAGE_S: f64 = 300.0;
-const FW_STORE_BYTES: f64 = 48.0 * 1024.0;
+/// The outage the store must bridge (mib::memory::TM_STORE_OUTAGE_S: 2 hours).
+pub const STORE_OUTAGE_S: f64 = mib::memory::TM_STORE_OUTAGE_S as f64;
+/// Board A's housekeeping area in the flash partition, less the one sector the queue keeps
+/// erased.
+const FW_STORE_BYTES: f64 = (mib::memory::store::HK_SIZE - mib::memory::FLASH_SECTOR) as f64;
 
 pub fn budgets(fw: &FirmwareInfo) -> Vec<Budget> {
     let mut b = Vec::new();
@@ -478,11 +482,11 @@ pub fn budgets(fw: &FirmwareInfo) -> Vec<Budget> {
         "worst Obsw::tick + worst Obsw::handle_tc (QEMU -icount)",
     ));
     b.push(budget(
-        "board-A PUS 15 store: 5 min link outage at default HK rates",
+        "board-A PUS 15 store (flash): 2 h link outage at default HK rates",
         Some(store_bytes_for(STORE_OUTAGE_S)),
         Some(FW_STORE_BYTES),
         "bytes",
-        "mib::hk default intervals; fw_core::config::TM_STORE_BYTES (48 KiB)",
+        "mib::hk default intervals; mib::memory::store::HK_SIZE (flash partition tm_store)",
     ));
     b
 }
