@@ -15,7 +15,9 @@
 use core::cell::RefCell;
 
 use embassy_futures::block_on;
-use embedded_storage::nor_flash::{ErrorType, MultiwriteNorFlash, NorFlash, NorFlashError, NorFlashErrorKind};
+use embedded_storage::nor_flash::{
+    ErrorType, MultiwriteNorFlash, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
+};
 use mib::config::MAX_PACKET_LEN;
 use mib_wire::header::TmPacket;
 use sequential_storage::cache::page_pointers::ArrayPagePointers;
@@ -29,9 +31,12 @@ use crate::tm::TmStore;
 pub type MibFlashStore<'a, F> =
     FlashStore<'a, F, { mib::memory::store::HK_SECTORS }, { mib::memory::store::REPORT_SECTORS }>;
 
-/// One blocking flash shared by the store's two queues. Each call borrows the flash for
-/// its own length only, and calls never overlap (every future completes when polled).
-pub struct Shared<'a, F>(&'a RefCell<F>);
+/// One blocking flash shared by the layouts that live on it: the store's two queues (async
+/// traits, every future completes when polled) and, on board A, the key and counter area
+/// (blocking traits). Each call borrows the flash for its own length only; calls never
+/// overlap, so a failed borrow ([`SharedError::Busy`]) is an internal error, refused like a
+/// flash error rather than a panic.
+pub struct Shared<'a, F>(pub &'a RefCell<F>);
 
 /// A flash error, or the flash already borrowed (cannot happen: calls never overlap).
 #[derive(Debug)]
@@ -53,7 +58,7 @@ impl<F: ErrorType> ErrorType for Shared<'_, F> {
     type Error = SharedError<F::Error>;
 }
 
-impl<F: NorFlash> Shared<'_, F> {
+impl<F: ErrorType> Shared<'_, F> {
     fn with<T>(&self, f: impl FnOnce(&mut F) -> Result<T, F::Error>) -> Result<T, SharedError<F::Error>> {
         let mut flash = self.0.try_borrow_mut().map_err(|_| SharedError::Busy)?;
         f(&mut flash).map_err(SharedError::Flash)
@@ -82,6 +87,29 @@ impl<F: NorFlash> embedded_storage_async::nor_flash::NorFlash for Shared<'_, F> 
 }
 
 impl<F: MultiwriteNorFlash> embedded_storage_async::nor_flash::MultiwriteNorFlash for Shared<'_, F> {}
+
+impl<F: ReadNorFlash> ReadNorFlash for Shared<'_, F> {
+    const READ_SIZE: usize = F::READ_SIZE;
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+        self.with(|f| f.read(offset, bytes))
+    }
+    fn capacity(&self) -> usize {
+        self.0.try_borrow().map_or(0, |f| f.capacity())
+    }
+}
+
+impl<F: NorFlash> NorFlash for Shared<'_, F> {
+    const WRITE_SIZE: usize = F::WRITE_SIZE;
+    const ERASE_SIZE: usize = F::ERASE_SIZE;
+    fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
+        self.with(|f| f.erase(from, to))
+    }
+    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+        self.with(|f| f.write(offset, bytes))
+    }
+}
+
+impl<F: MultiwriteNorFlash> MultiwriteNorFlash for Shared<'_, F> {}
 
 type AreaCache<const P: usize> = Cache<ArrayPageStates<P>, ArrayPagePointers<P>, Uncached>;
 type Queue<'a, F, const P: usize> = QueueStorage<Shared<'a, F>, AreaCache<P>>;
