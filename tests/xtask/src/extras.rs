@@ -383,11 +383,20 @@ fn store_bytes_for(secs: f64) -> f64 {
         .iter()
         .filter(|h| h.default_enabled)
         .map(|h| {
-            let pkt = (20 + h.data_len() + 2).next_multiple_of(word) + 8; // headers, data, PEC; item header
+            use mib::{
+                config::TIMESTAMP_LEN,
+                headers::{CRC_LEN, PRIMARY_HEADER_LEN, TM_SEC_HEADER_LEN},
+            };
+            let tm = PRIMARY_HEADER_LEN + TM_SEC_HEADER_LEN + TIMESTAMP_LEN + h.data_len() + CRC_LEN;
+            let pkt = tm.next_multiple_of(word) + STORE_ITEM_HEADER;
             pkt as f64 * secs * 1000.0 / h.default_interval_ms as f64
         })
         .sum()
 }
+
+/// `sequential-storage`'s queue item header for a 4-byte flash word
+/// (`Queue::item_overhead_size`, which obsw-core's store tests use for the same sum).
+const STORE_ITEM_HEADER: usize = 8;
 
 /// The outage the store must bridge (mib::memory::TM_STORE_OUTAGE_S: 2 hours).
 pub const STORE_OUTAGE_S: f64 = mib::memory::TM_STORE_OUTAGE_S as f64;
