@@ -17,7 +17,7 @@ pub(crate) use crate::duplicates::Outcome;
 use crate::failure::Failure;
 use crate::fdir::{self, Faults, Monitoring};
 use crate::modes::ModeTree;
-use crate::request::{Ctx, Request};
+use crate::request::Ctx;
 use crate::services::function::Running;
 use crate::services::hk::Hk;
 use crate::services::link::{LinkKeys, LinkSelect};
@@ -27,6 +27,7 @@ use crate::services::plan::OnboardPlan;
 use crate::services::scheduling::Schedule;
 use crate::services::team::Team;
 use crate::services::time::TimeReports;
+use crate::services::Request;
 use crate::time::OnboardTime;
 use crate::tm::{TmSink, TmStore};
 use mib_wire::RequestId;
@@ -509,28 +510,6 @@ impl<S: TmStore> Obsw<S> {
                 }
             }
         }
-    }
-
-    /// One arm per PUS service: each service file handles its own requests.
-    fn route(&mut self, now: u64, request: Request, sink: &mut impl TmSink) -> Result<Exec, Refused> {
-        match request {
-            Request::Test(r) => self.test_request(now, r, sink),
-            Request::Hk(r) => self.hk_request(now, r, sink),
-            Request::Event(r) => self.event_request(now, r, sink),
-            Request::Function(r) => return self.function_request(now, r, sink),
-            Request::Time(r) => self.time_request(now, r, sink),
-            Request::Scheduling(r) => self.scheduling_request(r)?,
-            Request::Monitoring(r) => self.monitoring_request(now, r, sink),
-            Request::Storage(r) => self.storage_request(now, r, sink)?,
-            Request::EventAction(r) => self.event_action_request(now, r, sink),
-            Request::Parameter(r) => self.parameter_request(now, r, sink)?,
-            Request::Mode(r) => return self.mode_request(now, r, sink),
-            Request::Modules(r) => self.modules_request(now, r, sink)?,
-            Request::Team(r) => self.team_request(now, r, sink)?,
-            Request::Link(r) => self.link_request(now, r, sink)?,
-            Request::Plan(r) => self.plan_request(now, r, sink)?,
-        }
-        Ok(Exec::Done)
     }
 
     /// Records a failed request and raises TC_REJECTED.
