@@ -263,6 +263,12 @@ impl<S: TmStore> Downlink<S> {
         }
     }
 
+    /// Emits a typed event (`mib_wire::ev`: every field named at the call) unless it is
+    /// disabled or throttled.
+    pub fn raise<E: mib_wire::EventArgs>(&mut self, now: u64, e: E, sink: &mut impl TmSink) {
+        self.event(now, E::ID, e.values().as_ref(), sink);
+    }
+
     /// Emits an event report unless the event is disabled or throttled.
     pub fn event(&mut self, now: u64, id: u16, args: &[i64], sink: &mut impl TmSink) {
         let Some(e) = EventIndex::of(id) else { return };

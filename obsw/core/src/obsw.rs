@@ -304,7 +304,7 @@ impl<S: TmStore> Obsw<S> {
     /// table codec. A reordered MIB parameter list cannot swap values: every field is
     /// named at the call.
     pub(crate) fn raise<E: EventArgs>(&mut self, now: u64, e: E, sink: &mut impl TmSink) {
-        self.event(now, E::ID, e.values().as_ref(), sink);
+        self.dl.raise(now, e, sink);
     }
 
     /// An event by ID with its values in MIB order, for the table-driven paths whose event
@@ -584,6 +584,58 @@ impl<S: TmStore> Obsw<S> {
         self.plan_tick(now, sink);
         self.out = out;
         &self.out
+    }
+}
+
+impl<S: TmStore> Obsw<S> {
+    /// Reports every enabled HK structure whose interval elapsed.
+    pub(crate) fn hk_tick(&mut self, now: u64, sink: &mut impl TmSink) {
+        for i in 0..mib::hk::HK_STRUCTS.len() {
+            if self.hk.take_due(now, i) {
+                self.hk_report(now, i, sink);
+            }
+        }
+    }
+
+    /// One HK report: the structure's parameters, each from the one component its MIB
+    /// row names ([`Self::param_value`]).
+    pub(crate) fn hk_report(&mut self, now: u64, index: usize, sink: &mut impl TmSink) {
+        // One table-driven loop over the structure's parameters for every SID (the wire
+        // crate's codec), not the typed `mib_wire::Hk` per structure: 4.5 KB of flash on
+        // board A (mib/wire/README.md, "One codec").
+        // A parameter without a valid value now travels as 0. One that no component
+        // supplies cannot be in a structure (a test asks every component for every HK
+        // parameter); were one there, the report would not be sent rather than carry a 0
+        // nobody measured.
+        let mut body = [0u8; config::MAX_PACKET_LEN];
+        let mut supplied = true;
+        let value = |p| match self.param_value(p) {
+            Ok(v) => v.unwrap_or(0),
+            Err(_) => {
+                supplied = false;
+                0
+            }
+        };
+        let def = &mib::hk::HK_STRUCTS[index];
+        if let Ok(n) = mib_wire::codec::encode_hk(def, value, &mut body) {
+            if supplied {
+                use mib_wire::tm::HkReport;
+                self.dl
+                    .emit(now, HkReport::SERVICE, HkReport::SUBSERVICE, &body[..n], sink);
+            }
+        }
+    }
+
+    /// Runs every scheduled TC whose release time has come through the TC path.
+    pub(crate) fn release_schedule(&mut self, now: u64, sink: &mut impl TmSink) {
+        while let Some(tc) = self.sched.take_released(now) {
+            self.handle_onboard_tc(now, &tc, sink);
+        }
+    }
+
+    /// Sends the periodic time report when it is due.
+    pub(crate) fn time_tick(&mut self, now: u64, sink: &mut impl TmSink) {
+        self.time_reports.tick(now, &mut self.dl, sink);
     }
 }
 

@@ -5,9 +5,8 @@ use mib::events::EVENTS;
 use mib_wire::tm;
 
 use crate::accept::Tc;
-use crate::downlink::EventIndex;
+use crate::downlink::{Downlink, EventIndex};
 use crate::failure::Failure;
-use crate::obsw::Obsw;
 use crate::request::unknown;
 use crate::tm::{TmSink, TmStore};
 use mib_wire::args;
@@ -34,24 +33,24 @@ impl Request {
     }
 }
 
-impl<S: TmStore> Obsw<S> {
-    pub(crate) fn event_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) {
-        match r {
-            Request::Enable(e) => self.dl.events.set_enabled(e, true),
-            Request::Disable(e) => self.dl.events.set_enabled(e, false),
-            Request::ReportDisabled => {
-                let mut r = tm::DisabledEvents {
-                    events: heapless::Vec::new(),
-                };
-                for e in EVENTS {
-                    let disabled = EventIndex::of(e.id).is_some_and(|i| !self.dl.events.is_enabled(i));
-                    // The list holds every event of the MIB (N_EVENTS <= its capacity).
-                    if disabled && r.events.push(tm::DisabledEventsEvents { event_id: e.id }).is_err() {
-                        break;
-                    }
+/// Event reporting's state is the downlink's enable mask (`Downlink::events`), which every
+/// emission asks.
+pub fn handle<S: TmStore>(now: u64, r: Request, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
+    match r {
+        Request::Enable(e) => dl.events.set_enabled(e, true),
+        Request::Disable(e) => dl.events.set_enabled(e, false),
+        Request::ReportDisabled => {
+            let mut r = tm::DisabledEvents {
+                events: heapless::Vec::new(),
+            };
+            for e in EVENTS {
+                let disabled = EventIndex::of(e.id).is_some_and(|i| !dl.events.is_enabled(i));
+                // The list holds every event of the MIB (N_EVENTS <= its capacity).
+                if disabled && r.events.push(tm::DisabledEventsEvents { event_id: e.id }).is_err() {
+                    break;
                 }
-                self.emit_tm(now, r, sink);
             }
+            dl.emit_tm(now, &r, sink);
         }
     }
 }

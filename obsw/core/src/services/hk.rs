@@ -2,13 +2,10 @@
 //! enable/disable, one-shot and collection interval.
 
 use mib::hk::HK_STRUCTS;
-use mib_wire::tm;
 
 use crate::accept::Tc;
 use crate::failure::Failure;
-use crate::obsw::Obsw;
 use crate::request::unknown;
-use crate::tm::{TmSink, TmStore};
 
 const N_HK: usize = HK_STRUCTS.len();
 
@@ -85,59 +82,36 @@ impl Hk {
     }
 }
 
-impl<S: TmStore> Obsw<S> {
-    pub(crate) fn hk_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) {
+impl Hk {
+    /// Applies a request; the index of a structure to report now (a one-shot), whose
+    /// values the obsw gathers from their sources (`Obsw::hk_report`).
+    pub fn request(&mut self, now: u64, r: Request) -> Option<usize> {
         match r {
             Request::Enable(HkIndex(i)) => {
-                let h = &mut self.hk.s[i];
+                let h = &mut self.s[i];
                 h.enabled = true;
                 h.next = now + h.interval as u64;
             }
-            Request::Disable(HkIndex(i)) => self.hk.s[i].enabled = false,
-            Request::OneShot(HkIndex(i)) => self.hk_report(now, i, sink),
+            Request::Disable(HkIndex(i)) => self.s[i].enabled = false,
+            Request::OneShot(HkIndex(i)) => return Some(i),
             Request::SetInterval(HkIndex(i), ms) => {
-                let h = &mut self.hk.s[i];
+                let h = &mut self.s[i];
                 h.interval = ms;
                 h.next = now + ms as u64;
             }
         }
+        None
     }
 
-    fn hk_report(&mut self, now: u64, index: usize, sink: &mut impl TmSink) {
-        // One table-driven loop over the structure's parameters for every SID (the wire
-        // crate's codec), not the typed `mib_wire::Hk` per structure: 4.5 KB of flash on
-        // board A (mib/wire/README.md, "One codec").
-        // A parameter without a valid value now travels as 0. One that no component
-        // supplies cannot be in a structure (a test asks every component for every HK
-        // parameter); were one there, the report would not be sent rather than carry a 0
-        // nobody measured.
-        let mut body = [0u8; mib::config::MAX_PACKET_LEN];
-        let mut supplied = true;
-        let value = |p| match self.param_value(p) {
-            Ok(v) => v.unwrap_or(0),
-            Err(_) => {
-                supplied = false;
-                0
-            }
+    /// Whether structure `i` (an index of `HK_STRUCTS`) is enabled and its interval
+    /// elapsed at `now`; if so, its next report is scheduled.
+    pub fn take_due(&mut self, now: u64, i: usize) -> bool {
+        let Some(h) = self.s.get_mut(i).filter(|h| h.enabled && now >= h.next) else {
+            return false;
         };
-        if let Ok(n) = mib_wire::codec::encode_hk(&HK_STRUCTS[index], value, &mut body) {
-            if supplied {
-                self.dl
-                    .emit(now, tm::HkReport::SERVICE, tm::HkReport::SUBSERVICE, &body[..n], sink);
-            }
-        }
-    }
-
-    /// Reports every enabled structure whose interval elapsed.
-    pub(crate) fn hk_tick(&mut self, now: u64, sink: &mut impl TmSink) {
-        for i in 0..N_HK {
-            let h = self.hk.s[i];
-            if h.enabled && now >= h.next {
-                self.hk_report(now, i, sink);
-                let next = h.next + h.interval as u64;
-                self.hk.s[i].next = if next <= now { now + h.interval as u64 } else { next };
-            }
-        }
+        let next = h.next + h.interval as u64;
+        h.next = if next <= now { now + h.interval as u64 } else { next };
+        true
     }
 }
 

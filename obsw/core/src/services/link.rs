@@ -1,14 +1,14 @@
 //! Space link management (mission service 212, docs/space-link.md): key change without downtime.
 //! LINK_SPI_SELECT chooses the TM SPI and the TC SPIs accepted. The core checks the
 //! selection against the keys the platform reported ([`LinkKeys`]), answers PUS 1, raises
-//! LINK_SPI_SELECTED and leaves the selection in [`Obsw::link_select`] for the platform's
+//! LINK_SPI_SELECTED and leaves the selection in `Obsw::link_select` for the platform's
 //! frame endpoint to apply (and store) before it handles the next input.
 
 use mib::link::sdls::{TC_SPIS, TM_SPIS};
 
 use crate::accept::Tc;
+use crate::downlink::Downlink;
 use crate::failure::Failure;
-use crate::obsw::Obsw;
 use crate::request::unknown;
 use crate::tm::{TmSink, TmStore};
 
@@ -61,31 +61,33 @@ impl Request {
     }
 }
 
-impl<S: TmStore> Obsw<S> {
-    pub(crate) fn link_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) -> Result<(), Failure> {
+impl LinkKeys {
+    /// Checks a selection against the keys held; the selection for the platform to apply.
+    pub fn select<S: TmStore>(
+        &self,
+        now: u64,
+        r: Request,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) -> Result<LinkSelect, Failure> {
         let Request::Select(sel) = r;
         let has = |spis: &[u16], mask: u8, spi: u16| {
             spis.iter()
                 .position(|s| *s == spi)
                 .is_some_and(|i| mask & (1 << i) != 0)
         };
-        if !has(&TM_SPIS, self.link_keys.tm, sel.tm_spi) {
+        if !has(&TM_SPIS, self.tm, sel.tm_spi) {
             return Err(Failure::no_key_for_spi(sel.tm_spi));
         }
-        if let Some(s) = sel
-            .tc_spi_list()
-            .iter()
-            .find(|s| !has(&TC_SPIS, self.link_keys.tc, **s))
-        {
+        if let Some(s) = sel.tc_spi_list().iter().find(|s| !has(&TC_SPIS, self.tc, **s)) {
             return Err(Failure::no_key_for_spi(*s));
         }
-        self.link_select = Some(sel);
         let e = mib_wire::ev::LinkSpiSelected {
             tm_spi: sel.tm_spi,
             tc_spis: sel.tc_spis,
         };
-        self.raise(now, e, sink);
-        Ok(())
+        dl.raise(now, e, sink);
+        Ok(sel)
     }
 }
 

@@ -77,20 +77,24 @@ impl<S: TmStore> Obsw<S> {
     /// One arm per PUS service: each service file handles its own requests.
     pub(crate) fn route(&mut self, now: u64, request: Request, sink: &mut impl TmSink) -> Result<Exec, Refused> {
         match request {
-            Request::Test(r) => self.test_request(now, r, sink),
-            Request::Hk(r) => self.hk_request(now, r, sink),
-            Request::Event(r) => self.event_request(now, r, sink),
+            Request::Test(r) => test::handle(now, r, &mut self.dl, sink),
+            Request::Hk(r) => {
+                if let Some(i) = self.hk.request(now, r) {
+                    self.hk_report(now, i, sink);
+                }
+            }
+            Request::Event(r) => event::handle(now, r, &mut self.dl, sink),
             Request::Function(r) => return self.function_request(now, r, sink),
-            Request::Time(r) => self.time_request(now, r, sink),
-            Request::Scheduling(r) => self.scheduling_request(r)?,
+            Request::Time(r) => self.time_reports.request(now, r, &mut self.dl, sink),
+            Request::Scheduling(r) => self.sched.request(r, &self.dl.tmw.time)?,
             Request::Monitoring(r) => self.monitoring_request(now, r, sink),
             Request::Storage(r) => self.storage_request(now, r, sink)?,
             Request::EventAction(r) => self.event_action_request(now, r, sink),
-            Request::Parameter(r) => self.parameter_request(now, r, sink)?,
+            Request::Parameter(r) => parameter::handle(now, r, &mut self.ctrl, &mut self.dl, sink)?,
             Request::Mode(r) => return self.mode_request(now, r, sink),
             Request::Modules(r) => self.modules_request(now, r, sink)?,
             Request::Team(r) => self.team_request(now, r, sink)?,
-            Request::Link(r) => self.link_request(now, r, sink)?,
+            Request::Link(r) => self.link_select = Some(self.link_keys.select(now, r, &mut self.dl, sink)?),
             Request::Plan(r) => self.plan_request(now, r, sink)?,
         }
         Ok(Exec::Done)

@@ -3,10 +3,11 @@
 
 use mib::tunables::TunableDef;
 use mib_wire::tm;
+use mmic_domain::controller::Controller;
 
 use crate::accept::Tc;
+use crate::downlink::Downlink;
 use crate::failure::Failure;
-use crate::obsw::Obsw;
 use crate::request::unknown;
 use crate::tm::{TmSink, TmStore};
 
@@ -38,28 +39,29 @@ impl Request {
     }
 }
 
-impl<S: TmStore> Obsw<S> {
-    pub(crate) fn parameter_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) -> Result<(), Failure> {
-        let t = match r {
-            Request::Report(t) => t,
-            Request::Set(t, v) => {
-                self.ctrl
-                    .set_tunable(t.id, v)
-                    .map_err(|_| Failure::param_out_of_range(t.id, v))?;
-                t
-            }
-        };
-        let v = self.ctrl.tunable(t.id).ok_or(Failure::unknown_parameter(t.id))?;
-        self.emit_tm(
-            now,
-            tm::ParamValue {
-                param_id: t.id,
-                value: v,
-            },
-            sink,
-        );
-        Ok(())
-    }
+/// The tunables are the domain controller's state: PUS 20 sets and reports them there.
+pub fn handle<S: TmStore>(
+    now: u64,
+    r: Request,
+    ctrl: &mut Controller,
+    dl: &mut Downlink<S>,
+    sink: &mut impl TmSink,
+) -> Result<(), Failure> {
+    let t = match r {
+        Request::Report(t) => t,
+        Request::Set(t, v) => {
+            ctrl.set_tunable(t.id, v)
+                .map_err(|_| Failure::param_out_of_range(t.id, v))?;
+            t
+        }
+    };
+    let v = ctrl.tunable(t.id).ok_or(Failure::unknown_parameter(t.id))?;
+    let r = tm::ParamValue {
+        param_id: t.id,
+        value: v,
+    };
+    dl.emit_tm(now, &r, sink);
+    Ok(())
 }
 
 #[cfg(test)]

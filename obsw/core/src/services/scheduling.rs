@@ -8,10 +8,8 @@ use mib::FailureCode;
 
 use crate::accept::{accept, Tc, PRIMARY_LEN};
 use crate::failure::Failure;
-use crate::obsw::Obsw;
 use crate::request::{unknown, Ctx};
 use crate::time::OnboardTime;
-use crate::tm::{TmSink, TmStore};
 
 /// The two forms of TC[11,4] (`mib::tc::sched_cuc`): the MIB's own (N, CDS release
 /// times with their P-field) and Yamcs' (sub-schedule ID, N, CUC release times with an
@@ -164,9 +162,12 @@ fn split_activity(form: Form, data: &[u8]) -> Option<(&[u8], &[u8], &[u8])> {
     Some((release, tc, tail))
 }
 
+/// A scheduled TC's bytes.
+pub type ScheduledTc = heapless::Vec<u8, { config::MAX_SCHEDULED_TC_LEN }>;
+
 struct Scheduled {
     release: u64,
-    tc: heapless::Vec<u8, { config::MAX_SCHEDULED_TC_LEN }>,
+    tc: ScheduledTc,
 }
 
 /// The time-based schedule.
@@ -213,12 +214,13 @@ impl Default for Schedule {
     }
 }
 
-impl<S: TmStore> Obsw<S> {
-    pub(crate) fn scheduling_request(&mut self, r: Request) -> Result<(), Failure> {
+impl Schedule {
+    /// Applies a request; an insert takes release times in the on-board `time`.
+    pub fn request(&mut self, r: Request, time: &OnboardTime) -> Result<(), Failure> {
         match r {
-            Request::Enable => self.sched.enabled = true,
-            Request::Disable => self.sched.enabled = false,
-            Request::Reset => self.sched.items.clear(),
+            Request::Enable => self.enabled = true,
+            Request::Disable => self.enabled = false,
+            Request::Reset => self.items.clear(),
             Request::Insert {
                 form,
                 count,
@@ -230,14 +232,11 @@ impl<S: TmStore> Obsw<S> {
                     let Some((release, inner, tail)) = split_activity(form, rest) else {
                         return Err(Failure::scheduled_tc_invalid(FailureCode::MALFORMED_PACKET));
                     };
-                    let at = form
-                        .release_at(release, &self.dl.tmw.time)
-                        .ok_or(Failure::release_time_passed(0))?;
+                    let at = form.release_at(release, time).ok_or(Failure::release_time_passed(0))?;
                     let mut tc = heapless::Vec::new();
                     tc.extend_from_slice(inner)
                         .map_err(|_| Failure::scheduled_tc_invalid(FailureCode::MALFORMED_PACKET))?;
-                    self.sched
-                        .items
+                    self.items
                         .push(Scheduled { release: at, tc })
                         .map_err(|_| Failure::schedule_full(config::SCHEDULE_CAPACITY))?;
                     rest = tail;
@@ -247,15 +246,15 @@ impl<S: TmStore> Obsw<S> {
         Ok(())
     }
 
-    /// Runs every scheduled TC whose release time has come.
-    pub(crate) fn release_schedule(&mut self, now: u64, sink: &mut impl TmSink) {
-        if !self.sched.enabled {
-            return;
+    /// The next scheduled TC whose release time has come, taken off the schedule (the
+    /// obsw runs it through the TC path); `None` when none is due or the schedule is
+    /// disabled.
+    pub fn take_released(&mut self, now: u64) -> Option<ScheduledTc> {
+        if !self.enabled {
+            return None;
         }
-        while let Some(i) = self.sched.items.iter().position(|s| s.release <= now) {
-            let s = self.sched.items.swap_remove(i);
-            self.handle_onboard_tc(now, &s.tc, sink);
-        }
+        let i = self.items.iter().position(|s| s.release <= now)?;
+        Some(self.items.swap_remove(i).tc)
     }
 }
 

@@ -3,8 +3,8 @@
 use mib_wire::tm;
 
 use crate::accept::Tc;
+use crate::downlink::Downlink;
 use crate::failure::Failure;
-use crate::obsw::Obsw;
 use crate::request::unknown;
 use crate::tm::{TmSink, TmStore};
 
@@ -23,11 +23,10 @@ impl Request {
     }
 }
 
-impl<S: TmStore> Obsw<S> {
-    pub(crate) fn test_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) {
-        match r {
-            Request::Ping => self.emit_tm(now, tm::PingReply {}, sink),
-        }
+/// The connection test has no state: it answers through the downlink.
+pub fn handle<S: TmStore>(now: u64, r: Request, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
+    match r {
+        Request::Ping => dl.emit_tm(now, &tm::PingReply {}, sink),
     }
 }
 

@@ -5,8 +5,8 @@ use mib::config;
 use mib_wire::tm;
 
 use crate::accept::Tc;
+use crate::downlink::Downlink;
 use crate::failure::Failure;
-use crate::obsw::Obsw;
 use crate::request::unknown;
 use crate::tm::{TmSink, TmStore};
 
@@ -55,31 +55,32 @@ impl Default for TimeReports {
     }
 }
 
-impl<S: TmStore> Obsw<S> {
-    pub(crate) fn time_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) {
+impl TimeReports {
+    pub fn request<S: TmStore>(&mut self, now: u64, r: Request, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
         match r {
             Request::SetRate(exp) => {
-                self.time_reports.exp = exp;
-                self.time_reports.next = now + self.time_reports.period();
-                self.time_report(now, sink);
+                self.exp = exp;
+                self.next = now + self.period();
+                self.report(now, dl, sink);
             }
-            Request::ReportNow => self.time_report(now, sink),
+            Request::ReportNow => self.report(now, dl, sink),
         }
     }
 
-    pub(crate) fn time_tick(&mut self, now: u64, sink: &mut impl TmSink) {
-        if now >= self.time_reports.next {
-            self.time_report(now, sink);
-            self.time_reports.next = now + self.time_reports.period();
+    /// Sends the periodic report when it is due.
+    pub fn tick<S: TmStore>(&mut self, now: u64, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
+        if now >= self.next {
+            self.report(now, dl, sink);
+            self.next = now + self.period();
         }
     }
 
-    fn time_report(&mut self, now: u64, sink: &mut impl TmSink) {
+    fn report<S: TmStore>(&self, now: u64, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
         let r = tm::TimeReport {
-            rate_exp: self.time_reports.exp,
-            time: self.dl.tmw.time.cds_time(now),
+            rate_exp: self.exp,
+            time: dl.tmw.time.cds_time(now),
         };
-        self.emit_tm(now, r, sink);
+        dl.emit_tm(now, &r, sink);
     }
 }
 
