@@ -2,7 +2,15 @@
 //! state, its reports, and its unit tests. This file is the one table that joins them to
 //! the TC path: the [`Request`] of every service, its parse by service number, and
 //! [`Obsw::route`], the one arm per service that hands an accepted request to its
-//! component. A new service is a file here and one line in each of the three.
+//! component. A new service is a file here and one line in each of the three, plus its
+//! row of [`COMPONENTS`].
+//!
+//! [`COMPONENTS`] declares each component's interface: the PUS service whose TCs it takes
+//! and the parameter sources it answers for (`mib::params::Source`; the MIB's parameter
+//! rows name them, `Obsw::param_from` asks them). Its events and reports are the MIB's
+//! rows its code names through `mib_wire::ev` and `mib_wire::tm`. Tests check the table
+//! against the MIB: every TC the MIB defines reaches a handler, every source is one
+//! component's, every component's service is one of the MIB's.
 
 pub mod event;
 pub mod event_action;
@@ -20,6 +28,7 @@ pub mod team;
 pub mod test;
 pub mod time;
 
+use mib::params::Source;
 use mib::tc::service;
 
 use crate::accept::Tc;
@@ -27,6 +36,46 @@ use crate::failure::Failure;
 use crate::obsw::{Exec, Obsw, Refused};
 use crate::request::Ctx;
 use crate::tm::{TmSink, TmStore};
+
+/// A component's declared interface (see the module's documentation).
+#[derive(Clone, Copy, Debug)]
+pub struct Contract {
+    pub name: &'static str,
+    /// The PUS service whose TCs it takes (`None`: it takes no TC).
+    pub service: Option<u8>,
+    /// The parameter sources it is.
+    pub sources: &'static [Source],
+}
+
+const fn c(name: &'static str, service: Option<u8>, sources: &'static [Source]) -> Contract {
+    Contract { name, service, sources }
+}
+
+/// Every component of the obsw: the services of this folder, and the parts of the obsw
+/// and the domain that supply parameters without taking TCs of their own.
+pub const COMPONENTS: &[Contract] = &[
+    c("test", Some(service::TEST), &[]),
+    c("hk", Some(service::HOUSEKEEPING), &[]),
+    c("event", Some(service::EVENT), &[]),
+    c("function", Some(service::FUNCTION), &[]),
+    c("time", Some(service::TIME), &[Source::Clock]),
+    c("scheduling", Some(service::SCHEDULING), &[Source::Scheduler]),
+    c("monitoring", Some(service::MONITORING), &[Source::Monitoring]),
+    c("storage", Some(service::STORAGE), &[]),
+    c("event_action", Some(service::EVENT_ACTION), &[]),
+    c("parameter", Some(service::PARAMETER), &[]),
+    c("mode", Some(service::MODE), &[Source::Modes]),
+    c("modules", Some(service::MODULES), &[Source::Modules]),
+    c("team", Some(service::TEAM), &[Source::Team]),
+    c("link", Some(service::SPACE_LINK), &[Source::SpaceLink]),
+    c("plan", Some(service::PLAN), &[Source::Plan]),
+    c("fdir", None, &[Source::Faults]),
+    c("tc path", None, &[Source::Counters]),
+    c("downlink", None, &[Source::Downlink]),
+    c("platform I/O", None, &[Source::Io]),
+    c("domain: board A", None, &[Source::BoardA]),
+    c("domain: board B heartbeat", None, &[Source::BoardB]),
+];
 
 /// An accepted request, one variant per PUS service.
 #[derive(Clone, Copy, Debug)]
@@ -98,5 +147,82 @@ impl<S: TmStore> Obsw<S> {
             Request::Plan(r) => self.plan_request(now, r, sink)?,
         }
         Ok(Exec::Done)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accept::tests::tc_bytes;
+    use crate::accept::Ack;
+    use mib::FailureCode;
+
+    /// The component that takes the TCs of `svc`.
+    fn taking(svc: u8) -> Vec<&'static str> {
+        COMPONENTS
+            .iter()
+            .filter(|c| c.service == Some(svc))
+            .map(|c| c.name)
+            .collect()
+    }
+
+    // verifies: PUS-1-05
+    #[test]
+    fn every_tc_of_the_mib_reaches_the_handler_of_exactly_one_component() {
+        let ctx = Ctx {
+            apid: 0x101,
+            time: crate::time::OnboardTime::new(0),
+            now: 0,
+            sched_free: 1,
+        };
+        for def in mib::tc::TCS {
+            assert_eq!(taking(def.service).len(), 1, "{}: {:?}", def.name, taking(def.service));
+            let raw = tc_bytes(0x101, 1, def.service, def.subservice, &def.function.to_be_bytes());
+            let tc = Tc {
+                req: mib_wire::RequestId::of_tc(&raw).unwrap(),
+                ack: Ack::ALL,
+                service: def.service,
+                subservice: def.subservice,
+                source_id: 0,
+                def,
+                args: [0; mib_wire::codec::MAX_ARGS],
+                rest: &[],
+                raw: &raw,
+            };
+            // Zero arguments may be refused by the service (an unknown SID, a value out
+            // of range), never as a TC nobody handles.
+            if let Err(f) = Request::parse(&tc, &ctx) {
+                let code = f.code();
+                assert!(
+                    code != FailureCode::UNKNOWN_SERVICE && code != FailureCode::UNKNOWN_SUBSERVICE,
+                    "{} has no handler: {}",
+                    def.name,
+                    code.name()
+                );
+            }
+        }
+    }
+
+    // verifies: PUS-3-05
+    #[test]
+    fn every_parameter_source_and_service_is_one_components() {
+        for s in Source::ALL {
+            let owners: Vec<_> = COMPONENTS
+                .iter()
+                .filter(|c| c.sources.contains(&s))
+                .map(|c| c.name)
+                .collect();
+            assert_eq!(owners.len(), 1, "{s:?}: {owners:?}");
+        }
+        for c in COMPONENTS {
+            if let Some(svc) = c.service {
+                assert!(
+                    mib::tc::TCS.iter().any(|d| d.service == svc),
+                    "{}: service {svc}",
+                    c.name
+                );
+                assert_eq!(taking(svc), [c.name]);
+            }
+        }
     }
 }
