@@ -675,6 +675,18 @@ fn json_round_trips_against_the_tables() {
     let p = &v["parameters"][0];
     assert_eq!(p["calibration"]["scale"].as_f64(), Some(PARAMS[0].calib.scale));
     assert_eq!(v["packet_layout"]["tm_source_data_offset"], 20);
+    // The configuration by the side it binds: flight, ground, host.
+    let config = v["config"].as_object().unwrap();
+    assert_eq!(config.keys().collect::<Vec<_>>(), ["flight", "ground", "host"]);
+    assert_eq!(
+        v["config"]["flight"]["control_period_ms"],
+        mib::config::CONTROL_PERIOD_MS
+    );
+    assert_eq!(
+        v["config"]["ground"]["ground_ack_timeout_ms"],
+        mib::ground_config::GROUND_ACK_TIMEOUT_MS
+    );
+    assert_eq!(v["config"]["host"]["default_port"], mib::host_config::DEFAULT_PORT);
 }
 
 // verifies: ICD-04
