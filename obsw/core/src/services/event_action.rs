@@ -7,8 +7,9 @@ use mib::modes::robot_mode;
 use mib_wire::tm;
 
 use crate::accept::Tc;
+use crate::downlink::Downlink;
 use crate::failure::Failure;
-use crate::fdir::Response;
+use crate::fdir::{Faults, Response};
 use crate::obsw::Obsw;
 use crate::request::unknown;
 use crate::tm::{TmSink, TmStore};
@@ -40,28 +41,30 @@ impl Request {
     }
 }
 
-impl<S: TmStore> Obsw<S> {
-    pub(crate) fn event_action_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) {
+impl Faults {
+    /// Applies a PUS 19 request to the event-action links; their report goes out through
+    /// the downlink.
+    pub fn request<S: TmStore>(&mut self, now: u64, r: Request, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
         match r {
             // The event was looked up in the fault table at acceptance.
             Request::Enable(ev) => {
-                self.faults.set_link_enabled(ev, true);
+                self.set_link_enabled(ev, true);
             }
             Request::Disable(ev) => {
-                self.faults.set_link_enabled(ev, false);
+                self.set_link_enabled(ev, false);
             }
-            Request::Report => self.report_links(now, sink),
+            Request::Report => self.report_links(now, dl, sink),
         }
     }
 
-    fn report_links(&mut self, now: u64, sink: &mut impl TmSink) {
+    fn report_links<S: TmStore>(&self, now: u64, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
         let mut r = tm::EaDefinitions {
             links: heapless::Vec::new(),
         };
         for (i, f) in FAULTS.iter().enumerate() {
             let link = tm::EaDefinitionsLinks {
                 event: f.event,
-                enabled: self.faults.link_enabled(i) as u8,
+                enabled: self.link_enabled(i) as u8,
                 mode: f.mode,
                 deferred: (f.timing == mib::fdir::Timing::AfterMotion) as u8,
             };
@@ -70,9 +73,11 @@ impl<S: TmStore> Obsw<S> {
                 break;
             }
         }
-        self.emit_tm(now, r, sink);
+        dl.emit_tm(now, &r, sink);
     }
+}
 
+impl<S: TmStore> Obsw<S> {
     /// Raises a fault event from its typed parameters and applies its event-action link.
     pub(crate) fn raise_fault<E: mib_wire::EventArgs>(&mut self, now: u64, e: E, sink: &mut impl TmSink) {
         self.fault(now, E::ID, e.values().as_ref(), sink);

@@ -9,6 +9,7 @@ use mib::params::pid;
 use mib_wire::tm;
 
 use crate::accept::Tc;
+use crate::downlink::Downlink;
 use crate::failure::Failure;
 use crate::fdir::{self, Monitor, Monitoring, N_MONITORS};
 use crate::obsw::Obsw;
@@ -78,11 +79,13 @@ impl Request {
     }
 }
 
-impl<S: TmStore> Obsw<S> {
-    pub(crate) fn monitoring_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) {
+impl Monitoring {
+    /// Applies a PUS 12 request to the monitors; the definitions report goes out through
+    /// the downlink.
+    pub fn request<S: TmStore>(&mut self, now: u64, r: Request, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
         match r {
             Request::Enable(i) | Request::Disable(i) => {
-                let m = self.monitoring.at(i);
+                let m = self.at(i);
                 m.enabled = matches!(r, Request::Enable(_));
                 m.state = fdir::check::OK;
             }
@@ -92,20 +95,20 @@ impl<S: TmStore> Obsw<S> {
                 high,
                 persistence,
             } => {
-                let m = self.monitoring.at(mon);
+                let m = self.at(mon);
                 m.def.low = low;
                 m.def.high = high;
                 m.def.persistence = persistence;
             }
-            Request::Report => self.report_monitors(now, sink),
+            Request::Report => self.report(now, dl, sink),
         }
     }
 
-    fn report_monitors(&mut self, now: u64, sink: &mut impl TmSink) {
+    fn report<S: TmStore>(&self, now: u64, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
         let mut r = tm::MonDefinitions {
             monitors: heapless::Vec::new(),
         };
-        for m in &self.monitoring.mons {
+        for m in &self.mons {
             let d = tm::MonDefinitionsMonitors {
                 monitor_id: m.def.id,
                 param: m.def.param,
@@ -120,9 +123,11 @@ impl<S: TmStore> Obsw<S> {
                 break;
             }
         }
-        self.emit_tm(now, r, sink);
+        dl.emit_tm(now, &r, sink);
     }
+}
 
+impl<S: TmStore> Obsw<S> {
     /// Runs the idle-phase monitors once; returns the fault event if one fired.
     pub(crate) fn idle_check(&mut self, now: u64, sink: &mut impl TmSink) -> Option<u16> {
         self.run_monitors(now, |p| p == Phase::Idle, sink)
