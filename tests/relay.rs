@@ -116,6 +116,9 @@ pub struct DirCounts {
     pub dropped: AtomicU64,
     pub duplicated: AtomicU64,
     pub corrupted: AtomicU64,
+    /// When a packet last went onward unaltered (a corrupted copy fails the receiver's
+    /// CRC: it is not heard).
+    pub last_intact: Mutex<Option<Instant>>,
 }
 
 /// A copy of the counters at one moment.
@@ -222,6 +225,11 @@ pub fn decide(rng: &mut Rng, f: &Faults, packet: &[u8], c: &DirCounts) -> Fate {
         out.push(p);
     }
     c.forwarded.fetch_add(out.len() as u64, Ordering::Relaxed);
+    if out.iter().any(|p| p == packet) {
+        if let Ok(mut t) = c.last_intact.lock() {
+            *t = Some(Instant::now());
+        }
+    }
     Fate::Send(out)
 }
 
@@ -308,6 +316,12 @@ impl Relay {
     /// forwarded to `to` with the downlink's faults.
     pub fn add_downlink_route(&mut self, listen: SocketAddr, to: SocketAddr) -> Result<SocketAddr, String> {
         let sock = UdpSocket::bind(listen).map_err(|e| format!("cannot bind UDP {listen}: {e}"))?;
+        self.add_downlink_socket(sock, to)
+    }
+
+    /// [`Relay::add_downlink_route`] on a socket bound before (to give its address to an
+    /// obsw started before the relay, which needs the obsw's frame port).
+    pub fn add_downlink_socket(&mut self, sock: UdpSocket, to: SocketAddr) -> Result<SocketAddr, String> {
         let addr = sock.local_addr().map_err(|e| e.to_string())?;
         sock.set_read_timeout(Some(POLL)).map_err(|e| e.to_string())?;
         let out = UdpSocket::bind(SocketAddr::from(([127, 0, 0, 1], 0))).map_err(|e| e.to_string())?;

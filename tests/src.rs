@@ -5,8 +5,8 @@ pub mod relay;
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpStream, UdpSocket};
-use std::path::PathBuf;
-use std::process::{Child, Command, Stdio};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 use arbitrary_int::{u11, u14};
@@ -76,6 +76,10 @@ pub struct Obsw {
     pub tcp: SocketAddr,
     pub sim_ctl: SocketAddr,
     pub apid: u16,
+    /// The frame port it bound (`--frame-udp`, from its READY line): give `--frame-udp
+    /// 127.0.0.1:0` and read the port here — no free port probed and bound later, which
+    /// another process may take in between.
+    pub frame_udp: Option<SocketAddr>,
 }
 
 impl Obsw {
@@ -118,13 +122,54 @@ impl Obsw {
                 .to_string()
         };
         let apid = u16::from_str_radix(field("apid").trim_start_matches("0x"), 16).expect("apid");
+        let frame_udp = line
+            .split_whitespace()
+            .find_map(|w| w.strip_prefix("frame_udp="))
+            .map(|a| a.parse().expect("frame_udp address"));
         Obsw {
+            frame_udp,
             udp: field("udp").parse().unwrap(),
             tcp: field("tcp").parse().unwrap(),
             sim_ctl: field("sim_ctl").parse().unwrap(),
             apid,
             child,
         }
+    }
+
+    /// Robot 1 over UDP transfer frames with the keys `ground keys create` made in `keys`
+    /// (its `robot-1` folder: TC SPI 1, TM SPI 17, the link state file), TM frames to
+    /// `tm_to`, on a frame port it binds itself ([`Obsw::frame_udp`]), with `extra`
+    /// arguments.
+    pub fn start_frames(keys: &Path, tm_to: SocketAddr, extra: &[&str]) -> Obsw {
+        let rd = keys.join("robot-1");
+        let p = |f: &str| rd.join(f).display().to_string();
+        let (tc, tm, st, to) = (
+            p("tc-spi1.key"),
+            p("tm-spi17.key"),
+            p("obsw-link.state"),
+            tm_to.to_string(),
+        );
+        let mut args = vec![
+            "--frame-udp",
+            "127.0.0.1:0",
+            "--frame-tm-to",
+            &to,
+            "--tc-key",
+            &tc,
+            "--tm-key",
+            &tm,
+            "--link-state",
+            &st,
+        ];
+        args.extend_from_slice(extra);
+        let o = Obsw::start(&args);
+        assert!(o.frame_udp.is_some(), "READY names the frame port");
+        o
+    }
+
+    /// The frame port (an obsw started over frames).
+    pub fn frame(&self) -> SocketAddr {
+        self.frame_udp.expect("an obsw started with --frame-udp")
     }
 
     /// Process ID of the obsw.
@@ -490,4 +535,65 @@ impl Client {
             .map(|t| t.subservice)
             .collect()
     }
+}
+
+/// A fresh scratch folder `$TMPDIR/<prefix>-<pid>-<name>` (emptied first).
+pub fn tmpdir(prefix: &str, name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("{prefix}-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A UDP address free now, for a *child process* to bind later that cannot say which
+/// port it bound (the ground's `--tm-listen`). Another process may take the port in
+/// between: a socket the test owns is bound to port 0 and kept instead, and the obsw's
+/// frame port comes from its READY line ([`Obsw::start_frames`]).
+pub fn free_udp() -> SocketAddr {
+    UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap()
+}
+
+/// Runs the real `ground` in `dir` with `args` (stdin closed) to its end.
+pub fn ground(dir: &Path, args: &[&str]) -> Output {
+    Command::new(bin("ground"))
+        .current_dir(dir)
+        .args(args)
+        .stdin(Stdio::null())
+        .output()
+        .expect("run ground")
+}
+
+/// A finished process's stdout then stderr.
+pub fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// Robot 1's keys made by the real `ground keys create` in `dir/TEST-KEYS` (the folder
+/// for `--keys` and [`Obsw::start_frames`]).
+pub fn create_keys(dir: &Path) -> PathBuf {
+    let keys = dir.join("TEST-KEYS");
+    let k = ground(
+        dir,
+        &["--no-archive", "keys", "create", keys.to_str().unwrap(), "--robot", "1"],
+    );
+    assert!(k.status.success(), "{}", text(&k));
+    keys
+}
+
+/// Every TM packet an obsw sent (its `--tm-log`: one packet in hex per line).
+pub fn read_tm_log(path: &Path) -> Vec<Tm> {
+    std::fs::read_to_string(path)
+        .unwrap_or_default()
+        .lines()
+        .filter_map(|l| {
+            let b: Option<Vec<u8>> = (0..l.len() / 2)
+                .map(|i| u8::from_str_radix(l.get(2 * i..2 * i + 2)?, 16).ok())
+                .collect();
+            Tm::parse(&b?)
+        })
+        .collect()
 }

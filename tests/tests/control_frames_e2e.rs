@@ -11,45 +11,16 @@
 //! from the obsw's own TM log), and the two times are measured in the same run.
 
 use std::net::{SocketAddr, UdpSocket};
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::path::Path;
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use e2e_tests::{bin, Obsw, Tm};
+use e2e_tests::{create_keys, free_udp, ground, read_tm_log, text, tmpdir, Obsw};
 use mib::params::pid;
 use mmic_link::tc::{ControlCommand, FrameType, TcFrame};
 
 const PINGS: usize = 20;
-
-fn tmpdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("control-frames-e2e-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn free_udp() -> SocketAddr {
-    UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap()
-}
-
-fn ground(dir: &Path, args: &[&str]) -> Output {
-    Command::new(bin("ground"))
-        .current_dir(dir)
-        .args(args)
-        .stdin(Stdio::null())
-        .output()
-        .expect("run ground")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
 
 /// Whether `d` is a well-formed BC frame (CRC included).
 fn is_bc(d: &[u8]) -> bool {
@@ -205,47 +176,15 @@ fn step_seqs(archive: &Path) -> std::collections::BTreeMap<String, std::collecti
     by_step
 }
 
-/// Every TM packet the obsw sent (its `--tm-log`, one packet in hex per line).
-fn tm_log(path: &Path) -> Vec<Tm> {
-    std::fs::read_to_string(path)
-        .unwrap_or_default()
-        .lines()
-        .filter_map(|l| {
-            let b: Option<Vec<u8>> = (0..l.len() / 2)
-                .map(|i| u8::from_str_radix(l.get(2 * i..2 * i + 2)?, 16).ok())
-                .collect();
-            Tm::parse(&b?)
-        })
-        .collect()
-}
-
 // verifies: LINK-CTRL-01, LINK-CTRL-02
 #[test]
 fn replayed_control_frames_and_control_looking_junk_neither_stop_the_ground_nor_count_as_control_frames() {
-    let dir = tmpdir("dos");
-    let keys = dir.join("TEST-KEYS");
-    let k = ground(&dir, &["keys", "create", keys.to_str().unwrap(), "--robot", "1"]);
-    assert!(k.status.success(), "{}", text(&k));
-    let rd = keys.join("robot-1");
-    let p = |f: &str| rd.join(f).to_str().unwrap().to_string();
-    let (frame, tm_to) = (free_udp(), free_udp());
+    let dir = tmpdir("control-frames-e2e", "dos");
+    let keys = create_keys(&dir);
+    let tm_to = free_udp();
     let log = dir.join("tm.log");
-    let (fs, ts, ls) = (frame.to_string(), tm_to.to_string(), log.to_str().unwrap().to_string());
-    let (tc, tm, st) = (p("tc-spi1.key"), p("tm-spi17.key"), p("obsw-link.state"));
-    let _o = Obsw::start(&[
-        "--frame-udp",
-        &fs,
-        "--frame-tm-to",
-        &ts,
-        "--tc-key",
-        &tc,
-        "--tm-key",
-        &tm,
-        "--link-state",
-        &st,
-        "--tm-log",
-        &ls,
-    ]);
+    let obsw = Obsw::start_frames(&keys, tm_to, &["--tm-log", log.to_str().unwrap()]);
+    let frame = obsw.frame();
     let tap = Tap::start(frame);
     let mut plan = String::from("name = \"pings\"\n[[robot]]\nnumber = 1\n");
     for i in 0..PINGS {
@@ -290,7 +229,7 @@ fn replayed_control_frames_and_control_looking_junk_neither_stop_the_ground_nor_
     let o = ground(&dir, &args);
     assert_eq!(o.status.code(), Some(0), "{}", text(&o));
     std::thread::sleep(Duration::from_millis(500));
-    let tms = tm_log(&log);
+    let tms = read_tm_log(&log);
     let hk = tms
         .iter()
         .rev()
@@ -377,5 +316,6 @@ fn replayed_control_frames_and_control_looking_junk_neither_stop_the_ground_nor_
         "junk {junk_counted} of {junk}"
     );
     assert_eq!(unknown, 0);
+    drop(obsw);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -3,63 +3,17 @@
 //! corrupt, both ways), is never told the robot is lost while it runs, and once the obsw is
 //! stopped (SIGSTOP: the process still exists, its socket stays open, nothing more is sent)
 //! says "heard, then lost" within the link-loss time plus one poll, stating the silence it
-//! measured. The path is this test's own, so it knows when the last intact TM frame reached
-//! the ground and can judge the time in the message against the truth.
+//! measured. The path is the tests' relay, which keeps the time the last intact TM frame
+//! went on to the ground, so the time in the message is judged against the truth.
 
 use std::io::{BufRead, BufReader};
-use std::net::{SocketAddr, UdpSocket};
-use std::path::PathBuf;
+use std::net::UdpSocket;
 use std::process::{Command, Stdio};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{mpsc, Arc, Mutex};
+use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
-use e2e_tests::relay::{decide, DirCounts, Fate, Faults, Rng};
-use e2e_tests::{bin, Obsw};
-
-fn tmpdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("silent-robot-e2e-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn free_udp() -> SocketAddr {
-    UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap()
-}
-
-/// One direction of the lossy path: what arrives on `sock` goes to `to` under `faults`.
-/// `last_intact` is the time the last datagram went out unaltered (a flipped bit fails the
-/// frame CRC: the receiver does not hear it).
-fn forward(
-    sock: UdpSocket,
-    to: SocketAddr,
-    faults: Faults,
-    seed: u64,
-    stop: Arc<AtomicBool>,
-    last_intact: Arc<Mutex<Option<Instant>>>,
-) -> std::thread::JoinHandle<()> {
-    std::thread::spawn(move || {
-        sock.set_read_timeout(Some(Duration::from_millis(20))).unwrap();
-        let out = UdpSocket::bind("127.0.0.1:0").unwrap();
-        let counts = DirCounts::default();
-        let mut rng = Rng::new(seed);
-        let mut buf = [0u8; 4096];
-        while !stop.load(Ordering::SeqCst) {
-            let Ok(n) = sock.recv(&mut buf) else {
-                continue;
-            };
-            let d = &buf[..n];
-            if let Fate::Send(copies) = decide(&mut rng, &faults, d, &counts) {
-                for c in copies {
-                    if out.send_to(&c, to).is_ok() && c == d {
-                        *last_intact.lock().unwrap() = Some(Instant::now());
-                    }
-                }
-            }
-        }
-    })
-}
+use e2e_tests::relay::{Config, Faults, Relay};
+use e2e_tests::{bin, create_keys, free_udp, tmpdir, Obsw};
 
 /// The seconds in "nothing heard from ADDR for X s".
 fn stated_silence(line: &str) -> Option<f64> {
@@ -78,42 +32,19 @@ fn a_robot_stopped_over_the_frame_link_is_reported_lost_within_the_loss_time_sta
     // The ground checks the link at least this often (the bound `link_e2e` holds the
     // bare-packet link to: the loss time plus one poll).
     let poll = Duration::from_millis(500);
-    let dir = tmpdir("stop");
-    let keys = dir.join("TEST-KEYS");
-    let k = Command::new(bin("ground"))
-        .args(["--no-archive", "keys", "create", keys.to_str().unwrap(), "--robot", "1"])
-        .output()
-        .unwrap();
-    assert!(k.status.success(), "{}", String::from_utf8_lossy(&k.stderr));
-    let rd = keys.join("robot-1");
-    let p = |f: &str| rd.join(f).to_str().unwrap().to_string();
-
-    let stop = Arc::new(AtomicBool::new(false));
+    let dir = tmpdir("silent-robot-e2e", "stop");
+    let keys = create_keys(&dir);
+    // The lossy path (the tests' relay, its faults seeded): the ground's TC frames up to
+    // the obsw's frame port, the obsw's TM frames down to the ground's TM port, the time
+    // of the last one passed on intact kept.
     let faults = Faults::new(0.20, 0.05, 0.05);
-    // Uplink: the ground's TC frames to the obsw's frame port.
-    let (up, frame_port) = (UdpSocket::bind("127.0.0.1:0").unwrap(), free_udp());
-    let up_addr = up.local_addr().unwrap();
-    let up_t = forward(up, frame_port, faults, 37, stop.clone(), Arc::default());
-    // Downlink: the obsw's TM frames to the ground's TM port, the last intact one timed.
-    let (down, ground_tm) = (UdpSocket::bind("127.0.0.1:0").unwrap(), free_udp());
-    let down_addr = down.local_addr().unwrap();
-    let last_tm: Arc<Mutex<Option<Instant>>> = Arc::default();
-    let down_t = forward(down, ground_tm, faults, 38, stop.clone(), last_tm.clone());
-
-    let (fs, ts) = (frame_port.to_string(), down_addr.to_string());
-    let (tc, tm, st) = (p("tc-spi1.key"), p("tm-spi17.key"), p("obsw-link.state"));
-    let obsw = Obsw::start(&[
-        "--frame-udp",
-        &fs,
-        "--frame-tm-to",
-        &ts,
-        "--tc-key",
-        &tc,
-        "--tm-key",
-        &tm,
-        "--link-state",
-        &st,
-    ]);
+    let down = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let obsw = Obsw::start_frames(&keys, down.local_addr().unwrap(), &[]);
+    let mut relay = Relay::start(Config::both_ways(obsw.frame(), obsw.frame(), faults, 37)).unwrap();
+    let ground_tm = free_udp();
+    relay.add_downlink_socket(down, ground_tm).unwrap();
+    let up_addr = relay.udp;
+    let last_tm = |r: &Relay| *r.counts.down.last_intact.lock().unwrap();
     let mut ground = Command::new(bin("ground"))
         .current_dir(&dir)
         .args(["--no-archive", "watch", "--keys", keys.to_str().unwrap()])
@@ -145,7 +76,7 @@ fn a_robot_stopped_over_the_frame_link_is_reported_lost_within_the_loss_time_sta
         "ground watch ended while the robot ran: {:?}",
         rx.try_iter().map(|(_, l)| l).collect::<Vec<_>>()
     );
-    assert!(last_tm.lock().unwrap().is_some(), "TM frames reached the ground");
+    assert!(last_tm(&relay).is_some(), "TM frames reached the ground");
 
     let pid = obsw.pid().to_string();
     let stopped = Instant::now();
@@ -163,8 +94,8 @@ fn a_robot_stopped_over_the_frame_link_is_reported_lost_within_the_loss_time_sta
     };
     // The last frame the ground could hear, taken before the obsw runs again (it then
     // sends what it held).
-    stop.store(true, Ordering::SeqCst);
-    let last = last_tm.lock().unwrap().expect("a TM frame");
+    relay.stop();
+    let last = last_tm(&relay).expect("a TM frame");
     let _ = Command::new("kill").args(["-CONT", &pid]).status();
     if status.is_none() {
         let _ = ground.kill();
@@ -215,8 +146,6 @@ fn a_robot_stopped_over_the_frame_link_is_reported_lost_within_the_loss_time_sta
         "stated {stated} s, true silence {:.2} s: {msg}",
         true_silence.as_secs_f64()
     );
-    up_t.join().unwrap();
-    down_t.join().unwrap();
     drop(obsw);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -268,6 +268,14 @@ impl GroundFrameLink {
     /// CLCW that arrives.
     pub fn open(cfg: Config) -> Result<GroundFrameLink, LinkError> {
         let sock = UdpSocket::bind(cfg.listen)?;
+        GroundFrameLink::open_socket(cfg, sock)
+    }
+
+    /// [`GroundFrameLink::open`] on a socket bound by the caller (`cfg.listen` is not
+    /// used): its address can be given to the robot before the robot's own address — the
+    /// link's `cfg.robot` — is known, without a moment where the port is free for another
+    /// process to take.
+    pub fn open_socket(cfg: Config, sock: UdpSocket) -> Result<GroundFrameLink, LinkError> {
         sock.set_nonblocking(true)?;
         let wire = Wire::Udp { sock, robot: cfg.robot };
         GroundFrameLink::open_on(cfg, wire)

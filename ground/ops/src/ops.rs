@@ -21,6 +21,7 @@ pub mod policy;
 mod run;
 pub mod runs;
 mod session;
+mod span;
 mod status;
 mod summary;
 #[cfg(test)]
@@ -31,6 +32,7 @@ pub use executor::{Effect, Executor, RunOptions, SendError, StepState, INTERRUPT
 pub use onboard::{upload_and_start, OnBoard};
 pub use run::{run_plan, InFlight, Resume};
 pub use session::{failure_words, first_tc_seq, OpsError, Session, Update, SEQ_SKIP_AFTER_RESTART};
+pub use span::SpanAsk;
 pub use status::{NoAnswer, RobotStatus};
 pub use summary::{BoltStats, LinkSummary, RunSummary, StepOutcome, TmCompleteness};
 

@@ -44,19 +44,30 @@ fn tm(p: &[u8]) -> Option<(u8, u8, &[u8])> {
     (p.len() >= data + 2).then(|| (p[7], p[8], &p[data..p.len() - 2]))
 }
 
-struct Obsw(Child);
+struct Obsw {
+    child: Child,
+    /// Its frame port (from its READY line).
+    frame: SocketAddr,
+}
+
+/// How long a restarted obsw waits for the frame port its killed predecessor held.
+const REBIND_WAIT: Duration = Duration::from_secs(5);
 
 impl Obsw {
-    fn start(frame: SocketAddr, ground: SocketAddr, dir: &Path) -> Obsw {
+    fn start(frame: Option<SocketAddr>, ground: SocketAddr, dir: &Path) -> Obsw {
         Self::start_with(frame, ground, dir, "tc-spi1.key", "tm-spi17.key")
     }
 
-    fn start_with(frame: SocketAddr, ground: SocketAddr, dir: &Path, tc_key: &str, tm_key: &str) -> Obsw {
+    fn start_with(frame: Option<SocketAddr>, ground: SocketAddr, dir: &Path, tc_key: &str, tm_key: &str) -> Obsw {
         Self::start_args(frame, ground, dir, tc_key, tm_key, &[])
     }
 
+    /// The obsw sending TM frames to `ground`. `frame`: `None` binds a frame port of its
+    /// own (read from READY: no port probed and bound later, which another test could
+    /// take in between); `Some` is the port of the obsw it restarts, where the same
+    /// ground goes on sending — tried again while the killed process's port is not free.
     fn start_args(
-        frame: SocketAddr,
+        frame: Option<SocketAddr>,
         ground: SocketAddr,
         dir: &Path,
         tc_key: &str,
@@ -64,41 +75,62 @@ impl Obsw {
         extra: &[&str],
     ) -> Obsw {
         let s = |n: &str| dir.join(n).display().to_string();
-        let mut child = Command::new(env!("CARGO_BIN_EXE_obsw"))
-            .args(["--robot", "1", "--sim-ctl", "127.0.0.1:0"])
-            // Off (frame link only), but bound: free ports, so tests run side by side.
-            .args(["--udp", "127.0.0.1:0", "--tcp", "127.0.0.1:0"])
-            .args(["--frame-udp", &frame.to_string(), "--frame-tm-to", &ground.to_string()])
-            .args(["--tc-key", &s(tc_key), "--tm-key", &s(tm_key)])
-            .args(["--link-state", &s("obsw.state")])
-            .args(extra)
-            .stdout(Stdio::piped())
-            .stderr(std::fs::File::create(dir.join("obsw.stderr")).unwrap())
-            .spawn()
-            .expect("start obsw");
-        let mut line = String::new();
-        BufReader::new(child.stdout.take().unwrap())
-            .read_line(&mut line)
-            .unwrap();
-        assert!(
-            line.starts_with("READY"),
-            "{line:?}: {}",
-            std::fs::read_to_string(dir.join("obsw.stderr")).unwrap_or_default()
-        );
-        Obsw(child)
+        let listen = frame.map_or_else(|| "127.0.0.1:0".to_string(), |f| f.to_string());
+        let t0 = Instant::now();
+        loop {
+            let mut child = Command::new(env!("CARGO_BIN_EXE_obsw"))
+                .args(["--robot", "1", "--sim-ctl", "127.0.0.1:0"])
+                // Off (frame link only), but bound: free ports, so tests run side by side.
+                .args(["--udp", "127.0.0.1:0", "--tcp", "127.0.0.1:0"])
+                .args(["--frame-udp", &listen, "--frame-tm-to", &ground.to_string()])
+                .args(["--tc-key", &s(tc_key), "--tm-key", &s(tm_key)])
+                .args(["--link-state", &s("obsw.state")])
+                .args(extra)
+                .stdout(Stdio::piped())
+                .stderr(std::fs::File::create(dir.join("obsw.stderr")).unwrap())
+                .spawn()
+                .expect("start obsw");
+            let mut line = String::new();
+            BufReader::new(child.stdout.take().unwrap())
+                .read_line(&mut line)
+                .unwrap();
+            if let Some(frame) = line
+                .split_whitespace()
+                .find_map(|w| w.strip_prefix("frame_udp="))
+                .filter(|_| line.starts_with("READY"))
+            {
+                let frame = frame.parse().expect("frame_udp address");
+                return Obsw { child, frame };
+            }
+            let _ = child.wait();
+            let err = std::fs::read_to_string(dir.join("obsw.stderr")).unwrap_or_default();
+            assert!(
+                frame.is_some() && err.contains("Address already in use") && t0.elapsed() < REBIND_WAIT,
+                "{line:?}: {err}"
+            );
+            std::thread::sleep(Duration::from_millis(100));
+        }
     }
 
     fn kill9(&mut self) {
-        self.0.kill().unwrap();
-        self.0.wait().unwrap();
+        self.child.kill().unwrap();
+        self.child.wait().unwrap();
     }
 }
 
 impl Drop for Obsw {
     fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
+        let _ = self.child.kill();
+        let _ = self.child.wait();
     }
+}
+
+/// The ground's TM socket, bound (port 0) before the obsw starts: its address goes to the
+/// obsw, the socket to [`GroundFrameLink::open_socket`] once the obsw's frame port is known.
+fn ground_socket() -> (UdpSocket, SocketAddr) {
+    let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let addr = sock.local_addr().unwrap();
+    (sock, addr)
 }
 
 /// Polls the link until `done` says so (or panics after `limit`), collecting events.
@@ -140,7 +172,9 @@ fn after_kill_9_a_captured_frame_is_a_replay_and_the_ground_continues_without_re
     // Names other than the key folder's: no spare keys are looked for.
     create_key_file(&dir.join("tc.key"), &TEST_KEY_TC_A).unwrap();
     create_key_file(&dir.join("tm.key"), &TEST_KEY_TM_A).unwrap();
-    let frame = UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap();
+    let (sock, ground) = ground_socket();
+    let mut obsw = Obsw::start_with(None, ground, &dir, "tc.key", "tm.key");
+    let frame = obsw.frame;
     let mut cfg = Config::from_key_files(
         frame,
         SocketAddr::from(([127, 0, 0, 1], 0)),
@@ -153,9 +187,7 @@ fn after_kill_9_a_captured_frame_is_a_replay_and_the_ground_continues_without_re
         t1_ms: 500,
         ..FopConfig::mission()
     };
-    let mut g = GroundFrameLink::open(cfg).unwrap();
-    let ground = g.local_addr().unwrap();
-    let mut obsw = Obsw::start_with(frame, ground, &dir, "tc.key", "tm.key");
+    let mut g = GroundFrameLink::open_socket(cfg, sock).unwrap();
     let mut events = Vec::new();
     let t0 = Instant::now();
     while g.fop_state() != FopState::Active {
@@ -179,7 +211,7 @@ fn after_kill_9_a_captured_frame_is_a_replay_and_the_ground_continues_without_re
 
     obsw.kill9();
     events.clear();
-    let _obsw = Obsw::start_with(frame, ground, &dir, "tc.key", "tm.key");
+    let _obsw = Obsw::start_with(Some(frame), ground, &dir, "tc.key", "tm.key");
     // The captured frames, replayed by anyone on the path.
     let attacker = UdpSocket::bind("127.0.0.1:0").unwrap();
     for f in &captured {
@@ -250,8 +282,7 @@ fn link_spi_select_moves_the_real_obsw_to_tc_spi_2_and_tm_spi_18_without_a_tc_lo
     let dir = tmp_dir("spi");
     create_key_file(&dir.join("tc-spi1.key"), &TEST_KEY_TC_A).unwrap();
     create_key_file(&dir.join("tm-spi17.key"), &TEST_KEY_TM_A).unwrap();
-    let frame = UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap();
-    let open = |tc_spi: u16| {
+    let open = |frame: SocketAddr, tc_spi: u16| {
         let mut cfg = Config::from_key_dir(
             frame,
             SocketAddr::from(([127, 0, 0, 1], 0)),
@@ -263,8 +294,9 @@ fn link_spi_select_moves_the_real_obsw_to_tc_spi_2_and_tm_spi_18_without_a_tc_lo
         cfg.fop.t1_ms = 500;
         cfg
     };
-    let mut g = GroundFrameLink::open(open(1)).unwrap();
-    let ground = g.local_addr().unwrap();
+    let (sock, ground) = ground_socket();
+    let mut obsw = Obsw::start(None, ground, &dir);
+    let mut g = GroundFrameLink::open_socket(open(obsw.frame, 1), sock).unwrap();
     let mut events = Vec::new();
     let active = |g: &mut GroundFrameLink, events: &mut Vec<Event>| {
         let t0 = Instant::now();
@@ -275,7 +307,6 @@ fn link_spi_select_moves_the_real_obsw_to_tc_spi_2_and_tm_spi_18_without_a_tc_lo
         }
     };
     // Without the spare keys on board: refused with NO_KEY_FOR_SPI (53).
-    let mut obsw = Obsw::start(frame, ground, &dir);
     active(&mut g, &mut events);
     assert_eq!(command(&mut g, &mut events, &tc(1, 212, 1, &[0, 18, 2])), Err(53));
     assert_eq!(
@@ -289,13 +320,11 @@ fn link_spi_select_moves_the_real_obsw_to_tc_spi_2_and_tm_spi_18_without_a_tc_lo
     create_key_file(&dir.join("tm-spi18.key"), &TEST_KEY_TM_B).unwrap();
     obsw.kill9();
     drop(g);
-    // The same ground address (the obsw sends TM frames to it).
-    let mut g = GroundFrameLink::open(Config {
-        listen: ground,
-        ..open(1)
-    })
-    .unwrap();
-    let _obsw = Obsw::start(frame, ground, &dir);
+    // Both restarted, each on a port of its own (the ground's link state goes on).
+    let (sock, ground) = ground_socket();
+    let obsw = Obsw::start(None, ground, &dir);
+    let frame = obsw.frame;
+    let mut g = GroundFrameLink::open_socket(open(frame, 1), sock).unwrap();
     active(&mut g, &mut events);
     // The ground moves to TC SPI 2 with pings outstanding: both SPIs are accepted.
     for seq in 3..6 {
@@ -358,6 +387,7 @@ fn link_spi_select_moves_the_real_obsw_to_tc_spi_2_and_tm_spi_18_without_a_tc_lo
         "HK shows the SPIs in use"
     );
     assert_eq!(g.counters.alerts, 0, "{events:?}");
+    drop(obsw);
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -367,7 +397,18 @@ fn with_tm_sdls_clear_the_tm_frames_carry_packets_in_clear_and_only_a_clear_grou
     let dir = tmp_dir("tm-clear");
     create_key_file(&dir.join("tc-spi1.key"), &TEST_KEY_TC_A).unwrap();
     create_key_file(&dir.join("tm-spi17.key"), &TEST_KEY_TM_A).unwrap();
-    let frame = UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap();
+    let (sock, ground) = ground_socket();
+    // Kept: the wire is read on the ground's port once the ground is gone.
+    let wire = sock.try_clone().unwrap();
+    let obsw = Obsw::start_args(
+        None,
+        ground,
+        &dir,
+        "tc-spi1.key",
+        "tm-spi17.key",
+        &["--tm-sdls", "clear"],
+    );
+    let frame = obsw.frame;
     let mut cfg = Config::from_key_dir(
         frame,
         SocketAddr::from(([127, 0, 0, 1], 0)),
@@ -378,16 +419,7 @@ fn with_tm_sdls_clear_the_tm_frames_carry_packets_in_clear_and_only_a_clear_grou
     .unwrap();
     cfg.fop.t1_ms = 500;
     cfg.tm_security = TmSecurity::Clear;
-    let mut g = GroundFrameLink::open(cfg.clone()).unwrap();
-    let ground = g.local_addr().unwrap();
-    let _obsw = Obsw::start_args(
-        frame,
-        ground,
-        &dir,
-        "tc-spi1.key",
-        "tm-spi17.key",
-        &["--tm-sdls", "clear"],
-    );
+    let mut g = GroundFrameLink::open_socket(cfg, sock).unwrap();
     let mut events = Vec::new();
     let t0 = Instant::now();
     while g.fop_state() != FopState::Active {
@@ -406,7 +438,8 @@ fn with_tm_sdls_clear_the_tm_frames_carry_packets_in_clear_and_only_a_clear_grou
     drop(g);
     // On the wire: a ping sent as the next AD frame (N(S) = 1, an IV above the ground's),
     // its reports stand in clear right after the frame header of a VC0 frame.
-    let wire = UdpSocket::bind(ground).unwrap();
+    // The link made the shared socket non-blocking.
+    wire.set_nonblocking(false).unwrap();
     wire.set_read_timeout(Some(Duration::from_millis(200))).unwrap();
     let p = tc(2, 17, 1, &[]);
     let repr = mmic_link::tc::TcRepr {
@@ -441,5 +474,6 @@ fn with_tm_sdls_clear_the_tm_frames_carry_packets_in_clear_and_only_a_clear_grou
         }
     }
     assert!(seen_clear_vc0, "a VC0 frame came down");
+    drop(obsw);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -55,6 +55,12 @@ impl RetrievalPacer {
         !self.open.is_empty() && self.last_sent_ms.is_some_and(|t| now_ms - t < self.timeout_ms)
     }
 
+    /// The oldest TC of the last retrieval not ended yet: the one the store's next end
+    /// report answers.
+    pub fn oldest_open(&self) -> Option<RequestId> {
+        self.open.front().copied()
+    }
+
     /// True if a retrieval may go now: none in flight, and the last one at least the
     /// least gap ago.
     pub fn may_send(&self, now_ms: i64) -> bool {

@@ -180,6 +180,9 @@ pub struct Session {
     last_new_tc: HashMap<u8, Instant>,
     /// When each robot's first TM packet was heard ([`Session::awaited_span`]).
     first_heard: HashMap<u8, Instant>,
+    /// The span each robot's store was last asked for by time ([`Session::awaited_span`]):
+    /// asked once, again only while its packets have not all come.
+    spans: HashMap<u8, SpanAsk>,
     /// The run this session's TCs belong to (`ground run`): archived with every TC as
     /// `LABEL@RUN_ID` in the TC's step column (see [`runs`]).
     pub run_id: Option<String>,
@@ -229,6 +232,7 @@ impl Session {
             watching: false,
             last_new_tc: HashMap::new(),
             first_heard: HashMap::new(),
+            spans: HashMap::new(),
             run_id: None,
         })
     }
@@ -506,12 +510,17 @@ impl Session {
 
     /// Asks `robot`'s on-board store first for the TM missing since its oldest TC still
     /// waiting for an outcome went out (that TC's reports are among it): by time for the
-    /// span before the first TM heard ([`Session::awaited_span`]), by count for the holes
-    /// after it, at most `max_ranges` ranges; with no such TC or no such gap, for the
+    /// span before the first TM heard ([`Session::awaited_span`]; once, again only while
+    /// its packets have not all come, [`SpanAsk`]), by count for the holes after it, at
+    /// most `max_ranges` ranges; with no such TC or no such gap, for the
     /// oldest missing TM ([`Session::request_gaps`]). Nothing while the pacing rule holds
     /// the next retrieval back ([`Session::may_retrieve`]). Returns the ranges asked for.
     pub fn request_missing_reports(&mut self, robot: u8, max_ranges: usize) -> Vec<(u16, u16)> {
-        let span = self.awaited_span(robot);
+        // A span asked before is asked again only while its packets have not all come
+        // ([`SpanAsk::wanted`]): each ask replays all of it.
+        let span = self
+            .awaited_span(robot)
+            .filter(|&(from, to)| self.spans.get(&robot).is_none_or(|a| !a.covers(from, to) || a.wanted()));
         let ranges = self.awaited_gaps(robot);
         if ranges.is_empty() && span.is_none() {
             return self.request_gaps(robot, None, max_ranges);
@@ -607,8 +616,23 @@ impl Session {
             }
             let (a, b) = (CdsShort::from_unix_ms(from), CdsShort::from_unix_ms(to));
             let args = [a.days.into(), a.ms_of_day.into(), b.days.into(), b.ms_of_day.into()];
-            if let Ok(tc) = self.send(robot, by_time, &args, None, Some(GAP_LABEL.into())) {
-                sent.push(tc.request_id());
+            let request = self
+                .send(robot, by_time, &args, None, Some(GAP_LABEL.into()))
+                .ok()
+                .map(|tc| tc.request_id());
+            sent.extend(request);
+            let first = self.robots.get(&robot).and_then(|s| s.seq.first());
+            if let Some(first) = first {
+                let ask = self
+                    .spans
+                    .entry(robot)
+                    .and_modify(|a| {
+                        if !a.covers(from, to) {
+                            *a = SpanAsk::new(from, to, (apid, first.seq));
+                        }
+                    })
+                    .or_insert_with(|| SpanAsk::new(from, to, (apid, first.seq)));
+                ask.on_asked(request);
             }
         }
         for &(a, b) in &ranges {
@@ -682,12 +706,26 @@ impl Session {
                     self.first_heard.insert(inc.robot, Instant::now());
                 }
                 let verdict = s.seq.on_packet(live::position(tm), live::is_boot(tm), now_ms());
+                // What the store replays is old: a packet new to the tracker was made
+                // after the ask (its own reports, even in the span's last millisecond).
+                if let (Some(a), SeqVerdict::Filled | SeqVerdict::Duplicate) = (self.spans.get_mut(&inc.robot), verdict)
+                {
+                    a.on_packet(tm.apid, tm.seq, tm.time.unix_ms());
+                }
                 if verdict == SeqVerdict::Duplicate {
                     s.duplicates += 1;
                     s.last_tm = Some(Instant::now());
                     return;
                 }
-                // The pacing rule's ends of a retrieval (a replayed end report is not one).
+                // The pacing rule's ends of a retrieval (a replayed end report is not one);
+                // a span's end report says how many packets it held.
+                if let (Some(d), Some(a), true) = (
+                    live::store_done(tm),
+                    self.spans.get_mut(&inc.robot),
+                    verdict != SeqVerdict::Filled,
+                ) {
+                    a.on_end_report(s.pacer.oldest_open(), d.packets);
+                }
                 s.pacer.on_tm(tm, verdict != SeqVerdict::Filled);
             }
         }

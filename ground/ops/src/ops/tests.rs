@@ -620,3 +620,105 @@ fn reports_sent_before_the_first_tm_heard_are_asked_of_the_store_by_time() {
         "one PING, one retrieval by time"
     );
 }
+
+// verifies: OPS-LIVE-GAP-02
+#[test]
+fn a_span_asked_of_the_store_by_time_is_asked_again_only_until_its_packets_have_come() {
+    // A fake robot: a PING's acceptance (16) is lost on the way, the first TM heard is the
+    // next packet (17), the completion comes live 2.5 s later. The store's first answer
+    // to the span loses the acceptance again (only 17 and the end report, which says the
+    // span held 2, come); its second answer brings both. The ground asks at every chance
+    // while the PING waits: once more after the first answer (a packet missing), never
+    // after the second (all came) — not once per gap round.
+    let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
+    sock.set_read_timeout(Some(Duration::from_millis(50))).unwrap();
+    let addr = sock.local_addr().unwrap();
+    let fake = std::thread::spawn(move || {
+        let mut buf = [0u8; 2048];
+        let mut store: Vec<(i64, u16, Vec<u8>)> = Vec::new();
+        let mut tcs = Vec::new();
+        let mut seq = 17;
+        let mut ground = None;
+        let mut ping: Option<(Instant, [u8; 4])> = None;
+        let end = Instant::now() + Duration::from_millis(4_500);
+        while Instant::now() < end {
+            if let (Some((at, rid)), Some(f)) = (ping, ground) {
+                if at.elapsed() >= Duration::from_millis(2_500) {
+                    seq += 1;
+                    let t = CdsShort::now().to_bytes();
+                    sock.send_to(&build_tm(0x101, seq, 1, 7, 0, &t, &rid), f).unwrap();
+                    ping = None;
+                }
+            }
+            let Ok((n, f)) = sock.recv_from(&mut buf) else { continue };
+            ground = Some(f);
+            let Ok(tc) = pus::decode_tc(&buf[..n]) else { continue };
+            tcs.push((tc.service, tc.subservice));
+            let rid = [buf[0], buf[1], buf[2], buf[3]];
+            let t = CdsShort::now();
+            match (tc.service, tc.subservice) {
+                (17, 1) => {
+                    store.push((t.unix_ms(), 16, build_tm(0x101, 16, 1, 1, 0, &t.to_bytes(), &rid)));
+                    std::thread::sleep(Duration::from_millis(30));
+                    let later = CdsShort::now();
+                    let first = build_tm(0x101, seq, 17, 2, 0, &later.to_bytes(), &[]);
+                    store.push((later.unix_ms(), seq, first.clone()));
+                    sock.send_to(&first, f).unwrap();
+                    ping = Some((Instant::now(), rid));
+                }
+                (15, 9) => {
+                    let arg = |i: usize| tc.args[i].value;
+                    let at = |d: i64, ms: i64| CdsShort {
+                        days: d as u16,
+                        ms_of_day: ms as u32,
+                    };
+                    let (a, b) = (at(arg(0), arg(1)).unix_ms(), at(arg(2), arg(3)).unix_ms());
+                    let span: Vec<_> = store.iter().filter(|(ms, _, _)| (a..=b).contains(ms)).collect();
+                    let first_answer = tcs.iter().filter(|&&k| k == (15, 9)).count() == 1;
+                    for (_, k, p) in &span {
+                        if !(first_answer && *k == 16) {
+                            sock.send_to(p, f).unwrap();
+                        }
+                    }
+                    let mut done = (span.len() as u32).to_be_bytes().to_vec();
+                    done.extend_from_slice(&CdsShort::from_unix_ms(store[0].0).to_bytes());
+                    done.extend_from_slice(&16u16.to_be_bytes());
+                    done.extend_from_slice(&0u32.to_be_bytes());
+                    seq += 1;
+                    sock.send_to(&build_tm(0x101, seq, 15, 19, 0, &t.to_bytes(), &done), f)
+                        .unwrap();
+                    seq += 1;
+                    sock.send_to(&build_tm(0x101, seq, 1, 7, 0, &t.to_bytes(), &rid), f)
+                        .unwrap();
+                }
+                _ => {}
+            }
+        }
+        tcs
+    });
+    let mut s = Session::connect(&[(1, addr)], Transport::Udp, None, |_| Some(900)).unwrap();
+    // No resend: the robot executed the TC; only its reports were lost.
+    s.set_ack_timeout(Duration::from_secs(20));
+    s.send(1, mib::tc::by_name("PING").unwrap(), &[], Some(5), None)
+        .unwrap();
+    let t0 = Instant::now();
+    let mut stages = Vec::new();
+    while t0.elapsed() < Duration::from_secs(4) && !stages.contains(&Stage::Completion) {
+        // Every gap round the pacing rule lets go.
+        if s.robots[&1].seq.first().is_some() {
+            s.request_missing_reports(1, 1);
+        }
+        for u in s.poll(Duration::from_millis(20)) {
+            if let Update::Verification { tag: Some(5), v, .. } = u {
+                stages.push(v.stage);
+            }
+        }
+    }
+    assert_eq!(stages, vec![Stage::Acceptance, Stage::Completion]);
+    drop(s);
+    assert_eq!(
+        fake.join().unwrap(),
+        vec![(17, 1), (15, 9), (15, 9)],
+        "one PING, the span asked twice: again only while a packet it held was missing"
+    );
+}
