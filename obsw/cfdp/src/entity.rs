@@ -349,10 +349,15 @@ impl User {
     }
 
     /// A message to user from the peer: a reserved message this entity acts on, or none.
-    fn message(&mut self, v: &[u8]) {
+    /// `mode`: the class of a Proxy Transmission Mode sent as a message of its own.
+    fn message(&mut self, v: &[u8], mode: Option<Class>) {
         let owed = match msg::parse(v) {
             Some(ReservedMsg::ProxyPut { src, dest, class, .. }) => match (FileName::new(src), FileName::new(dest)) {
-                (Ok(src), Ok(dest)) => Some(Owed { src, dest, class }),
+                (Ok(src), Ok(dest)) => Some(Owed {
+                    src,
+                    dest,
+                    class: mode.unwrap_or(class),
+                }),
                 _ => None,
             },
             Some(ReservedMsg::DirectoryListing { dest, .. }) => match FileName::new(dest) {
@@ -1024,9 +1029,15 @@ impl<'a, S: FlatStore> Entity<'a, S> {
     /// counted); proxy puts and directory listings owed to the peer.
     fn user_requests(&mut self, md: &MetadataPduReader) {
         let Some(opts) = md.options_iter() else { return };
+        // The standard's Proxy Transmission Mode is a message of its own (Yamcs sends it so).
+        let mode = md.options_iter().and_then(|mut o| {
+            o.find_map(|t| {
+                (t.tlv_type() == Some(TlvType::MsgToUser)).then(|| msg::proxy_transmission_mode(t.value()))?
+            })
+        });
         for tlv in opts {
             if tlv.tlv_type() == Some(TlvType::MsgToUser) {
-                self.user.message(tlv.value());
+                self.user.message(tlv.value(), mode);
                 continue;
             }
             if tlv.tlv_type() != Some(TlvType::FilestoreRequest) {
