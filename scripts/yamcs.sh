@@ -206,7 +206,9 @@ start() {
         kill -0 "$(cat "$dir/yamcs.pid")" 2>/dev/null || die "Yamcs exited; see $dir/yamcs.log"
         sleep 0.5
     done
-    die "Yamcs not ready after 120 s; see $dir/yamcs.log"
+    # Not left running behind a failed start (a caller that sees the failure has no pid to stop).
+    stop "$dir" >/dev/null
+    die "Yamcs not ready after 120 s (stopped); see $dir/yamcs.log"
 }
 
 stop() {

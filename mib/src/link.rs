@@ -23,6 +23,11 @@ pub mod tm_vc {
     pub const REALTIME: u8 = 0;
     /// Store replay (PUS 15 dumps), SDLS protected.
     pub const REPLAY: u8 = 1;
+    /// File delivery: the CFDP PDU packets (`cfdp::APID`), SDLS protected. A channel of
+    /// their own because they are no PUS packets (no secondary header, no packet CRC): a
+    /// ground processes each VC's packets one way (Yamcs' PUS preprocessor drops packets
+    /// without a secondary header), and a file transfer never fills VC0's frames.
+    pub const FILES: u8 = 2;
     /// Idle frames (only idle data, first header pointer 0x7FE), in clear; they carry the
     /// CLCW when nothing else is to send.
     pub const IDLE: u8 = 7;
@@ -124,7 +129,8 @@ const _: () = {
     // The adaptive T1 has room to adapt, above the CLCW report interval.
     assert!(cop1::CLCW_REPORT_INTERVAL_MS < cop1::FOP_T1_MIN_MS && cop1::FOP_T1_MIN_MS < cop1::FOP_T1_MS);
     assert!(SCID < 1024);
-    assert!(tm_vc::IDLE < 8 && tm_vc::REPLAY < 8);
+    assert!(tm_vc::IDLE < 8 && tm_vc::REPLAY < 8 && tm_vc::FILES < 8);
+    assert!(tm_vc::FILES != tm_vc::REALTIME && tm_vc::FILES != tm_vc::REPLAY && tm_vc::FILES != tm_vc::IDLE);
     // A sender that restarts jumps at most one reserve block ahead.
     assert!(sdls::ANTI_REPLAY_WINDOW > 2 * sdls::IV_RESERVE_BLOCK);
 };

@@ -271,7 +271,7 @@ params! {
     LINK_REJ_NOT_PACKETS = 136, SpaceLink, U32, "", ID, None, "Space link: authentic TC frames whose data is not whole space packets";
     LINK_FARM_DISCARDED = 137, SpaceLink, U32, "", ID, None, "Space link: authentic AD frames discarded by FARM-1 (E2-E5: no buffer, gap, duplicate, lockout area)";
     LINK_CLCW = 138, SpaceLink, U32, "", ID, None, "Space link: the current CLCW (raw 32-bit word: FARM state, flags, N(R))";
-    LINK_TM_FRAMES = 139, SpaceLink, U32, "", ID, None, "Space link: TM frames sent on VC0/VC1";
+    LINK_TM_FRAMES = 139, SpaceLink, U32, "", ID, None, "Space link: TM frames sent on VC0/VC1/VC2";
     LINK_TM_IDLE_FRAMES = 140, SpaceLink, U32, "", ID, None, "Space link: idle TM frames sent on VC7";
     LINK_TM_SDLS_FAILED = 141, SpaceLink, U32, "", ID, None, "Space link: TM frames not sent because SDLS failed (counter state file)";
     LINK_REJ_CONTROL_STATE = 142, SpaceLink, U32, "", ID, None, "Space link: BC control frames (in clear, CRC and header valid) refused because FARM-1 does not take them in its state: Unlock outside Lockout and Wait, Set V(R) other than to the present V(R) or in Lockout";

@@ -22,7 +22,10 @@ use mib::hk::{by_sid, sid};
 use mib::layout::Names;
 use mib::link::sdls::{TC_SPIS, TM_SPIS};
 use mib::FailureCode;
-use mib_export::yamcs::{tc_key_file, tm_key_file, yamcs_instance, Links, YamcsRobot, YamcsSetup, INSTANCE};
+use mib_export::yamcs::{
+    robot_entity, tc_key_file, tm_key_file, yamcs_instance, Links, YamcsRobot, YamcsSetup, CFDP_SERVICE,
+    DOWNLOAD_BUCKET, DOWNLOAD_DIR, GROUND_ENTITY, INSTANCE, UPLOAD_BUCKET, UPLOAD_DIR,
+};
 use serde_json::{json, Value};
 
 /// How long TM is watched (HK flows all along; commands are issued in the first seconds).
@@ -1124,6 +1127,161 @@ fn after_an_obsw_restart_cop1_continues_without_the_operator_and_nothing_is_repo
         b["cop1"]["end"],
         ping_replies(&log_b),
         fop_lines(&log)
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Deterministic file content of `len` bytes (every byte value, no pattern a segment
+/// boundary could hide).
+fn file_bytes(len: usize, seed: u32) -> Vec<u8> {
+    let mut x = seed.wrapping_mul(2_654_435_761) | 1;
+    (0..len)
+        .map(|_| {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            x as u8
+        })
+        .collect()
+}
+
+fn unhex(s: &str) -> Vec<u8> {
+    (0..s.len())
+        .step_by(2)
+        .map(|i| u8::from_str_radix(&s[i..i + 2], 16).unwrap())
+        .collect()
+}
+
+/// An operator moves files with Yamcs' own CFDP service (file-transfer API, as the web UI's
+/// "File transfer" page does): uploads from the upload bucket into the robot's store and
+/// downloads from it into the download bucket, class 1 and class 2, over the frames with
+/// COP-1 and SDLS. Judged on the robot's store and on the bucket's bytes read back.
+// verifies: YAMCS-FILE-01, YAMCS-FILE-02
+#[test]
+fn yamcs_uploads_and_downloads_files_over_the_space_link_in_class_1_and_2() {
+    let Some(venv) = yamcs_venv() else { return };
+    let t_total = Instant::now();
+    let dir = temp_dir("files");
+    let ports = Ports::free();
+    let setup = setup_for(&ports);
+    write_instance(&dir, &setup, &venv);
+    // What goes up waits in the upload bucket's folder, what comes down in the robot's store.
+    // Sizes: several file data PDUs and a short last one.
+    let (up_dir, store) = (dir.join(UPLOAD_DIR), dir.join("robot-files"));
+    std::fs::create_dir_all(&up_dir).unwrap();
+    std::fs::create_dir_all(&store).unwrap();
+    let up = [("up-c1.bin", 9_999, false), ("up-c2.bin", 40_000, true)];
+    // The class 1 download last: Yamcs keeps resending its Finished PDU for it (below).
+    let down = [("down-c2.bin", 30_001, true), ("down-c1.bin", 12_345, false)];
+    for (i, (name, len, _)) in up.iter().enumerate() {
+        std::fs::write(up_dir.join(name), file_bytes(*len, i as u32 + 1)).unwrap();
+    }
+    for (i, (name, len, _)) in down.iter().enumerate() {
+        std::fs::write(store.join(name), file_bytes(*len, i as u32 + 10)).unwrap();
+    }
+    let tm_log = dir.join("tm.log");
+    let _obsw = obsw_on_frames(&dir, &ports, &tm_log, &["--files", store.to_str().unwrap()]);
+    let yamcs = Yamcs::start(&dir, &venv);
+
+    let mut steps: Vec<Value> = up
+        .iter()
+        .map(|(name, _, reliable)| json!({"op": "upload", "object": name, "remote_path": name, "reliable": reliable}))
+        .collect();
+    steps.extend(down.iter().map(
+        |(name, _, reliable)| json!({"op": "download", "remote_path": name, "object": name, "reliable": reliable}),
+    ));
+    let plan = json!({
+        "local": GROUND_ENTITY, "remote": robot_entity(1), "up_bucket": UPLOAD_BUCKET,
+        "down_bucket": DOWNLOAD_BUCKET, "timeout_s": 90, "steps": steps,
+    });
+    let plan_path = dir.join("files-plan.json");
+    std::fs::write(&plan_path, plan.to_string()).unwrap();
+    let result_path = dir.join("files-result.json");
+    let t_moves = Instant::now();
+    let out = Command::new(venv.join("bin/python"))
+        .arg(repo_root().join("tests/py/yamcs_files.py"))
+        .args(["--url", &format!("127.0.0.1:{}", setup.http_port)])
+        .args(["--instance", INSTANCE, "--service", CFDP_SERVICE])
+        .arg("--plan")
+        .arg(&plan_path)
+        .arg("--out")
+        .arg(&result_path)
+        .output()
+        .expect("python yamcs_files.py");
+    assert!(
+        out.status.success(),
+        "yamcs_files.py failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let moves_s = t_moves.elapsed().as_secs_f64();
+    let r: Value = serde_json::from_str(&std::fs::read_to_string(&result_path).unwrap()).unwrap();
+    let log = yamcs.log();
+    assert_eq!(r["service"]["local"], json!([GROUND_ENTITY]), "{r}");
+    assert_eq!(r["service"]["remote"], json!([robot_entity(1)]), "{r}");
+    assert_eq!(r["service"]["capabilities"]["upload"], true, "{r}");
+    assert_eq!(r["service"]["capabilities"]["download"], true, "{r}");
+    let steps = r["steps"].as_array().unwrap();
+    assert_eq!(steps.len(), up.len() + down.len(), "{r}");
+
+    for ((name, len, reliable), step) in up.iter().zip(steps) {
+        let t = step["transfers"].as_array().unwrap();
+        assert_eq!(t.len(), 1, "one transfer per upload: {step}");
+        assert_eq!(t[0]["state"], "COMPLETED", "upload {name}: {step}\n{log}");
+        assert_eq!(t[0]["reliable"], *reliable, "class of {name}: {step}");
+        assert_eq!(t[0]["total"], *len, "{step}");
+        let got = std::fs::read(store.join(name)).unwrap_or_default();
+        assert!(
+            got == std::fs::read(up_dir.join(name)).unwrap(),
+            "{name} in the robot's store: {} bytes, byte-identical to the bucket's {len}: false",
+            got.len()
+        );
+    }
+    for ((name, len, reliable), step) in down.iter().zip(&steps[up.len()..]) {
+        let incoming: Vec<&Value> = step["transfers"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|t| t["direction"] == "DOWNLOAD")
+            .collect();
+        assert_eq!(incoming.len(), 1, "one file came down for {name}: {step}");
+        let t = incoming[0];
+        if *reliable {
+            assert_eq!(t["state"], "COMPLETED", "download {name}: {step}\n{log}");
+        } else {
+            // Yamcs 5.12.8 asks for an ACK of the Finished PDU of a class 1 transaction with
+            // closure requested, which 727.0-B-5 does not send: it resends that PDU
+            // finAckLimit times, then calls the transfer failed although the file was taken
+            // with its checksum verified (docs/files.md, "Yamcs"). The bytes are judged.
+            let deviation = t["state"] == "RUNNING"
+                || (t["state"] == "FAILED"
+                    && t["failure"] == "File was received OK but the Finished PDU has not been acknowledged");
+            assert!(t["state"] == "COMPLETED" || deviation, "download {name}: {step}\n{log}");
+            assert!(log.contains("file completed, checksum OK"), "{log}");
+        }
+        assert_eq!(t["remote_path"], *name, "{step}");
+        // The class asked for (Proxy Transmission Mode) is the class the robot sent in.
+        assert_eq!(t["reliable"], *reliable, "class of {name}: {step}");
+        let on_board = std::fs::read(store.join(name)).unwrap();
+        assert_eq!(on_board.len(), *len);
+        let object = step["object"].as_str().unwrap();
+        let via_api = unhex(step["data_hex"].as_str().unwrap_or_default());
+        assert!(
+            via_api == on_board,
+            "{name} read back from bucket {DOWNLOAD_BUCKET} ({} bytes) byte-identical to the robot's: false",
+            via_api.len()
+        );
+        assert!(
+            std::fs::read(dir.join(DOWNLOAD_DIR).join(object)).unwrap_or_default() == on_board,
+            "{name} in the bucket's folder {DOWNLOAD_DIR}/{object} byte-identical: false"
+        );
+    }
+    let secs: Vec<String> = steps.iter().map(|s| format!("{}", s["seconds"])).collect();
+    eprintln!(
+        "yamcs_e2e files: up {:?} and down {:?} (name, bytes, class 2) in {} s each; all moves {moves_s:.1} s; test {:.1} s",
+        up,
+        down,
+        secs.join(" / "),
+        t_total.elapsed().as_secs_f64()
     );
     let _ = std::fs::remove_dir_all(&dir);
 }

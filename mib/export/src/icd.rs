@@ -236,11 +236,12 @@ fn section_conventions_and_apids(o: &mut String, robot1: u16) {
     let _ = writeln!(
         o,
         "- Files (docs/files.md): CCSDS File Delivery Protocol (727.0-B-5) PDUs, one per space packet without a
-  secondary header, on APID **0x{:03X}** both ways (TC packets up, TM packets down), on the space link only.
-  CFDP entity IDs: the ground {}, robot *N* = *N* ({} octets); transaction sequence numbers {} octets; PDUs of at
+  secondary header, on APID **0x{:03X}** both ways (TC packets up, TM packets down on TM virtual channel {}), on
+  the space link only. CFDP entity IDs: the ground {}, robot *N* = *N* ({} octets); transaction sequence numbers {} octets; PDUs of at
   most {} octets, modular checksum (type {}), no PDU CRC.
 ",
         mib::cfdp::APID,
+        mib::link::tm_vc::FILES,
         mib::cfdp::GROUND_ENTITY_ID,
         mib::cfdp::ENTITY_ID_LEN,
         mib::cfdp::SEQ_NUM_LEN,

@@ -219,13 +219,14 @@ mod tests {
             "etc/yamcs.mmic.yaml",
             "etc/processor.yaml",
             "etc/events.json",
+            yamcs::CFDP_SQL_FILE,
         ] {
             assert!(files.contains(&dir.join(f)), "{f}");
         }
         for n in [1, 2, 5] {
             assert!(dir.join(yamcs::mdb_file(n)).is_file());
         }
-        assert_eq!(files.len(), 7);
+        assert_eq!(files.len(), 8);
         let _ = std::fs::remove_dir_all(&dir);
     }
     // verifies: ICD-04

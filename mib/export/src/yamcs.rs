@@ -237,6 +237,9 @@ pub fn yamcs_instance(setup: &YamcsSetup) -> Vec<(String, String)> {
             events_json(&setup.robots.iter().map(|r| r.robot).collect::<Vec<_>>()),
         ),
     ];
+    if setup.links == Links::Frames {
+        files.push((CFDP_SQL_FILE.to_string(), cfdp_sql(setup)));
+    }
     for r in &setup.robots {
         files.push((mdb_file(r.robot), yamcs_xtce(r.robot)));
     }
@@ -275,11 +278,20 @@ fn server_yaml(s: &YamcsSetup) -> String {
          instances:\n  - {inst}\n\
          # Overridden by `--data-dir` (scripts/yamcs.sh).\n\
          dataDir: yamcs-data\n\
-         yamcs-web:\n  tag: MMIC-I\n",
+         yamcs-web:\n  tag: MMIC-I\n{buckets}",
         ver = env!("CARGO_PKG_VERSION"),
         addr = s.http_address,
         port = s.http_port,
-        inst = s.instance
+        inst = s.instance,
+        buckets = match s.links {
+            Links::Frames => format!(
+                "# File transfer (CFDP, docs/files.md): folders of the instance directory, so an operator\n\
+                 # can put a file to upload into {UPLOAD_DIR}/ and find the files that came down in {DOWNLOAD_DIR}/.\n\
+                 buckets:\n  - name: {UPLOAD_BUCKET}\n    path: {UPLOAD_DIR}\n  \
+                 - name: {DOWNLOAD_BUCKET}\n    path: {DOWNLOAD_DIR}\n"
+            ),
+            Links::LabPackets => String::new(),
+        }
     )
 }
 
@@ -319,6 +331,9 @@ fn instance_yaml(s: &YamcsSetup) -> String {
             ss = r.space_system()
         );
     }
+    if s.links == Links::Frames {
+        cfdp_service(&mut y, s);
+    }
     y.push_str("dataLinks:\n");
     for r in &s.robots {
         match s.links {
@@ -338,12 +353,22 @@ fn instance_yaml(s: &YamcsSetup) -> String {
             n = r.robot,
             ss = r.space_system()
         );
+        if s.links == Links::Frames {
+            // Archived as CCSDS packets; no processor: the CFDP service reads them (etc/cfdp.sql).
+            let _ = writeln!(
+                y,
+                "    - name: {files}\n      rootContainer: /{ss}/CCSDSPacket",
+                files = files_stream(r.robot),
+                ss = r.space_system()
+            );
+        }
     }
     y.push_str(
         "  invalidTm: invalid_tm_stream\n  cmdHist: [cmdhist_realtime, cmdhist_dump]\n  \
          event: [events_realtime, events_dump]\n  param: [pp_realtime, sys_param, proc_param]\n  \
-         parameterAlarm: [alarms_realtime]\n  eventAlarm: [event_alarms_realtime]\n  tc:\n",
+         parameterAlarm: [alarms_realtime]\n  eventAlarm: [event_alarms_realtime]\n",
     );
+    y.push_str("  tc:\n");
     for r in &s.robots {
         let _ = writeln!(
             y,
@@ -351,6 +376,10 @@ fn instance_yaml(s: &YamcsSetup) -> String {
             n = r.robot,
             ss = r.space_system()
         );
+    }
+    if s.links == Links::Frames {
+        // After the TC streams it inserts into.
+        let _ = writeln!(y, "  sqlFile: {CFDP_SQL_FILE}");
     }
     y
 }
@@ -460,14 +489,135 @@ fn frame_links(y: &mut String, r: &YamcsRobot) {
          encryptionSpis: [{tm_spi}]\n        maxPacketLength: {max}\n        stream: tm_robot_{n}\n{pre}      \
          - vcId: {rp}\n        ocfPresent: true\n        service: PACKET\n        encryptionSpis: [{tm_spi}]\n        \
          maxPacketLength: {max}\n        stream: tm_robot_{n}\n{pre}      \
+         # CFDP PDU packets: no PUS header, no packet CRC (the frame has its CRC and MAC), so not\n      \
+         # the PUS preprocessor (it drops them); to the CFDP service through {files} and etc/cfdp.sql.\n      \
+         - vcId: {fv}\n        ocfPresent: true\n        service: PACKET\n        encryptionSpis: [{tm_spi}]\n        \
+         maxPacketLength: {max}\n        stream: {files}\n        \
+         packetPreprocessorClassName: org.yamcs.tctm.GenericPacketPreprocessor\n        packetPreprocessorArgs:\n          \
+         timestampOffset: -1\n          seqCountOffset: 0\n      \
          # Idle frames in clear: only their CLCW is used.\n      - vcId: {idle}\n        ocfPresent: true\n        \
          service: PACKET\n        maxPacketLength: {max}\n        stream: tm_robot_{n}\n{pre}",
         rt = tm_vc::REALTIME,
         rp = tm_vc::REPLAY,
+        fv = tm_vc::FILES,
+        files = files_stream(n),
         idle = tm_vc::IDLE,
         max = config::MAX_PACKET_LEN.max(tm_frame::SECURE_DATA_LEN),
         pre = pus_preprocessor("        "),
     );
+}
+
+// ---------------------------------------------------------------------------
+// File transfer: Yamcs' CFDP service (`org.yamcs.cfdp.CfdpService`) as the ground entity,
+// `mib::cfdp` for every number (docs/files.md, "Yamcs").
+
+/// Name of the CFDP service (the file-transfer service of Yamcs' API and web UI).
+pub const CFDP_SERVICE: &str = "cfdp";
+/// Bucket the operator uploads from: the folder [`UPLOAD_DIR`] of the instance directory.
+pub const UPLOAD_BUCKET: &str = "cfdpUp";
+pub const UPLOAD_DIR: &str = "files/up";
+/// Bucket the files from the robots arrive in: the folder [`DOWNLOAD_DIR`].
+pub const DOWNLOAD_BUCKET: &str = "cfdpDown";
+pub const DOWNLOAD_DIR: &str = "files/down";
+/// Name of Yamcs' own entity (ID `mib::cfdp::GROUND_ENTITY_ID`).
+pub const GROUND_ENTITY: &str = "ground";
+/// The stream SQL that carries PDUs between the frame links and the CFDP service.
+pub const CFDP_SQL_FILE: &str = "etc/cfdp.sql";
+/// Time between two PDUs Yamcs sends: one per on-board control period, about 95 KB/s of
+/// file data, under what COP-1's window carries (`docs/files.md`, "Measured"); the FOP
+/// queues what its window cannot take yet, so the pace only keeps that queue short.
+pub const PDU_DELAY_MS: u32 = mib::config::CONTROL_PERIOD_MS;
+
+/// Name of robot `n`'s remote entity in Yamcs.
+pub fn robot_entity(n: u8) -> String {
+    format!("robot-{n}")
+}
+
+/// Yamcs stream of robot `n`'s CFDP PDU packets (the TM frame link's files VC).
+pub fn files_stream(n: u8) -> String {
+    format!("files_robot_{n}")
+}
+
+/// First two bytes of a CFDP PDU packet's primary header: version 0, type (TM 0 / TC 1), no
+/// secondary header, `mib::cfdp::APID`.
+fn pdu_packet_word(tc: bool) -> u16 {
+    (u16::from(tc) << 12) | mib::cfdp::APID
+}
+
+/// The CFDP service: Yamcs is the ground entity, each robot a remote entity; PDU sizes,
+/// entity ID and sequence number lengths, checksum, timers and limits from `mib::cfdp`.
+fn cfdp_service(y: &mut String, s: &YamcsSetup) {
+    use mib::cfdp as c;
+    let _ = write!(
+        y,
+        "  # Files (docs/files.md): CFDP class 1 and 2 with each robot's entity, PDUs in space packets\n  \
+         # on APID {apid:#05x} over the frame links (COP-1 up, SDLS both ways; etc/cfdp.sql).\n  \
+         - class: org.yamcs.cfdp.CfdpService\n    name: {CFDP_SERVICE}\n    args:\n      \
+         inStream: cfdp_in\n      outStream: cfdp_out\n      incomingBucket: {DOWNLOAD_BUCKET}\n      \
+         entityIdLength: {eid}\n      sequenceNrLength: {seq}\n      maxPduSize: {pdu}\n      \
+         checksumType: MODULAR\n      sleepBetweenPdus: {PDU_DELAY_MS}\n      \
+         eofAckTimeout: {ack}\n      eofAckLimit: {ackl}\n      finAckTimeout: {ack}\n      finAckLimit: {ackl}\n      \
+         nakTimeout: {nak}\n      nakLimit: {nakl}\n      inactivityTimeout: {inact}\n      \
+         # One transaction each way at a time on board: Yamcs queues the next upload.\n      \
+         maxNumPendingUploads: 1\n      queueConcurrentUploads: true\n      \
+         # The robots' directory listing is a file named {listing} (see docs/files.md); Yamcs asks\n      \
+         # for a listing under a name the robot's store refuses, so the listing is not offered.\n      \
+         hasFileListingCapability: false\n      \
+         localEntities:\n        - name: {GROUND_ENTITY}\n          id: {ground}\n      remoteEntities:\n",
+        apid = c::APID,
+        eid = c::ENTITY_ID_LEN,
+        seq = c::SEQ_NUM_LEN,
+        pdu = c::MAX_PDU_LEN,
+        ack = c::ACK_TIMER_MS,
+        ackl = c::ACK_LIMIT,
+        nak = c::NAK_TIMER_MS,
+        nakl = c::NAK_LIMIT,
+        inact = c::INACTIVITY_MS,
+        listing = c::LISTING_NAME,
+        ground = c::GROUND_ENTITY_ID,
+    );
+    for r in &s.robots {
+        let _ = write!(
+            y,
+            "        - name: {}\n          id: {}\n",
+            robot_entity(r.robot),
+            c::robot_entity_id(r.robot)
+        );
+    }
+}
+
+/// The stream SQL of the CFDP service (`streamConfig.sqlFile`): PDUs from each robot's files
+/// VC into `cfdp_in` (the packet's data field), and each PDU of `cfdp_out` to its robot's TC
+/// stream in a TC packet on the CFDP APID (the PUS post-processor writes the length and
+/// sequence count; without a secondary header it adds no CRC). A PDU belongs to robot N when
+/// N started its transaction (`entityId`, the initiator) or, in a transaction Yamcs
+/// started, when N is the PDU header's destination entity (after the fixed 4 bytes, the
+/// source ID and the sequence number).
+fn cfdp_sql(s: &YamcsSetup) -> String {
+    use mib::cfdp as c;
+    let dest_at = 4 + c::ENTITY_ID_LEN + c::SEQ_NUM_LEN;
+    let mut q = String::from(
+        "-- Generated from the MMIC-I MIB: CFDP PDUs between the frame links and the CFDP service.\n\
+         create stream cfdp_in (pdu BINARY)\n\
+         create stream cfdp_out (gentime TIMESTAMP, entityId LONG, seqNum INT, pdu BINARY)\n",
+    );
+    for r in &s.robots {
+        let id = c::robot_entity_id(r.robot);
+        let _ = write!(
+            q,
+            "insert into cfdp_in select substring(packet, 6) as pdu from {files} \
+             where extract_short(packet, 0) = {tm_word}\n\
+             insert into tc_robot_{n} select gentime, 'cfdp-service' as origin, seqNum, \
+             '/yamcs/cfdp/upload' as cmdName, unhex('{tc_word:04X}C0000000') + pdu as binary from cfdp_out \
+             where entityId = {id} or (entityId = {ground} and extract_short(pdu, {dest_at}) = {id})\n",
+            files = files_stream(r.robot),
+            tm_word = pdu_packet_word(false),
+            n = r.robot,
+            tc_word = pdu_packet_word(true),
+            ground = c::GROUND_ENTITY_ID,
+        );
+    }
+    q
 }
 
 const PROCESSOR_YAML: &str = "# Generated from the MMIC-I MIB: Yamcs processors.\n\
@@ -1154,6 +1304,78 @@ mod tests {
         }
         // Pre-processing on VC0, VC1 and VC7 of both robots; post-processing per TC VC.
         assert_eq!(inst.matches("CRC-16-CCIIT").count(), 2 * 4);
+    }
+
+    // verifies: YAMCS-FILE-01
+    #[test]
+    fn the_frame_instance_has_a_cfdp_service_on_the_files_vc_with_the_mibs_numbers() {
+        use mib::cfdp as c;
+        let setup = YamcsSetup::for_robots("2,5".parse().unwrap());
+        let files = yamcs_instance(&setup);
+        let get = |n: &str| &files.iter().find(|(p, _)| p == n).unwrap().1;
+        let inst = get("etc/yamcs.mmic.yaml");
+        for want in [
+            "class: org.yamcs.cfdp.CfdpService".to_string(),
+            format!("name: {CFDP_SERVICE}"),
+            format!("entityIdLength: {}", c::ENTITY_ID_LEN),
+            format!("sequenceNrLength: {}", c::SEQ_NUM_LEN),
+            format!("maxPduSize: {}", c::MAX_PDU_LEN),
+            "checksumType: MODULAR".to_string(),
+            format!("eofAckTimeout: {}", c::ACK_TIMER_MS),
+            format!("eofAckLimit: {}", c::ACK_LIMIT),
+            format!("finAckTimeout: {}", c::ACK_TIMER_MS),
+            format!("nakTimeout: {}", c::NAK_TIMER_MS),
+            format!("nakLimit: {}", c::NAK_LIMIT),
+            format!("inactivityTimeout: {}", c::INACTIVITY_MS),
+            format!("incomingBucket: {DOWNLOAD_BUCKET}"),
+            format!("- name: {GROUND_ENTITY}\n          id: {}", c::GROUND_ENTITY_ID),
+            format!("- name: robot-2\n          id: {}", c::robot_entity_id(2)),
+            format!("- name: robot-5\n          id: {}", c::robot_entity_id(5)),
+            format!("sqlFile: {CFDP_SQL_FILE}"),
+        ] {
+            assert!(inst.contains(&want), "{want}");
+        }
+        // The files VC of each TM frame link: SDLS, no PUS preprocessor, to the files stream.
+        for n in [2u8, 5] {
+            let vc = format!(
+                "- vcId: {}\n        ocfPresent: true\n        service: PACKET\n        encryptionSpis: [{}]\n        \
+                 maxPacketLength: {}\n        stream: {}\n        packetPreprocessorClassName: org.yamcs.tctm.GenericPacketPreprocessor\n",
+                mib::link::tm_vc::FILES,
+                mib::link::sdls::TM_SPIS[0],
+                config::MAX_PACKET_LEN.max(mib::link::tm_frame::SECURE_DATA_LEN),
+                files_stream(n)
+            );
+            assert!(inst.contains(&vc), "{vc}");
+            assert!(inst.contains(&format!(
+                "- name: {}\n      rootContainer: /MMIC_I_ROBOT_{n}/CCSDSPacket",
+                files_stream(n)
+            )));
+        }
+        // The PUS preprocessor stays on VC0, VC1 and VC7 only.
+        assert_eq!(inst.matches("CRC-16-CCIIT").count(), 2 * 4);
+        let sql = get(CFDP_SQL_FILE);
+        // TM packet word 0x00F0, TC packet word 0x10F0 + sequence flags "unsegmented".
+        assert_eq!(pdu_packet_word(false), c::APID);
+        assert_eq!(pdu_packet_word(true), 0x1000 | c::APID);
+        for n in [2u16, 5] {
+            assert!(sql.contains(&format!(
+                "insert into cfdp_in select substring(packet, 6) as pdu from files_robot_{n} where extract_short(packet, 0) = {}\n",
+                c::APID
+            )));
+            assert!(sql.contains(&format!(
+                "insert into tc_robot_{n} select gentime, 'cfdp-service' as origin, seqNum, '/yamcs/cfdp/upload' as cmdName, \
+                 unhex('{:04X}C0000000') + pdu as binary from cfdp_out where entityId = {n} or (entityId = 0 and extract_short(pdu, 8) = {n})\n",
+                0x1000 | c::APID
+            )));
+        }
+        let server = get("etc/yamcs.yaml");
+        assert!(server.contains(&format!("- name: {UPLOAD_BUCKET}\n    path: {UPLOAD_DIR}\n")));
+        assert!(server.contains(&format!("- name: {DOWNLOAD_BUCKET}\n    path: {DOWNLOAD_DIR}\n")));
+        // Nothing unauthenticated moves a file: the lab instance has no file service.
+        let lab = yamcs_instance(&YamcsSetup::with_links("2".parse().unwrap(), Links::LabPackets));
+        assert!(lab
+            .iter()
+            .all(|(p, t)| p != CFDP_SQL_FILE && !t.contains("Cfdp") && !t.contains("buckets:")));
     }
 
     // verifies: YAMCS-XTCE-01

@@ -349,10 +349,15 @@ impl User {
     }
 
     /// A message to user from the peer: a reserved message this entity acts on, or none.
-    fn message(&mut self, v: &[u8]) {
+    /// `mode`: the class of a Proxy Transmission Mode sent as a message of its own.
+    fn message(&mut self, v: &[u8], mode: Option<Class>) {
         let owed = match msg::parse(v) {
             Some(ReservedMsg::ProxyPut { src, dest, class, .. }) => match (FileName::new(src), FileName::new(dest)) {
-                (Ok(src), Ok(dest)) => Some(Owed { src, dest, class }),
+                (Ok(src), Ok(dest)) => Some(Owed {
+                    src,
+                    dest,
+                    class: mode.unwrap_or(class),
+                }),
                 _ => None,
             },
             Some(ReservedMsg::DirectoryListing { dest, .. }) => match FileName::new(dest) {
@@ -815,6 +820,10 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         };
         if stray || (target == PacketTarget::DestEntity && self.finished_rx.iter().any(|t| *t == tx)) {
             self.counters.stray = self.counters.stray.wrapping_add(1);
+            if target == PacketTarget::SourceEntity && pdu.file_directive_type() == Some(FileDirectiveType::FinishedPdu)
+            {
+                self.ack_late_finished(&h, raw);
+            }
             return;
         }
         self.counters.received = self.counters.received.wrapping_add(1);
@@ -836,6 +845,32 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             PacketTarget::DestEntity => self.run_dest(Some(&pdu)),
         }
         self.settle();
+    }
+
+    /// A class 2 Finished PDU of a transaction this entity sent and has ended: the peer did
+    /// not get our ACK of it (lost on the downlink) and sends its Finished again until it
+    /// does (727.0-B-5 § 4.6.4.2.3: a sender answers every Finished PDU with an ACK). The
+    /// handler has moved on, so the entity acknowledges it again; without it the peer
+    /// reaches its ACK limit and calls a delivered file failed (Yamcs: "File was received OK
+    /// but the Finished PDU has not been acknowledged").
+    fn ack_late_finished(&mut self, h: &PduHeader, raw: &[u8]) {
+        if h.common_pdu_conf().trans_mode != TransmissionMode::Acknowledged {
+            return;
+        }
+        let Ok(fin) = FinishedPduReader::from_bytes(raw) else {
+            return;
+        };
+        let ack = AckPdu::new_for_finished_pdu(
+            PduHeader::new_for_file_directive(*h.common_pdu_conf(), 0),
+            fin.condition_code(),
+            TransactionStatus::Terminated,
+        );
+        let mut buf = [0u8; 64];
+        if let Ok(n) = ack.write_to_bytes(&mut buf) {
+            // A full outbox drops it, counted: the peer's next Finished asks again.
+            let _ =
+                Sender(&self.parts.link).send_pdu(PduType::FileDirective, Some(FileDirectiveType::AckPdu), &buf[..n]);
+        }
     }
 
     /// A Finished PDU while the source still waits for the ACK of its EOF: the receiver
@@ -1024,9 +1059,15 @@ impl<'a, S: FlatStore> Entity<'a, S> {
     /// counted); proxy puts and directory listings owed to the peer.
     fn user_requests(&mut self, md: &MetadataPduReader) {
         let Some(opts) = md.options_iter() else { return };
+        // The standard's Proxy Transmission Mode is a message of its own (Yamcs sends it so).
+        let mode = md.options_iter().and_then(|mut o| {
+            o.find_map(|t| {
+                (t.tlv_type() == Some(TlvType::MsgToUser)).then(|| msg::proxy_transmission_mode(t.value()))?
+            })
+        });
         for tlv in opts {
             if tlv.tlv_type() == Some(TlvType::MsgToUser) {
-                self.user.message(tlv.value());
+                self.user.message(tlv.value(), mode);
                 continue;
             }
             if tlv.tlv_type() != Some(TlvType::FilestoreRequest) {

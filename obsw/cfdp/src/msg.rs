@@ -81,6 +81,17 @@ fn put_lv(out: &mut [u8], at: &mut usize, v: &[u8]) -> Option<()> {
     Some(())
 }
 
+/// The class of a Proxy Transmission Mode message sent as a message of its own (727.0-B-5
+/// § 6.2.4, the way Yamcs sends it beside its Proxy Put Request).
+pub fn proxy_transmission_mode(v: &[u8]) -> Option<Class> {
+    match v {
+        [m0, m1, m2, m3, PROXY_TRANSMISSION_MODE, mode] if [*m0, *m1, *m2, *m3] == *MAGIC => {
+            Some(if mode & 1 == 1 { Class::One } else { Class::Two })
+        }
+        _ => None,
+    }
+}
+
 /// Writes a Proxy Put Request (send `src` to entity `to` as `dest` in `class`) into `out`.
 pub fn proxy_put(out: &mut [u8], to: u16, src: &str, dest: &str, class: Class) -> Option<usize> {
     out.get_mut(..5)?.copy_from_slice(b"cfdp\x00");
@@ -142,5 +153,15 @@ mod tests {
         );
         assert_eq!(parse(b"cfdq\x10\x01/\x01x"), None);
         assert_eq!(parse(b"cfdp\x07"), None, "a type this entity does not take");
+    }
+
+    // verifies: FILE-CFDP-03
+    #[test]
+    fn a_proxy_transmission_mode_of_its_own_gives_the_class() {
+        assert_eq!(proxy_transmission_mode(b"cfdp\x04\x01"), Some(Class::One));
+        assert_eq!(proxy_transmission_mode(b"cfdp\x04\x00"), Some(Class::Two));
+        assert_eq!(proxy_transmission_mode(b"cfdp\x04"), None);
+        assert_eq!(proxy_transmission_mode(b"cfdp\x04\x01\x00"), None);
+        assert_eq!(proxy_transmission_mode(b"cfdq\x04\x01"), None);
     }
 }

@@ -278,3 +278,52 @@ fn a_put_to_a_silent_peer_ends_reported_as_not_complete() {
         );
     });
 }
+
+// verifies: FILE-CFDP-05
+#[test]
+fn a_finished_pdu_sent_again_after_a_lost_ack_is_acknowledged_again_by_the_ended_sender() {
+    big_stack(|| {
+        const ACK: u8 = 0x06;
+        const FINISHED: u8 = 0x05;
+        let (gp, rp) = (Parts::new(Mem::new(200_000)), Parts::new(Mem::new(200_000)));
+        let mut g = Entity::new(0, 1, &gp);
+        let mut r = Entity::new(1, 0, &rp);
+        let down = file(5_000, 4);
+        put_file(&rp, "down.bin", &down);
+        r.put(now(), "down.bin", "down.bin", Class::Two).unwrap();
+        let start = now();
+        let mut t = start;
+        let (mut lost_acks, mut finished_sent) = (0, 0);
+        // The robot's first ACK of the ground's Finished is lost on the downlink; the ground
+        // sends its Finished again after its positive ACK timer.
+        while t < start + 6 * mib::cfdp::ACK_TIMER_MS && !(g.idle() && r.idle()) {
+            t += 10;
+            g.poll(t);
+            r.poll(t);
+            while let Some(p) = g.pop() {
+                finished_sent += usize::from(directive(&p) == Some(FINISHED));
+                r.receive(t, &p);
+            }
+            while let Some(p) = r.pop() {
+                if directive(&p) == Some(ACK) && lost_acks == 0 {
+                    lost_acks += 1;
+                    continue;
+                }
+                g.receive(t, &p);
+            }
+        }
+        CLOCK.with(|c| c.set(t));
+        assert_eq!(lost_acks, 1, "the Finished PDU's ACK was dropped");
+        assert!(g.idle() && r.idle(), "ended: g {:?} r {:?}", g.counters(), r.counters());
+        assert_eq!(
+            finished_sent,
+            2,
+            "one Finished PDU again, then its ACK: {:?}",
+            g.counters()
+        );
+        let f = g.take_finished().expect("the ground's receiving transaction ended");
+        assert!(!f.sent && f.complete, "{f:?}");
+        assert_eq!(g.counters().faults, 0, "{:?}", g.counters());
+        assert_eq!(read_file(&gp, "down.bin").as_deref(), Some(&down[..]));
+    });
+}

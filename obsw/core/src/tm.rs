@@ -19,6 +19,12 @@ pub trait TmSink {
     fn send_replay(&mut self, packet: &[u8]) {
         self.send_tm(packet);
     }
+    /// A CFDP PDU packet (`mib::cfdp::APID`, no PUS header). On the space link it goes on
+    /// the files virtual channel (`mib::link::tm_vc::FILES`), which a ground processes as
+    /// file PDUs rather than PUS TM; a sink without channels sends it like any other packet.
+    fn send_file(&mut self, packet: &[u8]) {
+        self.send_tm(packet);
+    }
 }
 
 /// A sink that collects packets (tests, recorders).

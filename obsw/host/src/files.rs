@@ -4,7 +4,7 @@
 //!
 //! Interface: takes space packets of `mib::cfdp::APID` (TC type) from accepted TC frames
 //! only — never from the lab's bare-packet link, so nothing unauthenticated reaches the
-//! store; supplies TM packets of that APID (realtime VC); its counters
+//! store; supplies TM packets of that APID (on the files VC, `TmSink::send_file`); its counters
 //! ([`mmic_cfdp::entity::Counters`], the store's) are logged when they change.
 
 use std::path::Path;
@@ -109,7 +109,7 @@ impl<'a> Files<'a> {
         while let Some(pdu) = self.entity.pop() {
             if let Some(n) = packet::wrap(Direction::Down, self.seq, &pdu, &mut buf) {
                 self.seq = self.seq.wrapping_add(1) & 0x3FFF;
-                down.send_tm(&buf[..n]);
+                down.send_file(&buf[..n]);
             }
         }
     }

@@ -189,7 +189,7 @@ impl Wire {
 /// The frame endpoint (see the module documentation).
 pub struct FrameEndpoint {
     port: Wire,
-    ep: Endpoint<FileIvStore, 2, 2>,
+    ep: Endpoint<FileIvStore, 2, 3>,
     /// Time 0 of the endpoint's clock (ms).
     epoch: Instant,
     /// TM keys loaded (SPI, key), `TM_SPIS` order.

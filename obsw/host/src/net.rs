@@ -230,6 +230,10 @@ impl obsw_core::tm::TmSink for TmDestinations {
     fn send_replay(&mut self, packet: &[u8]) {
         self.send_on(packet, TmVc::Replay);
     }
+
+    fn send_file(&mut self, packet: &[u8]) {
+        self.send_on(packet, TmVc::Files);
+    }
 }
 
 impl TmDestinations {

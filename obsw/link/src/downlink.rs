@@ -53,14 +53,34 @@ impl TmSecurity {
 pub enum TmVc {
     Realtime,
     Replay,
+    /// CFDP PDU packets (`mib::link::tm_vc::FILES`).
+    Files,
 }
 
 impl TmVc {
+    /// Every packet-carrying VC, in the order of their packet zones.
+    pub const ALL: [TmVc; 3] = [TmVc::Realtime, TmVc::Replay, TmVc::Files];
+
     pub fn id(self) -> u8 {
         match self {
             TmVc::Realtime => tm_vc::REALTIME,
             TmVc::Replay => tm_vc::REPLAY,
+            TmVc::Files => tm_vc::FILES,
         }
+    }
+
+    /// The VC's index in [`TmVc::ALL`] (its packet zone in a framer with every zone).
+    pub const fn index(self) -> usize {
+        match self {
+            TmVc::Realtime => 0,
+            TmVc::Replay => 1,
+            TmVc::Files => 2,
+        }
+    }
+
+    /// The packet-carrying VC with the identifier `id`.
+    pub fn from_id(id: u8) -> Option<TmVc> {
+        Self::ALL.into_iter().find(|vc| vc.id() == id)
     }
 }
 
@@ -108,13 +128,14 @@ struct Unsealed {
 
 /// The on-board TM framer: master and VC counters and `ZONES` packet multiplexers.
 ///
-/// `ZONES = 2` (the default, the host): one packet zone per packet-carrying VC, realtime
-/// on VC0 and store replays on VC1. `ZONES = 1` (board A, whose PUS 15 replays go on VC0,
-/// `TmSink::send_replay`'s default): only VC0's zone exists — a packet sent on
-/// [`TmVc::Replay`] goes into the VC0 zone and out on VC0 — and the framer is one packet
-/// zone (1012 bytes) smaller.
+/// `ZONES = 3` (the default, the host): one packet zone per packet-carrying VC, realtime
+/// on VC0, store replays on VC1, CFDP PDUs on VC2. `ZONES = 1` (board A, whose PUS 15
+/// replays go on VC0, `TmSink::send_replay`'s default, and which has no CFDP entity yet):
+/// only VC0's zone exists — a packet sent on another VC goes into the VC0 zone and out on
+/// VC0 — and the framer is two packet zones (2 × 1012 bytes) smaller. (`ZONES = 2`: VC0 and
+/// VC1; file packets go on VC0.)
 #[derive(Debug)]
-pub struct TmFramer<const ZONES: usize = 2> {
+pub struct TmFramer<const ZONES: usize = 3> {
     scid: u16,
     security: TmSecurity,
     mc: u8,
@@ -220,9 +241,14 @@ impl TmFramer<1> {
 }
 
 impl<const ZONES: usize> TmFramer<ZONES> {
-    /// A framer with `ZONES` packet zones (1: VC0 only, 2: VC0 and VC1).
+    /// A framer with `ZONES` packet zones (1: VC0 only, 2: VC0 and VC1, 3: VC0, VC1, VC2).
     pub fn with_zones(scid: u16, security: TmSecurity) -> TmFramer<ZONES> {
-        const { assert!(ZONES == 1 || ZONES == 2, "a TM framer has 1 or 2 packet zones") };
+        const {
+            assert!(
+                ZONES >= 1 && ZONES <= TmVc::ALL.len(),
+                "a TM framer has 1 to 3 packet zones"
+            )
+        };
         TmFramer {
             scid,
             security,
@@ -315,11 +341,9 @@ impl<const ZONES: usize> TmFramer<ZONES> {
         out: O,
         op: impl FnOnce(&mut PacketMux<CLEAR_DATA_LEN>, &mut dyn FnMut(Zone<'_>)) -> R,
     ) -> Result<R, DownlinkError> {
-        // Without a replay zone (ZONES = 1) a replay packet goes on VC0.
-        let (i, vc) = match vc {
-            TmVc::Replay if ZONES >= 2 => (1, TmVc::Replay),
-            TmVc::Realtime | TmVc::Replay => (0, TmVc::Realtime),
-        };
+        // A VC without its zone (ZONES too small) sends on VC0.
+        let vc = if vc.index() < ZONES { vc } else { TmVc::Realtime };
+        let i = vc.index();
         let mux = &mut self.zones[i];
         let mut c = FrameCtx {
             scid: self.scid,
@@ -407,7 +431,8 @@ pub struct TmReceiver<const N: usize> {
     scid: u16,
     security: TmSecurity,
     pub sas: RxSas<N>,
-    pub demux: [PacketDemux; 2],
+    /// One per packet-carrying VC, in the order of [`TmVc::ALL`].
+    pub demux: [PacketDemux; 3],
     pub counters: TmRxCounters,
 }
 
@@ -423,14 +448,14 @@ impl<const N: usize> TmReceiver<N> {
             scid,
             security,
             sas,
-            demux: [PacketDemux::default(), PacketDemux::default()],
+            demux: Default::default(),
             counters: TmRxCounters::default(),
         }
     }
 
     /// Demultiplexer counters of a VC.
     pub fn demux_counters(&self, vc: TmVc) -> DemuxCounters {
-        self.demux[usize::from(vc.id() & 1)].counters
+        self.demux[vc.index()].counters
     }
 
     /// Processes one frame (decrypted in place); `out(vcid, packet)` receives its complete
@@ -476,29 +501,24 @@ impl<const N: usize> TmReceiver<N> {
             return Err(TmRxError::WrongScid(repr.scid));
         }
         let clcw = Clcw::parse(ocf).map_err(TmRxError::Clcw)?;
-        match repr.vcid {
-            tm_vc::IDLE => {
-                if repr.fhp != FirstHeaderPointer::IdleOnly {
-                    return Err(TmRxError::BadFirstHeaderPointer);
-                }
-                self.counters.idle_frames = self.counters.idle_frames.saturating_add(1);
-                Ok(clcw)
+        if repr.vcid == tm_vc::IDLE {
+            if repr.fhp != FirstHeaderPointer::IdleOnly {
+                return Err(TmRxError::BadFirstHeaderPointer);
             }
-            tm_vc::REALTIME | tm_vc::REPLAY => {
-                if repr.fhp == FirstHeaderPointer::IdleOnly {
-                    return Err(TmRxError::BadFirstHeaderPointer);
-                }
-                let pt = match self.security {
-                    TmSecurity::Encrypt => self.sas.process_tm(store, frame).map_err(TmRxError::Sdls)?,
-                    TmSecurity::Clear => HEADER_LEN..HEADER_LEN + CLEAR_DATA_LEN,
-                };
-                let vc = repr.vcid;
-                self.demux[usize::from(vc & 1)].feed(repr.vc_count, repr.fhp, &frame[pt], |p| out(vc, p));
-                self.counters.frames = self.counters.frames.saturating_add(1);
-                Ok(clcw)
-            }
-            other => Err(TmRxError::UnknownVc(other)),
+            self.counters.idle_frames = self.counters.idle_frames.saturating_add(1);
+            return Ok(clcw);
         }
+        let vc = TmVc::from_id(repr.vcid).ok_or(TmRxError::UnknownVc(repr.vcid))?;
+        if repr.fhp == FirstHeaderPointer::IdleOnly {
+            return Err(TmRxError::BadFirstHeaderPointer);
+        }
+        let pt = match self.security {
+            TmSecurity::Encrypt => self.sas.process_tm(store, frame).map_err(TmRxError::Sdls)?,
+            TmSecurity::Clear => HEADER_LEN..HEADER_LEN + CLEAR_DATA_LEN,
+        };
+        self.demux[vc.index()].feed(repr.vc_count, repr.fhp, &frame[pt], |p| out(repr.vcid, p));
+        self.counters.frames = self.counters.frames.saturating_add(1);
+        Ok(clcw)
     }
 }
 
@@ -583,6 +603,51 @@ mod tests {
             got.push(p.to_vec())
         });
         assert!(!got.contains(&ps[0]), "an encrypted packet never comes out in clear");
+    }
+
+    // verifies: LINK-TM-05
+    #[test]
+    fn file_packets_go_down_on_the_files_vc_beside_realtime_tm_and_on_vc0_without_its_zone() {
+        let farm = Farm::mission();
+        let mut sa = TxSa::resume(17, &TEST_KEY_TM_A, 0);
+        let mut st = MemoryIvStore::default();
+        let (hk, pdu) = (packet(0x101, 0, 200), packet(mib::cfdp::APID, 0, 300));
+        let mut dl = TmFramer::mission();
+        let mut frames: Vec<Vec<u8>> = vec![];
+        dl.send(TmVc::Realtime, &hk, farm.clcw(), &mut sa, &mut st, |_| {})
+            .unwrap();
+        dl.send(TmVc::Files, &pdu, farm.clcw(), &mut sa, &mut st, |_| {})
+            .unwrap();
+        for vc in TmVc::ALL {
+            dl.flush(vc, farm.clcw(), &mut sa, &mut st, |f| frames.push(f.to_vec()))
+                .unwrap();
+        }
+        assert_eq!(frames.len(), 2, "one frame per VC with packets");
+        let mut g = ground();
+        let mut got = vec![];
+        for f in &frames {
+            g.receive(&mut MemoryIvStore::default(), &mut f.clone(), |vc, p| {
+                got.push((vc, p.to_vec()))
+            })
+            .unwrap();
+        }
+        assert_eq!(got, [(tm_vc::REALTIME, hk.clone()), (tm_vc::FILES, pdu.clone())]);
+        assert_eq!(g.demux_counters(TmVc::Files).frames_lost, 0);
+        // Board A's framer has no files zone: the PDU packet goes on VC0.
+        let mut board = TmFramer::mission_realtime_only();
+        let mut frames: Vec<Vec<u8>> = vec![];
+        board
+            .send(TmVc::Files, &pdu, farm.clcw(), &mut sa, &mut st, |_| {})
+            .unwrap();
+        board
+            .flush(TmVc::Files, farm.clcw(), &mut sa, &mut st, |f| frames.push(f.to_vec()))
+            .unwrap();
+        let mut got = vec![];
+        g.receive(&mut MemoryIvStore::default(), &mut frames[0].clone(), |vc, p| {
+            got.push((vc, p.to_vec()))
+        })
+        .unwrap();
+        assert_eq!(got, [(tm_vc::REALTIME, pdu)]);
     }
 
     // verifies: LINK-TM-01, LINK-TM-02, LINK-SDLS-03

@@ -48,15 +48,15 @@ pub enum LinkReport {
 }
 
 /// The endpoint (see the module documentation). `SAS`: receive SAs; `ZONES`: TM packet
-/// zones (2: realtime VC0 and replay VC1; 1: replays on VC0).
+/// zones (3: realtime VC0, replay VC1, files VC2; 1: everything on VC0).
 pub struct Endpoint<St, const SAS: usize, const ZONES: usize> {
     pub rx: TcReceiver<SAS>,
     framer: TmFramer<ZONES>,
     /// The TM SA in use (`None`: no TM key, nothing but idle frames goes down).
     tm_sa: Option<TxSa>,
     store: St,
-    /// Virtual channels holding packet bytes not yet sent in a frame (realtime, replay).
-    pending: [bool; 2],
+    /// Virtual channels holding packet bytes not yet sent in a frame ([`TmVc::ALL`]'s order).
+    pending: [bool; 3],
     /// An authentic TC frame changed (or confirmed) the CLCW: send it at once.
     clcw_due: bool,
     last_tx_ms: u64,
@@ -87,14 +87,6 @@ enum TcState {
     Packets { next: usize, end: usize },
 }
 
-/// Index of a TM virtual channel in the pending flags.
-const fn vc_index(vc: TmVc) -> usize {
-    match vc {
-        TmVc::Realtime => 0,
-        TmVc::Replay => 1,
-    }
-}
-
 impl<St: IvStore + StoreStats, const SAS: usize, const ZONES: usize> Endpoint<St, SAS, ZONES> {
     /// An endpoint whose first CLCW goes out at the first [`Endpoint::flush`].
     pub fn new(rx: TcReceiver<SAS>, framer: TmFramer<ZONES>, tm_sa: Option<TxSa>, store: St) -> Self {
@@ -103,7 +95,7 @@ impl<St: IvStore + StoreStats, const SAS: usize, const ZONES: usize> Endpoint<St
             framer,
             tm_sa,
             store,
-            pending: [false; 2],
+            pending: [false; 3],
             clcw_due: true,
             last_tx_ms: 0,
             unkeyed: 0,
@@ -283,7 +275,7 @@ impl<St: IvStore + StoreStats, const SAS: usize, const ZONES: usize> Endpoint<St
         let _ = self
             .framer
             .send(vc, packet, self.rx.farm.clcw(), sa, &mut self.store, out);
-        self.pending[vc_index(vc)] = true;
+        self.pending[vc.index()] = true;
     }
 
     /// Sends the partly filled frames, or an idle frame with the CLCW when one is due (an
@@ -297,8 +289,8 @@ impl<St: IvStore + StoreStats, const SAS: usize, const ZONES: usize> Endpoint<St
             return;
         }
         if self.pending.iter().any(|&p| p) {
-            for vc in [TmVc::Realtime, TmVc::Replay] {
-                if !core::mem::take(&mut self.pending[vc_index(vc)]) {
+            for vc in TmVc::ALL {
+                if !core::mem::take(&mut self.pending[vc.index()]) {
                     continue;
                 }
                 if let Some(sa) = self.tm_sa.as_mut() {
