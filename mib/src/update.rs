@@ -63,13 +63,6 @@ pub mod version {
     }
 }
 
-/// Largest image on board A: the application slot of the memory map (an image that does
-/// not fit is refused before anything is erased).
-pub const BOARD_SLOT_BYTES: u32 = crate::memory::OTA_0.size;
-/// Largest image on the host, whose slots are files: an obsw debug binary is some 30 MB,
-/// far more than a board's slot.
-pub const HOST_SLOT_BYTES: u32 = 128 * 1024 * 1024;
-
 /// ESP-IDF's otadata (`esp_ota_select_entry_t`, two copies, one per 4 KiB sector of the
 /// `otadata` partition): which application slot the second-stage bootloader starts.
 pub mod ota {
@@ -99,7 +92,8 @@ pub mod ota {
     }
 }
 
-/// The update service's subservices (service `crate::tc::service::UPDATE`).
+/// The update service's subservices (service `crate::tc::service::UPDATE`); its status is
+/// housekeeping structure UPDATE.
 pub mod sub {
     /// Copy a file of the file store into the inactive slot and verify it.
     pub const INSTALL: u8 = 1;
@@ -107,10 +101,6 @@ pub mod sub {
     pub const ACTIVATE: u8 = 2;
     /// Confirm the running image (what its self-test does on its own).
     pub const CONFIRM: u8 = 3;
-    /// Report the update status.
-    pub const STATUS_REQUEST: u8 = 4;
-    /// TM: the update status report.
-    pub const STATUS: u8 = 5;
 }
 
 /// The outcome of the last update, as housekeeping UPDATE_OUTCOME reports it.

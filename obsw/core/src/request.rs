@@ -10,7 +10,7 @@ use crate::accept::Tc;
 use crate::failure::Failure;
 use crate::services::{
     event, event_action, function, hk, link, mode, modules, monitoring, parameter, plan, scheduling, storage, team,
-    test, time,
+    test, time, update,
 };
 use crate::time::OnboardTime;
 
@@ -43,6 +43,7 @@ pub enum Request<'a> {
     Team(team::Request),
     Link(link::Request),
     Plan(plan::Request<'a>),
+    Update(update::Request<'a>),
 }
 
 impl<'a> Request<'a> {
@@ -63,6 +64,7 @@ impl<'a> Request<'a> {
             service::TEAM => Request::Team(team::Request::parse(tc)?),
             service::SPACE_LINK => Request::Link(link::Request::parse(tc)?),
             service::PLAN => Request::Plan(plan::Request::parse(tc)?),
+            service::UPDATE => Request::Update(update::Request::parse(tc)?),
             // `accept` only lets services of the MIB through; a service added to the
             // MIB without a handler here is refused, never run by another one.
             other => return Err(Failure::unknown_service(other)),

@@ -84,6 +84,7 @@ fn bounds(offset: u32, len: usize, capacity: usize) -> Result<(), FlashError> {
 /// power: after `budget` byte programs and sector erases every further operation stops
 /// with [`FlashError::PowerCut`] (an erase cut part way leaves the first half of its
 /// sector erased and the rest as it was, the worst a real erase leaves: neither old nor new).
+#[derive(Clone)]
 pub struct RamNor<const N: usize> {
     pub bytes: [u8; N],
     budget: Option<usize>,

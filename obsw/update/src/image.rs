@@ -156,7 +156,10 @@ impl Source for &[u8] {
         <[u8]>::len(self).try_into().unwrap_or(u32::MAX)
     }
     fn read(&mut self, offset: u32, buf: &mut [u8]) -> Result<(), ReadError> {
-        let s = self.get(offset as usize..).and_then(|s| s.get(..buf.len())).ok_or(ReadError)?;
+        let s = self
+            .get(offset as usize..)
+            .and_then(|s| s.get(..buf.len()))
+            .ok_or(ReadError)?;
         buf.copy_from_slice(s);
         Ok(())
     }

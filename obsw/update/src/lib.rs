@@ -16,6 +16,8 @@
 #![deny(unsafe_code)]
 
 pub mod flash;
+#[cfg(feature = "std")]
+pub mod host;
 pub mod image;
 pub mod otadata;
 

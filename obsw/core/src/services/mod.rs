@@ -16,3 +16,4 @@ pub mod storage;
 pub mod team;
 pub mod test;
 pub mod time;
+pub mod update;
