@@ -30,6 +30,7 @@ mod verb_model;
 mod verb_plan;
 mod verb_run;
 mod verb_sim;
+mod verb_update;
 
 use verb_archive::{archive_cmd, ArchiveCmd};
 use verb_decode::{decode, DecodeArgs};
@@ -97,6 +98,9 @@ enum Cmd {
     /// Files to and from a robot's file store over CFDP: put, get, ls, rm, mv.
     #[command(subcommand)]
     File(verb_file::FileCmd),
+    /// Software update: keygen, sign, install (into the inactive slot), activate.
+    #[command(subcommand)]
+    Update(verb_update::UpdateCmd),
 }
 
 fn main() -> ExitCode {
@@ -147,5 +151,6 @@ fn run(cli: Cli) -> Result<u8> {
         Cmd::Alarms(a) => verb_collect::alarms(&cli.archive, a),
         Cmd::Keys(a) => verb_keys::keys(&a),
         Cmd::File(a) => verb_file::file(&a),
+        Cmd::Update(a) => verb_update::update(&a),
     }
 }

@@ -122,6 +122,12 @@ events! {
     PLAN_STATE_CHANGED = 0x0402, Info, false, ["plan_id": U32, "state": U8 @crate::plan::STATE_NAMES, "step": U8, "cause": U8 @crate::plan::CAUSE_NAMES], "Plan: the plan changed state (step = its next step; cause: command, step failed or timed out, fault, done, restart)";
     PLAN_STEP_STARTED = 0x0403, Info, false, ["plan_id": U32, "step": U8, "seq_count": U16], "Plan: a step's TC was handed to the TC path (its PUS 1 reports carry the request ID with this sequence count)";
     PLAN_WAITING = 0x0404, Info, false, ["plan_id": U32, "step": U8, "robot": U8, "robot_step": U8], "Plan: the next step waits for another robot's step to be announced completed over the team link (raised once per wait)";
+    UPDATE_INSTALLED = 0x0601, Info, false, ["version": U32, "length": U32, "slot": U8], "Update: an image was copied into the inactive slot and verified there (SHA-256, Ed25519 signature of the ground update key)";
+    UPDATE_REFUSED = 0x0602, Low, false, ["reason": U8 @crate::update::REFUSAL_NAMES, "refusals": U32], "Update: an image was refused at install (reason), with the refusals since boot";
+    UPDATE_ACTIVATED = 0x0603, Medium, false, ["version": U32, "slot": U8], "Update: otadata now boots the verified image (state NEW); the robot resets into it";
+    UPDATE_CONFIRMED = 0x0604, Info, false, ["version": U32, "slot": U8], "Update: the running image passed its self-test and confirmed itself (otadata VALID)";
+    UPDATE_SELF_TEST_FAILED = 0x0605, High, false, ["version": U32, "check": U8], "Update: the running image, not yet confirmed, failed its self-test (check that failed); it resets unconfirmed and the previous image boots";
+    UPDATE_ROLLED_BACK = 0x0606, High, false, ["aborted_slot": U8, "version": U32], "Update: the image activated last never confirmed; the boot abandoned its slot and runs this version again";
 }
 
 /// Events exempt from throttling (`config::EVENT_THROTTLE_MAX`): `MODE_CHANGED` is

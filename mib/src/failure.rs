@@ -97,6 +97,13 @@ failure_codes! {
     PLAN_HAZARD_UNCONFIRMED = 77, [f("step", PType::U8, "step (0-based)")], "PLAN_COMMIT refused: a step's TC is hazardous and the operator's confirmation flag is not set in the image";
     PLAN_NOT_LOADED = 78, [], "Plan: no plan is loaded, or the TC names another plan ID";
     PLAN_BAD_STATE = 79, [f("state", PType::U8, "plan state").names(crate::plan::STATE_NAMES)], "Plan: the TC does not apply in the plan's state (resume of a plan not suspended, skip while running, ...)";
+    UPDATE_IMAGE_REFUSED = 90, [f("reason", PType::U8, "why the image was refused").names(crate::update::REFUSAL_NAMES)], "UPDATE_INSTALL refused: the file is missing, truncated, not an image, for another target, too large, or its digest or Ed25519 signature does not verify (nothing of it may be activated)";
+    UPDATE_NOT_INSTALLED = 91, [], "UPDATE_ACTIVATE refused: no verified image waits in the inactive slot (install one first)";
+    UPDATE_WRONG_IMAGE = 92, [f("installed_version", PType::U32, "version of the image installed (0 = none)")], "UPDATE_ACTIVATE refused: the SHA-256 in the TC is not the installed image's (an activation written for another image)";
+    UPDATE_STALE_ACTIVATION = 93, [f("version", PType::U32, "version of the image the TC names")], "UPDATE_ACTIVATE refused: the image it names is already activated or already running (a replayed or repeated activation)";
+    UPDATE_NOTHING_TO_CONFIRM = 94, [], "UPDATE_CONFIRM refused: the running image is not waiting for its confirmation";
+    UPDATE_SLOT_CHANGED = 95, [f("reason", PType::U8, "why the slot no longer verifies").names(crate::update::REFUSAL_NAMES)], "UPDATE_ACTIVATE refused: the inactive slot no longer verifies (checked again before otadata is written)";
+    UPDATE_UNAVAILABLE = 96, [], "Update refused: this platform has no application slots (started without a boot launcher, or a board without the update store)";
     PLAN_STEP_MISMATCH = 80, [f("next", PType::U8, "the plan's next step"), f("given", PType::U8, "step in the TC")], "PLAN_SKIP refused: the step is not the suspended plan's next step";
 }
 

@@ -27,6 +27,7 @@ pub mod sid {
     pub const MODULES: u16 = 23;
     pub const TEAM: u16 = 24;
     pub const PLAN: u16 = 27;
+    pub const UPDATE: u16 = 30;
 }
 
 /// Shortest and longest collection interval accepted by TC[3,31].
@@ -242,6 +243,14 @@ pub const HK_STRUCTS: &[HkDef] = &[
         default_interval_ms: 2000,
         default_enabled: true,
         desc: "On-board plan: state, plan ID, steps, next step, steps done, the dependency it waits for, progress announcements sent/accepted/ignored",
+    },
+    HkDef {
+        sid: sid::UPDATE,
+        name: "UPDATE",
+        params: &[SW_VERSION, SW_SLOT, UPDATE_OUTCOME, UPDATE_INSTALLED_VERSION, UPDATE_REFUSALS],
+        default_interval_ms: 5000,
+        default_enabled: true,
+        desc: "Software update: running version and slot, outcome of the last update, verified image waiting in the other slot, update TCs refused",
     },
 ];
 

@@ -32,6 +32,7 @@ pub mod tc;
 pub mod team;
 pub mod tunables;
 pub mod types;
+pub mod update;
 
 pub use failure::FailureCode;
 pub use types::{Calib, Limits, PType};

@@ -116,6 +116,8 @@ pub enum Source {
     Team,
     /// The on-board plan (service 18, `crate::plan`).
     Plan,
+    /// Software update (service 213, `crate::update`): running version and slot, last outcome.
+    Update,
     /// Board A's robot logic (the domain controller): its own sensors, actuators, state
     /// estimate, A–B link counters and calibration.
     BoardA,
@@ -125,7 +127,7 @@ pub enum Source {
 
 impl Source {
     /// Every source, for checks that ask each component in turn.
-    pub const ALL: [Source; 14] = [
+    pub const ALL: [Source; 15] = [
         Source::Modes,
         Source::Faults,
         Source::Monitoring,
@@ -138,6 +140,7 @@ impl Source {
         Source::Modules,
         Source::Team,
         Source::Plan,
+        Source::Update,
         Source::BoardA,
         Source::BoardB,
     ];
@@ -302,6 +305,11 @@ params! {
     TEAM_DIR_REFUSED = 174, Team, U32, "", ID, None, "Team: leader directives refused since boot (stale term, ground present, outside the authorisation)";
     TEAM_PERSIST_FAILED = 175, Team, U32, "", ID, None, "Team: writes of the team state (term, vote, roster, authorisation) that failed (each treated as a reset of the node)";
     TEAM_STEPS_EXECUTED = 176, Team, U16, "", ID, None, "Team: authorised plan steps executed on CONTINUE since the authorisation was uploaded";
+    SW_VERSION = 230, Update, U32, "", ID, None, "Update: version of the running software (0x00MMmmpp; 0 = started without a signed image)";
+    SW_SLOT = 231, Update, U8, "", ID, None, "Update: application slot the running software was booted from (0 or 1)";
+    UPDATE_OUTCOME = 232, Update, U8, "", ID, None, "Update: outcome of the last update (none, installed, refused, pending confirmation, confirmed, rolled back)";
+    UPDATE_INSTALLED_VERSION = 233, Update, U32, "", ID, None, "Update: version of the verified image waiting in the inactive slot (0 = none)";
+    UPDATE_REFUSALS = 234, Update, U32, "", ID, None, "Update: update TCs refused since boot (images refused at install, activations for another, a missing or an already activated image)";
     PLAN_STATE = 200, Plan, U8, "", ID, None, "Plan: state 0 empty, 1 loaded, 2 running, 3 suspended, 4 completed, 5 aborted";
     PLAN_ID = 201, Plan, U32, "", ID, None, "Plan: ID of the loaded plan (0 = none)";
     PLAN_STEPS = 202, Plan, U8, "", ID, None, "Plan: steps in this robot's image";
@@ -409,6 +417,7 @@ impl ParamDef {
             pid::CONFIG_STATUS => CONFIG_STATUS_NAMES,
             pid::TEAM_ROLE => crate::team::TEAM_ROLE_NAMES,
             pid::PLAN_STATE => crate::plan::STATE_NAMES,
+            pid::UPDATE_OUTCOME => crate::update::OUTCOME_NAMES,
             _ => Names::None,
         }
     }

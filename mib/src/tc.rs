@@ -31,6 +31,8 @@ pub mod service {
     pub const SPACE_LINK: u8 = 212;
     /// On-board operations procedures: plans the robot runs itself (`crate::plan`).
     pub const PLAN: u8 = 18;
+    /// Mission-specific: software update in flight (`crate::update`, docs/update.md).
+    pub const UPDATE: u8 = 213;
 }
 
 pub use crate::modes::ModeSet;
@@ -992,6 +994,56 @@ pub const TCS: &[TcDef] = &[
         &[F::PLAN_NOT_AUTHORISED, F::PLAN_FORBIDDEN_FUNCTION, F::PLAN_HASH_MISMATCH],
         "Team: upload one step of the authorised plan (the same step for every robot of the roster); once every authorised step is uploaded, their hash (mib::team::plan_hash) must equal the authorisation's plan hash, else all are dropped",
     ),
+    // --- 213 software update (crate::update, docs/update.md) ---
+    TcDef {
+        variable: true,
+        rest: &[Item::Group {
+            name: "name",
+            count: "name_len",
+            max: crate::update::MAX_FILE_NAME,
+            items: &[Item::Field(f("char", PType::U8, "file name byte (ASCII)"))],
+        }],
+        ..tc(
+            service::UPDATE,
+            crate::update::sub::INSTALL,
+            "UPDATE_INSTALL",
+            &[a("name_len", PType::U8, "byte", 1, crate::update::MAX_FILE_NAME as i64, "length of the file name that follows")],
+            &[F::UPDATE_IMAGE_REFUSED, F::UPDATE_UNAVAILABLE],
+            "Update: copy the named file of the file store (uploaded with CFDP) into the inactive application slot and verify what the slot holds: header, SHA-256 of the payload, Ed25519 signature of the ground update key; nothing boots it yet",
+        )
+    },
+    tc(
+        service::UPDATE,
+        crate::update::sub::ACTIVATE,
+        "UPDATE_ACTIVATE",
+        &[
+            a("digest_0", PType::U32, "", 0, 4_294_967_295, "SHA-256 of the image's payload, bytes 0..4 (big-endian)"),
+            a("digest_1", PType::U32, "", 0, 4_294_967_295, "SHA-256 of the image's payload, bytes 4..8 (big-endian)"),
+            a("digest_2", PType::U32, "", 0, 4_294_967_295, "SHA-256 of the image's payload, bytes 8..12 (big-endian)"),
+            a("digest_3", PType::U32, "", 0, 4_294_967_295, "SHA-256 of the image's payload, bytes 12..16 (big-endian)"),
+            a("digest_4", PType::U32, "", 0, 4_294_967_295, "SHA-256 of the image's payload, bytes 16..20 (big-endian)"),
+            a("digest_5", PType::U32, "", 0, 4_294_967_295, "SHA-256 of the image's payload, bytes 20..24 (big-endian)"),
+            a("digest_6", PType::U32, "", 0, 4_294_967_295, "SHA-256 of the image's payload, bytes 24..28 (big-endian)"),
+            a("digest_7", PType::U32, "", 0, 4_294_967_295, "SHA-256 of the image's payload, bytes 28..32 (big-endian)"),
+        ],
+        &[
+            F::UPDATE_NOT_INSTALLED,
+            F::UPDATE_WRONG_IMAGE,
+            F::UPDATE_STALE_ACTIVATION,
+            F::UPDATE_SLOT_CHANGED,
+            F::UPDATE_UNAVAILABLE,
+        ],
+        "Update: verify the installed image again and make it the one that boots (otadata NEW), then reset into it; it must confirm after its self-test or the next boot returns to this image. The SHA-256 must be the installed image's; an image already activated or running is refused",
+    )
+    .hazardous("replaces the running software"),
+    tc(
+        service::UPDATE,
+        crate::update::sub::CONFIRM,
+        "UPDATE_CONFIRM",
+        &[],
+        &[F::UPDATE_NOTHING_TO_CONFIRM, F::UPDATE_UNAVAILABLE],
+        "Update: confirm the running image (otadata VALID) — what its self-test does on its own after a good start",
+    ),
     tc(
         service::SPACE_LINK,
         1,
@@ -1584,6 +1636,7 @@ mod tests {
                 "PLAN_RESUME",
                 "PLAN_SKIP",
                 "TEAM_AUTHORISE",
+                "UPDATE_ACTIVATE",
                 "LINK_SPI_SELECT",
             ]
         );

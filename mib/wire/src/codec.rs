@@ -206,7 +206,54 @@ impl ArgError {
 
 /// Encodes a TC's application data (function ID first for PUS 8). The arguments are
 /// range-checked against the MIB so that the ground never builds an invalid TC.
+///
+/// A variable TC whose rest is one group of single bytes (UPDATE_INSTALL's file name, a
+/// PLAN_LOAD chunk) may be given the group's bytes as further arguments after its fixed
+/// ones: their number must then be the value of the group's count argument (without them
+/// only the fixed arguments are encoded, for a caller that appends the bytes itself).
 pub fn encode_args(def: &TcDef, args: &[i64], buf: &mut [u8]) -> Result<usize, ArgError> {
+    if let Some(count_index) = byte_group_count(def).filter(|_| args.len() > def.args.len()) {
+        let (fixed, bytes) = args.split_at(def.args.len().min(args.len()));
+        let count = fixed.get(count_index).copied().unwrap_or(-1);
+        if fixed.len() != def.args.len() || count != bytes.len() as i64 {
+            return Err(ArgError::Length {
+                got: args.len(),
+                expected: def.args.len() + usize::try_from(count).unwrap_or(0),
+            });
+        }
+        let n = encode_args_fixed(def, fixed, buf)?;
+        let Some(out) = buf.get_mut(n..n + bytes.len()) else {
+            return Err(ArgError::Length {
+                got: buf.len(),
+                expected: n + bytes.len(),
+            });
+        };
+        for (i, (o, b)) in out.iter_mut().zip(bytes).enumerate() {
+            *o = u8::try_from(*b).map_err(|_| ArgError::OutOfRange {
+                index: (def.args.len() + i).min(255) as u8,
+                value: *b,
+            })?;
+        }
+        return Ok(n + bytes.len());
+    }
+    encode_args_fixed(def, args, buf)
+}
+
+/// The index of the count argument of a TC whose rest is one group of single bytes.
+fn byte_group_count(def: &TcDef) -> Option<usize> {
+    let [mib::layout::Item::Group { count, items, .. }] = def.rest else {
+        return None;
+    };
+    let [mib::layout::Item::Field(f)] = items else {
+        return None;
+    };
+    if !def.variable || f.ptype != mib::types::PType::U8 {
+        return None;
+    }
+    def.args.iter().position(|a| a.name == *count)
+}
+
+fn encode_args_fixed(def: &TcDef, args: &[i64], buf: &mut [u8]) -> Result<usize, ArgError> {
     if args.len() != def.args.len() {
         return Err(ArgError::Length {
             got: args.len(),

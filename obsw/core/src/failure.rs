@@ -348,6 +348,7 @@ mod tests {
         let all: Vec<Failure> = all
             .into_iter()
             .chain(plan.into_iter().map(crate::services::plan::failure))
+            .chain(crate::services::update::tests::every_failure())
             .collect();
         for f in &all {
             assert_eq!(f.data().len(), f.code().data_len(), "{:?}", f.code());

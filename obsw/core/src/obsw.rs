@@ -188,6 +188,8 @@ pub struct Obsw<S: TmStore> {
     pub team: Team,
     /// The on-board plan (service 18, `services::plan`).
     pub plan: OnboardPlan,
+    /// Software update (service 213, `services::update`); the platform attaches its slots.
+    pub update: crate::services::update::Update,
     /// Space link keys the platform holds (it sets them at start; `services::link`).
     pub link_keys: LinkKeys,
     /// An SPI selection (LINK_SPI_SELECT) for the platform to apply before its next input.
@@ -220,6 +222,7 @@ impl<S: TmStore> Obsw<S> {
             modules: Modules::default(),
             team: Team::new(cfg.robot, OnboardTime::new(cfg.epoch_unix_ms)),
             plan: OnboardPlan::new(cfg.robot),
+            update: Default::default(),
             link_keys: LinkKeys::default(),
             link_select: None,
         };
@@ -369,6 +372,7 @@ impl<S: TmStore> Obsw<S> {
             Source::Modules => self.modules.param(id),
             Source::Team => self.team.param(id),
             Source::Plan => self.plan.plan.param(id),
+            Source::Update => self.update.param(id),
             Source::BoardA => self.ctrl.board_a_param(id),
             Source::BoardB => self.ctrl.board_b_param(id),
         }

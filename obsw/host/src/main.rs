@@ -17,6 +17,7 @@ mod net;
 mod plan_state;
 mod store_file;
 mod team;
+mod update;
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -105,6 +106,13 @@ struct Args {
     /// --keys DIR, else files-robot-N beside --link-state; neither: no file service].
     #[arg(long, value_name = "DIR")]
     files: Option<PathBuf>,
+    /// Software update (docs/update.md): the slots folder of the boot launcher `obsw-boot`
+    /// (which sets it); without it the update TCs are refused UPDATE_UNAVAILABLE.
+    #[arg(long, value_name = "DIR", env = "OBSW_SLOTS")]
+    slots: Option<PathBuf>,
+    /// The ground's update public key (64 hexadecimal digits; `ground update keygen`).
+    #[arg(long, value_name = "FILE", env = "OBSW_UPDATE_KEY")]
+    update_key: Option<PathBuf>,
     /// Space link with the key folder of `ground keys create DIR`: the keys and state of
     /// robot N from DIR/robot-N/ (tc-spi1.key, tm-spi17.key, obsw-link.state), TC frames on
     /// 127.0.0.1:(7500 + N) and TM frames to 127.0.0.1:(7600 + N) unless the options below
@@ -295,6 +303,9 @@ struct Settings {
     tm_store: Option<PathBuf>,
     /// The file store directory (`--files` or its default); `None`: no file service.
     files: Option<PathBuf>,
+    /// The launcher's slots folder and the update key (`None`: no update service).
+    slots: Option<PathBuf>,
+    update_key: Option<PathBuf>,
     frames: Option<frames::FrameConfig>,
     tm_dest: Vec<SocketAddr>,
     /// The bare-packet link is on (lab mode, --lab-bare-packets).
@@ -456,6 +467,8 @@ fn settings(a: Args) -> Result<Settings> {
         tm_log: a.tm_log,
         tm_store,
         files,
+        slots: a.slots,
+        update_key: a.update_key,
         frames,
         tm_dest,
         bare,
@@ -670,6 +683,17 @@ fn run(args: Args) -> Result<()> {
         _ => None,
     };
     obsw.boot(0, config::reset_cause::POWER_ON, &mut down);
+    // Software update on the space link only: the lab's bare packets are not authenticated.
+    match (&s.slots, &s.frames, s.bare) {
+        (Some(_), Some(_), false) => {
+            if let Some(slots) = update::attach(s.slots.as_deref(), s.update_key.as_deref(), s.files.as_deref())? {
+                obsw.update.attach(slots);
+                obsw.update_boot(0, &mut down);
+            }
+        }
+        (Some(_), _, _) => eprintln!("obsw: --slots ignored: software update needs the space link and no lab link"),
+        _ => {}
+    }
     if let Some(p) = &s.plan_state {
         plan_state::restore(&mut obsw, p, &mut down);
     }
@@ -746,6 +770,14 @@ fn run(args: Args) -> Result<()> {
         }
         if let Some(f) = down.frames.as_mut() {
             f.flush(Instant::now());
+        }
+        if obsw.update.reset_requested() {
+            // The activation's completion (or the self-test's event) went out above.
+            std::thread::sleep(update::RESET_DELAY);
+            if let Some(f) = down.frames.as_mut() {
+                f.flush(Instant::now());
+            }
+            return Err(update::reset());
         }
         let due = wall_of(sim_ms + period);
         if Instant::now() < due {

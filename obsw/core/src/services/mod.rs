@@ -27,6 +27,7 @@ pub mod storage;
 pub mod team;
 pub mod test;
 pub mod time;
+pub mod update;
 
 use mib::params::Source;
 use mib::tc::service;
@@ -73,6 +74,7 @@ pub const COMPONENTS: &[Contract] = &[
     c("team", Some(service::TEAM), &[Source::Team]),
     c("link", Some(service::SPACE_LINK), &[Source::SpaceLink]),
     c("plan", Some(service::PLAN), &[Source::Plan]),
+    c("update", Some(service::UPDATE), &[Source::Update]),
     c("tc path", None, &[Source::Counters]),
     c("downlink", None, &[Source::Downlink]),
     c("platform I/O", None, &[Source::Io]),
@@ -98,6 +100,7 @@ pub enum Request<'a> {
     Team(team::Request),
     Link(link::Request),
     Plan(plan::Request<'a>),
+    Update(update::Request<'a>),
 }
 
 impl<'a> Request<'a> {
@@ -118,6 +121,7 @@ impl<'a> Request<'a> {
             service::TEAM => Request::Team(team::Request::parse(tc)?),
             service::SPACE_LINK => Request::Link(link::Request::parse(tc)?),
             service::PLAN => Request::Plan(plan::Request::parse(tc)?),
+            service::UPDATE => Request::Update(update::Request::parse(tc)?),
             // `accept` only lets services of the MIB through; a service added to the
             // MIB without a handler here is refused, never run by another one.
             other => return Err(Failure::unknown_service(other)),
@@ -148,6 +152,7 @@ impl<S: TmStore> Obsw<S> {
             Request::Team(r) => self.team_request(now, r, sink)?,
             Request::Link(r) => self.link_select = Some(self.link_keys.select(now, r, &mut self.dl, sink)?),
             Request::Plan(r) => self.plan_request(now, r, sink)?,
+            Request::Update(r) => self.update_request(now, r, sink)?,
         }
         Ok(Exec::Done)
     }
