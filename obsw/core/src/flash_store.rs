@@ -313,6 +313,14 @@ impl<F: MultiwriteNorFlash, const H: usize, const R: usize> TmStore for FlashSto
 
     /// Both areas merged by time stamp, oldest first.
     fn visit(&mut self, f: &mut dyn FnMut(&[u8])) {
+        self.visit_while(&mut |p| {
+            f(p);
+            true
+        });
+    }
+
+    /// Stops reading the flash where `f` says so.
+    fn visit_while(&mut self, f: &mut dyn FnMut(&[u8]) -> bool) {
         let mut unreadable = 0;
         let (mut ha, mut ra) = ([0u8; MAX_PACKET_LEN], [0u8; MAX_PACKET_LEN]);
         let mut hk_it = block_on(self.hk.iter()).ok();
@@ -328,18 +336,23 @@ impl<F: MultiwriteNorFlash, const H: usize, const R: usize> TmStore for FlashSto
                 (None, Some(_)) => false,
                 (Some(hn), Some(rn)) => stamp(&ha[..hn]) <= stamp(&ra[..rn]),
             };
-            if hk_first {
-                if let Some(n) = h {
-                    f(&ha[..n]);
+            let go = if hk_first {
+                let go = h.is_none_or(|n| f(&ha[..n]));
+                if go {
+                    h = hk_it.as_mut().and_then(|i| next_packet(i, &mut ha, &mut unreadable));
                 }
-                h = hk_it.as_mut().and_then(|i| next_packet(i, &mut ha, &mut unreadable));
+                go
             } else {
-                if let Some(n) = r {
-                    f(&ra[..n]);
+                let go = r.is_none_or(|n| f(&ra[..n]));
+                if go {
+                    r = report_it
+                        .as_mut()
+                        .and_then(|i| next_packet(i, &mut ra, &mut unreadable));
                 }
-                r = report_it
-                    .as_mut()
-                    .and_then(|i| next_packet(i, &mut ra, &mut unreadable));
+                go
+            };
+            if !go {
+                break;
             }
         }
         self.counts.unreadable = self.counts.unreadable.wrapping_add(unreadable);
