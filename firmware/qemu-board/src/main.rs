@@ -92,7 +92,7 @@ fn fail(what: &str) -> ! {
 
 #[riscv_rt::entry]
 fn main() -> ! {
-    let flash = RefCell::new(match nor::FileFlash::open(FLASH_FILE) {
+    let flash = RefCell::new(match nor::open(FLASH_FILE) {
         Ok(f) => f,
         Err(nor::OpenError::Open) => fail("no flash file qemu-board.flash in the working folder"),
         Err(nor::OpenError::Size(n)) => {
