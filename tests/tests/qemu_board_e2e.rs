@@ -453,10 +453,9 @@ fn the_qemu_board_flies_a_plan_with_the_real_ground_refuses_a_replay_and_keeps_i
     assert!(hk_after_plan >= 10, "{hk_after_plan} HK packets archived by the run");
 
     // 2. The collector on the same line; a captured TC frame sent again.
-    // Tries per hole: 8, more for a longer outage — the board replays a range inside one
-    // control period and its 4-frame downlink queue drops what does not fit (counted in
-    // IO_TM_DROPPED), so a long outage's holes are asked for many times while the bulk of
-    // it comes down (docs/firmware.md, The QEMU board).
+    // Tries per hole: 8, more for a longer outage — the board paces a replay by its
+    // downlink's room (a range goes on over as many periods as it needs), so a long
+    // outage takes a while to come down and its later holes wait their turn.
     let max_tries = 8.max(outage_s() / 10);
     std::fs::write(
         dir.join("c.toml"),
@@ -567,15 +566,21 @@ fn the_qemu_board_flies_a_plan_with_the_real_ground_refuses_a_replay_and_keeps_i
         .filter(|(_, t)| t.event_id() == Some(mib::events::eid::BOOT))
         .count();
     assert!(boots >= 1, "the restarted board's BOOT event archived");
-    // Live TM the board's downlink queue could not take (the store's replays included):
-    // each is in the store, and the collector asks again.
-    let tm_dropped = arch
-        .values()
-        .filter(|(_, t)| t.sid() == Some(mib::hk::sid::PLATFORM_IO))
-        .filter_map(|(_, t)| t.hk(mib::params::pid::IO_TM_DROPPED))
-        .max()
-        .unwrap_or(0);
-    println!("IO_TM_DROPPED at most {tm_dropped} in PLATFORM_IO HK");
+    // TM the board's downlink could not take: none, the store's replays included — they
+    // are paced by the downlink's room (obsw_core::services::storage).
+    let platform_io = |pid| {
+        arch.values()
+            .filter(|(_, t)| t.sid() == Some(mib::hk::sid::PLATFORM_IO))
+            .filter_map(|(_, t)| t.hk(pid))
+            .max()
+            .unwrap_or(0)
+    };
+    let tm_dropped = platform_io(mib::params::pid::IO_TM_DROPPED);
+    println!(
+        "IO_TM_DROPPED at most {tm_dropped} in PLATFORM_IO HK; IO_STACK_HIGH_WATER at most {} bytes",
+        platform_io(mib::params::pid::IO_STACK_HIGH_WATER)
+    );
+    assert_eq!(tm_dropped, 0, "TM dropped by the board's downlink\n{}", collect_log());
     println!(
         "outage {outage} s with a SIGKILL of QEMU in its middle: store held {held} packets at the restart; \
          archive: seq {}..={} ({} packets, {} HK after the cut), {} missing {:?}, 0 duplicates, filled {filled_s:.1} s after the line came back",

@@ -28,6 +28,9 @@ pub trait GroundLink {
     );
     /// Sends one TM packet.
     fn send_tm<const N: usize>(&mut self, packet: &[u8], tm: &ByteQueue<N>, tm_stats: &Counters);
+    /// Bytes of replayed TM the link takes this period without dropping any, one largest
+    /// packet kept for the period's realtime TM (`TmSink::replay_room`).
+    fn replay_room<const N: usize>(&self, tm: &ByteQueue<N>) -> usize;
     /// End of the period (flushes, link counters and events).
     fn end_period<S: TmStore, const N: usize>(
         &mut self,
@@ -52,6 +55,9 @@ impl<St: mmic_link::sdls::IvStore + mmic_link::endpoint::StoreStats> GroundLink 
     fn send_tm<const N: usize>(&mut self, packet: &[u8], tm: &ByteQueue<N>, tm_stats: &Counters) {
         crate::spacelink::FrameLink::send_tm(self, packet, tm, tm_stats)
     }
+    fn replay_room<const N: usize>(&self, tm: &ByteQueue<N>) -> usize {
+        crate::spacelink::FrameLink::replay_room(self, tm)
+    }
     fn end_period<S: TmStore, const N: usize>(
         &mut self,
         now: u64,
@@ -73,6 +79,9 @@ pub struct GroundSink<'a, L, const N: usize> {
 impl<L: GroundLink, const N: usize> TmSink for GroundSink<'_, L, N> {
     fn send_tm(&mut self, packet: &[u8]) {
         self.link.send_tm(packet, self.queue, self.counters);
+    }
+    fn replay_room(&self) -> usize {
+        self.link.replay_room(self.queue)
     }
 }
 

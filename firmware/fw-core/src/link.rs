@@ -236,6 +236,11 @@ impl crate::cycle::GroundLink for BarePackets {
     fn send_tm<const N: usize>(&mut self, packet: &[u8], tm: &ByteQueue<N>, tm_stats: &Counters) {
         downlink_packet(tm, packet, tm_stats);
     }
+    /// One COBS frame per packet: at most 3 + 1 per 254 bytes more than the packet, a
+    /// fifth of the smallest (20-byte) packet; one largest frame kept for realtime TM.
+    fn replay_room<const N: usize>(&self, tm: &ByteQueue<N>) -> usize {
+        tm.free_capacity().saturating_sub(crate::config::GROUND_FRAME_MAX) * 4 / 5
+    }
     fn end_period<S: obsw_core::tm::TmStore, const N: usize>(
         &mut self,
         _now: u64,

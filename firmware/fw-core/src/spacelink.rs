@@ -161,6 +161,16 @@ impl<St: IvStore + StoreStats> FrameLink<St> {
         });
     }
 
+    /// Bytes of replayed TM the downlink takes now without dropping a frame — in the
+    /// framer's zone and the frames waiting for their encryption, and in the downlink
+    /// queue when they are sealed — less one largest packet for the period's realtime TM.
+    pub fn replay_room<const N: usize>(&self, tm: &ByteQueue<N>) -> usize {
+        let frames = tm.free_capacity() / crate::config::GROUND_FRAME_MAX;
+        self.ep
+            .tm_room(TmVc::Realtime, frames)
+            .saturating_sub(crate::config::MAX_PACKET_LEN)
+    }
+
     /// End of a control period: SPACE_LINK values into the OBSW, the link events for what
     /// changed, then the partly filled frame (or an idle frame with the CLCW).
     pub fn end_period<S: TmStore, const N: usize>(

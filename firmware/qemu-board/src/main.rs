@@ -16,7 +16,8 @@
 //! unix:SOCKET -kernel qemu-board`, in a folder holding the flash file
 //! [`FLASH_FILE`] (the module's 4 MB, erased, the key record provisioned at 0x9000 as
 //! `firmware/tools/provision-keys.sh --out` writes it). Prints `READY` with what the
-//! store held at boot on its semihosting stdout.
+//! store held at boot on its semihosting stdout, and each board's stack high-water mark
+//! when it grows (`stack`; board A's also in PLATFORM_IO HK, IO_STACK_HIGH_WATER).
 #![no_std]
 #![no_main]
 #![deny(warnings)]
@@ -25,6 +26,7 @@
 mod clock;
 mod nor;
 mod robot;
+mod stack;
 mod uart;
 
 use core::cell::RefCell;
@@ -90,7 +92,7 @@ fn fail(what: &str) -> ! {
 
 #[riscv_rt::entry]
 fn main() -> ! {
-    let flash = RefCell::new(match nor::FileFlash::open(FLASH_FILE) {
+    let flash = RefCell::new(match nor::open(FLASH_FILE) {
         Ok(f) => f,
         Err(nor::OpenError::Open) => fail("no flash file qemu-board.flash in the working folder"),
         Err(nor::OpenError::Size(n)) => {
@@ -197,6 +199,8 @@ fn main() -> ! {
     let (mut out_len, mut out_at) = (0usize, 0usize);
     let period = u64::from(cfg::CONTROL_PERIOD_MS);
     let mut next = clock::now_ms();
+    let mut probe = stack::Probe::new();
+    let (mut high_a, mut high_b) = (0usize, 0usize);
     loop {
         // The uplink task: bytes from the UART through the deframer into the TC queue.
         loop {
@@ -215,8 +219,19 @@ fn main() -> ! {
                 next + period
             };
             let t = now - start;
-            a.run(t, &mut obsw, &mut ground, &mut io_a, &links_a);
-            b.run(t, &mut io_b, &links_b);
+            let (_, depth_a) = probe.depth(|| a.run(t, &mut obsw, &mut ground, &mut io_a, &links_a));
+            let (_, depth_b) = probe.depth(|| b.run(t, &mut io_b, &links_b));
+            if depth_a > high_a || depth_b > high_b {
+                (high_a, high_b) = (high_a.max(depth_a), high_b.max(depth_b));
+                semihosting::println!(
+                    "stack high-water of the control period: board A {} bytes, board B {} bytes (probe {})",
+                    high_a,
+                    high_b,
+                    stack::PROBE_BYTES
+                );
+            }
+            // PLATFORM_IO's IO_STACK_HIGH_WATER, as board A reports its own.
+            obsw.io.stack_high_water = high_a as u32;
             // The A–B UARTs: what each side queued arrives at the other.
             let n = link::drain(&A_TX, &mut wire);
             link::push_bytes(&B_RX, &wire[..n], &B_RX_STATS);

@@ -111,6 +111,126 @@ impl<F: NorFlash> NorFlash for Shared<'_, F> {
 
 impl<F: MultiwriteNorFlash> MultiwriteNorFlash for Shared<'_, F> {}
 
+/// Bytes at offsets: a file, a memory buffer — what a flash that is not the chip keeps its
+/// contents in. [`Nor`] adds the part's rules on top.
+pub trait Medium {
+    type Error: core::fmt::Debug;
+    /// Fills `out` with the bytes from `at`.
+    fn read_at(&mut self, at: u32, out: &mut [u8]) -> Result<(), Self::Error>;
+    /// Puts `bytes` at `at`, reaching the medium before it returns.
+    fn write_at(&mut self, at: u32, bytes: &[u8]) -> Result<(), Self::Error>;
+}
+
+/// The rules of the module's NOR flash (`mib::memory`) over a [`Medium`] of `capacity`
+/// bytes — the one definition the host's store file and the QEMU board's flash file
+/// share: reads and writes of whole 32-bit words, an erase sets 4 KiB sectors to 0xFF,
+/// and a write only clears bits (one that would set a bit is refused, so a layout that
+/// relies on more than NOR gives fails here as it would on the chip).
+pub struct Nor<M> {
+    medium: M,
+    capacity: u32,
+}
+
+/// Why a [`Nor`] access was refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NorError<E> {
+    /// The medium refused the read or write.
+    Medium(E),
+    /// A write that would turn a 0 bit into 1 (NOR flash cannot without an erase).
+    SetsBits,
+    OutOfBounds,
+    NotAligned,
+}
+
+impl<E: core::fmt::Debug> NorFlashError for NorError<E> {
+    fn kind(&self) -> NorFlashErrorKind {
+        match self {
+            NorError::OutOfBounds => NorFlashErrorKind::OutOfBounds,
+            NorError::NotAligned => NorFlashErrorKind::NotAligned,
+            NorError::Medium(_) | NorError::SetsBits => NorFlashErrorKind::Other,
+        }
+    }
+}
+
+const NOR_WORD: u32 = mib::memory::FLASH_WORD;
+const NOR_SECTOR: u32 = mib::memory::FLASH_SECTOR;
+
+impl<M: Medium> Nor<M> {
+    /// The medium as a flash of `capacity` bytes (whatever it holds is the flash's content).
+    pub fn new(medium: M, capacity: u32) -> Self {
+        Nor { medium, capacity }
+    }
+
+    /// The medium under the rules.
+    pub fn medium(&self) -> &M {
+        &self.medium
+    }
+
+    /// `offset..offset + len` inside the flash and word-aligned.
+    fn span(&self, offset: u32, len: usize, unit: u32) -> Result<(), NorError<M::Error>> {
+        if !offset.is_multiple_of(unit) || !(len as u32).is_multiple_of(unit) {
+            return Err(NorError::NotAligned);
+        }
+        match u32::try_from(len).ok().and_then(|n| offset.checked_add(n)) {
+            Some(end) if end <= self.capacity => Ok(()),
+            _ => Err(NorError::OutOfBounds),
+        }
+    }
+}
+
+impl<M: Medium> ErrorType for Nor<M> {
+    type Error = NorError<M::Error>;
+}
+
+impl<M: Medium> ReadNorFlash for Nor<M> {
+    /// The part's reads are word-aligned too (esp-storage without byte-wise reads).
+    const READ_SIZE: usize = NOR_WORD as usize;
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+        self.span(offset, bytes.len(), NOR_WORD)?;
+        self.medium.read_at(offset, bytes).map_err(NorError::Medium)
+    }
+    fn capacity(&self) -> usize {
+        self.capacity as usize
+    }
+}
+
+impl<M: Medium> NorFlash for Nor<M> {
+    const WRITE_SIZE: usize = NOR_WORD as usize;
+    const ERASE_SIZE: usize = NOR_SECTOR as usize;
+    fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
+        if to < from {
+            return Err(NorError::NotAligned);
+        }
+        self.span(from, (to - from) as usize, NOR_SECTOR)?;
+        let erased = [0xFFu8; 256];
+        let mut at = from;
+        while at < to {
+            self.medium.write_at(at, &erased).map_err(NorError::Medium)?;
+            at += erased.len() as u32;
+        }
+        Ok(())
+    }
+    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+        self.span(offset, bytes.len(), NOR_WORD)?;
+        // Checked a chunk at a time against what the flash holds: only clearing bits.
+        let mut now = [0u8; 256];
+        for (i, chunk) in bytes.chunks(now.len()).enumerate() {
+            let old = &mut now[..chunk.len()];
+            self.medium
+                .read_at(offset + (i * 256) as u32, old)
+                .map_err(NorError::Medium)?;
+            if old.iter().zip(chunk).any(|(o, n)| n & !o != 0) {
+                return Err(NorError::SetsBits);
+            }
+        }
+        self.medium.write_at(offset, bytes).map_err(NorError::Medium)
+    }
+}
+
+/// Writing a word again with more bits cleared is what NOR flash does (the part allows
+/// it); the check above still refuses any bit set.
+impl<M: Medium> MultiwriteNorFlash for Nor<M> {}
+
 type AreaCache<const P: usize> = Cache<ArrayPageStates<P>, ArrayPagePointers<P>, Uncached>;
 type Queue<'a, F, const P: usize> = QueueStorage<Shared<'a, F>, AreaCache<P>>;
 
@@ -313,6 +433,14 @@ impl<F: MultiwriteNorFlash, const H: usize, const R: usize> TmStore for FlashSto
 
     /// Both areas merged by time stamp, oldest first.
     fn visit(&mut self, f: &mut dyn FnMut(&[u8])) {
+        self.visit_while(&mut |p| {
+            f(p);
+            true
+        });
+    }
+
+    /// Stops reading the flash where `f` says so.
+    fn visit_while(&mut self, f: &mut dyn FnMut(&[u8]) -> bool) {
         let mut unreadable = 0;
         let (mut ha, mut ra) = ([0u8; MAX_PACKET_LEN], [0u8; MAX_PACKET_LEN]);
         let mut hk_it = block_on(self.hk.iter()).ok();
@@ -328,18 +456,23 @@ impl<F: MultiwriteNorFlash, const H: usize, const R: usize> TmStore for FlashSto
                 (None, Some(_)) => false,
                 (Some(hn), Some(rn)) => stamp(&ha[..hn]) <= stamp(&ra[..rn]),
             };
-            if hk_first {
-                if let Some(n) = h {
-                    f(&ha[..n]);
+            let go = if hk_first {
+                let go = h.is_none_or(|n| f(&ha[..n]));
+                if go {
+                    h = hk_it.as_mut().and_then(|i| next_packet(i, &mut ha, &mut unreadable));
                 }
-                h = hk_it.as_mut().and_then(|i| next_packet(i, &mut ha, &mut unreadable));
+                go
             } else {
-                if let Some(n) = r {
-                    f(&ra[..n]);
+                let go = r.is_none_or(|n| f(&ra[..n]));
+                if go {
+                    r = report_it
+                        .as_mut()
+                        .and_then(|i| next_packet(i, &mut ra, &mut unreadable));
                 }
-                r = report_it
-                    .as_mut()
-                    .and_then(|i| next_packet(i, &mut ra, &mut unreadable));
+                go
+            };
+            if !go {
+                break;
             }
         }
         self.counts.unreadable = self.counts.unreadable.wrapping_add(unreadable);
@@ -364,6 +497,41 @@ pub(crate) mod tests {
     use crate::tm::TmWriter;
     use embedded_storage::nor_flash::{ErrorType, ReadNorFlash};
     use mib::memory::store;
+
+    impl Medium for Vec<u8> {
+        type Error = ();
+        fn read_at(&mut self, at: u32, out: &mut [u8]) -> Result<(), ()> {
+            out.copy_from_slice(self.get(at as usize..at as usize + out.len()).ok_or(())?);
+            Ok(())
+        }
+        fn write_at(&mut self, at: u32, bytes: &[u8]) -> Result<(), ()> {
+            self.get_mut(at as usize..at as usize + bytes.len())
+                .ok_or(())?
+                .copy_from_slice(bytes);
+            Ok(())
+        }
+    }
+
+    // verifies: PUS-15-05
+    #[test]
+    fn the_nor_rules_erase_to_ff_and_writes_only_clear_bits() {
+        let mut f = Nor::new(vec![0u8; 8192], 8192);
+        // The medium's bytes are the flash's content: 0, so nothing can be set before an erase.
+        assert_eq!(f.write(0, &[0xFF; 4]), Err(NorError::SetsBits));
+        f.erase(0, 4096).unwrap();
+        let mut b = [0u8; 4];
+        f.read(0, &mut b).unwrap();
+        assert_eq!(b, [0xFF; 4]);
+        assert_eq!(f.medium()[4096], 0, "only the sector asked for");
+        f.write(0, &[0xF0, 0x0F, 0xFF, 0x00]).unwrap();
+        f.write(0, &[0x00, 0x0F, 0xFF, 0x00]).unwrap();
+        assert_eq!(f.write(0, &[0x01, 0x0F, 0xFF, 0x00]), Err(NorError::SetsBits));
+        assert_eq!(f.write(2, &[0; 4]), Err(NorError::NotAligned));
+        assert_eq!(f.read(0, &mut [0; 3]), Err(NorError::NotAligned));
+        assert_eq!(f.write(8192, &[0; 4]), Err(NorError::OutOfBounds));
+        assert_eq!(f.erase(100, 4096), Err(NorError::NotAligned));
+        assert_eq!(f.erase(4096, 12288), Err(NorError::OutOfBounds));
+    }
 
     /// A NOR flash in RAM: erase sets 0xFF, a write only clears bits (a write that
     /// would set one is refused and counted), erases are counted per sector, and a power

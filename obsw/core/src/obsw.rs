@@ -142,6 +142,9 @@ pub(crate) enum Exec {
     Action(Running<()>),
     /// A mode command started; its completion comes with the transition.
     Mode(ModeCmd<()>),
+    /// A store downlink by range started; it completes after its end report, paced by
+    /// the downlink's room (`services::storage`).
+    Replay(crate::services::storage::Range),
 }
 
 /// Why a request did not start: its failure, and a fault to raise after the refusal
@@ -171,6 +174,8 @@ pub struct Obsw<S: TmStore> {
     pub(crate) transition: Option<Transition>,
     pub(crate) mode_cmd: Option<ModeCmd<Started>>,
     pub(crate) running: Option<Running<Option<Started>>>,
+    /// Store downlinks by range waiting for the downlink's room (`services::storage`).
+    pub(crate) replays: crate::services::storage::Replays,
     pub counters: Counters,
     /// Platform I/O counters; the host or firmware updates them.
     pub io: IoCounters,
@@ -213,6 +218,7 @@ impl<S: TmStore> Obsw<S> {
             transition: None,
             mode_cmd: None,
             running: None,
+            replays: Default::default(),
             counters: Counters::default(),
             io: IoCounters::default(),
             space_link: [0; SPACE_LINK_PARAMS],
@@ -506,6 +512,10 @@ impl<S: TmStore> Obsw<S> {
                 let started = self.dl.start(now, token, sink);
                 self.mode_command_started(now, m.with_token(started), sink);
             }
+            Ok(Exec::Replay(range)) => {
+                let started = self.dl.start(now, token, sink);
+                self.replay_started(now, range, started, sink);
+            }
             Err(Refused { failure, fault }) => {
                 self.dl.fail_start(now, token, &failure, sink);
                 self.refused(now, tc, Stage::Start, failure, sink);
@@ -583,6 +593,7 @@ impl<S: TmStore> Obsw<S> {
         self.run_monitors(now, fdir::is_continuous, sink);
         self.progress_transition(now, sink);
         self.hk_tick(now, sink);
+        self.replay_tick(now, sink);
         self.time_tick(now, sink);
         self.release_schedule(now, sink);
         self.plan_tick(now, sink);

@@ -25,6 +25,12 @@ pub trait TmSink {
     fn send_file(&mut self, packet: &[u8]) {
         self.send_tm(packet);
     }
+    /// Bytes of replayed packets the downlink takes now without dropping any (nor the
+    /// realtime TM of the period): a PUS 15 downlink sends what fits and goes on next
+    /// period. A sink that never drops has no limit.
+    fn replay_room(&self) -> usize {
+        usize::MAX
+    }
 }
 
 /// A sink that collects packets (tests, recorders).
@@ -43,6 +49,16 @@ pub trait TmStore {
     /// Calls `f` with every stored packet, oldest first, leaving the store's content
     /// unchanged (PUS 15 downlinks by range read the store; nothing is removed).
     fn visit(&mut self, f: &mut dyn FnMut(&[u8]));
+    /// Like [`TmStore::visit`], until `f` returns false (a paced downlink stops where the
+    /// downlink's room ends; a store whose reads cost overrides it to stop reading there).
+    fn visit_while(&mut self, f: &mut dyn FnMut(&[u8]) -> bool) {
+        let mut go = true;
+        self.visit(&mut |p| {
+            if go {
+                go = f(p);
+            }
+        });
+    }
     fn len(&self) -> usize;
     fn is_empty(&self) -> bool {
         self.len() == 0

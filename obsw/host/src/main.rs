@@ -485,8 +485,8 @@ type HostStore = MibFlashStore<'static, HostFlash>;
 /// Opens the store of `path` (or one in memory) for the rest of the process.
 fn open_store(path: Option<&std::path::Path>) -> Result<HostStore> {
     let flash = match path {
-        Some(p) => HostFlash::open(p)?,
-        None => HostFlash::memory(),
+        Some(p) => store_file::open(p)?,
+        None => store_file::memory(),
     };
     let flash: &'static std::cell::RefCell<HostFlash> = Box::leak(Box::new(std::cell::RefCell::new(flash)));
     HostStore::open(flash, 0).map_err(|e| anyhow::anyhow!("TM store: {e:?}"))

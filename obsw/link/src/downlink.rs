@@ -273,6 +273,27 @@ impl<const ZONES: usize> TmFramer<ZONES> {
         self.unsealed.len()
     }
 
+    /// Bytes of packets `vc` takes now without a frame being dropped, when the caller
+    /// takes `frames` more frames (those waiting for their encryption included): the
+    /// zones that may fill, and the next one short of full.
+    pub fn room(&self, vc: TmVc, frames: usize) -> usize {
+        let i = match vc {
+            TmVc::Replay if ZONES >= 2 => 1,
+            TmVc::Realtime | TmVc::Replay => 0,
+        };
+        let zone = &self.zones[i];
+        let frames = frames.saturating_sub(self.unsealed.len());
+        let fill = if self.deferred {
+            frames.min(SEAL_QUEUE - self.unsealed.len())
+        } else {
+            frames
+        };
+        match fill {
+            0 => zone.free().saturating_sub(1),
+            n => zone.free() + n * zone.zone_len() - 1,
+        }
+    }
+
     /// Continues the oldest waiting frame's encryption by at most `work` GCM work blocks
     /// ([`crate::gcm`]); a frame finished gets the CLCW of now and its FECF and goes to
     /// `out`. False when no frame waits.

@@ -123,6 +123,12 @@ impl<St: IvStore + StoreStats, const SAS: usize, const ZONES: usize> Endpoint<St
         self.tc.is_some() || self.framer.unsealed() > 0 || self.pending.iter().any(|&p| p)
     }
 
+    /// Bytes of packets `vc` takes now without a frame being dropped, when the caller's
+    /// output takes `frames` more frames ([`TmFramer::room`]).
+    pub fn tm_room(&self, vc: TmVc, frames: usize) -> usize {
+        self.framer.room(vc, frames)
+    }
+
     /// A TC frame is in work: the next waits in the caller's uplink queue.
     pub fn tc_busy(&self) -> bool {
         self.tc.is_some()

@@ -114,6 +114,11 @@ impl<const Z: usize> PacketMux<Z> {
         Ok(())
     }
 
+    /// Bytes the current zone still takes before it fills.
+    pub fn free(&self) -> usize {
+        self.len - self.fill
+    }
+
     /// Whether bytes are waiting.
     pub fn pending(&self) -> bool {
         self.fill > 0

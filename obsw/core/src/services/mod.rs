@@ -144,7 +144,7 @@ impl<S: TmStore> Obsw<S> {
             Request::Time(r) => self.time_reports.request(now, r, &mut self.dl, sink),
             Request::Scheduling(r) => self.sched.request(r, &self.dl.tmw.time)?,
             Request::Monitoring(r) => self.monitoring.request(now, r, &mut self.dl, sink),
-            Request::Storage(r) => self.storage_request(now, r, sink)?,
+            Request::Storage(r) => return Ok(self.storage_request(r)?),
             Request::EventAction(r) => self.faults.request(now, r, &mut self.dl, sink),
             Request::Parameter(r) => parameter::handle(now, r, &mut self.ctrl, &mut self.dl, sink)?,
             Request::Mode(r) => return self.mode_request(now, r, sink),

@@ -5,12 +5,18 @@
 //! they keep their original sequence count and time. TM[15,19] ends each downlink
 //! with what was sent and what is gone (the oldest packet still stored, the count of
 //! overwritten packets): anything older than that oldest packet is unrecoverable.
-
+//!
+//! A downlink is paced by the room the downlink has ([`TmSink::replay_room`]): each
+//! control period it sends what fits and keeps a cursor (the last packet sent) where the
+//! next period goes on, so a range longer than the downlink's queues loses nothing. The
+//! request completes (TM[1,7]) after its end report; requests wait in order
+//! ([`REPLAY_QUEUE`]), and one asked again while it waits or runs is not queued twice.
 use mib_wire::tm;
 
 use crate::accept::Tc;
+use crate::downlink::Started;
 use crate::failure::Failure;
-use crate::obsw::Obsw;
+use crate::obsw::{Exec, Obsw};
 use crate::request::unknown;
 use crate::tm::{TmSink, TmStore};
 
@@ -115,37 +121,101 @@ impl Range {
     }
 }
 
+/// Downlinks waiting or running: the ground asks for at most this many ranges in one
+/// round (`mib::ground_config::GAP_REQUESTS_MAX`). A request beyond them (rounds that
+/// time out on the ground while the robot still replays) runs at once, unpaced: what
+/// the downlink cannot take is dropped and counted there (`IO_TM_DROPPED`).
+pub const REPLAY_QUEUE: usize = mib::ground_config::GAP_REQUESTS_MAX;
+
+/// Where a paced downlink stands: the last packet sent (its time, APID and sequence
+/// count) — the store only grows at its end and loses its oldest packets, so the
+/// next period goes on after it even when packets came or went in between.
+type Cursor = (Cds, u16, u16);
+
+/// One downlink by range: its request, what it has sent, where it goes on.
+struct Replay {
+    range: Range,
+    token: Started,
+    sent: u32,
+    after: Option<Cursor>,
+}
+
+/// The downlinks by range waiting for the downlink's room, oldest first.
+#[derive(Default)]
+pub struct Replays {
+    queue: heapless::Deque<Replay, REPLAY_QUEUE>,
+}
+
+impl Replays {
+    /// Downlinks waiting or running (the first one runs).
+    pub fn len(&self) -> usize {
+        self.queue.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.queue.is_empty()
+    }
+}
+
 impl<S: TmStore> Obsw<S> {
-    pub(crate) fn storage_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) -> Result<(), Failure> {
+    pub(crate) fn storage_request(&mut self, r: Request) -> Result<Exec, Failure> {
         match r {
             Request::Enable => self.dl.store_enabled = true,
             Request::Disable => self.dl.store_enabled = false,
-            Request::Downlink(range) => self.downlink_range(now, range, sink)?,
+            Request::Downlink(range) => {
+                if !self.dl.store_enabled {
+                    return Err(Failure::store_disabled());
+                }
+                return Ok(Exec::Replay(range));
+            }
             Request::Delete => self.dl.store.clear(),
         }
-        Ok(())
+        Ok(Exec::Done)
     }
 
-    fn downlink_range(&mut self, now: u64, range: Range, sink: &mut impl TmSink) -> Result<(), Failure> {
-        if !self.dl.store_enabled {
-            return Err(Failure::store_disabled());
+    /// A downlink by range has started: it waits behind the others (or, asked again
+    /// while it waits or runs, completes at once: the one queued sends the packets), then
+    /// goes as far as the downlink's room allows now.
+    pub(crate) fn replay_started(&mut self, now: u64, range: Range, token: Started, sink: &mut impl TmSink) {
+        if self.replays.queue.iter().any(|r| r.range == range) {
+            self.dl.complete(now, token, sink);
+            return;
         }
-        let mut sent: u32 = 0;
-        let mut oldest: Option<(u16, Cds)> = None;
-        self.dl.store.visit(&mut |p| {
-            let Some((apid, seq, t)) = identify(p) else { return };
-            if oldest.is_none() && range.same_stream(apid) {
-                oldest = Some((seq, t));
+        let replay = Replay {
+            range,
+            token,
+            sent: 0,
+            after: None,
+        };
+        if let Err(mut replay) = self.replays.queue.push_back(replay) {
+            // Beyond the queue: all at once, whatever the room.
+            let mut unlimited = usize::MAX;
+            let oldest = self.dl.replay_step(&mut replay, &mut unlimited, sink).flatten();
+            self.replay_done(now, replay, oldest, sink);
+            return;
+        }
+        self.replay_tick(now, sink);
+    }
+
+    /// Each control period: the downlinks by range go on as far as the downlink's room
+    /// allows ([`TmSink::replay_room`]), oldest first.
+    pub(crate) fn replay_tick(&mut self, now: u64, sink: &mut impl TmSink) {
+        let mut room = sink.replay_room();
+        while let Some(r) = self.replays.queue.front_mut() {
+            let Some(oldest) = self.dl.replay_step(r, &mut room, sink) else {
+                return;
+            };
+            if let Some(r) = self.replays.queue.pop_front() {
+                self.replay_done(now, r, oldest, sink);
             }
-            if range.contains(apid, seq, t) {
-                sink.send_replay(p);
-                sent += 1;
-            }
-        });
+        }
+    }
+
+    /// The end report, TM[15,19], then the request's completion.
+    fn replay_done(&mut self, now: u64, r: Replay, oldest: Option<(u16, Cds)>, sink: &mut impl TmSink) {
         // An empty store reports time and sequence count 0.
         let (oldest_seq, t) = oldest.unwrap_or((0, Cds { days: 0, ms: 0 }));
-        let r = tm::StoreDownlinkDone {
-            packets: sent,
+        let report = tm::StoreDownlinkDone {
+            packets: r.sent,
             oldest_time: mib_wire::CdsTime {
                 pfield: mib_wire::header::CDS_PFIELD,
                 days: t.days,
@@ -154,8 +224,56 @@ impl<S: TmStore> Obsw<S> {
             oldest_seq,
             overwritten: self.dl.store_dropped,
         };
-        self.emit_tm(now, r, sink);
-        Ok(())
+        self.emit_tm(now, report, sink);
+        self.set_outcome(r.token.req, crate::duplicates::Outcome::Done);
+        self.dl.complete(now, r.token, sink);
+    }
+}
+
+impl<S: TmStore> crate::downlink::Downlink<S> {
+    /// Sends the packets of `r` after its cursor while they fit in `room` bytes (what
+    /// they take is subtracted). `Some(oldest)` when the range is done — the oldest
+    /// packet of its stream still stored — `None` when the room ran out first.
+    fn replay_step(&mut self, r: &mut Replay, room: &mut usize, sink: &mut impl TmSink) -> Option<Option<(u16, Cds)>> {
+        let mut oldest: Option<(u16, Cds)> = None;
+        let mut passed = r.after.is_none();
+        let mut done = true;
+        let (range, after) = (r.range, r.after);
+        let (mut sent, mut last) = (0u32, None);
+        self.store.visit_while(&mut |p| {
+            let Some((apid, seq, t)) = identify(p) else { return true };
+            if oldest.is_none() && range.same_stream(apid) {
+                oldest = Some((seq, t));
+            }
+            if !passed {
+                let Some(a) = after else { return true };
+                if (t, apid, seq) == a {
+                    passed = true;
+                    return true;
+                }
+                if t <= a.0 {
+                    return true;
+                }
+                passed = true;
+            }
+            if !range.contains(apid, seq, t) {
+                return true;
+            }
+            if p.len() > *room {
+                done = false;
+                return false;
+            }
+            *room -= p.len();
+            sink.send_replay(p);
+            sent += 1;
+            last = Some((t, apid, seq));
+            true
+        });
+        r.sent = r.sent.wrapping_add(sent);
+        if last.is_some() {
+            r.after = last;
+        }
+        done.then_some(oldest)
     }
 }
 
@@ -259,6 +377,113 @@ mod tests {
             failure(&of(&pkts, 1, 4)[0]),
             (FailureCode::STORE_DISABLED.code(), vec![])
         );
+    }
+
+    /// A downlink with a small queue: `room` bytes of replays per period, every packet
+    /// kept in order.
+    struct SmallQueue {
+        out: Vec<Vec<u8>>,
+        room: usize,
+        replayed: usize,
+    }
+
+    impl TmSink for SmallQueue {
+        fn send_tm(&mut self, packet: &[u8]) {
+            self.out.push(packet.to_vec());
+        }
+        fn send_replay(&mut self, packet: &[u8]) {
+            // More than the room is what a real queue would drop.
+            assert!(packet.len() <= self.room, "replayed beyond the room");
+            self.room -= packet.len();
+            self.replayed += 1;
+            self.out.push(packet.to_vec());
+        }
+        fn replay_room(&self) -> usize {
+            self.room
+        }
+    }
+
+    // verifies: PUS-15-07
+    #[test]
+    fn a_replay_longer_than_the_downlink_queue_goes_on_each_period_and_drops_nothing() {
+        let mut o = obsw();
+        let mut all = Vec::new();
+        for i in 0..40u16 {
+            all.extend(send(&mut o, 10 * u64::from(i), i, 17, 1, &[]));
+        }
+        // 40 pings x 4 reports = counts 0..=159; ask for 100 of them.
+        let (first, last) = (20u16, 119u16);
+        let per_period = 3 * all[first as usize].len();
+        let mut q = SmallQueue {
+            out: Vec::new(),
+            room: per_period,
+            replayed: 0,
+        };
+        let mut app = APID.to_be_bytes().to_vec();
+        app.extend_from_slice(&first.to_be_bytes());
+        app.extend_from_slice(&last.to_be_bytes());
+        let raw = crate::accept::tests::tc_bytes(APID, 500, 15, 128, &app);
+        o.handle_tc(1000, &raw, &mut q);
+        assert_eq!(q.replayed, 3, "the first period sends what fits");
+        assert_eq!(o.replays.len(), 1, "the rest waits");
+        assert!(of(&q.out, 15, 19).is_empty(), "no end report yet");
+        // A ping while the replay runs: stored behind the range, not replayed.
+        send(&mut o, 1005, 501, 17, 1, &[]);
+        let sensors = mmic_domain::SensorsA::default();
+        let mut periods = 1;
+        while !o.replays.is_empty() {
+            q.room = per_period;
+            let now = 1010 + 10 * periods;
+            o.tick(now, &sensors, &[], &mut q);
+            periods += 1;
+            assert!(periods < 100, "the replay does not end");
+        }
+        let live_from = all.len() as u16;
+        let replayed: Vec<Vec<u8>> = q.out.iter().filter(|p| seq(p) < live_from).cloned().collect();
+        assert_eq!(
+            replayed,
+            all[first as usize..=last as usize].to_vec(),
+            "each once, in order"
+        );
+        assert_eq!(periods, 34, "100 packets at 3 a period");
+        assert_eq!(end(&q.out).packets, 100);
+        // The completion follows the end report.
+        let pos = |svc: u8, sub: u8| {
+            q.out
+                .iter()
+                .position(|p| seq(p) >= live_from && (kind(p).0, kind(p).1) == (svc, sub))
+                .unwrap()
+        };
+        assert!(pos(15, 19) < pos(1, 7));
+    }
+
+    // verifies: PUS-15-07
+    #[test]
+    fn a_range_asked_again_while_it_replays_is_sent_once() {
+        let mut o = obsw();
+        for i in 0..10u16 {
+            send(&mut o, u64::from(i), i, 17, 1, &[]);
+        }
+        let mut q = SmallQueue {
+            out: Vec::new(),
+            room: 0,
+            replayed: 0,
+        };
+        let mut app = APID.to_be_bytes().to_vec();
+        app.extend_from_slice(&0u16.to_be_bytes());
+        app.extend_from_slice(&9u16.to_be_bytes());
+        for tc_seq in [100, 101] {
+            let raw = crate::accept::tests::tc_bytes(APID, tc_seq, 15, 128, &app);
+            o.handle_tc(100, &raw, &mut q);
+        }
+        // 10 pings x 4 reports: counts 0..=39 stored, the replay's own reports after them.
+        let completions = |q: &SmallQueue| of(&q.out, 1, 7).iter().filter(|p| seq(p) >= 40).count();
+        assert_eq!(o.replays.len(), 1, "the second request completes at once");
+        assert_eq!(completions(&q), 1);
+        q.room = usize::MAX;
+        o.tick(200, &mmic_domain::SensorsA::default(), &[], &mut q);
+        assert_eq!((q.replayed, end(&q.out).packets), (10, 10));
+        assert_eq!(completions(&q), 2);
     }
 
     // verifies: PUS-15-01
