@@ -76,6 +76,10 @@ pub struct Obsw {
     pub tcp: SocketAddr,
     pub sim_ctl: SocketAddr,
     pub apid: u16,
+    /// Its clock's time base (READY `epoch_ms`, `speed`): on-board time T (Unix ms) was
+    /// wall-clock time `epoch_ms + (T - epoch_ms) / speed`.
+    pub epoch_ms: u64,
+    pub speed: f64,
 }
 
 impl Obsw {
@@ -123,8 +127,17 @@ impl Obsw {
             tcp: field("tcp").parse().unwrap(),
             sim_ctl: field("sim_ctl").parse().unwrap(),
             apid,
+            epoch_ms: field("epoch_ms").parse().expect("epoch_ms"),
+            speed: field("speed").parse().expect("speed"),
             child,
         }
+    }
+
+    /// The wall-clock time (Unix ms) of on-board time `board_unix_ms` of this obsw, so that
+    /// time stamps of robots run faster than real time compare.
+    pub fn wall_ms(&self, board_unix_ms: i64) -> f64 {
+        let e = self.epoch_ms as f64;
+        e + (board_unix_ms as f64 - e) / self.speed
     }
 
     /// Process ID of the obsw.
