@@ -807,7 +807,10 @@ fn run(args: Args) -> Result<()> {
         plan_state::persist(&mut obsw, s.plan_state.as_deref());
         if let Some(t) = team_link.as_mut() {
             let mut buf = [0u8; config::MAX_PACKET_LEN];
-            while let Some(n) = t.recv(&mut buf) {
+            // Team datagrams are inputs too: left waiting while the periods catch up.
+            let behind =
+                Instant::now() >= wall_of(sim_ms + period) && catching_up < mib::host_config::HOST_CATCH_UP_PERIODS;
+            while let Some(n) = (!behind).then(|| t.recv(&mut buf)).flatten() {
                 let r = t.rand();
                 match t.open_datagram(&mut buf[..n]) {
                     Ok((from, packet)) => {
