@@ -80,6 +80,10 @@ pub struct Obsw {
     /// 127.0.0.1:0` and read the port here — no free port probed and bound later, which
     /// another process may take in between.
     pub frame_udp: Option<SocketAddr>,
+    /// Its clock's time base (READY `epoch_ms`, `speed`): on-board time T (Unix ms) was
+    /// wall-clock time `epoch_ms + (T - epoch_ms) / speed`.
+    pub epoch_ms: u64,
+    pub speed: f64,
 }
 
 impl Obsw {
@@ -132,6 +136,8 @@ impl Obsw {
             tcp: field("tcp").parse().unwrap(),
             sim_ctl: field("sim_ctl").parse().unwrap(),
             apid,
+            epoch_ms: field("epoch_ms").parse().expect("epoch_ms"),
+            speed: field("speed").parse().expect("speed"),
             child,
         }
     }
@@ -170,6 +176,13 @@ impl Obsw {
     /// The frame port (an obsw started over frames).
     pub fn frame(&self) -> SocketAddr {
         self.frame_udp.expect("an obsw started with --frame-udp")
+    }
+
+    /// The wall-clock time (Unix ms) of on-board time `board_unix_ms` of this obsw, so that
+    /// time stamps of robots run faster than real time compare.
+    pub fn wall_ms(&self, board_unix_ms: i64) -> f64 {
+        let e = self.epoch_ms as f64;
+        e + (board_unix_ms as f64 - e) / self.speed
     }
 
     /// Process ID of the obsw.

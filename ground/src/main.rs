@@ -37,7 +37,7 @@ use verb_decode::{decode, DecodeArgs};
 use verb_live::{mode, ping, send, watch, ModeArgs, PingArgs, SendArgs, WatchArgs};
 use verb_mib::{mib_export, MibCmd};
 use verb_model::{model, ModelArgs};
-use verb_plan::{plan_check, plan_encode, PlanCmd};
+use verb_plan::{plan_check, plan_control, plan_encode, PlanCmd};
 use verb_run::{run_plan, RunArgs};
 use verb_sim::{sim, SimArgs};
 
@@ -60,7 +60,8 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Cmd {
-    /// Check or encode plan files.
+    /// Check or encode plan files; suspend, resume, abort, skip or report a robot's
+    /// on-board plan.
     #[command(subcommand)]
     Plan(PlanCmd),
     /// Decode a file of TC and/or TM space packets.
@@ -136,6 +137,7 @@ fn run(cli: Cli) -> Result<u8> {
     match cli.cmd {
         Cmd::Plan(PlanCmd::Check { plans, json }) => plan_check(&plans, json),
         Cmd::Plan(PlanCmd::Encode { plan, out: dir }) => plan_encode(&plan, &dir),
+        Cmd::Plan(c) => plan_control(&c, archive_path.as_deref()),
         Cmd::Decode(a) => decode(&a),
         Cmd::Run(a) => run_plan(&a, archive_path.as_deref()),
         Cmd::Ping(a) => ping(&a, archive_path.as_deref()),

@@ -8,6 +8,9 @@ pub const DEFAULT_PORT: u16 = 7301;
 /// Host binary: most inputs (TCs, simulator-control lines) handled back to back before
 /// a due control period runs.
 pub const HOST_INPUT_BATCH: usize = 64;
+/// Host binary: most overdue control periods run in a row, inputs left waiting, when the
+/// process falls behind the wall clock (one simulated second at the nominal period).
+pub const HOST_CATCH_UP_PERIODS: u32 = 100;
 /// Longest a TM write may wait for the ground link (a TCP client that stops reading is
 /// then dropped; a UDP packet that still cannot go is counted in `IO_TM_DROPPED`). The
 /// packet stays in the on-board store either way.

@@ -891,7 +891,7 @@ pub const TCS: &[TcDef] = &[
         "PLAN_START",
         &[a("plan_id", PType::U32, "", 0, 4_294_967_295, "ID of the loaded plan (a stale command for another plan is refused)")],
         &[F::PLAN_NOT_LOADED, F::PLAN_BAD_STATE],
-        "Plan: start the loaded plan: its steps run on board in order, each through the checks of a ground TC, each reported in PUS 1 under its own request ID",
+        "Plan: start the loaded plan: its steps run on board in order, each through the checks of a ground TC, each reported in PUS 1 under its own request ID; it is the ground's approval of those steps, so a running plan continues through a ground loss (a team's hold does not stop it, a leader's step is refused as busy), and only FDIR or a PLAN TC stops it",
     )
     .hazardous("lets the robot move on its own, step after step, without the ground"),
     tc(

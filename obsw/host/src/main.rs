@@ -557,10 +557,18 @@ fn run(args: Args) -> Result<()> {
         }
         down.frames = Some(ep);
     }
-    let epoch = SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map(|d| d.as_millis() as u64)
-        .unwrap_or(0);
+    // The on-board clock's time base: simulated time 0 is wall-clock `epoch` (both read
+    // together), so on-board time T is wall time epoch + (T - epoch) / speed. Printed in
+    // the READY line, so that time stamps of robots run faster than real time compare.
+    let (start, epoch) = {
+        let (now, unix) = (
+            Instant::now(),
+            SystemTime::now().duration_since(UNIX_EPOCH).unwrap_or_default(),
+        );
+        // Whole milliseconds: the start is moved back by the part below one.
+        let sub_ms = Duration::from_nanos(u64::from(unix.subsec_nanos() % 1_000_000));
+        (now.checked_sub(sub_ms).unwrap_or(now), unix.as_millis() as u64)
+    };
     let mut obsw = Obsw::new(
         Config {
             robot: s.robot,
@@ -639,7 +647,7 @@ fn run(args: Args) -> Result<()> {
     // (CONFIG_NOT_ACCEPTED, hash 0), so a ground that starts on READY finds the robot's
     // module set known.
     let mut ready = Some(format!(
-        "READY robot={} apid=0x{:03X} udp={udp} tcp={tcp} sim_ctl={ctl_addr} speed={}{}{frame_note}",
+        "READY robot={} apid=0x{:03X} udp={udp} tcp={tcp} sim_ctl={ctl_addr} speed={} epoch_ms={epoch}{}{frame_note}",
         s.robot,
         obsw.apid(),
         s.speed,
@@ -653,7 +661,6 @@ fn run(args: Args) -> Result<()> {
     );
 
     let period = config::CONTROL_PERIOD_MS as u64;
-    let start = Instant::now();
     let wall_of = |sim_ms: u64| start + Duration::from_secs_f64(sim_ms as f64 / 1000.0 / s.speed);
     let end_ms = s.duration.map(|d| (d * 1000.0) as u64);
     // TCs carry the time of arrival, between the last period and the next.
@@ -703,18 +710,28 @@ fn run(args: Args) -> Result<()> {
     // Board A's table and probes now; board B's half arrives over the A-B link and the
     // control cycle runs discovery (docs/modules.md).
     obsw.start_discovery(0, &sim.modules().table_a, sim.modules().probes_a);
+    // Periods run in a row to catch up with the wall clock, inputs left waiting.
+    let mut catching_up: u32 = 0;
     loop {
         if !obsw.discovery_pending() {
             if let Some(line) = ready.take() {
                 println!("{line}");
             }
         }
+        // A process not scheduled for a while is behind the wall clock: the overdue periods
+        // run first, so that an input is handled at the simulated time it arrived (its
+        // effects are never stamped earlier than that, which keeps robots' time stamps in
+        // causal order); at most HOST_CATCH_UP_PERIODS in a row, so a robot that cannot keep
+        // up still takes its TCs.
+        let behind =
+            Instant::now() >= wall_of(sim_ms + period) && catching_up < mib::host_config::HOST_CATCH_UP_PERIODS;
+        catching_up = if behind { catching_up + 1 } else { 0 };
         // Inputs already waiting first, but a bounded batch, so that a flood of TCs
         // cannot hold back the control period (and a late period cannot starve TCs).
         let mut handled = 0;
         // TC frames handled whose TM has not been flushed yet.
         let mut frames_unflushed = false;
-        while handled < mib::host_config::HOST_INPUT_BATCH {
+        while !behind && handled < mib::host_config::HOST_INPUT_BATCH {
             // A LINK_SPI_SELECT just executed takes effect before the next input.
             frames::apply_select(&mut obsw.link_select, down.frames.as_mut());
             let mut any = false;
@@ -822,7 +839,10 @@ fn run(args: Args) -> Result<()> {
         plan_state::persist(&mut obsw, s.plan_state.as_deref());
         if let Some(t) = team_link.as_mut() {
             let mut buf = [0u8; config::MAX_PACKET_LEN];
-            while let Some(n) = t.recv(&mut buf) {
+            // Team datagrams are inputs too: left waiting while the periods catch up.
+            let behind =
+                Instant::now() >= wall_of(sim_ms + period) && catching_up < mib::host_config::HOST_CATCH_UP_PERIODS;
+            while let Some(n) = (!behind).then(|| t.recv(&mut buf)).flatten() {
                 let r = t.rand();
                 match t.open_datagram(&mut buf[..n]) {
                     Ok((from, packet)) => {

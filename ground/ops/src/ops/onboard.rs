@@ -13,6 +13,10 @@ use super::{failure_words, Session, Update};
 
 /// Longest wait for one control TC's completion.
 const CONTROL_WAIT: Duration = Duration::from_secs(30);
+/// How often a control TC's missing reports are asked of the on-board store (the MIB's
+/// gap-check periods, as `ground send` does).
+const GAP_CHECK_PERIOD: Duration = Duration::from_millis(mib::ground_config::GAP_CHECK_PERIOD_MS as u64);
+const GAP_CHECK_PERIOD_FRAMES: Duration = Duration::from_millis(mib::ground_config::GAP_CHECK_PERIOD_FRAMES_MS as u64);
 
 /// What was done for the plan on board.
 #[derive(Clone, Debug)]
@@ -40,7 +44,21 @@ fn control(
         .map_err(|e| format!("robot {robot}: {name}: {e}"))?;
     let rid = tc.request_id();
     let t0 = Instant::now();
+    let mut accepted = false;
+    let mut last_gap_check = Instant::now();
     while t0.elapsed() < CONTROL_WAIT {
+        // An accepted TC is not resent: its completion report lost on the way is a TM gap,
+        // asked of the on-board store (over frames also once a CLCW acknowledged the TC's
+        // frame: it reached the robot, its acceptance may be the report lost).
+        let (period, delivered) = if session.over_frames() {
+            (GAP_CHECK_PERIOD_FRAMES, session.delivered(robot, &tc))
+        } else {
+            (GAP_CHECK_PERIOD, false)
+        };
+        if (accepted || delivered) && last_gap_check.elapsed() >= period && session.may_retrieve(robot) {
+            last_gap_check = Instant::now();
+            session.request_missing_reports(robot, 1);
+        }
         for u in session.poll(Duration::from_millis(50)) {
             match &u {
                 Update::Verification { v, .. } if v.request == rid => {
@@ -49,6 +67,10 @@ fn control(
                     }
                     if v.stage == crate::pus::Stage::Completion {
                         return Ok(tc);
+                    }
+                    if v.stage == crate::pus::Stage::Acceptance && !accepted {
+                        accepted = true;
+                        last_gap_check = Instant::now();
                     }
                 }
                 Update::GaveUp { robot: r, tc: n, .. } if *r == robot && *n == def.name && !session.is_pending(&tc) => {

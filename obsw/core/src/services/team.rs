@@ -740,6 +740,15 @@ impl<S: TmStore> Obsw<S> {
                 self.step_refused(now, plan, step, StepRefusal::Refused, sink);
             }
         }
+        if self.plan.plan.state() == mmic_plan::State::Running {
+            // An on-board plan the ground started is the ground's approval of its steps: a
+            // hold for ground loss (the robot's own or a leader's) does not stop it, and a
+            // leader's step never interleaves with it (FDIR still suspends it).
+            if let Action::Continue { plan, step, .. } = a {
+                self.step_refused(now, plan.id, step, StepRefusal::Busy, sink);
+            }
+            return;
+        }
         let target = match a {
             Action::Hold(HoldTarget::Standby) => robot_mode::STANDBY,
             Action::Hold(HoldTarget::Safed) => robot_mode::SAFED,
@@ -1684,6 +1693,48 @@ mod tests {
                 );
             }
         }
+    }
+
+    // verifies: PLAN-TEAM-03
+    #[test]
+    fn a_running_on_board_plan_continues_through_a_ground_loss_hold_and_a_suspended_one_holds() {
+        let mut r = Rig::start();
+        r.send("TEAM_ROSTER", &[1, 2, 3, 0, 0, 0, 0, 0]);
+        r.send(
+            "MODE_SET",
+            &[mib::modes::node::ROBOT as i64, robot_mode::OPERATIONAL as i64, 0],
+        );
+        assert!(r.run_until(120_000, |r| r.o.modes.root() == robot_mode::OPERATIONAL
+            && r.o.transition.is_none()));
+        // A running on-board plan (its state as PLAN_START leaves it).
+        let img = {
+            let steps = [mmic_plan::StepRepr {
+                index: 0,
+                confirmed: false,
+                timeout_s: 10,
+                deps: heapless::Vec::new(),
+                kind: mmic_plan::StepKind::Wait { ms: 60_000 },
+            }];
+            let mut out = [0u8; mib::plan::MAX_IMAGE_LEN];
+            let n = mmic_plan::image::emit(1, 7, &steps, &mut out).unwrap();
+            out[..n].to_vec()
+        };
+        let p = &mut r.o.plan.plan;
+        p.load(0, &img).unwrap();
+        let crc = u32::from_be_bytes(img[img.len() - 4..].try_into().unwrap());
+        p.commit(img.len() as u16, crc, |_| Ok(())).unwrap();
+        p.start(7).unwrap();
+        // A hold (the robot's own for ground loss, or a leader's): the plan runs on, the
+        // robot stays operational.
+        let mut s = Vec::new();
+        r.o.team_act(r.now, Action::Hold(HoldTarget::Standby), &mut r.link, &mut s);
+        r.run_until(1_000, |_| false);
+        assert_eq!(r.o.modes.root_target(), robot_mode::OPERATIONAL);
+        assert_eq!(r.o.plan.plan.state(), mmic_plan::State::Running);
+        // Suspended, it is no longer running: the team's hold applies as to an idle robot.
+        r.o.plan.plan.suspend().unwrap();
+        r.o.team_act(r.now, Action::Hold(HoldTarget::Standby), &mut r.link, &mut s);
+        assert_eq!(r.o.modes.root_target(), robot_mode::STANDBY);
     }
 
     // verifies: TEAM-PLAN-02, TEAM-PERSIST-03
