@@ -277,10 +277,8 @@ impl<const ZONES: usize> TmFramer<ZONES> {
     /// takes `frames` more frames (those waiting for their encryption included): the
     /// zones that may fill, and the next one short of full.
     pub fn room(&self, vc: TmVc, frames: usize) -> usize {
-        let i = match vc {
-            TmVc::Replay if ZONES >= 2 => 1,
-            TmVc::Realtime | TmVc::Replay => 0,
-        };
+        // A VC without its zone (ZONES too small) sends on VC0, as `send` does.
+        let i = if vc.index() < ZONES { vc.index() } else { 0 };
         let zone = &self.zones[i];
         let frames = frames.saturating_sub(self.unsealed.len());
         let fill = if self.deferred {
