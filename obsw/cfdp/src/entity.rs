@@ -43,7 +43,9 @@ use spacepackets::cfdp::pdu::{FileDirectiveType, PduHeader};
 use spacepackets::cfdp::tlv::{
     FilestoreActionCode, FilestoreRequestTlv, GenericTlv, ReadableTlv, Tlv, TlvType, WritableTlv,
 };
-use spacepackets::cfdp::{ChecksumType, ConditionCode, PduType, TransactionStatus, TransmissionMode};
+use spacepackets::cfdp::{
+    ChecksumType, ConditionCode, PduType, SegmentMetadataFlag, SegmentationControl, TransactionStatus, TransmissionMode,
+};
 use spacepackets::util::{UnsignedByteField, UnsignedByteFieldU16, UnsignedEnum};
 
 use crate::msg::{self, ReservedMsg};
@@ -278,6 +280,11 @@ pub struct Counters {
     /// Finished PDUs that arrived before the ACK of our EOF (which was lost) and stood
     /// for it.
     pub eof_ack_by_finished: u32,
+    /// File data PDUs sent again on the peer's NAKs.
+    pub resent: u32,
+    /// Finished PDUs of a transaction this entity sent and ended, acknowledged again (the
+    /// first ACK was lost).
+    pub finished_acked_again: u32,
 }
 
 /// A put this entity owes its peer (a proxy put or a directory listing), done when the
@@ -468,8 +475,12 @@ pub struct Entity<'a, S: FlatStore> {
     metadata_nak: Option<((u16, u16), u32)>,
     /// Class 1 puts ask for closure (a Finished PDU), so the sender learns the outcome.
     class1_closure: bool,
-    /// Length of the file being sent (0: metadata only).
+    /// Length of the file being sent (0: metadata only) and its name.
     sending_len: u64,
+    sending_name: Option<FileName>,
+    /// The last transaction this entity sent that the peer's Finished ended (its Finished
+    /// may come again when our ACK was lost).
+    finished_tx: Option<(u16, u16)>,
     /// The last incoming transactions that finished: their late PDUs are strays.
     finished_rx: heapless::Deque<(u16, u16), 4>,
     /// Segment requests of the peer's NAKs not yet fed to the source handler, with the
@@ -576,6 +587,8 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             metadata_nak: None,
             class1_closure: true,
             sending_len: 0,
+            sending_name: None,
+            finished_tx: None,
             finished_rx: heapless::Deque::new(),
             resend: heapless::Deque::new(),
             resend_header: None,
@@ -639,8 +652,10 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         let Some(len) = self.parts.store.len(&s).ok().flatten() else {
             return Err(PutError::NoFile);
         };
+        self.start_put(now_ms, Some(src), Some(dest), class, None, None)?;
         self.sending_len = len;
-        self.start_put(now_ms, Some(src), Some(dest), class, None, None)
+        self.sending_name = Some(s);
+        Ok(())
     }
 
     /// Asks the peer to send its file `src` here as `dest` (a Proxy Put Request in a
@@ -699,9 +714,8 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             return Err(PutError::Busy);
         }
         self.source = new_source(self.id, self.peer, self.parts);
-        if src.is_none() {
-            self.sending_len = 0;
-        }
+        self.sending_len = 0;
+        self.sending_name = None;
         let req = Put {
             dest_id: UnsignedByteFieldU16::new(self.peer).into(),
             src,
@@ -815,6 +829,12 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         };
         if stray || (target == PacketTarget::DestEntity && self.finished_rx.iter().any(|t| *t == tx)) {
             self.counters.stray = self.counters.stray.wrapping_add(1);
+            if target == PacketTarget::SourceEntity
+                && pdu.file_directive_type() == Some(FileDirectiveType::FinishedPdu)
+                && self.finished_tx == Some(tx)
+            {
+                self.ack_finished_again(raw, &h);
+            }
             return;
         }
         self.counters.received = self.counters.received.wrapping_add(1);
@@ -824,15 +844,22 @@ impl<'a, S: FlatStore> Entity<'a, S> {
                 self.nak_split(raw)
             }
             PacketTarget::SourceEntity => {
-                if pdu.file_directive_type() == Some(FileDirectiveType::FinishedPdu) {
+                let finished = pdu.file_directive_type() == Some(FileDirectiveType::FinishedPdu);
+                if finished {
                     self.eof_acked_by_finished(&h);
                 }
-                self.run_source(Some(&pdu))
+                self.run_source(Some(&pdu));
+                if finished && self.source.state() == State::Idle {
+                    self.finished_tx = Some(tx);
+                }
             }
             PacketTarget::DestEntity if pdu.file_directive_type() == Some(FileDirectiveType::MetadataPdu) => {
                 self.metadata(raw, (id_u16(&src), id_u16(&h.common_pdu_conf().transaction_seq_num)))
             }
-            PacketTarget::DestEntity if self.dest.state() == State::Idle => self.before_metadata(now_ms, &h),
+            PacketTarget::DestEntity if self.dest.state() == State::Idle => {
+                let eof = pdu.file_directive_type() == Some(FileDirectiveType::EofPdu);
+                self.before_metadata(now_ms, &h, eof)
+            }
             PacketTarget::DestEntity => self.run_dest(Some(&pdu)),
         }
         self.settle();
@@ -861,11 +888,39 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         }
     }
 
+    /// The peer's Finished PDU again, for a transaction this entity sent and has ended: our
+    /// ACK of it was lost. cfdp-rs 0.3 forgets the transaction at its first Finished; without
+    /// an answer the peer would send its Finished until its positive ACK limit and declare
+    /// that fault for a file that arrived whole.
+    fn ack_finished_again(&mut self, raw: &[u8], h: &PduHeader) {
+        let Ok(fin) = FinishedPduReader::from_bytes(raw) else {
+            return;
+        };
+        let mut conf = *h.common_pdu_conf();
+        conf.direction = spacepackets::cfdp::Direction::TowardsReceiver;
+        conf.crc_flag = m::PDU_CRC.into();
+        let Ok(ack) = AckPdu::new(
+            PduHeader::new_for_file_directive(conf, 0),
+            FileDirectiveType::FinishedPdu,
+            fin.condition_code(),
+            TransactionStatus::Terminated,
+        ) else {
+            return;
+        };
+        let mut buf = [0u8; 64];
+        if let Ok(n) = ack.write_to_bytes(&mut buf) {
+            self.counters.finished_acked_again = self.counters.finished_acked_again.wrapping_add(1);
+            let _ =
+                Sender(&self.parts.link).send_pdu(PduType::FileDirective, Some(FileDirectiveType::AckPdu), &buf[..n]);
+        }
+    }
+
     /// File data or an EOF of a transaction whose metadata was lost: cfdp-rs 0.3 would
     /// write the data to a file without a name and fail the transaction. Dropped (counted);
     /// in class 2 a NAK asks for the metadata (segment request 0-0), at most once per NAK
-    /// timer interval, and the data missing then is asked for after the EOF.
-    fn before_metadata(&mut self, now_ms: u64, h: &PduHeader) {
+    /// timer interval (and on each EOF), and the data missing then is asked for after the
+    /// EOF.
+    fn before_metadata(&mut self, now_ms: u64, h: &PduHeader, eof: bool) {
         self.counters.before_metadata = self.counters.before_metadata.wrapping_add(1);
         let mut conf = *h.common_pdu_conf();
         if conf.trans_mode != TransmissionMode::Acknowledged {
@@ -873,7 +928,9 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         }
         let tx = (id_u16(&conf.source_id()), id_u16(&conf.transaction_seq_num));
         let now = now_ms as u32;
-        if let Some((t, at)) = self.metadata_nak {
+        // An EOF comes at most once per positive ACK period and is not acknowledged until
+        // the metadata is here: each one asks for it, or the sender's ACK limit runs out.
+        if let Some((t, at)) = self.metadata_nak.filter(|_| !eof) {
             if t == tx && (now.wrapping_sub(at) as u64) < m::NAK_TIMER_MS {
                 return;
             }
@@ -934,30 +991,64 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         self.resend();
     }
 
-    /// Feeds queued segment requests to the source handler while the outbox has room.
+    /// Sends the queued segment requests while the outbox has room: file data read from the
+    /// store here, the metadata (0-0) by the source handler. cfdp-rs 0.3 counts each
+    /// segment it sends again as new progress: the next new segment then skips ahead, and
+    /// its EOF (sent again on each positive ACK timer expiry) carries that count as the file
+    /// size; the receiver then asks for data past the end of the file, which this entity
+    /// cannot send, and the transaction falls silent until inactivity ends it.
     fn resend(&mut self) {
         let Some(header) = self.resend_header else { return };
         let (start, end) = self.resend_scope;
         let mut buf = [0u8; m::MAX_PDU_LEN];
-        while !self.resend.is_empty() && self.source.state() != State::Idle {
-            let room = m::OUTBOX_DEPTH.saturating_sub(self.parts.link.outbox.borrow().len() + 2);
-            if room == 0 {
+        while self.source.state() != State::Idle {
+            if self.parts.link.outbox.borrow().len() + 2 >= m::OUTBOX_DEPTH {
                 return;
             }
-            let mut pairs: heapless::Vec<(u32, u32), { m::OUTBOX_DEPTH }> = heapless::Vec::new();
-            while pairs.len() < room {
-                let Some(p) = self.resend.pop_front() else { break };
-                let _ = pairs.push(p);
+            let Some((a, b)) = self.resend.pop_front() else { break };
+            if a == 0 && b == 0 {
+                let Ok(c) = NakPduCreator::new_normal_file_size(header, start, end, &[(0, 0)]) else {
+                    continue;
+                };
+                let Ok(n) = c.write_to_bytes(&mut buf) else { continue };
+                if let Ok(p) = PduRawWithInfo::new(&buf[..n]) {
+                    self.run_source(Some(&p));
+                }
+                continue;
             }
-            let Ok(c) = NakPduCreator::new_normal_file_size(header, start, end, &pairs) else {
-                return;
-            };
-            let Ok(n) = c.write_to_bytes(&mut buf) else { return };
-            let Ok(p) = PduRawWithInfo::new(&buf[..n]) else { return };
-            self.run_source(Some(&p));
+            self.resend_segment(&header, a, b);
         }
         if self.source.state() == State::Idle {
             self.resend.clear();
+        }
+    }
+
+    /// File data `a..b` of the file being sent (at most one segment), again.
+    fn resend_segment(&mut self, nak: &PduHeader, a: u32, b: u32) {
+        let Some(name) = self.sending_name.clone() else { return };
+        let len = (b - a) as usize;
+        let mut data = [0u8; m::MAX_SEGMENT_LEN];
+        if len > data.len() || self.parts.store.read(&name, a as u64, &mut data[..len]).is_err() {
+            self.counters.resend_dropped = self.counters.resend_dropped.wrapping_add(1);
+            return;
+        }
+        let mut conf = *nak.common_pdu_conf();
+        conf.direction = spacepackets::cfdp::Direction::TowardsReceiver;
+        conf.crc_flag = m::PDU_CRC.into();
+        let h = PduHeader::new_for_file_data(
+            conf,
+            0,
+            SegmentMetadataFlag::NotPresent,
+            SegmentationControl::NoRecordBoundaryPreservation,
+        );
+        let pdu = FileDataPdu::new_no_seg_metadata(h, a as u64, &data[..len]);
+        let mut buf = [0u8; m::MAX_PDU_LEN];
+        match pdu.write_to_bytes(&mut buf) {
+            Ok(n) => {
+                self.counters.resent = self.counters.resent.wrapping_add(1);
+                let _ = Sender(&self.parts.link).send_pdu(PduType::FileData, None, &buf[..n]);
+            }
+            Err(_) => self.counters.resend_dropped = self.counters.resend_dropped.wrapping_add(1),
         }
     }
 
