@@ -185,7 +185,6 @@ fn ground_puts_gets_lists_renames_and_removes_files_over_the_space_link() {
 
 // verifies: FILE-CFDP-05
 #[test]
-#[ignore = "open failure (docs/files.md): about 1 get in 6 through the relay under load falls silent for 60 s; run with --ignored"]
 fn class_2_transfers_both_ways_arrive_byte_identical_through_the_lossy_relay() {
     let s = Setup::start("relay", Some(Faults::new(0.2, 0.05, 0.05)));
     let up = content(64 << 10, 3);
