@@ -64,11 +64,13 @@ pub const ACK_LIMIT: u32 = 8;
 /// NAK timer: a NAK that brought nothing is sent again after this time; the same round trip
 /// as the positive ACK timer.
 pub const NAK_TIMER_MS: u64 = ACK_TIMER_MS;
-/// Expiries of the NAK timer without a single recovered segment (cfdp-rs restarts the count
-/// on each one, 727.0-B-5 § 4.6.4.7) before the fault "NAK limit reached": about two minutes
-/// of a peer that hears the NAKs but whose data never arrives. A peer that says nothing
-/// at all is caught sooner by [`INACTIVITY_MS`].
-pub const NAK_LIMIT: u32 = 32;
+/// Expiries of the NAK timer in one transaction before the fault "NAK limit reached".
+/// 727.0-B-5 § 4.6.4.7 restarts the count on every recovered segment; cfdp-rs 0.3 restarts
+/// it only while the metadata is missing, so the limit bounds a whole transfer's NAK
+/// phase: 150 × 4 s = 10 min, longer than the largest file (`MAX_FILE_LEN`) needs through
+/// the relay. A peer that hears the NAKs but says nothing is caught by [`INACTIVITY_MS`]
+/// after a minute.
+pub const NAK_LIMIT: u32 = 150;
 /// Class 1 check timer: after an EOF with data missing, the receiver waits this long for
 /// late file data before it counts one check.
 pub const CHECK_TIMER_MS: u64 = 1_000;

@@ -129,6 +129,7 @@ fn class_2_gets_and_puts_through_the_relays_losses_always_end_complete() {
                 .and_then(|s| s.parse().ok())
                 .unwrap_or(40);
             let mut bad = Vec::new();
+            let mut times = Vec::new();
             let first: u64 = std::env::var("SWEEP_FIRST")
                 .ok()
                 .and_then(|s| s.parse().ok())
@@ -153,11 +154,13 @@ fn class_2_gets_and_puts_through_the_relays_losses_always_end_complete() {
                 g.get(now, "f.bin", "f.bin", Class::Two).unwrap();
                 let req = run(&mut now, &mut g, &mut r, &mut l, 200_000, |f| f.sent);
                 let t0 = now;
+                let started = now;
                 let got = run(&mut now, &mut g, &mut r, &mut l, 200_000, |f| !f.sent);
                 let back = FileName::new("back.bin").unwrap();
                 let mut ok = req.is_some_and(|f| f.complete) && got.is_some_and(|f| f.complete);
                 let mut copy = vec![0; data.len()];
                 ok &= gp.store.read(&n, 0, &mut copy).is_ok() && copy == data;
+                times.push(now - started);
                 // And back up: the robot's NAKs and ACKs travel on the lossy downlink.
                 g.put(now, "f.bin", "back.bin", Class::Two).unwrap();
                 let put = run(&mut now, &mut g, &mut r, &mut l, 200_000, |f| f.sent);
@@ -172,6 +175,12 @@ fn class_2_gets_and_puts_through_the_relays_losses_always_end_complete() {
                     bad.push(seed);
                 }
             }
+            times.sort();
+            eprintln!(
+                "get of the file: median {} ms, worst {} ms (simulated)",
+                times[times.len() / 2],
+                times[times.len() - 1]
+            );
             assert!(bad.is_empty(), "failed seeds {bad:?}");
         })
         .unwrap()
