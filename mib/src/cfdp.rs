@@ -104,6 +104,11 @@ pub const MAX_FILE_LEN: u64 = 1 << 20;
 pub const MAX_FILES: usize = 64;
 /// Bytes of the board's file store area (the memory map's `files` region).
 pub const BOARD_STORE_BYTES: u32 = crate::memory::FILE_STORE.size;
+/// A file being received is written under `PARTIAL_PREFIX` + "SOURCE-SEQ" (the
+/// transaction) and renamed to its name only when it arrived complete, checksum verified:
+/// a transfer cut short (a fault, a reset) never leaves a truncated file under the name.
+/// The robot removes such files when it starts. Names with this prefix are reserved.
+pub const PARTIAL_PREFIX: &str = "partial-";
 /// Name of the listing a directory listing request writes (then sent to the requester).
 pub const LISTING_NAME: &str = "dir.lst";
 

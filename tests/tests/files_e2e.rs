@@ -268,8 +268,13 @@ fn a_robot_killed_mid_transfer_never_leaves_the_ground_a_corrupt_file_taken_as_g
             Some(0) => assert!(same(&path, want), "{verb}: exit 0 but the file differs"),
             // A defined fault or no end before --timeout: the ground kept nothing.
             Some(4) | Some(5) => {
-                if verb == "get" {
-                    assert!(!path.exists(), "get failed but left {}", path.display());
+                match verb {
+                    "get" => assert!(!path.exists(), "get failed but left {}", path.display()),
+                    // The robot never keeps a partly received file under its name.
+                    _ => assert!(
+                        !path.exists() || same(&path, want),
+                        "put failed but left a partial file"
+                    ),
                 }
                 eprintln!("{verb} after a robot restart: exit {:?}: {err}", out.status.code());
             }

@@ -336,6 +336,13 @@ struct User {
     sent_reports: u32,
 }
 
+/// The staging name of the file of incoming transaction `tx` (source entity, sequence).
+fn partial_name(tx: (u16, u16)) -> Option<FileName> {
+    let mut s: heapless::String<{ m::MAX_NAME_LEN }> = heapless::String::new();
+    core::fmt::write(&mut s, format_args!("{}{}-{}", m::PARTIAL_PREFIX, tx.0, tx.1)).ok()?;
+    FileName::new(&s).ok()
+}
+
 fn id_u16(f: &UnsignedByteField) -> u16 {
     f.value() as u16
 }
@@ -481,6 +488,8 @@ pub struct Entity<'a, S: FlatStore> {
     /// The last transaction this entity sent that the peer's Finished ended (its Finished
     /// may come again when our ACK was lost).
     finished_tx: Option<(u16, u16)>,
+    /// The incoming transaction's file: its name and the staging name it is written under.
+    receiving: Option<((u16, u16), FileName, FileName)>,
     /// The last incoming transactions that finished: their late PDUs are strays.
     finished_rx: heapless::Deque<(u16, u16), 4>,
     /// Segment requests of the peer's NAKs not yet fed to the source handler, with the
@@ -589,6 +598,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             sending_len: 0,
             sending_name: None,
             finished_tx: None,
+            receiving: None,
             finished_rx: heapless::Deque::new(),
             resend: heapless::Deque::new(),
             resend_header: None,
@@ -769,6 +779,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         if self.dest.state_machine(&mut self.user, pdu).is_err() {
             self.counters.handler_errors = self.counters.handler_errors.wrapping_add(1);
         }
+        self.settle_received();
         let after = self
             .dest
             .transaction_id()
@@ -781,6 +792,50 @@ impl<'a, S: FlatStore> Entity<'a, S> {
                 let _ = self.finished_rx.push_back(t);
             }
         }
+    }
+
+    /// A received file whose transaction ended: renamed from its staging name to its name
+    /// when complete and retained, else removed.
+    fn settle_received(&mut self) {
+        let Some((tx, fin, stg)) = self.receiving.clone() else {
+            return;
+        };
+        let Some(f) = self
+            .user
+            .finished
+            .iter_mut()
+            .find(|f| !f.sent && (f.source, f.seq) == tx)
+        else {
+            return;
+        };
+        self.receiving = None;
+        let store = &self.parts.store;
+        if f.complete && f.retained {
+            if store.len(&fin).ok().flatten().is_some() {
+                let _ = store.remove(&fin);
+            }
+            if store.rename(&stg, &fin).is_err() {
+                // The report must not say complete for a file that is not under its name.
+                f.complete = false;
+                f.retained = false;
+                self.counters.fs_refused = self.counters.fs_refused.wrapping_add(1);
+                let _ = store.remove(&stg);
+            }
+        } else if store.len(&stg).ok().flatten().is_some() {
+            let _ = store.remove(&stg);
+        }
+    }
+
+    /// Removes the staging files of transfers a reset cut short (call at start-up, on the
+    /// robot's own store only). Returns how many.
+    pub fn discard_partial(&self) -> usize {
+        let mut names: heapless::Vec<FileName, { m::MAX_FILES }> = heapless::Vec::new();
+        let _ = self.parts.store.list(&mut |n, _| {
+            if n.as_str().starts_with(m::PARTIAL_PREFIX) {
+                let _ = names.push(n.clone());
+            }
+        });
+        names.iter().filter(|n| self.parts.store.remove(n).is_ok()).count()
     }
 
     /// One PDU from the link (untrusted).
@@ -1072,11 +1127,21 @@ impl<'a, S: FlatStore> Entity<'a, S> {
                 }
             }
         }
+        // Received under a staging name until complete (`mib::cfdp::PARTIAL_PREFIX`).
+        let final_name = md
+            .dest_file_name()
+            .value_as_str()
+            .and_then(|r| r.ok())
+            .and_then(|d| FileName::new(d).ok());
+        let staging = final_name.as_ref().and_then(|_| partial_name(tx));
+        let staging_lv = staging
+            .as_ref()
+            .and_then(|s| spacepackets::cfdp::lv::Lv::new_from_str(s.as_str()).ok());
         let stripped = MetadataPduCreator::new(
             *md.pdu_header(),
             *md.metadata_params(),
             md.src_file_name(),
-            md.dest_file_name(),
+            staging_lv.unwrap_or(md.dest_file_name()),
             &opts[..n],
         );
         let mut buf = [0u8; m::MAX_PDU_LEN];
@@ -1100,6 +1165,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         let was_idle = self.dest.state() == State::Idle || stale;
         if was_idle {
             self.dest = new_dest(self.id, self.peer, self.parts);
+            self.receiving = final_name.zip(staging).map(|(f, s)| (tx, f, s));
         }
         let errors = self.counters.handler_errors;
         self.run_dest(Some(&pdu));
