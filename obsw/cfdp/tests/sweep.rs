@@ -1,6 +1,7 @@
-//! Many seeded class 2 transfers (a `get` and a `put` of 64 KiB each) through a model of the space link as the relay makes it: the
-//! downlink loses and duplicates PDUs; the uplink loses none (COP-1) but delivers late and
-//! in order (a lost TC frame holds everything behind it until FOP-1 sends it again).
+//! Many seeded class 2 transfers (a `get` and a `put` of 64 KiB each) through a model of
+//! the space link as the relay makes it: the downlink loses a quarter of the PDUs and
+//! duplicates some; the uplink loses none (COP-1) but delivers late and in order (a lost TC
+//! frame holds everything behind it until FOP-1 sends it again).
 
 use mmic_cfdp::store::MemStore;
 use mmic_cfdp::{Class, Entity, FileName, Finished, Parts};
@@ -111,14 +112,14 @@ fn run(
     None
 }
 
-// verifies: FILE-CFDP-05
-//
-// cfdp-rs 0.3 counted each segment sent again on a NAK as new progress, and its EOF sent
-// again on a positive ACK timer expiry carried that count as the file size: the receiver
-// asked for data past the end of the file, the sender could not send it, and most of these
-// gets ended on inactivity after 60 s. More seeds (a few seconds per hundred):
+// cfdp-rs 0.3 counts each segment it sends again on a NAK as new progress, and its EOF
+// sent again on a positive ACK timer expiry carries that count as the file size: the
+// receiver asks for data past the end of the file and the transfer falls silent until
+// inactivity ends it (docs/files.md, defect 15) unless the entity sends those segments
+// itself. More seeds (a few seconds per hundred):
 // `SWEEP_SEEDS=1000 cargo test -p mmic-cfdp --test sweep`; one seed's PDUs:
-// `SWEEP_FIRST=6 SWEEP_SEEDS=1 SWEEP_TRACE=1 cargo test -p mmic-cfdp --test sweep`.
+// `SWEEP_FIRST=6 SWEEP_SEEDS=1 SWEEP_TRACE=1 cargo test -p mmic-cfdp --test sweep -- --nocapture`.
+// verifies: FILE-CFDP-05
 #[test]
 fn class_2_gets_and_puts_through_the_relays_losses_always_end_complete() {
     std::thread::Builder::new()
