@@ -64,11 +64,13 @@ pub const ACK_LIMIT: u32 = 8;
 /// NAK timer: a NAK that brought nothing is sent again after this time; the same round trip
 /// as the positive ACK timer.
 pub const NAK_TIMER_MS: u64 = ACK_TIMER_MS;
-/// Expiries of the NAK timer without a single recovered segment (cfdp-rs restarts the count
-/// on each one, 727.0-B-5 § 4.6.4.7) before the fault "NAK limit reached": about two minutes
-/// of a peer that hears the NAKs but whose data never arrives. A peer that says nothing
-/// at all is caught sooner by [`INACTIVITY_MS`].
-pub const NAK_LIMIT: u32 = 32;
+/// Expiries of the NAK timer in one transaction before the fault "NAK limit reached".
+/// 727.0-B-5 § 4.6.4.7 restarts the count on every recovered segment; cfdp-rs 0.3 restarts
+/// it only while the metadata is missing, so the limit bounds a whole transfer's NAK
+/// phase: 150 × 4 s = 10 min, longer than the largest file (`MAX_FILE_LEN`) needs through
+/// the relay. A peer that hears the NAKs but says nothing is caught by [`INACTIVITY_MS`]
+/// after a minute.
+pub const NAK_LIMIT: u32 = 150;
 /// Class 1 check timer: after an EOF with data missing, the receiver waits this long for
 /// late file data before it counts one check.
 pub const CHECK_TIMER_MS: u64 = 1_000;
@@ -102,6 +104,11 @@ pub const MAX_FILE_LEN: u64 = 1 << 20;
 pub const MAX_FILES: usize = 64;
 /// Bytes of the board's file store area (the memory map's `files` region).
 pub const BOARD_STORE_BYTES: u32 = crate::memory::FILE_STORE.size;
+/// A file being received is written under `PARTIAL_PREFIX` + "SOURCE-SEQ" (the
+/// transaction) and renamed to its name only when it arrived complete, checksum verified:
+/// a transfer cut short (a fault, a reset) never leaves a truncated file under the name.
+/// The robot removes such files when it starts. Names with this prefix are reserved.
+pub const PARTIAL_PREFIX: &str = "partial-";
 /// Name of the listing a directory listing request writes (then sent to the requester).
 pub const LISTING_NAME: &str = "dir.lst";
 

@@ -43,7 +43,9 @@ use spacepackets::cfdp::pdu::{FileDirectiveType, PduHeader};
 use spacepackets::cfdp::tlv::{
     FilestoreActionCode, FilestoreRequestTlv, GenericTlv, ReadableTlv, Tlv, TlvType, WritableTlv,
 };
-use spacepackets::cfdp::{ChecksumType, ConditionCode, PduType, TransactionStatus, TransmissionMode};
+use spacepackets::cfdp::{
+    ChecksumType, ConditionCode, PduType, SegmentMetadataFlag, SegmentationControl, TransactionStatus, TransmissionMode,
+};
 use spacepackets::util::{UnsignedByteField, UnsignedByteFieldU16, UnsignedEnum};
 
 use crate::msg::{self, ReservedMsg};
@@ -278,6 +280,11 @@ pub struct Counters {
     /// Finished PDUs that arrived before the ACK of our EOF (which was lost) and stood
     /// for it.
     pub eof_ack_by_finished: u32,
+    /// File data PDUs sent again on the peer's NAKs.
+    pub resent: u32,
+    /// Finished PDUs of a transaction this entity sent and ended, acknowledged again (the
+    /// first ACK was lost).
+    pub finished_acked_again: u32,
 }
 
 /// A put this entity owes its peer (a proxy put or a directory listing), done when the
@@ -318,7 +325,7 @@ struct User {
     finished: heapless::Deque<Finished, 4>,
     owed: heapless::Deque<Owed, 2>,
     proxy_refused: u32,
-    /// Bytes of file data received in the running transaction (progress).
+    /// End of the furthest file data segment received in the running transaction.
     progress: u64,
     sending: bool,
     /// A listing to write before the put it owes.
@@ -327,6 +334,13 @@ struct User {
     failed: u32,
     /// Finished indications of sent transactions (to see one cfdp-rs did not give).
     sent_reports: u32,
+}
+
+/// The staging name of the file of incoming transaction `tx` (source entity, sequence).
+fn partial_name(tx: (u16, u16)) -> Option<FileName> {
+    let mut s: heapless::String<{ m::MAX_NAME_LEN }> = heapless::String::new();
+    core::fmt::write(&mut s, format_args!("{}{}-{}", m::PARTIAL_PREFIX, tx.0, tx.1)).ok()?;
+    FileName::new(&s).ok()
 }
 
 fn id_u16(f: &UnsignedByteField) -> u16 {
@@ -401,7 +415,9 @@ impl CfdpUser for User {
         self.progress = 0;
     }
     fn file_segment_recvd_indication(&mut self, p: &FileSegmentRecvdParams) {
-        self.progress = self.progress.wrapping_add(p.length as u64);
+        // The end of the furthest segment: duplicates and segments sent again do not count
+        // twice (a sum reached 1069 KiB for a 256 KiB file through the relay).
+        self.progress = self.progress.max(p.offset.saturating_add(p.length as u64));
     }
     fn report_indication(&mut self, _id: &TransactionId) {}
     fn suspended_indication(&mut self, _id: &TransactionId, _c: ConditionCode) {}
@@ -473,8 +489,14 @@ pub struct Entity<'a, S: FlatStore> {
     metadata_nak: Option<((u16, u16), u32)>,
     /// Class 1 puts ask for closure (a Finished PDU), so the sender learns the outcome.
     class1_closure: bool,
-    /// Length of the file being sent (0: metadata only).
+    /// Length of the file being sent (0: metadata only) and its name.
     sending_len: u64,
+    sending_name: Option<FileName>,
+    /// The last transaction this entity sent that the peer's Finished ended (its Finished
+    /// may come again when our ACK was lost).
+    finished_tx: Option<(u16, u16)>,
+    /// The incoming transaction's file: its name and the staging name it is written under.
+    receiving: Option<((u16, u16), FileName, FileName)>,
     /// The last incoming transactions that finished: their late PDUs are strays.
     finished_rx: heapless::Deque<(u16, u16), 4>,
     /// Segment requests of the peer's NAKs not yet fed to the source handler, with the
@@ -581,6 +603,9 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             metadata_nak: None,
             class1_closure: true,
             sending_len: 0,
+            sending_name: None,
+            finished_tx: None,
+            receiving: None,
             finished_rx: heapless::Deque::new(),
             resend: heapless::Deque::new(),
             resend_header: None,
@@ -617,7 +642,8 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         self.source.state() == State::Idle && self.dest.state() == State::Idle && self.user.owed.is_empty()
     }
 
-    /// File data bytes received in the running (or last) incoming transaction.
+    /// End of the furthest file data segment received in the running (or last) incoming
+    /// transaction (progress: not counting duplicates or segments sent again).
     pub fn progress(&self) -> u64 {
         self.user.progress
     }
@@ -644,8 +670,10 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         let Some(len) = self.parts.store.len(&s).ok().flatten() else {
             return Err(PutError::NoFile);
         };
+        self.start_put(now_ms, Some(src), Some(dest), class, None, None)?;
         self.sending_len = len;
-        self.start_put(now_ms, Some(src), Some(dest), class, None, None)
+        self.sending_name = Some(s);
+        Ok(())
     }
 
     /// Asks the peer to send its file `src` here as `dest` (a Proxy Put Request in a
@@ -704,9 +732,8 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             return Err(PutError::Busy);
         }
         self.source = new_source(self.id, self.peer, self.parts);
-        if src.is_none() {
-            self.sending_len = 0;
-        }
+        self.sending_len = 0;
+        self.sending_name = None;
         let req = Put {
             dest_id: UnsignedByteFieldU16::new(self.peer).into(),
             src,
@@ -760,6 +787,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         if self.dest.state_machine(&mut self.user, pdu).is_err() {
             self.counters.handler_errors = self.counters.handler_errors.wrapping_add(1);
         }
+        self.settle_received();
         let after = self
             .dest
             .transaction_id()
@@ -772,6 +800,50 @@ impl<'a, S: FlatStore> Entity<'a, S> {
                 let _ = self.finished_rx.push_back(t);
             }
         }
+    }
+
+    /// A received file whose transaction ended: renamed from its staging name to its name
+    /// when complete and retained, else removed.
+    fn settle_received(&mut self) {
+        let Some((tx, fin, stg)) = self.receiving.clone() else {
+            return;
+        };
+        let Some(f) = self
+            .user
+            .finished
+            .iter_mut()
+            .find(|f| !f.sent && (f.source, f.seq) == tx)
+        else {
+            return;
+        };
+        self.receiving = None;
+        let store = &self.parts.store;
+        if f.complete && f.retained {
+            if store.len(&fin).ok().flatten().is_some() {
+                let _ = store.remove(&fin);
+            }
+            if store.rename(&stg, &fin).is_err() {
+                // The report must not say complete for a file that is not under its name.
+                f.complete = false;
+                f.retained = false;
+                self.counters.fs_refused = self.counters.fs_refused.wrapping_add(1);
+                let _ = store.remove(&stg);
+            }
+        } else if store.len(&stg).ok().flatten().is_some() {
+            let _ = store.remove(&stg);
+        }
+    }
+
+    /// Removes the staging files of transfers a reset cut short (call at start-up, on the
+    /// robot's own store only). Returns how many.
+    pub fn discard_partial(&self) -> usize {
+        let mut names: heapless::Vec<FileName, { m::MAX_FILES }> = heapless::Vec::new();
+        let _ = self.parts.store.list(&mut |n, _| {
+            if n.as_str().starts_with(m::PARTIAL_PREFIX) {
+                let _ = names.push(n.clone());
+            }
+        });
+        names.iter().filter(|n| self.parts.store.remove(n).is_ok()).count()
     }
 
     /// One PDU from the link (untrusted).
@@ -820,9 +892,11 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         };
         if stray || (target == PacketTarget::DestEntity && self.finished_rx.iter().any(|t| *t == tx)) {
             self.counters.stray = self.counters.stray.wrapping_add(1);
-            if target == PacketTarget::SourceEntity && pdu.file_directive_type() == Some(FileDirectiveType::FinishedPdu)
+            if target == PacketTarget::SourceEntity
+                && pdu.file_directive_type() == Some(FileDirectiveType::FinishedPdu)
+                && self.finished_tx == Some(tx)
             {
-                self.ack_late_finished(&h, raw);
+                self.ack_finished_again(raw, &h);
             }
             return;
         }
@@ -833,44 +907,25 @@ impl<'a, S: FlatStore> Entity<'a, S> {
                 self.nak_split(raw)
             }
             PacketTarget::SourceEntity => {
-                if pdu.file_directive_type() == Some(FileDirectiveType::FinishedPdu) {
+                let finished = pdu.file_directive_type() == Some(FileDirectiveType::FinishedPdu);
+                if finished {
                     self.eof_acked_by_finished(&h);
                 }
-                self.run_source(Some(&pdu))
+                self.run_source(Some(&pdu));
+                if finished && self.source.state() == State::Idle {
+                    self.finished_tx = Some(tx);
+                }
             }
             PacketTarget::DestEntity if pdu.file_directive_type() == Some(FileDirectiveType::MetadataPdu) => {
                 self.metadata(raw, (id_u16(&src), id_u16(&h.common_pdu_conf().transaction_seq_num)))
             }
-            PacketTarget::DestEntity if self.dest.state() == State::Idle => self.before_metadata(now_ms, &h),
+            PacketTarget::DestEntity if self.dest.state() == State::Idle => {
+                let eof = pdu.file_directive_type() == Some(FileDirectiveType::EofPdu);
+                self.before_metadata(now_ms, &h, eof)
+            }
             PacketTarget::DestEntity => self.run_dest(Some(&pdu)),
         }
         self.settle();
-    }
-
-    /// A class 2 Finished PDU of a transaction this entity sent and has ended: the peer did
-    /// not get our ACK of it (lost on the downlink) and sends its Finished again until it
-    /// does (727.0-B-5 § 4.6.4.2.3: a sender answers every Finished PDU with an ACK). The
-    /// handler has moved on, so the entity acknowledges it again; without it the peer
-    /// reaches its ACK limit and calls a delivered file failed (Yamcs: "File was received OK
-    /// but the Finished PDU has not been acknowledged").
-    fn ack_late_finished(&mut self, h: &PduHeader, raw: &[u8]) {
-        if h.common_pdu_conf().trans_mode != TransmissionMode::Acknowledged {
-            return;
-        }
-        let Ok(fin) = FinishedPduReader::from_bytes(raw) else {
-            return;
-        };
-        let ack = AckPdu::new_for_finished_pdu(
-            PduHeader::new_for_file_directive(*h.common_pdu_conf(), 0),
-            fin.condition_code(),
-            TransactionStatus::Terminated,
-        );
-        let mut buf = [0u8; 64];
-        if let Ok(n) = ack.write_to_bytes(&mut buf) {
-            // A full outbox drops it, counted: the peer's next Finished asks again.
-            let _ =
-                Sender(&self.parts.link).send_pdu(PduType::FileDirective, Some(FileDirectiveType::AckPdu), &buf[..n]);
-        }
     }
 
     /// A Finished PDU while the source still waits for the ACK of its EOF: the receiver
@@ -896,11 +951,39 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         }
     }
 
+    /// The peer's Finished PDU again, for a transaction this entity sent and has ended: our
+    /// ACK of it was lost. cfdp-rs 0.3 forgets the transaction at its first Finished; without
+    /// an answer the peer would send its Finished until its positive ACK limit and declare
+    /// that fault for a file that arrived whole.
+    fn ack_finished_again(&mut self, raw: &[u8], h: &PduHeader) {
+        let Ok(fin) = FinishedPduReader::from_bytes(raw) else {
+            return;
+        };
+        let mut conf = *h.common_pdu_conf();
+        conf.direction = spacepackets::cfdp::Direction::TowardsReceiver;
+        conf.crc_flag = m::PDU_CRC.into();
+        let Ok(ack) = AckPdu::new(
+            PduHeader::new_for_file_directive(conf, 0),
+            FileDirectiveType::FinishedPdu,
+            fin.condition_code(),
+            TransactionStatus::Terminated,
+        ) else {
+            return;
+        };
+        let mut buf = [0u8; 64];
+        if let Ok(n) = ack.write_to_bytes(&mut buf) {
+            self.counters.finished_acked_again = self.counters.finished_acked_again.wrapping_add(1);
+            let _ =
+                Sender(&self.parts.link).send_pdu(PduType::FileDirective, Some(FileDirectiveType::AckPdu), &buf[..n]);
+        }
+    }
+
     /// File data or an EOF of a transaction whose metadata was lost: cfdp-rs 0.3 would
     /// write the data to a file without a name and fail the transaction. Dropped (counted);
     /// in class 2 a NAK asks for the metadata (segment request 0-0), at most once per NAK
-    /// timer interval, and the data missing then is asked for after the EOF.
-    fn before_metadata(&mut self, now_ms: u64, h: &PduHeader) {
+    /// timer interval (and on each EOF), and the data missing then is asked for after the
+    /// EOF.
+    fn before_metadata(&mut self, now_ms: u64, h: &PduHeader, eof: bool) {
         self.counters.before_metadata = self.counters.before_metadata.wrapping_add(1);
         let mut conf = *h.common_pdu_conf();
         if conf.trans_mode != TransmissionMode::Acknowledged {
@@ -908,7 +991,9 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         }
         let tx = (id_u16(&conf.source_id()), id_u16(&conf.transaction_seq_num));
         let now = now_ms as u32;
-        if let Some((t, at)) = self.metadata_nak {
+        // An EOF comes at most once per positive ACK period and is not acknowledged until
+        // the metadata is here: each one asks for it, or the sender's ACK limit runs out.
+        if let Some((t, at)) = self.metadata_nak.filter(|_| !eof) {
             if t == tx && (now.wrapping_sub(at) as u64) < m::NAK_TIMER_MS {
                 return;
             }
@@ -969,30 +1054,64 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         self.resend();
     }
 
-    /// Feeds queued segment requests to the source handler while the outbox has room.
+    /// Sends the queued segment requests while the outbox has room: file data read from the
+    /// store here, the metadata (0-0) by the source handler. cfdp-rs 0.3 counts each
+    /// segment it sends again as new progress: the next new segment then skips ahead, and
+    /// its EOF (sent again on each positive ACK timer expiry) carries that count as the file
+    /// size; the receiver then asks for data past the end of the file, which this entity
+    /// cannot send, and the transaction falls silent until inactivity ends it.
     fn resend(&mut self) {
         let Some(header) = self.resend_header else { return };
         let (start, end) = self.resend_scope;
         let mut buf = [0u8; m::MAX_PDU_LEN];
-        while !self.resend.is_empty() && self.source.state() != State::Idle {
-            let room = m::OUTBOX_DEPTH.saturating_sub(self.parts.link.outbox.borrow().len() + 2);
-            if room == 0 {
+        while self.source.state() != State::Idle {
+            if self.parts.link.outbox.borrow().len() + 2 >= m::OUTBOX_DEPTH {
                 return;
             }
-            let mut pairs: heapless::Vec<(u32, u32), { m::OUTBOX_DEPTH }> = heapless::Vec::new();
-            while pairs.len() < room {
-                let Some(p) = self.resend.pop_front() else { break };
-                let _ = pairs.push(p);
+            let Some((a, b)) = self.resend.pop_front() else { break };
+            if a == 0 && b == 0 {
+                let Ok(c) = NakPduCreator::new_normal_file_size(header, start, end, &[(0, 0)]) else {
+                    continue;
+                };
+                let Ok(n) = c.write_to_bytes(&mut buf) else { continue };
+                if let Ok(p) = PduRawWithInfo::new(&buf[..n]) {
+                    self.run_source(Some(&p));
+                }
+                continue;
             }
-            let Ok(c) = NakPduCreator::new_normal_file_size(header, start, end, &pairs) else {
-                return;
-            };
-            let Ok(n) = c.write_to_bytes(&mut buf) else { return };
-            let Ok(p) = PduRawWithInfo::new(&buf[..n]) else { return };
-            self.run_source(Some(&p));
+            self.resend_segment(&header, a, b);
         }
         if self.source.state() == State::Idle {
             self.resend.clear();
+        }
+    }
+
+    /// File data `a..b` of the file being sent (at most one segment), again.
+    fn resend_segment(&mut self, nak: &PduHeader, a: u32, b: u32) {
+        let Some(name) = self.sending_name.clone() else { return };
+        let len = (b - a) as usize;
+        let mut data = [0u8; m::MAX_SEGMENT_LEN];
+        if len > data.len() || self.parts.store.read(&name, a as u64, &mut data[..len]).is_err() {
+            self.counters.resend_dropped = self.counters.resend_dropped.wrapping_add(1);
+            return;
+        }
+        let mut conf = *nak.common_pdu_conf();
+        conf.direction = spacepackets::cfdp::Direction::TowardsReceiver;
+        conf.crc_flag = m::PDU_CRC.into();
+        let h = PduHeader::new_for_file_data(
+            conf,
+            0,
+            SegmentMetadataFlag::NotPresent,
+            SegmentationControl::NoRecordBoundaryPreservation,
+        );
+        let pdu = FileDataPdu::new_no_seg_metadata(h, a as u64, &data[..len]);
+        let mut buf = [0u8; m::MAX_PDU_LEN];
+        match pdu.write_to_bytes(&mut buf) {
+            Ok(n) => {
+                self.counters.resent = self.counters.resent.wrapping_add(1);
+                let _ = Sender(&self.parts.link).send_pdu(PduType::FileData, None, &buf[..n]);
+            }
+            Err(_) => self.counters.resend_dropped = self.counters.resend_dropped.wrapping_add(1),
         }
     }
 
@@ -1016,11 +1135,21 @@ impl<'a, S: FlatStore> Entity<'a, S> {
                 }
             }
         }
+        // Received under a staging name until complete (`mib::cfdp::PARTIAL_PREFIX`).
+        let final_name = md
+            .dest_file_name()
+            .value_as_str()
+            .and_then(|r| r.ok())
+            .and_then(|d| FileName::new(d).ok());
+        let staging = final_name.as_ref().and_then(|_| partial_name(tx));
+        let staging_lv = staging
+            .as_ref()
+            .and_then(|s| spacepackets::cfdp::lv::Lv::new_from_str(s.as_str()).ok());
         let stripped = MetadataPduCreator::new(
             *md.pdu_header(),
             *md.metadata_params(),
             md.src_file_name(),
-            md.dest_file_name(),
+            staging_lv.unwrap_or(md.dest_file_name()),
             &opts[..n],
         );
         let mut buf = [0u8; m::MAX_PDU_LEN];
@@ -1044,6 +1173,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         let was_idle = self.dest.state() == State::Idle || stale;
         if was_idle {
             self.dest = new_dest(self.id, self.peer, self.parts);
+            self.receiving = final_name.zip(staging).map(|(f, s)| (tx, f, s));
         }
         let errors = self.counters.handler_errors;
         self.run_dest(Some(&pdu));

@@ -327,3 +327,57 @@ fn a_finished_pdu_sent_again_after_a_lost_ack_is_acknowledged_again_by_the_ended
         assert_eq!(read_file(&gp, "down.bin").as_deref(), Some(&down[..]));
     });
 }
+
+// verifies: FILE-CFDP-06
+#[test]
+fn a_file_cut_short_is_never_kept_under_its_name_and_a_restart_discards_the_rest() {
+    big_stack(|| {
+        let (gp, rp) = (Parts::new(Mem::new(200_000)), Parts::new(Mem::new(200_000)));
+        let mut g = Entity::new(0, 1, &gp);
+        let mut r = Entity::new(1, 0, &rp);
+        put_file(&gp, "up.bin", &file(20_000, 4));
+        put_file(&rp, "up.bin", b"the old version");
+        let start = now();
+        g.put(start, "up.bin", "up.bin", Class::Two).unwrap();
+        // The link dies after the metadata and some data: the robot abandons on inactivity.
+        let (mut t, mut sent) = (start, 0);
+        let (mut ended, mut looked) = (None, false);
+        while ended.is_none() && t < start + 2 * mib::cfdp::INACTIVITY_MS {
+            t += 10;
+            g.poll(t);
+            r.poll(t);
+            while let Some(p) = g.pop() {
+                if sent < 6 {
+                    r.receive(t, &p);
+                    sent += 1;
+                }
+            }
+            while r.pop().is_some() {}
+            if sent == 6 && !looked {
+                looked = true;
+                let mut names = Vec::new();
+                rp.store.list(&mut |n, _| names.push(n.as_str().to_string())).unwrap();
+                assert!(
+                    names.iter().any(|n| n.starts_with("partial-0-")),
+                    "received under a staging name: {names:?} {:?}",
+                    r.counters()
+                );
+            }
+            ended = r.take_finished();
+        }
+        CLOCK.with(|c| c.set(t));
+        let f = ended.expect("the robot ended the transfer");
+        assert!(!f.complete, "{f:?}");
+        assert_eq!(
+            read_file(&rp, "up.bin").as_deref(),
+            Some(&b"the old version"[..]),
+            "the old file stays"
+        );
+        assert_eq!(read_file(&rp, "partial-0-0"), None, "the partial file is removed");
+        // A reset in the middle leaves a staging file; the next start removes it.
+        put_file(&rp, "partial-0-7", b"half");
+        assert_eq!(Entity::new(1, 0, &rp).discard_partial(), 1);
+        assert_eq!(read_file(&rp, "partial-0-7"), None);
+        assert!(read_file(&rp, "up.bin").is_some());
+    });
+}

@@ -50,11 +50,17 @@ pub struct Files<'a> {
 
 impl<'a> Files<'a> {
     pub fn new(robot: u8, dir: &Path, parts: &'a Parts<DirStore>) -> Self {
+        let entity = Entity::new(mib::cfdp::robot_entity_id(robot), mib::cfdp::GROUND_ENTITY_ID, parts);
+        // Files whose transfer a reset cut short: never taken for the file they were to be.
+        let discarded = entity.discard_partial();
+        if discarded > 0 {
+            log::warn!("files: {discarded} partly received file(s) of an interrupted transfer removed");
+        }
         Files {
             parts,
             dir: dir.to_path_buf(),
             kept_seq: parts.next_seq(),
-            entity: Entity::new(mib::cfdp::robot_entity_id(robot), mib::cfdp::GROUND_ENTITY_ID, parts),
+            entity,
             seq: 0,
             logged: Default::default(),
         }

@@ -1,0 +1,82 @@
+#!/usr/bin/env bash
+# CFDP class 2 file transfers, clean link against the 20 % drop / 5 % duplicate / 5 % corrupt
+# relay, measured in the same run (docs/files.md "Measured").
+#
+#   ground/bench/cfdp_bench.sh [RUNS] [KIB]      (default 5 runs of 256 KiB)
+#
+# Each run starts a fresh obsw (`--files`) behind a fresh relay (faults 0/0/0 for "clean",
+# 0.2/0.05/0.05 both ways for "lossy"), then times `ground file put` and `ground file get` of
+# a random KIB-KiB file and checks both copies byte for byte. Prints each run, then medians,
+# the lossy/clean ratio, and the clean link's efficiency: file bytes against the raw TM
+# frame bytes the relay saw go down during the run (every TM frame is
+# `mib::link::tm_frame::LEN` = 1024 bytes; the count includes the obsw's idle frames from its
+# start to its stop, so the figure errs low). Uses the debug binaries in target/debug
+# (`cargo build -p obsw -p ground -p e2e-tests --bins`), or BIN=DIR.
+set -euo pipefail
+RUNS=${1:-5}
+KIB=${2:-256}
+ROOT=$(cd "$(dirname "$0")/../.." && pwd)
+BIN=${BIN:-$ROOT/target/debug}
+W=$(mktemp -d /tmp/cfdp-bench.XXXXXX)
+trap 'rm -rf "$W"' EXIT
+export MMIC_GROUND_LOCK_DIR=$W/locks
+mkdir -p "$W/local" "$W/locks"
+"$BIN/ground" --no-archive keys create "$W/keys" --robot 1 >/dev/null 2>&1
+head -c $((KIB * 1024)) /dev/urandom >"$W/up.bin"
+port() { python3 -c 'import socket;s=socket.socket(socket.AF_INET,socket.SOCK_DGRAM);s.bind(("127.0.0.1",0));print(s.getsockname()[1])'; }
+
+# one FAULTS SEED OUT: appends "put_s get_s down_frames" to OUT
+one() {
+    local faults=$1 seed=$2 out=$3 fr li line ru tmf op rp t0 t1 t2 frames
+    fr=127.0.0.1:$(port)
+    li=127.0.0.1:$(port)
+    rm -rf "$W/robot" "$W/local/"*
+    mkdir -p "$W/robot"
+    "$BIN/relay" --to-udp "$fr" $faults --seed "$seed" --tm-frames-to "$li" --idle 1 --lifetime 900 \
+        </dev/null >"$W/relay.out" &
+    rp=$!
+    until grep -q RELAY "$W/relay.out" 2>/dev/null; do sleep 0.05; done
+    line=$(grep RELAY "$W/relay.out")
+    ru=$(sed 's/.*udp=\([^ ]*\).*/\1/' <<<"$line")
+    tmf=$(sed 's/.*tm_frames=\([^ ]*\).*/\1/' <<<"$line")
+    "$BIN/obsw" --robot 1 --udp 127.0.0.1:0 --tcp 127.0.0.1:0 --sim-ctl 127.0.0.1:0 --keys "$W/keys" \
+        --frame-udp "$fr" --frame-tm-to "$tmf" --files "$W/robot" >"$W/obsw.out" 2>/dev/null &
+    op=$!
+    until [ -s "$W/obsw.out" ]; do sleep 0.05; done
+    cp "$W/up.bin" "$W/local/up.bin"
+    cd "$W/local"
+    local g=("$BIN/ground" --no-archive file)
+    local l=(--robot "1=$ru" --tm-listen "1=$li" --keys "$W/keys")
+    t0=$(date +%s.%N)
+    "${g[@]}" put "${l[@]}" up.bin >/dev/null 2>"$W/put.err" || { cat "$W/put.err" >&2; echo "put failed" >&2; }
+    t1=$(date +%s.%N)
+    cmp -s "$W/up.bin" "$W/robot/up.bin" || echo "put: NOT byte-identical" >&2
+    "${g[@]}" get "${l[@]}" up.bin down.bin >/dev/null 2>"$W/get.err" || { cat "$W/get.err" >&2; echo "get failed" >&2; }
+    t2=$(date +%s.%N)
+    cmp -s "$W/up.bin" "$W/local/down.bin" || echo "get: NOT byte-identical" >&2
+    cd "$ROOT"
+    kill "$op" 2>/dev/null || true
+    wait "$op" 2>/dev/null || true
+    wait "$rp" || true
+    frames=$(awk '/^down:/ {print $3}' "$W/relay.out")
+    echo "$(echo "$t1 - $t0" | bc) $(echo "$t2 - $t1" | bc) ${frames:-0}" >>"$out"
+}
+
+median() { sort -g | awk '{a[NR]=$1} END {print (NR%2) ? a[(NR+1)/2] : (a[NR/2]+a[NR/2+1])/2}'; }
+
+: >"$W/clean" ; : >"$W/lossy"
+for i in $(seq 1 "$RUNS"); do
+    one "" "$i" "$W/clean"
+    echo "run $i clean: put s, get s, TM frames: $(tail -1 "$W/clean")"
+    one "--drop 0.2 --duplicate 0.05 --corrupt 0.05" "$i" "$W/lossy"
+    echo "run $i lossy: put s, get s, TM frames: $(tail -1 "$W/lossy")"
+done
+B=$((KIB * 1024))
+cp_=$(awk '{print $1}' "$W/clean" | median); cg=$(awk '{print $2}' "$W/clean" | median)
+lp=$(awk '{print $1}' "$W/lossy" | median); lg=$(awk '{print $2}' "$W/lossy" | median)
+eff=$(awk -v b=$B '{print b / ($3 * 1024)}' "$W/clean" | median)
+echo "medians of $RUNS runs, $KIB KiB class 2:"
+echo "  clean: put $cp_ s ($(echo "$B / $cp_" | bc) B/s), get $cg s ($(echo "$B / $cg" | bc) B/s)"
+echo "  lossy: put $lp s, get $lg s"
+echo "  lossy/clean: put $(echo "scale=2; $lp / $cp_" | bc), get $(echo "scale=2; $lg / $cg" | bc) (done when <= 3)"
+echo "  clean get: file bytes / raw TM frame bytes down = $eff (aim >= 0.80)"
