@@ -38,8 +38,6 @@ use mmic_team::TeamEvent;
 use mmic_team::{
     Action, Authorisation, Dest, Directive, Effect, HoldTarget, Input, Message, Node, Persisted, PlanRef, TeamFunction,
 };
-use satrs::spacepackets::ecss::tm::PusTmReader;
-use satrs::spacepackets::ecss::PusPacket;
 
 use crate::accept::Tc;
 use crate::failure::Failure;
@@ -633,23 +631,18 @@ impl<S: TmStore> Obsw<S> {
         link: &mut impl TeamLink,
         sink: &mut impl TmSink,
     ) {
+        // Parsed by the MIB's checked header reader: spacepackets' `PusTmReader::new`
+        // panics on a packet shorter than its headers and time stamp, or of another PUS
+        // version (0.17.0), and this is input from another process.
+        let tm = mib_wire::header::TmPacket::parse(packet)
+            .ok()
+            .filter(|tm| tm.primary.apid == TEAM_APID && tm.service == TEAM_SERVICE);
         // Plan progress announcements belong to the on-board plan, roster or not.
-        if let Ok(tm) = PusTmReader::new(packet, 7) {
-            if tm.apid().value() == TEAM_APID
-                && tm.message_type_id().type_id == TEAM_SERVICE
-                && tm.message_type_id().subtype_id == mib::plan::TEAM_SUBSERVICE_PROGRESS
-            {
-                return self.plan_progress(from, tm.user_data());
-            }
+        if let Some(tm) = tm.filter(|tm| tm.subservice == mib::plan::TEAM_SUBSERVICE_PROGRESS) {
+            return self.plan_progress(from, tm.source);
         }
-        let msg = match PusTmReader::new(packet, 7) {
-            Ok(tm)
-                if tm.apid().value() == TEAM_APID
-                    && tm.message_type_id().type_id == TEAM_SERVICE
-                    && tm.message_type_id().subtype_id == TEAM_SUBSERVICE_MESSAGE =>
-            {
-                Message::parse(tm.user_data()).ok()
-            }
+        let msg = match tm {
+            Some(tm) if tm.subservice == TEAM_SUBSERVICE_MESSAGE => Message::parse(tm.source).ok(),
             _ => None,
         };
         match (msg, self.team.node.is_some()) {
@@ -1344,6 +1337,46 @@ mod tests {
             ),
             (1, 1, 2, 1)
         );
+        assert!(l.sent.is_empty(), "nothing answered a refused packet");
+    }
+
+    // verifies: TEAM-ROBUST-02
+    #[test]
+    fn a_team_packet_of_any_short_length_or_another_pus_version_is_counted_never_a_panic() {
+        let mut o = robot(1);
+        let o = &mut o;
+        let (mut s, mut l) = (Vec::new(), Link::default());
+        let mut body = [0u8; MAX_LEN];
+        let n = Message {
+            term: 1,
+            sender: 2,
+            plan: PlanRef::default(),
+            progress: 0,
+            body: mmic_team::Body::RequestVote,
+        }
+        .emit(&mut body)
+        .unwrap();
+        let mut pkt = [0u8; mib::config::MAX_PACKET_LEN];
+        let len = TmWriter::new(TEAM_APID, OnboardTime::new(0))
+            .build(0, TEAM_SERVICE, TEAM_SUBSERVICE_MESSAGE, &body[..n], &mut pkt)
+            .unwrap();
+        let mut refused = 0;
+        for cut in 0..len {
+            // Cut short, with the packet length field saying what is there.
+            let mut p = pkt[..cut].to_vec();
+            if cut >= 6 {
+                p[4..6].copy_from_slice(&((cut as u16).saturating_sub(7)).to_be_bytes());
+            }
+            o.team_packet(12_000 + cut as u64, 1, Some(2), &p, &mut l, &mut s);
+            refused += 1;
+        }
+        // Another PUS version (spacepackets' reader panicked on it).
+        let mut p = pkt[..len].to_vec();
+        p[6] = 0x10;
+        o.team_packet(13_000, 1, Some(2), &p, &mut l, &mut s);
+        refused += 1;
+        let h = team_hk(o, 14_000);
+        assert_eq!(h.team_rej_malformed, refused, "every packet counted as malformed");
         assert!(l.sent.is_empty(), "nothing answered a refused packet");
     }
 
