@@ -57,6 +57,19 @@ fn store_disabled_and_schedule_full_are_reported() {
     assert_eq!(last.unwrap().failure_code(), Some(F::SCHEDULE_FULL.code()));
 }
 
+// verifies: UPD-SVC-02
+#[test]
+fn an_update_tc_to_an_obsw_without_slots_is_refused_unavailable() {
+    // The lab's bare-packet obsw has no boot launcher, hence no application slots.
+    let o = Obsw::start(&[]);
+    let mut c = Client::udp(&o);
+    let raw = c.send("UPDATE_CONFIRM", &[]);
+    assert_eq!(
+        c.wait_done(&raw, T).unwrap().failure_code(),
+        Some(F::UPDATE_UNAVAILABLE.code())
+    );
+}
+
 // verifies: MMIC-CTL-03
 #[test]
 fn a_hip_rotation_with_both_grippers_holding_is_refused_at_start() {

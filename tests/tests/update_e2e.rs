@@ -17,6 +17,7 @@ use std::time::{Duration, Instant};
 use e2e_tests::{bin, Tm};
 use mib::events::eid;
 use mib::params::pid;
+use mib::FailureCode as F;
 
 struct Dir(PathBuf);
 
@@ -251,15 +252,32 @@ fn an_image_goes_up_activates_confirms_and_a_broken_one_rolls_back_while_bad_one
     // An activation before anything is installed names nothing.
     refused(
         &s.linked("update", "activate", &[&s.d.s("v2.img"), "--confirm"]),
-        "UPDATE_NOT_INSTALLED",
+        F::UPDATE_NOT_INSTALLED.name(),
     );
-    refused(&s.linked("update", "install", &["bad.img"]), "SIGNATURE");
-    refused(&s.linked("update", "install", &["short.img"]), "TRUNCATED");
+    // A confirmation with nothing waiting for one.
+    let (robot_arg, listen_arg, keys_arg) = (format!("1={}", s.robot), format!("1={}", s.listen), s.d.s("keys"));
+    refused(
+        &s.ground(&[
+            "send",
+            "--robot",
+            &robot_arg,
+            "--tm-listen",
+            &listen_arg,
+            "--keys",
+            &keys_arg,
+            "UPDATE_CONFIRM",
+        ]),
+        F::UPDATE_NOTHING_TO_CONFIRM.name(),
+    );
+    for (img, why) in [("bad.img", "SIGNATURE"), ("short.img", "TRUNCATED")] {
+        let out = refused(&s.linked("update", "install", &[img]), why);
+        assert!(out.contains(F::UPDATE_IMAGE_REFUSED.name()), "{out}");
+    }
     ok(&s.linked("update", "install", &["v2.img"]));
     let h = s.hk_until(Duration::from_secs(12), |h| {
         h.hk(pid::UPDATE_INSTALLED_VERSION) == Some(0x020000)
     });
-    assert_eq!(h.hk(pid::UPDATE_REFUSALS), Some(3));
+    assert_eq!(h.hk(pid::UPDATE_REFUSALS), Some(4));
     assert_eq!(s.events(eid::UPDATE_REFUSED), 2, "each refused image evented");
     ok(&s.linked("update", "activate", &[&s.d.s("v2.img"), "--confirm"]));
     robot.ready(Duration::from_secs(20));
@@ -274,12 +292,33 @@ fn an_image_goes_up_activates_confirms_and_a_broken_one_rolls_back_while_bad_one
     // The same activation again: the image it names already runs.
     refused(
         &s.linked("update", "activate", &[&s.d.s("v2.img"), "--confirm"]),
-        "UPDATE_STALE_ACTIVATION",
+        F::UPDATE_STALE_ACTIVATION.name(),
     );
     assert!(s.tm().iter().any(|t| t.event_id() == Some(eid::TC_REJECTED)));
 
     // Version 3 fails its self-test: it resets unconfirmed, and version 2 comes back.
     ok(&s.linked("update", "install", &["v3.img"]));
+    // An activation written for another image than the one installed.
+    refused(
+        &s.linked("update", "activate", &[&s.d.s("v1.img"), "--confirm"]),
+        F::UPDATE_WRONG_IMAGE.name(),
+    );
+    // The inactive slot changed after its install (a byte of the payload flipped on the
+    // slot's medium): the activation checks it again and refuses; put back, it goes on.
+    let slot = s.d.0.join("slots/ota_0");
+    let flip = |slot: &std::path::Path| {
+        use std::os::unix::fs::FileExt;
+        let f = std::fs::OpenOptions::new().read(true).write(true).open(slot).unwrap();
+        let mut b = [0u8; 1];
+        f.read_exact_at(&mut b, 130).unwrap();
+        f.write_all_at(&[b[0] ^ 0x01], 130).unwrap();
+    };
+    flip(&slot);
+    refused(
+        &s.linked("update", "activate", &[&s.d.s("v3.img"), "--confirm"]),
+        F::UPDATE_SLOT_CHANGED.name(),
+    );
+    flip(&slot);
     ok(&s.linked("update", "activate", &[&s.d.s("v3.img"), "--confirm"]));
     // Version 3 resets before or after its READY (module discovery may not be done when
     // its self-test fails); version 2's READY follows. HK of the running obsw decides.
