@@ -854,19 +854,21 @@ fn obsw_store_returns_every_packet_the_full_downlink_dropped() -> TestResult {
             let _ = kinds.push((tm.svc, tm.sub));
         }
     }
-    // First the TC[15,9]'s acceptance, sent live; then the store, oldest first: the 41
-    // packets and that acceptance again (the store keeps a copy of everything), with
-    // consecutive sequence counts; then the end report counting the 42.
-    check_eq!(done, Some(42));
-    check_eq!(seqs.len(), 43);
-    check_eq!(kinds[0], (1, 1));
-    let stored = &seqs[1..];
+    // First the TC[15,9]'s acceptance and start, sent live (a downlink by range is paced:
+    // it runs after its start, and completes after its end report); then the store,
+    // oldest first: the 41 packets, that acceptance and that start again (the store keeps
+    // a copy of everything), with consecutive sequence counts; then the end report
+    // counting the 43, and the completion.
+    check_eq!(done, Some(43));
+    check_eq!(seqs.len(), 45);
+    check_eq!(&kinds[..2], &[(1, 1), (1, 3)][..]);
+    let stored = &seqs[2..];
     for (i, s) in stored.iter().enumerate() {
         check_eq!(*s, stored[0] + i as u16, "stored packet {}", i);
     }
-    check_eq!(stored[41], seqs[0]);
-    check_eq!(kinds[1], (5, 1));
-    check_eq!(&kinds[43..], &[(15, 19), (1, 3), (1, 7)][..]);
+    check_eq!(&stored[41..], &seqs[..2]);
+    check_eq!(kinds[2], (5, 1));
+    check_eq!(&kinds[45..], &[(15, 19), (1, 7)][..]);
     check_eq!(S2.get().overflow, 0);
 
     // TC[15,128] by APID and sequence range: exactly packets 5..=7 again, unchanged
@@ -893,8 +895,8 @@ fn obsw_store_returns_every_packet_the_full_downlink_dropped() -> TestResult {
             }
         }
     }
-    // First the TC's own acceptance (live), then the three stored packets.
-    check_eq!(&replayed[1..], &[5u16, 6, 7][..]);
+    // First the TC's own acceptance and start (live), then the three stored packets.
+    check_eq!(&replayed[2..], &[5u16, 6, 7][..]);
     let end = ok!(end);
     check_eq!(&end[..4], &3u32.to_be_bytes()[..]);
     // packets u32, oldest_time CDS (7 bytes), oldest_seq u16, overwritten u32
