@@ -1304,20 +1304,8 @@ mod tests {
         let mut s = Vec::new();
         let mut l = Link::default();
         o.team_packet(12_000, 1, Some(2), b"junk", &mut l, &mut s);
-        let mut body = [0u8; MAX_LEN];
-        let n = Message {
-            term: 1,
-            sender: 3,
-            plan: PlanRef::default(),
-            progress: 0,
-            body: mmic_team::Body::RequestVote,
-        }
-        .emit(&mut body)
-        .unwrap();
-        let mut pkt = [0u8; mib::config::MAX_PACKET_LEN];
-        let len = TmWriter::new(TEAM_APID, OnboardTime::new(0))
-            .build(0, TEAM_SERVICE, TEAM_SUBSERVICE_MESSAGE, &body[..n], &mut pkt)
-            .unwrap();
+        let pkt = vote_request_packet(3);
+        let len = pkt.len();
         o.team_packet(12_010, 1, Some(2), &pkt[..len], &mut l, &mut s);
         o.team_rejected(12_020, TeamReject::BadMac, 9, &mut s);
         o.team_rejected(12_020, TeamReject::BadMac, 9, &mut s);
@@ -1340,16 +1328,12 @@ mod tests {
         assert!(l.sent.is_empty(), "nothing answered a refused packet");
     }
 
-    // verifies: TEAM-ROBUST-02
-    #[test]
-    fn a_team_packet_of_any_short_length_or_another_pus_version_is_counted_never_a_panic() {
-        let mut o = robot(1);
-        let o = &mut o;
-        let (mut s, mut l) = (Vec::new(), Link::default());
+    /// A team packet (TM[211,1]) carrying a vote request from `sender`.
+    fn vote_request_packet(sender: u8) -> Vec<u8> {
         let mut body = [0u8; MAX_LEN];
         let n = Message {
             term: 1,
-            sender: 2,
+            sender,
             plan: PlanRef::default(),
             progress: 0,
             body: mmic_team::Body::RequestVote,
@@ -1360,6 +1344,17 @@ mod tests {
         let len = TmWriter::new(TEAM_APID, OnboardTime::new(0))
             .build(0, TEAM_SERVICE, TEAM_SUBSERVICE_MESSAGE, &body[..n], &mut pkt)
             .unwrap();
+        pkt[..len].to_vec()
+    }
+
+    // verifies: TEAM-ROBUST-02
+    #[test]
+    fn a_team_packet_of_any_short_length_or_another_pus_version_is_counted_never_a_panic() {
+        let mut o = robot(1);
+        let o = &mut o;
+        let (mut s, mut l) = (Vec::new(), Link::default());
+        let pkt = vote_request_packet(2);
+        let len = pkt.len();
         let mut refused = 0;
         for cut in 0..len {
             // Cut short, with the packet length field saying what is there.
