@@ -11,6 +11,21 @@
 
 use crate::types::{Calib, PType};
 
+/// A module of `u8` codes and the [`Names`] list naming them, each name written once:
+/// `named_codes!(state, STATE_NAMES, "Plan states", { /// doc \n EMPTY = 0, ... });`
+#[macro_export]
+macro_rules! named_codes {
+    ($(#[$m:meta])* $module:ident, $(#[$nm:meta])* $names:ident, { $($(#[$doc:meta])* $name:ident = $v:expr),+ $(,)? }) => {
+        $(#[$m])*
+        pub mod $module {
+            $($(#[$doc])* pub const $name: u8 = $v;)+
+        }
+        $(#[$nm])*
+        pub const $names: $crate::layout::Names =
+            $crate::layout::Names::List(&[$(($module::$name as i64, stringify!($name))),+]);
+    };
+}
+
 /// How raw values of a field are named (enumeration). `None` for plain numbers.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Names {

@@ -69,82 +69,68 @@ pub mod flag {
     pub const ALL: u8 = WAIT | CONFIRMED;
 }
 
-/// Plan states (HK PLAN_STATE, PLAN_STATUS report, PLAN_STATE_CHANGED event).
-pub mod state {
-    /// No plan loaded.
-    pub const EMPTY: u8 = 0;
-    /// A plan is loaded and checked, not started.
-    pub const LOADED: u8 = 1;
-    /// Running: a step is executing, or the next waits for its dependencies or its time.
-    pub const RUNNING: u8 = 2;
-    /// Suspended by a failed step, a fault or PLAN_SUSPEND: nothing new starts.
-    pub const SUSPENDED: u8 = 3;
-    /// Every step completed.
-    pub const COMPLETED: u8 = 4;
-    /// Aborted by PLAN_ABORT: nothing new starts; load a plan to run again.
-    pub const ABORTED: u8 = 5;
-}
+crate::named_codes!(
+    /// Plan states (HK PLAN_STATE, PLAN_STATUS report, PLAN_STATE_CHANGED event).
+    state,
+    /// Names of the plan states.
+    STATE_NAMES,
+    {
+        /// No plan loaded.
+        EMPTY = 0,
+        /// A plan is loaded and checked, not started.
+        LOADED = 1,
+        /// Running: a step is executing, or the next waits for its dependencies or its time.
+        RUNNING = 2,
+        /// Suspended by a failed step, a fault or PLAN_SUSPEND: nothing new starts.
+        SUSPENDED = 3,
+        /// Every step completed.
+        COMPLETED = 4,
+        /// Aborted by PLAN_ABORT: nothing new starts; load a plan to run again.
+        ABORTED = 5,
+    }
+);
 
-/// Names of the plan states.
-pub const STATE_NAMES: crate::layout::Names = crate::layout::Names::List(&[
-    (state::EMPTY as i64, "EMPTY"),
-    (state::LOADED as i64, "LOADED"),
-    (state::RUNNING as i64, "RUNNING"),
-    (state::SUSPENDED as i64, "SUSPENDED"),
-    (state::COMPLETED as i64, "COMPLETED"),
-    (state::ABORTED as i64, "ABORTED"),
-]);
+crate::named_codes!(
+    /// Why a plan changed state (PLAN_STATE_CHANGED `cause`).
+    cause,
+    /// Names of the causes.
+    CAUSE_NAMES,
+    {
+        /// A control TC (start, suspend, resume, abort, skip, load).
+        COMMAND = 0,
+        /// The step's TC was refused or its action failed (the step's PUS 1 failure report
+        /// names the code).
+        STEP_FAILED = 1,
+        /// The step did not complete within its timeout.
+        STEP_TIMEOUT = 2,
+        /// FDIR raised a fault while the plan ran.
+        FAULT = 3,
+        /// The last step completed.
+        DONE = 4,
+        /// The plan's progress was restored after a restart: the step that was running when
+        /// the robot reset has an unknown outcome, so the plan waits for the ground.
+        RESTART = 5,
+    }
+);
 
-/// Why a plan changed state (PLAN_STATE_CHANGED `cause`).
-pub mod cause {
-    /// A control TC (start, suspend, resume, abort, skip, load).
-    pub const COMMAND: u8 = 0;
-    /// The step's TC was refused or its action failed (the step's PUS 1 failure report
-    /// names the code).
-    pub const STEP_FAILED: u8 = 1;
-    /// The step did not complete within its timeout.
-    pub const STEP_TIMEOUT: u8 = 2;
-    /// FDIR raised a fault while the plan ran.
-    pub const FAULT: u8 = 3;
-    /// The last step completed.
-    pub const DONE: u8 = 4;
-    /// The plan's progress was restored after a restart: the step that was running when
-    /// the robot reset has an unknown outcome, so the plan waits for the ground.
-    pub const RESTART: u8 = 5;
-}
-
-/// Names of the causes.
-pub const CAUSE_NAMES: crate::layout::Names = crate::layout::Names::List(&[
-    (cause::COMMAND as i64, "COMMAND"),
-    (cause::STEP_FAILED as i64, "STEP_FAILED"),
-    (cause::STEP_TIMEOUT as i64, "STEP_TIMEOUT"),
-    (cause::FAULT as i64, "FAULT"),
-    (cause::DONE as i64, "DONE"),
-    (cause::RESTART as i64, "RESTART"),
-]);
-
-/// Why a plan image was refused (PLAN_INVALID `reason`).
-pub mod invalid {
-    /// Wrong magic or format version.
-    pub const FORMAT: u8 = 0;
-    /// Shorter than its content says, or bytes left after the last step.
-    pub const LENGTH: u8 = 1;
-    /// A step count of 0 or above `MAX_STEPS`, or more than `MAX_DEPS` dependencies.
-    pub const LIMITS: u8 = 2;
-    /// Unknown flag bits, a wait beyond `MAX_WAIT_MS`, a TC longer than `MAX_STEP_TC_LEN`.
-    pub const STEP: u8 = 3;
-    /// A dependency on a later step of this robot, on itself, or on robot 0.
-    pub const DEPENDENCY: u8 = 4;
-}
-
-/// Names of the image refusal reasons.
-pub const INVALID_NAMES: crate::layout::Names = crate::layout::Names::List(&[
-    (invalid::FORMAT as i64, "FORMAT"),
-    (invalid::LENGTH as i64, "LENGTH"),
-    (invalid::LIMITS as i64, "LIMITS"),
-    (invalid::STEP as i64, "STEP"),
-    (invalid::DEPENDENCY as i64, "DEPENDENCY"),
-]);
+crate::named_codes!(
+    /// Why a plan image was refused (PLAN_INVALID `reason`).
+    invalid,
+    /// Names of the image refusal reasons.
+    INVALID_NAMES,
+    {
+        /// Wrong magic or format version.
+        FORMAT = 0,
+        /// Shorter than its content says, or bytes left after the last step.
+        LENGTH = 1,
+        /// A step count of 0 or above `MAX_STEPS`, or more than `MAX_DEPS` dependencies.
+        LIMITS = 2,
+        /// Unknown flag bits, a wait beyond `MAX_WAIT_MS`, a TC longer than `MAX_STEP_TC_LEN`.
+        STEP = 3,
+        /// A dependency on a later step of this robot, on itself, or on robot 0.
+        DEPENDENCY = 4,
+    }
+);
 
 /// PUS 18 subservices (TCs and the status report).
 pub mod sub {
