@@ -558,12 +558,35 @@ pub fn tmpdir(prefix: &str, name: &str) -> PathBuf {
     d
 }
 
-/// A UDP address free now, for a *child process* to bind later that cannot say which
-/// port it bound (the ground's `--tm-listen`). Another process may take the port in
-/// between: a socket the test owns is bound to port 0 and kept instead, and the obsw's
-/// frame port comes from its READY line ([`Obsw::start_frames`]).
+/// A local port free now for both UDP and TCP, for a *child process* to bind later (the
+/// ground's `--tm-listen`, the obsw's `--udp`/`--tcp`/`--sim-ctl`).
+///
+/// Chosen **below the kernel's ephemeral range** (32768–60999 on Linux): every socket these
+/// tests, the obsw and the ground bind to port 0 gets its port from that range, so none of
+/// them can take this one before the child binds it (CI once lost a test to exactly that:
+/// the ground's TM port taken by another test's socket — "Address already in use"). Test
+/// processes start at different points of the range (their process id) and take each port
+/// once (a counter), and a port is handed out only while both a TCP listener and a UDP
+/// socket can bind it.
+pub fn free_port() -> u16 {
+    use std::sync::atomic::{AtomicU32, Ordering};
+    const LOW: u32 = 10_000;
+    const SPAN: u32 = 22_000; // ports 10000..31999
+    static NEXT: AtomicU32 = AtomicU32::new(0);
+    let start = std::process::id().wrapping_mul(2_654_435_761) % SPAN;
+    loop {
+        let n = NEXT.fetch_add(1, Ordering::Relaxed);
+        let port = (LOW + (start + n) % SPAN) as u16;
+        let tcp = std::net::TcpListener::bind(("127.0.0.1", port));
+        if tcp.is_ok() && UdpSocket::bind(("127.0.0.1", port)).is_ok() {
+            return port;
+        }
+    }
+}
+
+/// [`free_port`] as a local UDP address.
 pub fn free_udp() -> SocketAddr {
-    UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap()
+    ([127, 0, 0, 1], free_port()).into()
 }
 
 /// Runs the real `ground` in `dir` with `args` (stdin closed) to its end.

@@ -3,13 +3,13 @@
 //! project's lossy relay (20 % drop, 5 % duplicate, 5 % corrupt, both directions). Every
 //! transfer is judged by comparing the bytes on both sides.
 
-use std::net::{SocketAddr, UdpSocket};
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::time::Instant;
 
 use e2e_tests::relay::{Config as RelayConfig, Faults, Relay};
-use e2e_tests::{bin, Obsw};
+use e2e_tests::{bin, free_udp, Obsw};
 
 struct Dir(PathBuf);
 
@@ -32,10 +32,6 @@ impl Drop for Dir {
     fn drop(&mut self) {
         let _ = std::fs::remove_dir_all(&self.0);
     }
-}
-
-fn free_udp() -> SocketAddr {
-    UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap()
 }
 
 /// A robot and the addresses the ground uses to reach it (through a relay or not).

@@ -12,13 +12,12 @@
 //!
 //! Needs the binaries: `cargo build -p obsw -p ground`.
 
-use std::net::UdpSocket;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 use e2e_tests::relay::{Config, Faults, Relay};
-use e2e_tests::{bin, Obsw, Tm};
+use e2e_tests::{bin, free_udp, Obsw, Tm};
 use mib::events::eid;
 use mib::plan::state;
 
@@ -33,11 +32,6 @@ fn tmpdir(name: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
-}
-
-fn free_addr() -> String {
-    let s = UdpSocket::bind("127.0.0.1:0").unwrap();
-    s.local_addr().unwrap().to_string()
 }
 
 fn demo() -> PathBuf {
@@ -184,7 +178,7 @@ fn robots_args(o: &[Obsw]) -> Vec<String> {
 fn the_demo_plan_runs_on_board_without_the_ground_and_the_reattached_summary_is_the_ground_driven_one() {
     let dir = tmpdir("demo");
     team_key(&dir);
-    let (a1, a2) = (free_addr(), free_addr());
+    let (a1, a2) = (free_udp().to_string(), free_udp().to_string());
     // Faster than real time: each robot's READY line gives its clock's time base, which
     // turns its time stamps into wall-clock times that compare across robots.
     let o = [robot(&dir, 1, &a1, &a2, SPEED), robot(&dir, 2, &a2, &a1, SPEED)];
@@ -236,7 +230,7 @@ fn the_demo_plan_runs_on_board_without_the_ground_and_the_reattached_summary_is_
     // The same plan driven from the ground, on two fresh robots with the same seeds.
     let dir2 = tmpdir("demo-ground");
     team_key(&dir2);
-    let (b1, b2) = (free_addr(), free_addr());
+    let (b1, b2) = (free_udp().to_string(), free_udp().to_string());
     let o2 = [robot(&dir2, 1, &b1, &b2, SPEED), robot(&dir2, 2, &b2, &b1, SPEED)];
     let robots2 = robots_args(&o2);
     let mut args2 = vec![
@@ -262,10 +256,10 @@ fn the_demo_plan_runs_on_board_without_the_ground_and_the_reattached_summary_is_
 fn through_a_lossy_team_link_the_dependency_holds_and_with_the_link_cut_robot_2_waits_until_it_returns() {
     let dir = tmpdir("cut");
     team_key(&dir);
-    let (a1, a2) = (free_addr(), free_addr());
+    let (a1, a2) = (free_udp().to_string(), free_udp().to_string());
     // Robot 1's team datagrams to robot 2 through the project's relay: 20 % dropped, 5 %
     // duplicated, 5 % corrupted (refused by the MAC). The relay starts cut (not running).
-    let relay_at = free_addr();
+    let relay_at = free_udp().to_string();
     let o = [robot(&dir, 1, &a1, &relay_at, SPEED), robot(&dir, 2, &a2, &a1, SPEED)];
     let plan = demo();
     let robots = robots_args(&o);
@@ -341,7 +335,7 @@ fn modes(tm: &[Tm]) -> Vec<(u32, u16)> {
 /// Returns once robot 1's plan is suspended and robot 2 holds at its walk.
 fn stuck_arm_mid_plan(dir: &Path) -> [Obsw; 2] {
     team_key(dir);
-    let (a1, a2) = (free_addr(), free_addr());
+    let (a1, a2) = (free_udp().to_string(), free_udp().to_string());
     let o = [
         robot(dir, 1, &a1, &a2, FAULT_SPEED),
         robot(dir, 2, &a2, &a1, FAULT_SPEED),
@@ -516,7 +510,7 @@ fn a_stuck_arm_mid_plan_then_abort_leaves_both_robots_safe_and_reported() {
 fn the_demo_plan_on_board_through_a_lossy_ground_link_gives_the_same_summary_and_runs_each_step_once() {
     let dir = tmpdir("lossy");
     team_key(&dir);
-    let (a1, a2) = (free_addr(), free_addr());
+    let (a1, a2) = (free_udp().to_string(), free_udp().to_string());
     let o = [robot(&dir, 1, &a1, &a2, SPEED), robot(&dir, 2, &a2, &a1, SPEED)];
     // The ground binary built (if it has to be) before the relays' idle time starts.
     let _ = bin("ground");

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use e2e_tests::relay::{Config as RelayConfig, Faults, Relay};
-use e2e_tests::{request_of, tc_named, Obsw, Tm};
+use e2e_tests::{free_udp, request_of, tc_named, Obsw, Tm};
 use ground_link::{create_key_file, Config, Event, GroundFrameLink, PacketId};
 use mib::events::eid;
 use mib::link::sdls::{TC_SPIS, TM_SPIS};
@@ -46,10 +46,6 @@ impl Drop for Dir {
     fn drop(&mut self) {
         let _ = std::fs::remove_dir_all(&self.0);
     }
-}
-
-fn free_udp() -> SocketAddr {
-    UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap()
 }
 
 /// Starts the obsw with its frame endpoint on `frame` sending TM frames to `tm_to`.

@@ -15,19 +15,13 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use e2e_tests::relay::{Config, Faults, Relay};
-use e2e_tests::{Client, Obsw, Tm};
+use e2e_tests::{free_udp, Client, Obsw, Tm};
 use mib::events::eid;
 use mib::modes::{node, robot_mode};
 use mib::params::pid;
 use mib::FailureCode as F;
 
 const ROBOTS: u8 = 3;
-
-/// A free UDP port on loopback (bound and released; the obsw binds it next).
-fn free_addr() -> String {
-    let s = UdpSocket::bind("127.0.0.1:0").unwrap();
-    s.local_addr().unwrap().to_string()
-}
 
 /// A fresh random team key file (raw 32 bytes, mode 0600, the space link's key format).
 fn team_key(dir: &Path) -> PathBuf {
@@ -230,7 +224,7 @@ fn without_the_ground_the_leader_continues_exactly_the_authorised_steps_and_the_
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     team_key(&dir);
-    let listen: Vec<String> = (0..ROBOTS).map(|_| free_addr()).collect();
+    let listen: Vec<String> = (0..ROBOTS).map(|_| free_udp().to_string()).collect();
     let obsw: Vec<Obsw> = (1..=ROBOTS)
         .map(|r| start(&dir, r, &listen, &listen, None, &format!("tm-{r}.hex")))
         .collect();
@@ -397,7 +391,7 @@ fn scenario(name: &str, faults: Option<Faults>) -> (Duration, Duration, Duration
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     team_key(&dir);
-    let listen: Vec<String> = (0..ROBOTS).map(|_| free_addr()).collect();
+    let listen: Vec<String> = (0..ROBOTS).map(|_| free_udp().to_string()).collect();
     // Direct: a tap between robot 2 and robot 1 keeps real datagrams for the replay.
     let tap = faults.is_none().then(|| Tap::start(&listen[0]));
     // With faults, robot n's peers send to a relay that forwards to robot n.

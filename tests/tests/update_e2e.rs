@@ -8,13 +8,13 @@
 //! robot sent (`--tm-log`) and the ground's verification output.
 
 use std::io::{BufRead, BufReader};
-use std::net::{SocketAddr, UdpSocket};
+use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::process::{Child, Command, Output, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
-use e2e_tests::{bin, Tm};
+use e2e_tests::{bin, free_udp, Tm};
 use mib::events::eid;
 use mib::params::pid;
 use mib::FailureCode as F;
@@ -61,10 +61,6 @@ impl Drop for Robot {
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
-}
-
-fn free_udp() -> SocketAddr {
-    UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap()
 }
 
 struct Setup {

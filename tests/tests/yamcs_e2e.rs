@@ -12,12 +12,12 @@
 //! says to skip (it then says so loudly).
 
 use std::collections::BTreeMap;
-use std::net::{TcpListener, UdpSocket};
+use std::net::UdpSocket;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-use e2e_tests::{Obsw, Tm};
+use e2e_tests::{free_port, Obsw, Tm};
 use mib::hk::{by_sid, sid};
 use mib::layout::Names;
 use mib::link::sdls::{TC_SPIS, TM_SPIS};
@@ -50,14 +50,6 @@ fn venv() -> PathBuf {
         .map(PathBuf::from)
         .unwrap_or_else(|| PathBuf::from(std::env::var_os("HOME").unwrap_or_default()).join(".cache"));
     cache.join("mmic/yamcs-venv")
-}
-
-fn free_udp_port() -> u16 {
-    UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
-}
-
-fn free_tcp_port() -> u16 {
-    TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
 }
 
 /// Yamcs started by `scripts/yamcs.sh start`; stopped (and waited for) on drop.
@@ -218,8 +210,8 @@ struct Ports {
 impl Ports {
     fn free() -> Ports {
         Ports {
-            frame: free_udp_port(),
-            tm: free_udp_port(),
+            frame: free_port(),
+            tm: free_port(),
         }
     }
 }
@@ -254,7 +246,7 @@ fn setup_for(ports: &Ports) -> YamcsSetup {
     YamcsSetup {
         instance: INSTANCE.into(),
         http_address: "127.0.0.1".into(),
-        http_port: free_tcp_port(),
+        http_port: free_port(),
         robots: vec![YamcsRobot {
             robot: 1,
             tc_host: "127.0.0.1".into(),
@@ -959,7 +951,7 @@ fn yamcs_cop1_retransmission_encrypts_the_already_encrypted_frame_again() {
     // (as a lossy uplink would) and forwards everything else to the obsw.
     let ports = Ports::free();
     let obsw_ports = Ports {
-        frame: free_udp_port(),
+        frame: free_port(),
         tm: ports.tm,
     };
     let setup = setup_for(&ports);
@@ -1357,7 +1349,7 @@ fn screenshots_of_the_frame_instance_for_the_operator_guide() {
         .args(["--url", &format!("http://127.0.0.1:{}", setup.http_port)])
         .arg("--out")
         .arg(&out_dir)
-        .args(["--port", &free_tcp_port().to_string()])
+        .args(["--port", &free_port().to_string()])
         .args(&pages)
         .output()
         .expect("python yamcs_screens.py");

@@ -6,7 +6,7 @@
 #![allow(dead_code)]
 
 use std::io::{BufRead, Read, Write};
-use std::net::{SocketAddr, TcpStream, UdpSocket};
+use std::net::{SocketAddr, TcpStream};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::sync::OnceLock;
@@ -56,16 +56,9 @@ pub fn obsw_bin() -> PathBuf {
     }
 }
 
-/// A localhost port free for both TCP and UDP.
-pub fn free_port() -> u16 {
-    loop {
-        let t = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
-        let p = t.local_addr().unwrap().port();
-        if UdpSocket::bind(("127.0.0.1", p)).is_ok() {
-            return p;
-        }
-    }
-}
+/// A localhost port free for both TCP and UDP, out of every socket's way until a child
+/// binds it: the end-to-end harness's one allocator.
+pub use e2e_tests::free_port;
 
 /// A running obsw (killed when dropped): TCs on `addr` (UDP and TCP), simulator control
 /// on `ctl`.
