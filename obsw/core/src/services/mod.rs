@@ -151,8 +151,14 @@ impl<S: TmStore> Obsw<S> {
             Request::Modules(r) => self.modules_request(now, r, sink)?,
             Request::Team(r) => self.team_request(now, r, sink)?,
             Request::Link(r) => self.link_select = Some(self.link_keys.select(now, r, &mut self.dl, sink)?),
-            Request::Plan(r) => self.plan_request(now, r, sink)?,
-            Request::Update(r) => self.update_request(now, r, sink)?,
+            Request::Plan(r) => {
+                if let Some(change) = self.plan.request(now, self.apid(), r, &mut self.dl, sink)? {
+                    // As a ground STOP: the action ends, its TC reports ABORTED_BY_COMMAND.
+                    let _ = self.function_request(now, function::Request::Stop, sink);
+                    plan::OnboardPlan::report(now, change, &mut self.dl, sink);
+                }
+            }
+            Request::Update(r) => self.update.handle(now, r, &mut self.dl, sink)?,
         }
         Ok(Exec::Done)
     }

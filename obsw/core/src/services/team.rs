@@ -639,7 +639,8 @@ impl<S: TmStore> Obsw<S> {
             .filter(|tm| tm.primary.apid == TEAM_APID && tm.service == TEAM_SERVICE);
         // Plan progress announcements belong to the on-board plan, roster or not.
         if let Some(tm) = tm.filter(|tm| tm.subservice == mib::plan::TEAM_SUBSERVICE_PROGRESS) {
-            return self.plan_progress(from, tm.source);
+            self.plan.plan.peer_progress(from, tm.source);
+            return;
         }
         let msg = match tm {
             Some(tm) if tm.subservice == TEAM_SUBSERVICE_MESSAGE => Message::parse(tm.source).ok(),
