@@ -165,8 +165,18 @@ impl<S: TmStore> Obsw<S> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+
+    /// The failures the services make themselves (their own codes, beside the core's
+    /// constructors in `crate::failure`): one line per such service, for the test that
+    /// every MIB failure code is made somewhere with the data the MIB lists.
+    pub(crate) fn own_failures() -> Vec<Failure> {
+        let mut all = plan::tests::every_failure();
+        all.extend(update::tests::every_failure());
+        all.extend(link::tests::every_failure());
+        all
+    }
     use crate::accept::tests::tc_bytes;
     use crate::accept::Ack;
     use mib::FailureCode;

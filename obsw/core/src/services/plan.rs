@@ -353,13 +353,42 @@ impl OnboardPlan {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use crate::accept::tests::tc_bytes;
     use crate::obsw::tests::{failure, kind, obsw, of, send, TestObsw, APID};
     use mib::plan::{flag, state, MAX_IMAGE_LEN};
     use mib::FailureCode as F;
     use mmic_plan::image::{emit, StepRepr};
     use mmic_plan::{Dep, StepKind};
+
+    /// One failure of each refusal of the plan, through the one mapping the service uses.
+    pub(crate) fn every_failure() -> Vec<crate::failure::Failure> {
+        use mmic_plan::{Refusal as R, State};
+        [
+            R::Busy(State::Running),
+            R::TooLarge { end: 1030 },
+            R::Checksum {
+                expected: 1,
+                computed: 2,
+                staged: 3,
+            },
+            R::Invalid { reason: 1, offset: 9 },
+            R::WrongRobot(2),
+            R::StepInvalid { step: 1, code: 3 },
+            R::Unreachable {
+                step: 1,
+                from: 0,
+                to: 2,
+            },
+            R::HazardUnconfirmed { step: 1 },
+            R::NotLoaded,
+            R::BadState(State::Aborted),
+            R::StepMismatch { next: 1, given: 2 },
+        ]
+        .into_iter()
+        .map(super::failure)
+        .collect()
+    }
 
     /// An image of TCs for robot `robot`; `confirmed` sets every step's flag.
     fn image(robot: u8, tcs: &[Vec<u8>], confirmed: bool, deps: &[(usize, Dep)]) -> Vec<u8> {
