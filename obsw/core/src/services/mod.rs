@@ -148,7 +148,7 @@ impl<S: TmStore> Obsw<S> {
             Request::EventAction(r) => self.faults.request(now, r, &mut self.dl, sink),
             Request::Parameter(r) => parameter::handle(now, r, &mut self.ctrl, &mut self.dl, sink)?,
             Request::Mode(r) => return self.mode_request(now, r, sink),
-            Request::Modules(r) => self.modules_request(now, r, sink)?,
+            Request::Modules(r) => self.modules.request(now, r, &mut self.dl, sink)?,
             Request::Team(r) => self.team_request(now, r, sink)?,
             Request::Link(r) => self.link_select = Some(self.link_keys.select(now, r, &mut self.dl, sink)?),
             Request::Plan(r) => {
