@@ -1120,14 +1120,14 @@ mod tests {
 
     /// A link that records persists and sends in order; `fail_persist` makes persists fail.
     #[derive(Default)]
-    struct Link {
+    struct RecordingLink {
         log: Vec<&'static str>,
         sent: Vec<(Dest, Vec<u8>)>,
         records: Vec<TeamRecord>,
         fail_persist: bool,
     }
 
-    impl TeamLink for Link {
+    impl TeamLink for RecordingLink {
         fn persist(&mut self, r: &TeamRecord) -> bool {
             self.log.push("persist");
             self.records.push(r.clone());
@@ -1171,7 +1171,7 @@ mod tests {
     }
 
     /// Runs three robots on a lossless in-memory link from `from` to `to` ms (10 ms steps).
-    fn run(team: &mut [TestObsw], links: &mut [Link], sinks: &mut [Vec<Vec<u8>>], from: u64, to: u64) {
+    fn run(team: &mut [TestObsw], links: &mut [RecordingLink], sinks: &mut [Vec<Vec<u8>>], from: u64, to: u64) {
         let mut now = from;
         let mut rand = 12345u32;
         while now < to {
@@ -1197,7 +1197,7 @@ mod tests {
     #[test]
     fn three_robots_elect_a_leader_hold_and_obey_the_ground_again() {
         let mut team: Vec<TestObsw> = (1..=3).map(robot).collect();
-        let mut links: Vec<Link> = (0..3).map(|_| Link::default()).collect();
+        let mut links: Vec<RecordingLink> = (0..3).map(|_| RecordingLink::default()).collect();
         let mut sinks: Vec<Vec<Vec<u8>>> = vec![Vec::new(); 3];
         for o in team.iter_mut() {
             let r = roster_tc(o, 0, &[1, 2, 3]);
@@ -1270,7 +1270,7 @@ mod tests {
     #[test]
     fn the_team_hk_counts_packets_elections_directives_and_rejections() {
         let mut team: Vec<TestObsw> = (1..=3).map(robot).collect();
-        let mut links: Vec<Link> = (0..3).map(|_| Link::default()).collect();
+        let mut links: Vec<RecordingLink> = (0..3).map(|_| RecordingLink::default()).collect();
         let mut sinks: Vec<Vec<Vec<u8>>> = vec![Vec::new(); 3];
         for o in team.iter_mut() {
             roster_tc(o, 0, &[1, 2, 3]);
@@ -1303,7 +1303,7 @@ mod tests {
         // authenticated one, and the platform's authentication refusals.
         let o = &mut team[0];
         let mut s = Vec::new();
-        let mut l = Link::default();
+        let mut l = RecordingLink::default();
         o.team_packet(12_000, 1, Some(2), b"junk", &mut l, &mut s);
         let pkt = vote_request_packet(3);
         let len = pkt.len();
@@ -1353,7 +1353,7 @@ mod tests {
     fn a_team_packet_of_any_short_length_or_another_pus_version_is_counted_never_a_panic() {
         let mut o = robot(1);
         let o = &mut o;
-        let (mut s, mut l) = (Vec::new(), Link::default());
+        let (mut s, mut l) = (Vec::new(), RecordingLink::default());
         let pkt = vote_request_packet(2);
         let len = pkt.len();
         let mut refused = 0;
@@ -1390,7 +1390,7 @@ mod tests {
         let mut s = Vec::new();
         o.handle_tc(10, &tc_bytes(0x101, 3, 211, 3, &app), &mut s);
         assert_eq!(of(&s, 1, 7).len(), 1);
-        let mut link = Link::default();
+        let mut link = RecordingLink::default();
         o.team_poll(20, 1, &mut link, &mut s);
         let rec = link.records.last().expect("written at the next poll").clone();
         assert_eq!(rec.roster.as_slice(), [1, 2, 3]);
@@ -1537,7 +1537,7 @@ mod tests {
         assert_eq!(events(&s, eid::PLAN_UPLOADED).len(), 1);
         let rec = o.team.record();
         assert_eq!(rec.plan.as_ref().unwrap().steps.as_slice(), STEPS);
-        let mut link = Link::default();
+        let mut link = RecordingLink::default();
         let mut s = Vec::new();
         o.team_poll(60, 1, &mut link, &mut s);
         assert_eq!(link.records.last().unwrap().plan, rec.plan, "durable at the next poll");
@@ -1555,7 +1555,7 @@ mod tests {
         authorise_tc(&mut o, 10, 2, 7, hash, 1, 2);
         let plan = PlanRef { id: 7, hash };
         let mut s = Vec::new();
-        let mut link = Link::default();
+        let mut link = RecordingLink::default();
         let f = TeamFunction::Reconfigure;
         // Before the upload: no plan.
         o.team_act(
@@ -1626,7 +1626,7 @@ mod tests {
         sim: mmic_sim::Sim,
         now: u64,
         link_rx: Vec<u8>,
-        link: Link,
+        link: RecordingLink,
         log: Vec<Vec<u8>>,
         seq: u16,
     }
@@ -1638,7 +1638,7 @@ mod tests {
                 sim: mmic_sim::Sim::new(mmic_sim::SimConfig::default()),
                 now: 0,
                 link_rx: Vec::new(),
-                link: Link::default(),
+                link: RecordingLink::default(),
                 log: Vec::new(),
                 seq: 0,
             };
@@ -1842,7 +1842,7 @@ mod tests {
         let mut sink = Vec::new();
         o.handle_tc(0, &tc_bytes(0x101, 2, 11, 4, &app), &mut sink);
         assert_eq!(o.sched.len(), 1);
-        let mut link = Link::default();
+        let mut link = RecordingLink::default();
         let mut now = 0;
         while now <= 5_200 {
             o.release_schedule(now, &mut sink);
@@ -1862,9 +1862,9 @@ mod tests {
     fn a_failed_persist_sends_nothing_of_its_batch() {
         let mut o = robot(1);
         roster_tc(&mut o, 0, &[1, 2, 3]);
-        let mut link = Link {
+        let mut link = RecordingLink {
             fail_persist: true,
-            ..Link::default()
+            ..RecordingLink::default()
         };
         let mut sink = Vec::new();
         let mut now = 0;
