@@ -15,16 +15,20 @@ use crate::types::{Calib, PType};
 /// module is written as plain Rust (so the JSON export's scan of the sources finds its
 /// constants with their docs):
 ///
-/// ```ignore
-/// named_codes! {
+/// ```
+/// mib::named_codes! {
 ///     /// Names of the plan states.
 ///     STATE_NAMES;
 ///     /// Plan states.
 ///     pub mod state {
 ///         /// No plan loaded.
 ///         pub const EMPTY: u8 = 0;
+///         /// A plan is loaded and checked, not started.
+///         pub const LOADED: u8 = 1;
 ///     }
 /// }
+/// assert_eq!(state::LOADED, 1);
+/// assert_eq!(STATE_NAMES, mib::layout::Names::List(&[(0, "EMPTY"), (1, "LOADED")]));
 /// ```
 #[macro_export]
 macro_rules! named_codes {

@@ -422,9 +422,9 @@ impl<S: TmStore> Obsw<S> {
     /// window (a plan run again after a new load must run its TCs again) and without
     /// counting as ground contact. False when acceptance refused the packet itself.
     pub(crate) fn handle_plan_tc(&mut self, now: u64, raw: &[u8], sink: &mut impl TmSink) -> bool {
-        let pending = self.team_ground_tc_pending();
+        let pending = self.team.ground_tc;
         let accepted = self.handle_tc_from(now, raw, false, sink);
-        self.team_restore_ground_tc(pending);
+        self.team.ground_tc = pending;
         accepted
     }
 
@@ -443,7 +443,7 @@ impl<S: TmStore> Obsw<S> {
             }
         };
         // Every valid ground TC is ground contact for the team logic.
-        self.team_ground_tc();
+        self.team.ground_tc = true;
         let crc = tc.crc();
         if let Some(prev) = self.seen.find(tc.req, crc, now).filter(|_| duplicate_check) {
             self.repeat(now, &tc, prev, sink);

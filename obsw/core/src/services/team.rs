@@ -40,6 +40,7 @@ use mmic_team::{
 };
 
 use crate::accept::Tc;
+use crate::downlink::Downlink;
 use crate::failure::Failure;
 use crate::obsw::{Exec, Obsw};
 use crate::request::unknown;
@@ -323,7 +324,7 @@ pub struct Team {
     durable: Persisted,
     /// The ground's authorisation (kept here so that a new roster keeps it).
     auth: Option<Authorisation>,
-    ground_tc: bool,
+    pub(crate) ground_tc: bool,
     both_hold: Option<bool>,
     next_status: u64,
     pub(crate) tmw: TmWriter,
@@ -485,13 +486,20 @@ fn directive_args(d: Directive) -> (u8, u16) {
     }
 }
 
-impl<S: TmStore> Obsw<S> {
+impl Team {
     /// Restores the team record at start (term, vote, roster, authorisation; an expired
     /// authorisation or a roster the node refuses is dropped) and raises TEAM_STATE_LOADED.
-    pub fn team_restore(&mut self, now: u64, status: LoadStatus, r: &TeamRecord, sink: &mut impl TmSink) {
-        self.team.durable = r.persisted;
-        let epoch = self.team.tmw.time.epoch_unix_ms;
-        self.team.auth = r.auth.and_then(|a| {
+    pub(crate) fn restore<S: TmStore>(
+        &mut self,
+        now: u64,
+        status: LoadStatus,
+        r: &TeamRecord,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) {
+        self.durable = r.persisted;
+        let epoch = self.tmw.time.epoch_unix_ms;
+        self.auth = r.auth.and_then(|a| {
             let expires_at = a.expires_unix_ms.checked_sub(epoch)?;
             (expires_at > now).then_some(Authorisation {
                 plan: a.plan,
@@ -501,83 +509,108 @@ impl<S: TmStore> Obsw<S> {
             })
         });
         // The plan only with its (unexpired) authorisation, and only if it still hashes to it.
-        self.team.plan = r.plan.clone().filter(|p| {
-            self.team.auth.is_some_and(|a| {
+        self.plan = r.plan.clone().filter(|p| {
+            self.auth.is_some_and(|a| {
                 a.plan.id == p.id
                     && p.steps.len() == usize::from(a.max_steps)
                     && mib::team::plan_hash(p.id, &p.steps) == a.plan.hash
             })
         });
-        self.team.progress_dirty = self.team.plan.is_some();
+        self.progress_dirty = self.plan.is_some();
         if !r.roster.is_empty() {
             // A stored roster was accepted once; should the node refuse it now, the
             // robot starts without one (the event says roster 0).
-            let _ = self.team_set_roster(now, &r.roster);
+            let _ = self.set_roster(now, &r.roster);
         }
-        let roster = if self.team.node.is_some() {
-            self.team.roster.len()
-        } else {
-            0
-        };
-        let plan = self.team.auth.map_or(0, |a| a.plan.id);
-        self.team.dirty = false;
+        let roster = if self.node.is_some() { self.roster.len() } else { 0 };
+        let plan = self.auth.map_or(0, |a| a.plan.id);
+        self.dirty = false;
         let e = ev::TeamStateLoaded {
             status: status.code(),
-            term: self.team.durable.term,
+            term: self.durable.term,
             roster: u8::try_from(roster).unwrap_or(u8::MAX),
             plan,
         };
-        self.raise(now, e, sink);
+        dl.raise(now, e, sink);
     }
 
     /// An inter-robot packet refused before the node saw it (by the platform's
     /// authentication, or here): counted, and TEAM_PACKET_REJECTED at most once per
     /// reason and control period (the event service throttles further).
-    pub fn team_rejected(&mut self, now: u64, reason: TeamReject, sender: u8, sink: &mut impl TmSink) {
+    pub(crate) fn rejected<S: TmStore>(
+        &mut self,
+        now: u64,
+        reason: TeamReject,
+        sender: u8,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) {
         let i = usize::from(reason.code());
-        let c = &mut self.team.counters.rejected[i];
+        let c = &mut self.counters.rejected[i];
         *c = c.wrapping_add(1);
         let total = *c;
         let period = u64::from(mib::config::CONTROL_PERIOD_MS);
-        if self.team.reject_reported[i].is_some_and(|t| now < t + period) {
+        if self.reject_reported[i].is_some_and(|t| now < t + period) {
             return;
         }
-        self.team.reject_reported[i] = Some(now);
+        self.reject_reported[i] = Some(now);
         let e = ev::TeamPacketRejected {
             reason: reason.code(),
             sender,
             total,
         };
-        self.raise(now, e, sink);
+        dl.raise(now, e, sink);
     }
 
     /// Sets the team roster (ground TC TEAM_ROSTER, or the platform's configuration).
     /// The node starts from the durable term and vote; boot and upload count as ground
     /// contact.
-    pub fn team_set_roster(&mut self, now: u64, roster: &[u8]) -> Result<(), mmic_team::node::RosterError> {
-        let node = Node::restore(self.team.me, roster, self.team.durable, now)?;
-        self.team.set_node(Some(node));
-        self.team.dirty = true;
-        self.team.progress_dirty = true;
-        self.team.roster.clear();
+    pub fn set_roster(&mut self, now: u64, roster: &[u8]) -> Result<(), mmic_team::node::RosterError> {
+        let node = Node::restore(self.me, roster, self.durable, now)?;
+        self.set_node(Some(node));
+        self.dirty = true;
+        self.progress_dirty = true;
+        self.roster.clear();
         for r in roster.iter().take(ROSTER_MAX) {
             // At most ROSTER_MAX (checked by the node above).
-            let _ = self.team.roster.push(*r);
+            let _ = self.roster.push(*r);
         }
-        if let (Some(a), Some(n)) = (self.team.auth, self.team.node.as_mut()) {
+        if let (Some(a), Some(n)) = (self.auth, self.node.as_mut()) {
             // Was accepted when uploaded; an expired one is simply not re-applied.
             let _ = n.authorise(now, a);
         }
-        self.team.next_status = now;
+        self.next_status = now;
         Ok(())
     }
 
     /// Earliest time the team logic has work (node timers, status report).
-    pub fn team_next_deadline(&self) -> u64 {
-        match &self.team.node {
-            Some(n) => n.next_deadline().min(self.team.next_status),
+    pub fn next_deadline(&self) -> u64 {
+        match &self.node {
+            Some(n) => n.next_deadline().min(self.next_status),
             None => u64::MAX,
         }
+    }
+}
+
+impl<S: TmStore> Obsw<S> {
+    /// Restores the team record at start (`Team::restore`) and raises TEAM_STATE_LOADED.
+    pub fn team_restore(&mut self, now: u64, status: LoadStatus, r: &TeamRecord, sink: &mut impl TmSink) {
+        self.team.restore(now, status, r, &mut self.dl, sink);
+    }
+
+    /// An inter-robot packet refused before the node saw it (`Team::rejected`).
+    pub fn team_rejected(&mut self, now: u64, reason: TeamReject, sender: u8, sink: &mut impl TmSink) {
+        self.team.rejected(now, reason, sender, &mut self.dl, sink);
+    }
+
+    /// Sets the team roster (`Team::set_roster`).
+    pub fn team_set_roster(&mut self, now: u64, roster: &[u8]) -> Result<(), mmic_team::node::RosterError> {
+        self.team.set_roster(now, roster)
+    }
+
+    /// Earliest time the team logic has work (`Team::next_deadline`).
+    pub fn team_next_deadline(&self) -> u64 {
+        self.team.next_deadline()
     }
 
     /// Feeds pending ground contact, the grippers and the time to the node, executes its
@@ -656,20 +689,6 @@ impl<S: TmStore> Obsw<S> {
             }
             _ => self.team_rejected(now, TeamReject::Malformed, from.unwrap_or(0), sink),
         }
-    }
-
-    /// Records ground contact (every valid ground TC); fed to the node at the next poll.
-    pub(crate) fn team_ground_tc(&mut self) {
-        self.team.ground_tc = true;
-    }
-
-    /// Ground contact recorded and not yet fed to the node (kept across a TC the obsw
-    /// runs itself, which is no ground contact).
-    pub(crate) fn team_ground_tc_pending(&self) -> bool {
-        self.team.ground_tc
-    }
-    pub(crate) fn team_restore_ground_tc(&mut self, pending: bool) {
-        self.team.ground_tc = pending;
     }
 
     /// Runs a TC the obsw released itself (PUS 11 schedule): it is not ground contact.
