@@ -44,6 +44,18 @@ fn public(v: &syn::Visibility) -> bool {
     matches!(v, syn::Visibility::Public(_))
 }
 
+/// The body of a `named_codes!`: the names constant's docs and name, `;`, then the module.
+struct NamedCodes(syn::ItemMod);
+
+impl syn::parse::Parse for NamedCodes {
+    fn parse(input: syn::parse::ParseStream) -> syn::Result<Self> {
+        input.call(syn::Attribute::parse_outer)?;
+        input.parse::<syn::Ident>()?;
+        input.parse::<syn::Token![;]>()?;
+        Ok(NamedCodes(input.parse()?))
+    }
+}
+
 fn scan_items(items: &[syn::Item], module: &[String], out: &mut Vec<Found>) {
     for item in items {
         match item {
@@ -68,6 +80,14 @@ fn scan_items(items: &[syn::Item], module: &[String], out: &mut Vec<Found>) {
                         }
                     }
                 }
+            }
+            // A module of codes and its names (`mib::named_codes!`): its module as written.
+            syn::Item::Macro(m) if m.mac.path.segments.last().is_some_and(|s| s.ident == "named_codes") => {
+                let NamedCodes(inner) = m
+                    .mac
+                    .parse_body()
+                    .unwrap_or_else(|e| panic!("named_codes! in {}: {e}", module.join("::")));
+                scan_items(&[syn::Item::Mod(inner)], module, out);
             }
             syn::Item::Mod(m) if public(&m.vis) && !gated(&m.attrs) => {
                 if let Some((_, inner)) = &m.content {

@@ -64,16 +64,20 @@ pub const ACTION_QUEUE_DEPTH: usize = 1;
 /// Longest reconfiguration (primitives).
 pub const MAX_RECONFIG_PRIMITIVES: usize = 3;
 
-/// Reset causes reported by the BOOT event (`reset_cause`).
-pub mod reset_cause {
-    /// Power-on or a host start.
-    pub const POWER_ON: u8 = 0;
-    /// Software reset after a panic (a PREVIOUS_PANIC event follows).
-    pub const PANIC: u8 = 1;
-    /// Watchdog reset.
-    pub const WATCHDOG: u8 = 2;
-    /// Any other cause (brown-out, external reset pin).
-    pub const OTHER: u8 = 3;
+crate::named_codes! {
+    /// Names of the reset causes (BOOT and PREVIOUS_PANIC events).
+    RESET_CAUSE_NAMES;
+    /// Reset causes reported by the BOOT event (`reset_cause`).
+    pub mod reset_cause {
+        /// Power-on or a host start.
+        pub const POWER_ON: u8 = 0;
+        /// Software reset after a panic (a PREVIOUS_PANIC event follows).
+        pub const PANIC: u8 = 1;
+        /// Watchdog reset.
+        pub const WATCHDOG: u8 = 2;
+        /// Any other cause (brown-out, external reset pin).
+        pub const OTHER: u8 = 3;
+    }
 }
 
 /// Event throttling: at most `EVENT_THROTTLE_MAX` reports of one event ID per

@@ -2,7 +2,8 @@
 //! 3 medium, 4 high); its source data is the event ID (u16) followed by the event's
 //! parameters, packed with their wire types.
 
-use crate::layout::{Field, Names, MODULE_REASON_NAMES, RESET_CAUSE_NAMES, SIDE_NAMES, SLOT_NAMES};
+use crate::config::RESET_CAUSE_NAMES;
+use crate::layout::{Field, Names, MODULE_REASON_NAMES, SIDE_NAMES, SLOT_NAMES};
 use crate::team::{
     TEAM_DIRECTIVE_NAMES, TEAM_PLAN_REFUSE_NAMES, TEAM_REFUSE_NAMES, TEAM_REJECT_NAMES, TEAM_STATE_NAMES,
     TEAM_STEP_DOWN_NAMES,

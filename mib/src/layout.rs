@@ -11,14 +11,31 @@
 
 use crate::types::{Calib, PType};
 
-/// A module of `u8` codes and the [`Names`] list naming them, each name written once:
-/// `named_codes!(state, STATE_NAMES, "Plan states", { /// doc \n EMPTY = 0, ... });`
+/// A module of codes and the [`Names`] list naming them, each name written once. The
+/// module is written as plain Rust (so the JSON export's scan of the sources finds its
+/// constants with their docs):
+///
+/// ```
+/// mib::named_codes! {
+///     /// Names of the plan states.
+///     STATE_NAMES;
+///     /// Plan states.
+///     pub mod state {
+///         /// No plan loaded.
+///         pub const EMPTY: u8 = 0;
+///         /// A plan is loaded and checked, not started.
+///         pub const LOADED: u8 = 1;
+///     }
+/// }
+/// assert_eq!(state::LOADED, 1);
+/// assert_eq!(STATE_NAMES, mib::layout::Names::List(&[(0, "EMPTY"), (1, "LOADED")]));
+/// ```
 #[macro_export]
 macro_rules! named_codes {
-    ($(#[$m:meta])* $module:ident, $(#[$nm:meta])* $names:ident, { $($(#[$doc:meta])* $name:ident = $v:expr),+ $(,)? }) => {
+    ($(#[$nm:meta])* $names:ident; $(#[$m:meta])* pub mod $module:ident { $($(#[$doc:meta])* pub const $name:ident: $ty:ty = $v:expr;)+ }) => {
         $(#[$m])*
         pub mod $module {
-            $($(#[$doc])* pub const $name: u8 = $v;)+
+            $($(#[$doc])* pub const $name: $ty = $v;)+
         }
         $(#[$nm])*
         pub const $names: $crate::layout::Names =
@@ -70,8 +87,6 @@ pub const PACKET_TYPE_NAMES: Names = Names::List(&[(0, "TM"), (1, "TC")]);
 pub const SEQ_FLAG_NAMES: Names = Names::List(&[(0, "CONTINUATION"), (1, "FIRST"), (2, "LAST"), (3, "UNSEGMENTED")]);
 /// Boolean flag.
 pub const BOOL_NAMES: Names = Names::List(&[(0, "FALSE"), (1, "TRUE")]);
-/// Reset causes of the BOOT event.
-pub const RESET_CAUSE_NAMES: Names = Names::List(&[(0, "POWER_ON"), (1, "PANIC"), (2, "WATCHDOG"), (3, "OTHER")]);
 
 /// Module slots (`crate::modules::SLOTS`, by slot number); 255 = none.
 pub const SLOT_NAMES: Names = Names::List(&[

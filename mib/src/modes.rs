@@ -3,21 +3,31 @@
 //! The root has the paper's three operating modes (Table 7). Every other node has
 //! OFF / ON / HOLD, and the root mode implies each child's mode (see [`child_mode`]).
 
-/// Root (robot) modes, paper Table 7.
-pub mod robot_mode {
-    pub const STANDBY: u32 = 0;
-    pub const OPERATIONAL: u32 = 1;
-    pub const SAFED: u32 = 2;
+use crate::layout::Names;
+
+crate::named_codes! {
+    /// Names of the root modes.
+    ROBOT_MODE_NAMES;
+    /// Root (robot) modes, paper Table 7.
+    pub mod robot_mode {
+        pub const STANDBY: u32 = 0;
+        pub const OPERATIONAL: u32 = 1;
+        pub const SAFED: u32 = 2;
+    }
 }
 
-/// Modes of every non-root node.
-pub mod module_mode {
-    /// Unpowered (servos back-drivable).
-    pub const OFF: u32 = 0;
-    /// Powered and commandable.
-    pub const ON: u32 = 1;
-    /// Powered, holding position; only position-hold commands.
-    pub const HOLD: u32 = 2;
+crate::named_codes! {
+    /// Names of the modes of the non-root nodes.
+    MODULE_MODE_NAMES;
+    /// Modes of every non-root node.
+    pub mod module_mode {
+        /// Unpowered (servos back-drivable).
+        pub const OFF: u32 = 0;
+        /// Powered and commandable.
+        pub const ON: u32 = 1;
+        /// Powered, holding position; only position-hold commands.
+        pub const HOLD: u32 = 2;
+    }
 }
 
 /// Node IDs (the PUS 200 target ID, u32).
@@ -127,16 +137,19 @@ pub fn node_by_id(id: u32) -> Option<&'static NodeDef> {
 
 /// Name of a mode of a node kind.
 pub const fn mode_name(kind: NodeKind, mode: u32) -> Option<&'static str> {
-    match (kind, mode) {
-        (NodeKind::Root, robot_mode::STANDBY) => Some("STANDBY"),
-        (NodeKind::Root, robot_mode::OPERATIONAL) => Some("OPERATIONAL"),
-        (NodeKind::Root, robot_mode::SAFED) => Some("SAFED"),
-        (NodeKind::Root, _) => None,
-        (_, module_mode::OFF) => Some("OFF"),
-        (_, module_mode::ON) => Some("ON"),
-        (_, module_mode::HOLD) => Some("HOLD"),
-        _ => None,
+    let names = match kind {
+        NodeKind::Root => ROBOT_MODE_NAMES,
+        _ => MODULE_MODE_NAMES,
+    };
+    let Names::List(list) = names else { return None };
+    let mut i = 0;
+    while i < list.len() {
+        if list[i].0 == mode as i64 {
+            return Some(list[i].1);
+        }
+        i += 1;
     }
+    None
 }
 
 /// The mode of a node kind named `name` (case-insensitive): "operational" → 1 for the

@@ -69,68 +69,65 @@ pub mod flag {
     pub const ALL: u8 = WAIT | CONFIRMED;
 }
 
-crate::named_codes!(
-    /// Plan states (HK PLAN_STATE, PLAN_STATUS report, PLAN_STATE_CHANGED event).
-    state,
+crate::named_codes! {
     /// Names of the plan states.
-    STATE_NAMES,
-    {
+    STATE_NAMES;
+    /// Plan states (HK PLAN_STATE, PLAN_STATUS report, PLAN_STATE_CHANGED event).
+    pub mod state {
         /// No plan loaded.
-        EMPTY = 0,
+        pub const EMPTY: u8 = 0;
         /// A plan is loaded and checked, not started.
-        LOADED = 1,
+        pub const LOADED: u8 = 1;
         /// Running: a step is executing, or the next waits for its dependencies or its time.
-        RUNNING = 2,
+        pub const RUNNING: u8 = 2;
         /// Suspended by a failed step, a fault or PLAN_SUSPEND: nothing new starts.
-        SUSPENDED = 3,
+        pub const SUSPENDED: u8 = 3;
         /// Every step completed.
-        COMPLETED = 4,
+        pub const COMPLETED: u8 = 4;
         /// Aborted by PLAN_ABORT: nothing new starts; load a plan to run again.
-        ABORTED = 5,
+        pub const ABORTED: u8 = 5;
     }
-);
+}
 
-crate::named_codes!(
-    /// Why a plan changed state (PLAN_STATE_CHANGED `cause`).
-    cause,
+crate::named_codes! {
     /// Names of the causes.
-    CAUSE_NAMES,
-    {
+    CAUSE_NAMES;
+    /// Why a plan changed state (PLAN_STATE_CHANGED `cause`).
+    pub mod cause {
         /// A control TC (start, suspend, resume, abort, skip, load).
-        COMMAND = 0,
+        pub const COMMAND: u8 = 0;
         /// The step's TC was refused or its action failed (the step's PUS 1 failure report
         /// names the code).
-        STEP_FAILED = 1,
+        pub const STEP_FAILED: u8 = 1;
         /// The step did not complete within its timeout.
-        STEP_TIMEOUT = 2,
+        pub const STEP_TIMEOUT: u8 = 2;
         /// FDIR raised a fault while the plan ran.
-        FAULT = 3,
+        pub const FAULT: u8 = 3;
         /// The last step completed.
-        DONE = 4,
+        pub const DONE: u8 = 4;
         /// The plan's progress was restored after a restart: the step that was running when
         /// the robot reset has an unknown outcome, so the plan waits for the ground.
-        RESTART = 5,
+        pub const RESTART: u8 = 5;
     }
-);
+}
 
-crate::named_codes!(
-    /// Why a plan image was refused (PLAN_INVALID `reason`).
-    invalid,
+crate::named_codes! {
     /// Names of the image refusal reasons.
-    INVALID_NAMES,
-    {
+    INVALID_NAMES;
+    /// Why a plan image was refused (PLAN_INVALID `reason`).
+    pub mod invalid {
         /// Wrong magic or format version.
-        FORMAT = 0,
+        pub const FORMAT: u8 = 0;
         /// Shorter than its content says, or bytes left after the last step.
-        LENGTH = 1,
+        pub const LENGTH: u8 = 1;
         /// A step count of 0 or above `MAX_STEPS`, or more than `MAX_DEPS` dependencies.
-        LIMITS = 2,
+        pub const LIMITS: u8 = 2;
         /// Unknown flag bits, a wait beyond `MAX_WAIT_MS`, a TC longer than `MAX_STEP_TC_LEN`.
-        STEP = 3,
+        pub const STEP: u8 = 3;
         /// A dependency on a later step of this robot, on itself, or on robot 0.
-        DEPENDENCY = 4,
+        pub const DEPENDENCY: u8 = 4;
     }
-);
+}
 
 /// PUS 18 subservices (TCs and the status report).
 pub mod sub {

@@ -19,8 +19,6 @@
 //! The signature covers the digest, the digest covers the payload: a changed byte anywhere
 //! is refused before the image may be activated.
 
-use crate::layout::Names;
-
 /// Magic of a signed image.
 pub const MAGIC: [u8; 8] = *b"MMICIMG1";
 /// Bytes the signature covers (magic to digest).
@@ -103,64 +101,51 @@ pub mod sub {
     pub const CONFIRM: u8 = 3;
 }
 
-/// The outcome of the last update, as housekeeping UPDATE_OUTCOME reports it.
-pub mod outcome {
-    /// No update since the slots were written on the ground.
-    pub const NONE: u8 = 0;
-    /// An image was installed and verified in the inactive slot.
-    pub const INSTALLED: u8 = 1;
-    /// An install was refused (signature, digest, length, target, file).
-    pub const REFUSED: u8 = 2;
-    /// The running image was activated and has not yet confirmed.
-    pub const PENDING: u8 = 3;
-    /// The running image was activated and confirmed after its self-test.
-    pub const CONFIRMED: u8 = 4;
-    /// The image activated last never confirmed: the boot went back to this one.
-    pub const ROLLED_BACK: u8 = 5;
+crate::named_codes! {
+    /// Names of the outcome codes.
+    OUTCOME_NAMES;
+    /// The outcome of the last update, as housekeeping UPDATE_OUTCOME reports it.
+    pub mod outcome {
+        /// No update since the slots were written on the ground.
+        pub const NONE: u8 = 0;
+        /// An image was installed and verified in the inactive slot.
+        pub const INSTALLED: u8 = 1;
+        /// An install was refused (signature, digest, length, target, file).
+        pub const REFUSED: u8 = 2;
+        /// The running image was activated and has not yet confirmed.
+        pub const PENDING: u8 = 3;
+        /// The running image was activated and confirmed after its self-test.
+        pub const CONFIRMED: u8 = 4;
+        /// The image activated last never confirmed: the boot went back to this one.
+        pub const ROLLED_BACK: u8 = 5;
+    }
 }
-/// Names of the outcome codes.
-pub const OUTCOME_NAMES: Names = Names::List(&[
-    (0, "NONE"),
-    (1, "INSTALLED"),
-    (2, "REFUSED"),
-    (3, "PENDING"),
-    (4, "CONFIRMED"),
-    (5, "ROLLED_BACK"),
-]);
 
-/// Why an install was refused (failure UPDATE_IMAGE_REFUSED, event UPDATE_REFUSED).
-pub mod refusal {
-    /// The file is not in the store or cannot be read.
-    pub const NO_FILE: u8 = 1;
-    /// Shorter than its header, or its header's length differs from the file's.
-    pub const TRUNCATED: u8 = 2;
-    /// Not an image of this format (magic, reserved bytes).
-    pub const NOT_AN_IMAGE: u8 = 3;
-    /// An image for another target.
-    pub const WRONG_TARGET: u8 = 4;
-    /// Larger than the slot.
-    pub const TOO_LARGE: u8 = 5;
-    /// The payload's SHA-256 is not the header's.
-    pub const DIGEST: u8 = 6;
-    /// The header's Ed25519 signature is not the ground update key's.
-    pub const SIGNATURE: u8 = 7;
-    /// The slot could not be written or read back.
-    pub const FLASH: u8 = 8;
-    /// The robot holds no update key: nothing can be verified, nothing is installed.
-    pub const NO_KEY: u8 = 9;
+crate::named_codes! {
+    /// Names of the refusal reasons.
+    REFUSAL_NAMES;
+    /// Why an install was refused (failure UPDATE_IMAGE_REFUSED, event UPDATE_REFUSED).
+    pub mod refusal {
+        /// The file is not in the store or cannot be read.
+        pub const NO_FILE: u8 = 1;
+        /// Shorter than its header, or its header's length differs from the file's.
+        pub const TRUNCATED: u8 = 2;
+        /// Not an image of this format (magic, reserved bytes).
+        pub const NOT_AN_IMAGE: u8 = 3;
+        /// An image for another target.
+        pub const WRONG_TARGET: u8 = 4;
+        /// Larger than the slot.
+        pub const TOO_LARGE: u8 = 5;
+        /// The payload's SHA-256 is not the header's.
+        pub const DIGEST: u8 = 6;
+        /// The header's Ed25519 signature is not the ground update key's.
+        pub const SIGNATURE: u8 = 7;
+        /// The slot could not be written or read back.
+        pub const FLASH: u8 = 8;
+        /// The robot holds no update key: nothing can be verified, nothing is installed.
+        pub const NO_KEY: u8 = 9;
+    }
 }
-/// Names of the refusal reasons.
-pub const REFUSAL_NAMES: Names = Names::List(&[
-    (1, "NO_FILE"),
-    (2, "TRUNCATED"),
-    (3, "NOT_AN_IMAGE"),
-    (4, "WRONG_TARGET"),
-    (5, "TOO_LARGE"),
-    (6, "DIGEST"),
-    (7, "SIGNATURE"),
-    (8, "FLASH"),
-    (9, "NO_KEY"),
-]);
 
 /// Longest file name an install names (the file store's limit).
 pub const MAX_FILE_NAME: usize = crate::cfdp::MAX_NAME_LEN;

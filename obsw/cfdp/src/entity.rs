@@ -56,15 +56,15 @@ pub type Pdu = heapless::Vec<u8, { m::MAX_PDU_LEN }>;
 
 /// The entity's clock (ms, wrapping at 2^32: timers are far shorter) and the outbox the
 /// handlers write to; shared by both handlers and their timers.
-pub struct Link {
+pub struct PduPort {
     now: Cell<u32>,
     outbox: RefCell<heapless::Deque<Pdu, { m::OUTBOX_DEPTH }>>,
     dropped: Cell<u32>,
 }
 
-impl Default for Link {
+impl Default for PduPort {
     fn default() -> Self {
-        Link {
+        PduPort {
             now: Cell::new(0),
             outbox: RefCell::new(heapless::Deque::new()),
             dropped: Cell::new(0),
@@ -112,7 +112,7 @@ impl<'a> TimerCreator for Timers<'a> {
 
 /// The handlers' PDU sender: into the outbox; full → dropped and counted (class 2 asks
 /// again, class 1 has lost it like a lost frame).
-pub struct Sender<'a>(&'a Link);
+pub struct Sender<'a>(&'a PduPort);
 
 impl PduSender for Sender<'_> {
     fn send_pdu(&self, _t: PduType, _d: Option<FileDirectiveType>, raw: &[u8]) -> Result<(), GenericSendError> {
@@ -184,7 +184,7 @@ type Dest<'a, S> = DestinationHandler<
 /// the fault counter.
 pub struct Parts<S> {
     pub store: Checked<S>,
-    pub link: Link,
+    pub link: PduPort,
     faults: Cell<u32>,
     last_fault: Cell<Option<ConditionCode>>,
     seq: Cell<u16>,
@@ -194,7 +194,7 @@ impl<S: FlatStore> Parts<S> {
     pub fn new(store: S) -> Self {
         Parts {
             store: Checked::new(store),
-            link: Link::default(),
+            link: PduPort::default(),
             faults: Cell::new(0),
             last_fault: Cell::new(None),
             seq: Cell::new(0),

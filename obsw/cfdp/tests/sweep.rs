@@ -27,7 +27,7 @@ fn file(len: usize, seed: u8) -> Vec<u8> {
 }
 
 /// The link model.
-struct Link {
+struct LossyChannel {
     rng: Rng,
     down_loss: f64,
     up_loss: f64,
@@ -38,7 +38,7 @@ struct Link {
     reports: Vec<Finished>,
 }
 
-impl Link {
+impl LossyChannel {
     fn send_up(&mut self, now: u64, p: Vec<u8>) {
         // A lost frame is sent again after T1, the frames behind it with it (go-back-N):
         // delays overlap, they do not add up.
@@ -73,7 +73,7 @@ fn run(
     now: &mut u64,
     g: &mut Entity<Mem>,
     r: &mut Entity<Mem>,
-    l: &mut Link,
+    l: &mut LossyChannel,
     limit_ms: u64,
     want: impl Fn(&Finished) -> bool,
 ) -> Option<Finished> {
@@ -143,7 +143,7 @@ fn class_2_gets_and_puts_through_the_relays_losses_always_end_complete() {
                 let n = FileName::new("f.bin").unwrap();
                 rp.store.create(&n).unwrap();
                 rp.store.write(&n, 0, &data).unwrap();
-                let mut l = Link {
+                let mut l = LossyChannel {
                     rng: Rng(seed * 7919 + 1),
                     down_loss: 0.25,
                     up_loss: 0.25,

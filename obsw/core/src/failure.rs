@@ -239,9 +239,6 @@ impl Failure {
     pub fn plan_hash_mismatch(authorised: u32, uploaded: u32) -> Self {
         Failure(W::PlanHashMismatch { authorised, uploaded })
     }
-    pub fn no_key_for_spi(spi: u16) -> Self {
-        Failure(W::NoKeyForSpi { spi })
-    }
 
     /// The failure of an action the domain refused to start. `running` is the function
     /// of the running action (for BUSY), `mode` the robot's mode (for NOT_POWERED).
@@ -320,36 +317,9 @@ mod tests {
             Failure::plan_not_authorised(7, 5),
             Failure::plan_forbidden_function(3),
             Failure::plan_hash_mismatch(1, 2),
-            Failure::no_key_for_spi(18),
         ];
-        // The on-board plan's refusals, each through the one mapping the service uses.
-        use mmic_plan::{Refusal as R, State};
-        let plan = [
-            R::Busy(State::Running),
-            R::TooLarge { end: 1030 },
-            R::Checksum {
-                expected: 1,
-                computed: 2,
-                staged: 3,
-            },
-            R::Invalid { reason: 1, offset: 9 },
-            R::WrongRobot(2),
-            R::StepInvalid { step: 1, code: 3 },
-            R::Unreachable {
-                step: 1,
-                from: 0,
-                to: 2,
-            },
-            R::HazardUnconfirmed { step: 1 },
-            R::NotLoaded,
-            R::BadState(State::Aborted),
-            R::StepMismatch { next: 1, given: 2 },
-        ];
-        let all: Vec<Failure> = all
-            .into_iter()
-            .chain(plan.into_iter().map(crate::services::plan::failure))
-            .chain(crate::services::update::tests::every_failure())
-            .collect();
+        // And the failures the services make themselves.
+        let all: Vec<Failure> = all.into_iter().chain(crate::services::tests::own_failures()).collect();
         for f in &all {
             assert_eq!(f.data().len(), f.code().data_len(), "{:?}", f.code());
             assert!(f.data().len() <= MAX_FAILURE_DATA);

@@ -265,6 +265,12 @@ impl<S: TmStore> Obsw<S> {
         );
     }
 
+    /// Reads the boot's otadata, runs the self-test of a new image and reports what it found
+    /// (the platform calls it once, after `Update::attach`).
+    pub fn update_boot(&mut self, now: u64, sink: &mut impl TmSink) {
+        self.update.boot_reported(now, &mut self.dl, sink);
+    }
+
     /// Reports what the platform's ground link did on its own (host TCP bounds): events
     /// `TCP_CONNECTION_REFUSED` / `TCP_CLIENT_DROPPED` with the totals since boot.
     pub fn link_event(&mut self, now: u64, ev: LinkEvent, sink: &mut impl TmSink) {
@@ -416,9 +422,9 @@ impl<S: TmStore> Obsw<S> {
     /// window (a plan run again after a new load must run its TCs again) and without
     /// counting as ground contact. False when acceptance refused the packet itself.
     pub(crate) fn handle_plan_tc(&mut self, now: u64, raw: &[u8], sink: &mut impl TmSink) -> bool {
-        let pending = self.team_ground_tc_pending();
+        let pending = self.team.ground_tc;
         let accepted = self.handle_tc_from(now, raw, false, sink);
-        self.team_restore_ground_tc(pending);
+        self.team.ground_tc = pending;
         accepted
     }
 
@@ -437,7 +443,7 @@ impl<S: TmStore> Obsw<S> {
             }
         };
         // Every valid ground TC is ground contact for the team logic.
-        self.team_ground_tc();
+        self.team.ground_tc = true;
         let crc = tc.crc();
         if let Some(prev) = self.seen.find(tc.req, crc, now).filter(|_| duplicate_check) {
             self.repeat(now, &tc, prev, sink);
@@ -568,7 +574,9 @@ impl<S: TmStore> Obsw<S> {
     /// Records what became of request `req`: the duplicate window keeps it, and the
     /// on-board plan learns the outcome of its step's TC here.
     pub(crate) fn set_outcome(&mut self, req: RequestId, outcome: Outcome) {
-        self.plan_outcome(req, &outcome);
+        if self.plan.outcome(req, &outcome).is_err() {
+            self.counters.events_dropped = self.counters.events_dropped.saturating_add(1);
+        }
         self.seen.set_outcome(req, outcome);
     }
 
@@ -639,6 +647,38 @@ impl<S: TmStore> Obsw<S> {
                     .emit(now, HkReport::SERVICE, HkReport::SUBSERVICE, &body[..n], sink);
             }
         }
+    }
+
+    /// One control period of the on-board plan; a step's TC goes through the TC path
+    /// (`services::plan`).
+    pub(crate) fn plan_tick(&mut self, now: u64, sink: &mut impl TmSink) {
+        let mut buf = [0u8; mib::plan::MAX_STEP_TC_LEN];
+        let Some(n) = self.plan.tick(now, &mut buf, &mut self.dl, sink) else {
+            return;
+        };
+        let raw = &buf[..n];
+        if !self.handle_plan_tc(now, raw, sink) {
+            self.plan.step_refused(now, raw, &mut self.dl, sink);
+        }
+        self.plan.report_pending(now, &mut self.dl, sink);
+    }
+
+    /// Restores a plan the platform stored (`Plan::take_record`) at start; reports the
+    /// state it comes back in. False when the record is no valid image of this robot.
+    pub fn plan_restore(
+        &mut self,
+        now: u64,
+        image: &[u8],
+        p: mmic_plan::exec::Progress,
+        sink: &mut impl TmSink,
+    ) -> bool {
+        self.plan.restore(now, image, p, &mut self.dl, sink)
+    }
+
+    /// Sends the plan's progress announcement to every robot of the team link when due
+    /// (the platform calls it every control period it has a team link).
+    pub fn plan_team(&mut self, now: u64, link: &mut impl crate::services::team::TeamLink) {
+        self.plan.announce(now, &mut self.team.tmw, link);
     }
 
     /// Runs every scheduled TC whose release time has come through the TC path.

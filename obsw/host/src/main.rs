@@ -880,7 +880,7 @@ fn run(args: Args) -> Result<()> {
 fn report_link_events(
     obsw: &mut Obsw<HostStore>,
     now: u64,
-    reported: &mut net::LinkCounters,
+    reported: &mut net::GroundLinkCounters,
     down: &mut net::TmDestinations,
 ) {
     let c = down.counters;

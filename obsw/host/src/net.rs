@@ -71,7 +71,7 @@ const OVERSIZE_HEAD: usize = 10;
 
 /// Link counters (reported in HK through `IoCounters` and on stderr).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct LinkCounters {
+pub struct GroundLinkCounters {
     /// Live TM packets that could not be sent (UDP send errors, dropped TCP clients).
     pub tm_dropped: u32,
     /// TCP connections refused because `TCP_MAX_CONNECTIONS` were open.
@@ -113,7 +113,7 @@ pub struct TmDestinations {
     subscribers: Vec<Subscriber>,
     conns: Vec<Option<Conn>>,
     frame: Vec<u8>,
-    pub counters: LinkCounters,
+    pub counters: GroundLinkCounters,
     lease: Duration,
     /// `--tm-log`: every TM packet handed to the downlink, one hex line each.
     tm_log: Option<std::fs::File>,
@@ -405,7 +405,7 @@ fn start_with_lease(
         subscribers: Vec::with_capacity(MAX_SUBSCRIBERS),
         conns: (0..TCP_MAX_CONNECTIONS).map(|_| None).collect(),
         frame: Vec::new(),
-        counters: LinkCounters::default(),
+        counters: GroundLinkCounters::default(),
         lease,
         tm_log: None,
         reply_to: None,

@@ -9,13 +9,13 @@ use mmic_link::fop::{Fop, FopConfig, FopEffect, FopInput, FopState};
 use proptest::prelude::*;
 
 /// A lossy link: independent losses with probabilities `up`/`down` (xorshift64 PRNG).
-struct Link {
+struct LossyChannel {
     state: u64,
     up: f64,
     down: f64,
 }
 
-impl Link {
+impl LossyChannel {
     fn coin(&mut self, p: f64) -> bool {
         self.state ^= self.state << 13;
         self.state ^= self.state >> 7;
@@ -37,7 +37,7 @@ impl Link {
 struct World {
     fop: Fop<u32>,
     farm: Farm,
-    link: Link,
+    link: LossyChannel,
     now: u64,
     delivered: Vec<u32>,
     acked: Vec<u32>,
@@ -114,7 +114,7 @@ fn world(seed: u64, up: f64, down: f64) -> World {
     World {
         fop,
         farm: Farm::new(0, 20),
-        link: Link {
+        link: LossyChannel {
             state: seed | 1,
             up,
             down,

@@ -91,7 +91,7 @@ impl<S: TmStore> Obsw<S> {
 
     pub(crate) fn fault_inner(&mut self, now: u64, event: u16, args: &[i64], monitored: bool, sink: &mut impl TmSink) {
         self.event(now, event, args, sink);
-        self.plan_fault(now, sink);
+        self.plan.fault(now, &mut self.dl, sink);
         let bit = mib::fdir::fault_by_event(event).map_or(0, |f| 1u32 << f.bit);
         if !monitored && self.faults.oneshot & bit != 0 {
             // Already active and being dealt with (e.g. every command left unacknowledged

@@ -131,7 +131,7 @@ impl<S: TmStore> Obsw<S> {
             }
             Request::Start(a) => a,
         };
-        if let Some(f) = self.absent_module_for(&action) {
+        if let Some(f) = self.modules.absent_for(&action) {
             return Err(f.into());
         }
         if self.running.is_some() || self.transition.is_some() {

@@ -77,10 +77,10 @@ impl LinkKeys {
                 .is_some_and(|i| mask & (1 << i) != 0)
         };
         if !has(&TM_SPIS, self.tm, sel.tm_spi) {
-            return Err(Failure::no_key_for_spi(sel.tm_spi));
+            return Err(no_key_for_spi(sel.tm_spi));
         }
         if let Some(s) = sel.tc_spi_list().iter().find(|s| !has(&TC_SPIS, self.tc, **s)) {
-            return Err(Failure::no_key_for_spi(*s));
+            return Err(no_key_for_spi(*s));
         }
         let e = mib_wire::ev::LinkSpiSelected {
             tm_spi: sel.tm_spi,
@@ -91,10 +91,20 @@ impl LinkKeys {
     }
 }
 
+/// The refusal of a selection naming an SPI the robot holds no key for.
+fn no_key_for_spi(spi: u16) -> Failure {
+    Failure(mib_wire::Failure::NoKeyForSpi { spi })
+}
+
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::obsw::tests::{failure, obsw, of, send};
+
+    /// One failure of each code the service makes.
+    pub(crate) fn every_failure() -> Vec<Failure> {
+        std::vec![no_key_for_spi(18)]
+    }
 
     // verifies: LINK-KEYCHG-02
     #[test]

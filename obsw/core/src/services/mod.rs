@@ -148,19 +148,35 @@ impl<S: TmStore> Obsw<S> {
             Request::EventAction(r) => self.faults.request(now, r, &mut self.dl, sink),
             Request::Parameter(r) => parameter::handle(now, r, &mut self.ctrl, &mut self.dl, sink)?,
             Request::Mode(r) => return self.mode_request(now, r, sink),
-            Request::Modules(r) => self.modules_request(now, r, sink)?,
+            Request::Modules(r) => self.modules.request(now, r, &mut self.dl, sink)?,
             Request::Team(r) => self.team_request(now, r, sink)?,
             Request::Link(r) => self.link_select = Some(self.link_keys.select(now, r, &mut self.dl, sink)?),
-            Request::Plan(r) => self.plan_request(now, r, sink)?,
-            Request::Update(r) => self.update_request(now, r, sink)?,
+            Request::Plan(r) => {
+                if let Some(change) = self.plan.request(now, self.apid(), r, &mut self.dl, sink)? {
+                    // As a ground STOP: the action ends, its TC reports ABORTED_BY_COMMAND.
+                    let _ = self.function_request(now, function::Request::Stop, sink);
+                    plan::OnboardPlan::report(now, change, &mut self.dl, sink);
+                }
+            }
+            Request::Update(r) => self.update.handle(now, r, &mut self.dl, sink)?,
         }
         Ok(Exec::Done)
     }
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+
+    /// The failures the services make themselves (their own codes, beside the core's
+    /// constructors in `crate::failure`): one line per such service, for the test that
+    /// every MIB failure code is made somewhere with the data the MIB lists.
+    pub(crate) fn own_failures() -> Vec<Failure> {
+        let mut all = plan::tests::every_failure();
+        all.extend(update::tests::every_failure());
+        all.extend(link::tests::every_failure());
+        all
+    }
     use crate::accept::tests::tc_bytes;
     use crate::accept::Ack;
     use mib::FailureCode;

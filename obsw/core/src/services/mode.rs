@@ -118,7 +118,7 @@ impl<S: TmStore> Obsw<S> {
 
     fn mode_command(&mut self, now: u64, target: u32, sink: &mut impl TmSink) -> Result<Exec, Refused> {
         if target == robot_mode::OPERATIONAL {
-            if let Some(f) = self.modules_block_operational() {
+            if let Some(f) = self.modules.block_operational() {
                 return Err(f.into());
             }
             if let Some(ev) = self.faults.first_active_event() {
@@ -197,13 +197,17 @@ impl<S: TmStore> Obsw<S> {
         // An absent module (boot discovery) is never powered.
         use mib::modules::slot;
         let mm = ModuleModes {
-            arm_a: self.present_or_off(slot::ARM_A, m.commanded(node::ARM_A)),
-            grip_a: self.present_or_off(slot::GRIPPER_A, m.commanded(node::GRIPPER_A)),
-            bolter_a: self.present_or_off(slot::BOLTER_A, m.commanded(node::BOLTER_A)),
-            arm_b: self.present_or_off(slot::ARM_B, m.commanded(node::ARM_B)),
-            grip_b: self.present_or_off(slot::GRIPPER_B, m.commanded(node::GRIPPER_B)),
-            bolter_b: self.present_or_off(slot::BOLTER_B, m.commanded(node::BOLTER_B)),
-            hip: self.present_or_off(slot::HIP, m.commanded(node::HIP)),
+            arm_a: self.modules.present_or_off(slot::ARM_A, m.commanded(node::ARM_A)),
+            grip_a: self
+                .modules
+                .present_or_off(slot::GRIPPER_A, m.commanded(node::GRIPPER_A)),
+            bolter_a: self.modules.present_or_off(slot::BOLTER_A, m.commanded(node::BOLTER_A)),
+            arm_b: self.modules.present_or_off(slot::ARM_B, m.commanded(node::ARM_B)),
+            grip_b: self
+                .modules
+                .present_or_off(slot::GRIPPER_B, m.commanded(node::GRIPPER_B)),
+            bolter_b: self.modules.present_or_off(slot::BOLTER_B, m.commanded(node::BOLTER_B)),
+            hip: self.modules.present_or_off(slot::HIP, m.commanded(node::HIP)),
         };
         self.ctrl.set_module_modes(mm);
     }

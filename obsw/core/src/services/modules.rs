@@ -30,6 +30,7 @@ use mmic_domain::discovery::{
 };
 
 use crate::accept::Tc;
+use crate::downlink::Downlink;
 use crate::failure::Failure;
 use crate::obsw::Obsw;
 use crate::request::unknown;
@@ -284,6 +285,107 @@ impl Modules {
         self.discovery.as_ref().is_some_and(|d| !d.present.contains(slot))
     }
 
+    /// MODULE_ABSENT for an action that needs a module this robot does not have.
+    pub(crate) fn absent_for(&self, a: &Action) -> Option<Failure> {
+        let d = self.discovery.as_ref()?;
+        missing_for(a.function_id(), side_of(a), d.present).map(Failure::module_absent)
+    }
+
+    /// Module power for the mode tree's modules: an absent module is never powered.
+    pub(crate) fn present_or_off(&self, slot: u8, mode: u32) -> u32 {
+        if self.absent(slot) {
+            mib::modes::module_mode::OFF
+        } else {
+            mode
+        }
+    }
+
+    /// A PUS 210 request.
+    pub(crate) fn request<S: TmStore>(
+        &mut self,
+        now: u64,
+        r: Request,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) -> Result<(), Failure> {
+        match r {
+            Request::Report => {
+                self.report(now, dl, sink);
+                Ok(())
+            }
+            Request::Accept(hash) => {
+                let Some(d) = self.discovery.as_ref() else {
+                    return Err(Failure::config_hash_stale(hash, 0));
+                };
+                if let Err(why) = d.outcome {
+                    return Err(Failure::config_invalid(why.code(), why.slot().unwrap_or(NO_SLOT)));
+                }
+                accept(d, hash).map_err(|current| Failure::config_hash_stale(hash, current))?;
+                let a = AcceptedConfig::of(&d.set);
+                self.accepted = Some(a);
+                self.update = Some(a);
+                self.replacement = Some(Replacement::Same);
+                Ok(())
+            }
+        }
+    }
+
+    /// Sends TM[210,3] MODULE_REPORT for the boot discovery (an empty set before it).
+    pub(crate) fn report<S: TmStore>(&self, now: u64, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
+        let r = self.replacement.unwrap_or(Replacement::NoneAccepted);
+        let body = match self.discovery.as_ref() {
+            Some(d) => discovery::report(d, r),
+            None => mib::modules::report::ModuleReport {
+                hash: mib::modules::config::config_hash(&[None; NUM_SLOTS]),
+                config: 0,
+                reason: 0,
+                reason_slot: NO_SLOT,
+                replacement: 0,
+                set: [None; NUM_SLOTS],
+            },
+        };
+        let mut buf = [0u8; MAX_REPORT_LEN];
+        // The buffer holds the largest report; the MIB's description of TM[210,3] parses
+        // what `ModuleReport::emit` writes (unit test below).
+        let Ok(n) = body.emit(&mut buf) else { return };
+        let Ok(w) = tm::ModuleReport::parse(&buf[..n]) else {
+            return;
+        };
+        dl.emit_tm(now, &w, sink);
+    }
+
+    /// Takes in a discovery: compares it with the accepted configuration and raises
+    /// CONFIG_INVALID or MODULE_REPLACED.
+    fn discovered<S: TmStore>(&mut self, now: u64, d: Discovery, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
+        let r = compare(
+            &d,
+            self.accepted.map(|x| x.hash),
+            self.accepted.as_ref().map(|x| &x.ids),
+        );
+        match (d.outcome, r) {
+            (Err(why), _) => {
+                let e = mib_wire::ev::ConfigInvalid {
+                    reason: why.code(),
+                    slot: why.slot().unwrap_or(NO_SLOT),
+                    hash: d.hash,
+                };
+                dl.raise(now, e, sink);
+            }
+            (Ok(_), Replacement::Changed { slot }) => {
+                let old = self.accepted.map_or(0, |x| x.hash);
+                let e = mib_wire::ev::ModuleReplaced {
+                    slot: slot.unwrap_or(NO_SLOT),
+                    accepted_hash: old,
+                    hash: d.hash,
+                };
+                dl.raise(now, e, sink);
+            }
+            (Ok(_), Replacement::Same | Replacement::NoneAccepted) => {}
+        }
+        self.discovery = Some(d);
+        self.replacement = Some(r);
+    }
+
     /// The parameters the MIB names module discovery the source of.
     pub fn param(&self, id: u16) -> Supplied {
         let d = self.discovery.as_ref();
@@ -388,40 +490,15 @@ impl<S: TmStore> Obsw<S> {
     ) {
         self.last_now = self.last_now.max(now);
         let d = discover(a, b);
-        let r = compare(
-            &d,
-            self.modules.accepted.map(|x| x.hash),
-            self.modules.accepted.as_ref().map(|x| &x.ids),
-        );
-        match (d.outcome, r) {
-            (Err(why), _) => {
-                let e = mib_wire::ev::ConfigInvalid {
-                    reason: why.code(),
-                    slot: why.slot().unwrap_or(NO_SLOT),
-                    hash: d.hash,
-                };
-                self.raise(now, e, sink);
-            }
-            (Ok(_), Replacement::Changed { slot }) => {
-                let old = self.modules.accepted.map_or(0, |x| x.hash);
-                let e = mib_wire::ev::ModuleReplaced {
-                    slot: slot.unwrap_or(NO_SLOT),
-                    accepted_hash: old,
-                    hash: d.hash,
-                };
-                self.raise(now, e, sink);
-            }
-            (Ok(_), Replacement::Same | Replacement::NoneAccepted) => {}
-        }
-        self.apply_calibration(RobotCal::from_set(&d.set));
-        self.modules.discovery = Some(d);
-        self.modules.replacement = Some(r);
+        let cal = RobotCal::from_set(&d.set);
+        self.modules.discovered(now, d, &mut self.dl, sink);
+        self.apply_calibration(cal);
         for (n, s) in MODULE_NODES {
-            let absent = self.module_absent(s);
+            let absent = self.modules.absent(s);
             self.modes.set_absent(n, absent);
         }
         self.apply_module_modes();
-        self.report_modules(now, sink);
+        self.modules.report(now, &mut self.dl, sink);
     }
 
     /// Runs with `cal` from now on: the controller's set points and bolter thresholds
@@ -445,81 +522,6 @@ impl<S: TmStore> Obsw<S> {
     pub fn config_state_lost(&mut self, now: u64, why: StateLost, sink: &mut impl TmSink) {
         self.last_now = self.last_now.max(now);
         self.raise(now, mib_wire::ev::ConfigStateLost { reason: why.code() }, sink);
-    }
-
-    /// Why OPERATIONAL is refused by the module set (`None`: allowed, or no discovery
-    /// ran on this platform). While discovery waits for board B's half the module set is
-    /// not known — nor board B's servo widths, which come with its calibration — so
-    /// OPERATIONAL is refused with CONFIG_NOT_ACCEPTED and hash 0 (REV-ANOM-17).
-    pub(crate) fn modules_block_operational(&self) -> Option<Failure> {
-        self.modules.block_operational()
-    }
-
-    /// MODULE_ABSENT for an action that needs a module this robot does not have.
-    pub(crate) fn absent_module_for(&self, a: &Action) -> Option<Failure> {
-        let d = self.modules.discovery.as_ref()?;
-        missing_for(a.function_id(), side_of(a), d.present).map(Failure::module_absent)
-    }
-
-    /// True when discovery found the module of `slot` absent.
-    pub(crate) fn module_absent(&self, slot: u8) -> bool {
-        self.modules.absent(slot)
-    }
-
-    pub(crate) fn modules_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) -> Result<(), Failure> {
-        match r {
-            Request::Report => {
-                self.report_modules(now, sink);
-                Ok(())
-            }
-            Request::Accept(hash) => {
-                let Some(d) = self.modules.discovery.as_ref() else {
-                    return Err(Failure::config_hash_stale(hash, 0));
-                };
-                if let Err(why) = d.outcome {
-                    return Err(Failure::config_invalid(why.code(), why.slot().unwrap_or(NO_SLOT)));
-                }
-                accept(d, hash).map_err(|current| Failure::config_hash_stale(hash, current))?;
-                let a = AcceptedConfig::of(&d.set);
-                self.modules.accepted = Some(a);
-                self.modules.update = Some(a);
-                self.modules.replacement = Some(Replacement::Same);
-                Ok(())
-            }
-        }
-    }
-
-    /// Sends TM[210,3] MODULE_REPORT for the boot discovery (an empty set before it).
-    pub(crate) fn report_modules(&mut self, now: u64, sink: &mut impl TmSink) {
-        let r = self.modules.replacement.unwrap_or(Replacement::NoneAccepted);
-        let body = match self.modules.discovery.as_ref() {
-            Some(d) => discovery::report(d, r),
-            None => mib::modules::report::ModuleReport {
-                hash: mib::modules::config::config_hash(&[None; NUM_SLOTS]),
-                config: 0,
-                reason: 0,
-                reason_slot: NO_SLOT,
-                replacement: 0,
-                set: [None; NUM_SLOTS],
-            },
-        };
-        let mut buf = [0u8; MAX_REPORT_LEN];
-        // The buffer holds the largest report; the MIB's description of TM[210,3] parses
-        // what `ModuleReport::emit` writes (unit test below).
-        let Ok(n) = body.emit(&mut buf) else { return };
-        let Ok(w) = tm::ModuleReport::parse(&buf[..n]) else {
-            return;
-        };
-        self.emit_tm(now, w, sink);
-    }
-
-    /// Module power for the mode tree's modules: an absent module is never powered.
-    pub(crate) fn present_or_off(&self, slot: u8, mode: u32) -> u32 {
-        if self.module_absent(slot) {
-            mib::modes::module_mode::OFF
-        } else {
-            mode
-        }
     }
 }
 
@@ -630,7 +632,7 @@ mod tests {
         );
         assert_eq!(o.param::<{ pid::CONFIG_ID }>(), 1);
         assert_eq!(o.param::<{ pid::CONFIG_STATUS }>(), status::ACCEPTED as i64);
-        assert!(o.modules_block_operational().is_none());
+        assert!(o.modules.block_operational().is_none());
         // On request, the same report again.
         let again = of(&send(&mut o, 20, 1, 210, 1, &[]), 210, 3);
         assert_eq!(kind(&again[0]).2, kind(&rep[0]).2);
@@ -708,7 +710,7 @@ mod tests {
         let ok = send(&mut o, 30, 3, 210, 2, &hash.to_be_bytes());
         assert_eq!(of(&ok, 1, 7).len(), 1);
         assert_eq!(o.take_accepted_update().map(|a| a.hash), Some(hash));
-        assert!(o.modules_block_operational().is_none());
+        assert!(o.modules.block_operational().is_none());
         assert_eq!(o.param::<{ pid::CONFIG_STATUS }>(), status::ACCEPTED as i64);
     }
 
@@ -823,18 +825,21 @@ mod tests {
             side: mib::robot::Side::A,
             pairs: 15,
         };
-        assert_eq!(o.absent_module_for(&bolt), Some(Failure::module_absent(slot::BOLTER_A)));
+        assert_eq!(
+            o.modules.absent_for(&bolt),
+            Some(Failure::module_absent(slot::BOLTER_A))
+        );
         let walk = Action::Reconfigure { from: 0, to: 1 };
-        assert_eq!(o.absent_module_for(&walk), None);
+        assert_eq!(o.modules.absent_for(&walk), None);
         // Bolter currents have no valid value: PUS 12 skips them.
         assert_eq!(o.param_opt(pid::I_BO_A), None);
         assert_eq!(o.param_opt(pid::I_BO_B), None);
         assert_eq!(
-            o.present_or_off(slot::BOLTER_A, mib::modes::module_mode::ON),
+            o.modules.present_or_off(slot::BOLTER_A, mib::modes::module_mode::ON),
             mib::modes::module_mode::OFF
         );
         assert_eq!(
-            o.present_or_off(slot::ARM_A, mib::modes::module_mode::ON),
+            o.modules.present_or_off(slot::ARM_A, mib::modes::module_mode::ON),
             mib::modes::module_mode::ON
         );
         // The mode tree keeps the absent bolters OFF in every robot mode.
@@ -919,7 +924,7 @@ mod tests {
             done_at <= 100,
             "B's 6 entries arrive one per period: done at {done_at} ms"
         );
-        assert!(o.modules_block_operational().is_none(), "the accepted set, found");
+        assert!(o.modules.block_operational().is_none(), "the accepted set, found");
         let r = ModuleReport::parse(kind(&of(&sink, 210, 3)[0]).2).unwrap();
         assert_eq!((r.config, r.replacement), (1, 1));
         assert_eq!(of(&sink, 210, 3).len(), 1, "discovery runs once");

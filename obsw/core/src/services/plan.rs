@@ -5,13 +5,14 @@
 //!   MIB failure code of the TC. PLAN_COMMIT checks each step's TC as acceptance would
 //!   (header, CRC, APID, service, arguments), refuses PUS 18 and PUS 11 insert TCs inside a
 //!   plan, reconfigurations the map cannot do and hazardous TCs without the operator's flag.
-//! - Each control period [`Obsw::plan_tick`] asks the plan what to do; a step's TC goes
-//!   through the ground TC path itself (mode, initial state, modules, busy checks; PUS 1
-//!   reports under the TC's own request ID), without the duplicate window and without
-//!   counting as ground contact. Its outcome comes back from the one place outcomes are
-//!   recorded (`Obsw::set_outcome`).
+//! - The component ([`OnboardPlan`]) owns the plan and the changes waiting to be
+//!   reported; it reports through the downlink it is handed. Each control period the obsw
+//!   (`Obsw::plan_tick`) asks it what to do; a step's TC goes through the ground TC path
+//!   itself (mode, initial state, modules, busy checks; PUS 1 reports under the TC's own
+//!   request ID), without the duplicate window and without counting as ground contact. Its
+//!   outcome comes back from the one place outcomes are recorded (`Obsw::set_outcome`).
 //! - A fault raised by FDIR suspends a running plan.
-//! - Dependencies: the platform calls [`Obsw::plan_team`] every period to send the
+//! - Dependencies: the platform calls `Obsw::plan_team` every period to send the
 //!   progress announcement over its authenticated team link, and the team service hands
 //!   it every TM[211,7] it receives.
 
@@ -23,11 +24,12 @@ use mmic_plan::{Change, Plan, Poll, Refusal, StepKind, StepView};
 use mmic_team::Dest;
 
 use crate::accept::{accept, Tc};
+use crate::downlink::Downlink;
 use crate::failure::Failure;
-use crate::obsw::{Obsw, Outcome};
+use crate::obsw::Outcome;
 use crate::request::unknown;
 use crate::services::team::TeamLink;
-use crate::tm::{TmSink, TmStore};
+use crate::tm::{TmSink, TmStore, TmWriter};
 
 /// The plan component and the state changes waiting to be reported.
 pub struct OnboardPlan {
@@ -154,27 +156,33 @@ fn check_step(apid: u16, s: &StepView<'_>) -> Result<(), Refusal> {
     Ok(())
 }
 
-impl<S: TmStore> Obsw<S> {
-    pub(crate) fn plan_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) -> Result<(), Failure> {
-        let apid = self.apid();
-        let p = &mut self.plan.plan;
+impl OnboardPlan {
+    /// A PUS 18 request. `Ok(Some(change))`: an ABORT while a step's TC runs, whose action
+    /// the obsw stops (as a ground STOP: its TC reports ABORTED_BY_COMMAND) before the
+    /// change is reported ([`Self::report`]).
+    pub(crate) fn request<S: TmStore>(
+        &mut self,
+        now: u64,
+        apid: u16,
+        r: Request,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) -> Result<Option<Change>, Failure> {
+        let p = &mut self.plan;
         let change = match r {
             Request::Load { offset, data } => {
                 p.load(offset, data).map_err(failure)?;
-                return Ok(());
+                return Ok(None);
             }
             Request::Commit { len, crc } => {
                 let l = p.commit(len, crc, |s| check_step(apid, s)).map_err(failure)?;
-                self.raise(
-                    now,
-                    ev::PlanLoaded {
-                        plan_id: l.plan_id,
-                        steps: l.steps,
-                        crc: l.crc,
-                    },
-                    sink,
-                );
-                return Ok(());
+                let e = ev::PlanLoaded {
+                    plan_id: l.plan_id,
+                    steps: l.steps,
+                    crc: l.crc,
+                };
+                dl.raise(now, e, sink);
+                return Ok(None);
             }
             Request::Start { plan_id } => p.start(plan_id).map_err(failure)?,
             Request::Suspend => p.suspend().map_err(failure)?,
@@ -183,22 +191,21 @@ impl<S: TmStore> Obsw<S> {
             Request::Abort => {
                 let (c, tc_running) = p.abort().map_err(failure)?;
                 if tc_running {
-                    // As a ground STOP: the action ends, its TC reports ABORTED_BY_COMMAND.
-                    let _ = self.function_request(now, crate::services::function::Request::Stop, sink);
+                    return Ok(Some(c));
                 }
                 c
             }
             Request::Status => {
-                self.plan_status(now, sink);
-                return Ok(());
+                self.status(now, dl, sink);
+                return Ok(None);
             }
         };
-        self.plan_changed(now, change, sink);
-        Ok(())
+        Self::report(now, change, dl, sink);
+        Ok(None)
     }
 
-    fn plan_status(&mut self, now: u64, sink: &mut impl TmSink) {
-        let b = self.plan.plan.status();
+    fn status<S: TmStore>(&self, now: u64, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
+        let b = self.plan.status();
         let r = tm::PlanStatus {
             plan_id: u32::from_be_bytes([b[0], b[1], b[2], b[3]]),
             state: b[4],
@@ -208,52 +215,65 @@ impl<S: TmStore> Obsw<S> {
             wait_robot: b[8],
             wait_step: b[9],
         };
-        self.emit_tm(now, r, sink);
+        dl.emit_tm(now, &r, sink);
     }
 
-    fn plan_changed(&mut self, now: u64, c: Change, sink: &mut impl TmSink) {
+    /// Reports a change of the plan's state (PLAN_STATE_CHANGED).
+    pub(crate) fn report<S: TmStore>(now: u64, c: Change, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
         let e = ev::PlanStateChanged {
             plan_id: c.plan_id,
             state: c.state.code(),
             step: c.step,
             cause: c.cause,
         };
-        self.raise(now, e, sink);
+        dl.raise(now, e, sink);
     }
 
-    /// The outcome of request `req` was decided (from `Obsw::set_outcome`).
-    pub(crate) fn plan_outcome(&mut self, req: RequestId, outcome: &Outcome) {
+    /// The outcome of request `req` was decided (from `Obsw::set_outcome`). `Err` when the
+    /// change it made could not be kept for the next tick (counted by the obsw).
+    pub(crate) fn outcome(&mut self, req: RequestId, outcome: &Outcome) -> Result<(), Change> {
         let ok = match outcome {
-            Outcome::Pending => return,
+            Outcome::Pending => return Ok(()),
             Outcome::Done => true,
             Outcome::Failed(..) => false,
         };
-        if let Some(c) = self.plan.plan.outcome(req.raw(), ok) {
-            if self.plan.changes.push_back(c).is_err() {
-                // Four changes in one period cannot happen (one step per period); should
-                // it, the count says so.
-                self.counters.events_dropped = self.counters.events_dropped.saturating_add(1);
-            }
+        match self.plan.outcome(req.raw(), ok) {
+            // Four changes in one period cannot happen (one step per period); should it,
+            // the count says so.
+            Some(c) => self.changes.push_back(c),
+            None => Ok(()),
         }
     }
 
     /// FDIR raised a fault: a running plan is suspended.
-    pub(crate) fn plan_fault(&mut self, now: u64, sink: &mut impl TmSink) {
-        if let Some(c) = self.plan.plan.fault() {
-            self.plan_changed(now, c, sink);
+    pub(crate) fn fault<S: TmStore>(&mut self, now: u64, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
+        if let Some(c) = self.plan.fault() {
+            Self::report(now, c, dl, sink);
+        }
+    }
+
+    /// Reports the changes learnt since the last report.
+    pub(crate) fn report_pending<S: TmStore>(&mut self, now: u64, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
+        while let Some(c) = self.changes.pop_front() {
+            Self::report(now, c, dl, sink);
         }
     }
 
     /// One control period of the plan: pending changes reported, then at most one thing
-    /// the plan asks for (a step's TC, a wait to report, a change).
-    pub(crate) fn plan_tick(&mut self, now: u64, sink: &mut impl TmSink) {
-        while let Some(c) = self.plan.changes.pop_front() {
-            self.plan_changed(now, c, sink);
-        }
-        let plan_id = self.plan.plan.plan_id();
-        let mut buf = [0u8; mib::plan::MAX_STEP_TC_LEN];
-        let run = match self.plan.plan.poll(now) {
-            Poll::Idle => None,
+    /// the plan asks for (a wait to report, a change, or a step's TC, copied to `buf`
+    /// with PLAN_STEP_STARTED raised: its length is returned, the obsw runs it through
+    /// the TC path).
+    pub(crate) fn tick<S: TmStore>(
+        &mut self,
+        now: u64,
+        buf: &mut [u8; mib::plan::MAX_STEP_TC_LEN],
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) -> Option<usize> {
+        self.report_pending(now, dl, sink);
+        let plan_id = self.plan.plan_id();
+        let (step, n) = match self.plan.poll(now) {
+            Poll::Idle => return None,
             Poll::Waiting { step, on } => {
                 let e = ev::PlanWaiting {
                     plan_id,
@@ -261,95 +281,114 @@ impl<S: TmStore> Obsw<S> {
                     robot: on.robot,
                     robot_step: on.step,
                 };
-                self.raise(now, e, sink);
-                None
+                dl.raise(now, e, sink);
+                return None;
             }
             Poll::Changed(c) => {
-                self.plan_changed(now, c, sink);
-                None
+                Self::report(now, c, dl, sink);
+                return None;
             }
             Poll::RunTc { step, tc } => {
                 let n = tc.len().min(buf.len());
                 buf[..n].copy_from_slice(&tc[..n]);
-                Some((step, n))
+                (step, n)
             }
         };
-        if let Some((step, n)) = run {
-            let raw = &buf[..n];
-            let seq_count = RequestId::of_tc(raw).map_or(0, |r| r.seq());
-            self.raise(
-                now,
-                ev::PlanStepStarted {
-                    plan_id,
-                    step,
-                    seq_count,
-                },
-                sink,
-            );
-            if !self.handle_plan_tc(now, raw, sink) {
-                // Refused at acceptance (reported there): the step failed.
-                if let Ok(req) = RequestId::of_tc(raw) {
-                    if let Some(c) = self.plan.plan.outcome(req.raw(), false) {
-                        self.plan_changed(now, c, sink);
-                    }
-                }
-            }
-            while let Some(c) = self.plan.changes.pop_front() {
-                self.plan_changed(now, c, sink);
+        let seq_count = RequestId::of_tc(&buf[..n]).map_or(0, |r| r.seq());
+        let e = ev::PlanStepStarted {
+            plan_id,
+            step,
+            seq_count,
+        };
+        dl.raise(now, e, sink);
+        Some(n)
+    }
+
+    /// A step's TC that acceptance refused (reported there): the step failed.
+    pub(crate) fn step_refused<S: TmStore>(
+        &mut self,
+        now: u64,
+        raw: &[u8],
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) {
+        if let Ok(req) = RequestId::of_tc(raw) {
+            if let Some(c) = self.plan.outcome(req.raw(), false) {
+                Self::report(now, c, dl, sink);
             }
         }
     }
 
     /// Restores a plan the platform stored (`Plan::take_record`) at start; reports the
     /// state it comes back in. False when the record is no valid image of this robot.
-    pub fn plan_restore(
+    pub(crate) fn restore<S: TmStore>(
         &mut self,
         now: u64,
         image: &[u8],
         p: mmic_plan::exec::Progress,
+        dl: &mut Downlink<S>,
         sink: &mut impl TmSink,
     ) -> bool {
-        match self.plan.plan.restore(image, p) {
+        match self.plan.restore(image, p) {
             Some(c) => {
-                self.plan_changed(now, c, sink);
+                Self::report(now, c, dl, sink);
                 true
             }
             None => false,
         }
     }
 
-    /// Sends the plan's progress announcement to every robot of the team link when due
-    /// (the platform calls it every control period it has a team link).
-    pub fn plan_team(&mut self, now: u64, link: &mut impl TeamLink) {
-        let Some(data) = self.plan.plan.announcement(now) else {
+    /// Sends the plan's progress announcement to every robot of the team link when due,
+    /// written by the team's TM writer.
+    pub(crate) fn announce(&mut self, now: u64, tmw: &mut TmWriter, link: &mut impl TeamLink) {
+        let Some(data) = self.plan.announcement(now) else {
             return;
         };
         let mut out = [0u8; mib::config::MAX_PACKET_LEN];
-        if let Some(n) = self
-            .team
-            .tmw
-            .build(now, TEAM_SERVICE, TEAM_SUBSERVICE_PROGRESS, &data, &mut out)
-        {
+        if let Some(n) = tmw.build(now, TEAM_SERVICE, TEAM_SUBSERVICE_PROGRESS, &data, &mut out) {
             let sent = link.send(Dest::All, &out[..n]);
-            self.plan.plan.sent(sent);
+            self.plan.sent(sent);
         }
-    }
-
-    /// A progress announcement from the team link (source data of a TM[211,7]).
-    /// `from` is the sender the platform authenticated; the plan counts what it ignores.
-    pub(crate) fn plan_progress(&mut self, from: Option<u8>, data: &[u8]) {
-        self.plan.plan.peer_progress(from, data);
     }
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use crate::accept::tests::tc_bytes;
     use crate::obsw::tests::{failure, kind, obsw, of, send, TestObsw, APID};
     use mib::plan::{flag, state, MAX_IMAGE_LEN};
     use mib::FailureCode as F;
     use mmic_plan::image::{emit, StepRepr};
     use mmic_plan::{Dep, StepKind};
+
+    /// One failure of each refusal of the plan, through the one mapping the service uses.
+    pub(crate) fn every_failure() -> Vec<crate::failure::Failure> {
+        use mmic_plan::{Refusal as R, State};
+        [
+            R::Busy(State::Running),
+            R::TooLarge { end: 1030 },
+            R::Checksum {
+                expected: 1,
+                computed: 2,
+                staged: 3,
+            },
+            R::Invalid { reason: 1, offset: 9 },
+            R::WrongRobot(2),
+            R::StepInvalid { step: 1, code: 3 },
+            R::Unreachable {
+                step: 1,
+                from: 0,
+                to: 2,
+            },
+            R::HazardUnconfirmed { step: 1 },
+            R::NotLoaded,
+            R::BadState(State::Aborted),
+            R::StepMismatch { next: 1, given: 2 },
+        ]
+        .into_iter()
+        .map(super::failure)
+        .collect()
+    }
 
     /// An image of TCs for robot `robot`; `confirmed` sets every step's flag.
     fn image(robot: u8, tcs: &[Vec<u8>], confirmed: bool, deps: &[(usize, Dep)]) -> Vec<u8> {

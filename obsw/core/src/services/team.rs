@@ -40,6 +40,7 @@ use mmic_team::{
 };
 
 use crate::accept::Tc;
+use crate::downlink::Downlink;
 use crate::failure::Failure;
 use crate::obsw::{Exec, Obsw};
 use crate::request::unknown;
@@ -323,7 +324,7 @@ pub struct Team {
     durable: Persisted,
     /// The ground's authorisation (kept here so that a new roster keeps it).
     auth: Option<Authorisation>,
-    ground_tc: bool,
+    pub(crate) ground_tc: bool,
     both_hold: Option<bool>,
     next_status: u64,
     pub(crate) tmw: TmWriter,
@@ -485,13 +486,20 @@ fn directive_args(d: Directive) -> (u8, u16) {
     }
 }
 
-impl<S: TmStore> Obsw<S> {
+impl Team {
     /// Restores the team record at start (term, vote, roster, authorisation; an expired
     /// authorisation or a roster the node refuses is dropped) and raises TEAM_STATE_LOADED.
-    pub fn team_restore(&mut self, now: u64, status: LoadStatus, r: &TeamRecord, sink: &mut impl TmSink) {
-        self.team.durable = r.persisted;
-        let epoch = self.team.tmw.time.epoch_unix_ms;
-        self.team.auth = r.auth.and_then(|a| {
+    pub(crate) fn restore<S: TmStore>(
+        &mut self,
+        now: u64,
+        status: LoadStatus,
+        r: &TeamRecord,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) {
+        self.durable = r.persisted;
+        let epoch = self.tmw.time.epoch_unix_ms;
+        self.auth = r.auth.and_then(|a| {
             let expires_at = a.expires_unix_ms.checked_sub(epoch)?;
             (expires_at > now).then_some(Authorisation {
                 plan: a.plan,
@@ -501,83 +509,108 @@ impl<S: TmStore> Obsw<S> {
             })
         });
         // The plan only with its (unexpired) authorisation, and only if it still hashes to it.
-        self.team.plan = r.plan.clone().filter(|p| {
-            self.team.auth.is_some_and(|a| {
+        self.plan = r.plan.clone().filter(|p| {
+            self.auth.is_some_and(|a| {
                 a.plan.id == p.id
                     && p.steps.len() == usize::from(a.max_steps)
                     && mib::team::plan_hash(p.id, &p.steps) == a.plan.hash
             })
         });
-        self.team.progress_dirty = self.team.plan.is_some();
+        self.progress_dirty = self.plan.is_some();
         if !r.roster.is_empty() {
             // A stored roster was accepted once; should the node refuse it now, the
             // robot starts without one (the event says roster 0).
-            let _ = self.team_set_roster(now, &r.roster);
+            let _ = self.set_roster(now, &r.roster);
         }
-        let roster = if self.team.node.is_some() {
-            self.team.roster.len()
-        } else {
-            0
-        };
-        let plan = self.team.auth.map_or(0, |a| a.plan.id);
-        self.team.dirty = false;
+        let roster = if self.node.is_some() { self.roster.len() } else { 0 };
+        let plan = self.auth.map_or(0, |a| a.plan.id);
+        self.dirty = false;
         let e = ev::TeamStateLoaded {
             status: status.code(),
-            term: self.team.durable.term,
+            term: self.durable.term,
             roster: u8::try_from(roster).unwrap_or(u8::MAX),
             plan,
         };
-        self.raise(now, e, sink);
+        dl.raise(now, e, sink);
     }
 
     /// An inter-robot packet refused before the node saw it (by the platform's
     /// authentication, or here): counted, and TEAM_PACKET_REJECTED at most once per
     /// reason and control period (the event service throttles further).
-    pub fn team_rejected(&mut self, now: u64, reason: TeamReject, sender: u8, sink: &mut impl TmSink) {
+    pub(crate) fn rejected<S: TmStore>(
+        &mut self,
+        now: u64,
+        reason: TeamReject,
+        sender: u8,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) {
         let i = usize::from(reason.code());
-        let c = &mut self.team.counters.rejected[i];
+        let c = &mut self.counters.rejected[i];
         *c = c.wrapping_add(1);
         let total = *c;
         let period = u64::from(mib::config::CONTROL_PERIOD_MS);
-        if self.team.reject_reported[i].is_some_and(|t| now < t + period) {
+        if self.reject_reported[i].is_some_and(|t| now < t + period) {
             return;
         }
-        self.team.reject_reported[i] = Some(now);
+        self.reject_reported[i] = Some(now);
         let e = ev::TeamPacketRejected {
             reason: reason.code(),
             sender,
             total,
         };
-        self.raise(now, e, sink);
+        dl.raise(now, e, sink);
     }
 
     /// Sets the team roster (ground TC TEAM_ROSTER, or the platform's configuration).
     /// The node starts from the durable term and vote; boot and upload count as ground
     /// contact.
-    pub fn team_set_roster(&mut self, now: u64, roster: &[u8]) -> Result<(), mmic_team::node::RosterError> {
-        let node = Node::restore(self.team.me, roster, self.team.durable, now)?;
-        self.team.set_node(Some(node));
-        self.team.dirty = true;
-        self.team.progress_dirty = true;
-        self.team.roster.clear();
+    pub fn set_roster(&mut self, now: u64, roster: &[u8]) -> Result<(), mmic_team::node::RosterError> {
+        let node = Node::restore(self.me, roster, self.durable, now)?;
+        self.set_node(Some(node));
+        self.dirty = true;
+        self.progress_dirty = true;
+        self.roster.clear();
         for r in roster.iter().take(ROSTER_MAX) {
             // At most ROSTER_MAX (checked by the node above).
-            let _ = self.team.roster.push(*r);
+            let _ = self.roster.push(*r);
         }
-        if let (Some(a), Some(n)) = (self.team.auth, self.team.node.as_mut()) {
+        if let (Some(a), Some(n)) = (self.auth, self.node.as_mut()) {
             // Was accepted when uploaded; an expired one is simply not re-applied.
             let _ = n.authorise(now, a);
         }
-        self.team.next_status = now;
+        self.next_status = now;
         Ok(())
     }
 
     /// Earliest time the team logic has work (node timers, status report).
-    pub fn team_next_deadline(&self) -> u64 {
-        match &self.team.node {
-            Some(n) => n.next_deadline().min(self.team.next_status),
+    pub fn next_deadline(&self) -> u64 {
+        match &self.node {
+            Some(n) => n.next_deadline().min(self.next_status),
             None => u64::MAX,
         }
+    }
+}
+
+impl<S: TmStore> Obsw<S> {
+    /// Restores the team record at start (`Team::restore`) and raises TEAM_STATE_LOADED.
+    pub fn team_restore(&mut self, now: u64, status: LoadStatus, r: &TeamRecord, sink: &mut impl TmSink) {
+        self.team.restore(now, status, r, &mut self.dl, sink);
+    }
+
+    /// An inter-robot packet refused before the node saw it (`Team::rejected`).
+    pub fn team_rejected(&mut self, now: u64, reason: TeamReject, sender: u8, sink: &mut impl TmSink) {
+        self.team.rejected(now, reason, sender, &mut self.dl, sink);
+    }
+
+    /// Sets the team roster (`Team::set_roster`).
+    pub fn team_set_roster(&mut self, now: u64, roster: &[u8]) -> Result<(), mmic_team::node::RosterError> {
+        self.team.set_roster(now, roster)
+    }
+
+    /// Earliest time the team logic has work (`Team::next_deadline`).
+    pub fn team_next_deadline(&self) -> u64 {
+        self.team.next_deadline()
     }
 
     /// Feeds pending ground contact, the grippers and the time to the node, executes its
@@ -639,7 +672,8 @@ impl<S: TmStore> Obsw<S> {
             .filter(|tm| tm.primary.apid == TEAM_APID && tm.service == TEAM_SERVICE);
         // Plan progress announcements belong to the on-board plan, roster or not.
         if let Some(tm) = tm.filter(|tm| tm.subservice == mib::plan::TEAM_SUBSERVICE_PROGRESS) {
-            return self.plan_progress(from, tm.source);
+            self.plan.plan.peer_progress(from, tm.source);
+            return;
         }
         let msg = match tm {
             Some(tm) if tm.subservice == TEAM_SUBSERVICE_MESSAGE => Message::parse(tm.source).ok(),
@@ -655,20 +689,6 @@ impl<S: TmStore> Obsw<S> {
             }
             _ => self.team_rejected(now, TeamReject::Malformed, from.unwrap_or(0), sink),
         }
-    }
-
-    /// Records ground contact (every valid ground TC); fed to the node at the next poll.
-    pub(crate) fn team_ground_tc(&mut self) {
-        self.team.ground_tc = true;
-    }
-
-    /// Ground contact recorded and not yet fed to the node (kept across a TC the obsw
-    /// runs itself, which is no ground contact).
-    pub(crate) fn team_ground_tc_pending(&self) -> bool {
-        self.team.ground_tc
-    }
-    pub(crate) fn team_restore_ground_tc(&mut self, pending: bool) {
-        self.team.ground_tc = pending;
     }
 
     /// Runs a TC the obsw released itself (PUS 11 schedule): it is not ground contact.
@@ -1119,14 +1139,14 @@ mod tests {
 
     /// A link that records persists and sends in order; `fail_persist` makes persists fail.
     #[derive(Default)]
-    struct Link {
+    struct RecordingLink {
         log: Vec<&'static str>,
         sent: Vec<(Dest, Vec<u8>)>,
         records: Vec<TeamRecord>,
         fail_persist: bool,
     }
 
-    impl TeamLink for Link {
+    impl TeamLink for RecordingLink {
         fn persist(&mut self, r: &TeamRecord) -> bool {
             self.log.push("persist");
             self.records.push(r.clone());
@@ -1170,7 +1190,7 @@ mod tests {
     }
 
     /// Runs three robots on a lossless in-memory link from `from` to `to` ms (10 ms steps).
-    fn run(team: &mut [TestObsw], links: &mut [Link], sinks: &mut [Vec<Vec<u8>>], from: u64, to: u64) {
+    fn run(team: &mut [TestObsw], links: &mut [RecordingLink], sinks: &mut [Vec<Vec<u8>>], from: u64, to: u64) {
         let mut now = from;
         let mut rand = 12345u32;
         while now < to {
@@ -1196,7 +1216,7 @@ mod tests {
     #[test]
     fn three_robots_elect_a_leader_hold_and_obey_the_ground_again() {
         let mut team: Vec<TestObsw> = (1..=3).map(robot).collect();
-        let mut links: Vec<Link> = (0..3).map(|_| Link::default()).collect();
+        let mut links: Vec<RecordingLink> = (0..3).map(|_| RecordingLink::default()).collect();
         let mut sinks: Vec<Vec<Vec<u8>>> = vec![Vec::new(); 3];
         for o in team.iter_mut() {
             let r = roster_tc(o, 0, &[1, 2, 3]);
@@ -1269,7 +1289,7 @@ mod tests {
     #[test]
     fn the_team_hk_counts_packets_elections_directives_and_rejections() {
         let mut team: Vec<TestObsw> = (1..=3).map(robot).collect();
-        let mut links: Vec<Link> = (0..3).map(|_| Link::default()).collect();
+        let mut links: Vec<RecordingLink> = (0..3).map(|_| RecordingLink::default()).collect();
         let mut sinks: Vec<Vec<Vec<u8>>> = vec![Vec::new(); 3];
         for o in team.iter_mut() {
             roster_tc(o, 0, &[1, 2, 3]);
@@ -1302,7 +1322,7 @@ mod tests {
         // authenticated one, and the platform's authentication refusals.
         let o = &mut team[0];
         let mut s = Vec::new();
-        let mut l = Link::default();
+        let mut l = RecordingLink::default();
         o.team_packet(12_000, 1, Some(2), b"junk", &mut l, &mut s);
         let pkt = vote_request_packet(3);
         let len = pkt.len();
@@ -1352,7 +1372,7 @@ mod tests {
     fn a_team_packet_of_any_short_length_or_another_pus_version_is_counted_never_a_panic() {
         let mut o = robot(1);
         let o = &mut o;
-        let (mut s, mut l) = (Vec::new(), Link::default());
+        let (mut s, mut l) = (Vec::new(), RecordingLink::default());
         let pkt = vote_request_packet(2);
         let len = pkt.len();
         let mut refused = 0;
@@ -1389,7 +1409,7 @@ mod tests {
         let mut s = Vec::new();
         o.handle_tc(10, &tc_bytes(0x101, 3, 211, 3, &app), &mut s);
         assert_eq!(of(&s, 1, 7).len(), 1);
-        let mut link = Link::default();
+        let mut link = RecordingLink::default();
         o.team_poll(20, 1, &mut link, &mut s);
         let rec = link.records.last().expect("written at the next poll").clone();
         assert_eq!(rec.roster.as_slice(), [1, 2, 3]);
@@ -1536,7 +1556,7 @@ mod tests {
         assert_eq!(events(&s, eid::PLAN_UPLOADED).len(), 1);
         let rec = o.team.record();
         assert_eq!(rec.plan.as_ref().unwrap().steps.as_slice(), STEPS);
-        let mut link = Link::default();
+        let mut link = RecordingLink::default();
         let mut s = Vec::new();
         o.team_poll(60, 1, &mut link, &mut s);
         assert_eq!(link.records.last().unwrap().plan, rec.plan, "durable at the next poll");
@@ -1554,7 +1574,7 @@ mod tests {
         authorise_tc(&mut o, 10, 2, 7, hash, 1, 2);
         let plan = PlanRef { id: 7, hash };
         let mut s = Vec::new();
-        let mut link = Link::default();
+        let mut link = RecordingLink::default();
         let f = TeamFunction::Reconfigure;
         // Before the upload: no plan.
         o.team_act(
@@ -1625,7 +1645,7 @@ mod tests {
         sim: mmic_sim::Sim,
         now: u64,
         link_rx: Vec<u8>,
-        link: Link,
+        link: RecordingLink,
         log: Vec<Vec<u8>>,
         seq: u16,
     }
@@ -1637,7 +1657,7 @@ mod tests {
                 sim: mmic_sim::Sim::new(mmic_sim::SimConfig::default()),
                 now: 0,
                 link_rx: Vec::new(),
-                link: Link::default(),
+                link: RecordingLink::default(),
                 log: Vec::new(),
                 seq: 0,
             };
@@ -1841,7 +1861,7 @@ mod tests {
         let mut sink = Vec::new();
         o.handle_tc(0, &tc_bytes(0x101, 2, 11, 4, &app), &mut sink);
         assert_eq!(o.sched.len(), 1);
-        let mut link = Link::default();
+        let mut link = RecordingLink::default();
         let mut now = 0;
         while now <= 5_200 {
             o.release_schedule(now, &mut sink);
@@ -1861,9 +1881,9 @@ mod tests {
     fn a_failed_persist_sends_nothing_of_its_batch() {
         let mut o = robot(1);
         roster_tc(&mut o, 0, &[1, 2, 3]);
-        let mut link = Link {
+        let mut link = RecordingLink {
             fail_persist: true,
-            ..Link::default()
+            ..RecordingLink::default()
         };
         let mut sink = Vec::new();
         let mut now = 0;

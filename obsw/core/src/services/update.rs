@@ -23,8 +23,8 @@ use mmic_update::image::{self, Header, Refusal, UpdateKey};
 use mmic_update::otadata::{self, OtaState};
 
 use crate::accept::Tc;
+use crate::downlink::Downlink;
 use crate::failure::Failure;
-use crate::obsw::Obsw;
 use crate::request::unknown;
 use crate::tm::{TmSink, TmStore};
 use mib::params::{pid, NotSupplied, Supplied};
@@ -324,44 +324,35 @@ impl Update {
     }
 }
 
-impl<S: TmStore> Obsw<S> {
-    /// Reads the boot's otadata, runs the self-test of a new image and reports what it found
-    /// (the platform calls it once, after [`Update::attach`]).
-    pub fn update_boot(&mut self, now: u64, sink: &mut impl TmSink) {
-        let mut notes = heapless::Vec::<Note, 4>::new();
-        self.update.boot(&mut |n| {
-            let _ = notes.push(n);
-        });
-        for n in notes {
-            self.update_note(now, n, sink);
-        }
+impl Update {
+    /// [`Update::boot`] with what it found reported through the downlink (the obsw's
+    /// `update_boot`).
+    pub(crate) fn boot_reported<S: TmStore>(&mut self, now: u64, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
+        self.boot(&mut |n| report(now, n, dl, sink));
     }
 
-    pub(crate) fn update_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) -> Result<(), Failure> {
-        let mut notes = heapless::Vec::<Note, 2>::new();
-        let result = self.update.request(r, &mut |n| {
-            let _ = notes.push(n);
-        });
-        for n in notes {
-            self.update_note(now, n, sink);
-        }
-        result
+    /// [`Update::request`] with its events raised through the downlink.
+    pub(crate) fn handle<S: TmStore>(
+        &mut self,
+        now: u64,
+        r: Request,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) -> Result<(), Failure> {
+        self.request(r, &mut |n| report(now, n, dl, sink))
     }
+}
 
-    fn update_note(&mut self, now: u64, n: Note, sink: &mut impl TmSink) {
-        match n {
-            Note::Installed { version, length, slot } => {
-                self.raise(now, ev::UpdateInstalled { version, length, slot }, sink)
-            }
-            Note::Refused { reason, refusals } => self.raise(now, ev::UpdateRefused { reason, refusals }, sink),
-            Note::Activated { version, slot } => self.raise(now, ev::UpdateActivated { version, slot }, sink),
-            Note::Confirmed { version, slot } => self.raise(now, ev::UpdateConfirmed { version, slot }, sink),
-            Note::SelfTestFailed { version, check } => {
-                self.raise(now, ev::UpdateSelfTestFailed { version, check }, sink)
-            }
-            Note::RolledBack { aborted_slot, version } => {
-                self.raise(now, ev::UpdateRolledBack { aborted_slot, version }, sink)
-            }
+/// The event of a note.
+fn report<S: TmStore>(now: u64, n: Note, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
+    match n {
+        Note::Installed { version, length, slot } => dl.raise(now, ev::UpdateInstalled { version, length, slot }, sink),
+        Note::Refused { reason, refusals } => dl.raise(now, ev::UpdateRefused { reason, refusals }, sink),
+        Note::Activated { version, slot } => dl.raise(now, ev::UpdateActivated { version, slot }, sink),
+        Note::Confirmed { version, slot } => dl.raise(now, ev::UpdateConfirmed { version, slot }, sink),
+        Note::SelfTestFailed { version, check } => dl.raise(now, ev::UpdateSelfTestFailed { version, check }, sink),
+        Note::RolledBack { aborted_slot, version } => {
+            dl.raise(now, ev::UpdateRolledBack { aborted_slot, version }, sink)
         }
     }
 }
