@@ -27,6 +27,7 @@ pub const TESTS: &[Test] = tests![
     obsw_standby_with_board_b_never_heard_raises_no_low_battery,
     obsw_tick_and_tc_fit_the_10_ms_control_period,
     obsw_store_returns_every_packet_the_full_downlink_dropped,
+    obsw_without_update_refuses_every_update_tc_unavailable_counted_and_evented,
 ];
 
 /// COBS-framed TCs for robot 1 (APID 0x101) as the ground sends them on the serial
@@ -902,5 +903,55 @@ fn obsw_store_returns_every_packet_the_full_downlink_dropped() -> TestResult {
     // packets u32, oldest_time CDS (7 bytes), oldest_seq u16, overwritten u32
     check_eq!(&end[11..13], &0u16.to_be_bytes()[..]);
     check_eq!(&end[13..17], &0u32.to_be_bytes()[..]);
+    Ok(())
+}
+
+/// Failure codes of TM[1,x] failure reports and TC_REJECTED events.
+#[derive(Default)]
+struct Refusals {
+    failures: heapless::Vec<u16, 8>,
+    rejected: u32,
+}
+
+impl TmSink for Refusals {
+    fn send_tm(&mut self, packet: &[u8]) {
+        let Some(tm) = parse_tm(packet) else { return };
+        match tm.svc {
+            1 if tm.sub % 2 == 0 && tm.data.len() >= 6 => {
+                let _ = self.failures.push(u16::from_be_bytes([tm.data[4], tm.data[5]]));
+            }
+            5 => {
+                if let Ok(ev) = mib_wire::codec::decode_event(&tm.data) {
+                    self.rejected += u32::from(ev.def.id == eid::TC_REJECTED);
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+// verifies: UPD-SVC-04
+/// Board A's obsw is built without the `update` feature (no file store to install from, no
+/// verifier in its image): install, activate and confirm each get UPDATE_UNAVAILABLE, are
+/// counted in UPDATE_REFUSALS and evented.
+fn obsw_without_update_refuses_every_update_tc_unavailable_counted_and_evented() -> TestResult {
+    use mib::tc::service::UPDATE;
+    use mib::update::sub;
+    let mut robot = Robot::new();
+    let mut log = Refusals::default();
+    let requests: [(u8, &[u8]); 3] = [
+        (sub::INSTALL, &[5, b'a', b'.', b'i', b'm', b'g']),
+        (sub::ACTIVATE, &[0x5A; 32]),
+        (sub::CONFIRM, &[]),
+    ];
+    let mut tc = [0u8; 64];
+    for (n, (sub, app)) in requests.into_iter().enumerate() {
+        let len = ok!(build_tc(20 + n as u16, UPDATE, sub, app, &mut tc));
+        robot.a.handle_tc(100 + 10 * n as u64, &tc[..len], &mut log);
+    }
+    let unavailable = FailureCode::UPDATE_UNAVAILABLE.code();
+    check_eq!(&log.failures[..], &[unavailable; 3][..]);
+    check_eq!(log.rejected, 3);
+    check_eq!(robot.a.param::<{ pid::UPDATE_REFUSALS }>(), 3);
     Ok(())
 }
