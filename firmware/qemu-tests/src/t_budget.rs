@@ -200,6 +200,11 @@ fn control_period_with_the_largest_tc_frame_measured() -> TestResult {
     let tc_packets = harness::MOST_TC_PACKETS.load(Ordering::Relaxed);
     let framing = (tick_packets + tc_packets) * per_packet;
     let period = tick + framing + tc + link;
+    // Their store writes into board A's flash store, beyond the RAM ring `t_obsw` has: not
+    // inside the enforced figure yet (it exceeds the budget, REV-ANOM-03), printed beside it.
+    let store = harness::STORE_WRITES_EXTRA.load(Ordering::Relaxed);
+    check!(store > 0, "t_store ran before and measured the store writes");
+    let with_store = period + store;
     // The ESP32-C3's AES accelerator instead (analysis, not run: QEMU has none; a bring-up
     // item): per block four key-independent word writes, the start, a busy poll over its
     // 14-round latency and four reads, with the driver's call around it. It shortens the
@@ -252,6 +257,15 @@ fn control_period_with_the_largest_tc_frame_measured() -> TestResult {
         stack < harness::STACK_PROBE_BYTES,
         "stack deeper than the painted {} bytes",
         harness::STACK_PROBE_BYTES
+    );
+    semihosting::println!(
+        "    with the period's store writes into board A's flash store (t_store, NOT enforced): {} + {} = {} instructions, {:.1} % of the period: {} the {} % budget",
+        period,
+        store,
+        with_store,
+        pct(with_store),
+        if with_store <= budget { "inside" } else { "OVER" },
+        mib::config::PERIOD_CPU_BUDGET_PCT,
     );
     semihosting::println!(
         "    control period CPU budget {} instructions: software AES {} (the AES accelerator, analysis, only lowers it)",
