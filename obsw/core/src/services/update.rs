@@ -425,7 +425,8 @@ pub(crate) mod tests {
         .collect()
     }
 
-    // verifies: UPD-SVC-04
+    // The host-side twin of the QEMU test of UPD-SVC-04 (firmware/qemu-tests, t_obsw),
+    // run with `cargo test -p obsw-core --no-default-features`.
     #[cfg(not(feature = "update"))]
     #[test]
     fn an_obsw_built_without_update_refuses_every_update_tc_unavailable_counted_and_evented() {
