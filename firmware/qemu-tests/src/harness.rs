@@ -179,6 +179,11 @@ pub static WORST_TICK: portable_atomic::AtomicU64 = portable_atomic::AtomicU64::
 pub static WORST_TC: portable_atomic::AtomicU64 = portable_atomic::AtomicU64::new(0);
 /// The most TM packets one `Obsw::tick` of `t_obsw`'s run sent (`t_budget`).
 pub static MOST_TICK_PACKETS: portable_atomic::AtomicU64 = portable_atomic::AtomicU64::new(0);
+/// The most TM packets one `Obsw::handle_tc` of `t_obsw` sent (framed on the board).
+pub static MOST_TC_PACKETS: portable_atomic::AtomicU64 = portable_atomic::AtomicU64::new(0);
+/// What a period's store writes into board A's flash store take beyond the RAM ring the
+/// tick was measured with (`t_store`).
+pub static STORE_WRITES_EXTRA: portable_atomic::AtomicU64 = portable_atomic::AtomicU64::new(0);
 
 /// Bytes below the caller's frame that [`stack_depth`] paints.
 pub const STACK_PROBE_BYTES: usize = 96 * 1024;

@@ -25,6 +25,7 @@ mod t_packets;
 mod t_periph;
 mod t_reconfig;
 mod t_spacelink;
+mod t_store;
 mod t_support;
 mod t_team;
 
@@ -46,6 +47,7 @@ fn main() -> ! {
         t_framelink::TESTS,
         t_team::TESTS,
         t_modules::TESTS,
+        t_store::TESTS,
         t_budget::TESTS,
     ]);
     semihosting::process::exit(code)

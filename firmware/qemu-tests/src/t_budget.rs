@@ -193,11 +193,18 @@ fn control_period_with_the_largest_tc_frame_measured() -> TestResult {
     let tc = harness::WORST_TC.load(Ordering::Relaxed);
     check!(tick > 1000, "t_obsw ran before and recorded the worst tick ({})", tick);
     check!(tc > 1000, "t_obsw ran before and recorded the worst handle_tc ({})", tc);
-    // The tick's own TM packets go into the open TM frame on the board (`t_obsw`'s sink
-    // only collects them): the most one tick sent, at the measured cost per packet.
+    // The tick's and the TC's own TM packets go into the open TM frame on the board
+    // (`t_obsw`'s sink only records them, its work not counted): the most one tick and one
+    // TC sent, at the measured cost per packet.
     let tick_packets = harness::MOST_TICK_PACKETS.load(Ordering::Relaxed);
-    let framing = tick_packets * per_packet;
+    let tc_packets = harness::MOST_TC_PACKETS.load(Ordering::Relaxed);
+    let framing = (tick_packets + tc_packets) * per_packet;
     let period = tick + framing + tc + link;
+    // Their store writes into board A's flash store, beyond the RAM ring `t_obsw` has: not
+    // inside the enforced figure yet (it exceeds the budget, REV-ANOM-03), printed beside it.
+    let store = harness::STORE_WRITES_EXTRA.load(Ordering::Relaxed);
+    check!(store > 0, "t_store ran before and measured the store writes");
+    let with_store = period + store;
     // The ESP32-C3's AES accelerator instead (analysis, not run: QEMU has none; a bring-up
     // item): per block four key-independent word writes, the start, a busy poll over its
     // 14-round latency and four reads, with the driver's call around it. It shortens the
@@ -219,10 +226,11 @@ fn control_period_with_the_largest_tc_frame_measured() -> TestResult {
         SDLS_WORK_PER_PERIOD,
     );
     semihosting::println!(
-        "    control period, software AES (measured): worst tick {} + its TM packets into the frame {} ({} packets) + worst handle_tc {} + busiest link period {} = {} instructions, {:.1} % of the {} a period holds at {} cycles/instruction (budget {} %, margin {} instructions, {:.1} points)",
+        "    control period, software AES (measured): worst tick {} + its and the TC's TM packets into the frame {} ({} + {} packets) + worst handle_tc {} + busiest link period {} = {} instructions, {:.1} % of the {} a period holds at {} cycles/instruction (budget {} %, margin {} instructions, {:.1} points)",
         tick,
         framing,
         tick_packets,
+        tc_packets,
         tc,
         link,
         period,
@@ -249,6 +257,15 @@ fn control_period_with_the_largest_tc_frame_measured() -> TestResult {
         stack < harness::STACK_PROBE_BYTES,
         "stack deeper than the painted {} bytes",
         harness::STACK_PROBE_BYTES
+    );
+    semihosting::println!(
+        "    with the period's store writes into board A's flash store (t_store, NOT enforced): {} + {} = {} instructions, {:.1} % of the period: {} the {} % budget",
+        period,
+        store,
+        with_store,
+        pct(with_store),
+        if with_store <= budget { "inside" } else { "OVER" },
+        mib::config::PERIOD_CPU_BUDGET_PCT,
     );
     semihosting::println!(
         "    control period CPU budget {} instructions: software AES {} (the AES accelerator, analysis, only lowers it)",

@@ -267,6 +267,7 @@ impl<S: TmStore> Obsw<S> {
 
     /// Reads the boot's otadata, runs the self-test of a new image and reports what it found
     /// (the platform calls it once, after `Update::attach`).
+    #[cfg(feature = "update")]
     pub fn update_boot(&mut self, now: u64, sink: &mut impl TmSink) {
         self.update.boot_reported(now, &mut self.dl, sink);
     }

@@ -16,10 +16,15 @@
 //! verify (digest and signature) and the platform's checks pass — and confirms itself, or
 //! asks for a reset unconfirmed, after which the boot returns to the previous image.
 
-use mib::update::{outcome, DIGEST_LEN};
+#[cfg(feature = "update")]
+use mib::update::outcome;
+use mib::update::DIGEST_LEN;
 use mib_wire::{ev, Failure as W};
+#[cfg(feature = "update")]
 use mmic_update::flash::Flash;
+#[cfg(feature = "update")]
 use mmic_update::image::{self, Header, Refusal, UpdateKey};
+#[cfg(feature = "update")]
 use mmic_update::otadata::{self, OtaState};
 
 use crate::accept::Tc;
@@ -30,6 +35,7 @@ use crate::tm::{TmSink, TmStore};
 use mib::params::{pid, NotSupplied, Supplied};
 
 /// What a platform gives the update component.
+#[cfg(feature = "update")]
 pub trait Slots {
     /// The target its images must be for (`mib::update::target`).
     fn target(&self) -> u8;
@@ -48,9 +54,11 @@ pub trait Slots {
 }
 
 /// Self-test check code: the running image's own slot does not verify.
+#[cfg(feature = "update")]
 pub const CHECK_OWN_IMAGE: u8 = 1;
 
 /// A platform's slots, held for the whole run (a static on board, leaked once on the host).
+#[cfg(feature = "update")]
 pub type SlotsRef = &'static mut (dyn Slots + Send);
 
 /// A PUS 213 request.
@@ -115,11 +123,14 @@ pub enum Note {
 /// The update component.
 #[derive(Default)]
 pub struct Update {
+    #[cfg(feature = "update")]
     slots: Option<SlotsRef>,
     running: RunningImage,
     /// The verified image waiting in the inactive slot.
+    #[cfg(feature = "update")]
     installed: Option<Header>,
     /// The image activated by this run (a second activation of it is stale).
+    #[cfg(feature = "update")]
     activated: Option<[u8; DIGEST_LEN]>,
     outcome: u8,
     refusals: u32,
@@ -129,9 +140,8 @@ pub struct Update {
 impl core::fmt::Debug for Update {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.debug_struct("Update")
-            .field("slots", &self.slots.is_some())
             .field("running", &self.running)
-            .field("installed", &self.installed.map(|h| h.version))
+            .field("installed", &self.installed_version())
             .field("outcome", &self.outcome)
             .field("refusals", &self.refusals)
             .finish()
@@ -139,11 +149,6 @@ impl core::fmt::Debug for Update {
 }
 
 impl Update {
-    /// Gives the component its platform's slots.
-    pub fn attach(&mut self, slots: SlotsRef) {
-        self.slots = Some(slots);
-    }
-
     /// The platform must reset (after this period's TM is out): an activation, or a
     /// self-test that failed.
     pub fn reset_requested(&self) -> bool {
@@ -152,6 +157,51 @@ impl Update {
 
     pub fn running(&self) -> RunningImage {
         self.running
+    }
+
+    /// The refusal every update TC gets from an obsw without slots.
+    fn unavailable(&mut self) -> Failure {
+        self.refusals = self.refusals.wrapping_add(1);
+        Failure(W::UpdateUnavailable {})
+    }
+
+    /// The parameters the MIB names this component the source of.
+    pub fn param(&self, id: u16) -> Supplied {
+        Ok(Some(match id {
+            pid::SW_VERSION => i64::from(self.running.version),
+            pid::SW_SLOT => i64::from(self.running.slot),
+            pid::UPDATE_OUTCOME => i64::from(self.outcome),
+            pid::UPDATE_INSTALLED_VERSION => i64::from(self.installed_version()),
+            pid::UPDATE_REFUSALS => i64::from(self.refusals),
+            _ => return Err(NotSupplied(id)),
+        }))
+    }
+}
+
+/// An obsw built without the `update` feature (board A: no file store to install an image
+/// from, and Ed25519 and SHA-256 would take about 113 KB of its image) has no slots: every
+/// update TC is refused UPDATE_UNAVAILABLE and counted, as on a host without its launcher.
+#[cfg(not(feature = "update"))]
+impl Update {
+    fn installed_version(&self) -> u32 {
+        0
+    }
+
+    /// Refuses the request: there are no slots to act on.
+    pub fn request(&mut self, _r: Request, _note: &mut impl FnMut(Note)) -> Result<(), Failure> {
+        Err(self.unavailable())
+    }
+}
+
+#[cfg(feature = "update")]
+impl Update {
+    fn installed_version(&self) -> u32 {
+        self.installed.map_or(0, |h| h.version)
+    }
+
+    /// Gives the component its platform's slots.
+    pub fn attach(&mut self, slots: SlotsRef) {
+        self.slots = Some(slots);
     }
 
     fn inactive(&self) -> u8 {
@@ -216,8 +266,7 @@ impl Update {
     pub fn request(&mut self, r: Request, note: &mut impl FnMut(Note)) -> Result<(), Failure> {
         let inactive = self.inactive();
         let Some(s) = self.slots.as_deref_mut() else {
-            self.refusals = self.refusals.wrapping_add(1);
-            return Err(Failure(W::UpdateUnavailable {}));
+            return Err(self.unavailable());
         };
         match r {
             Request::Install { name } => {
@@ -310,23 +359,12 @@ impl Update {
             },
         }
     }
-
-    /// The parameters the MIB names this component the source of.
-    pub fn param(&self, id: u16) -> Supplied {
-        Ok(Some(match id {
-            pid::SW_VERSION => i64::from(self.running.version),
-            pid::SW_SLOT => i64::from(self.running.slot),
-            pid::UPDATE_OUTCOME => i64::from(self.outcome),
-            pid::UPDATE_INSTALLED_VERSION => i64::from(self.installed.map_or(0, |h| h.version)),
-            pid::UPDATE_REFUSALS => i64::from(self.refusals),
-            _ => return Err(NotSupplied(id)),
-        }))
-    }
 }
 
 impl Update {
     /// [`Update::boot`] with what it found reported through the downlink (the obsw's
     /// `update_boot`).
+    #[cfg(feature = "update")]
     pub(crate) fn boot_reported<S: TmStore>(&mut self, now: u64, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
         self.boot(&mut |n| report(now, n, dl, sink));
     }
@@ -360,53 +398,7 @@ fn report<S: TmStore>(now: u64, n: Note, dl: &mut Downlink<S>, sink: &mut impl T
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use crate::obsw::tests::{failure, kind, obsw, of, send, TestObsw};
-    use mib::events::eid;
-    use mib::tc::service::UPDATE;
-    use mib::update::{sub, target, HEADER_LEN};
-    use mmic_update::flash::RamNor;
-    use std::boxed::Box;
     use std::vec::Vec;
-
-    const SECRET: [u8; 32] = [0x42; 32];
-    const SLOT: usize = 64 * 1024;
-
-    /// Slots in RAM, and a file store of one file.
-    #[derive(Clone)]
-    struct RamSlots {
-        ota: RamNor<8192>,
-        slots: [RamNor<SLOT>; 2],
-        file: Vec<u8>,
-        fail_self_test: bool,
-    }
-
-    impl Slots for RamSlots {
-        fn target(&self) -> u8 {
-            target::HOST
-        }
-        fn key(&self) -> Option<UpdateKey> {
-            UpdateKey::from_bytes(&image::public_key(&SECRET))
-        }
-        fn otadata(&mut self) -> &mut dyn Flash {
-            &mut self.ota
-        }
-        fn slot(&mut self, n: u8) -> &mut dyn Flash {
-            &mut self.slots[usize::from(n)]
-        }
-        fn install(&mut self, name: &[u8], n: u8, key: &UpdateKey) -> Result<Header, Refusal> {
-            if name != b"new.img" {
-                return Err(Refusal::NoFile);
-            }
-            image::install(&mut &self.file[..], &mut self.slots[usize::from(n)], key, target::HOST)
-        }
-        fn self_test(&mut self) -> Result<(), u8> {
-            if self.fail_self_test {
-                Err(2)
-            } else {
-                Ok(())
-            }
-        }
-    }
 
     /// One failure of each code the component reports, as it makes them.
     pub(crate) fn every_failure() -> Vec<Failure> {
@@ -424,148 +416,231 @@ pub(crate) mod tests {
         .collect()
     }
 
-    fn signed(version: u32, fill: u8) -> Vec<u8> {
-        let payload = std::vec![fill; 3000];
-        let mut v = image::sign(&SECRET, version, target::HOST, &payload).unwrap().to_vec();
-        v.extend_from_slice(&payload);
-        v
-    }
-
-    /// Slots with version 1.0.0 in slot 0 (otadata erased: slot 0 boots) and `file` in the store.
-    fn slots(file: Vec<u8>) -> &'static mut RamSlots {
-        let mut s = Box::new(RamSlots {
-            ota: RamNor::new(),
-            slots: [RamNor::new(), RamNor::new()],
-            file: signed(0x010000, 1),
-            fail_self_test: false,
-        });
-        let first = s.file.clone();
-        let key = s.key().unwrap();
-        image::install(&mut &first[..], &mut s.slots[0], &key, target::HOST).unwrap();
-        s.file = file;
-        Box::leak(s)
-    }
-
-    fn install_tc(name: &[u8]) -> Vec<u8> {
-        let mut app = std::vec![name.len() as u8];
-        app.extend_from_slice(name);
-        app
-    }
-
-    fn activate_tc(digest: &[u8]) -> Vec<u8> {
-        digest.to_vec()
-    }
-
-    fn failed_with(pkts: &[Vec<u8>]) -> Option<u16> {
-        pkts.iter()
-            .find(|p| kind(p).0 == 1 && kind(p).1.is_multiple_of(2))
-            .map(|p| failure(p).0)
-    }
-
-    fn events(pkts: &[Vec<u8>]) -> Vec<u16> {
-        of(pkts, 5, 0)
-            .into_iter()
-            .chain((1..=4).flat_map(|s| of(pkts, 5, s)))
-            .map(|p| u16::from_be_bytes([kind(&p).2[0], kind(&p).2[1]]))
-            .collect()
-    }
-
-    fn booted(s: &'static mut RamSlots) -> (TestObsw, Vec<Vec<u8>>) {
-        let mut o = obsw();
-        o.update.attach(s);
-        let mut sink = Vec::new();
-        o.update_boot(0, &mut sink);
-        (o, sink)
-    }
-
-    // verifies: UPD-SVC-01
+    // The host-side twin of the QEMU test of UPD-SVC-04 (firmware/qemu-tests, t_obsw),
+    // run with `cargo test -p obsw-core --no-default-features`.
+    #[cfg(not(feature = "update"))]
     #[test]
-    fn a_signed_image_is_installed_activated_once_and_a_replay_or_another_digest_refused() {
-        let img = signed(0x010100, 7);
-        let digest = img[mib::update::field::DIGEST..mib::update::field::DIGEST + 32].to_vec();
-        let (mut o, _) = booted(slots(img));
-        assert_eq!(o.param::<{ pid::SW_VERSION }>(), 0x010000);
-        // Nothing installed yet.
-        let p = send(&mut o, 10, 1, UPDATE, sub::ACTIVATE, &activate_tc(&digest));
-        assert_eq!(failed_with(&p), Some(mib::FailureCode::UPDATE_NOT_INSTALLED.code()));
-        let p = send(&mut o, 20, 2, UPDATE, sub::INSTALL, &install_tc(b"new.img"));
-        assert_eq!(failed_with(&p), None);
-        assert!(events(&p).contains(&eid::UPDATE_INSTALLED));
-        assert_eq!(o.param::<{ pid::UPDATE_INSTALLED_VERSION }>(), 0x010100);
-        // An activation written for another image.
-        let mut other = digest.clone();
-        other[31] ^= 1;
-        let p = send(&mut o, 30, 3, UPDATE, sub::ACTIVATE, &activate_tc(&other));
-        assert_eq!(failed_with(&p), Some(mib::FailureCode::UPDATE_WRONG_IMAGE.code()));
-        assert!(!o.update.reset_requested());
-        let p = send(&mut o, 40, 4, UPDATE, sub::ACTIVATE, &activate_tc(&digest));
-        assert_eq!(failed_with(&p), None);
-        assert!(events(&p).contains(&eid::UPDATE_ACTIVATED));
-        assert!(o.update.reset_requested());
-        // The same activation again (a new TC with the same content).
-        let p = send(&mut o, 50, 5, UPDATE, sub::ACTIVATE, &activate_tc(&digest));
-        assert_eq!(failed_with(&p), Some(mib::FailureCode::UPDATE_STALE_ACTIVATION.code()));
-        assert!(events(&p).contains(&eid::TC_REJECTED));
+    fn an_obsw_built_without_update_refuses_every_update_tc_unavailable_counted_and_evented() {
+        use crate::obsw::tests::{failure, kind, obsw, of, send};
+        use mib::events::eid;
+        use mib::tc::service::UPDATE;
+        use mib::update::sub;
+        let mut o = obsw();
+        let requests: [(u8, &[u8]); 3] = [
+            (sub::INSTALL, &[3, b'a', b'.', b'b']),
+            (sub::ACTIVATE, &[7; 32]),
+            (sub::CONFIRM, &[]),
+        ];
+        for (n, (sub, app)) in requests.into_iter().enumerate() {
+            let p = send(&mut o, 10 * (n as u64 + 1), n as u16 + 1, UPDATE, sub, app);
+            let failed: Vec<_> = p
+                .iter()
+                .filter(|p| kind(p).0 == 1 && kind(p).1.is_multiple_of(2))
+                .collect();
+            assert_eq!(failed.len(), 1, "one failure report for subservice {sub}");
+            assert_eq!(failure(failed[0]).0, mib::FailureCode::UPDATE_UNAVAILABLE.code());
+            let rejected = (1..=4)
+                .flat_map(|s| of(&p, 5, s))
+                .any(|e| u16::from_be_bytes([kind(&e).2[0], kind(&e).2[1]]) == eid::TC_REJECTED);
+            assert!(rejected, "TC_REJECTED for subservice {sub}");
+        }
         assert_eq!(o.param::<{ pid::UPDATE_REFUSALS }>(), 3);
     }
 
-    // verifies: UPD-SVC-02
-    #[test]
-    fn a_bad_signature_or_truncated_image_is_refused_counted_and_evented() {
-        let mut bad = signed(0x010100, 7);
-        bad[HEADER_LEN - 1] ^= 0x10;
-        let (mut o, _) = booted(slots(bad));
-        let p = send(&mut o, 10, 1, UPDATE, sub::INSTALL, &install_tc(b"new.img"));
-        assert_eq!(failed_with(&p), Some(mib::FailureCode::UPDATE_IMAGE_REFUSED.code()));
-        assert_eq!(failure(&of(&p, 1, 4)[0]).1, [mib::update::refusal::SIGNATURE]);
-        assert!(events(&p).contains(&eid::UPDATE_REFUSED));
-        let mut short = signed(0x010100, 7);
-        short.truncate(short.len() - 100);
-        let (mut o, _) = booted(slots(short));
-        let p = send(&mut o, 10, 1, UPDATE, sub::INSTALL, &install_tc(b"new.img"));
-        assert_eq!(failure(&of(&p, 1, 4)[0]).1, [mib::update::refusal::TRUNCATED]);
-        let p = send(&mut o, 20, 2, UPDATE, sub::INSTALL, &install_tc(b"nothere.img"));
-        assert_eq!(failure(&of(&p, 1, 4)[0]).1, [mib::update::refusal::NO_FILE]);
-        assert_eq!(o.param::<{ pid::UPDATE_REFUSALS }>(), 2);
-        assert_eq!(o.param::<{ pid::UPDATE_OUTCOME }>(), i64::from(outcome::REFUSED));
-        // Without slots nothing is possible.
-        let mut o = obsw();
-        let p = send(&mut o, 10, 1, UPDATE, sub::CONFIRM, &[]);
-        assert_eq!(failed_with(&p), Some(mib::FailureCode::UPDATE_UNAVAILABLE.code()));
-    }
+    #[cfg(feature = "update")]
+    mod with_slots {
+        use super::super::*;
+        use crate::obsw::tests::{failure, kind, obsw, of, send, TestObsw};
+        use mib::events::eid;
+        use mib::tc::service::UPDATE;
+        use mib::update::{sub, target, HEADER_LEN};
+        use mmic_update::flash::RamNor;
+        use std::boxed::Box;
+        use std::vec::Vec;
 
-    // verifies: UPD-SVC-03
-    #[test]
-    fn a_new_image_confirms_after_its_self_test_and_a_failing_one_rolls_back() {
-        for fail in [false, true] {
-            let s = slots(signed(0x020000, 9));
-            let key = s.key().unwrap();
-            let img = s.file.clone();
-            image::install(&mut &img[..], &mut s.slots[1], &key, target::HOST).unwrap();
-            otadata::activate(&mut s.ota, 1).unwrap();
-            assert_eq!(otadata::boot(&mut s.ota).unwrap().slot, 1);
-            s.fail_self_test = fail;
-            // The flash as the reset will find it (a failed self-test writes nothing).
-            let after_reset: &'static mut RamSlots = Box::leak(Box::new(s.clone()));
-            let (o, p) = booted(s);
-            assert_eq!(o.param::<{ pid::SW_VERSION }>(), 0x020000);
-            assert_eq!(o.param::<{ pid::SW_SLOT }>(), 1);
-            if !fail {
-                assert!(events(&p).contains(&eid::UPDATE_CONFIRMED));
-                assert_eq!(o.param::<{ pid::UPDATE_OUTCOME }>(), i64::from(outcome::CONFIRMED));
-                assert!(!o.update.reset_requested());
-                continue;
+        const SECRET: [u8; 32] = [0x42; 32];
+        const SLOT: usize = 64 * 1024;
+
+        /// Slots in RAM, and a file store of one file.
+        #[derive(Clone)]
+        struct RamSlots {
+            ota: RamNor<8192>,
+            slots: [RamNor<SLOT>; 2],
+            file: Vec<u8>,
+            fail_self_test: bool,
+        }
+
+        impl Slots for RamSlots {
+            fn target(&self) -> u8 {
+                target::HOST
             }
-            assert!(events(&p).contains(&eid::UPDATE_SELF_TEST_FAILED));
-            assert!(o.update.reset_requested());
-            // The reset: the boot abandons slot 1, and version 1 reports the rollback.
-            let s = after_reset;
-            assert_eq!(otadata::boot(&mut s.ota).unwrap().slot, 0);
-            s.fail_self_test = false;
-            let (o, p) = booted(s);
-            assert!(events(&p).contains(&eid::UPDATE_ROLLED_BACK));
+            fn key(&self) -> Option<UpdateKey> {
+                UpdateKey::from_bytes(&image::public_key(&SECRET))
+            }
+            fn otadata(&mut self) -> &mut dyn Flash {
+                &mut self.ota
+            }
+            fn slot(&mut self, n: u8) -> &mut dyn Flash {
+                &mut self.slots[usize::from(n)]
+            }
+            fn install(&mut self, name: &[u8], n: u8, key: &UpdateKey) -> Result<Header, Refusal> {
+                if name != b"new.img" {
+                    return Err(Refusal::NoFile);
+                }
+                image::install(&mut &self.file[..], &mut self.slots[usize::from(n)], key, target::HOST)
+            }
+            fn self_test(&mut self) -> Result<(), u8> {
+                if self.fail_self_test {
+                    Err(2)
+                } else {
+                    Ok(())
+                }
+            }
+        }
+
+        fn signed(version: u32, fill: u8) -> Vec<u8> {
+            let payload = std::vec![fill; 3000];
+            let mut v = image::sign(&SECRET, version, target::HOST, &payload).unwrap().to_vec();
+            v.extend_from_slice(&payload);
+            v
+        }
+
+        /// Slots with version 1.0.0 in slot 0 (otadata erased: slot 0 boots) and `file` in the store.
+        fn slots(file: Vec<u8>) -> &'static mut RamSlots {
+            let mut s = Box::new(RamSlots {
+                ota: RamNor::new(),
+                slots: [RamNor::new(), RamNor::new()],
+                file: signed(0x010000, 1),
+                fail_self_test: false,
+            });
+            let first = s.file.clone();
+            let key = s.key().unwrap();
+            image::install(&mut &first[..], &mut s.slots[0], &key, target::HOST).unwrap();
+            s.file = file;
+            Box::leak(s)
+        }
+
+        fn install_tc(name: &[u8]) -> Vec<u8> {
+            let mut app = std::vec![name.len() as u8];
+            app.extend_from_slice(name);
+            app
+        }
+
+        fn activate_tc(digest: &[u8]) -> Vec<u8> {
+            digest.to_vec()
+        }
+
+        fn failed_with(pkts: &[Vec<u8>]) -> Option<u16> {
+            pkts.iter()
+                .find(|p| kind(p).0 == 1 && kind(p).1.is_multiple_of(2))
+                .map(|p| failure(p).0)
+        }
+
+        fn events(pkts: &[Vec<u8>]) -> Vec<u16> {
+            of(pkts, 5, 0)
+                .into_iter()
+                .chain((1..=4).flat_map(|s| of(pkts, 5, s)))
+                .map(|p| u16::from_be_bytes([kind(&p).2[0], kind(&p).2[1]]))
+                .collect()
+        }
+
+        fn booted(s: &'static mut RamSlots) -> (TestObsw, Vec<Vec<u8>>) {
+            let mut o = obsw();
+            o.update.attach(s);
+            let mut sink = Vec::new();
+            o.update_boot(0, &mut sink);
+            (o, sink)
+        }
+
+        // verifies: UPD-SVC-01
+        #[test]
+        fn a_signed_image_is_installed_activated_once_and_a_replay_or_another_digest_refused() {
+            let img = signed(0x010100, 7);
+            let digest = img[mib::update::field::DIGEST..mib::update::field::DIGEST + 32].to_vec();
+            let (mut o, _) = booted(slots(img));
             assert_eq!(o.param::<{ pid::SW_VERSION }>(), 0x010000);
-            assert_eq!(o.param::<{ pid::UPDATE_OUTCOME }>(), i64::from(outcome::ROLLED_BACK));
+            // Nothing installed yet.
+            let p = send(&mut o, 10, 1, UPDATE, sub::ACTIVATE, &activate_tc(&digest));
+            assert_eq!(failed_with(&p), Some(mib::FailureCode::UPDATE_NOT_INSTALLED.code()));
+            let p = send(&mut o, 20, 2, UPDATE, sub::INSTALL, &install_tc(b"new.img"));
+            assert_eq!(failed_with(&p), None);
+            assert!(events(&p).contains(&eid::UPDATE_INSTALLED));
+            assert_eq!(o.param::<{ pid::UPDATE_INSTALLED_VERSION }>(), 0x010100);
+            // An activation written for another image.
+            let mut other = digest.clone();
+            other[31] ^= 1;
+            let p = send(&mut o, 30, 3, UPDATE, sub::ACTIVATE, &activate_tc(&other));
+            assert_eq!(failed_with(&p), Some(mib::FailureCode::UPDATE_WRONG_IMAGE.code()));
+            assert!(!o.update.reset_requested());
+            let p = send(&mut o, 40, 4, UPDATE, sub::ACTIVATE, &activate_tc(&digest));
+            assert_eq!(failed_with(&p), None);
+            assert!(events(&p).contains(&eid::UPDATE_ACTIVATED));
+            assert!(o.update.reset_requested());
+            // The same activation again (a new TC with the same content).
+            let p = send(&mut o, 50, 5, UPDATE, sub::ACTIVATE, &activate_tc(&digest));
+            assert_eq!(failed_with(&p), Some(mib::FailureCode::UPDATE_STALE_ACTIVATION.code()));
+            assert!(events(&p).contains(&eid::TC_REJECTED));
+            assert_eq!(o.param::<{ pid::UPDATE_REFUSALS }>(), 3);
+        }
+
+        // verifies: UPD-SVC-02
+        #[test]
+        fn a_bad_signature_or_truncated_image_is_refused_counted_and_evented() {
+            let mut bad = signed(0x010100, 7);
+            bad[HEADER_LEN - 1] ^= 0x10;
+            let (mut o, _) = booted(slots(bad));
+            let p = send(&mut o, 10, 1, UPDATE, sub::INSTALL, &install_tc(b"new.img"));
+            assert_eq!(failed_with(&p), Some(mib::FailureCode::UPDATE_IMAGE_REFUSED.code()));
+            assert_eq!(failure(&of(&p, 1, 4)[0]).1, [mib::update::refusal::SIGNATURE]);
+            assert!(events(&p).contains(&eid::UPDATE_REFUSED));
+            let mut short = signed(0x010100, 7);
+            short.truncate(short.len() - 100);
+            let (mut o, _) = booted(slots(short));
+            let p = send(&mut o, 10, 1, UPDATE, sub::INSTALL, &install_tc(b"new.img"));
+            assert_eq!(failure(&of(&p, 1, 4)[0]).1, [mib::update::refusal::TRUNCATED]);
+            let p = send(&mut o, 20, 2, UPDATE, sub::INSTALL, &install_tc(b"nothere.img"));
+            assert_eq!(failure(&of(&p, 1, 4)[0]).1, [mib::update::refusal::NO_FILE]);
+            assert_eq!(o.param::<{ pid::UPDATE_REFUSALS }>(), 2);
+            assert_eq!(o.param::<{ pid::UPDATE_OUTCOME }>(), i64::from(outcome::REFUSED));
+            // Without slots nothing is possible.
+            let mut o = obsw();
+            let p = send(&mut o, 10, 1, UPDATE, sub::CONFIRM, &[]);
+            assert_eq!(failed_with(&p), Some(mib::FailureCode::UPDATE_UNAVAILABLE.code()));
+        }
+
+        // verifies: UPD-SVC-03
+        #[test]
+        fn a_new_image_confirms_after_its_self_test_and_a_failing_one_rolls_back() {
+            for fail in [false, true] {
+                let s = slots(signed(0x020000, 9));
+                let key = s.key().unwrap();
+                let img = s.file.clone();
+                image::install(&mut &img[..], &mut s.slots[1], &key, target::HOST).unwrap();
+                otadata::activate(&mut s.ota, 1).unwrap();
+                assert_eq!(otadata::boot(&mut s.ota).unwrap().slot, 1);
+                s.fail_self_test = fail;
+                // The flash as the reset will find it (a failed self-test writes nothing).
+                let after_reset: &'static mut RamSlots = Box::leak(Box::new(s.clone()));
+                let (o, p) = booted(s);
+                assert_eq!(o.param::<{ pid::SW_VERSION }>(), 0x020000);
+                assert_eq!(o.param::<{ pid::SW_SLOT }>(), 1);
+                if !fail {
+                    assert!(events(&p).contains(&eid::UPDATE_CONFIRMED));
+                    assert_eq!(o.param::<{ pid::UPDATE_OUTCOME }>(), i64::from(outcome::CONFIRMED));
+                    assert!(!o.update.reset_requested());
+                    continue;
+                }
+                assert!(events(&p).contains(&eid::UPDATE_SELF_TEST_FAILED));
+                assert!(o.update.reset_requested());
+                // The reset: the boot abandons slot 1, and version 1 reports the rollback.
+                let s = after_reset;
+                assert_eq!(otadata::boot(&mut s.ota).unwrap().slot, 0);
+                s.fail_self_test = false;
+                let (o, p) = booted(s);
+                assert!(events(&p).contains(&eid::UPDATE_ROLLED_BACK));
+                assert_eq!(o.param::<{ pid::SW_VERSION }>(), 0x010000);
+                assert_eq!(o.param::<{ pid::UPDATE_OUTCOME }>(), i64::from(outcome::ROLLED_BACK));
+            }
         }
     }
 }

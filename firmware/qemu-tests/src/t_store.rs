@@ -1,0 +1,375 @@
+//! Board A's PUS 15 store on the target: `obsw_core::flash_store` over the project's NOR
+//! model (`flash_store::Nor`, the rules the QEMU board's flash file and the host's store
+//! file share) in RAM. A reset cut into the store's writes at every byte loses at most the
+//! packet being written; and what a store write and a replay's reading cost on RV32IMC, for
+//! the control period's budget (`t_budget` adds the store writes of a period).
+
+use crate::harness::{Test, TestResult};
+use crate::tests;
+use crate::{check, check_eq, ok};
+use core::cell::RefCell;
+use mib::config::MAX_PACKET_LEN;
+use obsw_core::flash_store::{FlashStore, Medium, Nor};
+use obsw_core::time::OnboardTime;
+use obsw_core::tm::{RingStore, TmStore, TmWriter};
+use portable_atomic::Ordering;
+
+pub const TESTS: &[Test] = tests![
+    store_reset_cut_into_a_write_at_every_byte_loses_at_most_that_packet,
+    store_write_and_replay_read_cost_measured,
+];
+
+const SECTOR: usize = mib::memory::FLASH_SECTOR as usize;
+/// Two HK sectors and two report sectors: the smallest layout with the overwrite path.
+const BYTES: usize = 4 * SECTOR;
+type Store<'a> = FlashStore<'a, Nor<Ram>, 2, 2>;
+
+/// Packets of the scenario: every third an event (report area), the rest periodic HK.
+const PACKETS: usize = 160;
+/// A ROBOT_STATUS report's size on the wire, about (`t_budget`'s 91-byte packet).
+const HK_DATA: usize = 72;
+
+/// The flash's content in RAM, and a power cut after a budget of written bytes.
+#[derive(Clone)]
+struct Ram {
+    mem: [u8; BYTES],
+    /// Units still written before the power goes: a byte of a write, a 256-byte step of an
+    /// erase (`Nor` erases in such steps); `None`: no cut.
+    budget: Option<usize>,
+    cut: bool,
+}
+
+#[derive(Debug)]
+struct PowerCut;
+
+/// Takes one unit of the budget; false once the power is cut.
+fn spend(budget: &mut Option<usize>, cut: &mut bool) -> bool {
+    match budget.as_mut() {
+        _ if *cut => false,
+        Some(0) => {
+            *cut = true;
+            false
+        }
+        Some(b) => {
+            *b -= 1;
+            true
+        }
+        None => true,
+    }
+}
+
+impl Medium for Ram {
+    type Error = PowerCut;
+    fn read_at(&mut self, at: u32, out: &mut [u8]) -> Result<(), PowerCut> {
+        if self.cut {
+            return Err(PowerCut);
+        }
+        let at = at as usize;
+        out.copy_from_slice(self.mem.get(at..at + out.len()).ok_or(PowerCut)?);
+        Ok(())
+    }
+    fn write_at(&mut self, at: u32, bytes: &[u8]) -> Result<(), PowerCut> {
+        let at = at as usize;
+        let cells = self.mem.get_mut(at..at + bytes.len()).ok_or(PowerCut)?;
+        if self.budget.is_none() && !self.cut {
+            // No cut armed: a plain copy, so that the measured costs are the store's.
+            cells.copy_from_slice(bytes);
+            return Ok(());
+        }
+        if bytes.len() == 256 && bytes.iter().all(|b| *b == 0xFF) {
+            if !spend(&mut self.budget, &mut self.cut) {
+                return Err(PowerCut);
+            }
+            cells.copy_from_slice(bytes);
+            return Ok(());
+        }
+        for (c, b) in cells.iter_mut().zip(bytes) {
+            if !spend(&mut self.budget, &mut self.cut) {
+                return Err(PowerCut);
+            }
+            *c = *b;
+        }
+        Ok(())
+    }
+}
+
+fn erased() -> Ram {
+    Ram {
+        mem: [0xFF; BYTES],
+        budget: None,
+        cut: false,
+    }
+}
+
+fn flash(ram: &Ram) -> RefCell<Nor<Ram>> {
+    RefCell::new(Nor::new(ram.clone(), BYTES as u32))
+}
+
+/// The scenario's packets, each as the TM writer makes it (a stamp 1 s apart).
+struct Packets {
+    bytes: [[u8; 96]; PACKETS],
+    len: [usize; PACKETS],
+}
+
+fn packets() -> Option<Packets> {
+    let mut p = Packets {
+        bytes: [[0; 96]; PACKETS],
+        len: [0; PACKETS],
+    };
+    let mut w = TmWriter::new(0x101, OnboardTime::new(1_790_000_000_000));
+    let mut buf = [0u8; MAX_PACKET_LEN];
+    for i in 0..PACKETS {
+        let event = i % 3 == 2;
+        let data = [i as u8; HK_DATA];
+        let (svc, sub, n) = if event { (5, 1, 12) } else { (3, 25, HK_DATA) };
+        let len = w.build(1000 * i as u64, svc, sub, &data[..n], &mut buf)?;
+        p.bytes[i][..len].copy_from_slice(&buf[..len]);
+        p.len[i] = len;
+    }
+    Some(p)
+}
+
+impl Packets {
+    fn get(&self, i: usize) -> &[u8] {
+        &self.bytes[i][..self.len[i]]
+    }
+    /// The packet index of stored bytes (its sequence count), when they are one of ours.
+    fn index(&self, stored: &[u8]) -> Option<usize> {
+        let i = usize::from(u16::from_be_bytes([*stored.get(2)?, *stored.get(3)?]) & 0x3FFF);
+        (i < PACKETS && self.get(i) == stored).then_some(i)
+    }
+}
+
+/// What the store holds, oldest first, as packet indices; `usize::MAX` for bytes that are
+/// none of the packets written (corrupt).
+type Content = heapless::Vec<usize, PACKETS>;
+
+fn content(s: &mut Store<'_>, p: &Packets) -> Content {
+    let mut out = Content::new();
+    s.visit(&mut |b| {
+        let _ = out.push(p.index(b).unwrap_or(usize::MAX));
+    });
+    out
+}
+
+// verifies: PUS-15-05
+/// A reset at any byte of a store write (and any 256-byte step of the sector erase an
+/// overwrite makes): after the restart the store holds everything it held before and
+/// everything the finished write keeps, but perhaps the packet being written; nothing
+/// corrupt, nothing reordered; and it goes on storing.
+fn store_reset_cut_into_a_write_at_every_byte_loses_at_most_that_packet() -> TestResult {
+    let p = ok!(packets());
+    // How many packets fit before the first overwrite.
+    let mut fits = 0;
+    {
+        let f = flash(&erased());
+        let mut s = ok!(Store::open(&f, 0).ok());
+        while fits < PACKETS - 10 && s.push(p.get(fits)) == 0 {
+            fits += 1;
+        }
+    }
+    check!(
+        fits > 20 && fits < PACKETS - 10,
+        "{} packets before the first overwrite",
+        fits
+    );
+    // The base: filled to three packets before that; the writes under test overwrite.
+    let first = fits - 3;
+    let mut base = erased();
+    {
+        let f = flash(&base);
+        let mut s = ok!(Store::open(&f, 0).ok());
+        for i in 0..first {
+            s.push(p.get(i));
+        }
+        base = f.borrow().medium().clone();
+    }
+    const WRITES: usize = 6;
+    // The uncut reference: the content before and after each write.
+    let mut after: heapless::Vec<Content, { WRITES + 1 }> = heapless::Vec::new();
+    let total = {
+        let mut armed = base.clone();
+        armed.budget = Some(usize::MAX);
+        let f = flash(&armed);
+        let mut s = ok!(Store::open(&f, 0).ok());
+        let _ = after.push(content(&mut s, &p));
+        for k in 0..WRITES {
+            s.push(p.get(first + k));
+            let _ = after.push(content(&mut s, &p));
+        }
+        let left = ok!(f.borrow().medium().budget);
+        usize::MAX - left
+    };
+    check!(after[0].len() == first, "base holds {} of {}", after[0].len(), first);
+    check!(
+        after[WRITES].len() < after[0].len() + WRITES,
+        "the writes overwrote nothing"
+    );
+    let (mut cuts, mut lost_the_packet) = (0u32, 0u32);
+    for cut in 0..=total {
+        let mut armed = base.clone();
+        armed.budget = Some(cut);
+        let f = flash(&armed);
+        let mut in_progress = None;
+        {
+            let mut s = ok!(Store::open(&f, 0).ok());
+            for k in 0..WRITES {
+                s.push(p.get(first + k));
+                if f.borrow().medium().cut {
+                    in_progress = Some(k);
+                    break;
+                }
+            }
+        }
+        // The restart: the power is back, the store opened again from the flash.
+        let mut ram = f.borrow().medium().clone();
+        ram.budget = None;
+        ram.cut = false;
+        let f = flash(&ram);
+        let mut s = ok!(Store::open(&f, 0).ok());
+        let got = content(&mut s, &p);
+        let Some(k) = in_progress else {
+            check_eq!(&got[..], &after[WRITES][..]);
+            continue;
+        };
+        cuts += 1;
+        let written = first + k;
+        let (before, done) = (&after[k], &after[k + 1]);
+        // Nothing corrupt, nothing unwritten, nothing out of order.
+        let mut at = 0;
+        for &i in &got {
+            check!(i != usize::MAX, "cut {} in write {}: corrupt bytes read back", cut, k);
+            let next = before[at.min(before.len())..].iter().position(|&b| b == i);
+            match next {
+                Some(n) => at += n + 1,
+                None => check!(
+                    i == written && at <= before.len(),
+                    "cut {} in write {}: packet {} unknown or reordered",
+                    cut,
+                    k,
+                    i
+                ),
+            }
+        }
+        // Everything the finished write keeps is there, but for the packet itself.
+        for &i in done.iter().filter(|&&i| i != written) {
+            check!(got.contains(&i), "cut {} in write {}: lost packet {}", cut, k, i);
+        }
+        lost_the_packet += u32::from(!got.contains(&written));
+        check_eq!(s.len(), got.len());
+        // The store goes on working after the restart.
+        let next = p.get(first + WRITES);
+        s.push(next);
+        check_eq!(s.counts().not_stored, 0);
+        let now = content(&mut s, &p);
+        check_eq!(now.last().copied(), Some(first + WRITES));
+    }
+    check!(cuts as usize == total, "{} cuts of {} inside a write", cuts, total);
+    semihosting::println!(
+        "    store writes cut at each of {} bytes and erase steps ({} writes, one overwriting): the packet being written lost {} times, nothing else",
+        total,
+        WRITES,
+        lost_the_packet
+    );
+    check!(lost_the_packet > 0, "no cut lost the packet: the cuts did not bite");
+    Ok(())
+}
+
+fn instret() -> u64 {
+    riscv::register::minstret::read64()
+}
+
+/// The worst and the least sum over `w` consecutive entries of `costs`.
+fn window(costs: &[u32], w: usize) -> (u64, u64) {
+    let w = w.clamp(1, costs.len().max(1));
+    costs
+        .windows(w)
+        .map(|c| c.iter().map(|&x| u64::from(x)).sum::<u64>())
+        .fold((0, u64::MAX), |(hi, lo), s| (hi.max(s), lo.min(s)))
+}
+
+// verifies: FW-CPU-01
+/// A store write on board A is a `sequential-storage` push into flash (item CRCs, page
+/// states, and a sector erase when the oldest packets are given up), not the RAM ring the
+/// OBSW's tick was measured with: the most packets one tick and one TC send, written in a
+/// row at the worst place of a wrapping store, less the least the ring took for as many,
+/// is what the period adds for its store writes (`harness::STORE_WRITES_EXTRA`). A replay
+/// reads the store from its oldest packet each period: the read cost per packet is printed
+/// with what a full store of the MIB's size takes.
+fn store_write_and_replay_read_cost_measured() -> TestResult {
+    let p = ok!(packets());
+    const PUSHES: usize = 3 * PACKETS;
+    let mut flash_costs: heapless::Vec<u32, PUSHES> = heapless::Vec::new();
+    let mut ring_costs: heapless::Vec<u32, PUSHES> = heapless::Vec::new();
+    let f = flash(&erased());
+    let mut s = ok!(Store::open(&f, 0).ok());
+    let mut ring = RingStore::<4096>::default();
+    let mut w = TmWriter::new(0x101, OnboardTime::new(1_790_000_000_000));
+    let mut buf = [0u8; MAX_PACKET_LEN];
+    let mut overwritten = 0;
+    for i in 0..PUSHES {
+        // Fresh stamps and counts, the bytes of the scenario's HK and events.
+        let template = p.get(i % PACKETS);
+        let (svc, sub) = (template[7], template[8]);
+        let data = [i as u8; HK_DATA];
+        let n = if svc == 5 { 12 } else { HK_DATA };
+        let len = ok!(w.build(1000 * i as u64, svc, sub, &data[..n], &mut buf));
+        let start = instret();
+        overwritten += s.push(&buf[..len]);
+        let _ = flash_costs.push((instret() - start) as u32);
+        let start = instret();
+        ring.push(&buf[..len]);
+        let _ = ring_costs.push((instret() - start) as u32);
+    }
+    check!(overwritten > 0, "the store never wrapped");
+    check_eq!(s.counts().not_stored, 0);
+    let packets_per_period = crate::harness::MOST_TICK_PACKETS.load(Ordering::Relaxed)
+        + crate::harness::MOST_TC_PACKETS.load(Ordering::Relaxed);
+    check!(
+        packets_per_period > 0,
+        "t_obsw ran before and counted the packets of a period"
+    );
+    let (flash_worst, _) = window(&flash_costs, packets_per_period as usize);
+    let (_, ring_least) = window(&ring_costs, packets_per_period as usize);
+    let extra = flash_worst.saturating_sub(ring_least);
+    crate::harness::STORE_WRITES_EXTRA.store(extra, Ordering::Relaxed);
+    let mut sorted = flash_costs.clone();
+    sorted.sort_unstable();
+    let median = sorted[sorted.len() / 2];
+    let worst = sorted[sorted.len() - 1];
+
+    // A replay's reading: every stored packet from the oldest.
+    let held = s.len() as u64;
+    let mut read = 0u64;
+    let start = instret();
+    s.visit(&mut |_| read += 1);
+    let per_read = (instret() - start) / read.max(1);
+    check_eq!(read, held);
+    let full = Store::min_packets(mib::memory::store::HK_SECTORS, p.len[0]) as u64;
+    semihosting::println!(
+        "    a store write into flash (sequential-storage over the NOR model): median {} instructions, worst {} (a sector given up); the RAM ring {} median",
+        median,
+        worst,
+        {
+            let mut r = ring_costs.clone();
+            r.sort_unstable();
+            r[r.len() / 2]
+        }
+    );
+    semihosting::println!(
+        "    store writes of a period ({} packets in a row, worst place): flash {} - RAM ring {} = {} instructions added to the period",
+        packets_per_period,
+        flash_worst,
+        ring_least,
+        extra
+    );
+    semihosting::println!(
+        "    a replay's reading: {} instructions per stored packet; from the oldest of a full HK area ({} packets of {} bytes) {} instructions, {:.1} periods' budget",
+        per_read,
+        full,
+        p.len[0],
+        per_read * full,
+        (per_read * full) as f64 / mib::config::PERIOD_INSTRUCTION_BUDGET as f64
+    );
+    Ok(())
+}
