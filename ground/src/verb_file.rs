@@ -233,10 +233,8 @@ impl<'a> Session<'a> {
                 .recv(Duration::from_millis(5))
                 .map_err(|e| coded(exit::NO_ANSWER, format!("{what}: {e}")))?;
             let now = self.now();
-            for p in &packets {
-                if let Some(pdu) = packet::unwrap(Direction::Down, p) {
-                    self.entity.receive(now, pdu);
-                }
+            for p in packets.iter().filter(|p| packet::apid(p) == Some(mib::cfdp::APID)) {
+                self.entity.receive_packet(now, Direction::Down, p);
             }
             if self.fl.pending() < LINK_BACKLOG {
                 self.entity.poll(now);
@@ -413,6 +411,7 @@ fn get(opts: &FileOpts, remote: &str, local: Option<&Path>) -> Result<u8> {
     let (st, parts) = staging_parts(&folder)?;
     let mut s = Session::new(fl, robot, seq_file, &parts, opts.timeout);
     let t0 = Instant::now();
+    let frames0 = (s.fl.counters.tm.frames, s.fl.counters.tm.idle_frames);
     s.entity
         .get(s.now(), src.as_str(), src.as_str(), opts.class())
         .map_err(|e| coded(exit::INVALID, format!("get: {e}")))?;
@@ -421,10 +420,15 @@ fn get(opts: &FileOpts, remote: &str, local: Option<&Path>) -> Result<u8> {
     let got = st.0.join(src.as_str());
     let len = std::fs::metadata(&got).map(|m| m.len()).unwrap_or(0);
     std::fs::rename(&got, &target).with_context(|| format!("writing {}", target.display()))?;
+    // The link's cost of the file: every TM frame that came in during the transfer (file
+    // data, NAK answers, housekeeping, idle frames), 1024 bytes each.
+    let tm = &s.fl.counters.tm;
+    let frames = u64::from(tm.frames.wrapping_sub(frames0.0)) + u64::from(tm.idle_frames.wrapping_sub(frames0.1));
     println!(
-        "get robot {robot}:{src} -> {}: {len} bytes in {:.1} s, complete",
+        "get robot {robot}:{src} -> {}: {len} bytes in {:.1} s, complete; {frames} TM frames of {} bytes received",
         target.display(),
-        t0.elapsed().as_secs_f64()
+        t0.elapsed().as_secs_f64(),
+        mib::link::tm_frame::LEN
     );
     Ok(exit::OK)
 }

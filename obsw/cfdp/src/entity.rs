@@ -49,6 +49,7 @@ use spacepackets::cfdp::{
 use spacepackets::util::{UnsignedByteField, UnsignedByteFieldU16, UnsignedEnum};
 
 use crate::msg::{self, ReservedMsg};
+use crate::packet::Direction;
 use crate::store::{Checked, FileName, FlatStore};
 
 /// A PDU held for the link.
@@ -60,6 +61,11 @@ pub struct Link {
     now: Cell<u32>,
     outbox: RefCell<heapless::Deque<Pdu, { m::OUTBOX_DEPTH }>>,
     dropped: Cell<u32>,
+    /// When the destination handler last sent a NAK on its NAK timer (the timer's start).
+    nak_at: Cell<u32>,
+    /// Set for one handler call: a NAK timer started before this time counts as expired
+    /// (the retransmissions the last NAK asked for have come and stopped).
+    nak_due: Cell<Option<u32>>,
 }
 
 impl Default for Link {
@@ -68,6 +74,8 @@ impl Default for Link {
             now: Cell::new(0),
             outbox: RefCell::new(heapless::Deque::new()),
             dropped: Cell::new(0),
+            nak_at: Cell::new(0),
+            nak_due: Cell::new(None),
         }
     }
 }
@@ -75,37 +83,62 @@ impl Default for Link {
 /// A countdown on the entity's clock.
 #[derive(Debug)]
 pub struct Timer<'a> {
-    clock: &'a Cell<u32>,
+    link: &'a Link,
     start: u32,
     period: u32,
+    /// The NAK timer (see [`Link::nak_due`]).
+    nak: bool,
+}
+
+impl core::fmt::Debug for Link {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Link")
+            .field("now", &self.now.get())
+            .finish_non_exhaustive()
+    }
 }
 
 impl Countdown for Timer<'_> {
     fn has_expired(&self) -> bool {
-        self.clock.get().wrapping_sub(self.start) >= self.period
+        let now = self.link.now.get();
+        let early = self.nak
+            && self
+                .link
+                .nak_due
+                .get()
+                .is_some_and(|t| t.wrapping_sub(self.start) as i32 > 0 && now.wrapping_sub(t) as i32 >= 0);
+        early || now.wrapping_sub(self.start) >= self.period
     }
     fn reset(&mut self) {
-        self.start = self.clock.get();
+        self.start = self.link.now.get();
+        if self.nak {
+            self.link.nak_at.set(self.start);
+        }
     }
 }
 
 /// The handlers' timer factory: the check timer from the MIB, the others from the remote
 /// entity's configuration (itself from the MIB).
-pub struct Timers<'a>(&'a Cell<u32>);
+pub struct Timers<'a>(&'a Link);
 
 impl<'a> TimerCreator for Timers<'a> {
     type Countdown = Timer<'a>;
     fn create_countdown(&self, ctx: TimerContext) -> Timer<'a> {
-        let ms = match ctx {
-            TimerContext::CheckLimit { .. } => m::CHECK_TIMER_MS,
-            TimerContext::NakActivity { expiry_time } | TimerContext::PositiveAck { expiry_time } => {
-                expiry_time.as_millis() as u64
-            }
+        let (ms, nak) = match ctx {
+            TimerContext::CheckLimit { .. } => (m::CHECK_TIMER_MS, false),
+            TimerContext::NakActivity { expiry_time } => (expiry_time.as_millis() as u64, true),
+            TimerContext::PositiveAck { expiry_time } => (expiry_time.as_millis() as u64, false),
         };
+        let start = self.0.now.get();
+        if nak {
+            // Created when the first NAK of the deferred procedure goes out.
+            self.0.nak_at.set(start);
+        }
         Timer {
-            clock: self.0,
-            start: self.0.get(),
+            link: self.0,
+            start,
             period: ms.min(u32::MAX as u64) as u32,
+            nak,
         }
     }
 }
@@ -504,6 +537,10 @@ pub struct Entity<'a, S: FlatStore> {
     resend: heapless::Deque<(u32, u32), { m::MAX_LOST_SEGMENTS }>,
     resend_header: Option<PduHeader>,
     resend_scope: (u32, u32),
+    /// File data PDUs this control period may still send (`SEGMENTS_PER_POLL`).
+    budget: usize,
+    /// When the last file data PDU of the running incoming transaction arrived.
+    data_at: Option<u32>,
 }
 
 /// The peer's configuration: sizes, class defaults, timers and limits from the MIB.
@@ -571,7 +608,7 @@ fn new_source<S: FlatStore>(id: u16, peer: u16, parts: &Parts<S>) -> Source<'_, 
         Sender(&parts.link),
         &parts.store,
         remote_config(peer),
-        Timers(&parts.link.now),
+        Timers(&parts.link),
         Seq(&parts.seq),
     )
 }
@@ -582,7 +619,7 @@ fn new_dest<S: FlatStore>(id: u16, peer: u16, parts: &Parts<S>) -> Dest<'_, S> {
         Sender(&parts.link),
         &parts.store,
         remote_config(peer),
-        Timers(&parts.link.now),
+        Timers(&parts.link),
         LostSegmentsListHeapless::new(),
     )
 }
@@ -610,6 +647,8 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             resend: heapless::Deque::new(),
             resend_header: None,
             resend_scope: (0, 0),
+            budget: m::SEGMENTS_PER_POLL,
+            data_at: None,
         }
     }
 
@@ -846,6 +885,20 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         names.iter().filter(|n| self.parts.store.remove(n).is_ok()).count()
     }
 
+    /// One space packet of the CFDP APID from the link (untrusted): its PDU to
+    /// [`Entity::receive`]. A packet that is not a PDU packet of direction `dir` (another
+    /// APID or type, a secondary header, segmented, lengths that disagree) is refused and
+    /// counted ([`Counters::refused`]).
+    pub fn receive_packet(&mut self, now_ms: u64, dir: Direction, packet: &[u8]) {
+        match crate::packet::unwrap(dir, packet) {
+            Some(pdu) => self.receive(now_ms, pdu),
+            None => {
+                self.tick(now_ms);
+                self.counters.refused = self.counters.refused.wrapping_add(1);
+            }
+        }
+    }
+
     /// One PDU from the link (untrusted).
     pub fn receive(&mut self, now_ms: u64, raw: &[u8]) {
         self.tick(now_ms);
@@ -923,7 +976,12 @@ impl<'a, S: FlatStore> Entity<'a, S> {
                 let eof = pdu.file_directive_type() == Some(FileDirectiveType::EofPdu);
                 self.before_metadata(now_ms, &h, eof)
             }
-            PacketTarget::DestEntity => self.run_dest(Some(&pdu)),
+            PacketTarget::DestEntity => {
+                if pdu.pdu_type() == PduType::FileData {
+                    self.data_at = Some(now_ms as u32);
+                }
+                self.run_dest(Some(&pdu))
+            }
         }
         self.settle();
     }
@@ -1068,6 +1126,9 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             if self.parts.link.outbox.borrow().len() + 2 >= m::OUTBOX_DEPTH {
                 return;
             }
+            if self.budget == 0 && self.resend.front().is_some_and(|r| *r != (0, 0)) {
+                return;
+            }
             let Some((a, b)) = self.resend.pop_front() else { break };
             if a == 0 && b == 0 {
                 let Ok(c) = NakPduCreator::new_normal_file_size(header, start, end, &[(0, 0)]) else {
@@ -1108,6 +1169,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         let mut buf = [0u8; m::MAX_PDU_LEN];
         match pdu.write_to_bytes(&mut buf) {
             Ok(n) => {
+                self.budget = self.budget.saturating_sub(1);
                 self.counters.resent = self.counters.resent.wrapping_add(1);
                 let _ = Sender(&self.parts.link).send_pdu(PduType::FileData, None, &buf[..n]);
             }
@@ -1172,6 +1234,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         }
         let was_idle = self.dest.state() == State::Idle || stale;
         if was_idle {
+            self.data_at = None;
             self.dest = new_dest(self.id, self.peer, self.parts);
             self.receiving = final_name.zip(staging).map(|(f, s)| (tx, f, s));
         }
@@ -1239,8 +1302,11 @@ impl<'a, S: FlatStore> Entity<'a, S> {
     /// period and after the outbox was emptied.
     pub fn poll(&mut self, now_ms: u64) {
         self.tick(now_ms);
+        // Segments asked for again go first: the receiver waits for them.
+        self.budget = m::SEGMENTS_PER_POLL;
         self.resend();
-        for _ in 0..m::SEGMENTS_PER_POLL {
+        self.nak_early(now_ms as u32);
+        while self.budget > 0 {
             if self.parts.link.outbox.borrow().len() + 2 >= m::OUTBOX_DEPTH {
                 break;
             }
@@ -1254,12 +1320,29 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             if self.parts.link.outbox.borrow().len() == before {
                 break;
             }
+            self.budget -= 1;
         }
+        self.parts.link.nak_due.set(None);
         self.settle();
         if (self.source.state() != State::Idle || self.dest.state() != State::Idle)
             && (now_ms as u32).wrapping_sub(self.last_heard) as u64 >= m::INACTIVITY_MS
         {
             self.abandon();
+        }
+    }
+
+    /// The receiver's next NAK without waiting for the NAK timer: file data came after the
+    /// last NAK (the sender answered it) and then none for `NAK_QUIET_MS` — the sender has
+    /// sent what that NAK asked for, and what is still missing was lost again. The NAK timer
+    /// (which cfdp-rs 0.3 restarts only when it expires) stays for a NAK or an answer lost
+    /// on the way; waiting for it cost a NAK period (4 s) per round through the relay.
+    fn nak_early(&mut self, now: u32) {
+        let link = &self.parts.link;
+        let answered = self.data_at.is_some_and(|t| {
+            t.wrapping_sub(link.nak_at.get()) as i32 > 0 && (now.wrapping_sub(t) as u64) >= m::NAK_QUIET_MS
+        });
+        if answered && self.dest.state() != State::Idle {
+            link.nak_due.set(Some(now));
         }
     }
 
