@@ -66,6 +66,8 @@ pub struct Link {
     /// Set for one handler call: a NAK timer started before this time counts as expired
     /// (the retransmissions the last NAK asked for have come and stopped).
     nak_due: Cell<Option<u32>>,
+    /// End of the furthest file data segment sent in the running outgoing transaction.
+    sent_to: Cell<u64>,
 }
 
 impl Default for Link {
@@ -76,6 +78,7 @@ impl Default for Link {
             dropped: Cell::new(0),
             nak_at: Cell::new(0),
             nak_due: Cell::new(None),
+            sent_to: Cell::new(0),
         }
     }
 }
@@ -148,7 +151,13 @@ impl<'a> TimerCreator for Timers<'a> {
 pub struct Sender<'a>(&'a Link);
 
 impl PduSender for Sender<'_> {
-    fn send_pdu(&self, _t: PduType, _d: Option<FileDirectiveType>, raw: &[u8]) -> Result<(), GenericSendError> {
+    fn send_pdu(&self, t: PduType, _d: Option<FileDirectiveType>, raw: &[u8]) -> Result<(), GenericSendError> {
+        if t == PduType::FileData {
+            if let Ok(fd) = FileDataPdu::from_bytes(raw) {
+                let end = fd.offset().saturating_add(fd.file_data().len() as u64);
+                self.0.sent_to.set(self.0.sent_to.get().max(end));
+            }
+        }
         let Ok(pdu) = Pdu::from_slice(raw) else {
             self.0.dropped.set(self.0.dropped.get().wrapping_add(1));
             return Err(GenericSendError::Other);
@@ -358,8 +367,10 @@ struct User {
     finished: heapless::Deque<Finished, 4>,
     owed: heapless::Deque<Owed, 2>,
     proxy_refused: u32,
-    /// End of the furthest file data segment received in the running transaction.
+    /// End of the furthest file data segment received in the running transaction, and the
+    /// length of its file.
     progress: u64,
+    incoming_len: u64,
     sending: bool,
     /// A listing to write before the put it owes.
     listing: Option<FileName>,
@@ -444,8 +455,9 @@ impl CfdpUser for User {
         };
         self.report(f);
     }
-    fn metadata_recvd_indication(&mut self, _p: &MetadataReceivedParams) {
+    fn metadata_recvd_indication(&mut self, p: &MetadataReceivedParams) {
         self.progress = 0;
+        self.incoming_len = p.file_size;
     }
     fn file_segment_recvd_indication(&mut self, p: &FileSegmentRecvdParams) {
         // The end of the furthest segment: duplicates and segments sent again do not count
@@ -681,6 +693,17 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         self.source.state() == State::Idle && self.dest.state() == State::Idle && self.user.owed.is_empty()
     }
 
+    /// The running (or last) outgoing transaction's progress: end of the furthest file data
+    /// segment sent, and the file's length.
+    pub fn sent_progress(&self) -> (u64, u64) {
+        (self.parts.link.sent_to.get(), self.sending_len)
+    }
+
+    /// The running (or last) incoming transaction's file length, as its metadata says.
+    pub fn incoming_len(&self) -> u64 {
+        self.user.incoming_len
+    }
+
     /// End of the furthest file data segment received in the running (or last) incoming
     /// transaction (progress: not counting duplicates or segments sent again).
     pub fn progress(&self) -> u64 {
@@ -771,6 +794,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             return Err(PutError::Busy);
         }
         self.source = new_source(self.id, self.peer, self.parts);
+        self.parts.link.sent_to.set(0);
         self.sending_len = 0;
         self.sending_name = None;
         let req = Put {
@@ -1324,6 +1348,13 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         }
         self.parts.link.nak_due.set(None);
         self.settle();
+        // A sender still sending its file data waits for nothing from its peer (a class 2
+        // receiver on a lossless uplink says nothing until the EOF): its silence is not
+        // inactivity. A put through the relay's COP-1 took more than INACTIVITY_MS to get its
+        // data up on a loaded machine and was abandoned.
+        if self.source.state() != State::Idle && self.source.step() == SourceStep::SendingFileData {
+            self.last_heard = now_ms as u32;
+        }
         if (self.source.state() != State::Idle || self.dest.state() != State::Idle)
             && (now_ms as u32).wrapping_sub(self.last_heard) as u64 >= m::INACTIVITY_MS
         {
