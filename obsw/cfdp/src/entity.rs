@@ -380,6 +380,23 @@ struct User {
     sent_reports: u32,
 }
 
+/// Whether a filestore request TLV's value holds its action code and its whole first name
+/// (and second name, if any): spacepackets 0.16's `FilestoreRequestTlv::from_bytes` indexes
+/// the action code unchecked, and a metadata PDU with an empty filestore request panicked
+/// the entity (found by the fuzz target `cfdp_pdu`).
+fn filestore_request_whole(v: &[u8]) -> bool {
+    let Some((&n1, rest)) = v.get(1..).and_then(<[u8]>::split_first) else {
+        return false;
+    };
+    let Some(rest) = rest.get(usize::from(n1)..) else {
+        return false;
+    };
+    match rest.split_first() {
+        None => true,
+        Some((&n2, rest)) => rest.len() == usize::from(n2),
+    }
+}
+
 /// The staging name of the file of incoming transaction `tx` (source entity, sequence).
 fn partial_name(tx: (u16, u16)) -> Option<FileName> {
     let mut s: heapless::String<{ m::MAX_NAME_LEN }> = heapless::String::new();
@@ -1288,6 +1305,11 @@ impl<'a, S: FlatStore> Entity<'a, S> {
                 continue;
             }
             if tlv.tlv_type() != Some(TlvType::FilestoreRequest) {
+                continue;
+            }
+            if !filestore_request_whole(tlv.value()) {
+                // spacepackets 0.16 reads the action code of an empty request unchecked.
+                self.counters.fs_refused = self.counters.fs_refused.wrapping_add(1);
                 continue;
             }
             let mut buf = [0u8; 260];
