@@ -83,6 +83,10 @@ pub(crate) struct FileOpts {
     /// Give up after this many seconds.
     #[arg(long, default_value_t = 600.0)]
     timeout: f64,
+    /// Show a progress line on stderr (bytes, percent, rate) [default: when stderr is a
+    /// terminal].
+    #[arg(long)]
+    progress: bool,
 }
 
 impl FileOpts {
@@ -149,6 +153,8 @@ struct Session<'a> {
     shown: u64,
     parts: &'a Parts<DirStore>,
     seq_file: PathBuf,
+    /// The progress line: shown, and when it was last drawn.
+    progress: Option<Progress>,
     /// Finished transactions not yet asked for: a `get`'s file may arrive complete before
     /// the robot's Finished PDU of the request itself does (its EOF ACK lost), and that
     /// report must still be there when [`Session::incoming_done`] looks for it.
@@ -168,12 +174,7 @@ impl Drop for Session<'_> {
                 break;
             }
         }
-        if let Err(e) = std::fs::write(&self.seq_file, self.parts.next_seq().to_string()) {
-            err_line!(
-                "ground: {}: {e} (the next run may repeat a transaction ID)",
-                self.seq_file.display()
-            );
-        }
+        self.keep_seq();
     }
 }
 
@@ -204,7 +205,16 @@ impl<'a> Session<'a> {
             deadline: start + Duration::from_secs_f64(timeout),
             seq: 0,
             shown: 0,
+            progress: None,
             reports: Vec::new(),
+        }
+    }
+
+    /// Draws a progress line while files move (`--progress`, or stderr a terminal).
+    fn show_progress(&mut self, on: bool) {
+        use std::io::IsTerminal;
+        if on || std::io::stderr().is_terminal() {
+            self.progress = Some(Progress::default());
         }
     }
 
@@ -212,8 +222,25 @@ impl<'a> Session<'a> {
         self.start.elapsed().as_millis() as u64
     }
 
+    /// Keeps the next transaction sequence number (written beside, then renamed). Called
+    /// once a transaction has started, so that a ground killed during it (SIGKILL: no `Drop`)
+    /// and run again never repeats its ID — the robot drops a repeated ID as a late PDU of a
+    /// finished transaction.
+    fn keep_seq(&self) {
+        let tmp = self.seq_file.with_extension("seq.new");
+        let kept =
+            std::fs::write(&tmp, self.parts.next_seq().to_string()).and_then(|_| std::fs::rename(&tmp, &self.seq_file));
+        if let Err(e) = kept {
+            err_line!(
+                "ground: {}: {e} (the next run may repeat a transaction ID)",
+                self.seq_file.display()
+            );
+        }
+    }
+
     /// Runs the link and the entity until `done` says a finished transaction ends it.
     fn until(&mut self, what: &str, mut done: impl FnMut(&Finished) -> bool) -> Result<Finished> {
+        self.keep_seq();
         let mut buf = [0u8; mib::cfdp::MAX_PACKET_LEN];
         loop {
             while let Some(f) = self.entity.take_finished() {
@@ -233,10 +260,8 @@ impl<'a> Session<'a> {
                 .recv(Duration::from_millis(5))
                 .map_err(|e| coded(exit::NO_ANSWER, format!("{what}: {e}")))?;
             let now = self.now();
-            for p in &packets {
-                if let Some(pdu) = packet::unwrap(Direction::Down, p) {
-                    self.entity.receive(now, pdu);
-                }
+            for p in packets.iter().filter(|p| packet::apid(p) == Some(mib::cfdp::APID)) {
+                self.entity.receive_packet(now, Direction::Down, p);
             }
             if self.fl.pending() < LINK_BACKLOG {
                 self.entity.poll(now);
@@ -249,10 +274,18 @@ impl<'a> Session<'a> {
                         .map_err(|e| coded(exit::NO_ANSWER, format!("{what}: {e}")))?;
                 }
             }
-            let got = self.entity.progress();
-            if got >= self.shown + (256 << 10) {
-                err_line!("{what}: {} KiB received", got >> 10);
-                self.shown = got;
+            // The file going out, else the one coming in.
+            let (done, total) = match self.entity.sent_progress() {
+                (d, t) if t > 0 => (d, t),
+                _ => (self.entity.progress(), self.entity.incoming_len()),
+            };
+            match self.progress.as_mut() {
+                Some(p) => p.draw(what, done, total),
+                None if done >= self.shown + (256 << 10) => {
+                    err_line!("{what}: {} KiB of {} KiB", done >> 10, total >> 10);
+                    self.shown = done;
+                }
+                None => {}
             }
         }
     }
@@ -282,6 +315,46 @@ impl<'a> Session<'a> {
             ));
         }
         Ok(())
+    }
+}
+
+/// A progress line on stderr, redrawn at most every 200 ms and ended with a newline.
+struct Progress {
+    start: Instant,
+    drawn: Option<Instant>,
+}
+
+impl Default for Progress {
+    fn default() -> Self {
+        Progress {
+            start: Instant::now(),
+            drawn: None,
+        }
+    }
+}
+
+impl Progress {
+    fn draw(&mut self, what: &str, done: u64, total: u64) {
+        if total == 0 || self.drawn.is_some_and(|t| t.elapsed() < Duration::from_millis(200)) {
+            return;
+        }
+        self.drawn = Some(Instant::now());
+        let secs = self.start.elapsed().as_secs_f64().max(1e-3);
+        eprint!(
+            "\r{what}: {} / {} KiB {:>3} % {:>6.1} kB/s\x1b[K",
+            done >> 10,
+            total >> 10,
+            done.min(total) * 100 / total,
+            done as f64 / secs / 1000.0
+        );
+    }
+}
+
+impl Drop for Progress {
+    fn drop(&mut self) {
+        if self.drawn.is_some() {
+            eprintln!();
+        }
     }
 }
 
@@ -372,11 +445,14 @@ fn put(opts: &FileOpts, local: &Path, remote: Option<&str>) -> Result<u8> {
         .unwrap_or(Path::new("."));
     let parts = Parts::new(DirStore::open(folder, u64::MAX).context("the local folder")?);
     let mut s = Session::new(fl, robot, seq_file, &parts, opts.timeout);
+    s.show_progress(opts.progress);
     let t0 = Instant::now();
     s.entity
         .put(s.now(), src.as_str(), dest.as_str(), opts.class())
         .map_err(|e| coded(exit::INVALID, format!("put: {e}")))?;
     let f = s.until("put", |f| f.sent)?;
+    // The progress line ends before the outcome is printed.
+    s.progress = None;
     if !f.complete {
         return Err(coded(
             exit::FAILED,
@@ -412,19 +488,27 @@ fn get(opts: &FileOpts, remote: &str, local: Option<&Path>) -> Result<u8> {
     let (fl, _lock, robot, seq_file) = open_link(opts)?;
     let (st, parts) = staging_parts(&folder)?;
     let mut s = Session::new(fl, robot, seq_file, &parts, opts.timeout);
+    s.show_progress(opts.progress);
     let t0 = Instant::now();
+    let frames0 = (s.fl.counters.tm.frames, s.fl.counters.tm.idle_frames);
     s.entity
         .get(s.now(), src.as_str(), src.as_str(), opts.class())
         .map_err(|e| coded(exit::INVALID, format!("get: {e}")))?;
     s.request_done("get")?;
     s.incoming_done("get")?;
+    s.progress = None;
     let got = st.0.join(src.as_str());
     let len = std::fs::metadata(&got).map(|m| m.len()).unwrap_or(0);
     std::fs::rename(&got, &target).with_context(|| format!("writing {}", target.display()))?;
+    // The link's cost of the file: every TM frame that came in during the transfer (file
+    // data, NAK answers, housekeeping, idle frames), 1024 bytes each.
+    let tm = &s.fl.counters.tm;
+    let frames = u64::from(tm.frames.wrapping_sub(frames0.0)) + u64::from(tm.idle_frames.wrapping_sub(frames0.1));
     println!(
-        "get robot {robot}:{src} -> {}: {len} bytes in {:.1} s, complete",
+        "get robot {robot}:{src} -> {}: {len} bytes in {:.1} s, complete; {frames} TM frames of {} bytes received",
         target.display(),
-        t0.elapsed().as_secs_f64()
+        t0.elapsed().as_secs_f64(),
+        mib::link::tm_frame::LEN
     );
     Ok(exit::OK)
 }

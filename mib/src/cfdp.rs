@@ -64,6 +64,13 @@ pub const ACK_LIMIT: u32 = 8;
 /// NAK timer: a NAK that brought nothing is sent again after this time; the same round trip
 /// as the positive ACK timer.
 pub const NAK_TIMER_MS: u64 = ACK_TIMER_MS;
+/// A receiver whose last NAK was answered (file data came after it) and that then hears no
+/// file data for this long sends its next NAK at once instead of at the NAK timer: the
+/// sender sends the segments a NAK asks for back to back (`SEGMENTS_PER_POLL` a control
+/// period), so a pause this long means they have all gone out. 30 control periods: a
+/// sender held up by its scheduler makes at worst a NAK sent twice, and the segments sent
+/// twice.
+pub const NAK_QUIET_MS: u64 = 30 * crate::config::CONTROL_PERIOD_MS as u64;
 /// Expiries of the NAK timer in one transaction before the fault "NAK limit reached".
 /// 727.0-B-5 § 4.6.4.7 restarts the count on every recovered segment; cfdp-rs 0.3 restarts
 /// it only while the metadata is missing, so the limit bounds a whole transfer's NAK
@@ -82,12 +89,18 @@ pub const CHECK_LIMIT: u32 = 2;
 /// so a peer still retrying is never abandoned first.
 pub const INACTIVITY_MS: u64 = 60_000;
 
-/// Lost segments one receiving transaction tracks (a NAK names at most this many ranges;
-/// more gaps than this are asked for again on the next NAK).
-pub const MAX_LOST_SEGMENTS: usize = 64;
-/// File data PDUs a source sends per call of the entity (per control period on board):
-/// bounds the TM a transfer takes from housekeeping and events.
-pub const SEGMENTS_PER_POLL: usize = 8;
+/// Lost segments one receiving transaction tracks: every other segment of the largest file,
+/// the most gaps a sender of whole segments can leave. cfdp-rs 0.3 records no gap its list
+/// has no room for: the data of that gap is never asked for and the transaction ends with a
+/// checksum failure (a 256 KiB `get` through the relay did, with 64 here). Also the
+/// sender's queue of segments asked for again.
+pub const MAX_LOST_SEGMENTS: usize = (MAX_FILE_LEN as usize).div_ceil(MAX_SEGMENT_LEN) / 2 + 1;
+/// File data PDUs a source sends per call of the entity's `poll` (per control period on
+/// board), new and sent again together: the rate the file service may take of the
+/// downlink (3 × 946 bytes per 10 ms, 284 kB/s), so that a transfer leaves room for
+/// housekeeping and events and never sends faster than a ground takes its frames (at 8 a
+/// period the ground's socket dropped 113 of 277 frames of a clean 256 KiB `get`).
+pub const SEGMENTS_PER_POLL: usize = 3;
 /// PDUs the entity holds for the link before it drops one (counted; class 2 recovers it).
 pub const OUTBOX_DEPTH: usize = 16;
 

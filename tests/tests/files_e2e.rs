@@ -278,3 +278,35 @@ fn a_robot_killed_mid_transfer_never_leaves_the_ground_a_corrupt_file_taken_as_g
         }
     }
 }
+
+// A ground killed (SIGKILL: nothing written at exit) during a transfer and run again
+// finishes it. The put: a new transaction, which ends the one the robot was receiving (its
+// partial file is discarded). The get: the robot still sends the file of the first run's
+// request, and its next file data PDU or EOF makes the new ground ask for the metadata
+// (0-0) and then for all it lacks, so the new ground receives that transaction; the new
+// request makes the robot send the file once more afterwards.
+// verifies: FILE-CFDP-07
+#[test]
+#[ignore = "about 30 s (two 900 kB transfers, each cut by a kill): cargo test -p e2e-tests --test files_e2e -- --ignored"]
+fn a_ground_killed_mid_transfer_and_run_again_finishes_it_byte_identical() {
+    let s = Setup::start("ground-kill", None);
+    let down = content(900_000, 7);
+    std::fs::write(s.d.p("robot-files/big.bin"), &down).unwrap();
+    let up = content(900_000, 8);
+    std::fs::write(s.d.p("local/up.bin"), &up).unwrap();
+    for (verb, name, path, want) in [
+        ("get", "big.bin", s.d.p("local/big.bin"), &down),
+        ("put", "up.bin", s.d.p("robot-files/up.bin"), &up),
+    ] {
+        let mut g = file_spawn(&s, &[verb, "--timeout", "120", name]);
+        // Mid-transfer: 900 kB take about 3 s on the clean link.
+        std::thread::sleep(std::time::Duration::from_millis(1200));
+        g.kill().unwrap();
+        g.wait().unwrap();
+        assert!(!path.exists(), "{verb}: the transfer had ended before the kill");
+        let t0 = Instant::now();
+        ok(&s.file(&[verb, "--timeout", "120", name]));
+        assert!(same(&path, want), "{verb}: not byte-identical after the second run");
+        eprintln!("{verb} run again after a kill: {:?}", t0.elapsed());
+    }
+}

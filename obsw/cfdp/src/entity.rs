@@ -49,6 +49,7 @@ use spacepackets::cfdp::{
 use spacepackets::util::{UnsignedByteField, UnsignedByteFieldU16, UnsignedEnum};
 
 use crate::msg::{self, ReservedMsg};
+use crate::packet::Direction;
 use crate::store::{Checked, FileName, FlatStore};
 
 /// A PDU held for the link.
@@ -60,6 +61,13 @@ pub struct PduPort {
     now: Cell<u32>,
     outbox: RefCell<heapless::Deque<Pdu, { m::OUTBOX_DEPTH }>>,
     dropped: Cell<u32>,
+    /// When the destination handler last sent a NAK on its NAK timer (the timer's start).
+    nak_at: Cell<u32>,
+    /// Set for one handler call: a NAK timer started before this time counts as expired
+    /// (the retransmissions the last NAK asked for have come and stopped).
+    nak_due: Cell<Option<u32>>,
+    /// End of the furthest file data segment sent in the running outgoing transaction.
+    sent_to: Cell<u64>,
 }
 
 impl Default for PduPort {
@@ -68,6 +76,9 @@ impl Default for PduPort {
             now: Cell::new(0),
             outbox: RefCell::new(heapless::Deque::new()),
             dropped: Cell::new(0),
+            nak_at: Cell::new(0),
+            nak_due: Cell::new(None),
+            sent_to: Cell::new(0),
         }
     }
 }
@@ -75,37 +86,62 @@ impl Default for PduPort {
 /// A countdown on the entity's clock.
 #[derive(Debug)]
 pub struct Timer<'a> {
-    clock: &'a Cell<u32>,
+    link: &'a Link,
     start: u32,
     period: u32,
+    /// The NAK timer (see [`Link::nak_due`]).
+    nak: bool,
+}
+
+impl core::fmt::Debug for Link {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Link")
+            .field("now", &self.now.get())
+            .finish_non_exhaustive()
+    }
 }
 
 impl Countdown for Timer<'_> {
     fn has_expired(&self) -> bool {
-        self.clock.get().wrapping_sub(self.start) >= self.period
+        let now = self.link.now.get();
+        let early = self.nak
+            && self
+                .link
+                .nak_due
+                .get()
+                .is_some_and(|t| t.wrapping_sub(self.start) as i32 > 0 && now.wrapping_sub(t) as i32 >= 0);
+        early || now.wrapping_sub(self.start) >= self.period
     }
     fn reset(&mut self) {
-        self.start = self.clock.get();
+        self.start = self.link.now.get();
+        if self.nak {
+            self.link.nak_at.set(self.start);
+        }
     }
 }
 
 /// The handlers' timer factory: the check timer from the MIB, the others from the remote
 /// entity's configuration (itself from the MIB).
-pub struct Timers<'a>(&'a Cell<u32>);
+pub struct Timers<'a>(&'a Link);
 
 impl<'a> TimerCreator for Timers<'a> {
     type Countdown = Timer<'a>;
     fn create_countdown(&self, ctx: TimerContext) -> Timer<'a> {
-        let ms = match ctx {
-            TimerContext::CheckLimit { .. } => m::CHECK_TIMER_MS,
-            TimerContext::NakActivity { expiry_time } | TimerContext::PositiveAck { expiry_time } => {
-                expiry_time.as_millis() as u64
-            }
+        let (ms, nak) = match ctx {
+            TimerContext::CheckLimit { .. } => (m::CHECK_TIMER_MS, false),
+            TimerContext::NakActivity { expiry_time } => (expiry_time.as_millis() as u64, true),
+            TimerContext::PositiveAck { expiry_time } => (expiry_time.as_millis() as u64, false),
         };
+        let start = self.0.now.get();
+        if nak {
+            // Created when the first NAK of the deferred procedure goes out.
+            self.0.nak_at.set(start);
+        }
         Timer {
-            clock: self.0,
-            start: self.0.get(),
+            link: self.0,
+            start,
             period: ms.min(u32::MAX as u64) as u32,
+            nak,
         }
     }
 }
@@ -115,7 +151,13 @@ impl<'a> TimerCreator for Timers<'a> {
 pub struct Sender<'a>(&'a PduPort);
 
 impl PduSender for Sender<'_> {
-    fn send_pdu(&self, _t: PduType, _d: Option<FileDirectiveType>, raw: &[u8]) -> Result<(), GenericSendError> {
+    fn send_pdu(&self, t: PduType, _d: Option<FileDirectiveType>, raw: &[u8]) -> Result<(), GenericSendError> {
+        if t == PduType::FileData {
+            if let Ok(fd) = FileDataPdu::from_bytes(raw) {
+                let end = fd.offset().saturating_add(fd.file_data().len() as u64);
+                self.0.sent_to.set(self.0.sent_to.get().max(end));
+            }
+        }
         let Ok(pdu) = Pdu::from_slice(raw) else {
             self.0.dropped.set(self.0.dropped.get().wrapping_add(1));
             return Err(GenericSendError::Other);
@@ -325,8 +367,10 @@ struct User {
     finished: heapless::Deque<Finished, 4>,
     owed: heapless::Deque<Owed, 2>,
     proxy_refused: u32,
-    /// End of the furthest file data segment received in the running transaction.
+    /// End of the furthest file data segment received in the running transaction, and the
+    /// length of its file.
     progress: u64,
+    incoming_len: u64,
     sending: bool,
     /// A listing to write before the put it owes.
     listing: Option<FileName>,
@@ -334,6 +378,23 @@ struct User {
     failed: u32,
     /// Finished indications of sent transactions (to see one cfdp-rs did not give).
     sent_reports: u32,
+}
+
+/// Whether a filestore request TLV's value holds its action code and its whole first name
+/// (and second name, if any): spacepackets 0.16's `FilestoreRequestTlv::from_bytes` indexes
+/// the action code unchecked, and a metadata PDU with an empty filestore request panicked
+/// the entity (found by the fuzz target `cfdp_pdu`).
+fn filestore_request_whole(v: &[u8]) -> bool {
+    let Some((&n1, rest)) = v.get(1..).and_then(<[u8]>::split_first) else {
+        return false;
+    };
+    let Some(rest) = rest.get(usize::from(n1)..) else {
+        return false;
+    };
+    match rest.split_first() {
+        None => true,
+        Some((&n2, rest)) => rest.len() == usize::from(n2),
+    }
 }
 
 /// The staging name of the file of incoming transaction `tx` (source entity, sequence).
@@ -411,8 +472,9 @@ impl CfdpUser for User {
         };
         self.report(f);
     }
-    fn metadata_recvd_indication(&mut self, _p: &MetadataReceivedParams) {
+    fn metadata_recvd_indication(&mut self, p: &MetadataReceivedParams) {
         self.progress = 0;
+        self.incoming_len = p.file_size;
     }
     fn file_segment_recvd_indication(&mut self, p: &FileSegmentRecvdParams) {
         // The end of the furthest segment: duplicates and segments sent again do not count
@@ -504,6 +566,10 @@ pub struct Entity<'a, S: FlatStore> {
     resend: heapless::Deque<(u32, u32), { m::MAX_LOST_SEGMENTS }>,
     resend_header: Option<PduHeader>,
     resend_scope: (u32, u32),
+    /// File data PDUs this control period may still send (`SEGMENTS_PER_POLL`).
+    budget: usize,
+    /// When the last file data PDU of the running incoming transaction arrived.
+    data_at: Option<u32>,
 }
 
 /// The peer's configuration: sizes, class defaults, timers and limits from the MIB.
@@ -571,7 +637,7 @@ fn new_source<S: FlatStore>(id: u16, peer: u16, parts: &Parts<S>) -> Source<'_, 
         Sender(&parts.link),
         &parts.store,
         remote_config(peer),
-        Timers(&parts.link.now),
+        Timers(&parts.link),
         Seq(&parts.seq),
     )
 }
@@ -582,7 +648,7 @@ fn new_dest<S: FlatStore>(id: u16, peer: u16, parts: &Parts<S>) -> Dest<'_, S> {
         Sender(&parts.link),
         &parts.store,
         remote_config(peer),
-        Timers(&parts.link.now),
+        Timers(&parts.link),
         LostSegmentsListHeapless::new(),
     )
 }
@@ -610,6 +676,8 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             resend: heapless::Deque::new(),
             resend_header: None,
             resend_scope: (0, 0),
+            budget: m::SEGMENTS_PER_POLL,
+            data_at: None,
         }
     }
 
@@ -640,6 +708,17 @@ impl<'a, S: FlatStore> Entity<'a, S> {
     /// Neither handler has a transaction.
     pub fn idle(&self) -> bool {
         self.source.state() == State::Idle && self.dest.state() == State::Idle && self.user.owed.is_empty()
+    }
+
+    /// The running (or last) outgoing transaction's progress: end of the furthest file data
+    /// segment sent, and the file's length.
+    pub fn sent_progress(&self) -> (u64, u64) {
+        (self.parts.link.sent_to.get(), self.sending_len)
+    }
+
+    /// The running (or last) incoming transaction's file length, as its metadata says.
+    pub fn incoming_len(&self) -> u64 {
+        self.user.incoming_len
     }
 
     /// End of the furthest file data segment received in the running (or last) incoming
@@ -732,6 +811,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             return Err(PutError::Busy);
         }
         self.source = new_source(self.id, self.peer, self.parts);
+        self.parts.link.sent_to.set(0);
         self.sending_len = 0;
         self.sending_name = None;
         let req = Put {
@@ -846,6 +926,20 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         names.iter().filter(|n| self.parts.store.remove(n).is_ok()).count()
     }
 
+    /// One space packet of the CFDP APID from the link (untrusted): its PDU to
+    /// [`Entity::receive`]. A packet that is not a PDU packet of direction `dir` (another
+    /// APID or type, a secondary header, segmented, lengths that disagree) is refused and
+    /// counted ([`Counters::refused`]).
+    pub fn receive_packet(&mut self, now_ms: u64, dir: Direction, packet: &[u8]) {
+        match crate::packet::unwrap(dir, packet) {
+            Some(pdu) => self.receive(now_ms, pdu),
+            None => {
+                self.tick(now_ms);
+                self.counters.refused = self.counters.refused.wrapping_add(1);
+            }
+        }
+    }
+
     /// One PDU from the link (untrusted).
     pub fn receive(&mut self, now_ms: u64, raw: &[u8]) {
         self.tick(now_ms);
@@ -923,7 +1017,12 @@ impl<'a, S: FlatStore> Entity<'a, S> {
                 let eof = pdu.file_directive_type() == Some(FileDirectiveType::EofPdu);
                 self.before_metadata(now_ms, &h, eof)
             }
-            PacketTarget::DestEntity => self.run_dest(Some(&pdu)),
+            PacketTarget::DestEntity => {
+                if pdu.pdu_type() == PduType::FileData {
+                    self.data_at = Some(now_ms as u32);
+                }
+                self.run_dest(Some(&pdu))
+            }
         }
         self.settle();
     }
@@ -1068,6 +1167,9 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             if self.parts.link.outbox.borrow().len() + 2 >= m::OUTBOX_DEPTH {
                 return;
             }
+            if self.budget == 0 && self.resend.front().is_some_and(|r| *r != (0, 0)) {
+                return;
+            }
             let Some((a, b)) = self.resend.pop_front() else { break };
             if a == 0 && b == 0 {
                 let Ok(c) = NakPduCreator::new_normal_file_size(header, start, end, &[(0, 0)]) else {
@@ -1108,6 +1210,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         let mut buf = [0u8; m::MAX_PDU_LEN];
         match pdu.write_to_bytes(&mut buf) {
             Ok(n) => {
+                self.budget = self.budget.saturating_sub(1);
                 self.counters.resent = self.counters.resent.wrapping_add(1);
                 let _ = Sender(&self.parts.link).send_pdu(PduType::FileData, None, &buf[..n]);
             }
@@ -1172,6 +1275,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         }
         let was_idle = self.dest.state() == State::Idle || stale;
         if was_idle {
+            self.data_at = None;
             self.dest = new_dest(self.id, self.peer, self.parts);
             self.receiving = final_name.zip(staging).map(|(f, s)| (tx, f, s));
         }
@@ -1201,6 +1305,11 @@ impl<'a, S: FlatStore> Entity<'a, S> {
                 continue;
             }
             if tlv.tlv_type() != Some(TlvType::FilestoreRequest) {
+                continue;
+            }
+            if !filestore_request_whole(tlv.value()) {
+                // spacepackets 0.16 reads the action code of an empty request unchecked.
+                self.counters.fs_refused = self.counters.fs_refused.wrapping_add(1);
                 continue;
             }
             let mut buf = [0u8; 260];
@@ -1239,8 +1348,11 @@ impl<'a, S: FlatStore> Entity<'a, S> {
     /// period and after the outbox was emptied.
     pub fn poll(&mut self, now_ms: u64) {
         self.tick(now_ms);
+        // Segments asked for again go first: the receiver waits for them.
+        self.budget = m::SEGMENTS_PER_POLL;
         self.resend();
-        for _ in 0..m::SEGMENTS_PER_POLL {
+        self.nak_early(now_ms as u32);
+        while self.budget > 0 {
             if self.parts.link.outbox.borrow().len() + 2 >= m::OUTBOX_DEPTH {
                 break;
             }
@@ -1254,12 +1366,36 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             if self.parts.link.outbox.borrow().len() == before {
                 break;
             }
+            self.budget -= 1;
         }
+        self.parts.link.nak_due.set(None);
         self.settle();
+        // A sender still sending its file data waits for nothing from its peer (a class 2
+        // receiver on a lossless uplink says nothing until the EOF): its silence is not
+        // inactivity. A put through the relay's COP-1 took more than INACTIVITY_MS to get its
+        // data up on a loaded machine and was abandoned.
+        if self.source.state() != State::Idle && self.source.step() == SourceStep::SendingFileData {
+            self.last_heard = now_ms as u32;
+        }
         if (self.source.state() != State::Idle || self.dest.state() != State::Idle)
             && (now_ms as u32).wrapping_sub(self.last_heard) as u64 >= m::INACTIVITY_MS
         {
             self.abandon();
+        }
+    }
+
+    /// The receiver's next NAK without waiting for the NAK timer: file data came after the
+    /// last NAK (the sender answered it) and then none for `NAK_QUIET_MS` — the sender has
+    /// sent what that NAK asked for, and what is still missing was lost again. The NAK timer
+    /// (which cfdp-rs 0.3 restarts only when it expires) stays for a NAK or an answer lost
+    /// on the way; waiting for it cost a NAK period (4 s) per round through the relay.
+    fn nak_early(&mut self, now: u32) {
+        let link = &self.parts.link;
+        let answered = self.data_at.is_some_and(|t| {
+            t.wrapping_sub(link.nak_at.get()) as i32 > 0 && (now.wrapping_sub(t) as u64) >= m::NAK_QUIET_MS
+        });
+        if answered && self.dest.state() != State::Idle {
+            link.nak_due.set(Some(now));
         }
     }
 

@@ -80,3 +80,59 @@ proptest! {
         }).unwrap().join().unwrap();
     }
 }
+
+// spacepackets 0.16 reads a filestore request's action code unchecked: a metadata PDU with an
+// empty filestore request TLV panicked the entity (found by the fuzz target `cfdp_pdu`). It
+// is refused as a filestore request (counted), the transaction goes on, nothing changes.
+// verifies: FILE-CFDP-05
+#[test]
+fn a_metadata_pdu_with_an_empty_or_cut_filestore_request_is_counted_and_changes_nothing() {
+    use spacepackets::cfdp::pdu::metadata::{MetadataGenericParams, MetadataPduCreator};
+    use spacepackets::cfdp::pdu::{CommonPduConfig, PduHeader};
+    use spacepackets::cfdp::{ChecksumType, TransmissionMode};
+    use spacepackets::util::UnsignedByteFieldU16;
+    std::thread::Builder::new()
+        .stack_size(16 << 20)
+        .spawn(|| {
+            // Empty; action code only; a first name longer than the TLV; a second name cut.
+            for (seq, opts) in [
+                vec![0x00, 0x00],
+                vec![0x00, 0x01, 0x00],
+                vec![0x00, 0x03, 0x00, 0x05, b'a'],
+                vec![0x00, 0x05, 0x10, 0x01, b'a', 0x04, b'b'],
+            ]
+            .into_iter()
+            .enumerate()
+            {
+                let rp = Parts::new(Mem::new(30_000));
+                let f = FileName::new("a.bin").unwrap();
+                rp.store.create(&f).unwrap();
+                rp.store.write(&f, 0, &[1, 2, 3]).unwrap();
+                let mut r = Entity::new(1, 0, &rp);
+                let mut conf = CommonPduConfig::new_with_byte_fields(
+                    UnsignedByteFieldU16::new(0),
+                    UnsignedByteFieldU16::new(1),
+                    UnsignedByteFieldU16::new(seq as u16),
+                )
+                .unwrap();
+                conf.trans_mode = TransmissionMode::Acknowledged;
+                let params = MetadataGenericParams::new(true, ChecksumType::Modular, 0);
+                let empty = spacepackets::cfdp::lv::Lv::new_empty();
+                let md =
+                    MetadataPduCreator::new(PduHeader::new_for_file_directive(conf, 0), params, empty, empty, &opts);
+                let mut raw = [0u8; 256];
+                let n = md.write_to_bytes(&mut raw).unwrap();
+                r.receive(10, &raw[..n]);
+                r.poll(20);
+                let c = r.counters();
+                assert_eq!(c.fs_refused, 1, "{opts:02x?}: {c:?}");
+                assert_eq!(c.fs_done, 0);
+                let mut b = [0u8; 3];
+                rp.store.read(&f, 0, &mut b).unwrap();
+                assert_eq!(b, [1, 2, 3]);
+            }
+        })
+        .unwrap()
+        .join()
+        .unwrap();
+}

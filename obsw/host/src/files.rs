@@ -71,10 +71,8 @@ impl<'a> Files<'a> {
         if packet::apid(packet) != Some(mib::cfdp::APID) {
             return false;
         }
-        match packet::unwrap(Direction::Up, packet) {
-            Some(pdu) => self.entity.receive(now_ms, pdu),
-            None => log::warn!("files: a packet of the CFDP APID that is not an uplink PDU packet was dropped"),
-        }
+        // A packet of the APID that is not an uplink PDU packet is refused and counted.
+        self.entity.receive_packet(now_ms, Direction::Up, packet);
         true
     }
 

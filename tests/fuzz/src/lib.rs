@@ -9,6 +9,7 @@
 //! recorded session and libFuzzer mutates one record at a time.
 
 pub mod ab_link;
+pub mod cfdp_pdu;
 pub mod cobs_deframer;
 pub mod ground_tm_frames;
 pub mod mib_wire;
