@@ -86,16 +86,16 @@ impl Default for PduPort {
 /// A countdown on the entity's clock.
 #[derive(Debug)]
 pub struct Timer<'a> {
-    link: &'a Link,
+    link: &'a PduPort,
     start: u32,
     period: u32,
-    /// The NAK timer (see [`Link::nak_due`]).
+    /// The NAK timer (see [`PduPort::nak_due`]).
     nak: bool,
 }
 
-impl core::fmt::Debug for Link {
+impl core::fmt::Debug for PduPort {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.debug_struct("Link")
+        f.debug_struct("PduPort")
             .field("now", &self.now.get())
             .finish_non_exhaustive()
     }
@@ -122,7 +122,7 @@ impl Countdown for Timer<'_> {
 
 /// The handlers' timer factory: the check timer from the MIB, the others from the remote
 /// entity's configuration (itself from the MIB).
-pub struct Timers<'a>(&'a Link);
+pub struct Timers<'a>(&'a PduPort);
 
 impl<'a> TimerCreator for Timers<'a> {
     type Countdown = Timer<'a>;
