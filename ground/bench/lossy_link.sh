@@ -37,7 +37,27 @@ WORK=$(mktemp -d "${TMPDIR:-/tmp}/lossy-link-$CASE.XXXXXX")
 trap '[[ $BASHPID == "$$" ]] && { kill $(jobs -p) 2>/dev/null; rm -rf "$WORK"; }' EXIT
 "$BIN/ground" --no-archive keys create "$WORK/keys" --robot 1 >/dev/null 2>&1
 
-free_port() { python3 -c 'import socket; s=socket.socket(socket.AF_INET, socket.SOCK_DGRAM); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])'; }
+# A port free now for a child to bind later (the relay's target, the ground's TM port),
+# from 32000-32767: below the kernel's ephemeral range (32768-60999), where every socket
+# bound to port 0 (the obsw's, the relay's, other programs') gets its port, and above the
+# range the end-to-end tests hand out (tests/src.rs `free_port`, 10000-31999), so a batch
+# beside a test run takes neither's ports.
+free_port() {
+    python3 - <<'PY'
+import random, socket
+for _ in range(200):
+    port = random.randint(32000, 32767)
+    try:
+        t = socket.socket(socket.AF_INET, socket.SOCK_STREAM); t.bind(("127.0.0.1", port))
+        u = socket.socket(socket.AF_INET, socket.SOCK_DGRAM); u.bind(("127.0.0.1", port))
+    except OSError:
+        continue
+    print(port)
+    break
+else:
+    raise SystemExit("no free port in 32000-32767")
+PY
+}
 
 cat >"$WORK/plan3.toml" <<'EOF'
 name = "three-steps"

@@ -14,7 +14,7 @@ use std::time::Duration;
 
 use anyhow::{anyhow, Context, Result};
 use clap::Args;
-use ground::link::{FrameOptions, Transport};
+use ground::link::{BoundSocket, FrameOptions, Transport};
 use ground::ops::{self, RunOptions};
 use ground::plan;
 
@@ -101,51 +101,61 @@ pub fn find_obsw(given: Option<&Path>) -> Result<PathBuf> {
     ))
 }
 
-/// A free local port for both UDP and TCP.
-fn free_port() -> Result<u16> {
-    for _ in 0..50 {
-        let t = std::net::TcpListener::bind(("127.0.0.1", 0))?;
-        let port = t.local_addr()?.port();
-        if std::net::UdpSocket::bind(("127.0.0.1", port)).is_ok() {
-            return Ok(port);
-        }
-    }
-    Err(anyhow!("no free local port"))
+/// How the ground talks to a demo obsw.
+enum ObswLink {
+    Frames(ObswFrames),
+    /// Bare packets over UDP (`--lab-udp`).
+    LabUdp,
+    /// Bare packets over TCP (`--lab-tcp`).
+    LabTcp,
 }
 
 /// The frame endpoint of a demo obsw.
-pub struct ObswFrames {
+struct ObswFrames {
     /// The robot's key directory (`KEYS/robot-N`).
-    pub keys: PathBuf,
+    keys: PathBuf,
     /// The ground's TM frame address (`--frame-tm-to`).
-    pub tm_to: SocketAddr,
+    tm_to: SocketAddr,
     /// The obsw's SDLS counter file.
-    pub state: PathBuf,
+    state: PathBuf,
 }
 
-/// Starts one obsw for `robot` and waits for its READY line. Returns the TC address: the
-/// frame port with `frames`, else the bare-packet UDP/TCP port.
-pub fn start_obsw(
+/// The address the ground talks to in an obsw's READY line: `frame_udp=` over the space
+/// link, else `udp=` or `tcp=` of the lab link.
+fn ready_addr(line: &str, link: &ObswLink) -> Option<SocketAddr> {
+    let key = match link {
+        ObswLink::Frames(_) => "frame_udp=",
+        ObswLink::LabUdp => "udp=",
+        ObswLink::LabTcp => "tcp=",
+    };
+    line.split_whitespace()
+        .find_map(|w| w.strip_prefix(key))
+        .and_then(|a| a.parse().ok())
+}
+
+/// Starts one obsw for `robot` and waits for its READY line. Every port the obsw opens is
+/// its own choice (port 0), read back from READY — none probed here and bound later by the
+/// obsw, which another process may take in between. Returns the address the ground talks
+/// to ([`ready_addr`]).
+fn start_obsw(
     bin: &Path,
     robot: u8,
     speed: f64,
     seed: u64,
     initial_state: Option<u8>,
     log: &Path,
-    frames: Option<&ObswFrames>,
+    link: &ObswLink,
 ) -> Result<(Child, SocketAddr)> {
-    let port = free_port()?;
-    let ctl = free_port()?;
-    let mut addr: SocketAddr = ([127, 0, 0, 1], port).into();
+    let any = "127.0.0.1:0";
     let mut cmd = Command::new(bin);
     cmd.arg("--robot")
         .arg(robot.to_string())
         .arg("--udp")
-        .arg(addr.to_string())
+        .arg(any)
         .arg("--tcp")
-        .arg(addr.to_string())
+        .arg(any)
         .arg("--sim-ctl")
-        .arg(format!("127.0.0.1:{ctl}"))
+        .arg(any)
         .arg("--speed")
         .arg(speed.to_string())
         .arg("--seed")
@@ -153,21 +163,22 @@ pub fn start_obsw(
     if let Some(s) = initial_state {
         cmd.arg("--initial-state").arg(s.to_string());
     }
-    if let Some(f) = frames {
-        let frame: SocketAddr = ([127, 0, 0, 1], free_port()?).into();
-        cmd.arg("--frame-udp")
-            .arg(frame.to_string())
-            .arg("--frame-tm-to")
-            .arg(f.tm_to.to_string())
-            .arg("--tc-key")
-            .arg(ground::keys::tc_key_path(&f.keys))
-            .arg("--tm-key")
-            .arg(ground::keys::tm_key_path(&f.keys))
-            .arg("--link-state")
-            .arg(&f.state);
-        addr = frame;
-    } else {
-        cmd.arg("--lab-bare-packets");
+    match link {
+        ObswLink::Frames(f) => {
+            cmd.arg("--frame-udp")
+                .arg(any)
+                .arg("--frame-tm-to")
+                .arg(f.tm_to.to_string())
+                .arg("--tc-key")
+                .arg(ground::keys::tc_key_path(&f.keys))
+                .arg("--tm-key")
+                .arg(ground::keys::tm_key_path(&f.keys))
+                .arg("--link-state")
+                .arg(&f.state);
+        }
+        ObswLink::LabUdp | ObswLink::LabTcp => {
+            cmd.arg("--lab-bare-packets");
+        }
     }
     let errlog = std::fs::File::create(log).with_context(|| format!("creating {}", log.display()))?;
     let mut child = cmd
@@ -188,16 +199,19 @@ pub fn start_obsw(
             }
         }
     });
+    let fail = |child: &mut Child, why: String| {
+        let _ = child.kill();
+        let _ = child.wait();
+        anyhow!("obsw for robot {robot} did not start: {why}")
+    };
     match rx.recv_timeout(Duration::from_secs(10)) {
-        Ok(_) => Ok((child, addr)),
+        Ok(line) => match ready_addr(&line, link) {
+            Some(addr) => Ok((child, addr)),
+            None => Err(fail(&mut child, format!("no address in its READY line: {line}"))),
+        },
         Err(_) => {
-            let _ = child.kill();
-            let _ = child.wait();
             let err = std::fs::read_to_string(log).unwrap_or_default();
-            Err(anyhow!(
-                "obsw for robot {robot} did not start: {}",
-                err.lines().last().unwrap_or("no output")
-            ))
+            Err(fail(&mut child, err.lines().last().unwrap_or("no output").to_string()))
         }
     }
 }
@@ -246,8 +260,9 @@ pub fn demo(a: &DemoArgs, archive_path: Option<&Path>) -> Result<u8> {
     if let Some(f) = &mut frames {
         for r in &pl.robots {
             ground::keys::create_robot_keys(&f.keys, r.number).map_err(|e| anyhow!("demo test keys: {e}"))?;
-            f.tm_listen
-                .insert(r.number, SocketAddr::from(([127, 0, 0, 1], free_port()?)));
+            // Bound now, handed to the session: the port stays taken from here on.
+            let sock = BoundSocket::bind(([127, 0, 0, 1], 0).into()).context("binding a TM frame socket")?;
+            f.tm_sockets.insert(r.number, sock);
         }
         crate::output::err_line!(
             "demo: space link (TC/TM frames, COP-1, SDLS AES-256-GCM) with TEST KEYS made for this demo only in {} (random, deleted at the end)",
@@ -258,11 +273,16 @@ pub fn demo(a: &DemoArgs, archive_path: Option<&Path>) -> Result<u8> {
     let mut links = Vec::new();
     for r in &pl.robots {
         let log = logdir.join(format!("obsw-{}.log", r.number));
-        let of = frames.as_ref().map(|f| ObswFrames {
-            keys: ground::keys::robot_dir(&f.keys, r.number),
-            tm_to: f.listen(r.number, ([127, 0, 0, 1], 0).into()),
-            state: logdir.join(format!("obsw-{}-link.state", r.number)),
-        });
+        // `frames` is there exactly when the transport is the space link.
+        let link = match (&frames, transport) {
+            (Some(f), _) => ObswLink::Frames(ObswFrames {
+                keys: ground::keys::robot_dir(&f.keys, r.number),
+                tm_to: f.listen(r.number, ([127, 0, 0, 1], 0).into()),
+                state: logdir.join(format!("obsw-{}-link.state", r.number)),
+            }),
+            (None, Transport::Tcp) => ObswLink::LabTcp,
+            (None, Transport::Udp | Transport::Frames) => ObswLink::LabUdp,
+        };
         let (child, addr) = start_obsw(
             &bin,
             r.number,
@@ -270,12 +290,15 @@ pub fn demo(a: &DemoArgs, archive_path: Option<&Path>) -> Result<u8> {
             a.seed + r.number as u64,
             r.initial_state,
             &log,
-            of.as_ref(),
+            &link,
         )?;
         crate::output::err_line!(
             "demo: robot {} OBSW, {} at {addr}",
             r.number,
-            if of.is_some() { "frame port" } else { "bare-packet port" }
+            match link {
+                ObswLink::Frames(_) => "frame port",
+                ObswLink::LabUdp | ObswLink::LabTcp => "bare-packet port",
+            }
         );
         procs.0.push((r.number, child));
         links.push((r.number, addr));

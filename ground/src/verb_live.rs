@@ -196,9 +196,14 @@ pub(crate) fn policy_error(e: ops::policy::PolicyError) -> anyhow::Error {
 const GAP_CHECK_PERIOD: Duration = Duration::from_millis(mib::ground_config::GAP_CHECK_PERIOD_MS as u64);
 const GAP_CHECK_PERIOD_FRAMES: Duration = Duration::from_millis(mib::ground_config::GAP_CHECK_PERIOD_FRAMES_MS as u64);
 /// `ping`: how much longer it waits, while the robot is heard, for a reply that did not
-/// come in the live wait (over frames asked of the store): two store requests' time,
-/// `mib::ground_config::STORE_REQUEST_TIMEOUT_MS`.
-const STORE_WAIT: Duration = Duration::from_millis(2 * mib::ground_config::STORE_REQUEST_TIMEOUT_MS as u64);
+/// come in the live wait (over frames asked of the store): the time of as many store
+/// requests as a hole is asked before it is given up (`GAP_MAX_TRIES`, each answered or
+/// given up within `STORE_REQUEST_TIMEOUT_MS`): through the 20/5/5 relay a reply lost live
+/// and in two replays is about 1 PING in 50, and a wait of fewer tries calls that robot
+/// unanswering (exit 4) while the next replay is on its way.
+const STORE_WAIT: Duration = Duration::from_millis(
+    mib::ground_config::GAP_MAX_TRIES as u64 * mib::ground_config::STORE_REQUEST_TIMEOUT_MS as u64,
+);
 
 /// Sends one TC and reports its verification until completion or failure.
 pub(crate) fn send_and_follow(

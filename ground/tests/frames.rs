@@ -309,7 +309,7 @@ fn ground_keys_creates_private_keys_and_never_prints_them() {
     assert!(!again.status.success(), "{}", text(&again));
 }
 
-// verifies: LINK-GND-04, OPS-DEMO-TM-01
+// verifies: LINK-GND-04, OPS-DEMO-TM-01, OPS-DEMO-PORTS-01
 #[test]
 fn demo_runs_over_frames_with_test_keys_and_no_resends() {
     let dir = tmpdir("frames", "demo");

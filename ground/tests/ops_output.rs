@@ -32,6 +32,36 @@ fn demo_on_loopback_has_no_resends_full_link_quality_and_leaves_no_temp_folder()
     assert!(left.is_empty(), "left behind: {left:?}");
 }
 
+// verifies: OPS-DEMO-PORTS-01
+#[test]
+fn demo_over_each_lab_link_talks_to_the_port_its_obsw_reported() {
+    // The obsws bind port 0 for --udp and --tcp (two different ports): the demo finds the
+    // robots only at the port its link's READY field names.
+    for lab in ["--lab-udp", "--lab-tcp"] {
+        let dir = tmpdir("ops", &format!("demo{lab}"));
+        let out = ground(
+            &dir,
+            &[
+                "--no-archive",
+                "demo",
+                lab,
+                "--plain",
+                "--obsw",
+                obsw_bin().to_str().unwrap(),
+            ],
+        );
+        let t = text(&out);
+        assert_eq!(out.status.code(), Some(0), "{lab}: {t}");
+        assert!(t.contains("10 of 10 steps done"), "{lab}: {t}");
+        for r in [1, 2] {
+            assert!(
+                t.contains(&format!("demo: robot {r} OBSW, bare-packet port at 127.0.0.1:")),
+                "{lab}: {t}"
+            );
+        }
+    }
+}
+
 /// Runs `ground args` in `dir` with its standard output closed by the reader before it
 /// writes anything; returns the exit code and stderr.
 fn closed_pipe(dir: &Path, args: &[&str]) -> (Option<i32>, String) {

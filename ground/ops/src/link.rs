@@ -66,7 +66,35 @@ pub struct FrameOptions {
     /// Robot N's frames over this serial device (raw mode) or Unix socket instead of UDP
     /// (`--serial N=PATH`): TC and TM frames as COBS frames on the byte stream.
     pub serial: BTreeMap<u8, PathBuf>,
+    /// Robot N's TM frames on a socket the caller bound before it started the robot (its
+    /// address given to the robot as `--frame-tm-to`), instead of one bound at
+    /// [`FrameOptions::listen`]: no moment where the port is free for another process.
+    pub tm_sockets: BTreeMap<u8, BoundSocket>,
 }
+
+/// A UDP socket bound by the caller, shared by the options that name it; two are equal when
+/// they are the same socket.
+#[derive(Clone, Debug)]
+pub struct BoundSocket(Arc<UdpSocket>);
+
+impl BoundSocket {
+    /// Binds `addr` (port 0: the kernel chooses, and keeps it taken).
+    pub fn bind(addr: SocketAddr) -> io::Result<BoundSocket> {
+        Ok(BoundSocket(Arc::new(UdpSocket::bind(addr)?)))
+    }
+
+    pub fn local_addr(&self) -> io::Result<SocketAddr> {
+        self.0.local_addr()
+    }
+}
+
+impl PartialEq for BoundSocket {
+    fn eq(&self, other: &BoundSocket) -> bool {
+        Arc::ptr_eq(&self.0, &other.0)
+    }
+}
+
+impl Eq for BoundSocket {}
 
 impl FrameOptions {
     /// Keys in `keys`, TM on the default addresses, TC SPI 1, encrypted TM, UDP.
@@ -77,6 +105,7 @@ impl FrameOptions {
             tc_spi: mib::link::sdls::TC_SPIS[0],
             tm_security: ground_link::TmSecurity::Encrypt,
             serial: BTreeMap::new(),
+            tm_sockets: BTreeMap::new(),
         }
     }
 }
@@ -84,9 +113,10 @@ impl FrameOptions {
 impl FrameOptions {
     /// The local address robot `robot`'s TM frames arrive at.
     pub fn listen(&self, robot: u8, robot_addr: SocketAddr) -> SocketAddr {
-        self.tm_listen
+        self.tm_sockets
             .get(&robot)
-            .copied()
+            .and_then(|s| s.local_addr().ok())
+            .or_else(|| self.tm_listen.get(&robot).copied())
             .unwrap_or_else(|| default_tm_listen(robot, robot_addr))
     }
 }
@@ -514,8 +544,11 @@ fn open_frames(
                 path.display()
             ))
         })?,
-        None => ground_link::GroundFrameLink::open(cfg)
-            .map_err(|e| io::Error::other(format!("frame link of robot {robot} (TM frames on {listen}): {e}")))?,
+        None => match opts.tm_sockets.get(&robot) {
+            Some(s) => ground_link::GroundFrameLink::open_socket(cfg, s.0.try_clone()?),
+            None => ground_link::GroundFrameLink::open(cfg),
+        }
+        .map_err(|e| io::Error::other(format!("frame link of robot {robot} (TM frames on {listen}): {e}")))?,
     };
     let (to_link, from_ground) = crossbeam_channel::unbounded::<Vec<u8>>();
     let stats = Arc::new(Mutex::new(FrameStats::default()));
