@@ -63,6 +63,9 @@ step "QEMU board end to end (the real ground over the UART: plan, replay refused
 board_elf="$CARGO_TARGET_DIR/$TARGET/release/qemu-board"
 e2e_log=$(mktemp)
 trap 'rm -f "$qemu_log" "$e2e_log"' EXIT
+# Built before the timeout, which bounds the test's run, not its compile (a cold target, as
+# the full review's, takes longer than the run).
+(cd "$ROOT" && env -u CARGO_TARGET_DIR -u RUSTFLAGS cargo test -p e2e-tests --test qemu_board_e2e --no-run)
 (cd "$ROOT" && env -u CARGO_TARGET_DIR -u RUSTFLAGS QEMU_BOARD_ELF="$board_elf" \
   timeout 300 cargo test -p e2e-tests --test qemu_board_e2e -- --ignored --nocapture) 2>&1 | tee "$e2e_log"
 [ "${PIPESTATUS[0]}" -eq 0 ] || exit 1
