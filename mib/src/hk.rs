@@ -34,6 +34,28 @@ pub mod sid {
 pub const MIN_INTERVAL_MS: u32 = 10;
 pub const MAX_INTERVAL_MS: u32 = 3_600_000;
 
+/// Structures report in different control periods: structure `i` (its index in
+/// [`HK_STRUCTS`]) has the phase `i × PHASE_STEP_MS` within each second
+/// ([`PHASE_CYCLE_MS`]). Its first report after boot, TC[3,5] or TC[3,31] is one interval
+/// after the next instant of its phase, and each later one an interval after the last, so
+/// structures whose intervals are whole seconds never report in the same period (their
+/// packets, and the store writes they cost, would otherwise all fall in one period at the
+/// common multiple of the intervals). A report late by a slow period is rephased the same
+/// way. The step is several control periods, so a period that runs late does not bring two
+/// phases together.
+pub const PHASE_STEP_MS: u32 = 50;
+/// The span the phases repeat in; every whole-second interval is a multiple of it.
+pub const PHASE_CYCLE_MS: u32 = 1000;
+
+/// The phase of structure `index` of [`HK_STRUCTS`] within [`PHASE_CYCLE_MS`].
+pub const fn phase_ms(index: usize) -> u32 {
+    (index as u32 * PHASE_STEP_MS) % PHASE_CYCLE_MS
+}
+
+// Every structure has a phase of its own, each in a control period of its own.
+const _: () = assert!(HK_STRUCTS.len() as u32 * PHASE_STEP_MS <= PHASE_CYCLE_MS);
+const _: () = assert!(PHASE_STEP_MS >= 2 * crate::config::CONTROL_PERIOD_MS);
+
 use pid::*;
 pub const HK_STRUCTS: &[HkDef] = &[
     HkDef {

@@ -308,6 +308,15 @@ pub mod store {
     /// (events, scheduled and plan steps' verification) at one report every 2 s.
     pub const REPORTS_PER_HOUR: u32 = 1_800;
 
+    /// Freeing ahead of need: in a control period with at most [`FREE_AHEAD_QUIET_WRITES`]
+    /// store writes, each area gives up at most this many of its oldest packets, and only
+    /// packets of the sector the area's next change of write sector must erase (those the
+    /// next writes would overwrite anyway). A write then seldom has to free a whole sector
+    /// itself (≈ 40 packets given up in one period).
+    pub const FREE_AHEAD_PER_PERIOD: u32 = 4;
+    /// The most store writes a period may have had for the store to free ahead in it.
+    pub const FREE_AHEAD_QUIET_WRITES: u32 = 2;
+
     const _: () = assert!(HK_SIZE.is_multiple_of(FLASH_SECTOR) && REPORT_SIZE.is_multiple_of(FLASH_SECTOR));
     // Each area needs two sectors at least: the queue erases its oldest while the
     // youngest is still being written.

@@ -263,6 +263,12 @@ impl<S: TmStore> Downlink<S> {
         }
     }
 
+    /// The end of a control period: the store may free ahead of need (what it gives up
+    /// is counted as overwritten).
+    pub fn end_period(&mut self) {
+        self.store_dropped = self.store_dropped.wrapping_add(self.store.end_period());
+    }
+
     /// Emits a typed event (`mib_wire::ev`: every field named at the call) unless it is
     /// disabled or throttled.
     pub fn raise<E: mib_wire::EventArgs>(&mut self, now: u64, e: E, sink: &mut impl TmSink) {

@@ -9,6 +9,18 @@
 //! its oldest packets, one by one and counted, until its oldest sector is free; the HK
 //! area fills first, so periodic HK is overwritten before events and verification.
 //!
+//! Freeing ahead of need: freeing a sector costs one pop per packet it holds (≈ 40 HK
+//! packets), too much for one control period next to its other work. So at the end of a
+//! period with few writes ([`TmStore::end_period`], at most
+//! `mib::memory::store::FREE_AHEAD_QUIET_WRITES` of them) each area pops up to
+//! `FREE_AHEAD_PER_PERIOD` of its oldest packets, counted as overwritten, under one rule:
+//! only while the sector after the one being written still holds packets. That sector is
+//! the area's oldest, and the next write that does not fit the sector being written has to
+//! empty it whole before it can go on: every packet popped ahead is one that write would
+//! pop. Popping ahead brings that loss forward by at most one sector's worth of writes, and
+//! the area still holds [`FlashStore::min_packets`]' sectors less one; a pop is one item's
+//! header cleared, so a reset during it loses nothing else.
+//!
 //! `sequential-storage` is async; the flashes here are blocking, so every future is
 //! ready when first polled and `embassy_futures::block_on` drives it.
 
@@ -279,6 +291,8 @@ pub struct FlashStore<'a, F: NorFlash, const H: usize, const R: usize> {
     hk_len: usize,
     report_len: usize,
     counts: Counts,
+    /// Writes since the last end of a period.
+    period_writes: u32,
 }
 
 /// Why a store could not be opened.
@@ -316,6 +330,7 @@ impl<'a, F: MultiwriteNorFlash, const H: usize, const R: usize> FlashStore<'a, F
             hk_len: 0,
             report_len: 0,
             counts: Counts::default(),
+            period_writes: 0,
         };
         s.hk_len = count(&mut s.hk);
         s.report_len = count(&mut s.reports);
@@ -381,6 +396,32 @@ fn push<F: MultiwriteNorFlash, const P: usize>(q: &mut Queue<'_, F, P>, len: &mu
     }
 }
 
+/// Pops up to `most` of the oldest packets of `q` while the page after the one being
+/// written holds live data (the packets the next page change would pop anyway, see the
+/// module's description); returns how many.
+fn free_ahead<F: MultiwriteNorFlash, const P: usize>(q: &mut Queue<'_, F, P>, len: &mut usize, most: u32) -> u32 {
+    // `find_max_fit` says a whole page fits exactly when the next page is free.
+    let word = F::WRITE_SIZE.max(F::READ_SIZE);
+    let free_page = (F::ERASE_SIZE - 2 * word) as u32;
+    let mut popped = 0;
+    while popped < most {
+        match block_on(q.find_max_fit()) {
+            Ok(Some(n)) if n >= free_page => break,
+            Ok(_) => {}
+            Err(_) => break,
+        }
+        let mut buf = [0u8; MAX_PACKET_LEN];
+        match block_on(q.pop(&mut buf)) {
+            Ok(Some(_)) => {
+                popped += 1;
+                *len = len.saturating_sub(1);
+            }
+            Ok(None) | Err(_) => break,
+        }
+    }
+    popped
+}
+
 /// The next well-formed packet of an iteration into `buf`: its length and time stamp, or
 /// `None` at the end (a read error ends the iteration, counted).
 fn next_packet<F: MultiwriteNorFlash, const P: usize>(
@@ -430,6 +471,7 @@ fn stored_stamp(p: &[u8]) -> Option<Stamp> {
 
 impl<F: MultiwriteNorFlash, const H: usize, const R: usize> TmStore for FlashStore<'_, F, H, R> {
     fn push(&mut self, packet: &[u8]) -> u32 {
+        self.period_writes = self.period_writes.saturating_add(1);
         let stored = match Area::of(packet) {
             Some(Area::Hk) => push(&mut self.hk, &mut self.hk_len, packet).map(|n| (n, 0)),
             Some(Area::Report) => push(&mut self.reports, &mut self.report_len, packet).map(|n| (0, n)),
@@ -446,6 +488,21 @@ impl<F: MultiwriteNorFlash, const H: usize, const R: usize> TmStore for FlashSto
                 1
             }
         }
+    }
+
+    /// Frees ahead of need in a period with few writes (the module's description).
+    fn end_period(&mut self) -> u32 {
+        use mib::memory::store::{FREE_AHEAD_PER_PERIOD, FREE_AHEAD_QUIET_WRITES};
+        let quiet = self.period_writes <= FREE_AHEAD_QUIET_WRITES;
+        self.period_writes = 0;
+        if !quiet {
+            return 0;
+        }
+        let hk = free_ahead(&mut self.hk, &mut self.hk_len, FREE_AHEAD_PER_PERIOD);
+        let report = free_ahead(&mut self.reports, &mut self.report_len, FREE_AHEAD_PER_PERIOD);
+        self.counts.hk_overwritten = self.counts.hk_overwritten.wrapping_add(hk);
+        self.counts.report_overwritten = self.counts.report_overwritten.wrapping_add(report);
+        hk + report
     }
 
     /// Both areas merged by time stamp, oldest first.
@@ -714,6 +771,71 @@ pub(crate) mod tests {
         s.clear();
         assert_eq!((s.len(), content(&mut s).len()), (0, 0));
         assert_eq!(f.borrow().bit_sets, 0, "the layout never sets a bit without an erase");
+    }
+
+    // verifies: PUS-15-08
+    #[test]
+    fn freeing_ahead_gives_up_only_packets_the_next_writes_would_and_spares_them_the_pops() {
+        // The same packets into two stores: `ahead` with quiet periods (one write each),
+        // `plain` never told a period ended.
+        let (fa, fp) = (RefCell::new(TestFlash::new(5)), RefCell::new(TestFlash::new(5)));
+        let (mut ahead, mut plain) = (open(&fa), open(&fp));
+        let pkts = packets_every(900, 60, 10);
+        let (mut lost_ahead, mut lost_plain, mut most_in_a_push) = (0, 0, 0);
+        let mut gone_from_plain_at = std::collections::HashMap::new();
+        let mut popped_ahead_at = Vec::new();
+        for (i, p) in pkts.iter().enumerate() {
+            let a = ahead.push(p);
+            most_in_a_push = most_in_a_push.max(a);
+            lost_ahead += a;
+            let before = content(&mut plain);
+            lost_plain += plain.push(p);
+            let after = content(&mut plain);
+            for q in before.iter().filter(|q| !after.contains(q)) {
+                gone_from_plain_at.insert(q.clone(), i);
+            }
+            let held = content(&mut ahead);
+            let n = ahead.end_period();
+            assert!(n <= 2 * mib::memory::store::FREE_AHEAD_PER_PERIOD);
+            lost_ahead += n;
+            let now = content(&mut ahead);
+            for area in [Area::Hk, Area::Report] {
+                let of = |c: &[Vec<u8>]| -> Vec<Vec<u8>> {
+                    c.iter().filter(|q| Area::of(q) == Some(area)).cloned().collect()
+                };
+                let (held, now, after) = (of(&held), of(&now), of(&after));
+                // Only an area's oldest packets go, never its newest.
+                assert!(held.ends_with(&now));
+                popped_ahead_at.extend(held[..held.len() - now.len()].iter().map(|q| (q.clone(), i)));
+                // What `ahead` holds is what `plain` holds less some of its oldest.
+                assert!(after.ends_with(&now), "at packet {i}");
+            }
+        }
+        assert!(
+            lost_plain > 100 && most_in_a_push == 0,
+            "no write had to free a sector itself"
+        );
+        assert_eq!(
+            ahead.counts().hk_overwritten + ahead.counts().report_overwritten,
+            lost_ahead
+        );
+        // Every packet popped ahead, `plain` gave up too, within a sector's worth of writes
+        // into its area.
+        let area_writes = |i: usize, q: &[u8]| pkts[..=i].iter().filter(|p| Area::of(p) == Area::of(q)).count();
+        let mut checked = 0;
+        for (q, at) in popped_ahead_at {
+            let per_sector = Small::min_packets(2, q.len());
+            let at = area_writes(at, &q);
+            let gone = gone_from_plain_at
+                .get(&q)
+                .map_or(area_writes(pkts.len() - 1, &q) + 1, |&g| area_writes(g, &q));
+            assert!(
+                gone >= at && gone - at <= per_sector + 1,
+                "popped at {at}, gone at {gone}"
+            );
+            checked += 1;
+        }
+        assert!(checked > 100, "{checked}");
     }
 
     // verifies: PUS-15-04

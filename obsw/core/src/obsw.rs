@@ -606,6 +606,7 @@ impl<S: TmStore> Obsw<S> {
         self.time_tick(now, sink);
         self.release_schedule(now, sink);
         self.plan_tick(now, sink);
+        self.dl.end_period();
         self.out = out;
         &self.out
     }

@@ -59,6 +59,13 @@ pub trait TmStore {
             }
         });
     }
+    /// Called once at the end of every control period: a store whose giving up of old
+    /// packets costs (the flash store) gives up, ahead of need, a few packets its next
+    /// writes would overwrite anyway, so that no single write pays for many. Returns how
+    /// many it gave up (counted as overwritten).
+    fn end_period(&mut self) -> u32 {
+        0
+    }
     fn len(&self) -> usize;
     fn is_empty(&self) -> bool {
         self.len() == 0

@@ -1,7 +1,9 @@
 //! PUS 3 housekeeping: periodic reports of the MIB's HK structures (TM[3,25]),
-//! enable/disable, one-shot and collection interval.
+//! enable/disable, one-shot and collection interval. Each structure reports at its own
+//! phase within the second (`mib::hk::phase_ms`), so that structures with whole-second
+//! intervals never report, and write to the store, in the same control period.
 
-use mib::hk::HK_STRUCTS;
+use mib::hk::{phase_ms, HK_STRUCTS, PHASE_CYCLE_MS};
 
 use crate::accept::Tc;
 use crate::failure::Failure;
@@ -67,11 +69,11 @@ pub struct Hk {
 impl Hk {
     pub fn new() -> Self {
         let mut s = [HkState::default(); N_HK];
-        for (h, d) in s.iter_mut().zip(HK_STRUCTS) {
+        for (i, (h, d)) in s.iter_mut().zip(HK_STRUCTS).enumerate() {
             *h = HkState {
                 enabled: d.default_enabled,
                 interval: d.default_interval_ms,
-                next: d.default_interval_ms as u64,
+                next: at_phase(0, i) + d.default_interval_ms as u64,
             };
         }
         Hk { s }
@@ -82,6 +84,12 @@ impl Hk {
     }
 }
 
+/// The first instant at or after `t` that is structure `i`'s phase within the second.
+fn at_phase(t: u64, i: usize) -> u64 {
+    let cycle = PHASE_CYCLE_MS as u64;
+    t + (phase_ms(i) as u64 + cycle - t % cycle) % cycle
+}
+
 impl Hk {
     /// Applies a request; the index of a structure to report now (a one-shot), whose
     /// values the obsw gathers from their sources (`Obsw::hk_report`).
@@ -90,14 +98,14 @@ impl Hk {
             Request::Enable(HkIndex(i)) => {
                 let h = &mut self.s[i];
                 h.enabled = true;
-                h.next = now + h.interval as u64;
+                h.next = at_phase(now, i) + h.interval as u64;
             }
             Request::Disable(HkIndex(i)) => self.s[i].enabled = false,
             Request::OneShot(HkIndex(i)) => return Some(i),
             Request::SetInterval(HkIndex(i), ms) => {
                 let h = &mut self.s[i];
                 h.interval = ms;
-                h.next = now + ms as u64;
+                h.next = at_phase(now, i) + ms as u64;
             }
         }
         None
@@ -110,7 +118,11 @@ impl Hk {
             return false;
         };
         let next = h.next + h.interval as u64;
-        h.next = if next <= now { now + h.interval as u64 } else { next };
+        h.next = if next <= now {
+            at_phase(now, i) + h.interval as u64
+        } else {
+            next
+        };
         true
     }
 }
@@ -166,5 +178,45 @@ mod tests {
             o.hk_tick(t, &mut sink);
         }
         assert!(of(&sink, 3, 25).iter().all(|p| p[20..22] != sid.to_be_bytes()));
+    }
+
+    // verifies: PUS-3-06
+    #[test]
+    fn structures_with_whole_second_intervals_report_in_periods_of_their_own() {
+        let mut hk = Hk::new();
+        for i in 0..N_HK {
+            hk.s[i].enabled = true;
+        }
+        let period = mib::config::CONTROL_PERIOD_MS as u64;
+        let mut first = [0u64; N_HK];
+        let mut reports = 0;
+        let mut check = |hk: &mut Hk, from: u64, to: u64, first: &mut [u64; N_HK], stalled: Option<usize>| {
+            for t in (from..to).step_by(period as usize) {
+                let due: Vec<usize> = (0..N_HK).filter(|&i| Some(i) != stalled && hk.take_due(t, i)).collect();
+                assert!(due.len() <= 1, "structures {due:?} report together at {t} ms");
+                for i in due {
+                    if first[i] == 0 {
+                        first[i] = t;
+                    }
+                    reports += 1;
+                }
+            }
+        };
+        check(&mut hk, 0, 60_000, &mut first, None);
+        for (i, d) in HK_STRUCTS.iter().enumerate() {
+            // The first report one interval after the structure's phase.
+            let due = (phase_ms(i) + d.default_interval_ms) as u64;
+            assert_eq!(first[i], due.next_multiple_of(period), "SID {}", d.sid);
+        }
+        // Re-enabling and new whole-second intervals keep every structure on its phase.
+        hk.request(60_003, Request::SetInterval(HkIndex(1), 3000));
+        hk.request(60_007, Request::Enable(HkIndex(2)));
+        hk.request(61_234, Request::SetInterval(HkIndex(0), 2000));
+        check(&mut hk, 60_010, 120_000, &mut first, None);
+        // A structure whose reports were held up for seconds comes back on its phase.
+        check(&mut hk, 120_000, 125_550, &mut first, Some(3));
+        assert!(hk.take_due(125_555, 3));
+        check(&mut hk, 125_560, 180_000, &mut first, None);
+        assert!(reports > 100, "{reports} reports");
     }
 }
