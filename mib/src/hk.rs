@@ -41,8 +41,9 @@ pub const MAX_INTERVAL_MS: u32 = 3_600_000;
 /// structures whose intervals are whole seconds never report in the same period (their
 /// packets, and the store writes they cost, would otherwise all fall in one period at the
 /// common multiple of the intervals). A report late by a slow period is rephased the same
-/// way. The step is several control periods, so a period that runs late does not bring two
-/// phases together.
+/// way. An interval that is not whole seconds keeps no phase: its reports are an interval
+/// apart from the TC or the late report that set them. The step is several control
+/// periods, so a period that runs late does not bring two phases together.
 pub const PHASE_STEP_MS: u32 = 50;
 /// The span the phases repeat in; every whole-second interval is a multiple of it.
 pub const PHASE_CYCLE_MS: u32 = 1000;

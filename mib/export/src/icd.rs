@@ -433,7 +433,7 @@ fn section_housekeeping_structures(o: &mut String) {
     let _ = writeln!(o, "## 5. Housekeeping structures\n");
     let _ = writeln!(
         o,
-        "A TM[3,25] report's source data is the SID (u16) followed by the structure's parameters in the\norder below. \"Offset\" counts octets from the start of the source data, \"packet\" from the start of the\npacket. Intervals can be changed with TC[3,31] within {} … {} ms. Each structure reports at its own phase\nwithin the second ({} ms apart, in the order below): its first report after boot, TC[3,5] or TC[3,31] is one\ninterval after the next instant of its phase, so structures with whole-second intervals never report in the\nsame control period.\n",
+        "A TM[3,25] report's source data is the SID (u16) followed by the structure's parameters in the\norder below. \"Offset\" counts octets from the start of the source data, \"packet\" from the start of the\npacket. Intervals can be changed with TC[3,31] within {} … {} ms. Each structure reports at its own phase\nwithin the second ({} ms apart, in the order below): its first report after boot, TC[3,5] or TC[3,31] is one\ninterval after the next instant of its phase, so structures with whole-second intervals never report in the\nsame control period. An interval that is not whole seconds keeps no phase: reports come an interval apart.\n",
         hk::MIN_INTERVAL_MS,
         hk::MAX_INTERVAL_MS,
         hk::PHASE_STEP_MS

@@ -73,7 +73,7 @@ impl Hk {
             *h = HkState {
                 enabled: d.default_enabled,
                 interval: d.default_interval_ms,
-                next: at_phase(0, i) + d.default_interval_ms as u64,
+                next: first_after(0, i, d.default_interval_ms),
             };
         }
         Hk { s }
@@ -90,6 +90,19 @@ fn at_phase(t: u64, i: usize) -> u64 {
     t + (phase_ms(i) as u64 + cycle - t % cycle) % cycle
 }
 
+/// Structure `i`'s report an interval from `t`: from its next phase instant when the
+/// interval is whole cycles (the phase is kept for good), else from `t` itself (an interval
+/// shorter than, or not a multiple of, the cycle cannot keep a phase, and waiting for one
+/// would slow a 50 ms structure to one report a second).
+fn first_after(t: u64, i: usize, interval: u32) -> u64 {
+    let start = if interval.is_multiple_of(PHASE_CYCLE_MS) {
+        at_phase(t, i)
+    } else {
+        t
+    };
+    start + interval as u64
+}
+
 impl Hk {
     /// Applies a request; the index of a structure to report now (a one-shot), whose
     /// values the obsw gathers from their sources (`Obsw::hk_report`).
@@ -98,14 +111,14 @@ impl Hk {
             Request::Enable(HkIndex(i)) => {
                 let h = &mut self.s[i];
                 h.enabled = true;
-                h.next = at_phase(now, i) + h.interval as u64;
+                h.next = first_after(now, i, h.interval);
             }
             Request::Disable(HkIndex(i)) => self.s[i].enabled = false,
             Request::OneShot(HkIndex(i)) => return Some(i),
             Request::SetInterval(HkIndex(i), ms) => {
                 let h = &mut self.s[i];
                 h.interval = ms;
-                h.next = at_phase(now, i) + ms as u64;
+                h.next = first_after(now, i, ms);
             }
         }
         None
@@ -119,7 +132,7 @@ impl Hk {
         };
         let next = h.next + h.interval as u64;
         h.next = if next <= now {
-            at_phase(now, i) + h.interval as u64
+            first_after(now, i, h.interval)
         } else {
             next
         };
@@ -218,5 +231,17 @@ mod tests {
         assert!(hk.take_due(125_555, 3));
         check(&mut hk, 125_560, 180_000, &mut first, None);
         assert!(reports > 100, "{reports} reports");
+    }
+
+    // verifies: PUS-3-02
+    #[test]
+    fn an_interval_shorter_than_the_phase_cycle_reports_at_its_own_rate() {
+        let mut hk = Hk::new();
+        hk.request(10_237, Request::SetInterval(HkIndex(3), 50));
+        let due: Vec<u64> = (10_240..11_240).step_by(10).filter(|&t| hk.take_due(t, 3)).collect();
+        // Every 50 ms from the TC on (10,290 … 11,190), not once a second on a phase.
+        assert_eq!(due.len(), 19, "{due:?}");
+        assert_eq!(due[0], 10_290);
+        assert!(due.windows(2).all(|w| w[1] - w[0] == 50), "{due:?}");
     }
 }
