@@ -297,9 +297,11 @@ fn on_board(
         if matches!(exec.state[*i], StepState::Done { .. }) {
             continue;
         }
-        session.adopt(st.robot, tc.clone(), Some(*i), Some(st.id.clone()), false);
         if ob.upload {
+            session.adopt_new(st.robot, tc.clone(), Some(*i), Some(st.id.clone()));
             session.archive_tc(tc, &st.id);
+        } else {
+            session.adopt(st.robot, tc.clone(), Some(*i), Some(st.id.clone()), false);
         }
         exec.run_on_board(*i, tc.clone());
     }

@@ -360,11 +360,26 @@ impl Session {
     pub fn adopt(&mut self, robot: u8, tc: BuiltTc, tag: Option<usize>, label: Option<String>, accepted: bool) {
         // Sent by an earlier session: its reports may be anywhere in the store
         // (`tm_seq_at_send` unknown); never resent.
+        self.book.insert(Self::adopted(robot, tc, tag, label, accepted));
+    }
+
+    /// Tracks a step TC of an on-board plan this session is about to upload and start
+    /// (never sent by the ground): its reports come after the TM heard so far, so the gaps
+    /// after it are where they are, and the live gap check asks for those first (without
+    /// this, a run through a lossy link asked for the oldest HK gaps one a period and a
+    /// step's lost completion waited out its timeout).
+    pub fn adopt_new(&mut self, robot: u8, tc: BuiltTc, tag: Option<usize>, label: Option<String>) {
+        let mut p = Self::adopted(robot, tc, tag, label, false);
+        p.tm_seq_at_send = self.robots.get(&robot).and_then(|s| s.seq.newest());
+        self.book.insert(p);
+    }
+
+    fn adopted(robot: u8, tc: BuiltTc, tag: Option<usize>, label: Option<String>, accepted: bool) -> Pending {
         let mut p = Pending::sent(robot, tc, tag, label, Instant::now());
         p.accepted = accepted;
         p.max_sends = 1;
         p.exhausted = true;
-        self.book.insert(p);
+        p
     }
 
     /// True if the TC with this request ID is still waiting for its outcome.

@@ -722,3 +722,50 @@ fn a_span_asked_of_the_store_by_time_is_asked_again_only_until_its_packets_have_
         "one PING, the span asked twice: again only while a packet it held was missing"
     );
 }
+
+// verifies: OPS-LIVE-GAP-02
+#[test]
+fn an_on_board_step_about_to_start_awaits_the_gaps_after_the_tm_heard_so_far() {
+    // A fake robot answers a PING with TM 0..=5, then (after the step is tracked) sends 8:
+    // 6 and 7, where the step's reports may be, are the gaps its outcome waits on — the
+    // live gap check asks for them first, not for the oldest gap of the session.
+    let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
+    sock.set_read_timeout(Some(Duration::from_millis(1500))).unwrap();
+    let addr = sock.local_addr().unwrap();
+    let (go_tx, go_rx) = std::sync::mpsc::channel::<()>();
+    let fake = std::thread::spawn(move || {
+        let mut buf = [0u8; 2048];
+        let (_, f) = sock.recv_from(&mut buf).unwrap();
+        let t = CdsShort::now().to_bytes();
+        for seq in 0..=5 {
+            sock.send_to(&build_tm(0x101, seq, 17, 2, 0, &t, &[]), f).unwrap();
+        }
+        go_rx.recv().unwrap();
+        sock.send_to(&build_tm(0x101, 8, 17, 2, 0, &t, &[]), f).unwrap();
+    });
+    let mut s = Session::connect(&[(1, addr)], Transport::Udp, None, |_| Some(700)).unwrap();
+    let ping = s
+        .send(1, mib::tc::by_name("PING").unwrap(), &[], Some(1), None)
+        .unwrap();
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_secs(2) && s.robots[&1].seq.newest() != Some(5) {
+        s.poll(Duration::from_millis(20));
+    }
+    // The PING's outcome no longer awaited (only the step's is).
+    s.forget(&ping);
+    let step = pus::build_tc(1, 900, mib::tc::by_name("PING").unwrap(), &[]).unwrap();
+    s.adopt_new(1, step.clone(), Some(0), Some("r1-operational".into()));
+    let old = pus::build_tc(1, 901, mib::tc::by_name("PING").unwrap(), &[]).unwrap();
+    go_tx.send(()).unwrap();
+    while t0.elapsed() < Duration::from_secs(4) && s.robots[&1].seq.newest() != Some(8) {
+        s.poll(Duration::from_millis(20));
+    }
+    fake.join().unwrap();
+    assert_eq!(s.robots[&1].seq.newest(), Some(8));
+    assert_eq!(s.awaited_gaps(1), vec![(6, 7)]);
+    // The same TC adopted as one an earlier session sent (reports anywhere): no such gaps.
+    s.forget(&step);
+    s.adopt(1, old, Some(0), None, false);
+    let unanchored: Vec<(u16, u16)> = s.awaited_gaps(1);
+    assert!(unanchored.is_empty(), "{unanchored:?}");
+}
