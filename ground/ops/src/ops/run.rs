@@ -258,7 +258,16 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
     }
     // An interrupted run ends at once: the TM it missed is filled by the next session.
     let tm = if opts.ping_period.is_some() && !stop_asked() && !detach {
-        complete_tm(session, &robots, &disp, &stop_asked)
+        // The events the retrieval brings (a bolt's or unbolt's report lost live) count in
+        // the summary like those heard live.
+        let mut seen = Vec::new();
+        let tm = complete_tm(session, &robots, &disp, &stop_asked, &mut seen);
+        for u in seen {
+            if matches!(u, Update::Event { .. }) {
+                let _ = exec.on_update(Instant::now(), u);
+            }
+        }
+        tm
     } else {
         Vec::new()
     };
@@ -573,7 +582,13 @@ const GAP_SETTLE: Duration = Duration::from_millis(mib::ground_config::GAP_SETTL
 /// Ends a run's TM: an end marker (a connection test, resent until answered) fixes how
 /// far the TM must be complete; then every gap up to it is asked of the on-board store
 /// until it is filled, found overwritten, or `GAP_ROUNDS_MAX` rounds passed.
-fn complete_tm(session: &mut Session, robots: &[u8], disp: &Display, stop: &dyn Fn() -> bool) -> Vec<TmCompleteness> {
+fn complete_tm(
+    session: &mut Session,
+    robots: &[u8],
+    disp: &Display,
+    stop: &dyn Fn() -> bool,
+    seen: &mut Vec<Update>,
+) -> Vec<TmCompleteness> {
     let mut out = Vec::new();
     let Some(ping) = mib::tc::by_name("PING") else {
         return out;
@@ -600,7 +615,7 @@ fn complete_tm(session: &mut Session, robots: &[u8], disp: &Display, stop: &dyn 
             // reports are then a gap below the cut, filled like any other).
             let mut delivered_at: Option<Instant> = None;
             while t0.elapsed() < limit && session.accepted(m) == Some(false) && !stop() {
-                session.poll(Duration::from_millis(50));
+                seen.extend(session.poll(Duration::from_millis(50)));
                 if session.robots.get(&r).is_some_and(|s| s.lost.is_some()) {
                     break;
                 }
@@ -641,7 +656,7 @@ fn complete_tm(session: &mut Session, robots: &[u8], disp: &Display, stop: &dyn 
             // The pacing rule: the last retrieval ended and the least gap since it.
             let t0 = Instant::now();
             while t0.elapsed() < limit && !session.may_retrieve(r) && !stop() {
-                session.poll(Duration::from_millis(50));
+                seen.extend(session.poll(Duration::from_millis(50)));
             }
             let asked = session.request_gaps(r, Some(cut), GAP_REQUESTS_MAX);
             if asked.is_empty() {
@@ -667,12 +682,12 @@ fn complete_tm(session: &mut Session, robots: &[u8], disp: &Display, stop: &dyn 
                 })
             };
             while t0.elapsed() < limit && session.retrieving(r) && !filled(session) && !stop() {
-                session.poll(Duration::from_millis(50));
+                seen.extend(session.poll(Duration::from_millis(50)));
             }
             // Replays still on their way.
             let settle = Instant::now();
             while settle.elapsed() < GAP_SETTLE {
-                session.poll(Duration::from_millis(50));
+                seen.extend(session.poll(Duration::from_millis(50)));
             }
         }
         if let Some(s) = session.robots.get(&r) {
