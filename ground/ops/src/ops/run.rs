@@ -12,6 +12,9 @@ use crate::pus::BuiltTc;
 
 use super::*;
 
+/// How long one wait for the robots' TM lasts in the run's loops (the executor's tick).
+const POLL: Duration = Duration::from_millis(50);
+
 struct Display {
     mp: indicatif::MultiProgress,
     total: indicatif::ProgressBar,
@@ -212,7 +215,7 @@ pub fn run_plan(plan: &Plan, session: &mut Session, opts: &RunOptions, resume: &
         if exec.finished() || exec.stopped(Instant::now()) {
             break;
         }
-        for u in session.poll(Duration::from_millis(50)) {
+        for u in session.poll(POLL) {
             let fx = exec.on_update(Instant::now(), u);
             apply(fx, &mut exec, session);
         }
@@ -373,7 +376,7 @@ fn start_markers(session: &mut Session, robots: &[u8], wait: bool, stop: &dyn Fn
             .iter()
             .any(|r| session.robots.get(r).is_some_and(|s| s.seq.newest().is_none()))
     {
-        seen.extend(session.poll(Duration::from_millis(50)));
+        seen.extend(session.poll(POLL));
     }
     // Over frames a marker is delivered once (COP-1), not resent like on the lab links;
     // when all its reports are lost and no TM came before it, nothing fixes the run's
@@ -406,7 +409,7 @@ fn start_markers(session: &mut Session, robots: &[u8], wait: bool, stop: &dyn Fn
                     && session.robots.get(r).is_some_and(|s| s.lost.is_none())
             })
         {
-            seen.extend(session.poll(Duration::from_millis(50)));
+            seen.extend(session.poll(POLL));
             for (r, m, _) in &markers {
                 if session.delivered(*r, m) {
                     delivered_at.entry(*r).or_insert_with(Instant::now);
@@ -486,7 +489,7 @@ fn resolve_in_flight(
         // The pacing rule: the last retrieval ended and the least gap since it.
         let wait = Instant::now();
         while wait.elapsed() < GAP_ROUND_WAIT && !open.iter().all(|&r| session.may_retrieve(r)) && !stop() {
-            for u in session.poll(Duration::from_millis(50)) {
+            for u in session.poll(POLL) {
                 fx.extend(exec.on_update(Instant::now(), u));
             }
         }
@@ -495,13 +498,13 @@ fn resolve_in_flight(
         }
         let round = Instant::now();
         while round.elapsed() < GAP_ROUND_WAIT && open.iter().any(|&r| session.retrieving(r)) {
-            for u in session.poll(Duration::from_millis(50)) {
+            for u in session.poll(POLL) {
                 fx.extend(exec.on_update(Instant::now(), u));
             }
         }
         let settle = Instant::now();
         while settle.elapsed() < GAP_SETTLE {
-            for u in session.poll(Duration::from_millis(50)) {
+            for u in session.poll(POLL) {
                 fx.extend(exec.on_update(Instant::now(), u));
             }
         }
@@ -615,7 +618,7 @@ fn complete_tm(
             // reports are then a gap below the cut, filled like any other).
             let mut delivered_at: Option<Instant> = None;
             while t0.elapsed() < limit && session.accepted(m) == Some(false) && !stop() {
-                seen.extend(session.poll(Duration::from_millis(50)));
+                seen.extend(session.poll(POLL));
                 if session.robots.get(&r).is_some_and(|s| s.lost.is_some()) {
                     break;
                 }
@@ -656,7 +659,7 @@ fn complete_tm(
             // The pacing rule: the last retrieval ended and the least gap since it.
             let t0 = Instant::now();
             while t0.elapsed() < limit && !session.may_retrieve(r) && !stop() {
-                seen.extend(session.poll(Duration::from_millis(50)));
+                seen.extend(session.poll(POLL));
             }
             let asked = session.request_gaps(r, Some(cut), GAP_REQUESTS_MAX);
             if asked.is_empty() {
@@ -682,12 +685,12 @@ fn complete_tm(
                 })
             };
             while t0.elapsed() < limit && session.retrieving(r) && !filled(session) && !stop() {
-                seen.extend(session.poll(Duration::from_millis(50)));
+                seen.extend(session.poll(POLL));
             }
             // Replays still on their way.
             let settle = Instant::now();
             while settle.elapsed() < GAP_SETTLE {
-                seen.extend(session.poll(Duration::from_millis(50)));
+                seen.extend(session.poll(POLL));
             }
         }
         if let Some(s) = session.robots.get(&r) {
