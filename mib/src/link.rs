@@ -88,6 +88,14 @@ pub mod cop1 {
     pub const FOP_TX_LIMIT: u8 = 5;
     /// FOP-1 timeout type (0: alert on the last expiry, 1: suspend).
     pub const FOP_TIMEOUT_TYPE: u8 = 0;
+    /// How long a ground's FOP-1 waits, from its link's start, for the first CLCW before
+    /// AD service begins (Yamcs `initialClcwWait`, seconds; it takes V(S) from that CLCW's
+    /// N(R)). A robot in contact sends a CLCW every [`CLCW_REPORT_INTERVAL_MS`], so the wait
+    /// covers the ground's own start: a JVM starting beside five others on two cores
+    /// delivered its first TM frame to the FOP more than 10 s after the link started, and
+    /// Yamcs' FOP-1 then suspends for good (a CLCW does not resume it), its TCs queued and
+    /// never sent until an operator resumes. TCs issued meanwhile wait in the FOP's queue.
+    pub const FOP_INITIAL_CLCW_WAIT_S: u64 = 60;
 }
 
 /// SDLS (355.0-B-2) parameters: AES-256-GCM authenticated encryption in Yamcs 5.12.8's layout.

@@ -883,15 +883,18 @@ fn a_restarted_yamcs_never_skips_a_command_over_cop1() {
     assert!(!dir.join("etc/keys/TEST-KEYS-NOT-SECRET").exists());
     let tm_log = dir.join("tm.log");
     let obsw = obsw_on_frames(&dir, &ports, &tm_log, &[]);
-    let plan = json!({"hk_params": [], "commands": [{"name": "PING", "at": 0.2}]});
+    // The check waits as long as the FOP may wait for its first CLCW after the link started.
+    let plan = json!({"hk_params": [], "commands": [{"name": "PING", "at": 0.2}],
+        "cop1_link": "tc_robot_1.vc0", "settle_s": mib::link::cop1::FOP_INITIAL_CLCW_WAIT_S});
     let ping = |r: &Value| command(r, "PING")["attrs"].clone();
     let window_s = mib::config::DUPLICATE_MAX_AGE_MS as f64 / 1000.0;
 
     // Session 1: PING, the first TC of this Yamcs (sequence count 1).
     let y = Yamcs::start(&dir, &venv);
     let first = Instant::now();
-    let a = ping(&check(&venv, &dir, &setup, &plan, 2.0));
-    assert_eq!(a["CommandComplete_Status"], "OK", "{a}");
+    let r1 = check(&venv, &dir, &setup, &plan, 2.0);
+    let a = ping(&r1);
+    assert_eq!(a["CommandComplete_Status"], "OK", "{a}; COP-1: {}", r1["cop1"]);
     let log1 = y.log();
     drop(y);
     assert_eq!(ping_replies(&tm_log), 1, "session 1: {}", fop_lines(&log1));
@@ -899,17 +902,24 @@ fn a_restarted_yamcs_never_skips_a_command_over_cop1() {
     // Session 2, restarted at once (the script's old 60 s guard is not used for a frame
     // instance, even when asked for): the same PING with the same sequence count, well
     // inside the obsw's packet duplicate window. Yamcs' FOP-1 starts from the CLCW
-    // (initialClcwWait), its SDLS counter resumes from its data directory; the TC is
+    // (initialClcwWait, FOP_INITIAL_CLCW_WAIT_S), its SDLS counter resumes from its data directory; the TC is
     // executed: a second TM[17,2].
     let t = Instant::now();
     let y = Yamcs::start_guarded(&dir, &venv, 60);
     let start_s = t.elapsed().as_secs_f64();
     let apart = first.elapsed().as_secs_f64();
-    let b = ping(&check(&venv, &dir, &setup, &plan, 2.0));
+    let r2 = check(&venv, &dir, &setup, &plan, 2.0);
+    let b = ping(&r2);
     let log2 = y.log();
     drop(y);
     drop(obsw);
-    assert_eq!(b["CommandComplete_Status"], "OK", "{b}; FOP: {}", fop_lines(&log2));
+    assert_eq!(
+        b["CommandComplete_Status"],
+        "OK",
+        "{b}; FOP: {}; COP-1: {}",
+        fop_lines(&log2),
+        r2["cop1"]
+    );
     assert_eq!(a["binary"], b["binary"], "the same bytes (sequence count 1 again)");
     assert_eq!(
         ping_replies(&tm_log),

@@ -459,11 +459,12 @@ fn frame_links(y: &mut String, r: &YamcsRobot) {
          stream: tc_robot_{n}\n{post}        \
          # COP-1: FOP-1 driven by the CLCW of the TM frames (mib::link::cop1).\n        useCop1: true\n        \
          clcwStream: clcw_robot_{n}\n        cop1T1: {t1_s}\n        cop1TxLimit: {tx}\n        \
-         slidingWindowWidth: {k}\n        initialClcwWait: 10\n",
+         slidingWindowWidth: {k}\n        initialClcwWait: {wait}\n",
         vc = tc_vc::COMMAND,
         post = pus_postprocessor("        "),
         tx = cop1::FOP_TX_LIMIT,
         k = cop1::FOP_SLIDING_WINDOW,
+        wait = cop1::FOP_INITIAL_CLCW_WAIT_S,
     );
     let _ = write!(
         y,
@@ -1292,6 +1293,7 @@ mod tests {
             format!("cop1T1: {}", cop1::FOP_T1_MS / 1000),
             format!("cop1TxLimit: {}", cop1::FOP_TX_LIMIT),
             format!("slidingWindowWidth: {}", cop1::FOP_SLIDING_WINDOW),
+            format!("initialClcwWait: {}", cop1::FOP_INITIAL_CLCW_WAIT_S),
             format!("encryptionSpi: {}", sdls::TC_SPIS[0]),
             format!("encryptionSpis: [{}]", sdls::TM_SPIS[0]),
             format!("seqNumWindow: {}", sdls::ANTI_REPLAY_WINDOW),
