@@ -19,15 +19,13 @@ use crate::fdir::{self, Faults, Monitoring};
 use crate::modes::ModeTree;
 use crate::request::Ctx;
 use crate::services::function::Running;
-use crate::services::hk::Hk;
 use crate::services::link::{LinkKeys, LinkSelect};
 use crate::services::mode::{ModeCmd, Transition};
 use crate::services::modules::Modules;
 use crate::services::plan::OnboardPlan;
 use crate::services::scheduling::Schedule;
 use crate::services::team::Team;
-use crate::services::time::TimeReports;
-use crate::services::Request;
+use crate::services::{Request, Services};
 use crate::time::OnboardTime;
 use crate::tm::{TmSink, TmStore};
 use mib_wire::RequestId;
@@ -165,8 +163,8 @@ pub struct Obsw<S: TmStore> {
     pub(crate) dl: Downlink<S>,
     pub ctrl: Controller,
     seen: Duplicates,
-    pub(crate) hk: Hk,
-    pub(crate) time_reports: TimeReports,
+    /// The components only the obsw reaches (`services::Services`).
+    pub(crate) svc: Services,
     pub(crate) sched: Schedule,
     pub monitoring: Monitoring,
     pub faults: Faults,
@@ -209,8 +207,7 @@ impl<S: TmStore> Obsw<S> {
             dl: Downlink::new(apid, OnboardTime::new(cfg.epoch_unix_ms), store),
             ctrl: Controller::new(),
             seen: Duplicates::default(),
-            hk: Hk::new(),
-            time_reports: TimeReports::new(),
+            svc: Services::new(),
             sched: Schedule::new(),
             monitoring: Monitoring::new(),
             faults: Faults::default(),
@@ -294,8 +291,8 @@ impl<S: TmStore> Obsw<S> {
 
     /// The earliest time at which `tick` has periodic work (HK, time report, schedule).
     pub fn next_deadline(&self) -> u64 {
-        let mut t = self.time_reports.next_deadline();
-        if let Some(h) = self.hk.next_deadline() {
+        let mut t = self.svc.time_reports.next_deadline();
+        if let Some(h) = self.svc.hk.next_deadline() {
             t = t.min(h);
         }
         if let Some(s) = self.sched.next_release() {
@@ -616,7 +613,7 @@ impl<S: TmStore> Obsw<S> {
     /// Reports every enabled HK structure whose interval elapsed.
     pub(crate) fn hk_tick(&mut self, now: u64, sink: &mut impl TmSink) {
         for i in 0..mib::hk::HK_STRUCTS.len() {
-            if self.hk.take_due(now, i) {
+            if self.svc.hk.take_due(now, i) {
                 self.hk_report(now, i, sink);
             }
         }
@@ -692,7 +689,7 @@ impl<S: TmStore> Obsw<S> {
 
     /// Sends the periodic time report when it is due.
     pub(crate) fn time_tick(&mut self, now: u64, sink: &mut impl TmSink) {
-        self.time_reports.tick(now, &mut self.dl, sink);
+        self.svc.time_reports.tick(now, &mut self.dl, sink);
     }
 }
 

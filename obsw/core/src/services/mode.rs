@@ -23,6 +23,11 @@ use crate::services::function::Running;
 use crate::tm::{TmSink, TmStore};
 
 /// A node of the mode tree; only made from a defined node ID.
+/// Its contract; its requests are still handled by the obsw (`Obsw::mode_request`), which
+/// joins it to the controller, the mode tree and FDIR.
+pub const CONTRACT: crate::services::Contract =
+    crate::services::Contract::new("mode", Some(mib::tc::service::MODE), &[mib::params::Source::Modes]);
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Node(u32);
 

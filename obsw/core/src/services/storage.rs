@@ -21,6 +21,11 @@ use crate::request::unknown;
 use crate::tm::{TmSink, TmStore};
 
 /// A CDS short time (days since 1958, ms of day), ordered.
+/// Its contract; its requests are still handled by the obsw (`Obsw::storage_request`), which
+/// joins it to the controller, the mode tree and FDIR.
+pub const CONTRACT: crate::services::Contract =
+    crate::services::Contract::new("storage", Some(mib::tc::service::STORAGE), &[]);
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub struct Cds {
     pub days: u16,

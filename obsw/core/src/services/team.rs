@@ -24,8 +24,9 @@
 
 use mib::events::eid;
 use mib::modes::robot_mode;
-use mib::params::{pid, NotSupplied, Supplied};
+use mib::params::{pid, NotSupplied, Source, Supplied};
 use mib::robot::Side;
+use mib::tc::service;
 use mib::team::{
     PlanStep, MAX_AUTHORISED_STEPS, ROSTER_MAX, STATUS_PERIOD_MS, TEAM_APID, TEAM_SERVICE, TEAM_SUBSERVICE_MESSAGE,
     TEAM_SUBSERVICE_PLAN_STEP,
@@ -44,6 +45,7 @@ use crate::downlink::Downlink;
 use crate::failure::Failure;
 use crate::obsw::{Exec, Obsw};
 use crate::request::unknown;
+use crate::services::{Component, Contract};
 use crate::time::OnboardTime;
 use crate::tm::{TmSink, TmStore, TmWriter};
 
@@ -592,6 +594,226 @@ impl Team {
     }
 }
 
+/// The team's own requests (service 211): authorisation, roster, status report, plan
+/// steps. What the node decides joins the robot's modes and actions (`Obsw::team_poll`).
+impl Component for Team {
+    const CONTRACT: Contract = Contract::new("team", Some(service::TEAM), &[Source::Team]);
+    type Request<'a> = Request;
+    type Output = ();
+    fn handle<S: TmStore>(
+        &mut self,
+        now: u64,
+        r: Request,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) -> Result<(), Failure> {
+        match r {
+            Request::Authorise(mut a, validity_s) => {
+                a.expires_at = now.saturating_add(u64::from(validity_s) * 1000);
+                if let Some(n) = self.node.as_mut() {
+                    n.authorise(now, a)
+                        .map_err(|_| Failure::arg_out_of_range(4, validity_s as i32))?;
+                }
+                if self.auth.map(|o| (o.plan, o.first_step, o.max_steps)) != Some((a.plan, a.first_step, a.max_steps)) {
+                    // Another authorisation: its steps must be uploaded anew.
+                    self.slots = [None; PLAN_CAPACITY];
+                    self.plan = None;
+                }
+                self.auth = Some(a);
+                self.dirty = true;
+            }
+            Request::Roster(slots) => {
+                let mut roster: heapless::Vec<u8, ROSTER_MAX> = heapless::Vec::new();
+                for r in slots.iter().filter(|r| **r != 0) {
+                    // At most ROSTER_MAX slots.
+                    let _ = roster.push(*r);
+                }
+                self.set_roster(now, &roster)
+                    .map_err(|_| Failure::arg_out_of_range(0, i32::from(slots[0])))?;
+            }
+            Request::Status => self.status(now, dl, sink),
+            Request::PlanStep(id, step) => self.plan_step(now, id, step, dl, sink)?,
+        }
+        Ok(())
+    }
+}
+
+impl Team {
+    /// Emits the TEAM_STATUS report TM[211,2].
+    fn status<S: TmStore>(&self, now: u64, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
+        let mut r = tm::TeamStatus {
+            term: self.durable.term,
+            role: 0,
+            leader: 0,
+            ground_seen: 1,
+            lease: 0,
+            voted_for: 0,
+            auth_plan: 0,
+            auth_first_step: 0,
+            auth_steps: 0,
+            auth_left_s: 0,
+            refused: 0,
+            foreign: 0,
+            roster: heapless::Vec::new(),
+        };
+        if let Some(n) = &self.node {
+            let s = n.status(now);
+            r.term = s.term;
+            r.role = s.role.code();
+            r.leader = s.leader.unwrap_or(0);
+            r.ground_seen = u8::from(s.ground_seen);
+            r.lease = u8::from(s.lease);
+            r.voted_for = s.voted_for.unwrap_or(0);
+            r.refused = s.counters.refused;
+            r.foreign = s.counters.foreign;
+            for robot in s.roster.iter() {
+                // Same capacity (ROSTER_MAX).
+                let _ = r.roster.push(tm::TeamStatusRoster { robot: *robot });
+            }
+        }
+        if let Some(a) = self.auth {
+            r.auth_plan = a.plan.id;
+            r.auth_first_step = a.first_step;
+            r.auth_steps = a.max_steps;
+            r.auth_left_s = (a.expires_at.saturating_sub(now) / 1000).min(u64::from(u32::MAX)) as u32;
+        }
+        dl.emit_tm(now, &r, sink);
+    }
+
+    /// TC[211,6]: one step of the authorised plan. When every authorised step is there,
+    /// their hash must be the authorisation's plan hash: the plan is loaded (PLAN_UPLOADED,
+    /// the node learns the plan) or every step is dropped (PLAN_HASH_MISMATCH).
+    fn plan_step<S: TmStore>(
+        &mut self,
+        now: u64,
+        id: u16,
+        s: PlanStep,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) -> Result<(), Failure> {
+        let not_authorised = Failure::plan_not_authorised(id, s.step);
+        let a = self.auth.filter(|a| a.plan.id == id).ok_or(not_authorised.clone())?;
+        let i = s.step.checked_sub(a.first_step).map(usize::from);
+        let Some(i) = i.filter(|i| *i < usize::from(a.max_steps)) else {
+            return Err(not_authorised);
+        };
+        if step_action(&s).is_none() {
+            return Err(Failure::plan_forbidden_function(s.function));
+        }
+        self.slots[i] = Some(s);
+        let n = usize::from(a.max_steps);
+        if self.slots[..n].iter().all(Option::is_some) {
+            let mut steps: heapless::Vec<PlanStep, PLAN_CAPACITY> = heapless::Vec::new();
+            for s in self.slots[..n].iter().flatten() {
+                // n <= PLAN_CAPACITY (MAX_AUTHORISED_STEPS, checked by the node).
+                let _ = steps.push(*s);
+            }
+            self.slots = [None; PLAN_CAPACITY];
+            let hash = mib::team::plan_hash(id, &steps);
+            if hash != a.plan.hash {
+                self.plan = None;
+                return Err(Failure::plan_hash_mismatch(a.plan.hash, hash));
+            }
+            self.plan = Some(StoredPlan { id, steps, done: 0 });
+            self.dirty = true;
+            self.progress_dirty = true;
+            let e = ev::PlanUploaded {
+                plan: id,
+                first_step: a.first_step,
+                steps: a.max_steps,
+                hash,
+            };
+            dl.raise(now, e, sink);
+        }
+        Ok(())
+    }
+
+    /// The node's events as PUS 5 events.
+    fn event<S: TmStore>(&mut self, now: u64, ev: TeamEvent, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
+        match ev {
+            TeamEvent::GroundLost => {
+                let term = self.node.as_ref().map_or(0, |n| n.term());
+                dl.raise(now, ev::GroundLost { term }, sink)
+            }
+            TeamEvent::ElectionStarted { term } => {
+                self.counters.elections = self.counters.elections.wrapping_add(1);
+                dl.raise(now, ev::ElectionStarted { term }, sink)
+            }
+            TeamEvent::LeaderElected { term, leader } => dl.raise(now, ev::LeaderElected { term, leader }, sink),
+            TeamEvent::SteppedDown { term, reason } => {
+                let reason = step_down_code(reason);
+                dl.raise(now, ev::SteppedDown { term, reason }, sink)
+            }
+            TeamEvent::GroundRegained { term } => dl.raise(now, ev::GroundRegained { term }, sink),
+            TeamEvent::DirectiveExecuted {
+                term,
+                leader,
+                directive: d,
+            } => {
+                self.counters.dir_executed = self.counters.dir_executed.wrapping_add(1);
+                let (directive, step) = directive_args(d);
+                let e = ev::DirectiveExecuted {
+                    term,
+                    leader,
+                    directive,
+                    step,
+                };
+                dl.raise(now, e, sink)
+            }
+            TeamEvent::DirectiveRefused { term, from, reason } => {
+                let reason = refuse_code(reason);
+                dl.raise(
+                    now,
+                    ev::DirectiveRefused {
+                        term,
+                        sender: from,
+                        reason,
+                    },
+                    sink,
+                )
+            }
+        }
+    }
+
+    /// A plan step not executed (CONTINUE_NOT_EXECUTED, PLAN_STEP_REFUSED).
+    fn step_refused<S: TmStore>(
+        &mut self,
+        now: u64,
+        plan: u16,
+        step: u16,
+        why: StepRefusal,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) {
+        let c = &mut self.counters;
+        c.continue_not_executed = c.continue_not_executed.wrapping_add(1);
+        let e = ev::PlanStepRefused {
+            plan,
+            step,
+            reason: why.code(),
+        };
+        dl.raise(now, e, sink);
+    }
+
+    fn send(&mut self, now: u64, to: Dest, msg: &Message, link: &mut impl TeamLink) {
+        let mut body = [0u8; MAX_LEN];
+        let mut out = [0u8; mib::config::MAX_PACKET_LEN];
+        let packet = match msg.emit(&mut body) {
+            Ok(n) => self
+                .tmw
+                .build(now, TEAM_SERVICE, TEAM_SUBSERVICE_MESSAGE, &body[..n], &mut out),
+            Err(_) => None,
+        };
+        match packet {
+            Some(n) => {
+                let sent = link.send(to, &out[..n]);
+                self.counters.pkt_sent = self.counters.pkt_sent.wrapping_add(sent);
+            }
+            None => self.counters.send_failed = self.counters.send_failed.wrapping_add(1),
+        }
+    }
+}
+
 impl<S: TmStore> Obsw<S> {
     /// Restores the team record at start (`Team::restore`) and raises TEAM_STATE_LOADED.
     pub fn team_restore(&mut self, now: u64, status: LoadStatus, r: &TeamRecord, sink: &mut impl TmSink) {
@@ -606,6 +828,11 @@ impl<S: TmStore> Obsw<S> {
     /// Sets the team roster (`Team::set_roster`).
     pub fn team_set_roster(&mut self, now: u64, roster: &[u8]) -> Result<(), mmic_team::node::RosterError> {
         self.team.set_roster(now, roster)
+    }
+
+    /// Emits the TEAM_STATUS report TM[211,2] (`Team::status`).
+    pub fn team_status(&mut self, now: u64, sink: &mut impl TmSink) {
+        self.team.status(now, &mut self.dl, sink);
     }
 
     /// Earliest time the team logic has work (`Team::next_deadline`).
@@ -647,7 +874,7 @@ impl<S: TmStore> Obsw<S> {
         self.team_input(now, rand, Input::Tick, link, sink);
         if now >= self.team.next_status {
             self.team.next_status = now + STATUS_PERIOD_MS;
-            self.team_status(now, sink);
+            self.team.status(now, &mut self.dl, sink);
         }
     }
 
@@ -719,29 +946,10 @@ impl<S: TmStore> Obsw<S> {
                         return;
                     }
                 }
-                Effect::Send { to, msg } => self.team_send(now, to, &msg, link),
+                Effect::Send { to, msg } => self.team.send(now, to, &msg, link),
                 Effect::Act(a) => self.team_act(now, a, link, sink),
-                Effect::Event(ev) => self.team_event(now, ev, sink),
+                Effect::Event(ev) => self.team.event(now, ev, &mut self.dl, sink),
             }
-        }
-    }
-
-    fn team_send(&mut self, now: u64, to: Dest, msg: &Message, link: &mut impl TeamLink) {
-        let mut body = [0u8; MAX_LEN];
-        let mut out = [0u8; mib::config::MAX_PACKET_LEN];
-        let packet = match msg.emit(&mut body) {
-            Ok(n) => self
-                .team
-                .tmw
-                .build(now, TEAM_SERVICE, TEAM_SUBSERVICE_MESSAGE, &body[..n], &mut out),
-            Err(_) => None,
-        };
-        match packet {
-            Some(n) => {
-                let sent = link.send(to, &out[..n]);
-                self.team.counters.pkt_sent = self.team.counters.pkt_sent.wrapping_add(sent);
-            }
-            None => self.team.counters.send_failed = self.team.counters.send_failed.wrapping_add(1),
         }
     }
 
@@ -750,7 +958,8 @@ impl<S: TmStore> Obsw<S> {
             // A hold cancels a step that has not started yet.
             if let Some((step, _)) = self.team.step_pending.take() {
                 let plan = self.team.plan.as_ref().map_or(0, |p| p.id);
-                self.step_refused(now, plan, step, StepRefusal::Refused, sink);
+                self.team
+                    .step_refused(now, plan, step, StepRefusal::Refused, &mut self.dl, sink);
             }
         }
         if self.plan.plan.state() == mmic_plan::State::Running {
@@ -758,7 +967,8 @@ impl<S: TmStore> Obsw<S> {
             // hold for ground loss (the robot's own or a leader's) does not stop it, and a
             // leader's step never interleaves with it (FDIR still suspends it).
             if let Action::Continue { plan, step, .. } = a {
-                self.step_refused(now, plan.id, step, StepRefusal::Busy, sink);
+                self.team
+                    .step_refused(now, plan.id, step, StepRefusal::Busy, &mut self.dl, sink);
             }
             return;
         }
@@ -769,7 +979,7 @@ impl<S: TmStore> Obsw<S> {
                 match self.team_continue(now, plan, step, function, link, sink) {
                     Ok(()) => return,
                     Err(why) => {
-                        self.step_refused(now, plan.id, step, why, sink);
+                        self.team.step_refused(now, plan.id, step, why, &mut self.dl, sink);
                         self.hold_target()
                     }
                 }
@@ -790,17 +1000,6 @@ impl<S: TmStore> Obsw<S> {
         } else {
             robot_mode::SAFED
         }
-    }
-
-    fn step_refused(&mut self, now: u64, plan: u16, step: u16, why: StepRefusal, sink: &mut impl TmSink) {
-        let c = &mut self.team.counters;
-        c.continue_not_executed = c.continue_not_executed.wrapping_add(1);
-        let e = ev::PlanStepRefused {
-            plan,
-            step,
-            reason: why.code(),
-        };
-        self.raise(now, e, sink);
     }
 
     /// A CONTINUE of the node (the leader's, checked by the node against this robot's
@@ -928,14 +1127,17 @@ impl<S: TmStore> Obsw<S> {
                 // The ground is back (or never left): its first valid TC ends obedience,
                 // a step that has not started yet never starts.
                 self.team.step_pending = None;
-                self.step_refused(now, plan, step, StepRefusal::Refused, sink);
+                self.team
+                    .step_refused(now, plan, step, StepRefusal::Refused, &mut self.dl, sink);
             } else if up && self.modes.root_target() != robot_mode::OPERATIONAL {
                 // The FDIR took over on the way up.
                 self.team.step_pending = None;
-                self.step_refused(now, plan, step, StepRefusal::Refused, sink);
+                self.team
+                    .step_refused(now, plan, step, StepRefusal::Refused, &mut self.dl, sink);
             } else if expired {
                 self.team.step_pending = None;
-                self.step_refused(now, plan, step, StepRefusal::NotAuthorised, sink);
+                self.team
+                    .step_refused(now, plan, step, StepRefusal::NotAuthorised, &mut self.dl, sink);
             } else if self.transition.is_none() && self.running.is_none() {
                 let root = self.modes.root();
                 if root == robot_mode::STANDBY && !up && self.computed_state() != mib::robot::STATE_UNKNOWN {
@@ -951,7 +1153,7 @@ impl<S: TmStore> Obsw<S> {
                         _ => Err(StepRefusal::InitialState),
                     };
                     if let Err(why) = started {
-                        self.step_refused(now, plan, step, why, sink);
+                        self.team.step_refused(now, plan, step, why, &mut self.dl, sink);
                         let target = self.hold_target();
                         if self.modes.root_target() != target {
                             self.set_mode(now, target, eid::GROUND_LOST, sink);
@@ -960,171 +1162,6 @@ impl<S: TmStore> Obsw<S> {
                 }
             }
         }
-    }
-
-    fn team_event(&mut self, now: u64, ev: TeamEvent, sink: &mut impl TmSink) {
-        match ev {
-            TeamEvent::GroundLost => {
-                let term = self.team.node.as_ref().map_or(0, |n| n.term());
-                self.raise(now, ev::GroundLost { term }, sink)
-            }
-            TeamEvent::ElectionStarted { term } => {
-                self.team.counters.elections = self.team.counters.elections.wrapping_add(1);
-                self.raise(now, ev::ElectionStarted { term }, sink)
-            }
-            TeamEvent::LeaderElected { term, leader } => self.raise(now, ev::LeaderElected { term, leader }, sink),
-            TeamEvent::SteppedDown { term, reason } => {
-                let reason = step_down_code(reason);
-                self.raise(now, ev::SteppedDown { term, reason }, sink)
-            }
-            TeamEvent::GroundRegained { term } => self.raise(now, ev::GroundRegained { term }, sink),
-            TeamEvent::DirectiveExecuted {
-                term,
-                leader,
-                directive: d,
-            } => {
-                self.team.counters.dir_executed = self.team.counters.dir_executed.wrapping_add(1);
-                let (directive, step) = directive_args(d);
-                let e = ev::DirectiveExecuted {
-                    term,
-                    leader,
-                    directive,
-                    step,
-                };
-                self.raise(now, e, sink)
-            }
-            TeamEvent::DirectiveRefused { term, from, reason } => {
-                let reason = refuse_code(reason);
-                self.raise(
-                    now,
-                    ev::DirectiveRefused {
-                        term,
-                        sender: from,
-                        reason,
-                    },
-                    sink,
-                )
-            }
-        }
-    }
-
-    /// Emits the TEAM_STATUS report TM[211,2].
-    pub fn team_status(&mut self, now: u64, sink: &mut impl TmSink) {
-        let mut r = tm::TeamStatus {
-            term: self.team.durable.term,
-            role: 0,
-            leader: 0,
-            ground_seen: 1,
-            lease: 0,
-            voted_for: 0,
-            auth_plan: 0,
-            auth_first_step: 0,
-            auth_steps: 0,
-            auth_left_s: 0,
-            refused: 0,
-            foreign: 0,
-            roster: heapless::Vec::new(),
-        };
-        if let Some(n) = &self.team.node {
-            let s = n.status(now);
-            r.term = s.term;
-            r.role = s.role.code();
-            r.leader = s.leader.unwrap_or(0);
-            r.ground_seen = u8::from(s.ground_seen);
-            r.lease = u8::from(s.lease);
-            r.voted_for = s.voted_for.unwrap_or(0);
-            r.refused = s.counters.refused;
-            r.foreign = s.counters.foreign;
-            for robot in s.roster.iter() {
-                // Same capacity (ROSTER_MAX).
-                let _ = r.roster.push(tm::TeamStatusRoster { robot: *robot });
-            }
-        }
-        if let Some(a) = self.team.auth {
-            r.auth_plan = a.plan.id;
-            r.auth_first_step = a.first_step;
-            r.auth_steps = a.max_steps;
-            r.auth_left_s = (a.expires_at.saturating_sub(now) / 1000).min(u64::from(u32::MAX)) as u32;
-        }
-        self.emit_tm(now, r, sink);
-    }
-
-    /// TC[211,6]: one step of the authorised plan. When every authorised step is there,
-    /// their hash must be the authorisation's plan hash: the plan is loaded (PLAN_UPLOADED,
-    /// the node learns the plan) or every step is dropped (PLAN_HASH_MISMATCH).
-    fn team_plan_step(&mut self, now: u64, id: u16, s: PlanStep, sink: &mut impl TmSink) -> Result<(), Failure> {
-        let not_authorised = Failure::plan_not_authorised(id, s.step);
-        let a = self
-            .team
-            .auth
-            .filter(|a| a.plan.id == id)
-            .ok_or(not_authorised.clone())?;
-        let i = s.step.checked_sub(a.first_step).map(usize::from);
-        let Some(i) = i.filter(|i| *i < usize::from(a.max_steps)) else {
-            return Err(not_authorised);
-        };
-        if step_action(&s).is_none() {
-            return Err(Failure::plan_forbidden_function(s.function));
-        }
-        self.team.slots[i] = Some(s);
-        let n = usize::from(a.max_steps);
-        if self.team.slots[..n].iter().all(Option::is_some) {
-            let mut steps: heapless::Vec<PlanStep, PLAN_CAPACITY> = heapless::Vec::new();
-            for s in self.team.slots[..n].iter().flatten() {
-                // n <= PLAN_CAPACITY (MAX_AUTHORISED_STEPS, checked by the node).
-                let _ = steps.push(*s);
-            }
-            self.team.slots = [None; PLAN_CAPACITY];
-            let hash = mib::team::plan_hash(id, &steps);
-            if hash != a.plan.hash {
-                self.team.plan = None;
-                return Err(Failure::plan_hash_mismatch(a.plan.hash, hash));
-            }
-            self.team.plan = Some(StoredPlan { id, steps, done: 0 });
-            self.team.dirty = true;
-            self.team.progress_dirty = true;
-            let e = ev::PlanUploaded {
-                plan: id,
-                first_step: a.first_step,
-                steps: a.max_steps,
-                hash,
-            };
-            self.raise(now, e, sink);
-        }
-        Ok(())
-    }
-
-    pub(crate) fn team_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) -> Result<(), Failure> {
-        match r {
-            Request::Authorise(mut a, validity_s) => {
-                a.expires_at = now.saturating_add(u64::from(validity_s) * 1000);
-                if let Some(n) = self.team.node.as_mut() {
-                    n.authorise(now, a)
-                        .map_err(|_| Failure::arg_out_of_range(4, validity_s as i32))?;
-                }
-                if self.team.auth.map(|o| (o.plan, o.first_step, o.max_steps))
-                    != Some((a.plan, a.first_step, a.max_steps))
-                {
-                    // Another authorisation: its steps must be uploaded anew.
-                    self.team.slots = [None; PLAN_CAPACITY];
-                    self.team.plan = None;
-                }
-                self.team.auth = Some(a);
-                self.team.dirty = true;
-            }
-            Request::Roster(slots) => {
-                let mut roster: heapless::Vec<u8, ROSTER_MAX> = heapless::Vec::new();
-                for r in slots.iter().filter(|r| **r != 0) {
-                    // At most ROSTER_MAX slots.
-                    let _ = roster.push(*r);
-                }
-                self.team_set_roster(now, &roster)
-                    .map_err(|_| Failure::arg_out_of_range(0, i32::from(slots[0])))?;
-            }
-            Request::Status => self.team_status(now, sink),
-            Request::PlanStep(id, step) => self.team_plan_step(now, id, step, sink)?,
-        }
-        Ok(())
     }
 }
 

@@ -2,12 +2,15 @@
 //! request.
 
 use mib::config;
+use mib::params::Source;
+use mib::tc::service;
 use mib_wire::tm;
 
 use crate::accept::Tc;
 use crate::downlink::Downlink;
 use crate::failure::Failure;
 use crate::request::unknown;
+use crate::services::{Component, Contract};
 use crate::tm::{TmSink, TmStore};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -55,8 +58,17 @@ impl Default for TimeReports {
     }
 }
 
-impl TimeReports {
-    pub fn request<S: TmStore>(&mut self, now: u64, r: Request, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
+impl Component for TimeReports {
+    const CONTRACT: Contract = Contract::new("time", Some(service::TIME), &[Source::Clock]);
+    type Request<'a> = Request;
+    type Output = ();
+    fn handle<S: TmStore>(
+        &mut self,
+        now: u64,
+        r: Request,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) -> Result<(), Failure> {
         match r {
             Request::SetRate(exp) => {
                 self.exp = exp;
@@ -65,8 +77,11 @@ impl TimeReports {
             }
             Request::ReportNow => self.report(now, dl, sink),
         }
+        Ok(())
     }
+}
 
+impl TimeReports {
     /// Sends the periodic report when it is due.
     pub fn tick<S: TmStore>(&mut self, now: u64, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
         if now >= self.next {
