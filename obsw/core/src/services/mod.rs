@@ -95,10 +95,10 @@ pub const COMPONENTS: &[Contract] = &[
     time::TimeReports::CONTRACT,
     scheduling::Schedule::CONTRACT,
     crate::fdir::Monitoring::CONTRACT,
-    storage::CONTRACT,
+    storage::Replays::CONTRACT,
     crate::fdir::Faults::CONTRACT,
     <mmic_domain::controller::Controller as Component>::CONTRACT,
-    mode::CONTRACT,
+    crate::modes::ModeTree::CONTRACT,
     modules::Modules::CONTRACT,
     team::Team::CONTRACT,
     link::LinkKeys::CONTRACT,
@@ -199,10 +199,18 @@ impl<S: TmStore> Obsw<S> {
             Request::Time(r) => self.svc.time_reports.handle(now, r, dl, sink)?,
             Request::Scheduling(r) => self.sched.handle(now, r, dl, sink)?,
             Request::Monitoring(r) => self.monitoring.handle(now, r, dl, sink)?,
-            Request::Storage(r) => return Ok(self.storage_request(r)?),
+            Request::Storage(r) => {
+                if let Some(range) = self.replays.handle(now, r, dl, sink)? {
+                    return Ok(Exec::Replay(range));
+                }
+            }
             Request::EventAction(r) => self.faults.handle(now, r, dl, sink)?,
             Request::Parameter(r) => self.ctrl.handle(now, r, dl, sink)?,
-            Request::Mode(r) => return self.mode_request(now, r, sink),
+            Request::Mode(r) => {
+                if let Some(target) = self.modes.handle(now, r, dl, sink)? {
+                    return self.mode_command(now, target, sink);
+                }
+            }
             Request::Modules(r) => self.modules.handle(now, r, dl, sink)?,
             Request::Team(r) => self.team.handle(now, r, dl, sink)?,
             Request::Link(r) => self.link_select = Some(self.link_keys.handle(now, r, dl, sink)?),

@@ -6,28 +6,24 @@
 use mib::config;
 use mib::fdir::Phase;
 use mib::modes::{module_mode, node, robot_mode, NodeKind};
-use mib::params::{self, pid};
-use mib::tc::function;
+use mib::params::{self, pid, Source};
+use mib::tc::{function, service};
 use mib::FailureCode;
 use mib_wire::tm;
 
 use mmic_domain::controller::{Action, ModuleModes};
 
 use crate::accept::Tc;
-use crate::downlink::{Stage, Started};
+use crate::downlink::{Downlink, Stage, Started};
 use crate::failure::Failure;
 use crate::modes::{Change, ModeTree, N_NODES};
 use crate::obsw::{Exec, Obsw, Outcome, Refused};
 use crate::request::unknown;
 use crate::services::function::Running;
+use crate::services::{Component, Contract};
 use crate::tm::{TmSink, TmStore};
 
 /// A node of the mode tree; only made from a defined node ID.
-/// Its contract; its requests are still handled by the obsw (`Obsw::mode_request`), which
-/// joins it to the controller, the mode tree and FDIR.
-pub const CONTRACT: crate::services::Contract =
-    crate::services::Contract::new("mode", Some(mib::tc::service::MODE), &[mib::params::Source::Modes]);
-
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Node(u32);
 
@@ -104,24 +100,50 @@ pub struct Transition {
     pub(crate) entering: Entering,
 }
 
-impl<S: TmStore> Obsw<S> {
-    pub(crate) fn mode_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) -> Result<Exec, Refused> {
+/// The mode tree answers the reports itself; a commanded mode comes back as the output,
+/// for the obsw to start its transition ([`Obsw::mode_command`]: the transition joins the
+/// mode tree to the controller, the module set, FDIR and the running action).
+impl Component for ModeTree {
+    const CONTRACT: Contract = Contract::new("mode", Some(service::MODE), &[Source::Modes]);
+    type Request<'a> = Request;
+    type Output = Option<u32>;
+    fn handle<S: TmStore>(
+        &mut self,
+        now: u64,
+        r: Request,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) -> Result<Option<u32>, Failure> {
         match r {
-            Request::Set { mode } => self.mode_command(now, mode, sink),
-            Request::Read(n) => {
-                self.mode_reply(now, n.0, sink);
-                Ok(Exec::Done)
-            }
+            Request::Set { mode } => return Ok(Some(mode)),
+            Request::Read(n) => self.reply(now, n.0, dl, sink),
             Request::Announce(n) => {
                 for id in ModeTree::subtree(n.0) {
-                    self.mode_reply(now, id, sink);
+                    self.reply(now, id, dl, sink);
                 }
-                Ok(Exec::Done)
             }
         }
+        Ok(None)
     }
+}
 
-    fn mode_command(&mut self, now: u64, target: u32, sink: &mut impl TmSink) -> Result<Exec, Refused> {
+impl ModeTree {
+    /// TM[200,6] of node `n`.
+    pub(crate) fn reply<S: TmStore>(&self, now: u64, n: u32, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
+        let Some(ms) = self.mode_and_submode(n) else {
+            return;
+        };
+        let r = tm::ModeReply {
+            node: n,
+            mode: ms.mode(),
+            submode: ms.submode(),
+        };
+        dl.emit_tm(now, &r, sink);
+    }
+}
+
+impl<S: TmStore> Obsw<S> {
+    pub(crate) fn mode_command(&mut self, now: u64, target: u32, sink: &mut impl TmSink) -> Result<Exec, Refused> {
         if target == robot_mode::OPERATIONAL {
             if let Some(f) = self.modules.block_operational() {
                 return Err(f.into());
@@ -148,15 +170,7 @@ impl<S: TmStore> Obsw<S> {
     }
 
     pub(crate) fn mode_reply(&mut self, now: u64, n: u32, sink: &mut impl TmSink) {
-        let Some(ms) = self.modes.mode_and_submode(n) else {
-            return;
-        };
-        let r = tm::ModeReply {
-            node: n,
-            mode: ms.mode(),
-            submode: ms.submode(),
-        };
-        self.emit_tm(now, r, sink);
+        self.modes.reply(now, n, &mut self.dl, sink);
     }
 
     /// Starts a transition of the robot node (by command, cause 0, or by FDIR, cause =
