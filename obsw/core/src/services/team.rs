@@ -594,6 +594,16 @@ impl Team {
     }
 }
 
+/// A packet of the inter-robot link, by what it is for.
+enum Packet<'p> {
+    /// The on-board plan's progress announcement of another robot (its source data).
+    Progress(&'p [u8]),
+    /// A team message for the node.
+    Message(Message),
+    /// Refused (the reason, the sender it names).
+    Refused(TeamReject, u8),
+}
+
 /// The team's own requests (service 211): authorisation, roster, status report, plan
 /// steps. What the node decides joins the robot's modes and actions (`Obsw::team_poll`).
 impl Component for Team {
@@ -795,6 +805,110 @@ impl Team {
         dl.raise(now, e, sink);
     }
 
+    /// A CONTINUE of the node (the leader's, checked by the node against this robot's
+    /// own authorisation): run the step if it is the next uploaded one, within the
+    /// authorised count, and the robot is in the step's initial state. From STANDBY (a
+    /// hold with both grippers holding) the robot first returns to OPERATIONAL; the step
+    /// starts when it is there (checked again then).
+    fn accept_continue(
+        &mut self,
+        now: u64,
+        plan: PlanRef,
+        step: u16,
+        function: TeamFunction,
+    ) -> Result<(), StepRefusal> {
+        let auth = self.auth.ok_or(StepRefusal::NotAuthorised)?;
+        if self.plan.as_ref().is_none_or(|p| p.id != plan.id) || auth.plan != plan {
+            return Err(StepRefusal::NoPlan);
+        }
+        let next = self.next_step().ok_or(StepRefusal::NotAuthorised)?;
+        if next.step != step || now >= auth.expires_at {
+            return Err(StepRefusal::NotAuthorised);
+        }
+        match step_action(&next) {
+            Some((f, _)) if f == function => {}
+            _ => return Err(StepRefusal::Forbidden),
+        }
+        if self.step_pending.is_some() || self.step_running.is_some() {
+            return Err(StepRefusal::Busy);
+        }
+        // Started at the next poll, once the robot is idle (a hold may still be under way).
+        self.step_pending = Some((step, false));
+        Ok(())
+    }
+
+    /// Counts the next step as done, durably, before it moves: a reset never lets a robot
+    /// start more than the authorised count. The plan's ID.
+    fn count_step(&mut self, link: &mut impl TeamLink) -> Result<u16, StepRefusal> {
+        let mut r = self.record();
+        if let Some(p) = r.plan.as_mut() {
+            p.done = p.done.saturating_add(1);
+        }
+        if !link.persist(&r) {
+            let c = &mut self.counters;
+            c.persist_failed = c.persist_failed.wrapping_add(1);
+            return Err(StepRefusal::Refused);
+        }
+        // Counted from here on, whether the action starts or not.
+        self.plan = r.plan;
+        Ok(self.plan.as_ref().map_or(0, |p| p.id))
+    }
+
+    /// Writes the roster and authorisation when they changed. On failure they hold in
+    /// RAM until a reset; the ground sees the count in HK TEAM_PERSIST_FAILED.
+    fn persist_changes(&mut self, link: &mut impl TeamLink) {
+        if core::mem::take(&mut self.dirty) && !link.persist(&self.record()) {
+            self.counters.persist_failed = self.counters.persist_failed.wrapping_add(1);
+        }
+    }
+
+    /// The node's term and vote made durable before its other effects. A failed write
+    /// is treated as a reset: the `rest` effects of the batch are dropped (false), the
+    /// node restarts from what is durable.
+    fn persist(&mut self, now: u64, p: Persisted, rest: usize, link: &mut impl TeamLink) -> bool {
+        let mut r = self.record();
+        r.persisted = p;
+        if link.persist(&r) {
+            self.durable = p;
+            return true;
+        }
+        let c = &mut self.counters;
+        c.persist_failed = c.persist_failed.wrapping_add(1);
+        c.effects_dropped = c.effects_dropped.wrapping_add(rest as u32);
+        let roster = self.roster.clone();
+        let node = Node::restore(self.me, &roster, self.durable, now).ok();
+        self.set_node(node);
+        false
+    }
+
+    /// What a packet of the inter-robot link is. Parsed by the MIB's checked header
+    /// reader: spacepackets' `PusTmReader::new` panics on a packet shorter than its
+    /// headers and time stamp, or of another PUS version (0.17.0), and this is input
+    /// from another process.
+    fn packet<'p>(&mut self, from: Option<u8>, packet: &'p [u8]) -> Packet<'p> {
+        let tm = mib_wire::header::TmPacket::parse(packet)
+            .ok()
+            .filter(|tm| tm.primary.apid == TEAM_APID && tm.service == TEAM_SERVICE);
+        // Plan progress announcements belong to the on-board plan, roster or not.
+        if let Some(tm) = tm.filter(|tm| tm.subservice == mib::plan::TEAM_SUBSERVICE_PROGRESS) {
+            return Packet::Progress(tm.source);
+        }
+        let msg = match tm {
+            Some(tm) if tm.subservice == TEAM_SUBSERVICE_MESSAGE => Message::parse(tm.source).ok(),
+            _ => None,
+        };
+        match (msg, self.node.is_some()) {
+            (Some(m), true) if from.is_some_and(|f| f != m.sender) => {
+                Packet::Refused(TeamReject::UnknownSender, m.sender)
+            }
+            (Some(m), true) => {
+                self.counters.pkt_received = self.counters.pkt_received.wrapping_add(1);
+                Packet::Message(m)
+            }
+            _ => Packet::Refused(TeamReject::Malformed, from.unwrap_or(0)),
+        }
+    }
+
     fn send(&mut self, now: u64, to: Dest, msg: &Message, link: &mut impl TeamLink) {
         let mut body = [0u8; MAX_LEN];
         let mut out = [0u8; mib::config::MAX_PACKET_LEN];
@@ -848,15 +962,7 @@ impl<S: TmStore> Obsw<S> {
             self.team.ground_tc = false;
             return;
         }
-        if core::mem::take(&mut self.team.dirty) {
-            let r = self.team.record();
-            if !link.persist(&r) {
-                // The roster and authorisation hold in RAM until a reset; the ground sees
-                // the count in HK TEAM_PERSIST_FAILED.
-                let c = &mut self.team.counters;
-                c.persist_failed = c.persist_failed.wrapping_add(1);
-            }
-        }
+        self.team.persist_changes(link);
         if core::mem::take(&mut self.team.ground_tc) {
             self.team_input(now, rand, Input::GroundTc, link, sink);
         }
@@ -891,30 +997,12 @@ impl<S: TmStore> Obsw<S> {
         link: &mut impl TeamLink,
         sink: &mut impl TmSink,
     ) {
-        // Parsed by the MIB's checked header reader: spacepackets' `PusTmReader::new`
-        // panics on a packet shorter than its headers and time stamp, or of another PUS
-        // version (0.17.0), and this is input from another process.
-        let tm = mib_wire::header::TmPacket::parse(packet)
-            .ok()
-            .filter(|tm| tm.primary.apid == TEAM_APID && tm.service == TEAM_SERVICE);
-        // Plan progress announcements belong to the on-board plan, roster or not.
-        if let Some(tm) = tm.filter(|tm| tm.subservice == mib::plan::TEAM_SUBSERVICE_PROGRESS) {
-            self.plan.plan.peer_progress(from, tm.source);
-            return;
-        }
-        let msg = match tm {
-            Some(tm) if tm.subservice == TEAM_SUBSERVICE_MESSAGE => Message::parse(tm.source).ok(),
-            _ => None,
-        };
-        match (msg, self.team.node.is_some()) {
-            (Some(m), true) if from.is_some_and(|f| f != m.sender) => {
-                self.team_rejected(now, TeamReject::UnknownSender, m.sender, sink)
+        match self.team.packet(from, packet) {
+            Packet::Progress(source) => {
+                self.plan.plan.peer_progress(from, source);
             }
-            (Some(m), true) => {
-                self.team.counters.pkt_received = self.team.counters.pkt_received.wrapping_add(1);
-                self.team_input(now, rand, Input::Message(m), link, sink)
-            }
-            _ => self.team_rejected(now, TeamReject::Malformed, from.unwrap_or(0), sink),
+            Packet::Message(m) => self.team_input(now, rand, Input::Message(m), link, sink),
+            Packet::Refused(reason, sender) => self.team_rejected(now, reason, sender, sink),
         }
     }
 
@@ -931,18 +1019,7 @@ impl<S: TmStore> Obsw<S> {
         for (i, e) in effects.iter().enumerate() {
             match *e {
                 Effect::Persist(p) => {
-                    let mut r = self.team.record();
-                    r.persisted = p;
-                    if link.persist(&r) {
-                        self.team.durable = p;
-                    } else {
-                        // Treated as a reset: nothing of this batch goes out.
-                        let c = &mut self.team.counters;
-                        c.persist_failed = c.persist_failed.wrapping_add(1);
-                        c.effects_dropped = c.effects_dropped.wrapping_add((effects.len() - i - 1) as u32);
-                        let roster = self.team.roster.clone();
-                        let node = Node::restore(self.team.me, &roster, self.team.durable, now).ok();
-                        self.team.set_node(node);
+                    if !self.team.persist(now, p, effects.len() - i - 1, link) {
                         return;
                     }
                 }
@@ -1002,11 +1079,6 @@ impl<S: TmStore> Obsw<S> {
         }
     }
 
-    /// A CONTINUE of the node (the leader's, checked by the node against this robot's
-    /// own authorisation): run the step if it is the next uploaded one, within the
-    /// authorised count, and the robot is in the step's initial state. From STANDBY (a
-    /// hold with both grippers holding) the robot first returns to OPERATIONAL; the step
-    /// starts when it is there (checked again then).
     fn team_continue(
         &mut self,
         now: u64,
@@ -1016,23 +1088,7 @@ impl<S: TmStore> Obsw<S> {
         link: &mut impl TeamLink,
         sink: &mut impl TmSink,
     ) -> Result<(), StepRefusal> {
-        let auth = self.team.auth.ok_or(StepRefusal::NotAuthorised)?;
-        if self.team.plan.as_ref().is_none_or(|p| p.id != plan.id) || auth.plan != plan {
-            return Err(StepRefusal::NoPlan);
-        }
-        let next = self.team.next_step().ok_or(StepRefusal::NotAuthorised)?;
-        if next.step != step || now >= auth.expires_at {
-            return Err(StepRefusal::NotAuthorised);
-        }
-        match step_action(&next) {
-            Some((f, _)) if f == function => {}
-            _ => return Err(StepRefusal::Forbidden),
-        }
-        if self.team.step_pending.is_some() || self.team.step_running.is_some() {
-            return Err(StepRefusal::Busy);
-        }
-        // Started at the next poll, once the robot is idle (a hold may still be under way).
-        self.team.step_pending = Some((step, false));
+        self.team.accept_continue(now, plan, step, function)?;
         self.team_steps(now, link, sink);
         Ok(())
     }
@@ -1052,18 +1108,7 @@ impl<S: TmStore> Obsw<S> {
         let Some((_, action)) = step_action(&s) else {
             return Err(StepRefusal::Forbidden);
         };
-        let mut r = self.team.record();
-        if let Some(p) = r.plan.as_mut() {
-            p.done = p.done.saturating_add(1);
-        }
-        if !link.persist(&r) {
-            let c = &mut self.team.counters;
-            c.persist_failed = c.persist_failed.wrapping_add(1);
-            return Err(StepRefusal::Refused);
-        }
-        // Counted from here on, whether the action starts or not.
-        self.team.plan = r.plan;
-        let plan = self.team.plan.as_ref().map_or(0, |p| p.id);
+        let plan = self.team.count_step(link)?;
         match self.function_request(now, crate::services::function::Request::Start(action), sink) {
             Ok(Exec::Action(r)) => {
                 self.running = Some(r.with_token(None));
