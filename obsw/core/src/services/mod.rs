@@ -31,7 +31,7 @@ pub mod test;
 pub mod time;
 pub mod update;
 
-use mib::params::Source;
+use mib::params::{pid, NotSupplied, Source, Supplied};
 use mib::tc::service;
 
 use crate::accept::Tc;
@@ -62,6 +62,14 @@ pub trait Component {
         dl: &mut Downlink<S>,
         sink: &mut impl TmSink,
     ) -> Result<Self::Output, Failure>;
+
+    /// Its own periodic work, once per control period (nothing by default).
+    fn tick<S: TmStore>(&mut self, _now: u64, _dl: &mut Downlink<S>, _sink: &mut impl TmSink) {}
+
+    /// The earliest time it has periodic work (`None`: none).
+    fn next_deadline(&self) -> Option<u64> {
+        None
+    }
 }
 
 /// A component's declared interface (see the module's documentation).
@@ -128,6 +136,18 @@ impl Services {
     }
 }
 
+impl Services {
+    /// The periodic work of the components here that have their own: one line each.
+    pub(crate) fn tick<S: TmStore>(&mut self, now: u64, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
+        self.time_reports.tick(now, dl, sink);
+    }
+
+    /// The earliest time one of them has periodic work.
+    pub(crate) fn next_deadline(&self) -> Option<u64> {
+        self.time_reports.next_deadline()
+    }
+}
+
 impl Default for Services {
     fn default() -> Self {
         Self::new()
@@ -182,6 +202,31 @@ impl<'a> Request<'a> {
 }
 
 impl<S: TmStore> Obsw<S> {
+    /// Asks the component `src` for parameter `id`: `Err` unless the MIB names `src` the
+    /// parameter's source (checked for every parameter by a test).
+    pub fn param_from(&self, src: Source, id: u16) -> Supplied {
+        match src {
+            Source::Modes => self.modes.param(id),
+            Source::Faults => self.faults.param(id),
+            Source::Monitoring => self.monitoring.param(id),
+            Source::Counters => self.counters.param(id),
+            Source::Downlink => self.dl.param(id),
+            Source::Scheduler => self.sched.param(id),
+            Source::Clock => match id {
+                pid::UPTIME_S => Ok(Some((self.last_now / 1000) as i64)),
+                _ => Err(NotSupplied(id)),
+            },
+            Source::Io => self.io.param(id),
+            Source::SpaceLink => self.space_link_param(id),
+            Source::Modules => self.modules.param(id),
+            Source::Team => self.team.param(id),
+            Source::Plan => self.plan.plan.param(id),
+            Source::Update => self.update.param(id),
+            Source::BoardA => self.ctrl.board_a_param(id),
+            Source::BoardB => self.ctrl.board_b_param(id),
+        }
+    }
+
     /// One arm per PUS service: a [`Component`] gets the request with the downlink (and
     /// the obsw does what its output asks); the services still joined to the rest of the
     /// obsw (functions, modes, storage) are the obsw's own methods.

@@ -44,9 +44,6 @@ impl TimeReports {
             next: 1000u64 << config::TIME_REPORT_DEFAULT_EXP,
         }
     }
-    pub fn next_deadline(&self) -> u64 {
-        self.next
-    }
     fn period(&self) -> u64 {
         1000u64 << self.exp
     }
@@ -79,17 +76,21 @@ impl Component for TimeReports {
         }
         Ok(())
     }
-}
 
-impl TimeReports {
     /// Sends the periodic report when it is due.
-    pub fn tick<S: TmStore>(&mut self, now: u64, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
+    fn tick<S: TmStore>(&mut self, now: u64, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
         if now >= self.next {
             self.report(now, dl, sink);
             self.next = now + self.period();
         }
     }
 
+    fn next_deadline(&self) -> Option<u64> {
+        Some(self.next)
+    }
+}
+
+impl TimeReports {
     fn report<S: TmStore>(&self, now: u64, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
         let r = tm::TimeReport {
             rate_exp: self.exp,
@@ -113,7 +114,7 @@ mod tests {
         assert_eq!(&kind(&r[0]).2[1..], &o.dl.tmw.time.cds(1000));
         let mut sink: Vec<Vec<u8>> = Vec::new();
         for t in (1000..=3000).step_by(10) {
-            o.time_tick(t, &mut sink);
+            o.svc.tick(t, &mut o.dl, &mut sink);
         }
         assert_eq!(of(&sink, 9, 2).len(), 2, "every second");
     }
