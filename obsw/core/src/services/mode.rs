@@ -20,6 +20,7 @@ use crate::modes::{Change, ModeTree, N_NODES};
 use crate::obsw::{Exec, Obsw, Outcome, Refused};
 use crate::request::unknown;
 use crate::services::function::Running;
+use crate::services::modules::Modules;
 use crate::services::{Component, Contract};
 use crate::tm::{TmSink, TmStore};
 
@@ -128,6 +129,22 @@ impl Component for ModeTree {
 }
 
 impl ModeTree {
+    /// The power of each module for the controller: the commanded mode of its node, off
+    /// for a module the boot discovery found absent.
+    pub(crate) fn module_modes(&self, modules: &Modules) -> ModuleModes {
+        use mib::modules::slot;
+        let m = |slot: u8, node: u32| modules.present_or_off(slot, self.commanded(node));
+        ModuleModes {
+            arm_a: m(slot::ARM_A, node::ARM_A),
+            grip_a: m(slot::GRIPPER_A, node::GRIPPER_A),
+            bolter_a: m(slot::BOLTER_A, node::BOLTER_A),
+            arm_b: m(slot::ARM_B, node::ARM_B),
+            grip_b: m(slot::GRIPPER_B, node::GRIPPER_B),
+            bolter_b: m(slot::BOLTER_B, node::BOLTER_B),
+            hip: m(slot::HIP, node::HIP),
+        }
+    }
+
     /// TM[200,6] of node `n`.
     pub(crate) fn reply<S: TmStore>(&self, now: u64, n: u32, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
         let Some(ms) = self.mode_and_submode(n) else {
@@ -212,23 +229,7 @@ impl<S: TmStore> Obsw<S> {
     }
 
     pub(crate) fn apply_module_modes(&mut self) {
-        let m = &self.modes;
-        // An absent module (boot discovery) is never powered.
-        use mib::modules::slot;
-        let mm = ModuleModes {
-            arm_a: self.modules.present_or_off(slot::ARM_A, m.commanded(node::ARM_A)),
-            grip_a: self
-                .modules
-                .present_or_off(slot::GRIPPER_A, m.commanded(node::GRIPPER_A)),
-            bolter_a: self.modules.present_or_off(slot::BOLTER_A, m.commanded(node::BOLTER_A)),
-            arm_b: self.modules.present_or_off(slot::ARM_B, m.commanded(node::ARM_B)),
-            grip_b: self
-                .modules
-                .present_or_off(slot::GRIPPER_B, m.commanded(node::GRIPPER_B)),
-            bolter_b: self.modules.present_or_off(slot::BOLTER_B, m.commanded(node::BOLTER_B)),
-            hip: self.modules.present_or_off(slot::HIP, m.commanded(node::HIP)),
-        };
-        self.ctrl.set_module_modes(mm);
+        self.ctrl.set_module_modes(self.modes.module_modes(&self.modules));
     }
 
     /// True when the hardware shows that a module is in `mode`.
