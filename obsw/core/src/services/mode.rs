@@ -228,6 +228,8 @@ impl<S: TmStore> Obsw<S> {
         self.progress_transition(now, sink);
     }
 
+    /// Out of line: called from generic code of every sink type (one copy on board A).
+    #[inline(never)]
     pub(crate) fn apply_module_modes(&mut self) {
         self.ctrl.set_module_modes(self.modes.module_modes(&self.modules));
     }

@@ -231,7 +231,15 @@ impl Component for Schedule {
         dl: &mut Downlink<S>,
         _sink: &mut impl TmSink,
     ) -> Result<(), Failure> {
-        let time = &dl.tmw.time;
+        self.request(r, &dl.tmw.time)
+    }
+}
+
+impl Schedule {
+    /// Applies a request, the same for every sink and store the obsw is built with, so
+    /// kept out of line (one copy on board A).
+    #[inline(never)]
+    fn request(&mut self, r: Request<'_>, time: &OnboardTime) -> Result<(), Failure> {
         match r {
             Request::Enable => self.enabled = true,
             Request::Disable => self.enabled = false,
