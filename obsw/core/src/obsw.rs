@@ -3,7 +3,7 @@
 //! cycle (`tick`). The services live in their own files; this file only routes.
 
 use mib::config;
-use mib::params::{pid, NotSupplied, Source, Supplied};
+use mib::params::{pid, NotSupplied, Supplied};
 use mib::robot::STATE_UNKNOWN;
 use mib_wire::{ev, EventArgs};
 
@@ -19,15 +19,13 @@ use crate::fdir::{self, Faults, Monitoring};
 use crate::modes::ModeTree;
 use crate::request::Ctx;
 use crate::services::function::Running;
-use crate::services::hk::Hk;
 use crate::services::link::{LinkKeys, LinkSelect};
 use crate::services::mode::{ModeCmd, Transition};
 use crate::services::modules::Modules;
 use crate::services::plan::OnboardPlan;
 use crate::services::scheduling::Schedule;
 use crate::services::team::Team;
-use crate::services::time::TimeReports;
-use crate::services::Request;
+use crate::services::{Request, Services};
 use crate::time::OnboardTime;
 use crate::tm::{TmSink, TmStore};
 use mib_wire::RequestId;
@@ -165,8 +163,8 @@ pub struct Obsw<S: TmStore> {
     pub(crate) dl: Downlink<S>,
     pub ctrl: Controller,
     seen: Duplicates,
-    pub(crate) hk: Hk,
-    pub(crate) time_reports: TimeReports,
+    /// The components only the obsw reaches (`services::Services`).
+    pub(crate) svc: Services,
     pub(crate) sched: Schedule,
     pub monitoring: Monitoring,
     pub faults: Faults,
@@ -209,8 +207,7 @@ impl<S: TmStore> Obsw<S> {
             dl: Downlink::new(apid, OnboardTime::new(cfg.epoch_unix_ms), store),
             ctrl: Controller::new(),
             seen: Duplicates::default(),
-            hk: Hk::new(),
-            time_reports: TimeReports::new(),
+            svc: Services::new(),
             sched: Schedule::new(),
             monitoring: Monitoring::new(),
             faults: Faults::default(),
@@ -294,8 +291,8 @@ impl<S: TmStore> Obsw<S> {
 
     /// The earliest time at which `tick` has periodic work (HK, time report, schedule).
     pub fn next_deadline(&self) -> u64 {
-        let mut t = self.time_reports.next_deadline();
-        if let Some(h) = self.hk.next_deadline() {
+        let mut t = self.svc.next_deadline().unwrap_or(u64::MAX);
+        if let Some(h) = self.svc.hk.next_deadline() {
             t = t.min(h);
         }
         if let Some(s) = self.sched.next_release() {
@@ -366,34 +363,9 @@ impl<S: TmStore> Obsw<S> {
         Ok(v.filter(|_| !absent))
     }
 
-    /// Asks the component `src` for parameter `id`: `Err` unless the MIB names `src` the
-    /// parameter's source (checked for every parameter by a test).
-    pub fn param_from(&self, src: Source, id: u16) -> Supplied {
-        match src {
-            Source::Modes => self.modes.param(id),
-            Source::Faults => self.faults.param(id),
-            Source::Monitoring => self.monitoring.param(id),
-            Source::Counters => self.counters.param(id),
-            Source::Downlink => self.dl.param(id),
-            Source::Scheduler => self.sched.param(id),
-            Source::Clock => match id {
-                pid::UPTIME_S => Ok(Some((self.last_now / 1000) as i64)),
-                _ => Err(NotSupplied(id)),
-            },
-            Source::Io => self.io.param(id),
-            Source::SpaceLink => self.space_link_param(id),
-            Source::Modules => self.modules.param(id),
-            Source::Team => self.team.param(id),
-            Source::Plan => self.plan.plan.param(id),
-            Source::Update => self.update.param(id),
-            Source::BoardA => self.ctrl.board_a_param(id),
-            Source::BoardB => self.ctrl.board_b_param(id),
-        }
-    }
-
     /// The space-link parameters: the platform's counters and link state, each array
     /// laid out in parameter-ID order from its first parameter.
-    fn space_link_param(&self, id: u16) -> Supplied {
+    pub(crate) fn space_link_param(&self, id: u16) -> Supplied {
         let counter = usize::from(id.wrapping_sub(pid::LINK_AD_ACCEPTED));
         let state = usize::from(id.wrapping_sub(pid::LINK_TM_SPI));
         (self.space_link.get(counter))
@@ -603,7 +575,7 @@ impl<S: TmStore> Obsw<S> {
         self.progress_transition(now, sink);
         self.hk_tick(now, sink);
         self.replay_tick(now, sink);
-        self.time_tick(now, sink);
+        self.svc.tick(now, &mut self.dl, sink);
         self.release_schedule(now, sink);
         self.plan_tick(now, sink);
         self.dl.end_period();
@@ -616,7 +588,7 @@ impl<S: TmStore> Obsw<S> {
     /// Reports every enabled HK structure whose interval elapsed.
     pub(crate) fn hk_tick(&mut self, now: u64, sink: &mut impl TmSink) {
         for i in 0..mib::hk::HK_STRUCTS.len() {
-            if self.hk.take_due(now, i) {
+            if self.svc.hk.take_due(now, i) {
                 self.hk_report(now, i, sink);
             }
         }
@@ -689,11 +661,6 @@ impl<S: TmStore> Obsw<S> {
             self.handle_onboard_tc(now, &tc, sink);
         }
     }
-
-    /// Sends the periodic time report when it is due.
-    pub(crate) fn time_tick(&mut self, now: u64, sink: &mut impl TmSink) {
-        self.time_reports.tick(now, &mut self.dl, sink);
-    }
 }
 
 impl Tc<'_> {
@@ -724,6 +691,7 @@ pub(crate) mod tests {
     use crate::accept::tests::tc_bytes;
     use crate::tm::RingStore;
     use mib::events::eid;
+    use mib::params::Source;
 
     pub type TestObsw = Obsw<RingStore<8192>>;
     pub const APID: u16 = 0x101;

@@ -2,12 +2,14 @@
 //! (TM[5,8]). Emission, enable mask and throttling live in `crate::downlink::Events`.
 
 use mib::events::EVENTS;
+use mib::tc::service;
 use mib_wire::tm;
 
 use crate::accept::Tc;
 use crate::downlink::{Downlink, EventIndex};
 use crate::failure::Failure;
 use crate::request::unknown;
+use crate::services::{Component, Contract};
 use crate::tm::{TmSink, TmStore};
 use mib_wire::args;
 
@@ -35,23 +37,37 @@ impl Request {
 
 /// Event reporting's state is the downlink's enable mask (`Downlink::events`), which every
 /// emission asks.
-pub fn handle<S: TmStore>(now: u64, r: Request, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
-    match r {
-        Request::Enable(e) => dl.events.set_enabled(e, true),
-        Request::Disable(e) => dl.events.set_enabled(e, false),
-        Request::ReportDisabled => {
-            let mut r = tm::DisabledEvents {
-                events: heapless::Vec::new(),
-            };
-            for e in EVENTS {
-                let disabled = EventIndex::of(e.id).is_some_and(|i| !dl.events.is_enabled(i));
-                // The list holds every event of the MIB (N_EVENTS <= its capacity).
-                if disabled && r.events.push(tm::DisabledEventsEvents { event_id: e.id }).is_err() {
-                    break;
+pub struct EventReporting;
+
+impl Component for EventReporting {
+    const CONTRACT: Contract = Contract::new("event", Some(service::EVENT), &[]);
+    type Request<'a> = Request;
+    type Output = ();
+    fn handle<S: TmStore>(
+        &mut self,
+        now: u64,
+        r: Request,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) -> Result<(), Failure> {
+        match r {
+            Request::Enable(e) => dl.events.set_enabled(e, true),
+            Request::Disable(e) => dl.events.set_enabled(e, false),
+            Request::ReportDisabled => {
+                let mut r = tm::DisabledEvents {
+                    events: heapless::Vec::new(),
+                };
+                for e in EVENTS {
+                    let disabled = EventIndex::of(e.id).is_some_and(|i| !dl.events.is_enabled(i));
+                    // The list holds every event of the MIB (N_EVENTS <= its capacity).
+                    if disabled && r.events.push(tm::DisabledEventsEvents { event_id: e.id }).is_err() {
+                        break;
+                    }
                 }
+                dl.emit_tm(now, &r, sink);
             }
-            dl.emit_tm(now, &r, sink);
         }
+        Ok(())
     }
 }
 

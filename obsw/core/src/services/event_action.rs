@@ -4,6 +4,8 @@
 
 use mib::fdir::FAULTS;
 use mib::modes::robot_mode;
+use mib::params::Source;
+use mib::tc::service;
 use mib_wire::tm;
 
 use crate::accept::Tc;
@@ -12,6 +14,7 @@ use crate::failure::Failure;
 use crate::fdir::{Faults, Response};
 use crate::obsw::Obsw;
 use crate::request::unknown;
+use crate::services::{Component, Contract};
 use crate::tm::{TmSink, TmStore};
 use mib_wire::args;
 
@@ -41,10 +44,24 @@ impl Request {
     }
 }
 
-impl Faults {
-    /// Applies a PUS 19 request to the event-action links; their report goes out through
-    /// the downlink.
-    pub fn request<S: TmStore>(&mut self, now: u64, r: Request, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
+/// Applies a PUS 19 request to the event-action links; their report goes out through
+/// the downlink. Raising a fault and its action join FDIR with the mode tree, the running
+/// action and the plan (`Obsw::fault`).
+impl Component for Faults {
+    const CONTRACT: Contract = Contract::new(
+        "event_action (FDIR's faults)",
+        Some(service::EVENT_ACTION),
+        &[Source::Faults],
+    );
+    type Request<'a> = Request;
+    type Output = ();
+    fn handle<S: TmStore>(
+        &mut self,
+        now: u64,
+        r: Request,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) -> Result<(), Failure> {
         match r {
             // The event was looked up in the fault table at acceptance.
             Request::Enable(ev) => {
@@ -55,8 +72,11 @@ impl Faults {
             }
             Request::Report => self.report_links(now, dl, sink),
         }
+        Ok(())
     }
+}
 
+impl Faults {
     fn report_links<S: TmStore>(&self, now: u64, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
         let mut r = tm::EaDefinitions {
             links: heapless::Vec::new(),

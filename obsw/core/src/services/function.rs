@@ -15,6 +15,11 @@ use crate::failure::Failure;
 use crate::obsw::{Exec, Obsw, Outcome, Refused};
 use crate::tm::{TmSink, TmStore};
 
+/// Its contract; its requests are still handled by the obsw (`Obsw::function_request`), which
+/// joins it to the controller, the mode tree and FDIR.
+pub const CONTRACT: crate::services::Contract =
+    crate::services::Contract::new("function", Some(mib::tc::service::FUNCTION), &[]);
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Request {
     /// ASSEMBLY_FAULT: the externally commanded "assembly system operation" fault.

@@ -4,10 +4,14 @@
 //! intervals never report, and write to the store, in the same control period.
 
 use mib::hk::{phase_ms, HK_STRUCTS, PHASE_CYCLE_MS};
+use mib::tc::service;
 
 use crate::accept::Tc;
+use crate::downlink::Downlink;
 use crate::failure::Failure;
 use crate::request::unknown;
+use crate::services::{Component, Contract};
+use crate::tm::{TmSink, TmStore};
 
 const N_HK: usize = HK_STRUCTS.len();
 
@@ -137,6 +141,23 @@ impl Hk {
             next
         };
         true
+    }
+}
+
+/// The structures' generation state; a one-shot's report is the obsw's to gather from
+/// every source (`Obsw::hk_report`), so the index comes back.
+impl Component for Hk {
+    const CONTRACT: Contract = Contract::new("hk", Some(service::HOUSEKEEPING), &[]);
+    type Request<'a> = Request;
+    type Output = Option<usize>;
+    fn handle<S: TmStore>(
+        &mut self,
+        now: u64,
+        r: Request,
+        _dl: &mut Downlink<S>,
+        _sink: &mut impl TmSink,
+    ) -> Result<Option<usize>, Failure> {
+        Ok(self.request(now, r))
     }
 }
 

@@ -5,11 +5,14 @@
 //! frame endpoint to apply (and store) before it handles the next input.
 
 use mib::link::sdls::{TC_SPIS, TM_SPIS};
+use mib::params::Source;
+use mib::tc::service;
 
 use crate::accept::Tc;
 use crate::downlink::Downlink;
 use crate::failure::Failure;
 use crate::request::unknown;
+use crate::services::{Component, Contract};
 use crate::tm::{TmSink, TmStore};
 
 /// Keys the platform holds: bit i of `tm` = `TM_SPIS[i]`, of `tc` = `TC_SPIS[i]`.
@@ -61,10 +64,14 @@ impl Request {
     }
 }
 
-impl LinkKeys {
-    /// Checks a selection against the keys held; the selection for the platform to apply.
-    pub fn select<S: TmStore>(
-        &self,
+/// Checks a selection against the keys held; the selection for the platform to apply
+/// (`Obsw::link_select`).
+impl Component for LinkKeys {
+    const CONTRACT: Contract = Contract::new("link", Some(service::SPACE_LINK), &[Source::SpaceLink]);
+    type Request<'a> = Request;
+    type Output = LinkSelect;
+    fn handle<S: TmStore>(
+        &mut self,
         now: u64,
         r: Request,
         dl: &mut Downlink<S>,

@@ -3,14 +3,16 @@
 //! the TC path: the [`Request`] of every service, its parse by service number, and
 //! [`Obsw::route`], the one arm per service that hands an accepted request to its
 //! component. A new service is a file here and one line in each of the three, plus its
-//! row of [`COMPONENTS`].
+//! contract in [`COMPONENTS`] and its state in [`Services`].
 //!
-//! [`COMPONENTS`] declares each component's interface: the PUS service whose TCs it takes
-//! and the parameter sources it answers for (`mib::params::Source`; the MIB's parameter
-//! rows name them, `Obsw::param_from` asks them). Its events and reports are the MIB's
-//! rows its code names through `mib_wire::ev` and `mib_wire::tm`. Tests check the table
-//! against the MIB: every TC the MIB defines reaches a handler, every source is one
-//! component's, every component's service is one of the MIB's.
+//! A service that owns its state is a [`Component`]: its declared interface
+//! ([`Contract`]: the PUS service whose TCs it takes and the parameter sources it answers
+//! for, `mib::params::Source`; the MIB's parameter rows name them, `Obsw::param_from` asks
+//! them), its typed request, and `handle`, the one way a request reaches it, with the
+//! downlink as its output port. Its events and reports are the MIB's rows its code names
+//! through `mib_wire::ev` and `mib_wire::tm`. Tests check the table against the MIB: every
+//! TC the MIB defines reaches a handler, every source is one component's, every
+//! component's service is one of the MIB's.
 
 pub mod event;
 pub mod event_action;
@@ -29,14 +31,46 @@ pub mod test;
 pub mod time;
 pub mod update;
 
-use mib::params::Source;
+use mib::params::{pid, NotSupplied, Source, Supplied};
 use mib::tc::service;
 
 use crate::accept::Tc;
+use crate::downlink::Downlink;
 use crate::failure::Failure;
 use crate::obsw::{Exec, Obsw, Refused};
 use crate::request::Ctx;
 use crate::tm::{TmSink, TmStore};
+
+/// A component of the obsw that takes the requests of one PUS service (see the module's
+/// documentation): `Obsw::route` hands each accepted request to its component's `handle`
+/// with the time and the downlink (TM reports, events, the store). What the obsw still
+/// has to do after a request — gather an HK report from every source, hand a key
+/// selection to the platform — comes back as the request's `Output`.
+pub trait Component {
+    /// What it takes and supplies (its row of [`COMPONENTS`]).
+    const CONTRACT: Contract;
+    /// Its typed request, made by its service's `Request::parse` from an accepted TC.
+    type Request<'a>;
+    /// What the obsw does next with an executed request (`()`: nothing).
+    type Output;
+    /// Executes an accepted request: its reports and events through `dl`, a refusal as
+    /// the failure the obsw reports at the start stage.
+    fn handle<S: TmStore>(
+        &mut self,
+        now: u64,
+        r: Self::Request<'_>,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) -> Result<Self::Output, Failure>;
+
+    /// Its own periodic work, once per control period (nothing by default).
+    fn tick<S: TmStore>(&mut self, _now: u64, _dl: &mut Downlink<S>, _sink: &mut impl TmSink) {}
+
+    /// The earliest time it has periodic work (`None`: none).
+    fn next_deadline(&self) -> Option<u64> {
+        None
+    }
+}
 
 /// A component's declared interface (see the module's documentation).
 #[derive(Clone, Copy, Debug)]
@@ -48,39 +82,77 @@ pub struct Contract {
     pub sources: &'static [Source],
 }
 
-const fn c(name: &'static str, service: Option<u8>, sources: &'static [Source]) -> Contract {
-    Contract { name, service, sources }
+impl Contract {
+    pub const fn new(name: &'static str, service: Option<u8>, sources: &'static [Source]) -> Contract {
+        Contract { name, service, sources }
+    }
 }
 
-/// Every component of the obsw: the services of this folder, and the parts of the obsw
-/// and the domain that supply parameters without taking TCs of their own.
+const fn c(name: &'static str, service: Option<u8>, sources: &'static [Source]) -> Contract {
+    Contract::new(name, service, sources)
+}
+
+/// Every component of the obsw: the services of this folder (each declares its own
+/// contract), and the parts of the obsw and the domain that supply parameters without
+/// taking TCs of their own.
 pub const COMPONENTS: &[Contract] = &[
-    c("test", Some(service::TEST), &[]),
-    c("hk", Some(service::HOUSEKEEPING), &[]),
-    c("event", Some(service::EVENT), &[]),
-    c("function", Some(service::FUNCTION), &[]),
-    c("time", Some(service::TIME), &[Source::Clock]),
-    c("scheduling", Some(service::SCHEDULING), &[Source::Scheduler]),
-    c("monitoring", Some(service::MONITORING), &[Source::Monitoring]),
-    c("storage", Some(service::STORAGE), &[]),
-    c(
-        "event_action (FDIR's faults)",
-        Some(service::EVENT_ACTION),
-        &[Source::Faults],
-    ),
-    c("parameter", Some(service::PARAMETER), &[]),
-    c("mode", Some(service::MODE), &[Source::Modes]),
-    c("modules", Some(service::MODULES), &[Source::Modules]),
-    c("team", Some(service::TEAM), &[Source::Team]),
-    c("link", Some(service::SPACE_LINK), &[Source::SpaceLink]),
-    c("plan", Some(service::PLAN), &[Source::Plan]),
-    c("update", Some(service::UPDATE), &[Source::Update]),
+    test::Test::CONTRACT,
+    hk::Hk::CONTRACT,
+    event::EventReporting::CONTRACT,
+    function::CONTRACT,
+    time::TimeReports::CONTRACT,
+    scheduling::Schedule::CONTRACT,
+    crate::fdir::Monitoring::CONTRACT,
+    storage::Replays::CONTRACT,
+    crate::fdir::Faults::CONTRACT,
+    <mmic_domain::controller::Controller as Component>::CONTRACT,
+    crate::modes::ModeTree::CONTRACT,
+    modules::Modules::CONTRACT,
+    team::Team::CONTRACT,
+    link::LinkKeys::CONTRACT,
+    plan::OnboardPlan::CONTRACT,
+    update::Update::CONTRACT,
     c("tc path", None, &[Source::Counters]),
     c("downlink", None, &[Source::Downlink]),
     c("platform I/O", None, &[Source::Io]),
     c("domain: board A", None, &[Source::BoardA]),
     c("domain: board B heartbeat", None, &[Source::BoardB]),
 ];
+
+/// The state of the components that only the obsw reaches (the ones the platform or the
+/// tests reach directly are fields of `Obsw`): a new component's state goes here, beside
+/// its contract and its arm of [`Obsw::route`].
+pub struct Services {
+    pub hk: hk::Hk,
+    pub time_reports: time::TimeReports,
+}
+
+impl Services {
+    pub fn new() -> Self {
+        Services {
+            hk: hk::Hk::new(),
+            time_reports: time::TimeReports::new(),
+        }
+    }
+}
+
+impl Services {
+    /// The periodic work of the components here that have their own: one line each.
+    pub(crate) fn tick<S: TmStore>(&mut self, now: u64, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
+        self.time_reports.tick(now, dl, sink);
+    }
+
+    /// The earliest time one of them has periodic work.
+    pub(crate) fn next_deadline(&self) -> Option<u64> {
+        self.time_reports.next_deadline()
+    }
+}
+
+impl Default for Services {
+    fn default() -> Self {
+        Self::new()
+    }
+}
 
 /// An accepted request, one variant per PUS service.
 #[derive(Clone, Copy, Debug)]
@@ -130,35 +202,71 @@ impl<'a> Request<'a> {
 }
 
 impl<S: TmStore> Obsw<S> {
-    /// One arm per PUS service: each service file handles its own requests.
+    /// Asks the component `src` for parameter `id`: `Err` unless the MIB names `src` the
+    /// parameter's source (checked for every parameter by a test).
+    pub fn param_from(&self, src: Source, id: u16) -> Supplied {
+        match src {
+            Source::Modes => self.modes.param(id),
+            Source::Faults => self.faults.param(id),
+            Source::Monitoring => self.monitoring.param(id),
+            Source::Counters => self.counters.param(id),
+            Source::Downlink => self.dl.param(id),
+            Source::Scheduler => self.sched.param(id),
+            Source::Clock => match id {
+                pid::UPTIME_S => Ok(Some((self.last_now / 1000) as i64)),
+                _ => Err(NotSupplied(id)),
+            },
+            Source::Io => self.io.param(id),
+            Source::SpaceLink => self.space_link_param(id),
+            Source::Modules => self.modules.param(id),
+            Source::Team => self.team.param(id),
+            Source::Plan => self.plan.plan.param(id),
+            Source::Update => self.update.param(id),
+            Source::BoardA => self.ctrl.board_a_param(id),
+            Source::BoardB => self.ctrl.board_b_param(id),
+        }
+    }
+
+    /// One arm per PUS service: a [`Component`] gets the request with the downlink (and
+    /// the obsw does what its output asks); the services still joined to the rest of the
+    /// obsw (functions, modes, storage) are the obsw's own methods.
     pub(crate) fn route(&mut self, now: u64, request: Request, sink: &mut impl TmSink) -> Result<Exec, Refused> {
+        let dl = &mut self.dl;
         match request {
-            Request::Test(r) => test::handle(now, r, &mut self.dl, sink),
+            Request::Test(r) => test::Test.handle(now, r, dl, sink)?,
             Request::Hk(r) => {
-                if let Some(i) = self.hk.request(now, r) {
+                if let Some(i) = self.svc.hk.handle(now, r, dl, sink)? {
                     self.hk_report(now, i, sink);
                 }
             }
-            Request::Event(r) => event::handle(now, r, &mut self.dl, sink),
+            Request::Event(r) => event::EventReporting.handle(now, r, dl, sink)?,
             Request::Function(r) => return self.function_request(now, r, sink),
-            Request::Time(r) => self.time_reports.request(now, r, &mut self.dl, sink),
-            Request::Scheduling(r) => self.sched.request(r, &self.dl.tmw.time)?,
-            Request::Monitoring(r) => self.monitoring.request(now, r, &mut self.dl, sink),
-            Request::Storage(r) => return Ok(self.storage_request(r)?),
-            Request::EventAction(r) => self.faults.request(now, r, &mut self.dl, sink),
-            Request::Parameter(r) => parameter::handle(now, r, &mut self.ctrl, &mut self.dl, sink)?,
-            Request::Mode(r) => return self.mode_request(now, r, sink),
-            Request::Modules(r) => self.modules.request(now, r, &mut self.dl, sink)?,
-            Request::Team(r) => self.team_request(now, r, sink)?,
-            Request::Link(r) => self.link_select = Some(self.link_keys.select(now, r, &mut self.dl, sink)?),
+            Request::Time(r) => self.svc.time_reports.handle(now, r, dl, sink)?,
+            Request::Scheduling(r) => self.sched.handle(now, r, dl, sink)?,
+            Request::Monitoring(r) => self.monitoring.handle(now, r, dl, sink)?,
+            Request::Storage(r) => {
+                if let Some(range) = self.replays.handle(now, r, dl, sink)? {
+                    return Ok(Exec::Replay(range));
+                }
+            }
+            Request::EventAction(r) => self.faults.handle(now, r, dl, sink)?,
+            Request::Parameter(r) => self.ctrl.handle(now, r, dl, sink)?,
+            Request::Mode(r) => {
+                if let Some(target) = self.modes.handle(now, r, dl, sink)? {
+                    return self.mode_command(now, target, sink);
+                }
+            }
+            Request::Modules(r) => self.modules.handle(now, r, dl, sink)?,
+            Request::Team(r) => self.team.handle(now, r, dl, sink)?,
+            Request::Link(r) => self.link_select = Some(self.link_keys.handle(now, r, dl, sink)?),
             Request::Plan(r) => {
-                if let Some(change) = self.plan.request(now, self.apid(), r, &mut self.dl, sink)? {
+                if let Some(change) = self.plan.handle(now, r, dl, sink)? {
                     // As a ground STOP: the action ends, its TC reports ABORTED_BY_COMMAND.
                     let _ = self.function_request(now, function::Request::Stop, sink);
                     plan::OnboardPlan::report(now, change, &mut self.dl, sink);
                 }
             }
-            Request::Update(r) => self.update.handle(now, r, &mut self.dl, sink)?,
+            Request::Update(r) => self.update.handle(now, r, dl, sink)?,
         }
         Ok(Exec::Done)
     }

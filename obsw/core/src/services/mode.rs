@@ -6,20 +6,22 @@
 use mib::config;
 use mib::fdir::Phase;
 use mib::modes::{module_mode, node, robot_mode, NodeKind};
-use mib::params::{self, pid};
-use mib::tc::function;
+use mib::params::{self, pid, Source};
+use mib::tc::{function, service};
 use mib::FailureCode;
 use mib_wire::tm;
 
 use mmic_domain::controller::{Action, ModuleModes};
 
 use crate::accept::Tc;
-use crate::downlink::{Stage, Started};
+use crate::downlink::{Downlink, Stage, Started};
 use crate::failure::Failure;
 use crate::modes::{Change, ModeTree, N_NODES};
 use crate::obsw::{Exec, Obsw, Outcome, Refused};
 use crate::request::unknown;
 use crate::services::function::Running;
+use crate::services::modules::Modules;
+use crate::services::{Component, Contract};
 use crate::tm::{TmSink, TmStore};
 
 /// A node of the mode tree; only made from a defined node ID.
@@ -99,24 +101,66 @@ pub struct Transition {
     pub(crate) entering: Entering,
 }
 
-impl<S: TmStore> Obsw<S> {
-    pub(crate) fn mode_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) -> Result<Exec, Refused> {
+/// The mode tree answers the reports itself; a commanded mode comes back as the output,
+/// for the obsw to start its transition ([`Obsw::mode_command`]: the transition joins the
+/// mode tree to the controller, the module set, FDIR and the running action).
+impl Component for ModeTree {
+    const CONTRACT: Contract = Contract::new("mode", Some(service::MODE), &[Source::Modes]);
+    type Request<'a> = Request;
+    type Output = Option<u32>;
+    fn handle<S: TmStore>(
+        &mut self,
+        now: u64,
+        r: Request,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) -> Result<Option<u32>, Failure> {
         match r {
-            Request::Set { mode } => self.mode_command(now, mode, sink),
-            Request::Read(n) => {
-                self.mode_reply(now, n.0, sink);
-                Ok(Exec::Done)
-            }
+            Request::Set { mode } => return Ok(Some(mode)),
+            Request::Read(n) => self.reply(now, n.0, dl, sink),
             Request::Announce(n) => {
                 for id in ModeTree::subtree(n.0) {
-                    self.mode_reply(now, id, sink);
+                    self.reply(now, id, dl, sink);
                 }
-                Ok(Exec::Done)
             }
+        }
+        Ok(None)
+    }
+}
+
+impl ModeTree {
+    /// The power of each module for the controller: the commanded mode of its node, off
+    /// for a module the boot discovery found absent.
+    pub(crate) fn module_modes(&self, modules: &Modules) -> ModuleModes {
+        use mib::modules::slot;
+        let m = |slot: u8, node: u32| modules.present_or_off(slot, self.commanded(node));
+        ModuleModes {
+            arm_a: m(slot::ARM_A, node::ARM_A),
+            grip_a: m(slot::GRIPPER_A, node::GRIPPER_A),
+            bolter_a: m(slot::BOLTER_A, node::BOLTER_A),
+            arm_b: m(slot::ARM_B, node::ARM_B),
+            grip_b: m(slot::GRIPPER_B, node::GRIPPER_B),
+            bolter_b: m(slot::BOLTER_B, node::BOLTER_B),
+            hip: m(slot::HIP, node::HIP),
         }
     }
 
-    fn mode_command(&mut self, now: u64, target: u32, sink: &mut impl TmSink) -> Result<Exec, Refused> {
+    /// TM[200,6] of node `n`.
+    pub(crate) fn reply<S: TmStore>(&self, now: u64, n: u32, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
+        let Some(ms) = self.mode_and_submode(n) else {
+            return;
+        };
+        let r = tm::ModeReply {
+            node: n,
+            mode: ms.mode(),
+            submode: ms.submode(),
+        };
+        dl.emit_tm(now, &r, sink);
+    }
+}
+
+impl<S: TmStore> Obsw<S> {
+    pub(crate) fn mode_command(&mut self, now: u64, target: u32, sink: &mut impl TmSink) -> Result<Exec, Refused> {
         if target == robot_mode::OPERATIONAL {
             if let Some(f) = self.modules.block_operational() {
                 return Err(f.into());
@@ -143,15 +187,7 @@ impl<S: TmStore> Obsw<S> {
     }
 
     pub(crate) fn mode_reply(&mut self, now: u64, n: u32, sink: &mut impl TmSink) {
-        let Some(ms) = self.modes.mode_and_submode(n) else {
-            return;
-        };
-        let r = tm::ModeReply {
-            node: n,
-            mode: ms.mode(),
-            submode: ms.submode(),
-        };
-        self.emit_tm(now, r, sink);
+        self.modes.reply(now, n, &mut self.dl, sink);
     }
 
     /// Starts a transition of the robot node (by command, cause 0, or by FDIR, cause =
@@ -192,24 +228,10 @@ impl<S: TmStore> Obsw<S> {
         self.progress_transition(now, sink);
     }
 
+    /// Out of line: called from generic code of every sink type (one copy on board A).
+    #[inline(never)]
     pub(crate) fn apply_module_modes(&mut self) {
-        let m = &self.modes;
-        // An absent module (boot discovery) is never powered.
-        use mib::modules::slot;
-        let mm = ModuleModes {
-            arm_a: self.modules.present_or_off(slot::ARM_A, m.commanded(node::ARM_A)),
-            grip_a: self
-                .modules
-                .present_or_off(slot::GRIPPER_A, m.commanded(node::GRIPPER_A)),
-            bolter_a: self.modules.present_or_off(slot::BOLTER_A, m.commanded(node::BOLTER_A)),
-            arm_b: self.modules.present_or_off(slot::ARM_B, m.commanded(node::ARM_B)),
-            grip_b: self
-                .modules
-                .present_or_off(slot::GRIPPER_B, m.commanded(node::GRIPPER_B)),
-            bolter_b: self.modules.present_or_off(slot::BOLTER_B, m.commanded(node::BOLTER_B)),
-            hip: self.modules.present_or_off(slot::HIP, m.commanded(node::HIP)),
-        };
-        self.ctrl.set_module_modes(mm);
+        self.ctrl.set_module_modes(self.modes.module_modes(&self.modules));
     }
 
     /// True when the hardware shows that a module is in `mode`.

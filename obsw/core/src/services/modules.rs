@@ -19,7 +19,8 @@ use mib::modes::robot_mode;
 use mib::modules::descriptor::MAX_TABLE_LEN;
 use mib::modules::report::{MAX_REPORT_LEN, NO_SLOT};
 use mib::modules::NUM_SLOTS;
-use mib::params::{pid, NotSupplied, Supplied};
+use mib::params::{pid, NotSupplied, Source, Supplied};
+use mib::tc::service;
 use mib_wire::tm;
 
 use mmic_domain::calib::RobotCal;
@@ -34,6 +35,7 @@ use crate::downlink::Downlink;
 use crate::failure::Failure;
 use crate::obsw::Obsw;
 use crate::request::unknown;
+use crate::services::{Component, Contract};
 use crate::tm::{TmSink, TmStore};
 
 /// A configuration the ground accepted: its hash and the module identities by slot.
@@ -262,6 +264,41 @@ fn side_of(a: &Action) -> Option<u8> {
     }
 }
 
+/// A PUS 210 request: the module report, or the ground's acceptance of the set found.
+impl Component for Modules {
+    const CONTRACT: Contract = Contract::new("modules", Some(service::MODULES), &[Source::Modules]);
+    type Request<'a> = Request;
+    type Output = ();
+    fn handle<S: TmStore>(
+        &mut self,
+        now: u64,
+        r: Request,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) -> Result<(), Failure> {
+        match r {
+            Request::Report => {
+                self.report(now, dl, sink);
+                Ok(())
+            }
+            Request::Accept(hash) => {
+                let Some(d) = self.discovery.as_ref() else {
+                    return Err(Failure::config_hash_stale(hash, 0));
+                };
+                if let Err(why) = d.outcome {
+                    return Err(Failure::config_invalid(why.code(), why.slot().unwrap_or(NO_SLOT)));
+                }
+                accept(d, hash).map_err(|current| Failure::config_hash_stale(hash, current))?;
+                let a = AcceptedConfig::of(&d.set);
+                self.accepted = Some(a);
+                self.update = Some(a);
+                self.replacement = Some(Replacement::Same);
+                Ok(())
+            }
+        }
+    }
+}
+
 impl Modules {
     /// Why OPERATIONAL is refused by the module set (`None`: allowed, or no discovery
     /// ran on this platform). While discovery waits for board B's half the module set is
@@ -297,36 +334,6 @@ impl Modules {
             mib::modes::module_mode::OFF
         } else {
             mode
-        }
-    }
-
-    /// A PUS 210 request.
-    pub(crate) fn request<S: TmStore>(
-        &mut self,
-        now: u64,
-        r: Request,
-        dl: &mut Downlink<S>,
-        sink: &mut impl TmSink,
-    ) -> Result<(), Failure> {
-        match r {
-            Request::Report => {
-                self.report(now, dl, sink);
-                Ok(())
-            }
-            Request::Accept(hash) => {
-                let Some(d) = self.discovery.as_ref() else {
-                    return Err(Failure::config_hash_stale(hash, 0));
-                };
-                if let Err(why) = d.outcome {
-                    return Err(Failure::config_invalid(why.code(), why.slot().unwrap_or(NO_SLOT)));
-                }
-                accept(d, hash).map_err(|current| Failure::config_hash_stale(hash, current))?;
-                let a = AcceptedConfig::of(&d.set);
-                self.accepted = Some(a);
-                self.update = Some(a);
-                self.replacement = Some(Replacement::Same);
-                Ok(())
-            }
         }
     }
 

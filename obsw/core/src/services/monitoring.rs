@@ -5,7 +5,8 @@
 
 use mib::events::eid;
 use mib::fdir::{Phase, MONITORS};
-use mib::params::pid;
+use mib::params::{pid, Source};
+use mib::tc::service;
 use mib_wire::tm;
 
 use crate::accept::Tc;
@@ -14,6 +15,7 @@ use crate::failure::Failure;
 use crate::fdir::{self, Monitor, Monitoring, N_MONITORS};
 use crate::obsw::Obsw;
 use crate::request::unknown;
+use crate::services::{Component, Contract};
 use crate::tm::{TmSink, TmStore};
 
 /// Index of a monitor in `mib::fdir::MONITORS` (and `Monitoring::mons`, built from it
@@ -79,10 +81,19 @@ impl Request {
     }
 }
 
-impl Monitoring {
-    /// Applies a PUS 12 request to the monitors; the definitions report goes out through
-    /// the downlink.
-    pub fn request<S: TmStore>(&mut self, now: u64, r: Request, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
+/// Applies a PUS 12 request to the monitors; the definitions report goes out through
+/// the downlink. The monitors' checks run in the control period (`Obsw::run_monitors`).
+impl Component for Monitoring {
+    const CONTRACT: Contract = Contract::new("monitoring", Some(service::MONITORING), &[Source::Monitoring]);
+    type Request<'a> = Request;
+    type Output = ();
+    fn handle<S: TmStore>(
+        &mut self,
+        now: u64,
+        r: Request,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) -> Result<(), Failure> {
         match r {
             Request::Enable(i) | Request::Disable(i) => {
                 let m = self.at(i);
@@ -102,8 +113,11 @@ impl Monitoring {
             }
             Request::Report => self.report(now, dl, sink),
         }
+        Ok(())
     }
+}
 
+impl Monitoring {
     fn report<S: TmStore>(&self, now: u64, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
         let mut r = tm::MonDefinitions {
             monitors: heapless::Vec::new(),

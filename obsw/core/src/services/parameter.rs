@@ -1,6 +1,7 @@
 //! PUS 20 on-board parameter management: report and set the domain's tunables
 //! (`mib::tunables`), range-checked at acceptance.
 
+use mib::tc::service;
 use mib::tunables::TunableDef;
 use mib_wire::tm;
 use mmic_domain::controller::Controller;
@@ -9,6 +10,7 @@ use crate::accept::Tc;
 use crate::downlink::Downlink;
 use crate::failure::Failure;
 use crate::request::unknown;
+use crate::services::{Component, Contract};
 use crate::tm::{TmSink, TmStore};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -40,28 +42,33 @@ impl Request {
 }
 
 /// The tunables are the domain controller's state: PUS 20 sets and reports them there.
-pub fn handle<S: TmStore>(
-    now: u64,
-    r: Request,
-    ctrl: &mut Controller,
-    dl: &mut Downlink<S>,
-    sink: &mut impl TmSink,
-) -> Result<(), Failure> {
-    let t = match r {
-        Request::Report(t) => t,
-        Request::Set(t, v) => {
-            ctrl.set_tunable(t.id, v)
-                .map_err(|_| Failure::param_out_of_range(t.id, v))?;
-            t
-        }
-    };
-    let v = ctrl.tunable(t.id).ok_or(Failure::unknown_parameter(t.id))?;
-    let r = tm::ParamValue {
-        param_id: t.id,
-        value: v,
-    };
-    dl.emit_tm(now, &r, sink);
-    Ok(())
+impl Component for Controller {
+    const CONTRACT: Contract = Contract::new("parameter", Some(service::PARAMETER), &[]);
+    type Request<'a> = Request;
+    type Output = ();
+    fn handle<S: TmStore>(
+        &mut self,
+        now: u64,
+        r: Request,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) -> Result<(), Failure> {
+        let t = match r {
+            Request::Report(t) => t,
+            Request::Set(t, v) => {
+                self.set_tunable(t.id, v)
+                    .map_err(|_| Failure::param_out_of_range(t.id, v))?;
+                t
+            }
+        };
+        let v = self.tunable(t.id).ok_or(Failure::unknown_parameter(t.id))?;
+        let r = tm::ParamValue {
+            param_id: t.id,
+            value: v,
+        };
+        dl.emit_tm(now, &r, sink);
+        Ok(())
+    }
 }
 
 #[cfg(test)]

@@ -16,6 +16,7 @@
 //!   progress announcement over its authenticated team link, and the team service hands
 //!   it every TM[211,7] it receives.
 
+use mib::params::Source;
 use mib::plan::TEAM_SUBSERVICE_PROGRESS;
 use mib::tc::{function, service};
 use mib::team::TEAM_SERVICE;
@@ -29,6 +30,7 @@ use crate::failure::Failure;
 use crate::obsw::Outcome;
 use crate::request::unknown;
 use crate::services::team::TeamLink;
+use crate::services::{Component, Contract};
 use crate::tm::{TmSink, TmStore, TmWriter};
 
 /// The plan component and the state changes waiting to be reported.
@@ -156,18 +158,21 @@ fn check_step(apid: u16, s: &StepView<'_>) -> Result<(), Refusal> {
     Ok(())
 }
 
-impl OnboardPlan {
+impl Component for OnboardPlan {
+    const CONTRACT: Contract = Contract::new("plan", Some(service::PLAN), &[Source::Plan]);
+    type Request<'a> = Request<'a>;
+    type Output = Option<Change>;
     /// A PUS 18 request. `Ok(Some(change))`: an ABORT while a step's TC runs, whose action
     /// the obsw stops (as a ground STOP: its TC reports ABORTED_BY_COMMAND) before the
     /// change is reported ([`Self::report`]).
-    pub(crate) fn request<S: TmStore>(
+    fn handle<S: TmStore>(
         &mut self,
         now: u64,
-        apid: u16,
-        r: Request,
+        r: Request<'_>,
         dl: &mut Downlink<S>,
         sink: &mut impl TmSink,
     ) -> Result<Option<Change>, Failure> {
+        let apid = dl.tmw.apid();
         let p = &mut self.plan;
         let change = match r {
             Request::Load { offset, data } => {
@@ -203,7 +208,9 @@ impl OnboardPlan {
         Self::report(now, change, dl, sink);
         Ok(None)
     }
+}
 
+impl OnboardPlan {
     fn status<S: TmStore>(&self, now: u64, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
         let b = self.plan.status();
         let r = tm::PlanStatus {

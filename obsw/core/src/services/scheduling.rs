@@ -2,14 +2,17 @@
 //! board when their time comes, through the same path as uplinked TCs.
 
 use mib::config;
-use mib::params::{pid, NotSupplied, Supplied};
+use mib::params::{pid, NotSupplied, Source, Supplied};
 use mib::tc::{sched_cuc, service};
 use mib::FailureCode;
 
 use crate::accept::{accept, Tc, PRIMARY_LEN};
+use crate::downlink::Downlink;
 use crate::failure::Failure;
 use crate::request::{unknown, Ctx};
+use crate::services::{Component, Contract};
 use crate::time::OnboardTime;
+use crate::tm::{TmSink, TmStore};
 
 /// The two forms of TC[11,4] (`mib::tc::sched_cuc`): the MIB's own (N, CDS release
 /// times with their P-field) and Yamcs' (sub-schedule ID, N, CUC release times with an
@@ -214,9 +217,29 @@ impl Default for Schedule {
     }
 }
 
+/// Applies a request; an insert takes release times in the on-board time (the
+/// downlink's, the one every report is stamped with). Released TCs go back through the
+/// TC path (`Obsw::release_schedule`).
+impl Component for Schedule {
+    const CONTRACT: Contract = Contract::new("scheduling", Some(service::SCHEDULING), &[Source::Scheduler]);
+    type Request<'a> = Request<'a>;
+    type Output = ();
+    fn handle<S: TmStore>(
+        &mut self,
+        _now: u64,
+        r: Request<'_>,
+        dl: &mut Downlink<S>,
+        _sink: &mut impl TmSink,
+    ) -> Result<(), Failure> {
+        self.request(r, &dl.tmw.time)
+    }
+}
+
 impl Schedule {
-    /// Applies a request; an insert takes release times in the on-board `time`.
-    pub fn request(&mut self, r: Request, time: &OnboardTime) -> Result<(), Failure> {
+    /// Applies a request, the same for every sink and store the obsw is built with, so
+    /// kept out of line (one copy on board A).
+    #[inline(never)]
+    fn request(&mut self, r: Request<'_>, time: &OnboardTime) -> Result<(), Failure> {
         match r {
             Request::Enable => self.enabled = true,
             Request::Disable => self.enabled = false,
@@ -245,7 +268,9 @@ impl Schedule {
         }
         Ok(())
     }
+}
 
+impl Schedule {
     /// The next scheduled TC whose release time has come, taken off the schedule (the
     /// obsw runs it through the TC path); `None` when none is due or the schedule is
     /// disabled.

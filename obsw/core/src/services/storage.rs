@@ -11,13 +11,15 @@
 //! next period goes on, so a range longer than the downlink's queues loses nothing. The
 //! request completes (TM[1,7]) after its end report; requests wait in order
 //! ([`REPLAY_QUEUE`]), and one asked again while it waits or runs is not queued twice.
-use mib_wire::tm;
+use mib::tc::service;
+use mib_wire::{tm, RequestId};
 
 use crate::accept::Tc;
-use crate::downlink::Started;
+use crate::downlink::{Downlink, Started};
 use crate::failure::Failure;
-use crate::obsw::{Exec, Obsw};
+use crate::obsw::Obsw;
 use crate::request::unknown;
+use crate::services::{Component, Contract};
 use crate::tm::{TmSink, TmStore};
 
 /// A CDS short time (days since 1958, ms of day), ordered.
@@ -156,29 +158,56 @@ impl Replays {
     }
 }
 
-impl<S: TmStore> Obsw<S> {
-    pub(crate) fn storage_request(&mut self, r: Request) -> Result<Exec, Failure> {
+/// The store is the downlink's (every TM is kept there as it is sent); the component's
+/// own state is the downlinks by range waiting for the downlink's room. A downlink by
+/// range comes back as the output: it completes after its end report, so the obsw starts
+/// it once its start is reported (`Exec::Replay`, [`Replays::start`]).
+impl Component for Replays {
+    const CONTRACT: Contract = Contract::new("storage", Some(service::STORAGE), &[]);
+    type Request<'a> = Request;
+    type Output = Option<Range>;
+    fn handle<S: TmStore>(
+        &mut self,
+        _now: u64,
+        r: Request,
+        dl: &mut Downlink<S>,
+        _sink: &mut impl TmSink,
+    ) -> Result<Option<Range>, Failure> {
         match r {
-            Request::Enable => self.dl.store_enabled = true,
-            Request::Disable => self.dl.store_enabled = false,
+            Request::Enable => dl.store_enabled = true,
+            Request::Disable => dl.store_enabled = false,
             Request::Downlink(range) => {
-                if !self.dl.store_enabled {
+                if !dl.store_enabled {
                     return Err(Failure::store_disabled());
                 }
-                return Ok(Exec::Replay(range));
+                return Ok(Some(range));
             }
-            Request::Delete => self.dl.store.clear(),
+            Request::Delete => dl.store.clear(),
         }
-        Ok(Exec::Done)
+        Ok(None)
     }
+}
 
+/// The requests whose downlink ended (TM[15,19] and TM[1,7] sent) in one call, for the
+/// obsw to record their outcome: at most the queue and one beyond it.
+pub(crate) type Ended = heapless::Vec<RequestId, { REPLAY_QUEUE + 1 }>;
+
+impl Replays {
     /// A downlink by range has started: it waits behind the others (or, asked again
     /// while it waits or runs, completes at once: the one queued sends the packets), then
     /// goes as far as the downlink's room allows now.
-    pub(crate) fn replay_started(&mut self, now: u64, range: Range, token: Started, sink: &mut impl TmSink) {
-        if self.replays.queue.iter().any(|r| r.range == range) {
-            self.dl.complete(now, token, sink);
-            return;
+    pub(crate) fn start<S: TmStore>(
+        &mut self,
+        now: u64,
+        range: Range,
+        token: Started,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) -> Ended {
+        let mut ended = Ended::new();
+        if self.queue.iter().any(|r| r.range == range) {
+            dl.complete(now, token, sink);
+            return ended;
         }
         let replay = Replay {
             range,
@@ -186,32 +215,46 @@ impl<S: TmStore> Obsw<S> {
             sent: 0,
             after: None,
         };
-        if let Err(mut replay) = self.replays.queue.push_back(replay) {
+        if let Err(mut replay) = self.queue.push_back(replay) {
             // Beyond the queue: all at once, whatever the room.
             let mut unlimited = usize::MAX;
-            let oldest = self.dl.replay_step(&mut replay, &mut unlimited, sink).flatten();
-            self.replay_done(now, replay, oldest, sink);
-            return;
+            let oldest = dl.replay_step(&mut replay, &mut unlimited, sink).flatten();
+            Self::done(now, replay, oldest, dl, sink, &mut ended);
+            return ended;
         }
-        self.replay_tick(now, sink);
+        self.tick(now, dl, sink, &mut ended);
+        ended
     }
 
     /// Each control period: the downlinks by range go on as far as the downlink's room
     /// allows ([`TmSink::replay_room`]), oldest first.
-    pub(crate) fn replay_tick(&mut self, now: u64, sink: &mut impl TmSink) {
+    pub(crate) fn tick<S: TmStore>(
+        &mut self,
+        now: u64,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+        ended: &mut Ended,
+    ) {
         let mut room = sink.replay_room();
-        while let Some(r) = self.replays.queue.front_mut() {
-            let Some(oldest) = self.dl.replay_step(r, &mut room, sink) else {
+        while let Some(r) = self.queue.front_mut() {
+            let Some(oldest) = dl.replay_step(r, &mut room, sink) else {
                 return;
             };
-            if let Some(r) = self.replays.queue.pop_front() {
-                self.replay_done(now, r, oldest, sink);
+            if let Some(r) = self.queue.pop_front() {
+                Self::done(now, r, oldest, dl, sink, ended);
             }
         }
     }
 
     /// The end report, TM[15,19], then the request's completion.
-    fn replay_done(&mut self, now: u64, r: Replay, oldest: Option<(u16, Cds)>, sink: &mut impl TmSink) {
+    fn done<S: TmStore>(
+        now: u64,
+        r: Replay,
+        oldest: Option<(u16, Cds)>,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+        ended: &mut Ended,
+    ) {
         // An empty store reports time and sequence count 0.
         let (oldest_seq, t) = oldest.unwrap_or((0, Cds { days: 0, ms: 0 }));
         let report = tm::StoreDownlinkDone {
@@ -222,15 +265,38 @@ impl<S: TmStore> Obsw<S> {
                 ms_of_day: t.ms,
             },
             oldest_seq,
-            overwritten: self.dl.store_dropped,
+            overwritten: dl.store_dropped,
         };
-        self.emit_tm(now, report, sink);
-        self.set_outcome(r.token.req, crate::duplicates::Outcome::Done);
-        self.dl.complete(now, r.token, sink);
+        dl.emit_tm(now, &report, sink);
+        // At most the queue's length plus the one beyond it end in one call.
+        let _ = ended.push(r.token.req);
+        dl.complete(now, r.token, sink);
     }
 }
 
-impl<S: TmStore> crate::downlink::Downlink<S> {
+impl<S: TmStore> Obsw<S> {
+    /// A downlink by range has started (`Replays::start`); the outcome of those that
+    /// ended is recorded.
+    pub(crate) fn replay_started(&mut self, now: u64, range: Range, token: Started, sink: &mut impl TmSink) {
+        let ended = self.replays.start(now, range, token, &mut self.dl, sink);
+        self.replays_ended(&ended);
+    }
+
+    /// Each control period (`Replays::tick`).
+    pub(crate) fn replay_tick(&mut self, now: u64, sink: &mut impl TmSink) {
+        let mut ended = Ended::new();
+        self.replays.tick(now, &mut self.dl, sink, &mut ended);
+        self.replays_ended(&ended);
+    }
+
+    fn replays_ended(&mut self, ended: &Ended) {
+        for req in ended {
+            self.set_outcome(*req, crate::duplicates::Outcome::Done);
+        }
+    }
+}
+
+impl<S: TmStore> Downlink<S> {
     /// Sends the packets of `r` after its cursor while they fit in `room` bytes (what
     /// they take is subtracted). `Some(oldest)` when the range is done — the oldest
     /// packet of its stream still stored — `None` when the room ran out first.

@@ -24,8 +24,9 @@
 
 use mib::events::eid;
 use mib::modes::robot_mode;
-use mib::params::{pid, NotSupplied, Supplied};
+use mib::params::{pid, NotSupplied, Source, Supplied};
 use mib::robot::Side;
+use mib::tc::service;
 use mib::team::{
     PlanStep, MAX_AUTHORISED_STEPS, ROSTER_MAX, STATUS_PERIOD_MS, TEAM_APID, TEAM_SERVICE, TEAM_SUBSERVICE_MESSAGE,
     TEAM_SUBSERVICE_PLAN_STEP,
@@ -44,6 +45,7 @@ use crate::downlink::Downlink;
 use crate::failure::Failure;
 use crate::obsw::{Exec, Obsw};
 use crate::request::unknown;
+use crate::services::{Component, Contract};
 use crate::time::OnboardTime;
 use crate::tm::{TmSink, TmStore, TmWriter};
 
@@ -592,6 +594,340 @@ impl Team {
     }
 }
 
+/// A packet of the inter-robot link, by what it is for.
+enum Packet<'p> {
+    /// The on-board plan's progress announcement of another robot (its source data).
+    Progress(&'p [u8]),
+    /// A team message for the node.
+    Message(Message),
+    /// Refused (the reason, the sender it names).
+    Refused(TeamReject, u8),
+}
+
+/// The team's own requests (service 211): authorisation, roster, status report, plan
+/// steps. What the node decides joins the robot's modes and actions (`Obsw::team_poll`).
+impl Component for Team {
+    const CONTRACT: Contract = Contract::new("team", Some(service::TEAM), &[Source::Team]);
+    type Request<'a> = Request;
+    type Output = ();
+    fn handle<S: TmStore>(
+        &mut self,
+        now: u64,
+        r: Request,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) -> Result<(), Failure> {
+        match r {
+            Request::Authorise(mut a, validity_s) => {
+                a.expires_at = now.saturating_add(u64::from(validity_s) * 1000);
+                if let Some(n) = self.node.as_mut() {
+                    n.authorise(now, a)
+                        .map_err(|_| Failure::arg_out_of_range(4, validity_s as i32))?;
+                }
+                if self.auth.map(|o| (o.plan, o.first_step, o.max_steps)) != Some((a.plan, a.first_step, a.max_steps)) {
+                    // Another authorisation: its steps must be uploaded anew.
+                    self.slots = [None; PLAN_CAPACITY];
+                    self.plan = None;
+                }
+                self.auth = Some(a);
+                self.dirty = true;
+            }
+            Request::Roster(slots) => {
+                let mut roster: heapless::Vec<u8, ROSTER_MAX> = heapless::Vec::new();
+                for r in slots.iter().filter(|r| **r != 0) {
+                    // At most ROSTER_MAX slots.
+                    let _ = roster.push(*r);
+                }
+                self.set_roster(now, &roster)
+                    .map_err(|_| Failure::arg_out_of_range(0, i32::from(slots[0])))?;
+            }
+            Request::Status => self.status(now, dl, sink),
+            Request::PlanStep(id, step) => self.plan_step(now, id, step, dl, sink)?,
+        }
+        Ok(())
+    }
+}
+
+impl Team {
+    /// Emits the TEAM_STATUS report TM[211,2].
+    fn status<S: TmStore>(&self, now: u64, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
+        let mut r = tm::TeamStatus {
+            term: self.durable.term,
+            role: 0,
+            leader: 0,
+            ground_seen: 1,
+            lease: 0,
+            voted_for: 0,
+            auth_plan: 0,
+            auth_first_step: 0,
+            auth_steps: 0,
+            auth_left_s: 0,
+            refused: 0,
+            foreign: 0,
+            roster: heapless::Vec::new(),
+        };
+        if let Some(n) = &self.node {
+            let s = n.status(now);
+            r.term = s.term;
+            r.role = s.role.code();
+            r.leader = s.leader.unwrap_or(0);
+            r.ground_seen = u8::from(s.ground_seen);
+            r.lease = u8::from(s.lease);
+            r.voted_for = s.voted_for.unwrap_or(0);
+            r.refused = s.counters.refused;
+            r.foreign = s.counters.foreign;
+            for robot in s.roster.iter() {
+                // Same capacity (ROSTER_MAX).
+                let _ = r.roster.push(tm::TeamStatusRoster { robot: *robot });
+            }
+        }
+        if let Some(a) = self.auth {
+            r.auth_plan = a.plan.id;
+            r.auth_first_step = a.first_step;
+            r.auth_steps = a.max_steps;
+            r.auth_left_s = (a.expires_at.saturating_sub(now) / 1000).min(u64::from(u32::MAX)) as u32;
+        }
+        dl.emit_tm(now, &r, sink);
+    }
+
+    /// TC[211,6]: one step of the authorised plan. When every authorised step is there,
+    /// their hash must be the authorisation's plan hash: the plan is loaded (PLAN_UPLOADED,
+    /// the node learns the plan) or every step is dropped (PLAN_HASH_MISMATCH).
+    fn plan_step<S: TmStore>(
+        &mut self,
+        now: u64,
+        id: u16,
+        s: PlanStep,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) -> Result<(), Failure> {
+        let not_authorised = Failure::plan_not_authorised(id, s.step);
+        let a = self.auth.filter(|a| a.plan.id == id).ok_or(not_authorised.clone())?;
+        let i = s.step.checked_sub(a.first_step).map(usize::from);
+        let Some(i) = i.filter(|i| *i < usize::from(a.max_steps)) else {
+            return Err(not_authorised);
+        };
+        if step_action(&s).is_none() {
+            return Err(Failure::plan_forbidden_function(s.function));
+        }
+        self.slots[i] = Some(s);
+        let n = usize::from(a.max_steps);
+        if self.slots[..n].iter().all(Option::is_some) {
+            let mut steps: heapless::Vec<PlanStep, PLAN_CAPACITY> = heapless::Vec::new();
+            for s in self.slots[..n].iter().flatten() {
+                // n <= PLAN_CAPACITY (MAX_AUTHORISED_STEPS, checked by the node).
+                let _ = steps.push(*s);
+            }
+            self.slots = [None; PLAN_CAPACITY];
+            let hash = mib::team::plan_hash(id, &steps);
+            if hash != a.plan.hash {
+                self.plan = None;
+                return Err(Failure::plan_hash_mismatch(a.plan.hash, hash));
+            }
+            self.plan = Some(StoredPlan { id, steps, done: 0 });
+            self.dirty = true;
+            self.progress_dirty = true;
+            let e = ev::PlanUploaded {
+                plan: id,
+                first_step: a.first_step,
+                steps: a.max_steps,
+                hash,
+            };
+            dl.raise(now, e, sink);
+        }
+        Ok(())
+    }
+
+    /// The node's events as PUS 5 events.
+    fn event<S: TmStore>(&mut self, now: u64, ev: TeamEvent, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
+        match ev {
+            TeamEvent::GroundLost => {
+                let term = self.node.as_ref().map_or(0, |n| n.term());
+                dl.raise(now, ev::GroundLost { term }, sink)
+            }
+            TeamEvent::ElectionStarted { term } => {
+                self.counters.elections = self.counters.elections.wrapping_add(1);
+                dl.raise(now, ev::ElectionStarted { term }, sink)
+            }
+            TeamEvent::LeaderElected { term, leader } => dl.raise(now, ev::LeaderElected { term, leader }, sink),
+            TeamEvent::SteppedDown { term, reason } => {
+                let reason = step_down_code(reason);
+                dl.raise(now, ev::SteppedDown { term, reason }, sink)
+            }
+            TeamEvent::GroundRegained { term } => dl.raise(now, ev::GroundRegained { term }, sink),
+            TeamEvent::DirectiveExecuted {
+                term,
+                leader,
+                directive: d,
+            } => {
+                self.counters.dir_executed = self.counters.dir_executed.wrapping_add(1);
+                let (directive, step) = directive_args(d);
+                let e = ev::DirectiveExecuted {
+                    term,
+                    leader,
+                    directive,
+                    step,
+                };
+                dl.raise(now, e, sink)
+            }
+            TeamEvent::DirectiveRefused { term, from, reason } => {
+                let reason = refuse_code(reason);
+                dl.raise(
+                    now,
+                    ev::DirectiveRefused {
+                        term,
+                        sender: from,
+                        reason,
+                    },
+                    sink,
+                )
+            }
+        }
+    }
+
+    /// A plan step not executed (CONTINUE_NOT_EXECUTED, PLAN_STEP_REFUSED).
+    fn step_refused<S: TmStore>(
+        &mut self,
+        now: u64,
+        plan: u16,
+        step: u16,
+        why: StepRefusal,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) {
+        let c = &mut self.counters;
+        c.continue_not_executed = c.continue_not_executed.wrapping_add(1);
+        let e = ev::PlanStepRefused {
+            plan,
+            step,
+            reason: why.code(),
+        };
+        dl.raise(now, e, sink);
+    }
+
+    /// A CONTINUE of the node (the leader's, checked by the node against this robot's
+    /// own authorisation): run the step if it is the next uploaded one, within the
+    /// authorised count, and the robot is in the step's initial state. From STANDBY (a
+    /// hold with both grippers holding) the robot first returns to OPERATIONAL; the step
+    /// starts when it is there (checked again then).
+    fn accept_continue(
+        &mut self,
+        now: u64,
+        plan: PlanRef,
+        step: u16,
+        function: TeamFunction,
+    ) -> Result<(), StepRefusal> {
+        let auth = self.auth.ok_or(StepRefusal::NotAuthorised)?;
+        if self.plan.as_ref().is_none_or(|p| p.id != plan.id) || auth.plan != plan {
+            return Err(StepRefusal::NoPlan);
+        }
+        let next = self.next_step().ok_or(StepRefusal::NotAuthorised)?;
+        if next.step != step || now >= auth.expires_at {
+            return Err(StepRefusal::NotAuthorised);
+        }
+        match step_action(&next) {
+            Some((f, _)) if f == function => {}
+            _ => return Err(StepRefusal::Forbidden),
+        }
+        if self.step_pending.is_some() || self.step_running.is_some() {
+            return Err(StepRefusal::Busy);
+        }
+        // Started at the next poll, once the robot is idle (a hold may still be under way).
+        self.step_pending = Some((step, false));
+        Ok(())
+    }
+
+    /// Counts the next step as done, durably, before it moves: a reset never lets a robot
+    /// start more than the authorised count. The plan's ID.
+    fn count_step(&mut self, link: &mut impl TeamLink) -> Result<u16, StepRefusal> {
+        let mut r = self.record();
+        if let Some(p) = r.plan.as_mut() {
+            p.done = p.done.saturating_add(1);
+        }
+        if !link.persist(&r) {
+            let c = &mut self.counters;
+            c.persist_failed = c.persist_failed.wrapping_add(1);
+            return Err(StepRefusal::Refused);
+        }
+        // Counted from here on, whether the action starts or not.
+        self.plan = r.plan;
+        Ok(self.plan.as_ref().map_or(0, |p| p.id))
+    }
+
+    /// Writes the roster and authorisation when they changed. On failure they hold in
+    /// RAM until a reset; the ground sees the count in HK TEAM_PERSIST_FAILED.
+    fn persist_changes(&mut self, link: &mut impl TeamLink) {
+        if core::mem::take(&mut self.dirty) && !link.persist(&self.record()) {
+            self.counters.persist_failed = self.counters.persist_failed.wrapping_add(1);
+        }
+    }
+
+    /// The node's term and vote made durable before its other effects. A failed write
+    /// is treated as a reset: the `rest` effects of the batch are dropped (false), the
+    /// node restarts from what is durable.
+    fn persist(&mut self, now: u64, p: Persisted, rest: usize, link: &mut impl TeamLink) -> bool {
+        let mut r = self.record();
+        r.persisted = p;
+        if link.persist(&r) {
+            self.durable = p;
+            return true;
+        }
+        let c = &mut self.counters;
+        c.persist_failed = c.persist_failed.wrapping_add(1);
+        c.effects_dropped = c.effects_dropped.wrapping_add(rest as u32);
+        let roster = self.roster.clone();
+        let node = Node::restore(self.me, &roster, self.durable, now).ok();
+        self.set_node(node);
+        false
+    }
+
+    /// What a packet of the inter-robot link is. Parsed by the MIB's checked header
+    /// reader: spacepackets' `PusTmReader::new` panics on a packet shorter than its
+    /// headers and time stamp, or of another PUS version (0.17.0), and this is input
+    /// from another process.
+    fn packet<'p>(&mut self, from: Option<u8>, packet: &'p [u8]) -> Packet<'p> {
+        let tm = mib_wire::header::TmPacket::parse(packet)
+            .ok()
+            .filter(|tm| tm.primary.apid == TEAM_APID && tm.service == TEAM_SERVICE);
+        // Plan progress announcements belong to the on-board plan, roster or not.
+        if let Some(tm) = tm.filter(|tm| tm.subservice == mib::plan::TEAM_SUBSERVICE_PROGRESS) {
+            return Packet::Progress(tm.source);
+        }
+        let msg = match tm {
+            Some(tm) if tm.subservice == TEAM_SUBSERVICE_MESSAGE => Message::parse(tm.source).ok(),
+            _ => None,
+        };
+        match (msg, self.node.is_some()) {
+            (Some(m), true) if from.is_some_and(|f| f != m.sender) => {
+                Packet::Refused(TeamReject::UnknownSender, m.sender)
+            }
+            (Some(m), true) => {
+                self.counters.pkt_received = self.counters.pkt_received.wrapping_add(1);
+                Packet::Message(m)
+            }
+            _ => Packet::Refused(TeamReject::Malformed, from.unwrap_or(0)),
+        }
+    }
+
+    fn send(&mut self, now: u64, to: Dest, msg: &Message, link: &mut impl TeamLink) {
+        let mut body = [0u8; MAX_LEN];
+        let mut out = [0u8; mib::config::MAX_PACKET_LEN];
+        let packet = match msg.emit(&mut body) {
+            Ok(n) => self
+                .tmw
+                .build(now, TEAM_SERVICE, TEAM_SUBSERVICE_MESSAGE, &body[..n], &mut out),
+            Err(_) => None,
+        };
+        match packet {
+            Some(n) => {
+                let sent = link.send(to, &out[..n]);
+                self.counters.pkt_sent = self.counters.pkt_sent.wrapping_add(sent);
+            }
+            None => self.counters.send_failed = self.counters.send_failed.wrapping_add(1),
+        }
+    }
+}
+
 impl<S: TmStore> Obsw<S> {
     /// Restores the team record at start (`Team::restore`) and raises TEAM_STATE_LOADED.
     pub fn team_restore(&mut self, now: u64, status: LoadStatus, r: &TeamRecord, sink: &mut impl TmSink) {
@@ -608,6 +944,11 @@ impl<S: TmStore> Obsw<S> {
         self.team.set_roster(now, roster)
     }
 
+    /// Emits the TEAM_STATUS report TM[211,2] (`Team::status`).
+    pub fn team_status(&mut self, now: u64, sink: &mut impl TmSink) {
+        self.team.status(now, &mut self.dl, sink);
+    }
+
     /// Earliest time the team logic has work (`Team::next_deadline`).
     pub fn team_next_deadline(&self) -> u64 {
         self.team.next_deadline()
@@ -621,15 +962,7 @@ impl<S: TmStore> Obsw<S> {
             self.team.ground_tc = false;
             return;
         }
-        if core::mem::take(&mut self.team.dirty) {
-            let r = self.team.record();
-            if !link.persist(&r) {
-                // The roster and authorisation hold in RAM until a reset; the ground sees
-                // the count in HK TEAM_PERSIST_FAILED.
-                let c = &mut self.team.counters;
-                c.persist_failed = c.persist_failed.wrapping_add(1);
-            }
-        }
+        self.team.persist_changes(link);
         if core::mem::take(&mut self.team.ground_tc) {
             self.team_input(now, rand, Input::GroundTc, link, sink);
         }
@@ -647,7 +980,7 @@ impl<S: TmStore> Obsw<S> {
         self.team_input(now, rand, Input::Tick, link, sink);
         if now >= self.team.next_status {
             self.team.next_status = now + STATUS_PERIOD_MS;
-            self.team_status(now, sink);
+            self.team.status(now, &mut self.dl, sink);
         }
     }
 
@@ -664,30 +997,12 @@ impl<S: TmStore> Obsw<S> {
         link: &mut impl TeamLink,
         sink: &mut impl TmSink,
     ) {
-        // Parsed by the MIB's checked header reader: spacepackets' `PusTmReader::new`
-        // panics on a packet shorter than its headers and time stamp, or of another PUS
-        // version (0.17.0), and this is input from another process.
-        let tm = mib_wire::header::TmPacket::parse(packet)
-            .ok()
-            .filter(|tm| tm.primary.apid == TEAM_APID && tm.service == TEAM_SERVICE);
-        // Plan progress announcements belong to the on-board plan, roster or not.
-        if let Some(tm) = tm.filter(|tm| tm.subservice == mib::plan::TEAM_SUBSERVICE_PROGRESS) {
-            self.plan.plan.peer_progress(from, tm.source);
-            return;
-        }
-        let msg = match tm {
-            Some(tm) if tm.subservice == TEAM_SUBSERVICE_MESSAGE => Message::parse(tm.source).ok(),
-            _ => None,
-        };
-        match (msg, self.team.node.is_some()) {
-            (Some(m), true) if from.is_some_and(|f| f != m.sender) => {
-                self.team_rejected(now, TeamReject::UnknownSender, m.sender, sink)
+        match self.team.packet(from, packet) {
+            Packet::Progress(source) => {
+                self.plan.plan.peer_progress(from, source);
             }
-            (Some(m), true) => {
-                self.team.counters.pkt_received = self.team.counters.pkt_received.wrapping_add(1);
-                self.team_input(now, rand, Input::Message(m), link, sink)
-            }
-            _ => self.team_rejected(now, TeamReject::Malformed, from.unwrap_or(0), sink),
+            Packet::Message(m) => self.team_input(now, rand, Input::Message(m), link, sink),
+            Packet::Refused(reason, sender) => self.team_rejected(now, reason, sender, sink),
         }
     }
 
@@ -704,44 +1019,14 @@ impl<S: TmStore> Obsw<S> {
         for (i, e) in effects.iter().enumerate() {
             match *e {
                 Effect::Persist(p) => {
-                    let mut r = self.team.record();
-                    r.persisted = p;
-                    if link.persist(&r) {
-                        self.team.durable = p;
-                    } else {
-                        // Treated as a reset: nothing of this batch goes out.
-                        let c = &mut self.team.counters;
-                        c.persist_failed = c.persist_failed.wrapping_add(1);
-                        c.effects_dropped = c.effects_dropped.wrapping_add((effects.len() - i - 1) as u32);
-                        let roster = self.team.roster.clone();
-                        let node = Node::restore(self.team.me, &roster, self.team.durable, now).ok();
-                        self.team.set_node(node);
+                    if !self.team.persist(now, p, effects.len() - i - 1, link) {
                         return;
                     }
                 }
-                Effect::Send { to, msg } => self.team_send(now, to, &msg, link),
+                Effect::Send { to, msg } => self.team.send(now, to, &msg, link),
                 Effect::Act(a) => self.team_act(now, a, link, sink),
-                Effect::Event(ev) => self.team_event(now, ev, sink),
+                Effect::Event(ev) => self.team.event(now, ev, &mut self.dl, sink),
             }
-        }
-    }
-
-    fn team_send(&mut self, now: u64, to: Dest, msg: &Message, link: &mut impl TeamLink) {
-        let mut body = [0u8; MAX_LEN];
-        let mut out = [0u8; mib::config::MAX_PACKET_LEN];
-        let packet = match msg.emit(&mut body) {
-            Ok(n) => self
-                .team
-                .tmw
-                .build(now, TEAM_SERVICE, TEAM_SUBSERVICE_MESSAGE, &body[..n], &mut out),
-            Err(_) => None,
-        };
-        match packet {
-            Some(n) => {
-                let sent = link.send(to, &out[..n]);
-                self.team.counters.pkt_sent = self.team.counters.pkt_sent.wrapping_add(sent);
-            }
-            None => self.team.counters.send_failed = self.team.counters.send_failed.wrapping_add(1),
         }
     }
 
@@ -750,7 +1035,8 @@ impl<S: TmStore> Obsw<S> {
             // A hold cancels a step that has not started yet.
             if let Some((step, _)) = self.team.step_pending.take() {
                 let plan = self.team.plan.as_ref().map_or(0, |p| p.id);
-                self.step_refused(now, plan, step, StepRefusal::Refused, sink);
+                self.team
+                    .step_refused(now, plan, step, StepRefusal::Refused, &mut self.dl, sink);
             }
         }
         if self.plan.plan.state() == mmic_plan::State::Running {
@@ -758,7 +1044,8 @@ impl<S: TmStore> Obsw<S> {
             // hold for ground loss (the robot's own or a leader's) does not stop it, and a
             // leader's step never interleaves with it (FDIR still suspends it).
             if let Action::Continue { plan, step, .. } = a {
-                self.step_refused(now, plan.id, step, StepRefusal::Busy, sink);
+                self.team
+                    .step_refused(now, plan.id, step, StepRefusal::Busy, &mut self.dl, sink);
             }
             return;
         }
@@ -769,7 +1056,7 @@ impl<S: TmStore> Obsw<S> {
                 match self.team_continue(now, plan, step, function, link, sink) {
                     Ok(()) => return,
                     Err(why) => {
-                        self.step_refused(now, plan.id, step, why, sink);
+                        self.team.step_refused(now, plan.id, step, why, &mut self.dl, sink);
                         self.hold_target()
                     }
                 }
@@ -792,22 +1079,6 @@ impl<S: TmStore> Obsw<S> {
         }
     }
 
-    fn step_refused(&mut self, now: u64, plan: u16, step: u16, why: StepRefusal, sink: &mut impl TmSink) {
-        let c = &mut self.team.counters;
-        c.continue_not_executed = c.continue_not_executed.wrapping_add(1);
-        let e = ev::PlanStepRefused {
-            plan,
-            step,
-            reason: why.code(),
-        };
-        self.raise(now, e, sink);
-    }
-
-    /// A CONTINUE of the node (the leader's, checked by the node against this robot's
-    /// own authorisation): run the step if it is the next uploaded one, within the
-    /// authorised count, and the robot is in the step's initial state. From STANDBY (a
-    /// hold with both grippers holding) the robot first returns to OPERATIONAL; the step
-    /// starts when it is there (checked again then).
     fn team_continue(
         &mut self,
         now: u64,
@@ -817,23 +1088,7 @@ impl<S: TmStore> Obsw<S> {
         link: &mut impl TeamLink,
         sink: &mut impl TmSink,
     ) -> Result<(), StepRefusal> {
-        let auth = self.team.auth.ok_or(StepRefusal::NotAuthorised)?;
-        if self.team.plan.as_ref().is_none_or(|p| p.id != plan.id) || auth.plan != plan {
-            return Err(StepRefusal::NoPlan);
-        }
-        let next = self.team.next_step().ok_or(StepRefusal::NotAuthorised)?;
-        if next.step != step || now >= auth.expires_at {
-            return Err(StepRefusal::NotAuthorised);
-        }
-        match step_action(&next) {
-            Some((f, _)) if f == function => {}
-            _ => return Err(StepRefusal::Forbidden),
-        }
-        if self.team.step_pending.is_some() || self.team.step_running.is_some() {
-            return Err(StepRefusal::Busy);
-        }
-        // Started at the next poll, once the robot is idle (a hold may still be under way).
-        self.team.step_pending = Some((step, false));
+        self.team.accept_continue(now, plan, step, function)?;
         self.team_steps(now, link, sink);
         Ok(())
     }
@@ -853,18 +1108,7 @@ impl<S: TmStore> Obsw<S> {
         let Some((_, action)) = step_action(&s) else {
             return Err(StepRefusal::Forbidden);
         };
-        let mut r = self.team.record();
-        if let Some(p) = r.plan.as_mut() {
-            p.done = p.done.saturating_add(1);
-        }
-        if !link.persist(&r) {
-            let c = &mut self.team.counters;
-            c.persist_failed = c.persist_failed.wrapping_add(1);
-            return Err(StepRefusal::Refused);
-        }
-        // Counted from here on, whether the action starts or not.
-        self.team.plan = r.plan;
-        let plan = self.team.plan.as_ref().map_or(0, |p| p.id);
+        let plan = self.team.count_step(link)?;
         match self.function_request(now, crate::services::function::Request::Start(action), sink) {
             Ok(Exec::Action(r)) => {
                 self.running = Some(r.with_token(None));
@@ -928,14 +1172,17 @@ impl<S: TmStore> Obsw<S> {
                 // The ground is back (or never left): its first valid TC ends obedience,
                 // a step that has not started yet never starts.
                 self.team.step_pending = None;
-                self.step_refused(now, plan, step, StepRefusal::Refused, sink);
+                self.team
+                    .step_refused(now, plan, step, StepRefusal::Refused, &mut self.dl, sink);
             } else if up && self.modes.root_target() != robot_mode::OPERATIONAL {
                 // The FDIR took over on the way up.
                 self.team.step_pending = None;
-                self.step_refused(now, plan, step, StepRefusal::Refused, sink);
+                self.team
+                    .step_refused(now, plan, step, StepRefusal::Refused, &mut self.dl, sink);
             } else if expired {
                 self.team.step_pending = None;
-                self.step_refused(now, plan, step, StepRefusal::NotAuthorised, sink);
+                self.team
+                    .step_refused(now, plan, step, StepRefusal::NotAuthorised, &mut self.dl, sink);
             } else if self.transition.is_none() && self.running.is_none() {
                 let root = self.modes.root();
                 if root == robot_mode::STANDBY && !up && self.computed_state() != mib::robot::STATE_UNKNOWN {
@@ -951,7 +1198,7 @@ impl<S: TmStore> Obsw<S> {
                         _ => Err(StepRefusal::InitialState),
                     };
                     if let Err(why) = started {
-                        self.step_refused(now, plan, step, why, sink);
+                        self.team.step_refused(now, plan, step, why, &mut self.dl, sink);
                         let target = self.hold_target();
                         if self.modes.root_target() != target {
                             self.set_mode(now, target, eid::GROUND_LOST, sink);
@@ -960,171 +1207,6 @@ impl<S: TmStore> Obsw<S> {
                 }
             }
         }
-    }
-
-    fn team_event(&mut self, now: u64, ev: TeamEvent, sink: &mut impl TmSink) {
-        match ev {
-            TeamEvent::GroundLost => {
-                let term = self.team.node.as_ref().map_or(0, |n| n.term());
-                self.raise(now, ev::GroundLost { term }, sink)
-            }
-            TeamEvent::ElectionStarted { term } => {
-                self.team.counters.elections = self.team.counters.elections.wrapping_add(1);
-                self.raise(now, ev::ElectionStarted { term }, sink)
-            }
-            TeamEvent::LeaderElected { term, leader } => self.raise(now, ev::LeaderElected { term, leader }, sink),
-            TeamEvent::SteppedDown { term, reason } => {
-                let reason = step_down_code(reason);
-                self.raise(now, ev::SteppedDown { term, reason }, sink)
-            }
-            TeamEvent::GroundRegained { term } => self.raise(now, ev::GroundRegained { term }, sink),
-            TeamEvent::DirectiveExecuted {
-                term,
-                leader,
-                directive: d,
-            } => {
-                self.team.counters.dir_executed = self.team.counters.dir_executed.wrapping_add(1);
-                let (directive, step) = directive_args(d);
-                let e = ev::DirectiveExecuted {
-                    term,
-                    leader,
-                    directive,
-                    step,
-                };
-                self.raise(now, e, sink)
-            }
-            TeamEvent::DirectiveRefused { term, from, reason } => {
-                let reason = refuse_code(reason);
-                self.raise(
-                    now,
-                    ev::DirectiveRefused {
-                        term,
-                        sender: from,
-                        reason,
-                    },
-                    sink,
-                )
-            }
-        }
-    }
-
-    /// Emits the TEAM_STATUS report TM[211,2].
-    pub fn team_status(&mut self, now: u64, sink: &mut impl TmSink) {
-        let mut r = tm::TeamStatus {
-            term: self.team.durable.term,
-            role: 0,
-            leader: 0,
-            ground_seen: 1,
-            lease: 0,
-            voted_for: 0,
-            auth_plan: 0,
-            auth_first_step: 0,
-            auth_steps: 0,
-            auth_left_s: 0,
-            refused: 0,
-            foreign: 0,
-            roster: heapless::Vec::new(),
-        };
-        if let Some(n) = &self.team.node {
-            let s = n.status(now);
-            r.term = s.term;
-            r.role = s.role.code();
-            r.leader = s.leader.unwrap_or(0);
-            r.ground_seen = u8::from(s.ground_seen);
-            r.lease = u8::from(s.lease);
-            r.voted_for = s.voted_for.unwrap_or(0);
-            r.refused = s.counters.refused;
-            r.foreign = s.counters.foreign;
-            for robot in s.roster.iter() {
-                // Same capacity (ROSTER_MAX).
-                let _ = r.roster.push(tm::TeamStatusRoster { robot: *robot });
-            }
-        }
-        if let Some(a) = self.team.auth {
-            r.auth_plan = a.plan.id;
-            r.auth_first_step = a.first_step;
-            r.auth_steps = a.max_steps;
-            r.auth_left_s = (a.expires_at.saturating_sub(now) / 1000).min(u64::from(u32::MAX)) as u32;
-        }
-        self.emit_tm(now, r, sink);
-    }
-
-    /// TC[211,6]: one step of the authorised plan. When every authorised step is there,
-    /// their hash must be the authorisation's plan hash: the plan is loaded (PLAN_UPLOADED,
-    /// the node learns the plan) or every step is dropped (PLAN_HASH_MISMATCH).
-    fn team_plan_step(&mut self, now: u64, id: u16, s: PlanStep, sink: &mut impl TmSink) -> Result<(), Failure> {
-        let not_authorised = Failure::plan_not_authorised(id, s.step);
-        let a = self
-            .team
-            .auth
-            .filter(|a| a.plan.id == id)
-            .ok_or(not_authorised.clone())?;
-        let i = s.step.checked_sub(a.first_step).map(usize::from);
-        let Some(i) = i.filter(|i| *i < usize::from(a.max_steps)) else {
-            return Err(not_authorised);
-        };
-        if step_action(&s).is_none() {
-            return Err(Failure::plan_forbidden_function(s.function));
-        }
-        self.team.slots[i] = Some(s);
-        let n = usize::from(a.max_steps);
-        if self.team.slots[..n].iter().all(Option::is_some) {
-            let mut steps: heapless::Vec<PlanStep, PLAN_CAPACITY> = heapless::Vec::new();
-            for s in self.team.slots[..n].iter().flatten() {
-                // n <= PLAN_CAPACITY (MAX_AUTHORISED_STEPS, checked by the node).
-                let _ = steps.push(*s);
-            }
-            self.team.slots = [None; PLAN_CAPACITY];
-            let hash = mib::team::plan_hash(id, &steps);
-            if hash != a.plan.hash {
-                self.team.plan = None;
-                return Err(Failure::plan_hash_mismatch(a.plan.hash, hash));
-            }
-            self.team.plan = Some(StoredPlan { id, steps, done: 0 });
-            self.team.dirty = true;
-            self.team.progress_dirty = true;
-            let e = ev::PlanUploaded {
-                plan: id,
-                first_step: a.first_step,
-                steps: a.max_steps,
-                hash,
-            };
-            self.raise(now, e, sink);
-        }
-        Ok(())
-    }
-
-    pub(crate) fn team_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) -> Result<(), Failure> {
-        match r {
-            Request::Authorise(mut a, validity_s) => {
-                a.expires_at = now.saturating_add(u64::from(validity_s) * 1000);
-                if let Some(n) = self.team.node.as_mut() {
-                    n.authorise(now, a)
-                        .map_err(|_| Failure::arg_out_of_range(4, validity_s as i32))?;
-                }
-                if self.team.auth.map(|o| (o.plan, o.first_step, o.max_steps))
-                    != Some((a.plan, a.first_step, a.max_steps))
-                {
-                    // Another authorisation: its steps must be uploaded anew.
-                    self.team.slots = [None; PLAN_CAPACITY];
-                    self.team.plan = None;
-                }
-                self.team.auth = Some(a);
-                self.team.dirty = true;
-            }
-            Request::Roster(slots) => {
-                let mut roster: heapless::Vec<u8, ROSTER_MAX> = heapless::Vec::new();
-                for r in slots.iter().filter(|r| **r != 0) {
-                    // At most ROSTER_MAX slots.
-                    let _ = roster.push(*r);
-                }
-                self.team_set_roster(now, &roster)
-                    .map_err(|_| Failure::arg_out_of_range(0, i32::from(slots[0])))?;
-            }
-            Request::Status => self.team_status(now, sink),
-            Request::PlanStep(id, step) => self.team_plan_step(now, id, step, sink)?,
-        }
-        Ok(())
     }
 }
 

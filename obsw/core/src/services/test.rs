@@ -1,11 +1,13 @@
 //! PUS 17 test: the connection test (replaces the paper's heartbeat polling).
 
+use mib::tc::service;
 use mib_wire::tm;
 
 use crate::accept::Tc;
 use crate::downlink::Downlink;
 use crate::failure::Failure;
 use crate::request::unknown;
+use crate::services::{Component, Contract};
 use crate::tm::{TmSink, TmStore};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -24,9 +26,23 @@ impl Request {
 }
 
 /// The connection test has no state: it answers through the downlink.
-pub fn handle<S: TmStore>(now: u64, r: Request, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
-    match r {
-        Request::Ping => dl.emit_tm(now, &tm::PingReply {}, sink),
+pub struct Test;
+
+impl Component for Test {
+    const CONTRACT: Contract = Contract::new("test", Some(service::TEST), &[]);
+    type Request<'a> = Request;
+    type Output = ();
+    fn handle<S: TmStore>(
+        &mut self,
+        now: u64,
+        r: Request,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) -> Result<(), Failure> {
+        match r {
+            Request::Ping => dl.emit_tm(now, &tm::PingReply {}, sink),
+        }
+        Ok(())
     }
 }
 

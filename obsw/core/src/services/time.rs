@@ -2,12 +2,15 @@
 //! request.
 
 use mib::config;
+use mib::params::Source;
+use mib::tc::service;
 use mib_wire::tm;
 
 use crate::accept::Tc;
 use crate::downlink::Downlink;
 use crate::failure::Failure;
 use crate::request::unknown;
+use crate::services::{Component, Contract};
 use crate::tm::{TmSink, TmStore};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -41,9 +44,6 @@ impl TimeReports {
             next: 1000u64 << config::TIME_REPORT_DEFAULT_EXP,
         }
     }
-    pub fn next_deadline(&self) -> u64 {
-        self.next
-    }
     fn period(&self) -> u64 {
         1000u64 << self.exp
     }
@@ -55,8 +55,17 @@ impl Default for TimeReports {
     }
 }
 
-impl TimeReports {
-    pub fn request<S: TmStore>(&mut self, now: u64, r: Request, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
+impl Component for TimeReports {
+    const CONTRACT: Contract = Contract::new("time", Some(service::TIME), &[Source::Clock]);
+    type Request<'a> = Request;
+    type Output = ();
+    fn handle<S: TmStore>(
+        &mut self,
+        now: u64,
+        r: Request,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) -> Result<(), Failure> {
         match r {
             Request::SetRate(exp) => {
                 self.exp = exp;
@@ -65,16 +74,23 @@ impl TimeReports {
             }
             Request::ReportNow => self.report(now, dl, sink),
         }
+        Ok(())
     }
 
     /// Sends the periodic report when it is due.
-    pub fn tick<S: TmStore>(&mut self, now: u64, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
+    fn tick<S: TmStore>(&mut self, now: u64, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
         if now >= self.next {
             self.report(now, dl, sink);
             self.next = now + self.period();
         }
     }
 
+    fn next_deadline(&self) -> Option<u64> {
+        Some(self.next)
+    }
+}
+
+impl TimeReports {
     fn report<S: TmStore>(&self, now: u64, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
         let r = tm::TimeReport {
             rate_exp: self.exp,
@@ -98,7 +114,7 @@ mod tests {
         assert_eq!(&kind(&r[0]).2[1..], &o.dl.tmw.time.cds(1000));
         let mut sink: Vec<Vec<u8>> = Vec::new();
         for t in (1000..=3000).step_by(10) {
-            o.time_tick(t, &mut sink);
+            o.svc.tick(t, &mut o.dl, &mut sink);
         }
         assert_eq!(of(&sink, 9, 2).len(), 2, "every second");
     }

@@ -31,8 +31,10 @@ use crate::accept::Tc;
 use crate::downlink::Downlink;
 use crate::failure::Failure;
 use crate::request::unknown;
+use crate::services::{Component, Contract};
 use crate::tm::{TmSink, TmStore};
-use mib::params::{pid, NotSupplied, Supplied};
+use mib::params::{pid, NotSupplied, Source, Supplied};
+use mib::tc::service;
 
 /// What a platform gives the update component.
 #[cfg(feature = "update")]
@@ -368,12 +370,17 @@ impl Update {
     pub(crate) fn boot_reported<S: TmStore>(&mut self, now: u64, dl: &mut Downlink<S>, sink: &mut impl TmSink) {
         self.boot(&mut |n| report(now, n, dl, sink));
     }
+}
 
-    /// [`Update::request`] with its events raised through the downlink.
-    pub(crate) fn handle<S: TmStore>(
+/// [`Update::request`] with its events raised through the downlink.
+impl Component for Update {
+    const CONTRACT: Contract = Contract::new("update", Some(service::UPDATE), &[Source::Update]);
+    type Request<'a> = Request<'a>;
+    type Output = ();
+    fn handle<S: TmStore>(
         &mut self,
         now: u64,
-        r: Request,
+        r: Request<'_>,
         dl: &mut Downlink<S>,
         sink: &mut impl TmSink,
     ) -> Result<(), Failure> {
