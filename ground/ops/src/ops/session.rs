@@ -447,6 +447,21 @@ impl Session {
     /// frame) for the link-loss time ([`crate::live::LinkWatch`], the rule of every front
     /// end).
     fn check_links(&mut self, out: &mut Vec<Update>) {
+        // The silence is known up to when each link's reader last came back from its
+        // socket (`Link::listened_ms`, read first), with what it had read by then taken
+        // from the channel: a ground that was not scheduled does not call the robot silent
+        // for its own stall (`LinkWatch::on_listened`).
+        let listened: Vec<(u8, Option<i64>)> = self.links.iter().map(|(r, l)| (*r, l.listened_ms())).collect();
+        while let Ok(inc) = self.rx.try_recv() {
+            self.handle(inc, out);
+        }
+        for (r, t) in listened {
+            if let Some(s) = self.robots.get_mut(&r) {
+                // Before its reader's first read nothing is known of the silence.
+                let t = t.unwrap_or(s.link.since_ms());
+                s.link.on_listened(t);
+            }
+        }
         self.hear_frames();
         if !self.watching {
             return;
