@@ -370,6 +370,12 @@ impl Link {
         Some(self.listened.load(Ordering::Acquire)).filter(|&t| t != NOT_HEARD)
     }
 
+    /// True on a UDP lab link, where the robot sends TM only to a ground whose TC it
+    /// accepted (its subscription lease); TCP clients and the frame link get TM anyway.
+    pub fn subscribes(&self) -> bool {
+        matches!(&*self.io, Io::Udp(_))
+    }
+
     /// True once a TCP connection ended (the peer closed it or it failed).
     pub fn closed(&self) -> bool {
         self.closed.load(Ordering::Relaxed)

@@ -57,7 +57,7 @@ fn control(
         };
         if (accepted || delivered) && last_gap_check.elapsed() >= period && session.may_retrieve(robot) {
             last_gap_check = Instant::now();
-            session.request_missing_reports(robot, 1);
+            session.request_reports_of(robot, &tc, 1);
         }
         for u in session.poll(Duration::from_millis(50)) {
             match &u {
@@ -87,9 +87,11 @@ fn control(
 }
 
 /// Uploads and commits every image, then starts every robot. Returns the updates seen
-/// meanwhile, and the first refusal (nothing started then).
+/// meanwhile, and the first refusal or TC without an outcome, which names the robots
+/// whose PLAN_START had completed before it (none when the upload failed).
 pub fn upload_and_start(session: &mut Session, c: &Compiled) -> (Vec<Update>, Result<(), String>) {
     let mut early = Vec::new();
+    let mut started: Vec<String> = Vec::new();
     let r = (|| {
         for img in &c.images {
             for (k, chunk) in img.bytes.chunks(mib::plan::MAX_CHUNK).enumerate() {
@@ -121,8 +123,19 @@ pub fn upload_and_start(session: &mut Session, c: &Compiled) -> (Vec<Update>, Re
                 &[],
                 &mut early,
             )?;
+            started.push(img.robot.to_string());
         }
         Ok(())
     })();
+    let r = r.map_err(|why: String| {
+        if started.is_empty() {
+            format!("{why}; nothing was started")
+        } else {
+            format!(
+                "{why}; robot {} had started its plan (ground plan status|abort --robot N)",
+                started.join(", ")
+            )
+        }
+    });
     (early, r)
 }
