@@ -567,15 +567,17 @@ fn the_demo_plan_on_board_through_a_lossy_ground_link_gives_the_same_summary_and
     assert_eq!(summary["done"], 10, "{}", text(&run));
     let (steps, bolts, unbolted) = outcome(&summary);
     assert!(steps.iter().all(|(_, r)| r == "done"), "{steps:?}");
-    assert_eq!(unbolted, 2, "robot 2 unbolted pairs 1 and 2");
+    assert_eq!(unbolted, 2, "robot 2 unbolted pairs 1 and 2: {}", text(&run));
     let bolted = ["first", "second", "third", "later"]
         .iter()
         .map(|k| bolts[k].as_u64().unwrap())
         .sum::<u64>()
         + bolts["failed"].as_u64().unwrap();
     assert_eq!(
-        bolted, 8,
-        "robot 1's four pairs and robot 2's four, each counted once: {bolts}"
+        bolted,
+        8,
+        "robot 1's four pairs and robot 2's four, each counted once: {bolts}: {}",
+        text(&run)
     );
     // Every robot's TM complete after the gap retrieval.
     for t in summary["tm"].as_array().unwrap() {
