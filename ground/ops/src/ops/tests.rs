@@ -903,3 +903,43 @@ fn a_control_tc_awaited_on_its_own_asks_the_gaps_after_its_send_before_the_older
     // ... the control TC's own ask goes where its reports are.
     assert_eq!(s.request_reports_of(1, &control, 1), vec![(42, 42)]);
 }
+
+// verifies: PLAN-GROUND-01
+#[test]
+fn an_on_board_step_whose_acceptance_comes_after_its_completion_is_timed_from_its_start_report() {
+    let pl = plan(TWO_STEPS);
+    let opts = RunOptions {
+        display: false,
+        ..RunOptions::default()
+    };
+    let t0 = Instant::now();
+    let mut ex = Executor::new(&pl, &opts, &[], t0);
+    let ping = mib::tc::by_name("PING").unwrap();
+    let tc0 = pus::build_tc(1, 10, ping, &[]).unwrap();
+    ex.run_on_board(0, tc0.clone());
+    ex.on_tick(t0);
+    let at = |u: Update, ms: i64| match u {
+        Update::Verification {
+            robot,
+            tag,
+            tc,
+            v,
+            after,
+            ..
+        } => Update::Verification {
+            robot,
+            tag,
+            tc,
+            v,
+            after,
+            at_ms: Some(ms),
+        },
+        other => other,
+    };
+    // The acceptance is lost live: the start report (on board at 38 356 ms) and the
+    // completion (43 846 ms) come, the acceptance later from the store.
+    ex.on_update(t0, at(verification(&tc0, 0, 3), 38_356));
+    ex.on_update(t0, at(verification(&tc0, 0, 7), 43_846));
+    ex.on_update(t0, at(verification(&tc0, 0, 1), 38_356));
+    assert_eq!(ex.state[0], StepState::Done { secs: 5.49 });
+}
