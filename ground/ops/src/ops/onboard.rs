@@ -59,25 +59,32 @@ fn control(
             last_gap_check = Instant::now();
             session.request_reports_of(robot, &tc, 1);
         }
+        // The whole batch is looked at before the outcome is returned: the updates after
+        // it (a step's completion replayed from the store with the control TC's own) are
+        // kept for the executor, never dropped.
+        let mut outcome = None;
         for u in session.poll(Duration::from_millis(50)) {
             match &u {
-                Update::Verification { v, .. } if v.request == rid => {
+                Update::Verification { v, .. } if v.request == rid && outcome.is_none() => {
                     if !v.success {
-                        return Err(format!("robot {robot}: {name} refused: {}", failure_words(v)));
-                    }
-                    if v.stage == crate::pus::Stage::Completion {
-                        return Ok(tc);
-                    }
-                    if v.stage == crate::pus::Stage::Acceptance && !accepted {
+                        outcome = Some(Err(format!("robot {robot}: {name} refused: {}", failure_words(v))));
+                    } else if v.stage == crate::pus::Stage::Completion {
+                        outcome = Some(Ok(tc.clone()));
+                    } else if v.stage == crate::pus::Stage::Acceptance && !accepted {
                         accepted = true;
                         last_gap_check = Instant::now();
                     }
                 }
-                Update::GaveUp { robot: r, tc: n, .. } if *r == robot && *n == def.name && !session.is_pending(&tc) => {
-                    return Err(format!("robot {robot}: {name}: no answer"));
+                Update::GaveUp { robot: r, tc: n, .. }
+                    if *r == robot && *n == def.name && !session.is_pending(&tc) && outcome.is_none() =>
+                {
+                    outcome = Some(Err(format!("robot {robot}: {name}: no answer")));
                 }
                 _ => early.push(u),
             }
+        }
+        if let Some(o) = outcome {
+            return o;
         }
     }
     Err(format!(

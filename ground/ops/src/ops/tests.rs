@@ -943,3 +943,51 @@ fn an_on_board_step_whose_acceptance_comes_after_its_completion_is_timed_from_it
     ex.on_update(t0, at(verification(&tc0, 0, 1), 38_356));
     assert_eq!(ex.state[0], StepState::Done { secs: 5.49 });
 }
+
+// verifies: PLAN-GROUND-01
+#[test]
+fn the_upload_keeps_every_update_of_the_batch_its_control_tc_completed_in() {
+    // A fake robot answers each control TC with TM[1,1], then one datagram holding the
+    // TC's TM[1,7] and, after it, a TM[17,2] (as a store replay brings a step's report
+    // with the control TC's own): the reports after the completion reach the executor.
+    let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
+    sock.set_read_timeout(Some(Duration::from_millis(1500))).unwrap();
+    let addr = sock.local_addr().unwrap();
+    let fake = std::thread::spawn(move || {
+        let t = CdsShort::now().to_bytes();
+        let mut buf = [0u8; 2048];
+        let mut seq = 0;
+        let mut controls = 0;
+        while let Ok((n, f)) = sock.recv_from(&mut buf) {
+            let Ok(tc) = pus::decode_tc(&buf[..n]) else { continue };
+            let rid = [buf[0], buf[1], buf[2], buf[3]];
+            seq += 3;
+            sock.send_to(&build_tm(tc.apid, seq, 1, 1, 0, &t, &rid), f).unwrap();
+            if tc.service == 17 {
+                continue;
+            }
+            controls += 1;
+            let mut both = build_tm(tc.apid, seq + 1, 1, 7, 0, &t, &rid);
+            both.extend(build_tm(tc.apid, seq + 2, 17, 2, 0, &t, &[]));
+            sock.send_to(&both, f).unwrap();
+        }
+        controls
+    });
+    let mut s = Session::connect(&[(1, addr)], Transport::Udp, None, |_| Some(100)).unwrap();
+    let c = crate::plan::onboard::Compiled {
+        plan_id: 7,
+        images: vec![crate::plan::onboard::RobotImage {
+            robot: 1,
+            bytes: vec![0; 8],
+        }],
+        tcs: Vec::new(),
+    };
+    let (early, r) = upload_and_start(&mut s, &c);
+    assert_eq!(r, Ok(()));
+    let after: usize = early
+        .iter()
+        .filter(|u| matches!(u, Update::Tm { tm, .. } if tm.service == 17))
+        .count();
+    assert_eq!(fake.join().unwrap(), 3, "PLAN_LOAD, PLAN_COMMIT, PLAN_START");
+    assert_eq!(after, 3, "the TM after each completion kept: {early:?}");
+}
