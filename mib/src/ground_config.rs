@@ -76,6 +76,24 @@ const _: () = assert!(
     GROUND_HEARTBEAT_MS * 2 < LINK_LOSS_MS
         && (LINK_LOSS_MS as usize) < crate::host_config::SUBSCRIPTION_LEASE_MS as usize
 );
+/// Ground: over a UDP lab link a robot sends TM only to a ground whose TC it accepted (its
+/// subscription, [`SUBSCRIPTION_LEASE_MS`](crate::host_config::SUBSCRIPTION_LEASE_MS));
+/// a TC lost or damaged on the way leaves the ground unsubscribed (a damaged one's refusal
+/// reaches it, without subscribing it). Until TM only a subscriber gets has come, a
+/// watching ground sends a heartbeat this often, so that the ground's own lost TCs never
+/// make a live robot silent for [`LINK_LOSS_MS`]: at 25 % of the TCs lost or damaged, the
+/// ten sends of the loss time all fail about once in a million.
+pub const SUBSCRIBE_RETRY_MS: u32 = 250;
+// These heartbeats stand in for the periodic ones (a heartbeat goes only when no TC went
+// within its period) and last at most the loss time: with them the heartbeats of one
+// retry span and a round of store requests still fit half the duplicate window.
+const _: () = assert!(
+    LINK_LOSS_MS / SUBSCRIBE_RETRY_MS >= 8
+        && GAP_REQUESTS_MAX
+            + ((TC_RETRY_SPAN_MS - LINK_LOSS_MS) / GROUND_HEARTBEAT_MS) as usize
+            + (LINK_LOSS_MS / SUBSCRIBE_RETRY_MS) as usize
+            <= crate::config::DUPLICATE_WINDOW / 2
+);
 /// Ground: the link is lost after this many tenths of the robot's status-HK interval
 /// without TM (2.5 intervals), never sooner than [`LINK_LOSS_MS`]. HK is the TM a robot
 /// sends on its own, whatever happens to the uplink (the answers to the ground's TCs need

@@ -149,3 +149,61 @@ fn a_robot_stopped_over_the_frame_link_is_reported_lost_within_the_loss_time_sta
     drop(obsw);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+// verifies: OPS-LIVE-LINK-03
+#[test]
+fn a_ground_stopped_for_twice_the_loss_time_does_not_call_its_live_robot_lost() {
+    let loss = Duration::from_millis(u64::from(mib::ground_config::link_loss_ms(
+        mib::hk::by_sid(mib::hk::sid::ROBOT_STATUS)
+            .expect("status HK in the MIB")
+            .default_interval_ms,
+    )));
+    let dir = tmpdir("silent-robot-e2e", "ground-stop");
+    let keys = create_keys(&dir);
+    // The obsw's TM frames straight to the ground's TM port: the robot never falls silent.
+    let ground_tm = free_udp();
+    let obsw = Obsw::start_frames(&keys, ground_tm, &[]);
+    let mut ground = Command::new(bin("ground"))
+        .current_dir(&dir)
+        .args(["--no-archive", "watch", "--keys", keys.to_str().unwrap()])
+        .args([
+            "--robot",
+            &format!("1={}", obsw.frame()),
+            "--tm-listen",
+            &format!("1={ground_tm}"),
+        ])
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("ground watch");
+    let (tx, rx) = mpsc::channel::<String>();
+    let err = ground.stderr.take().unwrap();
+    std::thread::spawn(move || {
+        for line in BufReader::new(err).lines().map_while(Result::ok) {
+            let _ = tx.send(line);
+        }
+    });
+    std::thread::sleep(Duration::from_secs(3));
+    let pid = ground.id().to_string();
+    // The ground process is not scheduled (as on a loaded machine, here SIGSTOP) for twice
+    // the loss time while the robot's frames wait in its socket; when it runs again its
+    // main loop and its link's reader wake together. Three times: it must never judge the
+    // silence past what its reader had read.
+    for round in 0..3 {
+        assert!(Command::new("kill").args(["-STOP", &pid]).status().unwrap().success());
+        std::thread::sleep(loss * 2);
+        assert!(Command::new("kill").args(["-CONT", &pid]).status().unwrap().success());
+        std::thread::sleep(Duration::from_secs(2));
+        let lines: Vec<String> = rx.try_iter().collect();
+        let running = ground.try_wait().unwrap().is_none();
+        assert!(
+            running && !lines.iter().any(|l| l.contains("lost") || l.contains("nothing heard")),
+            "round {round}: ground watch called the live robot lost after its own stop: {lines:?}"
+        );
+    }
+    let _ = ground.kill();
+    let _ = ground.wait();
+    drop(obsw);
+    let _ = std::fs::remove_dir_all(&dir);
+}

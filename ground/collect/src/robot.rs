@@ -238,6 +238,9 @@ impl Worker {
             self.cfg.transport
         );
         while !self.stop.load(Ordering::Relaxed) {
+            // Up to when the link's reader listened, read before its packets are taken
+            // (`LinkWatch::on_listened`: the worker's own stall is not the robot's silence).
+            let listened = self.link.as_ref().and_then(|l| l.listened_ms());
             match self.rx.recv_timeout(Duration::from_millis(50)) {
                 Ok(first) => {
                     self.on_incoming(first);
@@ -253,6 +256,9 @@ impl Worker {
                 Err(crossbeam_channel::RecvTimeoutError::Disconnected) => break,
             }
             self.dash_commands();
+            if let Some(t) = listened {
+                self.watch.on_listened(t);
+            }
             let now = now_ms();
             self.timers(now);
         }

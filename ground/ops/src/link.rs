@@ -238,6 +238,10 @@ pub struct Link {
     stop: Arc<AtomicBool>,
     /// Set by the reader when a TCP connection ends (EOF or error).
     closed: Arc<AtomicBool>,
+    /// When (archive clock, ms) the reader thread last came back from its socket (a
+    /// packet, a frame round or a wait with nothing), with what it read already handed on
+    /// ([`NOT_HEARD`]: not yet); see [`Link::listened_ms`].
+    listened: Arc<AtomicI64>,
     reader: Option<JoinHandle<()>>,
     /// This process commands the robot (see [`crate::robot_lock`]).
     _lock: crate::robot_lock::RobotLock,
@@ -301,6 +305,7 @@ impl Link {
             let opts = frames.ok_or_else(|| io::Error::other("the frame link needs a key directory (--keys DIR)"))?;
             return open_frames(robot, addr, opts, tx, stop, closed, lock);
         }
+        let listened = Arc::new(AtomicI64::new(NOT_HEARD));
         let io = match transport {
             Transport::Frames => unreachable_frames()?,
             Transport::Udp => {
@@ -328,6 +333,7 @@ impl Link {
             let io = io.clone();
             let stop = stop.clone();
             let closed = closed.clone();
+            let listened = listened.clone();
             let reader_stream = match &*io {
                 Io::Tcp(m) => Some(m.lock().map_err(|_| io::Error::other("lock"))?.try_clone()?),
                 Io::Udp(_) | Io::Frames { .. } => None,
@@ -335,7 +341,7 @@ impl Link {
             std::thread::Builder::new()
                 .name(format!("link-{robot}"))
                 .spawn(move || {
-                    reader_loop(robot, &io, reader_stream, &stop, &tx);
+                    reader_loop(robot, &io, reader_stream, &stop, &tx, &listened);
                     if !stop.load(Ordering::Relaxed) {
                         closed.store(true, Ordering::Relaxed);
                     }
@@ -347,9 +353,27 @@ impl Link {
             io,
             stop,
             closed,
+            listened,
             reader: Some(reader),
             _lock: lock,
         })
+    }
+
+    /// When (archive clock, [`crate::archive::now_ms`]) the link's reader thread last came
+    /// back from its socket, everything it had read by then already in the channel (`None`
+    /// before its first read). A silence is only known up to here: on a loaded machine the
+    /// reader may not be scheduled for seconds while the robot's packets wait in the
+    /// socket, and a front end that judged the silence up to its own clock would call a
+    /// live robot lost for the ground's own stall. Read it *before* draining the channel:
+    /// what the reader had read by then is then in hand.
+    pub fn listened_ms(&self) -> Option<i64> {
+        Some(self.listened.load(Ordering::Acquire)).filter(|&t| t != NOT_HEARD)
+    }
+
+    /// True on a UDP lab link, where the robot sends TM only to a ground whose TC it
+    /// accepted (its subscription lease); TCP clients and the frame link get TM anyway.
+    pub fn subscribes(&self) -> bool {
+        matches!(&*self.io, Io::Udp(_))
     }
 
     /// True once a TCP connection ended (the peer closed it or it failed).
@@ -465,8 +489,17 @@ impl Drop for Link {
     }
 }
 
-fn reader_loop(robot: u8, io: &Io, tcp: Option<TcpStream>, stop: &AtomicBool, tx: &Sender<Incoming>) {
+fn reader_loop(
+    robot: u8,
+    io: &Io,
+    tcp: Option<TcpStream>,
+    stop: &AtomicBool,
+    tx: &Sender<Incoming>,
+    listened: &AtomicI64,
+) {
     let mut buf = vec![0u8; 65536];
+    // After what a read brought is in the channel (see `Link::listened_ms`).
+    let back = || listened.store(crate::archive::now_ms(), Ordering::Release);
     let emit = |bytes: &[u8]| {
         let _ = tx.send(Incoming {
             robot,
@@ -489,6 +522,7 @@ fn reader_loop(robot: u8, io: &Io, tcp: Option<TcpStream>, stop: &AtomicBool, tx
                         ) => {}
                     Err(_) => std::thread::sleep(READ_POLL),
                 }
+                back();
             }
         }
         (Io::Tcp(_), Some(mut s)) => {
@@ -509,6 +543,7 @@ fn reader_loop(robot: u8, io: &Io, tcp: Option<TcpStream>, stop: &AtomicBool, tx
                         ) => {}
                     Err(_) => return,
                 }
+                back();
             }
         }
         (Io::Tcp(_), None) | (Io::Frames { .. }, _) => {}
@@ -555,10 +590,11 @@ fn open_frames(
     let failed = Arc::new(Mutex::new(None));
     let delivered = Arc::new(Mutex::new(VecDeque::new()));
     let heard = Arc::new(AtomicI64::new(NOT_HEARD));
+    let listened = Arc::new(AtomicI64::new(NOT_HEARD));
     let reader = {
         let (stop, closed, stats, failed) = (stop.clone(), closed.clone(), stats.clone(), failed.clone());
         let delivered = delivered.clone();
-        let heard = heard.clone();
+        let (heard, listened) = (heard.clone(), listened.clone());
         std::thread::Builder::new()
             .name(format!("frames-{robot}"))
             .spawn(move || {
@@ -566,6 +602,7 @@ fn open_frames(
                     stats: &stats,
                     delivered: &delivered,
                     heard: &heard,
+                    listened: &listened,
                 };
                 if let Err(e) = frame_loop(robot, &mut fl, &from_ground, &stop, &tx, shared) {
                     if let Ok(mut f) = failed.lock() {
@@ -588,6 +625,7 @@ fn open_frames(
         }),
         stop,
         closed,
+        listened,
         reader: Some(reader),
         _lock: lock,
     })
@@ -602,6 +640,7 @@ struct FrameShared<'a> {
     stats: &'a Mutex<FrameStats>,
     delivered: &'a Mutex<VecDeque<(u16, u16)>>,
     heard: &'a AtomicI64,
+    listened: &'a AtomicI64,
 }
 
 /// A space packet's request ID: APID and sequence count from its primary header.
@@ -641,6 +680,7 @@ fn frame_loop(
         for p in packets {
             let _ = tx.send(Incoming { robot, t_ms, bytes: p });
         }
+        shared.listened.store(t_ms, Ordering::Release);
         let events = fl.take_events();
         for e in &events {
             match e {

@@ -106,6 +106,33 @@ fn frames_keep_a_robot_heard_while_no_tm_packet_arrives() {
     assert_eq!(w.on_heard(20_000), Some(LinkState::Lost));
 }
 
+// verifies: OPS-LIVE-LINK-03
+#[test]
+fn a_silence_counts_only_up_to_when_the_ground_listened() {
+    let mut w = LinkWatch::at_mib_interval(0);
+    w.on_tm(1_000);
+    w.on_listened(1_100);
+    // The ground did not run from 1.1 s to 10 s (its reader neither): nothing is known of
+    // that time, so no loss, however late its own clock.
+    assert_eq!(w.tick(10_000, false), None);
+    assert!(w.heard_within_loss_time(10_000));
+    // Its reader runs again: what waited in the socket (a TM at 10.0 s) comes first.
+    w.on_tm(10_000);
+    w.on_listened(10_010);
+    assert_eq!(w.state(), LinkState::Up);
+    // A real silence while the reader listens is still lost after the loss time, and the
+    // loss states the silence listened to.
+    let end = 10_000 + i64::from(LINK_LOSS_MS);
+    w.on_listened(end);
+    assert_eq!(w.tick(end + 500, false), None, "not listened past {end} yet");
+    w.on_listened(end + 1);
+    let loss = w.tick(end + 30, false).expect("lost");
+    assert_eq!(loss.silent_ms, i64::from(LINK_LOSS_MS) + 1);
+    // An older listened time never moves it back.
+    w.on_listened(5_000);
+    assert_eq!(w.silence_ms(end + 30), i64::from(LINK_LOSS_MS) + 1);
+}
+
 // ---- gap retrieval ----------------------------------------------------------------------
 
 // verifies: OPS-LIVE-GAP-01

@@ -56,6 +56,10 @@ pub struct LinkWatch {
     /// When watching (re)started: the silence of a link never heard counts from here.
     since_ms: i64,
     last_heard_ms: Option<i64>,
+    /// Up to when the front end listened (its link's reader last came back from the socket
+    /// with everything read by then handed on: `crate::link::Link::listened_ms`); `None`:
+    /// up to the time passed in.
+    listened_ms: Option<i64>,
 }
 
 impl LinkWatch {
@@ -66,6 +70,7 @@ impl LinkWatch {
             loss_after_ms: i64::from(mib::ground_config::link_loss_ms(hk_interval_ms)),
             since_ms: now_ms,
             last_heard_ms: None,
+            listened_ms: None,
         }
     }
 
@@ -121,9 +126,21 @@ impl LinkWatch {
         self.on_tm(t_ms)
     }
 
-    /// Nothing heard for this long at `now_ms` (since watching started if never heard).
+    /// The front end listened to the link up to `t_ms`: its reader came back from the
+    /// socket then, and what it had read is already given to [`LinkWatch::on_tm`] /
+    /// [`LinkWatch::on_heard`]. Once told, a silence counts only up to the latest such
+    /// time: a ground process (or its reader thread) not scheduled for seconds on a loaded
+    /// machine, the robot's packets waiting in its socket, does not call the robot silent
+    /// for its own stall. A front end that never tells judges up to the time it passes.
+    pub fn on_listened(&mut self, t_ms: i64) {
+        self.listened_ms = Some(self.listened_ms.map_or(t_ms, |l| l.max(t_ms)));
+    }
+
+    /// Nothing heard for this long at `now_ms` (since watching started if never heard), as
+    /// far as the front end listened ([`LinkWatch::on_listened`]).
     pub fn silence_ms(&self, now_ms: i64) -> i64 {
-        now_ms - self.last_heard_ms.unwrap_or(self.since_ms)
+        let known = self.listened_ms.map_or(now_ms, |l| l.min(now_ms));
+        known - self.last_heard_ms.unwrap_or(self.since_ms)
     }
 
     /// Whether the silence at `now_ms` is shorter than the loss time (the robot answers).

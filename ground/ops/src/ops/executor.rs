@@ -415,8 +415,13 @@ impl<'p> Executor<'p> {
                 at_ms,
                 ..
             } if i < n => {
-                if let Some(at) = at_ms.filter(|_| self.on_board.contains_key(&i) && v.stage == Stage::Acceptance) {
-                    self.board_start.insert(i, at);
+                // On board a step starts when the robot accepts its TC; the start report has
+                // the same time and is the one heard when the acceptance was lost (else the
+                // step's time came out 0.0 s: from the completion to itself).
+                let starts = matches!(v.stage, Stage::Acceptance | Stage::Start);
+                if let Some(at) = at_ms.filter(|_| self.on_board.contains_key(&i) && starts) {
+                    let t = self.board_start.entry(i).or_insert(at);
+                    *t = (*t).min(at);
                 }
                 if self.state[i] == StepState::Waiting && self.halted.is_none() {
                     self.start_on_board(i, now, &mut fx);

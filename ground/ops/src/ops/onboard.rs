@@ -57,27 +57,34 @@ fn control(
         };
         if (accepted || delivered) && last_gap_check.elapsed() >= period && session.may_retrieve(robot) {
             last_gap_check = Instant::now();
-            session.request_missing_reports(robot, 1);
+            session.request_reports_of(robot, &tc, 1);
         }
+        // The whole batch is looked at before the outcome is returned: the updates after
+        // it (a step's completion replayed from the store with the control TC's own) are
+        // kept for the executor, never dropped.
+        let mut outcome = None;
         for u in session.poll(Duration::from_millis(50)) {
             match &u {
-                Update::Verification { v, .. } if v.request == rid => {
+                Update::Verification { v, .. } if v.request == rid && outcome.is_none() => {
                     if !v.success {
-                        return Err(format!("robot {robot}: {name} refused: {}", failure_words(v)));
-                    }
-                    if v.stage == crate::pus::Stage::Completion {
-                        return Ok(tc);
-                    }
-                    if v.stage == crate::pus::Stage::Acceptance && !accepted {
+                        outcome = Some(Err(format!("robot {robot}: {name} refused: {}", failure_words(v))));
+                    } else if v.stage == crate::pus::Stage::Completion {
+                        outcome = Some(Ok(tc.clone()));
+                    } else if v.stage == crate::pus::Stage::Acceptance && !accepted {
                         accepted = true;
                         last_gap_check = Instant::now();
                     }
                 }
-                Update::GaveUp { robot: r, tc: n, .. } if *r == robot && *n == def.name && !session.is_pending(&tc) => {
-                    return Err(format!("robot {robot}: {name}: no answer"));
+                Update::GaveUp { robot: r, tc: n, .. }
+                    if *r == robot && *n == def.name && !session.is_pending(&tc) && outcome.is_none() =>
+                {
+                    outcome = Some(Err(format!("robot {robot}: {name}: no answer")));
                 }
                 _ => early.push(u),
             }
+        }
+        if let Some(o) = outcome {
+            return o;
         }
     }
     Err(format!(
@@ -87,9 +94,11 @@ fn control(
 }
 
 /// Uploads and commits every image, then starts every robot. Returns the updates seen
-/// meanwhile, and the first refusal (nothing started then).
+/// meanwhile, and the first refusal or TC without an outcome, which names the robots
+/// whose PLAN_START had completed before it (none when the upload failed).
 pub fn upload_and_start(session: &mut Session, c: &Compiled) -> (Vec<Update>, Result<(), String>) {
     let mut early = Vec::new();
+    let mut started: Vec<String> = Vec::new();
     let r = (|| {
         for img in &c.images {
             for (k, chunk) in img.bytes.chunks(mib::plan::MAX_CHUNK).enumerate() {
@@ -121,8 +130,19 @@ pub fn upload_and_start(session: &mut Session, c: &Compiled) -> (Vec<Update>, Re
                 &[],
                 &mut early,
             )?;
+            started.push(img.robot.to_string());
         }
         Ok(())
     })();
+    let r = r.map_err(|why: String| {
+        if started.is_empty() {
+            format!("{why}; nothing was started")
+        } else {
+            format!(
+                "{why}; robot {} had started its plan (ground plan status|abort --robot N)",
+                started.join(", ")
+            )
+        }
+    });
     (early, r)
 }

@@ -342,7 +342,7 @@ fn on_board(
             ob.detach
         }
         Err(why) => {
-            disp.log(format!("  REFUSED  on-board plan: {why}; nothing was started"));
+            disp.log(format!("  REFUSED  on-board plan: {why}"));
             for i in 0..plan.steps.len() {
                 if !exec.state[i].terminal() {
                     for e in exec.fail_step(i, format!("not started on board: {why}")) {

@@ -437,6 +437,7 @@ impl Session {
             }
             self.check_resends(&mut out);
             self.check_links(&mut out);
+            self.keep_subscribed();
             if !out.is_empty() || Instant::now() >= deadline {
                 return out;
             }
@@ -447,6 +448,21 @@ impl Session {
     /// frame) for the link-loss time ([`crate::live::LinkWatch`], the rule of every front
     /// end).
     fn check_links(&mut self, out: &mut Vec<Update>) {
+        // The silence is known up to when each link's reader last came back from its
+        // socket (`Link::listened_ms`, read first), with what it had read by then taken
+        // from the channel: a ground that was not scheduled does not call the robot silent
+        // for its own stall (`LinkWatch::on_listened`).
+        let listened: Vec<(u8, Option<i64>)> = self.links.iter().map(|(r, l)| (*r, l.listened_ms())).collect();
+        while let Ok(inc) = self.rx.try_recv() {
+            self.handle(inc, out);
+        }
+        for (r, t) in listened {
+            if let Some(s) = self.robots.get_mut(&r) {
+                // Before its reader's first read nothing is known of the silence.
+                let t = t.unwrap_or(s.link.since_ms());
+                s.link.on_listened(t);
+            }
+        }
         self.hear_frames();
         if !self.watching {
             return;
@@ -473,6 +489,33 @@ impl Session {
         // Nothing more is resent to a robot that does not answer; its steps end with the
         // link loss.
         self.book.retain(|p| !lost.contains(&p.robot));
+    }
+
+    /// Over a UDP lab link a robot sends TM only to a ground whose TC it accepted: until it
+    /// does (TM only a subscriber gets, [`RobotStatus::streaming`]), a watched robot gets a
+    /// heartbeat every [`mib::ground_config::SUBSCRIBE_RETRY_MS`], so that a few of the
+    /// ground's own TCs lost or damaged on the way do not leave a live robot silent for
+    /// the link-loss time. A robot that does not answer is still lost in that time.
+    fn keep_subscribed(&mut self) {
+        if !self.watching {
+            return;
+        }
+        let retry = Duration::from_millis(u64::from(mib::ground_config::SUBSCRIBE_RETRY_MS));
+        let due: Vec<u8> = self
+            .robots
+            .iter()
+            .filter(|(r, s)| {
+                s.lost.is_none()
+                    && !s.streaming
+                    && self.links.get(r).is_some_and(Link::subscribes)
+                    && !self.sent_within(**r, retry)
+            })
+            .map(|(r, _)| *r)
+            .collect();
+        for r in due {
+            // A failed send shows as silence: the link-loss check reports it.
+            let _ = self.send_heartbeat(r);
+        }
     }
 
     /// Over frames, the robots are heard while their valid TM frames arrive
@@ -541,6 +584,26 @@ impl Session {
             return self.request_gaps(robot, None, max_ranges);
         }
         self.send_retrievals(robot, span, ranges, max_ranges)
+    }
+
+    /// Asks `robot`'s on-board store first for the TM missing since `tc` went out, where
+    /// its reports are (oldest first, at most `max_ranges` ranges); with none missing
+    /// there, as [`Session::request_missing_reports`]. For a TC awaited on its own (the
+    /// on-board plan's upload and start): behind the older TCs the book tracks (the
+    /// plan's step TCs, from the upload on) its lost completion waited for every gap since
+    /// them, asked a range a period, and through the 20/5/5 lab relay a PLAN_START's
+    /// completion was still not asked for after 30 s. Nothing while the pacing rule holds
+    /// the next retrieval back.
+    pub fn request_reports_of(&mut self, robot: u8, tc: &BuiltTc, max_ranges: usize) -> Vec<(u16, u16)> {
+        let since = self.book.get(tc.apid, tc.seq).and_then(|p| p.tm_seq_at_send);
+        let ranges = match (since, self.robots.get(&robot)) {
+            (Some(from), Some(st)) => st.seq.missing_after(from),
+            _ => Vec::new(),
+        };
+        if ranges.is_empty() {
+            return self.request_missing_reports(robot, max_ranges);
+        }
+        self.send_retrievals(robot, None, ranges, max_ranges)
     }
 
     /// The on-board time span (Unix ms, inclusive) between `robot`'s oldest TC still
@@ -717,6 +780,7 @@ impl Session {
         if let (Ok(tm), Some(s)) = (&decoded, self.robots.get_mut(&inc.robot)) {
             if tm.robot == Some(inc.robot) {
                 s.link.on_tm(now_ms());
+                s.streaming |= RobotStatus::subscribed_by(tm);
                 if s.seq.first().is_none() {
                     self.first_heard.insert(inc.robot, Instant::now());
                 }

@@ -50,6 +50,9 @@ pub struct RobotStatus {
     pub store_oldest: Option<u16>,
     /// Stored packets overwritten on board since boot (last TM[15,19]).
     pub store_overwritten: u32,
+    /// TM that only a subscriber gets came (HK, a successful verification report): over
+    /// a UDP lab link the robot sends to this ground (see [`RobotStatus::subscribed_by`]).
+    pub streaming: bool,
 }
 
 impl RobotStatus {
@@ -76,7 +79,16 @@ impl RobotStatus {
             run_first_seq: None,
             store_oldest: None,
             store_overwritten: 0,
+            streaming: false,
         }
+    }
+
+    /// Whether `tm` shows the robot sending to this ground as to a subscriber of its UDP
+    /// lab link: HK and successful verification reports go only to subscribers (the
+    /// refusal of a TC that did not pass acceptance also goes to its sender, without
+    /// subscribing it).
+    pub fn subscribed_by(tm: &pus::Tm) -> bool {
+        tm.service == 3 || (tm.service == 1 && tm.subservice % 2 == 1)
     }
     pub(crate) fn exchange(&mut self, ok: bool) {
         if self.quality.len() == LINK_QUALITY_WINDOW {

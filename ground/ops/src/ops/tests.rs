@@ -407,6 +407,80 @@ fn an_accepted_tc_is_not_resent_while_its_completion_is_awaited() {
     assert_eq!(s.robots[&1].link_quality(), Some(1.0));
 }
 
+/// A fake lab-link OBSW that refuses the first `refuse` TCs (TM[1,2] to their sender, as
+/// the obsw answers a damaged copy: the sender hears it but is not subscribed), then
+/// subscribes the sender of the next: TM[1,1] for it and a TM[17,2] every 100 ms until
+/// `run_for` after the first TC. Returns the times the TCs came, from the first.
+fn subscribing_obsw(refuse: usize, run_for: Duration) -> (SocketAddr, std::thread::JoinHandle<Vec<Duration>>) {
+    let s = UdpSocket::bind("127.0.0.1:0").unwrap();
+    s.set_read_timeout(Some(Duration::from_millis(100))).unwrap();
+    let addr = s.local_addr().unwrap();
+    let h = std::thread::spawn(move || {
+        let t = CdsShort::now().to_bytes();
+        let mut buf = [0u8; 2048];
+        let mut came = Vec::new();
+        let mut t0 = None;
+        let mut subscriber = None;
+        let mut seq = 0u16;
+        while t0.is_none_or(|t: Instant| t.elapsed() < run_for) {
+            if let Ok((n, from)) = s.recv_from(&mut buf) {
+                let t0 = *t0.get_or_insert_with(Instant::now);
+                came.push(t0.elapsed());
+                let rid = [buf[0], buf[1], buf[2], buf[3]];
+                let _ = n;
+                seq += 1;
+                if came.len() <= refuse {
+                    // Refused: the report to the sender only (rid, failure code, no data).
+                    let body = [rid[0], rid[1], rid[2], rid[3], 0, 1];
+                    s.send_to(&build_tm(0x101, seq, 1, 2, 0, &t, &body), from).unwrap();
+                } else {
+                    subscriber = Some(from);
+                    s.send_to(&build_tm(0x101, seq, 1, 1, 0, &t, &rid), from).unwrap();
+                }
+            }
+            if let Some(to) = subscriber {
+                seq += 1;
+                s.send_to(&build_tm(0x101, seq, 17, 2, 0, &t, &[]), to).unwrap();
+            }
+        }
+        came
+    });
+    (addr, h)
+}
+
+// verifies: OPS-LIVE-LINK-04
+#[test]
+fn over_a_udp_lab_link_a_watching_ground_resubscribes_until_the_robot_streams_and_never_calls_it_lost() {
+    // Six TCs in a row refused (20/5/5 loses or damages a quarter of the TCs: about one
+    // run start in 4000 through the relay): with only the start marker and its resends
+    // (0, 0.7, 1.75 s) the ground heard the first refusal, then nothing for the loss time.
+    let (addr, fake) = subscribing_obsw(6, Duration::from_secs(5));
+    let mut s = Session::connect(&[(1, addr)], Transport::Udp, None, |_| Some(100)).unwrap();
+    s.watch_links();
+    s.send(1, mib::tc::by_name("PING").unwrap(), &[], Some(1), None)
+        .unwrap();
+    let mut lost = Vec::new();
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_secs(4) {
+        for u in s.poll(Duration::from_millis(50)) {
+            if let Update::LinkLost { why, .. } = u {
+                lost.push(why);
+            }
+        }
+    }
+    let came = fake.join().unwrap();
+    assert!(lost.is_empty(), "{lost:?}; TCs came at {came:?}");
+    assert!(s.robots[&1].streaming);
+    // The seventh TC (the one subscribed) within the loss time, then no more retries.
+    let loss = Duration::from_millis(u64::from(mib::ground_config::LINK_LOSS_MS));
+    assert!(came.len() > 6 && came[6] < loss, "{came:?}");
+    let retry = Duration::from_millis(u64::from(mib::ground_config::SUBSCRIBE_RETRY_MS));
+    assert!(
+        came.iter().filter(|&&t| t > came[6] + retry).count() <= 3,
+        "heartbeats only, once streaming: {came:?}"
+    );
+}
+
 // verifies: GND-01, DD-ROBUST-02
 #[test]
 fn the_retry_span_fits_in_the_obsw_duplicate_window() {
@@ -768,4 +842,152 @@ fn an_on_board_step_about_to_start_awaits_the_gaps_after_the_tm_heard_so_far() {
     s.adopt(1, old, Some(0), None, false);
     let unanchored: Vec<(u16, u16)> = s.awaited_gaps(1);
     assert!(unanchored.is_empty(), "{unanchored:?}");
+}
+
+// verifies: OPS-LIVE-GAP-03
+#[test]
+fn a_control_tc_awaited_on_its_own_asks_the_gaps_after_its_send_before_the_older_ones() {
+    // A fake robot answers a PING with TM 0..=5; once a plan step is tracked it sends
+    // 6..=40 without 7; once a control TC comes it sends 41 and 43..=45 (42: its lost
+    // completion). The step awaits gap 7; the control TC's own retrieval asks for 42.
+    let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
+    sock.set_read_timeout(Some(Duration::from_millis(3000))).unwrap();
+    let addr = sock.local_addr().unwrap();
+    let (go_tx, go_rx) = std::sync::mpsc::channel::<()>();
+    let fake = std::thread::spawn(move || {
+        let mut buf = [0u8; 2048];
+        let (_, f) = sock.recv_from(&mut buf).unwrap();
+        let t = CdsShort::now().to_bytes();
+        let send = |seqs: &mut dyn Iterator<Item = u16>| {
+            for seq in seqs {
+                sock.send_to(&build_tm(0x101, seq, 17, 2, 0, &t, &[]), f).unwrap();
+            }
+        };
+        send(&mut (0..=5));
+        go_rx.recv().unwrap();
+        send(&mut (6..=40).filter(|&s| s != 7));
+        // The control TC (resends of the PING may come first).
+        let _ = sock.recv_from(&mut buf);
+        send(&mut [41, 43, 44, 45].into_iter());
+    });
+    let mut s = Session::connect(&[(1, addr)], Transport::Udp, None, |_| Some(700)).unwrap();
+    let ping = s
+        .send(1, mib::tc::by_name("PING").unwrap(), &[], Some(1), None)
+        .unwrap();
+    let t0 = Instant::now();
+    let upto = |s: &mut Session, n: u16| {
+        while t0.elapsed() < Duration::from_secs(4) && s.robots[&1].seq.newest() != Some(n) {
+            s.poll(Duration::from_millis(20));
+        }
+    };
+    upto(&mut s, 5);
+    s.forget(&ping);
+    let step = pus::build_tc(1, 900, mib::tc::by_name("PING").unwrap(), &[]).unwrap();
+    s.adopt_new(1, step, Some(0), Some("r1-operational".into()));
+    go_tx.send(()).unwrap();
+    upto(&mut s, 40);
+    let control = s
+        .send(
+            1,
+            mib::tc::by_name("PING").unwrap(),
+            &[],
+            None,
+            Some("on-board plan".into()),
+        )
+        .unwrap();
+    upto(&mut s, 45);
+    fake.join().unwrap();
+    assert_eq!(s.robots[&1].seq.newest(), Some(45));
+    // The book's oldest awaited TC (the step) puts gap 7 first...
+    assert_eq!(s.awaited_gaps(1).first(), Some(&(7, 7)));
+    // ... the control TC's own ask goes where its reports are.
+    assert_eq!(s.request_reports_of(1, &control, 1), vec![(42, 42)]);
+}
+
+// verifies: PLAN-GROUND-01
+#[test]
+fn an_on_board_step_whose_acceptance_comes_after_its_completion_is_timed_from_its_start_report() {
+    let pl = plan(TWO_STEPS);
+    let opts = RunOptions {
+        display: false,
+        ..RunOptions::default()
+    };
+    let t0 = Instant::now();
+    let mut ex = Executor::new(&pl, &opts, &[], t0);
+    let ping = mib::tc::by_name("PING").unwrap();
+    let tc0 = pus::build_tc(1, 10, ping, &[]).unwrap();
+    ex.run_on_board(0, tc0.clone());
+    ex.on_tick(t0);
+    let at = |u: Update, ms: i64| match u {
+        Update::Verification {
+            robot,
+            tag,
+            tc,
+            v,
+            after,
+            ..
+        } => Update::Verification {
+            robot,
+            tag,
+            tc,
+            v,
+            after,
+            at_ms: Some(ms),
+        },
+        other => other,
+    };
+    // The acceptance is lost live: the start report (on board at 38 356 ms) and the
+    // completion (43 846 ms) come, the acceptance later from the store.
+    ex.on_update(t0, at(verification(&tc0, 0, 3), 38_356));
+    ex.on_update(t0, at(verification(&tc0, 0, 7), 43_846));
+    ex.on_update(t0, at(verification(&tc0, 0, 1), 38_356));
+    assert_eq!(ex.state[0], StepState::Done { secs: 5.49 });
+}
+
+// verifies: PLAN-GROUND-01
+#[test]
+fn the_upload_keeps_every_update_of_the_batch_its_control_tc_completed_in() {
+    // A fake robot answers each control TC with TM[1,1], then one datagram holding the
+    // TC's TM[1,7] and, after it, a TM[17,2] (as a store replay brings a step's report
+    // with the control TC's own): the reports after the completion reach the executor.
+    let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
+    sock.set_read_timeout(Some(Duration::from_millis(1500))).unwrap();
+    let addr = sock.local_addr().unwrap();
+    let fake = std::thread::spawn(move || {
+        let t = CdsShort::now().to_bytes();
+        let mut buf = [0u8; 2048];
+        let mut seq = 0;
+        let mut controls = 0;
+        while let Ok((n, f)) = sock.recv_from(&mut buf) {
+            let Ok(tc) = pus::decode_tc(&buf[..n]) else { continue };
+            let rid = [buf[0], buf[1], buf[2], buf[3]];
+            seq += 3;
+            sock.send_to(&build_tm(tc.apid, seq, 1, 1, 0, &t, &rid), f).unwrap();
+            if tc.service == 17 {
+                continue;
+            }
+            controls += 1;
+            let mut both = build_tm(tc.apid, seq + 1, 1, 7, 0, &t, &rid);
+            both.extend(build_tm(tc.apid, seq + 2, 17, 2, 0, &t, &[]));
+            sock.send_to(&both, f).unwrap();
+        }
+        controls
+    });
+    let mut s = Session::connect(&[(1, addr)], Transport::Udp, None, |_| Some(100)).unwrap();
+    let c = crate::plan::onboard::Compiled {
+        plan_id: 7,
+        images: vec![crate::plan::onboard::RobotImage {
+            robot: 1,
+            bytes: vec![0; 8],
+        }],
+        tcs: Vec::new(),
+    };
+    let (early, r) = upload_and_start(&mut s, &c);
+    assert_eq!(r, Ok(()));
+    let after: usize = early
+        .iter()
+        .filter(|u| matches!(u, Update::Tm { tm, .. } if tm.service == 17))
+        .count();
+    assert_eq!(fake.join().unwrap(), 3, "PLAN_LOAD, PLAN_COMMIT, PLAN_START");
+    assert_eq!(after, 3, "the TM after each completion kept: {early:?}");
 }

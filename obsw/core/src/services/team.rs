@@ -1867,6 +1867,83 @@ mod tests {
         assert_eq!(r.o.modes.root_target(), robot_mode::STANDBY);
     }
 
+    // verifies: PLAN-TEAM-03
+    #[test]
+    fn a_leaders_continue_while_an_on_board_plan_runs_is_refused_busy_and_the_same_continue_runs_once_it_is_suspended()
+    {
+        let mut r = Rig::start();
+        r.send("TEAM_ROSTER", &[1, 2, 3, 0, 0, 0, 0, 0]);
+        // The leader's plan, authorised and uploaded: its step 1 is one this robot may run.
+        let hash = mib::team::plan_hash(7, &STEPS);
+        r.send("TEAM_AUTHORISE", &[7, i64::from(hash), 1, 2, 600]);
+        for st in &STEPS {
+            let a = [
+                7,
+                i64::from(st.step),
+                i64::from(st.function),
+                i64::from(st.args[0]),
+                i64::from(st.args[1]),
+                i64::from(st.initial_state),
+            ];
+            r.send("TEAM_PLAN_STEP", &a);
+        }
+        r.send(
+            "MODE_SET",
+            &[mib::modes::node::ROBOT as i64, robot_mode::OPERATIONAL as i64, 0],
+        );
+        assert!(r.run_until(120_000, |r| r.o.modes.root() == robot_mode::OPERATIONAL
+            && r.o.transition.is_none()));
+        // An on-board plan the ground started: one long wait, well within its timeout.
+        let img = {
+            let steps = [mmic_plan::StepRepr {
+                index: 0,
+                confirmed: false,
+                timeout_s: 600,
+                deps: heapless::Vec::new(),
+                kind: mmic_plan::StepKind::Wait { ms: 300_000 },
+            }];
+            let mut out = [0u8; mib::plan::MAX_IMAGE_LEN];
+            let n = mmic_plan::image::emit(1, 9, &steps, &mut out).unwrap();
+            out[..n].to_vec()
+        };
+        let p = &mut r.o.plan.plan;
+        p.load(0, &img).unwrap();
+        let crc = u32::from_be_bytes(img[img.len() - 4..].try_into().unwrap());
+        p.commit(img.len() as u16, crc, |_| Ok(())).unwrap();
+        p.start(9).unwrap();
+        // The ground goes away: the plan runs on and the robot stays operational.
+        assert!(r.run_until(8_000, |r| !r.o.team.node().unwrap().ground_seen()));
+        r.run_until(500, |_| false);
+        assert_eq!(r.o.plan.plan.state(), mmic_plan::State::Running);
+        assert_eq!(r.o.modes.root(), robot_mode::OPERATIONAL);
+        assert_eq!(r.o.computed_state(), STEPS[0].initial_state);
+        let step1 = Action::Continue {
+            plan: PlanRef { id: 7, hash },
+            step: 1,
+            function: TeamFunction::Reconfigure,
+        };
+        // The leader's CONTINUE: refused BUSY, nothing pending, nothing counted or moved.
+        let mut s = Vec::new();
+        r.o.team_act(r.now, step1, &mut r.link, &mut s);
+        r.log.extend(s);
+        let refused: Vec<u8> = events(&r.log, eid::PLAN_STEP_REFUSED).iter().map(|p| p[4]).collect();
+        assert_eq!(refused, [StepRefusal::Busy.code()]);
+        assert!(r.o.team.step_pending.is_none());
+        r.run_until(2_000, |_| false);
+        assert!(events(&r.log, eid::PLAN_STEP_EXECUTED).is_empty());
+        assert!(r.o.running.is_none(), "no motion");
+        assert_eq!(r.o.team.record().plan.unwrap().done, 0, "nothing counted");
+        assert_eq!(r.o.plan.plan.state(), mmic_plan::State::Running);
+        // Suspended, the plan no longer runs: the same CONTINUE is the leader's to give.
+        r.o.plan.plan.suspend().unwrap();
+        let mut s = Vec::new();
+        r.o.team_act(r.now, step1, &mut r.link, &mut s);
+        r.log.extend(s);
+        assert!(r.run_until(5_000, |r| !events(&r.log, eid::PLAN_STEP_EXECUTED).is_empty()));
+        assert_eq!(events(&r.log, eid::PLAN_STEP_REFUSED).len(), 1, "refused once, before");
+        assert_eq!(r.o.team.record().plan.unwrap().done, 1);
+    }
+
     // verifies: TEAM-PLAN-02, TEAM-PERSIST-03
     #[test]
     fn a_continue_from_standby_runs_the_step_after_counting_it_durably_and_a_failed_write_moves_nothing() {
