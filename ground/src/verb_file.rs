@@ -506,11 +506,15 @@ fn put(opts: &FileOpts, local: &Path, remote: Option<&str>) -> Result<u8> {
             format!("put {dest}: not delivered ({:?})", f.condition),
         ));
     }
+    let c = s.fl.counters;
     println!(
-        "put {} -> robot {robot}:{dest}: {} bytes in {:.1} s, complete",
+        "put {} -> robot {robot}:{dest}: {} bytes in {:.1} s, complete; TC frames: {} BD, {} AD ({} sent again)",
         local.display(),
         meta.len(),
-        t0.elapsed().as_secs_f64()
+        t0.elapsed().as_secs_f64(),
+        c.bd_frames_sent,
+        c.ad_frames_sent,
+        c.retransmissions
     );
     Ok(exit::OK)
 }

@@ -18,8 +18,8 @@ pub const APID: u16 = 0x0F0;
 /// version 2 (`001`), file data, toward the file receiver, in acknowledged mode (class 2).
 ///
 /// BD frames pass the same SDLS checks as AD frames (SPI, anti-replay window, MAC) but
-/// skip FARM-1's sequence check; the robot refuses a BD frame holding any other packet
-/// (`LINK_REJ_BD_NOT_FILE_DATA`), so a command never travels outside COP-1's order. File
+/// skip FARM-1's sequence check; the robot refuses a BD frame holding anything but this
+/// and time-tagged commands (`crate::link::bypass_admissible`, `LINK_REJ_BD_CONTENT`). File
 /// data commands nothing: it lands only in a transaction its metadata (a directive, in an
 /// AD frame) opened, under a staging name until the checksum proves the file. Class 1
 /// file data stays in AD frames: nothing would recover a lost segment.

@@ -5,8 +5,8 @@
 //!    VCID, the SDLS data field size;
 //! 3. **SDLS** (AD and BD frames): SPI, anti-replay window, MAC, decryption;
 //! 4. the packets inside are length-checked, and a BD frame's must all be class 2 CFDP
-//!    file data (`mib::cfdp::is_bypass_file_data`: commands travel in AD frames only, in
-//!    COP-1's order) — before FARM-1 so that a frame that will be refused changes no COP-1
+//!    file data or time-tagged commands (`mib::link::bypass_admissible`: other commands
+//!    travel in AD frames only, in COP-1's order) — before FARM-1 so that a frame that will be refused changes no COP-1
 //!    state;
 //! 5. **FARM-1**, then the receive IV and FARM-1's new state in one durable write
 //!    ([`IvStore::record_rx_farm`]; control frames: [`IvStore::record_farm`]) — a store
@@ -42,8 +42,9 @@ pub enum RxError {
     ControlRefused(ControlCommand),
     /// The authenticated data field is not a whole number of space packets.
     NotPackets,
-    /// A BD frame holding a packet that is not class 2 CFDP file data.
-    BdNotFileData,
+    /// A BD frame holding a packet that is neither class 2 CFDP file data nor a
+    /// time-tagged command (`mib::link::bypass_admissible`).
+    BdContent,
 }
 
 impl fmt::Display for RxError {
@@ -58,7 +59,7 @@ impl fmt::Display for RxError {
             RxError::UnknownControl(e) => write!(f, "{e}"),
             RxError::ControlRefused(c) => write!(f, "control command {c:?} not taken in this FARM-1 state"),
             RxError::NotPackets => write!(f, "frame data is not whole space packets"),
-            RxError::BdNotFileData => write!(f, "BD frame holding a packet other than CFDP file data"),
+            RxError::BdContent => write!(f, "BD frame holding a packet a BD frame may not carry"),
         }
     }
 }
@@ -88,8 +89,8 @@ pub struct RxCounters {
     /// Control frames refused by FARM-1's state ([`Farm::takes`]).
     pub control_refused: u32,
     pub not_packets: u32,
-    /// Authentic BD frames refused: a packet that is not class 2 CFDP file data.
-    pub bd_not_file_data: u32,
+    /// Authentic BD frames refused: a packet `mib::link::bypass_admissible` refuses.
+    pub bd_content: u32,
     /// FARM-1 discards by event: E2 (no buffer), E3 (gap), E4 (duplicate), E5 (lockout area).
     pub farm_e2: u32,
     pub farm_e3: u32,
@@ -122,7 +123,7 @@ impl RxCounters {
             RxError::UnknownControl(_) => inc(&mut self.unknown_control),
             RxError::ControlRefused(_) => inc(&mut self.control_refused),
             RxError::NotPackets => inc(&mut self.not_packets),
-            RxError::BdNotFileData => inc(&mut self.bd_not_file_data),
+            RxError::BdContent => inc(&mut self.bd_content),
         }
     }
 
@@ -143,7 +144,7 @@ impl RxCounters {
             self.unknown_control,
             self.control_refused,
             self.not_packets,
-            self.bd_not_file_data,
+            self.bd_content,
         ]
         .iter()
         .fold(0u32, |a, b| a.saturating_add(*b))
@@ -349,9 +350,9 @@ impl<const N: usize> TcReceiver<N> {
         let data: &'a [u8] = &datagram[verified.data.clone()];
         // 4. Packet lengths, before COP-1 state changes.
         let packets = split_packets(data).ok_or(RxError::NotPackets)?;
-        // BD frames skip FARM-1's sequence check: they carry file data, never a command.
-        if frame_type == FrameType::Bd && !packets.clone().all(mib::cfdp::is_bypass_file_data) {
-            return Err(RxError::BdNotFileData);
+        // BD frames skip FARM-1's sequence check: only what needs no COP-1 order.
+        if frame_type == FrameType::Bd && !packets.clone().all(mib::link::bypass_admissible) {
+            return Err(RxError::BdContent);
         }
         // 5. FARM-1.
         let input = match frame_type {
@@ -736,14 +737,22 @@ mod tests {
             assert!(
                 matches!(
                     rx.receive(&mut st, &mut f, true),
-                    RxOutcome::Rejected(RxError::BdNotFileData)
+                    RxOutcome::Rejected(RxError::BdContent)
                 ),
                 "case {i}"
             );
             assert_eq!(rx.farm.clcw(), clcw0, "case {i}");
         }
-        assert_eq!((rx.counters.bd_not_file_data, rx.counters.rejected()), (3, 3));
+        assert_eq!((rx.counters.bd_content, rx.counters.rejected()), (3, 3));
         assert_eq!((rx.counters.bd_accepted, rx.counters.packets), (1, 2));
+        // A time-tagged command (TC[11,4], as Yamcs sends it in a BD frame) is taken.
+        let apid = mib::apid::robot_apid(1).unwrap().to_be_bytes();
+        let mut sched = vec![0x18 | apid[0], apid[1], 0xC0, 9, 0, 0, 0x29, 11, 4, 0, 0, 1, 0];
+        let n = (sched.len() - 7) as u16;
+        sched[4..6].copy_from_slice(&n.to_be_bytes());
+        let mut f = bd(&mut tx, &mut gst, &sched);
+        assert_eq!(accepted(rx.receive(&mut st, &mut f, true)), vec![sched.clone()]);
+        assert_eq!(rx.counters.bd_accepted, 2);
         // The same command in an AD frame goes through COP-1 as always.
         let mut f = ad(&mut tx, &mut gst, 0, &tc_packet(1, 8));
         assert_eq!(accepted(rx.receive(&mut st, &mut f, true)), vec![tc_packet(1, 8)]);
