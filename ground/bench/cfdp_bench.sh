@@ -42,7 +42,12 @@ one() {
     "$BIN/obsw" --robot 1 --udp 127.0.0.1:0 --tcp 127.0.0.1:0 --sim-ctl 127.0.0.1:0 --keys "$W/keys" \
         --frame-udp "$fr" --frame-tm-to "$tmf" --files "$W/robot" >"$W/obsw.out" 2>/dev/null &
     op=$!
-    until [ -s "$W/obsw.out" ]; do sleep 0.05; done
+    # An obsw that did not start (a port taken between `port` and its bind) ends the run
+    # instead of holding it for ever.
+    until [ -s "$W/obsw.out" ]; do
+        kill -0 "$op" 2>/dev/null || { echo "obsw did not start" >&2; kill "$rp"; exit 1; }
+        sleep 0.05
+    done
     cp "$W/up.bin" "$W/local/up.bin"
     cd "$W/local"
     local g=("$BIN/ground" --no-archive file)

@@ -5,6 +5,7 @@
 //! comes down, so that a file is only renamed into place once CFDP says it arrived
 //! complete (checksum verified) — a failed transfer never leaves a file taken as good.
 
+use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -159,6 +160,13 @@ struct Session<'a> {
     /// the robot's Finished PDU of the request itself does (its EOF ACK lost), and that
     /// report must still be there when [`Session::incoming_done`] looks for it.
     reports: Vec<Finished>,
+    /// The metadata PDU's packet while COP-1 has not yet delivered it, and the file data
+    /// made meanwhile: file data travels in BD frames, outside COP-1's order, and the
+    /// robot drops file data of a transaction whose metadata it has not seen.
+    metadata: Option<ground_link::PacketId>,
+    held: VecDeque<Vec<u8>>,
+    /// When the entity may next make PDUs ([`Session::pace`]).
+    next_poll: u64,
 }
 
 /// Longest wait at the end for FOP-1 to have the last PDUs acknowledged.
@@ -180,6 +188,11 @@ impl Drop for Session<'_> {
 
 /// Packets of the CFDP APID FOP-1 may hold before the entity makes more: two windows.
 const LINK_BACKLOG: usize = 2 * mib::link::cop1::FOP_SLIDING_WINDOW as usize;
+
+/// The entity makes PDUs once per robot control period, as the robot's does: its file
+/// data (`mib::cfdp::SEGMENTS_PER_POLL` a call) goes out in BD frames with nothing else
+/// to pace it, at the rate the robot's entity sends its own.
+const POLL_MS: u64 = mib::config::CONTROL_PERIOD_MS as u64;
 
 impl<'a> Session<'a> {
     fn new(
@@ -207,6 +220,9 @@ impl<'a> Session<'a> {
             shown: 0,
             progress: None,
             reports: Vec::new(),
+            metadata: None,
+            held: VecDeque::new(),
+            next_poll: 0,
         }
     }
 
@@ -263,14 +279,12 @@ impl<'a> Session<'a> {
             for p in packets.iter().filter(|p| packet::apid(p) == Some(mib::cfdp::APID)) {
                 self.entity.receive_packet(now, Direction::Down, p);
             }
-            if self.fl.pending() < LINK_BACKLOG {
-                self.entity.poll(now);
-            }
+            self.pace(now)
+                .map_err(|e| coded(exit::NO_ANSWER, format!("{what}: {e}")))?;
             while let Some(pdu) = self.entity.pop() {
                 if let Some(n) = packet::wrap(Direction::Up, self.seq, &pdu, &mut buf) {
                     self.seq = self.seq.wrapping_add(1) & 0x3FFF;
-                    self.fl
-                        .send_packet(&buf[..n])
+                    self.send(&pdu, &buf[..n])
                         .map_err(|e| coded(exit::NO_ANSWER, format!("{what}: {e}")))?;
                 }
             }
@@ -288,6 +302,39 @@ impl<'a> Session<'a> {
                 None => {}
             }
         }
+    }
+
+    /// Lets the entity make PDUs (and run its timers) once per control period, while COP-1
+    /// has room, and none while its file data waits for the metadata to be delivered.
+    fn pace(&mut self, now: u64) -> Result<(), ground_link::LinkError> {
+        if self.metadata.is_some_and(|id| !self.fl.is_pending(id)) {
+            self.metadata = None;
+            while let Some(p) = self.held.pop_front() {
+                self.fl.send_bypass(&p)?;
+            }
+        }
+        if now >= self.next_poll && self.held.is_empty() && self.fl.pending() < LINK_BACKLOG {
+            self.next_poll = now + POLL_MS;
+            self.entity.poll(now);
+        }
+        Ok(())
+    }
+
+    /// One uplink PDU in its packet: class 2 file data in a BD frame (held while the
+    /// transaction's metadata is not yet delivered), everything else to COP-1.
+    fn send(&mut self, pdu: &[u8], p: &[u8]) -> Result<(), ground_link::LinkError> {
+        if mib::cfdp::is_bypass_file_data(p) {
+            if self.metadata.is_some() {
+                self.held.push_back(p.to_vec());
+                return Ok(());
+            }
+            return self.fl.send_bypass(p);
+        }
+        let id = self.fl.send_packet(p)?;
+        if mmic_cfdp::entity::is_metadata(pdu) {
+            self.metadata = Some(id);
+        }
+        Ok(())
     }
 
     /// Runs until our request transaction (sent) has finished; an error unless complete.
@@ -459,11 +506,15 @@ fn put(opts: &FileOpts, local: &Path, remote: Option<&str>) -> Result<u8> {
             format!("put {dest}: not delivered ({:?})", f.condition),
         ));
     }
+    let c = s.fl.counters;
     println!(
-        "put {} -> robot {robot}:{dest}: {} bytes in {:.1} s, complete",
+        "put {} -> robot {robot}:{dest}: {} bytes in {:.1} s, complete; TC frames: {} BD, {} AD ({} sent again)",
         local.display(),
         meta.len(),
-        t0.elapsed().as_secs_f64()
+        t0.elapsed().as_secs_f64(),
+        c.bd_frames_sent,
+        c.ad_frames_sent,
+        c.retransmissions
     );
     Ok(exit::OK)
 }

@@ -4,13 +4,38 @@
 //! on-board entity, the ground's and the documents share (`docs/files.md`).
 //!
 //! PDUs travel as the data field of space packets on [`APID`] (no PUS secondary header),
-//! uplink in TC frames through SDLS and COP-1, downlink in TM frames on the realtime VC.
-//! The uplink never loses a PDU (COP-1 retransmits); the downlink may, and class 2's NAKs
-//! recover it.
+//! downlink in TM frames on the files VC, uplink in TC frames through SDLS: directives and
+//! class 1 file data in AD frames (COP-1: never lost, in order), class 2 file data in BD
+//! frames ([`is_bypass_file_data`]: lost frames are recovered by class 2's NAKs, not by
+//! COP-1's go-back-N). The downlink may lose PDUs, and class 2's NAKs recover them.
 
 /// APID of the space packets that carry CFDP PDUs, both directions (one entity per robot
 /// behind each space link; the entity IDs tell the robots apart).
 pub const APID: u16 = 0x0F0;
+
+/// Whether a TC space packet may travel in a BD (bypass) frame: a PDU packet on [`APID`]
+/// (version 0, TC, no secondary header, unsegmented) whose PDU (727.0-B-5 § 5.1) is of
+/// version 2 (`001`), file data, toward the file receiver, in acknowledged mode (class 2).
+///
+/// BD frames pass the same SDLS checks as AD frames (SPI, anti-replay window, MAC) but
+/// skip FARM-1's sequence check; the robot refuses a BD frame holding anything but this
+/// and time-tagged commands (`crate::link::bypass_admissible`, `LINK_REJ_BD_CONTENT`). File
+/// data commands nothing: it lands only in a transaction its metadata (a directive, in an
+/// AD frame) opened, under a staging name until the checksum proves the file. Class 1
+/// file data stays in AD frames: nothing would recover a lost segment.
+pub fn is_bypass_file_data(packet: &[u8]) -> bool {
+    const TC_PACKET_ID: u16 = (1 << 12) | APID;
+    let Some(([id0, id1, seq0, _, len0, len1], pdu)) = packet.split_first_chunk::<6>() else {
+        return false;
+    };
+    let Some(&first) = pdu.first() else { return false };
+    u16::from_be_bytes([*id0, *id1]) == TC_PACKET_ID
+        && seq0 & 0xC0 == 0xC0
+        && usize::from(u16::from_be_bytes([*len0, *len1])) + 1 == pdu.len()
+        // version 001, PDU type 1 (file data), direction 0 (toward the receiver),
+        // transmission mode 0 (acknowledged); CRC and large-file flags either way.
+        && first & 0xFC == 0b0011_0000
+}
 
 /// CFDP entity ID of the ground (the source of puts up, the destination of files down).
 pub const GROUND_ENTITY_ID: u16 = 0;
@@ -71,6 +96,26 @@ pub const NAK_TIMER_MS: u64 = ACK_TIMER_MS;
 /// sender held up by its scheduler makes at worst a NAK sent twice, and the segments sent
 /// twice.
 pub const NAK_QUIET_MS: u64 = 30 * crate::config::CONTROL_PERIOD_MS as u64;
+/// The robot's positive ACK timer (its entity's EOF and Finished PDUs), shorter than the
+/// ground's [`ACK_TIMER_MS`]: the robot's PDU goes down, where nothing but this timer
+/// recovers a lost one (a quarter of them through the 20/5/5 relay), and the ground's ACK
+/// comes up in an AD frame that COP-1 delivers — within one adaptive T1 (300 ms and up on
+/// a short link) when its frame is lost. An expiry while that ACK is still on its way
+/// costs one PDU down and one ACK up; a long timer cost 4 s for every lost EOF or Finished
+/// (a `get`'s lost EOF, a `put`'s lost Finished). The ground's timers stay as Yamcs runs
+/// them (its answers come down, promptly or never).
+pub const ROBOT_ACK_TIMER_MS: u64 = 1_000;
+/// The robot's positive ACK limit: the same 32 s of a peer that never answers as the
+/// ground's `ACK_LIMIT` × `ACK_TIMER_MS`.
+pub const ROBOT_ACK_LIMIT: u32 = 32;
+/// The robot's NAK timer (its entity receiving a `put`): its NAK goes down, and the ground
+/// answers at once with file data in BD frames. A NAK lost on the downlink cost a whole
+/// [`NAK_TIMER_MS`] (4 s); the timer does not expire while the answers are still coming in
+/// (file data within [`NAK_QUIET_MS`]), so a long answer is not asked for twice.
+pub const ROBOT_NAK_TIMER_MS: u64 = 1_000;
+/// The robot's NAK limit: the same 10 min NAK phase as the ground's `NAK_LIMIT`.
+pub const ROBOT_NAK_LIMIT: u32 = 600;
+
 /// Expiries of the NAK timer in one transaction before the fault "NAK limit reached".
 /// 727.0-B-5 § 4.6.4.7 restarts the count on every recovered segment; cfdp-rs 0.3 restarts
 /// it only while the metadata is missing, so the limit bounds a whole transfer's NAK
@@ -129,12 +174,50 @@ pub const LISTING_NAME: &str = "dir.lst";
 mod tests {
     use super::*;
 
-    // verifies: FILE-CFDP-05
+    // verifies: FILE-CFDP-05, FILE-BD-02
     #[test]
     fn inactivity_outlasts_the_positive_ack_retries_and_timers_cover_a_cop1_retransmission() {
         const { assert!(INACTIVITY_MS > ACK_LIMIT as u64 * ACK_TIMER_MS) };
+        const { assert!(INACTIVITY_MS > ROBOT_ACK_LIMIT as u64 * ROBOT_ACK_TIMER_MS) };
+        // The robot's shorter timers keep the ground's limits in time, and still outlast
+        // an ACK whose AD frame COP-1 sends again at the lower bound of the adaptive T1.
+        const { assert!(ROBOT_ACK_LIMIT as u64 * ROBOT_ACK_TIMER_MS == ACK_LIMIT as u64 * ACK_TIMER_MS) };
+        const { assert!(ROBOT_NAK_LIMIT as u64 * ROBOT_NAK_TIMER_MS == NAK_LIMIT as u64 * NAK_TIMER_MS) };
+        const { assert!(ROBOT_ACK_TIMER_MS > 2 * crate::link::cop1::FOP_T1_MIN_MS) };
+        const { assert!(ROBOT_NAK_TIMER_MS > NAK_QUIET_MS) };
         const { assert!(ACK_TIMER_MS >= 2 * crate::link::cop1::FOP_T1_MS) };
         const { assert!(NAK_TIMER_MS >= 2 * crate::link::cop1::FOP_T1_MS) };
+    }
+
+    // verifies: FILE-BD-01
+    #[test]
+    fn only_a_class_2_file_data_pdu_packet_may_travel_in_a_bd_frame() {
+        // A class 2 file data PDU (version 001, file data, toward the receiver,
+        // acknowledged) in an unsegmented TC packet on the CFDP APID.
+        let mut p = vec![0x10, 0xF0, 0xC0, 0x00, 0x00, 0x00, 0x30, 0x00, 0x05, 0x11];
+        p.extend([0, 0, 0, 1, 0, 1, 0, 0, 0, 0, 0xAB]);
+        let n = (p.len() - 7) as u16;
+        p[4..6].copy_from_slice(&n.to_be_bytes());
+        assert!(is_bypass_file_data(&p));
+        let changed = |at: usize, v: u8| {
+            let mut q = p.clone();
+            q[at] = v;
+            is_bypass_file_data(&q)
+        };
+        assert!(changed(6, 0x32), "a PDU CRC is allowed");
+        assert!(!changed(6, 0x20), "a file directive (metadata, EOF, NAK, ...)");
+        assert!(!changed(6, 0x34), "class 1 (unacknowledged) file data");
+        assert!(!changed(6, 0x38), "toward the sender");
+        assert!(!changed(6, 0x50), "another PDU version");
+        assert!(!changed(0, 0x18), "a secondary header (a PUS TC)");
+        assert!(!changed(0, 0x00), "a TM packet");
+        assert!(!changed(1, 0x64), "another APID");
+        assert!(!changed(2, 0x40), "segmented");
+        assert!(!changed(5, p[5] + 1), "a length that disagrees");
+        assert!(!is_bypass_file_data(&p[..6]), "no PDU");
+        assert!(!is_bypass_file_data(&[]));
+        // A PUS TC of a robot's APID.
+        assert!(!is_bypass_file_data(&[0x18, 0x64, 0xC0, 0, 0, 3, 0x2F, 17, 1, 0]));
     }
 
     // verifies: FILE-CFDP-01

@@ -194,6 +194,7 @@ pub const HK_STRUCTS: &[HkDef] = &[
             LINK_TM_IDLE_FRAMES,
             LINK_TM_SDLS_FAILED,
             LINK_REJ_CONTROL_STATE,
+            LINK_REJ_BD_CONTENT,
             LINK_TM_SPI,
             LINK_TC_SPIS,
             LINK_STATE_WRITES,

@@ -129,6 +129,34 @@ pub mod sdls {
     pub const ANTI_REPLAY_WINDOW: u64 = 4096;
 }
 
+/// What an authentic BD (bypass) TC frame may carry; the robot refuses a BD frame with any
+/// other packet in it (`LINK_REJ_BD_CONTENT`), so no command travels past COP-1's order
+/// but these two:
+/// - class 2 CFDP file data ([`crate::cfdp::is_bypass_file_data`]): it commands nothing,
+///   class 2's NAKs recover and order it; `ground file put` sends it so (docs/files.md);
+/// - TC[11,4] on a robot's APID (PUS-C), a time-tagged command: Yamcs 5.12.8 can send one
+///   only in a BD frame (its COP-1 sizes the AD frame without the wrapping: docs/yamcs.md,
+///   "Yamcs defects with time-tagged commands"); the schedule, not the frame order, decides
+///   when its command runs, at its release time.
+pub fn bypass_admissible(packet: &[u8]) -> bool {
+    crate::cfdp::is_bypass_file_data(packet) || is_schedule_insert(packet)
+}
+
+/// A TC[11,4] packet on a robot's APID: version 0, TC, secondary header, PUS-C, service 11
+/// subtype 4, its length field the slice's.
+fn is_schedule_insert(p: &[u8]) -> bool {
+    let Some(([id0, id1, _, _, len0, len1, pus, service, subservice], _)) = p.split_first_chunk::<9>() else {
+        return false;
+    };
+    let apid = u16::from_be_bytes([*id0 & 0x07, *id1]);
+    id0 & 0xF8 == 0x18
+        && crate::apid::apid_robot(apid).is_some()
+        && usize::from(u16::from_be_bytes([*len0, *len1])) + 7 == p.len()
+        && u32::from(pus >> 4) == crate::headers::PUS_C_VERSION
+        && *service == crate::tc::service::SCHEDULING
+        && *subservice == 4
+}
+
 // Invariants between the numbers above, checked when the MIB is compiled.
 const _: () = {
     assert!(cop1::FARM_WINDOW_WIDTH.is_multiple_of(2));
@@ -146,6 +174,40 @@ const _: () = {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    // verifies: FILE-BD-01
+    #[test]
+    fn a_bd_frame_may_carry_class_2_file_data_and_time_tagged_commands_only() {
+        let robot = crate::apid::robot_apid(1).unwrap();
+        let [hi, lo] = robot.to_be_bytes();
+        // TC[11,4] of robot 1 (PUS-C, acks 0b1001, source 0), 4 bytes of application data.
+        let mut p = vec![0x18 | hi, lo, 0xC0, 7, 0, 0, 0x29, 11, 4, 0, 0, 1, 1, 0, 0];
+        let n = (p.len() - 7) as u16;
+        p[4..6].copy_from_slice(&n.to_be_bytes());
+        assert!(bypass_admissible(&p));
+        let changed = |at: usize, v: u8| {
+            let mut q = p.clone();
+            q[at] = v;
+            bypass_admissible(&q)
+        };
+        assert!(!changed(8, 1), "TC[11,1]");
+        assert!(!changed(7, 17), "TC[17,4]");
+        assert!(!changed(6, 0x19), "PUS-A");
+        assert!(!changed(1, 0x00), "not a robot's APID");
+        assert!(!changed(0, lo & 0x07), "no secondary header");
+        assert!(!changed(5, p[5] + 1), "a length that disagrees");
+        assert!(!bypass_admissible(&p[..8]));
+        // A PING (TC[17,1]) is not.
+        let ping = [0x18 | hi, lo, 0xC0, 8, 0, 5, 0x29, 17, 1, 0, 0, 0xAB, 0xCD];
+        assert!(!bypass_admissible(&ping));
+        // Class 2 file data is.
+        let mut fd = vec![
+            0x10, 0xF0, 0xC0, 0, 0, 0, 0x30, 0, 5, 0x11, 0, 0, 0, 1, 0, 1, 0, 0, 0, 0, 9,
+        ];
+        let n = (fd.len() - 7) as u16;
+        fd[4..6].copy_from_slice(&n.to_be_bytes());
+        assert!(bypass_admissible(&fd));
+    }
 
     // verifies: LINK-MIB-01
     #[test]

@@ -278,6 +278,7 @@ params! {
     LINK_TM_IDLE_FRAMES = 140, SpaceLink, U32, "", ID, None, "Space link: idle TM frames sent on VC7";
     LINK_TM_SDLS_FAILED = 141, SpaceLink, U32, "", ID, None, "Space link: TM frames not sent because SDLS failed (counter state file)";
     LINK_REJ_CONTROL_STATE = 142, SpaceLink, U32, "", ID, None, "Space link: BC control frames (in clear, CRC and header valid) refused because FARM-1 does not take them in its state: Unlock outside Lockout and Wait, Set V(R) other than to the present V(R) or in Lockout";
+    LINK_REJ_BD_CONTENT = 143, SpaceLink, U32, "", ID, None, "Space link: authentic BD (bypass) TC frames refused because a packet in them is neither a class 2 CFDP file data PDU nor a time-tagged command TC[11,4] (mib::link::bypass_admissible): other commands travel in AD frames only, in COP-1 order";
     CONFIG_HASH = 146, Modules, U32, "", ID, None, "Module configuration hash (CRC-32 over the present slots' descriptors, mib::modules::config::config_hash; 0 before discovery)";
     CONFIG_ID = 147, Modules, U8, "", ID, None, "Supported module configuration found at boot: 0 none (invalid set), 1 FULL, 2 LOCOMOTION_ONLY";
     CONFIG_STATUS = 148, Modules, U8, "", ID, None, "Module configuration state: 0 not discovered, 1 accepted by the ground, 2 not accepted (MODULE_REPLACED: OPERATIONAL refused until ACCEPT_CONFIG), 3 invalid (STANDBY only)";

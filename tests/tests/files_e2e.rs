@@ -192,15 +192,26 @@ fn ground_puts_gets_lists_renames_and_removes_files_over_the_space_link() {
     assert_eq!(gone.status.code(), Some(4), "{}", String::from_utf8_lossy(&gone.stderr));
 }
 
-// verifies: FILE-CFDP-05
+// verifies: FILE-CFDP-05, FILE-BD-01
 #[test]
 fn class_2_transfers_both_ways_arrive_byte_identical_through_the_lossy_relay() {
     let s = Setup::start("relay", Some(Faults::new(0.2, 0.05, 0.05)));
     let up = content(64 << 10, 3);
     std::fs::write(s.d.p("local/table.bin"), &up).unwrap();
     let t0 = Instant::now();
-    ok(&s.file(&["put", "table.bin"]));
+    let put = ok(&s.file(&["put", "table.bin"]));
     assert!(same(&s.d.p("robot-files/table.bin"), &up), "put byte-identical");
+    // The file data went in BD frames (70 segments and those the robot's NAKs asked for
+    // again), only the directives through COP-1.
+    let frames = |kind: &str| -> u64 {
+        let at = put.find(&format!(" {kind}")).unwrap_or_else(|| panic!("{put}"));
+        put[..at]
+            .rsplit([' ', ':'])
+            .next()
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("{put}"))
+    };
+    assert!(frames("BD") >= 70 && frames("AD") < 20, "{put}");
     let t_up = t0.elapsed();
     let down = content(64 << 10, 4);
     std::fs::write(s.d.p("robot-files/store.bin"), &down).unwrap();

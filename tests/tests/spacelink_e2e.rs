@@ -280,7 +280,7 @@ fn ping_and_reconfigure_over_frames_with_the_bare_link_alongside() {
     assert_eq!(hk.hk(pid::LINK_REJ_BAD_MAC), Some(0));
 }
 
-// verifies: LINK-HOST-02, LINK-E2E-02
+// verifies: LINK-HOST-02, LINK-E2E-02, FILE-BD-01
 #[test]
 fn attack_frames_are_counted_and_never_executed() {
     let d = Dir::new("attacks");
@@ -333,6 +333,23 @@ fn attack_frames_are_counted_and_never_executed() {
     for _ in 0..50 {
         inject(frame, &unlock[..k]);
     }
+    // 10. Authentic frames as BD (bypass) frames with a command: an AD frame whose bypass
+    // flag (not covered by the MAC) is flipped on the path, and one the key holder built.
+    let mut f = forged(TC_SPIS[0], &TEST_KEY_TC_A, iv + 4, nr, &attack(10));
+    f[0] |= 0x20;
+    mmic_link::fecf::seal(&mut f);
+    inject(frame, &f);
+    let mut sa = TxSa::resume(TC_SPIS[0], &TEST_KEY_TC_A, iv + 5);
+    let mut buf = [0u8; 1024];
+    let repr = TcRepr {
+        frame_type: FrameType::Bd,
+        scid: mib::link::SCID,
+        vcid: 0,
+        seq: 0,
+        data_len: 0,
+    };
+    let n = build_tc(&mut sa, &mut MemoryIvStore::default(), repr, &attack(11), &mut buf).unwrap();
+    inject(frame, &buf[..n]);
     // 9. A junk flood.
     let mut x: u64 = 0x2545_F491_4F6C_DD1D;
     let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
@@ -361,6 +378,8 @@ fn attack_frames_are_counted_and_never_executed() {
     assert!(v(pid::LINK_REJ_BAD_LENGTH) >= 1, "length");
     assert!(v(pid::LINK_REJ_UNKNOWN_SPI) >= 1, "SPI");
     assert!(v(pid::LINK_REJ_BARE_PACKET) >= 3, "bare packets");
+    assert_eq!(v(pid::LINK_REJ_BD_CONTENT), 2, "commands in BD frames");
+    assert_eq!(v(pid::LINK_BD_ACCEPTED), 0);
     // Junk: CRC failures (junk that looks like a BC frame too: the CRC comes before any
     // control-frame counting), a few with a bad length or header. A loaded machine's kernel
     // may drop some of the flood before the obsw sees it: 90 % must be counted.
@@ -400,7 +419,7 @@ fn attack_frames_are_counted_and_never_executed() {
         .filter(|t| t.event_id() == Some(eid::LINK_FRAME_REJECTED))
         .collect();
     let reasons: std::collections::BTreeSet<u8> = rejected_events.iter().map(|t| t.data[2]).collect();
-    for r in [5u8, 6, 11, 12, 13, 4, 22] {
+    for r in [5u8, 6, 11, 12, 13, 4, 22, 23] {
         assert!(reasons.contains(&r), "LINK_FRAME_REJECTED reason {r}: {reasons:?}");
     }
     assert!(

@@ -22,6 +22,8 @@ pub enum LinkError {
     SameKey,
     /// Not a TC SPI of the mission (`mib::link::sdls::TC_SPIS`).
     NotTcSpi(u16),
+    /// A packet the robot takes in AD frames only (`mib::cfdp::is_bypass_file_data`).
+    NotBypass,
 }
 
 impl fmt::Display for LinkError {
@@ -35,6 +37,7 @@ impl fmt::Display for LinkError {
             LinkError::Sdls(e) => write!(f, "SDLS: {e}"),
             LinkError::SameKey => write!(f, "the TC and TM keys are the same: each direction needs its own"),
             LinkError::NotTcSpi(s) => write!(f, "SPI {s} is not a TC SPI (the mission's are {TC_SPIS:?})"),
+            LinkError::NotBypass => write!(f, "only class 2 CFDP file data travels in BD frames"),
         }
     }
 }
@@ -44,7 +47,11 @@ impl std::error::Error for LinkError {
         match self {
             LinkError::Io(e) => Some(e),
             LinkError::Persist(e) => Some(e),
-            LinkError::PacketLength { .. } | LinkError::Sdls(_) | LinkError::SameKey | LinkError::NotTcSpi(_) => None,
+            LinkError::PacketLength { .. }
+            | LinkError::Sdls(_)
+            | LinkError::SameKey
+            | LinkError::NotTcSpi(_)
+            | LinkError::NotBypass => None,
         }
     }
 }

@@ -17,6 +17,11 @@
 //!                                  └─ CLCW ─▶ FOP-1 (acknowledges, retransmits)
 //! ```
 //!
+//! **Bypass.** Class 2 CFDP file data may instead go at once in a BD frame
+//! ([`GroundFrameLink::send_bypass`]): SDLS protects it as any frame, FOP-1 does not see
+//! it, nothing retransmits it — CFDP's NAKs recover a lost one — and the robot takes no
+//! other packet in a BD frame (`mib::cfdp::is_bypass_file_data`).
+//!
 //! **Exactly once.** A packet is handed to FOP-1 once; COP-1 retransmits its frame (a new
 //! SDLS encryption with a fresh IV each time) until a CLCW acknowledges it
 //! ([`Event::Acknowledged`]). When FOP-1 gives up (an alert: T1 expired the last time,
@@ -185,6 +190,8 @@ impl Config {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Counters {
     pub ad_frames_sent: u64,
+    /// BD frames sent ([`GroundFrameLink::send_bypass`]).
+    pub bd_frames_sent: u64,
     pub retransmissions: u64,
     pub bc_frames_sent: u64,
     pub acknowledged: u64,
@@ -375,6 +382,39 @@ impl GroundFrameLink {
         self.packets.insert(id, packet.to_vec());
         self.queue.push_back(id);
         Ok(id)
+    }
+
+    /// Sends a class 2 CFDP file data packet at once in a BD frame (SDLS-protected, no
+    /// COP-1: a lost frame is not sent again here; the receiver's NAKs ask for the data).
+    /// Any other packet is refused ([`LinkError::NotBypass`]): the robot would refuse it.
+    pub fn send_bypass(&mut self, packet: &[u8]) -> Result<(), LinkError> {
+        if !mib::cfdp::is_bypass_file_data(packet) {
+            return Err(LinkError::NotBypass);
+        }
+        if packet.len() > MAX_PACKET_LEN {
+            return Err(LinkError::PacketLength {
+                len: packet.len(),
+                max: MAX_PACKET_LEN,
+            });
+        }
+        let mut buf = [0u8; TC_MAX_LEN];
+        let repr = TcRepr {
+            frame_type: FrameType::Bd,
+            scid: mib::link::SCID,
+            vcid: mib::link::tc_vc::COMMAND,
+            seq: 0,
+            data_len: 0,
+        };
+        let n = build_tc(&mut self.tc_sa, &mut self.store, repr, packet, &mut buf).map_err(LinkError::Sdls)?;
+        self.send(&buf[..n])?;
+        self.counters.bd_frames_sent += 1;
+        Ok(())
+    }
+
+    /// Whether the packet `id` gave [`GroundFrameLink::send_packet`] is still queued or
+    /// unacknowledged.
+    pub fn is_pending(&self, id: PacketId) -> bool {
+        self.packets.contains_key(&id)
     }
 
     /// Packets queued or sent and not yet acknowledged (or declared unknown).

@@ -172,6 +172,51 @@ fn lossy_link_delivers_each_packet_exactly_once_and_in_order() {
     let _ = std::fs::remove_file(&st);
 }
 
+/// A class 2 CFDP file data packet (ground 0 to robot 1, offset `i`) of 8 data bytes.
+fn file_data(i: u16) -> Vec<u8> {
+    let mut p = vec![0x10, 0xF0, 0xC0 | (i >> 8) as u8, i as u8, 0, 0];
+    p.extend([0x30, 0, 20, 0x11, 0, 0, 0, 7, 0, 1, 0, 0]);
+    p.extend(i.to_be_bytes());
+    p.extend([0xFD; 8]);
+    let n = (p.len() - 7) as u16;
+    p[4..6].copy_from_slice(&n.to_be_bytes());
+    p
+}
+
+// verifies: FILE-BD-01, LINK-GND-01
+#[test]
+fn bypass_frames_go_out_at_once_beside_cop1_and_only_with_file_data() {
+    let st = state("bypass");
+    let gsock = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let gaddr = gsock.local_addr().unwrap();
+    drop(gsock);
+    let mut r = Robot::new(gaddr, 0.0, 3);
+    let mut g = link(r.sock.local_addr().unwrap(), gaddr, &st);
+    let cmds: Vec<Vec<u8>> = (0..20).map(packet).collect();
+    let data: Vec<Vec<u8>> = (0..20).map(file_data).collect();
+    assert!(
+        matches!(g.send_bypass(&cmds[0]), Err(LinkError::NotBypass)),
+        "a command never goes BD"
+    );
+    for (c, d) in cmds.iter().zip(&data) {
+        g.send_packet(c).unwrap();
+        g.send_bypass(d).unwrap();
+    }
+    assert_eq!(
+        g.counters.bd_frames_sent, 20,
+        "sent at once, before COP-1 is even initialised"
+    );
+    run(&mut g, &mut r, |g, _| g.pending() == 0);
+    assert_eq!(g.pending(), 0, "{:?}", g.counters);
+    let executed_cmds: Vec<_> = r.executed.iter().filter(|p| p[0] == 0x18).cloned().collect();
+    let executed_data: Vec<_> = r.executed.iter().filter(|p| p[0] == 0x10).cloned().collect();
+    assert_eq!(executed_cmds, cmds, "the AD packets once each, in order");
+    assert_eq!(executed_data, data, "the BD frames, SDLS-protected under the same SA");
+    assert_eq!((r.rx.counters.bd_accepted, r.rx.counters.rejected()), (20, 0));
+    assert_eq!(g.counters.retransmissions, 0, "BD frames leave FOP-1's window alone");
+    let _ = std::fs::remove_file(&st);
+}
+
 // verifies: LINK-FOP-T1-01, LINK-GND-01
 #[test]
 fn mission_t1_adapts_to_the_loopback_round_trip_and_the_lossy_link_still_delivers_once() {

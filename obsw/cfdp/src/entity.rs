@@ -68,6 +68,8 @@ pub struct PduPort {
     nak_due: Cell<Option<u32>>,
     /// End of the furthest file data segment sent in the running outgoing transaction.
     sent_to: Cell<u64>,
+    /// When the last file data PDU of the running incoming transaction arrived.
+    data_at: Cell<Option<u32>>,
 }
 
 impl Default for PduPort {
@@ -79,6 +81,7 @@ impl Default for PduPort {
             nak_at: Cell::new(0),
             nak_due: Cell::new(None),
             sent_to: Cell::new(0),
+            data_at: Cell::new(None),
         }
     }
 }
@@ -110,7 +113,14 @@ impl Countdown for Timer<'_> {
                 .nak_due
                 .get()
                 .is_some_and(|t| t.wrapping_sub(self.start) as i32 > 0 && now.wrapping_sub(t) as i32 >= 0);
-        early || now.wrapping_sub(self.start) >= self.period
+        // The answers to the last NAK still coming in: not yet time to ask again.
+        let answering = self.nak
+            && self
+                .link
+                .data_at
+                .get()
+                .is_some_and(|t| (now.wrapping_sub(t) as u64) < m::NAK_QUIET_MS);
+        early || (now.wrapping_sub(self.start) >= self.period && !answering)
     }
     fn reset(&mut self) {
         self.start = self.link.now.get();
@@ -568,12 +578,12 @@ pub struct Entity<'a, S: FlatStore> {
     resend_scope: (u32, u32),
     /// File data PDUs this control period may still send (`SEGMENTS_PER_POLL`).
     budget: usize,
-    /// When the last file data PDU of the running incoming transaction arrived.
-    data_at: Option<u32>,
 }
 
-/// The peer's configuration: sizes, class defaults, timers and limits from the MIB.
-pub fn remote_config(peer: u16) -> RemoteEntityConfig {
+/// The peer's configuration as entity `id` runs it: sizes, class defaults, timers and
+/// limits from the MIB — a robot's entity its own timers (`ROBOT_ACK_TIMER_MS`, ...), the
+/// ground's the ones Yamcs runs too.
+pub fn remote_config(id: u16, peer: u16) -> RemoteEntityConfig {
     let mut c = RemoteEntityConfig::new_with_default_values(
         UnsignedByteFieldU16::new(peer).into(),
         m::MAX_PDU_LEN,
@@ -583,10 +593,20 @@ pub fn remote_config(peer: u16) -> RemoteEntityConfig {
         ChecksumType::try_from(m::CHECKSUM_TYPE).unwrap_or(ChecksumType::Modular),
     );
     c.max_file_segment_len = Some(m::MAX_SEGMENT_LEN);
-    c.positive_ack_timer_interval = Duration::from_millis(m::ACK_TIMER_MS);
-    c.positive_ack_timer_expiration_limit = m::ACK_LIMIT;
-    c.nak_timer_interval = Duration::from_millis(m::NAK_TIMER_MS);
-    c.nak_timer_expiration_limit = m::NAK_LIMIT;
+    let (ack, ack_limit, nak, nak_limit) = if id == m::GROUND_ENTITY_ID {
+        (m::ACK_TIMER_MS, m::ACK_LIMIT, m::NAK_TIMER_MS, m::NAK_LIMIT)
+    } else {
+        (
+            m::ROBOT_ACK_TIMER_MS,
+            m::ROBOT_ACK_LIMIT,
+            m::ROBOT_NAK_TIMER_MS,
+            m::ROBOT_NAK_LIMIT,
+        )
+    };
+    c.positive_ack_timer_interval = Duration::from_millis(ack);
+    c.positive_ack_timer_expiration_limit = ack_limit;
+    c.nak_timer_interval = Duration::from_millis(nak);
+    c.nak_timer_expiration_limit = nak_limit;
     c.check_limit = m::CHECK_LIMIT;
     c
 }
@@ -629,6 +649,16 @@ pub fn well_formed(raw: &[u8]) -> Option<PduHeader> {
     ok.then_some(h)
 }
 
+/// Whether `raw` is a metadata PDU (the directive that opens a transaction).
+pub fn is_metadata(raw: &[u8]) -> bool {
+    match PduHeader::from_bytes(raw) {
+        Ok((h, hl)) => {
+            h.pdu_type() == PduType::FileDirective && raw.get(hl) == Some(&(FileDirectiveType::MetadataPdu as u8))
+        }
+        Err(_) => false,
+    }
+}
+
 // cfdp-rs 0.3 keeps part of a transaction's state (the source's file progress) across
 // transactions: each transaction gets a handler made anew (inline, no allocation).
 fn new_source<S: FlatStore>(id: u16, peer: u16, parts: &Parts<S>) -> Source<'_, S> {
@@ -636,7 +666,7 @@ fn new_source<S: FlatStore>(id: u16, peer: u16, parts: &Parts<S>) -> Source<'_, 
         local_config(id, parts),
         Sender(&parts.link),
         &parts.store,
-        remote_config(peer),
+        remote_config(id, peer),
         Timers(&parts.link),
         Seq(&parts.seq),
     )
@@ -647,7 +677,7 @@ fn new_dest<S: FlatStore>(id: u16, peer: u16, parts: &Parts<S>) -> Dest<'_, S> {
         local_config(id, parts),
         Sender(&parts.link),
         &parts.store,
-        remote_config(peer),
+        remote_config(id, peer),
         Timers(&parts.link),
         LostSegmentsListHeapless::new(),
     )
@@ -677,7 +707,6 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             resend_header: None,
             resend_scope: (0, 0),
             budget: m::SEGMENTS_PER_POLL,
-            data_at: None,
         }
     }
 
@@ -1019,7 +1048,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             }
             PacketTarget::DestEntity => {
                 if pdu.pdu_type() == PduType::FileData {
-                    self.data_at = Some(now_ms as u32);
+                    self.parts.link.data_at.set(Some(now_ms as u32));
                 }
                 self.run_dest(Some(&pdu))
             }
@@ -1275,7 +1304,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         }
         let was_idle = self.dest.state() == State::Idle || stale;
         if was_idle {
-            self.data_at = None;
+            self.parts.link.data_at.set(None);
             self.dest = new_dest(self.id, self.peer, self.parts);
             self.receiving = final_name.zip(staging).map(|(f, s)| (tx, f, s));
         }
@@ -1391,7 +1420,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
     /// on the way; waiting for it cost a NAK period (4 s) per round through the relay.
     fn nak_early(&mut self, now: u32) {
         let link = &self.parts.link;
-        let answered = self.data_at.is_some_and(|t| {
+        let answered = link.data_at.get().is_some_and(|t| {
             t.wrapping_sub(link.nak_at.get()) as i32 > 0 && (now.wrapping_sub(t) as u64) >= m::NAK_QUIET_MS
         });
         if answered && self.dest.state() != State::Idle {

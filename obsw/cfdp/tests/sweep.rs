@@ -1,7 +1,9 @@
 //! Many seeded class 2 transfers (a `get` and a `put` of 64 KiB each) through a model of
 //! the space link as the relay makes it: the downlink loses a quarter of the PDUs and
-//! duplicates some; the uplink loses none (COP-1) but delivers late and in order (a lost TC
-//! frame holds everything behind it until FOP-1 sends it again).
+//! duplicates some; on the uplink the directives (AD frames) are never lost (COP-1) but
+//! arrive late and in order (a lost TC frame holds everything behind it until FOP-1 sends
+//! it again), and class 2 file data (BD frames, sent once the metadata is delivered, as
+//! `ground file put` does) is lost like the downlink's and never delayed.
 
 use mmic_cfdp::store::MemStore;
 use mmic_cfdp::{Class, Entity, FileName, Finished, Parts};
@@ -34,12 +36,21 @@ struct LossyChannel {
     /// Uplink PDUs and the time each reaches the robot (never before the one ahead).
     up: VecDeque<(u64, Vec<u8>)>,
     up_free: u64,
+    /// Uplink file data in BD frames, and when the last metadata reaches the robot.
+    bd: VecDeque<(u64, Vec<u8>)>,
+    metadata_at: u64,
     /// The ground's reports not yet looked for (a `get`'s file may end before its request).
     reports: Vec<Finished>,
 }
 
 impl LossyChannel {
     fn send_up(&mut self, now: u64, p: Vec<u8>) {
+        if mib::cfdp::is_bypass_file_data(&[&[0x10, 0xF0, 0xC0, 0, 0, 0][..], &p].concat()) {
+            if self.rng.unit() >= self.up_loss {
+                self.bd.push_back(((now + 20).max(self.metadata_at), p));
+            }
+            return;
+        }
         // A lost frame is sent again after T1, the frames behind it with it (go-back-N):
         // delays overlap, they do not add up.
         let mut at = now + 20;
@@ -48,6 +59,9 @@ impl LossyChannel {
         }
         at = at.max(self.up_free);
         self.up_free = at;
+        if mmic_cfdp::entity::is_metadata(&p) {
+            self.metadata_at = at;
+        }
         self.up.push_back((at, p));
     }
 }
@@ -92,6 +106,10 @@ fn run(
             let (_, p) = l.up.pop_front().unwrap();
             r.receive(*now, &p);
         }
+        while l.bd.front().is_some_and(|(t, _)| *t <= *now) {
+            let (_, p) = l.bd.pop_front().unwrap();
+            r.receive(*now, &p);
+        }
         while let Some(p) = r.pop() {
             let lost = l.rng.unit() < l.down_loss;
             trace(*now, "R->", &p, if lost { "LOST" } else { "" });
@@ -119,7 +137,7 @@ fn run(
 // itself. More seeds (a few seconds per hundred):
 // `SWEEP_SEEDS=1000 cargo test -p mmic-cfdp --test sweep`; one seed's PDUs:
 // `SWEEP_FIRST=6 SWEEP_SEEDS=1 SWEEP_TRACE=1 cargo test -p mmic-cfdp --test sweep -- --nocapture`.
-// verifies: FILE-CFDP-05
+// verifies: FILE-CFDP-05, FILE-BD-01
 #[test]
 fn class_2_gets_and_puts_through_the_relays_losses_always_end_complete() {
     std::thread::Builder::new()
@@ -131,6 +149,7 @@ fn class_2_gets_and_puts_through_the_relays_losses_always_end_complete() {
                 .unwrap_or(40);
             let mut bad = Vec::new();
             let mut times = Vec::new();
+            let mut put_times = Vec::new();
             let first: u64 = std::env::var("SWEEP_FIRST")
                 .ok()
                 .and_then(|s| s.parse().ok())
@@ -149,6 +168,8 @@ fn class_2_gets_and_puts_through_the_relays_losses_always_end_complete() {
                     up_loss: 0.25,
                     up: VecDeque::new(),
                     up_free: 0,
+                    bd: VecDeque::new(),
+                    metadata_at: 0,
                     reports: Vec::new(),
                 };
                 let mut now = 1_000;
@@ -162,9 +183,11 @@ fn class_2_gets_and_puts_through_the_relays_losses_always_end_complete() {
                 let mut copy = vec![0; data.len()];
                 ok &= gp.store.read(&n, 0, &mut copy).is_ok() && copy == data;
                 times.push(now - started);
-                // And back up: the robot's NAKs and ACKs travel on the lossy downlink.
+                // And back up: the file data is lost like the robot's NAKs and ACKs.
+                let put_start = now;
                 g.put(now, "f.bin", "back.bin", Class::Two).unwrap();
                 let put = run(&mut now, &mut g, &mut r, &mut l, 200_000, |f| f.sent);
+                put_times.push(now - put_start);
                 ok &= put.is_some_and(|f| f.complete) && rp.store.read(&back, 0, &mut copy).is_ok() && copy == data;
                 if !ok {
                     eprintln!(
@@ -177,10 +200,13 @@ fn class_2_gets_and_puts_through_the_relays_losses_always_end_complete() {
                 }
             }
             times.sort();
+            put_times.sort();
             eprintln!(
-                "get of the file: median {} ms, worst {} ms (simulated)",
+                "get of the file: median {} ms, worst {} ms; put: median {} ms, worst {} ms (simulated)",
                 times[times.len() / 2],
-                times[times.len() - 1]
+                times[times.len() - 1],
+                put_times[put_times.len() / 2],
+                put_times[put_times.len() - 1]
             );
             assert!(bad.is_empty(), "failed seeds {bad:?}");
         })

@@ -381,3 +381,98 @@ fn a_file_cut_short_is_never_kept_under_its_name_and_a_restart_discards_the_rest
         assert!(read_file(&rp, "up.bin").is_some());
     });
 }
+
+// The robot's NAK goes down, where nothing but its NAK timer recovers a lost one; the
+// ground answers with file data in BD frames at once. A lost NAK costs the robot's own
+// timer (ROBOT_NAK_TIMER_MS), not the ground's 4 s, and answers still coming in after
+// that timer's period hold its next NAK back.
+// verifies: FILE-BD-02
+#[test]
+fn the_robots_nak_lost_on_the_downlink_is_sent_again_after_its_own_timer_not_while_answers_arrive() {
+    big_stack(|| {
+        const NAK: u8 = 0x08;
+        let (gp, rp) = (Parts::new(Mem::new(200_000)), Parts::new(Mem::new(200_000)));
+        let mut g = Entity::new(0, 1, &gp);
+        let mut r = Entity::new(1, 0, &rp);
+        let seg = mib::cfdp::MAX_SEGMENT_LEN;
+        let up = file(40 * seg, 5);
+        put_file(&gp, "up.bin", &up);
+        g.put(now(), "up.bin", "up.bin", Class::Two).unwrap();
+        let start = now();
+        let mut t = start;
+        let (mut naks, mut nak_times) = (0, Vec::new());
+        // Answers to the second NAK reach the robot one per `slow` ms.
+        let slow = mib::cfdp::NAK_QUIET_MS - 50;
+        let mut late: std::collections::VecDeque<(u64, Vec<u8>)> = Default::default();
+        let mut sent = std::collections::HashSet::new();
+        while t < start + 20_000 && !(g.idle() && r.idle()) {
+            t += 10;
+            g.poll(t);
+            r.poll(t);
+            while let Some(p) = g.pop() {
+                if directive(&p).is_none() {
+                    let (_, hl) = spacepackets::cfdp::pdu::PduHeader::from_bytes(&p).unwrap();
+                    let off = u32::from_be_bytes(p[hl..hl + 4].try_into().unwrap()) as usize;
+                    // The first sending of the last ten segments is lost on the uplink.
+                    if sent.insert(off) && off >= 30 * seg {
+                        continue;
+                    }
+                    if naks >= 2 {
+                        let at = late.back().map_or(t, |(a, _)| *a) + slow;
+                        late.push_back((at, p.to_vec()));
+                        continue;
+                    }
+                }
+                r.receive(t, &p);
+            }
+            while late.front().is_some_and(|(a, _)| *a <= t) {
+                let (_, p) = late.pop_front().unwrap();
+                r.receive(t, &p);
+            }
+            while let Some(p) = r.pop() {
+                if directive(&p) == Some(NAK) {
+                    naks += 1;
+                    nak_times.push(t);
+                    // The first NAK of the deferred procedure is lost.
+                    if naks == 1 {
+                        continue;
+                    }
+                }
+                g.receive(t, &p);
+            }
+        }
+        CLOCK.with(|c| c.set(t));
+        assert_eq!(read_file(&rp, "up.bin").as_deref(), Some(&up[..]), "byte-identical");
+        assert!(nak_times.len() >= 2, "{nak_times:?}");
+        let gap = nak_times[1] - nak_times[0];
+        assert!(
+            (mib::cfdp::ROBOT_NAK_TIMER_MS..mib::cfdp::NAK_TIMER_MS).contains(&gap),
+            "the lost NAK sent again after the robot's timer: {nak_times:?}"
+        );
+        // Ten answers at `slow` intervals take longer than the timer: no NAK among them.
+        let answers_end = nak_times[1] + 10 * slow;
+        assert!(
+            nak_times[2..].iter().all(|&n| n >= answers_end),
+            "a NAK while the answers came in: {nak_times:?}"
+        );
+    });
+}
+
+// `ground file put` holds its BD file data until COP-1 has delivered the metadata: it
+// must know the metadata PDU when it sees one.
+// verifies: FILE-BD-01
+#[test]
+fn a_put_opens_with_a_metadata_pdu_and_only_that_pdu_is_taken_for_one() {
+    big_stack(|| {
+        let gp = Parts::new(Mem::new(200_000));
+        let mut g = Entity::new(0, 1, &gp);
+        put_file(&gp, "up.bin", &file(3 * mib::cfdp::MAX_SEGMENT_LEN, 1));
+        g.put(now(), "up.bin", "up.bin", Class::Two).unwrap();
+        g.poll(now() + 10);
+        let first = g.pop().expect("the metadata");
+        assert!(mmic_cfdp::entity::is_metadata(&first));
+        let data = g.pop().expect("file data");
+        assert!(directive(&data).is_none() && !mmic_cfdp::entity::is_metadata(&data));
+        assert!(!mmic_cfdp::entity::is_metadata(&first[..3]), "a short PDU");
+    });
+}

@@ -44,8 +44,8 @@ pub enum LinkEvent {
     ControlFrame { command: u8, vr: u8, total: u32 },
 }
 
-/// Number of space-link HK parameters (`pid::LINK_AD_ACCEPTED..=pid::LINK_REJ_CONTROL_STATE`).
-pub const SPACE_LINK_PARAMS: usize = (pid::LINK_REJ_CONTROL_STATE - pid::LINK_AD_ACCEPTED + 1) as usize;
+/// Number of space-link HK parameters (`pid::LINK_AD_ACCEPTED..=pid::LINK_REJ_BD_CONTENT`).
+pub const SPACE_LINK_PARAMS: usize = (pid::LINK_REJ_BD_CONTENT - pid::LINK_AD_ACCEPTED + 1) as usize;
 /// Number of space-link state HK parameters (`pid::LINK_TM_SPI..=pid::LINK_STATE_BAD_SLOT`).
 pub const SPACE_LINK_STATE_PARAMS: usize = (pid::LINK_STATE_BAD_SLOT - pid::LINK_TM_SPI + 1) as usize;
 

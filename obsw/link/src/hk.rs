@@ -1,5 +1,5 @@
 //! The SPACE_LINK housekeeping values (HK SID 22, `LINK_AD_ACCEPTED` ..
-//! `LINK_REJ_CONTROL_STATE`) and the link events their changes raise: one layout for the
+//! `LINK_REJ_BD_CONTENT`) and the link events their changes raise: one layout for the
 //! host obsw and board A, the parameter offsets taken from the MIB.
 
 use mib::params::pid;
@@ -9,7 +9,7 @@ use crate::downlink::TxCounters;
 use crate::rx::RxCounters;
 
 /// Number of SPACE_LINK counter parameters.
-pub const SPACE_LINK_PARAMS: usize = (pid::LINK_REJ_CONTROL_STATE - pid::LINK_AD_ACCEPTED + 1) as usize;
+pub const SPACE_LINK_PARAMS: usize = (pid::LINK_REJ_BD_CONTENT - pid::LINK_AD_ACCEPTED + 1) as usize;
 
 /// Offset of parameter `id` in the SPACE_LINK values.
 const fn at(id: u16) -> usize {
@@ -17,7 +17,7 @@ const fn at(id: u16) -> usize {
 }
 
 /// The refusal counters; their offsets are the `reason` codes of `LINK_FRAME_REJECTED`.
-const REFUSALS: [usize; 14] = [
+const REFUSALS: [usize; 15] = [
     at(pid::LINK_REJ_BARE_PACKET),
     at(pid::LINK_REJ_BAD_CRC),
     at(pid::LINK_REJ_BAD_LENGTH),
@@ -32,6 +32,7 @@ const REFUSALS: [usize; 14] = [
     at(pid::LINK_REJ_UNKNOWN_CONTROL),
     at(pid::LINK_REJ_NOT_PACKETS),
     at(pid::LINK_REJ_CONTROL_STATE),
+    at(pid::LINK_REJ_BD_CONTENT),
 ];
 
 /// Offset of the control-frame counter (`LINK_CONTROL_FRAMES`).
@@ -70,6 +71,7 @@ pub fn space_link_values(
     hk[at(pid::LINK_TM_IDLE_FRAMES)] = tx.idle_frames;
     hk[at(pid::LINK_TM_SDLS_FAILED)] = tx.sdls_failed.saturating_add(tm_sdls_failed);
     hk[at(pid::LINK_REJ_CONTROL_STATE)] = rx.control_refused;
+    hk[at(pid::LINK_REJ_BD_CONTENT)] = rx.bd_content;
     hk
 }
 

@@ -4,8 +4,10 @@
 //! 2. **lengths and header**: bounds, header length = datagram length, version, flags, SCID,
 //!    VCID, the SDLS data field size;
 //! 3. **SDLS** (AD and BD frames): SPI, anti-replay window, MAC, decryption;
-//! 4. the packets inside are length-checked (before FARM-1 so that a frame that will be
-//!    refused changes no COP-1 state);
+//! 4. the packets inside are length-checked, and a BD frame's must all be class 2 CFDP
+//!    file data or time-tagged commands (`mib::link::bypass_admissible`: other commands
+//!    travel in AD frames only, in COP-1's order) — before FARM-1 so that a frame that will be refused changes no COP-1
+//!    state;
 //! 5. **FARM-1**, then the receive IV and FARM-1's new state in one durable write
 //!    ([`IvStore::record_rx_farm`]; control frames: [`IvStore::record_farm`]) — a store
 //!    failure refuses the frame and undoes the FARM-1 step;
@@ -40,6 +42,9 @@ pub enum RxError {
     ControlRefused(ControlCommand),
     /// The authenticated data field is not a whole number of space packets.
     NotPackets,
+    /// A BD frame holding a packet that is neither class 2 CFDP file data nor a
+    /// time-tagged command (`mib::link::bypass_admissible`).
+    BdContent,
 }
 
 impl fmt::Display for RxError {
@@ -54,6 +59,7 @@ impl fmt::Display for RxError {
             RxError::UnknownControl(e) => write!(f, "{e}"),
             RxError::ControlRefused(c) => write!(f, "control command {c:?} not taken in this FARM-1 state"),
             RxError::NotPackets => write!(f, "frame data is not whole space packets"),
+            RxError::BdContent => write!(f, "BD frame holding a packet a BD frame may not carry"),
         }
     }
 }
@@ -83,6 +89,8 @@ pub struct RxCounters {
     /// Control frames refused by FARM-1's state ([`Farm::takes`]).
     pub control_refused: u32,
     pub not_packets: u32,
+    /// Authentic BD frames refused: a packet `mib::link::bypass_admissible` refuses.
+    pub bd_content: u32,
     /// FARM-1 discards by event: E2 (no buffer), E3 (gap), E4 (duplicate), E5 (lockout area).
     pub farm_e2: u32,
     pub farm_e3: u32,
@@ -115,6 +123,7 @@ impl RxCounters {
             RxError::UnknownControl(_) => inc(&mut self.unknown_control),
             RxError::ControlRefused(_) => inc(&mut self.control_refused),
             RxError::NotPackets => inc(&mut self.not_packets),
+            RxError::BdContent => inc(&mut self.bd_content),
         }
     }
 
@@ -135,6 +144,7 @@ impl RxCounters {
             self.unknown_control,
             self.control_refused,
             self.not_packets,
+            self.bd_content,
         ]
         .iter()
         .fold(0u32, |a, b| a.saturating_add(*b))
@@ -340,6 +350,10 @@ impl<const N: usize> TcReceiver<N> {
         let data: &'a [u8] = &datagram[verified.data.clone()];
         // 4. Packet lengths, before COP-1 state changes.
         let packets = split_packets(data).ok_or(RxError::NotPackets)?;
+        // BD frames skip FARM-1's sequence check: only what needs no COP-1 order.
+        if frame_type == FrameType::Bd && !packets.clone().all(mib::link::bypass_admissible) {
+            return Err(RxError::BdContent);
+        }
         // 5. FARM-1.
         let input = match frame_type {
             FrameType::Ad => FarmInput::Ad {
@@ -666,6 +680,94 @@ mod tests {
         assert_eq!(rx.counters.replay, 1);
     }
 
+    fn bd(tx: &mut TxSa, st: &mut MemoryIvStore, payload: &[u8]) -> Vec<u8> {
+        let mut buf = [0u8; 1024];
+        let h = TcRepr {
+            frame_type: FrameType::Bd,
+            scid: SCID,
+            vcid: 0,
+            seq: 0,
+            data_len: 0,
+        };
+        let n = build_tc(tx, st, h, payload, &mut buf).unwrap();
+        buf[..n].to_vec()
+    }
+
+    /// A class 2 file data PDU (offset 0, `len` bytes) from the ground (0) to robot 1, in
+    /// its TC packet on the CFDP APID.
+    fn file_data_packet(len: usize) -> Vec<u8> {
+        let mut p = vec![
+            0x10, 0xF0, 0xC0, 0, 0, 0, 0x30, 0, 0, 0x11, 0, 0, 0, 7, 0, 1, 0, 0, 0, 0,
+        ];
+        p.extend((0..len).map(|i| i as u8));
+        let n = (p.len() - 7) as u16;
+        p[4..6].copy_from_slice(&n.to_be_bytes());
+        p
+    }
+
+    // verifies: FILE-BD-01, LINK-RX-01
+    #[test]
+    fn a_bd_frame_delivers_cfdp_file_data_only_and_a_command_in_one_is_refused_and_counted() {
+        let mut rx = receiver();
+        let (mut tx, mut gst, mut st) = (
+            TxSa::resume(1, &TEST_KEY_TC_A, 0),
+            MemoryIvStore::default(),
+            MemoryIvStore::default(),
+        );
+        // File data in BD frames: accepted, outside FARM-1's sequence (V(R) stays).
+        let two = [file_data_packet(40), file_data_packet(8)].concat();
+        let mut f = bd(&mut tx, &mut gst, &two);
+        assert_eq!(
+            accepted(rx.receive(&mut st, &mut f, true)),
+            vec![file_data_packet(40), file_data_packet(8)]
+        );
+        assert_eq!((rx.counters.bd_accepted, rx.farm.vr()), (1, 0));
+        // Authentic BD frames with a command, a file directive, or file data beside a
+        // command: refused whole, counted, nothing delivered, no state changed.
+        let clcw0 = rx.farm.clcw();
+        let mut directive = file_data_packet(8);
+        directive[6] = 0x20;
+        let refused = [
+            tc_packet(1, 8),
+            directive,
+            [file_data_packet(8), tc_packet(2, 8)].concat(),
+        ];
+        for (i, payload) in refused.iter().enumerate() {
+            let mut f = bd(&mut tx, &mut gst, payload);
+            assert!(
+                matches!(
+                    rx.receive(&mut st, &mut f, true),
+                    RxOutcome::Rejected(RxError::BdContent)
+                ),
+                "case {i}"
+            );
+            assert_eq!(rx.farm.clcw(), clcw0, "case {i}");
+        }
+        assert_eq!((rx.counters.bd_content, rx.counters.rejected()), (3, 3));
+        assert_eq!((rx.counters.bd_accepted, rx.counters.packets), (1, 2));
+        // A time-tagged command (TC[11,4], as Yamcs sends it in a BD frame) is taken.
+        let apid = mib::apid::robot_apid(1).unwrap().to_be_bytes();
+        let mut sched = vec![0x18 | apid[0], apid[1], 0xC0, 9, 0, 0, 0x29, 11, 4, 0, 0, 1, 0];
+        let n = (sched.len() - 7) as u16;
+        sched[4..6].copy_from_slice(&n.to_be_bytes());
+        let mut f = bd(&mut tx, &mut gst, &sched);
+        assert_eq!(accepted(rx.receive(&mut st, &mut f, true)), vec![sched.clone()]);
+        assert_eq!(rx.counters.bd_accepted, 2);
+        // The same command in an AD frame goes through COP-1 as always.
+        let mut f = ad(&mut tx, &mut gst, 0, &tc_packet(1, 8));
+        assert_eq!(accepted(rx.receive(&mut st, &mut f, true)), vec![tc_packet(1, 8)]);
+        assert_eq!(rx.farm.vr(), 1);
+        // A BD frame is replay-protected like an AD frame.
+        let mut f = bd(&mut tx, &mut gst, &file_data_packet(8));
+        let copy = f.clone();
+        assert!(matches!(rx.receive(&mut st, &mut f, true), RxOutcome::Accepted { .. }));
+        let mut again = copy;
+        assert!(matches!(
+            rx.receive(&mut st, &mut again, true),
+            RxOutcome::Rejected(RxError::Sdls(SdlsError::Replay))
+        ));
+    }
+
     // verifies: LINK-RX-01, LINK-FARM-01
     #[test]
     fn farm_discards_are_counted_by_event_and_control_frames_work_in_clear() {
@@ -687,17 +789,9 @@ mod tests {
             RxOutcome::Discarded(FarmEvent::E5)
         ));
         assert_eq!(rx.farm.state(), FarmState::Lockout);
-        // BD frames still pass (bypass), authenticated.
-        let mut b = [0u8; 1024];
-        let h = TcRepr {
-            frame_type: FrameType::Bd,
-            scid: SCID,
-            vcid: 0,
-            seq: 0,
-            data_len: 0,
-        };
-        let n = build_tc(&mut tx, &mut gst, h, &tc_packet(3, 4), &mut b).unwrap();
-        assert_eq!(accepted(rx.receive(&mut st, &mut b[..n], true)).len(), 1);
+        // BD frames of file data still pass (bypass), authenticated.
+        let mut b = bd(&mut tx, &mut gst, &file_data_packet(4));
+        assert_eq!(accepted(rx.receive(&mut st, &mut b, true)).len(), 1);
         // Unlock and Set V(R) in clear.
         let mut u = [0u8; 16];
         let n = ControlCommand::Unlock.build_frame(SCID, 0, &mut u).unwrap();
