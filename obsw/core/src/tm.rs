@@ -318,4 +318,45 @@ mod tests {
         assert_eq!(s.len(), 3);
         assert_eq!(s.push(&[9; 100]), 1, "a packet larger than the store is refused");
     }
+
+    // verifies: PUS-15-09
+    #[test]
+    fn ring_store_visits_go_on_after_their_mark_or_from_the_oldest_once_it_is_gone() {
+        let mut s: RingStore<64> = RingStore::default();
+        for b in 1..=4u8 {
+            s.push(&[b; 10]);
+        }
+        let visit = |s: &mut RingStore<64>, after, most| {
+            let mut seen = Vec::new();
+            let ended = s.visit_after(after, most, &mut |p, m| {
+                seen.push((p[0], m));
+                true
+            });
+            (seen, ended)
+        };
+        // Two at a time, each going on after the last one taken.
+        let (first, ended) = visit(&mut s, None, 2);
+        assert_eq!(
+            (first.iter().map(|x| x.0).collect::<Vec<_>>(), ended),
+            (vec![1, 2], false)
+        );
+        let (next, ended) = visit(&mut s, Some(first[1].1), 2);
+        assert_eq!(
+            (next.iter().map(|x| x.0).collect::<Vec<_>>(), ended),
+            (vec![3, 4], true)
+        );
+        // Packets 1 and 2 overwritten: after packet 1's mark, from the oldest (3).
+        s.push(&[5; 20]);
+        s.push(&[6; 10]);
+        let (again, _) = visit(&mut s, Some(first[0].1), 10);
+        assert_eq!(again.iter().map(|x| x.0).collect::<Vec<_>>(), vec![3, 4, 5, 6]);
+        // After a clear, an old mark reads what is stored since.
+        s.clear();
+        s.push(&[7; 10]);
+        let (cleared, ended) = visit(&mut s, Some(next[1].1), 10);
+        assert_eq!(
+            (cleared.iter().map(|x| x.0).collect::<Vec<_>>(), ended),
+            (vec![7], true)
+        );
+    }
 }
