@@ -870,8 +870,8 @@ pub(crate) mod tests {
         let (mut taken, mut jumps, mut most_read, mut whole_read) = (0, 0, 0, 0);
         // Fast writes first (the marked packet overwritten before the visit goes on), then
         // slow ones (the visit catches up with the newest).
-        for period in 0..3000 {
-            let writes = if period < 500 { 7 } else { 1 };
+        for period in 0..1000 {
+            let writes = if period < 300 { 9 } else { 3 };
             for _ in 0..writes {
                 if next < pkts.len() {
                     s.push(&pkts[next]);
