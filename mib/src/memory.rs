@@ -316,6 +316,14 @@ pub mod store {
     pub const FREE_AHEAD_PER_PERIOD: u32 = 4;
     /// The most store writes a period may have had for the store to free ahead in it.
     pub const FREE_AHEAD_QUIET_WRITES: u32 = 2;
+    /// A PUS 15 downlink by range reads at most this many stored packets in a control
+    /// period (sent or passed over), and goes on from the last one in the next period. A
+    /// stored packet read from flash costs about 2 000 instructions on board A (the queue's
+    /// CRC-32 over it) and one sent about 1 700 more into the TM frame; the period's budget
+    /// with them is enforced (`t_store` and `t_budget` in firmware/qemu-tests). At one period
+    /// in 10 ms that is 1 200 packets a second, beyond what the downlink takes; a range
+    /// behind a full HK area's 15 000 packets starts sending within about 13 s.
+    pub const REPLAY_READS_PER_PERIOD: u32 = 12;
 
     const _: () = assert!(HK_SIZE.is_multiple_of(FLASH_SECTOR) && REPORT_SIZE.is_multiple_of(FLASH_SECTOR));
     // Each area needs two sectors at least: the queue erases its oldest while the

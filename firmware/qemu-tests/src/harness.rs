@@ -185,6 +185,12 @@ pub static MOST_TC_PACKETS: portable_atomic::AtomicU64 = portable_atomic::Atomic
 /// tick was measured with (`t_store`).
 pub static STORE_WRITES_EXTRA: portable_atomic::AtomicU64 = portable_atomic::AtomicU64::new(0);
 
+/// The most instructions a paced PUS 15 replay from a full flash store read in one period
+/// (`t_store`: the store's reading and the replay's filter, not the framing of what it sent).
+pub static REPLAY_READ_WORST: portable_atomic::AtomicU64 = portable_atomic::AtomicU64::new(0);
+/// The most packets that replay sent in one period (framed on the board, `t_budget`).
+pub static REPLAY_MOST_SENT: portable_atomic::AtomicU64 = portable_atomic::AtomicU64::new(0);
+
 /// Bytes below the caller's frame that [`stack_depth`] paints.
 pub const STACK_PROBE_BYTES: usize = 96 * 1024;
 /// Word painted below the stack pointer (`mib::memory::STACK_PAINT` in every byte).

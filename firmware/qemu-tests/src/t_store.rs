@@ -8,15 +8,19 @@ use crate::harness::{Test, TestResult};
 use crate::tests;
 use crate::{check, check_eq, ok};
 use core::cell::RefCell;
+use core::mem::MaybeUninit;
+use core::ptr::addr_of_mut;
 use mib::config::MAX_PACKET_LEN;
 use obsw_core::flash_store::{FlashStore, Medium, Nor};
+use obsw_core::obsw::Obsw;
 use obsw_core::time::OnboardTime;
-use obsw_core::tm::{RingStore, TmStore, TmWriter};
+use obsw_core::tm::{RingStore, TmSink, TmStore, TmWriter};
 use portable_atomic::Ordering;
 
 pub const TESTS: &[Test] = tests![
     store_reset_cut_into_a_write_at_every_byte_loses_at_most_that_packet,
     store_write_and_replay_read_cost_measured,
+    store_paced_replay_from_a_full_store_worst_period_measured,
 ];
 
 const SECTOR: usize = mib::memory::FLASH_SECTOR as usize;
@@ -430,4 +434,230 @@ fn store_write_and_replay_read_cost_measured() -> TestResult {
         (per_read * full) as f64 / mib::config::PERIOD_INSTRUCTION_BUDGET as f64
     );
     Ok(())
+}
+
+/// The flash store of the MIB's size: its partition's bytes in RAM (written once by this
+/// test, its only user).
+static mut PARTITION: [u8; mib::memory::store::SIZE as usize] = [0; mib::memory::store::SIZE as usize];
+
+/// The partition as the NOR model's medium.
+struct Partition(&'static mut [u8]);
+
+impl Medium for Partition {
+    type Error = ();
+    fn read_at(&mut self, at: u32, out: &mut [u8]) -> Result<(), ()> {
+        let at = at as usize;
+        out.copy_from_slice(self.0.get(at..at + out.len()).ok_or(())?);
+        Ok(())
+    }
+    fn write_at(&mut self, at: u32, bytes: &[u8]) -> Result<(), ()> {
+        let at = at as usize;
+        self.0.get_mut(at..at + bytes.len()).ok_or(())?.copy_from_slice(bytes);
+        Ok(())
+    }
+}
+
+type FullStore = obsw_core::flash_store::MibFlashStore<'static, Nor<Partition>>;
+
+/// Board A's store with the instructions its replay reading takes counted
+/// ([`TmStore::visit_after`], with the replay's own filter called from inside it).
+struct Metered {
+    store: FullStore,
+    /// Instructions of `visit_after` since the last take.
+    reading: u64,
+}
+
+impl TmStore for Metered {
+    type Mark = <FullStore as TmStore>::Mark;
+    const READS_PER_PERIOD: usize = FullStore::READS_PER_PERIOD;
+    fn push(&mut self, packet: &[u8]) -> u32 {
+        self.store.push(packet)
+    }
+    fn visit(&mut self, f: &mut dyn FnMut(&[u8])) {
+        self.store.visit(f)
+    }
+    fn visit_after(
+        &mut self,
+        after: Option<Self::Mark>,
+        most: usize,
+        f: &mut dyn FnMut(&[u8], Self::Mark) -> bool,
+    ) -> bool {
+        let start = instret();
+        let ended = self.store.visit_after(after, most, f);
+        self.reading += instret() - start;
+        ended
+    }
+    fn end_period(&mut self) -> u32 {
+        self.store.end_period()
+    }
+    fn len(&self) -> usize {
+        self.store.len()
+    }
+    fn clear(&mut self) {
+        self.store.clear()
+    }
+}
+
+static mut FLASH: MaybeUninit<RefCell<Nor<Partition>>> = MaybeUninit::uninit();
+static mut REPLAY_OBSW: MaybeUninit<Obsw<Metered>> = MaybeUninit::uninit();
+
+/// A downlink that takes, each period, what board A's empty downlink queue holds.
+struct Downlink {
+    room: usize,
+    replayed: heapless::Vec<u16, 512>,
+    sent_now: u64,
+}
+
+impl TmSink for Downlink {
+    fn send_tm(&mut self, _packet: &[u8]) {}
+    fn send_replay(&mut self, packet: &[u8]) {
+        self.room = self.room.saturating_sub(packet.len());
+        self.sent_now += 1;
+        let _ = self.replayed.push(u16::from_be_bytes([packet[2], packet[3]]) & 0x3FFF);
+    }
+    fn replay_room(&self) -> usize {
+        self.room
+    }
+}
+
+// verifies: FW-CPU-01, PUS-15-09
+/// A paced PUS 15 downlink from board A's flash store of the MIB's size, its HK area full
+/// (written until it overwrote): the ground asks for the newest packets by time, behind the
+/// whole area. The replay reads `mib::memory::store::REPLAY_READS_PER_PERIOD` packets a
+/// period and goes on from its mark; every period's reading (the store's and the replay's
+/// filter) is counted, and the worst, with the most packets sent in a period, goes into the
+/// control period's enforced budget (`t_budget`). For comparison, in the same run: one
+/// reading of the store from its oldest packet, what every period of a paced replay cost
+/// before it went on from a mark.
+fn store_paced_replay_from_a_full_store_worst_period_measured() -> TestResult {
+    use mib::memory::store;
+    use obsw_core::obsw::Config;
+    const EPOCH: u64 = 1_790_000_000_000;
+    /// Newest packets the ground asks for.
+    const ASKED: usize = 300;
+    let apid = ok!(mib::apid::robot_apid(1));
+    // SAFETY: this test is the statics' only user and runs once on the one hart.
+    let (flash, obsw_slot) = unsafe {
+        let part = &mut *addr_of_mut!(PARTITION);
+        part.fill(0xFF);
+        let flash = (*addr_of_mut!(FLASH)).write(RefCell::new(Nor::new(Partition(part), store::SIZE)));
+        (&*flash, &mut *addr_of_mut!(REPLAY_OBSW))
+    };
+    let mut s = ok!(FullStore::open(flash, 0).ok());
+    // Fill: HK of the scenario's size, every tenth packet an event, 1 s apart, until the
+    // HK area has overwritten.
+    let mut w = TmWriter::new(apid, OnboardTime::new(EPOCH));
+    let mut buf = [0u8; MAX_PACKET_LEN];
+    let (mut written, mut overwritten) = (0u64, 0u32);
+    // The store's end of period at this size (one write a period: quiet), the worst when it
+    // freed nothing and the worst when it freed ahead.
+    let (mut end_nothing, mut end_freeing) = (0u64, 0u64);
+    while overwritten == 0 || written % 10 != 0 {
+        let event = written % 10 == 9;
+        let data = [written as u8; HK_DATA];
+        let (svc, sub, n) = if event { (5, 1, 12) } else { (3, 25, HK_DATA) };
+        let len = ok!(w.build(1000 * written, svc, sub, &data[..n], &mut buf));
+        overwritten += s.push(&buf[..len]);
+        let start = instret();
+        let freed = s.end_period();
+        let c = instret() - start;
+        if freed == 0 {
+            end_nothing = end_nothing.max(c);
+        } else {
+            end_freeing = end_freeing.max(c);
+        }
+        overwritten += freed;
+        written += 1;
+    }
+    let held = s.len();
+    // Full: freeing ahead keeps a sector's packets fewer at most.
+    let full = FullStore::min_packets(store::HK_SECTORS - 1, p_len(HK_DATA));
+    check!(s.lens().0 >= full, "HK area holds {} of at least {}", s.lens().0, full);
+    // Before: one reading from the oldest packet, as each period of a paced replay did.
+    let start = instret();
+    let mut read = 0usize;
+    s.visit(&mut |_| read += 1);
+    let from_oldest = instret() - start;
+    check_eq!(read, held);
+
+    let obsw = obsw_slot.write(Obsw::new(
+        Config {
+            robot: 1,
+            epoch_unix_ms: EPOCH,
+        },
+        Metered { store: s, reading: 0 },
+    ));
+    // TC[15,9]: the newest ASKED packets' time span.
+    let first = written - ASKED as u64;
+    let cds = |ms: u64| OnboardTime::new(EPOCH).cds(ms);
+    let (a, b) = (cds(1000 * first), cds(1000 * (written - 1)));
+    let mut app = [0u8; 12];
+    app[..6].copy_from_slice(&a[1..7]);
+    app[6..].copy_from_slice(&b[1..7]);
+    let mut tc = [0u8; 64];
+    let n = ok!(crate::t_packets::build(77, 15, 9, &app, &mut tc));
+    let room = fw_core::config::TM_DOWNLINK_BYTES;
+    let mut down = Downlink {
+        room,
+        replayed: heapless::Vec::new(),
+        sent_now: 0,
+    };
+    let sensors = mmic_domain::SensorsA::default();
+    let now0 = 1000 * written;
+    obsw.handle_tc(now0, &tc[..n], &mut down);
+    let (mut worst, mut most_sent, mut periods) = (0u64, 0u64, 0u32);
+    let mut reads_seen = 0u64;
+    loop {
+        obsw.tick(now0 + 10 * u64::from(periods), &sensors, &[], &mut down);
+        let d = obsw.store_mut().reading;
+        worst = worst.max(d);
+        reads_seen += d;
+        obsw.store_mut().reading = 0;
+        most_sent = most_sent.max(down.sent_now);
+        down.sent_now = 0;
+        down.room = room;
+        periods += 1;
+        if obsw.replays_pending() == 0 || periods > 5000 {
+            break;
+        }
+    }
+    check!(obsw.replays_pending() == 0, "the replay ended in {} periods", periods);
+    // Exactly the asked packets, each once, in order (HK and events merged by time).
+    let expect = (first..written).map(|i| (i % 16384) as u16);
+    check!(
+        down.replayed.iter().copied().eq(expect),
+        "replayed {} packets, not the {} asked in order",
+        down.replayed.len(),
+        ASKED
+    );
+    crate::harness::REPLAY_READ_WORST.store(worst, Ordering::Relaxed);
+    crate::harness::REPLAY_MOST_SENT.store(most_sent, Ordering::Relaxed);
+    semihosting::println!(
+        "    paced replay from a full flash store ({} packets, HK area {} sectors; the newest {} asked by time): {} periods at most {} reads each, worst period's reading {} instructions, at most {} packets sent in a period (framed on the board: t_budget); {} instructions in all",
+        held,
+        store::HK_SECTORS,
+        ASKED,
+        periods,
+        store::REPLAY_READS_PER_PERIOD,
+        worst,
+        most_sent,
+        reads_seen
+    );
+    semihosting::println!(
+        "    before (same run): reading this store from its oldest packet, what each period of a paced replay did: {} instructions, {:.1} periods' budget",
+        from_oldest,
+        from_oldest as f64 / mib::config::PERIOD_INSTRUCTION_BUDGET as f64
+    );
+    semihosting::println!(
+        "    the store's end of a quiet period at the MIB's size (its find_max_fit per area, the pops ahead): at most {} instructions when it freed nothing, {} when it freed ahead",
+        end_nothing,
+        end_freeing
+    );
+    check!(worst > 0 && most_sent > 0, "the replay read and sent");
+    Ok(())
+}
+
+/// A TM packet's length with `data` bytes of source data.
+fn p_len(data: usize) -> usize {
+    mib_wire::header::MIN_TM_LEN + data
 }

@@ -422,19 +422,45 @@ fn free_ahead<F: MultiwriteNorFlash, const P: usize>(q: &mut Queue<'_, F, P>, le
     popped
 }
 
-/// The next well-formed packet of an iteration into `buf`: its length and time stamp, or
-/// `None` at the end (a read error ends the iteration, counted).
+/// A stored packet as a visit reads it: its length, time stamp, sequence count and the
+/// address of its item.
+#[derive(Clone, Copy)]
+struct Read {
+    len: usize,
+    stamp: Stamp,
+    seq: u16,
+    address: u32,
+}
+
+impl Read {
+    fn mark(&self) -> AreaMark {
+        AreaMark {
+            address: self.address,
+            stamp: self.stamp,
+            seq: self.seq,
+        }
+    }
+}
+
+/// The next well-formed packet of an iteration into `buf`, or `None` at the end (a read
+/// error ends the iteration, counted).
 fn next_packet<F: MultiwriteNorFlash, const P: usize>(
     it: &mut sequential_storage::queue::QueueIterator<'_, Shared<'_, F>, AreaCache<P>>,
     buf: &mut [u8; MAX_PACKET_LEN],
     unreadable: &mut u32,
-) -> Option<(usize, Stamp)> {
+) -> Option<Read> {
     loop {
         match block_on(it.next(buf)) {
             Ok(Some(e)) => {
-                let n = e.into_buf().len();
-                if let Some(t) = stored_stamp(&buf[..n]) {
-                    return Some((n, t));
+                let address = e.address();
+                let len = e.into_buf().len();
+                if let Some((stamp, seq)) = stored_id(&buf[..len]) {
+                    return Some(Read {
+                        len,
+                        stamp,
+                        seq,
+                        address,
+                    });
                 }
                 *unreadable = unreadable.wrapping_add(1);
             }
@@ -447,15 +473,39 @@ fn next_packet<F: MultiwriteNorFlash, const P: usize>(
     }
 }
 
+/// An iteration of an area (`$q`) after the packet `$after` marks, with its first packet
+/// read into `$buf`: from that item's address when the packet read there is still the
+/// marked one, else from the oldest packet (the marked one was popped, and every older one
+/// before it). A macro, not a function: a function returning the iterator of one of two
+/// borrows of the queue does not pass the borrow checker.
+macro_rules! resume {
+    ($q:expr, $after:expr, $buf:expr, $unreadable:expr) => {{
+        let mut resumed = None;
+        if let Some(m) = $after {
+            if let Ok(Some(mut it)) = block_on($q.iter_from(m.address)) {
+                if next_packet(&mut it, $buf, $unreadable).is_some_and(|r| r.mark() == m) {
+                    resumed = Some(it);
+                }
+            }
+        }
+        let mut it = match resumed {
+            Some(it) => Some(it),
+            None => block_on($q.iter()).ok(),
+        };
+        let first = it.as_mut().and_then(|i| next_packet(i, $buf, $unreadable));
+        (it, first)
+    }};
+}
+
 /// A CDS time stamp (days, ms of day), ordering the two areas on reading.
 type Stamp = (u16, u32);
 
-/// The time stamp of a stored TM packet from its headers; `None` for bytes that are not a
-/// TM packet of their length. The packet's own CRC is not computed again: the store takes
-/// only packets [`Area::of`] checked, and the queue's CRC-32 of each item proves that it
-/// reads back as it was written (half of a replay's reading per packet, measured on the
-/// target: `t_store` in firmware/qemu-tests).
-fn stored_stamp(p: &[u8]) -> Option<Stamp> {
+/// The time stamp and sequence count of a stored TM packet from its headers; `None` for
+/// bytes that are not a TM packet of their length. The packet's own CRC is not computed
+/// again: the store takes only packets [`Area::of`] checked, and the queue's CRC-32 of each
+/// item proves that it reads back as it was written (half of a replay's reading per packet,
+/// measured on the target: `t_store` in firmware/qemu-tests).
+fn stored_id(p: &[u8]) -> Option<(Stamp, u16)> {
     use mib_wire::header::{check_primary, PRIMARY_HEADER_LEN, TM_SEC_HEADER_LEN};
     let h = check_primary(p).ok()?;
     if h.is_tc || h.len != p.len() {
@@ -464,12 +514,34 @@ fn stored_stamp(p: &[u8]) -> Option<Stamp> {
     let at = PRIMARY_HEADER_LEN + TM_SEC_HEADER_LEN;
     let t = p.get(at..at + mib::config::TIMESTAMP_LEN)?;
     Some((
-        u16::from_be_bytes([t[1], t[2]]),
-        u32::from_be_bytes([t[3], t[4], t[5], t[6]]),
+        (
+            u16::from_be_bytes([t[1], t[2]]),
+            u32::from_be_bytes([t[3], t[4], t[5], t[6]]),
+        ),
+        h.seq_count,
     ))
 }
 
+/// Where a visit of one area stands: the item of the last packet taken (its address, and
+/// its time stamp and sequence count, to know it is still that packet).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AreaMark {
+    address: u32,
+    stamp: Stamp,
+    seq: u16,
+}
+
+/// Where a visit of the store stands: the last packet taken from each area.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Mark {
+    hk: Option<AreaMark>,
+    report: Option<AreaMark>,
+}
+
 impl<F: MultiwriteNorFlash, const H: usize, const R: usize> TmStore for FlashStore<'_, F, H, R> {
+    type Mark = Mark;
+    /// A packet read costs its CRC-32 (`mib::memory::store::REPLAY_READS_PER_PERIOD`).
+    const READS_PER_PERIOD: usize = mib::memory::store::REPLAY_READS_PER_PERIOD as usize;
     fn push(&mut self, packet: &[u8]) -> u32 {
         self.period_writes = self.period_writes.saturating_add(1);
         let stored = match Area::of(packet) {
@@ -507,49 +579,54 @@ impl<F: MultiwriteNorFlash, const H: usize, const R: usize> TmStore for FlashSto
 
     /// Both areas merged by time stamp, oldest first.
     fn visit(&mut self, f: &mut dyn FnMut(&[u8])) {
-        self.visit_while(&mut |p| {
+        self.visit_after(None, usize::MAX, &mut |p, _| {
             f(p);
             true
         });
     }
 
-    /// Stops reading the flash where `f` says so.
-    fn visit_while(&mut self, f: &mut dyn FnMut(&[u8]) -> bool) {
+    /// Each area goes on from the item of the last packet taken from it
+    /// ([`QueueStorage::iter_from`](sequential_storage::queue::QueueStorage::iter_from)):
+    /// a call reads at most `most` packets and the next one of each area, never the
+    /// packets before the mark again.
+    fn visit_after(&mut self, after: Option<Mark>, most: usize, f: &mut dyn FnMut(&[u8], Mark) -> bool) -> bool {
         let mut unreadable = 0;
+        let mut mark = after.unwrap_or_default();
         let (mut ha, mut ra) = ([0u8; MAX_PACKET_LEN], [0u8; MAX_PACKET_LEN]);
-        let mut hk_it = block_on(self.hk.iter()).ok();
-        let mut report_it = block_on(self.reports.iter()).ok();
-        let mut h = hk_it.as_mut().and_then(|i| next_packet(i, &mut ha, &mut unreadable));
-        let mut r = report_it
-            .as_mut()
-            .and_then(|i| next_packet(i, &mut ra, &mut unreadable));
-        loop {
+        let (mut hk_it, mut h) = resume!(self.hk, mark.hk, &mut ha, &mut unreadable);
+        let (mut report_it, mut r) = resume!(self.reports, mark.report, &mut ra, &mut unreadable);
+        let mut called = 0;
+        let ended = loop {
             let hk_first = match (h, r) {
-                (None, None) => break,
+                (None, None) => break true,
                 (Some(_), None) => true,
                 (None, Some(_)) => false,
-                (Some((_, ht)), Some((_, rt))) => ht <= rt,
+                (Some(a), Some(b)) => a.stamp <= b.stamp,
             };
-            let go = if hk_first {
-                let go = h.is_none_or(|(n, _)| f(&ha[..n]));
-                if go {
-                    h = hk_it.as_mut().and_then(|i| next_packet(i, &mut ha, &mut unreadable));
-                }
-                go
-            } else {
-                let go = r.is_none_or(|(n, _)| f(&ra[..n]));
-                if go {
-                    r = report_it
-                        .as_mut()
-                        .and_then(|i| next_packet(i, &mut ra, &mut unreadable));
-                }
-                go
-            };
-            if !go {
-                break;
+            if called == most {
+                break false;
             }
-        }
+            called += 1;
+            if hk_first {
+                let Some(p) = h else { break true };
+                mark.hk = Some(p.mark());
+                if !f(&ha[..p.len], mark) {
+                    break false;
+                }
+                h = hk_it.as_mut().and_then(|i| next_packet(i, &mut ha, &mut unreadable));
+            } else {
+                let Some(p) = r else { break true };
+                mark.report = Some(p.mark());
+                if !f(&ra[..p.len], mark) {
+                    break false;
+                }
+                r = report_it
+                    .as_mut()
+                    .and_then(|i| next_packet(i, &mut ra, &mut unreadable));
+            }
+        };
         self.counts.unreadable = self.counts.unreadable.wrapping_add(unreadable);
+        ended
     }
 
     fn len(&self) -> usize {
@@ -618,6 +695,8 @@ pub(crate) mod tests {
         pub budget: Option<usize>,
         pub cut: bool,
         pub bit_sets: u32,
+        /// Bytes read so far.
+        pub read_bytes: u64,
     }
 
     #[derive(Debug)]
@@ -644,6 +723,7 @@ pub(crate) mod tests {
                 budget: None,
                 cut: false,
                 bit_sets: 0,
+                read_bytes: 0,
             }
         }
         /// Takes one unit of the budget; false once the power is cut.
@@ -675,6 +755,7 @@ pub(crate) mod tests {
             }
             let at = offset as usize;
             bytes.copy_from_slice(self.mem.get(at..at + bytes.len()).ok_or(TestError::Range)?);
+            self.read_bytes += bytes.len() as u64;
             Ok(())
         }
         fn capacity(&self) -> usize {
@@ -748,7 +829,7 @@ pub(crate) mod tests {
             .collect()
     }
 
-    fn content(s: &mut Small<'_>) -> Vec<Vec<u8>> {
+    fn content(s: &mut impl TmStore) -> Vec<Vec<u8>> {
         let mut out = Vec::new();
         s.visit(&mut |p| out.push(p.to_vec()));
         out
@@ -771,6 +852,73 @@ pub(crate) mod tests {
         s.clear();
         assert_eq!((s.len(), content(&mut s).len()), (0, 0));
         assert_eq!(f.borrow().bit_sets, 0, "the layout never sets a bit without an erase");
+    }
+
+    // verifies: PUS-15-09
+    #[test]
+    fn a_paced_visit_goes_on_from_its_mark_reading_a_bounded_slice_across_writes_and_overwrites() {
+        // 16 sectors; every 10th packet an event. Each period: some writes, then a visit of
+        // at most MOST packets after the mark, beside the reference (the store's whole
+        // content, the first MOST packets written after the last one taken).
+        const MOST: usize = 5;
+        type Mid<'a> = FlashStore<'a, TestFlash, 12, 4>;
+        let f = RefCell::new(TestFlash::new(16));
+        let mut s = Mid::open(&f, 0).expect("layout fits");
+        let pkts = packets_every(4000, 60, 10);
+        let index = |p: &[u8]| pkts.iter().position(|q| q == p).expect("a packet written");
+        let (mut next, mut mark, mut last) = (0, None, None::<usize>);
+        let (mut taken, mut jumps, mut most_read, mut whole_read) = (0, 0, 0, 0);
+        // Fast writes first (the marked packet overwritten before the visit goes on), then
+        // slow ones (the visit catches up with the newest).
+        for period in 0..1000 {
+            let writes = if period < 300 { 9 } else { 3 };
+            for _ in 0..writes {
+                if next < pkts.len() {
+                    s.push(&pkts[next]);
+                    next += 1;
+                }
+            }
+            let before = f.borrow().read_bytes;
+            let all = content(&mut s);
+            whole_read = whole_read.max(f.borrow().read_bytes - before);
+            let expected: Vec<usize> = all
+                .iter()
+                .map(|p| index(p))
+                .filter(|&i| last.is_none_or(|l| i > l))
+                .take(MOST)
+                .collect();
+            let mut got = Vec::new();
+            let before = f.borrow().read_bytes;
+            let ended = s.visit_after(mark, MOST, &mut |p, m| {
+                got.push(index(p));
+                mark = Some(m);
+                true
+            });
+            most_read = most_read.max(f.borrow().read_bytes - before);
+            assert_eq!(got, expected, "period {period}");
+            assert_eq!(
+                ended,
+                expected.len() < MOST || all.last().is_some_and(|p| Some(index(p)) == got.last().copied())
+            );
+            if let (Some(l), Some(&g)) = (last, got.first()) {
+                jumps += usize::from(g > l + 1);
+            }
+            taken += got.len();
+            last = got.last().copied().or(last);
+        }
+        assert_eq!(last, Some(pkts.len() - 1), "the visits reached the newest packet");
+        assert!(
+            jumps > 10 && taken < pkts.len(),
+            "marked packets were overwritten ({jumps} jumps)"
+        );
+        assert_eq!(s.counts().unreadable, 0);
+        // A visit reads its slice, its mark's packets again and the page headers up to them,
+        // not the store from its oldest packet.
+        println!("bytes read: a paced visit at most {most_read}, the whole store {whole_read}");
+        assert!(
+            most_read < 2 * 4096 && whole_read > 8 * most_read,
+            "{most_read} {whole_read}"
+        );
     }
 
     // verifies: PUS-15-08

@@ -173,7 +173,7 @@ pub struct Obsw<S: TmStore> {
     pub(crate) mode_cmd: Option<ModeCmd<Started>>,
     pub(crate) running: Option<Running<Option<Started>>>,
     /// Store downlinks by range waiting for the downlink's room (`services::storage`).
-    pub(crate) replays: crate::services::storage::Replays,
+    pub(crate) replays: crate::services::storage::Replays<S::Mark>,
     pub counters: Counters,
     /// Platform I/O counters; the host or firmware updates them.
     pub io: IoCounters,
@@ -635,6 +635,16 @@ impl<S: TmStore> Obsw<S> {
             self.plan.step_refused(now, raw, &mut self.dl, sink);
         }
         self.plan.report_pending(now, &mut self.dl, sink);
+    }
+
+    /// The PUS 15 store (a platform's measurements and checks of it).
+    pub fn store_mut(&mut self) -> &mut S {
+        &mut self.dl.store
+    }
+
+    /// PUS 15 downlinks by range waiting or running.
+    pub fn replays_pending(&self) -> usize {
+        self.replays.len()
     }
 
     /// Restores a plan the platform stored (`Plan::take_record`) at start; reports the

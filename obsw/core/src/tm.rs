@@ -43,22 +43,30 @@ impl TmSink for std::vec::Vec<std::vec::Vec<u8>> {
 
 /// The on-board TM store (PUS 15): keeps packets while nobody downlinks them.
 pub trait TmStore {
+    /// A stored packet's place, handed to [`TmStore::visit_after`]'s visitor with the
+    /// packet: a later visit goes on after it without reading the packets before it again.
+    type Mark: Copy + core::fmt::Debug + PartialEq;
+    /// Stored packets a paced downlink reads in a control period ([`TmStore::visit_after`]'s
+    /// `most`): unbounded where reading costs little (RAM).
+    const READS_PER_PERIOD: usize = usize::MAX;
     /// Stores a packet; returns how many packets are lost for it: older packets
     /// overwritten to make room, or 1 if this one could not be stored.
     fn push(&mut self, packet: &[u8]) -> u32;
     /// Calls `f` with every stored packet, oldest first, leaving the store's content
     /// unchanged (PUS 15 downlinks by range read the store; nothing is removed).
     fn visit(&mut self, f: &mut dyn FnMut(&[u8]));
-    /// Like [`TmStore::visit`], until `f` returns false (a paced downlink stops where the
-    /// downlink's room ends; a store whose reads cost overrides it to stop reading there).
-    fn visit_while(&mut self, f: &mut dyn FnMut(&[u8]) -> bool) {
-        let mut go = true;
-        self.visit(&mut |p| {
-            if go {
-                go = f(p);
-            }
-        });
-    }
+    /// Calls `f` with the packets stored after the one `after` marks (all of them for
+    /// `None`), oldest first, each with its mark, until `f` returns false or it has been
+    /// called `most` times: a paced downlink reads a bounded slice each control period and
+    /// goes on from the last packet it took. Packets older than a marked packet that is no
+    /// longer stored were overwritten before it, so the visit then starts from the oldest
+    /// packet. Returns true when it went through to the newest packet.
+    fn visit_after(
+        &mut self,
+        after: Option<Self::Mark>,
+        most: usize,
+        f: &mut dyn FnMut(&[u8], Self::Mark) -> bool,
+    ) -> bool;
     /// Called once at the end of every control period: a store whose giving up of old
     /// packets costs (the flash store) gives up, ahead of need, a few packets its next
     /// writes would overwrite anyway, so that no single write pays for many. Returns how
@@ -75,9 +83,12 @@ pub trait TmStore {
 
 /// Byte ring buffer store with `N` bytes of capacity (no heap). Each packet is kept as
 /// a 2-byte length followed by its bytes; when full, the oldest packets are dropped.
+/// Packets are numbered in the order stored (the numbers are the store's marks).
 pub struct RingStore<const N: usize> {
     buf: heapless::Deque<u8, N>,
     count: usize,
+    /// The number of the oldest packet held (wrapping).
+    first: u32,
 }
 
 impl<const N: usize> Default for RingStore<N> {
@@ -85,6 +96,7 @@ impl<const N: usize> Default for RingStore<N> {
         RingStore {
             buf: heapless::Deque::new(),
             count: 0,
+            first: 0,
         }
     }
 }
@@ -98,10 +110,13 @@ impl<const N: usize> RingStore<N> {
             self.buf.pop_front();
         }
         self.count -= 1;
+        self.first = self.first.wrapping_add(1);
     }
 }
 
 impl<const N: usize> TmStore for RingStore<N> {
+    /// The packet's number.
+    type Mark = u32;
     fn push(&mut self, packet: &[u8]) -> u32 {
         let need = packet.len() + 2;
         if need > N || packet.len() > u16::MAX as usize {
@@ -120,10 +135,31 @@ impl<const N: usize> TmStore for RingStore<N> {
         overwritten
     }
     fn visit(&mut self, f: &mut dyn FnMut(&[u8])) {
+        self.visit_after(None, usize::MAX, &mut |p, _| {
+            f(p);
+            true
+        });
+    }
+    fn visit_after(&mut self, after: Option<u32>, most: usize, f: &mut dyn FnMut(&[u8], u32) -> bool) -> bool {
+        // Packets up to the marked one are passed over (all of them are in RAM); a mark
+        // older than the oldest packet (or beyond the newest, after a clear) starts from
+        // the oldest.
+        let skip = after
+            .map(|m| m.wrapping_sub(self.first) as usize)
+            .filter(|&k| k < self.count)
+            .map_or(0, |k| k + 1);
         let mut it = self.buf.iter().copied();
+        let mut number = self.first;
+        let mut called = 0;
         let mut pkt = [0u8; MAX_PACKET_LEN];
         while let (Some(hi), Some(lo)) = (it.next(), it.next()) {
             let len = u16::from_be_bytes([hi, lo]) as usize;
+            let this = number;
+            number = number.wrapping_add(1);
+            if (this.wrapping_sub(self.first) as usize) < skip {
+                it.by_ref().take(len).for_each(drop);
+                continue;
+            }
             let mut n = 0;
             for b in it.by_ref().take(len) {
                 if let Some(slot) = pkt.get_mut(n) {
@@ -131,18 +167,26 @@ impl<const N: usize> TmStore for RingStore<N> {
                 }
                 n += 1;
             }
+            if called == most {
+                return false;
+            }
+            called += 1;
             // `push` keeps only packets of at most MAX_PACKET_LEN bytes from the TM
             // writer; a longer record could only come from a larger store user.
             if let Some(p) = pkt.get(..n) {
-                f(p);
+                if !f(p, this) {
+                    return false;
+                }
             }
         }
+        true
     }
     fn len(&self) -> usize {
         self.count
     }
     fn clear(&mut self) {
         self.buf.clear();
+        self.first = self.first.wrapping_add(self.count as u32);
         self.count = 0;
     }
 }
@@ -273,5 +317,46 @@ mod tests {
         assert_eq!(seen, [(2, 20), (3, 18), (4, 10)], "oldest first, store unchanged");
         assert_eq!(s.len(), 3);
         assert_eq!(s.push(&[9; 100]), 1, "a packet larger than the store is refused");
+    }
+
+    // verifies: PUS-15-09
+    #[test]
+    fn ring_store_visits_go_on_after_their_mark_or_from_the_oldest_once_it_is_gone() {
+        let mut s: RingStore<64> = RingStore::default();
+        for b in 1..=4u8 {
+            s.push(&[b; 10]);
+        }
+        let visit = |s: &mut RingStore<64>, after, most| {
+            let mut seen = Vec::new();
+            let ended = s.visit_after(after, most, &mut |p, m| {
+                seen.push((p[0], m));
+                true
+            });
+            (seen, ended)
+        };
+        // Two at a time, each going on after the last one taken.
+        let (first, ended) = visit(&mut s, None, 2);
+        assert_eq!(
+            (first.iter().map(|x| x.0).collect::<Vec<_>>(), ended),
+            (vec![1, 2], false)
+        );
+        let (next, ended) = visit(&mut s, Some(first[1].1), 2);
+        assert_eq!(
+            (next.iter().map(|x| x.0).collect::<Vec<_>>(), ended),
+            (vec![3, 4], true)
+        );
+        // Packets 1 and 2 overwritten: after packet 1's mark, from the oldest (3).
+        s.push(&[5; 20]);
+        s.push(&[6; 10]);
+        let (again, _) = visit(&mut s, Some(first[0].1), 10);
+        assert_eq!(again.iter().map(|x| x.0).collect::<Vec<_>>(), vec![3, 4, 5, 6]);
+        // After a clear, an old mark reads what is stored since.
+        s.clear();
+        s.push(&[7; 10]);
+        let (cleared, ended) = visit(&mut s, Some(next[1].1), 10);
+        assert_eq!(
+            (cleared.iter().map(|x| x.0).collect::<Vec<_>>(), ended),
+            (vec![7], true)
+        );
     }
 }

@@ -103,7 +103,8 @@ pub const COMPONENTS: &[Contract] = &[
     time::TimeReports::CONTRACT,
     scheduling::Schedule::CONTRACT,
     crate::fdir::Monitoring::CONTRACT,
-    storage::Replays::CONTRACT,
+    // The contract is the same whatever the store's mark type.
+    storage::Replays::<()>::CONTRACT,
     crate::fdir::Faults::CONTRACT,
     <mmic_domain::controller::Controller as Component>::CONTRACT,
     crate::modes::ModeTree::CONTRACT,

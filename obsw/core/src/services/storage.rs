@@ -6,11 +6,16 @@
 //! with what was sent and what is gone (the oldest packet still stored, the count of
 //! overwritten packets): anything older than that oldest packet is unrecoverable.
 //!
-//! A downlink is paced by the room the downlink has ([`TmSink::replay_room`]): each
-//! control period it sends what fits and keeps a cursor (the last packet sent) where the
-//! next period goes on, so a range longer than the downlink's queues loses nothing. The
-//! request completes (TM[1,7]) after its end report; requests wait in order
-//! ([`REPLAY_QUEUE`]), and one asked again while it waits or runs is not queued twice.
+//! A downlink is paced by the room the downlink has ([`TmSink::replay_room`]) and by the
+//! packets it may read in a control period ([`TmStore::READS_PER_PERIOD`]; the flash
+//! store's is `mib::memory::store::REPLAY_READS_PER_PERIOD`):
+//! each period it reads a bounded slice of the store, sends what fits and keeps the
+//! store's mark of the last packet it took ([`TmStore::visit_after`]), where the next
+//! period goes on without reading the store again from its oldest packet; so a range longer
+//! than the downlink's queues loses nothing, and a range deep in a full flash store costs
+//! each period a bounded share of its CPU. The request completes (TM[1,7]) after its end
+//! report; requests wait in order ([`REPLAY_QUEUE`]), and one asked again while it waits or
+//! runs is not queued twice.
 use mib::tc::service;
 use mib_wire::{tm, RequestId};
 
@@ -129,26 +134,36 @@ impl Range {
 /// the downlink cannot take is dropped and counted there (`IO_TM_DROPPED`).
 pub const REPLAY_QUEUE: usize = mib::ground_config::GAP_REQUESTS_MAX;
 
-/// Where a paced downlink stands: the last packet sent (its time, APID and sequence
-/// count) — the store only grows at its end and loses its oldest packets, so the
-/// next period goes on after it even when packets came or went in between.
-type Cursor = (Cds, u16, u16);
-
-/// One downlink by range: its request, what it has sent, where it goes on.
-struct Replay {
+/// One downlink by range: its request, what it has sent, where it goes on (the store's
+/// mark of the last packet it read and took, sent or outside the range).
+struct Replay<M> {
     range: Range,
     token: Started,
     sent: u32,
-    after: Option<Cursor>,
+    after: Option<M>,
+    /// Every packet of the store read: the end report waits for the oldest packet's
+    /// lookup, in the next period when this one's reads are spent.
+    read_all: bool,
 }
 
 /// The downlinks by range waiting for the downlink's room, oldest first.
-#[derive(Default)]
-pub struct Replays {
-    queue: heapless::Deque<Replay, REPLAY_QUEUE>,
+pub struct Replays<M> {
+    queue: heapless::Deque<Replay<M>, REPLAY_QUEUE>,
+    /// The time of the control period that read the store for them: one slice a period
+    /// (a TC that starts a downlink and the tick after it share the period's time).
+    read_at: Option<u64>,
 }
 
-impl Replays {
+impl<M> Default for Replays<M> {
+    fn default() -> Self {
+        Replays {
+            queue: heapless::Deque::new(),
+            read_at: None,
+        }
+    }
+}
+
+impl<M> Replays<M> {
     /// Downlinks waiting or running (the first one runs).
     pub fn len(&self) -> usize {
         self.queue.len()
@@ -162,7 +177,7 @@ impl Replays {
 /// own state is the downlinks by range waiting for the downlink's room. A downlink by
 /// range comes back as the output: it completes after its end report, so the obsw starts
 /// it once its start is reported (`Exec::Replay`, [`Replays::start`]).
-impl Component for Replays {
+impl<M> Component for Replays<M> {
     const CONTRACT: Contract = Contract::new("storage", Some(service::STORAGE), &[]);
     type Request<'a> = Request;
     type Output = Option<Range>;
@@ -192,11 +207,11 @@ impl Component for Replays {
 /// obsw to record their outcome: at most the queue and one beyond it.
 pub(crate) type Ended = heapless::Vec<RequestId, { REPLAY_QUEUE + 1 }>;
 
-impl Replays {
+impl<M> Replays<M> {
     /// A downlink by range has started: it waits behind the others (or, asked again
     /// while it waits or runs, completes at once: the one queued sends the packets), then
     /// goes as far as the downlink's room allows now.
-    pub(crate) fn start<S: TmStore>(
+    pub(crate) fn start<S: TmStore<Mark = M>>(
         &mut self,
         now: u64,
         range: Range,
@@ -214,11 +229,12 @@ impl Replays {
             token,
             sent: 0,
             after: None,
+            read_all: false,
         };
         if let Err(mut replay) = self.queue.push_back(replay) {
-            // Beyond the queue: all at once, whatever the room.
-            let mut unlimited = usize::MAX;
-            let oldest = dl.replay_step(&mut replay, &mut unlimited, sink).flatten();
+            // Beyond the queue: all at once, whatever the room and the reads.
+            let (mut unlimited, mut reads) = (usize::MAX, usize::MAX);
+            let oldest = dl.replay_step(&mut replay, &mut unlimited, &mut reads, sink).flatten();
             Self::done(now, replay, oldest, dl, sink, &mut ended);
             return ended;
         }
@@ -227,17 +243,26 @@ impl Replays {
     }
 
     /// Each control period: the downlinks by range go on as far as the downlink's room
-    /// allows ([`TmSink::replay_room`]), oldest first.
-    pub(crate) fn tick<S: TmStore>(
+    /// ([`TmSink::replay_room`]) and the period's reads of the store
+    /// ([`TmStore::READS_PER_PERIOD`], once a period) allow, oldest first.
+    pub(crate) fn tick<S: TmStore<Mark = M>>(
         &mut self,
         now: u64,
         dl: &mut Downlink<S>,
         sink: &mut impl TmSink,
         ended: &mut Ended,
     ) {
+        if self.queue.is_empty() || self.read_at == Some(now) {
+            return;
+        }
+        self.read_at = Some(now);
         let mut room = sink.replay_room();
+        let mut reads = S::READS_PER_PERIOD;
         while let Some(r) = self.queue.front_mut() {
-            let Some(oldest) = dl.replay_step(r, &mut room, sink) else {
+            if reads == 0 {
+                return;
+            }
+            let Some(oldest) = dl.replay_step(r, &mut room, &mut reads, sink) else {
                 return;
             };
             if let Some(r) = self.queue.pop_front() {
@@ -247,9 +272,9 @@ impl Replays {
     }
 
     /// The end report, TM[15,19], then the request's completion.
-    fn done<S: TmStore>(
+    fn done<S: TmStore<Mark = M>>(
         now: u64,
-        r: Replay,
+        r: Replay<M>,
         oldest: Option<(u16, Cds)>,
         dl: &mut Downlink<S>,
         sink: &mut impl TmSink,
@@ -297,49 +322,61 @@ impl<S: TmStore> Obsw<S> {
 }
 
 impl<S: TmStore> Downlink<S> {
-    /// Sends the packets of `r` after its cursor while they fit in `room` bytes (what
-    /// they take is subtracted). `Some(oldest)` when the range is done — the oldest
-    /// packet of its stream still stored — `None` when the room ran out first.
-    fn replay_step(&mut self, r: &mut Replay, room: &mut usize, sink: &mut impl TmSink) -> Option<Option<(u16, Cds)>> {
-        let mut oldest: Option<(u16, Cds)> = None;
-        let mut passed = r.after.is_none();
-        let mut done = true;
-        let (range, after) = (r.range, r.after);
-        let (mut sent, mut last) = (0u32, None);
-        self.store.visit_while(&mut |p| {
-            let Some((apid, seq, t)) = identify(p) else { return true };
-            if oldest.is_none() && range.same_stream(apid) {
-                oldest = Some((seq, t));
-            }
-            if !passed {
-                let Some(a) = after else { return true };
-                if (t, apid, seq) == a {
-                    passed = true;
-                    return true;
+    /// Reads at most `reads` packets of the store after `r`'s mark (what it reads is
+    /// subtracted) and sends those of its range while they fit in `room` bytes (likewise).
+    /// `Some(oldest)` when the range is done — the oldest packet of its stream still stored
+    /// — `None` when the room or the reads ran out first.
+    fn replay_step(
+        &mut self,
+        r: &mut Replay<S::Mark>,
+        room: &mut usize,
+        reads: &mut usize,
+        sink: &mut impl TmSink,
+    ) -> Option<Option<(u16, Cds)>> {
+        if !r.read_all {
+            let range = r.range;
+            let (mut sent, mut after, mut read) = (0u32, r.after, 0usize);
+            let ended = self.store.visit_after(r.after, *reads, &mut |p, mark| {
+                if let Some((apid, seq, t)) = identify(p) {
+                    if range.contains(apid, seq, t) {
+                        if p.len() > *room {
+                            return false;
+                        }
+                        *room -= p.len();
+                        sink.send_replay(p);
+                        sent += 1;
+                    }
                 }
-                if t <= a.0 {
-                    return true;
-                }
-                passed = true;
+                after = Some(mark);
+                read += 1;
+                true
+            });
+            *reads = reads.saturating_sub(read);
+            r.sent = r.sent.wrapping_add(sent);
+            r.after = after;
+            if !ended {
+                return None;
             }
-            if !range.contains(apid, seq, t) {
-                return true;
-            }
-            if p.len() > *room {
-                done = false;
-                return false;
-            }
-            *room -= p.len();
-            sink.send_replay(p);
-            sent += 1;
-            last = Some((t, apid, seq));
-            true
-        });
-        r.sent = r.sent.wrapping_add(sent);
-        if last.is_some() {
-            r.after = last;
+            r.read_all = true;
         }
-        done.then_some(oldest)
+        if *reads == 0 {
+            return None;
+        }
+        // The oldest packet of the range's stream: the store's first packet (one stream
+        // per robot), looked for among the reads left.
+        let (mut oldest, mut read) = (None, 0usize);
+        self.store.visit_after(None, *reads, &mut |p, _| {
+            read += 1;
+            match identify(p) {
+                Some((apid, seq, t)) if r.range.same_stream(apid) => {
+                    oldest = Some((seq, t));
+                    false
+                }
+                _ => true,
+            }
+        });
+        *reads = reads.saturating_sub(read);
+        Some(oldest)
     }
 }
 
