@@ -1825,6 +1825,25 @@ mod tests {
         }
     }
 
+    /// Loads, commits and starts on board a plan `id` of one step: a wait of `ms`.
+    fn start_onboard_wait(r: &mut Rig, id: u32, ms: u32, timeout_s: u16) {
+        let steps = [mmic_plan::StepRepr {
+            index: 0,
+            confirmed: false,
+            timeout_s,
+            deps: heapless::Vec::new(),
+            kind: mmic_plan::StepKind::Wait { ms },
+        }];
+        let mut out = [0u8; mib::plan::MAX_IMAGE_LEN];
+        let n = mmic_plan::image::emit(1, id, &steps, &mut out).unwrap();
+        let img = &out[..n];
+        let p = &mut r.o.plan.plan;
+        p.load(0, img).unwrap();
+        let crc = u32::from_be_bytes(img[n - 4..].try_into().unwrap());
+        p.commit(n as u16, crc, |_| Ok(())).unwrap();
+        p.start(id).unwrap();
+    }
+
     // verifies: PLAN-TEAM-03
     #[test]
     fn a_running_on_board_plan_continues_through_a_ground_loss_hold_and_a_suspended_one_holds() {
@@ -1837,23 +1856,7 @@ mod tests {
         assert!(r.run_until(120_000, |r| r.o.modes.root() == robot_mode::OPERATIONAL
             && r.o.transition.is_none()));
         // A running on-board plan (its state as PLAN_START leaves it).
-        let img = {
-            let steps = [mmic_plan::StepRepr {
-                index: 0,
-                confirmed: false,
-                timeout_s: 10,
-                deps: heapless::Vec::new(),
-                kind: mmic_plan::StepKind::Wait { ms: 60_000 },
-            }];
-            let mut out = [0u8; mib::plan::MAX_IMAGE_LEN];
-            let n = mmic_plan::image::emit(1, 7, &steps, &mut out).unwrap();
-            out[..n].to_vec()
-        };
-        let p = &mut r.o.plan.plan;
-        p.load(0, &img).unwrap();
-        let crc = u32::from_be_bytes(img[img.len() - 4..].try_into().unwrap());
-        p.commit(img.len() as u16, crc, |_| Ok(())).unwrap();
-        p.start(7).unwrap();
+        start_onboard_wait(&mut r, 7, 60_000, 10);
         // A hold (the robot's own for ground loss, or a leader's): the plan runs on, the
         // robot stays operational.
         let mut s = Vec::new();
@@ -1894,23 +1897,7 @@ mod tests {
         assert!(r.run_until(120_000, |r| r.o.modes.root() == robot_mode::OPERATIONAL
             && r.o.transition.is_none()));
         // An on-board plan the ground started: one long wait, well within its timeout.
-        let img = {
-            let steps = [mmic_plan::StepRepr {
-                index: 0,
-                confirmed: false,
-                timeout_s: 600,
-                deps: heapless::Vec::new(),
-                kind: mmic_plan::StepKind::Wait { ms: 300_000 },
-            }];
-            let mut out = [0u8; mib::plan::MAX_IMAGE_LEN];
-            let n = mmic_plan::image::emit(1, 9, &steps, &mut out).unwrap();
-            out[..n].to_vec()
-        };
-        let p = &mut r.o.plan.plan;
-        p.load(0, &img).unwrap();
-        let crc = u32::from_be_bytes(img[img.len() - 4..].try_into().unwrap());
-        p.commit(img.len() as u16, crc, |_| Ok(())).unwrap();
-        p.start(9).unwrap();
+        start_onboard_wait(&mut r, 9, 300_000, 600);
         // The ground goes away: the plan runs on and the robot stays operational.
         assert!(r.run_until(8_000, |r| !r.o.team.node().unwrap().ground_seen()));
         r.run_until(500, |_| false);
