@@ -110,7 +110,15 @@ fn run(args: &Args) -> Result<bool> {
     }
 
     let bins = tests_run::build_and_list(&root, &pkgs, &env)?;
-    let run = tests_run::run_all(&root, &pkgs, &env, !args.fast, !args.quiet, &out_dir.join("tests.log"))?;
+    let run = tests_run::run_all(
+        &root,
+        &pkgs,
+        &bins,
+        &env,
+        !args.fast,
+        !args.quiet,
+        &out_dir.join("tests.log"),
+    )?;
     let tr = trace::trace(&pkgs, &bins, &reqfile.requirements, tests_run::exe_name);
 
     // --- results per test

@@ -50,6 +50,16 @@ pub struct RunResult {
     pub seconds: f64,
 }
 
+impl RunResult {
+    /// Adds another group's results (the groups' binaries are disjoint).
+    fn merge(&mut self, other: RunResult) {
+        self.outcomes.extend(other.outcomes);
+        self.outputs.extend(other.outputs);
+        self.doc_tests.extend(other.doc_tests);
+        self.exit_ok &= other.exit_ok;
+    }
+}
+
 pub fn workspace_packages(root: &Path) -> Result<Vec<Package>> {
     let out = Command::new("cargo")
         .args(["metadata", "--no-deps", "--format-version", "1"])
@@ -172,19 +182,148 @@ pub fn exe_name(b: &Binary) -> String {
     exe_key(&b.exe.to_string_lossy())
 }
 
-/// One `cargo test --workspace --no-fail-fast` run; output is echoed (when `echo`) and
-/// written to `log`.
+/// The package whose tests run beside the others': the end-to-end suites, which mostly wait
+/// on sockets, relays and child processes.
+const E2E_PACKAGE: &str = "e2e-tests";
+
+/// Every test of the workspace once, in two groups at the same time: the end-to-end
+/// package's test executables (built by `build_and_list`, run directly one after the other)
+/// and `cargo test --workspace --exclude e2e-tests --no-fail-fast` for the rest (the same
+/// feature resolution as the `--workspace` build, so nothing is rebuilt; `-p e2e-tests`
+/// would resolve features anew and rebuild 34 units). libtest runs the tests of one
+/// executable in parallel either way. `REVIEW_TEST_GROUPS=1` runs the groups one after the
+/// other. Output is echoed (when `echo`, each line tagged with its group) and written to
+/// `log`, group after group.
 pub fn run_all(
     root: &Path,
     pkgs: &[Package],
+    bins: &[Binary],
     env: &[(String, String)],
     show_output: bool,
     echo: bool,
     log: &Path,
 ) -> Result<RunResult> {
-    eprintln!("== review: running every test once (cargo test --workspace --no-fail-fast)");
+    let together = std::env::var("REVIEW_TEST_GROUPS").map_or(true, |v| v.trim() != "1");
+    let e2e: Vec<&Binary> = bins.iter().filter(|b| b.package == E2E_PACKAGE).collect();
+    eprintln!(
+        "== review: running every test once: {} {E2E_PACKAGE} executables | cargo test --workspace --exclude {E2E_PACKAGE} --no-fail-fast ({})",
+        e2e.len(),
+        if together { "at the same time" } else { "one after the other" },
+    );
     let start = std::time::Instant::now();
-    let mut cmd = String::from("exec cargo test --workspace --no-fail-fast");
+    let e2e_group = || run_executables(pkgs, &e2e, env, show_output, echo.then_some("e2e"));
+    let rest_group = || {
+        let args = ["--workspace", "--exclude", E2E_PACKAGE];
+        run_cargo_test(root, pkgs, &args, env, show_output, echo.then_some("workspace"))
+    };
+    let runs: [Result<Group>; 2] = if together {
+        std::thread::scope(|s| {
+            let a = s.spawn(e2e_group);
+            let b = rest_group();
+            [
+                a.join()
+                    .unwrap_or_else(|_| Err(anyhow::anyhow!("the e2e group's runner panicked"))),
+                b,
+            ]
+        })
+    } else {
+        [e2e_group(), rest_group()]
+    };
+    let mut logf = std::fs::File::create(log)?;
+    let mut res = RunResult {
+        exit_ok: true,
+        ..RunResult::default()
+    };
+    for run in runs {
+        let (r, lines) = run?;
+        for line in lines {
+            writeln!(logf, "{line}")?;
+        }
+        res.merge(r);
+    }
+    res.seconds = start.elapsed().as_secs_f64();
+    Ok(res)
+}
+
+/// A group's result and its output lines.
+type Group = (RunResult, Vec<String>);
+
+/// Feeds each output line to the parser, keeps it, and echoes it with the group's tag.
+struct GroupOutput<'a> {
+    parser: LibtestParser<'a>,
+    lines: Vec<String>,
+    echo_tag: Option<&'a str>,
+}
+
+impl<'a> GroupOutput<'a> {
+    fn line(&mut self, line: String) {
+        if let Some(tag) = self.echo_tag {
+            println!("[{tag}] {line}");
+        }
+        self.parser.feed(&line);
+        self.lines.push(line);
+    }
+
+    fn read(&mut self, out: impl std::io::Read) {
+        for line in BufReader::new(out).lines() {
+            self.line(line.unwrap_or_default());
+        }
+    }
+}
+
+/// Test executables run directly, one after the other, each in its package's directory (as
+/// cargo runs them), introduced by the header line cargo would print.
+fn run_executables(
+    pkgs: &[Package],
+    bins: &[&Binary],
+    env: &[(String, String)],
+    show_output: bool,
+    echo_tag: Option<&str>,
+) -> Result<Group> {
+    let mut out = GroupOutput {
+        parser: LibtestParser::new(pkgs),
+        lines: Vec::new(),
+        echo_tag,
+    };
+    let mut ok = true;
+    for b in bins {
+        let dir = pkgs
+            .iter()
+            .find(|p| p.name == b.package)
+            .map(|p| p.dir.clone())
+            .unwrap_or_default();
+        let src = b.src_path.strip_prefix(&dir).unwrap_or(&b.src_path);
+        out.line(format!("     Running {} ({})", src.display(), b.exe.display()));
+        // stdout and stderr in one stream, as under cargo test.
+        let mut cmd = Command::new("sh");
+        cmd.args(["-c", "exec \"$0\" \"$@\" 2>&1"]).arg(&b.exe);
+        if show_output {
+            cmd.arg("--show-output");
+        }
+        let mut child = cmd
+            .envs(env.iter().map(|(k, v)| (k, v)))
+            .current_dir(&dir)
+            .stdout(Stdio::piped())
+            .spawn()
+            .with_context(|| format!("running {}", b.exe.display()))?;
+        out.read(child.stdout.take().context("stdout")?);
+        ok &= child.wait()?.success();
+    }
+    let mut res = out.parser.finish();
+    res.exit_ok = ok;
+    Ok((res, out.lines))
+}
+
+/// One `cargo test ARGS --no-fail-fast`, parsed.
+fn run_cargo_test(
+    root: &Path,
+    pkgs: &[Package],
+    args: &[&str],
+    env: &[(String, String)],
+    show_output: bool,
+    echo_tag: Option<&str>,
+) -> Result<Group> {
+    let mut cmd = format!("exec cargo test {} --no-fail-fast", args.join(" "));
     if show_output {
         cmd.push_str(" -- --show-output");
     }
@@ -196,22 +335,16 @@ pub fn run_all(
         .current_dir(root)
         .stdout(Stdio::piped())
         .spawn()
-        .context("cargo test")?;
-    let stdout = child.stdout.take().context("stdout")?;
-    let mut logf = std::fs::File::create(log)?;
-    let mut parser = LibtestParser::new(pkgs);
-    for line in BufReader::new(stdout).lines() {
-        let line = line.unwrap_or_default();
-        writeln!(logf, "{line}")?;
-        if echo {
-            println!("{line}");
-        }
-        parser.feed(&line);
-    }
-    let mut res = parser.finish();
+        .with_context(|| format!("cargo test {}", args.join(" ")))?;
+    let mut out = GroupOutput {
+        parser: LibtestParser::new(pkgs),
+        lines: Vec::new(),
+        echo_tag,
+    };
+    out.read(child.stdout.take().context("stdout")?);
+    let mut res = out.parser.finish();
     res.exit_ok = child.wait()?.success();
-    res.seconds = start.elapsed().as_secs_f64();
-    Ok(res)
+    Ok((res, out.lines))
 }
 
 /// Parses `cargo test`'s merged stdout/stderr line by line.
@@ -361,6 +494,47 @@ test mib/src/lib.rs - codec (line 3) ... ok
                 Outcome::Passed
             )]
         );
+    }
+
+    // verifies: REV-TRACE-02
+    #[test]
+    fn executables_run_directly_are_parsed_as_under_cargo_with_their_stderr_and_status() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = std::env::temp_dir().join(format!("xtask-run-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("deps")).unwrap();
+        let exe = dir.join("deps").join("team_e2e-0f0f");
+        std::fs::write(
+            &exe,
+            "#!/bin/sh\necho \"running 2 tests ($PWD) $1\"\necho 'test a ... ok'\necho 'test b ... FAILED'\necho 'panicked: boom' >&2\nexit 101\n",
+        )
+        .unwrap();
+        std::fs::set_permissions(&exe, std::fs::Permissions::from_mode(0o755)).unwrap();
+        let pkgs = [Package {
+            name: E2E_PACKAGE.into(),
+            id: "e".into(),
+            dir: dir.clone(),
+            lib_names: vec![],
+        }];
+        let bin = Binary {
+            package: E2E_PACKAGE.into(),
+            kind: "test".into(),
+            target: "team_e2e".into(),
+            src_path: dir.join("tests/team_e2e.rs"),
+            exe: exe.clone(),
+            tests: vec!["a".into(), "b".into()],
+        };
+        let (r, lines) = run_executables(&pkgs, &[&bin], &[], true, None).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+        assert_eq!(r.outcomes["team_e2e-0f0f"]["a"], Outcome::Passed);
+        assert_eq!(r.outcomes["team_e2e-0f0f"]["b"], Outcome::Failed);
+        assert!(!r.exit_ok, "a failing executable fails the group");
+        assert_eq!(lines[0], format!("     Running tests/team_e2e.rs ({})", exe.display()));
+        assert!(
+            lines[1].contains(&format!("({}) --show-output", dir.display())),
+            "{}",
+            lines[1]
+        );
+        assert!(lines.iter().any(|l| l == "panicked: boom"), "stderr is kept");
     }
 
     // verifies: REV-TRACE-02
