@@ -454,7 +454,7 @@ impl<S: TmStore> Obsw<S> {
     pub(crate) fn modules_tick(&mut self, now: u64, sink: &mut impl TmSink) {
         let Some(p) = self.modules.pending.as_ref() else { return };
         let mut b_table = [0u8; MAX_TABLE_LEN];
-        let b = match self.ctrl.board_b_modules() {
+        let b = match self.robot.ctrl.board_b_modules() {
             Some((t, probes)) => {
                 let n = t.len().min(MAX_TABLE_LEN);
                 b_table[..n].copy_from_slice(&t[..n]);
@@ -465,7 +465,7 @@ impl<S: TmStore> Obsw<S> {
                 // Ask again every MODULE_B_REQUEST_MS (frames lost on the line).
                 let due = (p.requests as u64 + 1) * mib::config::MODULE_B_REQUEST_MS as u64;
                 if now.saturating_sub(p.since) >= due {
-                    self.ctrl.request_board_b_modules();
+                    self.robot.ctrl.request_board_b_modules();
                     if let Some(p) = self.modules.pending.as_mut() {
                         p.requests += 1;
                     }
@@ -502,9 +502,9 @@ impl<S: TmStore> Obsw<S> {
         self.apply_calibration(cal);
         for (n, s) in MODULE_NODES {
             let absent = self.modules.absent(s);
-            self.modes.set_absent(n, absent);
+            self.robot.modes.set_absent(n, absent);
         }
-        self.apply_module_modes();
+        self.robot.apply_module_modes(&self.modules);
         self.modules.report(now, &mut self.dl, sink);
     }
 
@@ -514,10 +514,10 @@ impl<S: TmStore> Obsw<S> {
     /// arm A's and the hip's (they share the sensor), locomotion B = arm B's, grippers and
     /// bolters their own; operational and idle limits.
     pub fn apply_calibration(&mut self, cal: RobotCal) {
-        self.ctrl.set_calibration(cal);
+        self.robot.ctrl.set_calibration(cal);
         for (name, ma) in monitor_limits(&cal) {
             // The currents are in mA (CAL_AMP: 1 count = 1 mA).
-            if let Some(m) = self.monitoring.mons.iter_mut().find(|m| m.def.name == name) {
+            if let Some(m) = self.robot.monitoring.mons.iter_mut().find(|m| m.def.name == name) {
                 m.def.high = ma as i32;
             }
         }
@@ -725,7 +725,8 @@ mod tests {
     #[test]
     fn discovery_applies_the_module_sets_calibration_to_the_controller_and_the_monitors() {
         let limit = |o: &TestObsw, name: &str| {
-            o.monitoring
+            o.robot
+                .monitoring
                 .mons
                 .iter()
                 .find(|m| m.def.name == name)
@@ -743,7 +744,7 @@ mod tests {
         }
         // Before discovery: the compiled constants.
         let mut o = obsw();
-        assert_eq!(*o.ctrl.calibration(), RobotCal::COMPILED);
+        assert_eq!(*o.robot.ctrl.calibration(), RobotCal::COMPILED);
         assert_eq!(limit(&o, "I_GRIP_B_OPER"), 1500);
         // Gripper B revision 2 (boards on firmware 1.1), its descriptor "default": the
         // database's rev-2 values; arm A bench-calibrated; a stronger hip.
@@ -758,7 +759,7 @@ mod tests {
         set[slot::HIP as usize].as_mut().unwrap().cal.0[2] = 3500;
         let pkts = boot(&mut o, &set, None);
         assert!(events(&pkts, eid::CONFIG_INVALID).is_empty());
-        let c = *o.ctrl.calibration();
+        let c = *o.robot.ctrl.calibration();
         assert_eq!((c.side[1].grip_closed_us, c.side[1].grip_open_us), (1150, 1850));
         assert_eq!((c.side[0].grip_closed_us, c.side[0].grip_open_us), (1100, 1900));
         assert_eq!(limit(&o, "I_GRIP_B_OPER"), 1600);
@@ -852,12 +853,12 @@ mod tests {
         // The mode tree keeps the absent bolters OFF in every robot mode.
         use mib::modes::{module_mode, node};
         for m in [robot_mode::OPERATIONAL, robot_mode::SAFED, robot_mode::STANDBY] {
-            o.modes.command(m);
-            assert_eq!(o.modes.commanded(node::BOLTER_A), module_mode::OFF);
-            assert_eq!(o.modes.commanded(node::BOLTER_B), module_mode::OFF);
+            o.robot.modes.command(m);
+            assert_eq!(o.robot.modes.commanded(node::BOLTER_A), module_mode::OFF);
+            assert_eq!(o.robot.modes.commanded(node::BOLTER_B), module_mode::OFF);
         }
-        o.modes.command(robot_mode::OPERATIONAL);
-        assert_eq!(o.modes.commanded(node::ARM_A), module_mode::ON);
+        o.robot.modes.command(robot_mode::OPERATIONAL);
+        assert_eq!(o.robot.modes.commanded(node::ARM_A), module_mode::ON);
     }
 
     // verifies: MOD-OBSW-06

@@ -1064,11 +1064,18 @@ impl<S: TmStore> Obsw<S> {
         };
         // The running motion finishes first; STANDBY or SAFED is chosen when it has ended
         // (mid-motion no gripper pair holds, so choosing now would always say SAFED).
-        if self.running.is_some() {
+        if self.robot.running.is_some() {
             self.team.hold_after_run = true;
-        } else if self.modes.root_target() != target {
+        } else if self.robot.modes.root_target() != target {
             self.set_mode(now, target, eid::GROUND_LOST, sink);
         }
+    }
+
+    /// The node's decision to change the robot's mode (a hold, or back to OPERATIONAL for
+    /// a step), with the event that caused it.
+    fn set_mode(&mut self, now: u64, target: u32, cause: u16, sink: &mut impl TmSink) {
+        let (robot, mut p) = self.robot(sink);
+        robot.set_mode(now, target, cause, &mut p);
     }
 
     fn hold_target(&self) -> u32 {
@@ -1109,10 +1116,11 @@ impl<S: TmStore> Obsw<S> {
             return Err(StepRefusal::Forbidden);
         };
         let plan = self.team.count_step(link)?;
-        match self.function_request(now, crate::services::function::Request::Start(action), sink) {
+        let (robot, mut p) = self.robot(sink);
+        match robot.function_request(now, crate::services::function::Request::Start(action), &mut p) {
             Ok(Exec::Action(r)) => {
-                self.running = Some(r.with_token(None));
-                self.team.step_running = Some((s.step, self.faults.count));
+                self.robot.running = Some(r.with_token(None));
+                self.team.step_running = Some((s.step, self.robot.faults.count));
                 let leader = self.team.node.as_ref().and_then(Node::leader).unwrap_or(0);
                 let e = ev::PlanStepExecuted {
                     plan,
@@ -1126,7 +1134,8 @@ impl<S: TmStore> Obsw<S> {
             Ok(_) => Err(StepRefusal::Refused),
             Err(refused) => {
                 if let Some(e) = refused.fault {
-                    self.raise_fault(now, e, sink);
+                    let (robot, mut p) = self.robot(sink);
+                    robot.raise_fault(now, e, &mut p);
                 }
                 Err(StepRefusal::Refused)
             }
@@ -1137,9 +1146,9 @@ impl<S: TmStore> Obsw<S> {
     /// learns the progress; after the last authorised step the robot holds).
     fn team_steps(&mut self, now: u64, link: &mut impl TeamLink, sink: &mut impl TmSink) {
         if let Some((_, faults)) = self.team.step_running {
-            if self.running.is_none() {
+            if self.robot.running.is_none() {
                 self.team.step_running = None;
-                let ok = self.faults.count == faults && self.modes.root() == robot_mode::OPERATIONAL;
+                let ok = self.robot.faults.count == faults && self.robot.modes.root() == robot_mode::OPERATIONAL;
                 if ok {
                     self.team.progress_dirty = true;
                     if self.team.next_step().is_none() {
@@ -1149,16 +1158,16 @@ impl<S: TmStore> Obsw<S> {
                 }
             }
         }
-        if self.team.hold_after_run && self.running.is_none() {
+        if self.team.hold_after_run && self.robot.running.is_none() {
             self.team.hold_after_run = false;
             // Unless the ground is back (it commands again) or the FDIR or a command
             // already chose the mode.
             let ground = self.team.ground_tc || self.team.node.as_ref().is_none_or(Node::ground_seen);
             if !ground
-                && self.transition.is_none()
-                && self.modes.root() == robot_mode::OPERATIONAL
-                && self.modes.root_target() == robot_mode::OPERATIONAL
-                && self.faults.pending_mode.is_none()
+                && self.robot.transition.is_none()
+                && self.robot.modes.root() == robot_mode::OPERATIONAL
+                && self.robot.modes.root_target() == robot_mode::OPERATIONAL
+                && self.robot.faults.pending_mode.is_none()
             {
                 let target = self.hold_target();
                 self.set_mode(now, target, eid::GROUND_LOST, sink);
@@ -1174,7 +1183,7 @@ impl<S: TmStore> Obsw<S> {
                 self.team.step_pending = None;
                 self.team
                     .step_refused(now, plan, step, StepRefusal::Refused, &mut self.dl, sink);
-            } else if up && self.modes.root_target() != robot_mode::OPERATIONAL {
+            } else if up && self.robot.modes.root_target() != robot_mode::OPERATIONAL {
                 // The FDIR took over on the way up.
                 self.team.step_pending = None;
                 self.team
@@ -1183,8 +1192,8 @@ impl<S: TmStore> Obsw<S> {
                 self.team.step_pending = None;
                 self.team
                     .step_refused(now, plan, step, StepRefusal::NotAuthorised, &mut self.dl, sink);
-            } else if self.transition.is_none() && self.running.is_none() {
-                let root = self.modes.root();
+            } else if self.robot.transition.is_none() && self.robot.running.is_none() {
+                let root = self.robot.modes.root();
                 if root == robot_mode::STANDBY && !up && self.computed_state() != mib::robot::STATE_UNKNOWN {
                     // Holding in STANDBY: back to OPERATIONAL first (the step's state is
                     // checked again when it starts).
@@ -1200,7 +1209,7 @@ impl<S: TmStore> Obsw<S> {
                     if let Err(why) = started {
                         self.team.step_refused(now, plan, step, why, &mut self.dl, sink);
                         let target = self.hold_target();
-                        if self.modes.root_target() != target {
+                        if self.robot.modes.root_target() != target {
                             self.set_mode(now, target, eid::GROUND_LOST, sink);
                         }
                     }
@@ -1310,7 +1319,7 @@ mod tests {
             let elected = events(s, eid::LEADER_ELECTED);
             assert!(!elected.is_empty(), "robot {} knows a leader", i + 1);
             // The robot holds: no computed state in a fresh controller, so SAFED.
-            assert_eq!(team[i].modes.root_target(), robot_mode::SAFED);
+            assert_eq!(team[i].robot.modes.root_target(), robot_mode::SAFED);
             assert!(!of(s, 211, 2).is_empty(), "status reports");
         }
         let leaders: Vec<u8> = team
@@ -1718,7 +1727,7 @@ mod tests {
         );
         assert!(events(&s, eid::PLAN_STEP_EXECUTED).is_empty());
         assert_eq!(o.team.record().plan.unwrap().done, 0, "nothing counted");
-        assert_eq!(o.modes.root_target(), robot_mode::SAFED, "the robot holds");
+        assert_eq!(o.robot.modes.root_target(), robot_mode::SAFED, "the robot holds");
     }
 
     /// One robot with the simulator, one control period at a time (as the host runs it).
@@ -1787,37 +1796,43 @@ mod tests {
                 "MODE_SET",
                 &[mib::modes::node::ROBOT as i64, robot_mode::OPERATIONAL as i64, 0],
             );
-            assert!(r.run_until(120_000, |r| r.o.modes.root() == robot_mode::OPERATIONAL
-                && r.o.transition.is_none()));
+            assert!(
+                r.run_until(120_000, |r| r.o.robot.modes.root() == robot_mode::OPERATIONAL
+                    && r.o.robot.transition.is_none())
+            );
             r.send("RECONFIGURE", &[0, 1]);
-            assert!(r.o.running.is_some(), "the motion runs");
+            assert!(r.o.robot.running.is_some(), "the motion runs");
             // A hold (the leader's, or the robot's own) arrives mid-motion, when no gripper
             // pair holds (the node would say SAFED).
             let mut s = Vec::new();
             r.o.team_act(r.now, Action::Hold(HoldTarget::Safed), &mut r.link, &mut s);
-            assert_eq!(r.o.modes.root_target(), robot_mode::OPERATIONAL, "not while it moves");
+            assert_eq!(
+                r.o.robot.modes.root_target(),
+                robot_mode::OPERATIONAL,
+                "not while it moves"
+            );
             if ground_returns {
                 // The ground is back during the motion (a PING every second).
-                while r.o.running.is_some() && r.now < 120_000 {
+                while r.o.robot.running.is_some() && r.now < 120_000 {
                     r.send("PING", &[]);
-                    r.run_until(1_000, |r| r.o.running.is_none());
+                    r.run_until(1_000, |r| r.o.robot.running.is_none());
                 }
                 r.run_until(500, |_| false);
                 assert!(r.o.team.node().unwrap().ground_seen());
                 assert_eq!(
-                    r.o.modes.root_target(),
+                    r.o.robot.modes.root_target(),
                     robot_mode::OPERATIONAL,
                     "the ground commands again: no deferred hold"
                 );
             } else {
                 // The ground stays away: the robot also raises GROUND_LOST mid-motion.
-                assert!(r.run_until(120_000, |r| r.o.running.is_none()), "the motion ends");
+                assert!(r.run_until(120_000, |r| r.o.robot.running.is_none()), "the motion ends");
                 r.run_until(50, |_| false);
                 assert!(!r.o.team.node().unwrap().ground_seen());
                 assert!(!events(&r.log, eid::GROUND_LOST).is_empty());
                 assert_eq!(r.o.computed_state(), 1, "the reconfiguration reached state 1");
                 assert_eq!(
-                    r.o.modes.root_target(),
+                    r.o.robot.modes.root_target(),
                     robot_mode::STANDBY,
                     "both grippers hold at the end: STANDBY, not SAFED"
                 );
@@ -1853,8 +1868,10 @@ mod tests {
             "MODE_SET",
             &[mib::modes::node::ROBOT as i64, robot_mode::OPERATIONAL as i64, 0],
         );
-        assert!(r.run_until(120_000, |r| r.o.modes.root() == robot_mode::OPERATIONAL
-            && r.o.transition.is_none()));
+        assert!(
+            r.run_until(120_000, |r| r.o.robot.modes.root() == robot_mode::OPERATIONAL
+                && r.o.robot.transition.is_none())
+        );
         // A running on-board plan (its state as PLAN_START leaves it).
         start_onboard_wait(&mut r, 7, 60_000, 10);
         // A hold (the robot's own for ground loss, or a leader's): the plan runs on, the
@@ -1862,12 +1879,12 @@ mod tests {
         let mut s = Vec::new();
         r.o.team_act(r.now, Action::Hold(HoldTarget::Standby), &mut r.link, &mut s);
         r.run_until(1_000, |_| false);
-        assert_eq!(r.o.modes.root_target(), robot_mode::OPERATIONAL);
+        assert_eq!(r.o.robot.modes.root_target(), robot_mode::OPERATIONAL);
         assert_eq!(r.o.plan.plan.state(), mmic_plan::State::Running);
         // Suspended, it is no longer running: the team's hold applies as to an idle robot.
         r.o.plan.plan.suspend().unwrap();
         r.o.team_act(r.now, Action::Hold(HoldTarget::Standby), &mut r.link, &mut s);
-        assert_eq!(r.o.modes.root_target(), robot_mode::STANDBY);
+        assert_eq!(r.o.robot.modes.root_target(), robot_mode::STANDBY);
     }
 
     // verifies: PLAN-TEAM-03
@@ -1894,15 +1911,17 @@ mod tests {
             "MODE_SET",
             &[mib::modes::node::ROBOT as i64, robot_mode::OPERATIONAL as i64, 0],
         );
-        assert!(r.run_until(120_000, |r| r.o.modes.root() == robot_mode::OPERATIONAL
-            && r.o.transition.is_none()));
+        assert!(
+            r.run_until(120_000, |r| r.o.robot.modes.root() == robot_mode::OPERATIONAL
+                && r.o.robot.transition.is_none())
+        );
         // An on-board plan the ground started: one long wait, well within its timeout.
         start_onboard_wait(&mut r, 9, 300_000, 600);
         // The ground goes away: the plan runs on and the robot stays operational.
         assert!(r.run_until(8_000, |r| !r.o.team.node().unwrap().ground_seen()));
         r.run_until(500, |_| false);
         assert_eq!(r.o.plan.plan.state(), mmic_plan::State::Running);
-        assert_eq!(r.o.modes.root(), robot_mode::OPERATIONAL);
+        assert_eq!(r.o.robot.modes.root(), robot_mode::OPERATIONAL);
         assert_eq!(r.o.computed_state(), STEPS[0].initial_state);
         let step1 = Action::Continue {
             plan: PlanRef { id: 7, hash },
@@ -1918,7 +1937,7 @@ mod tests {
         assert!(r.o.team.step_pending.is_none());
         r.run_until(2_000, |_| false);
         assert!(events(&r.log, eid::PLAN_STEP_EXECUTED).is_empty());
-        assert!(r.o.running.is_none(), "no motion");
+        assert!(r.o.robot.running.is_none(), "no motion");
         assert_eq!(r.o.team.record().plan.unwrap().done, 0, "nothing counted");
         assert_eq!(r.o.plan.plan.state(), mmic_plan::State::Running);
         // Suspended, the plan no longer runs: the same CONTINUE is the leader's to give.
@@ -1954,7 +1973,7 @@ mod tests {
             // The ground goes away: GROUND_LOST, the robot holds in STANDBY (state 0).
             assert!(r.run_until(8_000, |r| !r.o.team.node().unwrap().ground_seen()));
             r.run_until(2_000, |_| false);
-            assert_eq!(r.o.modes.root(), robot_mode::STANDBY);
+            assert_eq!(r.o.robot.modes.root(), robot_mode::STANDBY);
             assert_eq!(r.o.computed_state(), 0);
             r.link.fail_persist = fail;
             let plan = PlanRef { id: 7, hash };
@@ -1968,7 +1987,7 @@ mod tests {
             r.log.extend(s);
             // Back to OPERATIONAL (homing), then the step starts.
             r.run_until(120_000, |r| {
-                r.o.running.is_some() && r.o.team.step_running.is_some() || r.o.team.step_pending.is_none()
+                r.o.robot.running.is_some() && r.o.team.step_running.is_some() || r.o.team.step_pending.is_none()
             });
             if fail {
                 assert!(r.o.team.step_running.is_none(), "nothing moves without a durable count");
@@ -1983,7 +2002,7 @@ mod tests {
                 // The count was durable before the action started.
                 assert_eq!(r.link.records.last().unwrap().plan.as_ref().unwrap().done, 1);
                 // It ends in state 1; the node then knows progress 1 (next: step 2).
-                assert!(r.run_until(120_000, |r| r.o.running.is_none()));
+                assert!(r.run_until(120_000, |r| r.o.robot.running.is_none()));
                 r.run_until(50, |_| false);
                 assert_eq!(r.o.computed_state(), 1);
                 assert_eq!(r.o.team.plan.as_ref().unwrap().done, 1);
