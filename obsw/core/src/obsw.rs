@@ -4,7 +4,6 @@
 
 use mib::config;
 use mib::params::{pid, NotSupplied, Supplied};
-use mib::robot::STATE_UNKNOWN;
 use mib_wire::{ev, EventArgs};
 
 use mmic_domain::controller::TickOut;
@@ -291,7 +290,7 @@ impl<S: TmStore> Obsw<S> {
 
     /// Parameter value for the state estimate shown to tests and the host.
     pub fn computed_state(&self) -> u8 {
-        self.robot.ctrl.computed_state().unwrap_or(STATE_UNKNOWN)
+        self.robot.computed_state()
     }
 
     // ------------------------------------------------------------------ output
@@ -551,6 +550,29 @@ impl<S: TmStore> Obsw<S> {
             modules,
         };
         (robot, p)
+    }
+
+    /// The team with the robot and the ports (`services::team`: the team's join).
+    pub(crate) fn team<'a, K: TmSink>(&'a mut self, sink: &'a mut K) -> (&'a mut Team, &'a mut Robot, Ports<'a, S, K>) {
+        let Obsw {
+            team,
+            robot,
+            dl,
+            plan,
+            seen,
+            counters,
+            modules,
+            ..
+        } = self;
+        let p = Ports {
+            dl,
+            sink,
+            plan,
+            seen,
+            counters,
+            modules,
+        };
+        (team, robot, p)
     }
 
     // ------------------------------------------------------------------ periodic

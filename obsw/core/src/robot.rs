@@ -101,6 +101,12 @@ impl Robot {
         }
     }
 
+    /// The robot's configuration state as the controller computes it from the sensors
+    /// (`mib::robot::STATE_UNKNOWN` when it cannot).
+    pub fn computed_state(&self) -> u8 {
+        self.ctrl.computed_state().unwrap_or(mib::robot::STATE_UNKNOWN)
+    }
+
     /// The parameter sources the robot is (the rows of `crate::services::COMPONENTS` of its
     /// parts: the mode tree, FDIR's faults and monitors, the controller's two boards).
     pub const SOURCES: [Source; 5] = [

@@ -45,6 +45,7 @@ use crate::downlink::Downlink;
 use crate::failure::Failure;
 use crate::obsw::{Exec, Obsw};
 use crate::request::unknown;
+use crate::robot::{Ports, Robot};
 use crate::services::{Component, Contract};
 use crate::time::OnboardTime;
 use crate::tm::{TmSink, TmStore, TmWriter};
@@ -955,33 +956,11 @@ impl<S: TmStore> Obsw<S> {
     }
 
     /// Feeds pending ground contact, the grippers and the time to the node, executes its
-    /// effects and sends the periodic status report. Call after every TC and control
-    /// period. `rand` comes from the platform (election jitter).
+    /// effects and sends the periodic status report (`Team::poll`). Call after every TC
+    /// and control period. `rand` comes from the platform (election jitter).
     pub fn team_poll(&mut self, now: u64, rand: u32, link: &mut impl TeamLink, sink: &mut impl TmSink) {
-        if self.team.node.is_none() {
-            self.team.ground_tc = false;
-            return;
-        }
-        self.team.persist_changes(link);
-        if core::mem::take(&mut self.team.ground_tc) {
-            self.team_input(now, rand, Input::GroundTc, link, sink);
-        }
-        self.team_steps(now, link, sink);
-        if core::mem::take(&mut self.team.progress_dirty) {
-            if let Some(p) = self.team.progress_input() {
-                self.team_input(now, rand, p, link, sink);
-            }
-        }
-        let both_hold = self.computed_state() != mib::robot::STATE_UNKNOWN;
-        if self.team.both_hold != Some(both_hold) {
-            self.team.both_hold = Some(both_hold);
-            self.team_input(now, rand, Input::Grippers { both_hold }, link, sink);
-        }
-        self.team_input(now, rand, Input::Tick, link, sink);
-        if now >= self.team.next_status {
-            self.team.next_status = now + STATUS_PERIOD_MS;
-            self.team.status(now, &mut self.dl, sink);
-        }
+        let (team, robot, mut p) = self.team(sink);
+        team.poll(now, rand, robot, link, &mut p);
     }
 
     /// A packet from the inter-robot link: a TM[211,1] of APID `TEAM_APID` whose source
@@ -997,13 +976,8 @@ impl<S: TmStore> Obsw<S> {
         link: &mut impl TeamLink,
         sink: &mut impl TmSink,
     ) {
-        match self.team.packet(from, packet) {
-            Packet::Progress(source) => {
-                self.plan.plan.peer_progress(from, source);
-            }
-            Packet::Message(m) => self.team_input(now, rand, Input::Message(m), link, sink),
-            Packet::Refused(reason, sender) => self.team_rejected(now, reason, sender, sink),
-        }
+        let (team, robot, mut p) = self.team(sink);
+        team.on_packet(now, rand, from, packet, robot, link, &mut p);
     }
 
     /// Runs a TC the obsw released itself (PUS 11 schedule): it is not ground contact.
@@ -1012,40 +986,115 @@ impl<S: TmStore> Obsw<S> {
         self.handle_tc(now, raw, sink);
         self.team.ground_tc = pending;
     }
+}
 
-    fn team_input(&mut self, now: u64, rand: u32, input: Input, link: &mut impl TeamLink, sink: &mut impl TmSink) {
-        let Some(node) = self.team.node.as_mut() else { return };
+/// The team's join with the robot: the node's decisions (hold, continue a step) on the
+/// robot's modes and actions, and ground contact from the TC path. The robot and the rest
+/// of the obsw come as ports for one call (`crate::robot::Ports`: the plan, the downlink).
+impl Team {
+    /// Feeds pending ground contact, the grippers and the time to the node, executes its
+    /// effects and sends the periodic status report.
+    pub(crate) fn poll<S: TmStore, K: TmSink>(
+        &mut self,
+        now: u64,
+        rand: u32,
+        robot: &mut Robot,
+        link: &mut impl TeamLink,
+        p: &mut Ports<S, K>,
+    ) {
+        if self.node.is_none() {
+            self.ground_tc = false;
+            return;
+        }
+        self.persist_changes(link);
+        if core::mem::take(&mut self.ground_tc) {
+            self.input(now, rand, Input::GroundTc, robot, link, p);
+        }
+        self.steps(now, robot, link, p);
+        if core::mem::take(&mut self.progress_dirty) {
+            if let Some(progress) = self.progress_input() {
+                self.input(now, rand, progress, robot, link, p);
+            }
+        }
+        let both_hold = robot.computed_state() != mib::robot::STATE_UNKNOWN;
+        if self.both_hold != Some(both_hold) {
+            self.both_hold = Some(both_hold);
+            self.input(now, rand, Input::Grippers { both_hold }, robot, link, p);
+        }
+        self.input(now, rand, Input::Tick, robot, link, p);
+        if now >= self.next_status {
+            self.next_status = now + STATUS_PERIOD_MS;
+            self.status(now, p.dl, p.sink);
+        }
+    }
+
+    /// A packet from the inter-robot link ([`Obsw::team_packet`]).
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn on_packet<S: TmStore, K: TmSink>(
+        &mut self,
+        now: u64,
+        rand: u32,
+        from: Option<u8>,
+        packet: &[u8],
+        robot: &mut Robot,
+        link: &mut impl TeamLink,
+        p: &mut Ports<S, K>,
+    ) {
+        match self.packet(from, packet) {
+            Packet::Progress(source) => {
+                p.plan.plan.peer_progress(from, source);
+            }
+            Packet::Message(m) => self.input(now, rand, Input::Message(m), robot, link, p),
+            Packet::Refused(reason, sender) => self.rejected(now, reason, sender, p.dl, p.sink),
+        }
+    }
+
+    fn input<S: TmStore, K: TmSink>(
+        &mut self,
+        now: u64,
+        rand: u32,
+        input: Input,
+        robot: &mut Robot,
+        link: &mut impl TeamLink,
+        p: &mut Ports<S, K>,
+    ) {
+        let Some(node) = self.node.as_mut() else { return };
         let effects = node.on_event(now, rand, input);
         for (i, e) in effects.iter().enumerate() {
             match *e {
-                Effect::Persist(p) => {
-                    if !self.team.persist(now, p, effects.len() - i - 1, link) {
+                Effect::Persist(record) => {
+                    if !self.persist(now, record, effects.len() - i - 1, link) {
                         return;
                     }
                 }
-                Effect::Send { to, msg } => self.team.send(now, to, &msg, link),
-                Effect::Act(a) => self.team_act(now, a, link, sink),
-                Effect::Event(ev) => self.team.event(now, ev, &mut self.dl, sink),
+                Effect::Send { to, msg } => self.send(now, to, &msg, link),
+                Effect::Act(a) => self.act(now, a, robot, link, p),
+                Effect::Event(ev) => self.event(now, ev, p.dl, p.sink),
             }
         }
     }
 
-    fn team_act(&mut self, now: u64, a: Action, link: &mut impl TeamLink, sink: &mut impl TmSink) {
+    fn act<S: TmStore, K: TmSink>(
+        &mut self,
+        now: u64,
+        a: Action,
+        robot: &mut Robot,
+        link: &mut impl TeamLink,
+        p: &mut Ports<S, K>,
+    ) {
         if matches!(a, Action::Hold(_)) {
             // A hold cancels a step that has not started yet.
-            if let Some((step, _)) = self.team.step_pending.take() {
-                let plan = self.team.plan.as_ref().map_or(0, |p| p.id);
-                self.team
-                    .step_refused(now, plan, step, StepRefusal::Refused, &mut self.dl, sink);
+            if let Some((step, _)) = self.step_pending.take() {
+                let plan = self.plan.as_ref().map_or(0, |p| p.id);
+                self.step_refused(now, plan, step, StepRefusal::Refused, p.dl, p.sink);
             }
         }
-        if self.plan.plan.state() == mmic_plan::State::Running {
+        if p.plan.plan.state() == mmic_plan::State::Running {
             // An on-board plan the ground started is the ground's approval of its steps: a
             // hold for ground loss (the robot's own or a leader's) does not stop it, and a
             // leader's step never interleaves with it (FDIR still suspends it).
             if let Action::Continue { plan, step, .. } = a {
-                self.team
-                    .step_refused(now, plan.id, step, StepRefusal::Busy, &mut self.dl, sink);
+                self.step_refused(now, plan.id, step, StepRefusal::Busy, p.dl, p.sink);
             }
             return;
         }
@@ -1053,89 +1102,83 @@ impl<S: TmStore> Obsw<S> {
             Action::Hold(HoldTarget::Standby) => robot_mode::STANDBY,
             Action::Hold(HoldTarget::Safed) => robot_mode::SAFED,
             Action::Continue { plan, step, function } => {
-                match self.team_continue(now, plan, step, function, link, sink) {
+                match self.continue_step(now, plan, step, function, robot, link, p) {
                     Ok(()) => return,
                     Err(why) => {
-                        self.team.step_refused(now, plan.id, step, why, &mut self.dl, sink);
-                        self.hold_target()
+                        self.step_refused(now, plan.id, step, why, p.dl, p.sink);
+                        Self::hold_target(robot)
                     }
                 }
             }
         };
         // The running motion finishes first; STANDBY or SAFED is chosen when it has ended
         // (mid-motion no gripper pair holds, so choosing now would always say SAFED).
-        if self.robot.running.is_some() {
-            self.team.hold_after_run = true;
-        } else if self.robot.modes.root_target() != target {
-            self.set_mode(now, target, eid::GROUND_LOST, sink);
+        if robot.running.is_some() {
+            self.hold_after_run = true;
+        } else if robot.modes.root_target() != target {
+            robot.set_mode(now, target, eid::GROUND_LOST, p);
         }
     }
 
-    /// The node's decision to change the robot's mode (a hold, or back to OPERATIONAL for
-    /// a step), with the event that caused it.
-    fn set_mode(&mut self, now: u64, target: u32, cause: u16, sink: &mut impl TmSink) {
-        let (robot, mut p) = self.robot(sink);
-        robot.set_mode(now, target, cause, &mut p);
-    }
-
-    fn hold_target(&self) -> u32 {
-        if self.computed_state() != mib::robot::STATE_UNKNOWN {
+    fn hold_target(robot: &Robot) -> u32 {
+        if robot.computed_state() != mib::robot::STATE_UNKNOWN {
             robot_mode::STANDBY
         } else {
             robot_mode::SAFED
         }
     }
 
-    fn team_continue(
+    #[allow(clippy::too_many_arguments)]
+    fn continue_step<S: TmStore, K: TmSink>(
         &mut self,
         now: u64,
         plan: PlanRef,
         step: u16,
         function: TeamFunction,
+        robot: &mut Robot,
         link: &mut impl TeamLink,
-        sink: &mut impl TmSink,
+        p: &mut Ports<S, K>,
     ) -> Result<(), StepRefusal> {
-        self.team.accept_continue(now, plan, step, function)?;
-        self.team_steps(now, link, sink);
+        self.accept_continue(now, plan, step, function)?;
+        self.steps(now, robot, link, p);
         Ok(())
     }
 
     /// Starts plan step `s` (the next one, checked). The step is counted, durably, before
     /// it moves: a reset never lets a robot start more than the authorised count.
-    fn start_step(
+    fn start_step<S: TmStore, K: TmSink>(
         &mut self,
         now: u64,
         s: PlanStep,
+        robot: &mut Robot,
         link: &mut impl TeamLink,
-        sink: &mut impl TmSink,
+        p: &mut Ports<S, K>,
     ) -> Result<(), StepRefusal> {
-        if self.computed_state() != s.initial_state {
+        if robot.computed_state() != s.initial_state {
             return Err(StepRefusal::InitialState);
         }
         let Some((_, action)) = step_action(&s) else {
             return Err(StepRefusal::Forbidden);
         };
-        let plan = self.team.count_step(link)?;
-        let (robot, mut p) = self.robot(sink);
-        match robot.function_request(now, crate::services::function::Request::Start(action), &mut p) {
+        let plan = self.count_step(link)?;
+        match robot.function_request(now, crate::services::function::Request::Start(action), p) {
             Ok(Exec::Action(r)) => {
-                self.robot.running = Some(r.with_token(None));
-                self.team.step_running = Some((s.step, self.robot.faults.count));
-                let leader = self.team.node.as_ref().and_then(Node::leader).unwrap_or(0);
+                robot.running = Some(r.with_token(None));
+                self.step_running = Some((s.step, robot.faults.count));
+                let leader = self.node.as_ref().and_then(Node::leader).unwrap_or(0);
                 let e = ev::PlanStepExecuted {
                     plan,
                     step: s.step,
                     function: s.function,
                     leader,
                 };
-                self.raise(now, e, sink);
+                p.dl.raise(now, e, p.sink);
                 Ok(())
             }
             Ok(_) => Err(StepRefusal::Refused),
             Err(refused) => {
                 if let Some(e) = refused.fault {
-                    let (robot, mut p) = self.robot(sink);
-                    robot.raise_fault(now, e, &mut p);
+                    robot.raise_fault(now, e, p);
                 }
                 Err(StepRefusal::Refused)
             }
@@ -1144,73 +1187,76 @@ impl<S: TmStore> Obsw<S> {
 
     /// Runs a pending step once the robot is OPERATIONAL; ends a running step (the node
     /// learns the progress; after the last authorised step the robot holds).
-    fn team_steps(&mut self, now: u64, link: &mut impl TeamLink, sink: &mut impl TmSink) {
-        if let Some((_, faults)) = self.team.step_running {
-            if self.robot.running.is_none() {
-                self.team.step_running = None;
-                let ok = self.robot.faults.count == faults && self.robot.modes.root() == robot_mode::OPERATIONAL;
+    fn steps<S: TmStore, K: TmSink>(
+        &mut self,
+        now: u64,
+        robot: &mut Robot,
+        link: &mut impl TeamLink,
+        p: &mut Ports<S, K>,
+    ) {
+        if let Some((_, faults)) = self.step_running {
+            if robot.running.is_none() {
+                self.step_running = None;
+                let ok = robot.faults.count == faults && robot.modes.root() == robot_mode::OPERATIONAL;
                 if ok {
-                    self.team.progress_dirty = true;
-                    if self.team.next_step().is_none() {
+                    self.progress_dirty = true;
+                    if self.next_step().is_none() {
                         // The authorisation is used up: the robot holds.
-                        self.team.hold_after_run = true;
+                        self.hold_after_run = true;
                     }
                 }
             }
         }
-        if self.team.hold_after_run && self.robot.running.is_none() {
-            self.team.hold_after_run = false;
+        if self.hold_after_run && robot.running.is_none() {
+            self.hold_after_run = false;
             // Unless the ground is back (it commands again) or the FDIR or a command
             // already chose the mode.
-            let ground = self.team.ground_tc || self.team.node.as_ref().is_none_or(Node::ground_seen);
+            let ground = self.ground_tc || self.node.as_ref().is_none_or(Node::ground_seen);
             if !ground
-                && self.robot.transition.is_none()
-                && self.robot.modes.root() == robot_mode::OPERATIONAL
-                && self.robot.modes.root_target() == robot_mode::OPERATIONAL
-                && self.robot.faults.pending_mode.is_none()
+                && robot.transition.is_none()
+                && robot.modes.root() == robot_mode::OPERATIONAL
+                && robot.modes.root_target() == robot_mode::OPERATIONAL
+                && robot.faults.pending_mode.is_none()
             {
-                let target = self.hold_target();
-                self.set_mode(now, target, eid::GROUND_LOST, sink);
+                let target = Self::hold_target(robot);
+                robot.set_mode(now, target, eid::GROUND_LOST, p);
             }
         }
-        if let Some((step, up)) = self.team.step_pending {
-            let plan = self.team.plan.as_ref().map_or(0, |p| p.id);
-            let expired = self.team.auth.is_none_or(|a| now >= a.expires_at);
-            let ground = self.team.ground_tc || self.team.node.as_ref().is_none_or(Node::ground_seen);
+        if let Some((step, up)) = self.step_pending {
+            let plan = self.plan.as_ref().map_or(0, |p| p.id);
+            let expired = self.auth.is_none_or(|a| now >= a.expires_at);
+            let ground = self.ground_tc || self.node.as_ref().is_none_or(Node::ground_seen);
             if ground {
                 // The ground is back (or never left): its first valid TC ends obedience,
                 // a step that has not started yet never starts.
-                self.team.step_pending = None;
-                self.team
-                    .step_refused(now, plan, step, StepRefusal::Refused, &mut self.dl, sink);
-            } else if up && self.robot.modes.root_target() != robot_mode::OPERATIONAL {
+                self.step_pending = None;
+                self.step_refused(now, plan, step, StepRefusal::Refused, p.dl, p.sink);
+            } else if up && robot.modes.root_target() != robot_mode::OPERATIONAL {
                 // The FDIR took over on the way up.
-                self.team.step_pending = None;
-                self.team
-                    .step_refused(now, plan, step, StepRefusal::Refused, &mut self.dl, sink);
+                self.step_pending = None;
+                self.step_refused(now, plan, step, StepRefusal::Refused, p.dl, p.sink);
             } else if expired {
-                self.team.step_pending = None;
-                self.team
-                    .step_refused(now, plan, step, StepRefusal::NotAuthorised, &mut self.dl, sink);
-            } else if self.robot.transition.is_none() && self.robot.running.is_none() {
-                let root = self.robot.modes.root();
-                if root == robot_mode::STANDBY && !up && self.computed_state() != mib::robot::STATE_UNKNOWN {
+                self.step_pending = None;
+                self.step_refused(now, plan, step, StepRefusal::NotAuthorised, p.dl, p.sink);
+            } else if robot.transition.is_none() && robot.running.is_none() {
+                let root = robot.modes.root();
+                if root == robot_mode::STANDBY && !up && robot.computed_state() != mib::robot::STATE_UNKNOWN {
                     // Holding in STANDBY: back to OPERATIONAL first (the step's state is
                     // checked again when it starts).
-                    self.team.step_pending = Some((step, true));
-                    self.set_mode(now, robot_mode::OPERATIONAL, eid::PLAN_STEP_EXECUTED, sink);
+                    self.step_pending = Some((step, true));
+                    robot.set_mode(now, robot_mode::OPERATIONAL, eid::PLAN_STEP_EXECUTED, p);
                 } else {
-                    self.team.step_pending = None;
-                    let started = match (root, self.team.next_step()) {
-                        (robot_mode::OPERATIONAL, Some(s)) if s.step == step => self.start_step(now, s, link, sink),
+                    self.step_pending = None;
+                    let started = match (root, self.next_step()) {
+                        (robot_mode::OPERATIONAL, Some(s)) if s.step == step => self.start_step(now, s, robot, link, p),
                         (robot_mode::OPERATIONAL, _) => Err(StepRefusal::NotAuthorised),
                         _ => Err(StepRefusal::InitialState),
                     };
                     if let Err(why) = started {
-                        self.team.step_refused(now, plan, step, why, &mut self.dl, sink);
-                        let target = self.hold_target();
-                        if self.robot.modes.root_target() != target {
-                            self.set_mode(now, target, eid::GROUND_LOST, sink);
+                        self.step_refused(now, plan, step, why, p.dl, p.sink);
+                        let target = Self::hold_target(robot);
+                        if robot.modes.root_target() != target {
+                            robot.set_mode(now, target, eid::GROUND_LOST, p);
                         }
                     }
                 }
@@ -1227,6 +1273,13 @@ mod tests {
     use crate::obsw::Config;
     use crate::tm::RingStore;
     use std::vec::Vec;
+
+    /// The team's join acting on the node's decision `a` (what `Team::input` does with an
+    /// `Effect::Act`), with the obsw's robot and ports.
+    fn team_act(o: &mut TestObsw, now: u64, a: Action, link: &mut impl TeamLink, sink: &mut Vec<Vec<u8>>) {
+        let (team, robot, mut p) = o.team(sink);
+        team.act(now, a, robot, link, &mut p);
+    }
 
     /// A link that records persists and sends in order; `fail_persist` makes persists fail.
     #[derive(Default)]
@@ -1668,7 +1721,8 @@ mod tests {
         let mut link = RecordingLink::default();
         let f = TeamFunction::Reconfigure;
         // Before the upload: no plan.
-        o.team_act(
+        team_act(
+            &mut o,
             20,
             Action::Continue {
                 plan,
@@ -1681,7 +1735,8 @@ mod tests {
         step_tc(&mut o, 30, 3, 7, STEPS[0]);
         step_tc(&mut o, 30, 4, 7, STEPS[1]);
         // Step 2 before step 1: not the next step.
-        o.team_act(
+        team_act(
+            &mut o,
             40,
             Action::Continue {
                 plan,
@@ -1697,7 +1752,7 @@ mod tests {
             step: 1,
             function: f,
         };
-        o.team_act(50, step1, &mut link, &mut s);
+        team_act(&mut o, 50, step1, &mut link, &mut s);
         assert!(o.team.step_pending.is_none());
         // The ground falls silent: the robot holds (boot transition, default sensors: no
         // computed state, so SAFED); step 1 then waits until the robot is idle and is
@@ -1709,7 +1764,7 @@ mod tests {
             t += 10;
         }
         assert!(!o.team.node().unwrap().ground_seen());
-        o.team_act(t, step1, &mut link, &mut s);
+        team_act(&mut o, t, step1, &mut link, &mut s);
         while t < 9_000 && o.team.step_pending.is_some() {
             o.tick(t, &mmic_domain::SensorsA::default(), &[], &mut s);
             o.team_poll(t, 1, &mut link, &mut s);
@@ -1805,7 +1860,7 @@ mod tests {
             // A hold (the leader's, or the robot's own) arrives mid-motion, when no gripper
             // pair holds (the node would say SAFED).
             let mut s = Vec::new();
-            r.o.team_act(r.now, Action::Hold(HoldTarget::Safed), &mut r.link, &mut s);
+            team_act(&mut r.o, r.now, Action::Hold(HoldTarget::Safed), &mut r.link, &mut s);
             assert_eq!(
                 r.o.robot.modes.root_target(),
                 robot_mode::OPERATIONAL,
@@ -1877,13 +1932,13 @@ mod tests {
         // A hold (the robot's own for ground loss, or a leader's): the plan runs on, the
         // robot stays operational.
         let mut s = Vec::new();
-        r.o.team_act(r.now, Action::Hold(HoldTarget::Standby), &mut r.link, &mut s);
+        team_act(&mut r.o, r.now, Action::Hold(HoldTarget::Standby), &mut r.link, &mut s);
         r.run_until(1_000, |_| false);
         assert_eq!(r.o.robot.modes.root_target(), robot_mode::OPERATIONAL);
         assert_eq!(r.o.plan.plan.state(), mmic_plan::State::Running);
         // Suspended, it is no longer running: the team's hold applies as to an idle robot.
         r.o.plan.plan.suspend().unwrap();
-        r.o.team_act(r.now, Action::Hold(HoldTarget::Standby), &mut r.link, &mut s);
+        team_act(&mut r.o, r.now, Action::Hold(HoldTarget::Standby), &mut r.link, &mut s);
         assert_eq!(r.o.robot.modes.root_target(), robot_mode::STANDBY);
     }
 
@@ -1930,7 +1985,7 @@ mod tests {
         };
         // The leader's CONTINUE: refused BUSY, nothing pending, nothing counted or moved.
         let mut s = Vec::new();
-        r.o.team_act(r.now, step1, &mut r.link, &mut s);
+        team_act(&mut r.o, r.now, step1, &mut r.link, &mut s);
         r.log.extend(s);
         let refused: Vec<u8> = events(&r.log, eid::PLAN_STEP_REFUSED).iter().map(|p| p[4]).collect();
         assert_eq!(refused, [StepRefusal::Busy.code()]);
@@ -1943,7 +1998,7 @@ mod tests {
         // Suspended, the plan no longer runs: the same CONTINUE is the leader's to give.
         r.o.plan.plan.suspend().unwrap();
         let mut s = Vec::new();
-        r.o.team_act(r.now, step1, &mut r.link, &mut s);
+        team_act(&mut r.o, r.now, step1, &mut r.link, &mut s);
         r.log.extend(s);
         assert!(r.run_until(5_000, |r| !events(&r.log, eid::PLAN_STEP_EXECUTED).is_empty()));
         assert_eq!(events(&r.log, eid::PLAN_STEP_REFUSED).len(), 1, "refused once, before");
@@ -1983,7 +2038,7 @@ mod tests {
                 function: TeamFunction::Reconfigure,
             };
             let mut s = Vec::new();
-            r.o.team_act(r.now, step1, &mut r.link, &mut s);
+            team_act(&mut r.o, r.now, step1, &mut r.link, &mut s);
             r.log.extend(s);
             // Back to OPERATIONAL (homing), then the step starts.
             r.run_until(120_000, |r| {
@@ -2008,7 +2063,7 @@ mod tests {
                 assert_eq!(r.o.team.plan.as_ref().unwrap().done, 1);
                 // Step 1 again (a stale order): not the next step, refused.
                 let mut s = Vec::new();
-                r.o.team_act(r.now, step1, &mut r.link, &mut s);
+                team_act(&mut r.o, r.now, step1, &mut r.link, &mut s);
                 assert_eq!(events(&s, eid::PLAN_STEP_REFUSED).len(), 1);
             }
         }
