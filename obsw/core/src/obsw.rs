@@ -588,7 +588,7 @@ impl<S: TmStore> Obsw<S> {
         self.count_dropped(now, out.dropped, sink);
         let (robot, mut p) = self.robot(sink);
         robot.period_start(now, &out, &mut p);
-        self.modules_tick(now, sink);
+        self.modules.tick(now, &mut self.robot, &mut self.dl, sink);
         let (robot, mut p) = self.robot(sink);
         robot.period_end(now, &mut p);
         self.hk_tick(now, sink);

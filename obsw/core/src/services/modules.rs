@@ -35,6 +35,7 @@ use crate::downlink::Downlink;
 use crate::failure::Failure;
 use crate::obsw::Obsw;
 use crate::request::unknown;
+use crate::robot::Robot;
 use crate::services::{Component, Contract};
 use crate::tm::{TmSink, TmStore};
 
@@ -450,11 +451,47 @@ impl<S: TmStore> Obsw<S> {
         self.modules.pending.is_some()
     }
 
+    /// Runs discovery on what the platform read at boot (`b` = `None`: board B sent
+    /// nothing; `Modules::discover`).
+    pub fn discover_modules(
+        &mut self,
+        now: u64,
+        a: &BoardInput<'_>,
+        b: Option<&BoardInput<'_>>,
+        sink: &mut impl TmSink,
+    ) {
+        self.last_now = self.last_now.max(now);
+        self.modules.discover(now, a, b, &mut self.robot, &mut self.dl, sink);
+    }
+
+    /// Runs with `cal` from now on (`Robot::apply_calibration`).
+    pub fn apply_calibration(&mut self, cal: RobotCal) {
+        self.robot.apply_calibration(cal);
+    }
+
+    /// Raises CONFIG_STATE_LOST: the platform's store of the accepted configuration gave
+    /// nothing (missing, unreadable, corrupt; the robot then has nothing accepted) or an
+    /// acceptance could not be written.
+    pub fn config_state_lost(&mut self, now: u64, why: StateLost, sink: &mut impl TmSink) {
+        self.last_now = self.last_now.max(now);
+        self.raise(now, mib_wire::ev::ConfigStateLost { reason: why.code() }, sink);
+    }
+}
+
+/// Discovery's join with the robot: board B's half of the table from the controller, the
+/// calibration to the controller and the current monitors, absent modules to the mode tree.
+impl Modules {
     /// Runs a pending discovery when board B's half is in, or the wait is over.
-    pub(crate) fn modules_tick(&mut self, now: u64, sink: &mut impl TmSink) {
-        let Some(p) = self.modules.pending.as_ref() else { return };
+    pub(crate) fn tick<S: TmStore>(
+        &mut self,
+        now: u64,
+        robot: &mut Robot,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) {
+        let Some(p) = self.pending.as_ref() else { return };
         let mut b_table = [0u8; MAX_TABLE_LEN];
-        let b = match self.robot.ctrl.board_b_modules() {
+        let b = match robot.ctrl.board_b_modules() {
             Some((t, probes)) => {
                 let n = t.len().min(MAX_TABLE_LEN);
                 b_table[..n].copy_from_slice(&t[..n]);
@@ -465,15 +502,15 @@ impl<S: TmStore> Obsw<S> {
                 // Ask again every MODULE_B_REQUEST_MS (frames lost on the line).
                 let due = (p.requests as u64 + 1) * mib::config::MODULE_B_REQUEST_MS as u64;
                 if now.saturating_sub(p.since) >= due {
-                    self.robot.ctrl.request_board_b_modules();
-                    if let Some(p) = self.modules.pending.as_mut() {
+                    robot.ctrl.request_board_b_modules();
+                    if let Some(p) = self.pending.as_mut() {
                         p.requests += 1;
                     }
                 }
                 return;
             }
         };
-        let Some(p) = self.modules.pending.take() else { return };
+        let Some(p) = self.pending.take() else { return };
         let a = BoardInput {
             table: &p.table,
             probes: p.probes,
@@ -482,53 +519,48 @@ impl<S: TmStore> Obsw<S> {
             table: &b_table[..n],
             probes,
         });
-        self.discover_modules(now, &a, b.as_ref(), sink);
+        self.discover(now, &a, b.as_ref(), robot, dl, sink);
     }
 
     /// Runs discovery on what the platform read at boot (`b` = `None`: board B sent
     /// nothing), compares it with the accepted configuration, raises CONFIG_INVALID or
     /// MODULE_REPLACED, applies the module powers and sends the module report.
-    pub fn discover_modules(
+    pub(crate) fn discover<S: TmStore>(
         &mut self,
         now: u64,
         a: &BoardInput<'_>,
         b: Option<&BoardInput<'_>>,
+        robot: &mut Robot,
+        dl: &mut Downlink<S>,
         sink: &mut impl TmSink,
     ) {
-        self.last_now = self.last_now.max(now);
         let d = discover(a, b);
         let cal = RobotCal::from_set(&d.set);
-        self.modules.discovered(now, d, &mut self.dl, sink);
-        self.apply_calibration(cal);
+        self.discovered(now, d, dl, sink);
+        robot.apply_calibration(cal);
         for (n, s) in MODULE_NODES {
-            let absent = self.modules.absent(s);
-            self.robot.modes.set_absent(n, absent);
+            let absent = self.absent(s);
+            robot.modes.set_absent(n, absent);
         }
-        self.robot.apply_module_modes(&self.modules);
-        self.modules.report(now, &mut self.dl, sink);
+        robot.apply_module_modes(self);
+        self.report(now, dl, sink);
     }
+}
 
+impl Robot {
     /// Runs with `cal` from now on: the controller's set points and bolter thresholds
     /// (`Controller::set_calibration`) and the high limits of the current monitors (as a
     /// TC[12,7] would set them, so TM[12,9] reports them): locomotion A = the larger of
     /// arm A's and the hip's (they share the sensor), locomotion B = arm B's, grippers and
     /// bolters their own; operational and idle limits.
     pub fn apply_calibration(&mut self, cal: RobotCal) {
-        self.robot.ctrl.set_calibration(cal);
+        self.ctrl.set_calibration(cal);
         for (name, ma) in monitor_limits(&cal) {
             // The currents are in mA (CAL_AMP: 1 count = 1 mA).
-            if let Some(m) = self.robot.monitoring.mons.iter_mut().find(|m| m.def.name == name) {
+            if let Some(m) = self.monitoring.mons.iter_mut().find(|m| m.def.name == name) {
                 m.def.high = ma as i32;
             }
         }
-    }
-
-    /// Raises CONFIG_STATE_LOST: the platform's store of the accepted configuration gave
-    /// nothing (missing, unreadable, corrupt; the robot then has nothing accepted) or an
-    /// acceptance could not be written.
-    pub fn config_state_lost(&mut self, now: u64, why: StateLost, sink: &mut impl TmSink) {
-        self.last_now = self.last_now.max(now);
-        self.raise(now, mib_wire::ev::ConfigStateLost { reason: why.code() }, sink);
     }
 }
 
