@@ -532,23 +532,7 @@ impl<S: TmStore> Obsw<S> {
     /// The robot with its ports for one call: the downlink and `sink`, the plan, the
     /// request outcomes and the module set (`crate::robot::Ports`).
     pub(crate) fn robot<'a, K: TmSink>(&'a mut self, sink: &'a mut K) -> (&'a mut Robot, Ports<'a, S, K>) {
-        let Obsw {
-            robot,
-            dl,
-            plan,
-            seen,
-            counters,
-            modules,
-            ..
-        } = self;
-        let p = Ports {
-            dl,
-            sink,
-            plan,
-            seen,
-            counters,
-            modules,
-        };
+        let (_, robot, p) = self.team(sink);
         (robot, p)
     }
 
@@ -580,6 +564,14 @@ impl<S: TmStore> Obsw<S> {
     /// One control cycle: runs the controller with the latest sensor readings and the
     /// bytes board B sent, then verification, events, FDIR, modes, HK, time reports
     /// and the schedule. Returns the actuator commands and bytes for board B.
+    ///
+    /// The one place the period's order is fixed, each step seeing what the one before
+    /// left: the controller; events it lost to a full queue; the robot's action reports
+    /// and domain events (`Robot::period_start`: completions, faults and their mode
+    /// changes); module discovery (the powers of absent modules, before the transition
+    /// reads them); the continuous monitors and the transition (`Robot::period_end`); HK
+    /// (values after all of the above); store replays; the services' own periodic work;
+    /// released scheduled TCs; the on-board plan (a step's TC through the TC path).
     pub fn tick(&mut self, now: u64, sensors: &SensorsA, link_rx: &[u8], sink: &mut impl TmSink) -> &TickOut {
         self.last_now = self.last_now.max(now);
         let mut out = core::mem::take(&mut self.out);

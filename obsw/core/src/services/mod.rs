@@ -227,8 +227,8 @@ impl<S: TmStore> Obsw<S> {
     }
 
     /// One arm per PUS service: a [`Component`] gets the request with the downlink (and
-    /// the obsw does what its output asks); the services still joined to the rest of the
-    /// obsw (functions, modes, storage) are the obsw's own methods.
+    /// the obsw does what its output asks); a function, and a commanded mode once the mode
+    /// tree has handed it back, go to the robot with its ports (`crate::robot`).
     pub(crate) fn route(&mut self, now: u64, request: Request, sink: &mut impl TmSink) -> Result<Exec, Refused> {
         let dl = &mut self.dl;
         match request {
