@@ -17,6 +17,7 @@ pub mod flash_store;
 pub mod modes;
 pub mod obsw;
 pub mod request;
+pub mod robot;
 pub mod services;
 pub mod time;
 pub mod tm;

@@ -4,23 +4,21 @@
 
 use mib::config;
 use mib::params::{pid, NotSupplied, Supplied};
-use mib::robot::STATE_UNKNOWN;
 use mib_wire::{ev, EventArgs};
 
-use mmic_domain::controller::{Controller, TickOut};
+use mmic_domain::controller::TickOut;
 use mmic_domain::SensorsA;
 
 use crate::accept::{accept, Tc};
-use crate::downlink::{Accepted, Downlink, New, Stage, Started};
+use crate::downlink::{Accepted, Downlink, New, Stage};
 use crate::duplicates::Duplicates;
 pub(crate) use crate::duplicates::Outcome;
 use crate::failure::Failure;
-use crate::fdir::{self, Faults, Monitoring};
-use crate::modes::ModeTree;
 use crate::request::Ctx;
+use crate::robot::{Ports, Robot};
 use crate::services::function::Running;
 use crate::services::link::{LinkKeys, LinkSelect};
-use crate::services::mode::{ModeCmd, Transition};
+use crate::services::mode::ModeCmd;
 use crate::services::modules::Modules;
 use crate::services::plan::OnboardPlan;
 use crate::services::scheduling::Schedule;
@@ -161,17 +159,12 @@ impl From<Failure> for Refused {
 pub struct Obsw<S: TmStore> {
     apid: u16,
     pub(crate) dl: Downlink<S>,
-    pub ctrl: Controller,
+    /// The robot: the controller, its actions, modes and FDIR (`crate::robot`).
+    pub robot: Robot,
     seen: Duplicates,
     /// The components only the obsw reaches (`services::Services`).
     pub(crate) svc: Services,
     pub(crate) sched: Schedule,
-    pub monitoring: Monitoring,
-    pub faults: Faults,
-    pub modes: ModeTree,
-    pub(crate) transition: Option<Transition>,
-    pub(crate) mode_cmd: Option<ModeCmd<Started>>,
-    pub(crate) running: Option<Running<Option<Started>>>,
     /// Store downlinks by range waiting for the downlink's room (`services::storage`).
     pub(crate) replays: crate::services::storage::Replays<S::Mark>,
     pub counters: Counters,
@@ -205,16 +198,10 @@ impl<S: TmStore> Obsw<S> {
         let mut o = Obsw {
             apid,
             dl: Downlink::new(apid, OnboardTime::new(cfg.epoch_unix_ms), store),
-            ctrl: Controller::new(),
+            robot: Robot::new(),
             seen: Duplicates::default(),
             svc: Services::new(),
             sched: Schedule::new(),
-            monitoring: Monitoring::new(),
-            faults: Faults::default(),
-            modes: ModeTree::new(),
-            transition: None,
-            mode_cmd: None,
-            running: None,
             replays: Default::default(),
             counters: Counters::default(),
             io: IoCounters::default(),
@@ -229,7 +216,7 @@ impl<S: TmStore> Obsw<S> {
             link_keys: LinkKeys::default(),
             link_select: None,
         };
-        o.apply_module_modes();
+        o.robot.apply_module_modes(&o.modules);
         o
     }
 
@@ -286,7 +273,7 @@ impl<S: TmStore> Obsw<S> {
 
     /// Actual mode of the robot node.
     pub fn mode(&self) -> u32 {
-        self.modes.root()
+        self.robot.modes.root()
     }
 
     /// The earliest time at which `tick` has periodic work (HK, time report, schedule).
@@ -303,14 +290,10 @@ impl<S: TmStore> Obsw<S> {
 
     /// Parameter value for the state estimate shown to tests and the host.
     pub fn computed_state(&self) -> u8 {
-        self.ctrl.computed_state().unwrap_or(STATE_UNKNOWN)
+        self.robot.computed_state()
     }
 
     // ------------------------------------------------------------------ output
-
-    pub(crate) fn emit_tm(&mut self, now: u64, report: impl crate::downlink::Report, sink: &mut impl TmSink) {
-        self.dl.emit_tm(now, &report, sink);
-    }
 
     /// Emits an event report unless the event is disabled or throttled: the event's
     /// typed parameters (`mib_wire::ev`, named fields of the MIB's types) through the
@@ -318,12 +301,6 @@ impl<S: TmStore> Obsw<S> {
     /// named at the call.
     pub(crate) fn raise<E: EventArgs>(&mut self, now: u64, e: E, sink: &mut impl TmSink) {
         self.dl.raise(now, e, sink);
-    }
-
-    /// An event by ID with its values in MIB order, for the table-driven paths whose event
-    /// ID is data (FDIR's table, event-action). Code that names an event uses [`Self::raise`].
-    pub(crate) fn event(&mut self, now: u64, id: u16, args: &[i64], sink: &mut impl TmSink) {
-        self.dl.event(now, id, args, sink);
     }
 
     /// Raw value of MIB telemetry parameter `ID`, for tests and inspection: 0 when it has
@@ -471,7 +448,7 @@ impl<S: TmStore> Obsw<S> {
     /// Runs an accepted request and reports its start and (for immediate requests)
     /// its completion.
     fn execute(&mut self, now: u64, tc: &Tc, request: Request, token: Accepted, sink: &mut impl TmSink) {
-        let root = self.modes.root();
+        let root = self.robot.modes.root();
         let result = if tc.def.modes.contains(root) {
             self.route(now, request, sink)
         } else {
@@ -485,11 +462,12 @@ impl<S: TmStore> Obsw<S> {
             }
             Ok(Exec::Action(r)) => {
                 let started = self.dl.start(now, token, sink);
-                self.running = Some(r.with_token(Some(started)));
+                self.robot.running = Some(r.with_token(Some(started)));
             }
             Ok(Exec::Mode(m)) => {
                 let started = self.dl.start(now, token, sink);
-                self.mode_command_started(now, m.with_token(started), sink);
+                let (robot, mut p) = self.robot(sink);
+                robot.mode_command_started(now, m.with_token(started), &mut p);
             }
             Ok(Exec::Replay(range)) => {
                 let started = self.dl.start(now, token, sink);
@@ -499,7 +477,8 @@ impl<S: TmStore> Obsw<S> {
                 self.dl.fail_start(now, token, &failure, sink);
                 self.refused(now, tc, Stage::Start, failure, sink);
                 if let Some(e) = fault {
-                    self.raise_fault(now, e, sink);
+                    let (robot, mut p) = self.robot(sink);
+                    robot.raise_fault(now, e, &mut p);
                 }
             }
         }
@@ -547,10 +526,37 @@ impl<S: TmStore> Obsw<S> {
     /// Records what became of request `req`: the duplicate window keeps it, and the
     /// on-board plan learns the outcome of its step's TC here.
     pub(crate) fn set_outcome(&mut self, req: RequestId, outcome: Outcome) {
-        if self.plan.outcome(req, &outcome).is_err() {
-            self.counters.events_dropped = self.counters.events_dropped.saturating_add(1);
-        }
-        self.seen.set_outcome(req, outcome);
+        crate::robot::record_outcome(&mut self.plan, &mut self.seen, &mut self.counters, req, outcome);
+    }
+
+    /// The robot with its ports for one call: the downlink and `sink`, the plan, the
+    /// request outcomes and the module set (`crate::robot::Ports`).
+    pub(crate) fn robot<'a, K: TmSink>(&'a mut self, sink: &'a mut K) -> (&'a mut Robot, Ports<'a, S, K>) {
+        let (_, robot, p) = self.team(sink);
+        (robot, p)
+    }
+
+    /// The team with the robot and the ports (`services::team`: the team's join).
+    pub(crate) fn team<'a, K: TmSink>(&'a mut self, sink: &'a mut K) -> (&'a mut Team, &'a mut Robot, Ports<'a, S, K>) {
+        let Obsw {
+            team,
+            robot,
+            dl,
+            plan,
+            seen,
+            counters,
+            modules,
+            ..
+        } = self;
+        let p = Ports {
+            dl,
+            sink,
+            plan,
+            seen,
+            counters,
+            modules,
+        };
+        (team, robot, p)
     }
 
     // ------------------------------------------------------------------ periodic
@@ -558,21 +564,25 @@ impl<S: TmStore> Obsw<S> {
     /// One control cycle: runs the controller with the latest sensor readings and the
     /// bytes board B sent, then verification, events, FDIR, modes, HK, time reports
     /// and the schedule. Returns the actuator commands and bytes for board B.
+    ///
+    /// The one place the period's order is fixed, each step seeing what the one before
+    /// left: the controller; events it lost to a full queue; the robot's action reports
+    /// and domain events (`Robot::period_start`: completions, faults and their mode
+    /// changes); module discovery (the powers of absent modules, before the transition
+    /// reads them); the continuous monitors and the transition (`Robot::period_end`); HK
+    /// (values after all of the above); store replays; the services' own periodic work;
+    /// released scheduled TCs; the on-board plan (a step's TC through the TC path).
     pub fn tick(&mut self, now: u64, sensors: &SensorsA, link_rx: &[u8], sink: &mut impl TmSink) -> &TickOut {
         self.last_now = self.last_now.max(now);
         let mut out = core::mem::take(&mut self.out);
         out.clear();
-        self.ctrl.tick(now, sensors, link_rx, &mut out);
+        self.robot.ctrl.tick(now, sensors, link_rx, &mut out);
         self.count_dropped(now, out.dropped, sink);
-        for r in out.reports.iter() {
-            self.on_report(now, r, sink);
-        }
-        for e in out.events.iter() {
-            self.on_domain_event(now, e, sink);
-        }
-        self.modules_tick(now, sink);
-        self.run_monitors(now, fdir::is_continuous, sink);
-        self.progress_transition(now, sink);
+        let (robot, mut p) = self.robot(sink);
+        robot.period_start(now, &out, &mut p);
+        self.modules.tick(now, &mut self.robot, &mut self.dl, sink);
+        let (robot, mut p) = self.robot(sink);
+        robot.period_end(now, &mut p);
         self.hk_tick(now, sink);
         self.replay_tick(now, sink);
         self.svc.tick(now, &mut self.dl, sink);

@@ -12,8 +12,8 @@ use crate::accept::Tc;
 use crate::downlink::Downlink;
 use crate::failure::Failure;
 use crate::fdir::{Faults, Response};
-use crate::obsw::Obsw;
 use crate::request::unknown;
+use crate::robot::{Ports, Robot};
 use crate::services::{Component, Contract};
 use crate::tm::{TmSink, TmStore};
 use mib_wire::args;
@@ -46,7 +46,7 @@ impl Request {
 
 /// Applies a PUS 19 request to the event-action links; their report goes out through
 /// the downlink. Raising a fault and its action join FDIR with the mode tree, the running
-/// action and the plan (`Obsw::fault`).
+/// action and the plan (`Robot::fault`).
 impl Component for Faults {
     const CONTRACT: Contract = Contract::new(
         "event_action (FDIR's faults)",
@@ -97,21 +97,31 @@ impl Faults {
     }
 }
 
-impl<S: TmStore> Obsw<S> {
+impl Robot {
     /// Raises a fault event from its typed parameters and applies its event-action link.
-    pub(crate) fn raise_fault<E: mib_wire::EventArgs>(&mut self, now: u64, e: E, sink: &mut impl TmSink) {
-        self.fault(now, E::ID, e.values().as_ref(), sink);
+    pub(crate) fn raise_fault<E: mib_wire::EventArgs, S: TmStore, K: TmSink>(
+        &mut self,
+        now: u64,
+        e: E,
+        p: &mut Ports<S, K>,
+    ) {
+        self.fault(now, E::ID, e.values().as_ref(), false, p);
     }
 
-    /// Raises a fault event (by ID, values in MIB order: FDIR's table) and applies its
-    /// event-action link.
-    pub(crate) fn fault(&mut self, now: u64, event: u16, args: &[i64], sink: &mut impl TmSink) {
-        self.fault_inner(now, event, args, false, sink);
-    }
-
-    pub(crate) fn fault_inner(&mut self, now: u64, event: u16, args: &[i64], monitored: bool, sink: &mut impl TmSink) {
-        self.event(now, event, args, sink);
-        self.plan.fault(now, &mut self.dl, sink);
+    /// Raises a fault event (by ID, values in MIB order: FDIR's table), suspends the
+    /// on-board plan and applies the event's link: FDIR's decision ([`Faults::raise`],
+    /// data) becomes a mode change now or after the running motion. A `monitored` fault
+    /// (a continuous monitor's violation) is acted on each time it is raised.
+    pub(crate) fn fault<S: TmStore, K: TmSink>(
+        &mut self,
+        now: u64,
+        event: u16,
+        args: &[i64],
+        monitored: bool,
+        p: &mut Ports<S, K>,
+    ) {
+        p.dl.event(now, event, args, p.sink);
+        p.plan.fault(now, p.dl, p.sink);
         let bit = mib::fdir::fault_by_event(event).map_or(0, |f| 1u32 << f.bit);
         if !monitored && self.faults.oneshot & bit != 0 {
             // Already active and being dealt with (e.g. every command left unacknowledged
@@ -123,30 +133,30 @@ impl<S: TmStore> Obsw<S> {
             // Standby already has every module unpowered and the robot resting on its
             // grippers: a fault never powers the servos up just to hold (safed).
             Response::Now(m) if m == robot_mode::SAFED && self.modes.root_target() == robot_mode::STANDBY => {
-                self.clear_oneshot(now, event, sink);
+                self.clear_oneshot(now, event, p);
             }
-            Response::Now(m) => self.set_mode(now, m, event, sink),
+            Response::Now(m) => self.set_mode(now, m, event, p),
             Response::AfterMotion(m) => {
                 if self.running.is_some() {
                     self.faults.pending_mode = Some(match self.faults.pending_mode {
-                        Some(p) if p == robot_mode::SAFED => p,
+                        Some(pending) if pending == robot_mode::SAFED => pending,
                         _ => m,
                     });
                 } else if self.modes.root_target() != m {
-                    self.set_mode(now, m, event, sink);
+                    self.set_mode(now, m, event, p);
                 } else {
-                    self.clear_oneshot(now, event, sink);
+                    self.clear_oneshot(now, event, p);
                 }
             }
         }
     }
 
     /// A one-shot fault dealt with by its mode change: FAULT_CLEARED.
-    pub(crate) fn clear_oneshot(&mut self, now: u64, event: u16, sink: &mut impl TmSink) {
+    pub(crate) fn clear_oneshot<S: TmStore, K: TmSink>(&mut self, now: u64, event: u16, p: &mut Ports<S, K>) {
         if let Some(f) = mib::fdir::fault_by_event(event) {
             if self.faults.oneshot & (1 << f.bit) != 0 {
                 self.faults.oneshot &= !(1 << f.bit);
-                self.raise(now, mib_wire::ev::FaultCleared { event_id: event }, sink);
+                p.dl.raise(now, mib_wire::ev::FaultCleared { event_id: event }, p.sink);
             }
         }
     }

@@ -12,11 +12,12 @@ use mmic_domain::controller::{Action, ActionReport, DomainEvent, StartError};
 use crate::accept::Tc;
 use crate::downlink::{Stage, Started};
 use crate::failure::Failure;
-use crate::obsw::{Exec, Obsw, Outcome, Refused};
+use crate::obsw::{Exec, Outcome, Refused};
+use crate::robot::{Ports, Robot};
 use crate::tm::{TmSink, TmStore};
 
-/// Its contract; its requests are still handled by the obsw (`Obsw::function_request`), which
-/// joins it to the controller, the mode tree and FDIR.
+/// Its contract; its requests are handled by the robot (`Robot::function_request`), which
+/// joins them to the controller, the mode tree and FDIR.
 pub const CONTRACT: crate::services::Contract =
     crate::services::Contract::new("function", Some(mib::tc::service::FUNCTION), &[]);
 
@@ -119,24 +120,29 @@ impl Running<()> {
     }
 }
 
-impl<S: TmStore> Obsw<S> {
-    pub(crate) fn function_request(&mut self, now: u64, r: Request, sink: &mut impl TmSink) -> Result<Exec, Refused> {
+impl Robot {
+    pub(crate) fn function_request<S: TmStore, K: TmSink>(
+        &mut self,
+        now: u64,
+        r: Request,
+        p: &mut Ports<S, K>,
+    ) -> Result<Exec, Refused> {
         let action = match r {
             Request::AssemblyFault(e) => {
-                self.raise_fault(now, e, sink);
+                self.raise_fault(now, e, p);
                 return Ok(Exec::Done);
             }
             Request::Stop => {
                 if let Some(run) = self.running.take() {
                     self.ctrl.abort();
                     let f = Failure::aborted_by_command(run.function);
-                    self.finish_running(now, run, Some(f), sink);
+                    self.finish_running(now, run, Some(f), p);
                 }
                 return Ok(Exec::Done);
             }
             Request::Start(a) => a,
         };
-        if let Some(f) = self.modules.absent_for(&action) {
+        if let Some(f) = p.modules.absent_for(&action) {
             return Err(f.into());
         }
         if self.running.is_some() || self.transition.is_some() {
@@ -147,7 +153,7 @@ impl<S: TmStore> Obsw<S> {
         let reconfigure = f == function::RECONFIGURE;
         if reconfigure {
             // Paper: idle overcurrent is checked at the start of every reconfiguration.
-            if let Some(ev) = self.idle_check(now, sink) {
+            if let Some(ev) = self.idle_check(now, p) {
                 return Err(Failure::aborted_by_fault(ev).into());
             }
         }
@@ -170,24 +176,24 @@ impl<S: TmStore> Obsw<S> {
     }
 
     /// Ends the running action with a completion report (success if `failure` is None).
-    pub(crate) fn finish_running(
+    pub(crate) fn finish_running<S: TmStore, K: TmSink>(
         &mut self,
         now: u64,
         r: Running<Option<Started>>,
         failure: Option<Failure>,
-        sink: &mut impl TmSink,
+        p: &mut Ports<S, K>,
     ) {
         self.modes.submode = submode::IDLE;
         if let Some(token) = r.token {
             let req = token.req;
             match failure {
                 None => {
-                    self.dl.complete(now, token, sink);
-                    self.set_outcome(req, Outcome::Done);
+                    p.dl.complete(now, token, p.sink);
+                    p.outcome(req, Outcome::Done);
                 }
                 Some(f) => {
-                    self.dl.fail_completion(now, token, &f, sink);
-                    self.set_outcome(req, Outcome::Failed(Stage::Completion, (&f).into()));
+                    p.dl.fail_completion(now, token, &f, p.sink);
+                    p.outcome(req, Outcome::Failed(Stage::Completion, (&f).into()));
                 }
             }
         } else if let Some(t) = self
@@ -201,73 +207,71 @@ impl<S: TmStore> Obsw<S> {
                 Some(f) => {
                     // A homing aborted by a fault carries the fault's event ID.
                     let event = f.fault_event().unwrap_or(0);
-                    self.transition_failed(now, f.code(), event, sink);
+                    self.transition_failed(now, f.code(), event, p);
                 }
             }
         }
         if let Some(m) = self.faults.pending_mode.take() {
             let cause = self.faults.last_event;
-            self.set_mode(now, m, cause, sink);
+            self.set_mode(now, m, cause, p);
         }
     }
 
     /// Progress and end of the running action, from the controller.
-    pub(crate) fn on_report(&mut self, now: u64, r: &ActionReport, sink: &mut impl TmSink) {
+    pub(crate) fn on_report<S: TmStore, K: TmSink>(&mut self, now: u64, r: &ActionReport, p: &mut Ports<S, K>) {
         match *r {
             ActionReport::Step { n } => {
                 if let Some(Running { token: Some(t), .. }) = &self.running {
-                    self.dl.step(now, t, n, sink);
+                    p.dl.step(now, t, n, p.sink);
                 }
             }
             ActionReport::Completed => {
                 let Some(run) = self.running.take() else { return };
                 let reconfigure = run.reconfigure;
-                self.finish_running(now, run, None, sink);
+                self.finish_running(now, run, None, p);
                 if reconfigure {
                     // Paper: idle overcurrent is checked at the end of a reconfiguration too.
-                    self.idle_check(now, sink);
+                    self.idle_check(now, p);
                 }
             }
             ActionReport::Failed(f) => {
                 let Some(run) = self.running.take() else { return };
-                self.finish_running(now, run, Some(Failure::from_action(f)), sink);
+                self.finish_running(now, run, Some(Failure::from_action(f)), p);
             }
         }
     }
 
     /// Domain events become PUS 5 events; fault events go through event-action.
-    pub(crate) fn on_domain_event(&mut self, now: u64, e: &DomainEvent, sink: &mut impl TmSink) {
+    pub(crate) fn on_domain_event<S: TmStore, K: TmSink>(&mut self, now: u64, e: &DomainEvent, p: &mut Ports<S, K>) {
         let s = |v: Side| v as u8;
         match *e {
             DomainEvent::PrimitiveDone { primitive, state } => {
-                self.raise(now, ev::PrimitiveDone { primitive, state }, sink)
+                p.dl.raise(now, ev::PrimitiveDone { primitive, state }, p.sink)
             }
-            DomainEvent::StateReached { state } => self.raise(now, ev::StateReached { state }, sink),
+            DomainEvent::StateReached { state } => p.dl.raise(now, ev::StateReached { state }, p.sink),
             DomainEvent::BoltPairDone { side, pair, attempts } => {
                 let side = s(side);
-                self.raise(now, ev::BoltPairDone { side, pair, attempts }, sink)
+                p.dl.raise(now, ev::BoltPairDone { side, pair, attempts }, p.sink)
             }
             DomainEvent::BoltAttemptFailed { side, pair, attempt } => {
                 let side = s(side);
-                self.raise(now, ev::BoltAttemptFailed { side, pair, attempt }, sink)
+                p.dl.raise(now, ev::BoltAttemptFailed { side, pair, attempt }, p.sink)
             }
             DomainEvent::UnboltPairDone { side, pair, attempts } => {
                 let side = s(side);
-                self.raise(now, ev::UnboltPairDone { side, pair, attempts }, sink)
+                p.dl.raise(now, ev::UnboltPairDone { side, pair, attempts }, p.sink)
             }
             DomainEvent::BoltFailure { side, pair, attempts } => {
                 let side = s(side);
-                self.raise_fault(now, ev::BoltFailure { side, pair, attempts }, sink)
+                self.raise_fault(now, ev::BoltFailure { side, pair, attempts }, p)
             }
             DomainEvent::UnboltFailure { side, pair, attempts } => {
                 let side = s(side);
-                self.raise_fault(now, ev::UnboltFailure { side, pair, attempts }, sink)
+                self.raise_fault(now, ev::UnboltFailure { side, pair, attempts }, p)
             }
-            DomainEvent::ArmNotContracted { side } => {
-                self.raise_fault(now, ev::ArmNotContracted { side: s(side) }, sink)
-            }
+            DomainEvent::ArmNotContracted { side } => self.raise_fault(now, ev::ArmNotContracted { side: s(side) }, p),
             DomainEvent::CommLossNoAck { command, retries } => {
-                self.raise_fault(now, ev::CommLossNoAck { command, retries }, sink)
+                self.raise_fault(now, ev::CommLossNoAck { command, retries }, p)
             }
             // The state computed after a primitive is not the one planned: the robot is
             // not where the ground believes, the same hazard as an initial-state mismatch.
@@ -276,7 +280,7 @@ impl<S: TmStore> Obsw<S> {
                     believed: expected,
                     computed,
                 };
-                self.raise_fault(now, e, sink)
+                self.raise_fault(now, e, p)
             }
         }
     }

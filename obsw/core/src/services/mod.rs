@@ -207,9 +207,9 @@ impl<S: TmStore> Obsw<S> {
     /// parameter's source (checked for every parameter by a test).
     pub fn param_from(&self, src: Source, id: u16) -> Supplied {
         match src {
-            Source::Modes => self.modes.param(id),
-            Source::Faults => self.faults.param(id),
-            Source::Monitoring => self.monitoring.param(id),
+            Source::Modes | Source::Faults | Source::Monitoring | Source::BoardA | Source::BoardB => {
+                self.robot.param_from(src, id)
+            }
             Source::Counters => self.counters.param(id),
             Source::Downlink => self.dl.param(id),
             Source::Scheduler => self.sched.param(id),
@@ -223,14 +223,12 @@ impl<S: TmStore> Obsw<S> {
             Source::Team => self.team.param(id),
             Source::Plan => self.plan.plan.param(id),
             Source::Update => self.update.param(id),
-            Source::BoardA => self.ctrl.board_a_param(id),
-            Source::BoardB => self.ctrl.board_b_param(id),
         }
     }
 
     /// One arm per PUS service: a [`Component`] gets the request with the downlink (and
-    /// the obsw does what its output asks); the services still joined to the rest of the
-    /// obsw (functions, modes, storage) are the obsw's own methods.
+    /// the obsw does what its output asks); a function, and a commanded mode once the mode
+    /// tree has handed it back, go to the robot with its ports (`crate::robot`).
     pub(crate) fn route(&mut self, now: u64, request: Request, sink: &mut impl TmSink) -> Result<Exec, Refused> {
         let dl = &mut self.dl;
         match request {
@@ -241,20 +239,24 @@ impl<S: TmStore> Obsw<S> {
                 }
             }
             Request::Event(r) => event::EventReporting.handle(now, r, dl, sink)?,
-            Request::Function(r) => return self.function_request(now, r, sink),
+            Request::Function(r) => {
+                let (robot, mut p) = self.robot(sink);
+                return robot.function_request(now, r, &mut p);
+            }
             Request::Time(r) => self.svc.time_reports.handle(now, r, dl, sink)?,
             Request::Scheduling(r) => self.sched.handle(now, r, dl, sink)?,
-            Request::Monitoring(r) => self.monitoring.handle(now, r, dl, sink)?,
+            Request::Monitoring(r) => self.robot.monitoring.handle(now, r, dl, sink)?,
             Request::Storage(r) => {
                 if let Some(range) = self.replays.handle(now, r, dl, sink)? {
                     return Ok(Exec::Replay(range));
                 }
             }
-            Request::EventAction(r) => self.faults.handle(now, r, dl, sink)?,
-            Request::Parameter(r) => self.ctrl.handle(now, r, dl, sink)?,
+            Request::EventAction(r) => self.robot.faults.handle(now, r, dl, sink)?,
+            Request::Parameter(r) => self.robot.ctrl.handle(now, r, dl, sink)?,
             Request::Mode(r) => {
-                if let Some(target) = self.modes.handle(now, r, dl, sink)? {
-                    return self.mode_command(now, target, sink);
+                if let Some(target) = self.robot.modes.handle(now, r, dl, sink)? {
+                    let (robot, mut p) = self.robot(sink);
+                    return robot.mode_command(now, target, &mut p);
                 }
             }
             Request::Modules(r) => self.modules.handle(now, r, dl, sink)?,
@@ -263,7 +265,8 @@ impl<S: TmStore> Obsw<S> {
             Request::Plan(r) => {
                 if let Some(change) = self.plan.handle(now, r, dl, sink)? {
                     // As a ground STOP: the action ends, its TC reports ABORTED_BY_COMMAND.
-                    let _ = self.function_request(now, function::Request::Stop, sink);
+                    let (robot, mut p) = self.robot(sink);
+                    let _ = robot.function_request(now, function::Request::Stop, &mut p);
                     plan::OnboardPlan::report(now, change, &mut self.dl, sink);
                 }
             }

@@ -17,8 +17,9 @@ use crate::accept::Tc;
 use crate::downlink::{Downlink, Stage, Started};
 use crate::failure::Failure;
 use crate::modes::{Change, ModeTree, N_NODES};
-use crate::obsw::{Exec, Obsw, Outcome, Refused};
+use crate::obsw::{Exec, Outcome, Refused};
 use crate::request::unknown;
+use crate::robot::{Ports, Robot};
 use crate::services::function::Running;
 use crate::services::modules::Modules;
 use crate::services::{Component, Contract};
@@ -102,7 +103,7 @@ pub struct Transition {
 }
 
 /// The mode tree answers the reports itself; a commanded mode comes back as the output,
-/// for the obsw to start its transition ([`Obsw::mode_command`]: the transition joins the
+/// for the robot to start its transition ([`Robot::mode_command`]: the transition joins the
 /// mode tree to the controller, the module set, FDIR and the running action).
 impl Component for ModeTree {
     const CONTRACT: Contract = Contract::new("mode", Some(service::MODE), &[Source::Modes]);
@@ -159,10 +160,15 @@ impl ModeTree {
     }
 }
 
-impl<S: TmStore> Obsw<S> {
-    pub(crate) fn mode_command(&mut self, now: u64, target: u32, sink: &mut impl TmSink) -> Result<Exec, Refused> {
+impl Robot {
+    pub(crate) fn mode_command<S: TmStore, K: TmSink>(
+        &mut self,
+        now: u64,
+        target: u32,
+        p: &mut Ports<S, K>,
+    ) -> Result<Exec, Refused> {
         if target == robot_mode::OPERATIONAL {
-            if let Some(f) = self.modules.block_operational() {
+            if let Some(f) = p.modules.block_operational() {
                 return Err(f.into());
             }
             if let Some(ev) = self.faults.first_active_event() {
@@ -170,29 +176,30 @@ impl<S: TmStore> Obsw<S> {
             }
         }
         if let Some(prev) = self.mode_cmd.take() {
-            self.fail_mode_cmd(now, prev, FailureCode::ABORTED_BY_COMMAND, 0, sink);
+            self.fail_mode_cmd(now, prev, FailureCode::ABORTED_BY_COMMAND, 0, p);
         }
         if target == self.modes.root() && self.transition.is_none() {
-            self.mode_reply(now, node::ROBOT, sink);
+            self.modes.reply(now, node::ROBOT, p.dl, p.sink);
             return Ok(Exec::Done);
         }
         Ok(Exec::Mode(ModeCmd { token: (), target }))
     }
 
     /// Called once the mode command's start was reported.
-    pub(crate) fn mode_command_started(&mut self, now: u64, cmd: ModeCmd<Started>, sink: &mut impl TmSink) {
+    pub(crate) fn mode_command_started<S: TmStore, K: TmSink>(
+        &mut self,
+        now: u64,
+        cmd: ModeCmd<Started>,
+        p: &mut Ports<S, K>,
+    ) {
         let target = cmd.target;
         self.mode_cmd = Some(cmd);
-        self.set_mode(now, target, 0, sink);
-    }
-
-    pub(crate) fn mode_reply(&mut self, now: u64, n: u32, sink: &mut impl TmSink) {
-        self.modes.reply(now, n, &mut self.dl, sink);
+        self.set_mode(now, target, 0, p);
     }
 
     /// Starts a transition of the robot node (by command, cause 0, or by FDIR, cause =
     /// fault event). A running action is aborted unless the target is operational.
-    pub(crate) fn set_mode(&mut self, now: u64, target: u32, cause: u16, sink: &mut impl TmSink) {
+    pub(crate) fn set_mode<S: TmStore, K: TmSink>(&mut self, now: u64, target: u32, cause: u16, p: &mut Ports<S, K>) {
         if target != robot_mode::OPERATIONAL {
             if let Some(r) = self.running.take() {
                 self.ctrl.abort();
@@ -202,7 +209,7 @@ impl<S: TmStore> Obsw<S> {
                     Failure::aborted_by_command(r.function)
                 };
                 if r.token.is_some() {
-                    self.finish_running(now, r, Some(f), sink);
+                    self.finish_running(now, r, Some(f), p);
                 }
                 self.modes.submode = mib::modes::submode::IDLE;
             }
@@ -211,7 +218,7 @@ impl<S: TmStore> Obsw<S> {
             // FDIR takes over: a pending mode command loses.
             if let Some(c) = self.mode_cmd.take() {
                 if c.target != target {
-                    self.fail_mode_cmd(now, c, FailureCode::ABORTED_BY_FAULT, cause, sink);
+                    self.fail_mode_cmd(now, c, FailureCode::ABORTED_BY_FAULT, cause, p);
                 } else {
                     self.mode_cmd = Some(c);
                 }
@@ -224,35 +231,29 @@ impl<S: TmStore> Obsw<S> {
             cause,
             entering: Entering::Powering,
         });
-        self.apply_module_modes();
-        self.progress_transition(now, sink);
-    }
-
-    /// Out of line: called from generic code of every sink type (one copy on board A).
-    #[inline(never)]
-    pub(crate) fn apply_module_modes(&mut self) {
-        self.ctrl.set_module_modes(self.modes.module_modes(&self.modules));
+        self.apply_module_modes(p.modules);
+        self.progress_transition(now, p);
     }
 
     /// True when the hardware shows that a module is in `mode`.
-    fn module_confirms(&self, n: &mib::modes::NodeDef, mode: u32) -> bool {
+    fn module_confirms(&self, n: &mib::modes::NodeDef, mode: u32, modules: &Modules) -> bool {
         if mode == module_mode::OFF {
             return true;
         }
         let v_reg_min = params::by_id(pid::V_REG)
             .and_then(|p| p.limits)
             .map_or(0, |l| params::CAL_VOLT.raw(l.hard_lo));
-        let powered = self.param_opt(pid::V_REG).is_some_and(|v| v >= v_reg_min);
+        let powered = self.param_opt(pid::V_REG, modules).is_some_and(|v| v >= v_reg_min);
         if n.parent != Some(node::SIDE_B) {
             return powered;
         }
         // Board B keeps driving its servos at their last set point when A's commands
         // stop, so side B holds position even with the A-B link down (what safed after
         // a communication loss needs); anything else needs B's acknowledgement.
-        mode == module_mode::HOLD || self.param_opt(pid::B_LINK_OK) == Some(1)
+        mode == module_mode::HOLD || self.param_opt(pid::B_LINK_OK, modules) == Some(1)
     }
 
-    pub(crate) fn progress_transition(&mut self, now: u64, sink: &mut impl TmSink) {
+    pub(crate) fn progress_transition<S: TmStore, K: TmSink>(&mut self, now: u64, p: &mut Ports<S, K>) {
         let Some(t) = self.transition else { return };
         let mut changes: heapless::Vec<Change, N_NODES> = heapless::Vec::new();
         let root_ready = t.target != robot_mode::OPERATIONAL || t.entering == Entering::Ready;
@@ -260,7 +261,7 @@ impl<S: TmStore> Obsw<S> {
             let this = &*self;
             let confirmed: heapless::Vec<(u32, bool), N_NODES> = mib::modes::NODES
                 .iter()
-                .map(|n| (n.id, this.module_confirms(n, this.modes.commanded(n.id))))
+                .map(|n| (n.id, this.module_confirms(n, this.modes.commanded(n.id), p.modules)))
                 .collect();
             self.modes.update(
                 |n, _| confirmed.iter().any(|(id, ok)| *id == n.id && *ok),
@@ -275,7 +276,7 @@ impl<S: TmStore> Obsw<S> {
                 to: c.to,
                 cause: t.cause,
             };
-            self.raise(now, e, sink);
+            p.dl.raise(now, e, p.sink);
         }
         if t.target == robot_mode::OPERATIONAL && t.entering == Entering::Powering {
             let children_done = mib::modes::NODES
@@ -286,7 +287,7 @@ impl<S: TmStore> Obsw<S> {
                 // Paper: hip mismatch is checked when entering operational, then
                 // entering operational sends every actuator home.
                 if self
-                    .run_monitors(now, |p| p == Phase::EnteringOperational, sink)
+                    .run_monitors(now, |ph| ph == Phase::EnteringOperational, p)
                     .is_some()
                 {
                     return;
@@ -304,7 +305,7 @@ impl<S: TmStore> Obsw<S> {
                     }
                     Err(e) => {
                         let f = Failure::from_start(e, function::HOME, self.modes.root());
-                        self.transition_failed(now, f.code(), 0, sink);
+                        self.transition_failed(now, f.code(), 0, p);
                     }
                 }
                 return;
@@ -312,12 +313,12 @@ impl<S: TmStore> Obsw<S> {
         }
         if !self.modes.in_transition() {
             self.transition = None;
-            self.mode_reply(now, node::ROBOT, sink);
+            self.modes.reply(now, node::ROBOT, p.dl, p.sink);
             if let Some(c) = self.mode_cmd.take() {
                 if c.target == self.modes.root() {
                     let req = c.token.req;
-                    self.dl.complete(now, c.token, sink);
-                    self.set_outcome(req, Outcome::Done);
+                    p.dl.complete(now, c.token, p.sink);
+                    p.outcome(req, Outcome::Done);
                 } else {
                     self.mode_cmd = Some(c);
                 }
@@ -328,34 +329,40 @@ impl<S: TmStore> Obsw<S> {
                 self.faults.latched = self.faults.monitored;
             } else if t.cause != 0 {
                 // The fault has been dealt with by its mode change.
-                self.clear_oneshot(now, t.cause, sink);
+                self.clear_oneshot(now, t.cause, p);
             }
             return;
         }
         let entering_homing = t.entering == Entering::Homing;
         if !entering_homing && now.saturating_sub(t.started) > config::MODE_TRANSITION_TIMEOUT_MS as u64 {
-            self.transition_failed(now, FailureCode::TIMEOUT, 0, sink);
+            self.transition_failed(now, FailureCode::TIMEOUT, 0, p);
         }
     }
 
     /// Completes a mode command with MODE_CHANGE_FAILED: node, target mode, the reason
     /// (a failure code) and the fault event behind it (0 if none).
-    fn fail_mode_cmd(
+    fn fail_mode_cmd<S: TmStore, K: TmSink>(
         &mut self,
         now: u64,
         c: ModeCmd<Started>,
         reason: FailureCode,
         event: u16,
-        sink: &mut impl TmSink,
+        p: &mut Ports<S, K>,
     ) {
         let f = Failure::mode_change_failed(node::ROBOT, c.target, reason, event);
         let req = c.token.req;
-        self.dl.fail_completion(now, c.token, &f, sink);
-        self.set_outcome(req, Outcome::Failed(Stage::Completion, (&f).into()));
+        p.dl.fail_completion(now, c.token, &f, p.sink);
+        p.outcome(req, Outcome::Failed(Stage::Completion, (&f).into()));
     }
 
     /// A transition that cannot complete: report it and fall back to standby.
-    pub(crate) fn transition_failed(&mut self, now: u64, reason: FailureCode, event: u16, sink: &mut impl TmSink) {
+    pub(crate) fn transition_failed<S: TmStore, K: TmSink>(
+        &mut self,
+        now: u64,
+        reason: FailureCode,
+        event: u16,
+        p: &mut Ports<S, K>,
+    ) {
         let Some(t) = self.transition.take() else { return };
         let r = tm::ModeCantReach {
             node: node::ROBOT,
@@ -363,18 +370,18 @@ impl<S: TmStore> Obsw<S> {
             submode: 0,
             reason: reason.code(),
         };
-        self.emit_tm(now, r, sink);
+        p.dl.emit_tm(now, &r, p.sink);
         let e = mib_wire::ev::ModeChangeFailed {
             node: node::ROBOT,
             mode: t.target,
             reason: reason.code(),
         };
-        self.raise(now, e, sink);
+        p.dl.raise(now, e, p.sink);
         if let Some(c) = self.mode_cmd.take() {
-            self.fail_mode_cmd(now, c, reason, event, sink);
+            self.fail_mode_cmd(now, c, reason, event, p);
         }
         if t.target != robot_mode::STANDBY {
-            self.set_mode(now, robot_mode::STANDBY, t.cause, sink);
+            self.set_mode(now, robot_mode::STANDBY, t.cause, p);
         } else {
             let mut ch = heapless::Vec::new();
             self.modes.settle(&mut ch);
@@ -432,7 +439,8 @@ mod tests {
         assert_eq!(of(&pkts, 1, 3).len(), 1, "started");
         // No sensors: the regulator never confirms power.
         let t = 2 + mib::config::MODE_TRANSITION_TIMEOUT_MS as u64;
-        o.progress_transition(t, &mut sink);
+        let (robot, mut p) = o.robot(&mut sink);
+        robot.progress_transition(t, &mut p);
         let f = of(&sink, 1, 8);
         assert_eq!(f.len(), 1);
         let (code, data) = failure(&f[0]);

@@ -35,6 +35,7 @@ use crate::downlink::Downlink;
 use crate::failure::Failure;
 use crate::obsw::Obsw;
 use crate::request::unknown;
+use crate::robot::Robot;
 use crate::services::{Component, Contract};
 use crate::tm::{TmSink, TmStore};
 
@@ -450,11 +451,47 @@ impl<S: TmStore> Obsw<S> {
         self.modules.pending.is_some()
     }
 
+    /// Runs discovery on what the platform read at boot (`b` = `None`: board B sent
+    /// nothing; `Modules::discover`).
+    pub fn discover_modules(
+        &mut self,
+        now: u64,
+        a: &BoardInput<'_>,
+        b: Option<&BoardInput<'_>>,
+        sink: &mut impl TmSink,
+    ) {
+        self.last_now = self.last_now.max(now);
+        self.modules.discover(now, a, b, &mut self.robot, &mut self.dl, sink);
+    }
+
+    /// Runs with `cal` from now on (`Robot::apply_calibration`).
+    pub fn apply_calibration(&mut self, cal: RobotCal) {
+        self.robot.apply_calibration(cal);
+    }
+
+    /// Raises CONFIG_STATE_LOST: the platform's store of the accepted configuration gave
+    /// nothing (missing, unreadable, corrupt; the robot then has nothing accepted) or an
+    /// acceptance could not be written.
+    pub fn config_state_lost(&mut self, now: u64, why: StateLost, sink: &mut impl TmSink) {
+        self.last_now = self.last_now.max(now);
+        self.raise(now, mib_wire::ev::ConfigStateLost { reason: why.code() }, sink);
+    }
+}
+
+/// Discovery's join with the robot: board B's half of the table from the controller, the
+/// calibration to the controller and the current monitors, absent modules to the mode tree.
+impl Modules {
     /// Runs a pending discovery when board B's half is in, or the wait is over.
-    pub(crate) fn modules_tick(&mut self, now: u64, sink: &mut impl TmSink) {
-        let Some(p) = self.modules.pending.as_ref() else { return };
+    pub(crate) fn tick<S: TmStore>(
+        &mut self,
+        now: u64,
+        robot: &mut Robot,
+        dl: &mut Downlink<S>,
+        sink: &mut impl TmSink,
+    ) {
+        let Some(p) = self.pending.as_ref() else { return };
         let mut b_table = [0u8; MAX_TABLE_LEN];
-        let b = match self.ctrl.board_b_modules() {
+        let b = match robot.ctrl.board_b_modules() {
             Some((t, probes)) => {
                 let n = t.len().min(MAX_TABLE_LEN);
                 b_table[..n].copy_from_slice(&t[..n]);
@@ -465,15 +502,15 @@ impl<S: TmStore> Obsw<S> {
                 // Ask again every MODULE_B_REQUEST_MS (frames lost on the line).
                 let due = (p.requests as u64 + 1) * mib::config::MODULE_B_REQUEST_MS as u64;
                 if now.saturating_sub(p.since) >= due {
-                    self.ctrl.request_board_b_modules();
-                    if let Some(p) = self.modules.pending.as_mut() {
+                    robot.ctrl.request_board_b_modules();
+                    if let Some(p) = self.pending.as_mut() {
                         p.requests += 1;
                     }
                 }
                 return;
             }
         };
-        let Some(p) = self.modules.pending.take() else { return };
+        let Some(p) = self.pending.take() else { return };
         let a = BoardInput {
             table: &p.table,
             probes: p.probes,
@@ -482,32 +519,35 @@ impl<S: TmStore> Obsw<S> {
             table: &b_table[..n],
             probes,
         });
-        self.discover_modules(now, &a, b.as_ref(), sink);
+        self.discover(now, &a, b.as_ref(), robot, dl, sink);
     }
 
     /// Runs discovery on what the platform read at boot (`b` = `None`: board B sent
     /// nothing), compares it with the accepted configuration, raises CONFIG_INVALID or
     /// MODULE_REPLACED, applies the module powers and sends the module report.
-    pub fn discover_modules(
+    pub(crate) fn discover<S: TmStore>(
         &mut self,
         now: u64,
         a: &BoardInput<'_>,
         b: Option<&BoardInput<'_>>,
+        robot: &mut Robot,
+        dl: &mut Downlink<S>,
         sink: &mut impl TmSink,
     ) {
-        self.last_now = self.last_now.max(now);
         let d = discover(a, b);
         let cal = RobotCal::from_set(&d.set);
-        self.modules.discovered(now, d, &mut self.dl, sink);
-        self.apply_calibration(cal);
+        self.discovered(now, d, dl, sink);
+        robot.apply_calibration(cal);
         for (n, s) in MODULE_NODES {
-            let absent = self.modules.absent(s);
-            self.modes.set_absent(n, absent);
+            let absent = self.absent(s);
+            robot.modes.set_absent(n, absent);
         }
-        self.apply_module_modes();
-        self.modules.report(now, &mut self.dl, sink);
+        robot.apply_module_modes(self);
+        self.report(now, dl, sink);
     }
+}
 
+impl Robot {
     /// Runs with `cal` from now on: the controller's set points and bolter thresholds
     /// (`Controller::set_calibration`) and the high limits of the current monitors (as a
     /// TC[12,7] would set them, so TM[12,9] reports them): locomotion A = the larger of
@@ -521,14 +561,6 @@ impl<S: TmStore> Obsw<S> {
                 m.def.high = ma as i32;
             }
         }
-    }
-
-    /// Raises CONFIG_STATE_LOST: the platform's store of the accepted configuration gave
-    /// nothing (missing, unreadable, corrupt; the robot then has nothing accepted) or an
-    /// acceptance could not be written.
-    pub fn config_state_lost(&mut self, now: u64, why: StateLost, sink: &mut impl TmSink) {
-        self.last_now = self.last_now.max(now);
-        self.raise(now, mib_wire::ev::ConfigStateLost { reason: why.code() }, sink);
     }
 }
 
@@ -725,7 +757,8 @@ mod tests {
     #[test]
     fn discovery_applies_the_module_sets_calibration_to_the_controller_and_the_monitors() {
         let limit = |o: &TestObsw, name: &str| {
-            o.monitoring
+            o.robot
+                .monitoring
                 .mons
                 .iter()
                 .find(|m| m.def.name == name)
@@ -743,7 +776,7 @@ mod tests {
         }
         // Before discovery: the compiled constants.
         let mut o = obsw();
-        assert_eq!(*o.ctrl.calibration(), RobotCal::COMPILED);
+        assert_eq!(*o.robot.ctrl.calibration(), RobotCal::COMPILED);
         assert_eq!(limit(&o, "I_GRIP_B_OPER"), 1500);
         // Gripper B revision 2 (boards on firmware 1.1), its descriptor "default": the
         // database's rev-2 values; arm A bench-calibrated; a stronger hip.
@@ -758,7 +791,7 @@ mod tests {
         set[slot::HIP as usize].as_mut().unwrap().cal.0[2] = 3500;
         let pkts = boot(&mut o, &set, None);
         assert!(events(&pkts, eid::CONFIG_INVALID).is_empty());
-        let c = *o.ctrl.calibration();
+        let c = *o.robot.ctrl.calibration();
         assert_eq!((c.side[1].grip_closed_us, c.side[1].grip_open_us), (1150, 1850));
         assert_eq!((c.side[0].grip_closed_us, c.side[0].grip_open_us), (1100, 1900));
         assert_eq!(limit(&o, "I_GRIP_B_OPER"), 1600);
@@ -852,12 +885,12 @@ mod tests {
         // The mode tree keeps the absent bolters OFF in every robot mode.
         use mib::modes::{module_mode, node};
         for m in [robot_mode::OPERATIONAL, robot_mode::SAFED, robot_mode::STANDBY] {
-            o.modes.command(m);
-            assert_eq!(o.modes.commanded(node::BOLTER_A), module_mode::OFF);
-            assert_eq!(o.modes.commanded(node::BOLTER_B), module_mode::OFF);
+            o.robot.modes.command(m);
+            assert_eq!(o.robot.modes.commanded(node::BOLTER_A), module_mode::OFF);
+            assert_eq!(o.robot.modes.commanded(node::BOLTER_B), module_mode::OFF);
         }
-        o.modes.command(robot_mode::OPERATIONAL);
-        assert_eq!(o.modes.commanded(node::ARM_A), module_mode::ON);
+        o.robot.modes.command(robot_mode::OPERATIONAL);
+        assert_eq!(o.robot.modes.commanded(node::ARM_A), module_mode::ON);
     }
 
     // verifies: MOD-OBSW-06

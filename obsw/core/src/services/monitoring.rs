@@ -13,8 +13,8 @@ use crate::accept::Tc;
 use crate::downlink::Downlink;
 use crate::failure::Failure;
 use crate::fdir::{self, Monitor, Monitoring, N_MONITORS};
-use crate::obsw::Obsw;
 use crate::request::unknown;
+use crate::robot::{Ports, Robot};
 use crate::services::{Component, Contract};
 use crate::tm::{TmSink, TmStore};
 
@@ -82,7 +82,7 @@ impl Request {
 }
 
 /// Applies a PUS 12 request to the monitors; the definitions report goes out through
-/// the downlink. The monitors' checks run in the control period (`Obsw::run_monitors`).
+/// the downlink. The monitors' checks run in the control period (`Robot::run_monitors`).
 impl Component for Monitoring {
     const CONTRACT: Contract = Contract::new("monitoring", Some(service::MONITORING), &[Source::Monitoring]);
     type Request<'a> = Request;
@@ -141,19 +141,19 @@ impl Monitoring {
     }
 }
 
-impl<S: TmStore> Obsw<S> {
+impl Robot {
     /// Runs the idle-phase monitors once; returns the fault event if one fired.
-    pub(crate) fn idle_check(&mut self, now: u64, sink: &mut impl TmSink) -> Option<u16> {
-        self.run_monitors(now, |p| p == Phase::Idle, sink)
+    pub(crate) fn idle_check<S: TmStore, K: TmSink>(&mut self, now: u64, p: &mut Ports<S, K>) -> Option<u16> {
+        self.run_monitors(now, |ph| ph == Phase::Idle, p)
     }
 
     /// Runs the monitors of the accepted phases; emits TM[12,12] for each transition
     /// and raises the fault of each new violation. Returns the last fault event raised.
-    pub(crate) fn run_monitors(
+    pub(crate) fn run_monitors<S: TmStore, K: TmSink>(
         &mut self,
         now: u64,
         phases: impl Fn(Phase) -> bool,
-        sink: &mut impl TmSink,
+        p: &mut Ports<S, K>,
     ) -> Option<u16> {
         let mut tr: heapless::Vec<fdir::Transition, N_MONITORS> = heapless::Vec::new();
         {
@@ -164,17 +164,19 @@ impl<S: TmStore> Obsw<S> {
             // the list cannot fill.
             let mut vals: heapless::Vec<(u16, Option<i64>), { 3 * N_MONITORS }> = heapless::Vec::new();
             for m in &this.monitoring.mons {
-                let p = m.def.param;
-                let context = mib::params::by_id(p).into_iter().flat_map(mib::params::limit_context);
-                for id in core::iter::once(p).chain(context) {
-                    if !vals.iter().any(|(i, _)| *i == id) && vals.push((id, this.param_opt(id))).is_err() {
+                let param = m.def.param;
+                let context = mib::params::by_id(param)
+                    .into_iter()
+                    .flat_map(mib::params::limit_context);
+                for id in core::iter::once(param).chain(context) {
+                    if !vals.iter().any(|(i, _)| *i == id) && vals.push((id, this.param_opt(id, p.modules))).is_err() {
                         break;
                     }
                 }
             }
             self.monitoring.check(
                 phases,
-                |p| vals.iter().find(|(i, _)| *i == p).and_then(|(_, v)| *v),
+                |id| vals.iter().find(|(i, _)| *i == id).and_then(|(_, v)| *v),
                 &mut tr,
             );
         }
@@ -188,22 +190,22 @@ impl<S: TmStore> Obsw<S> {
                 limit: t.limit,
                 state: t.state,
             };
-            self.emit_tm(now, r, sink);
+            p.dl.emit_tm(now, &r, p.sink);
             let continuous = mib::fdir::monitor_by_id(t.monitor).is_some_and(|m| fdir::is_continuous(m.phase));
             if t.state != fdir::check::OK {
                 let args: [i64; 3] = if t.event == eid::HIP_MISMATCH {
                     // Board A's encoder: always a value.
-                    let hip = self.param_opt(pid::HIP_ANGLE).unwrap_or(0);
+                    let hip = self.param_opt(pid::HIP_ANGLE, p.modules).unwrap_or(0);
                     [hip, hip - t.value, 0]
                 } else {
                     [t.param as i64, t.value, t.limit as i64]
                 };
-                self.fault_inner(now, t.event, &args, continuous, sink);
+                self.fault(now, t.event, &args, continuous, p);
                 raised = Some(t.event);
             } else if continuous
                 && self.faults.monitored & mib::fdir::fault_by_event(t.event).map_or(0, |f| 1 << f.bit) == 0
             {
-                self.raise(now, mib_wire::ev::FaultCleared { event_id: t.event }, sink);
+                p.dl.raise(now, mib_wire::ev::FaultCleared { event_id: t.event }, p.sink);
             }
         }
         raised

@@ -45,6 +45,7 @@ use crate::downlink::Downlink;
 use crate::failure::Failure;
 use crate::obsw::{Exec, Obsw};
 use crate::request::unknown;
+use crate::robot::{Ports, Robot};
 use crate::services::{Component, Contract};
 use crate::time::OnboardTime;
 use crate::tm::{TmSink, TmStore, TmWriter};
@@ -955,33 +956,11 @@ impl<S: TmStore> Obsw<S> {
     }
 
     /// Feeds pending ground contact, the grippers and the time to the node, executes its
-    /// effects and sends the periodic status report. Call after every TC and control
-    /// period. `rand` comes from the platform (election jitter).
+    /// effects and sends the periodic status report (`Team::poll`). Call after every TC
+    /// and control period. `rand` comes from the platform (election jitter).
     pub fn team_poll(&mut self, now: u64, rand: u32, link: &mut impl TeamLink, sink: &mut impl TmSink) {
-        if self.team.node.is_none() {
-            self.team.ground_tc = false;
-            return;
-        }
-        self.team.persist_changes(link);
-        if core::mem::take(&mut self.team.ground_tc) {
-            self.team_input(now, rand, Input::GroundTc, link, sink);
-        }
-        self.team_steps(now, link, sink);
-        if core::mem::take(&mut self.team.progress_dirty) {
-            if let Some(p) = self.team.progress_input() {
-                self.team_input(now, rand, p, link, sink);
-            }
-        }
-        let both_hold = self.computed_state() != mib::robot::STATE_UNKNOWN;
-        if self.team.both_hold != Some(both_hold) {
-            self.team.both_hold = Some(both_hold);
-            self.team_input(now, rand, Input::Grippers { both_hold }, link, sink);
-        }
-        self.team_input(now, rand, Input::Tick, link, sink);
-        if now >= self.team.next_status {
-            self.team.next_status = now + STATUS_PERIOD_MS;
-            self.team.status(now, &mut self.dl, sink);
-        }
+        let (team, robot, mut p) = self.team(sink);
+        team.poll(now, rand, robot, link, &mut p);
     }
 
     /// A packet from the inter-robot link: a TM[211,1] of APID `TEAM_APID` whose source
@@ -997,13 +976,8 @@ impl<S: TmStore> Obsw<S> {
         link: &mut impl TeamLink,
         sink: &mut impl TmSink,
     ) {
-        match self.team.packet(from, packet) {
-            Packet::Progress(source) => {
-                self.plan.plan.peer_progress(from, source);
-            }
-            Packet::Message(m) => self.team_input(now, rand, Input::Message(m), link, sink),
-            Packet::Refused(reason, sender) => self.team_rejected(now, reason, sender, sink),
-        }
+        let (team, robot, mut p) = self.team(sink);
+        team.on_packet(now, rand, from, packet, robot, link, &mut p);
     }
 
     /// Runs a TC the obsw released itself (PUS 11 schedule): it is not ground contact.
@@ -1012,40 +986,115 @@ impl<S: TmStore> Obsw<S> {
         self.handle_tc(now, raw, sink);
         self.team.ground_tc = pending;
     }
+}
 
-    fn team_input(&mut self, now: u64, rand: u32, input: Input, link: &mut impl TeamLink, sink: &mut impl TmSink) {
-        let Some(node) = self.team.node.as_mut() else { return };
+/// The team's join with the robot: the node's decisions (hold, continue a step) on the
+/// robot's modes and actions, and ground contact from the TC path. The robot and the rest
+/// of the obsw come as ports for one call (`crate::robot::Ports`: the plan, the downlink).
+impl Team {
+    /// Feeds pending ground contact, the grippers and the time to the node, executes its
+    /// effects and sends the periodic status report.
+    pub(crate) fn poll<S: TmStore, K: TmSink>(
+        &mut self,
+        now: u64,
+        rand: u32,
+        robot: &mut Robot,
+        link: &mut impl TeamLink,
+        p: &mut Ports<S, K>,
+    ) {
+        if self.node.is_none() {
+            self.ground_tc = false;
+            return;
+        }
+        self.persist_changes(link);
+        if core::mem::take(&mut self.ground_tc) {
+            self.input(now, rand, Input::GroundTc, robot, link, p);
+        }
+        self.steps(now, robot, link, p);
+        if core::mem::take(&mut self.progress_dirty) {
+            if let Some(progress) = self.progress_input() {
+                self.input(now, rand, progress, robot, link, p);
+            }
+        }
+        let both_hold = robot.computed_state() != mib::robot::STATE_UNKNOWN;
+        if self.both_hold != Some(both_hold) {
+            self.both_hold = Some(both_hold);
+            self.input(now, rand, Input::Grippers { both_hold }, robot, link, p);
+        }
+        self.input(now, rand, Input::Tick, robot, link, p);
+        if now >= self.next_status {
+            self.next_status = now + STATUS_PERIOD_MS;
+            self.status(now, p.dl, p.sink);
+        }
+    }
+
+    /// A packet from the inter-robot link ([`Obsw::team_packet`]).
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn on_packet<S: TmStore, K: TmSink>(
+        &mut self,
+        now: u64,
+        rand: u32,
+        from: Option<u8>,
+        packet: &[u8],
+        robot: &mut Robot,
+        link: &mut impl TeamLink,
+        p: &mut Ports<S, K>,
+    ) {
+        match self.packet(from, packet) {
+            Packet::Progress(source) => {
+                p.plan.plan.peer_progress(from, source);
+            }
+            Packet::Message(m) => self.input(now, rand, Input::Message(m), robot, link, p),
+            Packet::Refused(reason, sender) => self.rejected(now, reason, sender, p.dl, p.sink),
+        }
+    }
+
+    fn input<S: TmStore, K: TmSink>(
+        &mut self,
+        now: u64,
+        rand: u32,
+        input: Input,
+        robot: &mut Robot,
+        link: &mut impl TeamLink,
+        p: &mut Ports<S, K>,
+    ) {
+        let Some(node) = self.node.as_mut() else { return };
         let effects = node.on_event(now, rand, input);
         for (i, e) in effects.iter().enumerate() {
             match *e {
-                Effect::Persist(p) => {
-                    if !self.team.persist(now, p, effects.len() - i - 1, link) {
+                Effect::Persist(record) => {
+                    if !self.persist(now, record, effects.len() - i - 1, link) {
                         return;
                     }
                 }
-                Effect::Send { to, msg } => self.team.send(now, to, &msg, link),
-                Effect::Act(a) => self.team_act(now, a, link, sink),
-                Effect::Event(ev) => self.team.event(now, ev, &mut self.dl, sink),
+                Effect::Send { to, msg } => self.send(now, to, &msg, link),
+                Effect::Act(a) => self.act(now, a, robot, link, p),
+                Effect::Event(ev) => self.event(now, ev, p.dl, p.sink),
             }
         }
     }
 
-    fn team_act(&mut self, now: u64, a: Action, link: &mut impl TeamLink, sink: &mut impl TmSink) {
+    fn act<S: TmStore, K: TmSink>(
+        &mut self,
+        now: u64,
+        a: Action,
+        robot: &mut Robot,
+        link: &mut impl TeamLink,
+        p: &mut Ports<S, K>,
+    ) {
         if matches!(a, Action::Hold(_)) {
             // A hold cancels a step that has not started yet.
-            if let Some((step, _)) = self.team.step_pending.take() {
-                let plan = self.team.plan.as_ref().map_or(0, |p| p.id);
-                self.team
-                    .step_refused(now, plan, step, StepRefusal::Refused, &mut self.dl, sink);
+            if let Some((step, _)) = self.step_pending.take() {
+                let plan = self.plan.as_ref().map_or(0, |p| p.id);
+                self.step_refused(now, plan, step, StepRefusal::Refused, p.dl, p.sink);
             }
         }
-        if self.plan.plan.state() == mmic_plan::State::Running {
+        if p.plan.plan.state() == mmic_plan::State::Running {
             // An on-board plan the ground started is the ground's approval of its steps: a
             // hold for ground loss (the robot's own or a leader's) does not stop it, and a
             // leader's step never interleaves with it (FDIR still suspends it).
             if let Action::Continue { plan, step, .. } = a {
-                self.team
-                    .step_refused(now, plan.id, step, StepRefusal::Busy, &mut self.dl, sink);
+                self.step_refused(now, plan.id, step, StepRefusal::Busy, p.dl, p.sink);
             }
             return;
         }
@@ -1053,80 +1102,83 @@ impl<S: TmStore> Obsw<S> {
             Action::Hold(HoldTarget::Standby) => robot_mode::STANDBY,
             Action::Hold(HoldTarget::Safed) => robot_mode::SAFED,
             Action::Continue { plan, step, function } => {
-                match self.team_continue(now, plan, step, function, link, sink) {
+                match self.continue_step(now, plan, step, function, robot, link, p) {
                     Ok(()) => return,
                     Err(why) => {
-                        self.team.step_refused(now, plan.id, step, why, &mut self.dl, sink);
-                        self.hold_target()
+                        self.step_refused(now, plan.id, step, why, p.dl, p.sink);
+                        Self::hold_target(robot)
                     }
                 }
             }
         };
         // The running motion finishes first; STANDBY or SAFED is chosen when it has ended
         // (mid-motion no gripper pair holds, so choosing now would always say SAFED).
-        if self.running.is_some() {
-            self.team.hold_after_run = true;
-        } else if self.modes.root_target() != target {
-            self.set_mode(now, target, eid::GROUND_LOST, sink);
+        if robot.running.is_some() {
+            self.hold_after_run = true;
+        } else if robot.modes.root_target() != target {
+            robot.set_mode(now, target, eid::GROUND_LOST, p);
         }
     }
 
-    fn hold_target(&self) -> u32 {
-        if self.computed_state() != mib::robot::STATE_UNKNOWN {
+    fn hold_target(robot: &Robot) -> u32 {
+        if robot.computed_state() != mib::robot::STATE_UNKNOWN {
             robot_mode::STANDBY
         } else {
             robot_mode::SAFED
         }
     }
 
-    fn team_continue(
+    #[allow(clippy::too_many_arguments)]
+    fn continue_step<S: TmStore, K: TmSink>(
         &mut self,
         now: u64,
         plan: PlanRef,
         step: u16,
         function: TeamFunction,
+        robot: &mut Robot,
         link: &mut impl TeamLink,
-        sink: &mut impl TmSink,
+        p: &mut Ports<S, K>,
     ) -> Result<(), StepRefusal> {
-        self.team.accept_continue(now, plan, step, function)?;
-        self.team_steps(now, link, sink);
+        self.accept_continue(now, plan, step, function)?;
+        self.steps(now, robot, link, p);
         Ok(())
     }
 
     /// Starts plan step `s` (the next one, checked). The step is counted, durably, before
     /// it moves: a reset never lets a robot start more than the authorised count.
-    fn start_step(
+    fn start_step<S: TmStore, K: TmSink>(
         &mut self,
         now: u64,
         s: PlanStep,
+        robot: &mut Robot,
         link: &mut impl TeamLink,
-        sink: &mut impl TmSink,
+        p: &mut Ports<S, K>,
     ) -> Result<(), StepRefusal> {
-        if self.computed_state() != s.initial_state {
+        if robot.computed_state() != s.initial_state {
             return Err(StepRefusal::InitialState);
         }
         let Some((_, action)) = step_action(&s) else {
             return Err(StepRefusal::Forbidden);
         };
-        let plan = self.team.count_step(link)?;
-        match self.function_request(now, crate::services::function::Request::Start(action), sink) {
+        let plan = self.count_step(link)?;
+        match robot.function_request(now, crate::services::function::Request::Start(action), p) {
             Ok(Exec::Action(r)) => {
-                self.running = Some(r.with_token(None));
-                self.team.step_running = Some((s.step, self.faults.count));
-                let leader = self.team.node.as_ref().and_then(Node::leader).unwrap_or(0);
+                robot.running = Some(r.with_token(None));
+                self.step_running = Some((s.step, robot.faults.count));
+                let leader = self.node.as_ref().and_then(Node::leader).unwrap_or(0);
                 let e = ev::PlanStepExecuted {
                     plan,
                     step: s.step,
                     function: s.function,
                     leader,
                 };
-                self.raise(now, e, sink);
+                p.dl.raise(now, e, p.sink);
                 Ok(())
             }
             Ok(_) => Err(StepRefusal::Refused),
             Err(refused) => {
                 if let Some(e) = refused.fault {
-                    self.raise_fault(now, e, sink);
+                    robot.raise_fault(now, e, p);
                 }
                 Err(StepRefusal::Refused)
             }
@@ -1135,73 +1187,76 @@ impl<S: TmStore> Obsw<S> {
 
     /// Runs a pending step once the robot is OPERATIONAL; ends a running step (the node
     /// learns the progress; after the last authorised step the robot holds).
-    fn team_steps(&mut self, now: u64, link: &mut impl TeamLink, sink: &mut impl TmSink) {
-        if let Some((_, faults)) = self.team.step_running {
-            if self.running.is_none() {
-                self.team.step_running = None;
-                let ok = self.faults.count == faults && self.modes.root() == robot_mode::OPERATIONAL;
+    fn steps<S: TmStore, K: TmSink>(
+        &mut self,
+        now: u64,
+        robot: &mut Robot,
+        link: &mut impl TeamLink,
+        p: &mut Ports<S, K>,
+    ) {
+        if let Some((_, faults)) = self.step_running {
+            if robot.running.is_none() {
+                self.step_running = None;
+                let ok = robot.faults.count == faults && robot.modes.root() == robot_mode::OPERATIONAL;
                 if ok {
-                    self.team.progress_dirty = true;
-                    if self.team.next_step().is_none() {
+                    self.progress_dirty = true;
+                    if self.next_step().is_none() {
                         // The authorisation is used up: the robot holds.
-                        self.team.hold_after_run = true;
+                        self.hold_after_run = true;
                     }
                 }
             }
         }
-        if self.team.hold_after_run && self.running.is_none() {
-            self.team.hold_after_run = false;
+        if self.hold_after_run && robot.running.is_none() {
+            self.hold_after_run = false;
             // Unless the ground is back (it commands again) or the FDIR or a command
             // already chose the mode.
-            let ground = self.team.ground_tc || self.team.node.as_ref().is_none_or(Node::ground_seen);
+            let ground = self.ground_tc || self.node.as_ref().is_none_or(Node::ground_seen);
             if !ground
-                && self.transition.is_none()
-                && self.modes.root() == robot_mode::OPERATIONAL
-                && self.modes.root_target() == robot_mode::OPERATIONAL
-                && self.faults.pending_mode.is_none()
+                && robot.transition.is_none()
+                && robot.modes.root() == robot_mode::OPERATIONAL
+                && robot.modes.root_target() == robot_mode::OPERATIONAL
+                && robot.faults.pending_mode.is_none()
             {
-                let target = self.hold_target();
-                self.set_mode(now, target, eid::GROUND_LOST, sink);
+                let target = Self::hold_target(robot);
+                robot.set_mode(now, target, eid::GROUND_LOST, p);
             }
         }
-        if let Some((step, up)) = self.team.step_pending {
-            let plan = self.team.plan.as_ref().map_or(0, |p| p.id);
-            let expired = self.team.auth.is_none_or(|a| now >= a.expires_at);
-            let ground = self.team.ground_tc || self.team.node.as_ref().is_none_or(Node::ground_seen);
+        if let Some((step, up)) = self.step_pending {
+            let plan = self.plan.as_ref().map_or(0, |p| p.id);
+            let expired = self.auth.is_none_or(|a| now >= a.expires_at);
+            let ground = self.ground_tc || self.node.as_ref().is_none_or(Node::ground_seen);
             if ground {
                 // The ground is back (or never left): its first valid TC ends obedience,
                 // a step that has not started yet never starts.
-                self.team.step_pending = None;
-                self.team
-                    .step_refused(now, plan, step, StepRefusal::Refused, &mut self.dl, sink);
-            } else if up && self.modes.root_target() != robot_mode::OPERATIONAL {
+                self.step_pending = None;
+                self.step_refused(now, plan, step, StepRefusal::Refused, p.dl, p.sink);
+            } else if up && robot.modes.root_target() != robot_mode::OPERATIONAL {
                 // The FDIR took over on the way up.
-                self.team.step_pending = None;
-                self.team
-                    .step_refused(now, plan, step, StepRefusal::Refused, &mut self.dl, sink);
+                self.step_pending = None;
+                self.step_refused(now, plan, step, StepRefusal::Refused, p.dl, p.sink);
             } else if expired {
-                self.team.step_pending = None;
-                self.team
-                    .step_refused(now, plan, step, StepRefusal::NotAuthorised, &mut self.dl, sink);
-            } else if self.transition.is_none() && self.running.is_none() {
-                let root = self.modes.root();
-                if root == robot_mode::STANDBY && !up && self.computed_state() != mib::robot::STATE_UNKNOWN {
+                self.step_pending = None;
+                self.step_refused(now, plan, step, StepRefusal::NotAuthorised, p.dl, p.sink);
+            } else if robot.transition.is_none() && robot.running.is_none() {
+                let root = robot.modes.root();
+                if root == robot_mode::STANDBY && !up && robot.computed_state() != mib::robot::STATE_UNKNOWN {
                     // Holding in STANDBY: back to OPERATIONAL first (the step's state is
                     // checked again when it starts).
-                    self.team.step_pending = Some((step, true));
-                    self.set_mode(now, robot_mode::OPERATIONAL, eid::PLAN_STEP_EXECUTED, sink);
+                    self.step_pending = Some((step, true));
+                    robot.set_mode(now, robot_mode::OPERATIONAL, eid::PLAN_STEP_EXECUTED, p);
                 } else {
-                    self.team.step_pending = None;
-                    let started = match (root, self.team.next_step()) {
-                        (robot_mode::OPERATIONAL, Some(s)) if s.step == step => self.start_step(now, s, link, sink),
+                    self.step_pending = None;
+                    let started = match (root, self.next_step()) {
+                        (robot_mode::OPERATIONAL, Some(s)) if s.step == step => self.start_step(now, s, robot, link, p),
                         (robot_mode::OPERATIONAL, _) => Err(StepRefusal::NotAuthorised),
                         _ => Err(StepRefusal::InitialState),
                     };
                     if let Err(why) = started {
-                        self.team.step_refused(now, plan, step, why, &mut self.dl, sink);
-                        let target = self.hold_target();
-                        if self.modes.root_target() != target {
-                            self.set_mode(now, target, eid::GROUND_LOST, sink);
+                        self.step_refused(now, plan, step, why, p.dl, p.sink);
+                        let target = Self::hold_target(robot);
+                        if robot.modes.root_target() != target {
+                            robot.set_mode(now, target, eid::GROUND_LOST, p);
                         }
                     }
                 }
@@ -1218,6 +1273,13 @@ mod tests {
     use crate::obsw::Config;
     use crate::tm::RingStore;
     use std::vec::Vec;
+
+    /// The team's join acting on the node's decision `a` (what `Team::input` does with an
+    /// `Effect::Act`), with the obsw's robot and ports.
+    fn team_act(o: &mut TestObsw, now: u64, a: Action, link: &mut impl TeamLink, sink: &mut Vec<Vec<u8>>) {
+        let (team, robot, mut p) = o.team(sink);
+        team.act(now, a, robot, link, &mut p);
+    }
 
     /// A link that records persists and sends in order; `fail_persist` makes persists fail.
     #[derive(Default)]
@@ -1310,7 +1372,7 @@ mod tests {
             let elected = events(s, eid::LEADER_ELECTED);
             assert!(!elected.is_empty(), "robot {} knows a leader", i + 1);
             // The robot holds: no computed state in a fresh controller, so SAFED.
-            assert_eq!(team[i].modes.root_target(), robot_mode::SAFED);
+            assert_eq!(team[i].robot.modes.root_target(), robot_mode::SAFED);
             assert!(!of(s, 211, 2).is_empty(), "status reports");
         }
         let leaders: Vec<u8> = team
@@ -1659,7 +1721,8 @@ mod tests {
         let mut link = RecordingLink::default();
         let f = TeamFunction::Reconfigure;
         // Before the upload: no plan.
-        o.team_act(
+        team_act(
+            &mut o,
             20,
             Action::Continue {
                 plan,
@@ -1672,7 +1735,8 @@ mod tests {
         step_tc(&mut o, 30, 3, 7, STEPS[0]);
         step_tc(&mut o, 30, 4, 7, STEPS[1]);
         // Step 2 before step 1: not the next step.
-        o.team_act(
+        team_act(
+            &mut o,
             40,
             Action::Continue {
                 plan,
@@ -1688,7 +1752,7 @@ mod tests {
             step: 1,
             function: f,
         };
-        o.team_act(50, step1, &mut link, &mut s);
+        team_act(&mut o, 50, step1, &mut link, &mut s);
         assert!(o.team.step_pending.is_none());
         // The ground falls silent: the robot holds (boot transition, default sensors: no
         // computed state, so SAFED); step 1 then waits until the robot is idle and is
@@ -1700,7 +1764,7 @@ mod tests {
             t += 10;
         }
         assert!(!o.team.node().unwrap().ground_seen());
-        o.team_act(t, step1, &mut link, &mut s);
+        team_act(&mut o, t, step1, &mut link, &mut s);
         while t < 9_000 && o.team.step_pending.is_some() {
             o.tick(t, &mmic_domain::SensorsA::default(), &[], &mut s);
             o.team_poll(t, 1, &mut link, &mut s);
@@ -1718,7 +1782,7 @@ mod tests {
         );
         assert!(events(&s, eid::PLAN_STEP_EXECUTED).is_empty());
         assert_eq!(o.team.record().plan.unwrap().done, 0, "nothing counted");
-        assert_eq!(o.modes.root_target(), robot_mode::SAFED, "the robot holds");
+        assert_eq!(o.robot.modes.root_target(), robot_mode::SAFED, "the robot holds");
     }
 
     /// One robot with the simulator, one control period at a time (as the host runs it).
@@ -1787,37 +1851,43 @@ mod tests {
                 "MODE_SET",
                 &[mib::modes::node::ROBOT as i64, robot_mode::OPERATIONAL as i64, 0],
             );
-            assert!(r.run_until(120_000, |r| r.o.modes.root() == robot_mode::OPERATIONAL
-                && r.o.transition.is_none()));
+            assert!(
+                r.run_until(120_000, |r| r.o.robot.modes.root() == robot_mode::OPERATIONAL
+                    && r.o.robot.transition.is_none())
+            );
             r.send("RECONFIGURE", &[0, 1]);
-            assert!(r.o.running.is_some(), "the motion runs");
+            assert!(r.o.robot.running.is_some(), "the motion runs");
             // A hold (the leader's, or the robot's own) arrives mid-motion, when no gripper
             // pair holds (the node would say SAFED).
             let mut s = Vec::new();
-            r.o.team_act(r.now, Action::Hold(HoldTarget::Safed), &mut r.link, &mut s);
-            assert_eq!(r.o.modes.root_target(), robot_mode::OPERATIONAL, "not while it moves");
+            team_act(&mut r.o, r.now, Action::Hold(HoldTarget::Safed), &mut r.link, &mut s);
+            assert_eq!(
+                r.o.robot.modes.root_target(),
+                robot_mode::OPERATIONAL,
+                "not while it moves"
+            );
             if ground_returns {
                 // The ground is back during the motion (a PING every second).
-                while r.o.running.is_some() && r.now < 120_000 {
+                while r.o.robot.running.is_some() && r.now < 120_000 {
                     r.send("PING", &[]);
-                    r.run_until(1_000, |r| r.o.running.is_none());
+                    r.run_until(1_000, |r| r.o.robot.running.is_none());
                 }
                 r.run_until(500, |_| false);
                 assert!(r.o.team.node().unwrap().ground_seen());
                 assert_eq!(
-                    r.o.modes.root_target(),
+                    r.o.robot.modes.root_target(),
                     robot_mode::OPERATIONAL,
                     "the ground commands again: no deferred hold"
                 );
             } else {
                 // The ground stays away: the robot also raises GROUND_LOST mid-motion.
-                assert!(r.run_until(120_000, |r| r.o.running.is_none()), "the motion ends");
+                assert!(r.run_until(120_000, |r| r.o.robot.running.is_none()), "the motion ends");
                 r.run_until(50, |_| false);
                 assert!(!r.o.team.node().unwrap().ground_seen());
                 assert!(!events(&r.log, eid::GROUND_LOST).is_empty());
                 assert_eq!(r.o.computed_state(), 1, "the reconfiguration reached state 1");
                 assert_eq!(
-                    r.o.modes.root_target(),
+                    r.o.robot.modes.root_target(),
                     robot_mode::STANDBY,
                     "both grippers hold at the end: STANDBY, not SAFED"
                 );
@@ -1853,21 +1923,23 @@ mod tests {
             "MODE_SET",
             &[mib::modes::node::ROBOT as i64, robot_mode::OPERATIONAL as i64, 0],
         );
-        assert!(r.run_until(120_000, |r| r.o.modes.root() == robot_mode::OPERATIONAL
-            && r.o.transition.is_none()));
+        assert!(
+            r.run_until(120_000, |r| r.o.robot.modes.root() == robot_mode::OPERATIONAL
+                && r.o.robot.transition.is_none())
+        );
         // A running on-board plan (its state as PLAN_START leaves it).
         start_onboard_wait(&mut r, 7, 60_000, 10);
         // A hold (the robot's own for ground loss, or a leader's): the plan runs on, the
         // robot stays operational.
         let mut s = Vec::new();
-        r.o.team_act(r.now, Action::Hold(HoldTarget::Standby), &mut r.link, &mut s);
+        team_act(&mut r.o, r.now, Action::Hold(HoldTarget::Standby), &mut r.link, &mut s);
         r.run_until(1_000, |_| false);
-        assert_eq!(r.o.modes.root_target(), robot_mode::OPERATIONAL);
+        assert_eq!(r.o.robot.modes.root_target(), robot_mode::OPERATIONAL);
         assert_eq!(r.o.plan.plan.state(), mmic_plan::State::Running);
         // Suspended, it is no longer running: the team's hold applies as to an idle robot.
         r.o.plan.plan.suspend().unwrap();
-        r.o.team_act(r.now, Action::Hold(HoldTarget::Standby), &mut r.link, &mut s);
-        assert_eq!(r.o.modes.root_target(), robot_mode::STANDBY);
+        team_act(&mut r.o, r.now, Action::Hold(HoldTarget::Standby), &mut r.link, &mut s);
+        assert_eq!(r.o.robot.modes.root_target(), robot_mode::STANDBY);
     }
 
     // verifies: PLAN-TEAM-03
@@ -1894,15 +1966,17 @@ mod tests {
             "MODE_SET",
             &[mib::modes::node::ROBOT as i64, robot_mode::OPERATIONAL as i64, 0],
         );
-        assert!(r.run_until(120_000, |r| r.o.modes.root() == robot_mode::OPERATIONAL
-            && r.o.transition.is_none()));
+        assert!(
+            r.run_until(120_000, |r| r.o.robot.modes.root() == robot_mode::OPERATIONAL
+                && r.o.robot.transition.is_none())
+        );
         // An on-board plan the ground started: one long wait, well within its timeout.
         start_onboard_wait(&mut r, 9, 300_000, 600);
         // The ground goes away: the plan runs on and the robot stays operational.
         assert!(r.run_until(8_000, |r| !r.o.team.node().unwrap().ground_seen()));
         r.run_until(500, |_| false);
         assert_eq!(r.o.plan.plan.state(), mmic_plan::State::Running);
-        assert_eq!(r.o.modes.root(), robot_mode::OPERATIONAL);
+        assert_eq!(r.o.robot.modes.root(), robot_mode::OPERATIONAL);
         assert_eq!(r.o.computed_state(), STEPS[0].initial_state);
         let step1 = Action::Continue {
             plan: PlanRef { id: 7, hash },
@@ -1911,20 +1985,20 @@ mod tests {
         };
         // The leader's CONTINUE: refused BUSY, nothing pending, nothing counted or moved.
         let mut s = Vec::new();
-        r.o.team_act(r.now, step1, &mut r.link, &mut s);
+        team_act(&mut r.o, r.now, step1, &mut r.link, &mut s);
         r.log.extend(s);
         let refused: Vec<u8> = events(&r.log, eid::PLAN_STEP_REFUSED).iter().map(|p| p[4]).collect();
         assert_eq!(refused, [StepRefusal::Busy.code()]);
         assert!(r.o.team.step_pending.is_none());
         r.run_until(2_000, |_| false);
         assert!(events(&r.log, eid::PLAN_STEP_EXECUTED).is_empty());
-        assert!(r.o.running.is_none(), "no motion");
+        assert!(r.o.robot.running.is_none(), "no motion");
         assert_eq!(r.o.team.record().plan.unwrap().done, 0, "nothing counted");
         assert_eq!(r.o.plan.plan.state(), mmic_plan::State::Running);
         // Suspended, the plan no longer runs: the same CONTINUE is the leader's to give.
         r.o.plan.plan.suspend().unwrap();
         let mut s = Vec::new();
-        r.o.team_act(r.now, step1, &mut r.link, &mut s);
+        team_act(&mut r.o, r.now, step1, &mut r.link, &mut s);
         r.log.extend(s);
         assert!(r.run_until(5_000, |r| !events(&r.log, eid::PLAN_STEP_EXECUTED).is_empty()));
         assert_eq!(events(&r.log, eid::PLAN_STEP_REFUSED).len(), 1, "refused once, before");
@@ -1954,7 +2028,7 @@ mod tests {
             // The ground goes away: GROUND_LOST, the robot holds in STANDBY (state 0).
             assert!(r.run_until(8_000, |r| !r.o.team.node().unwrap().ground_seen()));
             r.run_until(2_000, |_| false);
-            assert_eq!(r.o.modes.root(), robot_mode::STANDBY);
+            assert_eq!(r.o.robot.modes.root(), robot_mode::STANDBY);
             assert_eq!(r.o.computed_state(), 0);
             r.link.fail_persist = fail;
             let plan = PlanRef { id: 7, hash };
@@ -1964,11 +2038,11 @@ mod tests {
                 function: TeamFunction::Reconfigure,
             };
             let mut s = Vec::new();
-            r.o.team_act(r.now, step1, &mut r.link, &mut s);
+            team_act(&mut r.o, r.now, step1, &mut r.link, &mut s);
             r.log.extend(s);
             // Back to OPERATIONAL (homing), then the step starts.
             r.run_until(120_000, |r| {
-                r.o.running.is_some() && r.o.team.step_running.is_some() || r.o.team.step_pending.is_none()
+                r.o.robot.running.is_some() && r.o.team.step_running.is_some() || r.o.team.step_pending.is_none()
             });
             if fail {
                 assert!(r.o.team.step_running.is_none(), "nothing moves without a durable count");
@@ -1983,13 +2057,13 @@ mod tests {
                 // The count was durable before the action started.
                 assert_eq!(r.link.records.last().unwrap().plan.as_ref().unwrap().done, 1);
                 // It ends in state 1; the node then knows progress 1 (next: step 2).
-                assert!(r.run_until(120_000, |r| r.o.running.is_none()));
+                assert!(r.run_until(120_000, |r| r.o.robot.running.is_none()));
                 r.run_until(50, |_| false);
                 assert_eq!(r.o.computed_state(), 1);
                 assert_eq!(r.o.team.plan.as_ref().unwrap().done, 1);
                 // Step 1 again (a stale order): not the next step, refused.
                 let mut s = Vec::new();
-                r.o.team_act(r.now, step1, &mut r.link, &mut s);
+                team_act(&mut r.o, r.now, step1, &mut r.link, &mut s);
                 assert_eq!(events(&s, eid::PLAN_STEP_REFUSED).len(), 1);
             }
         }
