@@ -131,11 +131,11 @@ impl Board {
     }
 }
 
-// verifies: UPD-QEMU-01, UPD-OTA-02
 /// v1 in slot 0 from the factory (otadata erased: slot 0 boots); v2 goes up into slot 1,
 /// is verified, activated, boots PENDING_VERIFY, confirms, and stays after another reset;
 /// v3 goes up into slot 0 and never confirms: the next boot aborts it and v2 runs again,
 /// told it was rolled back to, and stays.
+// verifies: UPD-QEMU-01, UPD-OTA-02
 fn update_goes_up_activates_confirms_and_a_broken_one_rolls_back_on_board_a_slots() -> TestResult {
     let k = ok!(key());
     let board = ok!(Board::new());
@@ -174,13 +174,13 @@ fn update_goes_up_activates_confirms_and_a_broken_one_rolls_back_on_board_a_slot
     Ok(())
 }
 
-// verifies: UPD-QEMU-01, UPD-IMG-02
 /// With v2 running confirmed in slot 1 and v3 verified in slot 0: an image with one
 /// signature bit changed and one a byte short are refused before anything is written (the
 /// slot still holds v3, the otadata is untouched); an activation naming another image
 /// (the running v2's digest, a replayed activation), of a slot changed after its
 /// verification, and of an erased slot are refused with the otadata untouched; v2 still
 /// boots.
+// verifies: UPD-QEMU-01, UPD-IMG-02
 fn update_bad_signature_truncated_and_unverified_activation_refused_on_board_a_slots() -> TestResult {
     let k = ok!(key());
     let board = ok!(Board::new());
@@ -243,12 +243,12 @@ fn update_bad_signature_truncated_and_unverified_activation_refused_on_board_a_s
     Ok(())
 }
 
-// verifies: UPD-QEMU-01, UPD-OTA-03
 /// The power cut after every byte program and sector erase of the activation, of the
 /// bootloader's NEW → PENDING_VERIFY and PENDING_VERIFY → ABORTED and of the confirmation,
 /// on board A's otadata: each cut boots the image that ran (and keeps it) or the one
 /// activated, unconfirmed (and the next boot returns to the one that ran); the slots are
 /// never touched.
+// verifies: UPD-QEMU-01, UPD-OTA-03
 fn update_reset_cut_into_every_otadata_write_leaves_a_bootable_choice_on_board_a_flash() -> TestResult {
     let k = ok!(key());
     let board = ok!(Board::new());
@@ -327,10 +327,10 @@ fn instret() -> u64 {
     riscv::register::minstret::read64()
 }
 
-// verifies: UPD-QEMU-01
 /// What a verification costs on RV32IMC: the Ed25519 check of the header's signature and
 /// the SHA-256 of the largest image the slot's budget allows, read from the slot, against
 /// the control period's instruction budget.
+// verifies: UPD-QEMU-01
 fn update_verification_cost_measured() -> TestResult {
     use mib::config::{PERIOD_INSTRUCTIONS, PERIOD_INSTRUCTION_BUDGET};
     let k = ok!(key());
