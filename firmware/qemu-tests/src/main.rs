@@ -28,6 +28,7 @@ mod t_spacelink;
 mod t_store;
 mod t_support;
 mod t_team;
+mod t_update;
 
 #[riscv_rt::entry]
 fn main() -> ! {
@@ -48,6 +49,7 @@ fn main() -> ! {
         t_team::TESTS,
         t_modules::TESTS,
         t_store::TESTS,
+        t_update::TESTS,
         t_budget::TESTS,
     ]);
     semihosting::process::exit(code)

@@ -5,6 +5,8 @@
 //! [`RamNor`] is a NOR flash in RAM that can lose its power after a given number of byte
 //! writes and erases, for the tests that cut a write at every byte.
 
+use core::cell::RefCell;
+
 use embedded_storage::nor_flash::{NorFlash, ReadNorFlash};
 
 /// A flash operation failed (the platform's error is not kept: the update reports it as a
@@ -78,6 +80,71 @@ fn bounds(offset: u32, len: usize, capacity: usize) -> Result<(), FlashError> {
         return Err(FlashError::OutOfBounds);
     }
     Ok(())
+}
+
+/// A partition of a larger flash: `size` bytes from `offset`, addressed from 0 (board A's
+/// otadata and application slots are partitions of its one SPI flash, at the MIB's
+/// `mib::memory` offsets). Nothing outside the window is ever read, written or erased.
+/// Several partitions of one flash are held at once (the otadata while a slot is verified
+/// for activation); each borrows the flash for one operation only.
+pub struct Partition<'a, F: ?Sized> {
+    flash: &'a RefCell<F>,
+    offset: u32,
+    size: u32,
+    erase_size: u32,
+    write_size: u32,
+}
+
+impl<'a, F: Flash + ?Sized> Partition<'a, F> {
+    /// The window `offset..offset + size` of `flash`; `None` when it does not lie inside
+    /// the flash or is not aligned to its erase unit.
+    pub fn new(flash: &'a RefCell<F>, offset: u32, size: u32) -> Option<Self> {
+        let (capacity, erase_size, write_size) = {
+            let f = flash.try_borrow().ok()?;
+            (f.capacity(), f.erase_size().max(1), f.write_size().max(1))
+        };
+        let end = offset.checked_add(size)?;
+        (end <= capacity && offset.is_multiple_of(erase_size) && size.is_multiple_of(erase_size)).then_some(Partition {
+            flash,
+            offset,
+            size,
+            erase_size,
+            write_size,
+        })
+    }
+
+    fn with<R>(&self, op: impl FnOnce(&mut F) -> Result<R, FlashError>) -> Result<R, FlashError> {
+        // A partition never calls into another while it holds the flash: a flash already
+        // borrowed is a driver fault, not a panic.
+        op(&mut *self.flash.try_borrow_mut().map_err(|_| FlashError::Device)?)
+    }
+}
+
+impl<F: Flash + ?Sized> Flash for Partition<'_, F> {
+    fn read(&mut self, offset: u32, buf: &mut [u8]) -> Result<(), FlashError> {
+        bounds(offset, buf.len(), self.size as usize)?;
+        self.with(|f| f.read(self.offset + offset, buf))
+    }
+    fn write(&mut self, offset: u32, data: &[u8]) -> Result<(), FlashError> {
+        bounds(offset, data.len(), self.size as usize)?;
+        self.with(|f| f.write(self.offset + offset, data))
+    }
+    fn erase(&mut self, from: u32, to: u32) -> Result<(), FlashError> {
+        if from > to {
+            return Err(FlashError::OutOfBounds);
+        }
+        bounds(from, (to - from) as usize, self.size as usize)?;
+        self.with(|f| f.erase(self.offset + from, self.offset + to))
+    }
+    fn capacity(&self) -> u32 {
+        self.size
+    }
+    fn erase_size(&self) -> u32 {
+        self.erase_size
+    }
+    fn write_size(&self) -> u32 {
+        self.write_size
+    }
 }
 
 /// A NOR flash of `N` bytes in RAM with 4 KiB sectors and byte writes, that can lose its
@@ -246,5 +313,46 @@ impl Flash for FileFlash {
     }
     fn write_size(&self) -> u32 {
         1
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // verifies: UPD-OTA-03
+    #[test]
+    fn a_partition_never_reaches_outside_its_window() {
+        let nor = RefCell::new(RamNor::<{ 4 * 4096 }>::new());
+        assert!(Partition::new(&nor, 4096, 3 * 4096 + 1).is_none(), "past the end");
+        assert!(Partition::new(&nor, 100, 4096).is_none(), "misaligned");
+        let mut p = Partition::new(&nor, 4096, 2 * 4096).unwrap();
+        let mut q = Partition::new(&nor, 3 * 4096, 4096).unwrap();
+        assert_eq!(p.capacity(), 8192);
+        p.write(0, &[0x12, 0x34]).unwrap();
+        assert_eq!(p.write(8191, &[0, 0]), Err(FlashError::OutOfBounds));
+        assert_eq!(p.erase(0, 3 * 4096), Err(FlashError::OutOfBounds));
+        let mut b = [0; 2];
+        p.read(0, &mut b).unwrap();
+        assert_eq!(b, [0x12, 0x34]);
+        p.erase(0, 4096).unwrap();
+        assert!(
+            nor.borrow().bytes.iter().all(|&x| x == 0xFF),
+            "erased at the window, nothing else"
+        );
+        p.write(8191, &[0]).unwrap();
+        q.read(4095, &mut b[..1]).unwrap();
+        assert_eq!(b[0], 0xFF, "the two windows do not overlap");
+        q.write(0, &[0]).unwrap();
+        assert_eq!(nor.borrow().bytes[3 * 4096 - 1], 0);
+        assert_eq!(nor.borrow().bytes[3 * 4096], 0);
+        assert_eq!(nor.borrow().bytes.iter().filter(|&&x| x != 0xFF).count(), 2);
+        let held = nor.borrow_mut();
+        assert_eq!(
+            q.write(1, &[0]),
+            Err(FlashError::Device),
+            "a flash in use is an error, not a panic"
+        );
+        drop(held);
     }
 }

@@ -256,6 +256,25 @@ pub fn verify_slot(slot: &mut dyn Flash, key: &UpdateKey, target: u8) -> Result<
     Ok(h)
 }
 
+/// Activates slot `n` (`otadata::activate`) only when it holds, verified now (header,
+/// signature, digest), the image named by `digest`: what boots is what was verified. A
+/// refusal leaves the otadata as it was.
+pub fn activate_verified(
+    otadata: &mut dyn Flash,
+    slot: &mut dyn Flash,
+    n: u8,
+    key: &UpdateKey,
+    target: u8,
+    digest: &[u8; DIGEST_LEN],
+) -> Result<Header, Refusal> {
+    let h = verify_slot(slot, key, target)?;
+    if h.digest != *digest {
+        return Err(Refusal::Digest);
+    }
+    crate::otadata::activate(otadata, n).map_err(|_| Refusal::Flash)?;
+    Ok(h)
+}
+
 /// Signs `payload` as an image (the ground's signer, and tests): the header with its
 /// signature by `secret` (an Ed25519 secret key, RFC 8032's 32-byte seed).
 pub fn sign(secret: &[u8; 32], version: u32, target: u8, payload: &[u8]) -> Option<[u8; HEADER_LEN]> {
@@ -350,6 +369,38 @@ mod tests {
             install(&mut &big[..bn], &mut small, &key(), target::BOARD_A),
             Err(Refusal::TooLarge { .. })
         ));
+    }
+
+    // verifies: UPD-SVC-01
+    #[test]
+    fn only_the_verified_image_named_is_activated() {
+        use crate::otadata;
+        let (b, n) = image(&[4u8; 700]);
+        let mut slot = RamNor::<8192>::new();
+        let mut ota = RamNor::<8192>::new();
+        let h = install(&mut &b[..n], &mut slot, &key(), target::BOARD_A).unwrap();
+        let other = [0u8; DIGEST_LEN];
+        let k = key();
+        let a = target::BOARD_A;
+        assert_eq!(
+            activate_verified(&mut ota, &mut slot, 1, &k, a, &other),
+            Err(Refusal::Digest)
+        );
+        assert!(ota.bytes.iter().all(|&x| x == 0xFF), "a refusal writes no otadata");
+        let mut erased = RamNor::<8192>::new();
+        assert_eq!(
+            activate_verified(&mut ota, &mut erased, 1, &k, a, &h.digest),
+            Err(Refusal::NotAnImage)
+        );
+        let mut changed = slot.clone();
+        changed.bytes[HEADER_LEN + 1] = 0;
+        assert_eq!(
+            activate_verified(&mut ota, &mut changed, 1, &k, a, &h.digest),
+            Err(Refusal::Digest)
+        );
+        assert!(ota.bytes.iter().all(|&x| x == 0xFF));
+        assert_eq!(activate_verified(&mut ota, &mut slot, 1, &k, a, &h.digest), Ok(h));
+        assert_eq!(otadata::boot(&mut ota).unwrap().slot, 1);
     }
 
     // verifies: UPD-IMG-02
