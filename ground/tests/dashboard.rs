@@ -379,3 +379,121 @@ fn stop_returns_with_an_event_stream_open() {
     srv.stop();
     assert!(t.elapsed() < Duration::from_secs(5), "stop took {:?}", t.elapsed());
 }
+
+// verifies: GND-ONBOARD-01, GND-ONBOARD-02
+#[test]
+fn on_board_plan_controls_are_checked_against_robot_link_and_plan_state() {
+    use mib::params::pid;
+    use mib::plan::state;
+    let hub = Hub::new();
+    let (srv, rec) = start(None, hub.clone());
+    let a = srv.local_addr();
+    let post = |path: &str, body: Option<Value>| {
+        let (st, b) = http(a, "POST", path, &[], body);
+        (st, json_of(&b)["error"].as_str().unwrap_or("").to_string(), b)
+    };
+    // Neither a control nor a robot the collector knows.
+    let (st, e, _) = post("/api/robots/1/onboard/start", None);
+    assert_eq!(st, 404);
+    assert!(e.contains("suspend, resume, abort, skip"), "{e}");
+    let (st, e, _) = post("/api/robots/1/onboard/suspend", None);
+    assert_eq!(st, 404);
+    assert!(e.contains("robot 1 is not followed"), "{e}");
+    // Followed, link not up: the TC would not arrive.
+    hub.add_robot(1);
+    let (st, e, _) = post("/api/robots/1/onboard/suspend", None);
+    assert_eq!(st, 503);
+    assert!(e.contains("link is not up yet"), "{e}");
+    hub.link(1, dashboard::LinkState::Lost);
+    assert!(post("/api/robots/1/onboard/suspend", None).1.contains("link is lost"));
+    hub.heard(1, 1);
+    // Up, but no plan status heard yet.
+    let (st, e, _) = post("/api/robots/1/onboard/suspend", None);
+    assert_eq!(st, 409);
+    assert!(e.contains("no on-board plan status"), "{e}");
+    // A running plan, from its HK; the snapshot and the stream carry it.
+    let id0 = hub.last_id();
+    let hk = [
+        (pid::PLAN_STATE, i64::from(state::RUNNING)),
+        (pid::PLAN_ID, 0xA1B2_C3D4),
+        (pid::PLAN_STEPS, 4),
+        (pid::PLAN_NEXT_STEP, 1),
+        (pid::PLAN_DONE, 1),
+        (pid::PLAN_WAIT_ROBOT, 0),
+        (pid::PLAN_WAIT_STEP, 0),
+    ];
+    hub.onboard(1, |p| p.apply_hk(10, &hk));
+    let (st, body) = http(a, "GET", "/api/snapshot", &[], None);
+    assert_eq!(st, 200);
+    let ob = &json_of(&body)["robots"][0]["onboard"];
+    assert_eq!(
+        (
+            ob["state"].as_str(),
+            ob["plan_id"].as_str(),
+            ob["steps"].as_u64(),
+            ob["done"].as_u64()
+        ),
+        (Some("RUNNING"), Some("0xa1b2c3d4"), Some(4), Some(1)),
+        "{ob}"
+    );
+    assert_eq!(ob["controls"], json!(["suspend", "abort"]));
+    let (ids, _) = stream_ids(a, &format!("?since={id0}"), None, 1);
+    assert_eq!(ids, vec![id0 + 1], "one stream message for the change");
+    // Only the controls the robot accepts in RUNNING are sent.
+    for c in ["resume", "skip"] {
+        let (st, e, _) = post(&format!("/api/robots/1/onboard/{c}"), Some(json!({"confirm": true})));
+        assert_eq!(st, 409, "{c}: {e}");
+        assert!(
+            e.contains("only with the plan SUSPENDED") && e.contains("RUNNING"),
+            "{e}"
+        );
+    }
+    assert!(rec.sent.lock().unwrap().is_empty(), "nothing sent yet");
+    let (st, _, body) = post("/api/robots/1/onboard/suspend", None);
+    assert_eq!(st, 200, "{body}");
+    let id = json_of(&body)["request_id"].as_str().unwrap().to_string();
+    assert_eq!(rec.sent.lock().unwrap()[0], (1, "PLAN_SUSPEND".to_string(), vec![]));
+    let c = hub.command(&id).expect("in the command history");
+    assert_eq!(
+        (c.name.as_str(), c.origin.as_str()),
+        ("PLAN_SUSPEND", "page: on-board plan")
+    );
+    // The robot reports SUSPENDED (event): RESUME is hazardous in the MIB and needs the
+    // operator's confirmation; SKIP takes the plan's next step.
+    hub.onboard(1, |p| {
+        p.apply_event(20, mib::events::eid::PLAN_STATE_CHANGED, |k| match k {
+            "state" => Some(i64::from(state::SUSPENDED)),
+            "step" => Some(2),
+            "cause" => Some(i64::from(mib::plan::cause::COMMAND)),
+            "plan_id" => Some(0xA1B2_C3D4),
+            _ => None,
+        })
+    });
+    let (st, e, _) = post("/api/robots/1/onboard/resume", None);
+    assert_eq!(st, 409);
+    assert!(e.contains("PLAN_RESUME is hazardous"), "{e}");
+    assert_eq!(post("/api/robots/1/onboard/suspend", None).0, 409, "already suspended");
+    assert_eq!(
+        post("/api/robots/1/onboard/resume", Some(json!({"confirm": true}))).0,
+        200
+    );
+    assert_eq!(
+        post("/api/robots/1/onboard/skip", Some(json!({"confirm": true}))).0,
+        200
+    );
+    assert_eq!(post("/api/robots/1/onboard/abort", Some(json!({}))).0, 200);
+    let (st, e, _) = post("/api/robots/1/onboard/abort", Some(json!({"confirm": "yes"})));
+    assert_eq!(st, 400, "{e}");
+    let sent: Vec<(String, Vec<i64>)> = rec.sent.lock().unwrap()[1..]
+        .iter()
+        .map(|(_, n, a)| (n.clone(), a.clone()))
+        .collect();
+    assert_eq!(
+        sent,
+        vec![
+            ("PLAN_RESUME".to_string(), vec![]),
+            ("PLAN_SKIP".to_string(), vec![2]),
+            ("PLAN_ABORT".to_string(), vec![])
+        ]
+    );
+}

@@ -374,3 +374,108 @@ fn plans_start_from_the_page_under_collect_with_live_progress_and_one_per_robot(
     assert_eq!(last["steps"][2]["state"], "blocked", "{last}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Robot 1 on board: a ping, a long wait, a ping.
+const ONBOARD_PLAN: &str = r#"name = "onboard"
+description = "robot 1 runs it itself"
+[[robot]]
+number = 1
+[[step]]
+id = "ping"
+robot = 1
+action = "command"
+tc = "PING"
+[[step]]
+id = "hold"
+robot = 1
+action = "wait"
+seconds = 30
+[[step]]
+id = "ping2"
+robot = 1
+action = "command"
+tc = "PING"
+"#;
+
+// verifies: GND-ONBOARD-01, GND-ONBOARD-02
+#[test]
+fn an_on_board_plan_is_shown_live_and_suspended_and_resumed_through_the_dashboard_api() {
+    let (_obsw, tc, _ctl) = start_obsw(1);
+    let dir = tmpdir("onboard");
+    std::fs::write(dir.join("onboard.toml"), ONBOARD_PLAN).unwrap();
+    // Uploaded and started by the CLI, which leaves the robot to it (one commanding ground
+    // per robot: the collector follows it afterwards).
+    let out = Command::new(env!("CARGO_BIN_EXE_ground"))
+        .current_dir(&dir)
+        .args(["--archive", "run.db", "run", "--on-board", "--detach", "--lab-udp"])
+        .args(["--robot", &format!("1={tc}"), "onboard.toml"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let (_collector, a) = start_collector(&dir, &format!("[[robot]]\nnumber = 1\naddr = \"{tc}\"\n"), 1);
+    let onboard = |state: &'static str| {
+        wait_for(30, state, || {
+            let (_, s) = http(a, "GET", "/api/snapshot", None);
+            let o = s["robots"][0]["onboard"].clone();
+            (o["state"] == state).then_some(o)
+        })
+    };
+    let o = onboard("RUNNING");
+    assert_eq!((o["steps"].as_u64(), o["done"].as_u64()), (Some(3), Some(1)), "{o}");
+    assert!(
+        o["plan_id"]
+            .as_str()
+            .is_some_and(|p| p.starts_with("0x") && p != "0x00000000"),
+        "{o}"
+    );
+    assert_eq!(o["controls"], json!(["suspend", "abort"]));
+    let (st, r) = http(
+        a,
+        "POST",
+        "/api/robots/1/onboard/resume",
+        Some(json!({"confirm": true})),
+    );
+    assert_eq!(st, 409, "{r}");
+    let completed = |id: &str| {
+        wait_for(30, "the control's completion", || {
+            let (_, c) = http(a, "GET", &format!("/api/tc/{id}"), None);
+            let stages = c["stages"].as_array()?.clone();
+            stages.iter().any(|s| s["stage"] == "completion").then_some(c)
+        })
+    };
+    // Suspend: the robot says SUSPENDED (by command), the TC's stages are all ✓.
+    let (st, r) = http(a, "POST", "/api/robots/1/onboard/suspend", None);
+    assert_eq!(st, 200, "{r}");
+    let c = completed(r["request_id"].as_str().unwrap());
+    assert_eq!(
+        (c["name"].as_str(), c["origin"].as_str()),
+        (Some("PLAN_SUSPEND"), Some("page: on-board plan"))
+    );
+    assert!(
+        c["stages"].as_array().unwrap().iter().all(|s| s["success"] == true),
+        "{c}"
+    );
+    let o = onboard("SUSPENDED");
+    assert_eq!(o["cause"], "COMMAND");
+    assert_eq!(o["controls"], json!(["resume", "abort", "skip"]));
+    // Resume (hazardous: confirmed) skips nothing: every step done in the end.
+    let (st, r) = http(a, "POST", "/api/robots/1/onboard/resume", None);
+    assert_eq!(st, 409, "{r}");
+    let (st, r) = http(
+        a,
+        "POST",
+        "/api/robots/1/onboard/resume",
+        Some(json!({"confirm": true})),
+    );
+    assert_eq!(st, 200, "{r}");
+    completed(r["request_id"].as_str().unwrap());
+    let o = onboard("COMPLETED");
+    assert_eq!(
+        (o["done"].as_u64(), o["cause"].as_str()),
+        (Some(3), Some("DONE")),
+        "{o}"
+    );
+    assert_eq!(o["controls"], json!([]));
+    let (st, r) = http(a, "POST", "/api/robots/1/onboard/abort", None);
+    assert_eq!(st, 409, "a completed plan is not aborted from the page: {r}");
+}

@@ -79,6 +79,10 @@ pub fn to_hub(hub: &Hub, robot: u8, tm: &Tm) {
                     hub.config(robot, ConfigState::from_mib(v.raw as u8));
                 }
             }
+            if hk.values.iter().any(|v| v.id == mib::params::pid::PLAN_STATE) {
+                let raw: Vec<(u16, i64)> = hk.values.iter().map(|v| (v.id, v.raw)).collect();
+                hub.onboard(robot, |p| p.apply_hk(t, &raw));
+            }
         }
         TmBody::Event(ev) => {
             if ev.id == mib::events::eid::MODE_CHANGED {
@@ -86,6 +90,7 @@ pub fn to_hub(hub: &Hub, robot: u8, tm: &Tm) {
                     node_mode(hub, robot, node as u32, to as u32);
                 }
             }
+            hub.onboard(robot, |p| p.apply_event(t, ev.id, |k| ev.param(k)));
             hub.event(EventRecord {
                 robot,
                 t_ms: t,
@@ -98,8 +103,10 @@ pub fn to_hub(hub: &Hub, robot: u8, tm: &Tm) {
         TmBody::Report(r) => {
             // The other reports are not on the page (the module set and the team status
             // come through the robot's worker).
-            if let mib_wire::Tm::ModeReply(r) = r.as_ref() {
-                node_mode(hub, robot, r.node, r.mode)
+            match r.as_ref() {
+                mib_wire::Tm::ModeReply(r) => node_mode(hub, robot, r.node, r.mode),
+                mib_wire::Tm::PlanStatus(st) => hub.onboard(robot, |p| p.apply_status(t, st)),
+                _ => {}
             }
         }
         TmBody::Verification(v) => {

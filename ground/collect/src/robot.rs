@@ -34,7 +34,7 @@ use super::onboard;
 use super::planrun::PlanInput;
 use super::robotcfg::ConfigTracker;
 use super::store::SinkMsg;
-use super::tracker::{ApidTracker, GapPlan, LinkWatch, Pos, RetrievalPacer};
+use super::tracker::{ApidTracker, GapPlan, LinkWatch, Pos, RetrievalPacer, Subscription};
 
 /// [`mib::ground_config::GROUND_RECONNECT_FIRST_MS`]: first pause between reconnection attempts;
 /// doubles up to the configured cap.
@@ -128,6 +128,11 @@ pub struct Worker {
     team_due: bool,
     /// When the team status was last asked for (TEAM_STATUS_REQUEST).
     team_asked_ms: i64,
+    /// Over a UDP lab link, does the robot send to this collector? Re-subscribed every
+    /// `SUBSCRIBE_RETRY_MS` until it does: the rule of every front end.
+    subscription: Subscription,
+    /// When bytes last went to the robot (a new TC or a resend).
+    last_sent_ms: Option<i64>,
 }
 
 impl Worker {
@@ -195,6 +200,8 @@ impl Worker {
             team_known: false,
             team_due: false,
             team_asked_ms: i64::MIN / 2,
+            subscription: Subscription::default(),
+            last_sent_ms: None,
             cfg,
             global,
             sink,
@@ -275,6 +282,7 @@ impl Worker {
 
     fn send(&mut self, bytes: &[u8]) {
         if let Some(l) = &self.link {
+            self.last_sent_ms = Some(now_ms());
             if let Err(e) = l.send(bytes) {
                 tracing::debug!(robot = self.cfg.number, "send: {e}");
             }
@@ -327,3 +335,6 @@ impl Worker {
         }
     }
 }
+
+#[cfg(test)]
+mod tests;

@@ -15,8 +15,8 @@ use serde_json::{json, Value};
 use tokio::sync::broadcast;
 
 use super::{
-    AlarmRecord, AlarmState, CommandRecord, ConfigState, EventRecord, LimitState, LinkState, ModuleView, PlanRun,
-    StageReport, TeamView,
+    AlarmRecord, AlarmState, CommandRecord, ConfigState, EventRecord, LimitState, LinkState, ModuleView, OnBoardView,
+    PlanRun, StageReport, TeamView,
 };
 
 /// Messages kept for replay after a reconnect (at 50 robots × 10 Hz HK this is about
@@ -56,6 +56,8 @@ struct RobotView {
     modules: Option<ModuleView>,
     /// Team status (None until a TEAM_STATUS report arrived).
     team: Option<TeamView>,
+    /// The on-board plan (None until its HK, report or event arrived).
+    onboard: Option<OnBoardView>,
     /// `last_heard_ms` as last published to the page.
     #[serde(skip)]
     published_heard_ms: Option<i64>,
@@ -78,6 +80,7 @@ impl RobotView {
             hk_t_ms: None,
             modules: None,
             team: None,
+            onboard: None,
             published_heard_ms: None,
         }
     }
@@ -280,6 +283,25 @@ impl Hub {
             r.team = Some(view);
             self.publish(&mut st, msg);
         }
+    }
+
+    /// Updates the on-board plan of a robot with `f` (which returns whether it took
+    /// anything); published when the view changed.
+    pub fn onboard(&self, robot: u8, f: impl FnOnce(&mut OnBoardView) -> bool) {
+        let mut st = self.lock();
+        let r = Self::robot(&mut st, robot);
+        let mut view = r.onboard.clone().unwrap_or_default();
+        if !f(&mut view) || r.onboard.as_ref() == Some(&view) {
+            return;
+        }
+        let msg = json!({"type": "onboard", "robot": robot, "onboard": &view});
+        r.onboard = Some(view);
+        self.publish(&mut st, msg);
+    }
+
+    /// The on-board plan of a robot as last reported (`None`: nothing heard of it yet).
+    pub fn onboard_view(&self, robot: u8) -> Option<OnBoardView> {
+        self.lock().robots.get(&robot).and_then(|r| r.onboard.clone())
     }
 
     /// Housekeeping values of one report, engineering values by MIB parameter name.

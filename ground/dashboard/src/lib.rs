@@ -20,6 +20,7 @@
 
 mod hub;
 pub mod mibinfo;
+pub mod onboard;
 mod server;
 
 use ground_archive as archive;
@@ -27,6 +28,7 @@ use ground_ops::plan;
 use ground_pus as pus;
 
 pub use hub::{Hub, HubStats, DEFAULT_LIVE_SAMPLES, DEFAULT_REPLAY};
+pub use onboard::{OnBoardView, PlanControl};
 pub use server::{serve, spawn, Running, ServeError};
 
 use serde::Serialize;

@@ -146,8 +146,14 @@ pub fn page_mib() -> Value {
         .iter()
         .map(|f| json!({"code": f.code(), "name": f.name(), "desc": f.description()}))
         .collect();
+    // The on-board plan panel's buttons: each control, its TC and the plan states it is
+    // accepted in (`crate::onboard::PlanControl`).
+    let plan_controls: Vec<Value> = crate::onboard::PlanControl::ALL
+        .iter()
+        .map(|c| json!({"control": c.word(), "tc": c.tc_name(), "states": c.states()}))
+        .collect();
     json!({"tcs": tcs, "params": params, "events": events, "states": states, "nodes": nodes, "faces": faces,
-        "failures": failures})
+        "failures": failures, "plan_controls": plan_controls})
 }
 
 #[cfg(test)]

@@ -11,6 +11,7 @@
 //! | `GET /api/tc/{request_id}` | the TC and its PUS 1 stages |
 //! | `POST /api/alarms/{id}/ack`, `/shelve` | `{"minutes"}` for shelve |
 //! | `GET /api/plans`, `POST /api/plans` | `{"name", "confirm"}` → `{"run_id"}` (404 unknown, 409 busy or not confirmed) |
+//! | `POST /api/robots/{robot}/onboard/{suspend,resume,abort,skip}` | `{"confirm", "step"}` → `{"request_id"}`: the on-board plan's control TC (404 unknown robot or control, 503 link not up, 409 plan state or not confirmed) |
 //! | `GET /api/series?robot&param&t0&t1&columns` | min/max per column, archive + live |
 //!
 //! Access: without a token the server binds to loopback addresses only and checks
@@ -36,7 +37,7 @@ use tokio::sync::broadcast::error::RecvError;
 use tower_http::set_header::SetResponseHeaderLayer;
 
 use super::hub::Resume;
-use super::{mibinfo, CommandRecord, Commander, Hub, PlanStartError, Series};
+use super::{mibinfo, CommandRecord, Commander, Hub, LinkState, PlanControl, PlanStartError, Series};
 
 const INDEX_HTML: &str = include_str!("../../web/dist/index.html");
 const APP_JS: &str = include_str!("../../web/dist/app.js");
@@ -75,6 +76,7 @@ fn router(app: App) -> Router {
         .route("/api/alarms/{id}/ack", post(ack_alarm))
         .route("/api/alarms/{id}/shelve", post(shelve_alarm))
         .route("/api/plans", get(plans).post(start_plan))
+        .route("/api/robots/{robot}/onboard/{control}", post(onboard_control))
         .route("/api/series", get(series))
         .route_layer(middleware::from_fn_with_state(app.clone(), guard))
         .layer(SetResponseHeaderLayer::overriding(
@@ -422,9 +424,14 @@ async fn send_tc(
             );
         }
     }
+    dispatch(&app, req.robot, def, args, req.origin.unwrap_or_else(|| "page".into())).await
+}
+
+/// Hands a checked TC to the commander and records it in the command history under
+/// `origin`; answers with its request ID.
+async fn dispatch(app: &App, robot: u8, def: &'static mib::tc::TcDef, args: Vec<i64>, origin: String) -> Response {
     let commander = app.commander.clone();
     let name = def.name;
-    let robot = req.robot;
     let raw = args.clone();
     let sent = tokio::task::spawn_blocking(move || commander.send_tc(robot, name, &raw)).await;
     let request_id = match sent {
@@ -439,11 +446,118 @@ async fn send_tc(
         name: name.to_string(),
         args: def.args.iter().map(|a| a.name.to_string()).zip(args).collect(),
         sent_ms: existing.as_ref().map_or_else(now_ms, |c| c.sent_ms),
-        origin: req.origin.unwrap_or_else(|| "page".into()),
+        origin,
         stages: Vec::new(),
     };
     app.hub.tc_sent(rec);
     Json(json!({"request_id": request_id})).into_response()
+}
+
+/// What the page's on-board plan buttons send with their control.
+#[derive(Deserialize, Default)]
+struct OnBoardControl {
+    /// Must be true for a control whose TC the MIB marks hazardous (the page asks).
+    #[serde(default)]
+    confirm: bool,
+    /// PLAN_SKIP: the step to skip (0-based); default: the plan's next step as last
+    /// reported (the robot refuses any other with PLAN_STEP_MISMATCH).
+    #[serde(default)]
+    step: Option<u8>,
+}
+
+/// Who the command history names as the sender of the panel's TCs.
+pub const ONBOARD_ORIGIN: &str = "page: on-board plan";
+
+/// A control TC of a robot's on-board plan, checked against what the collector knows:
+/// the robot followed, its link up, its plan in a state the robot accepts the TC in,
+/// hazardous TCs confirmed.
+async fn onboard_control(
+    State(app): State<App>,
+    Path((robot, control)): Path<(String, String)>,
+    body: axum::body::Bytes,
+) -> Response {
+    let Some(ctl) = PlanControl::from_word(&control) else {
+        let words: Vec<&str> = PlanControl::ALL.iter().map(|c| c.word()).collect();
+        return error(
+            StatusCode::NOT_FOUND,
+            format!(
+                "no on-board plan control \"{control}\" (controls: {})",
+                words.join(", ")
+            ),
+        );
+    };
+    let Ok(robot) = robot.parse::<u8>() else {
+        return error(StatusCode::BAD_REQUEST, format!("\"{robot}\" is not a robot number"));
+    };
+    let req: OnBoardControl = if body.iter().all(u8::is_ascii_whitespace) {
+        OnBoardControl::default()
+    } else {
+        match serde_json::from_slice(&body) {
+            Ok(r) => r,
+            Err(e) => return error(StatusCode::BAD_REQUEST, format!("POST on-board {}: {e}", ctl.word())),
+        }
+    };
+    let Some(def) = ctl.tc() else {
+        return error(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            format!("{} is not in this MIB", ctl.tc_name()),
+        );
+    };
+    match app.hub.link_state(robot) {
+        None => {
+            return error(
+                StatusCode::NOT_FOUND,
+                format!("robot {robot} is not followed by this collector"),
+            )
+        }
+        Some(LinkState::Up) => {}
+        Some(s) => {
+            let s = if s == LinkState::Lost { "lost" } else { "not up yet" };
+            return error(
+                StatusCode::SERVICE_UNAVAILABLE,
+                format!("robot {robot}'s link is {s}: {} not sent", def.name),
+            );
+        }
+    }
+    let Some(view) = app.hub.onboard_view(robot) else {
+        return error(
+            StatusCode::CONFLICT,
+            format!(
+                "no on-board plan status from robot {robot} yet (HK PLAN or a PLAN event): {} not sent",
+                def.name
+            ),
+        );
+    };
+    if !ctl.accepted_in(view.state_code) {
+        return error(
+            StatusCode::CONFLICT,
+            format!(
+                "{} is accepted only with the plan {}; robot {robot}'s plan is {}",
+                def.name,
+                ctl.states().join(" or "),
+                view.state
+            ),
+        );
+    }
+    if let Some(why) = mibinfo::hazard(def) {
+        if !req.confirm {
+            return error(
+                StatusCode::CONFLICT,
+                format!("{} is hazardous ({why}): resend with \"confirm\": true", def.name),
+            );
+        }
+    }
+    let args = match ctl {
+        PlanControl::Skip => vec![i64::from(req.step.unwrap_or(view.done))],
+        PlanControl::Suspend | PlanControl::Resume | PlanControl::Abort => Vec::new(),
+    };
+    if args.len() != def.args.len() {
+        return error(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            format!("{} takes {} arguments in this MIB", def.name, def.args.len()),
+        );
+    }
+    dispatch(&app, robot, def, args, ONBOARD_ORIGIN.to_string()).await
 }
 
 async fn list_tc(State(app): State<App>) -> Response {

@@ -11,18 +11,22 @@
 //! - [`RetrievalPacer`] (`pace.rs`): when a store retrieval is in flight and when the next
 //!   may go — one in flight per robot, ended by its end report, its TC's outcome or
 //!   [`mib::ground_config::STORE_REQUEST_TIMEOUT_MS`], spaced by
-//!   [`mib::ground_config::STORE_REQUEST_MIN_GAP_MS`].
+//!   [`mib::ground_config::STORE_REQUEST_MIN_GAP_MS`];
+//! - [`Subscription`] (`subscribe.rs`): is the robot sending to this ground? Over a UDP lab
+//!   link a heartbeat every [`mib::ground_config::SUBSCRIBE_RETRY_MS`] until it streams.
 //!
 //! Pure: no I/O, times passed in (ms).
 
 mod gaps;
 mod pace;
+mod subscribe;
 mod tm;
 mod track;
 mod watch;
 
 pub use gaps::GapPlan;
 pub use pace::RetrievalPacer;
+pub use subscribe::{Subscription, SUBSCRIBE_RETRY_MS};
 pub use tm::{is_boot, position, store_done, StoreDone};
 pub use track::{ApidTracker, Lost, LostRun, Pos, Verdict, BOOT_FIRST_SEQ, MAX_MISSING, RECENT_WINDOW};
 pub use watch::{LinkLoss, LinkState, LinkWatch};

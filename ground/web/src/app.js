@@ -41,6 +41,8 @@ async function api(path, opts = {}) {
 const S = {
   mib: null, params: new Map(), robots: new Map(), events: [], alarms: new Map(), commands: new Map(),
   plans: new Map(), lastId: 0, clockOffset: 0, view: 'fleet',
+  // Per robot: the last on-board plan control sent from its panel ({ id, name } or { error }).
+  onboardTc: new Map(),
   dirty: { robots: new Set(), hk: new Set(), events: true, alarms: true, commands: true, plans: true, fleetAll: true, modules: true, team: true },
 };
 // Update-latency samples (ms from HK time to drawn), read by the benchmark.
@@ -51,7 +53,7 @@ window.dashState = S;
 function robotOf(n) {
   let r = S.robots.get(n);
   if (!r) {
-    r = { robot: n, link: 'connecting', last_heard_ms: null, mode: null, modes: {}, config: null, hk: {}, hk_t_ms: null, modules: null, team: null };
+    r = { robot: n, link: 'connecting', last_heard_ms: null, mode: null, modes: {}, config: null, hk: {}, hk_t_ms: null, modules: null, team: null, onboard: null };
     S.robots.set(n, r);
     S.dirty.fleetAll = true;
   }
@@ -90,6 +92,10 @@ function apply(m) {
       S.dirty.robots.add(m.robot);
       S.dirty.modules = true;
       break;
+    case 'onboard':
+      robotOf(m.robot).onboard = m.onboard;
+      S.dirty.robots.add(m.robot);
+      break;
     case 'team':
       robotOf(m.robot).team = m.team;
       S.dirty.robots.add(m.robot);
@@ -121,6 +127,7 @@ function apply(m) {
       S.commands.set(m.tc.request_id, m.tc);
       if (S.commands.size > 1000) S.commands.delete(S.commands.keys().next().value);
       S.dirty.commands = true;
+      if ((S.onboardTc.get(m.tc.robot) || {}).id === m.tc.request_id) S.dirty.robots.add(m.tc.robot);
       break;
     case 'plan':
       S.plans.set(m.plan.run_id, m.plan);
@@ -207,8 +214,9 @@ function makeCard(n) {
     el('div', { class: 'head' }, el('h2', {}, 'Robot ' + n), el('span', { class: 'link' }), el('span', { class: 'age' }), el('span', { class: 'mode' })),
     el('div', { class: 'body' }, el('div', { class: 'pic' }), el('div', { class: 'tree' }), grid),
     el('div', { class: 'cfgline' }),
+    el('div', { class: 'onboard' }),
     el('div', { class: 'ralarms' }));
-  const c = { card, vals, link: $('.link', card), age: $('.age', card), mode: $('.mode', card), pic: $('.pic', card), tree: $('.tree', card), alarms: $('.ralarms', card), cfgline: $('.cfgline', card) };
+  const c = { card, vals, link: $('.link', card), age: $('.age', card), mode: $('.mode', card), pic: $('.pic', card), tree: $('.tree', card), alarms: $('.ralarms', card), cfgline: $('.cfgline', card), onboard: $('.onboard', card) };
   cards.set(n, c);
   return c;
 }
@@ -234,6 +242,7 @@ function renderFleet(now) {
     c.pic.replaceChildren(configPicture(r.config));
     c.tree.replaceChildren(modeTree(r.modes));
     c.cfgline.replaceChildren(...cfgLine(r));
+    onboardPanel(c.onboard, r);
     c.alarms.replaceChildren(...robotAlarms(n));
   }
   S.dirty.robots.clear();
@@ -436,6 +445,69 @@ function renderTeam() {
       el('td', {}, t.auth_steps ? `${t.auth_steps} steps` : 'HOLD only'),
       el('td', {}, fmtTime(t.t_ms)));
   }));
+}
+
+// --- on-board plan (PUS 18): state from the robot's PLAN housekeeping and plan events,
+// decoded by the collector with the MIB; a button per control TC, enabled only in the
+// states the robot accepts it in (the collector's `controls`, which the server checks too).
+const PLAN_CLASS = { RUNNING: 'm-operational', SUSPENDED: 'm-hold', ABORTED: 'lost', COMPLETED: 'up', LOADED: 'connecting', EMPTY: 'connecting' };
+function onboardPanel(box, r) {
+  const ob = r.onboard;
+  box.dataset.state = ob ? ob.state : '';
+  if (!ob) {
+    box.replaceChildren(el('span', { class: 'k' }, 'on-board plan '), el('span', { class: 'hint' }, 'no plan status yet (PLAN housekeeping every 2 s)'));
+    return;
+  }
+  const live = r.link === 'up';
+  // The controls and their TCs come from the MIB view (`/api/mib` plan_controls).
+  const buttons = (S.mib ? S.mib.plan_controls : []).map(({ control: c, tc, states }) => {
+    const label = c === 'skip' ? 'Skip step' : c[0].toUpperCase() + c.slice(1);
+    const ok = live && ob.controls.includes(c);
+    const t = S.mib && S.mib.tcs.find((x) => x.name === tc);
+    const why = !live ? `robot ${r.robot}'s link is ${r.link}` : ok ? `${tc}${t && t.hazard ? ' (hazardous: asks first)' : ''}` : `${tc} is accepted only with the plan ${states.join(' or ')}`;
+    return el('button', { class: 'ob-ctl' + (t && t.hazard ? ' hazard' : ''), 'data-control': c, disabled: ok ? null : '', title: why, onclick: () => onboardControl(r.robot, c, tc) },
+      c === 'skip' ? `${label} ${ob.done}` : label);
+  });
+  const sent = S.onboardTc.get(r.robot);
+  let result = null;
+  if (sent && sent.error) result = el('span', { class: 'ob-result bad' }, sent.error);
+  else if (sent) {
+    const cmd = S.commands.get(sent.id);
+    const stages = cmd ? cmd.stages.map((s) => el('span', { class: s.success ? 'ok' : 'bad', 'data-stage': s.stage },
+      ` ${s.success ? '✓' : '✗'} ${s.stage}${s.failure ? ' ' + s.failure.name : ''}`)) : [];
+    const failed = cmd && cmd.stages.some((s) => !s.success);
+    const done = cmd && cmd.stages.some((s) => s.stage === 'completion');
+    result = el('span', { class: 'ob-result', 'data-request': sent.id, 'data-outcome': failed ? 'failed' : done ? 'completed' : 'pending' },
+      `${sent.name} ${sent.id}:`, stages.length ? stages : el('span', { class: 'hint' }, ' sent'));
+  }
+  box.replaceChildren(
+    el('div', { class: 'ob-line' },
+      el('span', { class: 'k' }, 'on-board plan '),
+      el('span', { class: 'pill ob-state ' + (PLAN_CLASS[ob.state] || ''), title: `plan state ${ob.state_code}` }, ob.state),
+      ob.cause && ob.cause !== 'COMMAND' ? el('span', { class: ob.cause === 'DONE' ? 'hint' : 'bad ob-cause' }, ` ${ob.cause}`) : null,
+      ob.state_code === 0 ? null : [
+        el('span', { class: 'ob-steps' }, ` at step ${ob.next_step} of ${ob.steps} (${ob.done} done)`),
+        el('progress', { max: Math.max(ob.steps, 1), value: ob.done }),
+        el('code', { title: ob.crc ? 'plan ID, CRC-32 of the image' : 'plan ID' }, ob.plan_id + (ob.crc ? ' crc ' + ob.crc : '')),
+        ob.waiting_for ? el('span', { class: 'hint ob-wait' }, ` waiting for robot ${ob.waiting_for[0]}'s step ${ob.waiting_for[1]}`) : null,
+      ]),
+    el('div', { class: 'ob-ctls' }, buttons, result));
+}
+async function onboardControl(robot, control, tc) {
+  const t = S.mib.tcs.find((x) => x.name === tc);
+  let confirm = false;
+  if (t && t.hazard) {
+    confirm = await confirmHazard(t, robot);
+    if (!confirm) { S.onboardTc.set(robot, { error: `${tc} not sent` }); S.dirty.robots.add(robot); schedule(); return; }
+  }
+  try {
+    const r = await api(`/api/robots/${robot}/onboard/${control}`, { method: 'POST', body: JSON.stringify({ confirm }) });
+    S.onboardTc.set(robot, { id: r.request_id, name: tc });
+  } catch (e) {
+    S.onboardTc.set(robot, { error: e.message });
+  }
+  S.dirty.robots.add(robot);
+  schedule();
 }
 
 function robotAlarms(n) {

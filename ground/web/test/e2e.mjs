@@ -14,7 +14,13 @@
 // second collector: the Modules tab shows every slot and the configuration state, the
 // Team tab the roster uploaded from the page and the leader the robots elect once the
 // ground is silent; a robot rebuilt with another module set raises CONFIG_CHANGED on the
-// page and in `ground alarms list`.
+// page and in `ground alarms list`. On-board plans: robots 6 and 7 run a plan uploaded and
+// started by `ground run --on-board --detach` before a third collector follows them: the
+// fleet card's plan panel shows it running, Suspend/Resume (hazardous: confirmed) from the
+// panel take robot 6's plan through SUSPENDED back to RUNNING and to COMPLETED, Abort takes
+// robot 7's to ABORTED, each control's PUS 1 stages shown beside the buttons.
+// DASH_E2E_ONLY=WORDS runs only the checks whose name contains WORDS.
+// verifies: GND-ONBOARD-01, GND-ONBOARD-02
 import { spawn, execFileSync } from 'node:child_process';
 import { createInterface } from 'node:readline';
 import { createSocket } from 'node:dgram';
@@ -31,7 +37,9 @@ if (!groundBin || !obswBin) {
 }
 const T = 60_000; // generous: the machine is shared
 let failures = 0;
+const only = process.env.DASH_E2E_ONLY;
 const step = async (name, fn) => {
+  if (only && !name.includes(only)) return;
   const t0 = Date.now();
   try {
     await fn();
@@ -501,6 +509,128 @@ try {
       rmSync(dir2, { recursive: true, force: true });
     }
   });
+
+  // ---- on-board plans: robots 6 and 7 run their plan themselves ---------------------------
+  const obDir = mkdtempSync(join(tmpdir(), 'dash-e2e-onboard-'));
+  const obRobots = [await startObsw(6), await startObsw(7)];
+  // Robot 6: a ping, a 15 s wait, a ping; robot 7: a ping and a 120 s wait (aborted).
+  writeFileSync(join(obDir, 'onboard.toml'), `name = "onboard"
+description = "robots 6 and 7 on board"
+[[robot]]
+number = 6
+[[robot]]
+number = 7
+[[step]]
+id = "r6-ping"
+robot = 6
+action = "command"
+tc = "PING"
+[[step]]
+id = "r6-hold"
+robot = 6
+action = "wait"
+seconds = 15
+[[step]]
+id = "r6-ping2"
+robot = 6
+action = "command"
+tc = "PING"
+[[step]]
+id = "r7-ping"
+robot = 7
+action = "command"
+tc = "PING"
+[[step]]
+id = "r7-hold"
+robot = 7
+action = "wait"
+seconds = 120
+`);
+  // Uploaded and started by the CLI, which then leaves the robots to it (one commanding
+  // ground per robot: the collector follows them afterwards).
+  execFileSync(groundBin, ['--archive', join(obDir, 'run.db'), 'run', '--on-board', '--detach', '--lab-udp',
+    ...obRobots.flatMap((o) => ['--robot', `${o.robot}=${o.udp}`]), join(obDir, 'onboard.toml')], { encoding: 'utf8' });
+  const c6 = await startCollector(obDir, obRobots, `127.0.0.1:${await freePort()}`);
+  const p6 = await browser.newPage();
+  const shot6 = async (name) => { if (shotDir) await p6.screenshot({ path: join(shotDir, name), fullPage: false }); };
+  p6.setDefaultTimeout(T);
+  p6.on('pageerror', (e) => { failures++; console.log('FAIL page error:', e.message); });
+  p6.on('dialog', (d) => d.dismiss());
+  await p6.goto(c6.url);
+  const obState = (n) => p6.$eval(`#robot-${n} .onboard`, (e) => e.dataset.state);
+  const enabled = (n) => p6.$$eval(`#robot-${n} .onboard button.ob-ctl:not([disabled])`, (b) => b.map((x) => x.dataset.control).join(','));
+
+  await step('on-board plan: the panel shows it running, suspend and resume from the buttons, completed', async () => {
+    // Every plan state the page is sent, per robot, in order.
+    await p6.evaluate(() => {
+      window.obTrail = {};
+      const orig = window.dashState.robots.get.bind(window.dashState.robots);
+      const seen = new Set();
+      window.dashState.robots.get = (n) => {
+        const r = orig(n);
+        if (r && !seen.has(r)) {
+          seen.add(r);
+          let ob = r.onboard;
+          if (ob) (window.obTrail[n] ||= []).push(ob.state);
+          Object.defineProperty(r, 'onboard', { get: () => ob, set: (v) => {
+            const t = (window.obTrail[n] ||= []);
+            if (v && t[t.length - 1] !== v.state) t.push(v.state);
+            ob = v;
+          } });
+        }
+        return r;
+      };
+    });
+    await p6.waitForSelector('#robot-6 .onboard[data-state="RUNNING"]');
+    const line = await p6.$eval('#robot-6 .onboard', (e) => e.textContent);
+    assert(/on-board plan/.test(line) && /at step 1 of 3 \(1 done\)/.test(line) && /0x[0-9a-f]{8}/.test(line), 'panel: ' + line);
+    assert(await enabled(6) === 'suspend,abort', 'buttons while running: ' + await enabled(6));
+    // The server refuses what the robot would: RESUME of a running plan.
+    const refused = await p6.evaluate(async () => { const r = await fetch('/api/robots/6/onboard/resume', { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: '{"confirm": true}' }); return [r.status, (await r.json()).error]; });
+    assert(refused[0] === 409 && /SUSPENDED/.test(refused[1]), 'resume while running: ' + refused);
+    await p6.click('#robot-6 .onboard button[data-control="suspend"]');
+    await p6.waitForSelector('#robot-6 .onboard[data-state="SUSPENDED"]');
+    await p6.waitForSelector('#robot-6 .ob-result[data-outcome="completed"] [data-stage="completion"].ok');
+    const res = await p6.$eval('#robot-6 .ob-result', (e) => e.textContent);
+    assert(/PLAN_SUSPEND/.test(res) && /✓ acceptance/.test(res) && /✓ completion/.test(res), 'suspend stages: ' + res);
+    assert(await enabled(6) === 'resume,abort,skip', 'buttons while suspended: ' + await enabled(6));
+    await shot6('dashboard-onboard.png');
+    // RESUME is hazardous in the MIB: the page asks first.
+    await p6.click('#robot-6 .onboard button[data-control="resume"]');
+    await p6.waitForSelector('#modal:not([hidden])');
+    const q = await p6.$eval('#modal-title', (e) => e.textContent);
+    assert(/PLAN_RESUME/.test(q) && /robot 6/.test(q), 'confirmation: ' + q);
+    await p6.click('#modal-yes');
+    await p6.waitForFunction(() => {
+      const r = document.querySelector('#robot-6 .ob-result[data-outcome="completed"]');
+      return r && /PLAN_RESUME/.test(r.textContent);
+    });
+    await p6.waitForSelector('#robot-6 .onboard[data-state="COMPLETED"]', { timeout: 40_000 });
+    const done = await p6.$eval('#robot-6 .onboard', (e) => e.textContent);
+    assert(/3 done/.test(done), 'completed panel: ' + done);
+    assert(await enabled(6) === '', 'no control after completion: ' + await enabled(6));
+    const trail = (await p6.evaluate(() => window.obTrail[6] || [])).join('>');
+    assert(/RUNNING>SUSPENDED>RUNNING>COMPLETED$/.test(trail), 'robot 6 seen as ' + trail);
+    // In the command history with its origin.
+    await p6.click('#tabs button[data-view="commands"]');
+    await p6.waitForFunction(() => [...document.querySelectorAll('#history tbody tr')]
+      .filter((t) => /PLAN_(SUSPEND|RESUME)/.test(t.children[3].textContent) && t.lastChild.textContent === 'page: on-board plan').length === 2);
+    await p6.click('#tabs button[data-view="fleet"]');
+  });
+
+  await step('on-board plan: abort from the panel leaves the plan aborted', async () => {
+    await p6.waitForSelector('#robot-7 .onboard[data-state="RUNNING"]');
+    await p6.click('#robot-7 .onboard button[data-control="abort"]');
+    await p6.waitForSelector('#robot-7 .onboard[data-state="ABORTED"]');
+    await p6.waitForSelector('#robot-7 .ob-result[data-outcome="completed"]');
+    assert(await enabled(7) === '', 'no control after the abort: ' + await enabled(7));
+    const st = await obState(7);
+    assert(st === 'ABORTED', 'robot 7: ' + st);
+  });
+  await p6.close();
+  c6.proc.kill('SIGTERM');
+  for (const o of obRobots) if (o.proc.exitCode === null) o.proc.kill('SIGTERM');
+  rmSync(obDir, { recursive: true, force: true });
 } finally {
   await browser.close();
   rmSync(profile, { recursive: true, force: true });

@@ -84,6 +84,8 @@ impl Worker {
             })?,
             None => return Err(SendError::NoLink(self.robot())),
         }
+        // It subscribes as any TC does (the re-subscription rule counts from it).
+        self.last_sent_ms = Some(now_ms());
         self.archive_tc(&tc, origin);
         Ok(tc)
     }

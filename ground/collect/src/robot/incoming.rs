@@ -43,6 +43,7 @@ impl Worker {
             }
         };
         self.heard(now);
+        self.subscription.on_tm(&tm);
         let pos = Pos {
             seq: tm.seq,
             obt_ms: tm.time.unix_ms(),

@@ -22,6 +22,9 @@ impl Worker {
         let closed = self.link.as_ref().is_some_and(|l| l.closed());
         if let Some(loss) = self.watch.tick(now, closed) {
             let silent = loss.silent_ms;
+            // Its subscription may be gone with it: once heard again, re-subscribed until
+            // it streams.
+            self.subscription.lapse();
             self.dash_link();
             self.backoff_ms = BACKOFF_START_MS;
             self.next_send_ms = now;
@@ -96,6 +99,19 @@ impl Worker {
             } else {
                 self.next_send_ms = now + self.backoff_ms;
                 self.backoff_ms = (self.backoff_ms * 2).min(self.global.max_backoff_ms as i64);
+            }
+        }
+        // Over a UDP lab link, until the robot streams to this collector: a lost or damaged
+        // subscription TC is tried again within SUBSCRIBE_RETRY_MS, not at the next lease
+        // renewal or backoff step (the rule of every front end, `live::Subscription`).
+        let subscribes = self.link.as_ref().is_some_and(crate::link::Link::subscribes);
+        let lost = self.watch.state() == LinkState::Lost;
+        if self
+            .subscription
+            .retry_due(subscribes, lost, self.last_sent_ms.map(|t| now - t))
+        {
+            if let Some(tc) = onboard::subscribe_tc(self.robot(), self.next_seq()) {
+                self.send_tc(&tc, "subscribe");
             }
         }
         self.ask_config(now);

@@ -521,3 +521,28 @@ fn a_round_of_several_ranges_is_one_retrieval_in_flight_until_each_ended() {
     assert!(!p.in_flight(100));
     assert!(!p.may_send(499) && p.may_send(500));
 }
+
+// ---- subscription -------------------------------------------------------------------------
+
+// verifies: OPS-LIVE-LINK-04, GND-SUB-01
+#[test]
+fn a_heartbeat_is_due_every_retry_period_until_tm_only_a_subscriber_gets_comes() {
+    let t = crate::pus::CdsShort::now().to_bytes();
+    let tm =
+        |svc, sub, src: &[u8]| crate::pus::decode_tm(&crate::pus::build_tm(0x101, 3, svc, sub, 0, &t, src)).unwrap();
+    let mut s = Subscription::default();
+    assert!(s.retry_due(true, false, None), "nothing sent yet");
+    assert!(!s.retry_due(true, false, Some(SUBSCRIBE_RETRY_MS - 1)));
+    assert!(s.retry_due(true, false, Some(SUBSCRIBE_RETRY_MS)));
+    assert!(!s.retry_due(false, false, None), "TCP and frame links get TM anyway");
+    assert!(!s.retry_due(true, true, None), "a lost link is the front end's backoff");
+    // A refusal (TM[1,2]) and a connection-test reply reach an unsubscribed sender too.
+    s.on_tm(&report(2, 1));
+    s.on_tm(&tm(17, 2, &[]));
+    assert!(!s.streaming() && s.retry_due(true, false, Some(SUBSCRIBE_RETRY_MS)));
+    // A successful acceptance goes to subscribers only.
+    s.on_tm(&report(1, 1));
+    assert!(s.streaming() && !s.retry_due(true, false, Some(10 * SUBSCRIBE_RETRY_MS)));
+    s.lapse();
+    assert!(s.retry_due(true, false, Some(SUBSCRIBE_RETRY_MS)));
+}

@@ -492,23 +492,21 @@ impl Session {
     }
 
     /// Over a UDP lab link a robot sends TM only to a ground whose TC it accepted: until it
-    /// does (TM only a subscriber gets, [`RobotStatus::streaming`]), a watched robot gets a
-    /// heartbeat every [`mib::ground_config::SUBSCRIBE_RETRY_MS`], so that a few of the
-    /// ground's own TCs lost or damaged on the way do not leave a live robot silent for
-    /// the link-loss time. A robot that does not answer is still lost in that time.
+    /// does, a watched robot gets a heartbeat every
+    /// [`mib::ground_config::SUBSCRIBE_RETRY_MS`] (the rule of every front end,
+    /// [`crate::live::Subscription`]). A robot that does not answer is still lost in the
+    /// link-loss time, and then no longer retried.
     fn keep_subscribed(&mut self) {
         if !self.watching {
             return;
         }
-        let retry = Duration::from_millis(u64::from(mib::ground_config::SUBSCRIBE_RETRY_MS));
         let due: Vec<u8> = self
             .robots
             .iter()
             .filter(|(r, s)| {
-                s.lost.is_none()
-                    && !s.streaming
-                    && self.links.get(r).is_some_and(Link::subscribes)
-                    && !self.sent_within(**r, retry)
+                let since = self.last_new_tc.get(r).map(|t| t.elapsed().as_millis() as i64);
+                let subscribes = self.links.get(r).is_some_and(Link::subscribes);
+                s.subscription.retry_due(subscribes, s.lost.is_some(), since)
             })
             .map(|(r, _)| *r)
             .collect();
@@ -780,7 +778,7 @@ impl Session {
         if let (Ok(tm), Some(s)) = (&decoded, self.robots.get_mut(&inc.robot)) {
             if tm.robot == Some(inc.robot) {
                 s.link.on_tm(now_ms());
-                s.streaming |= RobotStatus::subscribed_by(tm);
+                s.subscription.on_tm(tm);
                 if s.seq.first().is_none() {
                     self.first_heard.insert(inc.robot, Instant::now());
                 }

@@ -50,9 +50,9 @@ pub struct RobotStatus {
     pub store_oldest: Option<u16>,
     /// Stored packets overwritten on board since boot (last TM[15,19]).
     pub store_overwritten: u32,
-    /// TM that only a subscriber gets came (HK, a successful verification report): over
-    /// a UDP lab link the robot sends to this ground (see [`RobotStatus::subscribed_by`]).
-    pub streaming: bool,
+    /// Over a UDP lab link, does the robot send to this ground? The re-subscription rule
+    /// of every front end ([`crate::live::Subscription`]).
+    pub subscription: crate::live::Subscription,
 }
 
 impl RobotStatus {
@@ -79,17 +79,10 @@ impl RobotStatus {
             run_first_seq: None,
             store_oldest: None,
             store_overwritten: 0,
-            streaming: false,
+            subscription: crate::live::Subscription::default(),
         }
     }
 
-    /// Whether `tm` shows the robot sending to this ground as to a subscriber of its UDP
-    /// lab link: HK and successful verification reports go only to subscribers (the
-    /// refusal of a TC that did not pass acceptance also goes to its sender, without
-    /// subscribing it).
-    pub fn subscribed_by(tm: &pus::Tm) -> bool {
-        tm.service == 3 || (tm.service == 1 && tm.subservice % 2 == 1)
-    }
     pub(crate) fn exchange(&mut self, ok: bool) {
         if self.quality.len() == LINK_QUALITY_WINDOW {
             self.quality.pop_front();

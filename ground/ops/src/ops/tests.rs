@@ -470,7 +470,7 @@ fn over_a_udp_lab_link_a_watching_ground_resubscribes_until_the_robot_streams_an
     }
     let came = fake.join().unwrap();
     assert!(lost.is_empty(), "{lost:?}; TCs came at {came:?}");
-    assert!(s.robots[&1].streaming);
+    assert!(s.robots[&1].subscription.streaming());
     // The seventh TC (the one subscribed) within the loss time, then no more retries.
     let loss = Duration::from_millis(u64::from(mib::ground_config::LINK_LOSS_MS));
     assert!(came.len() > 6 && came[6] < loss, "{came:?}");
