@@ -501,14 +501,14 @@ impl TmStore for Metered {
 static mut FLASH: MaybeUninit<RefCell<Nor<Partition>>> = MaybeUninit::uninit();
 static mut REPLAY_OBSW: MaybeUninit<Obsw<Metered>> = MaybeUninit::uninit();
 
-/// A downlink that takes, each period, what board A's empty downlink queue holds.
-struct Downlink {
+/// A TM sink that takes, each period, what board A's empty downlink queue holds.
+struct EmptyQueueSink {
     room: usize,
     replayed: heapless::Vec<u16, 512>,
     sent_now: u64,
 }
 
-impl TmSink for Downlink {
+impl TmSink for EmptyQueueSink {
     fn send_tm(&mut self, _packet: &[u8]) {}
     fn send_replay(&mut self, packet: &[u8]) {
         self.room = self.room.saturating_sub(packet.len());
@@ -597,7 +597,7 @@ fn store_paced_replay_from_a_full_store_worst_period_measured() -> TestResult {
     let mut tc = [0u8; 64];
     let n = ok!(crate::t_packets::build(77, 15, 9, &app, &mut tc));
     let room = fw_core::config::TM_DOWNLINK_BYTES;
-    let mut down = Downlink {
+    let mut down = EmptyQueueSink {
         room,
         replayed: heapless::Vec::new(),
         sent_now: 0,
