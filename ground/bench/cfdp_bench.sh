@@ -11,7 +11,8 @@
 # frame bytes that reached the ground during the `get` (every TM frame is
 # `mib::link::tm_frame::LEN` = 1024 bytes: file data, NAK answers, housekeeping and idle
 # frames alike, as `ground file get` counts them). Uses the debug binaries in target/debug
-# (`cargo build -p obsw -p ground -p e2e-tests --bins`), or BIN=DIR.
+# (`cargo build -p obsw -p ground -p e2e-tests --bins`), or BIN=DIR. TRACE=DIR keeps each
+# run's `--trace` of the ground (every PDU in and out, ms) as DIR/<clean|lossy>-<run>-<put|get>.
 set -euo pipefail
 RUNS=${1:-5}
 KIB=${2:-256}
@@ -25,7 +26,7 @@ mkdir -p "$W/local" "$W/locks"
 head -c $((KIB * 1024)) /dev/urandom >"$W/up.bin"
 port() { python3 -c 'import socket;s=socket.socket(socket.AF_INET,socket.SOCK_DGRAM);s.bind(("127.0.0.1",0));print(s.getsockname()[1])'; }
 
-# one FAULTS SEED OUT: appends "put_s get_s get_tm_frames" to OUT
+# one FAULTS SEED OUT NAME: appends "put_s get_s get_tm_frames" to OUT
 one() {
     local faults=$1 seed=$2 out=$3 fr li line ru tmf op rp t0 t1 t2 frames
     fr=127.0.0.1:$(port)
@@ -52,6 +53,7 @@ one() {
     cd "$W/local"
     local g=("$BIN/ground" --no-archive file)
     local l=(--robot "1=$ru" --tm-listen "1=$li" --keys "$W/keys")
+    [ -n "${TRACE:-}" ] && l+=(--trace)
     t0=$(date +%s.%N)
     "${g[@]}" put "${l[@]}" up.bin >/dev/null 2>"$W/put.err" || { cat "$W/put.err" >&2; echo "put failed" >&2; }
     t1=$(date +%s.%N)
@@ -59,6 +61,11 @@ one() {
     "${g[@]}" get "${l[@]}" up.bin down.bin >"$W/get.out" 2>"$W/get.err" || { cat "$W/get.err" >&2; echo "get failed" >&2; }
     t2=$(date +%s.%N)
     cmp -s "$W/up.bin" "$W/local/down.bin" || echo "get: NOT byte-identical" >&2
+    if [ -n "${TRACE:-}" ]; then
+        mkdir -p "$TRACE"
+        cp "$W/put.err" "$TRACE/$4-$seed-put"
+        cp "$W/get.err" "$TRACE/$4-$seed-get"
+    fi
     cd "$ROOT"
     kill "$op" 2>/dev/null || true
     wait "$op" 2>/dev/null || true
@@ -74,9 +81,9 @@ median() { sort -g | awk '{a[NR]=$1} END {print (NR%2) ? a[(NR+1)/2] : (a[NR/2]+
 
 : >"$W/clean" ; : >"$W/lossy"
 for i in $(seq 1 "$RUNS"); do
-    one "" "$i" "$W/clean"
+    one "" "$i" "$W/clean" clean
     echo "run $i clean: put s, get s, TM frames: $(tail -1 "$W/clean")"
-    one "--drop 0.2 --duplicate 0.05 --corrupt 0.05" "$i" "$W/lossy"
+    one "--drop 0.2 --duplicate 0.05 --corrupt 0.05" "$i" "$W/lossy" lossy
     echo "run $i lossy: put s, get s, TM frames: $(tail -1 "$W/lossy")"
 done
 B=$((KIB * 1024))

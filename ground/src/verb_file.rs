@@ -16,6 +16,7 @@ use ground::link::Transport;
 use ground::robot_lock::RobotLock;
 use mmic_cfdp::dir::DirStore;
 use mmic_cfdp::packet::{self, Direction};
+use mmic_cfdp::trace::Describe;
 use mmic_cfdp::{Class, Entity, FileName, Finished, Parts};
 
 use crate::exit::{self, coded};
@@ -88,6 +89,10 @@ pub(crate) struct FileOpts {
     /// terminal].
     #[arg(long)]
     progress: bool,
+    /// Print every CFDP PDU sent and received on stderr: ms since the start, the direction
+    /// (`>` up, `<` down), the transaction and the PDU's kind and fields.
+    #[arg(long)]
+    trace: bool,
 }
 
 impl FileOpts {
@@ -146,6 +151,8 @@ fn open_link(opts: &FileOpts) -> Result<(ground_link::GroundFrameLink, RobotLock
 /// The ground's entity on one frame link.
 struct Session<'a> {
     fl: ground_link::GroundFrameLink,
+    /// `--trace`: every PDU in and out on stderr.
+    trace: bool,
     entity: Entity<'a, DirStore>,
     start: Instant,
     deadline: Instant,
@@ -200,7 +207,7 @@ impl<'a> Session<'a> {
         robot: u8,
         seq_file: PathBuf,
         parts: &'a Parts<DirStore>,
-        timeout: f64,
+        opts: &FileOpts,
     ) -> Self {
         let start = Instant::now();
         if let Some(seq) = std::fs::read_to_string(&seq_file)
@@ -215,7 +222,8 @@ impl<'a> Session<'a> {
             fl,
             entity: Entity::new(mib::cfdp::GROUND_ENTITY_ID, mib::cfdp::robot_entity_id(robot), parts),
             start,
-            deadline: start + Duration::from_secs_f64(timeout),
+            deadline: start + Duration::from_secs_f64(opts.timeout),
+            trace: opts.trace,
             seq: 0,
             shown: 0,
             progress: None,
@@ -276,18 +284,21 @@ impl<'a> Session<'a> {
                 .recv(Duration::from_millis(5))
                 .map_err(|e| coded(exit::NO_ANSWER, format!("{what}: {e}")))?;
             let now = self.now();
+            let failed = |e| coded(exit::NO_ANSWER, format!("{what}: {e}"));
+            // What the entity makes goes out after each packet: a burst of packets (a
+            // ground held up by its scheduler) makes more immediate NAKs than its outbox
+            // holds.
             for p in packets.iter().filter(|p| packet::apid(p) == Some(mib::cfdp::APID)) {
-                self.entity.receive_packet(now, Direction::Down, p);
-            }
-            self.pace(now)
-                .map_err(|e| coded(exit::NO_ANSWER, format!("{what}: {e}")))?;
-            while let Some(pdu) = self.entity.pop() {
-                if let Some(n) = packet::wrap(Direction::Up, self.seq, &pdu, &mut buf) {
-                    self.seq = self.seq.wrapping_add(1) & 0x3FFF;
-                    self.send(&pdu, &buf[..n])
-                        .map_err(|e| coded(exit::NO_ANSWER, format!("{what}: {e}")))?;
+                if self.trace {
+                    if let Some(pdu) = packet::unwrap(Direction::Down, p) {
+                        eprintln!("{now:>7} < {}", Describe(pdu));
+                    }
                 }
+                self.entity.receive_packet(now, Direction::Down, p);
+                self.flush(&mut buf).map_err(failed)?;
             }
+            self.pace(now).map_err(failed)?;
+            self.flush(&mut buf).map_err(failed)?;
             // The file going out, else the one coming in.
             let (done, total) = match self.entity.sent_progress() {
                 (d, t) if t > 0 => (d, t),
@@ -302,6 +313,20 @@ impl<'a> Session<'a> {
                 None => {}
             }
         }
+    }
+
+    /// Sends the PDUs the entity made, each in its packet.
+    fn flush(&mut self, buf: &mut [u8]) -> Result<(), ground_link::LinkError> {
+        while let Some(pdu) = self.entity.pop() {
+            if self.trace {
+                eprintln!("{:>7} > {}", self.now(), Describe(&pdu));
+            }
+            if let Some(n) = packet::wrap(Direction::Up, self.seq, &pdu, buf) {
+                self.seq = self.seq.wrapping_add(1) & 0x3FFF;
+                self.send(&pdu, &buf[..n])?;
+            }
+        }
+        Ok(())
     }
 
     /// Lets the entity make PDUs (and run its timers) once per control period, while COP-1
@@ -491,7 +516,7 @@ fn put(opts: &FileOpts, local: &Path, remote: Option<&str>) -> Result<u8> {
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
     let parts = Parts::new(DirStore::open(folder, u64::MAX).context("the local folder")?);
-    let mut s = Session::new(fl, robot, seq_file, &parts, opts.timeout);
+    let mut s = Session::new(fl, robot, seq_file, &parts, opts);
     s.show_progress(opts.progress);
     let t0 = Instant::now();
     s.entity
@@ -538,7 +563,7 @@ fn get(opts: &FileOpts, remote: &str, local: Option<&Path>) -> Result<u8> {
     }
     let (fl, _lock, robot, seq_file) = open_link(opts)?;
     let (st, parts) = staging_parts(&folder)?;
-    let mut s = Session::new(fl, robot, seq_file, &parts, opts.timeout);
+    let mut s = Session::new(fl, robot, seq_file, &parts, opts);
     s.show_progress(opts.progress);
     let t0 = Instant::now();
     let frames0 = (s.fl.counters.tm.frames, s.fl.counters.tm.idle_frames);
@@ -567,7 +592,7 @@ fn get(opts: &FileOpts, remote: &str, local: Option<&Path>) -> Result<u8> {
 fn ls(opts: &FileOpts) -> Result<u8> {
     let (fl, _lock, robot, seq_file) = open_link(opts)?;
     let (st, parts) = staging_parts(&std::env::temp_dir())?;
-    let mut s = Session::new(fl, robot, seq_file, &parts, opts.timeout);
+    let mut s = Session::new(fl, robot, seq_file, &parts, opts);
     let (files, free) = listing(&mut s, &st)?;
     for (n, l) in &files {
         println!("{l:>10}  {n}");
@@ -582,7 +607,7 @@ fn rm_mv(opts: &FileOpts, name: &str, to: Option<&str>) -> Result<u8> {
     let what = if to.is_some() { "mv" } else { "rm" };
     let (fl, _lock, robot, seq_file) = open_link(opts)?;
     let (st, parts) = staging_parts(&std::env::temp_dir())?;
-    let mut s = Session::new(fl, robot, seq_file, &parts, opts.timeout);
+    let mut s = Session::new(fl, robot, seq_file, &parts, opts);
     let (before, _) = listing(&mut s, &st)?;
     let had = |n: &FileName| before.iter().any(|(f, _)| f == n.as_str());
     if !had(&name) {

@@ -76,18 +76,23 @@ pub const PDU_CRC: bool = false;
 // Timers and limits (727.0-B-5 § 4.6.3, 4.6.4, 4.7; ms of the entity's own clock)
 // ---------------------------------------------------------------------------------------
 
-/// Positive ACK timer: an EOF or Finished PDU not acknowledged in this time is sent again.
-/// Twice the ground's COP-1 T1 upper bound (`link::cop1::FOP_T1_MS`): an uplink PDU whose
-/// frame needs one COP-1 retransmission is still answered in time; the robot answers
-/// within a control period and the ground within its 5 ms poll, so the timer spends no
-/// expiry while an answer is on its way.
-pub const ACK_TIMER_MS: u64 = 2 * crate::link::cop1::FOP_T1_MS;
-/// Expiries of the positive ACK timer before the fault "positive ACK limit reached": the
-/// relay loses a downlink PDU with 25 % (drop and corrupt): eight lost answers in a
-/// row have a chance of 0.25⁸ ≈ 1.5 × 10⁻⁵; 32 s of a peer that never answers.
-pub const ACK_LIMIT: u32 = 8;
-/// NAK timer: a NAK that brought nothing is sent again after this time; the same round trip
-/// as the positive ACK timer.
+/// Positive ACK timer of this project's entities (the robot's and `ground file`'s): an EOF
+/// or Finished PDU not acknowledged in this time is sent again. Sized to the link's round
+/// trip (a control period on board, the ground's 5 ms poll, an uplink frame that COP-1 sends
+/// again after its adaptive T1 of 300 ms and up on a short link), not to its worst case:
+/// the answer to a PDU comes down promptly or never (a quarter of the downlink's PDUs are
+/// lost through the 20/5/5 relay), and an expiry while the answer is still on its way costs
+/// one PDU each way. A 4 s timer cost 4 s for every lost answer: a `get`'s lost ACK of its
+/// Finished, a `put`'s lost Finished.
+pub const ACK_TIMER_MS: u64 = 1_000;
+/// Expiries of the positive ACK timer before the fault "positive ACK limit reached": 32 s of
+/// a peer that never answers; a quarter of the answers lost, 32 in a row have a chance of
+/// 0.25³² ≈ 5 × 10⁻²⁰.
+pub const ACK_LIMIT: u32 = 32;
+/// NAK timer of this project's entities: a NAK that brought nothing is sent again after this
+/// time, the same round trip as the positive ACK timer. It does not expire while the
+/// answers are still coming in (file data within [`NAK_QUIET_MS`]), so a long answer is not
+/// asked for twice; a NAK whose answers were all lost costs this timer, once per round.
 pub const NAK_TIMER_MS: u64 = ACK_TIMER_MS;
 /// A receiver whose last NAK was answered (file data came after it) and that then hears no
 /// file data for this long sends its next NAK at once instead of at the NAK timer: the
@@ -96,33 +101,34 @@ pub const NAK_TIMER_MS: u64 = ACK_TIMER_MS;
 /// sender held up by its scheduler makes at worst a NAK sent twice, and the segments sent
 /// twice.
 pub const NAK_QUIET_MS: u64 = 30 * crate::config::CONTROL_PERIOD_MS as u64;
-/// The robot's positive ACK timer (its entity's EOF and Finished PDUs), shorter than the
-/// ground's [`ACK_TIMER_MS`]: the robot's PDU goes down, where nothing but this timer
-/// recovers a lost one (a quarter of them through the 20/5/5 relay), and the ground's ACK
-/// comes up in an AD frame that COP-1 delivers — within one adaptive T1 (300 ms and up on
-/// a short link) when its frame is lost. An expiry while that ACK is still on its way
-/// costs one PDU down and one ACK up; a long timer cost 4 s for every lost EOF or Finished
-/// (a `get`'s lost EOF, a `put`'s lost Finished). The ground's timers stay as Yamcs runs
-/// them (its answers come down, promptly or never).
-pub const ROBOT_ACK_TIMER_MS: u64 = 1_000;
-/// The robot's positive ACK limit: the same 32 s of a peer that never answers as the
-/// ground's `ACK_LIMIT` × `ACK_TIMER_MS`.
-pub const ROBOT_ACK_LIMIT: u32 = 32;
-/// The robot's NAK timer (its entity receiving a `put`): its NAK goes down, and the ground
-/// answers at once with file data in BD frames. A NAK lost on the downlink cost a whole
-/// [`NAK_TIMER_MS`] (4 s); the timer does not expire while the answers are still coming in
-/// (file data within [`NAK_QUIET_MS`]), so a long answer is not asked for twice.
-pub const ROBOT_NAK_TIMER_MS: u64 = 1_000;
-/// The robot's NAK limit: the same 10 min NAK phase as the ground's `NAK_LIMIT`.
-pub const ROBOT_NAK_LIMIT: u32 = 600;
-
 /// Expiries of the NAK timer in one transaction before the fault "NAK limit reached".
 /// 727.0-B-5 § 4.6.4.7 restarts the count on every recovered segment; cfdp-rs 0.3 restarts
 /// it only while the metadata is missing, so the limit bounds a whole transfer's NAK
-/// phase: 150 × 4 s = 10 min, longer than the largest file (`MAX_FILE_LEN`) needs through
+/// phase: 600 × 1 s = 10 min, longer than the largest file (`MAX_FILE_LEN`) needs through
 /// the relay. A peer that hears the NAKs but says nothing is caught by [`INACTIVITY_MS`]
 /// after a minute.
-pub const NAK_LIMIT: u32 = 150;
+pub const NAK_LIMIT: u32 = 600;
+/// Whether the robot's entity sends a NAK for each gap as soon as data after it arrives
+/// (727.0-B-5 § 4.6.4.3.1 a, b), besides the NAK of all gaps after the EOF: its NAKs go down
+/// in TM packets, nothing queues them, and the sender answers each while the file is still
+/// going up.
+pub const ROBOT_IMMEDIATE_NAK: bool = true;
+/// Whether the ground's entity sends immediate NAKs: no. Each of its PDUs goes up in an AD
+/// frame that COP-1 delivers in order, ten frames in the window, go-back-N on a loss: a
+/// `get` through the relay made about 30 immediate NAKs, and the NAK of the deferred
+/// procedure and the ACKs of the robot's EOF queued behind them for seconds (the robot sent
+/// its EOF six times). One NAK after the EOF asks for every gap (up to 120 a PDU).
+pub const GROUND_IMMEDIATE_NAK: bool = false;
+/// Yamcs' CFDP service's timers (its `eofAckTimeout`, `finAckTimeout`, `nakTimeout` in the
+/// generated instance): twice the ground's COP-1 T1 upper bound (`link::cop1::FOP_T1_MS`),
+/// as Yamcs' TCs go up through its own FOP-1 with a fixed T1.
+pub const YAMCS_ACK_TIMER_MS: u64 = 2 * crate::link::cop1::FOP_T1_MS;
+/// Yamcs' positive ACK limit: 32 s, as [`ACK_LIMIT`] × [`ACK_TIMER_MS`].
+pub const YAMCS_ACK_LIMIT: u32 = 8;
+/// Yamcs' NAK timer.
+pub const YAMCS_NAK_TIMER_MS: u64 = YAMCS_ACK_TIMER_MS;
+/// Yamcs' NAK limit: 10 min, as [`NAK_LIMIT`] × [`NAK_TIMER_MS`].
+pub const YAMCS_NAK_LIMIT: u32 = 150;
 /// Class 1 check timer: after an EOF with data missing, the receiver waits this long for
 /// late file data before it counts one check.
 pub const CHECK_TIMER_MS: u64 = 1_000;
@@ -178,15 +184,16 @@ mod tests {
     #[test]
     fn inactivity_outlasts_the_positive_ack_retries_and_timers_cover_a_cop1_retransmission() {
         const { assert!(INACTIVITY_MS > ACK_LIMIT as u64 * ACK_TIMER_MS) };
-        const { assert!(INACTIVITY_MS > ROBOT_ACK_LIMIT as u64 * ROBOT_ACK_TIMER_MS) };
-        // The robot's shorter timers keep the ground's limits in time, and still outlast
-        // an ACK whose AD frame COP-1 sends again at the lower bound of the adaptive T1.
-        const { assert!(ROBOT_ACK_LIMIT as u64 * ROBOT_ACK_TIMER_MS == ACK_LIMIT as u64 * ACK_TIMER_MS) };
-        const { assert!(ROBOT_NAK_LIMIT as u64 * ROBOT_NAK_TIMER_MS == NAK_LIMIT as u64 * NAK_TIMER_MS) };
-        const { assert!(ROBOT_ACK_TIMER_MS > 2 * crate::link::cop1::FOP_T1_MIN_MS) };
-        const { assert!(ROBOT_NAK_TIMER_MS > NAK_QUIET_MS) };
-        const { assert!(ACK_TIMER_MS >= 2 * crate::link::cop1::FOP_T1_MS) };
-        const { assert!(NAK_TIMER_MS >= 2 * crate::link::cop1::FOP_T1_MS) };
+        const { assert!(INACTIVITY_MS > YAMCS_ACK_LIMIT as u64 * YAMCS_ACK_TIMER_MS) };
+        // Yamcs' longer timers keep the same limits in time; ours still outlast an answer
+        // whose AD frame COP-1 sends again at the lower bound of the adaptive T1, and a
+        // NAK's answers coming in.
+        const { assert!(YAMCS_ACK_LIMIT as u64 * YAMCS_ACK_TIMER_MS == ACK_LIMIT as u64 * ACK_TIMER_MS) };
+        const { assert!(YAMCS_NAK_LIMIT as u64 * YAMCS_NAK_TIMER_MS == NAK_LIMIT as u64 * NAK_TIMER_MS) };
+        const { assert!(ACK_TIMER_MS > 2 * crate::link::cop1::FOP_T1_MIN_MS) };
+        const { assert!(NAK_TIMER_MS > NAK_QUIET_MS) };
+        const { assert!(YAMCS_ACK_TIMER_MS >= 2 * crate::link::cop1::FOP_T1_MS) };
+        const { assert!(YAMCS_NAK_TIMER_MS >= 2 * crate::link::cop1::FOP_T1_MS) };
     }
 
     // verifies: FILE-BD-01

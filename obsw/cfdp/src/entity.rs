@@ -21,7 +21,6 @@ use core::cell::{Cell, RefCell};
 use core::time::Duration;
 
 use ::cfdp::dest::DestinationHandler;
-use ::cfdp::lost_segments::LostSegmentsListHeapless;
 use ::cfdp::request::ReadablePutRequest;
 use ::cfdp::source::{SourceHandler, TransactionStep as SourceStep};
 use ::cfdp::time::Countdown;
@@ -48,6 +47,7 @@ use spacepackets::cfdp::{
 };
 use spacepackets::util::{UnsignedByteField, UnsignedByteFieldU16, UnsignedEnum};
 
+use crate::gaps::Gaps;
 use crate::msg::{self, ReservedMsg};
 use crate::packet::Direction;
 use crate::store::{Checked, FileName, FlatStore};
@@ -156,25 +156,60 @@ impl<'a> TimerCreator for Timers<'a> {
     }
 }
 
-/// The handlers' PDU sender: into the outbox; full → dropped and counted (class 2 asks
-/// again, class 1 has lost it like a lost frame).
-pub struct Sender<'a>(&'a PduPort);
+/// The handlers' PDU sender: into the outbox. A full outbox refuses the source handler's
+/// PDU (its procedure stays where it was and makes the same PDU at its next call: no file
+/// data is skipped) and drops the destination handler's, counted, as the link would lose a
+/// frame, telling the handler it went out: cfdp-rs 0.3's destination handler stops its
+/// procedure half way on a refusal (a gap recorded but the end of the data seen not moved
+/// on, an EOF taken but neither acknowledged nor its missing data asked for), while every
+/// PDU it sends (NAK, ACK, Finished) is recovered by its own timers or the peer's when lost.
+pub struct Sender<'a> {
+    port: &'a PduPort,
+    when_full: WhenFull,
+}
+
+/// What a full outbox does to a handler's PDU.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum WhenFull {
+    /// Refused: the source handler sends it again.
+    Refuse,
+    /// Dropped as lost on the link: the destination handler.
+    Lose,
+}
+
+impl<'a> Sender<'a> {
+    fn source(port: &'a PduPort) -> Self {
+        Sender {
+            port,
+            when_full: WhenFull::Refuse,
+        }
+    }
+    fn dest(port: &'a PduPort) -> Self {
+        Sender {
+            port,
+            when_full: WhenFull::Lose,
+        }
+    }
+}
 
 impl PduSender for Sender<'_> {
     fn send_pdu(&self, t: PduType, _d: Option<FileDirectiveType>, raw: &[u8]) -> Result<(), GenericSendError> {
         if t == PduType::FileData {
             if let Ok(fd) = FileDataPdu::from_bytes(raw) {
                 let end = fd.offset().saturating_add(fd.file_data().len() as u64);
-                self.0.sent_to.set(self.0.sent_to.get().max(end));
+                self.port.sent_to.set(self.port.sent_to.get().max(end));
             }
         }
         let Ok(pdu) = Pdu::from_slice(raw) else {
-            self.0.dropped.set(self.0.dropped.get().wrapping_add(1));
+            self.port.dropped.set(self.port.dropped.get().wrapping_add(1));
             return Err(GenericSendError::Other);
         };
-        if self.0.outbox.borrow_mut().push_back(pdu).is_err() {
-            self.0.dropped.set(self.0.dropped.get().wrapping_add(1));
-            return Err(GenericSendError::QueueFull(None));
+        if self.port.outbox.borrow_mut().push_back(pdu).is_err() {
+            self.port.dropped.set(self.port.dropped.get().wrapping_add(1));
+            return match self.when_full {
+                WhenFull::Refuse => Err(GenericSendError::QueueFull(None)),
+                WhenFull::Lose => Ok(()),
+            };
         }
         Ok(())
     }
@@ -222,15 +257,8 @@ impl UserFaultHook for Faults<'_> {
 
 type Source<'a, S> =
     SourceHandler<Sender<'a>, Faults<'a>, &'a Checked<S>, RemoteEntityConfig, Timers<'a>, Timer<'a>, Seq<'a>>;
-type Dest<'a, S> = DestinationHandler<
-    Sender<'a>,
-    Faults<'a>,
-    &'a Checked<S>,
-    RemoteEntityConfig,
-    Timers<'a>,
-    Timer<'a>,
-    LostSegmentsListHeapless<{ m::MAX_LOST_SEGMENTS }, u32>,
->;
+type Dest<'a, S> =
+    DestinationHandler<Sender<'a>, Faults<'a>, &'a Checked<S>, RemoteEntityConfig, Timers<'a>, Timer<'a>, Gaps>;
 
 /// What the caller provides and the entity borrows: the store, the clock and outbox,
 /// the fault counter.
@@ -581,8 +609,8 @@ pub struct Entity<'a, S: FlatStore> {
 }
 
 /// The peer's configuration as entity `id` runs it: sizes, class defaults, timers and
-/// limits from the MIB — a robot's entity its own timers (`ROBOT_ACK_TIMER_MS`, ...), the
-/// ground's the ones Yamcs runs too.
+/// limits from the MIB; immediate NAKs from the robot's entity only
+/// (`ROBOT_IMMEDIATE_NAK`, `GROUND_IMMEDIATE_NAK`).
 pub fn remote_config(id: u16, peer: u16) -> RemoteEntityConfig {
     let mut c = RemoteEntityConfig::new_with_default_values(
         UnsignedByteFieldU16::new(peer).into(),
@@ -593,20 +621,15 @@ pub fn remote_config(id: u16, peer: u16) -> RemoteEntityConfig {
         ChecksumType::try_from(m::CHECKSUM_TYPE).unwrap_or(ChecksumType::Modular),
     );
     c.max_file_segment_len = Some(m::MAX_SEGMENT_LEN);
-    let (ack, ack_limit, nak, nak_limit) = if id == m::GROUND_ENTITY_ID {
-        (m::ACK_TIMER_MS, m::ACK_LIMIT, m::NAK_TIMER_MS, m::NAK_LIMIT)
+    c.immediate_nak_mode = if id == m::GROUND_ENTITY_ID {
+        m::GROUND_IMMEDIATE_NAK
     } else {
-        (
-            m::ROBOT_ACK_TIMER_MS,
-            m::ROBOT_ACK_LIMIT,
-            m::ROBOT_NAK_TIMER_MS,
-            m::ROBOT_NAK_LIMIT,
-        )
+        m::ROBOT_IMMEDIATE_NAK
     };
-    c.positive_ack_timer_interval = Duration::from_millis(ack);
-    c.positive_ack_timer_expiration_limit = ack_limit;
-    c.nak_timer_interval = Duration::from_millis(nak);
-    c.nak_timer_expiration_limit = nak_limit;
+    c.positive_ack_timer_interval = Duration::from_millis(m::ACK_TIMER_MS);
+    c.positive_ack_timer_expiration_limit = m::ACK_LIMIT;
+    c.nak_timer_interval = Duration::from_millis(m::NAK_TIMER_MS);
+    c.nak_timer_expiration_limit = m::NAK_LIMIT;
     c.check_limit = m::CHECK_LIMIT;
     c
 }
@@ -664,7 +687,7 @@ pub fn is_metadata(raw: &[u8]) -> bool {
 fn new_source<S: FlatStore>(id: u16, peer: u16, parts: &Parts<S>) -> Source<'_, S> {
     SourceHandler::new(
         local_config(id, parts),
-        Sender(&parts.link),
+        Sender::source(&parts.link),
         &parts.store,
         remote_config(id, peer),
         Timers(&parts.link),
@@ -675,11 +698,11 @@ fn new_source<S: FlatStore>(id: u16, peer: u16, parts: &Parts<S>) -> Source<'_, 
 fn new_dest<S: FlatStore>(id: u16, peer: u16, parts: &Parts<S>) -> Dest<'_, S> {
     DestinationHandler::new(
         local_config(id, parts),
-        Sender(&parts.link),
+        Sender::dest(&parts.link),
         &parts.store,
         remote_config(id, peer),
         Timers(&parts.link),
-        LostSegmentsListHeapless::new(),
+        Gaps::new(),
     )
 }
 
@@ -1101,8 +1124,11 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         let mut buf = [0u8; 64];
         if let Ok(n) = ack.write_to_bytes(&mut buf) {
             self.counters.finished_acked_again = self.counters.finished_acked_again.wrapping_add(1);
-            let _ =
-                Sender(&self.parts.link).send_pdu(PduType::FileDirective, Some(FileDirectiveType::AckPdu), &buf[..n]);
+            let _ = Sender::dest(&self.parts.link).send_pdu(
+                PduType::FileDirective,
+                Some(FileDirectiveType::AckPdu),
+                &buf[..n],
+            );
         }
     }
 
@@ -1134,8 +1160,11 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         };
         let mut buf = [0u8; 64];
         if let Ok(n) = nak.write_to_bytes(&mut buf) {
-            let _ =
-                Sender(&self.parts.link).send_pdu(PduType::FileDirective, Some(FileDirectiveType::NakPdu), &buf[..n]);
+            let _ = Sender::dest(&self.parts.link).send_pdu(
+                PduType::FileDirective,
+                Some(FileDirectiveType::NakPdu),
+                &buf[..n],
+            );
         }
     }
 
@@ -1165,10 +1194,13 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             loop {
                 // Metadata is asked for as 0-0.
                 let to = if a == b { b } else { (at + seg).min(b) };
-                if to > u32::MAX as u64 || self.resend.iter().any(|r| *r == (at as u32, to as u32)) {
+                if to > u32::MAX as u64 {
                     break;
                 }
-                if self.resend.push_back((at as u32, to as u32)).is_err() {
+                // A segment already queued (by an earlier NAK, or by an overlapping request
+                // of this one) is queued once; the rest of the request still is.
+                let queued = self.resend.iter().any(|r| *r == (at as u32, to as u32));
+                if !queued && self.resend.push_back((at as u32, to as u32)).is_err() {
                     // Full: the rest is asked for again by the next NAK.
                     self.counters.resend_dropped = self.counters.resend_dropped.wrapping_add(1);
                     break;
@@ -1241,7 +1273,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             Ok(n) => {
                 self.budget = self.budget.saturating_sub(1);
                 self.counters.resent = self.counters.resent.wrapping_add(1);
-                let _ = Sender(&self.parts.link).send_pdu(PduType::FileData, None, &buf[..n]);
+                let _ = Sender::source(&self.parts.link).send_pdu(PduType::FileData, None, &buf[..n]);
             }
             Err(_) => self.counters.resend_dropped = self.counters.resend_dropped.wrapping_add(1),
         }

@@ -11,9 +11,11 @@
 #[cfg(feature = "std")]
 pub mod dir;
 pub mod entity;
+pub mod gaps;
 pub mod msg;
 pub mod packet;
 pub mod store;
+pub mod trace;
 
 pub use entity::{Class, Entity, Finished, Parts, PutError};
 /// The PDU types (the spacepackets version cfdp-rs is built on).

@@ -383,8 +383,8 @@ fn a_file_cut_short_is_never_kept_under_its_name_and_a_restart_discards_the_rest
 }
 
 // The robot's NAK goes down, where nothing but its NAK timer recovers a lost one; the
-// ground answers with file data in BD frames at once. A lost NAK costs the robot's own
-// timer (ROBOT_NAK_TIMER_MS), not the ground's 4 s, and answers still coming in after
+// ground answers with file data in BD frames at once. A lost NAK costs one NAK timer
+// (NAK_TIMER_MS, the link's round trip, not Yamcs' 4 s), and answers still coming in after
 // that timer's period hold its next NAK back.
 // verifies: FILE-BD-02
 #[test]
@@ -446,7 +446,7 @@ fn the_robots_nak_lost_on_the_downlink_is_sent_again_after_its_own_timer_not_whi
         assert!(nak_times.len() >= 2, "{nak_times:?}");
         let gap = nak_times[1] - nak_times[0];
         assert!(
-            (mib::cfdp::ROBOT_NAK_TIMER_MS..mib::cfdp::NAK_TIMER_MS).contains(&gap),
+            (mib::cfdp::NAK_TIMER_MS..mib::cfdp::YAMCS_NAK_TIMER_MS).contains(&gap),
             "the lost NAK sent again after the robot's timer: {nak_times:?}"
         );
         // Ten answers at `slow` intervals take longer than the timer: no NAK among them.
@@ -474,5 +474,145 @@ fn a_put_opens_with_a_metadata_pdu_and_only_that_pdu_is_taken_for_one() {
         let data = g.pop().expect("file data");
         assert!(directive(&data).is_none() && !mmic_cfdp::entity::is_metadata(&data));
         assert!(!mmic_cfdp::entity::is_metadata(&first[..3]), "a short PDU");
+    });
+}
+
+/// The segment requests of a NAK PDU.
+fn nak_requests(p: &[u8]) -> Vec<(u64, u64)> {
+    let nak = spacepackets::cfdp::pdu::nak::NakPduReader::from_bytes(p).unwrap();
+    nak.get_segment_requests_iterator().into_iter().flatten().collect()
+}
+
+// A ground held up by its scheduler takes a burst of downlink PDUs in one go: more gaps
+// than its outbox holds immediate NAKs, then the EOF. Each gap must be recorded once and
+// the EOF taken whole (acknowledged or not), so that one NAK after the EOF asks for each
+// missing byte once and its answers end the transfer; cfdp-rs 0.3's handler left the
+// overlapping gaps of its stopped procedure in every NAK, and the robot resent only the
+// first segment of each such request: a 256 KiB `get` through the relay took 117 s.
+// verifies: FILE-CFDP-05
+#[test]
+fn a_burst_with_more_gaps_than_the_outbox_holds_is_asked_for_once_and_ends_the_get() {
+    big_stack(|| {
+        const NAK: u8 = 0x08;
+        let (gp, rp) = (Parts::new(Mem::new(200_000)), Parts::new(Mem::new(200_000)));
+        let mut g = Entity::new(0, 1, &gp);
+        let mut r = Entity::new(1, 0, &rp);
+        let seg = mib::cfdp::MAX_SEGMENT_LEN;
+        let down = file(100 * seg + 17, 9);
+        put_file(&rp, "log.bin", &down);
+        g.get(now(), "log.bin", "log.bin", Class::Two).unwrap();
+        let start = now();
+        let mut t = start;
+        let mut burst: Vec<Vec<u8>> = Vec::new();
+        let mut sent = std::collections::HashSet::new();
+        let mut naks: Vec<Vec<(u64, u64)>> = Vec::new();
+        while t < start + 30_000 && !(g.idle() && r.idle()) {
+            t += 10;
+            g.poll(t);
+            r.poll(t);
+            while let Some(p) = g.pop() {
+                if directive(&p) == Some(NAK) {
+                    naks.push(nak_requests(&p));
+                }
+                r.receive(t, &p);
+            }
+            while let Some(p) = r.pop() {
+                if directive(&p).is_none() {
+                    let (_, hl) = spacepackets::cfdp::pdu::PduHeader::from_bytes(&p).unwrap();
+                    let off = u32::from_be_bytes(p[hl..hl + 4].try_into().unwrap()) as usize;
+                    // Every third segment's first sending is lost: 33 gaps.
+                    if sent.insert(off) && (off / seg) % 3 == 1 {
+                        continue;
+                    }
+                }
+                burst.push(p.to_vec());
+            }
+            // The ground takes what came down every 600 ms, all at once, and only then
+            // sends what its entity made.
+            if t.is_multiple_of(600) {
+                for p in burst.drain(..) {
+                    g.receive(t, &p);
+                }
+            }
+        }
+        CLOCK.with(|c| c.set(t));
+        assert_eq!(read_file(&gp, "log.bin").as_deref(), Some(&down[..]), "byte-identical");
+        for (i, n) in naks.iter().enumerate() {
+            let mut sorted = n.clone();
+            sorted.sort();
+            assert!(
+                sorted.windows(2).all(|w| w[0].1 <= w[1].0),
+                "NAK {i} asks for bytes twice: {n:?}"
+            );
+        }
+        // The data, the deferred NAK's answers, the Finished and its ACK: a few bursts.
+        assert!(t - start < 6_000, "{} ms; NAKs {naks:?}", t - start);
+    });
+}
+
+// A NAK whose segment requests overlap (a peer's own, or one request covering segments an
+// earlier one already queued): every segment asked for is sent again once, the ones after
+// an already queued one too.
+// verifies: FILE-CFDP-05
+#[test]
+fn overlapping_segment_requests_of_a_nak_are_each_sent_again_once() {
+    big_stack(|| {
+        const EOF: u8 = 0x04;
+        let (gp, rp) = (Parts::new(Mem::new(200_000)), Parts::new(Mem::new(200_000)));
+        let mut g = Entity::new(0, 1, &gp);
+        let mut r = Entity::new(1, 0, &rp);
+        let seg = mib::cfdp::MAX_SEGMENT_LEN as u64;
+        let down = file(20 * seg as usize, 3);
+        put_file(&rp, "log.bin", &down);
+        g.get(now(), "log.bin", "log.bin", Class::Two).unwrap();
+        let mut t = now();
+        let mut eof = None;
+        // The robot's transaction never reaches the ground: it sends its file and its EOF,
+        // then waits.
+        while eof.is_none() && t < now() + 10_000 {
+            t += 10;
+            g.poll(t);
+            r.poll(t);
+            while let Some(p) = g.pop() {
+                r.receive(t, &p);
+            }
+            while let Some(p) = r.pop() {
+                let (h, _) = spacepackets::cfdp::pdu::PduHeader::from_bytes(&p).unwrap();
+                if spacepackets::util::UnsignedEnum::value(&h.common_pdu_conf().source_id()) == 1 {
+                    if directive(&p) == Some(EOF) {
+                        eof = Some(*h.common_pdu_conf());
+                    }
+                    continue;
+                }
+                g.receive(t, &p);
+            }
+        }
+        let mut conf = eof.expect("the robot's EOF");
+        conf.direction = spacepackets::cfdp::Direction::TowardsSender;
+        let s = 4 * seg;
+        let requests = [(s as u32, (s + seg) as u32), (s as u32, (s + 3 * seg) as u32)];
+        let nak = spacepackets::cfdp::pdu::nak::NakPduCreator::new_normal_file_size(
+            spacepackets::cfdp::pdu::PduHeader::new_for_file_directive(conf, 0),
+            0,
+            down.len() as u32,
+            &requests,
+        )
+        .unwrap();
+        let mut buf = [0u8; 256];
+        let n = spacepackets::cfdp::pdu::WritablePduPacket::write_to_bytes(&nak, &mut buf).unwrap();
+        r.receive(t, &buf[..n]);
+        let mut resent = Vec::new();
+        for _ in 0..10 {
+            t += 10;
+            r.poll(t);
+            while let Some(p) = r.pop() {
+                if directive(&p).is_none() {
+                    let (_, hl) = spacepackets::cfdp::pdu::PduHeader::from_bytes(&p).unwrap();
+                    resent.push(u32::from_be_bytes(p[hl..hl + 4].try_into().unwrap()) as u64);
+                }
+            }
+        }
+        CLOCK.with(|c| c.set(t));
+        assert_eq!(resent, [s, s + seg, s + 2 * seg]);
     });
 }
