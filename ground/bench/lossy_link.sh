@@ -22,10 +22,23 @@
 # is in the archive exactly once; for every case, each archived packet is one the obsw sent
 # and none is archived twice. A run whose check fails is counted in the tally's "archive".
 #
+# What the relay saw (its `--trace`, ground/bench/relay_gaps.py), on every run's line: the
+# longest time the obsw sent no TM frame, the longest time no intact frame went on to the
+# ground, and the time from the last intact one to the ground's exit — to tell a silent
+# obsw, a relay not scheduled (a gap, then a burst) and a ground that missed what came.
+# A failed run (non-zero exit where 0 is expected, or the archive check) keeps its files in
+# KEEP (default: TMPDIR or /tmp) as lossy-CASE-SEED.*: the obsw's TM log, stdout and
+# stderr, the relay's trace, the ground's stdout, stderr and archive.
+# PORT_LO, PORT_HI: the range the script's own ports come from (default 32000-32767; give
+# two batches run side by side disjoint ranges, or they can take each other's ports).
+#
 # Figures (40 checkout, 50 each of plan3, ping, send, mode, 10 silent; seeds, exit codes,
 # medians, archive) and what the non-zero exits were: docs/space-link.md, "Liveness and the
 # run's start over frames".
 set -u
+PORT_LO=${PORT_LO:-32000}
+PORT_HI=${PORT_HI:-32767}
+KEEP=${KEEP:-${TMPDIR:-/tmp}}
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 BIN=${BIN:-$ROOT/target/debug}
 CASE=${1:?case: checkout plan3 ping send mode silent}
@@ -43,10 +56,11 @@ trap '[[ $BASHPID == "$$" ]] && { kill $(jobs -p) 2>/dev/null; rm -rf "$WORK"; }
 # range the end-to-end tests hand out (tests/src.rs `free_port`, 10000-31999), so a batch
 # beside a test run takes neither's ports.
 free_port() {
-    python3 - <<'PY'
-import random, socket
+    PORT_LO=$PORT_LO PORT_HI=$PORT_HI python3 - <<'PY'
+import os, random, socket
+lo, hi = int(os.environ["PORT_LO"]), int(os.environ["PORT_HI"])
 for _ in range(200):
-    port = random.randint(32000, 32767)
+    port = random.randint(lo, hi)
     try:
         t = socket.socket(socket.AF_INET, socket.SOCK_STREAM); t.bind(("127.0.0.1", port))
         u = socket.socket(socket.AF_INET, socket.SOCK_DGRAM); u.bind(("127.0.0.1", port))
@@ -55,7 +69,7 @@ for _ in range(200):
     print(port)
     break
 else:
-    raise SystemExit("no free port in 32000-32767")
+    raise SystemExit(f"no free port in {lo}-{hi}")
 PY
 }
 
@@ -105,7 +119,7 @@ for ((i = 0; i < RUNS; i++)); do
     tmport=$(free_port)
     # The relay: TC frames to the obsw's frame port, TM frames to the ground's address.
     coproc RELAY { exec "$BIN/relay" --to-udp "127.0.0.1:$frame" --drop 0.20 --duplicate 0.05 --corrupt 0.05 \
-        --seed "$seed" --tm-frames-to "127.0.0.1:$tmport" --idle 60 --lifetime 900 2>/dev/null; }
+        --seed "$seed" --tm-frames-to "127.0.0.1:$tmport" --idle 60 --lifetime 900 --trace "$WORK/relay.trace" 2>/dev/null; }
     rpid=$RELAY_PID
     read -r line <&"${RELAY[0]}"
     relay_udp=$(sed -n 's/.*udp=\([^ ]*\).*/\1/p' <<<"$line")
@@ -177,10 +191,20 @@ for ((i = 0; i < RUNS; i++)); do
         ARCHIVE_BAD=$((ARCHIVE_BAD + 1))
         rc_archive=1
     fi
-    echo "$CASE seed $seed: exit $rc in $secs s | ${tm:+$tm | }$archive | $last"
-    [[ $rc != 0 || ${rc_archive:-0} != 0 ]] && cp "$WORK/obsw-tm.log" "${TMPDIR:-/tmp}/lossy-$CASE-$seed.tm.log" && cp "$WORK/a-$seed.db" "${TMPDIR:-/tmp}/lossy-$CASE-$seed.db" && cp "$WORK/out" "${TMPDIR:-/tmp}/lossy-$CASE-$seed.out" && cp "$WORK/err" "${TMPDIR:-/tmp}/lossy-$CASE-$seed.err"
+    relay=$(python3 "$ROOT/ground/bench/relay_gaps.py" "$WORK/relay.trace" "$t0" "$t1")
+    echo "$CASE seed $seed: exit $rc in $secs s | ${tm:+$tm | }$archive | $relay | $last"
+    expected=0
+    [[ $CASE == silent ]] && expected=5
+    if [[ $rc != "$expected" || $rc_archive != 0 ]]; then
+        k="$KEEP/lossy-$CASE-$seed"
+        for f in obsw-tm.log:tm.log obsw.out:obsw.out obsw.err:obsw.err relay.trace:relay.trace out:out err:err "a-$seed.db:db"; do
+            cp "$WORK/${f%%:*}" "$k.${f#*:}" 2>/dev/null
+        done
+    fi
+    rm -f "$WORK/a-$seed.db" "$WORK/relay.trace"
 done
 median=$(printf '%s\n' "${TIMES[@]}" | sort -n | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}')
+max=$(printf '%s\n' "${TIMES[@]}" | sort -n | tail -1)
 echo -n "$CASE: $((RUNS - NOSTART)) runs ($NOSTART more did not start), exit codes:"
 for k in "${!TALLY[@]}"; do echo -n " $k×${TALLY[$k]}"; done
-echo "; median $median s; false 'lost' (exit 5, 7 or 8 with a live robot): $FALSE_LOST; archive not exactly once: $ARCHIVE_BAD"
+echo "; median $median s (max $max s); false 'lost' (exit 5, 7 or 8 with a live robot): $FALSE_LOST; archive not exactly once: $ARCHIVE_BAD"
