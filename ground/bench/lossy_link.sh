@@ -29,6 +29,12 @@
 # A failed run (non-zero exit where 0 is expected, or the archive check) keeps its files in
 # KEEP (default: TMPDIR or /tmp) as lossy-CASE-SEED.*: the obsw's TM log, stdout and
 # stderr, the relay's trace, the ground's stdout, stderr and archive.
+# The obsw's on-board TM store (PUS 15) is a fresh file per run unless KEEP_STORE=1, where
+# one store file serves every run of the batch and fills with what the runs before sent (a
+# retrieval by range walks the store from its oldest packet at
+# mib::memory::store::REPLAY_READS_PER_PERIOD packets a period, so a deeper store answers
+# each request later; docs/space-link.md). The link's counter state is kept across runs
+# either way (the ground's TM IV window needs it).
 # PORT_LO, PORT_HI: the range the script's own ports come from (default 32000-32767; give
 # two batches run side by side disjoint ranges, or they can take each other's ports).
 #
@@ -55,21 +61,29 @@ trap '[[ $BASHPID == "$$" ]] && { kill $(jobs -p) 2>/dev/null; rm -rf "$WORK"; }
 # bound to port 0 (the obsw's, the relay's, other programs') gets its port, and above the
 # range the end-to-end tests hand out (tests/src.rs `free_port`, 10000-31999), so a batch
 # beside a test run takes neither's ports.
-free_port() {
+# Two distinct ports in one probe (two probes could both pick the same free port: the
+# obsw's frame port and the ground's TM port then collide, 1 run in a few hundred).
+free_ports() {
     PORT_LO=$PORT_LO PORT_HI=$PORT_HI python3 - <<'PY'
 import os, random, socket
 lo, hi = int(os.environ["PORT_LO"]), int(os.environ["PORT_HI"])
-for _ in range(200):
+held, ports = [], []
+for _ in range(400):
     port = random.randint(lo, hi)
+    if port in ports:
+        continue
     try:
         t = socket.socket(socket.AF_INET, socket.SOCK_STREAM); t.bind(("127.0.0.1", port))
         u = socket.socket(socket.AF_INET, socket.SOCK_DGRAM); u.bind(("127.0.0.1", port))
     except OSError:
         continue
-    print(port)
-    break
+    held += [t, u]
+    ports.append(port)
+    if len(ports) == 2:
+        print(*ports)
+        break
 else:
-    raise SystemExit(f"no free port in {lo}-{hi}")
+    raise SystemExit(f"no two free ports in {lo}-{hi}")
 PY
 }
 
@@ -115,8 +129,9 @@ for ((i = 0; i < RUNS; i++)); do
     # A shared machine's /tmp may be cleaned under a long batch: stop rather than count
     # runs that never ran (TMPDIR=DIR puts the work folder elsewhere).
     [[ -d $WORK/keys ]] || { echo "lossy_link: the work folder $WORK vanished; stopped before seed $seed" >&2; exit 3; }
-    frame=$(free_port)
-    tmport=$(free_port)
+    read -r frame tmport < <(free_ports)
+    store=$WORK/tm-store.bin
+    [[ ${KEEP_STORE:-0} == 1 ]] || { store=$WORK/tm-store-$seed.bin; rm -f "$store"; }
     # The relay: TC frames to the obsw's frame port, TM frames to the ground's address.
     coproc RELAY { exec "$BIN/relay" --to-udp "127.0.0.1:$frame" --drop 0.20 --duplicate 0.05 --corrupt 0.05 \
         --seed "$seed" --tm-frames-to "127.0.0.1:$tmport" --idle 60 --lifetime 900 --trace "$WORK/relay.trace" 2>/dev/null; }
@@ -127,7 +142,7 @@ for ((i = 0; i < RUNS; i++)); do
     "$BIN/obsw" --robot 1 --udp 127.0.0.1:0 --tcp 127.0.0.1:0 --sim-ctl 127.0.0.1:0 --seed "$seed" \
         --frame-udp "127.0.0.1:$frame" --frame-tm-to "$relay_tm" \
         --tc-key "$WORK/keys/robot-1/tc-spi1.key" --tm-key "$WORK/keys/robot-1/tm-spi17.key" \
-        --link-state "$WORK/obsw-link.state" --tm-log "$WORK/obsw-tm.log" >"$WORK/obsw.out" 2>"$WORK/obsw.err" &
+        --link-state "$WORK/obsw-link.state" --tm-store "$store" --tm-log "$WORK/obsw-tm.log" >"$WORK/obsw.out" 2>"$WORK/obsw.err" &
     obsw=$!
     ready=0
     for _ in $(seq 300); do grep -q READY "$WORK/obsw.out" 2>/dev/null && { ready=1; break; }; sleep 0.1; done
@@ -202,6 +217,7 @@ for ((i = 0; i < RUNS; i++)); do
         done
     fi
     rm -f "$WORK/a-$seed.db" "$WORK/relay.trace"
+    [[ ${KEEP_STORE:-0} == 1 ]] || rm -f "$store"
 done
 median=$(printf '%s\n' "${TIMES[@]}" | sort -n | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}')
 max=$(printf '%s\n' "${TIMES[@]}" | sort -n | tail -1)
