@@ -16,8 +16,8 @@ Prints one line `relay: ...` with, within T0..T1:
   the 5 ms after it;
 - `intact gap`: the longest time between two frames forwarded intact to the ground (what a
   ground that read every datagram at once would call its silence), and where it ended;
-- `end`: the time from the last intact frame forwarded to T1 (a ground that ends on a loss
-  states at least this silence if the relay is right);
+- `end`: the time from the last intact frame forwarded (before T1, in the window or not)
+  to T1 (a ground that ends on a loss states about this silence if the relay is right);
 - the counts of TC frames up and TM frames down.
 Exits 0; 2 on unreadable input.
 """
@@ -58,7 +58,10 @@ def main():
     (og, og_end), in_run = longest(down)
     burst = sum(1 for t in in_run if og_end is not None and og_end <= t <= og_end + 0.005)
     (ig, ig_end), intact_run = longest(intact)
-    end = t1 - intact_run[-1] if intact_run else t1 - t0
+    # The last intact frame before T1, however long before T0 (the silent case's T0 is the
+    # moment the obsw was stopped: its last frames came before).
+    before = [t for t in intact if t <= t1]
+    end = t1 - before[-1] if before else float("nan")
 
     def at(t):
         return f"+{t - t0:.1f} s" if t is not None else "-"
