@@ -148,7 +148,8 @@ for ((i = 0; i < RUNS; i++)); do
     for _ in $(seq 300); do grep -q READY "$WORK/obsw.out" 2>/dev/null && { ready=1; break; }; sleep 0.1; done
     if ((!ready)); then
         # Not a run: the ground would only meet an obsw still starting.
-        echo "$CASE seed $seed: obsw not READY within 30 s; not counted"
+        echo "$CASE seed $seed: obsw not READY within 30 s; not counted ($(tail -1 "$WORK/obsw.err" 2>/dev/null))"
+        cp "$WORK/obsw.err" "$KEEP/lossy-$CASE-$seed.notready.err" 2>/dev/null
         NOSTART=$((NOSTART + 1))
         kill "$obsw" "$rpid" 2>/dev/null
         wait "$obsw" "$rpid" 2>/dev/null
