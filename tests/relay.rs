@@ -18,6 +18,10 @@
 //! sends them (`--frame-tm-to`) and forwards each datagram to the ground with the
 //! downlink's faults, counted with the other downlink traffic. A corrupted frame keeps its
 //! length and fails the frame CRC at the receiver.
+//!
+//! [`Relay::trace_to`] writes one line per UDP datagram (wall-clock time, direction,
+//! length, fate, first header bytes): what each end really sent and what reached the
+//! other, to tell a silent sender from a relay or receiver that was not scheduled.
 
 use std::collections::HashMap;
 use std::io::{ErrorKind, Read, Write};
@@ -250,6 +254,7 @@ struct Shared {
     last_traffic: Mutex<Instant>,
     started: Instant,
     cfg: Config,
+    trace: Mutex<Option<std::fs::File>>,
 }
 
 impl Shared {
@@ -268,6 +273,23 @@ impl Shared {
         if let Ok(mut t) = self.last_traffic.lock() {
             *t = Instant::now();
         }
+    }
+    /// One line of the trace (when tracing): `UNIX_US DIR LEN FATE HEAD`, FATE `drop`,
+    /// or one letter per copy sent (`o` intact, `x` corrupted), HEAD the first 6 bytes in
+    /// hex (a TM frame's primary header; a TC frame's 5-byte header and one more).
+    fn trace(&self, dir: &str, packet: &[u8], fate: &Fate) {
+        let Ok(mut t) = self.trace.lock() else { return };
+        let Some(f) = t.as_mut() else { return };
+        let us = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_micros());
+        let fate = match fate {
+            Fate::Drop => "drop".to_string(),
+            Fate::Send(copies) => copies.iter().map(|c| if c == packet { 'o' } else { 'x' }).collect(),
+        };
+        let head: String = packet.iter().take(6).map(|b| format!("{b:02x}")).collect();
+        // One write per line (the relay may be killed at any moment; nothing buffered).
+        let _ = f.write_all(format!("{us} {dir} {} {fate} {head}\n", packet.len()).as_bytes());
     }
     /// A per-stream random generator derived from the seed, the direction and an index.
     fn rng(&self, dir: u64, index: u64) -> Rng {
@@ -294,6 +316,7 @@ impl Relay {
             last_traffic: Mutex::new(Instant::now()),
             started: Instant::now(),
             cfg,
+            trace: Mutex::new(None),
         });
         let mut threads = Vec::new();
         let s = shared.clone();
@@ -330,6 +353,13 @@ impl Relay {
         self.threads
             .push(thread::spawn(move || route_down(sock, out, to, s, index)));
         Ok(addr)
+    }
+
+    /// From now on, one line per UDP datagram relayed to `file` (`UNIX_US DIR LEN FATE HEAD`, as `relay --trace`).
+    pub fn trace_to(&self, file: std::fs::File) {
+        if let Ok(mut t) = self.shared.trace.lock() {
+            *t = Some(file);
+        }
     }
 
     /// True until the relay stops (asked to, lifetime or idle time over).
@@ -380,7 +410,9 @@ fn udp_up(listen: UdpSocket, s: Arc<Shared>) {
             peers.insert(from, up);
         }
         let Some(up) = peers.get(&from) else { continue };
-        if let Fate::Send(copies) = decide(&mut rng, &s.cfg.up, &buf[..n], &s.counts.up) {
+        let fate = decide(&mut rng, &s.cfg.up, &buf[..n], &s.counts.up);
+        s.trace("up", &buf[..n], &fate);
+        if let Fate::Send(copies) = fate {
             for c in copies {
                 let _ = up.send_to(&c, s.cfg.target_udp);
             }
@@ -401,7 +433,9 @@ fn udp_down(up: UdpSocket, listen: Arc<UdpSocket>, ground: SocketAddr, s: Arc<Sh
             Err(_) => continue,
         };
         s.touch();
-        if let Fate::Send(copies) = decide(&mut rng, &s.cfg.down, &buf[..n], &s.counts.down) {
+        let fate = decide(&mut rng, &s.cfg.down, &buf[..n], &s.counts.down);
+        s.trace("down", &buf[..n], &fate);
+        if let Fate::Send(copies) = fate {
             for c in copies {
                 let _ = listen.send_to(&c, ground);
             }
@@ -419,7 +453,9 @@ fn route_down(listen: UdpSocket, out: UdpSocket, to: SocketAddr, s: Arc<Shared>,
             Err(_) => continue,
         };
         s.touch();
-        if let Fate::Send(copies) = decide(&mut rng, &s.cfg.down, &buf[..n], &s.counts.down) {
+        let fate = decide(&mut rng, &s.cfg.down, &buf[..n], &s.counts.down);
+        s.trace("down", &buf[..n], &fate);
+        if let Fate::Send(copies) = fate {
             for c in copies {
                 let _ = out.send_to(&c, to);
             }
@@ -640,6 +676,45 @@ mod tests {
         relay.stop();
         let down = relay.counts.down.snapshot();
         assert_eq!((down.seen, down.duplicated, down.forwarded), (1, 1, 2));
+    }
+
+    // verifies: DD-TEST-01
+    #[test]
+    fn the_trace_has_one_line_per_datagram_with_its_fate() {
+        let t = SocketAddr::from(([127, 0, 0, 1], 9));
+        let mut cfg = Config::both_ways(t, t, Faults::CLEAN, 5);
+        cfg.down = Faults::new(0.5, 0.0, 0.0);
+        let mut relay = Relay::start(cfg).unwrap();
+        let ground = UdpSocket::bind("127.0.0.1:0").unwrap();
+        let tm_in = relay
+            .add_downlink_route(SocketAddr::from(([127, 0, 0, 1], 0)), ground.local_addr().unwrap())
+            .unwrap();
+        let dir = std::env::temp_dir().join(format!("relay-trace-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("trace");
+        relay.trace_to(std::fs::File::create(&path).unwrap());
+        let obsw = UdpSocket::bind("127.0.0.1:0").unwrap();
+        for i in 0..20u8 {
+            obsw.send_to(&[i, 1, 2, 3, 4, 5, 6, 7], tm_in).unwrap();
+        }
+        let t0 = Instant::now();
+        while relay.counts.down.snapshot().seen < 20 && t0.elapsed() < Duration::from_secs(5) {
+            thread::sleep(Duration::from_millis(5));
+        }
+        relay.stop();
+        let text = std::fs::read_to_string(&path).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+        let lines: Vec<Vec<&str>> = text.lines().map(|l| l.split(' ').collect()).collect();
+        assert_eq!(lines.len(), 20, "{text}");
+        let down = relay.counts.down.snapshot();
+        let dropped = lines.iter().filter(|l| l[3] == "drop").count() as u64;
+        assert_eq!(dropped, down.dropped);
+        assert!(dropped > 0 && dropped < 20, "{text}");
+        for (i, l) in lines.iter().enumerate() {
+            assert_eq!(&l[1..3], ["down", "8"]);
+            assert!(l[3] == "drop" || l[3] == "o", "{text}");
+            assert_eq!(l[4], format!("{i:02x}0102030405"));
+        }
     }
 
     // verifies: DD-TEST-01

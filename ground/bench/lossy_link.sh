@@ -22,10 +22,29 @@
 # is in the archive exactly once; for every case, each archived packet is one the obsw sent
 # and none is archived twice. A run whose check fails is counted in the tally's "archive".
 #
+# What the relay saw (its `--trace`, ground/bench/relay_gaps.py), on every run's line: the
+# longest time the obsw sent no TM frame, the longest time no intact frame went on to the
+# ground, and the time from the last intact one to the ground's exit — to tell a silent
+# obsw, a relay not scheduled (a gap, then a burst) and a ground that missed what came.
+# A failed run (non-zero exit where 0 is expected, or the archive check) keeps its files in
+# KEEP (default: TMPDIR or /tmp) as lossy-CASE-SEED.*: the obsw's TM log, stdout and
+# stderr, the relay's trace, the ground's stdout, stderr and archive.
+# The obsw's on-board TM store (PUS 15) is a fresh file per run unless KEEP_STORE=1, where
+# one store file serves every run of the batch and fills with what the runs before sent (a
+# retrieval by range walks the store from its oldest packet at
+# mib::memory::store::REPLAY_READS_PER_PERIOD packets a period, so a deeper store answers
+# each request later; docs/space-link.md). The link's counter state is kept across runs
+# either way (the ground's TM IV window needs it).
+# PORT_LO, PORT_HI: the range the script's own ports come from (default 32000-32767; give
+# two batches run side by side disjoint ranges, or they can take each other's ports).
+#
 # Figures (40 checkout, 50 each of plan3, ping, send, mode, 10 silent; seeds, exit codes,
 # medians, archive) and what the non-zero exits were: docs/space-link.md, "Liveness and the
 # run's start over frames".
 set -u
+PORT_LO=${PORT_LO:-32000}
+PORT_HI=${PORT_HI:-32767}
+KEEP=${KEEP:-${TMPDIR:-/tmp}}
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 BIN=${BIN:-$ROOT/target/debug}
 CASE=${1:?case: checkout plan3 ping send mode silent}
@@ -42,20 +61,29 @@ trap '[[ $BASHPID == "$$" ]] && { kill $(jobs -p) 2>/dev/null; rm -rf "$WORK"; }
 # bound to port 0 (the obsw's, the relay's, other programs') gets its port, and above the
 # range the end-to-end tests hand out (tests/src.rs `free_port`, 10000-31999), so a batch
 # beside a test run takes neither's ports.
-free_port() {
-    python3 - <<'PY'
-import random, socket
-for _ in range(200):
-    port = random.randint(32000, 32767)
+# Two distinct ports in one probe (two probes could both pick the same free port: the
+# obsw's frame port and the ground's TM port then collide, 1 run in a few hundred).
+free_ports() {
+    PORT_LO=$PORT_LO PORT_HI=$PORT_HI python3 - <<'PY'
+import os, random, socket
+lo, hi = int(os.environ["PORT_LO"]), int(os.environ["PORT_HI"])
+held, ports = [], []
+for _ in range(400):
+    port = random.randint(lo, hi)
+    if port in ports:
+        continue
     try:
         t = socket.socket(socket.AF_INET, socket.SOCK_STREAM); t.bind(("127.0.0.1", port))
         u = socket.socket(socket.AF_INET, socket.SOCK_DGRAM); u.bind(("127.0.0.1", port))
     except OSError:
         continue
-    print(port)
-    break
+    held += [t, u]
+    ports.append(port)
+    if len(ports) == 2:
+        print(*ports)
+        break
 else:
-    raise SystemExit("no free port in 32000-32767")
+    raise SystemExit(f"no two free ports in {lo}-{hi}")
 PY
 }
 
@@ -101,11 +129,12 @@ for ((i = 0; i < RUNS; i++)); do
     # A shared machine's /tmp may be cleaned under a long batch: stop rather than count
     # runs that never ran (TMPDIR=DIR puts the work folder elsewhere).
     [[ -d $WORK/keys ]] || { echo "lossy_link: the work folder $WORK vanished; stopped before seed $seed" >&2; exit 3; }
-    frame=$(free_port)
-    tmport=$(free_port)
+    read -r frame tmport < <(free_ports)
+    store=$WORK/tm-store.bin
+    [[ ${KEEP_STORE:-0} == 1 ]] || { store=$WORK/tm-store-$seed.bin; rm -f "$store"; }
     # The relay: TC frames to the obsw's frame port, TM frames to the ground's address.
     coproc RELAY { exec "$BIN/relay" --to-udp "127.0.0.1:$frame" --drop 0.20 --duplicate 0.05 --corrupt 0.05 \
-        --seed "$seed" --tm-frames-to "127.0.0.1:$tmport" --idle 60 --lifetime 900 2>/dev/null; }
+        --seed "$seed" --tm-frames-to "127.0.0.1:$tmport" --idle 60 --lifetime 900 --trace "$WORK/relay.trace" 2>/dev/null; }
     rpid=$RELAY_PID
     read -r line <&"${RELAY[0]}"
     relay_udp=$(sed -n 's/.*udp=\([^ ]*\).*/\1/p' <<<"$line")
@@ -113,13 +142,14 @@ for ((i = 0; i < RUNS; i++)); do
     "$BIN/obsw" --robot 1 --udp 127.0.0.1:0 --tcp 127.0.0.1:0 --sim-ctl 127.0.0.1:0 --seed "$seed" \
         --frame-udp "127.0.0.1:$frame" --frame-tm-to "$relay_tm" \
         --tc-key "$WORK/keys/robot-1/tc-spi1.key" --tm-key "$WORK/keys/robot-1/tm-spi17.key" \
-        --link-state "$WORK/obsw-link.state" --tm-log "$WORK/obsw-tm.log" >"$WORK/obsw.out" 2>"$WORK/obsw.err" &
+        --link-state "$WORK/obsw-link.state" --tm-store "$store" --tm-log "$WORK/obsw-tm.log" >"$WORK/obsw.out" 2>"$WORK/obsw.err" &
     obsw=$!
     ready=0
     for _ in $(seq 300); do grep -q READY "$WORK/obsw.out" 2>/dev/null && { ready=1; break; }; sleep 0.1; done
     if ((!ready)); then
         # Not a run: the ground would only meet an obsw still starting.
-        echo "$CASE seed $seed: obsw not READY within 30 s; not counted"
+        echo "$CASE seed $seed: obsw not READY within 30 s; not counted ($(tail -1 "$WORK/obsw.err" 2>/dev/null))"
+        cp "$WORK/obsw.err" "$KEEP/lossy-$CASE-$seed.notready.err" 2>/dev/null
         NOSTART=$((NOSTART + 1))
         kill "$obsw" "$rpid" 2>/dev/null
         wait "$obsw" "$rpid" 2>/dev/null
@@ -177,10 +207,21 @@ for ((i = 0; i < RUNS; i++)); do
         ARCHIVE_BAD=$((ARCHIVE_BAD + 1))
         rc_archive=1
     fi
-    echo "$CASE seed $seed: exit $rc in $secs s | ${tm:+$tm | }$archive | $last"
-    [[ $rc != 0 || ${rc_archive:-0} != 0 ]] && cp "$WORK/obsw-tm.log" "${TMPDIR:-/tmp}/lossy-$CASE-$seed.tm.log" && cp "$WORK/a-$seed.db" "${TMPDIR:-/tmp}/lossy-$CASE-$seed.db" && cp "$WORK/out" "${TMPDIR:-/tmp}/lossy-$CASE-$seed.out" && cp "$WORK/err" "${TMPDIR:-/tmp}/lossy-$CASE-$seed.err"
+    relay=$(python3 "$ROOT/ground/bench/relay_gaps.py" "$WORK/relay.trace" "$t0" "$t1")
+    echo "$CASE seed $seed: exit $rc in $secs s | ${tm:+$tm | }$archive | $relay | $last"
+    expected=0
+    [[ $CASE == silent ]] && expected=5
+    if [[ $rc != "$expected" || $rc_archive != 0 ]]; then
+        k="$KEEP/lossy-$CASE-$seed"
+        for f in obsw-tm.log:tm.log obsw.out:obsw.out obsw.err:obsw.err relay.trace:relay.trace out:out err:err "a-$seed.db:db"; do
+            cp "$WORK/${f%%:*}" "$k.${f#*:}" 2>/dev/null
+        done
+    fi
+    rm -f "$WORK/a-$seed.db" "$WORK/relay.trace"
+    [[ ${KEEP_STORE:-0} == 1 ]] || rm -f "$store"
 done
 median=$(printf '%s\n' "${TIMES[@]}" | sort -n | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}')
+max=$(printf '%s\n' "${TIMES[@]}" | sort -n | tail -1)
 echo -n "$CASE: $((RUNS - NOSTART)) runs ($NOSTART more did not start), exit codes:"
 for k in "${!TALLY[@]}"; do echo -n " $k×${TALLY[$k]}"; done
-echo "; median $median s; false 'lost' (exit 5, 7 or 8 with a live robot): $FALSE_LOST; archive not exactly once: $ARCHIVE_BAD"
+echo "; median $median s (max $max s); false 'lost' (exit 5, 7 or 8 with a live robot): $FALSE_LOST; archive not exactly once: $ARCHIVE_BAD"

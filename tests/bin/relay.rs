@@ -59,6 +59,11 @@ struct Args {
     /// Where the relay takes the obsw's TM frames [default: a free loopback port].
     #[arg(long, default_value = "127.0.0.1:0")]
     tm_frames_listen: SocketAddr,
+    /// Write one line per UDP datagram relayed to this file: `UNIX_US up|down LEN FATE
+    /// HEAD` (FATE `drop`, or `o`/`x` per copy sent, intact/corrupted; HEAD the first 6
+    /// bytes in hex).
+    #[arg(long)]
+    trace: Option<std::path::PathBuf>,
 }
 
 fn triple(s: &str) -> Result<Faults, String> {
@@ -90,6 +95,10 @@ fn run(a: Args) -> Result<(), String> {
         idle: secs("idle", a.idle)?,
     };
     let mut relay = Relay::start(cfg)?;
+    if let Some(path) = &a.trace {
+        let f = std::fs::File::create(path).map_err(|e| format!("--trace {}: {e}", path.display()))?;
+        relay.trace_to(f);
+    }
     let frames = match a.tm_frames_to {
         Some(to) => format!(" tm_frames={}", relay.add_downlink_route(a.tm_frames_listen, to)?),
         None => String::new(),
