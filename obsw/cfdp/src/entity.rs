@@ -656,7 +656,7 @@ pub fn well_formed(raw: &[u8]) -> Option<PduHeader> {
         return None;
     }
     let ok = match h.pdu_type() {
-        PduType::FileData => FileDataPdu::from_bytes(raw).is_ok(),
+        PduType::FileData => file_data_fits(&h, hl, raw) && FileDataPdu::from_bytes(raw).is_ok(),
         PduType::FileDirective => match FileDirectiveType::try_from(raw[hl]).ok()? {
             FileDirectiveType::MetadataPdu => MetadataPduReader::from_bytes(raw).is_ok(),
             // spacepackets 0.16 slices the checksum and file size unchecked: directive,
@@ -670,6 +670,21 @@ pub fn well_formed(raw: &[u8]) -> Option<PduHeader> {
         },
     };
     ok.then_some(h)
+}
+
+/// spacepackets 0.16's file data reader slices the segment metadata (its length: the low 6
+/// bits of its first byte) and the offset after it (4 bytes, normal files) unchecked: both
+/// must be there (found by the `cfdp_pdu` fuzz target: a panic on a PDU whose segment
+/// metadata ran to its end).
+fn file_data_fits(h: &PduHeader, hl: usize, raw: &[u8]) -> bool {
+    let meta = match h.seg_metadata_flag() {
+        spacepackets::cfdp::SegmentMetadataFlag::Present => match raw.get(hl) {
+            Some(b) => 1 + usize::from(b & 0x3F),
+            None => return false,
+        },
+        spacepackets::cfdp::SegmentMetadataFlag::NotPresent => 0,
+    };
+    raw.len() >= hl + meta + 4
 }
 
 /// Whether `raw` is a metadata PDU (the directive that opens a transaction).

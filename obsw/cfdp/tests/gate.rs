@@ -136,3 +136,48 @@ fn a_metadata_pdu_with_an_empty_or_cut_filestore_request_is_counted_and_changes_
         .join()
         .unwrap();
 }
+
+// A file data PDU whose segment metadata runs to the PDU's end (or past it) panicked the
+// entity's gate: spacepackets 0.16 slices the metadata and the offset after it unchecked
+// (found by the fuzz target `cfdp_pdu`, input
+// `tests/fuzz/corpus/cfdp_pdu/crash-e4827cf200188d414ddfb5516f593c6597823927`). Refused and
+// counted; a well-formed one with segment metadata still passes the gate.
+// verifies: FILE-CFDP-05
+#[test]
+fn a_file_data_pdu_whose_segment_metadata_runs_to_its_end_is_refused_and_counted() {
+    use spacepackets::cfdp::pdu::{CommonPduConfig, PduHeader};
+    use spacepackets::cfdp::{SegmentMetadataFlag, SegmentationControl};
+    use spacepackets::util::UnsignedByteFieldU16;
+    let conf = CommonPduConfig::new_with_byte_fields(
+        UnsignedByteFieldU16::new(0),
+        UnsignedByteFieldU16::new(1),
+        UnsignedByteFieldU16::new(3),
+    )
+    .unwrap();
+    // Data field: the metadata's first byte (length in its low 6 bits), then what follows.
+    for (field, whole) in [
+        (vec![0x00u8], false),                   // no offset after an empty metadata
+        (vec![0x03, 1, 2, 3], false),            // metadata to the end, no offset
+        (vec![0x3F, 1, 2], false),               // metadata longer than the PDU
+        (vec![0x02, 1, 2, 0, 0, 0, 0, 9], true), // metadata, offset 0, one data byte
+    ] {
+        let h = PduHeader::new_for_file_data(
+            conf,
+            field.len() as u16,
+            SegmentMetadataFlag::Present,
+            SegmentationControl::NoRecordBoundaryPreservation,
+        );
+        let mut raw = [0u8; 64];
+        let hl = h.write_to_bytes(&mut raw).unwrap();
+        raw[hl..hl + field.len()].copy_from_slice(&field);
+        let raw = &raw[..hl + field.len()];
+        assert_eq!(mmic_cfdp::entity::well_formed(raw).is_some(), whole, "{field:02x?}");
+        let rp = Parts::new(Mem::new(30_000));
+        let mut r = Entity::new(1, 0, &rp);
+        let before = r.counters();
+        r.receive(10, raw);
+        if !whole {
+            assert_eq!(r.counters().refused, before.refused + 1, "{field:02x?}");
+        }
+    }
+}

@@ -412,6 +412,8 @@ impl<'a> LibtestParser<'a> {
         let Some((name, verdict)) = line.strip_prefix("test ").and_then(|r| r.rsplit_once(" ... ")) else {
             return;
         };
+        // libtest names a `#[should_panic]` test "NAME - should panic" in its result line.
+        let name = name.strip_suffix(" - should panic").unwrap_or(name);
         let verdict = verdict.trim();
         let outcome = if verdict == "ok" {
             Outcome::Passed
@@ -458,6 +460,7 @@ running 3 tests
 test codec::tests::a ... ok
 test codec::tests::b ... FAILED
 test codec::tests::c ... ignored, slow
+test codec::tests::d - should panic ... ok
 
 failures:
 
@@ -483,7 +486,8 @@ test mib/src/lib.rs - codec (line 3) ... ok
         assert_eq!(lib["codec::tests::a"], Outcome::Passed);
         assert_eq!(lib["codec::tests::b"], Outcome::Failed);
         assert_eq!(lib["codec::tests::c"], Outcome::Ignored);
-        assert_eq!(lib.len(), 3, "the test line inside captured output is no result");
+        assert_eq!(lib["codec::tests::d"], Outcome::Passed, "a should_panic test by its own name");
+        assert_eq!(lib.len(), 4, "the test line inside captured output is no result");
         assert_eq!(r.outcomes["icd-bb22"]["a"], Outcome::Passed);
         assert!(r.outputs["codec::tests::b"].contains("assertion failed"));
         assert_eq!(
