@@ -486,7 +486,11 @@ test mib/src/lib.rs - codec (line 3) ... ok
         assert_eq!(lib["codec::tests::a"], Outcome::Passed);
         assert_eq!(lib["codec::tests::b"], Outcome::Failed);
         assert_eq!(lib["codec::tests::c"], Outcome::Ignored);
-        assert_eq!(lib["codec::tests::d"], Outcome::Passed, "a should_panic test by its own name");
+        assert_eq!(
+            lib["codec::tests::d"],
+            Outcome::Passed,
+            "a should_panic test by its own name"
+        );
         assert_eq!(lib.len(), 4, "the test line inside captured output is no result");
         assert_eq!(r.outcomes["icd-bb22"]["a"], Outcome::Passed);
         assert!(r.outputs["codec::tests::b"].contains("assertion failed"));
