@@ -256,6 +256,14 @@ struct GroupOutput<'a> {
 }
 
 impl<'a> GroupOutput<'a> {
+    fn new(pkgs: &'a [Package], echo_tag: Option<&'a str>) -> Self {
+        GroupOutput {
+            parser: LibtestParser::new(pkgs),
+            lines: Vec::new(),
+            echo_tag,
+        }
+    }
+
     fn line(&mut self, line: String) {
         if let Some(tag) = self.echo_tag {
             println!("[{tag}] {line}");
@@ -280,11 +288,7 @@ fn run_executables(
     show_output: bool,
     echo_tag: Option<&str>,
 ) -> Result<Group> {
-    let mut out = GroupOutput {
-        parser: LibtestParser::new(pkgs),
-        lines: Vec::new(),
-        echo_tag,
-    };
+    let mut out = GroupOutput::new(pkgs, echo_tag);
     let mut ok = true;
     for b in bins {
         let dir = pkgs
@@ -336,11 +340,7 @@ fn run_cargo_test(
         .stdout(Stdio::piped())
         .spawn()
         .with_context(|| format!("cargo test {}", args.join(" ")))?;
-    let mut out = GroupOutput {
-        parser: LibtestParser::new(pkgs),
-        lines: Vec::new(),
-        echo_tag,
-    };
+    let mut out = GroupOutput::new(pkgs, echo_tag);
     out.read(child.stdout.take().context("stdout")?);
     let mut res = out.parser.finish();
     res.exit_ok = child.wait()?.success();
