@@ -1,8 +1,15 @@
 //! Two entities (ground 0, robot 1) over an in-memory link that loses, duplicates and
 //! corrupts PDUs with a seeded generator; the clock advances by hand.
 
+use mmic_cfdp::spacepackets::cfdp::pdu::FileDirectiveType;
 use mmic_cfdp::store::MemStore;
 use mmic_cfdp::{Class, Entity, FileName, Parts};
+
+/// Directive codes, as spacepackets defines them (CCSDS 727.0-B-5 table 5-4).
+const EOF: u8 = FileDirectiveType::EofPdu as u8;
+const FINISHED: u8 = FileDirectiveType::FinishedPdu as u8;
+const ACK: u8 = FileDirectiveType::AckPdu as u8;
+const NAK: u8 = FileDirectiveType::NakPdu as u8;
 
 type Mem = MemStore<8, 120_000>;
 
@@ -213,7 +220,6 @@ fn directive(p: &[u8]) -> Option<u8> {
 #[test]
 fn a_finished_pdu_that_overtakes_a_lost_eof_ack_ends_the_put_without_a_retry() {
     big_stack(|| {
-        const ACK: u8 = 0x06;
         let (gp, rp) = (Parts::new(Mem::new(200_000)), Parts::new(Mem::new(200_000)));
         let mut g = Entity::new(0, 1, &gp);
         let mut r = Entity::new(1, 0, &rp);
@@ -283,8 +289,6 @@ fn a_put_to_a_silent_peer_ends_reported_as_not_complete() {
 #[test]
 fn a_finished_pdu_sent_again_after_a_lost_ack_is_acknowledged_again_by_the_ended_sender() {
     big_stack(|| {
-        const ACK: u8 = 0x06;
-        const FINISHED: u8 = 0x05;
         let (gp, rp) = (Parts::new(Mem::new(200_000)), Parts::new(Mem::new(200_000)));
         let mut g = Entity::new(0, 1, &gp);
         let mut r = Entity::new(1, 0, &rp);
@@ -390,7 +394,6 @@ fn a_file_cut_short_is_never_kept_under_its_name_and_a_restart_discards_the_rest
 #[test]
 fn the_robots_nak_lost_on_the_downlink_is_sent_again_after_its_own_timer_not_while_answers_arrive() {
     big_stack(|| {
-        const NAK: u8 = 0x08;
         let (gp, rp) = (Parts::new(Mem::new(200_000)), Parts::new(Mem::new(200_000)));
         let mut g = Entity::new(0, 1, &gp);
         let mut r = Entity::new(1, 0, &rp);
@@ -493,7 +496,6 @@ fn nak_requests(p: &[u8]) -> Vec<(u64, u64)> {
 #[test]
 fn a_burst_with_more_gaps_than_the_outbox_holds_is_asked_for_once_and_ends_the_get() {
     big_stack(|| {
-        const NAK: u8 = 0x08;
         let (gp, rp) = (Parts::new(Mem::new(200_000)), Parts::new(Mem::new(200_000)));
         let mut g = Entity::new(0, 1, &gp);
         let mut r = Entity::new(1, 0, &rp);
@@ -557,7 +559,6 @@ fn a_burst_with_more_gaps_than_the_outbox_holds_is_asked_for_once_and_ends_the_g
 #[test]
 fn overlapping_segment_requests_of_a_nak_are_each_sent_again_once() {
     big_stack(|| {
-        const EOF: u8 = 0x04;
         let (gp, rp) = (Parts::new(Mem::new(200_000)), Parts::new(Mem::new(200_000)));
         let mut g = Entity::new(0, 1, &gp);
         let mut r = Entity::new(1, 0, &rp);
