@@ -8,8 +8,8 @@
 //! has no "faulted" state) and PLAN_LOADED (the image's CRC-32). Newer on-board time wins,
 //! so a replayed HK report never undoes a later event.
 //!
-//! [`PlanControl::accepted_in`] is the robot's rule for each control TC (the executor in
-//! `mmic_plan::exec`; a test drives that executor through every state and checks it): the
+//! [`PlanControl::accepted_in`] is the robot's rule for each control TC (`mmic_plan::State::accepts`,
+//! the executor's own; a test drives that executor through every state and checks it): the
 //! page enables a button only where the robot accepts its TC, and the server refuses the
 //! rest before anything is sent.
 
@@ -76,11 +76,15 @@ impl PlanControl {
     /// completion or an abort, where it would only turn COMPLETED into ABORTED: the page
     /// does not offer that).
     pub fn accepted_in(self, code: u8) -> bool {
-        match self {
-            PlanControl::Suspend => code == state::RUNNING,
-            PlanControl::Resume | PlanControl::Skip => code == state::SUSPENDED,
-            PlanControl::Abort => matches!(code, state::LOADED | state::RUNNING | state::SUSPENDED),
-        }
+        use mmic_plan::{Control, State};
+        let control = match self {
+            PlanControl::Suspend => Control::Suspend,
+            PlanControl::Resume => Control::Resume,
+            PlanControl::Abort => Control::Abort,
+            PlanControl::Skip => Control::Skip,
+        };
+        let ended = matches!(State::from_code(code), Some(State::Completed | State::Aborted));
+        State::from_code(code).is_some_and(|s| s.accepts(control)) && !(control == Control::Abort && ended)
     }
 
     /// The states (MIB names) it is accepted in, for error messages.

@@ -30,6 +30,15 @@ pub enum State {
     Aborted,
 }
 
+/// The control TCs of a loaded plan (PUS 18 style).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Control {
+    Suspend,
+    Resume,
+    Abort,
+    Skip,
+}
+
 impl State {
     pub const fn code(self) -> u8 {
         match self {
@@ -51,6 +60,17 @@ impl State {
             state::COMPLETED => Some(State::Completed),
             state::ABORTED => Some(State::Aborted),
             _ => None,
+        }
+    }
+    /// Whether `control` may act on a plan in this state: PLAN_SUSPEND while running,
+    /// PLAN_RESUME and PLAN_SKIP while suspended (a skip also needs no step running),
+    /// PLAN_ABORT once a plan is loaded. The one rule of the executor and of the ground's
+    /// page.
+    pub const fn accepts(self, control: Control) -> bool {
+        match control {
+            Control::Suspend => matches!(self, State::Running),
+            Control::Resume | Control::Skip => matches!(self, State::Suspended),
+            Control::Abort => !matches!(self, State::Empty),
         }
     }
     /// A plan in these states holds the robot's staging buffer: no new load.
@@ -321,21 +341,19 @@ impl Plan {
 
     /// PLAN_SUSPEND: no new step starts; the running one finishes (its outcome counts).
     pub fn suspend(&mut self) -> Result<Change, Refusal> {
-        match self.state {
-            State::Running => Ok(self.change(State::Suspended, cause::COMMAND)),
-            s => Err(Refusal::BadState(s)),
+        if !self.state.accepts(Control::Suspend) {
+            return Err(Refusal::BadState(self.state));
         }
+        Ok(self.change(State::Suspended, cause::COMMAND))
     }
 
     /// PLAN_RESUME: continues at the next step (a failed one runs again).
     pub fn resume(&mut self) -> Result<Change, Refusal> {
-        match self.state {
-            State::Suspended => {
-                self.waiting = None;
-                Ok(self.change(State::Running, cause::COMMAND))
-            }
-            s => Err(Refusal::BadState(s)),
+        if !self.state.accepts(Control::Resume) {
+            return Err(Refusal::BadState(self.state));
         }
+        self.waiting = None;
+        Ok(self.change(State::Running, cause::COMMAND))
     }
 
     /// PLAN_ABORT: nothing new starts. Returns the change and whether a TC step was
@@ -352,7 +370,7 @@ impl Plan {
     /// PLAN_SKIP of step `step`: only the next step of a suspended plan, with nothing
     /// running. The step counts as completed (also for other robots' dependencies).
     pub fn skip(&mut self, step: u8) -> Result<Change, Refusal> {
-        if self.state != State::Suspended || self.running.is_some() {
+        if !self.state.accepts(Control::Skip) || self.running.is_some() {
             return Err(Refusal::BadState(self.state));
         }
         if step != self.done {

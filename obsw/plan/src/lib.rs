@@ -21,5 +21,5 @@
 pub mod exec;
 pub mod image;
 
-pub use exec::{Change, Plan, Poll, Refusal, State};
+pub use exec::{Change, Control, Plan, Poll, Refusal, State};
 pub use image::{Dep, Image, ImageError, StepKind, StepRepr, StepView};
