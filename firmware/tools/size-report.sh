@@ -116,7 +116,10 @@ while read -r kind rname a b c; do
         bootloader) line "$rname" flash "$size" - "espflash's ESP-IDF bootloader: not built here" no ;;
         otadata) line "$rname" flash "$size" - "two sectors, written alternately (fixed by ESP-IDF)" no ;;
         files) line "$rname" flash "$size" 0 "CFDP file store: empty until CFDP" yes ;;
-        tm_store) line "$rname" flash "$size" "${used:-0}" "2 h of default HK (MIB), packets only" yes ;;
+        tm_store) line "$rname" flash "$size" - "PUS 15 store: its two areas below" no
+          while read -r _ aname room need; do
+            line "$aname" area $((room)) $((need)) "the area's room vs. the 2 h outage as stored (mib::memory::store)" yes
+          done < <(grep '^area tm_store\.' "$MAP") ;;
         *) line "$rname" flash "$size" "${used:-0}" "fixed by its layout" yes ;;
       esac ;;
     sram)

@@ -38,6 +38,8 @@ pub const AB_LINK_BAUD: u32 = 115_200;
 pub const TIMESTAMP_LEN: usize = 7;
 /// Largest space packet the OBSW accepts or emits (primary header included).
 pub const MAX_PACKET_LEN: usize = 1024;
+/// Largest data field of an event report (TM[5,x]): the TM writer's event buffer.
+pub const EVENT_DATA_MAX: usize = 64;
 /// Largest application data field of a TC.
 pub const MAX_TC_APP_DATA: usize = 512;
 /// Destination/source ID the OBSW uses for the ground.

@@ -150,11 +150,18 @@ pub const OTADATA: FlashRegion = region(
     FlashUse::OtaData,
     "which application slot boots (two sectors, written alternately)",
 );
+/// Size of each application slot: 512 KiB. An image may take 70 % of it (358 KiB); board A
+/// is ≈ 290 KiB at `opt-level = 2` with everything compiled in (57 % of the slot: 68 KiB
+/// left for the file store and CFDP within the margin). Slots of 896 KiB (the first map)
+/// left the TM store 2 MiB, whose HK area then held the 2 h outage with a 3.8 % margin;
+/// each slot gave 384 KiB to the store (576 KiB slots were not enough: 29.7 %).
+pub const APP_SLOT_SIZE: u32 = 0x8_0000;
+
 /// Application slot 0: the image `espflash` writes (the first application partition).
 pub const OTA_0: FlashRegion = region(
     "ota_0",
     0x1_0000,
-    0xE_0000,
+    APP_SLOT_SIZE,
     FlashUse::AppSlot(0),
     "application slot 0 (the image espflash writes)",
 );
@@ -162,16 +169,16 @@ pub const OTA_0: FlashRegion = region(
 /// other way round), then `otadata` switches.
 pub const OTA_1: FlashRegion = region(
     "ota_1",
-    0xF_0000,
-    0xE_0000,
+    0x9_0000,
+    APP_SLOT_SIZE,
     FlashUse::AppSlot(1),
     "application slot 1 (software update written while the other slot runs)",
 );
 /// Board A's PUS 15 packet store: TM kept across link outages and resets.
 pub const TM_STORE: FlashRegion = region(
     "tm_store",
-    0x1D_0000,
-    0x20_0000,
+    0x11_0000,
+    0x2C_0000,
     FlashUse::Own(0x01),
     "PUS 15 packet store (TM kept across link outages and resets)",
 );
@@ -293,7 +300,7 @@ pub mod store {
     /// Start of the partition in board A's flash.
     pub const OFFSET: u32 = TM_STORE.offset;
     /// Events, verification and every other report.
-    pub const REPORT_SIZE: u32 = 512 * 1024;
+    pub const REPORT_SIZE: u32 = 576 * 1024;
     /// Periodic housekeeping area: the rest of the partition.
     pub const HK_SIZE: u32 = TM_STORE.size - REPORT_SIZE;
     /// The whole partition (the host's store file has this size).
@@ -327,6 +334,77 @@ pub mod store {
     /// two runs of the same QEMU test (`-icount` figures vary with what the run's timing
     /// fed the period), too close to be sure of; each read fewer gives ≈ 0.6 points back.
     pub const REPLAY_READS_PER_PERIOD: u32 = 10;
+
+    /// `sequential-storage`'s queue item header for a 4-byte flash word (obsw-core's store
+    /// tests check it against `QueueStorage::item_overhead_size`).
+    pub const ITEM_HEADER: usize = 8;
+    /// Largest data field of an event report (the TM writer's event buffer,
+    /// `config::EVENT_DATA_MAX`); verification reports are smaller.
+    const REPORT_DATA_MAX: usize = crate::config::EVENT_DATA_MAX;
+
+    /// Bytes of a TM packet with `data` bytes of data (headers, time stamp, PEC).
+    const fn packet_len(data: usize) -> usize {
+        use crate::headers::{CRC_LEN, PRIMARY_HEADER_LEN, TM_SEC_HEADER_LEN};
+        PRIMARY_HEADER_LEN + TM_SEC_HEADER_LEN + crate::config::TIMESTAMP_LEN + data + CRC_LEN
+    }
+
+    /// Bytes a packet of `len` bytes takes in an area: its item header, the packet padded
+    /// to the flash word.
+    pub const fn item_bytes(len: usize) -> usize {
+        ITEM_HEADER + len.next_multiple_of(WORD_USIZE)
+    }
+
+    /// Bytes an area of `sectors` sectors holds for items of at most `largest` bytes: the
+    /// queue keeps its oldest sector free for reuse, a sector keeps two state words, and
+    /// a sector loses at most one item's bytes less one at its end.
+    pub const fn room(sectors: usize, largest: usize) -> usize {
+        (sectors - 1) * (FLASH_SECTOR as usize - 2 * WORD_USIZE - (largest - 1))
+    }
+
+    /// What an outage of `secs` seconds puts into one area, and what the area holds.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub struct Need {
+        /// The outage's packets as the area stores them (items).
+        pub bytes: usize,
+        /// The area's room for them ([`room`] with the largest of those items).
+        pub room: usize,
+    }
+
+    impl Need {
+        /// Hours of such traffic the area holds.
+        pub fn hours(&self, secs: u32) -> f64 {
+            self.room as f64 / self.bytes as f64 * secs as f64 / 3600.0
+        }
+        /// True when the area keeps the flight margin ([`super::FLIGHT_MARGIN_PCT`]).
+        pub fn within_margin(&self) -> bool {
+            super::within_margin(self.bytes as u64, self.room as u64)
+        }
+    }
+
+    /// The HK area over an outage of `secs` s: every housekeeping structure the MIB enables
+    /// by default at its `default_interval_ms`.
+    pub fn hk_need(secs: u32) -> Need {
+        let (mut bytes, mut largest) = (0, 0);
+        for h in crate::hk::HK_STRUCTS.iter().filter(|h| h.default_enabled) {
+            let item = item_bytes(packet_len(h.data_len()));
+            largest = largest.max(item);
+            bytes += secs as usize * 1000 / h.default_interval_ms as usize * item;
+        }
+        Need {
+            bytes,
+            room: room(HK_SECTORS, largest),
+        }
+    }
+
+    /// The report area over an outage of `secs` s: [`REPORTS_PER_HOUR`] reports of the
+    /// largest size.
+    pub fn report_need(secs: u32) -> Need {
+        let item = item_bytes(packet_len(REPORT_DATA_MAX));
+        Need {
+            bytes: REPORTS_PER_HOUR as usize * secs as usize / 3600 * item,
+            room: room(REPORT_SECTORS, item),
+        }
+    }
 
     const _: () = assert!(HK_SIZE.is_multiple_of(FLASH_SECTOR) && REPORT_SIZE.is_multiple_of(FLASH_SECTOR));
     // Each area needs two sectors at least: the queue erases its oldest while the
@@ -369,6 +447,16 @@ mod tests {
         // SRAM1: 384 KB on the data bus; with SRAM0 the chip's 400 KB.
         assert_eq!(at, 0x3FCE_0000);
         assert_eq!(SRAM_MAP.iter().map(|r| r.size).sum::<u32>(), 400 * 1024);
+    }
+
+    // verifies: FW-MEM-02
+    #[test]
+    fn each_store_area_holds_the_outage_with_the_flight_margin() {
+        let (hk, reports) = (store::hk_need(TM_STORE_OUTAGE_S), store::report_need(TM_STORE_OUTAGE_S));
+        assert!(hk.within_margin(), "HK area: {hk:?}");
+        assert!(reports.within_margin(), "report area: {reports:?}");
+        // Twice the outage no longer fits: the figures are not vacuous.
+        assert!(store::hk_need(2 * TM_STORE_OUTAGE_S).bytes > hk.room);
     }
 
     // verifies: FW-MEM-02

@@ -10,7 +10,7 @@ use std::fmt::Write;
 pub fn partitions_csv() -> String {
     let mut s = String::new();
     s.push_str("# ESP-IDF partition table of the MMIC-I boards (ESP32-C3, 4 MB flash).\n");
-    s.push_str("# Generated from the MIB (mib::memory): UPDATE_MEMORY_MAP=1 cargo test -p mib --test memory\n");
+    s.push_str("# Generated from the MIB (mib::memory): UPDATE_MEMORY_MAP=1 cargo test -p mib-export --test memory\n");
     s.push_str("# Name, Type, SubType, Offset, Size, Flags\n");
     for r in memory::FLASH_MAP {
         let Some((ty, sub)) = r.usage.idf_type() else {
@@ -43,7 +43,7 @@ pub fn partitions_csv() -> String {
 pub fn memory_map_txt() -> String {
     let mut s = String::new();
     s.push_str("# Memory map of the MMIC-I boards, read by firmware/tools/size-report.sh.\n");
-    s.push_str("# Generated from the MIB (mib::memory): UPDATE_MEMORY_MAP=1 cargo test -p mib --test memory\n");
+    s.push_str("# Generated from the MIB (mib::memory): UPDATE_MEMORY_MAP=1 cargo test -p mib-export --test memory\n");
     let _ = writeln!(s, "margin {}", memory::FLIGHT_MARGIN_PCT);
     for r in memory::FLASH_MAP {
         let _ = writeln!(s, "flash {} {:#x} {:#x}", r.name, r.offset, r.size);
@@ -71,31 +71,24 @@ pub fn memory_map_txt() -> String {
     let _ = writeln!(s, "rtc_fast {:#x}", memory::RTC_FAST_BYTES);
     let _ = writeln!(
         s,
-        "# the TM store's outage: {} s of the default housekeeping, packets without the store's per-record overhead",
+        "# the TM store's areas (mib::memory::store): room, and a {} s outage as stored (default HK; reports at REPORTS_PER_HOUR)",
         memory::TM_STORE_OUTAGE_S
     );
-    let _ = writeln!(
-        s,
-        "used {} {:#x}",
-        memory::TM_STORE.name,
-        hk_bytes_for(memory::TM_STORE_OUTAGE_S)
-    );
+    let secs = memory::TM_STORE_OUTAGE_S;
+    for (area, need) in [
+        ("hk", memory::store::hk_need(secs)),
+        ("reports", memory::store::report_need(secs)),
+    ] {
+        let _ = writeln!(
+            s,
+            "area {}.{} {:#x} {:#x}",
+            memory::TM_STORE.name,
+            area,
+            need.room,
+            need.bytes
+        );
+    }
     s
-}
-
-/// Bytes of the periodic housekeeping the MIB enables by default over `secs` seconds
-/// (whole packets: primary and secondary header, time stamp, data, PEC).
-pub fn hk_bytes_for(secs: u32) -> u32 {
-    use mib::headers::{PRIMARY_HEADER_LEN, TM_SEC_HEADER_LEN};
-    let per_packet = PRIMARY_HEADER_LEN + TM_SEC_HEADER_LEN + mib::config::TIMESTAMP_LEN + 2;
-    mib::hk::HK_STRUCTS
-        .iter()
-        .filter(|h| h.default_enabled)
-        .map(|h| {
-            let packets = secs as u64 * 1000 / h.default_interval_ms as u64;
-            packets * (per_packet + h.data_len()) as u64
-        })
-        .sum::<u64>() as u32
 }
 
 /// Bytes of the binary partition table: one 32-byte entry per partition, the MD5 entry

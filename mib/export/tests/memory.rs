@@ -6,7 +6,7 @@
 
 use esp_idf_part::{AppType, DataType, PartitionTable, SubType, Type};
 use mib::memory::{self, FlashUse};
-use mib_export::memory::{hk_bytes_for, memory_map_txt, partitions_csv};
+use mib_export::memory::{memory_map_txt, partitions_csv};
 use std::path::Path;
 
 fn check_generated(file: &str, want: &str) {
@@ -71,14 +71,15 @@ fn partition_table_is_valid_for_esp_idf_and_matches_the_map() {
 
 // verifies: FW-MEM-02
 #[test]
-fn tm_store_holds_its_outage_of_default_housekeeping_within_the_margin() {
-    let need = hk_bytes_for(memory::TM_STORE_OUTAGE_S) as u64;
-    // One hour is half of two (nothing rounds away a whole packet rate).
-    assert!(hk_bytes_for(3600) * 2 <= hk_bytes_for(7200) + 16);
-    assert!(need > 1_000_000, "2 h of default HK is more than 1 MB ({need})");
-    assert!(
-        memory::within_margin(need, memory::TM_STORE.size as u64),
-        "{need} B of HK in {} B",
-        memory::TM_STORE.size
-    );
+fn memory_map_gives_each_store_area_its_room_and_outage() {
+    let map = memory_map_txt();
+    let secs = memory::TM_STORE_OUTAGE_S;
+    for (area, need) in [
+        ("hk", memory::store::hk_need(secs)),
+        ("reports", memory::store::report_need(secs)),
+    ] {
+        let line = format!("area tm_store.{area} {:#x} {:#x}", need.room, need.bytes);
+        assert!(map.lines().any(|l| l == line), "{line} in the map");
+        assert!(need.within_margin(), "{area}: {need:?}");
+    }
 }

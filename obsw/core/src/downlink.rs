@@ -282,7 +282,7 @@ impl<S: TmStore> Downlink<S> {
             return;
         }
         let def = &EVENTS[e.0];
-        let mut buf = [0u8; 64];
+        let mut buf = [0u8; config::EVENT_DATA_MAX];
         if let Ok(n) = mib_wire::codec::encode_event(def, args, &mut buf) {
             self.emit(now, service::EVENT, def.severity.subservice(), &buf[..n], sink);
         }

@@ -1152,44 +1152,35 @@ pub(crate) mod tests {
         }
     }
 
-    /// Bytes of one stored packet of `len` bytes in the area (item header, word padding).
-    fn item(len: usize) -> usize {
-        Queue::<TestFlash, 1>::item_overhead_size() as usize + len.next_multiple_of(store::WORD_USIZE)
-    }
-
-    /// Bytes an area of `sectors` sectors holds for items of at most `largest` bytes: the
-    /// oldest sector is freed before reuse, a sector keeps its two state words, and loses
-    /// at most one item's bytes at its end.
-    fn usable(sectors: usize, largest: usize) -> usize {
-        (sectors - 1) * (4096 - 2 * store::WORD_USIZE - (largest - 1))
-    }
-
     // verifies: PUS-15-06
     #[test]
     fn the_store_holds_two_hours_of_default_housekeeping_events_and_verification() {
-        use mib_wire::header::MIN_TM_LEN;
-        let secs = store::MIN_DURATION_S as usize;
-        let mut hk_bytes = 0;
-        let mut largest = 0;
-        for h in mib::hk::HK_STRUCTS.iter().filter(|h| h.default_enabled) {
-            let len = item(MIN_TM_LEN + h.data_len());
-            largest = largest.max(len);
-            hk_bytes += secs * 1000 / h.default_interval_ms as usize * len;
-        }
-        let hk_room = usable(store::HK_SECTORS, largest);
-        // Events carry at most 64 bytes of data (the core's event buffer); verification
-        // reports are smaller.
-        let report = item(MIN_TM_LEN + 64);
-        let report_bytes = store::REPORTS_PER_HOUR as usize * secs / 3600 * report;
-        let report_room = usable(store::REPORT_SECTORS, report);
+        // The MIB's sizing (mib::memory::store) counts the queue's own item header.
+        assert_eq!(Queue::<TestFlash, 1>::item_overhead_size() as usize, store::ITEM_HEADER);
+        let secs = store::MIN_DURATION_S;
+        let (hk, reports) = (store::hk_need(secs), store::report_need(secs));
         println!(
-            "HK {hk_bytes} of {hk_room} B ({:.2} h), reports {report_bytes} of {report_room} B ({:.2} h)",
-            hk_room as f64 / hk_bytes as f64 * secs as f64 / 3600.0,
-            report_room as f64 / report_bytes as f64 * secs as f64 / 3600.0
+            "HK {} of {} B ({:.2} h), reports {} of {} B ({:.2} h)",
+            hk.bytes,
+            hk.room,
+            hk.hours(secs),
+            reports.bytes,
+            reports.room,
+            reports.hours(secs)
         );
-        assert!(hk_bytes <= hk_room && report_bytes <= report_room);
+        // Each area holds the outage with the flight margin.
+        assert!(hk.within_margin() && reports.within_margin(), "{hk:?} {reports:?}");
         // The report area outlasts the HK area: HK is overwritten first.
-        assert!(report_room * hk_bytes > hk_room * report_bytes);
+        assert!(reports.hours(secs) > hk.hours(secs));
         assert_eq!(store::SIZE, (store::HK_SECTORS + store::REPORT_SECTORS) as u32 * 4096);
+        // The room is what the queue really holds: an area of the HK's largest item, filled
+        // until it overwrites, keeps at least the room's worth of items.
+        let largest = mib::hk::HK_STRUCTS
+            .iter()
+            .map(|h| mib_wire::header::MIN_TM_LEN + h.data_len())
+            .max()
+            .unwrap_or(0);
+        let held = FlashStore::<TestFlash, 1, 1>::min_packets(store::HK_SECTORS, largest);
+        assert!(held * store::item_bytes(largest) >= store::room(store::HK_SECTORS, store::item_bytes(largest)));
     }
 }

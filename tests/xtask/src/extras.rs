@@ -374,36 +374,6 @@ fn budget(item: &str, used: Option<f64>, avail: Option<f64>, unit: &str, source:
     }
 }
 
-/// Bytes board A's PUS 15 housekeeping area must hold for `secs` of the default periodic
-/// housekeeping, from the MIB: each packet is one `sequential-storage` queue item (an 8-byte
-/// item header, the packet padded to the flash word).
-fn store_bytes_for(secs: f64) -> f64 {
-    let word = mib::memory::store::WORD_USIZE;
-    mib::hk::HK_STRUCTS
-        .iter()
-        .filter(|h| h.default_enabled)
-        .map(|h| {
-            use mib::{
-                config::TIMESTAMP_LEN,
-                headers::{CRC_LEN, PRIMARY_HEADER_LEN, TM_SEC_HEADER_LEN},
-            };
-            let tm = PRIMARY_HEADER_LEN + TM_SEC_HEADER_LEN + TIMESTAMP_LEN + h.data_len() + CRC_LEN;
-            let pkt = tm.next_multiple_of(word) + STORE_ITEM_HEADER;
-            pkt as f64 * secs * 1000.0 / h.default_interval_ms as f64
-        })
-        .sum()
-}
-
-/// `sequential-storage`'s queue item header for a 4-byte flash word
-/// (`Queue::item_overhead_size`, which obsw-core's store tests use for the same sum).
-const STORE_ITEM_HEADER: usize = 8;
-
-/// The outage the store must bridge (mib::memory::TM_STORE_OUTAGE_S: 2 hours).
-pub const STORE_OUTAGE_S: f64 = mib::memory::TM_STORE_OUTAGE_S as f64;
-/// Board A's housekeeping area in the flash partition, less the one sector the queue keeps
-/// erased.
-const FW_STORE_BYTES: f64 = (mib::memory::store::HK_SIZE - mib::memory::FLASH_SECTOR) as f64;
-
 pub fn budgets(fw: &FirmwareInfo) -> Vec<Budget> {
     let mut b = Vec::new();
     let size_src = "firmware/tools/size-report.sh via scripts/firmware-ci.sh (this run)";
@@ -490,13 +460,23 @@ pub fn budgets(fw: &FirmwareInfo) -> Vec<Budget> {
         "instructions per 10 ms period",
         "worst Obsw::tick + worst Obsw::handle_tc (QEMU -icount)",
     ));
-    b.push(budget(
-        "board-A PUS 15 store (flash): 2 h link outage at default HK rates",
-        Some(store_bytes_for(STORE_OUTAGE_S)),
-        Some(FW_STORE_BYTES),
-        "bytes",
-        "mib::hk default intervals; mib::memory::store::HK_SIZE (flash partition tm_store)",
-    ));
+    let secs = mib::memory::TM_STORE_OUTAGE_S;
+    for (area, need, what) in [
+        ("HK", mib::memory::store::hk_need(secs), "mib::hk default intervals"),
+        (
+            "report",
+            mib::memory::store::report_need(secs),
+            "mib::memory::store::REPORTS_PER_HOUR",
+        ),
+    ] {
+        b.push(budget(
+            &format!("board-A PUS 15 store (flash), {area} area: 2 h link outage as stored"),
+            Some(need.bytes as f64),
+            Some(need.room as f64),
+            "bytes",
+            &format!("{what}, items with their header; the area's room (mib::memory::store, partition tm_store)"),
+        ));
+    }
     b
 }
 
@@ -1238,13 +1218,5 @@ mod tests {
             .iter()
             .filter(|r| r.name != "LOW_BATTERY" && r.name != "V_BAT_A_LOW")
             .all(|r| r.tests.is_empty()));
-    }
-
-    // verifies: REV-BUDGET-01
-    #[test]
-    fn store_budget_grows_with_the_outage() {
-        let a = store_bytes_for(60.0);
-        assert!(a > 60.0 * 90.0, "at least one ROBOT_STATUS per second: {a}");
-        assert!((store_bytes_for(120.0) - 2.0 * a).abs() < 1e-6);
     }
 }

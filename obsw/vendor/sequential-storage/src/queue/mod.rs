@@ -344,6 +344,37 @@ impl<S: NorFlash, C: CacheImpl<()>> QueueStorage<S, C> {
         }))
     }
 
+    /// Where the page after the one holding `address` begins its items (the address of
+    /// its first item, which [`Self::iter_from`] takes), when that page holds items younger
+    /// than those at `address`: `None` when `address`'s page is the youngest (the next one
+    /// is open, or the oldest) or open itself, or `address` is outside the queue. A reader
+    /// that knows what a page's first items hold can pass over the pages between without
+    /// reading every item.
+    pub async fn next_page_start(&mut self, address: u32) -> Result<Option<u32>, Error<S::Error>> {
+        let range = self.inner.flash_range.clone();
+        if !range.contains(&address) {
+            return Ok(None);
+        }
+        if self.inner.cache.is_dirty() {
+            self.inner.cache.invalidate_cache_state();
+        }
+        let youngest_page = run_with_auto_repair!(
+            function = self.find_youngest_page().await,
+            repair = self.try_repair().await?
+        )?;
+        let page = calculate_page_index::<S>(range.clone(), address);
+        if page == youngest_page || self.inner.get_page_state_cached(page).await?.is_open() {
+            return Ok(None);
+        }
+        let next = self.inner.next_page(page);
+        if self.inner.get_page_state_cached(next).await?.is_open() {
+            return Ok(None);
+        }
+        Ok(Some(
+            calculate_page_address::<S>(range, next) + S::WORD_SIZE as u32,
+        ))
+    }
+
     /// Peek at the oldest data.
     ///
     /// If you also want to remove the data use [`Self::pop`].
