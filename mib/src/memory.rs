@@ -328,12 +328,15 @@ pub mod store {
     /// stored packet read from flash costs about 2 000 instructions on board A (the queue's
     /// CRC-32 over it) and one sent about 1 700 more into the TM frame; the period's budget
     /// with them is enforced (`t_store` and `t_budget` in firmware/qemu-tests). At one period
-    /// in 10 ms that is 1 000 packets a second, beyond what the downlink takes; a range
-    /// behind a full HK area's 15 000 packets starts sending within about 15 s. Ten, not
-    /// twelve: with twelve the worst period measured 47.0 % and 49.1 % of the 50 % budget in
-    /// two runs of the same QEMU test (`-icount` figures vary with what the run's timing
-    /// fed the period), too close to be sure of; each read fewer gives ≈ 0.6 points back.
-    pub const REPLAY_READS_PER_PERIOD: u32 = 10;
+    /// in 10 ms that is 900 packets a second, beyond what the downlink takes; a range
+    /// behind a full store is reached by passing over whole pages, one read each (the
+    /// first packet of a page; `TmStore::skip`), not by reading its 24 000 packets. Nine:
+    /// with twelve the worst period measured 47.0 % and 49.1 % of the 50 % budget in two
+    /// runs of the same QEMU test (`-icount` figures vary with what the run's timing fed
+    /// the period), with ten 48.0 %, and 48.3 % once a period's reads could be page reads
+    /// (a page read starts its own iteration: about 3 800 instructions against 3 500), too
+    /// close to be sure of; each read fewer gives ≈ 0.6 points back.
+    pub const REPLAY_READS_PER_PERIOD: u32 = 9;
 
     /// `sequential-storage`'s queue item header for a 4-byte flash word (obsw-core's store
     /// tests check it against `QueueStorage::item_overhead_size`).

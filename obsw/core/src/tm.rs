@@ -41,6 +41,33 @@ impl TmSink for std::vec::Vec<std::vec::Vec<u8>> {
     }
 }
 
+/// Stored packets of one robot's TM stream, one after another in the store, described by
+/// their bounds ([`TmStore::skip`]): every packet of the stretch has a time stamp in
+/// `from..=to` and, when `seqs` is given, a sequence count on the arc `seqs.0 ..= seqs.1`
+/// (modulo 2^14, wrapping) of APID `apid`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Stretch {
+    pub apid: u16,
+    /// CDS time stamps (days, ms of day) of the first and the last packet.
+    pub from: (u16, u32),
+    pub to: (u16, u32),
+    /// The first and last sequence count, when the store can bound the counts between
+    /// (fewer than 2^14 of the stream's packets between them).
+    pub seqs: Option<(u16, u16)>,
+}
+
+/// What a [`TmStore::skip`] did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Skipped<M> {
+    /// Where a visit goes on: after the last packet ruled out (`after` as given when none).
+    pub after: Option<M>,
+    /// Stored packets read.
+    pub reads: usize,
+    /// True when it stopped on a stretch not ruled out or at the newest packet; false when
+    /// its reads ran out first.
+    pub done: bool,
+}
+
 /// The on-board TM store (PUS 15): keeps packets while nobody downlinks them.
 pub trait TmStore {
     /// A stored packet's place, handed to [`TmStore::visit_after`]'s visitor with the
@@ -67,6 +94,25 @@ pub trait TmStore {
         most: usize,
         f: &mut dyn FnMut(&[u8], Self::Mark) -> bool,
     ) -> bool;
+    /// Passes over stored packets that `excludes` rules out without reading each of them:
+    /// from the packet `after` marks (the oldest for `None`), the store offers stretches of
+    /// stored packets in order ([`Stretch`]: what it can vouch for about the packets in
+    /// one), each ending on a packet; while `excludes` rules a stretch out, the mark moves
+    /// to its last packet. Reads at most `most` stored packets. A store whose reading costs
+    /// little (RAM) offers none: a downlink then reads every packet.
+    fn skip(
+        &mut self,
+        after: Option<Self::Mark>,
+        most: usize,
+        excludes: &mut dyn FnMut(&Stretch) -> bool,
+    ) -> Skipped<Self::Mark> {
+        let _ = (most, excludes);
+        Skipped {
+            after,
+            reads: 0,
+            done: true,
+        }
+    }
     /// Called once at the end of every control period: a store whose giving up of old
     /// packets costs (the flash store) gives up, ahead of need, a few packets its next
     /// writes would overwrite anyway, so that no single write pays for many. Returns how

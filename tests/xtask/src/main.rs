@@ -423,7 +423,7 @@ fn run(args: &Args) -> Result<bool> {
     let below: Vec<&Budget> = pkg
         .budgets
         .iter()
-        .filter(|b| b.margin_pct.is_some_and(|m| m < extras::FLIGHT_MARGIN_PCT))
+        .filter(|b| !b.informational && b.margin_pct.is_some_and(|m| m < extras::FLIGHT_MARGIN_PCT))
         .collect();
     for b in &below {
         eprintln!(

@@ -111,6 +111,8 @@ pub struct Budget {
     /// Against GSFC-STD-1000 (50 % SRR/PDR, 40 % CDR, 30 % flight).
     pub verdict: String,
     pub source: String,
+    /// A bound printed beside a budget that is measured another way: never a finding.
+    pub informational: bool,
 }
 
 #[derive(Serialize, Default)]

@@ -13,7 +13,12 @@
 //! store's mark of the last packet it took ([`TmStore::visit_after`]), where the next
 //! period goes on without reading the store again from its oldest packet; so a range longer
 //! than the downlink's queues loses nothing, and a range deep in a full flash store costs
-//! each period a bounded share of its CPU. The request completes (TM[1,7]) after its end
+//! each period a bounded share of its CPU. Before reading on, and after
+//! [`SKIP_AFTER_MISSES`] packets out of the range in a row, it asks the store to pass over
+//! what the range rules out ([`TmStore::skip`]: the flash store offers whole pages by the
+//! time stamps and sequence counts of their first packets), so a range behind a full store
+//! is reached in a page read per page, not a packet read per packet (PUS-15-10). The
+//! request completes (TM[1,7]) after its end
 //! report; requests wait in order ([`REPLAY_QUEUE`]), and one asked again while it waits or
 //! runs is not queued twice.
 use mib::tc::service;
@@ -25,7 +30,7 @@ use crate::failure::Failure;
 use crate::obsw::Obsw;
 use crate::request::unknown;
 use crate::services::{Component, Contract};
-use crate::tm::{TmSink, TmStore};
+use crate::tm::{Stretch, TmSink, TmStore};
 
 /// A CDS short time (days since 1958, ms of day), ordered.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -119,6 +124,23 @@ impl Range {
             }
         }
     }
+    /// True when no packet of `s` is in the range ([`TmStore::skip`]).
+    fn excludes(&self, s: &Stretch) -> bool {
+        let cds = |(days, ms)| Cds { days, ms };
+        match *self {
+            Range::Time { start, end } => cds(s.to) < start || cds(s.from) > end,
+            Range::Seq { apid, first, last } => match s.seqs {
+                // Two arcs of counts modulo 2^14 meet when either begins on the other.
+                Some((a, b)) if s.apid == apid => {
+                    let arc = |from: u16, to: u16, x: u16| {
+                        x.wrapping_sub(from) & SEQ_MASK <= to.wrapping_sub(from) & SEQ_MASK
+                    };
+                    !(arc(a, b, first) || arc(first, last, a))
+                }
+                _ => false,
+            },
+        }
+    }
     /// Packets that count for "oldest still stored": the request's APID, or all.
     fn same_stream(&self, apid: u16) -> bool {
         match *self {
@@ -127,6 +149,15 @@ impl Range {
         }
     }
 }
+
+/// Sequence counts are 14 bits.
+const SEQ_MASK: u16 = (1 << 14) - 1;
+
+/// Packets out of its range a downlink reads in a row before it asks the store to pass
+/// over what it can rule out without reading ([`TmStore::skip`]): a page of the flash store
+/// holds 40 to 120 packets, so a range's first packet out of it is followed by a skip within
+/// a few periods.
+const SKIP_AFTER_MISSES: u32 = 16;
 
 /// Downlinks waiting or running: the ground asks for at most this many ranges in one
 /// round (`mib::ground_config::GAP_REQUESTS_MAX`). A request beyond them (rounds that
@@ -144,6 +175,11 @@ struct Replay<M> {
     /// Every packet of the store read: the end report waits for the oldest packet's
     /// lookup, in the next period when this one's reads are spent.
     read_all: bool,
+    /// Passing over what the store can rule out ([`TmStore::skip`]) before reading on:
+    /// at the start and after [`SKIP_AFTER_MISSES`] packets out of the range in a row.
+    skipping: bool,
+    /// Packets out of the range read in a row since the last one in it (over periods).
+    misses: u32,
 }
 
 /// The downlinks by range waiting for the downlink's room, oldest first.
@@ -230,6 +266,8 @@ impl<M> Replays<M> {
             sent: 0,
             after: None,
             read_all: false,
+            skipping: true,
+            misses: 0,
         };
         if let Err(mut replay) = self.queue.push_back(replay) {
             // Beyond the queue: all at once, whatever the room and the reads.
@@ -333,27 +371,44 @@ impl<S: TmStore> Downlink<S> {
         reads: &mut usize,
         sink: &mut impl TmSink,
     ) -> Option<Option<(u16, Cds)>> {
-        if !r.read_all {
+        while !r.read_all {
             let range = r.range;
-            let (mut sent, mut after, mut read) = (0u32, r.after, 0usize);
+            if r.skipping {
+                let s = self.store.skip(r.after, *reads, &mut |s| range.excludes(s));
+                *reads = reads.saturating_sub(s.reads);
+                r.after = s.after;
+                if !s.done {
+                    return None;
+                }
+                r.skipping = false;
+            }
+            let (mut sent, mut after, mut read, mut misses) = (0u32, r.after, 0usize, r.misses);
             let ended = self.store.visit_after(r.after, *reads, &mut |p, mark| {
-                if let Some((apid, seq, t)) = identify(p) {
-                    if range.contains(apid, seq, t) {
+                match identify(p) {
+                    Some((apid, seq, t)) if range.contains(apid, seq, t) => {
                         if p.len() > *room {
                             return false;
                         }
                         *room -= p.len();
                         sink.send_replay(p);
                         sent += 1;
+                        misses = 0;
                     }
+                    Some(_) | None => misses += 1,
                 }
                 after = Some(mark);
                 read += 1;
-                true
+                misses < SKIP_AFTER_MISSES
             });
             *reads = reads.saturating_sub(read);
             r.sent = r.sent.wrapping_add(sent);
             r.after = after;
+            r.misses = misses;
+            if misses >= SKIP_AFTER_MISSES && !ended {
+                r.skipping = true;
+                r.misses = 0;
+                continue;
+            }
             if !ended {
                 return None;
             }
@@ -600,5 +655,208 @@ mod tests {
         let t = Cds { days: 0, ms: 0 };
         assert!(r.contains(APID, 16383, t) && r.contains(APID, 0, t) && r.contains(APID, 2, t));
         assert!(!r.contains(APID, 3, t) && !r.contains(APID, 16379, t) && !r.contains(APID + 1, 0, t));
+    }
+
+    // verifies: PUS-15-10
+    #[test]
+    fn a_range_rules_out_a_stretch_only_when_they_cannot_meet() {
+        let t = |ms| Cds { days: 1, ms };
+        let stretch = |from, to, seqs| Stretch {
+            apid: APID,
+            from: (1, from),
+            to: (1, to),
+            seqs,
+        };
+        let time = Range::Time {
+            start: t(100),
+            end: t(200),
+        };
+        assert!(time.excludes(&stretch(10, 99, None)));
+        assert!(time.excludes(&stretch(201, 300, None)));
+        assert!(!time.excludes(&stretch(10, 100, None)));
+        assert!(!time.excludes(&stretch(200, 300, None)));
+        assert!(!time.excludes(&stretch(150, 160, None)));
+        let seq = |first, last| Range::Seq {
+            apid: APID,
+            first,
+            last,
+        };
+        // Arcs modulo 2^14, either of which may wrap through 16383.
+        assert!(seq(100, 200).excludes(&stretch(0, 0, Some((201, 300)))));
+        assert!(seq(100, 200).excludes(&stretch(0, 0, Some((16_000, 99)))));
+        assert!(!seq(100, 200).excludes(&stretch(0, 0, Some((16_000, 100)))));
+        assert!(!seq(100, 200).excludes(&stretch(0, 0, Some((150, 160)))));
+        assert!(!seq(100, 200).excludes(&stretch(0, 0, Some((50, 300)))));
+        assert!(!seq(16_300, 10).excludes(&stretch(0, 0, Some((5, 20)))));
+        assert!(seq(16_300, 10).excludes(&stretch(0, 0, Some((11, 16_299)))));
+        // Counts not known, or another APID: never ruled out by count.
+        assert!(!seq(100, 200).excludes(&stretch(0, 0, None)));
+        let other = Stretch {
+            apid: APID + 1,
+            ..stretch(0, 0, Some((300, 400)))
+        };
+        assert!(!seq(100, 200).excludes(&other));
+    }
+
+    /// A sink that keeps replayed packets apart from live TM.
+    #[derive(Default)]
+    struct Replayed {
+        replayed: Vec<Vec<u8>>,
+    }
+    impl TmSink for Replayed {
+        fn send_tm(&mut self, _packet: &[u8]) {}
+        fn send_replay(&mut self, packet: &[u8]) {
+            self.replayed.push(packet.to_vec());
+        }
+    }
+
+    // verifies: PUS-15-10, PUS-15-01
+    #[test]
+    fn a_downlink_behind_a_full_flash_store_passes_over_what_it_can_rule_out_and_sends_exactly_its_range() {
+        use crate::flash_store::{tests::TestFlash, MibFlashStore};
+        use crate::obsw::Config;
+        use core::cell::RefCell;
+        use mib::memory::store;
+        const EPOCH: u64 = 1_790_000_000_000;
+        let flash = RefCell::new(TestFlash::new(store::SIZE as usize / 4096));
+        let mut st = MibFlashStore::open(&flash, 0).expect("store opens");
+        // A stream of more than 2^14 packets in phases that defeat a count taken alone:
+        // HK with an event every tenth packet, 1 s apart; 16 185 HK packets 10 ms apart and
+        // no report (one report page spans them all: its counts wrap in between, and the
+        // counts of its first and next page's first packet are then only 100 apart, while
+        // its own packets span 230); a burst of events; HK again.
+        let mut w = crate::tm::TmWriter::new(APID, crate::time::OnboardTime::new(EPOCH));
+        let mut buf = [0u8; mib::config::MAX_PACKET_LEN];
+        let mut ms = 0u64;
+        let mut stamps = Vec::new();
+        let mut push = |st: &mut MibFlashStore<'_, TestFlash>, event: bool, step: u64| {
+            let (svc, sub, data) = if event {
+                (5, 1, &[7u8; 12][..])
+            } else {
+                (3, 25, &[1u8; 24][..])
+            };
+            let n = w.build(ms, svc, sub, data, &mut buf).expect("TM builds");
+            assert_eq!(st.push(&buf[..n]), 0, "nothing overwritten");
+            stamps.push(ms);
+            ms += step;
+        };
+        for i in 0..3000 {
+            push(&mut st, i % 10 == 9, 1000);
+        }
+        for _ in 0..16_185 {
+            push(&mut st, false, 10);
+        }
+        for _ in 0..1500 {
+            push(&mut st, true, 10);
+        }
+        for i in 0..3000 {
+            push(&mut st, i % 10 == 9, 1000);
+        }
+        let last_ms = ms - 1000;
+        let total = stamps.len();
+        let mut o = Obsw::new(
+            Config {
+                robot: 1,
+                epoch_unix_ms: EPOCH,
+            },
+            st,
+        );
+        let cds = |ms: u64| {
+            let t = crate::time::OnboardTime::new(EPOCH).cds_time(ms);
+            Cds {
+                days: t.days,
+                ms: t.ms_of_day,
+            }
+        };
+        let ranges = [
+            // By sequence count: the newest, inside the dense HK (every count there twice),
+            // across the wrap, in the burst of events, the oldest.
+            Range::Seq {
+                apid: APID,
+                first: ((total - 200) % 16384) as u16,
+                last: ((total - 1) % 16384) as u16,
+            },
+            Range::Seq {
+                apid: APID,
+                first: 2900,
+                last: 2990,
+            },
+            Range::Seq {
+                apid: APID,
+                first: 9000,
+                last: 9255,
+            },
+            Range::Seq {
+                apid: APID,
+                first: 16300,
+                last: 60,
+            },
+            Range::Seq {
+                apid: APID,
+                first: 4200,
+                last: 4300,
+            },
+            Range::Seq {
+                apid: APID,
+                first: 0,
+                last: 255,
+            },
+            // By time: the newest, the middle of the dense HK, the oldest, an hour ahead.
+            Range::Time {
+                start: cds(last_ms - 100_000),
+                end: cds(last_ms),
+            },
+            Range::Time {
+                start: cds(stamps[10_000]),
+                end: cds(stamps[10_300]),
+            },
+            Range::Time {
+                start: cds(0),
+                end: cds(60_000),
+            },
+            Range::Time {
+                start: cds(last_ms + 3_600_000),
+                end: cds(last_ms + 3_610_000),
+            },
+        ];
+        let mut now = last_ms + 1000;
+        for (k, range) in ranges.iter().enumerate() {
+            let range = *range;
+            // What the range holds, read packet by packet.
+            let mut expect = Vec::new();
+            o.store_mut().visit(&mut |p| {
+                if identify(p).is_some_and(|(a, q, t)| range.contains(a, q, t)) {
+                    expect.push(p.to_vec());
+                }
+            });
+            let app: Vec<u8> = match range {
+                Range::Seq { apid, first, last } => [apid, first, last].iter().flat_map(|x| x.to_be_bytes()).collect(),
+                Range::Time { start, end } => [start, end]
+                    .iter()
+                    .flat_map(|t| t.days.to_be_bytes().into_iter().chain(t.ms.to_be_bytes()))
+                    .collect(),
+            };
+            let sub = if matches!(range, Range::Seq { .. }) { 128 } else { 9 };
+            let mut sink = Replayed::default();
+            let raw = crate::accept::tests::tc_bytes(APID, 100 + k as u16, 15, sub, &app);
+            o.handle_tc(now, &raw, &mut sink);
+            let mut periods = 0u32;
+            while o.replays_pending() > 0 && periods < 20_000 {
+                now += 10;
+                periods += 1;
+                o.tick(now, &mmic_domain::SensorsA::default(), &[], &mut sink);
+            }
+            println!("{range:?}: {} packets in {periods} periods", expect.len());
+            assert_eq!(o.replays_pending(), 0, "{range:?} ended");
+            assert_eq!(
+                sink.replayed.len(),
+                expect.len(),
+                "{range:?}: every packet of the range, once"
+            );
+            assert!(sink.replayed == expect, "{range:?}: the range's packets, in order");
+            // Read at 10 packets a period the store would take over 2 500 periods; passing
+            // over pages, a range takes a few periods per page it cannot rule out.
+            assert!(periods < 400, "{range:?}: {periods} periods");
+        }
     }
 }
