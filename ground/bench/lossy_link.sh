@@ -30,11 +30,11 @@
 # KEEP (default: TMPDIR or /tmp) as lossy-CASE-SEED.*: the obsw's TM log, stdout and
 # stderr, the relay's trace, the ground's stdout, stderr and archive.
 # The obsw's on-board TM store (PUS 15) is a fresh file per run unless KEEP_STORE=1, where
-# one store file serves every run of the batch and fills with what the runs before sent (a
-# retrieval by range walks the store from its oldest packet at
-# mib::memory::store::REPLAY_READS_PER_PERIOD packets a period, so a deeper store answers
-# each request later; docs/space-link.md). The link's counter state is kept across runs
-# either way (the ground's TM IV window needs it).
+# one store file serves every run of the batch and fills with what the runs before sent, or
+# TM_STORE=FILE, where every run starts from a copy of FILE (a full store:
+# `cargo run --release -p obsw-core --example fill_store -- FILE 1 30000`), so each store
+# retrieval has a full store behind it (docs/space-link.md, "A deep on-board store"). The
+# link's counter state is kept across runs either way (the ground's TM IV window needs it).
 # PORT_LO, PORT_HI: the range the script's own ports come from (default 32000-32767; give
 # two batches run side by side disjoint ranges, or they can take each other's ports).
 #
@@ -131,7 +131,12 @@ for ((i = 0; i < RUNS; i++)); do
     [[ -d $WORK/keys ]] || { echo "lossy_link: the work folder $WORK vanished; stopped before seed $seed" >&2; exit 3; }
     read -r frame tmport < <(free_ports)
     store=$WORK/tm-store.bin
-    [[ ${KEEP_STORE:-0} == 1 ]] || { store=$WORK/tm-store-$seed.bin; rm -f "$store"; }
+    if [[ -n ${TM_STORE:-} ]]; then
+        cp "$TM_STORE" "$store"
+    elif [[ ${KEEP_STORE:-0} != 1 ]]; then
+        store=$WORK/tm-store-$seed.bin
+        rm -f "$store"
+    fi
     # The relay: TC frames to the obsw's frame port, TM frames to the ground's address.
     coproc RELAY { exec "$BIN/relay" --to-udp "127.0.0.1:$frame" --drop 0.20 --duplicate 0.05 --corrupt 0.05 \
         --seed "$seed" --tm-frames-to "127.0.0.1:$tmport" --idle 60 --lifetime 900 --trace "$WORK/relay.trace" 2>/dev/null; }
