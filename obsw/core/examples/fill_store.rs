@@ -66,8 +66,7 @@ fn main() -> Result<(), String> {
         lost += u64::from(st.push(&buf[..n]));
     }
     let (hk_len, report_len) = st.lens();
-    drop(st);
-    let bytes = flash.into_inner().medium().0.clone();
+    let bytes = flash.borrow().medium().0.clone();
     std::fs::write(file, bytes).map_err(|e| format!("{file}: {e}"))?;
     println!(
         "{file}: {packets} packets written (robot {robot}, APID {apid:#x}), {hk_len} HK and {report_len} others stored, {lost} overwritten"
