@@ -67,9 +67,26 @@ pub fn hk_interval_tc(robot: u8, seq: u16, sid: u16, interval_ms: u32) -> Option
 }
 
 /// Asks the on-board store for the packets of `apid` with sequence counts
-/// `first..=last` (mod 2^14). `true` in the result: a range request; `false`: the MIB
-/// has no range retrieval and the whole store is asked for.
-pub fn store_range_tc(robot: u8, seq: u16, apid: u16, first: u16, last: u16) -> Option<(BuiltTc, bool)> {
+/// `first..=last` (mod 2^14): by their on-board time `window` (unix ms, both ends
+/// included; TC[15,9]) when it is known — a store holding more than 2^14 packets holds
+/// every count more than once, a window only the ones asked for — else by count
+/// (TC[15,128]). `true` in the result: a range request; `false`: the MIB has no range
+/// retrieval and the whole store is asked for.
+pub fn store_range_tc(
+    robot: u8,
+    seq: u16,
+    apid: u16,
+    (first, last): (u16, u16),
+    window: Option<(i64, i64)>,
+) -> Option<(BuiltTc, bool)> {
+    if let (Some((from, to)), Some(d)) = (window, def("STORE_DOWNLINK_TIME")) {
+        let (a, b) = (
+            ground_pus::CdsShort::from_unix_ms(from),
+            ground_pus::CdsShort::from_unix_ms(to),
+        );
+        let args = [a.days.into(), a.ms_of_day.into(), b.days.into(), b.ms_of_day.into()];
+        return pus::build_tc(robot, seq, d, &args).ok().map(|t| (t, true));
+    }
     if let Some(d) = def("STORE_DOWNLINK_SEQ") {
         return pus::build_tc(robot, seq, d, &[apid as i64, first as i64, last as i64])
             .ok()
@@ -98,8 +115,10 @@ mod tests {
     fn subscription_and_store_requests_build_from_the_mib() {
         let t = subscribe_tc(1, 5).unwrap();
         assert_eq!((t.def.service, t.def.subservice, t.seq), (17, 1, 5));
-        let (t, _) = store_range_tc(1, 6, 0x101, 10, 20).unwrap();
-        assert_eq!(t.def.service, 15);
+        let (t, _) = store_range_tc(1, 6, 0x101, (10, 20), None).unwrap();
+        assert_eq!((t.def.service, t.def.subservice), (15, 128));
+        let (t, _) = store_range_tc(1, 6, 0x101, (10, 20), Some((1_790_000_000_000, 1_790_000_001_000))).unwrap();
+        assert_eq!((t.def.service, t.def.subservice), (15, 9));
         let h = hk_interval_tc(2, 7, 1, 100).unwrap();
         assert_eq!(h.args, vec![1, 100]);
     }

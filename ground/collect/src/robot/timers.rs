@@ -129,7 +129,9 @@ impl Worker {
             let mut whole_sent = false;
             for (first, last) in requests {
                 let seq = self.next_seq();
-                let Some((tc, ranged)) = onboard::store_range_tc(self.robot(), seq, self.apid, first, last) else {
+                let window = self.trackers.get(&self.apid).and_then(|t| t.window(first, last));
+                let Some((tc, ranged)) = onboard::store_range_tc(self.robot(), seq, self.apid, (first, last), window)
+                else {
                     continue;
                 };
                 if !ranged && whole_sent {

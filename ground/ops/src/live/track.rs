@@ -218,6 +218,30 @@ impl ApidTracker {
         }
     }
 
+    /// The on-board time window of the holes among the counts `first..=last` (mod 2^14):
+    /// from the packet heard before the earliest to the packet heard after the latest.
+    /// The store's packets of that window are exactly the stream's between those two
+    /// (time stamps do not go back), so a retrieval by time (TC[15,9]) gets the holes and
+    /// no older packet that happens to carry the same count: a store holding more than
+    /// 2^14 packets holds every count more than once. `None` when a hole's window is not
+    /// known (holes expected before the first packet heard) or none is in the range.
+    pub fn window(&self, first: u16, last: u16) -> Option<(i64, i64)> {
+        let n = SeqCount::new(last).since(SeqCount::new(first));
+        let mut w: Option<(i64, i64)> = None;
+        for k in 0..=n {
+            let Some(h) = self.holes.get(&SeqCount::new(first).add(k).get()) else {
+                continue;
+            };
+            if h.after_obt_ms == i64::MIN || h.after_obt_ms > h.before_obt_ms {
+                return None;
+            }
+            w = Some(w.map_or((h.after_obt_ms, h.before_obt_ms), |(a, b)| {
+                (a.min(h.after_obt_ms), b.max(h.before_obt_ms))
+            }));
+        }
+        w
+    }
+
     /// Holes as inclusive ranges in count order (a run across the wrap is split).
     pub fn missing_ranges(&self) -> Vec<(u16, u16)> {
         let mut out: Vec<(u16, u16)> = Vec::new();
@@ -464,17 +488,55 @@ impl ApidTracker {
 
     /// The store's end report said its oldest packet of this APID has `oldest` (and
     /// `overwritten` packets were lost since boot): holes older than it are gone.
+    /// Judged by time where the hole's window is known: its packets were stamped before
+    /// the packet heard after it, so when that is older than the oldest stored packet
+    /// they are gone. Counts alone cannot tell once the store holds more than 2^14
+    /// packets (a full store does); by count only for holes without a window.
     pub fn store_oldest(&mut self, oldest: Pos) {
         let Some(last) = self.last else { return };
         let back_oldest = ahead(oldest.seq, last.seq);
         let gone: Vec<u16> = self
             .holes
             .iter()
-            .filter(|(s, _)| ahead(**s, last.seq) > back_oldest)
+            .filter(
+                |(s, h)| match gone_by_time(**s, h.after_obt_ms, h.before_obt_ms, oldest) {
+                    Some(gone) => gone,
+                    None => ahead(**s, last.seq) > back_oldest,
+                },
+            )
             .map(|(s, _)| *s)
             .collect();
         self.declare(&gone, Lost::Overwritten);
     }
+
+    /// True when the store's oldest packet (`oldest`, from its end report) is younger
+    /// than the holes `first..=last`: they were overwritten. By time where the holes'
+    /// window is known ([`ApidTracker::window`]), else by count.
+    pub fn overwritten(&self, first: u16, last: u16, oldest: Pos) -> bool {
+        let by_time = self
+            .window(first, last)
+            .and_then(|(after, before)| gone_by_time(last, after, before, oldest));
+        by_time.unwrap_or_else(|| {
+            oldest.seq != last && SeqCount::new(oldest.seq).since(SeqCount::new(last)) < SeqCount::MODULUS / 2
+        })
+    }
+}
+
+/// Whether the hole `seq`, heard around at on-board times `after..=before`, is older than
+/// the store's oldest packet `oldest`: by time when `oldest` lies outside the window, by
+/// count inside it (the window's counts are a short run: no second packet with the same
+/// count lies in it); `None` when the window is not known.
+fn gone_by_time(seq: u16, after: i64, before: i64, oldest: Pos) -> Option<bool> {
+    if after == i64::MIN || after > before {
+        return None;
+    }
+    Some(if before < oldest.obt_ms {
+        true
+    } else if after > oldest.obt_ms {
+        false
+    } else {
+        (1..AHEAD).contains(&ahead(seq, oldest.seq))
+    })
 }
 
 /// Contiguous runs (mod 2^14) of sorted sequence counts: (first, last, count).

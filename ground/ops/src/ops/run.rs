@@ -695,10 +695,9 @@ fn complete_tm(
         }
         if let Some(s) = session.robots.get(&r) {
             for (a, b) in s.seq.missing_upto(cut) {
-                // Older than the oldest packet still stored: overwritten on board.
-                let gone = s
-                    .store_oldest
-                    .is_some_and(|o| o != b && SeqCount::new(o).since(SeqCount::new(b)) < SeqCount::MODULUS / 2);
+                // Older than the oldest packet still stored: overwritten on board (by
+                // time where the holes' window is known, the tracker's rule).
+                let gone = s.store_oldest.is_some_and(|o| s.seq.overwritten(a, b, o));
                 if gone {
                     c.overwritten.push((a, b));
                 } else {

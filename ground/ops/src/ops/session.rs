@@ -711,10 +711,23 @@ impl Session {
                 ask.on_asked(request);
             }
         }
+        let by_time = mib::tc::by_name("STORE_DOWNLINK_TIME");
         for &(a, b) in &ranges {
-            let args = [apid as i64, a as i64, b as i64];
+            // By the holes' time window where it is known (the tracker's `window`: no
+            // older packet with the same counts comes with them), else by count.
+            let window = self.robots.get(&robot).and_then(|s| s.seq.window(a, b));
+            let (tc_def, args) = match (window, by_time) {
+                (Some((from, to)), Some(t)) => {
+                    let (x, y) = (CdsShort::from_unix_ms(from), CdsShort::from_unix_ms(to));
+                    (
+                        t,
+                        vec![x.days.into(), x.ms_of_day.into(), y.days.into(), y.ms_of_day.into()],
+                    )
+                }
+                _ => (def, vec![apid as i64, a as i64, b as i64]),
+            };
             // A failed send shows as a retrieval without result: asked again later.
-            if let Ok(tc) = self.send(robot, def, &args, None, Some(GAP_LABEL.into())) {
+            if let Ok(tc) = self.send(robot, tc_def, &args, None, Some(GAP_LABEL.into())) {
                 sent.push(tc.request_id());
             }
         }
@@ -905,11 +918,11 @@ impl Session {
                 if let Some(s) = self.robots.get_mut(&robot) {
                     match r.as_ref() {
                         mib_wire::Tm::StoreDownlinkDone(d) => {
-                            s.store_oldest = Some(d.oldest_seq);
                             s.store_overwritten = d.overwritten;
                             // Holes older than what the store holds are gone (the rule of
                             // every front end).
                             if let Some(oldest) = live::store_done(&tm).and_then(|d| d.oldest) {
+                                s.store_oldest = Some(oldest);
                                 s.seq.store_oldest(oldest);
                             }
                         }

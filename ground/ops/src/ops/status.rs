@@ -46,8 +46,9 @@ pub struct RobotStatus {
     pub lost_kind: Option<NoAnswer>,
     /// First TM sequence count of the run (from the start marker's reports).
     pub run_first_seq: Option<u16>,
-    /// Sequence count of the oldest packet in the on-board store (last TM[15,19]).
-    pub store_oldest: Option<u16>,
+    /// Sequence count and on-board time of the oldest packet in the on-board store (last
+    /// TM[15,19]).
+    pub store_oldest: Option<crate::live::Pos>,
     /// Stored packets overwritten on board since boot (last TM[15,19]).
     pub store_overwritten: u32,
     /// Over a UDP lab link, does the robot send to this ground? The re-subscription rule
