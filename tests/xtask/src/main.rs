@@ -347,6 +347,7 @@ fn run(args: &Args) -> Result<bool> {
         total_seconds: 0.0,
         worst_margin: budgets
             .iter()
+            .filter(|b: &&Budget| !b.informational)
             .filter_map(|b: &Budget| b.margin_pct.map(|m| (m, b.item.clone())))
             .min_by(|a, b| a.0.total_cmp(&b.0))
             .map(|(m, i)| format!("{m:.1} % ({i})")),
