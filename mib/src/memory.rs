@@ -151,7 +151,7 @@ pub const OTADATA: FlashRegion = region(
     "which application slot boots (two sectors, written alternately)",
 );
 /// Size of each application slot: 512 KiB. An image may take 70 % of it (358 KiB); board A
-/// is ≈ 290 KiB at `opt-level = 2` with everything compiled in (57 % of the slot: 68 KiB
+/// is ≈ 298 KiB at `opt-level = 2` with everything compiled in (58 % of the slot: 60 KiB
 /// left for the file store and CFDP within the margin). Slots of 896 KiB (the first map)
 /// left the TM store 2 MiB, whose HK area then held the 2 h outage with a 3.8 % margin;
 /// each slot gave 384 KiB to the store (576 KiB slots were not enough: 29.7 %).
