@@ -80,11 +80,7 @@ pub fn store_range_tc(
     window: Option<(i64, i64)>,
 ) -> Option<(BuiltTc, bool)> {
     if let (Some((from, to)), Some(d)) = (window, def("STORE_DOWNLINK_TIME")) {
-        let (a, b) = (
-            ground_pus::CdsShort::from_unix_ms(from),
-            ground_pus::CdsShort::from_unix_ms(to),
-        );
-        let args = [a.days.into(), a.ms_of_day.into(), b.days.into(), b.ms_of_day.into()];
+        let args = ground_ops::live::store_time_args(from, to);
         return pus::build_tc(robot, seq, d, &args).ok().map(|t| (t, true));
     }
     if let Some(d) = def("STORE_DOWNLINK_SEQ") {

@@ -27,7 +27,7 @@ mod watch;
 pub use gaps::GapPlan;
 pub use pace::RetrievalPacer;
 pub use subscribe::{Subscription, SUBSCRIBE_RETRY_MS};
-pub use tm::{is_boot, position, store_done, StoreDone};
+pub use tm::{is_boot, position, store_done, store_time_args, StoreDone};
 pub use track::{ApidTracker, Lost, LostRun, Pos, Verdict, BOOT_FIRST_SEQ, MAX_MISSING, RECENT_WINDOW};
 pub use watch::{LinkLoss, LinkState, LinkWatch};
 

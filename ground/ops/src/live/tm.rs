@@ -13,6 +13,16 @@ pub fn position(tm: &Tm) -> Pos {
     }
 }
 
+/// The arguments of TC[15,9] `STORE_DOWNLINK_TIME` for the on-board times `from..=to`
+/// (unix ms): start days, start ms of day, end days, end ms of day.
+pub fn store_time_args(from: i64, to: i64) -> [i64; 4] {
+    let (a, b) = (
+        crate::pus::CdsShort::from_unix_ms(from),
+        crate::pus::CdsShort::from_unix_ms(to),
+    );
+    [a.days.into(), a.ms_of_day.into(), b.days.into(), b.ms_of_day.into()]
+}
+
 /// The obsw's BOOT event: its sequence counts start again.
 pub fn is_boot(tm: &Tm) -> bool {
     matches!(&tm.body, TmBody::Event(e) if e.id == mib::events::eid::BOOT)

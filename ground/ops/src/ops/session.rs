@@ -15,7 +15,7 @@ use mib::tc::TcDef;
 use crate::archive::{now_ms, ArchiveSender, Record};
 use crate::link::{FrameOptions, FrameStats, Incoming, Link, Transport};
 use crate::live::{self, GapPlan, Verdict as SeqVerdict};
-use crate::pus::{self, BuiltTc, CdsShort, DecodeError, Event, Hk, SeqCounters, Stage, Tm, TmBody, Verification};
+use crate::pus::{self, BuiltTc, DecodeError, Event, Hk, SeqCounters, Stage, Tm, TmBody, Verification};
 
 use super::book::{Due, Pending, TcBook, Verdict};
 use super::*;
@@ -690,8 +690,7 @@ impl Session {
             if let Some(s) = self.robots.get_mut(&robot) {
                 s.seq.accept_before_first(from);
             }
-            let (a, b) = (CdsShort::from_unix_ms(from), CdsShort::from_unix_ms(to));
-            let args = [a.days.into(), a.ms_of_day.into(), b.days.into(), b.ms_of_day.into()];
+            let args = live::store_time_args(from, to);
             let request = self
                 .send(robot, by_time, &args, None, Some(GAP_LABEL.into()))
                 .ok()
@@ -717,13 +716,7 @@ impl Session {
             // older packet with the same counts comes with them), else by count.
             let window = self.robots.get(&robot).and_then(|s| s.seq.window(a, b));
             let (tc_def, args) = match (window, by_time) {
-                (Some((from, to)), Some(t)) => {
-                    let (x, y) = (CdsShort::from_unix_ms(from), CdsShort::from_unix_ms(to));
-                    (
-                        t,
-                        vec![x.days.into(), x.ms_of_day.into(), y.days.into(), y.ms_of_day.into()],
-                    )
-                }
+                (Some((from, to)), Some(t)) => (t, live::store_time_args(from, to).to_vec()),
                 _ => (def, vec![apid as i64, a as i64, b as i64]),
             };
             // A failed send shows as a retrieval without result: asked again later.
