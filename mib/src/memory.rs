@@ -337,6 +337,16 @@ pub mod store {
     /// (a page read starts its own iteration: about 3 800 instructions against 3 500), too
     /// close to be sure of; each read fewer gives ≈ 0.6 points back.
     pub const REPLAY_READS_PER_PERIOD: u32 = 9;
+    /// Packets out of its range a downlink reads in a row before it asks the store to pass
+    /// over what it can rule out without reading (`TmStore::skip`): a page holds 40 to 120
+    /// packets, so a range's end is followed by a skip within a few periods.
+    pub const SKIP_AFTER_MISSES: u32 = 16;
+    /// What a page read costs against a packet read on, as (numerator, denominator): a
+    /// page read starts an iteration of its own (the queue's ends, the item header checked,
+    /// then the item and its CRC), ≈ 4 400 instructions on board A against 3 500 (`t_store`).
+    /// A skip reads denominator/numerator as many and counts each by the ratio, so a
+    /// period's reads cost the same either way.
+    pub const PAGE_READ_COST: (usize, usize) = (5, 4);
 
     /// `sequential-storage`'s queue item header for a 4-byte flash word (obsw-core's store
     /// tests check it against `QueueStorage::item_overhead_size`).

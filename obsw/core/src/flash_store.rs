@@ -530,9 +530,6 @@ fn page_items<F: NorFlash>() -> usize {
     (F::ERASE_SIZE - 2 * word) / item
 }
 
-/// The sequence counts' modulus (14 bits).
-const SEQ_MOD: usize = 1 << 14;
-
 /// Where a skip ([`TmStore::skip`]) stands in one area.
 #[derive(Clone, Copy)]
 struct Walk {
@@ -654,8 +651,10 @@ impl Walk {
         // count from `c` to `n` is exact.
         let seqs = self.others.and_then(|k| {
             let most = page_items::<F>() + 1 + (k + 2) * page_items::<F>();
-            let d = n.seq.wrapping_sub(c.seq) as usize % SEQ_MOD;
-            (c.apid == n.apid && most < SEQ_MOD && d <= most).then_some((c.seq, n.seq))
+            use mib::headers::SeqCount;
+            let d = usize::from(SeqCount::new(n.seq).since(SeqCount::new(c.seq)));
+            let modulus = usize::from(SeqCount::MODULUS);
+            (c.apid == n.apid && most < modulus && d <= most).then_some((c.seq, n.seq))
         });
         Some(Stretch {
             apid: n.apid,
@@ -822,11 +821,9 @@ impl<F: MultiwriteNorFlash, const H: usize, const R: usize> TmStore for FlashSto
         /// Reads of [`Walk::start`] for both areas, at most (two when going on from a
         /// skip).
         const START_READS: usize = 6;
-        // A page read starts an iteration of its own (the queue's ends, the item header
-        // checked, then the item and its CRC): about 4 400 instructions on board A against
-        // 3 500 for a packet a visit reads on (`t_store`). A skip reads four fifths as many
-        // and counts each as five fourths, so a period's reads cost the same either way.
-        let most = most.saturating_mul(4) / 5;
+        // Page reads cost more than reads on (`mib::memory::store::PAGE_READ_COST`).
+        let (cost, per) = mib::memory::store::PAGE_READ_COST;
+        let most = most.saturating_mul(per) / cost;
         if most < START_READS {
             return Skipped {
                 after,
@@ -896,7 +893,7 @@ impl<F: MultiwriteNorFlash, const H: usize, const R: usize> TmStore for FlashSto
         (mark.hk_next, mark.report_next) = (hk.next_of_page_start(), rp.next_of_page_start());
         Skipped {
             after: if moved { Some(mark) } else { after },
-            reads: reads.saturating_mul(5).div_ceil(4),
+            reads: reads.saturating_mul(cost).div_ceil(per),
             done,
         }
     }

@@ -114,14 +114,7 @@ impl Range {
     fn contains(&self, apid: u16, seq: u16, t: Cds) -> bool {
         match *self {
             Range::Time { start, end } => start <= t && t <= end,
-            Range::Seq { apid: a, first, last } => {
-                a == apid
-                    && if first <= last {
-                        (first..=last).contains(&seq)
-                    } else {
-                        seq >= first || seq <= last
-                    }
-            }
+            Range::Seq { apid: a, first, last } => a == apid && on_arc(first, last, seq),
         }
     }
     /// True when no packet of `s` is in the range ([`TmStore::skip`]).
@@ -131,12 +124,7 @@ impl Range {
             Range::Time { start, end } => cds(s.to) < start || cds(s.from) > end,
             Range::Seq { apid, first, last } => match s.seqs {
                 // Two arcs of counts modulo 2^14 meet when either begins on the other.
-                Some((a, b)) if s.apid == apid => {
-                    let arc = |from: u16, to: u16, x: u16| {
-                        x.wrapping_sub(from) & SEQ_MASK <= to.wrapping_sub(from) & SEQ_MASK
-                    };
-                    !(arc(a, b, first) || arc(first, last, a))
-                }
+                Some((a, b)) if s.apid == apid => !(on_arc(a, b, first) || on_arc(first, last, a)),
                 _ => false,
             },
         }
@@ -150,14 +138,17 @@ impl Range {
     }
 }
 
-/// Sequence counts are 14 bits.
-const SEQ_MASK: u16 = (1 << 14) - 1;
-
 /// Packets out of its range a downlink reads in a row before it asks the store to pass
-/// over what it can rule out without reading ([`TmStore::skip`]): a page of the flash store
-/// holds 40 to 120 packets, so a range's first packet out of it is followed by a skip within
-/// a few periods.
-const SKIP_AFTER_MISSES: u32 = 16;
+/// over what it can rule out ([`TmStore::skip`]; the MIB's number).
+const SKIP_AFTER_MISSES: u32 = mib::memory::store::SKIP_AFTER_MISSES;
+
+/// True when the count `x` lies on the arc `from..=to` of the 14-bit circle (wrapping
+/// through 16383 when `from > to`).
+fn on_arc(from: u16, to: u16, x: u16) -> bool {
+    use mib::headers::SeqCount;
+    let start = SeqCount::new(from);
+    SeqCount::new(x).since(start) <= SeqCount::new(to).since(start)
+}
 
 /// Downlinks waiting or running: the ground asks for at most this many ranges in one
 /// round (`mib::ground_config::GAP_REQUESTS_MAX`). A request beyond them (rounds that
