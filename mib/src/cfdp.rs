@@ -119,6 +119,16 @@ pub const ROBOT_IMMEDIATE_NAK: bool = true;
 /// procedure and the ACKs of the robot's EOF queued behind them for seconds (the robot sent
 /// its EOF six times). One NAK after the EOF asks for every gap (up to 120 a PDU).
 pub const GROUND_IMMEDIATE_NAK: bool = false;
+/// Copies of each metadata and Finished PDU the robot's entity sends. They go down in TM
+/// packets, a quarter of which the lossy relay loses: a lost metadata PDU makes the ground
+/// drop the file data that comes before its next copy (asked for at once, but a round trip
+/// of segments is gone: a traced `get` lost 95 of its 277 so), a lost Finished costs the
+/// robot's positive ACK period. The second copy follows in the same control period; both
+/// ends take a repeated one once (cfdp-rs acts on a metadata PDU once, the ground's entity
+/// acknowledges a repeated Finished again).
+pub const ROBOT_DIRECTIVE_COPIES: usize = 2;
+/// The ground's: one. Its directives go up in AD frames that COP-1 delivers.
+pub const GROUND_DIRECTIVE_COPIES: usize = 1;
 /// Yamcs' CFDP service's timers (its `eofAckTimeout`, `finAckTimeout`, `nakTimeout` in the
 /// generated instance): twice the ground's COP-1 T1 upper bound (`link::cop1::FOP_T1_MS`),
 /// as Yamcs' TCs go up through its own FOP-1 with a fixed T1.

@@ -174,6 +174,8 @@ impl<'a> TimerCreator for Timers<'a> {
 pub struct Sender<'a> {
     port: &'a PduPort,
     when_full: WhenFull,
+    /// Copies of each metadata and Finished PDU (see `mib::cfdp::ROBOT_DIRECTIVE_COPIES`).
+    copies: usize,
 }
 
 /// What a full outbox does to a handler's PDU.
@@ -190,13 +192,24 @@ impl<'a> Sender<'a> {
         Sender {
             port,
             when_full: WhenFull::Refuse,
+            copies: 1,
         }
     }
     fn dest(port: &'a PduPort) -> Self {
         Sender {
             port,
             when_full: WhenFull::Lose,
+            copies: 1,
         }
+    }
+    /// Entity `id`'s copies of its metadata and Finished PDUs.
+    fn copies(mut self, id: u16) -> Self {
+        self.copies = if id == m::GROUND_ENTITY_ID {
+            m::GROUND_DIRECTIVE_COPIES
+        } else {
+            m::ROBOT_DIRECTIVE_COPIES
+        };
+        self
     }
 }
 
@@ -225,12 +238,22 @@ impl PduSender for Sender<'_> {
             self.port.dropped.set(self.port.dropped.get().wrapping_add(1));
             return Err(GenericSendError::Other);
         };
-        if self.port.outbox.borrow_mut().push_back(pdu).is_err() {
+        let mut outbox = self.port.outbox.borrow_mut();
+        if outbox.push_back(pdu.clone()).is_err() {
             self.port.dropped.set(self.port.dropped.get().wrapping_add(1));
             return match self.when_full {
                 WhenFull::Refuse => Err(GenericSendError::QueueFull(None)),
                 WhenFull::Lose => Ok(()),
             };
+        }
+        if matches!(d, Some(FileDirectiveType::MetadataPdu | FileDirectiveType::FinishedPdu)) {
+            // The further copies only where there is room: the first is the PDU, and a lost
+            // one is recovered as before.
+            for _ in 1..self.copies {
+                if outbox.len() + 2 >= m::OUTBOX_DEPTH || outbox.push_back(pdu.clone()).is_err() {
+                    break;
+                }
+            }
         }
         Ok(())
     }
@@ -730,7 +753,7 @@ pub fn is_metadata(raw: &[u8]) -> bool {
 fn new_source<S: FlatStore>(id: u16, peer: u16, parts: &Parts<S>) -> Source<'_, S> {
     SourceHandler::new(
         local_config(id, parts),
-        Sender::source(&parts.link),
+        Sender::source(&parts.link).copies(id),
         &parts.store,
         remote_config(id, peer),
         Timers(&parts.link),
@@ -741,7 +764,7 @@ fn new_source<S: FlatStore>(id: u16, peer: u16, parts: &Parts<S>) -> Source<'_, 
 fn new_dest<S: FlatStore>(id: u16, peer: u16, parts: &Parts<S>) -> Dest<'_, S> {
     DestinationHandler::new(
         local_config(id, parts),
-        Sender::dest(&parts.link),
+        Sender::dest(&parts.link).copies(id),
         &parts.store,
         remote_config(id, peer),
         Timers(&parts.link),
