@@ -172,7 +172,7 @@ pub const OUTBOX_DEPTH: usize = 16;
 /// Longest file name: ASCII letters, digits, '.', '_' and '-', not starting with '.',
 /// no directories (the store is flat: nothing can name a path outside it).
 pub const MAX_NAME_LEN: usize = 48;
-/// Largest file the store takes (the board's file store area is 192 KiB).
+/// Largest file the store takes (the board's file store area is 128 KiB, `mib::memory::FILE_STORE`).
 pub const MAX_FILE_LEN: u64 = 1 << 20;
 /// Files the store holds at most.
 pub const MAX_FILES: usize = 64;
