@@ -123,9 +123,10 @@ pub const GROUND_IMMEDIATE_NAK: bool = false;
 /// packets, a quarter of which the lossy relay loses: a lost metadata PDU makes the ground
 /// drop the file data that comes before its next copy (asked for at once, but a round trip
 /// of segments is gone: a traced `get` lost 95 of its 277 so), a lost Finished costs the
-/// robot's positive ACK period. The second copy follows in the same control period; both
-/// ends take a repeated one once (cfdp-rs acts on a metadata PDU once, the ground's entity
-/// acknowledges a repeated Finished again).
+/// robot's positive ACK period. The second copy goes at the entity's next poll, in another
+/// TM frame than the first (a frame carries several small PDUs: copies in one are lost
+/// together); both ends take a repeated one once (cfdp-rs acts on a metadata PDU once, the
+/// ground's entity acknowledges a repeated Finished again).
 pub const ROBOT_DIRECTIVE_COPIES: usize = 2;
 /// The ground's: one. Its directives go up in AD frames that COP-1 delivers.
 pub const GROUND_DIRECTIVE_COPIES: usize = 1;

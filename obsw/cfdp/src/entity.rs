@@ -76,6 +76,8 @@ pub struct PduPort {
     /// That segment arrived after the NAK: what the NAK asked for and is still missing was
     /// lost again, and the next NAK need not wait for `NAK_QUIET_MS`.
     nak_answered: Cell<bool>,
+    /// Copies of metadata and Finished PDUs, sent at the next poll (`ROBOT_DIRECTIVE_COPIES`).
+    copies_due: RefCell<heapless::Deque<Pdu, { 2 * m::ROBOT_DIRECTIVE_COPIES }>>,
 }
 
 impl Default for PduPort {
@@ -90,6 +92,7 @@ impl Default for PduPort {
             data_at: Cell::new(None),
             nak_end: Cell::new(None),
             nak_answered: Cell::new(false),
+            copies_due: RefCell::new(heapless::Deque::new()),
         }
     }
 }
@@ -247,10 +250,12 @@ impl PduSender for Sender<'_> {
             };
         }
         if matches!(d, Some(FileDirectiveType::MetadataPdu | FileDirectiveType::FinishedPdu)) {
-            // The further copies only where there is room: the first is the PDU, and a lost
-            // one is recovered as before.
+            // The further copies go at the entity's next poll, in another frame than this
+            // one (a frame carries several small PDUs: copies in one frame are lost
+            // together). Only where there is room: a lost PDU is recovered as before.
+            let mut due = self.port.copies_due.borrow_mut();
             for _ in 1..self.copies {
-                if outbox.len() + 2 >= m::OUTBOX_DEPTH || outbox.push_back(pdu.clone()).is_err() {
+                if due.push_back(pdu.clone()).is_err() {
                     break;
                 }
             }
@@ -1502,6 +1507,17 @@ impl<'a, S: FlatStore> Entity<'a, S> {
     /// period and after the outbox was emptied.
     pub fn poll(&mut self, now_ms: u64) {
         self.tick(now_ms);
+        {
+            let (mut outbox, mut due) = (
+                self.parts.link.outbox.borrow_mut(),
+                self.parts.link.copies_due.borrow_mut(),
+            );
+            while outbox.len() + 2 < m::OUTBOX_DEPTH {
+                let Some(pdu) = due.pop_front() else { break };
+                let _ = outbox.push_back(pdu);
+            }
+            due.clear();
+        }
         // Segments asked for again go first: the receiver waits for them.
         self.budget = m::SEGMENTS_PER_POLL;
         self.resend();

@@ -763,7 +763,7 @@ fn the_robots_metadata_and_finished_pdus_go_down_twice_and_act_once() {
             }
             let start = now();
             let mut t = start;
-            let (mut up, mut down) = (Vec::new(), Vec::new());
+            let (mut up, mut down, mut polls) = (Vec::new(), Vec::new(), Vec::new());
             while t < start + 10_000 && !(g.idle() && r.idle()) {
                 t += 10;
                 g.poll(t);
@@ -774,19 +774,31 @@ fn the_robots_metadata_and_finished_pdus_go_down_twice_and_act_once() {
                 }
                 while let Some(p) = r.pop() {
                     down.push(p.to_vec());
+                    polls.push(t);
                     g.receive(t, &p);
                 }
             }
+            // The copies leave in another control period than the first (another frame).
+            let when = |d: u8| {
+                let mut ts: Vec<u64> = (0..down.len())
+                    .filter(|&i| count(&down[i..=i], d, if get { 1 } else { 0 }) == 1)
+                    .map(|i| polls[i])
+                    .collect();
+                ts.dedup();
+                ts.len()
+            };
             CLOCK.with(|c| c.set(t));
             const METADATA: u8 = FileDirectiveType::MetadataPdu as u8;
             if get {
                 // The request (a ground transaction) once; the robot's put of the file twice.
                 assert_eq!(count(&up, METADATA, 0), 1);
                 assert_eq!(count(&down, METADATA, 1), 2);
+                assert_eq!(when(METADATA), 2, "the two copies in two periods");
                 assert_eq!(read_file(&gp, "down.bin").as_deref(), Some(&data[..]));
             } else {
                 assert_eq!(count(&up, METADATA, 0), 1);
                 assert_eq!(count(&down, FINISHED, 0), 2, "the robot's Finished of the put");
+                assert_eq!(when(FINISHED), 2, "the two copies in two periods");
                 assert_eq!(read_file(&rp, "up.bin").as_deref(), Some(&data[..]));
             }
         }
