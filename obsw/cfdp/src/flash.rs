@@ -1,0 +1,735 @@
+//! The file store on NOR flash (board A's `files` partition, `mib::memory::FILE_STORE`): a
+//! [`FlatStore`] over a region of any `embedded_storage` NOR flash, no heap, fixed RAM.
+//!
+//! Layout (`docs/files.md`, "The file store"): the region's first [`DIR_SECTORS`] sectors
+//! hold the directory, a `sequential-storage` map from a slot (0..`MAX_FILES`) to the
+//! file in it — its name, its length and the data sectors that hold its bytes, in order —
+//! or "free"; every other sector of the region is a data sector, owned by at most one
+//! file. The map writes each new value as a new item with CRCs and keeps the old one
+//! until it is superseded, so a directory entry is replaced whole or not at all.
+//!
+//! Power-fail safety: the directory entry is the commit. Every operation writes new
+//! bytes only where the directory as it stands does not look — past a file's length, or
+//! into a sector no entry names — and then stores the entry that makes them part of the
+//! file. A write that changes bytes a file already has copies the sectors it touches to
+//! free ones (copy on write) and stores the entry naming the copies. A cut before the
+//! entry's store leaves the file as it was; after it, as the operation made it. The
+//! sectors an entry no longer names are free again (erased before reuse); at open, a
+//! sector no entry names is free, whatever it holds.
+//!
+//! Bounded work: one call touches at most the sectors its bytes fall in, the free sectors
+//! it takes (erased on the way when not known to be blank) and one directory store, which
+//! `sequential-storage` may precede with the migration of its oldest directory page
+//! ([`FlashStore::write`] has the worst case).
+//!
+//! `sequential-storage` is async; the flashes here are blocking, so every future is ready
+//! when first polled and `embassy_futures::block_on` drives it.
+
+use core::cell::RefCell;
+
+use embassy_futures::block_on;
+use embedded_storage::nor_flash::{ErrorType, MultiwriteNorFlash, NorFlash, ReadNorFlash};
+use mib::cfdp::{MAX_FILES, MAX_NAME_LEN};
+use sequential_storage::cache::key_pointers::ArrayKeyPointers;
+use sequential_storage::cache::page_pointers::ArrayPagePointers;
+use sequential_storage::cache::page_states::ArrayPageStates;
+use sequential_storage::cache::Cache;
+use sequential_storage::map::{MapConfig, MapStorage};
+
+use crate::store::{FileName, FlatStore, StoreError};
+
+/// Sectors of the directory map at the start of the region: 64 entries of at most
+/// [`ENTRY_ITEM`] bytes fill 1.7 of them; the others keep a directory store from
+/// migrating more than two pages (see `docs/files.md`).
+pub const DIR_SECTORS: usize = 4;
+/// Most data sectors a region may have (the board's 192 KiB partition less the
+/// directory): the size of the free-sector bitmaps and of a file's sector list.
+pub const MAX_DATA_SECTORS: usize = (mib::cfdp::BOARD_STORE_BYTES / mib::memory::FLASH_SECTOR) as usize - DIR_SECTORS;
+/// Free sectors kept back from growth so that a write that changes bytes a file has can
+/// always copy the (at most two) sectors a segment of up to one sector falls in.
+pub const RESERVE_SECTORS: usize = 2;
+const _: () = assert!(MAX_DATA_SECTORS <= 64, "the sector bitmaps are u64");
+
+/// A directory value: kind, name length, name, length (u32 LE), sector count, sectors.
+const ENTRY_MAX: usize = 1 + 1 + MAX_NAME_LEN + 4 + 1 + MAX_DATA_SECTORS;
+/// Map item buffer: the key (one byte) and the largest value, in whole words.
+const ITEM_BUF: usize = (1 + ENTRY_MAX).next_multiple_of(4) + 4;
+/// Bytes of a full directory entry in flash (item header 8, then key and value in words).
+pub const ENTRY_ITEM: usize = 8 + (1 + ENTRY_MAX).next_multiple_of(4);
+const KIND_FREE: u8 = 0;
+const KIND_FILE: u8 = 1;
+
+/// Bytes copied through RAM at a time (sector copies, comparisons).
+const CHUNK: usize = 256;
+
+type DirCache =
+    Cache<ArrayPageStates<DIR_SECTORS>, ArrayPagePointers<DIR_SECTORS>, ArrayKeyPointers<u8, MAX_FILES>, u8>;
+
+/// A blocking flash under `sequential-storage`'s async traits (each future is ready at
+/// once).
+pub struct Blocking<F>(pub F);
+
+impl<F: ErrorType> ErrorType for Blocking<F> {
+    type Error = F::Error;
+}
+
+impl<F: ReadNorFlash> embedded_storage_async::nor_flash::ReadNorFlash for Blocking<F> {
+    const READ_SIZE: usize = F::READ_SIZE;
+    async fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+        self.0.read(offset, bytes)
+    }
+    fn capacity(&self) -> usize {
+        self.0.capacity()
+    }
+}
+
+impl<F: NorFlash> embedded_storage_async::nor_flash::NorFlash for Blocking<F> {
+    const WRITE_SIZE: usize = F::WRITE_SIZE;
+    const ERASE_SIZE: usize = F::ERASE_SIZE;
+    async fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
+        self.0.erase(from, to)
+    }
+    async fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+        self.0.write(offset, bytes)
+    }
+}
+
+impl<F: MultiwriteNorFlash> embedded_storage_async::nor_flash::MultiwriteNorFlash for Blocking<F> {}
+
+/// One file of the directory, as RAM keeps it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+struct Entry {
+    name: FileName,
+    len: u32,
+    /// Data sector indices (0 = the region's first data sector), in file order; they
+    /// cover at least `len` bytes.
+    sectors: heapless::Vec<u8, MAX_DATA_SECTORS>,
+}
+
+impl Entry {
+    fn encode(&self, out: &mut [u8; ENTRY_MAX]) -> usize {
+        let n = self.name.as_str().as_bytes();
+        out[0] = KIND_FILE;
+        out[1] = n.len() as u8;
+        out[2..2 + n.len()].copy_from_slice(n);
+        let mut at = 2 + n.len();
+        out[at..at + 4].copy_from_slice(&self.len.to_le_bytes());
+        at += 4;
+        out[at] = self.sectors.len() as u8;
+        at += 1;
+        out[at..at + self.sectors.len()].copy_from_slice(&self.sectors);
+        at + self.sectors.len()
+    }
+
+    /// A value read back from the directory; `None` when it is not a whole, sound entry.
+    fn decode(v: &[u8], data_sectors: usize) -> Option<Option<Entry>> {
+        match *v.first()? {
+            KIND_FREE if v.len() == 1 => return Some(None),
+            KIND_FILE => {}
+            _ => return None,
+        }
+        let nl = usize::from(*v.get(1)?);
+        let name = core::str::from_utf8(v.get(2..2 + nl)?).ok()?;
+        let name = FileName::new(name).ok()?;
+        let at = 2 + nl;
+        let len = u32::from_le_bytes(v.get(at..at + 4)?.try_into().ok()?);
+        let ns = usize::from(*v.get(at + 4)?);
+        let list = v.get(at + 5..at + 5 + ns)?;
+        if v.len() != at + 5 + ns || list.iter().any(|&s| usize::from(s) >= data_sectors) {
+            return None;
+        }
+        let sectors = heapless::Vec::from_slice(list).ok()?;
+        let e = Entry { name, len, sectors };
+        (u64::from(e.len) <= ns as u64 * SECTOR as u64).then_some(Some(e))
+    }
+}
+
+/// Sector size the layout is computed with (the flash's erase size must equal it).
+const SECTOR: usize = mib::memory::FLASH_SECTOR as usize;
+
+/// What the store counted since it was opened (file store housekeeping).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FlashCounters {
+    /// Directory entries found unsound at open (bad name, sector out of range, a sector
+    /// claimed twice): their files are left out, their sectors free.
+    pub bad_entries: u32,
+    /// Flash operations the store made: reads, word writes (calls), sector erases.
+    pub reads: u32,
+    pub writes: u32,
+    pub erases: u32,
+    /// Sectors copied on write (a write that changed bytes a file had).
+    pub copies: u32,
+    /// Writes that changed nothing (a segment received again with the same bytes).
+    pub same: u32,
+}
+
+/// Why a store could not be opened.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OpenError {
+    /// The region is not whole sectors of the layout's size, is too small (fewer than
+    /// `DIR_SECTORS` + `RESERVE_SECTORS` + 1 sectors) or too large (`MAX_DATA_SECTORS`),
+    /// or lies outside the flash.
+    Layout,
+    /// The flash failed, or the directory cannot be read (not a store: see
+    /// [`FlashStore::format`]).
+    Flash,
+}
+
+/// The file store (see the module documentation).
+pub struct FlashStore<F: MultiwriteNorFlash> {
+    inner: RefCell<Inner<F>>,
+}
+
+struct Inner<F: MultiwriteNorFlash> {
+    map: MapStorage<u8, Blocking<F>, DirCache>,
+    buf: [u8; ITEM_BUF],
+    dir: [Option<Entry>; MAX_FILES],
+    /// Address of data sector 0, and how many there are.
+    data_base: u32,
+    data_sectors: usize,
+    /// Data sectors some entry names.
+    used: u64,
+    /// Free data sectors known to be erased (blank).
+    blank: u64,
+    /// Where the search for a free sector starts (round robin: wear spreads).
+    cursor: usize,
+    counters: FlashCounters,
+}
+
+impl<F: MultiwriteNorFlash> FlashStore<F> {
+    /// Opens the store in `region` (absolute flash addresses) of `flash`, keeping what it
+    /// holds. An erased region is an empty store.
+    pub fn open(flash: F, region: core::ops::Range<u32>) -> Result<Self, OpenError> {
+        if F::ERASE_SIZE != SECTOR || F::WRITE_SIZE > 4 || F::READ_SIZE > 4 || 4 % F::WRITE_SIZE != 0 {
+            return Err(OpenError::Layout);
+        }
+        let sector = SECTOR as u32;
+        if !region.start.is_multiple_of(sector)
+            || !region.end.is_multiple_of(sector)
+            || region.end as usize > flash.capacity()
+            || region.end <= region.start
+        {
+            return Err(OpenError::Layout);
+        }
+        let sectors = ((region.end - region.start) / sector) as usize;
+        let data_sectors = sectors.checked_sub(DIR_SECTORS).ok_or(OpenError::Layout)?;
+        if data_sectors <= RESERVE_SECTORS || data_sectors > MAX_DATA_SECTORS {
+            return Err(OpenError::Layout);
+        }
+        let dir_end = region.start + DIR_SECTORS as u32 * sector;
+        let cfg = MapConfig::try_new(region.start..dir_end).map_err(|_| OpenError::Layout)?;
+        let cache = Cache::new(
+            ArrayPageStates::new(),
+            ArrayPagePointers::new(),
+            ArrayKeyPointers::new(),
+        );
+        let mut inner = Inner {
+            map: MapStorage::new(Blocking(flash), cfg, cache),
+            buf: [0; ITEM_BUF],
+            dir: core::array::from_fn(|_| None),
+            data_base: dir_end,
+            data_sectors,
+            used: 0,
+            blank: 0,
+            cursor: 0,
+            counters: FlashCounters::default(),
+        };
+        inner.load()?;
+        Ok(FlashStore {
+            inner: RefCell::new(inner),
+        })
+    }
+
+    /// Erases `region` of `flash`: an empty store (every file is lost).
+    pub fn format(flash: &mut F, region: core::ops::Range<u32>) -> Result<(), OpenError> {
+        flash.erase(region.start, region.end).map_err(|_| OpenError::Flash)
+    }
+
+    pub fn counters(&self) -> FlashCounters {
+        self.inner.try_borrow().map(|i| i.counters).unwrap_or_default()
+    }
+
+    /// The flash back (the store is closed).
+    pub fn into_flash(self) -> F {
+        self.inner.into_inner().map.destroy().0 .0
+    }
+
+    /// Bytes the region can hold in files at most: its data sectors less the reserve.
+    pub fn capacity(&self) -> u64 {
+        self.inner
+            .try_borrow()
+            .map_or(0, |i| ((i.data_sectors - RESERVE_SECTORS) * SECTOR) as u64)
+    }
+
+    fn with<T>(&self, f: impl FnOnce(&mut Inner<F>) -> Result<T, StoreError>) -> Result<T, StoreError> {
+        let mut i = self.inner.try_borrow_mut().map_err(|_| StoreError::Io)?;
+        f(&mut i)
+    }
+}
+
+impl<F: MultiwriteNorFlash> Inner<F> {
+    /// Reads the directory: the last value of each slot wins.
+    fn load(&mut self) -> Result<(), OpenError> {
+        let mut raw: [Option<Option<Entry>>; MAX_FILES] = core::array::from_fn(|_| None);
+        let mut bad = [false; MAX_FILES];
+        // A cut erase or migration of a directory page is repaired by the map's first
+        // operation; `fetch_all_items` cannot repair what it finds (its page search returns
+        // the corruption before its repair runs), so a lookup goes first.
+        if block_on(self.map.fetch_item::<&[u8]>(&mut self.buf, &0)).is_err() {
+            return Err(OpenError::Flash);
+        }
+        {
+            let mut it = block_on(self.map.fetch_all_items(&mut self.buf)).map_err(|_| OpenError::Flash)?;
+            loop {
+                match block_on(it.next::<&[u8]>(&mut self.buf)) {
+                    Ok(Some((slot, v))) => {
+                        let i = usize::from(slot);
+                        if i >= MAX_FILES {
+                            continue;
+                        }
+                        match Entry::decode(v, self.data_sectors) {
+                            Some(e) => {
+                                raw[i] = Some(e);
+                                bad[i] = false;
+                            }
+                            None => bad[i] = true,
+                        }
+                    }
+                    Ok(None) => break,
+                    Err(_) => return Err(OpenError::Flash),
+                }
+            }
+        }
+        for (i, e) in raw.into_iter().enumerate() {
+            if bad[i] {
+                self.counters.bad_entries += 1;
+                continue;
+            }
+            let Some(Some(e)) = e else { continue };
+            let mut mask = 0u64;
+            for &s in &e.sectors {
+                mask |= 1 << s;
+            }
+            let dup_name = self.dir.iter().flatten().any(|o| o.name == e.name);
+            if mask.count_ones() as usize != e.sectors.len() || mask & self.used != 0 || dup_name {
+                self.counters.bad_entries += 1;
+                continue;
+            }
+            self.used |= mask;
+            self.dir[i] = Some(e);
+        }
+        Ok(())
+    }
+
+    fn find(&self, name: &FileName) -> Option<usize> {
+        self.dir
+            .iter()
+            .position(|e| e.as_ref().is_some_and(|e| &e.name == name))
+    }
+
+    fn free_sectors(&self) -> usize {
+        self.data_sectors - self.used.count_ones() as usize
+    }
+
+    fn addr(&self, sector: u8) -> u32 {
+        self.data_base + u32::from(sector) * SECTOR as u32
+    }
+
+    fn flash(&mut self) -> &mut F {
+        &mut self.map.flash().0
+    }
+
+    fn read_raw(&mut self, at: u32, out: &mut [u8]) -> Result<(), StoreError> {
+        self.counters.reads = self.counters.reads.wrapping_add(1);
+        self.flash().read(at, out).map_err(|_| StoreError::Io)
+    }
+
+    fn write_raw(&mut self, at: u32, bytes: &[u8]) -> Result<(), StoreError> {
+        self.counters.writes = self.counters.writes.wrapping_add(1);
+        self.flash().write(at, bytes).map_err(|_| StoreError::Io)
+    }
+
+    /// Stores slot `i`'s entry (or "free"): the commit of every operation.
+    fn commit(&mut self, i: usize, e: Option<&Entry>) -> Result<(), StoreError> {
+        let mut v = [0u8; ENTRY_MAX];
+        let n = match e {
+            Some(e) => e.encode(&mut v),
+            None => {
+                v[0] = KIND_FREE;
+                1
+            }
+        };
+        block_on(self.map.store_item(&mut self.buf, &(i as u8), &&v[..n])).map_err(|e| match e {
+            sequential_storage::Error::FullStorage => StoreError::Full,
+            _ => StoreError::Io,
+        })
+    }
+
+    /// A free data sector, erased; not yet marked used.
+    fn take(&mut self, taken: u64) -> Result<u8, StoreError> {
+        let free = !self.used & !taken & (u64::MAX >> (64 - self.data_sectors));
+        if free == 0 {
+            return Err(StoreError::Full);
+        }
+        // Blank ones first, round robin from the cursor among either kind.
+        let pick = |set: u64, from: usize| -> Option<usize> {
+            (0..self.data_sectors)
+                .map(|k| (from + k) % self.data_sectors)
+                .find(|&s| set & (1 << s) != 0)
+        };
+        let s = pick(free & self.blank, self.cursor)
+            .or_else(|| pick(free, self.cursor))
+            .ok_or(StoreError::Full)?;
+        self.cursor = (s + 1) % self.data_sectors;
+        let s8 = s as u8;
+        if self.blank & (1 << s) == 0 && !self.is_blank(s8)? {
+            let a = self.addr(s8);
+            self.counters.erases = self.counters.erases.wrapping_add(1);
+            self.flash().erase(a, a + SECTOR as u32).map_err(|_| StoreError::Io)?;
+        }
+        self.blank &= !(1 << s);
+        Ok(s8)
+    }
+
+    fn is_blank(&mut self, s: u8) -> Result<bool, StoreError> {
+        let a = self.addr(s);
+        let mut b = [0u8; CHUNK];
+        for k in (0..SECTOR).step_by(CHUNK) {
+            self.read_raw(a + k as u32, &mut b)?;
+            if b.iter().any(|&x| x != 0xFF) {
+                return Ok(false);
+            }
+        }
+        Ok(true)
+    }
+
+    /// Reads `out.len()` bytes at `off` of sector `s` (any alignment).
+    fn read_at(&mut self, s: u8, off: usize, out: &mut [u8]) -> Result<(), StoreError> {
+        let base = self.addr(s);
+        let mut done = 0;
+        while done < out.len() {
+            let at = off + done;
+            let start = at - at % 4;
+            let mut b = [0u8; CHUNK];
+            let n = (CHUNK - (at - start)).min(out.len() - done);
+            let span = (at - start + n).next_multiple_of(4);
+            self.read_raw(base + start as u32, &mut b[..span])?;
+            out[done..done + n].copy_from_slice(&b[at - start..at - start + n]);
+            done += n;
+        }
+        Ok(())
+    }
+
+    fn len(&self, name: &FileName) -> Option<u64> {
+        self.find(name)
+            .and_then(|i| self.dir[i].as_ref())
+            .map(|e| u64::from(e.len))
+    }
+
+    fn create(&mut self, name: &FileName) -> Result<(), StoreError> {
+        let (i, old) = match self.find(name) {
+            Some(i) => (i, self.dir[i].take()),
+            None => (self.dir.iter().position(Option::is_none).ok_or(StoreError::Full)?, None),
+        };
+        let e = Entry {
+            name: name.clone(),
+            len: 0,
+            sectors: heapless::Vec::new(),
+        };
+        if let Err(err) = self.commit(i, Some(&e)) {
+            self.dir[i] = old;
+            return Err(err);
+        }
+        if let Some(old) = old {
+            self.release(&old.sectors);
+        }
+        self.dir[i] = Some(e);
+        Ok(())
+    }
+
+    fn release(&mut self, sectors: &[u8]) {
+        for &s in sectors {
+            self.used &= !(1u64 << s);
+        }
+    }
+
+    fn remove(&mut self, name: &FileName) -> Result<(), StoreError> {
+        let i = self.find(name).ok_or(StoreError::NotFound)?;
+        self.commit(i, None)?;
+        if let Some(old) = self.dir[i].take() {
+            self.release(&old.sectors);
+        }
+        Ok(())
+    }
+
+    fn rename(&mut self, from: &FileName, to: &FileName) -> Result<(), StoreError> {
+        let i = self.find(from).ok_or(StoreError::NotFound)?;
+        if self.find(to).is_some() {
+            return Err(StoreError::Exists);
+        }
+        let mut e = self.dir[i].clone().ok_or(StoreError::NotFound)?;
+        e.name = to.clone();
+        self.commit(i, Some(&e))?;
+        self.dir[i] = Some(e);
+        Ok(())
+    }
+
+    fn read(&mut self, name: &FileName, offset: u64, buf: &mut [u8]) -> Result<(), StoreError> {
+        let i = self.find(name).ok_or(StoreError::NotFound)?;
+        let e = self.dir[i].as_ref().ok_or(StoreError::NotFound)?;
+        let end = offset.checked_add(buf.len() as u64).ok_or(StoreError::NotFound)?;
+        if end > u64::from(e.len) {
+            return Err(StoreError::NotFound);
+        }
+        let sectors = e.sectors.clone();
+        let mut done = 0usize;
+        while done < buf.len() {
+            let at = offset as usize + done;
+            let (k, o) = (at / SECTOR, at % SECTOR);
+            let n = (SECTOR - o).min(buf.len() - done);
+            self.read_at(sectors[k], o, &mut buf[done..done + n])?;
+            done += n;
+        }
+        Ok(())
+    }
+
+    /// Writes `data` at `offset` of file `name`: new bytes past the file's length go in
+    /// place, changed bytes below it to copies of their sectors; then the entry commits.
+    fn write(&mut self, name: &FileName, offset: u64, data: &[u8]) -> Result<(), StoreError> {
+        let i = self.find(name).ok_or(StoreError::NotFound)?;
+        let old = self.dir[i].clone().ok_or(StoreError::NotFound)?;
+        let end = offset.checked_add(data.len() as u64).ok_or(StoreError::Full)?;
+        if end > (self.data_sectors * SECTOR) as u64 {
+            return Err(StoreError::Full);
+        }
+        if data.is_empty() {
+            return Ok(());
+        }
+        let (offset, end) = (offset as usize, end as usize);
+        let need = end.div_ceil(SECTOR);
+        let grow = need.saturating_sub(old.sectors.len());
+        if grow + RESERVE_SECTORS > self.free_sectors() {
+            return Err(StoreError::Full);
+        }
+        let mut new = old.clone();
+        // Sectors taken by this call (new ones and copies), and sectors it gives up.
+        let mut taken = 0u64;
+        let mut given = 0u64;
+        let r = self.write_into(&mut new, &old, offset, data, &mut taken, &mut given);
+        let r = r.and_then(|()| {
+            new.len = new.len.max(end as u32);
+            if new == old {
+                self.counters.same = self.counters.same.wrapping_add(1);
+                Ok(())
+            } else {
+                self.commit(i, Some(&new))
+            }
+        });
+        match r {
+            Ok(()) => {
+                self.used = (self.used | taken) & !given;
+                self.dir[i] = Some(new);
+                Ok(())
+            }
+            Err(e) => {
+                // What the call wrote is in sectors no entry names: free (not blank).
+                self.used &= !taken;
+                Err(e)
+            }
+        }
+    }
+
+    fn write_into(
+        &mut self,
+        new: &mut Entry,
+        old: &Entry,
+        offset: usize,
+        data: &[u8],
+        taken: &mut u64,
+        given: &mut u64,
+    ) -> Result<(), StoreError> {
+        let end = offset + data.len();
+        while new.sectors.len() < end.div_ceil(SECTOR) {
+            let s = self.take(*taken | self.used)?;
+            *taken |= 1 << s;
+            new.sectors.push(s).map_err(|_| StoreError::Full)?;
+        }
+        let committed = old.len as usize;
+        let mut at = offset;
+        while at < end {
+            let k = at / SECTOR;
+            let (lo, hi) = (at % SECTOR, (end - k * SECTOR).min(SECTOR));
+            let piece = &data[at - offset..at - offset + (hi - lo)];
+            let s = new.sectors[k];
+            let fresh = *taken & (1 << s) != 0;
+            // Below the committed length the bytes are the file's: never written in place.
+            let visible = k * SECTOR + lo < committed;
+            if fresh || !visible {
+                match self.program(s, lo, piece)? {
+                    Program::Done | Program::Same => {}
+                    Program::NeedsErase => self.copy_on_write(new, k, lo, piece, taken, given)?,
+                }
+            } else if !self.equal(s, lo, piece)? {
+                self.copy_on_write(new, k, lo, piece, taken, given)?;
+            }
+            at = (k + 1) * SECTOR;
+        }
+        Ok(())
+    }
+
+    /// Compares `piece` with the bytes at `lo` of sector `s`.
+    fn equal(&mut self, s: u8, lo: usize, piece: &[u8]) -> Result<bool, StoreError> {
+        let mut b = [0u8; CHUNK];
+        for (n, c) in piece.chunks(CHUNK).enumerate() {
+            self.read_at(s, lo + n * CHUNK, &mut b[..c.len()])?;
+            if b[..c.len()] != *c {
+                return Ok(false);
+            }
+        }
+        Ok(true)
+    }
+
+    /// Programs `piece` at `lo` of sector `s` in place when NOR allows it (only clearing
+    /// bits), the words' other bytes written as they are.
+    fn program(&mut self, s: u8, lo: usize, piece: &[u8]) -> Result<Program, StoreError> {
+        // First check every word, then write: a refused piece leaves the sector untouched.
+        let mut b = [0u8; CHUNK + 8];
+        let mut same = true;
+        for pass in 0..2 {
+            let mut at = lo;
+            let hi = lo + piece.len();
+            while at < hi {
+                let start = at - at % 4;
+                let stop = (start + CHUNK).min(hi.next_multiple_of(4));
+                let w = &mut b[..stop - start];
+                self.read_at(s, start, w)?;
+                let from = at.max(start);
+                let to = hi.min(stop);
+                let mut differs = false;
+                for (j, &n) in piece[from - lo..to - lo].iter().enumerate() {
+                    let o = w[from - start + j];
+                    if n & !o != 0 {
+                        return Ok(Program::NeedsErase);
+                    }
+                    differs |= n != o;
+                    w[from - start + j] = n;
+                }
+                if pass == 1 && differs {
+                    let a = self.addr(s) + start as u32;
+                    self.write_raw(a, &b[..stop - start])?;
+                }
+                same &= !differs;
+                at = stop;
+            }
+            if same {
+                return Ok(Program::Same);
+            }
+        }
+        Ok(Program::Done)
+    }
+
+    /// Copies sector `k` of the file to a free sector with `piece` at `lo`, and names the
+    /// copy in `new` (the old sector is given up when `new` commits).
+    fn copy_on_write(
+        &mut self,
+        new: &mut Entry,
+        k: usize,
+        lo: usize,
+        piece: &[u8],
+        taken: &mut u64,
+        given: &mut u64,
+    ) -> Result<(), StoreError> {
+        let from = new.sectors[k];
+        let to = self.take(*taken | self.used)?;
+        *taken |= 1 << to;
+        self.counters.copies = self.counters.copies.wrapping_add(1);
+        let hi = lo + piece.len();
+        let mut b = [0u8; CHUNK];
+        for start in (0..SECTOR).step_by(CHUNK) {
+            self.read_at(from, start, &mut b)?;
+            let (a, z) = (lo.max(start), hi.min(start + CHUNK));
+            if a < z {
+                b[a - start..z - start].copy_from_slice(&piece[a - lo..z - lo]);
+            }
+            if b.iter().any(|&x| x != 0xFF) {
+                let addr = self.addr(to) + start as u32;
+                self.write_raw(addr, &b)?;
+            }
+        }
+        if *taken & (1 << from) != 0 {
+            // A sector this call took and now replaces: free again at once.
+            *taken &= !(1 << from);
+        } else {
+            *given |= 1 << from;
+        }
+        new.sectors[k] = to;
+        Ok(())
+    }
+
+    fn list(&self, f: &mut dyn FnMut(&FileName, u64)) {
+        // Name order without a buffer: each round the least name above the last.
+        let mut last: Option<&FileName> = None;
+        loop {
+            let next = self
+                .dir
+                .iter()
+                .flatten()
+                .filter(|e| last.is_none_or(|l| &e.name > l))
+                .min_by(|a, b| a.name.cmp(&b.name));
+            match next {
+                Some(e) => {
+                    f(&e.name, u64::from(e.len));
+                    last = Some(&e.name);
+                }
+                None => return,
+            }
+        }
+    }
+
+    fn free(&self) -> u64 {
+        (self.free_sectors().saturating_sub(RESERVE_SECTORS) * SECTOR) as u64
+    }
+}
+
+enum Program {
+    Done,
+    Same,
+    NeedsErase,
+}
+
+impl<F: MultiwriteNorFlash> FlatStore for FlashStore<F> {
+    fn len(&self, name: &FileName) -> Result<Option<u64>, StoreError> {
+        self.with(|i| Ok(i.len(name)))
+    }
+
+    fn create(&self, name: &FileName) -> Result<(), StoreError> {
+        self.with(|i| i.create(name))
+    }
+
+    fn read(&self, name: &FileName, offset: u64, buf: &mut [u8]) -> Result<(), StoreError> {
+        self.with(|i| i.read(name, offset, buf))
+    }
+
+    fn write(&self, name: &FileName, offset: u64, data: &[u8]) -> Result<(), StoreError> {
+        self.with(|i| i.write(name, offset, data))
+    }
+
+    fn remove(&self, name: &FileName) -> Result<(), StoreError> {
+        self.with(|i| i.remove(name))
+    }
+
+    fn rename(&self, from: &FileName, to: &FileName) -> Result<(), StoreError> {
+        self.with(|i| i.rename(from, to))
+    }
+
+    fn list(&self, f: &mut dyn FnMut(&FileName, u64)) -> Result<(), StoreError> {
+        self.with(|i| {
+            i.list(f);
+            Ok(())
+        })
+    }
+
+    fn free(&self) -> Result<u64, StoreError> {
+        self.with(|i| Ok(i.free()))
+    }
+}

@@ -1,0 +1,513 @@
+//! The flash file store (`mmic_cfdp::flash`) on a model of the board's NOR flash that can
+//! lose power at any write or erase: every FlatStore operation, persistence, limits, and
+//! the power-cut sweep.
+
+use std::cell::RefCell;
+use std::collections::BTreeMap;
+use std::rc::Rc;
+
+use embedded_storage::nor_flash::{
+    ErrorType, MultiwriteNorFlash, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
+};
+use mmic_cfdp::flash::{FlashStore, OpenError, DIR_SECTORS, RESERVE_SECTORS};
+use mmic_cfdp::store::{Checked, FlatStore, StoreError};
+use mmic_cfdp::FileName;
+
+const SECTOR: usize = 4096;
+
+/// What the flash holds and how many more writes and erases it makes before the power
+/// goes (shared with the test, which keeps it across the store's "resets").
+struct Chip {
+    mem: Vec<u8>,
+    /// Writes and erases left; at 0 the next one is cut half way and the power is gone.
+    left: Option<u64>,
+    dead: bool,
+    /// Writes and erases made.
+    ops: u64,
+    /// Addresses of the sectors erased.
+    erased: Vec<u32>,
+}
+
+#[derive(Clone)]
+struct Nor(Rc<RefCell<Chip>>);
+
+#[derive(Debug)]
+enum NorErr {
+    PowerLost,
+    Rules,
+}
+
+impl NorFlashError for NorErr {
+    fn kind(&self) -> NorFlashErrorKind {
+        NorFlashErrorKind::Other
+    }
+}
+
+impl Nor {
+    fn new(bytes: usize) -> Nor {
+        Nor(Rc::new(RefCell::new(Chip {
+            mem: vec![0xFF; bytes],
+            left: None,
+            dead: false,
+            ops: 0,
+            erased: Vec::new(),
+        })))
+    }
+
+    /// Power comes back (after a cut): no limit.
+    fn power_on(&self) {
+        let mut c = self.0.borrow_mut();
+        c.dead = false;
+        c.left = None;
+    }
+
+    fn cut_after(&self, n: u64) {
+        self.0.borrow_mut().left = Some(n);
+    }
+
+    fn dead(&self) -> bool {
+        self.0.borrow().dead
+    }
+
+    fn ops(&self) -> u64 {
+        self.0.borrow().ops
+    }
+
+    /// Counts a write or erase; `false` when the power goes during it.
+    fn spend(c: &mut Chip) -> Result<bool, NorErr> {
+        if c.dead {
+            return Err(NorErr::PowerLost);
+        }
+        c.ops += 1;
+        match &mut c.left {
+            Some(0) => {
+                c.dead = true;
+                Ok(false)
+            }
+            Some(n) => {
+                *n -= 1;
+                Ok(true)
+            }
+            None => Ok(true),
+        }
+    }
+}
+
+impl ErrorType for Nor {
+    type Error = NorErr;
+}
+
+impl ReadNorFlash for Nor {
+    const READ_SIZE: usize = 4;
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), NorErr> {
+        let c = self.0.borrow();
+        if c.dead {
+            return Err(NorErr::PowerLost);
+        }
+        let o = offset as usize;
+        if !o.is_multiple_of(4) || !bytes.len().is_multiple_of(4) || o + bytes.len() > c.mem.len() {
+            return Err(NorErr::Rules);
+        }
+        bytes.copy_from_slice(&c.mem[o..o + bytes.len()]);
+        Ok(())
+    }
+    fn capacity(&self) -> usize {
+        self.0.borrow().mem.len()
+    }
+}
+
+impl NorFlash for Nor {
+    const WRITE_SIZE: usize = 4;
+    const ERASE_SIZE: usize = SECTOR;
+    fn erase(&mut self, from: u32, to: u32) -> Result<(), NorErr> {
+        let c = &mut *self.0.borrow_mut();
+        let (f, t) = (from as usize, to as usize);
+        if f % SECTOR != 0 || t % SECTOR != 0 || t < f || t > c.mem.len() {
+            return Err(NorErr::Rules);
+        }
+        c.erased.push(from);
+        if Nor::spend(c)? {
+            c.mem[f..t].fill(0xFF);
+            Ok(())
+        } else {
+            // Cut: the first half erased, the rest as it was.
+            c.mem[f..f + (t - f) / 2].fill(0xFF);
+            Err(NorErr::PowerLost)
+        }
+    }
+    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), NorErr> {
+        let c = &mut *self.0.borrow_mut();
+        let o = offset as usize;
+        if !o.is_multiple_of(4) || !bytes.len().is_multiple_of(4) || o + bytes.len() > c.mem.len() {
+            return Err(NorErr::Rules);
+        }
+        // NOR clears bits only: a write that would set one is a bug of the layout.
+        if c.mem[o..o + bytes.len()].iter().zip(bytes).any(|(m, b)| b & !m != 0) {
+            return Err(NorErr::Rules);
+        }
+        let whole = Nor::spend(c)?;
+        // Cut: the first half of the words programmed.
+        let n = if whole { bytes.len() } else { bytes.len() / 8 * 4 };
+        for (m, b) in c.mem[o..o + n].iter_mut().zip(bytes) {
+            *m &= b;
+        }
+        if whole {
+            Ok(())
+        } else {
+            Err(NorErr::PowerLost)
+        }
+    }
+}
+
+impl MultiwriteNorFlash for Nor {}
+
+fn n(s: &str) -> FileName {
+    FileName::new(s).unwrap()
+}
+
+fn pattern(len: usize, seed: u8) -> Vec<u8> {
+    (0..len)
+        .map(|i| (i as u8).wrapping_mul(seed | 1).wrapping_add(seed) ^ (i >> 9) as u8)
+        .collect()
+}
+
+/// Every file's name and bytes.
+fn snapshot(s: &impl FlatStore) -> BTreeMap<String, Vec<u8>> {
+    let mut names = Vec::new();
+    s.list(&mut |n, l| names.push((n.clone(), l))).unwrap();
+    names
+        .into_iter()
+        .map(|(n, l)| {
+            let mut v = vec![0; l as usize];
+            s.read(&n, 0, &mut v).unwrap();
+            (n.as_str().to_string(), v)
+        })
+        .collect()
+}
+
+/// The board's layout: the 192 KiB partition at its address in a flash that ends there.
+const BASE: u32 = 0x3D_0000 - 0x3C_0000;
+const BOARD: u32 = mib::cfdp::BOARD_STORE_BYTES;
+
+fn board() -> (Nor, std::ops::Range<u32>) {
+    (Nor::new((BASE + BOARD) as usize), BASE..BASE + BOARD)
+}
+
+// verifies: FILE-STORE-04
+#[test]
+fn every_store_operation_works_and_the_files_survive_a_reopen() {
+    let (nor, region) = board();
+    let s = FlashStore::open(nor.clone(), region.clone()).unwrap();
+    let data_sectors = BOARD as usize / SECTOR - DIR_SECTORS;
+    assert_eq!(s.free().unwrap(), ((data_sectors - RESERVE_SECTORS) * SECTOR) as u64);
+    assert_eq!(s.len(&n("a.bin")).unwrap(), None);
+    assert_eq!(s.write(&n("a.bin"), 0, b"x"), Err(StoreError::NotFound));
+    s.create(&n("a.bin")).unwrap();
+    assert_eq!(s.len(&n("a.bin")).unwrap(), Some(0));
+    let a = pattern(10_000, 3);
+    s.write(&n("a.bin"), 0, &a).unwrap();
+    assert_eq!(s.len(&n("a.bin")).unwrap(), Some(10_000));
+    let mut buf = vec![0; 300];
+    s.read(&n("a.bin"), 4090, &mut buf).unwrap();
+    assert_eq!(buf, a[4090..4390], "a read across a sector boundary at an odd offset");
+    assert_eq!(
+        s.read(&n("a.bin"), 9_800, &mut buf),
+        Err(StoreError::NotFound),
+        "past the end"
+    );
+    // Bytes changed in the middle (copy on write) and appended at an odd offset.
+    s.write(&n("a.bin"), 4093, b"CHANGED").unwrap();
+    s.write(&n("a.bin"), 10_000, b"tail!").unwrap();
+    let mut want = a.clone();
+    want[4093..4100].copy_from_slice(b"CHANGED");
+    want.extend_from_slice(b"tail!");
+    s.create(&n("b.txt")).unwrap();
+    s.write(&n("b.txt"), 0, b"bravo").unwrap();
+    assert_eq!(s.rename(&n("b.txt"), &n("a.bin")), Err(StoreError::Exists));
+    assert_eq!(s.rename(&n("zz"), &n("y")), Err(StoreError::NotFound));
+    s.rename(&n("b.txt"), &n("0-first.txt")).unwrap();
+    s.create(&n("gone")).unwrap();
+    s.write(&n("gone"), 0, &pattern(5000, 1)).unwrap();
+    s.remove(&n("gone")).unwrap();
+    assert_eq!(s.remove(&n("gone")), Err(StoreError::NotFound));
+    let snap = snapshot(&s);
+    assert_eq!(snap.keys().collect::<Vec<_>>(), ["0-first.txt", "a.bin"], "name order");
+    assert_eq!(snap["a.bin"], want);
+    assert_eq!(snap["0-first.txt"], b"bravo");
+    // Sector granularity: a.bin holds 3 sectors, 0-first.txt one.
+    assert_eq!(
+        s.free().unwrap(),
+        ((data_sectors - RESERVE_SECTORS - 4) * SECTOR) as u64
+    );
+    let free = s.free().unwrap();
+    drop(s);
+    let s = FlashStore::open(nor.clone(), region.clone()).unwrap();
+    assert_eq!(snapshot(&s), snap, "the same files after a reopen");
+    assert_eq!(s.free().unwrap(), free);
+    // Truncation keeps the name, frees the sectors.
+    s.create(&n("a.bin")).unwrap();
+    assert_eq!(s.len(&n("a.bin")).unwrap(), Some(0));
+    assert_eq!(s.free().unwrap(), free + 3 * SECTOR as u64);
+    drop(s);
+    let s = FlashStore::open(nor, region).unwrap();
+    assert_eq!(s.len(&n("a.bin")).unwrap(), Some(0));
+    assert_eq!(s.counters().bad_entries, 0);
+}
+
+// verifies: FILE-STORE-05
+#[test]
+fn segments_written_out_of_order_and_again_give_the_file_and_cost_nothing_the_second_time() {
+    let (nor, region) = board();
+    let s = FlashStore::open(nor.clone(), region.clone()).unwrap();
+    let f = n("partial-0-1");
+    s.create(&f).unwrap();
+    let file = pattern(20_000, 7);
+    let seg = 946;
+    let order: Vec<usize> = (0..file.len().div_ceil(seg))
+        .rev()
+        .step_by(2)
+        .chain((0..file.len().div_ceil(seg)).step_by(2))
+        .collect();
+    for &k in &order {
+        let (a, z) = (k * seg, ((k + 1) * seg).min(file.len()));
+        s.write(&f, a as u64, &file[a..z]).unwrap();
+    }
+    // Every segment again, same bytes: no flash write, no copy.
+    let before = (nor.ops(), s.counters());
+    for k in 0..file.len().div_ceil(seg) {
+        let (a, z) = (k * seg, ((k + 1) * seg).min(file.len()));
+        s.write(&f, a as u64, &file[a..z]).unwrap();
+    }
+    assert_eq!(nor.ops(), before.0, "a repeated segment writes nothing");
+    assert_eq!(s.counters().copies, before.1.copies);
+    let mut got = vec![0; file.len()];
+    s.read(&f, 0, &mut got).unwrap();
+    assert!(got == file);
+    drop(s);
+    let s = FlashStore::open(nor, region).unwrap();
+    let mut got = vec![0; file.len()];
+    s.read(&f, 0, &mut got).unwrap();
+    assert!(got == file, "after a reopen");
+}
+
+// verifies: FILE-STORE-06
+#[test]
+fn free_space_is_what_a_file_can_still_take_and_the_full_store_refuses_more() {
+    let (nor, region) = board();
+    let s = Checked::new(FlashStore::open(nor, region).unwrap());
+    s.create(&n("small")).unwrap();
+    s.write(&n("small"), 0, b"123").unwrap();
+    let free = s.free().unwrap();
+    s.create(&n("big")).unwrap();
+    let big = pattern(free as usize, 9);
+    s.write(&n("big"), 0, &big).unwrap();
+    assert_eq!(s.free().unwrap(), 0);
+    assert_eq!(s.write(&n("big"), free, b"x"), Err(StoreError::Full));
+    s.create(&n("more")).unwrap();
+    assert_eq!(s.write(&n("more"), 0, b"x"), Err(StoreError::Full));
+    // A full store still takes changed bytes (the reserve) and keeps its files whole.
+    s.write(&n("big"), 5000, b"changed in a full store").unwrap();
+    let mut got = vec![0; 23];
+    s.read(&n("big"), 5000, &mut got).unwrap();
+    assert_eq!(got, b"changed in a full store");
+    s.remove(&n("big")).unwrap();
+    assert_eq!(s.free().unwrap(), free, "removing gives the space back");
+    assert!(s.counters().full >= 2);
+}
+
+// verifies: FILE-STORE-06
+#[test]
+fn sixty_four_files_are_held_and_a_sixty_fifth_is_refused() {
+    let (nor, region) = board();
+    let s = Checked::new(FlashStore::open(nor.clone(), region.clone()).unwrap());
+    for k in 0..64 {
+        s.create(&n(&format!("f{k:02}"))).unwrap();
+    }
+    assert_eq!(s.create(&n("f64")), Err(StoreError::Full));
+    assert_eq!(s.count_files().unwrap(), 64);
+    drop(s);
+    let s = FlashStore::open(nor, region).unwrap();
+    assert_eq!(snapshot(&s).len(), 64);
+}
+
+// verifies: FILE-STORE-04
+#[test]
+fn a_region_that_does_not_fit_the_layout_is_refused() {
+    let nor = Nor::new(0x40000);
+    assert!(matches!(
+        FlashStore::open(nor.clone(), 0x1000..0x5000),
+        Err(OpenError::Layout)
+    ));
+    assert!(matches!(
+        FlashStore::open(nor.clone(), 0x1001..0x20000),
+        Err(OpenError::Layout)
+    ));
+    assert!(matches!(
+        FlashStore::open(nor.clone(), 0x1000..0x50000),
+        Err(OpenError::Layout)
+    ));
+    assert!(FlashStore::open(nor, 0x1000..0x1000 + 12 * SECTOR as u32).is_ok());
+}
+
+/// One step of the power-cut sequence.
+#[derive(Clone)]
+enum Op {
+    Create(&'static str),
+    Write(&'static str, usize, Vec<u8>),
+    Rename(&'static str, &'static str),
+    Remove(&'static str),
+}
+
+impl std::fmt::Debug for Op {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Op::Create(a) => write!(f, "create {a}"),
+            Op::Write(a, at, d) => write!(f, "write {a} {at}+{}", d.len()),
+            Op::Rename(a, b) => write!(f, "rename {a} {b}"),
+            Op::Remove(a) => write!(f, "remove {a}"),
+        }
+    }
+}
+
+fn apply(s: &impl FlatStore, op: &Op) -> Result<(), StoreError> {
+    match op {
+        Op::Create(a) => s.create(&n(a)),
+        Op::Write(a, at, d) => s.write(&n(a), *at as u64, d),
+        Op::Rename(a, b) => s.rename(&n(a), &n(b)),
+        Op::Remove(a) => s.remove(&n(a)),
+    }
+}
+
+fn sequence() -> Vec<Op> {
+    let seg = |k: usize, seed: u8| {
+        pattern(946, seed)
+            .into_iter()
+            .map(move |b| b ^ k as u8)
+            .collect::<Vec<_>>()
+    };
+    let mut ops = vec![
+        Op::Create("partial-0-1"),
+        Op::Write("partial-0-1", 0, seg(0, 1)),
+        Op::Write("partial-0-1", 2 * 946, seg(2, 1)),
+        Op::Write("partial-0-1", 4 * 946, seg(4, 1)),
+        Op::Write("partial-0-1", 946, seg(1, 1)),
+        Op::Write("partial-0-1", 946, seg(1, 1)),
+        Op::Write("partial-0-1", 3 * 946, seg(3, 1)),
+        Op::Write("partial-0-1", 0, seg(0, 2)),
+        Op::Create("plan.toml"),
+        Op::Write("plan.toml", 0, pattern(5_000, 5)),
+        Op::Rename("partial-0-1", "up.bin"),
+        Op::Create("plan.toml"),
+        Op::Write("plan.toml", 0, b"short plan".to_vec()),
+        Op::Create("log.txt"),
+        Op::Write("log.txt", 0, pattern(8_200, 6)),
+        Op::Write("log.txt", 4_000, pattern(300, 8)),
+        Op::Remove("up.bin"),
+    ];
+    // Enough directory stores (long names: large entries) to make the map go round its
+    // pages, migrating and erasing them.
+    const LONG: &str = "a-plan-with-a-name-as-long-as-names-get-48-bytes";
+    for _ in 0..360 {
+        ops.push(Op::Rename("plan.toml", LONG));
+        ops.push(Op::Rename(LONG, "plan.toml"));
+    }
+    ops.extend([
+        Op::Create("a"),
+        Op::Write("a", 0, pattern(4_096 * 3, 2)),
+        Op::Create("b"),
+        Op::Write("b", 0, pattern(4_096 * 2, 3)),
+        Op::Write("b", 4_000, pattern(200, 4)),
+        Op::Remove("log.txt"),
+        Op::Write("a", 100, pattern(4_096, 9)),
+    ]);
+    ops
+}
+
+/// A small region (4 directory sectors, 8 data sectors): the sequence fills it and
+/// reuses its sectors.
+const SMALL: std::ops::Range<u32> = 0x2000..0x2000 + 12 * SECTOR as u32;
+
+// verifies: FILE-STORE-07
+#[test]
+fn a_power_cut_at_any_write_or_erase_leaves_every_file_as_it_was_or_as_the_operation_made_it() {
+    let ops = sequence();
+    // The run without a cut: the results and the files after each operation.
+    let nor = Nor::new(SMALL.end as usize);
+    let s = FlashStore::open(nor.clone(), SMALL).unwrap();
+    let mut states = vec![snapshot(&s)];
+    let mut results = Vec::new();
+    let mut ends = Vec::new();
+    for op in &ops {
+        results.push(apply(&s, op));
+        states.push(snapshot(&s));
+        ends.push(nor.ops());
+    }
+    assert!(
+        results.contains(&Err(StoreError::Full)),
+        "the sequence fills the region: {results:?}"
+    );
+    let total = nor.ops();
+    assert!(total > 150, "{total} writes and erases");
+    let dir_end = SMALL.start + (DIR_SECTORS * SECTOR) as u32;
+    let erased = nor.0.borrow().erased.clone();
+    assert!(
+        erased.iter().filter(|&&a| a < dir_end).count() >= DIR_SECTORS,
+        "the directory went round its pages: {erased:x?}"
+    );
+    assert!(
+        erased.iter().any(|&a| a >= dir_end),
+        "data sectors were reused: {erased:x?}"
+    );
+    eprintln!("power cut at each of {total} writes and erases");
+    drop(s);
+    for cut in 0..total {
+        let nor = Nor::new(SMALL.end as usize);
+        nor.cut_after(cut);
+        let s = FlashStore::open(nor.clone(), SMALL).unwrap();
+        let mut at = ops.len();
+        for (i, op) in ops.iter().enumerate() {
+            let r = apply(&s, op);
+            if nor.dead() {
+                at = i;
+                break;
+            }
+            assert_eq!(r, results[i], "cut {cut}: op {i} {op:?} before the cut");
+        }
+        assert!(at < ops.len(), "cut {cut} fell in no operation");
+        drop(s);
+        nor.power_on();
+        let s = FlashStore::open(nor.clone(), SMALL).unwrap_or_else(|e| panic!("cut {cut}: reopen {e:?}"));
+        let (before, after) = (&states[at], &states[at + 1]);
+        let now = snapshot(&s);
+        let names: std::collections::BTreeSet<_> = before.keys().chain(after.keys()).chain(now.keys()).collect();
+        for name in names {
+            let got = now.get(name);
+            assert!(
+                got == before.get(name) || got == after.get(name),
+                "cut {cut} in op {at} {:?}: {name} is neither as before nor as after (len {:?})",
+                ops[at],
+                got.map(Vec::len)
+            );
+        }
+        assert_eq!(s.counters().bad_entries, 0, "cut {cut}");
+        // The store goes on: the rest of the sequence (the cut operation again if it did not
+        // happen) ends with the same files as the run without a cut.
+        let from = if now == states[at + 1] { at + 1 } else { at };
+        for op in &ops[from..] {
+            let _ = apply(&s, op);
+        }
+        assert_eq!(
+            snapshot(&s),
+            states[ops.len()],
+            "cut {cut} in op {at}: the files at the end"
+        );
+    }
+}
+
+// verifies: FILE-STORE-04
+#[test]
+fn the_store_takes_a_fixed_amount_of_ram() {
+    let bytes = std::mem::size_of::<FlashStore<Nor>>() - std::mem::size_of::<Nor>();
+    eprintln!("FlashStore RAM: {bytes} bytes besides the flash handle");
+    assert!(bytes < 10 * 1024, "{bytes}");
+}
