@@ -15,12 +15,14 @@
 //! free ones (copy on write) and stores the entry naming the copies. A cut before the
 //! entry's store leaves the file as it was; after it, as the operation made it. The
 //! sectors an entry no longer names are free again (erased before reuse); at open, a
-//! sector no entry names is free, whatever it holds.
+//! sector no entry names is free, whatever it holds. One exception, a file being received
+//! under its staging name (`mib::cfdp::PARTIAL_PREFIX`): its gaps are filled in place, so
+//! a cut may leave part of a segment in it (see `Inner::write` for why that is safe).
 //!
 //! Bounded work: one call touches at most the sectors its bytes fall in, the free sectors
 //! it takes (erased on the way when not known to be blank) and one directory store, which
 //! `sequential-storage` may precede with the migration of its oldest directory page
-//! ([`FlashStore::write`] has the worst case).
+//! (`docs/files.md` has the worst case).
 //!
 //! `sequential-storage` is async; the flashes here are blocking, so every future is ready
 //! when first polled and `embassy_futures::block_on` drives it.
@@ -495,6 +497,13 @@ impl<F: MultiwriteNorFlash> Inner<F> {
 
     /// Writes `data` at `offset` of file `name`: new bytes past the file's length go in
     /// place, changed bytes below it to copies of their sectors; then the entry commits.
+    ///
+    /// A file being received (`mib::cfdp::PARTIAL_PREFIX`) takes its segments in place
+    /// wherever NOR allows it, gaps below its length included: a cut may leave such a
+    /// file with some of a segment's bytes, which is safe because the entity removes
+    /// staging files at start (`Entity::discard_partial`) and renames one to its name
+    /// only after the file's checksum, read back from flash, is verified. This keeps the
+    /// sector copies (and their erases) out of a lossy transfer's gap filling.
     fn write(&mut self, name: &FileName, offset: u64, data: &[u8]) -> Result<(), StoreError> {
         let i = self.find(name).ok_or(StoreError::NotFound)?;
         let old = self.dir[i].clone().ok_or(StoreError::NotFound)?;
@@ -549,6 +558,7 @@ impl<F: MultiwriteNorFlash> Inner<F> {
         given: &mut u64,
     ) -> Result<(), StoreError> {
         let end = offset + data.len();
+        let staging = new.name.as_str().starts_with(mib::cfdp::PARTIAL_PREFIX);
         while new.sectors.len() < end.div_ceil(SECTOR) {
             let s = self.take(*taken | self.used)?;
             *taken |= 1 << s;
@@ -562,8 +572,9 @@ impl<F: MultiwriteNorFlash> Inner<F> {
             let piece = &data[at - offset..at - offset + (hi - lo)];
             let s = new.sectors[k];
             let fresh = *taken & (1 << s) != 0;
-            // Below the committed length the bytes are the file's: never written in place.
-            let visible = k * SECTOR + lo < committed;
+            // Below the committed length the bytes are the file's: never written in place,
+            // but in a file being received (see `write`).
+            let visible = k * SECTOR + lo < committed && !staging;
             if fresh || !visible {
                 match self.program(s, lo, piece)? {
                     Program::Done | Program::Same => {}
