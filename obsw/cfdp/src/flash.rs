@@ -68,8 +68,11 @@ type DirCache =
     Cache<ArrayPageStates<DIR_SECTORS>, ArrayPagePointers<DIR_SECTORS>, ArrayKeyPointers<u8, MAX_FILES>, u8>;
 
 /// A blocking flash under `sequential-storage`'s async traits (each future is ready at
-/// once).
-pub struct Blocking<F>(pub F);
+/// once), counting the erases the directory map makes.
+struct Blocking<F> {
+    flash: F,
+    erases: u32,
+}
 
 impl<F: ErrorType> ErrorType for Blocking<F> {
     type Error = F::Error;
@@ -78,10 +81,10 @@ impl<F: ErrorType> ErrorType for Blocking<F> {
 impl<F: ReadNorFlash> embedded_storage_async::nor_flash::ReadNorFlash for Blocking<F> {
     const READ_SIZE: usize = F::READ_SIZE;
     async fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
-        self.0.read(offset, bytes)
+        self.flash.read(offset, bytes)
     }
     fn capacity(&self) -> usize {
-        self.0.capacity()
+        self.flash.capacity()
     }
 }
 
@@ -89,10 +92,11 @@ impl<F: NorFlash> embedded_storage_async::nor_flash::NorFlash for Blocking<F> {
     const WRITE_SIZE: usize = F::WRITE_SIZE;
     const ERASE_SIZE: usize = F::ERASE_SIZE;
     async fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
-        self.0.erase(from, to)
+        self.erases = self.erases.wrapping_add(1);
+        self.flash.erase(from, to)
     }
     async fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
-        self.0.write(offset, bytes)
+        self.flash.write(offset, bytes)
     }
 }
 
@@ -155,10 +159,12 @@ pub struct FlashCounters {
     /// Directory entries found unsound at open (bad name, sector out of range, a sector
     /// claimed twice): their files are left out, their sectors free.
     pub bad_entries: u32,
-    /// Flash operations the store made: reads, word writes (calls), sector erases.
+    /// Flash operations the store made on its data sectors: reads, writes (calls), sector
+    /// erases; and the directory map's page erases (its reads and writes are not counted).
     pub reads: u32,
     pub writes: u32,
     pub erases: u32,
+    pub dir_erases: u32,
     /// Sectors copied on write (a write that changed bytes a file had).
     pub copies: u32,
     /// Writes that changed nothing (a segment received again with the same bytes).
@@ -226,7 +232,7 @@ impl<F: MultiwriteNorFlash> FlashStore<F> {
             ArrayKeyPointers::new(),
         );
         let mut inner = Inner {
-            map: MapStorage::new(Blocking(flash), cfg, cache),
+            map: MapStorage::new(Blocking { flash, erases: 0 }, cfg, cache),
             buf: [0; ITEM_BUF],
             dir: core::array::from_fn(|_| None),
             data_base: dir_end,
@@ -248,12 +254,18 @@ impl<F: MultiwriteNorFlash> FlashStore<F> {
     }
 
     pub fn counters(&self) -> FlashCounters {
-        self.inner.try_borrow().map(|i| i.counters).unwrap_or_default()
+        self.inner.try_borrow_mut().map_or_else(
+            |_| FlashCounters::default(),
+            |mut i| FlashCounters {
+                dir_erases: i.map.flash().erases,
+                ..i.counters
+            },
+        )
     }
 
     /// The flash back (the store is closed).
     pub fn into_flash(self) -> F {
-        self.inner.into_inner().map.destroy().0 .0
+        self.inner.into_inner().map.destroy().0.flash
     }
 
     /// Bytes the region can hold in files at most: its data sectors less the reserve.
@@ -261,6 +273,27 @@ impl<F: MultiwriteNorFlash> FlashStore<F> {
         self.inner
             .try_borrow()
             .map_or(0, |i| ((i.data_sectors - RESERVE_SECTORS) * SECTOR) as u64)
+    }
+
+    /// Makes one free data sector ready (blank) ahead of need: reads it and erases it if
+    /// it is not blank. `Ok(false)` when every free sector is already known blank. At most
+    /// 4 KiB read and one erase per call: the board calls it in periods with time to
+    /// spare, so that writes take blank sectors and erase nothing.
+    pub fn erase_ahead(&self) -> Result<bool, StoreError> {
+        self.with(|i| {
+            let free = !i.used & !i.blank & (u64::MAX >> (64 - i.data_sectors));
+            if free == 0 {
+                return Ok(false);
+            }
+            let s = free.trailing_zeros() as u8;
+            if !i.is_blank(s)? {
+                let a = i.addr(s);
+                i.counters.erases = i.counters.erases.wrapping_add(1);
+                i.flash().erase(a, a + SECTOR as u32).map_err(|_| StoreError::Io)?;
+            }
+            i.blank |= 1 << s;
+            Ok(true)
+        })
     }
 
     fn with<T>(&self, f: impl FnOnce(&mut Inner<F>) -> Result<T, StoreError>) -> Result<T, StoreError> {
@@ -338,7 +371,7 @@ impl<F: MultiwriteNorFlash> Inner<F> {
     }
 
     fn flash(&mut self) -> &mut F {
-        &mut self.map.flash().0
+        &mut self.map.flash().flash
     }
 
     fn read_raw(&mut self, at: u32, out: &mut [u8]) -> Result<(), StoreError> {

@@ -542,3 +542,47 @@ fn the_store_takes_a_fixed_amount_of_ram() {
     eprintln!("FlashStore RAM: {bytes} bytes besides the flash handle");
     assert!(bytes < 10 * 1024, "{bytes}");
 }
+
+// verifies: FILE-STORE-08
+#[test]
+fn sectors_erased_ahead_keep_erases_out_of_the_writes() {
+    let (nor, region) = board();
+    let s = FlashStore::open(nor.clone(), region.clone()).unwrap();
+    let f = n("log.bin");
+    let data = pattern(120_000, 4);
+    let sectors = data.len().div_ceil(SECTOR) as u32;
+    for round in 0..2 {
+        // The second round's truncation gives back the sectors of the first one's file.
+        s.create(&f).unwrap();
+        let before = s.counters().erases;
+        let mut ready = 0;
+        while s.erase_ahead().unwrap() {
+            ready += 1;
+        }
+        let erased = s.counters().erases - before;
+        let all = BOARD as usize / SECTOR - DIR_SECTORS;
+        // Round 0 finds every sector blank; round 1 the ones the file gave back.
+        assert_eq!(ready, if round == 0 { all } else { sectors as usize }, "round {round}");
+        assert_eq!(
+            erased,
+            if round == 0 { 0 } else { sectors },
+            "round {round}: only used ones erased"
+        );
+        let before = s.counters().erases;
+        for (k, seg) in data.chunks(946).enumerate() {
+            s.write(&f, (k * 946) as u64, seg).unwrap();
+        }
+        assert_eq!(s.counters().erases, before, "round {round}: the writes erase nothing");
+        let mut got = vec![0; data.len()];
+        s.read(&f, 0, &mut got).unwrap();
+        assert!(got == data);
+    }
+    // Without erasing ahead, a write that takes a used sector erases it itself.
+    drop(s);
+    let s = FlashStore::open(nor, region).unwrap();
+    s.create(&f).unwrap();
+    for (k, seg) in data.chunks(946).enumerate() {
+        s.write(&f, (k * 946) as u64, seg).unwrap();
+    }
+    assert!(s.counters().erases > 0);
+}
