@@ -586,3 +586,51 @@ fn sectors_erased_ahead_keep_erases_out_of_the_writes() {
     }
     assert!(s.counters().erases > 0);
 }
+
+// A region that holds something else (another layout, noise): opening it never panics;
+// it is refused (`OpenError::Flash`) or opened with every unsound entry left out, and a
+// format gives an empty store.
+// verifies: FILE-STORE-04
+#[test]
+fn a_region_of_noise_is_refused_or_opened_clean_and_a_format_empties_it() {
+    let mut x = 0x9E37_79B9_7F4A_7C15u64;
+    let mut refused = 0;
+    for seed in 0..40u64 {
+        let chip = Nor::new(SMALL.end as usize);
+        {
+            let mut c = chip.0.borrow_mut();
+            x ^= seed;
+            for (k, b) in c.mem[SMALL.start as usize..].iter_mut().enumerate() {
+                x ^= x << 13;
+                x ^= x >> 7;
+                x ^= x << 17;
+                // Noise in some pages, erased or zeroed words in others (page markers).
+                *b = match (seed + (k / SECTOR) as u64) % 4 {
+                    0 => 0xFF,
+                    1 if k % SECTOR < 8 || k % SECTOR >= SECTOR - 8 => 0,
+                    _ => x as u8,
+                };
+            }
+        }
+        match FlashStore::open(chip.clone(), SMALL) {
+            Ok(s) => {
+                // Whatever it lists, it reads back without error and takes a new file.
+                let snap = snapshot(&s);
+                let _ = s.create(&n("new.txt"));
+                let _ = s.write(&n("new.txt"), 0, b"after noise");
+                drop(snap);
+            }
+            Err(e) => {
+                assert_eq!(e, OpenError::Flash, "seed {seed}");
+                refused += 1;
+            }
+        }
+        let mut f = chip.clone();
+        FlashStore::format(&mut f, SMALL).unwrap();
+        let s = FlashStore::open(chip, SMALL).unwrap();
+        assert!(snapshot(&s).is_empty(), "seed {seed}");
+        s.create(&n("a")).unwrap();
+        s.write(&n("a"), 0, b"x").unwrap();
+    }
+    eprintln!("{refused} of 40 regions of noise refused, the others opened");
+}
