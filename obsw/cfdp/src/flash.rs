@@ -5,14 +5,17 @@
 //! hold the directory, a `sequential-storage` map from a slot (0..`MAX_FILES`) to the
 //! file in it — its name, its length and the data sectors that hold its bytes, in order —
 //! or "free"; every other sector of the region is a data sector, owned by at most one
-//! file. The map writes each new value as a new item with CRCs and keeps the old one
-//! until it is superseded, so a directory entry is replaced whole or not at all.
+//! file or shared by small files: a file of at most [`BLOCK`] bytes takes one 1 KiB block
+//! of a shared sector, and moves to sectors of its own when it grows past it. The map
+//! writes each new value as a new item with CRCs and keeps the old one until it is
+//! superseded, so a directory entry is replaced whole or not at all.
 //!
 //! Power-fail safety: the directory entry is the commit. Every operation writes new
 //! bytes only where the directory as it stands does not look — past a file's length, or
 //! into a sector no entry names — and then stores the entry that makes them part of the
-//! file. A write that changes bytes a file already has copies the sectors it touches to
-//! free ones (copy on write) and stores the entry naming the copies. A cut before the
+//! file. A write that changes bytes a file already has copies the sectors (a small file:
+//! the block) it touches to free ones (copy on write) and stores the entry naming the
+//! copies; a block is written only while blank. A cut before the
 //! entry's store leaves the file as it was; after it, as the operation made it. The
 //! sectors an entry no longer names are free again (erased before reuse); at open, a
 //! sector no entry names is free, whatever it holds. One exception, a file being received
@@ -53,13 +56,24 @@ pub const RESERVE_SECTORS: usize = 2;
 const _: () = assert!(MAX_DATA_SECTORS <= 64, "the sector bitmaps are u64");
 
 /// A directory value: kind, name length, name, length (u32 LE), sector count, sectors.
-const ENTRY_MAX: usize = 1 + 1 + MAX_NAME_LEN + 4 + 1 + MAX_DATA_SECTORS;
+const ENTRY_MAX: usize = 1 + 1 + MAX_NAME_LEN + 4 + 1 + MAX_DATA_SECTORS + 1;
 /// Map item buffer: the key (one byte) and the largest value, in whole words.
 const ITEM_BUF: usize = (1 + ENTRY_MAX).next_multiple_of(4) + 4;
 /// Bytes of a full directory entry in flash (item header 8, then key and value in words).
 pub const ENTRY_ITEM: usize = 8 + (1 + ENTRY_MAX).next_multiple_of(4);
 const KIND_FREE: u8 = 0;
 const KIND_FILE: u8 = 1;
+const KIND_SMALL: u8 = 2;
+/// A small file (at most this many bytes) takes one block of a sector shared with other
+/// small files instead of a sector of its own: 64 files of up to 1 KiB take 16 sectors.
+pub const BLOCK: usize = 1024;
+const BLOCKS: usize = SECTOR / BLOCK;
+const _: () = assert!(BLOCKS == 4, "a sector's block states are 4 x 2 bits");
+/// The state of a block of a shared sector (2 bits each in `Inner::blocks`).
+const B_UNKNOWN: u8 = 0;
+const B_BLANK: u8 = 1;
+const B_DIRTY: u8 = 2;
+const B_USED: u8 = 3;
 
 /// Bytes copied through RAM at a time (sector copies, comparisons).
 const CHUNK: usize = 256;
@@ -108,14 +122,17 @@ struct Entry {
     name: FileName,
     len: u32,
     /// Data sector indices (0 = the region's first data sector), in file order; they
-    /// cover at least `len` bytes.
+    /// cover at least `len` bytes. A small file (`block`) has the one shared sector its
+    /// block is in.
     sectors: heapless::Vec<u8, MAX_DATA_SECTORS>,
+    /// A small file (at most [`BLOCK`] bytes): its block in `sectors[0]`.
+    block: Option<u8>,
 }
 
 impl Entry {
     fn encode(&self, out: &mut [u8; ENTRY_MAX]) -> usize {
         let n = self.name.as_str().as_bytes();
-        out[0] = KIND_FILE;
+        out[0] = if self.block.is_some() { KIND_SMALL } else { KIND_FILE };
         out[1] = n.len() as u8;
         out[2..2 + n.len()].copy_from_slice(n);
         let mut at = 2 + n.len();
@@ -124,16 +141,22 @@ impl Entry {
         out[at] = self.sectors.len() as u8;
         at += 1;
         out[at..at + self.sectors.len()].copy_from_slice(&self.sectors);
-        at + self.sectors.len()
+        at += self.sectors.len();
+        if let Some(b) = self.block {
+            out[at] = b;
+            at += 1;
+        }
+        at
     }
 
     /// A value read back from the directory; `None` when it is not a whole, sound entry.
     fn decode(v: &[u8], data_sectors: usize) -> Option<Option<Entry>> {
-        match *v.first()? {
+        let small = match *v.first()? {
             KIND_FREE if v.len() == 1 => return Some(None),
-            KIND_FILE => {}
+            KIND_FILE => false,
+            KIND_SMALL => true,
             _ => return None,
-        }
+        };
         let nl = usize::from(*v.get(1)?);
         let name = core::str::from_utf8(v.get(2..2 + nl)?).ok()?;
         let name = FileName::new(name).ok()?;
@@ -141,12 +164,23 @@ impl Entry {
         let len = u32::from_le_bytes(v.get(at..at + 4)?.try_into().ok()?);
         let ns = usize::from(*v.get(at + 4)?);
         let list = v.get(at + 5..at + 5 + ns)?;
-        if v.len() != at + 5 + ns || list.iter().any(|&s| usize::from(s) >= data_sectors) {
+        let block = if small { Some(*v.get(at + 5 + ns)?) } else { None };
+        if v.len() != at + 5 + ns + usize::from(small) || list.iter().any(|&s| usize::from(s) >= data_sectors) {
             return None;
         }
         let sectors = heapless::Vec::from_slice(list).ok()?;
-        let e = Entry { name, len, sectors };
-        (u64::from(e.len) <= ns as u64 * SECTOR as u64).then_some(Some(e))
+        let room = match block {
+            Some(b) if ns == 1 && usize::from(b) < BLOCKS => BLOCK,
+            Some(_) => return None,
+            None => ns * SECTOR,
+        };
+        let e = Entry {
+            name,
+            len,
+            sectors,
+            block,
+        };
+        (e.len as usize <= room).then_some(Some(e))
     }
 }
 
@@ -195,8 +229,11 @@ struct Inner<F: MultiwriteNorFlash> {
     /// Address of data sector 0, and how many there are.
     data_base: u32,
     data_sectors: usize,
-    /// Data sectors some entry names.
+    /// Data sectors some entry names (shared sectors included).
     used: u64,
+    /// Sectors shared by small files, and the state of each of their blocks.
+    shared: u64,
+    blocks: [u8; MAX_DATA_SECTORS],
     /// Free data sectors known to be erased (blank).
     blank: u64,
     /// Where the search for a free sector starts (round robin: wear spreads).
@@ -238,6 +275,8 @@ impl<F: MultiwriteNorFlash> FlashStore<F> {
             data_base: dir_end,
             data_sectors,
             used: 0,
+            shared: 0,
+            blocks: [0; MAX_DATA_SECTORS],
             blank: 0,
             cursor: 0,
             counters: FlashCounters::default(),
@@ -346,9 +385,22 @@ impl<F: MultiwriteNorFlash> Inner<F> {
                 mask |= 1 << s;
             }
             let dup_name = self.dir.iter().flatten().any(|o| o.name == e.name);
-            if mask.count_ones() as usize != e.sectors.len() || mask & self.used != 0 || dup_name {
+            let clash = match e.block {
+                // A shared sector: not a file's own, and the block not taken.
+                Some(b) => {
+                    mask & self.used & !self.shared != 0
+                        || (mask & self.shared != 0 && self.block(e.sectors[0], b) == B_USED)
+                }
+                None => mask & self.used != 0,
+            };
+            if mask.count_ones() as usize != e.sectors.len() || clash || dup_name {
                 self.counters.bad_entries += 1;
                 continue;
+            }
+            if let Some(b) = e.block {
+                let s = e.sectors[0];
+                self.shared |= mask;
+                self.set_block(s, b, B_USED);
             }
             self.used |= mask;
             self.dir[i] = Some(e);
@@ -360,6 +412,70 @@ impl<F: MultiwriteNorFlash> Inner<F> {
         self.dir
             .iter()
             .position(|e| e.as_ref().is_some_and(|e| &e.name == name))
+    }
+
+    fn block(&self, s: u8, b: u8) -> u8 {
+        (self.blocks[usize::from(s)] >> (2 * b)) & 3
+    }
+
+    fn set_block(&mut self, s: u8, b: u8, state: u8) {
+        let v = &mut self.blocks[usize::from(s)];
+        *v = (*v & !(3 << (2 * b))) | (state << (2 * b));
+    }
+
+    /// A blank block of a shared sector, or a blank sector to share (`taken`: the sectors
+    /// this call has taken). The block is marked dirty at once (it is about to be
+    /// written); a new shared sector joins the shared ones only when the call commits.
+    fn take_block(&mut self, taken: &mut u64, growth: bool) -> Result<(u8, u8), StoreError> {
+        for pass in [B_BLANK, B_UNKNOWN] {
+            for s in 0..self.data_sectors as u8 {
+                if self.shared & (1 << s) == 0 {
+                    continue;
+                }
+                for b in 0..BLOCKS as u8 {
+                    if self.block(s, b) != pass {
+                        continue;
+                    }
+                    if pass == B_UNKNOWN && !self.blank_at(self.addr(s) + (usize::from(b) * BLOCK) as u32, BLOCK)? {
+                        self.set_block(s, b, B_DIRTY);
+                        continue;
+                    }
+                    self.set_block(s, b, B_DIRTY);
+                    return Ok((s, b));
+                }
+            }
+        }
+        // A new shared sector for a new file comes out of what `free()` promised, not out
+        // of the reserve.
+        if growth && self.free_sectors() <= RESERVE_SECTORS + taken.count_ones() as usize {
+            return Err(StoreError::Full);
+        }
+        let s = self.take(*taken | self.used)?;
+        *taken |= 1 << s;
+        Ok((s, 0))
+    }
+
+    /// Gives up block `b` of shared sector `s`; the sector is free again when it holds
+    /// no other file.
+    fn release_block(&mut self, s: u8, b: u8) {
+        self.set_block(s, b, B_DIRTY);
+        if (0..BLOCKS as u8).all(|k| self.block(s, k) != B_USED) {
+            self.shared &= !(1 << s);
+            self.used &= !(1 << s);
+            self.blank &= !(1 << s);
+        }
+    }
+
+    /// Gives up what entry `e` held.
+    fn release(&mut self, e: &Entry) {
+        match e.block {
+            Some(b) => self.release_block(e.sectors[0], b),
+            None => {
+                for &s in &e.sectors {
+                    self.used &= !(1u64 << s);
+                }
+            }
+        }
     }
 
     fn free_sectors(&self) -> usize {
@@ -427,9 +543,12 @@ impl<F: MultiwriteNorFlash> Inner<F> {
     }
 
     fn is_blank(&mut self, s: u8) -> Result<bool, StoreError> {
-        let a = self.addr(s);
+        self.blank_at(self.addr(s), SECTOR)
+    }
+
+    fn blank_at(&mut self, a: u32, len: usize) -> Result<bool, StoreError> {
         let mut b = [0u8; CHUNK];
-        for k in (0..SECTOR).step_by(CHUNK) {
+        for k in (0..len).step_by(CHUNK) {
             self.read_raw(a + k as u32, &mut b)?;
             if b.iter().any(|&x| x != 0xFF) {
                 return Ok(false);
@@ -470,29 +589,24 @@ impl<F: MultiwriteNorFlash> Inner<F> {
             name: name.clone(),
             len: 0,
             sectors: heapless::Vec::new(),
+            block: None,
         };
         if let Err(err) = self.commit(i, Some(&e)) {
             self.dir[i] = old;
             return Err(err);
         }
         if let Some(old) = old {
-            self.release(&old.sectors);
+            self.release(&old);
         }
         self.dir[i] = Some(e);
         Ok(())
-    }
-
-    fn release(&mut self, sectors: &[u8]) {
-        for &s in sectors {
-            self.used &= !(1u64 << s);
-        }
     }
 
     fn remove(&mut self, name: &FileName) -> Result<(), StoreError> {
         let i = self.find(name).ok_or(StoreError::NotFound)?;
         self.commit(i, None)?;
         if let Some(old) = self.dir[i].take() {
-            self.release(&old.sectors);
+            self.release(&old);
         }
         Ok(())
     }
@@ -517,9 +631,10 @@ impl<F: MultiwriteNorFlash> Inner<F> {
             return Err(StoreError::NotFound);
         }
         let sectors = e.sectors.clone();
+        let base = e.block.map_or(0, |b| usize::from(b) * BLOCK);
         let mut done = 0usize;
         while done < buf.len() {
-            let at = offset as usize + done;
+            let at = base + offset as usize + done;
             let (k, o) = (at / SECTOR, at % SECTOR);
             let n = (SECTOR - o).min(buf.len() - done);
             self.read_at(sectors[k], o, &mut buf[done..done + n])?;
@@ -548,16 +663,33 @@ impl<F: MultiwriteNorFlash> Inner<F> {
             return Ok(());
         }
         let (offset, end) = (offset as usize, end as usize);
-        let need = end.div_ceil(SECTOR);
-        let grow = need.saturating_sub(old.sectors.len());
+        // A file that is empty or small stays (becomes) small while it fits a block.
+        let small = end <= BLOCK && (old.sectors.is_empty() || old.block.is_some());
+        let have = if old.block.is_some() { 0 } else { old.sectors.len() };
+        let grow = if small {
+            0
+        } else {
+            end.div_ceil(SECTOR).saturating_sub(have)
+        };
         if grow + RESERVE_SECTORS > self.free_sectors() {
             return Err(StoreError::Full);
         }
         let mut new = old.clone();
-        // Sectors taken by this call (new ones and copies), and sectors it gives up.
+        // Sectors taken by this call (new ones and copies), sectors it gives up, and the
+        // block it takes for a small file.
         let mut taken = 0u64;
         let mut given = 0u64;
-        let r = self.write_into(&mut new, &old, offset, data, &mut taken, &mut given);
+        let mut block = None;
+        let r = if small {
+            self.write_small(&mut new, &old, offset, data, &mut taken, &mut block)
+        } else {
+            new.sectors.clear();
+            new.sectors
+                .extend_from_slice(&old.sectors[..have])
+                .map_err(|_| StoreError::Io)?;
+            new.block = None;
+            self.write_into(&mut new, &old, offset, data, &mut taken, &mut given)
+        };
         let r = r.and_then(|()| {
             new.len = new.len.max(end as u32);
             if new == old {
@@ -570,15 +702,82 @@ impl<F: MultiwriteNorFlash> Inner<F> {
         match r {
             Ok(()) => {
                 self.used = (self.used | taken) & !given;
+                if let Some((s, b)) = block {
+                    if taken & (1 << s) != 0 {
+                        // A sector newly shared: its other blocks are blank.
+                        self.shared |= 1 << s;
+                        self.blocks[usize::from(s)] = 0b0101_0101;
+                    }
+                    self.set_block(s, b, B_USED);
+                }
+                if let Some(b) = old.block {
+                    if new.block != old.block || new.sectors.first() != old.sectors.first() {
+                        self.release_block(old.sectors[0], b);
+                    }
+                }
                 self.dir[i] = Some(new);
                 Ok(())
             }
             Err(e) => {
-                // What the call wrote is in sectors no entry names: free (not blank).
+                // What the call wrote is in sectors no entry names (free, not blank) or in
+                // a block marked dirty.
                 self.used &= !taken;
                 Err(e)
             }
         }
+    }
+
+    /// A write that leaves the file small (at most `BLOCK` bytes): into a new block for
+    /// an empty file, in place past the committed length (or anywhere in a file being
+    /// received), otherwise into a copy of the block.
+    fn write_small(
+        &mut self,
+        new: &mut Entry,
+        old: &Entry,
+        offset: usize,
+        data: &[u8],
+        taken: &mut u64,
+        block: &mut Option<(u8, u8)>,
+    ) -> Result<(), StoreError> {
+        let committed = old.len as usize;
+        let staging = new.name.as_str().starts_with(mib::cfdp::PARTIAL_PREFIX);
+        let done = match old.block {
+            None => false,
+            Some(b) => {
+                let (s, lo) = (old.sectors[0], usize::from(b) * BLOCK + offset);
+                if offset < committed && !staging {
+                    self.equal(s, lo, data)?
+                } else {
+                    !matches!(self.program(s, lo, data)?, Program::NeedsErase)
+                }
+            }
+        };
+        if done {
+            return Ok(());
+        }
+        let (s, b) = self.take_block(taken, old.block.is_none())?;
+        *block = Some((s, b));
+        let to = self.addr(s) + (usize::from(b) * BLOCK) as u32;
+        match old.block {
+            Some(ob) => {
+                let from = self.addr(old.sectors[0]) + (usize::from(ob) * BLOCK) as u32;
+                self.counters.copies = self.counters.copies.wrapping_add(1);
+                self.copy_unit(from, to, BLOCK, committed, offset, data)?;
+            }
+            // A blank block: the bytes go in as they are.
+            None => {
+                if matches!(
+                    self.program(s, usize::from(b) * BLOCK + offset, data)?,
+                    Program::NeedsErase
+                ) {
+                    return Err(StoreError::Io);
+                }
+            }
+        }
+        new.sectors.clear();
+        new.sectors.push(s).map_err(|_| StoreError::Io)?;
+        new.block = Some(b);
+        Ok(())
     }
 
     fn write_into(
@@ -598,6 +797,14 @@ impl<F: MultiwriteNorFlash> Inner<F> {
             new.sectors.push(s).map_err(|_| StoreError::Full)?;
         }
         let committed = old.len as usize;
+        if let Some(b) = old.block {
+            // A small file grown past its block: its bytes go first to its first sector.
+            let from = self.addr(old.sectors[0]) + (usize::from(b) * BLOCK) as u32;
+            let to = self.addr(new.sectors[0]);
+            let n = data.len().min(BLOCK.saturating_sub(offset));
+            self.counters.copies = self.counters.copies.wrapping_add(1);
+            self.copy_unit(from, to, BLOCK, committed, offset, &data[..n])?;
+        }
         let mut at = offset;
         while at < end {
             let k = at / SECTOR;
@@ -611,10 +818,10 @@ impl<F: MultiwriteNorFlash> Inner<F> {
             if fresh || !visible {
                 match self.program(s, lo, piece)? {
                     Program::Done | Program::Same => {}
-                    Program::NeedsErase => self.copy_on_write(new, k, lo, piece, taken, given)?,
+                    Program::NeedsErase => self.copy_on_write(new, committed, k, lo, piece, taken, given)?,
                 }
             } else if !self.equal(s, lo, piece)? {
-                self.copy_on_write(new, k, lo, piece, taken, given)?;
+                self.copy_on_write(new, committed, k, lo, piece, taken, given)?;
             }
             at = (k + 1) * SECTOR;
         }
@@ -674,9 +881,11 @@ impl<F: MultiwriteNorFlash> Inner<F> {
 
     /// Copies sector `k` of the file to a free sector with `piece` at `lo`, and names the
     /// copy in `new` (the old sector is given up when `new` commits).
+    #[allow(clippy::too_many_arguments)]
     fn copy_on_write(
         &mut self,
         new: &mut Entry,
+        committed: usize,
         k: usize,
         lo: usize,
         piece: &[u8],
@@ -687,19 +896,9 @@ impl<F: MultiwriteNorFlash> Inner<F> {
         let to = self.take(*taken | self.used)?;
         *taken |= 1 << to;
         self.counters.copies = self.counters.copies.wrapping_add(1);
-        let hi = lo + piece.len();
-        let mut b = [0u8; CHUNK];
-        for start in (0..SECTOR).step_by(CHUNK) {
-            self.read_at(from, start, &mut b)?;
-            let (a, z) = (lo.max(start), hi.min(start + CHUNK));
-            if a < z {
-                b[a - start..z - start].copy_from_slice(&piece[a - lo..z - lo]);
-            }
-            if b.iter().any(|&x| x != 0xFF) {
-                let addr = self.addr(to) + start as u32;
-                self.write_raw(addr, &b)?;
-            }
-        }
+        let valid = committed.saturating_sub(k * SECTOR);
+        let (a, z) = (self.addr(from), self.addr(to));
+        self.copy_unit(a, z, SECTOR, valid, lo, piece)?;
         if *taken & (1 << from) != 0 {
             // A sector this call took and now replaces: free again at once.
             *taken &= !(1 << from);
@@ -707,6 +906,37 @@ impl<F: MultiwriteNorFlash> Inner<F> {
             *given |= 1 << from;
         }
         new.sectors[k] = to;
+        Ok(())
+    }
+
+    /// Copies the `unit` bytes at `from` to the blank `to`, the first `valid` of them (the
+    /// rest as erased) with `piece` at `lo` over them.
+    fn copy_unit(
+        &mut self,
+        from: u32,
+        to: u32,
+        unit: usize,
+        valid: usize,
+        lo: usize,
+        piece: &[u8],
+    ) -> Result<(), StoreError> {
+        let hi = lo + piece.len();
+        let mut b = [0u8; CHUNK];
+        for start in (0..unit).step_by(CHUNK) {
+            self.read_raw(from + start as u32, &mut b)?;
+            for (j, x) in b.iter_mut().enumerate() {
+                if start + j >= valid {
+                    *x = 0xFF;
+                }
+            }
+            let (a, z) = (lo.max(start), hi.min(start + CHUNK));
+            if a < z {
+                b[a - start..z - start].copy_from_slice(&piece[a - lo..z - lo]);
+            }
+            if b.iter().any(|&x| x != 0xFF) {
+                self.write_raw(to + start as u32, &b)?;
+            }
+        }
         Ok(())
     }
 
