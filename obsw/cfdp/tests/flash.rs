@@ -26,6 +26,9 @@ struct Chip {
     ops: u64,
     /// Addresses of the sectors erased.
     erased: Vec<u32>,
+    /// Bytes read and written.
+    read: u64,
+    written: u64,
 }
 
 #[derive(Clone)]
@@ -51,6 +54,8 @@ impl Nor {
             dead: false,
             ops: 0,
             erased: Vec::new(),
+            read: 0,
+            written: 0,
         })))
     }
 
@@ -100,7 +105,8 @@ impl ErrorType for Nor {
 impl ReadNorFlash for Nor {
     const READ_SIZE: usize = 4;
     fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), NorErr> {
-        let c = self.0.borrow();
+        let mut c = self.0.borrow_mut();
+        c.read += bytes.len() as u64;
         if c.dead {
             return Err(NorErr::PowerLost);
         }
@@ -146,6 +152,7 @@ impl NorFlash for Nor {
             return Err(NorErr::Rules);
         }
         let whole = Nor::spend(c)?;
+        c.written += bytes.len() as u64;
         // Cut: the first half of the words programmed.
         let n = if whole { bytes.len() } else { bytes.len() / 8 * 4 };
         for (m, b) in c.mem[o..o + n].iter_mut().zip(bytes) {
@@ -719,4 +726,50 @@ fn a_region_of_noise_is_refused_or_opened_clean_and_a_format_empties_it() {
         s.write(&n("a"), 0, b"x").unwrap();
     }
     eprintln!("{refused} of 40 regions of noise refused, the others opened");
+}
+
+// The directory's share of one operation's work: however full the directory (63 files with
+// the longest names and one being received) and however long it runs, one operation makes at most two page erases
+// of the map (the docs' worst case), and a segment write at most two data-sector erases.
+// verifies: FILE-STORE-08
+#[test]
+fn one_operation_erases_at_most_two_directory_pages_and_two_data_sectors() {
+    let (nor, region) = board();
+    let s = FlashStore::open(nor.clone(), region).unwrap();
+    let name = |k: usize, v: usize| n(&format!("{k:02}-{v}-{}", "x".repeat(48 - 5 - v.to_string().len())));
+    let (mut max_dir, mut max_data, mut max_read, mut max_written) = (0, 0, 0, 0);
+    let mut step = |s: &FlashStore<Nor>, f: &mut dyn FnMut()| {
+        let c = s.counters();
+        let (r, w) = (nor.0.borrow().read, nor.0.borrow().written);
+        f();
+        let d = s.counters();
+        max_dir = max_dir.max(d.dir_erases - c.dir_erases);
+        max_data = max_data.max(d.erases - c.erases);
+        max_read = max_read.max(nor.0.borrow().read - r);
+        max_written = max_written.max(nor.0.borrow().written - w);
+    };
+    for k in 0..63 {
+        step(&s, &mut || s.create(&name(k, 0)).unwrap());
+        step(&s, &mut || s.write(&name(k, 0), 0, &pattern(900, k as u8)).unwrap());
+    }
+    for v in 1..40 {
+        for k in 0..63 {
+            step(&s, &mut || s.rename(&name(k, v - 1), &name(k, v)).unwrap());
+        }
+        // Segments into a file that comes and goes (the data sectors go round).
+        let f = n("partial-0-1");
+        step(&s, &mut || s.create(&f).unwrap());
+        for seg in 0..20 {
+            step(&s, &mut || s.write(&f, seg * 946, &pattern(946, v as u8)).unwrap());
+        }
+        step(&s, &mut || s.remove(&f).unwrap());
+    }
+    let c = s.counters();
+    assert!(c.dir_erases > 40, "the directory went round many times: {c:?}");
+    assert!(max_dir <= 2, "{max_dir} directory page erases in one operation");
+    assert!(max_data <= 2, "{max_data} data sector erases in one operation");
+    eprintln!(
+        "most in one operation: directory page erases {max_dir}, data sector erases {max_data}, \
+         bytes read {max_read}, bytes written {max_written}; {c:?}"
+    );
 }
