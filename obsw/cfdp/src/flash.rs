@@ -307,11 +307,9 @@ impl<F: MultiwriteNorFlash> FlashStore<F> {
         self.inner.into_inner().map.destroy().0.flash
     }
 
-    /// Bytes the region can hold in files at most: its data sectors less the reserve.
+    /// What `free()` says of the store when it is empty: the most one file can hold.
     pub fn capacity(&self) -> u64 {
-        self.inner
-            .try_borrow()
-            .map_or(0, |i| ((i.data_sectors - RESERVE_SECTORS) * SECTOR) as u64)
+        self.inner.try_borrow().map_or(0, |i| promise(i.data_sectors))
     }
 
     /// Makes one free data sector ready (blank) ahead of need: reads it and erases it if
@@ -961,8 +959,16 @@ impl<F: MultiwriteNorFlash> Inner<F> {
     }
 
     fn free(&self) -> u64 {
-        (self.free_sectors().saturating_sub(RESERVE_SECTORS) * SECTOR) as u64
+        promise(self.free_sectors())
     }
+}
+
+/// The bytes one file can still grow by with `free` free sectors, kept honest for every
+/// kind of growth: the reserve stays (so changed bytes always find sectors to be copied
+/// to), and a small file growing past its block needs sectors for the bytes its block
+/// held too — at most one block more than its growth.
+fn promise(free: usize) -> u64 {
+    ((free.saturating_sub(RESERVE_SECTORS) * SECTOR).saturating_sub(BLOCK)) as u64
 }
 
 enum Program {

@@ -9,7 +9,7 @@ use std::rc::Rc;
 use embedded_storage::nor_flash::{
     ErrorType, MultiwriteNorFlash, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
 };
-use mmic_cfdp::flash::{FlashStore, OpenError, DIR_SECTORS, RESERVE_SECTORS};
+use mmic_cfdp::flash::{FlashStore, OpenError, BLOCK, DIR_SECTORS, RESERVE_SECTORS};
 use mmic_cfdp::store::{Checked, FlatStore, StoreError};
 use mmic_cfdp::FileName;
 
@@ -206,7 +206,10 @@ fn every_store_operation_works_and_the_files_survive_a_reopen() {
     let (nor, region) = board();
     let s = FlashStore::open(nor.clone(), region.clone()).unwrap();
     let data_sectors = BOARD as usize / SECTOR - DIR_SECTORS;
-    assert_eq!(s.free().unwrap(), ((data_sectors - RESERVE_SECTORS) * SECTOR) as u64);
+    assert_eq!(
+        s.free().unwrap(),
+        ((data_sectors - RESERVE_SECTORS) * SECTOR - BLOCK) as u64
+    );
     assert_eq!(s.len(&n("a.bin")).unwrap(), None);
     assert_eq!(s.write(&n("a.bin"), 0, b"x"), Err(StoreError::NotFound));
     s.create(&n("a.bin")).unwrap();
@@ -244,7 +247,7 @@ fn every_store_operation_works_and_the_files_survive_a_reopen() {
     // Sector granularity: a.bin holds 3 sectors, 0-first.txt one.
     assert_eq!(
         s.free().unwrap(),
-        ((data_sectors - RESERVE_SECTORS - 4) * SECTOR) as u64
+        ((data_sectors - RESERVE_SECTORS - 4) * SECTOR - BLOCK) as u64
     );
     let free = s.free().unwrap();
     drop(s);
@@ -772,4 +775,125 @@ fn one_operation_erases_at_most_two_directory_pages_and_two_data_sectors() {
         "most in one operation: directory page erases {max_dir}, data sector erases {max_data}, \
          bytes read {max_read}, bytes written {max_written}; {c:?}"
     );
+}
+
+/// The store's files as a model knows them: bytes never written (gaps) are `None`, what
+/// the flash holds there is not promised.
+type Model = BTreeMap<String, Vec<Option<u8>>>;
+
+fn agrees(s: &FlashStore<Nor>, m: &Model, what: &str) {
+    let got = snapshot(s);
+    assert_eq!(
+        got.iter().map(|(k, v)| (k.clone(), v.len())).collect::<Vec<_>>(),
+        m.iter().map(|(k, v)| (k.clone(), v.len())).collect::<Vec<_>>(),
+        "{what}: names and lengths"
+    );
+    for (k, v) in m {
+        let g = &got[k];
+        assert!(
+            v.iter().zip(g).all(|(w, b)| w.is_none_or(|w| w == *b)),
+            "{what}: the bytes of {k}"
+        );
+    }
+}
+
+#[derive(Clone, Debug)]
+enum RandomOp {
+    Create(usize),
+    Write(usize, usize, usize, u8),
+    Remove(usize),
+    Rename(usize, usize),
+    Reopen,
+}
+
+const NAMES: [&str; 6] = ["a", "b.bin", "partial-0-1", "c.toml", "d", "partial-0-2"];
+
+fn random_op() -> impl proptest::strategy::Strategy<Value = RandomOp> {
+    use proptest::prelude::*;
+    prop_oneof![
+        2 => (0..NAMES.len()).prop_map(RandomOp::Create),
+        8 => (0..NAMES.len(), 0..14_000usize, 1..4_098usize, any::<u8>())
+            .prop_map(|(f, at, len, seed)| RandomOp::Write(f, at, len, seed)),
+        1 => (0..NAMES.len()).prop_map(RandomOp::Remove),
+        1 => (0..NAMES.len(), 0..NAMES.len()).prop_map(|(a, b)| RandomOp::Rename(a, b)),
+        1 => Just(RandomOp::Reopen),
+    ]
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+
+    // Random operations on a small region (full often) against a model: every result is
+    // the model's, a refused operation changes nothing, the files survive reopening, and
+    // `free()` is honest: a write of up to one sector whose growth fits it is never refused.
+    // verifies: FILE-STORE-06
+    // verifies: FILE-STORE-04
+    #[test]
+    fn random_operations_agree_with_a_model_and_free_space_is_never_overstated(
+        ops in proptest::collection::vec(random_op(), 1..80),
+    ) {
+        let nor = Nor::new(SMALL.end as usize);
+        let mut s = FlashStore::open(nor.clone(), SMALL).unwrap();
+        let mut m = Model::new();
+        for (i, op) in ops.iter().enumerate() {
+            let what = format!("op {i} {op:?}");
+            match op {
+                RandomOp::Create(f) => {
+                    let r = s.create(&n(NAMES[*f]));
+                    if m.len() < 64 || m.contains_key(NAMES[*f]) {
+                        assert_eq!(r, Ok(()), "{what}");
+                        m.insert(NAMES[*f].to_string(), Vec::new());
+                    }
+                }
+                RandomOp::Write(f, at, len, seed) => {
+                    let data = pattern(*len, *seed);
+                    let free = s.free().unwrap();
+                    let r = s.write(&n(NAMES[*f]), *at as u64, &data);
+                    match m.get_mut(NAMES[*f]) {
+                        None => assert_eq!(r, Err(StoreError::NotFound), "{what}"),
+                        Some(v) => {
+                            let grow = (at + len).saturating_sub(v.len()) as u64;
+                            if grow <= free {
+                                assert_eq!(r, Ok(()), "{what}: {grow} bytes more with {free} free");
+                            }
+                            if r.is_ok() {
+                                if v.len() < at + len {
+                                    v.resize(at + len, None);
+                                }
+                                for (k, b) in data.iter().enumerate() {
+                                    v[at + k] = Some(*b);
+                                }
+                            } else {
+                                assert_eq!(r, Err(StoreError::Full), "{what}");
+                            }
+                        }
+                    }
+                }
+                RandomOp::Remove(f) => {
+                    let r = s.remove(&n(NAMES[*f]));
+                    let want = m.remove(NAMES[*f]).map(|_| ()).ok_or(StoreError::NotFound);
+                    assert_eq!(r, want, "{what}");
+                }
+                RandomOp::Rename(a, b) => {
+                    let r = s.rename(&n(NAMES[*a]), &n(NAMES[*b]));
+                    let want = if !m.contains_key(NAMES[*a]) {
+                        Err(StoreError::NotFound)
+                    } else if m.contains_key(NAMES[*b]) {
+                        Err(StoreError::Exists)
+                    } else {
+                        let v = m.remove(NAMES[*a]).unwrap();
+                        m.insert(NAMES[*b].to_string(), v);
+                        Ok(())
+                    };
+                    assert_eq!(r, want, "{what}");
+                }
+                RandomOp::Reopen => {
+                    drop(s);
+                    s = FlashStore::open(nor.clone(), SMALL).unwrap();
+                    assert_eq!(s.counters().bad_entries, 0);
+                }
+            }
+            agrees(&s, &m, &what);
+        }
+    }
 }
