@@ -897,3 +897,56 @@ proptest::proptest! {
         }
     }
 }
+
+fn to_op(r: &RandomOp) -> Option<Op> {
+    Some(match *r {
+        RandomOp::Create(f) => Op::Create(NAMES[f]),
+        RandomOp::Write(f, at, len, seed) => Op::Write(NAMES[f], at, pattern(len, seed)),
+        RandomOp::Remove(f) => Op::Remove(NAMES[f]),
+        RandomOp::Rename(a, b) => Op::Rename(NAMES[a], NAMES[b]),
+        RandomOp::Reopen => return None,
+    })
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+
+    // Random operations with the power cut at a random write or erase: at the next open
+    // every file is as before the operation under way or as after it.
+    // verifies: FILE-STORE-07
+    #[test]
+    fn a_power_cut_in_random_operations_leaves_every_file_as_before_or_after(
+        ops in proptest::collection::vec(random_op(), 1..60),
+        at_op in proptest::prelude::any::<proptest::sample::Index>(),
+    ) {
+        let ops: Vec<Op> = ops.iter().filter_map(to_op).collect();
+        proptest::prop_assume!(!ops.is_empty());
+        let nor = Nor::new(SMALL.end as usize);
+        let s = FlashStore::open(nor.clone(), SMALL).unwrap();
+        let mut states = vec![snapshot(&s)];
+        for op in &ops {
+            let _ = apply(&s, op);
+            states.push(snapshot(&s));
+        }
+        proptest::prop_assume!(nor.ops() > 0);
+        let cut = at_op.index(nor.ops() as usize) as u64;
+        let nor = Nor::new(SMALL.end as usize);
+        nor.cut_after(cut);
+        let s = FlashStore::open(nor.clone(), SMALL).unwrap();
+        let mut at = None;
+        for (i, op) in ops.iter().enumerate() {
+            let _ = apply(&s, op);
+            if nor.dead() {
+                at = Some(i);
+                break;
+            }
+        }
+        let at = at.expect("the cut falls in an operation");
+        drop(s);
+        nor.power_on();
+        let what = format!("cut {cut} in op {at} {:?}", ops[at]);
+        let s = FlashStore::open(nor, SMALL).unwrap_or_else(|e| panic!("{what}: {e:?}"));
+        as_before_or_after(&snapshot(&s), &states[at], &states[at + 1], &ops[at], &what);
+        assert_eq!(s.counters().bad_entries, 0, "{what}");
+    }
+}
