@@ -344,6 +344,7 @@ impl<F: MultiwriteNorFlash> Inner<F> {
     fn load(&mut self) -> Result<(), OpenError> {
         let mut raw: [Option<Option<Entry>>; MAX_FILES] = core::array::from_fn(|_| None);
         let mut bad = [false; MAX_FILES];
+        self.repair_torn_erase()?;
         // A cut erase or migration of a directory page is repaired by the map's first
         // operation; `fetch_all_items` cannot repair what it finds (its page search returns
         // the corruption before its repair runs), so a lookup goes first.
@@ -402,6 +403,37 @@ impl<F: MultiwriteNorFlash> Inner<F> {
             }
             self.used |= mask;
             self.dir[i] = Some(e);
+        }
+        Ok(())
+    }
+
+    /// The one cut `sequential-storage`'s repair does not recognise: the erase that ends a
+    /// directory page's migration cut where the page's first word still reads programmed
+    /// and its last word erased. The page then looks "partly open" next to the page its
+    /// items went to (which is), and the map refuses every store from then on. Two
+    /// adjacent partly open pages happen no other way (a page is closed before the next
+    /// is opened), and the second one's items are all in the first: it is erased again.
+    fn repair_torn_erase(&mut self) -> Result<(), OpenError> {
+        let start = self.data_base - (DIR_SECTORS * SECTOR) as u32;
+        let mut partly_open = [false; DIR_SECTORS];
+        for (p, open) in partly_open.iter_mut().enumerate() {
+            let a = start + (p * SECTOR) as u32;
+            let (mut first, mut last) = ([0u8; 4], [0u8; 4]);
+            let f = self.flash();
+            f.read(a, &mut first).map_err(|_| OpenError::Flash)?;
+            f.read(a + SECTOR as u32 - 4, &mut last).map_err(|_| OpenError::Flash)?;
+            // The map's rule: a marker is written when at least half a byte's bits are 0.
+            let marked = |w: [u8; 4]| w.iter().map(|b| b.count_zeros()).sum::<u32>() >= 4;
+            *open = marked(first) && !marked(last);
+        }
+        for p in 0..DIR_SECTORS {
+            let q = (p + 1) % DIR_SECTORS;
+            if partly_open[p] && partly_open[q] {
+                let a = start + (q * SECTOR) as u32;
+                self.map.flash().erases += 1;
+                self.flash().erase(a, a + SECTOR as u32).map_err(|_| OpenError::Flash)?;
+                return Ok(());
+            }
         }
         Ok(())
     }
