@@ -407,12 +407,19 @@ impl<F: MultiwriteNorFlash> Inner<F> {
         Ok(())
     }
 
-    /// The one cut `sequential-storage`'s repair does not recognise: the erase that ends a
-    /// directory page's migration cut where the page's first word still reads programmed
-    /// and its last word erased. The page then looks "partly open" next to the page its
-    /// items went to (which is), and the map refuses every store from then on. Two
-    /// adjacent partly open pages happen no other way (a page is closed before the next
-    /// is opened), and the second one's items are all in the first: it is erased again.
+    /// The cut erases of a directory page that `sequential-storage`'s repair does not
+    /// recognise (it knows the one whose first word reads erased and last word
+    /// programmed):
+    /// - first word programmed, last erased: the page looks "partly open" next to the
+    ///   page its items went to (which is), and the map refuses every store from then on.
+    ///   Two adjacent partly open pages happen no other way (a page is closed before the
+    ///   next is opened), and the second one's items are all in the first (its erase is a
+    ///   migration's last step): it is erased again;
+    /// - both words erased, bytes between them not: the page looks open, and the map
+    ///   would write items over what is left (on the part, a write only clears bits: a
+    ///   corrupt item, an entry lost after it was reported stored). An open page is all
+    ///   erased in the map's own rules (items go to partly open pages only): one that is
+    ///   not is erased again.
     fn repair_torn_erase(&mut self) -> Result<(), OpenError> {
         let start = self.data_base - (DIR_SECTORS * SECTOR) as u32;
         let mut partly_open = [false; DIR_SECTORS];
@@ -425,6 +432,10 @@ impl<F: MultiwriteNorFlash> Inner<F> {
             // The map's rule: a marker is written when at least half a byte's bits are 0.
             let marked = |w: [u8; 4]| w.iter().map(|b| b.count_zeros()).sum::<u32>() >= 4;
             *open = marked(first) && !marked(last);
+            if !marked(first) && !marked(last) && !self.blank_at(a, SECTOR).map_err(|_| OpenError::Flash)? {
+                self.map.flash().erases += 1;
+                self.flash().erase(a, a + SECTOR as u32).map_err(|_| OpenError::Flash)?;
+            }
         }
         for p in 0..DIR_SECTORS {
             let q = (p + 1) % DIR_SECTORS;
