@@ -182,13 +182,15 @@ pub const TM_STORE: FlashRegion = region(
     FlashUse::Own(0x01),
     "PUS 15 packet store (TM kept across link outages and resets)",
 );
-/// File store for CFDP transfers (plans, configuration, logs).
+/// File store for CFDP transfers (plans, configuration, logs): `mmic_cfdp::flash`, not
+/// littlefs (the partition keeps ESP-IDF's littlefs subtype as its label only).
 pub const FILE_STORE: FlashRegion = region(
     "files",
     0x3D_0000,
     0x3_0000,
     FlashUse::LittleFs,
-    "file store for CFDP transfers (plans, configuration, logs): littlefs",
+    "file store for CFDP transfers (plans, configuration, logs): mmic_cfdp::flash, a \
+     sequential-storage directory and 44 data sectors",
 );
 
 /// The whole flash, in address order, without gaps.
