@@ -1056,3 +1056,140 @@ impl<F: MultiwriteNorFlash> FlatStore for FlashStore<F> {
         self.with(|i| Ok(i.free()))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use embedded_storage::nor_flash::{NorFlashError, NorFlashErrorKind};
+    use proptest::prelude::*;
+
+    /// A RAM NOR flash: reads and writes of words, writes only clear bits.
+    struct Ram(std::vec::Vec<u8>);
+
+    #[derive(Debug)]
+    struct Refused;
+
+    impl NorFlashError for Refused {
+        fn kind(&self) -> NorFlashErrorKind {
+            NorFlashErrorKind::Other
+        }
+    }
+
+    impl ErrorType for Ram {
+        type Error = Refused;
+    }
+
+    impl ReadNorFlash for Ram {
+        const READ_SIZE: usize = 4;
+        fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Refused> {
+            let o = offset as usize;
+            bytes.copy_from_slice(self.0.get(o..o + bytes.len()).ok_or(Refused)?);
+            Ok(())
+        }
+        fn capacity(&self) -> usize {
+            self.0.len()
+        }
+    }
+
+    impl NorFlash for Ram {
+        const WRITE_SIZE: usize = 4;
+        const ERASE_SIZE: usize = SECTOR;
+        fn erase(&mut self, from: u32, to: u32) -> Result<(), Refused> {
+            self.0.get_mut(from as usize..to as usize).ok_or(Refused)?.fill(0xFF);
+            Ok(())
+        }
+        fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Refused> {
+            let o = offset as usize;
+            let m = self.0.get_mut(o..o + bytes.len()).ok_or(Refused)?;
+            if m.iter().zip(bytes).any(|(m, b)| b & !m != 0) {
+                return Err(Refused);
+            }
+            m.copy_from_slice(bytes);
+            Ok(())
+        }
+    }
+
+    impl MultiwriteNorFlash for Ram {}
+
+    const REGION: core::ops::Range<u32> = 0..16 * SECTOR as u32;
+
+    fn entry(name: &str, len: u32, sectors: &[u8], block: Option<u8>) -> Entry {
+        Entry {
+            name: FileName::new(name).unwrap(),
+            len,
+            sectors: heapless::Vec::from_slice(sectors).unwrap(),
+            block,
+        }
+    }
+
+    // verifies: FILE-STORE-04
+    #[test]
+    fn entries_decode_as_encoded_and_unsound_ones_are_refused() {
+        let data_sectors = 12;
+        for e in [
+            entry("a", 0, &[], None),
+            entry("b.bin", 9000, &[3, 0, 11], None),
+            entry(&"n".repeat(MAX_NAME_LEN), 1024, &[5], Some(3)),
+        ] {
+            let mut v = [0u8; ENTRY_MAX];
+            let k = e.encode(&mut v);
+            assert_eq!(Entry::decode(&v[..k], data_sectors), Some(Some(e.clone())));
+            assert_eq!(Entry::decode(&v[..k - 1], data_sectors), None, "cut short");
+            let mut longer = v[..k].to_vec();
+            longer.push(0);
+            assert_eq!(Entry::decode(&longer, data_sectors), None, "a byte too many");
+        }
+        assert_eq!(Entry::decode(&[KIND_FREE], data_sectors), Some(None));
+        for bad in [
+            entry("a", 9000, &[3, 0], None),  // longer than its sectors
+            entry("a", 10, &[12], None),      // a sector past the region
+            entry("a", 1025, &[1], Some(0)),  // longer than a block
+            entry("a", 10, &[1], Some(4)),    // no such block
+            entry("a", 10, &[1, 2], Some(0)), // a small file in two sectors
+        ] {
+            let mut v = [0u8; ENTRY_MAX];
+            let k = bad.encode(&mut v);
+            assert_eq!(Entry::decode(&v[..k], data_sectors), None, "{bad:?}");
+        }
+        let mut v = [0u8; ENTRY_MAX];
+        let k = entry("a", 1, &[1], None).encode(&mut v);
+        v[2] = b'/';
+        assert_eq!(
+            Entry::decode(&v[..k], data_sectors),
+            None,
+            "a name that is not a file name"
+        );
+    }
+
+    // An entry that claims a sector another file has, or the block another small file has,
+    // or the name of another file, is left out at open and counted: no two files share
+    // bytes.
+    // verifies: FILE-STORE-04
+    #[test]
+    fn entries_that_clash_are_left_out_at_open_and_counted() {
+        let s = FlashStore::open(Ram(std::vec![0xFF; REGION.end as usize]), REGION).unwrap();
+        {
+            let mut i = s.inner.borrow_mut();
+            i.commit(0, Some(&entry("a", 5000, &[0, 1], None))).unwrap();
+            i.commit(1, Some(&entry("b", 10, &[1], None))).unwrap();
+            i.commit(2, Some(&entry("c", 10, &[2], Some(1)))).unwrap();
+            i.commit(3, Some(&entry("d", 10, &[2], Some(1)))).unwrap();
+            i.commit(4, Some(&entry("e", 10, &[0], Some(0)))).unwrap();
+            i.commit(5, Some(&entry("a", 10, &[3], None))).unwrap();
+            i.commit(6, Some(&entry("f", 10, &[2], Some(2)))).unwrap();
+        }
+        let s = FlashStore::open(s.into_flash(), REGION).unwrap();
+        let mut names = std::vec::Vec::new();
+        s.list(&mut |n, _| names.push(n.as_str().to_string())).unwrap();
+        assert_eq!(names, ["a", "c", "f"]);
+        assert_eq!(s.counters().bad_entries, 4);
+    }
+
+    proptest! {
+        // verifies: FILE-STORE-04
+        #[test]
+        fn any_bytes_decode_without_a_panic(v in proptest::collection::vec(any::<u8>(), 0..120)) {
+            let _ = Entry::decode(&v, MAX_DATA_SECTORS);
+        }
+    }
+}
