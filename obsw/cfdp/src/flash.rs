@@ -44,7 +44,7 @@ use sequential_storage::map::{MapConfig, MapStorage};
 use crate::store::{FileName, FlatStore, StoreError};
 
 /// Sectors of the directory map at the start of the region: 64 entries of at most
-/// [`ENTRY_ITEM`] bytes fill 1.7 of them; the others keep a directory store from
+/// [`ENTRY_ITEM`] bytes fill 1.8 of them; the others keep a directory store from
 /// migrating more than two pages (see `docs/files.md`).
 pub const DIR_SECTORS: usize = 4;
 /// Most data sectors a region may have (the board's 192 KiB partition less the
@@ -55,7 +55,8 @@ pub const MAX_DATA_SECTORS: usize = (mib::cfdp::BOARD_STORE_BYTES / mib::memory:
 pub const RESERVE_SECTORS: usize = 2;
 const _: () = assert!(MAX_DATA_SECTORS <= 64, "the sector bitmaps are u64");
 
-/// A directory value: kind, name length, name, length (u32 LE), sector count, sectors.
+/// A directory value: kind, name length, name, length (u32 LE), sector count, sectors, and
+/// a small file's block.
 const ENTRY_MAX: usize = 1 + 1 + MAX_NAME_LEN + 4 + 1 + MAX_DATA_SECTORS + 1;
 /// Map item buffer: the key (one byte) and the largest value, in whole words.
 const ITEM_BUF: usize = (1 + ENTRY_MAX).next_multiple_of(4) + 4;
@@ -1120,6 +1121,15 @@ mod tests {
             sectors: heapless::Vec::from_slice(sectors).unwrap(),
             block,
         }
+    }
+
+    // verifies: FILE-STORE-04
+    #[test]
+    fn a_full_entry_takes_the_bytes_the_layout_counts_with() {
+        let overhead = MapStorage::<u8, Blocking<Ram>, DirCache>::item_overhead_size() as usize;
+        assert_eq!(ENTRY_ITEM, overhead + (1 + ENTRY_MAX).next_multiple_of(4));
+        // 64 of them fill less than two of the directory's pages (less their markers).
+        const { assert!(MAX_FILES * ENTRY_ITEM < 2 * (SECTOR - 8)) };
     }
 
     // verifies: FILE-STORE-04
