@@ -859,8 +859,7 @@ proptest::proptest! {
     // Random operations on a small region (full often) against a model: every result is
     // the model's, a refused operation changes nothing, the files survive reopening, and
     // `free()` is honest: a write of up to one sector whose growth fits it is never refused.
-    // verifies: FILE-STORE-06
-    // verifies: FILE-STORE-04
+    // verifies: FILE-STORE-06, FILE-STORE-04
     #[test]
     fn random_operations_agree_with_a_model_and_free_space_is_never_overstated(
         ops in proptest::collection::vec(random_op(), 1..80),

@@ -143,8 +143,7 @@ fn read_all(s: &impl FlatStore, name: &str) -> Option<Vec<u8>> {
     Some(v)
 }
 
-// verifies: FILE-STORE-05
-// verifies: FILE-STORE-04
+// verifies: FILE-STORE-05, FILE-STORE-04
 #[test]
 fn a_class_2_put_through_a_lossy_link_lands_byte_exact_in_the_flash_store_and_stays_after_a_reopen() {
     std::thread::Builder::new()
