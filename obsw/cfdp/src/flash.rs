@@ -75,6 +75,8 @@ const B_UNKNOWN: u8 = 0;
 const B_BLANK: u8 = 1;
 const B_DIRTY: u8 = 2;
 const B_USED: u8 = 3;
+/// Blocks of unknown state a call reads at most to find a blank one (1 KiB each).
+const BLOCK_CHECKS: usize = 2;
 
 /// Bytes copied through RAM at a time (sector copies, comparisons).
 const CHUNK: usize = 256;
@@ -314,14 +316,16 @@ impl<F: MultiwriteNorFlash> FlashStore<F> {
     }
 
     /// Makes one free data sector ready (blank) ahead of need: reads it and erases it if
-    /// it is not blank. `Ok(false)` when every free sector is already known blank. At most
-    /// 4 KiB read and one erase per call: the board calls it in periods with time to
-    /// spare, so that writes take blank sectors and erase nothing.
+    /// it is not blank; with none left to do, tells whether one block of a shared sector
+    /// whose state is not known (after an open) is blank. `Ok(false)` when there is
+    /// nothing left to do. At most 4 KiB read and one erase per call: the board calls it
+    /// in periods with time to spare, so that writes take blank sectors and blocks and
+    /// erase nothing.
     pub fn erase_ahead(&self) -> Result<bool, StoreError> {
         self.with(|i| {
             let free = !i.used & !i.blank & (u64::MAX >> (64 - i.data_sectors));
             if free == 0 {
-                return Ok(false);
+                return i.tell_a_block();
             }
             let s = free.trailing_zeros() as u8;
             if !i.is_blank(s)? {
@@ -469,6 +473,9 @@ impl<F: MultiwriteNorFlash> Inner<F> {
     /// this call has taken). The block is marked dirty at once (it is about to be
     /// written); a new shared sector joins the shared ones only when the call commits.
     fn take_block(&mut self, taken: &mut u64, growth: bool) -> Result<(u8, u8), StoreError> {
+        // Blocks not known either way (after an open) are read to tell: at most
+        // `BLOCK_CHECKS` of them a call (`erase_ahead` tells the others).
+        let mut checks = BLOCK_CHECKS;
         for pass in [B_BLANK, B_UNKNOWN] {
             for s in 0..self.data_sectors as u8 {
                 if self.shared & (1 << s) == 0 {
@@ -478,9 +485,15 @@ impl<F: MultiwriteNorFlash> Inner<F> {
                     if self.block(s, b) != pass {
                         continue;
                     }
-                    if pass == B_UNKNOWN && !self.blank_at(self.addr(s) + (usize::from(b) * BLOCK) as u32, BLOCK)? {
-                        self.set_block(s, b, B_DIRTY);
-                        continue;
+                    if pass == B_UNKNOWN {
+                        if checks == 0 {
+                            continue;
+                        }
+                        checks -= 1;
+                        if !self.blank_at(self.addr(s) + (usize::from(b) * BLOCK) as u32, BLOCK)? {
+                            self.set_block(s, b, B_DIRTY);
+                            continue;
+                        }
                     }
                     self.set_block(s, b, B_DIRTY);
                     return Ok((s, b));
@@ -495,6 +508,24 @@ impl<F: MultiwriteNorFlash> Inner<F> {
         let s = self.take(*taken | self.used)?;
         *taken |= 1 << s;
         Ok((s, 0))
+    }
+
+    /// Reads one block of a shared sector whose state is not known and records whether it
+    /// is blank; `false` when there is none.
+    fn tell_a_block(&mut self) -> Result<bool, StoreError> {
+        for s in 0..self.data_sectors as u8 {
+            if self.shared & (1 << s) == 0 {
+                continue;
+            }
+            for b in 0..BLOCKS as u8 {
+                if self.block(s, b) == B_UNKNOWN {
+                    let blank = self.blank_at(self.addr(s) + (usize::from(b) * BLOCK) as u32, BLOCK)?;
+                    self.set_block(s, b, if blank { B_BLANK } else { B_DIRTY });
+                    return Ok(true);
+                }
+            }
+        }
+        Ok(false)
     }
 
     /// Gives up block `b` of shared sector `s`; the sector is free again when it holds

@@ -1044,3 +1044,37 @@ fn a_cut_directory_erase_of_any_shape_leaves_a_store_that_keeps_working() {
     );
     eprintln!("cut directory erases tried (first half, second half, both ends): {tried:?}");
 }
+
+// After a reset the store does not know which free blocks of shared sectors are blank:
+// a new small file reads at most two of them to find out (then takes a sector), and
+// `erase_ahead` tells the others, one a call.
+// verifies: FILE-STORE-08
+#[test]
+fn blocks_of_unknown_state_are_read_a_few_at_a_time() {
+    let (nor, region) = board();
+    let s = FlashStore::open(nor.clone(), region.clone()).unwrap();
+    for k in 0..64 {
+        let f = n(&format!("t{k:02}"));
+        s.create(&f).unwrap();
+        s.write(&f, 0, &pattern(600, k as u8)).unwrap();
+    }
+    // One file left in each of the 16 shared sectors, three blocks given up in each.
+    for k in (0..64).filter(|k| k % 4 != 0) {
+        s.remove(&n(&format!("t{k:02}"))).unwrap();
+    }
+    drop(s);
+    let s = FlashStore::open(nor.clone(), region).unwrap();
+    let read = nor.0.borrow().read;
+    s.create(&n("new")).unwrap();
+    s.write(&n("new"), 0, b"a small file").unwrap();
+    let took = nor.0.borrow().read - read;
+    assert!(took < 12 * 1024, "{took} bytes read to place a small file");
+    let mut calls = 0;
+    while s.erase_ahead().unwrap() {
+        calls += 1;
+        assert!(calls < 200);
+    }
+    // The free sectors, and the 46 blocks of unknown state left.
+    assert!(calls >= 46, "{calls}");
+    assert_eq!(snapshot(&s)["new"], b"a small file");
+}
