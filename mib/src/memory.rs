@@ -189,7 +189,8 @@ pub const FILE_STORE: FlashRegion = region(
     0x3E_0000,
     0x2_0000,
     FlashUse::Own(0x02),
-    "file store for CFDP transfers (plans, configuration, logs)",
+    "file store for CFDP transfers (plans, configuration, logs): mmic_cfdp::flash, a \
+     sequential-storage directory and data sectors",
 );
 
 /// The whole flash, in address order, without gaps.
