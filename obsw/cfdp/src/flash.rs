@@ -47,7 +47,7 @@ use crate::store::{FileName, FlatStore, StoreError};
 /// [`ENTRY_ITEM`] bytes fill 1.8 of them; the others keep a directory store from
 /// migrating more than two pages (see `docs/files.md`).
 pub const DIR_SECTORS: usize = 4;
-/// Most data sectors a region may have (the board's 192 KiB partition less the
+/// Most data sectors a region may have (the board's partition less the
 /// directory): the size of the free-sector bitmaps and of a file's sector list.
 pub const MAX_DATA_SECTORS: usize = (mib::cfdp::BOARD_STORE_BYTES / mib::memory::FLASH_SECTOR) as usize - DIR_SECTORS;
 /// Free sectors kept back from growth so that a write that changes bytes a file has can
