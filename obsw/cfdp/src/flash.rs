@@ -380,7 +380,7 @@ impl<F: MultiwriteNorFlash> Inner<F> {
         }
         for (i, e) in raw.into_iter().enumerate() {
             if bad[i] {
-                self.counters.bad_entries += 1;
+                self.counters.bad_entries = self.counters.bad_entries.wrapping_add(1);
                 continue;
             }
             let Some(Some(e)) = e else { continue };
@@ -398,7 +398,7 @@ impl<F: MultiwriteNorFlash> Inner<F> {
                 None => mask & self.used != 0,
             };
             if mask.count_ones() as usize != e.sectors.len() || clash || dup_name {
-                self.counters.bad_entries += 1;
+                self.counters.bad_entries = self.counters.bad_entries.wrapping_add(1);
                 continue;
             }
             if let Some(b) = e.block {
@@ -438,7 +438,7 @@ impl<F: MultiwriteNorFlash> Inner<F> {
             let marked = |w: [u8; 4]| w.iter().map(|b| b.count_zeros()).sum::<u32>() >= 4;
             *open = marked(first) && !marked(last);
             if !marked(first) && !marked(last) && !self.blank_at(a, SECTOR).map_err(|_| OpenError::Flash)? {
-                self.map.flash().erases += 1;
+                self.map.flash().erases = self.map.flash().erases.wrapping_add(1);
                 self.flash().erase(a, a + SECTOR as u32).map_err(|_| OpenError::Flash)?;
             }
         }
@@ -446,7 +446,7 @@ impl<F: MultiwriteNorFlash> Inner<F> {
             let q = (p + 1) % DIR_SECTORS;
             if partly_open[p] && partly_open[q] {
                 let a = start + (q * SECTOR) as u32;
-                self.map.flash().erases += 1;
+                self.map.flash().erases = self.map.flash().erases.wrapping_add(1);
                 self.flash().erase(a, a + SECTOR as u32).map_err(|_| OpenError::Flash)?;
                 return Ok(());
             }
