@@ -133,11 +133,11 @@ struct Entry {
 }
 
 impl Entry {
-    /// The entry as stored, `gen` the store's commit count at its commit.
-    fn encode(&self, gen: u32, out: &mut [u8; ENTRY_MAX]) -> usize {
+    /// The entry as stored, `generation` the store's commit count at its commit.
+    fn encode(&self, generation: u32, out: &mut [u8; ENTRY_MAX]) -> usize {
         let n = self.name.as_str().as_bytes();
         out[0] = if self.block.is_some() { KIND_SMALL } else { KIND_FILE };
-        out[1..5].copy_from_slice(&gen.to_le_bytes());
+        out[1..5].copy_from_slice(&generation.to_le_bytes());
         out[5] = n.len() as u8;
         out[6..6 + n.len()].copy_from_slice(n);
         let mut at = 6 + n.len();
@@ -163,7 +163,7 @@ impl Entry {
             KIND_SMALL => true,
             _ => return None,
         };
-        let gen = u32::from_le_bytes(v.get(1..5)?.try_into().ok()?);
+        let generation = u32::from_le_bytes(v.get(1..5)?.try_into().ok()?);
         let nl = usize::from(*v.get(5)?);
         let name = core::str::from_utf8(v.get(6..6 + nl)?).ok()?;
         let name = FileName::new(name).ok()?;
@@ -187,7 +187,7 @@ impl Entry {
             sectors,
             block,
         };
-        (e.len as usize <= room).then_some(Some((e, gen)))
+        (e.len as usize <= room).then_some(Some((e, generation)))
     }
 }
 
@@ -250,7 +250,7 @@ struct Inner<F: MultiwriteNorFlash> {
     cursor: usize,
     /// Entries committed so far (the last one's generation): of two entries that claim
     /// the same name or bytes, the later one is the file (see `replace`).
-    gen: u32,
+    generation: u32,
     counters: FlashCounters,
 }
 
@@ -292,7 +292,7 @@ impl<F: MultiwriteNorFlash> FlashStore<F> {
             blocks: [0; MAX_DATA_SECTORS],
             blank: 0,
             cursor: 0,
-            gen: 0,
+            generation: 0,
             counters: FlashCounters::default(),
         };
         inner.load()?;
@@ -394,14 +394,14 @@ impl<F: MultiwriteNorFlash> Inner<F> {
         let mut order: heapless::Vec<(u32, usize), MAX_FILES> = heapless::Vec::new();
         for (i, e) in raw.iter().enumerate() {
             match e {
-                Some((_, gen)) if !bad[i] => {
-                    let _ = order.push((*gen, i));
-                    self.gen = self.gen.max(*gen);
+                Some((_, generation)) if !bad[i] => {
+                    let _ = order.push((*generation, i));
+                    self.generation = self.generation.max(*generation);
                 }
                 _ => {}
             }
         }
-        order.sort_unstable_by_key(|&(gen, _)| core::cmp::Reverse(gen));
+        order.sort_unstable_by_key(|&(generation, _)| core::cmp::Reverse(generation));
         self.counters.bad_entries = bad.iter().filter(|&&b| b).count() as u32;
         let mut stale = [false; MAX_FILES];
         for &(_, i) in &order {
@@ -606,8 +606,8 @@ impl<F: MultiwriteNorFlash> Inner<F> {
         let mut v = [0u8; ENTRY_MAX];
         let n = match e {
             Some(e) => {
-                self.gen = self.gen.wrapping_add(1);
-                e.encode(self.gen, &mut v)
+                self.generation = self.generation.wrapping_add(1);
+                e.encode(self.generation, &mut v)
             }
             None => {
                 v[0] = KIND_FREE;
