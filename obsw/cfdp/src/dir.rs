@@ -79,6 +79,17 @@ impl FlatStore for DirStore {
         fs::rename(self.path(from), self.path(to)).map_err(io)
     }
 
+    /// `rename(2)` replaces the target in one step.
+    fn replace(&self, from: &FileName, to: &FileName) -> Result<(), StoreError> {
+        self.len(from)?.ok_or(StoreError::NotFound)?;
+        if from == to {
+            return Ok(());
+        }
+        // A directory or link under the target's name is not a file of the store.
+        self.len(to)?;
+        fs::rename(self.path(from), self.path(to)).map_err(io)
+    }
+
     fn list(&self, f: &mut dyn FnMut(&FileName, u64)) -> Result<(), StoreError> {
         let mut files = Vec::new();
         for e in fs::read_dir(&self.dir).map_err(io)? {

@@ -55,9 +55,9 @@ pub const MAX_DATA_SECTORS: usize = (mib::cfdp::BOARD_STORE_BYTES / mib::memory:
 pub const RESERVE_SECTORS: usize = 2;
 const _: () = assert!(MAX_DATA_SECTORS <= 64, "the sector bitmaps are u64");
 
-/// A directory value: kind, name length, name, length (u32 LE), sector count, sectors, and
-/// a small file's block.
-const ENTRY_MAX: usize = 1 + 1 + MAX_NAME_LEN + 4 + 1 + MAX_DATA_SECTORS + 1;
+/// A directory value: kind, generation (u32 LE), name length, name, length (u32 LE),
+/// sector count, sectors, and a small file's block.
+const ENTRY_MAX: usize = 1 + 4 + 1 + MAX_NAME_LEN + 4 + 1 + MAX_DATA_SECTORS + 1;
 /// Map item buffer: the key (one byte) and the largest value, in whole words.
 const ITEM_BUF: usize = (1 + ENTRY_MAX).next_multiple_of(4) + 4;
 /// Bytes of a full directory entry in flash (item header 8, then key and value in words).
@@ -133,12 +133,14 @@ struct Entry {
 }
 
 impl Entry {
-    fn encode(&self, out: &mut [u8; ENTRY_MAX]) -> usize {
+    /// The entry as stored, `generation` the store's commit count at its commit.
+    fn encode(&self, generation: u32, out: &mut [u8; ENTRY_MAX]) -> usize {
         let n = self.name.as_str().as_bytes();
         out[0] = if self.block.is_some() { KIND_SMALL } else { KIND_FILE };
-        out[1] = n.len() as u8;
-        out[2..2 + n.len()].copy_from_slice(n);
-        let mut at = 2 + n.len();
+        out[1..5].copy_from_slice(&generation.to_le_bytes());
+        out[5] = n.len() as u8;
+        out[6..6 + n.len()].copy_from_slice(n);
+        let mut at = 6 + n.len();
         out[at..at + 4].copy_from_slice(&self.len.to_le_bytes());
         at += 4;
         out[at] = self.sectors.len() as u8;
@@ -152,18 +154,20 @@ impl Entry {
         at
     }
 
-    /// A value read back from the directory; `None` when it is not a whole, sound entry.
-    fn decode(v: &[u8], data_sectors: usize) -> Option<Option<Entry>> {
+    /// A value read back from the directory, with its generation; `None` when it is not a
+    /// whole, sound entry.
+    fn decode(v: &[u8], data_sectors: usize) -> Option<Option<(Entry, u32)>> {
         let small = match *v.first()? {
             KIND_FREE if v.len() == 1 => return Some(None),
             KIND_FILE => false,
             KIND_SMALL => true,
             _ => return None,
         };
-        let nl = usize::from(*v.get(1)?);
-        let name = core::str::from_utf8(v.get(2..2 + nl)?).ok()?;
+        let generation = u32::from_le_bytes(v.get(1..5)?.try_into().ok()?);
+        let nl = usize::from(*v.get(5)?);
+        let name = core::str::from_utf8(v.get(6..6 + nl)?).ok()?;
         let name = FileName::new(name).ok()?;
-        let at = 2 + nl;
+        let at = 6 + nl;
         let len = u32::from_le_bytes(v.get(at..at + 4)?.try_into().ok()?);
         let ns = usize::from(*v.get(at + 4)?);
         let list = v.get(at + 5..at + 5 + ns)?;
@@ -183,7 +187,7 @@ impl Entry {
             sectors,
             block,
         };
-        (e.len as usize <= room).then_some(Some(e))
+        (e.len as usize <= room).then_some(Some((e, generation)))
     }
 }
 
@@ -193,9 +197,12 @@ const SECTOR: usize = mib::memory::FLASH_SECTOR as usize;
 /// What the store counted since it was opened (file store housekeeping).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct FlashCounters {
-    /// Directory entries found unsound at open (bad name, sector out of range, a sector
-    /// claimed twice): their files are left out, their sectors free.
+    /// Directory entries found unsound at open (bad name, sector out of range): their
+    /// files are left out, their sectors free.
     pub bad_entries: u32,
+    /// Entries left out at open because a later one claims their name or bytes (a
+    /// `replace` cut between its two stores, or a damaged directory): freed again.
+    pub superseded: u32,
     /// Flash operations the store made on its data sectors: reads, writes (calls), sector
     /// erases; and the directory map's page erases (its reads and writes are not counted).
     pub reads: u32,
@@ -241,6 +248,9 @@ struct Inner<F: MultiwriteNorFlash> {
     blank: u64,
     /// Where the search for a free sector starts (round robin: wear spreads).
     cursor: usize,
+    /// Entries committed so far (the last one's generation): of two entries that claim
+    /// the same name or bytes, the later one is the file (see `replace`).
+    generation: u32,
     counters: FlashCounters,
 }
 
@@ -282,6 +292,7 @@ impl<F: MultiwriteNorFlash> FlashStore<F> {
             blocks: [0; MAX_DATA_SECTORS],
             blank: 0,
             cursor: 0,
+            generation: 0,
             counters: FlashCounters::default(),
         };
         inner.load()?;
@@ -347,7 +358,7 @@ impl<F: MultiwriteNorFlash> FlashStore<F> {
 impl<F: MultiwriteNorFlash> Inner<F> {
     /// Reads the directory: the last value of each slot wins.
     fn load(&mut self) -> Result<(), OpenError> {
-        let mut raw: [Option<Option<Entry>>; MAX_FILES] = core::array::from_fn(|_| None);
+        let mut raw: [Option<(Entry, u32)>; MAX_FILES] = core::array::from_fn(|_| None);
         let mut bad = [false; MAX_FILES];
         self.repair_torn_erase()?;
         // A cut erase or migration of a directory page is repaired by the map's first
@@ -367,7 +378,7 @@ impl<F: MultiwriteNorFlash> Inner<F> {
                         }
                         match Entry::decode(v, self.data_sectors) {
                             Some(e) => {
-                                raw[i] = Some(e);
+                                raw[i] = e;
                                 bad[i] = false;
                             }
                             None => bad[i] = true,
@@ -378,12 +389,23 @@ impl<F: MultiwriteNorFlash> Inner<F> {
                 }
             }
         }
-        for (i, e) in raw.into_iter().enumerate() {
-            if bad[i] {
-                self.counters.bad_entries += 1;
-                continue;
+        // The latest entries first: of two that claim the same name or bytes (a `replace`
+        // cut between its two stores), the later one is the file.
+        let mut order: heapless::Vec<(u32, usize), MAX_FILES> = heapless::Vec::new();
+        for (i, e) in raw.iter().enumerate() {
+            match e {
+                Some((_, generation)) if !bad[i] => {
+                    let _ = order.push((*generation, i));
+                    self.generation = self.generation.max(*generation);
+                }
+                _ => {}
             }
-            let Some(Some(e)) = e else { continue };
+        }
+        order.sort_unstable_by_key(|&(generation, _)| core::cmp::Reverse(generation));
+        self.counters.bad_entries = bad.iter().filter(|&&b| b).count() as u32;
+        let mut stale = [false; MAX_FILES];
+        for &(_, i) in &order {
+            let Some((e, _)) = raw[i].take() else { continue };
             let mut mask = 0u64;
             for &s in &e.sectors {
                 mask |= 1 << s;
@@ -398,7 +420,7 @@ impl<F: MultiwriteNorFlash> Inner<F> {
                 None => mask & self.used != 0,
             };
             if mask.count_ones() as usize != e.sectors.len() || clash || dup_name {
-                self.counters.bad_entries += 1;
+                stale[i] = true;
                 continue;
             }
             if let Some(b) = e.block {
@@ -408,6 +430,12 @@ impl<F: MultiwriteNorFlash> Inner<F> {
             }
             self.used |= mask;
             self.dir[i] = Some(e);
+        }
+        // Entries a later one supersedes are freed now, or a later removal of the file
+        // that superseded them would bring them back.
+        for (i, _) in stale.iter().enumerate().filter(|(_, s)| **s) {
+            self.counters.superseded = self.counters.superseded.wrapping_add(1);
+            self.commit(i, None).map_err(|_| OpenError::Flash)?;
         }
         Ok(())
     }
@@ -438,7 +466,7 @@ impl<F: MultiwriteNorFlash> Inner<F> {
             let marked = |w: [u8; 4]| w.iter().map(|b| b.count_zeros()).sum::<u32>() >= 4;
             *open = marked(first) && !marked(last);
             if !marked(first) && !marked(last) && !self.blank_at(a, SECTOR).map_err(|_| OpenError::Flash)? {
-                self.map.flash().erases += 1;
+                self.map.flash().erases = self.map.flash().erases.wrapping_add(1);
                 self.flash().erase(a, a + SECTOR as u32).map_err(|_| OpenError::Flash)?;
             }
         }
@@ -446,7 +474,7 @@ impl<F: MultiwriteNorFlash> Inner<F> {
             let q = (p + 1) % DIR_SECTORS;
             if partly_open[p] && partly_open[q] {
                 let a = start + (q * SECTOR) as u32;
-                self.map.flash().erases += 1;
+                self.map.flash().erases = self.map.flash().erases.wrapping_add(1);
                 self.flash().erase(a, a + SECTOR as u32).map_err(|_| OpenError::Flash)?;
                 return Ok(());
             }
@@ -577,7 +605,10 @@ impl<F: MultiwriteNorFlash> Inner<F> {
     fn commit(&mut self, i: usize, e: Option<&Entry>) -> Result<(), StoreError> {
         let mut v = [0u8; ENTRY_MAX];
         let n = match e {
-            Some(e) => e.encode(&mut v),
+            Some(e) => {
+                self.generation = self.generation.wrapping_add(1);
+                e.encode(self.generation, &mut v)
+            }
             None => {
                 v[0] = KIND_FREE;
                 1
@@ -694,6 +725,27 @@ impl<F: MultiwriteNorFlash> Inner<F> {
         self.commit(i, Some(&e))?;
         self.dir[i] = Some(e);
         Ok(())
+    }
+
+    /// `from` under the name `to`, `to`'s old file gone, in one step: `from`'s slot takes
+    /// the name first (a later entry than `to`'s, which an open after a cut here frees),
+    /// then `to`'s slot is freed.
+    fn replace(&mut self, from: &FileName, to: &FileName) -> Result<(), StoreError> {
+        let i = self.find(from).ok_or(StoreError::NotFound)?;
+        if from == to {
+            return Ok(());
+        }
+        let Some(t) = self.find(to) else {
+            return self.rename(from, to);
+        };
+        let mut e = self.dir[i].clone().ok_or(StoreError::NotFound)?;
+        e.name = to.clone();
+        self.commit(i, Some(&e))?;
+        self.dir[i] = Some(e);
+        if let Some(old) = self.dir[t].take() {
+            self.release(&old);
+        }
+        self.commit(t, None)
     }
 
     fn read(&mut self, name: &FileName, offset: u64, buf: &mut [u8]) -> Result<(), StoreError> {
@@ -1077,6 +1129,10 @@ impl<F: MultiwriteNorFlash> FlatStore for FlashStore<F> {
         self.with(|i| i.rename(from, to))
     }
 
+    fn replace(&self, from: &FileName, to: &FileName) -> Result<(), StoreError> {
+        self.with(|i| i.replace(from, to))
+    }
+
     fn list(&self, f: &mut dyn FnMut(&FileName, u64)) -> Result<(), StoreError> {
         self.with(|i| {
             i.list(f);
@@ -1173,8 +1229,8 @@ mod tests {
             entry(&"n".repeat(MAX_NAME_LEN), 1024, &[5], Some(3)),
         ] {
             let mut v = [0u8; ENTRY_MAX];
-            let k = e.encode(&mut v);
-            assert_eq!(Entry::decode(&v[..k], data_sectors), Some(Some(e.clone())));
+            let k = e.encode(7, &mut v);
+            assert_eq!(Entry::decode(&v[..k], data_sectors), Some(Some((e.clone(), 7))));
             assert_eq!(Entry::decode(&v[..k - 1], data_sectors), None, "cut short");
             let mut longer = v[..k].to_vec();
             longer.push(0);
@@ -1189,12 +1245,12 @@ mod tests {
             entry("a", 10, &[1, 2], Some(0)), // a small file in two sectors
         ] {
             let mut v = [0u8; ENTRY_MAX];
-            let k = bad.encode(&mut v);
+            let k = bad.encode(1, &mut v);
             assert_eq!(Entry::decode(&v[..k], data_sectors), None, "{bad:?}");
         }
         let mut v = [0u8; ENTRY_MAX];
-        let k = entry("a", 1, &[1], None).encode(&mut v);
-        v[2] = b'/';
+        let k = entry("a", 1, &[1], None).encode(1, &mut v);
+        v[6] = b'/';
         assert_eq!(
             Entry::decode(&v[..k], data_sectors),
             None,
@@ -1202,9 +1258,9 @@ mod tests {
         );
     }
 
-    // An entry that claims a sector another file has, or the block another small file has,
-    // or the name of another file, is left out at open and counted: no two files share
-    // bytes.
+    // Of two entries that claim the same sector, the same block of a shared sector or the
+    // same name, the later one is the file; the other is left out at open, counted, and
+    // freed (the next open does not see it): no two files share bytes.
     // verifies: FILE-STORE-04
     #[test]
     fn entries_that_clash_are_left_out_at_open_and_counted() {
@@ -1220,10 +1276,18 @@ mod tests {
             i.commit(6, Some(&entry("f", 10, &[2], Some(2)))).unwrap();
         }
         let s = FlashStore::open(s.into_flash(), REGION).unwrap();
-        let mut names = std::vec::Vec::new();
-        s.list(&mut |n, _| names.push(n.as_str().to_string())).unwrap();
-        assert_eq!(names, ["a", "c", "f"]);
-        assert_eq!(s.counters().bad_entries, 4);
+        let listing = |s: &FlashStore<Ram>| {
+            let mut names = std::vec::Vec::new();
+            s.list(&mut |n, l| names.push((n.as_str().to_string(), l))).unwrap();
+            names
+        };
+        let want = [("a", 10), ("b", 10), ("d", 10), ("e", 10), ("f", 10)].map(|(n, l)| (n.to_string(), l));
+        // c: d's block, stored before d; the first a: the later a's name, and b's sector.
+        assert_eq!(listing(&s), want);
+        assert_eq!((s.counters().superseded, s.counters().bad_entries), (2, 0));
+        let s = FlashStore::open(s.into_flash(), REGION).unwrap();
+        assert_eq!(listing(&s), want);
+        assert_eq!(s.counters().superseded, 0, "freed at the last open");
     }
 
     proptest! {

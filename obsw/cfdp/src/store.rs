@@ -119,6 +119,19 @@ pub trait FlatStore {
     fn remove(&self, name: &FileName) -> Result<(), StoreError>;
     /// Renames `from` to `to`; `Exists` when `to` exists.
     fn rename(&self, from: &FileName, to: &FileName) -> Result<(), StoreError>;
+    /// Renames `from` to `to`, replacing `to`'s file if there is one. A platform that can
+    /// does it in one step (a reset leaves `to` as it was or as `from` was); this default
+    /// removes `to` first, so a reset between the two leaves neither.
+    fn replace(&self, from: &FileName, to: &FileName) -> Result<(), StoreError> {
+        self.len(from)?.ok_or(StoreError::NotFound)?;
+        if from == to {
+            return Ok(());
+        }
+        if self.len(to)?.is_some() {
+            self.remove(to)?;
+        }
+        self.rename(from, to)
+    }
     /// Calls `f` with each file's name and length, in name order.
     fn list(&self, f: &mut dyn FnMut(&FileName, u64)) -> Result<(), StoreError>;
     /// Bytes still free.
@@ -195,6 +208,11 @@ impl<S: FlatStore> Checked<S> {
 
     pub fn rename(&self, from: &FileName, to: &FileName) -> Result<(), StoreError> {
         self.inner.rename(from, to).map_err(|e| self.count(e))
+    }
+
+    /// Renames `from` to `to`, replacing `to`'s file ([`FlatStore::replace`]).
+    pub fn replace(&self, from: &FileName, to: &FileName) -> Result<(), StoreError> {
+        self.inner.replace(from, to).map_err(|e| self.count(e))
     }
 
     pub fn free(&self) -> Result<u64, StoreError> {

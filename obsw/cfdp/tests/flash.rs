@@ -447,6 +447,7 @@ enum Op {
     Create(&'static str),
     Write(&'static str, usize, Vec<u8>),
     Rename(&'static str, &'static str),
+    Replace(&'static str, &'static str),
     Remove(&'static str),
 }
 
@@ -456,6 +457,7 @@ impl std::fmt::Debug for Op {
             Op::Create(a) => write!(f, "create {a}"),
             Op::Write(a, at, d) => write!(f, "write {a} {at}+{}", d.len()),
             Op::Rename(a, b) => write!(f, "rename {a} {b}"),
+            Op::Replace(a, b) => write!(f, "replace {a} {b}"),
             Op::Remove(a) => write!(f, "remove {a}"),
         }
     }
@@ -466,6 +468,7 @@ fn apply(s: &impl FlatStore, op: &Op) -> Result<(), StoreError> {
         Op::Create(a) => s.create(&n(a)),
         Op::Write(a, at, d) => s.write(&n(a), *at as u64, d),
         Op::Rename(a, b) => s.rename(&n(a), &n(b)),
+        Op::Replace(a, b) => s.replace(&n(a), &n(b)),
         Op::Remove(a) => s.remove(&n(a)),
     }
 }
@@ -517,6 +520,15 @@ fn sequence() -> Vec<Op> {
         Op::Write("partial-0-9", 500, pattern(400, 5)),
         Op::Write("partial-0-9", 0, pattern(500, 6)),
         Op::Rename("partial-0-9", "s3"),
+        // A received file replacing the file under its name (the entity's last step), big
+        // over small and small over big.
+        Op::Create("partial-0-10"),
+        Op::Write("partial-0-10", 0, pattern(6_000, 7)),
+        Op::Replace("partial-0-10", "s2"),
+        Op::Create("partial-0-11"),
+        Op::Write("partial-0-11", 0, pattern(700, 8)),
+        Op::Replace("partial-0-11", "s2"),
+        Op::Replace("s1", "s4"),
         Op::Remove("s1"),
         Op::Remove("s3"),
         Op::Remove("s2"),
@@ -837,6 +849,7 @@ enum RandomOp {
     Write(usize, usize, usize, u8),
     Remove(usize),
     Rename(usize, usize),
+    Replace(usize, usize),
     Reopen,
 }
 
@@ -850,6 +863,7 @@ fn random_op() -> impl proptest::strategy::Strategy<Value = RandomOp> {
             .prop_map(|(f, at, len, seed)| RandomOp::Write(f, at, len, seed)),
         1 => (0..NAMES.len()).prop_map(RandomOp::Remove),
         1 => (0..NAMES.len(), 0..NAMES.len()).prop_map(|(a, b)| RandomOp::Rename(a, b)),
+        1 => (0..NAMES.len(), 0..NAMES.len()).prop_map(|(a, b)| RandomOp::Replace(a, b)),
         1 => Just(RandomOp::Reopen),
     ]
 }
@@ -920,6 +934,17 @@ proptest::proptest! {
                     };
                     assert_eq!(r, want, "{what}");
                 }
+                RandomOp::Replace(a, b) => {
+                    let r = s.replace(&n(NAMES[*a]), &n(NAMES[*b]));
+                    let want = match m.remove(NAMES[*a]) {
+                        None => Err(StoreError::NotFound),
+                        Some(v) => {
+                            m.insert(NAMES[*b].to_string(), v);
+                            Ok(())
+                        }
+                    };
+                    assert_eq!(r, want, "{what}");
+                }
                 RandomOp::Reopen => {
                     drop(s);
                     s = FlashStore::open(nor.clone(), SMALL).unwrap();
@@ -937,6 +962,7 @@ fn to_op(r: &RandomOp) -> Option<Op> {
         RandomOp::Write(f, at, len, seed) => Op::Write(NAMES[f], at, pattern(len, seed)),
         RandomOp::Remove(f) => Op::Remove(NAMES[f]),
         RandomOp::Rename(a, b) => Op::Rename(NAMES[a], NAMES[b]),
+        RandomOp::Replace(a, b) => Op::Replace(NAMES[a], NAMES[b]),
         RandomOp::Reopen => return None,
     })
 }
