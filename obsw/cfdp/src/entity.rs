@@ -20,7 +20,7 @@
 use core::cell::{Cell, RefCell};
 use core::time::Duration;
 
-use ::cfdp::dest::{DestinationHandler, TransactionStep as DestStep};
+use ::cfdp::dest::DestinationHandler;
 use ::cfdp::request::ReadablePutRequest;
 use ::cfdp::source::{SourceHandler, TransactionStep as SourceStep};
 use ::cfdp::time::Countdown;
@@ -646,6 +646,8 @@ pub struct Entity<'a, S: FlatStore> {
     finished_tx: Option<(u16, u16)>,
     /// The incoming transaction's file: its name and the staging name it is written under.
     receiving: Option<((u16, u16), FileName, FileName)>,
+    /// The last incoming transaction whose file was found complete and put under its name.
+    received_whole: Option<(u16, u16)>,
     /// The last incoming transactions that finished: their late PDUs are strays.
     finished_rx: heapless::Deque<(u16, u16), 4>,
     /// Segment requests of the peer's NAKs not yet fed to the source handler, with the
@@ -796,6 +798,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             sending_name: None,
             finished_tx: None,
             receiving: None,
+            received_whole: None,
             finished_rx: heapless::Deque::new(),
             resend: heapless::Deque::new(),
             resend_header: None,
@@ -1024,10 +1027,12 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         self.receiving = None;
         let store = &self.parts.store;
         if f.complete && f.retained {
-            if store.len(&fin).ok().flatten().is_some() {
-                let _ = store.remove(&fin);
+            // One step: a reset never leaves neither the old file nor the new one.
+            let replaced = store.replace(&stg, &fin);
+            if replaced.is_ok() {
+                self.received_whole = Some(tx);
             }
-            if store.rename(&stg, &fin).is_err() {
+            if replaced.is_err() {
                 // The report must not say complete for a file that is not under its name.
                 f.complete = false;
                 f.retained = false;
@@ -1105,14 +1110,12 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             PacketTarget::SourceEntity => self.source.state() != State::Idle,
             PacketTarget::DestEntity => self.dest.state() != State::Idle,
         };
-        // File data after the file was found complete (a copy sent twice, a duplicate the
-        // link made): cfdp-rs 0.3 writes it to the file, which is already under its final
-        // name, and declares a filestore rejection on the finished transaction.
-        let complete = pdu.pdu_type() == PduType::FileData
-            && matches!(
-                self.dest.step(),
-                DestStep::TransferCompletion | DestStep::WaitingForFinishedAck
-            );
+        // File data after the file was found complete and put under its name (a copy sent
+        // twice, a duplicate the link made): cfdp-rs 0.3 writes it to the staging name, gone
+        // by then, and declares a filestore rejection on the finished transaction. Only
+        // then: a transaction a fault ended keeps its handler's own course (dropping its
+        // file data there made cfdp-rs 0.3 answer the EOF with a Finished "no error").
+        let complete = pdu.pdu_type() == PduType::FileData && self.received_whole == Some(tx);
         let stray = match target {
             PacketTarget::SourceEntity => !busy || current != Some(tx),
             PacketTarget::DestEntity => (!is_metadata && busy && current != Some(tx)) || complete,

@@ -11,6 +11,7 @@ use embedded_storage::nor_flash::{
 use mmic_cfdp::flash::FlashStore;
 use mmic_cfdp::store::{FlatStore, MemStore};
 use mmic_cfdp::{Class, Entity, FileName, Parts};
+use spacepackets::cfdp::ConditionCode;
 
 const SECTOR: usize = 4096;
 
@@ -150,7 +151,7 @@ fn a_class_2_put_through_a_lossy_link_lands_byte_exact_in_the_flash_store_and_st
         .stack_size(32 << 20)
         .spawn(|| {
             let nor = Nor(Rc::new(RefCell::new(vec![0xFF; REGION.end as usize])));
-            let up = file(150_000, 5);
+            let up = file(90_000, 5);
             let mut now = 0;
             {
                 let gp = Parts::new(Ground::new(1 << 20));
@@ -166,7 +167,7 @@ fn a_class_2_put_through_a_lossy_link_lands_byte_exact_in_the_flash_store_and_st
                 assert!(f.complete, "{f:?} {:?} {:?}", g.counters(), r.counters());
                 assert!(read_all(rp.store.inner(), "plan.bin") == Some(up.clone()), "byte-exact");
                 let c = rp.store.inner().counters();
-                eprintln!("150 000 bytes through 20 % loss: {c:?} {:?}", r.counters());
+                eprintln!("90 000 bytes through 20 % loss: {c:?} {:?}", r.counters());
                 // Gaps filled in place in the staging file, duplicates written not at all:
                 // no sector copied, nothing erased on a blank region.
                 assert_eq!((c.copies, c.erases), (0, 0), "{c:?}");
@@ -187,6 +188,43 @@ fn a_class_2_put_through_a_lossy_link_lands_byte_exact_in_the_flash_store_and_st
             g.get(now + 10, "plan.bin", "back.bin", Class::Two).unwrap();
             run(&mut g, &mut r, 0.2, 4, now + 10);
             assert!(read_all(gp.store.inner(), "back.bin") == Some(up), "the get");
+        })
+        .unwrap()
+        .join()
+        .unwrap();
+}
+
+// A file larger than the board's store through the lossy link: the robot's store refuses
+// the write that would overflow it, and the sender learns "filestore rejection", never
+// "complete"; nothing is left under the name or as a staging file. (Dropping the file data
+// that came after the refusal once made cfdp-rs 0.3 answer the EOF with a Finished "no
+// error": the ground reported a file that was not there as delivered.)
+// verifies: FILE-STORE-05, FILE-CFDP-06
+#[test]
+fn a_file_larger_than_the_board_store_ends_refused_at_the_sender_never_complete() {
+    std::thread::Builder::new()
+        .stack_size(32 << 20)
+        .spawn(|| {
+            let nor = Nor(Rc::new(RefCell::new(vec![0xFF; REGION.end as usize])));
+            let big = file(mib::cfdp::BOARD_STORE_BYTES as usize, 6);
+            for seed in 1..4 {
+                let gp = Parts::new(Ground::new(1 << 20));
+                let rp = Parts::new(FlashStore::open(nor.clone(), REGION).unwrap());
+                let mut g = Entity::new(0, 1, &gp);
+                let mut r = Entity::new(1, 0, &rp);
+                let n = FileName::new("big.bin").unwrap();
+                gp.store.create(&n).unwrap();
+                gp.store.write(&n, 0, &big).unwrap();
+                g.put(0, "big.bin", "big.bin", Class::Two).unwrap();
+                run(&mut g, &mut r, 0.2, seed, 0);
+                let f = g.take_finished().expect("the put ended");
+                assert!(!f.complete, "seed {seed}: {f:?}");
+                assert_eq!(f.condition, ConditionCode::FilestoreRejection, "seed {seed}: {f:?}");
+                assert!(rp.store.counters().full > 0, "seed {seed}: {:?}", rp.store.counters());
+                let mut names = Vec::new();
+                rp.store.list(&mut |n, _| names.push(n.to_string())).unwrap();
+                assert!(names.is_empty(), "seed {seed}: {names:?}");
+            }
         })
         .unwrap()
         .join()
