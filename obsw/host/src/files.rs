@@ -98,6 +98,8 @@ impl<'a> Files<'a> {
             }
         }
         self.flush(now_ms, obsw, down);
+        // HK asked for in the same frame counts this packet, and a refusal is evented now.
+        obsw.files_report(now_ms, Report::Counters(self.counters()), down);
         true
     }
 
