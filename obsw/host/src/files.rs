@@ -14,10 +14,10 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use mmic_cfdp::dir::DirStore;
 use mmic_cfdp::packet::{self, Direction};
-use mmic_cfdp::watch::{Opened, Watch};
-use mmic_cfdp::{Class, Entity, Finished, Parts};
+use mmic_cfdp::watch::Watch;
+use mmic_cfdp::{Entity, Parts};
 use obsw_core::obsw::Obsw;
-use obsw_core::services::files::{self as service, Began, Ended, FileCounters, Report};
+use obsw_core::services::files::{cfdp, FileCounters, Report};
 use obsw_core::tm::{TmSink, TmStore};
 
 /// Bytes the host store holds: the board's whole flash, so that the host can take any
@@ -94,7 +94,7 @@ impl<'a> Files<'a> {
         let after = self.entity.counters();
         if after.received != before.received && after.handler_errors == before.handler_errors {
             if let Some(o) = packet::unwrap(Direction::Up, packet).and_then(|pdu| self.watch.taken(pdu)) {
-                obsw.files_report(now_ms, Report::Began(began(o)), down);
+                obsw.files_report(now_ms, Report::Began(cfdp::began(&o)), down);
             }
         }
         self.flush(now_ms, obsw, down);
@@ -110,7 +110,7 @@ impl<'a> Files<'a> {
         self.flush(now_ms, obsw, down);
         let mut ended = false;
         while let Some(f) = self.entity.take_finished() {
-            obsw.files_report(now_ms, Report::Ended(self.ended(&f)), down);
+            obsw.files_report(now_ms, Report::Ended(cfdp::ended(&self.entity, &self.watch, &f)), down);
             ended = true;
         }
         if self.parts.next_seq() != self.kept_seq {
@@ -142,7 +142,7 @@ impl<'a> Files<'a> {
         let mut buf = [0u8; mib::cfdp::MAX_PACKET_LEN];
         while let Some(pdu) = self.entity.pop() {
             if let Some(o) = self.watch.sent(&pdu) {
-                obsw.files_report(now_ms, Report::Began(began(o)), down);
+                obsw.files_report(now_ms, Report::Began(cfdp::began(&o)), down);
             }
             if let Some(n) = packet::wrap(Direction::Down, self.seq, &pdu, &mut buf) {
                 self.seq = self.seq.wrapping_add(1) & 0x3FFF;
@@ -151,73 +151,8 @@ impl<'a> Files<'a> {
         }
     }
 
-    /// How a finished transaction is reported.
-    fn ended(&self, f: &Finished) -> Ended {
-        let progress = if f.sent {
-            self.entity.sent_progress().0
-        } else {
-            self.entity.progress()
-        };
-        Ended {
-            source: f.source,
-            seq: f.seq,
-            direction: direction(f.sent),
-            condition: f.condition as u8,
-            complete: f.complete,
-            bytes: u32::try_from(self.watch.bytes(f, progress)).unwrap_or(u32::MAX),
-        }
-    }
-
     /// What the entity, its watch and the store counted.
     fn counters(&self) -> FileCounters {
-        let (c, s, w) = (self.entity.counters(), self.entity.store().counters(), &self.watch);
-        FileCounters {
-            pdus_received: c.received,
-            pdus_sent: w.pdus_sent,
-            pdus_refused: c.refused,
-            pdus_stray: c.stray,
-            handler_refused: c.handler_errors,
-            before_metadata: c.before_metadata,
-            tx_received: w.opened_received,
-            tx_sent: w.opened_sent,
-            tx_completed: c.completed,
-            tx_failed: c.failed,
-            faults: c.faults,
-            segments_resent: c.resent,
-            naks_sent: w.naks_sent,
-            naks_received: w.naks_received,
-            outbox_dropped: c.outbox_dropped,
-            resend_dropped: c.resend_dropped,
-            superseded: c.superseded,
-            fs_done: c.fs_done,
-            fs_refused: c.fs_refused,
-            proxy_refused: c.proxy_refused,
-            store_bad_names: s.bad_names,
-            store_full: s.full,
-            store_io_errors: s.io_errors,
-            store_files: self.store.0,
-            store_free: self.store.1,
-        }
-    }
-}
-
-fn direction(sent: bool) -> service::Direction {
-    if sent {
-        service::Direction::Sent
-    } else {
-        service::Direction::Received
-    }
-}
-
-fn began(o: Opened) -> Began {
-    Began {
-        source: o.source,
-        seq: o.seq,
-        direction: direction(o.sent),
-        class: match o.class {
-            Class::One => service::Class::One,
-            Class::Two => service::Class::Two,
-        },
-        length: u32::try_from(o.length).unwrap_or(u32::MAX),
+        cfdp::counters(&self.entity, &self.watch, self.store.0, self.store.1)
     }
 }

@@ -13,6 +13,11 @@
 //!   (one per counter and period, carrying its total) and FILE_STORE_ERROR when the store's
 //!   medium failed.
 //!
+//! A platform that runs `mmic_cfdp`'s entity makes these reports with [`cfdp`] (feature
+//! `cfdp`): the entity's and the store's counters and its [`Watch`](mmic_cfdp::watch::Watch)
+//! (transactions opened, PDUs sent, NAKs) as [`FileCounters`], a transaction opened as
+//! [`Began`], a finished one as [`Ended`].
+//!
 //! Before the platform's first report (a robot without a file service: the host without
 //! `--files`, a board without a store) the parameters have no value.
 
@@ -252,6 +257,89 @@ impl Files {
         let zero = FileCounters::default();
         let v = self.now.as_ref().unwrap_or(&zero).param(id)?;
         Ok(self.now.map(|_| i64::from(v)))
+    }
+}
+
+/// The reports of a platform that runs `mmic_cfdp`'s entity (the host obsw, and board A the
+/// same way).
+#[cfg(feature = "cfdp")]
+pub mod cfdp {
+    use mmic_cfdp::watch::{Opened, Watch};
+    use mmic_cfdp::{Entity, Finished, FlatStore};
+
+    use super::{Began, Class, Direction, Ended, FileCounters};
+
+    /// What `entity`, its store and `watch` counted; `files` and `free` are the store's
+    /// (the platform counts them when it likes: a listing reads the medium).
+    pub fn counters<S: FlatStore>(entity: &Entity<'_, S>, watch: &Watch, files: u16, free: u32) -> FileCounters {
+        let (c, s, w) = (entity.counters(), entity.store().counters(), watch);
+        FileCounters {
+            pdus_received: c.received,
+            pdus_sent: w.pdus_sent,
+            pdus_refused: c.refused,
+            pdus_stray: c.stray,
+            handler_refused: c.handler_errors,
+            before_metadata: c.before_metadata,
+            tx_received: w.opened_received,
+            tx_sent: w.opened_sent,
+            tx_completed: c.completed,
+            tx_failed: c.failed,
+            faults: c.faults,
+            segments_resent: c.resent,
+            naks_sent: w.naks_sent,
+            naks_received: w.naks_received,
+            outbox_dropped: c.outbox_dropped,
+            resend_dropped: c.resend_dropped,
+            superseded: c.superseded,
+            fs_done: c.fs_done,
+            fs_refused: c.fs_refused,
+            proxy_refused: c.proxy_refused,
+            store_bad_names: s.bad_names,
+            store_full: s.full,
+            store_io_errors: s.io_errors,
+            store_files: files,
+            store_free: free,
+        }
+    }
+
+    fn direction(sent: bool) -> Direction {
+        if sent {
+            Direction::Sent
+        } else {
+            Direction::Received
+        }
+    }
+
+    /// A transaction `watch` saw open.
+    pub fn began(o: &Opened) -> Began {
+        Began {
+            source: o.source,
+            seq: o.seq,
+            direction: direction(o.sent),
+            class: match o.class {
+                mmic_cfdp::Class::One => Class::One,
+                mmic_cfdp::Class::Two => Class::Two,
+            },
+            length: u32::try_from(o.length).unwrap_or(u32::MAX),
+        }
+    }
+
+    /// A transaction `entity` reported finished (`Entity::take_finished`), with the bytes it
+    /// moved: the entity's progress that way, at most the file's length `watch` saw.
+    pub fn ended<S: FlatStore>(entity: &Entity<'_, S>, watch: &Watch, f: &Finished) -> Ended {
+        let progress = if f.sent {
+            entity.sent_progress().0
+        } else {
+            entity.progress()
+        };
+        Ended {
+            source: f.source,
+            seq: f.seq,
+            direction: direction(f.sent),
+            condition: f.condition as u8,
+            complete: f.complete,
+            bytes: u32::try_from(watch.bytes(f, progress)).unwrap_or(u32::MAX),
+        }
     }
 }
 
