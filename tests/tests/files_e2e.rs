@@ -305,6 +305,11 @@ fn transfers_and_a_malformed_pdu_are_counted_in_hk_files_and_each_transfer_is_ev
         .parse::<u16>()
         .unwrap()
         .wrapping_sub(1);
+    // A get of a file the robot does not hold: its request completes, the put it asks
+    // for is refused; the ground waits for a file that never comes.
+    let miss = s.file(&["get", "--timeout", "3", "nothere.bin"]);
+    assert_eq!(miss.status.code(), Some(5), "{}", String::from_utf8_lossy(&miss.stderr));
+    let miss_seq = ground_next_seq(&s).wrapping_sub(1);
 
     let mut g = TestGround::open(&s);
     // A packet of the CFDP APID whose PDU header claims 255 data bytes it does not have.
@@ -319,10 +324,11 @@ fn transfers_and_a_malformed_pdu_are_counted_in_hk_files_and_each_transfer_is_ev
     assert_eq!(v(pid::FILE_PDU_REFUSED), 1, "the malformed packet");
     assert_eq!(
         (v(pid::FILE_TX_RECEIVED), v(pid::FILE_TX_SENT)),
-        (2, 1),
-        "the put and the get's request from the ground; the get's file from the robot"
+        (3, 1),
+        "the put and the gets' requests from the ground; the get's file from the robot"
     );
-    assert_eq!((v(pid::FILE_TX_COMPLETED), v(pid::FILE_TX_FAILED)), (3, 0));
+    assert_eq!((v(pid::FILE_TX_COMPLETED), v(pid::FILE_TX_FAILED)), (4, 0));
+    assert_eq!(v(pid::FILE_PROXY_REFUSED), 1, "the get of a missing file");
     // The put's metadata, 32 segments and EOF (its repeats are strays); the get's request,
     // and the ACK and Finished of both class 2 transactions.
     assert!(v(pid::FILE_PDU_RECEIVED) >= 36, "{}", v(pid::FILE_PDU_RECEIVED));
@@ -335,10 +341,16 @@ fn transfers_and_a_malformed_pdu_are_counted_in_hk_files_and_each_transfer_is_ev
         "the host store's quota less its files"
     );
     assert_eq!(v(pid::FILE_STORE_BAD_NAMES) + v(pid::FILE_STORE_IO_ERRORS), 0);
-    let refused = events(&g.log, eid::FILE_REFUSED);
-    let mut want = pid::FILE_PDU_REFUSED.to_be_bytes().to_vec();
-    want.extend(1u32.to_be_bytes());
-    assert_eq!(refused, [want], "the refusal evented at once, with its total");
+    let refused = |id: u16, total: u32| {
+        let mut v = id.to_be_bytes().to_vec();
+        v.extend(total.to_be_bytes());
+        v
+    };
+    assert_eq!(
+        events(&g.log, eid::FILE_REFUSED),
+        [refused(pid::FILE_PDU_REFUSED, 1)],
+        "the malformed packet's refusal evented at once, with its total"
+    );
 
     // The events of the transfers, from the on-board store (they went out while `ground
     // file` held the link): each transaction began and completed, with its ID.
@@ -359,6 +371,7 @@ fn transfers_and_a_malformed_pdu_are_counted_in_hk_files_and_each_transfer_is_ev
             // The get's request travels in the class asked for, without a file.
             start(tx(0, get_seq, direction::RECEIVED), class::CLASS_1, 0),
             start(tx(1, robot_seq, direction::SENT), class::CLASS_1, 20_001),
+            start(tx(0, miss_seq, direction::RECEIVED), class::CLASS_2, 0),
         ]
     );
     let completed = events(&tm, eid::FILE_TRANSFER_COMPLETED);
@@ -372,12 +385,20 @@ fn transfers_and_a_malformed_pdu_are_counted_in_hk_files_and_each_transfer_is_ev
         end(tx(0, put_seq, direction::RECEIVED), 30_000),
         end(tx(0, get_seq, direction::RECEIVED), 0),
         end(tx(1, robot_seq, direction::SENT), 20_001),
+        end(tx(0, miss_seq, direction::RECEIVED), 0),
     ];
     let mut completed = completed;
     completed.sort();
     want.sort();
     assert_eq!(completed, want);
     assert!(events(&tm, eid::FILE_TRANSFER_FAILED).is_empty());
+    let mut all_refused = events(&tm, eid::FILE_REFUSED);
+    all_refused.sort();
+    assert_eq!(
+        all_refused,
+        [refused(pid::FILE_PDU_REFUSED, 1), refused(pid::FILE_PROXY_REFUSED, 1)],
+        "each refusal evented once, with its counter and total"
+    );
 }
 
 // verifies: FILE-CFDP-05, FILE-BD-01
