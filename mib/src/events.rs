@@ -136,6 +136,7 @@ events! {
     FILE_TRANSFER_FAILED = 0x0703, Medium, false, ["source": U16, "seq": U16, "direction": U8 @DIRECTION_NAMES, "condition": U8 @CONDITION_NAMES, "bytes": U32], "Files: a CFDP transaction ended incomplete: condition (a checksum failure, an ACK, NAK or check limit, inactivity, a filestore rejection, a cancel; NO_ERROR when the ground reported the file incomplete), bytes = how far the file got; nothing partial is kept under the file's name";
     FILE_REFUSED = 0x0704, Low, false, ["counter": U16 @Names::Param, "total": U32], "Files: the file service refused something since the last report: counter = the FILES HK parameter that rose (FILE_PDU_REFUSED, FILE_HANDLER_REFUSED, FILE_FS_REFUSED, FILE_PROXY_REFUSED, FILE_STORE_BAD_NAMES, FILE_STORE_FULL), total = its value; at most one per counter and control period, then throttled";
     FILE_STORE_ERROR = 0x0705, Medium, false, ["errors": U32], "Files: the file store's medium failed (host directory, board flash) since the last report; errors = FILE_STORE_IO_ERRORS; the transfer concerned ends with a filestore rejection";
+    FILE_PARTIALS_REMOVED = 0x0706, Medium, false, ["files": U16], "Files: at start, partly received files of transfers a reset cut short were removed (files = how many; never taken for the file they were to be): those transfers ended with the reset, the ground saw them fail and sends them again";
 }
 
 /// Events exempt from throttling (`config::EVENT_THROTTLE_MAX`): `MODE_CHANGED` is

@@ -306,13 +306,14 @@ pub const HK_STRUCTS: &[HkDef] = &[
             FILE_STORE_IO_ERRORS,
             FILE_STORE_FILES,
             FILE_STORE_FREE,
+            FILE_PARTIALS_REMOVED,
         ],
         // Counters for trends: the events tell each transfer as it happens. Every 5 s
         // the FILES reports would overflow the TM store's HK area in the outage it must
         // hold (mib::memory, FW-MEM-02).
         default_interval_ms: 30000,
         default_enabled: true,
-        desc: "File service (CFDP entity and file store): PDUs taken, sent and refused, transactions started each way, completed and failed, faults, segments sent again, NAKs, drops, filestore and put requests refused, the store's refusals, files and free bytes",
+        desc: "File service (CFDP entity and file store): PDUs taken, sent and refused, transactions started each way, completed and failed, faults, segments sent again, NAKs, drops, filestore and put requests refused, the store's refusals, files and free bytes, partly received files removed at start",
     },
 ];
 

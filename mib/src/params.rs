@@ -351,6 +351,7 @@ params! {
     FILE_STORE_IO_ERRORS = 262, Files, U32, "", ID, None, "Files: failures of the store's medium (host directory, board flash), event FILE_STORE_ERROR";
     FILE_STORE_FILES = 263, Files, U16, "", ID, None, "Files: files in the store (at most mib::cfdp::MAX_FILES; staging files of a transfer under way included)";
     FILE_STORE_FREE = 264, Files, U32, "B", ID, None, "Files: bytes the store can still take";
+    FILE_PARTIALS_REMOVED = 265, Files, U16, "", ID, None, "Files: partly received files of transfers a reset cut short, removed at start (never taken for the file they were to be), event FILE_PARTIALS_REMOVED";
     LINK_TM_SPI = 180, SpaceLink, U16, "", ID, None, "Space link: the TM SPI in use (17 or 18; LINK_SPI_SELECT; 0 without a frame link)";
     LINK_TC_SPIS = 181, SpaceLink, U8, "", ID, None, "Space link: TC SPIs accepted (bit 0 SPI 1, bit 1 SPI 2: a key loaded and not retired)";
     LINK_STATE_WRITES = 182, SpaceLink, U32, "", ID, None, "Space link: durable writes of the link state record since boot (receive IV and FARM-1 per authentic TC frame, TM IV blocks, SPI selections)";

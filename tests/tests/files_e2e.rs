@@ -456,7 +456,7 @@ fn file_spawn(s: &Setup, args: &[&str]) -> std::process::Child {
         .expect("ground runs")
 }
 
-// verifies: FILE-CFDP-06
+// verifies: FILE-CFDP-06, FILE-EV-02
 #[test]
 #[ignore = "about a minute (two transfers with a robot restart, 25 s timeouts): cargo test -p e2e-tests --test files_e2e -- --ignored"]
 fn a_robot_killed_mid_transfer_never_leaves_the_ground_a_corrupt_file_taken_as_good() {
@@ -465,6 +465,8 @@ fn a_robot_killed_mid_transfer_never_leaves_the_ground_a_corrupt_file_taken_as_g
     std::fs::write(s.d.p("robot-files/big.bin"), &down).unwrap();
     let up = content(900_000, 6);
     std::fs::write(s.d.p("local/up.bin"), &up).unwrap();
+    // Whether the robot held a partly received file when it was killed during the put.
+    let mut partial = false;
     for (verb, args) in [
         ("get", ["get", "--timeout", "25", "big.bin"]),
         ("put", ["put", "--timeout", "25", "up.bin"]),
@@ -472,6 +474,12 @@ fn a_robot_killed_mid_transfer_never_leaves_the_ground_a_corrupt_file_taken_as_g
         let g = file_spawn(&s, &args);
         // Mid-transfer: a 900 kB transfer takes several seconds on the clean link.
         std::thread::sleep(std::time::Duration::from_millis(1500));
+        partial = std::fs::read_dir(s.d.p("robot-files")).unwrap().any(|e| {
+            e.unwrap()
+                .file_name()
+                .to_string_lossy()
+                .starts_with(mib::cfdp::PARTIAL_PREFIX)
+        });
         s.restart_robot();
         let out = g.wait_with_output().unwrap();
         let err = String::from_utf8_lossy(&out.stderr);
@@ -497,6 +505,19 @@ fn a_robot_killed_mid_transfer_never_leaves_the_ground_a_corrupt_file_taken_as_g
             c => panic!("{verb}: exit {c:?}: {err}"),
         }
     }
+    // The restarted robot removed the partly received file at start, counted and evented.
+    eprintln!("robot killed during the put holding a partly received file: {partial}");
+    let mut g = TestGround::open(&s);
+    let tm = g.run("HK_ONE_SHOT", &[i64::from(mib::hk::sid::FILES)]);
+    let hk = tm.iter().rfind(|t| t.sid() == Some(mib::hk::sid::FILES)).unwrap();
+    assert_eq!(
+        hk.hk(pid::FILE_PARTIALS_REMOVED),
+        Some(i64::from(partial)),
+        "partial file at the kill: {partial}"
+    );
+    let tm = g.run("STORE_DOWNLINK_TIME", &[0, 0, 65535, 4_294_967_295]);
+    let want: &[Vec<u8>] = if partial { &[vec![0, 1]] } else { &[] };
+    assert_eq!(events(&tm, eid::FILE_PARTIALS_REMOVED), want);
 }
 
 // A ground killed (SIGKILL: nothing written at exit) during a transfer and run again

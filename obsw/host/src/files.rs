@@ -55,16 +55,16 @@ pub struct Files<'a> {
     /// Files in the store and its free bytes, and when they are counted next.
     store: (u16, u32),
     store_look: u64,
+    /// Partly received files removed at start.
+    removed: u16,
 }
 
 impl<'a> Files<'a> {
     pub fn new(robot: u8, dir: &Path, parts: &'a Parts<DirStore>) -> Self {
         let entity = Entity::new(mib::cfdp::robot_entity_id(robot), mib::cfdp::GROUND_ENTITY_ID, parts);
         // Files whose transfer a reset cut short: never taken for the file they were to be.
+        // Counted in HK FILES and evented (FILE_PARTIALS_REMOVED) at the first period.
         let discarded = entity.discard_partial();
-        if discarded > 0 {
-            log::warn!("files: {discarded} partly received file(s) of an interrupted transfer removed");
-        }
         Files {
             parts,
             dir: dir.to_path_buf(),
@@ -74,6 +74,7 @@ impl<'a> Files<'a> {
             watch: Watch::default(),
             store: (0, 0),
             store_look: 0,
+            removed: u16::try_from(discarded).unwrap_or(u16::MAX),
         }
     }
 
@@ -153,6 +154,6 @@ impl<'a> Files<'a> {
 
     /// What the entity, its watch and the store counted.
     fn counters(&self) -> FileCounters {
-        cfdp::counters(&self.entity, &self.watch, self.store.0, self.store.1)
+        cfdp::counters(&self.entity, &self.watch, self.store.0, self.store.1, self.removed)
     }
 }

@@ -10,8 +10,9 @@
 //! - **Supplies** the parameters of source `Files` (HK structure FILES) and raises
 //!   FILE_TRANSFER_STARTED, FILE_TRANSFER_COMPLETED or FILE_TRANSFER_FAILED for each
 //!   transaction, FILE_REFUSED for each refusal counter that rose since the last period
-//!   (one per counter and period, carrying its total) and FILE_STORE_ERROR when the store's
-//!   medium failed.
+//!   (one per counter and period, carrying its total), FILE_STORE_ERROR when the store's
+//!   medium failed and FILE_PARTIALS_REMOVED when the platform removed at start the files of
+//!   transfers a reset cut short.
 //!
 //! A platform that runs `mmic_cfdp`'s entity makes these reports with [`cfdp`] (feature
 //! `cfdp`): the entity's and the store's counters and its [`Watch`](mmic_cfdp::watch::Watch)
@@ -72,6 +73,8 @@ pub struct FileCounters {
     /// Files in the store and the bytes it can still take.
     pub store_files: u16,
     pub store_free: u32,
+    /// Partly received files of transfers a reset cut short, removed at start.
+    pub partials_removed: u16,
 }
 
 impl FileCounters {
@@ -103,6 +106,7 @@ impl FileCounters {
             pid::FILE_STORE_IO_ERRORS => self.store_io_errors,
             pid::FILE_STORE_FILES => u32::from(self.store_files),
             pid::FILE_STORE_FREE => self.store_free,
+            pid::FILE_PARTIALS_REMOVED => u32::from(self.partials_removed),
             _ => return Err(NotSupplied(id)),
         })
     }
@@ -210,6 +214,10 @@ impl Files {
                         sink,
                     );
                 }
+                if c.partials_removed != was.partials_removed {
+                    let files = c.partials_removed;
+                    dl.raise(now, ev::FilePartialsRemoved { files }, sink);
+                }
                 self.now = Some(c);
             }
             Report::Began(b) => {
@@ -270,8 +278,15 @@ pub mod cfdp {
     use super::{Began, Class, Direction, Ended, FileCounters};
 
     /// What `entity`, its store and `watch` counted; `files` and `free` are the store's
-    /// (the platform counts them when it likes: a listing reads the medium).
-    pub fn counters<S: FlatStore>(entity: &Entity<'_, S>, watch: &Watch, files: u16, free: u32) -> FileCounters {
+    /// (the platform counts them when it likes: a listing reads the medium), `removed` what
+    /// `Entity::discard_partial` removed at start.
+    pub fn counters<S: FlatStore>(
+        entity: &Entity<'_, S>,
+        watch: &Watch,
+        files: u16,
+        free: u32,
+        removed: u16,
+    ) -> FileCounters {
         let (c, s, w) = (entity.counters(), entity.store().counters(), watch);
         FileCounters {
             pdus_received: c.received,
@@ -299,6 +314,7 @@ pub mod cfdp {
             store_io_errors: s.io_errors,
             store_files: files,
             store_free: free,
+            partials_removed: removed,
         }
     }
 
@@ -482,6 +498,10 @@ mod tests {
         c.store_io_errors = 1;
         c.pdus_received = 40;
         o.files_report(30, Report::Counters(c), &mut sink);
+        // What a reset cut short, removed at start: once.
+        c.partials_removed = 2;
+        o.files_report(40, Report::Counters(c), &mut sink);
+        o.files_report(50, Report::Counters(c), &mut sink);
         let e = events(&sink);
         let refused = |id: u16, total: u32| {
             let mut d = id.to_be_bytes().to_vec();
@@ -495,6 +515,7 @@ mod tests {
                 refused(pid::FILE_STORE_BAD_NAMES, 2),
                 refused(pid::FILE_PDU_REFUSED, 5),
                 (3, eid::FILE_STORE_ERROR, vec![0, 0, 0, 1]),
+                (3, eid::FILE_PARTIALS_REMOVED, vec![0, 2]),
             ]
         );
     }
