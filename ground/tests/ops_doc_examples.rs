@@ -89,6 +89,7 @@ fn expectations() -> BTreeMap<&'static str, Expect> {
             "ground archive plot V_BAT_A I_BAT --out battery.svg",
             ok(&["points plotted to battery.svg"]),
         ),
+        ("ground send --robot 1 HK_ONE_SHOT sid=31", ok(&["completion ok"])),
         (
             "ground send --robot 1 UNBOLT_FACE side=A pairs=3",
             code(3, &["UNBOLT_FACE is hazardous", "(add --confirm)"]),

@@ -3,6 +3,7 @@
 //! parameters, packed with their wire types.
 
 use crate::config::RESET_CAUSE_NAMES;
+use crate::files::{CLASS_NAMES, CONDITION_NAMES, DIRECTION_NAMES};
 use crate::layout::{Field, Names, MODULE_REASON_NAMES, SIDE_NAMES, SLOT_NAMES};
 use crate::team::{
     TEAM_DIRECTIVE_NAMES, TEAM_PLAN_REFUSE_NAMES, TEAM_REFUSE_NAMES, TEAM_REJECT_NAMES, TEAM_STATE_NAMES,
@@ -129,6 +130,13 @@ events! {
     UPDATE_CONFIRMED = 0x0604, Info, false, ["version": U32, "slot": U8], "Update: the running image passed its self-test and confirmed itself (otadata VALID)";
     UPDATE_SELF_TEST_FAILED = 0x0605, High, false, ["version": U32, "check": U8], "Update: the running image, not yet confirmed, failed its self-test (check that failed); it resets unconfirmed and the previous image boots";
     UPDATE_ROLLED_BACK = 0x0606, High, false, ["aborted_slot": U8, "version": U32], "Update: the image activated last never confirmed; the boot abandoned its slot and runs this version again";
+    // --- the file service (docs/files.md, mib::files) ---
+    FILE_TRANSFER_STARTED = 0x0701, Info, false, ["source": U16, "seq": U16, "direction": U8 @DIRECTION_NAMES, "class": U8 @CLASS_NAMES, "length": U32], "Files: a CFDP transaction began (its metadata PDU taken from the ground or sent to it); source and seq are its transaction ID (entity 0 the ground, N robot N; the sequence number of that entity), direction RECEIVED from the ground or SENT to it, length the file's bytes (0: a request without a file: get, listing, remove, rename)";
+    FILE_TRANSFER_COMPLETED = 0x0702, Info, false, ["source": U16, "seq": U16, "direction": U8 @DIRECTION_NAMES, "condition": U8 @CONDITION_NAMES, "bytes": U32], "Files: a CFDP transaction ended complete (receiver: checksum verified, the file kept under its name; sender: the ground's Finished PDU says so); bytes = the file's bytes moved";
+    FILE_TRANSFER_FAILED = 0x0703, Medium, false, ["source": U16, "seq": U16, "direction": U8 @DIRECTION_NAMES, "condition": U8 @CONDITION_NAMES, "bytes": U32], "Files: a CFDP transaction ended incomplete: condition (a checksum failure, an ACK, NAK or check limit, inactivity, a filestore rejection, a cancel; NO_ERROR when the ground reported the file incomplete), bytes = how far the file got; nothing partial is kept under the file's name";
+    FILE_REFUSED = 0x0704, Low, false, ["counter": U16 @Names::Param, "total": U32], "Files: the file service refused something since the last report: counter = the FILES HK parameter that rose (FILE_PDU_REFUSED, FILE_HANDLER_REFUSED, FILE_FS_REFUSED, FILE_PROXY_REFUSED, FILE_STORE_BAD_NAMES, FILE_STORE_FULL), total = its value; at most one per counter and control period, then throttled";
+    FILE_STORE_ERROR = 0x0705, Medium, false, ["errors": U32], "Files: the file store's medium failed (host directory, board flash) since the last report; errors = FILE_STORE_IO_ERRORS; the transfer concerned ends with a filestore rejection";
+    FILE_PARTIALS_REMOVED = 0x0706, Medium, false, ["files": U16], "Files: at start, partly received files of transfers a reset cut short were removed (files = how many; never taken for the file they were to be): those transfers ended with the reset, the ground saw them fail and sends them again";
 }
 
 /// Events exempt from throttling (`config::EVENT_THROTTLE_MAX`): `MODE_CHANGED` is

@@ -28,6 +28,7 @@ pub mod sid {
     pub const TEAM: u16 = 24;
     pub const PLAN: u16 = 27;
     pub const UPDATE: u16 = 30;
+    pub const FILES: u16 = 31;
 }
 
 /// Shortest and longest collection interval accepted by TC[3,31].
@@ -275,6 +276,44 @@ pub const HK_STRUCTS: &[HkDef] = &[
         default_interval_ms: 5000,
         default_enabled: true,
         desc: "Software update: running version and slot, outcome of the last update, verified image waiting in the other slot, update TCs refused",
+    },
+    HkDef {
+        sid: sid::FILES,
+        name: "FILES",
+        params: &[
+            FILE_PDU_RECEIVED,
+            FILE_PDU_SENT,
+            FILE_PDU_REFUSED,
+            FILE_PDU_STRAY,
+            FILE_HANDLER_REFUSED,
+            FILE_BEFORE_METADATA,
+            FILE_TX_RECEIVED,
+            FILE_TX_SENT,
+            FILE_TX_COMPLETED,
+            FILE_TX_FAILED,
+            FILE_FAULTS,
+            FILE_SEG_RESENT,
+            FILE_NAK_SENT,
+            FILE_NAK_RECEIVED,
+            FILE_OUTBOX_DROPPED,
+            FILE_RESEND_DROPPED,
+            FILE_SUPERSEDED,
+            FILE_FS_DONE,
+            FILE_FS_REFUSED,
+            FILE_PROXY_REFUSED,
+            FILE_STORE_BAD_NAMES,
+            FILE_STORE_FULL,
+            FILE_STORE_IO_ERRORS,
+            FILE_STORE_FILES,
+            FILE_STORE_FREE,
+            FILE_PARTIALS_REMOVED,
+        ],
+        // Counters for trends: the events tell each transfer as it happens. Every 5 s
+        // the FILES reports would overflow the TM store's HK area in the outage it must
+        // hold (mib::memory, FW-MEM-02).
+        default_interval_ms: 30000,
+        default_enabled: true,
+        desc: "File service (CFDP entity and file store): PDUs taken, sent and refused, transactions started each way, completed and failed, faults, segments sent again, NAKs, drops, filestore and put requests refused, the store's refusals, files and free bytes, partly received files removed at start",
     },
 ];
 

@@ -16,6 +16,7 @@ pub mod config;
 pub mod events;
 pub mod failure;
 pub mod fdir;
+pub mod files;
 pub mod ground_config;
 pub mod headers;
 pub mod hk;

@@ -118,6 +118,9 @@ pub enum Source {
     Plan,
     /// Software update (service 213, `crate::update`): running version and slot, last outcome.
     Update,
+    /// The file service (`crate::files`): what the platform's CFDP entity and file store
+    /// counted.
+    Files,
     /// Board A's robot logic (the domain controller): its own sensors, actuators, state
     /// estimate, A–B link counters and calibration.
     BoardA,
@@ -127,7 +130,7 @@ pub enum Source {
 
 impl Source {
     /// Every source, for checks that ask each component in turn.
-    pub const ALL: [Source; 15] = [
+    pub const ALL: [Source; 16] = [
         Source::Modes,
         Source::Faults,
         Source::Monitoring,
@@ -141,6 +144,7 @@ impl Source {
         Source::Team,
         Source::Plan,
         Source::Update,
+        Source::Files,
         Source::BoardA,
         Source::BoardB,
     ];
@@ -321,6 +325,33 @@ params! {
     PLAN_PROGRESS_SENT = 207, Plan, U32, "", ID, None, "Plan: progress announcements sent to the team (one per destination robot)";
     PLAN_PROGRESS_RECEIVED = 208, Plan, U32, "", ID, None, "Plan: progress announcements accepted from other robots (authentic, of the loaded plan)";
     PLAN_PROGRESS_IGNORED = 209, Plan, U32, "", ID, None, "Plan: progress announcements ignored (another plan ID, a robot the plan does not wait for, malformed, or a sender other than the one authenticated)";
+    // --- the file service (CFDP entity and file store; docs/files.md, mib::files) ---
+    FILE_PDU_RECEIVED = 240, Files, U32, "", ID, None, "Files: CFDP PDUs the robot's entity took (well formed, addressed between the ground's entity and this robot's, of a transaction it runs or opens)";
+    FILE_PDU_SENT = 241, Files, U32, "", ID, None, "Files: CFDP PDUs the robot's entity sent to the ground (one TM packet each, files VC)";
+    FILE_PDU_REFUSED = 242, Files, U32, "", ID, None, "Files: packets of the CFDP APID refused: no PDU packet, a PDU malformed in a length or a field, not addressed between the ground's entity and this robot's (event FILE_REFUSED)";
+    FILE_PDU_STRAY = 243, Files, U32, "", ID, None, "Files: PDUs of a transaction other than the running one or already ended (late retransmissions, duplicates): dropped, a Finished PDU acknowledged again";
+    FILE_HANDLER_REFUSED = 244, Files, U32, "", ID, None, "Files: PDUs and requests the CFDP state machine refused (a transaction while one runs the same way, a wrong transaction) (event FILE_REFUSED)";
+    FILE_BEFORE_METADATA = 245, Files, U32, "", ID, None, "Files: file data and EOF PDUs of a transaction whose metadata had not arrived: dropped, the metadata asked for again in class 2";
+    FILE_TX_RECEIVED = 246, Files, U32, "", ID, None, "Files: transactions the ground's entity started (puts up; get, listing, remove and rename requests), event FILE_TRANSFER_STARTED";
+    FILE_TX_SENT = 247, Files, U32, "", ID, None, "Files: transactions the robot's entity started (the file of a get, a listing), event FILE_TRANSFER_STARTED";
+    FILE_TX_COMPLETED = 248, Files, U32, "", ID, None, "Files: transactions ended complete (receiver: checksum verified, file kept; sender: the ground's Finished PDU says so), event FILE_TRANSFER_COMPLETED";
+    FILE_TX_FAILED = 249, Files, U32, "", ID, None, "Files: transactions ended incomplete (a fault, a cancel, abandoned for inactivity; nothing partial kept), event FILE_TRANSFER_FAILED";
+    FILE_FAULTS = 250, Files, U32, "", ID, None, "Files: CFDP faults declared (checksum failure, ACK, NAK or check limit, inactivity, filestore rejection)";
+    FILE_SEG_RESENT = 251, Files, U32, "", ID, None, "Files: file data PDUs sent again at the ground's NAKs";
+    FILE_NAK_SENT = 252, Files, U32, "", ID, None, "Files: NAK PDUs sent (segments, or the metadata, the robot asks the ground for again)";
+    FILE_NAK_RECEIVED = 253, Files, U32, "", ID, None, "Files: NAK PDUs taken from the ground (segments it asks the robot for again)";
+    FILE_OUTBOX_DROPPED = 254, Files, U32, "", ID, None, "Files: PDUs lost because the entity's outbox was full (mib::cfdp::OUTBOX_DEPTH; class 2 recovers them)";
+    FILE_RESEND_DROPPED = 255, Files, U32, "", ID, None, "Files: segment requests of the ground's NAKs dropped because the resend queue was full (asked for again by the next NAK)";
+    FILE_SUPERSEDED = 256, Files, U32, "", ID, None, "Files: incoming transactions ended by the ground's next one before their Finished PDU was acknowledged (that ACK was lost)";
+    FILE_FS_DONE = 257, Files, U32, "", ID, None, "Files: filestore requests executed (delete, rename)";
+    FILE_FS_REFUSED = 258, Files, U32, "", ID, None, "Files: filestore requests refused (a bad or missing name, an existing target, an action the store does not take) (event FILE_REFUSED)";
+    FILE_PROXY_REFUSED = 259, Files, U32, "", ID, None, "Files: puts the ground asked for (a get, a listing) refused: busy, a bad name, no such file (event FILE_REFUSED)";
+    FILE_STORE_BAD_NAMES = 260, Files, U32, "", ID, None, "Files: names the store refused (mib::cfdp name rules: 1 to 48 letters, digits, '.', '_', '-', not starting with '.') (event FILE_REFUSED)";
+    FILE_STORE_FULL = 261, Files, U32, "", ID, None, "Files: writes the store refused for space (file longer than MAX_FILE_LEN, past the free bytes, more than MAX_FILES files) (event FILE_REFUSED)";
+    FILE_STORE_IO_ERRORS = 262, Files, U32, "", ID, None, "Files: failures of the store's medium (host directory, board flash), event FILE_STORE_ERROR";
+    FILE_STORE_FILES = 263, Files, U16, "", ID, None, "Files: files in the store (at most mib::cfdp::MAX_FILES; staging files of a transfer under way included)";
+    FILE_STORE_FREE = 264, Files, U32, "B", ID, None, "Files: bytes the store can still take";
+    FILE_PARTIALS_REMOVED = 265, Files, U16, "", ID, None, "Files: partly received files of transfers a reset cut short, removed at start (never taken for the file they were to be), event FILE_PARTIALS_REMOVED";
     LINK_TM_SPI = 180, SpaceLink, U16, "", ID, None, "Space link: the TM SPI in use (17 or 18; LINK_SPI_SELECT; 0 without a frame link)";
     LINK_TC_SPIS = 181, SpaceLink, U8, "", ID, None, "Space link: TC SPIs accepted (bit 0 SPI 1, bit 1 SPI 2: a key loaded and not retired)";
     LINK_STATE_WRITES = 182, SpaceLink, U32, "", ID, None, "Space link: durable writes of the link state record since boot (receive IV and FARM-1 per authentic TC frame, TM IV blocks, SPI selections)";

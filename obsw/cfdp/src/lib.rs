@@ -17,6 +17,7 @@ pub mod msg;
 pub mod packet;
 pub mod store;
 pub mod trace;
+pub mod watch;
 
 pub use entity::{Class, Entity, Finished, Parts, PutError};
 /// The PDU types (the spacepackets version cfdp-rs is built on).

@@ -256,6 +256,12 @@ impl<S: TmStore> Obsw<S> {
         self.update.boot_reported(now, &mut self.dl, sink);
     }
 
+    /// What the platform's file service counted this period, or a transaction of it that
+    /// began or ended (`services::files`): its HK parameters and events.
+    pub fn files_report(&mut self, now: u64, r: crate::services::files::Report, sink: &mut impl TmSink) {
+        self.svc.files.report(now, r, &mut self.dl, sink);
+    }
+
     /// Reports what the platform's ground link did on its own (host TCP bounds): events
     /// `TCP_CONNECTION_REFUSED` / `TCP_CLIENT_DROPPED` with the totals since boot.
     pub fn link_event(&mut self, now: u64, ev: LinkEvent, sink: &mut impl TmSink) {

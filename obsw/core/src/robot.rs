@@ -135,7 +135,8 @@ impl Robot {
             | Source::Modules
             | Source::Team
             | Source::Plan
-            | Source::Update => Err(NotSupplied(id)),
+            | Source::Update
+            | Source::Files => Err(NotSupplied(id)),
         }
     }
 

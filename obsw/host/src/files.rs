@@ -4,18 +4,21 @@
 //!
 //! Interface: takes space packets of `mib::cfdp::APID` (TC type) from accepted TC frames
 //! only — never from the lab's bare-packet link, so nothing unauthenticated reaches the
-//! store; supplies TM packets of that APID (on the files VC, `TmSink::send_file`); its counters
-//! ([`mmic_cfdp::entity::Counters`], the store's) are logged when they change.
+//! store; supplies TM packets of that APID (on the files VC, `TmSink::send_file`); reports
+//! to the obsw's file service component (`obsw_core::services::files`: HK FILES and the
+//! FILE_* events) the counters of the entity, its [`Watch`] and the store each control
+//! period, and each transaction as it begins and ends.
 
 use std::path::Path;
 
 use anyhow::{Context, Result};
 use mmic_cfdp::dir::DirStore;
-use mmic_cfdp::entity::Counters;
 use mmic_cfdp::packet::{self, Direction};
-use mmic_cfdp::store::StoreCounters;
+use mmic_cfdp::watch::Watch;
 use mmic_cfdp::{Entity, Parts};
-use obsw_core::tm::TmSink;
+use obsw_core::obsw::Obsw;
+use obsw_core::services::files::{cfdp, FileCounters, Report};
+use obsw_core::tm::{TmSink, TmStore};
 
 /// Bytes the host store holds: the board's whole flash, so that the host can take any
 /// file the link can carry (the board's own area is `mib::cfdp::BOARD_STORE_BYTES`).
@@ -24,6 +27,9 @@ pub const HOST_STORE_BYTES: u64 = 4 << 20;
 /// Where the next transaction sequence number is kept: in the store's folder under a name
 /// no store file can have (store names never start with '.').
 const SEQ_FILE: &str = ".cfdp-seq";
+
+/// How often the store's files and free bytes are counted (a directory read each time).
+const STORE_LOOK_MS: u64 = 1000;
 
 /// Opens the store in `dir`, with the sequence number kept there.
 pub fn parts(dir: &Path) -> Result<Parts<DirStore>> {
@@ -45,50 +51,68 @@ pub struct Files<'a> {
     dir: std::path::PathBuf,
     kept_seq: u16,
     seq: u16,
-    logged: (Counters, StoreCounters),
+    watch: Watch,
+    /// Files in the store and its free bytes, and when they are counted next.
+    store: (u16, u32),
+    store_look: u64,
+    /// Partly received files removed at start.
+    removed: u16,
 }
 
 impl<'a> Files<'a> {
     pub fn new(robot: u8, dir: &Path, parts: &'a Parts<DirStore>) -> Self {
         let entity = Entity::new(mib::cfdp::robot_entity_id(robot), mib::cfdp::GROUND_ENTITY_ID, parts);
         // Files whose transfer a reset cut short: never taken for the file they were to be.
+        // Counted in HK FILES and evented (FILE_PARTIALS_REMOVED) at the first period.
         let discarded = entity.discard_partial();
-        if discarded > 0 {
-            log::warn!("files: {discarded} partly received file(s) of an interrupted transfer removed");
-        }
         Files {
             parts,
             dir: dir.to_path_buf(),
             kept_seq: parts.next_seq(),
             entity,
             seq: 0,
-            logged: Default::default(),
+            watch: Watch::default(),
+            store: (0, 0),
+            store_look: 0,
+            removed: u16::try_from(discarded).unwrap_or(u16::MAX),
         }
     }
 
-    /// Whether `packet` is the service's (then it was taken).
-    pub fn packet(&mut self, now_ms: u64, packet: &[u8]) -> bool {
+    /// Whether `packet` is the service's (then it was taken, and the PDUs it caused sent).
+    pub fn packet<S: TmStore>(
+        &mut self,
+        now_ms: u64,
+        packet: &[u8],
+        obsw: &mut Obsw<S>,
+        down: &mut impl TmSink,
+    ) -> bool {
         if packet::apid(packet) != Some(mib::cfdp::APID) {
             return false;
         }
         // A packet of the APID that is not an uplink PDU packet is refused and counted.
+        let before = self.entity.counters();
         self.entity.receive_packet(now_ms, Direction::Up, packet);
+        let after = self.entity.counters();
+        if after.received != before.received && after.handler_errors == before.handler_errors {
+            if let Some(o) = packet::unwrap(Direction::Up, packet).and_then(|pdu| self.watch.taken(pdu)) {
+                obsw.files_report(now_ms, Report::Began(cfdp::began(&o)), down);
+            }
+        }
+        self.flush(now_ms, obsw, down);
+        // HK asked for in the same frame counts this packet, and a refusal is evented now.
+        obsw.files_report(now_ms, Report::Counters(self.counters()), down);
         true
     }
 
-    /// Timers and file data; the PDUs go down as TM packets.
-    pub fn poll(&mut self, now_ms: u64, down: &mut impl TmSink) {
+    /// Timers and file data; the PDUs go down as TM packets; the transactions that ended
+    /// and this period's counters to the obsw.
+    pub fn poll<S: TmStore>(&mut self, now_ms: u64, obsw: &mut Obsw<S>, down: &mut impl TmSink) {
         self.entity.poll(now_ms);
-        self.flush(down);
+        self.flush(now_ms, obsw, down);
+        let mut ended = false;
         while let Some(f) = self.entity.take_finished() {
-            log::info!(
-                "files: transaction {}/{} {} {:?}{}",
-                f.source,
-                f.seq,
-                if f.sent { "sent" } else { "received" },
-                f.condition,
-                if f.complete { ", complete" } else { ", NOT complete" }
-            );
+            obsw.files_report(now_ms, Report::Ended(cfdp::ended(&self.entity, &self.watch, &f)), down);
+            ended = true;
         }
         if self.parts.next_seq() != self.kept_seq {
             // Written beside, then renamed: a crash leaves the old number or the new.
@@ -100,21 +124,36 @@ impl<'a> Files<'a> {
                 Err(e) => log::error!("files: {}: {e}", path.display()),
             }
         }
-        let now = (self.entity.counters(), self.entity.store().counters());
-        if now != self.logged {
-            log::warn!("files: counters {:?}, store {:?}", now.0, now.1);
-            self.logged = now;
+        if ended || now_ms >= self.store_look {
+            self.store_look = now_ms + STORE_LOOK_MS;
+            let store = self.entity.store();
+            // A store that cannot be read keeps its last figures; the failure is counted.
+            if let (Ok(files), Ok(free)) = (store.count_files(), store.free()) {
+                self.store = (
+                    u16::try_from(files).unwrap_or(u16::MAX),
+                    u32::try_from(free).unwrap_or(u32::MAX),
+                );
+            }
         }
+        obsw.files_report(now_ms, Report::Counters(self.counters()), down);
     }
 
-    /// Sends the PDUs waiting in the outbox.
-    pub fn flush(&mut self, down: &mut impl TmSink) {
+    /// Sends the PDUs waiting in the outbox; a transaction one of them opens to the obsw.
+    fn flush<S: TmStore>(&mut self, now_ms: u64, obsw: &mut Obsw<S>, down: &mut impl TmSink) {
         let mut buf = [0u8; mib::cfdp::MAX_PACKET_LEN];
         while let Some(pdu) = self.entity.pop() {
+            if let Some(o) = self.watch.sent(&pdu) {
+                obsw.files_report(now_ms, Report::Began(cfdp::began(&o)), down);
+            }
             if let Some(n) = packet::wrap(Direction::Down, self.seq, &pdu, &mut buf) {
                 self.seq = self.seq.wrapping_add(1) & 0x3FFF;
                 down.send_file(&buf[..n]);
             }
         }
+    }
+
+    /// What the entity, its watch and the store counted.
+    fn counters(&self) -> FileCounters {
+        cfdp::counters(&self.entity, &self.watch, self.store.0, self.store.1, self.removed)
     }
 }

@@ -754,8 +754,7 @@ fn run(args: Args) -> Result<()> {
                     // COP-1 and SDLS deliver each frame once: no packet duplicate window.
                     for p in packets {
                         if let Some(fs) = file_service.as_mut() {
-                            if fs.packet(arrival(sim_ms), &p) {
-                                fs.flush(&mut down);
+                            if fs.packet(arrival(sim_ms), &p, &mut obsw, &mut down) {
                                 continue;
                             }
                         }
@@ -827,7 +826,7 @@ fn run(args: Args) -> Result<()> {
             }
         }
         if let Some(fs) = file_service.as_mut() {
-            fs.poll(sim_ms, &mut down);
+            fs.poll(sim_ms, &mut obsw, &mut down);
         }
         let sensors = sim.sensors_a();
         let out = obsw.tick(sim_ms, &sensors, &link_rx, &mut down);

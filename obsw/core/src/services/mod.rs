@@ -16,6 +16,7 @@
 
 pub mod event;
 pub mod event_action;
+pub mod files;
 pub mod function;
 pub mod hk;
 pub mod link;
@@ -113,6 +114,7 @@ pub const COMPONENTS: &[Contract] = &[
     link::LinkKeys::CONTRACT,
     plan::OnboardPlan::CONTRACT,
     update::Update::CONTRACT,
+    files::Files::CONTRACT,
     c("tc path", None, &[Source::Counters]),
     c("downlink", None, &[Source::Downlink]),
     c("platform I/O", None, &[Source::Io]),
@@ -126,6 +128,8 @@ pub const COMPONENTS: &[Contract] = &[
 pub struct Services {
     pub hk: hk::Hk,
     pub time_reports: time::TimeReports,
+    /// What the platform's file service reported (`Obsw::files_report`).
+    pub files: files::Files,
 }
 
 impl Services {
@@ -133,6 +137,7 @@ impl Services {
         Services {
             hk: hk::Hk::new(),
             time_reports: time::TimeReports::new(),
+            files: files::Files::default(),
         }
     }
 }
@@ -223,6 +228,7 @@ impl<S: TmStore> Obsw<S> {
             Source::Team => self.team.param(id),
             Source::Plan => self.plan.plan.param(id),
             Source::Update => self.update.param(id),
+            Source::Files => self.svc.files.param(id),
         }
     }
 
