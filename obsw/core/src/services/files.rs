@@ -112,10 +112,11 @@ impl FileCounters {
     }
 }
 
-/// The refusal counters FILE_REFUSED reports, by their parameter.
-const REFUSALS: [u16; 6] = [
+/// The refusal counters FILE_REFUSED reports, by their parameter. Not the state machine's
+/// refusals (FILE_HANDLER_REFUSED): a late or repeated PDU of a lossy link, the relay's
+/// duplicates, rise it during most transfers; its count is in HK.
+const REFUSALS: [u16; 5] = [
     pid::FILE_PDU_REFUSED,
-    pid::FILE_HANDLER_REFUSED,
     pid::FILE_FS_REFUSED,
     pid::FILE_PROXY_REFUSED,
     pid::FILE_STORE_BAD_NAMES,
