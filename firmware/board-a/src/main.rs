@@ -41,6 +41,7 @@ use esp_hal::Async;
 use esp_storage::FlashStorage;
 use fw_core::config::{self as cfg, i2c_addr};
 use fw_core::cycle::{CycleA, GroundSink, LinksA, PeripheralsA};
+use fw_core::files::NoFiles;
 use fw_core::flash::SharedFlash;
 use fw_core::link::{self, ByteQueue, Counters, TcChannel};
 use fw_core::link_store::{self, FlashIvStore};
@@ -56,6 +57,10 @@ use obsw_core::obsw::{Config, Obsw};
 use static_cell::StaticCell;
 
 esp_bootloader_esp_idf::esp_app_desc!();
+
+/// No heap: every allocation fails (`fw_core::no_heap`: why one is named at all).
+#[global_allocator]
+static NO_HEAP: fw_core::no_heap::NoHeap = fw_core::no_heap::NoHeap;
 
 /// Uplinked TC frames (COBS decoded), waiting for the control task's frame link.
 static TCS: TcChannel = TcChannel::new();
@@ -182,7 +187,9 @@ async fn control(
     loop {
         ticker.next().await;
         watchdog.feed();
-        cycle.run(fw_esp::clock::now_ms(), obsw, ground, &mut io, &links);
+        // No file service yet: board A's file store on flash is not built (docs/files.md,
+        // "On the board"); a packet of the CFDP APID goes to the OBSW, which refuses it.
+        cycle.run(fw_esp::clock::now_ms(), obsw, ground, &mut NoFiles, &mut io, &links);
         // PLATFORM_IO's IO_STACK_HIGH_WATER: the painted stack, swept a little per period.
         obsw.io.stack_high_water = stack.step(fw_core::stack::WORDS_PER_PERIOD, fw_esp::stack::word);
     }

@@ -32,6 +32,7 @@ mod uart;
 use core::cell::RefCell;
 use fw_core::config::{self as cfg, i2c_addr};
 use fw_core::cycle::{CycleA, CycleB, GroundSink, LinksA, LinksB, PeripheralsA, PeripheralsB};
+use fw_core::files::NoFiles;
 use fw_core::flash::SharedFlash;
 use fw_core::link::{self, ByteQueue, Counters, TcChannel};
 use fw_core::link_store::{self, FlashIvStore};
@@ -89,6 +90,10 @@ fn fail(what: &str) -> ! {
     semihosting::println!("qemu-board: {}", what);
     semihosting::process::exit(2)
 }
+
+/// No heap: every allocation fails (`fw_core::no_heap`: why one is named at all).
+#[global_allocator]
+static NO_HEAP: fw_core::no_heap::NoHeap = fw_core::no_heap::NoHeap;
 
 #[riscv_rt::entry]
 fn main() -> ! {
@@ -219,7 +224,7 @@ fn main() -> ! {
                 next + period
             };
             let t = now - start;
-            let (_, depth_a) = probe.depth(|| a.run(t, &mut obsw, &mut ground, &mut io_a, &links_a));
+            let (_, depth_a) = probe.depth(|| a.run(t, &mut obsw, &mut ground, &mut NoFiles, &mut io_a, &links_a));
             let (_, depth_b) = probe.depth(|| b.run(t, &mut io_b, &links_b));
             if depth_a > high_a || depth_b > high_b {
                 (high_a, high_b) = (high_a.max(depth_a), high_b.max(depth_b));
