@@ -13,6 +13,8 @@
 # frames alike, as `ground file get` counts them). Uses the debug binaries in target/debug
 # (`cargo build -p obsw -p ground -p e2e-tests --bins`), or BIN=DIR. TRACE=DIR keeps each
 # run's `--trace` of the ground (every PDU in and out, ms) as DIR/<clean|lossy>-<run>-<put|get>.
+# BASE=DIR runs the binaries in DIR as a baseline in the same run: each run does BIN's clean
+# and lossy transfers and then BASE's, and the summary gives both and their ratio.
 set -euo pipefail
 RUNS=${1:-5}
 KIB=${2:-256}
@@ -33,14 +35,14 @@ one() {
     li=127.0.0.1:$(port)
     rm -rf "$W/robot" "$W/local/"*
     mkdir -p "$W/robot"
-    "$BIN/relay" --to-udp "$fr" $faults --seed "$seed" --tm-frames-to "$li" --idle 900 --lifetime 900 \
+    "$X/relay" --to-udp "$fr" $faults --seed "$seed" --tm-frames-to "$li" --idle 900 --lifetime 900 \
         </dev/null >"$W/relay.out" &
     rp=$!
     until grep -q RELAY "$W/relay.out" 2>/dev/null; do sleep 0.05; done
     line=$(grep RELAY "$W/relay.out")
     ru=$(sed 's/.*udp=\([^ ]*\).*/\1/' <<<"$line")
     tmf=$(sed 's/.*tm_frames=\([^ ]*\).*/\1/' <<<"$line")
-    "$BIN/obsw" --robot 1 --udp 127.0.0.1:0 --tcp 127.0.0.1:0 --sim-ctl 127.0.0.1:0 --keys "$W/keys" \
+    "$X/obsw" --robot 1 --udp 127.0.0.1:0 --tcp 127.0.0.1:0 --sim-ctl 127.0.0.1:0 --keys "$W/keys" \
         --frame-udp "$fr" --frame-tm-to "$tmf" --files "$W/robot" >"$W/obsw.out" 2>/dev/null &
     op=$!
     # An obsw that did not start (a port taken between `port` and its bind) ends the run
@@ -51,7 +53,7 @@ one() {
     done
     cp "$W/up.bin" "$W/local/up.bin"
     cd "$W/local"
-    local g=("$BIN/ground" --no-archive file)
+    local g=("$X/ground" --no-archive file)
     local l=(--robot "1=$ru" --tm-listen "1=$li" --keys "$W/keys")
     [ -n "${TRACE:-}" ] && l+=(--trace)
     t0=$(date +%s.%N)
@@ -79,19 +81,27 @@ one() {
 
 median() { sort -g | awk '{a[NR]=$1} END {print (NR%2) ? a[(NR+1)/2] : (a[NR/2]+a[NR/2+1])/2}'; }
 
-: >"$W/clean" ; : >"$W/lossy"
+variants=(new)
+[ -n "${BASE:-}" ] && variants+=(base)
+dir_of() { if [ "$1" = base ]; then echo "$BASE"; else echo "$BIN"; fi; }
+for v in "${variants[@]}"; do : >"$W/$v-clean"; : >"$W/$v-lossy"; done
 for i in $(seq 1 "$RUNS"); do
-    one "" "$i" "$W/clean" clean
-    echo "run $i clean: put s, get s, TM frames: $(tail -1 "$W/clean")"
-    one "--drop 0.2 --duplicate 0.05 --corrupt 0.05" "$i" "$W/lossy" lossy
-    echo "run $i lossy: put s, get s, TM frames: $(tail -1 "$W/lossy")"
+    for v in "${variants[@]}"; do
+        X=$(dir_of "$v")
+        one "" "$i" "$W/$v-clean" "$v-clean"
+        echo "run $i $v clean: put s, get s, TM frames: $(tail -1 "$W/$v-clean")"
+        one "--drop 0.2 --duplicate 0.05 --corrupt 0.05" "$i" "$W/$v-lossy" "$v-lossy"
+        echo "run $i $v lossy: put s, get s, TM frames: $(tail -1 "$W/$v-lossy")"
+    done
 done
 B=$((KIB * 1024))
-cp_=$(awk '{print $1}' "$W/clean" | median); cg=$(awk '{print $2}' "$W/clean" | median)
-lp=$(awk '{print $1}' "$W/lossy" | median); lg=$(awk '{print $2}' "$W/lossy" | median)
-eff=$(awk -v b=$B '{print b / ($3 * 1024)}' "$W/clean" | median)
-echo "medians of $RUNS runs, $KIB KiB class 2:"
-echo "  clean: put $cp_ s ($(echo "$B / $cp_" | bc) B/s), get $cg s ($(echo "$B / $cg" | bc) B/s)"
-echo "  lossy: put $lp s, get $lg s"
-echo "  lossy/clean: put $(echo "scale=2; $lp / $cp_" | bc), get $(echo "scale=2; $lg / $cg" | bc) (done when <= 3)"
-echo "  clean get: file bytes / raw TM frame bytes received during it = $eff (aim >= 0.80)"
+for v in "${variants[@]}"; do
+    cp_=$(awk '{print $1}' "$W/$v-clean" | median); cg=$(awk '{print $2}' "$W/$v-clean" | median)
+    lp=$(awk '{print $1}' "$W/$v-lossy" | median); lg=$(awk '{print $2}' "$W/$v-lossy" | median)
+    eff=$(awk -v b=$B '{print b / ($3 * 1024)}' "$W/$v-clean" | median)
+    echo "$v ($(dir_of "$v")): medians of $RUNS runs, $KIB KiB class 2:"
+    echo "  clean: put $cp_ s ($(echo "$B / $cp_" | bc) B/s), get $cg s ($(echo "$B / $cg" | bc) B/s)"
+    echo "  lossy: put $lp s, get $lg s"
+    echo "  lossy/clean: put $(echo "scale=2; $lp / $cp_" | bc), get $(echo "scale=2; $lg / $cg" | bc) (done when <= 3)"
+    echo "  clean get: file bytes / raw TM frame bytes received during it = $eff (aim >= 0.80)"
+done

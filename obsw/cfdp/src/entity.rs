@@ -20,7 +20,7 @@
 use core::cell::{Cell, RefCell};
 use core::time::Duration;
 
-use ::cfdp::dest::DestinationHandler;
+use ::cfdp::dest::{DestinationHandler, TransactionStep as DestStep};
 use ::cfdp::request::ReadablePutRequest;
 use ::cfdp::source::{SourceHandler, TransactionStep as SourceStep};
 use ::cfdp::time::Countdown;
@@ -70,6 +70,12 @@ pub struct PduPort {
     sent_to: Cell<u64>,
     /// When the last file data PDU of the running incoming transaction arrived.
     data_at: Cell<Option<u32>>,
+    /// End of the last segment the destination handler's last NAK asked for (the sender
+    /// answers a NAK's requests in order, so its answer ends the NAK's answers).
+    nak_end: Cell<Option<u64>>,
+    /// That segment arrived after the NAK: what the NAK asked for and is still missing was
+    /// lost again, and the next NAK need not wait for `NAK_QUIET_MS`.
+    nak_answered: Cell<bool>,
 }
 
 impl Default for PduPort {
@@ -82,6 +88,8 @@ impl Default for PduPort {
             nak_due: Cell::new(None),
             sent_to: Cell::new(0),
             data_at: Cell::new(None),
+            nak_end: Cell::new(None),
+            nak_answered: Cell::new(false),
         }
     }
 }
@@ -193,7 +201,20 @@ impl<'a> Sender<'a> {
 }
 
 impl PduSender for Sender<'_> {
-    fn send_pdu(&self, t: PduType, _d: Option<FileDirectiveType>, raw: &[u8]) -> Result<(), GenericSendError> {
+    fn send_pdu(&self, t: PduType, d: Option<FileDirectiveType>, raw: &[u8]) -> Result<(), GenericSendError> {
+        if d == Some(FileDirectiveType::NakPdu) {
+            if let Ok(nak) = NakPduReader::from_bytes(raw) {
+                let end = nak
+                    .get_segment_requests_iterator()
+                    .into_iter()
+                    .flatten()
+                    .filter(|&(a, b)| b > a)
+                    .map(|(_, b)| b)
+                    .max();
+                self.port.nak_end.set(end);
+                self.port.nak_answered.set(false);
+            }
+        }
         if t == PduType::FileData {
             if let Ok(fd) = FileDataPdu::from_bytes(raw) {
                 let end = fd.offset().saturating_add(fd.file_data().len() as u64);
@@ -604,9 +625,16 @@ pub struct Entity<'a, S: FlatStore> {
     resend: heapless::Deque<(u32, u32), { m::MAX_LOST_SEGMENTS }>,
     resend_header: Option<PduHeader>,
     resend_scope: (u32, u32),
+    /// Segments of the running outgoing transaction already sent again once, one bit per
+    /// `MAX_SEGMENT_LEN` of the file: a segment asked for a second time is sent twice (a
+    /// loss of one in four through the relay made each further round trip cost a NAK round).
+    resent_once: [u32; RESENT_WORDS],
     /// File data PDUs this control period may still send (`SEGMENTS_PER_POLL`).
     budget: usize,
 }
+
+/// Words of [`Entity::resent_once`]: a bit for each segment of the largest file.
+const RESENT_WORDS: usize = (m::MAX_FILE_LEN as usize).div_ceil(m::MAX_SEGMENT_LEN).div_ceil(32);
 
 /// The peer's configuration as entity `id` runs it: sizes, class defaults, timers and
 /// limits from the MIB; immediate NAKs from the robot's entity only
@@ -744,6 +772,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             resend: heapless::Deque::new(),
             resend_header: None,
             resend_scope: (0, 0),
+            resent_once: [0; RESENT_WORDS],
             budget: m::SEGMENTS_PER_POLL,
         }
     }
@@ -879,6 +908,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         }
         self.source = new_source(self.id, self.peer, self.parts);
         self.parts.link.sent_to.set(0);
+        self.resent_once = [0; RESENT_WORDS];
         self.sending_len = 0;
         self.sending_name = None;
         let req = Put {
@@ -1047,9 +1077,17 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             PacketTarget::SourceEntity => self.source.state() != State::Idle,
             PacketTarget::DestEntity => self.dest.state() != State::Idle,
         };
+        // File data after the file was found complete (a copy sent twice, a duplicate the
+        // link made): cfdp-rs 0.3 writes it to the file, which is already under its final
+        // name, and declares a filestore rejection on the finished transaction.
+        let complete = pdu.pdu_type() == PduType::FileData
+            && matches!(
+                self.dest.step(),
+                DestStep::TransferCompletion | DestStep::WaitingForFinishedAck
+            );
         let stray = match target {
             PacketTarget::SourceEntity => !busy || current != Some(tx),
-            PacketTarget::DestEntity => !is_metadata && busy && current != Some(tx),
+            PacketTarget::DestEntity => (!is_metadata && busy && current != Some(tx)) || complete,
         };
         if stray || (target == PacketTarget::DestEntity && self.finished_rx.iter().any(|t| *t == tx)) {
             self.counters.stray = self.counters.stray.wrapping_add(1);
@@ -1086,7 +1124,14 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             }
             PacketTarget::DestEntity => {
                 if pdu.pdu_type() == PduType::FileData {
-                    self.parts.link.data_at.set(Some(now_ms as u32));
+                    let link = &self.parts.link;
+                    link.data_at.set(Some(now_ms as u32));
+                    if let (Ok(fd), Some(end)) = (FileDataPdu::from_bytes(raw), link.nak_end.get()) {
+                        let seg = (fd.offset(), fd.offset().saturating_add(fd.file_data().len() as u64));
+                        if seg.0 < end && seg.1 >= end {
+                            link.nak_answered.set(true);
+                        }
+                    }
                 }
                 self.run_dest(Some(&pdu))
             }
@@ -1257,7 +1302,17 @@ impl<'a, S: FlatStore> Entity<'a, S> {
                 }
                 continue;
             }
+            // Asked for before: its earlier answer was lost too; two copies this time.
+            let k = a as usize / m::MAX_SEGMENT_LEN;
+            let bit = self.resent_once.get_mut(k / 32).map(|w| {
+                let again = *w & (1 << (k % 32)) != 0;
+                *w |= 1 << (k % 32);
+                again
+            });
             self.resend_segment(&header, a, b);
+            if bit == Some(true) {
+                self.resend_segment(&header, a, b);
+            }
         }
         if self.source.state() == State::Idle {
             self.resend.clear();
@@ -1460,16 +1515,19 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         }
     }
 
-    /// The receiver's next NAK without waiting for the NAK timer: file data came after the
-    /// last NAK (the sender answered it) and then none for `NAK_QUIET_MS` — the sender has
-    /// sent what that NAK asked for, and what is still missing was lost again. The NAK timer
+    /// The receiver's next NAK without waiting for the NAK timer: the segment at the end of
+    /// the last NAK's requests arrived (the sender answers a NAK's requests in order), or file
+    /// data came after the last NAK and then none for `NAK_QUIET_MS` (that segment was lost)
+    /// — the sender has sent what that NAK asked for, and what is still missing was lost
+    /// again. The NAK timer
     /// (which cfdp-rs 0.3 restarts only when it expires) stays for a NAK or an answer lost
     /// on the way; waiting for it cost a NAK period (4 s) per round through the relay.
     fn nak_early(&mut self, now: u32) {
         let link = &self.parts.link;
-        let answered = link.data_at.get().is_some_and(|t| {
+        let quiet = link.data_at.get().is_some_and(|t| {
             t.wrapping_sub(link.nak_at.get()) as i32 > 0 && (now.wrapping_sub(t) as u64) >= m::NAK_QUIET_MS
         });
+        let answered = quiet || link.nak_answered.take();
         if answered && self.dest.state() != State::Idle {
             link.nak_due.set(Some(now));
         }

@@ -617,3 +617,118 @@ fn overlapping_segment_requests_of_a_nak_are_each_sent_again_once() {
         assert_eq!(resent, [s, s + seg, s + 2 * seg]);
     });
 }
+
+// Through the relay a quarter of the robot's PDUs are lost, again on each round trip: the
+// ground asks again as soon as the answer to its NAK's last request arrived (the sender
+// answers in order: the rest was lost) instead of after `NAK_QUIET_MS` of silence, and a
+// segment asked for a second time comes down twice.
+// verifies: FILE-CFDP-05
+#[test]
+fn the_next_nak_follows_the_answer_to_the_last_request_and_a_segment_asked_for_again_comes_twice() {
+    big_stack(|| {
+        let (gp, rp) = (Parts::new(Mem::new(200_000)), Parts::new(Mem::new(200_000)));
+        let mut g = Entity::new(0, 1, &gp);
+        let mut r = Entity::new(1, 0, &rp);
+        let seg = mib::cfdp::MAX_SEGMENT_LEN;
+        let down = file(12 * seg, 7);
+        put_file(&rp, "log.bin", &down);
+        g.get(now(), "log.bin", "log.bin", Class::Two).unwrap();
+        let start = now();
+        let mut t = start;
+        let mut sends: std::collections::HashMap<usize, usize> = Default::default();
+        let (mut last_answer_at, mut naks) = (None, Vec::new());
+        while t < start + 20_000 && !(g.idle() && r.idle()) {
+            t += 10;
+            g.poll(t);
+            r.poll(t);
+            while let Some(p) = g.pop() {
+                if directive(&p) == Some(NAK) {
+                    naks.push((t, nak_requests(&p)));
+                }
+                r.receive(t, &p);
+            }
+            while let Some(p) = r.pop() {
+                if directive(&p).is_none() {
+                    let (_, hl) = spacepackets::cfdp::pdu::PduHeader::from_bytes(&p).unwrap();
+                    let off = u32::from_be_bytes(p[hl..hl + 4].try_into().unwrap()) as usize;
+                    let n = sends.entry(off).or_default();
+                    *n += 1;
+                    // Segments 4 and 5 are lost on their first sending, segment 4 on its
+                    // second too; the answer to the first NAK's last request (5) arrives.
+                    if (off == 4 * seg && *n <= 2) || (off == 5 * seg && *n == 1) {
+                        continue;
+                    }
+                    if off == 5 * seg {
+                        last_answer_at = Some(t);
+                    }
+                }
+                g.receive(t, &p);
+            }
+        }
+        CLOCK.with(|c| c.set(t));
+        assert_eq!(read_file(&gp, "log.bin").as_deref(), Some(&down[..]), "byte-identical");
+        let (s4, s5) = ((4 * seg) as u64, (5 * seg) as u64);
+        assert_eq!(naks[0].1, [(s4, s5 + seg as u64)], "first NAK: {naks:?}");
+        assert_eq!(naks[1].1, [(s4, s5)], "second NAK: {naks:?}");
+        let answered = last_answer_at.expect("segment 5 came down again");
+        assert!(
+            naks[1].0 - answered < mib::cfdp::NAK_QUIET_MS / 3,
+            "the second NAK {} ms after the answer to the first's last request",
+            naks[1].0 - answered
+        );
+        assert_eq!(
+            sends[&(4 * seg)],
+            4,
+            "segment 4: once, once again, then twice: {sends:?}"
+        );
+        assert_eq!(sends[&(5 * seg)], 2, "segment 5 asked for once again: {sends:?}");
+    });
+}
+
+// A copy of a segment that arrives after the file was found complete (the relay duplicates
+// frames, a segment asked for again comes twice) changes nothing: the file is already under
+// its final name, and the transaction still ends complete with no fault.
+// verifies: FILE-CFDP-05
+#[test]
+fn file_data_after_the_file_is_complete_is_dropped_and_the_put_still_ends_complete() {
+    big_stack(|| {
+        let (gp, rp) = (Parts::new(Mem::new(200_000)), Parts::new(Mem::new(200_000)));
+        let mut g = Entity::new(0, 1, &gp);
+        let mut r = Entity::new(1, 0, &rp);
+        let up = file(5 * mib::cfdp::MAX_SEGMENT_LEN + 3, 11);
+        put_file(&gp, "up.bin", &up);
+        g.put(now(), "up.bin", "up.bin", Class::Two).unwrap();
+        let start = now();
+        let mut t = start;
+        let (mut first_data, mut replayed) = (None, false);
+        while t < start + 10_000 && !(g.idle() && r.idle()) {
+            t += 10;
+            g.poll(t);
+            r.poll(t);
+            while let Some(p) = g.pop() {
+                if directive(&p).is_none() && first_data.is_none() {
+                    first_data = Some(p.to_vec());
+                }
+                r.receive(t, &p);
+            }
+            while let Some(p) = r.pop() {
+                if directive(&p) == Some(FINISHED) && !replayed {
+                    // The robot found the file complete: a copy of its first segment now.
+                    r.receive(t, first_data.as_deref().unwrap());
+                    replayed = true;
+                }
+                g.receive(t, &p);
+            }
+        }
+        CLOCK.with(|c| c.set(t));
+        assert!(replayed);
+        assert_eq!(read_file(&rp, "up.bin").as_deref(), Some(&up[..]), "byte-identical");
+        let f = r.take_finished().expect("the robot's report");
+        assert!(f.complete, "{f:?}");
+        let c = r.counters();
+        assert_eq!((c.faults, c.completed, c.failed), (0, 1, 0), "{c:?}");
+        assert!(c.stray >= 1, "{c:?}");
+        let f = g.take_finished().expect("the ground's report");
+        assert!(f.complete, "{f:?}");
+    });
+}
