@@ -9,6 +9,7 @@
 //! | flash (esp-storage)              | a NOR flash in a host file (`nor`, semihosting)   |
 //! | I2C sensors, LEDC servos, GPIO   | mock devices of a robot at rest (`robot`)          |
 //! | board B on UART1                 | `CycleB` in the same loop, queues crossed          |
+//! | no file service yet (`NoFiles`)  | the file service over a RAM store (files lost at a restart) |
 //! | embassy tasks, 10 ms ticker      | one loop: UART in, period when due, UART out       |
 //!
 //! Run by the end-to-end test (tests/tests/qemu_board_e2e.rs): `qemu-system-riscv32
@@ -32,7 +33,7 @@ mod uart;
 use core::cell::RefCell;
 use fw_core::config::{self as cfg, i2c_addr};
 use fw_core::cycle::{CycleA, CycleB, GroundSink, LinksA, LinksB, PeripheralsA, PeripheralsB};
-use fw_core::files::NoFiles;
+use fw_core::files::Files;
 use fw_core::flash::SharedFlash;
 use fw_core::link::{self, ByteQueue, Counters, TcChannel};
 use fw_core::link_store::{self, FlashIvStore};
@@ -68,6 +69,9 @@ type Servo = PwmServo<Pwm>;
 type Side = SideOutputs<Servo, Servo, Servo, Servo, BolterMux<Pin, Pin>>;
 type Store<'a> = MibFlashStore<'a, nor::FileFlash>;
 type Link<'a> = FrameLink<FlashIvStore<SharedFlash<'a, nor::FileFlash>>>;
+/// The file service's store: in RAM, four files of up to 64 KiB (see `main`).
+type FileStore = mmic_cfdp::store::MemStore<4, { 64 * 1024 }>;
+const FILE_STORE_BYTES: u64 = 4 * 64 * 1024;
 
 fn servo() -> Servo {
     PwmServo::new(Pwm { duty: 0 })
@@ -154,6 +158,12 @@ fn main() -> ! {
     obsw.set_accepted_config(Some(fw_core::modules::integrated_config()));
     obsw.start_discovery(clock::now_ms() - start, &fw_core::modules::TABLE_A, probes_a);
 
+    // The file service (fw_core::files), which board A's image does not have yet (no flash
+    // file store): here over a store in RAM, so that the real ground's `file put` and
+    // `get` reach board A's code path; its files do not survive a restart.
+    let file_parts = mmic_cfdp::Parts::new(FileStore::new(FILE_STORE_BYTES));
+    let mut files = Files::new(cfg::ROBOT, &file_parts);
+
     // The space link: keys and counters from the key and counter area, as board A.
     let mut ground: Link<'_> = {
         let mut area = SharedFlash(&flash);
@@ -224,7 +234,7 @@ fn main() -> ! {
                 next + period
             };
             let t = now - start;
-            let (_, depth_a) = probe.depth(|| a.run(t, &mut obsw, &mut ground, &mut NoFiles, &mut io_a, &links_a));
+            let (_, depth_a) = probe.depth(|| a.run(t, &mut obsw, &mut ground, &mut files, &mut io_a, &links_a));
             let (_, depth_b) = probe.depth(|| b.run(t, &mut io_b, &links_b));
             if depth_a > high_a || depth_b > high_b {
                 (high_a, high_b) = (high_a.max(depth_a), high_b.max(depth_b));
