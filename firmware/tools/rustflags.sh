@@ -7,7 +7,7 @@
 # Firmware workspace crates are already relative (board-a/src/main.rs). Paths of `core`
 # (/rustc/<hash>/library/...) come precompiled and stay as they are.
 #
-# No size flags: the images have a 512 KiB application slot each (mib::memory), so the
+# No size flags: the images have a 576 KiB application slot each (mib::memory), so the
 # linker relaxation rustc marks unstable, `--cfg aes_compact`, the forced machine
 # outliner and LLD's identical code folding are gone (what each cost and saved, measured:
 # docs/firmware.md, Memory map and budgets).

@@ -33,7 +33,9 @@ one() {
     local faults=$1 seed=$2 out=$3 fr li line ru tmf op rp t0 t1 t2 frames
     fr=127.0.0.1:$(port)
     li=127.0.0.1:$(port)
-    rm -rf "$W/robot" "$W/local/"*
+    # The last run's outputs go first: a background process truncates its file only when it
+    # starts, and a wait on the old file's content went on before it.
+    rm -rf "$W/robot" "$W/local/"* "$W/relay.out" "$W/obsw.out"
     mkdir -p "$W/robot"
     "$X/relay" --to-udp "$fr" $faults --seed "$seed" --tm-frames-to "$li" --idle 900 --lifetime 900 \
         </dev/null >"$W/relay.out" &

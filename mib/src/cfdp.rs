@@ -119,6 +119,17 @@ pub const ROBOT_IMMEDIATE_NAK: bool = true;
 /// procedure and the ACKs of the robot's EOF queued behind them for seconds (the robot sent
 /// its EOF six times). One NAK after the EOF asks for every gap (up to 120 a PDU).
 pub const GROUND_IMMEDIATE_NAK: bool = false;
+/// Copies of each metadata and Finished PDU the robot's entity sends. They go down in TM
+/// packets, a quarter of which the lossy relay loses: a lost metadata PDU makes the ground
+/// drop the file data that comes before its next copy (asked for at once, but a round trip
+/// of segments is gone: a traced `get` lost 95 of its 277 so), a lost Finished costs the
+/// robot's positive ACK period. The second copy goes at the entity's next poll, in another
+/// TM frame than the first (a frame carries several small PDUs: copies in one are lost
+/// together); both ends take a repeated one once (cfdp-rs acts on a metadata PDU once, the
+/// ground's entity acknowledges a repeated Finished again).
+pub const ROBOT_DIRECTIVE_COPIES: usize = 2;
+/// The ground's: one. Its directives go up in AD frames that COP-1 delivers.
+pub const GROUND_DIRECTIVE_COPIES: usize = 1;
 /// Yamcs' CFDP service's timers (its `eofAckTimeout`, `finAckTimeout`, `nakTimeout` in the
 /// generated instance): twice the ground's COP-1 T1 upper bound (`link::cop1::FOP_T1_MS`),
 /// as Yamcs' TCs go up through its own FOP-1 with a fixed T1.
@@ -162,7 +173,7 @@ pub const OUTBOX_DEPTH: usize = 16;
 /// Longest file name: ASCII letters, digits, '.', '_' and '-', not starting with '.',
 /// no directories (the store is flat: nothing can name a path outside it).
 pub const MAX_NAME_LEN: usize = 48;
-/// Largest file the store takes (the board's file store area is 192 KiB).
+/// Largest file the store takes (the board's file store area is 128 KiB, `mib::memory::FILE_STORE`).
 pub const MAX_FILE_LEN: u64 = 1 << 20;
 /// Files the store holds at most.
 pub const MAX_FILES: usize = 64;

@@ -43,8 +43,6 @@ pub enum FlashUse {
     AppSlot(u8),
     /// `data`, `ota`: which slot boots (two sectors, written alternately).
     OtaData,
-    /// `data`, `littlefs`: a littlefs file system.
-    LittleFs,
     /// Partition type [`OWN_TYPE`] with this subtype: a layout of our own.
     Own(u8),
 }
@@ -61,7 +59,6 @@ impl FlashUse {
             FlashUse::Bootloader | FlashUse::PartitionTable => None,
             FlashUse::AppSlot(n) => Some((IdfType::App, IdfSubtype::Ota(n))),
             FlashUse::OtaData => Some((IdfType::Data, IdfSubtype::Named("ota"))),
-            FlashUse::LittleFs => Some((IdfType::Data, IdfSubtype::Named("littlefs"))),
             FlashUse::Own(s) => Some((IdfType::Number(OWN_TYPE), IdfSubtype::Number(s))),
         }
     }
@@ -150,12 +147,15 @@ pub const OTADATA: FlashRegion = region(
     FlashUse::OtaData,
     "which application slot boots (two sectors, written alternately)",
 );
-/// Size of each application slot: 512 KiB. An image may take 70 % of it (358 KiB); board A
-/// is ≈ 298 KiB at `opt-level = 2` with everything compiled in (58 % of the slot: 60 KiB
-/// left for the file store and CFDP within the margin). Slots of 896 KiB (the first map)
-/// left the TM store 2 MiB, whose HK area then held the 2 h outage with a 3.8 % margin;
-/// each slot gave 384 KiB to the store (576 KiB slots were not enough: 29.7 %).
-pub const APP_SLOT_SIZE: u32 = 0x8_0000;
+/// Size of each application slot: 576 KiB. An image may take 70 % of it (403 KiB); board A
+/// with its file service (the CFDP entity and the flash file store) is ≈ 386 KiB at
+/// `opt-level = 2` (67 %). 512 KiB slots (the last map) left it 75 % with the file service;
+/// the 64 KiB each slot gained came from the report area of the TM store (576 → 512 KiB:
+/// still above the 30 % margin for its 2 h outage) and the file store (192 → 128 KiB). Slots
+/// of 896 KiB (the first map) left the TM store 2 MiB, whose HK area then held the 2 h
+/// outage with a 3.8 % margin; the HK area is not to shrink below 560 sectors (29.7 % with
+/// 544).
+pub const APP_SLOT_SIZE: u32 = 0x9_0000;
 
 /// Application slot 0: the image `espflash` writes (the first application partition).
 pub const OTA_0: FlashRegion = region(
@@ -169,7 +169,7 @@ pub const OTA_0: FlashRegion = region(
 /// other way round), then `otadata` switches.
 pub const OTA_1: FlashRegion = region(
     "ota_1",
-    0x9_0000,
+    0xA_0000,
     APP_SLOT_SIZE,
     FlashUse::AppSlot(1),
     "application slot 1 (software update written while the other slot runs)",
@@ -177,18 +177,20 @@ pub const OTA_1: FlashRegion = region(
 /// Board A's PUS 15 packet store: TM kept across link outages and resets.
 pub const TM_STORE: FlashRegion = region(
     "tm_store",
-    0x11_0000,
-    0x2C_0000,
+    0x13_0000,
+    0x2B_0000,
     FlashUse::Own(0x01),
     "PUS 15 packet store (TM kept across link outages and resets)",
 );
-/// File store for CFDP transfers (plans, configuration, logs).
+/// File store for CFDP transfers (plans, configuration, logs): `mmic_cfdp::flash`, a
+/// directory in a `sequential-storage` map and the files' data in sectors of their own.
 pub const FILE_STORE: FlashRegion = region(
     "files",
-    0x3D_0000,
-    0x3_0000,
-    FlashUse::LittleFs,
-    "file store for CFDP transfers (plans, configuration, logs): littlefs",
+    0x3E_0000,
+    0x2_0000,
+    FlashUse::Own(0x02),
+    "file store for CFDP transfers (plans, configuration, logs): mmic_cfdp::flash, a \
+     sequential-storage directory and data sectors",
 );
 
 /// The whole flash, in address order, without gaps.
@@ -300,7 +302,7 @@ pub mod store {
     /// Start of the partition in board A's flash.
     pub const OFFSET: u32 = TM_STORE.offset;
     /// Events, verification and every other report.
-    pub const REPORT_SIZE: u32 = 576 * 1024;
+    pub const REPORT_SIZE: u32 = 512 * 1024;
     /// Periodic housekeeping area: the rest of the partition.
     pub const HK_SIZE: u32 = TM_STORE.size - REPORT_SIZE;
     /// The whole partition (the host's store file has this size).

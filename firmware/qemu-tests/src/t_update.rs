@@ -1,7 +1,7 @@
 //! Board A's software update on the target: `mmic-update`'s slot logic (signed images,
 //! ESP-IDF's otadata, the bootloader's choice and rollback) on RV32IMC over a NOR flash
 //! model laid out as board A's flash (`mib::memory`, firmware/partitions.csv): otadata at
-//! 0xE000 and the two 512 KiB application slots at 0x10000 and 0x90000, full size, each
+//! 0xE000 and the two 576 KiB application slots at 0x10000 and 0xA0000, full size, each
 //! reached only through its partition window. The images are the largest the slot's
 //! budget allows (`mib::memory::IMAGE_BUDGET`), so the verification costs printed are a
 //! worst case. What QEMU cannot show of ESP-IDF's own bootloader is a bring-up item

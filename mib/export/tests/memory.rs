@@ -48,11 +48,10 @@ fn partition_table_is_valid_for_esp_idf_and_matches_the_map() {
         let p = table.find(r.name).unwrap_or_else(|| panic!("{} in the table", r.name));
         assert_eq!((p.offset(), p.size()), (r.offset, r.size), "{}", r.name);
         // Type and subtype as the binary table stores them (ESP-IDF: ota_N = 0x10 + N,
-        // data ota = 0x00, littlefs = 0x83; application-defined types 0x40..=0xFE).
+        // data ota = 0x00; application-defined types 0x40..=0xFE).
         let want = match r.usage {
             FlashUse::AppSlot(n) => (Type::App, 0x10 + n),
             FlashUse::OtaData => (Type::Data, 0x00),
-            FlashUse::LittleFs => (Type::Data, 0x83),
             FlashUse::Own(n) => (Type::Custom(memory::OWN_TYPE), n),
             FlashUse::Bootloader | FlashUse::PartitionTable => unreachable!("not listed"),
         };

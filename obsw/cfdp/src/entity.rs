@@ -76,6 +76,8 @@ pub struct PduPort {
     /// That segment arrived after the NAK: what the NAK asked for and is still missing was
     /// lost again, and the next NAK need not wait for `NAK_QUIET_MS`.
     nak_answered: Cell<bool>,
+    /// Copies of metadata and Finished PDUs, sent at the next poll (`ROBOT_DIRECTIVE_COPIES`).
+    copies_due: RefCell<heapless::Deque<Pdu, { 2 * m::ROBOT_DIRECTIVE_COPIES }>>,
 }
 
 impl Default for PduPort {
@@ -90,6 +92,7 @@ impl Default for PduPort {
             data_at: Cell::new(None),
             nak_end: Cell::new(None),
             nak_answered: Cell::new(false),
+            copies_due: RefCell::new(heapless::Deque::new()),
         }
     }
 }
@@ -174,6 +177,8 @@ impl<'a> TimerCreator for Timers<'a> {
 pub struct Sender<'a> {
     port: &'a PduPort,
     when_full: WhenFull,
+    /// Copies of each metadata and Finished PDU (see `mib::cfdp::ROBOT_DIRECTIVE_COPIES`).
+    copies: usize,
 }
 
 /// What a full outbox does to a handler's PDU.
@@ -190,13 +195,24 @@ impl<'a> Sender<'a> {
         Sender {
             port,
             when_full: WhenFull::Refuse,
+            copies: 1,
         }
     }
     fn dest(port: &'a PduPort) -> Self {
         Sender {
             port,
             when_full: WhenFull::Lose,
+            copies: 1,
         }
+    }
+    /// Entity `id`'s copies of its metadata and Finished PDUs.
+    fn copies(mut self, id: u16) -> Self {
+        self.copies = if id == m::GROUND_ENTITY_ID {
+            m::GROUND_DIRECTIVE_COPIES
+        } else {
+            m::ROBOT_DIRECTIVE_COPIES
+        };
+        self
     }
 }
 
@@ -225,12 +241,24 @@ impl PduSender for Sender<'_> {
             self.port.dropped.set(self.port.dropped.get().wrapping_add(1));
             return Err(GenericSendError::Other);
         };
-        if self.port.outbox.borrow_mut().push_back(pdu).is_err() {
+        let mut outbox = self.port.outbox.borrow_mut();
+        if outbox.push_back(pdu.clone()).is_err() {
             self.port.dropped.set(self.port.dropped.get().wrapping_add(1));
             return match self.when_full {
                 WhenFull::Refuse => Err(GenericSendError::QueueFull(None)),
                 WhenFull::Lose => Ok(()),
             };
+        }
+        if matches!(d, Some(FileDirectiveType::MetadataPdu | FileDirectiveType::FinishedPdu)) {
+            // The further copies go at the entity's next poll, in another frame than this
+            // one (a frame carries several small PDUs: copies in one frame are lost
+            // together). Only where there is room: a lost PDU is recovered as before.
+            let mut due = self.port.copies_due.borrow_mut();
+            for _ in 1..self.copies {
+                if due.push_back(pdu.clone()).is_err() {
+                    break;
+                }
+            }
         }
         Ok(())
     }
@@ -730,7 +758,7 @@ pub fn is_metadata(raw: &[u8]) -> bool {
 fn new_source<S: FlatStore>(id: u16, peer: u16, parts: &Parts<S>) -> Source<'_, S> {
     SourceHandler::new(
         local_config(id, parts),
-        Sender::source(&parts.link),
+        Sender::source(&parts.link).copies(id),
         &parts.store,
         remote_config(id, peer),
         Timers(&parts.link),
@@ -741,7 +769,7 @@ fn new_source<S: FlatStore>(id: u16, peer: u16, parts: &Parts<S>) -> Source<'_, 
 fn new_dest<S: FlatStore>(id: u16, peer: u16, parts: &Parts<S>) -> Dest<'_, S> {
     DestinationHandler::new(
         local_config(id, parts),
-        Sender::dest(&parts.link),
+        Sender::dest(&parts.link).copies(id),
         &parts.store,
         remote_config(id, peer),
         Timers(&parts.link),
@@ -1479,6 +1507,17 @@ impl<'a, S: FlatStore> Entity<'a, S> {
     /// period and after the outbox was emptied.
     pub fn poll(&mut self, now_ms: u64) {
         self.tick(now_ms);
+        {
+            let (mut outbox, mut due) = (
+                self.parts.link.outbox.borrow_mut(),
+                self.parts.link.copies_due.borrow_mut(),
+            );
+            while outbox.len() + 2 < m::OUTBOX_DEPTH {
+                let Some(pdu) = due.pop_front() else { break };
+                let _ = outbox.push_back(pdu);
+            }
+            due.clear();
+        }
         // Segments asked for again go first: the receiver waits for them.
         self.budget = m::SEGMENTS_PER_POLL;
         self.resend();

@@ -11,6 +11,7 @@
 #[cfg(feature = "std")]
 pub mod dir;
 pub mod entity;
+pub mod flash;
 pub mod gaps;
 pub mod msg;
 pub mod packet;

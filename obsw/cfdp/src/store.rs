@@ -6,8 +6,8 @@
 //! `..`, no absolute path, no NUL). Every length is checked as well: a write beyond
 //! `mib::cfdp::MAX_FILE_LEN`, past the store's free space, or a file more than
 //! `mib::cfdp::MAX_FILES` is refused. [`Checked`] puts these checks in front of a platform's
-//! [`FlatStore`] (a host directory: `DirStore`; the board's littlefs area later) and gives
-//! cfdp-rs its `VirtualFilestore`; a refusal is counted ([`Checked::refused`]).
+//! [`FlatStore`] (a host directory: `DirStore`; board A's flash: `flash::FlashStore`) and gives
+//! cfdp-rs its `VirtualFilestore`; a refusal is counted ([`Checked::counters`]).
 
 use core::cell::Cell;
 

@@ -732,3 +732,83 @@ fn file_data_after_the_file_is_complete_is_dropped_and_the_put_still_ends_comple
         assert!(f.complete, "{f:?}");
     });
 }
+
+// The robot's metadata and Finished PDUs go down twice (a quarter of the downlink is lost
+// through the relay; a lost metadata PDU costs the ground every segment before the next
+// copy), the ground's once (COP-1 delivers them); a repeated one acts once.
+// verifies: FILE-CFDP-05
+#[test]
+fn the_robots_metadata_and_finished_pdus_go_down_twice_and_act_once() {
+    big_stack(|| {
+        let (gp, rp) = (Parts::new(Mem::new(200_000)), Parts::new(Mem::new(200_000)));
+        let mut g = Entity::new(0, 1, &gp);
+        let mut r = Entity::new(1, 0, &rp);
+        let data = file(3 * mib::cfdp::MAX_SEGMENT_LEN + 5, 13);
+        put_file(&gp, "up.bin", &data);
+        put_file(&rp, "log.bin", &data);
+        let count = |pdus: &[Vec<u8>], d: u8, src: u64| {
+            pdus.iter()
+                .filter(|p| {
+                    let (h, _) = spacepackets::cfdp::pdu::PduHeader::from_bytes(p).unwrap();
+                    directive(p) == Some(d)
+                        && spacepackets::util::UnsignedEnum::value(&h.common_pdu_conf().source_id()) == src
+                })
+                .count()
+        };
+        for get in [false, true] {
+            if get {
+                g.get(now(), "log.bin", "down.bin", Class::Two).unwrap();
+            } else {
+                g.put(now(), "up.bin", "up.bin", Class::Two).unwrap();
+            }
+            let start = now();
+            let mut t = start;
+            let (mut up, mut down, mut polls) = (Vec::new(), Vec::new(), Vec::new());
+            while t < start + 10_000 && !(g.idle() && r.idle()) {
+                t += 10;
+                g.poll(t);
+                r.poll(t);
+                while let Some(p) = g.pop() {
+                    up.push(p.to_vec());
+                    r.receive(t, &p);
+                }
+                while let Some(p) = r.pop() {
+                    down.push(p.to_vec());
+                    polls.push(t);
+                    g.receive(t, &p);
+                }
+            }
+            // The copies leave in another control period than the first (another frame).
+            let when = |d: u8| {
+                let mut ts: Vec<u64> = (0..down.len())
+                    .filter(|&i| count(&down[i..=i], d, if get { 1 } else { 0 }) == 1)
+                    .map(|i| polls[i])
+                    .collect();
+                ts.dedup();
+                ts.len()
+            };
+            CLOCK.with(|c| c.set(t));
+            const METADATA: u8 = FileDirectiveType::MetadataPdu as u8;
+            if get {
+                // The request (a ground transaction) once; the robot's put of the file twice.
+                assert_eq!(count(&up, METADATA, 0), 1);
+                assert_eq!(count(&down, METADATA, 1), 2);
+                assert_eq!(when(METADATA), 2, "the two copies in two periods");
+                assert_eq!(read_file(&gp, "down.bin").as_deref(), Some(&data[..]));
+            } else {
+                assert_eq!(count(&up, METADATA, 0), 1);
+                assert_eq!(count(&down, FINISHED, 0), 2, "the robot's Finished of the put");
+                assert_eq!(when(FINISHED), 2, "the two copies in two periods");
+                assert_eq!(read_file(&rp, "up.bin").as_deref(), Some(&data[..]));
+            }
+        }
+        let (gc, rc) = (g.counters(), r.counters());
+        assert_eq!(
+            (gc.faults, gc.failed, rc.faults, rc.failed),
+            (0, 0, 0, 0),
+            "{gc:?} {rc:?}"
+        );
+        let reports: Vec<_> = std::iter::from_fn(|| g.take_finished()).collect();
+        assert!(reports.iter().all(|f| f.complete), "{reports:?}");
+    });
+}
