@@ -13,7 +13,8 @@
 //! 1. `ground run` flies a one-robot plan (the checkout without the steps the QEMU
 //!    robot cannot do, see `PLAN`) to completion; its HK is archived.
 //!    Then `ground file put` of a small file and `ground file get` of it back, byte-exact
-//!    (the board's file service, over a RAM store on the QEMU board).
+//!    (board A's file service over its flash file store), and again after the restart
+//!    below: the file survives the SIGKILL.
 //! 2. `ground collect` follows the board; a TC frame the cable kept from the plan is
 //!    sent again: the board refuses it as a replay, counted in SPACE_LINK HK
 //!    (LINK_REJ_REPLAY) and evented (LINK_FRAME_REJECTED, reason 12).
@@ -455,8 +456,8 @@ fn the_qemu_board_flies_a_plan_with_the_real_ground_refuses_a_replay_and_keeps_i
     assert!(hk_after_plan >= 10, "{hk_after_plan} HK packets archived by the run");
 
     // 1b. Files: `ground file put` of a small file (class 2: its file data in BD frames)
-    // and `ground file get` of it back, through board A's file service (over a RAM store
-    // on the QEMU board: board A's image has no file store yet).
+    // and `ground file get` of it back, through board A's file service and its flash file
+    // store (in board A's image with its feature `file-service`).
     let data: Vec<u8> = (0..6_000u32)
         .map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8)
         .collect();
@@ -633,6 +634,15 @@ fn the_qemu_board_flies_a_plan_with_the_real_ground_refuses_a_replay_and_keeps_i
         .args(["-TERM", &collector.0.id().to_string()])
         .status();
     let _ = collector.0.wait();
+    // The file put before the kill is still in the board's flash file store.
+    let (code, text) = ground(&[&["file", "get"][..], &link, &["table.bin", "after.bin"]].concat());
+    assert_eq!(code, Some(0), "ground file get after the restart:\n{text}");
+    assert_eq!(
+        std::fs::read(dir.join("after.bin")).unwrap(),
+        data,
+        "the file that came down after the restart differs from the one put"
+    );
+    println!("files: the file put before the SIGKILL came back byte-exact after the restart");
     drop(board);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -9,7 +9,7 @@
 //! | flash (esp-storage)              | a NOR flash in a host file (`nor`, semihosting)   |
 //! | I2C sensors, LEDC servos, GPIO   | mock devices of a robot at rest (`robot`)          |
 //! | board B on UART1                 | `CycleB` in the same loop, queues crossed          |
-//! | no file service yet (`NoFiles`)  | the file service over a RAM store (files lost at a restart) |
+//! | file service: feature `file-service` (not in the default image yet) | the file service over the same flash store |
 //! | embassy tasks, 10 ms ticker      | one loop: UART in, period when due, UART out       |
 //!
 //! Run by the end-to-end test (tests/tests/qemu_board_e2e.rs): `qemu-system-riscv32
@@ -42,6 +42,7 @@ use fw_core::periph::{
     ActiveLowEnable, ActiveLowSwitch, Ads7828, As5600, BolterMux, BolterServos, Mpu6000, PwmServo, SideOutputs,
 };
 use fw_core::spacelink::FrameLink;
+use mmic_cfdp::flash::{FlashStore, OpenError};
 use mmic_stream::Deframer;
 use obsw_core::flash_store::MibFlashStore;
 use obsw_core::obsw::{Config, Obsw};
@@ -69,9 +70,6 @@ type Servo = PwmServo<Pwm>;
 type Side = SideOutputs<Servo, Servo, Servo, Servo, BolterMux<Pin, Pin>>;
 type Store<'a> = MibFlashStore<'a, nor::FileFlash>;
 type Link<'a> = FrameLink<FlashIvStore<SharedFlash<'a, nor::FileFlash>>>;
-/// The file service's store: in RAM, four files of up to 64 KiB (see `main`).
-type FileStore = mmic_cfdp::store::MemStore<4, { 64 * 1024 }>;
-const FILE_STORE_BYTES: u64 = 4 * 64 * 1024;
 
 fn servo() -> Servo {
     PwmServo::new(Pwm { duty: 0 })
@@ -158,10 +156,24 @@ fn main() -> ! {
     obsw.set_accepted_config(Some(fw_core::modules::integrated_config()));
     obsw.start_discovery(clock::now_ms() - start, &fw_core::modules::TABLE_A, probes_a);
 
-    // The file service (fw_core::files), which board A's image does not have yet (no flash
-    // file store): here over a store in RAM, so that the real ground's `file put` and
-    // `get` reach board A's code path; its files do not survive a restart.
-    let file_parts = mmic_cfdp::Parts::new(FileStore::new(FILE_STORE_BYTES));
+    // The file service (fw_core::files) over the file store in the flash's `files`
+    // partition, as board A's image with its feature `file-service` composes them (not in
+    // its default image yet: docs/firmware.md): the files survive a restart.
+    let region = mib::memory::FILE_STORE.offset..mib::memory::FILE_STORE.end();
+    let file_store = match FlashStore::open(SharedFlash(&flash), region.clone()) {
+        Ok(s) => s,
+        Err(OpenError::Flash) => {
+            if FlashStore::format(&mut SharedFlash(&flash), region.clone()).is_err() {
+                fail("file store format");
+            }
+            match FlashStore::open(SharedFlash(&flash), region) {
+                Ok(s) => s,
+                Err(_) => fail("file store after format"),
+            }
+        }
+        Err(OpenError::Layout) => fail("file store layout"),
+    };
+    let file_parts = mmic_cfdp::Parts::new(file_store);
     let mut files = Files::new(cfg::ROBOT, &file_parts);
 
     // The space link: keys and counters from the key and counter area, as board A.
