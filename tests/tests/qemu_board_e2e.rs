@@ -12,6 +12,9 @@
 //!
 //! 1. `ground run` flies a one-robot plan (the checkout without the steps the QEMU
 //!    robot cannot do, see `PLAN`) to completion; its HK is archived.
+//!    Then `ground file put` of a small file and `ground file get` of it back, byte-exact
+//!    (board A's file service over its flash file store), and again after the restart
+//!    below: the file survives the SIGKILL.
 //! 2. `ground collect` follows the board; a TC frame the cable kept from the plan is
 //!    sent again: the board refuses it as a replay, counted in SPACE_LINK HK
 //!    (LINK_REJ_REPLAY) and evented (LINK_FRAME_REJECTED, reason 12).
@@ -452,6 +455,41 @@ fn the_qemu_board_flies_a_plan_with_the_real_ground_refuses_a_replay_and_keeps_i
     let hk_after_plan = archived(&dir).values().filter(|(_, t)| t.sid().is_some()).count();
     assert!(hk_after_plan >= 10, "{hk_after_plan} HK packets archived by the run");
 
+    // 1b. Files: `ground file put` of a small file (class 2: its file data in BD frames)
+    // and `ground file get` of it back, through board A's file service and its flash file
+    // store (in board A's image with its feature `file-service`).
+    let data: Vec<u8> = (0..6_000u32)
+        .map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8)
+        .collect();
+    std::fs::write(dir.join("up.bin"), &data).unwrap();
+    let link = [
+        "--robot",
+        "1",
+        "--keys",
+        "keys",
+        "--serial",
+        "ground.sock",
+        "--timeout",
+        "120",
+    ];
+    let t0 = Instant::now();
+    let (code, text) = ground(&[&["file", "put"][..], &link, &["up.bin", "table.bin"]].concat());
+    assert_eq!(code, Some(0), "ground file put:\n{text}");
+    let put_s = t0.elapsed().as_secs_f64();
+    let t0 = Instant::now();
+    let (code, text) = ground(&[&["file", "get"][..], &link, &["table.bin", "down.bin"]].concat());
+    assert_eq!(code, Some(0), "ground file get:\n{text}");
+    let get_s = t0.elapsed().as_secs_f64();
+    assert_eq!(
+        std::fs::read(dir.join("down.bin")).unwrap(),
+        data,
+        "the file that came down differs from the one put"
+    );
+    println!(
+        "files: put {} bytes in {put_s:.1} s, got them back byte-exact in {get_s:.1} s",
+        data.len()
+    );
+
     // 2. The collector on the same line; a captured TC frame sent again.
     // Tries per hole: 8, more for a longer outage — the board paces a replay by its
     // downlink's room (a range goes on over as many periods as it needs), so a long
@@ -596,6 +634,15 @@ fn the_qemu_board_flies_a_plan_with_the_real_ground_refuses_a_replay_and_keeps_i
         .args(["-TERM", &collector.0.id().to_string()])
         .status();
     let _ = collector.0.wait();
+    // The file put before the kill is still in the board's flash file store.
+    let (code, text) = ground(&[&["file", "get"][..], &link, &["table.bin", "after.bin"]].concat());
+    assert_eq!(code, Some(0), "ground file get after the restart:\n{text}");
+    assert_eq!(
+        std::fs::read(dir.join("after.bin")).unwrap(),
+        data,
+        "the file that came down after the restart differs from the one put"
+    );
+    println!("files: the file put before the SIGKILL came back byte-exact after the restart");
     drop(board);
     let _ = std::fs::remove_dir_all(&dir);
 }

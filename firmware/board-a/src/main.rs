@@ -41,6 +41,10 @@ use esp_hal::Async;
 use esp_storage::FlashStorage;
 use fw_core::config::{self as cfg, i2c_addr};
 use fw_core::cycle::{CycleA, GroundSink, LinksA, PeripheralsA};
+#[cfg(feature = "file-service")]
+use fw_core::files::Files;
+#[cfg(not(feature = "file-service"))]
+use fw_core::files::NoFiles;
 use fw_core::flash::SharedFlash;
 use fw_core::link::{self, ByteQueue, Counters, TcChannel};
 use fw_core::link_store::{self, FlashIvStore};
@@ -51,11 +55,19 @@ use fw_core::periph::{
 use fw_core::spacelink::FrameLink;
 use fw_esp::bus::{self, SensorDevice};
 use fw_esp::servos::{Servo, ServoBank};
+#[cfg(feature = "file-service")]
+use mmic_cfdp::flash::{FlashStore, OpenError};
+#[cfg(feature = "file-service")]
+use mmic_cfdp::Parts;
 use obsw_core::flash_store::MibFlashStore;
 use obsw_core::obsw::{Config, Obsw};
 use static_cell::StaticCell;
 
 esp_bootloader_esp_idf::esp_app_desc!();
+
+/// No heap: every allocation fails (`fw_core::no_heap`: why one is named at all).
+#[global_allocator]
+static NO_HEAP: fw_core::no_heap::NoHeap = fw_core::no_heap::NoHeap;
 
 /// Uplinked TC frames (COBS decoded), waiting for the control task's frame link.
 static TCS: TcChannel = TcChannel::new();
@@ -87,6 +99,21 @@ const _: () = assert!(
 );
 /// The ground link (TC receiver with its SDLS keys, TM framer), owned by the control task.
 static LINK: StaticCell<Link> = StaticCell::new();
+/// The file service (docs/files.md, On the board), owned by the control task: with the
+/// feature `file-service`, the CFDP entity over the file store on the `files` partition
+/// (`mib::memory::FILE_STORE`, the same flash); without it (the default: the image does
+/// not fit its flash budget with it yet, docs/firmware.md) none, and a packet of the CFDP
+/// APID goes to the OBSW, which refuses it.
+#[cfg(feature = "file-service")]
+type FileService = Files<'static, FileStore>;
+#[cfg(not(feature = "file-service"))]
+type FileService = NoFiles;
+#[cfg(feature = "file-service")]
+type FileStore = FlashStore<SharedFlash<'static, FlashStorage<'static>>>;
+/// The file service's store, clock and outbox; the service.
+#[cfg(feature = "file-service")]
+static FILE_PARTS: StaticCell<Parts<FileStore>> = StaticCell::new();
+static FILES: StaticCell<FileService> = StaticCell::new();
 
 type Io = PeripheralsA<
     Ads7828<SensorDevice>,
@@ -155,6 +182,7 @@ async fn control(
     obsw: &'static mut Obsw<Store>,
     ground: &'static mut Link,
     raw_reset: Option<u8>,
+    files: &'static mut FileService,
 ) {
     let links = LinksA {
         tcs: &TCS,
@@ -182,10 +210,35 @@ async fn control(
     loop {
         ticker.next().await;
         watchdog.feed();
-        cycle.run(fw_esp::clock::now_ms(), obsw, ground, &mut io, &links);
+        cycle.run(fw_esp::clock::now_ms(), obsw, ground, files, &mut io, &links);
         // PLATFORM_IO's IO_STACK_HIGH_WATER: the painted stack, swept a little per period.
         obsw.io.stack_high_water = stack.step(fw_core::stack::WORDS_PER_PERIOD, fw_esp::stack::word);
     }
+}
+
+/// The file service on the file store in its partition: what the store held stays (files
+/// whose transfer a reset cut are removed by the service). A region that holds something
+/// else than a store (a first boot after another layout) is formatted: its bytes were no
+/// files.
+#[cfg(feature = "file-service")]
+fn file_service(flash: &'static Flash) -> &'static mut FileService {
+    let region = mib::memory::FILE_STORE.offset..mib::memory::FILE_STORE.end();
+    let store = match FlashStore::open(SharedFlash(flash), region.clone()) {
+        Ok(s) => s,
+        Err(OpenError::Flash) => {
+            let mut raw = SharedFlash(flash);
+            must!(FlashStore::format(&mut raw, region.clone()), "file store format");
+            must!(FlashStore::open(raw, region), "file store after format")
+        }
+        Err(OpenError::Layout) => panic!("file store layout"),
+    };
+    FILES.init(Files::new(cfg::ROBOT, FILE_PARTS.init(Parts::new(store))))
+}
+
+/// No file service (see [`FileService`]).
+#[cfg(not(feature = "file-service"))]
+fn file_service(_flash: &'static Flash) -> &'static mut FileService {
+    FILES.init(NoFiles)
 }
 
 #[esp_hal::main]
@@ -283,6 +336,8 @@ async fn main(spawner: Spawner) {
     obsw.set_accepted_config(Some(fw_core::modules::integrated_config()));
     obsw.start_discovery(fw_esp::clock::now_ms(), &fw_core::modules::TABLE_A, probes);
 
+    let files = file_service(flash);
+
     // Space link: keys from the provisioning area in flash (none: no TC frame is
     // accepted), SDLS counters and FARM-1 state from the counter log next to it.
     let ground = {
@@ -306,5 +361,8 @@ async fn main(spawner: Spawner) {
         hip,
         regulator,
     };
-    spawner.spawn(must!(control(io, watchdog, obsw, ground, raw_reset), "control task"));
+    spawner.spawn(must!(
+        control(io, watchdog, obsw, ground, raw_reset, files),
+        "control task"
+    ));
 }

@@ -39,6 +39,10 @@ use mmic_domain::discovery::BoardProbes;
 
 esp_bootloader_esp_idf::esp_app_desc!();
 
+/// No heap: every allocation fails (`fw_core::no_heap`: why one is named at all).
+#[global_allocator]
+static NO_HEAP: fw_core::no_heap::NoHeap = fw_core::no_heap::NoHeap;
+
 /// Bytes from board A, waiting for the control task.
 static AB_RX: ByteQueue<{ cfg::AB_RX_BYTES }> = ByteQueue::new();
 /// Bytes for board A, waiting for the UART.

@@ -3,6 +3,7 @@
 //! peripherals.
 
 use crate::config;
+use crate::files::FileService;
 use crate::link::{self, ByteQueue, Counters, TcChannel};
 use crate::periph::{
     AnalogInput, AngleSensor, Enable, GravitySensor, HwError, PairSelect, ServoOutput, SideOutputs, Switch,
@@ -17,11 +18,13 @@ use obsw_core::tm::{TmSink, TmStore};
 /// TM, and closes each period. The images use the frame link
 /// ([`crate::spacelink::FrameLink`]); tests of the control period may use their own.
 pub trait GroundLink {
-    /// Executes the TCs waiting in `tcs` (their replies go to `tm`).
-    fn receive<S: TmStore, const N: usize>(
+    /// Executes the TCs waiting in `tcs` (their replies go to `tm`); a packet the file
+    /// service takes goes to it instead of the OBSW (an authenticated link only).
+    fn receive<S: TmStore, F: FileService, const N: usize>(
         &mut self,
         now: u64,
         obsw: &mut Obsw<S>,
+        files: &mut F,
         tcs: &TcChannel,
         tm: &ByteQueue<N>,
         tm_stats: &Counters,
@@ -42,15 +45,16 @@ pub trait GroundLink {
 }
 
 impl<St: mmic_link::sdls::IvStore + mmic_link::endpoint::StoreStats> GroundLink for crate::spacelink::FrameLink<St> {
-    fn receive<S: TmStore, const N: usize>(
+    fn receive<S: TmStore, F: FileService, const N: usize>(
         &mut self,
         now: u64,
         obsw: &mut Obsw<S>,
+        files: &mut F,
         tcs: &TcChannel,
         tm: &ByteQueue<N>,
         tm_stats: &Counters,
     ) {
-        crate::spacelink::FrameLink::receive(self, now, obsw, tcs, tm, tm_stats)
+        crate::spacelink::FrameLink::receive(self, now, obsw, files, tcs, tm, tm_stats)
     }
     fn send_tm<const N: usize>(&mut self, packet: &[u8], tm: &ByteQueue<N>, tm_stats: &Counters) {
         crate::spacelink::FrameLink::send_tm(self, packet, tm, tm_stats)
@@ -227,20 +231,22 @@ impl CycleA {
         }
     }
 
-    /// One period: queued TCs, sensors, `Obsw::tick`, outputs, bytes for board B.
-    /// Returns the actuator commands applied.
+    /// One period: queued TCs, sensors, `Obsw::tick`, the file service's PDUs, outputs,
+    /// bytes for board B. Returns the actuator commands applied.
     #[allow(clippy::too_many_arguments)]
-    pub fn run<S, L, Adc, Imu, Enc, Sw, A, G, T, R, M, H, E, const TM: usize, const RX: usize, const TX: usize>(
+    pub fn run<S, L, F, Adc, Imu, Enc, Sw, A, G, T, R, M, H, E, const TM: usize, const RX: usize, const TX: usize>(
         &mut self,
         now: u64,
         obsw: &mut Obsw<S>,
         ground: &mut L,
+        files: &mut F,
         io: &mut PeripheralsA<Adc, Imu, Enc, Sw, A, G, T, R, M, H, E>,
         links: &LinksA<'_, TM, RX, TX>,
     ) -> ActuatorsA
     where
         S: TmStore,
         L: GroundLink,
+        F: FileService,
         Adc: AnalogInput,
         Imu: GravitySensor,
         Enc: AngleSensor,
@@ -262,7 +268,7 @@ impl CycleA {
             ..self.io_counters(links)
         };
         // Telecommands first, so that a TC and the tick that starts it share `now`.
-        ground.receive(now, obsw, links.tcs, links.tm, links.tm_stats);
+        ground.receive(now, obsw, files, links.tcs, links.tm, links.tm_stats);
         sample_a(
             &mut io.adc,
             &mut io.imu,
@@ -278,6 +284,9 @@ impl CycleA {
             counters: links.tm_stats,
         };
         let out = obsw.tick(now, &self.sensors, &self.rx[..n], &mut sink);
+        // After the OBSW's TM (a PUS 15 replay included): the file PDUs take what room
+        // the downlink has left.
+        files.poll(now, &mut sink);
         // A failing output keeps its last state; the OBSW sees the effect in currents and
         // positions and its FDIR acts on them.
         if io.apply(&out.actuators).is_err() {

@@ -1,6 +1,7 @@
 //! Hardware-independent part of the MMIC-I ESP32-C3 firmware.
 //!
-//! Everything here is plain `no_std` Rust without `unsafe`, so it runs unchanged on the
+//! Everything here is plain `no_std` Rust without `unsafe` (but the allocator that fails,
+//! [`no_heap`]), so it runs unchanged on the
 //! boards, on the host and in the QEMU test binary:
 //! - [`config`]: every firmware buffer, queue depth and period, derived from
 //!   `mib::config` (the single place where firmware capacities are set);
@@ -16,6 +17,9 @@
 //! - [`team`]: the transport of inter-robot team packets (the radio is future work);
 //! - [`spacelink`], [`link_store`]: board A's ground link over TC/TM transfer frames with
 //!   SDLS and COP-1 (`mmic-link`), and its key and counter area in flash;
+//! - [`files`]: board A's file service, the CFDP entity (`mmic-cfdp`) in the control
+//!   period;
+//! - [`no_heap`]: the global allocator without memory the binaries name (no heap);
 //! - [`flash`]: one NOR flash shared by the layouts in its partitions (key and counter
 //!   area, PUS 15 store).
 //!
@@ -27,10 +31,12 @@
 pub mod boot;
 pub mod config;
 pub mod cycle;
+pub mod files;
 pub mod flash;
 pub mod link;
 pub mod link_store;
 pub mod modules;
+pub mod no_heap;
 pub mod panic_record;
 pub mod periph;
 pub mod resume;

@@ -216,10 +216,12 @@ pub struct BarePackets;
 
 #[cfg(feature = "bare-link")]
 impl crate::cycle::GroundLink for BarePackets {
-    fn receive<S: obsw_core::tm::TmStore, const N: usize>(
+    /// Every packet to the OBSW: the file service takes nothing unauthenticated.
+    fn receive<S: obsw_core::tm::TmStore, F: crate::files::FileService, const N: usize>(
         &mut self,
         now: u64,
         obsw: &mut obsw_core::obsw::Obsw<S>,
+        _files: &mut F,
         tcs: &TcChannel,
         tm: &ByteQueue<N>,
         tm_stats: &Counters,

@@ -7,7 +7,8 @@
 //!   one frame per UDP datagram on the host). The SDLS work is spread over control periods
 //!   ([`SDLS_WORK_PER_PERIOD`], `Endpoint::schedule`): a frame is taken from the queue
 //!   when the one before is done, its MAC check and decryption run over as many periods as
-//!   they need, then its packets go to `Obsw::handle_tc`, one per period.
+//!   they need, then its packets go to `Obsw::handle_tc`, one per period — those of the
+//!   CFDP APID to the file service instead (`crate::files`).
 //! - **CPU**: a period does at most [`SDLS_WORK_PER_PERIOD`] GCM work blocks, for the TC
 //!   frame or else for the oldest TM frame, and at most one TC packet: the bound
 //!   `t_budget` measures under QEMU (docs/firmware.md, The control period's CPU).
@@ -34,6 +35,7 @@ use obsw_core::services::link::LinkKeys;
 use obsw_core::tm::TmStore;
 
 use crate::cycle::GroundSink;
+use crate::files::FileService;
 
 /// GCM work blocks (a 16-byte block through AES or GHASH, `mmic_link::gcm`) per control
 /// period: a 1 024-byte TC frame's MAC check and decryption (124 blocks) take 3 periods,
@@ -128,11 +130,13 @@ impl<St: IvStore + StoreStats> FrameLink<St> {
     }
 
     /// This period's TC work: takes a TC frame from the uplink queue when none is in work,
-    /// continues its MAC check and decryption, and executes at most one of its packets.
-    pub fn receive<S: TmStore, const N: usize>(
+    /// continues its MAC check and decryption, and executes at most one of its packets —
+    /// in the file service when it takes it (the CFDP APID), else in the OBSW.
+    pub fn receive<S: TmStore, F: FileService, const N: usize>(
         &mut self,
         now: u64,
         obsw: &mut Obsw<S>,
+        files: &mut F,
         tcs: &TcChannel,
         tm: &ByteQueue<N>,
         tm_stats: &Counters,
@@ -144,6 +148,9 @@ impl<St: IvStore + StoreStats> FrameLink<St> {
         }
         let mut packet = [0u8; mib::link::tc_frame::MAX_PACKET_LEN];
         let Some(n) = self.ep.poll_tc(&mut packet) else { return };
+        if files.take(now, &packet[..n]) {
+            return;
+        }
         // One sink type for every OBSW call (tick, TCs, events): the OBSW's generic code is
         // compiled once.
         let mut sink = GroundSink {

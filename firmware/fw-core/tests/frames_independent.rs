@@ -8,6 +8,7 @@ use std::path::PathBuf;
 use std::process::Command;
 
 use fw_core::config;
+use fw_core::files::NoFiles;
 use fw_core::link::{self, ByteQueue, Counters, TcChannel};
 use fw_core::spacelink::{FrameLink, Keys};
 use mmic_link::downlink::TmReceiver;
@@ -106,7 +107,7 @@ fn board_frames_verify_with_the_independent_python_decoder() {
     // The frame and its replies (their encryption spread over periods 1 ms apart), then
     // (150 ms later) an idle frame.
     for t in 10..26 {
-        fl.receive(t, &mut obsw, &TCS, &TM, &DOWN);
+        fl.receive(t, &mut obsw, &mut NoFiles, &TCS, &TM, &DOWN);
         fl.end_period(t, &mut obsw, &TM, &DOWN);
         if !fl.ep.busy() {
             break;

@@ -12,6 +12,7 @@ use std::rc::Rc;
 use arbitrary_int::{u11, u14};
 use fw_core::config::{self, adc_channel as ch};
 use fw_core::cycle::{CycleA, LinksA, PeripheralsA};
+use fw_core::files::NoFiles;
 use fw_core::link::{self, BarePackets, ByteQueue, Counters, TcChannel};
 use fw_core::periph::side::bolter_pulses;
 use fw_core::periph::{
@@ -243,9 +244,14 @@ impl Rig {
         let period = config::CONTROL_PERIOD_MS;
         self.t += period as u64;
         self.bench.borrow_mut().sensors = self.sim.sensors_a();
-        let commanded = self
-            .cycle
-            .run(self.t, &mut self.obsw, &mut BarePackets, &mut self.io, &self.links);
+        let commanded = self.cycle.run(
+            self.t,
+            &mut self.obsw,
+            &mut BarePackets,
+            &mut NoFiles,
+            &mut self.io,
+            &self.links,
+        );
         let hw = self.bench.borrow().actuators();
         // Everything but the hip reaches the hardware exactly; the hip speed up to the
         // pulse-width resolution.

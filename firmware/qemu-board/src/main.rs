@@ -9,6 +9,7 @@
 //! | flash (esp-storage)              | a NOR flash in a host file (`nor`, semihosting)   |
 //! | I2C sensors, LEDC servos, GPIO   | mock devices of a robot at rest (`robot`)          |
 //! | board B on UART1                 | `CycleB` in the same loop, queues crossed          |
+//! | file service: feature `file-service` (not in the default image yet) | the file service over the same flash store |
 //! | embassy tasks, 10 ms ticker      | one loop: UART in, period when due, UART out       |
 //!
 //! Run by the end-to-end test (tests/tests/qemu_board_e2e.rs): `qemu-system-riscv32
@@ -32,6 +33,7 @@ mod uart;
 use core::cell::RefCell;
 use fw_core::config::{self as cfg, i2c_addr};
 use fw_core::cycle::{CycleA, CycleB, GroundSink, LinksA, LinksB, PeripheralsA, PeripheralsB};
+use fw_core::files::Files;
 use fw_core::flash::SharedFlash;
 use fw_core::link::{self, ByteQueue, Counters, TcChannel};
 use fw_core::link_store::{self, FlashIvStore};
@@ -40,6 +42,7 @@ use fw_core::periph::{
     ActiveLowEnable, ActiveLowSwitch, Ads7828, As5600, BolterMux, BolterServos, Mpu6000, PwmServo, SideOutputs,
 };
 use fw_core::spacelink::FrameLink;
+use mmic_cfdp::flash::{FlashStore, OpenError};
 use mmic_stream::Deframer;
 use obsw_core::flash_store::MibFlashStore;
 use obsw_core::obsw::{Config, Obsw};
@@ -89,6 +92,10 @@ fn fail(what: &str) -> ! {
     semihosting::println!("qemu-board: {}", what);
     semihosting::process::exit(2)
 }
+
+/// No heap: every allocation fails (`fw_core::no_heap`: why one is named at all).
+#[global_allocator]
+static NO_HEAP: fw_core::no_heap::NoHeap = fw_core::no_heap::NoHeap;
 
 #[riscv_rt::entry]
 fn main() -> ! {
@@ -148,6 +155,26 @@ fn main() -> ! {
     );
     obsw.set_accepted_config(Some(fw_core::modules::integrated_config()));
     obsw.start_discovery(clock::now_ms() - start, &fw_core::modules::TABLE_A, probes_a);
+
+    // The file service (fw_core::files) over the file store in the flash's `files`
+    // partition, as board A's image with its feature `file-service` composes them (not in
+    // its default image yet: docs/firmware.md): the files survive a restart.
+    let region = mib::memory::FILE_STORE.offset..mib::memory::FILE_STORE.end();
+    let file_store = match FlashStore::open(SharedFlash(&flash), region.clone()) {
+        Ok(s) => s,
+        Err(OpenError::Flash) => {
+            if FlashStore::format(&mut SharedFlash(&flash), region.clone()).is_err() {
+                fail("file store format");
+            }
+            match FlashStore::open(SharedFlash(&flash), region) {
+                Ok(s) => s,
+                Err(_) => fail("file store after format"),
+            }
+        }
+        Err(OpenError::Layout) => fail("file store layout"),
+    };
+    let file_parts = mmic_cfdp::Parts::new(file_store);
+    let mut files = Files::new(cfg::ROBOT, &file_parts);
 
     // The space link: keys and counters from the key and counter area, as board A.
     let mut ground: Link<'_> = {
@@ -219,7 +246,7 @@ fn main() -> ! {
                 next + period
             };
             let t = now - start;
-            let (_, depth_a) = probe.depth(|| a.run(t, &mut obsw, &mut ground, &mut io_a, &links_a));
+            let (_, depth_a) = probe.depth(|| a.run(t, &mut obsw, &mut ground, &mut files, &mut io_a, &links_a));
             let (_, depth_b) = probe.depth(|| b.run(t, &mut io_b, &links_b));
             if depth_a > high_a || depth_b > high_b {
                 (high_a, high_b) = (high_a.max(depth_a), high_b.max(depth_b));

@@ -191,6 +191,15 @@ pub static REPLAY_READ_WORST: portable_atomic::AtomicU64 = portable_atomic::Atom
 /// The most packets that replay sent in one period (framed on the board, `t_budget`).
 pub static REPLAY_MOST_SENT: portable_atomic::AtomicU64 = portable_atomic::AtomicU64::new(0);
 
+/// The most instructions board A's file service took in a period that took a file data
+/// packet of a whole segment (`t_files`: the packet and the service's poll), in place of
+/// the period's TC packet (`t_budget`).
+pub static WORST_FILE_DATA: portable_atomic::AtomicU64 = portable_atomic::AtomicU64::new(0);
+
+/// Instructions of a file's modular checksum per KiB read from the RAM store (`t_files`):
+/// a transfer's EOF period sums the whole file in one call (cfdp-rs' handlers).
+pub static CHECKSUM_PER_KIB: portable_atomic::AtomicU64 = portable_atomic::AtomicU64::new(0);
+
 /// Bytes below the caller's frame that [`stack_depth`] paints.
 pub const STACK_PROBE_BYTES: usize = 96 * 1024;
 /// Word painted below the stack pointer (`mib::memory::STACK_PAINT` in every byte).

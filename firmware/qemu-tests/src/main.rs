@@ -16,6 +16,7 @@ mod t_budget;
 mod t_codec;
 mod t_cycle;
 mod t_domain;
+mod t_files;
 mod t_framelink;
 mod t_framing;
 mod t_link;
@@ -29,6 +30,10 @@ mod t_store;
 mod t_support;
 mod t_team;
 mod t_update;
+
+/// No heap: every allocation fails (`fw_core::no_heap`: why one is named at all).
+#[global_allocator]
+static NO_HEAP: fw_core::no_heap::NoHeap = fw_core::no_heap::NoHeap;
 
 #[riscv_rt::entry]
 fn main() -> ! {
@@ -50,6 +55,7 @@ fn main() -> ! {
         t_modules::TESTS,
         t_store::TESTS,
         t_update::TESTS,
+        t_files::TESTS,
         t_budget::TESTS,
     ]);
     semihosting::process::exit(code)

@@ -8,6 +8,7 @@ use crate::tests;
 use crate::{check, check_eq, ok};
 use fw_core::config::{self, i2c_addr};
 use fw_core::cycle::{CycleA, CycleB, LinksA, LinksB, PeripheralsA, PeripheralsB};
+use fw_core::files::NoFiles;
 use fw_core::link::{self, BarePackets, ByteQueue, Counters, TcChannel};
 use fw_core::periph::ads7828::PowerMode;
 use fw_core::periph::{
@@ -174,7 +175,7 @@ fn boards_a_and_b_cycles_go_operational_on_a_ground_command() -> TestResult {
             let m = ok!(encode(&tc[..n], &mut frame));
             link::uplink_bytes(&mut uplink, &frame[..m], &TCS, &STATS[3]);
         }
-        act = a.run(t, &mut obsw, &mut BarePackets, &mut io_a, &links_a);
+        act = a.run(t, &mut obsw, &mut BarePackets, &mut NoFiles, &mut io_a, &links_a);
         b.run(t, &mut io_b, &links_b);
         // The UARTs: whatever each side queued arrives at the other.
         let n = link::drain(&A_TX, &mut wire);
@@ -299,7 +300,7 @@ fn cycle_a_reports_platform_io_counters_in_hk_structure_5() -> TestResult {
     let mut t = 0u64;
     let mut step = |cycle: &mut CycleA, obsw: &mut Obsw<RingStore<16384>>, io: &mut BoardA<FlakyServo>| {
         t += config::CONTROL_PERIOD_MS as u64;
-        cycle.run(t, obsw, &mut BarePackets, io, &links);
+        cycle.run(t, obsw, &mut BarePackets, &mut NoFiles, io, &links);
         // Board B is not connected: A's bytes for it go nowhere.
         let mut sink = [0u8; config::AB_TX_BYTES];
         link::drain(&A_TX, &mut sink);

@@ -11,6 +11,7 @@ use crate::tests;
 use crate::{check, check_eq, ok};
 use embedded_storage::nor_flash::{ErrorType, NorFlash, NorFlashErrorKind, ReadNorFlash};
 use fw_core::config;
+use fw_core::files::NoFiles;
 use fw_core::link::{self, ByteQueue, Counters, TcChannel};
 use fw_core::link_store::{self, FlashIvStore, KEY_RECORD_LEN, RECORDS_PER_SECTOR, SECTOR};
 use fw_core::spacelink::{FrameLink, Keys};
@@ -426,7 +427,7 @@ fn framelink_bare_packets_control_frames_and_idle_frames() -> TestResult {
         bc[5..8].copy_from_slice(&[0x82, 0x00, if i < 2 { 9 } else { 0 }]);
         mmic_link::fecf::seal(&mut bc[..len]);
         uplink(&bc[..len], &TCS, &UP);
-        fl.receive(100 + 10 * i, &mut obsw, &TCS, &TM, &DOWN);
+        fl.receive(100 + 10 * i, &mut obsw, &mut NoFiles, &TCS, &TM, &DOWN);
         fl.end_period(100 + 10 * i, &mut obsw, &TM, &DOWN);
     }
     downlink(&TM, &mut tm_rx, &mut tm_store, &mut g);
@@ -472,7 +473,7 @@ where
     for t in now..now + 16 {
         last = t;
         let start = instret();
-        fl.receive(t, obsw, tcs, tm, down);
+        fl.receive(t, obsw, &mut NoFiles, tcs, tm, down);
         receive += instret() - start;
         fl.end_period(t, obsw, tm, down);
         if !fl.ep.busy() && tcs.is_empty() {

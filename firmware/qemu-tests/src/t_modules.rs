@@ -12,6 +12,7 @@ use crate::tests;
 use crate::{check, check_eq, ok};
 use fw_core::config::{self, i2c_addr};
 use fw_core::cycle::{CycleA, CycleB, LinksA, LinksB, PeripheralsA, PeripheralsB};
+use fw_core::files::NoFiles;
 use fw_core::link::{self, BarePackets, ByteQueue, Counters, TcChannel};
 use fw_core::modules::{probe_a, probe_b, TABLE_A, TABLE_B};
 use fw_core::periph::ads7828::{command_byte, PowerMode};
@@ -181,7 +182,7 @@ fn boot(fit: Fit) -> Result<Seen, crate::harness::Failure> {
     while t < 3000 {
         t += config::CONTROL_PERIOD_MS as u64;
         let c0 = instret();
-        a.run(t, &mut obsw, &mut BarePackets, &mut io_a, &links_a);
+        a.run(t, &mut obsw, &mut BarePackets, &mut NoFiles, &mut io_a, &links_a);
         let period_cost = instret() - c0;
         b.run(t, &mut io_b, &links_b);
         let n = link::drain(&A_TX, &mut wire);

@@ -297,10 +297,23 @@ impl Checksum {
     /// The next bytes, which start at file offset `offset`.
     pub fn update(&mut self, offset: u64, data: &[u8]) {
         match self {
+            // Word by word between the bytes before the first word boundary and after the
+            // last: the whole file's sum runs in one control period on the board (at the
+            // EOF), where byte by byte with a 64-bit offset took 17 000 RV32 instructions
+            // a KiB (firmware/qemu-tests t_files).
             Checksum::Modular(s) => {
-                for (i, b) in data.iter().enumerate() {
-                    let shift = 24 - 8 * ((offset + i as u64) % 4) as u32;
-                    *s = s.wrapping_add((*b as u32) << shift);
+                let head = ((4 - offset % 4) % 4) as usize;
+                let (head, rest) = data.split_at(head.min(data.len()));
+                let byte = |at: usize, b: u8| (b as u32) << (24 - 8 * (at % 4) as u32);
+                for (i, b) in head.iter().enumerate() {
+                    *s = s.wrapping_add(byte((offset % 4) as usize + i, *b));
+                }
+                let mut words = rest.chunks_exact(4);
+                for w in &mut words {
+                    *s = s.wrapping_add(u32::from_be_bytes([w[0], w[1], w[2], w[3]]));
+                }
+                for (i, b) in words.remainder().iter().enumerate() {
+                    *s = s.wrapping_add(byte(i, *b));
                 }
             }
             Checksum::Crc32(d) | Checksum::Crc32c(d) => d.update(data),
@@ -588,6 +601,25 @@ mod tests {
         c.update(0, &[1, 2]);
         c.update(2, &[3, 4, 5]);
         assert_eq!(c.value(), 0x0102_0304 + 0x0500_0000);
+        // Word by word and byte by byte agree for every start and split.
+        let data: std::vec::Vec<u8> = (0..64u32).map(|i| (i * 37 + 11) as u8).collect();
+        let bytewise = |offset: u64, d: &[u8]| {
+            d.iter().enumerate().fold(0u32, |s, (i, b)| {
+                s.wrapping_add((*b as u32) << (24 - 8 * ((offset + i as u64) % 4) as u32))
+            })
+        };
+        for start in 0..8 {
+            for split in start..data.len() {
+                let mut c = Checksum::new(ChecksumType::Modular).unwrap();
+                c.update(start as u64, &data[start..split]);
+                c.update(split as u64, &data[split..]);
+                assert_eq!(
+                    c.value(),
+                    bytewise(start as u64, &data[start..]),
+                    "start {start} split {split}"
+                );
+            }
+        }
         let mut c = Checksum::new(ChecksumType::Crc32).unwrap();
         c.update(0, b"123456789");
         assert_eq!(c.value(), 0xCBF4_3926);
