@@ -552,9 +552,15 @@ fn sym_eigenvalues(i: &[f64; 6]) -> [f64; 3] {
     let e1 = q + 2.0 * p * phi.cos();
     let e3 = q + 2.0 * p * (phi + 2.0 * PI / 3.0).cos();
     let e2 = 3.0 * q - e1 - e3;
-    let mut v = [e1, e2, e3];
-    v.sort_by(|x, y| x.partial_cmp(y).unwrap_or(core::cmp::Ordering::Equal));
-    v
+    // Ascending, by hand: three values (the slice sort's code is kilobytes on the board).
+    let (lo, hi) = if e1 <= e2 { (e1, e2) } else { (e2, e1) };
+    if e3 < lo {
+        [e3, lo, hi]
+    } else if e3 < hi {
+        [lo, e3, hi]
+    } else {
+        [lo, hi, e3]
+    }
 }
 
 /// Whether an inertial is physically valid: mass > 0, inertia positive definite and the
