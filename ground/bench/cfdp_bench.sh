@@ -48,9 +48,9 @@ one() {
         --frame-udp "$fr" --frame-tm-to "$tmf" --files "$W/robot" >"$W/obsw.out" 2>/dev/null &
     op=$!
     # An obsw that did not start (a port taken between `port` and its bind) ends the run
-    # instead of holding it for ever.
+    # instead of holding it for ever; the caller tries once more with new ports.
     until [ -s "$W/obsw.out" ]; do
-        kill -0 "$op" 2>/dev/null || { echo "obsw did not start" >&2; kill "$rp"; exit 1; }
+        kill -0 "$op" 2>/dev/null || { echo "obsw did not start" >&2; kill "$rp"; wait "$rp" 2>/dev/null; return 1; }
         sleep 0.05
     done
     cp "$W/up.bin" "$W/local/up.bin"
@@ -90,9 +90,10 @@ for v in "${variants[@]}"; do : >"$W/$v-clean"; : >"$W/$v-lossy"; done
 for i in $(seq 1 "$RUNS"); do
     for v in "${variants[@]}"; do
         X=$(dir_of "$v")
-        one "" "$i" "$W/$v-clean" "$v-clean"
+        one "" "$i" "$W/$v-clean" "$v-clean" || one "" "$i" "$W/$v-clean" "$v-clean"
         echo "run $i $v clean: put s, get s, TM frames: $(tail -1 "$W/$v-clean")"
-        one "--drop 0.2 --duplicate 0.05 --corrupt 0.05" "$i" "$W/$v-lossy" "$v-lossy"
+        lossy=(--drop 0.2 --duplicate 0.05 --corrupt 0.05)
+        one "${lossy[*]}" "$i" "$W/$v-lossy" "$v-lossy" || one "${lossy[*]}" "$i" "$W/$v-lossy" "$v-lossy"
         echo "run $i $v lossy: put s, get s, TM frames: $(tail -1 "$W/$v-lossy")"
     done
 done
