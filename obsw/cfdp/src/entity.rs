@@ -50,7 +50,8 @@ use spacepackets::util::{UnsignedByteField, UnsignedByteFieldU16, UnsignedEnum};
 use crate::gaps::Gaps;
 use crate::msg::{self, ReservedMsg};
 use crate::packet::Direction;
-use crate::store::{Checked, FileName, FlatStore};
+use crate::store::{Checked, FileName, FlatStore, Side};
+use ::cfdp::lost_segments::LostSegmentStore;
 
 /// A PDU held for the link.
 pub type Pdu = heapless::Vec<u8, { m::MAX_PDU_LEN }>;
@@ -661,6 +662,18 @@ pub struct Entity<'a, S: FlatStore> {
     resent_once: [u32; RESENT_WORDS],
     /// File data PDUs this control period may still send (`SEGMENTS_PER_POLL`).
     budget: usize,
+    /// The incoming file's bytes not yet received (from its metadata's length; `None`
+    /// when not known: a gap list that overflowed, an EOF of another length).
+    rx_missing: Option<Gaps>,
+    /// The incoming transaction's checksum type, and whether its EOF went to the handler.
+    rx_kind: ChecksumType,
+    rx_eof_passed: bool,
+    /// End of the furthest segment of the incoming file given to the handler.
+    rx_end: u64,
+    /// The PDU that would make the destination handler sum the whole file in one call (the
+    /// EOF of a complete file, the segment that completes it after the EOF), held while
+    /// [`Entity::poll`] sums the file `CHECKSUM_BYTES_PER_POLL` at a time.
+    rx_held: Option<Pdu>,
 }
 
 /// Words of [`Entity::resent_once`]: a bit for each segment of the largest file.
@@ -676,7 +689,7 @@ pub fn remote_config(id: u16, peer: u16) -> RemoteEntityConfig {
         true,
         m::PDU_CRC,
         TransmissionMode::Acknowledged,
-        ChecksumType::try_from(m::CHECKSUM_TYPE).unwrap_or(ChecksumType::Modular),
+        checksum_kind(),
     );
     c.max_file_segment_len = Some(m::MAX_SEGMENT_LEN);
     c.immediate_nak_mode = if id == m::GROUND_ENTITY_ID {
@@ -690,6 +703,11 @@ pub fn remote_config(id: u16, peer: u16) -> RemoteEntityConfig {
     c.nak_timer_expiration_limit = m::NAK_LIMIT;
     c.check_limit = m::CHECK_LIMIT;
     c
+}
+
+/// The checksum type of this entity's puts (`mib::cfdp::CHECKSUM_TYPE`).
+fn checksum_kind() -> ChecksumType {
+    ChecksumType::try_from(m::CHECKSUM_TYPE).unwrap_or(ChecksumType::Modular)
 }
 
 fn local_config<S>(id: u16, parts: &Parts<S>) -> LocalEntityConfig<Faults<'_>> {
@@ -805,6 +823,11 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             resend_scope: (0, 0),
             resent_once: [0; RESENT_WORDS],
             budget: m::SEGMENTS_PER_POLL,
+            rx_missing: None,
+            rx_kind: ChecksumType::NullChecksum,
+            rx_eof_passed: false,
+            rx_end: 0,
+            rx_held: None,
         }
     }
 
@@ -876,6 +899,9 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         let Some(len) = self.parts.store.len(&s).ok().flatten() else {
             return Err(PutError::NoFile);
         };
+        // Summed during the file data, `CHECKSUM_BYTES_PER_POLL` a poll; the source
+        // handler's EOF step waits for it.
+        self.parts.store.sum_start(Side::Send, &s, checksum_kind(), len);
         self.start_put(now_ms, Some(src), Some(dest), class, None, None)?;
         self.sending_len = len;
         self.sending_name = Some(s);
@@ -962,7 +988,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         self.user.sending = true;
         let busy = self.source.state() != State::Idle;
         let reported = self.user.sent_reports;
-        if self.source.state_machine(&mut self.user, pdu).is_err() {
+        if self.source.state_machine(&mut self.user, pdu).is_err() && !self.source_waits_for_sum() {
             self.counters.handler_errors = self.counters.handler_errors.wrapping_add(1);
         }
         // A transaction cfdp-rs ended on a fault (a class 1 check limit, a cancellation)
@@ -984,6 +1010,158 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             self.user.report(f);
         }
         self.user.sending = false;
+    }
+
+    /// The source handler has sent its file data and its EOF step waits for the file's
+    /// checksum (the store's job, advanced by [`Entity::poll`]).
+    fn source_waits_for_sum(&self) -> bool {
+        let Some(name) = self.sending_name.as_ref() else {
+            return false;
+        };
+        let eof_next = match self.source.step() {
+            SourceStep::SendingEof => true,
+            SourceStep::SendingFileData => self.parts.link.sent_to.get() >= self.sending_len,
+            _ => false,
+        };
+        self.source.state() != State::Idle
+            && eof_next
+            && !self
+                .parts
+                .store
+                .sum_ready(Side::Send, name, checksum_kind(), self.sending_len)
+    }
+
+    /// A PDU of the running incoming transaction that would make the destination handler
+    /// sum the whole file in one call, held (`rx_held`) until [`Entity::poll`] has summed
+    /// it: an EOF of a complete file (in class 1 every EOF: the handler sums what it has),
+    /// or the segment that completes the file after the EOF. Whether `raw` was held.
+    fn hold_for_sum(&mut self, raw: &[u8], h: &PduHeader, pdu: &PduRawWithInfo) -> bool {
+        let Some((_, _, staging)) = self.receiving.clone() else {
+            return false;
+        };
+        if self.rx_kind == ChecksumType::NullChecksum {
+            return false;
+        }
+        let class1 = h.common_pdu_conf().trans_mode == TransmissionMode::Unacknowledged;
+        if pdu.pdu_type() == PduType::FileData {
+            let Ok(fd) = FileDataPdu::from_bytes(raw) else {
+                return false;
+            };
+            if !class1 && self.rx_eof_passed && self.rx_held.is_some() {
+                // The segment that completes the file is held: every byte is here, and this
+                // copy (a duplicate, a segment sent again) would complete the file in the
+                // handler before its sum is done.
+                self.counters.stray = self.counters.stray.wrapping_add(1);
+                return true;
+            }
+            let seg = (fd.offset(), fd.offset().saturating_add(fd.file_data().len() as u64));
+            self.rx_end = self.rx_end.max(seg.1);
+            let was_missing = self.rx_missing.as_ref().is_some_and(|g| !g.is_empty());
+            if let Some(g) = self.rx_missing.as_mut() {
+                if seg.0 < seg.1 && g.remove_lost_segment(seg).is_err() {
+                    self.rx_missing = None;
+                }
+            }
+            let complete = self.rx_missing.as_ref().is_some_and(|g| g.is_empty());
+            // The handler sums the file when this segment closes its last gap after the
+            // EOF: written first (the handler's own write of the same bytes then changes
+            // nothing summed), handed over when summed.
+            if class1 || !self.rx_eof_passed || !was_missing || !complete || self.rx_held.is_some() {
+                return false;
+            }
+            if self.parts.store.write(&staging, fd.offset(), fd.file_data()).is_err() {
+                return false;
+            }
+        } else if pdu.file_directive_type() == Some(FileDirectiveType::EofPdu) {
+            let Ok(eof) = EofPdu::from_bytes(raw) else { return false };
+            let eof_held = self.rx_held.as_ref().is_some_and(|p| {
+                PduRawWithInfo::new(p).is_ok_and(|p| p.file_directive_type() == Some(FileDirectiveType::EofPdu))
+            });
+            if eof_held {
+                // The sender's EOF again while the first waits: the first is answered.
+                self.counters.stray = self.counters.stray.wrapping_add(1);
+                return true;
+            }
+            if eof.condition_code() != ConditionCode::NoError || self.rx_eof_passed {
+                return false;
+            }
+            if self.user.incoming_len != eof.file_size() {
+                self.rx_missing = None;
+            }
+            let complete = self.rx_missing.as_ref().is_some_and(|g| g.is_empty());
+            if !(class1 || complete) {
+                self.rx_eof_passed = true;
+                return false;
+            }
+        } else {
+            return false;
+        }
+        let Ok(p) = Pdu::from_slice(raw) else { return false };
+        self.rx_held = Some(p);
+        self.sum_received(0);
+        true
+    }
+
+    /// Sums the incoming file at most `budget` bytes further; when its sum is done, hands
+    /// the held PDU to the destination handler (which takes the sum from the store).
+    /// Returns the bytes read.
+    fn sum_received(&mut self, budget: usize) -> usize {
+        let Some(held) = self.rx_held.as_ref() else { return 0 };
+        let Some((_, _, staging)) = self.receiving.clone().filter(|_| self.dest.state() != State::Idle) else {
+            self.rx_held = None;
+            return 0;
+        };
+        // What the handler will sum: up to the end of the furthest segment it took.
+        let mut len = self.rx_end;
+        // (spacepackets' file data reader takes any PDU: the type is checked first.)
+        if PduRawWithInfo::new(held).is_ok_and(|p| p.pdu_type() == PduType::FileData) {
+            if let Ok(fd) = FileDataPdu::from_bytes(held) {
+                len = len.max(fd.offset().saturating_add(fd.file_data().len() as u64));
+            }
+        }
+        let store = &self.parts.store;
+        store.sum_start(Side::Receive, &staging, self.rx_kind, len);
+        let read = store.sum_advance(Side::Receive, budget);
+        let Some(sum) = store.sum_value(Side::Receive, &staging, self.rx_kind, len) else {
+            return read;
+        };
+        let Some(mut held) = self.rx_held.take() else {
+            return read;
+        };
+        let Ok(p) = PduRawWithInfo::new(&held) else { return read };
+        if p.file_directive_type() == Some(FileDirectiveType::EofPdu) {
+            self.rx_eof_passed = true;
+            if let Some(failed) = Self::eof_of_a_checksum_failure(&held, sum) {
+                held = failed;
+            }
+        }
+        if let Ok(p) = PduRawWithInfo::new(&held) {
+            self.run_dest(Some(&p));
+        }
+        read
+    }
+
+    /// cfdp-rs 0.3's destination handler checks the file's checksum in class 2 only when
+    /// the EOF found gaps: a file complete at its EOF was taken whole unchecked. Here the
+    /// sum is done: an EOF whose checksum differs goes to the handler with the condition
+    /// "file checksum failure" (its cancel response checks the sum, declares that fault and
+    /// ends the transaction not complete, the file not kept).
+    fn eof_of_a_checksum_failure(raw: &[u8], sum: u32) -> Option<Pdu> {
+        let eof = EofPdu::from_bytes(raw).ok()?;
+        if eof.pdu_header().common_pdu_conf().trans_mode != TransmissionMode::Acknowledged || eof.file_checksum() == sum
+        {
+            return None;
+        }
+        let failed = EofPdu::new(
+            *eof.pdu_header(),
+            ConditionCode::FileChecksumFailure,
+            eof.file_checksum(),
+            eof.file_size(),
+            None,
+        );
+        let mut buf = [0u8; 64];
+        let n = failed.write_to_bytes(&mut buf).ok()?;
+        Pdu::from_slice(&buf[..n]).ok()
     }
 
     fn run_dest(&mut self, pdu: Option<&PduRawWithInfo>) {
@@ -1164,7 +1342,9 @@ impl<'a, S: FlatStore> Entity<'a, S> {
                         }
                     }
                 }
-                self.run_dest(Some(&pdu))
+                if !self.hold_for_sum(raw, &h, &pdu) {
+                    self.run_dest(Some(&pdu))
+                }
             }
         }
         self.settle();
@@ -1440,6 +1620,14 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             self.parts.link.data_at.set(None);
             self.dest = new_dest(self.id, self.peer, self.parts);
             self.receiving = final_name.zip(staging).map(|(f, s)| (tx, f, s));
+            let params = md.metadata_params();
+            self.rx_kind = params.checksum_type;
+            self.rx_eof_passed = false;
+            self.rx_end = 0;
+            self.rx_held = None;
+            let mut missing = Gaps::new();
+            let ok = params.file_size == 0 || missing.add_lost_segment((0, params.file_size)).is_ok();
+            self.rx_missing = ok.then_some(missing);
         }
         let errors = self.counters.handler_errors;
         self.run_dest(Some(&pdu));
@@ -1521,6 +1709,18 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             }
             due.clear();
         }
+        // The checksums, `CHECKSUM_BYTES_PER_POLL` in all: the received file's first (its
+        // held PDU waits), then the sent file's.
+        let read = self.sum_received(m::CHECKSUM_BYTES_PER_POLL);
+        if let Some(name) = self
+            .sending_name
+            .as_ref()
+            .filter(|_| self.source.state() != State::Idle)
+        {
+            let store = &self.parts.store;
+            store.sum_start(Side::Send, name, checksum_kind(), self.sending_len);
+            store.sum_advance(Side::Send, m::CHECKSUM_BYTES_PER_POLL - read);
+        }
         // Segments asked for again go first: the receiver waits for them.
         self.budget = m::SEGMENTS_PER_POLL;
         self.resend();
@@ -1530,7 +1730,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
                 break;
             }
             let before = self.parts.link.outbox.borrow().len();
-            if self.source.state() != State::Idle {
+            if self.source.state() != State::Idle && !self.source_waits_for_sum() {
                 self.run_source(None);
             }
             if self.dest.state() != State::Idle {
@@ -1547,7 +1747,9 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         // receiver on a lossless uplink says nothing until the EOF): its silence is not
         // inactivity. A put through the relay's COP-1 took more than INACTIVITY_MS to get its
         // data up on a loaded machine and was abandoned.
-        if self.source.state() != State::Idle && self.source.step() == SourceStep::SendingFileData {
+        if self.source.state() != State::Idle
+            && (self.source.step() == SourceStep::SendingFileData || self.source_waits_for_sum())
+        {
             self.last_heard = now_ms as u32;
         }
         if (self.source.state() != State::Idle || self.dest.state() != State::Idle)
@@ -1565,6 +1767,11 @@ impl<'a, S: FlatStore> Entity<'a, S> {
     /// (which cfdp-rs 0.3 restarts only when it expires) stays for a NAK or an answer lost
     /// on the way; waiting for it cost a NAK period (4 s) per round through the relay.
     fn nak_early(&mut self, now: u32) {
+        if self.rx_held.is_some() {
+            // The file is complete, the segment that completed it held while it is summed:
+            // nothing to ask for.
+            return;
+        }
         let link = &self.parts.link;
         let quiet = link.data_at.get().is_some_and(|t| {
             t.wrapping_sub(link.nak_at.get()) as i32 > 0 && (now.wrapping_sub(t) as u64) >= m::NAK_QUIET_MS

@@ -145,12 +145,66 @@ pub struct StoreCounters {
     pub bad_names: u32,
     pub full: u32,
     pub io_errors: u32,
+    /// File checksums computed whole in one call, not paced by a [`SumJob`] (a path the
+    /// entity does not pace: the EOF of a cancellation, a class 1 check-limit retry).
+    pub whole_sums: u32,
 }
+
+/// Which of the entity's two transfers a checksum job serves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Side {
+    /// The file being sent: its EOF carries the sum.
+    Send,
+    /// The file being received: its sum is checked against the sender's.
+    Receive,
+}
+
+impl Side {
+    fn slot(self) -> usize {
+        match self {
+            Side::Send => 0,
+            Side::Receive => 1,
+        }
+    }
+}
+
+/// A file's checksum computed a budget at a time (the entity's `poll`), so no control
+/// period reads and sums a whole file; cfdp-rs' single call then takes the result.
+struct SumJob {
+    name: FileName,
+    kind: ChecksumType,
+    /// Bytes summed: the first `len`.
+    len: u64,
+    /// Offset reached, and the partial sum (`None` once done).
+    at: u64,
+    sum: Option<Checksum>,
+    value: Option<u32>,
+}
+
+impl SumJob {
+    fn is(&self, n: &FileName, kind: ChecksumType, len: u64) -> bool {
+        self.name == *n && self.kind == kind && self.len == len
+    }
+}
+
+/// What the store holds for a checksum cfdp-rs asks for.
+enum Cached {
+    Value(u32),
+    /// Being computed for the file being sent: the source handler's EOF step waits.
+    SendPending,
+    None,
+}
+
+/// Bytes read at a time by a checksum job.
+const SUM_CHUNK: usize = 512;
 
 /// The checks in front of a [`FlatStore`], and cfdp-rs' `VirtualFilestore` over them.
 pub struct Checked<S> {
     inner: S,
     counters: Cell<StoreCounters>,
+    /// A checksum job per [`Side`]. Any change to the part of its file it has summed (a
+    /// write of other bytes, create, remove, rename) ends it.
+    sums: core::cell::RefCell<[Option<SumJob>; 2]>,
 }
 
 fn name(path: &str, c: &Cell<StoreCounters>) -> Result<FileName, FilestoreError> {
@@ -167,7 +221,124 @@ impl<S: FlatStore> Checked<S> {
         Checked {
             inner,
             counters: Cell::new(StoreCounters::default()),
+            sums: core::cell::RefCell::new([None, None]),
         }
+    }
+
+    /// Starts summing the first `len` bytes of `n` for `side` (kept when that job is
+    /// already running or done). A kind without an implementation starts nothing: cfdp-rs'
+    /// own call then reports it.
+    pub fn sum_start(&self, side: Side, n: &FileName, kind: ChecksumType, len: u64) {
+        let mut sums = self.sums.borrow_mut();
+        let slot = &mut sums[side.slot()];
+        if slot.as_ref().is_some_and(|j| j.is(n, kind, len)) {
+            return;
+        }
+        *slot = Checksum::new(kind).map(|sum| SumJob {
+            name: n.clone(),
+            kind,
+            len,
+            at: 0,
+            sum: Some(sum),
+            value: None,
+        });
+    }
+
+    /// Sums at most `budget` more bytes of `side`'s job; returns the bytes read. A read
+    /// that fails ends the job (cfdp-rs' own call then meets the error).
+    pub fn sum_advance(&self, side: Side, budget: usize) -> usize {
+        let mut sums = self.sums.borrow_mut();
+        let slot = &mut sums[side.slot()];
+        let Some(job) = slot.as_mut() else { return 0 };
+        let mut buf = [0u8; SUM_CHUNK];
+        let mut read = 0;
+        while let Some(sum) = job.sum.as_mut() {
+            let k = (job.len - job.at).min((budget - read).min(SUM_CHUNK) as u64) as usize;
+            if k == 0 && job.at < job.len {
+                break;
+            }
+            if k > 0 {
+                if self.read(&job.name, job.at, &mut buf[..k]).is_err() {
+                    *slot = None;
+                    return read;
+                }
+                sum.update(job.at, &buf[..k]);
+                job.at += k as u64;
+                read += k;
+            }
+            if job.at == job.len {
+                job.value = job.sum.take().map(Checksum::value);
+            }
+        }
+        read
+    }
+
+    /// Whether `side`'s job summed the first `len` bytes of `n` and nothing changed them.
+    pub fn sum_ready(&self, side: Side, n: &FileName, kind: ChecksumType, len: u64) -> bool {
+        self.sum_value(side, n, kind, len).is_some()
+    }
+
+    /// The sum of `side`'s job, when it summed the first `len` bytes of `n` and nothing
+    /// changed them.
+    pub fn sum_value(&self, side: Side, n: &FileName, kind: ChecksumType, len: u64) -> Option<u32> {
+        self.sums.borrow()[side.slot()]
+            .as_ref()
+            .filter(|j| j.is(n, kind, len))
+            .and_then(|j| j.value)
+    }
+
+    fn cached(&self, n: &FileName, kind: ChecksumType, len: u64) -> Cached {
+        let sums = self.sums.borrow();
+        for (i, j) in sums.iter().enumerate() {
+            match j {
+                Some(j) if j.is(n, kind, len) => match j.value {
+                    Some(v) => return Cached::Value(v),
+                    None if i == Side::Send.slot() => return Cached::SendPending,
+                    None => {}
+                },
+                _ => {}
+            }
+        }
+        Cached::None
+    }
+
+    /// Ends the jobs over `n` (created, removed, renamed).
+    fn changed(&self, n: &FileName) {
+        for j in self.sums.borrow_mut().iter_mut() {
+            if j.as_ref().is_some_and(|j| j.name == *n) {
+                *j = None;
+            }
+        }
+    }
+
+    /// Whether writing `data` at `offset` of `n` would change bytes a job has summed: a
+    /// write past what was summed changes nothing summed, and the same bytes written again
+    /// (a duplicate segment, the segment the entity wrote before handing it over) neither.
+    fn changes_summed(&self, n: &FileName, offset: u64, data: &[u8]) -> bool {
+        let summed = self
+            .sums
+            .borrow()
+            .iter()
+            .flatten()
+            .filter(|j| j.name == *n)
+            .map(|j| j.at)
+            .max();
+        let Some(at) = summed else { return false };
+        if offset >= at {
+            return false;
+        }
+        let end = (offset + data.len() as u64).min(at);
+        let mut buf = [0u8; SUM_CHUNK];
+        let mut o = offset;
+        while o < end {
+            let k = (end - o).min(SUM_CHUNK as u64) as usize;
+            let d = (o - offset) as usize;
+            if self.inner.read(n, o, &mut buf[..k]).is_err() || buf[..k] != data[d..d + k] {
+                return true;
+            }
+            o += k as u64;
+        }
+        false
     }
 
     pub fn inner(&self) -> &S {
@@ -203,15 +374,20 @@ impl<S: FlatStore> Checked<S> {
     }
 
     pub fn remove(&self, n: &FileName) -> Result<(), StoreError> {
+        self.changed(n);
         self.inner.remove(n).map_err(|e| self.count(e))
     }
 
     pub fn rename(&self, from: &FileName, to: &FileName) -> Result<(), StoreError> {
+        self.changed(from);
+        self.changed(to);
         self.inner.rename(from, to).map_err(|e| self.count(e))
     }
 
     /// Renames `from` to `to`, replacing `to`'s file ([`FlatStore::replace`]).
     pub fn replace(&self, from: &FileName, to: &FileName) -> Result<(), StoreError> {
+        self.changed(from);
+        self.changed(to);
         self.inner.replace(from, to).map_err(|e| self.count(e))
     }
 
@@ -235,6 +411,7 @@ impl<S: FlatStore> Checked<S> {
         if self.len(n)?.is_none() && self.count_files()? >= MAX_FILES {
             return Err(self.count(StoreError::Full));
         }
+        self.changed(n);
         self.inner.create(n).map_err(|e| self.count(e))
     }
 
@@ -248,6 +425,9 @@ impl<S: FlatStore> Checked<S> {
         let now = self.len(n)?.ok_or(StoreError::NotFound)?;
         if end > now && end - now > self.free()? {
             return Err(self.count(StoreError::Full));
+        }
+        if self.changes_summed(n, offset, data) {
+            self.changed(n);
         }
         self.inner.write(n, offset, data).map_err(|e| self.count(e))
     }
@@ -298,9 +478,9 @@ impl Checksum {
     pub fn update(&mut self, offset: u64, data: &[u8]) {
         match self {
             // Word by word between the bytes before the first word boundary and after the
-            // last: the whole file's sum runs in one control period on the board (at the
-            // EOF), where byte by byte with a 64-bit offset took 17 000 RV32 instructions
-            // a KiB (firmware/qemu-tests t_files).
+            // last: `CHECKSUM_BYTES_PER_POLL` of it run in each control period on the board
+            // while a file is summed, where byte by byte with a 64-bit offset took 17 000
+            // RV32 instructions a KiB (firmware/qemu-tests t_files).
             Checksum::Modular(s) => {
                 let head = ((4 - offset % 4) % 4) as usize;
                 let (head, rest) = data.split_at(head.min(data.len()));
@@ -438,7 +618,18 @@ impl<S: FlatStore> VirtualFilestore for &Checked<S> {
                 .ok_or(FilestoreError::ChecksumTypeNotImplemented(kind));
         }
         let n = name(path, &self.counters)?;
-        self.checksum(&n, kind, size_to_verify, buf)
+        match self.cached(&n, kind, size_to_verify) {
+            Cached::Value(v) => Ok(v),
+            // Not an error of the file: the source handler stays at its EOF step and asks
+            // again at its next call (the entity calls it when the sum is done).
+            Cached::SendPending => Err(FilestoreError::Other),
+            Cached::None => {
+                let mut k = self.counters.get();
+                k.whole_sums = k.whole_sums.wrapping_add(1);
+                self.counters.set(k);
+                self.checksum(&n, kind, size_to_verify, buf)
+            }
+        }
     }
 }
 
