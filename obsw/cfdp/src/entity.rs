@@ -670,6 +670,9 @@ pub struct Entity<'a, S: FlatStore> {
     rx_eof_passed: bool,
     /// End of the furthest segment of the incoming file given to the handler.
     rx_end: u64,
+    /// The fault count when the incoming transaction began: after a fault the handler's
+    /// own course runs, nothing held (its file may lack a refused write).
+    rx_faults: u32,
     /// The PDU that would make the destination handler sum the whole file in one call (the
     /// EOF of a complete file, the segment that completes it after the EOF), held while
     /// [`Entity::poll`] sums the file `CHECKSUM_BYTES_PER_POLL` at a time.
@@ -827,6 +830,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             rx_kind: ChecksumType::NullChecksum,
             rx_eof_passed: false,
             rx_end: 0,
+            rx_faults: 0,
             rx_held: None,
         }
     }
@@ -1012,6 +1016,20 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         self.user.sending = false;
     }
 
+    /// Sums the sent file at most `budget` bytes further.
+    fn sum_sent(&mut self, budget: usize) {
+        let Some(name) = self
+            .sending_name
+            .as_ref()
+            .filter(|_| self.source.state() != State::Idle)
+        else {
+            return;
+        };
+        let store = &self.parts.store;
+        store.sum_start(Side::Send, name, checksum_kind(), self.sending_len);
+        store.sum_advance(Side::Send, budget);
+    }
+
     /// The source handler has sent its file data and its EOF step waits for the file's
     /// checksum (the store's job, advanced by [`Entity::poll`]).
     fn source_waits_for_sum(&self) -> bool {
@@ -1039,7 +1057,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         let Some((_, _, staging)) = self.receiving.clone() else {
             return false;
         };
-        if self.rx_kind == ChecksumType::NullChecksum {
+        if self.rx_kind == ChecksumType::NullChecksum || self.parts.faults.get() != self.rx_faults {
             return false;
         }
         let class1 = h.common_pdu_conf().trans_mode == TransmissionMode::Unacknowledged;
@@ -1120,10 +1138,17 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             }
         }
         let store = &self.parts.store;
-        store.sum_start(Side::Receive, &staging, self.rx_kind, len);
-        let read = store.sum_advance(Side::Receive, budget);
-        let Some(sum) = store.sum_value(Side::Receive, &staging, self.rx_kind, len) else {
-            return read;
+        let faulted = self.parts.faults.get() != self.rx_faults;
+        let (read, sum) = if faulted {
+            // The handler's own course: the held PDU goes to it as it is.
+            (0, None)
+        } else {
+            store.sum_start(Side::Receive, &staging, self.rx_kind, len);
+            let read = store.sum_advance(Side::Receive, budget);
+            match store.sum_value(Side::Receive, &staging, self.rx_kind, len) {
+                Some(sum) => (read, Some(sum)),
+                None => return read,
+            }
         };
         let Some(mut held) = self.rx_held.take() else {
             return read;
@@ -1131,7 +1156,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         let Ok(p) = PduRawWithInfo::new(&held) else { return read };
         if p.file_directive_type() == Some(FileDirectiveType::EofPdu) {
             self.rx_eof_passed = true;
-            if let Some(failed) = Self::eof_of_a_checksum_failure(&held, sum) {
+            if let Some(failed) = sum.and_then(|sum| Self::eof_of_a_checksum_failure(&held, sum)) {
                 held = failed;
             }
         }
@@ -1624,6 +1649,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             self.rx_kind = params.checksum_type;
             self.rx_eof_passed = false;
             self.rx_end = 0;
+            self.rx_faults = self.parts.faults.get();
             self.rx_held = None;
             let mut missing = Gaps::new();
             let ok = params.file_size == 0 || missing.add_lost_segment((0, params.file_size)).is_ok();
@@ -1710,17 +1736,10 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             due.clear();
         }
         // The checksums, `CHECKSUM_BYTES_PER_POLL` in all: the received file's first (its
-        // held PDU waits), then the sent file's.
-        let read = self.sum_received(m::CHECKSUM_BYTES_PER_POLL);
-        if let Some(name) = self
-            .sending_name
-            .as_ref()
-            .filter(|_| self.source.state() != State::Idle)
-        {
-            let store = &self.parts.store;
-            store.sum_start(Side::Send, name, checksum_kind(), self.sending_len);
-            store.sum_advance(Side::Send, m::CHECKSUM_BYTES_PER_POLL - read);
-        }
+        // held PDU waits), then the sent file's, alongside its file data (faster than the
+        // data goes: the sum is done when the data is, and the EOF does not wait).
+        let left = m::CHECKSUM_BYTES_PER_POLL - self.sum_received(m::CHECKSUM_BYTES_PER_POLL);
+        self.sum_sent(left);
         // Segments asked for again go first: the receiver waits for them.
         self.budget = m::SEGMENTS_PER_POLL;
         self.resend();
