@@ -196,8 +196,13 @@ pub static REPLAY_MOST_SENT: portable_atomic::AtomicU64 = portable_atomic::Atomi
 /// the period's TC packet (`t_budget`).
 pub static WORST_FILE_DATA: portable_atomic::AtomicU64 = portable_atomic::AtomicU64::new(0);
 
+/// The most instructions board A's file service took in a period of `t_files`' puts (file
+/// data written, the received file's paced checksum) or in one that handled an EOF, in
+/// place of the period's TC packet (`t_budget`, enforced).
+pub static WORST_FILE_PERIOD: portable_atomic::AtomicU64 = portable_atomic::AtomicU64::new(0);
+
 /// Instructions of a file's modular checksum per KiB read from the RAM store (`t_files`):
-/// a transfer's EOF period sums the whole file in one call (cfdp-rs' handlers).
+/// the entity sums `mib::cfdp::CHECKSUM_BYTES_PER_POLL` of a file a period.
 pub static CHECKSUM_PER_KIB: portable_atomic::AtomicU64 = portable_atomic::AtomicU64::new(0);
 
 /// Bytes below the caller's frame that [`stack_depth`] paints.
