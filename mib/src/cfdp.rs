@@ -171,6 +171,15 @@ pub const SEGMENTS_PER_POLL: usize = 3;
 /// the period's budget above 17 KiB; 8 KiB a period keeps it well inside and sums the
 /// largest file of the board's store in 13 periods.
 pub const CHECKSUM_BYTES_PER_POLL: usize = 8 * 1024;
+/// Of those, what a sender sums in a poll that may also send file data (up to
+/// `SEGMENTS_PER_POLL` segments read and framed, the file service's heaviest period on
+/// board A): a little more than the data those segments carry, so the sum, started with
+/// the put, is done when the data is and the EOF never waits for it.
+pub const CHECKSUM_BYTES_WITH_DATA: usize = (SEGMENTS_PER_POLL + 1) * MAX_SEGMENT_LEN;
+const _: () = assert!(
+    CHECKSUM_BYTES_WITH_DATA <= CHECKSUM_BYTES_PER_POLL
+        && CHECKSUM_BYTES_WITH_DATA > SEGMENTS_PER_POLL * MAX_SEGMENT_LEN
+);
 /// PDUs the entity holds for the link before it drops one (counted; class 2 recovers it).
 pub const OUTBOX_DEPTH: usize = 16;
 

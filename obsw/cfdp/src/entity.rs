@@ -664,7 +664,8 @@ pub struct Entity<'a, S: FlatStore> {
     budget: usize,
     /// The incoming file's bytes not yet received (from its metadata's length; `None`
     /// when not known: a gap list that overflowed, an EOF of another length).
-    rx_missing: Option<Gaps>,
+    rx_missing: Gaps,
+    rx_missing_known: bool,
     /// The incoming transaction's checksum type, and whether its EOF went to the handler.
     rx_kind: ChecksumType,
     rx_eof_passed: bool,
@@ -826,7 +827,8 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             resend_scope: (0, 0),
             resent_once: [0; RESENT_WORDS],
             budget: m::SEGMENTS_PER_POLL,
-            rx_missing: None,
+            rx_missing: Gaps::new(),
+            rx_missing_known: false,
             rx_kind: ChecksumType::NullChecksum,
             rx_eof_passed: false,
             rx_end: 0,
@@ -1074,13 +1076,11 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             }
             let seg = (fd.offset(), fd.offset().saturating_add(fd.file_data().len() as u64));
             self.rx_end = self.rx_end.max(seg.1);
-            let was_missing = self.rx_missing.as_ref().is_some_and(|g| !g.is_empty());
-            if let Some(g) = self.rx_missing.as_mut() {
-                if seg.0 < seg.1 && g.remove_lost_segment(seg).is_err() {
-                    self.rx_missing = None;
-                }
+            let was_missing = self.rx_missing_known && !self.rx_missing.is_empty();
+            if self.rx_missing_known && seg.0 < seg.1 && self.rx_missing.remove_lost_segment(seg).is_err() {
+                self.rx_missing_known = false;
             }
-            let complete = self.rx_missing.as_ref().is_some_and(|g| g.is_empty());
+            let complete = self.rx_missing_known && self.rx_missing.is_empty();
             // The handler sums the file when this segment closes its last gap after the
             // EOF: written first (the handler's own write of the same bytes then changes
             // nothing summed), handed over when summed.
@@ -1104,9 +1104,9 @@ impl<'a, S: FlatStore> Entity<'a, S> {
                 return false;
             }
             if self.user.incoming_len != eof.file_size() {
-                self.rx_missing = None;
+                self.rx_missing_known = false;
             }
-            let complete = self.rx_missing.as_ref().is_some_and(|g| g.is_empty());
+            let complete = self.rx_missing_known && self.rx_missing.is_empty();
             if !(class1 || complete) {
                 self.rx_eof_passed = true;
                 return false;
@@ -1114,8 +1114,12 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         } else {
             return false;
         }
-        let Ok(p) = Pdu::from_slice(raw) else { return false };
-        self.rx_held = Some(p);
+        // In place: a PDU buffer is 1 KiB of the board's stack.
+        let held = self.rx_held.insert(Pdu::new());
+        if held.extend_from_slice(raw).is_err() {
+            self.rx_held = None;
+            return false;
+        }
         self.sum_received(0);
         true
     }
@@ -1651,9 +1655,10 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             self.rx_end = 0;
             self.rx_faults = self.parts.faults.get();
             self.rx_held = None;
-            let mut missing = Gaps::new();
-            let ok = params.file_size == 0 || missing.add_lost_segment((0, params.file_size)).is_ok();
-            self.rx_missing = ok.then_some(missing);
+            // Reset in place: the list is 4 KiB and more of the board's stack.
+            LostSegmentStore::reset(&mut self.rx_missing);
+            self.rx_missing_known =
+                params.file_size == 0 || self.rx_missing.add_lost_segment((0, params.file_size)).is_ok();
         }
         let errors = self.counters.handler_errors;
         self.run_dest(Some(&pdu));
@@ -1736,10 +1741,15 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             due.clear();
         }
         // The checksums, `CHECKSUM_BYTES_PER_POLL` in all: the received file's first (its
-        // held PDU waits), then the sent file's, alongside its file data (faster than the
-        // data goes: the sum is done when the data is, and the EOF does not wait).
+        // held PDU waits), then the sent file's, alongside its file data
+        // (`CHECKSUM_BYTES_WITH_DATA`, faster than the data goes: the sum is done when the
+        // data is, and the EOF does not wait), all of the budget once the data is out.
         let left = m::CHECKSUM_BYTES_PER_POLL - self.sum_received(m::CHECKSUM_BYTES_PER_POLL);
-        self.sum_sent(left);
+        self.sum_sent(if self.source_waits_for_sum() {
+            left
+        } else {
+            left.min(m::CHECKSUM_BYTES_WITH_DATA)
+        });
         // Segments asked for again go first: the receiver waits for them.
         self.budget = m::SEGMENTS_PER_POLL;
         self.resend();
