@@ -163,8 +163,8 @@ pub const MAX_LOST_SEGMENTS: usize = (MAX_FILE_LEN as usize).div_ceil(MAX_SEGMEN
 /// housekeeping and events and never sends faster than a ground takes its frames (at 8 a
 /// period the ground's socket dropped 113 of 277 frames of a clean 256 KiB `get`).
 pub const SEGMENTS_PER_POLL: usize = 3;
-/// File bytes the entity reads and sums per call of its `poll` (per control period on
-/// board) while a file's checksum is computed: the sender's during its file data, the
+/// File bytes the robot's entity reads and sums per call of its `poll` (per control period
+/// on board; the ground's sums a whole file a poll) while a file's checksum is computed: the sender's during its file data, the
 /// receiver's while it holds the EOF (or the segment that completes the file) that would
 /// make cfdp-rs sum the whole file in one call. About 5 000 RV32 instructions a KiB (board
 /// A, firmware/qemu-tests t_files): a whole file of the board's store in one period broke

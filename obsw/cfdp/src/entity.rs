@@ -1744,11 +1744,17 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         // held PDU waits), then the sent file's, alongside its file data
         // (`CHECKSUM_BYTES_WITH_DATA`, faster than the data goes: the sum is done when the
         // data is, and the EOF does not wait), all of the budget once the data is out.
-        let left = m::CHECKSUM_BYTES_PER_POLL - self.sum_received(m::CHECKSUM_BYTES_PER_POLL);
+        let (all, with_data) = if self.id == m::GROUND_ENTITY_ID {
+            // The ground has no control period to keep: a file a poll.
+            (m::MAX_FILE_LEN as usize, m::MAX_FILE_LEN as usize)
+        } else {
+            (m::CHECKSUM_BYTES_PER_POLL, m::CHECKSUM_BYTES_WITH_DATA)
+        };
+        let left = all - self.sum_received(all);
         self.sum_sent(if self.source_waits_for_sum() {
             left
         } else {
-            left.min(m::CHECKSUM_BYTES_WITH_DATA)
+            left.min(with_data)
         });
         // Segments asked for again go first: the receiver waits for them.
         self.budget = m::SEGMENTS_PER_POLL;
