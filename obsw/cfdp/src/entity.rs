@@ -1059,7 +1059,12 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         let Some((_, _, staging)) = self.receiving.clone() else {
             return false;
         };
-        if self.rx_kind == ChecksumType::NullChecksum || self.parts.faults.get() != self.rx_faults {
+        // The null checksum is not summed; a kind not implemented is the handler's to
+        // declare.
+        if self.rx_kind == ChecksumType::NullChecksum
+            || crate::store::Checksum::new(self.rx_kind).is_none()
+            || self.parts.faults.get() != self.rx_faults
+        {
             return false;
         }
         let class1 = h.common_pdu_conf().trans_mode == TransmissionMode::Unacknowledged;
@@ -1151,6 +1156,10 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             let read = store.sum_advance(Side::Receive, budget);
             match store.sum_value(Side::Receive, &staging, self.rx_kind, len) {
                 Some(sum) => (read, Some(sum)),
+                // A read of the file failed: the handler's own sum meets the error and
+                // declares it (a filestore rejection), rather than the PDU held until
+                // inactivity.
+                None if !store.sum_running(Side::Receive) => (read, None),
                 None => return read,
             }
         };

@@ -273,6 +273,12 @@ impl<S: FlatStore> Checked<S> {
         read
     }
 
+    /// Whether `side` has a job (none: never started, its kind not implemented, a read
+    /// failed, its file changed).
+    pub fn sum_running(&self, side: Side) -> bool {
+        self.sums.borrow()[side.slot()].is_some()
+    }
+
     /// Whether `side`'s job summed the first `len` bytes of `n` and nothing changed them.
     pub fn sum_ready(&self, side: Side, n: &FileName, kind: ChecksumType, len: u64) -> bool {
         self.sum_value(side, n, kind, len).is_some()
@@ -783,6 +789,47 @@ mod tests {
         s.list(&mut |n, l| names.push((n.as_str().to_string(), l))).unwrap();
         assert_eq!(names, [("b".to_string(), 10)]);
         assert_eq!(s.free().unwrap(), 0);
+    }
+
+    // verifies: FILE-CFDP-08
+    #[test]
+    fn a_checksum_job_reads_its_budget_a_step_and_only_a_change_of_summed_bytes_ends_it() {
+        let s = Checked::new(MemStore::<2, 4096>::new(10_000));
+        let n = FileName::new("f").unwrap();
+        let data: std::vec::Vec<u8> = (0..3000u32).map(|i| (i * 7 + 3) as u8).collect();
+        s.create(&n).unwrap();
+        s.write(&n, 0, &data).unwrap();
+        let kind = ChecksumType::Crc32;
+        let whole = s.checksum(&n, kind, 3000, &mut [0u8; 256]).unwrap();
+        s.sum_start(Side::Send, &n, kind, 3000);
+        // Not done: the source handler's call is told "not yet", nothing read whole.
+        assert!(matches!(
+            (&s).calculate_checksum("f", kind, 3000, &mut [0u8; 64]),
+            Err(FilestoreError::Other)
+        ));
+        assert_eq!(s.sum_advance(Side::Send, 1000), 1000);
+        // A write past what was summed, and the same bytes again, change nothing summed.
+        s.write(&n, 2000, &data[2000..2100]).unwrap();
+        s.write(&n, 10, &data[10..700]).unwrap();
+        assert!(s.sum_running(Side::Send));
+        assert_eq!(s.sum_advance(Side::Send, 1000), 1000);
+        assert_eq!(s.sum_advance(Side::Send, 5000), 1000);
+        assert_eq!(s.sum_value(Side::Send, &n, kind, 3000), Some(whole));
+        assert_eq!((&s).calculate_checksum("f", kind, 3000, &mut [0u8; 64]).unwrap(), whole);
+        assert_eq!(s.counters().whole_sums, 0);
+        // Another length or kind is not this job's: summed whole, counted.
+        assert!((&s).calculate_checksum("f", kind, 2999, &mut [0u8; 64]).is_ok());
+        assert_eq!(s.counters().whole_sums, 1);
+        // Other bytes where the job summed end it, as do a create, a rename, a remove.
+        s.write(&n, 5, b"x").unwrap();
+        assert!(!s.sum_running(Side::Send));
+        s.sum_start(Side::Receive, &n, kind, 3000);
+        s.create(&n).unwrap();
+        assert!(!s.sum_running(Side::Receive));
+        // A read that fails (a job longer than its file) ends the job.
+        s.sum_start(Side::Receive, &n, kind, 3000);
+        assert_eq!(s.sum_advance(Side::Receive, 8192), 0);
+        assert!(!s.sum_running(Side::Receive));
     }
 
     // verifies: FILE-CFDP-02
