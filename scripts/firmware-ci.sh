@@ -32,8 +32,6 @@ step "format and lints (firmware workspace and on-target tests)"
 (cd "$FW/qemu-tests" && cargo fmt --check)
 (cd "$FW/qemu-board" && cargo fmt --check)
 (cd "$FW" && cargo clippy --release -p board-a -p board-b -p fw-core -p fw-esp -- -D warnings)
-# Board A with its file service (not in the default image yet: docs/firmware.md, Files).
-(cd "$FW" && cargo clippy --release -p board-a --features file-service -- -D warnings)
 (cd "$FW/qemu-tests" && CARGO_TARGET_DIR="$CARGO_TARGET_DIR/qemu-tests" cargo clippy -- -D warnings)
 (cd "$FW/qemu-board" && CARGO_TARGET_DIR="$CARGO_TARGET_DIR/qemu-tests" cargo clippy --release -- -D warnings)
 

@@ -24,13 +24,16 @@ W=$(mktemp -d /tmp/cfdp-bench.XXXXXX)
 trap 'rm -rf "$W"' EXIT
 export MMIC_GROUND_LOCK_DIR=$W/locks
 mkdir -p "$W/local" "$W/locks"
-"$BIN/ground" --no-archive keys create "$W/keys" --robot 1 >/dev/null 2>&1
 head -c $((KIB * 1024)) /dev/urandom >"$W/up.bin"
 port() { python3 -c 'import socket;s=socket.socket(socket.AF_INET,socket.SOCK_DGRAM);s.bind(("127.0.0.1",0));print(s.getsockname()[1])'; }
 
 # one FAULTS SEED OUT NAME: appends "put_s get_s get_tm_frames" to OUT
 one() {
     local faults=$1 seed=$2 out=$3 fr li line ru tmf op rp t0 t1 t2 frames
+    # A key folder per variant: the obsw keeps its state there (link counters, its TM
+    # store file, whose size is the build's), which another build may refuse.
+    local keys=$W/keys-${4%%-*}
+    [ -d "$keys" ] || "$X/ground" --no-archive keys create "$keys" --robot 1 >/dev/null 2>&1
     fr=127.0.0.1:$(port)
     li=127.0.0.1:$(port)
     # The last run's outputs go first: a background process truncates its file only when it
@@ -44,7 +47,7 @@ one() {
     line=$(grep RELAY "$W/relay.out")
     ru=$(sed 's/.*udp=\([^ ]*\).*/\1/' <<<"$line")
     tmf=$(sed 's/.*tm_frames=\([^ ]*\).*/\1/' <<<"$line")
-    "$X/obsw" --robot 1 --udp 127.0.0.1:0 --tcp 127.0.0.1:0 --sim-ctl 127.0.0.1:0 --keys "$W/keys" \
+    "$X/obsw" --robot 1 --udp 127.0.0.1:0 --tcp 127.0.0.1:0 --sim-ctl 127.0.0.1:0 --keys "$keys" \
         --frame-udp "$fr" --frame-tm-to "$tmf" --files "$W/robot" >"$W/obsw.out" 2>/dev/null &
     op=$!
     # An obsw that did not start (a port taken between `port` and its bind) ends the run
@@ -56,7 +59,7 @@ one() {
     cp "$W/up.bin" "$W/local/up.bin"
     cd "$W/local"
     local g=("$X/ground" --no-archive file)
-    local l=(--robot "1=$ru" --tm-listen "1=$li" --keys "$W/keys")
+    local l=(--robot "1=$ru" --tm-listen "1=$li" --keys "$keys")
     [ -n "${TRACE:-}" ] && l+=(--trace)
     t0=$(date +%s.%N)
     "${g[@]}" put "${l[@]}" up.bin >/dev/null 2>"$W/put.err" || { cat "$W/put.err" >&2; echo "put failed" >&2; }

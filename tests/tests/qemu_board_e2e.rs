@@ -457,7 +457,7 @@ fn the_qemu_board_flies_a_plan_with_the_real_ground_refuses_a_replay_and_keeps_i
 
     // 1b. Files: `ground file put` of a small file (class 2: its file data in BD frames)
     // and `ground file get` of it back, through board A's file service and its flash file
-    // store (in board A's image with its feature `file-service`).
+    // store (as in board A's image).
     let data: Vec<u8> = (0..6_000u32)
         .map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8)
         .collect();

@@ -41,10 +41,7 @@ use esp_hal::Async;
 use esp_storage::FlashStorage;
 use fw_core::config::{self as cfg, i2c_addr};
 use fw_core::cycle::{CycleA, GroundSink, LinksA, PeripheralsA};
-#[cfg(feature = "file-service")]
 use fw_core::files::Files;
-#[cfg(not(feature = "file-service"))]
-use fw_core::files::NoFiles;
 use fw_core::flash::SharedFlash;
 use fw_core::link::{self, ByteQueue, Counters, TcChannel};
 use fw_core::link_store::{self, FlashIvStore};
@@ -55,9 +52,7 @@ use fw_core::periph::{
 use fw_core::spacelink::FrameLink;
 use fw_esp::bus::{self, SensorDevice};
 use fw_esp::servos::{Servo, ServoBank};
-#[cfg(feature = "file-service")]
 use mmic_cfdp::flash::{FlashStore, OpenError};
-#[cfg(feature = "file-service")]
 use mmic_cfdp::Parts;
 use obsw_core::flash_store::MibFlashStore;
 use obsw_core::obsw::{Config, Obsw};
@@ -99,19 +94,12 @@ const _: () = assert!(
 );
 /// The ground link (TC receiver with its SDLS keys, TM framer), owned by the control task.
 static LINK: StaticCell<Link> = StaticCell::new();
-/// The file service (docs/files.md, On the board), owned by the control task: with the
-/// feature `file-service`, the CFDP entity over the file store on the `files` partition
-/// (`mib::memory::FILE_STORE`, the same flash); without it (the default: the image does
-/// not fit its flash budget with it yet, docs/firmware.md) none, and a packet of the CFDP
-/// APID goes to the OBSW, which refuses it.
-#[cfg(feature = "file-service")]
+/// The file service (docs/files.md, On the board), owned by the control task: the CFDP
+/// entity over the file store on the `files` partition (`mib::memory::FILE_STORE`, the
+/// same flash).
 type FileService = Files<'static, FileStore>;
-#[cfg(not(feature = "file-service"))]
-type FileService = NoFiles;
-#[cfg(feature = "file-service")]
 type FileStore = FlashStore<SharedFlash<'static, FlashStorage<'static>>>;
 /// The file service's store, clock and outbox; the service.
-#[cfg(feature = "file-service")]
 static FILE_PARTS: StaticCell<Parts<FileStore>> = StaticCell::new();
 static FILES: StaticCell<FileService> = StaticCell::new();
 
@@ -220,7 +208,6 @@ async fn control(
 /// whose transfer a reset cut are removed by the service). A region that holds something
 /// else than a store (a first boot after another layout) is formatted: its bytes were no
 /// files.
-#[cfg(feature = "file-service")]
 fn file_service(flash: &'static Flash) -> &'static mut FileService {
     let region = mib::memory::FILE_STORE.offset..mib::memory::FILE_STORE.end();
     let store = match FlashStore::open(SharedFlash(flash), region.clone()) {
@@ -233,12 +220,6 @@ fn file_service(flash: &'static Flash) -> &'static mut FileService {
         Err(OpenError::Layout) => panic!("file store layout"),
     };
     FILES.init(Files::new(cfg::ROBOT, FILE_PARTS.init(Parts::new(store))))
-}
-
-/// No file service (see [`FileService`]).
-#[cfg(not(feature = "file-service"))]
-fn file_service(_flash: &'static Flash) -> &'static mut FileService {
-    FILES.init(NoFiles)
 }
 
 #[esp_hal::main]

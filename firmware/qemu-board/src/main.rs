@@ -9,7 +9,7 @@
 //! | flash (esp-storage)              | a NOR flash in a host file (`nor`, semihosting)   |
 //! | I2C sensors, LEDC servos, GPIO   | mock devices of a robot at rest (`robot`)          |
 //! | board B on UART1                 | `CycleB` in the same loop, queues crossed          |
-//! | file service: feature `file-service` (not in the default image yet) | the file service over the same flash store |
+//! | file service over the flash file store | the file service over the same flash store |
 //! | embassy tasks, 10 ms ticker      | one loop: UART in, period when due, UART out       |
 //!
 //! Run by the end-to-end test (tests/tests/qemu_board_e2e.rs): `qemu-system-riscv32
@@ -157,8 +157,7 @@ fn main() -> ! {
     obsw.start_discovery(clock::now_ms() - start, &fw_core::modules::TABLE_A, probes_a);
 
     // The file service (fw_core::files) over the file store in the flash's `files`
-    // partition, as board A's image with its feature `file-service` composes them (not in
-    // its default image yet: docs/firmware.md): the files survive a restart.
+    // partition, as board A's image composes them: the files survive a restart.
     let region = mib::memory::FILE_STORE.offset..mib::memory::FILE_STORE.end();
     let file_store = match FlashStore::open(SharedFlash(&flash), region.clone()) {
         Ok(s) => s,

@@ -10,80 +10,128 @@
 //! The overlapping gaps were each asked for in every NAK and each removed only in part: a
 //! 256 KiB `get` through the lossy relay took 117 s instead of 3. Here a gap is merged
 //! into the ones it touches, and received data is cut out of every gap it overlaps.
+//!
+//! The gaps are kept in order by inserting each in its place, not by the list's
+//! `coalesce_lost_segments`, which sorts: on board that sort (`core::slice::sort`, about
+//! 7 KB of flash) was linked for this alone.
 
-use ::cfdp::lost_segments::{LostSegmentError, LostSegmentStore, LostSegmentsListHeapless};
+use ::cfdp::lost_segments::{LostSegmentError, LostSegmentStore};
+use heapless::Vec;
 use mib::cfdp as m;
 
-type List = LostSegmentsListHeapless<{ m::MAX_LOST_SEGMENTS }, u32>;
-
-/// The gaps of the incoming file (at most `MAX_LOST_SEGMENTS`, inline).
+/// The gaps of the incoming file (at most `MAX_LOST_SEGMENTS`, inline): each `(start,
+/// end)` with `start < end`, in order of start, none overlapping or touching another.
 #[derive(Debug, Default)]
-pub struct Gaps(List);
+pub struct Gaps(Vec<(u32, u32), { m::MAX_LOST_SEGMENTS }>);
+
+/// A segment as the store keeps it; the list's errors for one it cannot take.
+fn checked(seg: (u64, u64)) -> Result<(u32, u32), LostSegmentError> {
+    if seg.0 == seg.1 {
+        return Err(LostSegmentError::EmptySegment);
+    }
+    if seg.0 > seg.1 {
+        return Err(LostSegmentError::StartLargerThanEnd(seg.0, seg.1));
+    }
+    match (u32::try_from(seg.0), u32::try_from(seg.1)) {
+        (Ok(s), Ok(e)) => Ok((s, e)),
+        _ => Err(LostSegmentError::LargeFileSegmentNotSupported),
+    }
+}
+
+fn widen(g: &(u32, u32)) -> (u64, u64) {
+    (u64::from(g.0), u64::from(g.1))
+}
 
 impl Gaps {
     pub fn new() -> Self {
-        Gaps(List::new())
-    }
-
-    /// The first gap that overlaps `seg`, cut to `seg`.
-    fn overlap(&self, seg: (u64, u64)) -> Option<(u64, u64)> {
-        self.0
-            .iter()
-            .find(|&(s, e)| s < seg.1 && e > seg.0)
-            .map(|(s, e)| (s.max(seg.0), e.min(seg.1)))
+        Gaps(Vec::new())
     }
 }
 
 impl LostSegmentStore for Gaps {
-    type Iter<'a> = <List as LostSegmentStore>::Iter<'a>;
+    type Iter<'a> = core::iter::Map<core::slice::Iter<'a, (u32, u32)>, fn(&(u32, u32)) -> (u64, u64)>;
 
     fn iter(&self) -> Self::Iter<'_> {
-        self.0.iter()
+        self.0.iter().map(widen as fn(&(u32, u32)) -> (u64, u64))
     }
     fn number_of_segments(&self) -> usize {
-        self.0.number_of_segments()
+        self.0.len()
     }
     fn supports_large_file_size(&self) -> bool {
-        self.0.supports_large_file_size()
+        false
     }
     fn capacity(&self) -> Option<usize> {
-        LostSegmentStore::capacity(&self.0)
+        Some(self.0.capacity())
     }
     fn reset(&mut self) {
-        LostSegmentStore::reset(&mut self.0)
+        self.0.clear()
     }
-    fn segment_in_store(&self, segment: (u64, u64)) -> bool {
-        self.0.segment_in_store(segment)
+    fn segment_in_store(&self, seg: (u64, u64)) -> bool {
+        self.0.iter().map(widen).any(|(s, e)| s <= seg.0 && seg.1 <= e)
     }
 
-    /// Merged with the gaps it overlaps or touches; nothing when already recorded.
+    /// Merged with the gaps it overlaps or touches; nothing when already recorded. Full
+    /// only when it touches no gap and every place is taken.
     fn add_lost_segment(&mut self, seg: (u64, u64)) -> Result<(), LostSegmentError> {
-        if seg.0 < seg.1 && self.0.segment_in_store(seg) {
-            return Ok(());
+        let (mut s, mut e) = checked(seg)?;
+        // The first gap that ends at or after the new one's start, and the run from it of
+        // those starting at or before its end: the gaps it overlaps or touches.
+        let first = self.0.iter().position(|g| g.1 >= s).unwrap_or(self.0.len());
+        let run = self.0[first..].iter().take_while(|g| g.0 <= e).count();
+        if run == 0 {
+            return self.0.insert(first, (s, e)).map_err(|_| LostSegmentError::StoreFull);
         }
-        self.0.add_lost_segment(seg)?;
-        self.0.coalesce_lost_segments()
+        let last = first + run - 1;
+        s = s.min(self.0[first].0);
+        e = e.max(self.0[last].1);
+        self.0[first] = (s, e);
+        let len = self.0.len();
+        self.0.copy_within(last + 1.., first + 1);
+        self.0.truncate(len - (run - 1));
+        Ok(())
     }
 
-    /// Cut out of every gap it overlaps (each gap's part on its own, so the list's removal
-    /// only ever sees a part inside one gap). Whether anything was removed.
+    /// Cut out of every gap it overlaps. Whether anything was removed; full (nothing
+    /// changed) when it would split a gap in two and every place is taken.
     fn remove_lost_segment(&mut self, seg: (u64, u64)) -> Result<bool, LostSegmentError> {
-        if seg.0 >= seg.1 {
-            // The list's own error for an empty or reversed segment.
-            return self.0.remove_lost_segment(seg);
-        }
+        let (s, e) = checked(seg)?;
         let mut removed = false;
-        while let Some(part) = self.overlap(seg) {
-            if !self.0.remove_lost_segment(part)? {
+        let mut i = 0;
+        while let Some(&(gs, ge)) = self.0.get(i) {
+            if ge <= s {
+                i += 1;
+                continue;
+            }
+            if gs >= e {
                 break;
+            }
+            match (gs < s, ge > e) {
+                // Inside the gap: the parts on either side of it stay.
+                (true, true) => {
+                    self.0.insert(i + 1, (e, ge)).map_err(|_| LostSegmentError::StoreFull)?;
+                    self.0[i].1 = s;
+                    return Ok(true);
+                }
+                (true, false) => {
+                    self.0[i].1 = s;
+                    i += 1;
+                }
+                (false, true) => {
+                    self.0[i].0 = e;
+                    return Ok(true);
+                }
+                (false, false) => {
+                    self.0.remove(i);
+                }
             }
             removed = true;
         }
         Ok(removed)
     }
 
+    /// Nothing to do: the gaps are merged as they are added.
     fn coalesce_lost_segments(&mut self) -> Result<(), LostSegmentError> {
-        self.0.coalesce_lost_segments()
+        Ok(())
     }
 }
 
@@ -117,5 +165,71 @@ mod tests {
         assert!(g.remove_lost_segment((3000, 10000)).unwrap());
         assert!(g.is_empty());
         assert!(g.remove_lost_segment((5, 5)).is_err());
+    }
+
+    /// The gaps a map of missing bytes has: its runs, in order, none touching.
+    fn runs(missing: &[bool]) -> std::vec::Vec<(u64, u64)> {
+        let mut out = std::vec::Vec::new();
+        for (i, &m) in missing.iter().enumerate() {
+            match (m, out.last_mut()) {
+                (true, Some((_, e))) if *e == i as u64 => *e += 1,
+                (true, _) => out.push((i as u64, i as u64 + 1)),
+                (false, _) => {}
+            }
+        }
+        out
+    }
+
+    proptest::proptest! {
+        // verifies: FILE-CFDP-05
+        #[test]
+        fn the_gaps_are_exactly_the_bytes_recorded_missing_and_not_received_since(
+            ops in proptest::collection::vec((proptest::bool::ANY, 0u64..64, 1u64..16), 1..60)
+        ) {
+            let mut g = Gaps::new();
+            let mut missing = [false; 80];
+            for (add, s, len) in ops {
+                let e = s + len;
+                if add {
+                    g.add_lost_segment((s, e)).unwrap();
+                    missing[s as usize..e as usize].fill(true);
+                } else {
+                    let was = missing[s as usize..e as usize].contains(&true);
+                    proptest::prop_assert_eq!(g.remove_lost_segment((s, e)).unwrap(), was);
+                    missing[s as usize..e as usize].fill(false);
+                }
+                proptest::prop_assert_eq!(gaps(&g), runs(&missing));
+                proptest::prop_assert_eq!(g.number_of_segments(), runs(&missing).len());
+            }
+        }
+    }
+
+    // verifies: FILE-CFDP-05
+    #[test]
+    fn a_full_store_still_takes_a_gap_that_merges_and_refuses_a_split_unchanged() {
+        let mut g = Gaps::new();
+        let n = m::MAX_LOST_SEGMENTS as u64;
+        for i in 0..n {
+            g.add_lost_segment((10 * i, 10 * i + 5)).unwrap();
+        }
+        assert_eq!(
+            g.add_lost_segment((10 * n, 10 * n + 5)),
+            Err(LostSegmentError::StoreFull)
+        );
+        g.add_lost_segment((3, 12)).unwrap();
+        assert_eq!(g.number_of_segments(), m::MAX_LOST_SEGMENTS - 1);
+        assert_eq!(g.iter().next(), Some((0, 15)));
+        g.add_lost_segment((1000 * n, 1000 * n + 1)).unwrap();
+        let before = gaps(&g);
+        assert_eq!(g.remove_lost_segment((5, 6)), Err(LostSegmentError::StoreFull));
+        assert_eq!(gaps(&g), before);
+        assert_eq!(
+            g.add_lost_segment((1 << 32, (1 << 32) + 1)),
+            Err(LostSegmentError::LargeFileSegmentNotSupported)
+        );
+        assert_eq!(
+            g.add_lost_segment((7, 3)),
+            Err(LostSegmentError::StartLargerThanEnd(7, 3))
+        );
     }
 }

@@ -284,10 +284,12 @@ pub struct Counts {
 }
 
 /// The PUS 15 store over a NOR flash: `H` sectors of HK area from `base`, then `R`
-/// sectors of report area.
+/// sectors of report area, no more than `H`. Both areas are queues of one type, their
+/// caches sized for `H`: one copy of the queue's code in an image, not two (12 KB of
+/// flash on board A, for the report cache's unused places in RAM).
 pub struct FlashStore<'a, F: NorFlash, const H: usize, const R: usize> {
     hk: Queue<'a, F, H>,
-    reports: Queue<'a, F, R>,
+    reports: Queue<'a, F, H>,
     hk_len: usize,
     report_len: usize,
     counts: Counts,
@@ -308,6 +310,7 @@ impl<'a, F: MultiwriteNorFlash, const H: usize, const R: usize> FlashStore<'a, F
     /// Opens the store at `base` of `flash`, keeping what it holds (a cut write is
     /// repaired by the queue on its first use).
     pub fn open(flash: &'a RefCell<F>, base: u32) -> Result<Self, OpenError> {
+        const { assert!(R <= H, "the report area's cache is sized for the HK area") };
         let sector = F::ERASE_SIZE as u32;
         let hk_end = base + H as u32 * sector;
         let end = hk_end + R as u32 * sector;
