@@ -1169,7 +1169,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         let Ok(p) = PduRawWithInfo::new(&held) else { return read };
         if p.file_directive_type() == Some(FileDirectiveType::EofPdu) {
             self.rx_eof_passed = true;
-            if let Some(failed) = sum.and_then(|sum| Self::eof_of_a_checksum_failure(&held, sum)) {
+            if let Some(failed) = sum.and_then(|sum| Self::eof_of_a_checksum_failure(&held, sum, len)) {
                 held = failed;
             }
         }
@@ -1184,8 +1184,12 @@ impl<'a, S: FlatStore> Entity<'a, S> {
     /// sum is done: an EOF whose checksum differs goes to the handler with the condition
     /// "file checksum failure" (its cancel response checks the sum, declares that fault and
     /// ends the transaction not complete, the file not kept).
-    fn eof_of_a_checksum_failure(raw: &[u8], sum: u32) -> Option<Pdu> {
+    /// (`len`: the bytes summed; data past the EOF's size is the handler's file size error.)
+    fn eof_of_a_checksum_failure(raw: &[u8], sum: u32, len: u64) -> Option<Pdu> {
         let eof = EofPdu::from_bytes(raw).ok()?;
+        if eof.file_size() != len {
+            return None;
+        }
         if eof.pdu_header().common_pdu_conf().trans_mode != TransmissionMode::Acknowledged || eof.file_checksum() == sum
         {
             return None;
