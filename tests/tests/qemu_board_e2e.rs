@@ -693,7 +693,10 @@ fn the_qemu_board_flies_a_plan_with_the_real_ground_refuses_a_replay_and_keeps_i
         data,
         "the file that came down after the restart differs from the one put"
     );
-    println!("files: the file put before the SIGKILL came back byte-exact after the restart");
+    println!(
+        "files: the file put before the SIGKILL came back byte-exact after the restart (robot transaction {} before, {} after)",
+        get_tx[0], after_tx[0]
+    );
     drop(board);
     let _ = std::fs::remove_dir_all(&dir);
 }
