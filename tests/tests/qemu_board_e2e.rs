@@ -562,6 +562,30 @@ fn the_qemu_board_flies_a_plan_with_the_real_ground_refuses_a_replay_and_keeps_i
         "HK FILES: {stored:?} files in the store after the put"
     );
     println!("HK FILES: {completed} transactions completed, {received} received, {sent} sent, {stored:?} files stored");
+    // The collector filled the archive from the board's store: the transfer events too.
+    let file_events = |id: u16| -> Vec<(i64, i64)> {
+        archived(&dir)
+            .values()
+            .filter(|(_, t)| t.event_id() == Some(id))
+            .filter_map(|(_, t)| {
+                let e = mib_wire::codec::decode_event(&t.data).ok()?;
+                Some((e.param("source")?, e.param("seq")?))
+            })
+            .collect()
+    };
+    let started = file_events(mib::events::eid::FILE_TRANSFER_STARTED);
+    let done = file_events(mib::events::eid::FILE_TRANSFER_COMPLETED);
+    let failed = file_events(mib::events::eid::FILE_TRANSFER_FAILED);
+    println!("FILE_TRANSFER_STARTED {started:?}, COMPLETED {done:?}, FAILED {failed:?}");
+    assert!(
+        started.contains(&(1, i64::from(get_tx[0]))) && done.contains(&(1, i64::from(get_tx[0]))),
+        "the board's transaction of the get started and completed, evented"
+    );
+    assert!(
+        started.len() >= 3 && done.len() >= 3,
+        "the put, the get's request and the board's put evented"
+    );
+    assert!(failed.is_empty(), "no transfer failed");
     let (events0, hk0) = replay_refusals(&archived(&dir));
     assert_eq!((events0, hk0), (0, 0), "no replay refused before the replay");
     let replayed = cable.longest_up_frame();
