@@ -14,7 +14,9 @@
 //!    robot cannot do, see `PLAN`) to completion; its HK is archived.
 //!    Then `ground file put` of a small file and `ground file get` of it back, byte-exact
 //!    (board A's file service over its flash file store), and again after the restart
-//!    below: the file survives the SIGKILL.
+//!    below: the file survives the SIGKILL, and the restarted board opens its transaction
+//!    with a sequence number it never used (kept in its store). The file service's
+//!    counters come down in HK FILES (archived by the collector in 2).
 //! 2. `ground collect` follows the board; a TC frame the cable kept from the plan is
 //!    sent again: the board refuses it as a replay, counted in SPACE_LINK HK
 //!    (LINK_REJ_REPLAY) and evented (LINK_FRAME_REJECTED, reason 12).
@@ -313,6 +315,23 @@ impl Cable {
     }
 }
 
+/// The sequence numbers of the transactions the robot opened, from `ground file --trace`'s
+/// lines of the metadata PDUs it received ("<time> < tx <source>/<seq> metadata").
+fn robot_transactions(trace: &str) -> Vec<u32> {
+    let robot = mib::cfdp::robot_entity_id(1).to_string();
+    let mut seqs: Vec<u32> = trace
+        .lines()
+        .filter_map(|l| {
+            let (_, rest) = l.split_once(" < tx ")?;
+            let (id, what) = rest.split_once(' ')?;
+            let (source, seq) = id.split_once('/')?;
+            (source == robot && what.starts_with("metadata")).then(|| seq.parse().ok())?
+        })
+        .collect();
+    seqs.dedup();
+    seqs
+}
+
 fn hex(s: &str) -> Option<Vec<u8>> {
     let s = s.trim();
     (0..s.len())
@@ -380,7 +399,7 @@ fn replay_refusals(arch: &BTreeMap<Key, (u32, Tm)>) -> (usize, i64) {
     (events, hk)
 }
 
-// verifies: FW-QEMU-01
+// verifies: FW-QEMU-01, FILE-STORE-10, FILE-HK-01
 #[test]
 #[ignore = "needs the QEMU board image and qemu-system-riscv32: scripts/firmware-ci.sh builds and runs it"]
 fn the_qemu_board_flies_a_plan_with_the_real_ground_refuses_a_replay_and_keeps_its_store_across_a_kill() {
@@ -477,9 +496,11 @@ fn the_qemu_board_flies_a_plan_with_the_real_ground_refuses_a_replay_and_keeps_i
     assert_eq!(code, Some(0), "ground file put:\n{text}");
     let put_s = t0.elapsed().as_secs_f64();
     let t0 = Instant::now();
-    let (code, text) = ground(&[&["file", "get"][..], &link, &["table.bin", "down.bin"]].concat());
+    let (code, text) = ground(&[&["file", "get", "--trace"][..], &link, &["table.bin", "down.bin"]].concat());
     assert_eq!(code, Some(0), "ground file get:\n{text}");
     let get_s = t0.elapsed().as_secs_f64();
+    let get_tx = robot_transactions(&text);
+    assert_eq!(get_tx.len(), 1, "one transaction from the robot for the get:\n{text}");
     assert_eq!(
         std::fs::read(dir.join("down.bin")).unwrap(),
         data,
@@ -519,6 +540,52 @@ fn the_qemu_board_flies_a_plan_with_the_real_ground_refuses_a_replay_and_keeps_i
         let arch = archived(&dir);
         (newest(&arch) > before.map(|s| s + 3)).then_some(())
     });
+    // The file service reported the put (received) and the get (sent) in HK FILES, which
+    // the collector archives (every 5 s): a board that reports nothing has no values.
+    let files_hk = |p: u16| {
+        archived(&dir)
+            .values()
+            .filter(|(_, t)| t.sid() == Some(mib::hk::sid::FILES))
+            .filter_map(|(_, t)| t.hk(p))
+            .max()
+    };
+    let (completed, received, sent) = wait_for(30, "HK FILES with the put and the get", || {
+        use mib::params::pid;
+        let c = files_hk(pid::FILE_TX_COMPLETED)?;
+        let r = files_hk(pid::FILE_TX_RECEIVED)?;
+        let s = files_hk(pid::FILE_TX_SENT)?;
+        (c >= 2 && r >= 1 && s >= 1).then_some((c, r, s))
+    });
+    let stored = files_hk(mib::params::pid::FILE_STORE_FILES);
+    assert!(
+        stored >= Some(1),
+        "HK FILES: {stored:?} files in the store after the put"
+    );
+    println!("HK FILES: {completed} transactions completed, {received} received, {sent} sent, {stored:?} files stored");
+    // The collector filled the archive from the board's store: the transfer events too.
+    let file_events = |id: u16| -> Vec<(i64, i64)> {
+        archived(&dir)
+            .values()
+            .filter(|(_, t)| t.event_id() == Some(id))
+            .filter_map(|(_, t)| {
+                let e = mib_wire::codec::decode_event(&t.data).ok()?;
+                Some((e.param("source")?, e.param("seq")?))
+            })
+            .collect()
+    };
+    let started = file_events(mib::events::eid::FILE_TRANSFER_STARTED);
+    let done = file_events(mib::events::eid::FILE_TRANSFER_COMPLETED);
+    let failed = file_events(mib::events::eid::FILE_TRANSFER_FAILED);
+    println!("FILE_TRANSFER_STARTED {started:?}, COMPLETED {done:?}, FAILED {failed:?}");
+    assert!(
+        started.contains(&(1, i64::from(get_tx[0]))) && done.contains(&(1, i64::from(get_tx[0]))),
+        "the board's transaction of the get started and completed, evented"
+    );
+    assert!(
+        started.len() >= 3 && done.len() >= 3,
+        "the put, the get's request and the board's put evented"
+    );
+    assert!(failed.is_empty(), "no transfer failed");
     let (events0, hk0) = replay_refusals(&archived(&dir));
     assert_eq!((events0, hk0), (0, 0), "no replay refused before the replay");
     let replayed = cable.longest_up_frame();
@@ -635,14 +702,25 @@ fn the_qemu_board_flies_a_plan_with_the_real_ground_refuses_a_replay_and_keeps_i
         .status();
     let _ = collector.0.wait();
     // The file put before the kill is still in the board's flash file store.
-    let (code, text) = ground(&[&["file", "get"][..], &link, &["table.bin", "after.bin"]].concat());
+    let (code, text) = ground(&[&["file", "get", "--trace"][..], &link, &["table.bin", "after.bin"]].concat());
     assert_eq!(code, Some(0), "ground file get after the restart:\n{text}");
+    // The restarted board goes on from the sequence number its store kept: the ground
+    // never sees a transaction ID again.
+    let after_tx = robot_transactions(&text);
+    assert_eq!(after_tx.len(), 1, "one transaction from the robot for the get:\n{text}");
+    assert!(
+        after_tx[0] > get_tx[0],
+        "the get after the restart reused or went back on the robot's sequence number: {get_tx:?} then {after_tx:?}"
+    );
     assert_eq!(
         std::fs::read(dir.join("after.bin")).unwrap(),
         data,
         "the file that came down after the restart differs from the one put"
     );
-    println!("files: the file put before the SIGKILL came back byte-exact after the restart");
+    println!(
+        "files: the file put before the SIGKILL came back byte-exact after the restart (robot transaction {} before, {} after)",
+        get_tx[0], after_tx[0]
+    );
     drop(board);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -294,6 +294,9 @@ impl CycleA {
         }
         link::push_bytes(links.ab_tx, &out.link_tx, links.ab_tx_stats);
         let actuators = out.actuators;
+        // HK FILES and the transfer events, as the host obsw reports them (the tick's
+        // output is done with: the report borrows the OBSW).
+        files.report(now, obsw, &mut sink);
         ground.end_period(now, obsw, links.tm, links.tm_stats);
         actuators
     }

@@ -12,7 +12,14 @@
 //!   frame (`TmSink::replay_room`); the PDU that does not fit waits here, and the entity's
 //!   outbox (`mib::cfdp::OUTBOX_DEPTH`) holds the rest, so a slow link slows the transfer
 //!   down instead of losing its PDUs;
-//! - **counters**: the entity's ([`mmic_cfdp::entity::Counters`]) and the store's.
+//! - **reports** to the OBSW's file service component (`obsw_core::services::files`: HK
+//!   FILES and the FILE_* events), as the host obsw does, through its `cfdp` glue
+//!   ([`FileService::report`], once per control period after `poll`): the counters of the
+//!   entity, its [`Watch`] and the store, each transaction as it began (its metadata PDU
+//!   taken or sent) and as it ended;
+//! - **keeps** the entity's next transaction sequence number in its store
+//!   ([`KeepSeq`]): read at start-up, stored when it changes and before a PDU of the
+//!   transaction that took it goes down, so a reset never reuses a transaction ID.
 //!
 //! Memory: the entity is inline (its handlers, outbox and gap list; no heap), borrowing the
 //! [`Parts`] the image keeps in a static; [`NoFiles`] is a board without a file store.
@@ -20,8 +27,19 @@
 use mib::cfdp::{GROUND_ENTITY_ID, MAX_PACKET_LEN};
 use mmic_cfdp::entity::{Counters, Pdu};
 use mmic_cfdp::packet::{self, Direction};
+use mmic_cfdp::seq::KeepSeq;
+use mmic_cfdp::watch::{Opened, Watch};
 use mmic_cfdp::{Entity, FlatStore, Parts};
-use obsw_core::tm::TmSink;
+use obsw_core::obsw::Obsw;
+use obsw_core::services::files::{cfdp, FileCounters, Report};
+use obsw_core::tm::{TmSink, TmStore};
+
+/// How often the store's files and free bytes are counted (and when a transaction ended).
+const STORE_LOOK_MS: u64 = 1000;
+
+/// Transactions opened since the last report: at most one taken (one packet a period) and
+/// one sent each period; the rest is room for a report that comes late.
+const OPENED_DEPTH: usize = 4;
 
 /// What the control period asks of a file service.
 pub trait FileService {
@@ -29,6 +47,10 @@ pub trait FileService {
     fn take(&mut self, now: u64, packet: &[u8]) -> bool;
     /// Once per control period: timers and file data, then the PDUs the downlink takes.
     fn poll(&mut self, now: u64, sink: &mut impl TmSink);
+    /// Once per control period after [`FileService::poll`]: what the service counted and
+    /// the transactions that began and ended, to the OBSW (HK FILES, FILE_* events). A
+    /// service that reports nothing leaves HK FILES without values.
+    fn report<T: TmStore>(&mut self, _now: u64, _obsw: &mut Obsw<T>, _sink: &mut impl TmSink) {}
 }
 
 /// A board without a file store: no packet is taken (one of the CFDP APID goes to the
@@ -53,20 +75,82 @@ pub struct Files<'a, S: FlatStore> {
     /// PDUs that did not fit a packet (none can: the outbox holds at most
     /// `MAX_PDU_LEN` bytes a PDU), dropped.
     unsent: u32,
+    parts: &'a Parts<S>,
+    watch: Watch,
+    /// Transactions opened and not yet reported; those past its depth are counted.
+    opened: heapless::Deque<Opened, OPENED_DEPTH>,
+    opened_lost: u32,
+    /// The sequence number last kept in the store (or tried: a failed store is counted
+    /// once, as a store medium error, and tried again when the number changes again).
+    kept_seq: u16,
+    seq_errors: u32,
+    /// Files in the store and its free bytes, and when they are counted next.
+    store: (u16, u32),
+    store_look: u64,
+    /// Partly received files removed at start.
+    removed: u16,
 }
 
-impl<'a, S: FlatStore> Files<'a, S> {
-    /// Robot `robot`'s entity, talking to the ground's, over `parts`. Files whose transfer
-    /// a reset cut short are removed first: never taken for the file they were to be.
+impl<'a, S: FlatStore + KeepSeq> Files<'a, S> {
+    /// Robot `robot`'s entity, talking to the ground's, over `parts`, going on from the
+    /// transaction sequence number its store kept. Files whose transfer a reset cut short
+    /// are removed first: never taken for the file they were to be (counted in HK FILES
+    /// and evented, FILE_PARTIALS_REMOVED, at the first report).
     pub fn new(robot: u8, parts: &'a Parts<S>) -> Self {
+        if let Some(seq) = parts.store.inner().kept_seq() {
+            parts.set_next_seq(seq);
+        }
         let entity = Entity::new(mib::cfdp::robot_entity_id(robot), GROUND_ENTITY_ID, parts);
-        entity.discard_partial();
+        let removed = u16::try_from(entity.discard_partial()).unwrap_or(u16::MAX);
         Files {
             entity,
             seq: 0,
             held: None,
             unsent: 0,
+            parts,
+            watch: Watch::default(),
+            opened: heapless::Deque::new(),
+            opened_lost: 0,
+            kept_seq: parts.next_seq(),
+            seq_errors: 0,
+            store: (0, 0),
+            store_look: 0,
+            removed,
         }
+    }
+
+    /// Transactions opened that could not wait for their report (FILE_TRANSFER_STARTED
+    /// not raised; they still count in HK FILES).
+    pub fn opened_lost(&self) -> u32 {
+        self.opened_lost
+    }
+
+    fn opened(&mut self, o: Option<Opened>) {
+        if let Some(o) = o {
+            if self.opened.push_back(o).is_err() {
+                self.opened_lost = self.opened_lost.wrapping_add(1);
+            }
+        }
+    }
+
+    /// Stores the next sequence number when the entity took one.
+    fn keep_seq(&mut self) {
+        let next = self.parts.next_seq();
+        if next != self.kept_seq {
+            self.kept_seq = next;
+            if self.parts.store.inner().keep_seq(next).is_err() {
+                self.seq_errors = self.seq_errors.wrapping_add(1);
+            }
+        }
+    }
+
+    /// What the entity, its watch and the store counted (a failed store of the sequence
+    /// number is a store medium error).
+    fn file_counters(&self) -> FileCounters {
+        let mut c = cfdp::counters(&self.entity, &self.watch, self.store.0, self.store.1, self.removed);
+        c.store_io_errors = c.store_io_errors.wrapping_add(self.seq_errors);
+        c.outbox_dropped = c.outbox_dropped.wrapping_add(self.unsent);
+        c
     }
 
     /// The entity (counters, progress, its store).
@@ -82,18 +166,26 @@ impl<'a, S: FlatStore> Files<'a, S> {
     }
 }
 
-impl<S: FlatStore> FileService for Files<'_, S> {
+impl<S: FlatStore + KeepSeq> FileService for Files<'_, S> {
     fn take(&mut self, now: u64, packet: &[u8]) -> bool {
         if packet::apid(packet) != Some(mib::cfdp::APID) {
             return false;
         }
         // A packet of the APID that is not an uplink PDU packet is refused and counted.
+        let before = self.entity.counters();
         self.entity.receive_packet(now, Direction::Up, packet);
+        let after = self.entity.counters();
+        if after.received != before.received && after.handler_errors == before.handler_errors {
+            let o = packet::unwrap(Direction::Up, packet).and_then(|pdu| self.watch.taken(pdu));
+            self.opened(o);
+        }
         true
     }
 
     fn poll(&mut self, now: u64, sink: &mut impl TmSink) {
         self.entity.poll(now);
+        // Before any PDU of a transaction that took a new number goes down.
+        self.keep_seq();
         let mut buf = [0u8; MAX_PACKET_LEN];
         while let Some(pdu) = self.held.take().or_else(|| self.entity.pop()) {
             // The outbox holds PDUs of at most MAX_PDU_LEN bytes, none empty: each fits.
@@ -107,6 +199,32 @@ impl<S: FlatStore> FileService for Files<'_, S> {
             }
             self.seq = self.seq.wrapping_add(1) & 0x3FFF;
             sink.send_file(&buf[..n]);
+            let o = self.watch.sent(&pdu);
+            self.opened(o);
         }
+    }
+
+    fn report<T: TmStore>(&mut self, now: u64, obsw: &mut Obsw<T>, sink: &mut impl TmSink) {
+        while let Some(o) = self.opened.pop_front() {
+            obsw.files_report(now, Report::Began(cfdp::began(&o)), sink);
+        }
+        let mut ended = false;
+        while let Some(f) = self.entity.take_finished() {
+            let e = cfdp::ended(&self.entity, &self.watch, &f);
+            obsw.files_report(now, Report::Ended(e), sink);
+            ended = true;
+        }
+        if ended || now >= self.store_look {
+            self.store_look = now.saturating_add(STORE_LOOK_MS);
+            let store = self.entity.store();
+            // A store that cannot be read keeps its last figures; the failure is counted.
+            if let (Ok(files), Ok(free)) = (store.count_files(), store.free()) {
+                self.store = (
+                    u16::try_from(files).unwrap_or(u16::MAX),
+                    u32::try_from(free).unwrap_or(u32::MAX),
+                );
+            }
+        }
+        obsw.files_report(now, Report::Counters(self.file_counters()), sink);
     }
 }

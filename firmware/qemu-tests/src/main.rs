@@ -16,6 +16,7 @@ mod t_budget;
 mod t_codec;
 mod t_cycle;
 mod t_domain;
+mod t_filehk;
 mod t_files;
 mod t_framelink;
 mod t_framing;
@@ -56,6 +57,7 @@ fn main() -> ! {
         t_store::TESTS,
         t_update::TESTS,
         t_files::TESTS,
+        t_filehk::TESTS,
         t_budget::TESTS,
     ]);
     semihosting::process::exit(code)

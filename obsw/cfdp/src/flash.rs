@@ -47,6 +47,11 @@ use crate::store::{FileName, FlatStore, StoreError};
 /// [`ENTRY_ITEM`] bytes fill 1.8 of them; the others keep a directory store from
 /// migrating more than two pages (see `docs/files.md`).
 pub const DIR_SECTORS: usize = 4;
+
+/// The directory map's key of the kept transaction sequence number (`crate::seq`): past
+/// every slot (`MAX_FILES`), so no file's entry and ignored as one.
+pub const SEQ_KEY: u8 = u8::MAX;
+const _: () = assert!(MAX_FILES <= SEQ_KEY as usize, "the sequence key is no slot");
 /// Most data sectors a region may have (the board's partition less the
 /// directory): the size of the free-sector bitmaps and of a file's sector list.
 pub const MAX_DATA_SECTORS: usize = (mib::cfdp::BOARD_STORE_BYTES / mib::memory::FLASH_SECTOR) as usize - DIR_SECTORS;
@@ -251,6 +256,8 @@ struct Inner<F: MultiwriteNorFlash> {
     /// Entries committed so far (the last one's generation): of two entries that claim
     /// the same name or bytes, the later one is the file (see `replace`).
     generation: u32,
+    /// The CFDP transaction sequence number kept under [`SEQ_KEY`] (`crate::seq`).
+    seq: Option<u16>,
     counters: FlashCounters,
 }
 
@@ -293,6 +300,7 @@ impl<F: MultiwriteNorFlash> FlashStore<F> {
             blank: 0,
             cursor: 0,
             generation: 0,
+            seq: None,
             counters: FlashCounters::default(),
         };
         inner.load()?;
@@ -349,6 +357,25 @@ impl<F: MultiwriteNorFlash> FlashStore<F> {
         })
     }
 
+    /// The transaction sequence number last kept ([`FlashStore::keep_seq`]), if any.
+    pub fn kept_seq(&self) -> Option<u16> {
+        self.inner.try_borrow().ok().and_then(|i| i.seq)
+    }
+
+    /// Keeps `seq` as the next transaction sequence number: one directory store, so a
+    /// power cut leaves the number before or this one, like any entry.
+    pub fn keep_seq(&self, seq: u16) -> Result<(), StoreError> {
+        self.with(|i| {
+            let v = seq.to_be_bytes();
+            block_on(i.map.store_item(&mut i.buf, &SEQ_KEY, &&v[..])).map_err(|e| match e {
+                sequential_storage::Error::FullStorage => StoreError::Full,
+                _ => StoreError::Io,
+            })?;
+            i.seq = Some(seq);
+            Ok(())
+        })
+    }
+
     fn with<T>(&self, f: impl FnOnce(&mut Inner<F>) -> Result<T, StoreError>) -> Result<T, StoreError> {
         let mut i = self.inner.try_borrow_mut().map_err(|_| StoreError::Io)?;
         f(&mut i)
@@ -373,6 +400,12 @@ impl<F: MultiwriteNorFlash> Inner<F> {
                 match block_on(it.next::<&[u8]>(&mut self.buf)) {
                     Ok(Some((slot, v))) => {
                         let i = usize::from(slot);
+                        if slot == SEQ_KEY {
+                            // The last value stored wins, like a slot's; one of another
+                            // length is no number.
+                            self.seq = <[u8; 2]>::try_from(v).ok().map(u16::from_be_bytes);
+                            continue;
+                        }
                         if i >= MAX_FILES {
                             continue;
                         }

@@ -1,0 +1,236 @@
+//! The transaction sequence number the flash file store keeps (`mmic_cfdp::seq`): kept
+//! across a reopen and across the directory's page migrations, and a power cut at any
+//! write or erase while it is stored leaves the number before or the new one, with every
+//! file as it was.
+
+use std::cell::RefCell;
+use std::collections::BTreeMap;
+use std::rc::Rc;
+
+use embedded_storage::nor_flash::{
+    ErrorType, MultiwriteNorFlash, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
+};
+use mmic_cfdp::flash::FlashStore;
+use mmic_cfdp::seq::KeepSeq;
+use mmic_cfdp::store::{FlatStore, MemStore};
+use mmic_cfdp::FileName;
+
+const SECTOR: usize = 4096;
+/// A small region: 4 directory sectors and 8 data sectors.
+const REGION: std::ops::Range<u32> = 0x2000..0x2000 + 12 * SECTOR as u32;
+
+/// A NOR flash whose power goes at the `left`-th write or erase from now: a cut write
+/// programs the first half of its words, a cut erase clears the first half of the sector.
+struct Chip {
+    mem: Vec<u8>,
+    left: Option<u64>,
+    dead: bool,
+}
+
+#[derive(Clone)]
+struct Nor(Rc<RefCell<Chip>>);
+
+#[derive(Debug)]
+struct PowerLost;
+
+impl NorFlashError for PowerLost {
+    fn kind(&self) -> NorFlashErrorKind {
+        NorFlashErrorKind::Other
+    }
+}
+
+impl Nor {
+    fn with(mem: Vec<u8>) -> Nor {
+        Nor(Rc::new(RefCell::new(Chip {
+            mem,
+            left: None,
+            dead: false,
+        })))
+    }
+    fn image(&self) -> Vec<u8> {
+        self.0.borrow().mem.clone()
+    }
+    /// `Ok(true)`: the operation completes; `Ok(false)`: it is cut.
+    fn spend(c: &mut Chip) -> Result<bool, PowerLost> {
+        if c.dead {
+            return Err(PowerLost);
+        }
+        match &mut c.left {
+            Some(0) => {
+                c.dead = true;
+                Ok(false)
+            }
+            Some(n) => {
+                *n -= 1;
+                Ok(true)
+            }
+            None => Ok(true),
+        }
+    }
+}
+
+impl ErrorType for Nor {
+    type Error = PowerLost;
+}
+
+impl ReadNorFlash for Nor {
+    const READ_SIZE: usize = 4;
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), PowerLost> {
+        let c = self.0.borrow();
+        if c.dead {
+            return Err(PowerLost);
+        }
+        let o = offset as usize;
+        bytes.copy_from_slice(&c.mem[o..o + bytes.len()]);
+        Ok(())
+    }
+    fn capacity(&self) -> usize {
+        self.0.borrow().mem.len()
+    }
+}
+
+impl NorFlash for Nor {
+    const WRITE_SIZE: usize = 4;
+    const ERASE_SIZE: usize = SECTOR;
+    fn erase(&mut self, from: u32, to: u32) -> Result<(), PowerLost> {
+        let c = &mut *self.0.borrow_mut();
+        let (f, t) = (from as usize, to as usize);
+        if Nor::spend(c)? {
+            c.mem[f..t].fill(0xFF);
+            Ok(())
+        } else {
+            c.mem[f..f + (t - f) / 2].fill(0xFF);
+            Err(PowerLost)
+        }
+    }
+    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), PowerLost> {
+        let c = &mut *self.0.borrow_mut();
+        let o = offset as usize;
+        let whole = Nor::spend(c)?;
+        let n = if whole { bytes.len() } else { bytes.len() / 8 * 4 };
+        for (m, b) in c.mem[o..o + n].iter_mut().zip(bytes) {
+            *m &= b;
+        }
+        if whole {
+            Ok(())
+        } else {
+            Err(PowerLost)
+        }
+    }
+}
+
+impl MultiwriteNorFlash for Nor {}
+
+fn files(s: &impl FlatStore) -> BTreeMap<String, Vec<u8>> {
+    let mut names = Vec::new();
+    s.list(&mut |n, l| names.push((n.clone(), l))).unwrap();
+    names
+        .into_iter()
+        .map(|(n, l)| {
+            let mut v = vec![0; l as usize];
+            s.read(&n, 0, &mut v).unwrap();
+            (n.as_str().to_string(), v)
+        })
+        .collect()
+}
+
+/// A store holding two files (one small, one of its own sectors).
+fn with_files() -> (Nor, FlashStore<Nor>) {
+    let nor = Nor::with(vec![0xFF; REGION.end as usize]);
+    let s = FlashStore::open(nor.clone(), REGION).unwrap();
+    for (name, len) in [("plan.txt", 300usize), ("table.bin", 6000)] {
+        let n = FileName::new(name).unwrap();
+        s.create(&n).unwrap();
+        let data: Vec<u8> = (0..len).map(|i| (i * 7 + len) as u8).collect();
+        s.write(&n, 0, &data).unwrap();
+    }
+    (nor, s)
+}
+
+// verifies: FILE-STORE-10
+#[test]
+fn the_sequence_number_is_kept_across_reopens_and_directory_migrations_beside_the_files() {
+    let (nor, s) = with_files();
+    let want = files(&s);
+    assert_eq!(KeepSeq::kept_seq(&s), None, "a new store keeps no number");
+    s.keep_seq(7).unwrap();
+    drop(s);
+    let s = FlashStore::open(nor.clone(), REGION).unwrap();
+    assert_eq!(KeepSeq::kept_seq(&s), Some(7));
+    assert_eq!(files(&s), want);
+    // Enough numbers to take the directory round all its pages several times.
+    for seq in 8..3000u16 {
+        s.keep_seq(seq).unwrap();
+    }
+    let erases = s.counters().dir_erases;
+    assert!(erases >= 4, "the directory pages were migrated: {erases} erases");
+    drop(s);
+    let s = FlashStore::open(nor, REGION).unwrap();
+    assert_eq!(KeepSeq::kept_seq(&s), Some(2999));
+    assert_eq!(files(&s), want, "the files outlive the numbers");
+    assert_eq!(s.counters().bad_entries, 0);
+    // The number wraps like the entity's.
+    s.keep_seq(u16::MAX).unwrap();
+    s.keep_seq(0).unwrap();
+    assert_eq!(KeepSeq::kept_seq(&s), Some(0));
+
+    // A RAM store keeps nothing across a reset (its files neither).
+    let m: MemStore<2, 64> = MemStore::new(128);
+    m.keep_seq(5).unwrap();
+    assert_eq!(m.kept_seq(), None);
+}
+
+// verifies: FILE-STORE-10
+#[test]
+fn a_power_cut_while_the_number_is_stored_leaves_the_old_or_the_new_and_every_file() {
+    let (nor, s) = with_files();
+    let want = files(&s);
+    // Close to the directory's first migration.
+    for seq in 1..=1200u16 {
+        s.keep_seq(seq).unwrap();
+    }
+    drop(s);
+    let mut image = nor.image();
+    let (mut cuts, mut migrations) = (0, 0);
+    // Each store of the next number from the last image, cut at its first, second, ...
+    // write or erase until it completes; past a directory migration or two.
+    for seq in 1201..2400u16 {
+        for cut in 0.. {
+            let chip = Nor::with(image.clone());
+            let t = FlashStore::open(chip.clone(), REGION).unwrap();
+            chip.0.borrow_mut().left = Some(cut);
+            let r = t.keep_seq(seq);
+            let erases = t.counters().dir_erases;
+            drop(t);
+            if !chip.0.borrow().dead {
+                r.unwrap();
+                migrations += erases;
+                image = chip.image();
+                break;
+            }
+            cuts += 1;
+            let what = format!("cut {cut} storing {seq}");
+            {
+                let mut c = chip.0.borrow_mut();
+                c.dead = false;
+                c.left = None;
+            }
+            let t = FlashStore::open(chip, REGION).unwrap_or_else(|e| panic!("{what}: reopen {e:?}"));
+            let kept = KeepSeq::kept_seq(&t);
+            assert!(kept == Some(seq - 1) || kept == Some(seq), "{what}: kept {kept:?}");
+            assert_eq!(files(&t), want, "{what}");
+            assert_eq!(t.counters().bad_entries, 0, "{what}");
+            // The store goes on: the number again.
+            t.keep_seq(seq).unwrap_or_else(|e| panic!("{what}: again {e:?}"));
+            assert_eq!(KeepSeq::kept_seq(&t), Some(seq), "{what}");
+        }
+    }
+    let s = FlashStore::open(Nor::with(image), REGION).unwrap();
+    assert_eq!(KeepSeq::kept_seq(&s), Some(2399));
+    assert_eq!(files(&s), want);
+    assert!(
+        migrations >= 2,
+        "the sweep crossed directory migrations: {migrations} erases"
+    );
+    eprintln!("power cut at each of {cuts} writes and erases of a number's store ({migrations} page erases)");
+}
