@@ -678,6 +678,8 @@ pub struct Entity<'a, S: FlatStore> {
     /// EOF of a complete file, the segment that completes it after the EOF), held while
     /// [`Entity::poll`] sums the file `CHECKSUM_BYTES_PER_POLL` at a time.
     rx_held: Option<Pdu>,
+    /// The end of the held segment; `None`: the held PDU is the EOF.
+    rx_held_end: Option<u64>,
 }
 
 /// Words of [`Entity::resent_once`]: a bit for each segment of the largest file.
@@ -834,6 +836,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             rx_end: 0,
             rx_faults: 0,
             rx_held: None,
+            rx_held_end: None,
         }
     }
 
@@ -1019,6 +1022,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
     }
 
     /// Sums the sent file at most `budget` bytes further.
+    #[inline(never)]
     fn sum_sent(&mut self, budget: usize) {
         let Some(name) = self
             .sending_name
@@ -1034,6 +1038,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
 
     /// The source handler has sent its file data and its EOF step waits for the file's
     /// checksum (the store's job, advanced by [`Entity::poll`]).
+    #[inline(never)]
     fn source_waits_for_sum(&self) -> bool {
         let Some(name) = self.sending_name.as_ref() else {
             return false;
@@ -1055,6 +1060,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
     /// sum the whole file in one call, held (`rx_held`) until [`Entity::poll`] has summed
     /// it: an EOF of a complete file (in class 1 every EOF: the handler sums what it has),
     /// or the segment that completes the file after the EOF. Whether `raw` was held.
+    #[inline(never)]
     fn hold_for_sum(&mut self, raw: &[u8], h: &PduHeader, pdu: &PduRawWithInfo) -> bool {
         let Some((_, _, staging)) = self.receiving.clone() else {
             return false;
@@ -1068,6 +1074,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             return false;
         }
         let class1 = h.common_pdu_conf().trans_mode == TransmissionMode::Unacknowledged;
+        let held_end;
         if pdu.pdu_type() == PduType::FileData {
             let Ok(fd) = FileDataPdu::from_bytes(raw) else {
                 return false;
@@ -1095,12 +1102,10 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             if self.parts.store.write(&staging, fd.offset(), fd.file_data()).is_err() {
                 return false;
             }
+            held_end = Some(seg.1);
         } else if pdu.file_directive_type() == Some(FileDirectiveType::EofPdu) {
             let Ok(eof) = EofPdu::from_bytes(raw) else { return false };
-            let eof_held = self.rx_held.as_ref().is_some_and(|p| {
-                PduRawWithInfo::new(p).is_ok_and(|p| p.file_directive_type() == Some(FileDirectiveType::EofPdu))
-            });
-            if eof_held {
+            if self.rx_held.is_some() && self.rx_held_end.is_none() {
                 // The sender's EOF again while the first waits: the first is answered.
                 self.counters.stray = self.counters.stray.wrapping_add(1);
                 return true;
@@ -1116,6 +1121,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
                 self.rx_eof_passed = true;
                 return false;
             }
+            held_end = None;
         } else {
             return false;
         }
@@ -1125,6 +1131,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             self.rx_held = None;
             return false;
         }
+        self.rx_held_end = held_end;
         self.sum_received(0);
         true
     }
@@ -1133,19 +1140,16 @@ impl<'a, S: FlatStore> Entity<'a, S> {
     /// the held PDU to the destination handler (which takes the sum from the store).
     /// Returns the bytes read.
     fn sum_received(&mut self, budget: usize) -> usize {
-        let Some(held) = self.rx_held.as_ref() else { return 0 };
+        if self.rx_held.is_none() {
+            return 0;
+        }
         let Some((_, _, staging)) = self.receiving.clone().filter(|_| self.dest.state() != State::Idle) else {
             self.rx_held = None;
             return 0;
         };
-        // What the handler will sum: up to the end of the furthest segment it took.
-        let mut len = self.rx_end;
-        // (spacepackets' file data reader takes any PDU: the type is checked first.)
-        if PduRawWithInfo::new(held).is_ok_and(|p| p.pdu_type() == PduType::FileData) {
-            if let Ok(fd) = FileDataPdu::from_bytes(held) {
-                len = len.max(fd.offset().saturating_add(fd.file_data().len() as u64));
-            }
-        }
+        // What the handler will sum: up to the end of the furthest segment it took (and
+        // the held one).
+        let len = self.rx_end.max(self.rx_held_end.unwrap_or(0));
         let store = &self.parts.store;
         let faulted = self.parts.faults.get() != self.rx_faults;
         let (read, sum) = if faulted {
@@ -1166,8 +1170,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         let Some(mut held) = self.rx_held.take() else {
             return read;
         };
-        let Ok(p) = PduRawWithInfo::new(&held) else { return read };
-        if p.file_directive_type() == Some(FileDirectiveType::EofPdu) {
+        if self.rx_held_end.is_none() {
             self.rx_eof_passed = true;
             if let Some(failed) = sum.and_then(|sum| Self::eof_of_a_checksum_failure(&held, sum, len)) {
                 held = failed;
@@ -1185,6 +1188,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
     /// "file checksum failure" (its cancel response checks the sum, declares that fault and
     /// ends the transaction not complete, the file not kept).
     /// (`len`: the bytes summed; data past the EOF's size is the handler's file size error.)
+    #[inline(never)]
     fn eof_of_a_checksum_failure(raw: &[u8], sum: u32, len: u64) -> Option<Pdu> {
         let eof = EofPdu::from_bytes(raw).ok()?;
         if eof.file_size() != len {

@@ -228,6 +228,7 @@ impl<S: FlatStore> Checked<S> {
     /// Starts summing the first `len` bytes of `n` for `side` (kept when that job is
     /// already running or done). A kind without an implementation starts nothing: cfdp-rs'
     /// own call then reports it.
+    #[inline(never)]
     pub fn sum_start(&self, side: Side, n: &FileName, kind: ChecksumType, len: u64) {
         let mut sums = self.sums.borrow_mut();
         let slot = &mut sums[side.slot()];
@@ -246,6 +247,7 @@ impl<S: FlatStore> Checked<S> {
 
     /// Sums at most `budget` more bytes of `side`'s job; returns the bytes read. A read
     /// that fails ends the job (cfdp-rs' own call then meets the error).
+    #[inline(never)]
     pub fn sum_advance(&self, side: Side, budget: usize) -> usize {
         let mut sums = self.sums.borrow_mut();
         let slot = &mut sums[side.slot()];
@@ -286,6 +288,7 @@ impl<S: FlatStore> Checked<S> {
 
     /// The sum of `side`'s job, when it summed the first `len` bytes of `n` and nothing
     /// changed them.
+    #[inline(never)]
     pub fn sum_value(&self, side: Side, n: &FileName, kind: ChecksumType, len: u64) -> Option<u32> {
         self.sums.borrow()[side.slot()]
             .as_ref()
@@ -293,6 +296,7 @@ impl<S: FlatStore> Checked<S> {
             .and_then(|j| j.value)
     }
 
+    #[inline(never)]
     fn cached(&self, n: &FileName, kind: ChecksumType, len: u64) -> Cached {
         let sums = self.sums.borrow();
         for (i, j) in sums.iter().enumerate() {
@@ -309,6 +313,7 @@ impl<S: FlatStore> Checked<S> {
     }
 
     /// Ends the jobs over `n` (created, removed, renamed).
+    #[inline(never)]
     fn changed(&self, n: &FileName) {
         for j in self.sums.borrow_mut().iter_mut() {
             if j.as_ref().is_some_and(|j| j.name == *n) {
@@ -320,6 +325,7 @@ impl<S: FlatStore> Checked<S> {
     /// Whether writing `data` at `offset` of `n` would change bytes a job has summed: a
     /// write past what was summed changes nothing summed, and the same bytes written again
     /// (a duplicate segment, the segment the entity wrote before handing it over) neither.
+    #[inline(never)]
     fn changes_summed(&self, n: &FileName, offset: u64, data: &[u8]) -> bool {
         let summed = self
             .sums
