@@ -415,6 +415,8 @@ pub struct Counters {
     /// Finished PDUs of a transaction this entity sent and ended, acknowledged again (the
     /// first ACK was lost).
     pub finished_acked_again: u32,
+    /// End indications of a transaction already reported (not reported again).
+    pub repeated_ends: u32,
 }
 
 /// A put this entity owes its peer (a proxy put or a directory listing), done when the
@@ -466,6 +468,13 @@ struct User {
     failed: u32,
     /// Finished indications of sent transactions (to see one cfdp-rs did not give).
     sent_reports: u32,
+    /// The last transactions reported ended (source, sequence number, sent): cfdp-rs 0.3
+    /// indicates an incoming transaction's end again when its EOF comes again while the
+    /// Finished waits for its ACK (a serial link's retries, the relay's duplicates): one
+    /// report a transaction, or the completed counts and the end events count it twice.
+    ended: heapless::Deque<(u16, u16, bool), 8>,
+    /// End indications of a transaction already reported.
+    repeated_ends: u32,
 }
 
 /// Whether a filestore request TLV's value holds its action code and its whole first name
@@ -499,6 +508,15 @@ fn id_u16(f: &UnsignedByteField) -> u16 {
 impl User {
     /// A transaction's end for the user, counted.
     fn report(&mut self, f: Finished) {
+        let key = (f.source, f.seq, f.sent);
+        if self.ended.iter().any(|k| *k == key) {
+            self.repeated_ends = self.repeated_ends.wrapping_add(1);
+            return;
+        }
+        if self.ended.is_full() {
+            self.ended.pop_front();
+        }
+        let _ = self.ended.push_back(key);
         if f.complete {
             self.completed = self.completed.wrapping_add(1);
         } else {
@@ -860,6 +878,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         c.outbox_dropped = self.parts.link.dropped.get();
         c.faults = self.parts.faults.get();
         c.completed = self.user.completed;
+        c.repeated_ends = self.user.repeated_ends;
         c.failed = self.user.failed.wrapping_add(self.counters.failed);
         c
     }
