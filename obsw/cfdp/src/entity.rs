@@ -1080,6 +1080,13 @@ impl<'a, S: FlatStore> Entity<'a, S> {
     /// it: an EOF of a complete file (in class 1 every EOF: the handler sums what it has),
     /// or the segment that completes the file after the EOF. Whether `raw` was held.
     #[inline(never)]
+    /// A PDU counted as taken when it passed the gate that the hold then drops (a copy of
+    /// one held): a stray instead, so that each packet is counted once.
+    fn taken_as_stray(&mut self) {
+        self.counters.received = self.counters.received.wrapping_sub(1);
+        self.counters.stray = self.counters.stray.wrapping_add(1);
+    }
+
     fn hold_for_sum(&mut self, raw: &[u8], h: &PduHeader, pdu: &PduRawWithInfo) -> bool {
         let Some((_, _, staging)) = self.receiving.clone() else {
             return false;
@@ -1102,7 +1109,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
                 // The segment that completes the file is held: every byte is here, and this
                 // copy (a duplicate, a segment sent again) would complete the file in the
                 // handler before its sum is done.
-                self.counters.stray = self.counters.stray.wrapping_add(1);
+                self.taken_as_stray();
                 return true;
             }
             let seg = (fd.offset(), fd.offset().saturating_add(fd.file_data().len() as u64));
@@ -1126,7 +1133,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             let Ok(eof) = EofPdu::from_bytes(raw) else { return false };
             if self.rx_held.is_some() && self.rx_held_end.is_none() {
                 // The sender's EOF again while the first waits: the first is answered.
-                self.counters.stray = self.counters.stray.wrapping_add(1);
+                self.taken_as_stray();
                 return true;
             }
             if eof.condition_code() != ConditionCode::NoError || self.rx_eof_passed {
