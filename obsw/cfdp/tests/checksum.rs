@@ -3,6 +3,9 @@
 //! sends), in both directions and both classes, and a file that does not match its sum
 //! still fails its transfer.
 
+mod common;
+
+use common::Rng;
 use std::cell::Cell;
 
 use mib::cfdp as m;
@@ -72,16 +75,6 @@ fn big_stack(f: impl FnOnce() + Send + 'static) {
         .unwrap()
         .join()
         .unwrap();
-}
-
-struct Rng(u64);
-impl Rng {
-    fn unit(&mut self) -> f64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
 }
 
 /// The most a robot's control period may read: the checksum's budget, the file data it

@@ -2,93 +2,17 @@
 //! robot's (`mmic_cfdp::flash::FlashStore` on a NOR flash model) over a link that loses
 //! PDUs both ways, so the robot's store takes segments out of order and twice.
 
-use std::cell::RefCell;
-use std::rc::Rc;
+mod common;
 
-use embedded_storage::nor_flash::{
-    ErrorType, MultiwriteNorFlash, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
-};
+use common::{Nor, Rng};
 use mmic_cfdp::flash::FlashStore;
 use mmic_cfdp::store::{FlatStore, MemStore};
 use mmic_cfdp::{Class, Entity, FileName, Parts};
 use spacepackets::cfdp::ConditionCode;
 
-const SECTOR: usize = 4096;
-
-/// NOR rules over shared memory (the store is opened again on the same chip).
-#[derive(Clone)]
-struct Nor(Rc<RefCell<Vec<u8>>>);
-
-#[derive(Debug)]
-struct Refused;
-
-impl NorFlashError for Refused {
-    fn kind(&self) -> NorFlashErrorKind {
-        NorFlashErrorKind::Other
-    }
-}
-
-impl ErrorType for Nor {
-    type Error = Refused;
-}
-
-impl ReadNorFlash for Nor {
-    const READ_SIZE: usize = 4;
-    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Refused> {
-        let m = self.0.borrow();
-        let o = offset as usize;
-        if !o.is_multiple_of(4) || !bytes.len().is_multiple_of(4) || o + bytes.len() > m.len() {
-            return Err(Refused);
-        }
-        bytes.copy_from_slice(&m[o..o + bytes.len()]);
-        Ok(())
-    }
-    fn capacity(&self) -> usize {
-        self.0.borrow().len()
-    }
-}
-
-impl NorFlash for Nor {
-    const WRITE_SIZE: usize = 4;
-    const ERASE_SIZE: usize = SECTOR;
-    fn erase(&mut self, from: u32, to: u32) -> Result<(), Refused> {
-        let (f, t) = (from as usize, to as usize);
-        let mut m = self.0.borrow_mut();
-        if !f.is_multiple_of(SECTOR) || !t.is_multiple_of(SECTOR) || t < f || t > m.len() {
-            return Err(Refused);
-        }
-        m[f..t].fill(0xFF);
-        Ok(())
-    }
-    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Refused> {
-        let mut m = self.0.borrow_mut();
-        let o = offset as usize;
-        if !o.is_multiple_of(4) || !bytes.len().is_multiple_of(4) || o + bytes.len() > m.len() {
-            return Err(Refused);
-        }
-        if m[o..o + bytes.len()].iter().zip(bytes).any(|(m, b)| b & !m != 0) {
-            return Err(Refused);
-        }
-        m[o..o + bytes.len()].copy_from_slice(bytes);
-        Ok(())
-    }
-}
-
-impl MultiwriteNorFlash for Nor {}
-
 type Ground = MemStore<4, 200_000>;
 
 const REGION: std::ops::Range<u32> = 0x1_0000..0x1_0000 + mib::cfdp::BOARD_STORE_BYTES;
-
-struct Rng(u64);
-impl Rng {
-    fn unit(&mut self) -> f64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
 
 /// Moves PDUs both ways, `loss` of them lost and a quarter of that duplicated on each
 /// way, until both entities are idle; returns the clock.
@@ -150,7 +74,7 @@ fn a_class_2_put_through_a_lossy_link_lands_byte_exact_in_the_flash_store_and_st
     std::thread::Builder::new()
         .stack_size(32 << 20)
         .spawn(|| {
-            let nor = Nor(Rc::new(RefCell::new(vec![0xFF; REGION.end as usize])));
+            let nor = Nor::new(REGION.end as usize);
             let up = file(90_000, 5);
             let mut now = 0;
             {
@@ -205,7 +129,7 @@ fn a_file_larger_than_the_board_store_ends_refused_at_the_sender_never_complete(
     std::thread::Builder::new()
         .stack_size(32 << 20)
         .spawn(|| {
-            let nor = Nor(Rc::new(RefCell::new(vec![0xFF; REGION.end as usize])));
+            let nor = Nor::new(REGION.end as usize);
             let big = file(mib::cfdp::BOARD_STORE_BYTES as usize, 6);
             for seed in 1..4 {
                 let gp = Parts::new(Ground::new(1 << 20));

@@ -2,6 +2,8 @@
 //! one step on the flash store (`tests/flash.rs` cuts the power in it) and the host
 //! directory (`rename(2)`), in two on a store that has only the trait's default.
 
+mod common;
+
 use mmic_cfdp::flash::FlashStore;
 use mmic_cfdp::store::{Checked, FlatStore, MemStore, StoreError};
 use mmic_cfdp::FileName;
@@ -45,8 +47,8 @@ fn a_file_replaces_the_file_under_its_name_in_every_store() {
         .stack_size(16 << 20)
         .spawn(|| {
             replaces(&MemStore::<8, 256>::new(10_000));
-            let flash = Ram(vec![0xFF; 16 * 4096]);
-            replaces(&FlashStore::open(flash, 0..16 * 4096).unwrap());
+            let flash = common::Nor::new(16 * common::SECTOR);
+            replaces(&FlashStore::open(flash, 0..16 * common::SECTOR as u32).unwrap());
             #[cfg(feature = "std")]
             {
                 let dir = std::env::temp_dir().join(format!("cfdp-replace-{}", std::process::id()));
@@ -61,51 +63,3 @@ fn a_file_replaces_the_file_under_its_name_in_every_store() {
         .join()
         .unwrap();
 }
-
-/// A RAM NOR flash (reads and writes of words; a write only clears bits).
-struct Ram(Vec<u8>);
-
-#[derive(Debug)]
-struct Refused;
-
-impl embedded_storage::nor_flash::NorFlashError for Refused {
-    fn kind(&self) -> embedded_storage::nor_flash::NorFlashErrorKind {
-        embedded_storage::nor_flash::NorFlashErrorKind::Other
-    }
-}
-
-impl embedded_storage::nor_flash::ErrorType for Ram {
-    type Error = Refused;
-}
-
-impl embedded_storage::nor_flash::ReadNorFlash for Ram {
-    const READ_SIZE: usize = 4;
-    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Refused> {
-        let o = offset as usize;
-        bytes.copy_from_slice(self.0.get(o..o + bytes.len()).ok_or(Refused)?);
-        Ok(())
-    }
-    fn capacity(&self) -> usize {
-        self.0.len()
-    }
-}
-
-impl embedded_storage::nor_flash::NorFlash for Ram {
-    const WRITE_SIZE: usize = 4;
-    const ERASE_SIZE: usize = 4096;
-    fn erase(&mut self, from: u32, to: u32) -> Result<(), Refused> {
-        self.0.get_mut(from as usize..to as usize).ok_or(Refused)?.fill(0xFF);
-        Ok(())
-    }
-    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Refused> {
-        let o = offset as usize;
-        let m = self.0.get_mut(o..o + bytes.len()).ok_or(Refused)?;
-        if m.iter().zip(bytes).any(|(m, b)| b & !m != 0) {
-            return Err(Refused);
-        }
-        m.copy_from_slice(bytes);
-        Ok(())
-    }
-}
-
-impl embedded_storage::nor_flash::MultiwriteNorFlash for Ram {}

@@ -3,123 +3,18 @@
 //! write or erase while it is stored leaves the number before or the new one, with every
 //! file as it was.
 
-use std::cell::RefCell;
-use std::collections::BTreeMap;
-use std::rc::Rc;
+mod common;
 
-use embedded_storage::nor_flash::{
-    ErrorType, MultiwriteNorFlash, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
-};
+use std::collections::BTreeMap;
+
+use common::{Nor, SECTOR};
 use mmic_cfdp::flash::FlashStore;
 use mmic_cfdp::seq::KeepSeq;
 use mmic_cfdp::store::{FlatStore, MemStore};
 use mmic_cfdp::FileName;
 
-const SECTOR: usize = 4096;
 /// A small region: 4 directory sectors and 8 data sectors.
 const REGION: std::ops::Range<u32> = 0x2000..0x2000 + 12 * SECTOR as u32;
-
-/// A NOR flash whose power goes at the `left`-th write or erase from now: a cut write
-/// programs the first half of its words, a cut erase clears the first half of the sector.
-struct Chip {
-    mem: Vec<u8>,
-    left: Option<u64>,
-    dead: bool,
-}
-
-#[derive(Clone)]
-struct Nor(Rc<RefCell<Chip>>);
-
-#[derive(Debug)]
-struct PowerLost;
-
-impl NorFlashError for PowerLost {
-    fn kind(&self) -> NorFlashErrorKind {
-        NorFlashErrorKind::Other
-    }
-}
-
-impl Nor {
-    fn with(mem: Vec<u8>) -> Nor {
-        Nor(Rc::new(RefCell::new(Chip {
-            mem,
-            left: None,
-            dead: false,
-        })))
-    }
-    fn image(&self) -> Vec<u8> {
-        self.0.borrow().mem.clone()
-    }
-    /// `Ok(true)`: the operation completes; `Ok(false)`: it is cut.
-    fn spend(c: &mut Chip) -> Result<bool, PowerLost> {
-        if c.dead {
-            return Err(PowerLost);
-        }
-        match &mut c.left {
-            Some(0) => {
-                c.dead = true;
-                Ok(false)
-            }
-            Some(n) => {
-                *n -= 1;
-                Ok(true)
-            }
-            None => Ok(true),
-        }
-    }
-}
-
-impl ErrorType for Nor {
-    type Error = PowerLost;
-}
-
-impl ReadNorFlash for Nor {
-    const READ_SIZE: usize = 4;
-    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), PowerLost> {
-        let c = self.0.borrow();
-        if c.dead {
-            return Err(PowerLost);
-        }
-        let o = offset as usize;
-        bytes.copy_from_slice(&c.mem[o..o + bytes.len()]);
-        Ok(())
-    }
-    fn capacity(&self) -> usize {
-        self.0.borrow().mem.len()
-    }
-}
-
-impl NorFlash for Nor {
-    const WRITE_SIZE: usize = 4;
-    const ERASE_SIZE: usize = SECTOR;
-    fn erase(&mut self, from: u32, to: u32) -> Result<(), PowerLost> {
-        let c = &mut *self.0.borrow_mut();
-        let (f, t) = (from as usize, to as usize);
-        if Nor::spend(c)? {
-            c.mem[f..t].fill(0xFF);
-            Ok(())
-        } else {
-            c.mem[f..f + (t - f) / 2].fill(0xFF);
-            Err(PowerLost)
-        }
-    }
-    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), PowerLost> {
-        let c = &mut *self.0.borrow_mut();
-        let o = offset as usize;
-        let whole = Nor::spend(c)?;
-        let n = if whole { bytes.len() } else { bytes.len() / 8 * 4 };
-        for (m, b) in c.mem[o..o + n].iter_mut().zip(bytes) {
-            *m &= b;
-        }
-        if whole {
-            Ok(())
-        } else {
-            Err(PowerLost)
-        }
-    }
-}
-
-impl MultiwriteNorFlash for Nor {}
 
 fn files(s: &impl FlatStore) -> BTreeMap<String, Vec<u8>> {
     let mut names = Vec::new();
@@ -198,11 +93,11 @@ fn a_power_cut_while_the_number_is_stored_leaves_the_old_or_the_new_and_every_fi
         for cut in 0.. {
             let chip = Nor::with(image.clone());
             let t = FlashStore::open(chip.clone(), REGION).unwrap();
-            chip.0.borrow_mut().left = Some(cut);
+            chip.cut_after(cut);
             let r = t.keep_seq(seq);
             let erases = t.counters().dir_erases;
             drop(t);
-            if !chip.0.borrow().dead {
+            if !chip.dead() {
                 r.unwrap();
                 migrations += erases;
                 image = chip.image();
@@ -210,11 +105,7 @@ fn a_power_cut_while_the_number_is_stored_leaves_the_old_or_the_new_and_every_fi
             }
             cuts += 1;
             let what = format!("cut {cut} storing {seq}");
-            {
-                let mut c = chip.0.borrow_mut();
-                c.dead = false;
-                c.left = None;
-            }
+            chip.power_on();
             let t = FlashStore::open(chip, REGION).unwrap_or_else(|e| panic!("{what}: reopen {e:?}"));
             let kept = KeepSeq::kept_seq(&t);
             assert!(kept == Some(seq - 1) || kept == Some(seq), "{what}: kept {kept:?}");

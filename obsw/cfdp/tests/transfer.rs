@@ -1,6 +1,9 @@
 //! Two entities (ground 0, robot 1) over an in-memory link that loses, duplicates and
 //! corrupts PDUs with a seeded generator; the clock advances by hand.
 
+mod common;
+
+use common::Rng;
 use mmic_cfdp::spacepackets::cfdp::pdu::FileDirectiveType;
 use mmic_cfdp::store::MemStore;
 use mmic_cfdp::{Class, Entity, FileName, Parts};
@@ -29,16 +32,6 @@ thread_local! {
 
 fn now() -> u64 {
     CLOCK.with(|c| c.get())
-}
-
-struct Rng(u64);
-impl Rng {
-    fn unit(&mut self) -> f64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
 }
 
 /// Moves PDUs both ways until both entities are idle (or `limit_ms` passes); `loss`
