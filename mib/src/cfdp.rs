@@ -130,6 +130,9 @@ pub const GROUND_IMMEDIATE_NAK: bool = false;
 pub const ROBOT_DIRECTIVE_COPIES: usize = 2;
 /// The ground's: one. Its directives go up in AD frames that COP-1 delivers.
 pub const GROUND_DIRECTIVE_COPIES: usize = 1;
+/// How often the file service counts its store's files and free bytes for HK FILES (and
+/// when a transaction ended): a listing reads the medium, so not every control period.
+pub const STORE_LOOK_MS: u64 = 1000;
 /// Yamcs' CFDP service's timers (its `eofAckTimeout`, `finAckTimeout`, `nakTimeout` in the
 /// generated instance): twice the ground's COP-1 T1 upper bound (`link::cop1::FOP_T1_MS`),
 /// as Yamcs' TCs go up through its own FOP-1 with a fixed T1.

@@ -34,9 +34,6 @@ use obsw_core::obsw::Obsw;
 use obsw_core::services::files::{cfdp, FileCounters, Report};
 use obsw_core::tm::{TmSink, TmStore};
 
-/// How often the store's files and free bytes are counted (and when a transaction ended).
-const STORE_LOOK_MS: u64 = 1000;
-
 /// Transactions opened since the last report: at most one taken (one packet a period) and
 /// one sent each period; the rest is room for a report that comes late.
 const OPENED_DEPTH: usize = 4;
@@ -85,8 +82,7 @@ pub struct Files<'a, S: FlatStore> {
     kept_seq: u16,
     seq_errors: u32,
     /// Files in the store and its free bytes, and when they are counted next.
-    store: (u16, u32),
-    store_look: u64,
+    store: cfdp::StoreLook,
     /// Partly received files removed at start.
     removed: u16,
 }
@@ -113,8 +109,7 @@ impl<'a, S: FlatStore + KeepSeq> Files<'a, S> {
             opened_lost: 0,
             kept_seq: parts.next_seq(),
             seq_errors: 0,
-            store: (0, 0),
-            store_look: 0,
+            store: cfdp::StoreLook::default(),
             removed,
         }
     }
@@ -147,7 +142,13 @@ impl<'a, S: FlatStore + KeepSeq> Files<'a, S> {
     /// What the entity, its watch and the store counted (a failed store of the sequence
     /// number is a store medium error).
     fn file_counters(&self) -> FileCounters {
-        let mut c = cfdp::counters(&self.entity, &self.watch, self.store.0, self.store.1, self.removed);
+        let mut c = cfdp::counters(
+            &self.entity,
+            &self.watch,
+            self.store.files,
+            self.store.free,
+            self.removed,
+        );
         c.store_io_errors = c.store_io_errors.wrapping_add(self.seq_errors);
         c.outbox_dropped = c.outbox_dropped.wrapping_add(self.unsent);
         c
@@ -214,17 +215,7 @@ impl<S: FlatStore + KeepSeq> FileService for Files<'_, S> {
             obsw.files_report(now, Report::Ended(e), sink);
             ended = true;
         }
-        if ended || now >= self.store_look {
-            self.store_look = now.saturating_add(STORE_LOOK_MS);
-            let store = self.entity.store();
-            // A store that cannot be read keeps its last figures; the failure is counted.
-            if let (Ok(files), Ok(free)) = (store.count_files(), store.free()) {
-                self.store = (
-                    u16::try_from(files).unwrap_or(u16::MAX),
-                    u32::try_from(free).unwrap_or(u32::MAX),
-                );
-            }
-        }
+        self.store.update(now, ended, &self.entity);
         obsw.files_report(now, Report::Counters(self.file_counters()), sink);
     }
 }

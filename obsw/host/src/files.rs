@@ -28,9 +28,6 @@ pub const HOST_STORE_BYTES: u64 = 4 << 20;
 /// no store file can have (store names never start with '.').
 const SEQ_FILE: &str = ".cfdp-seq";
 
-/// How often the store's files and free bytes are counted (a directory read each time).
-const STORE_LOOK_MS: u64 = 1000;
-
 /// Opens the store in `dir`, with the sequence number kept there.
 pub fn parts(dir: &Path) -> Result<Parts<DirStore>> {
     let store = DirStore::open(dir, HOST_STORE_BYTES).with_context(|| format!("--files {}", dir.display()))?;
@@ -53,8 +50,7 @@ pub struct Files<'a> {
     seq: u16,
     watch: Watch,
     /// Files in the store and its free bytes, and when they are counted next.
-    store: (u16, u32),
-    store_look: u64,
+    store: cfdp::StoreLook,
     /// Partly received files removed at start.
     removed: u16,
 }
@@ -72,8 +68,7 @@ impl<'a> Files<'a> {
             entity,
             seq: 0,
             watch: Watch::default(),
-            store: (0, 0),
-            store_look: 0,
+            store: cfdp::StoreLook::default(),
             removed: u16::try_from(discarded).unwrap_or(u16::MAX),
         }
     }
@@ -124,17 +119,7 @@ impl<'a> Files<'a> {
                 Err(e) => log::error!("files: {}: {e}", path.display()),
             }
         }
-        if ended || now_ms >= self.store_look {
-            self.store_look = now_ms + STORE_LOOK_MS;
-            let store = self.entity.store();
-            // A store that cannot be read keeps its last figures; the failure is counted.
-            if let (Ok(files), Ok(free)) = (store.count_files(), store.free()) {
-                self.store = (
-                    u16::try_from(files).unwrap_or(u16::MAX),
-                    u32::try_from(free).unwrap_or(u32::MAX),
-                );
-            }
-        }
+        self.store.update(now_ms, ended, &self.entity);
         obsw.files_report(now_ms, Report::Counters(self.counters()), down);
     }
 
@@ -154,6 +139,12 @@ impl<'a> Files<'a> {
 
     /// What the entity, its watch and the store counted.
     fn counters(&self) -> FileCounters {
-        cfdp::counters(&self.entity, &self.watch, self.store.0, self.store.1, self.removed)
+        cfdp::counters(
+            &self.entity,
+            &self.watch,
+            self.store.files,
+            self.store.free,
+            self.removed,
+        )
     }
 }

@@ -278,6 +278,31 @@ pub mod cfdp {
 
     use super::{Began, Class, Direction, Ended, FileCounters};
 
+    /// The store's files and free bytes as HK FILES reports them, counted every
+    /// `mib::cfdp::STORE_LOOK_MS` and when a transaction ended.
+    #[derive(Clone, Copy, Debug, Default)]
+    pub struct StoreLook {
+        pub files: u16,
+        pub free: u32,
+        next_ms: u64,
+    }
+
+    impl StoreLook {
+        /// Counts again when due; a store that cannot be read keeps its last figures (the
+        /// failure is counted by the store).
+        pub fn update<S: FlatStore>(&mut self, now_ms: u64, ended: bool, entity: &Entity<'_, S>) {
+            if !ended && now_ms < self.next_ms {
+                return;
+            }
+            self.next_ms = now_ms.saturating_add(mib::cfdp::STORE_LOOK_MS);
+            let store = entity.store();
+            if let (Ok(files), Ok(free)) = (store.count_files(), store.free()) {
+                self.files = u16::try_from(files).unwrap_or(u16::MAX);
+                self.free = u32::try_from(free).unwrap_or(u32::MAX);
+            }
+        }
+    }
+
     /// What `entity`, its store and `watch` counted; `files` and `free` are the store's
     /// (the platform counts them when it likes: a listing reads the medium), `removed` what
     /// `Entity::discard_partial` removed at start.
