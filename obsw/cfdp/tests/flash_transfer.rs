@@ -154,3 +154,47 @@ fn a_file_larger_than_the_board_store_ends_refused_at_the_sender_never_complete(
         .join()
         .unwrap();
 }
+
+// More seeds of the lossy link (each loses other segments): the file byte-exact in the
+// flash store and after a reopen, nothing erased on a blank region; at most one sector
+// copied: seed 11 makes one copy, where the test above (seed 3) asserts none. The store's
+// one copy a partial file can take by design is the move of a file that began in a small
+// file's block to sectors of its own; that this is seed 11's copy is not yet confirmed.
+// verifies: FILE-STORE-05, FILE-STORE-04
+#[test]
+fn lossy_puts_of_several_seeds_land_byte_exact_in_the_flash_store() {
+    std::thread::Builder::new()
+        .stack_size(32 << 20)
+        .spawn(|| {
+            for seed in [11, 23, 37, 51, 77, 91] {
+                let nor = Nor::new(REGION.end as usize);
+                let up = file(90_000, seed as u8);
+                let gp = Parts::new(Ground::new(1 << 20));
+                let rp = Parts::new(FlashStore::open(nor.clone(), REGION).unwrap());
+                let mut g = Entity::new(0, 1, &gp);
+                let mut r = Entity::new(1, 0, &rp);
+                let n = FileName::new("plan.bin").unwrap();
+                gp.store.create(&n).unwrap();
+                gp.store.write(&n, 0, &up).unwrap();
+                g.put(0, "plan.bin", "plan.bin", Class::Two).unwrap();
+                run(&mut g, &mut r, 0.2, seed, 0);
+                let f = g.take_finished().expect("the put ended");
+                assert!(f.complete, "seed {seed}: {f:?}");
+                assert!(
+                    read_all(rp.store.inner(), "plan.bin") == Some(up.clone()),
+                    "seed {seed}"
+                );
+                let c = rp.store.inner().counters();
+                assert!(c.copies <= 1 && c.erases == 0, "seed {seed}: {c:?}");
+                drop((g, r));
+                let reopened = FlashStore::open(nor.clone(), REGION).unwrap();
+                assert!(
+                    read_all(&reopened, "plan.bin") == Some(up),
+                    "seed {seed}: after a reopen"
+                );
+            }
+        })
+        .unwrap()
+        .join()
+        .unwrap();
+}
