@@ -178,7 +178,17 @@ pub const CHECKSUM_BYTES_PER_POLL: usize = 8 * 1024;
 /// `SEGMENTS_PER_POLL` segments read and framed, the file service's heaviest period on
 /// board A): a little more than the data those segments carry, so the sum, started with
 /// the put, is done when the data is and the EOF never waits for it.
-pub const CHECKSUM_BYTES_WITH_DATA: usize = (SEGMENTS_PER_POLL + 1) * MAX_SEGMENT_LEN;
+pub const CHECKSUM_BYTES_WITH_DATA: usize = checksum_bytes_with(SEGMENTS_PER_POLL);
+/// What a sender sums in a poll that may send `segments` file data PDUs (a board paces
+/// them to its downlink, `fw_core::files`): one segment more than they carry, none in a
+/// poll that sends none (the sum stays ahead of the data it has sent).
+pub const fn checksum_bytes_with(segments: usize) -> usize {
+    if segments == 0 {
+        0
+    } else {
+        (segments + 1) * MAX_SEGMENT_LEN
+    }
+}
 const _: () = assert!(
     CHECKSUM_BYTES_WITH_DATA <= CHECKSUM_BYTES_PER_POLL
         && CHECKSUM_BYTES_WITH_DATA > SEGMENTS_PER_POLL * MAX_SEGMENT_LEN

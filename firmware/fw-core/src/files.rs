@@ -9,9 +9,13 @@
 //! - **supplies** TM packets of that APID, no PUS header, on VC0 (board A's framer has one
 //!   packet zone), through `TmSink::send_file` ([`FileService::poll`], once per control
 //!   period after `Obsw::tick`): only while the downlink takes them without dropping a
-//!   frame (`TmSink::replay_room`); the PDU that does not fit waits here, and the entity's
-//!   outbox (`mib::cfdp::OUTBOX_DEPTH`) holds the rest, so a slow link slows the transfer
-//!   down instead of losing its PDUs;
+//!   frame (`TmSink::replay_room`); the PDU that does not fit waits in the entity's outbox
+//!   (`mib::cfdp::OUTBOX_DEPTH`) with the rest, so a slow link slows the transfer down
+//!   instead of losing its PDUs. It reads file data only as fast as the downlink takes it,
+//!   at most `config::FILE_SEGMENTS_PER_PERIOD` segments a period, and nothing of the
+//!   store (no file data, no checksum) in a period that handled a packet, its own or a TC
+//!   ([`FileService::tc_handled`]; `Entity::poll_paced`): one piece of heavy work a
+//!   period, the control period's CPU budget (`t_budget`);
 //! - **reports** to the OBSW's file service component (`obsw_core::services::files`: HK
 //!   FILES and the FILE_* events), as the host obsw does, through its `cfdp` glue
 //!   ([`FileService::report`], once per control period after `poll`): the counters of the
@@ -24,8 +28,9 @@
 //! Memory: the entity is inline (its handlers, outbox and gap list; no heap), borrowing the
 //! [`Parts`] the image keeps in a static; [`NoFiles`] is a board without a file store.
 
+use crate::config;
 use mib::cfdp::{GROUND_ENTITY_ID, MAX_PACKET_LEN};
-use mmic_cfdp::entity::{Counters, Pdu};
+use mmic_cfdp::entity::{Counters, Pace};
 use mmic_cfdp::packet::{self, Direction};
 use mmic_cfdp::seq::KeepSeq;
 use mmic_cfdp::watch::{Opened, Watch};
@@ -38,10 +43,21 @@ use obsw_core::tm::{TmSink, TmStore};
 /// one sent each period; the rest is room for a report that comes late.
 const OPENED_DEPTH: usize = 4;
 
+/// What became of the next PDU for the link.
+enum Flush {
+    Sent(Option<Opened>),
+    NoRoom,
+    /// Longer than a packet takes (none can be: counted, dropped).
+    Unsendable,
+}
+
 /// What the control period asks of a file service.
 pub trait FileService {
     /// Whether `packet` (an authenticated TC packet) is the service's; then it was taken.
     fn take(&mut self, now: u64, packet: &[u8]) -> bool;
+    /// The period's packet went to the OBSW instead: the service's next poll does no
+    /// heavy work of its own (the control period's CPU budget, `t_budget`).
+    fn tc_handled(&mut self) {}
     /// Once per control period: timers and file data, then the PDUs the downlink takes.
     fn poll(&mut self, now: u64, sink: &mut impl TmSink);
     /// Once per control period after [`FileService::poll`]: what the service counted and
@@ -67,8 +83,6 @@ pub struct Files<'a, S: FlatStore> {
     entity: Entity<'a, S>,
     /// The next TM packet's sequence count on the CFDP APID.
     seq: u16,
-    /// A PDU the downlink had no room for: the first to go next period.
-    held: Option<Pdu>,
     /// PDUs that did not fit a packet (none can: the outbox holds at most
     /// `MAX_PDU_LEN` bytes a PDU), dropped.
     unsent: u32,
@@ -85,6 +99,8 @@ pub struct Files<'a, S: FlatStore> {
     store: cfdp::StoreLook,
     /// Partly received files removed at start.
     removed: u16,
+    /// This period handled a packet (its poll reads nothing of the store).
+    quiet: bool,
 }
 
 impl<'a, S: FlatStore + KeepSeq> Files<'a, S> {
@@ -101,7 +117,6 @@ impl<'a, S: FlatStore + KeepSeq> Files<'a, S> {
         Files {
             entity,
             seq: 0,
-            held: None,
             unsent: 0,
             parts,
             watch: Watch::default(),
@@ -111,6 +126,7 @@ impl<'a, S: FlatStore + KeepSeq> Files<'a, S> {
             seq_errors: 0,
             store: cfdp::StoreLook::default(),
             removed,
+            quiet: false,
         }
     }
 
@@ -180,29 +196,28 @@ impl<S: FlatStore + KeepSeq> FileService for Files<'_, S> {
             let o = packet::unwrap(Direction::Up, packet).and_then(|pdu| self.watch.taken(pdu));
             self.opened(o);
         }
+        self.quiet = true;
         true
     }
 
+    fn tc_handled(&mut self) {
+        self.quiet = true;
+    }
+
     fn poll(&mut self, now: u64, sink: &mut impl TmSink) {
-        self.entity.poll(now);
+        // One piece of heavy work a period: after a packet (a PDU taken, a TC the OBSW
+        // handled) nothing read of the store; else file data only as much as the downlink
+        // takes now, and the checksums.
+        let pace = if core::mem::take(&mut self.quiet) {
+            Pace::Quiet
+        } else {
+            let room = sink.replay_room() / MAX_PACKET_LEN;
+            Pace::Segments(room.min(config::FILE_SEGMENTS_PER_PERIOD))
+        };
+        self.entity.poll_paced(now, pace);
         // Before any PDU of a transaction that took a new number goes down.
         self.keep_seq();
-        let mut buf = [0u8; MAX_PACKET_LEN];
-        while let Some(pdu) = self.held.take().or_else(|| self.entity.pop()) {
-            // The outbox holds PDUs of at most MAX_PDU_LEN bytes, none empty: each fits.
-            let Some(n) = packet::wrap(Direction::Down, self.seq, &pdu, &mut buf) else {
-                self.unsent = self.unsent.wrapping_add(1);
-                continue;
-            };
-            if sink.replay_room() < n {
-                self.held = Some(pdu);
-                break;
-            }
-            self.seq = self.seq.wrapping_add(1) & 0x3FFF;
-            sink.send_file(&buf[..n]);
-            let o = self.watch.sent(&pdu);
-            self.opened(o);
-        }
+        self.flush(sink);
     }
 
     fn report<T: TmStore>(&mut self, now: u64, obsw: &mut Obsw<T>, sink: &mut impl TmSink) {
@@ -217,5 +232,34 @@ impl<S: FlatStore + KeepSeq> FileService for Files<'_, S> {
         }
         self.store.update(now, ended, &self.entity);
         obsw.files_report(now, Report::Counters(self.file_counters()), sink);
+    }
+}
+
+impl<S: FlatStore + KeepSeq> Files<'_, S> {
+    /// The PDUs the entity holds, in order, while the downlink has room for them (each
+    /// wrapped where it lies in the outbox; one that does not fit waits there).
+    fn flush(&mut self, sink: &mut impl TmSink) {
+        let mut buf = [0u8; MAX_PACKET_LEN];
+        loop {
+            let (seq, watch) = (&mut self.seq, &mut self.watch);
+            let step = self.entity.peek_next(|pdu| {
+                // The outbox holds PDUs of at most MAX_PDU_LEN bytes, none empty: each fits.
+                let Some(n) = packet::wrap(Direction::Down, *seq, pdu, &mut buf) else {
+                    return Flush::Unsendable;
+                };
+                if sink.replay_room() < n {
+                    return Flush::NoRoom;
+                }
+                *seq = seq.wrapping_add(1) & 0x3FFF;
+                sink.send_file(&buf[..n]);
+                Flush::Sent(watch.sent(pdu))
+            });
+            match step {
+                None | Some(Flush::NoRoom) => break,
+                Some(Flush::Unsendable) => self.unsent = self.unsent.wrapping_add(1),
+                Some(Flush::Sent(o)) => self.opened(o),
+            }
+            self.entity.drop_next();
+        }
     }
 }

@@ -45,6 +45,10 @@ use crate::files::FileService;
 /// waiting meanwhile stay in the uplink queue; when it is full the uplink drops and counts
 /// them and COP-1 retransmits.
 pub const SDLS_WORK_PER_PERIOD: usize = 48;
+// A period's encryption carries less than one file data segment: the file service's one
+// segment a period keeps up with the downlink (`config::FILE_SEGMENTS_PER_PERIOD`).
+const _: () =
+    assert!(SDLS_WORK_PER_PERIOD * 16 <= crate::config::FILE_SEGMENTS_PER_PERIOD * mib::cfdp::MAX_SEGMENT_LEN);
 
 /// The provisioned keys (see [`crate::keys`]).
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -151,6 +155,7 @@ impl<St: IvStore + StoreStats> FrameLink<St> {
         if files.take(now, &packet[..n]) {
             return;
         }
+        files.tc_handled();
         // One sink type for every OBSW call (tick, TCs, events): the OBSW's generic code is
         // compiled once.
         let mut sink = GroundSink {

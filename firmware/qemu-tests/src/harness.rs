@@ -197,9 +197,14 @@ pub static REPLAY_MOST_SENT: portable_atomic::AtomicU64 = portable_atomic::Atomi
 pub static WORST_FILE_DATA: portable_atomic::AtomicU64 = portable_atomic::AtomicU64::new(0);
 
 /// The most instructions board A's file service took in a period of `t_files`' puts (file
-/// data written, the received file's paced checksum) or in one that handled an EOF, in
-/// place of the period's TC packet (`t_budget`, enforced).
+/// data written, the received file's paced checksum), of its get (a segment read and sent,
+/// the sent file's sum, the request taken) or in one that handled an EOF, in place of the
+/// period's TC packet (`t_budget`, enforced).
 pub static WORST_FILE_PERIOD: portable_atomic::AtomicU64 = portable_atomic::AtomicU64::new(0);
+
+/// The most instructions the file service's poll took in a period that handled a packet
+/// (it reads nothing of the store then): what it adds to a period's TC (`t_budget`).
+pub static WORST_FILE_QUIET_POLL: portable_atomic::AtomicU64 = portable_atomic::AtomicU64::new(0);
 
 /// Instructions of a file's modular checksum per KiB read from the RAM store (`t_files`):
 /// the entity sums `mib::cfdp::CHECKSUM_BYTES_PER_POLL` of a file a period.

@@ -57,6 +57,31 @@ struct Timed<'a> {
     work: u64,
     /// A packet was taken this period.
     took: bool,
+    /// The most a poll took after a packet (nothing read of the store).
+    quiet_poll: u64,
+    /// The most file data PDUs a poll sent.
+    data_sent: usize,
+}
+
+/// A sink that counts the file data PDUs sent through it (the PDU header's type bit).
+struct DataCount<'s, T> {
+    inner: &'s mut T,
+    data: usize,
+}
+
+impl<T: TmSink> TmSink for DataCount<'_, T> {
+    fn send_tm(&mut self, packet: &[u8]) {
+        self.inner.send_tm(packet);
+    }
+    fn send_file(&mut self, packet: &[u8]) {
+        if packet::unwrap(Direction::Down, packet).is_some_and(|pdu| pdu[0] & 0x10 != 0) {
+            self.data += 1;
+        }
+        self.inner.send_file(packet);
+    }
+    fn replay_room(&self) -> usize {
+        self.inner.replay_room()
+    }
 }
 
 impl FileService for Timed<'_> {
@@ -67,10 +92,20 @@ impl FileService for Timed<'_> {
         self.took |= taken;
         taken
     }
+    fn tc_handled(&mut self) {
+        self.files.tc_handled();
+    }
     fn poll(&mut self, now: u64, sink: &mut impl TmSink) {
+        let mut counted = DataCount { inner: sink, data: 0 };
         let t0 = instret();
-        self.files.poll(now, sink);
-        self.work += instret() - t0;
+        self.files.poll(now, &mut counted);
+        let poll = instret() - t0;
+        self.data_sent = self.data_sent.max(counted.data);
+        self.work += poll;
+        if self.took {
+            // After a packet the poll reads nothing of the store: what it costs beside a TC.
+            self.quiet_poll = self.quiet_poll.max(poll);
+        }
     }
 }
 
@@ -257,6 +292,7 @@ fn listing(store: &Parts<Mem>) -> heapless::Vec<(FileName, u64), 4> {
 }
 
 // verifies: FW-FILES-01
+// verifies: FW-FILES-02
 fn files_put_class_2_and_1_get_and_a_malformed_pdu_through_board_a_s_frame_link() -> TestResult {
     let board_parts = Parts::new(Mem::new(u64::from(mib::cfdp::BOARD_STORE_BYTES)));
     let ground_parts = Parts::new(Mem::new(4 * 24_576));
@@ -268,6 +304,8 @@ fn files_put_class_2_and_1_get_and_a_malformed_pdu_through_board_a_s_frame_link(
             files: Files::new(1, &board_parts),
             work: 0,
             took: false,
+            quiet_poll: 0,
+            data_sent: 0,
         },
         ground: Entity::new(GROUND_ENTITY_ID, mib::cfdp::robot_entity_id(1), &ground_parts),
         obsw: Obsw::new(
@@ -335,6 +373,14 @@ fn files_put_class_2_and_1_get_and_a_malformed_pdu_through_board_a_s_frame_link(
     let n = ok!(read_all(&ground_parts, "down.bin", &mut back));
     check!(back[..n] == data[..], "the ground's copy differs ({} bytes)", n);
     let get_worst = rig.worst.any;
+    // The board read and sent its file at most `FILE_SEGMENTS_PER_PERIOD` segments a
+    // period (`Entity::poll_paced`), and none in the period that took the request.
+    check!(
+        rig.board.data_sent <= config::FILE_SEGMENTS_PER_PERIOD,
+        "{} file data PDUs sent in one period",
+        rig.board.data_sent
+    );
+    check!(rig.board.data_sent > 0, "file data went down");
     rig.worst.any = rig.worst.any.max(put2_worst).max(put1_worst);
     // No period summed a whole file: the sums were paced, the EOF periods took them.
     check_eq!(board_parts.store.counters().whole_sums, 0);
@@ -373,12 +419,14 @@ fn files_put_class_2_and_1_get_and_a_malformed_pdu_through_board_a_s_frame_link(
     check!(w.file_data > 0, "a whole segment's period was measured");
     harness::WORST_FILE_DATA.store(w.file_data, Ordering::Relaxed);
     check!(w.eof > 0, "an EOF's period was measured");
-    // The periods of the puts (the board receiving: file data written, its sum paced
-    // while it holds the EOF) and every period that handled an EOF, enforced in t_budget.
-    // The get's periods (three segments read, framed into TM frames, and the sent file's
-    // sum alongside) are reported, not enforced: see docs/files.md, "Not yet".
-    let enforced = put2_worst.max(put1_worst).max(w.eof);
+    // Every period of the file service, enforced in t_budget: the puts' (the board
+    // receiving: file data written, its sum paced while it holds the EOF), the get's (a
+    // segment read and framed into the TM frame with the sent file's sum alongside; the
+    // request taken and the transaction set up) and every period that handled an EOF.
+    let enforced = put2_worst.max(put1_worst).max(w.eof).max(get_worst);
     harness::WORST_FILE_PERIOD.store(enforced, Ordering::Relaxed);
+    check!(rig.board.quiet_poll > 0, "a poll after a packet was measured");
+    harness::WORST_FILE_QUIET_POLL.store(rig.board.quiet_poll, Ordering::Relaxed);
     harness::CHECKSUM_PER_KIB.store(checksum_cost * 1024 / data.len() as u64, Ordering::Relaxed);
     semihosting::println!(
         "    file service per period (instructions, RAM store): a {}-byte file data packet taken and the poll {}; the worst period of the class 2 put {}, of the class 1 put {}, of the get {}; the class 2 put of {} bytes in {} periods",
@@ -391,7 +439,7 @@ fn files_put_class_2_and_1_get_and_a_malformed_pdu_through_board_a_s_frame_link(
         put2_periods,
     );
     semihosting::println!(
-        "    a file's modular checksum (paced, {} bytes a period): {} instructions for {} bytes in one call, {} per KiB; the worst period that handled an EOF {}; the worst period of the puts and EOFs {} (enforced in t_budget), of the get {} (not enforced)",
+        "    a file's modular checksum (paced, {} bytes a period): {} instructions for {} bytes in one call, {} per KiB; the worst period that handled an EOF {}; the worst period of the puts, the get and EOFs {} (enforced in t_budget), of the get {}",
         mib::cfdp::CHECKSUM_BYTES_PER_POLL,
         checksum_cost,
         data.len(),

@@ -53,8 +53,16 @@ use crate::packet::Direction;
 use crate::store::{Checked, FileName, FlatStore, Side};
 use ::cfdp::lost_segments::LostSegmentStore;
 
-/// A PDU held for the link.
-pub type Pdu = heapless::Vec<u8, { m::MAX_PDU_LEN }>;
+pub use crate::pdu::Pdu;
+
+/// What a poll may do of the file store's work ([`Entity::poll_paced`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Pace {
+    /// Nothing read: timers and directives only.
+    Quiet,
+    /// At most this many file data PDUs, and the checksums.
+    Segments(usize),
+}
 
 /// The entity's clock (ms, wrapping at 2^32: timers are far shorter) and the outbox the
 /// handlers write to; shared by both handlers and their timers.
@@ -243,7 +251,7 @@ impl PduSender for Sender<'_> {
             return Err(GenericSendError::Other);
         };
         let mut outbox = self.port.outbox.borrow_mut();
-        if outbox.push_back(pdu.clone()).is_err() {
+        if outbox.push_back(pdu).is_err() {
             self.port.dropped.set(self.port.dropped.get().wrapping_add(1));
             return match self.when_full {
                 WhenFull::Refuse => Err(GenericSendError::QueueFull(None)),
@@ -255,6 +263,7 @@ impl PduSender for Sender<'_> {
             // one (a frame carries several small PDUs: copies in one frame are lost
             // together). Only where there is room: a lost PDU is recovered as before.
             let mut due = self.port.copies_due.borrow_mut();
+            let Some(pdu) = outbox.back() else { return Ok(()) };
             for _ in 1..self.copies {
                 if due.push_back(pdu.clone()).is_err() {
                     break;
@@ -910,6 +919,17 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         self.parts.link.outbox.borrow_mut().pop_front()
     }
 
+    /// What `f` makes of the next PDU for the link, in place (a board's period does not
+    /// copy it out); [`Entity::drop_next`] then removes it when it went.
+    pub fn peek_next<R>(&self, f: impl FnOnce(&[u8]) -> R) -> Option<R> {
+        self.parts.link.outbox.borrow().front().map(|p| f(p))
+    }
+
+    /// Removes the next PDU for the link.
+    pub fn drop_next(&mut self) {
+        let _ = self.parts.link.outbox.borrow_mut().pop_front();
+    }
+
     /// The next finished transaction.
     pub fn take_finished(&mut self) -> Option<Finished> {
         self.user.finished.pop_front()
@@ -1007,8 +1027,8 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         };
         self.source.put_request(&req).map_err(|_| PutError::Refused)?;
         self.last_heard = now_ms as u32;
-        self.user.sending = true;
-        self.run_source(None);
+        // Its metadata and first file data go at the next poll, within its budget: a put
+        // the peer asked for (a get) starts in the period that took the request.
         Ok(())
     }
 
@@ -1153,7 +1173,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         }
         // In place: a PDU buffer is 1 KiB of the board's stack.
         let held = self.rx_held.insert(Pdu::new());
-        if held.extend_from_slice(raw).is_err() {
+        if held.set(raw).is_err() {
             self.rx_held = None;
             return false;
         }
@@ -1771,6 +1791,19 @@ impl<'a, S: FlatStore> Entity<'a, S> {
     /// Time passes: timers, the next file data, owed puts, inactivity. Call every control
     /// period and after the outbox was emptied.
     pub fn poll(&mut self, now_ms: u64) {
+        self.poll_paced(now_ms, Pace::Segments(m::SEGMENTS_PER_POLL));
+    }
+
+    /// [`Entity::poll`] within a board's period (`fw_core::files`): with [`Pace::Quiet`]
+    /// it reads nothing of the store (no file data, no checksum: the period did other
+    /// work), with [`Pace::Segments`] at most that many file data PDUs (new and asked for
+    /// again; never more than `SEGMENTS_PER_POLL`) and the sent file's sum paced to match.
+    /// The handlers' timers run and their directives go either way.
+    pub fn poll_paced(&mut self, now_ms: u64, pace: Pace) {
+        let (segments, reads) = match pace {
+            Pace::Quiet => (0, false),
+            Pace::Segments(n) => (n.min(m::SEGMENTS_PER_POLL), true),
+        };
         self.tick(now_ms);
         {
             let (mut outbox, mut due) = (
@@ -1791,8 +1824,9 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             // The ground has no control period to keep: a file a poll.
             (m::MAX_FILE_LEN as usize, m::MAX_FILE_LEN as usize)
         } else {
-            (m::CHECKSUM_BYTES_PER_POLL, m::CHECKSUM_BYTES_WITH_DATA)
+            (m::CHECKSUM_BYTES_PER_POLL, m::checksum_bytes_with(segments))
         };
+        let (all, with_data) = if reads { (all, with_data) } else { (0, 0) };
         let left = all - self.sum_received(all);
         self.sum_sent(if self.source_waits_for_sum() {
             left
@@ -1800,9 +1834,26 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             left.min(with_data)
         });
         // Segments asked for again go first: the receiver waits for them.
-        self.budget = m::SEGMENTS_PER_POLL;
+        self.budget = segments;
         self.resend();
         self.nak_early(now_ms as u32);
+        if self.budget == 0 {
+            // No file data: the source only past it (its EOF, its ACK timer), the
+            // destination's timers (its PDUs are directives).
+            let past_data = matches!(
+                self.source.step(),
+                SourceStep::SendingEof
+                    | SourceStep::WaitingForEofAck
+                    | SourceStep::WaitingForFinished
+                    | SourceStep::NoticeOfCompletion
+            );
+            if self.source.state() != State::Idle && !self.source_waits_for_sum() && past_data {
+                self.run_source(None);
+            }
+            if self.dest.state() != State::Idle {
+                self.run_dest(None);
+            }
+        }
         while self.budget > 0 {
             if self.parts.link.outbox.borrow().len() + 2 >= m::OUTBOX_DEPTH {
                 break;

@@ -15,6 +15,7 @@ pub mod flash;
 pub mod gaps;
 pub mod msg;
 pub mod packet;
+pub mod pdu;
 pub mod seq;
 pub mod store;
 pub mod trace;
