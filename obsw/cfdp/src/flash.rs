@@ -214,7 +214,8 @@ pub struct FlashCounters {
     pub writes: u32,
     pub erases: u32,
     pub dir_erases: u32,
-    /// Sectors copied on write (a write that changed bytes a file had).
+    /// Sectors (a small file: its block) copied on write (a write that changed bytes a
+    /// file had), and small files' blocks moved to a sector of their own (grown past it).
     pub copies: u32,
     /// Writes that changed nothing (a segment received again with the same bytes).
     pub same: u32,

@@ -144,6 +144,77 @@ fn segments_written_out_of_order_and_again_give_the_file_and_cost_nothing_the_se
     assert!(got == file, "after a reopen");
 }
 
+/// Writes the 946-byte segments `order` of `file` into `f`; returns the copies
+/// (`FlashCounters::copies`) each write made.
+fn receive(s: &FlashStore<Nor>, f: &FileName, file: &[u8], order: &[usize]) -> Vec<u32> {
+    let seg = mib::cfdp::MAX_SEGMENT_LEN;
+    order
+        .iter()
+        .map(|&k| {
+            let (a, z) = (k * seg, ((k + 1) * seg).min(file.len()));
+            let before = s.counters().copies;
+            s.write(f, a as u64, &file[a..z]).unwrap();
+            s.counters().copies - before
+        })
+        .collect()
+}
+
+// The one copy a lossy transfer's staging file can make, and when it makes none. The store
+// learns a file's length only from its writes: a staging file whose first segment to
+// arrive is the file's first (946 bytes: within a block) starts as a small file in a block
+// of a shared sector, and the next segment that takes it past the block moves it to a
+// sector of its own: one block copy (1 KiB, no erase). Every other write of the transfer
+// (gaps filled, segments ahead of a gap, duplicates) is in place. A staging file whose
+// first segment to arrive ends past a block never was small: no copy at all. (The order
+// begins as `flash_transfer.rs`' seed 11 does: segments 0 to 7 with 5 and 7 twice, 9 (twice)
+// ahead of the gap at 8, 14 ahead of 13, 21 (twice) ahead of 18 to 20; then the gaps, the
+// rest, and every segment again.)
+// verifies: FILE-STORE-05
+#[test]
+fn a_staging_file_that_begins_in_a_block_is_copied_once_out_of_it_and_one_that_begins_larger_never() {
+    let (nor, region) = board();
+    let s = FlashStore::open(nor.clone(), region.clone()).unwrap();
+    let file = pattern(30_000, 11);
+    let segments = file.len().div_ceil(mib::cfdp::MAX_SEGMENT_LEN);
+    const { assert!(mib::cfdp::MAX_SEGMENT_LEN <= BLOCK && 2 * mib::cfdp::MAX_SEGMENT_LEN > BLOCK) };
+    let ahead = [
+        0, 1, 2, 3, 4, 5, 5, 6, 7, 7, 9, 9, 10, 11, 12, 14, 15, 16, 17, 21, 21, 22, 23, 24,
+    ];
+    let gaps = [13, 8, 20, 18, 19];
+    let rest = 25..segments;
+    let again = 0..segments;
+    let order: Vec<usize> = ahead.into_iter().chain(gaps).chain(rest).chain(again).collect();
+
+    let f = n("partial-0-11");
+    s.create(&f).unwrap();
+    let copies = receive(&s, &f, &file, &order);
+    assert_eq!(
+        copies[..2],
+        [0, 1],
+        "segment 0 in a block, segment 1 moves the file out of it"
+    );
+    assert!(
+        copies[2..].iter().all(|&c| c == 0),
+        "every other write in place: {copies:?}"
+    );
+
+    // The same segments into a staging file whose first one to arrive is segment 3.
+    let g = n("partial-0-3");
+    s.create(&g).unwrap();
+    let first = order.iter().position(|&k| k == 3).unwrap();
+    let order: Vec<usize> = order[first..].iter().chain(&order[..first]).copied().collect();
+    let copies = receive(&s, &g, &file, &order);
+    assert!(copies.iter().all(|&c| c == 0), "no copy: {copies:?}");
+
+    let c = s.counters();
+    assert_eq!((c.copies, c.erases), (1, 0), "{c:?}");
+    drop(s);
+    let s = FlashStore::open(nor, region).unwrap();
+    for name in ["partial-0-11", "partial-0-3"] {
+        assert!(snapshot(&s)[name] == file, "{name} byte-exact after a reopen");
+    }
+}
+
 // verifies: FILE-STORE-06
 #[test]
 fn free_space_is_what_a_file_can_still_take_and_the_full_store_refuses_more() {
