@@ -23,7 +23,10 @@
 //!   taken or sent) and as it ended;
 //! - **keeps** the entity's next transaction sequence number in its store
 //!   ([`KeepSeq`]): read at start-up, stored when it changes and before a PDU of the
-//!   transaction that took it goes down, so a reset never reuses a transaction ID.
+//!   transaction that took it goes down, so a reset never reuses a transaction ID;
+//! - **erases ahead** ([`EraseAhead`]): in a period without a packet or a transfer, one
+//!   step of the store's erasing of free sectors (at most one erase), after start-up and
+//!   after each transaction that ended, so that a transfer's writes take blank sectors.
 //!
 //! Memory: the entity is inline (its handlers, outbox and gap list; no heap), borrowing the
 //! [`Parts`] the image keeps in a static; [`NoFiles`] is a board without a file store.
@@ -32,7 +35,7 @@ use crate::config;
 use mib::cfdp::{GROUND_ENTITY_ID, MAX_PACKET_LEN};
 use mmic_cfdp::entity::{Counters, Pace};
 use mmic_cfdp::packet::{self, Direction};
-use mmic_cfdp::seq::KeepSeq;
+use mmic_cfdp::seq::{EraseAhead, KeepSeq};
 use mmic_cfdp::watch::{Opened, Watch};
 use mmic_cfdp::{Entity, FlatStore, Parts};
 use obsw_core::obsw::Obsw;
@@ -94,7 +97,11 @@ pub struct Files<'a, S: FlatStore> {
     /// The sequence number last kept in the store (or tried: a failed store is counted
     /// once, as a store medium error, and tried again when the number changes again).
     kept_seq: u16,
-    seq_errors: u32,
+    /// Store medium errors of the service's own calls (keeping the number, erasing ahead).
+    medium_errors: u32,
+    /// The store may have sectors to erase ahead: at start, and after a transaction ended
+    /// (a file written, removed or renamed); cleared when it has none, or on an error.
+    erase_left: bool,
     /// Files in the store and its free bytes, and when they are counted next.
     store: cfdp::StoreLook,
     /// Partly received files removed at start.
@@ -103,7 +110,7 @@ pub struct Files<'a, S: FlatStore> {
     quiet: bool,
 }
 
-impl<'a, S: FlatStore + KeepSeq> Files<'a, S> {
+impl<'a, S: FlatStore + KeepSeq + EraseAhead> Files<'a, S> {
     /// Robot `robot`'s entity, talking to the ground's, over `parts`, going on from the
     /// transaction sequence number its store kept. Files whose transfer a reset cut short
     /// are removed first: never taken for the file they were to be (counted in HK FILES
@@ -123,7 +130,8 @@ impl<'a, S: FlatStore + KeepSeq> Files<'a, S> {
             opened: heapless::Deque::new(),
             opened_lost: 0,
             kept_seq: parts.next_seq(),
-            seq_errors: 0,
+            medium_errors: 0,
+            erase_left: true,
             store: cfdp::StoreLook::default(),
             removed,
             quiet: false,
@@ -150,13 +158,13 @@ impl<'a, S: FlatStore + KeepSeq> Files<'a, S> {
         if next != self.kept_seq {
             self.kept_seq = next;
             if self.parts.store.inner().keep_seq(next).is_err() {
-                self.seq_errors = self.seq_errors.wrapping_add(1);
+                self.medium_errors = self.medium_errors.wrapping_add(1);
             }
         }
     }
 
     /// What the entity, its watch and the store counted (a failed store of the sequence
-    /// number is a store medium error).
+    /// number or erase ahead is a store medium error).
     fn file_counters(&self) -> FileCounters {
         let mut c = cfdp::counters(
             &self.entity,
@@ -165,7 +173,7 @@ impl<'a, S: FlatStore + KeepSeq> Files<'a, S> {
             self.store.free,
             self.removed,
         );
-        c.store_io_errors = c.store_io_errors.wrapping_add(self.seq_errors);
+        c.store_io_errors = c.store_io_errors.wrapping_add(self.medium_errors);
         c.outbox_dropped = c.outbox_dropped.wrapping_add(self.unsent);
         c
     }
@@ -183,7 +191,7 @@ impl<'a, S: FlatStore + KeepSeq> Files<'a, S> {
     }
 }
 
-impl<S: FlatStore + KeepSeq> FileService for Files<'_, S> {
+impl<S: FlatStore + KeepSeq + EraseAhead> FileService for Files<'_, S> {
     fn take(&mut self, now: u64, packet: &[u8]) -> bool {
         if packet::apid(packet) != Some(mib::cfdp::APID) {
             return false;
@@ -217,6 +225,17 @@ impl<S: FlatStore + KeepSeq> FileService for Files<'_, S> {
         self.entity.poll_paced(now, pace);
         // Before any PDU of a transaction that took a new number goes down.
         self.keep_seq();
+        // A period with time to spare: no packet, no transfer. One erase at most, so that
+        // the next transfer's writes take blank sectors.
+        if pace != Pace::Quiet && self.erase_left && self.entity.idle() {
+            match self.parts.store.inner().erase_ahead() {
+                Ok(more) => self.erase_left = more,
+                Err(_) => {
+                    self.medium_errors = self.medium_errors.wrapping_add(1);
+                    self.erase_left = false;
+                }
+            }
+        }
         self.flush(sink);
     }
 
@@ -230,12 +249,13 @@ impl<S: FlatStore + KeepSeq> FileService for Files<'_, S> {
             obsw.files_report(now, Report::Ended(e), sink);
             ended = true;
         }
+        self.erase_left |= ended;
         self.store.update(now, ended, &self.entity);
         obsw.files_report(now, Report::Counters(self.file_counters()), sink);
     }
 }
 
-impl<S: FlatStore + KeepSeq> Files<'_, S> {
+impl<S: FlatStore + KeepSeq + EraseAhead> Files<'_, S> {
     /// The PDUs the entity holds, in order, while the downlink has room for them (each
     /// wrapped where it lies in the outbox; one that does not fit waits there).
     fn flush(&mut self, sink: &mut impl TmSink) {

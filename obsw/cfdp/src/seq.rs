@@ -1,8 +1,9 @@
-//! Where a platform keeps its entity's next transaction sequence number across resets
-//! (`Parts::next_seq`): transaction IDs must not repeat, or the ground takes a new
-//! transaction's PDUs for an old one's. Read at start-up into `Parts::set_next_seq`, written
-//! each time the number changes. Generic, so that a platform's file service names only the
-//! store it runs on.
+//! What a platform's file service asks of its store beyond [`crate::FlatStore`]: where it
+//! keeps its entity's next transaction sequence number across resets ([`KeepSeq`];
+//! `Parts::next_seq`: transaction IDs must not repeat, or the ground takes a new
+//! transaction's PDUs for an old one's; read at start-up into `Parts::set_next_seq`, written
+//! each time the number changes), and the erases it can do ahead of need ([`EraseAhead`]).
+//! Generic, so that a platform's file service names only the store it runs on.
 
 use crate::flash::FlashStore;
 use crate::store::MemStore;
@@ -36,5 +37,25 @@ impl<const N: usize, const CAP: usize> KeepSeq for MemStore<N, CAP> {
     }
     fn keep_seq(&self, _seq: u16) -> Result<(), StoreError> {
         Ok(())
+    }
+}
+
+/// A store that makes room ahead of need, one step a call, in periods with time to spare.
+pub trait EraseAhead {
+    /// One step (at most one sector erase); `Ok(false)` when none is left.
+    fn erase_ahead(&self) -> Result<bool, StoreError>;
+}
+
+/// Free data sectors erased ([`FlashStore::erase_ahead`]), so a transfer's writes erase none.
+impl<F: MultiwriteNorFlash> EraseAhead for FlashStore<F> {
+    fn erase_ahead(&self) -> Result<bool, StoreError> {
+        FlashStore::erase_ahead(self)
+    }
+}
+
+/// RAM needs no erase.
+impl<const N: usize, const CAP: usize> EraseAhead for MemStore<N, CAP> {
+    fn erase_ahead(&self) -> Result<bool, StoreError> {
+        Ok(false)
     }
 }
