@@ -135,7 +135,36 @@ pub struct Worker {
     last_sent_ms: Option<i64>,
 }
 
+/// One APID's tracker after a collector restart, from its newest archived positions
+/// (oldest first, at most [`crate::RESUME_WINDOW`]). The last one is where it resumes;
+/// holes among them (packets still being retrieved, or queued for the archive, when the
+/// last run stopped) are retrieved again. Fewer than the window: the archive holds no
+/// older packet of this APID, so the counts of the first one's boot before it are holes
+/// too, as for a packet first heard with an empty archive
+/// ([`ApidTracker::following_boot`]) — the last run may have been stopped before the
+/// store gave them (the boot's first packets, sent before any ground subscribed, come
+/// only from the store). A full window may have older packets before it: nothing before
+/// its first is asked for.
+pub(crate) fn resumed_tracker(positions: Vec<Pos>, now: i64) -> ApidTracker {
+    let whole = positions.len() < crate::RESUME_WINDOW;
+    let mut positions = positions.into_iter();
+    let mut t = if whole {
+        ApidTracker::following_boot()
+    } else {
+        ApidTracker::resume(positions.next())
+    };
+    for p in positions {
+        t.on_packet(p, false, now);
+    }
+    // What was declared lost before the restart is not declared again.
+    t.take_lost();
+    t.reset_counters();
+    t
+}
+
 impl Worker {
+    /// `history`: per APID the newest archived positions, oldest first, at most
+    /// [`crate::RESUME_WINDOW`] (see [`resumed_tracker`]).
     pub fn new(
         cfg: RobotCfg,
         global: Arc<Config>,
@@ -145,20 +174,11 @@ impl Worker {
         history: Vec<(u16, Vec<Pos>)>,
     ) -> Worker {
         let apid = onboard::apid(cfg.number).unwrap_or(0);
-        let mut trackers = BTreeMap::new();
         let now = now_ms();
-        for (a, positions) in history {
-            let mut positions = positions.into_iter();
-            let mut t = ApidTracker::resume(positions.next());
-            for p in positions {
-                t.on_packet(p, false, now);
-            }
-            // Holes found in the archive are retrieved; what was declared lost before
-            // the restart is not declared again.
-            t.take_lost();
-            t.reset_counters();
-            trackers.insert(a, t);
-        }
+        let trackers = history
+            .into_iter()
+            .map(|(a, positions)| (a, resumed_tracker(positions, now)))
+            .collect();
         let (tx, rx) = crossbeam_channel::unbounded();
         let hk_interval_ms = cfg
             .hk_interval_ms

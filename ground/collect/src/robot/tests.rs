@@ -112,3 +112,82 @@ fn over_a_udp_lab_link_the_collector_resubscribes_until_the_robot_streams() {
         .count();
     assert!(tail <= 5, "{tail} TCs in the last 1.5 s: {came:?}");
 }
+
+/// A worker for robot 1 with `history` (per APID, the archive's newest positions), never
+/// run.
+fn resumed_worker(history: Vec<(u16, Vec<crate::tracker::Pos>)>) -> Worker {
+    let cfg = RobotCfg {
+        number: 1,
+        addr: "127.0.0.1:9".parse().unwrap(),
+        transport: Transport::Udp,
+        frames: None,
+        hk_interval_ms: None,
+        name: None,
+    };
+    let (sink, _archive) = crossbeam_channel::unbounded();
+    let status = Arc::new(Mutex::new(RobotStatus::default()));
+    Worker::new(
+        cfg,
+        Arc::new(Config::default()),
+        sink,
+        status,
+        Arc::new(AtomicBool::new(false)),
+        history,
+    )
+}
+
+// verifies: GND-10, GND-12
+#[test]
+fn after_a_restart_the_counts_of_the_boot_before_the_first_archived_packet_are_asked_again() {
+    use crate::tracker::{GapPlan, Pos, Verdict};
+    let apid = crate::onboard::apid(1).unwrap();
+    let p = |seq: u16| Pos {
+        seq,
+        obt_ms: 1_000 + 10 * i64::from(seq),
+    };
+    // The last run archived counts 2..=9 but 5 and was killed before the store gave it
+    // 0 and 1 (the BOOT event and the first report, sent before it subscribed) and 5.
+    let archived: Vec<Pos> = [2, 3, 4, 6, 7, 8, 9].into_iter().map(p).collect();
+    let mut w = resumed_worker(vec![(apid, archived)]);
+    let t = w.trackers.get_mut(&apid).unwrap();
+    assert_eq!(t.last(), Some(p(9)), "resumes after the newest archived packet");
+    assert_eq!(t.missing().collect::<Vec<_>>(), vec![0, 1, 5]);
+    // Asked of the store by count: no packet was heard before 0 and 1, so their window is
+    // not known.
+    let due = t.due(i64::MAX / 2, 0, 1_000, 8, &GapPlan::default(), 1);
+    assert_eq!(due, vec![(0, 5)]);
+    assert_eq!(t.window(0, 5), None);
+    let (tc, ranged) = crate::onboard::store_range_tc(1, 1, apid, due[0], None).unwrap();
+    assert_eq!((tc.def.service, tc.def.subservice, ranged), (15, 128, true));
+    assert_eq!(tc.args, vec![i64::from(apid), 0, 5]);
+    // The store's copies fill them, once.
+    assert_eq!(t.on_packet(p(0), false, 0), Verdict::Filled);
+    assert_eq!(t.on_packet(p(0), false, 0), Verdict::Duplicate);
+    assert_eq!(t.on_packet(p(5), false, 0), Verdict::Filled);
+    assert_eq!(t.on_packet(p(10), false, 0), Verdict::New);
+    assert_eq!(t.missing().collect::<Vec<_>>(), vec![1]);
+    assert!(t.take_lost().is_empty());
+}
+
+// verifies: GND-10
+#[test]
+fn after_a_restart_with_a_full_resume_window_nothing_before_it_is_asked() {
+    use crate::tracker::Pos;
+    let apid = crate::onboard::apid(1).unwrap();
+    // The archive holds older packets than the window it gave: the counts before the
+    // window's first are not holes.
+    let first = 100u16;
+    let archived: Vec<Pos> = (0..crate::RESUME_WINDOW as u16)
+        .map(|k| Pos {
+            seq: first + k,
+            obt_ms: 1_000 + i64::from(k),
+        })
+        .collect();
+    let w = resumed_worker(vec![(apid, archived)]);
+    let t = &w.trackers[&apid];
+    assert_eq!(t.holes(), 0);
+    assert_eq!(t.newest(), Some(first + crate::RESUME_WINDOW as u16 - 1));
+    // A boot's first packet archived: nothing before it.
+    let w = resumed_worker(vec![(apid, vec![Pos { seq: 0, obt_ms: 5 }, Pos { seq: 1, obt_ms: 6 }])]);
+    assert_eq!(w.trackers[&apid].holes(), 0);
+}
