@@ -1605,7 +1605,8 @@ impl<'a, S: FlatStore> Entity<'a, S> {
                 }
                 continue;
             }
-            // Asked for before: its earlier answer was lost too; two copies this time.
+            // Asked for before: its earlier answer was lost too; two copies this time, when
+            // the poll's budget has room for both.
             let k = a as usize / m::MAX_SEGMENT_LEN;
             let bit = self.resent_once.get_mut(k / 32).map(|w| {
                 let again = *w & (1 << (k % 32)) != 0;
@@ -1613,7 +1614,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
                 again
             });
             self.resend_segment(&header, a, b);
-            if bit == Some(true) {
+            if bit == Some(true) && self.budget > 0 {
                 self.resend_segment(&header, a, b);
             }
         }

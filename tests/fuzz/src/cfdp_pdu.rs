@@ -7,15 +7,17 @@
 //! Records: tag % 5 == 0: one raw packet into the robot; 1: the ground's next PDU, its bytes
 //! XORed with the body from byte `body[0]` on (a damaged real PDU), wrapped and into the
 //! robot; 2: the ground starts a transaction (`body[0]` chooses which); 3: time passes
-//! (`body[0..2]` × 10 ms) and both entities poll; 4: the link carries every waiting PDU
-//! both ways (`body[0]`'s bits drop some downlink PDUs).
+//! (`body[0..2]` × 10 ms) and both entities poll, the robot as a board paces it when there
+//! is a `body[2]` (`Entity::poll_paced`: `Quiet`, or at most 0..=3 segments); 4: the link
+//! carries every waiting PDU both ways (`body[0]`'s bits drop some downlink PDUs).
 //!
 //! Invariants: nothing panics; every packet moves exactly one of the robot's `received`,
 //! `refused` and `stray` counters by one; a packet that is not a well-formed PDU packet
 //! addressed to the robot is counted `refused` and changes no file of the robot's store;
-//! every PDU the robot sends is well formed.
+//! every PDU the robot sends is well formed; a paced poll sends no more file data PDUs than
+//! its pace allows (none when quiet).
 
-use mmic_cfdp::entity::{well_formed, Counters};
+use mmic_cfdp::entity::{well_formed, Counters, Pace};
 use mmic_cfdp::packet::{self, Direction};
 use mmic_cfdp::store::MemStore;
 use mmic_cfdp::{Class, Entity, FileName, Parts};
@@ -83,6 +85,7 @@ pub fn run(data: &[u8]) {
     let mut now = 1_000u64;
     // Downlink PDUs on their way to the ground, uplink ones to the robot.
     let mut up: Vec<Vec<u8>> = Vec::new();
+    let mut down: Vec<Vec<u8>> = Vec::new();
     for (tag, body) in crate::records(data, 128) {
         let b0 = body.first().copied().unwrap_or(0);
         match tag % 5 {
@@ -118,7 +121,26 @@ pub fn run(data: &[u8]) {
             3 => {
                 let ms = u64::from(u16::from_be_bytes([b0, body.get(1).copied().unwrap_or(1)]));
                 now += ms * 10;
-                robot.poll(now);
+                match body.get(2).map(|x| x % 5) {
+                    None => robot.poll(now),
+                    Some(x) => {
+                        // The robot's PDUs so far go on their way first: what the poll adds
+                        // is counted alone.
+                        down.extend(std::iter::from_fn(|| robot.pop()).map(|p| p.to_vec()));
+                        let (pace, most) = match x {
+                            0 => (Pace::Quiet, 0),
+                            n => (Pace::Segments(usize::from(n - 1)), usize::from(n - 1)),
+                        };
+                        robot.poll_paced(now, pace);
+                        let added: Vec<Vec<u8>> = std::iter::from_fn(|| robot.pop()).map(|p| p.to_vec()).collect();
+                        let data = added
+                            .iter()
+                            .filter(|p| p.first().is_some_and(|b| b & 0x10 != 0))
+                            .count();
+                        assert!(data <= most, "{data} file data PDUs in a poll paced {pace:?}");
+                        down.extend(added);
+                    }
+                }
                 ground.poll(now);
             }
             _ => {
@@ -129,7 +151,8 @@ pub fn run(data: &[u8]) {
                     }
                 }
                 let mut k = 0;
-                while let Some(pdu) = robot.pop() {
+                down.extend(std::iter::from_fn(|| robot.pop()).map(|p| p.to_vec()));
+                for pdu in std::mem::take(&mut down) {
                     assert!(well_formed(&pdu).is_some(), "the robot sent a malformed PDU");
                     k += 1;
                     if b0 & (1 << (k % 8)) == 0 {
