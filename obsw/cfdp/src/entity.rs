@@ -1406,6 +1406,18 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             PacketTarget::SourceEntity if pdu.file_directive_type() == Some(FileDirectiveType::NakPdu) => {
                 self.nak_split(raw)
             }
+            PacketTarget::SourceEntity
+                if pdu.file_directive_type() == Some(FileDirectiveType::FinishedPdu)
+                    && matches!(
+                        self.source.step(),
+                        SourceStep::TransactionStart
+                            | SourceStep::SendingMetadata
+                            | SourceStep::SendingFileData
+                            | SourceStep::SendingEof
+                    ) =>
+            {
+                self.finished_before_eof(raw, &h, tx)
+            }
             PacketTarget::SourceEntity => {
                 let finished = pdu.file_directive_type() == Some(FileDirectiveType::FinishedPdu);
                 if finished {
@@ -1470,8 +1482,36 @@ impl<'a, S: FlatStore> Entity<'a, S> {
     /// an answer the peer would send its Finished until its positive ACK limit and declare
     /// that fault for a file that arrived whole.
     fn ack_finished_again(&mut self, raw: &[u8], h: &PduHeader) {
-        let Ok(fin) = FinishedPduReader::from_bytes(raw) else {
+        if self.ack_finished(raw, h).is_some() {
+            self.counters.finished_acked_again = self.counters.finished_acked_again.wrapping_add(1);
+        }
+    }
+
+    /// The receiver's Finished PDU while this sender has not sent its EOF (727.0-B-5: the
+    /// receiver may end a transaction at any time, its store refused a write; cfdp-rs 0.3
+    /// refuses a Finished before its step that waits for the EOF's ACK, and went on sending
+    /// the whole file): acknowledged, and the put ends here, not complete, with the
+    /// receiver's condition; the rest of the file is not sent.
+    fn finished_before_eof(&mut self, raw: &[u8], h: &PduHeader, tx: (u16, u16)) {
+        let Some(condition) = self.ack_finished(raw, h) else {
             return;
+        };
+        self.source.abandon_transaction();
+        self.finished_tx = Some(tx);
+        self.user.report(Finished {
+            source: self.id,
+            seq: tx.1,
+            sent: true,
+            condition,
+            complete: false,
+            retained: false,
+        });
+    }
+
+    /// The ACK of the Finished PDU `raw` of the transaction in `h`; its condition code.
+    fn ack_finished(&mut self, raw: &[u8], h: &PduHeader) -> Option<ConditionCode> {
+        let Ok(fin) = FinishedPduReader::from_bytes(raw) else {
+            return None;
         };
         let mut conf = *h.common_pdu_conf();
         conf.direction = spacepackets::cfdp::Direction::TowardsReceiver;
@@ -1482,17 +1522,13 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             fin.condition_code(),
             TransactionStatus::Terminated,
         ) else {
-            return;
+            return None;
         };
         let mut buf = [0u8; 64];
-        if let Ok(n) = ack.write_to_bytes(&mut buf) {
-            self.counters.finished_acked_again = self.counters.finished_acked_again.wrapping_add(1);
-            let _ = Sender::dest(&self.parts.link).send_pdu(
-                PduType::FileDirective,
-                Some(FileDirectiveType::AckPdu),
-                &buf[..n],
-            );
-        }
+        let n = ack.write_to_bytes(&mut buf).ok()?;
+        let _ =
+            Sender::dest(&self.parts.link).send_pdu(PduType::FileDirective, Some(FileDirectiveType::AckPdu), &buf[..n]);
+        Some(fin.condition_code())
     }
 
     /// File data or an EOF of a transaction whose metadata was lost: cfdp-rs 0.3 would

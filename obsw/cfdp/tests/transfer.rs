@@ -805,3 +805,61 @@ fn the_robots_metadata_and_finished_pdus_go_down_twice_and_act_once() {
         assert!(reports.iter().all(|f| f.complete), "{reports:?}");
     });
 }
+
+// A receiver that ends the transaction while the sender still sends its file data (its
+// store refused a write: Finished "filestore rejection" before the sender's EOF). 727.0-B-5
+// has the sender take a Finished PDU at any time: it answers with the ACK and ends the
+// transaction with the Finished's condition. cfdp-rs 0.3 refuses a Finished before its
+// EOF's ACK step; the entity ends the put itself, reported as not complete with the
+// receiver's condition, never as delivered, and the rest of the file is not sent (before,
+// the ground sent all 50 000 bytes and refused the robot's Finished 29 times until its EOF).
+// verifies: FILE-CFDP-09
+#[test]
+fn a_finished_pdu_while_the_sender_still_sends_ends_the_put_not_complete_with_its_condition() {
+    use mmic_cfdp::spacepackets::cfdp::ConditionCode;
+    big_stack(|| {
+        // The robot's store takes 3 000 bytes: the fourth segment is refused.
+        let (gp, rp) = (Parts::new(Mem::new(2_000_000)), Parts::new(Mem::new(3_000)));
+        let mut g = Entity::new(0, 1, &gp);
+        let mut r = Entity::new(1, 0, &rp);
+        put_file(&gp, "big.bin", &file(50_000, 3));
+        let mut t = now();
+        g.put(t, "big.bin", "big.bin", Class::Two).unwrap();
+        // Poll by poll, each PDU at once both ways, until the robot's Finished has reached
+        // the ground: the ground is still sending then (50 000 bytes, 3 segments a poll).
+        let mut robot_finished = false;
+        for _ in 0..20 {
+            t += 10;
+            g.poll(t);
+            while let Some(p) = g.pop() {
+                r.receive(t, &p);
+            }
+            r.poll(t);
+            while let Some(p) = r.pop() {
+                robot_finished |= directive(&p) == Some(FINISHED);
+                g.receive(t, &p);
+            }
+            if robot_finished {
+                break;
+            }
+        }
+        assert!(robot_finished, "the robot sent no Finished: {:?}", r.counters());
+        assert!(
+            g.sent_progress().0 < 50_000,
+            "the ground had sent its whole file already ({})",
+            g.sent_progress().0
+        );
+        // The put ended there: no file data after it, nothing refused by the handler.
+        let sent = g.sent_progress().0;
+        assert!(g.idle(), "the ground still sends: {:?}", g.counters());
+        CLOCK.with(|c| c.set(t));
+        run(&mut g, &mut r, 0.0, 5, 60_000);
+        assert_eq!(g.sent_progress().0, sent, "file data sent after the robot's Finished");
+        assert_eq!(g.counters().handler_errors, 0, "{:?}", g.counters());
+        let f = g.take_finished().expect("the put ended");
+        assert!(!f.complete, "reported complete: {f:?}");
+        assert_eq!(f.condition, ConditionCode::FilestoreRejection, "{f:?}");
+        assert!(g.take_finished().is_none(), "a second end of the same put");
+        assert_eq!(read_file(&rp, "big.bin"), None);
+    });
+}
