@@ -2001,9 +2001,8 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         if self.source.state() != State::Idle {
             let seq = self.source.transaction_id().map_or(0, |t| id_u16(t.seq_num()));
             self.source.abandon_transaction();
-            self.counters.failed = self.counters.failed.wrapping_add(1);
             // cfdp-rs reports nothing for an abandoned transaction: the user must still
-            // learn that its put ended.
+            // learn that its put ended (the report counts it as failed).
             self.user.report(Finished {
                 source: self.id,
                 seq,
@@ -2014,6 +2013,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             });
         }
         if self.dest.state() != State::Idle {
+            let reported = self.user.failed;
             if let Some(id) = self.dest.transaction_id() {
                 // cfdp-rs 0.3 cancels only as on a user's request; the report says why.
                 let before = self.user.finished.len();
@@ -2024,7 +2024,10 @@ impl<'a, S: FlatStore> Entity<'a, S> {
                 }
             }
             self.dest.reset();
-            self.counters.failed = self.counters.failed.wrapping_add(1);
+            // Counted once: by its report, or here when the handler made none.
+            if self.user.failed == reported {
+                self.counters.failed = self.counters.failed.wrapping_add(1);
+            }
         }
     }
 }

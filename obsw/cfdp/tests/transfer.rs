@@ -275,6 +275,9 @@ fn a_put_to_a_silent_peer_ends_reported_as_not_complete() {
             ),
             "{f:?}"
         );
+        // One put, one failure (HK FILES counts it).
+        assert_eq!(g.counters().failed, 1, "{:?}", g.counters());
+        assert_eq!(g.counters().completed, 0);
     });
 }
 
