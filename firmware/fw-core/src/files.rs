@@ -46,14 +46,6 @@ use obsw_core::tm::{TmSink, TmStore};
 /// one sent each period; the rest is room for a report that comes late.
 const OPENED_DEPTH: usize = 4;
 
-/// What became of the next PDU for the link.
-enum Flush {
-    Sent(Option<Opened>),
-    NoRoom,
-    /// Longer than a packet takes (none can be: counted, dropped).
-    Unsendable,
-}
-
 /// What the control period asks of a file service.
 pub trait FileService {
     /// Whether `packet` (an authenticated TC packet) is the service's; then it was taken.
@@ -84,11 +76,8 @@ impl FileService for NoFiles {
 /// The file service over store `S` (see the module documentation).
 pub struct Files<'a, S: FlatStore> {
     entity: Entity<'a, S>,
-    /// The next TM packet's sequence count on the CFDP APID.
-    seq: u16,
-    /// PDUs that did not fit a packet (none can: the outbox holds at most
-    /// `MAX_PDU_LEN` bytes a PDU), dropped.
-    unsent: u32,
+    /// Its PDUs to the downlink (the packets' sequence count, PDUs no packet could hold).
+    down: cfdp::PduDownlink,
     parts: &'a Parts<S>,
     watch: Watch,
     /// Transactions opened and not yet reported; those past its depth are counted.
@@ -123,8 +112,7 @@ impl<'a, S: FlatStore + KeepSeq + EraseAhead> Files<'a, S> {
         let removed = u16::try_from(entity.discard_partial()).unwrap_or(u16::MAX);
         Files {
             entity,
-            seq: 0,
-            unsent: 0,
+            down: cfdp::PduDownlink::default(),
             parts,
             watch: Watch::default(),
             opened: heapless::Deque::new(),
@@ -174,7 +162,7 @@ impl<'a, S: FlatStore + KeepSeq + EraseAhead> Files<'a, S> {
             self.removed,
         );
         c.store_io_errors = c.store_io_errors.wrapping_add(self.medium_errors);
-        c.outbox_dropped = c.outbox_dropped.wrapping_add(self.unsent);
+        c.outbox_dropped = c.outbox_dropped.wrapping_add(self.down.unsent);
         c
     }
 
@@ -186,7 +174,7 @@ impl<'a, S: FlatStore + KeepSeq + EraseAhead> Files<'a, S> {
     /// The entity's counters; PDUs that did not fit a packet count as lost to the outbox.
     pub fn counters(&self) -> Counters {
         let mut c = self.entity.counters();
-        c.outbox_dropped = c.outbox_dropped.wrapping_add(self.unsent);
+        c.outbox_dropped = c.outbox_dropped.wrapping_add(self.down.unsent);
         c
     }
 }
@@ -236,7 +224,10 @@ impl<S: FlatStore + KeepSeq + EraseAhead> FileService for Files<'_, S> {
                 }
             }
         }
-        self.flush(sink);
+        let mut buf = [0u8; MAX_PACKET_LEN];
+        while let Some(o) = self.down.send_next(&mut self.entity, &mut self.watch, sink, &mut buf) {
+            self.opened(o);
+        }
     }
 
     fn report<T: TmStore>(&mut self, now: u64, obsw: &mut Obsw<T>, sink: &mut impl TmSink) {
@@ -252,34 +243,5 @@ impl<S: FlatStore + KeepSeq + EraseAhead> FileService for Files<'_, S> {
         self.erase_left |= ended;
         self.store.update(now, ended, &self.entity);
         obsw.files_report(now, Report::Counters(self.file_counters()), sink);
-    }
-}
-
-impl<S: FlatStore + KeepSeq + EraseAhead> Files<'_, S> {
-    /// The PDUs the entity holds, in order, while the downlink has room for them (each
-    /// wrapped where it lies in the outbox; one that does not fit waits there).
-    fn flush(&mut self, sink: &mut impl TmSink) {
-        let mut buf = [0u8; MAX_PACKET_LEN];
-        loop {
-            let (seq, watch) = (&mut self.seq, &mut self.watch);
-            let step = self.entity.peek_next(|pdu| {
-                // The outbox holds PDUs of at most MAX_PDU_LEN bytes, none empty: each fits.
-                let Some(n) = packet::wrap(Direction::Down, *seq, pdu, &mut buf) else {
-                    return Flush::Unsendable;
-                };
-                if sink.replay_room() < n {
-                    return Flush::NoRoom;
-                }
-                *seq = seq.wrapping_add(1) & 0x3FFF;
-                sink.send_file(&buf[..n]);
-                Flush::Sent(watch.sent(pdu))
-            });
-            match step {
-                None | Some(Flush::NoRoom) => break,
-                Some(Flush::Unsendable) => self.unsent = self.unsent.wrapping_add(1),
-                Some(Flush::Sent(o)) => self.opened(o),
-            }
-            self.entity.drop_next();
-        }
     }
 }

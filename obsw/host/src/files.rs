@@ -47,7 +47,8 @@ pub struct Files<'a> {
     parts: &'a Parts<DirStore>,
     dir: std::path::PathBuf,
     kept_seq: u16,
-    seq: u16,
+    /// Its PDUs to the downlink.
+    down: cfdp::PduDownlink,
     watch: Watch,
     /// Files in the store and its free bytes, and when they are counted next.
     store: cfdp::StoreLook,
@@ -66,7 +67,7 @@ impl<'a> Files<'a> {
             dir: dir.to_path_buf(),
             kept_seq: parts.next_seq(),
             entity,
-            seq: 0,
+            down: cfdp::PduDownlink::default(),
             watch: Watch::default(),
             store: cfdp::StoreLook::default(),
             removed: u16::try_from(discarded).unwrap_or(u16::MAX),
@@ -123,28 +124,28 @@ impl<'a> Files<'a> {
         obsw.files_report(now_ms, Report::Counters(self.counters()), down);
     }
 
-    /// Sends the PDUs waiting in the outbox; a transaction one of them opens to the obsw.
+    /// Sends the PDUs waiting in the outbox (board A's way, `cfdp::PduDownlink`); a
+    /// transaction one of them opens to the obsw.
     fn flush<S: TmStore>(&mut self, now_ms: u64, obsw: &mut Obsw<S>, down: &mut impl TmSink) {
         let mut buf = [0u8; mib::cfdp::MAX_PACKET_LEN];
-        while let Some(pdu) = self.entity.pop() {
-            if let Some(o) = self.watch.sent(&pdu) {
+        while let Some(opened) = self.down.send_next(&mut self.entity, &mut self.watch, down, &mut buf) {
+            if let Some(o) = opened {
                 obsw.files_report(now_ms, Report::Began(cfdp::began(&o)), down);
-            }
-            if let Some(n) = packet::wrap(Direction::Down, self.seq, &pdu, &mut buf) {
-                self.seq = self.seq.wrapping_add(1) & 0x3FFF;
-                down.send_file(&buf[..n]);
             }
         }
     }
 
-    /// What the entity, its watch and the store counted.
+    /// What the entity, its watch and the store counted; PDUs no packet could hold count as
+    /// lost to the outbox.
     fn counters(&self) -> FileCounters {
-        cfdp::counters(
+        let mut c = cfdp::counters(
             &self.entity,
             &self.watch,
             self.store.files,
             self.store.free,
             self.removed,
-        )
+        );
+        c.outbox_dropped = c.outbox_dropped.wrapping_add(self.down.unsent);
+        c
     }
 }

@@ -273,10 +273,72 @@ impl Files {
 /// same way).
 #[cfg(feature = "cfdp")]
 pub mod cfdp {
+    use mmic_cfdp::packet::{self, Direction as PacketDirection};
     use mmic_cfdp::watch::{Opened, Watch};
     use mmic_cfdp::{Entity, Finished, FlatStore};
 
     use super::{Began, Class, Direction, Ended, FileCounters};
+    use crate::tm::TmSink;
+
+    /// The entity's PDUs to the downlink as TM packets of `mib::cfdp::APID` (no PUS header),
+    /// in order, each wrapped where it lies in the entity's outbox and sent only while the
+    /// sink takes it (`TmSink::replay_room`): one that does not fit waits there. The host
+    /// obsw and board A send their PDUs through it.
+    #[derive(Clone, Copy, Debug, Default)]
+    pub struct PduDownlink {
+        /// The next packet's sequence count.
+        seq: u16,
+        /// PDUs no packet could hold (none can: the outbox takes at most `MAX_PDU_LEN`
+        /// bytes a PDU), dropped; a platform adds them to HK FILES' outbox drops.
+        pub unsent: u32,
+    }
+
+    /// What became of the next PDU.
+    enum Next {
+        Sent(Option<Opened>),
+        NoRoom,
+        Unsendable,
+    }
+
+    impl PduDownlink {
+        /// Sends the entity's next PDU when the sink takes it, wrapped in `buf`: `Some`
+        /// with the transaction its metadata opens (`watch`), `None` when there is none or
+        /// no room. A caller loops until `None` with one buffer, reporting each opened
+        /// transaction in between.
+        pub fn send_next<S: FlatStore>(
+            &mut self,
+            entity: &mut Entity<'_, S>,
+            watch: &mut Watch,
+            sink: &mut impl TmSink,
+            buf: &mut [u8; mib::cfdp::MAX_PACKET_LEN],
+        ) -> Option<Option<Opened>> {
+            loop {
+                let seq = &mut self.seq;
+                let next = entity.peek_next(|pdu| {
+                    let Some(n) = packet::wrap(PacketDirection::Down, *seq, pdu, buf) else {
+                        return Next::Unsendable;
+                    };
+                    if sink.replay_room() < n {
+                        return Next::NoRoom;
+                    }
+                    *seq = seq.wrapping_add(1) & 0x3FFF;
+                    sink.send_file(&buf[..n]);
+                    Next::Sent(watch.sent(pdu))
+                })?;
+                match next {
+                    Next::NoRoom => return None,
+                    Next::Unsendable => {
+                        self.unsent = self.unsent.wrapping_add(1);
+                        entity.drop_next();
+                    }
+                    Next::Sent(opened) => {
+                        entity.drop_next();
+                        return Some(opened);
+                    }
+                }
+            }
+        }
+    }
 
     /// The store's files and free bytes as HK FILES reports them, counted every
     /// `mib::cfdp::STORE_LOOK_MS` and when a transaction ended.
