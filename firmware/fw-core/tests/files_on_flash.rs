@@ -8,25 +8,8 @@ use std::cell::RefCell;
 use fw_core::files::{FileService, Files};
 use mmic_cfdp::flash::FlashStore;
 use mmic_cfdp::{FileName, Parts};
-use obsw_core::flash_store::{Medium, Nor};
+use obsw_core::flash_store::Nor;
 use obsw_core::tm::TmSink;
-
-/// The flash's bytes in RAM.
-struct Ram(Vec<u8>);
-
-impl Medium for Ram {
-    type Error = ();
-    fn read_at(&mut self, at: u32, out: &mut [u8]) -> Result<(), ()> {
-        let a = at as usize;
-        out.copy_from_slice(self.0.get(a..a + out.len()).ok_or(())?);
-        Ok(())
-    }
-    fn write_at(&mut self, at: u32, bytes: &[u8]) -> Result<(), ()> {
-        let a = at as usize;
-        self.0.get_mut(a..a + bytes.len()).ok_or(())?.copy_from_slice(bytes);
-        Ok(())
-    }
-}
 
 /// The downlink: takes every packet.
 #[derive(Default)]
@@ -38,7 +21,7 @@ impl TmSink for Down {
     }
 }
 
-fn erases(parts: &Parts<FlashStore<Nor<Ram>>>) -> u32 {
+fn erases(parts: &Parts<FlashStore<Nor<&mut [u8]>>>) -> u32 {
     parts.store.inner().counters().erases
 }
 
@@ -46,7 +29,8 @@ fn erases(parts: &Parts<FlashStore<Nor<Ram>>>) -> u32 {
 #[test]
 fn free_sectors_are_erased_ahead_only_in_spare_periods_and_the_next_file_erases_none() {
     let region = mib::memory::FILE_STORE.offset..mib::memory::FILE_STORE.end();
-    let mut nor = Nor::new(Ram(vec![0xFF; region.end as usize]), region.end);
+    let mut bytes = vec![0xFF; region.end as usize];
+    let mut nor = Nor::new(&mut bytes[..], region.end);
     FlashStore::format(&mut nor, region.clone()).unwrap();
     let parts = Parts::new(FlashStore::open(nor, region).unwrap());
     // A file written and removed: its sectors are free and not blank.

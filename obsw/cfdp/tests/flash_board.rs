@@ -9,26 +9,9 @@ use std::cell::RefCell;
 use mmic_cfdp::flash::FlashStore;
 use mmic_cfdp::store::FlatStore;
 use mmic_cfdp::FileName;
-use obsw_core::flash_store::{Medium, MibFlashStore, Nor, Shared};
+use obsw_core::flash_store::{MibFlashStore, Nor, Shared};
 use obsw_core::time::OnboardTime;
 use obsw_core::tm::{TmStore, TmWriter};
-
-/// The flash's bytes in RAM.
-struct Ram(Vec<u8>);
-
-impl Medium for Ram {
-    type Error = ();
-    fn read_at(&mut self, at: u32, out: &mut [u8]) -> Result<(), ()> {
-        let a = at as usize;
-        out.copy_from_slice(self.0.get(a..a + out.len()).ok_or(())?);
-        Ok(())
-    }
-    fn write_at(&mut self, at: u32, bytes: &[u8]) -> Result<(), ()> {
-        let a = at as usize;
-        self.0.get_mut(a..a + bytes.len()).ok_or(())?.copy_from_slice(bytes);
-        Ok(())
-    }
-}
 
 fn files(s: &impl FlatStore) -> Vec<(String, Vec<u8>)> {
     let mut names = Vec::new();
@@ -53,7 +36,8 @@ fn tm(s: &mut impl TmStore) -> Vec<Vec<u8>> {
 #[test]
 fn the_file_store_and_the_tm_store_share_board_as_flash_and_both_survive_a_reset() {
     let bytes = mib::memory::FLASH_BYTES;
-    let flash = RefCell::new(Nor::new(Ram(vec![0xFF; bytes as usize]), bytes));
+    let mut mem = vec![0xFF; bytes as usize];
+    let flash = RefCell::new(Nor::new(&mut mem[..], bytes));
     let region = mib::memory::FILE_STORE.offset..mib::memory::FILE_STORE.end();
     let mut w = TmWriter::new(0x101, OnboardTime::new(1_790_000_000_000));
     let mut buf = [0u8; mib::config::MAX_PACKET_LEN];

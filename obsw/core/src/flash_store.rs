@@ -133,6 +133,27 @@ pub trait Medium {
     fn write_at(&mut self, at: u32, bytes: &[u8]) -> Result<(), Self::Error>;
 }
 
+/// An access past the end of a medium in RAM.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct OutOfRange;
+
+/// Bytes in RAM: a test's flash (`Nor::new(&mut bytes[..], len)`).
+impl Medium for &mut [u8] {
+    type Error = OutOfRange;
+    fn read_at(&mut self, at: u32, out: &mut [u8]) -> Result<(), OutOfRange> {
+        let a = at as usize;
+        let end = a.checked_add(out.len()).ok_or(OutOfRange)?;
+        out.copy_from_slice(self.get(a..end).ok_or(OutOfRange)?);
+        Ok(())
+    }
+    fn write_at(&mut self, at: u32, bytes: &[u8]) -> Result<(), OutOfRange> {
+        let a = at as usize;
+        let end = a.checked_add(bytes.len()).ok_or(OutOfRange)?;
+        self.get_mut(a..end).ok_or(OutOfRange)?.copy_from_slice(bytes);
+        Ok(())
+    }
+}
+
 /// The rules of the module's NOR flash (`mib::memory`) over a [`Medium`] of `capacity`
 /// bytes — the one definition the host's store file and the QEMU board's flash file
 /// share: reads and writes of whole 32-bit words, an erase sets 4 KiB sectors to 0xFF,
