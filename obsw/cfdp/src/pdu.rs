@@ -96,6 +96,7 @@ impl fmt::Debug for Pdu {
 mod tests {
     use super::*;
 
+    // verifies: FILE-CFDP-01
     #[test]
     fn holds_a_copy_and_refuses_one_byte_too_many() {
         let raw = [7u8; m::MAX_PDU_LEN];
