@@ -1075,6 +1075,20 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         store.sum_advance(Side::Send, budget);
     }
 
+    /// The source handler has a transaction and has not sent its EOF yet: its metadata or
+    /// file data may still come (what a poll without file data must not run it for), and a
+    /// Finished PDU now is the receiver ending the transaction early.
+    fn source_before_eof(&self) -> bool {
+        self.source.state() != State::Idle
+            && matches!(
+                self.source.step(),
+                SourceStep::Idle
+                    | SourceStep::TransactionStart
+                    | SourceStep::SendingMetadata
+                    | SourceStep::SendingFileData
+            )
+    }
+
     /// The source handler has sent its file data and its EOF step waits for the file's
     /// checksum (the store's job, advanced by [`Entity::poll`]).
     #[inline(never)]
@@ -1095,11 +1109,6 @@ impl<'a, S: FlatStore> Entity<'a, S> {
                 .sum_ready(Side::Send, name, checksum_kind(), self.sending_len)
     }
 
-    /// A PDU of the running incoming transaction that would make the destination handler
-    /// sum the whole file in one call, held (`rx_held`) until [`Entity::poll`] has summed
-    /// it: an EOF of a complete file (in class 1 every EOF: the handler sums what it has),
-    /// or the segment that completes the file after the EOF. Whether `raw` was held.
-    #[inline(never)]
     /// A PDU counted as taken when it passed the gate that the hold then drops (a copy of
     /// one held): a stray instead, so that each packet is counted once.
     fn taken_as_stray(&mut self) {
@@ -1107,6 +1116,11 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         self.counters.stray = self.counters.stray.wrapping_add(1);
     }
 
+    /// A PDU of the running incoming transaction that would make the destination handler
+    /// sum the whole file in one call, held (`rx_held`) until [`Entity::poll`] has summed
+    /// it: an EOF of a complete file (in class 1 every EOF: the handler sums what it has),
+    /// or the segment that completes the file after the EOF. Whether `raw` was held.
+    #[inline(never)]
     fn hold_for_sum(&mut self, raw: &[u8], h: &PduHeader, pdu: &PduRawWithInfo) -> bool {
         let Some((_, _, staging)) = self.receiving.clone() else {
             return false;
@@ -1408,13 +1422,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
             }
             PacketTarget::SourceEntity
                 if pdu.file_directive_type() == Some(FileDirectiveType::FinishedPdu)
-                    && matches!(
-                        self.source.step(),
-                        SourceStep::TransactionStart
-                            | SourceStep::SendingMetadata
-                            | SourceStep::SendingFileData
-                            | SourceStep::SendingEof
-                    ) =>
+                    && (self.source_before_eof() || self.source.step() == SourceStep::SendingEof) =>
             {
                 self.finished_before_eof(raw, &h, tx)
             }
@@ -1837,9 +1845,9 @@ impl<'a, S: FlatStore> Entity<'a, S> {
     /// again; never more than `SEGMENTS_PER_POLL`) and the sent file's sum paced to match.
     /// The handlers' timers run and their directives go either way.
     pub fn poll_paced(&mut self, now_ms: u64, pace: Pace) {
-        let (segments, reads) = match pace {
-            Pace::Quiet => (0, false),
-            Pace::Segments(n) => (n.min(m::SEGMENTS_PER_POLL), true),
+        let segments = match pace {
+            Pace::Quiet => 0,
+            Pace::Segments(n) => n.min(m::SEGMENTS_PER_POLL),
         };
         self.tick(now_ms);
         {
@@ -1857,13 +1865,12 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         // held PDU waits), then the sent file's, alongside its file data
         // (`CHECKSUM_BYTES_WITH_DATA`, faster than the data goes: the sum is done when the
         // data is, and the EOF does not wait), all of the budget once the data is out.
-        let (all, with_data) = if self.id == m::GROUND_ENTITY_ID {
+        let (all, with_data) = match pace {
+            Pace::Quiet => (0, 0),
             // The ground has no control period to keep: a file a poll.
-            (m::MAX_FILE_LEN as usize, m::MAX_FILE_LEN as usize)
-        } else {
-            (m::CHECKSUM_BYTES_PER_POLL, m::checksum_bytes_with(segments))
+            Pace::Segments(_) if self.id == m::GROUND_ENTITY_ID => (m::MAX_FILE_LEN as usize, m::MAX_FILE_LEN as usize),
+            Pace::Segments(_) => (m::CHECKSUM_BYTES_PER_POLL, m::checksum_bytes_with(segments)),
         };
-        let (all, with_data) = if reads { (all, with_data) } else { (0, 0) };
         let left = all - self.sum_received(all);
         self.sum_sent(if self.source_waits_for_sum() {
             left
@@ -1877,14 +1884,7 @@ impl<'a, S: FlatStore> Entity<'a, S> {
         if self.budget == 0 {
             // No file data: the source only past it (its EOF, its ACK timer), the
             // destination's timers (its PDUs are directives).
-            let past_data = matches!(
-                self.source.step(),
-                SourceStep::SendingEof
-                    | SourceStep::WaitingForEofAck
-                    | SourceStep::WaitingForFinished
-                    | SourceStep::NoticeOfCompletion
-            );
-            if self.source.state() != State::Idle && !self.source_waits_for_sum() && past_data {
+            if self.source.state() != State::Idle && !self.source_waits_for_sum() && !self.source_before_eof() {
                 self.run_source(None);
             }
             if self.dest.state() != State::Idle {
