@@ -166,6 +166,13 @@ pub const MAX_LOST_SEGMENTS: usize = (MAX_FILE_LEN as usize).div_ceil(MAX_SEGMEN
 /// housekeeping and events and never sends faster than a ground takes its frames (at 8 a
 /// period the ground's socket dropped 113 of 277 frames of a clean 256 KiB `get`).
 pub const SEGMENTS_PER_POLL: usize = 3;
+/// File data PDUs board A's file service reads and sends a control period, at most
+/// (`mmic_cfdp::Entity::poll_paced`), and only while its downlink has room for them: the
+/// board encrypts `fw_core::spacelink::SDLS_WORK_PER_PERIOD` GCM blocks a period, less than
+/// one segment (a const assertion there), so more would only queue ahead of the link; a
+/// segment read and framed is about 30 000 RV32 instructions of the period
+/// (`firmware/qemu-tests` `t_files`, enforced in `t_budget`).
+pub const BOARD_SEGMENTS_PER_PERIOD: usize = 1;
 /// File bytes the robot's entity reads and sums per call of its `poll` (per control period
 /// on board; the ground's sums a whole file a poll) while a file's checksum is computed: the sender's during its file data, the
 /// receiver's while it holds the EOF (or the segment that completes the file) that would

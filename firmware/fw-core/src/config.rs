@@ -45,14 +45,6 @@ pub const UART_READ_CHUNK: usize = 64;
 /// UART RX FIFO threshold that wakes the reader (bytes).
 pub const UART_FIFO_THRESHOLD: u16 = 32;
 
-/// File data PDUs board A's file service reads and sends a control period, at most
-/// (`mmic_cfdp::Entity::poll_paced`; the host obsw sends `mib::cfdp::SEGMENTS_PER_POLL`),
-/// and only while the downlink has room for them: the downlink encrypts
-/// `spacelink::SDLS_WORK_PER_PERIOD` GCM blocks a period, less than one segment, so more
-/// would only queue ahead of the link — and a segment read and framed is about 30 000
-/// instructions of the period (`firmware/qemu-tests` `t_files`, enforced in `t_budget`).
-pub const FILE_SEGMENTS_PER_PERIOD: usize = 1;
-
 /// Bytes of panic message kept in RTC fast RAM for the next boot.
 pub const PANIC_MSG_LEN: usize = 120;
 

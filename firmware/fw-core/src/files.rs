@@ -12,7 +12,7 @@
 //!   frame (`TmSink::replay_room`); the PDU that does not fit waits in the entity's outbox
 //!   (`mib::cfdp::OUTBOX_DEPTH`) with the rest, so a slow link slows the transfer down
 //!   instead of losing its PDUs. It reads file data only as fast as the downlink takes it,
-//!   at most `config::FILE_SEGMENTS_PER_PERIOD` segments a period, and nothing of the
+//!   at most `mib::cfdp::BOARD_SEGMENTS_PER_PERIOD` segments a period, and nothing of the
 //!   store (no file data, no checksum) in a period that handled a packet, its own or a TC
 //!   ([`FileService::tc_handled`]; `Entity::poll_paced`): one piece of heavy work a
 //!   period, the control period's CPU budget (`t_budget`);
@@ -31,7 +31,6 @@
 //! Memory: the entity is inline (its handlers, outbox and gap list; no heap), borrowing the
 //! [`Parts`] the image keeps in a static; [`NoFiles`] is a board without a file store.
 
-use crate::config;
 use mib::cfdp::{GROUND_ENTITY_ID, MAX_PACKET_LEN};
 use mmic_cfdp::entity::{Counters, Pace};
 use mmic_cfdp::packet::{self, Direction};
@@ -154,15 +153,8 @@ impl<'a, S: FlatStore + KeepSeq + EraseAhead> Files<'a, S> {
     /// What the entity, its watch and the store counted (a failed store of the sequence
     /// number or erase ahead is a store medium error).
     fn file_counters(&self) -> FileCounters {
-        let mut c = cfdp::counters(
-            &self.entity,
-            &self.watch,
-            self.store.files,
-            self.store.free,
-            self.removed,
-        );
+        let mut c = cfdp::counters(&self.entity, &self.watch, &self.down, &self.store, self.removed);
         c.store_io_errors = c.store_io_errors.wrapping_add(self.medium_errors);
-        c.outbox_dropped = c.outbox_dropped.wrapping_add(self.down.unsent);
         c
     }
 
@@ -174,7 +166,7 @@ impl<'a, S: FlatStore + KeepSeq + EraseAhead> Files<'a, S> {
     /// The entity's counters; PDUs that did not fit a packet count as lost to the outbox.
     pub fn counters(&self) -> Counters {
         let mut c = self.entity.counters();
-        c.outbox_dropped = c.outbox_dropped.wrapping_add(self.down.unsent);
+        c.outbox_dropped = c.outbox_dropped.wrapping_add(self.down.unsent());
         c
     }
 }
@@ -208,7 +200,7 @@ impl<S: FlatStore + KeepSeq + EraseAhead> FileService for Files<'_, S> {
             Pace::Quiet
         } else {
             let room = sink.replay_room() / MAX_PACKET_LEN;
-            Pace::Segments(room.min(config::FILE_SEGMENTS_PER_PERIOD))
+            Pace::Segments(room.min(mib::cfdp::BOARD_SEGMENTS_PER_PERIOD))
         };
         self.entity.poll_paced(now, pace);
         // Before any PDU of a transaction that took a new number goes down.

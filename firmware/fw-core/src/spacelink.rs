@@ -46,9 +46,10 @@ use crate::files::FileService;
 /// them and COP-1 retransmits.
 pub const SDLS_WORK_PER_PERIOD: usize = 48;
 // A period's encryption carries less than one file data segment: the file service's one
-// segment a period keeps up with the downlink (`config::FILE_SEGMENTS_PER_PERIOD`).
-const _: () =
-    assert!(SDLS_WORK_PER_PERIOD * 16 <= crate::config::FILE_SEGMENTS_PER_PERIOD * mib::cfdp::MAX_SEGMENT_LEN);
+// segment a period keeps up with the downlink (`mib::cfdp::BOARD_SEGMENTS_PER_PERIOD`).
+const _: () = assert!(
+    SDLS_WORK_PER_PERIOD * mmic_link::gcm::BLOCK <= mib::cfdp::BOARD_SEGMENTS_PER_PERIOD * mib::cfdp::MAX_SEGMENT_LEN
+);
 
 /// The provisioned keys (see [`crate::keys`]).
 #[derive(Clone, Copy, PartialEq, Eq)]

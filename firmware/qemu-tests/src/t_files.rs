@@ -63,7 +63,7 @@ struct Timed<'a> {
     data_sent: usize,
 }
 
-/// A sink that counts the file data PDUs sent through it (the PDU header's type bit).
+/// A sink that counts the file data PDUs sent through it.
 struct DataCount<'s, T> {
     inner: &'s mut T,
     data: usize,
@@ -74,7 +74,9 @@ impl<T: TmSink> TmSink for DataCount<'_, T> {
         self.inner.send_tm(packet);
     }
     fn send_file(&mut self, packet: &[u8]) {
-        if packet::unwrap(Direction::Down, packet).is_some_and(|pdu| pdu[0] & 0x10 != 0) {
+        use mmic_cfdp::spacepackets::cfdp::{pdu::PduHeader, PduType};
+        let header = packet::unwrap(Direction::Down, packet).and_then(|pdu| PduHeader::from_bytes(pdu).ok());
+        if header.is_some_and(|(h, _)| h.pdu_type() == PduType::FileData) {
             self.data += 1;
         }
         self.inner.send_file(packet);
@@ -373,10 +375,10 @@ fn files_put_class_2_and_1_get_and_a_malformed_pdu_through_board_a_s_frame_link(
     let n = ok!(read_all(&ground_parts, "down.bin", &mut back));
     check!(back[..n] == data[..], "the ground's copy differs ({} bytes)", n);
     let get_worst = rig.worst.any;
-    // The board read and sent its file at most `FILE_SEGMENTS_PER_PERIOD` segments a
+    // The board read and sent its file at most `BOARD_SEGMENTS_PER_PERIOD` segments a
     // period (`Entity::poll_paced`), and none in the period that took the request.
     check!(
-        rig.board.data_sent <= config::FILE_SEGMENTS_PER_PERIOD,
+        rig.board.data_sent <= mib::cfdp::BOARD_SEGMENTS_PER_PERIOD,
         "{} file data PDUs sent in one period",
         rig.board.data_sent
     );

@@ -26,7 +26,7 @@ pub fn wrap(dir: Direction, seq: u16, pdu: &[u8], out: &mut [u8]) -> Option<usiz
         Direction::Down => 0,
     };
     out[..2].copy_from_slice(&(kind | APID).to_be_bytes());
-    out[2..4].copy_from_slice(&(0xC000 | (seq & 0x3FFF)).to_be_bytes());
+    out[2..4].copy_from_slice(&(0xC000 | mib::headers::SeqCount::new(seq).get()).to_be_bytes());
     out[4..6].copy_from_slice(&((pdu.len() - 1) as u16).to_be_bytes());
     out[HEADER_LEN..n].copy_from_slice(pdu);
     Some(n)

@@ -135,17 +135,8 @@ impl<'a> Files<'a> {
         }
     }
 
-    /// What the entity, its watch and the store counted; PDUs no packet could hold count as
-    /// lost to the outbox.
+    /// What the entity, its watch, its downlink and the store counted.
     fn counters(&self) -> FileCounters {
-        let mut c = cfdp::counters(
-            &self.entity,
-            &self.watch,
-            self.store.files,
-            self.store.free,
-            self.removed,
-        );
-        c.outbox_dropped = c.outbox_dropped.wrapping_add(self.down.unsent);
-        c
+        cfdp::counters(&self.entity, &self.watch, &self.down, &self.store, self.removed)
     }
 }

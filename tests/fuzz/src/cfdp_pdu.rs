@@ -19,6 +19,7 @@
 
 use mmic_cfdp::entity::{well_formed, Counters, Pace};
 use mmic_cfdp::packet::{self, Direction};
+use mmic_cfdp::spacepackets::cfdp::{pdu::PduHeader, PduType};
 use mmic_cfdp::store::MemStore;
 use mmic_cfdp::{Class, Entity, FileName, Parts};
 
@@ -135,7 +136,7 @@ pub fn run(data: &[u8]) {
                         let added: Vec<Vec<u8>> = std::iter::from_fn(|| robot.pop()).map(|p| p.to_vec()).collect();
                         let data = added
                             .iter()
-                            .filter(|p| p.first().is_some_and(|b| b & 0x10 != 0))
+                            .filter(|p| PduHeader::from_bytes(p).is_ok_and(|(h, _)| h.pdu_type() == PduType::FileData))
                             .count();
                         assert!(data <= most, "{data} file data PDUs in a poll paced {pace:?}");
                         down.extend(added);

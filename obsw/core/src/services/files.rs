@@ -279,6 +279,7 @@ pub mod cfdp {
 
     use super::{Began, Class, Direction, Ended, FileCounters};
     use crate::tm::TmSink;
+    use mib::headers::SeqCount;
 
     /// The entity's PDUs to the downlink as TM packets of `mib::cfdp::APID` (no PUS header),
     /// in order, each wrapped where it lies in the entity's outbox and sent only while the
@@ -287,10 +288,10 @@ pub mod cfdp {
     #[derive(Clone, Copy, Debug, Default)]
     pub struct PduDownlink {
         /// The next packet's sequence count.
-        seq: u16,
+        seq: SeqCount,
         /// PDUs no packet could hold (none can: the outbox takes at most `MAX_PDU_LEN`
-        /// bytes a PDU), dropped; a platform adds them to HK FILES' outbox drops.
-        pub unsent: u32,
+        /// bytes a PDU), dropped; counted in HK FILES' outbox drops ([`counters`]).
+        unsent: u32,
     }
 
     /// What became of the next PDU.
@@ -301,6 +302,11 @@ pub mod cfdp {
     }
 
     impl PduDownlink {
+        /// PDUs no packet could hold, dropped.
+        pub fn unsent(&self) -> u32 {
+            self.unsent
+        }
+
         /// Sends the entity's next PDU when the sink takes it, wrapped in `buf`: `Some`
         /// with the transaction its metadata opens (`watch`), `None` when there is none or
         /// no room. A caller loops until `None` with one buffer, reporting each opened
@@ -315,13 +321,13 @@ pub mod cfdp {
             loop {
                 let seq = &mut self.seq;
                 let next = entity.peek_next(|pdu| {
-                    let Some(n) = packet::wrap(PacketDirection::Down, *seq, pdu, buf) else {
+                    let Some(n) = packet::wrap(PacketDirection::Down, seq.get(), pdu, buf) else {
                         return Next::Unsendable;
                     };
                     if sink.replay_room() < n {
                         return Next::NoRoom;
                     }
-                    *seq = seq.wrapping_add(1) & 0x3FFF;
+                    *seq = seq.next();
                     sink.send_file(&buf[..n]);
                     Next::Sent(watch.sent(pdu))
                 })?;
@@ -365,14 +371,14 @@ pub mod cfdp {
         }
     }
 
-    /// What `entity`, its store and `watch` counted; `files` and `free` are the store's
-    /// (the platform counts them when it likes: a listing reads the medium), `removed` what
+    /// What `entity`, its store, `watch` and `down` counted; the store's files and free
+    /// bytes as `look` last counted them (a listing reads the medium), `removed` what
     /// `Entity::discard_partial` removed at start.
     pub fn counters<S: FlatStore>(
         entity: &Entity<'_, S>,
         watch: &Watch,
-        files: u16,
-        free: u32,
+        down: &PduDownlink,
+        look: &StoreLook,
         removed: u16,
     ) -> FileCounters {
         let (c, s, w) = (entity.counters(), entity.store().counters(), watch);
@@ -391,7 +397,7 @@ pub mod cfdp {
             segments_resent: c.resent,
             naks_sent: w.naks_sent,
             naks_received: w.naks_received,
-            outbox_dropped: c.outbox_dropped,
+            outbox_dropped: c.outbox_dropped.wrapping_add(down.unsent),
             resend_dropped: c.resend_dropped,
             superseded: c.superseded,
             fs_done: c.fs_done,
@@ -400,8 +406,8 @@ pub mod cfdp {
             store_bad_names: s.bad_names,
             store_full: s.full,
             store_io_errors: s.io_errors,
-            store_files: files,
-            store_free: free,
+            store_files: look.files,
+            store_free: look.free,
             partials_removed: removed,
         }
     }
